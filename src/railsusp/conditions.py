@@ -1,0 +1,308 @@
+"""Working conditions: speed, track layout (curve, cant, spirals, grade), irregularity class.
+
+A :class:`WorkingCondition` is what the wagon is asked to do, kept apart from the wagon
+(``params``) and from the equations (``vehicle``), PyBaMM-style. Fields carry engineering units
+in their names (km/h, mm, per mille, kN) because they are user input; the ``*_si`` properties
+give SI values for the simulator.
+
+The study's three conditions (its Table 6), all at 60 km/h:
+
+* ``straight``: tangent track, FRA Class 5 irregularities.
+* ``curve``: R = 300 m. The study gives no cant or spirals. A heavy-haul line carrying loaded
+  and empty trains sets cant for the mean running speed rather than the maximum: with about
+  53 km/h, h = 11.8 V^2 / R = 110 mm (Chinese practice, V in km/h), i.e. 32 mm cant deficiency
+  at 60 km/h (balance cant 141.6 mm). Entry and exit spirals of 60 m (cant run-off 1.8 per
+  mille, within the 1:500 limit). The entry spiral is run during the lead-in, so the 20 s
+  recording is in the full circular arc, as the measured curve forces of the study are.
+* ``uphill``: the study writes slope "0.1". Read as a ratio (10 % = 100 per mille) it is
+  beyond adhesion for any heavy-haul train, and as 0.1 per mille it is flat, so neither is a
+  "long and steep" grade. We take 12 per mille, the ruling grade of China's heavy-haul coal
+  lines (Daqin, Shuohuang), as the default; ``grade_permille`` changes it. The coupler force
+  defaults to 650 kN tension: the grade and running resistance of about 5000 t of trailing
+  load (mid-train position of a 10 000 t train, 12 per mille + 1.3 N/kN resistance).
+
+The recording duration defaults to 20 s sampled to 1000 output steps, the study's series
+length (50 Hz output).
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from railsusp.errors import ConditionError
+
+GRAVITY = 9.81  # m/s^2
+#: Lateral distance over which cant is measured (rail-head centres, Chinese practice), m.
+CANT_BASE_M = 1.5
+
+
+def _f(default: Any, lo: float | None, hi: float | None, unit: str, doc: str, **kw: Any):
+    """A bounded float field whose range and unit are reported in error messages."""
+    extra = {"unit": unit}
+    ge = {} if lo is None else {"ge": lo}
+    le = {} if hi is None else {"le": hi}
+    return Field(default, description=f"{doc} [{unit}]", json_schema_extra=extra, **ge, **le, **kw)
+
+
+class WorkingCondition(BaseModel):
+    """One working condition of the wagon on a track section (validated on construction)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    name: str = Field("custom", min_length=1, max_length=64, description="label")
+    speed_kmh: float = _f(60.0, 1.0, 200.0, "km/h", "running speed")
+    duration_s: float = _f(20.0, 1.0, 600.0, "s", "recorded duration")
+    n_steps: int = Field(1000, ge=10, le=1_000_000, description="output samples in the record")
+    lead_in_m: float = _f(
+        100.0, 0.0, 5000.0, "m", "distance run before recording starts (transients, entry spiral)"
+    )
+    curve_radius_m: float | None = _f(
+        None, 50.0, 100_000.0, "m", "circular-curve radius; None for tangent track"
+    )
+    curve_direction: Literal["left", "right"] = Field(
+        "left", description="direction of the curve seen in the running direction"
+    )
+    cant_mm: float = _f(0.0, 0.0, 200.0, "mm", "superelevation of the outer rail in the arc")
+    curve_start_m: float = _f(20.0, 0.0, 10_000.0, "m", "start of the entry spiral")
+    entry_spiral_m: float = _f(0.0, 0.0, 1000.0, "m", "entry transition (clothoid) length")
+    arc_length_m: float | None = _f(
+        None, 0.0, 100_000.0, "m", "circular arc length; None: until the section end"
+    )
+    exit_spiral_m: float = _f(0.0, 0.0, 1000.0, "m", "exit transition (clothoid) length")
+    grade_permille: float = _f(0.0, -40.0, 40.0, "‰", "longitudinal grade, + is up-grade")
+    coupler_force_kN: float = _f(
+        0.0, -3000.0, 3000.0, "kN", "longitudinal coupler force (+ tension) from the train"
+    )
+    irregularity_class: int | None = Field(
+        5, ge=1, le=6, description="FRA/AAR track class of the irregularity PSD; None: perfect"
+    )
+    wavelength_min_m: float = _f(1.0, 0.1, 50.0, "m", "shortest irregularity wavelength")
+    wavelength_max_m: float = _f(120.0, 2.0, 1000.0, "m", "longest irregularity wavelength")
+    seed: int = Field(0, ge=0, le=2**63 - 1, description="irregularity random seed")
+    wheel_rail_friction: float = _f(0.3, 0.05, 0.8, "-", "wheel-rail friction coefficient")
+
+    @model_validator(mode="after")
+    def _consistent(self) -> WorkingCondition:
+        if self.wavelength_min_m >= self.wavelength_max_m:
+            raise ValueError(
+                f"wavelength_min_m = {self.wavelength_min_m:g} must be below "
+                f"wavelength_max_m = {self.wavelength_max_m:g}"
+            )
+        if self.curve_radius_m is None and (
+            self.cant_mm or self.entry_spiral_m or self.exit_spiral_m
+        ):
+            raise ValueError("cant_mm and spirals need a curve_radius_m")
+        if self.curve_radius_m is not None and self.arc_length_m is not None:
+            if self.arc_length_m <= 0 and not (self.entry_spiral_m or self.exit_spiral_m):
+                raise ValueError("arc_length_m = 0 with no spirals leaves no curve")
+        return self
+
+    # ----- SI views -----
+    @property
+    def speed(self) -> float:
+        """Running speed, m/s."""
+        return self.speed_kmh / 3.6
+
+    @property
+    def cant(self) -> float:
+        """Cant (superelevation) of the arc, m."""
+        return self.cant_mm * 1e-3
+
+    @property
+    def cant_angle(self) -> float:
+        """Cant angle of the arc, rad (over the 1.5 m rail-head base)."""
+        return math.asin(self.cant / CANT_BASE_M)
+
+    @property
+    def grade(self) -> float:
+        """Grade as a ratio (rise over run), + up."""
+        return self.grade_permille * 1e-3
+
+    @property
+    def coupler_force(self) -> float:
+        """Longitudinal coupler force, N (+ tension)."""
+        return self.coupler_force_kN * 1e3
+
+    @property
+    def sample_interval(self) -> float:
+        """Output sample interval, s."""
+        return self.duration_s / self.n_steps
+
+    @property
+    def record_length_m(self) -> float:
+        """Distance run while recording, m."""
+        return self.speed * self.duration_s
+
+    @property
+    def section_length_m(self) -> float:
+        """Distance run by the leading wheelset: lead-in plus recording, m."""
+        return self.lead_in_m + self.record_length_m
+
+    @property
+    def curvature(self) -> float:
+        """Signed curvature of the arc, 1/m (+ for a left-hand curve, y to the left)."""
+        if self.curve_radius_m is None:
+            return 0.0
+        sign = 1.0 if self.curve_direction == "left" else -1.0
+        return sign / self.curve_radius_m
+
+    @property
+    def balance_cant_mm(self) -> float:
+        """Cant that balances the centripetal acceleration at this speed, mm (0 on tangent)."""
+        if self.curve_radius_m is None:
+            return 0.0
+        return CANT_BASE_M * 1e3 * self.speed**2 / (GRAVITY * self.curve_radius_m)
+
+    @property
+    def cant_deficiency_mm(self) -> float:
+        """Balance cant minus actual cant, mm."""
+        return self.balance_cant_mm - self.cant_mm if self.curve_radius_m else 0.0
+
+    @property
+    def kind(self) -> str:
+        """'curve', 'grade' or 'tangent', for display."""
+        if self.curve_radius_m is not None:
+            return "curve"
+        return "grade" if self.grade_permille else "tangent"
+
+    def describe(self) -> str:
+        """One-line summary in engineering units."""
+        parts = [f"{self.speed_kmh:g} km/h"]
+        if self.curve_radius_m is not None:
+            parts.append(
+                f"R {self.curve_radius_m:g} m {self.curve_direction}, cant {self.cant_mm:g} mm "
+                f"(deficiency {self.cant_deficiency_mm:.1f} mm), spirals "
+                f"{self.entry_spiral_m:g}/{self.exit_spiral_m:g} m"
+            )
+        else:
+            parts.append("tangent")
+        if self.grade_permille:
+            parts.append(f"grade {self.grade_permille:+g} ‰")
+        if self.coupler_force_kN:
+            parts.append(f"coupler {self.coupler_force_kN:g} kN")
+        irr = (
+            "perfect track"
+            if self.irregularity_class is None
+            else f"FRA class {self.irregularity_class} ({self.wavelength_min_m:g}-"
+            f"{self.wavelength_max_m:g} m), seed {self.seed}"
+        )
+        parts.append(irr)
+        parts.append(f"{self.duration_s:g} s / {self.n_steps} steps")
+        return ", ".join(parts)
+
+    def with_changes(self, **changes: Any) -> WorkingCondition:
+        """A validated copy with some fields changed."""
+        return make_condition({**self.model_dump(), **changes})
+
+
+def make_condition(fields: dict[str, Any]) -> WorkingCondition:
+    """Build a condition from a dict, turning validation failures into one-line errors."""
+    try:
+        return WorkingCondition(**fields)
+    except ValidationError as exc:
+        raise ConditionError(_format_errors(fields.get("name", "custom"), exc)) from None
+    except TypeError as exc:
+        raise ConditionError(f"condition {fields.get('name', 'custom')!r}: {exc}") from None
+
+
+def _format_errors(name: str, exc: ValidationError) -> str:
+    """One line per pydantic error, naming field, value and accepted range with unit."""
+    msgs = []
+    for err in exc.errors():
+        field = ".".join(str(p) for p in err["loc"]) or "condition"
+        info = WorkingCondition.model_fields.get(field)
+        unit = ""
+        lo = hi = None
+        if info is not None:
+            extra = info.json_schema_extra
+            unit = extra.get("unit", "") if isinstance(extra, dict) else ""
+            for m in info.metadata:
+                lo = getattr(m, "ge", lo)
+                hi = getattr(m, "le", hi)
+        if err["type"] == "extra_forbidden":
+            known = ", ".join(WorkingCondition.model_fields)
+            msgs.append(f"unknown field {field!r} (accepted: {known})")
+            continue
+        value = err.get("input")
+        shown = "" if field == "condition" else f"{field} = {value!r}: "
+        text = err["msg"].removeprefix("Value error, ")
+        if lo is not None or hi is not None:
+            rng = f"[{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
+            msgs.append(f"{shown}accepted range {rng} {unit}".rstrip() + f" ({text})")
+        else:
+            msgs.append(f"{shown}{text}")
+    return f"condition {name!r}: " + "; ".join(msgs)
+
+
+#: The study's Table 6 conditions, with the documented choices above.
+STANDARD_CONDITIONS: dict[str, WorkingCondition] = {
+    "straight": WorkingCondition(name="straight", seed=1),
+    "curve": WorkingCondition(
+        name="curve",
+        curve_radius_m=300.0,
+        cant_mm=110.0,
+        curve_start_m=20.0,
+        entry_spiral_m=60.0,
+        exit_spiral_m=60.0,
+        arc_length_m=None,
+        seed=2,
+    ),
+    "uphill": WorkingCondition(name="uphill", grade_permille=12.0, coupler_force_kN=650.0, seed=3),
+}
+
+
+def get_condition(name: str, **overrides: Any) -> WorkingCondition:
+    """A standard condition by name, optionally with fields changed."""
+    key = name.strip().lower()
+    if key not in STANDARD_CONDITIONS:
+        raise ConditionError(
+            f"unknown condition {name!r}; accepted: {', '.join(STANDARD_CONDITIONS)} or a TOML file"
+        )
+    cond = STANDARD_CONDITIONS[key]
+    return cond.with_changes(**overrides) if overrides else cond
+
+
+def load_conditions(source: str | Path) -> list[WorkingCondition]:
+    """Read conditions from TOML: ``[[condition]]`` tables, or ``[condition.NAME]`` tables.
+
+    A table may start from a standard condition with ``base = "curve"`` and change fields.
+    """
+    path = Path(source)
+    if not path.exists():
+        raise ConditionError(f"condition file {path} does not exist")
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ConditionError(f"{path}: not valid TOML ({exc})") from None
+    raw = doc.get("condition")
+    if isinstance(raw, dict):
+        tables = [{"name": k, **v} for k, v in raw.items()]
+    elif isinstance(raw, list):
+        tables = raw
+    else:
+        raise ConditionError(f"{path}: expected [[condition]] or [condition.NAME] tables")
+    out = []
+    for table in tables:
+        fields = dict(table)
+        base = fields.pop("base", None)
+        try:
+            if base is not None:
+                start = get_condition(base).model_dump()
+                start.update(fields)
+                fields = start
+            out.append(make_condition(fields))
+        except ConditionError as exc:
+            raise ConditionError(f"{path}: {exc}") from None
+    return out
+
+
+def resolve_conditions(spec: str) -> list[WorkingCondition]:
+    """Comma-separated standard names (``"straight,curve"``) or a TOML file path."""
+    if spec.endswith(".toml") or Path(spec).is_file():
+        return load_conditions(spec)
+    return [get_condition(n) for n in spec.split(",") if n.strip()]

@@ -1,0 +1,510 @@
+"""Parameter catalogue of the C80 wagon / K6 bogie model (Tables 1 and 2 of the reference study).
+
+Twenty parameters X1..X20 with their nominal values; the ten *main suspension parameters*
+X11..X20 carry the sampling ranges of Table 2 (nominal -50 % .. +50 %). Values are held in SI
+inside the code; the study's units (MN/m, mm, ...) are used only for display and user input.
+
+Units the study got wrong, and what railsusp uses instead (values typed by users stay the
+study's numbers, only the unit label changes):
+
+* X18, "secondary suspension lateral shock absorber damping", 50 MN·s/m. A K6 bogie has no
+  hydraulic lateral damper; its lateral damping comes from the friction wedges. 50 MN·s/m would
+  lock the bolster to the side frames (critical damping of the bolster on 1.8 MN/m is about
+  60 kN·s/m). We read the value as **50 kN·s/m**, an equivalent viscous lateral damping per
+  spring nest, which is physically the right order.
+* X19, "swing arm node longitudinal/vertical stiffness", 30 000 MN/m. The K6 has no swing
+  arm; the elastic nodes it has are those of the cross-bracing bars whose pin-hole spans are
+  X9 and X10. 30 GN/m is stiffer than the steel bar itself (EA/L about 70 MN/m), so we read the
+  value as **30 000 kN/m = 30 MN/m**, the axial stiffness of one cross-bracing bar with its
+  rubber nodes.
+* X20, "primary spring longitudinal/lateral stiffness", 1000 MN/m. Taken at face value
+  (**1 GN/m**): the contact stiffness of the bearing-adapter seat, acting in series with the
+  primary shear pad (X13, X14). Being stiff, its influence is weak, in line with the study
+  not finding it a key parameter.
+* X12, "stop clearance", 12 mm: the lateral gib clearance between bolster and side frame.
+* X11, "lateral span of resilient side bearing", 1.52 m: the distance between the two
+  constant-contact side bearers on one bolster.
+
+Table 1 lists X16/X17 as the secondary longitudinal/lateral stiffness per bogie side (spring
+nest shear stiffness) and X13-X15 per axle box (primary rubber pad); see docs/parameters.md.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Iterable, Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from railsusp.errors import ParameterError
+
+Units = Literal["si", "display"]
+
+
+@dataclass(frozen=True)
+class ParameterSpec:
+    """One catalogue entry: symbol, engineering name, units and nominal value (display units).
+
+    ``scale`` converts a display-unit value to SI (``si = display * scale``). ``bounds`` is the
+    sampling range of Table 2 in display units, or None for fixed (non-sampled) parameters.
+    """
+
+    symbol: str
+    name: str
+    description: str
+    display_unit: str
+    si_unit: str
+    scale: float
+    nominal_display: float
+    bounds_display: tuple[float, float] | None = None
+    table_unit: str | None = None
+    note: str = ""
+
+    @property
+    def nominal(self) -> float:
+        """Nominal value in SI units."""
+        return self.nominal_display * self.scale
+
+    @property
+    def bounds(self) -> tuple[float, float] | None:
+        """Sampling range in SI units, or None for a fixed parameter."""
+        if self.bounds_display is None:
+            return None
+        lo, hi = self.bounds_display
+        return lo * self.scale, hi * self.scale
+
+    @property
+    def is_sampled(self) -> bool:
+        """True for the main suspension parameters that carry a Table 2 range."""
+        return self.bounds_display is not None
+
+    def to_display(self, value_si: float) -> float:
+        """Convert an SI value to this parameter's display unit."""
+        return value_si / self.scale
+
+    def range_text(self) -> str:
+        """Human-readable accepted range in display units, for error messages."""
+        if self.bounds_display is None:
+            return f"> 0 {self.display_unit}"
+        lo, hi = self.bounds_display
+        return f"[{lo:g}, {hi:g}] {self.display_unit}"
+
+    def check(self, value_si: float) -> float:
+        """Return ``value_si`` as float after validation; raise ParameterError otherwise."""
+        try:
+            value = float(value_si)
+        except (TypeError, ValueError):
+            raise ParameterError(
+                f"{self.symbol} ({self.description}) = {value_si!r} is not a number; "
+                f"accepted range {self.range_text()}"
+            ) from None
+        shown = self.to_display(value) if math.isfinite(value) else value
+        if not math.isfinite(value):
+            raise ParameterError(
+                f"{self.symbol} ({self.description}) = {shown} is not finite; "
+                f"accepted range {self.range_text()}"
+            )
+        bounds = self.bounds
+        if bounds is None:
+            if value <= 0.0:
+                raise ParameterError(
+                    f"{self.symbol} ({self.description}) = {shown:g} {self.display_unit} "
+                    f"must be positive"
+                )
+        else:
+            lo, hi = bounds
+            # Tolerate round-off from unit conversion at the range ends.
+            tol = 1e-9 * max(abs(lo), abs(hi))
+            if not lo - tol <= value <= hi + tol:
+                raise ParameterError(
+                    f"{self.symbol} ({self.description}) = {shown:g} {self.display_unit} is "
+                    f"outside the accepted range {self.range_text()}"
+                )
+        return value
+
+
+def _spec(symbol, name, description, unit, si_unit, scale, nominal, bounds=None, **kw):
+    return ParameterSpec(symbol, name, description, unit, si_unit, scale, nominal, bounds, **kw)
+
+
+_MN = 1.0e6
+_KN = 1.0e3
+
+#: Table 1 and Table 2 of the study, in study order.
+CATALOGUE: tuple[ParameterSpec, ...] = (
+    _spec("X1", "wheelset_mass", "wheelset mass", "kg", "kg", 1.0, 1200.0),
+    _spec(
+        "X2",
+        "wheelset_roll_inertia",
+        "wheelset roll moment of inertia",
+        "kg·m²",
+        "kg·m²",
+        1.0,
+        800.0,
+    ),
+    _spec(
+        "X3",
+        "wheelset_pitch_inertia",
+        "wheelset pitch (spin) moment of inertia",
+        "kg·m²",
+        "kg·m²",
+        1.0,
+        110.0,
+    ),
+    _spec(
+        "X4", "wheelset_yaw_inertia", "wheelset yaw moment of inertia", "kg·m²", "kg·m²", 1.0, 800.0
+    ),
+    _spec(
+        "X5", "adapter_mass", "bearing adapter (load-bearing saddle) mass", "kg", "kg", 1.0, 27.0
+    ),
+    _spec(
+        "X6",
+        "adapter_roll_inertia",
+        "bearing adapter roll moment of inertia",
+        "kg·m²",
+        "kg·m²",
+        1.0,
+        0.4,
+    ),
+    _spec(
+        "X7",
+        "adapter_pitch_inertia",
+        "bearing adapter pitch moment of inertia",
+        "kg·m²",
+        "kg·m²",
+        1.0,
+        0.2,
+    ),
+    _spec(
+        "X8",
+        "adapter_yaw_inertia",
+        "bearing adapter yaw moment of inertia",
+        "kg·m²",
+        "kg·m²",
+        1.0,
+        0.4,
+    ),
+    _spec(
+        "X9",
+        "cross_brace_longitudinal_span",
+        "longitudinal span of cross-bracing pin holes",
+        "m",
+        "m",
+        1.0,
+        1.0,
+    ),
+    _spec(
+        "X10",
+        "cross_brace_lateral_span",
+        "lateral span of cross-bracing pin holes",
+        "m",
+        "m",
+        1.0,
+        1.981,
+    ),
+    _spec(
+        "X11",
+        "side_bearer_lateral_span",
+        "lateral span of the resilient side bearers",
+        "m",
+        "m",
+        1.0,
+        1.52,
+        (0.76, 2.28),
+    ),
+    _spec(
+        "X12",
+        "lateral_stop_clearance",
+        "bolster lateral stop (gib) clearance",
+        "mm",
+        "m",
+        1.0e-3,
+        12.0,
+        (6.0, 18.0),
+    ),
+    _spec(
+        "X13",
+        "primary_longitudinal_stiffness",
+        "primary longitudinal stiffness per axle box",
+        "MN/m",
+        "N/m",
+        _MN,
+        14.0,
+        (7.0, 21.0),
+    ),
+    _spec(
+        "X14",
+        "primary_lateral_stiffness",
+        "primary lateral stiffness per axle box",
+        "MN/m",
+        "N/m",
+        _MN,
+        10.0,
+        (5.0, 15.0),
+    ),
+    _spec(
+        "X15",
+        "primary_vertical_stiffness",
+        "primary vertical stiffness per axle box",
+        "MN/m",
+        "N/m",
+        _MN,
+        170.0,
+        (85.0, 255.0),
+    ),
+    _spec(
+        "X16",
+        "secondary_longitudinal_stiffness",
+        "secondary longitudinal stiffness per spring nest",
+        "MN/m",
+        "N/m",
+        _MN,
+        1.8,
+        (0.9, 2.7),
+    ),
+    _spec(
+        "X17",
+        "secondary_lateral_stiffness",
+        "secondary lateral stiffness per spring nest",
+        "MN/m",
+        "N/m",
+        _MN,
+        1.8,
+        (0.9, 2.7),
+    ),
+    _spec(
+        "X18",
+        "secondary_lateral_damping",
+        "secondary lateral damping per spring nest (friction-wedge equivalent)",
+        "kN·s/m",
+        "N·s/m",
+        _KN,
+        50.0,
+        (25.0, 75.0),
+        table_unit="MN·s/m",
+        note="study prints MN·s/m; read as kN·s/m (see module docstring)",
+    ),
+    _spec(
+        "X19",
+        "cross_brace_node_stiffness",
+        "cross-bracing bar axial (elastic node) stiffness",
+        "kN/m",
+        "N/m",
+        _KN,
+        30000.0,
+        (15000.0, 45000.0),
+        table_unit="MN/m",
+        note="study prints MN/m ('swing arm node'); read as kN/m (see module docstring)",
+    ),
+    _spec(
+        "X20",
+        "adapter_seat_stiffness",
+        "primary spring long./lat. stiffness (adapter seat, series with X13/X14)",
+        "MN/m",
+        "N/m",
+        _MN,
+        1000.0,
+        (500.0, 1500.0),
+    ),
+)
+
+_BY_KEY: dict[str, ParameterSpec] = {}
+for _s in CATALOGUE:
+    _BY_KEY[_s.symbol] = _s
+    _BY_KEY[_s.symbol.lower()] = _s
+    _BY_KEY[_s.name] = _s
+
+#: Symbols in catalogue order.
+SYMBOLS: tuple[str, ...] = tuple(s.symbol for s in CATALOGUE)
+#: The ten main suspension parameters of the study (sampled, X11..X20).
+MAIN_SUSPENSION: tuple[str, ...] = tuple(s.symbol for s in CATALOGUE if s.is_sampled)
+#: The six key parameters the study selected by Sobol analysis (its Section 2.2).
+STUDY_KEY_PARAMETERS: tuple[str, ...] = ("X13", "X14", "X15", "X16", "X17", "X18")
+
+
+def spec(key: str) -> ParameterSpec:
+    """Look up a parameter by symbol (``"X13"``, case-insensitive) or name."""
+    try:
+        return _BY_KEY[key.strip()] if key.strip() in _BY_KEY else _BY_KEY[key.strip().lower()]
+    except KeyError:
+        raise ParameterError(
+            f"unknown parameter {key!r}; accepted: X1..X20 or their names "
+            f"(e.g. X13 or primary_longitudinal_stiffness)"
+        ) from None
+
+
+def bounds(symbols: Iterable[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper sampling bounds (SI) of the given sampled parameters, as arrays."""
+    specs = [spec(s) for s in symbols]
+    for s in specs:
+        if s.bounds is None:
+            raise ParameterError(f"{s.symbol} ({s.description}) is fixed and has no range")
+    lo = np.array([s.bounds[0] for s in specs])  # type: ignore[index]
+    hi = np.array([s.bounds[1] for s in specs])  # type: ignore[index]
+    return lo, hi
+
+
+class ParameterSet(Mapping[str, float]):
+    """A complete, validated set of the 20 catalogue parameters, in SI units.
+
+    Keys are symbols (``"X13"``); lookup also accepts names. Parameters not given take their
+    nominal value. Construction raises :class:`ParameterError` naming the parameter, value
+    and accepted range for unknown names, non-finite values, and sampled parameters outside
+    their Table 2 range.
+
+    >>> ParameterSet({"X13": 16.1}, units="display")["X13"]
+    16100000.0
+    """
+
+    __slots__ = ("_values",)
+
+    def __init__(self, values: Mapping[str, float] | None = None, *, units: Units = "si"):
+        if units not in ("si", "display"):
+            raise ParameterError(f"units must be 'si' or 'display', got {units!r}")
+        data = {s.symbol: s.nominal for s in CATALOGUE}
+        for key, value in (values or {}).items():
+            s = spec(key)
+            v = value
+            if units == "display":
+                try:
+                    v = float(value) * s.scale
+                except (TypeError, ValueError):
+                    v = value  # let check() produce the message
+            data[s.symbol] = s.check(v)
+        self._values = data
+
+    @classmethod
+    def nominal(cls) -> ParameterSet:
+        """The study's nominal parameter set (Table 1)."""
+        return cls()
+
+    def replace(self, values: Mapping[str, float], *, units: Units = "si") -> ParameterSet:
+        """A copy with some parameters changed (given in ``units``)."""
+        merged: dict[str, float] = dict(self._values)
+        for key, value in values.items():
+            s = spec(key)
+            merged[s.symbol] = float(value) * s.scale if units == "display" else value
+        return ParameterSet(merged)
+
+    def __getitem__(self, key: str) -> float:
+        return self._values[spec(key).symbol]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(SYMBOLS)
+
+    def __len__(self) -> int:
+        return len(SYMBOLS)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, ParameterSet):
+            return NotImplemented
+        return self._values == other._values
+
+    def __hash__(self) -> int:
+        return hash(tuple(self._values.items()))
+
+    def __repr__(self) -> str:
+        changed = {k: self.display(k) for k in SYMBOLS if self._values[k] != spec(k).nominal}
+        return f"ParameterSet(changed from nominal: {changed or 'none'}, display units)"
+
+    def display(self, key: str) -> float:
+        """Value of one parameter in its display unit."""
+        s = spec(key)
+        return s.to_display(self._values[s.symbol])
+
+    def to_display(self) -> dict[str, float]:
+        """All values keyed by symbol, in display units."""
+        return {k: self.display(k) for k in SYMBOLS}
+
+    def to_array(self, symbols: Iterable[str] = SYMBOLS) -> np.ndarray:
+        """SI values of ``symbols`` as a float array (catalogue order by default)."""
+        return np.array([self[s] for s in symbols], dtype=float)
+
+    @classmethod
+    def from_toml(cls, source: str | Path) -> ParameterSet:
+        """Read display-unit values from a TOML file (or TOML text).
+
+        The values may sit at top level or in a ``[parameters]`` table, keyed by symbol or
+        name: ``X13 = 16.1`` or ``primary_longitudinal_stiffness = 16.1`` (MN/m).
+        """
+        text, where = _read_text(source)
+        try:
+            doc = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ParameterError(f"{where}: not valid TOML ({exc})") from None
+        table = doc.get("parameters", doc)
+        if not isinstance(table, dict):
+            raise ParameterError(f"{where}: [parameters] must be a table of name = value")
+        try:
+            return cls(table, units="display")
+        except ParameterError as exc:
+            raise ParameterError(f"{where}: {exc}") from None
+
+
+def parse_overrides(items: str | Iterable[str]) -> dict[str, float]:
+    """Parse ``"X13=16.1,X14=8.3"`` (or a list of ``"X13=16.1"``) into display-unit values.
+
+    Keys are validated against the catalogue; values must be numbers. Range checks happen
+    when the values are put into a :class:`ParameterSet`.
+    """
+    parts: list[str] = []
+    for item in [items] if isinstance(items, str) else items:
+        parts.extend(p for p in item.replace(";", ",").split(",") if p.strip())
+    out: dict[str, float] = {}
+    for part in parts:
+        if "=" not in part:
+            raise ParameterError(f"override {part.strip()!r} must look like X13=16.1")
+        key, _, raw = part.partition("=")
+        s = spec(key)
+        try:
+            value = float(raw)
+        except ValueError:
+            raise ParameterError(
+                f"override {part.strip()!r}: {raw.strip()!r} is not a number; "
+                f"accepted range for {s.symbol} {s.range_text()}"
+            ) from None
+        out[s.symbol] = value
+    return out
+
+
+def check_matrix(symbols: Iterable[str], matrix: np.ndarray) -> np.ndarray:
+    """Validate an (n_sets, n_symbols) matrix of SI values of sampled parameters.
+
+    Returns the matrix as a float array; raises ParameterError naming the first offending
+    row, parameter, value and range.
+    """
+    syms = [spec(s).symbol for s in symbols]
+    x = np.asarray(matrix, dtype=float)
+    if x.ndim != 2 or x.shape[1] != len(syms):
+        raise ParameterError(
+            f"parameter matrix must have shape (n_sets, {len(syms)}) for {syms}, got {x.shape}"
+        )
+    for j, sym in enumerate(syms):
+        col = x[:, j]
+        s = spec(sym)
+        if s.bounds is None:
+            bad = ~np.isfinite(col) | (col <= 0)
+        else:
+            lo, hi = s.bounds
+            tol = 1e-9 * max(abs(lo), abs(hi))
+            bad = ~np.isfinite(col) | (col < lo - tol) | (col > hi + tol)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            try:
+                s.check(col[i])
+            except ParameterError as exc:
+                raise ParameterError(f"row {i}: {exc}") from None
+    return x
+
+
+def _read_text(source: str | Path) -> tuple[str, str]:
+    path = Path(source) if not (isinstance(source, str) and "\n" in source) else None
+    if path is not None and path.exists():
+        return path.read_text(encoding="utf-8"), str(path)
+    if isinstance(source, Path) or (isinstance(source, str) and source.endswith(".toml")):
+        raise ParameterError(f"parameter file {source} does not exist")
+    return str(source), "<toml text>"

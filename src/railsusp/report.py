@@ -1,0 +1,89 @@
+"""Figures (matplotlib, headless) for the command line and, later, the run report.
+
+Each figure function takes data objects and an output path, and writes the file atomically
+(temporary file, then rename) so that an interrupted run never leaves half a PNG behind.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+from scipy.signal import welch
+
+from railsusp.vehicle.track import COMPONENTS, Irregularities, fra_psd
+
+_LABELS = {
+    "vertical": "vertical profile",
+    "alignment": "alignment",
+    "crosslevel": "cross-level",
+    "gauge": "gauge",
+}
+
+
+def save_figure(fig: plt.Figure, path: str | Path, dpi: int = 120) -> Path:
+    """Save ``fig`` atomically to ``path`` (format from the suffix) and close it."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=dpi, bbox_inches="tight")
+        os.replace(tmp, path)
+    finally:
+        plt.close(fig)
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
+
+
+def welch_psd(x: np.ndarray, dx: float, segment_m: float = 400.0) -> tuple[np.ndarray, np.ndarray]:
+    """One-sided spatial PSD of ``x`` (m) sampled every ``dx`` m: (Ω rad/m, S m²/(rad/m))."""
+    nper = int(min(len(x), max(64, round(segment_m / dx))))
+    f, p = welch(x, fs=1.0 / dx, nperseg=nper, detrend="constant")
+    return 2 * np.pi * f, p / (2 * np.pi)
+
+
+def plot_track_irregularities(irr: Irregularities, path: str | Path, seed_index: int = 0):
+    """Irregularity traces (mm vs distance) and their Welch PSD against the FRA spectrum."""
+    fig, axes = plt.subplots(len(COMPONENTS), 2, figsize=(12, 10), constrained_layout=True)
+    dx = float(irr.s[1] - irr.s[0])
+    omega_a = np.geomspace(2 * np.pi / irr.wavelength_max, 2 * np.pi / irr.wavelength_min, 200)
+    for row, comp in enumerate(COMPONENTS):
+        x = irr.component(comp)[seed_index]
+        ax = axes[row, 0]
+        ax.plot(irr.s, x * 1e3, lw=0.6)
+        ax.set_ylabel(f"{_LABELS[comp]} (mm)")
+        ax.grid(alpha=0.3)
+        ax = axes[row, 1]
+        om, s = welch_psd(x, dx)
+        keep = om > 0
+        ax.loglog(om[keep], s[keep] * 1e4, lw=0.8, label="synthesised (Welch)")
+        ax.loglog(
+            omega_a,
+            fra_psd(comp, omega_a, irr.track_class) * 1e4,
+            "k--",
+            lw=1.2,
+            label=f"FRA class {irr.track_class}",
+        )
+        ax.axvspan(
+            2 * np.pi / irr.wavelength_max, 2 * np.pi / irr.wavelength_min, color="0.9", zorder=0
+        )
+        ref = fra_psd(comp, omega_a, irr.track_class) * 1e4
+        ax.set_ylim(ref.min() / 100.0, ref.max() * 10.0)
+        ax.set_ylabel("PSD (cm²/(rad/m))")
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=8)
+    axes[-1, 0].set_xlabel("distance (m)")
+    axes[-1, 1].set_xlabel("spatial frequency Ω (rad/m)")
+    fig.suptitle(
+        f"Track irregularities, FRA class {irr.track_class}, seed {irr.seeds[seed_index]}, "
+        f"wavelengths {irr.wavelength_min:g}-{irr.wavelength_max:g} m"
+    )
+    return save_figure(fig, path)

@@ -1,0 +1,1 @@
+"""The vehicle-track dynamics model: track input, contact, equations, simulation."""
