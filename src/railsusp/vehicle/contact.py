@@ -1,0 +1,692 @@
+"""Wheel-rail contact: rigid-profile contact tables, equivalent conicity, Hertz, Kalker, SHE.
+
+Conventions
+-----------
+Track frame: x forward (running direction), y to the LEFT, z UP. The left wheel and rail are
+on the +y side. A wheelset shift ``y`` (m) is its lateral displacement relative to the track
+centre line, positive to the left. The wheelset roll ``roll`` (rad) is a rotation about +x,
+positive when the left wheel rises. The rise (m) is the vertical motion of the wheelset centre
+relative to the centred position, positive up.
+
+Per-wheel arrays have shape (n, 2): column ``LEFT`` (0) and ``RIGHT`` (1). The contact angle
+``delta`` of either wheel is positive when the normal force of the rail on the wheel points
+towards the track centre (tread sloping down towards the flange, flange contact), so that
+in the track frame the normal force on the left wheel is N (-sin d_L, cos d_L) and on the
+right wheel N (+sin d_R, cos d_R) in (y, z). Centred on new profiles d_L = d_R > 0. Wheel
+and rail contact positions are given in their profile coordinates (see
+:mod:`railsusp.vehicle.profiles`: from the taping line / rail centre line, + towards the
+field side), and in the track frame (``contact_y``, ``contact_z``; rail crown at z = 0).
+
+Curvatures (1/m) are positive for a convex surface: wheel rolling-direction curvature
+cos(profile angle) / r, wheel lateral (profile) curvature (negative on a hollow tread), rail
+lateral curvature (rail longitudinal curvature 0 on tangent track).
+
+Creep forces are those of the rail on the wheel, in the contact plane: Fx longitudinal, Fy
+lateral, Mz spin moment, with creepages xi_x, xi_y (-) and spin phi (1/m).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+from scipy.special import ellipe, ellipk
+
+from railsusp.vehicle.profiles import Profile
+
+__all__ = [
+    "E_STEEL",
+    "LEFT",
+    "POISSON_STEEL",
+    "RIGHT",
+    "SHEAR_MODULUS_STEEL",
+    "ContactTable",
+    "HertzPatch",
+    "contact_table",
+    "equivalent_conicity",
+    "equivalent_conicity_curve",
+    "hertz_coefficients",
+    "hertz_contact",
+    "kalker_coefficients",
+    "kalker_creep_coefficients",
+    "kalker_linear_forces",
+    "shen_hedrick_elkins",
+    "simplified_hertz_approach",
+    "simplified_hertz_constant",
+    "simplified_hertz_force",
+    "simplified_hertz_stiffness",
+]
+
+Array = np.ndarray | float
+
+LEFT, RIGHT = 0, 1
+#: Young's modulus (Pa) and Poisson's ratio of wheel and rail steel used for Hertz contact.
+E_STEEL = 2.1e11
+POISSON_STEEL = 0.28
+#: Shear modulus (Pa) used in Kalker's linear creep coefficients.
+SHEAR_MODULUS_STEEL = 8.0e10
+
+_PER_WHEEL = (
+    "rolling_radius",
+    "contact_angle",
+    "wheel_y",
+    "rail_y",
+    "contact_y",
+    "contact_z",
+    "wheel_curvature_long",
+    "wheel_curvature_lat",
+    "rail_curvature_lat",
+)
+
+
+@dataclass(frozen=True, eq=False)
+class ContactTable:
+    """Contact functions of a rigid wheelset (zero yaw) on a track, tabulated over shift ``y``.
+
+    ``y`` (m) is uniform and increasing (index = (y - y[0]) / step for fast look-up).
+    ``roll`` (rad), ``rise`` (m): wheelset roll and centre rise, shape (n,). Per-wheel arrays,
+    shape (n, 2), columns LEFT/RIGHT: ``rolling_radius`` (m), ``contact_angle`` (rad),
+    ``wheel_y`` / ``rail_y`` (m, contact point in wheel / rail profile coordinates),
+    ``contact_y`` / ``contact_z`` (m, track frame), ``wheel_curvature_long``,
+    ``wheel_curvature_lat``, ``rail_curvature_lat`` (1/m) and ``flange`` (bool: contact angle
+    above ``meta['flange_angle']``). ``meta`` records the inputs (names, gauge, ...).
+
+    Beyond the flangeway clearance the rigid wheelset can only go on by climbing the rail:
+    there the table describes flange climb (the rise grows several mm per mm of shift, the
+    contact runs over the flank onto the flange tip). A simulator should let the flange
+    contact act through elastic penetration near the jump rather than follow that climb.
+    """
+
+    y: np.ndarray
+    roll: np.ndarray
+    rise: np.ndarray
+    rolling_radius: np.ndarray
+    contact_angle: np.ndarray
+    wheel_y: np.ndarray
+    rail_y: np.ndarray
+    contact_y: np.ndarray
+    contact_z: np.ndarray
+    wheel_curvature_long: np.ndarray
+    wheel_curvature_lat: np.ndarray
+    rail_curvature_lat: np.ndarray
+    flange: np.ndarray
+    meta: dict[str, Any]
+
+    @property
+    def delta_r(self) -> np.ndarray:
+        """Rolling radius difference r_L - r_R (m), shape (n,)."""
+        return self.rolling_radius[:, LEFT] - self.rolling_radius[:, RIGHT]
+
+    def flangeway_clearance(self) -> tuple[float, float]:
+        """First shifts (m) with flange contact: (left wheel, y > 0; right wheel, y < 0).
+
+        Resolved to the table step; NaN where the table range holds no flange contact.
+        """
+        left = self.y[(self.y > 0) & self.flange[:, LEFT]]
+        right = self.y[(self.y < 0) & self.flange[:, RIGHT]]
+        return (
+            float(left.min()) if left.size else math.nan,
+            float(right.max()) if right.size else math.nan,
+        )
+
+    def at(self, y: np.ndarray | float, *, clip: bool = False) -> ContactTable:
+        """The table linearly interpolated at shifts ``y`` (m, 1-D or scalar).
+
+        Across the flange jump the interpolation blends tread and flange values over one
+        table step. Outside the table range a ValueError is raised, or with ``clip=True``
+        the end values are held.
+        """
+        yq = np.atleast_1d(np.asarray(y, dtype=float)).ravel()
+        if not clip and (yq.min() < self.y[0] - 1e-12 or yq.max() > self.y[-1] + 1e-12):
+            raise ValueError(
+                f"shift {yq.min() * 1e3:.3f}..{yq.max() * 1e3:.3f} mm outside the table range "
+                f"{self.y[0] * 1e3:.3f}..{self.y[-1] * 1e3:.3f} mm"
+            )
+        cols = {"y": yq}
+        for name in ("roll", "rise"):
+            cols[name] = np.interp(yq, self.y, getattr(self, name))
+        for name in _PER_WHEEL:
+            arr = getattr(self, name)
+            cols[name] = np.stack([np.interp(yq, self.y, arr[:, k]) for k in (0, 1)], axis=1)
+        cols["flange"] = cols["contact_angle"] > self.meta["flange_angle"]
+        return replace(self, **cols)
+
+    def save(self, path: str | Path) -> Path:
+        """Write the table to a ``.npz`` file (arrays plus JSON metadata)."""
+        path = Path(path)
+        arrays = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "meta"}
+        with path.open("wb") as fh:
+            np.savez(fh, meta=np.array(json.dumps(self.meta)), **arrays)
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> ContactTable:
+        """Read a table written by :meth:`save`."""
+        with np.load(Path(path), allow_pickle=False) as data:
+            kw = {f.name: np.array(data[f.name]) for f in fields(cls) if f.name != "meta"}
+            meta = json.loads(str(data["meta"]))
+        return cls(meta=meta, **kw)
+
+    def to_dataframe(self):
+        """A pandas DataFrame, one row per shift; per-wheel columns end in _L / _R."""
+        import pandas as pd
+
+        cols: dict[str, np.ndarray] = {"y": self.y, "roll": self.roll, "rise": self.rise}
+        for name in (*_PER_WHEEL, "flange"):
+            arr = getattr(self, name)
+            cols[f"{name}_L"] = arr[:, LEFT]
+            cols[f"{name}_R"] = arr[:, RIGHT]
+        return pd.DataFrame(cols)
+
+
+# --------------------------------------------------------------------------------------------
+# contact geometry by the rigid-profile (minimum vertical gap) method
+# --------------------------------------------------------------------------------------------
+
+
+class _Rail(NamedTuple):
+    """One rail in the track frame, sampled with increasing track y."""
+
+    y: np.ndarray  # track-frame lateral coordinate, m
+    z: np.ndarray  # track-frame height, m (crown at 0)
+    local_y: np.ndarray  # rail profile coordinate of each sample, m
+    curvature: np.ndarray  # rail lateral curvature, 1/m (convex > 0)
+
+
+def _place_rails(
+    rail: Profile, gauge: float, gauge_depth: float, inclination: float, resolution: float
+) -> tuple[_Rail, _Rail]:
+    yl = np.arange(rail.y[0], rail.y[-1], resolution)
+    zl, _, kappa = rail.evaluate(yl)
+    g = math.atan(inclination)
+    yi = yl * math.cos(g) + zl * math.sin(g)  # inclined (rail head leaning inwards, to -y)
+    zi = -yl * math.sin(g) + zl * math.cos(g)
+    if np.any(np.diff(yi) <= 0.0):
+        raise ValueError(f"rail {rail.name!r}: the inclined side face overhangs")
+    top = int(np.argmin(zi))
+    z_top = zi[top]
+    # gauge point: on the gauge side (-y of the crown), gauge_depth below the crown
+    gauge_side_z = zi[: top + 1][::-1]
+    if gauge_side_z[-1] < z_top + gauge_depth:
+        raise ValueError(f"rail {rail.name!r} does not reach {gauge_depth * 1e3:.1f} mm depth")
+    y_gauge = float(np.interp(z_top + gauge_depth, gauge_side_z, yi[: top + 1][::-1]))
+    ty = 0.5 * gauge + (yi - y_gauge)
+    tz = -(zi - z_top)
+    left = _Rail(ty, tz, yl, kappa)
+    right = _Rail(-ty[::-1], tz[::-1], yl[::-1], kappa[::-1])
+    return left, right
+
+
+def _min_gap(
+    rail: _Rail, yw: np.ndarray, phi: np.ndarray, wy: np.ndarray, wz: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Lowest vertical wheel-rail gap per row, with the wheelset centre at height 0.
+
+    ``wy``, ``wz``: wheel points in the wheelset frame (m). Returns (gap, argmin, gaps).
+    """
+    c = np.cos(phi)[:, None]
+    s = np.sin(phi)[:, None]
+    ty = yw[:, None] + wy[None, :] * c - wz[None, :] * s
+    tz = wy[None, :] * s + wz[None, :] * c
+    gaps = tz - np.interp(ty, rail.y, rail.z)
+    gaps[(ty < rail.y[0]) | (ty > rail.y[-1])] = np.inf
+    j = np.argmin(gaps, axis=1)
+    return gaps[np.arange(gaps.shape[0]), j], j, gaps
+
+
+def _solve_roll(
+    left: _Rail,
+    right: _Rail,
+    yw: np.ndarray,
+    wheel_pts: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    with_roll: bool,
+    tol: float = 1e-11,
+    phi_max: float = 0.05,
+) -> np.ndarray:
+    """Roll angle making both minimum gaps equal (Illinois regula falsi, vectorised)."""
+    wy_l, wz_l, wy_r, wz_r = wheel_pts
+    if not with_roll:
+        return np.zeros_like(yw)
+
+    def f(phi: np.ndarray) -> np.ndarray:
+        return _min_gap(left, yw, phi, wy_l, wz_l)[0] - _min_gap(right, yw, phi, wy_r, wz_r)[0]
+
+    a = np.full_like(yw, -phi_max)
+    b = np.full_like(yw, phi_max)
+    fa, fb = f(a), f(b)
+    if not (np.all(fa < 0.0) and np.all(fb > 0.0)):
+        raise ValueError("no roll angle within +-0.05 rad lets both wheels touch their rails")
+    side = np.zeros(yw.shape, dtype=int)
+    c = a.copy()
+    for _ in range(100):
+        c = (a * fb - b * fa) / (fb - fa)
+        fc = f(c)
+        if np.all(np.abs(fc) < tol):
+            break
+        upper = fc > 0.0
+        b = np.where(upper, c, b)
+        fb = np.where(upper, fc, fb)
+        fa = np.where(upper & (side == 1), 0.5 * fa, fa)
+        a = np.where(~upper, c, a)
+        fa = np.where(~upper, fc, fa)
+        fb = np.where(~upper & (side == -1), 0.5 * fb, fb)
+        side = np.where(upper, 1, -1)
+    else:
+        raise RuntimeError("wheelset roll iteration did not converge")
+    return c
+
+
+def contact_table(
+    wheel: Profile,
+    rail: Profile,
+    *,
+    track_gauge: float = 1.435,
+    gauge_depth: float = 0.016,
+    back_to_back: float = 1.353,
+    back_face_offset: float = 0.070,
+    rail_inclination: float = 1.0 / 40.0,
+    nominal_radius: float = 0.42,
+    y_min: float = -0.020,
+    y_max: float = 0.020,
+    step: float = 1e-4,
+    resolution: float = 2e-5,
+    flange_angle_deg: float = 45.0,
+    wheelset_roll: bool = True,
+) -> ContactTable:
+    """Contact functions of a rigid wheelset (zero yaw) on two inclined rails, by shift y.
+
+    Rigid-profile method: for each lateral shift the wheelset roll and height are found such
+    that each wheel touches its rail with zero penetration; the contact point of a wheel is
+    where the vertical wheel-rail gap is smallest (where the surfaces are parallel). When
+    the gap at the flange closes the minimum moves abruptly from the tread to the flange
+    root / flank: a single contact point with a jump, our equivalent of two-point contact.
+
+    Inputs: ``wheel`` and ``rail`` profiles (profile conventions; the rail in its own, not
+    inclined, axes); ``track_gauge`` (m) measured ``gauge_depth`` (m) below the crown;
+    ``back_to_back`` (m) between flange back faces, the taping line lying
+    ``back_face_offset`` (m) outside the back face (profile origin); ``rail_inclination``
+    (tan of the cant); ``nominal_radius`` r0 (m) at the taping line; shifts from ``y_min``
+    to ``y_max`` every ``step`` (m); wheel points every ``resolution`` (m).
+    ``wheelset_roll=False`` keeps roll at zero and lets each wheel find its height
+    independently (decoupled wheels, for checks of the conicity definition only).
+    """
+    if not (y_min < y_max and step > 0.0 and resolution > 0.0):
+        raise ValueError("need y_min < y_max, step > 0 and resolution > 0")
+    if wheel.kind != "wheel" or rail.kind != "rail":
+        raise ValueError(
+            f"contact_table(wheel, rail) got a {wheel.kind!r} and a {rail.kind!r} profile "
+            "(read rail files with read_profile(path, kind='rail'))"
+        )
+    n = round((y_max - y_min) / step) + 1
+    yw = y_min + step * np.arange(n)
+    left, right = _place_rails(rail, track_gauge, gauge_depth, rail_inclination, resolution)
+    u = np.arange(wheel.y[0], wheel.y[-1], resolution)
+    zp, dzp, kp = wheel.evaluate(u)
+    radius = nominal_radius + zp
+    wz = -radius
+    offset = 0.5 * back_to_back + back_face_offset
+    pts = (offset + u, wz, -(offset + u), wz)
+
+    # solve in chunks of shifts (memory: chunk x wheel points), the centred shift appended
+    ys = np.append(yw, 0.0)
+    phi = np.empty_like(ys)
+    heights = np.empty((ys.size, 2))  # wheelset centre height that makes each wheel touch
+    idx = np.empty((ys.size, 2), dtype=int)
+    frac = np.empty((ys.size, 2))
+    chunk = max(1, 2_000_000 // u.size)
+    for lo in range(0, ys.size, chunk):
+        sl = slice(lo, min(lo + chunk, ys.size))
+        p = _solve_roll(left, right, ys[sl], pts, wheelset_roll)
+        phi[sl] = p
+        for k, rl in enumerate((left, right)):
+            g, j, gaps = _min_gap(rl, ys[sl], p, pts[2 * k], pts[2 * k + 1])
+            heights[sl, k] = -g
+            # parabolic refinement of the minimum between neighbouring wheel points
+            jm = np.clip(j, 1, u.size - 2)
+            rows = np.arange(jm.size)
+            g0, g1, g2 = gaps[rows, jm - 1], gaps[rows, jm], gaps[rows, jm + 1]
+            den = g0 - 2.0 * g1 + g2
+            ok = np.isfinite(den) & (den > 0.0) & (jm == j)
+            t = np.where(ok, 0.5 * (g0 - g2) / np.where(ok, den, 1.0), 0.0)
+            idx[sl, k] = j
+            frac[sl, k] = np.clip(t, -0.5, 0.5)
+
+    uc = u[idx] + frac * resolution  # contact abscissa on each wheel profile, (n+1, 2)
+    r = np.interp(uc, u, radius)
+    slope = np.interp(uc, u, dzp)
+    kw = np.interp(uc, u, kp)
+    prof_angle = np.arctan(-slope)  # tread angle, + when rising towards the field side
+    sign = np.array([1.0, -1.0])
+    delta = prof_angle + sign * phi[:, None]
+    wy = sign * (offset + uc)
+    cy = ys[:, None] + wy * np.cos(phi)[:, None] + r * np.sin(phi)[:, None]
+    height = heights.mean(axis=1)  # equal with roll; decoupled wheels: their mean
+    cz = heights + wy * np.sin(phi)[:, None] - r * np.cos(phi)[:, None]
+    rail_y = np.empty_like(cy)
+    rail_k = np.empty_like(cy)
+    for k, rl in enumerate((left, right)):
+        rail_y[:, k] = np.interp(cy[:, k], rl.y, rl.local_y)
+        rail_k[:, k] = np.interp(cy[:, k], rl.y, rl.curvature)
+
+    flange_angle = math.radians(flange_angle_deg)
+    main = slice(0, n)
+    meta = {
+        "wheel": wheel.name,
+        "rail": rail.name,
+        "track_gauge": track_gauge,
+        "gauge_depth": gauge_depth,
+        "back_to_back": back_to_back,
+        "back_face_offset": back_face_offset,
+        "rail_inclination": rail_inclination,
+        "nominal_radius": nominal_radius,
+        "step": step,
+        "resolution": resolution,
+        "flange_angle": flange_angle,
+        "wheelset_roll": wheelset_roll,
+    }
+    return ContactTable(
+        y=yw,
+        roll=phi[main],
+        rise=height[main] - height[-1],
+        rolling_radius=r[main],
+        contact_angle=delta[main],
+        wheel_y=uc[main],
+        rail_y=rail_y[main],
+        contact_y=cy[main],
+        contact_z=cz[main],
+        wheel_curvature_long=(np.cos(prof_angle) / r)[main],
+        wheel_curvature_lat=-kw[main],
+        rail_curvature_lat=rail_k[main],
+        flange=delta[main] > flange_angle,
+        meta=meta,
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# equivalent conicity (EN 15302, harmonic linearisation)
+# --------------------------------------------------------------------------------------------
+
+
+def equivalent_conicity(
+    table: ContactTable, amplitude: float | np.ndarray = 0.003, n_phase: int = 1440
+) -> float | np.ndarray:
+    """Equivalent conicity at lateral amplitude(s) ``amplitude`` (m), EN 15302 style.
+
+    Harmonic linearisation of the rolling radius difference over a sinusoidal lateral
+    motion y = A sin(theta): lambda_e(A) = c1 / (2 A), with c1 = (1/pi) * integral over one
+    period of dr(A sin theta) sin(theta) d theta the first Fourier coefficient of
+    dr = r_L - r_R. For a cone of slope tan(gamma) with dr = 2 tan(gamma) y this returns
+    tan(gamma) exactly. A scalar amplitude gives a float, an array an array.
+    """
+    amp = np.asarray(amplitude, dtype=float)
+    if np.any(amp <= 0.0):
+        raise ValueError("conicity amplitude must be positive")
+    if np.any(amp > min(-table.y[0], table.y[-1]) + 1e-12):
+        raise ValueError(
+            f"amplitude {amp.max() * 1e3:.2f} mm beyond the table range "
+            f"{table.y[0] * 1e3:.2f}..{table.y[-1] * 1e3:.2f} mm"
+        )
+    theta = np.linspace(0.0, 2.0 * np.pi, n_phase, endpoint=False)
+    s = np.sin(theta)
+    dr = np.interp(amp[..., None] * s, table.y, table.delta_r)
+    c1 = 2.0 * np.mean(dr * s, axis=-1)
+    lam = c1 / (2.0 * amp)
+    return float(lam) if lam.ndim == 0 else lam
+
+
+def equivalent_conicity_curve(
+    table: ContactTable, amplitudes: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(amplitudes, equivalent conicity) for amplitudes 1..10 mm unless given (m)."""
+    amps = np.arange(1, 11) * 1e-3 if amplitudes is None else np.asarray(amplitudes, float)
+    return amps, np.asarray(equivalent_conicity(table, amps))
+
+
+# --------------------------------------------------------------------------------------------
+# normal contact: Hertz
+# --------------------------------------------------------------------------------------------
+
+
+class HertzPatch(NamedTuple):
+    """Hertz contact ellipse: semi-axes ``a`` (rolling direction) and ``b`` (lateral), m;
+    peak pressure ``p0`` (Pa); normal approach (penetration) of the two bodies (m)."""
+
+    a: np.ndarray
+    b: np.ndarray
+    p0: np.ndarray
+    approach: np.ndarray
+
+
+def _k_minus_e(m: np.ndarray) -> np.ndarray:
+    """(K(m) - E(m)) / m, with the series pi/4 (1 + 3m/8) where the difference cancels."""
+    mm = np.maximum(m, 1e-300)
+    direct = (ellipk(mm) - ellipe(mm)) / mm
+    return np.where(m < 1e-5, 0.25 * np.pi * (1.0 + 0.375 * m), direct)
+
+
+def _e_over_k(m: np.ndarray) -> np.ndarray:
+    """(E(m) / (1 - m) - K(m)) / m, with the series pi/4 (1 + 9m/8) for small m."""
+    mm = np.maximum(m, 1e-300)
+    direct = (ellipe(mm) / (1.0 - mm) - ellipk(mm)) / mm
+    return np.where(m < 1e-5, 0.25 * np.pi * (1.0 + 1.125 * m), direct)
+
+
+def _ellipse_ratio(ratio: np.ndarray) -> np.ndarray:
+    """Minor/major semi-axis ratio k of the Hertz ellipse for curvature ratio B/A >= 1.
+
+    Solves B/A = (E(e)/(1 - e^2) - K(e)) / (K(e) - E(e)), e^2 = 1 - k^2, K, E complete
+    elliptic integrals (Johnson, Contact Mechanics, 1985, eq. 4.39), by bisection in ln k.
+    """
+    lo = np.full(ratio.shape, math.log(1e-6))
+    hi = np.zeros(ratio.shape)
+    for _ in range(64):
+        mid = 0.5 * (lo + hi)
+        m = -np.expm1(2.0 * mid)  # e^2 = 1 - k^2
+        too_round = _e_over_k(m) / _k_minus_e(m) < ratio  # the ellipse must be longer
+        hi = np.where(too_round, mid, hi)
+        lo = np.where(too_round, lo, mid)
+    return np.exp(0.5 * (lo + hi))
+
+
+def hertz_coefficients(
+    curvature_a: np.ndarray | float, curvature_b: np.ndarray | float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Hertz coefficients (m, n) for relative curvatures A, B (1/m, both > 0).
+
+    Semi-axes (major, minor) = (m, n) * (3 N / (4 E* (A + B)))^(1/3); the major axis lies
+    along the direction of the smaller of A and B. m = n = 1 for A = B (sphere).
+    """
+    a_ = np.asarray(curvature_a, dtype=float)
+    b_ = np.asarray(curvature_b, dtype=float)
+    small, large = np.minimum(a_, b_), np.maximum(a_, b_)
+    k = _ellipse_ratio(large / small)
+    # A_small = 3N (K - E) / (2 pi E* a^3 e^2)  =>  a^3 in units of 3N / (4 E* (A + B))
+    m_cubed = 2.0 * _k_minus_e(1.0 - k * k) * (a_ + b_) / (np.pi * small)
+    m_coef = np.cbrt(m_cubed)
+    return m_coef, k * m_coef
+
+
+def hertz_contact(
+    normal_force: np.ndarray | float,
+    wheel_curvature_long: np.ndarray | float,
+    wheel_curvature_lat: np.ndarray | float,
+    rail_curvature_lat: np.ndarray | float,
+    rail_curvature_long: np.ndarray | float = 0.0,
+    *,
+    youngs_modulus: float = E_STEEL,
+    poisson_ratio: float = POISSON_STEEL,
+) -> HertzPatch:
+    """Hertz contact ellipse for a normal force (N) and principal curvatures (1/m, convex +).
+
+    A = (k_wheel,long + k_rail,long)/2, B = (k_wheel,lat + k_rail,lat)/2 must be positive.
+    E* = E / (2 (1 - nu^2)) for two bodies of the same steel (E = 210 GPa, nu = 0.28).
+    Semi-axes from :func:`hertz_coefficients`, p0 = 3 N / (2 pi a b), approach
+    delta = p0 b_minor K(e) / E* (Johnson, Contact Mechanics, 1985, section 4.2). For
+    A = B = 1/(2R) this is a = (3 N R / (4 E*))^(1/3). N <= 0 gives a zero patch.
+    """
+    n = np.maximum(np.asarray(normal_force, dtype=float), 0.0)
+    ca = 0.5 * (np.asarray(wheel_curvature_long, float) + np.asarray(rail_curvature_long, float))
+    cb = 0.5 * (np.asarray(wheel_curvature_lat, float) + np.asarray(rail_curvature_lat, float))
+    if np.any(ca <= 0.0) or np.any(cb <= 0.0):
+        raise ValueError(
+            "Hertz contact needs positive relative curvatures A (rolling) and B (lateral); "
+            f"got A min {np.min(ca):.4g} 1/m, B min {np.min(cb):.4g} 1/m (conformal contact)"
+        )
+    e_star = youngs_modulus / (2.0 * (1.0 - poisson_ratio**2))
+    m_coef, n_coef = hertz_coefficients(ca, cb)
+    scale = np.cbrt(3.0 * n / (4.0 * e_star * (ca + cb)))
+    major, minor = m_coef * scale, n_coef * scale
+    long_is_major = ca <= cb
+    a = np.where(long_is_major, major, minor)
+    b = np.where(long_is_major, minor, major)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        p0 = np.where(n > 0.0, 3.0 * n / (2.0 * np.pi * a * b), 0.0)
+    approach = p0 * minor * ellipk(1.0 - (n_coef / m_coef) ** 2) / e_star
+    return HertzPatch(a, b, p0, approach)
+
+
+def simplified_hertz_constant(wheel_radius: float | np.ndarray = 0.42) -> float | np.ndarray:
+    """G = 3.86 R^-0.115 * 1e-8 (m/N^(2/3)), wheel radius R in m: worn (LM) tread.
+
+    Zhai, Vehicle-Track Coupled Dynamics (Springer, 2020), nonlinear Hertz contact
+    P = (dz / G)^(3/2) for a worn-type tread.
+    """
+    return 3.86e-8 * np.power(wheel_radius, -0.115)
+
+
+def simplified_hertz_force(
+    approach: np.ndarray | float, wheel_radius: float | np.ndarray = 0.42
+) -> np.ndarray:
+    """Normal force P = (dz / G)^1.5 (N) for an approach dz (m); 0 when dz <= 0 (lift-off)."""
+    dz = np.maximum(np.asarray(approach, dtype=float), 0.0)
+    return (dz / simplified_hertz_constant(wheel_radius)) ** 1.5
+
+
+def simplified_hertz_approach(
+    normal_force: np.ndarray | float, wheel_radius: float | np.ndarray = 0.42
+) -> np.ndarray:
+    """Approach dz = G P^(2/3) (m) for a normal force P (N), the inverse of the force law."""
+    p = np.maximum(np.asarray(normal_force, dtype=float), 0.0)
+    return simplified_hertz_constant(wheel_radius) * np.cbrt(p) ** 2
+
+
+def simplified_hertz_stiffness(
+    normal_force: np.ndarray | float, wheel_radius: float | np.ndarray = 0.42
+) -> np.ndarray:
+    """Linearised contact stiffness dP/d(dz) = 1.5 P^(1/3) / G (N/m) at a load P (N)."""
+    p = np.maximum(np.asarray(normal_force, dtype=float), 0.0)
+    return 1.5 * np.cbrt(p) / simplified_hertz_constant(wheel_radius)
+
+
+# --------------------------------------------------------------------------------------------
+# tangential contact: Kalker linear theory and Shen-Hedrick-Elkins saturation
+# --------------------------------------------------------------------------------------------
+
+# Kalker's creepage and spin coefficients for Poisson's ratio 0.25 (J. J. Kalker,
+# Three-dimensional elastic bodies in rolling contact, Kluwer 1990, table E3; also in
+# Kalker 1967 thesis). Columns: g, C11, C22, C23, C33.
+_KALKER_A_LT_B = np.array(  # g = a/b <= 1
+    [
+        [0.1, 3.31, 2.52, 0.473, 8.28],
+        [0.2, 3.37, 2.63, 0.603, 4.27],
+        [0.3, 3.44, 2.75, 0.715, 2.96],
+        [0.4, 3.53, 2.88, 0.823, 2.32],
+        [0.5, 3.62, 3.01, 0.929, 1.93],
+        [0.6, 3.72, 3.14, 1.03, 1.68],
+        [0.7, 3.81, 3.28, 1.14, 1.50],
+        [0.8, 3.91, 3.41, 1.25, 1.37],
+        [0.9, 4.01, 3.54, 1.36, 1.27],
+        [1.0, 4.12, 3.67, 1.47, 1.19],
+    ]
+)
+_KALKER_A_GT_B = np.array(  # g = b/a <= 1
+    [
+        [0.1, 11.7, 12.8, 14.6, 0.526],
+        [0.2, 7.78, 8.14, 6.63, 0.601],
+        [0.3, 6.34, 6.40, 4.32, 0.674],
+        [0.4, 5.57, 5.48, 3.24, 0.747],
+        [0.5, 5.10, 4.90, 2.62, 0.819],
+        [0.6, 4.78, 4.50, 2.23, 0.892],
+        [0.7, 4.54, 4.21, 1.95, 0.965],
+        [0.8, 4.36, 3.99, 1.75, 1.04],
+        [0.9, 4.22, 3.81, 1.59, 1.11],
+        [1.0, 4.12, 3.67, 1.47, 1.19],
+    ]
+)
+
+
+def kalker_coefficients(
+    a_over_b: np.ndarray | float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Kalker's C11, C22, C23, C33 (-) for nu = 0.25 at semi-axis ratio a/b (any shape).
+
+    Linear interpolation in g = a/b (a/b <= 1) or g = b/a (a/b > 1) of Kalker's table (1990,
+    table E3); a/b is clipped to the tabulated range 0.1..10.
+    """
+    ratio = np.clip(np.asarray(a_over_b, dtype=float), 0.1, 10.0)
+    g_lt = np.minimum(ratio, 1.0)
+    g_gt = np.minimum(1.0 / ratio, 1.0)
+    out = []
+    for col in range(1, 5):
+        lt = np.interp(g_lt, _KALKER_A_LT_B[:, 0], _KALKER_A_LT_B[:, col])
+        gt = np.interp(g_gt, _KALKER_A_GT_B[:, 0], _KALKER_A_GT_B[:, col])
+        out.append(np.where(ratio <= 1.0, lt, gt))
+    return out[0], out[1], out[2], out[3]
+
+
+def kalker_creep_coefficients(
+    a: np.ndarray | float, b: np.ndarray | float, shear_modulus: float = SHEAR_MODULUS_STEEL
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """f11, f22 (N), f23 (N m), f33 (N m^2) from semi-axes a (rolling), b (lateral) in m.
+
+    f11 = G a b C11, f22 = G a b C22, f23 = G (a b)^1.5 C23, f33 = G (a b)^2 C33, G = 80 GPa.
+    """
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    ab = a * b
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.where(b > 0.0, a / np.where(b > 0.0, b, 1.0), 1.0)
+    c11, c22, c23, c33 = kalker_coefficients(ratio)
+    g = shear_modulus
+    return g * ab * c11, g * ab * c22, g * ab**1.5 * c23, g * ab**2 * c33
+
+
+def kalker_linear_forces(
+    xi_x: Array, xi_y: Array, phi: Array, f11: Array, f22: Array, f23: Array, f33: Array
+) -> tuple[Array, Array, Array]:
+    """Kalker's linear creep forces (N) and spin moment (N m) of the rail on the wheel.
+
+    Fx = -f11 xi_x, Fy = -f22 xi_y - f23 phi, Mz = f23 xi_y - f33 phi, with creepages
+    xi_x, xi_y (-) and spin phi (1/m). Plain element-wise arithmetic on arrays of any shape.
+    """
+    fx = -f11 * xi_x
+    fy = -f22 * xi_y - f23 * phi
+    mz = f23 * xi_y - f33 * phi
+    return fx, fy, mz
+
+
+def shen_hedrick_elkins(
+    fx: Array, fy: Array, mz: Array, mu: Array, normal_force: Array
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Shen-Hedrick-Elkins (1983) saturation of linear creep forces, element-wise.
+
+    beta = |F| / (mu N) with |F| = sqrt(Fx^2 + Fy^2); the resultant becomes
+    mu N (beta - beta^2/3 + beta^3/27) for beta <= 3 and mu N beyond, and all three
+    components (Fx, Fy, Mz) are scaled by that over |F|. Zero creep gives zero force (the
+    factor tends to 1), and N <= 0 (lift-off) gives zero force.
+    """
+    fx = np.asarray(fx, dtype=float)
+    fy = np.asarray(fy, dtype=float)
+    mz = np.asarray(mz, dtype=float)
+    limit = np.asarray(mu, dtype=float) * np.maximum(np.asarray(normal_force, dtype=float), 0.0)
+    f_lin = np.sqrt(fx * fx + fy * fy)
+    has_load = limit > 0.0
+    beta = np.where(has_load, f_lin / np.where(has_load, limit, 1.0), 0.0)
+    small = beta <= 3.0
+    factor = np.where(small, 1.0 - beta / 3.0 + beta * beta / 27.0, 1.0 / np.maximum(beta, 3.0))
+    factor = np.where(has_load, factor, 0.0)
+    return fx * factor, fy * factor, mz * factor

@@ -1,0 +1,87 @@
+"""Index layout shared by the model kernels and the simulation driver.
+
+Degrees of freedom (49), all deviations from static equilibrium, each body in the
+track-following frame at its own position along the track (x forward, y left, z up; angles
+right-handed: roll about x, pitch about y, yaw about z):
+
+* car body: y, z, roll, pitch, yaw (5)
+* bolster k = 0 (front), 1 (rear): y, z, roll, yaw (4 each)
+* side frame j = 2k + (0 left, 1 right): x, y, z, pitch, yaw (5 each)
+* wheelset w = 0..3 front to rear: y, z, roll, yaw (4 each)
+
+Auxiliary first-order states (6): the friction force of the wedge damper of each spring nest
+(4, index 2k + side) and the car-body/bolster yaw friction moment of each bogie (2).
+"""
+
+from __future__ import annotations
+
+N_DOF = 49
+N_AUX = 6
+N_STATE = 2 * N_DOF + N_AUX
+
+# car body
+CB_Y, CB_Z, CB_ROLL, CB_PITCH, CB_YAW = 0, 1, 2, 3, 4
+# bolster k: base + (0 y, 1 z, 2 roll, 3 yaw)
+BOL0 = 5
+# side frame j: base + (0 x, 1 y, 2 z, 3 pitch, 4 yaw)
+SF0 = 13
+# wheelset w: base + (0 y, 1 z, 2 roll, 3 yaw)
+WS0 = 33
+# auxiliary states (offset into the full state vector)
+AUX_WEDGE = 2 * N_DOF  # 4 wedge friction forces, N
+AUX_YAWFR = 2 * N_DOF + 4  # 2 body-bolster friction moments, N m
+
+# ---- constants vector (wagon + condition), K[...] ----
+_K_NAMES = (
+    # masses and inertias
+    "m_c", "Ix_c", "Iy_c", "Iz_c", "m_b", "Ix_b", "Iz_b", "m_f", "Iy_f", "Iz_f",
+    "m_w", "Ix_w", "Iy_w", "Iz_w",
+    # geometry
+    "l_c", "a", "b1", "b2", "r0", "h_cg_c", "h_cp", "h_cg_b", "h_k", "x_k", "R_cp",
+    # fixed elements
+    "c_px", "c_py", "c_pz", "k_sz", "c_sx", "mu_wedge", "k_wedge", "k_gib",
+    "k_cpz", "k_cpy", "mu_cp", "k_yaw", "k_sb", "P_sb", "mu_sb",
+    "k_rz", "k_ry", "c_rz", "c_ry",
+    # static preloads, N
+    "F0_cp", "F0_nest", "F0_prim", "Q0", "Z0_L", "Z0_R", "N_ref",
+    # condition
+    "V", "g_n", "mu", "F_coupler", "M_pitch_grade", "creep_factor",
+    # limits for the non-physical state check
+    "pen_max", "lift_max",
+)  # fmt: skip
+K = {name: i for i, name in enumerate(_K_NAMES)}
+N_K = len(_K_NAMES)
+
+# ---- contact table columns, per wheel (left block then right block) ----
+CT_R, CT_DELTA, CT_L, CT_H, CT_G, CT_F11, CT_F22, CT_F23 = range(8)
+CT_PER_WHEEL = 8
+CT_RIGHT = CT_PER_WHEEL
+N_CT = 2 * CT_PER_WHEEL
+
+# ---- track channels ----
+TR_KAPPA, TR_CANT, TR_HEAD, TR_OFFSET, TR_ZL, TR_ZR, TR_YL, TR_YR = range(8)
+N_TR = 8
+
+# ---- output channels ----
+OUT_Y = 0  # 8 wheels: wheelset w, left (2w) / right (2w + 1): lateral force on rail, + outward
+OUT_Q = 8  # 8 wheels: vertical force on rail, + down
+OUT_ACC_Y = 16  # car body lateral acceleration at CG (uncompensated), m/s^2
+OUT_ACC_Z = 17  # car body vertical acceleration at CG, m/s^2
+N_OUT = 18
+
+# ---- failure codes ----
+OK = 0
+FAIL_NAN = 1
+FAIL_PENETRATION = 2
+FAIL_LIFT = 3
+FAIL_FLANGE_CLIMB = 4
+FAILURE_REASONS = {
+    OK: "ok",
+    FAIL_NAN: "state became NaN or infinite (numerical divergence)",
+    FAIL_PENETRATION: "wheel-rail penetration beyond the physical bound",
+    FAIL_LIFT: "wheel lift beyond the flange height (derailment)",
+    FAIL_FLANGE_CLIMB: "wheelset lateral shift beyond the contact table (flange climb)",
+}
+
+# catalogue indices (X1..X20 -> 0..19)
+P_X = {f"X{i}": i - 1 for i in range(1, 21)}

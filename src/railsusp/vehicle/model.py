@@ -1,0 +1,567 @@
+"""Equations of motion of the C80/K6 wagon on track: bodies, force elements, contact forces.
+
+The state layout is in :mod:`railsusp.vehicle.layout`. Every body moves in the track-following
+frame at its own position along the track; connections between bodies at different track
+positions use the track's lateral offset from the chord, off(s, d) = Y(s + d) - Y(s) - d θ(s)
+(≈ κ d²/2 on an arc), and the heading difference θ(s_A) - θ(s_B). Pseudo-forces of the moving
+frame act on every body: lateral -m (V² κ cos φ_t + g sin φ_t), vertical
+-m (g cos φ_t - V² κ sin φ_t) (φ_t the cant angle, + lifts the left rail).
+
+Force elements (the ten sampled parameters in brackets):
+
+* primary, per axle box: rubber pad shear in series with the adapter seat, longitudinal
+  [X13 + X20] and lateral [X14 + X20]; vertical compression [X15]; linear viscous loss.
+* secondary, per spring nest: vertical spring with variable-friction wedge (Coulomb slider
+  in series with a stick stiffness, limit = wedge ratio x nest force), longitudinal shear
+  [X16], lateral shear [X17] with equivalent viscous wedge damping [X18] and a bolster gib
+  stop beyond the clearance [X12].
+* cross-bracing: two diagonal bars between the side frames, axial stiffness [X19], pin-hole
+  spans X9 (longitudinal) and X10 (lateral): warp (parallelogram) stiffness.
+* car body to bolster: centre plate (vertical and lateral springs, lift-off), two
+  constant-contact side bearers at +- X11/2 [X11] (roll stiffness, lift-off), body-bolster
+  yaw friction (centre plate and side bearers, slider with stick stiffness).
+* wheel-rail contact per wheel: contact-function tables (rolling radius, contact angle,
+  contact lateral position, rigid-contact rise, Hertz constant, Kalker coefficients) of the
+  wheel's lateral shift relative to its rail; Hertz normal force in series with the rail
+  support along the contact normal; Kalker linear creep with Shen-Hedrick-Elkins saturation.
+  Lift-off gives zero force. Flange contact is the jump of the table to the flange.
+* couplers: pitch moment of the grade force at coupler height; lateral component of the
+  coupler force in curves (chord angle κ x_k at each end).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from railsusp.vehicle import layout as L
+
+_K = L.K
+
+# numba sees module-level ints as compile-time constants
+I_MC, I_IXC, I_IYC, I_IZC = _K["m_c"], _K["Ix_c"], _K["Iy_c"], _K["Iz_c"]
+I_MB, I_IXB, I_IZB = _K["m_b"], _K["Ix_b"], _K["Iz_b"]
+I_MF, I_IYF, I_IZF = _K["m_f"], _K["Iy_f"], _K["Iz_f"]
+I_MW, I_IXW, I_IYW, I_IZW = _K["m_w"], _K["Ix_w"], _K["Iy_w"], _K["Iz_w"]
+I_LC, I_A, I_B1, I_B2, I_R0 = _K["l_c"], _K["a"], _K["b1"], _K["b2"], _K["r0"]
+I_HCG, I_HCP, I_HB, I_HK, I_XK, I_RCP = (_K["h_cg_c"], _K["h_cp"], _K["h_cg_b"], _K["h_k"],
+                                        _K["x_k"], _K["R_cp"])  # fmt: skip
+I_CPX, I_CPY, I_CPZ, I_KSZ, I_CSX = _K["c_px"], _K["c_py"], _K["c_pz"], _K["k_sz"], _K["c_sx"]
+I_MUW, I_KW, I_KGIB = _K["mu_wedge"], _K["k_wedge"], _K["k_gib"]
+I_KCPZ, I_KCPY, I_MUCP, I_KYAW = _K["k_cpz"], _K["k_cpy"], _K["mu_cp"], _K["k_yaw"]
+I_KSB, I_PSB, I_MUSB, I_KRZ, I_KRY = _K["k_sb"], _K["P_sb"], _K["mu_sb"], _K["k_rz"], _K["k_ry"]
+I_CRZ, I_CRY = _K["c_rz"], _K["c_ry"]
+I_F0CP, I_F0N, I_F0P = _K["F0_cp"], _K["F0_nest"], _K["F0_prim"]
+I_Z0L, I_Z0R = _K["Z0_L"], _K["Z0_R"]
+I_V, I_GN, I_MU = _K["V"], _K["g_n"], _K["mu"]
+I_FCPL, I_MGRADE, I_CREEP = _K["F_coupler"], _K["M_pitch_grade"], _K["creep_factor"]
+I_Q0, I_NREF = _K["Q0"], _K["N_ref"]
+I_PENMAX, I_LIFTMAX = _K["pen_max"], _K["lift_max"]
+
+BOL0, SF0, WS0 = L.BOL0, L.SF0, L.WS0
+NQ = L.N_DOF
+AUXW, AUXY = L.AUX_WEDGE, L.AUX_YAWFR
+NCTW = L.CT_PER_WHEEL
+
+
+@nb.njit(cache=True, inline="always")
+def track_lookup(trk, ch, s, s0, ds):
+    """Linear interpolation of track channel ``ch`` at distance s (clamped at the ends)."""
+    u = (s - s0) / ds
+    n = trk.shape[1]
+    if u <= 0.0:
+        return trk[ch, 0]
+    if u >= n - 1:
+        return trk[ch, n - 1]
+    i = int(u)
+    f = u - i
+    return trk[ch, i] * (1.0 - f) + trk[ch, i + 1] * f
+
+
+@nb.njit(cache=True, inline="always")
+def track_rate(trk, ch, s, s0, ds, V):
+    """Time rate V d(channel)/ds of track channel ``ch`` at distance s (per second)."""
+    u = (s - s0) / ds
+    n = trk.shape[1]
+    i = int(u)
+    if u <= 0.0 or i >= n - 1:
+        return 0.0
+    return V * (trk[ch, i + 1] - trk[ch, i]) / ds
+
+
+@nb.njit(cache=True, inline="always")
+def series_stiffness(k1, k2):
+    """Stiffness of two springs in series, N/m."""
+    return k1 * k2 / (k1 + k2)
+
+
+@nb.njit(cache=True, inline="always")
+def gap_spring(d, clearance, k):
+    """Force of a symmetric stop with free play: zero inside +-clearance, k beyond (N)."""
+    if d > clearance:
+        return k * (d - clearance)
+    if d < -clearance:
+        return k * (d + clearance)
+    return 0.0
+
+
+#: relaxation time of a friction slider state pushed beyond its limit, s
+SLIDER_RELAXATION = 2.0e-3
+
+
+@nb.njit(cache=True, inline="always")
+def coulomb_slider(state, limit, stick_rate, dxdt, idx):
+    """Friction force of a Coulomb slider in series with a stick stiffness (elasto-plastic).
+
+    While sticking the force grows at ``stick_rate`` (stiffness x relative velocity); at the
+    limit it slides (rate 0 in the direction of motion). The returned force is clamped to
+    +-limit; a state beyond a (shrinking) limit relaxes back within SLIDER_RELAXATION.
+    """
+    f = state
+    if f > limit:
+        f = limit
+    elif f < -limit:
+        f = -limit
+    if (f >= limit and stick_rate > 0.0) or (f <= -limit and stick_rate < 0.0):
+        rate = 0.0
+    else:
+        rate = stick_rate
+    dxdt[idx] = rate + (f - state) / SLIDER_RELAXATION
+    return f
+
+
+@nb.njit(cache=True, inline="always")
+def hertz_rail_normal_force(dn, G, krn):
+    """Normal force N (N) for normal approach dn (m) of Hertz contact in series with rail.
+
+    dn = G N^(2/3) + N / krn (Hertz law P = (dz/G)^1.5 plus linear rail support). Solved for
+    u = N^(1/3) by Newton from above (the cubic is convex and increasing), N = u^3.
+    """
+    if dn <= 0.0:
+        return 0.0
+    u1 = math.sqrt(dn / G)  # Hertz alone
+    u2 = (krn * dn) ** (1.0 / 3.0)  # rail alone
+    u = u1 if u1 < u2 else u2
+    c = krn * G
+    d = krn * dn
+    for _ in range(6):
+        f = u * u * u + c * u * u - d
+        fp = 3.0 * u * u + 2.0 * c * u
+        u -= f / fp
+    return u * u * u
+
+
+@nb.njit(cache=True, inline="always")
+def she_saturation(fx, fy, mu_n):
+    """Shen-Hedrick-Elkins factor scaling linear creep forces to saturation at mu N.
+
+    F = mu N (beta - beta^2/3 + beta^3/27) for beta = |F_lin| / (mu N) <= 3, else mu N.
+    Returns the factor F / |F_lin| (1 for vanishing creep, 0 when unloaded).
+    """
+    f = math.sqrt(fx * fx + fy * fy)
+    if mu_n <= 0.0:
+        return 0.0
+    if f < 1e-9 * mu_n:
+        return 1.0
+    beta = f / mu_n
+    if beta < 3.0:
+        fs = mu_n * (beta - beta * beta / 3.0 + beta * beta * beta / 27.0)
+    else:
+        fs = mu_n
+    return fs / f
+
+
+@nb.njit(cache=True, inline="always")
+def table_row(ctab, col0, y, y0, dy, row):
+    """Interpolate the contact-table columns of one wheel at shift y into ``row``.
+
+    Returns False when y lies outside the table (flange climb beyond the tabulated range).
+    """
+    u = (y - y0) / dy
+    n = ctab.shape[1]
+    if u < 0.0 or u > n - 1:
+        return False
+    i = int(u)
+    if i >= n - 1:
+        i = n - 2
+    f = u - i
+    for c in range(NCTW):
+        row[c] = ctab[col0 + c, i] * (1.0 - f) + ctab[col0 + c, i + 1] * f
+    return True
+
+
+@nb.njit(cache=True)
+def wheel_contact(
+    ws_y,
+    ws_z,
+    ws_roll,
+    ws_yaw,
+    vy,
+    vz,
+    vroll,
+    vyaw,
+    kappa,
+    side,
+    rail_y,
+    rail_z,
+    rail_vy,
+    rail_vz,
+    ctab,
+    y0,
+    dy,
+    H0,
+    Z0,
+    K,
+    row,
+    res,
+):
+    """Forces of one wheel (side +1 left, -1 right) on its rail, in the track frame.
+
+    Writes res = [Y_on_wheel, Q_on_wheel (up), Fx_on_wheel, lateral arm l, radius r, N] and
+    returns a failure code (0 ok).
+    """
+    col0 = 0 if side > 0 else NCTW
+    r0 = K[I_R0]
+    yrel = ws_y + r0 * ws_roll - rail_y  # the wheel's shift at contact level
+    if not table_row(ctab, col0, yrel, y0, dy, row):
+        return L.FAIL_FLANGE_CLIMB
+    r = row[0]
+    delta = row[1]
+    lat = row[2]
+    H = row[3]
+    G = row[4]
+    V = K[I_V]
+    gap = ws_z + side * lat * ws_roll - rail_z - (H - H0) - Z0
+    cd = math.cos(delta)
+    sd = math.sin(delta)
+    res[3] = lat
+    res[4] = r
+    if gap > K[I_LIFTMAX]:
+        return L.FAIL_LIFT
+    if gap >= 0.0:
+        res[0] = 0.0
+        res[1] = 0.0
+        res[2] = 0.0
+        res[5] = 0.0
+        return L.OK
+    dn = -gap * cd
+    if dn > K[I_PENMAX]:
+        return L.FAIL_PENETRATION
+    krn = 1.0 / (cd * cd / K[I_KRZ] + sd * sd / K[I_KRY])
+    N = hertz_rail_normal_force(dn, G, krn)
+    # rail support damping along the normal (pads and ballast), never pulling the wheel
+    slope = side * math.tan(delta)  # dH/dy of this wheel
+    gap_rate = vz + side * lat * vroll - rail_vz - slope * (vy + r0 * vroll - rail_vy)
+    N -= (cd * cd * K[I_CRZ] + sd * sd * K[I_CRY]) * gap_rate * cd
+    if N < 0.0:
+        N = 0.0
+    # Kalker coefficients scale with the contact area: f11, f22 ~ N^(2/3), f23 ~ N, f33 ~ N^(4/3)
+    n_ref = K[I_NREF]
+    scale = (N / n_ref) ** (2.0 / 3.0) * K[I_CREEP]
+    f11 = row[5] * scale
+    f22 = row[6] * scale
+    f23 = row[7] * scale * (N / n_ref) ** (1.0 / 3.0)
+    # creepages (Kalker): longitudinal, lateral, spin
+    xi_x = 1.0 - r / r0 - side * lat * (vyaw / V + kappa)
+    xi_y = (vy + r * vroll) / V - ws_yaw
+    spin = (vyaw / V + kappa) * cd - side * sd / r0
+    fx = -f11 * xi_x
+    fy = -f22 * xi_y - f23 * spin
+    eps = she_saturation(fx, fy, K[I_MU] * N)
+    fx *= eps
+    fy *= eps
+    # normal n = (-side sin d, cos d), contact-plane lateral t = (cos d, side sin d)
+    res[0] = -side * N * sd + fy * cd
+    res[1] = N * cd + side * fy * sd
+    res[2] = fx
+    res[5] = N
+    return L.OK
+
+
+@nb.njit(cache=True)
+def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
+    """Time derivative of the state; fills ``out`` with the output channels.
+
+    Returns a failure code (0 ok). P: catalogue parameters X1..X20 (SI); K: constants.
+    """
+    V = K[I_V]
+    gn = K[I_GN]
+    lc = K[I_LC]
+    a = K[I_A]
+    b1 = K[I_B1]
+    b2 = K[I_B2]
+    v = x[NQ : 2 * NQ]
+    q = x[:NQ]
+    acc = dxdt[NQ : 2 * NQ]
+    for i in range(NQ):
+        dxdt[i] = v[i]
+        acc[i] = 0.0
+    # generalised forces accumulate in acc, divided by inertia at the end
+    row = np.empty(NCTW)
+    res = np.empty(6)
+
+    # ---- catalogue parameters ----
+    m_w = P[0]
+    Ix_w = P[1]
+    Iy_w = P[2]
+    Iz_w = P[3]
+    sb_half = 0.5 * P[10]  # X11 side-bearer span
+    gib = P[11]  # X12
+    k_px = series_stiffness(P[12], P[19])  # X13 + X20
+    k_py = series_stiffness(P[13], P[19])  # X14 + X20
+    k_pz = P[14]  # X15
+    k_sx = P[15]  # X16
+    k_sy = P[16]  # X17
+    c_sy = P[17]  # X18
+    k_bar = P[18]  # X19
+    h9 = 0.5 * P[8]
+    bar_len = math.sqrt(P[8] * P[8] + P[9] * P[9])
+    ux = P[8] / bar_len
+    uy = P[9] / bar_len
+
+    # ---- track positions ----
+    s_c = s_front - (lc + a)
+    kap_c = track_lookup(trk, L.TR_KAPPA, s_c, s0, ds)
+    cant_c = track_lookup(trk, L.TR_CANT, s_c, s0, ds)
+    head_c = track_lookup(trk, L.TR_HEAD, s_c, s0, ds)
+    off_c = track_lookup(trk, L.TR_OFFSET, s_c, s0, ds)
+
+    # ---- car body pseudo-forces ----
+    m_c = K[I_MC]
+    acc[L.CB_Y] += -m_c * (V * V * kap_c * math.cos(cant_c) + gn * math.sin(cant_c))
+    acc[L.CB_Z] += -m_c * (gn * math.cos(cant_c) - V * V * kap_c * math.sin(cant_c)) + m_c * gn
+    # grade: pitch moment of the net coupler force (at coupler height) and of the bogies'
+    # reaction (at centre-plate height); lateral coupler components in curves (chord angle)
+    hk = K[I_HCG] - K[I_HK]
+    hcp = K[I_HCG] - K[I_HCP]
+    acc[L.CB_PITCH] += K[I_MGRADE]
+    f_lat_coupler = K[I_FCPL] * kap_c * K[I_XK]
+    acc[L.CB_Y] += 2.0 * f_lat_coupler
+    acc[L.CB_ROLL] += 2.0 * hk * f_lat_coupler
+
+    for k in range(2):
+        d = lc if k == 0 else -lc
+        s_b = s_c + d
+        kap_b = track_lookup(trk, L.TR_KAPPA, s_b, s0, ds)
+        cant_b = track_lookup(trk, L.TR_CANT, s_b, s0, ds)
+        head_b = track_lookup(trk, L.TR_HEAD, s_b, s0, ds)
+        off_b = track_lookup(trk, L.TR_OFFSET, s_b, s0, ds)
+        ib = BOL0 + 4 * k
+        m_b = K[I_MB]
+        acc[ib] += -m_b * (V * V * kap_b * math.cos(cant_b) + gn * math.sin(cant_b))
+        acc[ib + 1] += -m_b * (gn * math.cos(cant_b) - V * V * kap_b * math.sin(cant_b)) + m_b * gn
+
+        # ===== car body <-> bolster k =====
+        dev = off_b - off_c - d * head_c  # lateral offset of the track at s_b from the chord
+        roll_c_b = q[L.CB_ROLL] + cant_c - cant_b  # car roll seen in the bolster frame
+        # centre plate, lateral (bowl): car CP point is hcp below the car CG
+        y_cp_car = q[L.CB_Y] + d * q[L.CB_YAW] - dev + hcp * q[L.CB_ROLL]
+        h_bcp = K[I_HCP] - K[I_HB]
+        y_cp_bol = q[ib] - h_bcp * q[ib + 2]
+        f_cpy = K[I_KCPY] * (y_cp_car - y_cp_bol)  # on bolster (+), on car (-)
+        acc[ib] += f_cpy
+        acc[ib + 2] += -h_bcp * f_cpy
+        acc[L.CB_Y] -= f_cpy
+        acc[L.CB_ROLL] -= hcp * f_cpy
+        acc[L.CB_YAW] -= d * f_cpy
+        # centre plate, vertical (lift-off possible)
+        z_car = q[L.CB_Z] - d * q[L.CB_PITCH]
+        n_cp = K[I_F0CP] + K[I_KCPZ] * (q[ib + 1] - z_car)
+        if n_cp < 0.0:
+            n_cp = 0.0
+        acc[L.CB_Z] += n_cp - K[I_F0CP]
+        acc[L.CB_PITCH] += -d * (n_cp - K[I_F0CP])
+        acc[ib + 1] -= n_cp - K[I_F0CP]
+        # side bearers at +- X11/2 (constant contact, lift-off possible) [X11]
+        n_sb_sum = 0.0
+        for side in (1.0, -1.0):
+            comp = (q[ib + 1] + side * sb_half * q[ib + 2]) - (z_car + side * sb_half * roll_c_b)
+            f_sb = K[I_PSB] + K[I_KSB] * comp
+            if f_sb < 0.0:
+                f_sb = 0.0
+            n_sb_sum += f_sb
+            df = f_sb - K[I_PSB]
+            acc[L.CB_Z] += df
+            acc[L.CB_ROLL] += side * sb_half * f_sb
+            acc[L.CB_PITCH] += -d * df
+            acc[ib + 1] -= df
+            acc[ib + 2] -= side * sb_half * f_sb
+        # body-bolster yaw friction (centre plate + side bearers): elasto-plastic slider
+        m_lim = K[I_MUCP] * n_cp * (2.0 / 3.0) * K[I_RCP] + K[I_MUSB] * n_sb_sum * sb_half
+        rel_rate = v[L.CB_YAW] + V * (kap_c - kap_b) - v[ib + 3]
+        m_fr = coulomb_slider(x[AUXY + k], m_lim, K[I_KYAW] * rel_rate, dxdt, AUXY + k)
+        acc[L.CB_YAW] -= m_fr
+        acc[ib + 3] += m_fr
+
+        # ===== bolster <-> side frames (spring nests) =====
+        for sidx in range(2):
+            side = 1.0 if sidx == 0 else -1.0
+            jf = SF0 + 5 * (2 * k + sidx)
+            m_f = K[I_MF]
+            acc[jf + 1] += -m_f * (V * V * kap_b * math.cos(cant_b) + gn * math.sin(cant_b))
+            acc[jf + 2] += (
+                -m_f * (gn * math.cos(cant_b) - V * V * kap_b * math.sin(cant_b)) + m_f * gn
+            )
+            # vertical nest spring + variable-friction wedge
+            comp = q[jf + 2] - (q[ib + 1] + side * b2 * q[ib + 2])
+            comp_rate = v[jf + 2] - (v[ib + 1] + side * b2 * v[ib + 2])
+            f_spring = K[I_F0N] + K[I_KSZ] * comp
+            w_lim = K[I_MUW] * (f_spring if f_spring > 0.0 else 0.0)
+            ia = AUXW + 2 * k + sidx
+            f_w = coulomb_slider(x[ia], w_lim, K[I_KW] * comp_rate, dxdt, ia)
+            f_up = f_spring - K[I_F0N] + f_w  # on bolster, deviation from static
+            acc[ib + 1] += f_up
+            acc[ib + 2] += side * b2 * (f_up + K[I_F0N])
+            acc[jf + 2] -= f_up
+            # lateral shear [X17], wedge damping [X18], gib stop [X12]
+            dyn = q[jf + 1] - q[ib]
+            f_lat = k_sy * dyn + c_sy * (v[jf + 1] - v[ib]) + gap_spring(dyn, gib, K[I_KGIB])
+            acc[ib] += f_lat
+            acc[jf + 1] -= f_lat
+            # longitudinal shear [X16]: bolster yaw against side-frame longitudinal motion
+            dxn = q[jf] + side * b2 * q[ib + 3]
+            f_lon = k_sx * dxn + K[I_CSX] * (v[jf] + side * b2 * v[ib + 3])
+            acc[ib + 3] += -side * b2 * f_lon
+            acc[jf] -= f_lon
+
+        # ===== cross-bracing bars between the side frames [X19] =====
+        jl = SF0 + 5 * (2 * k)
+        jr = SF0 + 5 * (2 * k + 1)
+        for bar in range(2):
+            e_l = h9 if bar == 0 else -h9  # pin longitudinal offset on the left frame
+            e_r = -e_l
+            dirx = -ux if bar == 0 else ux  # unit vector from the left to the right pin
+            diry = -uy
+            dux = q[jr] - q[jl]
+            duy = (q[jr + 1] + e_r * q[jr + 4]) - (q[jl + 1] + e_l * q[jl + 4])
+            t_bar = k_bar * (dirx * dux + diry * duy)
+            acc[jl] += t_bar * dirx
+            acc[jl + 1] += t_bar * diry
+            acc[jl + 4] += e_l * t_bar * diry
+            acc[jr] -= t_bar * dirx
+            acc[jr + 1] -= t_bar * diry
+            acc[jr + 4] -= e_r * t_bar * diry
+
+        # ===== side frames <-> wheelsets (primary, per axle box) =====
+        for wi in range(2):
+            w = 2 * k + wi
+            e = a if wi == 0 else -a
+            s_w = s_b + e
+            kap_w = track_lookup(trk, L.TR_KAPPA, s_w, s0, ds)
+            cant_w = track_lookup(trk, L.TR_CANT, s_w, s0, ds)
+            head_w = track_lookup(trk, L.TR_HEAD, s_w, s0, ds)
+            off_w = track_lookup(trk, L.TR_OFFSET, s_w, s0, ds)
+            iw = WS0 + 4 * w
+            acc[iw] += -m_w * (V * V * kap_w * math.cos(cant_w) + gn * math.sin(cant_w))
+            acc[iw + 1] += (
+                -m_w * (gn * math.cos(cant_w) - V * V * kap_w * math.sin(cant_w)) + m_w * gn
+            )
+            dev_w = off_w - off_b - e * head_b
+            yaw_w_b = q[iw + 3] + head_w - head_b  # wheelset yaw in the bogie frame
+            for sidx in range(2):
+                side = 1.0 if sidx == 0 else -1.0
+                jf = SF0 + 5 * (2 * k + sidx)
+                # longitudinal [X13 in series with X20]
+                dx_p = q[jf] + side * b1 * yaw_w_b
+                dvx = v[jf] + side * b1 * (v[iw + 3] + V * (kap_w - kap_b))
+                f_x = k_px * dx_p + K[I_CPX] * dvx  # on wheelset box, x
+                acc[iw + 3] += -side * b1 * f_x
+                acc[jf] -= f_x
+                # lateral [X14 in series with X20]
+                dy_p = q[jf + 1] + e * (q[jf + 4]) - dev_w - q[iw]
+                dvy = v[jf + 1] + e * v[jf + 4] - v[iw]
+                f_y = k_py * dy_p + K[I_CPY] * dvy  # on wheelset
+                acc[iw] += f_y
+                acc[jf + 1] -= f_y
+                acc[jf + 4] -= e * f_y
+                # vertical [X15]
+                dz_p = (q[iw + 1] + side * b1 * q[iw + 2]) - (q[jf + 2] - e * q[jf + 3])
+                dvz = (v[iw + 1] + side * b1 * v[iw + 2]) - (v[jf + 2] - e * v[jf + 3])
+                f_z = k_pz * dz_p + K[I_CPZ] * dvz  # deviation of the upward force on frame
+                acc[jf + 2] += f_z
+                acc[jf + 3] += -e * (f_z + K[I_F0P])
+                acc[iw + 1] -= f_z
+                acc[iw + 2] -= side * b1 * (f_z + K[I_F0P])
+
+            # ---- wheel-rail contact ----
+            zl = track_lookup(trk, L.TR_ZL, s_w, s0, ds)
+            zr = track_lookup(trk, L.TR_ZR, s_w, s0, ds)
+            yl = track_lookup(trk, L.TR_YL, s_w, s0, ds)
+            yr = track_lookup(trk, L.TR_YR, s_w, s0, ds)
+            vzl = track_rate(trk, L.TR_ZL, s_w, s0, ds, V)
+            vzr = track_rate(trk, L.TR_ZR, s_w, s0, ds, V)
+            vyl = track_rate(trk, L.TR_YL, s_w, s0, ds, V)
+            vyr = track_rate(trk, L.TR_YR, s_w, s0, ds, V)
+            for sidx in range(2):
+                side = 1.0 if sidx == 0 else -1.0
+                left = sidx == 0
+                code = wheel_contact(
+                    q[iw],
+                    q[iw + 1],
+                    q[iw + 2],
+                    q[iw + 3],
+                    v[iw],
+                    v[iw + 1],
+                    v[iw + 2],
+                    v[iw + 3],
+                    kap_w,
+                    side,
+                    yl if left else yr,
+                    zl if left else zr,
+                    vyl if left else vyr,
+                    vzl if left else vzr,
+                    ctab,
+                    y0,
+                    dy,
+                    H0L if left else H0R,
+                    K[I_Z0L] if left else K[I_Z0R],
+                    K,
+                    row,
+                    res,
+                )
+                if code != 0:
+                    return code
+                f_yw, f_zw, f_xw, lat = res[0], res[1], res[2], res[3]
+                acc[iw] += f_yw
+                acc[iw + 1] += f_zw - K[I_Q0]
+                # roll lever of the contact force; r0 (not r) keeps it the potential's gradient
+                acc[iw + 2] += side * lat * f_zw + K[I_R0] * f_yw
+                acc[iw + 3] += -side * lat * f_xw
+                # outputs: force on the rail; Y + outward (field side), Q + down
+                out[L.OUT_Y + 2 * w + sidx] = -side * f_yw
+                out[L.OUT_Q + 2 * w + sidx] = f_zw
+            # gyroscopic coupling of the spinning wheelset (spin V / r0 about +y)
+            h_spin = Iy_w * V / K[I_R0]
+            acc[iw + 2] += h_spin * v[iw + 3]
+            acc[iw + 3] -= h_spin * v[iw + 2]
+
+    # ---- divide by inertia ----
+    acc[L.CB_Y] /= m_c
+    acc[L.CB_Z] /= m_c
+    acc[L.CB_ROLL] /= K[I_IXC]
+    acc[L.CB_PITCH] /= K[I_IYC]
+    acc[L.CB_YAW] /= K[I_IZC]
+    for k in range(2):
+        ib = BOL0 + 4 * k
+        acc[ib] /= K[I_MB]
+        acc[ib + 1] /= K[I_MB]
+        acc[ib + 2] /= K[I_IXB]
+        acc[ib + 3] /= K[I_IZB]
+    for j in range(4):
+        jf = SF0 + 5 * j
+        acc[jf] /= K[I_MF]
+        acc[jf + 1] /= K[I_MF]
+        acc[jf + 2] /= K[I_MF]
+        acc[jf + 3] /= K[I_IYF]
+        acc[jf + 4] /= K[I_IZF]
+    for w in range(4):
+        iw = WS0 + 4 * w
+        acc[iw] /= m_w
+        acc[iw + 1] /= m_w
+        acc[iw + 2] /= Ix_w
+        acc[iw + 3] /= Iz_w
+    out[L.OUT_ACC_Y] = acc[L.CB_Y] + V * V * kap_c * math.cos(cant_c) + gn * math.sin(cant_c)
+    out[L.OUT_ACC_Z] = acc[L.CB_Z]
+    return L.OK

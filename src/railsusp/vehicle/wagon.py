@@ -1,0 +1,149 @@
+"""Wagon data: masses, inertias, geometry and fixed stiffnesses, read from a TOML file.
+
+The wagon is data, not code: ``data/c80_k6.toml`` describes the C80 gondola on K6 bogies, and
+another wagon or bogie type (C70/K5, C64/K2) is another file of the same form. The sampled
+suspension parameters (X11-X20) and the wheelset/adapter data (X1-X10) come from the parameter
+catalogue (:mod:`railsusp.params`), so that a campaign can vary them.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from importlib import resources
+from pathlib import Path
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from railsusp.errors import RailsuspInputError
+
+_POS = {"gt": 0.0, "allow_inf_nan": False}
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class WagonInfo(_Section):
+    name: str
+    description: str = ""
+
+
+class CarBody(_Section):
+    mass: float = Field(**_POS, description="loaded car body mass, kg")
+    roll_inertia: float = Field(**_POS, description="kg m^2")
+    pitch_inertia: float = Field(**_POS, description="kg m^2")
+    yaw_inertia: float = Field(**_POS, description="kg m^2")
+    cg_height: float = Field(**_POS, description="centre of gravity above rail top, m")
+    bogie_half_spacing: float = Field(**_POS, description="half bogie centre distance, m")
+    coupler_height: float = Field(**_POS, description="coupler height above rail top, m")
+    coupler_half_spacing: float = Field(**_POS, description="car centre to coupler pivot, m")
+
+
+class Bolster(_Section):
+    mass: float = Field(**_POS)
+    roll_inertia: float = Field(**_POS)
+    yaw_inertia: float = Field(**_POS)
+    cg_height: float = Field(**_POS)
+
+
+class SideFrame(_Section):
+    mass: float = Field(**_POS)
+    pitch_inertia: float = Field(**_POS)
+    yaw_inertia: float = Field(**_POS)
+    cg_height: float = Field(**_POS)
+
+
+class Bogie(_Section):
+    half_wheelbase: float = Field(**_POS)
+    axle_box_half_span: float = Field(**_POS)
+    spring_nest_half_span: float = Field(**_POS)
+    centre_plate_height: float = Field(**_POS)
+    centre_plate_radius: float = Field(**_POS)
+
+
+class Wheelset(_Section):
+    rolling_radius: float = Field(**_POS)
+    contact_half_distance: float = Field(**_POS)
+
+
+class Primary(_Section):
+    longitudinal_damping: float = Field(ge=0.0)
+    lateral_damping: float = Field(ge=0.0)
+    vertical_damping: float = Field(ge=0.0)
+
+
+class Secondary(_Section):
+    vertical_stiffness: float = Field(**_POS)
+    longitudinal_damping: float = Field(ge=0.0)
+    wedge_friction_ratio: float = Field(ge=0.0, le=1.0)
+    wedge_stick_stiffness: float = Field(**_POS)
+    gib_stiffness: float = Field(**_POS)
+
+
+class CentrePlate(_Section):
+    vertical_stiffness: float = Field(**_POS)
+    lateral_stiffness: float = Field(**_POS)
+    friction_coefficient: float = Field(ge=0.0, le=1.0)
+    yaw_stick_stiffness: float = Field(**_POS)
+
+
+class SideBearer(_Section):
+    vertical_stiffness: float = Field(**_POS)
+    preload: float = Field(ge=0.0)
+    friction_coefficient: float = Field(ge=0.0, le=1.0)
+
+
+class TrackData(_Section):
+    rail_vertical_stiffness: float = Field(**_POS)
+    rail_lateral_stiffness: float = Field(**_POS)
+    rail_vertical_damping: float = Field(ge=0.0)
+    rail_lateral_damping: float = Field(ge=0.0)
+    gauge: float = Field(gt=1.0, lt=2.0)
+    rail_inclination: float = Field(ge=0.0, lt=0.1)
+
+
+class ContactData(_Section):
+    creep_factor: float = Field(gt=0.0, le=2.0)
+
+
+class WagonData(_Section):
+    """Validated wagon description (one TOML file)."""
+
+    wagon: WagonInfo
+    car_body: CarBody
+    bolster: Bolster
+    side_frame: SideFrame
+    bogie: Bogie
+    wheelset: Wheelset
+    primary: Primary
+    secondary: Secondary
+    centre_plate: CentrePlate
+    side_bearer: SideBearer
+    track: TrackData
+    contact: ContactData
+
+    @property
+    def name(self) -> str:
+        return self.wagon.name
+
+
+def load_wagon(source: str | Path | None = None) -> WagonData:
+    """Read and validate a wagon file; None gives the embedded C80/K6 data."""
+    if source is None:
+        text = resources.files("railsusp").joinpath("data/c80_k6.toml").read_text("utf-8")
+        where = "c80_k6.toml"
+    else:
+        path = Path(source)
+        if not path.is_file():
+            raise RailsuspInputError(f"wagon file {path} does not exist")
+        text, where = path.read_text("utf-8"), str(path)
+    try:
+        return WagonData(**tomllib.loads(text))
+    except tomllib.TOMLDecodeError as exc:
+        raise RailsuspInputError(f"{where}: not valid TOML ({exc})") from None
+    except ValidationError as exc:
+        msgs = []
+        for err in exc.errors():
+            loc = ".".join(str(p) for p in err["loc"])
+            msgs.append(f"{loc} = {err.get('input')!r}: {err['msg']}")
+        raise RailsuspInputError(f"{where}: " + "; ".join(msgs)) from None
