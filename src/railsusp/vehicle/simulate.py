@@ -192,14 +192,17 @@ def constants(
     f_prim = (f_nest + sf.mass * gn) / 2.0
     q0 = f_prim + m_w * gn / 2.0
     vals.update(F0_cp=f_cp, F0_nest=f_nest, F0_prim=f_prim, Q0=q0)
-    # static approach: N0 cos(delta0) = Q0; approach = G N^(2/3) + N / k_rn along the normal
+    # static approach: Q0 = N0 cos(delta0) + f23(N0) sin(delta0)^2 / r0 (normal force plus the
+    # vertical part of the spin creep force of a coned tread, f23 ~ N); approach along the
+    # normal = G N^(2/3) + N / k_rn
     for side, col0 in (("L", 0), ("R", L.CT_RIGHT)):
         i0 = round(-ca.y0 / ca.dy)
         delta0 = ca.table[col0 + L.CT_DELTA, i0]
         g0 = ca.table[col0 + L.CT_G, i0]
+        f23 = ca.table[col0 + L.CT_F23, i0] * wagon.contact.creep_factor / ca.n_ref
         cd, sd = np.cos(delta0), np.sin(delta0)
         krn = 1.0 / (cd * cd / vals["k_rz"] + sd * sd / vals["k_ry"])
-        n0 = q0 / cd
+        n0 = q0 / (cd + f23 * sd * sd / wagon.wheelset.rolling_radius)
         dn = g0 * n0 ** (2.0 / 3.0) + n0 / krn
         vals[f"Z0_{side}"] = dn / cd
     # grade: net coupler force = whole car's grade component at coupler height; the bogies'

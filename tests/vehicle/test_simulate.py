@@ -1,0 +1,231 @@
+"""Verification of the wagon simulator against analytic cases and physical invariants."""
+
+import math
+
+import numpy as np
+import pytest
+
+from railsusp.conditions import CANT_BASE_M, GRAVITY, get_condition
+from railsusp.errors import ParameterError, RailsuspInputError
+from railsusp.params import MAIN_SUSPENSION, ParameterSet, spec
+from railsusp.vehicle import layout as L
+from railsusp.vehicle.contact import contact_table, equivalent_conicity
+from railsusp.vehicle.profiles import chn60_rail, lm_worn_wheel
+from railsusp.vehicle.simulate import (
+    SolverSettings,
+    contact_arrays,
+    simulate,
+    simulate_batch,
+)
+from railsusp.vehicle.wagon import load_wagon
+from railsusp.vehicle.wheelset import free_wheelset_sway, sway_wavelength
+
+SHORT = {"duration_s": 6.0, "n_steps": 300}
+
+
+def total_mass(wagon=None):
+    w = load_wagon() if wagon is None else wagon
+    return w.car_body.mass + 2 * w.bolster.mass + 4 * w.side_frame.mass + 4 * spec("X1").nominal
+
+
+def test_static_equilibrium_on_perfect_straight_track():
+    """Zero excitation: every wheel carries weight / 8 (0.5 %), no net lateral force, at rest."""
+    cond = get_condition("straight", irregularity_class=None, duration_s=3.0, n_steps=150)
+    r = simulate(None, cond)
+    assert r.ok.all()
+    q_static = total_mass() * GRAVITY / 8.0
+    np.testing.assert_allclose(r.Q[0], q_static, rtol=0.005)
+    assert np.abs(r.H[0]).max() < 50.0  # N: wheelset lateral forces ~0
+    # a coned tread pushes each rail outward by N sin(delta) less the spin creep force; the
+    # two wheels of a wheelset balance, and nothing moves
+    assert np.ptp(r.Y[0], axis=1).max() < 1.0
+    assert np.abs(r.Y[0]).max() < 0.06 * q_static
+    assert np.abs(r.car_acc_y[0]).max() < 1e-3 and np.abs(r.car_acc_z[0]).max() < 1e-3
+
+
+def test_free_wheelset_reproduces_klingel_wavelength():
+    """Klingel: L = 2 pi sqrt(r0 b0 / lambda_e), with the table's own equivalent conicity."""
+    s, y, _ = free_wheelset_sway(speed_kmh=20.0, y_initial=0.003, duration=10.0)
+    wavelength = sway_wavelength(s, y)
+    table = contact_table(lm_worn_wheel(), chn60_rail(), wheelset_roll=False)
+    lam = equivalent_conicity(table, 0.003)
+    klingel = 2 * math.pi * math.sqrt(0.42 * 0.7465 / lam)
+    assert wavelength == pytest.approx(klingel, rel=0.05)
+
+
+@pytest.fixture(scope="module")
+def steady_curve():
+    cond = get_condition("curve", irregularity_class=None, duration_s=8.0, n_steps=400)
+    return cond, simulate(None, cond)
+
+
+def test_steady_curving_lateral_force_balance(steady_curve):
+    """Quasi-static balance: sum of wheelset forces = m (V^2/R cos phi - g sin|phi|) (3 %)."""
+    cond, r = steady_curve
+    phi = math.asin(cond.cant_mm * 1e-3 / CANT_BASE_M)
+    expected = total_mass() * (
+        cond.speed**2 / cond.curve_radius_m * math.cos(phi) - GRAVITY * math.sin(phi)
+    )
+    # H is + to the left (towards the centre of this left-hand curve): the wagon pushes the
+    # track outwards, so the sum of H is negative
+    total = -r.H[0].mean(axis=1).sum()
+    assert total == pytest.approx(expected, rel=0.03)
+
+
+def test_leading_outer_wheel_carries_the_largest_lateral_force(steady_curve):
+    _, r = steady_curve
+    mean_y = r.Y[0].mean(axis=1)
+    assert int(np.argmax(mean_y)) == 1  # w1R: leading wheelset, outer (right) wheel
+    assert r.measured_wheel() == 1
+    # outer wheels loaded, inner unloaded by the cant deficiency
+    assert r.Q[0, 1].mean() > r.Q[0, 0].mean()
+
+
+def test_left_and_right_curves_mirror():
+    """Mirror symmetry: a right-hand curve gives the left-hand curve's forces, sides swapped."""
+    base = {"irregularity_class": None, "duration_s": 3.0, "n_steps": 150}
+    left = simulate(None, get_condition("curve", **base))
+    right = simulate(None, get_condition("curve", curve_direction="right", **base))
+    np.testing.assert_allclose(left.Y[0, 1], right.Y[0, 0], rtol=1e-6, atol=1.0)
+    np.testing.assert_allclose(left.Q[0, 0], right.Q[0, 1], rtol=1e-6, atol=1.0)
+
+
+@pytest.mark.parametrize("name", ["straight", "curve"])
+def test_halving_the_step_changes_rms_and_peak_by_less_than_1_percent(name):
+    cond = get_condition(name, **SHORT)
+    coarse = simulate(None, cond, settings=SolverSettings(max_step=1e-3)).statistics()
+    fine = simulate(None, cond, settings=SolverSettings(max_step=5e-4)).statistics()
+    for key in ("Y_rms", "Y_max", "Q_rms", "Q_max"):
+        assert coarse[key][0] == pytest.approx(fine[key][0], rel=0.01), key
+
+
+def test_every_main_suspension_parameter_changes_a_force_statistic():
+    """No dead parameter: X11..X20 at -20 % / +20 % change some statistic in some condition.
+
+    Direction check in the curve: a stiffer primary lateral pad (X14) raises the leading
+    outer wheel's mean lateral force. The pad is the compliant path between the leading
+    wheelset and the side frames: a softer pad lets the side frames and the trailing
+    wheelset shift outwards relative to the flanging leading wheelset, so the trailing
+    wheelset takes a larger share of the bogie's lateral load (the sum is fixed by the cant
+    deficiency); a stiffer pad concentrates it on the leading wheelset.
+    """
+    sets = [ParameterSet.nominal()]
+    for sym in MAIN_SUSPENSION:
+        for f in (0.8, 1.2):
+            sets.append(ParameterSet.nominal().replace({sym: spec(sym).nominal * f}))
+    keys = ("Y_mean", "Y_rms", "Y_p99", "Y_max", "Q_rms", "Q_p99", "Q_max")
+    change = np.zeros(len(MAIN_SUSPENSION))
+    x14_curve = None
+    for name in ("straight", "curve"):
+        r = simulate_batch(sets, get_condition(name, **SHORT))
+        assert r.ok.all(), r.failures()
+        stats = r.statistics()
+        for i in range(len(MAIN_SUSPENSION)):
+            for k in keys:
+                for j in (1 + 2 * i, 2 + 2 * i):
+                    change[i] = max(change[i], abs(stats[k][j] / stats[k][0] - 1))
+        if name == "curve":
+            i14 = MAIN_SUSPENSION.index("X14")
+            x14_curve = stats["Y_mean"][[1 + 2 * i14, 0, 2 + 2 * i14]]
+    # the simulator is deterministic (identical inputs give bitwise identical output), so any
+    # change is the parameter's. X20 is weak by physics: at 1 GN/m in series with a 14 MN/m pad a
+    # 20 % change moves the combined stiffness by 0.3 %.
+    dead = [s for s, c in zip(MAIN_SUSPENSION, change, strict=True) if c < 1e-4]
+    assert not dead, dict(zip(MAIN_SUSPENSION, change, strict=True))
+    assert x14_curve[0] < x14_curve[1] < x14_curve[2]
+
+
+def test_same_inputs_give_identical_output():
+    cond = get_condition("straight", **SHORT)
+    a = simulate(None, cond)
+    b = simulate(None, cond)
+    np.testing.assert_array_equal(a.Y, b.Y)
+    np.testing.assert_array_equal(a.Q, b.Q)
+
+
+def test_failed_set_is_flagged_and_does_not_poison_the_batch():
+    cond = get_condition("straight", **SHORT)
+    good = ParameterSet.nominal()
+    broken = good.replace({"X1": 1e-3})  # a 1 g wheelset: stiff beyond the step, diverges
+    r = simulate_batch([good, broken, good], cond)
+    assert list(r.status == L.OK) == [True, False, True]
+    ((idx, reason, t_fail),) = r.failures()
+    assert 0.0 <= t_fail <= cond.lead_in_m / cond.speed + cond.duration_s
+    assert idx == 1 and reason in L.FAILURE_REASONS.values() and reason != "ok"
+    assert np.isnan(r.Y[1]).all()
+    alone = simulate(good, cond)
+    np.testing.assert_array_equal(r.Y[0], alone.Y[0])
+    np.testing.assert_array_equal(r.Y[2], alone.Y[0])
+
+
+def test_independent_seeds_and_common_random_numbers():
+    cond = get_condition("straight", **SHORT)
+    crn = simulate_batch([ParameterSet.nominal()] * 2, cond)
+    np.testing.assert_array_equal(crn.Y[0], crn.Y[1])
+    indep = simulate_batch([ParameterSet.nominal()] * 2, cond, seeds=[1, 2])
+    assert not np.allclose(indep.Y[0], indep.Y[1])
+    with pytest.raises(RailsuspInputError, match="seeds: 1 given for 2"):
+        simulate_batch([ParameterSet.nominal()] * 2, cond, seeds=[1])
+
+
+def test_matrix_input_over_symbols_is_range_checked():
+    cond = get_condition("straight", duration_s=2.0, n_steps=100)
+    ok = simulate_batch(np.array([[14e6, 10e6], [16e6, 8e6]]), cond, symbols=["X13", "X14"])
+    np.testing.assert_allclose(ok.params[1, [12, 13]], [16e6, 8e6])
+    with pytest.raises(ParameterError, match="row 0: X13"):
+        simulate_batch(np.array([[40e6, 10e6]]), cond, symbols=["X13", "X14"])
+
+
+def test_result_export_and_derived_quantities(tmp_path):
+    cond = get_condition("curve", duration_s=2.0, n_steps=100)
+    r = simulate(None, cond)
+    df = r.to_dataframe()
+    assert len(df) == 100 and df.index.name == "time_s"
+    assert {"Y_w1R_kN", "Q_w4L_kN", "H_w1_kN", "car_acc_y_m_s2"} <= set(df.columns)
+    np.testing.assert_allclose(df["Y_w1R_kN"].to_numpy() * 1e3, r.Y[0, 1])
+    path = r.to_parquet(tmp_path / "run.parquet")
+    import pyarrow.parquet as pq
+
+    meta = pq.read_schema(path).metadata
+    assert b"railsusp.condition" in meta and b"curve" in meta[b"railsusp.condition"]
+    yq = r.derailment_quotient
+    np.testing.assert_allclose(yq[0, 1], r.Y[0, 1] / r.Q[0, 1])
+    np.testing.assert_allclose(
+        r.unloading_ratio[0, 0], (r.static_wheel_load - r.Q[0, 0]) / r.static_wheel_load
+    )
+    assert r.measured_wheel("w3L") == 4
+    with pytest.raises(RailsuspInputError, match="measured wheel 'w9'"):
+        r.measured_wheel("w9")
+
+
+def test_wagon_is_data(tmp_path):
+    """Another wagon is another file: a lighter car body lowers the static wheel load."""
+    w = load_wagon()
+    text = (
+        __import__("importlib.resources", fromlist=["files"])
+        .files("railsusp")
+        .joinpath("data/c80_k6.toml")
+        .read_text("utf-8")
+    )
+    light = tmp_path / "light.toml"
+    light.write_text(text.replace("mass = 91600.0", "mass = 71600.0"))
+    lw = load_wagon(light)
+    cond = get_condition("straight", irregularity_class=None, duration_s=2.0, n_steps=100)
+    q_light = simulate(None, cond, wagon=lw).Q[0].mean()
+    assert q_light == pytest.approx(total_mass(lw) * GRAVITY / 8.0, rel=0.005)
+    assert q_light < simulate(None, cond, wagon=w).Q[0].mean()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace("mass = 596.0", "mass = -596.0"))
+    with pytest.raises(RailsuspInputError, match=r"bad\.toml: bolster\.mass = -596"):
+        load_wagon(bad)
+
+
+def test_contact_arrays_are_consistent():
+    ca = contact_arrays(load_wagon())
+    y = ca.y0 + ca.dy * np.arange(ca.table.shape[1])
+    h = ca.table[L.CT_H]
+    # the contact angle is the slope of the touching height (conservative contact forces)
+    slope = np.gradient(h, y)
+    np.testing.assert_allclose(np.tan(ca.table[L.CT_DELTA]), slope, atol=1e-9)
+    # left at +y mirrors right at -y
+    np.testing.assert_allclose(ca.table[L.CT_R], ca.table[L.CT_RIGHT + L.CT_R][::-1], atol=1e-6)
