@@ -61,3 +61,36 @@ def test_demo_prints_catalogue_conditions_and_track_summary():
     assert "Parameter catalogue" in result.output
     assert "Working conditions" in result.output
     assert "Synthesised track input" in result.output
+    assert "Table 8" in result.output and "w1R" in result.output
+
+
+def test_simulate_prints_forces_and_writes_files(tmp_path):
+    out = tmp_path / "f.parquet"
+    png = tmp_path / "f.png"
+    result = runner.invoke(
+        app, ["simulate", "curve", "--set", "X13=16.1", "--out", str(out), "--plot", str(png)]
+    )
+    assert result.exit_code == 0, result.output
+    assert "w1R" in result.output and "31.5" in result.output  # measured wheel, study value
+    import pandas as pd
+
+    df = pd.read_parquet(out)
+    assert len(df) == 1000 and "Y_w1R_kN" in df.columns
+    assert 20.0 < df["Y_w1R_kN"].mean() < 120.0  # the outer leading wheel flanges
+    assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["simulate", "straight", "--wheel", "w9"], "--wheel 'w9' unknown"),
+        (["simulate", "straight", "--set", "X14=99"], "X14"),
+        (["simulate", "loop"], "unknown condition 'loop'"),
+    ],
+)
+def test_simulate_bad_input(args, needle):
+    proc = subprocess.run(
+        [sys.executable, "-m", "railsusp.cli", *args], capture_output=True, text=True, timeout=120
+    )
+    assert proc.returncode == 2 and needle in proc.stderr, proc.stderr
+    assert "Traceback" not in proc.stderr

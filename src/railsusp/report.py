@@ -87,3 +87,29 @@ def plot_track_irregularities(irr: Irregularities, path: str | Path, seed_index:
         f"wavelengths {irr.wavelength_min:g}-{irr.wavelength_max:g} m"
     )
     return save_figure(fig, path)
+
+
+def plot_forces(result, path: str | Path, set_index: int = 0, wheel: str | int = "auto"):
+    """Lateral and vertical wheel-rail forces of one run: the measured wheel highlighted,
+    the other wheels faint; a third panel with the derailment quotient Y/Q."""
+    from railsusp.vehicle.simulate import WHEEL_NAMES
+
+    j = result.measured_wheel(wheel)
+    t = result.time
+    fig, axes = plt.subplots(3, 1, figsize=(11, 8), sharex=True, constrained_layout=True)
+    for k, name in enumerate(WHEEL_NAMES):
+        style = {"lw": 1.2, "color": "C3", "zorder": 3} if k == j else {"lw": 0.5, "alpha": 0.35}
+        label = f"{name} (measured)" if k == j else None
+        axes[0].plot(t, result.Y[set_index, k] / 1e3, label=label, **style)
+        axes[1].plot(t, result.Q[set_index, k] / 1e3, label=label, **style)
+    axes[2].plot(t, result.derailment_quotient[set_index, j], color="C3", lw=1.0)
+    axes[0].set_ylabel("lateral force Y (kN)")
+    axes[1].set_ylabel("vertical force Q (kN)")
+    axes[2].set_ylabel(f"Y/Q {WHEEL_NAMES[j]}")
+    axes[2].set_xlabel("time in record (s)")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper right", fontsize=8)
+    c = result.condition
+    fig.suptitle(f"{result.wagon_name}, condition '{c.name}': {c.describe()}", fontsize=9)
+    return save_figure(fig, path)

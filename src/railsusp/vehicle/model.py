@@ -247,10 +247,10 @@ def wheel_contact(
         res[5] = 0.0
         return L.OK
     dn = -gap * cd
-    if dn > K[I_PENMAX]:
-        return L.FAIL_PENETRATION
     krn = 1.0 / (cd * cd / K[I_KRZ] + sd * sd / K[I_KRY])
     N = hertz_rail_normal_force(dn, G, krn)
+    if G * N ** (2.0 / 3.0) > K[I_PENMAX]:  # Hertz approach (steel), not the rail deflection
+        return L.FAIL_PENETRATION
     # rail support damping along the normal (pads and ballast), never pulling the wheel
     slope = side * math.tan(delta)  # dH/dy of this wheel
     gap_rate = vz + side * lat * vroll - rail_vz - slope * (vy + r0 * vroll - rail_vy)

@@ -27,9 +27,30 @@ def _wheelset_rhs(x, dxdt, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, 
     f = np.zeros(4)
     for sidx in range(2):
         side = 1.0 if sidx == 0 else -1.0
-        code = wheel_contact(q[0], q[1], q[2], q[3], v[0], v[1], v[2], v[3], 0.0, side, 0.0,
-                             0.0, 0.0, 0.0, ctab, y0, dy, H0L if sidx == 0 else H0R,
-                             K[I_Z0L] if sidx == 0 else K[I_Z0R], K, row, res)
+        code = wheel_contact(
+            q[0],
+            q[1],
+            q[2],
+            q[3],
+            v[0],
+            v[1],
+            v[2],
+            v[3],
+            0.0,
+            side,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            ctab,
+            y0,
+            dy,
+            H0L if sidx == 0 else H0R,
+            K[I_Z0L] if sidx == 0 else K[I_Z0R],
+            K,
+            row,
+            res,
+        )
         if code != 0:
             return code
         f[0] += res[0]
@@ -60,23 +81,29 @@ def _integrate(x, n, dt, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, ou
     for i in range(n):
         out[i, 0] = x[0]
         out[i, 1] = x[3]
-        code = _wheelset_rhs(x, k1, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, row,
-                             res)
-        code += _wheelset_rhs(x + 0.5 * dt * k1, k2, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy,
-                              H0L, H0R, row, res)
-        code += _wheelset_rhs(x + 0.5 * dt * k2, k3, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy,
-                              H0L, H0R, row, res)
-        code += _wheelset_rhs(x + dt * k3, k4, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L,
-                              H0R, row, res)
+        code = _wheelset_rhs(x, k1, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, row, res)
+        code += _wheelset_rhs(
+            x + 0.5 * dt * k1, k2, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, row, res
+        )
+        code += _wheelset_rhs(
+            x + 0.5 * dt * k2, k3, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, row, res
+        )
+        code += _wheelset_rhs(
+            x + dt * k3, k4, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, row, res
+        )
         if code != 0:
             return i
         x += dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
     return n
 
 
-def free_wheelset_sway(speed_kmh: float = 20.0, y_initial: float = 0.003, duration: float = 12.0,
-                       dt: float = 2.0e-4, wagon: WagonData | None = None
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def free_wheelset_sway(
+    speed_kmh: float = 20.0,
+    y_initial: float = 0.003,
+    duration: float = 12.0,
+    dt: float = 2.0e-4,
+    wagon: WagonData | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Release a free wheelset (C80 axle load) with a lateral offset; return (s, y, yaw).
 
     ``s`` is the distance run (m), ``y`` the lateral displacement (m) and ``yaw`` (rad).
@@ -93,8 +120,9 @@ def free_wheelset_sway(speed_kmh: float = 20.0, y_initial: float = 0.003, durati
     x[0] = y_initial
     n = int(duration / dt)
     out = np.full((n, 2), np.nan)
-    done = _integrate(x, n, dt, p[0], p[1], p[3], p[2], axle_load, k, ca.table, ca.y0, ca.dy,
-                      ca.H0L, ca.H0R, out)
+    done = _integrate(
+        x, n, dt, p[0], p[1], p[3], p[2], axle_load, k, ca.table, ca.y0, ca.dy, ca.H0L, ca.H0R, out
+    )
     s = cond.speed * dt * np.arange(done)
     return s, out[:done, 0], out[:done, 1]
 
