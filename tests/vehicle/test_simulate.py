@@ -229,3 +229,36 @@ def test_contact_arrays_are_consistent():
     np.testing.assert_allclose(np.tan(ca.table[L.CT_DELTA]), slope, atol=1e-9)
     # left at +y mirrors right at -y
     np.testing.assert_allclose(ca.table[L.CT_R], ca.table[L.CT_RIGHT + L.CT_R][::-1], atol=1e-6)
+
+
+def test_user_profile_files_in_the_wagon_file(tmp_path):
+    """A wagon file may name profile files; the LM-like tread written out and read back gives
+    the same contact functions as the built-in one."""
+    from railsusp.vehicle.profiles import write_profile
+
+    write_profile(lm_worn_wheel(), tmp_path / "wheel.txt")
+    text = (
+        __import__("importlib.resources", fromlist=["files"])
+        .files("railsusp")
+        .joinpath("data/c80_k6.toml")
+        .read_text("utf-8")
+    )
+    f = tmp_path / "w.toml"
+    f.write_text(text + '\n[profiles]\nwheel = "wheel.txt"\nrail = "chn60"\n')
+    wagon = load_wagon(f)
+    assert wagon.profiles.wheel == str((tmp_path / "wheel.txt").resolve())
+    a = contact_arrays(wagon)
+    b = contact_arrays(load_wagon())
+    np.testing.assert_allclose(a.table[L.CT_R], b.table[L.CT_R], atol=2e-5)
+    f.write_text(text + '\n[profiles]\nwheel = "missing.txt"\n')
+    with pytest.raises(RailsuspInputError, match="profiles.wheel = 'missing.txt'"):
+        load_wagon(f)
+
+
+def test_xarray_export():
+    cond = get_condition("straight", duration_s=2.0, n_steps=100)
+    r = simulate_batch([ParameterSet.nominal()] * 2, cond, seeds=[1, 2])
+    ds = r.to_xarray()
+    assert ds["Y"].dims == ("set", "wheel", "time") and ds["Y"].shape == (2, 8, 100)
+    np.testing.assert_array_equal(ds["Q"].sel(wheel="w2R").values, r.Q[:, 3])
+    assert ds["params"].sel(parameter="X13").values[0] == pytest.approx(14e6)

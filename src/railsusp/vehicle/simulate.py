@@ -24,8 +24,9 @@ from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.params import SYMBOLS, ParameterSet, check_matrix, spec
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.contact import contact_table, hertz_contact, kalker_creep_coefficients
-from railsusp.vehicle.profiles import chn60_rail, lm_worn_wheel
+from railsusp.vehicle.contact import contact_table
+from railsusp.vehicle.contact_forces import hertz_contact, kalker_creep_coefficients
+from railsusp.vehicle.profiles import chn60_rail, lm_worn_wheel, read_profile
 from railsusp.vehicle.track import TrackLayout, irregularities_for
 from railsusp.vehicle.wagon import WagonData, load_wagon
 
@@ -88,9 +89,12 @@ def contact_arrays(wagon: WagonData) -> ContactArrays:
     # function of its own lateral shift at contact level, y_w + r0 roll - y_rail. The
     # wheelset roll then enters the contact through that shift and the lever of the contact
     # point, so normal forces stay the gradient of one contact potential (conservative).
+    prof = wagon.profiles
+    wheel = lm_worn_wheel() if prof.wheel == "lm-like" else read_profile(prof.wheel, kind="wheel")
+    rail = chn60_rail() if prof.rail == "chn60" else read_profile(prof.rail, kind="rail")
     tab = contact_table(
-        lm_worn_wheel(),
-        chn60_rail(),
+        wheel,
+        rail,
         track_gauge=tr.gauge,
         rail_inclination=tr.rail_inclination,
         nominal_radius=wagon.wheelset.rolling_radius,
@@ -361,6 +365,41 @@ class SimulationResult:
         cols["car_acc_y_m_s2"] = self.car_acc_y[set_index]
         cols["car_acc_z_m_s2"] = self.car_acc_z[set_index]
         return pd.DataFrame(cols, index=pd.Index(self.time, name="time_s"))
+
+    def to_xarray(self):
+        """All sets as an xarray Dataset: Y, Q (set, wheel, time) in N; accelerations."""
+        import xarray as xr
+
+        coords = {
+            "set": np.arange(self.n_sets),
+            "wheel": list(WHEEL_NAMES),
+            "time": self.time,
+            "parameter": [f"X{i}" for i in range(1, 21)],
+        }
+        ds = xr.Dataset(
+            {
+                "Y": (
+                    ("set", "wheel", "time"),
+                    self.Y,
+                    {
+                        "units": "N",
+                        "long_name": "lateral force on the rail, + towards the field side",
+                    },
+                ),
+                "Q": (
+                    ("set", "wheel", "time"),
+                    self.Q,
+                    {"units": "N", "long_name": "vertical force on the rail, + down"},
+                ),
+                "car_acc_y": (("set", "time"), self.car_acc_y, {"units": "m/s^2"}),
+                "car_acc_z": (("set", "time"), self.car_acc_z, {"units": "m/s^2"}),
+                "params": (("set", "parameter"), self.params, {"units": "SI"}),
+                "status": (("set",), self.status),
+            },
+            coords=coords,
+            attrs={"condition": self.condition.model_dump_json(), "wagon": self.wagon_name},
+        )
+        return ds
 
     def to_parquet(self, path: str | Path, set_index: int = 0) -> Path:
         """Write one set's series to Parquet atomically, with the condition in the metadata."""

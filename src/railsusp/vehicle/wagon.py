@@ -106,6 +106,19 @@ class ContactData(_Section):
     creep_factor: float = Field(gt=0.0, le=2.0)
 
 
+#: built-in profile names; anything else is a profile file (two columns y, z in mm)
+BUILTIN_WHEELS = ("lm-like",)
+BUILTIN_RAILS = ("chn60",)
+
+
+class Profiles(_Section):
+    """Wheel and rail profiles: a built-in name or a profile file path (relative paths are
+    taken from the wagon file's folder)."""
+
+    wheel: str = "lm-like"
+    rail: str = "chn60"
+
+
 class WagonData(_Section):
     """Validated wagon description (one TOML file)."""
 
@@ -121,6 +134,7 @@ class WagonData(_Section):
     side_bearer: SideBearer
     track: TrackData
     contact: ContactData
+    profiles: Profiles = Profiles()
 
     @property
     def name(self) -> str:
@@ -138,7 +152,21 @@ def load_wagon(source: str | Path | None = None) -> WagonData:
             raise RailsuspInputError(f"wagon file {path} does not exist")
         text, where = path.read_text("utf-8"), str(path)
     try:
-        return WagonData(**tomllib.loads(text))
+        doc = tomllib.loads(text)
+        prof = doc.get("profiles")
+        if source is not None and isinstance(prof, dict):
+            base = Path(source).resolve().parent
+            for key, builtin in (("wheel", BUILTIN_WHEELS), ("rail", BUILTIN_RAILS)):
+                value = prof.get(key)
+                if isinstance(value, str) and value not in builtin:
+                    path = (base / value).resolve()
+                    if not path.is_file():
+                        raise RailsuspInputError(
+                            f"{where}: profiles.{key} = {value!r} is neither a built-in profile "
+                            f"({', '.join(builtin)}) nor an existing file"
+                        )
+                    prof[key] = str(path)
+        return WagonData(**doc)
     except tomllib.TOMLDecodeError as exc:
         raise RailsuspInputError(f"{where}: not valid TOML ({exc})") from None
     except ValidationError as exc:
