@@ -113,3 +113,31 @@ def plot_forces(result, path: str | Path, set_index: int = 0, wheel: str | int =
     c = result.condition
     fig.suptitle(f"{result.wagon_name}, condition '{c.name}': {c.describe()}", fontsize=9)
     return save_figure(fig, path)
+
+
+def plot_sobol(indices, path: str | Path, statistic: str = "mean"):
+    """Bar chart of first-order S1 and total ST Sobol indices with confidence intervals, one
+    panel per condition and force (the study's Figure 2, per condition and with errors)."""
+    sel = indices[indices.statistic == statistic]
+    panels = sel[["condition", "quantity"]].drop_duplicates().to_numpy().tolist()
+    ncols = 2
+    nrows = -(-len(panels) // ncols)
+    fig, axes = plt.subplots(
+        nrows, ncols, figsize=(12, 3.2 * nrows), squeeze=False, constrained_layout=True
+    )
+    names = {"Y": "lateral force Y", "Q": "vertical force Q"}
+    for ax, (cond, q) in zip(axes.flat, panels, strict=False):
+        g = sel[(sel.condition == cond) & (sel.quantity == q)]
+        x = np.arange(len(g))
+        ax.bar(x - 0.2, g.S1, 0.4, yerr=g.S1_conf, capsize=2, label="S1 (first order)")
+        ax.bar(x + 0.2, g.ST, 0.4, yerr=g.ST_conf, capsize=2, label="ST (total)")
+        ax.set_xticks(x, g.parameter)
+        ax.set_title(f"{cond}: {names.get(q, q)} ({statistic})", fontsize=10)
+        ax.set_ylim(bottom=min(0.0, float(np.nanmin(g.S1 - g.S1_conf))))
+        ax.grid(axis="y", alpha=0.3)
+    for ax in axes.flat[len(panels) :]:
+        ax.set_visible(False)
+    axes.flat[0].legend(fontsize=8)
+    method = sel.method.iloc[0] if len(sel) else ""
+    fig.suptitle(f"Sobol sensitivity indices ({method}), 95 % bootstrap intervals")
+    return save_figure(fig, path)

@@ -1,0 +1,342 @@
+"""Sobol global sensitivity of the wheel-rail force features to the suspension parameters.
+
+Two routes, both through SALib (Saltelli/Jansen estimators, bootstrap confidence intervals):
+
+* direct: a campaign with a Saltelli design (``design="sobol"``) is analysed as it stands,
+  N (D + 2) simulations per condition (N (2D + 2) with second-order indices);
+* metamodel: a Latin-hypercube campaign is fitted, feature by feature, with a Gaussian
+  process (scikit-learn, Matern 5/2 with automatic relevance determination plus noise), and
+  the Sobol indices are computed on the process mean with a large Saltelli design. The
+  confidence intervals then cover the Sobol estimator only, not the metamodel error; the
+  held-out R^2 of each process is reported so that a poor fit is visible.
+
+Key parameters are chosen by a documented rule (:func:`select_key_parameters`) and set beside
+the study's choice.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from railsusp.campaign import Campaign, salib_problem
+from railsusp.params import bounds
+from railsusp.store import write_json, write_parquet
+from railsusp.study import KEY_LATERAL, KEY_VERTICAL
+
+INDEX_COLUMNS = (
+    "condition",
+    "quantity",
+    "statistic",
+    "parameter",
+    "S1",
+    "S1_conf",
+    "ST",
+    "ST_conf",
+    "method",
+)
+
+
+def sobol_from_samples(
+    problem: dict,
+    y: np.ndarray,
+    *,
+    second_order: bool = False,
+    num_resamples: int = 200,
+    seed: int = 0,
+) -> pd.DataFrame:
+    """SALib Sobol analysis of outputs ``y`` of a Saltelli design (in design order)."""
+    from SALib.analyze import sobol
+
+    y = np.asarray(y, dtype=float)
+    bad = ~np.isfinite(y)
+    if bad.all():
+        raise ValueError("no finite output to analyse")
+    if bad.any():  # failed simulations: replace by the mean so the design stays whole
+        warnings.warn(f"{int(bad.sum())} failed runs replaced by the mean output", stacklevel=2)
+        y = np.where(bad, np.nanmean(y), y)
+    res = sobol.analyze(
+        problem, y, calc_second_order=second_order, num_resamples=num_resamples, seed=seed
+    )
+    return pd.DataFrame(
+        {
+            "parameter": problem["names"],
+            "S1": res["S1"],
+            "S1_conf": res["S1_conf"],
+            "ST": res["ST"],
+            "ST_conf": res["ST_conf"],
+        }
+    )
+
+
+def _features(campaign: Campaign, statistics: Sequence[str], quantities: Sequence[str]):
+    feats = campaign.features()
+    for cond in campaign.config.conditions:
+        for q in quantities:
+            for st in statistics:
+                sel = feats[
+                    (feats.condition == cond.name) & (feats.quantity == q) & (feats.statistic == st)
+                ]
+                if sel.empty:
+                    continue
+                yield cond.name, q, st, sel.set_index("sample_id")["value"].sort_index()
+
+
+def sobol_direct(
+    campaign: Campaign,
+    statistics: Sequence[str] = ("mean", "p99"),
+    quantities: Sequence[str] = ("Y", "Q"),
+    num_resamples: int = 200,
+    seed: int = 0,
+) -> pd.DataFrame:
+    """Sobol indices straight from a Saltelli-design campaign."""
+    cfg = campaign.config
+    if cfg.design != "sobol":
+        raise ValueError(f"{campaign.path}: design {cfg.design!r} is not a Saltelli design")
+    problem = salib_problem(cfg.parameters)
+    frames = []
+    for cond, q, st, y in _features(campaign, statistics, quantities):
+        if len(y) != cfg.n_runs:
+            raise ValueError(f"{campaign.path}: campaign incomplete for {cond}")
+        df = sobol_from_samples(
+            problem,
+            y.to_numpy(),
+            second_order=cfg.second_order,
+            num_resamples=num_resamples,
+            seed=seed,
+        )
+        frames.append(df.assign(condition=cond, quantity=q, statistic=st, method="direct"))
+    return pd.concat(frames, ignore_index=True)[list(INDEX_COLUMNS)]
+
+
+@dataclass
+class MetamodelFit:
+    """Held-out quality of one Gaussian-process metamodel."""
+
+    condition: str
+    quantity: str
+    statistic: str
+    r2_holdout: float
+    n_train: int
+
+
+def fit_gp(x_unit: np.ndarray, y: np.ndarray, seed: int = 0):
+    """Gaussian process on unit-cube inputs: Matern 5/2 ARD + white noise, normalised y."""
+    from sklearn.gaussian_process import GaussianProcessRegressor
+    from sklearn.gaussian_process.kernels import ConstantKernel, Matern, WhiteKernel
+
+    d = x_unit.shape[1]
+    kernel = ConstantKernel(1.0, (1e-3, 1e3)) * Matern(
+        length_scale=np.ones(d), length_scale_bounds=(1e-2, 1e3), nu=2.5
+    ) + WhiteKernel(1e-3, (1e-8, 1.0))
+    gp = GaussianProcessRegressor(
+        kernel=kernel, normalize_y=True, n_restarts_optimizer=1, random_state=seed
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        gp.fit(x_unit, y)
+    return gp
+
+
+def sobol_metamodel(
+    campaign: Campaign,
+    statistics: Sequence[str] = ("mean", "p99"),
+    quantities: Sequence[str] = ("Y", "Q"),
+    base_samples: int = 2048,
+    num_resamples: int = 200,
+    seed: int = 0,
+    max_train: int = 800,
+) -> tuple[pd.DataFrame, list[MetamodelFit]]:
+    """Sobol indices of Gaussian-process metamodels fitted to an LHS (or any) campaign."""
+    from SALib.sample import sobol as sobol_sample
+
+    cfg = campaign.config
+    params = list(cfg.parameters)
+    lo, hi = bounds(params)
+    design = campaign.design().set_index("sample_id").sort_index()
+    unit_all = (design[params].to_numpy() - lo) / (hi - lo)
+    problem_unit = {"num_vars": len(params), "names": params, "bounds": [[0.0, 1.0]] * len(params)}
+    xs = sobol_sample.sample(problem_unit, base_samples, calc_second_order=False, seed=seed)
+    rng = np.random.default_rng(seed)
+    frames, fits = [], []
+    for cond, q, st, y in _features(campaign, statistics, quantities):
+        ids = y.index.to_numpy()
+        yv = y.to_numpy()
+        ok = np.isfinite(yv)
+        xu, yv = unit_all[ids[ok]], yv[ok]
+        if len(yv) > max_train:
+            keep = rng.choice(len(yv), max_train, replace=False)
+            xu, yv = xu[keep], yv[keep]
+        n_hold = max(1, len(yv) // 5)
+        perm = rng.permutation(len(yv))
+        hold, train = perm[:n_hold], perm[n_hold:]
+        gp = fit_gp(xu[train], yv[train], seed)
+        pred = gp.predict(xu[hold])
+        ss = np.sum((yv[hold] - yv[hold].mean()) ** 2)
+        r2 = float(1.0 - np.sum((yv[hold] - pred) ** 2) / ss) if ss > 0 else float("nan")
+        gp = fit_gp(xu, yv, seed)  # final fit on all points
+        ym = gp.predict(xs)
+        df = sobol_from_samples(problem_unit, ym, num_resamples=num_resamples, seed=seed)
+        frames.append(df.assign(condition=cond, quantity=q, statistic=st, method="metamodel"))
+        fits.append(MetamodelFit(cond, q, st, r2, len(yv)))
+    return pd.concat(frames, ignore_index=True)[list(INDEX_COLUMNS)], fits
+
+
+@dataclass
+class KeySelection:
+    """Key parameters chosen by the rule, with each parameter's largest ST and its source."""
+
+    keys: list[str]
+    threshold: float
+    statistic: str
+    max_keys: int
+    max_st: dict[str, float] = field(default_factory=dict)
+    where: dict[str, str] = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {
+            "keys": self.keys,
+            "threshold": self.threshold,
+            "statistic": self.statistic,
+            "max_keys": self.max_keys,
+            "max_st": self.max_st,
+            "where": self.where,
+            "rule": RULE_TEXT.format(t=self.threshold, s=self.statistic, k=self.max_keys),
+        }
+
+
+RULE_TEXT = (
+    "a parameter is key when its total Sobol index ST >= {t} for the lateral (Y) or "
+    "vertical (Q) force '{s}' of the measured wheel in any condition; at most {k} are "
+    "kept, ranked by their largest ST"
+)
+
+
+def select_key_parameters(
+    indices: pd.DataFrame,
+    threshold: float = 0.05,
+    statistic: str = "mean",
+    max_keys: int = 6,
+    quantities: Sequence[str] = ("Y", "Q"),
+) -> KeySelection:
+    """Apply the key-parameter rule (see RULE_TEXT) to a table of Sobol indices."""
+    sel = indices[(indices.statistic == statistic) & indices.quantity.isin(quantities)]
+    if sel.empty:
+        raise ValueError(f"no indices for statistic {statistic!r} and quantities {quantities}")
+    best = sel.loc[sel.groupby("parameter")["ST"].idxmax()]
+    best = best.sort_values("ST", ascending=False)
+    keys = [p for p, st in zip(best.parameter, best.ST, strict=True) if st >= threshold]
+    keys = keys[:max_keys]
+    order = {p: i for i, p in enumerate(indices.parameter.unique())}
+    keys.sort(key=lambda p: order[p])
+    return KeySelection(
+        keys=keys,
+        threshold=threshold,
+        statistic=statistic,
+        max_keys=max_keys,
+        max_st={p: float(s) for p, s in zip(best.parameter, best.ST, strict=True)},
+        where={
+            p: f"{c} {q}"
+            for p, c, q in zip(best.parameter, best.condition, best.quantity, strict=True)
+        },
+    )
+
+
+def study_comparison(selection: KeySelection) -> pd.DataFrame:
+    """Our ranking beside the study's key parameters (lateral X14 X15 X16 X18; vertical X13
+    X15 X17)."""
+    rows = []
+    ranked = sorted(selection.max_st, key=lambda p: -selection.max_st[p])
+    for rank, p in enumerate(ranked, start=1):
+        rows.append(
+            {
+                "parameter": p,
+                "our_rank": rank,
+                "our_max_ST": selection.max_st[p],
+                "where": selection.where[p],
+                "ours_key": p in selection.keys,
+                "study_lateral": p in KEY_LATERAL,
+                "study_vertical": p in KEY_VERTICAL,
+            }
+        )
+    return pd.DataFrame(rows)
+
+
+def agreement(a: pd.DataFrame, b: pd.DataFrame) -> pd.DataFrame:
+    """How two index tables agree, per feature: max |dST|, max |dS1|, Spearman rank of ST."""
+    from scipy.stats import spearmanr
+
+    keys = ["condition", "quantity", "statistic"]
+    m = a.merge(b, on=[*keys, "parameter"], suffixes=("_a", "_b"))
+    rows = []
+    for k, g in m.groupby(keys):
+        rho = spearmanr(g.ST_a, g.ST_b).statistic if len(g) > 2 else float("nan")
+        rows.append(
+            {
+                **dict(zip(keys, k, strict=True)),
+                "max_abs_dST": float(np.max(np.abs(g.ST_a - g.ST_b))),
+                "max_abs_dS1": float(np.max(np.abs(g.S1_a - g.S1_b))),
+                "spearman_ST": float(rho),
+            }
+        )
+    return pd.DataFrame(rows)
+
+
+def analyse(
+    run: str | Path,
+    *,
+    statistics: Sequence[str] = ("mean", "p99"),
+    threshold: float = 0.05,
+    key_statistic: str = "mean",
+    max_keys: int = 6,
+    base_samples: int = 2048,
+    seed: int = 0,
+    compare: str | Path | None = None,
+) -> dict:
+    """Sobol analysis of a run directory; writes ``RUN/sensitivity/`` and returns a summary.
+
+    A Saltelli campaign is analysed directly, any other through metamodels. ``compare``: a
+    second run directory analysed the same way, whose indices are set against these.
+    """
+    from railsusp.campaign import load_campaign
+
+    camp = load_campaign(run)
+    out = camp.path / "sensitivity"
+    fits: list[MetamodelFit] = []
+
+    def indices_of(c: Campaign):
+        if c.config.design == "sobol":
+            return sobol_direct(c, statistics, seed=seed), []
+        return sobol_metamodel(c, statistics, base_samples=base_samples, seed=seed)
+
+    idx, fits = indices_of(camp)
+    selection = select_key_parameters(idx, threshold, key_statistic, max_keys)
+    comparison = study_comparison(selection)
+    summary = {
+        "run": str(camp.path),
+        "method": idx.method.iloc[0],
+        "key_parameters": selection.to_dict(),
+        "metamodel_r2": [f.__dict__ for f in fits],
+    }
+    write_parquet(out / "indices.parquet", idx)
+    idx.to_csv(out / "indices.csv", index=False)
+    write_json(out / "indices.json", idx.to_dict(orient="records"))
+    write_json(out / "key_parameters.json", summary)
+    comparison.to_csv(out / "study_comparison.csv", index=False)
+    if compare is not None:
+        other, _ = indices_of(load_campaign(compare))
+        agree = agreement(idx, other)
+        agree.to_csv(out / "agreement.csv", index=False)
+        summary["agreement"] = agree.to_dict(orient="records")
+        write_json(out / "key_parameters.json", summary)
+    from railsusp.report import plot_sobol
+
+    plot_sobol(idx, out / "sobol.png", statistic=key_statistic)
+    summary["indices"] = idx
+    summary["comparison"] = comparison
+    return summary

@@ -1,0 +1,143 @@
+"""Campaigns: design properties, run directory, resume, Dask equivalence, features."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from railsusp.campaign import (
+    CampaignError,
+    load_campaign,
+    make_config,
+    make_design,
+    run_campaign,
+)
+from railsusp.conditions import get_condition
+from railsusp.params import MAIN_SUSPENSION, bounds
+
+TINY = [
+    get_condition("straight", duration_s=1.0, n_steps=50, lead_in_m=20.0),
+    get_condition("curve", duration_s=1.0, n_steps=50),
+]
+
+
+def _sorted(df: pd.DataFrame) -> pd.DataFrame:
+    return df.sort_values(["condition", "quantity", "statistic", "sample_id"]).reset_index(
+        drop=True
+    )
+
+
+@pytest.mark.parametrize("design", ["lhs", "lhs-optimised"])
+def test_lhs_stratification(design):
+    """Latin hypercube: each of the n equal strata of every parameter holds exactly one
+    sample, and all values lie inside the Table 2 ranges."""
+    cfg = make_config(TINY, 50, design=design, seed=4)
+    x = make_design(cfg)[list(MAIN_SUSPENSION)].to_numpy()
+    lo, hi = bounds(MAIN_SUSPENSION)
+    u = (x - lo) / (hi - lo)
+    assert np.all((u >= 0) & (u < 1))
+    for j in range(u.shape[1]):
+        strata = np.floor(u[:, j] * 50).astype(int)
+        assert sorted(strata) == list(range(50))
+
+
+def test_design_is_seeded_and_subset_keeps_others_nominal():
+    a = make_design(make_config(TINY, 20, seed=1, parameters=("X13", "X17")))
+    b = make_design(make_config(TINY, 20, seed=1, parameters=("X13", "X17")))
+    pd.testing.assert_frame_equal(a, b)
+    assert list(a.columns) == ["sample_id", "X13", "X17"]
+    c = make_design(make_config(TINY, 20, seed=2, parameters=("X13", "X17")))
+    assert not np.allclose(a.X13, c.X13)
+
+
+def test_saltelli_design_size_and_power_of_two():
+    cfg = make_config(TINY, 16, design="sobol", parameters=("X13", "X14", "X15"))
+    assert cfg.n_runs == 16 * (3 + 2) == len(make_design(cfg))
+    cfg2 = make_config(TINY, 16, design="sobol", second_order=True, parameters=("X13", "X14"))
+    assert cfg2.n_runs == 16 * (2 * 2 + 2)
+    with pytest.raises(CampaignError, match="power of two, got 12"):
+        make_config(TINY, 12, design="sobol")
+
+
+def test_bad_configurations_name_the_field():
+    with pytest.raises(CampaignError, match="parameters.*X3 is a fixed parameter"):
+        make_config(TINY, 10, parameters=("X3",))
+    with pytest.raises(CampaignError, match="samples"):
+        make_config(TINY, 0)
+    with pytest.raises(CampaignError, match="wheel 'w0'"):
+        make_config(TINY, 10, wheel="w0")
+
+
+@pytest.fixture(scope="module")
+def full_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("runs") / "full"
+    cfg = make_config(TINY, 10, batch_size=4, seed=3)
+    run_campaign(cfg, out)
+    return cfg, out
+
+
+def test_run_directory_layout_and_features(full_run):
+    cfg, out = full_run
+    meta = json.loads((out / "campaign.json").read_text())
+    assert meta["config_hash"] == cfg.hash() and meta["n_batches"] == 3
+    assert "completed" in meta and meta["created"]["railsusp"]
+    camp = load_campaign(out)
+    assert camp.complete
+    f = camp.features()
+    # 10 samples x 2 conditions x (2 forces x 4 statistics + Y/Q max + dQ/Q max)
+    assert len(f) == 10 * 2 * 10
+    assert set(f.quantity) == {"Y", "Q", "YQ", "dQQ"}
+    assert (f.status == 0).all()
+    q_mean = camp.feature_matrix("straight", "Q", "mean")
+    assert q_mean.between(110, 135).all()  # kN, around the 121.9 kN static wheel load
+    assert set(f[f.condition == "curve"].wheel) == {"w1R"}
+    ids, series = camp.series("curve")
+    assert list(ids) == list(range(10)) and series.shape == (10, 18, 50)
+    assert series.dtype == np.float32
+
+
+def test_resume_after_interruption_gives_identical_store(full_run, tmp_path):
+    cfg, out = full_run
+    part = tmp_path / "part"
+    run_campaign(cfg, part, max_batches=2)  # "killed" after two batches
+    assert not load_campaign(part).complete
+    assert len(list((part / "batches").glob("*/batch-?????.parquet"))) == 2
+    calls = []
+    run_campaign(cfg, part, progress=lambda d, t: calls.append(d))
+    assert calls[0] == 8  # the two stored batches (4 + 4 runs) are not recomputed
+    pd.testing.assert_frame_equal(
+        _sorted(load_campaign(part).features()), _sorted(load_campaign(out).features())
+    )
+    for cond in ("straight", "curve"):
+        np.testing.assert_array_equal(
+            load_campaign(part).series(cond)[1], load_campaign(out).series(cond)[1]
+        )
+
+
+def test_changed_configuration_refuses_to_mix(full_run, tmp_path):
+    cfg, out = full_run
+    other = make_config(TINY, 10, batch_size=4, seed=99)
+    with pytest.raises(CampaignError, match="another configuration"):
+        run_campaign(other, out)
+    copy = tmp_path / "copy"
+    run_campaign(cfg, copy, max_batches=1)
+    run_campaign(other, copy, force=True, max_batches=1)
+    assert json.loads((copy / "campaign.json").read_text())["config_hash"] == other.hash()
+
+
+def test_independent_seeds_differ_from_common_random_numbers(full_run, tmp_path):
+    _cfg, out = full_run
+    indep = make_config(TINY, 10, batch_size=4, seed=3, independent_seeds=True)
+    run_campaign(indep, tmp_path / "indep", max_batches=1)
+    a = load_campaign(out).feature_matrix("straight", "Y", "rms").iloc[:4].to_numpy()
+    b = load_campaign(tmp_path / "indep").feature_matrix("straight", "Y", "rms").to_numpy()
+    assert not np.allclose(a, b)
+
+
+def test_dask_local_cluster_gives_identical_results(full_run, tmp_path):
+    cfg, out = full_run
+    run_campaign(cfg, tmp_path / "dask", workers=2)
+    pd.testing.assert_frame_equal(
+        _sorted(load_campaign(tmp_path / "dask").features()), _sorted(load_campaign(out).features())
+    )
