@@ -10,13 +10,12 @@ JSON (bench/results/credibility.json).
 from __future__ import annotations
 
 import argparse
-import json
 import platform
 import time
-from pathlib import Path
 
 from railsusp.conditions import STANDARD_CONDITIONS
 from railsusp.params import ParameterSet
+from railsusp.store import write_json
 from railsusp.study import TABLE8_BEFORE
 from railsusp.vehicle.simulate import WHEEL_NAMES, simulate_batch
 
@@ -70,17 +69,13 @@ def main() -> None:
     print("\nclosest statistic per condition and force:")
     for (c, f), row in best.items():
         print(f"  {c:<9} {f}: {row['statistic']:<5} {row['relative_difference']:+.1%}")
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     payload = {
         "date": time.strftime("%Y-%m-%d"),
         "machine": platform.platform(),
         "seeds": args.seeds,
         "rows": rows,
     }
-    tmp = out.with_suffix(".tmp")
-    tmp.write_text(json.dumps(payload, indent=2))
-    tmp.replace(out)
+    out = write_json(args.out, payload)
     print(f"wrote {out}")
 
 

@@ -9,18 +9,17 @@ Peak memory is the process's maximum resident set size.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import resource
 import time
-from pathlib import Path
 
 import numba
 import numpy as np
 
 from railsusp.conditions import get_condition
 from railsusp.params import MAIN_SUSPENSION, ParameterSet, bounds
+from railsusp.store import write_json
 from railsusp.vehicle.simulate import simulate_batch
 
 
@@ -65,8 +64,6 @@ def main() -> None:
             f"{row['record_s_per_wall_s']:11.1f} {row['failed']:>7}"
         )
     print(f"peak memory {peak_mb:.0f} MB")
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     payload = {
         "date": time.strftime("%Y-%m-%d"),
         "machine": platform.platform(),
@@ -76,9 +73,7 @@ def main() -> None:
         "rows": rows,
         "peak_rss_mb": peak_mb,
     }
-    tmp = out.with_suffix(".tmp")
-    tmp.write_text(json.dumps(payload, indent=2))
-    tmp.replace(out)
+    out = write_json(args.out, payload)
     print(f"wrote {out}")
 
 

@@ -10,15 +10,14 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
 import platform
 import time
-from pathlib import Path
 
 import numpy as np
 from scipy.signal import welch
 
 from railsusp.conditions import get_condition
+from railsusp.store import write_json
 from railsusp.vehicle.track import COMPONENTS, band_rms, fra_psd, synthesise
 
 
@@ -77,8 +76,6 @@ def main() -> None:
     print(f"\nsynthesis of one {section:.0f} m section (all four components):")
     for t in timing:
         print(f"  {t['seeds']:>4} seeds: {t['seconds'] * 1e3:8.1f} ms")
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     payload = {
         "date": time.strftime("%Y-%m-%d"),
         "machine": platform.platform(),
@@ -86,9 +83,7 @@ def main() -> None:
         "accuracy": rows,
         "timing": timing,
     }
-    tmp = out.with_suffix(".tmp")
-    tmp.write_text(json.dumps(payload, indent=2))
-    tmp.replace(out)
+    out = write_json(args.out, payload)
     print(f"wrote {out}")
 
 

@@ -81,15 +81,15 @@ def synthetic_indices():
 
 def test_key_selection_finds_active_and_drops_inert_inputs():
     idx = synthetic_indices()
-    sel = select_key_parameters(idx, threshold=0.05)
+    sel = select_key_parameters(idx, threshold=0.05, statistics="mean")
     assert sel.keys == ["X11", "X12", "X14"]
     for inert in ("X13", "X15", "X16"):
         assert sel.max_st[inert] < 0.01
-    capped = select_key_parameters(idx, threshold=0.05, max_keys=2)
+    capped = select_key_parameters(idx, threshold=0.05, statistics="mean", max_keys=2)
     assert capped.keys == ["X11", "X12"]  # ranked by their largest ST, shown in input order
     assert "ST >= 0.05" in sel.to_dict()["rule"]
-    with pytest.raises(ValueError, match="no indices for statistic 'p99'"):
-        select_key_parameters(idx, statistic="p99")
+    with pytest.raises(ValueError, match="no indices for statistics"):
+        select_key_parameters(idx, statistics="p99")
 
 
 def test_study_comparison_and_agreement():
@@ -99,3 +99,16 @@ def test_study_comparison_and_agreement():
     assert bool(row.study_lateral) and bool(row.study_vertical) and not row.ours_key
     same = agreement(idx, idx)
     assert (same.max_abs_dST == 0).all() and (same.spearman_ST > 0.99).all()
+
+
+def test_flat_features_are_ignored_by_the_key_rule():
+    """A feature that barely varies (the static wheel load, CV 0.1 %) cannot make a key
+    parameter, whatever its Sobol split."""
+    idx = synthetic_indices().assign(cv=0.2)
+    flat = idx[idx.quantity == "Q"].assign(quantity="Q", statistic="p99", cv=0.001)
+    flat["ST"] = np.where(flat.parameter == "X16", 0.9, 0.0)
+    both = pd.concat([idx, flat], ignore_index=True)
+    sel = select_key_parameters(both, statistics=("mean", "p99"))
+    assert "X16" not in sel.keys
+    assert sel.ignored == ["straight Q p99"]
+    assert "X16" in select_key_parameters(both, statistics=("mean", "p99"), min_cv=0.0).keys

@@ -428,8 +428,14 @@ def sensitivity(
     run: Annotated[Path, typer.Argument(help="campaign run directory")],
     statistics: Annotated[str, typer.Option(help="feature statistics to analyse")] = "mean,p99",
     threshold: Annotated[float, typer.Option(help="ST threshold of the key rule")] = 0.05,
-    key_statistic: Annotated[str, typer.Option(help="statistic the key rule uses")] = "mean",
+    key_statistics: Annotated[str, typer.Option(help="statistics the key rule uses")] = (
+        "mean,p99"
+    ),
     max_keys: Annotated[int, typer.Option(help="at most this many key parameters")] = 6,
+    min_cv: Annotated[
+        float,
+        typer.Option(help="ignore features varying less than this (coefficient of variation)"),
+    ] = 0.005,
     base_samples: Annotated[int, typer.Option(help="Saltelli N on the metamodel")] = 2048,
     compare: Annotated[
         Path | None,
@@ -443,16 +449,17 @@ def sensitivity(
     from railsusp.sensitivity import analyse
 
     stats = tuple(s.strip() for s in statistics.split(",") if s.strip())
-    if key_statistic not in stats:
-        stats = (*stats, key_statistic)
+    key_stats = tuple(s.strip() for s in key_statistics.split(",") if s.strip())
+    stats = (*stats, *(k for k in key_stats if k not in stats))
     try:
         with err_console.status("Sobol analysis"):
             s = analyse(
                 run,
                 statistics=stats,
                 threshold=threshold,
-                key_statistic=key_statistic,
+                key_statistics=key_stats,
                 max_keys=max_keys,
+                min_cv=min_cv,
                 base_samples=base_samples,
                 seed=seed,
                 compare=compare,
@@ -462,23 +469,28 @@ def sensitivity(
     except ValueError as exc:
         _fail(f"{run}: {exc}")
     idx = s["indices"]
-    sel = idx[idx.statistic == key_statistic]
-    table = Table(
-        title=f"Total Sobol indices ST ± 95 % ({s['method']}, statistic '{key_statistic}')",
-        title_justify="left",
-    )
-    table.add_column("parameter")
-    cols = sel[["condition", "quantity"]].drop_duplicates().to_numpy().tolist()
-    for cond, q in cols:
-        table.add_column(f"{cond} {q}", justify="right")
     keys = s["key_parameters"]["keys"]
-    for p in sel.parameter.unique():
-        cells = []
-        for cond, q in cols:
-            r = sel[(sel.parameter == p) & (sel.condition == cond) & (sel.quantity == q)].iloc[0]
-            cells.append(f"{r.ST:.3f} ± {r.ST_conf:.3f}")
-        table.add_row(f"[bold]{p}[/]" if p in keys else p, *cells)
-    console.print(table)
+    ignored = set(s["key_parameters"]["ignored_features"])
+    for st in key_stats:
+        sel = idx[idx.statistic == st]
+        table = Table(
+            title=f"Total Sobol indices ST ± 95 % ({s['method']}, statistic '{st}'; "
+            f"dim: feature ignored, CV < {min_cv:.1%})",
+            title_justify="left",
+        )
+        table.add_column("parameter")
+        cols = sel[["condition", "quantity", "cv"]].drop_duplicates().to_numpy().tolist()
+        for cond, q, cv in cols:
+            table.add_column(f"{cond} {q}\nCV {cv:.1%}", justify="right")
+        for p in sel.parameter.unique():
+            cells = []
+            for cond, q, _ in cols:
+                r = sel[(sel.parameter == p) & (sel.condition == cond) & (sel.quantity == q)]
+                r = r.iloc[0]
+                cell = f"{r.ST:.3f} ± {r.ST_conf:.3f}"
+                cells.append(f"[dim]{cell}[/]" if f"{cond} {q} {st}" in ignored else cell)
+            table.add_row(f"[bold]{p}[/]" if p in keys else p, *cells)
+        console.print(table)
     console.print(f"key parameters: [bold]{', '.join(keys)}[/]  ({s['key_parameters']['rule']})")
     cmp = s["comparison"]
     console.print("study: lateral X14, X15, X16, X18; vertical X13, X15, X17. Ours vs study:")

@@ -39,6 +39,7 @@ INDEX_COLUMNS = (
     "ST",
     "ST_conf",
     "method",
+    "cv",
 )
 
 
@@ -72,6 +73,13 @@ def sobol_from_samples(
             "ST_conf": res["ST_conf"],
         }
     )
+
+
+def _cv(y: np.ndarray) -> float:
+    """Coefficient of variation of a feature over the campaign (std / |mean|)."""
+    y = y[np.isfinite(y)]
+    m = abs(float(np.mean(y))) if y.size else 0.0
+    return float(np.std(y) / m) if m > 0 else float("inf")
 
 
 def _features(campaign: Campaign, statistics: Sequence[str], quantities: Sequence[str]):
@@ -110,7 +118,11 @@ def sobol_direct(
             num_resamples=num_resamples,
             seed=seed,
         )
-        frames.append(df.assign(condition=cond, quantity=q, statistic=st, method="direct"))
+        frames.append(
+            df.assign(
+                condition=cond, quantity=q, statistic=st, method="direct", cv=_cv(y.to_numpy())
+            )
+        )
     return pd.concat(frames, ignore_index=True)[list(INDEX_COLUMNS)]
 
 
@@ -135,7 +147,7 @@ def fit_gp(x_unit: np.ndarray, y: np.ndarray, seed: int = 0):
         length_scale=np.ones(d), length_scale_bounds=(1e-2, 1e3), nu=2.5
     ) + WhiteKernel(1e-3, (1e-8, 1.0))
     gp = GaussianProcessRegressor(
-        kernel=kernel, normalize_y=True, n_restarts_optimizer=1, random_state=seed
+        kernel=kernel, normalize_y=True, n_restarts_optimizer=0, random_state=seed
     )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -150,7 +162,7 @@ def sobol_metamodel(
     base_samples: int = 2048,
     num_resamples: int = 200,
     seed: int = 0,
-    max_train: int = 800,
+    max_train: int = 500,
 ) -> tuple[pd.DataFrame, list[MetamodelFit]]:
     """Sobol indices of Gaussian-process metamodels fitted to an LHS (or any) campaign."""
     from SALib.sample import sobol as sobol_sample
@@ -182,7 +194,11 @@ def sobol_metamodel(
         gp = fit_gp(xu, yv, seed)  # final fit on all points
         ym = gp.predict(xs)
         df = sobol_from_samples(problem_unit, ym, num_resamples=num_resamples, seed=seed)
-        frames.append(df.assign(condition=cond, quantity=q, statistic=st, method="metamodel"))
+        frames.append(
+            df.assign(
+                condition=cond, quantity=q, statistic=st, method="metamodel", cv=_cv(y.to_numpy())
+            )
+        )
         fits.append(MetamodelFit(cond, q, st, r2, len(yv)))
     return pd.concat(frames, ignore_index=True)[list(INDEX_COLUMNS)], fits
 
@@ -193,41 +209,69 @@ class KeySelection:
 
     keys: list[str]
     threshold: float
-    statistic: str
+    statistics: tuple[str, ...]
     max_keys: int
+    min_cv: float
     max_st: dict[str, float] = field(default_factory=dict)
     where: dict[str, str] = field(default_factory=dict)
+    ignored: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         return {
             "keys": self.keys,
             "threshold": self.threshold,
-            "statistic": self.statistic,
+            "statistics": list(self.statistics),
             "max_keys": self.max_keys,
+            "min_cv": self.min_cv,
             "max_st": self.max_st,
             "where": self.where,
-            "rule": RULE_TEXT.format(t=self.threshold, s=self.statistic, k=self.max_keys),
+            "ignored_features": self.ignored,
+            "rule": self.rule(),
         }
+
+    def rule(self) -> str:
+        return RULE_TEXT.format(
+            t=self.threshold, s="/".join(self.statistics), k=self.max_keys, cv=self.min_cv
+        )
 
 
 RULE_TEXT = (
     "a parameter is key when its total Sobol index ST >= {t} for the lateral (Y) or "
-    "vertical (Q) force '{s}' of the measured wheel in any condition; at most {k} are "
-    "kept, ranked by their largest ST"
+    "vertical (Q) force {s} of the measured wheel in any condition; features varying "
+    "by less than {cv:.1%} (coefficient of variation) over the campaign are ignored, "
+    "whatever their Sobol split; at most {k} are kept, ranked by their largest ST"
 )
 
 
 def select_key_parameters(
     indices: pd.DataFrame,
     threshold: float = 0.05,
-    statistic: str = "mean",
+    statistics: str | Sequence[str] = ("mean", "p99"),
     max_keys: int = 6,
     quantities: Sequence[str] = ("Y", "Q"),
+    min_cv: float = 0.005,
 ) -> KeySelection:
-    """Apply the key-parameter rule (see RULE_TEXT) to a table of Sobol indices."""
-    sel = indices[(indices.statistic == statistic) & indices.quantity.isin(quantities)]
+    """Apply the key-parameter rule (see RULE_TEXT) to a table of Sobol indices.
+
+    The coefficient-of-variation guard matters: the mean vertical force on tangent track is
+    the static wheel load whatever the suspension (CV 0.1 %), so its Sobol indices split a
+    negligible variance and say nothing a calibration could use.
+    """
+    stats = (statistics,) if isinstance(statistics, str) else tuple(statistics)
+    sel = indices[indices.statistic.isin(stats) & indices.quantity.isin(quantities)]
     if sel.empty:
-        raise ValueError(f"no indices for statistic {statistic!r} and quantities {quantities}")
+        raise ValueError(f"no indices for statistics {stats} and quantities {tuple(quantities)}")
+    cv = sel["cv"] if "cv" in sel else pd.Series(np.inf, index=sel.index)
+    flat = sel[cv < min_cv]
+    ignored = sorted(
+        {
+            f"{c} {q} {s}"
+            for c, q, s in zip(flat.condition, flat.quantity, flat.statistic, strict=True)
+        }
+    )
+    sel = sel[cv >= min_cv]
+    if sel.empty:
+        raise ValueError(f"every feature varies by less than {min_cv:.1%}: nothing to rank")
     best = sel.loc[sel.groupby("parameter")["ST"].idxmax()]
     best = best.sort_values("ST", ascending=False)
     keys = [p for p, st in zip(best.parameter, best.ST, strict=True) if st >= threshold]
@@ -237,13 +281,17 @@ def select_key_parameters(
     return KeySelection(
         keys=keys,
         threshold=threshold,
-        statistic=statistic,
+        statistics=stats,
         max_keys=max_keys,
+        min_cv=min_cv,
         max_st={p: float(s) for p, s in zip(best.parameter, best.ST, strict=True)},
         where={
-            p: f"{c} {q}"
-            for p, c, q in zip(best.parameter, best.condition, best.quantity, strict=True)
+            p: f"{c} {q} {s}"
+            for p, c, q, s in zip(
+                best.parameter, best.condition, best.quantity, best.statistic, strict=True
+            )
         },
+        ignored=ignored,
     )
 
 
@@ -292,16 +340,18 @@ def analyse(
     *,
     statistics: Sequence[str] = ("mean", "p99"),
     threshold: float = 0.05,
-    key_statistic: str = "mean",
+    key_statistics: Sequence[str] = ("mean", "p99"),
     max_keys: int = 6,
+    min_cv: float = 0.005,
     base_samples: int = 2048,
     seed: int = 0,
     compare: str | Path | None = None,
 ) -> dict:
     """Sobol analysis of a run directory; writes ``RUN/sensitivity/`` and returns a summary.
 
-    A Saltelli campaign is analysed directly, any other through metamodels. ``compare``: a
-    second run directory analysed the same way, whose indices are set against these.
+    A Saltelli campaign is analysed directly, any other through metamodels. Key parameters by
+    :func:`select_key_parameters` over ``key_statistics``. ``compare``: a second run
+    directory analysed the same way, whose indices are set against these.
     """
     from railsusp.campaign import load_campaign
 
@@ -315,7 +365,7 @@ def analyse(
         return sobol_metamodel(c, statistics, base_samples=base_samples, seed=seed)
 
     idx, fits = indices_of(camp)
-    selection = select_key_parameters(idx, threshold, key_statistic, max_keys)
+    selection = select_key_parameters(idx, threshold, key_statistics, max_keys, min_cv=min_cv)
     comparison = study_comparison(selection)
     summary = {
         "run": str(camp.path),
@@ -336,7 +386,8 @@ def analyse(
         write_json(out / "key_parameters.json", summary)
     from railsusp.report import plot_sobol
 
-    plot_sobol(idx, out / "sobol.png", statistic=key_statistic)
+    for st in statistics:
+        plot_sobol(idx, out / f"sobol-{st}.png", statistic=st)
     summary["indices"] = idx
     summary["comparison"] = comparison
     return summary

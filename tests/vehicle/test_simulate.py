@@ -1,6 +1,7 @@
 """Verification of the wagon simulator against analytic cases and physical invariants."""
 
 import math
+from importlib import resources
 
 import numpy as np
 import pytest
@@ -21,6 +22,11 @@ from railsusp.vehicle.wagon import load_wagon
 from railsusp.vehicle.wheelset import free_wheelset_sway, sway_wavelength
 
 SHORT = {"duration_s": 6.0, "n_steps": 300}
+
+
+def wagon_text() -> str:
+    """The embedded C80/K6 wagon file, as text to edit into other wagons."""
+    return resources.files("railsusp").joinpath("data/c80_k6.toml").read_text("utf-8")
 
 
 def total_mass(wagon=None):
@@ -201,12 +207,7 @@ def test_result_export_and_derived_quantities(tmp_path):
 def test_wagon_is_data(tmp_path):
     """Another wagon is another file: a lighter car body lowers the static wheel load."""
     w = load_wagon()
-    text = (
-        __import__("importlib.resources", fromlist=["files"])
-        .files("railsusp")
-        .joinpath("data/c80_k6.toml")
-        .read_text("utf-8")
-    )
+    text = wagon_text()
     light = tmp_path / "light.toml"
     light.write_text(text.replace("mass = 91600.0", "mass = 71600.0"))
     lw = load_wagon(light)
@@ -237,12 +238,7 @@ def test_user_profile_files_in_the_wagon_file(tmp_path):
     from railsusp.vehicle.profiles import write_profile
 
     write_profile(lm_worn_wheel(), tmp_path / "wheel.txt")
-    text = (
-        __import__("importlib.resources", fromlist=["files"])
-        .files("railsusp")
-        .joinpath("data/c80_k6.toml")
-        .read_text("utf-8")
-    )
+    text = wagon_text()
     f = tmp_path / "w.toml"
     f.write_text(text + '\n[profiles]\nwheel = "wheel.txt"\nrail = "chn60"\n')
     wagon = load_wagon(f)
