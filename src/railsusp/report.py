@@ -132,7 +132,8 @@ def plot_sobol(indices, path: str | Path, statistic: str = "mean"):
         ax.bar(x - 0.2, g.S1, 0.4, yerr=g.S1_conf, capsize=2, label="S1 (first order)")
         ax.bar(x + 0.2, g.ST, 0.4, yerr=g.ST_conf, capsize=2, label="ST (total)")
         ax.set_xticks(x, g.parameter)
-        ax.set_title(f"{cond}: {names.get(q, q)} ({statistic})", fontsize=10)
+        cv = f", CV {g.cv.iloc[0]:.1%}" if "cv" in g else ""
+        ax.set_title(f"{cond}: {names.get(q, q)} ({statistic}{cv})", fontsize=10)
         ax.set_ylim(bottom=min(0.0, float(np.nanmin(g.S1 - g.S1_conf))))
         ax.grid(axis="y", alpha=0.3)
     for ax in axes.flat[len(panels) :]:
