@@ -260,6 +260,24 @@ def track_arrays(
     return np.ascontiguousarray(out), float(s[0]), ds
 
 
+def measured_wheel_index(condition: WorkingCondition, which: str | int = "auto") -> int:
+    """Index 0..7 of the measured wheel: 'auto' = leading wheelset, outer wheel in a curve
+    (left wheel on tangent); or a name like 'w1R' or an index."""
+    if isinstance(which, int):
+        if not 0 <= which < 8:
+            raise RailsuspInputError(f"measured wheel index {which} outside 0..7")
+        return which
+    if which == "auto":
+        if condition.curve_radius_m is None:
+            return 0
+        return 1 if condition.curve_direction == "left" else 0
+    if which not in WHEEL_NAMES:
+        raise RailsuspInputError(
+            f"measured wheel {which!r} unknown; accepted 'auto' or {', '.join(WHEEL_NAMES)}"
+        )
+    return WHEEL_NAMES.index(which)
+
+
 # ---------------------------------------------------------------- result
 @dataclass
 class SimulationResult:
@@ -319,21 +337,8 @@ class SimulationResult:
         return (self.static_wheel_load - self.Q) / self.static_wheel_load
 
     def measured_wheel(self, which: str | int = "auto") -> int:
-        """Index of the measured wheel: 'auto' = leading wheelset, outer wheel in a curve
-        (left wheel on tangent); or a name like 'w1R' or an index 0..7."""
-        if isinstance(which, int):
-            if not 0 <= which < 8:
-                raise RailsuspInputError(f"measured wheel index {which} outside 0..7")
-            return which
-        if which == "auto":
-            if self.condition.curve_radius_m is None:
-                return 0
-            return 1 if self.condition.curve_direction == "left" else 0
-        if which not in WHEEL_NAMES:
-            raise RailsuspInputError(
-                f"measured wheel {which!r} unknown; accepted 'auto' or {', '.join(WHEEL_NAMES)}"
-            )
-        return WHEEL_NAMES.index(which)
+        """Index of the measured wheel (see :func:`measured_wheel_index`)."""
+        return measured_wheel_index(self.condition, which)
 
     def statistics(self, wheel: str | int = "auto") -> dict[str, np.ndarray]:
         """Per-set statistics (kN for forces) of the measured wheel: mean, RMS, p99, max of

@@ -1,0 +1,107 @@
+"""Surrogate ("proxy") models of the simulator: data windows, networks, training, evaluation.
+
+``train_surrogate(run, condition)`` trains a network on a campaign run directory and saves it
+under ``RUN/surrogates/<kind>/<condition>/``; ``load(path)`` gives back a
+:class:`~railsusp.surrogate.bundle.Surrogate` whose ``predict`` returns force series.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from railsusp.params import STUDY_KEY_PARAMETERS
+from railsusp.store import read_json
+from railsusp.surrogate.bundle import Surrogate, load
+from railsusp.surrogate.data import FeatureSpec, Normaliser, load_series, split_samples
+from railsusp.surrogate.evaluate import evaluate
+from railsusp.surrogate.models import KINDS, NetConfig, build_network
+from railsusp.surrogate.train import TrainConfig, WindowSampler, train_network
+
+__all__ = [
+    "KINDS",
+    "Surrogate",
+    "TrainConfig",
+    "evaluate",
+    "key_parameters",
+    "load",
+    "train_surrogate",
+]
+
+
+def key_parameters(run: str | Path) -> tuple[str, ...]:
+    """The run's key parameters from its sensitivity analysis, else the study's six."""
+    p = Path(run) / "sensitivity" / "key_parameters.json"
+    if p.exists():
+        keys = read_json(p)["key_parameters"]["keys"]
+        if keys:
+            return tuple(keys)
+    return STUDY_KEY_PARAMETERS
+
+
+def train_surrogate(
+    run: str | Path,
+    condition: str,
+    *,
+    kind: str = "cnn-gru",
+    parameters: Sequence[str] | None = None,
+    window: int = 20,
+    train: TrainConfig | None = None,
+    net: NetConfig | None = None,
+    split_seed: int = 0,
+    out: str | Path | None = None,
+    progress: Callable[[int, float, float], None] | None = None,
+) -> Surrogate:
+    """Train a window surrogate of one condition of a campaign; save and return it.
+
+    Samples are split 70/15/15 into train/validation/test by sample; the test samples are
+    recorded in the saved surrogate for :func:`evaluate`.
+    """
+    from railsusp.campaign import load_campaign
+
+    camp = load_campaign(run)
+    params = tuple(parameters) if parameters else key_parameters(run)
+    spec = FeatureSpec(parameters=params, window=window)
+    data = load_series(camp, condition, spec)
+    tr_i, va_i, te_i = split_samples(data.sample_ids, seed=split_seed)
+    train_data, val_data = data.subset(tr_i), data.subset(va_i)
+    norm = Normaliser.fit(train_data)
+    cfg = (
+        NetConfig(kind=kind, n_features=spec.n_features, window=window, n_outputs=len(spec.targets))
+        if net is None
+        else net
+    )
+    network = build_network(cfg)
+    tcfg = TrainConfig() if train is None else train
+    out = Path(out) if out else camp.path / "surrogates" / kind / condition
+    history = train_network(
+        network,
+        WindowSampler(train_data, norm, window),
+        WindowSampler(val_data, norm, window),
+        tcfg,
+        checkpoint=out / "checkpoint.pt",
+        progress=progress,
+    )
+    seed = int(np.unique(data.seeds)[0]) if len(np.unique(data.seeds)) == 1 else None
+    sur = Surrogate(
+        network,
+        cfg,
+        spec,
+        norm,
+        data.condition,
+        camp.config.wagon,
+        data.condition.seed if seed is None else seed,
+        meta={
+            "campaign": str(camp.path),
+            "campaign_hash": camp.config.hash(),
+            "train_ids": data.sample_ids[tr_i].tolist(),
+            "val_ids": data.sample_ids[va_i].tolist(),
+            "test_ids": data.sample_ids[te_i].tolist(),
+            "train_config": tcfg.to_dict(),
+            "history": history,
+        },
+    )
+    sur.save(out)
+    return sur

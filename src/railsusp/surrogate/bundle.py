@@ -1,0 +1,155 @@
+"""A trained surrogate: network weights + architecture + feature definition + normalisation +
+condition, wagon and training provenance, saved to and loaded from one folder.
+
+``Surrogate.predict(params, ...)`` returns force series (kN) of the measured wheel for any
+batch of parameter sets in its condition, on the campaign's track or another realisation.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from railsusp.conditions import WorkingCondition
+from railsusp.params import ParameterSet, spec
+from railsusp.store import atomic_write_bytes, provenance, write_json
+from railsusp.surrogate.data import (
+    FeatureSpec,
+    Normaliser,
+    gather_windows,
+    params_to_unit,
+    track_features,
+    window_index,
+)
+from railsusp.surrogate.models import NetConfig, build_network
+from railsusp.vehicle.wagon import WagonData
+
+FORMAT = "railsusp-surrogate/1"
+
+
+@dataclass
+class Surrogate:
+    """A trained window network for one working condition."""
+
+    net: torch.nn.Module
+    net_config: NetConfig
+    spec: FeatureSpec
+    normaliser: Normaliser
+    condition: WorkingCondition
+    wagon: WagonData
+    track_seed: int
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def kind(self) -> str:
+        return self.net_config.kind
+
+    def _unit(self, params: np.ndarray | list[ParameterSet]) -> np.ndarray:
+        if isinstance(params, np.ndarray):
+            x = np.atleast_2d(params)
+            if x.shape[1] != len(self.spec.parameters):
+                raise ValueError(
+                    f"params must have {len(self.spec.parameters)} columns "
+                    f"({', '.join(self.spec.parameters)}), got {x.shape[1]}"
+                )
+        else:
+            x = np.array([[p[s] for s in self.spec.parameters] for p in params])
+        return params_to_unit(x, self.spec.parameters).astype(np.float32)
+
+    def predict(
+        self,
+        params: np.ndarray | list[ParameterSet],
+        *,
+        seed: int | None = None,
+        track: np.ndarray | None = None,
+        batch_size: int = 8192,
+    ) -> np.ndarray:
+        """Force series (n_sets, T, n_targets) in kN; the first ``window`` steps are NaN.
+
+        ``params``: (n, n_key) SI values of the key parameters, or ParameterSets. The track
+        is the training track (``track_seed``) unless ``seed`` or raw ``track`` features
+        (T, n_track) are given.
+        """
+        unit = self._unit(params)
+        if track is None:
+            s = self.track_seed if seed is None else seed
+            track = track_features(self.condition, s, self.spec, self.wagon)
+        tr = self.normaliser.track(np.asarray(track)[None])
+        n, t_steps = unit.shape[0], tr.shape[1]
+        idx = window_index(n, t_steps, self.spec.window)
+        out = np.full((n, t_steps, len(self.spec.targets)), np.nan)
+        preds = self.predict_windows(unit, tr, idx, batch_size)
+        out[idx[:, 0], idx[:, 1]] = self.normaliser.target_inverse(preds)
+        return out
+
+    def predict_windows(
+        self, unit: np.ndarray, track_norm: np.ndarray, idx: np.ndarray, batch_size: int = 8192
+    ) -> np.ndarray:
+        """Standardised predictions for (sample, end step) pairs."""
+        self.net.eval()
+        res = []
+        with torch.no_grad():
+            for lo in range(0, len(idx), batch_size):
+                x = gather_windows(unit, track_norm, idx[lo : lo + batch_size], self.spec.window)
+                res.append(self.net(torch.from_numpy(np.ascontiguousarray(x))).numpy())
+        return np.concatenate(res) if res else np.zeros((0, len(self.spec.targets)))
+
+    def save(self, path: str | Path) -> Path:
+        """Write ``model.pt`` (weights) and ``surrogate.json`` (everything else) into a folder."""
+        path = Path(path)
+        buf = io.BytesIO()
+        torch.save(self.net.state_dict(), buf)
+        atomic_write_bytes(path / "model.pt", buf.getvalue())
+        write_json(
+            path / "surrogate.json",
+            {
+                "format": FORMAT,
+                "net": self.net_config.to_dict(),
+                "features": self.spec.to_dict(),
+                "normaliser": self.normaliser.__dict__,
+                "condition": self.condition.model_dump(),
+                "wagon": self.wagon.model_dump(mode="json"),
+                "track_seed": self.track_seed,
+                "meta": self.meta,
+                "saved": provenance(),
+            },
+        )
+        return path
+
+
+def load(path: str | Path) -> Surrogate:
+    """Load a surrogate saved by :meth:`Surrogate.save`."""
+    path = Path(path)
+    meta_path = path / "surrogate.json"
+    if not meta_path.exists():
+        raise FileNotFoundError(f"{path} holds no surrogate (no surrogate.json)")
+    doc = json.loads(meta_path.read_text("utf-8"))
+    if doc.get("format") != FORMAT:
+        raise ValueError(f"{meta_path}: unknown surrogate format {doc.get('format')!r}")
+    net_cfg = NetConfig(
+        **{k: tuple(v) if isinstance(v, list) else v for k, v in doc["net"].items()}
+    )
+    feats = FeatureSpec(
+        **{k: tuple(v) if isinstance(v, list) else v for k, v in doc["features"].items()}
+    )
+    net = build_network(net_cfg)
+    net.load_state_dict(torch.load(path / "model.pt", map_location="cpu", weights_only=True))
+    net.eval()
+    for p in feats.parameters:
+        spec(p)  # validates the stored parameter names
+    return Surrogate(
+        net,
+        net_cfg,
+        feats,
+        Normaliser(**doc["normaliser"]),
+        WorkingCondition(**doc["condition"]),
+        WagonData(**doc["wagon"]),
+        int(doc["track_seed"]),
+        doc.get("meta", {}),
+    )

@@ -1,0 +1,256 @@
+"""Surrogate training data: sliding windows of track input and parameters -> wheel forces.
+
+The study feeds its CNN-GRU 20 x 21 windows (20 time steps, 21 features, stride 1, 980 windows
+per 1000-step series) and predicts the lateral and vertical wheel-rail force at the window's
+end, but does not say what the 21 features are. railsusp's default feature set
+(:class:`FeatureSpec`, configurable):
+
+* the key suspension parameters, scaled to [0, 1] by their Table 2 ranges, constant along
+  the window (6 with the study's choice);
+* the track input at three axles (the measured leading wheelset w1, the trailing wheelset of
+  the same bogie w2 and the leading wheelset of the rear bogie w3), five channels each:
+  vertical and lateral irregularity of both rails (mm) and the design curvature (1/km):
+  3 x 5 = 15.
+
+The window ending at step k covers steps k - L + 1 .. k and predicts Y and Q of the measured
+wheel at step k, for k = L .. T - 1 (T - L windows: 980 for the study's 1000 and 20).
+Training, validation and test sets are split by simulation sample, never by window, and the
+normalisation is fitted on the training samples only.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from railsusp.campaign import CHANNELS, Campaign, track_seeds
+from railsusp.conditions import WorkingCondition
+from railsusp.params import bounds
+from railsusp.vehicle import layout as L
+from railsusp.vehicle.simulate import (
+    WHEEL_NAMES,
+    SolverSettings,
+    measured_wheel_index,
+    track_arrays,
+)
+from railsusp.vehicle.wagon import WagonData
+
+TRACK_CHANNELS = {
+    "zL": L.TR_ZL,
+    "zR": L.TR_ZR,
+    "yL": L.TR_YL,
+    "yR": L.TR_YR,
+    "curvature": L.TR_KAPPA,
+}
+#: display scaling of the track channels: irregularities in mm, curvature in 1/km
+_CHANNEL_SCALE = {"zL": 1e3, "zR": 1e3, "yL": 1e3, "yR": 1e3, "curvature": 1e3}
+
+
+@dataclass(frozen=True)
+class FeatureSpec:
+    """What a window holds: parameters, track channels at which axles, window length."""
+
+    parameters: tuple[str, ...]
+    track_channels: tuple[str, ...] = ("zL", "zR", "yL", "yR", "curvature")
+    axles: tuple[int, ...] = (0, 1, 2)  # wheelset indices: 0 = w1 (leading) ...
+    window: int = 20
+    targets: tuple[str, ...] = ("Y", "Q")
+
+    @property
+    def n_features(self) -> int:
+        return len(self.parameters) + len(self.track_channels) * len(self.axles)
+
+    def names(self) -> list[str]:
+        """Feature names in input order."""
+        return [
+            *(f"{p}_unit" for p in self.parameters),
+            *(f"{c}@w{a + 1}" for a in self.axles for c in self.track_channels),
+        ]
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def axle_offsets(wagon: WagonData) -> np.ndarray:
+    """Distance of each wheelset behind the leading one, m."""
+    a = wagon.bogie.half_wheelbase
+    lc = wagon.car_body.bogie_half_spacing
+    return np.array([0.0, 2 * a, 2 * lc, 2 * lc + 2 * a])
+
+
+def track_features(
+    condition: WorkingCondition,
+    seed: int,
+    spec: FeatureSpec,
+    wagon: WagonData,
+    settings: SolverSettings | None = None,
+) -> np.ndarray:
+    """Track input seen by the chosen axles at every output step: (T, channels x axles)."""
+    settings = SolverSettings() if settings is None else settings
+    tr, s0, ds = track_arrays(condition.with_changes(seed=seed), [seed], wagon, settings)
+    grid = s0 + ds * np.arange(tr.shape[2])
+    t = np.arange(condition.n_steps) * condition.sample_interval
+    s_front = condition.lead_in_m + condition.speed * t
+    offs = axle_offsets(wagon)
+    cols = []
+    for a in spec.axles:
+        s = s_front - offs[a]
+        for ch in spec.track_channels:
+            cols.append(np.interp(s, grid, tr[0, TRACK_CHANNELS[ch]]) * _CHANNEL_SCALE[ch])
+    return np.stack(cols, axis=1)
+
+
+@dataclass
+class SeriesData:
+    """Per-sample arrays of one condition: parameters (unit), track features, targets."""
+
+    sample_ids: np.ndarray  # (n,)
+    params_unit: np.ndarray  # (n, n_params)
+    track: np.ndarray  # (n, T, n_track) or (1, T, n_track) when every sample shares it
+    targets: np.ndarray  # (n, T, n_targets), kN
+    condition: WorkingCondition
+    seeds: np.ndarray  # (n,)
+
+    @property
+    def n_samples(self) -> int:
+        return len(self.sample_ids)
+
+    @property
+    def n_steps(self) -> int:
+        return self.targets.shape[1]
+
+    def subset(self, idx: np.ndarray) -> SeriesData:
+        track = self.track if self.track.shape[0] == 1 else self.track[idx]
+        return SeriesData(
+            self.sample_ids[idx],
+            self.params_unit[idx],
+            track,
+            self.targets[idx],
+            self.condition,
+            self.seeds[idx],
+        )
+
+
+def params_to_unit(x_si: np.ndarray, parameters: Sequence[str]) -> np.ndarray:
+    """SI parameter values -> [0, 1] by their Table 2 ranges."""
+    lo, hi = bounds(parameters)
+    return (np.asarray(x_si, float) - lo) / (hi - lo)
+
+
+def load_series(
+    campaign: Campaign, condition: str, spec: FeatureSpec, wheel: str = "auto"
+) -> SeriesData:
+    """Build the surrogate arrays of one condition of a campaign (finished batches only)."""
+    cfg = campaign.config
+    cond = next((c for c in cfg.conditions if c.name == condition), None)
+    if cond is None:
+        raise ValueError(
+            f"condition {condition!r} not in the campaign "
+            f"({', '.join(c.name for c in cfg.conditions)})"
+        )
+    missing = [p for p in spec.parameters if p not in cfg.parameters]
+    if missing:
+        raise ValueError(f"parameters {missing} were not sampled in this campaign")
+    ids, series = campaign.series(condition)
+    design = campaign.design().set_index("sample_id").loc[ids]
+    w = measured_wheel_index(cond, wheel if wheel != "auto" else cfg.wheel)
+    targets = []
+    for t in spec.targets:
+        ch = CHANNELS.index(f"{t}_{WHEEL_NAMES[w]}")
+        targets.append(series[:, ch, :] / 1e3)
+    y = np.stack(targets, axis=2).astype(np.float32)
+    ok = np.isfinite(y).all(axis=(1, 2))
+    seeds_all = track_seeds(cfg, cond)
+    seeds = np.full(len(ids), cond.seed) if seeds_all is None else seeds_all[ids]
+    unique = np.unique(seeds)
+    per_seed = {
+        int(s): track_features(cond, int(s), spec, cfg.wagon, cfg.settings()) for s in unique
+    }
+    if len(unique) == 1:
+        track = per_seed[int(unique[0])][None]
+    else:
+        track = np.stack([per_seed[int(s)] for s in seeds])
+    data = SeriesData(
+        ids,
+        params_to_unit(design[list(spec.parameters)].to_numpy(), spec.parameters).astype(
+            np.float32
+        ),
+        track.astype(np.float32),
+        y,
+        cond,
+        seeds,
+    )
+    return data.subset(np.flatnonzero(ok))
+
+
+def split_samples(
+    sample_ids: np.ndarray, fractions: tuple[float, float, float] = (0.7, 0.15, 0.15), seed: int = 0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions of train / validation / test samples: a split by sample, never by window."""
+    n = len(sample_ids)
+    if n < 3:
+        raise ValueError(f"need at least 3 samples to split, got {n}")
+    perm = np.random.default_rng(seed).permutation(n)
+    n_val = max(1, round(fractions[1] * n))
+    n_test = max(1, round(fractions[2] * n))
+    n_train = n - n_val - n_test
+    if n_train < 1:
+        raise ValueError(f"{n} samples leave no training sample with fractions {fractions}")
+    return (
+        np.sort(perm[:n_train]),
+        np.sort(perm[n_train : n_train + n_val]),
+        np.sort(perm[n_train + n_val :]),
+    )
+
+
+@dataclass
+class Normaliser:
+    """Standardisation of track features and targets, fitted on training data only."""
+
+    track_mean: list[float] = field(default_factory=list)
+    track_std: list[float] = field(default_factory=list)
+    target_mean: list[float] = field(default_factory=list)
+    target_std: list[float] = field(default_factory=list)
+
+    @classmethod
+    def fit(cls, data: SeriesData) -> Normaliser:
+        tr = data.track.reshape(-1, data.track.shape[-1]).astype(np.float64)
+        y = data.targets.reshape(-1, data.targets.shape[-1]).astype(np.float64)
+        ts = tr.std(axis=0)
+        ys = y.std(axis=0)
+        return cls(
+            tr.mean(axis=0).tolist(),
+            np.where(ts > 0, ts, 1.0).tolist(),
+            y.mean(axis=0).tolist(),
+            np.where(ys > 0, ys, 1.0).tolist(),
+        )
+
+    def track(self, x: np.ndarray) -> np.ndarray:
+        return ((x - np.asarray(self.track_mean)) / np.asarray(self.track_std)).astype(np.float32)
+
+    def target(self, y: np.ndarray) -> np.ndarray:
+        return ((y - np.asarray(self.target_mean)) / np.asarray(self.target_std)).astype(np.float32)
+
+    def target_inverse(self, y: np.ndarray) -> np.ndarray:
+        return y * np.asarray(self.target_std) + np.asarray(self.target_mean)
+
+
+def window_index(n_samples: int, n_steps: int, window: int) -> np.ndarray:
+    """All (sample, end step) pairs: (n_samples * (T - L), 2), end steps L .. T - 1."""
+    ends = np.arange(window, n_steps)
+    return np.stack(np.meshgrid(np.arange(n_samples), ends, indexing="ij"), axis=-1).reshape(-1, 2)
+
+
+def gather_windows(
+    params: np.ndarray, track: np.ndarray, index: np.ndarray, window: int
+) -> np.ndarray:
+    """Windows (B, L, F) for (sample, end) pairs: the parameters repeated along the window,
+    then the track features of steps end - L + 1 .. end."""
+    i, k = index[:, 0], index[:, 1]
+    steps = k[:, None] + np.arange(-window + 1, 1)[None, :]
+    ti = np.zeros_like(i) if track.shape[0] == 1 else i
+    tr = track[ti[:, None], steps]  # (B, L, n_track)
+    p = np.broadcast_to(params[i][:, None, :], (len(i), window, params.shape[1]))
+    return np.concatenate([p, tr], axis=2)

@@ -1,0 +1,157 @@
+"""One training loop for every PyTorch surrogate: Adam, early stopping, checkpoints, resume.
+
+An "epoch" is a fixed number of mini-batches of windows drawn at random (seeded) from the
+training samples, so that its cost does not grow with the campaign; validation uses a fixed
+random subset of the validation samples' windows. The state is checkpointed atomically after
+every epoch and a killed training resumes from the last checkpoint with the same result.
+"""
+
+from __future__ import annotations
+
+import io
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from railsusp.store import atomic_write_bytes, content_hash
+from railsusp.surrogate.data import Normaliser, SeriesData, gather_windows, window_index
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Training settings (seeded; CPU by default, CUDA when asked and available)."""
+
+    epochs: int = 40
+    batches_per_epoch: int = 200
+    batch_size: int = 512
+    learning_rate: float = 1e-3
+    patience: int = 6
+    val_windows: int = 20_000
+    seed: int = 0
+    device: str = "cpu"
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def resolve_device(name: str) -> torch.device:
+    """'cpu', 'cuda' or 'auto' (CUDA when available)."""
+    if name == "auto":
+        name = "cuda" if torch.cuda.is_available() else "cpu"
+    if name == "cuda" and not torch.cuda.is_available():
+        raise ValueError("device 'cuda' asked for but no CUDA device is available")
+    return torch.device(name)
+
+
+class WindowSampler:
+    """Windows of one data set, normalised, as tensors."""
+
+    def __init__(self, data: SeriesData, norm: Normaliser, window: int):
+        self.params = data.params_unit.astype(np.float32)
+        self.track = norm.track(data.track)
+        self.targets = norm.target(data.targets)
+        self.window = window
+        self.index = window_index(data.n_samples, data.n_steps, window)
+
+    def batch(self, rows: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
+        idx = self.index[rows]
+        x = gather_windows(self.params, self.track, idx, self.window)
+        y = self.targets[idx[:, 0], idx[:, 1]]
+        return torch.from_numpy(np.ascontiguousarray(x)), torch.from_numpy(y)
+
+
+def train_network(
+    net: nn.Module,
+    train: WindowSampler,
+    val: WindowSampler,
+    cfg: TrainConfig,
+    checkpoint: Path | None = None,
+    progress: Callable[[int, float, float], None] | None = None,
+) -> list[dict]:
+    """Train ``net`` in place; returns the history (epoch, train and validation loss, time).
+
+    The best validation state is restored at the end (early stopping).
+    """
+    device = resolve_device(cfg.device)
+    torch.manual_seed(cfg.seed)
+    net.to(device)
+    opt = torch.optim.Adam(net.parameters(), lr=cfg.learning_rate)
+    loss_fn = nn.MSELoss()
+    rng = np.random.default_rng(cfg.seed)
+    val_rows = np.random.default_rng(cfg.seed + 1).choice(
+        len(val.index), min(cfg.val_windows, len(val.index)), replace=False
+    )
+    xv, yv = val.batch(val_rows)
+    xv, yv = xv.to(device), yv.to(device)
+    history: list[dict] = []
+    best, best_state, stale, start = float("inf"), None, 0, 0
+    key = content_hash({"cfg": cfg.to_dict(), "arch": repr(net)})
+    if checkpoint is not None and checkpoint.exists():
+        state = torch.load(checkpoint, map_location=device, weights_only=False)
+        if state.get("key") == key:
+            net.load_state_dict(state["model"])
+            opt.load_state_dict(state["optim"])
+            history, best, stale = state["history"], state["best"], state["stale"]
+            best_state = state["best_state"]
+            rng.bit_generator.state = state["rng"]
+            torch.set_rng_state(state["torch_rng"])
+            start = len(history)
+    for epoch in range(start, cfg.epochs):
+        if stale >= cfg.patience:
+            break
+        t0 = time.perf_counter()
+        net.train()
+        total = 0.0
+        for _ in range(cfg.batches_per_epoch):
+            xb, yb = train.batch(rng.integers(0, len(train.index), cfg.batch_size))
+            xb, yb = xb.to(device), yb.to(device)
+            opt.zero_grad()
+            loss = loss_fn(net(xb), yb)
+            loss.backward()
+            opt.step()
+            total += loss.item()
+        net.eval()
+        with torch.no_grad():
+            vloss = float(loss_fn(net(xv), yv))
+        train_loss = total / cfg.batches_per_epoch
+        history.append(
+            {
+                "epoch": epoch + 1,
+                "train_loss": train_loss,
+                "val_loss": vloss,
+                "seconds": time.perf_counter() - t0,
+            }
+        )
+        if vloss < best:
+            best, stale = vloss, 0
+            best_state = {k: v.detach().cpu().clone() for k, v in net.state_dict().items()}
+        else:
+            stale += 1
+        if checkpoint is not None:
+            buf = io.BytesIO()
+            torch.save(
+                {
+                    "key": key,
+                    "model": net.state_dict(),
+                    "optim": opt.state_dict(),
+                    "history": history,
+                    "best": best,
+                    "stale": stale,
+                    "best_state": best_state,
+                    "rng": rng.bit_generator.state,
+                    "torch_rng": torch.get_rng_state(),
+                },
+                buf,
+            )
+            atomic_write_bytes(checkpoint, buf.getvalue())
+        if progress is not None:
+            progress(epoch + 1, train_loss, vloss)
+    if best_state is not None:
+        net.load_state_dict(best_state)
+    net.to("cpu").eval()
+    return history

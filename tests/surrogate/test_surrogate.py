@@ -1,0 +1,165 @@
+"""Surrogate data windows, networks, training loop, save/load, evaluation."""
+
+import numpy as np
+import pytest
+import torch
+
+from railsusp.campaign import load_campaign, make_config, run_campaign
+from railsusp.conditions import get_condition
+from railsusp.surrogate import TrainConfig, load, train_surrogate
+from railsusp.surrogate.data import (
+    FeatureSpec,
+    Normaliser,
+    gather_windows,
+    load_series,
+    split_samples,
+    window_index,
+)
+from railsusp.surrogate.evaluate import accuracy, evaluate
+from railsusp.surrogate.models import NetConfig, build_network
+from railsusp.surrogate.train import WindowSampler, train_network
+
+KEYS = ("X13", "X14", "X15", "X16", "X17", "X18")
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("sur") / "run"
+    cond = get_condition("straight", duration_s=2.0, n_steps=100, lead_in_m=30.0)
+    run_campaign(make_config([cond], 12, batch_size=6, seed=5, parameters=KEYS), out)
+    return out
+
+
+def test_study_window_count_and_feature_layout():
+    """1000-step series, 20-step windows: 980 windows per series (the study's figure);
+    6 parameters + 5 track channels x 3 axles = 21 features."""
+    spec = FeatureSpec(parameters=KEYS)
+    assert spec.n_features == 21 and len(spec.names()) == 21
+    idx = window_index(3, 1000, 20)
+    assert idx.shape == (3 * 980, 2)
+    assert idx[:, 1].min() == 20 and idx[:, 1].max() == 999
+    params = np.arange(3 * 6, dtype=np.float32).reshape(3, 6)
+    track = np.arange(1000 * 15, dtype=np.float32).reshape(1, 1000, 15)
+    w = gather_windows(params, track, idx[[0, 981]], 20)
+    assert w.shape == (2, 20, 21)
+    np.testing.assert_array_equal(w[1, :, :6], np.tile(params[1], (20, 1)))
+    np.testing.assert_array_equal(w[0, -1, 6:], track[0, 20])  # window ends at its step
+    np.testing.assert_array_equal(w[0, 0, 6:], track[0, 1])
+
+
+def test_split_is_by_sample_without_leakage():
+    ids = np.arange(40) * 3
+    tr, va, te = split_samples(ids, seed=2)
+    assert len(tr) + len(va) + len(te) == 40
+    assert not set(tr) & set(va) and not set(tr) & set(te) and not set(va) & set(te)
+    # windows of a split only come from its samples
+    idx = window_index(len(te), 50, 20)
+    assert set(np.unique(idx[:, 0])) == set(range(len(te)))
+    with pytest.raises(ValueError, match="at least 3 samples"):
+        split_samples(np.arange(2))
+
+
+def test_series_from_campaign_and_train_only_normalisation(run):
+    camp = load_campaign(run)
+    spec = FeatureSpec(parameters=KEYS)
+    data = load_series(camp, "straight", spec)
+    assert data.targets.shape == (12, 100, 2) and data.track.shape == (1, 100, 15)
+    assert np.all((data.params_unit >= 0) & (data.params_unit <= 1))
+    assert 110 < data.targets[:, :, 1].mean() < 135  # Q in kN
+    tr, _, _ = split_samples(data.sample_ids)
+    norm = Normaliser.fit(data.subset(tr))
+    z = norm.target(data.subset(tr).targets)
+    np.testing.assert_allclose(z.reshape(-1, 2).mean(axis=0), 0, atol=1e-4)
+    with pytest.raises(ValueError, match="not sampled"):
+        load_series(camp, "straight", FeatureSpec(parameters=("X11",)))
+
+
+@pytest.mark.parametrize("kind", ["cnn-gru", "cnn-lstm", "cnn-bilstm", "bp"])
+def test_networks_map_windows_to_targets(kind):
+    net = build_network(NetConfig(kind=kind))
+    out = net(torch.zeros(5, 20, 21))
+    assert out.shape == (5, 2)
+    with pytest.raises(ValueError, match="unknown surrogate kind"):
+        build_network(NetConfig(kind="transformer"))
+
+
+def test_cnn_gru_follows_the_study_architecture():
+    net = build_network(NetConfig())
+    convs = [m for m in net.conv if isinstance(m, torch.nn.Conv1d)]
+    assert [(c.in_channels, c.out_channels, c.kernel_size) for c in convs] == [
+        (21, 21, (1,)),
+        (21, 128, (1,)),
+    ]
+    assert [g.hidden_size for g in net.rnn] == [64, 32, 16]
+    lin = [m for m in net.head if isinstance(m, torch.nn.Linear)]
+    assert [m.out_features for m in lin] == [64, 8, 8, 2]
+
+
+def test_tiny_training_lowers_the_loss_and_resumes(run, tmp_path):
+    camp = load_campaign(run)
+    spec = FeatureSpec(parameters=KEYS)
+    data = load_series(camp, "straight", spec)
+    tr, va, _ = split_samples(data.sample_ids)
+    norm = Normaliser.fit(data.subset(tr))
+    cfg = TrainConfig(epochs=4, batches_per_epoch=15, batch_size=64, val_windows=500)
+
+    def fresh():
+        torch.manual_seed(0)
+        return build_network(NetConfig(kind="bp", mlp_hidden=(64, 32)))
+
+    samplers = (WindowSampler(data.subset(tr), norm, 20), WindowSampler(data.subset(va), norm, 20))
+    hist = train_network(fresh(), *samplers, cfg)
+    assert hist[-1]["train_loss"] < hist[0]["train_loss"]
+    # interrupted after 2 epochs, resumed to 4: the same history as one go
+    ck = tmp_path / "ck.pt"
+    part = train_network(
+        fresh(), *samplers, TrainConfig(**{**cfg.to_dict(), "epochs": 2}), checkpoint=ck
+    )
+    assert len(part) == 2
+    net = fresh()
+    resumed = train_network(net, *samplers, cfg, checkpoint=ck)
+    assert [h["val_loss"] for h in resumed] == pytest.approx([h["val_loss"] for h in hist])
+
+
+@pytest.fixture(scope="module")
+def trained(run):
+    cfg = TrainConfig(epochs=1, batches_per_epoch=5, batch_size=64, val_windows=500)
+    sur = train_surrogate(run, "straight", parameters=KEYS, train=cfg)
+    return sur, run / "surrogates" / "cnn-gru" / "straight"
+
+
+def test_save_load_round_trip_and_predict(run, trained):
+    sur, path = trained
+    back = load(path)
+    from railsusp.params import bounds
+
+    lo, hi = bounds(KEYS)
+    x = np.vstack([lo, (lo + hi) / 2, hi])
+    a, b = sur.predict(x), back.predict(x)
+    np.testing.assert_array_equal(a, b)
+    assert a.shape == (3, 100, 2)
+    assert np.isnan(a[:, :20]).all() and np.isfinite(a[:, 20:]).all()
+    assert set(back.meta["test_ids"]).isdisjoint(back.meta["train_ids"])
+    with pytest.raises(ValueError, match="6 columns"):
+        back.predict(np.zeros((1, 3)))
+    with pytest.raises(FileNotFoundError, match="no surrogate"):
+        load(run)
+
+
+def test_accuracy_metrics_on_known_predictions():
+    sim = np.ones((2, 30, 2)) * np.array([10.0, 120.0])
+    sim[:, :, 0] += np.sin(np.arange(30))[None]
+    pred = sim * np.array([1.1, 1.0])
+    rows = {r["target"]: r for r in accuracy(sim, pred, ("Y", "Q"), 5)}
+    assert rows["Y"]["relative_error_of_mean"] == pytest.approx(0.1)
+    assert rows["Q"]["relative_error_of_mean"] == 0.0 and rows["Q"]["r2"] != rows["Q"]["r2"]
+    assert rows["Y"]["r2"] < 1.0
+
+
+def test_evaluate_runs_on_held_out_samples(run, trained):
+    sur = load(trained[1])
+    data = load_series(load_campaign(run), "straight", sur.spec)
+    test = data.subset(np.flatnonzero(np.isin(data.sample_ids, sur.meta["test_ids"])))
+    rows = evaluate(sur, test)
+    assert [r["target"] for r in rows] == ["Y", "Q"]
+    assert all(r["n_samples"] == test.n_samples for r in rows)
