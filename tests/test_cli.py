@@ -94,3 +94,90 @@ def test_simulate_bad_input(args, needle):
     )
     assert proc.returncode == 2 and needle in proc.stderr, proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
+    """The command-line chain on a tiny campaign: every step runs and writes its files."""
+    cond_file = tmp_path / "c.toml"
+    cond_file.write_text(
+        '[[condition]]\nname = "short"\nduration_s = 1.0\nn_steps = 50\nlead_in_m = 20.0\n'
+    )
+    run = tmp_path / "run"
+    result = runner.invoke(
+        app,
+        [
+            "campaign",
+            "--samples",
+            "12",
+            "--conditions",
+            str(cond_file),
+            "--out",
+            str(run),
+            "--batch-size",
+            "6",
+            "--parameters",
+            "X13,X14,X17",
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    assert (run / "features.parquet").exists()
+    again = runner.invoke(
+        app,
+        [
+            "campaign",
+            "--samples",
+            "12",
+            "--conditions",
+            str(cond_file),
+            "--out",
+            str(run),
+            "--batch-size",
+            "6",
+            "--seed",
+            "1",
+            "--parameters",
+            "X13,X14,X17",
+        ],
+    )
+    assert again.exit_code == 2 and "another configuration" in again.output
+    result = runner.invoke(
+        app, ["sensitivity", str(run), "--base-samples", "64", "--statistics", "mean"]
+    )
+    assert result.exit_code == 0, result.output
+    assert "key parameters" in result.output and (run / "sensitivity" / "indices.csv").exists()
+    result = runner.invoke(
+        app,
+        [
+            "train",
+            str(run),
+            "--model",
+            "bp",
+            "--epochs",
+            "1",
+            "--batches-per-epoch",
+            "3",
+            "--batch-size",
+            "32",
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    assert (run / "surrogates" / "bp" / "short" / "surrogate.json").exists()
+    result = runner.invoke(
+        app,
+        [
+            "compare",
+            str(run),
+            "--models",
+            "bp,rbf,gp-stats",
+            "--epochs",
+            "1",
+            "--batches-per-epoch",
+            "3",
+            "--batch-size",
+            "32",
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    assert "gp-stats" in result.output and (run / "surrogates" / "compare.csv").exists()
+    bad = runner.invoke(app, ["compare", str(run), "--models", "svm"])
+    assert bad.exit_code == 2 and "svm" in bad.output

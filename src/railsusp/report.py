@@ -142,3 +142,31 @@ def plot_sobol(indices, path: str | Path, statistic: str = "mean"):
     method = sel.method.iloc[0] if len(sel) else ""
     fig.suptitle(f"Sobol sensitivity indices ({method}), 95 % bootstrap intervals")
     return save_figure(fig, path)
+
+
+def plot_surrogate_overlay(
+    simulated, predictions: dict, targets, dt: float, path: str | Path, title: str = ""
+):
+    """Predicted vs simulated force series of one held-out run, one panel per target (the
+    study's Figures 10 and 11)."""
+    names = {"Y": "lateral force Y (kN)", "Q": "vertical force Q (kN)"}
+    fig, axes = plt.subplots(
+        len(targets),
+        1,
+        figsize=(11, 3.3 * len(targets)),
+        sharex=True,
+        constrained_layout=True,
+        squeeze=False,
+    )
+    t = np.arange(simulated.shape[0]) * dt
+    for j, name in enumerate(targets):
+        ax = axes[j, 0]
+        ax.plot(t, simulated[:, j], color="k", lw=1.4, label="simulated")
+        for k, (model, pred) in enumerate(predictions.items()):
+            ax.plot(t, pred[:, j], lw=0.9, color=f"C{k}", label=model)
+        ax.set_ylabel(names.get(name, name))
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=8, ncol=3)
+    axes[-1, 0].set_xlabel("time (s)")
+    fig.suptitle(title)
+    return save_figure(fig, path)

@@ -1,0 +1,135 @@
+"""Train every surrogate on the same campaign split and compare them on the same held-out runs
+(the study's Table 7 and Figures 10/11, per condition, with NRMSE and R² added)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from railsusp.campaign import load_campaign
+from railsusp.store import write_json
+from railsusp.surrogate import key_parameters, train_surrogate
+from railsusp.surrogate.baselines import RBFWindowModel, StatisticsGP
+from railsusp.surrogate.data import FeatureSpec, Normaliser, load_series, split_samples
+from railsusp.surrogate.evaluate import accuracy, predict_series
+from railsusp.surrogate.train import TrainConfig
+
+ALL_MODELS = ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp", "rbf", "gp-stats")
+
+
+def compare(
+    run: str | Path,
+    *,
+    models: Sequence[str] = ALL_MODELS,
+    conditions: Sequence[str] | None = None,
+    train: TrainConfig | None = None,
+    window: int = 20,
+    split_seed: int = 0,
+    progress: Callable[[str], None] | None = None,
+) -> pd.DataFrame:
+    """Train ``models`` per condition and return the accuracy table (also written to
+    ``RUN/surrogates/compare.csv`` / ``.json`` with overlay figures)."""
+    from railsusp.report import plot_surrogate_overlay
+
+    camp = load_campaign(run)
+    conds = list(conditions) if conditions else [c.name for c in camp.config.conditions]
+    params = key_parameters(run)
+    spec = FeatureSpec(parameters=params, window=window)
+    rows = []
+    out_dir = camp.path / "surrogates"
+    for cond in conds:
+        data = load_series(camp, cond, spec)
+        tr_i, _, te_i = split_samples(data.sample_ids, seed=split_seed)
+        train_data, test = data.subset(tr_i), data.subset(te_i)
+        norm = Normaliser.fit(train_data)
+        overlays = {}
+        for kind in models:
+            if progress:
+                progress(f"{cond}: {kind}")
+            if kind in ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp"):
+                sur = train_surrogate(
+                    run,
+                    cond,
+                    kind=kind,
+                    parameters=params,
+                    window=window,
+                    train=train,
+                    split_seed=split_seed,
+                )
+                pred = predict_series(sur, test)
+            elif kind == "rbf":
+                sur = RBFWindowModel(spec, norm).fit(train_data)
+                pred = predict_series(sur, test)
+            elif kind == "gp-stats":
+                gp = StatisticsGP(spec).fit(train_data)
+                m, _ = gp.predict_statistics(test.params_unit)
+                sim = StatisticsGP.statistics(test.targets, spec)
+                for j, name in enumerate(spec.targets):
+                    rel = np.abs(m[:, j] - sim[:, j]) / np.abs(sim[:, j])
+                    ss = np.sum((sim[:, j] - sim[:, j].mean()) ** 2)
+                    rows.append(
+                        {
+                            "condition": cond,
+                            "model": kind,
+                            "target": name,
+                            "simulated_mean_kN": float(sim[:, j].mean()),
+                            "predicted_mean_kN": float(m[:, j].mean()),
+                            "relative_error_of_mean": float(rel.mean()),
+                            "relative_error_of_mean_max": float(rel.max()),
+                            "nrmse": float("nan"),
+                            "r2": float("nan"),
+                            "r2_of_statistic": float(1 - np.sum((m[:, j] - sim[:, j]) ** 2) / ss)
+                            if ss > 0
+                            else float("nan"),
+                            "n_samples": int(test.n_samples),
+                        }
+                    )
+                continue
+            else:
+                raise ValueError(f"unknown model {kind!r}; accepted {', '.join(ALL_MODELS)}")
+            overlays[kind] = pred[0]
+            for r in accuracy(test.targets.astype(float), pred, spec.targets, window):
+                rows.append({"condition": cond, "model": kind, **r})
+        if overlays:
+            plot_surrogate_overlay(
+                test.targets[0],
+                overlays,
+                spec.targets,
+                test.condition.sample_interval,
+                out_dir / f"overlay-{cond}.png",
+                title=f"{cond}: held-out sample {int(test.sample_ids[0])}",
+            )
+    table = pd.DataFrame(rows)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    table.to_csv(out_dir / "compare.csv", index=False)
+    write_json(out_dir / "compare.json", table.to_dict(orient="records"))
+    return table
+
+
+def table7(table: pd.DataFrame) -> pd.DataFrame:
+    """The study's Table 7 layout: per condition and model, vertical then lateral force:
+    simulated, predicted, relative error (%)."""
+    rows = []
+    for (cond, model), g in table.groupby(["condition", "model"], sort=False):
+        q = g[g.target == "Q"].iloc[0]
+        y = g[g.target == "Y"].iloc[0]
+        rows.append(
+            {
+                "condition": cond,
+                "model": model,
+                "Q simulated kN": q.simulated_mean_kN,
+                "Q predicted kN": q.predicted_mean_kN,
+                "Q rel. error %": 100 * q.relative_error_of_mean,
+                "Y simulated kN": y.simulated_mean_kN,
+                "Y predicted kN": y.predicted_mean_kN,
+                "Y rel. error %": 100 * y.relative_error_of_mean,
+                "Q NRMSE": q.nrmse,
+                "Y NRMSE": y.nrmse,
+                "Q R2": q.r2,
+                "Y R2": y.r2,
+            }
+        )
+    return pd.DataFrame(rows)
