@@ -108,7 +108,7 @@ def free_wheelset_sway(
 
     ``s`` is the distance run (m), ``y`` the lateral displacement (m) and ``yaw`` (rad).
     """
-    from railsusp.vehicle.simulate import SolverSettings, constants, contact_arrays
+    from railsusp.vehicle.setup import SolverSettings, constants, contact_arrays
 
     wagon = load_wagon() if wagon is None else wagon
     cond = WorkingCondition(speed_kmh=speed_kmh, irregularity_class=None)

@@ -1,0 +1,5 @@
+"""``python -m railsusp.cli``."""
+
+from railsusp.cli import main
+
+main()

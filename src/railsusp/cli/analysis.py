@@ -1,0 +1,221 @@
+"""Campaign and sensitivity commands."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from railsusp.cli import app, console, err_console, fail
+from railsusp.conditions import resolve_conditions
+from railsusp.errors import RailsuspInputError
+
+
+@app.command()
+def campaign(
+    out: Annotated[Path, typer.Option(help="run directory")],
+    samples: Annotated[int, typer.Option(help="LHS samples, or Saltelli base N")] = 1000,
+    conditions: Annotated[str, typer.Option(help="names or a TOML file")] = (
+        "straight,curve,uphill"
+    ),
+    seed: Annotated[int, typer.Option(help="design seed")] = 0,
+    design: Annotated[str, typer.Option(help="lhs, lhs-optimised or sobol (Saltelli)")] = "lhs",
+    second_order: Annotated[bool, typer.Option(help="Saltelli with second order")] = False,
+    parameters: Annotated[str, typer.Option(help="sampled subset, others nominal")] = (
+        "X11,X12,X13,X14,X15,X16,X17,X18,X19,X20"
+    ),
+    batch_size: Annotated[int, typer.Option(help="sets per batch (one stored file)")] = 32,
+    independent_seeds: Annotated[
+        bool,
+        typer.Option(
+            help="a different track realisation per sample (default: common random numbers)"
+        ),
+    ] = False,
+    wheel: Annotated[str, typer.Option(help="measured wheel: auto or w1L..w4R")] = "auto",
+    workers: Annotated[int | None, typer.Option(help="run on a local Dask cluster")] = None,
+    scheduler: Annotated[str | None, typer.Option(help="Dask scheduler tcp://host:port")] = None,
+    force: Annotated[bool, typer.Option(help="discard results of another configuration")] = False,
+    max_batches: Annotated[
+        int | None, typer.Option(help="stop after this many new batches")
+    ] = None,
+) -> None:
+    """Sample the suspension parameters and simulate every sample in every condition."""
+    from railsusp.campaign import make_config, run_campaign
+
+    try:
+        conds = resolve_conditions(conditions)
+        cfg = make_config(
+            conds,
+            samples,
+            parameters=tuple(p for p in parameters.split(",") if p.strip()),
+            design=design,
+            second_order=second_order,
+            seed=seed,
+            batch_size=batch_size,
+            independent_seeds=independent_seeds,
+            wheel=wheel,
+        )
+    except RailsuspInputError as exc:
+        fail(str(exc))
+    d = len(cfg.parameters)
+    if cfg.design == "sobol":
+        k = 2 * d + 2 if cfg.second_order else d + 2
+        label = "N(2D+2)" if cfg.second_order else "N(D+2)"
+        console.print(
+            f"Saltelli design: {label} = {cfg.samples} x {k} = {cfg.n_runs} "
+            f"simulations per condition",
+            highlight=False,
+        )
+    total = cfg.n_runs * len(cfg.conditions)
+    console.print(
+        f"{total} simulations ({cfg.n_runs} sets x {len(cfg.conditions)} conditions) into {out}",
+        highlight=False,
+    )
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TaskProgressColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    with Progress(
+        TextColumn("campaign"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TaskProgressColumn(),
+        TextColumn("{task.fields[rate]}"),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=err_console,
+    ) as bar:
+        task = bar.add_task("runs", total=total, rate="")
+        t0 = [None, 0]
+
+        def progress(done: int, tot: int) -> None:
+            import time as _time
+
+            now = _time.perf_counter()
+            if t0[0] is None:
+                t0[0], t0[1] = now, done
+            elapsed = now - t0[0]
+            rate = (done - t0[1]) / elapsed if elapsed > 0 else 0.0
+            bar.update(task, completed=done, rate=f"{rate:.1f} runs/s")
+
+        try:
+            run_campaign(
+                cfg,
+                out,
+                force=force,
+                scheduler=scheduler,
+                workers=workers,
+                progress=progress,
+                max_batches=max_batches,
+            )
+        except RailsuspInputError as exc:
+            fail(str(exc))
+    console.print(f"campaign stored in {out}")
+
+
+@app.command()
+def sensitivity(
+    run: Annotated[Path, typer.Argument(help="campaign run directory")],
+    statistics: Annotated[str, typer.Option(help="feature statistics to analyse")] = "mean,p99",
+    threshold: Annotated[float, typer.Option(help="ST threshold of the key rule")] = 0.05,
+    key_statistics: Annotated[str, typer.Option(help="statistics the key rule uses")] = (
+        "mean,p99"
+    ),
+    max_keys: Annotated[int, typer.Option(help="at most this many key parameters")] = 6,
+    min_cv: Annotated[
+        float,
+        typer.Option(help="ignore features varying less than this (coefficient of variation)"),
+    ] = 0.005,
+    base_samples: Annotated[int, typer.Option(help="Saltelli N on the metamodel")] = 2048,
+    compare: Annotated[
+        Path | None,
+        typer.Option(
+            help="a second run directory (e.g. a Saltelli campaign) to set against this one"
+        ),
+    ] = None,
+    seed: Annotated[int, typer.Option(help="bootstrap / metamodel seed")] = 0,
+) -> None:
+    """Sobol indices (S1, ST with bootstrap intervals) and the key parameters of a campaign."""
+    from railsusp.sensitivity import analyse
+
+    stats = tuple(s.strip() for s in statistics.split(",") if s.strip())
+    key_stats = tuple(s.strip() for s in key_statistics.split(",") if s.strip())
+    stats = (*stats, *(k for k in key_stats if k not in stats))
+    try:
+        with err_console.status("Sobol analysis"):
+            s = analyse(
+                run,
+                statistics=stats,
+                threshold=threshold,
+                key_statistics=key_stats,
+                max_keys=max_keys,
+                min_cv=min_cv,
+                base_samples=base_samples,
+                seed=seed,
+                compare=compare,
+            )
+    except RailsuspInputError as exc:
+        fail(str(exc))
+    except ValueError as exc:
+        fail(f"{run}: {exc}")
+    idx = s["indices"]
+    keys = s["key_parameters"]["keys"]
+    ignored = set(s["key_parameters"]["ignored_features"])
+    for st in key_stats:
+        sel = idx[idx.statistic == st]
+        table = Table(
+            title=f"Total Sobol indices ST ± 95 % ({s['method']}, statistic '{st}'; "
+            f"dim: feature ignored, CV < {min_cv:.1%})",
+            title_justify="left",
+        )
+        table.add_column("parameter")
+        cols = sel[["condition", "quantity", "cv"]].drop_duplicates().to_numpy().tolist()
+        for cond, q, cv in cols:
+            table.add_column(f"{cond} {q}\nCV {cv:.1%}", justify="right")
+        for p in sel.parameter.unique():
+            cells = []
+            for cond, q, _ in cols:
+                r = sel[(sel.parameter == p) & (sel.condition == cond) & (sel.quantity == q)]
+                r = r.iloc[0]
+                cell = f"{r.ST:.3f} ± {r.ST_conf:.3f}"
+                cells.append(f"[dim]{cell}[/]" if f"{cond} {q} {st}" in ignored else cell)
+            table.add_row(f"[bold]{p}[/]" if p in keys else p, *cells)
+        console.print(table)
+    console.print(f"key parameters: [bold]{', '.join(keys)}[/]  ({s['key_parameters']['rule']})")
+    cmp = s["comparison"]
+    console.print("study: lateral X14, X15, X16, X18; vertical X13, X15, X17. Ours vs study:")
+    for r in cmp.itertuples():
+        study = (
+            "/".join(
+                n for n, f in (("lateral", r.study_lateral), ("vertical", r.study_vertical)) if f
+            )
+            or "-"
+        )
+        console.print(
+            f"  {r.parameter:>4} rank {r.our_rank:>2}  max ST {r.our_max_ST:.3f} "
+            f"({r.where})  ours key: {'yes' if r.ours_key else 'no '}  study: {study}",
+            highlight=False,
+        )
+    for f in s["metamodel_r2"]:
+        if f["r2_holdout"] < 0.8:
+            console.print(
+                f"[yellow]metamodel {f['condition']} {f['quantity']} "
+                f"{f['statistic']}: held-out R2 {f['r2_holdout']:.2f}[/]"
+            )
+    if "agreement" in s:
+        console.print("agreement with the compared run (max |dST|, Spearman of ST):")
+        for a in s["agreement"]:
+            console.print(
+                f"  {a['condition']} {a['quantity']} {a['statistic']}: "
+                f"{a['max_abs_dST']:.3f}, {a['spearman_ST']:.2f}",
+                highlight=False,
+            )
+    console.print(f"wrote {run / 'sensitivity'}")

@@ -1,0 +1,170 @@
+"""Commands that run the simulator: simulate, demo."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from railsusp import __version__
+from railsusp.cli import app, console, err_console, fail
+from railsusp.cli.inputs import condition_table, parameter_table, track_summary_table
+from railsusp.conditions import STANDARD_CONDITIONS, resolve_conditions
+from railsusp.errors import RailsuspInputError
+from railsusp.params import ParameterSet, parse_overrides
+from railsusp.study import TABLE8_BEFORE
+
+
+def _force_table(results: list, title: str) -> Table:
+    """Measured-wheel force statistics per condition beside the study's Table 8."""
+    table = Table(title=title, title_justify="left")
+    for col in (
+        "condition",
+        "wheel",
+        "Y mean",
+        "Y RMS",
+        "Y p99",
+        "Y max",
+        "study Y",
+        "Q mean",
+        "Q p99",
+        "Q max",
+        "study Q",
+        "Y/Q max",
+        "dQ/Q max",
+        "status",
+    ):
+        table.add_column(
+            col, justify="left" if col in ("condition", "wheel", "status") else "right"
+        )
+    from railsusp.vehicle.simulate import WHEEL_NAMES
+
+    for r in results:
+        s = r.statistics()
+        ref = TABLE8_BEFORE.get(r.condition.name)
+        status = "ok" if r.ok[0] else r.failures()[0][1]
+        table.add_row(
+            r.condition.name,
+            WHEEL_NAMES[r.measured_wheel()],
+            *(f"{s[k][0]:.1f}" for k in ("Y_mean", "Y_rms", "Y_p99", "Y_max")),
+            f"{ref[0]:.1f}" if ref else "-",
+            *(f"{s[k][0]:.1f}" for k in ("Q_mean", "Q_p99", "Q_max")),
+            f"{ref[2]:.1f}" if ref else "-",
+            f"{s['YQ_max'][0]:.2f}",
+            f"{s['dQQ_max'][0]:.2f}",
+            status,
+        )
+    return table
+
+
+@app.command()
+def simulate(
+    condition: Annotated[str, typer.Argument(help="standard condition name or a TOML file")],
+    set_: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--set", help="parameter overrides, e.g. --set X13=16.1,X14=8.3 (display units)"
+        ),
+    ] = None,
+    file: Annotated[
+        Path | None,
+        typer.Option("--file", help="TOML file with a [parameters] table (display units)"),
+    ] = None,
+    seed: Annotated[
+        int | None, typer.Option(help="irregularity seed (default: condition's)")
+    ] = None,
+    wheel: Annotated[
+        str,
+        typer.Option(help="measured wheel: auto (leading wheelset, outer in curves) or w1L..w4R"),
+    ] = "auto",
+    wagon: Annotated[Path | None, typer.Option(help="wagon data TOML (default C80/K6)")] = None,
+    out: Annotated[Path | None, typer.Option(help="write the force series to Parquet")] = None,
+    plot: Annotated[Path | None, typer.Option(help="write a PNG of the force series")] = None,
+) -> None:
+    """Simulate one parameter set in one or more working conditions; print force statistics."""
+    from railsusp.vehicle.simulate import WHEEL_NAMES
+    from railsusp.vehicle.simulate import simulate as run_one
+    from railsusp.vehicle.wagon import load_wagon
+
+    try:
+        pset = ParameterSet.from_toml(file) if file else ParameterSet.nominal()
+        if set_:
+            pset = pset.replace(parse_overrides(set_), units="display")
+        conds = resolve_conditions(condition)
+        if seed is not None:
+            conds = [c.with_changes(seed=seed) for c in conds]
+        wagon_data = load_wagon(wagon)
+        if wheel != "auto" and wheel not in WHEEL_NAMES:
+            raise RailsuspInputError(
+                f"--wheel {wheel!r} unknown; accepted auto or {', '.join(WHEEL_NAMES)}"
+            )
+        results = []
+        with _progress() as bar:
+            task = bar.add_task("simulating", total=len(conds))
+            for c in conds:
+                results.append(run_one(pset, c, wagon=wagon_data))
+                bar.advance(task)
+    except RailsuspInputError as exc:
+        fail(str(exc))
+    console.print(_force_table(results, f"Wheel-rail forces (kN), {wagon_data.name}"))
+    for r in results:
+        tag = f"-{r.condition.name}" if len(results) > 1 else ""
+        if out is not None:
+            path = out.with_name(f"{out.stem}{tag}{out.suffix}")
+            console.print(f"wrote {r.to_parquet(path)}")
+        if plot is not None:
+            from railsusp.report import plot_forces
+
+            path = plot.with_name(f"{plot.stem}{tag}{plot.suffix}")
+            console.print(f"wrote {plot_forces(r, path, wheel=wheel)}")
+
+
+def _progress():
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    return Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total}"),
+        TimeElapsedColumn(),
+        console=err_console,
+        transient=True,
+    )
+
+
+@app.command()
+def demo() -> None:
+    """The main job on the embedded default: catalogue, conditions, track input and the
+    nominal wagon's wheel-rail forces in the three conditions."""
+    from railsusp.vehicle.simulate import simulate as run_one
+
+    conds = list(STANDARD_CONDITIONS.values())
+    console.rule(f"railsusp {__version__}: C80 wagon on K6 bogies")
+    console.print(parameter_table(ParameterSet.nominal()))
+    console.print(condition_table(conds))
+    console.print(track_summary_table(conds))
+    results = []
+    with _progress() as bar:
+        task = bar.add_task("simulating the nominal wagon", total=len(conds))
+        for c in conds:
+            results.append(run_one(None, c))
+            bar.advance(task)
+    console.print(
+        _force_table(
+            results,
+            "Nominal wagon: wheel-rail forces of the measured "
+            "wheel (kN) beside the study's Table 8 (simulated)",
+        )
+    )
+    console.print(
+        "[dim]Next stages (campaign, sensitivity, surrogate, estimation, validation) are "
+        "not built yet: see the open issues.[/]"
+    )
+
+
+@app.command()
+def version() -> None:
+    """Print the railsusp version."""
+    console.print(__version__)

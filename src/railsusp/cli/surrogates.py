@@ -1,0 +1,162 @@
+"""Surrogate commands: train, compare."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.table import Table
+
+from railsusp.cli import app, console, err_console, fail
+from railsusp.errors import RailsuspInputError
+
+
+def _epoch_reporter(bar, task):
+    """A training progress callback bound to one progress-bar task."""
+
+    def report(epoch: int, train_loss: float, val_loss: float) -> None:
+        bar.update(task, completed=epoch, loss=f"train {train_loss:.4f} val {val_loss:.4f}")
+
+    return report
+
+
+def _train_config(epochs, batches_per_epoch, batch_size, device, seed):
+    from railsusp.surrogate import TrainConfig
+
+    return TrainConfig(
+        epochs=epochs,
+        batches_per_epoch=batches_per_epoch,
+        batch_size=batch_size,
+        device=device,
+        seed=seed,
+    )
+
+
+@app.command()
+def train(
+    run: Annotated[Path, typer.Argument(help="campaign run directory")],
+    model: Annotated[str, typer.Option(help="cnn-gru, cnn-lstm, cnn-bilstm or bp")] = "cnn-gru",
+    conditions: Annotated[str | None, typer.Option(help="default: all of the campaign")] = None,
+    epochs: Annotated[int, typer.Option(help="maximum epochs (early stopping)")] = 40,
+    batches_per_epoch: Annotated[int, typer.Option(help="mini-batches per epoch")] = 200,
+    batch_size: Annotated[int, typer.Option(help="windows per mini-batch")] = 512,
+    window: Annotated[int, typer.Option(help="window length, steps")] = 20,
+    device: Annotated[str, typer.Option(help="cpu, cuda or auto")] = "cpu",
+    seed: Annotated[int, typer.Option(help="training seed")] = 0,
+) -> None:
+    """Train a window surrogate per condition (RUN/surrogates/<model>/<condition>/); print its
+    accuracy on the held-out test samples. Re-running resumes from the last checkpoint."""
+    from railsusp.campaign import load_campaign
+    from railsusp.surrogate import KINDS, train_surrogate
+    from railsusp.surrogate.data import load_series
+    from railsusp.surrogate.evaluate import evaluate
+
+    try:
+        if model not in KINDS:
+            raise RailsuspInputError(f"--model {model!r}: accepted {', '.join(KINDS)}")
+        camp = load_campaign(run)
+        conds = (
+            [c.strip() for c in conditions.split(",")]
+            if conditions
+            else [c.name for c in camp.config.conditions]
+        )
+        tcfg = _train_config(epochs, batches_per_epoch, batch_size, device, seed)
+    except (RailsuspInputError, ValueError) as exc:
+        fail(str(exc))
+    table = Table(title=f"{model}: accuracy on held-out simulations", title_justify="left")
+    for col in (
+        "condition",
+        "force",
+        "simulated kN",
+        "predicted kN",
+        "rel. error of mean",
+        "NRMSE",
+        "R2",
+        "test runs",
+    ):
+        table.add_column(col, justify="left" if col in ("condition", "force") else "right")
+    for cond in conds:
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+
+        with Progress(
+            TextColumn(f"{cond} {model}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("{task.fields[loss]}"),
+            console=err_console,
+        ) as bar:
+            task = bar.add_task("train", total=epochs, loss="")
+            try:
+                sur = train_surrogate(
+                    run,
+                    cond,
+                    kind=model,
+                    window=window,
+                    train=tcfg,
+                    progress=_epoch_reporter(bar, task),
+                )
+            except (RailsuspInputError, ValueError) as exc:
+                fail(str(exc))
+        data = load_series(camp, cond, sur.spec)
+        test = data.subset(np.flatnonzero(np.isin(data.sample_ids, sur.meta["test_ids"])))
+        for r in evaluate(sur, test):
+            table.add_row(
+                cond,
+                r["target"],
+                f"{r['simulated_mean_kN']:.2f}",
+                f"{r['predicted_mean_kN']:.2f}",
+                f"{100 * r['relative_error_of_mean']:.2f} %",
+                f"{r['nrmse']:.3f}",
+                f"{r['r2']:.3f}",
+                str(r["n_samples"]),
+            )
+    console.print(table)
+    console.print(f"saved under {run / 'surrogates' / model}")
+
+
+@app.command()
+def compare(
+    run: Annotated[Path, typer.Argument(help="campaign run directory")],
+    models: Annotated[str, typer.Option(help="models to compare")] = (
+        "cnn-gru,cnn-lstm,cnn-bilstm,bp,rbf,gp-stats"
+    ),
+    conditions: Annotated[str | None, typer.Option(help="default: all of the campaign")] = None,
+    epochs: Annotated[int, typer.Option(help="maximum epochs (early stopping)")] = 40,
+    batches_per_epoch: Annotated[int, typer.Option(help="mini-batches per epoch")] = 200,
+    batch_size: Annotated[int, typer.Option(help="windows per mini-batch")] = 512,
+    device: Annotated[str, typer.Option(help="cpu, cuda or auto")] = "cpu",
+    seed: Annotated[int, typer.Option(help="training seed")] = 0,
+) -> None:
+    """Train all surrogates on the same split and print the study's Table 7 layout."""
+    from railsusp.surrogate.compare import ALL_MODELS, table7
+    from railsusp.surrogate.compare import compare as run_compare
+
+    names = [m.strip() for m in models.split(",") if m.strip()]
+    bad = [m for m in names if m not in ALL_MODELS]
+    if bad:
+        fail(f"--models {', '.join(bad)}: accepted {', '.join(ALL_MODELS)}")
+    try:
+        with err_console.status("training surrogates") as status:
+            tab = run_compare(
+                run,
+                models=names,
+                conditions=([c.strip() for c in conditions.split(",")] if conditions else None),
+                train=_train_config(epochs, batches_per_epoch, batch_size, device, seed),
+                progress=lambda msg: status.update(f"training {msg}"),
+            )
+    except (RailsuspInputError, ValueError) as exc:
+        fail(str(exc))
+    t7 = table7(tab)
+    table = Table(
+        title="Surrogates on held-out simulations (study Table 7 layout, mean force "
+        "of the measured wheel; |Y| for lateral)",
+        title_justify="left",
+    )
+    for col in t7.columns:
+        table.add_column(col, justify="left" if col in ("condition", "model") else "right")
+    for r in t7.itertuples(index=False):
+        table.add_row(*(f"{v:.3f}" if isinstance(v, float) else str(v) for v in r))
+    console.print(table)
+    console.print(f"wrote {run / 'surrogates' / 'compare.csv'} and overlay figures")

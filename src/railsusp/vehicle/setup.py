@@ -1,0 +1,251 @@
+"""Model inputs for the kernels: solver settings, contact arrays, constants, track arrays.
+
+Everything the compiled equations (:mod:`railsusp.vehicle.model`) need is prepared here as
+plain NumPy arrays: the contact-function table of the wagon's wheel/rail pair with Hertz and
+Kalker coefficients, the constants vector of one parameter set in one condition (with the
+static preloads that make the start an equilibrium), and the track channels on a grid.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from railsusp.conditions import GRAVITY, WorkingCondition
+from railsusp.errors import RailsuspInputError
+from railsusp.params import spec
+from railsusp.vehicle import layout as L
+from railsusp.vehicle.contact import contact_table
+from railsusp.vehicle.contact_forces import hertz_contact, kalker_creep_coefficients
+from railsusp.vehicle.profiles import chn60_rail, lm_worn_wheel, read_profile
+from railsusp.vehicle.track import TrackLayout, irregularities_for
+from railsusp.vehicle.wagon import WagonData
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """Numerical settings of the simulator.
+
+    ``max_step``: largest internal RK4 step (s); the step is the output interval divided by
+    an integer. ``anti_alias``: filter cut-off as a fraction of the output Nyquist rate.
+    ``penetration_max``: Hertz approach of the steel bodies (m) beyond which a contact is
+    non-physical (1 mm: a normal force of several MN); ``lift_max``: wheel lift (m) beyond
+    which the flange no longer guides (derailment).
+    """
+
+    max_step: float = 1.0e-3
+    anti_alias: float = 0.8
+    filter_order: int = 4
+    penetration_max: float = 1.0e-3
+    lift_max: float = 0.025
+    track_step: float = 0.125
+
+
+# ---------------------------------------------------------------- contact arrays
+@dataclass(frozen=True)
+class ContactArrays:
+    """Contact table in the kernel's layout: (N_CT, n_y) over a uniform shift grid."""
+
+    table: np.ndarray
+    y0: float
+    dy: float
+    H0L: float
+    H0R: float
+    delta0: float
+    n_ref: float
+
+
+#: lateral shift range of the contact table (m): the field side of the tread must stay in
+#: range under wide gauge; beyond the flange the table shows climbing, flagged as failure
+CONTACT_TABLE_HALF_RANGE = 0.035
+
+#: smallest relative curvature given to Hertz at near-conformal (flange-root) points, 1/m
+MIN_RELATIVE_CURVATURE = 0.5
+
+
+@functools.lru_cache(maxsize=8)
+def contact_arrays(wagon: WagonData) -> ContactArrays:
+    """Contact functions of the wagon's wheel/rail pair, with Hertz and Kalker coefficients.
+
+    Per shift: rolling radius, contact angle, lateral arm of the contact point from the
+    wheelset centre, axle-point rise H (rise + arm x roll) at which the wheel just touches,
+    Hertz constant G (approach = G N^(2/3), from the local curvatures at the static load),
+    and Kalker's f11, f22, f23 at the static load (scaled with N inside the kernel).
+    """
+    tr = wagon.track
+    # Decoupled wheels (no wheelset roll in the table): each wheel's touching height is a
+    # function of its own lateral shift at contact level, y_w + r0 roll - y_rail. The
+    # wheelset roll then enters the contact through that shift and the lever of the contact
+    # point, so normal forces stay the gradient of one contact potential (conservative).
+    prof = wagon.profiles
+    wheel = lm_worn_wheel() if prof.wheel == "lm-like" else read_profile(prof.wheel, kind="wheel")
+    rail = chn60_rail() if prof.rail == "chn60" else read_profile(prof.rail, kind="rail")
+    tab = contact_table(
+        wheel,
+        rail,
+        track_gauge=tr.gauge,
+        rail_inclination=tr.rail_inclination,
+        nominal_radius=wagon.wheelset.rolling_radius,
+        wheelset_roll=False,
+        y_min=-CONTACT_TABLE_HALF_RANGE,
+        y_max=CONTACT_TABLE_HALF_RANGE,
+    )
+    n_ref = _static_wheel_load(wagon)
+    y = tab.y
+    arrays = np.empty((L.N_CT, y.size))
+    for col0, wheel in ((0, 0), (L.CT_RIGHT, 1)):
+        arm = (tab.contact_y[:, wheel] - y) * (1.0 if wheel == 0 else -1.0)
+        rise = tab.contact_z[:, wheel] + tab.rolling_radius[:, wheel]  # axle height at touch
+        wl = np.maximum(tab.wheel_curvature_long[:, wheel], 2 * MIN_RELATIVE_CURVATURE)
+        lat = tab.wheel_curvature_lat[:, wheel] + tab.rail_curvature_lat[:, wheel]
+        lat = np.maximum(lat, 2 * MIN_RELATIVE_CURVATURE)
+        patch = hertz_contact(n_ref, wl, lat, 0.0)
+        g = patch.approach / n_ref ** (2.0 / 3.0)
+        f11, f22, f23, _ = kalker_creep_coefficients(patch.a, patch.b)
+        arrays[col0 + L.CT_R] = tab.rolling_radius[:, wheel]
+        # contact angle consistent with the rigid-contact rise (normal force = gradient of the
+        # contact potential, so the table forces are conservative): tan(delta) = +-dH/dy
+        slope = np.gradient(rise, y) * (1.0 if wheel == 0 else -1.0)
+        arrays[col0 + L.CT_DELTA] = np.arctan(slope)
+        arrays[col0 + L.CT_L] = arm
+        arrays[col0 + L.CT_H] = rise
+        arrays[col0 + L.CT_G] = g
+        arrays[col0 + L.CT_F11] = f11
+        arrays[col0 + L.CT_F22] = f22
+        arrays[col0 + L.CT_F23] = f23
+    i0 = int(np.argmin(np.abs(y)))
+    arrays[L.CT_H] -= arrays[L.CT_H, i0]
+    arrays[L.CT_RIGHT + L.CT_H] -= arrays[L.CT_RIGHT + L.CT_H, i0]
+    return ContactArrays(
+        table=np.ascontiguousarray(arrays),
+        y0=float(y[0]),
+        dy=float(y[1] - y[0]),
+        H0L=float(arrays[L.CT_H, i0]),
+        H0R=float(arrays[L.CT_RIGHT + L.CT_H, i0]),
+        delta0=float(arrays[L.CT_DELTA, i0]),
+        n_ref=n_ref,
+    )
+
+
+def _static_wheel_load(wagon: WagonData, wheelset_mass: float | None = None) -> float:
+    """Static vertical wheel load (N) on level track: total wagon weight / 8."""
+    m_w = spec("X1").nominal if wheelset_mass is None else wheelset_mass
+    total = wagon.car_body.mass + 2 * wagon.bolster.mass + 4 * wagon.side_frame.mass + 4 * m_w
+    return total * GRAVITY / 8.0
+
+
+# ---------------------------------------------------------------- constants per set
+def constants(
+    wagon: WagonData,
+    condition: WorkingCondition,
+    p: np.ndarray,
+    ca: ContactArrays,
+    settings: SolverSettings,
+) -> np.ndarray:
+    """Constants vector K (layout.K) for one parameter set ``p`` (X1..X20, SI)."""
+    k = np.zeros(L.N_K)
+    cb, bo, sf, bg = wagon.car_body, wagon.bolster, wagon.side_frame, wagon.bogie
+    grade = condition.grade
+    gn = GRAVITY / np.sqrt(1.0 + grade * grade)  # g cos(alpha)
+    m_w = p[0]
+    vals = {
+        "m_c": cb.mass, "Ix_c": cb.roll_inertia, "Iy_c": cb.pitch_inertia,
+        "Iz_c": cb.yaw_inertia, "m_b": bo.mass, "Ix_b": bo.roll_inertia, "Iz_b": bo.yaw_inertia,
+        "m_f": sf.mass, "Iy_f": sf.pitch_inertia, "Iz_f": sf.yaw_inertia,
+        "m_w": m_w, "Ix_w": p[1], "Iy_w": p[2], "Iz_w": p[3],
+        "l_c": cb.bogie_half_spacing, "a": bg.half_wheelbase, "b1": bg.axle_box_half_span,
+        "b2": bg.spring_nest_half_span, "r0": wagon.wheelset.rolling_radius,
+        "h_cg_c": cb.cg_height, "h_cp": bg.centre_plate_height, "h_cg_b": bo.cg_height,
+        "h_k": cb.coupler_height, "x_k": cb.coupler_half_spacing, "R_cp": bg.centre_plate_radius,
+        "c_px": wagon.primary.longitudinal_damping, "c_py": wagon.primary.lateral_damping,
+        "c_pz": wagon.primary.vertical_damping, "k_sz": wagon.secondary.vertical_stiffness,
+        "c_sx": wagon.secondary.longitudinal_damping,
+        "mu_wedge": wagon.secondary.wedge_friction_ratio,
+        "k_wedge": wagon.secondary.wedge_stick_stiffness, "k_gib": wagon.secondary.gib_stiffness,
+        "k_cpz": wagon.centre_plate.vertical_stiffness,
+        "k_cpy": wagon.centre_plate.lateral_stiffness,
+        "mu_cp": wagon.centre_plate.friction_coefficient,
+        "k_yaw": wagon.centre_plate.yaw_stick_stiffness,
+        "k_sb": wagon.side_bearer.vertical_stiffness, "P_sb": wagon.side_bearer.preload,
+        "mu_sb": wagon.side_bearer.friction_coefficient,
+        "k_rz": wagon.track.rail_vertical_stiffness, "k_ry": wagon.track.rail_lateral_stiffness,
+        "c_rz": wagon.track.rail_vertical_damping, "c_ry": wagon.track.rail_lateral_damping,
+        "V": condition.speed, "g_n": gn, "mu": condition.wheel_rail_friction,
+        "F_coupler": condition.coupler_force, "creep_factor": wagon.contact.creep_factor,
+        "pen_max": settings.penetration_max, "lift_max": settings.lift_max,
+        "N_ref": ca.n_ref,
+    }  # fmt: skip
+    # static preloads (level of each interface), N
+    w_body = cb.mass * gn
+    f_cp = w_body / 2.0 - 2.0 * wagon.side_bearer.preload
+    if f_cp <= 0:
+        raise RailsuspInputError(
+            "side_bearer.preload: two side bearers carry more than half the car body weight"
+        )
+    f_nest = (w_body / 2.0 + bo.mass * gn) / 2.0
+    f_prim = (f_nest + sf.mass * gn) / 2.0
+    q0 = f_prim + m_w * gn / 2.0
+    vals.update(F0_cp=f_cp, F0_nest=f_nest, F0_prim=f_prim, Q0=q0)
+    # static approach: Q0 = N0 cos(delta0) + f23(N0) sin(delta0)^2 / r0 (normal force plus the
+    # vertical part of the spin creep force of a coned tread, f23 ~ N); approach along the
+    # normal = G N^(2/3) + N / k_rn
+    for side, col0 in (("L", 0), ("R", L.CT_RIGHT)):
+        i0 = round(-ca.y0 / ca.dy)
+        delta0 = ca.table[col0 + L.CT_DELTA, i0]
+        g0 = ca.table[col0 + L.CT_G, i0]
+        f23 = ca.table[col0 + L.CT_F23, i0] * wagon.contact.creep_factor / ca.n_ref
+        cd, sd = np.cos(delta0), np.sin(delta0)
+        krn = 1.0 / (cd * cd / vals["k_rz"] + sd * sd / vals["k_ry"])
+        n0 = q0 / (cd + f23 * sd * sd / wagon.wheelset.rolling_radius)
+        dn = g0 * n0 ** (2.0 / 3.0) + n0 / krn
+        vals[f"Z0_{side}"] = dn / cd
+    # grade: net coupler force = whole car's grade component at coupler height; the bogies'
+    # share is passed on at centre-plate height (pitch moment on the car body about its CG)
+    m_total = cb.mass + 2 * bo.mass + 4 * sf.mass + 4 * m_w
+    sin_a = grade / np.sqrt(1.0 + grade * grade)
+    f_net = m_total * GRAVITY * sin_a
+    f_bogies = (m_total - cb.mass) * GRAVITY * sin_a
+    vals["M_pitch_grade"] = (
+        -(cb.cg_height - cb.coupler_height) * f_net
+        + (cb.cg_height - bg.centre_plate_height) * f_bogies
+    )
+    for name, value in vals.items():
+        k[L.K[name]] = value
+    return k
+
+
+# ---------------------------------------------------------------- track arrays
+def track_arrays(
+    condition: WorkingCondition, seeds: Sequence[int], wagon: WagonData, settings: SolverSettings
+) -> tuple[np.ndarray, float, float]:
+    """Track channels (layout.TR_*) on a uniform grid for each seed: (n_seeds, N_TR, n_s).
+
+    Geometry (curvature, cant angle, heading θ = ∫κ ds, lateral position Y = ∫θ ds) is
+    shared; irregularities ramp in smoothly over the first 30 m (zero behind s = 0), so that
+    the run starts from static equilibrium.
+    """
+    behind = wagon.car_body.bogie_half_spacing * 2 + wagon.bogie.half_wheelbase * 2 + 20.0
+    ds = settings.track_step
+    s = np.arange(-behind, condition.section_length_m + 20.0 + ds, ds)
+    lay = TrackLayout.from_condition(condition)
+    kappa = lay.curvature_at(s)
+    head = np.concatenate([[0.0], np.cumsum(0.5 * (kappa[1:] + kappa[:-1]) * ds)])
+    offset = np.concatenate([[0.0], np.cumsum(0.5 * (head[1:] + head[:-1]) * ds)])
+    out = np.zeros((len(seeds), L.N_TR, s.size))
+    out[:, L.TR_KAPPA] = kappa
+    out[:, L.TR_CANT] = lay.cant_angle_at(s)
+    out[:, L.TR_HEAD] = head
+    out[:, L.TR_OFFSET] = offset
+    if condition.irregularity_class is not None:
+        irr = irregularities_for(condition, list(seeds), behind=behind + 5.0)
+        rails = irr.at(s)  # type: ignore[union-attr]
+        ramp = np.clip(s / 30.0, 0.0, 1.0)  # zero under every wheel at the start
+        window = ramp * ramp * (3.0 - 2.0 * ramp)
+        out[:, L.TR_ZL] = rails["zL"] * window
+        out[:, L.TR_ZR] = rails["zR"] * window
+        out[:, L.TR_YL] = rails["yL"] * window
+        out[:, L.TR_YR] = rails["yR"] * window
+    return np.ascontiguousarray(out), float(s[0]), ds
