@@ -140,6 +140,12 @@ def test_save_load_round_trip_and_predict(run, trained):
     assert a.shape == (3, 100, 2)
     assert np.isnan(a[:, :20]).all() and np.isfinite(a[:, 20:]).all()
     assert set(back.meta["test_ids"]).isdisjoint(back.meta["train_ids"])
+    same = back.predict(x, back.condition)  # its own condition: the training track
+    np.testing.assert_array_equal(same, a)
+    other_track = back.predict(x, back.condition.with_changes(seed=77))
+    assert not np.allclose(other_track[:, 20:], a[:, 20:])
+    with pytest.raises(ValueError, match="differs in speed_kmh"):
+        back.predict(x, back.condition.with_changes(speed_kmh=80))
     with pytest.raises(ValueError, match="6 columns"):
         back.predict(np.zeros((1, 3)))
     with pytest.raises(FileNotFoundError, match="no surrogate"):

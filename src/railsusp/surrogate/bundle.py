@@ -65,6 +65,7 @@ class Surrogate:
     def predict(
         self,
         params: np.ndarray | list[ParameterSet],
+        condition: WorkingCondition | None = None,
         *,
         seed: int | None = None,
         track: np.ndarray | None = None,
@@ -73,10 +74,21 @@ class Surrogate:
         """Force series (n_sets, T, n_targets) in kN; the first ``window`` steps are NaN.
 
         ``params``: (n, n_key) SI values of the key parameters, or ParameterSets. The track
-        is the training track (``track_seed``) unless ``seed`` or raw ``track`` features
-        (T, n_track) are given.
+        is the training track (``track_seed``) unless ``condition`` (the surrogate's own
+        condition, possibly with another irregularity seed), ``seed`` or raw ``track``
+        features (T, n_track) say otherwise. A surrogate serves one condition only.
         """
         unit = self._unit(params)
+        if condition is not None:
+            mine = self.condition.model_dump(exclude={"seed"})
+            theirs = condition.model_dump(exclude={"seed"})
+            if mine != theirs:
+                diff = sorted(k for k in mine if mine[k] != theirs[k])
+                raise ValueError(
+                    f"this surrogate was trained for condition {self.condition.name!r}; the "
+                    f"given condition differs in {', '.join(diff)}"
+                )
+            seed = condition.seed if seed is None else seed
         if track is None:
             s = self.track_seed if seed is None else seed
             track = track_features(self.condition, s, self.spec, self.wagon)
