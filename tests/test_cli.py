@@ -103,42 +103,12 @@ def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
         '[[condition]]\nname = "short"\nduration_s = 1.0\nn_steps = 50\nlead_in_m = 20.0\n'
     )
     run = tmp_path / "run"
-    result = runner.invoke(
-        app,
-        [
-            "campaign",
-            "--samples",
-            "12",
-            "--conditions",
-            str(cond_file),
-            "--out",
-            str(run),
-            "--batch-size",
-            "6",
-            "--parameters",
-            "X13,X14,X17",
-        ],
-    )
+    base = ["campaign", "--samples", "12", "--conditions", str(cond_file), "--out", str(run),
+            "--batch-size", "6", "--parameters", "X13,X14,X17"]  # fmt: skip
+    result = runner.invoke(app, base)
     assert result.exit_code == 0, result.output
     assert (run / "features.parquet").exists()
-    again = runner.invoke(
-        app,
-        [
-            "campaign",
-            "--samples",
-            "12",
-            "--conditions",
-            str(cond_file),
-            "--out",
-            str(run),
-            "--batch-size",
-            "6",
-            "--seed",
-            "1",
-            "--parameters",
-            "X13,X14,X17",
-        ],
-    )
+    again = runner.invoke(app, [*base, "--seed", "1"])
     assert again.exit_code == 2 and "another configuration" in again.output
     result = runner.invoke(
         app, ["sensitivity", str(run), "--base-samples", "64", "--statistics", "mean"]

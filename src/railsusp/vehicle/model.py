@@ -92,6 +92,17 @@ def track_rate(trk, ch, s, s0, ds, V):
 
 
 @nb.njit(cache=True, inline="always")
+def add_frame_forces(acc, i_lat, i_vert, m, kappa, cant, V, gn):
+    """Add the moving frame's pseudo-forces on a body of mass m (N): lateral
+    -m (V² κ cos φ + g sin φ); vertical -m (g cos φ - V² κ sin φ) as a deviation from the
+    static weight m g already carried by the preloads."""
+    c = math.cos(cant)
+    s = math.sin(cant)
+    acc[i_lat] += -m * (V * V * kappa * c + gn * s)
+    acc[i_vert] += -m * (gn * c - V * V * kappa * s) + m * gn
+
+
+@nb.njit(cache=True, inline="always")
 def series_stiffness(k1, k2):
     """Stiffness of two springs in series, N/m."""
     return k1 * k2 / (k1 + k2)
@@ -330,8 +341,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
 
     # ---- car body pseudo-forces ----
     m_c = K[I_MC]
-    acc[L.CB_Y] += -m_c * (V * V * kap_c * math.cos(cant_c) + gn * math.sin(cant_c))
-    acc[L.CB_Z] += -m_c * (gn * math.cos(cant_c) - V * V * kap_c * math.sin(cant_c)) + m_c * gn
+    add_frame_forces(acc, L.CB_Y, L.CB_Z, m_c, kap_c, cant_c, V, gn)
     # grade: pitch moment of the net coupler force (at coupler height) and of the bogies'
     # reaction (at centre-plate height); lateral coupler components in curves (chord angle)
     hk = K[I_HCG] - K[I_HK]
@@ -350,8 +360,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         off_b = track_lookup(trk, L.TR_OFFSET, s_b, s0, ds)
         ib = BOL0 + 4 * k
         m_b = K[I_MB]
-        acc[ib] += -m_b * (V * V * kap_b * math.cos(cant_b) + gn * math.sin(cant_b))
-        acc[ib + 1] += -m_b * (gn * math.cos(cant_b) - V * V * kap_b * math.sin(cant_b)) + m_b * gn
+        add_frame_forces(acc, ib, ib + 1, m_b, kap_b, cant_b, V, gn)
 
         # ===== car body <-> bolster k =====
         dev = off_b - off_c - d * head_c  # lateral offset of the track at s_b from the chord
@@ -399,11 +408,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         for sidx in range(2):
             side = 1.0 if sidx == 0 else -1.0
             jf = SF0 + 5 * (2 * k + sidx)
-            m_f = K[I_MF]
-            acc[jf + 1] += -m_f * (V * V * kap_b * math.cos(cant_b) + gn * math.sin(cant_b))
-            acc[jf + 2] += (
-                -m_f * (gn * math.cos(cant_b) - V * V * kap_b * math.sin(cant_b)) + m_f * gn
-            )
+            add_frame_forces(acc, jf + 1, jf + 2, K[I_MF], kap_b, cant_b, V, gn)
             # vertical nest spring + variable-friction wedge
             comp = q[jf + 2] - (q[ib + 1] + side * b2 * q[ib + 2])
             comp_rate = v[jf + 2] - (v[ib + 1] + side * b2 * v[ib + 2])
@@ -454,10 +459,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             head_w = track_lookup(trk, L.TR_HEAD, s_w, s0, ds)
             off_w = track_lookup(trk, L.TR_OFFSET, s_w, s0, ds)
             iw = WS0 + 4 * w
-            acc[iw] += -m_w * (V * V * kap_w * math.cos(cant_w) + gn * math.sin(cant_w))
-            acc[iw + 1] += (
-                -m_w * (gn * math.cos(cant_w) - V * V * kap_w * math.sin(cant_w)) + m_w * gn
-            )
+            add_frame_forces(acc, iw, iw + 1, m_w, kap_w, cant_w, V, gn)
             dev_w = off_w - off_b - e * head_b
             yaw_w_b = q[iw + 3] + head_w - head_b  # wheelset yaw in the bogie frame
             for sidx in range(2):
