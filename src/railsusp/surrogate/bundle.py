@@ -69,7 +69,7 @@ class Surrogate:
         *,
         seed: int | None = None,
         track: np.ndarray | None = None,
-        batch_size: int = 8192,
+        batch_size: int = 2048,
     ) -> np.ndarray:
         """Force series (n_sets, T, n_targets) in kN; the first ``window`` steps are NaN.
 
@@ -101,12 +101,12 @@ class Surrogate:
         return out
 
     def predict_windows(
-        self, unit: np.ndarray, track_norm: np.ndarray, idx: np.ndarray, batch_size: int = 8192
+        self, unit: np.ndarray, track_norm: np.ndarray, idx: np.ndarray, batch_size: int = 2048
     ) -> np.ndarray:
         """Standardised predictions for (sample, end step) pairs."""
         self.net.eval()
         res = []
-        with torch.no_grad():
+        with torch.inference_mode():
             for lo in range(0, len(idx), batch_size):
                 x = gather_windows(unit, track_norm, idx[lo : lo + batch_size], self.spec.window)
                 res.append(self.net(torch.from_numpy(np.ascontiguousarray(x))).numpy())
