@@ -1,0 +1,186 @@
+"""Measured recordings: format round trip, one broken file per validation rule, resampling,
+synthetic field recordings with hidden truth."""
+
+import json
+
+import numpy as np
+import pytest
+
+from railsusp.conditions import get_condition
+from railsusp.measured import (
+    Recording,
+    RecordingError,
+    add_sensor_noise,
+    read_field,
+    read_recording,
+    synthesise_field,
+)
+from railsusp.params import ParameterSet
+
+COND = get_condition("straight", duration_s=2.0, n_steps=100)
+
+
+def make_recording(n=100, rate=50.0) -> Recording:
+    t = np.arange(n) / rate
+    return Recording(
+        t,
+        {"w1L": 5 + 3 * np.sin(2 * np.pi * 1.5 * t)},
+        {"w1L": 122 + 10 * np.cos(2 * np.pi * 2.0 * t)},
+        COND,
+        {"wagon": "C80"},
+    )
+
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
+def test_round_trip(tmp_path, fmt):
+    rec = make_recording()
+    path = rec.write(tmp_path / "run1", fmt)
+    back = read_recording(path)
+    np.testing.assert_allclose(back.time, rec.time, atol=1e-9)
+    np.testing.assert_allclose(back.Y["w1L"], rec.Y["w1L"], rtol=1e-5)
+    np.testing.assert_allclose(back.Q["w1L"], rec.Q["w1L"], rtol=1e-5)
+    assert back.condition == COND and back.meta["wagon"] == "C80"
+    assert back.sampling_rate == pytest.approx(50.0)
+
+
+def broken(tmp_path, edit_table=None, edit_meta=None):
+    path = make_recording().write(tmp_path / "rec")
+    if edit_table:
+        lines = path.read_text().splitlines()
+        path.write_text("\n".join(edit_table(lines)) + "\n")
+    if edit_meta:
+        side = path.with_suffix(".json")
+        side.write_text(edit_meta(side.read_text()))
+    return path
+
+
+def problems_of(path) -> str:
+    with pytest.raises(RecordingError) as info:
+        read_recording(path)
+    return str(info.value)
+
+
+def test_misnamed_column_is_pointed_out(tmp_path):
+    p = broken(tmp_path, lambda ls: [ls[0].replace("Y_w1L_kN", "Y_w1l_kN"), *ls[1:]])
+    msg = problems_of(p)
+    assert "'Y_w1l_kN' not recognised (did you mean 'Y_w1L_kN'?)" in msg
+    assert "wheel w1L: column 'Y_w1L_kN' missing" in msg
+
+
+def test_non_numeric_cell_names_row(tmp_path):
+    def edit(ls):
+        cells = ls[5].split(",")
+        cells[1] = "abc"
+        return [*ls[:5], ",".join(cells), *ls[6:]]
+
+    assert "column 'Y_w1L_kN', row 6: 'abc' is not a number" in problems_of(broken(tmp_path, edit))
+
+
+def test_non_monotonic_time(tmp_path):
+    def edit(ls):
+        a, b = ls[10], ls[11]
+        return [*ls[:10], b, a, *ls[12:]]
+
+    assert "time not strictly increasing at row 12" in problems_of(broken(tmp_path, edit))
+
+
+def test_short_gap_interpolated_long_gap_rejected(tmp_path):
+    def blank(rows):
+        def edit(ls):
+            out = list(ls)
+            for r in rows:
+                cells = out[r].split(",")
+                cells[2] = ""
+                out[r] = ",".join(cells)
+            return out
+
+        return edit
+
+    p = broken(tmp_path / "a", blank([20, 21]))
+    with pytest.warns(UserWarning, match="2 missing sample"):
+        rec = read_recording(p)
+    assert np.isfinite(rec.Q["w1L"]).all()
+    p = broken(tmp_path / "b", blank(range(30, 40)))
+    assert "rows 31-40: gap of 10 samples" in problems_of(p)  # file lines, header = 1
+
+
+def test_implausible_magnitudes(tmp_path):
+    def newtons(ls):
+        head, rows = ls[0], ls[1:]
+        out = [head]
+        for r in rows:
+            c = r.split(",")
+            c[2] = str(float(c[2]) * 1000)
+            out.append(",".join(c))
+        return out
+
+    assert "looks like newtons" in problems_of(broken(tmp_path / "n", newtons))
+
+    def negative(ls):
+        c = ls[3].split(",")
+        c[2] = "-5"
+        return [*ls[:3], ",".join(c), *ls[4:]]
+
+    assert "row 4: negative vertical force -5.0 kN" in problems_of(broken(tmp_path / "q", negative))
+
+    def huge(ls):
+        c = ls[7].split(",")
+        c[1] = "450"
+        return [*ls[:7], ",".join(c), *ls[8:]]
+
+    assert "row 8: 450.0 kN beyond the physical bound 300 kN" in problems_of(
+        broken(tmp_path / "y", huge)
+    )
+
+
+def test_sampling_rate_too_low(tmp_path):
+    path = make_recording(n=40, rate=20.0).write(tmp_path / "slow")
+    assert "sampling rate 20.0 Hz below the 50 Hz" in problems_of(path)
+    assert read_recording(path, min_rate_hz=20.0).sampling_rate == pytest.approx(20.0)
+
+
+def test_metadata_problems_reported_together(tmp_path):
+    p = broken(
+        tmp_path,
+        edit_meta=lambda s: s.replace(
+            '"format": "railsusp-recording/1"', '"format": "other/9"'
+        ).replace('"speed_kmh": 60.0', '"speed_kmh": -60.0'),
+    )
+    msg = problems_of(p)
+    assert "format 'other/9'" in msg and "speed_kmh = -60" in msg
+    p.with_suffix(".json").unlink()
+    assert "metadata sidecar rec.json missing" in problems_of(p)
+
+
+def test_resampling_keeps_the_signal():
+    rec = make_recording(n=400, rate=200.0)
+    low = rec.resampled(50.0)
+    assert low.sampling_rate == pytest.approx(50.0) and len(low.time) == 100
+    mid = slice(10, 90)  # away from the edges of the polyphase filter
+    np.testing.assert_allclose(low.Q["w1L"][mid], rec.Q["w1L"][::4][mid], atol=0.5)
+
+
+def test_sensor_noise_level():
+    rec = make_recording(n=2000, rate=50.0)
+    noisy = add_sensor_noise(rec, noise=0.03, seed=1, gain_error=0.0, bandwidth_hz=20.0)
+    resid = noisy.Q["w1L"] - rec.Q["w1L"]
+    rms = np.sqrt(np.mean(rec.Q["w1L"] ** 2))
+    assert np.std(resid) == pytest.approx(0.03 * rms, rel=0.15)
+
+
+def test_synthetic_field_hides_the_truth(tmp_path):
+    truth = ParameterSet({"X13": 16.1, "X14": 8.3}, units="display")
+    conds = [
+        get_condition("straight", duration_s=2.0, n_steps=100),
+        get_condition("curve", duration_s=2.0, n_steps=100),
+    ]
+    out = synthesise_field(truth, conds, tmp_path / "field", seed=7, noise=0.03)
+    index = json.loads((out / "index.json").read_text())
+    assert index["recordings"] == ["straight.csv", "curve.csv"]
+    assert json.loads((out / "truth.json").read_text())["parameters_display"]["X13"] == 16.1
+    (out / "truth.json").write_text("not json: the reader must never open this file")
+    recs = read_field(out)
+    assert [r.condition.name for r in recs] == ["straight", "curve"]
+    assert recs[1].wheels == ("w1R",) and 20 < recs[1].Y["w1R"].mean() < 120
+    # the field track is another realisation than the design track (seed + 1000)
+    assert recs[0].condition.seed == conds[0].seed
