@@ -151,3 +151,21 @@ def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
     assert "gp-stats" in result.output and (run / "surrogates" / "compare.csv").exists()
     bad = runner.invoke(app, ["compare", str(run), "--models", "svm"])
     assert bad.exit_code == 2 and "svm" in bad.output
+
+
+def test_synth_field_and_check_recording(tmp_path):
+    out = tmp_path / "field"
+    cond = tmp_path / "c.toml"
+    cond.write_text('[[condition]]\nname = "short"\nduration_s = 2.0\nn_steps = 100\n')
+    result = runner.invoke(
+        app, ["synth-field", "--truth", "X13=16.1", "--conditions", str(cond), "--out", str(out)]
+    )
+    assert result.exit_code == 0, result.output
+    assert (out / "short.csv").exists() and (out / "truth.json").exists()
+    result = runner.invoke(app, ["check-recording", str(out / "short.csv")])
+    assert result.exit_code == 0 and "w1L" in result.output
+    bad = runner.invoke(app, ["synth-field", "--truth", "X13=99", "--out", str(out)])
+    assert bad.exit_code == 2 and "X13" in bad.output
+    (out / "short.csv").write_text("time_s,Y_w1L_kN\n0,1\n")
+    result = runner.invoke(app, ["check-recording", str(out / "short.csv")])
+    assert result.exit_code == 2 and "Q_w1L_kN' missing" in result.output

@@ -36,6 +36,7 @@ from railsusp.cli import inputs  # noqa: E402
 from railsusp.cli import simulation  # noqa: E402
 from railsusp.cli import analysis  # noqa: E402
 from railsusp.cli import surrogates  # noqa: E402
+from railsusp.cli import field  # noqa: E402
 
 # isort: on
 
@@ -45,6 +46,7 @@ __all__ = [
     "console",
     "err_console",
     "fail",
+    "field",
     "inputs",
     "main",
     "simulation",
