@@ -151,6 +151,33 @@ def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
     assert "gp-stats" in result.output and (run / "surrogates" / "compare.csv").exists()
     bad = runner.invoke(app, ["compare", str(run), "--models", "svm"])
     assert bad.exit_code == 2 and "svm" in bad.output
+    field = tmp_path / "field"
+    result = runner.invoke(
+        app,
+        ["synth-field", "--truth", "X13=16.1", "--conditions", str(cond_file), "--out", str(field)],
+    )
+    assert result.exit_code == 0, result.output
+    est = tmp_path / "est"
+    result = runner.invoke(
+        app,
+        [
+            "estimate",
+            "--measured",
+            str(field),
+            "--surrogate",
+            str(run / "surrogates" / "bp"),
+            "--out",
+            str(est),
+            "--pop-size",
+            "8",
+            "--n-gen",
+            "3",
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    assert "Table 5" in result.output and (est / "estimate.json").exists()
+    result = runner.invoke(app, ["estimate", "--measured", str(field), "--out", str(est)])
+    assert result.exit_code == 2 and "--surrogate FOLDER or --simulator" in result.output
 
 
 def test_synth_field_and_check_recording(tmp_path):

@@ -170,3 +170,43 @@ def plot_surrogate_overlay(
     axes[-1, 0].set_xlabel("time (s)")
     fig.suptitle(title)
     return save_figure(fig, path)
+
+
+def plot_pareto(result, path: str | Path):
+    """Pareto front of the calibration (the study's Figure 9), the chosen estimate marked."""
+    f = result.pareto_f
+    fig, ax = plt.subplots(figsize=(6.5, 5), constrained_layout=True)
+    ax.scatter(100 * f[:, 0], 100 * f[:, 1], s=18, label="Pareto front")
+    c = result.chosen
+    ax.scatter(100 * f[c, 0], 100 * f[c, 1], s=80, marker="*", color="C3", label="estimate")
+    ax.set_xlabel("lateral force error (%)")
+    ax.set_ylabel("vertical force error (%)")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    ax.set_title(
+        f"NSGA-II Pareto front ({result.config.statistic}, "
+        f"{result.config.n_gen} generations x {result.config.pop_size})"
+    )
+    return save_figure(fig, path)
+
+
+def plot_convergence(result, path: str | Path):
+    """Per-parameter convergence of the estimate over the generations (the study's Fig. 8)."""
+    from railsusp.params import spec
+
+    k = len(result.parameters)
+    fig, axes = plt.subplots(
+        k, 1, figsize=(8, 1.9 * k), sharex=True, constrained_layout=True, squeeze=False
+    )
+    gens = np.arange(1, result.history.shape[0] + 1)
+    for i, p in enumerate(result.parameters):
+        s = spec(p)
+        ax = axes[i, 0]
+        ax.plot(gens, result.history[:, i] / s.scale, lw=1.2)
+        ax.axhline(s.nominal_display, color="0.5", ls="--", lw=0.8)
+        ax.set_ylabel(f"{p} ({s.display_unit})")
+        ax.set_ylim(*s.bounds_display)
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("generation")
+    fig.suptitle("Convergence of the chosen estimate (dashed: nominal)")
+    return save_figure(fig, path)

@@ -78,3 +78,95 @@ def check_recording(
             f"{np.max(rec.Q[w]):.2f}",
         )
     console.print(table)
+
+
+@app.command()
+def estimate(
+    measured: Annotated[Path, typer.Option(help="field folder (index.json) of recordings")],
+    out: Annotated[Path, typer.Option(help="output folder for the estimate")],
+    surrogate: Annotated[
+        Path | None,
+        typer.Option(help="folder of surrogate bundles per condition, e.g. RUN/surrogates/cnn-gru"),
+    ] = None,
+    simulator: Annotated[
+        bool, typer.Option(help="use the batched simulator instead of a surrogate (slow reference)")
+    ] = False,
+    parameters: Annotated[
+        str | None, typer.Option(help="key parameters (default: the surrogate's)")
+    ] = None,
+    statistic: Annotated[str, typer.Option(help="mean, rms or p99")] = "mean",
+    per_condition: Annotated[bool, typer.Option(help="two objectives per condition")] = False,
+    pop_size: Annotated[int, typer.Option(help="NSGA-II population")] = 50,
+    n_gen: Annotated[int, typer.Option(help="generations")] = 100,
+    crossover: Annotated[float, typer.Option(help="crossover probability")] = 0.9,
+    mutation: Annotated[float, typer.Option(help="mutation probability per variable")] = 0.05,
+    seed: Annotated[int, typer.Option(help="NSGA-II seed")] = 0,
+    seeds: Annotated[int, typer.Option(help="independent runs for the seed spread")] = 1,
+) -> None:
+    """NSGA-II estimate of the key parameters from measured recordings (Tables 3-5, Figs 8-9)."""
+    from railsusp.estimate import (
+        STATISTICS,
+        NSGAConfig,
+        SimulatorForces,
+        SurrogateForces,
+        estimate_with_seeds,
+    )
+    from railsusp.measured import read_field
+
+    try:
+        if statistic not in STATISTICS:
+            raise RailsuspInputError(f"--statistic {statistic!r}: accepted {', '.join(STATISTICS)}")
+        if (surrogate is None) == (not simulator):
+            raise RailsuspInputError("give --surrogate FOLDER or --simulator (one of them)")
+        recs = read_field(measured)
+        if surrogate is not None:
+            from railsusp.surrogate import load
+
+            first = (
+                next(p for p in sorted(surrogate.iterdir()) if (p / "surrogate.json").exists())
+                if surrogate.is_dir()
+                else None
+            )
+            if first is None:
+                raise RailsuspInputError(f"{surrogate}: no surrogate bundles (<condition>/)")
+            params = tuple(parameters.split(",")) if parameters else load(first).spec.parameters
+            model = SurrogateForces(surrogate, params)
+        else:
+            from railsusp.params import STUDY_KEY_PARAMETERS
+
+            params = tuple(parameters.split(",")) if parameters else STUDY_KEY_PARAMETERS
+            model = SimulatorForces(params)
+        cfg = NSGAConfig(
+            pop_size=pop_size,
+            n_gen=n_gen,
+            crossover_prob=crossover,
+            mutation_prob=mutation,
+            seed=seed,
+            statistic=statistic,
+            per_condition=per_condition,
+        )
+        with console.status(f"NSGA-II {pop_size} x {n_gen} on {len(recs)} recording(s)"):
+            res = estimate_with_seeds(model, recs, params, cfg, n_seeds=max(1, seeds))
+        res.save(out)
+    except (RailsuspInputError, ValueError, FileNotFoundError) as exc:
+        fail(str(exc))
+    log = res.log
+    table = Table(title="NSGA-II log (last generations; the study's Table 4)", title_justify="left")
+    for col in log.columns:
+        table.add_column(col, justify="right")
+    for r in log.tail(8).itertuples(index=False):
+        table.add_row(
+            *(
+                "" if v is None or v != v else f"{v:.6g}" if isinstance(v, float) else str(v)
+                for v in r
+            )
+        )
+    console.print(table)
+    est = Table(title="Estimate (the study's Table 5 layout)", title_justify="left")
+    t5 = res.table()
+    for col in t5.columns:
+        est.add_column(col, justify="right")
+    for r in t5.itertuples(index=False):
+        est.add_row(*(f"{v:.4g}" if isinstance(v, float) else str(v) for v in r))
+    console.print(est)
+    console.print(f"wrote {out}")

@@ -1,0 +1,336 @@
+"""NSGA-II calibration of the key suspension parameters against measured wheel-rail forces.
+
+Problem, algorithm, termination, one entry point (pymoo style): :class:`CalibrationProblem`
+holds the objectives (lateral and vertical mismatch between a force model and the
+recordings, as relative errors of a record statistic, joint over the conditions by default),
+:class:`NSGAConfig` the algorithm settings (the study's: population 50, crossover 0.9,
+mutation 0.05, 100 generations), and :func:`estimate` returns a :class:`CalibrationResult`
+that saves and plots itself.
+
+The measured track is unknown, so records are compared through statistics (mean, RMS,
+99th percentile of |Y| and Q of the measured wheel), never sample by sample.
+
+Force models: a trained window surrogate per condition (:class:`SurrogateForces`, the
+study's route) or the batched simulator itself (:class:`SimulatorForces`, slow, the reference).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+import pandas as pd
+from pymoo.algorithms.moo.nsga2 import NSGA2
+from pymoo.core.callback import Callback
+from pymoo.core.problem import Problem
+from pymoo.operators.crossover.sbx import SBX
+from pymoo.operators.mutation.pm import PM
+from pymoo.optimize import minimize
+from pymoo.util.display.multi import MultiObjectiveOutput
+
+from railsusp.conditions import WorkingCondition
+from railsusp.measured import Recording
+from railsusp.params import ParameterSet, bounds, spec
+from railsusp.store import write_json, write_parquet
+
+STATISTICS = ("mean", "rms", "p99")
+
+
+def record_statistic(x: np.ndarray, statistic: str, lateral: bool) -> np.ndarray:
+    """Statistic of force series along the last axis (NaN-aware): mean, rms or p99 of |Y|
+    for lateral forces, of Q for vertical ones."""
+    v = np.abs(x) if lateral else x
+    if statistic == "mean":
+        return np.nanmean(v, axis=-1)
+    if statistic == "rms":
+        return np.sqrt(np.nanmean(v * v, axis=-1))
+    if statistic == "p99":
+        return np.nanpercentile(v, 99, axis=-1)
+    raise ValueError(f"statistic {statistic!r}: accepted {', '.join(STATISTICS)}")
+
+
+class ForceModel(Protocol):
+    """Predicts the measured wheel's force series for parameter sets in a condition."""
+
+    def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
+        """(n, T, 2) lateral and vertical force (kN), NaN where undefined."""
+        ...
+
+
+class SurrogateForces:
+    """Window surrogates, one per condition name (a folder of ``<condition>/`` bundles)."""
+
+    def __init__(self, folder: str | Path, parameters: Sequence[str]):
+        from railsusp.surrogate import load
+
+        self.folder = Path(folder)
+        self.parameters = tuple(parameters)
+        self._models: dict[str, Any] = {}
+        for sub in sorted(self.folder.iterdir()) if self.folder.is_dir() else []:
+            if (sub / "surrogate.json").exists():
+                self._models[sub.name] = load(sub)
+        if not self._models:
+            raise FileNotFoundError(f"{self.folder}: no surrogate bundles (<condition>/)")
+        for name, m in self._models.items():
+            if tuple(m.spec.parameters) != self.parameters:
+                raise ValueError(
+                    f"surrogate {name} uses {m.spec.parameters}, the calibration {self.parameters}"
+                )
+
+    @property
+    def conditions(self) -> list[str]:
+        return list(self._models)
+
+    def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
+        if condition.name not in self._models:
+            raise ValueError(
+                f"no surrogate for condition {condition.name!r} in {self.folder} "
+                f"(has {', '.join(self._models)})"
+            )
+        return self._models[condition.name].predict(x_si)
+
+
+class SimulatorForces:
+    """The batched simulator on the design track of each condition (slow reference)."""
+
+    def __init__(self, parameters: Sequence[str], wheel: str = "auto"):
+        self.parameters = tuple(parameters)
+        self.wheel = wheel
+
+    def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
+        from railsusp.vehicle.simulate import simulate_batch
+
+        r = simulate_batch(x_si, condition, symbols=self.parameters)
+        j = r.measured_wheel(self.wheel)
+        return np.stack([r.Y[:, j], r.Q[:, j]], axis=2) / 1e3
+
+
+@dataclass(frozen=True)
+class NSGAConfig:
+    """NSGA-II settings (the study's defaults) and the objective definition."""
+
+    pop_size: int = 50
+    n_gen: int = 100
+    crossover_prob: float = 0.9
+    mutation_prob: float = 0.05
+    seed: int = 0
+    statistic: str = "mean"
+    per_condition: bool = False
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+class CalibrationProblem(Problem):
+    """Two objectives over the key parameters (decision variables scaled to [0, 1]):
+    relative error of the lateral and of the vertical force statistic against the
+    recordings, averaged over the conditions (or one pair per condition)."""
+
+    def __init__(
+        self,
+        model: ForceModel,
+        recordings: Sequence[Recording],
+        parameters: Sequence[str],
+        statistic: str = "mean",
+        per_condition: bool = False,
+    ):
+        self.model, self.recordings = model, list(recordings)
+        self.parameters = tuple(parameters)
+        self.statistic, self.per_condition = statistic, per_condition
+        self.lo, self.hi = bounds(self.parameters)
+        self.measured = []
+        for rec in self.recordings:
+            w = rec.wheels[0]
+            self.measured.append(
+                (
+                    record_statistic(rec.Y[w], statistic, True),
+                    record_statistic(rec.Q[w], statistic, False),
+                )
+            )
+        n_obj = 2 * len(self.recordings) if per_condition else 2
+        super().__init__(n_var=len(self.parameters), n_obj=n_obj, xl=0.0, xu=1.0)
+
+    def to_si(self, unit: np.ndarray) -> np.ndarray:
+        return self.lo + np.asarray(unit) * (self.hi - self.lo)
+
+    def errors(self, x_si: np.ndarray) -> np.ndarray:
+        """(n, n_conditions, 2) relative errors of the lateral and vertical statistic."""
+        errs = []
+        for rec, (my, mq) in zip(self.recordings, self.measured, strict=True):
+            s = self.model.series(x_si, rec.condition)
+            py = record_statistic(s[:, :, 0], self.statistic, True)
+            pq = record_statistic(s[:, :, 1], self.statistic, False)
+            errs.append(np.stack([np.abs(py - my) / abs(my), np.abs(pq - mq) / abs(mq)], 1))
+        return np.stack(errs, axis=1)
+
+    def _evaluate(self, x, out, *args, **kwargs):
+        e = self.errors(self.to_si(x))
+        out["F"] = e.reshape(len(x), -1) if self.per_condition else e.mean(axis=1)
+
+
+class _Log(Callback):
+    """Records pymoo's n_gen, n_eval, n_nds, eps, indicator (the study's Tables 3/4) and
+    each generation's population, for the convergence history."""
+
+    def __init__(self):
+        super().__init__()
+        self.rows: list[dict] = []
+        self.front_x: list[np.ndarray] = []
+        self.front_f: list[np.ndarray] = []
+        self._out = MultiObjectiveOutput()
+        self._ready = False
+
+    def notify(self, algorithm):
+        if not self._ready:
+            self._out.initialize(algorithm)
+            self._ready = True
+        self._out.update(algorithm)
+        row = {c.name: c.value for c in self._out.columns}
+        row["eps"] = None if row.get("eps") is None else float(row["eps"])
+        self.rows.append(row)
+        self.front_x.append(algorithm.opt.get("X").copy())
+        self.front_f.append(algorithm.opt.get("F").copy())
+
+
+def choose(front: np.ndarray) -> int:
+    """Index of the Pareto point closest to the ideal point after normalising each objective
+    to [0, 1] over the front (the documented choice rule)."""
+    lo, hi = front.min(axis=0), front.max(axis=0)
+    span = np.where(hi > lo, hi - lo, 1.0)
+    return int(np.argmin(np.linalg.norm((front - lo) / span, axis=1)))
+
+
+@dataclass
+class CalibrationResult:
+    """Pareto set/front, chosen estimate, convergence history and log of one NSGA-II run."""
+
+    parameters: tuple[str, ...]
+    pareto_x: np.ndarray  # (n_pareto, k) SI
+    pareto_f: np.ndarray  # (n_pareto, n_obj)
+    chosen: int
+    log: pd.DataFrame
+    history: np.ndarray  # (n_gen, k) SI: per generation, the choice rule on its front
+    config: NSGAConfig
+    seeds_spread: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def estimate(self) -> dict[str, float]:
+        """Chosen estimate, display units."""
+        return {
+            p: spec(p).to_display(v)
+            for p, v in zip(self.parameters, self.pareto_x[self.chosen], strict=True)
+        }
+
+    def pareto_spread(self) -> dict[str, float]:
+        """Spread (max - min) of each parameter over the Pareto set, in % of its range."""
+        lo, hi = bounds(self.parameters)
+        span = self.pareto_x.max(axis=0) - self.pareto_x.min(axis=0)
+        return {
+            p: float(100 * s / (h - low))
+            for p, s, low, h in zip(self.parameters, span, lo, hi, strict=True)
+        }
+
+    def table(self) -> pd.DataFrame:
+        """The study's Table 5 layout: initial (nominal) and estimated value, display units,
+        with the Pareto and seed spreads."""
+        ps = self.pareto_spread()
+        return pd.DataFrame(
+            [
+                {
+                    "parameter": p,
+                    "unit": spec(p).display_unit,
+                    "initial": spec(p).nominal_display,
+                    "estimated": v,
+                    "pareto_spread_pct_range": ps[p],
+                    "seed_spread_pct_range": self.seeds_spread.get(p, float("nan")),
+                }
+                for p, v in self.estimate.items()
+            ]
+        )
+
+    def save(self, out: str | Path) -> Path:
+        out = Path(out)
+        write_parquet(out / "nsga_log.parquet", self.log)
+        self.log.to_csv(out / "nsga_log.csv", index=False)
+        self.table().to_csv(out / "estimate.csv", index=False)
+        write_json(
+            out / "estimate.json",
+            {
+                "parameters": list(self.parameters),
+                "estimate_display": self.estimate,
+                "pareto_x_si": self.pareto_x,
+                "pareto_f": self.pareto_f,
+                "chosen": self.chosen,
+                "history_si": self.history,
+                "config": self.config.to_dict(),
+                "pareto_spread_pct_range": self.pareto_spread(),
+                "seed_spread_pct_range": self.seeds_spread,
+                "choice_rule": "closest to the ideal point of the front normalised to [0, 1]",
+            },
+        )
+        from railsusp.report import plot_convergence, plot_pareto
+
+        plot_pareto(self, out / "pareto.png")
+        plot_convergence(self, out / "convergence.png")
+        return out
+
+    def estimate_set(self, base: ParameterSet | None = None) -> ParameterSet:
+        """The chosen estimate as a full ParameterSet (others from ``base`` or nominal)."""
+        base = base or ParameterSet.nominal()
+        return base.replace(dict(zip(self.parameters, self.pareto_x[self.chosen], strict=True)))
+
+
+def estimate(
+    model: ForceModel,
+    recordings: Sequence[Recording],
+    parameters: Sequence[str],
+    config: NSGAConfig | None = None,
+) -> CalibrationResult:
+    """Run NSGA-II and pick the estimate; deterministic for a given seed."""
+    cfg = NSGAConfig() if config is None else config
+    problem = CalibrationProblem(model, recordings, parameters, cfg.statistic, cfg.per_condition)
+    algo = NSGA2(
+        pop_size=cfg.pop_size,
+        crossover=SBX(prob=cfg.crossover_prob, eta=15),
+        mutation=PM(prob_var=cfg.mutation_prob, eta=20),
+        eliminate_duplicates=True,
+    )
+    log = _Log()
+    res = minimize(problem, algo, ("n_gen", cfg.n_gen), seed=cfg.seed, verbose=False, callback=log)
+    x = np.atleast_2d(res.X)
+    f = np.atleast_2d(res.F)
+    order = np.argsort(f[:, 0])
+    x, f = x[order], f[order]
+    history = np.array(
+        [problem.to_si(fx[choose(ff)]) for fx, ff in zip(log.front_x, log.front_f, strict=True)]
+    )
+    return CalibrationResult(
+        tuple(parameters), problem.to_si(x), f, choose(f), pd.DataFrame(log.rows), history, cfg
+    )
+
+
+def estimate_with_seeds(
+    model: ForceModel,
+    recordings: Sequence[Recording],
+    parameters: Sequence[str],
+    config: NSGAConfig | None = None,
+    n_seeds: int = 3,
+) -> CalibrationResult:
+    """The estimate of the first seed, with the spread of the chosen estimate over
+    ``n_seeds`` independent runs (in % of each parameter's range)."""
+    cfg = NSGAConfig() if config is None else config
+    runs = [
+        estimate(
+            model, recordings, parameters, NSGAConfig(**{**cfg.to_dict(), "seed": cfg.seed + k})
+        )
+        for k in range(n_seeds)
+    ]
+    lo, hi = bounds(parameters)
+    chosen = np.array([r.pareto_x[r.chosen] for r in runs])
+    spread = (chosen.max(axis=0) - chosen.min(axis=0)) / (hi - lo) * 100
+    first = runs[0]
+    first.seeds_spread = {p: float(s) for p, s in zip(parameters, spread, strict=True)}
+    return first
