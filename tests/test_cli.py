@@ -176,6 +176,9 @@ def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
     )
     assert result.exit_code == 0, result.output
     assert "Table 5" in result.output and (est / "estimate.json").exists()
+    result = runner.invoke(app, ["validate", str(est), "--truth", str(field / "truth.json")])
+    assert result.exit_code == 0, result.output
+    assert "Parameter recovery" in result.output and (est / "validation" / "recovery.csv").exists()
     result = runner.invoke(app, ["estimate", "--measured", str(field), "--out", str(est)])
     assert result.exit_code == 2 and "--surrogate FOLDER or --simulator" in result.output
 
@@ -196,3 +199,8 @@ def test_synth_field_and_check_recording(tmp_path):
     (out / "short.csv").write_text("time_s,Y_w1L_kN\n0,1\n")
     result = runner.invoke(app, ["check-recording", str(out / "short.csv")])
     assert result.exit_code == 2 and "Q_w1L_kN' missing" in result.output
+
+
+def test_validate_command_bad_folder(tmp_path):
+    result = runner.invoke(app, ["validate", str(tmp_path)])
+    assert result.exit_code == 2 and "estimate.json" in result.output

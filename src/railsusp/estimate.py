@@ -251,7 +251,9 @@ class CalibrationResult:
             ]
         )
 
-    def save(self, out: str | Path) -> Path:
+    def save(self, out: str | Path, extra: dict | None = None) -> Path:
+        """Write the log, the Table 5 layout, the JSON record (with ``extra`` provenance such
+        as the recordings folder) and the Pareto and convergence figures."""
         out = Path(out)
         write_parquet(out / "nsga_log.parquet", self.log)
         self.log.to_csv(out / "nsga_log.csv", index=False)
@@ -269,6 +271,7 @@ class CalibrationResult:
                 "pareto_spread_pct_range": self.pareto_spread(),
                 "seed_spread_pct_range": self.seeds_spread,
                 "choice_rule": "closest to the ideal point of the front normalised to [0, 1]",
+                **(extra or {}),
             },
         )
         from railsusp.report import plot_convergence, plot_pareto

@@ -210,3 +210,35 @@ def plot_convergence(result, path: str | Path):
     axes[-1, 0].set_xlabel("generation")
     fig.suptitle("Convergence of the chosen estimate (dashed: nominal)")
     return save_figure(fig, path)
+
+
+def plot_validation_overlay(series: dict, path: str | Path, title: str = ""):
+    """Measured vs simulated forces before and after calibration (the study's Figs 12/13)."""
+    fig, axes = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, constrained_layout=True)
+    t = series["time"]
+    for j, label in enumerate(("lateral force Y (kN)", "vertical force Q (kN)")):
+        ax = axes[j]
+        ax.plot(t, series["measured"][:, j], color="k", lw=1.0, label="measured")
+        n = min(len(t), len(series["before"]))
+        ax.plot(
+            t[:n],
+            series["before"][:n, j],
+            color="C0",
+            lw=0.8,
+            alpha=0.8,
+            label="nominal parameters",
+        )
+        ax.plot(
+            t[:n],
+            series["after"][:n, j],
+            color="C3",
+            lw=0.8,
+            alpha=0.8,
+            label="estimated parameters",
+        )
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8, ncol=3)
+    axes[1].set_xlabel("time (s)")
+    fig.suptitle(f"{title}: the measured track is unknown, so compare levels, not phases")
+    return save_figure(fig, path)
