@@ -55,13 +55,9 @@ def test_bad_input_is_one_line_with_status_2(args, needle):
     assert len(proc.stderr.strip().splitlines()) == 1, proc.stderr
 
 
-def test_demo_prints_catalogue_conditions_and_track_summary():
-    result = runner.invoke(app, ["demo"])
-    assert result.exit_code == 0, result.output
-    assert "Parameter catalogue" in result.output
-    assert "Working conditions" in result.output
-    assert "Synthesised track input" in result.output
-    assert "Table 8" in result.output and "w1R" in result.output
+def test_demo_is_registered_with_the_embedded_default():
+    result = runner.invoke(app, ["demo", "--help"])
+    assert result.exit_code == 0 and "examples/quick.toml" in result.output
 
 
 def test_simulate_prints_forces_and_writes_files(tmp_path):

@@ -37,6 +37,7 @@ from railsusp.cli import simulation  # noqa: E402
 from railsusp.cli import analysis  # noqa: E402
 from railsusp.cli import surrogates  # noqa: E402
 from railsusp.cli import field  # noqa: E402
+from railsusp.cli import pipeline  # noqa: E402
 
 # isort: on
 
@@ -49,6 +50,7 @@ __all__ = [
     "field",
     "inputs",
     "main",
+    "pipeline",
     "simulation",
     "surrogates",
 ]

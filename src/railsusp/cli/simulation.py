@@ -10,8 +10,7 @@ from rich.table import Table
 
 from railsusp import __version__
 from railsusp.cli import app, console, err_console, fail
-from railsusp.cli.inputs import condition_table, parameter_table, track_summary_table
-from railsusp.conditions import STANDARD_CONDITIONS, resolve_conditions
+from railsusp.conditions import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet, parse_overrides
 from railsusp.study import TABLE8_BEFORE
@@ -131,36 +130,6 @@ def _progress():
         TimeElapsedColumn(),
         console=err_console,
         transient=True,
-    )
-
-
-@app.command()
-def demo() -> None:
-    """The main job on the embedded default: catalogue, conditions, track input and the
-    nominal wagon's wheel-rail forces in the three conditions."""
-    from railsusp.vehicle.simulate import simulate as run_one
-
-    conds = list(STANDARD_CONDITIONS.values())
-    console.rule(f"railsusp {__version__}: C80 wagon on K6 bogies")
-    console.print(parameter_table(ParameterSet.nominal()))
-    console.print(condition_table(conds))
-    console.print(track_summary_table(conds))
-    results = []
-    with _progress() as bar:
-        task = bar.add_task("simulating the nominal wagon", total=len(conds))
-        for c in conds:
-            results.append(run_one(None, c))
-            bar.advance(task)
-    console.print(
-        _force_table(
-            results,
-            "Nominal wagon: wheel-rail forces of the measured "
-            "wheel (kN) beside the study's Table 8 (simulated)",
-        )
-    )
-    console.print(
-        "[dim]Next stages (campaign, sensitivity, surrogate, estimation, validation) are "
-        "not built yet: see the open issues.[/]"
     )
 
 

@@ -1,0 +1,351 @@
+"""The whole method in one run directory: campaign -> sensitivity -> surrogates -> field
+recordings -> estimation -> validation -> report.
+
+Each stage is skipped when its outputs exist and its inputs (its part of the configuration
+and the hashes of the stages it reads) are unchanged; ``start_from`` forces a restart from a
+stage. A failing stage leaves the previous stages' outputs intact; ``pipeline.json`` records
+each stage's input hash, timing and state, and the error says how to resume.
+"""
+
+from __future__ import annotations
+
+import time
+import tomllib
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from railsusp.conditions import WorkingCondition, get_condition, make_condition
+from railsusp.errors import RailsuspInputError
+from railsusp.params import MAIN_SUSPENSION, ParameterSet
+from railsusp.store import content_hash, provenance, read_json, write_json
+
+STAGES = ("campaign", "sensitivity", "surrogate", "field", "estimate", "validate", "report")
+
+
+class _Cfg(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class CampaignSection(_Cfg):
+    samples: int = Field(64, ge=4, description="LHS samples")
+    design: Literal["lhs", "lhs-optimised"] = "lhs"
+    seed: int = Field(0, ge=0)
+    batch_size: int = Field(32, ge=1)
+    parameters: tuple[str, ...] = MAIN_SUSPENSION
+
+
+class SensitivitySection(_Cfg):
+    threshold: float = Field(0.05, gt=0.0, lt=1.0, description="ST threshold of the key rule")
+    max_keys: int = Field(6, ge=1, le=10)
+    statistics: tuple[str, ...] = ("mean", "p99")
+    base_samples: int = Field(512, ge=64)
+
+
+class SurrogateSection(_Cfg):
+    model: Literal["cnn-gru", "cnn-lstm", "cnn-bilstm", "bp"] = "bp"
+    epochs: int = Field(8, ge=1)
+    batches_per_epoch: int = Field(60, ge=1)
+    batch_size: int = Field(512, ge=8)
+    device: str = "cpu"
+
+
+class FieldSection(_Cfg):
+    """Measured recordings: a folder (``measured``), or synthetic ones from ``truth``."""
+
+    measured: str | None = Field(None, description="folder with index.json of recordings")
+    truth: dict[str, float] = Field(
+        default_factory=dict, description="hidden true parameters, display units"
+    )
+    seed: int = 7
+    noise: float = Field(0.03, ge=0.0, le=0.5)
+
+
+class EstimateSection(_Cfg):
+    pop_size: int = Field(50, ge=4)
+    n_gen: int = Field(100, ge=1)
+    crossover_prob: float = Field(0.9, ge=0.0, le=1.0)
+    mutation_prob: float = Field(0.05, ge=0.0, le=1.0)
+    statistic: Literal["mean", "rms", "p99"] = "mean"
+    seeds: int = Field(1, ge=1, le=10)
+    seed: int = 0
+
+
+class PipelineConfig(_Cfg):
+    """The whole configuration of a run (examples/quick.toml, examples/study.toml)."""
+
+    name: str = "railsusp run"
+    wagon: str | None = Field(None, description="wagon data TOML (default: C80/K6)")
+    conditions: tuple[str | dict[str, Any], ...] = ("straight", "curve", "uphill")
+    campaign: CampaignSection = CampaignSection()
+    sensitivity: SensitivitySection = SensitivitySection()
+    surrogate: SurrogateSection = SurrogateSection()
+    field: FieldSection = FieldSection()
+    estimate: EstimateSection = EstimateSection()
+    scheduler: str | None = Field(None, description="Dask scheduler tcp://host:port")
+
+    def working_conditions(self) -> list[WorkingCondition]:
+        out = []
+        for c in self.conditions:
+            if isinstance(c, str):
+                out.append(get_condition(c))
+            else:
+                fields = dict(c)
+                base = fields.pop("base", None)
+                start = get_condition(base).model_dump() if base else {}
+                out.append(make_condition({**start, **fields}))
+        return out
+
+
+def load_config(path: str | Path) -> PipelineConfig:
+    """Read and validate a pipeline TOML; errors name the field (one line)."""
+    path = Path(path)
+    if not path.is_file():
+        raise RailsuspInputError(f"configuration {path} does not exist")
+    try:
+        return PipelineConfig(**tomllib.loads(path.read_text("utf-8")))
+    except tomllib.TOMLDecodeError as exc:
+        raise RailsuspInputError(f"{path}: not valid TOML ({exc})") from None
+    except ValidationError as exc:
+        msgs = [f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors()]
+        raise RailsuspInputError(f"{path}: " + "; ".join(msgs)) from None
+
+
+class StageError(RailsuspInputError):
+    """A stage failed; earlier stages' outputs are intact."""
+
+
+#: the hidden truth of the demo: a degraded wagon (display units)
+DEMO_TRUTH = {
+    "X11": 1.3,
+    "X13": 16.1,
+    "X14": 8.3,
+    "X15": 164.0,
+    "X16": 1.7,
+    "X17": 1.91,
+    "X18": 51.3,
+}
+
+
+def demo_config() -> PipelineConfig:
+    """The embedded default (identical to examples/quick.toml, checked by a test)."""
+    return PipelineConfig(
+        name="quick demo: C80/K6, synthetic field data of a degraded wagon",
+        field=FieldSection(truth=DEMO_TRUTH),
+    )
+
+
+def run_pipeline(
+    config: PipelineConfig,
+    out: str | Path,
+    *,
+    start_from: str | None = None,
+    progress: Callable[[str, str], None] | None = None,
+    run_progress: Callable[[int, int], None] | None = None,
+) -> dict:
+    """Run the stages in order, skipping the up-to-date ones; returns ``pipeline.json``.
+
+    ``progress(stage, message)`` reports stage starts; ``run_progress(done, total)`` the
+    campaign's simulations.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    if start_from is not None and start_from not in STAGES:
+        raise RailsuspInputError(f"--from {start_from!r}: accepted {', '.join(STAGES)}")
+    state_path = out / "pipeline.json"
+    state = read_json(state_path) if state_path.exists() else {"stages": {}}
+    state["config"] = config.model_dump(mode="json")
+    forced = STAGES.index(start_from) if start_from else len(STAGES)
+    upstream: dict[str, str] = {}
+    runners = _stage_runners(config, out, run_progress)
+    for i, stage in enumerate(STAGES):
+        section = _section(config, stage)
+        h = content_hash({"section": section, "upstream": upstream, "stage": stage})
+        prev = state["stages"].get(stage, {})
+        up_to_date = (
+            prev.get("hash") == h
+            and prev.get("state") == "done"
+            and i < forced
+            and _outputs_exist(out, stage)
+        )
+        if up_to_date:
+            if progress:
+                progress(stage, "up to date")
+        else:
+            if progress:
+                progress(stage, "running")
+            t0 = time.perf_counter()
+            state["stages"][stage] = {"hash": h, "state": "running"}
+            write_json(state_path, state)
+            try:
+                info = runners[stage]() or {}
+            except Exception as exc:
+                state["stages"][stage] = {"hash": h, "state": "failed", "error": str(exc)}
+                write_json(state_path, state)
+                raise StageError(
+                    f"stage {stage!r} failed: {exc}. Earlier stages are kept; fix the cause "
+                    f"and run the same command again (or --from {stage})"
+                ) from exc
+            state["stages"][stage] = {
+                "hash": h,
+                "state": "done",
+                "info": info,
+                "seconds": time.perf_counter() - t0,
+                "finished": provenance()["utc"],
+            }
+            write_json(state_path, state)
+            forced = min(forced, i + 1)  # everything downstream reruns
+        upstream[stage] = h
+    state["provenance"] = provenance()
+    write_json(state_path, state)
+    return state
+
+
+def _section(config: PipelineConfig, stage: str) -> Any:
+    base = {"wagon": config.wagon, "conditions": list(config.conditions)}
+    sections = {
+        "campaign": {**base, **config.campaign.model_dump()},
+        "sensitivity": config.sensitivity.model_dump(),
+        "surrogate": config.surrogate.model_dump(),
+        "field": {**base, **config.field.model_dump()},
+        "estimate": config.estimate.model_dump(),
+        "validate": {},
+        "report": {"name": config.name},
+    }
+    return sections[stage]
+
+
+_OUTPUTS = {
+    "campaign": "campaign/features.parquet",
+    "sensitivity": "campaign/sensitivity/key_parameters.json",
+    "surrogate": "campaign/surrogates/compare.csv",
+    "field": "field/index.json",
+    "estimate": "estimate/estimate.json",
+    "validate": "estimate/validation/validation.json",
+    "report": "report.html",
+}
+
+
+def _outputs_exist(out: Path, stage: str) -> bool:
+    return (out / _OUTPUTS[stage]).exists()
+
+
+def _stage_runners(
+    config: PipelineConfig, out: Path, run_progress: Callable[[int, int], None] | None = None
+) -> dict[str, Callable[[], dict]]:
+    camp_dir = out / "campaign"
+
+    def campaign() -> dict:
+        from railsusp.campaign import make_config, run_campaign
+        from railsusp.vehicle.wagon import load_wagon
+
+        c = config.campaign
+        cfg = make_config(
+            config.working_conditions(),
+            c.samples,
+            design=c.design,
+            seed=c.seed,
+            batch_size=c.batch_size,
+            parameters=c.parameters,
+            wagon=load_wagon(config.wagon),
+        )
+        run_campaign(cfg, camp_dir, force=True, scheduler=config.scheduler, progress=run_progress)
+        return {"runs": cfg.n_runs * len(cfg.conditions)}
+
+    def sensitivity() -> dict:
+        from railsusp.sensitivity import analyse
+
+        s = config.sensitivity
+        res = analyse(
+            camp_dir,
+            statistics=s.statistics,
+            threshold=s.threshold,
+            key_statistics=s.statistics,
+            max_keys=s.max_keys,
+            base_samples=s.base_samples,
+        )
+        return {"keys": res["key_parameters"]["keys"]}
+
+    def surrogate() -> dict:
+        from railsusp.surrogate import TrainConfig
+        from railsusp.surrogate.compare import compare
+
+        s = config.surrogate
+        tcfg = TrainConfig(
+            epochs=s.epochs,
+            batches_per_epoch=s.batches_per_epoch,
+            batch_size=s.batch_size,
+            device=s.device,
+        )
+        tab = compare(camp_dir, models=(s.model, "rbf", "gp-stats"), train=tcfg)
+        return {"models": sorted(set(tab.model))}
+
+    def field() -> dict:
+        from railsusp.measured import read_field, synthesise_field
+
+        f = config.field
+        dest = out / "field"
+        if f.measured:
+            recs = read_field(f.measured)
+            import shutil
+
+            if dest.exists():
+                shutil.rmtree(dest)
+            shutil.copytree(f.measured, dest)
+            return {"recordings": len(recs), "synthetic": False}
+        truth = ParameterSet(f.truth, units="display")
+        synthesise_field(truth, config.working_conditions(), dest, seed=f.seed, noise=f.noise)
+        return {"recordings": len(config.conditions), "synthetic": True}
+
+    def estimate() -> dict:
+        from railsusp.estimate import NSGAConfig, SurrogateForces, estimate_with_seeds
+        from railsusp.measured import read_field
+        from railsusp.surrogate import key_parameters
+
+        e = config.estimate
+        params = key_parameters(camp_dir)
+        model = SurrogateForces(camp_dir / "surrogates" / config.surrogate.model, params)
+        cfg = NSGAConfig(
+            pop_size=e.pop_size,
+            n_gen=e.n_gen,
+            crossover_prob=e.crossover_prob,
+            mutation_prob=e.mutation_prob,
+            seed=e.seed,
+            statistic=e.statistic,
+        )
+        res = estimate_with_seeds(model, read_field(out / "field"), params, cfg, e.seeds)
+        res.save(
+            out / "estimate",
+            extra={"measured": str((out / "field").resolve()), "model": config.surrogate.model},
+        )
+        return {"estimate": res.estimate}
+
+    def validate() -> dict:
+        from railsusp.validate import validate as run_validate
+
+        truth = out / "field" / "truth.json"
+        res = run_validate(
+            out / "estimate",
+            truth=truth if truth.exists() else None,
+            sensitivity=camp_dir / "sensitivity",
+        )
+        res.save(out / "estimate" / "validation")
+        return {"scored": res.recovery is not None}
+
+    def report() -> dict:
+        from railsusp.report_html import build_report
+
+        paths = build_report(out)
+        return {"files": [str(p.name) for p in paths]}
+
+    return {
+        "campaign": campaign,
+        "sensitivity": sensitivity,
+        "surrogate": surrogate,
+        "field": field,
+        "estimate": estimate,
+        "validate": validate,
+        "report": report,
+    }

@@ -1,0 +1,139 @@
+"""The one-command pipeline: stages, skipping, restarts, failures, report, configuration."""
+
+import json
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from railsusp.cli import app
+from railsusp.errors import RailsuspInputError
+from railsusp.pipeline import STAGES, StageError, demo_config, load_config, run_pipeline
+
+ROOT = Path(__file__).resolve().parents[1]
+
+TINY = """
+name = "tiny"
+conditions = [{base="straight", name="short", duration_s=1.0, n_steps=50, lead_in_m=20.0}]
+[campaign]
+samples = 10
+batch_size = 10
+parameters = ["X13", "X14", "X17"]
+[sensitivity]
+base_samples = 64
+statistics = ["mean"]
+max_keys = 2
+[surrogate]
+epochs = 1
+batches_per_epoch = 3
+batch_size = 32
+[field]
+truth = { X13 = 16.1 }
+[estimate]
+pop_size = 6
+n_gen = 2
+"""
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    root = tmp_path_factory.mktemp("pipe")
+    cfg_path = root / "tiny.toml"
+    cfg_path.write_text(TINY)
+    out = root / "run"
+    seen = []
+    state = run_pipeline(load_config(cfg_path), out, progress=lambda s, m: seen.append((s, m)))
+    return cfg_path, out, state, seen
+
+
+def test_every_stage_runs_and_writes_its_outputs(tiny):
+    _, out, state, seen = tiny
+    assert [s for s, _ in seen] == list(STAGES)
+    assert all(state["stages"][s]["state"] == "done" for s in STAGES)
+    for rel in (
+        "campaign/features.parquet",
+        "campaign/sensitivity/key_parameters.json",
+        "campaign/surrogates/compare.csv",
+        "field/index.json",
+        "field/truth.json",
+        "estimate/estimate.json",
+        "estimate/validation/recovery.csv",
+        "report.html",
+        "report.md",
+    ):
+        assert (out / rel).exists(), rel
+
+
+def test_report_is_self_contained(tiny):
+    _, out, _, _ = tiny
+    page = (out / "report.html").read_text()
+    md = (out / "report.md").read_text()
+    n_figures = md.count("![")
+    assert n_figures >= 5 and page.count("src='data:image/png;base64,") == n_figures
+    for heading in ("Sobol", "Surrogates", "NSGA-II", "Validation", "recovery", "Provenance"):
+        assert heading in page
+    assert "figure missing" not in page
+
+
+def test_unchanged_stages_are_skipped_and_from_restarts(tiny):
+    cfg_path, out, _, _ = tiny
+    seen = []
+    run_pipeline(load_config(cfg_path), out, progress=lambda s, m: seen.append(m))
+    assert seen == ["up to date"] * len(STAGES)
+    seen.clear()
+    run_pipeline(
+        load_config(cfg_path), out, start_from="estimate", progress=lambda s, m: seen.append((s, m))
+    )
+    assert [m for _, m in seen] == ["up to date"] * 4 + ["running"] * 3
+
+
+def test_changed_section_reruns_downstream_only(tiny, tmp_path):
+    _cfg_path, out, _, _ = tiny
+    changed = tmp_path / "c.toml"
+    changed.write_text(TINY.replace("n_gen = 2", "n_gen = 3"))
+    seen = []
+    run_pipeline(load_config(changed), out, progress=lambda s, m: seen.append((s, m)))
+    assert dict(seen) == {
+        **dict.fromkeys(STAGES[:4], "up to date"),
+        **dict.fromkeys(STAGES[4:], "running"),
+    }
+
+
+def test_failing_stage_keeps_earlier_outputs_and_says_how_to_resume(tiny, tmp_path):
+    _cfg_path, out, _, _ = tiny
+    bad = tmp_path / "bad.toml"
+    bad.write_text(TINY.replace("truth = { X13 = 16.1 }", f'measured = "{tmp_path}/nowhere"'))
+    with pytest.raises(StageError, match="stage 'field' failed.*run the same command again"):
+        run_pipeline(load_config(bad), out)
+    state = json.loads((out / "pipeline.json").read_text())
+    assert state["stages"]["field"]["state"] == "failed"
+    assert state["stages"]["campaign"]["state"] == "done"
+    assert (out / "campaign" / "features.parquet").exists()
+
+
+def test_configuration_errors_name_the_field(tmp_path):
+    p = tmp_path / "x.toml"
+    p.write_text("[campaign]\nsamples = 2\n")
+    with pytest.raises(RailsuspInputError, match="campaign.samples"):
+        load_config(p)
+    p.write_text("[estimate]\nwhat = 1\n")
+    with pytest.raises(RailsuspInputError, match="estimate.what"):
+        load_config(p)
+    with pytest.raises(RailsuspInputError, match="does not exist"):
+        load_config(tmp_path / "missing.toml")
+
+
+def test_quick_example_is_the_demo_default_and_study_example_loads():
+    assert load_config(ROOT / "examples" / "quick.toml") == demo_config()
+    study = load_config(ROOT / "examples" / "study.toml")
+    assert study.campaign.samples == 1000 and study.surrogate.model == "cnn-gru"
+    assert (study.estimate.pop_size, study.estimate.n_gen) == (50, 100)
+
+
+def test_run_command(tiny, tmp_path):
+    cfg_path, _, _, _ = tiny
+    result = CliRunner().invoke(app, ["run", str(cfg_path), "--out", str(tmp_path / "r")])
+    assert result.exit_code == 0, result.output
+    assert "Stage timings" in result.output and "report.html" in result.output
+    bad = CliRunner().invoke(app, ["run", str(cfg_path), "--from", "nowhere"])
+    assert bad.exit_code == 2 and "--from 'nowhere'" in bad.output
