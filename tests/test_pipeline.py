@@ -137,3 +137,46 @@ def test_run_command(tiny, tmp_path):
     assert "Stage timings" in result.output and "report.html" in result.output
     bad = CliRunner().invoke(app, ["run", str(cfg_path), "--from", "nowhere"])
     assert bad.exit_code == 2 and "--from 'nowhere'" in bad.output
+
+
+def _chromium() -> str | None:
+    import shutil
+
+    return shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+@pytest.mark.skipif(
+    _chromium() is None,
+    reason="headless Chromium absent (Debian package "
+    "'chromium': apt-get install chromium) - report rendering not checked",
+)
+def test_report_renders_every_figure_in_headless_chromium(tiny, tmp_path):
+    """Open report.html in headless Chromium; the page's own load check marks every image
+    that decoded (data-ok="true")."""
+    import subprocess
+
+    _, out, _, _ = tiny
+    n_figures = (out / "report.md").read_text().count("![")
+    proc = subprocess.run(
+        [
+            _chromium(),
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            f"--user-data-dir={tmp_path / 'profile'}",
+            "--virtual-time-budget=5000",
+            "--dump-dom",
+            (out / "report.html").as_uri(),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.count('data-ok="true"') == n_figures
+    assert 'data-ok="false"' not in proc.stdout

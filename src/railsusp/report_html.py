@@ -9,13 +9,20 @@ from pathlib import Path
 
 import pandas as pd
 
-from railsusp.store import atomic_write_bytes, read_json
+from railsusp.store import atomic_write_bytes, file_hash, read_json
 
 CSS = """body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;
 color:#222}table{border-collapse:collapse;margin:.6em 0;font-size:.9em}
 td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#f2f2f2}
 td:first-child,th:first-child{text-align:left}img{max-width:100%;border:1px solid #eee}
 h2{border-bottom:2px solid #ddd;padding-bottom:.2em;margin-top:2em}.note{color:#555}"""
+
+
+#: marks every image that decoded (``data-ok="true"``), for the headless-browser test
+_IMG_CHECK = (
+    "<script>window.addEventListener('load',()=>{for(const i of "
+    "document.images){i.dataset.ok=String(i.complete&&i.naturalWidth>0)}});</script>"
+)
 
 
 class _Doc:
@@ -89,6 +96,46 @@ def build_report(run: str | Path) -> list[Path]:
     doc.p(
         f"Wagon: {cfg['wagon']['wagon']['name']}. Sampled parameters: "
         f"{', '.join(cfg['parameters'])}; {cfg['samples']} samples ({cfg['design']})."
+    )
+    from railsusp.params import CATALOGUE
+
+    truth_path = run / "field" / "truth.json"
+    truth = read_json(truth_path)["parameters_display"] if truth_path.exists() else {}
+    wagon = cfg["wagon"]
+    doc.table(
+        pd.DataFrame(
+            [
+                {"item": "car body mass, kg", "value": wagon["car_body"]["mass"]},
+                {
+                    "item": "bogie centre distance, m",
+                    "value": 2 * wagon["car_body"]["bogie_half_spacing"],
+                },
+                {"item": "wheelbase, m", "value": 2 * wagon["bogie"]["half_wheelbase"]},
+                {"item": "wheel radius, m", "value": wagon["wheelset"]["rolling_radius"]},
+                {
+                    "item": "spring nest vertical stiffness, N/m",
+                    "value": wagon["secondary"]["vertical_stiffness"],
+                },
+            ]
+        )
+    )
+    doc.table(
+        pd.DataFrame(
+            [
+                {
+                    "symbol": s.symbol,
+                    "parameter": s.description,
+                    "unit": s.display_unit,
+                    "nominal": s.nominal_display,
+                    "range": ""
+                    if s.bounds_display is None
+                    else f"{s.bounds_display[0]:g}-{s.bounds_display[1]:g}",
+                    **({"hidden truth": truth.get(s.symbol, float("nan"))} if truth else {}),
+                }
+                for s in CATALOGUE
+                if s.is_sampled
+            ]
+        )
     )
     conds = pd.DataFrame(
         [
@@ -175,10 +222,26 @@ def build_report(run: str | Path) -> list[Path]:
     ]
     doc.table(pd.DataFrame(rows))
     doc.p(f"Campaign configuration hash {meta['config_hash']}.")
+    files = [
+        camp / "design.parquet",
+        camp / "features.parquet",
+        *sorted((run / "field").glob("*.csv")),
+        *sorted((run / "field").glob("*.parquet")),
+    ]
+    doc.table(
+        pd.DataFrame(
+            [
+                {"data file": str(f.relative_to(run)), "sha256": file_hash(f)[:16]}
+                for f in files
+                if f.exists()
+            ]
+        )
+    )
     page = (
         f"<!doctype html><html><head><meta charset='utf-8'><title>"
         f"{html.escape(title)}</title><style>{CSS}</style></head><body>"
         + "\n".join(doc.html)
+        + _IMG_CHECK
         + "</body></html>"
     )
     html_path = atomic_write_bytes(run / "report.html", page.encode())
