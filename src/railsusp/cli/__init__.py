@@ -10,6 +10,7 @@ import sys
 
 import typer
 from rich.console import Console
+from rich.table import Table
 
 from railsusp.errors import RailsuspInputError
 
@@ -22,6 +23,25 @@ app = typer.Typer(
 # Wide tables when piped (CI logs, files); the terminal's width otherwise.
 console = Console(width=None if sys.stdout.isatty() else 150)
 err_console = Console(stderr=True, width=None if sys.stderr.isatty() else 150)
+
+
+def frame_table(df, title: str, fmt: str = "{:.4g}") -> Table:
+    """A pandas DataFrame as a rich table: numbers right-aligned, NaN/None blank."""
+    table = Table(title=title, title_justify="left")
+    for col in df.columns:
+        table.add_column(str(col), justify="right")
+    for row in df.itertuples(index=False):
+        table.add_row(
+            *(
+                ""
+                if v is None or (isinstance(v, float) and v != v)
+                else fmt.format(v)
+                if isinstance(v, float)
+                else str(v)
+                for v in row
+            )
+        )
+    return table
 
 
 def fail(message: str) -> None:
@@ -48,6 +68,7 @@ __all__ = [
     "err_console",
     "fail",
     "field",
+    "frame_table",
     "inputs",
     "main",
     "pipeline",

@@ -9,7 +9,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from railsusp.cli import app, console, fail
+from railsusp.cli import app, console, fail, frame_table
 from railsusp.conditions import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet, parse_overrides
@@ -156,25 +156,12 @@ def estimate(
         )
     except (RailsuspInputError, ValueError, FileNotFoundError) as exc:
         fail(str(exc))
-    log = res.log
-    table = Table(title="NSGA-II log (last generations; the study's Table 4)", title_justify="left")
-    for col in log.columns:
-        table.add_column(col, justify="right")
-    for r in log.tail(8).itertuples(index=False):
-        table.add_row(
-            *(
-                "" if v is None or v != v else f"{v:.6g}" if isinstance(v, float) else str(v)
-                for v in r
-            )
+    console.print(
+        frame_table(
+            res.log.tail(8), "NSGA-II log (last generations; the study's Table 4)", fmt="{:.6g}"
         )
-    console.print(table)
-    est = Table(title="Estimate (the study's Table 5 layout)", title_justify="left")
-    t5 = res.table()
-    for col in t5.columns:
-        est.add_column(col, justify="right")
-    for r in t5.itertuples(index=False):
-        est.add_row(*(f"{v:.4g}" if isinstance(v, float) else str(v) for v in r))
-    console.print(est)
+    )
+    console.print(frame_table(res.table(), "Estimate (the study's Table 5 layout)"))
     console.print(f"wrote {out}")
 
 

@@ -9,7 +9,7 @@ import pandas as pd
 import typer
 from rich.table import Table
 
-from railsusp.cli import app, console, err_console, fail
+from railsusp.cli import app, console, err_console, fail, frame_table
 from railsusp.errors import RailsuspInputError
 
 
@@ -55,13 +55,7 @@ def _summary(out: Path) -> None:
         if not csv.exists():
             return
         df = pd.read_csv(csv)
-        df = df[cols] if cols else df
-        table = Table(title=title, title_justify="left")
-        for c in df.columns:
-            table.add_column(str(c), justify="right")
-        for r in df.itertuples(index=False):
-            table.add_row(*(f"{v:.4g}" if isinstance(v, float) else str(v) for v in r))
-        console.print(table)
+        console.print(frame_table(df[cols] if cols else df, title))
 
     show(out / "estimate" / "estimate.csv", "Estimate (study Table 5 layout)")
     show(

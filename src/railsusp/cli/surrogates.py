@@ -9,7 +9,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from railsusp.cli import app, console, err_console, fail
+from railsusp.cli import app, console, err_console, fail, frame_table
 from railsusp.errors import RailsuspInputError
 
 
@@ -148,15 +148,12 @@ def compare(
             )
     except (RailsuspInputError, ValueError) as exc:
         fail(str(exc))
-    t7 = table7(tab)
-    table = Table(
-        title="Surrogates on held-out simulations (study Table 7 layout, mean force "
-        "of the measured wheel; |Y| for lateral)",
-        title_justify="left",
+    console.print(
+        frame_table(
+            table7(tab),
+            "Surrogates on held-out simulations (study Table 7 "
+            "layout, mean force of the measured wheel; |Y| for lateral)",
+            fmt="{:.3f}",
+        )
     )
-    for col in t7.columns:
-        table.add_column(col, justify="left" if col in ("condition", "model") else "right")
-    for r in t7.itertuples(index=False):
-        table.add_row(*(f"{v:.3f}" if isinstance(v, float) else str(v) for v in r))
-    console.print(table)
     console.print(f"wrote {run / 'surrogates' / 'compare.csv'} and overlay figures")
