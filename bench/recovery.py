@@ -38,6 +38,11 @@ def main() -> None:
     ap.add_argument("--n-gen", type=int, default=100)
     ap.add_argument("--noise", type=float, default=0.03)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument(
+        "--per-condition",
+        action="store_true",
+        help="two objectives per condition instead of their averages",
+    )
     ap.add_argument("--out", default="bench/results/recovery.json")
     args = ap.parse_args()
     run = Path(args.run)
@@ -56,7 +61,10 @@ def main() -> None:
         truth = ParameterSet.nominal().replace(dict(zip(params, truth_si, strict=True)))
         field = synthesise_field(truth, conds, work / f"field{k}", seed=100 + k, noise=args.noise)
         res = estimate(
-            model, read_field(field), params, NSGAConfig(n_gen=args.n_gen, seed=args.seed + k)
+            model,
+            read_field(field),
+            params,
+            NSGAConfig(n_gen=args.n_gen, seed=args.seed + k, per_condition=args.per_condition),
         )
         est = res.save(work / f"est{k}", extra={"measured": str(field)})
         v = validate(est, truth=field / "truth.json", sensitivity=run / "sensitivity")
@@ -106,6 +114,7 @@ def main() -> None:
             "model": args.model,
             "noise": args.noise,
             "n_gen": args.n_gen,
+            "per_condition": args.per_condition,
             "summary": summary,
             "trials": trials,
         },
