@@ -81,6 +81,18 @@ def track_lookup(trk, ch, s, s0, ds):
 
 
 @nb.njit(cache=True, inline="always")
+def track_frame(trk, s, s0, ds):
+    """Curvature (1/m), cant angle (rad), heading (rad) and lateral position (m) of the
+    design track at distance s: the frame a body at s moves in."""
+    return (
+        track_lookup(trk, L.TR_KAPPA, s, s0, ds),
+        track_lookup(trk, L.TR_CANT, s, s0, ds),
+        track_lookup(trk, L.TR_HEAD, s, s0, ds),
+        track_lookup(trk, L.TR_OFFSET, s, s0, ds),
+    )
+
+
+@nb.njit(cache=True, inline="always")
 def track_rate(trk, ch, s, s0, ds, V):
     """Time rate V d(channel)/ds of track channel ``ch`` at distance s (per second)."""
     u = (s - s0) / ds
@@ -334,10 +346,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
 
     # ---- track positions ----
     s_c = s_front - (lc + a)
-    kap_c = track_lookup(trk, L.TR_KAPPA, s_c, s0, ds)
-    cant_c = track_lookup(trk, L.TR_CANT, s_c, s0, ds)
-    head_c = track_lookup(trk, L.TR_HEAD, s_c, s0, ds)
-    off_c = track_lookup(trk, L.TR_OFFSET, s_c, s0, ds)
+    kap_c, cant_c, head_c, off_c = track_frame(trk, s_c, s0, ds)
 
     # ---- car body pseudo-forces ----
     m_c = K[I_MC]
@@ -354,10 +363,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
     for k in range(2):
         d = lc if k == 0 else -lc
         s_b = s_c + d
-        kap_b = track_lookup(trk, L.TR_KAPPA, s_b, s0, ds)
-        cant_b = track_lookup(trk, L.TR_CANT, s_b, s0, ds)
-        head_b = track_lookup(trk, L.TR_HEAD, s_b, s0, ds)
-        off_b = track_lookup(trk, L.TR_OFFSET, s_b, s0, ds)
+        kap_b, cant_b, head_b, off_b = track_frame(trk, s_b, s0, ds)
         ib = BOL0 + 4 * k
         m_b = K[I_MB]
         add_frame_forces(acc, ib, ib + 1, m_b, kap_b, cant_b, V, gn)
@@ -454,10 +460,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             w = 2 * k + wi
             e = a if wi == 0 else -a
             s_w = s_b + e
-            kap_w = track_lookup(trk, L.TR_KAPPA, s_w, s0, ds)
-            cant_w = track_lookup(trk, L.TR_CANT, s_w, s0, ds)
-            head_w = track_lookup(trk, L.TR_HEAD, s_w, s0, ds)
-            off_w = track_lookup(trk, L.TR_OFFSET, s_w, s0, ds)
+            kap_w, cant_w, head_w, off_w = track_frame(trk, s_w, s0, ds)
             iw = WS0 + 4 * w
             add_frame_forces(acc, iw, iw + 1, m_w, kap_w, cant_w, V, gn)
             dev_w = off_w - off_b - e * head_b
