@@ -26,10 +26,8 @@ def _run_one(
     x, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, dt, n_pre, n_sub, n_out, sos, out_series
 ):
     """Integrate one set; write filtered outputs (NOUT, n_out). Returns (code, fail_time)."""
-    k1 = np.empty(NS)
-    k2 = np.empty(NS)
-    k3 = np.empty(NS)
-    k4 = np.empty(NS)
+    ks = np.empty((4, NS))  # RK4 stage derivatives
+    k1 = ks[0]
     xt = np.empty(NS)
     o = np.zeros(NOUT)
     o_dummy = np.zeros(NOUT)
@@ -68,28 +66,31 @@ def _run_one(
                 u = y
             if n >= n_pre and (n - n_pre) % n_sub == 0:
                 out_series[c, (n - n_pre) // n_sub] = u
-        for i in range(NS):
-            xt[i] = x[i] + 0.5 * dt * k1[i]
-        code = rhs(
-            xt, k2, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front + 0.5 * V * dt, o_dummy
-        )
-        if code != 0:
-            return code, t
-        for i in range(NS):
-            xt[i] = x[i] + 0.5 * dt * k2[i]
-        code = rhs(
-            xt, k3, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front + 0.5 * V * dt, o_dummy
-        )
-        if code != 0:
-            return code, t
-        for i in range(NS):
-            xt[i] = x[i] + dt * k3[i]
-        code = rhs(xt, k4, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front + V * dt, o_dummy)
-        if code != 0:
-            return code, t
+        for j in range(1, 4):  # stages 2-4: x + c dt k_(j-1), at s + c V dt
+            c = 1.0 if j == 3 else 0.5
+            for i in range(NS):
+                xt[i] = x[i] + c * dt * ks[j - 1, i]
+            code = rhs(
+                xt,
+                ks[j],
+                P,
+                K,
+                trk,
+                s0,
+                ds,
+                ctab,
+                y0,
+                dy,
+                H0L,
+                H0R,
+                s_front + c * V * dt,
+                o_dummy,
+            )
+            if code != 0:
+                return code, t
         acc = 0.0
         for i in range(NS):
-            x[i] += dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+            x[i] += dt / 6.0 * (ks[0, i] + 2.0 * ks[1, i] + 2.0 * ks[2, i] + ks[3, i])
             acc += x[i]
         if not math.isfinite(acc):
             return L.FAIL_NAN, t
