@@ -35,21 +35,9 @@ from railsusp.conditions import WorkingCondition
 from railsusp.measured import Recording
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import write_json, write_parquet
+from railsusp.vehicle.simulate import record_statistic
 
 STATISTICS = ("mean", "rms", "p99")
-
-
-def record_statistic(x: np.ndarray, statistic: str, lateral: bool) -> np.ndarray:
-    """Statistic of force series along the last axis (NaN-aware): mean, rms or p99 of |Y|
-    for lateral forces, of Q for vertical ones."""
-    v = np.abs(x) if lateral else x
-    if statistic == "mean":
-        return np.nanmean(v, axis=-1)
-    if statistic == "rms":
-        return np.sqrt(np.nanmean(v * v, axis=-1))
-    if statistic == "p99":
-        return np.nanpercentile(v, 99, axis=-1)
-    raise ValueError(f"statistic {statistic!r}: accepted {', '.join(STATISTICS)}")
 
 
 class ForceModel(Protocol):

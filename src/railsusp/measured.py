@@ -27,9 +27,9 @@ from scipy.signal import butter, resample_poly, sosfiltfilt
 from railsusp.conditions import WorkingCondition, get_condition, make_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.store import write_json, write_parquet
+from railsusp.vehicle.layout import WHEEL_NAMES
 
 FORMAT = "railsusp-recording/1"
-WHEELS = tuple(f"w{w + 1}{side}" for w in range(4) for side in ("L", "R"))
 #: physical bounds for a loaded 25 t axle-load wagon (kN)
 MAX_LATERAL_KN = 300.0
 MAX_VERTICAL_KN = 600.0
@@ -174,7 +174,7 @@ def read_recording(path: str | Path, *, min_rate_hz: float = 50.0) -> Recording:
         "curvature_1_per_km",
         "cant_mm",
         "grade_permille",
-        *(f"{f}_{w}_kN" for w in WHEELS for f in ("Y", "Q")),
+        *(f"{f}_{w}_kN" for w in WHEEL_NAMES for f in ("Y", "Q")),
     ]
     for c in cols:
         if c not in known:
@@ -216,7 +216,7 @@ def read_recording(path: str | Path, *, min_rate_hz: float = 50.0) -> Recording:
                 f"sampling rate {1.0 / np.median(d):.1f} Hz below the "
                 f"{min_rate_hz:g} Hz the pipeline needs"
             )
-    wheels = [w for w in WHEELS if f"Y_{w}_kN" in cols or f"Q_{w}_kN" in cols]
+    wheels = [w for w in WHEEL_NAMES if f"Y_{w}_kN" in cols or f"Q_{w}_kN" in cols]
     if not wheels:
         problems.append("no force columns (Y_<wheel>_kN, Q_<wheel>_kN, wheel w1L..w4R)")
     Y: dict[str, np.ndarray] = {}
@@ -293,7 +293,6 @@ def recording_from_simulation(
     result, wheels: tuple[str, ...] | None = None, set_index: int = 0
 ) -> Recording:
     """A recording (kN) of the wheels of a simulation result (default: measured wheel)."""
-    from railsusp.vehicle.simulate import WHEEL_NAMES
 
     ws = wheels or (WHEEL_NAMES[result.measured_wheel()],)
     Y = {w: result.Y[set_index, WHEEL_NAMES.index(w)] / 1e3 for w in ws}

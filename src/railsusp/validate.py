@@ -18,10 +18,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from railsusp.estimate import record_statistic
 from railsusp.measured import read_field
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import read_json, write_json
+from railsusp.vehicle.simulate import record_statistic
 
 #: a parameter whose Pareto spread exceeds this share of its range is not identified
 PARETO_SPREAD_LIMIT = 25.0

@@ -17,6 +17,7 @@ from scipy.interpolate import RBFInterpolator
 
 from railsusp.params import bounds
 from railsusp.surrogate.data import FeatureSpec, Normaliser, SeriesData, window_index
+from railsusp.vehicle.simulate import record_statistic
 
 
 class RBFWindowModel:
@@ -95,7 +96,7 @@ class StatisticsGP:
         cols = []
         for j, name in enumerate(spec.targets):
             x = targets[:, spec.window :, j]
-            cols.append(np.abs(x).mean(axis=1) if name == "Y" else x.mean(axis=1))
+            cols.append(record_statistic(x, "mean", name == "Y"))
         return np.stack(cols, axis=1)
 
     def fit(self, train: SeriesData) -> StatisticsGP:

@@ -15,6 +15,7 @@ import numpy as np
 
 from railsusp.surrogate.bundle import Surrogate
 from railsusp.surrogate.data import SeriesData
+from railsusp.vehicle.simulate import record_statistic
 
 
 def predict_series(sur: Surrogate, data: SeriesData) -> np.ndarray:
@@ -45,10 +46,8 @@ def accuracy(
     for j, name in enumerate(targets):
         s = sim[:, window:, j]
         p = pred[:, window:, j]
-        if name == "Y":
-            s_stat, p_stat = np.abs(s).mean(axis=1), np.abs(p).mean(axis=1)
-        else:
-            s_stat, p_stat = s.mean(axis=1), p.mean(axis=1)
+        s_stat = record_statistic(s, "mean", name == "Y")
+        p_stat = record_statistic(p, "mean", name == "Y")
         rel = np.abs(p_stat - s_stat) / np.abs(s_stat)
         resid = (p - s).ravel()
         var = np.var(s.ravel())

@@ -69,6 +69,9 @@ OUT_ACC_Y = 16  # car body lateral acceleration at CG (uncompensated), m/s^2
 OUT_ACC_Z = 17  # car body vertical acceleration at CG, m/s^2
 N_OUT = 18
 
+#: wheel names, output order: wheelset w1 (leading) .. w4, left / right in the running direction
+WHEEL_NAMES = tuple(f"w{w + 1}{side}" for w in range(4) for side in ("L", "R"))
+
 # ---- failure codes ----
 OK = 0
 FAIL_NAN = 1

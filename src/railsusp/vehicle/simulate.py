@@ -31,7 +31,21 @@ from railsusp.vehicle.setup import (
 )
 from railsusp.vehicle.wagon import WagonData, load_wagon
 
-WHEEL_NAMES = tuple(f"w{w + 1}{side}" for w in range(4) for side in ("L", "R"))
+WHEEL_NAMES = L.WHEEL_NAMES
+
+
+def record_statistic(x: np.ndarray, statistic: str, lateral: bool) -> np.ndarray:
+    """Statistic of force series along the last axis (NaN-aware): mean, rms or p99 of |Y|
+    for lateral forces, of Q for vertical ones. The one definition that surrogates,
+    calibration and validation share."""
+    v = np.abs(x) if lateral else x
+    if statistic == "mean":
+        return np.nanmean(v, axis=-1)
+    if statistic == "rms":
+        return np.sqrt(np.nanmean(v * v, axis=-1))
+    if statistic == "p99":
+        return np.nanpercentile(v, 99, axis=-1)
+    raise ValueError(f"statistic {statistic!r}: accepted mean, rms, p99")
 
 
 def measured_wheel_index(condition: WorkingCondition, which: str | int = "auto") -> int:
