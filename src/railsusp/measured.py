@@ -293,7 +293,6 @@ def recording_from_simulation(
     result, wheels: tuple[str, ...] | None = None, set_index: int = 0
 ) -> Recording:
     """A recording (kN) of the wheels of a simulation result (default: measured wheel)."""
-
     ws = wheels or (WHEEL_NAMES[result.measured_wheel()],)
     Y = {w: result.Y[set_index, WHEEL_NAMES.index(w)] / 1e3 for w in ws}
     Q = {w: result.Q[set_index, WHEEL_NAMES.index(w)] / 1e3 for w in ws}

@@ -220,22 +220,11 @@ def plot_validation_overlay(series: dict, path: str | Path, title: str = ""):
         ax = axes[j]
         ax.plot(t, series["measured"][:, j], color="k", lw=1.0, label="measured")
         n = min(len(t), len(series["before"]))
-        ax.plot(
-            t[:n],
-            series["before"][:n, j],
-            color="C0",
-            lw=0.8,
-            alpha=0.8,
-            label="nominal parameters",
-        )
-        ax.plot(
-            t[:n],
-            series["after"][:n, j],
-            color="C3",
-            lw=0.8,
-            alpha=0.8,
-            label="estimated parameters",
-        )
+        for key, color, name in (
+            ("before", "C0", "nominal parameters"),
+            ("after", "C3", "estimated parameters"),
+        ):
+            ax.plot(t[:n], series[key][:n, j], color=color, lw=0.8, alpha=0.8, label=name)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8, ncol=3)
