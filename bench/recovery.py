@@ -22,21 +22,32 @@ import numpy as np
 import pandas as pd
 
 from railsusp.campaign import load_campaign
-from railsusp.estimate import NSGAConfig, SurrogateForces, estimate
+from railsusp.estimate import NSGAConfig, estimate, open_force_model
 from railsusp.measured import read_field, synthesise_field
 from railsusp.params import ParameterSet, bounds
 from railsusp.store import write_json
 from railsusp.surrogate import key_parameters
+from railsusp.surrogate.statistics import train_statistics_surrogate
 from railsusp.validate import validate
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--run", required=True, help="campaign with trained surrogates")
-    ap.add_argument("--model", default="bp", help="surrogate kind under RUN/surrogates/")
+    ap.add_argument(
+        "--model",
+        default="bp",
+        help="surrogate kind under RUN/surrogates/ (gp-stats: statistics GPs, trained if absent)",
+    )
+    ap.add_argument(
+        "--statistic", default="mean", help="objective statistic(s), e.g. mean or mean+p99+std"
+    )
     ap.add_argument("--trials", type=int, default=3)
     ap.add_argument("--n-gen", type=int, default=100)
     ap.add_argument("--noise", type=float, default=0.03)
+    ap.add_argument(
+        "--field-duration", type=float, default=None, help="recorded seconds (default 20)"
+    )
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument(
         "--per-condition",
@@ -51,7 +62,11 @@ def main() -> None:
     idx = pd.read_parquet(run / "sensitivity" / "indices.parquet")
     mean_st = idx[idx.statistic == "mean"].groupby("parameter")["ST"].max()
     identifiable = [p for p in params if mean_st.get(p, 0.0) >= 0.1]
-    model = SurrogateForces(run / "surrogates" / args.model, params)
+    folder = run / "surrogates" / args.model
+    if args.model == "gp-stats" and not folder.exists():
+        for c in conds:
+            train_statistics_surrogate(run, c.name, parameters=params)
+    model, params = open_force_model(folder, params)
     lo, hi = bounds(params)
     rng = np.random.default_rng(args.seed)
     trials, t0 = [], time.perf_counter()
@@ -59,12 +74,24 @@ def main() -> None:
     for k in range(args.trials):
         truth_si = lo + (hi - lo) * rng.random(len(params))
         truth = ParameterSet.nominal().replace(dict(zip(params, truth_si, strict=True)))
-        field = synthesise_field(truth, conds, work / f"field{k}", seed=100 + k, noise=args.noise)
+        field = synthesise_field(
+            truth,
+            conds,
+            work / f"field{k}",
+            seed=100 + k,
+            noise=args.noise,
+            duration_s=args.field_duration,
+        )
         res = estimate(
             model,
             read_field(field),
             params,
-            NSGAConfig(n_gen=args.n_gen, seed=args.seed + k, per_condition=args.per_condition),
+            NSGAConfig(
+                n_gen=args.n_gen,
+                seed=args.seed + k,
+                statistic=args.statistic,
+                per_condition=args.per_condition,
+            ),
         )
         est = res.save(work / f"est{k}", extra={"measured": str(field)})
         v = validate(est, truth=field / "truth.json", sensitivity=run / "sensitivity")
@@ -112,6 +139,8 @@ def main() -> None:
             "machine": platform.platform(),
             "run": str(run),
             "model": args.model,
+            "statistic": args.statistic,
+            "field_duration_s": args.field_duration or 20.0,
             "noise": args.noise,
             "n_gen": args.n_gen,
             "per_condition": args.per_condition,

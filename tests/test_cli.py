@@ -192,6 +192,8 @@ def test_synth_field_and_check_recording(tmp_path):
     assert result.exit_code == 0 and "w1L" in result.output
     bad = runner.invoke(app, ["synth-field", "--truth", "X13=99", "--out", str(out)])
     assert bad.exit_code == 2 and "X13" in bad.output
+    bad = runner.invoke(app, ["synth-field", "--duration", "0.5", "--out", str(out)])
+    assert bad.exit_code == 2 and "--duration 0.5 s outside the accepted 1-600 s" in bad.output
     (out / "short.csv").write_text("time_s,Y_w1L_kN\n0,1\n")
     result = runner.invoke(app, ["check-recording", str(out / "short.csv")])
     assert result.exit_code == 2 and "Q_w1L_kN' missing" in result.output

@@ -2,17 +2,26 @@
 
 import numpy as np
 import pytest
+from scipy.stats import qmc
 
 from railsusp.conditions import get_condition
 from railsusp.estimate import (
+    CalibrationProblem,
     NSGAConfig,
+    StatisticsForces,
     choose,
     estimate,
     estimate_with_seeds,
+    force_statistics,
+    open_force_model,
+    parse_statistics,
     record_statistic,
 )
 from railsusp.measured import Recording
 from railsusp.params import bounds
+from railsusp.surrogate.baselines import StatisticsGP
+from railsusp.surrogate.data import FeatureSpec, SeriesData
+from railsusp.surrogate.statistics import StatisticsSurrogate
 
 COND = get_condition("straight", duration_s=2.0, n_steps=100)
 PARAMS = ("X13", "X14")
@@ -99,3 +108,69 @@ def test_choice_rule_and_saved_outputs(tmp_path):
     assert list(table.parameter) == list(PARAMS) and table.initial.tolist() == [14.0, 10.0]
     full = res.estimate_set()
     assert full["X13"] == pytest.approx(res.pareto_x[res.chosen, 0]) and full["X15"] == 170e6
+
+
+def test_std_statistic_and_statistic_combinations():
+    x = np.array([[-3.0, 3.0, -3.0, 3.0]])
+    assert record_statistic(x, "std", True)[0] == 0.0  # |Y| is constant
+    assert record_statistic(x, "std", False)[0] == 3.0
+    assert parse_statistics("mean+p99+std") == ("mean", "p99", "std")
+    assert parse_statistics(" rms ") == ("rms",)
+    for bad in ("mean+median", "mean+mean", "", "+"):
+        with pytest.raises(ValueError, match="mean, rms, p99, std"):
+            parse_statistics(bad)
+    with pytest.raises(ValueError, match="'max'"):
+        NSGAConfig(statistic="max")
+
+
+class WavyForces:
+    """Series whose mean, p99 and std differ: Y = 10 a (1 + 0.3 sin), Q = 120 b + 5 a sin."""
+
+    def series(self, x_si, condition):
+        a = x_si[:, :1] / 14e6
+        b = x_si[:, 1:2] / 10e6
+        s = np.sin(0.5 * np.pi * np.arange(condition.n_steps) + 0.3)[None]  # period 4 steps
+        return np.stack([10.0 * a * (1 + 0.3 * s), 120.0 * b + 5.0 * a * s], axis=2)
+
+
+def test_combined_objective_averages_the_single_statistic_errors():
+    model = WavyForces()
+    meas = model.series(np.array([[16.1e6, 8.3e6]]), COND)[0]
+    rec = Recording(np.arange(100) * 0.02, {"w1L": meas[:, 0]}, {"w1L": meas[:, 1]}, COND)
+    x = np.array([[14e6, 10e6], [9e6, 12e6]])
+    single = [CalibrationProblem(model, [rec], PARAMS, s).errors(x) for s in ("mean", "p99")]
+    both = CalibrationProblem(model, [rec], PARAMS, "mean+p99").errors(x)
+    np.testing.assert_allclose(both, 0.5 * (single[0] + single[1]))
+    assert both.shape == (2, 1, 2) and np.all(both > 0)
+    assert np.allclose(
+        CalibrationProblem(model, [rec], PARAMS, "mean+std").errors(np.array([[16.1e6, 8.3e6]])),
+        0.0,
+    )
+
+
+def test_statistics_surrogate_round_trip_and_calibration(tmp_path):
+    """Statistics GPs fitted on an analytic 'campaign', saved and reloaded, predict the same
+    numbers, and NSGA-II through them recovers the analytic truth."""
+    model = WavyForces()
+    lo, hi = bounds(PARAMS)
+    unit = qmc.LatinHypercube(d=2, seed=3).random(40)
+    targets = model.series(lo + unit * (hi - lo), COND).astype(np.float32)
+    spec = FeatureSpec(parameters=PARAMS)
+    data = SeriesData(np.arange(40), unit, np.zeros((1, 100, 15)), targets, COND, np.zeros(40))
+    gp = StatisticsGP(spec, statistics=("mean", "std")).fit(data)
+    StatisticsSurrogate(gp, COND, {"note": "analytic"}).save(tmp_path / "gp" / COND.name)
+    forces, params = open_force_model(tmp_path / "gp")
+    assert isinstance(forces, StatisticsForces) and params == PARAMS
+    probe = np.array([[10e6, 7e6], [18e6, 13e6]])
+    before = StatisticsSurrogate(gp, COND).predict(probe)[0]
+    after = forces.predict_statistics(probe, COND, ("mean", "std"))
+    np.testing.assert_allclose(after, before, rtol=1e-6)
+    exact = force_statistics(model, probe, COND, ("mean", "std"))
+    np.testing.assert_allclose(after, exact, rtol=0.02, atol=0.05)
+    with pytest.raises(ValueError, match="not in this surrogate"):
+        forces.predict_statistics(probe, COND, ("p99",))
+    meas = model.series(np.array([[16.1e6, 8.3e6]]), COND)[0]
+    rec = Recording(np.arange(100) * 0.02, {"w1L": meas[:, 0]}, {"w1L": meas[:, 1]}, COND)
+    res = estimate(forces, [rec], PARAMS, NSGAConfig(pop_size=30, n_gen=30, statistic="mean+std"))
+    err = np.abs(res.pareto_x[res.chosen] - np.array([16.1e6, 8.3e6])) / (hi - lo)
+    assert np.all(err < 0.03), res.estimate

@@ -184,3 +184,14 @@ def test_synthetic_field_hides_the_truth(tmp_path):
     assert recs[1].wheels == ("w1R",) and 20 < recs[1].Y["w1R"].mean() < 120
     # the field track is another realisation than the design track (seed + 1000)
     assert recs[0].condition.seed == conds[0].seed
+
+
+def test_synthetic_field_longer_recording_keeps_the_sampling_rate(tmp_path):
+    cond = get_condition("straight", duration_s=2.0, n_steps=100)
+    out = synthesise_field(
+        ParameterSet.nominal(), [cond], tmp_path / "field", noise=0.0, duration_s=5.0
+    )
+    (rec,) = read_field(out)
+    assert len(rec.time) == 250
+    assert rec.time[1] - rec.time[0] == pytest.approx(cond.sample_interval)
+    assert rec.condition.duration_s == 5.0 and rec.condition.seed == cond.seed

@@ -3,6 +3,7 @@
 import json
 from pathlib import Path
 
+import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
@@ -97,6 +98,31 @@ def test_changed_section_reruns_downstream_only(tiny, tmp_path):
         **dict.fromkeys(STAGES[:4], "up to date"),
         **dict.fromkeys(STAGES[4:], "running"),
     }
+
+
+def test_statistics_gp_force_model_with_combined_statistics(tiny, tmp_path):
+    """The statistics GPs (saved by the surrogate stage) serve as the force model; the
+    objectives combine mean and std, per condition; validation reports both statistics."""
+    import shutil
+
+    _cfg_path, out, _, _ = tiny
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    text = TINY.replace("epochs = 1", 'model = "gp-stats"\nepochs = 1').replace(
+        "n_gen = 2", 'n_gen = 2\nstatistic = "mean+std"\nper_condition = true'
+    )
+    cfg = tmp_path / "g.toml"
+    cfg.write_text(text)
+    run_pipeline(load_config(cfg), run)
+    assert (run / "campaign" / "surrogates" / "gp-stats" / "short" / "statistics.json").exists()
+    est = json.loads((run / "estimate" / "estimate.json").read_text())
+    assert est["config"]["statistic"] == "mean+std" and est["config"]["per_condition"]
+    assert est["model"] == "gp-stats"
+    forces = pd.read_csv(run / "estimate" / "validation" / "validation.csv")
+    assert sorted(set(forces.statistic)) == ["mean", "std"]
+    cfg.write_text(TINY.replace("n_gen = 2", 'n_gen = 2\nstatistic = "mean+median"'))
+    with pytest.raises(RailsuspInputError, match="estimate.statistic"):
+        load_config(cfg)
 
 
 def test_failing_stage_keeps_earlier_outputs_and_says_how_to_resume(tiny, tmp_path):

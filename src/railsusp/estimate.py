@@ -8,10 +8,14 @@ mutation 0.05, 100 generations), and :func:`estimate` returns a :class:`Calibrat
 that saves and plots itself.
 
 The measured track is unknown, so records are compared through statistics (mean, RMS,
-99th percentile of |Y| and Q of the measured wheel), never sample by sample.
+99th percentile or standard deviation of |Y| and Q of the measured wheel, or a combination
+such as ``mean+p99+std`` whose relative errors are averaged), never sample by sample.
 
 Force models: a trained window surrogate per condition (:class:`SurrogateForces`, the
-study's route) or the batched simulator itself (:class:`SimulatorForces`, slow, the reference).
+study's route), statistics surrogates per condition (:class:`StatisticsForces`, Gaussian
+processes straight to the statistics) or the batched simulator itself
+(:class:`SimulatorForces`, slow, the reference). :func:`open_force_model` picks the surrogate
+kind from a folder's contents.
 """
 
 from __future__ import annotations
@@ -35,9 +39,21 @@ from railsusp.conditions import WorkingCondition
 from railsusp.measured import Recording
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import write_json, write_parquet
-from railsusp.vehicle.simulate import record_statistic
+from railsusp.vehicle.simulate import RECORD_STATISTICS, record_statistic
 
-STATISTICS = ("mean", "rms", "p99")
+STATISTICS = RECORD_STATISTICS
+
+
+def parse_statistics(text: str) -> tuple[str, ...]:
+    """``"mean"`` or a ``+``-joined combination such as ``"mean+p99+std"``, validated."""
+    stats = tuple(t.strip() for t in str(text).split("+") if t.strip())
+    bad = [t for t in stats if t not in STATISTICS]
+    if bad or not stats or len(set(stats)) != len(stats):
+        raise ValueError(
+            f"statistic {text!r}: give one of {', '.join(STATISTICS)} or a '+'-joined "
+            "combination of different ones (e.g. mean+p99+std)"
+        )
+    return stats
 
 
 class ForceModel(Protocol):
@@ -81,6 +97,92 @@ class SurrogateForces:
         return self._models[condition.name].predict(x_si)
 
 
+class StatisticsForces:
+    """Statistics surrogates, one per condition name (a folder of ``<condition>/`` bundles
+    with ``statistics.json``): predict the statistics directly, no series."""
+
+    def __init__(self, folder: str | Path, parameters: Sequence[str] | None = None):
+        from railsusp.surrogate.statistics import is_statistics_bundle, load_statistics
+
+        self.folder = Path(folder)
+        subs = sorted(self.folder.iterdir()) if self.folder.is_dir() else []
+        self._models = {p.name: load_statistics(p) for p in subs if is_statistics_bundle(p)}
+        if not self._models:
+            raise FileNotFoundError(f"{self.folder}: no statistics surrogates (<condition>/)")
+        first = next(iter(self._models.values()))
+        self.parameters = tuple(parameters) if parameters else first.parameters
+        for name, m in self._models.items():
+            if m.parameters != self.parameters:
+                raise ValueError(
+                    f"statistics surrogate {name} uses {m.parameters}, the calibration "
+                    f"{self.parameters}"
+                )
+
+    @property
+    def conditions(self) -> list[str]:
+        return list(self._models)
+
+    def predict_statistics(
+        self, x_si: np.ndarray, condition: WorkingCondition, statistics: Sequence[str]
+    ) -> np.ndarray:
+        """(n, 2, n_statistics) lateral and vertical statistics, kN."""
+        if condition.name not in self._models:
+            raise ValueError(
+                f"no statistics surrogate for condition {condition.name!r} in {self.folder} "
+                f"(has {', '.join(self._models)})"
+            )
+        model = self._models[condition.name]
+        ignore = {"seed", "duration_s", "n_steps"}  # statistics do not depend on these
+        mine = model.condition.model_dump(exclude=ignore)
+        theirs = condition.model_dump(exclude=ignore)
+        if mine != theirs:
+            diff = sorted(k for k in mine if mine[k] != theirs[k])
+            raise ValueError(
+                f"the statistics surrogate for {condition.name!r} was trained for another "
+                f"condition: it differs in {', '.join(diff)}"
+            )
+        return model.predict(x_si, statistics)[0]
+
+
+def open_force_model(
+    folder: str | Path, parameters: Sequence[str] | None = None
+) -> tuple[SurrogateForces | StatisticsForces, tuple[str, ...]]:
+    """The surrogate force model in ``folder`` (window or statistics bundles per condition)
+    and its key parameters (``parameters`` if given)."""
+    from railsusp.surrogate import load
+    from railsusp.surrogate.statistics import is_statistics_bundle
+
+    folder = Path(folder)
+    subs = sorted(folder.iterdir()) if folder.is_dir() else []
+    if any(is_statistics_bundle(p) for p in subs):
+        model = StatisticsForces(folder, parameters)
+        return model, model.parameters
+    first = next((p for p in subs if (p / "surrogate.json").exists()), None)
+    if first is None:
+        raise FileNotFoundError(f"{folder}: no surrogate bundles (<condition>/)")
+    params = tuple(parameters) if parameters else tuple(load(first).spec.parameters)
+    return SurrogateForces(folder, params), params
+
+
+def force_statistics(
+    model: ForceModel | StatisticsForces,
+    x_si: np.ndarray,
+    condition: WorkingCondition,
+    statistics: Sequence[str],
+) -> np.ndarray:
+    """(n, 2, n_statistics) statistics of |Y| and Q predicted by any force model, kN."""
+    if isinstance(model, StatisticsForces):
+        return model.predict_statistics(x_si, condition, statistics)
+    s = model.series(x_si, condition)
+    return np.stack(
+        [
+            np.stack([record_statistic(s[:, :, 0], st, True) for st in statistics], axis=1),
+            np.stack([record_statistic(s[:, :, 1], st, False) for st in statistics], axis=1),
+        ],
+        axis=1,
+    )
+
+
 class SimulatorForces:
     """The batched simulator on the design track of each condition (slow reference)."""
 
@@ -108,14 +210,29 @@ class NSGAConfig:
     statistic: str = "mean"
     per_condition: bool = False
 
+    def __post_init__(self):
+        parse_statistics(self.statistic)  # fails early with the accepted values
+
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+def measured_statistics(rec: Recording, statistics: Sequence[str]) -> np.ndarray:
+    """(2, n_statistics) statistics of |Y| and Q of a recording's first measured wheel, kN."""
+    w = rec.wheels[0]
+    return np.array(
+        [
+            [record_statistic(rec.Y[w], st, True) for st in statistics],
+            [record_statistic(rec.Q[w], st, False) for st in statistics],
+        ]
+    )
 
 
 class CalibrationProblem(Problem):
     """Two objectives over the key parameters (decision variables scaled to [0, 1]):
     relative error of the lateral and of the vertical force statistic against the
-    recordings, averaged over the conditions (or one pair per condition)."""
+    recordings (averaged over the statistics of a combination such as ``mean+p99+std``),
+    averaged over the conditions (or one pair per condition)."""
 
     def __init__(
         self,
@@ -129,15 +246,8 @@ class CalibrationProblem(Problem):
         self.parameters = tuple(parameters)
         self.statistic, self.per_condition = statistic, per_condition
         self.lo, self.hi = bounds(self.parameters)
-        self.measured = []
-        for rec in self.recordings:
-            w = rec.wheels[0]
-            self.measured.append(
-                (
-                    record_statistic(rec.Y[w], statistic, True),
-                    record_statistic(rec.Q[w], statistic, False),
-                )
-            )
+        self.stats = parse_statistics(statistic)
+        self.measured = [measured_statistics(rec, self.stats) for rec in self.recordings]
         n_obj = 2 * len(self.recordings) if per_condition else 2
         super().__init__(n_var=len(self.parameters), n_obj=n_obj, xl=0.0, xu=1.0)
 
@@ -145,13 +255,12 @@ class CalibrationProblem(Problem):
         return self.lo + np.asarray(unit) * (self.hi - self.lo)
 
     def errors(self, x_si: np.ndarray) -> np.ndarray:
-        """(n, n_conditions, 2) relative errors of the lateral and vertical statistic."""
+        """(n, n_conditions, 2) relative errors of the lateral and vertical statistic (the
+        mean relative error over the statistics of a combination)."""
         errs = []
-        for rec, (my, mq) in zip(self.recordings, self.measured, strict=True):
-            s = self.model.series(x_si, rec.condition)
-            py = record_statistic(s[:, :, 0], self.statistic, True)
-            pq = record_statistic(s[:, :, 1], self.statistic, False)
-            errs.append(np.stack([np.abs(py - my) / abs(my), np.abs(pq - mq) / abs(mq)], 1))
+        for rec, meas in zip(self.recordings, self.measured, strict=True):
+            pred = force_statistics(self.model, x_si, rec.condition, self.stats)
+            errs.append((np.abs(pred - meas) / np.abs(meas)).mean(axis=2))
         return np.stack(errs, axis=1)
 
     def _evaluate(self, x, out, *args, **kwargs):

@@ -331,19 +331,25 @@ def synthesise_field(
     noise: float = 0.03,
     track_seed_offset: int = 1000,
     fmt: str = "csv",
+    duration_s: float | None = None,
 ) -> Path:
     """Synthetic field recordings of the ``truth`` ParameterSet with hidden truth.
 
     Each condition is simulated on a track realisation different from the design track
     (seed + ``track_seed_offset``), sensor noise is added, the recordings are written in the
     documented format and listed in ``index.json``; the truth goes to ``truth.json``, a file
-    the estimator never reads.
+    the estimator never reads. ``duration_s`` records longer (or shorter) than the
+    condition's duration at the same sampling rate: real runs span kilometres of track, and
+    the track-realisation scatter of a statistic falls with the recorded length.
     """
     from railsusp.vehicle.simulate import simulate
 
     out = Path(out)
     names = []
     for i, cond in enumerate(conditions):
+        if duration_s is not None:
+            n_steps = max(10, round(duration_s / cond.sample_interval))
+            cond = cond.with_changes(duration_s=duration_s, n_steps=n_steps)
         field_cond = cond.with_changes(seed=cond.seed + track_seed_offset)
         rec = recording_from_simulation(simulate(truth, field_cond))
         rec = add_sensor_noise(rec, noise, seed + i)

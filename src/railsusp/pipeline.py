@@ -15,7 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from railsusp.conditions import WorkingCondition, get_condition, make_condition
 from railsusp.errors import RailsuspInputError
@@ -45,7 +45,9 @@ class SensitivitySection(_Cfg):
 
 
 class SurrogateSection(_Cfg):
-    model: Literal["cnn-gru", "cnn-lstm", "cnn-bilstm", "bp"] = "bp"
+    model: Literal["cnn-gru", "cnn-lstm", "cnn-bilstm", "bp", "gp-stats"] = Field(
+        "bp", description="force model of the calibration (gp-stats: statistics GPs)"
+    )
     epochs: int = Field(8, ge=1)
     batches_per_epoch: int = Field(60, ge=1)
     batch_size: int = Field(512, ge=8)
@@ -68,9 +70,17 @@ class EstimateSection(_Cfg):
     n_gen: int = Field(100, ge=1)
     crossover_prob: float = Field(0.9, ge=0.0, le=1.0)
     mutation_prob: float = Field(0.05, ge=0.0, le=1.0)
-    statistic: Literal["mean", "rms", "p99"] = "mean"
+    statistic: str = Field("mean", description="mean, rms, p99, std or a '+' combination")
+    per_condition: bool = Field(False, description="two objectives per condition")
     seeds: int = Field(1, ge=1, le=10)
     seed: int = 0
+
+    @field_validator("statistic")
+    @classmethod
+    def _statistic(cls, v: str) -> str:
+        from railsusp.estimate import parse_statistics
+
+        return "+".join(parse_statistics(v))
 
 
 class PipelineConfig(_Cfg):
@@ -271,6 +281,7 @@ def _stage_runners(
     def surrogate() -> dict:
         from railsusp.surrogate import TrainConfig
         from railsusp.surrogate.compare import compare
+        from railsusp.surrogate.statistics import train_statistics_surrogate
 
         s = config.surrogate
         tcfg = TrainConfig(
@@ -279,7 +290,10 @@ def _stage_runners(
             batch_size=s.batch_size,
             device=s.device,
         )
-        tab = compare(camp_dir, models=(s.model, "rbf", "gp-stats"), train=tcfg)
+        window_model = "bp" if s.model == "gp-stats" else s.model
+        tab = compare(camp_dir, models=(window_model, "rbf", "gp-stats"), train=tcfg)
+        for cond in config.working_conditions():
+            train_statistics_surrogate(camp_dir, cond.name)
         return {"models": sorted(set(tab.model))}
 
     def field() -> dict:
@@ -300,13 +314,13 @@ def _stage_runners(
         return {"recordings": len(config.conditions), "synthetic": True}
 
     def estimate() -> dict:
-        from railsusp.estimate import NSGAConfig, SurrogateForces, estimate_with_seeds
+        from railsusp.estimate import NSGAConfig, estimate_with_seeds, open_force_model
         from railsusp.measured import read_field
         from railsusp.surrogate import key_parameters
 
         e = config.estimate
         params = key_parameters(camp_dir)
-        model = SurrogateForces(camp_dir / "surrogates" / config.surrogate.model, params)
+        model, params = open_force_model(camp_dir / "surrogates" / config.surrogate.model, params)
         cfg = NSGAConfig(
             pop_size=e.pop_size,
             n_gen=e.n_gen,
@@ -314,6 +328,7 @@ def _stage_runners(
             mutation_prob=e.mutation_prob,
             seed=e.seed,
             statistic=e.statistic,
+            per_condition=e.per_condition,
         )
         res = estimate_with_seeds(model, read_field(out / "field"), params, cfg, e.seeds)
         res.save(

@@ -137,8 +137,11 @@ class MetamodelFit:
     n_train: int
 
 
-def fit_gp(x_unit: np.ndarray, y: np.ndarray, seed: int = 0):
-    """Gaussian process on unit-cube inputs: Matern 5/2 ARD + white noise, normalised y."""
+def fit_gp(x_unit: np.ndarray, y: np.ndarray, seed: int = 0, theta: np.ndarray | None = None):
+    """Gaussian process on unit-cube inputs: Matern 5/2 ARD + white noise, normalised y.
+
+    ``theta``: fixed kernel hyperparameters (log scale, as ``gp.kernel_.theta``) instead of
+    maximising the likelihood: rebuilds a saved GP exactly."""
     from sklearn.gaussian_process import GaussianProcessRegressor
     from sklearn.gaussian_process.kernels import ConstantKernel, Matern, WhiteKernel
 
@@ -146,8 +149,14 @@ def fit_gp(x_unit: np.ndarray, y: np.ndarray, seed: int = 0):
     kernel = ConstantKernel(1.0, (1e-3, 1e3)) * Matern(
         length_scale=np.ones(d), length_scale_bounds=(1e-2, 1e3), nu=2.5
     ) + WhiteKernel(1e-3, (1e-8, 1.0))
+    if theta is not None:
+        kernel = kernel.clone_with_theta(np.asarray(theta, dtype=float))
     gp = GaussianProcessRegressor(
-        kernel=kernel, normalize_y=True, n_restarts_optimizer=0, random_state=seed
+        kernel=kernel,
+        normalize_y=True,
+        n_restarts_optimizer=0,
+        random_state=seed,
+        optimizer=None if theta is not None else "fmin_l_bfgs_b",
     )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from railsusp.estimate import measured_statistics, parse_statistics
 from railsusp.measured import read_field
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import read_json, write_json
@@ -81,7 +82,7 @@ def validate(
     """
     est = read_json(Path(estimate_dir) / "estimate.json")
     params = tuple(est["parameters"])
-    stat = statistic or est["config"]["statistic"]
+    stats = parse_statistics(statistic or est["config"]["statistic"])
     recs = read_field(measured or est["measured"])
     chosen = ParameterSet(est["estimate_display"], units="display")
     nominal = ParameterSet.nominal()
@@ -95,23 +96,21 @@ def validate(
     rows, series = [], {}
     for i, rec in enumerate(recs):
         w = rec.wheels[0]
-        meas = {
-            "Y": record_statistic(rec.Y[w], stat, True),
-            "Q": record_statistic(rec.Q[w], stat, False),
-        }
+        meas = measured_statistics(rec, stats)
         for j, force in enumerate(("Y", "Q")):
-            row = {
-                "condition": rec.condition.name,
-                "wheel": w,
-                "force": force,
-                "statistic": stat,
-                "measured_kN": float(meas[force]),
-            }
-            for key, s in sims.items():
-                v = float(record_statistic(s[i][:, j], stat, force == "Y"))
-                row[f"{key}_kN"] = v
-                row[f"{key}_error"] = abs(v - meas[force]) / abs(meas[force])
-            rows.append(row)
+            for k, st in enumerate(stats):
+                row = {
+                    "condition": rec.condition.name,
+                    "wheel": w,
+                    "force": force,
+                    "statistic": st,
+                    "measured_kN": float(meas[j, k]),
+                }
+                for key, s in sims.items():
+                    v = float(record_statistic(s[i][:, j], st, force == "Y"))
+                    row[f"{key}_kN"] = v
+                    row[f"{key}_error"] = abs(v - meas[j, k]) / abs(meas[j, k])
+                rows.append(row)
         series[rec.condition.name] = {
             "time": rec.time,
             "measured": np.stack([rec.Y[w], rec.Q[w]], axis=1),

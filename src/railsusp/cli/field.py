@@ -25,6 +25,10 @@ def synth_field(
     seed: Annotated[int, typer.Option(help="noise seed")] = 7,
     noise: Annotated[float, typer.Option(help="white noise, fraction of the channel RMS")] = 0.03,
     fmt: Annotated[str, typer.Option("--format", help="csv or parquet")] = "csv",
+    duration: Annotated[
+        float | None,
+        typer.Option(help="recorded seconds per condition (default: the condition's)"),
+    ] = None,
 ) -> None:
     """Synthetic instrumented-wheelset recordings of hidden true parameters (truth.json)."""
     from railsusp.measured import synthesise_field
@@ -34,10 +38,12 @@ def synth_field(
             raise RailsuspInputError(f"--noise {noise:g} outside the accepted range [0, 0.5]")
         if fmt not in ("csv", "parquet"):
             raise RailsuspInputError(f"--format {fmt!r}: accepted csv or parquet")
+        if duration is not None and not 1.0 <= duration <= 600.0:
+            raise RailsuspInputError(f"--duration {duration:g} s outside the accepted 1-600 s")
         pset = ParameterSet(parse_overrides(truth) if truth else {}, units="display")
         conds = resolve_conditions(conditions)
         with console.status("simulating the hidden truth"):
-            synthesise_field(pset, conds, out, seed=seed, noise=noise, fmt=fmt)
+            synthesise_field(pset, conds, out, seed=seed, noise=noise, fmt=fmt, duration_s=duration)
     except RailsuspInputError as exc:
         fail(str(exc))
     console.print(
@@ -86,7 +92,10 @@ def estimate(
     out: Annotated[Path, typer.Option(help="output folder for the estimate")],
     surrogate: Annotated[
         Path | None,
-        typer.Option(help="folder of surrogate bundles per condition, e.g. RUN/surrogates/cnn-gru"),
+        typer.Option(
+            help="folder of surrogate bundles per condition, e.g. RUN/surrogates/cnn-gru "
+            "or RUN/surrogates/gp-stats"
+        ),
     ] = None,
     simulator: Annotated[
         bool, typer.Option(help="use the batched simulator instead of a surrogate (slow reference)")
@@ -94,7 +103,9 @@ def estimate(
     parameters: Annotated[
         str | None, typer.Option(help="key parameters (default: the surrogate's)")
     ] = None,
-    statistic: Annotated[str, typer.Option(help="mean, rms or p99")] = "mean",
+    statistic: Annotated[
+        str, typer.Option(help="mean, rms, p99, std, or a combination such as mean+p99+std")
+    ] = "mean",
     per_condition: Annotated[bool, typer.Option(help="two objectives per condition")] = False,
     pop_size: Annotated[int, typer.Option(help="NSGA-II population")] = 50,
     n_gen: Annotated[int, typer.Option(help="generations")] = 100,
@@ -105,32 +116,23 @@ def estimate(
 ) -> None:
     """NSGA-II estimate of the key parameters from measured recordings (Tables 3-5, Figs 8-9)."""
     from railsusp.estimate import (
-        STATISTICS,
         NSGAConfig,
         SimulatorForces,
-        SurrogateForces,
         estimate_with_seeds,
+        open_force_model,
+        parse_statistics,
     )
     from railsusp.measured import read_field
 
     try:
-        if statistic not in STATISTICS:
-            raise RailsuspInputError(f"--statistic {statistic!r}: accepted {', '.join(STATISTICS)}")
+        parse_statistics(statistic)
         if (surrogate is None) == (not simulator):
             raise RailsuspInputError("give --surrogate FOLDER or --simulator (one of them)")
         recs = read_field(measured)
         if surrogate is not None:
-            from railsusp.surrogate import load
-
-            first = (
-                next(p for p in sorted(surrogate.iterdir()) if (p / "surrogate.json").exists())
-                if surrogate.is_dir()
-                else None
+            model, params = open_force_model(
+                surrogate, tuple(parameters.split(",")) if parameters else None
             )
-            if first is None:
-                raise RailsuspInputError(f"{surrogate}: no surrogate bundles (<condition>/)")
-            params = tuple(parameters.split(",")) if parameters else load(first).spec.parameters
-            model = SurrogateForces(surrogate, params)
         else:
             from railsusp.params import STUDY_KEY_PARAMETERS
 
@@ -207,7 +209,7 @@ def validate(
     for r in f.itertuples(index=False):
         cells = [
             r.condition,
-            r.force,
+            f"{r.force} {r.statistic}",
             f"{r.measured_kN:.2f}",
             f"{r.before_kN:.2f}",
             f"{100 * r.before_error:.2f} %",

@@ -4,20 +4,23 @@
   multiquadric, local neighbourhoods) from the features of a window's last step (key
   parameters and the track input at that step) to the forces at that step, fitted on a random
   subset of the training windows. The study's "RBF" row.
-* :class:`StatisticsGP`: beyond the study, a Gaussian process per target from the key
-  parameters straight to the mean force of a record (|Y| and Q of the measured wheel), with
-  predictive standard deviation: calibration compares statistics, so this is the cheapest
-  surrogate that can serve it.
+* :class:`StatisticsGP`: beyond the study, a Gaussian process per target and statistic from
+  the key parameters straight to a statistic of a record (mean, RMS, p99 or std of |Y| and Q
+  of the measured wheel), with predictive standard deviation: calibration compares
+  statistics, so this is the cheapest surrogate that can serve it. Trained on a campaign
+  with independent track seeds it predicts the track-averaged statistic.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.interpolate import RBFInterpolator
 
 from railsusp.params import bounds
 from railsusp.surrogate.data import FeatureSpec, Normaliser, SeriesData, window_index
-from railsusp.vehicle.simulate import record_statistic
+from railsusp.vehicle.simulate import RECORD_STATISTICS, record_statistic
 
 
 class RBFWindowModel:
@@ -82,33 +85,80 @@ class RBFWindowModel:
 
 
 class StatisticsGP:
-    """Gaussian process per target: key parameters (unit cube) -> mean force of a record."""
+    """Gaussian process per target and statistic: key parameters (unit cube) -> a record
+    statistic of the measured wheel's force (mean, RMS, p99 or std of |Y| and Q)."""
 
     kind = "gp-stats"
 
-    def __init__(self, spec: FeatureSpec, seed: int = 0):
-        self.spec, self.seed = spec, seed
+    def __init__(self, spec: FeatureSpec, seed: int = 0, statistics: Sequence[str] = ("mean",)):
+        bad = [s for s in statistics if s not in RECORD_STATISTICS]
+        if bad or not statistics:
+            raise ValueError(
+                f"statistics {list(statistics)}: accepted {', '.join(RECORD_STATISTICS)}"
+            )
+        self.spec, self.seed, self.stats = spec, seed, tuple(statistics)
         self._gps: list = []
 
+    @property
+    def columns(self) -> list[tuple[str, str]]:
+        """(target, statistic) of each GP, target-major."""
+        return [(t, s) for t in self.spec.targets for s in self.stats]
+
     @staticmethod
-    def statistics(targets: np.ndarray, spec: FeatureSpec) -> np.ndarray:
-        """Per-sample mean of |Y| and Q over the record after the first window (kN)."""
+    def statistics(
+        targets: np.ndarray, spec: FeatureSpec, stats: Sequence[str] = ("mean",)
+    ) -> np.ndarray:
+        """Per-sample statistics of |Y| and Q over the record after the first window (kN),
+        columns target-major."""
         cols = []
         for j, name in enumerate(spec.targets):
             x = targets[:, spec.window :, j]
-            cols.append(record_statistic(x, "mean", name == "Y"))
+            cols += [record_statistic(x, st, name == "Y") for st in stats]
         return np.stack(cols, axis=1)
 
     def fit(self, train: SeriesData) -> StatisticsGP:
         from railsusp.sensitivity import fit_gp
 
-        stats = self.statistics(train.targets, self.spec)
+        stats = self.statistics(train.targets, self.spec, self.stats)
+        ok = np.isfinite(stats).all(axis=1)
         self._gps = [
-            fit_gp(train.params_unit, stats[:, j], self.seed) for j in range(stats.shape[1])
+            fit_gp(train.params_unit[ok], stats[ok, j], self.seed) for j in range(stats.shape[1])
         ]
         return self
 
     def predict_statistics(self, params_unit: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(mean, standard deviation) of each target's record mean, (n, n_targets), kN."""
+        """(mean, standard deviation) of each column of :attr:`columns`, (n, n_cols), kN."""
+        if not self._gps:
+            raise RuntimeError("statistics GP not fitted")
         res = [gp.predict(params_unit, return_std=True) for gp in self._gps]
         return np.stack([m for m, _ in res], axis=1), np.stack([s for _, s in res], axis=1)
+
+    def to_dict(self) -> dict:
+        """Everything needed to rebuild the fitted GPs exactly: training data and the
+        optimised kernel hyperparameters (log scale), per column."""
+        return {
+            "features": self.spec.to_dict(),
+            "statistics": list(self.stats),
+            "seed": self.seed,
+            "gps": [
+                {
+                    "target": t,
+                    "statistic": st,
+                    "theta": gp.kernel_.theta.tolist(),
+                    "x_unit": gp.X_train_.tolist(),
+                    "y": (gp.y_train_ * gp._y_train_std + gp._y_train_mean).tolist(),
+                }
+                for (t, st), gp in zip(self.columns, self._gps, strict=True)
+            ],
+        }
+
+    @classmethod
+    def from_dict(cls, doc: dict) -> StatisticsGP:
+        """Rebuild from :meth:`to_dict` (refits with the stored hyperparameters, no search)."""
+        from railsusp.sensitivity import fit_gp
+
+        model = cls(FeatureSpec.from_dict(doc["features"]), doc["seed"], doc["statistics"])
+        for g in doc["gps"]:
+            x, y = np.asarray(g["x_unit"]), np.asarray(g["y"])
+            model._gps.append(fit_gp(x, y, model.seed, theta=np.asarray(g["theta"])))
+        return model

@@ -72,6 +72,11 @@ class FeatureSpec:
     def to_dict(self) -> dict:
         return asdict(self)
 
+    @classmethod
+    def from_dict(cls, doc: dict) -> FeatureSpec:
+        """Inverse of :meth:`to_dict` (JSON lists back to tuples)."""
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in doc.items()})
+
 
 def axle_offsets(wagon: WagonData) -> np.ndarray:
     """Distance of each wheelset behind the leading one, m."""

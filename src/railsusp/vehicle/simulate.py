@@ -34,10 +34,13 @@ from railsusp.vehicle.wagon import WagonData, load_wagon
 WHEEL_NAMES = L.WHEEL_NAMES
 
 
+RECORD_STATISTICS = ("mean", "rms", "p99", "std")
+
+
 def record_statistic(x: np.ndarray, statistic: str, lateral: bool) -> np.ndarray:
-    """Statistic of force series along the last axis (NaN-aware): mean, rms or p99 of |Y|
-    for lateral forces, of Q for vertical ones. The one definition that surrogates,
-    calibration and validation share."""
+    """Statistic of force series along the last axis (NaN-aware): mean, rms, p99 or std
+    (standard deviation, the dynamic part) of |Y| for lateral forces, of Q for vertical ones.
+    The one definition that surrogates, calibration and validation share."""
     v = np.abs(x) if lateral else x
     if statistic == "mean":
         return np.nanmean(v, axis=-1)
@@ -45,7 +48,9 @@ def record_statistic(x: np.ndarray, statistic: str, lateral: bool) -> np.ndarray
         return np.sqrt(np.nanmean(v * v, axis=-1))
     if statistic == "p99":
         return np.nanpercentile(v, 99, axis=-1)
-    raise ValueError(f"statistic {statistic!r}: accepted mean, rms, p99")
+    if statistic == "std":
+        return np.nanstd(v, axis=-1)
+    raise ValueError(f"statistic {statistic!r}: accepted {', '.join(RECORD_STATISTICS)}")
 
 
 def measured_wheel_index(condition: WorkingCondition, which: str | int = "auto") -> int:

@@ -1,0 +1,132 @@
+"""Statistics surrogate: key parameters -> record statistics of one condition, saved and loaded.
+
+A :class:`~railsusp.surrogate.baselines.StatisticsGP` (one Gaussian process per force and
+statistic) with the condition it serves and the provenance of its training campaign. It
+predicts what calibration compares (mean, RMS, p99, std of |Y| and Q of the measured wheel)
+without predicting series. Trained on a campaign with independent track seeds, it predicts
+the statistic averaged over track realisations, with the realisation scatter in the GP's
+noise term, which is what a recording on an unknown track should be compared with.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from railsusp.conditions import WorkingCondition
+from railsusp.params import bounds
+from railsusp.store import provenance, write_json
+from railsusp.surrogate.baselines import StatisticsGP
+from railsusp.surrogate.data import FeatureSpec, load_series
+from railsusp.vehicle.simulate import RECORD_STATISTICS
+
+FORMAT = "railsusp-statistics-surrogate-1"
+FILE = "statistics.json"
+
+
+@dataclass
+class StatisticsSurrogate:
+    """A fitted statistics GP for one working condition."""
+
+    gp: StatisticsGP
+    condition: WorkingCondition
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def parameters(self) -> tuple[str, ...]:
+        return tuple(self.gp.spec.parameters)
+
+    @property
+    def statistics(self) -> tuple[str, ...]:
+        return self.gp.stats
+
+    def predict(
+        self, params_si: np.ndarray, statistics: Sequence[str] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(mean, std) of the statistics, each (n, n_targets, n_statistics), kN.
+
+        ``params_si``: (n, n_key) SI values of the key parameters, inside their ranges."""
+        stats = tuple(statistics) if statistics else self.statistics
+        missing = [s for s in stats if s not in self.statistics]
+        if missing:
+            raise ValueError(
+                f"statistics {missing} not in this surrogate (has {', '.join(self.statistics)})"
+            )
+        lo, hi = bounds(self.parameters)
+        unit = (np.atleast_2d(np.asarray(params_si, dtype=float)) - lo) / (hi - lo)
+        mean, std = self.gp.predict_statistics(unit)
+        n_t, n_s = len(self.gp.spec.targets), len(self.statistics)
+        pick = [self.statistics.index(s) for s in stats]
+        mean = mean.reshape(len(unit), n_t, n_s)[:, :, pick]
+        std = std.reshape(len(unit), n_t, n_s)[:, :, pick]
+        return mean, std
+
+    def save(self, path: str | Path) -> Path:
+        """Write ``statistics.json`` (training data, hyperparameters, condition, provenance)."""
+        doc = {
+            "format": FORMAT,
+            "model": self.gp.to_dict(),
+            "condition": self.condition.model_dump(),
+            "meta": self.meta,
+            "saved": provenance(),
+        }
+        return write_json(Path(path) / FILE, doc)
+
+
+def is_statistics_bundle(path: str | Path) -> bool:
+    return (Path(path) / FILE).exists()
+
+
+def load_statistics(path: str | Path) -> StatisticsSurrogate:
+    """Load a saved statistics surrogate folder; predictions equal the saved model's."""
+    p = Path(path) / FILE
+    if not p.exists():
+        raise FileNotFoundError(f"{path} holds no statistics surrogate (no {FILE})")
+    doc = json.loads(p.read_text("utf-8"))
+    if doc.get("format") != FORMAT:
+        raise ValueError(f"{p}: unknown statistics-surrogate format {doc.get('format')!r}")
+    return StatisticsSurrogate(
+        StatisticsGP.from_dict(doc["model"]),
+        WorkingCondition(**doc["condition"]),
+        doc.get("meta", {}),
+    )
+
+
+def train_statistics_surrogate(
+    run: str | Path,
+    condition: str,
+    *,
+    parameters: Sequence[str] | None = None,
+    statistics: Sequence[str] = RECORD_STATISTICS,
+    max_train: int = 500,
+    seed: int = 0,
+    out: str | Path | None = None,
+) -> StatisticsSurrogate:
+    """Fit the statistics GPs of one condition on every finished sample of a campaign (at most
+    ``max_train``, chosen at random) and save them under ``RUN/surrogates/gp-stats/<cond>/``."""
+    from railsusp.campaign import load_campaign
+    from railsusp.surrogate import key_parameters
+
+    camp = load_campaign(run)
+    params = tuple(parameters) if parameters else key_parameters(run)
+    spec = FeatureSpec(parameters=params)
+    data = load_series(camp, condition, spec)
+    if data.n_samples > max_train:
+        rng = np.random.default_rng(seed)
+        data = data.subset(np.sort(rng.choice(data.n_samples, max_train, replace=False)))
+    gp = StatisticsGP(spec, seed, statistics).fit(data)
+    model = StatisticsSurrogate(
+        gp,
+        data.condition,
+        {
+            "campaign": str(camp.path.resolve()),
+            "n_train": int(data.n_samples),
+            "independent_seeds": bool(len(np.unique(data.seeds)) > 1),
+        },
+    )
+    model.save(Path(out) if out else camp.path / "surrogates" / "gp-stats" / condition)
+    return model
