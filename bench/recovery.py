@@ -45,6 +45,7 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=3)
     ap.add_argument("--n-gen", type=int, default=100)
     ap.add_argument("--noise", type=float, default=0.03)
+    ap.add_argument("--weighting", default="relative", help="relative or noise")
     ap.add_argument(
         "--field-duration", type=float, default=None, help="recorded seconds (default 20)"
     )
@@ -91,6 +92,7 @@ def main() -> None:
                 seed=args.seed + k,
                 statistic=args.statistic,
                 per_condition=args.per_condition,
+                weighting=args.weighting,
             ),
         )
         est = res.save(work / f"est{k}", extra={"measured": str(field)})
@@ -144,6 +146,7 @@ def main() -> None:
             "noise": args.noise,
             "n_gen": args.n_gen,
             "per_condition": args.per_condition,
+            "weighting": args.weighting,
             "summary": summary,
             "trials": trials,
         },

@@ -174,3 +174,19 @@ def test_statistics_surrogate_round_trip_and_calibration(tmp_path):
     res = estimate(forces, [rec], PARAMS, NSGAConfig(pop_size=30, n_gen=30, statistic="mean+std"))
     err = np.abs(res.pareto_x[res.chosen] - np.array([16.1e6, 8.3e6])) / (hi - lo)
     assert np.all(err < 0.03), res.estimate
+    # noise weighting: mismatch in units of the GP's predictive standard deviation
+    prob = CalibrationProblem(forces, [rec], PARAMS, "mean+std", weighting="noise")
+    mean, sd = forces.predict_statistics(probe, COND, ("mean", "std"), with_std=True)
+    meas = prob.measured[0]
+    np.testing.assert_allclose(prob.errors(probe)[:, 0], (np.abs(mean - meas) / sd).mean(axis=2))
+    res = estimate(forces, [rec], PARAMS, NSGAConfig(pop_size=30, n_gen=30, weighting="noise"))
+    err = np.abs(res.pareto_x[res.chosen] - np.array([16.1e6, 8.3e6])) / (hi - lo)
+    assert np.all(err < 0.03), res.estimate
+
+
+def test_noise_weighting_needs_a_statistics_surrogate():
+    rec = recording(10.0, 120.0)
+    with pytest.raises(ValueError, match="needs the predictive standard deviation"):
+        CalibrationProblem(AnalyticForces(), [rec], PARAMS, weighting="noise")
+    with pytest.raises(ValueError, match="weighting 'z': accepted relative, noise"):
+        NSGAConfig(weighting="z")

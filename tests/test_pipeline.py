@@ -109,7 +109,7 @@ def test_statistics_gp_force_model_with_combined_statistics(tiny, tmp_path):
     run = tmp_path / "run"
     shutil.copytree(out, run)
     text = TINY.replace("epochs = 1", 'model = "gp-stats"\nepochs = 1').replace(
-        "n_gen = 2", 'n_gen = 2\nstatistic = "mean+std"\nper_condition = true'
+        "n_gen = 2", 'n_gen = 2\nstatistic = "mean+std"\nper_condition = true\nweighting = "noise"'
     )
     cfg = tmp_path / "g.toml"
     cfg.write_text(text)
@@ -117,6 +117,7 @@ def test_statistics_gp_force_model_with_combined_statistics(tiny, tmp_path):
     assert (run / "campaign" / "surrogates" / "gp-stats" / "short" / "statistics.json").exists()
     est = json.loads((run / "estimate" / "estimate.json").read_text())
     assert est["config"]["statistic"] == "mean+std" and est["config"]["per_condition"]
+    assert est["config"]["weighting"] == "noise"
     assert est["model"] == "gp-stats"
     forces = pd.read_csv(run / "estimate" / "validation" / "validation.csv")
     assert sorted(set(forces.statistic)) == ["mean", "std"]

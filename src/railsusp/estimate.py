@@ -42,6 +42,10 @@ from railsusp.store import write_json, write_parquet
 from railsusp.vehicle.simulate import RECORD_STATISTICS, record_statistic
 
 STATISTICS = RECORD_STATISTICS
+#: how a statistic's mismatch enters an objective: relative error (the study's), or the
+#: mismatch in units of the statistics surrogate's predictive standard deviation (GP
+#: uncertainty plus track-realisation scatter), which weights precise features more
+WEIGHTINGS = ("relative", "noise")
 
 
 def parse_statistics(text: str) -> tuple[str, ...]:
@@ -123,9 +127,15 @@ class StatisticsForces:
         return list(self._models)
 
     def predict_statistics(
-        self, x_si: np.ndarray, condition: WorkingCondition, statistics: Sequence[str]
-    ) -> np.ndarray:
-        """(n, 2, n_statistics) lateral and vertical statistics, kN."""
+        self,
+        x_si: np.ndarray,
+        condition: WorkingCondition,
+        statistics: Sequence[str],
+        with_std: bool = False,
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """(n, 2, n_statistics) lateral and vertical statistics, kN; with ``with_std`` also
+        their predictive standard deviation (GP uncertainty and the scatter between track
+        realisations of a record of the training length)."""
         if condition.name not in self._models:
             raise ValueError(
                 f"no statistics surrogate for condition {condition.name!r} in {self.folder} "
@@ -141,7 +151,8 @@ class StatisticsForces:
                 f"the statistics surrogate for {condition.name!r} was trained for another "
                 f"condition: it differs in {', '.join(diff)}"
             )
-        return model.predict(x_si, statistics)[0]
+        mean, std = model.predict(x_si, statistics)
+        return (mean, std) if with_std else mean
 
 
 def open_force_model(
@@ -209,9 +220,12 @@ class NSGAConfig:
     seed: int = 0
     statistic: str = "mean"
     per_condition: bool = False
+    weighting: str = "relative"
 
     def __post_init__(self):
         parse_statistics(self.statistic)  # fails early with the accepted values
+        if self.weighting not in WEIGHTINGS:
+            raise ValueError(f"weighting {self.weighting!r}: accepted {', '.join(WEIGHTINGS)}")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -241,10 +255,19 @@ class CalibrationProblem(Problem):
         parameters: Sequence[str],
         statistic: str = "mean",
         per_condition: bool = False,
+        weighting: str = "relative",
     ):
         self.model, self.recordings = model, list(recordings)
         self.parameters = tuple(parameters)
         self.statistic, self.per_condition = statistic, per_condition
+        if weighting not in WEIGHTINGS:
+            raise ValueError(f"weighting {weighting!r}: accepted {', '.join(WEIGHTINGS)}")
+        if weighting == "noise" and not isinstance(model, StatisticsForces):
+            raise ValueError(
+                "weighting 'noise' needs the predictive standard deviation of a statistics "
+                "surrogate (gp-stats force model)"
+            )
+        self.weighting = weighting
         self.lo, self.hi = bounds(self.parameters)
         self.stats = parse_statistics(statistic)
         self.measured = [measured_statistics(rec, self.stats) for rec in self.recordings]
@@ -255,12 +278,20 @@ class CalibrationProblem(Problem):
         return self.lo + np.asarray(unit) * (self.hi - self.lo)
 
     def errors(self, x_si: np.ndarray) -> np.ndarray:
-        """(n, n_conditions, 2) relative errors of the lateral and vertical statistic (the
-        mean relative error over the statistics of a combination)."""
+        """(n, n_conditions, 2) mismatch of the lateral and vertical statistic, averaged over
+        the statistics of a combination: relative error, or with ``weighting="noise"`` the
+        absolute error over the predictive standard deviation."""
         errs = []
         for rec, meas in zip(self.recordings, self.measured, strict=True):
-            pred = force_statistics(self.model, x_si, rec.condition, self.stats)
-            errs.append((np.abs(pred - meas) / np.abs(meas)).mean(axis=2))
+            if self.weighting == "noise":
+                pred, sd = self.model.predict_statistics(
+                    x_si, rec.condition, self.stats, with_std=True
+                )
+                scale = np.maximum(sd, 1e-9)
+            else:
+                pred = force_statistics(self.model, x_si, rec.condition, self.stats)
+                scale = np.abs(meas)
+            errs.append((np.abs(pred - meas) / scale).mean(axis=2))
         return np.stack(errs, axis=1)
 
     def _evaluate(self, x, out, *args, **kwargs):
@@ -391,7 +422,9 @@ def estimate(
 ) -> CalibrationResult:
     """Run NSGA-II and pick the estimate; deterministic for a given seed."""
     cfg = NSGAConfig() if config is None else config
-    problem = CalibrationProblem(model, recordings, parameters, cfg.statistic, cfg.per_condition)
+    problem = CalibrationProblem(
+        model, recordings, parameters, cfg.statistic, cfg.per_condition, cfg.weighting
+    )
     algo = NSGA2(
         pop_size=cfg.pop_size,
         crossover=SBX(prob=cfg.crossover_prob, eta=15),

@@ -72,6 +72,9 @@ class EstimateSection(_Cfg):
     mutation_prob: float = Field(0.05, ge=0.0, le=1.0)
     statistic: str = Field("mean", description="mean, rms, p99, std or a '+' combination")
     per_condition: bool = Field(False, description="two objectives per condition")
+    weighting: Literal["relative", "noise"] = Field(
+        "relative", description="relative errors, or in units of the gp-stats predictive SD"
+    )
     seeds: int = Field(1, ge=1, le=10)
     seed: int = 0
 
@@ -329,6 +332,7 @@ def _stage_runners(
             seed=e.seed,
             statistic=e.statistic,
             per_condition=e.per_condition,
+            weighting=e.weighting,
         )
         res = estimate_with_seeds(model, read_field(out / "field"), params, cfg, e.seeds)
         res.save(

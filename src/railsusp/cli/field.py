@@ -107,6 +107,13 @@ def estimate(
         str, typer.Option(help="mean, rms, p99, std, or a combination such as mean+p99+std")
     ] = "mean",
     per_condition: Annotated[bool, typer.Option(help="two objectives per condition")] = False,
+    weighting: Annotated[
+        str,
+        typer.Option(
+            help="relative (errors relative to the measured statistic) or noise (in units of "
+            "a gp-stats surrogate's predictive standard deviation)"
+        ),
+    ] = "relative",
     pop_size: Annotated[int, typer.Option(help="NSGA-II population")] = 50,
     n_gen: Annotated[int, typer.Option(help="generations")] = 100,
     crossover: Annotated[float, typer.Option(help="crossover probability")] = 0.9,
@@ -146,6 +153,7 @@ def estimate(
             seed=seed,
             statistic=statistic,
             per_condition=per_condition,
+            weighting=weighting,
         )
         with console.status(f"NSGA-II {pop_size} x {n_gen} on {len(recs)} recording(s)"):
             res = estimate_with_seeds(model, recs, params, cfg, n_seeds=max(1, seeds))
