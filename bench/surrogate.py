@@ -2,7 +2,11 @@
 prediction throughput (windows per second, batched). Writes bench/results/surrogate.json.
 
 Needs a campaign run directory (``--run``, e.g. ``railsusp campaign --samples 256 --out RUN``);
-all models are trained on the same 70/15/15 split by sample.
+all models are trained on the same 70/15/15 split by sample. ``--throughput-only`` needs no
+campaign: it times randomly initialised default-size networks on 64 series x 980 windows
+(bench/results/surrogate_throughput.json). Throughput is the fast whole-series path
+(``Surrogate.predict``), plus the per-window reference path (``fast=False``) for the CNN-GRU,
+with ``--threads`` torch threads (2), best of ``--repeats`` calls (3).
 """
 
 from __future__ import annotations
@@ -14,33 +18,114 @@ import time
 import numpy as np
 import torch
 
+from railsusp.conditions import get_condition
 from railsusp.params import bounds
 from railsusp.store import write_json
 from railsusp.surrogate import TrainConfig, load
+from railsusp.surrogate.bundle import Surrogate
 from railsusp.surrogate.compare import ALL_MODELS, compare, table7
+from railsusp.surrogate.data import FeatureSpec, Normaliser
+from railsusp.surrogate.models import NetConfig, build_network
+from railsusp.vehicle.wagon import load_wagon
+
+NETWORKS = ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp")
+KEYS = ("X11", "X12", "X13", "X14", "X17", "X18")
 
 
-def throughput(path, n_sets: int = 64) -> float:
-    """Windows predicted per second by a saved surrogate, batched over parameter sets."""
-    sur = load(path)
+def _rate(
+    sur: Surrogate, n_sets: int, repeats: int, fast: bool, track: np.ndarray | None = None
+) -> float:
+    """Windows per second of ``sur.predict`` on ``n_sets`` parameter sets, best of
+    ``repeats`` calls after a warm-up."""
     lo, hi = bounds(sur.spec.parameters)
     x = lo + (hi - lo) * np.random.default_rng(0).random((n_sets, len(lo)))
-    sur.predict(x[:2])  # warm-up
-    t0 = time.perf_counter()
-    out = sur.predict(x)
-    wall = time.perf_counter() - t0
-    return np.isfinite(out[:, :, 0]).sum() / wall
+    sur.predict(x[:2], track=track, fast=fast)  # warm-up
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = sur.predict(x, track=track, fast=fast)
+        best = min(best, time.perf_counter() - t0)
+    return float(np.isfinite(out[:, :, 0]).sum() / best)
+
+
+def throughput(path, n_sets: int = 64, repeats: int = 3, fast: bool = True) -> float:
+    """Windows predicted per second by a saved surrogate, batched over parameter sets."""
+    return _rate(load(path), n_sets, repeats, fast)
+
+
+def random_surrogate(kind: str, n_steps: int = 1000, seed: int = 0) -> Surrogate:
+    """A surrogate bundle with randomly initialised default-size weights (timing only)."""
+    torch.manual_seed(seed)
+    cfg = NetConfig(kind=kind)
+    spec = FeatureSpec(parameters=KEYS)
+    n_track = spec.n_features - len(KEYS)
+    return Surrogate(
+        build_network(cfg).eval(),
+        cfg,
+        spec,
+        Normaliser([0.0] * n_track, [1.0] * n_track, [0.0, 120.0], [5.0, 20.0]),
+        get_condition("straight", n_steps=n_steps),
+        load_wagon(),
+        seed,
+    )
+
+
+def rates_of(make, kinds: list[str], repeats: int, track=None) -> dict[str, float]:
+    """Fast-path rates of every network kind, and the per-window rate of the CNN-GRU."""
+    rates = {}
+    for kind in kinds:
+        sur = make(kind)
+        rates[kind] = _rate(sur, 64, repeats, True, track)
+        if kind == "cnn-gru":
+            rates["cnn-gru per-window"] = _rate(sur, 64, repeats, False, track)
+    return rates
+
+
+def print_rates(rates: dict[str, float], threads: int) -> None:
+    print(f"\nprediction throughput (windows / s, 64 parameter sets per call, {threads} threads):")
+    for k, v in rates.items():
+        print(f"  {k:<19} {v:12.0f}")
+    if "cnn-gru per-window" in rates:
+        print(f"  cnn-gru fast / per-window: {rates['cnn-gru'] / rates['cnn-gru per-window']:.1f}")
+
+
+def throughput_only(args: argparse.Namespace) -> None:
+    """Throughput of randomly initialised networks, 64 series x 980 windows, no campaign."""
+    torch.set_num_threads(args.threads)
+    kinds = [k for k in args.models.split(",") if k in NETWORKS]
+    track = np.random.default_rng(1).normal(size=(1000, 15))
+    rates = rates_of(random_surrogate, kinds, args.repeats, track)
+    print_rates(rates, args.threads)
+    out = write_json(
+        args.out or "bench/results/surrogate_throughput.json",
+        {
+            "date": time.strftime("%Y-%m-%d"),
+            "machine": platform.platform(),
+            "threads": args.threads,
+            "repeats": args.repeats,
+            "windows_per_second": rates,
+        },
+    )
+    print(f"wrote {out}")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--run", required=True)
+    ap.add_argument("--run")
     ap.add_argument("--models", default=",".join(ALL_MODELS))
     ap.add_argument("--epochs", type=int, default=10)
     ap.add_argument("--batches-per-epoch", type=int, default=100)
     ap.add_argument("--batch-size", type=int, default=512)
-    ap.add_argument("--out", default="bench/results/surrogate.json")
+    ap.add_argument("--threads", type=int, default=2, help="torch threads for throughput")
+    ap.add_argument("--repeats", type=int, default=3, help="timed predict calls, best kept")
+    ap.add_argument("--throughput-only", action="store_true")
+    ap.add_argument("--out", help="JSON written (bench/results/surrogate[_throughput].json)")
     args = ap.parse_args()
+    if args.throughput_only:
+        throughput_only(args)
+        return
+    if args.run is None:
+        ap.error("--run is required unless --throughput-only")
     models = args.models.split(",")
     cfg = TrainConfig(
         epochs=args.epochs, batches_per_epoch=args.batches_per_epoch, batch_size=args.batch_size
@@ -59,11 +144,15 @@ def main() -> None:
     tick("done")
     total = time.perf_counter() - t_all
     t7 = table7(tab)
-    rates = {}
-    for kind in models:
-        if kind in ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp"):
-            cond = tab.condition.iloc[0]
-            rates[kind] = float(throughput(f"{args.run}/surrogates/{kind}/{cond}"))
+    threads = torch.get_num_threads()
+    torch.set_num_threads(args.threads)
+    cond = tab.condition.iloc[0]
+    rates = rates_of(
+        lambda kind: load(f"{args.run}/surrogates/{kind}/{cond}"),
+        [k for k in models if k in NETWORKS],
+        args.repeats,
+    )
+    torch.set_num_threads(threads)
     print(
         f"\n{'condition':<9} {'model':<10} {'Q sim':>7} {'Q pred':>7} {'Q err%':>7} "
         f"{'Y sim':>6} {'Y pred':>6} {'Y err%':>7} {'Y NRMSE':>8} {'Y R2':>6} {'train s':>8}"
@@ -74,14 +163,9 @@ def main() -> None:
             f"{r.condition:<9} {r.model:<10} {r[2]:7.2f} {r[3]:7.2f} {r[4]:7.2f} {r[5]:6.2f} "
             f"{r[6]:6.2f} {r[7]:7.2f} {r[9]:8.3f} {r[11]:6.3f} {t:8.1f}"
         )
-    print(
-        "\nprediction throughput (windows / s, 64 parameter sets per call, "
-        f"{torch.get_num_threads()} threads):"
-    )
-    for k, v in rates.items():
-        print(f"  {k:<10} {v:12.0f}")
+    print_rates(rates, args.threads)
     out = write_json(
-        args.out,
+        args.out or "bench/results/surrogate.json",
         {
             "date": time.strftime("%Y-%m-%d"),
             "machine": platform.platform(),
