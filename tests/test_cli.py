@@ -1,5 +1,6 @@
 """Command line: the catalogue, conditions and track commands, and one-line input errors."""
 
+import json
 import subprocess
 import sys
 
@@ -177,6 +178,27 @@ def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
     assert "Parameter recovery" in result.output and (est / "validation" / "recovery.csv").exists()
     result = runner.invoke(app, ["estimate", "--measured", str(field), "--out", str(est)])
     assert result.exit_code == 2 and "--surrogate FOLDER or --simulator" in result.output
+    result = runner.invoke(app, ["train", str(run), "--model", "gp-stats"])
+    assert result.exit_code == 0, result.output
+    assert (run / "surrogates" / "gp-stats" / "short" / "statistics.json").exists()
+    common = ["estimate", "--measured", str(field), "--pop-size", "8", "--n-gen", "3"]
+    result = runner.invoke(
+        app,
+        [*common, "--surrogate", str(run / "surrogates" / "gp-stats"), "--out", str(est),
+         "--statistic", "mean+std", "--weighting", "noise", "--per-condition"],
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    assert json.loads((est / "estimate.json").read_text())["config"]["weighting"] == "noise"
+    result = runner.invoke(
+        app,
+        [*common, "--surrogate", str(run / "surrogates" / "bp"), "--out", str(est),
+         "--weighting", "noise"],
+    )  # fmt: skip
+    assert result.exit_code == 2 and "needs the predictive standard deviation" in result.output
+    result = runner.invoke(
+        app, [*common, "--simulator", "--out", str(est), "--statistic", "mean+median"]
+    )
+    assert result.exit_code == 2 and "mean, rms, p99, std" in result.output
 
 
 def test_synth_field_and_check_recording(tmp_path):

@@ -37,7 +37,9 @@ def _train_config(epochs, batches_per_epoch, batch_size, device, seed):
 @app.command()
 def train(
     run: Annotated[Path, typer.Argument(help="campaign run directory")],
-    model: Annotated[str, typer.Option(help="cnn-gru, cnn-lstm, cnn-bilstm or bp")] = "cnn-gru",
+    model: Annotated[
+        str, typer.Option(help="cnn-gru, cnn-lstm, cnn-bilstm, bp, or gp-stats (statistics GPs)")
+    ] = "cnn-gru",
     conditions: Annotated[str | None, typer.Option(help="default: all of the campaign")] = None,
     epochs: Annotated[int, typer.Option(help="maximum epochs (early stopping)")] = 40,
     batches_per_epoch: Annotated[int, typer.Option(help="mini-batches per epoch")] = 200,
@@ -47,15 +49,17 @@ def train(
     seed: Annotated[int, typer.Option(help="training seed")] = 0,
 ) -> None:
     """Train a window surrogate per condition (RUN/surrogates/<model>/<condition>/); print its
-    accuracy on the held-out test samples. Re-running resumes from the last checkpoint."""
+    accuracy on the held-out test samples. Re-running resumes from the last checkpoint.
+    ``--model gp-stats`` fits the statistics GPs (mean, RMS, p99, std of |Y| and Q) instead,
+    on every sample (their accuracy: ``railsusp compare``)."""
     from railsusp.campaign import load_campaign
     from railsusp.surrogate import KINDS, train_surrogate
     from railsusp.surrogate.data import load_series
     from railsusp.surrogate.evaluate import evaluate
 
     try:
-        if model not in KINDS:
-            raise RailsuspInputError(f"--model {model!r}: accepted {', '.join(KINDS)}")
+        if model not in (*KINDS, "gp-stats"):
+            raise RailsuspInputError(f"--model {model!r}: accepted {', '.join(KINDS)}, gp-stats")
         camp = load_campaign(run)
         conds = (
             [c.strip() for c in conditions.split(",")]
@@ -63,6 +67,17 @@ def train(
             else [c.name for c in camp.config.conditions]
         )
         tcfg = _train_config(epochs, batches_per_epoch, batch_size, device, seed)
+        if model == "gp-stats":
+            from railsusp.surrogate.statistics import train_statistics_surrogate
+
+            for cond in conds:
+                with console.status(f"{cond}: statistics GPs"):
+                    sg = train_statistics_surrogate(run, cond)
+                console.print(
+                    f"{cond}: GPs of {', '.join(sg.statistics)} of |Y| and Q on "
+                    f"{sg.meta['n_train']} runs -> {run / 'surrogates' / 'gp-stats' / cond}"
+                )
+            return
     except (RailsuspInputError, ValueError) as exc:
         fail(str(exc))
     table = Table(title=f"{model}: accuracy on held-out simulations", title_justify="left")
