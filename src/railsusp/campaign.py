@@ -420,9 +420,12 @@ class Campaign:
             raise CampaignError(f"{self.path}: no finished batch yet")
         return pd.concat([pd.read_parquet(f) for f in done], ignore_index=True)
 
-    def feature_matrix(self, condition: str, quantity: str, statistic: str) -> pd.Series:
-        """One feature for all samples (index sample_id); NaN for failed samples."""
-        f = self.features()
+    def feature_matrix(
+        self, condition: str, quantity: str, statistic: str, features: pd.DataFrame | None = None
+    ) -> pd.Series:
+        """One feature for all samples (index sample_id); NaN for failed samples.
+        ``features``: the table of :meth:`features` when already read (many lookups)."""
+        f = self.features() if features is None else features
         sel = f[(f.condition == condition) & (f.quantity == quantity) & (f.statistic == statistic)]
         if sel.empty:
             raise CampaignError(f"no feature {quantity}/{statistic} in condition {condition!r}")

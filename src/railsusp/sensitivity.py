@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from railsusp.campaign import Campaign, salib_problem
+from railsusp.campaign import Campaign, CampaignError, salib_problem
 from railsusp.params import bounds
 from railsusp.store import write_json, write_parquet
 from railsusp.study import KEY_LATERAL, KEY_VERTICAL
@@ -83,16 +83,15 @@ def _cv(y: np.ndarray) -> float:
 
 
 def _features(campaign: Campaign, statistics: Sequence[str], quantities: Sequence[str]):
-    feats = campaign.features()
+    feats = campaign.features()  # read once for every feature
     for cond in campaign.config.conditions:
         for q in quantities:
             for st in statistics:
-                sel = feats[
-                    (feats.condition == cond.name) & (feats.quantity == q) & (feats.statistic == st)
-                ]
-                if sel.empty:
+                try:
+                    y = campaign.feature_matrix(cond.name, q, st, feats)
+                except CampaignError:
                     continue
-                yield cond.name, q, st, sel.set_index("sample_id")["value"].sort_index()
+                yield cond.name, q, st, y
 
 
 def sobol_direct(
