@@ -1,5 +1,7 @@
 """Surrogate data windows, networks, training loop, save/load, evaluation."""
 
+import shutil
+
 import numpy as np
 import pytest
 import torch
@@ -116,9 +118,16 @@ def test_tiny_training_lowers_the_loss_and_resumes(run, tmp_path):
         fresh(), *samplers, TrainConfig(**{**cfg.to_dict(), "epochs": 2}), checkpoint=ck
     )
     assert len(part) == 2
+    shutil.copy(ck, tmp_path / "ck-other.pt")
     net = fresh()
     resumed = train_network(net, *samplers, cfg, checkpoint=ck)
+    assert resumed[:2] == part  # restored from the checkpoint (timings included), not re-run
     assert [h["val_loss"] for h in resumed] == pytest.approx([h["val_loss"] for h in hist])
+    # other training data (here train and validation swapped) never resume this checkpoint
+    other = (WindowSampler(data.subset(va), norm, 20), WindowSampler(data.subset(tr), norm, 20))
+    two = TrainConfig(**{**cfg.to_dict(), "epochs": 2})
+    afresh = train_network(fresh(), *other, two, checkpoint=tmp_path / "ck-other.pt")
+    assert [h["val_loss"] for h in afresh] != [h["val_loss"] for h in part]
 
 
 @pytest.fixture(scope="module")

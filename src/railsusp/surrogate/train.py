@@ -8,6 +8,7 @@ every epoch and a killed training resumes from the last checkpoint with the same
 
 from __future__ import annotations
 
+import hashlib
 import io
 import time
 from collections.abc import Callable
@@ -65,6 +66,17 @@ class WindowSampler:
         return torch.from_numpy(np.ascontiguousarray(x)), torch.from_numpy(y)
 
 
+def _fingerprint(*samplers: WindowSampler) -> str:
+    """SHA-256 of the samplers' windows, inputs and targets."""
+    h = hashlib.sha256()
+    for smp in samplers:
+        h.update(str(smp.window).encode())
+        for arr in (smp.params, smp.track, smp.targets, smp.index):
+            h.update(str(arr.shape).encode())
+            h.update(np.ascontiguousarray(arr).tobytes())
+    return h.hexdigest()
+
+
 def train_network(
     net: nn.Module,
     train: WindowSampler,
@@ -90,7 +102,11 @@ def train_network(
     xv, yv = xv.to(device), yv.to(device)
     history: list[dict] = []
     best, best_state, stale, start = float("inf"), None, 0, 0
-    key = content_hash({"cfg": cfg.to_dict(), "arch": repr(net)})
+    # a checkpoint resumes only the same training: settings (but for the epoch limit, which
+    # may be raised to train on), architecture and data (windows, features, samples,
+    # normalisation), so another window length or campaign starts afresh
+    settings = {k: v for k, v in cfg.to_dict().items() if k != "epochs"}
+    key = content_hash({"cfg": settings, "arch": repr(net), "data": _fingerprint(train, val)})
     if checkpoint is not None and checkpoint.exists():
         state = torch.load(checkpoint, map_location=device, weights_only=False)
         if state.get("key") == key:
