@@ -169,6 +169,10 @@ def test_statistics_surrogate_round_trip_and_calibration(tmp_path):
     np.testing.assert_allclose(after, exact, rtol=0.02, atol=0.05)
     with pytest.raises(ValueError, match="not in this surrogate"):
         forces.predict_statistics(probe, COND, ("p99",))
+    longer = COND.with_changes(duration_s=4.0, n_steps=200, seed=9)  # same physics: served
+    np.testing.assert_allclose(forces.predict_statistics(probe, longer, ("mean",)), after[..., :1])
+    with pytest.raises(ValueError, match="differs in wheel_rail_friction"):
+        forces.predict_statistics(probe, COND.with_changes(wheel_rail_friction=0.2), ("mean",))
     meas = model.series(np.array([[16.1e6, 8.3e6]]), COND)[0]
     rec = Recording(np.arange(100) * 0.02, {"w1L": meas[:, 0]}, {"w1L": meas[:, 1]}, COND)
     res = estimate(forces, [rec], PARAMS, NSGAConfig(pop_size=30, n_gen=30, statistic="mean+std"))

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import tomllib
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, Literal
 
@@ -198,6 +199,12 @@ class WorkingCondition(BaseModel):
     def with_changes(self, **changes: Any) -> WorkingCondition:
         """A validated copy with some fields changed."""
         return make_condition({**self.model_dump(), **changes})
+
+    def differences(self, other: WorkingCondition, ignore: Iterable[str] = ("seed",)) -> list[str]:
+        """Names of the fields (other than ``ignore``) in which ``other`` differs."""
+        skip = set(ignore)
+        mine, theirs = self.model_dump(exclude=skip), other.model_dump(exclude=skip)
+        return sorted(k for k in mine if mine[k] != theirs[k])
 
 
 def make_condition(fields: dict[str, Any]) -> WorkingCondition:

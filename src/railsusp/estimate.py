@@ -142,11 +142,9 @@ class StatisticsForces:
                 f"(has {', '.join(self._models)})"
             )
         model = self._models[condition.name]
-        ignore = {"seed", "duration_s", "n_steps"}  # statistics do not depend on these
-        mine = model.condition.model_dump(exclude=ignore)
-        theirs = condition.model_dump(exclude=ignore)
-        if mine != theirs:
-            diff = sorted(k for k in mine if mine[k] != theirs[k])
+        # record statistics do not depend on the track seed nor on the record length
+        diff = model.condition.differences(condition, ("seed", "duration_s", "n_steps"))
+        if diff:
             raise ValueError(
                 f"the statistics surrogate for {condition.name!r} was trained for another "
                 f"condition: it differs in {', '.join(diff)}"
@@ -185,12 +183,17 @@ def force_statistics(
     if isinstance(model, StatisticsForces):
         return model.predict_statistics(x_si, condition, statistics)
     s = model.series(x_si, condition)
+    return yq_statistics(s[:, :, 0], s[:, :, 1], statistics)
+
+
+def yq_statistics(y: np.ndarray, q: np.ndarray, statistics: Sequence[str]) -> np.ndarray:
+    """(..., 2, n_statistics) statistics of |Y| and Q series (time along the last axis)."""
     return np.stack(
         [
-            np.stack([record_statistic(s[:, :, 0], st, True) for st in statistics], axis=1),
-            np.stack([record_statistic(s[:, :, 1], st, False) for st in statistics], axis=1),
+            np.stack([record_statistic(y, st, True) for st in statistics], axis=-1),
+            np.stack([record_statistic(q, st, False) for st in statistics], axis=-1),
         ],
-        axis=1,
+        axis=-2,
     )
 
 
@@ -234,12 +237,7 @@ class NSGAConfig:
 def measured_statistics(rec: Recording, statistics: Sequence[str]) -> np.ndarray:
     """(2, n_statistics) statistics of |Y| and Q of a recording's first measured wheel, kN."""
     w = rec.wheels[0]
-    return np.array(
-        [
-            [record_statistic(rec.Y[w], st, True) for st in statistics],
-            [record_statistic(rec.Q[w], st, False) for st in statistics],
-        ]
-    )
+    return yq_statistics(rec.Y[w], rec.Q[w], statistics)
 
 
 class CalibrationProblem(Problem):

@@ -94,10 +94,8 @@ class Surrogate:
         """
         unit = self._unit(params)
         if condition is not None:
-            mine = self.condition.model_dump(exclude={"seed"})
-            theirs = condition.model_dump(exclude={"seed"})
-            if mine != theirs:
-                diff = sorted(k for k in mine if mine[k] != theirs[k])
+            diff = self.condition.differences(condition)
+            if diff:
                 raise ValueError(
                     f"this surrogate was trained for condition {self.condition.name!r}; the "
                     f"given condition differs in {', '.join(diff)}"
