@@ -48,6 +48,13 @@ STATISTICS = RECORD_STATISTICS
 WEIGHTINGS = ("relative", "noise")
 
 
+def check_weighting(weighting: str) -> str:
+    """``weighting`` if it is one of :data:`WEIGHTINGS`, else a ValueError naming them."""
+    if weighting not in WEIGHTINGS:
+        raise ValueError(f"weighting {weighting!r}: accepted {', '.join(WEIGHTINGS)}")
+    return weighting
+
+
 def parse_statistics(text: str) -> tuple[str, ...]:
     """``"mean"`` or a ``+``-joined combination such as ``"mean+p99+std"``, validated."""
     stats = tuple(t.strip() for t in str(text).split("+") if t.strip())
@@ -71,17 +78,18 @@ class ForceModel(Protocol):
 class SurrogateForces:
     """Window surrogates, one per condition name (a folder of ``<condition>/`` bundles)."""
 
-    def __init__(self, folder: str | Path, parameters: Sequence[str]):
+    def __init__(self, folder: str | Path, parameters: Sequence[str] | None = None):
         from railsusp.surrogate import load
 
         self.folder = Path(folder)
-        self.parameters = tuple(parameters)
         self._models: dict[str, Any] = {}
         for sub in sorted(self.folder.iterdir()) if self.folder.is_dir() else []:
             if (sub / "surrogate.json").exists():
                 self._models[sub.name] = load(sub)
         if not self._models:
             raise FileNotFoundError(f"{self.folder}: no surrogate bundles (<condition>/)")
+        first = next(iter(self._models.values()))
+        self.parameters = tuple(parameters) if parameters else tuple(first.spec.parameters)
         for name, m in self._models.items():
             if tuple(m.spec.parameters) != self.parameters:
                 raise ValueError(
@@ -158,19 +166,13 @@ def open_force_model(
 ) -> tuple[SurrogateForces | StatisticsForces, tuple[str, ...]]:
     """The surrogate force model in ``folder`` (window or statistics bundles per condition)
     and its key parameters (``parameters`` if given)."""
-    from railsusp.surrogate import load
     from railsusp.surrogate.statistics import is_statistics_bundle
 
     folder = Path(folder)
     subs = sorted(folder.iterdir()) if folder.is_dir() else []
-    if any(is_statistics_bundle(p) for p in subs):
-        model = StatisticsForces(folder, parameters)
-        return model, model.parameters
-    first = next((p for p in subs if (p / "surrogate.json").exists()), None)
-    if first is None:
-        raise FileNotFoundError(f"{folder}: no surrogate bundles (<condition>/)")
-    params = tuple(parameters) if parameters else tuple(load(first).spec.parameters)
-    return SurrogateForces(folder, params), params
+    kind = StatisticsForces if any(is_statistics_bundle(p) for p in subs) else SurrogateForces
+    model = kind(folder, parameters)
+    return model, model.parameters
 
 
 def force_statistics(
@@ -226,9 +228,8 @@ class NSGAConfig:
     weighting: str = "relative"
 
     def __post_init__(self):
-        parse_statistics(self.statistic)  # fails early with the accepted values
-        if self.weighting not in WEIGHTINGS:
-            raise ValueError(f"weighting {self.weighting!r}: accepted {', '.join(WEIGHTINGS)}")
+        parse_statistics(self.statistic)  # fail early with the accepted values
+        check_weighting(self.weighting)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -258,9 +259,7 @@ class CalibrationProblem(Problem):
         self.model, self.recordings = model, list(recordings)
         self.parameters = tuple(parameters)
         self.statistic, self.per_condition = statistic, per_condition
-        if weighting not in WEIGHTINGS:
-            raise ValueError(f"weighting {weighting!r}: accepted {', '.join(WEIGHTINGS)}")
-        if weighting == "noise" and not isinstance(model, StatisticsForces):
+        if check_weighting(weighting) == "noise" and not isinstance(model, StatisticsForces):
             raise ValueError(
                 "weighting 'noise' needs the predictive standard deviation of a statistics "
                 "surrogate (gp-stats force model)"
