@@ -224,3 +224,53 @@ def test_synth_field_and_check_recording(tmp_path):
 def test_validate_command_bad_folder(tmp_path):
     result = runner.invoke(app, ["validate", str(tmp_path)])
     assert result.exit_code == 2 and "estimate.json" in result.output
+
+
+def test_measured_track_flow(tmp_path):
+    """synth-field --with-track, a campaign on the recordings' own track, gp-stats trained on
+    it, NSGA-II, then the simulator's output-error refinement; validate scores the aligned
+    mismatch."""
+    cond = tmp_path / "c.toml"
+    cond.write_text(
+        '[[condition]]\nname = "short"\nduration_s = 2.0\nn_steps = 100\nlead_in_m = 20.0\n'
+    )
+    field, run, est = tmp_path / "field", tmp_path / "run", tmp_path / "est"
+    result = runner.invoke(
+        app,
+        ["synth-field", "--truth", "X13=16.1", "--conditions", str(cond), "--out", str(field),
+         "--with-track", "--track-noise", "0.1"],
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    assert (field / "short.track.csv").exists()
+    result = runner.invoke(
+        app,
+        ["campaign", "--samples", "16", "--conditions", str(field), "--out", str(run),
+         "--parameters", "X13,X14"],
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    camp = json.loads((run / "campaign.json").read_text())
+    track = camp["config"]["conditions"][0]["track_geometry"]
+    assert track == str((field / "short.track.csv").resolve())
+    result = runner.invoke(app, ["train", str(run), "--model", "gp-stats"])
+    assert result.exit_code == 0, result.output
+    result = runner.invoke(
+        app,
+        ["estimate", "--measured", str(field), "--surrogate", str(run / "surrogates" / "gp-stats"),
+         "--out", str(est), "--pop-size", "8", "--n-gen", "3", "--refine",
+         "--refine-evaluations", "3", "--refine-screen", "4", "--refine-starts", "1"],
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    doc = json.loads((est / "estimate.json").read_text())
+    assert doc["refinement"]["n_evaluations"] <= 3 + 1
+    assert doc["estimate_display"] == doc["refinement"]["refined_display"]
+    assert "standard_error_pct_range" in result.output or "standard" in result.output
+    from railsusp.validate import validate
+
+    v = validate(est, truth=field / "truth.json", statistic="mean+aligned")
+    assert set(v.forces.statistic) == {"mean", "aligned"}
+    bad = runner.invoke(
+        app,
+        ["estimate", "--measured", str(field), "--simulator", "--out", str(est),
+         "--refine-evaluations", "0", "--refine", "--n-gen", "1", "--pop-size", "4"],
+    )  # fmt: skip
+    assert bad.exit_code == 2 and "--refine-evaluations 0: accepted 1 to 500" in bad.output

@@ -94,3 +94,14 @@ def test_derived_lengths():
     assert c.curvature == 0.0
     right = get_condition("curve", curve_direction="right")
     assert right.curvature == pytest.approx(-1 / 300)
+
+
+def test_measured_track_field_keeps_old_dumps_and_is_compared():
+    """Without measured track the dump has no track_geometry key, so run directories and
+    content hashes made before the field existed stay valid; with it, the field counts."""
+    c = get_condition("straight")
+    assert "track_geometry" not in c.model_dump()
+    on_track = c.with_changes(track_geometry="runs/km123.track.csv")
+    assert on_track.model_dump()["track_geometry"] == "runs/km123.track.csv"
+    assert on_track.differences(c) == ["track_geometry"] == c.differences(on_track)
+    assert WorkingCondition(**on_track.model_dump()) == on_track

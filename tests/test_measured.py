@@ -11,6 +11,7 @@ from railsusp.measured import (
     Recording,
     RecordingError,
     add_sensor_noise,
+    bandwidth_filter,
     read_field,
     read_recording,
     synthesise_field,
@@ -195,3 +196,41 @@ def test_synthetic_field_longer_recording_keeps_the_sampling_rate(tmp_path):
     assert len(rec.time) == 250
     assert rec.time[1] - rec.time[0] == pytest.approx(cond.sample_interval)
     assert rec.condition.duration_s == 5.0 and rec.condition.seed == cond.seed
+
+
+def test_synthetic_field_with_measured_track(tmp_path):
+    """--with-track writes the track the truth ran on; the reader resolves it against the
+    recording's folder, and the truth simulated on it reproduces the noise-free recording."""
+    from railsusp.measured import conditions_from
+    from railsusp.vehicle.simulate import simulate
+
+    cond = get_condition("straight", duration_s=2.0, n_steps=100, lead_in_m=20.0)
+    truth = ParameterSet({"X13": 16.1}, units="display")
+    out = synthesise_field(truth, [cond], tmp_path / "field", noise=0.0, with_track=True)
+    sidecar = json.loads((out / "straight.json").read_text())
+    assert sidecar["condition"]["track_geometry"] == "straight.track.csv"  # travels along
+    moved = out.rename(tmp_path / "moved")
+    (rec,) = read_field(moved)
+    assert rec.condition.track_geometry == str((moved / "straight.track.csv").resolve())
+    sim = simulate(truth, rec.condition)
+    clean = bandwidth_filter(sim.Y[0, 0] / 1e3, rec.sampling_rate, 15.0)
+    # equal up to the channel's gain error (noise 0): perfectly correlated
+    assert np.corrcoef(clean, rec.Y["w1L"])[0, 1] > 0.99999
+    other = bandwidth_filter(simulate(truth, cond).Y[0, 0] / 1e3, rec.sampling_rate, 15.0)
+    assert np.corrcoef(other, rec.Y["w1L"])[0, 1] < 0.9  # the design track is another track
+    # a campaign can take the recordings' conditions, measured track included
+    (c,) = conditions_from(str(moved))
+    assert c.track_geometry == rec.condition.track_geometry
+    # a missing track file is reported as a recording problem
+    (moved / "straight.track.csv").unlink()
+    with pytest.raises(RecordingError, match="condition.track_geometry.*not found"):
+        read_field(moved)
+
+
+def test_track_noise_is_bounded(tmp_path):
+    from railsusp.errors import RailsuspInputError
+
+    with pytest.raises(RailsuspInputError, match="track_noise_mm = 20: accepted 0 to 10 mm"):
+        synthesise_field(
+            ParameterSet.nominal(), [COND], tmp_path, with_track=True, track_noise_mm=20
+        )

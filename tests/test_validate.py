@@ -62,3 +62,18 @@ def test_sobol_flag(case, tmp_path):
     rec = validate(est, truth=field / "truth.json", sensitivity=sens).recovery
     row = rec.set_index("parameter").loc["X17"]
     assert not row.identifiable and "Sobol ST 0.02" in row.why_not
+
+
+def test_refined_estimate_flags_by_its_standard_error(case, tmp_path):
+    """With a refinement on record, identifiability is judged by its standard errors, not
+    by NSGA-II's Pareto spread."""
+    field, est, _ = case
+    doc = json.loads((est / "estimate.json").read_text())
+    doc["refinement"] = {"standard_error_pct_range": {"X13": 0.8, "X17": 12.0}}
+    refined = tmp_path / "refined"
+    refined.mkdir()
+    (refined / "estimate.json").write_text(json.dumps(doc))
+    rec = validate(refined, truth=field / "truth.json").recovery.set_index("parameter")
+    assert bool(rec.loc["X13", "identifiable"])
+    assert not rec.loc["X17", "identifiable"]
+    assert rec.loc["X17", "why_not"] == "standard error 12.0 % of range"

@@ -33,7 +33,15 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    SerializerFunctionWrapHandler,
+    ValidationError,
+    model_serializer,
+    model_validator,
+)
 
 from railsusp.errors import ConditionError
 
@@ -85,7 +93,26 @@ class WorkingCondition(BaseModel):
     wavelength_min_m: float = _f(1.0, 0.1, 50.0, "m", "shortest irregularity wavelength")
     wavelength_max_m: float = _f(120.0, 2.0, 1000.0, "m", "longest irregularity wavelength")
     seed: int = Field(0, ge=0, le=2**63 - 1, description="irregularity random seed")
+    track_geometry: str | None = Field(
+        None,
+        min_length=1,
+        max_length=4096,
+        pattern=r"(?i).*\.(csv|parquet)$",
+        description=(
+            "measured rail irregularities (a .csv or .parquet file, docs/data-format.md) "
+            "replacing the synthesised ones; irregularity_class and seed are then unused"
+        ),
+    )
     wheel_rail_friction: float = _f(0.3, 0.05, 0.8, "-", "wheel-rail friction coefficient")
+
+    @model_serializer(mode="wrap")
+    def _without_unset_track(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
+        """Leave ``track_geometry`` out when it is None, so that the dump (and the content
+        hashes of run directories made before the field existed) stays as it was."""
+        data = handler(self)
+        if data.get("track_geometry", "") is None:
+            del data["track_geometry"]
+        return data
 
     @model_validator(mode="after")
     def _consistent(self) -> WorkingCondition:
@@ -187,7 +214,9 @@ class WorkingCondition(BaseModel):
         if self.coupler_force_kN:
             parts.append(f"coupler {self.coupler_force_kN:g} kN")
         irr = (
-            "perfect track"
+            f"measured track {Path(self.track_geometry).name}"
+            if self.track_geometry is not None
+            else "perfect track"
             if self.irregularity_class is None
             else f"FRA class {self.irregularity_class} ({self.wavelength_min_m:g}-"
             f"{self.wavelength_max_m:g} m), seed {self.seed}"
@@ -204,7 +233,7 @@ class WorkingCondition(BaseModel):
         """Names of the fields (other than ``ignore``) in which ``other`` differs."""
         skip = set(ignore)
         mine, theirs = self.model_dump(exclude=skip), other.model_dump(exclude=skip)
-        return sorted(k for k in mine if mine[k] != theirs[k])
+        return sorted(k for k in mine.keys() | theirs.keys() if mine.get(k) != theirs.get(k))
 
 
 def make_condition(fields: dict[str, Any]) -> WorkingCondition:

@@ -13,10 +13,9 @@ The reader reports every problem of a file at once, naming file, column and row,
 
 from __future__ import annotations
 
-import difflib
 import json
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -25,9 +24,15 @@ import pandas as pd
 from scipy.signal import butter, resample_poly, sosfiltfilt
 
 from railsusp.conditions import WorkingCondition, get_condition, make_condition
-from railsusp.errors import RailsuspInputError
+from railsusp.errors import RailsuspInputError, did_you_mean
 from railsusp.store import write_json, write_parquet
 from railsusp.vehicle.layout import WHEEL_NAMES
+from railsusp.vehicle.track import (
+    COMPONENTS,
+    Irregularities,
+    read_track_geometry,
+    write_track_geometry,
+)
 
 FORMAT = "railsusp-recording/1"
 #: physical bounds for a loaded 25 t axle-load wagon (kN)
@@ -119,12 +124,6 @@ class Recording:
         )
 
 
-def _close(name: str, options: list[str]) -> str:
-    same_case = [o for o in options if o.lower() == name.lower()]
-    m = same_case or difflib.get_close_matches(name, options, n=1, cutoff=0.6)
-    return f" (did you mean {m[0]!r}?)" if m else ""
-
-
 def read_recording(path: str | Path, *, min_rate_hz: float = 50.0) -> Recording:
     """Read and validate a recording; raise :class:`RecordingError` listing every problem.
 
@@ -178,7 +177,7 @@ def read_recording(path: str | Path, *, min_rate_hz: float = 50.0) -> Recording:
     ]
     for c in cols:
         if c not in known:
-            problems.append(f"column {c!r} not recognised{_close(c, known)}")
+            problems.append(f"column {c!r} not recognised{did_you_mean(c, known)}")
 
     def numeric(col: str) -> np.ndarray:
         raw = df[col]
@@ -259,6 +258,8 @@ def read_recording(path: str | Path, *, min_rate_hz: float = 50.0) -> Recording:
                 problems.append(f"{side.name}: no 'condition' table or 'condition_name'")
         except RailsuspInputError as exc:
             problems.append(f"{side.name}: {exc}")
+    if condition is not None and condition.track_geometry is not None:
+        condition = _resolve_track(condition, table_path.parent, problems)
     if problems:
         raise RecordingError(table_path, problems)
     for note in notes:
@@ -289,6 +290,21 @@ def _fill_gaps(x: np.ndarray, col: str, problems: list[str], notes: list[str]) -
     return np.interp(idx, idx[~nan], x[~nan])
 
 
+def _resolve_track(
+    condition: WorkingCondition, folder: Path, problems: list[str]
+) -> WorkingCondition:
+    """The condition with its track-geometry file resolved against the recording's folder
+    (relative names in a sidecar travel with the recording) and checked."""
+    path = Path(condition.track_geometry or "")
+    if not path.is_absolute():
+        path = (folder / path).resolve()
+    try:
+        read_track_geometry(path)
+    except RailsuspInputError as exc:
+        problems.append(f"condition.track_geometry: {exc}")
+    return condition.with_changes(track_geometry=str(path))
+
+
 def recording_from_simulation(
     result, wheels: tuple[str, ...] | None = None, set_index: int = 0
 ) -> Recording:
@@ -299,6 +315,13 @@ def recording_from_simulation(
     return Recording(result.time.copy(), Y, Q, result.condition, {"wagon": result.wagon_name})
 
 
+def bandwidth_filter(x: np.ndarray, fs: float, bandwidth_hz: float, axis: int = -1) -> np.ndarray:
+    """An instrument's bandwidth limit: 4th-order Butterworth low-pass, zero phase (scipy
+    ``sosfiltfilt``), cut-off ``bandwidth_hz`` capped at 0.45 of the sampling rate ``fs``."""
+    sos = butter(4, min(bandwidth_hz, 0.45 * fs), fs=fs, output="sos")
+    return sosfiltfilt(sos, x, axis=axis)
+
+
 def add_sensor_noise(
     rec: Recording, noise: float, seed: int, bandwidth_hz: float = 15.0, gain_error: float = 0.01
 ) -> Recording:
@@ -307,10 +330,9 @@ def add_sensor_noise(
     channel's RMS."""
     rng = np.random.default_rng(seed)
     fs = rec.sampling_rate
-    sos = butter(4, min(bandwidth_hz, 0.45 * fs), fs=fs, output="sos")
 
     def corrupt(x: np.ndarray) -> np.ndarray:
-        y = sosfiltfilt(sos, x) * (1.0 + gain_error * rng.standard_normal())
+        y = bandwidth_filter(x, fs, bandwidth_hz) * (1.0 + gain_error * rng.standard_normal())
         return y + noise * np.sqrt(np.mean(x**2)) * rng.standard_normal(len(x))
 
     return Recording(
@@ -332,6 +354,8 @@ def synthesise_field(
     track_seed_offset: int = 1000,
     fmt: str = "csv",
     duration_s: float | None = None,
+    with_track: bool = False,
+    track_noise_mm: float = 0.0,
 ) -> Path:
     """Synthetic field recordings of the ``truth`` ParameterSet with hidden truth.
 
@@ -341,9 +365,18 @@ def synthesise_field(
     the estimator never reads. ``duration_s`` records longer (or shorter) than the
     condition's duration at the same sampling rate: real runs span kilometres of track, and
     the track-realisation scatter of a statistic falls with the recorded length.
-    """
-    from railsusp.vehicle.simulate import simulate
 
+    ``with_track`` also writes the track the truth ran on as measured track geometry
+    (``NAME.track.csv``, named by the recording's condition), as a track recording car run
+    with the instrumented wagon would give, with white measurement noise of
+    ``track_noise_mm`` (RMS, mm) on each component.
+    """
+    from railsusp.vehicle.setup import section_irregularities
+    from railsusp.vehicle.simulate import simulate
+    from railsusp.vehicle.wagon import load_wagon
+
+    if not 0.0 <= track_noise_mm <= 10.0:
+        raise RailsuspInputError(f"track_noise_mm = {track_noise_mm:g}: accepted 0 to 10 mm")
     out = Path(out)
     names = []
     for i, cond in enumerate(conditions):
@@ -354,6 +387,15 @@ def synthesise_field(
         rec = recording_from_simulation(simulate(truth, field_cond))
         rec = add_sensor_noise(rec, noise, seed + i)
         rec.condition = cond  # the engineer knows the condition, not the track realisation
+        if with_track:
+            irr = section_irregularities(field_cond, [field_cond.seed], load_wagon())
+            assert irr is not None, "with_track needs a condition with irregularities"
+            if track_noise_mm:
+                rng = np.random.default_rng([seed, i, 1])
+                irr = _noisy(irr, track_noise_mm * 1e-3, rng)
+            track_name = f"{cond.name}.track.csv"
+            write_track_geometry(out / track_name, irr, origin_m=cond.lead_in_m)
+            rec.condition = cond.with_changes(track_geometry=track_name)
         rec.meta["wagon"] = rec.meta.get("wagon", "")
         rec.write(out / cond.name, fmt)
         names.append(cond.name + (".csv" if fmt == "csv" else ".parquet"))
@@ -371,6 +413,12 @@ def synthesise_field(
     return out
 
 
+def _noisy(irr: Irregularities, rms_m: float, rng: np.random.Generator) -> Irregularities:
+    """``irr`` with white noise of ``rms_m`` added to each component (measurement error)."""
+    noisy = {c: irr.component(c) + rms_m * rng.standard_normal(irr.s.size) for c in COMPONENTS}
+    return replace(irr, **noisy)
+
+
 def read_field(folder: str | Path) -> list[Recording]:
     """All recordings listed in a field folder's ``index.json`` (never ``truth.json``)."""
     folder = Path(folder)
@@ -379,3 +427,18 @@ def read_field(folder: str | Path) -> list[Recording]:
         raise RailsuspInputError(f"{folder}: no index.json listing the recordings")
     doc = json.loads(index.read_text("utf-8"))
     return [read_recording(folder / name) for name in doc.get("recordings", [])]
+
+
+def conditions_from(spec: str) -> list[WorkingCondition]:
+    """Conditions named by ``spec``: standard names or a TOML file (as
+    :func:`~railsusp.conditions.resolve_conditions`), or a field folder (``index.json``), whose
+    recordings' conditions are taken with their measured track geometry, so that a campaign
+    can run on the track the recordings were made on."""
+    from railsusp.conditions import resolve_conditions
+
+    folder = Path(spec)
+    if folder.is_dir():
+        if not (folder / "index.json").is_file():
+            raise RailsuspInputError(f"conditions {spec!r}: a folder without index.json")
+        return [rec.condition for rec in read_field(folder)]
+    return resolve_conditions(spec)

@@ -63,6 +63,10 @@ class FieldSection(_Cfg):
     )
     seed: int = 7
     noise: float = Field(0.03, ge=0.0, le=0.5)
+    with_track: bool = Field(
+        False, description="synthetic recordings also carry their measured track geometry"
+    )
+    track_noise_mm: float = Field(0.0, ge=0.0, le=10.0, description="RMS error of that track")
 
 
 class EstimateSection(_Cfg):
@@ -77,6 +81,14 @@ class EstimateSection(_Cfg):
     )
     seeds: int = Field(1, ge=1, le=10)
     seed: int = 0
+    refine: bool = Field(
+        False,
+        description="refine by output-error least squares with the simulator on the "
+        "recordings' measured track (needs recordings with track geometry)",
+    )
+    refine_evaluations: int = Field(40, ge=1, le=500)
+    refine_screen: int = Field(64, ge=0, le=10_000, description="LHS points screened for starts")
+    refine_starts: int = Field(2, ge=1, le=20, description="best screened starts refined")
 
     @field_validator("statistic")
     @classmethod
@@ -146,7 +158,8 @@ def demo_config() -> PipelineConfig:
     """The embedded default (identical to examples/quick.toml, checked by a test)."""
     return PipelineConfig(
         name="quick demo: C80/K6, synthetic field data of a degraded wagon",
-        field=FieldSection(truth=DEMO_TRUTH),
+        field=FieldSection(truth=DEMO_TRUTH, with_track=True),
+        estimate=EstimateSection(refine=True),
     )
 
 
@@ -313,11 +326,24 @@ def _stage_runners(
             shutil.copytree(f.measured, dest)
             return {"recordings": len(recs), "synthetic": False}
         truth = ParameterSet(f.truth, units="display")
-        synthesise_field(truth, config.working_conditions(), dest, seed=f.seed, noise=f.noise)
+        synthesise_field(
+            truth,
+            config.working_conditions(),
+            dest,
+            seed=f.seed,
+            noise=f.noise,
+            with_track=f.with_track,
+            track_noise_mm=f.track_noise_mm,
+        )
         return {"recordings": len(config.conditions), "synthetic": True}
 
     def estimate() -> dict:
-        from railsusp.estimate import NSGAConfig, estimate_with_seeds, open_force_model
+        from railsusp.estimate import (
+            NSGAConfig,
+            estimate_with_seeds,
+            open_force_model,
+            refine_estimate,
+        )
         from railsusp.measured import read_field
         from railsusp.surrogate import key_parameters
 
@@ -334,7 +360,17 @@ def _stage_runners(
             per_condition=e.per_condition,
             weighting=e.weighting,
         )
-        res = estimate_with_seeds(model, read_field(out / "field"), params, cfg, e.seeds)
+        recs = read_field(out / "field")
+        res = estimate_with_seeds(model, recs, params, cfg, e.seeds)
+        if e.refine:
+            refine_estimate(
+                res,
+                recs,
+                max_evaluations=e.refine_evaluations,
+                screen=e.refine_screen,
+                starts=e.refine_starts,
+                seed=e.seed,
+            )
         res.save(
             out / "estimate",
             extra={"measured": str((out / "field").resolve()), "model": config.surrogate.model},

@@ -2,8 +2,9 @@
 Figures 12 and 13), and parameter-recovery scoring when the truth is known.
 
 The measured conditions are re-simulated with the simulator (not the surrogate) with the
-nominal and with the estimated parameters, on the design track of each condition (the
-measured track is unknown), and their record statistics are compared with the recordings'.
+nominal and with the estimated parameters, on the recordings' measured track geometry when
+they carry one, else on the design track of each condition, and their record statistics
+(and, on measured track, the time-aligned mismatch) are compared with the recordings'.
 For synthetic recordings the validator, and only the validator, reads the hidden truth: the
 recovery error per parameter, and the noise floor, i.e. the error that a simulation with the
 true parameters itself makes against the same recording.
@@ -18,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from railsusp.estimate import measured_statistics, parse_statistics
+from railsusp.estimate import ALIGNED, aligned_error, measured_statistics, parse_statistics
 from railsusp.measured import read_field
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import read_json, write_json
@@ -28,6 +29,8 @@ from railsusp.vehicle.simulate import record_statistic
 PARETO_SPREAD_LIMIT = 25.0
 #: ... nor one whose largest total Sobol index on the used features is below this
 SOBOL_ST_LIMIT = 0.1
+#: ... nor, for a refined estimate, one whose standard error exceeds this share of its range
+STANDARD_ERROR_LIMIT = 5.0
 
 
 @dataclass
@@ -79,11 +82,16 @@ def validate(
     ``measured`` defaults to the folder recorded in ``estimate.json``; ``truth`` is a
     ``truth.json`` of synthetic recordings (scored only when given); ``sensitivity`` a
     ``key_parameters.json`` or ``indices.parquet`` of the campaign, for the Sobol flag.
+    ``statistic`` defaults to the estimate's, with ``aligned`` added when every recording
+    carries measured track geometry.
     """
     est = read_json(Path(estimate_dir) / "estimate.json")
     params = tuple(est["parameters"])
     stats = parse_statistics(statistic or est["config"]["statistic"])
     recs = read_field(measured or est["measured"])
+    if statistic is None and ALIGNED not in stats:
+        if all(r.condition.track_geometry is not None for r in recs):
+            stats = (*stats, ALIGNED)  # on measured track, also compare sample by sample
     chosen = ParameterSet(est["estimate_display"], units="display")
     nominal = ParameterSet.nominal()
     truth_set = None
@@ -93,11 +101,27 @@ def validate(
     sims = {"before": _simulate(nominal, recs), "after": _simulate(chosen, recs)}
     if truth_set is not None:
         sims["truth"] = _simulate(truth_set, recs)
+    aligned = ALIGNED in stats
+    stats = tuple(st for st in stats if st != ALIGNED)
     rows, series = [], {}
     for i, rec in enumerate(recs):
         w = rec.wheels[0]
         meas = measured_statistics(rec, stats)
         for j, force in enumerate(("Y", "Q")):
+            if aligned:
+                # time-aligned: *_kN is the RMS difference, *_error that over the measured SD
+                sd = float(np.std(rec.Y[w] if force == "Y" else rec.Q[w]))
+                row = {
+                    "condition": rec.condition.name,
+                    "wheel": w,
+                    "force": force,
+                    "statistic": ALIGNED,
+                    "measured_kN": sd,
+                }
+                for key, s in sims.items():
+                    e = float(aligned_error(s[i][None], rec)[0, j])
+                    row[f"{key}_kN"], row[f"{key}_error"] = e * sd, e
+                rows.append(row)
             for k, st in enumerate(stats):
                 row = {
                     "condition": rec.condition.name,
@@ -130,11 +154,16 @@ def _recovery(
     lo, hi = bounds(params)
     max_st = _max_st(sensitivity) if sensitivity else {}
     spread = est.get("pareto_spread_pct_range", {})
+    refined = est.get("refinement") or {}
+    std_err = refined.get("standard_error_pct_range", {})
     rows = []
     for p, low, high in zip(params, lo, hi, strict=True):
         t, e = truth[p], chosen[p]
         reasons = []
-        if spread.get(p, 0.0) > PARETO_SPREAD_LIMIT:
+        if refined:  # the refined estimate's own uncertainty, not NSGA-II's spread
+            if std_err.get(p, 0.0) > STANDARD_ERROR_LIMIT:
+                reasons.append(f"standard error {std_err[p]:.1f} % of range")
+        elif spread.get(p, 0.0) > PARETO_SPREAD_LIMIT:
             reasons.append(f"Pareto spread {spread[p]:.0f} % of range")
         if p in max_st and max_st[p] < SOBOL_ST_LIMIT:
             reasons.append(f"Sobol ST {max_st[p]:.2f}")

@@ -178,3 +178,24 @@ def test_evaluate_runs_on_held_out_samples(run, trained):
     rows = evaluate(sur, test)
     assert [r["target"] for r in rows] == ["Y", "Q"]
     assert all(r["n_samples"] == test.n_samples for r in rows)
+
+
+def test_predict_on_a_measured_track_and_another_record_length(trained, tmp_path):
+    """The network reads the track: on a measured-geometry file equal to its training track
+    it predicts what it predicts there; on another seed's geometry, something else; and a
+    longer record gives a longer series."""
+    from railsusp.params import bounds
+    from railsusp.vehicle.setup import section_irregularities
+    from railsusp.vehicle.track import write_track_geometry
+
+    _, path = trained
+    sur = load(path)
+    lo, hi = bounds(KEYS)
+    x = np.vstack([lo, hi])
+    cond = sur.condition.with_changes(seed=sur.track_seed)
+    irr = section_irregularities(cond, [cond.seed], sur.wagon)
+    geometry = write_track_geometry(tmp_path / "same.csv", irr, origin_m=cond.lead_in_m)
+    on_file = sur.predict(x, cond.with_changes(track_geometry=str(geometry), seed=999))
+    np.testing.assert_allclose(on_file, sur.predict(x), rtol=1e-4, atol=1e-3)
+    longer = sur.predict(x, cond.with_changes(duration_s=3.0, n_steps=150))
+    assert longer.shape == (2, 150, 2)

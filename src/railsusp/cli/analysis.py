@@ -9,7 +9,6 @@ import typer
 from rich.table import Table
 
 from railsusp.cli import app, console, err_console, fail
-from railsusp.conditions import resolve_conditions
 from railsusp.errors import RailsuspInputError
 
 
@@ -17,9 +16,13 @@ from railsusp.errors import RailsuspInputError
 def campaign(
     out: Annotated[Path, typer.Option(help="run directory")],
     samples: Annotated[int, typer.Option(help="LHS samples, or Saltelli base N")] = 1000,
-    conditions: Annotated[str, typer.Option(help="names or a TOML file")] = (
-        "straight,curve,uphill"
-    ),
+    conditions: Annotated[
+        str,
+        typer.Option(
+            help="names, a TOML file, or a field folder (its recordings' conditions, on their "
+            "measured track geometry when they carry one)"
+        ),
+    ] = "straight,curve,uphill",
     seed: Annotated[int, typer.Option(help="design seed")] = 0,
     design: Annotated[str, typer.Option(help="lhs, lhs-optimised or sobol (Saltelli)")] = "lhs",
     second_order: Annotated[bool, typer.Option(help="Saltelli with second order")] = False,
@@ -43,9 +46,10 @@ def campaign(
 ) -> None:
     """Sample the suspension parameters and simulate every sample in every condition."""
     from railsusp.campaign import make_config, run_campaign
+    from railsusp.measured import conditions_from
 
     try:
-        conds = resolve_conditions(conditions)
+        conds = conditions_from(conditions)
         cfg = make_config(
             conds,
             samples,

@@ -29,6 +29,13 @@ def synth_field(
         float | None,
         typer.Option(help="recorded seconds per condition (default: the condition's)"),
     ] = None,
+    with_track: Annotated[
+        bool,
+        typer.Option(help="also write the track the truth ran on as measured track geometry"),
+    ] = False,
+    track_noise: Annotated[
+        float, typer.Option(help="RMS measurement noise on the written track geometry, mm")
+    ] = 0.0,
 ) -> None:
     """Synthetic instrumented-wheelset recordings of hidden true parameters (truth.json)."""
     from railsusp.measured import synthesise_field
@@ -43,7 +50,17 @@ def synth_field(
         pset = ParameterSet(parse_overrides(truth) if truth else {}, units="display")
         conds = resolve_conditions(conditions)
         with console.status("simulating the hidden truth"):
-            synthesise_field(pset, conds, out, seed=seed, noise=noise, fmt=fmt, duration_s=duration)
+            synthesise_field(
+                pset,
+                conds,
+                out,
+                seed=seed,
+                noise=noise,
+                fmt=fmt,
+                duration_s=duration,
+                with_track=with_track,
+                track_noise_mm=track_noise,
+            )
     except RailsuspInputError as exc:
         fail(str(exc))
     console.print(
@@ -120,6 +137,20 @@ def estimate(
     mutation: Annotated[float, typer.Option(help="mutation probability per variable")] = 0.05,
     seed: Annotated[int, typer.Option(help="NSGA-II seed")] = 0,
     seeds: Annotated[int, typer.Option(help="independent runs for the seed spread")] = 1,
+    refine: Annotated[
+        bool,
+        typer.Option(
+            help="then refine the estimate by output-error least squares with the simulator "
+            "on the recordings' measured track geometry (time-aligned)"
+        ),
+    ] = False,
+    refine_evaluations: Annotated[
+        int, typer.Option(help="most residual evaluations of the refinement")
+    ] = 40,
+    refine_screen: Annotated[
+        int, typer.Option(help="Latin hypercube points screened for refinement starts")
+    ] = 64,
+    refine_starts: Annotated[int, typer.Option(help="best screened starts refined")] = 2,
 ) -> None:
     """NSGA-II estimate of the key parameters from measured recordings (Tables 3-5, Figs 8-9)."""
     from railsusp.estimate import (
@@ -128,6 +159,7 @@ def estimate(
         estimate_with_seeds,
         open_force_model,
         parse_statistics,
+        refine_estimate,
     )
     from railsusp.measured import read_field
 
@@ -157,6 +189,24 @@ def estimate(
         )
         with console.status(f"NSGA-II {pop_size} x {n_gen} on {len(recs)} recording(s)"):
             res = estimate_with_seeds(model, recs, params, cfg, n_seeds=max(1, seeds))
+        if refine:
+            for name, value, top in (
+                ("--refine-evaluations", refine_evaluations, 500),
+                ("--refine-screen", refine_screen, 10_000),
+                ("--refine-starts", refine_starts, 20),
+            ):
+                if not (0 if name == "--refine-screen" else 1) <= value <= top:
+                    low = 0 if name == "--refine-screen" else 1
+                    raise RailsuspInputError(f"{name} {value}: accepted {low} to {top}")
+            with console.status("refining on the measured track (simulator, output error)"):
+                refine_estimate(
+                    res,
+                    recs,
+                    max_evaluations=refine_evaluations,
+                    screen=refine_screen,
+                    starts=refine_starts,
+                    seed=seed,
+                )
         res.save(
             out,
             extra={

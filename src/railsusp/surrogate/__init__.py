@@ -32,12 +32,19 @@ __all__ = [
 
 
 def key_parameters(run: str | Path) -> tuple[str, ...]:
-    """The run's key parameters from its sensitivity analysis, else the study's six."""
+    """The run's key parameters from its sensitivity analysis; without one, the study's six
+    when the campaign sampled them all, else the campaign's sampled parameters (a campaign
+    over chosen parameters, e.g. on a recording's measured track)."""
     p = Path(run) / "sensitivity" / "key_parameters.json"
     if p.exists():
         keys = read_json(p)["key_parameters"]["keys"]
         if keys:
             return tuple(keys)
+    camp = Path(run) / "campaign.json"
+    if camp.exists():
+        sampled = tuple(read_json(camp)["config"]["parameters"])
+        if not set(STUDY_KEY_PARAMETERS) <= set(sampled):
+            return sampled
     return STUDY_KEY_PARAMETERS
 
 

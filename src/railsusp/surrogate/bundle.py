@@ -88,22 +88,29 @@ class Surrogate:
 
         ``params``: (n, n_key) SI values of the key parameters, or ParameterSets. The track
         is the training track (``track_seed``) unless ``condition`` (the surrogate's own
-        condition, possibly with another irregularity seed), ``seed`` or raw ``track``
-        features (T, n_track) say otherwise. A surrogate serves one condition only.
+        condition, possibly with another irregularity seed, a measured ``track_geometry`` or
+        another record length), ``seed`` or raw ``track`` features (T, n_track) say
+        otherwise. A surrogate serves one condition only.
         ``fast=False`` takes the per-window reference path (see :meth:`predict_windows`).
         """
         unit = self._unit(params)
+        on = self.condition
         if condition is not None:
-            diff = self.condition.differences(condition)
+            # the network reads the track, so another realisation, a measured track or
+            # another record length is new input, not another condition
+            diff = self.condition.differences(
+                condition, ("seed", "track_geometry", "duration_s", "n_steps")
+            )
             if diff:
                 raise ValueError(
                     f"this surrogate was trained for condition {self.condition.name!r}; the "
                     f"given condition differs in {', '.join(diff)}"
                 )
             seed = condition.seed if seed is None else seed
+            on = condition
         if track is None:
             s = self.track_seed if seed is None else seed
-            track = track_features(self.condition, s, self.spec, self.wagon)
+            track = track_features(on, s, self.spec, self.wagon)
         tr = self.normaliser.track(np.asarray(track)[None])
         n, t_steps = unit.shape[0], tr.shape[1]
         idx = window_index(n, t_steps, self.spec.window)

@@ -21,7 +21,7 @@ from railsusp.vehicle import layout as L
 from railsusp.vehicle.contact import contact_table
 from railsusp.vehicle.contact_forces import hertz_contact, kalker_creep_coefficients
 from railsusp.vehicle.profiles import chn60_rail, lm_worn_wheel, read_profile
-from railsusp.vehicle.track import TrackLayout, irregularities_for
+from railsusp.vehicle.track import Irregularities, TrackLayout, irregularities_for
 from railsusp.vehicle.wagon import WagonData
 
 
@@ -218,6 +218,20 @@ def constants(
 
 
 # ---------------------------------------------------------------- track arrays
+def axle_spread(wagon: WagonData) -> float:
+    """Distance from the leading to the trailing wheelset, m."""
+    return wagon.car_body.bogie_half_spacing * 2 + wagon.bogie.half_wheelbase * 2
+
+
+def section_irregularities(
+    condition: WorkingCondition, seeds: Sequence[int], wagon: WagonData
+) -> Irregularities | None:
+    """The rail irregularities the simulator runs on (section coordinates), per seed; the
+    synthetic field recordings export exactly these as measured track geometry."""
+    spread = axle_spread(wagon)
+    return irregularities_for(condition, list(seeds), behind=spread + 25.0, axle_spread_m=spread)
+
+
 def track_arrays(
     condition: WorkingCondition, seeds: Sequence[int], wagon: WagonData, settings: SolverSettings
 ) -> tuple[np.ndarray, float, float]:
@@ -227,7 +241,7 @@ def track_arrays(
     shared; irregularities ramp in smoothly over the first 30 m (zero behind s = 0), so that
     the run starts from static equilibrium.
     """
-    behind = wagon.car_body.bogie_half_spacing * 2 + wagon.bogie.half_wheelbase * 2 + 20.0
+    behind = axle_spread(wagon) + 20.0
     ds = settings.track_step
     s = np.arange(-behind, condition.section_length_m + 20.0 + ds, ds)
     lay = TrackLayout.from_condition(condition)
@@ -239,9 +253,9 @@ def track_arrays(
     out[:, L.TR_CANT] = lay.cant_angle_at(s)
     out[:, L.TR_HEAD] = head
     out[:, L.TR_OFFSET] = offset
-    if condition.irregularity_class is not None:
-        irr = irregularities_for(condition, list(seeds), behind=behind + 5.0)
-        rails = irr.at(s)  # type: ignore[union-attr]
+    irr = section_irregularities(condition, seeds, wagon)
+    if irr is not None:
+        rails = irr.at(s)  # (n_seeds, n_s); one measured track broadcasts over the seeds
         ramp = np.clip(s / 30.0, 0.0, 1.0)  # zero under every wheel at the start
         window = ramp * ramp * (3.0 - 2.0 * ramp)
         out[:, L.TR_ZL] = rails["zL"] * window

@@ -24,10 +24,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from railsusp.conditions import CANT_BASE_M, WorkingCondition
+from railsusp.errors import RailsuspInputError, did_you_mean
 
 #: Shape constant k and cut-off Ω_c (rad/m) of the FRA spectra.
 FRA_K = 0.25
@@ -95,10 +99,12 @@ class Irregularities:
     alignment: np.ndarray
     crosslevel: np.ndarray
     gauge: np.ndarray
-    track_class: int
+    track_class: int | None
     wavelength_min: float
     wavelength_max: float
     seeds: tuple[int, ...]
+    #: the measured-geometry file these came from (None: synthesised)
+    source: str | None = None
 
     @property
     def left_vertical(self) -> np.ndarray:
@@ -209,12 +215,20 @@ def synthesise(
 
 
 def irregularities_for(
-    condition: WorkingCondition, seeds: int | Sequence[int] | None = None, behind: float = 30.0
+    condition: WorkingCondition,
+    seeds: int | Sequence[int] | None = None,
+    behind: float = 30.0,
+    axle_spread_m: float = 0.0,
 ) -> Irregularities | None:
     """Irregularities covering a condition's section, from ``-behind`` m (trailing axles).
 
-    Returns None for perfect track (``irregularity_class`` None).
+    Synthesised from the condition's class and seed, or, when the condition names a
+    ``track_geometry`` file, the measured ones (one realisation whatever the seeds; the file
+    must cover the recorded stretch under every axle, ``axle_spread_m`` behind the leading
+    one). Returns None for perfect track.
     """
+    if condition.track_geometry is not None:
+        return measured_irregularities(condition, axle_spread_m)
     if condition.irregularity_class is None:
         return None
     return synthesise(
@@ -296,3 +310,148 @@ class TrackLayout:
     def grade_at(self, s: np.ndarray) -> np.ndarray:
         """Grade (ratio, + up) at distance s; constant along the section."""
         return np.full(np.shape(s), self.grade, dtype=float)
+
+
+# ------------------------------------------------------------ measured track geometry
+#: Columns of a track-geometry file (docs/data-format.md): distance from the leading
+#: wheelset's position at the recording start, then the four irregularity components.
+TRACK_COLUMNS: tuple[str, ...] = (
+    "distance_m",
+    "vertical_mm",
+    "alignment_mm",
+    "crosslevel_mm",
+    "gauge_mm",
+)
+#: largest accepted |irregularity|, mm (Class 1 track stays well inside)
+MAX_IRREGULARITY_MM = 100.0
+#: largest accepted sample spacing, m (half the shortest 1 m wavelength)
+MAX_TRACK_SPACING_M = 0.5
+#: measured geometry is faded in over this length where it starts inside the simulated span, m
+TRACK_TAPER_M = 10.0
+
+
+def write_track_geometry(path: str | Path, irr: Irregularities, origin_m: float = 0.0) -> Path:
+    """Write the first realisation of ``irr`` as a track-geometry file (CSV or Parquet,
+    atomically), distances shifted by ``-origin_m`` (section -> recording coordinates)."""
+    from railsusp.store import atomic_write_bytes, write_parquet
+
+    path = Path(path)
+    table = pd.DataFrame(
+        {
+            "distance_m": irr.s - origin_m,
+            **{f"{c}_mm": irr.component(c)[0] * 1e3 for c in COMPONENTS},
+        }
+    )
+    if path.suffix.lower() == ".parquet":
+        return write_parquet(path, table)
+    if path.suffix.lower() != ".csv":
+        raise ValueError(f"track geometry file {path}: accepted suffixes .csv, .parquet")
+    atomic_write_bytes(path, table.to_csv(index=False, float_format="%.9g").encode())
+    return path
+
+
+def read_track_geometry(path: str | Path) -> Irregularities:
+    """Read and check a track-geometry file; distances as in the file (recording frame).
+
+    Every problem is reported at once, naming the file, column and row: missing columns,
+    non-numeric or missing cells, distances not strictly increasing or spaced over
+    :data:`MAX_TRACK_SPACING_M`, magnitudes over :data:`MAX_IRREGULARITY_MM` and values that
+    look like metres rather than millimetres.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise RailsuspInputError(f"track geometry file {p} not found")
+    stat = p.stat()
+    return _read_track_geometry(str(p.resolve()), stat.st_mtime_ns, stat.st_size)
+
+
+@lru_cache(maxsize=16)
+def _read_track_geometry(path: str, _mtime_ns: int, _size: int) -> Irregularities:
+    problems: list[str] = []
+    try:
+        table = pd.read_parquet(path) if path.lower().endswith(".parquet") else pd.read_csv(path)
+    except Exception as exc:  # any parser failure is a bad file
+        raise RailsuspInputError(f"track geometry file {path}: cannot be read ({exc})") from None
+    missing = [c for c in TRACK_COLUMNS if c not in table.columns]
+    for c in missing:
+        problems.append(f"missing column {c!r}" + did_you_mean(c, list(map(str, table.columns))))
+    if missing:
+        raise RailsuspInputError(f"track geometry file {path}: " + "; ".join(problems))
+    if len(table) < 2:
+        raise RailsuspInputError(f"track geometry file {path}: fewer than 2 rows")
+    cols: dict[str, np.ndarray] = {}
+    for c in TRACK_COLUMNS:
+        x = pd.to_numeric(table[c], errors="coerce").to_numpy(dtype=float)
+        bad = np.flatnonzero(~np.isfinite(x))
+        if bad.size:
+            problems.append(
+                f"column {c!r}: {bad.size} missing or non-numeric cell(s), first at row "
+                f"{int(bad[0]) + 2}"
+            )
+        cols[c] = x
+    dist = cols["distance_m"]
+    step = np.diff(dist)
+    if np.any(~(step > 0)):
+        row = int(np.flatnonzero(~(step > 0))[0]) + 3
+        problems.append(f"column 'distance_m' is not strictly increasing (row {row})")
+    elif step.max() > MAX_TRACK_SPACING_M:
+        row = int(np.argmax(step)) + 3
+        problems.append(
+            f"column 'distance_m': spacing {step.max():.3g} m at row {row} exceeds "
+            f"{MAX_TRACK_SPACING_M} m (short wavelengths would be lost)"
+        )
+    values = np.stack([cols[f"{c}_mm"] for c in COMPONENTS])
+    for c in COMPONENTS:
+        x = cols[f"{c}_mm"]
+        over = np.flatnonzero(np.abs(x) > MAX_IRREGULARITY_MM)
+        if over.size:
+            problems.append(
+                f"column '{c}_mm': |value| {np.nanmax(np.abs(x)):.4g} mm at row "
+                f"{int(over[0]) + 2} exceeds {MAX_IRREGULARITY_MM:g} mm"
+            )
+    if np.all(np.isfinite(values)) and np.max(np.abs(values)) < 0.1:
+        problems.append(
+            "all irregularities are below 0.1 mm: the values look like metres, give millimetres"
+        )
+    if problems:
+        raise RailsuspInputError(f"track geometry file {path}: " + "; ".join(problems))
+    return Irregularities(
+        s=dist,
+        **{c: cols[f"{c}_mm"][None, :] * 1e-3 for c in COMPONENTS},
+        track_class=None,
+        wavelength_min=float(2.0 * np.median(step)),
+        wavelength_max=float(dist[-1] - dist[0]),
+        seeds=(),
+        source=path,
+    )
+
+
+def measured_irregularities(condition: WorkingCondition, axle_spread_m: float) -> Irregularities:
+    """A condition's measured irregularities in section coordinates (recording start at
+    ``lead_in_m``), faded in over :data:`TRACK_TAPER_M` from the file's first point.
+
+    The file must cover the recorded stretch under every axle: from ``axle_spread_m`` plus the
+    fade-in length behind the recording start to the end of the record.
+    """
+    assert condition.track_geometry is not None
+    irr = read_track_geometry(condition.track_geometry)
+    first, last = float(irr.s[0]), float(irr.s[-1])
+    need_from = -(axle_spread_m + TRACK_TAPER_M)
+    need_to = condition.record_length_m
+    if first > need_from + 1e-9 or last < need_to - 1e-9:
+        raise RailsuspInputError(
+            f"track geometry file {condition.track_geometry} covers distance_m {first:g} to "
+            f"{last:g} m; condition {condition.name!r} needs at least {need_from:g} to "
+            f"{need_to:g} m (the wagon's axles over the {condition.duration_s:g} s record)"
+        )
+    u = np.clip((irr.s - first) / TRACK_TAPER_M, 0.0, 1.0)
+    fade = u * u * (3.0 - 2.0 * u)
+    return Irregularities(
+        s=irr.s + condition.lead_in_m,
+        **{c: irr.component(c) * fade for c in COMPONENTS},
+        track_class=condition.irregularity_class,
+        wavelength_min=irr.wavelength_min,
+        wavelength_max=irr.wavelength_max,
+        seeds=(),
+        source=irr.source,
+    )
