@@ -242,6 +242,8 @@ def test_measured_track_flow(tmp_path):
     )  # fmt: skip
     assert result.exit_code == 0, result.output
     assert (field / "short.track.csv").exists()
+    result = runner.invoke(app, ["check-recording", str(field / "short.csv")])
+    assert result.exit_code == 0 and "measured track geometry" in result.output
     result = runner.invoke(
         app,
         ["campaign", "--samples", "16", "--conditions", str(field), "--out", str(run),

@@ -305,3 +305,18 @@ def test_refinement_estimates_channel_gains():
     assert with_gains.channel_gains["straight:Y_w1L"] == pytest.approx(1.0, abs=0.01)
     assert np.all(np.abs(with_gains.x_si - truth) / (hi - lo) < 0.005)
     assert plain.channel_gains == {} and plain.cost > 10 * with_gains.cost
+
+
+def test_a_failed_prediction_gets_a_large_aligned_error_not_a_crash():
+    """A simulation flagged as failed returns NaN; its set scores FAILED_ALIGNED_ERROR and
+    the other sets of the batch are unaffected, with and without the recording's filter."""
+    from railsusp.estimate import FAILED_ALIGNED_ERROR, aligned_error
+
+    truth = np.array([16.1e6, 8.3e6])
+    for bandwidth in (None, 5.0):
+        rec = wave_recording(truth, bandwidth=bandwidth)
+        pred = WaveForces().series(np.vstack([truth, truth]), ON_TRACK)
+        pred[1, 40:] = np.nan  # broke off
+        e = aligned_error(pred, rec)
+        assert np.all(e[0] < 0.05)
+        assert np.all(e[1] == FAILED_ALIGNED_ERROR)

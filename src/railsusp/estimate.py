@@ -77,22 +77,33 @@ def measurement_filter(series: np.ndarray, rec: Recording) -> np.ndarray:
     """Predicted series (n, T, channels) passed through the recording's documented filter
     (``filter_bandwidth_hz`` in its metadata), so that a model is compared with what the
     instrument could see; unchanged when the recording gives no bandwidth. Undefined leading
-    steps (window surrogates) stay undefined."""
+    steps (window surrogates) stay undefined, and so does the whole of a set whose series
+    breaks off (a simulation flagged as failed)."""
     bw = rec.meta.get("filter_bandwidth_hz")
     if not bw:
         return series
-    ok = np.isfinite(series).all(axis=(0, 2))
-    first = int(np.argmax(ok)) if ok.any() else series.shape[1]
+    fs = rec.sampling_rate
+    if np.isfinite(series).all():
+        return bandwidth_filter(series, fs, float(bw), axis=1)
     out = np.full_like(series, np.nan)
-    out[:, first:] = bandwidth_filter(series[:, first:], rec.sampling_rate, float(bw), axis=1)
+    for i, one in enumerate(series):
+        ok = np.isfinite(one).all(axis=1)
+        first = int(np.argmax(ok))
+        if ok.any() and ok[first:].all() and ok.size - first > 30:
+            out[i, first:] = bandwidth_filter(one[first:], fs, float(bw), axis=0)
     return out
+
+
+#: time-aligned error given to a prediction that is undefined (a failed simulation)
+FAILED_ALIGNED_ERROR = 1e3
 
 
 def aligned_error(pred: np.ndarray, rec: Recording) -> np.ndarray:
     """(n, 2) time-aligned mismatch of predicted lateral and vertical series (n, T, 2) with a
     recording made on measured track: RMS of the sample-by-sample difference over the
     standard deviation of the measured series (its dynamic part), after the recording's
-    filter is applied to the prediction. Zero for a perfect model and noise-free data."""
+    filter is applied to the prediction. Zero for a perfect model and noise-free data;
+    :data:`FAILED_ALIGNED_ERROR` for a set without a defined prediction."""
     w = rec.wheels[0]
     meas = np.stack([rec.Y[w], rec.Q[w]], axis=1)
     if pred.shape[-2] != meas.shape[0]:
@@ -100,8 +111,15 @@ def aligned_error(pred: np.ndarray, rec: Recording) -> np.ndarray:
             f"recording {rec.condition.name!r} has {meas.shape[0]} samples, the model "
             f"predicts {pred.shape[-2]}: time-aligned comparison needs the same time base"
         )
+    ok = np.isfinite(pred).all(axis=-1)  # (n, T)
+    first = np.argmax(ok, axis=1)
+    after_first = np.arange(ok.shape[1])[None, :] >= first[:, None]
+    defined = ok.any(axis=1) & np.all(ok | ~after_first, axis=1)  # only leading gaps
     diff = measurement_filter(pred, rec) - meas
-    return np.sqrt(np.nanmean(diff**2, axis=-2)) / meas.std(axis=0)
+    sq = np.where(np.isfinite(diff), diff**2, 0.0).sum(axis=-2)
+    count = np.isfinite(diff).sum(axis=-2)
+    err = np.sqrt(sq / np.maximum(count, 1)) / meas.std(axis=0)
+    return np.where(defined[:, None] & (count > 0), err, FAILED_ALIGNED_ERROR)
 
 
 class ForceModel(Protocol):

@@ -101,6 +101,15 @@ def check_recording(
             f"{np.max(rec.Q[w]):.2f}",
         )
     console.print(table)
+    if rec.condition.track_geometry is not None:
+        from railsusp.vehicle.track import read_track_geometry
+
+        geo = read_track_geometry(rec.condition.track_geometry)
+        console.print(
+            f"measured track geometry: {rec.condition.track_geometry} "
+            f"(distance {geo.s[0]:g} to {geo.s[-1]:g} m, {geo.s.size} points)",
+            highlight=False,
+        )
 
 
 @app.command()
