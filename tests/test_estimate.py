@@ -254,7 +254,7 @@ def test_nsga_on_aligned_series_then_refinement_recovers_the_truth():
     """NSGA-II on the time-aligned objective gets close; the output-error refinement, started
     from a poor point, lands within 0.5 % of the ranges with noisy data, and says how sure
     it is (standard errors)."""
-    from railsusp.estimate import refine, refine_estimate
+    from railsusp.refine import refine, refine_estimate
 
     truth = np.array([16.1e6, 8.3e6])
     rec = wave_recording(truth, noise=0.05, seed=3)
@@ -292,7 +292,7 @@ def test_initial_population_starts_the_search():
 def test_refinement_estimates_channel_gains():
     """A 4 % calibration error on the vertical channel biases the plain fit of X14 (which
     sets the Q amplitude and the Y offset here); estimating the gains removes the bias."""
-    from railsusp.estimate import refine
+    from railsusp.refine import refine
 
     truth = np.array([16.1e6, 8.3e6])
     rec = wave_recording(truth, noise=0.02, seed=5)

@@ -338,13 +338,9 @@ def _stage_runners(
         return {"recordings": len(config.conditions), "synthetic": True}
 
     def estimate() -> dict:
-        from railsusp.estimate import (
-            NSGAConfig,
-            estimate_with_seeds,
-            open_force_model,
-            refine_estimate,
-        )
+        from railsusp.estimate import NSGAConfig, estimate_with_seeds, open_force_model
         from railsusp.measured import read_field
+        from railsusp.refine import refine_estimate
         from railsusp.surrogate import key_parameters
 
         e = config.estimate

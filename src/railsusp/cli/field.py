@@ -168,9 +168,9 @@ def estimate(
         estimate_with_seeds,
         open_force_model,
         parse_statistics,
-        refine_estimate,
     )
     from railsusp.measured import read_field
+    from railsusp.refine import refine_estimate
 
     try:
         parse_statistics(statistic)
