@@ -276,3 +276,38 @@ def test_measured_track_flow(tmp_path):
          "--refine-evaluations", "0", "--refine", "--n-gen", "1", "--pop-size", "4"],
     )  # fmt: skip
     assert bad.exit_code == 2 and "--refine-evaluations 0: accepted 1 to 500" in bad.output
+
+
+def test_align_track_finds_and_writes_a_misregistration(tmp_path):
+    """A track file whose distances are off by 2 m: align-track finds -2 m, --write stores
+    it in the sidecar, and the reader then applies it (correlation back to its best)."""
+    import pandas as pd
+
+    from railsusp.measured import read_field
+    from railsusp.refine import align_track
+
+    cond = tmp_path / "c.toml"
+    cond.write_text(
+        '[[condition]]\nname = "short"\nduration_s = 4.0\nn_steps = 200\nlead_in_m = 20.0\n'
+    )
+    field = tmp_path / "field"
+    result = runner.invoke(
+        app, ["synth-field", "--conditions", str(cond), "--out", str(field), "--with-track"]
+    )
+    assert result.exit_code == 0, result.output
+    (rec,) = read_field(field)
+    assert abs(align_track(rec).shift_m) < 0.1  # registered already
+    track = pd.read_csv(field / "short.track.csv")
+    track["distance_m"] += 2.0
+    track.to_csv(field / "short.track.csv", index=False, float_format="%.9g")
+    result = runner.invoke(app, ["align-track", str(field), "--write"])
+    assert result.exit_code == 0, result.output
+    assert "Track geometry alignment" in result.output and "short" in result.output
+    side = json.loads((field / "short.json").read_text())
+    assert side["condition"]["track_offset_m"] == pytest.approx(-2.0, abs=0.1)
+    (rec,) = read_field(field)
+    after = align_track(rec)
+    assert abs(after.shift_m) < 0.1 and after.correlation > 0.9
+    assert "(offset -" in rec.condition.describe()
+    bad = runner.invoke(app, ["align-track", str(field), "--max-shift", "0"])
+    assert bad.exit_code == 2 and "max_shift_m = 0: accepted (0, 200] m" in bad.output

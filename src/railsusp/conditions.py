@@ -103,15 +103,25 @@ class WorkingCondition(BaseModel):
             "replacing the synthesised ones; irregularity_class and seed are then unused"
         ),
     )
+    track_offset_m: float = _f(
+        0.0,
+        -1000.0,
+        1000.0,
+        "m",
+        "added to the track-geometry file's distances to align it with the recording",
+    )
     wheel_rail_friction: float = _f(0.3, 0.05, 0.8, "-", "wheel-rail friction coefficient")
 
     @model_serializer(mode="wrap")
     def _without_unset_track(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
-        """Leave ``track_geometry`` out when it is None, so that the dump (and the content
-        hashes of run directories made before the field existed) stays as it was."""
+        """Leave ``track_geometry`` out when it is None and ``track_offset_m`` when it is 0,
+        so that the dump (and the content hashes of run directories made before these fields
+        existed) stays as it was."""
         data = handler(self)
         if data.get("track_geometry", "") is None:
             del data["track_geometry"]
+        if data.get("track_offset_m", 1.0) == 0.0:
+            del data["track_offset_m"]
         return data
 
     @model_validator(mode="after")
@@ -215,6 +225,7 @@ class WorkingCondition(BaseModel):
             parts.append(f"coupler {self.coupler_force_kN:g} kN")
         irr = (
             f"measured track {Path(self.track_geometry).name}"
+            + (f" (offset {self.track_offset_m:+g} m)" if self.track_offset_m else "")
             if self.track_geometry is not None
             else "perfect track"
             if self.irregularity_class is None

@@ -112,6 +112,52 @@ def check_recording(
         )
 
 
+@app.command("align-track")
+def align_track_command(
+    measured: Annotated[Path, typer.Argument(help="field folder (index.json) of recordings")],
+    max_shift: Annotated[float, typer.Option(help="largest offset searched, m")] = 10.0,
+    write: Annotated[
+        bool, typer.Option(help="write the offsets into the recordings' sidecars")
+    ] = False,
+) -> None:
+    """Align each recording's measured track geometry with its forces (cross-correlation
+    with a nominal simulation) and report, or with --write store, the distance offset."""
+    from railsusp.measured import read_field
+    from railsusp.refine import align_track
+    from railsusp.store import read_json, write_json
+
+    try:
+        recs = [r for r in read_field(measured) if r.condition.track_geometry is not None]
+        if not recs:
+            raise RailsuspInputError(f"{measured}: no recording carries measured track geometry")
+        with console.status("simulating on the measured tracks"):
+            found = [align_track(r, max_shift_m=max_shift) for r in recs]
+    except (RailsuspInputError, ValueError) as exc:
+        fail(str(exc))
+    table = Table(title="Track geometry alignment", title_justify="left")
+    for col in ("recording", "offset m", "shift m", "correlation before", "after"):
+        table.add_column(col, justify="left" if col == "recording" else "right")
+    for a in found:
+        table.add_row(
+            a.recording,
+            f"{a.offset_m:+.2f}",
+            f"{a.shift_m:+.2f}",
+            f"{a.correlation_before:.3f}",
+            f"{a.correlation:.3f}",
+        )
+    console.print(table)
+    if write:
+        index = read_json(measured / "index.json")
+        for name in index.get("recordings", []):
+            side = (measured / name).with_suffix(".json")
+            doc = read_json(side)
+            for a in found:
+                if doc.get("condition", {}).get("name") == a.recording:
+                    doc["condition"]["track_offset_m"] = round(a.offset_m, 4)
+                    write_json(side, doc)
+        console.print(f"wrote the offsets into the sidecars in {measured}")
+
+
 @app.command()
 def estimate(
     measured: Annotated[Path, typer.Option(help="field folder (index.json) of recordings")],

@@ -428,26 +428,29 @@ def _read_track_geometry(path: str, _mtime_ns: int, _size: int) -> Irregularitie
 
 def measured_irregularities(condition: WorkingCondition, axle_spread_m: float) -> Irregularities:
     """A condition's measured irregularities in section coordinates (recording start at
-    ``lead_in_m``), faded in over :data:`TRACK_TAPER_M` from the file's first point.
+    ``lead_in_m``; the file's distances shifted by ``track_offset_m``), faded in over
+    :data:`TRACK_TAPER_M` from the file's first point.
 
     The file must cover the recorded stretch under every axle: from ``axle_spread_m`` plus the
     fade-in length behind the recording start to the end of the record.
     """
     assert condition.track_geometry is not None
     irr = read_track_geometry(condition.track_geometry)
-    first, last = float(irr.s[0]), float(irr.s[-1])
+    shift = condition.track_offset_m
+    first, last = float(irr.s[0]) + shift, float(irr.s[-1]) + shift
     need_from = -(axle_spread_m + TRACK_TAPER_M)
     need_to = condition.record_length_m
     if first > need_from + 1e-9 or last < need_to - 1e-9:
         raise RailsuspInputError(
             f"track geometry file {condition.track_geometry} covers distance_m {first:g} to "
-            f"{last:g} m; condition {condition.name!r} needs at least {need_from:g} to "
-            f"{need_to:g} m (the wagon's axles over the {condition.duration_s:g} s record)"
+            f"{last:g} m (with track_offset_m {shift:g}); condition {condition.name!r} needs "
+            f"at least {need_from:g} to {need_to:g} m (the wagon's axles over the "
+            f"{condition.duration_s:g} s record)"
         )
-    u = np.clip((irr.s - first) / TRACK_TAPER_M, 0.0, 1.0)
+    u = np.clip((irr.s + shift - first) / TRACK_TAPER_M, 0.0, 1.0)
     fade = u * u * (3.0 - 2.0 * u)
     return Irregularities(
-        s=irr.s + condition.lead_in_m,
+        s=irr.s + shift + condition.lead_in_m,
         **{c: irr.component(c) * fade for c in COMPONENTS},
         track_class=condition.irregularity_class,
         wavelength_min=irr.wavelength_min,
