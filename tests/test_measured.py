@@ -234,3 +234,20 @@ def test_track_noise_is_bounded(tmp_path):
         synthesise_field(
             ParameterSet.nominal(), [COND], tmp_path, with_track=True, track_noise_mm=20
         )
+
+
+def test_track_measurement_error_has_the_asked_rms_within_the_band(tmp_path):
+    import pandas as pd
+
+    cond = get_condition("straight", duration_s=2.0, n_steps=100, lead_in_m=20.0)
+    kw = {"noise": 0.0, "with_track": True}
+    exact = synthesise_field(ParameterSet.nominal(), [cond], tmp_path / "a", **kw)
+    noisy = synthesise_field(
+        ParameterSet.nominal(), [cond], tmp_path / "b", track_noise_mm=0.5, **kw
+    )
+    a = pd.read_csv(exact / "straight.track.csv")
+    b = pd.read_csv(noisy / "straight.track.csv")
+    err = (b - a)[["vertical_mm", "alignment_mm", "crosslevel_mm", "gauge_mm"]].to_numpy()
+    assert np.allclose(err.std(axis=0), 0.5, rtol=0.05)
+    # band-limited: neighbouring samples (0.125 m apart) are strongly correlated
+    assert np.corrcoef(err[1:, 0], err[:-1, 0])[0, 1] > 0.8

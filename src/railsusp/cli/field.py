@@ -34,7 +34,10 @@ def synth_field(
         typer.Option(help="also write the track the truth ran on as measured track geometry"),
     ] = False,
     track_noise: Annotated[
-        float, typer.Option(help="RMS measurement noise on the written track geometry, mm")
+        float,
+        typer.Option(
+            help="RMS measurement error on the written track geometry (within the measured wavelengths), mm"
+        ),
     ] = 0.0,
 ) -> None:
     """Synthetic instrumented-wheelset recordings of hidden true parameters (truth.json)."""
