@@ -36,7 +36,8 @@ def synth_field(
     track_noise: Annotated[
         float,
         typer.Option(
-            help="RMS measurement error on the written track geometry (within the measured wavelengths), mm"
+            help="RMS measurement error on the written track geometry (within the "
+            "measured wavelengths), mm"
         ),
     ] = 0.0,
 ) -> None:
