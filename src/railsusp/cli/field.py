@@ -249,14 +249,13 @@ def estimate(
         with console.status(f"NSGA-II {pop_size} x {n_gen} on {len(recs)} recording(s)"):
             res = estimate_with_seeds(model, recs, params, cfg, n_seeds=max(1, seeds))
         if refine:
-            for name, value, top in (
-                ("--refine-evaluations", refine_evaluations, 500),
-                ("--refine-screen", refine_screen, 10_000),
-                ("--refine-starts", refine_starts, 20),
+            for name, value, low, high in (
+                ("--refine-evaluations", refine_evaluations, 1, 500),
+                ("--refine-screen", refine_screen, 0, 10_000),
+                ("--refine-starts", refine_starts, 1, 20),
             ):
-                if not (0 if name == "--refine-screen" else 1) <= value <= top:
-                    low = 0 if name == "--refine-screen" else 1
-                    raise RailsuspInputError(f"{name} {value}: accepted {low} to {top}")
+                if not low <= value <= high:
+                    raise RailsuspInputError(f"{name} {value}: accepted {low} to {high}")
             with console.status("refining on the measured track (simulator, output error)"):
                 refine_estimate(
                     res,
