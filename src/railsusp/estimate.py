@@ -107,8 +107,7 @@ def aligned_error(pred: np.ndarray, rec: Recording) -> np.ndarray:
     standard deviation of the measured series (its dynamic part), after the recording's
     filter is applied to the prediction. Zero for a perfect model and noise-free data;
     :data:`FAILED_ALIGNED_ERROR` for a set without a defined prediction."""
-    w = rec.wheels[0]
-    meas = np.stack([rec.Y[w], rec.Q[w]], axis=1)
+    meas = rec.forces()
     if pred.shape[-2] != meas.shape[0]:
         raise ValueError(
             f"recording {rec.condition.name!r} has {meas.shape[0]} samples, the model "

@@ -69,6 +69,11 @@ class Recording:
     def sampling_rate(self) -> float:
         return 1.0 / float(np.median(np.diff(self.time)))
 
+    def forces(self) -> np.ndarray:
+        """(T, 2) lateral and vertical force of the first measured wheel, kN."""
+        w = self.wheels[0]
+        return np.stack([self.Y[w], self.Q[w]], axis=1)
+
     def to_dataframe(self) -> pd.DataFrame:
         cols = {"time_s": self.time}
         for w in self.wheels:
@@ -315,6 +320,14 @@ def recording_from_simulation(
     return Recording(result.time.copy(), Y, Q, result.condition, {"wagon": result.wagon_name})
 
 
+def simulated_forces(pset, rec: Recording) -> np.ndarray:
+    """(T, 2) forces (kN) the simulator gives for ``pset`` in a recording's condition at its
+    first measured wheel, the counterpart of :meth:`Recording.forces`."""
+    from railsusp.vehicle.simulate import simulate
+
+    return recording_from_simulation(simulate(pset, rec.condition), rec.wheels[:1]).forces()
+
+
 def bandwidth_filter(x: np.ndarray, fs: float, bandwidth_hz: float, axis: int = -1) -> np.ndarray:
     """An instrument's bandwidth limit: 4th-order Butterworth low-pass, zero phase (scipy
     ``sosfiltfilt``), cut-off ``bandwidth_hz`` capped at 0.45 of the sampling rate ``fs``."""
@@ -368,8 +381,8 @@ def synthesise_field(
 
     ``with_track`` also writes the track the truth ran on as measured track geometry
     (``NAME.track.csv``, named by the recording's condition), as a track recording car run
-    with the instrumented wagon would give, with white measurement noise of
-    ``track_noise_mm`` (RMS, mm) on each component.
+    with the instrumented wagon would give, with a measurement error of ``track_noise_mm``
+    (RMS, mm, within the measured wavelengths) on each component.
     """
     from railsusp.vehicle.setup import section_irregularities
     from railsusp.vehicle.simulate import simulate

@@ -26,7 +26,7 @@ from railsusp.estimate import (
     display_values,
     measurement_filter,
 )
-from railsusp.measured import Recording
+from railsusp.measured import Recording, simulated_forces
 from railsusp.params import ParameterSet, bounds
 
 #: forward-difference step of the refinement's Jacobian, share of each parameter's range:
@@ -118,8 +118,7 @@ def refine(
     n_gain = 2 * len(recordings) if gains else 0
     measured, scales = [], []
     for rec in recordings:
-        w = rec.wheels[0]
-        meas = np.stack([rec.Y[w], rec.Q[w]], axis=1)
+        meas = rec.forces()
         measured.append(meas)
         scales.append(meas.std(axis=0) * np.sqrt(meas.shape[0]))
 
@@ -289,17 +288,13 @@ def align_track(
     recording's (mean normalised correlation of both, parabolic sub-sample peak) gives the
     offset. All axles see the same geometry, so a misregistration of the geometry by d metres
     delays the forces by d / V."""
-    from railsusp.vehicle.simulate import WHEEL_NAMES, simulate
-
     if rec.condition.track_geometry is None:
         raise ValueError(f"recording {rec.condition.name!r} carries no measured track geometry")
     if not 0.0 < max_shift_m <= 200.0:
         raise ValueError(f"max_shift_m = {max_shift_m:g}: accepted (0, 200] m")
-    r = simulate(parameters or ParameterSet.nominal(), rec.condition)
-    j = WHEEL_NAMES.index(rec.wheels[0])
-    sim = measurement_filter(np.stack([r.Y[:, j], r.Q[:, j]], axis=2) / 1e3, rec)[0]
-    w = rec.wheels[0]
-    meas = np.stack([rec.Y[w], rec.Q[w]], axis=1)
+    sim = simulated_forces(parameters or ParameterSet.nominal(), rec)
+    sim = measurement_filter(sim[None], rec)[0]
+    meas = rec.forces()
     if sim.shape != meas.shape or not np.isfinite(sim).all():
         raise ValueError(f"recording {rec.condition.name!r}: the simulation does not match it")
     step_m = rec.condition.speed / rec.sampling_rate

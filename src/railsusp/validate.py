@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from railsusp.estimate import ALIGNED, aligned_error, measured_statistics, parse_statistics
-from railsusp.measured import read_field
+from railsusp.measured import read_field, simulated_forces
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import read_json, write_json
 from railsusp.vehicle.simulate import record_statistic
@@ -59,14 +59,7 @@ class ValidationResult:
 
 def _simulate(pset: ParameterSet, recs) -> list[np.ndarray]:
     """Measured-wheel series (T, 2) in kN of each recording's condition and wheel."""
-    from railsusp.vehicle.simulate import WHEEL_NAMES, simulate
-
-    out = []
-    for rec in recs:
-        r = simulate(pset, rec.condition)
-        j = WHEEL_NAMES.index(rec.wheels[0])
-        out.append(np.stack([r.Y[0, j], r.Q[0, j]], axis=1) / 1e3)
-    return out
+    return [simulated_forces(pset, rec) for rec in recs]
 
 
 def validate(
@@ -110,7 +103,7 @@ def validate(
         for j, force in enumerate(("Y", "Q")):
             if aligned:
                 # time-aligned: *_kN is the RMS difference, *_error that over the measured SD
-                sd = float(np.std(rec.Y[w] if force == "Y" else rec.Q[w]))
+                sd = float(np.std(rec.forces()[:, j]))
                 row = {
                     "condition": rec.condition.name,
                     "wheel": w,
@@ -137,7 +130,7 @@ def validate(
                 rows.append(row)
         series[rec.condition.name] = {
             "time": rec.time,
-            "measured": np.stack([rec.Y[w], rec.Q[w]], axis=1),
+            "measured": rec.forces(),
             "before": sims["before"][i],
             "after": sims["after"][i],
         }

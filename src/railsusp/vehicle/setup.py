@@ -21,7 +21,12 @@ from railsusp.vehicle import layout as L
 from railsusp.vehicle.contact import contact_table
 from railsusp.vehicle.contact_forces import hertz_contact, kalker_creep_coefficients
 from railsusp.vehicle.profiles import chn60_rail, lm_worn_wheel, read_profile
-from railsusp.vehicle.track import Irregularities, TrackLayout, irregularities_for
+from railsusp.vehicle.track import (
+    Irregularities,
+    TrackLayout,
+    irregularities_for,
+    smoothstep,
+)
 from railsusp.vehicle.wagon import WagonData
 
 
@@ -256,8 +261,7 @@ def track_arrays(
     irr = section_irregularities(condition, seeds, wagon)
     if irr is not None:
         rails = irr.at(s)  # (n_seeds, n_s); one measured track broadcasts over the seeds
-        ramp = np.clip(s / 30.0, 0.0, 1.0)  # zero under every wheel at the start
-        window = ramp * ramp * (3.0 - 2.0 * ramp)
+        window = smoothstep(s / 30.0)  # zero under every wheel at the start
         out[:, L.TR_ZL] = rails["zL"] * window
         out[:, L.TR_ZR] = rails["zR"] * window
         out[:, L.TR_YL] = rails["yL"] * window

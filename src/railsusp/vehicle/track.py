@@ -79,6 +79,13 @@ def fra_psd(component: str, omega: np.ndarray, track_class: int = 5) -> np.ndarr
     return s * _CM2_TO_M2
 
 
+def smoothstep(u: np.ndarray) -> np.ndarray:
+    """3u² - 2u³ of u clipped to [0, 1]: a ramp from 0 to 1 with zero slope at both ends,
+    for fading irregularities in without a jolt."""
+    u = np.clip(u, 0.0, 1.0)
+    return u * u * (3.0 - 2.0 * u)
+
+
 def band_rms(
     component: str, track_class: int, wavelength_min: float, wavelength_max: float, n: int = 20001
 ) -> float:
@@ -447,8 +454,7 @@ def measured_irregularities(condition: WorkingCondition, axle_spread_m: float) -
             f"at least {need_from:g} to {need_to:g} m (the wagon's axles over the "
             f"{condition.duration_s:g} s record)"
         )
-    u = np.clip((irr.s + shift - first) / TRACK_TAPER_M, 0.0, 1.0)
-    fade = u * u * (3.0 - 2.0 * u)
+    fade = smoothstep((irr.s - irr.s[0]) / TRACK_TAPER_M)
     return Irregularities(
         s=irr.s + shift + condition.lead_in_m,
         **{c: irr.component(c) * fade for c in COMPONENTS},
