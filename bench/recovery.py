@@ -29,7 +29,7 @@ import pandas as pd
 
 from railsusp.campaign import load_campaign, make_config, run_campaign
 from railsusp.estimate import NSGAConfig, estimate, open_force_model
-from railsusp.measured import read_field, synthesise_field
+from railsusp.measured import SimulationFailedError, read_field, synthesise_field
 from railsusp.params import ParameterSet, bounds
 from railsusp.refine import refine_estimate
 from railsusp.store import write_json
@@ -118,19 +118,26 @@ def main() -> None:
     rng = np.random.default_rng(args.seed)
     trials, t0 = [], time.perf_counter()
     work = Path(tempfile.mkdtemp(prefix="railsusp-recovery-"))
+    failed_truths = []
     for k in range(args.trials):
-        truth_si = lo + (hi - lo) * rng.random(len(params))
-        truth = ParameterSet.nominal().replace(dict(zip(params, truth_si, strict=True)))
-        field = synthesise_field(
-            truth,
-            conds,
-            work / f"field{k}",
-            seed=100 + k,
-            noise=args.noise,
-            duration_s=args.field_duration,
-            with_track=measured_track,
-            track_noise_mm=args.track_noise,
-        )
+        while True:  # a truth whose own simulation derails cannot make recordings: redraw
+            truth_si = lo + (hi - lo) * rng.random(len(params))
+            truth = ParameterSet.nominal().replace(dict(zip(params, truth_si, strict=True)))
+            try:
+                field = synthesise_field(
+                    truth,
+                    conds,
+                    work / f"field{k}",
+                    seed=100 + k,
+                    noise=args.noise,
+                    duration_s=args.field_duration,
+                    with_track=measured_track,
+                    track_noise_mm=args.track_noise,
+                )
+                break
+            except SimulationFailedError as exc:
+                print(f"trial {k}: truth redrawn ({exc})", flush=True)
+                failed_truths.append({"trial": k, "reason": str(exc)})
         if matched:
             model = track_matched_model(field, params, args.matched_samples, work / f"run{k}", k)
         recs = read_field(field)
@@ -200,6 +207,7 @@ def main() -> None:
         "median_error_pct_of_range": allr.groupby("parameter")["error_pct_of_range"]
         .median()
         .to_dict(),
+        "truths_redrawn": failed_truths,
         "wall_s": time.perf_counter() - t0,
     }
     print("\nsummary:")

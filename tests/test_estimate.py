@@ -1,5 +1,7 @@
 """NSGA-II calibration: analytic problems with known answers, determinism, outputs."""
 
+import warnings
+
 import numpy as np
 import pytest
 from scipy.stats import qmc
@@ -13,6 +15,7 @@ from railsusp.estimate import (
     estimate,
     estimate_with_seeds,
     force_statistics,
+    measured_statistics,
     open_force_model,
     parse_statistics,
     record_statistic,
@@ -22,6 +25,7 @@ from railsusp.params import bounds
 from railsusp.surrogate.baselines import StatisticsGP
 from railsusp.surrogate.data import FeatureSpec, SeriesData
 from railsusp.surrogate.statistics import StatisticsSurrogate
+from railsusp.vehicle.simulate import statistic_segments
 
 COND = get_condition("straight", duration_s=2.0, n_steps=100)
 PARAMS = ("X13", "X14")
@@ -55,6 +59,30 @@ def test_record_statistics():
     assert record_statistic(x, "rms", False)[0] == 3.0
     with pytest.raises(ValueError, match="statistic 'median'"):
         record_statistic(x, "median", True)
+
+
+def test_long_record_statistics_are_averages_over_20_s_segments():
+    # two 20 s halves with different amplitude: the std of the whole 40 s record mixes them
+    # (and its spread between the halves), the segment average is the mean of the halves
+    dt = 0.02
+    t = np.arange(2000) * dt
+    x = np.where(t < 20.0, 1.0, 3.0) * np.sin(2 * np.pi * 2.0 * t)
+    assert statistic_segments(x.size, dt) == 2
+    assert statistic_segments(1000, dt) == 1 and statistic_segments(10, dt) == 1
+    halves = [record_statistic(h, "std", False) for h in (x[:1000], x[1000:])]
+    assert record_statistic(x, "std", False, 2) == pytest.approx(np.mean(halves))
+    assert record_statistic(x, "std", False) == pytest.approx(np.sqrt(5 / 2), rel=1e-2)
+    assert np.mean(halves) == pytest.approx(2 / np.sqrt(2), rel=1e-2)
+    # a recording: segments follow its duration; a 20 s record is one segment
+    rec = Recording(t, {"w1L": x}, {"w1L": 100.0 + x}, COND)
+    stats = measured_statistics(rec, ("std",))
+    assert stats[1, 0] == pytest.approx(np.mean(halves))
+    short = Recording(t[:1000], {"w1L": x[:1000]}, {"w1L": 100.0 + x[:1000]}, COND)
+    assert measured_statistics(short, ("std",))[1, 0] == pytest.approx(halves[0])
+    # a failed (all-NaN) set gives NaN without a warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert np.isnan(record_statistic(np.full((1, 50), np.nan), "p99", True, 2)[0])
 
 
 def test_identifiable_problem_recovers_the_truth():

@@ -10,13 +10,17 @@ from railsusp.conditions import get_condition
 from railsusp.measured import (
     Recording,
     RecordingError,
+    SimulationFailedError,
     add_sensor_noise,
     bandwidth_filter,
     read_field,
     read_recording,
+    recording_from_simulation,
     synthesise_field,
 )
 from railsusp.params import ParameterSet
+from railsusp.vehicle import layout as L
+from railsusp.vehicle.simulate import simulate
 
 COND = get_condition("straight", duration_s=2.0, n_steps=100)
 
@@ -251,3 +255,11 @@ def test_track_measurement_error_has_the_asked_rms_within_the_band(tmp_path):
     assert np.allclose(err.std(axis=0), 0.5, rtol=0.05)
     # band-limited: neighbouring samples (0.125 m apart) are strongly correlated
     assert np.corrcoef(err[1:, 0], err[:-1, 0])[0, 1] > 0.8
+
+
+def test_a_failed_simulation_makes_no_recording():
+    r = simulate(None, COND)
+    assert recording_from_simulation(r).Y["w1L"].size == 100
+    r.status[0], r.fail_time[0] = L.FAIL_LIFT, 1.25  # as the integrator flags a derailment
+    with pytest.raises(SimulationFailedError, match=r"'straight' failed at 1.25 s: wheel lift"):
+        recording_from_simulation(r)

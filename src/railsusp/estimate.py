@@ -40,7 +40,7 @@ from railsusp.conditions import WorkingCondition
 from railsusp.measured import Recording, bandwidth_filter
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import write_json, write_parquet
-from railsusp.vehicle.simulate import RECORD_STATISTICS, record_statistic
+from railsusp.vehicle.simulate import RECORD_STATISTICS, record_statistic, statistic_segments
 
 if TYPE_CHECKING:  # the refinement builds on this module
     from railsusp.refine import Refinement
@@ -250,18 +250,29 @@ def force_statistics(
     """(n, 2, n_statistics) statistics of |Y| and Q predicted by any force model, kN."""
     if isinstance(model, StatisticsForces):
         return model.predict_statistics(x_si, condition, statistics)
-    s = model.series(x_si, condition)
-    return yq_statistics(s[:, :, 0], s[:, :, 1], statistics)
+    return series_statistics(model.series(x_si, condition), condition, statistics)
 
 
-def yq_statistics(y: np.ndarray, q: np.ndarray, statistics: Sequence[str]) -> np.ndarray:
-    """(..., 2, n_statistics) statistics of |Y| and Q series (time along the last axis)."""
+def series_statistics(
+    series: np.ndarray, condition: WorkingCondition, statistics: Sequence[str]
+) -> np.ndarray:
+    """(n, 2, n_statistics) statistics of predicted (n, T, 2) |Y|, Q series of a condition,
+    averaged over the record's segments like a recording's."""
+    segments = statistic_segments(series.shape[1], condition.sample_interval)
+    return yq_statistics(series[:, :, 0], series[:, :, 1], statistics, segments)
+
+
+def yq_statistics(
+    y: np.ndarray, q: np.ndarray, statistics: Sequence[str], segments: int = 1
+) -> np.ndarray:
+    """(..., 2, n_statistics) statistics of |Y| and Q series (time along the last axis),
+    averaged over ``segments`` consecutive parts (:func:`record_statistic`)."""
     if not statistics:
         return np.empty((*np.shape(y)[:-1], 2, 0))
     return np.stack(
         [
-            np.stack([record_statistic(y, st, True) for st in statistics], axis=-1),
-            np.stack([record_statistic(q, st, False) for st in statistics], axis=-1),
+            np.stack([record_statistic(y, st, True, segments) for st in statistics], axis=-1),
+            np.stack([record_statistic(q, st, False, segments) for st in statistics], axis=-1),
         ],
         axis=-2,
     )
@@ -304,9 +315,15 @@ class NSGAConfig:
 
 
 def measured_statistics(rec: Recording, statistics: Sequence[str]) -> np.ndarray:
-    """(2, n_statistics) statistics of |Y| and Q of a recording's first measured wheel, kN."""
+    """(2, n_statistics) statistics of |Y| and Q of a recording's first measured wheel, kN,
+    averaged over the record's segments of about 20 s (:func:`record_statistic`)."""
     w = rec.wheels[0]
-    return yq_statistics(rec.Y[w], rec.Q[w], statistics)
+    return yq_statistics(rec.Y[w], rec.Q[w], statistics, recording_segments(rec))
+
+
+def recording_segments(rec: Recording) -> int:
+    """How many statistic segments a recording holds (:func:`statistic_segments`)."""
+    return statistic_segments(rec.time.size, 1.0 / rec.sampling_rate)
 
 
 class CalibrationProblem(Problem):
@@ -357,7 +374,7 @@ class CalibrationProblem(Problem):
                 series = self.model.series(x_si, rec.condition)
                 parts.append(aligned_error(series, rec)[:, :, None])
                 if self.stats:
-                    pred = yq_statistics(series[:, :, 0], series[:, :, 1], self.stats)
+                    pred = series_statistics(series, rec.condition, self.stats)
                     parts.append(np.abs(pred - meas) / np.abs(meas))
             elif self.weighting == "noise":
                 pred, sd = self.model.predict_statistics(

@@ -51,6 +51,10 @@ class RecordingError(RailsuspInputError):
         super().__init__(f"{path}: {len(problems)} problem(s): " + "; ".join(problems))
 
 
+class SimulationFailedError(RailsuspInputError):
+    """A simulation that a recording was to be made of stopped (see its reason)."""
+
+
 @dataclass
 class Recording:
     """One instrumented-wheelset recording in one working condition (SI time, kN forces)."""
@@ -313,7 +317,14 @@ def _resolve_track(
 def recording_from_simulation(
     result, wheels: tuple[str, ...] | None = None, set_index: int = 0
 ) -> Recording:
-    """A recording (kN) of the wheels of a simulation result (default: measured wheel)."""
+    """A recording (kN) of the wheels of a simulation result (default: measured wheel); a
+    failed simulation (derailment, divergence) is an error naming the reason and time."""
+    if not result.ok[set_index]:
+        reason = {i: (why, t) for i, why, t in result.failures()}[set_index]
+        raise SimulationFailedError(
+            f"simulation in condition {result.condition.name!r} failed at {reason[1]:.2f} s: "
+            f"{reason[0]}; no recording can be made of it"
+        )
     ws = wheels or (WHEEL_NAMES[result.measured_wheel()],)
     Y = {w: result.Y[set_index, WHEEL_NAMES.index(w)] / 1e3 for w in ws}
     Q = {w: result.Q[set_index, WHEEL_NAMES.index(w)] / 1e3 for w in ws}

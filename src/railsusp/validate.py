@@ -19,7 +19,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from railsusp.estimate import ALIGNED, aligned_error, measured_statistics, parse_statistics
+from railsusp.estimate import (
+    ALIGNED,
+    aligned_error,
+    measured_statistics,
+    parse_statistics,
+    recording_segments,
+)
 from railsusp.measured import read_field, simulated_forces
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import read_json, write_json
@@ -100,6 +106,7 @@ def validate(
     for i, rec in enumerate(recs):
         w = rec.wheels[0]
         meas = measured_statistics(rec, stats)
+        segments = recording_segments(rec)
         for j, force in enumerate(("Y", "Q")):
             if aligned:
                 # time-aligned: *_kN is the RMS difference, *_error that over the measured SD
@@ -124,7 +131,7 @@ def validate(
                     "measured_kN": float(meas[j, k]),
                 }
                 for key, s in sims.items():
-                    v = float(record_statistic(s[i][:, j], st, force == "Y"))
+                    v = float(record_statistic(s[i][:, j], st, force == "Y", segments))
                     row[f"{key}_kN"] = v
                     row[f"{key}_error"] = abs(v - meas[j, k]) / abs(meas[j, k])
                 rows.append(row)

@@ -20,7 +20,7 @@ from scipy.interpolate import RBFInterpolator
 
 from railsusp.params import bounds
 from railsusp.surrogate.data import FeatureSpec, Normaliser, SeriesData, window_index
-from railsusp.vehicle.simulate import RECORD_STATISTICS, record_statistic
+from railsusp.vehicle.simulate import RECORD_STATISTICS, record_statistic, statistic_segments
 
 
 class RBFWindowModel:
@@ -106,20 +106,21 @@ class StatisticsGP:
 
     @staticmethod
     def statistics(
-        targets: np.ndarray, spec: FeatureSpec, stats: Sequence[str] = ("mean",)
+        data: SeriesData, spec: FeatureSpec, stats: Sequence[str] = ("mean",)
     ) -> np.ndarray:
         """Per-sample statistics of |Y| and Q over the record after the first window (kN),
-        columns target-major."""
+        averaged over its segments of about 20 s, columns target-major."""
+        x = data.targets[:, spec.window :]
+        segments = statistic_segments(x.shape[1], data.condition.sample_interval)
         cols = []
         for j, name in enumerate(spec.targets):
-            x = targets[:, spec.window :, j]
-            cols += [record_statistic(x, st, name == "Y") for st in stats]
+            cols += [record_statistic(x[..., j], st, name == "Y", segments) for st in stats]
         return np.stack(cols, axis=1)
 
     def fit(self, train: SeriesData) -> StatisticsGP:
         from railsusp.sensitivity import fit_gp
 
-        stats = self.statistics(train.targets, self.spec, self.stats)
+        stats = self.statistics(train, self.spec, self.stats)
         ok = np.isfinite(stats).all(axis=1)
         self._gps = [
             fit_gp(train.params_unit[ok], stats[ok, j], self.seed) for j in range(stats.shape[1])

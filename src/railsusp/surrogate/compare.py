@@ -66,7 +66,7 @@ def compare(
             elif kind == "gp-stats":
                 gp = StatisticsGP(spec).fit(train_data)
                 m, _ = gp.predict_statistics(test.params_unit)
-                sim = StatisticsGP.statistics(test.targets, spec)
+                sim = StatisticsGP.statistics(test, spec)
                 for j, name in enumerate(spec.targets):
                     rel = np.abs(m[:, j] - sim[:, j]) / np.abs(sim[:, j])
                     ss = np.sum((sim[:, j] - sim[:, j].mean()) ** 2)
