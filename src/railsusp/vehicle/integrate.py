@@ -19,18 +19,40 @@ NQ = L.N_DOF
 NS = L.N_STATE
 NOUT = L.N_OUT
 I_V = L.K["V"]
+I_WATCH = L.K["flange_watch"]
+
+
+@nb.njit(cache=True)
+def _rk4_finish(x, ks, xt, h, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s, V, o_dummy):
+    """Stages 2-4 of one RK4 step of length h from x at track position s (stage 1 already
+    in ks[0]) and the update of x. Returns a failure code (0 ok)."""
+    for j in range(1, 4):  # stages 2-4: x + c h k_(j-1), at s + c V h
+        c = 1.0 if j == 3 else 0.5
+        for i in range(NS):
+            xt[i] = x[i] + c * h * ks[j - 1, i]
+        code = rhs(xt, ks[j], P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s + c * V * h, o_dummy)
+        if code != 0:
+            return code
+    acc = 0.0
+    for i in range(NS):
+        x[i] += h / 6.0 * (ks[0, i] + 2.0 * ks[1, i] + 2.0 * ks[2, i] + ks[3, i])
+        acc += x[i]
+    if not math.isfinite(acc):
+        return L.FAIL_NAN
+    return 0
 
 
 @nb.njit(cache=True)
 def _run_one(
-    x, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, dt, n_pre, n_sub, n_out, sos, out_series
+    x, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, dt, n_pre, n_sub, n_out, sos, out_series, n_fine
 ):
-    """Integrate one set; write filtered outputs (NOUT, n_out). Returns (code, fail_time)."""
+    """Integrate one set; write filtered outputs (NOUT, n_out). Steps starting near flange
+    contact are split into ``n_fine``. Returns (code, fail_time)."""
     ks = np.empty((4, NS))  # RK4 stage derivatives
     k1 = ks[0]
     xt = np.empty(NS)
-    o = np.zeros(NOUT)
-    o_dummy = np.zeros(NOUT)
+    o = np.zeros(L.N_OUT_WORK)
+    o_dummy = np.zeros(L.N_OUT_WORK)
     n_sec = sos.shape[0]
     zf = np.zeros((NOUT, n_sec, 2))
     V = K[I_V]
@@ -66,34 +88,20 @@ def _run_one(
                 u = y
             if n >= n_pre and (n - n_pre) % n_sub == 0:
                 out_series[c, (n - n_pre) // n_sub] = u
-        for j in range(1, 4):  # stages 2-4: x + c dt k_(j-1), at s + c V dt
-            c = 1.0 if j == 3 else 0.5
-            for i in range(NS):
-                xt[i] = x[i] + c * dt * ks[j - 1, i]
-            code = rhs(
-                xt,
-                ks[j],
-                P,
-                K,
-                trk,
-                s0,
-                ds,
-                ctab,
-                y0,
-                dy,
-                H0L,
-                H0R,
-                s_front + c * V * dt,
-                o_dummy,
+        # near flange contact the step is split (the jump to the flank is the stiff event)
+        m = n_fine if o[L.OUT_FLANGE_SHIFT] > K[I_WATCH] else 1
+        h = dt / m
+        for sub in range(m):
+            s_sub = s_front + sub * V * h
+            if sub > 0:
+                code = rhs(x, k1, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_sub, o_dummy)
+                if code != 0:
+                    return code, t + sub * h
+            code = _rk4_finish(
+                x, ks, xt, h, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_sub, V, o_dummy
             )
             if code != 0:
-                return code, t
-        acc = 0.0
-        for i in range(NS):
-            x[i] += dt / 6.0 * (ks[0, i] + 2.0 * ks[1, i] + 2.0 * ks[2, i] + ks[3, i])
-            acc += x[i]
-        if not math.isfinite(acc):
-            return L.FAIL_NAN, t
+                return code, t + sub * h
     return L.OK, n_total * dt
 
 
@@ -115,6 +123,7 @@ def integrate_batch(
     n_sub,
     n_out,
     sos,
+    n_fine,
     out,
     status,
     fail_time,
@@ -141,6 +150,7 @@ def integrate_batch(
             n_out,
             sos,
             out[i],
+            n_fine,
         )
         status[i] = code
         fail_time[i] = tf

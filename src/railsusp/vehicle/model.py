@@ -242,12 +242,13 @@ def wheel_contact(
 ):
     """Forces of one wheel (side +1 left, -1 right) on its rail, in the track frame.
 
-    Writes res = [Y_on_wheel, Q_on_wheel (up), Fx_on_wheel, lateral arm l, radius r, N] and
-    returns a failure code (0 ok).
+    Writes res = [Y_on_wheel, Q_on_wheel (up), Fx_on_wheel, lateral arm l, radius r, N,
+    shift towards the flange] and returns a failure code (0 ok).
     """
     col0 = 0 if side > 0 else NCTW
     r0 = K[I_R0]
     yrel = ws_y + r0 * ws_roll - rail_y  # the wheel's shift at contact level
+    res[6] = side * yrel
     if not table_row(ctab, col0, yrel, y0, dy, row):
         return L.FAIL_FLANGE_CLIMB
     r = row[0]
@@ -323,7 +324,8 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         acc[i] = 0.0
     # generalised forces accumulate in acc, divided by inertia at the end
     row = np.empty(NCTW)
-    res = np.empty(6)
+    res = np.empty(7)
+    flange_shift = -1.0  # largest shift of a wheel towards its flange (step control)
 
     # ---- catalogue parameters ----
     m_w = P[0]
@@ -528,6 +530,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
                 )
                 if code != 0:
                     return code
+                flange_shift = max(flange_shift, res[6])
                 f_yw, f_zw, f_xw, lat = res[0], res[1], res[2], res[3]
                 acc[iw] += f_yw
                 acc[iw + 1] += f_zw - K[I_Q0]
@@ -569,4 +572,5 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         acc[iw + 3] /= Iz_w
     out[L.OUT_ACC_Y] = acc[L.CB_Y] + V * V * kap_c * math.cos(cant_c) + gn * math.sin(cant_c)
     out[L.OUT_ACC_Z] = acc[L.CB_Z]
+    out[L.OUT_FLANGE_SHIFT] = flange_shift
     return L.OK

@@ -330,6 +330,7 @@ def simulate_batch(
             n_sub,
             n_out,
             sos,
+            settings.flange_substeps,
             out[sl],
             status[sl],
             fail_time[sl],
