@@ -171,6 +171,7 @@ def main() -> None:
                 "trial": k,
                 "forces": f.to_dict(orient="records"),
                 "recovery": rec.to_dict(orient="records"),
+                "failed_simulations": v.failures,
                 "refinement": {
                     key: val for key, val in res.refinement.to_dict().items() if key != "history_si"
                 }

@@ -7,7 +7,7 @@ import pytest
 
 from railsusp.conditions import get_condition
 from railsusp.estimate import NSGAConfig, SimulatorForces, estimate
-from railsusp.measured import read_field, synthesise_field
+from railsusp.measured import SimulationFailedError, read_field, synthesise_field
 from railsusp.params import ParameterSet
 from railsusp.validate import PARETO_SPREAD_LIMIT, validate
 
@@ -77,3 +77,23 @@ def test_refined_estimate_flags_by_its_standard_error(case, tmp_path):
     assert bool(rec.loc["X13", "identifiable"])
     assert not rec.loc["X17", "identifiable"]
     assert rec.loc["X17", "why_not"] == "standard error 12.0 % of range"
+
+
+def test_a_derailing_resimulation_is_reported_not_raised(case, monkeypatch):
+    import railsusp.validate as val
+
+    _field, est, _res = case
+    real, calls = val.simulated_forces, []
+
+    def nominal_derails(pset, rec):  # the first re-simulation is the nominal one
+        calls.append(pset)
+        if len(calls) == 1:
+            raise SimulationFailedError("simulation in condition 'straight' failed at 3.00 s")
+        return real(pset, rec)
+
+    monkeypatch.setattr(val, "simulated_forces", nominal_derails)
+    v = validate(est)
+    assert v.failures == ["nominal parameters: simulation in condition 'straight' failed at 3.00 s"]
+    assert v.forces.before_kN.isna().all() and np.isfinite(v.forces.after_kN).all()
+    out = v.save(est / "validation-failed")
+    assert json.loads((out / "validation.json").read_text())["failures"] == v.failures

@@ -13,7 +13,7 @@ true parameters itself makes against the same recording.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +26,7 @@ from railsusp.estimate import (
     parse_statistics,
     recording_segments,
 )
-from railsusp.measured import read_field, simulated_forces
+from railsusp.measured import SimulationFailedError, read_field, simulated_forces
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import read_json, write_json
 from railsusp.vehicle.simulate import record_statistic
@@ -46,6 +46,8 @@ class ValidationResult:
     forces: pd.DataFrame
     recovery: pd.DataFrame | None
     series: dict  # condition -> {"time", "measured", "before", "after"} for the overlays
+    #: simulations that stopped (derailment, divergence): their rows hold NaN
+    failures: list[str] = field(default_factory=list)
 
     def save(self, out: str | Path) -> Path:
         from railsusp.report import plot_validation_overlay
@@ -53,7 +55,7 @@ class ValidationResult:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         self.forces.to_csv(out / "validation.csv", index=False)
-        payload = {"forces": self.forces.to_dict(orient="records")}
+        payload = {"forces": self.forces.to_dict(orient="records"), "failures": self.failures}
         if self.recovery is not None:
             self.recovery.to_csv(out / "recovery.csv", index=False)
             payload["recovery"] = self.recovery.to_dict(orient="records")
@@ -63,9 +65,18 @@ class ValidationResult:
         return out
 
 
-def _simulate(pset: ParameterSet, recs) -> list[np.ndarray]:
-    """Measured-wheel series (T, 2) in kN of each recording's condition and wheel."""
-    return [simulated_forces(pset, rec) for rec in recs]
+def _simulate(pset: ParameterSet, recs, label: str, failures: list[str]) -> list[np.ndarray]:
+    """Measured-wheel series (T, 2) in kN of each recording's condition and wheel; a
+    simulation that stops gives NaN and a line in ``failures`` (the parameters derail
+    there: a finding, not a crash)."""
+    out = []
+    for rec in recs:
+        try:
+            out.append(simulated_forces(pset, rec))
+        except SimulationFailedError as exc:
+            failures.append(f"{label}: {exc}")
+            out.append(np.full((rec.time.size, 2), np.nan))
+    return out
 
 
 def validate(
@@ -97,9 +108,13 @@ def validate(
     if truth is not None:
         doc = json.loads(Path(truth).read_text("utf-8"))
         truth_set = ParameterSet(doc["parameters_display"], units="display")
-    sims = {"before": _simulate(nominal, recs), "after": _simulate(chosen, recs)}
+    failures: list[str] = []
+    sims = {
+        "before": _simulate(nominal, recs, "nominal parameters", failures),
+        "after": _simulate(chosen, recs, "estimate", failures),
+    }
     if truth_set is not None:
-        sims["truth"] = _simulate(truth_set, recs)
+        sims["truth"] = _simulate(truth_set, recs, "true parameters", failures)
     aligned = ALIGNED in stats
     stats = tuple(st for st in stats if st != ALIGNED)
     rows, series = [], {}
@@ -145,7 +160,7 @@ def validate(
     recovery = None
     if truth_set is not None:
         recovery = _recovery(params, chosen, truth_set, est, sensitivity)
-    return ValidationResult(forces, recovery, series)
+    return ValidationResult(forces, recovery, series, failures)
 
 
 def _recovery(

@@ -336,6 +336,8 @@ def validate(
             cells += [f"{r.truth_kN:.2f}", f"{100 * r.truth_error:.2f} %"]
         table.add_row(*cells)
     console.print(table)
+    for line in res.failures:
+        console.print(f"[yellow]simulation stopped, its rows are NaN: {line}[/yellow]")
     if res.recovery is not None:
         rec = Table(title="Parameter recovery against the hidden truth", title_justify="left")
         for c in (
