@@ -311,3 +311,19 @@ def test_align_track_finds_and_writes_a_misregistration(tmp_path):
     assert "(offset -" in rec.condition.describe()
     bad = runner.invoke(app, ["align-track", str(field), "--max-shift", "0"])
     assert bad.exit_code == 2 and "max_shift_m = 0: accepted (0, 200] m" in bad.output
+
+
+def test_campaign_duration_keeps_the_sampling_interval(tmp_path):
+    cond_file = tmp_path / "c.toml"
+    cond_file.write_text(
+        '[[condition]]\nname = "short"\nduration_s = 1.0\nn_steps = 50\nlead_in_m = 20.0\n'
+    )
+    run = tmp_path / "run"
+    base = ["campaign", "--samples", "2", "--conditions", str(cond_file), "--out", str(run),
+            "--batch-size", "2", "--parameters", "X13"]  # fmt: skip
+    result = runner.invoke(app, [*base, "--duration", "2"])
+    assert result.exit_code == 0, result.output
+    (cond,) = json.loads((run / "campaign.json").read_text())["config"]["conditions"]
+    assert cond["duration_s"] == 2.0 and cond["n_steps"] == 100
+    bad = runner.invoke(app, [*base, "--duration", "700", "--out", str(tmp_path / "x")])
+    assert bad.exit_code == 2 and "duration_s" in bad.output and "600" in bad.output

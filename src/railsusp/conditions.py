@@ -240,6 +240,11 @@ class WorkingCondition(BaseModel):
         """A validated copy with some fields changed."""
         return make_condition({**self.model_dump(), **changes})
 
+    def with_duration(self, duration_s: float) -> WorkingCondition:
+        """A validated copy recording ``duration_s`` seconds at the same sampling interval."""
+        n_steps = max(10, round(duration_s / self.sample_interval))
+        return self.with_changes(duration_s=duration_s, n_steps=n_steps)
+
     def differences(self, other: WorkingCondition, ignore: Iterable[str] = ("seed",)) -> list[str]:
         """Names of the fields (other than ``ignore``) in which ``other`` differs."""
         skip = set(ignore)

@@ -405,8 +405,7 @@ def synthesise_field(
     names = []
     for i, cond in enumerate(conditions):
         if duration_s is not None:
-            n_steps = max(10, round(duration_s / cond.sample_interval))
-            cond = cond.with_changes(duration_s=duration_s, n_steps=n_steps)
+            cond = cond.with_duration(duration_s)
         field_cond = cond.with_changes(seed=cond.seed + track_seed_offset)
         rec = recording_from_simulation(simulate(truth, field_cond))
         rec = add_sensor_noise(rec, noise, seed + i)

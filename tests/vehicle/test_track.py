@@ -141,3 +141,21 @@ def test_layout_exit_spiral_and_grade():
     np.testing.assert_allclose(lay.cant_at(s)[:2], [0.11, 0.055])
     up = TrackLayout.from_condition(get_condition("uphill"))
     np.testing.assert_allclose(up.grade_at(np.array([0.0, 400.0])), 0.012)
+
+
+def test_synthesised_gauge_stays_within_the_class_safety_limits():
+    from railsusp.vehicle.track import GAUGE_KNEE, GAUGE_LIMITS, limit_gauge
+
+    tight, wide = GAUGE_LIMITS[5]
+    assert (tight, wide) == (-0.0127, 0.0254)  # 4'8" and 4'9-1/2" against 4'8-1/2"
+    g = np.linspace(-0.05, 0.05, 20001)
+    lim = limit_gauge(g, 5)
+    assert lim.min() > tight and lim.max() < wide
+    inside = (g > GAUGE_KNEE * tight) & (g < GAUGE_KNEE * wide)
+    np.testing.assert_array_equal(lim[inside], g[inside])  # ordinary gauge untouched
+    slope = np.diff(lim) / np.diff(g)
+    assert slope.min() > 0.0 and np.abs(np.diff(slope)).max() < 1e-2  # monotonic, smooth
+    # a 3.4 km Class 5 realisation: the raw Gaussian synthesis goes beyond -12.7 mm
+    irr = synthesise(3400.0, 5, [1, 2, 3, 4])
+    assert irr.gauge.min() > tight and irr.gauge.max() < wide
+    assert 3.8e-3 < irr.gauge.std() < 4.8e-3  # the spectrum's RMS is barely touched

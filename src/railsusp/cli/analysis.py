@@ -23,6 +23,13 @@ def campaign(
             "measured track geometry when they carry one)"
         ),
     ] = "straight,curve,uphill",
+    duration: Annotated[
+        float | None,
+        typer.Option(
+            help="seconds per run, same sampling interval (default: the conditions'); long "
+            "runs give statistics averaged over 20 s segments, for long recordings"
+        ),
+    ] = None,
     seed: Annotated[int, typer.Option(help="design seed")] = 0,
     design: Annotated[str, typer.Option(help="lhs, lhs-optimised or sobol (Saltelli)")] = "lhs",
     second_order: Annotated[bool, typer.Option(help="Saltelli with second order")] = False,
@@ -50,6 +57,8 @@ def campaign(
 
     try:
         conds = conditions_from(conditions)
+        if duration is not None:
+            conds = [c.with_duration(duration) for c in conds]
         cfg = make_config(
             conds,
             samples,
