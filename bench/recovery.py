@@ -172,6 +172,7 @@ def main() -> None:
                 "forces": f.to_dict(orient="records"),
                 "recovery": rec.to_dict(orient="records"),
                 "failed_simulations": v.failures,
+                "cramer_rao": res.cramer_rao,
                 "refinement": {
                     key: val for key, val in res.refinement.to_dict().items() if key != "history_si"
                 }
@@ -205,6 +206,22 @@ def main() -> None:
         "identifiable_within_5pct_of_range": float(ident.within_5pct.mean())
         if len(ident)
         else float("nan"),
+        # the validator's own flag (Pareto spread or refinement standard error, Sobol ST, and
+        # for statistics GPs the Cramér-Rao bound): how many it calls identifiable, and how
+        # many of those are within 5 %
+        "validator_identifiable_share": float(allr.identifiable.mean()),
+        "validator_identifiable_within_5pct": float(
+            allr[allr.identifiable.astype(bool)].within_5pct.mean()
+        )
+        if allr.identifiable.any()
+        else float("nan"),
+        "median_cramer_rao_pct_range": pd.DataFrame(
+            [t["cramer_rao"] for t in trials if t["cramer_rao"]]
+        )
+        .median()
+        .to_dict()
+        if any(t["cramer_rao"] for t in trials)
+        else {},
         "median_error_pct_of_range": allr.groupby("parameter")["error_pct_of_range"]
         .median()
         .to_dict(),

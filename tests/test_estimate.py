@@ -1,5 +1,6 @@
 """NSGA-II calibration: analytic problems with known answers, determinism, outputs."""
 
+import json
 import warnings
 
 import numpy as np
@@ -20,6 +21,7 @@ from railsusp.estimate import (
     parse_statistics,
     record_statistic,
 )
+from railsusp.identifiability import cramer_rao_pct_range, fisher_information
 from railsusp.measured import Recording
 from railsusp.params import bounds
 from railsusp.surrogate.baselines import StatisticsGP
@@ -214,6 +216,51 @@ def test_statistics_surrogate_round_trip_and_calibration(tmp_path):
     res = estimate(forces, [rec], PARAMS, NSGAConfig(pop_size=30, n_gen=30, weighting="noise"))
     err = np.abs(res.pareto_x[res.chosen] - np.array([16.1e6, 8.3e6])) / (hi - lo)
     assert np.all(err < 0.03), res.estimate
+    # the Cramér-Rao bound comes with a statistics-GP estimate, into estimate.json
+    assert set(res.cramer_rao) == set(PARAMS) and all(v > 0 for v in res.cramer_rao.values())
+    res.save(tmp_path / "est")
+    saved = json.loads((tmp_path / "est" / "estimate.json").read_text())
+    assert saved["cramer_rao_pct_range"] == pytest.approx(res.cramer_rao)
+    # the measured statistic's scatter falls with the recording's length (here: 2 segments)
+    long = Recording(np.arange(2000) * 0.02, {"w1L": np.zeros(2000)}, {"w1L": np.zeros(2000)}, COND)
+    one = forces.measurement_std(probe, rec, ("mean",))
+    two = forces.measurement_std(probe, long, ("mean",))
+    noise = forces._models[COND.name].noise_std(("mean",))
+    np.testing.assert_allclose(one**2 - two**2, 0.5 * np.broadcast_to(noise**2, one.shape))
+
+
+class LinearStatistics:
+    """A statistics model with linear means in the unit parameters and a fixed scatter."""
+
+    def __init__(self, gain: np.ndarray, sd: np.ndarray):
+        self.gain, self.sd = gain, sd  # (n_features, k), (n_features,)
+
+    def predict_statistics(self, x_si, condition, statistics):
+        lo, hi = bounds(PARAMS)
+        unit = (np.atleast_2d(x_si) - lo) / (hi - lo)
+        return (unit @ self.gain.T).reshape(len(unit), 2, -1)
+
+    def measurement_std(self, x_si, rec, statistics):
+        return np.broadcast_to(self.sd.reshape(1, 2, -1), (len(np.atleast_2d(x_si)), 2, 2))
+
+
+def test_cramer_rao_bound_of_a_linear_model_is_exact():
+    # two statistics per force, linear in the parameters: F = J^T S^-1 J exactly
+    gain = np.array([[10.0, 2.0], [0.0, 5.0], [3.0, -1.0], [1.0, 1.0]])
+    sd = np.array([0.5, 1.0, 2.0, 0.3])
+    model = LinearStatistics(gain, sd)
+    lo, hi = bounds(PARAMS)
+    x = lo + 0.5 * (hi - lo)
+    info = fisher_information(model, [recording(10.0, 120.0)], PARAMS, x, ("mean", "std"))
+    np.testing.assert_allclose(info, gain.T @ np.diag(1 / sd**2) @ gain, rtol=1e-9)
+    bound = cramer_rao_pct_range(model, [recording(10.0, 120.0)], PARAMS, x, ("mean", "std"))
+    expected = 100 * np.sqrt(np.diag(np.linalg.inv(gain.T @ np.diag(1 / sd**2) @ gain)))
+    np.testing.assert_allclose([bound[p] for p in PARAMS], expected, rtol=1e-9)
+    # a statistic set that cannot tell the two parameters apart: unbounded
+    flat = LinearStatistics(np.array([[1.0, 1.0]] * 4), sd)
+    assert cramer_rao_pct_range(flat, [recording(10.0, 120.0)], PARAMS, x, ("mean",)) == {
+        p: np.inf for p in PARAMS
+    }
 
 
 def test_noise_weighting_needs_a_statistics_surrogate():

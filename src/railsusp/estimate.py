@@ -226,6 +226,19 @@ class StatisticsForces:
         mean, std = model.predict(x_si, statistics)
         return (mean, std) if with_std else mean
 
+    def measurement_std(
+        self, x_si: np.ndarray, rec: Recording, statistics: Sequence[str]
+    ) -> np.ndarray:
+        """(n, 2, n_statistics) standard deviation of a recording's statistics about the GP
+        mean, kN: the GP's own uncertainty plus the realisation scatter of its training
+        records, scaled to the recording's length (scatter variance ~ 1 / segments)."""
+        _, sd = self.predict_statistics(x_si, rec.condition, statistics, with_std=True)
+        model = self._models[rec.condition.name]
+        noise = model.noise_std(statistics) ** 2
+        posterior = np.maximum(sd**2 - noise, 0.0)
+        scale = model.training_segments / recording_segments(rec)
+        return np.sqrt(posterior + noise * scale)
+
 
 def open_force_model(
     folder: str | Path, parameters: Sequence[str] | None = None
@@ -468,6 +481,8 @@ class CalibrationResult:
     config: NSGAConfig
     seeds_spread: dict[str, float] = field(default_factory=dict)
     refinement: Refinement | None = None
+    #: Cramér-Rao bound of each parameter at NSGA-II's choice, % of range (statistics GPs)
+    cramer_rao: dict[str, float] = field(default_factory=dict)
 
     @property
     def chosen_x(self) -> np.ndarray:
@@ -507,6 +522,8 @@ class CalibrationResult:
             if self.refinement:
                 row["nsga_estimate"] = nsga[p]
                 row["standard_error_pct_range"] = se[p]
+            if self.cramer_rao:
+                row["cramer_rao_pct_range"] = self.cramer_rao[p]
             rows.append(row)
         return pd.DataFrame(rows)
 
@@ -535,6 +552,7 @@ class CalibrationResult:
                     self.parameters, self.pareto_x[self.chosen]
                 ),
                 "refinement": self.refinement.to_dict() if self.refinement else None,
+                "cramer_rao_pct_range": self.cramer_rao,
                 **(extra or {}),
             },
         )
@@ -587,9 +605,16 @@ def estimate(
     history = np.array(
         [problem.to_si(fx[choose(ff)]) for fx, ff in zip(log.front_x, log.front_f, strict=True)]
     )
-    return CalibrationResult(
+    result = CalibrationResult(
         tuple(parameters), problem.to_si(x), f, choose(f), pd.DataFrame(log.rows), history, cfg
     )
+    if isinstance(model, StatisticsForces) and problem.stats:
+        from railsusp.identifiability import cramer_rao_pct_range
+
+        result.cramer_rao = cramer_rao_pct_range(
+            model, problem.recordings, result.parameters, result.chosen_x, problem.stats
+        )
+    return result
 
 
 def estimate_with_seeds(

@@ -26,6 +26,7 @@ from railsusp.estimate import (
     parse_statistics,
     recording_segments,
 )
+from railsusp.identifiability import BOUND_LIMIT_PCT
 from railsusp.measured import SimulationFailedError, read_field, simulated_forces
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import read_json, write_json
@@ -182,6 +183,9 @@ def _recovery(
             reasons.append(f"Pareto spread {spread[p]:.0f} % of range")
         if p in max_st and max_st[p] < SOBOL_ST_LIMIT:
             reasons.append(f"Sobol ST {max_st[p]:.2f}")
+        bound = (est.get("cramer_rao_pct_range") or {}).get(p, 0.0)
+        if bound > BOUND_LIMIT_PCT:
+            reasons.append(f"Cramér-Rao bound {bound:.1f} % of range")
         rows.append(
             {
                 "parameter": p,

@@ -134,6 +134,19 @@ class StatisticsGP:
         res = [gp.predict(params_unit, return_std=True) for gp in self._gps]
         return np.stack([m for m, _ in res], axis=1), np.stack([s for _, s in res], axis=1)
 
+    def noise_std(self) -> np.ndarray:
+        """(n_cols,) standard deviation of the white-noise term of each GP, kN: the scatter
+        of the training records' statistic that the parameters do not explain (mostly the
+        track realisation of each record)."""
+        if not self._gps:
+            raise RuntimeError("statistics GP not fitted")
+        return np.array(
+            [
+                np.sqrt(gp.kernel_.k2.noise_level) * float(np.atleast_1d(gp._y_train_std)[0])
+                for gp in self._gps
+            ]
+        )
+
     def to_dict(self) -> dict:
         """Everything needed to rebuild the fitted GPs exactly: training data and the
         optimised kernel hyperparameters (log scale), per column."""

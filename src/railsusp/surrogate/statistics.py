@@ -22,7 +22,7 @@ from railsusp.params import bounds
 from railsusp.store import provenance, write_json
 from railsusp.surrogate.baselines import StatisticsGP
 from railsusp.surrogate.data import FeatureSpec, load_series
-from railsusp.vehicle.simulate import RECORD_STATISTICS
+from railsusp.vehicle.simulate import RECORD_STATISTICS, statistic_segments
 
 FORMAT = "railsusp-statistics-surrogate-1"
 FILE = "statistics.json"
@@ -64,6 +64,20 @@ class StatisticsSurrogate:
         mean = mean.reshape(len(unit), n_t, n_s)[:, :, pick]
         std = std.reshape(len(unit), n_t, n_s)[:, :, pick]
         return mean, std
+
+    def noise_std(self, statistics: Sequence[str] | None = None) -> np.ndarray:
+        """(n_targets, n_statistics) white-noise standard deviation of the GPs, kN: the
+        realisation scatter of a statistic of one training record."""
+        stats = tuple(statistics) if statistics else self.statistics
+        n_t, n_s = len(self.gp.spec.targets), len(self.statistics)
+        sd = self.gp.noise_std().reshape(n_t, n_s)
+        return sd[:, [self.statistics.index(s) for s in stats]]
+
+    @property
+    def training_segments(self) -> int:
+        """Statistic segments in one training record (after the first window)."""
+        n = self.condition.n_steps - self.gp.spec.window
+        return statistic_segments(n, self.condition.sample_interval)
 
     def save(self, path: str | Path) -> Path:
         """Write ``statistics.json`` (training data, hyperparameters, condition, provenance)."""
