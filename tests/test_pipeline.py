@@ -119,6 +119,9 @@ def test_statistics_gp_force_model_with_combined_statistics(tiny, tmp_path):
     assert est["config"]["statistic"] == "mean+std" and est["config"]["per_condition"]
     assert est["config"]["weighting"] == "noise"
     assert est["model"] == "gp-stats"
+    # the Cramér-Rao bound of each key parameter comes with it, and the report explains it
+    assert set(est["cramer_rao_pct_range"]) == set(est["parameters"])
+    assert "Cramér-Rao bound" in (run / "report.html").read_text("utf-8")
     forces = pd.read_csv(run / "estimate" / "validation" / "validation.csv")
     assert sorted(set(forces.statistic)) == ["mean", "std"]
     cfg.write_text(TINY.replace("n_gen = 2", 'n_gen = 2\nstatistic = "mean+median"'))

@@ -198,6 +198,13 @@ def build_report(run: str | Path) -> list[Path]:
                 f"{ref['cost_start']:.4g} -> {ref['cost']:.4g} in {ref['n_evaluations']} "
                 "evaluations; standard errors assume white residuals (optimistic)."
             )
+        bound = read_json(est / "estimate.json").get("cramer_rao_pct_range") or {}
+        if bound:
+            doc.p(
+                "cramer_rao_pct_range: the smallest standard deviation (% of the range) that "
+                "any estimator can reach from these statistics (Cramér-Rao bound at the "
+                "estimate); above 5 % the data cannot fix the parameter to that precision."
+            )
         doc.table(pd.read_csv(est / "estimate.csv"))
         doc.figure(est / "pareto.png", "Pareto front")
         doc.figure(est / "convergence.png", "Convergence of the estimate")
@@ -206,6 +213,8 @@ def build_report(run: str | Path) -> list[Path]:
     if (val / "validation.csv").exists():
         doc.h("Validation before and after calibration (study Tables 8/9, Figures 12/13)")
         doc.table(pd.read_csv(val / "validation.csv"))
+        for line in read_json(val / "validation.json").get("failures", []):
+            doc.p(f"Simulation stopped (its rows are empty): {line}")
         for png in sorted(val.glob("validation-*.png")):
             doc.figure(png, png.stem.replace("validation-", "Measured vs simulated, "))
         if (val / "recovery.csv").exists():
