@@ -339,7 +339,17 @@ def test_nsga_on_aligned_series_then_refinement_recovers_the_truth():
     )
     assert np.all(np.abs(res.pareto_x[res.chosen] - truth) / (hi - lo) < 0.1)
     start = lo + 0.2 * (hi - lo)
-    r = refine(WaveForces(), [rec], PARAMS, start, gains=False)
+
+    class Counting(WaveForces):  # records every parameter set it is asked to simulate
+        asked: list[bytes] = []
+
+        def series(self, x_si, condition):
+            self.asked += [row.tobytes() for row in np.atleast_2d(x_si)]
+            return super().series(x_si, condition)
+
+    counting = Counting()
+    r = refine(counting, [rec], PARAMS, start, gains=False)
+    assert len(counting.asked) == len(set(counting.asked))  # no set simulated twice
     assert np.all(np.abs(r.x_si - truth) / (hi - lo) < 0.005), r.x_si
     assert r.cost < 0.1 * r.cost_start and r.n_jacobians >= 1
     assert np.all((r.standard_error_si > 0) & (r.standard_error_si < 0.01 * (hi - lo)))
