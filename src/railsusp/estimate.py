@@ -37,6 +37,7 @@ from pymoo.optimize import minimize
 from pymoo.util.display.multi import MultiObjectiveOutput
 
 from railsusp.conditions import WorkingCondition
+from railsusp.identifiability import cramer_rao_pct_range
 from railsusp.measured import Recording, bandwidth_filter
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import write_json, write_parquet
@@ -609,8 +610,6 @@ def estimate(
         tuple(parameters), problem.to_si(x), f, choose(f), pd.DataFrame(log.rows), history, cfg
     )
     if isinstance(model, StatisticsForces) and problem.stats:
-        from railsusp.identifiability import cramer_rao_pct_range
-
         result.cramer_rao = cramer_rao_pct_range(
             model, problem.recordings, result.parameters, result.chosen_x, problem.stats
         )

@@ -158,7 +158,7 @@ class SimulationResult:
         over the record's segments, :func:`record_statistic`), max of |Y| and Q, max Y/Q,
         max dQ/Q."""
         j = self.measured_wheel(wheel)
-        segments = statistic_segments(self.time.size, float(self.time[1] - self.time[0]))
+        segments = statistic_segments(self.time.size, self.condition.sample_interval)
         stats = {}
         for name, arr in (("Y", self.Y[:, j] / 1e3), ("Q", self.Q[:, j] / 1e3)):
             for st in ("mean", "rms", "p99"):
