@@ -341,7 +341,8 @@ def test_nsga_on_aligned_series_then_refinement_recovers_the_truth():
     start = lo + 0.2 * (hi - lo)
 
     class Counting(WaveForces):  # records every parameter set it is asked to simulate
-        asked: list[bytes] = []
+        def __init__(self):
+            self.asked: list[bytes] = []
 
         def series(self, x_si, condition):
             self.asked += [row.tobytes() for row in np.atleast_2d(x_si)]
