@@ -406,3 +406,14 @@ def test_a_failed_prediction_gets_a_large_aligned_error_not_a_crash():
         e = aligned_error(pred, rec)
         assert np.all(e[0] < 0.05)
         assert np.all(e[1] == FAILED_ALIGNED_ERROR)
+
+
+def test_standard_errors_survive_a_parameter_the_residuals_ignore():
+    from railsusp.refine import standard_errors
+
+    jac = np.array([[1.0, 0.0, 2.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [2.0, 0.0, 1.0]])
+    se = standard_errors(jac, 0.5)
+    live = jac[:, [0, 2]]
+    expected = np.sqrt(np.diag(0.5 * np.linalg.inv(live.T @ live)))
+    np.testing.assert_allclose(se[[0, 2]], expected)
+    assert se[1] == np.inf

@@ -77,6 +77,17 @@ def test_refined_estimate_flags_by_its_standard_error(case, tmp_path):
     assert bool(rec.loc["X13", "identifiable"])
     assert not rec.loc["X17", "identifiable"]
     assert rec.loc["X17", "why_not"] == "standard error 12.0 % of range"
+    # a Cramér-Rao bound of the statistics flags an estimate from statistics only; the
+    # refined one used the time-aligned series, which the bound does not describe
+    doc["cramer_rao_pct_range"] = {"X13": 30.0, "X17": 2.0}
+    (refined / "estimate.json").write_text(json.dumps(doc))
+    rec = validate(refined, truth=field / "truth.json").recovery.set_index("parameter")
+    assert bool(rec.loc["X13", "identifiable"])
+    doc["refinement"] = None
+    (refined / "estimate.json").write_text(json.dumps(doc))
+    rec = validate(refined, truth=field / "truth.json").recovery.set_index("parameter")
+    assert not rec.loc["X13", "identifiable"]
+    assert "Cramér-Rao bound 30.0 % of range" in rec.loc["X13", "why_not"]
 
 
 def test_a_derailing_resimulation_is_reported_not_raised(case, monkeypatch):

@@ -187,12 +187,7 @@ def refine(
         method="trf",
     )
     dof = max(sol.fun.size - k - n_gain, 1)
-    s2 = 2.0 * sol.cost / dof
-    try:
-        cov = s2 * np.linalg.inv(sol.jac.T @ sol.jac)
-        se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    except np.linalg.LinAlgError:
-        se = np.full(k + n_gain, np.inf)
+    se = standard_errors(sol.jac, 2.0 * sol.cost / dof)
     return Refinement(
         parameters,
         lo + u0 * (hi - lo),
@@ -212,6 +207,22 @@ def refine(
         if gains
         else {},
     )
+
+
+def standard_errors(jac: np.ndarray, s2: float) -> np.ndarray:
+    """Standard errors sqrt(diag(s² (JᵀJ)⁻¹)) of least-squares estimates; a column the
+    residuals do not depend on at all (e.g. a stop clearance never reached) gets an
+    infinite error without spoiling the others."""
+    jtj = jac.T @ jac
+    d = np.diag(jtj)
+    active = d > 1e-12 * max(float(d.max()), 1e-300)
+    se = np.full(d.size, np.inf)
+    try:
+        cov = s2 * np.linalg.inv(jtj[np.ix_(active, active)])
+        se[active] = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    except np.linalg.LinAlgError:
+        pass
+    return se
 
 
 def aligned_cost(

@@ -183,7 +183,8 @@ def _recovery(
             reasons.append(f"Pareto spread {spread[p]:.0f} % of range")
         if p in max_st and max_st[p] < SOBOL_ST_LIMIT:
             reasons.append(f"Sobol ST {max_st[p]:.2f}")
-        bound = (est.get("cramer_rao_pct_range") or {}).get(p, 0.0)
+        # the bound is that of the statistics; a refined estimate used the series instead
+        bound = 0.0 if refined else (est.get("cramer_rao_pct_range") or {}).get(p, 0.0)
         if bound > BOUND_LIMIT_PCT:
             reasons.append(f"Cramér-Rao bound {bound:.1f} % of range")
         rows.append(
