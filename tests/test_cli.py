@@ -93,15 +93,22 @@ def test_simulate_bad_input(args, needle):
     assert "Traceback" not in proc.stderr
 
 
-def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
-    """The command-line chain on a tiny campaign: every step runs and writes its files."""
+def short_campaign_args(tmp_path, samples: int, batch: int, parameters: str) -> list[str]:
+    """`railsusp campaign` arguments for a tiny campaign in a 1 s condition, into
+    tmp_path/run."""
     cond_file = tmp_path / "c.toml"
     cond_file.write_text(
         '[[condition]]\nname = "short"\nduration_s = 1.0\nn_steps = 50\nlead_in_m = 20.0\n'
     )
-    run = tmp_path / "run"
-    base = ["campaign", "--samples", "12", "--conditions", str(cond_file), "--out", str(run),
-            "--batch-size", "6", "--parameters", "X13,X14,X17"]  # fmt: skip
+    return ["campaign", "--samples", str(samples), "--conditions", str(cond_file),
+            "--out", str(tmp_path / "run"), "--batch-size", str(batch),
+            "--parameters", parameters]  # fmt: skip
+
+
+def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
+    """The command-line chain on a tiny campaign: every step runs and writes its files."""
+    run, cond_file = tmp_path / "run", tmp_path / "c.toml"
+    base = short_campaign_args(tmp_path, 12, 6, "X13,X14,X17")
     result = runner.invoke(app, base)
     assert result.exit_code == 0, result.output
     assert (run / "features.parquet").exists()
@@ -314,13 +321,8 @@ def test_align_track_finds_and_writes_a_misregistration(tmp_path):
 
 
 def test_campaign_duration_keeps_the_sampling_interval(tmp_path):
-    cond_file = tmp_path / "c.toml"
-    cond_file.write_text(
-        '[[condition]]\nname = "short"\nduration_s = 1.0\nn_steps = 50\nlead_in_m = 20.0\n'
-    )
     run = tmp_path / "run"
-    base = ["campaign", "--samples", "2", "--conditions", str(cond_file), "--out", str(run),
-            "--batch-size", "2", "--parameters", "X13"]  # fmt: skip
+    base = short_campaign_args(tmp_path, 2, 2, "X13")
     result = runner.invoke(app, [*base, "--duration", "2"])
     assert result.exit_code == 0, result.output
     (cond,) = json.loads((run / "campaign.json").read_text())["config"]["conditions"]
