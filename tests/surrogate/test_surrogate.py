@@ -169,6 +169,12 @@ def test_accuracy_metrics_on_known_predictions():
     assert rows["Y"]["relative_error_of_mean"] == pytest.approx(0.1)
     assert rows["Q"]["relative_error_of_mean"] == 0.0 and rows["Q"]["r2"] != rows["Q"]["r2"]
     assert rows["Y"]["r2"] < 1.0
+    # per run 10 % off in opposite directions: the per-run average says 10 %, the pooled
+    # mean (one simulated and one predicted value, the study's Table 7 form) says 0
+    pred = sim * np.array([[[1.1, 1.0]], [[0.9, 1.0]]])
+    rows = {r["target"]: r for r in accuracy(sim, pred, ("Y", "Q"), 5)}
+    assert rows["Y"]["relative_error_of_mean"] == pytest.approx(0.1)
+    assert rows["Y"]["relative_error_of_pooled_mean"] == pytest.approx(0.0, abs=1e-12)
 
 
 def test_evaluate_runs_on_held_out_samples(run, trained):
