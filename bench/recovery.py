@@ -36,6 +36,7 @@ from railsusp.store import write_json
 from railsusp.surrogate import key_parameters
 from railsusp.surrogate.statistics import train_statistics_surrogate
 from railsusp.validate import validate
+from railsusp.vehicle import track
 
 
 def track_matched_model(field: Path, params: tuple[str, ...], samples: int, out: Path, seed: int):
@@ -94,8 +95,24 @@ def main() -> None:
     ap.add_argument(
         "--track-noise", type=float, default=0.0, help="RMS error of the measured track, mm"
     )
+    ap.add_argument(
+        "--stated-accuracy",
+        type=float,
+        default=None,
+        help="track accuracy the recordings state, mm (default: the true --track-noise; "
+        "0: exact, so the whole band is compared)",
+    )
+    ap.add_argument(
+        "--geometry-snr",
+        type=float,
+        default=None,
+        help="geometry-to-error power ratio that ends the comparison band (default: "
+        "railsusp.vehicle.track.GEOMETRY_SNR_MIN)",
+    )
     ap.add_argument("--out", default="bench/results/recovery.json")
     args = ap.parse_args()
+    if args.geometry_snr is not None:
+        track.GEOMETRY_SNR_MIN = args.geometry_snr
     run = Path(args.run)
     params = key_parameters(run)
     conds = list(load_campaign(run).config.conditions)
@@ -133,6 +150,7 @@ def main() -> None:
                     duration_s=args.field_duration,
                     with_track=measured_track,
                     track_noise_mm=args.track_noise,
+                    stated_accuracy_mm=args.stated_accuracy,
                 )
                 break
             except SimulationFailedError as exc:
@@ -247,6 +265,8 @@ def main() -> None:
             "track_matched_samples": args.matched_samples if matched else None,
             "refine": args.refine,
             "track_noise_mm": args.track_noise,
+            "stated_accuracy_mm": args.stated_accuracy,
+            "geometry_snr_min": track.GEOMETRY_SNR_MIN,
             "weighting": args.weighting,
             "summary": summary,
             "trials": trials,

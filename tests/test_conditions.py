@@ -105,3 +105,18 @@ def test_measured_track_field_keeps_old_dumps_and_is_compared():
     assert on_track.model_dump()["track_geometry"] == "runs/km123.track.csv"
     assert on_track.differences(c) == ["track_geometry"] == c.differences(on_track)
     assert WorkingCondition(**on_track.model_dump()) == on_track
+
+
+def test_track_accuracy_needs_a_track_file_and_keeps_old_dumps():
+    """The geometry's stated accuracy (which sets the band of the time-aligned comparison)
+    is left out of the dump when 0, refused without a track file, and range-checked."""
+    c = get_condition("straight")
+    assert "track_accuracy_mm" not in c.model_dump()
+    on_track = c.with_changes(track_geometry="km123.track.csv", track_accuracy_mm=0.5)
+    assert on_track.model_dump()["track_accuracy_mm"] == 0.5
+    assert WorkingCondition(**on_track.model_dump()) == on_track
+    assert "±0.5 mm RMS" in on_track.describe()
+    with pytest.raises(ValueError, match="track_accuracy_mm = 0.5 needs a track_geometry"):
+        c.with_changes(track_accuracy_mm=0.5)
+    with pytest.raises(ValueError, match="track_accuracy_mm"):
+        on_track.with_changes(track_accuracy_mm=20.0)

@@ -110,18 +110,29 @@ class WorkingCondition(BaseModel):
         "m",
         "added to the track-geometry file's distances to align it with the recording",
     )
+    track_accuracy_mm: float = _f(
+        0.0,
+        0.0,
+        10.0,
+        "mm",
+        "RMS measurement error of each component of the track-geometry file, within its "
+        "measured wavelengths (wavelength_min_m up); 0: exact. Limits the time-aligned "
+        "comparison to the wavelengths the geometry resolves",
+    )
     wheel_rail_friction: float = _f(0.3, 0.05, 0.8, "-", "wheel-rail friction coefficient")
 
     @model_serializer(mode="wrap")
     def _without_unset_track(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
-        """Leave ``track_geometry`` out when it is None and ``track_offset_m`` when it is 0,
-        so that the dump (and the content hashes of run directories made before these fields
-        existed) stays as it was."""
+        """Leave ``track_geometry`` out when it is None, ``track_offset_m`` and
+        ``track_accuracy_mm`` when they are 0, so that the dump (and the content hashes of
+        run directories made before these fields existed) stays as it was."""
         data = handler(self)
         if data.get("track_geometry", "") is None:
             del data["track_geometry"]
         if data.get("track_offset_m", 1.0) == 0.0:
             del data["track_offset_m"]
+        if data.get("track_accuracy_mm", 1.0) == 0.0:
+            del data["track_accuracy_mm"]
         return data
 
     @model_validator(mode="after")
@@ -135,6 +146,10 @@ class WorkingCondition(BaseModel):
             self.cant_mm or self.entry_spiral_m or self.exit_spiral_m
         ):
             raise ValueError("cant_mm and spirals need a curve_radius_m")
+        if self.track_accuracy_mm and self.track_geometry is None:
+            raise ValueError(
+                f"track_accuracy_mm = {self.track_accuracy_mm:g} needs a track_geometry file"
+            )
         if self.curve_radius_m is not None and self.arc_length_m is not None:
             if self.arc_length_m <= 0 and not (self.entry_spiral_m or self.exit_spiral_m):
                 raise ValueError("arc_length_m = 0 with no spirals leaves no curve")
@@ -226,6 +241,7 @@ class WorkingCondition(BaseModel):
         irr = (
             f"measured track {Path(self.track_geometry).name}"
             + (f" (offset {self.track_offset_m:+g} m)" if self.track_offset_m else "")
+            + (f" (±{self.track_accuracy_mm:g} mm RMS)" if self.track_accuracy_mm else "")
             if self.track_geometry is not None
             else "perfect track"
             if self.irregularity_class is None
@@ -250,6 +266,17 @@ class WorkingCondition(BaseModel):
         skip = set(ignore)
         mine, theirs = self.model_dump(exclude=skip), other.model_dump(exclude=skip)
         return sorted(k for k in mine.keys() | theirs.keys() if mine.get(k) != theirs.get(k))
+
+
+#: fields that choose the track input rather than the vehicle's operation: a surrogate that
+#: reads the track, or one trained on synthesised track (the average over realisations),
+#: serves a condition that differs only in these
+TRACK_INPUT_FIELDS: tuple[str, ...] = (
+    "seed",
+    "track_geometry",
+    "track_offset_m",
+    "track_accuracy_mm",
+)
 
 
 def make_condition(fields: dict[str, Any]) -> WorkingCondition:

@@ -36,12 +36,13 @@ from pymoo.operators.sampling.rnd import FloatRandomSampling
 from pymoo.optimize import minimize
 from pymoo.util.display.multi import MultiObjectiveOutput
 
-from railsusp.conditions import WorkingCondition
+from railsusp.conditions import TRACK_INPUT_FIELDS, WorkingCondition
 from railsusp.identifiability import cramer_rao_pct_range
 from railsusp.measured import Recording, bandwidth_filter
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import write_json, write_parquet
 from railsusp.vehicle.simulate import RECORD_STATISTICS, record_statistic, statistic_segments
+from railsusp.vehicle.track import CHANNEL_COMPONENTS, accurate_wavelength_m, read_track_geometry
 
 if TYPE_CHECKING:  # the refinement builds on this module
     from railsusp.refine import Refinement
@@ -86,16 +87,80 @@ def measurement_filter(series: np.ndarray, rec: Recording) -> np.ndarray:
     bw = rec.meta.get("filter_bandwidth_hz")
     if not bw:
         return series
-    fs = rec.sampling_rate
+    return _lowpass_defined(series, rec.sampling_rate, np.full(series.shape[-1], float(bw)))
+
+
+def _lowpass_defined(series: np.ndarray, fs: float, bandwidths: np.ndarray) -> np.ndarray:
+    """Series (n, T, channels) low-passed along time, channel c at ``bandwidths[c]`` Hz
+    (:func:`~railsusp.measured.bandwidth_filter`); leading undefined steps stay undefined,
+    and a set whose series breaks off becomes wholly undefined."""
+
+    def lowpass(x: np.ndarray) -> np.ndarray:  # (T, channels) or (n, T, channels)
+        out = np.empty_like(x)
+        for c, bw in enumerate(bandwidths):
+            out[..., c] = bandwidth_filter(x[..., c], fs, float(bw), axis=-1)
+        return out
+
     if np.isfinite(series).all():
-        return bandwidth_filter(series, fs, float(bw), axis=1)
+        return lowpass(series)
     out = np.full_like(series, np.nan)
     for i, one in enumerate(series):
         ok = np.isfinite(one).all(axis=1)
         first = int(np.argmax(ok))
         if ok.any() and ok[first:].all() and ok.size - first > 30:
-            out[i, first:] = bandwidth_filter(one[first:], fs, float(bw), axis=0)
+            out[i, first:] = lowpass(one[first:])
     return out
+
+
+def comparison_band_hz(rec: Recording) -> np.ndarray | None:
+    """(2,) upper frequency (Hz) of the time-aligned comparison of lateral and vertical
+    force: the speed over the shortest wavelength down to which the recording's track
+    geometry is accurate (:func:`~railsusp.vehicle.track.accurate_wavelength_m`, from the
+    condition's ``track_accuracy_mm``; the components that drive each channel). None where
+    the geometry is exact (accuracy 0): the whole instrument band is compared.
+
+    Below that wavelength the geometry error outweighs the geometry, and a fit there would
+    absorb the error into the parameters (an errors-in-variables bias)."""
+    cond = rec.condition
+    if cond.track_geometry is None or not cond.track_accuracy_mm:
+        return None
+    lam = accurate_wavelength_m(
+        read_track_geometry(cond.track_geometry),
+        cond.track_accuracy_mm * 1e-3,
+        cond.wavelength_min_m,
+    )
+    return np.array([cond.speed / max(lam[c] for c in CHANNEL_COMPONENTS[ch]) for ch in ("Y", "Q")])
+
+
+def comparison_filter(series: np.ndarray, rec: Recording) -> np.ndarray:
+    """Predicted series (n, T, 2) as the time-aligned comparison sees them: through the
+    recording's filter (:func:`measurement_filter`) and limited to its comparison band
+    (:func:`comparison_band_hz`)."""
+    series = measurement_filter(series, rec)
+    band = comparison_band_hz(rec)
+    return series if band is None else _lowpass_defined(series, rec.sampling_rate, band)
+
+
+def compared_measurement(rec: Recording) -> np.ndarray:
+    """(T, 2) the recording's lateral and vertical force limited to its comparison band."""
+    meas = rec.forces()
+    band = comparison_band_hz(rec)
+    return meas if band is None else _lowpass_defined(meas[None], rec.sampling_rate, band)[0]
+
+
+def comparison_samples(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
+    """Per channel (Y, Q), the samples of a recording the time-aligned comparison uses: all
+    of them without a comparison band; with one, four per period of the band's upper
+    frequency (residuals closer than that are not independent), leaving out one period at
+    each end, where the zero-phase filter's start and end transients lie."""
+    n = rec.forces().shape[0]
+    band = comparison_band_hz(rec)
+    if band is None:
+        return (np.arange(n), np.arange(n))
+    fs = rec.sampling_rate
+    edge = min(int(np.ceil(fs / band.min())), n // 4)
+    y, q = (np.arange(edge, n - edge, max(1, int(fs / (4.0 * f)))) for f in band)
+    return (y, q)
 
 
 #: time-aligned error given to a prediction that is undefined (a failed simulation)
@@ -106,7 +171,9 @@ def aligned_error(pred: np.ndarray, rec: Recording) -> np.ndarray:
     """(n, 2) time-aligned mismatch of predicted lateral and vertical series (n, T, 2) with a
     recording made on measured track: RMS of the sample-by-sample difference over the
     standard deviation of the measured series (its dynamic part), after the recording's
-    filter is applied to the prediction. Zero for a perfect model and noise-free data;
+    filter is applied to the prediction and both are limited to the band where the track
+    geometry is accurate (:func:`comparison_band_hz`). Zero for a perfect model and
+    noise-free data;
     :data:`FAILED_ALIGNED_ERROR` for a set without a defined prediction."""
     meas = rec.forces()
     if pred.shape[-2] != meas.shape[0]:
@@ -118,11 +185,16 @@ def aligned_error(pred: np.ndarray, rec: Recording) -> np.ndarray:
     first = np.argmax(ok, axis=1)
     after_first = np.arange(ok.shape[1])[None, :] >= first[:, None]
     defined = ok.any(axis=1) & np.all(ok | ~after_first, axis=1)  # only leading gaps
-    diff = measurement_filter(pred, rec) - meas
-    sq = np.where(np.isfinite(diff), diff**2, 0.0).sum(axis=-2)
-    count = np.isfinite(diff).sum(axis=-2)
-    err = np.sqrt(sq / np.maximum(count, 1)) / meas.std(axis=0)
-    return np.where(defined[:, None] & (count > 0), err, FAILED_ALIGNED_ERROR)
+    meas = compared_measurement(rec)
+    diff = comparison_filter(pred, rec) - meas
+    err = np.empty(diff.shape[::2])
+    for c, used in enumerate(comparison_samples(rec)):
+        d = diff[:, used, c]
+        sq = np.where(np.isfinite(d), d**2, 0.0).sum(axis=1)
+        count = np.isfinite(d).sum(axis=1)
+        err[:, c] = np.where(count > 0, np.sqrt(sq / np.maximum(count, 1)), np.inf)
+    err /= meas.std(axis=0)
+    return np.where(defined[:, None] & np.isfinite(err), err, FAILED_ALIGNED_ERROR)
 
 
 class ForceModel(Protocol):
@@ -214,9 +286,9 @@ class StatisticsForces:
         # whatever the recording's seed, length or measured track. Trained on a measured
         # track, they hold for that stretch of track only.
         ignore = (
-            ("seed",)
+            ("seed", "track_accuracy_mm")  # the accuracy changes the comparison only
             if model.condition.track_geometry is not None
-            else ("seed", "duration_s", "n_steps", "track_geometry")
+            else (*TRACK_INPUT_FIELDS, "duration_s", "n_steps")
         )
         diff = model.condition.differences(condition, ignore)
         if diff:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import json
 import warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -28,9 +28,8 @@ from railsusp.errors import RailsuspInputError, did_you_mean
 from railsusp.store import write_json, write_parquet
 from railsusp.vehicle.layout import WHEEL_NAMES
 from railsusp.vehicle.track import (
-    COMPONENTS,
-    Irregularities,
     read_track_geometry,
+    with_measurement_error,
     write_track_geometry,
 )
 
@@ -380,6 +379,7 @@ def synthesise_field(
     duration_s: float | None = None,
     with_track: bool = False,
     track_noise_mm: float = 0.0,
+    stated_accuracy_mm: float | None = None,
 ) -> Path:
     """Synthetic field recordings of the ``truth`` ParameterSet with hidden truth.
 
@@ -393,7 +393,9 @@ def synthesise_field(
     ``with_track`` also writes the track the truth ran on as measured track geometry
     (``NAME.track.csv``, named by the recording's condition), as a track recording car run
     with the instrumented wagon would give, with a measurement error of ``track_noise_mm``
-    (RMS, mm, within the measured wavelengths) on each component.
+    (RMS, mm, within the measured wavelengths) on each component. The recordings state the
+    geometry's accuracy (``track_accuracy_mm``) as ``stated_accuracy_mm``, by default the
+    true ``track_noise_mm``: an engineer knows the specification of the geometry car.
     """
     from railsusp.vehicle.setup import section_irregularities
     from railsusp.vehicle.simulate import simulate
@@ -415,10 +417,15 @@ def synthesise_field(
             assert irr is not None, "with_track needs a condition with irregularities"
             if track_noise_mm:
                 rng = np.random.default_rng([seed, i, 1])
-                irr = _noisy(irr, track_noise_mm * 1e-3, rng)
+                irr = with_measurement_error(irr, track_noise_mm * 1e-3, cond.wavelength_min_m, rng)
             track_name = f"{cond.name}.track.csv"
             write_track_geometry(out / track_name, irr, origin_m=cond.lead_in_m)
-            rec.condition = cond.with_changes(track_geometry=track_name)
+            rec.condition = cond.with_changes(
+                track_geometry=track_name,
+                track_accuracy_mm=track_noise_mm
+                if stated_accuracy_mm is None
+                else stated_accuracy_mm,
+            )
         rec.meta["wagon"] = rec.meta.get("wagon", "")
         rec.write(out / cond.name, fmt)
         names.append(cond.name + (".csv" if fmt == "csv" else ".parquet"))
@@ -434,19 +441,6 @@ def synthesise_field(
         },
     )
     return out
-
-
-def _noisy(irr: Irregularities, rms_m: float, rng: np.random.Generator) -> Irregularities:
-    """``irr`` with measurement error of RMS ``rms_m`` added to each component: white noise
-    band-limited to the measured wavelengths (4th-order Butterworth at the shortest one),
-    as a track recording system's error lies within its band. Unfiltered noise on the
-    0.125 m grid would be rail roughness that no geometry car reports."""
-    dx = float(np.median(np.diff(irr.s)))
-    noisy = {}
-    for c in COMPONENTS:
-        e = bandwidth_filter(rng.standard_normal(irr.s.size), 1.0 / dx, 1.0 / irr.wavelength_min)
-        noisy[c] = irr.component(c) + rms_m * e / np.std(e)
-    return replace(irr, **noisy)
 
 
 def read_field(folder: str | Path) -> list[Recording]:

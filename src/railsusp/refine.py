@@ -23,6 +23,9 @@ from railsusp.estimate import (
     ForceModel,
     SimulatorForces,
     check_aligned,
+    compared_measurement,
+    comparison_filter,
+    comparison_samples,
     display_values,
     measurement_filter,
 )
@@ -103,10 +106,14 @@ def refine(
     computed as one batch of k + 1 parameter sets. With ``gains`` the gain of every force
     channel (its calibration factor, within ±:data:`GAIN_LIMIT`) is estimated alongside, as a
     nuisance parameter whose Jacobian column is analytic: a 1 % calibration error on Q is
-    1.2 kN, more than most parameters change the vertical force. Standard errors are
-    s^2 (J^T J)^-1 with white residuals, so they are optimistic where the residuals are
-    correlated. The method is the classical one of system identification (Maine & Iliff,
-    NASA RP-1168, 1986, including the scale-factor estimation of measurement channels).
+    1.2 kN, more than most parameters change the vertical force. On geometry of stated
+    accuracy the series are compared in the band where it is accurate
+    (:func:`~railsusp.estimate.comparison_band_hz`) and the residuals taken at four samples
+    per period of its upper frequency (:func:`~railsusp.estimate.comparison_samples`).
+    Standard errors are s^2 (J^T J)^-1 with white residuals, so they are optimistic where the
+    residuals are correlated. The method is the
+    classical one of system identification (Maine & Iliff, NASA RP-1168, 1986, including the
+    scale-factor estimation of measurement channels).
     """
     from scipy.optimize import least_squares
 
@@ -116,16 +123,20 @@ def refine(
     lo, hi = bounds(parameters)
     k = len(parameters)
     n_gain = 2 * len(recordings) if gains else 0
-    measured, scales = [], []
-    for rec in recordings:
-        meas = rec.forces()
-        measured.append(meas)
-        scales.append(meas.std(axis=0) * np.sqrt(meas.shape[0]))
+    # per recording and channel (Y, Q): the compared measurement at the samples compared and
+    # its scale, so that each channel's part of the cost is half its squared aligned_error
+    samples = [comparison_samples(rec) for rec in recordings]
+    scales: list[list[float]] = []
+    targets: list[np.ndarray] = []  # scaled measurement per recording and channel
+    for rec, used in zip(recordings, samples, strict=True):
+        meas = compared_measurement(rec)
+        scales.append([meas[:, c].std() * np.sqrt(used[c].size) for c in range(2)])
+        targets += [meas[used[c], c] / scales[-1][c] for c in range(2)]
 
     cache: dict[bytes, list[np.ndarray]] = {}
 
     def predictions(unit: np.ndarray) -> list[np.ndarray]:
-        """Filtered series (n, T, 2) per recording; undefined leading steps count zero.
+        """Compared series (n, T, 2) per recording; undefined leading steps count zero.
         Parameter sets already simulated (the start, the base point of each Jacobian) are
         taken from a cache, the others simulated in one batch."""
         rows = np.atleast_2d(unit)
@@ -133,21 +144,25 @@ def refine(
         if new:
             x = lo + rows[new] * (hi - lo)
             series = [
-                np.nan_to_num(measurement_filter(model.series(x, rec.condition), rec))
+                np.nan_to_num(comparison_filter(model.series(x, rec.condition), rec))
                 for rec in recordings
             ]
             for j, i in enumerate(new):
                 cache[rows[i].tobytes()] = [s[j] for s in series]
         return [np.stack([cache[u.tobytes()][r] for u in rows]) for r in range(len(recordings))]
 
+    def blocks(preds: list[np.ndarray]) -> list[np.ndarray]:
+        """(n, T_c) scaled prediction per recording and channel, the gains' Jacobian too."""
+        return [
+            p[:, used[c], c] / sc[c]
+            for p, used, sc in zip(preds, samples, scales, strict=True)
+            for c in range(2)
+        ]
+
     def residuals(preds: list[np.ndarray], g: np.ndarray) -> np.ndarray:
-        g = g.reshape(-1, 2) if gains else np.ones((len(recordings), 2))
+        g = g if gains else np.ones(2 * len(recordings))
         return np.concatenate(
-            [
-                ((p * gr - meas) / sc).reshape(len(p), -1)
-                for p, gr, meas, sc in zip(preds, g, measured, scales, strict=True)
-            ],
-            axis=1,
+            [b * gc - t for b, gc, t in zip(blocks(preds), g, targets, strict=True)], axis=1
         )
 
     history: list[np.ndarray] = []
@@ -163,12 +178,11 @@ def refine(
         history.append(lo + unit * (hi - lo))
         jac = np.zeros((r.shape[1], k + n_gain))
         jac[:, :k] = ((r[1:] - r[0]) / h[:, None]).T
-        row = 0
-        for i, (p, sc) in enumerate(zip(preds, scales, strict=True)):
-            block = (p[0] / sc).reshape(-1)  # d r / d gain, channels interleaved (t, c)
-            for c in range(2 if gains else 0):
-                jac[row + c : row + block.size : 2, k + 2 * i + c] = block[c::2]
-            row += block.size
+        if gains:  # d r / d gain of a channel: its scaled prediction, in its rows only
+            row = 0
+            for j, b in enumerate(blocks(preds)):
+                jac[row : row + b.shape[1], k + j] = b[0]
+                row += b.shape[1]
         return jac
 
     u0 = np.clip((np.asarray(start_si, dtype=float) - lo) / (hi - lo), 0.0, 1.0)

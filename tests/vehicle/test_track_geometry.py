@@ -127,3 +127,31 @@ def test_simulation_on_exported_track_equals_the_synthesised_track(tmp_path):
     other = simulate(ParameterSet.nominal(), COND.with_changes(seed=99))
     assert np.abs(other.Y - a.Y).max() > 1e3  # another seed is another track
     assert "measured track t.csv" in cond.describe()
+
+
+def test_accurate_wavelength_follows_the_fra_spectrum():
+    """Where the Class 5 PSD (converted to m²/(cycle/m)) falls to (1 + SNR) times the PSD of
+    a white error of the stated RMS over the measured band, the geometry stops being
+    accurate: the estimate from a 2 km realisation lands within a quarter of the analytic
+    wavelength, and a larger error gives a longer shortest-accurate wavelength."""
+    from scipy.optimize import brentq
+
+    from railsusp.vehicle.track import GEOMETRY_SNR_MIN, accurate_wavelength_m, fra_psd
+
+    irr = synthesise(2000.0, 5, 3, dx=0.125)
+    for sigma in (0.25e-3, 1e-3):
+        lam = accurate_wavelength_m(irr, sigma, 1.0)
+
+        def excess(log_lam, component, error_psd=sigma**2 * 1.0):
+            omega = np.array([2 * np.pi / np.exp(log_lam)])
+            psd = 2 * np.pi * fra_psd(component, omega, 5)[0]  # m²/(cycle/m)
+            return psd / error_psd - 1.0 - GEOMETRY_SNR_MIN
+
+        for c in ("vertical", "alignment"):
+            expected = np.exp(brentq(excess, np.log(1.0), np.log(100.0), args=(c,)))
+            assert lam[c] == pytest.approx(expected, rel=0.25), (c, sigma)
+    rough, fine = accurate_wavelength_m(irr, 2e-3, 1.0), accurate_wavelength_m(irr, 0.1e-3, 1.0)
+    assert all(rough[c] > fine[c] for c in COMPONENTS)
+    assert all(fine[c] >= 1.0 for c in COMPONENTS)
+    with pytest.raises(ValueError, match="accuracy_m = 0"):
+        accurate_wavelength_m(irr, 0.0, 1.0)

@@ -37,7 +37,8 @@ def synth_field(
         float,
         typer.Option(
             help="RMS measurement error on the written track geometry (within the "
-            "measured wavelengths), mm"
+            "measured wavelengths), mm; the recordings state it as track_accuracy_mm, which "
+            "limits the time-aligned comparison to the wavelengths the geometry resolves"
         ),
     ] = 0.0,
 ) -> None:

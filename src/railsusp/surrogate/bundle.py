@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from railsusp.conditions import WorkingCondition
+from railsusp.conditions import TRACK_INPUT_FIELDS, WorkingCondition
 from railsusp.params import ParameterSet, spec
 from railsusp.store import atomic_write_bytes, provenance, write_json
 from railsusp.surrogate.data import (
@@ -99,7 +99,7 @@ class Surrogate:
             # the network reads the track, so another realisation, a measured track or
             # another record length is new input, not another condition
             diff = self.condition.differences(
-                condition, ("seed", "track_geometry", "duration_s", "n_steps")
+                condition, (*TRACK_INPUT_FIELDS, "duration_s", "n_steps")
             )
             if diff:
                 raise ValueError(

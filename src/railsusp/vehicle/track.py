@@ -25,8 +25,9 @@ maintained track (:func:`limit_gauge`).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -497,3 +498,74 @@ def measured_irregularities(condition: WorkingCondition, axle_spread_m: float) -
         seeds=(),
         source=irr.source,
     )
+
+
+#: power ratio of measured geometry to its measurement error above which a wavelength of the
+#: geometry counts as accurate: an error amplitude below about 30 % of the geometry's
+GEOMETRY_SNR_MIN = 10.0
+#: components that drive each force channel: lateral (alignment, gauge, and cross-level
+#: through the roll and gravity terms) and vertical (profile and cross-level)
+CHANNEL_COMPONENTS: dict[str, tuple[str, ...]] = {
+    "Y": ("alignment", "gauge", "crosslevel"),
+    "Q": ("vertical", "crosslevel"),
+}
+
+
+def accurate_wavelength_m(
+    irr: Irregularities,
+    accuracy_m: float,
+    wavelength_min_m: float,
+    snr_min: float | None = None,
+) -> dict[str, float]:
+    """Per component, the shortest wavelength (m) down to which measured track geometry is
+    accurate, given the RMS measurement error ``accuracy_m`` of each component.
+
+    The error is taken as white within the measured band, wavelengths from
+    ``wavelength_min_m`` up (one-sided PSD σ² λ_min), as the error of a track recording
+    system lies within its band (EN 13848-2 states its accuracy per wavelength band). The
+    geometry's PSD is a Welch estimate over 128 m segments, averaged in sixth-octave bands
+    from the longest wavelength down; the first band whose geometry-to-error power ratio
+    falls below ``snr_min`` (default :data:`GEOMETRY_SNR_MIN`) ends the accurate band, at its
+    long-wavelength edge.
+    Irregularity PSDs fall as Ω^-2 to Ω^-4, so short wavelengths are the first lost.
+    """
+    from scipy.signal import welch
+
+    if not accuracy_m > 0.0:
+        raise ValueError(f"accuracy_m = {accuracy_m:g}: give a positive RMS error")
+    dx = float(np.median(np.diff(irr.s)))
+    n = irr.s.size
+    nperseg = int(min(n, 2 ** np.ceil(np.log2(128.0 / dx))))
+    error_psd = accuracy_m**2 * wavelength_min_m
+    snr_min = GEOMETRY_SNR_MIN if snr_min is None else snr_min
+    out = {}
+    for c in COMPONENTS:
+        k, psd = welch(irr.component(c)[0], 1.0 / dx, nperseg=nperseg)
+        edges = 2.0 ** np.arange(np.log2(k[1]), np.log2(1.0 / wavelength_min_m), 1.0 / 6.0)
+        lam = wavelength_min_m
+        for a, b in pairwise(edges):
+            inside = (k >= a) & (k < b)
+            if inside.any() and psd[inside].mean() / error_psd - 1.0 < snr_min:
+                lam = 1.0 / a
+                break
+        out[c] = float(lam)
+    return out
+
+
+def with_measurement_error(
+    irr: Irregularities, rms_m: float, wavelength_min_m: float, rng: np.random.Generator
+) -> Irregularities:
+    """``irr`` (its first realisation) plus the measurement error that
+    :func:`accurate_wavelength_m` assumes: on each component, white noise of RMS ``rms_m``
+    low-passed at the shortest measured wavelength (4th-order Butterworth, zero phase), as a
+    track recording system's error lies within its band. Unfiltered noise on a fine grid
+    would be rail roughness, which no geometry car reports."""
+    from scipy.signal import butter, sosfiltfilt
+
+    dx = float(np.median(np.diff(irr.s)))
+    sos = butter(4, min(1.0 / wavelength_min_m, 0.45 / dx), fs=1.0 / dx, output="sos")
+    noisy = {}
+    for c in COMPONENTS:
+        e = sosfiltfilt(sos, rng.standard_normal(irr.s.size))
+        noisy[c] = irr.component(c)[:1] + rms_m * e / np.std(e)
+    return replace(irr, **noisy)
