@@ -255,6 +255,11 @@ def test_track_measurement_error_has_the_asked_rms_within_the_band(tmp_path):
     assert np.allclose(err.std(axis=0), 0.5, rtol=0.05)
     # band-limited: neighbouring samples (0.125 m apart) are strongly correlated
     assert np.corrcoef(err[1:, 0], err[:-1, 0])[0, 1] > 0.8
+    # the recordings state the geometry's accuracy (exact geometry states none)
+    stated = [json.loads((f / "straight.json").read_text())["condition"] for f in (exact, noisy)]
+    assert "track_accuracy_mm" not in stated[0] and stated[1]["track_accuracy_mm"] == 0.5
+    (rec,) = read_field(noisy)
+    assert rec.condition.track_accuracy_mm == 0.5
 
 
 def test_a_failed_simulation_makes_no_recording():
