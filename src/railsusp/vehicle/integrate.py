@@ -20,6 +20,7 @@ NS = L.N_STATE
 NOUT = L.N_OUT
 I_V = L.K["V"]
 I_WATCH = L.K["flange_watch"]
+I_SPLIT_SPEED = L.K["flange_split_speed"]
 
 
 @nb.njit(cache=True)
@@ -46,8 +47,9 @@ def _rk4_finish(x, ks, xt, h, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s, V, o
 def _run_one(
     x, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, dt, n_pre, n_sub, n_out, sos, out_series, n_fine
 ):
-    """Integrate one set; write filtered outputs (NOUT, n_out). Steps starting near flange
-    contact are split into ``n_fine``. Returns (code, fail_time)."""
+    """Integrate one set; write filtered outputs (NOUT, n_out). Steps that start with a wheel
+    near flange contact and closing on it are split into ``n_fine``. Returns (code,
+    fail_time)."""
     ks = np.empty((4, NS))  # RK4 stage derivatives
     k1 = ks[0]
     xt = np.empty(NS)
@@ -88,8 +90,10 @@ def _run_one(
                 u = y
             if n >= n_pre and (n - n_pre) % n_sub == 0:
                 out_series[c, (n - n_pre) // n_sub] = u
-        # near flange contact the step is split (the jump to the flank is the stiff event)
-        m = n_fine if o[L.OUT_FLANGE_SHIFT] > K[I_WATCH] else 1
+        # a wheel closing on its flange splits the step (the jump to the flank is the stiff
+        # event); one running steadily against it does not
+        near = o[L.OUT_FLANGE_SHIFT] > K[I_WATCH]
+        m = n_fine if near and o[L.OUT_FLANGE_RATE] > K[I_SPLIT_SPEED] else 1
         h = dt / m
         for sub in range(m):
             s_sub = s_front + sub * V * h

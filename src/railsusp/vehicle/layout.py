@@ -48,8 +48,9 @@ _K_NAMES = (
     "V", "g_n", "mu", "F_coupler", "M_pitch_grade", "creep_factor",
     # limits for the non-physical state check
     "pen_max", "lift_max",
-    # step control: a wheel shifted towards its flange beyond this (m) takes fine steps
-    "flange_watch",
+    # step control: a wheel shifted towards its flange beyond this (m) and moving towards it
+    # faster than this (m/s) takes fine steps
+    "flange_watch", "flange_split_speed",
 )  # fmt: skip
 K = {name: i for i, name in enumerate(_K_NAMES)}
 N_K = len(_K_NAMES)
@@ -70,10 +71,12 @@ OUT_Q = 8  # 8 wheels: vertical force on rail, + down
 OUT_ACC_Y = 16  # car body lateral acceleration at CG (uncompensated), m/s^2
 OUT_ACC_Z = 17  # car body vertical acceleration at CG, m/s^2
 N_OUT = 18
-#: working channel after the stored ones: the largest shift of any wheel towards its own
-#: flange (m), read by the integrator's step control, not stored
+#: working channels after the stored ones, read by the integrator's step control, not stored:
+#: the largest shift of any wheel towards its own flange (m), and the fastest approach to its
+#: flange (m/s) of the wheels within the watch distance of it
 OUT_FLANGE_SHIFT = N_OUT
-N_OUT_WORK = N_OUT + 1
+OUT_FLANGE_RATE = N_OUT + 1
+N_OUT_WORK = N_OUT + 2
 
 #: wheel names, output order: wheelset w1 (leading) .. w4, left / right in the running direction
 WHEEL_NAMES = tuple(f"w{w + 1}{side}" for w in range(4) for side in ("L", "R"))

@@ -59,6 +59,7 @@ I_V, I_GN, I_MU = _K["V"], _K["g_n"], _K["mu"]
 I_FCPL, I_MGRADE, I_CREEP = _K["F_coupler"], _K["M_pitch_grade"], _K["creep_factor"]
 I_Q0, I_NREF = _K["Q0"], _K["N_ref"]
 I_PENMAX, I_LIFTMAX = _K["pen_max"], _K["lift_max"]
+I_WATCH = _K["flange_watch"]
 
 BOL0, SF0, WS0 = L.BOL0, L.SF0, L.WS0
 NQ = L.N_DOF
@@ -243,12 +244,13 @@ def wheel_contact(
     """Forces of one wheel (side +1 left, -1 right) on its rail, in the track frame.
 
     Writes res = [Y_on_wheel, Q_on_wheel (up), Fx_on_wheel, lateral arm l, radius r, N,
-    shift towards the flange] and returns a failure code (0 ok).
+    shift towards the flange, its rate] and returns a failure code (0 ok).
     """
     col0 = 0 if side > 0 else NCTW
     r0 = K[I_R0]
     yrel = ws_y + r0 * ws_roll - rail_y  # the wheel's shift at contact level
     res[6] = side * yrel
+    res[7] = side * (vy + r0 * vroll - rail_vy)
     if not table_row(ctab, col0, yrel, y0, dy, row):
         return L.FAIL_FLANGE_CLIMB
     r = row[0]
@@ -324,8 +326,9 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         acc[i] = 0.0
     # generalised forces accumulate in acc, divided by inertia at the end
     row = np.empty(NCTW)
-    res = np.empty(7)
+    res = np.empty(8)
     flange_shift = -1.0  # largest shift of a wheel towards its flange (step control)
+    flange_rate = -1.0e9  # fastest approach to its flange of a wheel near it (step control)
 
     # ---- catalogue parameters ----
     m_w = P[0]
@@ -531,6 +534,8 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
                 if code != 0:
                     return code
                 flange_shift = max(flange_shift, res[6])
+                if res[6] > K[I_WATCH]:
+                    flange_rate = max(flange_rate, res[7])
                 f_yw, f_zw, f_xw, lat = res[0], res[1], res[2], res[3]
                 acc[iw] += f_yw
                 acc[iw + 1] += f_zw - K[I_Q0]
@@ -573,4 +578,5 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
     out[L.OUT_ACC_Y] = acc[L.CB_Y] + V * V * kap_c * math.cos(cant_c) + gn * math.sin(cant_c)
     out[L.OUT_ACC_Z] = acc[L.CB_Z]
     out[L.OUT_FLANGE_SHIFT] = flange_shift
+    out[L.OUT_FLANGE_RATE] = flange_rate
     return L.OK

@@ -37,10 +37,13 @@ class SolverSettings:
 
     ``max_step``: largest internal RK4 step (s); the step is the output interval divided by
     an integer. Steps that start with a wheel within ``flange_margin`` (m) of flange contact
-    are split into ``flange_substeps``: the jump of the contact to the 70 deg flank is the
-    stiffest event of the model, and with the plain 1 ms step two of three derailments
-    examined on a long campaign were numerical (they vanish with 0.5 ms; the third stays
-    down to 0.25 ms). ``anti_alias``: filter cut-off as a fraction of the output Nyquist rate.
+    and closing on it faster than ``flange_split_speed`` (m/s) are split into
+    ``flange_substeps``: the jump of the contact to the 70 deg flank is the stiffest event of
+    the model, and with the plain 1 ms step two of three derailments examined on a long
+    campaign were numerical (they vanish with 0.5 ms; the third stays down to 0.25 ms). A
+    wheel running steadily against its flange (the outer wheel in a curve) is not such an
+    event; a negative ``flange_split_speed`` splits every step near the flange.
+    ``anti_alias``: filter cut-off as a fraction of the output Nyquist rate.
     ``penetration_max``: Hertz approach of the steel bodies (m) beyond which a contact is
     non-physical (1 mm: a normal force of several MN); ``lift_max``: wheel lift (m) beyond
     which the flange no longer guides (derailment).
@@ -49,6 +52,7 @@ class SolverSettings:
     max_step: float = 1.0e-3
     flange_substeps: int = 2
     flange_margin: float = 3.0e-3
+    flange_split_speed: float = 0.02
     anti_alias: float = 0.8
     filter_order: int = 4
     penetration_max: float = 1.0e-3
@@ -67,6 +71,10 @@ class SolverSettings:
         if not 0.0 <= self.flange_margin <= 0.02:
             raise RailsuspInputError(
                 f"flange_margin = {self.flange_margin:g} m: accepted 0 to 0.02 m"
+            )
+        if not -1.0 <= self.flange_split_speed <= 1.0:
+            raise RailsuspInputError(
+                f"flange_split_speed = {self.flange_split_speed:g} m/s: accepted -1 to 1 m/s"
             )
 
 
@@ -211,6 +219,7 @@ def constants(
         "F_coupler": condition.coupler_force, "creep_factor": wagon.contact.creep_factor,
         "pen_max": settings.penetration_max, "lift_max": settings.lift_max,
         "flange_watch": ca.flange_shift - settings.flange_margin,
+        "flange_split_speed": settings.flange_split_speed,
         "N_ref": ca.n_ref,
     }  # fmt: skip
     # static preloads (level of each interface), N

@@ -73,7 +73,7 @@ def _wheelset_rhs(x, dxdt, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, 
 @nb.njit(cache=True)
 def _integrate(x, n, dt, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, out):
     row = np.empty(L.CT_PER_WHEEL)
-    res = np.empty(7)
+    res = np.empty(8)
     k1 = np.empty(8)
     k2 = np.empty(8)
     k3 = np.empty(8)
