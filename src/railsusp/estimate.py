@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
+from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -124,12 +125,27 @@ def comparison_band_hz(rec: Recording) -> np.ndarray | None:
     cond = rec.condition
     if cond.track_geometry is None or not cond.track_accuracy_mm:
         return None
-    lam = accurate_wavelength_m(
-        read_track_geometry(cond.track_geometry),
-        cond.track_accuracy_mm * 1e-3,
-        cond.wavelength_min_m,
+    path = Path(cond.track_geometry)
+    return np.array(
+        _comparison_band(
+            str(path.resolve()),
+            path.stat().st_mtime_ns,
+            cond.track_accuracy_mm,
+            cond.wavelength_min_m,
+            cond.speed,
+        )
     )
-    return np.array([cond.speed / max(lam[c] for c in CHANNEL_COMPONENTS[ch]) for ch in ("Y", "Q")])
+
+
+@lru_cache(maxsize=32)
+def _comparison_band(
+    path: str, _mtime_ns: int, accuracy_mm: float, wavelength_min_m: float, speed: float
+) -> tuple[float, float]:
+    """:func:`comparison_band_hz` of one geometry file, cached: every time-aligned
+    comparison asks for it, and the geometry's PSD need not be estimated each time."""
+    lam = accurate_wavelength_m(read_track_geometry(path), accuracy_mm * 1e-3, wavelength_min_m)
+    y, q = (speed / max(lam[c] for c in CHANNEL_COMPONENTS[ch]) for ch in ("Y", "Q"))
+    return (y, q)
 
 
 def comparison_filter(series: np.ndarray, rec: Recording) -> np.ndarray:
