@@ -111,9 +111,9 @@ def refine(
     (:func:`~railsusp.estimate.comparison_band_hz`) and the residuals taken at four samples
     per period of its upper frequency (:func:`~railsusp.estimate.comparison_samples`).
     Standard errors are s^2 (J^T J)^-1 with white residuals, so they are optimistic where the
-    residuals are correlated. The method is the
-    classical one of system identification (Maine & Iliff, NASA RP-1168, 1986, including the
-    scale-factor estimation of measurement channels).
+    residuals are correlated. The method is the classical one of system identification
+    (Maine & Iliff, NASA RP-1168, 1986, including the scale-factor estimation of measurement
+    channels).
     """
     from scipy.optimize import least_squares
 
