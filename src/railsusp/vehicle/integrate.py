@@ -19,7 +19,6 @@ NQ = L.N_DOF
 NS = L.N_STATE
 NOUT = L.N_OUT
 I_V = L.K["V"]
-I_WATCH = L.K["flange_watch"]
 I_SPLIT_SPEED = L.K["flange_split_speed"]
 
 
@@ -90,10 +89,10 @@ def _run_one(
                 u = y
             if n >= n_pre and (n - n_pre) % n_sub == 0:
                 out_series[c, (n - n_pre) // n_sub] = u
-        # a wheel closing on its flange splits the step (the jump to the flank is the stiff
-        # event); one running steadily against it does not
-        near = o[L.OUT_FLANGE_SHIFT] > K[I_WATCH]
-        m = n_fine if near and o[L.OUT_FLANGE_RATE] > K[I_SPLIT_SPEED] else 1
+        # a wheel near its flange and closing on it splits the step (the jump to the flank is
+        # the stiff event); one running steadily against it does not, and with no wheel near
+        # its flange the rate is -1e9, below any split speed
+        m = n_fine if o[L.OUT_FLANGE_RATE] > K[I_SPLIT_SPEED] else 1
         h = dt / m
         for sub in range(m):
             s_sub = s_front + sub * V * h

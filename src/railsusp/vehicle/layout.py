@@ -71,12 +71,11 @@ OUT_Q = 8  # 8 wheels: vertical force on rail, + down
 OUT_ACC_Y = 16  # car body lateral acceleration at CG (uncompensated), m/s^2
 OUT_ACC_Z = 17  # car body vertical acceleration at CG, m/s^2
 N_OUT = 18
-#: working channels after the stored ones, read by the integrator's step control, not stored:
-#: the largest shift of any wheel towards its own flange (m), and the fastest approach to its
-#: flange (m/s) of the wheels within the watch distance of it
-OUT_FLANGE_SHIFT = N_OUT
-OUT_FLANGE_RATE = N_OUT + 1
-N_OUT_WORK = N_OUT + 2
+#: working channel after the stored ones, read by the integrator's step control, not stored:
+#: the fastest approach to its own flange (m/s) of the wheels within the watch distance of
+#: it (-1e9 when none is)
+OUT_FLANGE_RATE = N_OUT
+N_OUT_WORK = N_OUT + 1
 
 #: wheel names, output order: wheelset w1 (leading) .. w4, left / right in the running direction
 WHEEL_NAMES = tuple(f"w{w + 1}{side}" for w in range(4) for side in ("L", "R"))

@@ -327,7 +327,6 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
     # generalised forces accumulate in acc, divided by inertia at the end
     row = np.empty(NCTW)
     res = np.empty(8)
-    flange_shift = -1.0  # largest shift of a wheel towards its flange (step control)
     flange_rate = -1.0e9  # fastest approach to its flange of a wheel near it (step control)
 
     # ---- catalogue parameters ----
@@ -533,7 +532,6 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
                 )
                 if code != 0:
                     return code
-                flange_shift = max(flange_shift, res[6])
                 if res[6] > K[I_WATCH]:
                     flange_rate = max(flange_rate, res[7])
                 f_yw, f_zw, f_xw, lat = res[0], res[1], res[2], res[3]
@@ -577,6 +575,5 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         acc[iw + 3] /= Iz_w
     out[L.OUT_ACC_Y] = acc[L.CB_Y] + V * V * kap_c * math.cos(cant_c) + gn * math.sin(cant_c)
     out[L.OUT_ACC_Z] = acc[L.CB_Z]
-    out[L.OUT_FLANGE_SHIFT] = flange_shift
     out[L.OUT_FLANGE_RATE] = flange_rate
     return L.OK
