@@ -25,6 +25,7 @@ from railsusp.params import ParameterSet
 from railsusp.store import write_json
 from railsusp.study import TABLE8_BEFORE
 from railsusp.vehicle.simulate import WHEEL_NAMES, record_statistic, simulate_batch
+from railsusp.vehicle.wagon import load_wagon
 
 STATS = ("mean", "rms", "p99", "max")
 
@@ -40,11 +41,13 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seeds", type=int, default=16, help="track seeds per condition")
     ap.add_argument("--out", default="bench/results/credibility.json")
+    ap.add_argument("--contact", default="two-point", help="two-point or single-point")
     args = ap.parse_args()
+    wagon = load_wagon().with_contact_model(args.contact)
     rows = []
     for name, cond in STANDARD_CONDITIONS.items():
         seeds = [cond.seed + 1000 * k for k in range(args.seeds)]
-        r = simulate_batch([ParameterSet.nominal()] * len(seeds), cond, seeds=seeds)
+        r = simulate_batch([ParameterSet.nominal()] * len(seeds), cond, seeds=seeds, wagon=wagon)
         ref = TABLE8_BEFORE[name]
         default = r.measured_wheel()
         wheels = (default, default ^ 1) if cond.curve_radius_m else (default,)
@@ -108,6 +111,7 @@ def main() -> None:
         "date": time.strftime("%Y-%m-%d"),
         "machine": platform.platform(),
         "seeds": args.seeds,
+        "contact": args.contact,
         "rows": rows,
         "curve_to_tangent_Q": {"study": study_ratio, **ratios},
     }

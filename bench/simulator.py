@@ -20,19 +20,30 @@ import numpy as np
 from railsusp.conditions import get_condition
 from railsusp.params import MAIN_SUSPENSION, ParameterSet, bounds
 from railsusp.store import write_json
+from railsusp.vehicle.setup import SolverSettings
 from railsusp.vehicle.simulate import simulate_batch
+from railsusp.vehicle.wagon import load_wagon
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--sizes", default="1,16,256")
     ap.add_argument("--condition", default="straight")
+    ap.add_argument("--contact", default="two-point", help="two-point or single-point")
+    ap.add_argument("--flange-substeps", type=int, default=None, help="solver step split")
     ap.add_argument("--out", default="bench/results/simulator.json")
     args = ap.parse_args()
     cond = get_condition(args.condition)
+    wagon = load_wagon().with_contact_model(args.contact)
+    settings = SolverSettings()
+    if args.flange_substeps is not None:
+        settings = SolverSettings(flange_substeps=args.flange_substeps)
     simulated = cond.lead_in_m / cond.speed + cond.duration_s
     simulate_batch(
-        [ParameterSet.nominal()], get_condition(args.condition, duration_s=1.0, n_steps=50)
+        [ParameterSet.nominal()],
+        get_condition(args.condition, duration_s=1.0, n_steps=50),
+        wagon=wagon,
+        settings=settings,
     )  # compile
     rng = np.random.default_rng(0)
     lo, hi = bounds(MAIN_SUSPENSION)
@@ -40,7 +51,7 @@ def main() -> None:
     for n in (int(s) for s in args.sizes.split(",")):
         x = lo + (hi - lo) * rng.random((n, len(MAIN_SUSPENSION)))
         t0 = time.perf_counter()
-        r = simulate_batch(x, cond, symbols=MAIN_SUSPENSION)
+        r = simulate_batch(x, cond, symbols=MAIN_SUSPENSION, wagon=wagon, settings=settings)
         wall = time.perf_counter() - t0
         rows.append(
             {
@@ -55,7 +66,8 @@ def main() -> None:
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     print(
         f"condition {cond.name}: {simulated:.1f} s simulated per set "
-        f"({cond.duration_s:g} s recorded), {numba.get_num_threads()} threads"
+        f"({cond.duration_s:g} s recorded), {numba.get_num_threads()} threads, "
+        f"{args.contact} contact, flange_substeps {settings.flange_substeps}"
     )
     print(f"{'sets':>6} {'wall s':>8} {'wagon-s/s':>10} {'record-s/s':>11} {'failed':>7}")
     for row in rows:
@@ -70,6 +82,8 @@ def main() -> None:
         "cpus": os.cpu_count(),
         "threads": numba.get_num_threads(),
         "condition": cond.name,
+        "contact": args.contact,
+        "flange_substeps": settings.flange_substeps,
         "rows": rows,
         "peak_rss_mb": peak_mb,
     }

@@ -12,6 +12,7 @@ from railsusp.vehicle.contact import (
     contact_table,
     equivalent_conicity,
     equivalent_conicity_curve,
+    flange_split,
 )
 from railsusp.vehicle.profiles import chn60_rail, conical_wheel, lm_worn_wheel
 
@@ -134,3 +135,38 @@ def test_table_interpolation_and_file_round_trip(lm_table, tmp_path):
     assert back.meta == t.meta
     df = t.to_dataframe()
     assert len(df) == t.y.size and "rolling_radius_L" in df and "flange_R" in df
+
+
+# ---------------------------------------------------------------------------- two-point contact
+def test_tread_and_flange_parts_rebuild_the_single_point_table():
+    """Two-point contact splits the wheel profile in the stretch that the single contact
+    point jumps over; the higher of the two parts' touching heights is the whole profile's,
+    so on rigid profiles the two models agree, and they differ only by elasticity."""
+    kw = {"wheelset_roll": False, "y_min": -0.014, "y_max": 0.014, "step": 2e-4}
+    whole = contact_table(lm_worn_wheel(), chn60_rail(), **kw)
+    split = flange_split(whole)
+    y_left, _ = whole.flangeway_clearance()
+    k = int(np.flatnonzero(np.isclose(whole.y, y_left))[0])
+    # the split lies between the last tread contact and the first flange contact
+    assert whole.wheel_y[k, LEFT] < split < whole.wheel_y[k - 1, LEFT]
+    tread = contact_table(lm_worn_wheel(), chn60_rail(), wheel_range=(split, 1.0), **kw)
+    flange = contact_table(lm_worn_wheel(), chn60_rail(), wheel_range=(-1.0, split), **kw)
+    rise = {
+        n: t.contact_z + t.rolling_radius for n, t in (("w", whole), ("t", tread), ("f", flange))
+    }
+    highest = np.fmax(rise["t"], rise["f"])  # NaN: the flange part has no rail below it
+    np.testing.assert_allclose(highest, rise["w"], atol=2e-7)
+    # the tread part alone never climbs the flank, the flange part touches only on the flange
+    assert math.degrees(np.nanmax(tread.contact_angle[:, LEFT])) < 15.0
+    touching = rise["f"][:, LEFT] >= rise["t"][:, LEFT]
+    assert np.all(flange.contact_angle[touching, LEFT] > math.radians(45.0))
+    assert np.isnan(flange.contact_z[:, LEFT]).any()  # far from the flange: no rail below it
+    with pytest.raises(ValueError, match="wheel_range needs wheelset_roll=False"):
+        contact_table(lm_worn_wheel(), chn60_rail(), wheel_range=(split, 1.0))
+    with pytest.raises(ValueError, match="fewer than three points"):
+        contact_table(lm_worn_wheel(), chn60_rail(), wheel_range=(0.0, 1e-5), **kw)
+
+
+def test_a_cone_has_no_flange_split():
+    table = _cone_table(1 / 40, roll=False)
+    assert flange_split(table) is None

@@ -105,22 +105,29 @@ def test_halving_the_step_changes_rms_and_peak_by_less_than_1_percent(name):
         assert coarse[key][0] == pytest.approx(fine[key][0], rel=0.01), key
 
 
-def test_flange_impact_steps_are_split_and_a_numerical_derailment_is_gone():
+def test_flange_impact_derails_the_single_point_model_only_with_the_plain_step():
     # A 200 s tangent run of an LHS sample (long campaign, independent seeds) whose leading
-    # wheelset, after a flange impact 20 s into the record, was thrown off the rail with the
-    # plain 1 ms step; with 0.5 ms everywhere, and with the default split of the steps near
-    # flange contact, it stays on the rail: the derailment was numerical.
+    # wheelset, after a flange impact 20 s into the record, was thrown off the rail by the
+    # single-point contact model with the plain 1 ms step: the jump of its contact from the
+    # tread to the 70 deg flank turns the whole wheel load into a flank force. Splitting the
+    # steps near flange contact keeps it on the rail, and so does two-point contact (the
+    # tread keeps the load while the flange contact builds up) even with the plain step.
     cond = get_condition("straight", duration_s=200.0, n_steps=10000)
     # (the event is chaotic: the full-precision sample is needed, and a change of the model
     # may move or remove it; then pick another failing sample of such a campaign)
     x = {"X11": 1.2118997501628925, "X12": 0.016396704815175397, "X13": 7428611.00014585}
     x |= {"X14": 11972189.433925916, "X17": 1933077.149551397, "X18": 34882.00436227773}
     pset = ParameterSet.nominal().replace(x)
-    plain = simulate(pset, cond, seeds=[1726644975], settings=SolverSettings(flange_substeps=1))
-    split = simulate(pset, cond, seeds=[1726644975])
+    plain_step = SolverSettings()
+    one = load_wagon().with_contact_model("single-point")  # the jump from tread to flange
+    plain = simulate(pset, cond, seeds=[1726644975], settings=plain_step, wagon=one)
+    split_step = SolverSettings(flange_substeps=2)
+    split = simulate(pset, cond, seeds=[1726644975], settings=split_step, wagon=one)
     assert plain.failures() and "wheel lift" in plain.failures()[0][1]
     assert 25.0 < plain.failures()[0][2] < 27.0
     assert split.ok[0]
+    two_point = simulate(pset, cond, seeds=[1726644975], settings=plain_step)
+    assert two_point.ok[0]
     ca = contact_arrays(load_wagon())
     assert ca.flange_shift == pytest.approx(0.0106, abs=2e-4)  # the flangeway clearance
     with pytest.raises(RailsuspInputError, match="flange_substeps = 0: accepted an integer 1"):
@@ -132,14 +139,18 @@ def test_flange_impact_steps_are_split_and_a_numerical_derailment_is_gone():
 
 
 def test_steady_flanging_steps_are_not_split_and_forces_do_not_change():
-    """In the curve the leading outer wheel runs against its flange: splitting only the steps
-    of a wheel closing on its flange (the default) gives the same force statistics as
-    splitting every step near the flange, within 0.2 %."""
+    """Single-point contact with the step split it needs: in the curve the leading outer
+    wheel runs against its flange, and splitting only the steps of a wheel closing on its
+    flange gives the same force statistics as splitting every step near the flange, within
+    0.2 %."""
     cond = get_condition("curve", **SHORT)
-    every = simulate(None, cond, settings=SolverSettings(flange_split_speed=-1.0)).statistics()
-    closing = simulate(None, cond).statistics()
+    one = load_wagon().with_contact_model("single-point")
+    every = SolverSettings(flange_substeps=2, flange_split_speed=-1.0)
+    closing = SolverSettings(flange_substeps=2)
+    a = simulate(None, cond, settings=every, wagon=one).statistics()
+    b = simulate(None, cond, settings=closing, wagon=one).statistics()
     for key in ("Y_mean", "Y_rms", "Y_max", "Q_rms", "Q_max"):
-        assert closing[key][0] == pytest.approx(every[key][0], rel=0.002), key
+        assert b[key][0] == pytest.approx(a[key][0], rel=0.002), key
 
 
 def test_every_main_suspension_parameter_changes_a_force_statistic():

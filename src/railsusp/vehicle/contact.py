@@ -46,6 +46,7 @@ __all__ = [
     "contact_table",
     "equivalent_conicity",
     "equivalent_conicity_curve",
+    "flange_split",
 ]
 
 Array = np.ndarray | float
@@ -278,6 +279,7 @@ def contact_table(
     resolution: float = 2e-5,
     flange_angle_deg: float = 45.0,
     wheelset_roll: bool = True,
+    wheel_range: tuple[float, float] | None = None,
 ) -> ContactTable:
     """Contact functions of a rigid wheelset (zero yaw) on two inclined rails, by shift y.
 
@@ -285,7 +287,8 @@ def contact_table(
     that each wheel touches its rail with zero penetration; the contact point of a wheel is
     where the vertical wheel-rail gap is smallest (where the surfaces are parallel). When
     the gap at the flange closes the minimum moves abruptly from the tread to the flange
-    root / flank: a single contact point with a jump, our equivalent of two-point contact.
+    root / flank: a single contact point with a jump. Two-point contact splits the wheel
+    profile there (:func:`flange_split`, ``wheel_range``) into a tread and a flange table.
 
     Inputs: ``wheel`` and ``rail`` profiles (profile conventions; the rail in its own, not
     inclined, axes); ``track_gauge`` (m) measured ``gauge_depth`` (m) below the crown;
@@ -295,6 +298,10 @@ def contact_table(
     to ``y_max`` every ``step`` (m); wheel points every ``resolution`` (m).
     ``wheelset_roll=False`` keeps roll at zero and lets each wheel find its height
     independently (decoupled wheels, for checks of the conicity definition only).
+    ``wheel_range`` (m, profile coordinates, with ``wheelset_roll=False`` only) keeps only
+    the wheel points in that interval: the tread or the flange part of a two-point contact
+    model (:func:`flange_split`). Shifts at which no point of that part lies above the rail
+    get NaN heights, positions and curvatures.
     """
     if not (y_min < y_max and step > 0.0 and resolution > 0.0):
         raise ValueError("need y_min < y_max, step > 0 and resolution > 0")
@@ -307,6 +314,15 @@ def contact_table(
     yw = y_min + step * np.arange(n)
     left, right = _place_rails(rail, track_gauge, gauge_depth, rail_inclination, resolution)
     u = np.arange(wheel.y[0], wheel.y[-1], resolution)
+    if wheel_range is not None:
+        if wheelset_roll:
+            raise ValueError("wheel_range needs wheelset_roll=False (decoupled wheels)")
+        u = u[(u >= wheel_range[0]) & (u <= wheel_range[1])]
+        if u.size < 3:
+            raise ValueError(
+                f"wheel_range {wheel_range[0] * 1e3:.1f}..{wheel_range[1] * 1e3:.1f} mm holds "
+                f"fewer than three points of wheel profile {wheel.name!r}"
+            )
     zp, dzp, kp = wheel.evaluate(u)
     radius = nominal_radius + zp
     wz = -radius
@@ -326,14 +342,15 @@ def contact_table(
         phi[sl] = p
         for k, rl in enumerate((left, right)):
             g, j, gaps = _min_gap(rl, ys[sl], p, pts[2 * k], pts[2 * k + 1])
-            heights[sl, k] = -g
+            heights[sl, k] = np.where(np.isfinite(g), -g, np.nan)  # NaN: nothing above the rail
             # parabolic refinement of the minimum between neighbouring wheel points
             jm = np.clip(j, 1, u.size - 2)
             rows = np.arange(jm.size)
             g0, g1, g2 = gaps[rows, jm - 1], gaps[rows, jm], gaps[rows, jm + 1]
-            den = g0 - 2.0 * g1 + g2
-            ok = np.isfinite(den) & (den > 0.0) & (jm == j)
-            t = np.where(ok, 0.5 * (g0 - g2) / np.where(ok, den, 1.0), 0.0)
+            with np.errstate(invalid="ignore"):  # inf gaps: points with no rail below
+                den = g0 - 2.0 * g1 + g2
+                ok = np.isfinite(den) & (den > 0.0) & (jm == j)
+                t = np.where(ok, 0.5 * (g0 - g2) / np.where(ok, den, 1.0), 0.0)
             idx[sl, k] = j
             frac[sl, k] = np.clip(t, -0.5, 0.5)
 
@@ -353,6 +370,9 @@ def contact_table(
     for k, rl in enumerate((left, right)):
         rail_y[:, k] = np.interp(cy[:, k], rl.y, rl.local_y)
         rail_k[:, k] = np.interp(cy[:, k], rl.y, rl.curvature)
+    free = np.isnan(heights)
+    for arr in (uc, r, delta, cy, rail_y, rail_k, kw):
+        arr[free] = np.nan
 
     flange_angle = math.radians(flange_angle_deg)
     main = slice(0, n)
@@ -369,6 +389,7 @@ def contact_table(
         "resolution": resolution,
         "flange_angle": flange_angle,
         "wheelset_roll": wheelset_roll,
+        "wheel_range": None if wheel_range is None else [float(v) for v in wheel_range],
     }
     return ContactTable(
         y=yw,
@@ -386,6 +407,27 @@ def contact_table(
         flange=delta[main] > flange_angle,
         meta=meta,
     )
+
+
+def flange_split(table: ContactTable, min_jump: float = 0.005) -> float | None:
+    """Wheel profile abscissa (m) that splits the tread from the flange for two-point contact.
+
+    On the flange side of the left wheel (shifts y > 0) the rigid contact point runs up the
+    tread and then jumps to the flange root or flank, skipping the stretch of profile between
+    them: no point of that stretch is ever in contact alone. Its middle is the split, so a
+    tread part and a flange part (``contact_table(..., wheel_range=...)``) each keep one
+    contact point and both can touch at once (two-point contact). None when the largest jump
+    is shorter than ``min_jump`` (m): a conformal profile with no distinct flange contact.
+    """
+    side = table.y > 0.0
+    u = table.wheel_y[side, LEFT]
+    if u.size < 2:
+        return None
+    jumps = u[:-1] - u[1:]  # the contact moves to -u (towards the flange) with growing y
+    i = int(np.argmax(jumps))
+    if not jumps[i] >= min_jump:
+        return None
+    return float(0.5 * (u[i] + u[i + 1]))
 
 
 # --------------------------------------------------------------------------------------------

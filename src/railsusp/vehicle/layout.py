@@ -51,15 +51,19 @@ _K_NAMES = (
     # step control: a wheel shifted towards its flange beyond this (m) and moving towards it
     # faster than this (m/s) takes fine steps
     "flange_watch", "flange_split_speed",
+    # contact points per wheel: 1 (tread table only) or 2 (tread and flange tables)
+    "contact_points",
 )  # fmt: skip
 K = {name: i for i, name in enumerate(_K_NAMES)}
 N_K = len(_K_NAMES)
 
-# ---- contact table columns, per wheel (left block then right block) ----
+# ---- contact table columns, per wheel and contact point ----
+# blocks of CT_PER_WHEEL rows: tread left, tread right, flange left, flange right
 CT_R, CT_DELTA, CT_L, CT_H, CT_G, CT_F11, CT_F22, CT_F23 = range(8)
 CT_PER_WHEEL = 8
 CT_RIGHT = CT_PER_WHEEL
-N_CT = 2 * CT_PER_WHEEL
+CT_FLANGE = 2 * CT_PER_WHEEL  # offset of the flange contact's blocks
+N_CT = 4 * CT_PER_WHEEL
 
 # ---- track channels ----
 TR_KAPPA, TR_CANT, TR_HEAD, TR_OFFSET, TR_ZL, TR_ZR, TR_YL, TR_YR = range(8)

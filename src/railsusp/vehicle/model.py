@@ -24,7 +24,8 @@ Force elements (the ten sampled parameters in brackets):
   contact lateral position, rigid-contact rise, Hertz constant, Kalker coefficients) of the
   wheel's lateral shift relative to its rail; Hertz normal force in series with the rail
   support along the contact normal; Kalker linear creep with Shen-Hedrick-Elkins saturation.
-  Lift-off gives zero force. Flange contact is the jump of the table to the flange.
+  Lift-off gives zero force. Two-point contact: tread and flange have their own tables and
+  act together (single-point option: the table's contact jumps from tread to flange).
 * couplers: pitch moment of the grade force at coupler height; lateral component of the
   coupler force in curves (chord angle κ x_k at each end).
 """
@@ -60,6 +61,7 @@ I_FCPL, I_MGRADE, I_CREEP = _K["F_coupler"], _K["M_pitch_grade"], _K["creep_fact
 I_Q0, I_NREF = _K["Q0"], _K["N_ref"]
 I_PENMAX, I_LIFTMAX = _K["pen_max"], _K["lift_max"]
 I_WATCH = _K["flange_watch"]
+I_NPTS = _K["contact_points"]
 
 BOL0, SF0, WS0 = L.BOL0, L.SF0, L.WS0
 NQ = L.N_DOF
@@ -216,93 +218,187 @@ def table_row(ctab, col0, y, y0, dy, row):
     return True
 
 
-@nb.njit(cache=True)
-def wheel_contact(
-    ws_y,
-    ws_z,
-    ws_roll,
-    ws_yaw,
-    vy,
-    vz,
-    vroll,
-    vyaw,
-    kappa,
-    side,
-    rail_y,
-    rail_z,
-    rail_vy,
-    rail_vz,
-    ctab,
-    y0,
-    dy,
-    H0,
-    Z0,
-    K,
-    row,
-    res,
-):
-    """Forces of one wheel (side +1 left, -1 right) on its rail, in the track frame.
+#: columns of the per-contact scratch rows filled by :func:`contact_geometry`
+G_GAP, G_DELTA, G_LAT, G_R, G_HERTZ, G_F11, G_F22, G_F23, G_RATE, G_N = range(10)
+N_GEO = 10
 
-    Writes res = [Y_on_wheel, Q_on_wheel (up), Fx_on_wheel, lateral arm l, radius r, N,
-    shift towards the flange, its rate] and returns a failure code (0 ok).
+
+@nb.njit(cache=True)
+def contact_geometry(
+    ws_y, ws_z, ws_roll, vy, vz, vroll, side, block, rail_y, rail_z, rail_vy, rail_vz,
+    ctab, y0, dy, H0, Z0, K, row, geo,
+):  # fmt: skip
+    """Geometry of one contact point (``block`` 0 tread, 1 flange) of one wheel (side +1
+    left, -1 right): fills ``geo`` (G_* columns: vertical gap to the undeflected rail, m,
+    < 0 when touching; contact angle; lateral arm; rolling radius; Hertz constant; Kalker
+    coefficients at the reference load; rate of the gap, m/s). Returns a failure code; lift
+    beyond the flange height is judged on the tread contact.
     """
-    col0 = 0 if side > 0 else NCTW
+    col0 = block * L.CT_FLANGE + (0 if side > 0 else NCTW)
     r0 = K[I_R0]
     yrel = ws_y + r0 * ws_roll - rail_y  # the wheel's shift at contact level
-    res[6] = side * yrel
-    res[7] = side * (vy + r0 * vroll - rail_vy)
+    if block > 0:  # the flange is mostly clear of its rail: look up the gap first
+        u = (yrel - y0) / dy
+        if u < 0.0 or u > ctab.shape[1] - 1:
+            return L.FAIL_FLANGE_CLIMB
+        i = min(int(u), ctab.shape[1] - 2)
+        f = u - i
+        lat = ctab[col0 + L.CT_L, i] * (1.0 - f) + ctab[col0 + L.CT_L, i + 1] * f
+        h = ctab[col0 + L.CT_H, i] * (1.0 - f) + ctab[col0 + L.CT_H, i + 1] * f
+        gap = ws_z + side * lat * ws_roll - rail_z - (h - H0) - Z0
+        if gap >= 0.0:
+            geo[G_GAP] = gap
+            geo[G_DELTA] = 0.0
+            return L.OK
     if not table_row(ctab, col0, yrel, y0, dy, row):
         return L.FAIL_FLANGE_CLIMB
-    r = row[0]
-    delta = row[1]
     lat = row[2]
-    H = row[3]
-    G = row[4]
-    V = K[I_V]
-    gap = ws_z + side * lat * ws_roll - rail_z - (H - H0) - Z0
-    cd = math.cos(delta)
-    sd = math.sin(delta)
-    res[3] = lat
-    res[4] = r
-    if gap > K[I_LIFTMAX]:
+    gap = ws_z + side * lat * ws_roll - rail_z - (row[3] - H0) - Z0
+    if block == 0 and gap > K[I_LIFTMAX]:
         return L.FAIL_LIFT
-    if gap >= 0.0:
-        res[0] = 0.0
-        res[1] = 0.0
-        res[2] = 0.0
-        res[5] = 0.0
-        return L.OK
-    dn = -gap * cd
-    krn = 1.0 / (cd * cd / K[I_KRZ] + sd * sd / K[I_KRY])
-    N = hertz_rail_normal_force(dn, G, krn)
-    if G * N ** (2.0 / 3.0) > K[I_PENMAX]:  # Hertz approach (steel), not the rail deflection
-        return L.FAIL_PENETRATION
-    # rail support damping along the normal (pads and ballast), never pulling the wheel
-    slope = side * math.tan(delta)  # dH/dy of this wheel
-    gap_rate = vz + side * lat * vroll - rail_vz - slope * (vy + r0 * vroll - rail_vy)
-    N -= (cd * cd * K[I_CRZ] + sd * sd * K[I_CRY]) * gap_rate * cd
-    if N < 0.0:
-        N = 0.0
-    # Kalker coefficients scale with the contact area: f11, f22 ~ N^(2/3), f23 ~ N, f33 ~ N^(4/3)
+    slope = side * math.tan(row[1])  # dH/dy of this wheel
+    geo[G_GAP] = gap
+    geo[G_DELTA] = row[1]
+    geo[G_LAT] = lat
+    geo[G_R] = row[0]
+    geo[G_HERTZ] = row[4]
+    geo[G_F11] = row[5]
+    geo[G_F22] = row[6]
+    geo[G_F23] = row[7]
+    geo[G_RATE] = vz + side * lat * vroll - rail_vz - slope * (vy + r0 * vroll - rail_vy)
+    return L.OK
+
+
+@nb.njit(cache=True)
+def shared_rail_normal_forces(a1, g1, a2, g2, m11, m12, m22):
+    """Normal forces (N) of two Hertz contacts pressing one elastically supported rail.
+
+    a1, a2: rigid approaches along each contact's normal (m); g1, g2: Hertz constants
+    (approach = g N^(2/3)); m_ij = n_i . C n_j: the rail support's compliance C =
+    diag(1/k_lateral, 1/k_vertical) projected on the contact normals (m/N). Each contact's
+    elastic approach is a_i = g_i N_i^(2/3) + sum_j m_ij N_j: the rail deflects under both
+    forces, so a tread load also lowers the rail under the flange. Solved for u_i = N_i^(1/3)
+    by Newton from the single-contact solutions (upper bounds, since m12 > 0); a contact
+    that the other one's deflection opens carries nothing.
+    """
+    n1 = hertz_rail_normal_force(a1, g1, 1.0 / m11) if a1 > 0.0 else 0.0
+    n2 = hertz_rail_normal_force(a2, g2, 1.0 / m22) if a2 > 0.0 else 0.0
+    if n2 == 0.0 or a2 - m12 * n1 <= 0.0:
+        return n1, 0.0
+    if n1 == 0.0 or a1 - m12 * n2 <= 0.0:
+        return 0.0, n2
+    u1 = n1 ** (1.0 / 3.0)
+    u2 = n2 ** (1.0 / 3.0)
+    for _ in range(8):
+        c1 = u1 * u1 * u1
+        c2 = u2 * u2 * u2
+        f1 = g1 * u1 * u1 + m11 * c1 + m12 * c2 - a1
+        f2 = g2 * u2 * u2 + m12 * c1 + m22 * c2 - a2
+        j11 = 2.0 * g1 * u1 + 3.0 * m11 * u1 * u1
+        j12 = 3.0 * m12 * u2 * u2
+        j21 = 3.0 * m12 * u1 * u1
+        j22 = 2.0 * g2 * u2 + 3.0 * m22 * u2 * u2
+        det = j11 * j22 - j12 * j21
+        d1 = (j22 * f1 - j12 * f2) / det
+        d2 = (j11 * f2 - j21 * f1) / det
+        u1 = max(u1 - d1, 0.0)
+        u2 = max(u2 - d2, 0.0)
+        if abs(d1) + abs(d2) < 1e-9 * (u1 + u2):  # N to ~3e-9 relative
+            break
+    return u1 * u1 * u1, u2 * u2 * u2
+
+
+@nb.njit(cache=True)
+def wheel_rail_forces(
+    ws_y, ws_z, ws_roll, ws_yaw, vy, vz, vroll, vyaw, kappa, side,
+    rail_y, rail_z, rail_vy, rail_vz, ctab, y0, dy, H0, Z0, K, row, geo, tot,
+):  # fmt: skip
+    """All contact forces of one wheel (side +1 left, -1 right) on its rail, in the track
+    frame: the tread contact and, with two-point contact (K contact_points = 2), the flange
+    contact acting at the same time on the same elastic rail.
+
+    Per contact: Hertz normal force (:func:`shared_rail_normal_forces`), rail support damping
+    along the normal, Kalker creep with Shen-Hedrick-Elkins saturation. Writes tot =
+    [Y_on_wheel, Q_on_wheel (up), Fx_on_wheel, roll and yaw moments of the contact forces
+    about the wheelset centre (lever r0 for Y, so that normal forces stay the gradient of
+    one contact potential), tread normal force, shift towards the flange, its rate] and
+    returns a failure code (0 ok). ``geo``: scratch, shape (2, N_GEO).
+    """
+    r0 = K[I_R0]
+    V = K[I_V]
+    n_points = 2 if K[I_NPTS] > 1.5 else 1
+    for i in range(6):
+        tot[i] = 0.0
+    tot[6] = side * (ws_y + r0 * ws_roll - rail_y)
+    tot[7] = side * (vy + r0 * vroll - rail_vy)
+    cr = K[I_KRY]
+    cz = K[I_KRZ]
+    a0 = 0.0  # rigid approach along the normal of each contact, m
+    a1 = 0.0
+    for b in range(n_points):
+        code = contact_geometry(
+            ws_y, ws_z, ws_roll, vy, vz, vroll, side, b, rail_y, rail_z, rail_vy, rail_vz,
+            ctab, y0, dy, H0, Z0, K, row, geo[b],
+        )  # fmt: skip
+        if code != 0:
+            return code
+        if b == 0:
+            a0 = -geo[0, G_GAP] * math.cos(geo[0, G_DELTA])
+        else:
+            a1 = -geo[1, G_GAP] * math.cos(geo[1, G_DELTA])
+    # normal forces: both contacts deflect the same rail (compliance diag(1/k_ry, 1/k_rz))
+    s0, c0 = math.sin(geo[0, G_DELTA]), math.cos(geo[0, G_DELTA])
+    m00 = s0 * s0 / cr + c0 * c0 / cz
+    if n_points == 2 and a1 > 0.0:
+        s1, c1 = math.sin(geo[1, G_DELTA]), math.cos(geo[1, G_DELTA])
+        m11 = s1 * s1 / cr + c1 * c1 / cz
+        m01 = s0 * s1 / cr + c0 * c1 / cz
+        n0, n1 = shared_rail_normal_forces(a0, geo[0, G_HERTZ], a1, geo[1, G_HERTZ], m00, m01, m11)
+    else:
+        n0 = hertz_rail_normal_force(a0, geo[0, G_HERTZ], 1.0 / m00) if a0 > 0.0 else 0.0
+        n1 = 0.0
+    geo[0, G_N] = n0
+    geo[1, G_N] = n1
     n_ref = K[I_NREF]
-    scale = (N / n_ref) ** (2.0 / 3.0) * K[I_CREEP]
-    f11 = row[5] * scale
-    f22 = row[6] * scale
-    f23 = row[7] * scale * (N / n_ref) ** (1.0 / 3.0)
-    # creepages (Kalker): longitudinal, lateral, spin
-    xi_x = 1.0 - r / r0 - side * lat * (vyaw / V + kappa)
-    xi_y = (vy + r * vroll) / V - ws_yaw
-    spin = (vyaw / V + kappa) * cd - side * sd / r0
-    fx = -f11 * xi_x
-    fy = -f22 * xi_y - f23 * spin
-    eps = she_saturation(fx, fy, K[I_MU] * N)
-    fx *= eps
-    fy *= eps
-    # normal n = (-side sin d, cos d), contact-plane lateral t = (cos d, side sin d)
-    res[0] = -side * N * sd + fy * cd
-    res[1] = N * cd + side * fy * sd
-    res[2] = fx
-    res[5] = N
+    for b in range(n_points):
+        N = geo[b, G_N]
+        if N <= 0.0:
+            continue
+        if geo[b, G_HERTZ] * N ** (2.0 / 3.0) > K[I_PENMAX]:  # Hertz approach, not the rail
+            return L.FAIL_PENETRATION
+        delta = geo[b, G_DELTA]
+        cd = math.cos(delta)
+        sd = math.sin(delta)
+        # rail support damping along the normal (pads and ballast), never pulling the wheel
+        N -= (cd * cd * K[I_CRZ] + sd * sd * K[I_CRY]) * geo[b, G_RATE] * cd
+        if N <= 0.0:
+            continue
+        # Kalker coefficients scale with the contact area: f11, f22 ~ N^(2/3), f23 ~ N
+        scale = (N / n_ref) ** (2.0 / 3.0) * K[I_CREEP]
+        f11 = geo[b, G_F11] * scale
+        f22 = geo[b, G_F22] * scale
+        f23 = geo[b, G_F23] * scale * (N / n_ref) ** (1.0 / 3.0)
+        r = geo[b, G_R]
+        lat = geo[b, G_LAT]
+        # creepages (Kalker): longitudinal, lateral, spin
+        xi_x = 1.0 - r / r0 - side * lat * (vyaw / V + kappa)
+        xi_y = (vy + r * vroll) / V - ws_yaw
+        spin = (vyaw / V + kappa) * cd - side * sd / r0
+        fx = -f11 * xi_x
+        fy = -f22 * xi_y - f23 * spin
+        eps = she_saturation(fx, fy, K[I_MU] * N)
+        fx *= eps
+        fy *= eps
+        # normal n = (-side sin d, cos d), contact-plane lateral t = (cos d, side sin d)
+        f_y = -side * N * sd + fy * cd
+        f_z = N * cd + side * fy * sd
+        tot[0] += f_y
+        tot[1] += f_z
+        tot[2] += fx
+        tot[3] += side * lat * f_z + r0 * f_y
+        tot[4] += -side * lat * fx
+        if b == 0:
+            tot[5] = N
     return L.OK
 
 
@@ -326,7 +422,8 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         acc[i] = 0.0
     # generalised forces accumulate in acc, divided by inertia at the end
     row = np.empty(NCTW)
-    res = np.empty(8)
+    geo = np.empty((2, N_GEO))
+    tot = np.empty(8)
     flange_rate = -1.0e9  # fastest approach to its flange of a wheel near it (step control)
 
     # ---- catalogue parameters ----
@@ -506,7 +603,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             for sidx in range(2):
                 side = 1.0 if sidx == 0 else -1.0
                 left = sidx == 0
-                code = wheel_contact(
+                code = wheel_rail_forces(
                     q[iw],
                     q[iw + 1],
                     q[iw + 2],
@@ -528,18 +625,18 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
                     K[I_Z0L] if left else K[I_Z0R],
                     K,
                     row,
-                    res,
+                    geo,
+                    tot,
                 )
                 if code != 0:
                     return code
-                if res[6] > K[I_WATCH]:
-                    flange_rate = max(flange_rate, res[7])
-                f_yw, f_zw, f_xw, lat = res[0], res[1], res[2], res[3]
+                if tot[6] > K[I_WATCH]:
+                    flange_rate = max(flange_rate, tot[7])
+                f_yw, f_zw = tot[0], tot[1]
                 acc[iw] += f_yw
                 acc[iw + 1] += f_zw - K[I_Q0]
-                # roll lever of the contact force; r0 (not r) keeps it the potential's gradient
-                acc[iw + 2] += side * lat * f_zw + K[I_R0] * f_yw
-                acc[iw + 3] += -side * lat * f_xw
+                acc[iw + 2] += tot[3]
+                acc[iw + 3] += tot[4]
                 # outputs: force on the rail; Y + outward (field side), Q + down
                 out[L.OUT_Y + 2 * w + sidx] = -side * f_yw
                 out[L.OUT_Q + 2 * w + sidx] = f_zw

@@ -19,7 +19,7 @@ from railsusp.conditions import GRAVITY, WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.params import spec
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.contact import contact_table
+from railsusp.vehicle.contact import ContactTable, contact_table, flange_split
 from railsusp.vehicle.contact_forces import hertz_contact, kalker_creep_coefficients
 from railsusp.vehicle.profiles import chn60_rail, lm_worn_wheel, read_profile
 from railsusp.vehicle.track import (
@@ -38,11 +38,12 @@ class SolverSettings:
     ``max_step``: largest internal RK4 step (s); the step is the output interval divided by
     an integer. Steps that start with a wheel within ``flange_margin`` (m) of flange contact
     and closing on it faster than ``flange_split_speed`` (m/s) are split into
-    ``flange_substeps``: the jump of the contact to the 70 deg flank is the stiffest event of
-    the model, and with the plain 1 ms step two of three derailments examined on a long
-    campaign were numerical (they vanish with 0.5 ms; the third stays down to 0.25 ms). A
-    wheel running steadily against its flange (the outer wheel in a curve) is not such an
-    event; a negative ``flange_split_speed`` splits every step near the flange.
+    ``flange_substeps`` (1: no split, the default). The split is for the single-point contact
+    model, whose jump to the 70 deg flank is its stiffest event: with the plain 1 ms step two
+    of three of its derailments examined on a long campaign were numerical, and it needs
+    ``flange_substeps = 2``. Two-point contact needs no split: its force statistics with the
+    plain 1 ms step are those of 0.5 ms within 0.3 %, and none of 768 runs of 200 s
+    derails. A negative ``flange_split_speed`` splits every step near the flange.
     ``anti_alias``: filter cut-off as a fraction of the output Nyquist rate.
     ``penetration_max``: Hertz approach of the steel bodies (m) beyond which a contact is
     non-physical (1 mm: a normal force of several MN); ``lift_max``: wheel lift (m) beyond
@@ -50,7 +51,7 @@ class SolverSettings:
     """
 
     max_step: float = 1.0e-3
-    flange_substeps: int = 2
+    flange_substeps: int = 1
     flange_margin: float = 3.0e-3
     flange_split_speed: float = 0.02
     anti_alias: float = 0.8
@@ -91,6 +92,8 @@ class ContactArrays:
     delta0: float
     n_ref: float
     flange_shift: float  # smallest shift of a wheel towards its flange with flange contact, m
+    contact_points: int  # per wheel: 1 (tread table only) or 2 (tread and flange)
+    flange_split: float | None  # wheel profile abscissa splitting tread from flange, m
 
 
 #: lateral shift range of the contact table (m): the field side of the tread must stay in
@@ -101,6 +104,45 @@ CONTACT_TABLE_HALF_RANGE = 0.035
 MIN_RELATIVE_CURVATURE = 0.5
 
 
+def _kernel_blocks(tab: ContactTable, y: np.ndarray, n_ref: float) -> np.ndarray:
+    """Kernel rows (2 x CT_PER_WHEEL: left, right) of one contact table.
+
+    Rolling radius, contact angle, lateral arm, touching height H, Hertz constant G and
+    Kalker f11, f22, f23 at the static load. Shifts at which the table's wheel part has
+    nothing above the rail (NaN rows of a flange table) take the nearest finite values and a
+    touching height 50 mm below the lowest one, so they never touch.
+    """
+    out = np.empty((2 * L.CT_PER_WHEEL, y.size))
+    for col0, wheel in ((0, 0), (L.CT_RIGHT, 1)):
+        sign = 1.0 if wheel == 0 else -1.0
+        rise = tab.contact_z[:, wheel] + tab.rolling_radius[:, wheel]  # axle height at touch
+        ok = np.isfinite(rise)
+
+        def fill(a: np.ndarray, ok: np.ndarray = ok) -> np.ndarray:
+            return a if ok.all() else np.interp(y, y[ok], a[ok])
+
+        arm = fill((tab.contact_y[:, wheel] - y) * sign)
+        radius = fill(tab.rolling_radius[:, wheel])
+        wl = np.maximum(fill(tab.wheel_curvature_long[:, wheel]), 2 * MIN_RELATIVE_CURVATURE)
+        lat = fill(tab.wheel_curvature_lat[:, wheel] + tab.rail_curvature_lat[:, wheel])
+        lat = np.maximum(lat, 2 * MIN_RELATIVE_CURVATURE)
+        if not ok.all():
+            rise = np.where(ok, rise, np.nanmin(rise) - 0.05)
+        patch = hertz_contact(n_ref, wl, lat, 0.0)
+        f11, f22, f23, _ = kalker_creep_coefficients(patch.a, patch.b)
+        out[col0 + L.CT_R] = radius
+        # contact angle consistent with the rigid-contact rise (normal force = gradient of the
+        # contact potential, so the table forces are conservative): tan(delta) = +-dH/dy
+        out[col0 + L.CT_DELTA] = np.arctan(np.gradient(rise, y) * sign)
+        out[col0 + L.CT_L] = arm
+        out[col0 + L.CT_H] = rise
+        out[col0 + L.CT_G] = patch.approach / n_ref ** (2.0 / 3.0)
+        out[col0 + L.CT_F11] = f11
+        out[col0 + L.CT_F22] = f22
+        out[col0 + L.CT_F23] = f23
+    return out
+
+
 @functools.lru_cache(maxsize=8)
 def contact_arrays(wagon: WagonData) -> ContactArrays:
     """Contact functions of the wagon's wheel/rail pair, with Hertz and Kalker coefficients.
@@ -109,6 +151,11 @@ def contact_arrays(wagon: WagonData) -> ContactArrays:
     wheelset centre, axle-point rise H (rise + arm x roll) at which the wheel just touches,
     Hertz constant G (approach = G N^(2/3), from the local curvatures at the static load),
     and Kalker's f11, f22, f23 at the static load (scaled with N inside the kernel).
+
+    Two-point contact (``wagon.contact.model``): the wheel profile is split between tread
+    and flange (:func:`railsusp.vehicle.contact.flange_split`) and each part gets its own
+    table, so the tread keeps its load while the flange contact builds up. Single-point:
+    one table of the whole profile, whose contact jumps from tread to flange.
     """
     tr = wagon.track
     # Decoupled wheels (no wheelset roll in the table): each wheel's touching height is a
@@ -118,48 +165,43 @@ def contact_arrays(wagon: WagonData) -> ContactArrays:
     prof = wagon.profiles
     wheel = lm_worn_wheel() if prof.wheel == "lm-like" else read_profile(prof.wheel, kind="wheel")
     rail = chn60_rail() if prof.rail == "chn60" else read_profile(prof.rail, kind="rail")
-    tab = contact_table(
-        wheel,
-        rail,
-        track_gauge=tr.gauge,
-        rail_inclination=tr.rail_inclination,
-        nominal_radius=wagon.wheelset.rolling_radius,
-        wheelset_roll=False,
-        y_min=-CONTACT_TABLE_HALF_RANGE,
-        y_max=CONTACT_TABLE_HALF_RANGE,
-    )
-    n_ref = _static_wheel_load(wagon)
-    y = tab.y
-    arrays = np.empty((L.N_CT, y.size))
-    for col0, wheel in ((0, 0), (L.CT_RIGHT, 1)):
-        arm = (tab.contact_y[:, wheel] - y) * (1.0 if wheel == 0 else -1.0)
-        rise = tab.contact_z[:, wheel] + tab.rolling_radius[:, wheel]  # axle height at touch
-        wl = np.maximum(tab.wheel_curvature_long[:, wheel], 2 * MIN_RELATIVE_CURVATURE)
-        lat = tab.wheel_curvature_lat[:, wheel] + tab.rail_curvature_lat[:, wheel]
-        lat = np.maximum(lat, 2 * MIN_RELATIVE_CURVATURE)
-        patch = hertz_contact(n_ref, wl, lat, 0.0)
-        g = patch.approach / n_ref ** (2.0 / 3.0)
-        f11, f22, f23, _ = kalker_creep_coefficients(patch.a, patch.b)
-        arrays[col0 + L.CT_R] = tab.rolling_radius[:, wheel]
-        # contact angle consistent with the rigid-contact rise (normal force = gradient of the
-        # contact potential, so the table forces are conservative): tan(delta) = +-dH/dy
-        slope = np.gradient(rise, y) * (1.0 if wheel == 0 else -1.0)
-        arrays[col0 + L.CT_DELTA] = np.arctan(slope)
-        arrays[col0 + L.CT_L] = arm
-        arrays[col0 + L.CT_H] = rise
-        arrays[col0 + L.CT_G] = g
-        arrays[col0 + L.CT_F11] = f11
-        arrays[col0 + L.CT_F22] = f22
-        arrays[col0 + L.CT_F23] = f23
-    i0 = int(np.argmin(np.abs(y)))
+    kw = {
+        "track_gauge": tr.gauge,
+        "rail_inclination": tr.rail_inclination,
+        "nominal_radius": wagon.wheelset.rolling_radius,
+        "wheelset_roll": False,
+        "y_min": -CONTACT_TABLE_HALF_RANGE,
+        "y_max": CONTACT_TABLE_HALF_RANGE,
+    }
+    tab = contact_table(wheel, rail, **kw)
     left, right = tab.flangeway_clearance()
     if not (math.isfinite(left) and math.isfinite(right)):
         raise ValueError(
             f"wheel {tab.meta['wheel']!r} on rail {tab.meta['rail']!r}: no flange contact within "
             f"+-{CONTACT_TABLE_HALF_RANGE * 1e3:.0f} mm of shift"
         )
-    arrays[L.CT_H] -= arrays[L.CT_H, i0]
-    arrays[L.CT_RIGHT + L.CT_H] -= arrays[L.CT_RIGHT + L.CT_H, i0]
+    n_ref = _static_wheel_load(wagon)
+    y = tab.y
+    arrays = np.empty((L.N_CT, y.size))
+    split = flange_split(tab) if wagon.contact.model == "two-point" else None
+    if split is None:  # single point (or a conformal profile): the flange block never touches
+        arrays[: L.CT_FLANGE] = _kernel_blocks(tab, y, n_ref)
+        arrays[L.CT_FLANGE :] = arrays[: L.CT_FLANGE]
+        arrays[L.CT_FLANGE + L.CT_H] = -1.0
+        arrays[L.CT_FLANGE + L.CT_RIGHT + L.CT_H] = -1.0
+        points = 1
+    else:
+        tread = contact_table(wheel, rail, wheel_range=(split, math.inf), **kw)
+        flange = contact_table(wheel, rail, wheel_range=(-math.inf, split), **kw)
+        arrays[: L.CT_FLANGE] = _kernel_blocks(tread, y, n_ref)
+        arrays[L.CT_FLANGE :] = _kernel_blocks(flange, y, n_ref)
+        points = 2
+    i0 = int(np.argmin(np.abs(y)))
+    for col0 in (0, L.CT_RIGHT):  # heights from the centred tread contact of each wheel
+        h0 = arrays[col0 + L.CT_H, i0]
+        arrays[col0 + L.CT_H] -= h0
+        if points == 2:
+            arrays[L.CT_FLANGE + col0 + L.CT_H] -= h0
     return ContactArrays(
         table=np.ascontiguousarray(arrays),
         y0=float(y[0]),
@@ -169,6 +211,8 @@ def contact_arrays(wagon: WagonData) -> ContactArrays:
         delta0=float(arrays[L.CT_DELTA, i0]),
         n_ref=n_ref,
         flange_shift=min(left, -right),
+        contact_points=points,
+        flange_split=split,
     )
 
 
@@ -220,6 +264,7 @@ def constants(
         "pen_max": settings.penetration_max, "lift_max": settings.lift_max,
         "flange_watch": ca.flange_shift - settings.flange_margin,
         "flange_split_speed": settings.flange_split_speed,
+        "contact_points": ca.contact_points,
         "N_ref": ca.n_ref,
     }  # fmt: skip
     # static preloads (level of each interface), N

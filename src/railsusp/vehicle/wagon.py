@@ -11,6 +11,7 @@ from __future__ import annotations
 import tomllib
 from importlib import resources
 from pathlib import Path
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
@@ -103,7 +104,13 @@ class TrackData(_Section):
 
 
 class ContactData(_Section):
+    """Wheel-rail contact: ``creep_factor`` scales Kalker's coefficients; ``model`` is
+    ``two-point`` (tread and flange contacts act together, the default) or ``single-point``
+    (the contact jumps from tread to flange, the model before 2026-11-23, kept for
+    comparison)."""
+
     creep_factor: float = Field(gt=0.0, le=2.0)
+    model: Literal["two-point", "single-point"] = "two-point"
 
 
 #: built-in profile names; anything else is a profile file (two columns y, z in mm)
@@ -139,6 +146,18 @@ class WagonData(_Section):
     @property
     def name(self) -> str:
         return self.wagon.name
+
+    def with_contact_model(self, model: str) -> WagonData:
+        """The same wagon with another wheel-rail contact model (``two-point`` or
+        ``single-point``), validated."""
+        data = self.model_dump()
+        data["contact"]["model"] = model
+        try:
+            return WagonData(**data)
+        except ValidationError:
+            raise RailsuspInputError(
+                f"contact.model = {model!r}: accepted two-point or single-point"
+            ) from None
 
 
 def load_wagon(source: str | Path | None = None) -> WagonData:

@@ -3,7 +3,7 @@
 Used to verify the contact model against Klingel's kinematic wavelength: a free wheelset with
 equivalent conicity λ_e, contact half-distance b0 and radius r0 sways with wavelength
 L = 2π sqrt(r0 b0 / λ_e) (Klingel, 1883; e.g. Iwnicki, Handbook of Railway Vehicle Dynamics,
-ch. 7). It shares :func:`railsusp.vehicle.model.wheel_contact` with the wagon model.
+ch. 7). It shares :func:`railsusp.vehicle.model.wheel_rail_forces` with the wagon model.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import numpy as np
 from railsusp.conditions import WorkingCondition
 from railsusp.params import ParameterSet
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.model import wheel_contact
+from railsusp.vehicle.model import N_GEO, wheel_rail_forces
 from railsusp.vehicle.wagon import WagonData, load_wagon
 
 I_Z0L, I_Z0R, I_R0, I_V = L.K["Z0_L"], L.K["Z0_R"], L.K["r0"], L.K["V"]
@@ -25,38 +25,20 @@ def _wheelset_rhs(x, dxdt, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, 
     q = x[:4]
     v = x[4:]
     f = np.zeros(4)
+    tot = np.empty(8)
     for sidx in range(2):
         side = 1.0 if sidx == 0 else -1.0
-        code = wheel_contact(
-            q[0],
-            q[1],
-            q[2],
-            q[3],
-            v[0],
-            v[1],
-            v[2],
-            v[3],
-            0.0,
-            side,
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            ctab,
-            y0,
-            dy,
-            H0L if sidx == 0 else H0R,
-            K[I_Z0L] if sidx == 0 else K[I_Z0R],
-            K,
-            row,
-            res,
-        )
+        code = wheel_rail_forces(
+            q[0], q[1], q[2], q[3], v[0], v[1], v[2], v[3], 0.0, side, 0.0, 0.0, 0.0, 0.0,
+            ctab, y0, dy, H0L if sidx == 0 else H0R, K[I_Z0L] if sidx == 0 else K[I_Z0R],
+            K, row, res, tot,
+        )  # fmt: skip
         if code != 0:
             return code
-        f[0] += res[0]
-        f[1] += res[1]
-        f[2] += side * res[3] * res[1] + K[I_R0] * res[0]
-        f[3] += -side * res[3] * res[2]
+        f[0] += tot[0]  # lateral
+        f[1] += tot[1]  # vertical
+        f[2] += tot[3]  # roll moment
+        f[3] += tot[4]  # yaw moment
     spin = Iy * K[I_V] / K[I_R0]
     f[1] -= axle_load
     f[2] += spin * v[3]
@@ -73,7 +55,7 @@ def _wheelset_rhs(x, dxdt, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, 
 @nb.njit(cache=True)
 def _integrate(x, n, dt, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, out):
     row = np.empty(L.CT_PER_WHEEL)
-    res = np.empty(8)
+    res = np.empty((2, N_GEO))
     k1 = np.empty(8)
     k2 = np.empty(8)
     k3 = np.empty(8)
