@@ -39,7 +39,7 @@ def wheel_statistic(force: np.ndarray, statistic: str, lateral: bool) -> np.ndar
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--seeds", type=int, default=16, help="track seeds per condition")
+    ap.add_argument("--seeds", type=int, default=32, help="track seeds per condition")
     ap.add_argument("--out", default="bench/results/credibility.json")
     ap.add_argument("--contact", default="two-point", help="two-point or single-point")
     args = ap.parse_args()
