@@ -120,7 +120,8 @@ def test_flange_impact_derails_the_single_point_model_only_with_the_plain_step()
     pset = ParameterSet.nominal().replace(x)
     plain_step = SolverSettings()
     one = load_wagon().with_contact_model("single-point")  # the jump from tread to flange
-    plain = simulate(pset, cond, seeds=[1726644975], settings=plain_step, wagon=one)
+    with pytest.warns(UserWarning, match="needs SolverSettings.flange_substeps=2."):
+        plain = simulate(pset, cond, seeds=[1726644975], settings=plain_step, wagon=one)
     split_step = SolverSettings(flange_substeps=2)
     split = simulate(pset, cond, seeds=[1726644975], settings=split_step, wagon=one)
     assert plain.failures() and "wheel lift" in plain.failures()[0][1]

@@ -286,6 +286,12 @@ def simulate_batch(
     P = np.ascontiguousarray(_param_matrix(sets, symbols))
     n = P.shape[0]
     ca = contact_arrays(wagon)
+    if ca.contact_points == 1 and settings.flange_substeps == 1:
+        warnings.warn(
+            "single-point wheel-rail contact with the plain step: its jump to the flange needs "
+            "SolverSettings(flange_substeps=2) to stay numerically on the rail (docs/model.md)",
+            stacklevel=2,
+        )
     K = np.ascontiguousarray(
         np.stack([constants(wagon, condition, P[i], ca, settings) for i in range(n)])
     )
