@@ -331,8 +331,8 @@ def wheel_rail_forces(
         tot[i] = 0.0
     tot[6] = side * (ws_y + r0 * ws_roll - rail_y)
     tot[7] = side * (vy + r0 * vroll - rail_vy)
-    cr = K[I_KRY]
-    cz = K[I_KRZ]
+    k_lat = K[I_KRY]  # rail support per wheel, N/m
+    k_vert = K[I_KRZ]
     a0 = 0.0  # rigid approach along the normal of each contact, m
     a1 = 0.0
     for b in range(n_points):
@@ -348,11 +348,11 @@ def wheel_rail_forces(
             a1 = -geo[1, G_GAP] * math.cos(geo[1, G_DELTA])
     # normal forces: both contacts deflect the same rail (compliance diag(1/k_ry, 1/k_rz))
     s0, c0 = math.sin(geo[0, G_DELTA]), math.cos(geo[0, G_DELTA])
-    m00 = s0 * s0 / cr + c0 * c0 / cz
+    m00 = s0 * s0 / k_lat + c0 * c0 / k_vert
     if n_points == 2 and a1 > 0.0:
         s1, c1 = math.sin(geo[1, G_DELTA]), math.cos(geo[1, G_DELTA])
-        m11 = s1 * s1 / cr + c1 * c1 / cz
-        m01 = s0 * s1 / cr + c0 * c1 / cz
+        m11 = s1 * s1 / k_lat + c1 * c1 / k_vert
+        m01 = s0 * s1 / k_lat + c0 * c1 / k_vert
         n0, n1 = shared_rail_normal_forces(a0, geo[0, G_HERTZ], a1, geo[1, G_HERTZ], m00, m01, m11)
     else:
         n0 = hertz_rail_normal_force(a0, geo[0, G_HERTZ], 1.0 / m00) if a0 > 0.0 else 0.0
