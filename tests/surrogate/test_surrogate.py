@@ -205,3 +205,24 @@ def test_predict_on_a_measured_track_and_another_record_length(trained, tmp_path
     np.testing.assert_allclose(on_file, sur.predict(x), rtol=1e-4, atol=1e-3)
     longer = sur.predict(x, cond.with_changes(duration_s=3.0, n_steps=150))
     assert longer.shape == (2, 150, 2)
+
+
+def test_sampled_parameters_left_out_of_the_inputs_are_named(tmp_path):
+    """Without a sensitivity analysis the surrogate inputs are the study's six; the other
+    parameters the campaign sampled vary between runs unseen, and are named for a warning."""
+    import json
+
+    from railsusp.params import MAIN_SUSPENSION
+    from railsusp.surrogate import key_parameters, unexplained_parameters
+
+    (tmp_path / "campaign.json").write_text(
+        json.dumps({"config": {"parameters": list(MAIN_SUSPENSION)}})
+    )
+    assert key_parameters(tmp_path) == ("X13", "X14", "X15", "X16", "X17", "X18")
+    assert unexplained_parameters(tmp_path) == ("X11", "X12", "X19", "X20")
+    sens = tmp_path / "sensitivity"
+    sens.mkdir()
+    keys = ["X11", "X12", "X13", "X14", "X17", "X18"]
+    (sens / "key_parameters.json").write_text(json.dumps({"key_parameters": {"keys": keys}}))
+    assert key_parameters(tmp_path) == tuple(keys)
+    assert unexplained_parameters(tmp_path) == ()

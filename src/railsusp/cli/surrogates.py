@@ -53,7 +53,12 @@ def train(
     ``--model gp-stats`` fits the statistics GPs (mean, RMS, p99, std of |Y| and Q) instead,
     on every sample (their accuracy: ``railsusp compare``)."""
     from railsusp.campaign import load_campaign
-    from railsusp.surrogate import KINDS, train_surrogate
+    from railsusp.surrogate import (
+        KINDS,
+        key_parameters,
+        train_surrogate,
+        unexplained_parameters,
+    )
     from railsusp.surrogate.data import load_series
     from railsusp.surrogate.evaluate import evaluate
 
@@ -67,6 +72,14 @@ def train(
             else [c.name for c in camp.config.conditions]
         )
         tcfg = _train_config(epochs, batches_per_epoch, batch_size, device, seed)
+        left_out = unexplained_parameters(run)
+        if left_out:
+            err_console.print(
+                f"[yellow]warning: no sensitivity analysis in {run}, so the surrogate inputs are "
+                f"the study's six ({', '.join(key_parameters(run))}); "
+                f"{', '.join(left_out)} also vary in this campaign and will read as noise: run "
+                f"`railsusp sensitivity {run}` first[/]"
+            )
         if model == "gp-stats":
             from railsusp.surrogate.statistics import train_statistics_surrogate
 

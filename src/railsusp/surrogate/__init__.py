@@ -28,6 +28,7 @@ __all__ = [
     "key_parameters",
     "load",
     "train_surrogate",
+    "unexplained_parameters",
 ]
 
 
@@ -46,6 +47,19 @@ def key_parameters(run: str | Path) -> tuple[str, ...]:
         if not set(STUDY_KEY_PARAMETERS) <= set(sampled):
             return sampled
     return STUDY_KEY_PARAMETERS
+
+
+def unexplained_parameters(run: str | Path) -> tuple[str, ...]:
+    """Parameters sampled in the run's campaign that its surrogates do not take as inputs,
+    when no sensitivity analysis chose the inputs (the study's six are used then): they
+    vary from run to run and act as noise the surrogate cannot explain."""
+    if (Path(run) / "sensitivity" / "key_parameters.json").exists():
+        return ()
+    camp = Path(run) / "campaign.json"
+    if not camp.exists():
+        return ()
+    keys = key_parameters(run)
+    return tuple(p for p in read_json(camp)["config"]["parameters"] if p not in keys)
 
 
 def train_surrogate(
