@@ -200,19 +200,27 @@ def she_saturation(fx, fy, mu_n):
 
 
 @nb.njit(cache=True, inline="always")
+def table_index(y, y0, dy, n):
+    """Interval index i and fraction f of shift y on a table of n uniform rows from y0 by dy;
+    i = -1 when y lies outside the table (flange climb beyond the tabulated range)."""
+    u = (y - y0) / dy
+    if u < 0.0 or u > n - 1:
+        return -1, 0.0
+    i = int(u)
+    if i >= n - 1:
+        i = n - 2
+    return i, u - i
+
+
+@nb.njit(cache=True, inline="always")
 def table_row(ctab, col0, y, y0, dy, row):
     """Interpolate the contact-table columns of one wheel at shift y into ``row``.
 
     Returns False when y lies outside the table (flange climb beyond the tabulated range).
     """
-    u = (y - y0) / dy
-    n = ctab.shape[1]
-    if u < 0.0 or u > n - 1:
+    i, f = table_index(y, y0, dy, ctab.shape[1])
+    if i < 0:
         return False
-    i = int(u)
-    if i >= n - 1:
-        i = n - 2
-    f = u - i
     for c in range(NCTW):
         row[c] = ctab[col0 + c, i] * (1.0 - f) + ctab[col0 + c, i + 1] * f
     return True
@@ -238,11 +246,9 @@ def contact_geometry(
     r0 = K[I_R0]
     yrel = ws_y + r0 * ws_roll - rail_y  # the wheel's shift at contact level
     if block > 0:  # the flange is mostly clear of its rail: look up the gap first
-        u = (yrel - y0) / dy
-        if u < 0.0 or u > ctab.shape[1] - 1:
+        i, f = table_index(yrel, y0, dy, ctab.shape[1])
+        if i < 0:
             return L.FAIL_FLANGE_CLIMB
-        i = min(int(u), ctab.shape[1] - 2)
-        f = u - i
         lat = ctab[col0 + L.CT_L, i] * (1.0 - f) + ctab[col0 + L.CT_L, i + 1] * f
         h = ctab[col0 + L.CT_H, i] * (1.0 - f) + ctab[col0 + L.CT_H, i + 1] * f
         gap = ws_z + side * lat * ws_roll - rail_z - (h - H0) - Z0
