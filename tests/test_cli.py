@@ -119,6 +119,18 @@ def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
     )
     assert result.exit_code == 0, result.output
     assert "key parameters" in result.output and (run / "sensitivity" / "indices.csv").exists()
+    # the surrogates' own campaign: only the keys sampled, the others nominal
+    keys = json.loads((run / "sensitivity" / "key_parameters.json").read_text())
+    keys = keys["key_parameters"]["keys"]
+    own = tmp_path / "own"
+    args = [a if a != str(run) else str(own) for a in base[:-2]]
+    result = runner.invoke(app, [*args, "--keys-from", str(run)])
+    assert result.exit_code == 0, result.output
+    assert json.loads((own / "campaign.json").read_text())["config"]["parameters"] == keys
+    both = runner.invoke(app, [*base, "--keys-from", str(run)])
+    assert both.exit_code == 2 and "not both" in both.output
+    none = runner.invoke(app, [*args, "--keys-from", str(tmp_path)])
+    assert none.exit_code == 2 and f"run `railsusp sensitivity {tmp_path}` first" in none.output
     result = runner.invoke(
         app,
         [

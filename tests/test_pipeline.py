@@ -25,6 +25,7 @@ base_samples = 64
 statistics = ["mean"]
 max_keys = 2
 [surrogate]
+samples = 8
 epochs = 1
 batches_per_epoch = 3
 batch_size = 32
@@ -54,7 +55,7 @@ def test_every_stage_runs_and_writes_its_outputs(tiny):
     for rel in (
         "campaign/features.parquet",
         "campaign/sensitivity/key_parameters.json",
-        "campaign/surrogates/compare.csv",
+        "surrogate-campaign/surrogates/compare.csv",
         "field/index.json",
         "field/truth.json",
         "estimate/estimate.json",
@@ -63,6 +64,37 @@ def test_every_stage_runs_and_writes_its_outputs(tiny):
         "report.md",
     ):
         assert (out / rel).exists(), rel
+
+
+def test_surrogates_train_on_their_own_campaign_of_the_key_parameters(tiny, tmp_path):
+    """The surrogate stage samples only the sensitivity step's keys (others nominal), and the
+    estimate uses the surrogates trained there; ``samples = 0`` trains on the sensitivity
+    campaign instead."""
+    import shutil
+
+    _, out, state, _ = tiny
+    keys = json.loads((out / "campaign/sensitivity/key_parameters.json").read_text())
+    keys = keys["key_parameters"]["keys"]
+    sur = json.loads((out / "surrogate-campaign" / "campaign.json").read_text())["config"]
+    assert sur["parameters"] == keys and sur["samples"] == 8
+    design = pd.read_parquet(out / "surrogate-campaign" / "design.parquet")
+    assert [c for c in design.columns if c != "sample_id"] == keys
+    assert state["stages"]["surrogate"]["info"]["runs"] == 8
+    assert "Trained on their own campaign" in (out / "report.html").read_text("utf-8")
+    assert not (out / "campaign" / "surrogates").exists()
+
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    cfg = tmp_path / "zero.toml"
+    cfg.write_text(TINY.replace("samples = 8\n", "samples = 0\n"))
+    seen = []
+    run_pipeline(load_config(cfg), run, progress=lambda s, m: seen.append((s, m)))
+    assert dict(seen)["surrogate"] == "running"
+    assert (run / "campaign" / "surrogates" / "compare.csv").exists()
+    assert "Trained on the sensitivity campaign" in (run / "report.html").read_text("utf-8")
+    cfg.write_text(TINY.replace("samples = 8\n", "samples = 3\n"))
+    with pytest.raises(RailsuspInputError, match="surrogate.samples.*at least 8"):
+        load_config(cfg)
 
 
 def test_report_is_self_contained(tiny):
@@ -114,7 +146,8 @@ def test_statistics_gp_force_model_with_combined_statistics(tiny, tmp_path):
     cfg = tmp_path / "g.toml"
     cfg.write_text(text)
     run_pipeline(load_config(cfg), run)
-    assert (run / "campaign" / "surrogates" / "gp-stats" / "short" / "statistics.json").exists()
+    gp = run / "surrogate-campaign" / "surrogates" / "gp-stats" / "short" / "statistics.json"
+    assert gp.exists()
     est = json.loads((run / "estimate" / "estimate.json").read_text())
     assert est["config"]["statistic"] == "mean+std" and est["config"]["per_condition"]
     assert est["config"]["weighting"] == "noise"
@@ -157,6 +190,7 @@ def test_quick_example_is_the_demo_default_and_study_example_loads():
     assert load_config(ROOT / "examples" / "quick.toml") == demo_config()
     study = load_config(ROOT / "examples" / "study.toml")
     assert study.campaign.samples == 1000 and study.surrogate.model == "cnn-gru"
+    assert study.surrogate.samples == 1000
     assert (study.estimate.pop_size, study.estimate.n_gen) == (50, 100)
 
 

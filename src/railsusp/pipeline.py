@@ -45,13 +45,38 @@ class SensitivitySection(_Cfg):
 
 
 class SurrogateSection(_Cfg):
+    """The surrogates and their training data.
+
+    With ``samples > 0`` (the default) the surrogates train on a second campaign that samples
+    only the key parameters (others nominal), as the estimator uses them; with ``samples = 0``
+    they train on the sensitivity campaign, where the other parameters vary unseen and limit
+    their accuracy (bench/README.md, surrogate.py).
+    """
+
     model: Literal["cnn-gru", "cnn-lstm", "cnn-bilstm", "bp", "gp-stats"] = Field(
         "bp", description="force model of the calibration (gp-stats: statistics GPs)"
     )
+    samples: int = Field(
+        128,
+        ge=0,
+        description="LHS samples of the key parameters for the surrogates' own campaign "
+        "(0: train on the sensitivity campaign)",
+    )
+    seed: int = Field(1, ge=0, description="design seed of that campaign")
     epochs: int = Field(8, ge=1)
     batches_per_epoch: int = Field(60, ge=1)
     batch_size: int = Field(512, ge=8)
     device: str = "cpu"
+
+    @field_validator("samples")
+    @classmethod
+    def _samples(cls, v: int) -> int:
+        if 0 < v < 8:
+            raise ValueError(
+                "0 (train on the sensitivity campaign) or at least 8 samples, to split "
+                "them into train, validation and test runs"
+            )
+        return v
 
 
 class FieldSection(_Cfg):
@@ -194,7 +219,7 @@ def run_pipeline(
             prev.get("hash") == h
             and prev.get("state") == "done"
             and i < forced
-            and _outputs_exist(out, stage)
+            and _outputs_exist(config, out, stage)
         )
         if up_to_date:
             if progress:
@@ -246,22 +271,32 @@ def _section(config: PipelineConfig, stage: str) -> Any:
 _OUTPUTS = {
     "campaign": "campaign/features.parquet",
     "sensitivity": "campaign/sensitivity/key_parameters.json",
-    "surrogate": "campaign/surrogates/compare.csv",
+    "surrogate": "surrogates/compare.csv",  # under surrogate_campaign_dir
     "field": "field/index.json",
     "estimate": "estimate/estimate.json",
     "validate": "estimate/validation/validation.json",
     "report": "report.html",
 }
 
+#: the surrogates' own campaign (key parameters only), beside the sensitivity campaign
+SURROGATE_CAMPAIGN = "surrogate-campaign"
 
-def _outputs_exist(out: Path, stage: str) -> bool:
-    return (out / _OUTPUTS[stage]).exists()
+
+def surrogate_campaign_dir(config: PipelineConfig, out: str | Path) -> Path:
+    """The campaign run directory whose ``surrogates/`` the estimation uses."""
+    return Path(out) / (SURROGATE_CAMPAIGN if config.surrogate.samples else "campaign")
+
+
+def _outputs_exist(config: PipelineConfig, out: Path, stage: str) -> bool:
+    base = surrogate_campaign_dir(config, out) if stage == "surrogate" else out
+    return (base / _OUTPUTS[stage]).exists()
 
 
 def _stage_runners(
     config: PipelineConfig, out: Path, run_progress: Callable[[int, int], None] | None = None
 ) -> dict[str, Callable[[], dict]]:
     camp_dir = out / "campaign"
+    sur_dir = surrogate_campaign_dir(config, out)
 
     def campaign() -> dict:
         from railsusp.campaign import make_config, run_campaign
@@ -300,6 +335,27 @@ def _stage_runners(
         from railsusp.surrogate.statistics import train_statistics_surrogate
 
         s = config.surrogate
+        info: dict = {}
+        if s.samples:
+            from railsusp.campaign import make_config, run_campaign
+            from railsusp.surrogate import key_parameters
+            from railsusp.vehicle.wagon import load_wagon
+
+            keys = key_parameters(camp_dir)
+            cfg = make_config(
+                config.working_conditions(),
+                s.samples,
+                design=config.campaign.design,
+                seed=s.seed,
+                batch_size=config.campaign.batch_size,
+                parameters=keys,
+                wagon=load_wagon(config.wagon),
+            )
+            run_campaign(
+                cfg, sur_dir, force=True, scheduler=config.scheduler, progress=run_progress
+            )
+            info["runs"] = cfg.n_runs * len(cfg.conditions)
+            info["parameters"] = list(keys)
         tcfg = TrainConfig(
             epochs=s.epochs,
             batches_per_epoch=s.batches_per_epoch,
@@ -307,10 +363,10 @@ def _stage_runners(
             device=s.device,
         )
         window_model = "bp" if s.model == "gp-stats" else s.model
-        tab = compare(camp_dir, models=(window_model, "rbf", "gp-stats"), train=tcfg)
+        tab = compare(sur_dir, models=(window_model, "rbf", "gp-stats"), train=tcfg)
         for cond in config.working_conditions():
-            train_statistics_surrogate(camp_dir, cond.name)
-        return {"models": sorted(set(tab.model))}
+            train_statistics_surrogate(sur_dir, cond.name)
+        return {**info, "models": sorted(set(tab.model))}
 
     def field() -> dict:
         from railsusp.measured import read_field, synthesise_field
@@ -345,7 +401,7 @@ def _stage_runners(
 
         e = config.estimate
         params = key_parameters(camp_dir)
-        model, params = open_force_model(camp_dir / "surrogates" / config.surrogate.model, params)
+        model, params = open_force_model(sur_dir / "surrogates" / config.surrogate.model, params)
         cfg = NSGAConfig(
             pop_size=e.pop_size,
             n_gen=e.n_gen,

@@ -175,11 +175,25 @@ def build_report(run: str | Path) -> list[Path]:
         for png in sorted(sens.glob("sobol-*.png")):
             doc.figure(png, f"Sobol indices, statistic '{png.stem.removeprefix('sobol-')}'")
 
-    sur = camp / "surrogates"
+    own = state.get("config", {}).get("surrogate", {}).get("samples", 0)
+    sur_camp = run / "surrogate-campaign"
+    sur = (sur_camp if own else camp) / "surrogates"
     if (sur / "compare.csv").exists():
         from railsusp.surrogate.compare import table7
 
         doc.h("Surrogates on held-out simulations (study Table 7, Figures 10/11)")
+        if sur.parent == sur_camp:
+            sc = read_json(sur_camp / "campaign.json")["config"]
+            doc.p(
+                f"Trained on their own campaign: {sc['samples']} LHS samples of the key "
+                f"parameters ({', '.join(sc['parameters'])}), the others nominal, as the "
+                "estimation uses them; split into train, validation and test runs by sample."
+            )
+        else:
+            doc.p(
+                "Trained on the sensitivity campaign: the parameters that are not inputs "
+                "vary there unseen and limit the surrogates' accuracy."
+            )
         doc.table(table7(pd.read_csv(sur / "compare.csv")))
         for png in sorted(sur.glob("overlay-*.png")):
             doc.figure(png, png.stem.replace("overlay-", "Held-out run, "))

@@ -36,6 +36,13 @@ def campaign(
     parameters: Annotated[str, typer.Option(help="sampled subset, others nominal")] = (
         "X11,X12,X13,X14,X15,X16,X17,X18,X19,X20"
     ),
+    keys_from: Annotated[
+        Path | None,
+        typer.Option(
+            help="sample only the key parameters of this run's sensitivity analysis, others "
+            "nominal: the training campaign of the surrogates (replaces --parameters)"
+        ),
+    ] = None,
     batch_size: Annotated[int, typer.Option(help="sets per batch (one stored file)")] = 32,
     independent_seeds: Annotated[
         bool,
@@ -56,13 +63,17 @@ def campaign(
     from railsusp.measured import conditions_from
 
     try:
+        sampled = tuple(p.strip() for p in parameters.split(",") if p.strip())
+        if keys_from is not None:
+            sampled = _sensitivity_keys(keys_from, parameters)
+            console.print(f"sampling the key parameters of {keys_from}: {', '.join(sampled)}")
         conds = conditions_from(conditions)
         if duration is not None:
             conds = [c.with_duration(duration) for c in conds]
         cfg = make_config(
             conds,
             samples,
-            parameters=tuple(p for p in parameters.split(",") if p.strip()),
+            parameters=sampled,
             design=design,
             second_order=second_order,
             seed=seed,
@@ -132,6 +143,25 @@ def campaign(
         except RailsuspInputError as exc:
             fail(str(exc))
     console.print(f"campaign stored in {out}")
+
+
+def _sensitivity_keys(run: Path, parameters: str) -> tuple[str, ...]:
+    """The key parameters chosen by ``railsusp sensitivity`` in ``run`` (for --keys-from)."""
+    from railsusp.params import MAIN_SUSPENSION
+    from railsusp.store import read_json
+
+    if parameters != ",".join(MAIN_SUSPENSION):
+        raise RailsuspInputError("--keys-from and --parameters: give one of them, not both")
+    path = run / "sensitivity" / "key_parameters.json"
+    if not path.exists():
+        raise RailsuspInputError(
+            f"--keys-from {run}: no sensitivity analysis there ({path} is missing); "
+            f"run `railsusp sensitivity {run}` first"
+        )
+    keys = tuple(read_json(path)["key_parameters"]["keys"])
+    if not keys:
+        raise RailsuspInputError(f"--keys-from {run}: its sensitivity analysis found no key")
+    return keys
 
 
 @app.command()
