@@ -298,22 +298,27 @@ def _stage_runners(
     camp_dir = out / "campaign"
     sur_dir = surrogate_campaign_dir(config, out)
 
-    def campaign() -> dict:
+    def run_lhs(dest: Path, samples: int, seed: int, parameters: tuple[str, ...]) -> int:
+        """An LHS campaign of ``parameters`` (others nominal) in every condition; its runs."""
         from railsusp.campaign import make_config, run_campaign
         from railsusp.vehicle.wagon import load_wagon
 
         c = config.campaign
         cfg = make_config(
             config.working_conditions(),
-            c.samples,
+            samples,
             design=c.design,
-            seed=c.seed,
+            seed=seed,
             batch_size=c.batch_size,
-            parameters=c.parameters,
+            parameters=parameters,
             wagon=load_wagon(config.wagon),
         )
-        run_campaign(cfg, camp_dir, force=True, scheduler=config.scheduler, progress=run_progress)
-        return {"runs": cfg.n_runs * len(cfg.conditions)}
+        run_campaign(cfg, dest, force=True, scheduler=config.scheduler, progress=run_progress)
+        return cfg.n_runs * len(cfg.conditions)
+
+    def campaign() -> dict:
+        c = config.campaign
+        return {"runs": run_lhs(camp_dir, c.samples, c.seed, c.parameters)}
 
     def sensitivity() -> dict:
         from railsusp.sensitivity import analyse
@@ -337,24 +342,10 @@ def _stage_runners(
         s = config.surrogate
         info: dict = {}
         if s.samples:
-            from railsusp.campaign import make_config, run_campaign
             from railsusp.surrogate import key_parameters
-            from railsusp.vehicle.wagon import load_wagon
 
             keys = key_parameters(camp_dir)
-            cfg = make_config(
-                config.working_conditions(),
-                s.samples,
-                design=config.campaign.design,
-                seed=s.seed,
-                batch_size=config.campaign.batch_size,
-                parameters=keys,
-                wagon=load_wagon(config.wagon),
-            )
-            run_campaign(
-                cfg, sur_dir, force=True, scheduler=config.scheduler, progress=run_progress
-            )
-            info["runs"] = cfg.n_runs * len(cfg.conditions)
+            info["runs"] = run_lhs(sur_dir, s.samples, s.seed, keys)
             info["parameters"] = list(keys)
         tcfg = TrainConfig(
             epochs=s.epochs,

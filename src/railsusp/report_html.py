@@ -182,7 +182,7 @@ def build_report(run: str | Path) -> list[Path]:
         from railsusp.surrogate.compare import table7
 
         doc.h("Surrogates on held-out simulations (study Table 7, Figures 10/11)")
-        if sur.parent == sur_camp:
+        if own:
             sc = read_json(sur_camp / "campaign.json")["config"]
             doc.p(
                 f"Trained on their own campaign: {sc['samples']} LHS samples of the key "
