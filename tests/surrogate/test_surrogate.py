@@ -130,6 +130,41 @@ def test_tiny_training_lowers_the_loss_and_resumes(run, tmp_path):
     assert [h["val_loss"] for h in afresh] != [h["val_loss"] for h in part]
 
 
+def test_fine_tuning_restarts_from_the_best_state_at_a_tenth_of_the_rate(run, tmp_path):
+    """The second phase runs at learning_rate x 0.1; a finished main phase, and a phase
+    interrupted half way, resume into the same history as one go."""
+    camp = load_campaign(run)
+    data = load_series(camp, "straight", FeatureSpec(parameters=KEYS))
+    tr, va, _ = split_samples(data.sample_ids)
+    norm = Normaliser.fit(data.subset(tr))
+    samplers = (WindowSampler(data.subset(tr), norm, 20), WindowSampler(data.subset(va), norm, 20))
+    cfg = TrainConfig(
+        epochs=2, fine_tune_epochs=2, batches_per_epoch=10, batch_size=64, val_windows=500
+    )
+
+    def fresh():
+        torch.manual_seed(0)
+        return build_network(NetConfig(kind="bp", mlp_hidden=(64, 32)))
+
+    hist = train_network(fresh(), *samplers, cfg)
+    assert [h["phase"] for h in hist] == ["main", "main", "fine-tune", "fine-tune"]
+    assert [h["learning_rate"] for h in hist] == pytest.approx([1e-3, 1e-3, 1e-4, 1e-4])
+    assert [h["epoch"] for h in hist] == [1, 2, 3, 4]
+    for n_ft in (0, 1):  # stopped after the main phase, and one epoch into fine-tuning
+        ck = tmp_path / f"ck{n_ft}.pt"
+        part = train_network(
+            fresh(), *samplers, TrainConfig(**{**cfg.to_dict(), "fine_tune_epochs": n_ft}), ck
+        )
+        assert len(part) == 2 + n_ft
+        resumed = train_network(fresh(), *samplers, cfg, checkpoint=ck)
+        assert resumed[: len(part)] == part
+        assert [h["val_loss"] for h in resumed] == pytest.approx([h["val_loss"] for h in hist])
+    # another fine-tune factor is other training: it never resumes this checkpoint
+    other = TrainConfig(**{**cfg.to_dict(), "fine_tune_lr_factor": 0.5})
+    afresh = train_network(fresh(), *samplers, other, checkpoint=tmp_path / "ck0.pt")
+    assert afresh[2]["learning_rate"] == pytest.approx(5e-4)
+
+
 @pytest.fixture(scope="module")
 def trained(run):
     cfg = TrainConfig(epochs=1, batches_per_epoch=5, batch_size=64, val_windows=500)

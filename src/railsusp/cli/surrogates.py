@@ -22,11 +22,12 @@ def _epoch_reporter(bar, task):
     return report
 
 
-def _train_config(epochs, batches_per_epoch, batch_size, device, seed):
+def _train_config(epochs, batches_per_epoch, batch_size, device, seed, fine_tune_epochs=0):
     from railsusp.surrogate import TrainConfig
 
     return TrainConfig(
         epochs=epochs,
+        fine_tune_epochs=fine_tune_epochs,
         batches_per_epoch=batches_per_epoch,
         batch_size=batch_size,
         device=device,
@@ -42,6 +43,13 @@ def train(
     ] = "cnn-gru",
     conditions: Annotated[str | None, typer.Option(help="default: all of the campaign")] = None,
     epochs: Annotated[int, typer.Option(help="maximum epochs (early stopping)")] = 40,
+    fine_tune_epochs: Annotated[
+        int,
+        typer.Option(
+            help="then at most this many epochs at a tenth of the learning rate, from the best "
+            "state (resumes a finished training)"
+        ),
+    ] = 0,
     batches_per_epoch: Annotated[int, typer.Option(help="mini-batches per epoch")] = 200,
     batch_size: Annotated[int, typer.Option(help="windows per mini-batch")] = 512,
     window: Annotated[int, typer.Option(help="window length, steps")] = 20,
@@ -71,7 +79,7 @@ def train(
             if conditions
             else [c.name for c in camp.config.conditions]
         )
-        tcfg = _train_config(epochs, batches_per_epoch, batch_size, device, seed)
+        tcfg = _train_config(epochs, batches_per_epoch, batch_size, device, seed, fine_tune_epochs)
         left_out = unexplained_parameters(run)
         if left_out:
             err_console.print(
@@ -116,7 +124,7 @@ def train(
             TextColumn("{task.fields[loss]}"),
             console=err_console,
         ) as bar:
-            task = bar.add_task("train", total=epochs, loss="")
+            task = bar.add_task("train", total=epochs + fine_tune_epochs, loss="")
             try:
                 sur = train_surrogate(
                     run,
@@ -154,6 +162,13 @@ def compare(
     ),
     conditions: Annotated[str | None, typer.Option(help="default: all of the campaign")] = None,
     epochs: Annotated[int, typer.Option(help="maximum epochs (early stopping)")] = 40,
+    fine_tune_epochs: Annotated[
+        int,
+        typer.Option(
+            help="then at most this many epochs at a tenth of the learning rate, from the best "
+            "state (resumes a finished training)"
+        ),
+    ] = 0,
     batches_per_epoch: Annotated[int, typer.Option(help="mini-batches per epoch")] = 200,
     batch_size: Annotated[int, typer.Option(help="windows per mini-batch")] = 512,
     device: Annotated[str, typer.Option(help="cpu, cuda or auto")] = "cpu",
@@ -173,7 +188,9 @@ def compare(
                 run,
                 models=names,
                 conditions=([c.strip() for c in conditions.split(",")] if conditions else None),
-                train=_train_config(epochs, batches_per_epoch, batch_size, device, seed),
+                train=_train_config(
+                    epochs, batches_per_epoch, batch_size, device, seed, fine_tune_epochs
+                ),
                 progress=lambda msg: status.update(f"training {msg}"),
             )
     except (RailsuspInputError, ValueError) as exc:

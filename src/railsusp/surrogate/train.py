@@ -32,6 +32,10 @@ class TrainConfig:
     batch_size: int = 512
     learning_rate: float = 1e-3
     patience: int = 6
+    #: after the main phase, this many epochs more from its best state at the learning rate
+    #: times ``fine_tune_lr_factor`` (a step decay; same early stopping)
+    fine_tune_epochs: int = 0
+    fine_tune_lr_factor: float = 0.1
     val_windows: int = 20_000
     seed: int = 0
     device: str = "cpu"
@@ -85,9 +89,13 @@ def train_network(
     checkpoint: Path | None = None,
     progress: Callable[[int, float, float], None] | None = None,
 ) -> list[dict]:
-    """Train ``net`` in place; returns the history (epoch, train and validation loss, time).
+    """Train ``net`` in place; returns the history (epoch, phase, learning rate, train and
+    validation loss, time).
 
-    The best validation state is restored at the end (early stopping).
+    The best validation state is restored at the end (early stopping). With
+    ``cfg.fine_tune_epochs`` a second phase restarts Adam from the main phase's best state at
+    a tenth of the learning rate (a step decay: on tangent it took the CNN-GRU's lateral
+    error per run from 2.87 % to 2.04 %, bench/README.md).
     """
     device = resolve_device(cfg.device)
     torch.manual_seed(cfg.seed)
@@ -101,11 +109,17 @@ def train_network(
     xv, yv = val.batch(val_rows)
     xv, yv = xv.to(device), yv.to(device)
     history: list[dict] = []
-    best, best_state, stale, start = float("inf"), None, 0, 0
-    # a checkpoint resumes only the same training: settings (but for the epoch limit, which
+    best, best_state, stale = float("inf"), None, 0
+    # a checkpoint resumes only the same training: settings (but for the epoch limits, which
     # may be raised to train on), architecture and data (windows, features, samples,
-    # normalisation), so another window length or campaign starts afresh
-    settings = {k: v for k, v in cfg.to_dict().items() if k != "epochs"}
+    # normalisation), so another window length or campaign starts afresh; the fine-tune
+    # factor counts only when changed, so checkpoints from before it existed still resume
+    settings = {
+        k: v
+        for k, v in cfg.to_dict().items()
+        if k not in ("epochs", "fine_tune_epochs")
+        and not (k == "fine_tune_lr_factor" and v == TrainConfig.fine_tune_lr_factor)
+    }
     key = content_hash({"cfg": settings, "arch": repr(net), "data": _fingerprint(train, val)})
     if checkpoint is not None and checkpoint.exists():
         state = torch.load(checkpoint, map_location=device, weights_only=False)
@@ -116,57 +130,71 @@ def train_network(
             best_state = state["best_state"]
             rng.bit_generator.state = state["rng"]
             torch.set_rng_state(state["torch_rng"])
-            start = len(history)
-    for epoch in range(start, cfg.epochs):
-        if stale >= cfg.patience:
-            break
-        t0 = time.perf_counter()
-        net.train()
-        total = 0.0
-        for _ in range(cfg.batches_per_epoch):
-            xb, yb = train.batch(rng.integers(0, len(train.index), cfg.batch_size))
-            xb, yb = xb.to(device), yb.to(device)
-            opt.zero_grad()
-            loss = loss_fn(net(xb), yb)
-            loss.backward()
-            opt.step()
-            total += loss.item()
-        net.eval()
-        with torch.no_grad():
-            vloss = float(loss_fn(net(xv), yv))
-        train_loss = total / cfg.batches_per_epoch
-        history.append(
-            {
-                "epoch": epoch + 1,
-                "train_loss": train_loss,
-                "val_loss": vloss,
-                "seconds": time.perf_counter() - t0,
-            }
-        )
-        if vloss < best:
-            best, stale = vloss, 0
-            best_state = {k: v.detach().cpu().clone() for k, v in net.state_dict().items()}
-        else:
-            stale += 1
-        if checkpoint is not None:
-            buf = io.BytesIO()
-            torch.save(
+    phases = [("main", cfg.epochs, cfg.learning_rate)]
+    if cfg.fine_tune_epochs > 0:
+        lr = cfg.learning_rate * cfg.fine_tune_lr_factor
+        phases.append(("fine-tune", cfg.fine_tune_epochs, lr))
+    for n, (phase, n_epochs, lr) in enumerate(phases):
+        done = sum(h.get("phase", "main") == phase for h in history)
+        if n == 0 and any(h.get("phase", "main") != "main" for h in history):
+            continue  # the main phase is over: a later one has begun
+        if n > 0 and done == 0:  # a new phase starts from the best state, at its own rate
+            if best_state is not None:
+                net.load_state_dict(best_state)
+            opt = torch.optim.Adam(net.parameters(), lr=lr)
+            stale = 0
+        for _ in range(done, n_epochs):
+            if stale >= cfg.patience:
+                break
+            t0 = time.perf_counter()
+            net.train()
+            total = 0.0
+            for _ in range(cfg.batches_per_epoch):
+                xb, yb = train.batch(rng.integers(0, len(train.index), cfg.batch_size))
+                xb, yb = xb.to(device), yb.to(device)
+                opt.zero_grad()
+                loss = loss_fn(net(xb), yb)
+                loss.backward()
+                opt.step()
+                total += loss.item()
+            net.eval()
+            with torch.no_grad():
+                vloss = float(loss_fn(net(xv), yv))
+            train_loss = total / cfg.batches_per_epoch
+            history.append(
                 {
-                    "key": key,
-                    "model": net.state_dict(),
-                    "optim": opt.state_dict(),
-                    "history": history,
-                    "best": best,
-                    "stale": stale,
-                    "best_state": best_state,
-                    "rng": rng.bit_generator.state,
-                    "torch_rng": torch.get_rng_state(),
-                },
-                buf,
+                    "epoch": len(history) + 1,
+                    "phase": phase,
+                    "learning_rate": lr,
+                    "train_loss": train_loss,
+                    "val_loss": vloss,
+                    "seconds": time.perf_counter() - t0,
+                }
             )
-            atomic_write_bytes(checkpoint, buf.getvalue())
-        if progress is not None:
-            progress(epoch + 1, train_loss, vloss)
+            if vloss < best:
+                best, stale = vloss, 0
+                best_state = {k: v.detach().cpu().clone() for k, v in net.state_dict().items()}
+            else:
+                stale += 1
+            if checkpoint is not None:
+                buf = io.BytesIO()
+                torch.save(
+                    {
+                        "key": key,
+                        "model": net.state_dict(),
+                        "optim": opt.state_dict(),
+                        "history": history,
+                        "best": best,
+                        "stale": stale,
+                        "best_state": best_state,
+                        "rng": rng.bit_generator.state,
+                        "torch_rng": torch.get_rng_state(),
+                    },
+                    buf,
+                )
+                atomic_write_bytes(checkpoint, buf.getvalue())
+            if progress is not None:
+                progress(len(history), train_loss, vloss)
     if best_state is not None:
         net.load_state_dict(best_state)
     net.to("cpu").eval()
