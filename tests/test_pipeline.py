@@ -27,6 +27,7 @@ max_keys = 2
 [surrogate]
 samples = 8
 epochs = 1
+fine_tune_epochs = 2
 batches_per_epoch = 3
 batch_size = 32
 [field]
@@ -80,6 +81,9 @@ def test_surrogates_train_on_their_own_campaign_of_the_key_parameters(tiny, tmp_
     design = pd.read_parquet(out / "surrogate-campaign" / "design.parquet")
     assert [c for c in design.columns if c != "sample_id"] == keys
     assert state["stages"]["surrogate"]["info"]["runs"] == 8
+    sj = out / "surrogate-campaign" / "surrogates" / "bp" / "short" / "surrogate.json"
+    history = json.loads(sj.read_text())["meta"]["history"]
+    assert [h["phase"] for h in history] == ["main", "fine-tune", "fine-tune"]
     assert "Trained on their own campaign" in (out / "report.html").read_text("utf-8")
     assert not (out / "campaign" / "surrogates").exists()
 

@@ -64,6 +64,9 @@ class SurrogateSection(_Cfg):
     )
     seed: int = Field(1, ge=0, description="design seed of that campaign")
     epochs: int = Field(8, ge=1)
+    fine_tune_epochs: int = Field(
+        0, ge=0, description="then epochs at a tenth of the learning rate, from the best state"
+    )
     batches_per_epoch: int = Field(60, ge=1)
     batch_size: int = Field(512, ge=8)
     device: str = "cpu"
@@ -349,6 +352,7 @@ def _stage_runners(
             info["parameters"] = list(keys)
         tcfg = TrainConfig(
             epochs=s.epochs,
+            fine_tune_epochs=s.fine_tune_epochs,
             batches_per_epoch=s.batches_per_epoch,
             batch_size=s.batch_size,
             device=s.device,
