@@ -22,6 +22,16 @@ def _epoch_reporter(bar, task):
     return report
 
 
+#: the ``--fine-tune-epochs`` option of ``train`` and ``compare``
+FineTuneEpochs = Annotated[
+    int,
+    typer.Option(
+        help="then at most this many epochs at a tenth of the learning rate, from the best "
+        "state (resumes a finished training)"
+    ),
+]
+
+
 def _train_config(epochs, batches_per_epoch, batch_size, device, seed, fine_tune_epochs=0):
     from railsusp.surrogate import TrainConfig
 
@@ -43,13 +53,7 @@ def train(
     ] = "cnn-gru",
     conditions: Annotated[str | None, typer.Option(help="default: all of the campaign")] = None,
     epochs: Annotated[int, typer.Option(help="maximum epochs (early stopping)")] = 40,
-    fine_tune_epochs: Annotated[
-        int,
-        typer.Option(
-            help="then at most this many epochs at a tenth of the learning rate, from the best "
-            "state (resumes a finished training)"
-        ),
-    ] = 0,
+    fine_tune_epochs: FineTuneEpochs = 0,
     batches_per_epoch: Annotated[int, typer.Option(help="mini-batches per epoch")] = 200,
     batch_size: Annotated[int, typer.Option(help="windows per mini-batch")] = 512,
     window: Annotated[int, typer.Option(help="window length, steps")] = 20,
@@ -162,13 +166,7 @@ def compare(
     ),
     conditions: Annotated[str | None, typer.Option(help="default: all of the campaign")] = None,
     epochs: Annotated[int, typer.Option(help="maximum epochs (early stopping)")] = 40,
-    fine_tune_epochs: Annotated[
-        int,
-        typer.Option(
-            help="then at most this many epochs at a tenth of the learning rate, from the best "
-            "state (resumes a finished training)"
-        ),
-    ] = 0,
+    fine_tune_epochs: FineTuneEpochs = 0,
     batches_per_epoch: Annotated[int, typer.Option(help="mini-batches per epoch")] = 200,
     batch_size: Annotated[int, typer.Option(help="windows per mini-batch")] = 512,
     device: Annotated[str, typer.Option(help="cpu, cuda or auto")] = "cpu",

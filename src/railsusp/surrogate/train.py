@@ -81,6 +81,29 @@ def _fingerprint(*samplers: WindowSampler) -> str:
     return h.hexdigest()
 
 
+def _train_epoch(
+    net: nn.Module,
+    opt: torch.optim.Optimizer,
+    loss_fn: nn.Module,
+    train: WindowSampler,
+    rng: np.random.Generator,
+    cfg: TrainConfig,
+    device: torch.device,
+) -> float:
+    """One epoch of ``cfg.batches_per_epoch`` random mini-batches; the mean training loss."""
+    net.train()
+    total = 0.0
+    for _ in range(cfg.batches_per_epoch):
+        xb, yb = train.batch(rng.integers(0, len(train.index), cfg.batch_size))
+        xb, yb = xb.to(device), yb.to(device)
+        opt.zero_grad()
+        loss = loss_fn(net(xb), yb)
+        loss.backward()
+        opt.step()
+        total += loss.item()
+    return total / cfg.batches_per_epoch
+
+
 def train_network(
     net: nn.Module,
     train: WindowSampler,
@@ -147,20 +170,10 @@ def train_network(
             if stale >= cfg.patience:
                 break
             t0 = time.perf_counter()
-            net.train()
-            total = 0.0
-            for _ in range(cfg.batches_per_epoch):
-                xb, yb = train.batch(rng.integers(0, len(train.index), cfg.batch_size))
-                xb, yb = xb.to(device), yb.to(device)
-                opt.zero_grad()
-                loss = loss_fn(net(xb), yb)
-                loss.backward()
-                opt.step()
-                total += loss.item()
+            train_loss = _train_epoch(net, opt, loss_fn, train, rng, cfg, device)
             net.eval()
             with torch.no_grad():
                 vloss = float(loss_fn(net(xv), yv))
-            train_loss = total / cfg.batches_per_epoch
             history.append(
                 {
                     "epoch": len(history) + 1,
@@ -177,21 +190,19 @@ def train_network(
             else:
                 stale += 1
             if checkpoint is not None:
+                state = {
+                    "key": key,
+                    "model": net.state_dict(),
+                    "optim": opt.state_dict(),
+                    "history": history,
+                    "best": best,
+                    "stale": stale,
+                    "best_state": best_state,
+                    "rng": rng.bit_generator.state,
+                    "torch_rng": torch.get_rng_state(),
+                }
                 buf = io.BytesIO()
-                torch.save(
-                    {
-                        "key": key,
-                        "model": net.state_dict(),
-                        "optim": opt.state_dict(),
-                        "history": history,
-                        "best": best,
-                        "stale": stale,
-                        "best_state": best_state,
-                        "rng": rng.bit_generator.state,
-                        "torch_rng": torch.get_rng_state(),
-                    },
-                    buf,
-                )
+                torch.save(state, buf)
                 atomic_write_bytes(checkpoint, buf.getvalue())
             if progress is not None:
                 progress(len(history), train_loss, vloss)
