@@ -165,6 +165,12 @@ def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
     )
     assert result.exit_code == 0, result.output
     assert "gp-stats" in result.output and (run / "surrogates" / "compare.csv").exists()
+    import pandas as pd
+
+    tab = pd.read_csv(run / "surrogates" / "compare.csv")
+    # 8 training runs: the MLP got a record correction, and its own error is reported too
+    assert tab[tab.model == "bp"]["relative_error_of_mean_network_alone"].notna().all()
+    assert tab[tab.model == "rbf"]["relative_error_of_mean_network_alone"].isna().all()
     bad = runner.invoke(app, ["compare", str(run), "--models", "svm"])
     assert bad.exit_code == 2 and "svm" in bad.output
     field = tmp_path / "field"

@@ -38,6 +38,7 @@ from pymoo.optimize import minimize
 from pymoo.util.display.multi import MultiObjectiveOutput
 
 from railsusp.conditions import TRACK_INPUT_FIELDS, WorkingCondition
+from railsusp.errors import RailsuspInputError
 from railsusp.identifiability import cramer_rao_pct_range
 from railsusp.measured import Recording, bandwidth_filter
 from railsusp.params import ParameterSet, bounds, spec
@@ -252,9 +253,19 @@ class SurrogateForces:
                 f"no surrogate for condition {condition.name!r} in {self.folder} "
                 f"(has {', '.join(self._models)})"
             )
-        # on a measured track the network reads that track; otherwise its training track
-        on = condition if condition.track_geometry is not None else None
+        # on a measured track the network reads that track, if it can; otherwise it predicts
+        # its training track, whose statistics the recording's are compared with
+        on = condition if self.reads_track(condition) else None
         return self._models[condition.name].predict(x_si, condition=on)
+
+    def reads_track(self, condition: WorkingCondition) -> bool:
+        """Whether the network of ``condition`` predicts on its measured track: not when it
+        was trained on one other track realisation (it learns that track's windows, not the
+        dynamics: :attr:`~railsusp.surrogate.bundle.Surrogate.one_track`)."""
+        if condition.track_geometry is None:
+            return False
+        model = self._models[condition.name]
+        return not model.one_track or model.reads_training_track(condition)
 
 
 class StatisticsForces:
@@ -511,6 +522,19 @@ def check_aligned(model: Any, recordings: Sequence[Recording]) -> None:
                     f"recording {r.condition.name!r} measures {r.wheels[0]}, the simulator "
                     f"force model wheel {model.wheel!r} gives {sim_wheel}"
                 )
+    if isinstance(model, SurrogateForces):
+        other = [
+            r.condition.name
+            for r in recordings
+            if r.condition.track_geometry is not None and not model.reads_track(r.condition)
+        ]
+        if other:
+            raise RailsuspInputError(
+                f"statistic 'aligned': the surrogates of {', '.join(other)} in {model.folder} "
+                "were trained on one track realisation and cannot predict the recordings' "
+                "measured track: train them on a campaign over the recordings (railsusp "
+                "campaign --conditions FIELD), or use --simulator"
+            )
     blind = [r.condition.name for r in recordings if r.condition.track_geometry is None]
     if blind:
         raise ValueError(

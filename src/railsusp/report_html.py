@@ -194,6 +194,11 @@ def build_report(run: str | Path) -> list[Path]:
                 "Trained on the sensitivity campaign: the parameters that are not inputs "
                 "vary there unseen and limit the surrogates' accuracy."
             )
+        doc.p(
+            "The window networks' series are scaled by a record correction, a Gaussian "
+            "process of the record mean's error fitted on the training runs; the column "
+            "'network alone' gives the lateral error without it."
+        )
         doc.table(table7(pd.read_csv(sur / "compare.csv")))
         for png in sorted(sur.glob("overlay-*.png")):
             doc.figure(png, png.stem.replace("overlay-", "Held-out run, "))

@@ -9,6 +9,7 @@ import torch
 from railsusp.campaign import load_campaign, make_config, run_campaign
 from railsusp.conditions import get_condition
 from railsusp.surrogate import TrainConfig, load, train_surrogate
+from railsusp.surrogate.bundle import OneTrackWarning
 from railsusp.surrogate.data import (
     FeatureSpec,
     Normaliser,
@@ -182,11 +183,21 @@ def test_save_load_round_trip_and_predict(run, trained):
     a, b = sur.predict(x), back.predict(x)
     np.testing.assert_array_equal(a, b)
     assert a.shape == (3, 100, 2)
+    # 8 training runs: a record correction was fitted, saved and applied
+    assert back.correction is not None and back.meta["record_correction"]["n_runs"] == 8
+    raw = back.predict(x, corrected=False)
+    unit = (x - lo) / (hi - lo)
+    np.testing.assert_allclose(a, raw * back.correction.factors(unit)[:, None, :], rtol=1e-6)
+    assert not np.allclose(a[:, 20:], raw[:, 20:])
     assert np.isnan(a[:, :20]).all() and np.isfinite(a[:, 20:]).all()
     assert set(back.meta["test_ids"]).isdisjoint(back.meta["train_ids"])
     same = back.predict(x, back.condition)  # its own condition: the training track
     np.testing.assert_array_equal(same, a)
-    other_track = back.predict(x, back.condition.with_changes(seed=77))
+    # trained on one track realisation: another is new input it does not predict, said so
+    assert back.one_track and back.reads_training_track(back.condition)
+    assert not back.reads_training_track(back.condition.with_changes(seed=77))
+    with pytest.warns(OneTrackWarning, match="one track realisation"):
+        other_track = back.predict(x, back.condition.with_changes(seed=77))
     assert not np.allclose(other_track[:, 20:], a[:, 20:])
     with pytest.raises(ValueError, match="differs in speed_kmh"):
         back.predict(x, back.condition.with_changes(speed_kmh=80))
@@ -194,6 +205,15 @@ def test_save_load_round_trip_and_predict(run, trained):
         back.predict(np.zeros((1, 3)))
     with pytest.raises(FileNotFoundError, match="no surrogate"):
         load(run)
+
+
+def test_record_correction_can_be_left_out(run, tmp_path):
+    cfg = TrainConfig(epochs=1, batches_per_epoch=2, batch_size=32, val_windows=100)
+    sur = train_surrogate(
+        run, "straight", parameters=KEYS, train=cfg, out=tmp_path, record_correction=False
+    )
+    assert sur.correction is None and load(tmp_path).correction is None
+    assert "record_correction" not in sur.meta
 
 
 def test_accuracy_metrics_on_known_predictions():
@@ -236,10 +256,24 @@ def test_predict_on_a_measured_track_and_another_record_length(trained, tmp_path
     cond = sur.condition.with_changes(seed=sur.track_seed)
     irr = section_irregularities(cond, [cond.seed], sur.wagon)
     geometry = write_track_geometry(tmp_path / "same.csv", irr, origin_m=cond.lead_in_m)
-    on_file = sur.predict(x, cond.with_changes(track_geometry=str(geometry), seed=999))
+    with pytest.warns(OneTrackWarning):  # a file: railsusp cannot tell it is the same track
+        on_file = sur.predict(x, cond.with_changes(track_geometry=str(geometry), seed=999))
     np.testing.assert_allclose(on_file, sur.predict(x), rtol=1e-4, atol=1e-3)
     longer = sur.predict(x, cond.with_changes(duration_s=3.0, n_steps=150))
     assert longer.shape == (2, 150, 2)
+    # estimation: a one-track network does not read a recording's measured track; its
+    # statistics come from its own track, and a time-aligned comparison is refused
+    from types import SimpleNamespace
+
+    from railsusp.errors import RailsuspInputError
+    from railsusp.estimate import SurrogateForces, check_aligned
+
+    forces = SurrogateForces(path.parent)
+    measured = cond.with_changes(track_geometry=str(geometry))
+    assert not forces.reads_track(measured)
+    np.testing.assert_array_equal(forces.series(x, measured), sur.predict(x))
+    with pytest.raises(RailsuspInputError, match="one track realisation.*campaign over the rec"):
+        check_aligned(forces, [SimpleNamespace(condition=measured)])
 
 
 def test_sampled_parameters_left_out_of_the_inputs_are_named(tmp_path):

@@ -26,10 +26,13 @@ err_console = Console(stderr=True, width=None if sys.stderr.isatty() else 150)
 
 
 def frame_table(df, title: str, fmt: str = "{:.4g}") -> Table:
-    """A pandas DataFrame as a rich table: numbers right-aligned, NaN/None blank."""
+    """A pandas DataFrame as a rich table: numbers right-aligned, NaN/None blank; text
+    columns (names of conditions, models) keep their width when the terminal is narrow."""
     table = Table(title=title, title_justify="left")
     for col in df.columns:
-        table.add_column(str(col), justify="right")
+        text = df[col].dtype == object
+        width = max((len(str(v)) for v in df[col]), default=0) if text else None
+        table.add_column(str(col), justify="right", min_width=width, no_wrap=text)
     for row in df.itertuples(index=False):
         table.add_row(
             *(

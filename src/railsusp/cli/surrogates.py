@@ -59,6 +59,13 @@ def train(
     window: Annotated[int, typer.Option(help="window length, steps")] = 20,
     device: Annotated[str, typer.Option(help="cpu, cuda or auto")] = "cpu",
     seed: Annotated[int, typer.Option(help="training seed")] = 0,
+    record_correction: Annotated[
+        bool,
+        typer.Option(
+            help="fit a GP of the record mean's error on the training runs and correct the "
+            "predicted series by it"
+        ),
+    ] = True,
 ) -> None:
     """Train a window surrogate per condition (RUN/surrogates/<model>/<condition>/); print its
     accuracy on the held-out test samples. Re-running resumes from the last checkpoint.
@@ -113,6 +120,7 @@ def train(
         "predicted kN",
         "rel. error of mean (per run)",
         "(pooled)",
+        "network alone (per run)",
         "NRMSE",
         "R2",
         "test runs",
@@ -137,12 +145,14 @@ def train(
                     window=window,
                     train=tcfg,
                     progress=_epoch_reporter(bar, task),
+                    record_correction=record_correction,
                 )
             except (RailsuspInputError, ValueError) as exc:
                 fail(str(exc))
         data = load_series(camp, cond, sur.spec)
         test = data.subset(np.flatnonzero(np.isin(data.sample_ids, sur.meta["test_ids"])))
-        for r in evaluate(sur, test):
+        alone = evaluate(sur, test, corrected=False) if sur.correction is not None else None
+        for k, r in enumerate(evaluate(sur, test)):
             table.add_row(
                 cond,
                 r["target"],
@@ -150,6 +160,9 @@ def train(
                 f"{r['predicted_mean_kN']:.2f}",
                 f"{100 * r['relative_error_of_mean']:.2f} %",
                 f"{100 * r['relative_error_of_pooled_mean']:.2f} %",
+                "(no correction)"
+                if alone is None
+                else f"{100 * alone[k]['relative_error_of_mean']:.2f} %",
                 f"{r['nrmse']:.3f}",
                 f"{r['r2']:.3f}",
                 str(r["n_samples"]),
@@ -193,12 +206,15 @@ def compare(
             )
     except (RailsuspInputError, ValueError) as exc:
         fail(str(exc))
+    t7 = table7(tab)
+    fit_cols = ["Q NRMSE", "Y NRMSE", "Q R2", "Y R2"]
     console.print(
         frame_table(
-            table7(tab),
+            t7.drop(columns=fit_cols),
             "Surrogates on held-out simulations (study Table 7 "
             "layout, mean force of the measured wheel; |Y| for lateral)",
             fmt="{:.3f}",
         )
     )
+    console.print(frame_table(t7[["condition", "model", *fit_cols]], "Series fit", fmt="{:.3f}"))
     console.print(f"wrote {run / 'surrogates' / 'compare.csv'} and overlay figures")

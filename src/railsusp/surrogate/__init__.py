@@ -15,8 +15,9 @@ import numpy as np
 from railsusp.params import STUDY_KEY_PARAMETERS
 from railsusp.store import read_json
 from railsusp.surrogate.bundle import Surrogate, load
-from railsusp.surrogate.data import FeatureSpec, Normaliser, load_series, split_samples
-from railsusp.surrogate.evaluate import evaluate
+from railsusp.surrogate.correction import MIN_RUNS, RecordCorrection, record_means
+from railsusp.surrogate.data import FeatureSpec, Normaliser, SeriesData, load_series, split_samples
+from railsusp.surrogate.evaluate import evaluate, predict_series
 from railsusp.surrogate.models import KINDS, NetConfig, build_network
 from railsusp.surrogate.train import TrainConfig, WindowSampler, train_network
 
@@ -74,11 +75,14 @@ def train_surrogate(
     split_seed: int = 0,
     out: str | Path | None = None,
     progress: Callable[[int, float, float], None] | None = None,
+    record_correction: bool = True,
 ) -> Surrogate:
     """Train a window surrogate of one condition of a campaign; save and return it.
 
     Samples are split 70/15/15 into train/validation/test by sample; the test samples are
-    recorded in the saved surrogate for :func:`evaluate`.
+    recorded in the saved surrogate for :func:`evaluate`. With ``record_correction`` (and
+    at least :data:`~railsusp.surrogate.correction.MIN_RUNS` training samples) a record
+    correction is fitted on the training samples' predictions (:mod:`.correction`).
     """
     from railsusp.campaign import load_campaign
 
@@ -121,8 +125,30 @@ def train_surrogate(
             "val_ids": data.sample_ids[va_i].tolist(),
             "test_ids": data.sample_ids[te_i].tolist(),
             "train_config": tcfg.to_dict(),
+            "track_realisations": len(np.unique(data.seeds)),
             "history": history,
         },
     )
+    if record_correction and train_data.n_samples >= MIN_RUNS:
+        raw = predict_series(sur, train_data)
+        sur.correction = RecordCorrection.fit(
+            train_data.params_unit, train_data.targets, raw, spec.targets, window, split_seed
+        )
+        val_raw = predict_series(sur, val_data, corrected=False)
+        sur.meta["record_correction"] = {
+            "fitted_on": "train",
+            "n_runs": int(train_data.n_samples),
+            "validation_error_raw": _record_errors(val_data, val_raw, spec),
+            "validation_error_corrected": _record_errors(
+                val_data, sur.correction.apply(val_raw, val_data.params_unit), spec
+            ),
+        }
     sur.save(out)
     return sur
+
+
+def _record_errors(data: SeriesData, pred: np.ndarray, spec: FeatureSpec) -> dict[str, float]:
+    """Mean relative error per run of the record mean of each target."""
+    sim = record_means(data.targets, spec.targets, spec.window)
+    p = record_means(pred, spec.targets, spec.window)
+    return {t: float(np.mean(np.abs(p[:, j] / sim[:, j] - 1))) for j, t in enumerate(spec.targets)}

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import io
 import json
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -21,6 +22,7 @@ import torch
 from railsusp.conditions import TRACK_INPUT_FIELDS, WorkingCondition
 from railsusp.params import ParameterSet, spec
 from railsusp.store import atomic_write_bytes, provenance, write_json
+from railsusp.surrogate.correction import RecordCorrection
 from railsusp.surrogate.data import (
     FeatureSpec,
     Normaliser,
@@ -33,6 +35,10 @@ from railsusp.surrogate.models import CNNRecurrent, NetConfig, build_network
 from railsusp.vehicle.wagon import WagonData
 
 FORMAT = "railsusp-surrogate/1"
+
+
+class OneTrackWarning(UserWarning):
+    """A surrogate trained on one track realisation was asked to predict on another."""
 
 
 def series_features(params: np.ndarray, track: np.ndarray) -> np.ndarray:
@@ -57,10 +63,35 @@ class Surrogate:
     wagon: WagonData
     track_seed: int
     meta: dict[str, Any] = field(default_factory=dict)
+    #: record-level correction of the predicted series (None: the network's own output)
+    correction: RecordCorrection | None = None
 
     @property
     def kind(self) -> str:
         return self.net_config.kind
+
+    @property
+    def one_track(self) -> bool:
+        """Trained on a single track realisation (a common-random-numbers campaign): it then
+        predicts that track only. On other tracks such networks' series are uncorrelated
+        with the simulator's (held-out R² about 0, bench/README.md): they learn the track's
+        windows, not the wheel-rail dynamics. Unknown (False) for surrogates saved before
+        the count was kept."""
+        return self.meta.get("track_realisations") == 1
+
+    def reads_training_track(
+        self, condition: WorkingCondition | None = None, seed: int | None = None
+    ) -> bool:
+        """Whether ``predict(params, condition, seed=seed)`` runs on the training track."""
+        on = self.condition if condition is None else condition
+        if on.track_geometry is not None or self.condition.track_geometry is not None:
+            if on.track_geometry is None or self.condition.track_geometry is None:
+                return False
+            mine = Path(self.condition.track_geometry).resolve()
+            return Path(on.track_geometry).resolve() == mine
+        if seed is None:
+            seed = self.track_seed if condition is None else condition.seed
+        return seed == self.track_seed
 
     def _unit(self, params: np.ndarray | list[ParameterSet]) -> np.ndarray:
         if isinstance(params, np.ndarray):
@@ -83,6 +114,7 @@ class Surrogate:
         track: np.ndarray | None = None,
         batch_size: int = 2048,
         fast: bool = True,
+        corrected: bool = True,
     ) -> np.ndarray:
         """Force series (n_sets, T, n_targets) in kN; the first ``window`` steps are NaN.
 
@@ -91,7 +123,9 @@ class Surrogate:
         condition, possibly with another irregularity seed, a measured ``track_geometry`` or
         another record length), ``seed`` or raw ``track`` features (T, n_track) say
         otherwise. A surrogate serves one condition only.
-        ``fast=False`` takes the per-window reference path (see :meth:`predict_windows`).
+        ``fast=False`` takes the per-window reference path (see :meth:`predict_windows`);
+        ``corrected=False`` leaves out the record correction (:mod:`.correction`), when the
+        surrogate has one.
         """
         unit = self._unit(params)
         on = self.condition
@@ -108,6 +142,14 @@ class Surrogate:
                 )
             seed = condition.seed if seed is None else seed
             on = condition
+        if track is None and self.one_track and not self.reads_training_track(condition, seed):
+            warnings.warn(
+                f"this {self.kind} surrogate of {self.condition.name!r} was trained on one track "
+                f"realisation (seed {self.track_seed}) and does not predict another: train it "
+                "on a campaign with --independent-seeds, or on the recordings' measured track",
+                OneTrackWarning,
+                stacklevel=2,
+            )
         if track is None:
             s = self.track_seed if seed is None else seed
             track = track_features(on, s, self.spec, self.wagon)
@@ -117,6 +159,8 @@ class Surrogate:
         out = np.full((n, t_steps, len(self.spec.targets)), np.nan)
         preds = self.predict_windows(unit, tr, idx, batch_size, fast=fast)
         out[idx[:, 0], idx[:, 1]] = self.normaliser.target_inverse(preds)
+        if corrected and self.correction is not None:
+            out = self.correction.apply(out, unit)
         return out
 
     def predict_windows(
@@ -166,6 +210,7 @@ class Surrogate:
                 "wagon": self.wagon.model_dump(mode="json"),
                 "track_seed": self.track_seed,
                 "meta": self.meta,
+                "record_correction": None if self.correction is None else self.correction.to_dict(),
                 "saved": provenance(),
             },
         )
@@ -190,6 +235,7 @@ def load(path: str | Path) -> Surrogate:
     net.eval()
     for p in feats.parameters:
         spec(p)  # validates the stored parameter names
+    corr = doc.get("record_correction")  # absent in files saved before it existed
     return Surrogate(
         net,
         net_cfg,
@@ -199,4 +245,5 @@ def load(path: str | Path) -> Surrogate:
         WagonData(**doc["wagon"]),
         int(doc["track_seed"]),
         doc.get("meta", {}),
+        None if corr is None else RecordCorrection.from_dict(corr),
     )

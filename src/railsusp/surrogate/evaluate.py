@@ -21,14 +21,17 @@ from railsusp.surrogate.data import SeriesData
 from railsusp.vehicle.simulate import record_statistic
 
 
-def predict_series(sur: Surrogate, data: SeriesData) -> np.ndarray:
-    """Predictions (n, T, n_targets) for data samples, each on its own track."""
+def predict_series(sur: Surrogate, data: SeriesData, corrected: bool = True) -> np.ndarray:
+    """Predictions (n, T, n_targets) for data samples, each on its own track
+    (``corrected=False``: without the surrogate's record correction)."""
     if data.track.shape[0] == 1:
         x = np.column_stack([data.params_unit])
-        return sur.predict(_si(sur, x), track=data.track[0])
+        return sur.predict(_si(sur, x), track=data.track[0], corrected=corrected)
     return np.concatenate(
         [
-            sur.predict(_si(sur, data.params_unit[i : i + 1]), track=data.track[i])
+            sur.predict(
+                _si(sur, data.params_unit[i : i + 1]), track=data.track[i], corrected=corrected
+            )
             for i in range(data.n_samples)
         ]
     )
@@ -75,7 +78,8 @@ def pooled_error(simulated: np.ndarray, predicted: np.ndarray) -> float:
     return float(abs(predicted.mean() - simulated.mean()) / abs(simulated.mean()))
 
 
-def evaluate(sur: Surrogate, data: SeriesData) -> list[dict[str, Any]]:
-    """Accuracy of ``sur`` on the samples of ``data`` (normally its held-out test samples)."""
-    pred = predict_series(sur, data)
+def evaluate(sur: Surrogate, data: SeriesData, corrected: bool = True) -> list[dict[str, Any]]:
+    """Accuracy of ``sur`` on the samples of ``data`` (normally its held-out test samples);
+    ``corrected=False``: of the network alone, without its record correction."""
+    pred = predict_series(sur, data, corrected)
     return accuracy(data.targets.astype(float), pred, sur.spec.targets, sur.spec.window)
