@@ -20,6 +20,7 @@ kind from a folder's contents.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from functools import lru_cache
@@ -256,6 +257,16 @@ class SurrogateForces:
         # on a measured track the network reads that track, if it can; otherwise it predicts
         # its training track, whose statistics the recording's are compared with
         on = condition if self.reads_track(condition) else None
+        if on is None and condition.track_geometry is not None:
+            from railsusp.surrogate.bundle import OneTrackWarning
+
+            warnings.warn(
+                f"the surrogate of {condition.name!r} was trained on one track realisation: "
+                "its statistics on that track are compared with the recording's, whose "
+                "measured track it cannot read",
+                OneTrackWarning,
+                stacklevel=2,
+            )
         return self._models[condition.name].predict(x_si, condition=on)
 
     def reads_track(self, condition: WorkingCondition) -> bool:

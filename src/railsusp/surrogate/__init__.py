@@ -130,7 +130,7 @@ def train_surrogate(
         },
     )
     if record_correction and train_data.n_samples >= MIN_RUNS:
-        raw = predict_series(sur, train_data)
+        raw = predict_series(sur, train_data, corrected=False)
         sur.correction = RecordCorrection.fit(
             train_data.params_unit, train_data.targets, raw, spec.targets, window, split_seed
         )
