@@ -231,6 +231,7 @@ class SurrogateForces:
 
         self.folder = Path(folder)
         self._models: dict[str, Any] = {}
+        self._warned: set[str] = set()
         for sub in sorted(self.folder.iterdir()) if self.folder.is_dir() else []:
             if (sub / "surrogate.json").exists():
                 self._models[sub.name] = load(sub)
@@ -257,8 +258,11 @@ class SurrogateForces:
         # on a measured track the network reads that track, if it can; otherwise it predicts
         # its training track, whose statistics the recording's are compared with
         on = condition if self.reads_track(condition) else None
-        if on is None and condition.track_geometry is not None:
+        unread = on is None and condition.track_geometry is not None
+        if unread and condition.name not in self._warned:
             from railsusp.surrogate.bundle import OneTrackWarning
+
+            self._warned.add(condition.name)  # once per condition, not per generation
 
             warnings.warn(
                 f"the surrogate of {condition.name!r} was trained on one track realisation: "

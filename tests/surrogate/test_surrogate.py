@@ -1,6 +1,7 @@
 """Surrogate data windows, networks, training loop, save/load, evaluation."""
 
 import shutil
+import warnings
 
 import numpy as np
 import pytest
@@ -273,6 +274,9 @@ def test_predict_on_a_measured_track_and_another_record_length(trained, tmp_path
     assert not forces.reads_track(measured)
     with pytest.warns(OneTrackWarning, match="cannot read"):
         np.testing.assert_array_equal(forces.series(x, measured), sur.predict(x))
+    with warnings.catch_warnings():  # said once per condition, not at every generation
+        warnings.simplefilter("error", OneTrackWarning)
+        forces.series(x, measured)
     with pytest.raises(RailsuspInputError, match="one track realisation.*campaign over the rec"):
         check_aligned(forces, [SimpleNamespace(condition=measured)])
 
