@@ -263,7 +263,6 @@ class SurrogateForces:
             from railsusp.surrogate.bundle import OneTrackWarning
 
             self._warned.add(condition.name)  # once per condition, not per generation
-
             warnings.warn(
                 f"the surrogate of {condition.name!r} was trained on one track realisation: "
                 "its statistics on that track are compared with the recording's, whose "
