@@ -79,7 +79,7 @@ def train(
         unexplained_parameters,
     )
     from railsusp.surrogate.data import load_series
-    from railsusp.surrogate.evaluate import evaluate
+    from railsusp.surrogate.evaluate import accuracy, predict_with_alone
 
     try:
         if model not in (*KINDS, "gp-stats"):
@@ -151,8 +151,10 @@ def train(
                 fail(str(exc))
         data = load_series(camp, cond, sur.spec)
         test = data.subset(np.flatnonzero(np.isin(data.sample_ids, sur.meta["test_ids"])))
-        alone = evaluate(sur, test, corrected=False) if sur.correction is not None else None
-        for k, r in enumerate(evaluate(sur, test)):
+        pred, raw = predict_with_alone(sur, test)
+        sim = test.targets.astype(float)
+        alone = None if raw is None else accuracy(sim, raw, sur.spec.targets, sur.spec.window)
+        for k, r in enumerate(accuracy(sim, pred, sur.spec.targets, sur.spec.window)):
             table.add_row(
                 cond,
                 r["target"],

@@ -15,9 +15,9 @@ import numpy as np
 from railsusp.params import STUDY_KEY_PARAMETERS
 from railsusp.store import read_json
 from railsusp.surrogate.bundle import Surrogate, load
-from railsusp.surrogate.correction import MIN_RUNS, RecordCorrection, record_means
-from railsusp.surrogate.data import FeatureSpec, Normaliser, SeriesData, load_series, split_samples
-from railsusp.surrogate.evaluate import evaluate, predict_series
+from railsusp.surrogate.correction import MIN_RUNS, RecordCorrection
+from railsusp.surrogate.data import FeatureSpec, Normaliser, load_series, split_samples
+from railsusp.surrogate.evaluate import accuracy, evaluate, predict_series, predict_with_alone
 from railsusp.surrogate.models import KINDS, NetConfig, build_network
 from railsusp.surrogate.train import TrainConfig, WindowSampler, train_network
 
@@ -134,21 +134,18 @@ def train_surrogate(
         sur.correction = RecordCorrection.fit(
             train_data.params_unit, train_data.targets, raw, spec.targets, window, split_seed
         )
-        val_raw = predict_series(sur, val_data, corrected=False)
+        corrected, alone = predict_with_alone(sur, val_data)
+        sim = val_data.targets.astype(float)
         sur.meta["record_correction"] = {
             "fitted_on": "train",
             "n_runs": int(train_data.n_samples),
-            "validation_error_raw": _record_errors(val_data, val_raw, spec),
-            "validation_error_corrected": _record_errors(
-                val_data, sur.correction.apply(val_raw, val_data.params_unit), spec
-            ),
+            **{
+                f"validation_error_{name}": {
+                    r["target"]: r["relative_error_of_mean"]
+                    for r in accuracy(sim, pred, spec.targets, window)
+                }
+                for name, pred in (("raw", alone), ("corrected", corrected))
+            },
         }
     sur.save(out)
     return sur
-
-
-def _record_errors(data: SeriesData, pred: np.ndarray, spec: FeatureSpec) -> dict[str, float]:
-    """Mean relative error per run of the record mean of each target."""
-    sim = record_means(data.targets, spec.targets, spec.window)
-    p = record_means(pred, spec.targets, spec.window)
-    return {t: float(np.mean(np.abs(p[:, j] / sim[:, j] - 1))) for j, t in enumerate(spec.targets)}

@@ -14,7 +14,12 @@ from railsusp.store import write_json
 from railsusp.surrogate import key_parameters, train_surrogate
 from railsusp.surrogate.baselines import RBFWindowModel, StatisticsGP
 from railsusp.surrogate.data import FeatureSpec, Normaliser, load_series, split_samples
-from railsusp.surrogate.evaluate import accuracy, pooled_error, predict_series
+from railsusp.surrogate.evaluate import (
+    accuracy,
+    pooled_error,
+    predict_series,
+    predict_with_alone,
+)
 from railsusp.surrogate.train import TrainConfig
 
 ALL_MODELS = ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp", "rbf", "gp-stats")
@@ -59,14 +64,9 @@ def compare(
                     train=train,
                     split_seed=split_seed,
                 )
-                pred = predict_series(sur, test)
-                if sur.correction is not None:
-                    alone[kind] = accuracy(
-                        test.targets.astype(float),
-                        predict_series(sur, test, corrected=False),
-                        spec.targets,
-                        window,
-                    )
+                pred, raw = predict_with_alone(sur, test)
+                if raw is not None:
+                    alone[kind] = accuracy(test.targets.astype(float), raw, spec.targets, window)
             elif kind == "rbf":
                 sur = RBFWindowModel(spec, norm).fit(train_data)
                 pred = predict_series(sur, test)

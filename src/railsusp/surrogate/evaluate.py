@@ -78,8 +78,16 @@ def pooled_error(simulated: np.ndarray, predicted: np.ndarray) -> float:
     return float(abs(predicted.mean() - simulated.mean()) / abs(simulated.mean()))
 
 
-def evaluate(sur: Surrogate, data: SeriesData, corrected: bool = True) -> list[dict[str, Any]]:
-    """Accuracy of ``sur`` on the samples of ``data`` (normally its held-out test samples);
-    ``corrected=False``: of the network alone, without its record correction."""
-    pred = predict_series(sur, data, corrected)
+def predict_with_alone(sur: Surrogate, data: SeriesData) -> tuple[np.ndarray, np.ndarray | None]:
+    """(corrected predictions, the network's own or None without a record correction) from
+    one pass of the network over ``data``: the correction only scales its output."""
+    raw = predict_series(sur, data, corrected=False)
+    if sur.correction is None:
+        return raw, None
+    return sur.correction.apply(raw, data.params_unit), raw
+
+
+def evaluate(sur: Surrogate, data: SeriesData) -> list[dict[str, Any]]:
+    """Accuracy of ``sur`` on the samples of ``data`` (normally its held-out test samples)."""
+    pred = predict_series(sur, data)
     return accuracy(data.targets.astype(float), pred, sur.spec.targets, sur.spec.window)
