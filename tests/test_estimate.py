@@ -451,3 +451,71 @@ def test_comparison_band_leaves_out_what_inaccurate_geometry_cannot_explain(tmp_
     r = refine(WaveForces(), [rec], PARAMS, lo + 0.5 * (hi - lo))
     assert np.all(np.abs(r.x_si - truth) / (hi - lo) < 0.01), r.x_si
     assert r.channel_gains["straight:Q_w1L"] == pytest.approx(1.03, abs=0.005)
+
+
+class TrackForces:
+    """A series model driven by the condition's track-geometry file: Y = 3 (X13 / 14 MN/m)
+    x alignment / mm and Q = 120 + 5 (X14 / 10 MN/m) x profile / mm, kN, with the file
+    read at s = speed x t (as the simulator reads the measured track)."""
+
+    def series(self, x_si, condition):
+        from railsusp.vehicle.track import read_track_geometry
+
+        irr = read_track_geometry(condition.track_geometry)
+        s = condition.speed * np.arange(condition.n_steps) * condition.sample_interval
+        align = np.interp(s, irr.s, irr.component("alignment")[0]) * 1e3
+        vert = np.interp(s, irr.s, irr.component("vertical")[0]) * 1e3
+        a = (x_si[:, 0] / 14e6)[:, None]
+        b = (x_si[:, 1] / 10e6)[:, None]
+        return np.stack([3.0 * a * align, 120.0 + 5.0 * b * vert], axis=2)
+
+
+def test_geometry_error_propagates_into_the_refined_estimate(tmp_path, monkeypatch):
+    """On geometry of stated accuracy the refinement reports the shift of its estimate that
+    each draw of geometry error causes: equal, to first order, to refitting on the perturbed
+    geometry; part of the standard error; none on exact geometry."""
+    from railsusp import estimate as estimate_module
+    from railsusp.refine import refine
+    from railsusp.vehicle.track import synthesise, with_measurement_error, write_track_geometry
+
+    true_track = synthesise(600.0, 5, 1, dx=0.125)
+    cond = COND.with_changes(duration_s=20.0, n_steps=1000)
+    truth = np.array([16.1e6, 8.3e6])
+    exact = write_track_geometry(tmp_path / "exact.csv", true_track)
+    on_exact = cond.with_changes(track_geometry=str(exact))
+    s = TrackForces().series(truth[None], on_exact)[0]
+    t = np.arange(cond.n_steps) * cond.sample_interval
+    rng = np.random.default_rng(4)
+    s = s + 0.03 * s.std(axis=0) * rng.standard_normal(s.shape)
+    rec = Recording(t, {"w1L": s[:, 0]}, {"w1L": s[:, 1]}, on_exact)
+    lo, hi = bounds(PARAMS)
+    start = lo + 0.5 * (hi - lo)
+    plain = refine(TrackForces(), [rec], PARAMS, start, gains=False)
+    assert plain.geometry_shifts_si.size == 0
+    np.testing.assert_array_equal(plain.total_error_si, plain.standard_error_si)
+
+    measured = with_measurement_error(true_track, 1e-3, 1.0, np.random.default_rng(9))
+    path = write_track_geometry(tmp_path / "measured.csv", measured)
+    rec.condition = cond.with_changes(track_geometry=str(path), track_accuracy_mm=1.0)
+    r = refine(TrackForces(), [rec], PARAMS, start, gains=False, geometry_draws=4, seed=11)
+    assert r.geometry_shifts_si.shape == (4, 2)
+    assert np.all(r.geometry_error_si > 0.5 * r.standard_error_si)  # geometry dominates
+    np.testing.assert_allclose(r.total_error_si, np.hypot(r.standard_error_si, r.geometry_error_si))
+    d = r.to_dict()
+    assert d["geometry_draws"] == 4
+    assert d["standard_error_pct_range"]["X13"] > d["noise_standard_error_pct_range"]["X13"]
+    # the same draws, refitted in full over the same band: the propagated shifts match, as
+    # the residuals are linear in the parameters
+    band = estimate_module.comparison_band_hz(rec)
+    monkeypatch.setattr(estimate_module, "comparison_band_hz", lambda _rec: band)
+    draws = np.random.default_rng(11)
+    for k in range(4):
+        noisy = with_measurement_error(measured, 1e-3, 1.0, draws)
+        other = write_track_geometry(tmp_path / f"draw{k}.csv", noisy)
+        rec2 = Recording(t, rec.Y, rec.Q, rec.condition.with_changes(track_geometry=str(other)))
+        refit = refine(TrackForces(), [rec2], PARAMS, r.x_si, gains=False, geometry_draws=0)
+        np.testing.assert_allclose(
+            r.geometry_shifts_si[k],
+            refit.x_si - r.x_si,
+            rtol=0.02,
+        )

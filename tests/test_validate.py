@@ -77,6 +77,13 @@ def test_refined_estimate_flags_by_its_standard_error(case, tmp_path):
     assert bool(rec.loc["X13", "identifiable"])
     assert not rec.loc["X17", "identifiable"]
     assert rec.loc["X17", "why_not"] == "standard error 12.0 % of range"
+    # on geometry of stated accuracy the standard error says how much of it is the geometry's
+    doc["refinement"]["geometry_error_pct_range"] = {"X13": 0.5, "X17": 11.0}
+    (refined / "estimate.json").write_text(json.dumps(doc))
+    rec = validate(refined, truth=field / "truth.json").recovery.set_index("parameter")
+    assert rec.loc["X17", "why_not"] == (
+        "standard error 12.0 % of range (11.0 % from track-geometry error)"
+    )
     # a Cramér-Rao bound of the statistics flags an estimate from statistics only; the
     # refined one used the time-aligned series, which the bound does not describe
     doc["cramer_rao_pct_range"] = {"X13": 30.0, "X17": 2.0}

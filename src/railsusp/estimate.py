@@ -635,7 +635,7 @@ class CalibrationResult:
         with the Pareto and seed spreads."""
         ps = self.pareto_spread()
         nsga = display_values(self.parameters, self.pareto_x[self.chosen])
-        se = self.refinement.to_dict()["standard_error_pct_range"] if self.refinement else {}
+        refined = self.refinement.to_dict() if self.refinement else {}
         rows = []
         for p, v in self.estimate.items():
             row = {
@@ -648,7 +648,9 @@ class CalibrationResult:
             }
             if self.refinement:
                 row["nsga_estimate"] = nsga[p]
-                row["standard_error_pct_range"] = se[p]
+                row["standard_error_pct_range"] = refined["standard_error_pct_range"][p]
+                if refined["geometry_draws"]:
+                    row["geometry_error_pct_range"] = refined["geometry_error_pct_range"][p]
             if self.cramer_rao:
                 row["cramer_rao_pct_range"] = self.cramer_rao[p]
             rows.append(row)

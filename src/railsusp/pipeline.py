@@ -117,6 +117,13 @@ class EstimateSection(_Cfg):
     refine_evaluations: int = Field(40, ge=1, le=500)
     refine_screen: int = Field(64, ge=0, le=10_000, description="LHS points screened for starts")
     refine_starts: int = Field(2, ge=1, le=20, description="best screened starts refined")
+    geometry_draws: int = Field(
+        8,
+        ge=0,
+        le=100,
+        description="draws of the recordings' stated track-geometry error propagated into "
+        "the refined estimate's standard errors",
+    )
 
     @field_validator("statistic")
     @classmethod
@@ -417,6 +424,7 @@ def _stage_runners(
                 screen=e.refine_screen,
                 starts=e.refine_starts,
                 seed=e.seed,
+                geometry_draws=e.geometry_draws,
             )
         res.save(
             out / "estimate",

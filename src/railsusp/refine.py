@@ -11,8 +11,10 @@ the force channels alongside, and reports standard errors.
 
 from __future__ import annotations
 
+import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -31,6 +33,7 @@ from railsusp.estimate import (
 )
 from railsusp.measured import Recording, simulated_forces
 from railsusp.params import ParameterSet, bounds
+from railsusp.vehicle import track
 
 #: forward-difference step of the refinement's Jacobian, share of each parameter's range:
 #: wider than the small-scale roughness of the time-aligned cost (wedge friction, contact
@@ -41,6 +44,9 @@ GAIN_LIMIT = 0.1
 #: Latin hypercube points screened for refinement starts, and the starts refined
 REFINE_SCREEN = 64
 REFINE_STARTS = 2
+#: draws of track-geometry measurement error propagated into the refined estimate's
+#: uncertainty, where the recordings state their geometry's accuracy
+GEOMETRY_DRAWS = 8
 
 
 @dataclass
@@ -55,14 +61,47 @@ class Refinement:
     n_evaluations: int
     n_jacobians: int
     message: str
-    standard_error_si: np.ndarray  # nominal (white-residual) standard errors, SI
+    standard_error_si: np.ndarray  # white-residual standard errors, SI
     history_si: np.ndarray  # (n_jacobians, k): the iterate at each Jacobian
     channel_gains: dict[str, float] = field(default_factory=dict)  # estimated, if any
     starts: list[dict] = field(default_factory=list)  # every start refined, when screened
     screened: int = 0  # candidate starts scored
+    #: (draws, k) first-order shift of the estimate, SI, that each draw of geometry error of
+    #: the stated accuracy causes (:func:`gauss_newton_step`); empty on exact geometry
+    geometry_shifts_si: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+
+    @property
+    def geometry_error_si(self) -> np.ndarray:
+        """(k,) RMS shift of the estimate over the geometry-error draws, SI: the part of its
+        uncertainty that the track geometry's measurement error causes (zeros if none)."""
+        if self.geometry_shifts_si.size == 0:
+            return np.zeros(len(self.parameters))
+        return np.sqrt(np.mean(self.geometry_shifts_si**2, axis=0))
+
+    @property
+    def geometry_bias_si(self) -> np.ndarray:
+        """(k,) mean shift of the estimate over the geometry-error draws, SI: the first
+        SIMEX step (Cook & Stefanski, 1994). Doubling the error variance moves the estimate
+        by about the bias the error already caused, so estimate minus this approximates
+        the estimate on exact geometry (zeros if none)."""
+        if self.geometry_shifts_si.size == 0:
+            return np.zeros(len(self.parameters))
+        return self.geometry_shifts_si.mean(axis=0)
+
+    @property
+    def total_error_si(self) -> np.ndarray:
+        """(k,) standard error from sensor noise and geometry error together, SI."""
+        return np.hypot(self.standard_error_si, self.geometry_error_si)
 
     def to_dict(self) -> dict:
         lo, hi = bounds(self.parameters)
+
+        def pct(values: np.ndarray) -> dict[str, float]:
+            return {
+                p: float(100 * v / (h - low))
+                for p, v, low, h in zip(self.parameters, values, lo, hi, strict=True)
+            }
+
         return {
             "method": "output-error least squares (scipy least_squares, trust-region "
             "reflective) on time-aligned series of recordings on measured track",
@@ -73,12 +112,11 @@ class Refinement:
             "n_evaluations": self.n_evaluations,
             "n_jacobians": self.n_jacobians,
             "message": self.message,
-            "standard_error_pct_range": {
-                p: float(100 * se / (h - low))
-                for p, se, low, h in zip(
-                    self.parameters, self.standard_error_si, lo, hi, strict=True
-                )
-            },
+            "standard_error_pct_range": pct(self.total_error_si),
+            "noise_standard_error_pct_range": pct(self.standard_error_si),
+            "geometry_error_pct_range": pct(self.geometry_error_si),
+            "geometry_bias_pct_range": pct(self.geometry_bias_si),
+            "geometry_draws": int(self.geometry_shifts_si.shape[0]),
             "channel_gains": self.channel_gains,
             "screened_starts": self.screened,
             "starts": self.starts,
@@ -95,6 +133,8 @@ def refine(
     max_evaluations: int = 40,
     step: float = REFINE_STEP,
     gains: bool = True,
+    geometry_draws: int = GEOMETRY_DRAWS,
+    seed: int = 0,
 ) -> Refinement:
     """Refine an estimate by the output-error method: least squares on the time-aligned
     residuals of every recording (lateral and vertical force, each over the standard
@@ -111,79 +151,25 @@ def refine(
     (:func:`~railsusp.estimate.comparison_band_hz`) and the residuals taken at four samples
     per period of its upper frequency (:func:`~railsusp.estimate.comparison_samples`).
     Standard errors are s^2 (J^T J)^-1 with white residuals, so they are optimistic where the
-    residuals are correlated. The method is the classical one of system identification
-    (Maine & Iliff, NASA RP-1168, 1986, including the scale-factor estimation of measurement
-    channels).
+    residuals are correlated. Where the geometry has a stated accuracy, its measurement
+    error is propagated too (:func:`gauss_newton_step` on ``geometry_draws`` draws seeded by
+    ``seed``): on 0.5 mm geometry it, not the sensor noise, sets the uncertainty. The method
+    is the classical one of system identification (Maine & Iliff, NASA RP-1168, 1986,
+    including the scale-factor estimation of measurement channels).
     """
     from scipy.optimize import least_squares
 
-    parameters = tuple(parameters)
-    recordings = list(recordings)
-    check_aligned(model, recordings)
-    lo, hi = bounds(parameters)
-    k = len(parameters)
-    n_gain = 2 * len(recordings) if gains else 0
-    # per recording and channel (Y, Q): the compared measurement at the samples compared and
-    # its scale, so that each channel's part of the cost is half its squared aligned_error
-    samples = [comparison_samples(rec) for rec in recordings]
-    scales: list[list[float]] = []
-    targets: list[np.ndarray] = []  # scaled measurement per recording and channel
-    for rec, used in zip(recordings, samples, strict=True):
-        meas = compared_measurement(rec)
-        scales.append([meas[:, c].std() * np.sqrt(used[c].size) for c in range(2)])
-        targets += [meas[used[c], c] / scales[-1][c] for c in range(2)]
-
-    cache: dict[bytes, list[np.ndarray]] = {}
-
-    def predictions(unit: np.ndarray) -> list[np.ndarray]:
-        """Compared series (n, T, 2) per recording; undefined leading steps count zero.
-        Parameter sets already simulated (the start, the base point of each Jacobian) are
-        taken from a cache, the others simulated in one batch."""
-        rows = np.atleast_2d(unit)
-        new = [i for i, u in enumerate(rows) if u.tobytes() not in cache]
-        if new:
-            x = lo + rows[new] * (hi - lo)
-            series = [
-                np.nan_to_num(comparison_filter(model.series(x, rec.condition), rec))
-                for rec in recordings
-            ]
-            for j, i in enumerate(new):
-                cache[rows[i].tobytes()] = [s[j] for s in series]
-        return [np.stack([cache[u.tobytes()][r] for u in rows]) for r in range(len(recordings))]
-
-    def blocks(preds: list[np.ndarray]) -> list[np.ndarray]:
-        """(n, T_c) scaled prediction per recording and channel, the gains' Jacobian too."""
-        return [
-            p[:, used[c], c] / sc[c]
-            for p, used, sc in zip(preds, samples, scales, strict=True)
-            for c in range(2)
-        ]
-
-    def residuals(preds: list[np.ndarray], g: np.ndarray) -> np.ndarray:
-        g = g if gains else np.ones(2 * len(recordings))
-        return np.concatenate(
-            [b * gc - t for b, gc, t in zip(blocks(preds), g, targets, strict=True)], axis=1
-        )
-
+    problem = OutputError(model, recordings, parameters, step, gains)
+    k, n_gain = problem.k, problem.n_gain
+    lo, hi = problem.lo, problem.hi
     history: list[np.ndarray] = []
 
     def fun(z: np.ndarray) -> np.ndarray:
-        return residuals(predictions(z[:k]), z[k:])[0]
+        return problem.residuals(problem.predictions(z[:k]), z[k:])[0]
 
     def jacobian(z: np.ndarray) -> np.ndarray:
-        unit, g = z[:k], z[k:]
-        h = np.where(unit + step <= 1.0, step, -step)  # step inwards at the upper bound
-        preds = predictions(np.vstack([unit, unit + np.diag(h)]))
-        r = residuals(preds, g)
-        history.append(lo + unit * (hi - lo))
-        jac = np.zeros((r.shape[1], k + n_gain))
-        jac[:, :k] = ((r[1:] - r[0]) / h[:, None]).T
-        if gains:  # d r / d gain of a channel: its scaled prediction, in its rows only
-            row = 0
-            for j, b in enumerate(blocks(preds)):
-                jac[row : row + b.shape[1], k + j] = b[0]
-                row += b.shape[1]
-        return jac
+        history.append(lo + z[:k] * (hi - lo))
+        return problem.jacobian_of(problem.predictions(problem.steps(z[:k])), z)
 
     u0 = np.clip((np.asarray(start_si, dtype=float) - lo) / (hi - lo), 0.0, 1.0)
     z0 = np.concatenate([u0, np.ones(n_gain)])
@@ -203,7 +189,7 @@ def refine(
     dof = max(sol.fun.size - k - n_gain, 1)
     se = standard_errors(sol.jac, 2.0 * sol.cost / dof)
     return Refinement(
-        parameters,
+        problem.parameters,
         lo + u0 * (hi - lo),
         lo + sol.x[:k] * (hi - lo),
         float(0.5 * r0 @ r0),
@@ -215,12 +201,173 @@ def refine(
         np.array(history).reshape(-1, k),
         {
             f"{rec.condition.name}:{force}_{rec.wheels[0]}": float(sol.x[k + 2 * i + c])
-            for i, rec in enumerate(recordings)
+            for i, rec in enumerate(problem.recordings)
             for c, force in enumerate(("Y", "Q"))
         }
         if gains
         else {},
+        geometry_shifts_si=problem.geometry_shifts(sol.x, geometry_draws, seed),
     )
+
+
+class OutputError:
+    """The time-aligned least-squares problem of :func:`refine` in unit parameters (and
+    channel gains): the compared measurement and its scale per recording and channel,
+    predictions with a cache, residuals and forward-difference Jacobians."""
+
+    def __init__(
+        self,
+        model: ForceModel,
+        recordings: Sequence[Recording],
+        parameters: Sequence[str],
+        step: float = REFINE_STEP,
+        gains: bool = True,
+    ):
+        self.model = model
+        self.parameters = tuple(parameters)
+        self.recordings = list(recordings)
+        check_aligned(model, self.recordings)
+        self.lo, self.hi = bounds(self.parameters)
+        self.k = len(self.parameters)
+        self.step = step
+        self.gains = gains
+        self.n_gain = 2 * len(self.recordings) if gains else 0
+        # per recording and channel (Y, Q): the compared measurement at the samples compared
+        # and its scale, so that each channel's part of the cost is half its squared
+        # aligned_error
+        self.samples = [comparison_samples(rec) for rec in self.recordings]
+        self.scales: list[list[float]] = []
+        self.targets: list[np.ndarray] = []  # scaled measurement per recording and channel
+        for rec, used in zip(self.recordings, self.samples, strict=True):
+            meas = compared_measurement(rec)
+            self.scales.append([meas[:, c].std() * np.sqrt(used[c].size) for c in range(2)])
+            self.targets += [meas[used[c], c] / self.scales[-1][c] for c in range(2)]
+        self._cache: dict[bytes, list[np.ndarray]] = {}
+
+    def predictions(self, unit: np.ndarray) -> list[np.ndarray]:
+        """Compared series (n, T, 2) per recording; undefined leading steps count zero.
+        Parameter sets already simulated (the start, the base point of each Jacobian) are
+        taken from a cache, the others simulated in one batch."""
+        rows = np.atleast_2d(unit)
+        cache = self._cache
+        new = [i for i, u in enumerate(rows) if u.tobytes() not in cache]
+        if new:
+            x = self.lo + rows[new] * (self.hi - self.lo)
+            series = [
+                np.nan_to_num(comparison_filter(self.model.series(x, rec.condition), rec))
+                for rec in self.recordings
+            ]
+            for j, i in enumerate(new):
+                cache[rows[i].tobytes()] = [s[j] for s in series]
+        return [
+            np.stack([cache[u.tobytes()][r] for u in rows]) for r in range(len(self.recordings))
+        ]
+
+    def blocks(self, preds: list[np.ndarray]) -> list[np.ndarray]:
+        """(n, T_c) scaled prediction per recording and channel, the gains' Jacobian too."""
+        return [
+            p[:, used[c], c] / sc[c]
+            for p, used, sc in zip(preds, self.samples, self.scales, strict=True)
+            for c in range(2)
+        ]
+
+    def residuals(self, preds: list[np.ndarray], g: np.ndarray) -> np.ndarray:
+        g = g if self.gains else np.ones(2 * len(self.recordings))
+        return np.concatenate(
+            [b * gc - t for b, gc, t in zip(self.blocks(preds), g, self.targets, strict=True)],
+            axis=1,
+        )
+
+    def steps(self, unit: np.ndarray) -> np.ndarray:
+        """(k + 1, k) the point and its forward-difference neighbours, stepping inwards at
+        the upper bound."""
+        h = np.where(unit + self.step <= 1.0, self.step, -self.step)
+        return np.vstack([unit, unit + np.diag(h)])
+
+    def jacobian_of(self, preds: list[np.ndarray], z: np.ndarray) -> np.ndarray:
+        """Jacobian at ``z`` from the predictions at :meth:`steps` of ``z``."""
+        k = self.k
+        h = np.diag(self.steps(z[:k])[1:] - z[:k])
+        r = self.residuals(preds, z[k:])
+        jac = np.zeros((r.shape[1], k + self.n_gain))
+        jac[:, :k] = ((r[1:] - r[0]) / h[:, None]).T
+        if self.gains:  # d r / d gain of a channel: its scaled prediction, in its rows only
+            row = 0
+            for j, b in enumerate(self.blocks(preds)):
+                jac[row : row + b.shape[1], k + j] = b[0]
+                row += b.shape[1]
+        return jac
+
+    def geometry_shifts(self, z: np.ndarray, draws: int, seed: int) -> np.ndarray:
+        """(draws, k) shift of the estimate ``z``, SI, that each draw of geometry error of
+        the recordings' stated accuracy causes: a :func:`gauss_newton_step` on the residuals
+        and Jacobian with the perturbed geometry (:func:`geometry_error_series`), less the
+        step on the measured geometry itself (zero at a converged interior optimum).
+        Empty where no recording states an accuracy or ``draws`` is 0."""
+        k = self.k
+        if draws <= 0 or not any(rec.condition.track_accuracy_mm for rec in self.recordings):
+            return np.zeros((0, k))
+        batch = self.steps(z[:k])
+        base = self.predictions(batch)
+        drawn = geometry_error_series(
+            self.model, self.recordings, self.lo + batch * (self.hi - self.lo), draws, seed
+        )
+
+        def shift(preds: list[np.ndarray]) -> np.ndarray:
+            jac = self.jacobian_of(preds, z)
+            return gauss_newton_step(jac, self.residuals(preds, z[k:])[0])[:k]
+
+        unmoved = shift(base)
+        return np.stack(
+            [
+                shift([b if d is None else d for b, d in zip(base, draw, strict=True)]) - unmoved
+                for draw in drawn
+            ]
+        ) * (self.hi - self.lo)
+
+
+def geometry_error_series(
+    model: ForceModel,
+    recordings: Sequence[Recording],
+    x_si: np.ndarray,
+    draws: int,
+    seed: int,
+) -> list[list[np.ndarray | None]]:
+    """Per draw and recording, the compared series (n, T, 2) of the parameter sets ``x_si``
+    (n, k) with the recording's measured geometry perturbed by a fresh draw of its stated
+    measurement error (:func:`~railsusp.vehicle.track.with_measurement_error`:
+    ``track_accuracy_mm`` RMS, down to ``wavelength_min_m``); None for recordings on exact
+    geometry. The perturbed geometries go to a temporary folder, as the simulator reads
+    geometry files."""
+    rng = np.random.default_rng(seed)
+    out: list[list[np.ndarray | None]] = [[None] * len(recordings) for _ in range(draws)]
+    with tempfile.TemporaryDirectory(prefix="railsusp-geometry-") as tmp:
+        for i, rec in enumerate(recordings):
+            cond = rec.condition
+            if not cond.track_accuracy_mm:
+                continue
+            irr = track.read_track_geometry(cond.track_geometry)
+            for d in range(draws):
+                path = Path(tmp) / f"{i}-{d}.parquet"
+                rms_m = cond.track_accuracy_mm * 1e-3
+                noisy = track.with_measurement_error(irr, rms_m, cond.wavelength_min_m, rng)
+                track.write_track_geometry(path, noisy)
+                series = model.series(x_si, cond.with_changes(track_geometry=str(path)))
+                out[d][i] = np.nan_to_num(comparison_filter(series, rec))
+    return out
+
+
+def gauss_newton_step(jac: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The Gauss-Newton step -(JᵀJ)⁻¹Jᵀr of least squares with Jacobian ``jac`` and
+    residuals ``r``; columns the residuals do not depend on stay put. At an estimate, with
+    the Jacobian and residuals of perturbed input data, it is the estimate's shift that the
+    perturbation causes (exact where the residuals are linear in the parameters), the
+    propagation of errors-in-variables used by SIMEX (Cook & Stefanski, JASA 89, 1994)."""
+    d = np.einsum("ij,ij->j", jac, jac)
+    active = d > 1e-12 * max(float(d.max()), 1e-300)
+    out = np.zeros(jac.shape[1])
+    out[active] = -np.linalg.lstsq(jac[:, active], r, rcond=None)[0]
+    return out
 
 
 def standard_errors(jac: np.ndarray, s2: float) -> np.ndarray:
@@ -260,6 +407,7 @@ def refine_estimate(
     screen: int = REFINE_SCREEN,
     starts: int = REFINE_STARTS,
     seed: int = 0,
+    geometry_draws: int = GEOMETRY_DRAWS,
 ) -> CalibrationResult:
     """Refine NSGA-II's estimate in place and return the result (its estimate is now the
     refined one); by default with the simulator itself.
@@ -268,7 +416,9 @@ def refine_estimate(
     wrong basin, so the starts are screened first: the Pareto set, the nominal parameters
     and ``screen`` Latin hypercube points are scored by :func:`aligned_cost` in one batch,
     :func:`refine` runs from the ``starts`` best, and the lowest final cost wins. Every
-    start's result is kept in ``result.refinement.starts``."""
+    start's result is kept in ``result.refinement.starts``. The winner's uncertainty then
+    takes in the geometry's stated measurement error (``geometry_draws`` draws; see
+    :meth:`OutputError.geometry_shifts`)."""
     from scipy.stats import qmc
 
     params = result.parameters
@@ -284,11 +434,20 @@ def refine_estimate(
     best = np.argsort(costs, kind="stable")[: max(1, starts)]
     runs = [
         refine(
-            model, recordings, params, candidates[i], max_evaluations=max_evaluations, gains=gains
+            model,
+            recordings,
+            params,
+            candidates[i],
+            max_evaluations=max_evaluations,
+            gains=gains,
+            geometry_draws=0,
         )
         for i in best
     ]
     winner = min(runs, key=lambda r: r.cost)
+    problem = OutputError(model, recordings, params, gains=gains)
+    z = np.concatenate([(winner.x_si - lo) / (hi - lo), list(winner.channel_gains.values())])
+    winner.geometry_shifts_si = problem.geometry_shifts(z, geometry_draws, seed)
     winner.starts = [
         {
             "start_display": display_values(params, r.start_si),

@@ -215,7 +215,13 @@ def build_report(run: str | Path) -> list[Path]:
                 "NSGA-II's choice (nsga_estimate) was refined by output-error least squares "
                 "with the simulator on the recordings' measured track: time-aligned cost "
                 f"{ref['cost_start']:.4g} -> {ref['cost']:.4g} in {ref['n_evaluations']} "
-                "evaluations; standard errors assume white residuals (optimistic)."
+                "evaluations; standard errors assume white residuals (optimistic)"
+                + (
+                    f" and include the track geometry's stated measurement error "
+                    f"(geometry_error_pct_range, from {ref['geometry_draws']} draws of it)."
+                    if ref.get("geometry_draws")
+                    else "."
+                )
             )
         bound = read_json(est / "estimate.json").get("cramer_rao_pct_range") or {}
         if bound:

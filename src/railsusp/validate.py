@@ -178,7 +178,11 @@ def _recovery(
         reasons = []
         if refined:  # the refined estimate's own uncertainty, not NSGA-II's spread
             if std_err.get(p, 0.0) > STANDARD_ERROR_LIMIT:
-                reasons.append(f"standard error {std_err[p]:.1f} % of range")
+                geo = (refined.get("geometry_error_pct_range") or {}).get(p, 0.0)
+                reasons.append(
+                    f"standard error {std_err[p]:.1f} % of range"
+                    + (f" ({geo:.1f} % from track-geometry error)" if geo else "")
+                )
         elif spread.get(p, 0.0) > PARETO_SPREAD_LIMIT:
             reasons.append(f"Pareto spread {spread[p]:.0f} % of range")
         if p in max_st and max_st[p] < SOBOL_ST_LIMIT:

@@ -211,6 +211,13 @@ def estimate(
         int, typer.Option(help="Latin hypercube points screened for refinement starts")
     ] = 64,
     refine_starts: Annotated[int, typer.Option(help="best screened starts refined")] = 2,
+    geometry_draws: Annotated[
+        int,
+        typer.Option(
+            help="draws of the recordings' stated track-geometry error propagated into the "
+            "refined estimate's standard errors (0: sensor noise only)"
+        ),
+    ] = 8,
 ) -> None:
     """NSGA-II estimate of the key parameters from measured recordings (Tables 3-5, Figs 8-9)."""
     from railsusp.estimate import (
@@ -254,6 +261,7 @@ def estimate(
                 ("--refine-evaluations", refine_evaluations, 1, 500),
                 ("--refine-screen", refine_screen, 0, 10_000),
                 ("--refine-starts", refine_starts, 1, 20),
+                ("--geometry-draws", geometry_draws, 0, 100),
             ):
                 if not low <= value <= high:
                     raise RailsuspInputError(f"{name} {value}: accepted {low} to {high}")
@@ -265,6 +273,7 @@ def estimate(
                     screen=refine_screen,
                     starts=refine_starts,
                     seed=seed,
+                    geometry_draws=geometry_draws,
                 )
         res.save(
             out,
