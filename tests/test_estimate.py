@@ -504,6 +504,25 @@ def test_geometry_error_propagates_into_the_refined_estimate(tmp_path, monkeypat
     d = r.to_dict()
     assert d["geometry_draws"] == 4
     assert d["standard_error_pct_range"]["X13"] > d["noise_standard_error_pct_range"]["X13"]
+    # through refine_estimate: the estimate is the refined point less the bias estimate
+    from railsusp.refine import refine_estimate
+
+    res = estimate(
+        TrackForces(), [rec], PARAMS, NSGAConfig(pop_size=8, n_gen=2, statistic="aligned")
+    )
+    refine_estimate(res, [rec], TrackForces(), gains=False, screen=4, starts=1, geometry_draws=4)
+    ref = res.refinement
+    assert ref.geometry_bias_removed and ref.geometry_shifts_si.shape == (4, 2)
+    np.testing.assert_allclose(ref.geometry_bias_si, ref.geometry_shifts_si.mean(axis=0))
+    np.testing.assert_allclose(res.chosen_x, np.clip(ref.x_si - ref.geometry_bias_si, lo, hi))
+    saved = json.loads((res.save(tmp_path / "est") / "estimate.json").read_text())
+    assert (
+        saved["refinement"]["geometry_bias_removed"] and saved["estimate_display"] == res.estimate
+    )
+    assert saved["refinement"]["refined_display"]["X13"] == pytest.approx(ref.x_si[0] / 1e6)
+    assert "geometry_error_pct_range" in res.table().columns
+    ref.geometry_bias_removed = False
+    np.testing.assert_array_equal(res.chosen_x, ref.x_si)
     # the same draws, refitted in full over the same band: the propagated shifts match, as
     # the residuals are linear in the parameters
     band = estimate_module.comparison_band_hz(rec)

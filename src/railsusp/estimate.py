@@ -614,7 +614,7 @@ class CalibrationResult:
     @property
     def chosen_x(self) -> np.ndarray:
         """The estimate, SI: the refined one when refined, else NSGA-II's choice."""
-        return self.refinement.x_si if self.refinement else self.pareto_x[self.chosen]
+        return self.refinement.estimate_si if self.refinement else self.pareto_x[self.chosen]
 
     @property
     def estimate(self) -> dict[str, float]:

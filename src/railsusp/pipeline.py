@@ -124,6 +124,11 @@ class EstimateSection(_Cfg):
         description="draws of the recordings' stated track-geometry error propagated into "
         "the refined estimate's standard errors",
     )
+    remove_geometry_bias: bool = Field(
+        True,
+        description="take the geometry-error bias that the draws estimate (first SIMEX "
+        "step) off the refined estimate",
+    )
 
     @field_validator("statistic")
     @classmethod
@@ -425,6 +430,7 @@ def _stage_runners(
                 starts=e.refine_starts,
                 seed=e.seed,
                 geometry_draws=e.geometry_draws,
+                remove_geometry_bias=e.remove_geometry_bias,
             )
         res.save(
             out / "estimate",

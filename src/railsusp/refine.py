@@ -69,6 +69,17 @@ class Refinement:
     #: (draws, k) first-order shift of the estimate, SI, that each draw of geometry error of
     #: the stated accuracy causes (:func:`gauss_newton_step`); empty on exact geometry
     geometry_shifts_si: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    #: whether the estimate is the refined point less :attr:`geometry_bias_si`
+    geometry_bias_removed: bool = False
+
+    @property
+    def estimate_si(self) -> np.ndarray:
+        """(k,) the estimate, SI: the refined point, less the geometry bias estimate where
+        it is removed (kept within the ranges)."""
+        if not self.geometry_bias_removed:
+            return self.x_si
+        lo, hi = bounds(self.parameters)
+        return np.clip(self.x_si - self.geometry_bias_si, lo, hi)
 
     @property
     def geometry_error_si(self) -> np.ndarray:
@@ -82,8 +93,9 @@ class Refinement:
     def geometry_bias_si(self) -> np.ndarray:
         """(k,) mean shift of the estimate over the geometry-error draws, SI: the first
         SIMEX step (Cook & Stefanski, 1994). Doubling the error variance moves the estimate
-        by about the bias the error already caused, so estimate minus this approximates
-        the estimate on exact geometry (zeros if none)."""
+        by about the bias the error already caused, so the refined point less this
+        approximates the estimate on exact geometry (linear extrapolation in the error
+        variance; zeros if none)."""
         if self.geometry_shifts_si.size == 0:
             return np.zeros(len(self.parameters))
         return self.geometry_shifts_si.mean(axis=0)
@@ -107,6 +119,7 @@ class Refinement:
             "reflective) on time-aligned series of recordings on measured track",
             "start_display": display_values(self.parameters, self.start_si),
             "refined_display": display_values(self.parameters, self.x_si),
+            "geometry_bias_removed": self.geometry_bias_removed,
             "cost_start": self.cost_start,
             "cost": self.cost,
             "n_evaluations": self.n_evaluations,
@@ -408,6 +421,7 @@ def refine_estimate(
     starts: int = REFINE_STARTS,
     seed: int = 0,
     geometry_draws: int = GEOMETRY_DRAWS,
+    remove_geometry_bias: bool = True,
 ) -> CalibrationResult:
     """Refine NSGA-II's estimate in place and return the result (its estimate is now the
     refined one); by default with the simulator itself.
@@ -418,7 +432,10 @@ def refine_estimate(
     :func:`refine` runs from the ``starts`` best, and the lowest final cost wins. Every
     start's result is kept in ``result.refinement.starts``. The winner's uncertainty then
     takes in the geometry's stated measurement error (``geometry_draws`` draws; see
-    :meth:`OutputError.geometry_shifts`)."""
+    :meth:`OutputError.geometry_shifts`), and with ``remove_geometry_bias`` the estimate is
+    the refined point less the bias those draws estimate (:attr:`Refinement.geometry_bias_si`).
+    The standard errors stay those of the refined point (the removal is itself uncertain by
+    about its size)."""
     from scipy.stats import qmc
 
     params = result.parameters
@@ -448,6 +465,7 @@ def refine_estimate(
     problem = OutputError(model, recordings, params, gains=gains)
     z = np.concatenate([(winner.x_si - lo) / (hi - lo), list(winner.channel_gains.values())])
     winner.geometry_shifts_si = problem.geometry_shifts(z, geometry_draws, seed)
+    winner.geometry_bias_removed = remove_geometry_bias and winner.geometry_shifts_si.size > 0
     winner.starts = [
         {
             "start_display": display_values(params, r.start_si),

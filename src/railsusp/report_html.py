@@ -222,6 +222,12 @@ def build_report(run: str | Path) -> list[Path]:
                     if ref.get("geometry_draws")
                     else "."
                 )
+                + (
+                    " The estimate is the refined point less the bias those draws estimate "
+                    "(geometry_bias_pct_range, the first SIMEX step)."
+                    if ref.get("geometry_bias_removed")
+                    else ""
+                )
             )
         bound = read_json(est / "estimate.json").get("cramer_rao_pct_range") or {}
         if bound:

@@ -218,6 +218,14 @@ def estimate(
             "refined estimate's standard errors (0: sensor noise only)"
         ),
     ] = 8,
+    remove_geometry_bias: Annotated[
+        bool,
+        typer.Option(
+            "--remove-geometry-bias/--keep-geometry-bias",
+            help="take the bias that the geometry-error draws estimate (first SIMEX step) "
+            "off the refined estimate",
+        ),
+    ] = True,
 ) -> None:
     """NSGA-II estimate of the key parameters from measured recordings (Tables 3-5, Figs 8-9)."""
     from railsusp.estimate import (
@@ -274,6 +282,7 @@ def estimate(
                     starts=refine_starts,
                     seed=seed,
                     geometry_draws=geometry_draws,
+                    remove_geometry_bias=remove_geometry_bias,
                 )
         res.save(
             out,
