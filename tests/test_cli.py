@@ -284,12 +284,17 @@ def test_measured_track_flow(tmp_path):
         app,
         ["estimate", "--measured", str(field), "--surrogate", str(run / "surrogates" / "gp-stats"),
          "--out", str(est), "--pop-size", "8", "--n-gen", "3", "--refine",
-         "--refine-evaluations", "3", "--refine-screen", "4", "--refine-starts", "1"],
+         "--refine-evaluations", "3", "--refine-screen", "4", "--refine-starts", "1",
+         "--geometry-draws", "2", "--keep-geometry-bias"],
     )  # fmt: skip
     assert result.exit_code == 0, result.output
     doc = json.loads((est / "estimate.json").read_text())
     assert doc["refinement"]["n_evaluations"] <= 3 + 1
-    assert doc["estimate_display"] == doc["refinement"]["refined_display"]
+    # the recordings state 0.1 mm geometry accuracy: its error is in the standard errors
+    ref = doc["refinement"]
+    assert ref["geometry_draws"] == 2 and not ref["geometry_bias_removed"]
+    assert ref["geometry_error_pct_range"]["X13"] > 0
+    assert doc["estimate_display"] == ref["refined_display"]
     assert "standard_error_pct_range" in result.output or "standard" in result.output
     from railsusp.validate import validate
 
@@ -301,6 +306,12 @@ def test_measured_track_flow(tmp_path):
          "--refine-evaluations", "0", "--refine", "--n-gen", "1", "--pop-size", "4"],
     )  # fmt: skip
     assert bad.exit_code == 2 and "--refine-evaluations 0: accepted 1 to 500" in bad.output
+    bad = runner.invoke(
+        app,
+        ["estimate", "--measured", str(field), "--simulator", "--out", str(est),
+         "--geometry-draws", "101", "--refine", "--n-gen", "1", "--pop-size", "4"],
+    )  # fmt: skip
+    assert bad.exit_code == 2 and "--geometry-draws 101: accepted 0 to 100" in bad.output
 
 
 def test_align_track_finds_and_writes_a_misregistration(tmp_path):
