@@ -507,10 +507,22 @@ def test_geometry_error_propagates_into_the_refined_estimate(tmp_path, monkeypat
     # through refine_estimate: the estimate is the refined point less the bias estimate
     from railsusp.refine import refine_estimate
 
+    class Counting(TrackForces):  # counts the simulations on the measured geometry
+        def __init__(self):
+            self.asked: list[bytes] = []
+
+        def series(self, x_si, condition):
+            if condition.track_geometry == str(path):
+                self.asked += [row.tobytes() for row in np.atleast_2d(x_si)]
+            return super().series(x_si, condition)
+
     res = estimate(
         TrackForces(), [rec], PARAMS, NSGAConfig(pop_size=8, n_gen=2, statistic="aligned")
     )
-    refine_estimate(res, [rec], TrackForces(), gains=False, screen=4, starts=1, geometry_draws=4)
+    plain_count, counting = Counting(), Counting()
+    refine_estimate(res, [rec], plain_count, gains=False, screen=4, starts=1, geometry_draws=0)
+    refine_estimate(res, [rec], counting, gains=False, screen=4, starts=1, geometry_draws=4)
+    assert counting.asked == plain_count.asked  # the draws reuse the estimate's own batch
     ref = res.refinement
     assert ref.geometry_bias_removed and ref.geometry_shifts_si.shape == (4, 2)
     np.testing.assert_allclose(ref.geometry_bias_si, ref.geometry_shifts_si.mean(axis=0))

@@ -71,6 +71,10 @@ class Refinement:
     geometry_shifts_si: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     #: whether the estimate is the refined point less :attr:`geometry_bias_si`
     geometry_bias_removed: bool = False
+    #: the least-squares problem solved, with its cache of simulated series, and its
+    #: solution (unit parameters, then gains), for more work at the estimate (not saved)
+    problem: OutputError | None = field(default=None, repr=False, compare=False)
+    solution: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def estimate_si(self) -> np.ndarray:
@@ -220,6 +224,8 @@ def refine(
         if gains
         else {},
         geometry_shifts_si=problem.geometry_shifts(sol.x, geometry_draws, seed),
+        problem=problem,
+        solution=sol.x,
     )
 
 
@@ -462,9 +468,10 @@ def refine_estimate(
         for i in best
     ]
     winner = min(runs, key=lambda r: r.cost)
-    problem = OutputError(model, recordings, params, gains=gains)
-    z = np.concatenate([(winner.x_si - lo) / (hi - lo), list(winner.channel_gains.values())])
-    winner.geometry_shifts_si = problem.geometry_shifts(z, geometry_draws, seed)
+    assert winner.problem is not None and winner.solution is not None
+    winner.geometry_shifts_si = winner.problem.geometry_shifts(
+        winner.solution, geometry_draws, seed
+    )
     winner.geometry_bias_removed = remove_geometry_bias and winner.geometry_shifts_si.size > 0
     winner.starts = [
         {
