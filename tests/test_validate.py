@@ -84,6 +84,13 @@ def test_refined_estimate_flags_by_its_standard_error(case, tmp_path):
     assert rec.loc["X17", "why_not"] == (
         "standard error 12.0 % of range (11.0 % from track-geometry error)"
     )
+    # a stop never reached: the forces do not depend on the parameter at all
+    doc["refinement"]["standard_error_pct_range"]["X17"] = float("inf")
+    (refined / "estimate.json").write_text(json.dumps(doc))
+    rec = validate(refined, truth=field / "truth.json").recovery.set_index("parameter")
+    assert rec.loc["X17", "why_not"] == (
+        "the recorded forces do not depend on it (infinite standard error)"
+    )
     # a Cramér-Rao bound of the statistics flags an estimate from statistics only; the
     # refined one used the time-aligned series, which the bound does not describe
     doc["cramer_rao_pct_range"] = {"X13": 30.0, "X17": 2.0}

@@ -177,7 +177,9 @@ def _recovery(
         t, e = truth[p], chosen[p]
         reasons = []
         if refined:  # the refined estimate's own uncertainty, not NSGA-II's spread
-            if std_err.get(p, 0.0) > STANDARD_ERROR_LIMIT:
+            if std_err.get(p, 0.0) == float("inf"):  # a zero Jacobian column
+                reasons.append("the recorded forces do not depend on it (infinite standard error)")
+            elif std_err.get(p, 0.0) > STANDARD_ERROR_LIMIT:
                 geo = (refined.get("geometry_error_pct_range") or {}).get(p, 0.0)
                 reasons.append(
                     f"standard error {std_err[p]:.1f} % of range"
