@@ -300,18 +300,16 @@ def test_measured_track_flow(tmp_path):
 
     v = validate(est, truth=field / "truth.json", statistic="mean+aligned")
     assert set(v.forces.statistic) == {"mean", "aligned"}
-    bad = runner.invoke(
-        app,
-        ["estimate", "--measured", str(field), "--simulator", "--out", str(est),
-         "--refine-evaluations", "0", "--refine", "--n-gen", "1", "--pop-size", "4"],
-    )  # fmt: skip
-    assert bad.exit_code == 2 and "--refine-evaluations 0: accepted 1 to 500" in bad.output
-    bad = runner.invoke(
-        app,
-        ["estimate", "--measured", str(field), "--simulator", "--out", str(est),
-         "--geometry-draws", "101", "--refine", "--n-gen", "1", "--pop-size", "4"],
-    )  # fmt: skip
-    assert bad.exit_code == 2 and "--geometry-draws 101: accepted 0 to 100" in bad.output
+    for option, value, accepted in (
+        ("--refine-evaluations", "0", "1 to 500"),
+        ("--geometry-draws", "101", "0 to 100"),
+    ):
+        bad = runner.invoke(
+            app,
+            ["estimate", "--measured", str(field), "--simulator", "--out", str(est),
+             option, value, "--refine", "--n-gen", "1", "--pop-size", "4"],
+        )  # fmt: skip
+        assert bad.exit_code == 2 and f"{option} {value}: accepted {accepted}" in bad.output
 
 
 def test_align_track_finds_and_writes_a_misregistration(tmp_path):

@@ -366,9 +366,9 @@ def geometry_error_series(
             if not cond.track_accuracy_mm:
                 continue
             irr = track.read_track_geometry(cond.track_geometry)
+            rms_m = cond.track_accuracy_mm * 1e-3
             for d in range(draws):
                 path = Path(tmp) / f"{i}-{d}.parquet"
-                rms_m = cond.track_accuracy_mm * 1e-3
                 noisy = track.with_measurement_error(irr, rms_m, cond.wavelength_min_m, rng)
                 track.write_track_geometry(path, noisy)
                 series = model.series(x_si, cond.with_changes(track_geometry=str(path)))
