@@ -157,12 +157,12 @@ def test_steady_flanging_steps_are_not_split_and_forces_do_not_change():
 def test_every_main_suspension_parameter_changes_a_force_statistic():
     """No dead parameter: X11..X20 at -20 % / +20 % change some statistic in some condition.
 
-    Direction check in the curve: a stiffer primary lateral pad (X14) raises the leading
-    outer wheel's mean lateral force. The pad is the compliant path between the leading
-    wheelset and the side frames: a softer pad lets the side frames and the trailing
-    wheelset shift outwards relative to the flanging leading wheelset, so the trailing
-    wheelset takes a larger share of the bogie's lateral load (the sum is fixed by the cant
-    deficiency); a stiffer pad concentrates it on the leading wheelset.
+    The primary lateral pad (X14) in the curve: with the friction wedges (2026-11-24) the
+    leading outer wheel's mean lateral force hardly depends on it (-0.4 % over X14's whole
+    range on 20 s; before, when the bolster moved freely on its nests, a stiffer pad
+    concentrated the bogie's lateral load on the leading wheelset). The wedges hold bolster
+    and side frames together, so the bogie shares its lateral load through the warp and
+    the pads alike. Checked: the effect stays below 1 % for +-20 %.
     """
     sets = [ParameterSet.nominal()]
     for sym in MAIN_SUSPENSION:
@@ -184,10 +184,13 @@ def test_every_main_suspension_parameter_changes_a_force_statistic():
             x14_curve = stats["Y_mean"][[1 + 2 * i14, 0, 2 + 2 * i14]]
     # the simulator is deterministic (identical inputs give bitwise identical output), so any
     # change is the parameter's. X20 is weak by physics: at 1 GN/m in series with a 14 MN/m pad a
-    # 20 % change moves the combined stiffness by 0.3 %.
+    # 20 % change moves the combined stiffness by 0.3 %. X12, the gib clearance, is dead here
+    # by physics too: the wedges' column friction holds the bolster to the side frames
+    # laterally, far inside a 9.6 mm clearance, on these runs (it acts only once the stop
+    # closes; the estimate's validator reports it as not identified then).
     dead = [s for s, c in zip(MAIN_SUSPENSION, change, strict=True) if c < 1e-4]
-    assert not dead, dict(zip(MAIN_SUSPENSION, change, strict=True))
-    assert x14_curve[0] < x14_curve[1] < x14_curve[2]
+    assert dead in ([], ["X12"]), dict(zip(MAIN_SUSPENSION, change, strict=True))
+    assert np.abs(x14_curve / x14_curve[1] - 1).max() < 0.01, x14_curve
 
 
 def test_same_inputs_give_identical_output():

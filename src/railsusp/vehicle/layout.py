@@ -9,14 +9,16 @@ right-handed: roll about x, pitch about y, yaw about z):
 * side frame j = 2k + (0 left, 1 right): x, y, z, pitch, yaw (5 each)
 * wheelset w = 0..3 front to rear: y, z, roll, yaw (4 each)
 
-Auxiliary first-order states (6): the friction force of the wedge damper of each spring nest
-(4, index 2k + side) and the car-body/bolster yaw friction moment of each bogie (2).
+Auxiliary first-order states (16): per spring nest n = 2k + side, the friction forces of its
+wedge pair on the side-frame columns, vertical and lateral, and on the bolster slope faces,
+longitudinal (warp) (3 each, 12); the car-body/bolster yaw friction moment of each bogie (2);
+the centre-bowl roll friction moment of each bogie (2).
 """
 
 from __future__ import annotations
 
 N_DOF = 49
-N_AUX = 6
+N_AUX = 16
 N_STATE = 2 * N_DOF + N_AUX
 
 # car body
@@ -28,8 +30,9 @@ SF0 = 13
 # wheelset w: base + (0 y, 1 z, 2 roll, 3 yaw)
 WS0 = 33
 # auxiliary states (offset into the full state vector)
-AUX_WEDGE = 2 * N_DOF  # 4 wedge friction forces, N
-AUX_YAWFR = 2 * N_DOF + 4  # 2 body-bolster friction moments, N m
+AUX_WEDGE = 2 * N_DOF  # nest n: + 3n vertical, + 3n + 1 lateral, + 3n + 2 longitudinal, N
+AUX_YAWFR = 2 * N_DOF + 12  # 2 body-bolster yaw friction moments, N m
+AUX_ROLLFR = 2 * N_DOF + 14  # 2 centre-bowl roll friction moments, N m
 
 # ---- constants vector (wagon + condition), K[...] ----
 _K_NAMES = (
@@ -39,8 +42,14 @@ _K_NAMES = (
     # geometry
     "l_c", "a", "b1", "b2", "r0", "h_cg_c", "h_cp", "h_cg_b", "h_k", "x_k", "R_cp",
     # fixed elements
-    "c_px", "c_py", "c_pz", "k_sz", "c_sx", "mu_wedge", "k_wedge", "k_gib",
-    "k_cpz", "k_cpy", "mu_cp", "k_yaw", "k_sb", "P_sb", "mu_sb",
+    "c_px", "c_py", "c_pz", "k_sz", "c_sx", "k_gib",
+    # friction wedges, per nest: tan(wedge angle), cos, column and slope friction, control
+    # springs (all wedges of the nest) and their static force, stick stiffness and damping,
+    # X18 nominal (the wedge normal forces scale with X18 / X18 nominal)
+    "tan_wedge", "cos_wedge", "mu_column", "mu_slope", "k_ctrl", "F0_ctrl",
+    "k_wedge", "c_wedge", "x18_ref",
+    "k_cpz", "k_cpy", "mu_cp", "k_yaw", "c_yaw", "k_roll", "c_roll",
+    "k_sb", "c_sb", "P_sb", "mu_sb", "sb_travel", "k_sb_stop",
     "k_rz", "k_ry", "c_rz", "c_ry",
     # static preloads, N
     "F0_cp", "F0_nest", "F0_prim", "Q0", "Z0_L", "Z0_R", "N_ref",

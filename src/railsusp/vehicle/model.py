@@ -11,15 +11,19 @@ Force elements (the ten sampled parameters in brackets):
 
 * primary, per axle box: rubber pad shear in series with the adapter seat, longitudinal
   [X13 + X20] and lateral [X14 + X20]; vertical compression [X15]; linear viscous loss.
-* secondary, per spring nest: vertical spring with variable-friction wedge (Coulomb slider
-  in series with a stick stiffness, limit = wedge ratio x nest force), longitudinal shear
-  [X16], lateral shear [X17] with equivalent viscous wedge damping [X18] and a bolster gib
-  stop beyond the clearance [X12].
+* secondary, per spring nest: vertical springs (control springs included) and a pair of
+  variable-damping friction wedges (:mod:`railsusp.vehicle.suspension`): column normal force
+  F_s / (tan a -+ mu) from the control springs' force, scaled by X18 / X18 nominal (wedge
+  rise and wear); Coulomb friction on the column face against vertical and lateral slip
+  together (one friction circle), on the slope faces against longitudinal slip (warp);
+  longitudinal shear [X16], lateral shear [X17] and a bolster gib stop beyond the clearance
+  [X12].
 * cross-bracing: two diagonal bars between the side frames, axial stiffness [X19], pin-hole
   spans X9 (longitudinal) and X10 (lateral): warp (parallelogram) stiffness.
-* car body to bolster: centre plate (vertical and lateral springs, lift-off), two
-  constant-contact side bearers at +- X11/2 [X11] (roll stiffness, lift-off), body-bolster
-  yaw friction (centre plate and side bearers, slider with stick stiffness).
+* car body to bolster: centre bowl as a ring of compression-only contact points (vertical
+  stiffness, roll and pitch moments up to edge lift-off), lateral spring (bowl rim), yaw and
+  roll friction; two constant-contact side bearers at +- X11/2 [X11] with lift-off and a
+  solid stop after their travel; body-bolster yaw friction of bowl and side bearers.
 * wheel-rail contact per wheel: contact-function tables (rolling radius, contact angle,
   contact lateral position, rigid-contact rise, Hertz constant, Kalker coefficients) of the
   wheel's lateral shift relative to its rail; Hertz normal force in series with the rail
@@ -38,6 +42,13 @@ import numba as nb
 import numpy as np
 
 from railsusp.vehicle import layout as L
+from railsusp.vehicle.suspension import (
+    bowl_ring_forces,
+    damped_slider,
+    friction_wedges,
+    gap_spring,
+    series_stiffness,
+)
 
 _K = L.K
 
@@ -50,9 +61,13 @@ I_LC, I_A, I_B1, I_B2, I_R0 = _K["l_c"], _K["a"], _K["b1"], _K["b2"], _K["r0"]
 I_HCG, I_HCP, I_HB, I_HK, I_XK, I_RCP = (_K["h_cg_c"], _K["h_cp"], _K["h_cg_b"], _K["h_k"],
                                         _K["x_k"], _K["R_cp"])  # fmt: skip
 I_CPX, I_CPY, I_CPZ, I_KSZ, I_CSX = _K["c_px"], _K["c_py"], _K["c_pz"], _K["k_sz"], _K["c_sx"]
-I_MUW, I_KW, I_KGIB = _K["mu_wedge"], _K["k_wedge"], _K["k_gib"]
+I_KW, I_CW, I_KGIB = _K["k_wedge"], _K["c_wedge"], _K["k_gib"]
+I_TANW, I_COSW, I_MUC, I_MUS = _K["tan_wedge"], _K["cos_wedge"], _K["mu_column"], _K["mu_slope"]
+I_KCTRL, I_F0CTRL, I_X18REF = _K["k_ctrl"], _K["F0_ctrl"], _K["x18_ref"]
 I_KCPZ, I_KCPY, I_MUCP, I_KYAW = _K["k_cpz"], _K["k_cpy"], _K["mu_cp"], _K["k_yaw"]
+I_CYAW, I_KROLL, I_CROLL = _K["c_yaw"], _K["k_roll"], _K["c_roll"]
 I_KSB, I_PSB, I_MUSB, I_KRZ, I_KRY = _K["k_sb"], _K["P_sb"], _K["mu_sb"], _K["k_rz"], _K["k_ry"]
+I_SBTRAVEL, I_KSBSTOP, I_CSB = _K["sb_travel"], _K["k_sb_stop"], _K["c_sb"]
 I_CRZ, I_CRY = _K["c_rz"], _K["c_ry"]
 I_F0CP, I_F0N, I_F0P = _K["F0_cp"], _K["F0_nest"], _K["F0_prim"]
 I_Z0L, I_Z0R = _K["Z0_L"], _K["Z0_R"]
@@ -65,7 +80,7 @@ I_NPTS = _K["contact_points"]
 
 BOL0, SF0, WS0 = L.BOL0, L.SF0, L.WS0
 NQ = L.N_DOF
-AUXW, AUXY = L.AUX_WEDGE, L.AUX_YAWFR
+AUXW, AUXY, AUXR = L.AUX_WEDGE, L.AUX_YAWFR, L.AUX_ROLLFR
 NCTW = L.CT_PER_WHEEL
 
 
@@ -115,47 +130,6 @@ def add_frame_forces(acc, i_lat, i_vert, m, kappa, cant, V, gn):
     s = math.sin(cant)
     acc[i_lat] += -m * (V * V * kappa * c + gn * s)
     acc[i_vert] += -m * (gn * c - V * V * kappa * s) + m * gn
-
-
-@nb.njit(cache=True, inline="always")
-def series_stiffness(k1, k2):
-    """Stiffness of two springs in series, N/m."""
-    return k1 * k2 / (k1 + k2)
-
-
-@nb.njit(cache=True, inline="always")
-def gap_spring(d, clearance, k):
-    """Force of a symmetric stop with free play: zero inside +-clearance, k beyond (N)."""
-    if d > clearance:
-        return k * (d - clearance)
-    if d < -clearance:
-        return k * (d + clearance)
-    return 0.0
-
-
-#: relaxation time of a friction slider state pushed beyond its limit, s
-SLIDER_RELAXATION = 2.0e-3
-
-
-@nb.njit(cache=True, inline="always")
-def coulomb_slider(state, limit, stick_rate, dxdt, idx):
-    """Friction force of a Coulomb slider in series with a stick stiffness (elasto-plastic).
-
-    While sticking the force grows at ``stick_rate`` (stiffness x relative velocity); at the
-    limit it slides (rate 0 in the direction of motion). The returned force is clamped to
-    +-limit; a state beyond a (shrinking) limit relaxes back within SLIDER_RELAXATION.
-    """
-    f = state
-    if f > limit:
-        f = limit
-    elif f < -limit:
-        f = -limit
-    if (f >= limit and stick_rate > 0.0) or (f <= -limit and stick_rate < 0.0):
-        rate = 0.0
-    else:
-        rate = stick_rate
-    dxdt[idx] = rate + (f - state) / SLIDER_RELAXATION
-    return f
 
 
 @nb.njit(cache=True, inline="always")
@@ -444,7 +418,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
     k_pz = P[14]  # X15
     k_sx = P[15]  # X16
     k_sy = P[16]  # X17
-    c_sy = P[17]  # X18
+    wedge_scale = P[17] / K[I_X18REF]  # X18: wedge normal forces relative to nominal
     k_bar = P[18]  # X19
     h9 = 0.5 * P[8]
     bar_len = math.sqrt(P[8] * P[8] + P[9] * P[9])
@@ -488,19 +462,30 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         acc[L.CB_Y] -= f_cpy
         acc[L.CB_ROLL] -= hcp * f_cpy
         acc[L.CB_YAW] -= d * f_cpy
-        # centre plate, vertical (lift-off possible)
+        # centre bowl: ring of contact points with edge lift-off (vertical, roll, pitch) and
+        # roll friction
         z_car = q[L.CB_Z] - d * q[L.CB_PITCH]
-        n_cp = K[I_F0CP] + K[I_KCPZ] * (q[ib + 1] - z_car)
-        if n_cp < 0.0:
-            n_cp = 0.0
+        roll_rate_b_c = v[ib + 2] - v[L.CB_ROLL] - track_rate(trk, L.TR_CANT, s_c, s0, ds, V)
+        roll_rate_b_c += track_rate(trk, L.TR_CANT, s_b, s0, ds, V)
+        n_cp, m_roll, m_pitch, m_rfr = bowl_ring_forces(
+            q[ib + 1] - z_car, roll_c_b - q[ib + 2], q[L.CB_PITCH], -roll_rate_b_c, K[I_RCP],
+            K[I_KCPZ], K[I_F0CP], K[I_MUCP], K[I_KROLL], K[I_CROLL], x[AUXR + k], dxdt, AUXR + k,
+        )  # fmt: skip
         acc[L.CB_Z] += n_cp - K[I_F0CP]
-        acc[L.CB_PITCH] += -d * (n_cp - K[I_F0CP])
+        acc[L.CB_PITCH] += -d * (n_cp - K[I_F0CP]) + m_pitch
+        acc[L.CB_ROLL] += m_roll + m_rfr
         acc[ib + 1] -= n_cp - K[I_F0CP]
-        # side bearers at +- X11/2 (constant contact, lift-off possible) [X11]
+        acc[ib + 2] -= m_roll + m_rfr
+        # side bearers at +- X11/2 (constant contact elastomer with its loss, lift-off, solid
+        # stop after the travel)
         n_sb_sum = 0.0
+        dz_rate = v[ib + 1] - v[L.CB_Z] + d * v[L.CB_PITCH]
         for side in (1.0, -1.0):
             comp = (q[ib + 1] + side * sb_half * q[ib + 2]) - (z_car + side * sb_half * roll_c_b)
-            f_sb = K[I_PSB] + K[I_KSB] * comp
+            comp_rate = dz_rate + side * sb_half * roll_rate_b_c
+            f_sb = K[I_PSB] + K[I_KSB] * comp + K[I_CSB] * comp_rate
+            if comp > K[I_SBTRAVEL]:
+                f_sb += K[I_KSBSTOP] * (comp - K[I_SBTRAVEL])
             if f_sb < 0.0:
                 f_sb = 0.0
             n_sb_sum += f_sb
@@ -510,10 +495,10 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             acc[L.CB_PITCH] += -d * df
             acc[ib + 1] -= df
             acc[ib + 2] -= side * sb_half * f_sb
-        # body-bolster yaw friction (centre plate + side bearers): elasto-plastic slider
+        # body-bolster yaw friction (centre bowl + side bearers): elasto-plastic slider
         m_lim = K[I_MUCP] * n_cp * (2.0 / 3.0) * K[I_RCP] + K[I_MUSB] * n_sb_sum * sb_half
         rel_rate = v[L.CB_YAW] + V * (kap_c - kap_b) - v[ib + 3]
-        m_fr = coulomb_slider(x[AUXY + k], m_lim, K[I_KYAW] * rel_rate, dxdt, AUXY + k)
+        m_fr = damped_slider(x[AUXY + k], m_lim, K[I_KYAW], K[I_CYAW], rel_rate, dxdt, AUXY + k)
         acc[L.CB_YAW] -= m_fr
         acc[ib + 3] += m_fr
 
@@ -522,25 +507,30 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             side = 1.0 if sidx == 0 else -1.0
             jf = SF0 + 5 * (2 * k + sidx)
             add_frame_forces(acc, jf + 1, jf + 2, K[I_MF], kap_b, cant_b, V, gn)
-            # vertical nest spring + variable-friction wedge
+            # vertical nest springs + friction wedge pair: column friction (vertical and
+            # lateral, one friction circle) and slope friction (longitudinal, warp)
             comp = q[jf + 2] - (q[ib + 1] + side * b2 * q[ib + 2])
             comp_rate = v[jf + 2] - (v[ib + 1] + side * b2 * v[ib + 2])
             f_spring = K[I_F0N] + K[I_KSZ] * comp
-            w_lim = K[I_MUW] * (f_spring if f_spring > 0.0 else 0.0)
-            ia = AUXW + 2 * k + sidx
-            f_w = coulomb_slider(x[ia], w_lim, K[I_KW] * comp_rate, dxdt, ia)
-            f_up = f_spring - K[I_F0N] + f_w  # on bolster, deviation from static
+            ia = AUXW + 3 * (2 * k + sidx)
+            dyn = q[jf + 1] - q[ib]
+            dxn = q[jf] + side * b2 * q[ib + 3]
+            vxn = v[jf] + side * b2 * v[ib + 3]
+            f_wz, f_wy, f_warp = friction_wedges(
+                comp, comp_rate, v[jf + 1] - v[ib], vxn, K[I_F0CTRL], K[I_KCTRL], K[I_TANW],
+                K[I_COSW], K[I_MUC], K[I_MUS], wedge_scale, K[I_KW], K[I_CW], x, dxdt, ia,
+            )  # fmt: skip
+            f_up = f_spring - K[I_F0N] + f_wz  # on bolster, deviation from static
             acc[ib + 1] += f_up
             acc[ib + 2] += side * b2 * (f_up + K[I_F0N])
             acc[jf + 2] -= f_up
-            # lateral shear [X17], wedge damping [X18], gib stop [X12]
-            dyn = q[jf + 1] - q[ib]
-            f_lat = k_sy * dyn + c_sy * (v[jf + 1] - v[ib]) + gap_spring(dyn, gib, K[I_KGIB])
+            # lateral shear [X17], wedge column friction, gib stop [X12]
+            f_lat = k_sy * dyn + f_wy + gap_spring(dyn, gib, K[I_KGIB])
             acc[ib] += f_lat
             acc[jf + 1] -= f_lat
-            # longitudinal shear [X16]: bolster yaw against side-frame longitudinal motion
-            dxn = q[jf] + side * b2 * q[ib + 3]
-            f_lon = k_sx * dxn + K[I_CSX] * (v[jf] + side * b2 * v[ib + 3])
+            # longitudinal shear [X16] and wedge slope friction (warp): bolster yaw against
+            # side-frame longitudinal motion
+            f_lon = k_sx * dxn + K[I_CSX] * vxn + f_warp
             acc[ib + 3] += -side * b2 * f_lon
             acc[jf] -= f_lon
 

@@ -248,15 +248,18 @@ def constants(
         "h_k": cb.coupler_height, "x_k": cb.coupler_half_spacing, "R_cp": bg.centre_plate_radius,
         "c_px": wagon.primary.longitudinal_damping, "c_py": wagon.primary.lateral_damping,
         "c_pz": wagon.primary.vertical_damping, "k_sz": wagon.secondary.vertical_stiffness,
-        "c_sx": wagon.secondary.longitudinal_damping,
-        "mu_wedge": wagon.secondary.wedge_friction_ratio,
-        "k_wedge": wagon.secondary.wedge_stick_stiffness, "k_gib": wagon.secondary.gib_stiffness,
+        "c_sx": wagon.secondary.longitudinal_damping, "k_gib": wagon.secondary.gib_stiffness,
         "k_cpz": wagon.centre_plate.vertical_stiffness,
         "k_cpy": wagon.centre_plate.lateral_stiffness,
         "mu_cp": wagon.centre_plate.friction_coefficient,
         "k_yaw": wagon.centre_plate.yaw_stick_stiffness,
-        "k_sb": wagon.side_bearer.vertical_stiffness, "P_sb": wagon.side_bearer.preload,
+        "c_yaw": wagon.centre_plate.yaw_stick_damping,
+        "k_roll": wagon.centre_plate.roll_stick_stiffness,
+        "c_roll": wagon.centre_plate.roll_stick_damping,
+        "k_sb": wagon.side_bearer.vertical_stiffness, "c_sb": wagon.side_bearer.damping,
+        "P_sb": wagon.side_bearer.preload,
         "mu_sb": wagon.side_bearer.friction_coefficient,
+        "sb_travel": wagon.side_bearer.travel, "k_sb_stop": wagon.side_bearer.stop_stiffness,
         "k_rz": wagon.track.rail_vertical_stiffness, "k_ry": wagon.track.rail_lateral_stiffness,
         "c_rz": wagon.track.rail_vertical_damping, "c_ry": wagon.track.rail_lateral_damping,
         "V": condition.speed, "g_n": gn, "mu": condition.wheel_rail_friction,
@@ -276,6 +279,7 @@ def constants(
         )
     f_nest = (w_body / 2.0 + bo.mass * gn) / 2.0
     f_prim = (f_nest + sf.mass * gn) / 2.0
+    vals.update(_wedge_constants(wagon, f_nest))
     q0 = f_prim + m_w * gn / 2.0
     vals.update(F0_cp=f_cp, F0_nest=f_nest, F0_prim=f_prim, Q0=q0)
     # static approach: Q0 = N0 cos(delta0) + f23(N0) sin(delta0)^2 / r0 (normal force plus the
@@ -304,6 +308,37 @@ def constants(
     for name, value in vals.items():
         k[L.K[name]] = value
     return k
+
+
+def _wedge_constants(wagon: WagonData, f_nest: float) -> dict[str, float]:
+    """Constants of the friction-wedge pair of one spring nest: the control springs (all
+    wedges of the nest) are compressed with the nest, so their static force is their share
+    k_ctrl / k_nest of the static nest force."""
+    sec = wagon.secondary
+    alpha = math.radians(sec.wedge_angle_deg)
+    k_ctrl = sec.wedges_per_nest * sec.control_spring_stiffness
+    if k_ctrl >= sec.vertical_stiffness:
+        raise RailsuspInputError(
+            "secondary.control_spring_stiffness: the wedges' control springs "
+            f"({k_ctrl:.3g} N/m) must be part of the nest's vertical_stiffness "
+            f"({sec.vertical_stiffness:.3g} N/m)"
+        )
+    if sec.column_friction_coefficient >= math.tan(alpha):
+        raise RailsuspInputError(
+            f"secondary.column_friction_coefficient = {sec.column_friction_coefficient:g}: "
+            f"accepted below tan(wedge_angle_deg) = {math.tan(alpha):.3g} (else the wedge locks)"
+        )
+    return {
+        "tan_wedge": math.tan(alpha),
+        "cos_wedge": math.cos(alpha),
+        "mu_column": sec.column_friction_coefficient,
+        "mu_slope": sec.slope_friction_coefficient,
+        "k_ctrl": k_ctrl,
+        "F0_ctrl": f_nest * k_ctrl / sec.vertical_stiffness,
+        "k_wedge": sec.wedge_stick_stiffness,
+        "c_wedge": sec.wedge_stick_damping,
+        "x18_ref": spec("X18").nominal,
+    }
 
 
 # ---------------------------------------------------------------- track arrays

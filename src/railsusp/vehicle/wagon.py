@@ -74,10 +74,19 @@ class Primary(_Section):
 
 
 class Secondary(_Section):
+    """Spring nest with its friction wedges (per bogie side). ``vertical_stiffness`` is the
+    whole nest's, control springs included; the wedges' control springs carry their share
+    of the static load. The wedge's column normal force is F_s / (tan a -+ mu_column)."""
+
     vertical_stiffness: float = Field(**_POS)
     longitudinal_damping: float = Field(ge=0.0)
-    wedge_friction_ratio: float = Field(ge=0.0, le=1.0)
+    wedges_per_nest: int = Field(ge=1, le=4)
+    wedge_angle_deg: float = Field(gt=10.0, lt=80.0, description="slope face from vertical")
+    control_spring_stiffness: float = Field(**_POS, description="per wedge, N/m")
+    column_friction_coefficient: float = Field(ge=0.0, le=1.0)
+    slope_friction_coefficient: float = Field(ge=0.0, le=1.0)
     wedge_stick_stiffness: float = Field(**_POS)
+    wedge_stick_damping: float = Field(ge=0.0)
     gib_stiffness: float = Field(**_POS)
 
 
@@ -86,12 +95,18 @@ class CentrePlate(_Section):
     lateral_stiffness: float = Field(**_POS)
     friction_coefficient: float = Field(ge=0.0, le=1.0)
     yaw_stick_stiffness: float = Field(**_POS)
+    yaw_stick_damping: float = Field(ge=0.0)
+    roll_stick_stiffness: float = Field(**_POS)
+    roll_stick_damping: float = Field(ge=0.0)
 
 
 class SideBearer(_Section):
     vertical_stiffness: float = Field(**_POS)
+    damping: float = Field(ge=0.0, description="elastomer loss as a viscous damper, N s/m")
     preload: float = Field(ge=0.0)
     friction_coefficient: float = Field(ge=0.0, le=1.0)
+    travel: float = Field(**_POS, description="compression from static to the solid stop, m")
+    stop_stiffness: float = Field(**_POS)
 
 
 class TrackData(_Section):

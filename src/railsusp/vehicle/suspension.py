@@ -1,0 +1,218 @@
+"""Suspension force elements of the three-piece bogie, as compiled pure functions.
+
+The equations of motion (:mod:`railsusp.vehicle.model`) call these per element; tests drive
+them directly (hysteresis loops, lift-off, analytic limits). Forces in N, moments in N m,
+displacements in m, rates per second. Friction elements keep their friction force as a
+first-order state (elasto-plastic, "stiffness in series with a Coulomb slider": the usual
+form for explicit integration, physics notes): while sticking the force follows the relative
+displacement through a stick stiffness, with a stick damping that stands for the
+pre-sliding micro-slip losses of real contacts; at the limit the element slides and the
+force stays on the limit. The state derivative is written into ``dxdt[idx]``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+
+#: relaxation time of a friction state pushed beyond its (shrinking) limit, s
+SLIDER_RELAXATION = 2.0e-3
+
+#: contact points of the centre-bowl ring (equally spaced on the bowl radius)
+BOWL_POINTS = 8
+
+
+@nb.njit(cache=True, inline="always")
+def series_stiffness(k1, k2):
+    """Stiffness of two springs in series, N/m."""
+    return k1 * k2 / (k1 + k2)
+
+
+@nb.njit(cache=True, inline="always")
+def gap_spring(d, clearance, k):
+    """Force of a symmetric stop with free play: zero inside +-clearance, k beyond (N)."""
+    if d > clearance:
+        return k * (d - clearance)
+    if d < -clearance:
+        return k * (d + clearance)
+    return 0.0
+
+
+@nb.njit(cache=True, inline="always")
+def coulomb_slider(state, limit, stick_rate, dxdt, idx):
+    """Friction force of a Coulomb slider in series with a stick stiffness (elasto-plastic).
+
+    While sticking the force grows at ``stick_rate`` (stiffness x relative velocity); at the
+    limit it slides (rate 0 in the direction of motion). The returned force is clamped to
+    +-limit; a state beyond a (shrinking) limit relaxes back within SLIDER_RELAXATION.
+    """
+    f = state
+    if f > limit:
+        f = limit
+    elif f < -limit:
+        f = -limit
+    if (f >= limit and stick_rate > 0.0) or (f <= -limit and stick_rate < 0.0):
+        rate = 0.0
+    else:
+        rate = stick_rate
+    dxdt[idx] = rate + (f - state) / SLIDER_RELAXATION
+    return f
+
+
+@nb.njit(cache=True, inline="always")
+def damped_slider(state, limit, k_stick, c_stick, v, dxdt, idx):
+    """Friction force (on the element's first body, opposing v) of an elasto-plastic slider
+    with stick damping: a Kelvin element (k_stick, c_stick) in series with a Coulomb slider.
+
+    ``v``: relative velocity (second body minus first, so that a positive v gives a
+    positive force on the first body). Sticking: force = state + c_stick v, state rate
+    k_stick v, the sum clamped to +-limit; sliding (state on the limit and moving outwards):
+    force = +-limit. Dissipates the stick damper's c v^2 while sticking and limit |v| while
+    sliding; a static, loaded element holds its force (Coulomb stiction).
+    """
+    f = state
+    if f > limit:
+        f = limit
+    elif f < -limit:
+        f = -limit
+    if (f >= limit and v > 0.0) or (f <= -limit and v < 0.0):
+        dxdt[idx] = (f - state) / SLIDER_RELAXATION
+        return f
+    dxdt[idx] = k_stick * v + (f - state) / SLIDER_RELAXATION
+    f += c_stick * v
+    if f > limit:
+        return limit
+    if f < -limit:
+        return -limit
+    return f
+
+
+@nb.njit(cache=True, inline="always")
+def damped_slider_2d(sx, sy, limit, k_stick, c_stick, vx, vy, dxdt, ix, iy):
+    """Two-component version of :func:`damped_slider` for friction on a plane (isotropic
+    Coulomb friction circle of radius ``limit``): the state (sx, sy) is the elastic friction
+    force; sliding when its magnitude is at the limit and the relative velocity has an
+    outward component, in which case only the tangential part of the velocity loads the
+    state (it turns towards the slip direction). Returns the force (fx, fy).
+    """
+    mag = math.sqrt(sx * sx + sy * sy)
+    fx = sx
+    fy = sy
+    if mag > limit:
+        scale = limit / mag if mag > 0.0 else 0.0
+        fx = sx * scale
+        fy = sy * scale
+        mag = limit
+    outward = fx * vx + fy * vy
+    if mag >= limit and limit > 0.0 and outward > 0.0:
+        nx = fx / mag
+        ny = fy / mag
+        vn = vx * nx + vy * ny
+        dxdt[ix] = k_stick * (vx - vn * nx) + (fx - sx) / SLIDER_RELAXATION
+        dxdt[iy] = k_stick * (vy - vn * ny) + (fy - sy) / SLIDER_RELAXATION
+        return fx, fy
+    dxdt[ix] = k_stick * vx + (fx - sx) / SLIDER_RELAXATION
+    dxdt[iy] = k_stick * vy + (fy - sy) / SLIDER_RELAXATION
+    fx += c_stick * vx
+    fy += c_stick * vy
+    m2 = math.sqrt(fx * fx + fy * fy)
+    if m2 > limit:
+        scale = limit / m2 if m2 > 0.0 else 0.0
+        return fx * scale, fy * scale
+    return fx, fy
+
+
+@nb.njit(cache=True, inline="always")
+def wedge_column_normal_force(spring_force, tan_alpha, mu_column, loading):
+    """Normal force (N) of a massless friction wedge on its side-frame column face.
+
+    Equilibrium of the wedge between the bolster's slope face (angle alpha from the vertical)
+    and the vertical column face, pushed up by its control spring with ``spring_force`` F_s:
+    N = F_s / (tan alpha - mu) while the bolster moves down (compression: column friction
+    on the wedge points up, against the spring's push on the slope) and
+    N = F_s / (tan alpha + mu) on rebound (physics notes; e.g. the variable-damping wedge of
+    Kaiser & Cole). ``loading`` blends the two: +1 (or more) compression, -1 (or less)
+    rebound, linear in between. Callers pass the column friction force over its rebound
+    limit, so that a sliding wedge sits exactly on its branch and a sticking one moves
+    between them without a jump.
+    """
+    if spring_force <= 0.0:
+        return 0.0
+    lo = loading
+    if lo > 1.0:
+        lo = 1.0
+    elif lo < -1.0:
+        lo = -1.0
+    return spring_force / (tan_alpha - mu_column * lo)
+
+
+@nb.njit(cache=True, inline="always")
+def friction_wedges(
+    comp, v_vert, v_lat, v_long, f_ctrl0, k_ctrl, tan_a, cos_a, mu_column, mu_slope, scale,
+    k_stick, c_stick, x, dxdt, ia,
+):  # fmt: skip
+    """Friction forces (N) of the wedge pair of one spring nest on the bolster: vertical (+
+    up), lateral and longitudinal, each opposing the side frame's motion relative to the
+    bolster (v_* = side frame minus bolster; comp = nest compression from static, m).
+
+    The control springs (f_ctrl0 + k_ctrl comp, all wedges of the nest) set the column
+    normal force (:func:`wedge_column_normal_force`), times ``scale`` (wedge rise and wear:
+    X18 / X18 nominal). The column face carries Coulomb friction mu_column N against
+    vertical and lateral slip together (:func:`damped_slider_2d`, states x[ia], x[ia + 1]);
+    the slope faces, with normal force N / cos a, carry mu_slope N / cos a against
+    longitudinal slip (warp, state x[ia + 2]).
+    """
+    f_ctrl = f_ctrl0 + k_ctrl * comp
+    n_reb = f_ctrl / (tan_a + mu_column) * scale  # column normal force on rebound
+    loading = x[ia] / (mu_column * n_reb) if n_reb > 0.0 and mu_column > 0.0 else 0.0
+    n_col = scale * wedge_column_normal_force(f_ctrl, tan_a, mu_column, loading)
+    fz, fy = damped_slider_2d(
+        x[ia], x[ia + 1], mu_column * n_col, k_stick, c_stick, v_vert, v_lat, dxdt, ia, ia + 1
+    )
+    fx = damped_slider(x[ia + 2], mu_slope * n_col / cos_a, k_stick, c_stick, v_long, dxdt, ia + 2)
+    return fz, fy, fx
+
+
+@nb.njit(cache=True, inline="always")
+def bowl_ring_forces(
+    dz, droll, dpitch, droll_rate, radius, k_total, preload_total, mu, k_stick, c_stick,
+    state_roll, dxdt, idx,
+):  # fmt: skip
+    """Centre bowl (flat annulus) as a ring of BOWL_POINTS compression-only springs, with
+    friction against relative roll.
+
+    dz: compression at the bowl centre (bolster up minus car body down, m); droll, dpitch:
+    relative roll and pitch of the car body seen from the bolster (rad; roll + lifts the
+    left side, pitch + lifts the front). The point at (x, y) = radius (cos t, sin t) is
+    compressed by dz - y droll + x dpitch and carries preload/n + (k/n) x compression, never
+    a pull (edge lift-off); ``droll_rate`` is the time rate of droll. The bowl carries roll
+    and pitch moments elastically (roll
+    stiffness k R^2 / 2) up to lift-off at N R / 2 and about N R when it rocks on its rim.
+    Friction moment against relative roll: elasto-plastic (:func:`damped_slider`), limit
+    mu N (2/3) R, the friction moment of a flat disc: rocking before lift-off shears the
+    bowl liner like yaw does.
+
+    Returns (normal force, roll moment on the car body, pitch moment on the car body about
+    the bowl centre, friction roll moment on the car body), N and N m; the roll moment is
+    sum(y f), the pitch moment sum(-x f).
+    """
+    n = BOWL_POINTS
+    kp = k_total / n
+    fp = preload_total / n
+    n_tot = 0.0
+    m_roll = 0.0
+    m_pitch = 0.0
+    for j in range(n):
+        t = 2.0 * math.pi * j / n
+        x = radius * math.cos(t)
+        y = radius * math.sin(t)
+        f = fp + kp * (dz - y * droll + x * dpitch)
+        if f < 0.0:
+            f = 0.0
+        n_tot += f
+        m_roll += y * f
+        m_pitch += -x * f
+    lim = mu * n_tot * (2.0 / 3.0) * radius
+    m_fr = damped_slider(state_roll, lim, k_stick, c_stick, -droll_rate, dxdt, idx)
+    return n_tot, m_roll, m_pitch, m_fr
