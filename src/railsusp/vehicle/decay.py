@@ -156,7 +156,7 @@ def decay_run(
     if x.shape != (L.N_STATE,):
         raise RailsuspInputError(f"x0: {x.size} values given, the state has {L.N_STATE}")
     every = max(1, round(sample_dt / dt))
-    n_steps = int(round(duration_s / dt))
+    n_steps = round(duration_s / dt)
     out = np.zeros((n_steps // every + 1, CAR_BODY.size))
     ca = point.contact
     code, rows = run_states(

@@ -48,15 +48,19 @@ FRICTION_LIMIT_KEYS: tuple[str, ...] = tuple(n for n in L.K if n.startswith("mu_
 
 #: degree-of-freedom names in the order of the state (layout.py)
 DOF_NAMES: tuple[str, ...] = (
-    ("car body y", "car body z", "car body roll", "car body pitch", "car body yaw")
-    + tuple(f"bolster {k + 1} {d}" for k in range(2) for d in ("y", "z", "roll", "yaw"))
-    + tuple(
+    "car body y",
+    "car body z",
+    "car body roll",
+    "car body pitch",
+    "car body yaw",
+    *(f"bolster {k + 1} {d}" for k in range(2) for d in ("y", "z", "roll", "yaw")),
+    *(
         f"side frame {k + 1}{'LR'[s]} {d}"
         for k in range(2)
         for s in range(2)
         for d in ("x", "y", "z", "pitch", "yaw")
-    )
-    + tuple(f"wheelset {w + 1} {d}" for w in range(4) for d in ("y", "z", "roll", "yaw"))
+    ),
+    *(f"wheelset {w + 1} {d}" for w in range(4) for d in ("y", "z", "roll", "yaw")),
 )
 #: body groups: slices of the displacement vector
 GROUPS: dict[str, slice] = {
