@@ -176,22 +176,32 @@ def fit_damped_sinusoid(t: np.ndarray, y: np.ndarray) -> tuple[float, float, flo
     yc = y - y.mean()
     if not np.any(yc):
         return math.nan, math.nan, 0.0, math.nan
+    dt = t[1] - t[0]
+    starts = []  # (ω_d, σ) first guesses
+    # linear prediction of a damped sinusoid with offset: x[n+2] = a1 x[n+1] + a2 x[n] + b
+    # (exact for one mode); its poles z = exp(λ dt)
+    M = np.column_stack([y[1:-1], y[:-2], np.ones(y.size - 2)])
+    a1, a2, _ = np.linalg.lstsq(M, y[2:], rcond=None)[0]
+    z = np.roots([1.0, -a1, -a2]).astype(complex)
+    lam = np.log(z[np.argmax(z.imag)]) / dt
+    if lam.imag > 0:
+        starts.append((lam.imag, max(-lam.real, 0.0)))
+    # and the spectrum's peak (more robust with several modes present)
     n = 8 * t.size
     spec = np.abs(np.fft.rfft(yc * np.hanning(t.size), n))
-    freqs = np.fft.rfftfreq(n, t[1] - t[0])
+    freqs = np.fft.rfftfreq(n, dt)
     spec[freqs < 1.0 / t[-1]] = 0.0  # less than one cycle in the window: not a mode
     f0 = freqs[int(np.argmax(spec))]
-    if f0 <= 0:
+    if f0 > 0:
+        starts += [(2 * np.pi * f0, z0 * 2 * np.pi * f0) for z0 in (0.002, 0.02, 0.1, 0.3)]
+    if not starts:
         return math.nan, math.nan, 0.0, math.nan
     best = None
-    for zeta0 in (0.002, 0.02, 0.1, 0.3):
-        w0 = 2 * np.pi * f0
-        p0 = [np.abs(yc).max(), zeta0 * w0, w0, 0.0, y.mean()]
+    for w0, s0 in starts:
         for phase in (0.0, np.pi / 2, np.pi, -np.pi / 2):
-            p0[3] = phase
             res = least_squares(
                 lambda p: p[0] * np.exp(-p[1] * t) * np.cos(p[2] * t + p[3]) + p[4] - y,
-                p0,
+                [np.abs(yc).max(), s0, w0, phase, y.mean()],
                 bounds=(
                     [0, -5.0, 0.5 * w0, -10, -np.inf],
                     [np.inf, 50.0 * w0, 2.0 * w0, 10, np.inf],

@@ -131,7 +131,7 @@ def linearisation_point(
             "speed_kmh": speed_kmh,
             "irregularity_class": None,
             "lead_in_m": 0.0,
-            "duration_s": max(1.0, track_length_m / (speed_kmh / 3.6)),
+            "duration_s": min(600.0, max(1.0, track_length_m / (speed_kmh / 3.6))),
         }
     )
     settings = SolverSettings()
