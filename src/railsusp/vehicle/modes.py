@@ -179,14 +179,14 @@ def jacobian(
     f: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, steps: np.ndarray
 ) -> np.ndarray:
     """Central-difference Jacobian of f at x0. Each column starts at its step and is taken
-    ten times smaller while it changes by more than 0.1 % (up to three times): the steps
+    ten times smaller while it changes by more than 0.1 % (up to six times): the steps
     are small enough for the contact nonlinearity and large enough for round-off."""
     n = x0.size
     J = np.empty((n, n))
     for j in range(n):
         h = steps[j]
         col = _central(f, x0, j, h)
-        for _ in range(3):
+        for _ in range(6):
             finer = _central(f, x0, j, h / 10.0)
             scale = max(np.abs(finer).max(), 1e-12)
             if np.abs(finer - col).max() <= _FD_TOL * scale:
@@ -269,9 +269,13 @@ class ModalResult:
         """The car-body modes below ``f_max`` Hz, one per kind (bounce, pitch, yaw, lower
         sway, upper sway, lateral): where the coupling with the bogies' lateral dynamics
         gives two modes of one kind, the one with the larger car-body energy share. At most
-        five (the car body's five freedoms), those with the largest shares."""
+        five (the car body's five freedoms), those with the largest shares. Kinematic
+        (hunting-like) body modes ride on the wheelsets, not on the suspension, and are
+        left out."""
         best: dict[str, int] = {}
         for i in self.car_body_modes(f_max):
+            if "kinematic" in self.names[i]:
+                continue
             kind = self.names[i].split(" (")[0].removeprefix("car body ")
             if kind not in best or self.car_body_share[i] > self.car_body_share[best[kind]]:
                 best[kind] = i
@@ -320,9 +324,10 @@ def modes_of(
     ke_sum = ke.sum(axis=1, keepdims=True)
     energy = np.divide(ke, ke_sum, out=np.zeros_like(ke), where=ke_sum > 0)
     h_cg = point.K[L.K["h_cg_c"]]
+    l_c = point.K[L.K["l_c"]]
     names, groups = [], []
     for i in range(lam.size):
-        group, name = name_mode(energy[i], q[:, i], h_cg, point.speed)
+        group, name = name_mode(energy[i], q[:, i], h_cg, l_c, point.speed)
         groups.append(group)
         names.append(name)
     mag = np.abs(lam)
@@ -343,13 +348,15 @@ def modes_of(
 
 
 # ---------------------------------------------------------------- naming
-def name_mode(energy: np.ndarray, q: np.ndarray, h_cg: float, speed: float) -> tuple[str, str]:
+def name_mode(
+    energy: np.ndarray, q: np.ndarray, h_cg: float, l_c: float, speed: float
+) -> tuple[str, str]:
     """(body group, engineering name) of a mode from its kinetic-energy shares per degree
     of freedom and its displacement shape q (complex)."""
     shares = {g: energy[s].sum() for g, s in GROUPS.items()}
     group = max(shares, key=shares.get)
     if group == "car body":
-        return group, _car_body_name(energy, q, h_cg)
+        return group, _car_body_name(energy, q, h_cg, l_c)
     if group == "bolster":
         dirs = ("lateral", "bounce", "roll", "yaw")
         e = energy[GROUPS["bolster"]].reshape(2, 4)
@@ -402,8 +409,9 @@ def _which(per_bogie: np.ndarray, q: np.ndarray, idx: list[int]) -> str:
     return "bogies in phase" if same else "bogies anti-phase"
 
 
-def _car_body_name(energy: np.ndarray, q: np.ndarray, h_cg: float) -> str:
-    """Bounce, pitch, yaw, lateral, lower sway (roll) or upper sway of the car body.
+def _car_body_name(energy: np.ndarray, q: np.ndarray, h_cg: float, l_c: float) -> str:
+    """Bounce, pitch, yaw, lateral, lower sway (roll) or upper sway of the car body, or a
+    kinematic (hunting-like) lateral or yaw mode when the wheelsets move with the body.
 
     Lateral and roll of the body couple: the point of the body that does not move sideways
     (roll centre) lies at z_rc = y / φ above the CG (a point at height z above the CG moves
@@ -417,6 +425,8 @@ def _car_body_name(energy: np.ndarray, q: np.ndarray, h_cg: float) -> str:
         "sway": e[L.CB_Y] + e[L.CB_ROLL],
     }
     kind = max(parts, key=parts.get)
+    if kind in ("sway", "yaw") and _kinematic(q, l_c):
+        return f"car body kinematic (hunting-like) {'yaw' if kind == 'yaw' else 'lateral'}"
     if kind != "sway":
         return f"car body {kind}"
     y, roll = q[L.CB_Y], q[L.CB_ROLL]
@@ -427,6 +437,15 @@ def _car_body_name(energy: np.ndarray, q: np.ndarray, h_cg: float) -> str:
         return "car body lateral"
     height = h_cg + z_rc
     return f"car body {'lower' if z_rc < 0 else 'upper'} sway (roll centre {height:+.1f} m)"
+
+
+def _kinematic(q: np.ndarray, l_c: float) -> bool:
+    """Whether the wheelsets move sideways at least half as much as the car body above
+    them: the mode rides on the wheelsets' rolling kinematics (body hunting-like) rather
+    than on the suspension, which holds the wheelsets nearly still in a body mode."""
+    body = 0.5 * sum(abs(q[L.CB_Y] + d * q[L.CB_YAW]) for d in (l_c, -l_c))
+    wheels = np.abs(q[[L.WS0 + 4 * w for w in range(4)]]).mean()
+    return bool(wheels >= 0.5 * body)
 
 
 def stiffness_and_damping(A: np.ndarray, inertia: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
