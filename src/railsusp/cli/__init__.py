@@ -57,6 +57,7 @@ def fail(message: str) -> None:
 # isort: off
 from railsusp.cli import inputs  # noqa: E402
 from railsusp.cli import simulation  # noqa: E402
+from railsusp.cli import modes  # noqa: E402
 from railsusp.cli import analysis  # noqa: E402
 from railsusp.cli import surrogates  # noqa: E402
 from railsusp.cli import field  # noqa: E402
@@ -74,6 +75,7 @@ __all__ = [
     "frame_table",
     "inputs",
     "main",
+    "modes",
     "pipeline",
     "simulation",
     "surrogates",

@@ -1,0 +1,91 @@
+"""Command ``modes``: natural frequencies, damping ratios and mode names of the wagon."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from railsusp.cli import app, console, err_console, fail, frame_table
+from railsusp.errors import RailsuspInputError
+from railsusp.params import ParameterSet, parse_overrides
+
+
+@app.command()
+def modes(
+    set_: Annotated[
+        list[str] | None,
+        typer.Option("--set", help="parameter overrides, e.g. --set X13=16.1 (display units)"),
+    ] = None,
+    wagon: Annotated[Path | None, typer.Option(help="wagon data TOML (default C80/K6)")] = None,
+    speed: Annotated[float, typer.Option(help="running speed, km/h (1-200)")] = 60.0,
+    friction: Annotated[
+        str,
+        typer.Option(help="friction sliders in the linearisation: stuck or sliding"),
+    ] = "stuck",
+    fmax: Annotated[float, typer.Option(help="list modes up to this frequency, Hz")] = 30.0,
+    decay: Annotated[
+        bool, typer.Option("--decay", help="also run free-decay tests of the car-body modes")
+    ] = False,
+) -> None:
+    """Linearise the wagon about its static equilibrium on ideal straight track and list its
+    modes (frequency, damping ratio, name); with --decay, the car-body modes' equivalent
+    damping from free-decay runs of the nonlinear model, friction on (docs/model.md)."""
+    from railsusp.vehicle.decay import free_decay
+    from railsusp.vehicle.modes import FRICTION_MODES, modal_analysis
+    from railsusp.vehicle.wagon import load_wagon
+
+    try:
+        if friction not in FRICTION_MODES:
+            raise RailsuspInputError(
+                f"--friction {friction!r}: accepted {', '.join(FRICTION_MODES)}"
+            )
+        if not 1.0 <= speed <= 200.0:
+            raise RailsuspInputError(f"--speed = {speed:g} km/h: accepted 1 to 200 km/h")
+        if not 0.0 < fmax <= 1000.0:
+            raise RailsuspInputError(f"--fmax = {fmax:g} Hz: accepted (0, 1000] Hz")
+        pset = ParameterSet.nominal()
+        if set_:
+            pset = pset.replace(parse_overrides(set_), units="display")
+        wagon_data = load_wagon(wagon)
+        result = modal_analysis(pset, wagon_data, speed, friction)  # type: ignore[arg-type]
+        decayed = None
+        if decay:
+            with err_console.status("free-decay runs"):
+                decayed = free_decay(pset, wagon_data, speed)
+    except RailsuspInputError as exc:
+        fail(str(exc))
+    df = result.to_dataframe(f_max=fmax)
+    df["car_body_energy"] *= 100.0
+    df = df.rename(
+        columns={
+            "frequency_Hz": "f Hz",
+            "damping_ratio": "damping ratio",
+            "car_body_energy": "car body KE %",
+        }
+    )
+    title = (
+        f"Modes of {wagon_data.name}, {speed:g} km/h, ideal straight track, "
+        f"friction {friction} (equilibrium residual {result.equilibrium_residual:.2g} m/s²)"
+    )
+    console.print(frame_table(df, title, fmt="{:.3g}"))
+    if decayed is not None:
+        dd = decayed.to_dataframe().drop(columns=["linear_mode", "amplitude"])
+        dd = dd.rename(
+            columns={
+                "linear_frequency_Hz": "linear f Hz",
+                "linear_damping_ratio": "linear damping",
+                "frequency_Hz": "decay f Hz",
+                "damping_ratio": "equivalent damping",
+                "fit_R2": "fit R²",
+            }
+        )
+        console.print(
+            frame_table(
+                dd,
+                f"Free decay of the car-body modes, friction on "
+                f"({decayed.window_s:g} s windows, damped-sinusoid fit)",
+                fmt="{:.3g}",
+            )
+        )

@@ -1,0 +1,351 @@
+"""Modal analysis of the wagon: the equations of :mod:`railsusp.vehicle.model` linearised about
+the static equilibrium on ideal straight, level track, with natural frequencies, damping
+ratios and mode names.
+
+Method. The state x of ``model.rhs`` (displacements, velocities and the auxiliary friction
+states, all deviations from static equilibrium) is zero at the static equilibrium on ideal
+track: the constants vector K carries the static preloads of every interface, so
+rhs(0) = 0 up to round-off (:attr:`ModalResult.equilibrium_residual` says how close).
+The Jacobian A = d(rhs)/dx at x = 0 is taken by central finite differences over the full
+first-order state (every column checked against a ten times smaller step), its eigenvalues
+λ = -ζ ω_n ± i ω_n sqrt(1 - ζ²) give the natural frequency f_n = |λ| / 2π and the damping
+ratio ζ = -Re λ / |λ|, and each mode is named from where its kinetic energy sits
+(m_i |v_i|² per degree of freedom, v the velocity part of the eigenvector).
+
+Friction. A Coulomb slider linearised at zero state is **stuck**: inside its limit the
+friction force follows its stick stiffness, so the wedges act as springs in parallel with
+the spring nests and the body-bolster yaw friction as a yaw spring, and none of them
+dissipates energy (``friction="stuck"``, the default). The **sliding** variant sets every
+friction limit to zero through K (the constants named ``mu_*``: wedge ratio, centre-plate
+and side-bearer friction coefficients; never the wheel-rail ``mu``): a slider that slides
+passes a force of constant magnitude whose increment is zero, so its linearisation has no
+stiffness and no damping, which is what zero limits give. Neither variant shows friction
+damping, which is amplitude dependent; the free-decay analysis
+(:mod:`railsusp.vehicle.decay`) measures it on the nonlinear simulator.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from railsusp.conditions import make_condition
+from railsusp.params import ParameterSet
+from railsusp.vehicle import layout as L
+from railsusp.vehicle.mode_names import DOF_NAMES, GROUPS, name_mode
+from railsusp.vehicle.model import rhs as model_rhs
+from railsusp.vehicle.setup import SolverSettings, constants, contact_arrays, track_arrays
+from railsusp.vehicle.wagon import WagonData, load_wagon
+
+__all__ = [
+    "DOF_NAMES",
+    "FRICTION_LIMIT_KEYS",
+    "FRICTION_MODES",
+    "GROUPS",
+    "Friction",
+    "LinearisationPoint",
+    "ModalResult",
+    "default_steps",
+    "dof_inertia",
+    "jacobian",
+    "linearisation_point",
+    "modal_analysis",
+    "modes_of",
+    "name_mode",
+    "stiffness_and_damping",
+]
+
+Friction = Literal["stuck", "sliding"]
+FRICTION_MODES: tuple[str, ...] = ("stuck", "sliding")
+
+#: constants set to zero for the sliding linearisation: every friction limit of the
+#: suspension (names starting "mu_"), never the wheel-rail friction coefficient "mu"
+FRICTION_LIMIT_KEYS: tuple[str, ...] = tuple(n for n in L.K if n.startswith("mu_"))
+
+#: relative agreement asked of a Jacobian column between step h and h/10
+_FD_TOL = 1e-3
+
+
+# ---------------------------------------------------------------- model inputs
+@dataclass(frozen=True)
+class LinearisationPoint:
+    """Everything ``model.rhs`` needs on ideal straight, level track at one speed: the
+    parameter vector P (X1..X20, SI), constants K, track channels and contact table, and the
+    track position of the leading wheelset (mid-section, away from the grid's ends)."""
+
+    P: np.ndarray
+    K: np.ndarray
+    track: np.ndarray
+    s0: float
+    ds: float
+    contact: object  # setup.ContactArrays
+    s_front: float
+    speed: float  # m/s
+    friction: str
+
+    def rhs(self, x: np.ndarray, s_front: float | None = None) -> np.ndarray:
+        """d x / d t at state x (raises RuntimeError on a failure code of the model)."""
+        dxdt = np.zeros(L.N_STATE)
+        out = np.zeros(L.N_OUT_WORK)
+        ca = self.contact
+        code = model_rhs(
+            np.ascontiguousarray(x, dtype=float), dxdt, self.P, self.K, self.track, self.s0,
+            self.ds, ca.table, ca.y0, ca.dy, ca.H0L, ca.H0R,
+            self.s_front if s_front is None else s_front, out,
+        )  # fmt: skip
+        if code != 0:
+            raise RuntimeError(f"model.rhs failed: {L.FAILURE_REASONS.get(code, code)}")
+        return dxdt
+
+    def dof_inertia(self) -> np.ndarray:
+        """Mass or moment of inertia of each degree of freedom (kg, kg m²)."""
+        return dof_inertia(self.K, self.P)
+
+
+def linearisation_point(
+    params: ParameterSet | None = None,
+    wagon: WagonData | None = None,
+    speed_kmh: float = 60.0,
+    friction: Friction = "stuck",
+    track_length_m: float = 200.0,
+) -> LinearisationPoint:
+    """Model inputs for ideal straight, level track at ``speed_kmh`` (validated as a working
+    condition: 1-200 km/h), built the way :func:`railsusp.vehicle.simulate.simulate_batch`
+    builds them. ``friction="sliding"`` zeros the friction limits (module docstring)."""
+    if friction not in FRICTION_MODES:
+        from railsusp.errors import RailsuspInputError
+
+        raise RailsuspInputError(f"friction = {friction!r}: accepted {', '.join(FRICTION_MODES)}")
+    wagon = load_wagon() if wagon is None else wagon
+    cond = make_condition(
+        {
+            "name": "modal",
+            "speed_kmh": speed_kmh,
+            "irregularity_class": None,
+            "lead_in_m": 0.0,
+            "duration_s": min(600.0, max(1.0, track_length_m / (speed_kmh / 3.6))),
+        }
+    )
+    settings = SolverSettings()
+    P = np.ascontiguousarray((params or ParameterSet.nominal()).to_array(), dtype=float)
+    ca = contact_arrays(wagon)
+    K = constants(wagon, cond, P, ca, settings)
+    if friction == "sliding":
+        for name in FRICTION_LIMIT_KEYS:
+            K[L.K[name]] = 0.0
+    tracks, s0, ds = track_arrays(cond, [0], wagon, settings)
+    return LinearisationPoint(
+        P=P,
+        K=np.ascontiguousarray(K),
+        track=np.ascontiguousarray(tracks[0]),
+        s0=s0,
+        ds=ds,
+        contact=ca,
+        s_front=0.5 * cond.section_length_m,
+        speed=cond.speed,
+        friction=friction,
+    )
+
+
+def dof_inertia(K: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Mass or moment of inertia of each of the N_DOF displacements (kg, kg m²), read from
+    the constants vector and the catalogue (wheelset mass and inertias are X1, X2, X4)."""
+    k = L.K
+    m = np.empty(L.N_DOF)
+    m[L.CB_Y] = m[L.CB_Z] = K[k["m_c"]]
+    m[L.CB_ROLL], m[L.CB_PITCH], m[L.CB_YAW] = K[k["Ix_c"]], K[k["Iy_c"]], K[k["Iz_c"]]
+    for b in range(2):
+        i = L.BOL0 + 4 * b
+        m[i : i + 4] = K[k["m_b"]], K[k["m_b"]], K[k["Ix_b"]], K[k["Iz_b"]]
+    for j in range(4):
+        i = L.SF0 + 5 * j
+        m[i : i + 5] = K[k["m_f"]], K[k["m_f"]], K[k["m_f"]], K[k["Iy_f"]], K[k["Iz_f"]]
+    for w in range(4):
+        i = L.WS0 + 4 * w
+        m[i : i + 4] = P[0], P[0], P[1], P[3]
+    return m
+
+
+# ---------------------------------------------------------------- linearisation
+def jacobian(
+    f: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, steps: np.ndarray
+) -> np.ndarray:
+    """Central-difference Jacobian of f at x0. Each column starts at its step and is taken
+    ten times smaller while it changes by more than 0.1 % (up to six times): the steps
+    are small enough for the contact nonlinearity and large enough for round-off."""
+    n = x0.size
+    J = np.empty((n, n))
+    for j in range(n):
+        h = steps[j]
+        col = _central(f, x0, j, h)
+        for _ in range(6):
+            finer = _central(f, x0, j, h / 10.0)
+            scale = max(np.abs(finer).max(), 1e-12)
+            if np.abs(finer - col).max() <= _FD_TOL * scale:
+                break
+            h, col = h / 10.0, finer
+        J[:, j] = col
+    return J
+
+
+def _central(f, x0, j, h):
+    xp = x0.copy()
+    xm = x0.copy()
+    xp[j] += h
+    xm[j] -= h
+    return (f(xp) - f(xm)) / (2.0 * h)
+
+
+def default_steps(step: float = 1e-6, aux_step: float = 1.0) -> np.ndarray:
+    """Finite-difference steps over the state: ``step`` for displacements (m, rad) and
+    velocities, ``aux_step`` for the auxiliary friction states (forces, N, and moments,
+    N m; a stuck slider is linear in its state, so any step inside its limit serves)."""
+    h = np.full(L.N_STATE, step)
+    h[2 * L.N_DOF :] = aux_step
+    return h
+
+
+# ---------------------------------------------------------------- result
+@dataclass
+class ModalResult:
+    """Eigen-analysis of the linearised wagon.
+
+    Per mode (one per complex-conjugate pair; overdamped real modes with ζ = 1): eigenvalue
+    (1/s), natural frequency (Hz), damping ratio, name, the body group carrying most kinetic
+    energy, the car body's share of kinetic energy, the share per degree of freedom
+    (``energy``, rows sum to 1) and the displacement part of the eigenvector (``shapes``).
+    ``equilibrium_residual``: max |rhs(0)| over the accelerations (m/s², rad/s²): the
+    linearisation point is an equilibrium to that accuracy.
+    """
+
+    speed_kmh: float
+    friction: str
+    eigenvalues: np.ndarray
+    frequency_hz: np.ndarray
+    damping_ratio: np.ndarray
+    names: list[str]
+    groups: list[str]
+    car_body_share: np.ndarray
+    energy: np.ndarray
+    shapes: np.ndarray
+    equilibrium_residual: float
+    jacobian: np.ndarray = field(repr=False)
+
+    def __len__(self) -> int:
+        return self.eigenvalues.size
+
+    def to_dataframe(self, f_max: float | None = None):
+        """Modes as a pandas DataFrame, by frequency (optionally up to ``f_max`` Hz)."""
+        import pandas as pd
+
+        df = pd.DataFrame(
+            {
+                "mode": self.names,
+                "frequency_Hz": self.frequency_hz,
+                "damping_ratio": self.damping_ratio,
+                "group": self.groups,
+                "car_body_energy": self.car_body_share,
+            }
+        )
+        if f_max is not None:
+            df = df[df["frequency_Hz"] <= f_max]
+        return df.reset_index(drop=True)
+
+    def car_body_modes(self, f_max: float = 20.0, min_share: float = 0.5) -> np.ndarray:
+        """Indices of the modes below ``f_max`` Hz whose kinetic energy is mostly (at least
+        ``min_share``) in the car body."""
+        sel = (self.frequency_hz <= f_max) & (self.car_body_share >= min_share)
+        return np.flatnonzero(sel)
+
+    def car_body_kinds(self, f_max: float = 20.0) -> dict[str, int]:
+        """The car-body modes below ``f_max`` Hz, one per kind (bounce, pitch, yaw, lower
+        sway, upper sway, lateral): where the coupling with the bogies' lateral dynamics
+        gives two modes of one kind, the one with the larger car-body energy share. At most
+        five (the car body's five freedoms), those with the largest shares. Kinematic
+        (hunting-like) body modes ride on the wheelsets, not on the suspension, and are
+        left out."""
+        best: dict[str, int] = {}
+        for i in self.car_body_modes(f_max):
+            if "kinematic" in self.names[i]:
+                continue
+            kind = self.names[i].split(" (")[0].removeprefix("car body ")
+            if kind not in best or self.car_body_share[i] > self.car_body_share[best[kind]]:
+                best[kind] = i
+        top = sorted(best.items(), key=lambda kv: -self.car_body_share[kv[1]])[:5]
+        return dict(sorted(top, key=lambda kv: self.frequency_hz[kv[1]]))
+
+    def find(self, name: str) -> int:
+        """Index of the lowest-frequency mode whose name contains ``name``."""
+        hits = [i for i, n in enumerate(self.names) if name in n]
+        if not hits:
+            raise KeyError(f"no mode named like {name!r}; modes: {sorted(set(self.names))}")
+        return hits[0]
+
+
+def modal_analysis(
+    params: ParameterSet | None = None,
+    wagon: WagonData | None = None,
+    speed_kmh: float = 60.0,
+    friction: Friction = "stuck",
+    step: float = 1e-6,
+) -> ModalResult:
+    """Linearise the wagon about its static equilibrium on ideal straight, level track at
+    ``speed_kmh`` and return its modes (module docstring: method, friction variants)."""
+    point = linearisation_point(params, wagon, speed_kmh, friction)
+    x0 = np.zeros(L.N_STATE)
+    residual = float(np.abs(point.rhs(x0)[L.N_DOF : 2 * L.N_DOF]).max())
+    A = jacobian(point.rhs, x0, default_steps(step))
+    return modes_of(A, point, speed_kmh, residual)
+
+
+def modes_of(
+    A: np.ndarray, point: LinearisationPoint, speed_kmh: float, residual: float = 0.0
+) -> ModalResult:
+    """Modes of the state matrix A at a linearisation point, sorted by frequency."""
+    lam, vec = np.linalg.eig(A)
+    mag = np.abs(lam)
+    # zero eigenvalues: the stuck sliders' conserved combinations and neutral motions
+    keep = (mag > 1e-6 * max(mag.max(), 1.0)) & (lam.imag >= 0.0)
+    lam, vec = lam[keep], vec[:, keep]
+    order = np.argsort(np.abs(lam))
+    lam, vec = lam[order], vec[:, order]
+    inertia = point.dof_inertia()
+    q = vec[: L.N_DOF]
+    v = vec[L.N_DOF : 2 * L.N_DOF]
+    ke = inertia * np.abs(v.T) ** 2
+    ke_sum = ke.sum(axis=1, keepdims=True)
+    energy = np.divide(ke, ke_sum, out=np.zeros_like(ke), where=ke_sum > 0)
+    h_cg = point.K[L.K["h_cg_c"]]
+    l_c = point.K[L.K["l_c"]]
+    names, groups = [], []
+    for i in range(lam.size):
+        group, name = name_mode(energy[i], q[:, i], h_cg, l_c, point.speed)
+        groups.append(group)
+        names.append(name)
+    mag = np.abs(lam)
+    return ModalResult(
+        speed_kmh=speed_kmh,
+        friction=point.friction,
+        eigenvalues=lam,
+        frequency_hz=mag / (2.0 * np.pi),
+        damping_ratio=-lam.real / mag,
+        names=names,
+        groups=groups,
+        car_body_share=energy[:, GROUPS["car body"]].sum(axis=1),
+        energy=energy,
+        shapes=q.T,
+        equilibrium_residual=residual,
+        jacobian=A,
+    )
+
+
+def stiffness_and_damping(A: np.ndarray, inertia: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Stiffness and damping matrices (N/m, N s/m and their rotational forms) of the
+    displacement-velocity part of a state matrix: acceleration rows = -M^-1 (K q + C v)."""
+    n = L.N_DOF
+    Kq = -inertia[:, None] * A[n : 2 * n, :n]
+    Cv = -inertia[:, None] * A[n : 2 * n, n : 2 * n]
+    return Kq, Cv
