@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.energy import energy_audit, model_inputs
+from railsusp.vehicle.energy import energy_audit
+from railsusp.vehicle.operating_point import linearisation_point
 from railsusp.vehicle.suspension import (
     BOWL_POINTS,
     bowl_ring_forces,
@@ -74,21 +75,15 @@ def test_wedge_relative_friction_of_the_k6_data_is_in_the_published_range():
     # the mean of compression and rebound friction over the static nest force.
     w = load_wagon()
     sec = w.secondary
-    mi = model_inputs(None, _straight())
-    f_nest = mi.K[L.K["F0_nest"]]
-    f_ctrl = mi.K[L.K["F0_ctrl"]]
+    k = linearisation_point().K
+    f_nest = k[L.K["F0_nest"]]
+    f_ctrl = k[L.K["F0_ctrl"]]
     tan_a = math.tan(math.radians(sec.wedge_angle_deg))
     mu = sec.column_friction_coefficient
     comp = mu * f_ctrl / (tan_a - mu) / f_nest
     reb = mu * f_ctrl / (tan_a + mu) / f_nest
     assert 0.07 <= 0.5 * (comp + reb) <= 0.10
     assert comp > reb  # more friction in compression than on rebound
-
-
-def _straight():
-    from railsusp.conditions import WorkingCondition
-
-    return WorkingCondition(name="s", irregularity_class=None, lead_in_m=0.0)
 
 
 def test_slider_holds_a_static_load_and_slides_at_its_limit():
