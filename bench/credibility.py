@@ -58,9 +58,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seeds", type=int, default=32, help="track seeds per condition")
     ap.add_argument("--wagon", default=None, help="wagon file or packaged name (loaded)")
+    ap.add_argument("--contact", default="two-point", help="two-point or single-point")
     ap.add_argument("--out", default="bench/results/credibility.json")
     args = ap.parse_args()
-    wagon = load_wagon(args.wagon)
+    wagon = load_wagon(args.wagon).with_contact_model(args.contact)
     rows = []
     t0 = time.perf_counter()
     for name, base in STANDARD_CONDITIONS.items():
