@@ -1,5 +1,6 @@
 """The packaged tare (empty) C80 wagon: it loads by name, weighs 20 t and runs."""
 
+import tomllib
 from importlib import resources
 from pathlib import Path
 
@@ -64,3 +65,15 @@ def test_unknown_wagon_names_the_packaged_ones(tmp_path: Path, monkeypatch):
     (tmp_path / "tare").write_text(loaded_text, encoding="utf-8")
     monkeypatch.chdir(tmp_path)
     assert load_wagon("tare").name == "C80 / K6"
+
+
+def test_tare_file_has_every_key_of_the_loaded_file():
+    """The tare file is the loaded one with other values: a key added to one wagon file
+    (with a default in the schema, so that a missing one would pass silently) must be added
+    to the other."""
+
+    def keys(name: str) -> set[str]:
+        doc = tomllib.loads(resources.files("railsusp").joinpath(f"data/{name}").read_text())
+        return {f"{s}.{k}" for s, table in doc.items() for k in table}
+
+    assert keys("c80_k6_tare.toml") == keys("c80_k6.toml")
