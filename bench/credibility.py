@@ -1,15 +1,17 @@
-"""Credibility of the nominal model: force statistics of the three conditions vs Table 8.
+"""Credibility of the nominal model: one statistic for both forces, against Table 8.
 
-Nominal parameters, FRA Class 5 track, the standard straight / curve / uphill conditions,
-several track seeds per condition (mean and spread over seeds). For the leading wheelset's
-wheels (in the curve both the outer wheel, railsusp's default measured wheel, and the inner
-one) prints mean, RMS, 99th percentile and maximum of |Y| and Q beside the study's simulated
-Table 8 values, with the relative difference, and the share of single 20 s records whose
-value lies within 30 % of the study's (the study reports one record). The study names
-neither its statistic nor, in the curve, its wheel; its curve vertical force is 6 % below
-its tangent one, which for one statistic only the inner wheel can give (cant deficiency
-loads the outer wheel): the last table checks that. Writes JSON
-(bench/results/credibility.json).
+Nominal parameters, the study's three conditions (straight, curve R 300 m, 12 ‰ up-grade,
+60 km/h) on FRA Class 5 track as the study says, ``--seeds`` track seeds per condition,
+20 s records (the study's). For the leading wheelset's two wheels side by side (in the
+curve the outer and the inner wheel; on tangent and grade left and right) it prints, for
+|Y| and Q, the study's statistic, the record maximum (docs/model.md argues it: the study's
+tangent Q of 140.2 kN is 1.14 x the static wheel load, so its statistic is a peak, and its
+conclusions speak of the "peak value of the wheel-rail force"), and beside it the 99.85th
+percentile (EN 14363's statistic for wheel-rail forces), the 99th percentile and the mean;
+each as the mean over seeds of one record's value. Each is compared with Table 8's
+*measured* value (the instrumented wheelset, the target) and shown beside the study's
+simulated one. Targets of issue 18 for the study's statistic: vertical within 3 %, lateral
+within 25 % of the measured value. Writes JSON (bench/results/credibility.json).
 """
 
 from __future__ import annotations
@@ -24,99 +26,110 @@ from railsusp.conditions import STANDARD_CONDITIONS
 from railsusp.params import ParameterSet
 from railsusp.store import write_json
 from railsusp.study import TABLE8_BEFORE
-from railsusp.vehicle.simulate import WHEEL_NAMES, record_statistic, simulate_batch
+from railsusp.vehicle.simulate import WHEEL_NAMES, simulate_batch
 from railsusp.vehicle.wagon import load_wagon
 
-STATS = ("mean", "rms", "p99", "max")
+#: the study's statistic (docs/model.md, "Which statistic Table 8 gives")
+STUDY_STATISTIC = "max"
+STATISTICS = ("max", "p99.85", "p99", "mean")
+#: issue 18's targets for the study's statistic, relative to Table 8's measured values
+TARGET = {"Y": 0.25, "Q": 0.03}
 
 
-def wheel_statistic(force: np.ndarray, statistic: str, lateral: bool) -> np.ndarray:
-    """Per-record statistic (kN) of one wheel's series (n_records, T)."""
+def record_values(force: np.ndarray, statistic: str, lateral: bool) -> np.ndarray:
+    """One value per record (rows of ``force``, kN) of |Y| (lateral) or Q."""
+    x = np.abs(force) if lateral else force
     if statistic == "max":
-        return np.abs(force).max(axis=1) if lateral else force.max(axis=1)
-    return record_statistic(force, statistic, lateral)
+        return x.max(axis=1)
+    if statistic == "mean":
+        return x.mean(axis=1)
+    return np.percentile(x, float(statistic.removeprefix("p")), axis=1)
+
+
+def wheel_roles(condition, measured: int) -> tuple[tuple[int, str], tuple[int, str]]:
+    """(index, role) of the leading wheelset's two wheels: outer, inner in a curve; left,
+    right on tangent and grade."""
+    if condition.curve_radius_m is not None:
+        return (measured, "outer"), (measured ^ 1, "inner")
+    return (0, "left"), (1, "right")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seeds", type=int, default=32, help="track seeds per condition")
-    ap.add_argument("--out", default="bench/results/credibility.json")
+    ap.add_argument("--wagon", default=None, help="wagon file or packaged name (loaded)")
     ap.add_argument("--contact", default="two-point", help="two-point or single-point")
+    ap.add_argument("--out", default="bench/results/credibility.json")
     args = ap.parse_args()
-    wagon = load_wagon().with_contact_model(args.contact)
+    wagon = load_wagon(args.wagon).with_contact_model(args.contact)
     rows = []
-    for name, cond in STANDARD_CONDITIONS.items():
+    t0 = time.perf_counter()
+    for name, base in STANDARD_CONDITIONS.items():
+        cond = base.with_changes(irregularity_class=5)  # FRA Class 5, as the study says
         seeds = [cond.seed + 1000 * k for k in range(args.seeds)]
         r = simulate_batch([ParameterSet.nominal()] * len(seeds), cond, seeds=seeds, wagon=wagon)
-        ref = TABLE8_BEFORE[name]
-        default = r.measured_wheel()
-        wheels = (default, default ^ 1) if cond.curve_radius_m else (default,)
-        for j in wheels:
-            role = "outer" if j == default and cond.curve_radius_m else "inner"
-            role = role if cond.curve_radius_m else "leading"
-            for force, study in (("Y", ref[0]), ("Q", ref[2])):
-                series = (r.Y if force == "Y" else r.Q)[r.ok, j] / 1e3
-                for stat in STATS:
-                    v = wheel_statistic(series, stat, force == "Y")
-                    rows.append(
-                        {
-                            "condition": name,
-                            "wheel": WHEEL_NAMES[j],
-                            "role": role,
-                            "force": force,
-                            "statistic": stat,
-                            "value_kN": float(v[0]),
-                            "seed_mean_kN": float(v.mean()),
-                            "seed_std_kN": float(v.std()),
-                            "study_kN": study,
-                            "relative_difference": float(v.mean() / study - 1),
-                            "records_within_30pct": float(np.mean(np.abs(v / study - 1) <= 0.3)),
-                        }
-                    )
+        if not r.ok.all():
+            print(f"{name}: {int((~r.ok).sum())} of {len(seeds)} records failed: {r.failures()}")
+        sim_y, meas_y, sim_q, meas_q = TABLE8_BEFORE[name]
+        for force, study_sim, measured in (("Y", sim_y, meas_y), ("Q", sim_q, meas_q)):
+            series = r.Y if force == "Y" else r.Q
+            for stat in STATISTICS:
+                row = {
+                    "condition": name,
+                    "force": force,
+                    "statistic": stat,
+                    "study_statistic": stat == STUDY_STATISTIC,
+                    "study_simulated_kN": study_sim,
+                    "measured_kN": measured,
+                    "wheels": {},
+                }
+                for j, role in wheel_roles(cond, r.measured_wheel()):
+                    v = record_values(series[r.ok, j] / 1e3, stat, force == "Y")
+                    row["wheels"][role] = {
+                        "wheel": WHEEL_NAMES[j],
+                        "seed_mean_kN": float(v.mean()),
+                        "seed_std_kN": float(v.std()),
+                        "vs_measured": float(v.mean() / measured - 1.0),
+                        "records_within_target": float(
+                            np.mean(np.abs(v / measured - 1.0) <= TARGET[force])
+                        ),
+                    }
+                rows.append(row)
+    wall = time.perf_counter() - t0
     print(
-        f"{'condition':<9} {'wheel':<13} {'force':<5} {'stat':<5} {'ours kN':>8} "
-        f"{'+- seeds':>9} {'study':>7} {'diff':>7} {'in 30%':>7}"
+        f"Leading wheelset, {args.seeds} Class 5 seeds of 20 s per condition, {wagon.name}; "
+        f"value = seed mean (± std) in kN, % = against Table 8's measured value; "
+        f"* = the study's statistic ({STUDY_STATISTIC}); target Y ±25 %, Q ±3 %\n"
+    )
+    print(
+        f"{'condition':<9} {'F':<2} {'statistic':<9} {'wheel A':>24} {'wheel B':>24} "
+        f"{'study sim':>9} {'measured':>9}"
     )
     for row in rows:
-        print(
-            f"{row['condition']:<9} {row['wheel'] + ' ' + row['role']:<13} {row['force']:<5} "
-            f"{row['statistic']:<5} {row['seed_mean_kN']:8.1f} {row['seed_std_kN']:9.1f} "
-            f"{row['study_kN']:7.1f} {row['relative_difference']:7.1%} "
-            f"{row['records_within_30pct']:7.0%}"
-        )
-    best = {}
-    for row in rows:
-        key = (row["condition"], row["role"], row["force"])
-        if key not in best or abs(row["relative_difference"]) < abs(
-            best[key]["relative_difference"]
-        ):
-            best[key] = row
-    print("\nclosest statistic per condition, wheel and force:")
-    for (c, role, f), row in best.items():
-        print(f"  {c:<9} {role:<7} {f}: {row['statistic']:<5} {row['relative_difference']:+.1%}")
-    # which curve wheel: the study's curve/tangent ratio of the vertical force, per statistic
-    study_ratio = TABLE8_BEFORE["curve"][2] / TABLE8_BEFORE["straight"][2]
-    value = {(r["condition"], r["role"], r["force"], r["statistic"]): r for r in rows}
-    print(f"\ncurve / tangent vertical force: study {study_ratio:.3f}; ours by wheel:")
-    ratios = {}
-    for role in ("outer", "inner"):
-        for stat in STATS:
-            ratio = (
-                value[("curve", role, "Q", stat)]["seed_mean_kN"]
-                / value[("straight", "leading", "Q", stat)]["seed_mean_kN"]
+        cells = []
+        for role, w in row["wheels"].items():
+            cells.append(
+                f"{role} {w['seed_mean_kN']:6.1f}±{w['seed_std_kN']:4.1f} {w['vs_measured']:+6.0%}"
             )
-            ratios[f"{role}_{stat}"] = ratio
-        print(f"  {role:<5} " + "  ".join(f"{s} {ratios[f'{role}_{s}']:.3f}" for s in STATS))
+        star = "*" if row["study_statistic"] else " "
+        print(
+            f"{row['condition']:<9} {row['force']:<2} {row['statistic'] + star:<9} "
+            f"{cells[0]:>24} {cells[1]:>24} {row['study_simulated_kN']:9.2f} "
+            f"{row['measured_kN']:9.2f}"
+        )
+    print(f"\n{wall:.0f} s of simulation")
     payload = {
         "date": time.strftime("%Y-%m-%d"),
         "machine": platform.platform(),
         "seeds": args.seeds,
-        "contact": args.contact,
+        "wagon": wagon.name,
+        "contact": wagon.contact.model,
+        "study_statistic": STUDY_STATISTIC,
+        "targets": TARGET,
+        "wall_s": wall,
         "rows": rows,
-        "curve_to_tangent_Q": {"study": study_ratio, **ratios},
     }
-    out = write_json(args.out, payload)
-    print(f"wrote {out}")
+    print(f"wrote {write_json(args.out, payload)}")
 
 
 if __name__ == "__main__":

@@ -96,39 +96,20 @@ def test_left_and_right_curves_mirror():
     np.testing.assert_allclose(left.Q[0, 0], right.Q[0, 1], rtol=1e-6, atol=1.0)
 
 
-@pytest.mark.parametrize("name", ["straight", "curve"])
-def test_halving_the_step_changes_rms_and_peak_by_less_than_1_percent(name):
-    cond = get_condition(name, **SHORT)
-    coarse = simulate(None, cond, settings=SolverSettings(max_step=1e-3)).statistics()
-    fine = simulate(None, cond, settings=SolverSettings(max_step=5e-4)).statistics()
-    for key in ("Y_rms", "Y_max", "Q_rms", "Q_max"):
-        assert coarse[key][0] == pytest.approx(fine[key][0], rel=0.01), key
-
-
-def test_flange_impact_derails_the_single_point_model_only_with_the_plain_step():
-    # A 200 s tangent run of an LHS sample (long campaign, independent seeds) whose leading
-    # wheelset, after a flange impact 20 s into the record, was thrown off the rail by the
-    # single-point contact model with the plain 1 ms step: the jump of its contact from the
-    # tread to the 70 deg flank turns the whole wheel load into a flank force. Splitting the
-    # steps near flange contact keeps it on the rail, and so does two-point contact (the
-    # tread keeps the load while the flange contact builds up) even with the plain step.
-    cond = get_condition("straight", duration_s=200.0, n_steps=10000)
-    # (the event is chaotic: the full-precision sample is needed, and a change of the model
-    # may move or remove it; then pick another failing sample of such a campaign)
-    x = {"X11": 1.2118997501628925, "X12": 0.016396704815175397, "X13": 7428611.00014585}
-    x |= {"X14": 11972189.433925916, "X17": 1933077.149551397, "X18": 34882.00436227773}
-    pset = ParameterSet.nominal().replace(x)
-    plain_step = SolverSettings()
-    one = load_wagon().with_contact_model("single-point")  # the jump from tread to flange
+def test_single_point_model_with_the_plain_step_is_warned_about():
+    # Before the friction wedges and the centre bowl (2026-11-24), a 200 s tangent run of an
+    # LHS sample was thrown off the rail by the single-point contact model with the plain
+    # 1 ms step (its contact jumps from the tread to the 70 deg flank), and not with split
+    # steps or two-point contact. With the friction wedges, 96 LHS samples of 200 s
+    # (X11, X12, X13, X14, X17, X18; independent seeds; bowl yaw stick stiffness 5 MN m/rad) did
+    # not derail that way, so the
+    # event is not reproduced here; the warning stays, the step split is still offered.
+    cond = get_condition("straight", duration_s=2.0, n_steps=100)
+    one = load_wagon().with_contact_model("single-point")
     with pytest.warns(UserWarning, match="needs SolverSettings.flange_substeps=2."):
-        plain = simulate(pset, cond, seeds=[1726644975], settings=plain_step, wagon=one)
-    split_step = SolverSettings(flange_substeps=2)
-    split = simulate(pset, cond, seeds=[1726644975], settings=split_step, wagon=one)
-    assert plain.failures() and "wheel lift" in plain.failures()[0][1]
-    assert 25.0 < plain.failures()[0][2] < 27.0
-    assert split.ok[0]
-    two_point = simulate(pset, cond, seeds=[1726644975], settings=plain_step)
-    assert two_point.ok[0]
+        plain = simulate(None, cond, settings=SolverSettings(), wagon=one)
+    split = simulate(None, cond, settings=SolverSettings(flange_substeps=2), wagon=one)
+    assert plain.ok[0] and split.ok[0]
     ca = contact_arrays(load_wagon())
     assert ca.flange_shift == pytest.approx(0.0106, abs=2e-4)  # the flangeway clearance
     with pytest.raises(RailsuspInputError, match="flange_substeps = 0: accepted an integer 1"):

@@ -78,7 +78,10 @@ def simulate(
         str,
         typer.Option(help="measured wheel: auto (leading wheelset, outer in curves) or w1L..w4R"),
     ] = "auto",
-    wagon: Annotated[Path | None, typer.Option(help="wagon data TOML (default C80/K6)")] = None,
+    wagon: Annotated[
+        Path | None,
+        typer.Option(help="wagon data TOML, or a packaged name: loaded (default), tare"),
+    ] = None,
     out: Annotated[Path | None, typer.Option(help="write the force series to Parquet")] = None,
     plot: Annotated[Path | None, typer.Option(help="write a PNG of the force series")] = None,
 ) -> None:

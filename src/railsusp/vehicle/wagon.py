@@ -175,15 +175,29 @@ class WagonData(_Section):
             ) from None
 
 
+#: wagon files shipped with the package, by name (``--wagon tare``); a file path wins
+PACKAGED_WAGONS = {
+    "loaded": "c80_k6.toml",
+    "c80_k6": "c80_k6.toml",
+    "tare": "c80_k6_tare.toml",
+    "c80_k6_tare": "c80_k6_tare.toml",
+}
+
+
 def load_wagon(source: str | Path | None = None) -> WagonData:
-    """Read and validate a wagon file; None gives the embedded C80/K6 data."""
-    if source is None:
-        text = resources.files("railsusp").joinpath("data/c80_k6.toml").read_text("utf-8")
-        where = "c80_k6.toml"
+    """Read and validate a wagon file; None gives the embedded C80/K6 data (loaded), a
+    name of :data:`PACKAGED_WAGONS` (``"tare"``) another embedded file."""
+    name = None if source is None else str(source)
+    if name is None or (name in PACKAGED_WAGONS and not Path(name).is_file()):
+        where = PACKAGED_WAGONS.get(name or "loaded", "c80_k6.toml")
+        text = resources.files("railsusp").joinpath(f"data/{where}").read_text("utf-8")
+        source = None
     else:
         path = Path(source)
         if not path.is_file():
-            raise RailsuspInputError(f"wagon file {path} does not exist")
+            raise RailsuspInputError(
+                f"wagon file {path} does not exist (packaged wagons: {', '.join(PACKAGED_WAGONS)})"
+            )
         text, where = path.read_text("utf-8"), str(path)
     try:
         doc = tomllib.loads(text)

@@ -1,0 +1,79 @@
+"""The packaged tare (empty) C80 wagon: it loads by name, weighs 20 t and runs."""
+
+import tomllib
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from railsusp.conditions import GRAVITY, get_condition
+from railsusp.errors import RailsuspInputError
+from railsusp.params import spec
+from railsusp.vehicle.simulate import simulate
+from railsusp.vehicle.wagon import PACKAGED_WAGONS, load_wagon
+
+TARE_KG = 20_000.0  # C80 tare (physics notes: "tare under 20 t")
+
+
+def modelled_mass(w) -> float:
+    return w.car_body.mass + 2 * w.bolster.mass + 4 * w.side_frame.mass + 4 * spec("X1").nominal
+
+
+def test_tare_wagon_loads_by_name_and_weighs_twenty_tonnes():
+    tare, loaded = load_wagon("tare"), load_wagon()
+    assert tare == load_wagon("c80_k6_tare") and load_wagon("loaded") == loaded
+    assert "tare" in tare.name
+    assert modelled_mass(tare) == pytest.approx(TARE_KG, rel=0.005)
+    # the bogies are the loaded wagon's; only the car body and its suspension stage differ
+    assert tare.bolster == loaded.bolster and tare.side_frame == loaded.side_frame
+    assert tare.car_body.cg_height < loaded.car_body.cg_height
+    assert tare.secondary.vertical_stiffness < loaded.secondary.vertical_stiffness
+    # the side bearers leave the centre plate a positive share of the tare body weight
+    assert tare.car_body.mass * GRAVITY / 2 > 2 * tare.side_bearer.preload
+
+
+def test_tare_static_wheel_loads_are_a_twentieth_tonne_share():
+    """Perfect straight track: every wheel carries 20 t x g / 8 = 24.5 kN (1 %), at rest."""
+    cond = get_condition("straight", irregularity_class=None, duration_s=3.0, n_steps=150)
+    r = simulate(None, cond, wagon=load_wagon("tare"))
+    assert r.ok.all()
+    np.testing.assert_allclose(r.Q[0], TARE_KG * GRAVITY / 8, rtol=0.01)
+    assert np.abs(r.H[0]).max() < 50.0
+    assert np.abs(r.car_acc_z[0]).max() < 1e-3
+
+
+def test_tare_wagon_runs_on_class_5_straight_track():
+    cond = get_condition("straight", duration_s=6.0, n_steps=300)
+    r = simulate(None, cond, wagon=load_wagon("tare"))
+    assert r.ok.all(), r.failures()
+    q0 = TARE_KG * GRAVITY / 8
+    assert r.Q[0, 0].mean() == pytest.approx(q0, rel=0.02)
+    # an empty wagon's wheel loads vary by a larger share of their static value than the
+    # loaded one's on the same track, but stay on the rail
+    stats = r.statistics()
+    assert 0.05 < stats["dQQ_max"][0] < 1.0
+    assert stats["Y_max"][0] < 0.8 * q0 / 1e3
+
+
+def test_unknown_wagon_names_the_packaged_ones(tmp_path: Path, monkeypatch):
+    with pytest.raises(RailsuspInputError, match="does not exist .packaged wagons: loaded"):
+        load_wagon("empty")
+    assert set(PACKAGED_WAGONS) >= {"loaded", "tare"}
+    # a file of that name in the working directory wins over the packaged one
+    loaded_text = resources.files("railsusp").joinpath("data/c80_k6.toml").read_text("utf-8")
+    (tmp_path / "tare").write_text(loaded_text, encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    assert load_wagon("tare").name == "C80 / K6"
+
+
+def test_tare_file_has_every_key_of_the_loaded_file():
+    """The tare file is the loaded one with other values: a key added to one wagon file
+    (with a default in the schema, so that a missing one would pass silently) must be added
+    to the other."""
+
+    def keys(name: str) -> set[str]:
+        doc = tomllib.loads(resources.files("railsusp").joinpath(f"data/{name}").read_text())
+        return {f"{s}.{k}" for s, table in doc.items() for k in table}
+
+    assert keys("c80_k6_tare.toml") == keys("c80_k6.toml")
