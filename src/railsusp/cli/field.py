@@ -9,7 +9,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from railsusp.cli import app, console, fail, frame_table
+from railsusp.cli.common import app, console, fail, frame_table
 from railsusp.conditions import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet, parse_overrides
