@@ -28,10 +28,9 @@ import numpy as np
 import pandas as pd
 
 from railsusp.campaign import load_campaign, make_config, run_campaign
-from railsusp.estimate import NSGAConfig, estimate, open_force_model
+from railsusp.estimate import NSGAConfig, estimate, open_force_model, refine_estimate
 from railsusp.measured import SimulationFailedError, read_field, synthesise_field
 from railsusp.params import ParameterSet, bounds
-from railsusp.refine import refine_estimate
 from railsusp.store import write_json
 from railsusp.surrogate import key_parameters
 from railsusp.surrogate.statistics import train_statistics_surrogate

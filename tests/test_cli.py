@@ -317,8 +317,8 @@ def test_align_track_finds_and_writes_a_misregistration(tmp_path):
     it in the sidecar, and the reader then applies it (correlation back to its best)."""
     import pandas as pd
 
+    from railsusp.estimate import align_track
     from railsusp.measured import read_field
-    from railsusp.refine import align_track
 
     cond = tmp_path / "c.toml"
     cond.write_text(

@@ -19,15 +19,14 @@ from railsusp.estimate import (
     measured_statistics,
     open_force_model,
     parse_statistics,
-    record_statistic,
 )
-from railsusp.identifiability import cramer_rao_pct_range, fisher_information
+from railsusp.estimate.identifiability import cramer_rao_pct_range, fisher_information
 from railsusp.measured import Recording
 from railsusp.params import bounds
 from railsusp.surrogate.baselines import StatisticsGP
 from railsusp.surrogate.data import FeatureSpec, SeriesData
 from railsusp.surrogate.statistics import StatisticsSurrogate
-from railsusp.vehicle.simulate import statistic_segments
+from railsusp.vehicle.simulate import record_statistic, statistic_segments
 
 COND = get_condition("straight", duration_s=2.0, n_steps=100)
 PARAMS = ("X13", "X14")
@@ -329,7 +328,8 @@ def test_nsga_on_aligned_series_then_refinement_recovers_the_truth():
     """NSGA-II on the time-aligned objective gets close; the output-error refinement, started
     from a poor point, lands within 0.5 % of the ranges with noisy data, and says how sure
     it is (standard errors)."""
-    from railsusp.refine import refine, refine_estimate
+    from railsusp.estimate import refine_estimate
+    from railsusp.estimate.refine import refine
 
     truth = np.array([16.1e6, 8.3e6])
     rec = wave_recording(truth, noise=0.05, seed=3)
@@ -378,7 +378,7 @@ def test_initial_population_starts_the_search():
 def test_refinement_estimates_channel_gains():
     """A 4 % calibration error on the vertical channel biases the plain fit of X14 (which
     sets the Q amplitude and the Y offset here); estimating the gains removes the bias."""
-    from railsusp.refine import refine
+    from railsusp.estimate.refine import refine
 
     truth = np.array([16.1e6, 8.3e6])
     rec = wave_recording(truth, noise=0.02, seed=5)
@@ -409,7 +409,7 @@ def test_a_failed_prediction_gets_a_large_aligned_error_not_a_crash():
 
 
 def test_standard_errors_survive_a_parameter_the_residuals_ignore():
-    from railsusp.refine import standard_errors
+    from railsusp.estimate.refine import standard_errors
 
     jac = np.array([[1.0, 0.0, 2.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [2.0, 0.0, 1.0]])
     se = standard_errors(jac, 0.5)
@@ -426,7 +426,7 @@ def test_comparison_band_leaves_out_what_inaccurate_geometry_cannot_explain(tmp_
     sees the 1.3 and 0.7 Hz signals only. The refinement then works on residuals taken at
     the band's stride and still recovers the truth and the channel gains."""
     from railsusp.estimate import aligned_error, comparison_band_hz, comparison_samples
-    from railsusp.refine import refine
+    from railsusp.estimate.refine import refine
     from railsusp.vehicle.track import synthesise, write_track_geometry
 
     geometry = write_track_geometry(tmp_path / "g.csv", synthesise(600.0, 5, 1, dx=0.125))
@@ -474,8 +474,8 @@ def test_geometry_error_propagates_into_the_refined_estimate(tmp_path, monkeypat
     """On geometry of stated accuracy the refinement reports the shift of its estimate that
     each draw of geometry error causes: equal, to first order, to refitting on the perturbed
     geometry; part of the standard error; none on exact geometry."""
-    from railsusp import estimate as estimate_module
-    from railsusp.refine import refine
+    from railsusp.estimate import comparison as estimate_module
+    from railsusp.estimate.refine import refine
     from railsusp.vehicle.track import synthesise, with_measurement_error, write_track_geometry
 
     true_track = synthesise(600.0, 5, 1, dx=0.125)
@@ -505,7 +505,7 @@ def test_geometry_error_propagates_into_the_refined_estimate(tmp_path, monkeypat
     assert d["geometry_draws"] == 4
     assert d["standard_error_pct_range"]["X13"] > d["noise_standard_error_pct_range"]["X13"]
     # through refine_estimate: the estimate is the refined point less the bias estimate
-    from railsusp.refine import refine_estimate
+    from railsusp.estimate import refine_estimate
 
     class Counting(TrackForces):  # counts the simulations on the measured geometry
         def __init__(self):

@@ -15,7 +15,14 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from railsusp.conditions import WorkingCondition, get_condition, make_condition
 from railsusp.errors import RailsuspInputError
@@ -151,6 +158,17 @@ class PipelineConfig(_Cfg):
     estimate: EstimateSection = EstimateSection()
     scheduler: str | None = Field(None, description="Dask scheduler tcp://host:port")
 
+    @model_validator(mode="after")
+    def _refine_needs_measured_track(self) -> PipelineConfig:
+        # refused before any stage runs: the refinement compares series on measured track
+        if self.estimate.refine and not self.field.measured and not self.field.with_track:
+            raise ValueError(
+                "estimate.refine = true with field.with_track = false: the refinement "
+                "compares time-aligned series on the recordings' measured track, which "
+                "synthetic recordings carry only with field.with_track = true"
+            )
+        return self
+
     def working_conditions(self) -> list[WorkingCondition]:
         out = []
         for c in self.conditions:
@@ -174,7 +192,10 @@ def load_config(path: str | Path) -> PipelineConfig:
     except tomllib.TOMLDecodeError as exc:
         raise RailsuspInputError(f"{path}: not valid TOML ({exc})") from None
     except ValidationError as exc:
-        msgs = [f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors()]
+        msgs = [
+            f"{'.'.join(str(p) for p in e['loc']) or 'combination'}: {e['msg']}"
+            for e in exc.errors()
+        ]
         raise RailsuspInputError(f"{path}: " + "; ".join(msgs)) from None
 
 
@@ -401,9 +422,14 @@ def _stage_runners(
         return {"recordings": len(config.conditions), "synthetic": True}
 
     def estimate() -> dict:
-        from railsusp.estimate import NSGAConfig, estimate_with_seeds, open_force_model
+        from railsusp.estimate import (
+            NSGAConfig,
+            check_refinable,
+            estimate_with_seeds,
+            open_force_model,
+            refine_estimate,
+        )
         from railsusp.measured import read_field
-        from railsusp.refine import refine_estimate
         from railsusp.surrogate import key_parameters
 
         e = config.estimate
@@ -420,6 +446,8 @@ def _stage_runners(
             weighting=e.weighting,
         )
         recs = read_field(out / "field")
+        if e.refine:  # before NSGA-II runs
+            check_refinable(recs, "estimate.refine")
         res = estimate_with_seeds(model, recs, params, cfg, e.seeds)
         if e.refine:
             refine_estimate(

@@ -21,15 +21,15 @@ import pandas as pd
 
 from railsusp.estimate import (
     ALIGNED,
+    BOUND_LIMIT_PCT,
     aligned_error,
     measured_statistics,
     parse_statistics,
     recording_segments,
 )
-from railsusp.identifiability import BOUND_LIMIT_PCT
 from railsusp.measured import SimulationFailedError, read_field, simulated_forces
 from railsusp.params import ParameterSet, bounds, spec
-from railsusp.store import read_json, write_json
+from railsusp.store import atomic_write_bytes, read_json, write_json
 from railsusp.vehicle.simulate import record_statistic
 
 #: a parameter whose Pareto spread exceeds this share of its range is not identified
@@ -55,10 +55,11 @@ class ValidationResult:
 
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
-        self.forces.to_csv(out / "validation.csv", index=False)
+        atomic_write_bytes(out / "validation.csv", self.forces.to_csv(index=False).encode())
         payload = {"forces": self.forces.to_dict(orient="records"), "failures": self.failures}
         if self.recovery is not None:
-            self.recovery.to_csv(out / "recovery.csv", index=False)
+            csv = self.recovery.to_csv(index=False).encode()
+            atomic_write_bytes(out / "recovery.csv", csv)
             payload["recovery"] = self.recovery.to_dict(orient="records")
         write_json(out / "validation.json", payload)
         for cond, s in self.series.items():

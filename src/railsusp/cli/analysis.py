@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from railsusp.cli import app, console, err_console, fail
+from railsusp.cli.common import app, console, err_console, fail
 from railsusp.errors import RailsuspInputError
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from railsusp.cli import app, console, fail, frame_table
+from railsusp.cli.common import app, console, fail, frame_table
 from railsusp.conditions import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet, parse_overrides
@@ -127,8 +127,8 @@ def align_track_command(
 ) -> None:
     """Align each recording's measured track geometry with its forces (cross-correlation
     with a nominal simulation) and report, or with --write store, the distance offset."""
+    from railsusp.estimate import align_track
     from railsusp.measured import read_field
-    from railsusp.refine import align_track
     from railsusp.store import read_json, write_json
 
     try:
@@ -231,27 +231,35 @@ def estimate(
     from railsusp.estimate import (
         NSGAConfig,
         SimulatorForces,
+        check_refinable,
         estimate_with_seeds,
         open_force_model,
         parse_statistics,
+        refine_estimate,
     )
+    from railsusp.estimate.config import NSGA_RANGES, REFINE_RANGES, SEEDS_RANGE, check_range
     from railsusp.measured import read_field
-    from railsusp.refine import refine_estimate
 
     try:
+        # every option is checked before the recordings are read or NSGA-II runs
+        for name, value, (low, high) in (
+            ("--pop-size", pop_size, NSGA_RANGES["pop_size"]),
+            ("--n-gen", n_gen, NSGA_RANGES["n_gen"]),
+            ("--crossover", crossover, NSGA_RANGES["crossover_prob"]),
+            ("--mutation", mutation, NSGA_RANGES["mutation_prob"]),
+            ("--seed", seed, NSGA_RANGES["seed"]),
+            ("--seeds", seeds, SEEDS_RANGE),
+            ("--refine-evaluations", refine_evaluations, REFINE_RANGES["max_evaluations"]),
+            ("--refine-screen", refine_screen, REFINE_RANGES["screen"]),
+            ("--refine-starts", refine_starts, REFINE_RANGES["starts"]),
+            ("--geometry-draws", geometry_draws, REFINE_RANGES["geometry_draws"]),
+        ):
+            check_range(name, value, low, high)
         parse_statistics(statistic)
         if (surrogate is None) == (not simulator):
             raise RailsuspInputError("give --surrogate FOLDER or --simulator (one of them)")
-        recs = read_field(measured)
-        if surrogate is not None:
-            model, params = open_force_model(
-                surrogate, tuple(parameters.split(",")) if parameters else None
-            )
-        else:
-            from railsusp.params import STUDY_KEY_PARAMETERS
-
-            params = tuple(parameters.split(",")) if parameters else STUDY_KEY_PARAMETERS
-            model = SimulatorForces(params)
+        if out.exists() and not out.is_dir():
+            raise RailsuspInputError(f"--out {out}: exists and is not a folder")
         cfg = NSGAConfig(
             pop_size=pop_size,
             n_gen=n_gen,
@@ -262,17 +270,21 @@ def estimate(
             per_condition=per_condition,
             weighting=weighting,
         )
-        with console.status(f"NSGA-II {pop_size} x {n_gen} on {len(recs)} recording(s)"):
-            res = estimate_with_seeds(model, recs, params, cfg, n_seeds=max(1, seeds))
+        recs = read_field(measured)
         if refine:
-            for name, value, low, high in (
-                ("--refine-evaluations", refine_evaluations, 1, 500),
-                ("--refine-screen", refine_screen, 0, 10_000),
-                ("--refine-starts", refine_starts, 1, 20),
-                ("--geometry-draws", geometry_draws, 0, 100),
-            ):
-                if not low <= value <= high:
-                    raise RailsuspInputError(f"{name} {value}: accepted {low} to {high}")
+            check_refinable(recs, "--refine")
+        if surrogate is not None:
+            model, params = open_force_model(
+                surrogate, tuple(parameters.split(",")) if parameters else None
+            )
+        else:
+            from railsusp.params import STUDY_KEY_PARAMETERS
+
+            params = tuple(parameters.split(",")) if parameters else STUDY_KEY_PARAMETERS
+            model = SimulatorForces(params)
+        with console.status(f"NSGA-II {pop_size} x {n_gen} on {len(recs)} recording(s)"):
+            res = estimate_with_seeds(model, recs, params, cfg, n_seeds=seeds)
+        if refine:
             with console.status("refining on the measured track (simulator, output error)"):
                 refine_estimate(
                     res,

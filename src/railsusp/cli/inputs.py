@@ -9,7 +9,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from railsusp.cli import app, console, fail
+from railsusp.cli.common import app, console, fail
 from railsusp.conditions import (
     STANDARD_CONDITIONS,
     WorkingCondition,

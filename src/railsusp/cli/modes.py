@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from railsusp.cli import app, console, err_console, fail, frame_table
+from railsusp.cli.common import app, console, err_console, fail, frame_table
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet, parse_overrides
 

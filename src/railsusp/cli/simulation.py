@@ -9,7 +9,7 @@ import typer
 from rich.table import Table
 
 from railsusp import __version__
-from railsusp.cli import app, console, err_console, fail
+from railsusp.cli.common import app, console, err_console, fail
 from railsusp.conditions import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet, parse_overrides

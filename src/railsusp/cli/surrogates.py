@@ -9,7 +9,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from railsusp.cli import app, console, err_console, fail, frame_table
+from railsusp.cli.common import app, console, err_console, fail, frame_table
 from railsusp.errors import RailsuspInputError
 
 

@@ -1,12 +1,13 @@
 """Output-error refinement of an estimate on recordings with measured track geometry.
 
-NSGA-II on surrogates (``estimate``) is global and fast but compares statistics; where the
-recordings carry the geometry of the track they were made on, the simulator can be run on
-that track and compared with them sample by sample. :func:`refine_estimate` screens
-candidate starts by their time-aligned cost, then :func:`refine` runs bounded least squares
-on the time-aligned residuals (the output-error method of system identification: Maine &
-Iliff, *Identification of dynamic systems*, NASA RP-1168, 1986), estimating the gains of
-the force channels alongside, and reports standard errors.
+NSGA-II on surrogates is global and fast but compares statistics; where the recordings carry
+the geometry of the track they were made on, the simulator can be run on that track and
+compared with them sample by sample. :func:`refine` runs bounded least squares on the
+time-aligned residuals (the output-error method of system identification: Maine & Iliff,
+*Identification of dynamic systems*, NASA RP-1168, 1986), estimating the gains of the force
+channels alongside, and reports standard errors and the share of the uncertainty that the
+track geometry's measurement error causes. Screening the starts and attaching the result to
+an NSGA-II estimate is :func:`railsusp.estimate.polish.refine_estimate`.
 """
 
 from __future__ import annotations
@@ -18,32 +19,27 @@ from pathlib import Path
 
 import numpy as np
 
-from railsusp.estimate import (
-    ALIGNED,
-    CalibrationProblem,
-    CalibrationResult,
-    ForceModel,
-    SimulatorForces,
-    check_aligned,
+from railsusp.estimate.comparison import (
     compared_measurement,
     comparison_filter,
     comparison_samples,
-    display_values,
-    measurement_filter,
 )
-from railsusp.measured import Recording, simulated_forces
-from railsusp.params import ParameterSet, bounds
+from railsusp.estimate.forces import ForceModel
+from railsusp.estimate.problem import check_aligned, display_values
+from railsusp.measured import Recording
+from railsusp.params import bounds
 from railsusp.vehicle import track
 
 #: forward-difference step of the refinement's Jacobian, share of each parameter's range:
 #: wider than the small-scale roughness of the time-aligned cost (wedge friction, contact
 #: tables), on which a 2 % step stalled in flat valleys 3-5 % of the range from the optimum
 REFINE_STEP = 0.05
+
+
 #: the refinement's channel gains stay within 1 ± this (instrumented-wheelset calibration)
 GAIN_LIMIT = 0.1
-#: Latin hypercube points screened for refinement starts, and the starts refined
-REFINE_SCREEN = 64
-REFINE_STARTS = 2
+
+
 #: draws of track-geometry measurement error propagated into the refined estimate's
 #: uncertainty, where the recordings state their geometry's accuracy
 GEOMETRY_DRAWS = 8
@@ -403,142 +399,3 @@ def standard_errors(jac: np.ndarray, s2: float) -> np.ndarray:
     except np.linalg.LinAlgError:
         pass
     return se
-
-
-def aligned_cost(
-    model: ForceModel,
-    recordings: Sequence[Recording],
-    parameters: Sequence[str],
-    x_si: np.ndarray,
-) -> np.ndarray:
-    """(n,) half the sum over recordings and forces of the squared :func:`aligned_error`:
-    the refinement's cost at unit channel gains, for many parameter sets in one batch."""
-    e = CalibrationProblem(model, recordings, parameters, ALIGNED).errors(np.atleast_2d(x_si))
-    return 0.5 * (e**2).sum(axis=(1, 2))
-
-
-def refine_estimate(
-    result: CalibrationResult,
-    recordings: Sequence[Recording],
-    model: ForceModel | None = None,
-    max_evaluations: int = 40,
-    gains: bool = True,
-    screen: int = REFINE_SCREEN,
-    starts: int = REFINE_STARTS,
-    seed: int = 0,
-    geometry_draws: int = GEOMETRY_DRAWS,
-    remove_geometry_bias: bool = True,
-) -> CalibrationResult:
-    """Refine NSGA-II's estimate in place and return the result (its estimate is now the
-    refined one); by default with the simulator itself.
-
-    Time-aligned costs have local minima, and an estimate from statistics can sit in the
-    wrong basin, so the starts are screened first: the Pareto set, the nominal parameters
-    and ``screen`` Latin hypercube points are scored by :func:`aligned_cost` in one batch,
-    :func:`refine` runs from the ``starts`` best, and the lowest final cost wins. Every
-    start's result is kept in ``result.refinement.starts``. The winner's uncertainty then
-    takes in the geometry's stated measurement error (``geometry_draws`` draws; see
-    :meth:`OutputError.geometry_shifts`), and with ``remove_geometry_bias`` the estimate is
-    the refined point less the bias those draws estimate (:attr:`Refinement.geometry_bias_si`).
-    The standard errors stay those of the refined point (the removal is itself uncertain by
-    about its size)."""
-    from scipy.stats import qmc
-
-    params = result.parameters
-    model = SimulatorForces(params) if model is None else model
-    lo, hi = bounds(params)
-    nominal = np.array([ParameterSet.nominal()[p] for p in params])
-    lhs = qmc.LatinHypercube(d=len(params), seed=seed).random(screen) if screen else None
-    candidates = np.vstack(
-        [result.pareto_x[result.chosen][None], result.pareto_x, nominal[None]]
-        + ([lo + lhs * (hi - lo)] if lhs is not None else [])
-    )
-    costs = aligned_cost(model, recordings, params, candidates)
-    best = np.argsort(costs, kind="stable")[: max(1, starts)]
-    runs = [
-        refine(
-            model,
-            recordings,
-            params,
-            candidates[i],
-            max_evaluations=max_evaluations,
-            gains=gains,
-            geometry_draws=0,
-        )
-        for i in best
-    ]
-    winner = min(runs, key=lambda r: r.cost)
-    assert winner.problem is not None and winner.solution is not None
-    winner.geometry_shifts_si = winner.problem.geometry_shifts(
-        winner.solution, geometry_draws, seed
-    )
-    winner.geometry_bias_removed = remove_geometry_bias and winner.geometry_shifts_si.size > 0
-    winner.starts = [
-        {
-            "start_display": display_values(params, r.start_si),
-            "screened_cost": float(costs[i]),
-            "cost": r.cost,
-            "refined_display": display_values(params, r.x_si),
-        }
-        for i, r in zip(best, runs, strict=True)
-    ]
-    winner.screened = len(candidates)
-    result.refinement = winner
-    return result
-
-
-@dataclass
-class TrackAlignment:
-    """Where a recording's measured track geometry lines up with its forces."""
-
-    recording: str
-    offset_m: float  # the track_offset_m that aligns them
-    correlation: float  # normalised cross-correlation of simulated and measured forces there
-    correlation_before: float  # ... at the recording's current offset
-    shift_m: float  # offset_m minus the current offset
-
-
-def align_track(
-    rec: Recording, parameters: ParameterSet | None = None, max_shift_m: float = 10.0
-) -> TrackAlignment:
-    """Find the distance offset between a recording's forces and its measured track geometry
-    by cross-correlation: the simulator runs once on the geometry (nominal parameters unless
-    given), and the lag at which its filtered lateral and vertical forces best match the
-    recording's (mean normalised correlation of both, parabolic sub-sample peak) gives the
-    offset. All axles see the same geometry, so a misregistration of the geometry by d metres
-    delays the forces by d / V."""
-    if rec.condition.track_geometry is None:
-        raise ValueError(f"recording {rec.condition.name!r} carries no measured track geometry")
-    if not 0.0 < max_shift_m <= 200.0:
-        raise ValueError(f"max_shift_m = {max_shift_m:g}: accepted (0, 200] m")
-    sim = simulated_forces(parameters or ParameterSet.nominal(), rec)
-    sim = measurement_filter(sim[None], rec)[0]
-    meas = rec.forces()
-    if sim.shape != meas.shape or not np.isfinite(sim).all():
-        raise ValueError(f"recording {rec.condition.name!r}: the simulation does not match it")
-    step_m = rec.condition.speed / rec.sampling_rate
-    max_lag = min(int(np.ceil(max_shift_m / step_m)), len(meas) // 3)
-    lags = np.arange(-max_lag, max_lag + 1)
-
-    def score(lag: int) -> float:
-        a = meas[max(0, -lag) : len(meas) - max(0, lag)]
-        b = sim[max(0, lag) : len(sim) - max(0, -lag)]
-        a, b = a - a.mean(axis=0), b - b.mean(axis=0)
-        den = np.sqrt((a * a).sum(axis=0) * (b * b).sum(axis=0))
-        return float(np.mean((a * b).sum(axis=0) / np.where(den > 0, den, np.inf)))
-
-    scores = np.array([score(int(lag)) for lag in lags])
-    k = int(np.argmax(scores))
-    frac = 0.0
-    if 0 < k < len(lags) - 1:  # parabola through the peak and its neighbours
-        c0, c1, c2 = scores[k - 1], scores[k], scores[k + 1]
-        curvature = c0 - 2 * c1 + c2
-        frac = 0.5 * (c0 - c2) / curvature if curvature < 0 else 0.0
-    shift = -(lags[k] + frac) * step_m
-    return TrackAlignment(
-        rec.condition.name,
-        float(rec.condition.track_offset_m + shift),
-        float(scores[k]),
-        float(scores[max_lag]),
-        float(shift),
-    )

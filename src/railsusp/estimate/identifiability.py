@@ -5,7 +5,7 @@ Fisher information of the measured statistics about the key parameters is F = J�
 with J the gradient of the GP means (central differences) and Σ the variance of each
 measured statistic about its expectation: the GP's own uncertainty plus the scatter between
 track realisations, scaled to the recording's length
-(:meth:`railsusp.estimate.StatisticsForces.measurement_std`). The square roots of the
+(:meth:`railsusp.estimate.forces.StatisticsForces.measurement_std`). The square roots of the
 diagonal of F⁻¹ are the smallest standard deviations that any unbiased estimator can reach
 from these statistics (Cramér-Rao; e.g. Kay, *Fundamentals of Statistical Signal
 Processing: Estimation Theory*, 1993, ch. 3). A parameter whose bound exceeds
@@ -26,7 +26,7 @@ import numpy as np
 from railsusp.params import bounds
 
 if TYPE_CHECKING:
-    from railsusp.estimate import StatisticsForces
+    from railsusp.estimate.forces import StatisticsForces
     from railsusp.measured import Recording
 
 #: a parameter whose Cramér-Rao bound exceeds this share of its range is flagged

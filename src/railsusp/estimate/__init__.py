@@ -1,0 +1,106 @@
+"""NSGA-II calibration of the key suspension parameters against measured wheel-rail forces.
+
+One module per job, imports running one way (top to bottom depends only on those above):
+
+- :mod:`~railsusp.estimate.statistics`: record statistics of recordings and predictions
+- :mod:`~railsusp.estimate.comparison`: the time-aligned comparison on measured track
+- :mod:`~railsusp.estimate.forces`: force models (window or statistics surrogates, simulator)
+- :mod:`~railsusp.estimate.problem`: the calibration problem (objectives), input checks
+- :mod:`~railsusp.estimate.config`: NSGA-II settings and their accepted ranges
+- :mod:`~railsusp.estimate.identifiability`: Cramér-Rao bounds of the statistics
+- :mod:`~railsusp.estimate.refine`: output-error refinement with the simulator
+- :mod:`~railsusp.estimate.alignment`: registration of measured track with the forces
+- :mod:`~railsusp.estimate.result`: the estimate result (save, table)
+- :mod:`~railsusp.estimate.nsga`: the NSGA-II run (pymoo), log, choice rule, seed spread
+- :mod:`~railsusp.estimate.polish`: screened starts and refinement of an NSGA-II estimate
+
+This package re-exports the public names other code uses, so ``from railsusp.estimate
+import estimate, NSGAConfig, refine_estimate`` works; the refinement's own
+:func:`~railsusp.estimate.refine.refine` is imported from its module.
+"""
+
+from __future__ import annotations
+
+from railsusp.estimate.alignment import TrackAlignment, align_track
+from railsusp.estimate.comparison import (
+    FAILED_ALIGNED_ERROR,
+    aligned_error,
+    compared_measurement,
+    comparison_band_hz,
+    comparison_filter,
+    comparison_samples,
+    measurement_filter,
+)
+from railsusp.estimate.config import NSGAConfig
+from railsusp.estimate.forces import (
+    ForceModel,
+    SimulatorForces,
+    StatisticsForces,
+    SurrogateForces,
+    force_statistics,
+    open_force_model,
+)
+from railsusp.estimate.identifiability import BOUND_LIMIT_PCT, cramer_rao_pct_range
+from railsusp.estimate.nsga import choose, estimate, estimate_with_seeds
+from railsusp.estimate.polish import aligned_cost, check_refinable, refine_estimate
+from railsusp.estimate.problem import (
+    CalibrationProblem,
+    check_aligned,
+    check_recordings,
+    display_values,
+)
+from railsusp.estimate.refine import Refinement
+from railsusp.estimate.result import CalibrationResult
+from railsusp.estimate.statistics import (
+    ALIGNED,
+    STATISTICS,
+    WEIGHTINGS,
+    check_weighting,
+    measured_statistics,
+    parse_statistics,
+    recording_segments,
+    series_statistics,
+    yq_statistics,
+)
+
+__all__ = [
+    "ALIGNED",
+    "BOUND_LIMIT_PCT",
+    "FAILED_ALIGNED_ERROR",
+    "STATISTICS",
+    "WEIGHTINGS",
+    "CalibrationProblem",
+    "CalibrationResult",
+    "ForceModel",
+    "NSGAConfig",
+    "Refinement",
+    "SimulatorForces",
+    "StatisticsForces",
+    "SurrogateForces",
+    "TrackAlignment",
+    "align_track",
+    "aligned_cost",
+    "aligned_error",
+    "check_aligned",
+    "check_recordings",
+    "check_refinable",
+    "check_weighting",
+    "choose",
+    "compared_measurement",
+    "comparison_band_hz",
+    "comparison_filter",
+    "comparison_samples",
+    "cramer_rao_pct_range",
+    "display_values",
+    "estimate",
+    "estimate_with_seeds",
+    "force_statistics",
+    "measured_statistics",
+    "measurement_filter",
+    "open_force_model",
+    "parse_statistics",
+    "recording_segments",
+    "refine_estimate",
+    "series_statistics",
+    "yq_statistics",
+]

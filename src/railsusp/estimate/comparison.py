@@ -1,0 +1,150 @@
+"""Time-aligned comparison of predicted force series with a recording on measured track.
+
+A model's series pass through the recording's documented filter and are limited to the band
+in which the recording's track geometry is accurate; :func:`aligned_error` is then the RMS of
+the sample-by-sample difference over the standard deviation of the measured series.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from railsusp.measured import Recording, bandwidth_filter
+from railsusp.vehicle.track import CHANNEL_COMPONENTS, accurate_wavelength_m, read_track_geometry
+
+
+def measurement_filter(series: np.ndarray, rec: Recording) -> np.ndarray:
+    """Predicted series (n, T, channels) passed through the recording's documented filter
+    (``filter_bandwidth_hz`` in its metadata), so that a model is compared with what the
+    instrument could see; unchanged when the recording gives no bandwidth. Undefined leading
+    steps (window surrogates) stay undefined, and so does the whole of a set whose series
+    breaks off (a simulation flagged as failed)."""
+    bw = rec.meta.get("filter_bandwidth_hz")
+    if not bw:
+        return series
+    return _lowpass_defined(series, rec.sampling_rate, np.full(series.shape[-1], float(bw)))
+
+
+def _lowpass_defined(series: np.ndarray, fs: float, bandwidths: np.ndarray) -> np.ndarray:
+    """Series (n, T, channels) low-passed along time, channel c at ``bandwidths[c]`` Hz
+    (:func:`~railsusp.measured.bandwidth_filter`); leading undefined steps stay undefined,
+    and a set whose series breaks off becomes wholly undefined."""
+
+    def lowpass(x: np.ndarray) -> np.ndarray:  # (T, channels) or (n, T, channels)
+        out = np.empty_like(x)
+        for c, bw in enumerate(bandwidths):
+            out[..., c] = bandwidth_filter(x[..., c], fs, float(bw), axis=-1)
+        return out
+
+    if np.isfinite(series).all():
+        return lowpass(series)
+    out = np.full_like(series, np.nan)
+    for i, one in enumerate(series):
+        ok = np.isfinite(one).all(axis=1)
+        first = int(np.argmax(ok))
+        if ok.any() and ok[first:].all() and ok.size - first > 30:
+            out[i, first:] = lowpass(one[first:])
+    return out
+
+
+def comparison_band_hz(rec: Recording) -> np.ndarray | None:
+    """(2,) upper frequency (Hz) of the time-aligned comparison of lateral and vertical
+    force: the speed over the shortest wavelength down to which the recording's track
+    geometry is accurate (:func:`~railsusp.vehicle.track.accurate_wavelength_m`, from the
+    condition's ``track_accuracy_mm``; the components that drive each channel). None where
+    the geometry is exact (accuracy 0): the whole instrument band is compared.
+
+    Below that wavelength the geometry error outweighs the geometry, and a fit there would
+    absorb the error into the parameters (an errors-in-variables bias)."""
+    cond = rec.condition
+    if cond.track_geometry is None or not cond.track_accuracy_mm:
+        return None
+    path = Path(cond.track_geometry)
+    return np.array(
+        _comparison_band(
+            str(path.resolve()),
+            path.stat().st_mtime_ns,
+            cond.track_accuracy_mm,
+            cond.wavelength_min_m,
+            cond.speed,
+        )
+    )
+
+
+@lru_cache(maxsize=32)
+def _comparison_band(
+    path: str, _mtime_ns: int, accuracy_mm: float, wavelength_min_m: float, speed: float
+) -> tuple[float, float]:
+    """:func:`comparison_band_hz` of one geometry file, cached: every time-aligned
+    comparison asks for it, and the geometry's PSD need not be estimated each time."""
+    lam = accurate_wavelength_m(read_track_geometry(path), accuracy_mm * 1e-3, wavelength_min_m)
+    y, q = (speed / max(lam[c] for c in CHANNEL_COMPONENTS[ch]) for ch in ("Y", "Q"))
+    return (y, q)
+
+
+def comparison_filter(series: np.ndarray, rec: Recording) -> np.ndarray:
+    """Predicted series (n, T, 2) as the time-aligned comparison sees them: through the
+    recording's filter (:func:`measurement_filter`) and limited to its comparison band
+    (:func:`comparison_band_hz`)."""
+    series = measurement_filter(series, rec)
+    band = comparison_band_hz(rec)
+    return series if band is None else _lowpass_defined(series, rec.sampling_rate, band)
+
+
+def compared_measurement(rec: Recording) -> np.ndarray:
+    """(T, 2) the recording's lateral and vertical force limited to its comparison band."""
+    meas = rec.forces()
+    band = comparison_band_hz(rec)
+    return meas if band is None else _lowpass_defined(meas[None], rec.sampling_rate, band)[0]
+
+
+def comparison_samples(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
+    """Per channel (Y, Q), the samples of a recording the time-aligned comparison uses: all
+    of them without a comparison band; with one, four per period of the band's upper
+    frequency (residuals closer than that are not independent), leaving out one period at
+    each end, where the zero-phase filter's start and end transients lie."""
+    n = rec.forces().shape[0]
+    band = comparison_band_hz(rec)
+    if band is None:
+        return (np.arange(n), np.arange(n))
+    fs = rec.sampling_rate
+    edge = min(int(np.ceil(fs / band.min())), n // 4)
+    y, q = (np.arange(edge, n - edge, max(1, int(fs / (4.0 * f)))) for f in band)
+    return (y, q)
+
+
+#: time-aligned error given to a prediction that is undefined (a failed simulation)
+FAILED_ALIGNED_ERROR = 1e3
+
+
+def aligned_error(pred: np.ndarray, rec: Recording) -> np.ndarray:
+    """(n, 2) time-aligned mismatch of predicted lateral and vertical series (n, T, 2) with a
+    recording made on measured track: RMS of the sample-by-sample difference over the
+    standard deviation of the measured series (its dynamic part), after the recording's
+    filter is applied to the prediction and both are limited to the band where the track
+    geometry is accurate (:func:`comparison_band_hz`). Zero for a perfect model and
+    noise-free data;
+    :data:`FAILED_ALIGNED_ERROR` for a set without a defined prediction."""
+    meas = rec.forces()
+    if pred.shape[-2] != meas.shape[0]:
+        raise ValueError(
+            f"recording {rec.condition.name!r} has {meas.shape[0]} samples, the model "
+            f"predicts {pred.shape[-2]}: time-aligned comparison needs the same time base"
+        )
+    ok = np.isfinite(pred).all(axis=-1)  # (n, T)
+    first = np.argmax(ok, axis=1)
+    after_first = np.arange(ok.shape[1])[None, :] >= first[:, None]
+    defined = ok.any(axis=1) & np.all(ok | ~after_first, axis=1)  # only leading gaps
+    meas = compared_measurement(rec)
+    diff = comparison_filter(pred, rec) - meas
+    err = np.empty(diff.shape[::2])
+    for c, used in enumerate(comparison_samples(rec)):
+        d = diff[:, used, c]
+        sq = np.where(np.isfinite(d), d**2, 0.0).sum(axis=1)
+        count = np.isfinite(d).sum(axis=1)
+        err[:, c] = np.where(count > 0, np.sqrt(sq / np.maximum(count, 1)), np.inf)
+    err /= meas.std(axis=0)
+    return np.where(defined[:, None] & np.isfinite(err), err, FAILED_ALIGNED_ERROR)

@@ -1,0 +1,200 @@
+"""Force models of the calibration: what predicts the measured wheel's forces for parameter sets.
+
+A trained window surrogate per condition (:class:`SurrogateForces`, the study's route),
+statistics surrogates per condition (:class:`StatisticsForces`, Gaussian processes straight
+to the statistics) or the batched simulator itself (:class:`SimulatorForces`, slow, the
+reference). :func:`open_force_model` picks the surrogate kind from a folder's contents.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from railsusp.conditions import TRACK_INPUT_FIELDS, WorkingCondition
+from railsusp.estimate.statistics import recording_segments, series_statistics
+from railsusp.measured import Recording
+
+
+class ForceModel(Protocol):
+    """Predicts the measured wheel's force series for parameter sets in a condition."""
+
+    def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
+        """(n, T, 2) lateral and vertical force (kN), NaN where undefined."""
+        ...
+
+
+class SurrogateForces:
+    """Window surrogates, one per condition name (a folder of ``<condition>/`` bundles)."""
+
+    def __init__(self, folder: str | Path, parameters: Sequence[str] | None = None):
+        from railsusp.surrogate import load
+
+        self.folder = Path(folder)
+        self._models: dict[str, Any] = {}
+        self._warned: set[str] = set()
+        for sub in sorted(self.folder.iterdir()) if self.folder.is_dir() else []:
+            if (sub / "surrogate.json").exists():
+                self._models[sub.name] = load(sub)
+        if not self._models:
+            raise FileNotFoundError(f"{self.folder}: no surrogate bundles (<condition>/)")
+        first = next(iter(self._models.values()))
+        self.parameters = tuple(parameters) if parameters else tuple(first.spec.parameters)
+        for name, m in self._models.items():
+            if tuple(m.spec.parameters) != self.parameters:
+                raise ValueError(
+                    f"surrogate {name} uses {m.spec.parameters}, the calibration {self.parameters}"
+                )
+
+    @property
+    def conditions(self) -> list[str]:
+        return list(self._models)
+
+    def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
+        if condition.name not in self._models:
+            raise ValueError(
+                f"no surrogate for condition {condition.name!r} in {self.folder} "
+                f"(has {', '.join(self._models)})"
+            )
+        # on a measured track the network reads that track, if it can; otherwise it predicts
+        # its training track, whose statistics the recording's are compared with
+        on = condition if self.reads_track(condition) else None
+        unread = on is None and condition.track_geometry is not None
+        if unread and condition.name not in self._warned:
+            from railsusp.surrogate.bundle import OneTrackWarning
+
+            self._warned.add(condition.name)  # once per condition, not per generation
+            warnings.warn(
+                f"the surrogate of {condition.name!r} was trained on one track realisation: "
+                "its statistics on that track are compared with the recording's, whose "
+                "measured track it cannot read",
+                OneTrackWarning,
+                stacklevel=2,
+            )
+        return self._models[condition.name].predict(x_si, condition=on)
+
+    def reads_track(self, condition: WorkingCondition) -> bool:
+        """Whether the network of ``condition`` predicts on its measured track: not when it
+        was trained on one other track realisation (it learns that track's windows, not the
+        dynamics: :attr:`~railsusp.surrogate.bundle.Surrogate.one_track`)."""
+        if condition.track_geometry is None:
+            return False
+        model = self._models[condition.name]
+        return not model.one_track or model.reads_training_track(condition)
+
+
+class StatisticsForces:
+    """Statistics surrogates, one per condition name (a folder of ``<condition>/`` bundles
+    with ``statistics.json``): predict the statistics directly, no series."""
+
+    def __init__(self, folder: str | Path, parameters: Sequence[str] | None = None):
+        from railsusp.surrogate.statistics import is_statistics_bundle, load_statistics
+
+        self.folder = Path(folder)
+        subs = sorted(self.folder.iterdir()) if self.folder.is_dir() else []
+        self._models = {p.name: load_statistics(p) for p in subs if is_statistics_bundle(p)}
+        if not self._models:
+            raise FileNotFoundError(f"{self.folder}: no statistics surrogates (<condition>/)")
+        first = next(iter(self._models.values()))
+        self.parameters = tuple(parameters) if parameters else first.parameters
+        for name, m in self._models.items():
+            if m.parameters != self.parameters:
+                raise ValueError(
+                    f"statistics surrogate {name} uses {m.parameters}, the calibration "
+                    f"{self.parameters}"
+                )
+
+    @property
+    def conditions(self) -> list[str]:
+        return list(self._models)
+
+    def predict_statistics(
+        self,
+        x_si: np.ndarray,
+        condition: WorkingCondition,
+        statistics: Sequence[str],
+        with_std: bool = False,
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """(n, 2, n_statistics) lateral and vertical statistics, kN; with ``with_std`` also
+        their predictive standard deviation (GP uncertainty and the scatter between track
+        realisations of a record of the training length)."""
+        if condition.name not in self._models:
+            raise ValueError(
+                f"no statistics surrogate for condition {condition.name!r} in {self.folder} "
+                f"(has {', '.join(self._models)})"
+            )
+        model = self._models[condition.name]
+        # Trained on synthesised track, the GPs predict the average over track realisations,
+        # whatever the recording's seed, length or measured track. Trained on a measured
+        # track, they hold for that stretch of track only.
+        ignore = (
+            ("seed", "track_accuracy_mm")  # the accuracy changes the comparison only
+            if model.condition.track_geometry is not None
+            else (*TRACK_INPUT_FIELDS, "duration_s", "n_steps")
+        )
+        diff = model.condition.differences(condition, ignore)
+        if diff:
+            raise ValueError(
+                f"the statistics surrogate for {condition.name!r} was trained for another "
+                f"condition: it differs in {', '.join(diff)}"
+            )
+        mean, std = model.predict(x_si, statistics)
+        return (mean, std) if with_std else mean
+
+    def measurement_std(
+        self, x_si: np.ndarray, rec: Recording, statistics: Sequence[str]
+    ) -> np.ndarray:
+        """(n, 2, n_statistics) standard deviation of a recording's statistics about the GP
+        mean, kN: the GP's own uncertainty plus the realisation scatter of its training
+        records, scaled to the recording's length (scatter variance ~ 1 / segments)."""
+        _, sd = self.predict_statistics(x_si, rec.condition, statistics, with_std=True)
+        model = self._models[rec.condition.name]
+        noise = model.noise_std(statistics) ** 2
+        posterior = np.maximum(sd**2 - noise, 0.0)
+        scale = model.training_segments / recording_segments(rec)
+        return np.sqrt(posterior + noise * scale)
+
+
+def open_force_model(
+    folder: str | Path, parameters: Sequence[str] | None = None
+) -> tuple[SurrogateForces | StatisticsForces, tuple[str, ...]]:
+    """The surrogate force model in ``folder`` (window or statistics bundles per condition)
+    and its key parameters (``parameters`` if given)."""
+    from railsusp.surrogate.statistics import is_statistics_bundle
+
+    folder = Path(folder)
+    subs = sorted(folder.iterdir()) if folder.is_dir() else []
+    kind = StatisticsForces if any(is_statistics_bundle(p) for p in subs) else SurrogateForces
+    model = kind(folder, parameters)
+    return model, model.parameters
+
+
+def force_statistics(
+    model: ForceModel | StatisticsForces,
+    x_si: np.ndarray,
+    condition: WorkingCondition,
+    statistics: Sequence[str],
+) -> np.ndarray:
+    """(n, 2, n_statistics) statistics of |Y| and Q predicted by any force model, kN."""
+    if isinstance(model, StatisticsForces):
+        return model.predict_statistics(x_si, condition, statistics)
+    return series_statistics(model.series(x_si, condition), condition, statistics)
+
+
+class SimulatorForces:
+    """The batched simulator on the design track of each condition (slow reference)."""
+
+    def __init__(self, parameters: Sequence[str], wheel: str = "auto"):
+        self.parameters = tuple(parameters)
+        self.wheel = wheel
+
+    def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
+        from railsusp.vehicle.simulate import simulate_batch
+
+        r = simulate_batch(x_si, condition, symbols=self.parameters)
+        j = r.measured_wheel(self.wheel)
+        return np.stack([r.Y[:, j], r.Q[:, j]], axis=2) / 1e3

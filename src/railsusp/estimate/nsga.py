@@ -1,0 +1,135 @@
+"""The NSGA-II run (pymoo): population, operators, generation log, choice rule, seed spread.
+
+Problem, algorithm, termination, one entry point (pymoo style): the problem is a
+:class:`~railsusp.estimate.problem.CalibrationProblem`, the settings an
+:class:`~railsusp.estimate.config.NSGAConfig` (the study's: population 50, crossover 0.9,
+mutation 0.05, 100 generations), and :func:`estimate` returns a
+:class:`~railsusp.estimate.result.CalibrationResult`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from pymoo.algorithms.moo.nsga2 import NSGA2
+from pymoo.core.callback import Callback
+from pymoo.operators.crossover.sbx import SBX
+from pymoo.operators.mutation.pm import PM
+from pymoo.operators.sampling.rnd import FloatRandomSampling
+from pymoo.optimize import minimize
+from pymoo.util.display.multi import MultiObjectiveOutput
+
+from railsusp.estimate.config import SEEDS_RANGE, NSGAConfig, check_range
+from railsusp.estimate.forces import ForceModel, StatisticsForces
+from railsusp.estimate.identifiability import cramer_rao_pct_range
+from railsusp.estimate.problem import CalibrationProblem
+from railsusp.estimate.result import CalibrationResult
+from railsusp.measured import Recording
+from railsusp.params import bounds
+
+
+class _Log(Callback):
+    """Records pymoo's n_gen, n_eval, n_nds, eps, indicator (the study's Tables 3/4) and
+    each generation's population, for the convergence history."""
+
+    def __init__(self):
+        super().__init__()
+        self.rows: list[dict] = []
+        self.front_x: list[np.ndarray] = []
+        self.front_f: list[np.ndarray] = []
+        self._out = MultiObjectiveOutput()
+        self._ready = False
+
+    def notify(self, algorithm):
+        if not self._ready:
+            self._out.initialize(algorithm)
+            self._ready = True
+        self._out.update(algorithm)
+        row = {c.name: c.value for c in self._out.columns}
+        row["eps"] = None if row.get("eps") is None else float(row["eps"])
+        self.rows.append(row)
+        self.front_x.append(algorithm.opt.get("X").copy())
+        self.front_f.append(algorithm.opt.get("F").copy())
+
+
+def choose(front: np.ndarray) -> int:
+    """Index of the Pareto point closest to the ideal point after normalising each objective
+    to [0, 1] over the front (the documented choice rule)."""
+    lo, hi = front.min(axis=0), front.max(axis=0)
+    span = np.where(hi > lo, hi - lo, 1.0)
+    return int(np.argmin(np.linalg.norm((front - lo) / span, axis=1)))
+
+
+def estimate(
+    model: ForceModel,
+    recordings: Sequence[Recording],
+    parameters: Sequence[str],
+    config: NSGAConfig | None = None,
+    initial_si: np.ndarray | None = None,
+) -> CalibrationResult:
+    """Run NSGA-II and pick the estimate; deterministic for a given seed.
+
+    ``initial_si``: parameter sets (n, k), SI, to start the population from (e.g. the Pareto
+    set of a cheaper estimate), topped up with random sets to the population size."""
+    cfg = NSGAConfig() if config is None else config
+    problem = CalibrationProblem(
+        model, recordings, parameters, cfg.statistic, cfg.per_condition, cfg.weighting
+    )
+    sampling: Any = FloatRandomSampling()
+    if initial_si is not None:
+        start = np.clip((np.atleast_2d(initial_si) - problem.lo) / (problem.hi - problem.lo), 0, 1)
+        start = start[: cfg.pop_size]
+        fill = np.random.default_rng(cfg.seed).random((cfg.pop_size - len(start), problem.n_var))
+        sampling = np.vstack([start, fill])
+    algo = NSGA2(
+        pop_size=cfg.pop_size,
+        sampling=sampling,
+        crossover=SBX(prob=cfg.crossover_prob, eta=15),
+        mutation=PM(prob_var=cfg.mutation_prob, eta=20),
+        eliminate_duplicates=True,
+    )
+    log = _Log()
+    res = minimize(problem, algo, ("n_gen", cfg.n_gen), seed=cfg.seed, verbose=False, callback=log)
+    x = np.atleast_2d(res.X)
+    f = np.atleast_2d(res.F)
+    order = np.argsort(f[:, 0])
+    x, f = x[order], f[order]
+    history = np.array(
+        [problem.to_si(fx[choose(ff)]) for fx, ff in zip(log.front_x, log.front_f, strict=True)]
+    )
+    result = CalibrationResult(
+        tuple(parameters), problem.to_si(x), f, choose(f), pd.DataFrame(log.rows), history, cfg
+    )
+    if isinstance(model, StatisticsForces) and problem.stats:
+        result.cramer_rao = cramer_rao_pct_range(
+            model, problem.recordings, result.parameters, result.chosen_x, problem.stats
+        )
+    return result
+
+
+def estimate_with_seeds(
+    model: ForceModel,
+    recordings: Sequence[Recording],
+    parameters: Sequence[str],
+    config: NSGAConfig | None = None,
+    n_seeds: int = 3,
+) -> CalibrationResult:
+    """The estimate of the first seed, with the spread of the chosen estimate over
+    ``n_seeds`` independent runs (in % of each parameter's range)."""
+    check_range("n_seeds", n_seeds, *SEEDS_RANGE)
+    cfg = NSGAConfig() if config is None else config
+    runs = [
+        estimate(
+            model, recordings, parameters, NSGAConfig(**{**cfg.to_dict(), "seed": cfg.seed + k})
+        )
+        for k in range(n_seeds)
+    ]
+    lo, hi = bounds(parameters)
+    chosen = np.array([r.pareto_x[r.chosen] for r in runs])
+    spread = (chosen.max(axis=0) - chosen.min(axis=0)) / (hi - lo) * 100
+    first = runs[0]
+    first.seeds_spread = {p: float(s) for p, s in zip(parameters, spread, strict=True)}
+    return first

@@ -1,0 +1,135 @@
+"""The simulator polish of an NSGA-II estimate: screened starts, output-error refinement.
+
+Time-aligned costs have local minima, and an estimate from statistics can sit in the wrong
+basin: :func:`refine_estimate` scores candidate starts by their time-aligned cost
+(:func:`aligned_cost`), refines the best (:func:`railsusp.estimate.refine.refine`) and
+attaches the winner to the :class:`~railsusp.estimate.result.CalibrationResult`.
+:func:`check_refinable` refuses, before NSGA-II runs, recordings the refinement cannot use.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from railsusp.errors import RailsuspInputError
+from railsusp.estimate.config import REFINE_RANGES, check_range
+from railsusp.estimate.forces import ForceModel, SimulatorForces
+from railsusp.estimate.problem import CalibrationProblem, display_values
+from railsusp.estimate.refine import GEOMETRY_DRAWS, refine
+from railsusp.estimate.result import CalibrationResult
+from railsusp.estimate.statistics import ALIGNED
+from railsusp.measured import Recording
+from railsusp.params import ParameterSet, bounds
+
+#: Latin hypercube points screened for refinement starts, and the starts refined
+REFINE_SCREEN = 64
+REFINE_STARTS = 2
+
+
+def check_refinable(recordings: Sequence[Recording], setting: str = "refine") -> None:
+    """Refuse, with a one-line input error naming ``setting`` (``--refine`` on the command
+    line, ``estimate.refine`` in a configuration), recordings the refinement cannot use:
+    it compares series sample by sample on the track they were recorded on, so every
+    recording must carry its measured track geometry. Call it before NSGA-II runs."""
+    blind = [r.condition.name for r in recordings if r.condition.track_geometry is None]
+    if blind:
+        raise RailsuspInputError(
+            f"{setting} compares time-aligned series on the recordings' measured track, but "
+            f"{', '.join(blind)} carry no track geometry (condition.track_geometry, "
+            "docs/data-format.md; synthetic recordings: synth-field --with-track or "
+            "field.with_track = true); drop the refinement or give recordings on measured track"
+        )
+
+
+def aligned_cost(
+    model: ForceModel,
+    recordings: Sequence[Recording],
+    parameters: Sequence[str],
+    x_si: np.ndarray,
+) -> np.ndarray:
+    """(n,) half the sum over recordings and forces of the squared :func:`aligned_error`:
+    the refinement's cost at unit channel gains, for many parameter sets in one batch."""
+    e = CalibrationProblem(model, recordings, parameters, ALIGNED).errors(np.atleast_2d(x_si))
+    return 0.5 * (e**2).sum(axis=(1, 2))
+
+
+def refine_estimate(
+    result: CalibrationResult,
+    recordings: Sequence[Recording],
+    model: ForceModel | None = None,
+    max_evaluations: int = 40,
+    gains: bool = True,
+    screen: int = REFINE_SCREEN,
+    starts: int = REFINE_STARTS,
+    seed: int = 0,
+    geometry_draws: int = GEOMETRY_DRAWS,
+    remove_geometry_bias: bool = True,
+) -> CalibrationResult:
+    """Refine NSGA-II's estimate in place and return the result (its estimate is now the
+    refined one); by default with the simulator itself.
+
+    Time-aligned costs have local minima, and an estimate from statistics can sit in the
+    wrong basin, so the starts are screened first: the Pareto set, the nominal parameters
+    and ``screen`` Latin hypercube points are scored by :func:`aligned_cost` in one batch,
+    :func:`refine` runs from the ``starts`` best, and the lowest final cost wins. Every
+    start's result is kept in ``result.refinement.starts``. The winner's uncertainty then
+    takes in the geometry's stated measurement error (``geometry_draws`` draws; see
+    :meth:`~railsusp.estimate.refine.OutputError.geometry_shifts`), and with
+    ``remove_geometry_bias`` the estimate is the refined point less the bias those draws
+    estimate (:attr:`~railsusp.estimate.refine.Refinement.geometry_bias_si`).
+    The standard errors stay those of the refined point (the removal is itself uncertain by
+    about its size)."""
+    from scipy.stats import qmc
+
+    settings = {
+        "max_evaluations": max_evaluations,
+        "screen": screen,
+        "starts": starts,
+        "geometry_draws": geometry_draws,
+    }
+    for name, value in settings.items():
+        check_range(name, value, *REFINE_RANGES[name])
+    check_refinable(recordings)
+    params = result.parameters
+    model = SimulatorForces(params) if model is None else model
+    lo, hi = bounds(params)
+    nominal = np.array([ParameterSet.nominal()[p] for p in params])
+    lhs = qmc.LatinHypercube(d=len(params), seed=seed).random(screen) if screen else None
+    candidates = np.vstack(
+        [result.pareto_x[result.chosen][None], result.pareto_x, nominal[None]]
+        + ([lo + lhs * (hi - lo)] if lhs is not None else [])
+    )
+    costs = aligned_cost(model, recordings, params, candidates)
+    best = np.argsort(costs, kind="stable")[:starts]
+    runs = [
+        refine(
+            model,
+            recordings,
+            params,
+            candidates[i],
+            max_evaluations=max_evaluations,
+            gains=gains,
+            geometry_draws=0,
+        )
+        for i in best
+    ]
+    winner = min(runs, key=lambda r: r.cost)
+    assert winner.problem is not None and winner.solution is not None
+    winner.geometry_shifts_si = winner.problem.geometry_shifts(
+        winner.solution, geometry_draws, seed
+    )
+    winner.geometry_bias_removed = remove_geometry_bias and winner.geometry_shifts_si.size > 0
+    winner.starts = [
+        {
+            "start_display": display_values(params, r.start_si),
+            "screened_cost": float(costs[i]),
+            "cost": r.cost,
+            "refined_display": display_values(params, r.x_si),
+        }
+        for i, r in zip(best, runs, strict=True)
+    ]
+    winner.screened = len(candidates)
+    result.refinement = winner
+    return result

@@ -1,0 +1,192 @@
+"""The calibration problem: objectives built from a force model and the recordings.
+
+:class:`CalibrationProblem` (a pymoo problem) has two objectives over the key parameters
+scaled to [0, 1]: the lateral and vertical mismatch between a force model and the
+recordings, as relative errors of a record statistic (or the time-aligned error on measured
+track), joint over the conditions by default. :func:`check_recordings` and
+:func:`check_aligned` refuse, before any optimisation, recordings the objectives cannot be
+computed on.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from pymoo.core.problem import Problem
+
+from railsusp.errors import RailsuspInputError
+from railsusp.estimate.comparison import aligned_error
+from railsusp.estimate.forces import (
+    ForceModel,
+    SimulatorForces,
+    StatisticsForces,
+    SurrogateForces,
+    force_statistics,
+)
+from railsusp.estimate.statistics import (
+    ALIGNED,
+    check_weighting,
+    measured_statistics,
+    parse_statistics,
+    series_statistics,
+)
+from railsusp.measured import Recording
+from railsusp.params import bounds, spec
+
+
+class CalibrationProblem(Problem):
+    """Two objectives over the key parameters (decision variables scaled to [0, 1]):
+    relative error of the lateral and of the vertical force statistic against the
+    recordings (averaged over the statistics of a combination such as ``mean+p99+std``),
+    averaged over the conditions (or one pair per condition)."""
+
+    def __init__(
+        self,
+        model: ForceModel,
+        recordings: Sequence[Recording],
+        parameters: Sequence[str],
+        statistic: str = "mean",
+        per_condition: bool = False,
+        weighting: str = "relative",
+    ):
+        self.model, self.recordings = model, list(recordings)
+        self.parameters = tuple(parameters)
+        self.statistic, self.per_condition = statistic, per_condition
+        if check_weighting(weighting) == "noise" and not isinstance(model, StatisticsForces):
+            raise ValueError(
+                "weighting 'noise' needs the predictive standard deviation of a statistics "
+                "surrogate (gp-stats force model)"
+            )
+        self.weighting = weighting
+        self.lo, self.hi = bounds(self.parameters)
+        combination = parse_statistics(statistic)
+        self.aligned = ALIGNED in combination
+        self.stats = tuple(st for st in combination if st != ALIGNED)
+        if self.aligned:
+            check_aligned(model, self.recordings)
+        check_recordings(self.recordings, self.stats, self.aligned, weighting == "relative")
+        self.measured = [measured_statistics(rec, self.stats) for rec in self.recordings]
+        n_obj = 2 * len(self.recordings) if per_condition else 2
+        super().__init__(n_var=len(self.parameters), n_obj=n_obj, xl=0.0, xu=1.0)
+
+    def to_si(self, unit: np.ndarray) -> np.ndarray:
+        return self.lo + np.asarray(unit) * (self.hi - self.lo)
+
+    def errors(self, x_si: np.ndarray) -> np.ndarray:
+        """(n, n_conditions, 2) mismatch of the lateral and vertical statistic, averaged over
+        the statistics of a combination: relative error, or with ``weighting="noise"`` the
+        absolute error over the predictive standard deviation."""
+        errs = []
+        for rec, meas in zip(self.recordings, self.measured, strict=True):
+            parts = []
+            if self.aligned:
+                series = self.model.series(x_si, rec.condition)
+                parts.append(aligned_error(series, rec)[:, :, None])
+                if self.stats:
+                    pred = series_statistics(series, rec.condition, self.stats)
+                    parts.append(np.abs(pred - meas) / np.abs(meas))
+            elif self.weighting == "noise":
+                pred, sd = self.model.predict_statistics(
+                    x_si, rec.condition, self.stats, with_std=True
+                )
+                parts.append(np.abs(pred - meas) / np.maximum(sd, 1e-9))
+            else:
+                pred = force_statistics(self.model, x_si, rec.condition, self.stats)
+                parts.append(np.abs(pred - meas) / np.abs(meas))
+            errs.append(np.concatenate(parts, axis=2).mean(axis=2))
+        return np.stack(errs, axis=1)
+
+    def _evaluate(self, x, out, *args, **kwargs):
+        e = self.errors(self.to_si(x))
+        out["F"] = e.reshape(len(x), -1) if self.per_condition else e.mean(axis=1)
+
+
+def check_recordings(
+    recordings: Sequence[Recording],
+    statistics: Sequence[str] = (),
+    aligned: bool = False,
+    relative: bool = True,
+) -> None:
+    """Refuse recordings the objectives cannot be computed on, with a one-line input error
+    naming the recording and force, before any optimisation: non-finite samples, a force
+    that is zero throughout (e.g. an unconnected channel, or a file of zeros), a force of
+    constant value where the time-aligned comparison scales by its standard deviation, and,
+    for relative errors, a measured statistic of zero (the relative error divides by it).
+    Otherwise the objectives turn infinite or undefined and the optimiser fails deep inside.
+    """
+    if not recordings:
+        raise RailsuspInputError("the estimate needs at least one recording; none given")
+    for rec in recordings:
+        forces = rec.forces()
+        wheel = rec.wheels[0]
+        for c, force in enumerate(("Y", "Q")):
+            x = forces[:, c]
+            what = f"recording {rec.condition.name!r}: force {force} of wheel {wheel}"
+            if not np.isfinite(x).all():
+                raise RailsuspInputError(f"{what} has non-finite samples; accepted: finite kN")
+            if not np.any(x):
+                raise RailsuspInputError(
+                    f"{what} is zero throughout; the estimate needs recorded forces that vary "
+                    "with the suspension (check the channel and the file)"
+                )
+            if aligned and not np.std(x) > 0.0:
+                raise RailsuspInputError(
+                    f"{what} is constant; the time-aligned comparison scales by its standard "
+                    "deviation, which must be above zero"
+                )
+        if relative and statistics:
+            meas = measured_statistics(rec, statistics)
+            zero = np.argwhere(meas == 0.0)
+            if zero.size:
+                c, k = zero[0]
+                raise RailsuspInputError(
+                    f"recording {rec.condition.name!r}: statistic {statistics[k]!r} of force "
+                    f"{'YQ'[c]} of wheel {wheel} is 0 kN; relative errors need a non-zero "
+                    "measured statistic (use another statistic, or weighting 'noise')"
+                )
+
+
+def check_aligned(model: Any, recordings: Sequence[Recording]) -> None:
+    """Time-aligned comparison needs series from a model and recordings on measured track."""
+    if isinstance(model, StatisticsForces):
+        raise ValueError(
+            "statistic 'aligned' compares series: use a window surrogate or the simulator, "
+            "not a statistics surrogate"
+        )
+    if isinstance(model, SimulatorForces):
+        from railsusp.vehicle.simulate import WHEEL_NAMES, measured_wheel_index
+
+        for r in recordings:
+            sim_wheel = WHEEL_NAMES[measured_wheel_index(r.condition, model.wheel)]
+            if r.wheels[0] != sim_wheel:
+                raise ValueError(
+                    f"recording {r.condition.name!r} measures {r.wheels[0]}, the simulator "
+                    f"force model wheel {model.wheel!r} gives {sim_wheel}"
+                )
+    if isinstance(model, SurrogateForces):
+        other = [
+            r.condition.name
+            for r in recordings
+            if r.condition.track_geometry is not None and not model.reads_track(r.condition)
+        ]
+        if other:
+            raise RailsuspInputError(
+                f"statistic 'aligned': the surrogates of {', '.join(other)} in {model.folder} "
+                "were trained on one track realisation and cannot predict the recordings' "
+                "measured track: train them on a campaign over the recordings (railsusp "
+                "campaign --conditions FIELD), or use --simulator"
+            )
+    blind = [r.condition.name for r in recordings if r.condition.track_geometry is None]
+    if blind:
+        raise ValueError(
+            "statistic 'aligned' compares time-aligned samples, which needs recordings that "
+            f"carry measured track geometry; {', '.join(blind)} do not (the field recordings "
+            "need condition.track_geometry, docs/data-format.md)"
+        )
+
+
+def display_values(parameters: Sequence[str], x_si: np.ndarray) -> dict[str, float]:
+    """Parameter values (SI) in their display units, by symbol."""
+    return {p: spec(p).to_display(v) for p, v in zip(parameters, x_si, strict=True)}

@@ -1,0 +1,123 @@
+"""The estimate: Pareto set and front, chosen point, convergence, refinement; save and table.
+
+:class:`CalibrationResult` is what :func:`railsusp.estimate.estimate` returns and what the
+refinement (:func:`railsusp.estimate.refine_estimate`) completes; it writes the run
+directory's ``estimate/`` files (``nsga_log.*``, ``estimate.csv``, ``estimate.json``, the
+Pareto and convergence figures), each atomically.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from railsusp.estimate.config import NSGAConfig
+from railsusp.estimate.problem import display_values
+from railsusp.estimate.refine import Refinement
+from railsusp.params import ParameterSet, bounds, spec
+from railsusp.store import atomic_write_bytes, write_json, write_parquet
+
+
+@dataclass
+class CalibrationResult:
+    """Pareto set/front, chosen estimate, convergence history and log of one NSGA-II run."""
+
+    parameters: tuple[str, ...]
+    pareto_x: np.ndarray  # (n_pareto, k) SI
+    pareto_f: np.ndarray  # (n_pareto, n_obj)
+    chosen: int
+    log: pd.DataFrame
+    history: np.ndarray  # (n_gen, k) SI: per generation, the choice rule on its front
+    config: NSGAConfig
+    seeds_spread: dict[str, float] = field(default_factory=dict)
+    refinement: Refinement | None = None
+    #: Cramér-Rao bound of each parameter at NSGA-II's choice, % of range (statistics GPs)
+    cramer_rao: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def chosen_x(self) -> np.ndarray:
+        """The estimate, SI: the refined one when refined, else NSGA-II's choice."""
+        return self.refinement.estimate_si if self.refinement else self.pareto_x[self.chosen]
+
+    @property
+    def estimate(self) -> dict[str, float]:
+        """The estimate, display units."""
+        return display_values(self.parameters, self.chosen_x)
+
+    def pareto_spread(self) -> dict[str, float]:
+        """Spread (max - min) of each parameter over the Pareto set, in % of its range."""
+        lo, hi = bounds(self.parameters)
+        span = self.pareto_x.max(axis=0) - self.pareto_x.min(axis=0)
+        return {
+            p: float(100 * s / (h - low))
+            for p, s, low, h in zip(self.parameters, span, lo, hi, strict=True)
+        }
+
+    def table(self) -> pd.DataFrame:
+        """The study's Table 5 layout: initial (nominal) and estimated value, display units,
+        with the Pareto and seed spreads."""
+        ps = self.pareto_spread()
+        nsga = display_values(self.parameters, self.pareto_x[self.chosen])
+        refined = self.refinement.to_dict() if self.refinement else {}
+        rows = []
+        for p, v in self.estimate.items():
+            row = {
+                "parameter": p,
+                "unit": spec(p).display_unit,
+                "initial": spec(p).nominal_display,
+                "estimated": v,
+                "pareto_spread_pct_range": ps[p],
+                "seed_spread_pct_range": self.seeds_spread.get(p, float("nan")),
+            }
+            if self.refinement:
+                row["nsga_estimate"] = nsga[p]
+                row["standard_error_pct_range"] = refined["standard_error_pct_range"][p]
+                if refined["geometry_draws"]:
+                    row["geometry_error_pct_range"] = refined["geometry_error_pct_range"][p]
+            if self.cramer_rao:
+                row["cramer_rao_pct_range"] = self.cramer_rao[p]
+            rows.append(row)
+        return pd.DataFrame(rows)
+
+    def save(self, out: str | Path, extra: dict | None = None) -> Path:
+        """Write the log, the Table 5 layout, the JSON record (with ``extra`` provenance such
+        as the recordings folder) and the Pareto and convergence figures."""
+        out = Path(out)
+        write_parquet(out / "nsga_log.parquet", self.log)
+        atomic_write_bytes(out / "nsga_log.csv", self.log.to_csv(index=False).encode())
+        atomic_write_bytes(out / "estimate.csv", self.table().to_csv(index=False).encode())
+        write_json(
+            out / "estimate.json",
+            {
+                "parameters": list(self.parameters),
+                "estimate_display": self.estimate,
+                "pareto_x_si": self.pareto_x,
+                "pareto_f": self.pareto_f,
+                "chosen": self.chosen,
+                "history_si": self.history,
+                "config": self.config.to_dict(),
+                "pareto_spread_pct_range": self.pareto_spread(),
+                "seed_spread_pct_range": self.seeds_spread,
+                "choice_rule": "closest to the ideal point of the front normalised to [0, 1]"
+                + (", then refined by output-error least squares" if self.refinement else ""),
+                "nsga_estimate_display": display_values(
+                    self.parameters, self.pareto_x[self.chosen]
+                ),
+                "refinement": self.refinement.to_dict() if self.refinement else None,
+                "cramer_rao_pct_range": self.cramer_rao,
+                **(extra or {}),
+            },
+        )
+        from railsusp.report import plot_convergence, plot_pareto
+
+        plot_pareto(self, out / "pareto.png")
+        plot_convergence(self, out / "convergence.png")
+        return out
+
+    def estimate_set(self, base: ParameterSet | None = None) -> ParameterSet:
+        """The chosen estimate as a full ParameterSet (others from ``base`` or nominal)."""
+        base = base or ParameterSet.nominal()
+        return base.replace(dict(zip(self.parameters, self.chosen_x, strict=True)))
