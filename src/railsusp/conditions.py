@@ -277,6 +277,14 @@ class WorkingCondition(BaseModel):
 
     def with_duration(self, duration_s: float) -> WorkingCondition:
         """A validated copy recording ``duration_s`` seconds at the same sampling interval."""
+        lo, hi = 1.0, 600.0
+        if isinstance(duration_s, bool) or not (
+            isinstance(duration_s, int | float) and lo <= duration_s <= hi
+        ):
+            raise ConditionError(
+                f"condition {self.name!r}: duration_s = {duration_s!r}: accepted range "
+                f"[{lo:g}, {hi:g}] s"
+            )
         n_steps = max(10, round(duration_s / self.sample_interval))
         return self.with_changes(duration_s=duration_s, n_steps=n_steps)
 
@@ -329,6 +337,11 @@ def _format_errors(name: str, exc: ValidationError) -> str:
         value = err.get("input")
         shown = "" if field == "condition" else f"{field} = {value!r}: "
         text = err["msg"].removeprefix("Value error, ")
+        if err["type"] == "string_pattern_mismatch" and field == "name":
+            text = (
+                "a condition name becomes a folder name: letters, digits, '_', '-' and '.', "
+                "starting with a letter or digit (no '/', no '..', no absolute path)"
+            )
         if lo is not None or hi is not None:
             rng = f"[{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
             msgs.append(f"{shown}accepted range {rng} {unit}".rstrip() + f" ({text})")

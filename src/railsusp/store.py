@@ -156,18 +156,17 @@ def read_toml(path: str | Path, what: str = "file") -> dict[str, Any]:
 
 def check_output_folder(path: str | Path, option: str = "--out") -> Path:
     """Refuse an output folder that is an existing file or cannot be created or written,
-    before any work is done (one-line error)."""
+    before any work is done (one-line error). Creates nothing."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise RailsuspInputError(f"{option} {path} is an existing file, not a folder")
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise RailsuspInputError(
-            f"{option} {path}: the folder cannot be created ({exc.strerror})"
-        ) from None
-    if not os.access(path, os.W_OK | os.X_OK):
-        raise RailsuspInputError(f"{option} {path}: the folder is not writable")
+    probe = path.absolute()
+    while not probe.exists():
+        probe = probe.parent
+    if not probe.is_dir():
+        raise RailsuspInputError(f"{option} {path}: {probe} is a file, not a folder")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise RailsuspInputError(f"{option} {path}: the folder {probe} is not writable")
     return path
 
 

@@ -10,6 +10,7 @@ import sys
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from railsusp.errors import RailsuspInputError
@@ -49,7 +50,7 @@ def frame_table(df, title: str, fmt: str = "{:.4g}") -> Table:
 
 def fail(message: str) -> None:
     """Print a one-line error and exit with status 2."""
-    err_console.print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)
+    err_console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
     raise typer.Exit(2)
 
 

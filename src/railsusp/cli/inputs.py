@@ -103,7 +103,7 @@ def params(
     ] = None,
     file: Annotated[
         Path | None,
-        typer.Option("--file", help="TOML file with a [parameters] table (display units)"),
+        typer.Option("--file", help="TOML file with a \\[parameters] table (display units)"),
     ] = None,
 ) -> None:
     """Print the parameter catalogue (Tables 1 and 2 of the study), with any overrides."""
@@ -143,8 +143,11 @@ def track(
 ) -> None:
     """Synthesise FRA-class irregularities and compare their RMS and PSD with the spectrum."""
     try:
-        if length <= 0 or length > 1e6:
-            raise RailsuspInputError(f"--length = {length:g} m outside (0, 1e6] m")
+        if not 0 < length <= 1e6:  # also refuses nan
+            raise RailsuspInputError(f"--length = {length:g} m: accepted range (0, 1e6] m")
+        for name, v in (("--wavelength-min", wavelength_min), ("--wavelength-max", wavelength_max)):
+            if v != v or v in (float("inf"), float("-inf")):
+                raise RailsuspInputError(f"{name} = {v:g} m is not finite")
         make_condition(
             {
                 "name": "track",

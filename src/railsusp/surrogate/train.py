@@ -60,17 +60,13 @@ class TrainConfig:
         ):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < lo:
-                raise RailsuspInputError(
-                    f"training {name} = {v!r}: accepted an integer >= {lo}"
-                )
+                raise RailsuspInputError(f"training {name} = {v!r}: accepted an integer >= {lo}")
         for name, lo, hi in (("learning_rate", 0.0, 1.0), ("fine_tune_lr_factor", 0.0, 1.0)):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and lo < v <= hi):
                 raise RailsuspInputError(f"training {name} = {v!r}: accepted ({lo:g}, {hi:g}]")
         if self.device not in DEVICES:
-            raise RailsuspInputError(
-                f"device {self.device!r}: accepted {', '.join(DEVICES)}"
-            )
+            raise RailsuspInputError(f"device {self.device!r}: accepted {', '.join(DEVICES)}")
 
     def to_dict(self) -> dict:
         return asdict(self)
