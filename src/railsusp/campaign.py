@@ -268,7 +268,14 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
     check_output_folder(out)
     meta_path = out / "campaign.json"
     if meta_path.exists():
-        meta = _read_meta(meta_path)
+        try:
+            meta = _read_meta(meta_path)
+        except RailsuspInputError as exc:
+            if not force:
+                raise CampaignError(
+                    f"{exc}; use --force to discard that run directory's results"
+                ) from None
+            meta = {}  # corrupt: discarded below like another configuration
         if meta.get("config_hash") != config.hash():
             if not force:
                 raise CampaignError(
@@ -471,6 +478,24 @@ def _read_meta(meta_path: Path) -> dict[str, Any]:
     if not isinstance(meta, dict):
         raise CampaignError(f"{meta_path} is corrupt: a JSON object was expected")
     return meta
+
+
+def require_complete(campaign: Campaign) -> Campaign:
+    """``campaign`` if every batch of it is stored; a one-line error saying how to finish it
+    otherwise (a surrogate trained on part of a campaign would silently see fewer runs)."""
+    if not campaign.complete:
+        cfg = campaign.config
+        done = sum(
+            _batch_paths(campaign.path, c.name, b)[0].exists()
+            for c in cfg.conditions
+            for b in range(cfg.n_batches)
+        )
+        raise CampaignError(
+            f"{campaign.path}: the campaign is incomplete ({done} of "
+            f"{cfg.n_batches * len(cfg.conditions)} batches); run the same `railsusp "
+            f"campaign` command again to finish it"
+        )
+    return campaign
 
 
 def failed_runs(path: str | Path) -> pd.DataFrame:

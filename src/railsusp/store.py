@@ -15,9 +15,9 @@ import hashlib
 import json
 import os
 import platform
+import shutil
 import socket
 import subprocess
-import shutil
 import tempfile
 import tomllib
 from collections.abc import Iterator
@@ -148,6 +148,8 @@ def read_toml(path: str | Path, what: str = "file") -> dict[str, Any]:
         raise RailsuspInputError(
             f"{what} {path} is not UTF-8 text (byte {exc.start}): not a TOML file"
         ) from None
+    except ValueError as exc:  # a path with a NUL character
+        raise RailsuspInputError(f"{what} {str(path)!r} is not a usable path ({exc})") from None
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -175,7 +177,9 @@ def check_output_file(path: str | Path, option: str = "--out") -> Path:
     path = Path(path)
     if path.is_dir():
         raise RailsuspInputError(f"{option} {path} is a folder, not a file")
-    check_output_folder(path.parent if str(path.parent) else Path("."), option)
+    if path.parent.exists() and not path.parent.is_dir():
+        raise RailsuspInputError(f"{option} {path}: {path.parent} is a file, not a folder")
+    check_output_folder(path.parent, option)
     return path
 
 

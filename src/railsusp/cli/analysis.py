@@ -61,7 +61,6 @@ def campaign(
     """Sample the suspension parameters and simulate every sample in every condition."""
     from railsusp.campaign import make_config, run_campaign
     from railsusp.measured import conditions_from
-
     from railsusp.store import check_output_folder
 
     try:
