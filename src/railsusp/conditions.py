@@ -369,6 +369,10 @@ STANDARD_CONDITIONS: dict[str, WorkingCondition] = {
 
 def get_condition(name: str, **overrides: Any) -> WorkingCondition:
     """A standard condition by name, optionally with fields changed."""
+    if not isinstance(name, str):
+        raise ConditionError(
+            f"condition {name!r} is not a name; accepted: {', '.join(STANDARD_CONDITIONS)}"
+        )
     key = name.strip().lower()
     if key not in STANDARD_CONDITIONS:
         raise ConditionError(

@@ -190,10 +190,9 @@ def compare(
     seed: Annotated[int, typer.Option(help="training seed")] = 0,
 ) -> None:
     """Train all surrogates on the same split and print the study's Table 7 layout."""
+    from railsusp.campaign import load_campaign, require_complete
     from railsusp.surrogate.compare import ALL_MODELS, table7
     from railsusp.surrogate.compare import compare as run_compare
-
-    from railsusp.campaign import load_campaign, require_complete
 
     names = [m.strip() for m in models.split(",") if m.strip()]
     bad = [m for m in names if m not in ALL_MODELS]
