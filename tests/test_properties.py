@@ -129,6 +129,7 @@ def test_configuration_loader_on_arbitrary_bytes(tmp_path, data):
 @example(doc={"conditions": [{"base": 5}]})  # once an AttributeError
 @example(doc={"field": {"truth": {"X99": 1.0}}})  # once failed after three stages
 @example(doc={"field": {"measured": "a\x00b"}})
+@example(doc={"campaign": {"\n": []}})  # once a two-line message
 def test_configuration_loader_on_arbitrary_toml_values(tmp_path, doc):
     p = tmp_path / "c.toml"
     p.write_text(toml_document(doc), encoding="utf-8")

@@ -56,6 +56,20 @@ def read_config(path: str | Path, model: type[BaseModel]) -> dict[str, Any]:
     return doc
 
 
+def validation_message(where: str | Path, exc: Any) -> str:
+    """A pydantic ValidationError as one line: ``where: loc: message; ...``, with field names
+    that are not plain identifiers (a key holding a newline, a dot) shown quoted."""
+
+    def part(p: Any) -> str:
+        s = str(p)
+        return s if s.replace("_", "a").isalnum() and s.isascii() else repr(s)
+
+    msgs = [
+        f"{'.'.join(part(p) for p in e['loc'])}: {' '.join(e['msg'].split())}" for e in exc.errors()
+    ]
+    return f"{where}: " + "; ".join(msgs)
+
+
 def _booleans(doc: Any, model: type[BaseModel], where: str) -> str | None:
     """The first ``field = true/false`` whose field takes numbers, not booleans; or None."""
     if not isinstance(doc, dict):

@@ -165,14 +165,13 @@ class PipelineConfig(_Cfg):
 
 def load_config(path: str | Path) -> PipelineConfig:
     """Read and validate a pipeline TOML; errors name the field (one line)."""
-    from railsusp.config import check_config, read_config
+    from railsusp.config import check_config, read_config, validation_message
 
     path = Path(path)
     try:
         cfg = PipelineConfig(**read_config(path, PipelineConfig))
     except ValidationError as exc:
-        msgs = [f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors()]
-        raise RailsuspInputError(f"{path}: " + "; ".join(msgs)) from None
+        raise RailsuspInputError(validation_message(path, exc)) from None
     check_config(cfg, str(path))
     return cfg
 
