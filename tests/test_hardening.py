@@ -86,6 +86,7 @@ def test_out_that_is_an_existing_file_is_refused_before_any_work(short, tmp_path
     one_line_error(["run", "examples/quick.toml", "--out", afile], "is an existing file")
     one_line_error(["simulate", short, "--out", tmp_path], "is a folder, not a file")
     one_line_error(["simulate", short, "--out", afile / "f.parquet"], "is a file, not a folder")
+    one_line_error(["track", "--plot", afile / "t.png"], "is a file, not a folder")
     assert afile.read_text() == "keep me"
 
 

@@ -18,6 +18,7 @@ from railsusp.conditions import (
 )
 from railsusp.errors import RailsuspInputError
 from railsusp.params import CATALOGUE, ParameterSet, parse_overrides
+from railsusp.store import check_output_file
 from railsusp.vehicle.track import COMPONENTS, band_rms, irregularities_for, synthesise
 
 
@@ -145,6 +146,8 @@ def track(
     try:
         if not 0 < length <= 1e6:  # also refuses nan
             raise RailsuspInputError(f"--length = {length:g} m: accepted range (0, 1e6] m")
+        if plot is not None:
+            check_output_file(plot, "--plot")
         for name, v in (("--wavelength-min", wavelength_min), ("--wavelength-max", wavelength_max)):
             if v != v or v in (float("inf"), float("-inf")):
                 raise RailsuspInputError(f"{name} = {v:g} m is not finite")
