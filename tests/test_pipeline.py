@@ -169,7 +169,9 @@ def test_statistics_gp_force_model_with_combined_statistics(tiny, tmp_path):
 def test_failing_stage_keeps_earlier_outputs_and_says_how_to_resume(tiny, tmp_path):
     _cfg_path, out, _, _ = tiny
     bad = tmp_path / "bad.toml"
-    bad.write_text(TINY.replace("truth = { X13 = 16.1 }", f'measured = "{tmp_path}/nowhere"'))
+    (tmp_path / "broken").mkdir()  # a folder of recordings whose index is not JSON: it fails
+    (tmp_path / "broken" / "index.json").write_text("not json")  # only when the stage reads it
+    bad.write_text(TINY.replace("truth = { X13 = 16.1 }", f'measured = "{tmp_path}/broken"'))
     with pytest.raises(StageError, match="stage 'field' failed.*run the same command again"):
         run_pipeline(load_config(bad), out)
     state = json.loads((out / "pipeline.json").read_text())

@@ -15,9 +15,12 @@ Run directory::
     batches/<condition>/batch-NNNNN.parquet            force series of the batch (float32)
     features.parquet                 all tidy features, written when the campaign completes
 
-A batch counts as done when its series file exists (it is written last, atomically), so a
-campaign killed at any moment resumes with the same command, recomputing nothing already
-stored. Results do not depend on where a batch ran: each sample is integrated on its own.
+A batch counts as done when its series file exists (it is written last, atomically and
+fsynced, after its features file), so a campaign killed at any moment, or a power loss,
+resumes with the same command, recomputing nothing already stored and never counting a
+half-written batch as done. Results do not depend on where a batch ran: each sample is
+integrated on its own. Samples whose simulation failed (derailment, divergence) keep their
+rows with a non-zero ``status`` and NaN features; :func:`failed_runs` counts them.
 """
 
 from __future__ import annotations
@@ -36,7 +39,14 @@ from scipy.stats import qmc
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.params import MAIN_SUSPENSION, bounds, spec
-from railsusp.store import content_hash, provenance, read_json, write_json, write_parquet
+from railsusp.store import (
+    check_output_folder,
+    content_hash,
+    provenance,
+    read_json,
+    write_json,
+    write_parquet,
+)
 from railsusp.vehicle.simulate import WHEEL_NAMES, SolverSettings, simulate_batch
 from railsusp.vehicle.wagon import WagonData, load_wagon
 
@@ -255,9 +265,17 @@ def _write_batch(out: Path, b: int, res: dict[str, Any], n_t: int) -> None:
 
 def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
     """Create or re-open a run directory; refuse a different configuration unless forced."""
+    check_output_folder(out)
     meta_path = out / "campaign.json"
     if meta_path.exists():
-        meta = read_json(meta_path)
+        try:
+            meta = _read_meta(meta_path)
+        except RailsuspInputError as exc:
+            if not force:
+                raise CampaignError(
+                    f"{exc}; use --force to discard that run directory's results"
+                ) from None
+            meta = {}  # corrupt: discarded below like another configuration
         if meta.get("config_hash") != config.hash():
             if not force:
                 raise CampaignError(
@@ -271,7 +289,7 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
                     shutil.rmtree(p)
                 elif p.exists():
                     p.unlink()
-        else:
+        elif (out / "design.parquet").exists():
             return pd.read_parquet(out / "design.parquet")
     design = make_design(config)
     write_parquet(out / "design.parquet", design)
@@ -308,6 +326,10 @@ def run_campaign(
     conditions). ``max_batches`` stops after that many new batches (partial runs, tests).
     """
     out = Path(out)
+    if workers is not None and workers < 1:
+        raise CampaignError(f"--workers = {workers}: accepted an integer >= 1")
+    if max_batches is not None and max_batches < 0:
+        raise CampaignError(f"--max-batches = {max_batches}: accepted an integer >= 0")
     design = _prepare(config, out, force)
     x_all = design[list(config.parameters)].to_numpy()
     ids_all = design["sample_id"].to_numpy()
@@ -399,8 +421,14 @@ class Campaign:
         meta_path = self.path / "campaign.json"
         if not meta_path.exists():
             raise CampaignError(f"{self.path} is not a campaign run directory (no campaign.json)")
-        self.meta = read_json(meta_path)
-        self.config = CampaignConfig.model_validate(self.meta["config"])
+        self.meta = _read_meta(meta_path)
+        try:
+            self.config = CampaignConfig.model_validate(self.meta["config"])
+        except (KeyError, TypeError, ValueError) as exc:
+            first = str(exc).strip().splitlines()[0]
+            raise CampaignError(
+                f"{meta_path} is corrupt: its configuration does not validate ({first})"
+            ) from None
 
     @property
     def complete(self) -> bool:
@@ -442,6 +470,45 @@ class Campaign:
         n_t = int(df["step"].max()) + 1
         arr = df[list(CHANNELS)].to_numpy().reshape(len(ids), n_t, len(CHANNELS))
         return ids, arr.transpose(0, 2, 1)
+
+
+def _read_meta(meta_path: Path) -> dict[str, Any]:
+    """``campaign.json``, or a one-line error when it is unreadable or not a JSON object."""
+    meta = read_json(meta_path)
+    if not isinstance(meta, dict):
+        raise CampaignError(f"{meta_path} is corrupt: a JSON object was expected")
+    return meta
+
+
+def require_complete(campaign: Campaign) -> Campaign:
+    """``campaign`` if every batch of it is stored; a one-line error saying how to finish it
+    otherwise (a surrogate trained on part of a campaign would silently see fewer runs)."""
+    if not campaign.complete:
+        cfg = campaign.config
+        done = sum(
+            _batch_paths(campaign.path, c.name, b)[0].exists()
+            for c in cfg.conditions
+            for b in range(cfg.n_batches)
+        )
+        raise CampaignError(
+            f"{campaign.path}: the campaign is incomplete ({done} of "
+            f"{cfg.n_batches * len(cfg.conditions)} batches); run the same `railsusp "
+            f"campaign` command again to finish it"
+        )
+    return campaign
+
+
+def failed_runs(path: str | Path) -> pd.DataFrame:
+    """The failed simulations (derailed, diverged) of a run directory's finished batches:
+    one row per condition and sample, with its status code."""
+    feats = Campaign(path).features()
+    failed = feats[feats["status"] != 0]
+    return (
+        failed[["condition", "sample_id", "status"]]
+        .drop_duplicates()
+        .sort_values(["condition", "sample_id"])
+        .reset_index(drop=True)
+    )
 
 
 def load_campaign(path: str | Path) -> Campaign:

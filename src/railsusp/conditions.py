@@ -28,7 +28,6 @@ length (50 Hz output).
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, Literal
@@ -43,9 +42,12 @@ from pydantic import (
     model_validator,
 )
 
-from railsusp.errors import ConditionError
+from railsusp.errors import ConditionError, RailsuspInputError
 
 GRAVITY = 9.81  # m/s^2
+#: A condition name becomes a folder of run directories: a safe slug (no '/', no '..' alone,
+#: no absolute path), so that no condition can make a campaign write outside its run.
+NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$"
 #: Lateral distance over which cant is measured (rail-head centres, Chinese practice), m.
 CANT_BASE_M = 1.5
 
@@ -63,7 +65,14 @@ class WorkingCondition(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-    name: str = Field("custom", min_length=1, max_length=64, description="label")
+    name: str = Field(
+        "custom",
+        min_length=1,
+        max_length=64,
+        pattern=NAME_PATTERN,
+        description="label; also a folder name in run directories, so letters, digits, "
+        "'_', '-' and '.', starting with a letter or digit",
+    )
     speed_kmh: float = _f(60.0, 1.0, 200.0, "km/h", "running speed")
     duration_s: float = _f(20.0, 1.0, 600.0, "s", "recorded duration")
     n_steps: int = Field(1000, ge=10, le=1_000_000, description="output samples in the record")
@@ -133,6 +142,16 @@ class WorkingCondition(BaseModel):
             del data["track_offset_m"]
         if data.get("track_accuracy_mm", 1.0) == 0.0:
             del data["track_accuracy_mm"]
+        return data
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_booleans(cls, data: Any) -> Any:
+        """``speed_kmh = true`` is a slip, not 1 km/h: no field takes a boolean."""
+        if isinstance(data, dict):
+            for key, value in data.items():
+                if isinstance(value, bool):
+                    raise ValueError(f"{key} = {value!r}: a boolean is not accepted here")
         return data
 
     @model_validator(mode="after")
@@ -258,6 +277,14 @@ class WorkingCondition(BaseModel):
 
     def with_duration(self, duration_s: float) -> WorkingCondition:
         """A validated copy recording ``duration_s`` seconds at the same sampling interval."""
+        lo, hi = 1.0, 600.0
+        if isinstance(duration_s, bool) or not (
+            isinstance(duration_s, int | float) and lo <= duration_s <= hi
+        ):
+            raise ConditionError(
+                f"condition {self.name!r}: duration_s = {duration_s!r}: accepted range "
+                f"[{lo:g}, {hi:g}] s"
+            )
         n_steps = max(10, round(duration_s / self.sample_interval))
         return self.with_changes(duration_s=duration_s, n_steps=n_steps)
 
@@ -310,6 +337,11 @@ def _format_errors(name: str, exc: ValidationError) -> str:
         value = err.get("input")
         shown = "" if field == "condition" else f"{field} = {value!r}: "
         text = err["msg"].removeprefix("Value error, ")
+        if err["type"] == "string_pattern_mismatch" and field == "name":
+            text = (
+                "a condition name becomes a folder name: letters, digits, '_', '-' and '.', "
+                "starting with a letter or digit (no '/', no '..', no absolute path)"
+            )
         if lo is not None or hi is not None:
             rng = f"[{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
             msgs.append(f"{shown}accepted range {rng} {unit}".rstrip() + f" ({text})")
@@ -337,6 +369,10 @@ STANDARD_CONDITIONS: dict[str, WorkingCondition] = {
 
 def get_condition(name: str, **overrides: Any) -> WorkingCondition:
     """A standard condition by name, optionally with fields changed."""
+    if not isinstance(name, str):
+        raise ConditionError(
+            f"condition {name!r} is not a name; accepted: {', '.join(STANDARD_CONDITIONS)}"
+        )
     key = name.strip().lower()
     if key not in STANDARD_CONDITIONS:
         raise ConditionError(
@@ -351,24 +387,29 @@ def load_conditions(source: str | Path) -> list[WorkingCondition]:
 
     A table may start from a standard condition with ``base = "curve"`` and change fields.
     """
+    from railsusp.store import read_toml
+
     path = Path(source)
-    if not path.exists():
-        raise ConditionError(f"condition file {path} does not exist")
     try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ConditionError(f"{path}: not valid TOML ({exc})") from None
+        doc = read_toml(path, "condition file")
+    except RailsuspInputError as exc:
+        raise ConditionError(str(exc)) from None
     raw = doc.get("condition")
-    if isinstance(raw, dict):
+    expected = "expected [[condition]] or [condition.NAME] tables"
+    if isinstance(raw, dict) and all(isinstance(v, dict) for v in raw.values()):
         tables = [{"name": k, **v} for k, v in raw.items()]
-    elif isinstance(raw, list):
+    elif isinstance(raw, list) and all(isinstance(v, dict) for v in raw):
         tables = raw
     else:
-        raise ConditionError(f"{path}: expected [[condition]] or [condition.NAME] tables")
+        raise ConditionError(f"{path}: {expected}")
+    if not tables:
+        raise ConditionError(f"{path}: no condition; {expected}")
     out = []
     for table in tables:
         fields = dict(table)
         base = fields.pop("base", None)
+        if base is not None and not isinstance(base, str):
+            raise ConditionError(f"{path}: base = {base!r} must be a standard condition name")
         try:
             if base is not None:
                 start = get_condition(base).model_dump()

@@ -40,7 +40,7 @@ from typing import Literal
 
 import numpy as np
 
-from railsusp.errors import ParameterError
+from railsusp.errors import ParameterError, RailsuspInputError
 
 Units = Literal["si", "display"]
 
@@ -86,16 +86,25 @@ class ParameterSpec:
         """Convert an SI value to this parameter's display unit."""
         return value_si / self.scale
 
+    @property
+    def plausible_display(self) -> tuple[float, float]:
+        """Accepted values in display units: the sampling range of a sampled parameter; for
+        a fixed one (a mass, an inertia) a tenth to ten times its nominal value, which covers
+        any freight wagon and refuses typing slips such as ``X1=1e15``."""
+        if self.bounds_display is not None:
+            return self.bounds_display
+        return self.nominal_display / FIXED_FACTOR, self.nominal_display * FIXED_FACTOR
+
     def range_text(self) -> str:
         """Human-readable accepted range in display units, for error messages."""
-        if self.bounds_display is None:
-            return f"> 0 {self.display_unit}"
-        lo, hi = self.bounds_display
+        lo, hi = self.plausible_display
         return f"[{lo:g}, {hi:g}] {self.display_unit}"
 
     def check(self, value_si: float) -> float:
         """Return ``value_si`` as float after validation; raise ParameterError otherwise."""
         try:
+            if isinstance(value_si, bool):
+                raise TypeError("a boolean is not a number")
             value = float(value_si)
         except (TypeError, ValueError):
             raise ParameterError(
@@ -113,7 +122,14 @@ class ParameterSpec:
             if value <= 0.0:
                 raise ParameterError(
                     f"{self.symbol} ({self.description}) = {shown:g} {self.display_unit} "
-                    f"must be positive"
+                    f"must be positive; accepted range {self.range_text()}"
+                )
+            lo, hi = (v * self.scale for v in self.plausible_display)
+            if not lo <= value <= hi:
+                raise ParameterError(
+                    f"{self.symbol} ({self.description}) = {shown:g} {self.display_unit} is "
+                    f"outside the accepted range {self.range_text()} (a tenth to ten times "
+                    f"the nominal value of this fixed parameter)"
                 )
         else:
             lo, hi = bounds
@@ -133,6 +149,8 @@ def _spec(symbol, name, description, unit, si_unit, scale, nominal, bounds=None,
 
 _MN = 1.0e6
 _KN = 1.0e3
+#: a fixed parameter is accepted from its nominal value / FIXED_FACTOR to times FIXED_FACTOR
+FIXED_FACTOR = 10.0
 
 #: Table 1 and Table 2 of the study, in study order.
 CATALOGUE: tuple[ParameterSpec, ...] = (
@@ -371,6 +389,8 @@ class ParameterSet(Mapping[str, float]):
             v = value
             if units == "display":
                 try:
+                    if isinstance(value, bool):
+                        raise TypeError
                     v = float(value) * s.scale
                 except (TypeError, ValueError):
                     v = value  # let check() produce the message
@@ -460,6 +480,10 @@ def parse_overrides(items: str | Iterable[str]) -> dict[str, float]:
             raise ParameterError(f"override {part.strip()!r} must look like X13=16.1")
         key, _, raw = part.partition("=")
         s = spec(key)
+        if s.symbol in out:
+            raise ParameterError(
+                f"override {part.strip()!r}: {s.symbol} is given twice; give each parameter once"
+            )
         try:
             value = float(raw)
         except ValueError:
@@ -504,6 +528,12 @@ def check_matrix(symbols: Iterable[str], matrix: np.ndarray) -> np.ndarray:
 def _read_text(source: str | Path) -> tuple[str, str]:
     path = Path(source) if not (isinstance(source, str) and "\n" in source) else None
     if path is not None and path.exists():
+        from railsusp.store import read_toml
+
+        try:
+            read_toml(path, "parameter file")  # one-line errors: folder, unreadable, binary
+        except RailsuspInputError as exc:
+            raise ParameterError(str(exc)) from None
         return path.read_text(encoding="utf-8"), str(path)
     if isinstance(source, Path) or (isinstance(source, str) and source.endswith(".toml")):
         raise ParameterError(f"parameter file {source} does not exist")

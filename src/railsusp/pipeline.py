@@ -10,7 +10,6 @@ each stage's input hash, timing and state, and the error says how to resume.
 from __future__ import annotations
 
 import time
-import tomllib
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
@@ -184,19 +183,15 @@ class PipelineConfig(_Cfg):
 
 def load_config(path: str | Path) -> PipelineConfig:
     """Read and validate a pipeline TOML; errors name the field (one line)."""
+    from railsusp.config import check_config, read_config, validation_message
+
     path = Path(path)
-    if not path.is_file():
-        raise RailsuspInputError(f"configuration {path} does not exist")
     try:
-        return PipelineConfig(**tomllib.loads(path.read_text("utf-8")))
-    except tomllib.TOMLDecodeError as exc:
-        raise RailsuspInputError(f"{path}: not valid TOML ({exc})") from None
+        cfg = PipelineConfig(**read_config(path, PipelineConfig))
     except ValidationError as exc:
-        msgs = [
-            f"{'.'.join(str(p) for p in e['loc']) or 'combination'}: {e['msg']}"
-            for e in exc.errors()
-        ]
-        raise RailsuspInputError(f"{path}: " + "; ".join(msgs)) from None
+        raise RailsuspInputError(validation_message(path, exc)) from None
+    check_config(cfg, str(path))
+    return cfg
 
 
 class StageError(RailsuspInputError):
@@ -237,10 +232,14 @@ def run_pipeline(
     ``progress(stage, message)`` reports stage starts; ``run_progress(done, total)`` the
     campaign's simulations.
     """
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    from railsusp.config import check_config
+    from railsusp.store import check_output_folder
+
+    out = check_output_folder(out)
     if start_from is not None and start_from not in STAGES:
         raise RailsuspInputError(f"--from {start_from!r}: accepted {', '.join(STAGES)}")
+    check_config(config)  # every combination, before any stage runs
+    out.mkdir(parents=True, exist_ok=True)
     state_path = out / "pipeline.json"
     state = read_json(state_path) if state_path.exists() else {"stages": {}}
     state["config"] = config.model_dump(mode="json")
@@ -405,9 +404,10 @@ def _stage_runners(
             recs = read_field(f.measured)
             import shutil
 
-            if dest.exists():
-                shutil.rmtree(dest)
-            shutil.copytree(f.measured, dest)
+            from railsusp.store import atomic_folder
+
+            with atomic_folder(dest, keep=False) as tmp:  # the old copy stays until replaced
+                shutil.copytree(f.measured, tmp, dirs_exist_ok=True)
             return {"recordings": len(recs), "synthetic": False}
         truth = ParameterSet(f.truth, units="display")
         synthesise_field(

@@ -26,7 +26,7 @@ import pandas as pd
 
 from railsusp.campaign import Campaign, CampaignError, salib_problem
 from railsusp.params import bounds
-from railsusp.store import write_json, write_parquet
+from railsusp.store import write_csv, write_json, write_parquet
 from railsusp.study import KEY_LATERAL, KEY_VERTICAL
 
 INDEX_COLUMNS = (
@@ -385,16 +385,16 @@ def analyse(
         "metamodel_r2": [f.__dict__ for f in fits],
     }
     write_parquet(out / "indices.parquet", idx)
-    idx.to_csv(out / "indices.csv", index=False)
+    write_csv(out / "indices.csv", idx)
     write_json(out / "indices.json", idx.to_dict(orient="records"))
-    write_json(out / "key_parameters.json", summary)
-    comparison.to_csv(out / "study_comparison.csv", index=False)
+    write_csv(out / "study_comparison.csv", comparison)
     if compare is not None:
         other, _ = indices_of(load_campaign(compare))
         agree = agreement(idx, other)
-        agree.to_csv(out / "agreement.csv", index=False)
+        write_csv(out / "agreement.csv", agree)
         summary["agreement"] = agree.to_dict(orient="records")
-        write_json(out / "key_parameters.json", summary)
+    # the key parameters last: the pipeline reads this file as the stage's completion mark
+    write_json(out / "key_parameters.json", summary)
     from railsusp.report import plot_sobol
 
     for st in statistics:

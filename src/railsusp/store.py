@@ -1,7 +1,11 @@
 """The run directory: atomic writes of JSON and Parquet, content hashes, provenance.
 
-Every file railsusp writes goes through a temporary file in the same folder and an atomic
-rename, so an interrupted run leaves either the old file or the new one, never half of one.
+Every file railsusp writes goes through a temporary file in the same folder, is flushed to
+disk (fsync) and renamed over its target, and the folder is fsynced after the rename: an
+interrupted run, or a power loss, leaves either the old file or the new one, never half of
+one. Artefacts made of several files are written into a temporary folder and renamed as one
+(:func:`atomic_folder`). Input files are read by :func:`read_toml` and :func:`read_json`,
+which turn every OS, decoding and syntax error into a one-line :class:`RailsuspInputError`.
 """
 
 from __future__ import annotations
@@ -11,9 +15,13 @@ import hashlib
 import json
 import os
 import platform
+import shutil
 import socket
 import subprocess
 import tempfile
+import tomllib
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +29,27 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
+
+from railsusp.errors import RailsuspInputError
+
+
+def fsync_dir(path: str | Path) -> None:
+    """Flush a folder's entries (a rename into it) to disk; a no-op where unsupported."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _fsync_file(path: str | Path) -> None:
+    with open(path, "rb+") as fh:
+        os.fsync(fh.fileno())
 
 
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
@@ -34,9 +63,123 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
+        fsync_dir(path.parent)
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
+    return path
+
+
+def atomic_write_text(path: str | Path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically."""
+    return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def write_csv(path: str | Path, df: pd.DataFrame, **kw: Any) -> Path:
+    """Write a DataFrame as CSV atomically (``kw`` go to :meth:`DataFrame.to_csv`)."""
+    kw.setdefault("index", False)
+    return atomic_write_text(path, df.to_csv(**kw))
+
+
+@contextmanager
+def atomic_folder(path: str | Path, keep: bool = True) -> Iterator[Path]:
+    """Write a multi-file artefact as one: yields a temporary sibling folder to write into;
+    on success it replaces ``path``, on an error it is removed and ``path`` is untouched.
+
+    ``keep``: other entries of an existing ``path`` (a training checkpoint, figures) are
+    carried into the new folder (hard links where possible). The swap is two renames (the
+    old folder aside, the new one in); a crash between them leaves the old folder beside
+    ``path`` as ``.NAME.old-*``, which the next save removes.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    for stale in path.parent.glob(f".{path.name}.old-*"):
+        shutil.rmtree(stale, ignore_errors=True)
+    tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.new-"))
+    try:
+        yield tmp
+        for f in tmp.rglob("*"):
+            if f.is_file():
+                _fsync_file(f)
+        if keep and path.is_dir():
+            for entry in path.iterdir():
+                target = tmp / entry.name
+                if target.exists():
+                    continue
+                if entry.is_dir():
+                    shutil.copytree(entry, target, copy_function=_link_or_copy)
+                else:
+                    _link_or_copy(entry, target)
+        fsync_dir(tmp)
+        if path.exists():
+            old = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.old-"))
+            os.rmdir(old)
+            os.rename(path, old)
+            os.rename(tmp, path)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.rename(tmp, path)
+        fsync_dir(path.parent)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _link_or_copy(src: str | Path, dst: str | Path) -> None:
+    try:
+        os.link(src, dst)
+    except OSError:
+        shutil.copy2(src, dst)
+
+
+def read_toml(path: str | Path, what: str = "file") -> dict[str, Any]:
+    """Read a TOML file; any OS, decoding or syntax error is a one-line input error naming
+    the file (``what`` says what it is: "configuration", "condition file", ...)."""
+    path = Path(path)
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except IsADirectoryError:
+        raise RailsuspInputError(f"{what} {path} is a folder, not a TOML file") from None
+    except FileNotFoundError:
+        raise RailsuspInputError(f"{what} {path} does not exist") from None
+    except OSError as exc:
+        raise RailsuspInputError(f"{what} {path} cannot be read ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:
+        raise RailsuspInputError(
+            f"{what} {path} is not UTF-8 text (byte {exc.start}): not a TOML file"
+        ) from None
+    except ValueError as exc:  # a path with a NUL character
+        raise RailsuspInputError(f"{what} {str(path)!r} is not a usable path ({exc})") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise RailsuspInputError(f"{what} {path}: not valid TOML ({exc})") from None
+
+
+def check_output_folder(path: str | Path, option: str = "--out") -> Path:
+    """Refuse an output folder that is an existing file or cannot be created or written,
+    before any work is done (one-line error). Creates nothing."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise RailsuspInputError(f"{option} {path} is an existing file, not a folder")
+    probe = path.absolute()
+    while not probe.exists():
+        probe = probe.parent
+    if not probe.is_dir():
+        raise RailsuspInputError(f"{option} {path}: {probe} is a file, not a folder")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise RailsuspInputError(f"{option} {path}: the folder {probe} is not writable")
+    return path
+
+
+def check_output_file(path: str | Path, option: str = "--out") -> Path:
+    """Refuse an output file that is a folder or lies in a folder that cannot be written."""
+    path = Path(path)
+    if path.is_dir():
+        raise RailsuspInputError(f"{option} {path} is a folder, not a file")
+    if path.parent.exists() and not path.parent.is_dir():
+        raise RailsuspInputError(f"{option} {path}: {path.parent} is a file, not a folder")
+    check_output_folder(path.parent, option)
     return path
 
 
@@ -76,8 +219,19 @@ def write_json(path: str | Path, obj: Any) -> Path:
 
 
 def read_json(path: str | Path) -> Any:
-    """Read a JSON file."""
-    return json.loads(Path(path).read_text(encoding="utf-8"))
+    """Read a JSON file; an unreadable, non-UTF-8 or malformed file is a one-line input
+    error naming the file."""
+    path = Path(path)
+    try:
+        return json.loads(path.read_bytes().decode("utf-8"))
+    except FileNotFoundError:
+        raise RailsuspInputError(f"{path} does not exist") from None
+    except OSError as exc:
+        raise RailsuspInputError(f"{path} cannot be read ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:
+        raise RailsuspInputError(f"{path} is not UTF-8 text (byte {exc.start})") from None
+    except json.JSONDecodeError as exc:
+        raise RailsuspInputError(f"{path} is corrupt: not valid JSON ({exc})") from None
 
 
 def write_parquet(
@@ -98,7 +252,9 @@ def write_parquet(
     os.close(fd)
     try:
         pq.write_table(table, tmp, row_group_size=row_group_size or max(1, table.num_rows))
+        _fsync_file(tmp)
         os.replace(tmp, path)
+        fsync_dir(path.parent)
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)

@@ -61,8 +61,14 @@ def campaign(
     """Sample the suspension parameters and simulate every sample in every condition."""
     from railsusp.campaign import make_config, run_campaign
     from railsusp.measured import conditions_from
+    from railsusp.store import check_output_folder
 
     try:
+        if workers is not None and workers < 1:
+            raise RailsuspInputError(f"--workers = {workers}: accepted an integer >= 1")
+        if max_batches is not None and max_batches < 0:
+            raise RailsuspInputError(f"--max-batches = {max_batches}: accepted an integer >= 0")
+        check_output_folder(out)
         sampled = tuple(p.strip() for p in parameters.split(",") if p.strip())
         if keys_from is not None:
             sampled = _sensitivity_keys(keys_from, parameters)
@@ -143,6 +149,29 @@ def campaign(
         except RailsuspInputError as exc:
             fail(str(exc))
     console.print(f"campaign stored in {out}")
+    _report_failures(out, total)
+
+
+def _report_failures(out: Path, total: int) -> None:
+    """Print how many simulations failed; exit with status 1 when any did."""
+    from railsusp.campaign import failed_runs
+
+    try:
+        failed = failed_runs(out)
+    except RailsuspInputError:  # no finished batch yet (--max-batches 0)
+        return
+    if failed.empty:
+        console.print(f"0 of {total} simulations failed", highlight=False)
+        return
+    by_cond = failed.groupby("condition").size()
+    err_console.print(
+        f"{len(failed)} of {total} simulations failed (derailed or diverged; NaN features): "
+        + ", ".join(f"{c} {n}" for c, n in by_cond.items()),
+        style="bold red",
+        markup=False,
+        highlight=False,
+    )
+    raise typer.Exit(1)
 
 
 def _sensitivity_keys(run: Path, parameters: str) -> tuple[str, ...]:

@@ -18,6 +18,7 @@ from railsusp.conditions import (
 )
 from railsusp.errors import RailsuspInputError
 from railsusp.params import CATALOGUE, ParameterSet, parse_overrides
+from railsusp.store import check_output_file
 from railsusp.vehicle.track import COMPONENTS, band_rms, irregularities_for, synthesise
 
 
@@ -103,7 +104,7 @@ def params(
     ] = None,
     file: Annotated[
         Path | None,
-        typer.Option("--file", help="TOML file with a [parameters] table (display units)"),
+        typer.Option("--file", help="TOML file with a \\[parameters] table (display units)"),
     ] = None,
 ) -> None:
     """Print the parameter catalogue (Tables 1 and 2 of the study), with any overrides."""
@@ -143,8 +144,13 @@ def track(
 ) -> None:
     """Synthesise FRA-class irregularities and compare their RMS and PSD with the spectrum."""
     try:
-        if length <= 0 or length > 1e6:
-            raise RailsuspInputError(f"--length = {length:g} m outside (0, 1e6] m")
+        if not 0 < length <= 1e6:  # also refuses nan
+            raise RailsuspInputError(f"--length = {length:g} m: accepted range (0, 1e6] m")
+        if plot is not None:
+            check_output_file(plot, "--plot")
+        for name, v in (("--wavelength-min", wavelength_min), ("--wavelength-max", wavelength_max)):
+            if v != v or v in (float("inf"), float("-inf")):
+                raise RailsuspInputError(f"{name} = {v:g} m is not finite")
         make_condition(
             {
                 "name": "track",

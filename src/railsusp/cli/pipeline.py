@@ -11,6 +11,7 @@ from rich.table import Table
 
 from railsusp.cli.common import app, console, err_console, fail, frame_table
 from railsusp.errors import RailsuspInputError
+from railsusp.store import check_output_folder
 
 
 def _run(config, out: Path, start_from: str | None) -> dict:
@@ -93,7 +94,7 @@ def run(
 
     try:
         cfg = load_config(config)
-        target = out or Path("runs") / config.stem
+        target = check_output_folder(out or Path("runs") / config.stem)
         _run(cfg, target, start_from)
     except RailsuspInputError as exc:
         fail(str(exc))
@@ -110,7 +111,7 @@ def demo(
 
     console.rule("railsusp demo: C80 wagon on K6 bogies, hidden degraded parameters")
     try:
-        _run(demo_config(), out, None)
+        _run(demo_config(), check_output_folder(out), None)
     except RailsuspInputError as exc:
         fail(str(exc))
     _summary(out)

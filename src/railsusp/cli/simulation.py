@@ -13,6 +13,7 @@ from railsusp.cli.common import app, console, err_console, fail
 from railsusp.conditions import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet, parse_overrides
+from railsusp.store import check_output_file, read_toml
 from railsusp.study import TABLE8_BEFORE
 
 
@@ -47,15 +48,26 @@ def _force_table(results: list, title: str) -> Table:
         table.add_row(
             r.condition.name,
             WHEEL_NAMES[r.measured_wheel()],
-            *(f"{s[k][0]:.1f}" for k in ("Y_mean", "Y_rms", "Y_p99", "Y_max")),
-            f"{ref[0]:.1f}" if ref else "-",
-            *(f"{s[k][0]:.1f}" for k in ("Q_mean", "Q_p99", "Q_max")),
-            f"{ref[2]:.1f}" if ref else "-",
-            f"{s['YQ_max'][0]:.2f}",
-            f"{s['dQQ_max'][0]:.2f}",
+            *(number(s[k][0], 1) for k in ("Y_mean", "Y_rms", "Y_p99", "Y_max")),
+            number(ref[0], 1) if ref else "-",
+            *(number(s[k][0], 1) for k in ("Q_mean", "Q_p99", "Q_max")),
+            number(ref[2], 1) if ref else "-",
+            number(s["YQ_max"][0], 2),
+            number(s["dQQ_max"][0], 2),
             status,
         )
     return table
+
+
+def number(value: float, decimals: int) -> str:
+    """A table cell: fixed decimals for ordinary magnitudes, scientific notation beyond 1e6
+    (a diverged run's 1e300 kN is not printed as a 300-digit number), blank-free NaN."""
+    v = float(value)
+    if v != v:
+        return "nan"
+    if abs(v) >= 1e6:
+        return f"{v:.3e}"
+    return f"{v:.{decimals}f}"
 
 
 @app.command()
@@ -69,7 +81,7 @@ def simulate(
     ] = None,
     file: Annotated[
         Path | None,
-        typer.Option("--file", help="TOML file with a [parameters] table (display units)"),
+        typer.Option("--file", help="TOML file with a \\[parameters] table (display units)"),
     ] = None,
     seed: Annotated[
         int | None, typer.Option(help="irregularity seed (default: condition's)")
@@ -97,6 +109,11 @@ def simulate(
         conds = resolve_conditions(condition)
         if seed is not None:
             conds = [c.with_changes(seed=seed) for c in conds]
+        for option, path in (("--out", out), ("--plot", plot)):
+            if path is not None:
+                check_output_file(path, option)
+        if wagon is not None:
+            read_toml(wagon, "wagon file")  # one-line errors: folder, unreadable, binary, syntax
         wagon_data = load_wagon(wagon)
         if wheel != "auto" and wheel not in WHEEL_NAMES:
             raise RailsuspInputError(
@@ -121,6 +138,16 @@ def simulate(
 
             path = plot.with_name(f"{plot.stem}{tag}{plot.suffix}")
             console.print(f"wrote {plot_forces(r, path, wheel=wheel)}")
+    failed = [r for r in results if not r.ok[0]]
+    if failed:
+        err_console.print(
+            f"{len(failed)} of {len(results)} runs failed: "
+            + ", ".join(f"{r.condition.name} ({r.failures()[0][1]})" for r in failed),
+            style="bold red",
+            markup=False,
+            highlight=False,
+        )
+        raise typer.Exit(1)
 
 
 def _progress():

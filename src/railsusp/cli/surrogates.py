@@ -71,7 +71,7 @@ def train(
     accuracy on the held-out test samples. Re-running resumes from the last checkpoint.
     ``--model gp-stats`` fits the statistics GPs (mean, RMS, p99, std of |Y| and Q) instead,
     on every sample (their accuracy: ``railsusp compare``)."""
-    from railsusp.campaign import load_campaign
+    from railsusp.campaign import load_campaign, require_complete
     from railsusp.surrogate import (
         KINDS,
         key_parameters,
@@ -84,13 +84,15 @@ def train(
     try:
         if model not in (*KINDS, "gp-stats"):
             raise RailsuspInputError(f"--model {model!r}: accepted {', '.join(KINDS)}, gp-stats")
-        camp = load_campaign(run)
+        tcfg = _train_config(epochs, batches_per_epoch, batch_size, device, seed, fine_tune_epochs)
+        if not 2 <= window <= 10_000:
+            raise RailsuspInputError(f"--window = {window}: accepted 2 .. 10000 steps")
+        camp = require_complete(load_campaign(run))
         conds = (
             [c.strip() for c in conditions.split(",")]
             if conditions
             else [c.name for c in camp.config.conditions]
         )
-        tcfg = _train_config(epochs, batches_per_epoch, batch_size, device, seed, fine_tune_epochs)
         left_out = unexplained_parameters(run)
         if left_out:
             err_console.print(
@@ -188,6 +190,7 @@ def compare(
     seed: Annotated[int, typer.Option(help="training seed")] = 0,
 ) -> None:
     """Train all surrogates on the same split and print the study's Table 7 layout."""
+    from railsusp.campaign import load_campaign, require_complete
     from railsusp.surrogate.compare import ALL_MODELS, table7
     from railsusp.surrogate.compare import compare as run_compare
 
@@ -196,14 +199,14 @@ def compare(
     if bad:
         fail(f"--models {', '.join(bad)}: accepted {', '.join(ALL_MODELS)}")
     try:
+        tcfg = _train_config(epochs, batches_per_epoch, batch_size, device, seed, fine_tune_epochs)
+        require_complete(load_campaign(run))
         with err_console.status("training surrogates") as status:
             tab = run_compare(
                 run,
                 models=names,
                 conditions=([c.strip() for c in conditions.split(",")] if conditions else None),
-                train=_train_config(
-                    epochs, batches_per_epoch, batch_size, device, seed, fine_tune_epochs
-                ),
+                train=tcfg,
                 progress=lambda msg: status.update(f"training {msg}"),
             )
     except (RailsuspInputError, ValueError) as exc:

@@ -21,7 +21,7 @@ import torch
 
 from railsusp.conditions import TRACK_INPUT_FIELDS, WorkingCondition
 from railsusp.params import ParameterSet, spec
-from railsusp.store import atomic_write_bytes, provenance, write_json
+from railsusp.store import atomic_folder, atomic_write_bytes, provenance, write_json
 from railsusp.surrogate.correction import RecordCorrection
 from railsusp.surrogate.data import (
     FeatureSpec,
@@ -194,8 +194,16 @@ class Surrogate:
         return np.concatenate(res) if res else np.zeros((0, len(self.spec.targets)))
 
     def save(self, path: str | Path) -> Path:
-        """Write ``model.pt`` (weights) and ``surrogate.json`` (everything else) into a folder."""
+        """Write ``model.pt`` (weights) and ``surrogate.json`` (everything else) into a folder,
+        as one: both go into a temporary folder that then replaces ``path`` (other files
+        there, such as the training checkpoint, are kept), so a crash never leaves new
+        weights beside an old description."""
         path = Path(path)
+        with atomic_folder(path) as tmp:
+            self._write(tmp)
+        return path
+
+    def _write(self, path: Path) -> None:
         buf = io.BytesIO()
         torch.save(self.net.state_dict(), buf)
         atomic_write_bytes(path / "model.pt", buf.getvalue())
@@ -214,7 +222,6 @@ class Surrogate:
                 "saved": provenance(),
             },
         )
-        return path
 
 
 def load(path: str | Path) -> Surrogate:

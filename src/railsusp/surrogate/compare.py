@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 
 from railsusp.campaign import load_campaign
-from railsusp.store import write_json
+from railsusp.store import write_csv, write_json
 from railsusp.surrogate import key_parameters, train_surrogate
 from railsusp.surrogate.baselines import RBFWindowModel, StatisticsGP
 from railsusp.surrogate.data import FeatureSpec, Normaliser, load_series, split_samples
@@ -117,8 +117,8 @@ def compare(
             )
     table = pd.DataFrame(rows)
     out_dir.mkdir(parents=True, exist_ok=True)
-    table.to_csv(out_dir / "compare.csv", index=False)
     write_json(out_dir / "compare.json", table.to_dict(orient="records"))
+    write_csv(out_dir / "compare.csv", table)  # last: the pipeline's mark of a finished stage
     return table
 
 

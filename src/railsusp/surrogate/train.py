@@ -4,6 +4,12 @@ An "epoch" is a fixed number of mini-batches of windows drawn at random (seeded)
 training samples, so that its cost does not grow with the campaign; validation uses a fixed
 random subset of the validation samples' windows. The state is checkpointed atomically after
 every epoch and a killed training resumes from the last checkpoint with the same result.
+
+On the CPU a training is bitwise reproducible for a given seed: the initial weights are drawn
+from the seed (whatever the global random state was when the network was built), mini-batches
+and dropout come from seeded generators whose states the checkpoint carries, and PyTorch runs
+its deterministic algorithms. Checkpoints are read with ``weights_only=True``: a crafted
+checkpoint cannot run code.
 """
 
 from __future__ import annotations
@@ -19,6 +25,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from railsusp.errors import RailsuspInputError
 from railsusp.store import atomic_write_bytes, content_hash
 from railsusp.surrogate.data import Normaliser, SeriesData, gather_windows, window_index
 
@@ -40,17 +47,56 @@ class TrainConfig:
     seed: int = 0
     device: str = "cpu"
 
+    def __post_init__(self) -> None:
+        """Refuse settings that would train nothing or fail later (one-line errors)."""
+        for name, lo in (
+            ("epochs", 1),
+            ("batches_per_epoch", 1),
+            ("batch_size", 1),
+            ("patience", 1),
+            ("fine_tune_epochs", 0),
+            ("val_windows", 1),
+            ("seed", 0),
+        ):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+                raise RailsuspInputError(f"training {name} = {v!r}: accepted an integer >= {lo}")
+        for name, lo, hi in (("learning_rate", 0.0, 1.0), ("fine_tune_lr_factor", 0.0, 1.0)):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and lo < v <= hi):
+                raise RailsuspInputError(f"training {name} = {v!r}: accepted ({lo:g}, {hi:g}]")
+        if self.device not in DEVICES:
+            raise RailsuspInputError(f"device {self.device!r}: accepted {', '.join(DEVICES)}")
+
     def to_dict(self) -> dict:
         return asdict(self)
 
 
+#: the devices a training accepts
+DEVICES = ("cpu", "cuda", "auto")
+
+
 def resolve_device(name: str) -> torch.device:
     """'cpu', 'cuda' or 'auto' (CUDA when available)."""
+    if name not in DEVICES:
+        raise RailsuspInputError(f"device {name!r}: accepted {', '.join(DEVICES)}")
     if name == "auto":
         name = "cuda" if torch.cuda.is_available() else "cpu"
     if name == "cuda" and not torch.cuda.is_available():
-        raise ValueError("device 'cuda' asked for but no CUDA device is available")
+        raise RailsuspInputError("device 'cuda' asked for but no CUDA device is available")
     return torch.device(name)
+
+
+def seed_weights(net: nn.Module, seed: int) -> None:
+    """Draw ``net``'s initial weights again from ``seed`` (every layer's own initialiser),
+    so that they do not depend on the global random state when it was built."""
+    gen_state = torch.get_rng_state()
+    torch.manual_seed(seed)
+    for module in net.modules():
+        reset = getattr(module, "reset_parameters", None)
+        if callable(reset):
+            reset()
+    torch.set_rng_state(gen_state)
 
 
 class WindowSampler:
@@ -121,6 +167,9 @@ def train_network(
     validation loss by 12-15 %, bench/README.md).
     """
     device = resolve_device(cfg.device)
+    if device.type == "cpu":
+        torch.use_deterministic_algorithms(True, warn_only=True)
+    seed_weights(net, cfg.seed)
     torch.manual_seed(cfg.seed)
     net.to(device)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.learning_rate)
@@ -145,8 +194,8 @@ def train_network(
     }
     key = content_hash({"cfg": settings, "arch": repr(net), "data": _fingerprint(train, val)})
     if checkpoint is not None and checkpoint.exists():
-        state = torch.load(checkpoint, map_location=device, weights_only=False)
-        if state.get("key") == key:
+        state = _read_checkpoint(checkpoint, device)
+        if state is not None and state.get("key") == key:
             net.load_state_dict(state["model"])
             opt.load_state_dict(state["optim"])
             history, best, stale = state["history"], state["best"], state["stale"]
@@ -210,3 +259,18 @@ def train_network(
         net.load_state_dict(best_state)
     net.to("cpu").eval()
     return history
+
+
+def _read_checkpoint(path: Path, device: torch.device) -> dict | None:
+    """A checkpoint's state, read with ``weights_only=True`` (tensors, numbers, strings and
+    containers only: no code runs). One that holds anything else, or is not a checkpoint,
+    is refused with a one-line error rather than trusted or silently overwritten."""
+    try:
+        state = torch.load(path, map_location=device, weights_only=True)
+    except Exception as exc:  # torch raises UnpicklingError, RuntimeError, EOFError, ...
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise RailsuspInputError(
+            f"checkpoint {path} refused: not a plain training checkpoint ({first}); delete it "
+            f"to train afresh"
+        ) from None
+    return state if isinstance(state, dict) else None

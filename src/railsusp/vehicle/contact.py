@@ -29,6 +29,7 @@ lateral, Mz spin moment, with creepages xi_x, xi_y (-) and spin phi (1/m).
 
 from __future__ import annotations
 
+import io
 import json
 import math
 from dataclasses import dataclass, fields, replace
@@ -140,11 +141,13 @@ class ContactTable:
 
     def save(self, path: str | Path) -> Path:
         """Write the table to a ``.npz`` file (arrays plus JSON metadata)."""
+        from railsusp.store import atomic_write_bytes
+
         path = Path(path)
         arrays = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "meta"}
-        with path.open("wb") as fh:
-            np.savez(fh, meta=np.array(json.dumps(self.meta)), **arrays)
-        return path
+        buf = io.BytesIO()
+        np.savez(buf, meta=np.array(json.dumps(self.meta)), **arrays)
+        return atomic_write_bytes(path, buf.getvalue())
 
     @classmethod
     def load(cls, path: str | Path) -> ContactTable:

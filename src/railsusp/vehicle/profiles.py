@@ -465,5 +465,6 @@ def write_profile(profile: Profile, path: str | Path) -> Path:
     body = "".join(
         f"{y:.6f},{z:.6f}\n" for y, z in zip(profile.y * 1e3, profile.z * 1e3, strict=True)
     )
-    path.write_text(header + body, encoding="utf-8")
-    return path
+    from railsusp.store import atomic_write_text
+
+    return atomic_write_text(path, header + body)

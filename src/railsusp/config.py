@@ -1,0 +1,203 @@
+"""Validation of a pipeline configuration, all of it before any stage runs.
+
+The section models of :mod:`railsusp.pipeline` type and range-check every field and refuse
+unknown keys; this module adds what a field-by-field check cannot see, so that a run that
+would fail in its fifth stage fails at once, with a one-line error naming the field:
+
+* the file itself: unreadable, a folder, not UTF-8, not TOML, not a table of tables;
+* booleans where numbers are expected (``samples = true`` is a slip, not one sample);
+* every working condition built (names, ranges, ``base``), names distinct;
+* parameters: campaign parameters sampled and distinct, ``[field] truth`` symbols known
+  and inside their ranges (``truth = {X99 = 1.0}`` used to fail after three stages);
+* combinations: ``refine = true`` needs recordings with track geometry (``with_track`` for
+  synthetic ones), the ``noise`` weighting a ``gp-stats`` force model, recordings from
+  ``measured`` (a folder with ``index.json``) or synthetic ones, a readable wagon file, a scheduler
+  address, the training device.
+
+The pipeline's :func:`~railsusp.pipeline.load_config` calls :func:`read_config` and
+:func:`check_config`; this module imports nothing of the pipeline (the models come in as
+arguments), so imports flow one way.
+"""
+
+from __future__ import annotations
+
+import types
+import typing
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel
+
+from railsusp.errors import RailsuspInputError
+
+#: the statistics a sensitivity analysis can rank on (campaign features)
+SENSITIVITY_STATISTICS = ("mean", "rms", "p99", "max")
+#: the training devices
+DEVICES = ("cpu", "cuda", "auto")
+
+
+class ConfigError(RailsuspInputError):
+    """A pipeline configuration that cannot run as written."""
+
+
+def read_config(path: str | Path, model: type[BaseModel]) -> dict[str, Any]:
+    """The TOML document of a configuration file, after the checks a model cannot make:
+    it is a readable UTF-8 TOML file, and no number field holds a boolean."""
+    from railsusp.store import read_toml
+
+    path = Path(path)
+    try:
+        doc = read_toml(path, "configuration")
+    except RailsuspInputError as exc:
+        raise ConfigError(str(exc)) from None
+    problem = _booleans(doc, model, "")
+    if problem:
+        raise ConfigError(f"{path}: {problem}")
+    return doc
+
+
+def validation_message(where: str | Path, exc: Any) -> str:
+    """A pydantic ValidationError as one line: ``where: loc: message; ...``, with field names
+    that are not plain identifiers (a key holding a newline, a dot) shown quoted."""
+
+    def part(p: Any) -> str:
+        s = str(p)
+        return s if s.replace("_", "a").isalnum() and s.isascii() else repr(s)
+
+    msgs = [
+        f"{'.'.join(part(p) for p in e['loc']) or 'combination'}: {' '.join(e['msg'].split())}"
+        for e in exc.errors()
+    ]
+    return f"{where}: " + "; ".join(msgs)
+
+
+def _booleans(doc: Any, model: type[BaseModel], where: str) -> str | None:
+    """The first ``field = true/false`` whose field takes numbers, not booleans; or None."""
+    if not isinstance(doc, dict):
+        return None
+    for key, value in doc.items():
+        info = model.model_fields.get(key) if isinstance(key, str) else None
+        if info is None:
+            continue  # unknown keys are the model's to refuse
+        name = f"{where}{key}"
+        sub = _model_of(info.annotation)
+        if sub is not None:
+            found = _booleans(value, sub, f"{name}.")
+            if found:
+                return found
+        elif isinstance(value, bool) and not _takes_bool(info.annotation):
+            return f"{name} = {str(value).lower()}: a boolean is not accepted here"
+        elif isinstance(value, dict) and key == "truth":
+            for sym, v in value.items():
+                if isinstance(v, bool):
+                    return f"{name}.{sym} = {str(v).lower()}: a boolean is not a number"
+    return None
+
+
+def _model_of(annotation: Any) -> type[BaseModel] | None:
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    return None
+
+
+def _takes_bool(annotation: Any) -> bool:
+    if annotation is bool:
+        return True
+    origin = typing.get_origin(annotation)
+    if origin in (typing.Union, types.UnionType):
+        return any(_takes_bool(a) for a in typing.get_args(annotation))
+    return annotation is Any
+
+
+def check_config(cfg: Any, where: str = "configuration") -> None:
+    """Check a validated :class:`~railsusp.pipeline.PipelineConfig` as a whole; raise
+    :class:`ConfigError` (one line, naming the field) at the first thing that would make a
+    stage fail."""
+    from railsusp.params import ParameterSet, spec
+    from railsusp.store import read_toml
+    from railsusp.vehicle.wagon import load_wagon
+
+    def bad(message: str) -> ConfigError:
+        return ConfigError(f"{where}: {message}")
+
+    # conditions: each one builds, names distinct
+    try:
+        conds = cfg.working_conditions()
+    except RailsuspInputError as exc:
+        raise bad(f"conditions: {exc}") from None
+    if not conds:
+        raise bad("conditions: at least one condition is needed")
+    names = [c.name for c in conds]
+    dupes = sorted({n for n in names if names.count(n) > 1})
+    if dupes:
+        raise bad(f"conditions: names repeat ({', '.join(dupes)}); give each a distinct name")
+
+    # parameters
+    sampled: list[str] = []
+    for p in cfg.campaign.parameters:
+        try:
+            s = spec(p)
+        except RailsuspInputError as exc:
+            raise bad(f"campaign.parameters: {exc}") from None
+        if not s.is_sampled:
+            raise bad(f"campaign.parameters: {s.symbol} is fixed; sampled ones are X11..X20")
+        if s.symbol in sampled:
+            raise bad(f"campaign.parameters: {s.symbol} is given twice")
+        sampled.append(s.symbol)
+    for st in cfg.sensitivity.statistics:
+        if st not in SENSITIVITY_STATISTICS:
+            raise bad(
+                f"sensitivity.statistics: {st!r} unknown; accepted "
+                f"{', '.join(SENSITIVITY_STATISTICS)}"
+            )
+    f = cfg.field
+    if f.truth:
+        try:
+            ParameterSet(f.truth, units="display")
+        except RailsuspInputError as exc:
+            raise bad(f"field.truth: {exc}") from None
+
+    # recordings
+    if f.measured is not None:
+        if f.truth:
+            raise bad("field: give measured or truth, not both")
+        folder = Path(f.measured)
+        if not folder.is_dir():
+            raise bad(f"field.measured = {f.measured!r} is not a folder")
+        if not (folder / "index.json").is_file():
+            raise bad(f"field.measured = {f.measured!r} holds no index.json of recordings")
+    if cfg.estimate.refine and f.measured is None and not f.with_track:
+        raise bad(
+            "estimate.refine = true needs recordings with their measured track geometry: "
+            "set field.with_track = true (or refine = false)"
+        )
+    if (f.with_track or f.track_noise_mm) and f.measured is not None:
+        raise bad("field.with_track and field.track_noise_mm apply to synthetic recordings only")
+    if f.track_noise_mm and not f.with_track:
+        raise bad("field.track_noise_mm needs field.with_track = true")
+
+    # estimation, surrogates, wagon, scheduler
+    if cfg.estimate.weighting == "noise" and cfg.surrogate.model != "gp-stats":
+        raise bad(
+            'estimate.weighting = "noise" needs the predictive SD of surrogate.model = '
+            f'"gp-stats" (now {cfg.surrogate.model!r})'
+        )
+    if (
+        cfg.estimate.refine
+        and cfg.estimate.refine_screen
+        and (cfg.estimate.refine_screen < cfg.estimate.refine_starts)
+    ):
+        raise bad(
+            f"estimate.refine_screen = {cfg.estimate.refine_screen} screens fewer points than "
+            f"estimate.refine_starts = {cfg.estimate.refine_starts} starts"
+        )
+    if cfg.surrogate.device not in DEVICES:
+        raise bad(f"surrogate.device = {cfg.surrogate.device!r}: accepted {', '.join(DEVICES)}")
+    if cfg.wagon is not None:
+        try:
+            read_toml(cfg.wagon, "wagon file")
+            load_wagon(cfg.wagon)
+        except RailsuspInputError as exc:
+            raise bad(f"wagon: {exc}") from None
+    if cfg.scheduler is not None and not cfg.scheduler.startswith(("tcp://", "tls://")):
+        raise bad(f"scheduler = {cfg.scheduler!r}: expected tcp://host:port or tls://host:port")

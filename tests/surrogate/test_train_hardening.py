@@ -1,0 +1,114 @@
+"""Training: bitwise reproducible on the CPU, resumed equals uninterrupted, checkpoints read
+without running code, settings that would train nothing refused."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+import torch
+
+from railsusp.conditions import get_condition
+from railsusp.errors import RailsuspInputError
+from railsusp.surrogate.data import FeatureSpec, Normaliser, SeriesData
+from railsusp.surrogate.models import NetConfig, build_network
+from railsusp.surrogate.train import TrainConfig, WindowSampler, train_network
+
+SPEC = FeatureSpec(parameters=("X13", "X14"), window=6, track_channels=("zL", "yL"), axles=(0,))
+
+
+def _data(n: int, seed: int) -> SeriesData:
+    rng = np.random.default_rng(seed)
+    t = 40
+    params = rng.random((n, 2))
+    track = rng.standard_normal((1, t, SPEC.n_features - 2)).astype(np.float32)
+    targets = (params[:, None, :] * 10 + track[..., :2]).astype(np.float32)
+    return SeriesData(
+        np.arange(n), params, track, targets, get_condition("straight"), np.zeros(n, int)
+    )
+
+
+def _train(epochs: int, checkpoint=None, kind: str = "cnn-gru") -> tuple[dict, list]:
+    train, val = _data(6, 0), _data(3, 1)
+    norm = Normaliser.fit(train)
+    cfg = NetConfig(
+        kind=kind,
+        n_features=SPEC.n_features,
+        window=SPEC.window,
+        conv_channels=(SPEC.n_features, 8),
+        rnn_hidden=(8, 4),
+        dense=(8,),
+        mlp_hidden=(8,),
+    )
+    torch.manual_seed(np.random.default_rng().integers(1000))  # the global state must not count
+    net = build_network(cfg)
+    tcfg = TrainConfig(epochs=epochs, batches_per_epoch=3, batch_size=16, val_windows=50, seed=3)
+    hist = train_network(
+        net,
+        WindowSampler(train, norm, SPEC.window),
+        WindowSampler(val, norm, SPEC.window),
+        tcfg,
+        checkpoint=checkpoint,
+    )
+    return {k: v.clone() for k, v in net.state_dict().items()}, hist
+
+
+def _same(a: dict, b: dict) -> bool:
+    return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+
+
+def test_two_cpu_trainings_with_one_seed_give_identical_weights():
+    w1, h1 = _train(3)
+    w2, h2 = _train(3)
+    assert _same(w1, w2)
+    assert [h["val_loss"] for h in h1] == [h["val_loss"] for h in h2]
+
+
+def test_interrupted_and_resumed_training_equals_an_uninterrupted_one(tmp_path):
+    ck = tmp_path / "checkpoint.pt"
+    _train(2, ck)  # "killed" after two epochs: the checkpoint holds epoch 2
+    resumed, h_res = _train(4, ck)
+    whole, h_whole = _train(4)
+    assert len(h_res) == len(h_whole) == 4
+    assert [h["val_loss"] for h in h_res] == [h["val_loss"] for h in h_whole]
+    assert _same(resumed, whole)
+
+
+def test_a_crafted_pickle_checkpoint_is_refused_and_runs_no_code(tmp_path):
+    marker = tmp_path / "pwned"
+    code = f"open({str(marker)!r}, 'w').write('ran')"
+
+    class Evil:
+        def __reduce__(self):
+            return (exec, (code,))
+
+    ck = tmp_path / "checkpoint.pt"
+    ck.write_bytes(pickle.dumps({"key": "x", "evil": Evil()}, protocol=2))
+    # unpickled without weights_only, the file would run code:
+    pickle.loads(ck.read_bytes())
+    assert marker.exists()
+    marker.unlink()
+    with pytest.raises(RailsuspInputError, match="checkpoint .* refused"):
+        _train(1, ck)
+    assert not marker.exists()
+    # torch.save'd too (a zip with a pickle inside)
+    torch.save({"key": "x", "evil": Evil()}, ck)
+    with pytest.raises(RailsuspInputError, match="refused"):
+        _train(1, ck)
+    assert not marker.exists()
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("epochs", 0, "epochs = 0: accepted an integer >= 1"),
+        ("batch_size", 0, "batch_size = 0"),
+        ("batches_per_epoch", -1, "batches_per_epoch = -1"),
+        ("device", "tpu", "device 'tpu': accepted cpu, cuda, auto"),
+        ("learning_rate", float("nan"), "learning_rate = nan"),
+    ],
+)
+def test_training_settings_that_would_train_nothing_are_refused(field, value, message):
+    with pytest.raises(RailsuspInputError, match=message):
+        TrainConfig(**{field: value})

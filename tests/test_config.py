@@ -1,0 +1,85 @@
+"""The pipeline configuration is checked as a whole before any stage runs (railsusp.config)."""
+
+from __future__ import annotations
+
+import pytest
+from typer.testing import CliRunner
+
+from railsusp.cli import app
+from railsusp.config import ConfigError
+from railsusp.errors import RailsuspInputError
+from railsusp.pipeline import PipelineConfig, load_config, run_pipeline
+
+BASE = """
+name = "t"
+conditions = [{base="straight", name="short", duration_s=1.0, n_steps=50, lead_in_m=20.0}]
+[campaign]
+samples = 10
+[field]
+truth = { X13 = 16.1 }
+"""
+
+
+def _write(tmp_path, text: str):
+    p = tmp_path / "c.toml"
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize(
+    ("text", "needle"),
+    [
+        (BASE.replace("X13 = 16.1", "X99 = 1.0"), "field.truth: unknown parameter 'X99'"),
+        (BASE.replace("X13 = 16.1", "X13 = 99.0"), "field.truth: X13"),
+        (BASE.replace("X13 = 16.1", "X13 = true"), "field.truth.X13 = true: a boolean"),
+        (BASE + "with_track = false\n[estimate]\nrefine = true\n", "set field.with_track = true"),
+        (BASE.replace("samples = 10", "samples = true"), "campaign.samples = true: a boolean"),
+        (BASE.replace("samples = 10", "sample = 10"), "campaign.sample"),
+        (BASE + "[estimate]\nweighting = 'noise'\n", "needs the predictive SD of surrogate.model"),
+        (BASE + "[surrogate]\ndevice = 'tpu'\n", "surrogate.device = 'tpu'"),
+        (BASE.replace('name="short"', 'name="../../x"'), "condition name becomes a folder"),
+        (BASE.replace('name="short"', 'name="/abs"'), "no absolute path"),
+        (
+            BASE.replace("conditions = [", 'conditions = ["straight", "straight", '),
+            "names repeat (straight)",
+        ),
+        (BASE.replace("lead_in_m=20.0", "speed_kmh=true"), "a boolean is not accepted"),
+        (BASE.replace("X13", "campaign.parameters") + "", "field.truth"),
+        (BASE + 'wagon = "nowhere.toml"\n', "field.wagon"),  # after a table: nested
+        ('wagon = "nowhere.toml"\n' + BASE, "wagon: wagon file nowhere.toml does not exist"),
+        ('scheduler = "localhost:8786"\n' + BASE, "expected tcp://host:port"),
+        (
+            BASE.replace("truth = { X13 = 16.1 }", 'measured = "nowhere"'),
+            "field.measured = 'nowhere' is not a folder",
+        ),
+        (BASE.replace("samples = 10", "parameters = ['X1']"), "X1 is fixed"),
+        (BASE.replace("samples = 10", "parameters = ['X13', 'X13']"), "X13 is given twice"),
+        (BASE + "[sensitivity]\nstatistics = ['median']\n", "'median' unknown"),
+    ],
+)
+def test_bad_configurations_fail_at_load_time_naming_the_field(tmp_path, text, needle):
+    with pytest.raises(RailsuspInputError, match=None) as info:
+        load_config(_write(tmp_path, text))
+    assert needle in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_a_late_failing_configuration_runs_no_stage(tmp_path):
+    """`[field] truth = {X99 = 1.0}` used to fail after campaign, sensitivity and surrogates."""
+    cfg = PipelineConfig(**{"field": {"truth": {"X99": 1.0}}})
+    out = tmp_path / "run"
+    with pytest.raises(ConfigError, match="X99"):
+        run_pipeline(cfg, out)
+    assert not out.exists()
+    result = CliRunner().invoke(
+        app, ["run", str(_write(tmp_path, BASE.replace("X13", "X99"))), "--out", str(out)]
+    )
+    assert result.exit_code == 2 and "unknown parameter 'X99'" in result.output
+    assert not out.exists()
+
+
+def test_good_configurations_load(tmp_path):
+    cfg = load_config(_write(tmp_path, BASE))
+    assert cfg.field.truth == {"X13": 16.1}
+    both = BASE + "with_track = true\n[estimate]\nrefine = true\n"
+    assert load_config(_write(tmp_path, both)).estimate.refine

@@ -1,0 +1,326 @@
+"""Bad input as a careless or hostile user gives it: one-line errors with exit status 2 (or
+the safe behaviour), failed simulations counted, files written atomically (issue 22)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from railsusp.cli import app
+from railsusp.conditions import load_conditions, make_condition
+from railsusp.errors import ConditionError, ParameterError, RailsuspInputError
+from railsusp.params import ParameterSet, parse_overrides
+
+runner = CliRunner()
+GARBAGE = bytes(range(256)) * 3  # not UTF-8, not TOML
+SHORT = '[[condition]]\nname = "short"\nduration_s = 1.0\nn_steps = 50\nlead_in_m = 20.0\n'
+
+
+def one_line_error(args: list[str], needle: str, status: int = 2) -> str:
+    """Run the CLI in-process; exit ``status``, one ``error:`` line containing ``needle``, no
+    exception but the exit."""
+    result = runner.invoke(app, [str(a) for a in args])
+    assert result.exit_code == status, result.output
+    assert isinstance(result.exception, SystemExit), repr(result.exception)
+    errors = [line for line in result.output.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1, result.output
+    assert needle in errors[0], errors[0]
+    assert "Traceback" not in result.output
+    return errors[0]
+
+
+@pytest.fixture
+def garbage(tmp_path):
+    p = tmp_path / "garbage.toml"
+    p.write_bytes(GARBAGE)
+    return p
+
+
+@pytest.fixture
+def short(tmp_path):
+    p = tmp_path / "short.toml"
+    p.write_text(SHORT)
+    return p
+
+
+# ---------------------------------------------------------------- files that are not TOML
+def test_binary_garbage_as_toml_is_one_line(garbage, tmp_path):
+    one_line_error(["params", "--file", garbage], "parameter file")
+    one_line_error(["simulate", "straight", "--wagon", garbage], "wagon file")
+    one_line_error(["run", garbage, "--out", tmp_path / "o"], "is not UTF-8 text")
+    one_line_error(["conditions", garbage], "condition file")
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_folder_as_file_is_one_line(tmp_path):
+    one_line_error(["params", "--file", tmp_path], "is a folder, not a TOML file")
+    one_line_error(["simulate", "straight", "--file", tmp_path], "is a folder")
+    one_line_error(["run", tmp_path], "is a folder, not a TOML file")
+
+
+def test_nan_options_are_one_line(short, tmp_path):
+    one_line_error(["track", "--length", "nan"], "--length = nan m: accepted range (0, 1e6] m")
+    one_line_error(
+        ["campaign", "--out", tmp_path / "r", "--conditions", short, "--duration", "nan"],
+        "duration_s = nan: accepted range [1, 600] s",
+    )
+    assert not (tmp_path / "r").exists()
+
+
+# ---------------------------------------------------------------- output folders
+def test_out_that_is_an_existing_file_is_refused_before_any_work(short, tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("keep me")
+    one_line_error(
+        ["campaign", "--out", afile, "--conditions", short, "--samples", "2"],
+        "is an existing file, not a folder",
+    )
+    one_line_error(["run", "examples/quick.toml", "--out", afile], "is an existing file")
+    one_line_error(["simulate", short, "--out", tmp_path], "is a folder, not a file")
+    one_line_error(["simulate", short, "--out", afile / "f.parquet"], "is a file, not a folder")
+    one_line_error(["track", "--plot", afile / "t.png"], "is a file, not a folder")
+    assert afile.read_text() == "keep me"
+
+
+@pytest.mark.skipif(os.name != "posix" or os.geteuid() == 0, reason="root writes anywhere")
+def test_out_in_a_read_only_folder_is_refused(short, tmp_path):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    try:
+        one_line_error(
+            ["campaign", "--out", ro / "r", "--conditions", short, "--samples", "2"],
+            "is not writable",
+        )
+        one_line_error(["run", "examples/quick.toml", "--out", ro / "r"], "is not writable")
+        one_line_error(["simulate", short, "--out", ro / "f.parquet"], "is not writable")
+    finally:
+        ro.chmod(0o755)
+
+
+def test_read_only_check_refuses_an_unwritable_folder(tmp_path, monkeypatch):
+    """The same check as root (who may write anywhere): os.access says no."""
+    from railsusp.store import check_output_folder
+
+    monkeypatch.setattr(os, "access", lambda *a, **k: False)
+    with pytest.raises(RailsuspInputError, match="is not writable"):
+        check_output_folder(tmp_path / "new" / "run")
+
+
+# ---------------------------------------------------------------- campaign
+def test_campaign_workers_0_and_corrupt_campaign_json(short, tmp_path):
+    run = tmp_path / "r"
+    one_line_error(
+        ["campaign", "--out", run, "--conditions", short, "--samples", "2", "--workers", "0"],
+        "--workers = 0: accepted an integer >= 1",
+    )
+    run.mkdir()
+    (run / "campaign.json").write_bytes(b'{"config": ')
+    one_line_error(["train", run], "is corrupt: not valid JSON")
+    one_line_error(
+        ["campaign", "--out", run, "--conditions", short, "--samples", "2"],
+        "use --force to discard",
+    )
+    (run / "campaign.json").write_text("[1, 2]")
+    one_line_error(["train", run], "a JSON object was expected")
+    (run / "campaign.json").write_text('{"config": {"samples": "many"}}')
+    one_line_error(["train", run], "its configuration does not validate")
+
+
+def _fail_first(real):
+    """A simulate_batch that reports its first run as derailed (flange climb)."""
+
+    def wrapped(*args, **kwargs):
+        r = real(*args, **kwargs)
+        status = r.status.copy()
+        status[0] = 4
+        return dataclasses.replace(r, status=status)
+
+    return wrapped
+
+
+def test_campaign_counts_failed_simulations_and_exits_1(short, tmp_path, monkeypatch):
+    import railsusp.campaign as campaign
+
+    monkeypatch.setattr(campaign, "simulate_batch", _fail_first(campaign.simulate_batch))
+    run = tmp_path / "r"
+    args = ["campaign", "--out", run, "--conditions", short, "--samples", "3"]
+    args += ["--parameters", "X13", "--batch-size", "2"]
+    result = runner.invoke(app, [str(a) for a in args])
+    assert result.exit_code == 1, result.output
+    assert "2 of 3 simulations failed" in result.output and "short 2" in result.output
+    failed = campaign.failed_runs(run)
+    assert list(failed.sample_id) == [0, 2] and set(failed.status) == {4}
+    monkeypatch.undo()
+    ok = runner.invoke(app, [str(a) for a in [*args[:2], tmp_path / "ok", *args[3:]]])
+    assert ok.exit_code == 0 and "0 of 3 simulations failed" in ok.output
+
+
+def test_simulate_exits_1_when_its_run_derails(short, monkeypatch):
+    import railsusp.vehicle.simulate as sim
+
+    real = sim.simulate
+
+    def derailing(*args, **kwargs):
+        r = real(*args, **kwargs)
+        return dataclasses.replace(r, status=np.array([3]))
+
+    monkeypatch.setattr(sim, "simulate", derailing)
+    result = runner.invoke(app, ["simulate", str(short)])
+    assert result.exit_code == 1, result.output
+    assert "1 of 1 runs failed: short (wheel lift beyond the flange height" in result.output
+
+
+# ---------------------------------------------------------------- training options
+def test_train_refuses_settings_that_train_nothing(tmp_path):
+    for args, needle in (
+        (["--device", "tpu"], "device 'tpu': accepted cpu, cuda, auto"),
+        (["--epochs", "0"], "epochs = 0: accepted an integer >= 1"),
+        (["--batch-size", "0"], "batch_size = 0"),
+        (["--window", "0"], "--window = 0: accepted 2 .. 10000 steps"),
+    ):
+        one_line_error(["train", tmp_path, *args], needle)
+    one_line_error(["compare", tmp_path, "--epochs", "0"], "epochs = 0")
+
+
+def test_training_on_an_incomplete_campaign_is_refused(short, tmp_path):
+    from railsusp.campaign import make_config, run_campaign
+
+    cfg = make_config(load_conditions(short), 4, parameters=("X13",), batch_size=2)
+    run_campaign(cfg, tmp_path / "r", max_batches=1)
+    one_line_error(["train", tmp_path / "r"], "the campaign is incomplete (1 of 2 batches)")
+    one_line_error(["compare", tmp_path / "r"], "incomplete")
+
+
+# ---------------------------------------------------------------- parameters and conditions
+def test_repeated_override_is_refused():
+    with pytest.raises(ParameterError, match="X13 is given twice"):
+        parse_overrides(["X13=16.1,X13=7"])
+    with pytest.raises(ParameterError, match="given twice"):
+        parse_overrides(["X13=16.1", "primary_longitudinal_stiffness=7"])
+    one_line_error(["params", "--set", "X13=16.1,X13=7"], "X13 is given twice")
+
+
+def test_fixed_parameters_refuse_absurd_values():
+    one_line_error(["params", "--set", "X1=1e15"], "outside the accepted range [120, 12000] kg")
+    with pytest.raises(ParameterError, match="must be positive"):
+        ParameterSet({"X1": -5.0})
+    assert ParameterSet({"X1": 1500.0})["X1"] == 1500.0  # a plausible value still goes
+
+
+def test_booleans_are_not_numbers(tmp_path):
+    p = tmp_path / "c.toml"
+    p.write_text('[[condition]]\nname = "b"\nspeed_kmh = true\n')
+    with pytest.raises(ConditionError, match="speed_kmh = True: a boolean is not accepted"):
+        load_conditions(p)
+    one_line_error(["conditions", p], "a boolean is not accepted")
+    q = tmp_path / "p.toml"
+    q.write_text("[parameters]\nX13 = true\n")
+    with pytest.raises(ParameterError, match="not a number"):
+        ParameterSet.from_toml(q)
+
+
+@pytest.mark.parametrize("name", ["../../x", "/etc/x", "a/b", "..", ".hidden", "", "a\\b", "é"])
+def test_condition_names_that_could_leave_the_run_directory_are_refused(name, tmp_path):
+    with pytest.raises(ConditionError, match="name"):
+        make_condition({"name": name})
+    p = tmp_path / "c.toml"
+    p.write_text(f"[[condition]]\nname = {json.dumps(name)}\n")
+    with pytest.raises(ConditionError):
+        load_conditions(p)
+
+
+def test_safe_condition_names_still_load():
+    for name in ("straight", "curve-300", "run_2.1", "A1"):
+        assert make_condition({"name": name}).name == name
+
+
+# ---------------------------------------------------------------- console output
+def test_markup_does_not_eat_brackets_in_messages_and_help(tmp_path):
+    p = tmp_path / "c.toml"
+    p.write_text("[condition]\nx = 1\n")
+    one_line_error(["conditions", p], "expected [[condition]] or [condition.NAME] tables")
+    assert "[parameters]" in runner.invoke(app, ["params", "--help"]).output
+    assert "[parameters]" in runner.invoke(app, ["simulate", "--help"]).output
+
+
+def test_huge_forces_print_in_scientific_notation():
+    from railsusp.cli.simulation import number
+
+    assert number(1e300, 1) == "1.000e+300"
+    assert number(-3.2e7, 2) == "-3.200e+07"
+    assert number(31.46, 1) == "31.5"
+    assert number(float("nan"), 1) == "nan"
+
+
+def test_errors_reach_a_real_terminal_as_one_line(garbage):
+    """One real process: stderr, exit status and no traceback, outside the test runner."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "railsusp.cli", "params", "--file", str(garbage)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 2, proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and "Traceback" not in proc.stderr
+
+
+# ---------------------------------------------------------------- atomic files
+def test_atomic_folder_leaves_the_old_artefact_when_a_save_fails(tmp_path):
+    from railsusp.store import atomic_folder
+
+    art = tmp_path / "bundle"
+    art.mkdir()
+    (art / "model.pt").write_text("old weights")
+    (art / "surrogate.json").write_text("old description")
+    (art / "checkpoint.pt").write_text("checkpoint")
+    with pytest.raises(RuntimeError), atomic_folder(art) as tmp:
+        (tmp / "model.pt").write_text("new weights")
+        raise RuntimeError("killed between the two files")
+    assert (art / "model.pt").read_text() == "old weights"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bundle"]  # no temporary left
+    with atomic_folder(art) as tmp:
+        (tmp / "model.pt").write_text("new weights")
+        (tmp / "surrogate.json").write_text("new description")
+    assert (art / "model.pt").read_text() == "new weights"
+    assert (art / "surrogate.json").read_text() == "new description"
+    assert (art / "checkpoint.pt").read_text() == "checkpoint"  # other files are kept
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bundle"]
+
+
+def test_writes_are_fsynced_file_and_folder(tmp_path, monkeypatch):
+    from railsusp import store
+
+    synced = []
+    real = os.fsync
+
+    def spy(fd):
+        synced.append(os.readlink(f"/proc/self/fd/{fd}") if os.path.exists("/proc") else fd)
+        return real(fd)
+
+    monkeypatch.setattr(os, "fsync", spy)
+    store.write_parquet(tmp_path / "batch.parquet", pd.DataFrame({"a": [1.0]}))
+    store.write_json(tmp_path / "x.json", {"a": 1})
+    assert any(str(s).endswith(".tmp") for s in synced)  # the file, before its rename
+    assert synced.count(str(tmp_path)) >= 2  # the folder, after each rename
+    assert not list(tmp_path.glob(".*tmp"))
+
+
+def test_corrupt_json_is_an_input_error(tmp_path):
+    from railsusp.store import read_json
+
+    p = tmp_path / "x.json"
+    p.write_bytes(b"\xff\xfe{")
+    with pytest.raises(RailsuspInputError, match="not UTF-8"):
+        read_json(p)
+    p.write_text("{")
+    with pytest.raises(RailsuspInputError, match="corrupt"):
+        read_json(p)
