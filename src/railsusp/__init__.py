@@ -1,8 +1,11 @@
 """railsusp: estimate suspension parameters of heavy-haul freight wagons from wheel-rail forces.
 
-The public API re-exports the pieces a user combines: the parameter catalogue, the working
-conditions and the track input. Later stages (simulator, campaign, sensitivity, surrogate,
-estimation) are added as they land.
+The public API: ``railsusp.run(config, out=...)`` runs the whole method and
+``railsusp.open_run(path)`` opens a run directory, both giving a :class:`RunResult` (the
+estimate with intervals and verdicts, validation, sensitivity, surrogate accuracy, report;
+docs/api.md); and the pieces a user combines: the parameter catalogue, the working
+conditions. ``run``, ``open_run`` and ``RunResult`` load on first use, so that
+``import railsusp`` stays light.
 """
 
 from railsusp.conditions import STANDARD_CONDITIONS, WorkingCondition, get_condition
@@ -19,8 +22,21 @@ __all__ = [
     "ParameterError",
     "ParameterSet",
     "RailsuspInputError",
+    "RunResult",
     "WorkingCondition",
     "__version__",
     "get_condition",
+    "open_run",
     "parse_overrides",
+    "run",
 ]
+
+_API = ("RunResult", "open_run", "run")
+
+
+def __getattr__(name: str):
+    if name in _API:
+        from railsusp import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'railsusp' has no attribute {name!r}")

@@ -2,11 +2,17 @@
 
 Bad input (unknown parameter, out-of-range value, bad condition) prints one line on stderr
 and exits with status 2, never a traceback. Commands live in the submodules by topic.
+Global options: ``--version``, ``--quiet`` (errors and warnings only, no progress) and
+``--verbose`` (also the library's debug log: when each stage starts); a Python warning is
+said once, as one line (``warning: ...``), not with its source line.
 """
 
 from __future__ import annotations
 
+import logging
 import sys
+import warnings
+from typing import Annotated
 
 import typer
 from rich.console import Console
@@ -23,6 +29,70 @@ app = typer.Typer(
 # Wide tables when piped (CI logs, files); the terminal's width otherwise.
 console = Console(width=None if sys.stdout.isatty() else 150)
 err_console = Console(stderr=True, width=None if sys.stderr.isatty() else 150)
+
+
+#: "quiet", "normal" or "verbose": set by the global options, read by the commands
+verbosity = "normal"
+_said: set[str] = set()
+
+
+def _say_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Python's warnings as one readable line each, once per message."""
+    text = " ".join(str(message).split())
+    if text in _said:
+        return
+    _said.add(text)
+    kind = "" if category in (UserWarning, RuntimeWarning) else f" ({category.__name__})"
+    err_console.print(f"warning: {text}{kind}", markup=False, highlight=False, soft_wrap=True)
+
+
+class _ConsoleLog(logging.Handler):
+    """The library's log (stage starts and finishes) as plain lines on stderr."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        err_console.print(record.getMessage(), markup=False, highlight=False, soft_wrap=True)
+
+
+_handler = _ConsoleLog()
+
+
+def _version(value: bool) -> None:
+    if value:
+        from railsusp import __version__
+
+        console.print(f"railsusp {__version__}", markup=False, highlight=False)
+        raise typer.Exit()
+
+
+@app.callback()
+def _global(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version", callback=_version, is_eager=True, help="print the version and exit"
+        ),
+    ] = False,
+    quiet: Annotated[
+        bool, typer.Option("--quiet", "-q", help="errors and warnings only, no progress")
+    ] = False,
+    verbose: Annotated[
+        bool, typer.Option("--verbose", "-v", help="also when each stage starts")
+    ] = False,
+) -> None:
+    """railsusp: suspension parameter estimation for heavy-haul freight wagons."""
+    global verbosity
+    if quiet and verbose:
+        fail("--quiet and --verbose: accepted one of them, not both")
+    verbosity = "quiet" if quiet else "verbose" if verbose else "normal"
+    warnings.showwarning = _say_warning
+    warnings.simplefilter("default")
+    if quiet:
+        warnings.simplefilter("ignore")
+    logger = logging.getLogger("railsusp")
+    if _handler not in logger.handlers:
+        logger.addHandler(_handler)
+    logger.setLevel(logging.WARNING if quiet else logging.DEBUG if verbose else logging.INFO)
+    logger.propagate = False
 
 
 def frame_table(df, title: str, fmt: str = "{:.4g}") -> Table:

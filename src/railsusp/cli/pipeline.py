@@ -9,6 +9,7 @@ import pandas as pd
 import typer
 from rich.table import Table
 
+from railsusp import cli
 from railsusp.cli import app, console, err_console, fail, frame_table
 from railsusp.errors import RailsuspInputError
 
@@ -32,6 +33,7 @@ def _run(config, out: Path, start_from: str | None) -> dict:
         TimeElapsedColumn(),
         TimeRemainingColumn(),
         console=err_console,
+        disable=cli.verbosity == "quiet",
     ) as bar:
         stages = bar.add_task("stages", total=len(STAGES))
         runs = bar.add_task("campaign simulations", total=None, visible=False)
