@@ -181,7 +181,7 @@ class RunResult:
 
 def open_run(path: str | Path, *, tolerances: summary.Tolerances | None = None) -> RunResult:
     """A finished (or partly finished) run directory, read."""
-    path = Path(path)
+    path = Path(path).resolve()
     if not (path / "pipeline.json").is_file():
         raise RailsuspInputError(f"{path}: not a run directory (no pipeline.json)")
     return RunResult(path, tolerances)

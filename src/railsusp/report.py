@@ -1,4 +1,4 @@
-"""Figures (matplotlib, headless) for the command line and, later, the run report.
+"""Figures (matplotlib, headless) for the command line and the run report.
 
 Each figure function takes data objects and an output path, and writes the file atomically
 (temporary file, then rename) so that an interrupted run never leaves half a PNG behind.
@@ -329,7 +329,8 @@ def plot_validation_overlay(series: dict, path: str | Path, title: str = ""):
         for k, (key, color, name) in enumerate(runs):
             x = np.asarray(series[key])[:, j]
             vals = [float(record_statistic(x, st, j == 0)) for st in stats]
-            bx.bar(pos + (k - 1) * 0.27, vals, 0.27, color=color, label=name)
+            # markers, not bars: a few % apart on a large level, which bars from 0 would hide
+            bx.plot(pos + (k - 1) * 0.2, vals, "o", ms=7, color=color, label=name)
         names = "|Y|" if j == 0 else "Q"
         bx.set_xticks(pos, [f"{st} {names}" for st in ("mean", "RMS", "p99")])
         bx.set_ylabel(f"{label.split(' (')[0]} statistic (kN)")

@@ -99,13 +99,13 @@ def run_tolerances(run: str | Path) -> Tolerances:
 
 
 def sig3(v: float) -> str:
-    """Three significant figures, without an exponent from 0.001 to 1e6 (the report's and
+    """Three significant figures, without an exponent from 0.0001 to 1e6 (the report's and
     the summary's one number format)."""
     if v == 0:
         return "0"
     if not math.isfinite(v):
         return "" if v != v else ("∞" if v > 0 else "-∞")
-    if not 1e-3 <= abs(v) < 1e6:
+    if not 1e-4 <= abs(v) < 1e6:
         return f"{v:.2e}"
     digits = max(0, 2 - math.floor(math.log10(abs(v))))
     return f"{round(v, digits):.{digits}f}"
@@ -172,6 +172,7 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
             row["low"], row["high"] = float(col.min()), float(col.max())
             row["interval"] = INTERVAL_PARETO
         limit = tol.of(p)
+        single = row["interval"] == INTERVAL_PARETO and row["low"] == row["high"]
         if why_not.get(p):
             row["verdict"] = NOT_IDENTIFIABLE
             row["note"] = why_not[p]
@@ -182,7 +183,9 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
             if math.isfinite(row["low"]):
                 reaches_out = row["low"] < band[0] or row["high"] > band[1]
                 reaches_in = row["high"] >= band[0] and row["low"] <= band[1]
-                if inside and reaches_out:
+                if single:
+                    row["note"] = "a one-point Pareto set: no spread to judge the uncertainty"
+                elif inside and reaches_out:
                     row["note"] = "the interval reaches beyond the tolerance"
                 elif not inside and reaches_in:
                     row["note"] = "the interval reaches back within the tolerance"

@@ -47,12 +47,12 @@ def _force_table(results: list, title: str) -> Table:
         table.add_row(
             r.condition.name,
             WHEEL_NAMES[r.measured_wheel()],
-            *(f"{s[k][0]:.1f}" for k in ("Y_mean", "Y_rms", "Y_p99", "Y_max")),
+            *(f"{s[k]:.1f}" for k in ("Y_mean", "Y_rms", "Y_p99", "Y_max")),
             f"{ref[0]:.1f}" if ref else "-",
-            *(f"{s[k][0]:.1f}" for k in ("Q_mean", "Q_p99", "Q_max")),
+            *(f"{s[k]:.1f}" for k in ("Q_mean", "Q_p99", "Q_max")),
             f"{ref[2]:.1f}" if ref else "-",
-            f"{s['YQ_max'][0]:.2f}",
-            f"{s['dQQ_max'][0]:.2f}",
+            f"{s['YQ_max']:.2f}",
+            f"{s['dQQ_max']:.2f}",
             status,
         )
     return table
