@@ -83,7 +83,9 @@ class Page:
         if method == "Runtime.exceptionThrown":
             self.errors.append(p["exceptionDetails"].get("text", "exception"))
         elif method == "Runtime.consoleAPICalled" and p.get("type") in ("error", "assert"):
-            self.errors.append(" ".join(str(a.get("value", a.get("description"))) for a in p["args"]))
+            self.errors.append(
+                " ".join(str(a.get("value", a.get("description"))) for a in p["args"])
+            )
         elif method == "Log.entryAdded" and p["entry"].get("level") == "error":
             self.errors.append(p["entry"].get("text", ""))
 

@@ -86,8 +86,6 @@ def _global(
     verbosity = "quiet" if quiet else "verbose" if verbose else "normal"
     warnings.showwarning = _say_warning
     warnings.simplefilter("default")
-    if quiet:
-        warnings.simplefilter("ignore")
     logger = logging.getLogger("railsusp")
     if _handler not in logger.handlers:
         logger.addHandler(_handler)
