@@ -276,7 +276,7 @@ def plot_convergence(result, path: str | Path):
             ax.plot(xs, steps[:, i] / s.scale, "o-", ms=3, lw=1.0, color="C2", label="refinement")
             ax.axvline(n_gen + 0.5, color="0.7", lw=0.8)
         ax.axhline(s.nominal_display, color="0.5", ls="--", lw=0.8, label="nominal")
-        ax.axhline(final[i] / s.scale, color="C3", lw=1.0, label="final estimate")
+        ax.axhline(final[i] / s.scale, color="C3", lw=1.4, ls=":", zorder=1, label="final estimate")
         ax.set_ylabel(f"{p} ({s.display_unit})")
         ax.set_ylim(*s.bounds_display)
         ax.grid(alpha=0.3)
@@ -284,7 +284,7 @@ def plot_convergence(result, path: str | Path):
     axes[-1, 0].set_xlabel(
         "NSGA-II generation, then refinement iteration" if len(steps) else "NSGA-II generation"
     )
-    fig.suptitle("Convergence of the estimate (dashed: nominal; red: final estimate)")
+    fig.suptitle("Convergence of the estimate (dashed: nominal; red dotted: final estimate)")
     return save_figure(fig, path)
 
 

@@ -77,7 +77,8 @@ def header(column: str) -> str:
     if column in HEADERS:
         return HEADERS[column]
     text = re.sub(r"_pct(_|$)", r" (%)\1", column)
-    text = re.sub(r"_kN$", " (kN)", text)
+    text = re.sub(r"(_| )kN$", " (kN)", text)
+    text = re.sub(r" %$", " (%)", text)
     text = re.sub(r"_s$", " (s)", text)
     return text.replace("_", " ")
 
