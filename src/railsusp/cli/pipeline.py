@@ -59,6 +59,14 @@ def _summary(out: Path) -> None:
         df = pd.read_csv(csv)
         console.print(frame_table(df[cols] if cols else df, title))
 
+    if (out / "estimate" / "validation" / "validation.csv").exists():  # the answer first
+        from railsusp import summary
+
+        est = summary.estimate_table(out).reset_index()
+        cols = ["parameter", "unit", "nominal", "estimate", "low", "high", "change_pct"]
+        console.print(frame_table(est[[*cols, "verdict"]], "Answer (report.html, docs/api.md)"))
+        for line in summary.agreement_lines(summary.force_agreement(out)):
+            console.print(line, markup=False, highlight=False)
     show(out / "estimate" / "estimate.csv", "Estimate (study Table 5 layout)")
     show(
         out / "estimate" / "validation" / "validation.csv",
