@@ -9,6 +9,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+import railsusp
 from railsusp import summary
 from railsusp.errors import RailsuspInputError
 from railsusp.params import spec
@@ -69,6 +70,8 @@ def test_refined_estimate_gives_two_standard_error_intervals_and_verdicts(tmp_pa
     loose = summary.estimate_table(run, summary.Tolerances(25.5))
     assert loose.loc["X13"].verdict == summary.WITHIN
     assert loose.loc["X13"].note == "the interval reaches beyond the tolerance"
+    via_api = railsusp.open_run(run, tolerances=railsusp.Tolerances(25.5)).estimate
+    assert via_api.equals(loose)
     # a large or infinite standard error: not identifiable, and why
     ref["standard_error_pct_range"] = {"X13": 6.0, "X17": math.inf}
     run = make_run(tmp_path, {"X13": 10.5, "X17": 1.9}, ref)

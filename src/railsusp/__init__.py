@@ -23,6 +23,7 @@ __all__ = [
     "ParameterSet",
     "RailsuspInputError",
     "RunResult",
+    "Tolerances",
     "WorkingCondition",
     "__version__",
     "get_condition",
@@ -31,7 +32,7 @@ __all__ = [
     "run",
 ]
 
-_API = ("RunResult", "open_run", "run")
+_API = ("RunResult", "Tolerances", "open_run", "run")
 
 
 def __getattr__(name: str):

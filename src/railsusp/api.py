@@ -18,6 +18,9 @@ import pandas as pd
 from railsusp import summary
 from railsusp.errors import RailsuspInputError
 from railsusp.store import read_json
+from railsusp.summary import Tolerances
+
+__all__ = ["RunResult", "Tolerances", "open_run", "run"]
 
 
 @dataclass(frozen=True)

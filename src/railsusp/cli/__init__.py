@@ -76,7 +76,8 @@ def _global(
         bool, typer.Option("--quiet", "-q", help="errors and warnings only, no progress")
     ] = False,
     verbose: Annotated[
-        bool, typer.Option("--verbose", "-v", help="also when each stage starts")
+        bool,
+        typer.Option("--verbose", "-v", help="also when each stage starts, each training epoch"),
     ] = False,
 ) -> None:
     """railsusp: suspension parameter estimation for heavy-haul freight wagons."""
