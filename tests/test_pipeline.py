@@ -205,6 +205,7 @@ def test_run_command(tiny, tmp_path):
     result = CliRunner().invoke(app, ["run", str(cfg_path), "--out", str(tmp_path / "r")])
     assert result.exit_code == 0, result.output
     assert "Stage timings" in result.output and "report.html" in result.output
+    assert result.output.index("Answer") < result.output.index("Estimate (study Table 5")
     bad = CliRunner().invoke(app, ["run", str(cfg_path), "--from", "nowhere"])
     assert bad.exit_code == 2 and "--from 'nowhere'" in bad.output
 

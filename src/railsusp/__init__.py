@@ -1,15 +1,17 @@
 """railsusp: estimate suspension parameters of heavy-haul freight wagons from wheel-rail forces.
 
-The public API re-exports the pieces a user combines: the parameter catalogue, the working
-conditions and the track input. Later stages (simulator, campaign, sensitivity, surrogate,
-estimation) are added as they land.
+The public API: ``railsusp.run(config, out=...)`` runs the whole method and
+``railsusp.open_run(path)`` opens a run directory, both giving a :class:`RunResult` (the
+estimate with intervals and verdicts, validation, sensitivity, surrogate accuracy, report;
+docs/api.md); and the pieces a user combines: the parameter catalogue, the working
+conditions. ``run``, ``open_run`` and ``RunResult`` load on first use, so that
+``import railsusp`` stays light.
 """
 
+from railsusp._version import __version__
 from railsusp.conditions import STANDARD_CONDITIONS, WorkingCondition, get_condition
 from railsusp.errors import ConditionError, ParameterError, RailsuspInputError
 from railsusp.params import CATALOGUE, MAIN_SUSPENSION, ParameterSet, parse_overrides
-
-__version__ = "0.1.0"
 
 __all__ = [
     "CATALOGUE",
@@ -19,8 +21,22 @@ __all__ = [
     "ParameterError",
     "ParameterSet",
     "RailsuspInputError",
+    "RunResult",
+    "Tolerances",
     "WorkingCondition",
     "__version__",
     "get_condition",
+    "open_run",
     "parse_overrides",
+    "run",
 ]
+
+_API = ("RunResult", "Tolerances", "open_run", "run")
+
+
+def __getattr__(name: str):
+    if name in _API:
+        import railsusp.api as api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'railsusp' has no attribute {name!r}")

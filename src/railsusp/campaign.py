@@ -215,7 +215,7 @@ def simulate_task(
 def features_table(result, sample_ids: np.ndarray, wheel: str = "auto") -> pd.DataFrame:
     """Tidy scalar features of the measured wheel (forces in kN): one row per sample,
     quantity (Y, Q, YQ, dQQ) and statistic (mean, rms, p99, max)."""
-    s = result.statistics(wheel)
+    s = result.statistics(wheel, set_index=None)
     rows = []
     for q in ("Y", "Q"):
         for st in STATISTICS:

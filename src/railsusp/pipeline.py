@@ -9,6 +9,7 @@ each stage's input hash, timing and state, and the error says how to resume.
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -27,6 +28,9 @@ from railsusp.conditions import WorkingCondition, get_condition, make_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.params import MAIN_SUSPENSION, ParameterSet
 from railsusp.store import content_hash, provenance, read_json, write_json
+
+#: stage finishes with their elapsed time (info) and starts (debug), for the command line
+log = logging.getLogger("railsusp.pipeline")
 
 STAGES = ("campaign", "sensitivity", "surrogate", "field", "estimate", "validate", "report")
 
@@ -257,9 +261,11 @@ def run_pipeline(
             and _outputs_exist(config, out, stage)
         )
         if up_to_date:
+            log.debug("stage %s: up to date", stage)
             if progress:
                 progress(stage, "up to date")
         else:
+            log.debug("stage %s: running", stage)
             if progress:
                 progress(stage, "running")
             t0 = time.perf_counter()
@@ -268,6 +274,7 @@ def run_pipeline(
             try:
                 info = runners[stage]() or {}
             except Exception as exc:
+                log.info("stage %s: failed after %.1f s", stage, time.perf_counter() - t0)
                 state["stages"][stage] = {"hash": h, "state": "failed", "error": str(exc)}
                 write_json(state_path, state)
                 raise StageError(
@@ -282,6 +289,7 @@ def run_pipeline(
                 "finished": provenance()["utc"],
             }
             write_json(state_path, state)
+            log.info("stage %s: done in %.1f s", stage, state["stages"][stage]["seconds"])
             forced = min(forced, i + 1)  # everything downstream reruns
         upstream[stage] = h
     state["provenance"] = provenance()

@@ -1,4 +1,4 @@
-"""Figures (matplotlib, headless) for the command line and, later, the run report.
+"""Figures (matplotlib, headless) for the command line and the run report.
 
 Each figure function takes data objects and an output path, and writes the file atomically
 (temporary file, then rename) so that an interrupted run never leaves half a PNG behind.
@@ -135,6 +135,7 @@ def plot_sobol(indices, path: str | Path, statistic: str = "mean"):
         cv = f", CV {g.cv.iloc[0]:.1%}" if "cv" in g else ""
         ax.set_title(f"{cond}: {names.get(q, q)} ({statistic}{cv})", fontsize=10)
         ax.set_ylim(bottom=min(0.0, float(np.nanmin(g.S1 - g.S1_conf))))
+        ax.set_ylabel("Sobol index (-)")
         ax.grid(axis="y", alpha=0.3)
     for ax in axes.flat[len(panels) :]:
         ax.set_visible(False)
@@ -144,11 +145,26 @@ def plot_sobol(indices, path: str | Path, statistic: str = "mean"):
     return save_figure(fig, path)
 
 
+#: longer records are shown as an excerpt of this length (s), beside their statistics
+EXCERPT_S = 5.0
+
+
+def excerpt(t: np.ndarray, length_s: float = EXCERPT_S) -> tuple[slice, str]:
+    """The slice of a record's first ``length_s`` seconds, and a caption fragment saying
+    which part is shown ('' when the whole record fits)."""
+    t = np.asarray(t, dtype=float)
+    if t.size < 2 or t[-1] - t[0] <= 1.5 * length_s:
+        return slice(None), ""
+    n = int(np.searchsorted(t, t[0] + length_s, side="right"))
+    return slice(0, n), f"first {length_s:g} s of {t[-1] - t[0]:.0f} s"
+
+
 def plot_surrogate_overlay(
     simulated, predictions: dict, targets, dt: float, path: str | Path, title: str = ""
 ):
     """Predicted vs simulated force series of one held-out run, one panel per target (the
-    study's Figures 10 and 11)."""
+    study's Figures 10 and 11); a long record is shown as its first :data:`EXCERPT_S`
+    seconds, so that the series stay readable (the statistics are in Table 7)."""
     names = {"Y": "lateral force Y (kN)", "Q": "vertical force Q (kN)"}
     fig, axes = plt.subplots(
         len(targets),
@@ -159,75 +175,169 @@ def plot_surrogate_overlay(
         squeeze=False,
     )
     t = np.arange(simulated.shape[0]) * dt
+    part, shown = excerpt(t)
     for j, name in enumerate(targets):
         ax = axes[j, 0]
-        ax.plot(t, simulated[:, j], color="k", lw=1.4, label="simulated")
+        ax.plot(t[part], simulated[part, j], color="k", lw=1.4, label="simulated")
         for k, (model, pred) in enumerate(predictions.items()):
-            ax.plot(t, pred[:, j], lw=0.9, color=f"C{k}", label=model)
+            ax.plot(t[part], pred[part, j], lw=0.9, color=f"C{k}", label=model)
         ax.set_ylabel(names.get(name, name))
         ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=8, ncol=3)
     axes[-1, 0].set_xlabel("time (s)")
-    fig.suptitle(title)
+    fig.suptitle(f"{title} ({shown})" if shown else title)
     return save_figure(fig, path)
 
 
+def _final(result) -> tuple[np.ndarray, np.ndarray | None]:
+    """The final estimate (SI) and its standard error (SI, None without refinement)."""
+    ref = result.refinement
+    if ref is None:
+        return result.pareto_x[result.chosen], None
+    return ref.estimate_si, ref.total_error_si
+
+
 def plot_pareto(result, path: str | Path):
-    """Pareto front of the calibration (the study's Figure 9), the chosen estimate marked."""
+    """Pareto front of the calibration (the study's Figure 9) with NSGA-II's choice, and
+    beside it each parameter's Pareto set, NSGA-II's choice and the final estimate (with
+    ± 2 standard errors when refined), in % of the parameter's range: the front's spread is
+    what the objectives cannot tell apart, the standard error what the refinement can."""
+    from railsusp.params import bounds
+
     f = result.pareto_f
-    fig, ax = plt.subplots(figsize=(6.5, 5), constrained_layout=True)
+    refined = result.refinement is not None
+    fig, (ax, bx) = plt.subplots(
+        1, 2, figsize=(12, 5), constrained_layout=True, gridspec_kw={"width_ratios": [1, 1.2]}
+    )
     ax.scatter(100 * f[:, 0], 100 * f[:, 1], s=18, label="Pareto front")
     c = result.chosen
-    ax.scatter(100 * f[c, 0], 100 * f[c, 1], s=80, marker="*", color="C3", label="estimate")
-    ax.set_xlabel("lateral force error (%)")
-    ax.set_ylabel("vertical force error (%)")
+    star = "NSGA-II's choice (then refined)" if refined else "NSGA-II's choice = estimate"
+    ax.scatter(100 * f[c, 0], 100 * f[c, 1], s=80, marker="*", color="C3", label=star)
+    ax.set_xlabel("objective 1: lateral force error (%)")
+    ax.set_ylabel("objective 2: vertical force error (%)")
     ax.grid(alpha=0.3)
-    ax.legend()
+    ax.legend(fontsize=8)
     ax.set_title(
         f"NSGA-II Pareto front ({result.config.statistic}, "
-        f"{result.config.n_gen} generations x {result.config.pop_size})"
+        f"{result.config.n_gen} generations x {result.config.pop_size})",
+        fontsize=10,
     )
+    lo, hi = bounds(result.parameters)
+    span = hi - lo
+    y = np.arange(len(result.parameters))
+    pct = 100 * (result.pareto_x - lo) / span
+    for i in y:
+        bx.scatter(pct[:, i], np.full(len(pct), i), s=12, color="C0", alpha=0.5)
+    bx.scatter([], [], s=12, color="C0", alpha=0.5, label="Pareto set")
+    bx.scatter(pct[c], y, s=80, marker="*", color="C3", label="NSGA-II's choice", zorder=3)
+    x, se = _final(result)
+    xf = 100 * (x - lo) / span
+    err = None if se is None else 2 * 100 * se / span
+    bx.errorbar(
+        xf,
+        y,
+        xerr=err,
+        fmt="D",
+        color="k",
+        ms=6,
+        capsize=3,
+        zorder=4,
+        label="final estimate" + (" ± 2 SE" if err is not None else ""),
+    )
+    bx.set_yticks(y, result.parameters)
+    bx.set_xlim(-5, 105)
+    bx.set_xlabel("position in the parameter's range (%)")
+    bx.grid(alpha=0.3)
+    bx.legend(fontsize=8, loc="best")
+    bx.set_title("Parameters: Pareto set and final estimate", fontsize=10)
     return save_figure(fig, path)
 
 
 def plot_convergence(result, path: str | Path):
-    """Per-parameter convergence of the estimate over the generations (the study's Fig. 8)."""
+    """Per-parameter convergence over the NSGA-II generations (the study's Fig. 8), then over
+    the refinement's iterations when refined, ending at the final estimate (solid line)."""
     from railsusp.params import spec
 
     k = len(result.parameters)
     fig, axes = plt.subplots(
         k, 1, figsize=(8, 1.9 * k), sharex=True, constrained_layout=True, squeeze=False
     )
-    gens = np.arange(1, result.history.shape[0] + 1)
+    n_gen = result.history.shape[0]
+    gens = np.arange(1, n_gen + 1)
+    ref = result.refinement
+    steps = np.zeros((0, k)) if ref is None else np.atleast_2d(ref.history_si).reshape(-1, k)
+    final, _ = _final(result)
     for i, p in enumerate(result.parameters):
         s = spec(p)
         ax = axes[i, 0]
-        ax.plot(gens, result.history[:, i] / s.scale, lw=1.2)
-        ax.axhline(s.nominal_display, color="0.5", ls="--", lw=0.8)
+        ax.plot(gens, result.history[:, i] / s.scale, lw=1.2, label="NSGA-II")
+        if len(steps):
+            xs = n_gen + np.arange(1, len(steps) + 1)
+            ax.plot(xs, steps[:, i] / s.scale, "o-", ms=3, lw=1.0, color="C2", label="refinement")
+            ax.axvline(n_gen + 0.5, color="0.7", lw=0.8)
+        ax.axhline(s.nominal_display, color="0.5", ls="--", lw=0.8, label="nominal")
+        ax.axhline(final[i] / s.scale, color="C3", lw=1.4, ls=":", zorder=1, label="final estimate")
         ax.set_ylabel(f"{p} ({s.display_unit})")
         ax.set_ylim(*s.bounds_display)
         ax.grid(alpha=0.3)
-    axes[-1, 0].set_xlabel("generation")
-    fig.suptitle("Convergence of the chosen estimate (dashed: nominal)")
+    axes[0, 0].legend(fontsize=7, ncol=4, loc="upper right")
+    axes[-1, 0].set_xlabel(
+        "NSGA-II generation, then refinement iteration" if len(steps) else "NSGA-II generation"
+    )
+    fig.suptitle("Convergence of the estimate (dashed: nominal; red dotted: final estimate)")
     return save_figure(fig, path)
 
 
+def validation_caption(measured_track: bool) -> str:
+    """What a before/after overlay can be read for: phases only on the measured track."""
+    if measured_track:
+        return "recorded on measured track: measured and simulated series are time-aligned"
+    return "the measured track is unknown, so compare levels, not phases"
+
+
 def plot_validation_overlay(series: dict, path: str | Path, title: str = ""):
-    """Measured vs simulated forces before and after calibration (the study's Figs 12/13)."""
-    fig, axes = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, constrained_layout=True)
-    t = series["time"]
+    """Measured vs simulated forces before and after calibration (the study's Figs 12/13):
+    a readable excerpt of the series (the whole record when short) and, beside it, the
+    record's statistics (mean, RMS, 99th percentile of |Y| and of Q) of the three."""
+    from railsusp.vehicle.simulate import record_statistic
+
+    fig, axes = plt.subplots(
+        2,
+        2,
+        figsize=(12, 6.5),
+        constrained_layout=True,
+        gridspec_kw={"width_ratios": [2.4, 1]},
+    )
+    t = np.asarray(series["time"])
+    part, shown = excerpt(t)
+    runs = (
+        ("measured", "k", "measured"),
+        ("before", "C0", "nominal parameters"),
+        ("after", "C3", "estimated parameters"),
+    )
+    stats = ("mean", "rms", "p99")
     for j, label in enumerate(("lateral force Y (kN)", "vertical force Q (kN)")):
-        ax = axes[j]
-        ax.plot(t, series["measured"][:, j], color="k", lw=1.0, label="measured")
-        n = min(len(t), len(series["before"]))
-        for key, color, name in (
-            ("before", "C0", "nominal parameters"),
-            ("after", "C3", "estimated parameters"),
-        ):
-            ax.plot(t[:n], series[key][:n, j], color=color, lw=0.8, alpha=0.8, label=name)
+        ax, bx = axes[j]
+        for key, color, name in runs:
+            x = np.asarray(series[key])[: t.size]
+            n = min(t[part].size, len(x))
+            lw = 1.0 if key == "measured" else 0.8
+            ax.plot(t[part][:n], x[part][:n, j], color=color, lw=lw, alpha=0.85, label=name)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=8, ncol=3)
-    axes[1].set_xlabel("time (s)")
-    fig.suptitle(f"{title}: the measured track is unknown, so compare levels, not phases")
+        pos = np.arange(len(stats))
+        for k, (key, color, name) in enumerate(runs):
+            x = np.asarray(series[key])[:, j]
+            vals = [float(record_statistic(x, st, j == 0)) for st in stats]
+            # markers, not bars: a few % apart on a large level, which bars from 0 would hide
+            bx.plot(pos + (k - 1) * 0.2, vals, "o", ms=7, color=color, label=name)
+        names = "|Y|" if j == 0 else "Q"
+        bx.set_xticks(pos, [f"{st} {names}" for st in ("mean", "RMS", "p99")])
+        bx.set_ylabel(f"{label.split(' (')[0]} statistic (kN)")
+        bx.grid(axis="y", alpha=0.3)
+    axes[0, 0].legend(fontsize=8, ncol=3)
+    axes[1, 0].set_xlabel("time (s)" + (f", {shown}" if shown else ""))
+    axes[0, 1].set_title("whole record", fontsize=9)
+    caption = validation_caption(bool(series.get("measured_track", False)))
+    fig.suptitle(f"{title}: {caption}" if title else caption)
     return save_figure(fig, path)

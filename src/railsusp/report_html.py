@@ -1,124 +1,152 @@
 """The run report: one self-contained HTML file (figures embedded) and a Markdown twin,
-regenerated from the run directory alone (``build_report(RUN)``)."""
+regenerated from the run directory alone (``build_report(RUN)``).
+
+The page answers first: a summary card (the wagon, the recordings, each suspension element's
+estimate with its interval and verdict, the force agreement before and after) fits the first
+screen; the method's stages follow. This module reads the run directory and never imports
+the pipeline (the pipeline calls it).
+"""
 
 from __future__ import annotations
 
-import base64
 import html
 from pathlib import Path
 
 import pandas as pd
 
+import railsusp.summary as summary
+from railsusp.report_doc import Doc, fraction_errors_to_pct, table_html
 from railsusp.store import atomic_write_bytes, file_hash, read_json
 
-CSS = """body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;
-color:#222}table{border-collapse:collapse;margin:.6em 0;font-size:.9em}
-td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#f2f2f2}
-td:first-child,th:first-child{text-align:left}img{max-width:100%;border:1px solid #eee}
-h2{border-bottom:2px solid #ddd;padding-bottom:.2em;margin-top:2em}.note{color:#555}"""
+#: CSS class of each verdict in the summary card
+_VERDICT_CLASS = {
+    summary.DEGRADED: "v-degraded",
+    summary.WITHIN: "v-within",
+    summary.NOT_IDENTIFIABLE: "v-unknown",
+}
+#: the card lists what is wrong first
+_ORDER = {summary.DEGRADED: 0, summary.NOT_IDENTIFIABLE: 1, summary.WITHIN: 2}
 
 
-#: marks every image that decoded (``data-ok="true"``), for the headless-browser test
-_IMG_CHECK = (
-    "<script>window.addEventListener('load',()=>{for(const i of "
-    "document.images){i.dataset.ok=String(i.complete&&i.naturalWidth>0)}});</script>"
-)
-
-
-class _Doc:
-    """Collects sections; renders HTML (embedded images) and Markdown (linked images)."""
-
-    def __init__(self, root: Path):
-        self.root = root
-        self.html: list[str] = []
-        self.md: list[str] = []
-        self.figures: list[Path] = []
-
-    def h(self, text: str, level: int = 2) -> None:
-        self.html.append(f"<h{level}>{html.escape(text)}</h{level}>")
-        self.md.append(f"\n{'#' * level} {text}\n")
-
-    def p(self, text: str) -> None:
-        self.html.append(f"<p class='note'>{html.escape(text)}</p>")
-        self.md.append(f"{text}\n")
-
-    def table(self, df: pd.DataFrame, floatfmt: str = "{:.4g}") -> None:
-        def cell(v):
-            if isinstance(v, float):
-                return "" if v != v else floatfmt.format(v)
-            return str(v)
-
-        head = "".join(f"<th>{html.escape(str(c))}</th>" for c in df.columns)
-        rows = "".join(
-            "<tr>" + "".join(f"<td>{html.escape(cell(v))}</td>" for v in r) + "</tr>"
-            for r in df.itertuples(index=False)
-        )
-        self.html.append(f"<table><tr>{head}</tr>{rows}</table>")
-        self.md.append("| " + " | ".join(map(str, df.columns)) + " |")
-        self.md.append("|" + "---|" * len(df.columns))
-        for r in df.itertuples(index=False):
-            self.md.append("| " + " | ".join(cell(v) for v in r) + " |")
-        self.md.append("")
-
-    def figure(self, path: Path, caption: str) -> None:
-        if not path.exists():
-            self.p(f"(figure missing: {path.name})")
-            return
-        data = base64.b64encode(path.read_bytes()).decode()
-        self.html.append(
-            f"<figure><img alt='{html.escape(caption)}' "
-            f"src='data:image/png;base64,{data}'><figcaption>"
-            f"{html.escape(caption)}</figcaption></figure>"
-        )
-        self.md.append(f"![{caption}]({path.relative_to(self.root)})\n")
-        self.figures.append(path)
-
-
-def build_report(run: str | Path) -> list[Path]:
-    """Write ``RUN/report.html`` and ``RUN/report.md`` from the stages' outputs."""
-    from railsusp.report import plot_track_irregularities
-    from railsusp.vehicle.track import irregularities_for
-
-    run = Path(run)
-    state = read_json(run / "pipeline.json")
-    camp = run / "campaign"
-    meta = read_json(camp / "campaign.json")
-    doc = _Doc(run)
-    title = state.get("config", {}).get("name", "railsusp run")
-    doc.h(f"railsusp report: {title}", 1)
-    doc.p(
-        "Suspension parameter estimation of a heavy-haul wagon from wheel-rail forces: "
-        "campaign, Sobol sensitivity, surrogate, NSGA-II estimation, validation."
+def summary_card(doc: Doc, run: Path) -> None:
+    """The answer in the first screen: wagon, recordings, per-element verdicts, forces."""
+    est = summary.estimate_table(run)
+    tol = summary.run_tolerances(run)
+    recs = summary.recordings(run)
+    synthetic = summary.is_synthetic(run)
+    with_track = bool(len(recs)) and bool(recs.measured_track.all())
+    rec_text = "; ".join(
+        f"{r.recording} ({r.condition}, wheel {r.wheel}, {summary.sig3(r.duration_s)} s)"
+        for r in recs.itertuples()
     )
+    rec_kind = ("synthetic, from a hidden truth" if synthetic else "measured") + (
+        ", with their measured track geometry" if with_track else ", without track geometry"
+    )
+    est = est.assign(_order=[_ORDER.get(v, 3) for v in est.verdict]).sort_values(
+        "_order", kind="stable"
+    )
+    bases = {b for b in est.interval if b}
+    short = "± 2 SE" if bases == {summary.INTERVAL_SE} else "Pareto set"
+    shown = pd.DataFrame(
+        {
+            "suspension element": [f"{p} {e}" for p, e in zip(est.index, est.element, strict=True)],
+            "unit": est.unit,
+            "nominal": est.nominal,
+            "estimate": [
+                v if not str(vd).startswith(summary.NOT_ESTIMATED) else float("nan")
+                for v, vd in zip(est.estimate, est.verdict, strict=True)
+            ],
+            f"interval ({short})": [
+                "" if lo != lo else f"{summary.sig3(lo)} – {summary.sig3(hi)}"
+                for lo, hi in zip(est.low, est.high, strict=True)
+            ],
+            "change from nominal (%)": [
+                c if not str(vd).startswith(summary.NOT_ESTIMATED) else float("nan")
+                for c, vd in zip(est.change_pct, est.verdict, strict=True)
+            ],
+            "verdict": [
+                v + (f" ({n})" if n and v in (summary.WITHIN, summary.DEGRADED) else "")
+                for v, n in zip(est.verdict, est.note, strict=True)
+            ],
+        }
+    )
+    classes = [_VERDICT_CLASS.get(v, "v-held") for v in est.verdict]
+    why = [
+        f"{p}: {n}"
+        for p, v, n in zip(est.index, est.verdict, est.note, strict=True)
+        if v == summary.NOT_IDENTIFIABLE
+    ]
+    tol_text = (
+        f"Within tolerance: change from nominal at most ±{summary.sig3(tol.default_pct)} %"
+        + (
+            " (" + ", ".join(f"{p} ±{summary.sig3(v)} %" for p, v in tol.parameters.items()) + ")"
+            if tol.parameters
+            else ""
+        )
+        + ", from the wagon data's [tolerances] (default "
+        f"{summary.sig3(summary.DEFAULT_TOLERANCE_PCT)} %, docs/wagon-data.md)"
+    )
+    held: dict[str, list[str]] = {}
+    for p, v, n in zip(est.index, est.verdict, est.note, strict=True):
+        if str(v).startswith(summary.NOT_ESTIMATED):
+            held.setdefault(n, []).append(p)
+    held_text = "; ".join(f"{', '.join(ps)}: {n}" for n, ps in held.items())
+    basis = "; ".join(sorted(bases)) or "none"
+    lines = summary.agreement_lines(summary.force_agreement(run))
+    parts = [
+        "<section class='card' id='summary'>",
+        "<h2>Answer: the suspension of this wagon, from these recordings</h2>",
+        f"<p><b>Wagon</b>: {html.escape(summary.wagon_name(run))}. <b>Recordings</b> "
+        f"({html.escape(rec_kind)}): {html.escape(rec_text)}.</p>",
+        table_html(shown, headers=False, row_class=classes),
+        f"<p class='note'>Interval: {html.escape(basis)}. {html.escape(tol_text)}."
+        + (f" Not identifiable: {html.escape('; '.join(why))}." if why else "")
+        + (f" Not estimated ({html.escape(held_text)})." if held else "")
+        + "</p>",
+        "<p><b>Force error, nominal → estimated parameters</b></p><ul>",
+        *(f"<li>{html.escape(line)}</li>" for line in lines),
+        "</ul></section>",
+    ]
+    md = [
+        "\n## Answer: the suspension of this wagon, from these recordings\n",
+        f"Wagon: {summary.wagon_name(run)}. Recordings ({rec_kind}): {rec_text}.\n",
+        "| " + " | ".join(shown.columns) + " |",
+        "|" + "---|" * len(shown.columns),
+        *(
+            "| " + " | ".join(summary.sig3(v) if isinstance(v, float) else str(v) for v in r) + " |"
+            for r in shown.itertuples(index=False)
+        ),
+        "",
+        f"Interval: {basis}. {tol_text}."
+        + (f" Not identifiable: {'; '.join(why)}." if why else "")
+        + (f" Not estimated ({held_text})." if held else ""),
+        "",
+        "Force error, nominal → estimated parameters:\n",
+        *(f"- {line}" for line in lines),
+        "",
+    ]
+    doc.raw("\n".join(parts), "\n".join(md))
+
+
+def _wagon_section(doc: Doc, run: Path, cfg: dict) -> None:
+    from railsusp.params import CATALOGUE
 
     doc.h("Wagon and working conditions")
-    cfg = meta["config"]
     doc.p(
         f"Wagon: {cfg['wagon']['wagon']['name']}. Sampled parameters: "
         f"{', '.join(cfg['parameters'])}; {cfg['samples']} samples ({cfg['design']})."
     )
-    from railsusp.params import CATALOGUE
-
     truth_path = run / "field" / "truth.json"
     truth = read_json(truth_path)["parameters_display"] if truth_path.exists() else {}
     wagon = cfg["wagon"]
-    doc.table(
-        pd.DataFrame(
-            [
-                {"item": "car body mass, kg", "value": wagon["car_body"]["mass"]},
-                {
-                    "item": "bogie centre distance, m",
-                    "value": 2 * wagon["car_body"]["bogie_half_spacing"],
-                },
-                {"item": "wheelbase, m", "value": 2 * wagon["bogie"]["half_wheelbase"]},
-                {"item": "wheel radius, m", "value": wagon["wheelset"]["rolling_radius"]},
-                {
-                    "item": "spring nest vertical stiffness, N/m",
-                    "value": wagon["secondary"]["vertical_stiffness"],
-                },
-            ]
-        )
-    )
+    items = [
+        ("car body mass (kg)", wagon["car_body"]["mass"]),
+        ("bogie centre distance (m)", 2 * wagon["car_body"]["bogie_half_spacing"]),
+        ("wheelbase (m)", 2 * wagon["bogie"]["half_wheelbase"]),
+        ("wheel radius (m)", wagon["wheelset"]["rolling_radius"]),
+        ("spring nest vertical stiffness (MN/m)", wagon["secondary"]["vertical_stiffness"] / 1e6),
+    ]
+    doc.table(pd.DataFrame(items, columns=["item", "value"]))
     doc.table(
         pd.DataFrame(
             [
@@ -137,35 +165,34 @@ def build_report(run: str | Path) -> list[Path]:
             ]
         )
     )
-    conds = pd.DataFrame(
-        [
-            {
-                k: c[k]
-                for k in (
-                    "name",
-                    "speed_kmh",
-                    "curve_radius_m",
-                    "cant_mm",
-                    "grade_permille",
-                    "coupler_force_kN",
-                    "irregularity_class",
-                    "seed",
-                )
-            }
-            for c in cfg["conditions"]
-        ]
+    keys = (
+        "name",
+        "speed_kmh",
+        "curve_radius_m",
+        "cant_mm",
+        "grade_permille",
+        "coupler_force_kN",
+        "irregularity_class",
+        "seed",
     )
-    doc.table(conds)
+    conds = pd.DataFrame([{k: c[k] for k in keys} for c in cfg["conditions"]])
+    doc.table(
+        conds.rename(
+            columns={
+                "speed_kmh": "speed (km/h)",
+                "curve_radius_m": "curve radius (m)",
+                "cant_mm": "cant (mm)",
+                "grade_permille": "grade (‰)",
+                "coupler_force_kN": "coupler force (kN)",
+                "irregularity_class": "FRA class",
+                "seed": "track seed",
+            }
+        )
+    )
 
-    doc.h("Track input")
-    from railsusp.conditions import WorkingCondition
 
-    first = WorkingCondition(**cfg["conditions"][0])
-    irr = irregularities_for(first)
-    if irr is not None:
-        png = plot_track_irregularities(irr, run / "report_assets" / "track.png")
-        doc.figure(png, f"Irregularities of '{first.name}' and their PSD vs the FRA spectrum")
-
+def _method_sections(doc: Doc, run: Path, state: dict) -> None:
+    camp = run / "campaign"
     sens = camp / "sensitivity"
     if (sens / "key_parameters.json").exists():
         doc.h("Sobol sensitivity and key parameters (study Figure 2)")
@@ -205,71 +232,94 @@ def build_report(run: str | Path) -> list[Path]:
 
     est = run / "estimate"
     if (est / "estimate.csv").exists():
-        doc.h("NSGA-II estimation (study Tables 3-5, Figures 8/9)")
-        log = pd.read_csv(est / "nsga_log.csv")
-        doc.p("First and last generations of the NSGA-II log:")
-        doc.table(pd.concat([log.head(4), log.tail(4)]))
-        ref = read_json(est / "estimate.json").get("refinement")
-        if ref:
-            doc.p(
-                "NSGA-II's choice (nsga_estimate) was refined by output-error least squares "
-                "with the simulator on the recordings' measured track: time-aligned cost "
-                f"{ref['cost_start']:.4g} -> {ref['cost']:.4g} in {ref['n_evaluations']} "
-                "evaluations; standard errors assume white residuals (optimistic)"
-                + (
-                    f" and include the track geometry's stated measurement error "
-                    f"(geometry_error_pct_range, from {ref['geometry_draws']} draws of it)."
-                    if ref.get("geometry_draws")
-                    else "."
-                )
-                + (
-                    " The estimate is the refined point less the bias those draws estimate "
-                    "(geometry_bias_pct_range, the first SIMEX step)."
-                    if ref.get("geometry_bias_removed")
-                    else ""
-                )
-            )
-        bound = read_json(est / "estimate.json").get("cramer_rao_pct_range") or {}
-        if bound:
-            doc.p(
-                "cramer_rao_pct_range: the smallest standard deviation (% of the range) that "
-                "any estimator can reach from these statistics (Cramér-Rao bound at the "
-                "estimate); above 5 % the data cannot fix the parameter to that precision."
-            )
-        doc.table(pd.read_csv(est / "estimate.csv"))
-        doc.figure(est / "pareto.png", "Pareto front")
-        doc.figure(est / "convergence.png", "Convergence of the estimate")
-
+        _estimate_section(doc, est)
     val = est / "validation"
     if (val / "validation.csv").exists():
         doc.h("Validation before and after calibration (study Tables 8/9, Figures 12/13)")
-        doc.table(pd.read_csv(val / "validation.csv"))
+        doc.p(
+            "Errors in % of the measured value; for the statistic 'aligned', the RMS of the "
+            "sample-by-sample difference in % of the measured series' standard deviation."
+        )
+        doc.table(fraction_errors_to_pct(pd.read_csv(val / "validation.csv")))
         for line in read_json(val / "validation.json").get("failures", []):
             doc.p(f"Simulation stopped (its rows are empty): {line}")
         for png in sorted(val.glob("validation-*.png")):
-            doc.figure(png, png.stem.replace("validation-", "Measured vs simulated, "))
+            doc.figure(
+                png,
+                f"Measured vs simulated, {png.stem.removeprefix('validation-')}: an excerpt of "
+                "the series and the whole record's statistics",
+            )
         if (val / "recovery.csv").exists():
             doc.h("Parameter recovery against the hidden truth", 3)
             doc.table(pd.read_csv(val / "recovery.csv"))
 
+
+def _estimate_section(doc: Doc, est: Path) -> None:
+    doc.h("NSGA-II estimation (study Tables 3-5, Figures 8/9)")
+    log = pd.read_csv(est / "nsga_log.csv")
+    doc.p("First and last generations of the NSGA-II log:")
+    doc.table(pd.concat([log.head(4), log.tail(4)]).drop_duplicates())
+    info = read_json(est / "estimate.json")
+    ref = info.get("refinement")
+    if ref:
+        doc.p(
+            "NSGA-II's choice was refined by output-error least squares with the simulator on "
+            "the recordings' measured track: time-aligned cost "
+            f"{ref['cost_start']:.3g} -> {ref['cost']:.3g} in {ref['n_evaluations']} "
+            "evaluations. The estimate is the refined point"
+            + (
+                " less the bias that draws of the track geometry's stated error estimate "
+                "(the first SIMEX step)"
+                if ref.get("geometry_bias_removed")
+                else ""
+            )
+            + ". Its standard errors assume white residuals (optimistic)"
+            + (
+                f" and include that geometry error ({ref['geometry_draws']} draws)."
+                if ref.get("geometry_draws")
+                else "."
+            )
+            + " The Pareto spread is the range of parameter sets whose force statistics the "
+            "surrogate objectives cannot tell apart; the refinement's time-aligned series "
+            "can, hence a standard error far below that spread."
+        )
+    else:
+        doc.p(
+            "The estimate is NSGA-II's choice on the Pareto front (closest to the ideal "
+            "point); without refinement, the Pareto spread is its uncertainty: the range of "
+            "parameter sets whose force statistics the objectives cannot tell apart."
+        )
+    if info.get("cramer_rao_pct_range"):
+        doc.p(
+            "Cramér-Rao bound: the smallest standard deviation (% of the range) that any "
+            "estimator can reach from these statistics, at the estimate; above 5 % the data "
+            "cannot fix the parameter to that precision."
+        )
+    doc.table(pd.read_csv(est / "estimate.csv"))
+    doc.figure(
+        est / "pareto.png", "Pareto front, and each parameter's Pareto set with the final estimate"
+    )
+    doc.figure(est / "convergence.png", "Convergence of the estimate towards the final one")
+
+
+def _provenance(doc: Doc, run: Path, state: dict, meta: dict) -> None:
     doc.h("Provenance")
     prov = state.get("provenance", {})
     doc.table(pd.DataFrame([{"item": k, "value": str(v)} for k, v in prov.items()]))
-    from railsusp.pipeline import STAGES
-
-    stages = state.get("stages", {})
-    rows = [
-        {
-            "stage": s,
-            "state": stages[s].get("state"),
-            "seconds": stages[s].get("seconds", float("nan")),
-            "input hash": stages[s].get("hash"),
-        }
-        for s in STAGES
-        if s in stages
-    ]
+    rows = []
+    for s, v in state.get("stages", {}).items():  # in the pipeline's order
+        writing = s == "report" and v.get("state") == "running"
+        rows.append(
+            {
+                "stage": s,
+                "state": "writing this report" if writing else v.get("state"),
+                "seconds": v.get("seconds", float("nan")),
+                "input hash": v.get("hash"),
+            }
+        )
     doc.table(pd.DataFrame(rows))
     doc.p(f"Campaign configuration hash {meta['config_hash']}.")
+    camp = run / "campaign"
     files = [
         camp / "design.parquet",
         camp / "features.parquet",
@@ -285,13 +335,38 @@ def build_report(run: str | Path) -> list[Path]:
             ]
         )
     )
-    page = (
-        f"<!doctype html><html><head><meta charset='utf-8'><title>"
-        f"{html.escape(title)}</title><style>{CSS}</style></head><body>"
-        + "\n".join(doc.html)
-        + _IMG_CHECK
-        + "</body></html>"
+
+
+def build_report(run: str | Path) -> list[Path]:
+    """Write ``RUN/report.html`` and ``RUN/report.md`` from the stages' outputs."""
+    from railsusp.conditions import WorkingCondition
+    from railsusp.report import plot_track_irregularities
+    from railsusp.vehicle.track import irregularities_for
+
+    run = Path(run)
+    state = read_json(run / "pipeline.json")
+    meta = read_json(run / "campaign" / "campaign.json")
+    doc = Doc(run)
+    title = state.get("config", {}).get("name", "railsusp run")
+    doc.h(f"railsusp report: {title}", 1)
+    if (run / "estimate" / "validation" / "validation.csv").exists():
+        summary_card(doc, run)
+    doc.p(
+        "How it was found: a simulation campaign of the wagon, Sobol sensitivity (which "
+        "parameters the forces reveal), surrogate force models, NSGA-II estimation (refined "
+        "with the simulator where the recordings carry their track) and validation against "
+        "the recordings. The sections below follow these stages."
     )
-    html_path = atomic_write_bytes(run / "report.html", page.encode())
+    cfg = meta["config"]
+    _wagon_section(doc, run, cfg)
+    doc.h("Track input")
+    first = WorkingCondition(**cfg["conditions"][0])
+    irr = irregularities_for(first)
+    if irr is not None:
+        png = plot_track_irregularities(irr, run / "report_assets" / "track.png")
+        doc.figure(png, f"Irregularities of '{first.name}' and their PSD vs the FRA spectrum")
+    _method_sections(doc, run, state)
+    _provenance(doc, run, state, meta)
+    html_path = atomic_write_bytes(run / "report.html", doc.page(title).encode())
     md_path = atomic_write_bytes(run / "report.md", "\n".join(doc.md).encode())
     return [html_path, md_path]

@@ -278,7 +278,7 @@ def provenance() -> dict[str, Any]:
     import numba
     import scipy
 
-    from railsusp import __version__
+    from railsusp._version import __version__
 
     return {
         "railsusp": __version__,

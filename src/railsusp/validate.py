@@ -157,6 +157,7 @@ def validate(
             "measured": rec.forces(),
             "before": sims["before"][i],
             "after": sims["after"][i],
+            "measured_track": rec.condition.track_geometry is not None,
         }
     forces = pd.DataFrame(rows)
     recovery = None
@@ -165,17 +166,18 @@ def validate(
     return ValidationResult(forces, recovery, series, failures)
 
 
-def _recovery(
-    params, chosen: ParameterSet, truth: ParameterSet, est: dict, sensitivity: str | Path | None
-) -> pd.DataFrame:
-    lo, hi = bounds(params)
-    max_st = _max_st(sensitivity) if sensitivity else {}
+def identification_issues(est: dict, max_st: dict[str, float] | None = None) -> dict[str, str]:
+    """Why each estimated parameter is not identified from the recordings ('' when it is),
+    from ``estimate.json`` alone (no truth needed): a refined estimate's standard error above
+    :data:`STANDARD_ERROR_LIMIT` % of range (or infinite: the forces do not depend on it),
+    else a Pareto spread above :data:`PARETO_SPREAD_LIMIT` %; a largest total Sobol index
+    (``max_st``) below :data:`SOBOL_ST_LIMIT`; a Cramér-Rao bound above the limit."""
+    max_st = max_st or {}
     spread = est.get("pareto_spread_pct_range", {})
     refined = est.get("refinement") or {}
     std_err = refined.get("standard_error_pct_range", {})
-    rows = []
-    for p, low, high in zip(params, lo, hi, strict=True):
-        t, e = truth[p], chosen[p]
+    out = {}
+    for p in est["parameters"]:
         reasons = []
         if refined:  # the refined estimate's own uncertainty, not NSGA-II's spread
             if std_err.get(p, 0.0) == float("inf"):  # a zero Jacobian column
@@ -194,6 +196,18 @@ def _recovery(
         bound = 0.0 if refined else (est.get("cramer_rao_pct_range") or {}).get(p, 0.0)
         if bound > BOUND_LIMIT_PCT:
             reasons.append(f"Cramér-Rao bound {bound:.1f} % of range")
+        out[p] = "; ".join(reasons)
+    return out
+
+
+def _recovery(
+    params, chosen: ParameterSet, truth: ParameterSet, est: dict, sensitivity: str | Path | None
+) -> pd.DataFrame:
+    lo, hi = bounds(params)
+    why_not = identification_issues(est, max_st(sensitivity) if sensitivity else {})
+    rows = []
+    for p, low, high in zip(params, lo, hi, strict=True):
+        t, e = truth[p], chosen[p]
         rows.append(
             {
                 "parameter": p,
@@ -202,14 +216,16 @@ def _recovery(
                 "estimate": spec(p).to_display(e),
                 "error_pct_of_value": 100 * abs(e - t) / abs(t),
                 "error_pct_of_range": 100 * abs(e - t) / (high - low),
-                "identifiable": not reasons,
-                "why_not": "; ".join(reasons),
+                "identifiable": not why_not[p],
+                "why_not": why_not[p],
             }
         )
     return pd.DataFrame(rows)
 
 
-def _max_st(path: str | Path) -> dict[str, float]:
+def max_st(path: str | Path) -> dict[str, float]:
+    """Largest total Sobol index of each parameter over the campaign's features, from its
+    sensitivity folder, ``key_parameters.json`` or ``indices.parquet``."""
     path = Path(path)
     if path.is_dir():
         path = path / "key_parameters.json"

@@ -4,7 +4,10 @@ that the command modules import this module, not the package that imports them."
 
 from __future__ import annotations
 
+import logging
 import sys
+import warnings
+from typing import Annotated
 
 import typer
 from rich.console import Console
@@ -20,6 +23,74 @@ app = typer.Typer(
 # Wide tables when piped (CI logs, files); the terminal's width otherwise.
 console = Console(width=None if sys.stdout.isatty() else 150)
 err_console = Console(stderr=True, width=None if sys.stderr.isatty() else 150)
+
+
+#: "quiet", "normal" or "verbose": set by the global options, read by the commands
+verbosity = "normal"
+_said: set[str] = set()
+
+
+def is_quiet() -> bool:
+    """True under the global ``--quiet`` option."""
+    return verbosity == "quiet"
+
+
+def _say_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Python's warnings as one readable line each, once per message."""
+    text = " ".join(str(message).split())
+    if text in _said:
+        return
+    _said.add(text)
+    kind = "" if category in (UserWarning, RuntimeWarning) else f" ({category.__name__})"
+    err_console.print(f"warning: {text}{kind}", markup=False, highlight=False, soft_wrap=True)
+
+
+class _ConsoleLog(logging.Handler):
+    """The library's log (stage starts and finishes) as plain lines on stderr."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        err_console.print(record.getMessage(), markup=False, highlight=False, soft_wrap=True)
+
+
+_handler = _ConsoleLog()
+
+
+def _version(value: bool) -> None:
+    if value:
+        from railsusp._version import __version__
+
+        console.print(f"railsusp {__version__}", markup=False, highlight=False)
+        raise typer.Exit()
+
+
+@app.callback()
+def _global(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version", callback=_version, is_eager=True, help="print the version and exit"
+        ),
+    ] = False,
+    quiet: Annotated[
+        bool, typer.Option("--quiet", "-q", help="errors and warnings only, no progress")
+    ] = False,
+    verbose: Annotated[
+        bool,
+        typer.Option("--verbose", "-v", help="also when each stage starts, each training epoch"),
+    ] = False,
+) -> None:
+    """railsusp: suspension parameter estimation for heavy-haul freight wagons."""
+    global verbosity
+    if quiet and verbose:
+        fail("--quiet and --verbose: accepted one of them, not both")
+    verbosity = "quiet" if quiet else "verbose" if verbose else "normal"
+    warnings.showwarning = _say_warning
+    warnings.simplefilter("default")
+    logger = logging.getLogger("railsusp")
+    if _handler not in logger.handlers:
+        logger.addHandler(_handler)
+    logger.setLevel(logging.WARNING if quiet else logging.DEBUG if verbose else logging.INFO)
+    logger.propagate = False
 
 
 def frame_table(df, title: str, fmt: str = "{:.4g}") -> Table:

@@ -9,7 +9,7 @@ import pandas as pd
 import typer
 from rich.table import Table
 
-from railsusp.cli.common import app, console, err_console, fail, frame_table
+from railsusp.cli.common import app, console, err_console, fail, frame_table, is_quiet
 from railsusp.errors import RailsuspInputError
 from railsusp.store import check_output_folder
 
@@ -33,6 +33,7 @@ def _run(config, out: Path, start_from: str | None) -> dict:
         TimeElapsedColumn(),
         TimeRemainingColumn(),
         console=err_console,
+        disable=is_quiet(),
     ) as bar:
         stages = bar.add_task("stages", total=len(STAGES))
         runs = bar.add_task("campaign simulations", total=None, visible=False)
@@ -58,6 +59,14 @@ def _summary(out: Path) -> None:
         df = pd.read_csv(csv)
         console.print(frame_table(df[cols] if cols else df, title))
 
+    if (out / "estimate" / "validation" / "validation.csv").exists():  # the answer first
+        import railsusp.summary as summary
+
+        est = summary.estimate_table(out).reset_index()
+        cols = ["parameter", "unit", "nominal", "estimate", "low", "high", "change_pct"]
+        console.print(frame_table(est[[*cols, "verdict"]], "Answer (report.html, docs/api.md)"))
+        for line in summary.agreement_lines(summary.force_agreement(out)):
+            console.print(line, markup=False, highlight=False)
     show(out / "estimate" / "estimate.csv", "Estimate (study Table 5 layout)")
     show(
         out / "estimate" / "validation" / "validation.csv",

@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from railsusp import __version__
+from railsusp._version import __version__
 from railsusp.cli.common import app, console, err_console, fail
 from railsusp.conditions import resolve_conditions
 from railsusp.errors import RailsuspInputError
@@ -48,12 +48,12 @@ def _force_table(results: list, title: str) -> Table:
         table.add_row(
             r.condition.name,
             WHEEL_NAMES[r.measured_wheel()],
-            *(number(s[k][0], 1) for k in ("Y_mean", "Y_rms", "Y_p99", "Y_max")),
-            number(ref[0], 1) if ref else "-",
-            *(number(s[k][0], 1) for k in ("Q_mean", "Q_p99", "Q_max")),
+            *(number(s[k], 1) for k in ("Y_mean", "Y_rms", "Y_p99", "Y_max")),
+            number(ref, 1) if ref else "-",
+            *(number(s[k], 1) for k in ("Q_mean", "Q_p99", "Q_max")),
             number(ref[2], 1) if ref else "-",
-            number(s["YQ_max"][0], 2),
-            number(s["dQQ_max"][0], 2),
+            number(s["YQ_max"], 2),
+            number(s["dQQ_max"], 2),
             status,
         )
     return table

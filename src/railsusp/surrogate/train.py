@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import io
+import logging
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -28,6 +29,9 @@ from torch import nn
 from railsusp.errors import RailsuspInputError
 from railsusp.store import atomic_write_bytes, content_hash
 from railsusp.surrogate.data import Normaliser, SeriesData, gather_windows, window_index
+
+#: one debug line per epoch (``railsusp --verbose`` shows it)
+log = logging.getLogger("railsusp.surrogate.train")
 
 
 @dataclass(frozen=True)
@@ -253,6 +257,15 @@ def train_network(
                 buf = io.BytesIO()
                 torch.save(state, buf)
                 atomic_write_bytes(checkpoint, buf.getvalue())
+            log.debug(
+                "training %s (%s): epoch %d/%d, train loss %.3g, validation loss %.3g",
+                type(net).__name__,
+                phase,
+                len(history),
+                sum(p[1] for p in phases),
+                train_loss,
+                vloss,
+            )
             if progress is not None:
                 progress(len(history), train_loss, vloss)
     if best_state is not None:

@@ -153,10 +153,13 @@ class SimulationResult:
         """Index of the measured wheel (see :func:`measured_wheel_index`)."""
         return measured_wheel_index(self.condition, which)
 
-    def statistics(self, wheel: str | int = "auto") -> dict[str, np.ndarray]:
-        """Per-set statistics (kN for forces) of the measured wheel: mean, RMS, p99 (averaged
-        over the record's segments, :func:`record_statistic`), max of |Y| and Q, max Y/Q,
-        max dQ/Q."""
+    def statistics(
+        self, wheel: str | int = "auto", set_index: int | None = 0
+    ) -> dict[str, float] | dict[str, np.ndarray]:
+        """Statistics (kN for forces) of the measured wheel: mean, RMS, p99 (averaged over
+        the record's segments, :func:`record_statistic`), max of |Y| and Q, max Y/Q, max
+        dQ/Q; floats of one set (``set_index``, the first by default, as
+        :meth:`to_dataframe`), or with ``set_index=None`` arrays over every set of a batch."""
         j = self.measured_wheel(wheel)
         segments = statistic_segments(self.time.size, self.condition.sample_interval)
         stats = {}
@@ -168,7 +171,9 @@ class SimulationResult:
             warnings.simplefilter("ignore", RuntimeWarning)
             stats["YQ_max"] = np.nanmax(np.abs(self.derailment_quotient[:, j]), axis=1)
         stats["dQQ_max"] = np.max(self.unloading_ratio[:, j], axis=1)
-        return stats
+        if set_index is None:
+            return stats
+        return {k: float(v[set_index]) for k, v in stats.items()}
 
     def to_dataframe(self, set_index: int = 0):
         """Time series of one set as a pandas DataFrame (kN, m/s^2), time in s as index."""

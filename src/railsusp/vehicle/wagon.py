@@ -214,6 +214,7 @@ def load_wagon(source: str | Path | None = None) -> WagonData:
                             f"({', '.join(builtin)}) nor an existing file"
                         )
                     prof[key] = str(path)
+        doc.pop("tolerances", None)  # the report's verdicts (railsusp.summary), not the model
         return WagonData(**doc)
     except tomllib.TOMLDecodeError as exc:
         raise RailsuspInputError(f"{where}: not valid TOML ({exc})") from None

@@ -1,0 +1,227 @@
+"""The Python entry points: ``railsusp.run(config, out=...)`` runs the whole method and
+``railsusp.open_run(path)`` opens a finished run directory; both give a :class:`RunResult`,
+whose tables and figures read the run directory (the same tables the report shows).
+
+>>> result = railsusp.open_run("runs/demo")           # doctest: +SKIP
+>>> result.estimate[["estimate", "low", "high", "unit", "verdict"]]  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+import railsusp.summary as summary
+from railsusp.errors import RailsuspInputError
+from railsusp.store import read_json
+from railsusp.summary import Tolerances
+
+__all__ = ["RunResult", "Tolerances", "open_run", "run"]
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """A run directory, read: the estimate with intervals and verdicts, the validation, the
+    sensitivity, the surrogates' accuracy, the report; ``plot_*`` draw them.
+
+    ``tolerances`` overrides the wagon data's (:func:`railsusp.summary.read_tolerances`).
+    """
+
+    path: Path
+    tolerances: summary.Tolerances | None = None
+
+    def _need(self, rel: str, stage: str) -> Path:
+        p = self.path / rel
+        if not p.exists():
+            raise RailsuspInputError(
+                f"{self.path}: no {rel}; the {stage} stage has not run (railsusp run CONFIG "
+                f"--out {self.path})"
+            )
+        return p
+
+    @property
+    def estimate(self) -> pd.DataFrame:
+        """One row per main suspension parameter (index: symbol), display units: element,
+        unit, nominal, estimate, standard_error, low, high (the interval; ``interval`` says
+        how it was formed), change_pct (from nominal), tolerance_pct, verdict, note."""
+        self._need("estimate/estimate.json", "estimate")
+        return summary.estimate_table(self.path, self.tolerances)
+
+    @property
+    def validation(self) -> pd.DataFrame:
+        """Force statistics before (nominal) and after (estimate) calibration per condition,
+        force and statistic, kN; errors in % of the measured value (``*_error_pct``)."""
+        df = pd.read_csv(self._need("estimate/validation/validation.csv", "validate"))
+        for c in [c for c in df.columns if c.endswith("_error")]:
+            df[f"{c}_pct"] = 100.0 * df.pop(c)
+        return df
+
+    @property
+    def agreement(self) -> pd.DataFrame:
+        """Per condition, the lateral and vertical force error (%) before and after."""
+        self._need("estimate/validation/validation.csv", "validate")
+        return summary.force_agreement(self.path)
+
+    @property
+    def recovery(self) -> pd.DataFrame | None:
+        """For synthetic recordings, the error of each estimate against the hidden truth."""
+        p = self.path / "estimate" / "validation" / "recovery.csv"
+        return pd.read_csv(p) if p.exists() else None
+
+    @property
+    def sensitivity(self) -> pd.DataFrame:
+        """Sobol indices (S1, ST with confidence) per condition, force, statistic and
+        parameter."""
+        return pd.read_parquet(self._need("campaign/sensitivity/indices.parquet", "sensitivity"))
+
+    @property
+    def key_parameters(self) -> list[str]:
+        """The parameters the sensitivity step kept for the estimation."""
+        p = self._need("campaign/sensitivity/key_parameters.json", "sensitivity")
+        return list(read_json(p)["key_parameters"]["keys"])
+
+    @property
+    def surrogate_accuracy(self) -> pd.DataFrame:
+        """The surrogates on held-out simulations (study Table 7 layout, errors in %)."""
+        from railsusp.surrogate.compare import table7
+
+        own = self._config().get("surrogate", {}).get("samples", 0)
+        base = "surrogate-campaign" if own else "campaign"
+        return table7(pd.read_csv(self._need(f"{base}/surrogates/compare.csv", "surrogate")))
+
+    @property
+    def stages(self) -> pd.DataFrame:
+        """Each stage's state and seconds, from ``pipeline.json``."""
+        st = read_json(self._need("pipeline.json", "first")).get("stages", {})
+        return pd.DataFrame(
+            [
+                {"stage": k, "state": v.get("state"), "seconds": v.get("seconds")}
+                for k, v in st.items()
+            ]
+        )
+
+    @property
+    def report_path(self) -> Path:
+        """The self-contained HTML report."""
+        return self._need("report.html", "report")
+
+    def _config(self) -> dict:
+        p = self.path / "pipeline.json"
+        return read_json(p).get("config", {}) if p.exists() else {}
+
+    def plot_estimate(self, ax=None):
+        """Change from nominal (%) of each estimated element with its interval, against the
+        tolerance band; returns the matplotlib Axes."""
+        import matplotlib.pyplot as plt
+        import numpy as np
+
+        est = self.estimate
+        est = est[~est.verdict.str.startswith(summary.NOT_ESTIMATED)]
+        if ax is None:
+            _, ax = plt.subplots(figsize=(7, 0.6 + 0.5 * len(est)), constrained_layout=True)
+        y = np.arange(len(est))
+        nom = est.nominal.to_numpy()
+        lo = 100 * (est.low.to_numpy() - nom) / nom
+        hi = 100 * (est.high.to_numpy() - nom) / nom
+        c = est.change_pct.to_numpy()
+        err = np.vstack([c - lo, hi - c])
+        colour = {summary.DEGRADED: "C3", summary.WITHIN: "C2"}
+        colours = [colour.get(v, "0.5") for v in est.verdict]
+        for i in range(len(est)):
+            tol = est.tolerance_pct.iloc[i]
+            ax.fill_betweenx([i - 0.4, i + 0.4], -tol, tol, color="0.92", zorder=0)
+            ax.errorbar(c[i], i, xerr=err[:, i : i + 1], fmt="o", color=colours[i], capsize=3)
+        ax.axvline(0, color="0.4", lw=0.8)
+        ax.set_yticks(y, [f"{p} ({u})" for p, u in zip(est.index, est.unit, strict=True)])
+        ax.set_xlabel("change from nominal (%); grey: tolerance")
+        ax.set_title("Estimate and interval per suspension element", fontsize=10)
+        ax.grid(axis="x", alpha=0.3)
+        return ax
+
+    def plot_validation(self, ax=None):
+        """Force error (%) with the nominal and with the estimated parameters, per condition
+        and force; returns the Axes."""
+        import matplotlib.pyplot as plt
+        import numpy as np
+
+        ag = self.agreement
+        if ax is None:
+            _, ax = plt.subplots(figsize=(7, 3.5), constrained_layout=True)
+        labels, before, after = [], [], []
+        for r in ag.to_dict(orient="records"):
+            for name in ("lateral", "vertical"):
+                labels.append(f"{r['condition']} {name}")
+                before.append(r.get(f"{name}_before_pct", np.nan))
+                after.append(r.get(f"{name}_after_pct", np.nan))
+        x = np.arange(len(labels))
+        ax.bar(x - 0.2, before, 0.4, label="nominal parameters")
+        ax.bar(x + 0.2, after, 0.4, label="estimated parameters")
+        ax.set_xticks(x, labels, rotation=30, ha="right")
+        ax.set_ylabel("force error (%)")
+        ax.legend(fontsize=8)
+        ax.grid(axis="y", alpha=0.3)
+        return ax
+
+    def plot_sensitivity(self, ax=None):
+        """Largest total Sobol index ST of each parameter over the campaign's features, the
+        key parameters highlighted; returns the Axes."""
+        import matplotlib.pyplot as plt
+
+        st = self.sensitivity.groupby("parameter")["ST"].max().sort_values(ascending=False)
+        keys = set(self.key_parameters)
+        if ax is None:
+            _, ax = plt.subplots(figsize=(7, 3), constrained_layout=True)
+        ax.bar(st.index, st.to_numpy(), color=["C3" if p in keys else "C0" for p in st.index])
+        ax.set_ylabel("largest total Sobol index ST (-)")
+        ax.set_title("Sensitivity (red: key parameters, estimated)", fontsize=10)
+        ax.grid(axis="y", alpha=0.3)
+        return ax
+
+
+def open_run(path: str | Path, *, tolerances: summary.Tolerances | None = None) -> RunResult:
+    """A finished (or partly finished) run directory, read."""
+    path = Path(path).resolve()
+    if not (path / "pipeline.json").is_file():
+        raise RailsuspInputError(f"{path}: not a run directory (no pipeline.json)")
+    return RunResult(path, tolerances)
+
+
+def run(
+    config: str | Path | Mapping[str, Any] | Any,
+    out: str | Path | None = None,
+    *,
+    start_from: str | None = None,
+    progress: Callable[[str, str], None] | None = None,
+) -> RunResult:
+    """Run the whole method (stages that are up to date are skipped) and open the result.
+
+    ``config``: a pipeline TOML path, a :class:`~railsusp.pipeline.PipelineConfig`, or a
+    dict of the same sections; ``out``: the run directory (default ``runs/<TOML stem>``).
+    """
+    from railsusp.pipeline import PipelineConfig, load_config, run_pipeline
+
+    if isinstance(config, PipelineConfig):
+        cfg = config
+    elif isinstance(config, Mapping):
+        from pydantic import ValidationError
+
+        try:
+            cfg = PipelineConfig(**config)
+        except ValidationError as exc:
+            msgs = [f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors()]
+            raise RailsuspInputError("configuration: " + "; ".join(msgs)) from None
+    elif isinstance(config, str | Path):
+        cfg = load_config(config)
+        out = out if out is not None else Path("runs") / Path(config).stem
+    else:
+        raise RailsuspInputError(
+            f"config: a TOML path, a PipelineConfig or a dict, not {type(config).__name__}"
+        )
+    if out is None:
+        raise RailsuspInputError("out: the run directory is needed for a configuration object")
+    run_pipeline(cfg, out, start_from=start_from, progress=progress)
+    return open_run(out)

@@ -1,0 +1,274 @@
+"""The answer of a run, read from its run directory alone: per suspension element the nominal
+value, the estimate with an interval in engineering units, the change from nominal and a
+verdict against the wagon's tolerances; per condition the force agreement before and after
+calibration; the wagon and the recordings used.
+
+The report's summary card and :class:`railsusp.api.RunResult` both read these tables, so the
+Python API and the report never disagree.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from railsusp.errors import RailsuspInputError
+from railsusp.params import MAIN_SUSPENSION, spec
+from railsusp.store import read_json
+
+#: change from nominal (% of the nominal value) that an element may show and still be
+#: "within tolerance", where the wagon data give no ``[tolerances]`` (docs/wagon-data.md)
+DEFAULT_TOLERANCE_PCT = 15.0
+
+WITHIN = "within tolerance"
+DEGRADED = "degraded"
+NOT_IDENTIFIABLE = "not identifiable from these recordings"
+NOT_ESTIMATED = "not estimated"
+
+#: how the interval of an estimate was formed, by the kind of estimate
+INTERVAL_SE = "estimate ± 2 standard errors (sensor noise and track-geometry error)"
+INTERVAL_PARETO = "range of the NSGA-II Pareto set (no standard error without refinement)"
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """Accepted change of each suspension element from its nominal value, % of nominal."""
+
+    default_pct: float = DEFAULT_TOLERANCE_PCT
+    parameters: Mapping[str, float] = field(default_factory=dict)
+
+    def of(self, symbol: str) -> float:
+        """The tolerance of one parameter, % of its nominal value."""
+        return float(self.parameters.get(symbol, self.default_pct))
+
+
+def _check_pct(where: str, key: str, value: object) -> float:
+    ok = isinstance(value, int | float) and not isinstance(value, bool)
+    if not ok or not 0.0 < float(value) <= 100.0:  # type: ignore[arg-type]
+        raise RailsuspInputError(
+            f"{where}: tolerances.{key} = {value!r}: accepted a number in (0, 100] "
+            "(% of the nominal value)"
+        )
+    return float(value)  # type: ignore[arg-type]
+
+
+def read_tolerances(wagon: str | Path | None = None) -> Tolerances:
+    """The ``[tolerances]`` table of a wagon data file: ``default_pct`` and one entry per
+    main suspension parameter (``X13 = 10.0``), % of the nominal value; the defaults
+    (:data:`DEFAULT_TOLERANCE_PCT` for every element) where the file or the table is absent
+    (None: the embedded C80/K6 data, which have none)."""
+    if wagon is None:
+        return Tolerances()
+    path = Path(wagon)
+    if not path.is_file():
+        raise RailsuspInputError(f"wagon file {path} does not exist")
+    try:
+        doc = tomllib.loads(path.read_text("utf-8")).get("tolerances", {})
+    except tomllib.TOMLDecodeError as exc:
+        raise RailsuspInputError(f"{path}: not valid TOML ({exc})") from None
+    if not isinstance(doc, dict):
+        raise RailsuspInputError(f"{path}: tolerances must be a table ([tolerances])")
+    default = _check_pct(str(path), "default_pct", doc.get("default_pct", DEFAULT_TOLERANCE_PCT))
+    per = {}
+    for key, value in doc.items():
+        if key == "default_pct":
+            continue
+        if key not in MAIN_SUSPENSION:
+            raise RailsuspInputError(
+                f"{path}: tolerances.{key}: accepted default_pct or a main suspension "
+                f"parameter ({', '.join(MAIN_SUSPENSION)})"
+            )
+        per[key] = _check_pct(str(path), key, value)
+    return Tolerances(default, per)
+
+
+def _config(run: Path) -> dict:
+    state = read_json(run / "pipeline.json") if (run / "pipeline.json").exists() else {}
+    return state.get("config", {})
+
+
+def run_tolerances(run: str | Path) -> Tolerances:
+    """The tolerances of the wagon that a run used (its configuration's ``wagon``)."""
+    return read_tolerances(_config(Path(run)).get("wagon"))
+
+
+def sig3(v: float) -> str:
+    """Three significant figures, without an exponent from 0.0001 to 1e6 (the report's and
+    the summary's one number format)."""
+    if v == 0:
+        return "0"
+    if not math.isfinite(v):
+        return "" if v != v else ("∞" if v > 0 else "-∞")
+    if not 1e-4 <= abs(v) < 1e6:
+        return f"{v:.2e}"
+    digits = max(0, 2 - math.floor(math.log10(abs(v))))
+    return f"{round(v, digits):.{digits}f}"
+
+
+def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.DataFrame:
+    """One row per main suspension parameter (display units): element, unit, nominal,
+    estimate, standard error, interval (low, high, and how it was formed), change from
+    nominal (%), tolerance (%), verdict and a note saying why."""
+    from railsusp.validate import identification_issues, max_st
+
+    run = Path(run)
+    tol = tolerances or run_tolerances(run)
+    est = read_json(run / "estimate" / "estimate.json")
+    sens = run / "campaign" / "sensitivity"
+    st = max_st(sens) if (sens / "key_parameters.json").exists() else {}
+    why_not = identification_issues(est, st)
+    params = list(est["parameters"])
+    refined = est.get("refinement") or {}
+    se_pct = refined.get("standard_error_pct_range", {})
+    pareto = np.atleast_2d(np.asarray(est.get("pareto_x_si", []), dtype=float))
+    camp = read_json(run / "campaign" / "campaign.json")["config"] if st or sens.exists() else {}
+    sampled = set(camp.get("parameters", MAIN_SUSPENSION))
+    rows = []
+    for p in MAIN_SUSPENSION:
+        s = spec(p)
+        lo, hi = s.bounds_display  # type: ignore[misc]
+        row = {
+            "parameter": p,
+            "element": s.description,
+            "unit": s.display_unit,
+            "nominal": s.nominal_display,
+            "estimate": float("nan"),
+            "standard_error": float("nan"),
+            "low": float("nan"),
+            "high": float("nan"),
+            "interval": "",
+            "change_pct": float("nan"),
+            "tolerance_pct": tol.of(p),
+            "verdict": "",
+            "note": "",
+        }
+        if p not in params:
+            row["estimate"] = s.nominal_display
+            row["change_pct"] = 0.0
+            row["verdict"] = f"{NOT_ESTIMATED}: held at {sig3(s.nominal_display)} {s.display_unit}"
+            row["note"] = (
+                "not a key parameter of the sensitivity analysis"
+                if p in sampled
+                else "not varied in the campaign"
+            )
+            rows.append(row)
+            continue
+        v = float(est["estimate_display"][p])
+        row["estimate"] = v
+        row["change_pct"] = 100.0 * (v - s.nominal_display) / s.nominal_display
+        if refined:
+            se = se_pct.get(p, float("nan")) / 100.0 * (hi - lo)
+            row["standard_error"] = se
+            row["low"], row["high"] = v - 2 * se, v + 2 * se
+            row["interval"] = INTERVAL_SE
+        elif pareto.size:
+            col = pareto[:, params.index(p)] / s.scale
+            row["low"], row["high"] = float(col.min()), float(col.max())
+            row["interval"] = INTERVAL_PARETO
+        limit = tol.of(p)
+        single = row["interval"] == INTERVAL_PARETO and row["low"] == row["high"]
+        if why_not.get(p):
+            row["verdict"] = NOT_IDENTIFIABLE
+            row["note"] = why_not[p]
+        else:
+            inside = abs(row["change_pct"]) <= limit
+            row["verdict"] = WITHIN if inside else DEGRADED
+            band = (s.nominal_display * (1 - limit / 100), s.nominal_display * (1 + limit / 100))
+            if math.isfinite(row["low"]):
+                reaches_out = row["low"] < band[0] or row["high"] > band[1]
+                reaches_in = row["high"] >= band[0] and row["low"] <= band[1]
+                if single:
+                    row["note"] = "a one-point Pareto set: no spread to judge the uncertainty"
+                elif inside and reaches_out:
+                    row["note"] = "the interval reaches beyond the tolerance"
+                elif not inside and reaches_in:
+                    row["note"] = "the interval reaches back within the tolerance"
+        rows.append(row)
+    return pd.DataFrame(rows).set_index("parameter")
+
+
+#: what the error of each validation statistic means, for the one-line agreement
+_MEANING = {
+    "aligned": "time-aligned RMS difference over the measured standard deviation",
+    "mean": "error of the record mean",
+    "rms": "error of the record RMS",
+    "p99": "error of the 99th percentile",
+    "std": "error of the standard deviation",
+}
+
+
+def force_agreement(run: str | Path) -> pd.DataFrame:
+    """Per condition, one comparison: lateral and vertical force error (%) with the nominal
+    and with the estimated parameters (and with the true ones, for synthetic recordings:
+    the noise floor). Time-aligned where the recordings carry their track, else the first
+    statistic of the estimate."""
+    val = pd.read_csv(Path(run) / "estimate" / "validation" / "validation.csv")
+    rows = []
+    for cond, g in val.groupby("condition", sort=False):
+        stats = list(dict.fromkeys(g.statistic))
+        st = "aligned" if "aligned" in stats else stats[0]
+        h = g[g.statistic == st].set_index("force")
+        row = {"condition": cond, "statistic": st, "meaning": _MEANING.get(st, st)}
+        for force, name in (("Y", "lateral"), ("Q", "vertical")):
+            for key in ("before", "after", "truth"):
+                col = f"{key}_error"
+                if col in h and force in h.index:
+                    row[f"{name}_{key}_pct"] = 100.0 * float(h.loc[force, col])
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def agreement_lines(table: pd.DataFrame) -> list[str]:
+    """The force agreement as one readable line per condition."""
+    lines = []
+    for r in table.to_dict(orient="records"):
+        parts = []
+        for name, label in (("lateral", "lateral Y"), ("vertical", "vertical Q")):
+            b, a = r.get(f"{name}_before_pct"), r.get(f"{name}_after_pct")
+            if b is None or a is None:
+                continue
+            text = f"{label} {sig3(b)} % → {sig3(a)} %"
+            t = r.get(f"{name}_truth_pct")
+            if t is not None and math.isfinite(t):
+                text += f" (true parameters: {sig3(t)} %)"
+            parts.append(text)
+        lines.append(f"{r['condition']}: " + ", ".join(parts) + f" — {r['meaning']}")
+    return lines
+
+
+def recordings(run: str | Path) -> pd.DataFrame:
+    """The recordings the run used: name, condition, measured wheel, duration, whether they
+    carry their track geometry."""
+    from railsusp.measured import read_field
+
+    folder = Path(run) / "field"
+    names = read_json(folder / "index.json").get("recordings", [])
+    rows = []
+    for name, rec in zip(names, read_field(folder), strict=True):
+        rows.append(
+            {
+                "recording": str(name),
+                "condition": rec.condition.name,
+                "wheel": ", ".join(rec.wheels),
+                "duration_s": float(rec.time[-1] - rec.time[0]) if rec.time.size else 0.0,
+                "measured_track": rec.condition.track_geometry is not None,
+            }
+        )
+    return pd.DataFrame(rows)
+
+
+def wagon_name(run: str | Path) -> str:
+    """The name of the wagon the run simulated (from its campaign)."""
+    meta = read_json(Path(run) / "campaign" / "campaign.json")
+    return meta["config"]["wagon"]["wagon"]["name"]
+
+
+def is_synthetic(run: str | Path) -> bool:
+    """Whether the recordings were synthesised from a hidden truth (``field/truth.json``)."""
+    return (Path(run) / "field" / "truth.json").exists()

@@ -1,0 +1,49 @@
+"""Imports flow one way: the pipeline calls the report, the report reads the run directory
+and never imports the pipeline (no pipeline <-> report circle)."""
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[1] / "src" / "railsusp"
+REPORT_MODULES = ("report.py", "report_html.py", "report_doc.py", "summary.py")
+
+
+def imported_modules(path: Path) -> set[str]:
+    """Every module a file imports, at module level or inside functions."""
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text("utf-8"))):
+        if isinstance(node, ast.ImportFrom) and node.module:
+            out.add(node.module)
+            out.update(f"{node.module}.{a.name}" for a in node.names)
+        elif isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+    return out
+
+
+@pytest.mark.parametrize("name", REPORT_MODULES)
+def test_report_modules_do_not_import_the_pipeline(name):
+    mods = imported_modules(SRC / name)
+    assert not {m for m in mods if m.startswith(("railsusp.pipeline", "railsusp.cli"))}, mods
+
+
+def test_importing_the_report_loads_neither_pipeline_nor_api():
+    code = (
+        "import sys, railsusp.report_html, railsusp.summary; "
+        "print(sorted(m for m in sys.modules if m in "
+        "('railsusp.pipeline', 'railsusp.api', 'railsusp.cli')))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+def test_import_railsusp_stays_light_and_api_loads_on_first_use():
+    code = (
+        "import sys, railsusp; a = 'railsusp.api' in sys.modules; "
+        "railsusp.open_run; print(a, 'railsusp.api' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "True"]

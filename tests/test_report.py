@@ -1,0 +1,191 @@
+"""The report and the Python API on a tiny run: the README's and docs/api.md's Python blocks
+run as pasted, the summary card comes first and says what it should, tables are readable,
+and (marker ``browser``) the page renders in headless Chromium."""
+
+import os
+import re
+import shutil
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+import railsusp
+from railsusp import summary
+from railsusp.params import MAIN_SUSPENSION
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def python_blocks(markdown: Path) -> list[str]:
+    """The ```python blocks of a Markdown file, in order."""
+    return re.findall(r"```python\n(.*?)```", markdown.read_text("utf-8"), re.S)
+
+
+def run_blocks(markdown: Path, cwd: Path) -> dict:
+    """Execute a page's Python blocks in one namespace, in ``cwd``, as a reader would."""
+    namespace: dict = {"__name__": "__main__"}
+    old = Path.cwd()
+    os.chdir(cwd)
+    try:
+        for i, block in enumerate(python_blocks(markdown)):
+            exec(compile(block, f"{markdown.name}[block {i}]", "exec"), namespace)
+    finally:
+        os.chdir(old)
+    return namespace
+
+
+@pytest.fixture(scope="module")
+def readme(tmp_path_factory):
+    """The README's Python blocks, run in a folder holding a copy of examples/."""
+    cwd = tmp_path_factory.mktemp("readme")
+    shutil.copytree(ROOT / "examples", cwd / "examples")
+    ns = run_blocks(ROOT / "README.md", cwd)
+    return cwd, ns
+
+
+@pytest.fixture(scope="module")
+def run_dir(readme):
+    return readme[0] / "runs" / "tiny"
+
+
+def test_readme_python_blocks_run_as_pasted(readme):
+    _, ns = readme
+    assert len(python_blocks(ROOT / "README.md")) >= 2
+    # the simulator block: statistics of one run are floats, a batch gives one per set
+    stats = ns["r"].statistics()
+    assert all(isinstance(v, float) for v in stats.values())
+    assert stats["Q_mean"] > 0 and stats["YQ_max"] > 0
+    per_set = ns["batch"].statistics(set_index=None)["Y_mean"]
+    assert per_set.shape == (2,) and per_set[0] != per_set[1]
+    assert isinstance(ns["result"], railsusp.RunResult)
+
+
+def test_docs_api_example_runs_and_the_result_reopens(readme):
+    cwd, _ = readme
+    ns = run_blocks(ROOT / "docs" / "api.md", cwd)
+    table = ns["table"]
+    assert list(table.index) == list(MAIN_SUSPENSION)
+    assert (cwd / "runs" / "tiny" / "estimate-summary.png").stat().st_size > 1000
+    assert ns["again"].report_path == (cwd / "runs" / "tiny" / "report.html").resolve() or (
+        ns["again"].report_path.samefile(cwd / "runs" / "tiny" / "report.html")
+    )
+
+
+def test_estimate_table_of_the_run(run_dir):
+    """Estimated parameters carry an interval around the estimate and a change from nominal
+    that matches their values; the others are held at nominal and say why."""
+    res = railsusp.open_run(run_dir)
+    est = res.estimate
+    keys = res.key_parameters
+    for p in MAIN_SUSPENSION:
+        row = est.loc[p]
+        if p in keys:
+            assert row.low <= row.estimate <= row.high
+            assert row.change_pct == pytest.approx(100 * (row.estimate / row.nominal - 1))
+            assert row.verdict in (summary.WITHIN, summary.DEGRADED, summary.NOT_IDENTIFIABLE)
+            assert row.interval == summary.INTERVAL_PARETO  # the tiny run is not refined
+        else:
+            assert row.verdict.startswith("not estimated: held at")
+            assert row.note in (
+                "not varied in the campaign",
+                "not a key parameter of the sensitivity analysis",
+            )
+    # the validation errors are in %, the same numbers as the agreement summary
+    val, ag = res.validation, res.agreement
+    y = val[(val.force == "Y") & (val.statistic == ag.statistic[0])]
+    assert ag.lateral_after_pct[0] == pytest.approx(y.after_error_pct.iloc[0])
+    assert set(res.stages.state) == {"done"}
+
+
+def test_open_run_of_a_folder_that_is_not_a_run(tmp_path):
+    with pytest.raises(railsusp.RailsuspInputError, match="not a run directory"):
+        railsusp.open_run(tmp_path)
+    with pytest.raises(railsusp.RailsuspInputError, match="config: a TOML path"):
+        railsusp.run(42, out=tmp_path)
+    with pytest.raises(railsusp.RailsuspInputError, match=r"estimate\.n_gen"):
+        railsusp.run({"estimate": {"n_gen": 0}}, out=tmp_path)
+
+
+def test_summary_card_comes_first_and_answers(run_dir):
+    page = (run_dir / "report.html").read_text("utf-8")
+    card = page.index("id='summary'")
+    assert card < page.index("<img") and card < page.index("Wagon and working conditions")
+    card_html = page[card : page.index("</section>", card)]
+    assert "C80 / K6" in card_html and "short.csv" in card_html
+    for p in MAIN_SUSPENSION:
+        assert f"<td class=text>{p} " in card_html
+    assert "held at" in card_html and "→" in card_html
+    assert "Interval: range of the NSGA-II Pareto set" in card_html
+    # the Markdown twin starts with the same answer
+    md = (run_dir / "report.md").read_text("utf-8")
+    assert md.index("## Answer") < md.index("## Wagon and working conditions")
+
+
+def test_tables_have_readable_headers_errors_in_percent(run_dir):
+    page = (run_dir / "report.html").read_text("utf-8")
+    heads = re.findall(r"<th[^>]*>([^<]*)</th>", page)
+    for raw in ("before_error", "our_max_ST", "pareto_spread_pct_range", "measured_kN"):
+        assert raw not in heads
+    assert "error, estimate (%)" in heads
+    # the validation table's errors are the CSV's fractions x 100, to three figures
+    val = pd.read_csv(run_dir / "estimate" / "validation" / "validation.csv")
+    assert summary.sig3(100 * val.after_error[0]) in page
+    assert "<table>" not in page.replace("<div class='scroll'><table>", "")
+    assert "writing this report" in page and ">running<" not in page
+
+
+def test_sig3():
+    assert [summary.sig3(v) for v in (91600.0, 0.0003976, 1.5, -48.347, 0.0)] == [
+        "91600",
+        "0.000398",
+        "1.50",
+        "-48.3",
+        "0",
+    ]
+    assert summary.sig3(float("inf")) == "∞" and summary.sig3(2.5e7) == "2.50e+07"
+
+
+def test_validation_caption_follows_the_recordings():
+    from railsusp.report import validation_caption
+
+    assert "unknown" in validation_caption(False)
+    assert "unknown" not in validation_caption(True) and "time-aligned" in validation_caption(True)
+
+
+browser = pytest.mark.skipif(
+    not Path("/usr/bin/chromium").exists(),
+    reason="Debian's chromium absent (make test installs it: apt-get install chromium)",
+)
+
+#: what the page reports about itself at 1024 x 768
+_LAYOUT = """JSON.stringify({
+  images: Array.from(document.images).map(i => i.complete && i.naturalWidth > 0),
+  card: document.getElementById('summary').getBoundingClientRect().toJSON(),
+  pageWidth: document.documentElement.scrollWidth,
+  viewWidth: window.innerWidth,
+  tables: Array.from(document.querySelectorAll('.scroll')).map(
+    d => d.getBoundingClientRect().right)
+})"""
+
+
+@browser
+@pytest.mark.browser
+def test_report_in_headless_chromium(run_dir, tmp_path):
+    """No console errors, every image loads, the summary card is whole in the first screen
+    (1024 x 768), and no table makes the page wider than the window."""
+    import json
+
+    from cdp import Page
+
+    with Page(tmp_path / "profile", 1024, 768) as page:
+        page.open((run_dir / "report.html").as_uri())
+        layout = json.loads(page.evaluate(_LAYOUT))
+        shot = page.screenshot(Path(os.environ.get("RAILSUSP_SCREENSHOT", tmp_path / "s.png")))
+        errors = page.errors
+    assert errors == []
+    assert layout["images"] and all(layout["images"]), layout["images"]
+    assert layout["card"]["top"] >= 0 and layout["card"]["bottom"] <= 768, layout["card"]
+    assert layout["pageWidth"] <= layout["viewWidth"] == 1024
+    assert max(layout["tables"]) <= 1024
+    assert shot.stat().st_size > 10_000

@@ -1,0 +1,137 @@
+"""The summary's estimate table and verdicts on hand-made run directories: intervals in
+display units from the estimate's standard errors, verdicts against the tolerances, the
+force agreement, and the wagon data's [tolerances] table."""
+
+import json
+import math
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+import railsusp
+from railsusp import summary
+from railsusp.errors import RailsuspInputError
+from railsusp.params import spec
+from railsusp.vehicle.wagon import load_wagon
+
+
+def write(path: Path, doc: dict) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(doc))
+
+
+def make_run(root: Path, estimate: dict, refinement: dict | None, wagon: str | None = None):
+    """A run directory with the files the summary reads: X13, X17 estimated (display)."""
+    params = ["X13", "X17"]
+    pareto = [
+        [spec(p).scale * v for p, v in zip(params, row, strict=True)]
+        for row in ([12.0, 1.0], [20.0, 1.2], [estimate["X13"], estimate["X17"]])
+    ]
+    write(root / "pipeline.json", {"config": {"wagon": wagon}, "stages": {}})
+    write(
+        root / "estimate" / "estimate.json",
+        {
+            "parameters": params,
+            "estimate_display": estimate,
+            "pareto_x_si": pareto,
+            "pareto_spread_pct_range": {"X13": 10.0, "X17": 3.0},
+            "refinement": refinement,
+            "cramer_rao_pct_range": {},
+        },
+    )
+    write(
+        root / "campaign" / "sensitivity" / "key_parameters.json",
+        {"key_parameters": {"keys": params, "max_st": {"X13": 0.5, "X17": 0.4, "X14": 0.2}}},
+    )
+    write(root / "campaign" / "campaign.json", {"config": {"parameters": ["X13", "X14", "X17"]}})
+    return root
+
+
+def test_refined_estimate_gives_two_standard_error_intervals_and_verdicts(tmp_path):
+    """X13 nominal 14 MN/m (range 7-21), estimated 10.5 (-25 %), standard error 2 % of the
+    14 MN/m range = 0.28 MN/m: degraded, interval 10.5 ± 0.56. X17 nominal 1.8 estimated
+    1.9 (+5.6 %): within tolerance. Then standard errors of 6 % and infinity: both not
+    identifiable, each saying why."""
+    ref = {"standard_error_pct_range": {"X13": 2.0, "X17": 1.0}}
+    run = make_run(tmp_path, {"X13": 10.5, "X17": 1.9}, ref)
+    t = summary.estimate_table(run)
+    x13 = t.loc["X13"]
+    lo, hi = spec("X13").bounds_display
+    assert x13.standard_error == pytest.approx(0.02 * (hi - lo))
+    assert (x13.low, x13.high) == pytest.approx((10.5 - 0.56, 10.5 + 0.56))
+    assert x13.change_pct == pytest.approx(-25.0)
+    assert x13.verdict == summary.DEGRADED and x13.interval == summary.INTERVAL_SE
+    assert t.loc["X17"].verdict == summary.WITHIN
+    assert t.loc["X14"].verdict == "not estimated: held at 10.0 MN/m"
+    assert t.loc["X14"].note == "not a key parameter of the sensitivity analysis"
+    assert t.loc["X11"].note == "not varied in the campaign"
+    # a looser tolerance turns X13 into "within", and the interval reaching out is said
+    loose = summary.estimate_table(run, summary.Tolerances(25.5))
+    assert loose.loc["X13"].verdict == summary.WITHIN
+    assert loose.loc["X13"].note == "the interval reaches beyond the tolerance"
+    via_api = railsusp.open_run(run, tolerances=railsusp.Tolerances(25.5)).estimate
+    assert via_api.equals(loose)
+    # a large or infinite standard error: not identifiable, and why
+    ref["standard_error_pct_range"] = {"X13": 6.0, "X17": math.inf}
+    run = make_run(tmp_path, {"X13": 10.5, "X17": 1.9}, ref)
+    t = summary.estimate_table(run)
+    assert t.loc["X13"].verdict == summary.NOT_IDENTIFIABLE
+    assert "standard error 6.0 % of range" in t.loc["X13"].note
+    assert "do not depend on it" in t.loc["X17"].note
+
+
+def test_unrefined_estimate_interval_is_the_pareto_range(tmp_path):
+    run = make_run(tmp_path, {"X13": 16.0, "X17": 1.1}, None)
+    t = summary.estimate_table(run)
+    assert (t.loc["X13"].low, t.loc["X13"].high) == pytest.approx((12.0, 20.0))
+    assert t.loc["X13"].interval == summary.INTERVAL_PARETO
+    assert math.isnan(t.loc["X13"].standard_error)
+    assert t.loc["X13"].verdict == summary.WITHIN  # +14.3 %
+    assert t.loc["X13"].note == "the interval reaches beyond the tolerance"
+    assert t.loc["X17"].verdict == summary.DEGRADED  # -38.9 %, Pareto 1.0-1.2: all outside
+
+
+def test_force_agreement_prefers_the_time_aligned_comparison(tmp_path):
+    rows = []
+    for st, b, a in (("mean", 0.2, 0.05), ("aligned", 0.9, 0.3)):
+        for force in ("Y", "Q"):
+            rows.append(
+                {
+                    "condition": "curve",
+                    "force": force,
+                    "statistic": st,
+                    "before_error": b,
+                    "after_error": a / (2 if force == "Q" else 1),
+                }
+            )
+    out = tmp_path / "estimate" / "validation"
+    out.mkdir(parents=True)
+    pd.DataFrame(rows).to_csv(out / "validation.csv", index=False)
+    ag = summary.force_agreement(tmp_path)
+    assert ag.statistic.tolist() == ["aligned"]
+    assert ag.lateral_before_pct[0] == pytest.approx(90.0)
+    assert ag.vertical_after_pct[0] == pytest.approx(15.0)
+    (line,) = summary.agreement_lines(ag)
+    assert line.startswith("curve: lateral Y 90.0 % → 30.0 %, vertical Q 90.0 % → 15.0 %")
+    assert "time-aligned" in line
+
+
+def test_wagon_tolerances_are_read_and_checked(tmp_path):
+    wagon = tmp_path / "wagon.toml"
+    base = (Path(summary.__file__).parent / "data" / "c80_k6.toml").read_text("utf-8")
+    wagon.write_text(base + "\n[tolerances]\ndefault_pct = 10.0\nX13 = 30\n")
+    tol = summary.read_tolerances(wagon)
+    assert (tol.of("X13"), tol.of("X17")) == (30.0, 10.0)
+    assert load_wagon(wagon).name == load_wagon().name  # the model ignores the table
+    run = make_run(tmp_path / "run", {"X13": 10.5, "X17": 1.9}, None, wagon=str(wagon))
+    assert summary.estimate_table(run).loc["X13"].tolerance_pct == 30.0
+    assert summary.read_tolerances(None) == summary.Tolerances()
+    for bad, msg in (
+        ("X13 = 0", r"tolerances\.X13 = 0: accepted a number in \(0, 100\]"),
+        ("X99 = 5.0", r"tolerances\.X99: accepted default_pct or a main suspension"),
+        ('default_pct = "a"', r"tolerances\.default_pct = 'a'"),
+    ):
+        wagon.write_text(base + f"\n[tolerances]\n{bad}\n")
+        with pytest.raises(RailsuspInputError, match=msg):
+            summary.read_tolerances(wagon)
