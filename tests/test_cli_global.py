@@ -42,7 +42,7 @@ def test_warnings_are_one_line_once_and_the_stage_log_follows_the_verbosity(monk
         assert "stage field: running" in out
         out = CliRunner().invoke(app, ["--quiet", "probe-warn"]).output
         assert "stage field" not in out
-        monkeypatch.setattr("railsusp.cli._said", set())
+        monkeypatch.setattr("railsusp.cli.common._said", set())
         out = CliRunner().invoke(app, ["--quiet", "probe-warn"]).output
         assert out.count("warning: the record is shorter than a segment") == 1
     finally:
