@@ -168,7 +168,8 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
             raise bad(f"field.measured = {f.measured!r} holds no index.json of recordings")
     if cfg.estimate.refine and f.measured is None and not f.with_track:
         raise bad(
-            "estimate.refine = true needs recordings with their measured track geometry: "
+            "estimate.refine = true with field.with_track = false: the refinement compares "
+            "time-aligned series on the recordings' measured track geometry; "
             "set field.with_track = true (or refine = false)"
         )
     if (f.with_track or f.track_noise_mm) and f.measured is not None:

@@ -21,7 +21,6 @@ from pydantic import (
     Field,
     ValidationError,
     field_validator,
-    model_validator,
 )
 
 from railsusp.conditions import WorkingCondition, get_condition, make_condition
@@ -160,17 +159,6 @@ class PipelineConfig(_Cfg):
     field: FieldSection = FieldSection()
     estimate: EstimateSection = EstimateSection()
     scheduler: str | None = Field(None, description="Dask scheduler tcp://host:port")
-
-    @model_validator(mode="after")
-    def _refine_needs_measured_track(self) -> PipelineConfig:
-        # refused before any stage runs: the refinement compares series on measured track
-        if self.estimate.refine and not self.field.measured and not self.field.with_track:
-            raise ValueError(
-                "estimate.refine = true with field.with_track = false: the refinement "
-                "compares time-aligned series on the recordings' measured track, which "
-                "synthetic recordings carry only with field.with_track = true"
-            )
-        return self
 
     def working_conditions(self) -> list[WorkingCondition]:
         out = []

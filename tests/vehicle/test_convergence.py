@@ -24,7 +24,7 @@ def step_change(condition, wagon, step: float) -> tuple[dict[str, float], bool]:
     coarse = simulate(None, condition, wagon=wagon, settings=SolverSettings(max_step=step))
     fine = simulate(None, condition, wagon=wagon, settings=SolverSettings(max_step=step / 2))
     a, b = coarse.statistics(), fine.statistics()
-    return {k: abs(a[k][0] / b[k][0] - 1.0) for k in STATISTICS}, bool(coarse.ok[0])
+    return {k: abs(a[k] / b[k] - 1.0) for k in STATISTICS}, bool(coarse.ok[0])
 
 
 @pytest.mark.parametrize("wagon_name", ["loaded", "tare"])

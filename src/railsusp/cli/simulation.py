@@ -49,7 +49,7 @@ def _force_table(results: list, title: str) -> Table:
             r.condition.name,
             WHEEL_NAMES[r.measured_wheel()],
             *(number(s[k], 1) for k in ("Y_mean", "Y_rms", "Y_p99", "Y_max")),
-            number(ref, 1) if ref else "-",
+            number(ref[0], 1) if ref else "-",
             *(number(s[k], 1) for k in ("Q_mean", "Q_p99", "Q_max")),
             number(ref[2], 1) if ref else "-",
             number(s["YQ_max"], 2),

@@ -40,27 +40,6 @@ def gap_spring(d, clearance, k):
 
 
 @nb.njit(cache=True, inline="always")
-def coulomb_slider(state, limit, stick_rate, dxdt, idx):
-    """Friction force of a Coulomb slider in series with a stick stiffness (elasto-plastic).
-
-    While sticking the force grows at ``stick_rate`` (stiffness x relative velocity); at the
-    limit it slides (rate 0 in the direction of motion). The returned force is clamped to
-    +-limit; a state beyond a (shrinking) limit relaxes back within SLIDER_RELAXATION.
-    """
-    f = state
-    if f > limit:
-        f = limit
-    elif f < -limit:
-        f = -limit
-    if (f >= limit and stick_rate > 0.0) or (f <= -limit and stick_rate < 0.0):
-        rate = 0.0
-    else:
-        rate = stick_rate
-    dxdt[idx] = rate + (f - state) / SLIDER_RELAXATION
-    return f
-
-
-@nb.njit(cache=True, inline="always")
 def damped_slider(state, limit, k_stick, c_stick, v, dxdt, idx):
     """Friction force (on the element's first body, opposing v) of an elasto-plastic slider
     with stick damping: a Kelvin element (k_stick, c_stick) in series with a Coulomb slider.
