@@ -60,6 +60,7 @@ from railsusp.cli import simulation  # noqa: E402
 from railsusp.cli import analysis  # noqa: E402
 from railsusp.cli import surrogates  # noqa: E402
 from railsusp.cli import field  # noqa: E402
+from railsusp.cli import recordings  # noqa: E402
 from railsusp.cli import pipeline  # noqa: E402
 
 # isort: on
@@ -75,6 +76,7 @@ __all__ = [
     "inputs",
     "main",
     "pipeline",
+    "recordings",
     "simulation",
     "surrogates",
 ]

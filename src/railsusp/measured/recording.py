@@ -99,7 +99,7 @@ class Recording:
         up, down = frac.numerator, frac.denominator
 
         def conv(x):
-            return resample_poly(x, up, down)
+            return resample_poly(x, up, down, padtype="line")
 
         n = len(conv(self.time * 0.0))
         t = self.time[0] + np.arange(n) / rate_hz

@@ -1,0 +1,90 @@
+"""Commands for long measured runs: cut a run into sections of one working condition."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from railsusp.cli import app, console, fail, frame_table
+from railsusp.errors import RailsuspInputError
+
+
+def print_problems(exc) -> None:
+    """Every problem of a refused recording, one line each, then the one-line error."""
+    for p in exc.problems:
+        console.print(f"  - {exc.path}: {p}", highlight=False, soft_wrap=True)
+    fail(f"{exc.path}: {len(exc.problems)} problem(s), listed above")
+
+
+@app.command("sections")
+def sections_command(
+    recording: Annotated[Path, typer.Argument(help="long run: .mf4, .csv or .parquet")],
+    channel_map: Annotated[
+        Path | None,
+        typer.Option("--map", help="channel map TOML (default: documented column names)"),
+    ] = None,
+    line: Annotated[
+        Path | None,
+        typer.Option(help="line description CSV: km_start,km_end,radius_m,cant_mm,grade_permille"),
+    ] = None,
+    table: Annotated[
+        Path | None, typer.Option(help="section table CSV: start_m,end_m[,name]")
+    ] = None,
+    speed_tolerance: Annotated[
+        float, typer.Option(help="largest (max - min) / mean speed within a section")
+    ] = 0.10,
+    min_length: Annotated[float, typer.Option(help="shortest section kept, m")] = 150.0,
+    max_duration: Annotated[float, typer.Option(help="longest section, s (longer split)")] = 120.0,
+    rate: Annotated[float, typer.Option(help="sampling rate of the written sections, Hz")] = 50.0,
+    plot: Annotated[
+        Path | None, typer.Option(help="PNG of speed and curvature along the line, sections shaded")
+    ] = None,
+    write: Annotated[
+        Path | None,
+        typer.Option(help="write the kept sections as a field folder (index.json) here"),
+    ] = None,
+) -> None:
+    """Cut a long run into sections of one working condition each and show the cut."""
+    from railsusp.measured import RecordingError
+    from railsusp.measured.channels import read_channel_map
+    from railsusp.measured.run import read_run
+    from railsusp.measured.sections import (
+        SectionRules,
+        cut_sections,
+        plot_sections,
+        read_line,
+        read_section_table,
+        sections_table,
+        write_sections,
+    )
+
+    try:
+        if line is not None and table is not None:
+            raise RailsuspInputError("give --line or --table, not both")
+        if not 10.0 <= rate <= 5000.0:
+            raise RailsuspInputError(f"--rate {rate:g}: accepted 10 to 5000 Hz")
+        rules = SectionRules(
+            speed_tolerance=speed_tolerance, min_length_m=min_length, max_duration_s=max_duration
+        )
+        cmap = read_channel_map(channel_map) if channel_map else None
+        run = read_run(recording, cmap)
+        secs = cut_sections(
+            run,
+            rules,
+            line=read_line(line) if line else None,
+            table=read_section_table(table) if table else None,
+        )
+        for note in run.notes:
+            console.print(f"note: {note}", highlight=False)
+        console.print(frame_table(sections_table(secs), f"Sections of {recording}"))
+        if plot is not None:
+            console.print(f"wrote {plot_sections(run, secs, plot)}")
+        if write is not None:
+            write_sections(run, secs, write, rate)
+            console.print(f"wrote {sum(s.kept for s in secs)} section recording(s) to {write}")
+    except RecordingError as exc:
+        print_problems(exc)
+    except RailsuspInputError as exc:
+        fail(str(exc))
