@@ -76,18 +76,32 @@ def synth_field(
 
 @app.command("check-recording")
 def check_recording(
-    path: Annotated[Path, typer.Argument(help="recording table (.csv / .parquet) or stem")],
+    path: Annotated[
+        Path,
+        typer.Argument(
+            help="recording: a field-format table (.csv/.parquet) or stem, or a "
+            "long run (.mf4, or a table with --map)"
+        ),
+    ],
     min_rate: Annotated[float, typer.Option(help="lowest usable sampling rate, Hz")] = 50.0,
+    channel_map: Annotated[
+        Path | None,
+        typer.Option("--map", help="channel map TOML: read PATH as a long run through it"),
+    ] = None,
 ) -> None:
-    """Validate a measured recording and summarise it (every problem is listed at once)."""
+    """Validate a recording and summarise it (every problem is listed at once, one line
+    each naming file, channel and rows; exit status 2)."""
+    from railsusp.cli.recordings import print_problems
     from railsusp.measured import RecordingError, read_recording
+    from railsusp.measured.raw import MDF_SUFFIXES
 
+    if channel_map is not None or path.suffix.lower() in MDF_SUFFIXES:
+        _check_run(path, channel_map)
+        return
     try:
         rec = read_recording(path, min_rate_hz=min_rate)
     except RecordingError as exc:
-        for p in exc.problems:
-            console.print(f"  - {p}", highlight=False)
-        fail(f"{exc.path}: {len(exc.problems)} problem(s), listed above")
+        print_problems(exc)
     except RailsuspInputError as exc:
         fail(str(exc))
     table = Table(
@@ -115,6 +129,41 @@ def check_recording(
             f"(distance {geo.s[0]:g} to {geo.s[-1]:g} m, {geo.s.size} points)",
             highlight=False,
         )
+
+
+def _check_run(path: Path, channel_map: Path | None) -> None:
+    """check-recording of a long run read through a channel map: its channels as used."""
+    from railsusp.cli.recordings import print_problems
+    from railsusp.measured import RecordingError
+    from railsusp.measured.channels import read_channel_map
+    from railsusp.measured.run import read_run
+
+    try:
+        run = read_run(path, read_channel_map(channel_map) if channel_map else None)
+    except RecordingError as exc:
+        print_problems(exc)
+    except RailsuspInputError as exc:
+        fail(str(exc))
+    for note in run.notes:
+        console.print(f"note: {note}", highlight=False)
+    table = Table(
+        title=f"{path}: {run.time[-1] - run.time[0]:.1f} s at {run.rate_hz:.4g} Hz, "
+        f"{run.position[-1] - run.position[0]:.0f} m, speed {run.speed.min() * 3.6:.0f}-"
+        f"{run.speed.max() * 3.6:.0f} km/h",
+        title_justify="left",
+    )
+    for col in ("wheel", "Y mean kN", "Y max kN", "Q mean kN", "Q max kN"):
+        table.add_column(col, justify="right")
+    for w in run.wheels:
+        y, q = run.Y[w] / 1e3, run.Q[w] / 1e3
+        table.add_row(
+            w,
+            f"{np.mean(np.abs(y)):.2f}",
+            f"{np.max(np.abs(y)):.2f}",
+            f"{np.mean(q):.2f}",
+            f"{np.max(q):.2f}",
+        )
+    console.print(table)
 
 
 @app.command("align-track")
