@@ -271,9 +271,9 @@ def _pieces(
 
 
 def _merged(run: MeasuredRun, a: Section, b: Section) -> Section:
-    """Two adjacent left-out stretches as one (the transition's reason wins)."""
+    """Two adjacent left-out stretches as one row, with both reasons."""
     v = run.speed[a.start : b.end]
-    reason = a.reason if a.reason.startswith("transition") else b.reason
+    reason = a.reason if b.reason in a.reason.split("; ") else f"{a.reason}; {b.reason}"
     return Section(
         "",
         a.start,
@@ -334,7 +334,7 @@ def sections_table(sections: list[Section]) -> pd.DataFrame:
         rows.append(
             {
                 "section": s.name or "-",
-                "kind": s.kind if s.kept or not s.reason.startswith("trans") else "transition",
+                "kind": s.kind if s.kept or "transition" not in s.reason else "transition",
                 "from_m": round(d["start_m"], 1),
                 "to_m": round(d["end_m"], 1),
                 "length_m": round(d["end_m"] - d["start_m"], 1),
