@@ -29,7 +29,9 @@ def recording(n=200, rate=100.0) -> Recording:
 def write_table(tmp_path, header, columns, name="rec"):
     """A recording with the given header and columns, and a valid sidecar."""
     path = recording().write(tmp_path / name)
-    lines = [",".join(header)] + [",".join(f"{v:.6g}" for v in row) for row in zip(*columns)]
+    lines = [",".join(header)] + [
+        ",".join(f"{v:.6g}" for v in row) for row in zip(*columns, strict=True)
+    ]
     path.write_text("\n".join(lines) + "\n")
     side = path.with_suffix(".json")
     meta = json.loads(side.read_text())
