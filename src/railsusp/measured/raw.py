@@ -99,7 +99,8 @@ def _read_table(path: Path, time_column: str | None) -> dict[str, RawChannel]:
         raise RailsuspInputError(f"recording {path}: not UTF-8 text") from None
     except Exception as exc:
         raise RailsuspInputError(
-            f"recording {path}: cannot read the table ({str(exc).splitlines()[0]})"
+            f"recording {path}: cannot read the table "
+            f"({(str(exc).splitlines() or [type(exc).__name__])[0]})"
         ) from None
     cols = [str(c) for c in df.columns]
     if len(df) < 2:

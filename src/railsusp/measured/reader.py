@@ -171,8 +171,16 @@ def _raw(table_path: Path):
     """The table's channels on its ``time_s`` column, or on ``distance_m`` over the speed."""
     import pandas as pd
 
-    head = pd.read_csv(table_path, nrows=0) if table_path.suffix == ".csv" else None
-    cols = list(head.columns) if head is not None else list(pd.read_parquet(table_path).columns)
+    try:
+        if table_path.suffix == ".csv":
+            cols = [str(c) for c in pd.read_csv(table_path, nrows=0, encoding="utf-8").columns]
+        else:
+            cols = [str(c) for c in pd.read_parquet(table_path).columns]
+    except Exception as exc:  # pandas and pyarrow raise many types on a damaged file
+        raise RailsuspInputError(
+            f"recording {table_path}: cannot read the table "
+            f"({(str(exc).splitlines() or [type(exc).__name__])[0]})"
+        ) from None
     if "time_s" in cols or "distance_m" not in cols:
         return read_raw(table_path, "time_s" if "time_s" in cols else None)
     raw = read_raw(table_path, "distance_m")
