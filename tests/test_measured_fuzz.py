@@ -18,7 +18,11 @@ from railsusp.measured import Recording, read_field, read_recording
 from railsusp.measured.channels import read_channel_map
 from railsusp.measured.run import read_run
 
-SETTINGS = settings(max_examples=int(os.environ.get("RAILSUSP_FUZZ_EXAMPLES", "40")), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+SETTINGS = settings(
+    max_examples=int(os.environ.get("RAILSUSP_FUZZ_EXAMPLES", "40")),
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
 COND = get_condition("straight", duration_s=2.0, n_steps=100)
 
 

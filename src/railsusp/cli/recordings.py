@@ -88,3 +88,35 @@ def sections_command(
         print_problems(exc)
     except RailsuspInputError as exc:
         fail(str(exc))
+
+
+EXAMPLE_FILES = (
+    "example_run.mf4",
+    "example_run.map.toml",
+    "example_line.csv",
+    "example_run.truth.json",
+)
+
+
+@app.command("example-recording")
+def example_recording(
+    out: Annotated[Path, typer.Option(help="folder to copy the example run into")],
+) -> None:
+    """Copy the example run shipped with railsusp into OUT: an MDF4 recording of a C80 run
+    over five sections (hidden-truth simulation), its channel map, the line description,
+    and the hidden truth (for comparison only)."""
+    from importlib import resources
+
+    from railsusp.store import atomic_write_bytes
+
+    try:
+        if out.exists() and not out.is_dir():
+            raise RailsuspInputError(f"--out {out}: exists and is not a folder")
+        data = resources.files("railsusp") / "data"
+        for name in EXAMPLE_FILES:
+            atomic_write_bytes(out / name, (data / name).read_bytes())
+    except OSError as exc:
+        fail(f"--out {out}: cannot write there ({exc.strerror})")
+    except RailsuspInputError as exc:
+        fail(str(exc))
+    console.print(f"wrote {', '.join(EXAMPLE_FILES)} to {out}")

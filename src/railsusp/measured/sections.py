@@ -375,8 +375,9 @@ def write_sections(
     run: MeasuredRun, sections: list[Section], out: str | Path, rate_hz: float = 50.0
 ) -> Path:
     """The kept sections as a field folder: one recording per section, ``index.json``,
-    ``sections.csv`` (the whole cut, with the reasons) and ``conditions.toml`` (the
-    sections' conditions, for a campaign: ``railsusp campaign --conditions``)."""
+    ``sections.csv`` (the whole cut, with the reasons), ``conditions.toml`` (the
+    sections' conditions, for a campaign: ``railsusp campaign --conditions``) and
+    ``pipeline.toml`` (a quick ``railsusp run`` configuration on these recordings)."""
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise RailsuspInputError(f"--write {out}: exists and is not a folder")
@@ -393,6 +394,7 @@ def write_sections(
     table = sections_table(sections).to_csv(index=False).encode()
     atomic_write_bytes(out / "sections.csv", table)
     atomic_write_bytes(out / "conditions.toml", conditions_toml(conds).encode())
+    atomic_write_bytes(out / "pipeline.toml", pipeline_toml(conds, out).encode())
     write_json(
         out / "index.json",
         {"format": FORMAT, "recordings": names, "source": Path(run.source).name},
@@ -411,6 +413,49 @@ def conditions_toml(conditions: list[WorkingCondition]) -> str:
             lines.append(f"{k} = {v!r}" if not isinstance(v, str) else f'{k} = "{v}"')
         parts.append("\n".join(lines))
     return "\n\n".join(parts) + "\n"
+
+
+def pipeline_toml(conditions: list[WorkingCondition], field: Path) -> str:
+    """A ``railsusp run`` configuration that estimates from the recordings in ``field``:
+    the sections' conditions (inline tables), the quick settings of examples/quick.toml,
+    no refinement (the recordings carry no measured track geometry)."""
+    rows = []
+    for c in conditions:
+        items = ", ".join(
+            f"{k} = {v!r}" if not isinstance(v, str) else f'{k} = "{v}"'
+            for k, v in c.model_dump().items()
+            if v is not None
+        )
+        rows.append(f"    {{ {items} }},")
+    measured = json_string(str(field.resolve()))
+    return "\n".join(
+        [
+            "# railsusp run configuration written by `railsusp sections --write`: the quick",
+            "# settings (examples/quick.toml) on the sections' conditions and recordings.",
+            'name = "sections of a measured run"',
+            "conditions = [",
+            *rows,
+            "]",
+            "",
+            "[campaign]\nsamples = 64\nseed = 0\nbatch_size = 32",
+            "",
+            "[sensitivity]\nthreshold = 0.05\nmax_keys = 6\nbase_samples = 512",
+            "",
+            '[surrogate]\nmodel = "bp"\nsamples = 128\nseed = 1\nepochs = 8',
+            "",
+            f"[field]\nmeasured = {measured}",
+            "",
+            '[estimate]\npop_size = 50\nn_gen = 100\nstatistic = "mean"\nrefine = false',
+            "",
+        ]
+    )
+
+
+def json_string(text: str) -> str:
+    """A TOML basic string (JSON's escaping is TOML's)."""
+    import json
+
+    return json.dumps(text)
 
 
 def plot_sections(run: MeasuredRun, sections: list[Section], path: str | Path) -> Path:
