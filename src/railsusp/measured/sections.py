@@ -12,6 +12,7 @@ the recordings of a field folder (:func:`write_sections`) that the estimation re
 
 from __future__ import annotations
 
+import re
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -25,6 +26,9 @@ from railsusp.measured.run import MeasuredRun
 from railsusp.store import atomic_write_bytes, write_json
 from railsusp.vehicle.layout import WHEEL_NAMES
 from railsusp.vehicle.simulate import measured_wheel_index
+
+#: a section name, which becomes a file name: no path separators, no leading dot
+SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,59}")
 
 
 @dataclass(frozen=True)
@@ -130,8 +134,16 @@ def read_line(path: str | Path) -> pd.DataFrame:
 
 
 def read_section_table(path: str | Path) -> pd.DataFrame:
-    """A user section table CSV: ``start_m, end_m`` and optional ``name``, checked."""
+    """A user section table CSV: ``start_m, end_m`` and optional ``name``, checked. Names
+    become file names, so they must be plain: letters, digits, ``.``, ``_``, ``-``."""
     df = _read_csv(path, ["start_m", "end_m"])
+    if "name" in df:
+        for i, name in enumerate(df["name"].astype(str)):
+            if not SAFE_NAME.fullmatch(name):
+                raise RailsuspInputError(
+                    f"section table {path}, row {i + 2}: name {name!r}: accepted 1-60 "
+                    "letters, digits, '.', '_', '-', starting with a letter or digit"
+                )
     if (df.end_m <= df.start_m).any():
         i = int(np.flatnonzero((df.end_m <= df.start_m).to_numpy())[0])
         raise RailsuspInputError(f"section table {path}, row {i + 2}: end_m <= start_m")
