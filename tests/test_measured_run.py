@@ -18,8 +18,8 @@ from railsusp.measured.sections import (
     cut_sections,
     geometry_from_line,
     read_line,
-    write_sections,
 )
+from railsusp.measured.sections_out import write_sections
 from railsusp.measured.units import si_factor, split_header
 
 MAP = {

@@ -1,11 +1,14 @@
-"""Commands for long measured runs: cut a run into sections of one working condition."""
+"""Commands for measured recordings: check a recording or a long run, cut a long run into
+sections of one working condition, copy the shipped example run."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Annotated
 
+import numpy as np
 import typer
+from rich.table import Table
 
 from railsusp.cli import app, console, fail, frame_table
 from railsusp.errors import RailsuspInputError
@@ -16,6 +19,96 @@ def print_problems(exc) -> None:
     for p in exc.problems:
         console.print(f"  - {exc.path}: {p}", highlight=False, soft_wrap=True)
     fail(f"{exc.path}: {len(exc.problems)} problem(s), listed above")
+
+
+@app.command("check-recording")
+def check_recording(
+    path: Annotated[
+        Path,
+        typer.Argument(
+            help="recording: a field-format table (.csv/.parquet) or stem, or a "
+            "long run (.mf4, or a table with --map)"
+        ),
+    ],
+    min_rate: Annotated[float, typer.Option(help="lowest usable sampling rate, Hz")] = 50.0,
+    channel_map: Annotated[
+        Path | None,
+        typer.Option("--map", help="channel map TOML: read PATH as a long run through it"),
+    ] = None,
+) -> None:
+    """Validate a recording and summarise it (every problem is listed at once, one line
+    each naming file, channel and rows; exit status 2)."""
+    from railsusp.measured import RecordingError, read_recording
+    from railsusp.measured.raw import MDF_SUFFIXES
+
+    if channel_map is not None or path.suffix.lower() in MDF_SUFFIXES:
+        _check_run(path, channel_map)
+        return
+    try:
+        rec = read_recording(path, min_rate_hz=min_rate)
+    except RecordingError as exc:
+        print_problems(exc)
+    except RailsuspInputError as exc:
+        fail(str(exc))
+    table = Table(
+        title=f"{path}: {rec.condition.name}, {rec.sampling_rate:.1f} Hz, "
+        f"{rec.time[-1] - rec.time[0]:.1f} s",
+        title_justify="left",
+    )
+    for col in ("wheel", "Y mean kN", "Y max kN", "Q mean kN", "Q max kN"):
+        table.add_column(col, justify="right")
+    for w in rec.wheels:
+        table.add_row(
+            w,
+            f"{np.mean(np.abs(rec.Y[w])):.2f}",
+            f"{np.max(np.abs(rec.Y[w])):.2f}",
+            f"{np.mean(rec.Q[w]):.2f}",
+            f"{np.max(rec.Q[w]):.2f}",
+        )
+    console.print(table)
+    if rec.condition.track_geometry is not None:
+        from railsusp.vehicle.track import read_track_geometry
+
+        geo = read_track_geometry(rec.condition.track_geometry)
+        console.print(
+            f"measured track geometry: {rec.condition.track_geometry} "
+            f"(distance {geo.s[0]:g} to {geo.s[-1]:g} m, {geo.s.size} points)",
+            highlight=False,
+        )
+
+
+def _check_run(path: Path, channel_map: Path | None) -> None:
+    """check-recording of a long run read through a channel map: its channels as used."""
+    from railsusp.measured import RecordingError
+    from railsusp.measured.channels import read_channel_map
+    from railsusp.measured.run import read_run
+
+    try:
+        run = read_run(path, read_channel_map(channel_map) if channel_map else None)
+    except RecordingError as exc:
+        print_problems(exc)
+    except RailsuspInputError as exc:
+        fail(str(exc))
+    for note in run.notes:
+        console.print(f"note: {note}", highlight=False)
+    table = Table(
+        title=f"{path}: {run.time[-1] - run.time[0]:.1f} s at {run.rate_hz:.4g} Hz, "
+        f"{run.position[-1] - run.position[0]:.0f} m, speed {run.speed.min() * 3.6:.0f}-"
+        f"{run.speed.max() * 3.6:.0f} km/h",
+        title_justify="left",
+    )
+    for col in ("wheel", "Y mean kN", "Y max kN", "Q mean kN", "Q max kN"):
+        table.add_column(col, justify="right")
+    for w in run.wheels:
+        y, q = run.Y[w] / 1e3, run.Q[w] / 1e3
+        table.add_row(
+            w,
+            f"{np.mean(np.abs(y)):.2f}",
+            f"{np.max(np.abs(y)):.2f}",
+            f"{np.mean(q):.2f}",
+            f"{np.max(q):.2f}",
+        )
+    console.print(table)
 
 
 @app.command("sections")
@@ -53,12 +146,11 @@ def sections_command(
     from railsusp.measured.sections import (
         SectionRules,
         cut_sections,
-        plot_sections,
         read_line,
         read_section_table,
         sections_table,
-        write_sections,
     )
+    from railsusp.measured.sections_out import plot_sections, write_sections
 
     try:
         if line is not None and table is not None:

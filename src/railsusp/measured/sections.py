@@ -12,23 +12,19 @@ the recordings of a field folder (:func:`write_sections`) that the estimation re
 
 from __future__ import annotations
 
-import re
 from dataclasses import asdict, dataclass
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from railsusp.conditions import WorkingCondition, make_condition
 from railsusp.errors import RailsuspInputError
-from railsusp.measured.recording import FORMAT, Recording
+from railsusp.measured.line import (  # noqa: F401  (the sources of a cut, with it)
+    geometry_from_line,
+    read_line,
+    read_section_table,
+)
 from railsusp.measured.run import MeasuredRun
-from railsusp.store import atomic_write_bytes, write_json
-from railsusp.vehicle.layout import WHEEL_NAMES
-from railsusp.vehicle.simulate import measured_wheel_index
-
-#: a section name, which becomes a file name: no path separators, no leading dot
-SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,59}")
 
 
 @dataclass(frozen=True)
@@ -103,69 +99,6 @@ class Section:
                 "entry_spiral_m": 50.0,
             }
         return make_condition(fields)
-
-
-def geometry_from_line(position_m: np.ndarray, line: pd.DataFrame) -> dict[str, np.ndarray]:
-    """Curvature (1/m, + left), cant (m) and grade (1) under each position from a line
-    description with columns ``km_start, km_end, radius_m, cant_mm, grade_permille`` and
-    optional ``direction`` (left/right); radius 0 or empty is tangent. Positions outside
-    every row are NaN."""
-    curv = np.full(position_m.shape, np.nan)
-    cant = np.full(position_m.shape, np.nan)
-    grade = np.full(position_m.shape, np.nan)
-    for r in line.itertuples(index=False):
-        inside = (position_m >= r.km_start * 1e3) & (position_m < r.km_end * 1e3)
-        radius = float(r.radius_m) if np.isfinite(r.radius_m) else 0.0
-        sign = -1.0 if str(getattr(r, "direction", "left")).strip().lower() == "right" else 1.0
-        curv[inside] = sign / radius if radius > 0 else 0.0
-        cant[inside] = (r.cant_mm if np.isfinite(r.cant_mm) else 0.0) * 1e-3
-        grade[inside] = (r.grade_permille if np.isfinite(r.grade_permille) else 0.0) * 1e-3
-    return {"curvature": curv, "cant": cant, "grade": grade}
-
-
-def read_line(path: str | Path) -> pd.DataFrame:
-    """A line description CSV (see :func:`geometry_from_line`), checked."""
-    need = ["km_start", "km_end", "radius_m", "cant_mm", "grade_permille"]
-    df = _read_csv(path, need)
-    if (df.km_end <= df.km_start).any():
-        i = int(np.flatnonzero((df.km_end <= df.km_start).to_numpy())[0])
-        raise RailsuspInputError(f"line description {path}, row {i + 2}: km_end <= km_start")
-    return df
-
-
-def read_section_table(path: str | Path) -> pd.DataFrame:
-    """A user section table CSV: ``start_m, end_m`` and optional ``name``, checked. Names
-    become file names, so they must be plain: letters, digits, ``.``, ``_``, ``-``."""
-    df = _read_csv(path, ["start_m", "end_m"])
-    if "name" in df:
-        for i, name in enumerate(df["name"].astype(str)):
-            if not SAFE_NAME.fullmatch(name):
-                raise RailsuspInputError(
-                    f"section table {path}, row {i + 2}: name {name!r}: accepted 1-60 "
-                    "letters, digits, '.', '_', '-', starting with a letter or digit"
-                )
-    if (df.end_m <= df.start_m).any():
-        i = int(np.flatnonzero((df.end_m <= df.start_m).to_numpy())[0])
-        raise RailsuspInputError(f"section table {path}, row {i + 2}: end_m <= start_m")
-    return df
-
-
-def _read_csv(path: str | Path, need: list[str]) -> pd.DataFrame:
-    try:
-        df = pd.read_csv(path, skipinitialspace=True)
-    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
-        raise RailsuspInputError(f"{path}: cannot read the table ({exc})") from None
-    missing = [c for c in need if c not in df.columns]
-    if missing or df.empty:
-        raise RailsuspInputError(f"{path}: columns {need} with at least one row needed")
-    for c in need:
-        vals = pd.to_numeric(df[c], errors="coerce")
-        bad = vals.isna() & df[c].notna()
-        if bad.any():
-            i = int(np.flatnonzero(bad.to_numpy())[0])
-            raise RailsuspInputError(f"{path}, row {i + 2}: {c} = {df[c].iloc[i]!r} not a number")
-        df[c] = vals
-    return df
 
 
 def cut_sections(
@@ -359,148 +292,3 @@ def sections_table(sections: list[Section]) -> pd.DataFrame:
             }
         )
     return pd.DataFrame(rows)
-
-
-def section_recording(run: MeasuredRun, sec: Section, rate_hz: float) -> Recording:
-    """The section as a recording (kN) at ``rate_hz``, its condition from the section."""
-    sl = slice(sec.start, sec.end)
-    t = run.time[sl] - run.time[sec.start]
-    rec = Recording(
-        t,
-        {w: y[sl] / 1e3 for w, y in run.Y.items()},
-        {w: q[sl] / 1e3 for w, q in run.Q.items()},
-        None,  # type: ignore[arg-type]
-        {"source": Path(run.source).name, "from_m": sec.start_m, "to_m": sec.end_m},
-    )
-    if abs(rec.sampling_rate / rate_hz - 1.0) > 1e-6:
-        rec = rec.resampled(rate_hz)
-    duration = len(rec.time) / rate_hz
-    cond = sec.condition(duration, rate_hz)
-    first = WHEEL_NAMES[measured_wheel_index(cond)]
-    order = sorted(rec.Y, key=lambda w: w != first)  # the measured wheel first
-    return Recording(
-        rec.time, {w: rec.Y[w] for w in order}, {w: rec.Q[w] for w in order}, cond, rec.meta
-    )
-
-
-def write_sections(
-    run: MeasuredRun, sections: list[Section], out: str | Path, rate_hz: float = 50.0
-) -> Path:
-    """The kept sections as a field folder: one recording per section, ``index.json``,
-    ``sections.csv`` (the whole cut, with the reasons), ``conditions.toml`` (the
-    sections' conditions, for a campaign: ``railsusp campaign --conditions``) and
-    ``pipeline.toml`` (a quick ``railsusp run`` configuration on these recordings)."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise RailsuspInputError(f"--write {out}: exists and is not a folder")
-    kept = [s for s in sections if s.kept]
-    if not kept:
-        raise RailsuspInputError(f"{run.source}: no section kept; nothing to write")
-    names = []
-    conds = []
-    for s in kept:
-        rec = section_recording(run, s, rate_hz)
-        rec.write(out / s.name)
-        names.append(f"{s.name}.csv")
-        conds.append(rec.condition)
-    table = sections_table(sections).to_csv(index=False).encode()
-    atomic_write_bytes(out / "sections.csv", table)
-    atomic_write_bytes(out / "conditions.toml", conditions_toml(conds).encode())
-    atomic_write_bytes(out / "pipeline.toml", pipeline_toml(conds, out).encode())
-    write_json(
-        out / "index.json",
-        {"format": FORMAT, "recordings": names, "source": Path(run.source).name},
-    )
-    return out
-
-
-def conditions_toml(conditions: list[WorkingCondition]) -> str:
-    """``[[condition]]`` tables of the conditions (docs/conditions.md)."""
-    parts = []
-    for c in conditions:
-        lines = ["[[condition]]"]
-        for k, v in c.model_dump().items():
-            if v is None:
-                continue
-            lines.append(f"{k} = {v!r}" if not isinstance(v, str) else f'{k} = "{v}"')
-        parts.append("\n".join(lines))
-    return "\n\n".join(parts) + "\n"
-
-
-def pipeline_toml(conditions: list[WorkingCondition], field: Path) -> str:
-    """A ``railsusp run`` configuration that estimates from the recordings in ``field``:
-    the sections' conditions (inline tables), the quick settings of examples/quick.toml,
-    no refinement (the recordings carry no measured track geometry)."""
-    rows = []
-    for c in conditions:
-        items = ", ".join(
-            f"{k} = {v!r}" if not isinstance(v, str) else f'{k} = "{v}"'
-            for k, v in c.model_dump().items()
-            if v is not None
-        )
-        rows.append(f"    {{ {items} }},")
-    measured = json_string(str(field.resolve()))
-    return "\n".join(
-        [
-            "# railsusp run configuration written by `railsusp sections --write`: the quick",
-            "# settings (examples/quick.toml) on the sections' conditions and recordings.",
-            'name = "sections of a measured run"',
-            "conditions = [",
-            *rows,
-            "]",
-            "",
-            "[campaign]\nsamples = 64\nseed = 0\nbatch_size = 32",
-            "",
-            "[sensitivity]\nthreshold = 0.05\nmax_keys = 6\nbase_samples = 512",
-            "",
-            '[surrogate]\nmodel = "bp"\nsamples = 128\nseed = 1\nepochs = 8',
-            "",
-            f"[field]\nmeasured = {measured}",
-            "",
-            '[estimate]\npop_size = 50\nn_gen = 100\nstatistic = "mean"\nrefine = false',
-            "",
-        ]
-    )
-
-
-def json_string(text: str) -> str:
-    """A TOML basic string (JSON's escaping is TOML's)."""
-    import json
-
-    return json.dumps(text)
-
-
-def plot_sections(run: MeasuredRun, sections: list[Section], path: str | Path) -> Path:
-    """Speed and curvature along the line with the sections shaded (kept green, left out
-    grey), saved as PNG."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    x = run.position / 1e3
-    fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(10, 5))
-    ax1.plot(x, run.speed * 3.6, "k-", lw=1)
-    ax1.set_ylabel("speed, km/h")
-    if run.curvature is not None:
-        ax2.plot(x, run.curvature * 1e3, "b-", lw=1)
-    ax2.set_ylabel("curvature, 1/km")
-    ax2.set_xlabel("position, km")
-    for s in sections:
-        for ax in (ax1, ax2):
-            ax.axvspan(s.start_m / 1e3, s.end_m / 1e3, color="g" if s.kept else "0.8", alpha=0.3)
-        if s.kept:
-            ax1.annotate(
-                s.name,
-                ((s.start_m + s.end_m) / 2e3, 0.02),
-                xycoords=("data", "axes fraction"),
-                ha="center",
-                fontsize=7,
-                rotation=90,
-            )
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
