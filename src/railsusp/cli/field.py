@@ -109,9 +109,10 @@ def align_track_command(
         )
     console.print(table)
     if write:
-        index = read_json(measured / "index.json")
-        for name in index.get("recordings", []):
-            side = (measured / name).with_suffix(".json")
+        from railsusp.measured import read_index
+
+        for table in read_index(measured):  # every listed path inside the folder
+            side = table.with_suffix(".json")
             doc = read_json(side)
             for a in found:
                 if doc.get("condition", {}).get("name") == a.recording:
