@@ -103,10 +103,6 @@ def _read_table(path: Path, time_column: str | None) -> dict[str, RawChannel]:
             f"({(str(exc).splitlines() or [type(exc).__name__])[0]})"
         ) from None
     cols = [str(c) for c in df.columns]
-    if len(df) < 2:
-        raise RailsuspInputError(
-            f"recording {path}: {len(df)} data row(s); a recording needs at least 2"
-        )
     tcol = time_column
     if tcol is None:
         tcol = next((c for c in cols if split_header(c)[0] in ("time", "t")), None)
