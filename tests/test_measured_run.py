@@ -211,6 +211,12 @@ def test_written_sections_are_a_field_folder_the_estimation_reads(tmp_path):
     c = recs[0].condition
     assert c.curve_radius_m == 800.0 and c.speed_kmh == 54.0 and c.n_steps == len(recs[0].time)
     assert load_conditions(tmp_path / "field" / "conditions.toml") == [c]
+    # ... and a `railsusp run` configuration on the same conditions and recordings
+    from railsusp.pipeline import load_config
+
+    cfg = load_config(tmp_path / "field" / "pipeline.toml")
+    assert cfg.working_conditions() == [c]
+    assert cfg.field.measured == str((tmp_path / "field").resolve())
     assert np.median(recs[0].Q["w1R"]) == pytest.approx(120.0, rel=0.01)  # kN again
 
 
