@@ -5,6 +5,7 @@ track and speed and written as a field folder; the shipped example run."""
 from importlib import resources
 
 import numpy as np
+import pandas as pd
 import pytest
 from asammdf import MDF, Signal
 
@@ -211,6 +212,12 @@ def test_written_sections_are_a_field_folder_the_estimation_reads(tmp_path):
     c = recs[0].condition
     assert c.curve_radius_m == 800.0 and c.speed_kmh == 54.0 and c.n_steps == len(recs[0].time)
     assert load_conditions(tmp_path / "field" / "conditions.toml") == [c]
+    en = pd.read_csv(tmp_path / "field" / "en14363.csv")
+    q = en[(en.force == "Q") & (en.wheel == "w1R")].iloc[0]
+    # N(120, 5) kN white noise: the 2 m mean (about 7 samples at 15 m/s, 200 Hz) leaves
+    # the median and narrows the spread well inside the raw +-3 sigma (105-135 kN)
+    assert q.p50_kN == pytest.approx(120.0, abs=0.3)
+    assert 105.0 < q["p0.15_kN"] < q["p99.85_kN"] < 135.0
     # ... and a `railsusp run` configuration on the same conditions and recordings
     from railsusp.pipeline import load_config
 

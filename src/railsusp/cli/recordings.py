@@ -150,7 +150,7 @@ def sections_command(
         read_section_table,
         sections_table,
     )
-    from railsusp.measured.sections_out import plot_sections, write_sections
+    from railsusp.measured.sections_out import en14363_table, plot_sections, write_sections
 
     try:
         if line is not None and table is not None:
@@ -171,6 +171,15 @@ def sections_command(
         for note in run.notes:
             console.print(f"note: {note}", highlight=False)
         console.print(frame_table(sections_table(secs), f"Sections of {recording}"))
+        if any(s.kept for s in secs):
+            console.print(
+                frame_table(
+                    en14363_table(run, secs),
+                    "Forces per section, EN 14363 processing (20 Hz low-pass, 2 m sliding "
+                    "mean), percentiles",
+                    fmt="{:.2f}",
+                )
+            )
         if plot is not None:
             console.print(f"wrote {plot_sections(run, secs, plot)}")
         if write is not None:

@@ -7,7 +7,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pandas as pd
+
 from railsusp.conditions import WorkingCondition
+from railsusp.en14363 import section_statistics
 from railsusp.errors import RailsuspInputError
 from railsusp.measured.recording import FORMAT, Recording
 from railsusp.measured.run import MeasuredRun
@@ -39,11 +42,30 @@ def section_recording(run: MeasuredRun, sec: Section, rate_hz: float) -> Recordi
     )
 
 
+def en14363_table(run: MeasuredRun, sections: list[Section]) -> pd.DataFrame:
+    """Per kept section, wheel and force: the percentiles 0.15 / 50 / 99.85 % (kN) of the
+    force low-passed at 20 Hz and averaged over 2 m of track (:mod:`railsusp.en14363`)."""
+    rows = []
+    for s in sections:
+        if not s.kept:
+            continue
+        sl = slice(s.start, s.end)
+        for w in run.wheels:
+            for force, x in (("Y", run.Y[w]), ("Q", run.Q[w])):
+                st = section_statistics(x[sl] / 1e3, run.rate_hz, run.speed[sl])
+                rows.append(
+                    {"section": s.name, "wheel": w, "force": force}
+                    | {f"{k}_kN": round(v, 2) for k, v in st.to_dict().items()}
+                )
+    return pd.DataFrame(rows)
+
+
 def write_sections(
     run: MeasuredRun, sections: list[Section], out: str | Path, rate_hz: float = 50.0
 ) -> Path:
     """The kept sections as a field folder: one recording per section, ``index.json``,
-    ``sections.csv`` (the whole cut, with the reasons), ``conditions.toml`` (the
+    ``sections.csv`` (the whole cut, with the reasons), ``en14363.csv`` (the EN 14363
+    percentiles of every kept section's forces), ``conditions.toml`` (the
     sections' conditions, for a campaign: ``railsusp campaign --conditions``) and
     ``pipeline.toml`` (a quick ``railsusp run`` configuration on these recordings)."""
     out = Path(out)
@@ -61,6 +83,8 @@ def write_sections(
         conds.append(rec.condition)
     table = sections_table(sections).to_csv(index=False).encode()
     atomic_write_bytes(out / "sections.csv", table)
+    en = en14363_table(run, sections).to_csv(index=False).encode()
+    atomic_write_bytes(out / "en14363.csv", en)
     atomic_write_bytes(out / "conditions.toml", conditions_toml(conds).encode())
     atomic_write_bytes(out / "pipeline.toml", pipeline_toml(conds, out).encode())
     write_json(
