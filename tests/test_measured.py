@@ -86,7 +86,7 @@ def test_non_monotonic_time(tmp_path):
         a, b = ls[10], ls[11]
         return [*ls[:10], b, a, *ls[12:]]
 
-    assert "time not strictly increasing at row 12" in problems_of(broken(tmp_path, edit))
+    assert "rows 11-12: time not strictly increasing" in problems_of(broken(tmp_path, edit))
 
 
 def test_short_gap_interpolated_long_gap_rejected(tmp_path):
@@ -106,7 +106,7 @@ def test_short_gap_interpolated_long_gap_rejected(tmp_path):
         rec = read_recording(p)
     assert np.isfinite(rec.Q["w1L"]).all()
     p = broken(tmp_path / "b", blank(range(30, 40)))
-    assert "rows 31-40: gap of 10 samples" in problems_of(p)  # file lines, header = 1
+    assert "rows 31-40: gap of 10 missing samples" in problems_of(p)  # file lines, header = 1
 
 
 def test_implausible_magnitudes(tmp_path):
@@ -119,28 +119,28 @@ def test_implausible_magnitudes(tmp_path):
             out.append(",".join(c))
         return out
 
-    assert "looks like newtons" in problems_of(broken(tmp_path / "n", newtons))
+    assert "the values look like N, not kN" in problems_of(broken(tmp_path / "n", newtons))
 
     def negative(ls):
         c = ls[3].split(",")
         c[2] = "-5"
         return [*ls[:3], ",".join(c), *ls[4:]]
 
-    assert "row 4: negative vertical force -5.0 kN" in problems_of(broken(tmp_path / "q", negative))
+    assert "row 4: negative wheel load -5 kN" in problems_of(broken(tmp_path / "q", negative))
 
     def huge(ls):
         c = ls[7].split(",")
         c[1] = "450"
         return [*ls[:7], ",".join(c), *ls[8:]]
 
-    assert "row 8: 450.0 kN beyond the physical bound 300 kN" in problems_of(
+    assert "row 8: |force| up to 450 kN beyond the physical bound 300 kN" in problems_of(
         broken(tmp_path / "y", huge)
     )
 
 
 def test_sampling_rate_too_low(tmp_path):
     path = make_recording(n=40, rate=20.0).write(tmp_path / "slow")
-    assert "sampling rate 20.0 Hz below the 50 Hz" in problems_of(path)
+    assert "sampling rate 20 Hz below the 50 Hz" in problems_of(path)
     assert read_recording(path, min_rate_hz=20.0).sampling_rate == pytest.approx(20.0)
 
 
@@ -227,7 +227,7 @@ def test_synthetic_field_with_measured_track(tmp_path):
     assert c.track_geometry == rec.condition.track_geometry
     # a missing track file is reported as a recording problem
     (moved / "straight.track.csv").unlink()
-    with pytest.raises(RecordingError, match="condition.track_geometry.*not found"):
+    with pytest.raises(RecordingError, match="track_geometry.*not found"):
         read_field(moved)
 
 

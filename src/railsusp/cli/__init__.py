@@ -22,6 +22,7 @@ from railsusp.cli import modes
 from railsusp.cli import analysis
 from railsusp.cli import surrogates
 from railsusp.cli import field
+from railsusp.cli import recordings
 from railsusp.cli import pipeline
 
 # isort: on
@@ -38,6 +39,7 @@ __all__ = [
     "main",
     "modes",
     "pipeline",
+    "recordings",
     "simulation",
     "surrogates",
 ]

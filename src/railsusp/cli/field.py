@@ -1,11 +1,11 @@
-"""Commands for measured recordings: synthesise field data, check a recording."""
+"""Commands for field data: synthesise recordings of a hidden truth, align track geometry,
+estimate and validate."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 from rich.table import Table
 
@@ -74,49 +74,6 @@ def synth_field(
     )
 
 
-@app.command("check-recording")
-def check_recording(
-    path: Annotated[Path, typer.Argument(help="recording table (.csv / .parquet) or stem")],
-    min_rate: Annotated[float, typer.Option(help="lowest usable sampling rate, Hz")] = 50.0,
-) -> None:
-    """Validate a measured recording and summarise it (every problem is listed at once)."""
-    from railsusp.measured import RecordingError, read_recording
-
-    try:
-        rec = read_recording(path, min_rate_hz=min_rate)
-    except RecordingError as exc:
-        for p in exc.problems:
-            console.print(f"  - {p}", highlight=False)
-        fail(f"{exc.path}: {len(exc.problems)} problem(s), listed above")
-    except RailsuspInputError as exc:
-        fail(str(exc))
-    table = Table(
-        title=f"{path}: {rec.condition.name}, {rec.sampling_rate:.1f} Hz, "
-        f"{rec.time[-1] - rec.time[0]:.1f} s",
-        title_justify="left",
-    )
-    for col in ("wheel", "Y mean kN", "Y max kN", "Q mean kN", "Q max kN"):
-        table.add_column(col, justify="right")
-    for w in rec.wheels:
-        table.add_row(
-            w,
-            f"{np.mean(np.abs(rec.Y[w])):.2f}",
-            f"{np.max(np.abs(rec.Y[w])):.2f}",
-            f"{np.mean(rec.Q[w]):.2f}",
-            f"{np.max(rec.Q[w]):.2f}",
-        )
-    console.print(table)
-    if rec.condition.track_geometry is not None:
-        from railsusp.vehicle.track import read_track_geometry
-
-        geo = read_track_geometry(rec.condition.track_geometry)
-        console.print(
-            f"measured track geometry: {rec.condition.track_geometry} "
-            f"(distance {geo.s[0]:g} to {geo.s[-1]:g} m, {geo.s.size} points)",
-            highlight=False,
-        )
-
-
 @app.command("align-track")
 def align_track_command(
     measured: Annotated[Path, typer.Argument(help="field folder (index.json) of recordings")],
@@ -152,9 +109,10 @@ def align_track_command(
         )
     console.print(table)
     if write:
-        index = read_json(measured / "index.json")
-        for name in index.get("recordings", []):
-            side = (measured / name).with_suffix(".json")
+        from railsusp.measured import read_index
+
+        for table in read_index(measured):  # every listed path inside the folder
+            side = table.with_suffix(".json")
             doc = read_json(side)
             for a in found:
                 if doc.get("condition", {}).get("name") == a.recording:

@@ -1,0 +1,223 @@
+"""Commands for measured recordings: check a recording or a long run, cut a long run into
+sections of one working condition, copy the shipped example run."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.table import Table
+
+from railsusp.cli.common import app, console, fail, frame_table
+from railsusp.errors import RailsuspInputError
+
+
+def print_problems(exc) -> None:
+    """Every problem of a refused recording, one line each, then the one-line error."""
+    for p in exc.problems:
+        console.print(f"  - {exc.path}: {p}", highlight=False, soft_wrap=True)
+    fail(f"{exc.path}: {len(exc.problems)} problem(s), listed above")
+
+
+@app.command("check-recording")
+def check_recording(
+    path: Annotated[
+        Path,
+        typer.Argument(
+            help="recording: a field-format table (.csv/.parquet) or stem, or a "
+            "long run (.mf4, or a table with --map)"
+        ),
+    ],
+    min_rate: Annotated[float, typer.Option(help="lowest usable sampling rate, Hz")] = 50.0,
+    channel_map: Annotated[
+        Path | None,
+        typer.Option("--map", help="channel map TOML: read PATH as a long run through it"),
+    ] = None,
+) -> None:
+    """Validate a recording and summarise it (every problem is listed at once, one line
+    each naming file, channel and rows; exit status 2)."""
+    from railsusp.measured import RecordingError, read_recording
+    from railsusp.measured.raw import MDF_SUFFIXES
+
+    if channel_map is not None or path.suffix.lower() in MDF_SUFFIXES:
+        _check_run(path, channel_map)
+        return
+    try:
+        rec = read_recording(path, min_rate_hz=min_rate)
+    except RecordingError as exc:
+        print_problems(exc)
+    except RailsuspInputError as exc:
+        fail(str(exc))
+    table = Table(
+        title=f"{path}: {rec.condition.name}, {rec.sampling_rate:.1f} Hz, "
+        f"{rec.time[-1] - rec.time[0]:.1f} s",
+        title_justify="left",
+    )
+    for col in ("wheel", "Y mean kN", "Y max kN", "Q mean kN", "Q max kN"):
+        table.add_column(col, justify="right")
+    for w in rec.wheels:
+        table.add_row(
+            w,
+            f"{np.mean(np.abs(rec.Y[w])):.2f}",
+            f"{np.max(np.abs(rec.Y[w])):.2f}",
+            f"{np.mean(rec.Q[w]):.2f}",
+            f"{np.max(rec.Q[w]):.2f}",
+        )
+    console.print(table)
+    if rec.condition.track_geometry is not None:
+        from railsusp.vehicle.track import read_track_geometry
+
+        geo = read_track_geometry(rec.condition.track_geometry)
+        console.print(
+            f"measured track geometry: {rec.condition.track_geometry} "
+            f"(distance {geo.s[0]:g} to {geo.s[-1]:g} m, {geo.s.size} points)",
+            highlight=False,
+        )
+
+
+def _check_run(path: Path, channel_map: Path | None) -> None:
+    """check-recording of a long run read through a channel map: its channels as used."""
+    from railsusp.measured import RecordingError
+    from railsusp.measured.channels import read_channel_map
+    from railsusp.measured.run import read_run
+
+    try:
+        run = read_run(path, read_channel_map(channel_map) if channel_map else None)
+    except RecordingError as exc:
+        print_problems(exc)
+    except RailsuspInputError as exc:
+        fail(str(exc))
+    for note in run.notes:
+        console.print(f"note: {note}", highlight=False)
+    table = Table(
+        title=f"{path}: {run.time[-1] - run.time[0]:.1f} s at {run.rate_hz:.4g} Hz, "
+        f"{run.position[-1] - run.position[0]:.0f} m, speed {run.speed.min() * 3.6:.0f}-"
+        f"{run.speed.max() * 3.6:.0f} km/h",
+        title_justify="left",
+    )
+    for col in ("wheel", "Y mean kN", "Y max kN", "Q mean kN", "Q max kN"):
+        table.add_column(col, justify="right")
+    for w in run.wheels:
+        y, q = run.Y[w] / 1e3, run.Q[w] / 1e3
+        table.add_row(
+            w,
+            f"{np.mean(np.abs(y)):.2f}",
+            f"{np.max(np.abs(y)):.2f}",
+            f"{np.mean(q):.2f}",
+            f"{np.max(q):.2f}",
+        )
+    console.print(table)
+
+
+@app.command("sections")
+def sections_command(
+    recording: Annotated[Path, typer.Argument(help="long run: .mf4, .csv or .parquet")],
+    channel_map: Annotated[
+        Path | None,
+        typer.Option("--map", help="channel map TOML (default: documented column names)"),
+    ] = None,
+    line: Annotated[
+        Path | None,
+        typer.Option(help="line description CSV: km_start,km_end,radius_m,cant_mm,grade_permille"),
+    ] = None,
+    table: Annotated[
+        Path | None, typer.Option(help="section table CSV: start_m,end_m[,name]")
+    ] = None,
+    speed_tolerance: Annotated[
+        float, typer.Option(help="largest (max - min) / mean speed within a section")
+    ] = 0.10,
+    min_length: Annotated[float, typer.Option(help="shortest section kept, m")] = 150.0,
+    max_duration: Annotated[float, typer.Option(help="longest section, s (longer split)")] = 120.0,
+    rate: Annotated[float, typer.Option(help="sampling rate of the written sections, Hz")] = 50.0,
+    plot: Annotated[
+        Path | None, typer.Option(help="PNG of speed and curvature along the line, sections shaded")
+    ] = None,
+    write: Annotated[
+        Path | None,
+        typer.Option(help="write the kept sections as a field folder (index.json) here"),
+    ] = None,
+) -> None:
+    """Cut a long run into sections of one working condition each and show the cut."""
+    from railsusp.measured import RecordingError
+    from railsusp.measured.channels import read_channel_map
+    from railsusp.measured.run import read_run
+    from railsusp.measured.sections import (
+        SectionRules,
+        cut_sections,
+        read_line,
+        read_section_table,
+        sections_table,
+    )
+    from railsusp.measured.sections_out import en14363_table, plot_sections, write_sections
+
+    try:
+        if line is not None and table is not None:
+            raise RailsuspInputError("give --line or --table, not both")
+        if not 10.0 <= rate <= 5000.0:
+            raise RailsuspInputError(f"--rate {rate:g}: accepted 10 to 5000 Hz")
+        rules = SectionRules(
+            speed_tolerance=speed_tolerance, min_length_m=min_length, max_duration_s=max_duration
+        )
+        cmap = read_channel_map(channel_map) if channel_map else None
+        run = read_run(recording, cmap)
+        secs = cut_sections(
+            run,
+            rules,
+            line=read_line(line) if line else None,
+            table=read_section_table(table) if table else None,
+        )
+        for note in run.notes:
+            console.print(f"note: {note}", highlight=False)
+        console.print(frame_table(sections_table(secs), f"Sections of {recording}"))
+        if any(s.kept for s in secs):
+            console.print(
+                frame_table(
+                    en14363_table(run, secs),
+                    "Forces per section, EN 14363 processing (20 Hz low-pass, 2 m sliding "
+                    "mean), percentiles",
+                    fmt="{:.2f}",
+                )
+            )
+        if plot is not None:
+            console.print(f"wrote {plot_sections(run, secs, plot)}")
+        if write is not None:
+            write_sections(run, secs, write, rate)
+            console.print(f"wrote {sum(s.kept for s in secs)} section recording(s) to {write}")
+    except RecordingError as exc:
+        print_problems(exc)
+    except RailsuspInputError as exc:
+        fail(str(exc))
+
+
+EXAMPLE_FILES = (
+    "example_run.mf4",
+    "example_run.map.toml",
+    "example_line.csv",
+    "example_run.truth.json",
+)
+
+
+@app.command("example-recording")
+def example_recording(
+    out: Annotated[Path, typer.Option(help="folder to copy the example run into")],
+) -> None:
+    """Copy the example run shipped with railsusp into OUT: an MDF4 recording of a C80 run
+    over five sections (hidden-truth simulation), its channel map, the line description,
+    and the hidden truth (for comparison only)."""
+    from importlib import resources
+
+    from railsusp.store import atomic_write_bytes
+
+    try:
+        if out.exists() and not out.is_dir():
+            raise RailsuspInputError(f"--out {out}: exists and is not a folder")
+        data = resources.files("railsusp") / "data"
+        for name in EXAMPLE_FILES:
+            atomic_write_bytes(out / name, (data / name).read_bytes())
+    except OSError as exc:
+        fail(f"--out {out}: cannot write there ({exc.strerror})")
+    except RailsuspInputError as exc:
+        fail(str(exc))
+    console.print(f"wrote {', '.join(EXAMPLE_FILES)} to {out}")

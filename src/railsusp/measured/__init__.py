@@ -1,0 +1,52 @@
+"""Measured wheel-rail force recordings.
+
+- :mod:`~railsusp.measured.recording`: one recording of one working condition (the field
+  format) and its writer;
+- :mod:`~railsusp.measured.reader`: the field folder (``index.json``) and its strict reader;
+- :mod:`~railsusp.measured.raw`, :mod:`~railsusp.measured.units`,
+  :mod:`~railsusp.measured.channels`, :mod:`~railsusp.measured.run`: long runs as the
+  measurement system wrote them (ASAM MDF4, CSV, Parquet) read through a channel map;
+- :mod:`~railsusp.measured.checks`: the checks every recording passes;
+- :mod:`~railsusp.measured.sections`: a run cut into sections of one condition each;
+- :mod:`~railsusp.measured.synthetic`: synthetic recordings of hidden true parameters.
+"""
+
+from railsusp.measured.checks import MAX_GAP_SAMPLES
+from railsusp.measured.reader import (
+    conditions_from,
+    inside,
+    read_field,
+    read_index,
+    read_recording,
+)
+from railsusp.measured.recording import (
+    FORMAT,
+    Recording,
+    RecordingError,
+    SimulationFailedError,
+)
+from railsusp.measured.synthetic import (
+    add_sensor_noise,
+    bandwidth_filter,
+    recording_from_simulation,
+    simulated_forces,
+    synthesise_field,
+)
+
+__all__ = [
+    "FORMAT",
+    "MAX_GAP_SAMPLES",
+    "Recording",
+    "RecordingError",
+    "SimulationFailedError",
+    "add_sensor_noise",
+    "bandwidth_filter",
+    "conditions_from",
+    "inside",
+    "read_field",
+    "read_index",
+    "read_recording",
+    "recording_from_simulation",
+    "simulated_forces",
+    "synthesise_field",
+]

@@ -1,0 +1,151 @@
+"""The channel map: which recorded channel is which wheel's Y and Q, the speed, the position
+and the optional track geometry, read from a small TOML file.
+
+```toml
+speed = "v_train"             # running speed (or leave out and give position)
+position = "s_line"           # distance along the line
+curvature = "curv_track"      # optional: + left-hand curve
+cant = "cant_track"           # optional
+grade = "grade_track"         # optional: + up-grade
+time = "t"                    # tables only: the time column (MDF4: the file's time base)
+ignore = ["acc_bogie_y_g"]    # channels recorded but not used
+
+[wheels.w1R]
+Y = "WS1_Y_R"
+Q = "WS1_Q_R"
+
+[units]                       # only for channels whose file states no unit
+s_line = "m"
+```
+
+A file without a map is read through the documented column names (``Y_w1R_kN``,
+``speed_kmh``, ...), which :func:`default_map` turns into a map.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from railsusp.errors import RailsuspInputError, did_you_mean
+from railsusp.measured.units import split_header
+from railsusp.vehicle.layout import WHEEL_NAMES
+
+#: optional quantities a map may name, with the physical quantity of their unit
+SIGNALS: dict[str, str] = {
+    "speed": "speed",
+    "position": "position",
+    "curvature": "curvature",
+    "cant": "cant",
+    "grade": "grade",
+}
+_KEYS = {*SIGNALS, "time", "ignore", "wheels", "units", "recording"}
+
+
+@dataclass(frozen=True)
+class ChannelMap:
+    """Recorded channel name of every quantity the estimation uses."""
+
+    wheels: dict[str, dict[str, str]]  # wheel -> {"Y": channel, "Q": channel}
+    signals: dict[str, str] = field(default_factory=dict)  # speed/position/... -> channel
+    time: str | None = None
+    ignore: tuple[str, ...] = ()
+    units: dict[str, str] = field(default_factory=dict)
+    recording: str | None = None  # the recording the map was written for, if it names one
+    source: str = "channel map"
+
+    def used(self) -> list[str]:
+        """Every channel the map takes, in a fixed order."""
+        names = [c for w in self.wheels.values() for c in (w["Y"], w["Q"])]
+        return names + list(self.signals.values())
+
+
+def read_channel_map(path: str | Path) -> ChannelMap:
+    """Read and check a channel-map TOML; errors name the key and what is accepted."""
+    path = Path(path)
+    try:
+        doc = tomllib.loads(path.read_text("utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RailsuspInputError(f"channel map {path}: cannot read it ({exc})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise RailsuspInputError(f"channel map {path}: not valid TOML ({exc})") from None
+    return channel_map_from(doc, str(path))
+
+
+def channel_map_from(doc: dict, source: str = "channel map") -> ChannelMap:
+    """A :class:`ChannelMap` from a parsed TOML document."""
+
+    def bad(msg: str) -> RailsuspInputError:
+        return RailsuspInputError(f"{source}: {msg}")
+
+    for key in doc:
+        if key not in _KEYS:
+            raise bad(f"key {key!r} not recognised{did_you_mean(key, sorted(_KEYS))}")
+    wheels_doc = doc.get("wheels")
+    if not isinstance(wheels_doc, dict) or not wheels_doc:
+        raise bad("no [wheels.<wheel>] table with Y and Q channels (wheels w1L .. w4R)")
+    wheels: dict[str, dict[str, str]] = {}
+    for w, chans in wheels_doc.items():
+        if w not in WHEEL_NAMES:
+            raise bad(f"wheel {w!r} not known{did_you_mean(w, list(WHEEL_NAMES))}; w1L .. w4R")
+        if not isinstance(chans, dict) or set(chans) != {"Y", "Q"}:
+            raise bad(f"wheels.{w}: needs exactly the keys Y and Q (channel names)")
+        for f, name in chans.items():
+            if not isinstance(name, str) or not name:
+                raise bad(f"wheels.{w}.{f}: a channel name (text) is needed")
+        wheels[w] = {"Y": chans["Y"], "Q": chans["Q"]}
+    signals = {}
+    for key in SIGNALS:
+        if key in doc:
+            if not isinstance(doc[key], str) or not doc[key]:
+                raise bad(f"{key}: a channel name (text) is needed")
+            signals[key] = doc[key]
+    if "speed" not in signals and "position" not in signals:
+        raise bad("neither speed nor position named; the sections need one of them")
+    ignore = doc.get("ignore", [])
+    if not isinstance(ignore, list) or not all(isinstance(c, str) for c in ignore):
+        raise bad("ignore: a list of channel names is needed")
+    units = doc.get("units", {})
+    if not isinstance(units, dict) or not all(isinstance(u, str) for u in units.values()):
+        raise bad('units: a table of channel = "unit" is needed')
+    for key in ("time", "recording"):
+        if key in doc and not isinstance(doc[key], str):
+            raise bad(f"{key}: text is needed")
+    used = [c for w in wheels.values() for c in w.values()] + list(signals.values())
+    twice = sorted({c for c in used if used.count(c) > 1})
+    if twice:
+        raise bad(f"channel {twice[0]!r} mapped to two quantities")
+    return ChannelMap(
+        wheels, signals, doc.get("time"), tuple(ignore), dict(units), doc.get("recording"), source
+    )
+
+
+_DOCUMENTED = {
+    "speed": "speed",
+    "distance": "position",
+    "position": "position",
+    "curvature": "curvature",
+    "cant": "cant",
+    "grade": "grade",
+}
+
+
+def default_map(headers: list[str]) -> ChannelMap:
+    """The map of a table with the documented column names (``Y_w1R_kN``, ``Y_w1R [N]``,
+    ``speed_kmh``, ``distance_m``, ``curvature_1_per_km``, ``cant_mm``, ``grade_permille``,
+    ``time_s``); columns it does not recognise are left for the caller to report."""
+    wheels: dict[str, dict[str, str]] = {}
+    signals: dict[str, str] = {}
+    time = None
+    for h in headers:
+        name, _ = split_header(h)
+        parts = name.split("_")
+        if len(parts) == 2 and parts[0] in ("Y", "Q") and parts[1] in WHEEL_NAMES:
+            wheels.setdefault(parts[1], {})[parts[0]] = h
+        elif name in ("time", "t"):
+            time = h
+        elif name in _DOCUMENTED:
+            signals[_DOCUMENTED[name]] = h
+    complete = {w: c for w, c in wheels.items() if set(c) == {"Y", "Q"}}
+    return ChannelMap(complete, signals, time, source="documented column names")

@@ -1,0 +1,163 @@
+"""Strict checks of recorded channels. Each check returns problem lines that name the
+channel and the row range (file lines for tables, sample indices for MDF), so that a
+recording is refused with every reason at once, never silently repaired.
+
+- non-finite values: ±inf (a sensor overflow) is refused; NaN gaps up to ``gap_limit``
+  samples are interpolated with a note, longer ones refused;
+- constant and all-zero channels (a dead bridge, an unplugged amplifier);
+- the time base: not strictly increasing, jitter of the sampling interval, mixed rates;
+- magnitudes: the median wheel load Q against the static wheel load of the wagon data (a
+  force in the wrong unit is 1000 times off), |Y| and Q beyond physical bounds.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: NaN gaps up to this many samples are interpolated (with a note); longer are refused
+MAX_GAP_SAMPLES = 5
+#: relative deviation of a sampling interval from the median that counts as jitter
+JITTER_TOLERANCE = 0.01
+#: the median Q must lie within these multiples of the static wheel load of the wagon data
+WHEEL_LOAD_BAND = (0.3, 3.0)
+#: a wheel load below minus this fraction of the static load is refused (noise aside, Q >= 0)
+NEGATIVE_Q_FRACTION = 0.02
+#: physical bounds for a 25 t axle-load wagon, N
+MAX_LATERAL_N = 300e3
+MAX_VERTICAL_N = 600e3
+
+
+def rows(i: int, j: int, first_row: int) -> str:
+    """Row range text of samples i..j (inclusive): file lines when ``first_row`` > 0
+    (tables: the header is line 1), sample indices for MDF."""
+    word = "rows" if first_row else "samples"
+    a, b = i + first_row, j + first_row
+    return f"{word} {a}-{b}" if b > a else f"{word[:-1]} {a}"
+
+
+def runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(start, end exclusive) of every run of True in ``mask``."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    return list(zip(edges[0::2].tolist(), edges[1::2].tolist(), strict=True))
+
+
+def check_finite(
+    x: np.ndarray, channel: str, first_row: int, gap_limit: int = MAX_GAP_SAMPLES
+) -> tuple[np.ndarray, list[str], list[str]]:
+    """(values with short NaN gaps interpolated, problems, notes)."""
+    problems: list[str] = []
+    inf = np.isinf(x)
+    for s, e in runs(inf)[:3]:
+        problems.append(f"channel {channel!r}, {rows(s, e - 1, first_row)}: infinite value(s)")
+    nan = np.isnan(x)
+    if nan.all():
+        return x, [f"channel {channel!r}: no finite value"], []
+    long = [(s, e) for s, e in runs(nan) if e - s > gap_limit]
+    for s, e in long[:3]:
+        problems.append(
+            f"channel {channel!r}, {rows(s, e - 1, first_row)}: gap of {e - s} missing "
+            f"samples, more than the {gap_limit} that are interpolated"
+        )
+    if problems or not nan.any():
+        return x, problems, []
+    idx = np.arange(x.size)
+    note = f"channel {channel!r}: {int(nan.sum())} missing sample(s) interpolated"
+    return np.interp(idx, idx[~nan], x[~nan]), [], [note]
+
+
+def check_flat(x: np.ndarray, channel: str) -> list[str]:
+    """A channel that never changes: all zero, or constant."""
+    finite = x[np.isfinite(x)]
+    if finite.size == 0:
+        return []
+    if np.all(finite == 0.0):
+        return [f"channel {channel!r}: all {finite.size} samples are zero (a dead channel)"]
+    if np.ptp(finite) == 0.0:
+        return [f"channel {channel!r}: constant at {finite[0]:.6g} over all samples"]
+    return []
+
+
+def check_time(t: np.ndarray, channel: str, first_row: int, min_samples: int = 10) -> list[str]:
+    """Time base of a channel: enough samples, finite, strictly increasing, one rate."""
+    if t.size < min_samples:
+        return [f"channel {channel!r}: {t.size} sample(s); at least {min_samples} are needed"]
+    bad_t = ~np.isfinite(t)
+    if bad_t.any():
+        s, e = runs(bad_t)[0]
+        return [f"channel {channel!r}, {rows(s, e - 1, first_row)}: time is not a number"]
+    d = np.diff(t)
+    back = np.flatnonzero(~(d > 0))
+    if back.size:
+        i = int(back[0])
+        return [
+            f"channel {channel!r}, {rows(i, i + 1, first_row)}: time not strictly increasing "
+            f"({back.size} place(s))"
+        ]
+    med = float(np.median(d))
+    off = np.abs(d / med - 1.0) > JITTER_TOLERANCE
+    if not off.any():
+        return []
+    s, e = runs(off)[0]
+    if d.max() / d.min() > 1.5:
+        fast, slow = 1.0 / d.min(), 1.0 / d.max()
+        return [
+            f"channel {channel!r}, {rows(s, e, first_row)}: mixed sampling rates "
+            f"({fast:.4g} Hz and {slow:.4g} Hz in one time base); resample before, or "
+            f"record one rate"
+        ]
+    return [
+        f"channel {channel!r}, {rows(s, e, first_row)}: sampling-interval jitter "
+        f"{100 * np.abs(d / med - 1).max():.2g} % of the {med:.4g} s interval, more than "
+        f"{100 * JITTER_TOLERANCE:g} % ({int(off.sum())} interval(s))"
+    ]
+
+
+def check_forces(
+    Y: np.ndarray,
+    Q: np.ndarray,
+    names: tuple[str, str],
+    units: tuple[str, str],
+    static_wheel_load_N: float,
+    first_row: int,
+) -> list[str]:
+    """Magnitudes of one wheel's Y and Q (N): the median Q against the static wheel load of
+    the wagon data (a unit the magnitude contradicts), and the physical bounds."""
+    problems = []
+    yname, qname = names
+    q = Q[np.isfinite(Q)]
+    if q.size and np.any(q != 0):
+        med = float(np.median(q))
+        low, high = WHEEL_LOAD_BAND
+        ratio = med / static_wheel_load_N
+        if not low <= ratio <= high:
+            hint = ""
+            for unit, f in (("N", 1.0), ("kN", 1e3), ("MN", 1e6)):
+                if low <= ratio * f / _factor(units[1]) <= high and f != _factor(units[1]):
+                    hint = f"; the values look like {unit}, not {units[1]}"
+            problems.append(
+                f"channel {qname!r}: median wheel load {med / 1e3:.4g} kN (read as "
+                f"{units[1]}) against the static wheel load {static_wheel_load_N / 1e3:.4g} kN "
+                f"of the wagon data: outside {low:g}-{high:g} times it{hint}"
+            )
+            return problems  # bounds on a wrongly scaled channel say nothing more
+        neg = Q < -NEGATIVE_Q_FRACTION * static_wheel_load_N
+        if neg.any():
+            s, e = runs(neg)[0]
+            problems.append(
+                f"channel {qname!r}, {rows(s, e - 1, first_row)}: negative wheel load "
+                f"{np.min(Q[s:e]) / 1e3:.4g} kN"
+            )
+    for x, name, bound in ((Y, yname, MAX_LATERAL_N), (Q, qname, MAX_VERTICAL_N)):
+        over = np.abs(x) > bound
+        if over.any():
+            s, e = runs(over)[0]
+            problems.append(
+                f"channel {name!r}, {rows(s, e - 1, first_row)}: |force| up to "
+                f"{np.nanmax(np.abs(x[s:e])) / 1e3:.4g} kN beyond the physical bound "
+                f"{bound / 1e3:g} kN"
+            )
+    return problems
+
+
+def _factor(unit: str) -> float:
+    return {"N": 1.0, "kN": 1e3, "MN": 1e6, "daN": 10.0}.get(unit, 1.0)

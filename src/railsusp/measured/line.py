@@ -1,0 +1,78 @@
+"""Where a run's track comes from when not from its own channels: a line description (km
+posts with radius, cant and grade) or a table of sections the user gives."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from railsusp.errors import RailsuspInputError
+
+#: a section name, which becomes a file name: no path separators, no leading dot
+SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,59}")
+
+
+def geometry_from_line(position_m: np.ndarray, line: pd.DataFrame) -> dict[str, np.ndarray]:
+    """Curvature (1/m, + left), cant (m) and grade (1) under each position from a line
+    description with columns ``km_start, km_end, radius_m, cant_mm, grade_permille`` and
+    optional ``direction`` (left/right); radius 0 or empty is tangent. Positions outside
+    every row are NaN."""
+    curv = np.full(position_m.shape, np.nan)
+    cant = np.full(position_m.shape, np.nan)
+    grade = np.full(position_m.shape, np.nan)
+    for r in line.itertuples(index=False):
+        inside = (position_m >= r.km_start * 1e3) & (position_m < r.km_end * 1e3)
+        radius = float(r.radius_m) if np.isfinite(r.radius_m) else 0.0
+        sign = -1.0 if str(getattr(r, "direction", "left")).strip().lower() == "right" else 1.0
+        curv[inside] = sign / radius if radius > 0 else 0.0
+        cant[inside] = (r.cant_mm if np.isfinite(r.cant_mm) else 0.0) * 1e-3
+        grade[inside] = (r.grade_permille if np.isfinite(r.grade_permille) else 0.0) * 1e-3
+    return {"curvature": curv, "cant": cant, "grade": grade}
+
+
+def read_line(path: str | Path) -> pd.DataFrame:
+    """A line description CSV (see :func:`geometry_from_line`), checked."""
+    need = ["km_start", "km_end", "radius_m", "cant_mm", "grade_permille"]
+    df = _read_csv(path, need)
+    if (df.km_end <= df.km_start).any():
+        i = int(np.flatnonzero((df.km_end <= df.km_start).to_numpy())[0])
+        raise RailsuspInputError(f"line description {path}, row {i + 2}: km_end <= km_start")
+    return df
+
+
+def read_section_table(path: str | Path) -> pd.DataFrame:
+    """A user section table CSV: ``start_m, end_m`` and optional ``name``, checked. Names
+    become file names, so they must be plain: letters, digits, ``.``, ``_``, ``-``."""
+    df = _read_csv(path, ["start_m", "end_m"])
+    if "name" in df:
+        for i, name in enumerate(df["name"].astype(str)):
+            if not SAFE_NAME.fullmatch(name):
+                raise RailsuspInputError(
+                    f"section table {path}, row {i + 2}: name {name!r}: accepted 1-60 "
+                    "letters, digits, '.', '_', '-', starting with a letter or digit"
+                )
+    if (df.end_m <= df.start_m).any():
+        i = int(np.flatnonzero((df.end_m <= df.start_m).to_numpy())[0])
+        raise RailsuspInputError(f"section table {path}, row {i + 2}: end_m <= start_m")
+    return df
+
+
+def _read_csv(path: str | Path, need: list[str]) -> pd.DataFrame:
+    try:
+        df = pd.read_csv(path, skipinitialspace=True)
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise RailsuspInputError(f"{path}: cannot read the table ({exc})") from None
+    missing = [c for c in need if c not in df.columns]
+    if missing or df.empty:
+        raise RailsuspInputError(f"{path}: columns {need} with at least one row needed")
+    for c in need:
+        vals = pd.to_numeric(df[c], errors="coerce")
+        bad = vals.isna() & df[c].notna()
+        if bad.any():
+            i = int(np.flatnonzero(bad.to_numpy())[0])
+            raise RailsuspInputError(f"{path}, row {i + 2}: {c} = {df[c].iloc[i]!r} not a number")
+        df[c] = vals
+    return df

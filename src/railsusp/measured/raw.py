@@ -1,0 +1,133 @@
+"""Raw recordings as the measurement system wrote them: every channel with the name, unit,
+time base and sampling rate the file states. ASAM MDF4 (``.mf4``/``.mdf``) through asammdf;
+CSV and Parquet tables with unit-aware headers (``Y_kN``, ``Y [N]``, ``Y (kN)``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from railsusp.errors import RailsuspInputError
+from railsusp.measured.units import split_header
+
+MDF_SUFFIXES = (".mf4", ".mdf", ".dat")
+TABLE_SUFFIXES = (".csv", ".parquet")
+
+
+@dataclass
+class RawChannel:
+    """One recorded channel: samples on its own time base, with the unit the file states."""
+
+    name: str
+    unit: str | None
+    time: np.ndarray
+    values: np.ndarray
+    first_row: int = 2  # the file line (tables) of the first sample, for messages
+
+    @property
+    def rate_hz(self) -> float:
+        """Median sampling rate, Hz (NaN for fewer than two samples)."""
+        d = np.diff(self.time)
+        d = d[np.isfinite(d)]
+        return float(1.0 / np.median(d)) if d.size and np.median(d) > 0 else float("nan")
+
+
+def read_raw(path: str | Path, time_column: str | None = None) -> dict[str, RawChannel]:
+    """Every channel of a recording, by name; errors name the file and what is wrong."""
+    path = Path(path)
+    if not path.is_file():
+        raise RailsuspInputError(f"recording {path}: no such file")
+    suffix = path.suffix.lower()
+    if suffix in MDF_SUFFIXES:
+        return _read_mdf(path)
+    if suffix in TABLE_SUFFIXES:
+        return _read_table(path, time_column)
+    raise RailsuspInputError(
+        f"recording {path}: suffix {path.suffix!r} not read; accepted "
+        f"{', '.join(MDF_SUFFIXES + TABLE_SUFFIXES)}"
+    )
+
+
+def _read_mdf(path: Path) -> dict[str, RawChannel]:
+    """Channels of an MDF file, each on its own group's time base (as the file states it)."""
+    from asammdf import MDF
+
+    try:
+        mdf = MDF(str(path))
+    except Exception as exc:  # asammdf raises many types on a damaged file
+        raise RailsuspInputError(f"recording {path}: not a readable MDF file ({exc})") from None
+    out: dict[str, RawChannel] = {}
+    try:
+        for sig in mdf.iter_channels(skip_master=True):
+            if sig.samples.dtype.kind not in "fiub" or sig.samples.ndim != 1:
+                continue  # text, byte-array and composed channels carry no measured value
+            if sig.name in out:
+                raise RailsuspInputError(
+                    f"recording {path}: channel {sig.name!r} appears in two groups; "
+                    "rename one in the channel map's source"
+                )
+            out[sig.name] = RawChannel(
+                sig.name,
+                sig.unit or None,
+                np.asarray(sig.timestamps, dtype=float),
+                np.asarray(sig.samples, dtype=float),
+                first_row=0,
+            )
+    except RailsuspInputError:
+        raise
+    except Exception as exc:
+        raise RailsuspInputError(f"recording {path}: cannot read its channels ({exc})") from None
+    finally:
+        mdf.close()
+    if not out:
+        raise RailsuspInputError(f"recording {path}: no numeric channel in the file")
+    return out
+
+
+def _read_table(path: Path, time_column: str | None) -> dict[str, RawChannel]:
+    """Channels of a CSV/Parquet table sharing its time column (``time_s``, ``t [s]``, ...)."""
+    try:
+        if path.suffix.lower() == ".parquet":
+            df = pd.read_parquet(path)
+        else:
+            df = pd.read_csv(path, dtype=str, keep_default_na=False, encoding="utf-8")
+    except UnicodeDecodeError:
+        raise RailsuspInputError(f"recording {path}: not UTF-8 text") from None
+    except Exception as exc:
+        raise RailsuspInputError(
+            f"recording {path}: cannot read the table "
+            f"({(str(exc).splitlines() or [type(exc).__name__])[0]})"
+        ) from None
+    cols = [str(c) for c in df.columns]
+    tcol = time_column
+    if tcol is None:
+        tcol = next((c for c in cols if split_header(c)[0] in ("time", "t")), None)
+    if tcol is None or tcol not in cols:
+        raise RailsuspInputError(
+            f"recording {path}: no time column ({tcol or 'time_s, time [s]'}); columns {cols}"
+        )
+    values = {c: _numeric(df[c], path, c) for c in cols}
+    tunit = split_header(tcol)[1]
+    t = values[tcol] * (1e-3 if tunit == "ms" else 1.0)
+    return {c: RawChannel(c, split_header(c)[1], t, v) for c, v in values.items() if c != tcol}
+
+
+def _numeric(raw: pd.Series, path: Path, col: str) -> np.ndarray:
+    """A column as floats; empty or ``nan`` cells are NaN, other text is an error naming
+    the row (file line)."""
+    if raw.dtype.kind in "fiub":
+        return raw.to_numpy(dtype=float)
+    text = raw.astype(str).str.strip()
+    vals = pd.to_numeric(text.replace("", "nan"), errors="coerce")
+    bad = vals.isna() & ~text.str.lower().isin(["", "nan"])
+    if bad.any():
+        i = int(np.flatnonzero(bad.to_numpy())[0])
+        raise RailsuspInputError(
+            f"recording {path}: column {col!r}, row {i + 2}: {raw.iloc[i]!r} is not a number"
+            f" ({int(bad.sum())} such cell(s))"
+        )
+    return vals.to_numpy(dtype=float)

@@ -1,0 +1,300 @@
+"""The field folder: recordings in the documented format (one working condition each),
+listed in ``index.json``, each a table and a JSON sidecar. The reader checks every
+recording strictly (:mod:`railsusp.measured.checks`) and reports every problem of a file
+at once, naming file, column and rows; every path a file names must lie inside its folder.
+"""
+
+from __future__ import annotations
+
+import json
+import typing
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from railsusp.conditions import WorkingCondition, get_condition, make_condition
+from railsusp.errors import RailsuspInputError, did_you_mean
+from railsusp.measured.channels import default_map
+from railsusp.measured.checks import (
+    check_finite,
+    check_flat,
+    check_forces,
+    check_time,
+)
+from railsusp.measured.raw import read_raw
+from railsusp.measured.recording import FORMAT, Recording, RecordingError
+from railsusp.measured.units import si_factor, split_header
+from railsusp.vehicle.layout import WHEEL_NAMES
+from railsusp.vehicle.track import read_track_geometry
+
+#: relative disagreement of a sidecar's sampling rate with the data's that is refused
+RATE_TOLERANCE = 0.01
+
+_DOCUMENTED = [
+    "time_s",
+    "distance_m",
+    "speed_kmh",
+    "curvature_1_per_km",
+    "cant_mm",
+    "grade_permille",
+    *(f"{f}_{w}_kN" for w in WHEEL_NAMES for f in ("Y", "Q")),
+]
+
+
+def inside(folder: Path, name: Any, what: str) -> Path:
+    """``folder / name`` when ``name`` is a relative path that stays inside ``folder``;
+    otherwise an error naming ``what`` (a data file must not reach outside its folder)."""
+    if not isinstance(name, str) or not name:
+        raise RailsuspInputError(f"{what}: {name!r} is not a file name")
+    root = folder.resolve()
+    target = (root / name).resolve()
+    if Path(name).is_absolute() or not target.is_relative_to(root):
+        raise RailsuspInputError(
+            f"{what}: {name!r} lies outside the folder {folder}; name a file inside it"
+        )
+    return target
+
+
+def read_recording(
+    path: str | Path, *, min_rate_hz: float = 50.0, wheel_load_N: float | None = None
+) -> Recording:
+    """Read and check a recording of the field-folder format; raise
+    :class:`RecordingError` listing every problem (file, column, rows).
+
+    Checks: sidecar present, a JSON object of this format, condition valid (numbers as
+    numbers), sampling rate and wheels as the data show them; table readable with at
+    least 10 rows; columns documented (close misspellings pointed out; other extra columns
+    are noted and left unused); time strictly increasing without jitter or mixed rates, at
+    least ``min_rate_hz``; forces in the unit their header states (``Y_w1R_kN``,
+    ``Y_w1R [N]``); non-finite values (±inf refused, NaN gaps over 5 samples refused,
+    shorter ones interpolated with a warning); all-zero or constant force channels; median
+    wheel load against the wagon's static wheel load; physical bounds."""
+    from railsusp.measured.run import static_wheel_load
+
+    path = Path(path)
+    table_path = next(
+        (
+            p
+            for p in (path, path.with_suffix(".csv"), path.with_suffix(".parquet"))
+            if p.is_file() and p.suffix in (".csv", ".parquet")
+        ),
+        None,
+    )
+    if table_path is None:
+        raise RecordingError(path, ["no .csv or .parquet table found"])
+    problems: list[str] = []
+    notes: list[str] = []
+    meta = _read_sidecar(table_path.with_suffix(".json"), problems)
+    try:
+        raw = _raw(table_path)
+    except RailsuspInputError as exc:
+        raise RecordingError(
+            table_path, [*problems, str(exc).removeprefix(f"recording {table_path}: ")]
+        ) from None
+    cols = list(raw)
+    cmap = default_map([*cols, "time_s"])
+    for c in cols:
+        base = split_header(c)[0]
+        if c in cmap.used() or base in ("distance", "speed", "curvature", "cant", "grade"):
+            continue
+        hint = did_you_mean(c, _DOCUMENTED)
+        if hint or base.startswith(("Y_", "Q_")):
+            problems.append(f"column {c!r} not recognised{hint}")
+        else:
+            notes.append(f"column {c!r} not used")
+    t = next(iter(raw.values())).time if raw else np.zeros(0)
+    time_problems = check_time(t, "time_s", 2)
+    problems += time_problems
+    if not time_problems and 1.0 / np.median(np.diff(t)) < min_rate_hz * (1.0 - 1e-6):
+        problems.append(
+            f"sampling rate {1.0 / np.median(np.diff(t)):.4g} Hz below the "
+            f"{min_rate_hz:g} Hz the pipeline needs"
+        )
+    half = sorted(
+        {split_header(h)[0][2:] for h in cols if h[:2] in ("Y_", "Q_")} - set(cmap.wheels)
+    )
+    half = [w for w in half if w in WHEEL_NAMES]
+    for w in half:
+        have = {split_header(h)[0][0] for h in cols if split_header(h)[0][2:] == w}
+        for f in sorted({"Y", "Q"} - have):
+            problems.append(f"wheel {w}: column '{f}_{w}_kN' missing")
+    if not cmap.wheels and not half:
+        problems.append("no force columns (Y_<wheel>_kN, Q_<wheel>_kN, wheel w1L..w4R)")
+    Y: dict[str, np.ndarray] = {}
+    Q: dict[str, np.ndarray] = {}
+    wl = static_wheel_load() if wheel_load_N is None else wheel_load_N
+    for w, chans in cmap.wheels.items():
+        si = {}
+        for f, col in chans.items():
+            ch = raw[col]
+            try:
+                factor = si_factor("force", ch.unit, col)
+            except RailsuspInputError as exc:
+                problems.append(str(exc).replace("channel", "column", 1))
+                continue
+            x, p, n = check_finite(ch.values, col, 2)
+            problems += p
+            notes += n
+            problems += check_flat(x, col)
+            si[f] = x * factor
+        if len(si) == 2:
+            units = (raw[chans["Y"]].unit or "", raw[chans["Q"]].unit or "")
+            problems += check_forces(si["Y"], si["Q"], (chans["Y"], chans["Q"]), units, wl, 2)
+            Y[w], Q[w] = si["Y"] / 1e3, si["Q"] / 1e3
+    problems = [p.replace("channel '", "column '") for p in problems]
+    if meta and not time_problems and t.size > 1:
+        stated = meta.get("sampling_rate_hz")
+        rate = 1.0 / float(np.median(np.diff(t)))
+        if isinstance(stated, bool) or not isinstance(stated, (int, float, type(None))):
+            problems.append(f"sidecar sampling_rate_hz: {stated!r} is not a number")
+        elif stated is not None and abs(stated / rate - 1.0) > RATE_TOLERANCE:
+            problems.append(
+                f"sidecar sampling_rate_hz {stated:g} Hz, the time column {rate:.6g} Hz"
+            )
+        side_wheels = meta.get("wheels")
+        if isinstance(side_wheels, list) and cmap.wheels and side_wheels != list(cmap.wheels):
+            problems.append(
+                f"sidecar wheels {side_wheels}, the table's force columns {list(cmap.wheels)}"
+            )
+    condition = _condition(meta, table_path, problems) if meta else None
+    if problems:
+        raise RecordingError(table_path, problems)
+    for note in notes:
+        warnings.warn(f"{table_path.name}: {note}", stacklevel=2)
+    extra = {k: v for k, v in meta.items() if k not in ("format", "condition", "wheels")}
+    return Recording(np.asarray(t), Y, Q, condition, extra)  # type: ignore[arg-type]
+
+
+def _raw(table_path: Path):
+    """The table's channels on its ``time_s`` column, or on ``distance_m`` over the speed."""
+    import pandas as pd
+
+    try:
+        if table_path.suffix == ".csv":
+            cols = [str(c) for c in pd.read_csv(table_path, nrows=0, encoding="utf-8").columns]
+        else:
+            cols = [str(c) for c in pd.read_parquet(table_path).columns]
+    except Exception as exc:  # pandas and pyarrow raise many types on a damaged file
+        raise RailsuspInputError(
+            f"recording {table_path}: cannot read the table "
+            f"({(str(exc).splitlines() or [type(exc).__name__])[0]})"
+        ) from None
+    if "time_s" in cols or "distance_m" not in cols:
+        return read_raw(table_path, "time_s" if "time_s" in cols else None)
+    raw = read_raw(table_path, "distance_m")
+    speed = raw.get("speed_kmh")
+    if speed is None:
+        raise RailsuspInputError(
+            f"recording {table_path}: distance_m without a speed_kmh column; give time_s"
+        )
+    t = speed.time / (speed.values / 3.6)
+    for ch in raw.values():
+        ch.time = t
+    return raw
+
+
+def _read_sidecar(side: Path, problems: list[str]) -> dict[str, Any]:
+    """The sidecar as a dict (empty, with a problem, when missing or not a JSON object)."""
+    if not side.is_file():
+        problems.append(f"metadata sidecar {side.name} missing")
+        return {}
+    try:
+        meta = json.loads(side.read_text("utf-8"))
+    except UnicodeDecodeError:
+        problems.append(f"{side.name}: not UTF-8 text")
+        return {}
+    except json.JSONDecodeError as exc:
+        problems.append(f"{side.name}: not valid JSON ({exc.msg}, line {exc.lineno})")
+        return {}
+    if not isinstance(meta, dict):
+        problems.append(
+            f"{side.name}: a JSON object {{...}} is needed, not a {type(meta).__name__}"
+        )
+        return {}
+    if meta.get("format") != FORMAT:
+        problems.append(f"{side.name}: format {meta.get('format')!r}, expected {FORMAT!r}")
+    return meta
+
+
+_NUMERIC = {
+    name
+    for name, f in WorkingCondition.model_fields.items()
+    if {int, float} & set(typing.get_args(f.annotation) or (f.annotation,))
+}
+
+
+def _condition(
+    meta: dict[str, Any], table_path: Path, problems: list[str]
+) -> WorkingCondition | None:
+    """The sidecar's working condition (numbers must be JSON numbers), its track geometry
+    resolved inside the recording's folder."""
+    side = table_path.with_suffix(".json").name
+    cdoc = meta.get("condition")
+    try:
+        if isinstance(cdoc, dict):
+            for key, value in cdoc.items():
+                if key in _NUMERIC and (isinstance(value, (str, bool))):
+                    problems.append(
+                        f"{side}: condition.{key} = {value!r} is {type(value).__name__}; "
+                        "a JSON number is needed"
+                    )
+                    return None
+            condition = make_condition(cdoc)
+        elif isinstance(meta.get("condition_name"), str):
+            condition = get_condition(meta["condition_name"])
+        else:
+            problems.append(f"{side}: no 'condition' table or 'condition_name'")
+            return None
+    except RailsuspInputError as exc:
+        problems.append(f"{side}: {exc}")
+        return None
+    if condition.track_geometry is None:
+        return condition
+    try:
+        geo = inside(table_path.parent, condition.track_geometry, f"{side}: track_geometry")
+        read_track_geometry(geo)
+    except RailsuspInputError as exc:
+        problems.append(str(exc) if str(exc).startswith(side) else f"{side}: track_geometry: {exc}")
+        return None
+    return condition.with_changes(track_geometry=str(geo))
+
+
+def read_index(folder: str | Path) -> list[Path]:
+    """The recordings a field folder's ``index.json`` lists, each inside the folder."""
+    folder = Path(folder)
+    index = folder / "index.json"
+    if not index.is_file():
+        raise RailsuspInputError(f"{folder}: no index.json listing the recordings")
+    try:
+        doc = json.loads(index.read_text("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise RailsuspInputError(f"{index}: not valid JSON ({exc})") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("recordings"), list):
+        raise RailsuspInputError(
+            f'{index}: a JSON object with a "recordings" list of file names is needed'
+        )
+    if not doc["recordings"]:
+        raise RailsuspInputError(f"{index}: the recordings list is empty")
+    return [inside(folder, n, f"{index} recordings") for n in doc["recordings"]]
+
+
+def read_field(folder: str | Path) -> list[Recording]:
+    """All recordings listed in a field folder's ``index.json`` (never ``truth.json``)."""
+    return [read_recording(p) for p in read_index(folder)]
+
+
+def conditions_from(spec: str) -> list[WorkingCondition]:
+    """Conditions named by ``spec``: standard names or a TOML file (as
+    :func:`~railsusp.conditions.resolve_conditions`), or a field folder (``index.json``), whose
+    recordings' conditions are taken with their measured track geometry, so that a campaign
+    can run on the track the recordings were made on."""
+    from railsusp.conditions import resolve_conditions
+
+    folder = Path(spec)
+    if folder.is_dir():
+        if not (folder / "index.json").is_file():
+            raise RailsuspInputError(f"conditions {spec!r}: a folder without index.json")
+        return [rec.condition for rec in read_field(folder)]
+    return resolve_conditions(spec)

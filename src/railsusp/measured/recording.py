@@ -1,0 +1,112 @@
+"""Measured wheel-rail force recordings of one working condition each: the
+:class:`Recording` (time, kN forces per wheel, its condition) and its documented file
+format (docs/data-format.md): a table ``NAME.csv`` or ``NAME.parquet`` with ``time_s`` and
+``Y_<wheel>_kN`` / ``Q_<wheel>_kN`` columns, and a JSON sidecar ``NAME.json``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from scipy.signal import resample_poly
+
+from railsusp.conditions import WorkingCondition
+from railsusp.errors import RailsuspInputError
+from railsusp.store import write_json, write_parquet
+
+FORMAT = "railsusp-recording/1"
+
+
+class RecordingError(RailsuspInputError):
+    """A recording that cannot be used; ``problems`` lists every issue found."""
+
+    def __init__(self, path: str | Path, problems: list[str]):
+        self.path = str(path)
+        self.problems = problems
+        super().__init__(f"{path}: {len(problems)} problem(s): " + "; ".join(problems))
+
+
+class SimulationFailedError(RailsuspInputError):
+    """A simulation that a recording was to be made of stopped (see its reason)."""
+
+
+@dataclass
+class Recording:
+    """One instrumented-wheelset recording in one working condition (SI time, kN forces)."""
+
+    time: np.ndarray
+    Y: dict[str, np.ndarray]
+    Q: dict[str, np.ndarray]
+    condition: WorkingCondition
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def wheels(self) -> tuple[str, ...]:
+        return tuple(self.Y)
+
+    @property
+    def sampling_rate(self) -> float:
+        return 1.0 / float(np.median(np.diff(self.time)))
+
+    def forces(self) -> np.ndarray:
+        """(T, 2) lateral and vertical force of the first measured wheel, kN."""
+        w = self.wheels[0]
+        return np.stack([self.Y[w], self.Q[w]], axis=1)
+
+    def to_dataframe(self) -> pd.DataFrame:
+        cols = {"time_s": self.time}
+        for w in self.wheels:
+            cols[f"Y_{w}_kN"] = self.Y[w]
+            cols[f"Q_{w}_kN"] = self.Q[w]
+        return pd.DataFrame(cols)
+
+    def write(self, path: str | Path, fmt: str = "csv") -> Path:
+        """Write ``NAME.csv`` (or ``.parquet``) and the ``NAME.json`` sidecar atomically."""
+        path = Path(path)
+        stem = path.with_suffix("")
+        meta = {
+            "format": FORMAT,
+            "wheels": list(self.wheels),
+            "sampling_rate_hz": self.sampling_rate,
+            "condition": self.condition.model_dump(),
+            **self.meta,
+        }
+        if fmt == "parquet":
+            table_path = write_parquet(stem.with_suffix(".parquet"), self.to_dataframe())
+        elif fmt == "csv":
+            table_path = stem.with_suffix(".csv")
+            from railsusp.store import atomic_write_bytes
+
+            atomic_write_bytes(
+                table_path, self.to_dataframe().to_csv(index=False, float_format="%.6g").encode()
+            )
+        else:
+            raise ValueError(f"format {fmt!r}: accepted csv or parquet")
+        write_json(stem.with_suffix(".json"), meta)
+        return table_path
+
+    def resampled(self, rate_hz: float) -> Recording:
+        """The recording at another rate: zero-phase anti-alias filter, polyphase resampling
+        (scipy ``resample_poly``) on a uniform time base."""
+        from fractions import Fraction
+
+        src = self.sampling_rate
+        frac = Fraction(rate_hz / src).limit_denominator(1000)
+        up, down = frac.numerator, frac.denominator
+
+        def conv(x):
+            return resample_poly(x, up, down, padtype="line")
+
+        n = len(conv(self.time * 0.0))
+        t = self.time[0] + np.arange(n) / rate_hz
+        return Recording(
+            t,
+            {w: conv(v) for w, v in self.Y.items()},
+            {w: conv(v) for w, v in self.Q.items()},
+            self.condition,
+            {**self.meta, "resampled_from_hz": src},
+        )

@@ -1,0 +1,219 @@
+"""A measured run: a long recording read through its channel map into SI channels on one
+time base, every check passed. The sections (:mod:`railsusp.measured.sections`) are cut
+from it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from railsusp.errors import RailsuspInputError, did_you_mean
+from railsusp.measured.channels import SIGNALS, ChannelMap, default_map
+from railsusp.measured.checks import (
+    MAX_GAP_SAMPLES,
+    check_finite,
+    check_flat,
+    check_forces,
+    check_time,
+)
+from railsusp.measured.raw import RawChannel, read_raw
+from railsusp.measured.recording import RecordingError
+from railsusp.measured.units import normalise_unit, si_factor
+
+#: a force channel slower than this fraction of the fastest is refused, not interpolated
+MIN_FORCE_RATE_FRACTION = 0.1
+
+
+@dataclass
+class MeasuredRun:
+    """One run along the line, SI units on one uniform time base."""
+
+    source: str
+    time: np.ndarray  # s
+    Y: dict[str, np.ndarray]  # wheel -> N
+    Q: dict[str, np.ndarray]  # wheel -> N
+    speed: np.ndarray  # m/s
+    position: np.ndarray  # m along the line
+    curvature: np.ndarray | None = None  # 1/m, + left-hand
+    cant: np.ndarray | None = None  # m
+    grade: np.ndarray | None = None  # 1 (m/m), + up-grade
+    rates_hz: dict[str, float] = field(default_factory=dict)  # as the file states them
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def rate_hz(self) -> float:
+        return float(1.0 / np.median(np.diff(self.time)))
+
+    @property
+    def wheels(self) -> tuple[str, ...]:
+        return tuple(self.Y)
+
+
+def static_wheel_load(wagon_path: str | Path | None = None) -> float:
+    """Static wheel load (N) of the wagon data: total weight over 8 wheels."""
+    from railsusp.vehicle.setup import _static_wheel_load
+    from railsusp.vehicle.wagon import load_wagon
+
+    return _static_wheel_load(load_wagon(wagon_path) if wagon_path else load_wagon())
+
+
+def read_run(
+    path: str | Path,
+    channel_map: ChannelMap | None = None,
+    *,
+    gap_limit: int = MAX_GAP_SAMPLES,
+    wheel_load_N: float | None = None,
+) -> MeasuredRun:
+    """Read a recording (MDF4, CSV, Parquet) through its channel map; raise
+    :class:`RecordingError` listing every problem (file, channel, rows)."""
+    path = Path(path)
+    try:
+        raw = read_raw(path, channel_map.time if channel_map else None)
+    except RailsuspInputError as exc:
+        raise RecordingError(path, [str(exc).removeprefix(f"recording {path}: ")]) from None
+    cmap = channel_map or default_map(list(raw))
+    problems: list[str] = []
+    notes: list[str] = []
+    missing = [c for c in cmap.used() if c not in raw]
+    for c in missing:
+        problems.append(
+            f"channel {c!r} of the {cmap.source} not in the file{did_you_mean(c, list(raw))}"
+        )
+    if not cmap.wheels:
+        problems.append(
+            "no wheel force channels: give a channel map (--map) or name the columns "
+            "Y_<wheel>_kN and Q_<wheel>_kN"
+        )
+    if "speed" not in cmap.signals and "position" not in cmap.signals:
+        problems.append("neither a speed nor a position channel (speed_kmh, distance_m)")
+    unused = [c for c in raw if c not in cmap.used() and c not in cmap.ignore]
+    if unused:
+        notes.append(f"channel(s) not used: {', '.join(unused)}")
+    if problems:
+        raise RecordingError(path, problems)
+
+    quantity = {c: "force" for w in cmap.wheels.values() for c in w.values()}
+    quantity.update({c: SIGNALS[k] for k, c in cmap.signals.items()})
+    si: dict[str, RawChannel] = {}
+    for name, q in quantity.items():
+        ch = raw[name]
+        unit = _unit(ch, cmap, problems)
+        try:
+            factor = si_factor(q, unit, name)
+        except RailsuspInputError as exc:
+            problems.append(str(exc))
+            continue
+        time_problems = check_time(ch.time, name, ch.first_row)
+        problems += time_problems
+        values, finite_problems, finite_notes = check_finite(
+            ch.values, name, ch.first_row, gap_limit
+        )
+        problems += finite_problems
+        notes += finite_notes
+        if q == "force":
+            problems += check_flat(values, name)
+        if not time_problems and not finite_problems:
+            si[name] = RawChannel(
+                name, normalise_unit(unit), ch.time, values * factor, ch.first_row
+            )
+    if problems:
+        raise RecordingError(path, problems)
+
+    force_names = [c for w in cmap.wheels.values() for c in w.values()]
+    base = max(force_names, key=lambda c: si[c].rate_hz)
+    t = si[base].time
+    rates = {c: si[c].rate_hz for c in quantity}
+    for c in quantity:
+        ch = si[c]
+        if c in force_names and ch.rate_hz < MIN_FORCE_RATE_FRACTION * rates[base]:
+            problems.append(
+                f"channel {c!r}: {ch.rate_hz:.4g} Hz against {rates[base]:.4g} Hz of "
+                f"{base!r}: force channels at mixed rates beyond interpolation"
+            )
+        tol = 1.0 / ch.rate_hz
+        if ch.time[0] > t[0] + tol or ch.time[-1] < t[-1] - tol:
+            problems.append(
+                f"channel {c!r}: covers {ch.time[0]:.3f}-{ch.time[-1]:.3f} s, not the "
+                f"{t[0]:.3f}-{t[-1]:.3f} s of the forces"
+            )
+    if problems:
+        raise RecordingError(path, problems)
+
+    def on_base(c: str) -> np.ndarray:
+        ch = si[c]
+        if ch.time.size == t.size and np.allclose(ch.time, t, rtol=0, atol=1e-9):
+            return ch.values
+        notes.append(f"channel {c!r} ({ch.rate_hz:.4g} Hz) interpolated onto {rates[base]:.4g} Hz")
+        return np.interp(t, ch.time, ch.values)
+
+    Y = {w: on_base(c["Y"]) for w, c in cmap.wheels.items()}
+    Q = {w: on_base(c["Q"]) for w, c in cmap.wheels.items()}
+    sig = {k: on_base(c) for k, c in cmap.signals.items()}
+    if "speed" in sig:
+        speed = sig["speed"]
+        position = sig.get("position")
+        if position is None:
+            position = np.concatenate(
+                [[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(t))]
+            )
+    else:
+        position = sig["position"]
+        speed = _smoothed_gradient(position, t)
+    if np.nanmedian(np.abs(speed)) < 0.5:
+        problems.append(
+            f"channel {cmap.signals.get('speed', cmap.signals.get('position'))!r}: median "
+            f"speed {np.median(np.abs(speed)) * 3.6:.3g} km/h; the wagon does not run"
+        )
+    elif np.max(np.abs(speed)) > 100.0:
+        problems.append(
+            f"channel {cmap.signals.get('speed')!r}: speed up to {np.max(speed) * 3.6:.4g} km/h "
+            f"(read as {si.get(cmap.signals.get('speed', ''), si[base]).unit}): a unit error?"
+        )
+    wl = static_wheel_load() if wheel_load_N is None else wheel_load_N
+    for w, c in cmap.wheels.items():
+        problems += check_forces(
+            Y[w],
+            Q[w],
+            (c["Y"], c["Q"]),
+            (si[c["Y"]].unit or "", si[c["Q"]].unit or ""),
+            wl,
+            si[c["Q"]].first_row,
+        )
+    if problems:
+        raise RecordingError(path, problems)
+    return MeasuredRun(
+        str(path),
+        t,
+        Y,
+        Q,
+        np.abs(speed),
+        position,
+        sig.get("curvature"),
+        sig.get("cant"),
+        sig.get("grade"),
+        rates,
+        notes,
+    )
+
+
+def _unit(ch: RawChannel, cmap: ChannelMap, problems: list[str]) -> str | None:
+    """The channel's unit: the file's; the map's where the file states none; a map unit
+    that contradicts the file's is a problem."""
+    mapped = cmap.units.get(ch.name)
+    if mapped and ch.unit and normalise_unit(mapped) != normalise_unit(ch.unit):
+        problems.append(
+            f"channel {ch.name!r}: the file states unit {ch.unit!r}, the channel map {mapped!r}"
+        )
+    return ch.unit or mapped
+
+
+def _smoothed_gradient(x: np.ndarray, t: np.ndarray, window_s: float = 1.0) -> np.ndarray:
+    """dx/dt over a centred window of about ``window_s`` (position channels step)."""
+    dt = float(np.median(np.diff(t)))
+    k = max(1, round(window_s / dt / 2))
+    idx = np.arange(x.size)
+    lo, hi = np.clip(idx - k, 0, x.size - 1), np.clip(idx + k, 0, x.size - 1)
+    return (x[hi] - x[lo]) / (t[hi] - t[lo])

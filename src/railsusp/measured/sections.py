@@ -1,0 +1,294 @@
+"""A long run cut into sections of one working condition each.
+
+A section is a stretch of one kind of track (tangent, or a curve whose radius lies in one
+band, on one band of grade) run at about one speed. The track comes from the run's
+curvature/cant/grade channels, or from its position against a line description (a table of
+km posts with radius, cant, grade), or the user gives the sections as a table of positions.
+Every section's speed is the recording's; a stretch whose speed varies by more than the
+tolerance is split into pieces that hold it, and pieces (and transitions between kinds)
+shorter than the minimum length are left out with the reason. The kept sections become
+the recordings of a field folder (:func:`write_sections`) that the estimation reads.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import pandas as pd
+
+from railsusp.conditions import WorkingCondition, make_condition
+from railsusp.errors import RailsuspInputError
+from railsusp.measured.line import (  # noqa: F401  (the sources of a cut, with it)
+    geometry_from_line,
+    read_line,
+    read_section_table,
+)
+from railsusp.measured.run import MeasuredRun
+
+
+@dataclass(frozen=True)
+class SectionRules:
+    """How a run is cut. Radii are banded by ``radius_edges_m`` (a curve of 550 m and one
+    of 580 m are one condition); curvature below 1/``tangent_radius_m`` is tangent."""
+
+    radius_edges_m: tuple[float, ...] = (150.0, 250.0, 350.0, 450.0, 600.0, 800.0, 1200.0, 2000.0)
+    tangent_radius_m: float = 3000.0
+    grade_band_permille: float = 5.0
+    speed_tolerance: float = 0.10  # (max - min) / mean speed within a section
+    min_length_m: float = 150.0
+    max_duration_s: float = 120.0
+    smoothing_m: float = 10.0  # geometry channels averaged over this length
+    #: curvature changing faster than this (1/m per m) is a transition (spiral), not a
+    #: condition: about 1/5000 m over 100 m
+    spiral_rate: float = 2e-6
+    #: grade changing faster than this (per m) is a vertical curve: 1 permille over 100 m
+    grade_rate: float = 1e-5
+
+    def __post_init__(self) -> None:
+        for name, value, low, high in (
+            ("speed_tolerance", self.speed_tolerance, 0.0, 1.0),
+            ("min_length_m", self.min_length_m, 1.0, 100_000.0),
+            ("max_duration_s", self.max_duration_s, 1.0, 600.0),
+            ("grade_band_permille", self.grade_band_permille, 0.1, 80.0),
+            ("tangent_radius_m", self.tangent_radius_m, 100.0, 100_000.0),
+        ):
+            if not low <= value <= high:
+                raise RailsuspInputError(f"{name} = {value:g}: accepted {low:g} to {high:g}")
+
+
+@dataclass
+class Section:
+    """One cut stretch of the run (sample indices ``start`` to ``end``, end exclusive)."""
+
+    name: str
+    start: int
+    end: int
+    start_m: float
+    end_m: float
+    radius_m: float | None  # None: tangent
+    direction: str  # left / right
+    cant_mm: float
+    grade_permille: float
+    speed_kmh: float
+    speed_spread: float  # (max - min) / mean
+    kept: bool = True
+    reason: str = ""
+
+    @property
+    def kind(self) -> str:
+        return "tangent" if self.radius_m is None else f"curve R{self.radius_m:.0f}"
+
+    def condition(self, duration_s: float, rate_hz: float) -> WorkingCondition:
+        """The working condition of this section: steady on its track from the start of
+        the record (the curve, if any, begins with a 50 m spiral inside the 100 m lead-in),
+        at its mean speed, on synthesised class-5 track (the unknown real track)."""
+        fields = {
+            "name": self.name,
+            "speed_kmh": round(self.speed_kmh, 2),
+            "duration_s": round(duration_s, 3),
+            "n_steps": max(10, round(duration_s * rate_hz)),
+            "grade_permille": round(self.grade_permille, 2),
+            "cant_mm": round(self.cant_mm, 1) if self.radius_m is not None else 0.0,
+        }
+        if self.radius_m is not None:
+            fields |= {
+                "curve_radius_m": round(self.radius_m, 0),
+                "curve_direction": self.direction,
+                "curve_start_m": 0.0,
+                "entry_spiral_m": 50.0,
+            }
+        return make_condition(fields)
+
+
+def cut_sections(
+    run: MeasuredRun,
+    rules: SectionRules | None = None,
+    *,
+    line: pd.DataFrame | None = None,
+    table: pd.DataFrame | None = None,
+) -> list[Section]:
+    """The run cut into sections (left-out ones included, ``kept`` False with the reason)."""
+    rules = rules or SectionRules()
+    geo = _geometry(run, line, rules)
+    if table is not None:
+        spans = []
+        for r in table.itertuples(index=False):
+            idx = np.flatnonzero((run.position >= r.start_m) & (run.position < r.end_m))
+            spans.append((int(idx[0]), int(idx[-1]) + 1) if idx.size else (0, 0))
+        names = [str(n) for n in table["name"]] if "name" in table else None
+    else:
+        spans, names = _label_runs(geo, rules), None
+    out: list[Section] = []
+    for k, (a, b) in enumerate(spans):
+        label = names[k] if names else None
+        for sec in _pieces(run, geo, a, b, rules, label):
+            if out and not out[-1].kept and not sec.kept and out[-1].end == sec.start:
+                out[-1] = _merged(run, out[-1], sec)  # one row per left-out stretch
+            else:
+                out.append(sec)
+    if names:
+        for name in set(names):
+            same = [s for s in out if s.kept and s.name == name]
+            if len(same) > 1:  # a user's section split by speed or duration
+                for j, sec in enumerate(same):
+                    sec.name = f"{name}-{j + 1}"
+    kept = [s for s in out if s.kept]
+    width = len(str(len(kept)))
+    n = 0
+    for s in out:
+        if s.kept:
+            n += 1
+            s.name = s.name or f"s{n:0{width}d}-" + s.kind.replace(" ", "-")
+    return out
+
+
+def _geometry(run: MeasuredRun, line: pd.DataFrame | None, rules: SectionRules) -> dict:
+    """Smoothed curvature (1/m), cant (m), grade (1) per sample."""
+    if line is not None:
+        geo = geometry_from_line(run.position, line)
+    else:
+        zero = np.zeros_like(run.time)
+        geo = {
+            "curvature": run.curvature if run.curvature is not None else zero,
+            "cant": run.cant if run.cant is not None else zero,
+            "grade": run.grade if run.grade is not None else zero,
+        }
+    ds = float(np.median(np.abs(np.diff(run.position)))) or 1.0
+    k = max(1, round(rules.smoothing_m / ds))
+    kernel = np.ones(k) / k
+    out = {
+        key: np.convolve(np.pad(v, (k // 2, k - 1 - k // 2), mode="edge"), kernel, "valid")
+        for key, v in geo.items()
+    }
+    ds = np.maximum(np.abs(np.gradient(run.position)), 1e-9)
+    with np.errstate(invalid="ignore"):
+        out["transition"] = (np.abs(np.gradient(out["curvature"])) / ds > rules.spiral_rate) | (
+            np.abs(np.gradient(out["grade"])) / ds > rules.grade_rate
+        )
+    return out
+
+
+def _label_runs(geo: dict, rules: SectionRules) -> list[tuple[int, int]]:
+    """Runs of samples on one kind of track (radius band, direction, grade band)."""
+    curv = geo["curvature"]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        radius = np.where(np.abs(curv) > 1.0 / rules.tangent_radius_m, 1 / np.abs(curv), np.inf)
+    band = np.digitize(radius, rules.radius_edges_m)
+    band = np.where(np.isfinite(radius), band, -1)
+    band = np.where(np.isnan(curv), -2, band)  # outside the line description
+    band = np.where(geo["transition"] & (band != -2), -3, band)  # a transition: own label
+    label = np.where(
+        band == -3,
+        -3,
+        band * 4
+        + np.where(curv < 0, 1, 0)
+        + 1000 * np.round(geo["grade"] * 1e3 / rules.grade_band_permille),
+    )
+    edges = np.flatnonzero(np.diff(label)) + 1
+    starts = np.concatenate([[0], edges])
+    ends = np.concatenate([edges, [label.size]])
+    return [(int(a), int(b)) for a, b in zip(starts, ends, strict=True) if band[a] != -2]
+
+
+def _pieces(
+    run: MeasuredRun, geo: dict, a: int, b: int, rules: SectionRules, name: str | None
+) -> list[Section]:
+    """Stretch a..b as sections: split where the speed leaves the tolerance or the
+    duration passes the maximum; pieces shorter than the minimum left out."""
+    v = run.speed
+    if geo["transition"][a:b].mean() > 0.5 and name is None:
+        return [_section(run, geo, a, b, rules, name, split=False)]
+    out = []
+    i = a
+    while i < b:
+        j, lo, hi = i + 1, v[i], v[i]
+        while j < b:
+            lo, hi = min(lo, v[j]), max(hi, v[j])
+            if (hi - lo) > rules.speed_tolerance * 0.5 * (hi + lo) or (
+                run.time[j] - run.time[i] > rules.max_duration_s
+            ):
+                break
+            j += 1
+        out.append(_section(run, geo, i, j, rules, name, split=(j < b or i > a)))
+        i = j
+    return out
+
+
+def _merged(run: MeasuredRun, a: Section, b: Section) -> Section:
+    """Two adjacent left-out stretches as one row, with both reasons."""
+    v = run.speed[a.start : b.end]
+    reason = a.reason if b.reason in a.reason.split("; ") else f"{a.reason}; {b.reason}"
+    return Section(
+        "",
+        a.start,
+        b.end,
+        a.start_m,
+        b.end_m,
+        None,
+        "left",
+        0.0,
+        0.5 * (a.grade_permille + b.grade_permille),
+        float(v.mean()) * 3.6,
+        float((v.max() - v.min()) / max(v.mean(), 1e-9)),
+        False,
+        reason,
+    )
+
+
+def _section(
+    run: MeasuredRun, geo: dict, i: int, j: int, rules: SectionRules, name: str | None, split: bool
+) -> Section:
+    sl = slice(i, j)
+    curv = float(np.median(geo["curvature"][sl]))
+    radius = 1.0 / abs(curv) if abs(curv) > 1.0 / rules.tangent_radius_m else None
+    v = run.speed[sl]
+    length = float(abs(run.position[j - 1] - run.position[i]))
+    spread = float((v.max() - v.min()) / max(v.mean(), 1e-9))
+    sec = Section(
+        name or "",
+        i,
+        j,
+        float(run.position[i]),
+        float(run.position[j - 1]),
+        radius,
+        "right" if curv < 0 else "left",
+        float(np.median(geo["cant"][sl])) * 1e3,
+        float(np.median(geo["grade"][sl])) * 1e3,
+        float(v.mean()) * 3.6,
+        spread,
+    )
+    if np.mean(geo["transition"][sl]) > 0.5:
+        sec.kept = False
+        sec.reason = "transition (curvature or grade changing)"
+    elif length < rules.min_length_m:
+        sec.kept = False
+        sec.reason = f"{length:.0f} m, shorter than {rules.min_length_m:g} m" + (
+            " (speed varies beyond the tolerance)" if split else " (a transition)"
+        )
+    elif float(v.mean()) * 3.6 < 1.0:
+        sec.kept, sec.reason = False, "standing"
+    return sec
+
+
+def sections_table(sections: list[Section]) -> pd.DataFrame:
+    """One row per section, kept or not, with the reason."""
+    rows = []
+    for s in sections:
+        d = asdict(s)
+        rows.append(
+            {
+                "section": s.name or "-",
+                "kind": s.kind if s.kept or "transition" not in s.reason else "transition",
+                "from_m": round(d["start_m"], 1),
+                "to_m": round(d["end_m"], 1),
+                "length_m": round(d["end_m"] - d["start_m"], 1),
+                "speed_kmh": round(s.speed_kmh, 1),
+                "speed_spread_pct": round(100 * s.speed_spread, 1),
+                "cant_mm": round(s.cant_mm, 0),
+                "grade_permille": round(s.grade_permille, 1),
+                "kept": "yes" if s.kept else "no",
+                "reason": s.reason,
+            }
+        )
+    return pd.DataFrame(rows)

@@ -1,0 +1,148 @@
+"""Synthetic "field" recordings of hidden true parameters: a simulation made into a
+recording, instrumented-wheelset errors (gain, bandwidth, noise) added, written as a field
+folder whose truth the estimator never reads.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from scipy.signal import butter, sosfiltfilt
+
+from railsusp.conditions import WorkingCondition
+from railsusp.errors import RailsuspInputError
+from railsusp.measured.recording import FORMAT, Recording, SimulationFailedError
+from railsusp.store import write_json
+from railsusp.vehicle.layout import WHEEL_NAMES
+from railsusp.vehicle.track import with_measurement_error, write_track_geometry
+
+
+def recording_from_simulation(
+    result, wheels: tuple[str, ...] | None = None, set_index: int = 0
+) -> Recording:
+    """A recording (kN) of the wheels of a simulation result (default: measured wheel); a
+    failed simulation (derailment, divergence) is an error naming the reason and time."""
+    if not result.ok[set_index]:
+        reason = {i: (why, t) for i, why, t in result.failures()}[set_index]
+        raise SimulationFailedError(
+            f"simulation in condition {result.condition.name!r} failed at {reason[1]:.2f} s: "
+            f"{reason[0]}; no recording can be made of it"
+        )
+    ws = wheels or (WHEEL_NAMES[result.measured_wheel()],)
+    Y = {w: result.Y[set_index, WHEEL_NAMES.index(w)] / 1e3 for w in ws}
+    Q = {w: result.Q[set_index, WHEEL_NAMES.index(w)] / 1e3 for w in ws}
+    return Recording(result.time.copy(), Y, Q, result.condition, {"wagon": result.wagon_name})
+
+
+def simulated_forces(pset, rec: Recording) -> np.ndarray:
+    """(T, 2) forces (kN) the simulator gives for ``pset`` in a recording's condition at its
+    first measured wheel, the counterpart of :meth:`Recording.forces`."""
+    from railsusp.vehicle.simulate import simulate
+
+    return recording_from_simulation(simulate(pset, rec.condition), rec.wheels[:1]).forces()
+
+
+def bandwidth_filter(x: np.ndarray, fs: float, bandwidth_hz: float, axis: int = -1) -> np.ndarray:
+    """An instrument's bandwidth limit: 4th-order Butterworth low-pass, zero phase (scipy
+    ``sosfiltfilt``), cut-off ``bandwidth_hz`` capped at 0.45 of the sampling rate ``fs``."""
+    sos = butter(4, min(bandwidth_hz, 0.45 * fs), fs=fs, output="sos")
+    return sosfiltfilt(sos, x, axis=axis)
+
+
+def add_sensor_noise(
+    rec: Recording, noise: float, seed: int, bandwidth_hz: float = 15.0, gain_error: float = 0.01
+) -> Recording:
+    """Instrumented-wheelset errors: a gain error (normal, sd ``gain_error``) per channel, a
+    bandwidth limit (4th-order zero-phase low-pass), and white noise of ``noise`` times the
+    channel's RMS."""
+    rng = np.random.default_rng(seed)
+    fs = rec.sampling_rate
+
+    def corrupt(x: np.ndarray) -> np.ndarray:
+        y = bandwidth_filter(x, fs, bandwidth_hz) * (1.0 + gain_error * rng.standard_normal())
+        return y + noise * np.sqrt(np.mean(x**2)) * rng.standard_normal(len(x))
+
+    return Recording(
+        rec.time.copy(),
+        {w: corrupt(v) for w, v in rec.Y.items()},
+        {w: np.maximum(corrupt(v), 0.0) for w, v in rec.Q.items()},
+        rec.condition,
+        {**rec.meta, "filter_bandwidth_hz": bandwidth_hz, "synthetic": True},
+    )
+
+
+def synthesise_field(
+    truth,
+    conditions: list[WorkingCondition],
+    out: str | Path,
+    *,
+    seed: int = 7,
+    noise: float = 0.03,
+    track_seed_offset: int = 1000,
+    fmt: str = "csv",
+    duration_s: float | None = None,
+    with_track: bool = False,
+    track_noise_mm: float = 0.0,
+    stated_accuracy_mm: float | None = None,
+) -> Path:
+    """Synthetic field recordings of the ``truth`` ParameterSet with hidden truth.
+
+    Each condition is simulated on a track realisation different from the design track
+    (seed + ``track_seed_offset``), sensor noise is added, the recordings are written in the
+    documented format and listed in ``index.json``; the truth goes to ``truth.json``, a file
+    the estimator never reads. ``duration_s`` records longer (or shorter) than the
+    condition's duration at the same sampling rate: real runs span kilometres of track, and
+    the track-realisation scatter of a statistic falls with the recorded length.
+
+    ``with_track`` also writes the track the truth ran on as measured track geometry
+    (``NAME.track.csv``, named by the recording's condition), as a track recording car run
+    with the instrumented wagon would give, with a measurement error of ``track_noise_mm``
+    (RMS, mm, within the measured wavelengths) on each component. The recordings state the
+    geometry's accuracy (``track_accuracy_mm``) as ``stated_accuracy_mm``, by default the
+    true ``track_noise_mm``: an engineer knows the specification of the geometry car.
+    """
+    from railsusp.vehicle.setup import section_irregularities
+    from railsusp.vehicle.simulate import simulate
+    from railsusp.vehicle.wagon import load_wagon
+
+    if not 0.0 <= track_noise_mm <= 10.0:
+        raise RailsuspInputError(f"track_noise_mm = {track_noise_mm:g}: accepted 0 to 10 mm")
+    out = Path(out)
+    names = []
+    for i, cond in enumerate(conditions):
+        if duration_s is not None:
+            cond = cond.with_duration(duration_s)
+        field_cond = cond.with_changes(seed=cond.seed + track_seed_offset)
+        rec = recording_from_simulation(simulate(truth, field_cond))
+        rec = add_sensor_noise(rec, noise, seed + i)
+        rec.condition = cond  # the engineer knows the condition, not the track realisation
+        if with_track:
+            irr = section_irregularities(field_cond, [field_cond.seed], load_wagon())
+            assert irr is not None, "with_track needs a condition with irregularities"
+            if track_noise_mm:
+                rng = np.random.default_rng([seed, i, 1])
+                irr = with_measurement_error(irr, track_noise_mm * 1e-3, cond.wavelength_min_m, rng)
+            track_name = f"{cond.name}.track.csv"
+            write_track_geometry(out / track_name, irr, origin_m=cond.lead_in_m)
+            rec.condition = cond.with_changes(
+                track_geometry=track_name,
+                track_accuracy_mm=track_noise_mm
+                if stated_accuracy_mm is None
+                else stated_accuracy_mm,
+            )
+        rec.meta["wagon"] = rec.meta.get("wagon", "")
+        rec.write(out / cond.name, fmt)
+        names.append(cond.name + (".csv" if fmt == "csv" else ".parquet"))
+    write_json(
+        out / "index.json", {"format": FORMAT, "recordings": names, "noise": noise, "seed": seed}
+    )
+    write_json(
+        out / "truth.json",
+        {
+            "parameters_display": truth.to_display(),
+            "note": "hidden truth: the estimator must not read this",
+            "track_seed_offset": track_seed_offset,
+        },
+    )
+    return out

@@ -1,0 +1,67 @@
+"""`railsusp sections`, `check-recording --map` and `example-recording` on the command
+line: the cut printed and written, bad input one line and exit status 2."""
+
+import json
+
+import numpy as np
+from typer.testing import CliRunner
+
+from railsusp.cli import app
+
+runner = CliRunner()
+
+
+def example(tmp_path):
+    result = runner.invoke(app, ["example-recording", "--out", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    return tmp_path / "example_run.mf4", tmp_path / "example_run.map.toml"
+
+
+def test_sections_from_a_user_table_are_written_by_their_names(tmp_path):
+    run, cmap = example(tmp_path)
+    table = tmp_path / "sections.csv"
+    table.write_text("start_m,end_m,name\n50,500,level-65\n800,1150,curve-600\n")
+    out = tmp_path / "field"
+    result = runner.invoke(
+        app, ["sections", str(run), "--map", str(cmap), "--table", str(table), "--write", str(out)]
+    )
+    assert result.exit_code == 0, result.output
+    index = json.loads((out / "index.json").read_text())
+    assert index["recordings"] == ["level-65.csv", "curve-600.csv"]
+    side = json.loads((out / "curve-600.json").read_text())
+    assert side["condition"]["curve_radius_m"] == 600.0
+    assert side["condition"]["speed_kmh"] == 55.0
+    t = np.loadtxt(out / "curve-600.csv", delimiter=",", skiprows=1)[:, 0]
+    np.testing.assert_allclose(np.diff(t), 0.02, rtol=1e-6)  # written at 50 Hz
+    assert abs(t[-1] - 350 / (55 / 3.6)) < 0.1  # 350 m at 55 km/h
+
+
+def test_a_section_name_that_would_leave_the_folder_is_refused(tmp_path):
+    run, cmap = example(tmp_path)
+    table = tmp_path / "sections.csv"
+    for name in ("../../x", "/etc/x", ".hidden"):
+        table.write_text(f"start_m,end_m,name\n50,500,{name}\n")
+        result = runner.invoke(
+            app, ["sections", str(run), "--map", str(cmap), "--table", str(table)]
+        )
+        assert result.exit_code == 2 and "row 2: name" in result.output
+
+
+def test_bad_runs_and_maps_are_one_line_errors(tmp_path):
+    run, cmap = example(tmp_path)
+    bad_map = tmp_path / "bad.toml"
+    bad_map.write_text('speed = "v_train"\n[wheels.w1R]\nY = "WS1_Y_R"\nQ = "WS1_Q_X"\n')
+    result = runner.invoke(app, ["sections", str(run), "--map", str(bad_map)])
+    assert result.exit_code == 2
+    assert "channel 'WS1_Q_X' of the" in result.output and "did you mean 'WS1_Q_R'" in result.output
+    garbage = tmp_path / "garbage.mf4"
+    garbage.write_bytes(b"\x00\x01 not an MDF file")
+    result = runner.invoke(app, ["check-recording", str(garbage), "--map", str(cmap)])
+    assert result.exit_code == 2 and "not a readable MDF file" in result.output
+    result = runner.invoke(app, ["sections", str(run), "--map", str(cmap), "--rate", "0"])
+    assert result.exit_code == 2 and "--rate 0: accepted 10 to 5000 Hz" in result.output
+    result = runner.invoke(
+        app, ["sections", str(run), "--map", str(cmap), "--speed-tolerance", "-1"]
+    )
+    assert result.exit_code == 2 and "speed_tolerance = -1: accepted 0 to 1" in result.output
+    assert "Traceback" not in result.output

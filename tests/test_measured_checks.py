@@ -1,0 +1,191 @@
+"""Every bad recording of issues 21/22 is refused with one line per problem naming the
+file, the column and the rows, exit status 2 from the CLI; what is right is accepted."""
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from railsusp.cli import app
+from railsusp.conditions import get_condition
+from railsusp.errors import RailsuspInputError
+from railsusp.measured import Recording, RecordingError, read_field, read_recording
+
+COND = get_condition("straight", duration_s=2.0, n_steps=100)
+runner = CliRunner()
+
+
+def recording(n=200, rate=100.0) -> Recording:
+    t = np.arange(n) / rate
+    return Recording(
+        t,
+        {"w1L": 5 + 3 * np.sin(2 * np.pi * 1.5 * t)},
+        {"w1L": 122 + 10 * np.cos(2 * np.pi * 2.0 * t)},
+        COND,
+    )
+
+
+def write_table(tmp_path, header, columns, name="rec"):
+    """A recording with the given header and columns, and a valid sidecar."""
+    path = recording().write(tmp_path / name)
+    lines = [",".join(header)] + [
+        ",".join(f"{v:.6g}" for v in row) for row in zip(*columns, strict=True)
+    ]
+    path.write_text("\n".join(lines) + "\n")
+    side = path.with_suffix(".json")
+    meta = json.loads(side.read_text())
+    meta.pop("sampling_rate_hz")
+    side.write_text(json.dumps(meta))
+    return path
+
+
+def problems(path) -> str:
+    with pytest.raises(RecordingError) as info:
+        read_recording(path)
+    return str(info.value)
+
+
+def cli_refuses(path, *needles):
+    """check-recording: exit 2, one line per problem (file, column, rows), no traceback."""
+    result = runner.invoke(app, ["check-recording", str(path)])
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output and result.exception.__class__ is SystemExit
+    for needle in needles:
+        line = next(ln for ln in result.output.splitlines() if needle in ln)
+        assert str(path) in line
+
+
+T = np.arange(200) / 100.0
+Y = 5 + 3 * np.sin(2 * np.pi * 1.5 * T)
+Q = 122 + 10 * np.cos(2 * np.pi * 2.0 * T)
+
+
+def test_an_extra_channel_is_left_unused_not_refused(tmp_path):
+    p = write_table(tmp_path, ["time_s", "Y_w1L_kN", "Q_w1L_kN", "acc_bogie_y_g"], [T, Y, Q, Y])
+    with pytest.warns(UserWarning, match="'acc_bogie_y_g' not used"):
+        rec = read_recording(p)
+    assert rec.wheels == ("w1L",)
+
+
+def test_forces_in_newtons_are_accepted_when_the_header_says_so(tmp_path):
+    p = write_table(tmp_path, ["time_s", "Y_w1L [N]", "Q_w1L [N]"], [T, Y * 1e3, Q * 1e3])
+    rec = read_recording(p)
+    np.testing.assert_allclose(rec.Q["w1L"], Q, rtol=1e-5)  # kN inside the Recording
+
+
+def test_forces_in_meganewtons_under_a_kn_header_are_refused(tmp_path):
+    p = write_table(tmp_path, ["time_s", "Y_w1L_kN", "Q_w1L_kN"], [T, Y / 1e3, Q / 1e3])
+    msg = problems(p)
+    assert "'Q_w1L_kN': median wheel load 0.122 kN" in msg
+    assert "the values look like MN, not kN" in msg
+    cli_refuses(p, "Q_w1L_kN")
+    # ... and read right when the header states MN
+    p = write_table(tmp_path, ["time_s", "Y_w1L [MN]", "Q_w1L [MN]"], [T, Y / 1e3, Q / 1e3])
+    np.testing.assert_allclose(read_recording(p).Q["w1L"], Q, rtol=1e-5)
+
+
+def test_newtons_under_a_kn_header_are_refused(tmp_path):
+    p = write_table(tmp_path, ["time_s", "Y_w1L_kN", "Q_w1L_kN"], [T, Y * 1e3, Q * 1e3])
+    assert "the values look like N, not kN" in problems(p)
+
+
+def test_a_force_without_a_known_unit_is_refused(tmp_path):
+    p = write_table(tmp_path, ["time_s", "Y_w1L [lbf]", "Q_w1L [N]"], [T, Y, Q * 1e3])
+    assert "unit 'lbf' is not a force unit; accepted N, kN, MN, daN" in problems(p)
+
+
+def test_all_zero_and_constant_channels_are_refused(tmp_path):
+    p = write_table(tmp_path, ["time_s", "Y_w1L_kN", "Q_w1L_kN"], [T, 0 * Y, 0 * Q])
+    msg = problems(p)
+    assert "column 'Y_w1L_kN': all 200 samples are zero" in msg
+    assert "column 'Q_w1L_kN': all 200 samples are zero" in msg
+    cli_refuses(p, "Y_w1L_kN", "Q_w1L_kN")
+    p = write_table(tmp_path, ["time_s", "Y_w1L_kN", "Q_w1L_kN"], [T, Y, 0 * Q + 120])
+    assert "column 'Q_w1L_kN': constant at 120" in problems(p)
+
+
+def test_infinite_values_are_refused_not_interpolated(tmp_path):
+    y = Y.copy()
+    y[[10, 11, 50]] = [np.inf, np.inf, -np.inf]
+    p = write_table(tmp_path, ["time_s", "Y_w1L_kN", "Q_w1L_kN"], [T, y, Q])
+    msg = problems(p)
+    assert "column 'Y_w1L_kN', rows 12-13: infinite value(s)" in msg
+    assert "column 'Y_w1L_kN', row 52: infinite value(s)" in msg
+    cli_refuses(p, "rows 12-13")
+
+
+@pytest.mark.parametrize("rows", [1, 2])
+def test_one_or_two_rows_are_refused(tmp_path, rows):
+    p = write_table(tmp_path, ["time_s", "Y_w1L_kN", "Q_w1L_kN"], [T[:rows], Y[:rows], Q[:rows]])
+    assert f"column 'time_s': {rows} sample(s); at least 10 are needed" in problems(p)
+    cli_refuses(p, "at least 10")
+
+
+def test_a_header_only_table_is_refused(tmp_path):
+    p = write_table(tmp_path, ["time_s", "Y_w1L_kN", "Q_w1L_kN"], [[], [], []])
+    assert "column 'time_s': 0 sample(s); at least 10 are needed" in problems(p)
+    cli_refuses(p, "0 sample(s)")
+
+
+def test_mixed_sampling_rates_are_refused(tmp_path):
+    t = np.concatenate([np.arange(100) / 100.0, 1.0 + np.arange(1, 101) * 1.0])
+    p = write_table(tmp_path, ["time_s", "Y_w1L_kN", "Q_w1L_kN"], [t, Y, Q])
+    msg = problems(p)
+    assert "column 'time_s', rows" in msg and "mixed sampling rates (100 Hz and 0.99" in msg
+    cli_refuses(p, "mixed sampling rates")
+
+
+def test_sampling_jitter_is_refused(tmp_path):
+    t = T.copy()
+    t[60:] += 0.003  # the interval between file lines 61 and 62 is 30 % long
+    p = write_table(tmp_path, ["time_s", "Y_w1L_kN", "Q_w1L_kN"], [t, Y, Q])
+    assert "column 'time_s', rows 61-62: sampling-interval jitter 30 %" in problems(p)
+
+
+def test_a_sidecar_rate_that_contradicts_the_data_is_refused(tmp_path):
+    rec = recording(n=2000, rate=1000.0)
+    p = rec.write(tmp_path / "fast")
+    side = p.with_suffix(".json")
+    meta = json.loads(side.read_text())
+    meta["sampling_rate_hz"] = 50.0
+    side.write_text(json.dumps(meta))
+    assert "sidecar sampling_rate_hz 50 Hz, the time column 1000 Hz" in problems(p)
+    cli_refuses(p, "sampling_rate_hz")
+
+
+def test_a_sidecar_that_is_a_list_or_gives_text_for_a_number_is_refused(tmp_path):
+    p = recording().write(tmp_path / "rec")
+    side = p.with_suffix(".json")
+    good = side.read_text()
+    side.write_text("[1, 2, 3]")
+    assert "rec.json: a JSON object {...} is needed, not a list" in problems(p)
+    cli_refuses(p, "rec.json")
+    side.write_text(good.replace('"speed_kmh": 60.0', '"speed_kmh": "60"'))
+    assert "condition.speed_kmh = '60' is str; a JSON number is needed" in problems(p)
+    side.write_text(good.replace('"speed_kmh": 60.0', '"speed_kmh": true'))
+    assert "condition.speed_kmh = True is bool" in problems(p)
+
+
+def test_paths_in_sidecars_and_index_must_stay_inside_the_folder(tmp_path):
+    folder = tmp_path / "field"
+    p = recording().write(folder / "rec")
+    (tmp_path / "elsewhere.track.csv").write_text("distance_m\n0\n")
+    side = p.with_suffix(".json")
+    meta = json.loads(side.read_text())
+    for bad in ("../elsewhere.track.csv", str(tmp_path / "elsewhere.track.csv")):
+        meta["condition"]["track_geometry"] = bad
+        side.write_text(json.dumps(meta))
+        assert "track_geometry" in problems(p) and "outside the folder" in problems(p)
+    meta["condition"].pop("track_geometry")
+    side.write_text(json.dumps(meta))
+    index = folder / "index.json"
+    for entry in ("../rec.csv", "/etc/passwd", "sub/../../x.csv"):
+        index.write_text(json.dumps({"recordings": [entry]}))
+        with pytest.raises(RailsuspInputError, match="outside the folder"):
+            read_field(folder)
+    index.write_text(json.dumps(["rec.csv"]))
+    with pytest.raises(RailsuspInputError, match='a JSON object with a "recordings" list'):
+        read_field(folder)
+    index.write_text(json.dumps({"recordings": ["rec.csv"]}))
+    assert len(read_field(folder)) == 1

@@ -1,0 +1,259 @@
+"""Long runs: MDF4 and unit-aware tables read through a channel map, units converted from
+what the file states, channels of different rates put on one time base, sections cut by
+track and speed and written as a field folder; the shipped example run."""
+
+from importlib import resources
+
+import numpy as np
+import pandas as pd
+import pytest
+from asammdf import MDF, Signal
+
+from railsusp.conditions import load_conditions
+from railsusp.errors import RailsuspInputError
+from railsusp.measured import RecordingError, read_field
+from railsusp.measured.channels import channel_map_from, read_channel_map
+from railsusp.measured.run import MeasuredRun, read_run
+from railsusp.measured.sections import (
+    SectionRules,
+    cut_sections,
+    geometry_from_line,
+    read_line,
+)
+from railsusp.measured.sections_out import write_sections
+from railsusp.measured.units import si_factor, split_header
+
+MAP = {
+    "speed": "v",
+    "position": "s",
+    "ignore": ["acc_bogie_y_g"],
+    "wheels": {"w1R": {"Y": "Y_R", "Q": "Q_R"}},
+}
+
+
+def write_mdf(path, *, q_unit="kN", q_scale=1.0, v_unit="km/h", force_rate=200.0, q_rate=None):
+    """A 20 s run: forces at ``force_rate`` (Q at ``q_rate``), speed/position at 10 Hz."""
+    rng = np.random.default_rng(0)
+    t = np.arange(0, 20, 1 / force_rate)
+    tq = np.arange(0, 20, 1 / (q_rate or force_rate))
+    ts = np.arange(0, 20.1, 0.1)
+    mdf = MDF(version="4.10")
+    mdf.append(
+        [Signal(5 + rng.standard_normal(t.size), t, name="Y_R", unit="kN")],
+        comment="Y",
+    )
+    mdf.append(
+        [Signal((120 + rng.standard_normal(tq.size)) * q_scale, tq, name="Q_R", unit=q_unit)],
+        comment="Q",
+    )
+    mdf.append(
+        [
+            Signal(np.full(ts.size, 54.0), ts, name="v", unit=v_unit),
+            Signal(15.0 * ts, ts, name="s", unit="m"),
+        ],
+        comment="speed",
+    )
+    mdf.append([Signal(rng.standard_normal(t.size), t, name="acc_bogie_y_g", unit="g")])
+    mdf.save(path, overwrite=True)
+    mdf.close()
+    return path
+
+
+def test_split_header_reads_the_usual_unit_spellings():
+    assert split_header("Y [kN]") == ("Y", "kN")
+    assert split_header("Q_w1R (N)") == ("Q_w1R", "N")
+    assert split_header("Y_w1L_kN") == ("Y_w1L", "kN")
+    assert split_header("curvature_1_per_km") == ("curvature", "1/km")
+    assert split_header("speed_kmh") == ("speed", "kmh")
+    assert split_header("acc_bogie_y_g") == ("acc_bogie_y", "g")
+    assert si_factor("force", "kN", "x") == 1e3 and si_factor("speed", "km/h", "v") == 1 / 3.6
+    with pytest.raises(RailsuspInputError, match="channel 'x': no unit stated"):
+        si_factor("force", "", "x")
+
+
+def test_mdf4_through_a_channel_map_in_si_on_the_force_time_base(tmp_path):
+    path = write_mdf(tmp_path / "run.mf4", q_unit="N", q_scale=1e3)
+    run = read_run(path, channel_map_from(MAP))
+    assert run.rate_hz == pytest.approx(200.0)
+    assert np.median(run.Q["w1R"]) == pytest.approx(120e3, rel=0.01)  # N, from N
+    assert np.median(run.Y["w1R"]) == pytest.approx(5e3, rel=0.1)  # N, from kN
+    np.testing.assert_allclose(run.speed, 15.0)  # m/s, from km/h
+    assert run.rates_hz["v"] == pytest.approx(10.0)
+    assert any("'v' (10 Hz) interpolated onto 200 Hz" in n for n in run.notes)
+    assert not any("acc_bogie_y_g" in n for n in run.notes)  # ignored by the map
+    run = read_run(path, channel_map_from({**MAP, "ignore": []}))
+    assert any("not used: acc_bogie_y_g" in n for n in run.notes)  # allowed, noted
+
+
+def test_meganewtons_are_converted_when_stated_and_refused_when_not(tmp_path):
+    run = read_run(write_mdf(tmp_path / "a.mf4", q_unit="MN", q_scale=1e-3), channel_map_from(MAP))
+    assert np.median(run.Q["w1R"]) == pytest.approx(120e3, rel=0.01)
+    with pytest.raises(RecordingError, match="'Q_R': median wheel load 0.12 kN.*look like MN"):
+        read_run(write_mdf(tmp_path / "b.mf4", q_unit="kN", q_scale=1e-3), channel_map_from(MAP))
+
+
+def test_units_missing_or_contradicting_are_refused_with_the_channel(tmp_path):
+    path = write_mdf(tmp_path / "run.mf4", v_unit="")
+    with pytest.raises(RecordingError, match="channel 'v': no unit stated"):
+        read_run(path, channel_map_from(MAP))
+    run = read_run(path, channel_map_from({**MAP, "units": {"v": "km/h"}}))
+    np.testing.assert_allclose(run.speed, 15.0)
+    path = write_mdf(tmp_path / "run2.mf4")
+    with pytest.raises(RecordingError, match="'v': the file states unit 'km/h', the channel map"):
+        read_run(path, channel_map_from({**MAP, "units": {"v": "m/s"}}))
+
+
+def test_a_force_channel_far_slower_than_the_others_is_refused(tmp_path):
+    path = write_mdf(tmp_path / "run.mf4", force_rate=100.0, q_rate=1.0)
+    with pytest.raises(RecordingError, match="'Q_R': 1 Hz against 100 Hz of 'Y_R'"):
+        read_run(path, channel_map_from(MAP))
+
+
+def test_channel_map_errors_name_the_key(tmp_path):
+    with pytest.raises(RailsuspInputError, match="wheel 'w9R' not known"):
+        channel_map_from({**MAP, "wheels": {"w9R": {"Y": "a", "Q": "b"}}})
+    with pytest.raises(RailsuspInputError, match="key 'sped' not recognised.*'speed'"):
+        channel_map_from({**MAP, "sped": "v"})
+    with pytest.raises(RailsuspInputError, match="channel 'v' mapped to two quantities"):
+        channel_map_from({**MAP, "position": "v"})
+    bad = tmp_path / "map.toml"
+    bad.write_bytes(b"\xff\xfe garbage")
+    with pytest.raises(RailsuspInputError, match="cannot read it"):
+        read_channel_map(bad)
+    path = write_mdf(tmp_path / "run.mf4")
+    with pytest.raises(RecordingError, match="channel 'Q_r' of the .* not in the file.*'Q_R'"):
+        read_run(path, channel_map_from({**MAP, "wheels": {"w1R": {"Y": "Y_R", "Q": "Q_r"}}}))
+
+
+def synthetic_run(speed_kmh, curvature_per_km, grade_permille, rate=50.0) -> MeasuredRun:
+    """A run of given per-sample speed, curvature and grade, with plausible forces."""
+    v = np.asarray(speed_kmh, float) / 3.6
+    t = np.arange(v.size) / rate
+    s = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) / rate)])
+    rng = np.random.default_rng(2)
+    return MeasuredRun(
+        "synthetic.csv",
+        t,
+        {"w1R": 5e3 + 1e3 * rng.standard_normal(t.size)},
+        {"w1R": 120e3 + 5e3 * rng.standard_normal(t.size)},
+        v,
+        s,
+        np.asarray(curvature_per_km, float) * 1e-3,
+        np.zeros(t.size),
+        np.asarray(grade_permille, float) * 1e-3,
+    )
+
+
+def test_sections_by_track_and_speed():
+    """tangent 60 km/h (40 s) | spiral (10 s) | left R500 at 50 km/h (40 s) | tangent with
+    the speed ramping 50 -> 80 km/h (30 s) | 10 permille up-grade at 80 km/h (40 s)."""
+    n = {"tan": 2000, "spi": 500, "arc": 2000, "ramp": 1500, "up": 2000}
+    speed = np.concatenate(
+        [
+            np.full(n["tan"], 60.0),
+            np.linspace(60, 50, n["spi"]),
+            np.full(n["arc"], 50.0),
+            np.linspace(50, 80, n["ramp"]),
+            np.full(n["up"], 80.0),
+        ]
+    )
+    curv = np.concatenate(
+        [
+            np.zeros(n["tan"]),
+            np.linspace(0, 2, n["spi"]),
+            np.full(n["arc"], 2.0),
+            np.zeros(n["ramp"] + n["up"]),
+        ]
+    )
+    grade = np.concatenate([np.zeros(sum(n.values()) - n["up"]), np.full(n["up"], 10.0)])
+    run = synthetic_run(speed, curv, grade)
+    secs = cut_sections(run, SectionRules(min_length_m=100.0))
+    kept = [s for s in secs if s.kept]
+    assert [s.kind for s in kept] == ["tangent", "curve R500", "tangent", "tangent", "tangent"]
+    assert kept[0].speed_kmh == pytest.approx(60.0, abs=0.01)
+    assert kept[1].speed_kmh == pytest.approx(50.0, abs=0.01) and kept[1].direction == "left"
+    # the ramp is split into pieces that hold the 10 % tolerance
+    ramp = kept[2:4]
+    assert all(50 < s.speed_kmh < 80 and s.speed_spread <= 0.1 + 1e-9 for s in ramp)
+    assert kept[-1].grade_permille == pytest.approx(10.0) and kept[-1].speed_kmh == 80.0
+    left_out = [s for s in secs if not s.kept]
+    assert any(s.reason.startswith("transition") for s in left_out)  # the spiral
+    assert any("speed varies" in s.reason for s in left_out)  # the ramp's short rest
+    # a wider tolerance keeps the ramp's pieces longer; a speed-steady run is not split
+    assert len([s for s in cut_sections(run, SectionRules(speed_tolerance=0.5)) if s.kept]) < 5
+
+
+def test_a_line_description_gives_the_same_track_as_the_channels(tmp_path):
+    line = tmp_path / "line.csv"
+    line.write_text(
+        "km_start,km_end,radius_m,direction,cant_mm,grade_permille\n"
+        "0,0.5,,left,0,0\n0.5,2,400,right,90,0\n2,3,,left,0,5\n"
+    )
+    df = read_line(line)
+    s = np.linspace(0, 2999, 3000)
+    geo = geometry_from_line(s, df)
+    assert geo["curvature"][700] == pytest.approx(-1 / 400) and geo["cant"][700] == 0.09
+    assert geo["grade"][2500] == pytest.approx(5e-3)
+    run = synthetic_run(np.full(9000, 60.0), np.zeros(9000), np.zeros(9000))
+    secs = [s for s in cut_sections(run, line=df) if s.kept]
+    assert [s.kind for s in secs][:3] == ["tangent", "curve R400", "tangent"]
+    assert secs[1].direction == "right" and secs[1].cant_mm == pytest.approx(90.0)
+    line.write_text("km_start,km_end,radius_m,cant_mm,grade_permille\n1,0.5,,0,0\n")
+    with pytest.raises(RailsuspInputError, match="row 2: km_end <= km_start"):
+        read_line(line)
+
+
+def test_written_sections_are_a_field_folder_the_estimation_reads(tmp_path):
+    run = synthetic_run(np.full(3000, 54.0), np.full(3000, 1.25), np.zeros(3000), rate=200.0)
+    secs = cut_sections(run)
+    write_sections(run, secs, tmp_path / "field", rate_hz=50.0)
+    recs = read_field(tmp_path / "field")
+    assert len(recs) == 1 and recs[0].sampling_rate == pytest.approx(50.0)
+    c = recs[0].condition
+    assert c.curve_radius_m == 800.0 and c.speed_kmh == 54.0 and c.n_steps == len(recs[0].time)
+    assert load_conditions(tmp_path / "field" / "conditions.toml") == [c]
+    en = pd.read_csv(tmp_path / "field" / "en14363.csv")
+    q = en[(en.force == "Q") & (en.wheel == "w1R")].iloc[0]
+    # N(120, 5) kN white noise: the 2 m mean (about 7 samples at 15 m/s, 200 Hz) leaves
+    # the median and narrows the spread well inside the raw +-3 sigma (105-135 kN)
+    assert q.p50_kN == pytest.approx(120.0, abs=0.3)
+    assert 105.0 < q["p0.15_kN"] < q["p99.85_kN"] < 135.0
+    # ... and a `railsusp run` configuration on the same conditions and recordings
+    from railsusp.pipeline import load_config
+
+    cfg = load_config(tmp_path / "field" / "pipeline.toml")
+    assert cfg.working_conditions() == [c]
+    assert cfg.field.measured == str((tmp_path / "field").resolve())
+    assert np.median(recs[0].Q["w1R"]) == pytest.approx(120.0, rel=0.01)  # kN again
+
+
+def test_the_shipped_example_reads_and_cuts_into_its_five_sections(tmp_path):
+    data = resources.files("railsusp") / "data"
+    path = data / "example_run.mf4"
+    assert path.is_file() and path.stat().st_size < 2e6
+    run = read_run(path, read_channel_map(data / "example_run.map.toml"))
+    assert run.rate_hz == pytest.approx(200.0) and run.wheels == ("w1R", "w1L")
+    assert run.rates_hz["v_train"] == pytest.approx(10.0)
+    for secs in (cut_sections(run), cut_sections(run, line=read_line(data / "example_line.csv"))):
+        kept = [s for s in secs if s.kept]
+        got = [
+            (
+                s.radius_m and round(s.radius_m),
+                s.direction if s.radius_m else "",
+                round(s.speed_kmh),
+                round(s.grade_permille),
+            )
+            for s in kept
+        ]
+        assert got == [
+            (None, "", 65, 0),
+            (600, "left", 55, 0),
+            (350, "right", 45, 0),
+            (None, "", 40, 12),
+            (None, "", 70, 0),
+        ]
+        assert all(s.end_m - s.start_m > 300 for s in kept)
+    write_sections(run, secs, tmp_path / "field")
+    recs = read_field(tmp_path / "field")
+    # the measured wheel of each condition first: the outer wheel in a curve
+    assert [r.wheels[0] for r in recs] == ["w1L", "w1R", "w1L", "w1L", "w1L"]
