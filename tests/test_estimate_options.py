@@ -82,8 +82,24 @@ def test_out_that_is_a_file_is_refused(tmp_path, field):
     result = runner.invoke(
         app, ["estimate", "--measured", str(field), "--simulator", "--out", str(out)]
     )
-    assert one_line_error(result) == f"--out {out}: exists and is not a folder"
+    assert one_line_error(result) == f"--out {out} is an existing file, not a folder"
     assert out.read_text() == "not a folder"
+
+
+def test_out_in_an_unwritable_folder_is_refused_before_any_work(tmp_path, field, monkeypatch):
+    """A read-only folder (faked: the tests run as root, who writes anywhere)."""
+    import railsusp.store as store
+
+    real = store.os.access
+    monkeypatch.setattr(
+        store.os, "access", lambda p, m: False if str(p) == str(tmp_path) else real(p, m)
+    )
+    out = tmp_path / "est"
+    result = runner.invoke(
+        app, ["estimate", "--measured", str(field), "--simulator", "--out", str(out)]
+    )
+    assert one_line_error(result) == f"--out {out}: the folder {tmp_path} is not writable"
+    assert not out.exists()
 
 
 def test_refine_on_recordings_without_track_is_refused_before_nsga(tmp_path, field):

@@ -268,3 +268,27 @@ def test_a_failed_simulation_makes_no_recording():
     r.status[0], r.fail_time[0] = L.FAIL_LIFT, 1.25  # as the integrator flags a derailment
     with pytest.raises(SimulationFailedError, match=r"'straight' failed at 1.25 s: wheel lift"):
         recording_from_simulation(r)
+
+
+def test_synthetic_field_folder_is_written_as_one(tmp_path, monkeypatch):
+    """A failure half-way (the second condition's simulation) leaves the existing folder as
+    it was: no new table without its sidecar, no index listing recordings not written."""
+    import railsusp.vehicle.simulate as sim
+
+    truth = ParameterSet({"X13": 16.1}, units="display")
+    short = dict(duration_s=2.0, n_steps=100)
+    conds = [get_condition("straight", **short), get_condition("curve", **short)]
+    out = synthesise_field(truth, conds[:1], tmp_path / "field", seed=7, noise=0.03)
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    real = sim.simulate
+
+    def second_fails(params, condition, **kw):
+        if condition.name == "curve":
+            raise RuntimeError("power lost")
+        return real(params, condition, **kw)
+
+    monkeypatch.setattr(sim, "simulate", second_fails)
+    with pytest.raises(RuntimeError, match="power lost"):
+        synthesise_field(truth, conds, out, seed=8, noise=0.03)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert not [p for p in out.parent.iterdir() if p.name.startswith(".field")]

@@ -47,7 +47,8 @@ def fsync_dir(path: str | Path) -> None:
         os.close(fd)
 
 
-def _fsync_file(path: str | Path) -> None:
+def fsync_file(path: str | Path) -> None:
+    """Flush a written file's content to disk (before a rename makes it the file)."""
     with open(path, "rb+") as fh:
         os.fsync(fh.fileno())
 
@@ -100,7 +101,7 @@ def atomic_folder(path: str | Path, keep: bool = True) -> Iterator[Path]:
         yield tmp
         for f in tmp.rglob("*"):
             if f.is_file():
-                _fsync_file(f)
+                fsync_file(f)
         if keep and path.is_dir():
             for entry in path.iterdir():
                 target = tmp / entry.name
@@ -252,7 +253,7 @@ def write_parquet(
     os.close(fd)
     try:
         pq.write_table(table, tmp, row_group_size=row_group_size or max(1, table.num_rows))
-        _fsync_file(tmp)
+        fsync_file(tmp)
         os.replace(tmp, path)
         fsync_dir(path.parent)
     finally:

@@ -13,6 +13,7 @@ from railsusp.cli.common import app, console, fail, frame_table
 from railsusp.conditions import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet, parse_overrides
+from railsusp.store import check_output_folder
 
 
 @app.command("synth-field")
@@ -216,8 +217,7 @@ def estimate(
         parse_statistics(statistic)
         if (surrogate is None) == (not simulator):
             raise RailsuspInputError("give --surrogate FOLDER or --simulator (one of them)")
-        if out.exists() and not out.is_dir():
-            raise RailsuspInputError(f"--out {out}: exists and is not a folder")
+        check_output_folder(out)  # an existing file or an unwritable folder, before any work
         cfg = NSGAConfig(
             pop_size=pop_size,
             n_gen=n_gen,

@@ -13,7 +13,7 @@ from scipy.signal import butter, sosfiltfilt
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.measured.recording import FORMAT, Recording, SimulationFailedError
-from railsusp.store import write_json
+from railsusp.store import atomic_folder, write_json
 from railsusp.vehicle.layout import WHEEL_NAMES
 from railsusp.vehicle.track import with_measurement_error, write_track_geometry
 
@@ -109,40 +109,46 @@ def synthesise_field(
     if not 0.0 <= track_noise_mm <= 10.0:
         raise RailsuspInputError(f"track_noise_mm = {track_noise_mm:g}: accepted 0 to 10 mm")
     out = Path(out)
-    names = []
-    for i, cond in enumerate(conditions):
-        if duration_s is not None:
-            cond = cond.with_duration(duration_s)
-        field_cond = cond.with_changes(seed=cond.seed + track_seed_offset)
-        rec = recording_from_simulation(simulate(truth, field_cond))
-        rec = add_sensor_noise(rec, noise, seed + i)
-        rec.condition = cond  # the engineer knows the condition, not the track realisation
-        if with_track:
-            irr = section_irregularities(field_cond, [field_cond.seed], load_wagon())
-            assert irr is not None, "with_track needs a condition with irregularities"
-            if track_noise_mm:
-                rng = np.random.default_rng([seed, i, 1])
-                irr = with_measurement_error(irr, track_noise_mm * 1e-3, cond.wavelength_min_m, rng)
-            track_name = f"{cond.name}.track.csv"
-            write_track_geometry(out / track_name, irr, origin_m=cond.lead_in_m)
-            rec.condition = cond.with_changes(
-                track_geometry=track_name,
-                track_accuracy_mm=track_noise_mm
-                if stated_accuracy_mm is None
-                else stated_accuracy_mm,
-            )
-        rec.meta["wagon"] = rec.meta.get("wagon", "")
-        rec.write(out / cond.name, fmt)
-        names.append(cond.name + (".csv" if fmt == "csv" else ".parquet"))
-    write_json(
-        out / "index.json", {"format": FORMAT, "recordings": names, "noise": noise, "seed": seed}
-    )
-    write_json(
-        out / "truth.json",
-        {
-            "parameters_display": truth.to_display(),
-            "note": "hidden truth: the estimator must not read this",
-            "track_seed_offset": track_seed_offset,
-        },
-    )
+    # the folder as one artefact: a crash leaves the old folder as it was, never a table
+    # without its sidecar or an index that lists recordings not written
+    with atomic_folder(out) as folder:
+        names = []
+        for i, cond in enumerate(conditions):
+            if duration_s is not None:
+                cond = cond.with_duration(duration_s)
+            field_cond = cond.with_changes(seed=cond.seed + track_seed_offset)
+            rec = recording_from_simulation(simulate(truth, field_cond))
+            rec = add_sensor_noise(rec, noise, seed + i)
+            rec.condition = cond  # the engineer knows the condition, not the track realisation
+            if with_track:
+                irr = section_irregularities(field_cond, [field_cond.seed], load_wagon())
+                assert irr is not None, "with_track needs a condition with irregularities"
+                if track_noise_mm:
+                    rng = np.random.default_rng([seed, i, 1])
+                    irr = with_measurement_error(
+                        irr, track_noise_mm * 1e-3, cond.wavelength_min_m, rng
+                    )
+                track_name = f"{cond.name}.track.csv"
+                write_track_geometry(folder / track_name, irr, origin_m=cond.lead_in_m)
+                rec.condition = cond.with_changes(
+                    track_geometry=track_name,
+                    track_accuracy_mm=track_noise_mm
+                    if stated_accuracy_mm is None
+                    else stated_accuracy_mm,
+                )
+            rec.meta["wagon"] = rec.meta.get("wagon", "")
+            rec.write(folder / cond.name, fmt)
+            names.append(cond.name + (".csv" if fmt == "csv" else ".parquet"))
+        write_json(
+            folder / "index.json",
+            {"format": FORMAT, "recordings": names, "noise": noise, "seed": seed},
+        )
+        write_json(
+            folder / "truth.json",
+            {
+                "parameters_display": truth.to_display(),
+                "note": "hidden truth: the estimator must not read this",
+                "track_seed_offset": track_seed_offset,
+            },
+        )
     return out

@@ -237,9 +237,13 @@ class SimulationResult:
         meta[b"railsusp.condition"] = self.condition.model_dump_json().encode()
         meta[b"railsusp.params"] = ",".join(f"{v:.9g}" for v in self.params[set_index]).encode()
         meta[b"railsusp.status"] = L.FAILURE_REASONS[int(self.status[set_index])].encode()
+        from railsusp.store import fsync_dir, fsync_file
+
         tmp = path.with_name(f".{path.name}.tmp")
         pq.write_table(table.replace_schema_metadata(meta), tmp)
+        fsync_file(tmp)  # on disk before the rename makes it the file
         tmp.replace(path)
+        fsync_dir(path.parent)
         return path
 
 
