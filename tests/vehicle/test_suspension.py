@@ -143,15 +143,36 @@ def _perturbed_state():
     x0[L.CB_ROLL] = 0.003
     x0[L.N_DOF + L.CB_PITCH] = 0.01  # pitch rate
     x0[L.WS0] = 0.002  # leading wheelset lateral
+    # bolster roll and yaw and a side frame's bounce against the car body: relative motion
+    # of connected bodies out of phase, which a force without its full reaction turns into
+    # energy from nowhere
+    x0[L.N_DOF + L.BOL0 + 2] = x0[L.N_DOF + L.BOL0 + 3] = 0.2
+    x0[L.N_DOF + L.SF0 + 2] = 0.05
     return x0
 
 
-@pytest.mark.parametrize("creep", [False, True])
-def test_energy_audit_nonconservative_work_equals_change_of_mechanical_energy(creep):
+@pytest.mark.parametrize(("creep", "tolerance"), [(False, 5e-4), (True, 0.01)])
+def test_energy_audit_nonconservative_work_equals_change_of_mechanical_energy(creep, tolerance):
     # d/dt (T + V) = (F - F_c) . v: the work of dampers, friction and creep forces must
-    # equal the change of kinetic plus potential energy (within 1 %) from a perturbed state
-    # on ideal track; and the perturbation must really be damped out (friction on).
+    # equal the change of kinetic plus potential energy (issue 18: within 1 %) from a
+    # perturbed state on ideal track; and the perturbation must really be damped out.
+    # Without creep the audit is held to 0.05 % (measured 0.01 %): the centre bowl's roll
+    # moment applied to the bolster 20 % short (a missing reaction) gives 0.1 % there
+    # (checked 2026-11-24 on a mutated copy), which the 1 % of the creep case would pass.
     audit = energy_audit(_perturbed_state(), duration_s=1.5, creep=creep)
-    assert audit.relative_error < 0.01, audit
+    assert audit.relative_error < tolerance, audit
     assert audit.work_nonconservative < 0.0
     assert audit.dissipated_fraction > 0.5, audit
+
+
+def test_energy_of_a_small_bounce_is_dissipated_by_the_stuck_wedges():
+    # Car body and bolsters lifted 0.5 mm together: the nests' 0.5 mm is too little to make
+    # the wedges slide (their stick force stays under the friction limit), so only the
+    # wedges' pre-sliding loss can take the bounce's energy. Within 2 s 41 % goes (the rest
+    # stays as the springs' energy of the offset at which friction holds the body); the
+    # model before 2026-11-24, whose stuck wedges were lossless springs, lost 10 %.
+    x0 = np.zeros(L.N_STATE)
+    x0[L.CB_Z] = x0[L.BOL0 + 1] = x0[L.BOL0 + 5] = 5e-4
+    audit = energy_audit(x0, duration_s=2.0, creep=False)
+    assert audit.relative_error < 0.01, audit
+    assert audit.dissipated_fraction > 0.3, audit
