@@ -157,6 +157,18 @@ def test_modal_lateral_car_body_frequencies_of_the_loaded_wagon(sliding):
     assert 1.0 <= yaw <= 1.8, f"car-body yaw {yaw:.2f} Hz outside 1.0-1.8 Hz"
 
 
+def test_modal_car_body_modes_are_damped_with_the_wedges_stuck(stuck):
+    """Small motions stick the wedges: the car-body modes must still be damped (pre-sliding
+    losses of wedges and bowl, rubber pads, side-bearer elastomer). The model before
+    2026-11-24 had bounce and pitch at 4.5 / 4.7 Hz with damping ratio 0.0008 here, lower
+    sway 0.005. 0.04: the lower sway's 0.043 (the decay test asks 0.05 and is an expected
+    failure for it)."""
+    kinds = stuck.car_body_kinds()
+    weak = {k: round(float(stuck.damping_ratio[i]), 4) for k, i in kinds.items()
+            if stuck.damping_ratio[i] < 0.04}  # fmt: skip
+    assert not weak, f"car-body modes with the wedges stuck damped below 0.04: {weak}"
+
+
 # ---------------------------------------------------------------- decay
 def test_decay_estimator_recovers_a_damped_sinusoid():
     """Analytic case: x = A exp(-ζ ω t) cos(ω sqrt(1 - ζ²) t + φ) + c."""
