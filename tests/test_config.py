@@ -37,6 +37,10 @@ def _write(tmp_path, text: str):
         (BASE.replace("samples = 10", "sample = 10"), "campaign.sample"),
         (BASE + "[estimate]\nweighting = 'noise'\n", "needs the predictive SD of surrogate.model"),
         (BASE + "[surrogate]\ndevice = 'tpu'\n", "surrogate.device = 'tpu'"),
+        # the estimate's own ranges, at load time rather than after campaign and training
+        (BASE + "[estimate]\nseed = -1\n", "estimate.seed"),
+        (BASE + "[estimate]\nn_gen = 200000\n", "estimate.n_gen"),
+        (BASE + "[estimate]\nrefine_evaluations = 501\n", "estimate.refine_evaluations"),
         (BASE.replace('name="short"', 'name="../../x"'), "condition name becomes a folder"),
         (BASE.replace('name="short"', 'name="/abs"'), "no absolute path"),
         (

@@ -114,7 +114,6 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
     :class:`ConfigError` (one line, naming the field) at the first thing that would make a
     stage fail."""
     from railsusp.params import ParameterSet, spec
-    from railsusp.store import read_toml
     from railsusp.vehicle.wagon import load_wagon
 
     def bad(message: str) -> ConfigError:
@@ -196,7 +195,6 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
         raise bad(f"surrogate.device = {cfg.surrogate.device!r}: accepted {', '.join(DEVICES)}")
     if cfg.wagon is not None:
         try:
-            read_toml(cfg.wagon, "wagon file")
             load_wagon(cfg.wagon)
         except RailsuspInputError as exc:
             raise bad(f"wagon: {exc}") from None

@@ -11,7 +11,9 @@ study's numbers, only the unit label changes):
   hydraulic lateral damper; its lateral damping comes from the friction wedges. 50 MN·s/m would
   lock the bolster to the side frames (critical damping of the bolster on 1.8 MN/m is about
   60 kN·s/m). We read the value as **50 kN·s/m**, an equivalent viscous lateral damping per
-  spring nest, which is physically the right order.
+  spring nest, which is physically the right order. Since the friction-wedge element the
+  model takes X18 / 50 kN·s/m as the wedges' friction level (their normal forces), see
+  docs/parameters.md.
 * X19, "swing arm node longitudinal/vertical stiffness", 30 000 MN/m. The K6 has no swing
   arm; the elastic nodes it has are those of the cross-bracing bars whose pin-hole spans are
   X9 and X10. 30 GN/m is stiffer than the steel bar itself (EA/L about 70 MN/m), so we read the

@@ -25,6 +25,7 @@ from pydantic import (
 
 from railsusp.conditions import WorkingCondition, get_condition, make_condition
 from railsusp.errors import RailsuspInputError
+from railsusp.estimate.config import NSGA_RANGES, REFINE_RANGES, SEEDS_RANGE
 from railsusp.params import MAIN_SUSPENSION, ParameterSet
 from railsusp.store import content_hash, provenance, read_json, write_json
 
@@ -32,6 +33,9 @@ from railsusp.store import content_hash, provenance, read_json, write_json
 log = logging.getLogger("railsusp.pipeline")
 
 STAGES = ("campaign", "sensitivity", "surrogate", "field", "estimate", "validate", "report")
+
+
+_NSGA, _REF = NSGA_RANGES, REFINE_RANGES
 
 
 class _Cfg(BaseModel):
@@ -98,7 +102,7 @@ class FieldSection(_Cfg):
     truth: dict[str, float] = Field(
         default_factory=dict, description="hidden true parameters, display units"
     )
-    seed: int = 7
+    seed: int = Field(7, ge=0, le=2**63 - 1)
     noise: float = Field(0.03, ge=0.0, le=0.5)
     with_track: bool = Field(
         False, description="synthetic recordings also carry their measured track geometry"
@@ -107,8 +111,9 @@ class FieldSection(_Cfg):
 
 
 class EstimateSection(_Cfg):
-    pop_size: int = Field(50, ge=4)
-    n_gen: int = Field(100, ge=1)
+    # the ranges of the estimate's own settings (one source: railsusp.estimate.config)
+    pop_size: int = Field(50, ge=_NSGA["pop_size"][0], le=_NSGA["pop_size"][1])
+    n_gen: int = Field(100, ge=_NSGA["n_gen"][0], le=_NSGA["n_gen"][1])
     crossover_prob: float = Field(0.9, ge=0.0, le=1.0)
     mutation_prob: float = Field(0.05, ge=0.0, le=1.0)
     statistic: str = Field("mean", description="mean, rms, p99, std or a '+' combination")
@@ -116,20 +121,26 @@ class EstimateSection(_Cfg):
     weighting: Literal["relative", "noise"] = Field(
         "relative", description="relative errors, or in units of the gp-stats predictive SD"
     )
-    seeds: int = Field(1, ge=1, le=10)
-    seed: int = 0
+    seeds: int = Field(1, ge=SEEDS_RANGE[0], le=SEEDS_RANGE[1])
+    seed: int = Field(0, ge=_NSGA["seed"][0], le=_NSGA["seed"][1])
     refine: bool = Field(
         False,
         description="refine by output-error least squares with the simulator on the "
         "recordings' measured track (needs recordings with track geometry)",
     )
-    refine_evaluations: int = Field(40, ge=1, le=500)
-    refine_screen: int = Field(64, ge=0, le=10_000, description="LHS points screened for starts")
-    refine_starts: int = Field(2, ge=1, le=20, description="best screened starts refined")
+    refine_evaluations: int = Field(
+        40, ge=_REF["max_evaluations"][0], le=_REF["max_evaluations"][1]
+    )
+    refine_screen: int = Field(
+        64, ge=_REF["screen"][0], le=_REF["screen"][1], description="LHS points screened for starts"
+    )
+    refine_starts: int = Field(
+        2, ge=_REF["starts"][0], le=_REF["starts"][1], description="best screened starts refined"
+    )
     geometry_draws: int = Field(
         8,
-        ge=0,
-        le=100,
+        ge=_REF["geometry_draws"][0],
+        le=_REF["geometry_draws"][1],
         description="draws of the recordings' stated track-geometry error propagated into "
         "the refined estimate's standard errors",
     )

@@ -77,3 +77,19 @@ def test_tare_file_has_every_key_of_the_loaded_file():
         return {f"{s}.{k}" for s, table in doc.items() for k in table}
 
     assert keys("c80_k6_tare.toml") == keys("c80_k6.toml")
+
+
+def test_packaged_name_works_in_the_command_line_and_the_configuration(tmp_path):
+    # the command line's and the configuration's early checks once read the name as a path
+    from typer.testing import CliRunner
+
+    from railsusp.cli import app
+    from railsusp.pipeline import load_config
+
+    short = tmp_path / "short.toml"
+    short.write_text('[[condition]]\nname = "short"\nduration_s = 2.0\nn_steps = 100\n')
+    result = CliRunner().invoke(app, ["simulate", str(short), "--wagon", "tare"])
+    assert result.exit_code == 0, result.output
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('wagon = "tare"\n')
+    assert load_config(cfg).wagon == "tare"

@@ -13,7 +13,7 @@ from railsusp.cli.common import app, console, err_console, fail
 from railsusp.conditions import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet, parse_overrides
-from railsusp.store import check_output_file, read_toml
+from railsusp.store import check_output_file
 from railsusp.study import TABLE8_BEFORE
 
 
@@ -112,9 +112,7 @@ def simulate(
         for option, path in (("--out", out), ("--plot", plot)):
             if path is not None:
                 check_output_file(path, option)
-        if wagon is not None:
-            read_toml(wagon, "wagon file")  # one-line errors: folder, unreadable, binary, syntax
-        wagon_data = load_wagon(wagon)
+        wagon_data = load_wagon(wagon)  # a packaged name or a file, one-line errors
         if wheel != "auto" and wheel not in WHEEL_NAMES:
             raise RailsuspInputError(
                 f"--wheel {wheel!r} unknown; accepted auto or {', '.join(WHEEL_NAMES)}"

@@ -9,6 +9,7 @@ mutation 0.05, 100 generations), and :func:`estimate` returns a
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 from typing import Any
 
@@ -30,13 +31,18 @@ from railsusp.estimate.result import CalibrationResult
 from railsusp.measured import Recording
 from railsusp.params import bounds
 
+#: progress lines for the command line (stage progress of long estimates)
+log = logging.getLogger("railsusp.estimate")
+
 
 class _Log(Callback):
     """Records pymoo's n_gen, n_eval, n_nds, eps, indicator (the study's Tables 3/4) and
-    each generation's population, for the convergence history."""
+    each generation's population, for the convergence history; says the progress on the
+    ``railsusp`` logger every tenth of the run (the command line prints it)."""
 
-    def __init__(self):
+    def __init__(self, n_gen: int = 0):
         super().__init__()
+        self.n_gen = n_gen
         self.rows: list[dict] = []
         self.front_x: list[np.ndarray] = []
         self.front_f: list[np.ndarray] = []
@@ -53,6 +59,12 @@ class _Log(Callback):
         self.rows.append(row)
         self.front_x.append(algorithm.opt.get("X").copy())
         self.front_f.append(algorithm.opt.get("F").copy())
+        n = len(self.rows)
+        if self.n_gen and (n % max(1, self.n_gen // 10) == 0 or n == self.n_gen):
+            log.info(
+                "NSGA-II generation %d of %d: %d evaluations, %d on the front",
+                n, self.n_gen, row.get("n_eval", 0), len(self.front_f[-1]),
+            )  # fmt: skip
 
 
 def choose(front: np.ndarray) -> int:
@@ -91,17 +103,22 @@ def estimate(
         mutation=PM(prob_var=cfg.mutation_prob, eta=20),
         eliminate_duplicates=True,
     )
-    log = _Log()
-    res = minimize(problem, algo, ("n_gen", cfg.n_gen), seed=cfg.seed, verbose=False, callback=log)
+    progress = _Log(cfg.n_gen)
+    res = minimize(
+        problem, algo, ("n_gen", cfg.n_gen), seed=cfg.seed, verbose=False, callback=progress
+    )
     x = np.atleast_2d(res.X)
     f = np.atleast_2d(res.F)
     order = np.argsort(f[:, 0])
     x, f = x[order], f[order]
     history = np.array(
-        [problem.to_si(fx[choose(ff)]) for fx, ff in zip(log.front_x, log.front_f, strict=True)]
+        [
+            problem.to_si(fx[choose(ff)])
+            for fx, ff in zip(progress.front_x, progress.front_f, strict=True)
+        ]
     )
     result = CalibrationResult(
-        tuple(parameters), problem.to_si(x), f, choose(f), pd.DataFrame(log.rows), history, cfg
+        tuple(parameters), problem.to_si(x), f, choose(f), pd.DataFrame(progress.rows), history, cfg
     )
     if isinstance(model, StatisticsForces) and problem.stats:
         result.cramer_rao = cramer_rao_pct_range(

@@ -12,6 +12,7 @@ an NSGA-II estimate is :func:`railsusp.estimate.polish.refine_estimate`.
 
 from __future__ import annotations
 
+import logging
 import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -29,6 +30,9 @@ from railsusp.estimate.problem import check_aligned, display_values
 from railsusp.measured import Recording
 from railsusp.params import bounds
 from railsusp.vehicle import track
+
+#: progress lines for the command line
+log = logging.getLogger("railsusp.estimate")
 
 #: forward-difference step of the refinement's Jacobian, share of each parameter's range:
 #: wider than the small-scale roughness of the time-aligned cost (wedge friction, contact
@@ -182,6 +186,10 @@ def refine(
 
     def jacobian(z: np.ndarray) -> np.ndarray:
         history.append(lo + z[:k] * (hi - lo))
+        log.info(
+            "refinement step %d (at most %d evaluations): %d simulations of %d parameters",
+            len(history), max_evaluations, k + 1, k,
+        )  # fmt: skip
         return problem.jacobian_of(problem.predictions(problem.steps(z[:k])), z)
 
     u0 = np.clip((np.asarray(start_si, dtype=float) - lo) / (hi - lo), 0.0, 1.0)

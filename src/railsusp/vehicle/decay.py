@@ -28,6 +28,7 @@ import numba as nb
 import numpy as np
 from scipy.optimize import least_squares
 
+import railsusp.vehicle.kernel_cache  # noqa: F401  (before any kernel is compiled)
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet
 from railsusp.vehicle import layout as L

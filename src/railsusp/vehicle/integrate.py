@@ -12,6 +12,7 @@ import math
 import numba as nb
 import numpy as np
 
+import railsusp.vehicle.kernel_cache  # noqa: F401  (before any kernel is compiled)
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.model import rhs
 

@@ -41,6 +41,7 @@ import math
 import numba as nb
 import numpy as np
 
+import railsusp.vehicle.kernel_cache  # noqa: F401  (before any kernel is compiled)
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.suspension import (
     bowl_ring_forces,
@@ -428,6 +429,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
     # ---- track positions ----
     s_c = s_front - (lc + a)
     kap_c, cant_c, head_c, off_c = track_frame(trk, s_c, s0, ds)
+    cant_rate_c = track_rate(trk, L.TR_CANT, s_c, s0, ds, V)
 
     # ---- car body pseudo-forces ----
     m_c = K[I_MC]
@@ -465,7 +467,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         # centre bowl: ring of contact points with edge lift-off (vertical, roll, pitch) and
         # roll friction
         z_car = q[L.CB_Z] - d * q[L.CB_PITCH]
-        roll_rate_b_c = v[ib + 2] - v[L.CB_ROLL] - track_rate(trk, L.TR_CANT, s_c, s0, ds, V)
+        roll_rate_b_c = v[ib + 2] - v[L.CB_ROLL] - cant_rate_c
         roll_rate_b_c += track_rate(trk, L.TR_CANT, s_b, s0, ds, V)
         n_cp, m_roll, m_pitch, m_rfr = bowl_ring_forces(
             q[ib + 1] - z_car, roll_c_b - q[ib + 2], q[L.CB_PITCH], -roll_rate_b_c, K[I_RCP],

@@ -16,11 +16,16 @@ import math
 
 import numba as nb
 
+import railsusp.vehicle.kernel_cache  # noqa: F401  (before any kernel is compiled)
+
 #: relaxation time of a friction state pushed beyond its (shrinking) limit, s
 SLIDER_RELAXATION = 2.0e-3
 
-#: contact points of the centre-bowl ring (equally spaced on the bowl radius)
+#: contact points of the centre-bowl ring (equally spaced on the bowl radius) and their
+#: direction cosines (constants of the compiled code)
 BOWL_POINTS = 8
+BOWL_COS = tuple(math.cos(2.0 * math.pi * j / BOWL_POINTS) for j in range(BOWL_POINTS))
+BOWL_SIN = tuple(math.sin(2.0 * math.pi * j / BOWL_POINTS) for j in range(BOWL_POINTS))
 
 
 @nb.njit(cache=True, inline="always")
@@ -183,9 +188,8 @@ def bowl_ring_forces(
     m_roll = 0.0
     m_pitch = 0.0
     for j in range(n):
-        t = 2.0 * math.pi * j / n
-        x = radius * math.cos(t)
-        y = radius * math.sin(t)
+        x = radius * BOWL_COS[j]
+        y = radius * BOWL_SIN[j]
         f = fp + kp * (dz - y * droll + x * dpitch)
         if f < 0.0:
             f = 0.0

@@ -187,6 +187,8 @@ PACKAGED_WAGONS = {
 def load_wagon(source: str | Path | None = None) -> WagonData:
     """Read and validate a wagon file; None gives the embedded C80/K6 data (loaded), a
     name of :data:`PACKAGED_WAGONS` (``"tare"``) another embedded file."""
+    from railsusp.store import read_toml
+
     name = None if source is None else str(source)
     if name is None or (name in PACKAGED_WAGONS and not Path(name).is_file()):
         where = PACKAGED_WAGONS.get(name or "loaded", "c80_k6.toml")
@@ -194,13 +196,14 @@ def load_wagon(source: str | Path | None = None) -> WagonData:
         source = None
     else:
         path = Path(source)
-        if not path.is_file():
+        if not path.exists():
             raise RailsuspInputError(
                 f"wagon file {path} does not exist (packaged wagons: {', '.join(PACKAGED_WAGONS)})"
             )
-        text, where = path.read_text("utf-8"), str(path)
+        text, where = None, str(path)
     try:
-        doc = tomllib.loads(text)
+        # a folder, an unreadable or binary file, bad syntax: one line naming the file
+        doc = tomllib.loads(text) if text is not None else read_toml(path, "wagon file")
         prof = doc.get("profiles")
         if source is not None and isinstance(prof, dict):
             base = Path(source).resolve().parent

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+import railsusp.vehicle.kernel_cache  # noqa: F401  (before any kernel is compiled)
 from railsusp.conditions import WorkingCondition
 from railsusp.params import ParameterSet
 from railsusp.vehicle import layout as L
