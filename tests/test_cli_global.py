@@ -47,3 +47,21 @@ def test_warnings_are_one_line_once_and_the_stage_log_follows_the_verbosity(monk
         assert out.count("warning: the record is shorter than a segment") == 1
     finally:
         app.registered_commands[:] = [c for c in app.registered_commands if c.name != "probe-warn"]
+
+
+def test_every_command_shows_an_example_in_its_help():
+    from typer.testing import CliRunner
+
+    from railsusp.cli import app, command_name
+
+    names = [command_name(info) for info in app.registered_commands]
+    assert len(names) >= 19
+    for group in app.registered_groups:  # sub-applications: their commands too
+        for info in group.typer_instance.registered_commands:
+            names.append(f"{group.name} {command_name(info)}")
+    missing = []
+    for name in names:
+        out = CliRunner().invoke(app, [*name.split(), "--help"], terminal_width=200).output
+        if "Example:" not in out and "Examples:" not in out:
+            missing.append(name)
+    assert not missing, f"no example in the help of: {missing}"

@@ -27,6 +27,41 @@ from railsusp.cli import pipeline
 
 # isort: on
 
+#: one example per command, shown at the end of its --help
+EXAMPLES = {
+    "params": "railsusp params --set X13=16.1,X14=8.3",
+    "conditions": "railsusp conditions my-conditions.toml",
+    "track": "railsusp track --class 5 --plot track.png",
+    "simulate": "railsusp simulate curve --set X13=16.1 --out f.parquet --plot f.png",
+    "version": "railsusp version",
+    "modes": "railsusp modes --speed 60 --decay",
+    "campaign": "railsusp campaign --samples 256 --conditions straight,curve,uphill --out runs/lhs",
+    "sensitivity": "railsusp sensitivity runs/lhs",
+    "train": "railsusp train runs/keys --model cnn-gru",
+    "compare": "railsusp compare runs/keys",
+    "synth-field": "railsusp synth-field --truth X13=16.1,X14=8.3 --with-track --out field/",
+    "align-track": "railsusp align-track field/ --write",
+    "estimate": "railsusp estimate --measured field/ --simulator --parameters X13,X14 --out est/",
+    "validate": "railsusp validate est/ --truth field/truth.json",
+    "check-recording": "railsusp check-recording field/curve.csv",
+    "sections": "railsusp sections run.mf4 --map map.toml --write field/",
+    "example-recording": "railsusp example-recording --out example/",
+    "run": "railsusp run examples/quick.toml --out runs/quick",
+    "demo": "railsusp demo",
+}
+
+
+def command_name(info) -> str:
+    """The name a registered command is called by (Typer's rule: the function's name with
+    dashes, unless given)."""
+    return info.name or info.callback.__name__.replace("_", "-")
+
+
+for _info in app.registered_commands:
+    _example = EXAMPLES.get(command_name(_info))
+    if _example and not _info.epilog:
+        _info.epilog = f"Example: {_example}"
+
 __all__ = [
     "analysis",
     "app",
