@@ -206,6 +206,11 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
             f"estimate.refine_screen = {cfg.estimate.refine_screen} screens fewer points than "
             f"estimate.refine_starts = {cfg.estimate.refine_starts} starts"
         )
+    if cfg.surrogate.model == "gp-stats" and "p99.85" in cfg.estimate.statistic.split("+"):
+        raise bad(
+            'estimate.statistic "p99.85" (EN 14363) is computed from force series; the '
+            'statistics GPs of surrogate.model = "gp-stats" predict mean, rms, p99 and std only'
+        )
     if cfg.surrogate.device not in DEVICES:
         raise bad(f"surrogate.device = {cfg.surrogate.device!r}: accepted {', '.join(DEVICES)}")
     if cfg.wagon is not None:

@@ -362,6 +362,46 @@ def _section(config: PipelineConfig, stage: str) -> Any:
     return sections[stage]
 
 
+def field_stage(config: PipelineConfig, out: str | Path) -> dict:
+    """The field stage alone: the recordings the estimation reads, in ``OUT/field``: a long
+    run's kept sections (``[field] recording``), a copy of a measured folder, or synthetic
+    recordings of the hidden truth. Returns the stage's record for ``pipeline.json``."""
+    from railsusp.measured import read_field, synthesise_field
+
+    out = Path(out)
+    f = config.field
+    dest = out / "field"
+    source = config.run_source()
+    if source is not None:
+        from railsusp.measured.cut import write_run_field
+        from railsusp.store import atomic_folder
+
+        with atomic_folder(dest, keep=False) as tmp:  # the old folder stays until replaced
+            write_run_field(source, tmp, dest)
+        recs = read_field(dest)  # the estimation's inputs, read back and checked
+        return {"recordings": len(recs), "synthetic": False, "recording": f.recording}
+    if f.measured:
+        recs = read_field(f.measured)
+        import shutil
+
+        from railsusp.store import atomic_folder
+
+        with atomic_folder(dest, keep=False) as tmp:  # the old copy stays until replaced
+            shutil.copytree(f.measured, tmp, dirs_exist_ok=True)
+        return {"recordings": len(recs), "synthetic": False}
+    truth = ParameterSet(f.truth, units="display")
+    synthesise_field(
+        truth,
+        config.working_conditions(),
+        dest,
+        seed=f.seed,
+        noise=f.noise,
+        with_track=f.with_track,
+        track_noise_mm=f.track_noise_mm,
+    )
+    return {"recordings": len(config.conditions), "synthetic": True}
+
+
 _OUTPUTS = {
     "campaign": "campaign/features.parquet",
     "sensitivity": "campaign/sensitivity/key_parameters.json",
@@ -455,39 +495,7 @@ def _stage_runners(
         return {**info, "models": sorted(set(tab.model))}
 
     def field() -> dict:
-        from railsusp.measured import read_field, synthesise_field
-
-        f = config.field
-        dest = out / "field"
-        source = config.run_source()
-        if source is not None:
-            from railsusp.measured.cut import write_run_field
-            from railsusp.store import atomic_folder
-
-            with atomic_folder(dest, keep=False) as tmp:  # the old folder stays until replaced
-                write_run_field(source, tmp, dest)
-            recs = read_field(dest)  # the estimation's inputs, read back and checked
-            return {"recordings": len(recs), "synthetic": False, "recording": f.recording}
-        if f.measured:
-            recs = read_field(f.measured)
-            import shutil
-
-            from railsusp.store import atomic_folder
-
-            with atomic_folder(dest, keep=False) as tmp:  # the old copy stays until replaced
-                shutil.copytree(f.measured, tmp, dirs_exist_ok=True)
-            return {"recordings": len(recs), "synthetic": False}
-        truth = ParameterSet(f.truth, units="display")
-        synthesise_field(
-            truth,
-            config.working_conditions(),
-            dest,
-            seed=f.seed,
-            noise=f.noise,
-            with_track=f.with_track,
-            track_noise_mm=f.track_noise_mm,
-        )
-        return {"recordings": len(config.conditions), "synthetic": True}
+        return field_stage(config, out)
 
     def estimate() -> dict:
         from railsusp.estimate import (
