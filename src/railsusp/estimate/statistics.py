@@ -15,7 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from railsusp.conditions import WorkingCondition
-from railsusp.en14363 import FORCE_CUTOFF_HZ, WINDOW_M, lowpass, sliding_mean
+from railsusp.en14363 import FORCE_CUTOFF_HZ, WINDOW_M, full_window, lowpass, sliding_mean
 from railsusp.measured import Recording
 from railsusp.vehicle.simulate import RECORD_STATISTICS, record_statistic, statistic_segments
 
@@ -154,7 +154,8 @@ def en14363_maximum(
 ) -> np.ndarray:
     """EN 14363's estimated maximum of force series at constant speed (time along the last
     axis): low-pass at ``cutoff_hz`` (at most 0.45 of the rate), sliding mean over
-    ``window_m`` of track, 99.85 % value. Samples undefined in every series (a window
+    ``window_m`` of track, 99.85 % value of the samples whose window lies inside the
+    record (:func:`~railsusp.en14363.full_window`). Samples undefined in every series (a window
     surrogate's first window) are left out; a series with other gaps gives NaN, as does a
     record shorter than the filter can take."""
     x = np.asarray(x, dtype=float)
@@ -165,10 +166,13 @@ def en14363_maximum(
         return out.reshape(x.shape[:-1])
     part = flat[:, defined[0] : defined[-1] + 1]
     position = np.arange(part.shape[1]) * (speed_ms / rate_hz)
+    inside = full_window(position, window_m)
+    if not inside.any():
+        return out.reshape(x.shape[:-1])
     for i, row in enumerate(part):
         if np.isfinite(row).all():
             smooth = sliding_mean(
                 lowpass(row, rate_hz, min(cutoff_hz, 0.45 * rate_hz)), position, window_m
             )
-            out[i] = np.percentile(smooth, 99.85)
+            out[i] = np.percentile(smooth[inside], 99.85)
     return out.reshape(x.shape[:-1])
