@@ -12,6 +12,7 @@ import tomllib
 from importlib import resources
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 from typer.testing import CliRunner
@@ -251,3 +252,31 @@ def test_railsusp_run_on_the_shipped_mdf4_estimates_end_to_end(example, tmp_path
     assert len(set(val.condition)) == 5
     html = (out / "report.html").read_text()
     assert "EN 14363" in html and "s2-curve-R600" in html
+
+
+def test_report_section_shows_the_runs_en14363_table_or_computes_it(example, tmp_path):
+    """The report's EN 14363 table: the long run's ``en14363.csv`` (processed at 200 Hz)
+    where the field folder has one, else processed from the 50 Hz section recordings, which
+    agree with it: the median to within a kN, the tails (the 0.15 % of 1500 samples against
+    that of 6000) to within 6 %."""
+    from railsusp.report_doc import Doc
+    from railsusp.report_en14363 import en14363_section, en14363_table
+
+    run = tmp_path / "run"
+    field_stage(load_config(example / CONFIG), run)
+    shipped, source = en14363_table(run)
+    assert "en14363.csv" in source
+    (run / "field" / "en14363.csv").unlink()
+    computed, source = en14363_table(run)
+    assert source == "the field recordings"
+    key = ["section", "wheel", "force"]
+    both = shipped.merge(computed, on=key, suffixes=("_run", "_rec"))
+    assert len(both) == len(shipped) == 20  # 5 sections x 2 wheels x Y, Q
+    np.testing.assert_allclose(both["p50_kN_run"], both["p50_kN_rec"], atol=1.0)
+    for col in ("p0.15_kN", "p99.85_kN"):
+        np.testing.assert_allclose(both[f"{col}_run"], both[f"{col}_rec"], rtol=0.06, atol=1.0)
+    doc = Doc(run)
+    en14363_section(doc, run)
+    page = "\n".join(doc.html)
+    assert "EN 14363 processing" in page and "s3-curve-R350" in page
+    assert "\n".join(doc.md).count("| s2-curve-R600 |") == 4
