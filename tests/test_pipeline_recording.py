@@ -280,3 +280,14 @@ def test_report_section_shows_the_runs_en14363_table_or_computes_it(example, tmp
     page = "\n".join(doc.html)
     assert "EN 14363 processing" in page and "s3-curve-R350" in page
     assert "\n".join(doc.md).count("| s2-curve-R600 |") == 4
+
+
+def test_the_tutorial_shows_the_shipped_configuration():
+    """docs/tutorial-recording.md prints example_run.pipeline.toml: the same settings."""
+    import re
+
+    doc = (Path(__file__).parents[1] / "docs" / "tutorial-recording.md").read_text("utf-8")
+    blocks = [b for b in re.findall(r"```toml\n(.*?)```", doc, re.S) if "recording =" in b]
+    assert len(blocks) == 1
+    shipped = (resources.files("railsusp") / "data" / CONFIG).read_text("utf-8")
+    assert tomllib.loads(blocks[0]) == tomllib.loads(shipped)

@@ -124,7 +124,9 @@ class EstimateSection(_Cfg):
     n_gen: int = Field(100, ge=1)
     crossover_prob: float = Field(0.9, ge=0.0, le=1.0)
     mutation_prob: float = Field(0.05, ge=0.0, le=1.0)
-    statistic: str = Field("mean", description="mean, rms, p99, std or a '+' combination")
+    statistic: str = Field(
+        "mean", description="mean, rms, p99, std, p99.85 (EN 14363) or a '+' combination"
+    )
     per_condition: bool = Field(False, description="two objectives per condition")
     weighting: Literal["relative", "noise"] = Field(
         "relative", description="relative errors, or in units of the gp-stats predictive SD"
