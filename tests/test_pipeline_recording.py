@@ -22,7 +22,8 @@ from railsusp.config import ConfigError
 from railsusp.errors import RailsuspInputError
 from railsusp.measured import read_field
 from railsusp.measured.cut import RunSource, cut_run
-from railsusp.pipeline import field_stage, load_config, run_pipeline
+from railsusp.pipeline import load_config, run_pipeline
+from railsusp.pipeline_field import field_stage
 
 EXAMPLE = ("example_run.mf4", "example_run.map.toml", "example_line.csv")
 CONFIG = "example_run.pipeline.toml"

@@ -25,7 +25,7 @@ from pydantic import (
 
 from railsusp.conditions import WorkingCondition, get_condition, make_condition
 from railsusp.errors import RailsuspInputError
-from railsusp.params import MAIN_SUSPENSION, ParameterSet
+from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import content_hash, provenance, read_json, write_json
 
 #: stage finishes with their elapsed time (info) and starts (debug), for the command line
@@ -178,23 +178,9 @@ class PipelineConfig(_Cfg):
     def run_source(self) -> Any:
         """The long run of ``[field] recording`` and how to cut it
         (:class:`~railsusp.measured.cut.RunSource`), or None."""
-        f = self.field
-        if f.recording is None:
-            return None
-        from railsusp.measured.cut import RunSource
-        from railsusp.measured.sections import SectionRules
+        from railsusp.pipeline_field import run_source
 
-        def path(p: str | None) -> Path | None:
-            return Path(p) if p is not None else None
-
-        rules = SectionRules(
-            speed_tolerance=f.speed_tolerance,
-            min_length_m=f.min_length_m,
-            max_duration_s=f.max_duration_s,
-        )
-        return RunSource(
-            Path(f.recording), path(f.channel_map), path(f.line), path(f.sections), rules, f.rate_hz
-        )
+        return run_source(self.field)
 
     def working_conditions(self) -> list[WorkingCondition]:
         """The conditions of the run: those given, or with ``[field] recording`` the kept
@@ -364,46 +350,6 @@ def _section(config: PipelineConfig, stage: str) -> Any:
     return sections[stage]
 
 
-def field_stage(config: PipelineConfig, out: str | Path) -> dict:
-    """The field stage alone: the recordings the estimation reads, in ``OUT/field``: a long
-    run's kept sections (``[field] recording``), a copy of a measured folder, or synthetic
-    recordings of the hidden truth. Returns the stage's record for ``pipeline.json``."""
-    from railsusp.measured import read_field, synthesise_field
-
-    out = Path(out)
-    f = config.field
-    dest = out / "field"
-    source = config.run_source()
-    if source is not None:
-        from railsusp.measured.cut import write_run_field
-        from railsusp.store import atomic_folder
-
-        with atomic_folder(dest, keep=False) as tmp:  # the old folder stays until replaced
-            write_run_field(source, tmp, dest)
-        recs = read_field(dest)  # the estimation's inputs, read back and checked
-        return {"recordings": len(recs), "synthetic": False, "recording": f.recording}
-    if f.measured:
-        recs = read_field(f.measured)
-        import shutil
-
-        from railsusp.store import atomic_folder
-
-        with atomic_folder(dest, keep=False) as tmp:  # the old copy stays until replaced
-            shutil.copytree(f.measured, tmp, dirs_exist_ok=True)
-        return {"recordings": len(recs), "synthetic": False}
-    truth = ParameterSet(f.truth, units="display")
-    synthesise_field(
-        truth,
-        config.working_conditions(),
-        dest,
-        seed=f.seed,
-        noise=f.noise,
-        with_track=f.with_track,
-        track_noise_mm=f.track_noise_mm,
-    )
-    return {"recordings": len(config.conditions), "synthetic": True}
-
-
 _OUTPUTS = {
     "campaign": "campaign/features.parquet",
     "sensitivity": "campaign/sensitivity/key_parameters.json",
@@ -497,6 +443,8 @@ def _stage_runners(
         return {**info, "models": sorted(set(tab.model))}
 
     def field() -> dict:
+        from railsusp.pipeline_field import field_stage
+
         return field_stage(config, out)
 
     def estimate() -> dict:
