@@ -189,3 +189,17 @@ def test_report_in_headless_chromium(run_dir, tmp_path):
     assert layout["pageWidth"] <= layout["viewWidth"] == 1024
     assert max(layout["tables"]) <= 1024
     assert shot.stat().st_size > 10_000
+
+
+def test_report_shows_the_recordings_en14363_percentiles(run_dir):
+    """A synthetic run's field folder has no en14363.csv: the report processes its
+    recordings (20 Hz low-pass, 2 m mean) and shows the percentiles of each wheel's forces."""
+    from railsusp.en14363 import section_statistics
+    from railsusp.measured import read_field
+
+    page = (run_dir / "report.html").read_text("utf-8")
+    assert "Measured forces, EN 14363 processing" in page
+    rec = read_field(run_dir / "field")[0]
+    w = rec.wheels[0]
+    st = section_statistics(rec.Q[w], rec.sampling_rate, rec.condition.speed)
+    assert summary.sig3(round(st.p99_85, 2)) in page

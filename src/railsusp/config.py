@@ -11,8 +11,9 @@ would fail in its fifth stage fails at once, with a one-line error naming the fi
   and inside their ranges (``truth = {X99 = 1.0}`` used to fail after three stages);
 * combinations: ``refine = true`` needs recordings with track geometry (``with_track`` for
   synthetic ones), the ``noise`` weighting a ``gp-stats`` force model, recordings from
-  ``measured`` (a folder with ``index.json``) or synthetic ones, a readable wagon file, a scheduler
-  address, the training device.
+  ``measured`` (a folder with ``index.json``), a long run (``recording``, its files present;
+  not with ``measured``, ``truth``, ``conditions`` or ``refine``) or synthetic ones, a
+  readable wagon file, a scheduler address, the training device.
 
 The pipeline's :func:`~railsusp.pipeline.load_config` calls :func:`read_config` and
 :func:`check_config`; this module imports nothing of the pipeline (the models come in as
@@ -119,7 +120,15 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
     def bad(message: str) -> ConfigError:
         return ConfigError(f"{where}: {message}")
 
-    # conditions: each one builds, names distinct
+    # a long run to cut into sections: its files, and what it excludes
+    if cfg.field.recording is not None:
+        _check_recording_keys(cfg, bad)
+    else:
+        for key in ("channel_map", "line", "sections"):
+            if getattr(cfg.field, key) is not None:
+                raise bad(f"field.{key} needs field.recording (the long run it applies to)")
+
+    # conditions: each one builds, names distinct (a recording's: its cut)
     try:
         conds = cfg.working_conditions()
     except RailsuspInputError as exc:
@@ -165,13 +174,18 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
             raise bad(f"field.measured = {f.measured!r} is not a folder")
         if not (folder / "index.json").is_file():
             raise bad(f"field.measured = {f.measured!r} holds no index.json of recordings")
+    if cfg.estimate.refine and f.recording is not None:
+        raise bad(
+            "estimate.refine = true with field.recording: the sections of a long run carry no "
+            "measured track geometry, which the refinement needs; set refine = false"
+        )
     if cfg.estimate.refine and f.measured is None and not f.with_track:
         raise bad(
             "estimate.refine = true with field.with_track = false: the refinement compares "
             "time-aligned series on the recordings' measured track geometry; "
             "set field.with_track = true (or refine = false)"
         )
-    if (f.with_track or f.track_noise_mm) and f.measured is not None:
+    if (f.with_track or f.track_noise_mm) and (f.measured or f.recording) is not None:
         raise bad("field.with_track and field.track_noise_mm apply to synthetic recordings only")
     if f.track_noise_mm and not f.with_track:
         raise bad("field.track_noise_mm needs field.with_track = true")
@@ -191,6 +205,11 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
             f"estimate.refine_screen = {cfg.estimate.refine_screen} screens fewer points than "
             f"estimate.refine_starts = {cfg.estimate.refine_starts} starts"
         )
+    if cfg.surrogate.model == "gp-stats" and "p99.85" in cfg.estimate.statistic.split("+"):
+        raise bad(
+            'estimate.statistic "p99.85" (EN 14363) is computed from force series; the '
+            'statistics GPs of surrogate.model = "gp-stats" predict mean, rms, p99 and std only'
+        )
     if cfg.surrogate.device not in DEVICES:
         raise bad(f"surrogate.device = {cfg.surrogate.device!r}: accepted {', '.join(DEVICES)}")
     if cfg.wagon is not None:
@@ -200,3 +219,24 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
             raise bad(f"wagon: {exc}") from None
     if cfg.scheduler is not None and not cfg.scheduler.startswith(("tcp://", "tls://")):
         raise bad(f"scheduler = {cfg.scheduler!r}: expected tcp://host:port or tls://host:port")
+
+
+def _check_recording_keys(cfg: Any, bad: Any) -> None:
+    """``[field] recording``: the files exist, the keys that exclude it are absent; the
+    recording itself is read (and checked) when the conditions are built from its cut."""
+    f = cfg.field
+    if "conditions" in cfg.model_fields_set:
+        raise bad(
+            "conditions: with field.recording the conditions are the recording's sections; "
+            "leave conditions out"
+        )
+    if f.measured is not None:
+        raise bad("field: give recording or measured, not both")
+    if f.truth:
+        raise bad("field: give recording or truth (synthetic recordings), not both")
+    if f.line is not None and f.sections is not None:
+        raise bad("field: give line or sections (the cut of the recording), not both")
+    for key in ("recording", "channel_map", "line", "sections"):
+        value = getattr(f, key)
+        if value is not None and not Path(value).is_file():
+            raise bad(f"field.{key} = {value!r}: no such file")

@@ -63,6 +63,14 @@ def sliding_mean(x: np.ndarray, position_m: np.ndarray, window_m: float = WINDOW
     return (integral(hi) - integral(lo)) / (hi - lo)
 
 
+def full_window(position_m: np.ndarray, window_m: float = WINDOW_M) -> np.ndarray:
+    """Mask of the samples whose sliding window lies wholly inside the record: within
+    ``window_m`` / 2 of either end the window is cut short, averages less and would put
+    the ends' samples among the extremes."""
+    s = np.asarray(position_m, dtype=float)
+    return (s >= s[0] + 0.5 * window_m) & (s <= s[-1] - 0.5 * window_m)
+
+
 def percentiles(x: np.ndarray, levels: tuple[float, ...] = PERCENTILES) -> np.ndarray:
     """Percentiles (%) of ``x`` along the last axis (linear interpolation between order
     statistics)."""
@@ -89,10 +97,13 @@ def section_statistics(
     window_m: float = WINDOW_M,
 ) -> SectionStatistics:
     """Low-pass, 2 m sliding mean and percentiles of one channel of a section recorded at
-    ``fs`` Hz and ``speed_ms`` (m/s; one value or one per sample)."""
+    ``fs`` Hz and ``speed_ms`` (m/s; one value or one per sample); the percentiles are of
+    the samples whose window lies inside the section (:func:`full_window`)."""
     x = np.asarray(x, dtype=float)
     v = np.broadcast_to(np.asarray(speed_ms, dtype=float), x.shape)
     position = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) / fs)])
     filtered = lowpass(x, fs, min(cutoff_hz, 0.45 * fs))
-    p = percentiles(sliding_mean(filtered, position, window_m))
+    smooth = sliding_mean(filtered, position, window_m)
+    inside = full_window(position, window_m)
+    p = percentiles(smooth[inside] if inside.any() else smooth)
     return SectionStatistics(*(float(q) for q in p))

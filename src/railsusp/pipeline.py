@@ -26,7 +26,7 @@ from pydantic import (
 from railsusp.conditions import WorkingCondition, get_condition, make_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.config import NSGA_RANGES, REFINE_RANGES, SEEDS_RANGE
-from railsusp.params import MAIN_SUSPENSION, ParameterSet
+from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import content_hash, provenance, read_json, write_json
 
 #: stage finishes with their elapsed time (info) and starts (debug), for the command line
@@ -96,9 +96,22 @@ class SurrogateSection(_Cfg):
 
 
 class FieldSection(_Cfg):
-    """Measured recordings: a folder (``measured``), or synthetic ones from ``truth``."""
+    """Measured recordings: a folder (``measured``), a long run cut into sections here
+    (``recording``), or synthetic ones from ``truth``."""
 
     measured: str | None = Field(None, description="folder with index.json of recordings")
+    recording: str | None = Field(
+        None, description="long run (.mf4, .csv, .parquet) cut into sections by the field stage"
+    )
+    channel_map: str | None = Field(None, description="channel map TOML of the recording")
+    line: str | None = Field(None, description="line description CSV to cut the recording by")
+    sections: str | None = Field(None, description="section table CSV (start_m, end_m[, name])")
+    speed_tolerance: float = Field(
+        0.10, ge=0.0, le=1.0, description="largest (max - min) / mean speed in a section"
+    )
+    min_length_m: float = Field(150.0, ge=1.0, le=100_000.0, description="shortest section")
+    max_duration_s: float = Field(120.0, ge=1.0, le=600.0, description="longer ones are split")
+    rate_hz: float = Field(50.0, ge=10.0, le=5000.0, description="rate of the section records")
     truth: dict[str, float] = Field(
         default_factory=dict, description="hidden true parameters, display units"
     )
@@ -116,7 +129,9 @@ class EstimateSection(_Cfg):
     n_gen: int = Field(100, ge=_NSGA["n_gen"][0], le=_NSGA["n_gen"][1])
     crossover_prob: float = Field(0.9, ge=0.0, le=1.0)
     mutation_prob: float = Field(0.05, ge=0.0, le=1.0)
-    statistic: str = Field("mean", description="mean, rms, p99, std or a '+' combination")
+    statistic: str = Field(
+        "mean", description="mean, rms, p99, std, p99.85 (EN 14363) or a '+' combination"
+    )
     per_condition: bool = Field(False, description="two objectives per condition")
     weighting: Literal["relative", "noise"] = Field(
         "relative", description="relative errors, or in units of the gp-stats predictive SD"
@@ -171,7 +186,21 @@ class PipelineConfig(_Cfg):
     estimate: EstimateSection = EstimateSection()
     scheduler: str | None = Field(None, description="Dask scheduler tcp://host:port")
 
+    def run_source(self) -> Any:
+        """The long run of ``[field] recording`` and how to cut it
+        (:class:`~railsusp.measured.cut.RunSource`), or None."""
+        from railsusp.pipeline_field import run_source
+
+        return run_source(self.field)
+
     def working_conditions(self) -> list[WorkingCondition]:
+        """The conditions of the run: those given, or with ``[field] recording`` the kept
+        sections' conditions of the recording (:mod:`railsusp.measured.cut`)."""
+        source = self.run_source()
+        if source is not None:
+            from railsusp.measured.cut import section_conditions
+
+            return section_conditions(source)
         out = []
         for c in self.conditions:
             if isinstance(c, str):
@@ -193,8 +222,26 @@ def load_config(path: str | Path) -> PipelineConfig:
         cfg = PipelineConfig(**read_config(path, PipelineConfig))
     except ValidationError as exc:
         raise RailsuspInputError(validation_message(path, exc)) from None
+    cfg = _beside(cfg, path.parent)
     check_config(cfg, str(path))
     return cfg
+
+
+#: ``[field]`` files of a long run, named relative to the configuration file's folder
+RUN_FILES = ("recording", "channel_map", "line", "sections")
+
+
+def _beside(cfg: PipelineConfig, folder: Path) -> PipelineConfig:
+    """``cfg`` with the long run's relative file names resolved against ``folder`` (the
+    configuration file's), so that a configuration travels with its recording."""
+    update = {
+        k: str(folder / v)
+        for k in RUN_FILES
+        if (v := getattr(cfg.field, k)) is not None and not Path(v).is_absolute()
+    }
+    if not update:
+        return cfg
+    return cfg.model_copy(update={"field": cfg.field.model_copy(update=update)})
 
 
 class StageError(RailsuspInputError):
@@ -298,6 +345,10 @@ def run_pipeline(
 
 def _section(config: PipelineConfig, stage: str) -> Any:
     base = {"wagon": config.wagon, "conditions": list(config.conditions)}
+    source = config.run_source()
+    if source is not None:  # the conditions, and the field, come from the recording's cut
+        base["conditions"] = [c.model_dump(mode="json") for c in config.working_conditions()]
+        base["recording"] = repr(source.state())
     sections = {
         "campaign": {**base, **config.campaign.model_dump()},
         "sensitivity": config.sensitivity.model_dump(),
@@ -403,30 +454,9 @@ def _stage_runners(
         return {**info, "models": sorted(set(tab.model))}
 
     def field() -> dict:
-        from railsusp.measured import read_field, synthesise_field
+        from railsusp.pipeline_field import field_stage
 
-        f = config.field
-        dest = out / "field"
-        if f.measured:
-            recs = read_field(f.measured)
-            import shutil
-
-            from railsusp.store import atomic_folder
-
-            with atomic_folder(dest, keep=False) as tmp:  # the old copy stays until replaced
-                shutil.copytree(f.measured, tmp, dirs_exist_ok=True)
-            return {"recordings": len(recs), "synthetic": False}
-        truth = ParameterSet(f.truth, units="display")
-        synthesise_field(
-            truth,
-            config.working_conditions(),
-            dest,
-            seed=f.seed,
-            noise=f.noise,
-            with_track=f.with_track,
-            track_noise_mm=f.track_noise_mm,
-        )
-        return {"recordings": len(config.conditions), "synthetic": True}
+        return field_stage(config, out)
 
     def estimate() -> dict:
         from railsusp.estimate import (

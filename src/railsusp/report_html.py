@@ -16,6 +16,7 @@ import pandas as pd
 
 import railsusp.summary as summary
 from railsusp.report_doc import Doc, fraction_errors_to_pct, table_html
+from railsusp.report_en14363 import en14363_section
 from railsusp.store import atomic_write_bytes, file_hash, read_json
 
 #: CSS class of each verdict in the summary card
@@ -366,6 +367,7 @@ def build_report(run: str | Path) -> list[Path]:
         png = plot_track_irregularities(irr, run / "report_assets" / "track.png")
         doc.figure(png, f"Irregularities of '{first.name}' and their PSD vs the FRA spectrum")
     _method_sections(doc, run, state)
+    en14363_section(doc, run)
     _provenance(doc, run, state, meta)
     html_path = atomic_write_bytes(run / "report.html", doc.page(title).encode())
     md_path = atomic_write_bytes(run / "report.md", "\n".join(doc.md).encode())

@@ -27,10 +27,10 @@ from railsusp.estimate import (
     parse_statistics,
     recording_segments,
 )
+from railsusp.estimate.statistics import force_statistic
 from railsusp.measured import SimulationFailedError, read_field, simulated_forces
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import atomic_write_bytes, read_json, write_json
-from railsusp.vehicle.simulate import record_statistic
 
 #: a parameter whose Pareto spread exceeds this share of its range is not identified
 PARETO_SPREAD_LIMIT = 25.0
@@ -148,7 +148,16 @@ def validate(
                     "measured_kN": float(meas[j, k]),
                 }
                 for key, s in sims.items():
-                    v = float(record_statistic(s[i][:, j], st, force == "Y", segments))
+                    v = float(
+                        force_statistic(
+                            s[i][:, j],
+                            st,
+                            force == "Y",
+                            segments,
+                            rate_hz=rec.sampling_rate,
+                            speed_ms=rec.condition.speed,
+                        )
+                    )
                     row[f"{key}_kN"] = v
                     row[f"{key}_error"] = abs(v - meas[j, k]) / abs(meas[j, k])
                 rows.append(row)

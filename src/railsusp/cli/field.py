@@ -140,7 +140,11 @@ def estimate(
         str | None, typer.Option(help="key parameters (default: the surrogate's)")
     ] = None,
     statistic: Annotated[
-        str, typer.Option(help="mean, rms, p99, std, or a combination such as mean+p99+std")
+        str,
+        typer.Option(
+            help="mean, rms, p99, std, p99.85 (EN 14363 maximum), or a combination such as "
+            "mean+p99+std"
+        ),
     ] = "mean",
     per_condition: Annotated[bool, typer.Option(help="two objectives per condition")] = False,
     weighting: Annotated[

@@ -196,6 +196,7 @@ EXAMPLE_FILES = (
     "example_run.map.toml",
     "example_line.csv",
     "example_run.truth.json",
+    "example_run.pipeline.toml",
 )
 
 
@@ -205,7 +206,7 @@ def example_recording(
 ) -> None:
     """Copy the example run shipped with railsusp into OUT: an MDF4 recording of a C80 run
     over five sections (hidden-truth simulation), its channel map, the line description,
-    and the hidden truth (for comparison only)."""
+    a ``railsusp run`` configuration on it, and the hidden truth (for comparison only)."""
     from importlib import resources
 
     from railsusp.store import atomic_write_bytes

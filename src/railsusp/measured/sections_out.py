@@ -61,13 +61,19 @@ def en14363_table(run: MeasuredRun, sections: list[Section]) -> pd.DataFrame:
 
 
 def write_sections(
-    run: MeasuredRun, sections: list[Section], out: str | Path, rate_hz: float = 50.0
+    run: MeasuredRun,
+    sections: list[Section],
+    out: str | Path,
+    rate_hz: float = 50.0,
+    final: str | Path | None = None,
 ) -> Path:
     """The kept sections as a field folder: one recording per section, ``index.json``,
     ``sections.csv`` (the whole cut, with the reasons), ``en14363.csv`` (the EN 14363
     percentiles of every kept section's forces), ``conditions.toml`` (the
     sections' conditions, for a campaign: ``railsusp campaign --conditions``) and
-    ``pipeline.toml`` (a quick ``railsusp run`` configuration on these recordings)."""
+    ``pipeline.toml`` (a quick ``railsusp run`` configuration on these recordings).
+    ``final``: where the folder will live when ``out`` is a temporary one (the path that
+    ``pipeline.toml`` names; default ``out``)."""
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise RailsuspInputError(f"--write {out}: exists and is not a folder")
@@ -86,7 +92,8 @@ def write_sections(
     en = en14363_table(run, sections).to_csv(index=False).encode()
     atomic_write_bytes(out / "en14363.csv", en)
     atomic_write_bytes(out / "conditions.toml", conditions_toml(conds).encode())
-    atomic_write_bytes(out / "pipeline.toml", pipeline_toml(conds, out).encode())
+    folder = Path(final) if final is not None else out
+    atomic_write_bytes(out / "pipeline.toml", pipeline_toml(conds, folder).encode())
     write_json(
         out / "index.json",
         {"format": FORMAT, "recordings": names, "source": Path(run.source).name},

@@ -1,0 +1,98 @@
+"""A long run as the source of a pipeline's recordings: read through its channel map, cut
+into sections (against its geometry channels, a line description or a section table), the
+kept sections' working conditions, and the field folder written from them.
+
+``railsusp sections`` does the same steps by hand; ``railsusp run`` with ``[field]
+recording = ...`` does them here, so that the campaign knows the sections' conditions
+before the field stage writes their recordings. The cut is cached per file state (path,
+size, modification time) and rules: the configuration check, the stage hashes and the
+stages all ask for it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+
+from railsusp.conditions import WorkingCondition
+from railsusp.errors import RailsuspInputError
+from railsusp.measured.channels import read_channel_map
+from railsusp.measured.run import MeasuredRun, read_run
+from railsusp.measured.sections import (
+    Section,
+    SectionRules,
+    cut_sections,
+    read_line,
+    read_section_table,
+)
+from railsusp.measured.sections_out import section_recording, write_sections
+
+
+@dataclass(frozen=True)
+class RunSource:
+    """A long run and how to cut it: the recording, its channel map (None: the documented
+    column names), a line description or a section table (neither: the run's own geometry
+    channels), the rules, and the sampling rate of the written sections."""
+
+    recording: Path
+    channel_map: Path | None = None
+    line: Path | None = None
+    table: Path | None = None
+    rules: SectionRules = field(default_factory=SectionRules)
+    rate_hz: float = 50.0
+
+    def __post_init__(self) -> None:
+        if self.line is not None and self.table is not None:
+            raise RailsuspInputError("give a line description or a section table, not both")
+        if not 10.0 <= self.rate_hz <= 5000.0:
+            raise RailsuspInputError(f"rate {self.rate_hz:g} Hz: accepted 10 to 5000 Hz")
+
+    def files(self) -> tuple[Path, ...]:
+        return tuple(p for p in (self.recording, self.channel_map, self.line, self.table) if p)
+
+    def state(self) -> tuple:
+        """What the cut depends on: the files' paths, sizes and modification times, the
+        rules and the rate (the key of the cache, and part of the pipeline's stage hash)."""
+        stats = []
+        for p in self.files():
+            st = Path(p).stat()
+            stats.append((str(Path(p).resolve()), st.st_size, st.st_mtime_ns))
+        return (tuple(stats), self.rules, self.rate_hz)
+
+
+def cut_run(source: RunSource) -> tuple[MeasuredRun, list[Section]]:
+    """The run read (every check passed) and cut; a bad recording raises
+    :class:`~railsusp.measured.RecordingError`, a bad map, line or table an input error."""
+    return _cut(source, source.state())
+
+
+@lru_cache(maxsize=4)
+def _cut(source: RunSource, _state: tuple) -> tuple[MeasuredRun, list[Section]]:
+    cmap = read_channel_map(source.channel_map) if source.channel_map else None
+    run = read_run(source.recording, cmap)
+    secs = cut_sections(
+        run,
+        source.rules,
+        line=read_line(source.line) if source.line else None,
+        table=read_section_table(source.table) if source.table else None,
+    )
+    if not any(s.kept for s in secs):
+        reasons = "; ".join(f"{s.name or s.kind}: {s.reason}" for s in secs[:3])
+        raise RailsuspInputError(f"{source.recording}: no section kept ({reasons})")
+    return run, secs
+
+
+def section_conditions(source: RunSource) -> list[WorkingCondition]:
+    """The working conditions of the kept sections, as the field folder will state them
+    (duration of the section resampled to the source's rate)."""
+    run, secs = cut_run(source)
+    return [section_recording(run, s, source.rate_hz).condition for s in secs if s.kept]
+
+
+def write_run_field(source: RunSource, out: str | Path, final: str | Path | None = None) -> Path:
+    """The kept sections of the run written as a field folder (``railsusp sections
+    --write``: recordings, ``index.json``, ``sections.csv``, ``en14363.csv``, ...);
+    ``final``: where the folder will live when ``out`` is a temporary one."""
+    run, secs = cut_run(source)
+    return write_sections(run, secs, out, source.rate_hz, final)

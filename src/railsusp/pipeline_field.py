@@ -1,0 +1,81 @@
+"""The pipeline's field stage: the recordings the estimation reads, in ``RUN/field``.
+
+Three sources, as ``[field]`` says: a long run cut into sections (``recording``, through
+:mod:`railsusp.measured.cut`, the same cut as ``railsusp sections``), a copy of a measured
+field folder (``measured``), or synthetic recordings of a hidden truth (``truth``). The
+configuration comes in as an argument (a :class:`~railsusp.pipeline.PipelineConfig`); this
+module does not import the pipeline, so imports flow one way.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from railsusp.params import ParameterSet
+
+
+def run_source(field: Any) -> Any:
+    """The :class:`~railsusp.measured.cut.RunSource` of a ``[field]`` section with a
+    ``recording`` (its files, the cut's rules, the rate), or None without one."""
+    if field.recording is None:
+        return None
+    from railsusp.measured.cut import RunSource
+    from railsusp.measured.sections import SectionRules
+
+    def path(p: str | None) -> Path | None:
+        return Path(p) if p is not None else None
+
+    rules = SectionRules(
+        speed_tolerance=field.speed_tolerance,
+        min_length_m=field.min_length_m,
+        max_duration_s=field.max_duration_s,
+    )
+    return RunSource(
+        Path(field.recording),
+        path(field.channel_map),
+        path(field.line),
+        path(field.sections),
+        rules,
+        field.rate_hz,
+    )
+
+
+def field_stage(config: Any, out: str | Path) -> dict:
+    """The field stage alone: the recordings the estimation reads, in ``OUT/field``: a long
+    run's kept sections (``[field] recording``), a copy of a measured folder, or synthetic
+    recordings of the hidden truth. Returns the stage's record for ``pipeline.json``."""
+    from railsusp.measured import read_field, synthesise_field
+
+    out = Path(out)
+    f = config.field
+    dest = out / "field"
+    source = config.run_source()
+    if source is not None:
+        from railsusp.measured.cut import write_run_field
+        from railsusp.store import atomic_folder
+
+        with atomic_folder(dest, keep=False) as tmp:  # the old folder stays until replaced
+            write_run_field(source, tmp, dest)
+        recs = read_field(dest)  # the estimation's inputs, read back and checked
+        return {"recordings": len(recs), "synthetic": False, "recording": f.recording}
+    if f.measured:
+        recs = read_field(f.measured)
+        import shutil
+
+        from railsusp.store import atomic_folder
+
+        with atomic_folder(dest, keep=False) as tmp:  # the old copy stays until replaced
+            shutil.copytree(f.measured, tmp, dirs_exist_ok=True)
+        return {"recordings": len(recs), "synthetic": False}
+    truth = ParameterSet(f.truth, units="display")
+    synthesise_field(
+        truth,
+        config.working_conditions(),
+        dest,
+        seed=f.seed,
+        noise=f.noise,
+        with_track=f.with_track,
+        track_noise_mm=f.track_noise_mm,
+    )
+    return {"recordings": len(config.conditions), "synthetic": True}

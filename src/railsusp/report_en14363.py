@@ -1,0 +1,60 @@
+"""The report's EN 14363 section: the recordings' forces as EN 14363 processes them (20 Hz
+low-pass, 2 m sliding mean, percentiles 0.15 / 50 / 99.85 %), per recording, wheel and force.
+
+A field folder cut from a long run (``railsusp sections --write``, or ``railsusp run`` with
+``[field] recording``) carries ``en14363.csv``, processed from the run at its own sampling
+rate; that table is shown. Any other field folder (synthetic, or written by hand) is
+processed here from its recordings. Reads the run directory only.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from railsusp.en14363 import section_statistics
+from railsusp.report_doc import Doc
+
+#: the table a cut long run's field folder carries
+EN14363_CSV = "en14363.csv"
+
+
+def en14363_table(run: str | Path) -> tuple[pd.DataFrame, str]:
+    """The EN 14363 percentiles (kN) of the run's recordings, and where they come from:
+    ``RUN/field/en14363.csv`` if present, else computed from the field recordings."""
+    from railsusp.measured import read_field
+
+    field = Path(run) / "field"
+    if (field / EN14363_CSV).exists():
+        return pd.read_csv(
+            field / EN14363_CSV
+        ), f"the long run, at its sampling rate ({EN14363_CSV})"
+    rows = []
+    for rec in read_field(field):
+        for w in rec.wheels:
+            for force, x in (("Y", rec.Y[w]), ("Q", rec.Q[w])):
+                st = section_statistics(x, rec.sampling_rate, rec.condition.speed)
+                rows.append(
+                    {"section": rec.condition.name, "wheel": w, "force": force}
+                    | {f"{k}_kN": round(v, 2) for k, v in st.to_dict().items()}
+                )
+    return pd.DataFrame(rows), "the field recordings"
+
+
+def en14363_section(doc: Doc, run: str | Path) -> None:
+    """Add the section to ``doc`` (nothing when the run has no field recordings)."""
+    if not (Path(run) / "field" / "index.json").exists():
+        return
+    table, source = en14363_table(run)
+    if table.empty:
+        return
+    doc.h("Measured forces, EN 14363 processing")
+    doc.p(
+        "Each recording's wheel forces low-passed at 20 Hz (4th-order Butterworth, zero "
+        "phase), averaged over 2 m of track, and described by the percentiles 0.15 %, 50 % "
+        "and 99.85 % of the samples whose 2 m window lies inside the record (EN 14363: the "
+        "99.85 % value is the estimated maximum, the estimation statistic 'p99.85'). "
+        f"Processed from {source}."
+    )
+    doc.table(table)
