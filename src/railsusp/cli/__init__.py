@@ -24,6 +24,7 @@ from railsusp.cli import surrogates
 from railsusp.cli import field
 from railsusp.cli import recordings
 from railsusp.cli import pipeline
+from railsusp.cli import posterior
 
 # isort: on
 
@@ -74,6 +75,7 @@ __all__ = [
     "main",
     "modes",
     "pipeline",
+    "posterior",
     "recordings",
     "simulation",
     "surrogates",

@@ -1,0 +1,125 @@
+"""Commands of the simulation-based posterior: ``railsusp posterior train`` and
+``railsusp posterior estimate`` (docs/posterior.md)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from railsusp.cli.common import app, console, err_console, fail, frame_table, is_quiet
+from railsusp.errors import RailsuspInputError
+
+posterior_app = typer.Typer(
+    no_args_is_help=True,
+    help="Parameters with 90 % intervals on unknown track: simulation-based posterior.",
+)
+app.add_typer(posterior_app, name="posterior")
+
+#: settings field -> command-line option, for the error messages
+_OPTIONS = {"section_s": "--section", "n_train": "--simulations", "n_check": "--check",
+            "noise": "--noise", "parameters": "--parameters"}  # fmt: skip
+
+
+def _calibration_table(checks) -> None:
+    import pandas as pd
+
+    df = pd.DataFrame([c.to_dict() for c in checks])
+    console.print(frame_table(df, "calibration on held-out simulations (90 % intervals)"))
+
+
+@posterior_app.command("train")
+def train_command(
+    out: Annotated[Path, typer.Option(help="run directory (the estimator goes to posterior/)")],
+    conditions: Annotated[str, typer.Option(help="names or a TOML file")] = "straight,curve",
+    parameters: Annotated[
+        str, typer.Option(help="estimated parameters, a subset of X11-X20 (comma-separated)")
+    ] = "X11,X12,X13,X14,X15,X16,X17,X18,X19,X20",
+    section: Annotated[float, typer.Option(help="training section per condition, s")] = 20.0,
+    simulations: Annotated[int, typer.Option(help="training simulations (cases)")] = 2000,
+    check: Annotated[int, typer.Option(help="held-out simulations for the check")] = 200,
+    noise: Annotated[float, typer.Option(help="instrument noise, fraction of RMS")] = 0.03,
+    lead_in: Annotated[
+        float | None, typer.Option(help="lead-in before each section, m (default: the condition's)")
+    ] = None,
+    sum_y: Annotated[
+        bool, typer.Option(help="also the wheelset sum of Y (both wheels recorded)")
+    ] = False,
+    seed: Annotated[int, typer.Option(help="seed of every draw")] = 0,
+) -> None:
+    """Train the posterior estimator on simulations from the prior (cached: a re-run
+    resumes) and check its calibration on held-out simulations."""
+    from railsusp.conditions import resolve_conditions
+    from railsusp.estimate import posterior
+    from railsusp.estimate.posterior_data import PosteriorSettings
+    from railsusp.store import check_output_folder
+
+    try:
+        check_output_folder(out)
+        conds = resolve_conditions(conditions)
+        if lead_in is not None:
+            if not 0.0 <= lead_in <= 5000.0:
+                raise RailsuspInputError(f"--lead-in {lead_in:g} m: accepted 0 to 5000 m")
+            conds = [c.with_changes(lead_in_m=lead_in) for c in conds]
+        settings = PosteriorSettings(
+            tuple(conds),
+            parameters=tuple(p for p in parameters.split(",") if p.strip()),
+            section_s=section,
+            n_train=simulations,
+            n_check=check,
+            noise=noise,
+            sum_y=sum_y,
+            seed=seed,
+        )
+        if is_quiet():
+            est = posterior.train(settings, out)
+        else:
+            with console.status("simulating and training"):
+                est = posterior.train(settings, out)
+    except RailsuspInputError as exc:
+        message = str(exc)
+        for field, option in _OPTIONS.items():  # the option the user typed, not the field
+            if message.startswith(f"{field} = "):
+                message = option + " " + message.removeprefix(f"{field} = ")
+        fail(message)
+    if not is_quiet():
+        _calibration_table(est.calibration)
+    if est.calibrated:
+        console.print(f"estimator in {out / 'posterior'}: coverage check passed")
+    else:
+        err_console.print(
+            f"warning: the estimator in {out / 'posterior'} FAILED its coverage check "
+            "(intervals too narrow); train on more simulations"
+        )
+
+
+@posterior_app.command("estimate")
+def estimate_command(
+    measured: Annotated[Path, typer.Option(help="field folder (index.json) of recordings")],
+    estimator: Annotated[Path, typer.Option(help="run directory of a trained estimator")],
+    out: Annotated[Path | None, typer.Option(help="JSON file for the result")] = None,
+    seed: Annotated[int, typer.Option(help="seed of the posterior draws")] = 0,
+) -> None:
+    """Posterior median and 90 % interval of each parameter for a field folder."""
+    from railsusp.estimate import posterior
+    from railsusp.measured import read_field
+    from railsusp.store import check_output_file
+
+    try:
+        if out is not None:
+            check_output_file(out)
+        recordings = read_field(measured)
+        est = posterior.load(estimator)
+        result = posterior.estimate(est, recordings, seed=seed)
+    except RailsuspInputError as exc:
+        fail(str(exc))
+    console.print(frame_table(result.to_dataframe(), "posterior: median and 90 % interval"))
+    for name, used in result.sections.items():
+        console.print(
+            f"{name}: {used['sections']} section(s) of {est.settings.section_s:g} s, "
+            f"{used['seconds_left_out']:g} s left out"
+        )
+    if out is not None:
+        result.save(out)
+        console.print(f"wrote {out}")

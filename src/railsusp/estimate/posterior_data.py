@@ -1,0 +1,236 @@
+"""The training and check simulations of the simulation-based posterior, and the summary
+statistics of recordings in the same form.
+
+Every simulated case draws all ten main-suspension parameters (X11-X20) from their uniform
+Table 2 prior, whichever subset is estimated, and runs every condition on a track
+realisation of its own (a new irregularity seed per case and condition): the estimator then
+learns the statistics' scatter over track realisations and over the parameters it does not
+estimate, and marginalises both. The simulated forces pass the instrument model of the
+synthetic recordings (:func:`railsusp.measured.add_sensor_noise`: a 15 Hz bandwidth, a 1 %
+gain error, white noise of ``noise`` times the channel RMS) before their statistics are
+taken. Simulations are cached in chunks in the run directory (atomic writes), so an
+interrupted training resumes without simulating again.
+"""
+
+from __future__ import annotations
+
+import io
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from railsusp.conditions import WorkingCondition, make_condition
+from railsusp.errors import RailsuspInputError
+from railsusp.estimate.summaries import cut_sections, section_summary, summary_names
+from railsusp.measured.synthetic import bandwidth_filter
+from railsusp.params import MAIN_SUSPENSION, bounds, spec
+from railsusp.store import atomic_write_bytes
+
+log = logging.getLogger(__name__)
+
+#: simulations per cache file
+CHUNK = 50
+#: instrument model of the training simulations (as ``add_sensor_noise``)
+BANDWIDTH_HZ = 15.0
+GAIN_ERROR = 0.01
+#: track seeds of the simulated cases start here (the synthetic field uses seed + 1000)
+SEED_BASE = {"train": 10_000_000, "check": 20_000_000}
+
+
+@dataclass(frozen=True)
+class PosteriorSettings:
+    """What the posterior estimator is trained on: ``parameters`` estimated (of X11-X20),
+    the working ``conditions`` (each recorded in sections of ``section_s`` seconds),
+    ``n_train`` training and ``n_check`` held-out simulated cases, the instrument ``noise``
+    (fraction of channel RMS), ``sum_y`` (also the wheelset sum of Y: both wheels of the
+    leading wheelset recorded), the network size and the ``seed`` of every draw."""
+
+    conditions: tuple[WorkingCondition, ...]
+    parameters: tuple[str, ...] = MAIN_SUSPENSION
+    section_s: float = 20.0
+    n_train: int = 2000
+    n_check: int = 200
+    noise: float = 0.03
+    sum_y: bool = False
+    samples: int = 1000
+    hidden_features: int = 50
+    num_transforms: int = 5
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        params = tuple(spec(p).symbol for p in self.parameters)
+        wrong = [p for p in params if p not in MAIN_SUSPENSION]
+        if wrong or not params or len(set(params)) != len(params):
+            raise RailsuspInputError(
+                f"parameters {','.join(self.parameters) or '(none)'}: accepted a subset of "
+                f"{','.join(MAIN_SUSPENSION)} without repeats"
+            )
+        object.__setattr__(self, "parameters", params)
+        checks = [
+            ("section_s", self.section_s, 1.0, 600.0),
+            ("n_train", self.n_train, 20, 1_000_000),
+            ("n_check", self.n_check, 10, 100_000),
+            ("noise", self.noise, 0.0, 0.5),
+            ("samples", self.samples, 100, 100_000),
+        ]
+        for name, value, lo, hi in checks:
+            if not lo <= value <= hi:
+                raise RailsuspInputError(f"{name} = {value:g}: accepted {lo:g} to {hi:g}")
+        if not self.conditions:
+            raise RailsuspInputError("conditions: at least one working condition is needed")
+        conds = tuple(c.with_duration(self.section_s) for c in self.conditions)
+        object.__setattr__(self, "conditions", conds)
+
+    def to_dict(self) -> dict[str, Any]:
+        d = {k: getattr(self, k) for k in self.__dataclass_fields__}
+        d["conditions"] = [c.model_dump() for c in self.conditions]
+        d["parameters"] = list(self.parameters)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> PosteriorSettings:
+        d = dict(d)
+        d["conditions"] = tuple(make_condition(c) for c in d["conditions"])
+        d["parameters"] = tuple(d["parameters"])
+        return cls(**d)
+
+    @property
+    def summary_names(self) -> list[str]:
+        """Names of the summary vector: conditions one after the other."""
+        return [f"{c.name}:{n}" for c in self.conditions for n in summary_names(self.sum_y)]
+
+
+def prior_draws(settings: PosteriorSettings, kind: str, n: int) -> np.ndarray:
+    """(n, 10) draws of X11-X20 in [0, 1] (fraction of each range), reproducible from the
+    settings' seed whatever the chunking."""
+    rng = np.random.default_rng([settings.seed, list(SEED_BASE).index(kind)])
+    return rng.random((n, len(MAIN_SUSPENSION)))
+
+
+def to_si(u: np.ndarray, symbols=MAIN_SUSPENSION) -> np.ndarray:
+    """Fractions of the ranges -> SI values."""
+    lo, hi = bounds(symbols)
+    return lo + np.asarray(u) * (hi - lo)
+
+
+def _instrument(x: np.ndarray, fs: float, rng: np.random.Generator, noise: float) -> np.ndarray:
+    y = bandwidth_filter(x, fs, BANDWIDTH_HZ) * (1.0 + GAIN_ERROR * rng.standard_normal())
+    return y + noise * np.sqrt(np.mean(x**2)) * rng.standard_normal(x.size)
+
+
+def simulate_cases(settings: PosteriorSettings, u: np.ndarray, first: int, kind: str):
+    """Summary vectors (n, D) of the cases ``u`` (n, 10 fractions of X11-X20), case
+    indices from ``first`` (their track seeds and noise); NaN rows for failed runs."""
+    from railsusp.vehicle.simulate import simulate_batch
+
+    n = u.shape[0]
+    theta = to_si(u)
+    per_condition = []
+    for c, cond in enumerate(settings.conditions):
+        idx = np.arange(first, first + n)
+        seeds = SEED_BASE[kind] + idx * len(settings.conditions) + c
+        res = simulate_batch(theta, cond, symbols=MAIN_SUSPENSION, seeds=list(seeds))
+        j = res.measured_wheel()
+        fs = 1.0 / cond.sample_interval
+        rows = []
+        for i in range(n):
+            if not res.ok[i]:
+                rows.append(np.full(len(summary_names(settings.sum_y)), np.nan))
+                continue
+            rng = np.random.default_rng([settings.seed, SEED_BASE[kind], int(idx[i]), c])
+            Y, Q = (_instrument(a[i, j] / 1e3, fs, rng, settings.noise) for a in (res.Y, res.Q))
+            partner = (
+                _instrument(res.Y[i, j ^ 1] / 1e3, fs, rng, settings.noise)
+                if settings.sum_y
+                else None
+            )
+            rows.append(section_summary(Y, np.maximum(Q, 0.0), fs, cond.speed, partner))
+        per_condition.append(np.array(rows))
+    return np.concatenate(per_condition, axis=1)
+
+
+def cached_cases(settings: PosteriorSettings, folder: Path, kind: str, n: int):
+    """(u (n, 10), x (n, D)) of the first ``n`` cases of ``kind`` ('train' or 'check'),
+    simulated in chunks of :data:`CHUNK` cached in ``folder`` (``KIND_NNNN.npz``); a chunk
+    on disk is read, not simulated again."""
+    u_all = prior_draws(settings, kind, n)
+    xs = []
+    for k, lo in enumerate(range(0, n, CHUNK)):
+        hi = min(n, lo + CHUNK)
+        path = folder / f"{kind}_{k:04d}_{hi - lo}.npz"
+        if path.exists():
+            with np.load(path, allow_pickle=False) as z:
+                xs.append(z["x"])
+            continue
+        log.info("posterior: simulating %s cases %d-%d of %d", kind, lo + 1, hi, n)
+        x = simulate_cases(settings, u_all[lo:hi], lo, kind)
+        buf = io.BytesIO()
+        np.savez(buf, u=u_all[lo:hi], x=x)
+        atomic_write_bytes(path, buf.getvalue())
+        xs.append(x)
+    return u_all, np.concatenate(xs)
+
+
+def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.ndarray, dict]:
+    """(n_sections, D) summary vectors of recordings, one recording per trained condition
+    (matched by name, the condition otherwise equal but for duration and track), each cut
+    into sections of the training length; a section of the whole is one section of every
+    condition, so the shortest condition's count of sections is used. Returns the matrix
+    and, per condition, the sections used and the seconds left out."""
+    by_name = {r.condition.name: r for r in recordings}
+    ignore = ("seed", "duration_s", "n_steps", "lead_in_m", "track_geometry",
+              "track_offset_m", "track_accuracy_mm")  # fmt: skip
+    per_condition, info = [], {}
+    for cond in settings.conditions:
+        rec = by_name.get(cond.name)
+        if rec is None:
+            raise RailsuspInputError(
+                f"no recording of condition {cond.name!r}; the estimator was trained on "
+                f"{', '.join(c.name for c in settings.conditions)}"
+            )
+        diff = rec.condition.differences(cond, ignore=ignore)
+        if diff:
+            raise RailsuspInputError(
+                f"recording {cond.name!r} differs from the trained condition in "
+                f"{', '.join(diff)}; train an estimator for this condition"
+            )
+        fs = 1.0 / cond.sample_interval
+        if abs(rec.sampling_rate - fs) > 0.01 * fs:
+            rec = rec.resampled(fs)
+        w = rec.wheels[0]
+        partner = None
+        if settings.sum_y:
+            from railsusp.vehicle.layout import WHEEL_NAMES
+
+            other = WHEEL_NAMES[WHEEL_NAMES.index(w) ^ 1]
+            if other not in rec.Y:
+                raise RailsuspInputError(
+                    f"recording {cond.name!r}: the estimator uses the wheelset sum of Y and "
+                    f"needs wheel {other} as well as {w}"
+                )
+            partner = rec.Y[other]
+        sections = cut_sections(rec.time.size, cond.n_steps)
+        if not sections:
+            raise RailsuspInputError(
+                f"recording {cond.name!r} is {rec.time.size / fs:.1f} s long; the estimator "
+                f"needs at least one section of {settings.section_s:g} s"
+            )
+        rows = [
+            section_summary(
+                rec.Y[w][s],
+                np.maximum(rec.Q[w][s], 0.0),
+                fs,
+                cond.speed,
+                None if partner is None else partner[s],
+            )
+            for s in sections
+        ]
+        per_condition.append(np.array(rows))
+        info[cond.name] = (len(rows), rec.time.size / fs)
+    n = min(len(r) for r in per_condition)
+    used = {name: {"sections": n, "seconds_left_out": round(t - n * settings.section_s, 3)}
+            for name, (_, t) in info.items()}  # fmt: skip
+    return np.concatenate([r[:n] for r in per_condition], axis=1), used

@@ -1,0 +1,256 @@
+"""Simulation-based posterior: geometry-free summaries on analytic inputs, the calibration
+check on a conjugate Gaussian problem (it passes the exact posterior and fails an
+over-confident or biased one), a small train + estimate on the wagon with a hidden truth,
+the cache and resume, and the command line's one-line errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from railsusp.cli import app
+from railsusp.conditions import get_condition
+from railsusp.errors import RailsuspInputError
+from railsusp.estimate import calibration, posterior, posterior_data
+from railsusp.estimate.posterior_data import PosteriorSettings
+from railsusp.estimate.summaries import (
+    band_rms,
+    cut_sections,
+    en14363_percentiles,
+    section_summary,
+    summary_names,
+)
+from railsusp.measured import read_field, synthesise_field
+from railsusp.params import ParameterSet
+from railsusp.store import read_json
+
+runner = CliRunner()
+FS = 50.0
+
+
+# ---------------------------------------------------------------- summaries
+def test_band_rms_of_a_sine_is_its_amplitude_over_root_two_in_its_band():
+    t = np.arange(int(20 * FS)) / FS
+    x = 5.0 + 3.0 * np.sin(2 * np.pi * 3.0 * t)  # the mean is removed first
+    rms = band_rms(x, FS)
+    assert rms[1] == pytest.approx(3.0 / np.sqrt(2), rel=0.02)  # 1.5-4 Hz
+    assert max(rms[0], rms[2], rms[3]) < 0.05
+
+
+def test_en14363_percentiles_of_constant_and_of_a_long_wave():
+    n = int(20 * FS)
+    assert en14363_percentiles(np.full(n, 42.0), FS, 16.7) == pytest.approx([42.0] * 3)
+    t = np.arange(n) / FS
+    wave = 10.0 * np.sin(2 * np.pi * 0.5 * t)  # 33 m wavelength at 16.7 m/s: 2 m keeps 99.4 %
+    p = en14363_percentiles(wave, FS, 16.7)
+    assert p[0] == pytest.approx(-10.0 * 0.994, abs=0.15)
+    assert p[1] == pytest.approx(0.0, abs=0.3)
+    assert p[2] == pytest.approx(10.0 * 0.994, abs=0.15)
+
+
+def test_section_summary_quotient_and_wheelset_sum():
+    n = int(10 * FS)
+    rng = np.random.default_rng(1)
+    Q = 100.0 + rng.standard_normal(n)
+    Y = 0.3 * Q
+    s = section_summary(Y, Q, FS, 16.7, Y_partner=-Y)
+    names = summary_names(sum_y=True)
+    assert len(s) == len(names)
+    got = dict(zip(names, s, strict=True))
+    for p in ("p0.15", "p50", "p99.85"):
+        assert got[f"YQ_{p}"] == pytest.approx(0.3, abs=1e-6)
+        assert got[f"sumY_{p}"] == pytest.approx(0.0, abs=1e-9)
+    assert len(section_summary(Y, Q, FS, 16.7)) == len(summary_names())
+
+
+def test_cut_sections_leaves_out_the_short_remainder():
+    assert cut_sections(10, 3) == [slice(0, 3), slice(3, 6), slice(6, 9)]
+    assert cut_sections(2, 3) == []
+    with pytest.raises(ValueError, match="at least 1"):
+        cut_sections(10, 0)
+
+
+# ---------------------------------------------------------------- calibration
+def _gaussian_case(n=400, s=500, sigma=0.5, scale=1.0, shift=0.0, seed=3):
+    """theta ~ N(0, 1), x ~ N(theta, sigma^2): the posterior is
+    N(x / (1 + sigma^2), sigma^2 / (1 + sigma^2)); ``scale`` narrows (< 1) its draws,
+    ``shift`` moves them by that many posterior standard deviations."""
+    rng = np.random.default_rng(seed)
+    theta = rng.standard_normal((n, 1))
+    x = theta + sigma * rng.standard_normal((n, 1))
+    sd = np.sqrt(sigma**2 / (1 + sigma**2))
+    mean = x / (1 + sigma**2) + shift * sd
+    draws = mean[:, None, :] + scale * sd * rng.standard_normal((n, s, 1))
+    return draws, theta
+
+
+def test_calibration_passes_the_exact_posterior():
+    (c,) = calibration.check(*_gaussian_case(), ["theta"])
+    assert c.passed and 0.86 <= c.coverage <= 0.94 and c.sbc_p > 0.01
+
+
+def test_calibration_fails_an_over_confident_posterior():
+    (c,) = calibration.check(*_gaussian_case(scale=0.5), ["theta"])
+    # the half-width interval holds the truth with P(|z| < 1.645/2) = 59 %
+    assert not c.passed and c.coverage == pytest.approx(0.59, abs=0.06) and c.sbc_p < 1e-6
+
+
+def test_calibration_sees_a_biased_posterior_in_the_ranks():
+    (c,) = calibration.check(*_gaussian_case(shift=1.0), ["theta"])
+    assert not c.passed and c.sbc_p < 1e-6
+
+
+def test_ranks_and_bad_shapes():
+    samples = np.array([[[1.0], [2.0], [3.0]]])
+    assert calibration.ranks(samples, np.array([[2.5]])).tolist() == [[2]]
+    with pytest.raises(ValueError, match="need"):
+        calibration.check(samples, np.zeros((2, 1)), ["a"])
+
+
+# ---------------------------------------------------------------- train, estimate
+CONDITION = get_condition("straight").with_changes(lead_in_m=30.0)
+
+
+def _settings(**kw) -> PosteriorSettings:
+    base = dict(
+        parameters=("X13", "X14"),
+        section_s=3.0,
+        n_train=150,
+        n_check=50,
+        samples=300,
+        hidden_features=20,
+        num_transforms=2,
+    )
+    return PosteriorSettings((CONDITION,), **{**base, **kw})
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    run = tmp_path_factory.mktemp("posterior_run")
+    return posterior.train(_settings(), run), run
+
+
+def test_settings_refuse_bad_values():
+    with pytest.raises(RailsuspInputError, match="subset of X11"):
+        _settings(parameters=("X13", "X3"))
+    with pytest.raises(RailsuspInputError, match="section_s = 0.5: accepted 1 to 600"):
+        _settings(section_s=0.5)
+    s = _settings()
+    assert PosteriorSettings.from_dict(s.to_dict()) == s
+
+
+def test_hidden_truth_inside_the_interval_of_a_long_recording(trained, tmp_path):
+    est, _ = trained
+    truth = ParameterSet({"X13": 12.6e6, "X14": 11.0e6})
+    synthesise_field(truth, [CONDITION], tmp_path / "field", duration_s=10.0)
+    result = posterior.estimate(est, read_field(tmp_path / "field"))
+    df = result.to_dataframe().set_index("parameter")
+    assert result.sections == {"straight": {"sections": 3, "seconds_left_out": 1.0}}
+    for p, value in (("X13", 12.6), ("X14", 11.0)):
+        assert df.loc[p, "lo90"] <= value <= df.loc[p, "hi90"], df
+        assert df.loc[p, "width_pct_range"] < 90.0  # the record told it something
+    assert result.ess is not None and result.ess > 50
+    assert result.calibrated == all(c.passed for c in est.calibration)
+    assert any("FAILED" in w for w in result.warnings) == (not result.calibrated)
+    one = posterior.estimate(est, [_cut(r, 3.0) for r in read_field(tmp_path / "field")])
+    w_one = one.to_dataframe()["width_pct_range"].to_numpy()
+    assert np.all(df["width_pct_range"].to_numpy() < w_one)  # three sections: narrower
+
+
+def _cut(rec, seconds):
+    n = round(seconds * rec.sampling_rate)
+    rec.time = rec.time[:n]
+    rec.Y = {w: v[:n] for w, v in rec.Y.items()}
+    rec.Q = {w: v[:n] for w, v in rec.Q.items()}
+    return rec
+
+
+def test_calibration_is_stored_with_the_estimator(trained):
+    est, run = trained
+    data = read_json(run / "posterior" / "calibration.json")
+    assert data["cases"] + data["failed_simulations"] == 50
+    assert [c["parameter"] for c in data["parameters"]] == ["X13", "X14"]
+    assert data["passed"] == est.calibrated
+
+
+def test_resume_reads_the_cache_and_refuses_other_settings(trained, monkeypatch):
+    est, run = trained
+
+    def no_simulation(*a, **k):
+        raise AssertionError("simulated again")
+
+    monkeypatch.setattr(posterior_data, "simulate_cases", no_simulation)
+    again = posterior.load(run)
+    u = np.array([[0.3, 0.6], [0.5, 0.5]])
+    x = np.atleast_2d(np.load(next((run / "posterior" / "simulations").glob("check_*")))["x"][0])
+    assert np.allclose(again.log_q(u, x), est.log_q(u, x))
+    (run / "posterior" / "calibration.json").unlink()  # recomputed from cached simulations
+    assert [c.coverage for c in posterior.train(est.settings, run).calibration] == [
+        c.coverage for c in est.calibration
+    ]
+    with pytest.raises(RailsuspInputError, match="other settings"):
+        posterior.train(_settings(seed=1), run)
+
+
+def test_recording_of_another_condition_or_too_short_is_refused(trained, tmp_path):
+    est, _ = trained
+    synthesise_field(ParameterSet.nominal(), [CONDITION], tmp_path / "f", duration_s=2.0)
+    with pytest.raises(RailsuspInputError, match="needs at least one section of 3 s"):
+        posterior.estimate(est, read_field(tmp_path / "f"))
+    curve = get_condition("curve").with_changes(lead_in_m=30.0)
+    synthesise_field(ParameterSet.nominal(), [curve], tmp_path / "g", duration_s=3.0)
+    with pytest.raises(RailsuspInputError, match="no recording of condition 'straight'"):
+        posterior.estimate(est, read_field(tmp_path / "g"))
+
+
+# ---------------------------------------------------------------- command line
+def test_cli_estimate_prints_the_table(trained, tmp_path):
+    _, run = trained
+    synthesise_field(ParameterSet.nominal(), [CONDITION], tmp_path / "f", duration_s=3.0)
+    out = tmp_path / "post.json"
+    args = ["posterior", "estimate", "--measured", str(tmp_path / "f"), "--estimator", str(run)]
+    result = runner.invoke(app, [*args, "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "X14" in result.output and "lo90" in result.output and out.exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["train", "--parameters", "X13,X3"], "subset of X11"),
+        (["train", "--section", "0.2"], "--section 0.2: accepted 1 to 600"),
+        (["train", "--noise", "0.9"], "--noise 0.9: accepted 0 to 0.5"),
+        (["train", "--simulations", "5"], "--simulations 5: accepted 20 to"),
+        (["train", "--conditions", "nowhere"], "nowhere"),
+        (["train", "--lead-in", "-5"], "--lead-in -5"),
+        (["estimate", "--measured", "MISSING", "--estimator", "RUN"], "MISSING"),
+    ],
+)
+def test_cli_bad_input_is_one_line_exit_2(args, needle, tmp_path):
+    if args[0] == "train":
+        args = [*args, "--out", str(tmp_path / "run")]
+    result = runner.invoke(app, ["posterior", *args])
+    assert result.exit_code == 2, result.output
+    assert needle in result.output and len(result.output.strip().splitlines()) == 1
+
+
+def test_cli_estimate_without_a_trained_estimator(tmp_path):
+    synthesise_field(ParameterSet.nominal(), [CONDITION], tmp_path / "f", duration_s=3.0)
+    args = ["--measured", str(tmp_path / "f"), "--estimator", str(tmp_path)]
+    result = runner.invoke(app, ["posterior", "estimate", *args])
+    assert result.exit_code == 2 and "train first" in result.output
+
+
+def test_cli_train_writes_the_estimator_and_its_check(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # nothing may land in the working directory
+    run = tmp_path / "run"
+    args = ["posterior", "train", "--out", str(run), "--conditions", "straight"]
+    args += ["--parameters", "X14", "--section", "2", "--simulations", "40", "--check", "10"]
+    result = runner.invoke(app, [*args, "--lead-in", "20"])
+    assert result.exit_code == 0, result.output
+    assert "coverage" in result.output and "X14" in result.output
+    for name in ("settings.json", "estimator.pt", "calibration.json"):
+        assert (run / "posterior" / name).exists()
+    assert len(list((run / "posterior" / "simulations").glob("*.npz"))) == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
