@@ -29,7 +29,11 @@ def _calibration_table(checks) -> None:
     console.print(frame_table(df, "calibration on held-out simulations (90 % intervals)"))
 
 
-@posterior_app.command("train")
+@posterior_app.command(
+    "train",
+    epilog="Example: railsusp posterior train --out runs/post --conditions straight,curve "
+    "--simulations 2000",
+)
 def train_command(
     out: Annotated[Path, typer.Option(help="run directory (the estimator goes to posterior/)")],
     conditions: Annotated[str, typer.Option(help="names or a TOML file")] = "straight,curve",
@@ -94,7 +98,10 @@ def train_command(
         )
 
 
-@posterior_app.command("estimate")
+@posterior_app.command(
+    "estimate",
+    epilog="Example: railsusp posterior estimate --measured field/ --estimator runs/post",
+)
 def estimate_command(
     measured: Annotated[Path, typer.Option(help="field folder (index.json) of recordings")],
     estimator: Annotated[Path, typer.Option(help="run directory of a trained estimator")],
