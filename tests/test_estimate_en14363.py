@@ -20,6 +20,7 @@ from railsusp.estimate.statistics import (
 )
 from railsusp.measured import Recording
 from railsusp.params import ParameterSet
+from test_estimate import WaveForces  # the series model with a known answer
 
 FS = 200.0
 
@@ -91,19 +92,6 @@ def test_recording_and_model_series_give_the_same_value_over_segments():
     assert meas[0, 0] == pytest.approx(np.mean(parts))
     assert meas[0, 0] == pytest.approx(-2.0 + 8.0 * 2.0, abs=0.5)  # crest of the middle part
     assert meas[1, 0] == pytest.approx(125.0, abs=0.1)
-
-
-class WaveForces:
-    """Y = 3 (X13 / 14 MN/m) sin(2 pi 1.3 t) + (X14 / 10 MN/m), Q = 120 + 5 (X14 / 10 MN/m)
-    cos(2 pi 0.7 t) kN: both estimated maxima grow with the parameters."""
-
-    def series(self, x_si, condition):
-        t = np.arange(condition.n_steps) * condition.sample_interval
-        a = (x_si[:, 0] / 14e6)[:, None]
-        b = (x_si[:, 1] / 10e6)[:, None]
-        y = 3.0 * a * np.sin(2 * np.pi * 1.3 * t) + b
-        q = 120.0 + 5.0 * b * np.cos(2 * np.pi * 0.7 * t)
-        return np.stack([y, q], axis=2)
 
 
 def test_objectives_on_the_en14363_maximum_vanish_at_the_truth():
