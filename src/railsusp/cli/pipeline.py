@@ -53,18 +53,23 @@ def _run(config, out: Path, start_from: str | None) -> dict:
 
 
 def _summary(out: Path) -> None:
+    from railsusp.report_doc import fraction_errors_to_pct, header
+
     def show(csv: Path, title: str, cols: list[str] | None = None) -> None:
+        """A run-directory table as the report shows it: readable headers, errors in %."""
         if not csv.exists():
             return
-        df = pd.read_csv(csv)
-        console.print(frame_table(df[cols] if cols else df, title))
+        df = fraction_errors_to_pct(pd.read_csv(csv))
+        df = df[cols] if cols else df
+        console.print(frame_table(df.rename(columns=header), title, fmt="{:.3g}"))
 
     if (out / "estimate" / "validation" / "validation.csv").exists():  # the answer first
         import railsusp.summary as summary
 
         est = summary.estimate_table(out).reset_index()
         cols = ["parameter", "unit", "nominal", "estimate", "low", "high", "change_pct"]
-        console.print(frame_table(est[[*cols, "verdict"]], "Answer (report.html, docs/api.md)"))
+        answer = est[[*cols, "verdict"]].rename(columns=header)
+        console.print(frame_table(answer, "Answer (report.html, docs/api.md)", fmt="{:.3g}"))
         for line in summary.agreement_lines(summary.force_agreement(out)):
             console.print(line, markup=False, highlight=False)
     show(out / "estimate" / "estimate.csv", "Estimate (study Table 5 layout)")
