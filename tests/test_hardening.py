@@ -198,6 +198,15 @@ def test_training_on_an_incomplete_campaign_is_refused(short, tmp_path):
     run_campaign(cfg, tmp_path / "r", max_batches=1)
     one_line_error(["train", tmp_path / "r"], "the campaign is incomplete (1 of 2 batches)")
     one_line_error(["compare", tmp_path / "r"], "incomplete")
+    # and from Python: the library refuses it as well, not only the command line
+    from railsusp.campaign import CampaignError
+    from railsusp.surrogate import train_surrogate
+    from railsusp.surrogate.statistics import train_statistics_surrogate
+
+    with pytest.raises(CampaignError, match="incomplete"):
+        train_surrogate(tmp_path / "r", "short", kind="bp")
+    with pytest.raises(CampaignError, match="incomplete"):
+        train_statistics_surrogate(tmp_path / "r", "short")
 
 
 # ---------------------------------------------------------------- parameters and conditions

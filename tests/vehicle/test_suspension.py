@@ -176,3 +176,34 @@ def test_energy_of_a_small_bounce_is_dissipated_by_the_stuck_wedges():
     audit = energy_audit(x0, duration_s=2.0, creep=False)
     assert audit.relative_error < 0.01, audit
     assert audit.dissipated_fraction > 0.3, audit
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "needle"),
+    [
+        (
+            "column_friction_coefficient = 0.25",
+            "column_friction_coefficient = 0.9",
+            "secondary: column_friction_coefficient = 0.9: accepted below tan(wedge_angle_deg)",
+        ),
+        (
+            "control_spring_stiffness = 0.769e6",
+            "control_spring_stiffness = 3.0e6",
+            "secondary: the wedges' control springs (6e+06 N/m) must be part of the nest's",
+        ),
+    ],
+)
+def test_a_wedge_that_cannot_work_is_refused_when_the_wagon_file_is_read(
+    tmp_path, old, new, needle
+):
+    from importlib import resources
+
+    from railsusp.errors import RailsuspInputError
+
+    text = resources.files("railsusp").joinpath("data/c80_k6.toml").read_text("utf-8")
+    assert old in text
+    path = tmp_path / "wagon.toml"
+    path.write_text(text.replace(old, new))
+    with pytest.raises(RailsuspInputError) as err:
+        load_wagon(path)
+    assert needle in str(err.value) and "\n" not in str(err.value)

@@ -84,9 +84,9 @@ def train_surrogate(
     at least :data:`~railsusp.surrogate.correction.MIN_RUNS` training samples) a record
     correction is fitted on the training samples' predictions (:mod:`.correction`).
     """
-    from railsusp.campaign import load_campaign
+    from railsusp.campaign import load_campaign, require_complete
 
-    camp = load_campaign(run)
+    camp = require_complete(load_campaign(run))  # never train on part of a campaign
     params = tuple(parameters) if parameters else key_parameters(run)
     spec = FeatureSpec(parameters=params, window=window)
     data = load_series(camp, condition, spec)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from railsusp.campaign import load_campaign
+from railsusp.campaign import load_campaign, require_complete
 from railsusp.store import write_csv, write_json
 from railsusp.surrogate import key_parameters, train_surrogate
 from railsusp.surrogate.baselines import RBFWindowModel, StatisticsGP
@@ -39,7 +39,7 @@ def compare(
     ``RUN/surrogates/compare.csv`` / ``.json`` with overlay figures)."""
     from railsusp.report import plot_surrogate_overlay
 
-    camp = load_campaign(run)
+    camp = require_complete(load_campaign(run))  # never train on part of a campaign
     conds = list(conditions) if conditions else [c.name for c in camp.config.conditions]
     params = key_parameters(run)
     spec = FeatureSpec(parameters=params, window=window)

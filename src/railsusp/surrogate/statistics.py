@@ -120,12 +120,13 @@ def train_statistics_surrogate(
     seed: int = 0,
     out: str | Path | None = None,
 ) -> StatisticsSurrogate:
-    """Fit the statistics GPs of one condition on every finished sample of a campaign (at most
-    ``max_train``, chosen at random) and save them under ``RUN/surrogates/gp-stats/<cond>/``."""
-    from railsusp.campaign import load_campaign
+    """Fit the statistics GPs of one condition on the samples of a complete campaign (at most
+    ``max_train``, chosen at random; an unfinished campaign is refused) and save them under
+    ``RUN/surrogates/gp-stats/<cond>/``."""
+    from railsusp.campaign import load_campaign, require_complete
     from railsusp.surrogate import key_parameters
 
-    camp = load_campaign(run)
+    camp = require_complete(load_campaign(run))  # never train on part of a campaign
     params = tuple(parameters) if parameters else key_parameters(run)
     spec = FeatureSpec(parameters=params)
     data = load_series(camp, condition, spec)

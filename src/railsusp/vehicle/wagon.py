@@ -8,12 +8,13 @@ catalogue (:mod:`railsusp.params`), so that a campaign can vary them.
 
 from __future__ import annotations
 
+import math
 import tomllib
 from importlib import resources
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from railsusp.errors import RailsuspInputError
 
@@ -88,6 +89,23 @@ class Secondary(_Section):
     wedge_stick_stiffness: float = Field(**_POS)
     wedge_stick_damping: float = Field(ge=0.0)
     gib_stiffness: float = Field(**_POS)
+
+    @model_validator(mode="after")
+    def _wedges_fit_the_nest(self) -> Secondary:
+        """Checked when the file is read, not at the first simulation."""
+        k_ctrl = self.wedges_per_nest * self.control_spring_stiffness
+        if k_ctrl >= self.vertical_stiffness:
+            raise ValueError(
+                f"the wedges' control springs ({k_ctrl:.3g} N/m) must be part of the nest's "
+                f"vertical_stiffness ({self.vertical_stiffness:.3g} N/m)"
+            )
+        tan_a = math.tan(math.radians(self.wedge_angle_deg))
+        if self.column_friction_coefficient >= tan_a:
+            raise ValueError(
+                f"column_friction_coefficient = {self.column_friction_coefficient:g}: accepted "
+                f"below tan(wedge_angle_deg) = {tan_a:.3g} (else the wedge locks)"
+            )
+        return self
 
 
 class CentrePlate(_Section):
@@ -225,5 +243,7 @@ def load_wagon(source: str | Path | None = None) -> WagonData:
         msgs = []
         for err in exc.errors():
             loc = ".".join(str(p) for p in err["loc"])
-            msgs.append(f"{loc} = {err.get('input')!r}: {err['msg']}")
+            value = err.get("input")
+            where_value = loc if isinstance(value, dict) else f"{loc} = {value!r}"
+            msgs.append(f"{where_value}: {err['msg'].removeprefix('Value error, ')}")
         raise RailsuspInputError(f"{where}: " + "; ".join(msgs)) from None
