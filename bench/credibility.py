@@ -7,7 +7,8 @@ curve the outer and the inner wheel; on tangent and grade left and right) it pri
 |Y| and Q, the study's statistic, the record maximum (docs/model.md argues it: the study's
 tangent Q of 140.2 kN is 1.14 x the static wheel load, so its statistic is a peak, and its
 conclusions speak of the "peak value of the wheel-rail force"), and beside it the 99.85th
-percentile (EN 14363's statistic for wheel-rail forces), the 99th percentile and the mean;
+percentile (the level EN 14363 uses, here of the raw record, without its 20 Hz filter and
+2 m sliding mean: railsusp.en14363 does those), the 99th percentile and the mean;
 each as the mean over seeds of one record's value. Each is compared with Table 8's
 *measured* value (the instrumented wheelset, the target) and shown beside the study's
 simulated one. Targets of issue 18 for the study's statistic: vertical within 3 %, lateral

@@ -8,22 +8,16 @@ import pytest
 from typer.testing import CliRunner
 
 from railsusp.cli import app
-from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.measured import Recording, RecordingError, read_field, read_recording
+from test_measured import make_recording
 
-COND = get_condition("straight", duration_s=2.0, n_steps=100)
 runner = CliRunner()
 
 
 def recording(n=200, rate=100.0) -> Recording:
-    t = np.arange(n) / rate
-    return Recording(
-        t,
-        {"w1L": 5 + 3 * np.sin(2 * np.pi * 1.5 * t)},
-        {"w1L": 122 + 10 * np.cos(2 * np.pi * 2.0 * t)},
-        COND,
-    )
+    """The sine recording of test_measured, longer and faster sampled."""
+    return make_recording(n, rate)
 
 
 def write_table(tmp_path, header, columns, name="rec"):

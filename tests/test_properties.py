@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -116,12 +117,15 @@ def _loads_or_input_error(load, path) -> None:
         assert "\n" not in str(exc).strip(), str(exc)
 
 
+@pytest.mark.parametrize(
+    "load", [load_config, load_conditions], ids=["configuration", "conditions"]
+)
 @SETTINGS
 @given(data=st.binary(max_size=300))
-def test_configuration_loader_on_arbitrary_bytes(tmp_path, data):
+def test_loader_on_arbitrary_bytes(tmp_path, load, data):
     p = tmp_path / "c.toml"
     p.write_bytes(data)
-    _loads_or_input_error(load_config, p)
+    _loads_or_input_error(load, p)
 
 
 @SETTINGS
@@ -134,14 +138,6 @@ def test_configuration_loader_on_arbitrary_toml_values(tmp_path, doc):
     p = tmp_path / "c.toml"
     p.write_text(toml_document(doc), encoding="utf-8")
     _loads_or_input_error(load_config, p)
-
-
-@SETTINGS
-@given(data=st.binary(max_size=300))
-def test_condition_loader_on_arbitrary_bytes(tmp_path, data):
-    p = tmp_path / "c.toml"
-    p.write_bytes(data)
-    _loads_or_input_error(load_conditions, p)
 
 
 @SETTINGS

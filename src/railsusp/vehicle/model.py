@@ -46,6 +46,7 @@ from railsusp.vehicle import layout as L
 from railsusp.vehicle.suspension import (
     bowl_ring_forces,
     damped_slider,
+    disc_friction_moment,
     friction_wedges,
     gap_spring,
     series_stiffness,
@@ -498,7 +499,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             acc[ib + 1] -= df
             acc[ib + 2] -= side * sb_half * f_sb
         # body-bolster yaw friction (centre bowl + side bearers): elasto-plastic slider
-        m_lim = K[I_MUCP] * n_cp * (2.0 / 3.0) * K[I_RCP] + K[I_MUSB] * n_sb_sum * sb_half
+        m_lim = disc_friction_moment(K[I_MUCP], n_cp, K[I_RCP]) + K[I_MUSB] * n_sb_sum * sb_half
         rel_rate = v[L.CB_YAW] + V * (kap_c - kap_b) - v[ib + 3]
         m_fr = damped_slider(x[AUXY + k], m_lim, K[I_KYAW], K[I_CYAW], rel_rate, dxdt, AUXY + k)
         acc[L.CB_YAW] -= m_fr

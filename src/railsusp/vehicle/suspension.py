@@ -45,6 +45,13 @@ def gap_spring(d, clearance, k):
 
 
 @nb.njit(cache=True, inline="always")
+def disc_friction_moment(mu, normal, radius):
+    """Limit of the friction moment (N m) of a flat disc of ``radius`` pressed with
+    ``normal`` (N), uniform pressure: mu N (2/3) R. The centre bowl's liner in yaw and roll."""
+    return mu * normal * (2.0 / 3.0) * radius
+
+
+@nb.njit(cache=True, inline="always")
 def damped_slider(state, limit, k_stick, c_stick, v, dxdt, idx):
     """Friction force (on the element's first body, opposing v) of an elasto-plastic slider
     with stick damping: a Kelvin element (k_stick, c_stick) in series with a Coulomb slider.
@@ -196,6 +203,6 @@ def bowl_ring_forces(
         n_tot += f
         m_roll += y * f
         m_pitch += -x * f
-    lim = mu * n_tot * (2.0 / 3.0) * radius
+    lim = disc_friction_moment(mu, n_tot, radius)
     m_fr = damped_slider(state_roll, lim, k_stick, c_stick, -droll_rate, dxdt, idx)
     return n_tot, m_roll, m_pitch, m_fr
