@@ -8,14 +8,13 @@ from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.model import (
-    N_GEO,
+from railsusp.vehicle.setup import SolverSettings, constants, contact_arrays
+from railsusp.vehicle.wagon import load_wagon
+from railsusp.vehicle.wheel_rail import (
     hertz_rail_normal_force,
     shared_rail_normal_forces,
     wheel_rail_forces,
 )
-from railsusp.vehicle.setup import SolverSettings, constants, contact_arrays
-from railsusp.vehicle.wagon import load_wagon
 
 G_TREAD, G_FLANGE = 4.2e-8, 5.8e-8  # Hertz constants of the C80 tread and flank, m/N^(2/3)
 K_RY, K_RZ = 40e6, 150e6  # rail support per wheel, N/m
@@ -74,16 +73,15 @@ def _pushed_wheel(model: str, shift: float) -> tuple[float, float, float]:
     ca = contact_arrays(wagon)
     cond = get_condition("straight", irregularity_class=None)
     k = constants(wagon, cond, ParameterSet.nominal().to_array(), ca, SolverSettings())
-    row, geo, tot = np.empty(L.CT_PER_WHEEL), np.empty((2, N_GEO)), np.empty(8)
     z0 = k[L.K["Z0_L"]]
 
     def forces(z: float) -> np.ndarray:
-        code = wheel_rail_forces(
+        code, *res = wheel_rail_forces(
             shift, z, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0,
-            ca.table, ca.y0, ca.dy, ca.H0L, z0, k, row, geo, tot,
+            ca.table, ca.y0, ca.dy, ca.H0L, z0, k,
         )  # fmt: skip
         assert code == 0
-        return tot.copy()
+        return np.array(res)  # Y, Q, Fx, roll and yaw moments, tread normal force, ...
 
     lo, hi = -0.012, 0.02  # bisection on the wheel height for Q = static load
     for _ in range(70):

@@ -16,7 +16,8 @@ from pathlib import Path
 
 #: the modules with compiled kernels, and the layout they read
 KERNEL_SOURCES = (
-    "layout.py", "suspension.py", "model.py", "integrate.py", "decay.py", "wheelset.py",
+    "layout.py", "suspension.py", "track_lookup.py", "wheel_rail.py", "model.py",
+    "integrate.py", "decay.py", "wheelset.py",
 )  # fmt: skip
 
 

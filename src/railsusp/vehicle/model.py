@@ -39,7 +39,6 @@ from __future__ import annotations
 import math
 
 import numba as nb
-import numpy as np
 
 import railsusp.vehicle.kernel_cache  # noqa: F401  (before any kernel is compiled)
 from railsusp.vehicle import layout as L
@@ -51,6 +50,8 @@ from railsusp.vehicle.suspension import (
     gap_spring,
     series_stiffness,
 )
+from railsusp.vehicle.track_lookup import track_frame, track_point, track_rate, track_value
+from railsusp.vehicle.wheel_rail import wheel_rail_forces
 
 _K = L.K
 
@@ -68,320 +69,28 @@ I_TANW, I_COSW, I_MUC, I_MUS = _K["tan_wedge"], _K["cos_wedge"], _K["mu_column"]
 I_KCTRL, I_F0CTRL, I_X18REF = _K["k_ctrl"], _K["F0_ctrl"], _K["x18_ref"]
 I_KCPZ, I_KCPY, I_MUCP, I_KYAW = _K["k_cpz"], _K["k_cpy"], _K["mu_cp"], _K["k_yaw"]
 I_CYAW, I_KROLL, I_CROLL = _K["c_yaw"], _K["k_roll"], _K["c_roll"]
-I_KSB, I_PSB, I_MUSB, I_KRZ, I_KRY = _K["k_sb"], _K["P_sb"], _K["mu_sb"], _K["k_rz"], _K["k_ry"]
+I_KSB, I_PSB, I_MUSB = _K["k_sb"], _K["P_sb"], _K["mu_sb"]
 I_SBTRAVEL, I_KSBSTOP, I_CSB = _K["sb_travel"], _K["k_sb_stop"], _K["c_sb"]
-I_CRZ, I_CRY = _K["c_rz"], _K["c_ry"]
 I_F0CP, I_F0N, I_F0P = _K["F0_cp"], _K["F0_nest"], _K["F0_prim"]
 I_Z0L, I_Z0R = _K["Z0_L"], _K["Z0_R"]
-I_V, I_GN, I_MU = _K["V"], _K["g_n"], _K["mu"]
-I_FCPL, I_MGRADE, I_CREEP = _K["F_coupler"], _K["M_pitch_grade"], _K["creep_factor"]
-I_Q0, I_NREF = _K["Q0"], _K["N_ref"]
-I_PENMAX, I_LIFTMAX = _K["pen_max"], _K["lift_max"]
+I_V, I_GN = _K["V"], _K["g_n"]
+I_FCPL, I_MGRADE = _K["F_coupler"], _K["M_pitch_grade"]
+I_Q0 = _K["Q0"]
 I_WATCH = _K["flange_watch"]
-I_NPTS = _K["contact_points"]
 
 BOL0, SF0, WS0 = L.BOL0, L.SF0, L.WS0
 NQ = L.N_DOF
 AUXW, AUXY, AUXR = L.AUX_WEDGE, L.AUX_YAWFR, L.AUX_ROLLFR
-NCTW = L.CT_PER_WHEEL
 
 
 @nb.njit(cache=True, inline="always")
-def track_lookup(trk, ch, s, s0, ds):
-    """Linear interpolation of track channel ``ch`` at distance s (clamped at the ends)."""
-    u = (s - s0) / ds
-    n = trk.shape[1]
-    if u <= 0.0:
-        return trk[ch, 0]
-    if u >= n - 1:
-        return trk[ch, n - 1]
-    i = int(u)
-    f = u - i
-    return trk[ch, i] * (1.0 - f) + trk[ch, i + 1] * f
-
-
-@nb.njit(cache=True, inline="always")
-def track_frame(trk, s, s0, ds):
-    """Curvature (1/m), cant angle (rad), heading (rad) and lateral position (m) of the
-    design track at distance s: the frame a body at s moves in."""
-    return (
-        track_lookup(trk, L.TR_KAPPA, s, s0, ds),
-        track_lookup(trk, L.TR_CANT, s, s0, ds),
-        track_lookup(trk, L.TR_HEAD, s, s0, ds),
-        track_lookup(trk, L.TR_OFFSET, s, s0, ds),
-    )
-
-
-@nb.njit(cache=True, inline="always")
-def track_rate(trk, ch, s, s0, ds, V):
-    """Time rate V d(channel)/ds of track channel ``ch`` at distance s (per second)."""
-    u = (s - s0) / ds
-    n = trk.shape[1]
-    i = int(u)
-    if u <= 0.0 or i >= n - 1:
-        return 0.0
-    return V * (trk[ch, i + 1] - trk[ch, i]) / ds
-
-
-@nb.njit(cache=True, inline="always")
-def add_frame_forces(acc, i_lat, i_vert, m, kappa, cant, V, gn):
+def add_frame_forces(acc, i_lat, i_vert, m, kappa, c, s, V, gn):
     """Add the moving frame's pseudo-forces on a body of mass m (N): lateral
     -m (V² κ cos φ + g sin φ); vertical -m (g cos φ - V² κ sin φ) as a deviation from the
-    static weight m g already carried by the preloads."""
-    c = math.cos(cant)
-    s = math.sin(cant)
+    static weight m g already carried by the preloads. c, s: cosine and sine of the cant
+    angle φ (each evaluated once per track position, for all bodies there)."""
     acc[i_lat] += -m * (V * V * kappa * c + gn * s)
     acc[i_vert] += -m * (gn * c - V * V * kappa * s) + m * gn
-
-
-@nb.njit(cache=True, inline="always")
-def hertz_rail_normal_force(dn, G, krn):
-    """Normal force N (N) for normal approach dn (m) of Hertz contact in series with rail.
-
-    dn = G N^(2/3) + N / krn (Hertz law P = (dz/G)^1.5 plus linear rail support). Solved for
-    u = N^(1/3) by Newton from above (the cubic is convex and increasing), N = u^3.
-    """
-    if dn <= 0.0:
-        return 0.0
-    u1 = math.sqrt(dn / G)  # Hertz alone
-    u2 = (krn * dn) ** (1.0 / 3.0)  # rail alone
-    u = u1 if u1 < u2 else u2
-    c = krn * G
-    d = krn * dn
-    for _ in range(6):
-        f = u * u * u + c * u * u - d
-        fp = 3.0 * u * u + 2.0 * c * u
-        u -= f / fp
-    return u * u * u
-
-
-@nb.njit(cache=True, inline="always")
-def she_saturation(fx, fy, mu_n):
-    """Shen-Hedrick-Elkins factor scaling linear creep forces to saturation at mu N.
-
-    F = mu N (beta - beta^2/3 + beta^3/27) for beta = |F_lin| / (mu N) <= 3, else mu N.
-    Returns the factor F / |F_lin| (1 for vanishing creep, 0 when unloaded).
-    """
-    f = math.sqrt(fx * fx + fy * fy)
-    if mu_n <= 0.0:
-        return 0.0
-    if f < 1e-9 * mu_n:
-        return 1.0
-    beta = f / mu_n
-    if beta < 3.0:
-        fs = mu_n * (beta - beta * beta / 3.0 + beta * beta * beta / 27.0)
-    else:
-        fs = mu_n
-    return fs / f
-
-
-@nb.njit(cache=True, inline="always")
-def table_index(y, y0, dy, n):
-    """Interval index i and fraction f of shift y on a table of n uniform rows from y0 by dy;
-    i = -1 when y lies outside the table (flange climb beyond the tabulated range)."""
-    u = (y - y0) / dy
-    if u < 0.0 or u > n - 1:
-        return -1, 0.0
-    i = int(u)
-    if i >= n - 1:
-        i = n - 2
-    return i, u - i
-
-
-@nb.njit(cache=True, inline="always")
-def table_row(ctab, col0, y, y0, dy, row):
-    """Interpolate the contact-table columns of one wheel at shift y into ``row``.
-
-    Returns False when y lies outside the table (flange climb beyond the tabulated range).
-    """
-    i, f = table_index(y, y0, dy, ctab.shape[1])
-    if i < 0:
-        return False
-    for c in range(NCTW):
-        row[c] = ctab[col0 + c, i] * (1.0 - f) + ctab[col0 + c, i + 1] * f
-    return True
-
-
-#: columns of the per-contact scratch rows filled by :func:`contact_geometry`
-G_GAP, G_DELTA, G_LAT, G_R, G_HERTZ, G_F11, G_F22, G_F23, G_RATE, G_N = range(10)
-N_GEO = 10
-
-
-@nb.njit(cache=True)
-def contact_geometry(
-    ws_y, ws_z, ws_roll, vy, vz, vroll, side, block, rail_y, rail_z, rail_vy, rail_vz,
-    ctab, y0, dy, H0, Z0, K, row, geo,
-):  # fmt: skip
-    """Geometry of one contact point (``block`` 0 tread, 1 flange) of one wheel (side +1
-    left, -1 right): fills ``geo`` (G_* columns: vertical gap to the undeflected rail, m,
-    < 0 when touching; contact angle; lateral arm; rolling radius; Hertz constant; Kalker
-    coefficients at the reference load; rate of the gap, m/s). Returns a failure code; lift
-    beyond the flange height is judged on the tread contact.
-    """
-    col0 = block * L.CT_FLANGE + (0 if side > 0 else NCTW)
-    r0 = K[I_R0]
-    yrel = ws_y + r0 * ws_roll - rail_y  # the wheel's shift at contact level
-    if block > 0:  # the flange is mostly clear of its rail: look up the gap first
-        i, f = table_index(yrel, y0, dy, ctab.shape[1])
-        if i < 0:
-            return L.FAIL_FLANGE_CLIMB
-        lat = ctab[col0 + L.CT_L, i] * (1.0 - f) + ctab[col0 + L.CT_L, i + 1] * f
-        h = ctab[col0 + L.CT_H, i] * (1.0 - f) + ctab[col0 + L.CT_H, i + 1] * f
-        gap = ws_z + side * lat * ws_roll - rail_z - (h - H0) - Z0
-        if gap >= 0.0:
-            geo[G_GAP] = gap
-            geo[G_DELTA] = 0.0
-            return L.OK
-    if not table_row(ctab, col0, yrel, y0, dy, row):
-        return L.FAIL_FLANGE_CLIMB
-    lat = row[2]
-    gap = ws_z + side * lat * ws_roll - rail_z - (row[3] - H0) - Z0
-    if block == 0 and gap > K[I_LIFTMAX]:
-        return L.FAIL_LIFT
-    slope = side * math.tan(row[1])  # dH/dy of this wheel
-    geo[G_GAP] = gap
-    geo[G_DELTA] = row[1]
-    geo[G_LAT] = lat
-    geo[G_R] = row[0]
-    geo[G_HERTZ] = row[4]
-    geo[G_F11] = row[5]
-    geo[G_F22] = row[6]
-    geo[G_F23] = row[7]
-    geo[G_RATE] = vz + side * lat * vroll - rail_vz - slope * (vy + r0 * vroll - rail_vy)
-    return L.OK
-
-
-@nb.njit(cache=True)
-def shared_rail_normal_forces(a1, g1, a2, g2, m11, m12, m22):
-    """Normal forces (N) of two Hertz contacts pressing one elastically supported rail.
-
-    a1, a2: rigid approaches along each contact's normal (m); g1, g2: Hertz constants
-    (approach = g N^(2/3)); m_ij = n_i . C n_j: the rail support's compliance C =
-    diag(1/k_lateral, 1/k_vertical) projected on the contact normals (m/N). Each contact's
-    elastic approach is a_i = g_i N_i^(2/3) + sum_j m_ij N_j: the rail deflects under both
-    forces, so a tread load also lowers the rail under the flange. Solved for u_i = N_i^(1/3)
-    by Newton from the single-contact solutions (upper bounds, since m12 > 0); a contact
-    that the other one's deflection opens carries nothing.
-    """
-    n1 = hertz_rail_normal_force(a1, g1, 1.0 / m11) if a1 > 0.0 else 0.0
-    n2 = hertz_rail_normal_force(a2, g2, 1.0 / m22) if a2 > 0.0 else 0.0
-    if n2 == 0.0 or a2 - m12 * n1 <= 0.0:
-        return n1, 0.0
-    if n1 == 0.0 or a1 - m12 * n2 <= 0.0:
-        return 0.0, n2
-    u1 = n1 ** (1.0 / 3.0)
-    u2 = n2 ** (1.0 / 3.0)
-    for _ in range(8):
-        c1 = u1 * u1 * u1
-        c2 = u2 * u2 * u2
-        f1 = g1 * u1 * u1 + m11 * c1 + m12 * c2 - a1
-        f2 = g2 * u2 * u2 + m12 * c1 + m22 * c2 - a2
-        j11 = 2.0 * g1 * u1 + 3.0 * m11 * u1 * u1
-        j12 = 3.0 * m12 * u2 * u2
-        j21 = 3.0 * m12 * u1 * u1
-        j22 = 2.0 * g2 * u2 + 3.0 * m22 * u2 * u2
-        det = j11 * j22 - j12 * j21
-        d1 = (j22 * f1 - j12 * f2) / det
-        d2 = (j11 * f2 - j21 * f1) / det
-        u1 = max(u1 - d1, 0.0)
-        u2 = max(u2 - d2, 0.0)
-        if abs(d1) + abs(d2) < 1e-9 * (u1 + u2):  # N to ~3e-9 relative
-            break
-    return u1 * u1 * u1, u2 * u2 * u2
-
-
-@nb.njit(cache=True)
-def wheel_rail_forces(
-    ws_y, ws_z, ws_roll, ws_yaw, vy, vz, vroll, vyaw, kappa, side,
-    rail_y, rail_z, rail_vy, rail_vz, ctab, y0, dy, H0, Z0, K, row, geo, tot,
-):  # fmt: skip
-    """All contact forces of one wheel (side +1 left, -1 right) on its rail, in the track
-    frame: the tread contact and, with two-point contact (K contact_points = 2), the flange
-    contact acting at the same time on the same elastic rail.
-
-    Per contact: Hertz normal force (:func:`shared_rail_normal_forces`), rail support damping
-    along the normal, Kalker creep with Shen-Hedrick-Elkins saturation. Writes tot =
-    [Y_on_wheel, Q_on_wheel (up), Fx_on_wheel, roll and yaw moments of the contact forces
-    about the wheelset centre (lever r0 for Y, so that normal forces stay the gradient of
-    one contact potential), tread normal force, shift towards the flange, its rate] and
-    returns a failure code (0 ok). ``geo``: scratch, shape (2, N_GEO).
-    """
-    r0 = K[I_R0]
-    V = K[I_V]
-    n_points = 2 if K[I_NPTS] > 1.5 else 1
-    for i in range(6):
-        tot[i] = 0.0
-    tot[6] = side * (ws_y + r0 * ws_roll - rail_y)
-    tot[7] = side * (vy + r0 * vroll - rail_vy)
-    k_lat = K[I_KRY]  # rail support per wheel, N/m
-    k_vert = K[I_KRZ]
-    a0 = 0.0  # rigid approach along the normal of each contact, m
-    a1 = 0.0
-    for b in range(n_points):
-        code = contact_geometry(
-            ws_y, ws_z, ws_roll, vy, vz, vroll, side, b, rail_y, rail_z, rail_vy, rail_vz,
-            ctab, y0, dy, H0, Z0, K, row, geo[b],
-        )  # fmt: skip
-        if code != 0:
-            return code
-        if b == 0:
-            a0 = -geo[0, G_GAP] * math.cos(geo[0, G_DELTA])
-        else:
-            a1 = -geo[1, G_GAP] * math.cos(geo[1, G_DELTA])
-    # normal forces: both contacts deflect the same rail (compliance diag(1/k_ry, 1/k_rz))
-    s0, c0 = math.sin(geo[0, G_DELTA]), math.cos(geo[0, G_DELTA])
-    m00 = s0 * s0 / k_lat + c0 * c0 / k_vert
-    if n_points == 2 and a1 > 0.0:
-        s1, c1 = math.sin(geo[1, G_DELTA]), math.cos(geo[1, G_DELTA])
-        m11 = s1 * s1 / k_lat + c1 * c1 / k_vert
-        m01 = s0 * s1 / k_lat + c0 * c1 / k_vert
-        n0, n1 = shared_rail_normal_forces(a0, geo[0, G_HERTZ], a1, geo[1, G_HERTZ], m00, m01, m11)
-    else:
-        n0 = hertz_rail_normal_force(a0, geo[0, G_HERTZ], 1.0 / m00) if a0 > 0.0 else 0.0
-        n1 = 0.0
-    geo[0, G_N] = n0
-    geo[1, G_N] = n1
-    n_ref = K[I_NREF]
-    for b in range(n_points):
-        N = geo[b, G_N]
-        if N <= 0.0:
-            continue
-        if geo[b, G_HERTZ] * N ** (2.0 / 3.0) > K[I_PENMAX]:  # Hertz approach, not the rail
-            return L.FAIL_PENETRATION
-        delta = geo[b, G_DELTA]
-        cd = math.cos(delta)
-        sd = math.sin(delta)
-        # rail support damping along the normal (pads and ballast), never pulling the wheel
-        N -= (cd * cd * K[I_CRZ] + sd * sd * K[I_CRY]) * geo[b, G_RATE] * cd
-        if N <= 0.0:
-            continue
-        # Kalker coefficients scale with the contact area: f11, f22 ~ N^(2/3), f23 ~ N
-        scale = (N / n_ref) ** (2.0 / 3.0) * K[I_CREEP]
-        f11 = geo[b, G_F11] * scale
-        f22 = geo[b, G_F22] * scale
-        f23 = geo[b, G_F23] * scale * (N / n_ref) ** (1.0 / 3.0)
-        r = geo[b, G_R]
-        lat = geo[b, G_LAT]
-        # creepages (Kalker): longitudinal, lateral, spin
-        xi_x = 1.0 - r / r0 - side * lat * (vyaw / V + kappa)
-        xi_y = (vy + r * vroll) / V - ws_yaw
-        spin = (vyaw / V + kappa) * cd - side * sd / r0
-        fx = -f11 * xi_x
-        fy = -f22 * xi_y - f23 * spin
-        eps = she_saturation(fx, fy, K[I_MU] * N)
-        fx *= eps
-        fy *= eps
-        # normal n = (-side sin d, cos d), contact-plane lateral t = (cos d, side sin d)
-        f_y = -side * N * sd + fy * cd
-        f_z = N * cd + side * fy * sd
-        tot[0] += f_y
-        tot[1] += f_z
-        tot[2] += fx
-        tot[3] += side * lat * f_z + r0 * f_y
-        tot[4] += -side * lat * fx
-        if b == 0:
-            tot[5] = N
-    return L.OK
 
 
 @nb.njit(cache=True)
@@ -403,9 +112,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         dxdt[i] = v[i]
         acc[i] = 0.0
     # generalised forces accumulate in acc, divided by inertia at the end
-    row = np.empty(NCTW)
-    geo = np.empty((2, N_GEO))
-    tot = np.empty(8)
+    n_trk = trk.shape[1]
     flange_rate = -1.0e9  # fastest approach to its flange of a wheel near it (step control)
 
     # ---- catalogue parameters ----
@@ -429,12 +136,15 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
 
     # ---- track positions ----
     s_c = s_front - (lc + a)
-    kap_c, cant_c, head_c, off_c = track_frame(trk, s_c, s0, ds)
-    cant_rate_c = track_rate(trk, L.TR_CANT, s_c, s0, ds, V)
+    i_c, f_c, in_c = track_point(s_c, s0, ds, n_trk)
+    kap_c, cant_c, head_c, off_c = track_frame(trk, i_c, f_c)
+    cant_rate_c = track_rate(trk, L.TR_CANT, i_c, in_c, ds, V)
 
     # ---- car body pseudo-forces ----
     m_c = K[I_MC]
-    add_frame_forces(acc, L.CB_Y, L.CB_Z, m_c, kap_c, cant_c, V, gn)
+    cos_c = math.cos(cant_c)
+    sin_c = math.sin(cant_c)
+    add_frame_forces(acc, L.CB_Y, L.CB_Z, m_c, kap_c, cos_c, sin_c, V, gn)
     # grade: pitch moment of the net coupler force (at coupler height) and of the bogies'
     # reaction (at centre-plate height); lateral coupler components in curves (chord angle)
     hk = K[I_HCG] - K[I_HK]
@@ -447,10 +157,13 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
     for k in range(2):
         d = lc if k == 0 else -lc
         s_b = s_c + d
-        kap_b, cant_b, head_b, off_b = track_frame(trk, s_b, s0, ds)
+        i_b, f_b, in_b = track_point(s_b, s0, ds, n_trk)
+        kap_b, cant_b, head_b, off_b = track_frame(trk, i_b, f_b)
         ib = BOL0 + 4 * k
         m_b = K[I_MB]
-        add_frame_forces(acc, ib, ib + 1, m_b, kap_b, cant_b, V, gn)
+        cos_b = math.cos(cant_b)
+        sin_b = math.sin(cant_b)
+        add_frame_forces(acc, ib, ib + 1, m_b, kap_b, cos_b, sin_b, V, gn)
 
         # ===== car body <-> bolster k =====
         dev = off_b - off_c - d * head_c  # lateral offset of the track at s_b from the chord
@@ -469,7 +182,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         # roll friction
         z_car = q[L.CB_Z] - d * q[L.CB_PITCH]
         roll_rate_b_c = v[ib + 2] - v[L.CB_ROLL] - cant_rate_c
-        roll_rate_b_c += track_rate(trk, L.TR_CANT, s_b, s0, ds, V)
+        roll_rate_b_c += track_rate(trk, L.TR_CANT, i_b, in_b, ds, V)
         n_cp, m_roll, m_pitch, m_rfr = bowl_ring_forces(
             q[ib + 1] - z_car, roll_c_b - q[ib + 2], q[L.CB_PITCH], -roll_rate_b_c, K[I_RCP],
             K[I_KCPZ], K[I_F0CP], K[I_MUCP], K[I_KROLL], K[I_CROLL], x[AUXR + k], dxdt, AUXR + k,
@@ -509,7 +222,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         for sidx in range(2):
             side = 1.0 if sidx == 0 else -1.0
             jf = SF0 + 5 * (2 * k + sidx)
-            add_frame_forces(acc, jf + 1, jf + 2, K[I_MF], kap_b, cant_b, V, gn)
+            add_frame_forces(acc, jf + 1, jf + 2, K[I_MF], kap_b, cos_b, sin_b, V, gn)
             # vertical nest springs + friction wedge pair: column friction (vertical and
             # lateral, one friction circle) and slope friction (longitudinal, warp)
             comp = q[jf + 2] - (q[ib + 1] + side * b2 * q[ib + 2])
@@ -560,9 +273,10 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             w = 2 * k + wi
             e = a if wi == 0 else -a
             s_w = s_b + e
-            kap_w, cant_w, head_w, off_w = track_frame(trk, s_w, s0, ds)
+            i_w, f_w, in_w = track_point(s_w, s0, ds, n_trk)
+            kap_w, cant_w, head_w, off_w = track_frame(trk, i_w, f_w)
             iw = WS0 + 4 * w
-            add_frame_forces(acc, iw, iw + 1, m_w, kap_w, cant_w, V, gn)
+            add_frame_forces(acc, iw, iw + 1, m_w, kap_w, math.cos(cant_w), math.sin(cant_w), V, gn)
             dev_w = off_w - off_b - e * head_b
             yaw_w_b = q[iw + 3] + head_w - head_b  # wheelset yaw in the bogie frame
             for sidx in range(2):
@@ -591,51 +305,31 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
                 acc[iw + 2] -= side * b1 * (f_z + K[I_F0P])
 
             # ---- wheel-rail contact ----
-            zl = track_lookup(trk, L.TR_ZL, s_w, s0, ds)
-            zr = track_lookup(trk, L.TR_ZR, s_w, s0, ds)
-            yl = track_lookup(trk, L.TR_YL, s_w, s0, ds)
-            yr = track_lookup(trk, L.TR_YR, s_w, s0, ds)
-            vzl = track_rate(trk, L.TR_ZL, s_w, s0, ds, V)
-            vzr = track_rate(trk, L.TR_ZR, s_w, s0, ds, V)
-            vyl = track_rate(trk, L.TR_YL, s_w, s0, ds, V)
-            vyr = track_rate(trk, L.TR_YR, s_w, s0, ds, V)
+            zl = track_value(trk, L.TR_ZL, i_w, f_w)
+            zr = track_value(trk, L.TR_ZR, i_w, f_w)
+            yl = track_value(trk, L.TR_YL, i_w, f_w)
+            yr = track_value(trk, L.TR_YR, i_w, f_w)
+            vzl = track_rate(trk, L.TR_ZL, i_w, in_w, ds, V)
+            vzr = track_rate(trk, L.TR_ZR, i_w, in_w, ds, V)
+            vyl = track_rate(trk, L.TR_YL, i_w, in_w, ds, V)
+            vyr = track_rate(trk, L.TR_YR, i_w, in_w, ds, V)
             for sidx in range(2):
                 side = 1.0 if sidx == 0 else -1.0
                 left = sidx == 0
-                code = wheel_rail_forces(
-                    q[iw],
-                    q[iw + 1],
-                    q[iw + 2],
-                    q[iw + 3],
-                    v[iw],
-                    v[iw + 1],
-                    v[iw + 2],
-                    v[iw + 3],
-                    kap_w,
-                    side,
-                    yl if left else yr,
-                    zl if left else zr,
-                    vyl if left else vyr,
-                    vzl if left else vzr,
-                    ctab,
-                    y0,
-                    dy,
-                    H0L if left else H0R,
-                    K[I_Z0L] if left else K[I_Z0R],
-                    K,
-                    row,
-                    geo,
-                    tot,
-                )
+                code, f_yw, f_zw, _, m_roll_w, m_yaw_w, _, shift, shift_rate = wheel_rail_forces(
+                    q[iw], q[iw + 1], q[iw + 2], q[iw + 3], v[iw], v[iw + 1], v[iw + 2],
+                    v[iw + 3], kap_w, side, yl if left else yr, zl if left else zr,
+                    vyl if left else vyr, vzl if left else vzr, ctab, y0, dy,
+                    H0L if left else H0R, K[I_Z0L] if left else K[I_Z0R], K,
+                )  # fmt: skip
                 if code != 0:
                     return code
-                if tot[6] > K[I_WATCH]:
-                    flange_rate = max(flange_rate, tot[7])
-                f_yw, f_zw = tot[0], tot[1]
+                if shift > K[I_WATCH]:
+                    flange_rate = max(flange_rate, shift_rate)
                 acc[iw] += f_yw
                 acc[iw + 1] += f_zw - K[I_Q0]
-                acc[iw + 2] += tot[3]
-                acc[iw + 3] += tot[4]
+                acc[iw + 2] += m_roll_w
+                acc[iw + 3] += m_yaw_w
                 # outputs: force on the rail; Y + outward (field side), Q + down
                 out[L.OUT_Y + 2 * w + sidx] = -side * f_yw
                 out[L.OUT_Q + 2 * w + sidx] = f_zw
@@ -669,7 +363,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         acc[iw + 1] /= m_w
         acc[iw + 2] /= Ix_w
         acc[iw + 3] /= Iz_w
-    out[L.OUT_ACC_Y] = acc[L.CB_Y] + V * V * kap_c * math.cos(cant_c) + gn * math.sin(cant_c)
+    out[L.OUT_ACC_Y] = acc[L.CB_Y] + V * V * kap_c * cos_c + gn * sin_c
     out[L.OUT_ACC_Z] = acc[L.CB_Z]
     out[L.OUT_FLANGE_RATE] = flange_rate
     return L.OK

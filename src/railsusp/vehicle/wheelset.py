@@ -3,7 +3,7 @@
 Used to verify the contact model against Klingel's kinematic wavelength: a free wheelset with
 equivalent conicity λ_e, contact half-distance b0 and radius r0 sways with wavelength
 L = 2π sqrt(r0 b0 / λ_e) (Klingel, 1883; e.g. Iwnicki, Handbook of Railway Vehicle Dynamics,
-ch. 7). It shares :func:`railsusp.vehicle.model.wheel_rail_forces` with the wagon model.
+ch. 7). It shares :func:`railsusp.vehicle.wheel_rail.wheel_rail_forces` with the wagon model.
 """
 
 from __future__ import annotations
@@ -15,31 +15,29 @@ import railsusp.vehicle.kernel_cache  # noqa: F401  (before any kernel is compil
 from railsusp.conditions import WorkingCondition
 from railsusp.params import ParameterSet
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.model import N_GEO, wheel_rail_forces
 from railsusp.vehicle.wagon import WagonData, load_wagon
+from railsusp.vehicle.wheel_rail import wheel_rail_forces
 
 I_Z0L, I_Z0R, I_R0, I_V = L.K["Z0_L"], L.K["Z0_R"], L.K["r0"], L.K["V"]
 
 
 @nb.njit(cache=True)
-def _wheelset_rhs(x, dxdt, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, row, res):
+def _wheelset_rhs(x, dxdt, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R):
     q = x[:4]
     v = x[4:]
     f = np.zeros(4)
-    tot = np.empty(8)
     for sidx in range(2):
         side = 1.0 if sidx == 0 else -1.0
-        code = wheel_rail_forces(
+        code, f_y, f_z, _, m_roll, m_yaw, _, _, _ = wheel_rail_forces(
             q[0], q[1], q[2], q[3], v[0], v[1], v[2], v[3], 0.0, side, 0.0, 0.0, 0.0, 0.0,
-            ctab, y0, dy, H0L if sidx == 0 else H0R, K[I_Z0L] if sidx == 0 else K[I_Z0R],
-            K, row, res, tot,
+            ctab, y0, dy, H0L if sidx == 0 else H0R, K[I_Z0L] if sidx == 0 else K[I_Z0R], K,
         )  # fmt: skip
         if code != 0:
             return code
-        f[0] += tot[0]  # lateral
-        f[1] += tot[1]  # vertical
-        f[2] += tot[3]  # roll moment
-        f[3] += tot[4]  # yaw moment
+        f[0] += f_y  # lateral
+        f[1] += f_z  # vertical
+        f[2] += m_roll  # roll moment
+        f[3] += m_yaw  # yaw moment
     spin = Iy * K[I_V] / K[I_R0]
     f[1] -= axle_load
     f[2] += spin * v[3]
@@ -55,8 +53,6 @@ def _wheelset_rhs(x, dxdt, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, 
 
 @nb.njit(cache=True)
 def _integrate(x, n, dt, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, out):
-    row = np.empty(L.CT_PER_WHEEL)
-    res = np.empty((2, N_GEO))
     k1 = np.empty(8)
     k2 = np.empty(8)
     k3 = np.empty(8)
@@ -64,16 +60,14 @@ def _integrate(x, n, dt, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, ou
     for i in range(n):
         out[i, 0] = x[0]
         out[i, 1] = x[3]
-        code = _wheelset_rhs(x, k1, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, row, res)
+        code = _wheelset_rhs(x, k1, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R)
         code += _wheelset_rhs(
-            x + 0.5 * dt * k1, k2, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, row, res
+            x + 0.5 * dt * k1, k2, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R
         )
         code += _wheelset_rhs(
-            x + 0.5 * dt * k2, k3, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, row, res
+            x + 0.5 * dt * k2, k3, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R
         )
-        code += _wheelset_rhs(
-            x + dt * k3, k4, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, row, res
-        )
+        code += _wheelset_rhs(x + dt * k3, k4, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R)
         if code != 0:
             return i
         x += dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)

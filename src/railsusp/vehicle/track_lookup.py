@@ -1,0 +1,56 @@
+"""Compiled look-up of the track arrays at a body's distance along the track.
+
+The simulator's track arrays (:func:`railsusp.vehicle.setup.track_arrays`) hold, per channel
+(layout ``TR_*``: curvature, cant, heading, lateral position, rail irregularities), samples
+on a uniform grid s0 + i ds. A body reads several channels at one distance, so the grid cell
+is found once (:func:`track_point`) and every channel interpolated in it. Outside the grid
+the first or last sample holds and rates are zero.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+
+import railsusp.vehicle.kernel_cache  # noqa: F401  (before any kernel is compiled)
+from railsusp.vehicle import layout as L
+
+
+@nb.njit(cache=True, inline="always")
+def track_point(s, s0, ds, n):
+    """Grid cell of distance s on n samples from s0 by ds: (index i, fraction f, inside).
+
+    Before the grid (i, f) = (0, 0) and after it (n - 2, 1), so that :func:`track_value`
+    returns the end sample; ``inside`` is False there (rates are zero)."""
+    u = (s - s0) / ds
+    if u <= 0.0:
+        return 0, 0.0, False
+    if u >= n - 1:
+        return n - 2, 1.0, False
+    i = int(u)
+    return i, u - i, True
+
+
+@nb.njit(cache=True, inline="always")
+def track_value(trk, ch, i, f):
+    """Channel ``ch`` linearly interpolated in grid cell (i, f)."""
+    return trk[ch, i] * (1.0 - f) + trk[ch, i + 1] * f
+
+
+@nb.njit(cache=True, inline="always")
+def track_rate(trk, ch, i, inside, ds, V):
+    """Time rate V d(channel)/ds of channel ``ch`` in grid cell i (per second)."""
+    if not inside:
+        return 0.0
+    return V * (trk[ch, i + 1] - trk[ch, i]) / ds
+
+
+@nb.njit(cache=True, inline="always")
+def track_frame(trk, i, f):
+    """Curvature (1/m), cant angle (rad), heading (rad) and lateral position (m) of the
+    design track in grid cell (i, f): the frame a body there moves in."""
+    return (
+        track_value(trk, L.TR_KAPPA, i, f),
+        track_value(trk, L.TR_CANT, i, f),
+        track_value(trk, L.TR_HEAD, i, f),
+        track_value(trk, L.TR_OFFSET, i, f),
+    )

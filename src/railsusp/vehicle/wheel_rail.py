@@ -1,0 +1,286 @@
+"""Compiled wheel-rail contact of one wheel: table look-up, Hertz normal force on an elastic
+rail, Kalker creep with Shen-Hedrick-Elkins saturation (the simulator's kernel).
+
+The force laws are those of :mod:`railsusp.vehicle.contact_forces` (NumPy, for the tables
+and tests), rewritten for the right-hand side: every function returns its results as a tuple
+(no array is allocated per evaluation), each trigonometric function of the contact angle is
+evaluated once per contact, and the fractional powers of the normal force are one cube root.
+The two-point contact (tread and flange acting together on one elastic rail) follows
+docs/model.md.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+
+import railsusp.vehicle.kernel_cache  # noqa: F401  (before any kernel is compiled)
+from railsusp.vehicle import layout as L
+
+_K = L.K
+I_R0, I_V, I_MU, I_CREEP = _K["r0"], _K["V"], _K["mu"], _K["creep_factor"]
+I_KRZ, I_KRY, I_CRZ, I_CRY = _K["k_rz"], _K["k_ry"], _K["c_rz"], _K["c_ry"]
+I_NREF, I_PENMAX, I_LIFTMAX = _K["N_ref"], _K["pen_max"], _K["lift_max"]
+I_NPTS = _K["contact_points"]
+
+NCTW = L.CT_PER_WHEEL
+CT_R, CT_DELTA, CT_L, CT_H = L.CT_R, L.CT_DELTA, L.CT_L, L.CT_H
+CT_G, CT_F11, CT_F22, CT_F23 = L.CT_G, L.CT_F11, L.CT_F22, L.CT_F23
+
+#: Newton iterations of the Hertz-on-elastic-rail cubic; the solve stops earlier once an
+#: iteration leaves the root unchanged (a fixed point: the later iterations would too)
+HERTZ_ITERATIONS = 6
+
+
+@nb.njit(cache=True, inline="always")
+def hertz_rail_normal_force(dn, G, krn):
+    """Normal force N (N) for normal approach dn (m) of Hertz contact in series with rail.
+
+    dn = G N^(2/3) + N / krn (Hertz law P = (dz/G)^1.5 plus linear rail support). Solved for
+    u = N^(1/3) by Newton from above (the cubic is convex and increasing), N = u^3; from the
+    smaller of the Hertz-alone and rail-alone roots, each an upper bound.
+    """
+    if dn <= 0.0:
+        return 0.0
+    u1 = math.sqrt(dn / G)  # Hertz alone
+    u2 = (krn * dn) ** (1.0 / 3.0)  # rail alone
+    u = u1 if u1 < u2 else u2
+    c = krn * G
+    d = krn * dn
+    for _ in range(HERTZ_ITERATIONS):
+        f = u * u * u + c * u * u - d
+        fp = 3.0 * u * u + 2.0 * c * u
+        u_next = u - f / fp
+        if u_next == u:
+            break
+        u = u_next
+    return u * u * u
+
+
+@nb.njit(cache=True, inline="always")
+def she_saturation(fx, fy, mu_n):
+    """Shen-Hedrick-Elkins factor scaling linear creep forces to saturation at mu N.
+
+    F = mu N (beta - beta^2/3 + beta^3/27) for beta = |F_lin| / (mu N) <= 3, else mu N.
+    Returns the factor F / |F_lin| (1 for vanishing creep, 0 when unloaded).
+    """
+    f = math.sqrt(fx * fx + fy * fy)
+    if mu_n <= 0.0:
+        return 0.0
+    if f < 1e-9 * mu_n:
+        return 1.0
+    beta = f / mu_n
+    if beta < 3.0:
+        fs = mu_n * (beta - beta * beta / 3.0 + beta * beta * beta / 27.0)
+    else:
+        fs = mu_n
+    return fs / f
+
+
+@nb.njit(cache=True, inline="always")
+def table_index(y, y0, dy, n):
+    """Interval index i and fraction f of shift y on a table of n uniform rows from y0 by dy;
+    i = -1 when y lies outside the table (flange climb beyond the tabulated range)."""
+    u = (y - y0) / dy
+    if u < 0.0 or u > n - 1:
+        return -1, 0.0
+    i = int(u)
+    if i >= n - 1:
+        i = n - 2
+    return i, u - i
+
+
+@nb.njit(cache=True, inline="always")
+def _cell(ctab, c, i, f):
+    """Column c of the contact table interpolated at (i, f)."""
+    return ctab[c, i] * (1.0 - f) + ctab[c, i + 1] * f
+
+
+@nb.njit(cache=True, inline="always")
+def contact_geometry(
+    ws_y, ws_z, ws_roll, vy, vz, vroll, side, block, rail_y, rail_z, rail_vy, rail_vz,
+    ctab, y0, dy, H0, Z0, r0, lift_max,
+):  # fmt: skip
+    """Geometry of one contact point (``block`` 0 tread, 1 flange) of one wheel (side +1
+    left, -1 right).
+
+    Returns (code, gap, delta, lat, r, hertz, f11, f22, f23, rate): failure code; vertical
+    gap to the undeflected rail (m, < 0 when touching); contact angle; lateral arm; rolling
+    radius; Hertz constant; Kalker coefficients at the reference load; rate of the gap (m/s).
+    A flange clear of its rail returns only its gap (the rest 0); lift beyond the flange
+    height is judged on the tread contact.
+    """
+    col0 = block * L.CT_FLANGE + (0 if side > 0 else NCTW)
+    yrel = ws_y + r0 * ws_roll - rail_y  # the wheel's shift at contact level
+    i, f = table_index(yrel, y0, dy, ctab.shape[1])
+    if i < 0:
+        return L.FAIL_FLANGE_CLIMB, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    lat = _cell(ctab, col0 + CT_L, i, f)
+    h = _cell(ctab, col0 + CT_H, i, f)
+    gap = ws_z + side * lat * ws_roll - rail_z - (h - H0) - Z0
+    if block > 0 and gap >= 0.0:  # the flange is mostly clear of its rail
+        return L.OK, gap, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    if block == 0 and gap > lift_max:
+        return L.FAIL_LIFT, gap, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    delta = _cell(ctab, col0 + CT_DELTA, i, f)
+    slope = side * math.tan(delta)  # dH/dy of this wheel
+    rate = vz + side * lat * vroll - rail_vz - slope * (vy + r0 * vroll - rail_vy)
+    return (
+        L.OK, gap, delta, lat, _cell(ctab, col0 + CT_R, i, f), _cell(ctab, col0 + CT_G, i, f),
+        _cell(ctab, col0 + CT_F11, i, f), _cell(ctab, col0 + CT_F22, i, f),
+        _cell(ctab, col0 + CT_F23, i, f), rate,
+    )  # fmt: skip
+
+
+@nb.njit(cache=True)
+def shared_rail_normal_forces(a1, g1, a2, g2, m11, m12, m22):
+    """Normal forces (N) of two Hertz contacts pressing one elastically supported rail.
+
+    a1, a2: rigid approaches along each contact's normal (m); g1, g2: Hertz constants
+    (approach = g N^(2/3)); m_ij = n_i . C n_j: the rail support's compliance C =
+    diag(1/k_lateral, 1/k_vertical) projected on the contact normals (m/N). Each contact's
+    elastic approach is a_i = g_i N_i^(2/3) + sum_j m_ij N_j: the rail deflects under both
+    forces, so a tread load also lowers the rail under the flange. Solved for u_i = N_i^(1/3)
+    by Newton from the single-contact solutions (upper bounds, since m12 > 0); a contact
+    that the other one's deflection opens carries nothing.
+    """
+    n1 = hertz_rail_normal_force(a1, g1, 1.0 / m11) if a1 > 0.0 else 0.0
+    n2 = hertz_rail_normal_force(a2, g2, 1.0 / m22) if a2 > 0.0 else 0.0
+    if n2 == 0.0 or a2 - m12 * n1 <= 0.0:
+        return n1, 0.0
+    if n1 == 0.0 or a1 - m12 * n2 <= 0.0:
+        return 0.0, n2
+    u1 = n1 ** (1.0 / 3.0)
+    u2 = n2 ** (1.0 / 3.0)
+    for _ in range(8):
+        c1 = u1 * u1 * u1
+        c2 = u2 * u2 * u2
+        f1 = g1 * u1 * u1 + m11 * c1 + m12 * c2 - a1
+        f2 = g2 * u2 * u2 + m12 * c1 + m22 * c2 - a2
+        j11 = 2.0 * g1 * u1 + 3.0 * m11 * u1 * u1
+        j12 = 3.0 * m12 * u2 * u2
+        j21 = 3.0 * m12 * u1 * u1
+        j22 = 2.0 * g2 * u2 + 3.0 * m22 * u2 * u2
+        det = j11 * j22 - j12 * j21
+        d1 = (j22 * f1 - j12 * f2) / det
+        d2 = (j11 * f2 - j21 * f1) / det
+        u1 = max(u1 - d1, 0.0)
+        u2 = max(u2 - d2, 0.0)
+        if abs(d1) + abs(d2) < 1e-9 * (u1 + u2):  # N to ~3e-9 relative
+            break
+    return u1 * u1 * u1, u2 * u2 * u2
+
+
+@nb.njit(cache=True, inline="always")
+def creep_contact_forces(
+    N, rate, delta, cd, sd, lat, r, hertz, f11, f22, f23, side, vy, vroll, ws_yaw, vyaw, kappa, K
+):  # fmt: skip
+    """Forces of one loaded contact point on the wheel, in the track frame.
+
+    N: Hertz normal force (N) before the rail support's damping along the normal; cd, sd:
+    cosine and sine of the contact angle. Returns (code, lateral force, vertical force,
+    longitudinal force, roll moment, yaw moment, normal force) — all 0 for a contact that
+    the damping unloads. Kalker coefficients scale with the contact area: f11, f22 ~ N^(2/3),
+    f23 ~ N (one cube root of N / N_ref for both).
+    """
+    r0 = K[I_R0]
+    V = K[I_V]
+    if hertz * N ** (2.0 / 3.0) > K[I_PENMAX]:  # Hertz approach, not the rail
+        return L.FAIL_PENETRATION, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    # rail support damping along the normal (pads and ballast), never pulling the wheel
+    N -= (cd * cd * K[I_CRZ] + sd * sd * K[I_CRY]) * rate * cd
+    if N <= 0.0:
+        return L.OK, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    n_ref = K[I_NREF]
+    scale = (N / n_ref) ** (2.0 / 3.0) * K[I_CREEP]
+    c11 = f11 * scale
+    c22 = f22 * scale
+    c23 = f23 * scale * (N / n_ref) ** (1.0 / 3.0)
+    # creepages (Kalker): longitudinal, lateral, spin
+    xi_x = 1.0 - r / r0 - side * lat * (vyaw / V + kappa)
+    xi_y = (vy + r * vroll) / V - ws_yaw
+    spin = (vyaw / V + kappa) * cd - side * sd / r0
+    fx = -c11 * xi_x
+    fy = -c22 * xi_y - c23 * spin
+    eps = she_saturation(fx, fy, K[I_MU] * N)
+    fx *= eps
+    fy *= eps
+    # normal n = (-side sin d, cos d), contact-plane lateral t = (cos d, side sin d)
+    f_y = -side * N * sd + fy * cd
+    f_z = N * cd + side * fy * sd
+    return L.OK, f_y, f_z, fx, side * lat * f_z + r0 * f_y, -side * lat * fx, N
+
+
+@nb.njit(cache=True)
+def wheel_rail_forces(
+    ws_y, ws_z, ws_roll, ws_yaw, vy, vz, vroll, vyaw, kappa, side,
+    rail_y, rail_z, rail_vy, rail_vz, ctab, y0, dy, H0, Z0, K,
+):  # fmt: skip
+    """All contact forces of one wheel (side +1 left, -1 right) on its rail, in the track
+    frame: the tread contact and, with two-point contact (K contact_points = 2), the flange
+    contact acting at the same time on the same elastic rail.
+
+    Per contact: Hertz normal force (:func:`shared_rail_normal_forces`), rail support damping
+    along the normal, Kalker creep with Shen-Hedrick-Elkins saturation. Returns (code,
+    Y_on_wheel, Q_on_wheel (up), Fx_on_wheel, roll and yaw moments of the contact forces
+    about the wheelset centre (lever r0 for Y, so that normal forces stay the gradient of
+    one contact potential), tread normal force, shift towards the flange, its rate).
+    """
+    r0 = K[I_R0]
+    shift = side * (ws_y + r0 * ws_roll - rail_y)
+    shift_rate = side * (vy + r0 * vroll - rail_vy)
+    lift_max = K[I_LIFTMAX]
+    code, gap0, d0, lat0, r_0, g0, f11_0, f22_0, f23_0, rate0 = contact_geometry(
+        ws_y, ws_z, ws_roll, vy, vz, vroll, side, 0, rail_y, rail_z, rail_vy, rail_vz,
+        ctab, y0, dy, H0, Z0, r0, lift_max,
+    )  # fmt: skip
+    if code != 0:
+        return code, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, shift, shift_rate
+    two = K[I_NPTS] > 1.5
+    a1 = d1 = lat1 = r_1 = g1 = f11_1 = f22_1 = f23_1 = rate1 = c1 = s1 = 0.0
+    if two:
+        code, gap1, d1, lat1, r_1, g1, f11_1, f22_1, f23_1, rate1 = contact_geometry(
+            ws_y, ws_z, ws_roll, vy, vz, vroll, side, 1, rail_y, rail_z, rail_vy, rail_vz,
+            ctab, y0, dy, H0, Z0, r0, lift_max,
+        )  # fmt: skip
+        if code != 0:
+            return code, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, shift, shift_rate
+        a1 = -gap1 * math.cos(d1)
+    # normal forces: both contacts deflect the same rail (compliance diag(1/k_ry, 1/k_rz))
+    k_lat = K[I_KRY]  # rail support per wheel, N/m
+    k_vert = K[I_KRZ]
+    c0 = math.cos(d0)
+    s0 = math.sin(d0)
+    a0 = -gap0 * c0
+    m00 = s0 * s0 / k_lat + c0 * c0 / k_vert
+    if two and a1 > 0.0:
+        c1 = math.cos(d1)
+        s1 = math.sin(d1)
+        m11 = s1 * s1 / k_lat + c1 * c1 / k_vert
+        m01 = s0 * s1 / k_lat + c0 * c1 / k_vert
+        n0, n1 = shared_rail_normal_forces(a0, g0, a1, g1, m00, m01, m11)
+    else:
+        n0 = hertz_rail_normal_force(a0, g0, 1.0 / m00) if a0 > 0.0 else 0.0
+        n1 = 0.0
+    fy = fz = fx = mx = mz = n_tread = 0.0
+    if n0 > 0.0:
+        code, fy, fz, fx, mx, mz, n_tread = creep_contact_forces(
+            n0, rate0, d0, c0, s0, lat0, r_0, g0, f11_0, f22_0, f23_0, side, vy, vroll,
+            ws_yaw, vyaw, kappa, K,
+        )  # fmt: skip
+        if code != 0:
+            return code, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, shift, shift_rate
+    if n1 > 0.0:
+        code, gy, gz, gx, nx, nz, _ = creep_contact_forces(
+            n1, rate1, d1, c1, s1, lat1, r_1, g1, f11_1, f22_1, f23_1, side, vy, vroll,
+            ws_yaw, vyaw, kappa, K,
+        )  # fmt: skip
+        if code != 0:
+            return code, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, shift, shift_rate
+        fy += gy
+        fz += gz
+        fx += gx
+        mx += nx
+        mz += nz
+    return L.OK, fy, fz, fx, mx, mz, n_tread, shift, shift_rate
