@@ -269,6 +269,9 @@ def constants(
         "flange_split_speed": settings.flange_split_speed,
         "contact_points": ca.contact_points,
         "N_ref": ca.n_ref,
+        "inv_V": 1.0 / condition.speed, "inv_r0": 1.0 / wagon.wheelset.rolling_radius,
+        "inv_k_ry": 1.0 / wagon.track.rail_lateral_stiffness,
+        "inv_k_rz": 1.0 / wagon.track.rail_vertical_stiffness,
     }  # fmt: skip
     # static preloads (level of each interface), N
     w_body = cb.mass * gn

@@ -14,48 +14,64 @@ from __future__ import annotations
 import math
 
 import numba as nb
+import numpy as np
 
 import railsusp.vehicle.kernel_cache  # noqa: F401  (before any kernel is compiled)
 from railsusp.vehicle import layout as L
 
 _K = L.K
-I_R0, I_V, I_MU, I_CREEP = _K["r0"], _K["V"], _K["mu"], _K["creep_factor"]
-I_KRZ, I_KRY, I_CRZ, I_CRY = _K["k_rz"], _K["k_ry"], _K["c_rz"], _K["c_ry"]
+I_R0, I_MU, I_CREEP = _K["r0"], _K["mu"], _K["creep_factor"]
+I_CRZ, I_CRY = _K["c_rz"], _K["c_ry"]
 I_NREF, I_PENMAX, I_LIFTMAX = _K["N_ref"], _K["pen_max"], _K["lift_max"]
 I_NPTS = _K["contact_points"]
+I_INVV, I_INVR0, I_INVKRY, I_INVKRZ = _K["inv_V"], _K["inv_r0"], _K["inv_k_ry"], _K["inv_k_rz"]
 
 NCTW = L.CT_PER_WHEEL
 CT_R, CT_DELTA, CT_L, CT_H = L.CT_R, L.CT_DELTA, L.CT_L, L.CT_H
 CT_G, CT_F11, CT_F22, CT_F23 = L.CT_G, L.CT_F11, L.CT_F22, L.CT_F23
 
-#: Newton iterations of the Hertz-on-elastic-rail cubic; the solve stops earlier once an
-#: iteration leaves the root unchanged (a fixed point: the later iterations would too)
-HERTZ_ITERATIONS = 6
+#: Newton iterations of the Hertz-on-elastic-rail cubic at most, and the relative step in
+#: u = N^(1/3) below which the solve stops (N then to about 1e-14 relative)
+HERTZ_ITERATIONS = 8
+HERTZ_TOLERANCE = 3.0e-15
+
+
+@nb.njit(cache=True, inline="always")
+def hertz_rail_solve(dn, G, krn):
+    """Normal force N (N) and its cube root u for normal approach dn (m) of Hertz contact in
+    series with the rail support: dn = G N^(2/3) + N / krn (Hertz law P = (dz/G)^1.5 plus a
+    linear rail). Returns (0, 0) for dn <= 0.
+
+    Newton on the cubic u^3 + c u^2 - d = 0 (c = krn G, d = krn dn), convex and increasing
+    for u > 0, so that Newton converges monotonically once above the root. Start: where the
+    rail dominates (cbrt(d) > c), u = cbrt(d) - c/3, the root of the depressed cubic to first
+    order (a relative error of about c^2 / (9 u^2), so that three steps reach round-off);
+    else the smaller of the Hertz-alone and rail-alone roots, each an upper bound.
+    """
+    if dn <= 0.0:
+        return 0.0, 0.0
+    c = krn * G
+    d = krn * dn
+    u2 = np.cbrt(d)  # rail alone
+    if u2 > c:
+        u = u2 - c / 3.0
+    else:
+        u1 = math.sqrt(dn / G)  # Hertz alone
+        u = u1 if u1 < u2 else u2
+    for _ in range(HERTZ_ITERATIONS):
+        f = (u + c) * u * u - d
+        fp = (3.0 * u + 2.0 * c) * u
+        du = f / fp
+        u -= du
+        if abs(du) <= HERTZ_TOLERANCE * u:
+            break
+    return u * u * u, u
 
 
 @nb.njit(cache=True, inline="always")
 def hertz_rail_normal_force(dn, G, krn):
-    """Normal force N (N) for normal approach dn (m) of Hertz contact in series with rail.
-
-    dn = G N^(2/3) + N / krn (Hertz law P = (dz/G)^1.5 plus linear rail support). Solved for
-    u = N^(1/3) by Newton from above (the cubic is convex and increasing), N = u^3; from the
-    smaller of the Hertz-alone and rail-alone roots, each an upper bound.
-    """
-    if dn <= 0.0:
-        return 0.0
-    u1 = math.sqrt(dn / G)  # Hertz alone
-    u2 = (krn * dn) ** (1.0 / 3.0)  # rail alone
-    u = u1 if u1 < u2 else u2
-    c = krn * G
-    d = krn * dn
-    for _ in range(HERTZ_ITERATIONS):
-        f = u * u * u + c * u * u - d
-        fp = 3.0 * u * u + 2.0 * c * u
-        u_next = u - f / fp
-        if u_next == u:
-            break
-        u = u_next
-    return u * u * u
+    """Normal force N (N) of :func:`hertz_rail_solve`."""
+    return hertz_rail_solve(dn, G, krn)[0]
 
 
 @nb.njit(cache=True, inline="always")
@@ -79,10 +95,11 @@ def she_saturation(fx, fy, mu_n):
 
 
 @nb.njit(cache=True, inline="always")
-def table_index(y, y0, dy, n):
-    """Interval index i and fraction f of shift y on a table of n uniform rows from y0 by dy;
-    i = -1 when y lies outside the table (flange climb beyond the tabulated range)."""
-    u = (y - y0) / dy
+def table_index(y, y0, inv_dy, n):
+    """Interval index i and fraction f of shift y on a table of n uniform rows from y0 by dy
+    (``inv_dy`` = 1 / dy); i = -1 when y lies outside the table (flange climb beyond the
+    tabulated range)."""
+    u = (y - y0) * inv_dy
     if u < 0.0 or u > n - 1:
         return -1, 0.0
     i = int(u)
@@ -100,34 +117,37 @@ def _cell(ctab, c, i, f):
 @nb.njit(cache=True, inline="always")
 def contact_geometry(
     ws_y, ws_z, ws_roll, vy, vz, vroll, side, block, rail_y, rail_z, rail_vy, rail_vz,
-    ctab, y0, dy, H0, Z0, r0, lift_max,
+    ctab, y0, inv_dy, H0, Z0, r0, lift_max,
 ):  # fmt: skip
     """Geometry of one contact point (``block`` 0 tread, 1 flange) of one wheel (side +1
     left, -1 right).
 
-    Returns (code, gap, delta, lat, r, hertz, f11, f22, f23, rate): failure code; vertical
-    gap to the undeflected rail (m, < 0 when touching); contact angle; lateral arm; rolling
-    radius; Hertz constant; Kalker coefficients at the reference load; rate of the gap (m/s).
+    Returns (code, gap, cd, sd, lat, r, hertz, f11, f22, f23, rate): failure code; vertical
+    gap to the undeflected rail (m, < 0 when touching); cosine and sine of the contact angle;
+    lateral arm; rolling radius; Hertz constant; Kalker coefficients at the reference load;
+    rate of the gap (m/s).
     A flange clear of its rail returns only its gap (the rest 0); lift beyond the flange
     height is judged on the tread contact.
     """
     col0 = block * L.CT_FLANGE + (0 if side > 0 else NCTW)
     yrel = ws_y + r0 * ws_roll - rail_y  # the wheel's shift at contact level
-    i, f = table_index(yrel, y0, dy, ctab.shape[1])
+    i, f = table_index(yrel, y0, inv_dy, ctab.shape[1])
     if i < 0:
-        return L.FAIL_FLANGE_CLIMB, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        return L.FAIL_FLANGE_CLIMB, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     lat = _cell(ctab, col0 + CT_L, i, f)
     h = _cell(ctab, col0 + CT_H, i, f)
     gap = ws_z + side * lat * ws_roll - rail_z - (h - H0) - Z0
     if block > 0 and gap >= 0.0:  # the flange is mostly clear of its rail
-        return L.OK, gap, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        return L.OK, gap, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     if block == 0 and gap > lift_max:
-        return L.FAIL_LIFT, gap, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        return L.FAIL_LIFT, gap, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     delta = _cell(ctab, col0 + CT_DELTA, i, f)
-    slope = side * math.tan(delta)  # dH/dy of this wheel
+    cd = math.cos(delta)
+    sd = math.sin(delta)
+    slope = side * sd / cd  # dH/dy of this wheel
     rate = vz + side * lat * vroll - rail_vz - slope * (vy + r0 * vroll - rail_vy)
     return (
-        L.OK, gap, delta, lat, _cell(ctab, col0 + CT_R, i, f), _cell(ctab, col0 + CT_G, i, f),
+        L.OK, gap, cd, sd, lat, _cell(ctab, col0 + CT_R, i, f), _cell(ctab, col0 + CT_G, i, f),
         _cell(ctab, col0 + CT_F11, i, f), _cell(ctab, col0 + CT_F22, i, f),
         _cell(ctab, col0 + CT_F23, i, f), rate,
     )  # fmt: skip
@@ -151,8 +171,8 @@ def shared_rail_normal_forces(a1, g1, a2, g2, m11, m12, m22):
         return n1, 0.0
     if n1 == 0.0 or a1 - m12 * n2 <= 0.0:
         return 0.0, n2
-    u1 = n1 ** (1.0 / 3.0)
-    u2 = n2 ** (1.0 / 3.0)
+    u1 = np.cbrt(n1)
+    u2 = np.cbrt(n2)
     for _ in range(8):
         c1 = u1 * u1 * u1
         c2 = u2 * u2 * u2
@@ -174,7 +194,7 @@ def shared_rail_normal_forces(a1, g1, a2, g2, m11, m12, m22):
 
 @nb.njit(cache=True, inline="always")
 def creep_contact_forces(
-    N, rate, delta, cd, sd, lat, r, hertz, f11, f22, f23, side, vy, vroll, ws_yaw, vyaw, kappa, K
+    N, rate, cd, sd, lat, r, hertz, f11, f22, f23, side, vy, vroll, ws_yaw, vyaw, kappa, K
 ):  # fmt: skip
     """Forces of one loaded contact point on the wheel, in the track frame.
 
@@ -185,22 +205,27 @@ def creep_contact_forces(
     f23 ~ N (one cube root of N / N_ref for both).
     """
     r0 = K[I_R0]
-    V = K[I_V]
-    if hertz * N ** (2.0 / 3.0) > K[I_PENMAX]:  # Hertz approach, not the rail
+    inv_r0 = K[I_INVR0]
+    inv_v = K[I_INVV]
+    # Hertz approach G N^(2/3) beyond pen_max (not the rail's), cubed: no fractional power
+    pen = K[I_PENMAX]
+    if N * N * (hertz * hertz * hertz) > pen * pen * pen:
         return L.FAIL_PENETRATION, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     # rail support damping along the normal (pads and ballast), never pulling the wheel
     N -= (cd * cd * K[I_CRZ] + sd * sd * K[I_CRY]) * rate * cd
     if N <= 0.0:
         return L.OK, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     n_ref = K[I_NREF]
-    scale = (N / n_ref) ** (2.0 / 3.0) * K[I_CREEP]
+    u = np.cbrt(N / n_ref)
+    scale = u * u * K[I_CREEP]
     c11 = f11 * scale
     c22 = f22 * scale
-    c23 = f23 * scale * (N / n_ref) ** (1.0 / 3.0)
+    c23 = f23 * scale * u
     # creepages (Kalker): longitudinal, lateral, spin
-    xi_x = 1.0 - r / r0 - side * lat * (vyaw / V + kappa)
-    xi_y = (vy + r * vroll) / V - ws_yaw
-    spin = (vyaw / V + kappa) * cd - side * sd / r0
+    yaw_rate = vyaw * inv_v + kappa  # wheelset yaw per metre run, absolute
+    xi_x = 1.0 - r * inv_r0 - side * lat * yaw_rate
+    xi_y = (vy + r * vroll) * inv_v - ws_yaw
+    spin = yaw_rate * cd - side * sd * inv_r0
     fx = -c11 * xi_x
     fy = -c22 * xi_y - c23 * spin
     eps = she_saturation(fx, fy, K[I_MU] * N)
@@ -228,37 +253,36 @@ def wheel_rail_forces(
     one contact potential), tread normal force, shift towards the flange, its rate).
     """
     r0 = K[I_R0]
+    inv_dy = 1.0 / dy
     shift = side * (ws_y + r0 * ws_roll - rail_y)
     shift_rate = side * (vy + r0 * vroll - rail_vy)
     lift_max = K[I_LIFTMAX]
-    code, gap0, d0, lat0, r_0, g0, f11_0, f22_0, f23_0, rate0 = contact_geometry(
+    code, gap0, c0, s0, lat0, r_0, g0, f11_0, f22_0, f23_0, rate0 = contact_geometry(
         ws_y, ws_z, ws_roll, vy, vz, vroll, side, 0, rail_y, rail_z, rail_vy, rail_vz,
-        ctab, y0, dy, H0, Z0, r0, lift_max,
+        ctab, y0, inv_dy, H0, Z0, r0, lift_max,
     )  # fmt: skip
     if code != 0:
         return code, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, shift, shift_rate
     two = K[I_NPTS] > 1.5
-    a1 = d1 = lat1 = r_1 = g1 = f11_1 = f22_1 = f23_1 = rate1 = c1 = s1 = 0.0
+    a1 = lat1 = r_1 = g1 = f11_1 = f22_1 = f23_1 = rate1 = 0.0
+    c1 = 1.0
+    s1 = 0.0
     if two:
-        code, gap1, d1, lat1, r_1, g1, f11_1, f22_1, f23_1, rate1 = contact_geometry(
+        code, gap1, c1, s1, lat1, r_1, g1, f11_1, f22_1, f23_1, rate1 = contact_geometry(
             ws_y, ws_z, ws_roll, vy, vz, vroll, side, 1, rail_y, rail_z, rail_vy, rail_vz,
-            ctab, y0, dy, H0, Z0, r0, lift_max,
+            ctab, y0, inv_dy, H0, Z0, r0, lift_max,
         )  # fmt: skip
         if code != 0:
             return code, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, shift, shift_rate
-        a1 = -gap1 * math.cos(d1)
+        a1 = -gap1 * c1
     # normal forces: both contacts deflect the same rail (compliance diag(1/k_ry, 1/k_rz))
-    k_lat = K[I_KRY]  # rail support per wheel, N/m
-    k_vert = K[I_KRZ]
-    c0 = math.cos(d0)
-    s0 = math.sin(d0)
+    c_lat = K[I_INVKRY]  # rail support compliance per wheel, m/N
+    c_vert = K[I_INVKRZ]
     a0 = -gap0 * c0
-    m00 = s0 * s0 / k_lat + c0 * c0 / k_vert
+    m00 = s0 * s0 * c_lat + c0 * c0 * c_vert
     if two and a1 > 0.0:
-        c1 = math.cos(d1)
-        s1 = math.sin(d1)
-        m11 = s1 * s1 / k_lat + c1 * c1 / k_vert
-        m01 = s0 * s1 / k_lat + c0 * c1 / k_vert
+        m11 = s1 * s1 * c_lat + c1 * c1 * c_vert
+        m01 = s0 * s1 * c_lat + c0 * c1 * c_vert
         n0, n1 = shared_rail_normal_forces(a0, g0, a1, g1, m00, m01, m11)
     else:
         n0 = hertz_rail_normal_force(a0, g0, 1.0 / m00) if a0 > 0.0 else 0.0
@@ -266,14 +290,14 @@ def wheel_rail_forces(
     fy = fz = fx = mx = mz = n_tread = 0.0
     if n0 > 0.0:
         code, fy, fz, fx, mx, mz, n_tread = creep_contact_forces(
-            n0, rate0, d0, c0, s0, lat0, r_0, g0, f11_0, f22_0, f23_0, side, vy, vroll,
+            n0, rate0, c0, s0, lat0, r_0, g0, f11_0, f22_0, f23_0, side, vy, vroll,
             ws_yaw, vyaw, kappa, K,
         )  # fmt: skip
         if code != 0:
             return code, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, shift, shift_rate
     if n1 > 0.0:
         code, gy, gz, gx, nx, nz, _ = creep_contact_forces(
-            n1, rate1, d1, c1, s1, lat1, r_1, g1, f11_1, f22_1, f23_1, side, vy, vroll,
+            n1, rate1, c1, s1, lat1, r_1, g1, f11_1, f22_1, f23_1, side, vy, vroll,
             ws_yaw, vyaw, kappa, K,
         )  # fmt: skip
         if code != 0:

@@ -1,0 +1,71 @@
+"""Reference wheel-rail forces of the simulator, to prove that a speed change left them alone.
+
+``--write`` stores the forces (Y, Q of all eight wheels) of three parameter sets in the
+straight and curve conditions (10 s simulated each: 100 m lead-in, 4 s record) in
+tests/data/force_reference.npz; without it, the script simulates again and prints, per
+condition, the largest difference from the stored forces relative to the largest force.
+tests/vehicle/test_force_reference.py asserts the same at 1e-9. A deliberate change of the
+model's physics rewrites the file (``--write``) in the same commit, saying why.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from railsusp.conditions import get_condition
+from railsusp.params import MAIN_SUSPENSION, bounds
+from railsusp.store import write_json
+from railsusp.vehicle.simulate import simulate_batch
+
+REFERENCE = Path(__file__).resolve().parents[1] / "tests" / "data" / "force_reference.npz"
+CONDITIONS = ("straight", "curve")
+
+
+def reference_sets() -> np.ndarray:
+    """Nominal-centred and two corner-ish sets of the main suspension parameters (SI)."""
+    lo, hi = bounds(MAIN_SUSPENSION)
+    return lo + (hi - lo) * np.array([[0.5] * len(lo), [0.2] * len(lo), [0.8] * len(lo)])
+
+
+def reference_forces(condition: str) -> tuple[np.ndarray, np.ndarray]:
+    """(Y, Q) of the reference sets in ``condition``, N, shape (3, 8, 200)."""
+    cond = get_condition(condition, duration_s=4.0, n_steps=200, lead_in_m=100.0)
+    r = simulate_batch(reference_sets(), cond, symbols=MAIN_SUSPENSION)
+    return r.Y, r.Q
+
+
+def relative_difference(a: np.ndarray, b: np.ndarray) -> float:
+    """max |a - b| over max |b|."""
+    return float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--write", action="store_true", help="store the reference forces")
+    ap.add_argument("--out", default="bench/results/force_reference.json")
+    args = ap.parse_args()
+    forces = {}
+    for c in CONDITIONS:
+        forces[f"{c}_Y"], forces[f"{c}_Q"] = reference_forces(c)
+    if args.write:
+        REFERENCE.parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(REFERENCE, **forces)
+        print(f"wrote {REFERENCE}")
+        return
+    ref = np.load(REFERENCE)
+    rows = [
+        {"channel": k, "max_rel_difference": relative_difference(forces[k], ref[k])} for k in forces
+    ]
+    print(f"{'channel':<12} {'max |diff| / max |F|':>22}")
+    for row in rows:
+        print(f"{row['channel']:<12} {row['max_rel_difference']:22.2e}")
+    out = write_json(args.out, {"date": time.strftime("%Y-%m-%d"), "rows": rows})
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()

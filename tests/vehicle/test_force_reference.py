@@ -1,0 +1,35 @@
+"""The simulator's forces against stored reference forces (bench/force_reference.py): a speed
+change of the right-hand side must leave them unchanged to 1e-9 of the largest force."""
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+BENCH = Path(__file__).resolve().parents[2] / "bench" / "force_reference.py"
+
+
+def _bench():
+    spec = importlib.util.spec_from_file_location("force_reference", BENCH)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("condition", ["straight", "curve"])
+def test_forces_match_the_stored_reference(condition):
+    fr = _bench()
+    ref = np.load(fr.REFERENCE)
+    y, q = fr.reference_forces(condition)
+    assert fr.relative_difference(y, ref[f"{condition}_Y"]) < 1e-9
+    assert fr.relative_difference(q, ref[f"{condition}_Q"]) < 1e-9
+
+
+def test_the_reference_check_sees_a_changed_force():
+    """The comparison is sensitive: one force changed by 1e-6 of the largest fails it."""
+    fr = _bench()
+    ref = np.load(fr.REFERENCE)["straight_Q"]
+    changed = ref.copy()
+    changed[0, 0, 100] += 1e-6 * np.max(np.abs(ref))
+    assert fr.relative_difference(changed, ref) > 1e-9
