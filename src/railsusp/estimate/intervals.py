@@ -350,11 +350,11 @@ def refinement_intervals(
     residuals = getattr(ref, "residuals", None)
     blocks = getattr(ref, "residual_blocks", ())
     if residuals is not None and np.size(residuals):
-        n_eff, tau = effective_sample_size(residuals, blocks)
+        n_eff, tau = effective_sample_size(residuals, blocks)  # type: ignore[assignment]
         n_fit = k + (len(ref.channel_gains) or 0)
         dof: float | None = max(n_eff - n_fit, 1.0)
     else:  # residuals not kept (a refinement read back): white, normal quantile
-        n_eff, tau, dof = float("nan"), 1.0, None
+        n_eff, tau, dof = None, 1.0, None
     noise = np.sqrt(tau) * ref.standard_error_si
     geometry = ref.geometry_error_si
     held_var = held_parameter_variance(ref) if held else None
