@@ -412,7 +412,7 @@ def identification(interval: ParameterInterval, limit_pct: float = IDENTIFIED_WI
         )
     pct = f"{100 * (interval.level or 0.0):g} %"
     if width >= 100.0 - 1e-9:
-        return f"its {pct} interval is the whole range: the recorded forces hardly depend on it"
+        return f"its {pct} interval is the whole range: the recordings do not fix it"
     if width > limit_pct:
         return f"{pct} interval {width:.1f} % of range wide"
     return ""
