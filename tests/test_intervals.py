@@ -24,16 +24,18 @@ from railsusp.estimate.intervals import (
     REFINEMENT,
     Intervals,
     ParameterInterval,
-    autocorrelation_time,
-    effective_sample_size,
     from_samples,
     from_standard_errors,
     identification,
     intervals_of,
-    refinement_intervals,
 )
 from railsusp.estimate.posterior import PosteriorResult
 from railsusp.estimate.refine import refine
+from railsusp.estimate.refine_intervals import (
+    autocorrelation_time,
+    effective_sample_size,
+    refinement_intervals,
+)
 from railsusp.measured import Recording
 from railsusp.params import MAIN_SUSPENSION, bounds, spec
 from railsusp.store import read_json, write_json

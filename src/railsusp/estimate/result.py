@@ -18,9 +18,10 @@ import numpy as np
 import pandas as pd
 
 from railsusp.estimate.config import NSGAConfig
-from railsusp.estimate.intervals import LEVEL, PARETO, Intervals, from_pareto, refinement_intervals
+from railsusp.estimate.intervals import LEVEL, PARETO, Intervals, from_pareto
 from railsusp.estimate.problem import display_values
 from railsusp.estimate.refine import Refinement
+from railsusp.estimate.refine_intervals import refinement_intervals
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import atomic_write_bytes, write_json, write_parquet
 
