@@ -28,18 +28,27 @@ def refined_result() -> CalibrationResult:
         NSGAConfig(pop_size=4, n_gen=2),
     )
     res.refinement = SimpleNamespace(  # the attributes of railsusp's Refinement the plots read
+        parameters=("X13", "X17"),
         estimate_si=np.array([15.0, 1.5]) * si,
-        total_error_si=np.array([0.2, 0.05]) * si,
+        standard_error_si=np.array([0.2, 0.05]) * si,
+        geometry_error_si=np.zeros(2),
+        channel_gains={},
         history_si=np.array([[16.0, 1.2], [15.2, 1.45], [15.0, 1.5]]) * si,
+        problem=None,
+        solution=None,
+        residuals=None,  # not kept: white residuals, normal quantile
     )
     return res
 
 
 def test_figures_mark_the_refined_estimate(tmp_path, monkeypatch):
     res = refined_result()
-    x, se = report._final(res)
+    x, low, high = report._final(res)
     assert x[0] / spec("X13").scale == pytest.approx(15.0)
-    assert se[1] / spec("X17").scale == pytest.approx(0.05)
+    # the 90 % interval: 1.5 ± 1.645 x 0.05 MN/m
+    assert (low[1], high[1]) == pytest.approx(
+        (1.5e6 - 1.645 * 0.05e6, 1.5e6 + 1.645 * 0.05e6), rel=1e-3
+    )
     drawn = {}
     monkeypatch.setattr(report, "save_figure", lambda fig, path: drawn.setdefault(path, fig))
     report.plot_convergence(res, tmp_path / "c.png")
@@ -51,7 +60,7 @@ def test_figures_mark_the_refined_estimate(tmp_path, monkeypatch):
     assert list(refine.get_xdata()) == [3, 4, 5]  # after the two generations
     report.plot_pareto(res, tmp_path / "p.png")
     labels = [t.get_text() for t in drawn[tmp_path / "p.png"].axes[1].get_legend().get_texts()]
-    assert "final estimate ± 2 SE" in labels
+    assert "final estimate and 90 % interval" in labels
     plt.close("all")
 
 

@@ -6,12 +6,20 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
 import railsusp
 from railsusp import summary
 from railsusp.errors import RailsuspInputError
+from railsusp.estimate.intervals import (
+    PARETO,
+    POSTERIOR,
+    STANDARD_ERROR,
+    describe,
+    from_samples,
+)
 from railsusp.params import spec
 from railsusp.vehicle.wagon import load_wagon
 
@@ -48,20 +56,23 @@ def make_run(root: Path, estimate: dict, refinement: dict | None, wagon: str | N
     return root
 
 
-def test_refined_estimate_gives_two_standard_error_intervals_and_verdicts(tmp_path):
-    """X13 nominal 14 MN/m (range 7-21), estimated 10.5 (-25 %), standard error 2 % of the
-    14 MN/m range = 0.28 MN/m: degraded, interval 10.5 ± 0.56. X17 nominal 1.8 estimated
-    1.9 (+5.6 %): within tolerance. Then standard errors of 6 % and infinity: both not
-    identifiable, each saying why."""
+def test_refined_estimate_gives_90_percent_intervals_and_verdicts(tmp_path):
+    """An estimate.json without stored intervals (saved before they were): X13 nominal
+    14 MN/m (range 7-21), estimated 10.5 (-25 %), standard error 2 % of the 14 MN/m range
+    = 0.28 MN/m: degraded, 90 % interval 10.5 ± 1.645 x 0.28. X17 nominal 1.8 estimated 1.9
+    (+5.6 %): within tolerance. Then standard errors of 7 % (interval 23 % of range wide)
+    and infinity: both not identifiable, each saying why."""
     ref = {"standard_error_pct_range": {"X13": 2.0, "X17": 1.0}}
     run = make_run(tmp_path, {"X13": 10.5, "X17": 1.9}, ref)
     t = summary.estimate_table(run)
     x13 = t.loc["X13"]
     lo, hi = spec("X13").bounds_display
     assert x13.standard_error == pytest.approx(0.02 * (hi - lo))
-    assert (x13.low, x13.high) == pytest.approx((10.5 - 0.56, 10.5 + 0.56))
+    half = 1.6449 * 0.28
+    assert (x13.low, x13.high) == pytest.approx((10.5 - half, 10.5 + half), abs=1e-3)
     assert x13.change_pct == pytest.approx(-25.0)
-    assert x13.verdict == summary.DEGRADED and x13.interval == summary.INTERVAL_SE
+    assert x13.verdict == summary.DEGRADED
+    assert x13.interval == describe(STANDARD_ERROR, 0.9)
     assert t.loc["X17"].verdict == summary.WITHIN
     assert t.loc["X14"].verdict == "not estimated: held at 10.0 MN/m"
     assert t.loc["X14"].note == "not a key parameter of the sensitivity analysis"
@@ -73,23 +84,53 @@ def test_refined_estimate_gives_two_standard_error_intervals_and_verdicts(tmp_pa
     via_api = railsusp.open_run(run, tolerances=railsusp.Tolerances(25.5)).estimate
     assert via_api.equals(loose)
     # a large or infinite standard error: not identifiable, and why
-    ref["standard_error_pct_range"] = {"X13": 6.0, "X17": math.inf}
-    run = make_run(tmp_path, {"X13": 10.5, "X17": 1.9}, ref)
+    ref["standard_error_pct_range"] = {"X13": 7.0, "X17": math.inf}
+    run = make_run(tmp_path, {"X13": 14.0, "X17": 1.9}, ref)
     t = summary.estimate_table(run)
     assert t.loc["X13"].verdict == summary.NOT_IDENTIFIABLE
-    assert "standard error 6.0 % of range" in t.loc["X13"].note
-    assert "do not depend on it" in t.loc["X17"].note
+    assert t.loc["X13"].note == "90 % interval 23.0 % of range wide"
+    assert "interval is the whole range" in t.loc["X17"].note
 
 
-def test_unrefined_estimate_interval_is_the_pareto_range(tmp_path):
+def test_unrefined_estimate_interval_is_the_pareto_range_and_never_identifies(tmp_path):
+    """NSGA-II alone: the interval is the Pareto set's range, labelled as not a confidence
+    interval, and no parameter is called identified from it, however narrow."""
     run = make_run(tmp_path, {"X13": 16.0, "X17": 1.1}, None)
     t = summary.estimate_table(run)
     assert (t.loc["X13"].low, t.loc["X13"].high) == pytest.approx((12.0, 20.0))
-    assert t.loc["X13"].interval == summary.INTERVAL_PARETO
+    assert t.loc["X13"].interval == describe(PARETO, None)
+    assert "not a confidence interval" in t.loc["X13"].interval
     assert math.isnan(t.loc["X13"].standard_error)
-    assert t.loc["X13"].verdict == summary.WITHIN  # +14.3 %
-    assert t.loc["X13"].note == "the interval reaches beyond the tolerance"
-    assert t.loc["X17"].verdict == summary.DEGRADED  # -38.9 %, Pareto 1.0-1.2: all outside
+    for p in ("X13", "X17"):  # X17's Pareto set 1.0-1.2 is 4 % of its range wide
+        assert t.loc[p].verdict == summary.NOT_IDENTIFIABLE
+        assert t.loc[p].note.startswith("no confidence interval")
+
+
+def test_stored_posterior_intervals_give_the_verdicts(tmp_path):
+    """A result carrying its intervals (here a posterior's): the summary shows them, and the
+    verdict follows their width; a point 25 % of range off nominal with a wide interval is
+    not identified."""
+    run = make_run(tmp_path, {"X13": 10.5, "X17": 1.9}, None)
+    path = run / "estimate" / "estimate.json"
+    doc = json.loads(path.read_text())
+    rng = np.random.default_rng(0)
+    samples = np.column_stack(
+        [
+            rng.normal(10.5e6, 0.3e6, 4000),  # X13: 90 % interval ~7 % of its range wide
+            rng.normal(2.25e6, 0.3e6, 4000),  # X17: 25 % of range above nominal, ~55 % wide
+        ]
+    )
+    iv = from_samples(("X13", "X17"), samples)
+    doc["intervals"] = iv.to_dict()
+    doc["estimate_display"] = {i.parameter: i.value for i in iv.items}
+    doc["pareto_x_si"] = [list(samples[0])]  # a posterior has no Pareto set to fall back on
+    path.write_text(json.dumps(doc))
+    t = summary.estimate_table(run)
+    assert (t.loc["X13"].low, t.loc["X13"].high) == pytest.approx((iv["X13"].low, iv["X13"].high))
+    assert t.loc["X13"].interval == describe(POSTERIOR, 0.9)
+    assert t.loc["X13"].verdict == summary.DEGRADED  # -25 % of nominal, interval narrow
+    assert t.loc["X17"].verdict == summary.NOT_IDENTIFIABLE
+    assert t.loc["X17"].note.startswith("90 % interval 5")
 
 
 def test_force_agreement_prefers_the_time_aligned_comparison(tmp_path):

@@ -8,8 +8,8 @@ import pytest
 from railsusp.conditions import get_condition
 from railsusp.estimate import NSGAConfig, SimulatorForces, estimate
 from railsusp.measured import SimulationFailedError, read_field, synthesise_field
-from railsusp.params import ParameterSet
-from railsusp.validate import PARETO_SPREAD_LIMIT, validate
+from railsusp.params import ParameterSet, spec
+from railsusp.validate import validate
 
 PARAMS = ("X13", "X17")
 
@@ -50,9 +50,14 @@ def test_recovery_with_truth_and_noise_floor(case, tmp_path):
     assert rec.loc["X13", "estimate"] == pytest.approx(res.estimate["X13"])
     err = abs(res.estimate["X13"] - 18.0) / 14.0  # range 7..21 MN/m
     assert rec.loc["X13", "error_pct_of_range"] == pytest.approx(100 * err)
-    spread = json.loads((est / "estimate.json").read_text())["pareto_spread_pct_range"]
+    # NSGA-II alone gives the Pareto set's range, not a confidence interval: never identified
+    doc = json.loads((est / "estimate.json").read_text())
+    assert doc["intervals"]["method"] == "pareto" and doc["intervals"]["level"] is None
     for p in PARAMS:
-        assert bool(rec.loc[p, "identifiable"]) == (spread[p] <= PARETO_SPREAD_LIMIT)
+        assert not rec.loc[p, "identifiable"]
+        assert rec.loc[p, "why_not"].startswith("no confidence interval: the NSGA-II Pareto set")
+        assert rec.loc[p, "interval_low"] <= rec.loc[p, "estimate"] <= rec.loc[p, "interval_high"]
+        assert rec.loc[p, "interval_method"] == "pareto"
 
 
 def test_sobol_flag(case, tmp_path):
@@ -64,11 +69,14 @@ def test_sobol_flag(case, tmp_path):
     assert not row.identifiable and "Sobol ST 0.02" in row.why_not
 
 
-def test_refined_estimate_flags_by_its_standard_error(case, tmp_path):
-    """With a refinement on record, identifiability is judged by its standard errors, not
-    by NSGA-II's Pareto spread."""
+def test_refined_estimate_flags_by_its_interval_width(case, tmp_path):
+    """An estimate.json saved before intervals were stored: the refinement's standard
+    errors give 90 % intervals (x ± 1.645 SE); identified when at most 20 % of range wide."""
     field, est, _ = case
     doc = json.loads((est / "estimate.json").read_text())
+    del doc["intervals"]
+    # estimates in the middle of the ranges, so that no interval is clipped at a bound
+    doc["estimate_display"] = {p: float(np.mean(spec(p).bounds_display)) for p in PARAMS}
     doc["refinement"] = {"standard_error_pct_range": {"X13": 0.8, "X17": 12.0}}
     refined = tmp_path / "refined"
     refined.mkdir()
@@ -76,21 +84,20 @@ def test_refined_estimate_flags_by_its_standard_error(case, tmp_path):
     rec = validate(refined, truth=field / "truth.json").recovery.set_index("parameter")
     assert bool(rec.loc["X13", "identifiable"])
     assert not rec.loc["X17", "identifiable"]
-    assert rec.loc["X17", "why_not"] == "standard error 12.0 % of range"
-    # on geometry of stated accuracy the standard error says how much of it is the geometry's
+    assert rec.loc["X17", "why_not"] == "90 % interval 39.5 % of range wide"
+    # on geometry of stated accuracy the reason says how much of the error is the geometry's
     doc["refinement"]["geometry_error_pct_range"] = {"X13": 0.5, "X17": 11.0}
     (refined / "estimate.json").write_text(json.dumps(doc))
     rec = validate(refined, truth=field / "truth.json").recovery.set_index("parameter")
     assert rec.loc["X17", "why_not"] == (
-        "standard error 12.0 % of range (11.0 % from track-geometry error)"
+        "90 % interval 39.5 % of range wide "
+        "(standard error from track-geometry error 11.0 % of range)"
     )
     # a stop never reached: the forces do not depend on the parameter at all
     doc["refinement"]["standard_error_pct_range"]["X17"] = float("inf")
     (refined / "estimate.json").write_text(json.dumps(doc))
     rec = validate(refined, truth=field / "truth.json").recovery.set_index("parameter")
-    assert rec.loc["X17", "why_not"] == (
-        "the recorded forces do not depend on it (infinite standard error)"
-    )
+    assert rec.loc["X17", "why_not"].startswith("its 90 % interval is the whole range")
     # a Cramér-Rao bound of the statistics flags an estimate from statistics only; the
     # refined one used the time-aligned series, which the bound does not describe
     doc["cramer_rao_pct_range"] = {"X13": 30.0, "X17": 2.0}

@@ -189,19 +189,25 @@ def plot_surrogate_overlay(
     return save_figure(fig, path)
 
 
-def _final(result) -> tuple[np.ndarray, np.ndarray | None]:
-    """The final estimate (SI) and its standard error (SI, None without refinement)."""
+def _final(result) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """The final estimate (SI) and, when refined, its confidence interval's low and high
+    (SI; None without refinement: the Pareto set is drawn instead)."""
     ref = result.refinement
     if ref is None:
-        return result.pareto_x[result.chosen], None
-    return ref.estimate_si, ref.total_error_si
+        return result.pareto_x[result.chosen], None, None
+    iv = result.intervals()
+    return (
+        ref.estimate_si,
+        np.array([i.low_si for i in iv.items]),
+        np.array([i.high_si for i in iv.items]),
+    )
 
 
 def plot_pareto(result, path: str | Path):
     """Pareto front of the calibration (the study's Figure 9) with NSGA-II's choice, and
     beside it each parameter's Pareto set, NSGA-II's choice and the final estimate (with
-    ± 2 standard errors when refined), in % of the parameter's range: the front's spread is
-    what the objectives cannot tell apart, the standard error what the refinement can."""
+    its confidence interval when refined), in % of the parameter's range: the front's spread
+    is what the objectives cannot tell apart, the interval what the refinement can."""
     from railsusp.params import bounds
 
     f = result.pareto_f
@@ -230,9 +236,12 @@ def plot_pareto(result, path: str | Path):
         bx.scatter(pct[:, i], np.full(len(pct), i), s=12, color="C0", alpha=0.5)
     bx.scatter([], [], s=12, color="C0", alpha=0.5, label="Pareto set")
     bx.scatter(pct[c], y, s=80, marker="*", color="C3", label="NSGA-II's choice", zorder=3)
-    x, se = _final(result)
+    x, low, high = _final(result)
     xf = 100 * (x - lo) / span
-    err = None if se is None else 2 * 100 * se / span
+    err = None
+    if low is not None and high is not None:
+        err = np.vstack([xf - 100 * (low - lo) / span, 100 * (high - lo) / span - xf])
+        err = np.clip(err, 0.0, None)
     bx.errorbar(
         xf,
         y,
@@ -242,7 +251,8 @@ def plot_pareto(result, path: str | Path):
         ms=6,
         capsize=3,
         zorder=4,
-        label="final estimate" + (" ± 2 SE" if err is not None else ""),
+        label="final estimate"
+        + (f" and {100 * result.intervals().level:g} % interval" if err is not None else ""),
     )
     bx.set_yticks(y, result.parameters)
     bx.set_xlim(-5, 105)
@@ -266,7 +276,7 @@ def plot_convergence(result, path: str | Path):
     gens = np.arange(1, n_gen + 1)
     ref = result.refinement
     steps = np.zeros((0, k)) if ref is None else np.atleast_2d(ref.history_si).reshape(-1, k)
-    final, _ = _final(result)
+    final = _final(result)[0]
     for i, p in enumerate(result.parameters):
         s = spec(p)
         ax = axes[i, 0]

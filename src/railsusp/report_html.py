@@ -47,7 +47,7 @@ def summary_card(doc: Doc, run: Path) -> None:
         "_order", kind="stable"
     )
     bases = {b for b in est.interval if b}
-    short = "± 2 SE" if bases == {summary.INTERVAL_SE} else "Pareto set"
+    short = "Pareto range" if not bases or any("Pareto" in b for b in bases) else "90 % interval"
     shown = pd.DataFrame(
         {
             "suspension element": [f"{p} {e}" for p, e in zip(est.index, est.element, strict=True)],
@@ -274,9 +274,10 @@ def _estimate_section(doc: Doc, est: Path) -> None:
                 if ref.get("geometry_bias_removed")
                 else ""
             )
-            + ". Its standard errors assume white residuals (optimistic)"
+            + ". Its intervals are "
+            + (info.get("intervals") or {}).get("description", "± 2 standard errors")
             + (
-                f" and include that geometry error ({ref['geometry_draws']} draws)."
+                f" (geometry error from {ref['geometry_draws']} draws)."
                 if ref.get("geometry_draws")
                 else "."
             )
@@ -287,8 +288,10 @@ def _estimate_section(doc: Doc, est: Path) -> None:
     else:
         doc.p(
             "The estimate is NSGA-II's choice on the Pareto front (closest to the ideal "
-            "point); without refinement, the Pareto spread is its uncertainty: the range of "
-            "parameter sets whose force statistics the objectives cannot tell apart."
+            "point). Its interval is the Pareto set's range: the parameter sets whose force "
+            "statistics the objectives cannot tell apart. That is not a confidence interval "
+            "(a narrow Pareto set can lie far from the truth), so no parameter is called "
+            "identified from it."
         )
     if info.get("cramer_rao_pct_range"):
         doc.p(

@@ -15,10 +15,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from railsusp.errors import RailsuspInputError
+from railsusp.numbers import sig3
 from railsusp.params import MAIN_SUSPENSION, spec
 from railsusp.store import read_json
 
@@ -30,10 +30,6 @@ WITHIN = "within tolerance"
 DEGRADED = "degraded"
 NOT_IDENTIFIABLE = "not identifiable from these recordings"
 NOT_ESTIMATED = "not estimated"
-
-#: how the interval of an estimate was formed, by the kind of estimate
-INTERVAL_SE = "estimate ± 2 standard errors (sensor noise and track-geometry error)"
-INTERVAL_PARETO = "range of the NSGA-II Pareto set (no standard error without refinement)"
 
 
 @dataclass(frozen=True)
@@ -98,23 +94,11 @@ def run_tolerances(run: str | Path) -> Tolerances:
     return read_tolerances(_config(Path(run)).get("wagon"))
 
 
-def sig3(v: float) -> str:
-    """Three significant figures, without an exponent from 0.0001 to 1e6 (the report's and
-    the summary's one number format)."""
-    if v == 0:
-        return "0"
-    if not math.isfinite(v):
-        return "" if v != v else ("∞" if v > 0 else "-∞")
-    if not 1e-4 <= abs(v) < 1e6:
-        return f"{v:.2e}"
-    digits = max(0, 2 - math.floor(math.log10(abs(v))))
-    return f"{round(v, digits):.{digits}f}"
-
-
 def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.DataFrame:
     """One row per main suspension parameter (display units): element, unit, nominal,
     estimate, standard error, interval (low, high, and how it was formed), change from
     nominal (%), tolerance (%), verdict and a note saying why."""
+    from railsusp.estimate.intervals import intervals_of
     from railsusp.validate import identification_issues, max_st
 
     run = Path(run)
@@ -124,9 +108,10 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
     st = max_st(sens) if (sens / "key_parameters.json").exists() else {}
     why_not = identification_issues(est, st)
     params = list(est["parameters"])
-    refined = est.get("refinement") or {}
-    se_pct = refined.get("standard_error_pct_range", {})
-    pareto = np.atleast_2d(np.asarray(est.get("pareto_x_si", []), dtype=float))
+    intervals = intervals_of(est)
+    se_pct = intervals.details.get("total_standard_error_pct_range") or (
+        (est.get("refinement") or {}).get("standard_error_pct_range", {})
+    )
     camp = read_json(run / "campaign" / "campaign.json")["config"] if st or sens.exists() else {}
     sampled = set(camp.get("parameters", MAIN_SUSPENSION))
     rows = []
@@ -162,17 +147,13 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
         v = float(est["estimate_display"][p])
         row["estimate"] = v
         row["change_pct"] = 100.0 * (v - s.nominal_display) / s.nominal_display
-        if refined:
-            se = se_pct.get(p, float("nan")) / 100.0 * (hi - lo)
-            row["standard_error"] = se
-            row["low"], row["high"] = v - 2 * se, v + 2 * se
-            row["interval"] = INTERVAL_SE
-        elif pareto.size:
-            col = pareto[:, params.index(p)] / s.scale
-            row["low"], row["high"] = float(col.min()), float(col.max())
-            row["interval"] = INTERVAL_PARETO
+        if p in se_pct:
+            row["standard_error"] = se_pct[p] / 100.0 * (hi - lo)
+        if p in intervals:
+            row["low"], row["high"] = intervals[p].low, intervals[p].high
+            row["interval"] = intervals.description
         limit = tol.of(p)
-        single = row["interval"] == INTERVAL_PARETO and row["low"] == row["high"]
+        single = p in intervals and not intervals[p].statistical and row["low"] == row["high"]
         if why_not.get(p):
             row["verdict"] = NOT_IDENTIFIABLE
             row["note"] = why_not[p]

@@ -27,17 +27,15 @@ from railsusp.estimate import (
     parse_statistics,
     recording_segments,
 )
+from railsusp.estimate.intervals import identification, intervals_of
 from railsusp.estimate.statistics import force_statistic
 from railsusp.measured import SimulationFailedError, read_field, simulated_forces
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import atomic_write_bytes, read_json, write_json
 
-#: a parameter whose Pareto spread exceeds this share of its range is not identified
-PARETO_SPREAD_LIMIT = 25.0
-#: ... nor one whose largest total Sobol index on the used features is below this
+#: a parameter whose largest total Sobol index on the used features is below this is not
+#: identified (nor one whose interval is wider than IDENTIFIED_WIDTH_PCT of its range)
 SOBOL_ST_LIMIT = 0.1
-#: ... nor, for a refined estimate, one whose standard error exceeds this share of its range
-STANDARD_ERROR_LIMIT = 5.0
 
 
 @dataclass
@@ -177,32 +175,39 @@ def validate(
 
 def identification_issues(est: dict, max_st: dict[str, float] | None = None) -> dict[str, str]:
     """Why each estimated parameter is not identified from the recordings ('' when it is),
-    from ``estimate.json`` alone (no truth needed): a refined estimate's standard error above
-    :data:`STANDARD_ERROR_LIMIT` % of range (or infinite: the forces do not depend on it),
-    else a Pareto spread above :data:`PARETO_SPREAD_LIMIT` %; a largest total Sobol index
-    (``max_st``) below :data:`SOBOL_ST_LIMIT`; a Cramér-Rao bound above the limit."""
+    from a result JSON alone (``estimate.json`` or a posterior result; no truth needed).
+
+    The verdict follows the estimate's interval (:func:`~railsusp.estimate.intervals.
+    identification`): identified only by a statistical interval (posterior, refinement) at
+    most :data:`~railsusp.estimate.intervals.IDENTIFIED_WIDTH_PCT` % of the range wide; the
+    NSGA-II Pareto range is not one, so an estimate from NSGA-II alone is never called
+    identified. Further reasons: a posterior whose estimator failed its coverage check, a
+    largest total Sobol index (``max_st``) below :data:`SOBOL_ST_LIMIT`, a Cramér-Rao bound
+    of the statistics above its limit."""
     max_st = max_st or {}
-    spread = est.get("pareto_spread_pct_range", {})
-    refined = est.get("refinement") or {}
-    std_err = refined.get("standard_error_pct_range", {})
+    intervals = intervals_of(est)
+    details = intervals.details
+    geometry = details.get("geometry_error_pct_range") or {}
+    held = details.get("held_parameters_error_pct_range") or {}
     out = {}
     for p in est["parameters"]:
         reasons = []
-        if refined:  # the refined estimate's own uncertainty, not NSGA-II's spread
-            if std_err.get(p, 0.0) == float("inf"):  # a zero Jacobian column
-                reasons.append("the recorded forces do not depend on it (infinite standard error)")
-            elif std_err.get(p, 0.0) > STANDARD_ERROR_LIMIT:
-                geo = (refined.get("geometry_error_pct_range") or {}).get(p, 0.0)
-                reasons.append(
-                    f"standard error {std_err[p]:.1f} % of range"
-                    + (f" ({geo:.1f} % from track-geometry error)" if geo else "")
-                )
-        elif spread.get(p, 0.0) > PARETO_SPREAD_LIMIT:
-            reasons.append(f"Pareto spread {spread[p]:.0f} % of range")
+        why = identification(intervals[p])
+        if why:
+            parts = [
+                f"{name} {d[p]:.1f} % of range"
+                for name, d in (("track-geometry error", geometry), ("held parameters", held))
+                if d.get(p, 0.0) >= 0.05
+            ]
+            reasons.append(why + (f" (standard error from {', '.join(parts)})" if parts else ""))
+        if est.get("calibrated") is False:
+            reasons.append("the posterior estimator failed its coverage check")
         if p in max_st and max_st[p] < SOBOL_ST_LIMIT:
             reasons.append(f"Sobol ST {max_st[p]:.2f}")
         # the bound is that of the statistics; a refined estimate used the series instead
-        bound = 0.0 if refined else (est.get("cramer_rao_pct_range") or {}).get(p, 0.0)
+        bound = (
+            0.0 if est.get("refinement") else (est.get("cramer_rao_pct_range") or {}).get(p, 0.0)
+        )
         if bound > BOUND_LIMIT_PCT:
             reasons.append(f"Cramér-Rao bound {bound:.1f} % of range")
         out[p] = "; ".join(reasons)
@@ -214,9 +219,11 @@ def _recovery(
 ) -> pd.DataFrame:
     lo, hi = bounds(params)
     why_not = identification_issues(est, max_st(sensitivity) if sensitivity else {})
+    intervals = intervals_of(est)
     rows = []
     for p, low, high in zip(params, lo, hi, strict=True):
         t, e = truth[p], chosen[p]
+        iv = intervals[p]
         rows.append(
             {
                 "parameter": p,
@@ -225,6 +232,11 @@ def _recovery(
                 "estimate": spec(p).to_display(e),
                 "error_pct_of_value": 100 * abs(e - t) / abs(t),
                 "error_pct_of_range": 100 * abs(e - t) / (high - low),
+                "interval_low": iv.low,
+                "interval_high": iv.high,
+                "interval_width_pct_range": iv.width_pct_range,
+                "interval_method": iv.method,
+                "truth_in_interval": iv.contains(t),
                 "identifiable": not why_not[p],
                 "why_not": why_not[p],
             }

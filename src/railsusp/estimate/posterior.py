@@ -45,6 +45,7 @@ import pandas as pd
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.calibration import LEVEL, ParameterCalibration
 from railsusp.estimate.calibration import check as check_calibration
+from railsusp.estimate.intervals import Intervals, from_samples
 from railsusp.estimate.posterior_data import (
     PosteriorSettings,
     cached_cases,
@@ -260,11 +261,17 @@ class PosteriorResult:
     def calibrated(self) -> bool:
         return all(c.passed for c in self.calibration)
 
+    def intervals(self, level: float = LEVEL) -> Intervals:
+        """Median and central ``level`` credible interval of each parameter (the one
+        interval type of every route, :mod:`railsusp.estimate.intervals`)."""
+        return from_samples(self.parameters, self.samples, level)
+
     def to_dataframe(self) -> pd.DataFrame:
         """Per parameter: median and central 90 % interval in display units, the
         interval's width as % of the prior range, and the held-out coverage."""
         rows = []
         lo_q, hi_q = (1 - LEVEL) / 2, (1 + LEVEL) / 2
+        iv = self.intervals()
         for j, p in enumerate(self.parameters):
             sp = spec(p)
             lo, hi = sp.bounds
@@ -280,6 +287,7 @@ class PosteriorResult:
                     "width_pct_range": 100.0 * (q[2] - q[1]) / (hi - lo),
                     "coverage_heldout": self.calibration[j].coverage,
                     "calibrated": self.calibration[j].passed,
+                    "median [90 % interval]": iv[p].text(),
                 }
             )
         return pd.DataFrame(rows)
@@ -289,6 +297,10 @@ class PosteriorResult:
         return write_json(
             path,
             {
+                "route": "posterior",
+                "parameters": list(self.parameters),
+                "estimate_display": {i.parameter: i.value for i in self.intervals().items},
+                "intervals": self.intervals().to_dict(),
                 "estimates": self.to_dataframe().to_dict(orient="records"),
                 "calibrated": self.calibrated,
                 "sections": self.sections,

@@ -75,6 +75,10 @@ class Refinement:
     #: solution (unit parameters, then gains), for more work at the estimate (not saved)
     problem: OutputError | None = field(default=None, repr=False, compare=False)
     solution: np.ndarray | None = field(default=None, repr=False, compare=False)
+    #: residuals at the solution and their lengths per recording and channel, for the
+    #: intervals' autocorrelation inflation (:mod:`railsusp.estimate.intervals`; not saved)
+    residuals: np.ndarray | None = field(default=None, repr=False, compare=False)
+    residual_blocks: tuple[int, ...] = field(default=(), repr=False, compare=False)
 
     @property
     def estimate_si(self) -> np.ndarray:
@@ -230,6 +234,8 @@ def refine(
         geometry_shifts_si=problem.geometry_shifts(sol.x, geometry_draws, seed),
         problem=problem,
         solution=sol.x,
+        residuals=sol.fun,
+        residual_blocks=tuple(u[c].size for u in problem.samples for c in range(2)),
     )
 
 

@@ -1,9 +1,12 @@
-"""The estimate: Pareto set and front, chosen point, convergence, refinement; save and table.
+"""The estimate: Pareto set and front, chosen point, convergence, refinement, intervals; save
+and table.
 
 :class:`CalibrationResult` is what :func:`railsusp.estimate.estimate` returns and what the
 refinement (:func:`railsusp.estimate.refine_estimate`) completes; it writes the run
 directory's ``estimate/`` files (``nsga_log.*``, ``estimate.csv``, ``estimate.json``, the
-Pareto and convergence figures), each atomically.
+Pareto and convergence figures), each atomically. Its per-parameter intervals
+(:mod:`railsusp.estimate.intervals`) are the refinement's confidence intervals when refined,
+else the Pareto set's range, labelled as not a confidence interval.
 """
 
 from __future__ import annotations
@@ -15,8 +18,10 @@ import numpy as np
 import pandas as pd
 
 from railsusp.estimate.config import NSGAConfig
+from railsusp.estimate.intervals import LEVEL, PARETO, Intervals, from_pareto
 from railsusp.estimate.problem import display_values
 from railsusp.estimate.refine import Refinement
+from railsusp.estimate.refine_intervals import refinement_intervals
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import atomic_write_bytes, write_json, write_parquet
 
@@ -36,6 +41,8 @@ class CalibrationResult:
     refinement: Refinement | None = None
     #: Cramér-Rao bound of each parameter at NSGA-II's choice, % of range (statistics GPs)
     cramer_rao: dict[str, float] = field(default_factory=dict)
+    #: intervals computed, by level and refinement (a refinement attached later recomputes)
+    _intervals: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def chosen_x(self) -> np.ndarray:
@@ -46,6 +53,23 @@ class CalibrationResult:
     def estimate(self) -> dict[str, float]:
         """The estimate, display units."""
         return display_values(self.parameters, self.chosen_x)
+
+    def intervals(self, level: float = LEVEL) -> Intervals:
+        """Per-parameter intervals of the estimate: the refinement's ``level`` confidence
+        intervals when refined (computed once; with the simulator this includes one batch of
+        simulations for the parameters held at nominal), else the Pareto set's range."""
+        key = (level, id(self.refinement))
+        if key not in self._intervals:
+            if self.refinement is not None:
+                self._intervals[key] = refinement_intervals(self.refinement, level)
+            else:
+                got = from_pareto(self.parameters, self.pareto_x, self.chosen_x)
+                if self.cramer_rao:
+                    got = Intervals(
+                        got.method, got.level, got.items, {"cramer_rao_pct_range": self.cramer_rao}
+                    )
+                self._intervals[key] = got
+        return self._intervals[key]
 
     def pareto_spread(self) -> dict[str, float]:
         """Spread (max - min) of each parameter over the Pareto set, in % of its range."""
@@ -60,6 +84,8 @@ class CalibrationResult:
         """The study's Table 5 layout: initial (nominal) and estimated value, display units,
         with the Pareto and seed spreads."""
         ps = self.pareto_spread()
+        iv = self.intervals()
+        shown = "Pareto range" if iv.method == PARETO else f"{100 * (iv.level or 0):g} % interval"
         nsga = display_values(self.parameters, self.pareto_x[self.chosen])
         refined = self.refinement.to_dict() if self.refinement else {}
         rows = []
@@ -69,6 +95,7 @@ class CalibrationResult:
                 "unit": spec(p).display_unit,
                 "initial": spec(p).nominal_display,
                 "estimated": v,
+                f"estimate [{shown}]": iv[p].text(),
                 "pareto_spread_pct_range": ps[p],
                 "seed_spread_pct_range": self.seeds_spread.get(p, float("nan")),
             }
@@ -108,6 +135,7 @@ class CalibrationResult:
                 ),
                 "refinement": self.refinement.to_dict() if self.refinement else None,
                 "cramer_rao_pct_range": self.cramer_rao,
+                "intervals": self.intervals().to_dict(),
                 **(extra or {}),
             },
         )

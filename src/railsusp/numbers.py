@@ -1,0 +1,18 @@
+"""The one number format of tables, reports and interval texts."""
+
+from __future__ import annotations
+
+import math
+
+
+def sig3(v: float) -> str:
+    """Three significant figures, without an exponent from 0.0001 to 1e6 (the report's and
+    the summary's one number format)."""
+    if v == 0:
+        return "0"
+    if not math.isfinite(v):
+        return "" if v != v else ("∞" if v > 0 else "-∞")
+    if not 1e-4 <= abs(v) < 1e6:
+        return f"{v:.2e}"
+    digits = max(0, 2 - math.floor(math.log10(abs(v))))
+    return f"{round(v, digits):.{digits}f}"
