@@ -4,15 +4,27 @@ Each set runs the standard straight condition (100 m lead-in plus the 20 s recor
 simulated running in all) in one batched call; the compiled kernels are warmed up first so
 the figures exclude compilation. Prints a table and writes JSON (bench/results/simulator.json).
 Peak memory is the process's maximum resident set size.
+
+In the same sitting, for ratios (these machines are noisy, so only ratios from one run are
+quoted): ``--reference-src DIR`` runs this script on another checkout's ``src`` (e.g. a git
+worktree of an older commit) and ``--kernel FILE`` runs the synthetic wagon-sized RK4 kernel
+(shared/bench/throughput_kernel.py) at railsusp's 1 ms step over the same simulated time;
+the table then gains their rates and this model's ratio to each.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import platform
+import re
 import resource
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -32,7 +44,10 @@ def main() -> None:
     ap.add_argument("--contact", default="two-point", help="two-point or single-point")
     ap.add_argument("--flange-substeps", type=int, default=None, help="solver step split")
     ap.add_argument("--out", default="bench/results/simulator.json")
+    ap.add_argument("--reference-src", default=None, help="another checkout's src, for A/B")
+    ap.add_argument("--kernel", default=None, help="path of throughput_kernel.py")
     args = ap.parse_args()
+    reference = _reference_rates(args) if args.reference_src else None
     cond = get_condition(args.condition)
     wagon = load_wagon().with_contact_model(args.contact)
     settings = SolverSettings()
@@ -64,17 +79,35 @@ def main() -> None:
             }
         )
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    kernel = _kernel_rates(args.kernel, args.sizes, simulated) if args.kernel else None
+    for row in rows:
+        if reference is not None:
+            row["reference_wagon_s_per_wall_s"] = reference[row["sets"]]
+            row["ratio_to_reference"] = row["wagon_s_per_wall_s"] / reference[row["sets"]]
+        if kernel is not None:
+            row["kernel_wagon_s_per_wall_s"] = kernel[row["sets"]]
+            row["ratio_to_kernel"] = row["wagon_s_per_wall_s"] / kernel[row["sets"]]
     print(
         f"condition {cond.name}: {simulated:.1f} s simulated per set "
         f"({cond.duration_s:g} s recorded), {numba.get_num_threads()} threads, "
         f"{args.contact} contact, flange_substeps {settings.flange_substeps}"
     )
-    print(f"{'sets':>6} {'wall s':>8} {'wagon-s/s':>10} {'record-s/s':>11} {'failed':>7}")
+    head = f"{'sets':>6} {'wall s':>8} {'wagon-s/s':>10} {'record-s/s':>11} {'failed':>7}"
+    if reference is not None:
+        head += f" {'reference':>10} {'ratio':>6}"
+    if kernel is not None:
+        head += f" {'kernel':>8} {'of kernel':>9}"
+    print(head)
     for row in rows:
-        print(
+        line = (
             f"{row['sets']:>6} {row['wall_s']:8.2f} {row['wagon_s_per_wall_s']:10.1f} "
             f"{row['record_s_per_wall_s']:11.1f} {row['failed']:>7}"
         )
+        if reference is not None:
+            line += f" {row['reference_wagon_s_per_wall_s']:10.1f} {row['ratio_to_reference']:6.2f}"
+        if kernel is not None:
+            line += f" {row['kernel_wagon_s_per_wall_s']:8.1f} {row['ratio_to_kernel']:9.2f}"
+        print(line)
     print(f"peak memory {peak_mb:.0f} MB")
     payload = {
         "date": time.strftime("%Y-%m-%d"),
@@ -86,9 +119,35 @@ def main() -> None:
         "flange_substeps": settings.flange_substeps,
         "rows": rows,
         "peak_rss_mb": peak_mb,
+        "reference_src": args.reference_src,
+        "kernel": args.kernel,
     }
     out = write_json(args.out, payload)
     print(f"wrote {out}")
+
+
+def _reference_rates(args: argparse.Namespace) -> dict[int, float]:
+    """Wagon-s per wall-s of this script run on ``args.reference_src``, per batch size."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "reference.json"
+        cmd = [sys.executable, __file__, "--sizes", args.sizes, "--condition", args.condition]
+        cmd += ["--contact", args.contact, "--out", str(out)]
+        if args.flange_substeps is not None:
+            cmd += ["--flange-substeps", str(args.flange_substeps)]
+        env = dict(os.environ, PYTHONPATH=str(Path(args.reference_src).resolve()))
+        subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)
+        rows = json.loads(out.read_text())["rows"]
+    return {r["sets"]: r["wagon_s_per_wall_s"] for r in rows}
+
+
+def _kernel_rates(kernel: str, sizes: str, simulated: float) -> dict[int, float]:
+    """Wagon-s per wall-s of the synthetic kernel at a 1 ms step, per batch size."""
+    cmd = [sys.executable, kernel, "1e-3", sizes, f"{simulated:g}"]
+    text = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+    found = re.findall(r"B=(\d+) dt=[^:]*: ([0-9.]+) wagon-s per wall-s", text)
+    if not found:
+        raise SystemExit(f"--kernel {kernel}: no 'B=... wagon-s per wall-s' line in its output")
+    return {int(b): float(r) for b, r in found}
 
 
 if __name__ == "__main__":

@@ -127,3 +127,20 @@ def test_simulator_estimation_can_use_the_en14363_maximum():
     err = prob.errors(np.vstack([x, other]))
     assert np.all(err[0] < 1e-9)
     assert err[1].max() > 1e-3
+
+
+def test_a_statistics_surrogate_refuses_the_en14363_maximum_before_optimising():
+    """``railsusp estimate --surrogate GP --statistic p99.85``: refused in one line when the
+    problem is built (the GPs predict mean, rms, p99 and std only), not in NSGA-II's first
+    evaluation."""
+    from railsusp.errors import RailsuspInputError
+    from railsusp.estimate import StatisticsForces
+
+    cond = get_condition("straight", duration_s=20.0, n_steps=1000)
+    s = WaveForces().series(np.array([[14e6, 10e6]]), cond)[0]
+    rec = Recording(np.arange(1000) * cond.sample_interval, {"w1L": s[:, 0]}, {"w1L": s[:, 1]},
+                    cond)  # fmt: skip
+    gp = object.__new__(StatisticsForces)  # no trained GPs needed: refused before any use
+    with pytest.raises(RailsuspInputError, match=r"statistic 'p99.85' needs force series") as e:
+        CalibrationProblem(gp, [rec], ("X13", "X14"), statistic="mean+p99.85")
+    assert "\n" not in str(e.value)

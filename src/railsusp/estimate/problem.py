@@ -34,6 +34,7 @@ from railsusp.estimate.statistics import (
 )
 from railsusp.measured import Recording
 from railsusp.params import bounds, spec
+from railsusp.vehicle.simulate import RECORD_STATISTICS
 
 
 class CalibrationProblem(Problem):
@@ -66,6 +67,8 @@ class CalibrationProblem(Problem):
         self.stats = tuple(st for st in combination if st != ALIGNED)
         if self.aligned:
             check_aligned(model, self.recordings)
+        if isinstance(model, StatisticsForces):
+            check_statistics_model(self.stats)
         check_recordings(self.recordings, self.stats, self.aligned, weighting == "relative")
         self.measured = [measured_statistics(rec, self.stats) for rec in self.recordings]
         n_obj = 2 * len(self.recordings) if per_condition else 2
@@ -146,6 +149,19 @@ def check_recordings(
                     f"{'YQ'[c]} of wheel {wheel} is 0 kN; relative errors need a non-zero "
                     "measured statistic (use another statistic, or weighting 'noise')"
                 )
+
+
+def check_statistics_model(statistics: Sequence[str]) -> None:
+    """A statistics surrogate predicts the record statistics it was trained on (mean, rms,
+    p99, std), not the EN 14363 maximum, which is computed from force series: refused before
+    any optimisation, in one line."""
+    other = [st for st in statistics if st not in RECORD_STATISTICS]
+    if other:
+        raise RailsuspInputError(
+            f"statistic {'+'.join(other)!r} needs force series; a statistics surrogate "
+            f"(gp-stats) predicts {', '.join(RECORD_STATISTICS)}: use one of those, a window "
+            "surrogate or the simulator"
+        )
 
 
 def check_aligned(model: Any, recordings: Sequence[Recording]) -> None:

@@ -1,0 +1,128 @@
+"""Cost of one right-hand-side evaluation of the wagon model, in microseconds.
+
+States are captured from a straight and a curve run (nominal parameters, at 7, 9, ..., 21 s:
+running, flanging in the curve), then ``rhs`` alone is evaluated on them many times in one
+compiled loop, single-threaded; the figure is the minimum over repeats of CPU time per
+evaluation. ``--reference-src DIR`` times another checkout's ``src`` in a subprocess in the
+same sitting (the right-hand side's signature has not changed), for an A/B ratio. Prints a
+table and writes JSON (bench/results/rhs_profile.json).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numba as nb
+import numpy as np
+from scipy.signal import butter
+
+from railsusp.conditions import get_condition
+from railsusp.params import ParameterSet
+from railsusp.store import write_json
+from railsusp.vehicle import layout as L
+from railsusp.vehicle.integrate import _run_one
+from railsusp.vehicle.model import rhs
+from railsusp.vehicle.setup import SolverSettings, constants, contact_arrays, track_arrays
+from railsusp.vehicle.wagon import load_wagon
+
+TIMES_S = (7.0, 9.0, 11.0, 13.0, 15.0, 17.0, 19.0, 21.0)
+DT = 1e-3
+
+
+@nb.njit
+def _evaluate(states, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, reps, dxdt, out):
+    total = 0.0
+    for _ in range(reps):
+        for j in range(states.shape[0]):
+            rhs(states[j], dxdt[j], P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front[j], out[j])
+            total += dxdt[j, 0]
+    return total
+
+
+def _arguments(condition: str):
+    wagon = load_wagon()
+    settings = SolverSettings()
+    cond = get_condition(condition)
+    P = ParameterSet.nominal().to_array()
+    ca = contact_arrays(wagon)
+    K = constants(wagon, cond, P, ca, settings)
+    tracks, s0, ds = track_arrays(cond, [cond.seed], wagon, settings)
+    return P, K, tracks[0], s0, ds, ca
+
+
+def _states(condition: str):
+    P, K, trk, s0, ds, ca = _arguments(condition)
+    sos = np.ascontiguousarray(butter(2, 0.4, output="sos"))
+    states, s_front = [], []
+    for t in TIMES_S:
+        x = np.zeros(L.N_STATE)
+        n = round(t / DT)
+        series = np.zeros((L.N_OUT, 1))
+        _run_one(x, P, K, trk, s0, ds, ca.table, ca.y0, ca.dy, ca.H0L, ca.H0R, DT, n, 1, 1,
+                 sos, series, 4)  # fmt: skip
+        states.append(x)
+        s_front.append(K[L.K["V"]] * (n + 1) * DT)
+    args = (np.array(states), P, K, trk, s0, ds, ca.table, ca.y0, ca.dy, ca.H0L, ca.H0R)
+    return args, np.array(s_front)
+
+
+def time_rhs(condition: str, reps: int, repeats: int) -> float:
+    """Minimum CPU time per evaluation (us) over ``repeats`` loops of ``reps`` passes."""
+    args, s_front = _states(condition)
+    n = args[0].shape[0]
+    dxdt = np.zeros_like(args[0])
+    out = np.zeros((n, L.N_OUT_WORK))
+    _evaluate(*args, s_front, 1, dxdt, out)
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.process_time()
+        _evaluate(*args, s_front, reps, dxdt, out)
+        best = min(best, time.process_time() - t0)
+    return best / (reps * n) * 1e6
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--reps", type=int, default=10000)
+    ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--reference-src", default=None, help="another checkout's src, for A/B")
+    ap.add_argument("--out", default="bench/results/rhs_profile.json")
+    args = ap.parse_args()
+    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+    rows = [{"condition": c, "us_per_eval": time_rhs(c, args.reps, args.repeats)}
+            for c in ("straight", "curve")]  # fmt: skip
+    if args.reference_src:
+        with tempfile.TemporaryDirectory() as tmp:
+            ref_out = Path(tmp) / "ref.json"
+            env = dict(os.environ, PYTHONPATH=str(Path(args.reference_src).resolve()))
+            cmd = [sys.executable, __file__, "--reps", str(args.reps), "--out", str(ref_out)]
+            subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)
+            ref = {
+                r["condition"]: r["us_per_eval"] for r in json.loads(ref_out.read_text())["rows"]
+            }
+        for row in rows:
+            row["reference_us_per_eval"] = ref[row["condition"]]
+            row["speed_up"] = ref[row["condition"]] / row["us_per_eval"]
+    print(
+        f"{'condition':<10} {'us/eval':>8}"
+        + (f" {'reference':>10} {'speed-up':>9}" if args.reference_src else "")
+    )
+    for row in rows:
+        line = f"{row['condition']:<10} {row['us_per_eval']:8.3f}"
+        if args.reference_src:
+            line += f" {row['reference_us_per_eval']:10.3f} {row['speed_up']:9.2f}"
+        print(line)
+    out = write_json(args.out, {"date": time.strftime("%Y-%m-%d"), "rows": rows,
+                                "reference_src": args.reference_src})  # fmt: skip
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()
