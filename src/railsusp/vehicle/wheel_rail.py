@@ -81,19 +81,16 @@ def she_saturation(fx, fy, mu_n):
     """Shen-Hedrick-Elkins factor scaling linear creep forces to saturation at mu N.
 
     F = mu N (beta - beta^2/3 + beta^3/27) for beta = |F_lin| / (mu N) <= 3, else mu N.
-    Returns the factor F / |F_lin| (1 for vanishing creep, 0 when unloaded).
+    Returns the factor F / |F_lin| = 1 - beta/3 + beta^2/27 (below saturation), 1/beta
+    beyond (1 for vanishing creep, 0 when unloaded).
     """
-    f = math.sqrt(fx * fx + fy * fy)
     if mu_n <= 0.0:
         return 0.0
-    if f < 1e-9 * mu_n:
-        return 1.0
+    f = math.sqrt(fx * fx + fy * fy)
     beta = f / mu_n
     if beta < 3.0:
-        fs = mu_n * (beta - beta * beta / 3.0 + beta * beta * beta / 27.0)
-    else:
-        fs = mu_n
-    return fs / f
+        return 1.0 - beta / 3.0 + beta * beta / 27.0
+    return 1.0 / beta
 
 
 @nb.njit(cache=True, inline="always")
