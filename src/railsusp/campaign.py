@@ -77,7 +77,7 @@ class CampaignConfig(BaseModel):
     batch_size: int = Field(32, ge=1, le=10_000)
     wheel: str = "auto"
     wagon: WagonData
-    solver: dict[str, float] = Field(default_factory=lambda: asdict(SolverSettings()))
+    solver: dict[str, float | str] = Field(default_factory=lambda: asdict(SolverSettings()))
 
     @field_validator("parameters")
     @classmethod
@@ -115,7 +115,8 @@ class CampaignConfig(BaseModel):
         return content_hash(self.model_dump(mode="json"))
 
     def settings(self) -> SolverSettings:
-        return SolverSettings(**self.solver)
+        # a campaign configured before the settled start existed keeps its lead-in start
+        return SolverSettings(**{"start": "lead-in", **self.solver})
 
 
 def make_config(conditions: Sequence[WorkingCondition], samples: int, **kw: Any) -> CampaignConfig:
