@@ -54,12 +54,12 @@ FD_STEP = 1.0e-8
 #: largest Newton step of any displacement, m or rad
 MAX_STEP = 2.0e-3
 #: continuation stages from straight to the design curvature and cant
-HOMOTOPY_STAGES = 4
+HOMOTOPY_STAGES = 2
 #: force left unbalanced at the intermediate stages, N or N m
 STAGE_TOLERANCE = 1.0
 #: evaluations that hold the friction states to their limits (a wedge's limit depends on
 #: its own state)
-CLAMP_PASSES = 3
+CLAMP_PASSES = 1
 
 I_KW, I_KYAW, I_KROLL = L.K["k_wedge"], L.K["k_yaw"], L.K["k_roll"]
 I_LC, I_B2 = L.K["l_c"], L.K["b2"]
@@ -198,7 +198,8 @@ def _newton(
 ):
     """Newton's method on the displacements of x (velocities zero, friction states
     following, :func:`_residual`) for zero accelerations; steps limited to
-    :data:`MAX_STEP` and backtracked until the largest generalised force falls. Returns
+    :data:`MAX_STEP` and backtracked until the largest generalised force falls. The
+    finite-difference Jacobian is kept while each step at least halves that force. Returns
     (converged, largest force left)."""
     f = np.empty(NS)
     r = np.empty(NQ)
@@ -210,23 +211,29 @@ def _newton(
     )
     if code != 0:
         return False, norm
+    renew = True  # compute J at x before the next step
+    fresh = False  # J is the Jacobian at x
     for _ in range(max_iter):
         if norm < tol:
             return True, norm
-        for j in range(NQ):
-            xt[:] = x
-            xt[j] += FD_STEP
-            code, _n = _residual(
-                xt, f, rt, m, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, kappa, fref,
-                uref,
-            )  # fmt: skip
-            if code != 0:
-                return False, norm
-            for i in range(NQ):
-                J[i, j] = (rt[i] - r[i]) / FD_STEP
+        if renew:
+            for j in range(NQ):
+                xt[:] = x
+                xt[j] += FD_STEP
+                code, _n = _residual(
+                    xt, f, rt, m, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, kappa,
+                    fref, uref,
+                )  # fmt: skip
+                if code != 0:
+                    return False, norm
+                for i in range(NQ):
+                    J[i, j] = (rt[i] - r[i]) / FD_STEP
+            renew = False
+            fresh = True
         dq = np.linalg.solve(J, -r)
-        lam = min(1.0, MAX_STEP / max(np.max(np.abs(dq)), 1e-300))
-        moved = False
+        cap = min(1.0, MAX_STEP / max(np.max(np.abs(dq)), 1e-300))
+        lam = cap
+        before = norm
         while lam > 1e-4:
             xt[:] = x
             for i in range(NQ):
@@ -239,11 +246,13 @@ def _newton(
                 x[:] = xt
                 r[:] = rt
                 norm = trial
-                moved = True
                 break
             lam *= 0.5
-        if not moved:
-            break
+        if norm >= before and fresh:
+            break  # no progress even with the Jacobian at x
+        # the Jacobian is kept after a whole, uncut step that cut the force tenfold
+        renew = not (cap == 1.0 and lam == 1.0 and norm <= 0.1 * before)
+        fresh = False
     return norm < tol, norm
 
 
@@ -288,6 +297,11 @@ def _settle_batch(
 
 
 _CACHE: OrderedDict[bytes, np.ndarray] = OrderedDict()
+
+
+def clear_cache() -> None:
+    """Forget the settled states kept in memory (for timings and tests)."""
+    _CACHE.clear()
 
 
 def settled_states(

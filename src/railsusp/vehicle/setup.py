@@ -70,7 +70,7 @@ class SolverSettings:
     lift_max: float = 0.025
     track_step: float = 0.125
     start: str = "settled"
-    run_in_m: float = 30.0
+    run_in_m: float = 60.0
 
     def __post_init__(self):
         for name in ("flange_substeps", "filter_order"):  # counts stored as floats in configs
