@@ -10,13 +10,16 @@ irregularity samples under every wheel at every record time.
 
 The steady state solves the equations of motion for zero accelerations with zero
 velocities: Newton's method on the 49 displacements (finite-difference Jacobian of the
-compiled equations, backtracking on the largest generalised force). The friction states
-(wedges, body-bolster yaw, centre-bowl roll) are held stuck at zero force, the state they
-have at the static start on straight track; with zero velocities they stay there. A set
-whose solve does not converge runs the lead-in instead. Solved states are kept in memory,
-keyed by a hash of everything they depend on (parameter set, constants, contact table,
-design curvature and cant), so a set run again on other seeds or track files is not solved
-again.
+compiled equations, steps limited and backtracked on the largest generalised force), by
+continuation from straight track in :data:`HOMOTOPY_STAGES` steps of curvature and cant,
+as a slow spiral brings the wagon into the curve. The friction states (wedges,
+body-bolster yaw, centre-bowl roll) start at zero, as at the static start, and follow each
+step as sticking or sliding sliders, so the bolsters leave the "spiral" with their yaw
+friction at its limit, as the lead-in run does; with zero velocities they then stay put.
+A set whose solve does not converge runs the lead-in instead. Solved states are kept in
+memory, keyed by a hash of everything they depend on (parameter set, constants, contact
+table, design curvature and cant), so a set run again on other seeds or track files is
+not solved again.
 """
 
 from __future__ import annotations
