@@ -23,6 +23,7 @@ from railsusp.params import MAIN_SUSPENSION, spec
 from railsusp.store import write_json
 from railsusp.vehicle.settle import clear_cache
 from railsusp.vehicle.simulate import SolverSettings, simulate_batch
+from railsusp.vehicle.wagon import load_wagon
 
 STATISTICS = {
     "mean": lambda v: v.mean(axis=-1),
@@ -44,10 +45,12 @@ def record_stats(r, after_s: float) -> dict[str, np.ndarray]:
     return out
 
 
-def timed(sets, cond, seeds, settings):
+def timed(sets, cond, seeds, settings, wagon):
     """The batch's result, wall time and process CPU time."""
     w0, c0 = time.perf_counter(), time.process_time()
-    r = simulate_batch(sets, cond, symbols=MAIN_SUSPENSION, seeds=seeds, settings=settings)
+    r = simulate_batch(
+        sets, cond, symbols=MAIN_SUSPENSION, seeds=seeds, settings=settings, wagon=wagon
+    )
     return r, time.perf_counter() - w0, time.process_time() - c0
 
 
@@ -55,6 +58,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--sets", type=int, default=8)
     ap.add_argument("--run-in", type=float, default=SolverSettings().run_in_m)
+    ap.add_argument("--wagon", default="loaded", help="packaged wagon: loaded or tare")
     ap.add_argument("--repeat", type=int, default=3, help="timed runs of each start (min kept)")
     ap.add_argument("--out", default="bench/results/settled_start.json")
     args = ap.parse_args()
@@ -65,17 +69,18 @@ def main() -> None:
     seeds = list(range(100, 100 + args.sets))
     lead_in = SolverSettings(start="lead-in")
     settled = SolverSettings(start="settled", run_in_m=args.run_in)
+    wagon = load_wagon(args.wagon)
     results = {}
-    print(f"{args.sets} sets, run-in {args.run_in:g} m")
+    print(f"{args.sets} sets, wagon {args.wagon}, run-in {args.run_in:g} m")
     for name in ("straight", "curve"):
         cond = get_condition(name)
-        timed(sets[:2], cond, seeds[:2], settled)  # compile / load the kernels
+        timed(sets[:2], cond, seeds[:2], settled, wagon)  # compile / load the kernels
         wall_a = cpu_a = wall_b = cpu_b = np.inf
         for _ in range(args.repeat):  # alternating, the fastest of each kept
-            a, w, c = timed(sets, cond, seeds, lead_in)
+            a, w, c = timed(sets, cond, seeds, lead_in, wagon)
             wall_a, cpu_a = min(wall_a, w), min(cpu_a, c)
             clear_cache()  # time the settled states' solve too
-            b, w, c = timed(sets, cond, seeds, settled)
+            b, w, c = timed(sets, cond, seeds, settled, wagon)
             wall_b, cpu_b = min(wall_b, w), min(cpu_b, c)
         sim_a = cond.lead_in_m / cond.speed + cond.duration_s
         sim_b = (args.run_in / cond.speed + cond.duration_s) if b.settled_start.all() else sim_a
@@ -101,7 +106,8 @@ def main() -> None:
         for k in row["max_rel_diff_from_0s"]:
             whole, late = row["max_rel_diff_from_0s"][k], row["max_rel_diff_from_5s"][k]
             print(f"{k:>10} {whole:>12.2%} {late:>10.2%}")
-    write_json(args.out, {"sets": args.sets, "run_in_m": args.run_in, "conditions": results})
+    summary = {"sets": args.sets, "wagon": args.wagon, "run_in_m": args.run_in}
+    write_json(args.out, {**summary, "conditions": results})
 
 
 if __name__ == "__main__":

@@ -77,7 +77,9 @@ class CampaignConfig(BaseModel):
     batch_size: int = Field(32, ge=1, le=10_000)
     wheel: str = "auto"
     wagon: WagonData
-    solver: dict[str, float | str] = Field(default_factory=lambda: asdict(SolverSettings()))
+    solver: dict[str, float | str] = Field(
+        default_factory=lambda: asdict(SolverSettings()), validate_default=True
+    )
 
     @field_validator("parameters")
     @classmethod
@@ -115,8 +117,7 @@ class CampaignConfig(BaseModel):
         return content_hash(self.model_dump(mode="json"))
 
     def settings(self) -> SolverSettings:
-        # a campaign configured before the settled start existed keeps its lead-in start
-        return SolverSettings(**{"start": "lead-in", **self.solver})
+        return SolverSettings(**self.solver)
 
 
 def make_config(conditions: Sequence[WorkingCondition], samples: int, **kw: Any) -> CampaignConfig:

@@ -36,6 +36,7 @@ from railsusp.vehicle.wagon import load_wagon
 
 TOLERANCE = 0.01  # tests/vehicle/test_convergence.py
 LEAD_IN = SolverSettings(start="lead-in")
+SETTLED = SolverSettings(start="settled")
 STATISTICS = ("mean", "rms", "p99")
 
 
@@ -62,7 +63,7 @@ def runs():
     out = {}
     for name in ("curve", "straight"):
         cond = get_condition(name)
-        out[name] = (simulate(None, cond, settings=LEAD_IN), simulate(None, cond))
+        out[name] = (simulate(None, cond, settings=LEAD_IN), simulate(None, cond, settings=SETTLED))
     return out
 
 
@@ -93,7 +94,7 @@ def test_settled_start_matches_the_lead_in_on_tangent(runs):
 def test_a_settled_run_simulates_fewer_seconds():
     cond = get_condition("straight")
     dt = SolverSettings().max_step
-    plan = settle.start_plan(cond, load_wagon(), SolverSettings(), dt)
+    plan = settle.start_plan(cond, load_wagon(), SETTLED, dt)
     lead = settle.lead_in_plan(cond, dt)
     assert plan.settled and plan.n_pre * dt == pytest.approx(60.0 / cond.speed, abs=dt)
     assert (plan.n_pre * dt + cond.duration_s) / (lead.n_pre * dt + cond.duration_s) < 0.91
@@ -103,7 +104,7 @@ def test_a_settled_run_simulates_fewer_seconds():
 def test_the_settled_state_is_steady_on_the_design_track(name):
     """Zero velocities, and the accelerations and friction-state rates of the equations of
     motion vanish at the settled state (a set far from nominal as well)."""
-    wagon, cfg = load_wagon(), SolverSettings()
+    wagon, cfg = load_wagon(), SETTLED
     cond = get_condition(name)
     plan = settle.start_plan(cond, wagon, cfg, cfg.max_step)
     assert plan.settled
@@ -141,7 +142,7 @@ def test_on_perfect_track_a_settled_run_stays_where_it_starts():
     friction states, carried dynamically out of the spiral, differ from the quasi-static
     ones)."""
     cond = get_condition("curve", irregularity_class=None, duration_s=4.0, n_steps=200)
-    settled = simulate(None, cond)
+    settled = simulate(None, cond, settings=SETTLED)
     lead = simulate(None, cond, settings=LEAD_IN)
     assert settled.settled_start.all()
     for name in ("Y", "Q"):
@@ -158,7 +159,7 @@ def test_on_perfect_track_a_settled_run_stays_where_it_starts():
 def test_the_settled_run_records_the_same_track():
     """Same design geometry and irregularity samples under every wheel over the record;
     no irregularity under any wheel at the settled start."""
-    wagon, cfg = load_wagon(), SolverSettings()
+    wagon, cfg = load_wagon(), SETTLED
     for name in ("curve", "straight"):
         cond = get_condition(name)
         plan = settle.start_plan(cond, wagon, cfg, cfg.max_step)
@@ -174,13 +175,13 @@ def test_the_settled_run_records_the_same_track():
 
 
 def test_where_the_settled_start_does_not_apply_the_lead_in_runs():
-    wagon, cfg = load_wagon(), SolverSettings()
+    wagon, cfg = load_wagon(), SETTLED
     spiral = get_condition("curve", curve_start_m=70.0, duration_s=2.0, n_steps=100)
     short = get_condition("straight", lead_in_m=20.0)
     for cond in (spiral, short):  # record starts in a spiral; lead-in shorter than run-in
         assert not settle.start_plan(cond, wagon, cfg, cfg.max_step).settled
     assert not settle.start_plan(get_condition("curve"), wagon, LEAD_IN, 1e-3).settled
-    a = simulate(None, spiral)
+    a = simulate(None, spiral, settings=SETTLED)
     b = simulate(None, spiral, settings=LEAD_IN)
     assert not a.settled_start.any()
     np.testing.assert_array_equal(a.Y, b.Y)
@@ -191,7 +192,7 @@ def test_a_set_whose_solve_fails_runs_the_lead_in(monkeypatch):
     lead = simulate(None, cond, settings=LEAD_IN)
     monkeypatch.setattr(settle, "SETTLE_MAX_ITER", 0)
     monkeypatch.setattr(settle, "_CACHE", type(settle._CACHE)())
-    r = simulate_batch([ParameterSet.nominal()] * 2, cond)
+    r = simulate_batch([ParameterSet.nominal()] * 2, cond, settings=SETTLED)
     assert not r.settled_start.any() and r.ok.all()
     np.testing.assert_array_equal(r.Y[1], lead.Y[0])
 
@@ -199,9 +200,9 @@ def test_a_set_whose_solve_fails_runs_the_lead_in(monkeypatch):
 def test_settled_states_are_kept_and_reused(monkeypatch):
     monkeypatch.setattr(settle, "_CACHE", type(settle._CACHE)())
     cond = get_condition("straight", duration_s=2.0, n_steps=100)
-    a = simulate_batch([ParameterSet.nominal()], cond, seeds=[1])
+    a = simulate_batch([ParameterSet.nominal()], cond, seeds=[1], settings=SETTLED)
     assert len(settle._CACHE) == 1
-    b = simulate_batch([ParameterSet.nominal()] * 2, cond, seeds=[1, 2])
+    b = simulate_batch([ParameterSet.nominal()] * 2, cond, seeds=[1, 2], settings=SETTLED)
     assert len(settle._CACHE) == 1  # the same set on another seed: no new solve
     np.testing.assert_array_equal(a.Y[0], b.Y[0])
 
@@ -212,4 +213,6 @@ def test_bad_start_settings_are_refused_in_one_line():
     with pytest.raises(RailsuspInputError, match=r"run_in_m = 5 m: accepted 15 to 1000 m"):
         SolverSettings(run_in_m=5.0)
     with pytest.raises(RailsuspInputError, match=r"run_in_m = 16 m: .*accepted at least 20.03 m"):
-        simulate(None, get_condition("straight"), settings=SolverSettings(run_in_m=16.0))
+        simulate(
+            None, get_condition("straight"), settings=SolverSettings(start="settled", run_in_m=16.0)
+        )

@@ -51,13 +51,14 @@ class SolverSettings:
     ``penetration_max``: Hertz approach of the steel bodies (m) beyond which a contact is
     non-physical (1 mm: a normal force of several MN); ``lift_max``: wheel lift (m) beyond
     which the flange no longer guides (derailment).
-    ``start``: ``"settled"`` (default) starts each run ``run_in_m`` ahead of the record from
-    the vehicle's steady state on the record's design track, the irregularities faded in
-    during the run-in (:mod:`railsusp.vehicle.settle`); ``"lead-in"`` starts at rest at the
-    section start and runs the condition's whole ``lead_in_m``. Both record the same
-    stretch of track; conditions where the settled start does not apply (lead-in shorter
-    than the run-in, design geometry changing under the wagon at the record start) run the
-    lead-in whatever this says.
+    ``start``: ``"lead-in"`` (default) starts at rest at the section start and runs the
+    condition's whole ``lead_in_m``; ``"settled"`` starts ``run_in_m`` ahead of the record
+    from the vehicle's steady state on the record's design track, the irregularities faded
+    in during the run-in (:mod:`railsusp.vehicle.settle`). Both record the same stretch of
+    track; conditions where the settled start does not apply (lead-in shorter than the
+    run-in, design geometry changing under the wagon at the record start) run the lead-in.
+    The settled start is not the default: the tare wagon's lateral forces on tangent
+    remember the run before the record longer than the run-in (docs/model.md, Numerics).
     """
 
     max_step: float = 1.0e-3
@@ -69,7 +70,7 @@ class SolverSettings:
     penetration_max: float = 1.0e-3
     lift_max: float = 0.025
     track_step: float = 0.125
-    start: str = "settled"
+    start: str = "lead-in"
     run_in_m: float = 60.0
 
     def __post_init__(self):
