@@ -77,7 +77,9 @@ class CampaignConfig(BaseModel):
     batch_size: int = Field(32, ge=1, le=10_000)
     wheel: str = "auto"
     wagon: WagonData
-    solver: dict[str, float] = Field(default_factory=lambda: asdict(SolverSettings()))
+    solver: dict[str, float | str] = Field(
+        default_factory=lambda: asdict(SolverSettings()), validate_default=True
+    )
 
     @field_validator("parameters")
     @classmethod

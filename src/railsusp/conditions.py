@@ -12,8 +12,9 @@ The study's three conditions (its Table 6), all at 60 km/h:
   and empty trains sets cant for the mean running speed rather than the maximum: with about
   53 km/h, h = 11.8 V^2 / R = 110 mm (Chinese practice, V in km/h), i.e. 32 mm cant deficiency
   at 60 km/h (balance cant 141.6 mm). Entry and exit spirals of 60 m (cant run-off 1.8 per
-  mille, within the 1:500 limit). The entry spiral is run during the lead-in, so the 20 s
-  recording is in the full circular arc, as the measured curve forces of the study are.
+  mille, within the 1:500 limit). The entry spiral lies in the lead-in, so the 20 s
+  recording is in the full circular arc, as the measured curve forces of the study are (a
+  settled start, ``SolverSettings.start``, begins in the arc a short run-in before it).
 * ``uphill``: the study writes slope "0.1". Read as a ratio (10 % = 100 per mille) it is
   beyond adhesion for any heavy-haul train, and as 0.1 per mille it is flat, so neither is a
   "long and steep" grade. We take 12 per mille, the ruling grade of China's heavy-haul coal
@@ -77,7 +78,12 @@ class WorkingCondition(BaseModel):
     duration_s: float = _f(20.0, 1.0, 600.0, "s", "recorded duration")
     n_steps: int = Field(1000, ge=10, le=1_000_000, description="output samples in the record")
     lead_in_m: float = _f(
-        100.0, 0.0, 5000.0, "m", "distance run before recording starts (transients, entry spiral)"
+        100.0,
+        0.0,
+        5000.0,
+        "m",
+        "track before the record (transients, entry spiral); a settled start runs only the "
+        "last SolverSettings.run_in_m of it",
     )
     curve_radius_m: float | None = _f(
         None, 50.0, 100_000.0, "m", "circular-curve radius; None for tangent track"

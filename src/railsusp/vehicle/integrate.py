@@ -45,11 +45,30 @@ def _rk4_finish(x, ks, xt, h, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s, V, o
 
 @nb.njit(cache=True)
 def _run_one(
-    x, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, dt, n_pre, n_sub, n_out, sos, out_series, n_fine
+    x,
+    P,
+    K,
+    trk,
+    s0,
+    ds,
+    ctab,
+    y0,
+    dy,
+    H0L,
+    H0R,
+    dt,
+    s_init,
+    n_pre,
+    n_sub,
+    n_out,
+    sos,
+    out_series,
+    n_fine,
 ):
-    """Integrate one set; write filtered outputs (NOUT, n_out). Steps that start with a wheel
-    near flange contact and closing on it are split into ``n_fine``. Returns (code,
-    fail_time)."""
+    """Integrate one set from state x with the leading wheelset at track position
+    ``s_init``; write filtered outputs (NOUT, n_out) from step ``n_pre`` on. Steps that start
+    with a wheel near flange contact and closing on it are split into ``n_fine``. Returns
+    (code, fail_time from the start)."""
     ks = np.empty((4, NS))  # RK4 stage derivatives
     k1 = ks[0]
     xt = np.empty(NS)
@@ -60,7 +79,7 @@ def _run_one(
     V = K[I_V]
     n_total = n_pre + n_out * n_sub
     # settle the filters on the static outputs
-    code = rhs(x, k1, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, 0.0, o)
+    code = rhs(x, k1, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_init, o)
     if code != 0:
         return code, 0.0
     for c in range(NOUT):
@@ -75,7 +94,7 @@ def _run_one(
             u = y
     for n in range(n_total):
         t = n * dt
-        s_front = V * t
+        s_front = s_init + V * t
         code = rhs(x, k1, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, o)
         if code != 0:
             return code, t
@@ -113,6 +132,7 @@ def _run_one(
 def integrate_batch(
     P,
     K,
+    X0,
     tracks,
     track_index,
     s0,
@@ -123,6 +143,7 @@ def integrate_batch(
     H0L,
     H0R,
     dt,
+    s_init,
     n_pre,
     n_sub,
     n_out,
@@ -132,10 +153,12 @@ def integrate_batch(
     status,
     fail_time,
 ):
-    """Integrate every set i (rows of P and K) on track ``tracks[track_index[i]]``."""
+    """Integrate every set i (rows of P and K) on track ``tracks[track_index[i]]`` from its
+    initial state ``X0[i]`` (zeros: static equilibrium on straight track) with the leading
+    wheelset at ``s_init``."""
     n = P.shape[0]
     for i in nb.prange(n):
-        x = np.zeros(NS)
+        x = X0[i].copy()
         code, tf = _run_one(
             x,
             P[i],
@@ -149,6 +172,7 @@ def integrate_batch(
             H0L,
             H0R,
             dt,
+            s_init,
             n_pre,
             n_sub,
             n_out,

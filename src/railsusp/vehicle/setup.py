@@ -30,6 +30,9 @@ from railsusp.vehicle.track import (
 )
 from railsusp.vehicle.wagon import WagonData
 
+#: how a run starts (:class:`SolverSettings` ``start``)
+START_MODES = ("settled", "lead-in")
+
 
 @dataclass(frozen=True)
 class SolverSettings:
@@ -48,6 +51,14 @@ class SolverSettings:
     ``penetration_max``: Hertz approach of the steel bodies (m) beyond which a contact is
     non-physical (1 mm: a normal force of several MN); ``lift_max``: wheel lift (m) beyond
     which the flange no longer guides (derailment).
+    ``start``: ``"lead-in"`` (default) starts at rest at the section start and runs the
+    condition's whole ``lead_in_m``; ``"settled"`` starts ``run_in_m`` ahead of the record
+    from the vehicle's steady state on the record's design track, the irregularities faded
+    in during the run-in (:mod:`railsusp.vehicle.settle`). Both record the same stretch of
+    track; conditions where the settled start does not apply (lead-in shorter than the
+    run-in, design geometry changing under the wagon at the record start) run the lead-in.
+    The settled start is not the default: the tare wagon's lateral forces on tangent
+    remember the run before the record longer than the run-in (docs/model.md, Numerics).
     """
 
     max_step: float = 1.0e-3
@@ -59,6 +70,8 @@ class SolverSettings:
     penetration_max: float = 1.0e-3
     lift_max: float = 0.025
     track_step: float = 0.125
+    start: str = "lead-in"
+    run_in_m: float = 60.0
 
     def __post_init__(self):
         for name in ("flange_substeps", "filter_order"):  # counts stored as floats in configs
@@ -73,6 +86,12 @@ class SolverSettings:
             raise RailsuspInputError(
                 f"flange_margin = {self.flange_margin:g} m: accepted 0 to 0.02 m"
             )
+        if self.start not in START_MODES:
+            raise RailsuspInputError(
+                f"start = {self.start!r}: accepted {', '.join(map(repr, START_MODES))}"
+            )
+        if not 15.0 <= self.run_in_m <= 1000.0:
+            raise RailsuspInputError(f"run_in_m = {self.run_in_m:g} m: accepted 15 to 1000 m")
         if not -1.0 <= self.flange_split_speed <= 1.0:
             raise RailsuspInputError(
                 f"flange_split_speed = {self.flange_split_speed:g} m/s: accepted -1 to 1 m/s"
@@ -349,30 +368,46 @@ def section_irregularities(
 
 
 def track_arrays(
-    condition: WorkingCondition, seeds: Sequence[int], wagon: WagonData, settings: SolverSettings
+    condition: WorkingCondition,
+    seeds: Sequence[int],
+    wagon: WagonData,
+    settings: SolverSettings,
+    *,
+    uniform_before: float | None = None,
+    fade_in: tuple[float, float] | None = None,
 ) -> tuple[np.ndarray, float, float]:
     """Track channels (layout.TR_*) on a uniform grid for each seed: (n_seeds, N_TR, n_s).
 
     Geometry (curvature, cant angle, heading θ = ∫κ ds, lateral position Y = ∫θ ds) is
     shared; irregularities ramp in smoothly over the first 30 m (zero behind s = 0), so that
     the run starts from static equilibrium.
+
+    For a settled start (:mod:`railsusp.vehicle.settle`): ``uniform_before`` (m) continues
+    the curvature and cant of that point backwards, so that the design track behind it is
+    the uniform track the wagon settles on; ``fade_in`` = (from, to) (m) also fades the
+    irregularities in between those points (zero before). Ahead of both, the channels are
+    those of the plain call (heading and lateral position up to a rigid motion of the
+    track, which the equations do not see).
     """
     behind = axle_spread(wagon) + 20.0
     ds = settings.track_step
     s = np.arange(-behind, condition.section_length_m + 20.0 + ds, ds)
     lay = TrackLayout.from_condition(condition)
-    kappa = lay.curvature_at(s)
+    at = s if uniform_before is None else np.maximum(s, uniform_before)
+    kappa = lay.curvature_at(at)
     head = np.concatenate([[0.0], np.cumsum(0.5 * (kappa[1:] + kappa[:-1]) * ds)])
     offset = np.concatenate([[0.0], np.cumsum(0.5 * (head[1:] + head[:-1]) * ds)])
     out = np.zeros((len(seeds), L.N_TR, s.size))
     out[:, L.TR_KAPPA] = kappa
-    out[:, L.TR_CANT] = lay.cant_angle_at(s)
+    out[:, L.TR_CANT] = lay.cant_angle_at(at)
     out[:, L.TR_HEAD] = head
     out[:, L.TR_OFFSET] = offset
     irr = section_irregularities(condition, seeds, wagon)
     if irr is not None:
         rails = irr.at(s)  # (n_seeds, n_s); one measured track broadcasts over the seeds
         window = smoothstep(s / 30.0)  # zero under every wheel at the start
+        if fade_in is not None:
+            window = window * smoothstep((s - fade_in[0]) / (fade_in[1] - fade_in[0]))
         out[:, L.TR_ZL] = rails["zL"] * window
         out[:, L.TR_ZR] = rails["zR"] * window
         out[:, L.TR_YL] = rails["yL"] * window

@@ -24,6 +24,7 @@ from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.params import SYMBOLS, ParameterSet, check_matrix, spec
 from railsusp.vehicle import layout as L
+from railsusp.vehicle.settle import lead_in_plan, settled_states, start_plan
 from railsusp.vehicle.setup import (
     SolverSettings,
     constants,
@@ -100,7 +101,9 @@ class SimulationResult:
     leading wheelset); Y is the lateral force of the wheel on the rail, + towards the field
     side (flange force +); Q the vertical force on the rail, + down. ``car_acc_y``/``_z``
     (n_sets, n_t) car-body CG accelerations (lateral uncompensated). ``status`` 0 = ok, else a
-    code of ``layout.FAILURE_REASONS``; failed sets hold NaN series.
+    code of ``layout.FAILURE_REASONS``; failed sets hold NaN series; ``fail_time`` counts
+    from the leading wheelset's passing the section start (s = 0), whichever start a set
+    had (``settled_start``).
     """
 
     condition: WorkingCondition
@@ -116,6 +119,8 @@ class SimulationResult:
     wall_time: float = 0.0
     settings: SolverSettings = field(default_factory=SolverSettings)
     wagon_name: str = ""
+    #: per set, whether it started from the settled state (else it ran the lead-in)
+    settled_start: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
     @property
     def n_sets(self) -> int:
@@ -311,11 +316,9 @@ def simulate_batch(
             raise RailsuspInputError(f"seeds: {len(seeds)} given for {n} parameter sets")
         track_seeds, inverse = np.unique(np.asarray(seeds, dtype=np.int64), return_inverse=True)
         track_seeds, track_index = list(track_seeds), inverse.astype(np.int64)
-    tracks, s0, ds = track_arrays(condition, track_seeds, wagon, settings)
     dt_out = condition.sample_interval
     n_sub = max(1, int(np.ceil(dt_out / settings.max_step - 1e-9)))
     dt = dt_out / n_sub
-    n_pre = round(condition.lead_in_m / condition.speed / dt)
     n_out = condition.n_steps
     sos = butter(
         settings.filter_order, settings.anti_alias * 0.5 / dt_out, fs=1.0 / dt, output="sos"
@@ -323,35 +326,56 @@ def simulate_batch(
     out = np.zeros((n, L.N_OUT, n_out))
     status = np.zeros(n, dtype=np.int64)
     fail_time = np.zeros(n)
+    settled = np.zeros(n, dtype=bool)
     sos = np.ascontiguousarray(sos)
-    chunk = n if progress is None else max(1, chunk_size)
     t0 = time.perf_counter()
-    for lo in range(0, n, chunk):
-        sl = slice(lo, min(n, lo + chunk))
-        integrate_batch(
-            P[sl],
-            K[sl],
-            tracks,
-            track_index[sl],
-            s0,
-            ds,
-            ca.table,
-            ca.y0,
-            ca.dy,
-            ca.H0L,
-            ca.H0R,
-            dt,
-            n_pre,
-            n_sub,
-            n_out,
-            sos,
-            settings.flange_substeps,
-            out[sl],
-            status[sl],
-            fail_time[sl],
-        )
-        if progress is not None:
-            progress(sl.stop, n)
+    plan = start_plan(condition, wagon, settings, dt)
+    groups = []  # (start plan, track arrays, set indices, initial states)
+    if plan.settled:
+        track = track_arrays(condition, track_seeds, wagon, settings, **plan.track_options)
+        X0, settled = settled_states(P, K, track[0][0], track[1], track[2], ca, plan.s_start)
+        groups.append((plan, track, np.flatnonzero(settled), X0))
+    if not settled.all():  # the lead-in for every set, or for those whose solve failed
+        track = track_arrays(condition, track_seeds, wagon, settings)
+        X0 = np.zeros((n, L.N_STATE))  # static equilibrium on straight track
+        groups.append((lead_in_plan(condition, dt), track, np.flatnonzero(~settled), X0))
+    done = 0
+    for start, (tracks, s0, ds), sets, X0 in groups:
+        chunk = max(1, sets.size if progress is None else chunk_size)
+        for lo in range(0, sets.size, chunk):
+            idx = sets[lo : lo + chunk]
+            o = np.zeros((idx.size, L.N_OUT, n_out))
+            st = np.zeros(idx.size, dtype=np.int64)
+            ft = np.zeros(idx.size)
+            integrate_batch(
+                np.ascontiguousarray(P[idx]),
+                np.ascontiguousarray(K[idx]),
+                np.ascontiguousarray(X0[idx]),
+                tracks,
+                np.ascontiguousarray(track_index[idx]),
+                s0,
+                ds,
+                ca.table,
+                ca.y0,
+                ca.dy,
+                ca.H0L,
+                ca.H0R,
+                dt,
+                start.s_start,
+                start.n_pre,
+                n_sub,
+                n_out,
+                sos,
+                settings.flange_substeps,
+                o,
+                st,
+                ft,
+            )
+            out[idx], status[idx] = o, st
+            fail_time[idx] = ft + start.s_start / condition.speed  # from the section start
+            done += idx.size
+            if progress is not None:
+                progress(done, n)
     wall = time.perf_counter() - t0
     return SimulationResult(
         condition=condition,
@@ -367,6 +391,7 @@ def simulate_batch(
         wall_time=wall,
         settings=settings,
         wagon_name=wagon.name,
+        settled_start=settled,
     )
 
 
