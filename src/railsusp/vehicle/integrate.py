@@ -45,26 +45,9 @@ def _rk4_finish(x, ks, xt, h, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s, V, o
 
 @nb.njit(cache=True)
 def _run_one(
-    x,
-    P,
-    K,
-    trk,
-    s0,
-    ds,
-    ctab,
-    y0,
-    dy,
-    H0L,
-    H0R,
-    dt,
-    s_init,
-    n_pre,
-    n_sub,
-    n_out,
-    sos,
-    out_series,
-    n_fine,
-):
+    x, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, dt, s_init, n_pre, n_sub, n_out, sos,
+    out_series, n_fine,
+):  # fmt: skip
     """Integrate one set from state x with the leading wheelset at track position
     ``s_init``; write filtered outputs (NOUT, n_out) from step ``n_pre`` on. Steps that start
     with a wheel near flange contact and closing on it are split into ``n_fine``. Returns
@@ -130,29 +113,9 @@ def _run_one(
 
 @nb.njit(cache=True, parallel=True)
 def integrate_batch(
-    P,
-    K,
-    X0,
-    tracks,
-    track_index,
-    s0,
-    ds,
-    ctab,
-    y0,
-    dy,
-    H0L,
-    H0R,
-    dt,
-    s_init,
-    n_pre,
-    n_sub,
-    n_out,
-    sos,
-    n_fine,
-    out,
-    status,
-    fail_time,
-):
+    P, K, X0, tracks, track_index, s0, ds, ctab, y0, dy, H0L, H0R, dt, s_init, n_pre, n_sub,
+    n_out, sos, n_fine, out, status, fail_time,
+):  # fmt: skip
     """Integrate every set i (rows of P and K) on track ``tracks[track_index[i]]`` from its
     initial state ``X0[i]`` (zeros: static equilibrium on straight track) with the leading
     wheelset at ``s_init``."""
@@ -160,26 +123,9 @@ def integrate_batch(
     for i in nb.prange(n):
         x = X0[i].copy()
         code, tf = _run_one(
-            x,
-            P[i],
-            K[i],
-            tracks[track_index[i]],
-            s0,
-            ds,
-            ctab,
-            y0,
-            dy,
-            H0L,
-            H0R,
-            dt,
-            s_init,
-            n_pre,
-            n_sub,
-            n_out,
-            sos,
-            out[i],
-            n_fine,
-        )
+            x, P[i], K[i], tracks[track_index[i]], s0, ds, ctab, y0, dy, H0L, H0R, dt, s_init,
+            n_pre, n_sub, n_out, sos, out[i], n_fine,
+        )  # fmt: skip
         status[i] = code
         fail_time[i] = tf
         if code != 0:
