@@ -28,6 +28,7 @@ from pydantic import BaseModel, ConfigDict, model_validator
 from scipy.stats import qmc
 
 from railsusp.conditions import WorkingCondition
+from railsusp.errors import RailsuspInputError
 from railsusp.params import MAIN_SUSPENSION, spec
 
 #: accepted FRA classes and curve-family limits (those of :class:`WorkingCondition`)
@@ -39,9 +40,10 @@ CANT_RANGE_MM = (0.0, 200.0)
 def _check_range(name: str, value: tuple[float, float], accepted: tuple[float, float], unit: str):
     lo, hi = value
     a, b = accepted
+    u = f" {unit}" if unit else ""
     if not (a <= lo <= hi <= b):
         raise ValueError(
-            f"{name} = {lo:g}-{hi:g} {unit}: accepted a range lo <= hi within [{a:g}, {b:g}] {unit}"
+            f"{name} = {lo:g}-{hi:g}{u}: accepted a range lo <= hi within [{a:g}, {b:g}]{u}"
         )
 
 
@@ -204,3 +206,50 @@ def assumed_parameters(
             row.update(assumed="nominal", value=ps.nominal_display, low=None, high=None)
         rows.append(row)
     return rows
+
+
+def parse_range(text: str, option: str) -> tuple[float, float]:
+    """``"LO:HI"`` -> (lo, hi) as given (user units); a one-line error naming ``option``."""
+    parts = str(text).split(":")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        lo, hi = float(parts[0]), float(parts[1])
+    except ValueError:
+        raise RailsuspInputError(
+            f"{option} {text!r}: accepted LO:HI, two numbers (e.g. 250:400)"
+        ) from None
+    if not (np.isfinite(lo) and np.isfinite(hi)) or lo > hi:
+        raise RailsuspInputError(f"{option} {text!r}: accepted LO:HI with LO <= HI, finite")
+    return lo, hi
+
+
+def parse_priors(text: str, option: str = "--prior") -> dict[str, tuple[float, float]]:
+    """``"X19=20000:40000,X20=800:1200"`` (display units, as ``railsusp params`` shows them)
+    -> {symbol: (lo, hi)} in SI; ranges are checked against Table 2 by the campaign."""
+    out: dict[str, tuple[float, float]] = {}
+    for item in (t.strip() for t in str(text).split(",")):
+        if not item:
+            continue
+        name, sep, rng = item.partition("=")
+        if not sep:
+            raise RailsuspInputError(
+                f"{option} {item!r}: accepted SYMBOL=LO:HI in display units (e.g. X19=20000:40000)"
+            )
+        ps = spec(name.strip())
+        lo, hi = parse_range(rng, f"{option} {ps.symbol}")
+        out[ps.symbol] = (lo * ps.scale, hi * ps.scale)
+    return out
+
+
+def full_ranges(
+    sampled: Sequence[str], priors: Mapping[str, tuple[float, float]] | None = None
+) -> dict[str, tuple[float, float]]:
+    """Every main-suspension parameter outside ``sampled``, over its Table 2 range (SI), or
+    over ``priors`` where given."""
+    priors = dict(priors or {})
+    return {
+        s: priors.get(s, spec(s).bounds)  # type: ignore[misc]
+        for s in MAIN_SUSPENSION
+        if s not in sampled
+    }

@@ -98,7 +98,8 @@ def check_disjoint(split: Split) -> None:
 
 def _groups(design: pd.DataFrame, tracks: list[pd.DataFrame]) -> np.ndarray:
     """Group label per design row: rows sharing a seed (any condition's tracks table, same
-    sample order) or an identical parameter row are joined (union-find)."""
+    sample order; a condition whose samples all share one seed is common random numbers
+    and joins nothing) or an identical parameter row are joined (union-find)."""
     n = len(design)
     parent = np.arange(n)
 
@@ -119,6 +120,8 @@ def _groups(design: pd.DataFrame, tracks: list[pd.DataFrame]) -> np.ndarray:
     join_equal([tuple(r) for r in design[cols].to_numpy().tolist()])
     seed_pos: dict[int, int] = {}
     for t in tracks:
+        if n > 1 and t["seed"].nunique() == 1:
+            continue  # common random numbers: the one track is in every part
         for i, s in enumerate(t["seed"].to_numpy().tolist()):
             j = seed_pos.setdefault(int(s), i)
             if j != i:
@@ -219,7 +222,8 @@ def campaign_split(
             )
         return split
     design = campaign.design()
-    tracks = [campaign.tracks(c.name) for c in campaign.config.conditions]
+    synthesised = [c for c in campaign.config.conditions if c.track_geometry is None]
+    tracks = [campaign.tracks(c.name) for c in synthesised]
     split = split_by_track_and_parameters(design, tracks, seed=seed, fractions=fractions)
     split = Split(
         split.train,
@@ -227,7 +231,8 @@ def campaign_split(
         split.test,
         split.seed,
         split.fractions,
-        split.held_out_tracks,
+        # a measured track is the same in every part
+        split.held_out_tracks and len(synthesised) == len(campaign.config.conditions),
         chash,
     )
     save_split(path, split)
