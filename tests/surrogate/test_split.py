@@ -166,3 +166,34 @@ def test_train_surrogate_uses_the_stored_split(many_tracks):
     split = load_split(split_path(many_tracks, 3))
     assert sur.meta["train_ids"] == split.train.tolist()
     assert sur.meta["val_ids"] == split.val.tolist()
+
+
+def test_estimate_lists_the_parameters_it_did_not_estimate(many_tracks, tmp_path):
+    """What the force model assumed of the parameters not estimated goes into the estimate's
+    record and the summary table: X19 varied over its prior in training, X20 at nominal."""
+    from railsusp import summary
+    from railsusp.store import write_json
+    from railsusp.surrogate import not_estimated
+
+    tcfg = TrainConfig(epochs=1, batches_per_epoch=2, batch_size=32, val_windows=200)
+    train_surrogate(many_tracks, "curve", kind="bp", train=tcfg, record_correction=False)
+    rows = {r["symbol"]: r for r in not_estimated(many_tracks / "surrogates" / "bp", KEYS)}
+    assert set(rows) == {"X11", "X12", "X16", "X17", "X18", "X19", "X20"}
+    assert (rows["X19"]["low"], rows["X19"]["high"]) == pytest.approx((20000, 40000))
+    assert rows["X20"]["assumed"] == "nominal"
+    held = not_estimated(None, KEYS)  # the simulator holds the others at nominal
+    assert {r["assumed"] for r in held} == {"nominal"} and len(held) == 7
+    run = tmp_path / "run"
+    write_json(
+        run / "estimate" / "estimate.json",
+        {
+            "parameters": list(KEYS),
+            "estimate_display": {"X13": 16.1, "X14": 8.3, "X15": 2.5},
+            "not_estimated": list(rows.values()),
+        },
+    )
+    t = summary.estimate_table(run)
+    assert t.loc["X19", "verdict"] == (
+        "not estimated: varied over 20000-40000 kN/m in the surrogate's training"
+    )
+    assert t.loc["X20", "verdict"].startswith("not estimated: held at 1000 MN/m")

@@ -39,6 +39,7 @@ __all__ = [
     "feature_spec",
     "key_parameters",
     "load",
+    "not_estimated",
     "train_surrogate",
     "unexplained_parameters",
 ]
@@ -72,6 +73,34 @@ def unexplained_parameters(run: str | Path) -> tuple[str, ...]:
         return ()
     keys = key_parameters(run)
     return tuple(p for p in read_json(camp)["config"]["parameters"] if p not in keys)
+
+
+def not_estimated(folder: str | Path | None, estimated: Sequence[str]) -> list[dict]:
+    """The main-suspension parameters an estimate does not estimate and what its force model
+    assumed of them (:func:`railsusp.variation.assumed_parameters`): from a surrogate folder
+    (``RUN/surrogates/<model>``, window or statistics bundles; their training campaign when
+    the bundles predate the record), or held at nominal for the simulator (``None``)."""
+    from railsusp.params import spec
+
+    est = {spec(p).symbol for p in estimated}
+    rows = None
+    if folder is not None:
+        for meta_path in sorted(Path(folder).glob("*/*.json")):
+            if meta_path.name not in ("surrogate.json", "statistics.json"):
+                continue
+            meta = read_json(meta_path).get("meta", {})
+            rows = meta.get("assumed_parameters")
+            camp = Path(meta.get("campaign", "")) / "campaign.json"
+            if rows is None and meta.get("campaign") and camp.exists():
+                cfg = read_json(camp)["config"]
+                rows = assumed_parameters(
+                    tuple(est), cfg.get("other_parameters", {}), cfg["parameters"]
+                )
+            if rows is not None:
+                break
+    if rows is None:
+        rows = assumed_parameters(tuple(est), {}, ())
+    return [r for r in rows if r["symbol"] not in est]
 
 
 def feature_spec(campaign, parameters: Sequence[str], window: int = 20) -> FeatureSpec:
