@@ -61,8 +61,7 @@ from railsusp.store import (
 from railsusp.variation import (
     TrackFamily,
     check_other_parameters,
-    layout_key,
-    sample_condition,
+    layout_groups,
     sample_others,
     sample_tracks,
 )
@@ -272,17 +271,8 @@ def simulate_task(
     if config.track_family is None:
         groups = [(cond, np.arange(len(sample_ids)))]
     else:
-        tracks = track_table(config, cond).set_index("sample_id").loc[sample_ids].reset_index()
-        keys = [layout_key(r) for r in tracks.to_dict("records")]
-        groups = [
-            (
-                sample_condition(cond, tracks.iloc[idx[0]]),
-                idx,
-            )
-            for idx in (
-                np.array([i for i, k in enumerate(keys) if k == key]) for key in dict.fromkeys(keys)
-            )
-        ]
+        tracks = track_table(config, cond).set_index("sample_id").loc[sample_ids]
+        groups = layout_groups(cond, tracks.reset_index())
     series = np.zeros((len(sample_ids), len(CHANNELS), cond.n_steps), dtype=np.float32)
     status = np.zeros(len(sample_ids), dtype=np.int64)
     features = []

@@ -208,6 +208,20 @@ def assumed_parameters(
     return rows
 
 
+def layout_groups(
+    condition: WorkingCondition, tracks: pd.DataFrame
+) -> list[tuple[WorkingCondition, np.ndarray]]:
+    """Rows of a track table (one batch) that one batched simulator call can take: those of
+    equal FRA class, radius and cant, with the condition they share (seeds may differ)."""
+    rows = tracks.to_dict("records")
+    keys = [layout_key(r) for r in rows]
+    groups = []
+    for key in dict.fromkeys(keys):
+        idx = np.array([i for i, k in enumerate(keys) if k == key])
+        groups.append((sample_condition(condition, rows[idx[0]]), idx))
+    return groups
+
+
 def parse_range(text: str, option: str) -> tuple[float, float]:
     """``"LO:HI"`` -> (lo, hi) as given (user units); a one-line error naming ``option``."""
     parts = str(text).split(":")
