@@ -221,7 +221,8 @@ def campaign_split(
                 "use another split seed or delete the file"
             )
         return split
-    design = campaign.design()
+    # a parameter set is what a network sees of it: the sampled (key) parameters
+    design = campaign.design()[["sample_id", *campaign.config.parameters]]
     synthesised = [c for c in campaign.config.conditions if c.track_geometry is None]
     tracks = [campaign.tracks(c.name) for c in synthesised]
     split = split_by_track_and_parameters(design, tracks, seed=seed, fractions=fractions)
