@@ -10,7 +10,10 @@ atomically; :func:`load_campaign` reads a run directory back.
 Run directory::
 
     campaign.json                    configuration, its hash, provenance, layout
-    design.parquet                   sample_id and the sampled parameters (SI)
+    design.parquet                   sample_id, the sampled parameters and the varied
+                                     non-key parameters (SI)
+    tracks.parquet                   per condition and sample: irregularity seed, FRA class,
+                                     curve radius and cant (railsusp.variation)
     batches/<condition>/batch-NNNNN.features.parquet   tidy features of the batch
     batches/<condition>/batch-NNNNN.parquet            force series of the batch (float32)
     features.parquet                 all tidy features, written when the campaign completes
@@ -33,7 +36,15 @@ from typing import Any, Literal
 
 import numpy as np
 import pandas as pd
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    SerializerFunctionWrapHandler,
+    ValidationInfo,
+    field_validator,
+    model_serializer,
+)
 from scipy.stats import qmc
 
 from railsusp.conditions import WorkingCondition
@@ -46,6 +57,13 @@ from railsusp.store import (
     read_json,
     write_json,
     write_parquet,
+)
+from railsusp.variation import (
+    TrackFamily,
+    check_other_parameters,
+    layout_groups,
+    sample_others,
+    sample_tracks,
 )
 from railsusp.vehicle.simulate import WHEEL_NAMES, SolverSettings, simulate_batch
 from railsusp.vehicle.wagon import WagonData, load_wagon
@@ -80,6 +98,28 @@ class CampaignConfig(BaseModel):
     solver: dict[str, float | str] = Field(
         default_factory=lambda: asdict(SolverSettings()), validate_default=True
     )
+    #: per-sample FRA class / curve radius / cant within a family (needs independent_seeds)
+    track_family: TrackFamily | None = None
+    #: parameters not estimated, varied over these SI ranges (not held at nominal)
+    other_parameters: dict[str, tuple[float, float]] = Field(default_factory=dict)
+
+    @model_serializer(mode="wrap")
+    def _without_unset_variation(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
+        """Leave ``track_family`` and ``other_parameters`` out when unset, so that the
+        content hashes of run directories made before they existed stay as they were."""
+        data = handler(self)
+        if data.get("track_family", "") is None:
+            del data["track_family"]
+        if data.get("other_parameters", None) == {}:
+            del data["other_parameters"]
+        return data
+
+    @field_validator("other_parameters")
+    @classmethod
+    def _known_others(
+        cls, v: dict[str, tuple[float, float]], info: ValidationInfo
+    ) -> dict[str, tuple[float, float]]:
+        return check_other_parameters(v, info.data.get("parameters", ()))
 
     @field_validator("parameters")
     @classmethod
@@ -100,6 +140,22 @@ class CampaignConfig(BaseModel):
             raise ValueError(f"condition names repeat: {names}")
         if self.wheel != "auto" and self.wheel not in WHEEL_NAMES:
             raise ValueError(f"wheel {self.wheel!r}: accepted auto or {', '.join(WHEEL_NAMES)}")
+        fam = self.track_family
+        if fam is not None:
+            if not self.independent_seeds:
+                raise ValueError(
+                    "track_family needs independent_seeds (each sample its own realisation)"
+                )
+            if fam.varies_layout and all(c.curve_radius_m is None for c in self.conditions):
+                raise ValueError(
+                    "track_family: curve_radius_m / cant_mm need a curve condition "
+                    f"(conditions: {', '.join(names)})"
+                )
+
+    @property
+    def simulated_parameters(self) -> tuple[str, ...]:
+        """The design's parameter columns: the sampled (key) ones, then the varied others."""
+        return (*self.parameters, *self.other_parameters)
 
     @property
     def n_runs(self) -> int:
@@ -173,6 +229,9 @@ def make_design(config: CampaignConfig) -> pd.DataFrame:
         x = lo + (hi - lo) * unit
     df = pd.DataFrame(x, columns=params)
     df.insert(0, "sample_id", np.arange(len(df), dtype=np.int64))
+    others = sample_others(config.other_parameters, len(df), config.seed)
+    for col in others.columns:
+        df[col] = others[col].to_numpy()
     return df
 
 
@@ -185,6 +244,18 @@ def track_seeds(config: CampaignConfig, condition: WorkingCondition) -> np.ndarr
     return np.random.default_rng(ss).integers(0, 2**31 - 1, size=config.n_runs)
 
 
+def track_table(config: CampaignConfig, condition: WorkingCondition) -> pd.DataFrame:
+    """The track of every sample of one condition (:func:`railsusp.variation.sample_tracks`):
+    sample_id, seed, irregularity_class, curve_radius_m, cant_mm."""
+    return sample_tracks(
+        config.track_family,
+        condition,
+        track_seeds(config, condition),
+        config.n_runs,
+        config.seed,
+    )
+
+
 # ------------------------------------------------------------------------------- worker
 def simulate_task(
     config_json: str,
@@ -193,30 +264,58 @@ def simulate_task(
     x: np.ndarray,
     seeds: np.ndarray | None,
 ) -> dict[str, Any]:
-    """Simulate one batch (runs on a Dask worker or locally); returns series and features."""
+    """Simulate one batch (runs on a Dask worker or locally); returns series and features.
+
+    With a track family, samples that share FRA class, radius and cant are simulated
+    together (one batched call per layout), each on its own seed."""
     config = CampaignConfig.model_validate_json(config_json)
     cond = config.conditions[condition_index]
-    r = simulate_batch(
-        x,
-        cond,
-        symbols=config.parameters,
-        seeds=None if seeds is None else [int(s) for s in seeds],
-        wagon=config.wagon,
-        settings=config.settings(),
-    )
-    series = np.concatenate([r.Y, r.Q, r.car_acc_y[:, None], r.car_acc_z[:, None]], axis=1)
+    if config.track_family is None:
+        groups = [(cond, np.arange(len(sample_ids)))]
+    else:
+        tracks = track_table(config, cond).set_index("sample_id").loc[sample_ids]
+        groups = layout_groups(cond, tracks.reset_index())
+    series = np.zeros((len(sample_ids), len(CHANNELS), cond.n_steps), dtype=np.float32)
+    status = np.zeros(len(sample_ids), dtype=np.int64)
+    features = []
+    for gcond, idx in groups:
+        r = simulate_batch(
+            x[idx],
+            gcond,
+            symbols=config.simulated_parameters,
+            seeds=None if seeds is None else [int(s) for s in seeds[idx]],
+            wagon=config.wagon,
+            settings=config.settings(),
+        )
+        series[idx] = np.concatenate([r.Y, r.Q, r.car_acc_y[:, None], r.car_acc_z[:, None]], axis=1)
+        status[idx] = r.status
+        features.append(features_table(r, sample_ids[idx], config.wheel, cond.name))
+    feats = pd.concat(features, ignore_index=True)
+    if len(groups) > 1:  # the order of one batched call: quantity, statistic, sample
+        order = {int(s): i for i, s in enumerate(sample_ids)}
+        feats = (
+            feats.assign(_q=feats.quantity.map({"Y": 0, "Q": 1, "YQ": 2, "dQQ": 3}))
+            .assign(_s=feats.statistic.map({s: i for i, s in enumerate(STATISTICS)}))
+            .assign(_i=feats.sample_id.map(order))
+            .sort_values(["_q", "_s", "_i"], kind="stable")
+            .drop(columns=["_q", "_s", "_i"])
+            .reset_index(drop=True)
+        )
     return {
         "condition": cond.name,
         "sample_ids": sample_ids,
-        "series": series.astype(np.float32),
-        "status": r.status,
-        "features": features_table(r, sample_ids, config.wheel),
+        "series": series,
+        "status": status,
+        "features": feats,
     }
 
 
-def features_table(result, sample_ids: np.ndarray, wheel: str = "auto") -> pd.DataFrame:
+def features_table(
+    result, sample_ids: np.ndarray, wheel: str = "auto", condition: str | None = None
+) -> pd.DataFrame:
     """Tidy scalar features of the measured wheel (forces in kN): one row per sample,
-    quantity (Y, Q, YQ, dQQ) and statistic (mean, rms, p99, max)."""
+    quantity (Y, Q, YQ, dQQ) and statistic (mean, rms, p99, max). ``condition``: the name
+    stored (default: the result's)."""
     s = result.statistics(wheel, set_index=None)
     rows = []
     for q in ("Y", "Q"):
@@ -228,7 +327,7 @@ def features_table(result, sample_ids: np.ndarray, wheel: str = "auto") -> pd.Da
         pd.DataFrame(
             {
                 "sample_id": sample_ids,
-                "condition": result.condition.name,
+                "condition": result.condition.name if condition is None else condition,
                 "wheel": WHEEL_NAMES[result.measured_wheel(wheel)],
                 "quantity": q,
                 "statistic": st,
@@ -285,7 +384,14 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
                     f"{meta.get('config_hash')}, now {config.hash()}); use a new --out, or "
                     f"--force to discard the old results"
                 )
-            for sub in ("batches", "features.parquet", "design.parquet", "sensitivity"):
+            for sub in (
+                "batches",
+                "features.parquet",
+                "design.parquet",
+                "tracks.parquet",
+                "sensitivity",
+                "splits",
+            ):
                 p = out / sub
                 if p.is_dir():
                     shutil.rmtree(p)
@@ -295,6 +401,13 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
             return pd.read_parquet(out / "design.parquet")
     design = make_design(config)
     write_parquet(out / "design.parquet", design)
+    write_parquet(
+        out / "tracks.parquet",
+        pd.concat(
+            [track_table(config, c).assign(condition=c.name) for c in config.conditions],
+            ignore_index=True,
+        ),
+    )
     write_json(
         meta_path,
         {
@@ -333,7 +446,7 @@ def run_campaign(
     if max_batches is not None and max_batches < 0:
         raise CampaignError(f"--max-batches = {max_batches}: accepted an integer >= 0")
     design = _prepare(config, out, force)
-    x_all = design[list(config.parameters)].to_numpy()
+    x_all = design[list(config.simulated_parameters)].to_numpy()
     ids_all = design["sample_id"].to_numpy()
     n_t = {c.name: c.n_steps for c in config.conditions}
     todo: list[tuple[int, int]] = []
@@ -438,6 +551,14 @@ class Campaign:
 
     def design(self) -> pd.DataFrame:
         return pd.read_parquet(self.path / "design.parquet")
+
+    def tracks(self, condition: str) -> pd.DataFrame:
+        """The track of every sample of one condition (seed, FRA class, radius, cant),
+        recomputed from the configuration (``tracks.parquet`` holds the same)."""
+        cond = next((c for c in self.config.conditions if c.name == condition), None)
+        if cond is None:
+            raise CampaignError(f"no condition {condition!r} in {self.path}")
+        return track_table(self.config, cond)
 
     def features(self) -> pd.DataFrame:
         """All tidy features (complete or not: read from the finished batches)."""

@@ -467,7 +467,7 @@ def _stage_runners(
             refine_estimate,
         )
         from railsusp.measured import read_field
-        from railsusp.surrogate import key_parameters
+        from railsusp.surrogate import key_parameters, not_estimated
 
         e = config.estimate
         params = key_parameters(camp_dir)
@@ -499,7 +499,13 @@ def _stage_runners(
             )
         res.save(
             out / "estimate",
-            extra={"measured": str((out / "field").resolve()), "model": config.surrogate.model},
+            extra={
+                "measured": str((out / "field").resolve()),
+                "model": config.surrogate.model,
+                "not_estimated": not_estimated(
+                    sur_dir / "surrogates" / config.surrogate.model, params
+                ),
+            },
         )
         return {"estimate": res.estimate}
 

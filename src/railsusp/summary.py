@@ -114,6 +114,7 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
     )
     camp = read_json(run / "campaign" / "campaign.json")["config"] if st or sens.exists() else {}
     sampled = set(camp.get("parameters", MAIN_SUSPENSION))
+    assumed = {r["symbol"]: r for r in est.get("not_estimated", [])}
     rows = []
     for p in MAIN_SUSPENSION:
         s = spec(p)
@@ -137,6 +138,12 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
             row["estimate"] = s.nominal_display
             row["change_pct"] = 0.0
             row["verdict"] = f"{NOT_ESTIMATED}: held at {sig3(s.nominal_display)} {s.display_unit}"
+            varied = assumed.get(p, {})  # the force model's training varied it (a range)
+            if varied.get("assumed") == "varied":
+                row["verdict"] = (
+                    f"{NOT_ESTIMATED}: varied over {sig3(varied['low'])}-{sig3(varied['high'])} "
+                    f"{s.display_unit} in the surrogate's training"
+                )
             row["note"] = (
                 "not a key parameter of the sensitivity analysis"
                 if p in sampled

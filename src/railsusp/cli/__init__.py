@@ -36,7 +36,10 @@ EXAMPLES = {
     "simulate": "railsusp simulate curve --set X13=16.1 --out f.parquet --plot f.png",
     "version": "railsusp version",
     "modes": "railsusp modes --speed 60 --decay",
-    "campaign": "railsusp campaign --samples 256 --conditions straight,curve,uphill --out runs/lhs",
+    "campaign": "railsusp campaign --samples 256 --conditions straight,curve,uphill "
+    "--out runs/lhs\n\n"
+    "Many tracks: railsusp campaign --samples 512 --keys-from runs/lhs --independent-seeds "
+    "--irregularity-classes 4:6 --radius 250:400 --cant 0:100 --vary-others --out runs/tracks",
     "sensitivity": "railsusp sensitivity runs/lhs",
     "train": "railsusp train runs/keys --model cnn-gru",
     "compare": "railsusp compare runs/keys",

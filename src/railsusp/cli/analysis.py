@@ -50,6 +50,35 @@ def campaign(
             help="a different track realisation per sample (default: common random numbers)"
         ),
     ] = False,
+    irregularity_classes: Annotated[
+        str | None,
+        typer.Option(
+            help="LO:HI: each sample's FRA class drawn from LO..HI (a track family; "
+            "implies --independent-seeds)"
+        ),
+    ] = None,
+    radius: Annotated[
+        str | None,
+        typer.Option(help="LO:HI m: each sample's curve radius, in every curve condition"),
+    ] = None,
+    cant: Annotated[
+        str | None,
+        typer.Option(help="LO:HI mm: each sample's cant, in every curve condition"),
+    ] = None,
+    vary_others: Annotated[
+        bool,
+        typer.Option(
+            help="vary the main-suspension parameters not sampled over their Table 2 ranges "
+            "(or --prior) instead of holding them nominal; not surrogate inputs"
+        ),
+    ] = False,
+    prior: Annotated[
+        str | None,
+        typer.Option(
+            help="SYM=LO:HI,... (display units): narrower ranges of parameters not sampled; "
+            "they are varied over these (implies --vary-others for them)"
+        ),
+    ] = None,
     wheel: Annotated[str, typer.Option(help="measured wheel: auto or w1L..w4R")] = "auto",
     workers: Annotated[int | None, typer.Option(help="run on a local Dask cluster")] = None,
     scheduler: Annotated[str | None, typer.Option(help="Dask scheduler tcp://host:port")] = None,
@@ -58,7 +87,12 @@ def campaign(
         int | None, typer.Option(help="stop after this many new batches")
     ] = None,
 ) -> None:
-    """Sample the suspension parameters and simulate every sample in every condition."""
+    """Sample the suspension parameters and simulate every sample in every condition.
+
+    A training campaign for surrogates that must work on any track: ``--independent-seeds``
+    (each sample its own irregularity realisation), optionally a track family
+    (``--irregularity-classes``, ``--radius``, ``--cant``), and ``--vary-others`` /
+    ``--prior`` so that the parameters not estimated vary instead of sitting at nominal."""
     from railsusp.campaign import make_config, run_campaign
     from railsusp.measured import conditions_from
     from railsusp.store import check_output_folder
@@ -76,6 +110,10 @@ def campaign(
         conds = conditions_from(conditions)
         if duration is not None:
             conds = [c.with_duration(duration) for c in conds]
+        family, others = _variation(irregularity_classes, radius, cant, vary_others, prior, sampled)
+        if family is not None and not independent_seeds:
+            independent_seeds = True
+            console.print("a track family: each sample on its own track (--independent-seeds)")
         cfg = make_config(
             conds,
             samples,
@@ -86,6 +124,8 @@ def campaign(
             batch_size=batch_size,
             independent_seeds=independent_seeds,
             wheel=wheel,
+            track_family=family,
+            other_parameters=others,
         )
     except RailsuspInputError as exc:
         fail(str(exc))
@@ -150,6 +190,39 @@ def campaign(
             fail(str(exc))
     console.print(f"campaign stored in {out}")
     _report_failures(out, total)
+
+
+def _variation(
+    classes: str | None,
+    radius: str | None,
+    cant: str | None,
+    vary_others: bool,
+    prior: str | None,
+    sampled: tuple[str, ...],
+) -> tuple[dict | None, dict]:
+    """The campaign's track family and varied non-key parameters from the options."""
+    from railsusp.params import spec
+    from railsusp.variation import full_ranges, parse_priors, parse_range
+
+    family = {}
+    if classes is not None:
+        lo, hi = parse_range(classes, "--irregularity-classes")
+        if lo != int(lo) or hi != int(hi):
+            raise RailsuspInputError(f"--irregularity-classes {classes!r}: accepted integers")
+        family["irregularity_classes"] = (int(lo), int(hi))
+    if radius is not None:
+        family["curve_radius_m"] = parse_range(radius, "--radius")
+    if cant is not None:
+        family["cant_mm"] = parse_range(cant, "--cant")
+    priors = parse_priors(prior) if prior else {}
+    sampled_syms = {spec(p).symbol for p in sampled}
+    inside = sorted(sampled_syms & set(priors))
+    if inside:
+        raise RailsuspInputError(
+            f"--prior {', '.join(inside)}: sampled already (a prior is for parameters not sampled)"
+        )
+    others = full_ranges(sampled_syms, priors) if vary_others else priors
+    return (family or None), others
 
 
 def _report_failures(out: Path, total: int) -> None:

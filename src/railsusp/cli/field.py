@@ -202,6 +202,7 @@ def estimate(
     )
     from railsusp.estimate.config import NSGA_RANGES, REFINE_RANGES, SEEDS_RANGE, check_range
     from railsusp.measured import read_field
+    from railsusp.surrogate import not_estimated
 
     try:
         # every option is checked before the recordings are read or NSGA-II runs
@@ -263,6 +264,7 @@ def estimate(
             extra={
                 "measured": str(measured.resolve()),
                 "model": str(surrogate.resolve()) if surrogate else "simulator",
+                "not_estimated": not_estimated(surrogate, params),
             },
         )
     except (RailsuspInputError, ValueError, FileNotFoundError) as exc:

@@ -172,6 +172,14 @@ def train(
                 str(r["n_samples"]),
             )
     console.print(table)
+    from railsusp.surrogate.split import split_path
+
+    held = sur.meta.get("split", {})
+    console.print(
+        f"test runs hold out {held.get('held_out', 'parameter sets')} "
+        f"(split {split_path(run, held.get('seed', 0))})",
+        highlight=False,
+    )
     console.print(f"saved under {run / 'surrogates' / model}")
 
 

@@ -16,18 +16,30 @@ from railsusp.params import STUDY_KEY_PARAMETERS
 from railsusp.store import read_json
 from railsusp.surrogate.bundle import Surrogate, load
 from railsusp.surrogate.correction import MIN_RUNS, RecordCorrection
-from railsusp.surrogate.data import FeatureSpec, Normaliser, load_series, split_samples
+from railsusp.surrogate.data import (
+    DEFAULT_TRACK_CHANNELS,
+    FeatureSpec,
+    Normaliser,
+    load_series,
+)
 from railsusp.surrogate.evaluate import accuracy, evaluate, predict_series, predict_with_alone
 from railsusp.surrogate.models import KINDS, NetConfig, build_network
+from railsusp.surrogate.split import Split, campaign_split
 from railsusp.surrogate.train import TrainConfig, WindowSampler, train_network
+from railsusp.variation import assumed_parameters
 
 __all__ = [
     "KINDS",
+    "Split",
     "Surrogate",
     "TrainConfig",
+    "assumed_parameters",
+    "campaign_split",
     "evaluate",
+    "feature_spec",
     "key_parameters",
     "load",
+    "not_estimated",
     "train_surrogate",
     "unexplained_parameters",
 ]
@@ -63,6 +75,59 @@ def unexplained_parameters(run: str | Path) -> tuple[str, ...]:
     return tuple(p for p in read_json(camp)["config"]["parameters"] if p not in keys)
 
 
+def not_estimated(folder: str | Path | None, estimated: Sequence[str]) -> list[dict]:
+    """The main-suspension parameters an estimate does not estimate and what its force model
+    assumed of them (:func:`railsusp.variation.assumed_parameters`): from a surrogate folder
+    (``RUN/surrogates/<model>``, window or statistics bundles; their training campaign when
+    the bundles predate the record), or held at nominal for the simulator (``None``)."""
+    from railsusp.params import spec
+
+    est = {spec(p).symbol for p in estimated}
+    rows = None
+    if folder is not None:
+        for meta_path in sorted(Path(folder).glob("*/*.json")):
+            if meta_path.name not in ("surrogate.json", "statistics.json"):
+                continue
+            meta = read_json(meta_path).get("meta", {})
+            rows = meta.get("assumed_parameters")
+            camp = Path(meta.get("campaign", "")) / "campaign.json"
+            if rows is None and meta.get("campaign") and camp.exists():
+                cfg = read_json(camp)["config"]
+                rows = assumed_parameters(
+                    tuple(est), cfg.get("other_parameters", {}), cfg["parameters"]
+                )
+            if rows is not None:
+                break
+    if rows is None:
+        rows = assumed_parameters(tuple(est), {}, ())
+    return [r for r in rows if r["symbol"] not in est]
+
+
+def feature_spec(campaign, parameters: Sequence[str], window: int = 20) -> FeatureSpec:
+    """The window features for a campaign: the track channels gain the cant at each axle
+    when the campaign's track family varies the cant (the curvature cannot tell it)."""
+    fam = campaign.config.track_family
+    channels = DEFAULT_TRACK_CHANNELS
+    if fam is not None and fam.cant_mm is not None and fam.cant_mm[0] != fam.cant_mm[1]:
+        channels = (*channels, "cant")
+    return FeatureSpec(parameters=tuple(parameters), track_channels=channels, window=window)
+
+
+def split_meta(split: Split, data) -> dict:
+    """What a surrogate records of its split: the ids per part, and what the test holds out."""
+    return {
+        "train_ids": data.sample_ids[split.positions(data.sample_ids, "train")].tolist(),
+        "val_ids": data.sample_ids[split.positions(data.sample_ids, "val")].tolist(),
+        "test_ids": data.sample_ids[split.positions(data.sample_ids, "test")].tolist(),
+        "split": {
+            "seed": split.seed,
+            "fractions": list(split.fractions),
+            "held_out": split.held_out,
+            "held_out_tracks": split.held_out_tracks,
+        },
+    }
+
+
 def train_surrogate(
     run: str | Path,
     condition: str,
@@ -79,18 +144,28 @@ def train_surrogate(
 ) -> Surrogate:
     """Train a window surrogate of one condition of a campaign; save and return it.
 
-    Samples are split 70/15/15 into train/validation/test by sample; the test samples are
-    recorded in the saved surrogate for :func:`evaluate`. With ``record_correction`` (and
-    at least :data:`~railsusp.surrogate.correction.MIN_RUNS` training samples) a record
-    correction is fitted on the training samples' predictions (:mod:`.correction`).
+    Samples are split 70/15/15 into train/validation/test by track and parameter set (the
+    campaign's stored split, :func:`~railsusp.surrogate.split.campaign_split`); the test
+    samples are recorded in the saved surrogate for :func:`evaluate`. With
+    ``record_correction`` (and at least :data:`~railsusp.surrogate.correction.MIN_RUNS`
+    training samples) a record correction is fitted on the training samples' predictions
+    (:mod:`.correction`). The saved surrogate lists the parameters it does not take as
+    inputs and what it assumes of them (``meta.assumed_parameters``: varied over a range in
+    its training campaign, or held at nominal).
     """
     from railsusp.campaign import load_campaign, require_complete
 
     camp = require_complete(load_campaign(run))  # never train on part of a campaign
     params = tuple(parameters) if parameters else key_parameters(run)
-    spec = FeatureSpec(parameters=params, window=window)
+    spec = feature_spec(camp, params, window)
     data = load_series(camp, condition, spec)
-    tr_i, va_i, te_i = split_samples(data.sample_ids, seed=split_seed)
+    split = campaign_split(camp, split_seed)
+    tr_i, va_i = split.positions(data.sample_ids, "train"), split.positions(data.sample_ids, "val")
+    if len(tr_i) == 0 or len(va_i) == 0:
+        raise ValueError(
+            f"condition {condition!r}: the split leaves {len(tr_i)} training and {len(va_i)} "
+            "validation samples that ran (too few samples, or too many failed)"
+        )
     train_data, val_data = data.subset(tr_i), data.subset(va_i)
     norm = Normaliser.fit(train_data)
     cfg = (
@@ -110,6 +185,7 @@ def train_surrogate(
         progress=progress,
     )
     seed = int(np.unique(data.seeds)[0]) if len(np.unique(data.seeds)) == 1 else None
+    fam = camp.config.track_family
     sur = Surrogate(
         network,
         cfg,
@@ -121,11 +197,13 @@ def train_surrogate(
         meta={
             "campaign": str(camp.path),
             "campaign_hash": camp.config.hash(),
-            "train_ids": data.sample_ids[tr_i].tolist(),
-            "val_ids": data.sample_ids[va_i].tolist(),
-            "test_ids": data.sample_ids[te_i].tolist(),
+            **split_meta(split, data),
             "train_config": tcfg.to_dict(),
             "track_realisations": len(np.unique(data.seeds)),
+            "track_family": None if fam is None else fam.ranges(),
+            "assumed_parameters": assumed_parameters(
+                spec.parameters, camp.config.other_parameters, camp.config.parameters
+            ),
             "history": history,
         },
     )

@@ -37,6 +37,14 @@ from railsusp.vehicle.wagon import WagonData
 FORMAT = "railsusp-surrogate/1"
 
 
+#: condition fields a track-family campaign varies, and their names in the family
+_FAMILY_FIELDS = {
+    "irregularity_class": "irregularity_classes",
+    "curve_radius_m": "curve_radius_m",
+    "cant_mm": "cant_mm",
+}
+
+
 class OneTrackWarning(UserWarning):
     """A surrogate trained on one track realisation was asked to predict on another."""
 
@@ -93,6 +101,13 @@ class Surrogate:
             seed = self.track_seed if condition is None else condition.seed
         return seed == self.track_seed
 
+    def in_track_family(self, field_name: str, value: Any) -> bool:
+        """Whether a condition field's value lies in the track family the surrogate was
+        trained on (its FRA class, curve radius or cant varied per sample, inclusive)."""
+        fam = self.meta.get("track_family") or {}
+        rng = fam.get(_FAMILY_FIELDS.get(field_name, ""))
+        return rng is not None and value is not None and rng[0] <= value <= rng[1]
+
     def _unit(self, params: np.ndarray | list[ParameterSet]) -> np.ndarray:
         if isinstance(params, np.ndarray):
             x = np.atleast_2d(params)
@@ -122,7 +137,8 @@ class Surrogate:
         is the training track (``track_seed``) unless ``condition`` (the surrogate's own
         condition, possibly with another irregularity seed, a measured ``track_geometry`` or
         another record length), ``seed`` or raw ``track`` features (T, n_track) say
-        otherwise. A surrogate serves one condition only.
+        otherwise. A surrogate serves one condition only, or, trained on a track family,
+        that condition with its FRA class, radius and cant anywhere in the family.
         ``fast=False`` takes the per-window reference path (see :meth:`predict_windows`);
         ``corrected=False`` leaves out the record correction (:mod:`.correction`), when the
         surrogate has one.
@@ -132,9 +148,13 @@ class Surrogate:
         if condition is not None:
             # the network reads the track, so another realisation, a measured track or
             # another record length is new input, not another condition
-            diff = self.condition.differences(
-                condition, (*TRACK_INPUT_FIELDS, "duration_s", "n_steps")
-            )
+            diff = [
+                d
+                for d in self.condition.differences(
+                    condition, (*TRACK_INPUT_FIELDS, "duration_s", "n_steps")
+                )
+                if not self.in_track_family(d, getattr(condition, d))
+            ]
             if diff:
                 raise ValueError(
                     f"this surrogate was trained for condition {self.condition.name!r}; the "

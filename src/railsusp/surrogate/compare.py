@@ -11,15 +11,16 @@ import pandas as pd
 
 from railsusp.campaign import load_campaign, require_complete
 from railsusp.store import write_csv, write_json
-from railsusp.surrogate import key_parameters, train_surrogate
+from railsusp.surrogate import feature_spec, key_parameters, train_surrogate
 from railsusp.surrogate.baselines import RBFWindowModel, StatisticsGP
-from railsusp.surrogate.data import FeatureSpec, Normaliser, load_series, split_samples
+from railsusp.surrogate.data import Normaliser, load_series
 from railsusp.surrogate.evaluate import (
     accuracy,
     pooled_error,
     predict_series,
     predict_with_alone,
 )
+from railsusp.surrogate.split import campaign_split
 from railsusp.surrogate.train import TrainConfig
 
 ALL_MODELS = ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp", "rbf", "gp-stats")
@@ -36,19 +37,33 @@ def compare(
     progress: Callable[[str], None] | None = None,
 ) -> pd.DataFrame:
     """Train ``models`` per condition and return the accuracy table (also written to
-    ``RUN/surrogates/compare.csv`` / ``.json`` with overlay figures)."""
+    ``RUN/surrogates/compare.csv`` / ``.json`` with overlay figures).
+
+    Every model trains on the campaign's stored split (:mod:`.split`) and is scored on its
+    test samples; the table says what they hold out (``held_out``: tracks and parameters
+    with a many-track campaign) and on how many distinct tracks (``test_tracks``)."""
     from railsusp.report import plot_surrogate_overlay
 
     camp = require_complete(load_campaign(run))  # never train on part of a campaign
     conds = list(conditions) if conditions else [c.name for c in camp.config.conditions]
     params = key_parameters(run)
-    spec = FeatureSpec(parameters=params, window=window)
+    spec = feature_spec(camp, params, window)
+    split = campaign_split(camp, split_seed)
     rows = []
     out_dir = camp.path / "surrogates"
     for cond in conds:
         data = load_series(camp, cond, spec)
-        tr_i, _, te_i = split_samples(data.sample_ids, seed=split_seed)
+        tr_i, te_i = (
+            split.positions(data.sample_ids, "train"),
+            split.positions(data.sample_ids, "test"),
+        )
+        if len(tr_i) == 0 or len(te_i) == 0:
+            raise ValueError(
+                f"condition {cond!r}: the split leaves {len(tr_i)} training and {len(te_i)} "
+                "test samples that ran"
+            )
         train_data, test = data.subset(tr_i), data.subset(te_i)
+        held = {"held_out": split.held_out, "test_tracks": len(np.unique(test.seeds))}
         norm = Normaliser.fit(train_data)
         overlays, alone = {}, {}
         for kind in models:
@@ -93,6 +108,7 @@ def compare(
                             if ss > 0
                             else float("nan"),
                             "n_samples": int(test.n_samples),
+                            **held,
                         }
                     )
                 continue
@@ -105,7 +121,7 @@ def compare(
                 r["relative_error_of_mean_network_alone"] = (
                     rows_alone[j]["relative_error_of_mean"] if rows_alone else float("nan")
                 )
-                rows.append({"condition": cond, "model": kind, **r})
+                rows.append({"condition": cond, "model": kind, **r, **held})
         if overlays:
             plot_surrogate_overlay(
                 test.targets[0],
@@ -147,6 +163,8 @@ def table7(table: pd.DataFrame) -> pd.DataFrame:
                 "Y NRMSE": y.nrmse,
                 "Q R2": q.r2,
                 "Y R2": y.r2,
+                "held out": q.get("held_out", ""),
+                "test tracks": q.get("test_tracks", float("nan")),
             }
         )
     return pd.DataFrame(rows)

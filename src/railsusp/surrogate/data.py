@@ -10,12 +10,17 @@ end, but does not say what the 21 features are. railsusp's default feature set
 * the track input at three axles (the measured leading wheelset w1, the trailing wheelset of
   the same bogie w2 and the leading wheelset of the rear bogie w3), five channels each:
   vertical and lateral irregularity of both rails (mm) and the design curvature (1/km):
-  3 x 5 = 15.
+  3 x 5 = 15;
+* optionally the cant angle at each axle (``"cant"``, in mm of superelevation over the
+  1.5 m base): added by training when the campaign varies the cant (a track family), since
+  the curvature channel alone cannot tell two cants apart.
 
 The window ending at step k covers steps k - L + 1 .. k and predicts Y and Q of the measured
 wheel at step k, for k = L .. T - 1 (T - L windows: 980 for the study's 1000 and 20).
-Training, validation and test sets are split by simulation sample, never by window, and the
-normalisation is fitted on the training samples only.
+Training, validation and test sets are split by simulation sample, never by window (by track
+and parameter set: :mod:`railsusp.surrogate.split`), and the normalisation is fitted on the
+training samples only. Each sample's track input is rebuilt from its own condition: its
+irregularity seed and, in a track-family campaign, its FRA class, radius and cant.
 """
 
 from __future__ import annotations
@@ -25,9 +30,10 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from railsusp.campaign import CHANNELS, Campaign, track_seeds
-from railsusp.conditions import WorkingCondition
+from railsusp.campaign import CHANNELS, Campaign
+from railsusp.conditions import CANT_BASE_M, WorkingCondition
 from railsusp.params import bounds
+from railsusp.variation import layout_key, sample_condition
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.simulate import (
     WHEEL_NAMES,
@@ -43,9 +49,20 @@ TRACK_CHANNELS = {
     "yL": L.TR_YL,
     "yR": L.TR_YR,
     "curvature": L.TR_KAPPA,
+    "cant": L.TR_CANT,
 }
-#: display scaling of the track channels: irregularities in mm, curvature in 1/km
-_CHANNEL_SCALE = {"zL": 1e3, "zR": 1e3, "yL": 1e3, "yR": 1e3, "curvature": 1e3}
+#: display scaling of the track channels: irregularities in mm, curvature in 1/km, cant
+#: angle as mm of superelevation (small-angle, over the 1.5 m base)
+_CHANNEL_SCALE = {
+    "zL": 1e3,
+    "zR": 1e3,
+    "yL": 1e3,
+    "yR": 1e3,
+    "curvature": 1e3,
+    "cant": 1e3 * CANT_BASE_M,
+}
+#: the default track channels (the study's 21 features with six parameters)
+DEFAULT_TRACK_CHANNELS = ("zL", "zR", "yL", "yR", "curvature")
 
 
 @dataclass(frozen=True)
@@ -53,7 +70,7 @@ class FeatureSpec:
     """What a window holds: parameters, track channels at which axles, window length."""
 
     parameters: tuple[str, ...]
-    track_channels: tuple[str, ...] = ("zL", "zR", "yL", "yR", "curvature")
+    track_channels: tuple[str, ...] = DEFAULT_TRACK_CHANNELS
     axles: tuple[int, ...] = (0, 1, 2)  # wheelset indices: 0 = w1 (leading) ...
     window: int = 20
     targets: tuple[str, ...] = ("Y", "Q")
@@ -117,6 +134,9 @@ class SeriesData:
     targets: np.ndarray  # (n, T, n_targets), kN
     condition: WorkingCondition
     seeds: np.ndarray  # (n,)
+    #: parameters varied in the campaign but not network inputs: names and SI values (n, k)
+    other_names: tuple[str, ...] = ()
+    others: np.ndarray | None = None
 
     @property
     def n_samples(self) -> int:
@@ -135,6 +155,8 @@ class SeriesData:
             self.targets[idx],
             self.condition,
             self.seeds[idx],
+            self.other_names,
+            None if self.others is None else self.others[idx],
         )
 
 
@@ -155,7 +177,7 @@ def load_series(
             f"condition {condition!r} not in the campaign "
             f"({', '.join(c.name for c in cfg.conditions)})"
         )
-    missing = [p for p in spec.parameters if p not in cfg.parameters]
+    missing = [p for p in spec.parameters if p not in cfg.simulated_parameters]
     if missing:
         raise ValueError(f"parameters {missing} were not sampled in this campaign")
     ids, series = campaign.series(condition)
@@ -167,16 +189,19 @@ def load_series(
         targets.append(series[:, ch, :] / 1e3)
     y = np.stack(targets, axis=2).astype(np.float32)
     ok = np.isfinite(y).all(axis=(1, 2))
-    seeds_all = track_seeds(cfg, cond)
-    seeds = np.full(len(ids), cond.seed) if seeds_all is None else seeds_all[ids]
-    unique = np.unique(seeds)
-    per_seed = {
-        int(s): track_features(cond, int(s), spec, cfg.wagon, cfg.settings()) for s in unique
+    tracks = campaign.tracks(condition).set_index("sample_id").loc[ids].reset_index()
+    rows = tracks.to_dict("records")
+    seeds = tracks["seed"].to_numpy()
+    keys = [(int(r["seed"]), layout_key(r)) for r in rows]
+    per_key = {
+        k: track_features(sample_condition(cond, r), k[0], spec, cfg.wagon, cfg.settings())
+        for k, r in dict(zip(keys, rows, strict=True)).items()
     }
-    if len(unique) == 1:
-        track = per_seed[int(unique[0])][None]
+    if len(per_key) == 1:
+        track = next(iter(per_key.values()))[None]
     else:
-        track = np.stack([per_seed[int(s)] for s in seeds])
+        track = np.stack([per_key[k] for k in keys])
+    other_names = tuple(p for p in cfg.simulated_parameters if p not in spec.parameters)
     data = SeriesData(
         ids,
         params_to_unit(design[list(spec.parameters)].to_numpy(), spec.parameters).astype(
@@ -186,6 +211,8 @@ def load_series(
         y,
         cond,
         seeds,
+        other_names,
+        design[list(other_names)].to_numpy(float),
     )
     return data.subset(np.flatnonzero(ok))
 

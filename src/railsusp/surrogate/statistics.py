@@ -125,6 +125,7 @@ def train_statistics_surrogate(
     ``RUN/surrogates/gp-stats/<cond>/``."""
     from railsusp.campaign import load_campaign, require_complete
     from railsusp.surrogate import key_parameters
+    from railsusp.variation import assumed_parameters
 
     camp = require_complete(load_campaign(run))  # never train on part of a campaign
     params = tuple(parameters) if parameters else key_parameters(run)
@@ -141,6 +142,9 @@ def train_statistics_surrogate(
             "campaign": str(camp.path.resolve()),
             "n_train": int(data.n_samples),
             "independent_seeds": bool(len(np.unique(data.seeds)) > 1),
+            "assumed_parameters": assumed_parameters(
+                spec.parameters, camp.config.other_parameters, camp.config.parameters
+            ),
         },
     )
     model.save(Path(out) if out else camp.path / "surrogates" / "gp-stats" / condition)

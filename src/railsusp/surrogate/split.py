@@ -1,0 +1,240 @@
+"""Train / validation / test split of a campaign by track and by parameter set.
+
+A surrogate's held-out error means something only if the held-out samples are new to it in
+everything it is meant to generalise over. Samples are therefore grouped before they are
+split: two samples that share an irregularity seed (in any condition: the same seed and
+class give the same irregularities) or an identical parameter set fall in the same group,
+and whole groups go to train, validation or test. With ``independent_seeds`` every test
+sample then runs on a track no network saw, with parameters no network saw, in every
+condition (the split is one for the whole campaign, not one per condition). A campaign on
+common random numbers (one track for all samples) can only hold out parameter sets; the
+split says so (``held_out_tracks``).
+
+The split is stored in the run directory, ``RUN/splits/seed-<N>.json`` (atomic write), with
+the campaign's configuration hash, so that training, comparison and evaluation all use the
+same one and a later reader can check which runs a network never saw.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from railsusp.campaign import Campaign
+from railsusp.errors import RailsuspInputError
+from railsusp.store import read_json, write_json
+
+FORMAT = "railsusp-split/1"
+PARTS = ("train", "val", "test")
+DEFAULT_FRACTIONS = (0.7, 0.15, 0.15)
+
+
+@dataclass(frozen=True)
+class Split:
+    """Sample ids of each part, and how they were drawn."""
+
+    train: np.ndarray
+    val: np.ndarray
+    test: np.ndarray
+    seed: int
+    fractions: tuple[float, float, float]
+    held_out_tracks: bool
+    campaign_hash: str = ""
+
+    def part(self, name: str) -> np.ndarray:
+        if name not in PARTS:
+            raise ValueError(f"split part {name!r}: accepted {', '.join(PARTS)}")
+        return getattr(self, name)
+
+    def positions(self, sample_ids: np.ndarray, name: str) -> np.ndarray:
+        """Positions in ``sample_ids`` (one condition's finished samples) of a part's ids."""
+        return np.flatnonzero(np.isin(np.asarray(sample_ids), self.part(name)))
+
+    @property
+    def held_out(self) -> str:
+        """What the test samples hold out, for tables."""
+        return "tracks and parameters" if self.held_out_tracks else "parameters (one track)"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "format": FORMAT,
+            "seed": self.seed,
+            "fractions": list(self.fractions),
+            "held_out_tracks": self.held_out_tracks,
+            "campaign_hash": self.campaign_hash,
+            **{p: [int(i) for i in self.part(p)] for p in PARTS},
+        }
+
+    @classmethod
+    def from_dict(cls, doc: dict[str, Any]) -> Split:
+        if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+            raise RailsuspInputError(f"not a railsusp split (format {FORMAT} expected)")
+        parts = {p: np.asarray(doc[p], dtype=np.int64) for p in PARTS}
+        split = cls(
+            **parts,
+            seed=int(doc["seed"]),
+            fractions=tuple(float(f) for f in doc["fractions"]),
+            held_out_tracks=bool(doc["held_out_tracks"]),
+            campaign_hash=str(doc.get("campaign_hash", "")),
+        )
+        check_disjoint(split)
+        return split
+
+
+def check_disjoint(split: Split) -> None:
+    """Refuse a split whose parts share a sample."""
+    for i, a in enumerate(PARTS):
+        for b in PARTS[i + 1 :]:
+            both = np.intersect1d(split.part(a), split.part(b))
+            if both.size:
+                raise RailsuspInputError(
+                    f"split parts {a} and {b} share samples {both[:5].tolist()}"
+                )
+
+
+def _groups(design: pd.DataFrame, tracks: list[pd.DataFrame]) -> np.ndarray:
+    """Group label per design row: rows sharing a seed (any condition's tracks table, same
+    sample order; a condition whose samples all share one seed is common random numbers
+    and joins nothing) or an identical parameter row are joined (union-find)."""
+    n = len(design)
+    parent = np.arange(n)
+
+    def find(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return int(i)
+
+    def join_equal(keys: list[Any]) -> None:
+        first: dict[Any, int] = {}
+        for i, k in enumerate(keys):
+            j = first.setdefault(k, i)
+            if j != i:
+                parent[find(i)] = find(j)
+
+    cols = [c for c in design.columns if c != "sample_id"]
+    join_equal([tuple(r) for r in design[cols].to_numpy().tolist()])
+    seed_pos: dict[int, int] = {}
+    for t in tracks:
+        if n > 1 and t["seed"].nunique() == 1:
+            continue  # common random numbers: the one track is in every part
+        for i, s in enumerate(t["seed"].to_numpy().tolist()):
+            j = seed_pos.setdefault(int(s), i)
+            if j != i:
+                parent[find(i)] = find(j)
+    return np.array([find(i) for i in range(n)])
+
+
+def split_by_track_and_parameters(
+    design: pd.DataFrame,
+    tracks: list[pd.DataFrame],
+    *,
+    seed: int = 0,
+    fractions: tuple[float, float, float] = DEFAULT_FRACTIONS,
+) -> Split:
+    """Split the design's samples so that no irregularity seed and no parameter set is in
+    two parts. ``tracks``: the per-sample track table of each condition (same sample order
+    as ``design``). Groups are shuffled (seeded) and dealt to test, then validation, until
+    each holds its fraction of the samples; the rest train."""
+    fr = tuple(float(f) for f in fractions)
+    if len(fr) != 3 or any(f <= 0 for f in fr) or abs(sum(fr) - 1) > 1e-9:
+        raise RailsuspInputError(
+            f"split fractions {fractions}: accepted three positive numbers summing to 1"
+        )
+    ids = design["sample_id"].to_numpy()
+    for t in tracks:
+        if not np.array_equal(t["sample_id"].to_numpy(), ids):
+            raise ValueError("every track table must list the design's samples in its order")
+    labels = _groups(design, tracks)
+    uniq = np.unique(labels)
+    if len(uniq) < 3:
+        raise RailsuspInputError(
+            f"{len(ids)} samples form {len(uniq)} distinct track/parameter groups: at least 3 "
+            "are needed to split train, validation and test"
+        )
+    order = np.random.default_rng(seed).permutation(uniq)
+    n = len(ids)
+    want = {"test": max(1, round(fr[2] * n)), "val": max(1, round(fr[1] * n))}
+    parts: dict[str, list[int]] = {"train": [], "val": [], "test": []}
+    k = 0
+    reserve = {"test": 2, "val": 1}  # groups kept back for the parts dealt after
+    for name in ("test", "val"):
+        while len(order) - k > reserve[name] and (not parts[name] or len(parts[name]) < want[name]):
+            parts[name].extend(np.flatnonzero(labels == order[k]).tolist())
+            k += 1
+    for g in order[k:]:
+        parts["train"].extend(np.flatnonzero(labels == g).tolist())
+    seeds = [t["seed"].to_numpy() for t in tracks]
+    held_out_tracks = bool(seeds) and all(len(np.unique(s)) > 1 for s in seeds)
+    split = Split(
+        *(np.sort(ids[parts[p]]) for p in PARTS),
+        seed=int(seed),
+        fractions=fr,
+        held_out_tracks=held_out_tracks,
+    )
+    check_disjoint(split)
+    return split
+
+
+def split_path(run: str | Path, seed: int = 0) -> Path:
+    return Path(run) / "splits" / f"seed-{int(seed)}.json"
+
+
+def save_split(path: str | Path, split: Split) -> Path:
+    """Write a split as JSON, atomically."""
+    return write_json(path, split.to_dict())
+
+
+def load_split(path: str | Path) -> Split:
+    """Read a split written by :func:`save_split` (one-line error if it is not one)."""
+    try:
+        return Split.from_dict(read_json(path))
+    except (KeyError, TypeError, ValueError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise RailsuspInputError(f"{path}: corrupt split ({first})") from None
+
+
+def campaign_split(
+    campaign: Campaign,
+    seed: int = 0,
+    fractions: tuple[float, float, float] = DEFAULT_FRACTIONS,
+) -> Split:
+    """The campaign's split for ``seed``: read from ``RUN/splits/seed-<N>.json``, or drawn
+    by :func:`split_by_track_and_parameters` and stored there on first use. A stored split
+    of another campaign configuration or other fractions is refused."""
+    path = split_path(campaign.path, seed)
+    chash = campaign.config.hash()
+    if path.exists():
+        split = load_split(path)
+        if split.campaign_hash != chash:
+            raise RailsuspInputError(
+                f"{path} was drawn for another campaign configuration (hash "
+                f"{split.campaign_hash}, now {chash}); delete it to draw a new split"
+            )
+        if not np.allclose(split.fractions, fractions):
+            raise RailsuspInputError(
+                f"{path} holds fractions {list(split.fractions)}, asked for {list(fractions)}; "
+                "use another split seed or delete the file"
+            )
+        return split
+    # a parameter set is what a network sees of it: the sampled (key) parameters
+    design = campaign.design()[["sample_id", *campaign.config.parameters]]
+    synthesised = [c for c in campaign.config.conditions if c.track_geometry is None]
+    tracks = [campaign.tracks(c.name) for c in synthesised]
+    split = split_by_track_and_parameters(design, tracks, seed=seed, fractions=fractions)
+    split = Split(
+        split.train,
+        split.val,
+        split.test,
+        split.seed,
+        split.fractions,
+        # a measured track is the same in every part
+        split.held_out_tracks and len(synthesised) == len(campaign.config.conditions),
+        chash,
+    )
+    save_split(path, split)
+    return split

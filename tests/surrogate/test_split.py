@@ -1,0 +1,199 @@
+"""The split by track and parameter set, its file, and surrogates scored on held-out tracks."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from railsusp.campaign import load_campaign, make_config, run_campaign
+from railsusp.conditions import get_condition
+from railsusp.errors import RailsuspInputError
+from railsusp.surrogate import TrainConfig, load, train_surrogate
+from railsusp.surrogate.compare import compare, table7
+from railsusp.surrogate.split import (
+    PARTS,
+    campaign_split,
+    load_split,
+    save_split,
+    split_by_track_and_parameters,
+    split_path,
+)
+
+KEYS = ("X13", "X14", "X15")
+
+
+def _synthetic(n: int, rng: np.random.Generator, n_conditions: int = 2):
+    """A design with repeated parameter rows and track tables with repeated seeds, within
+    and across conditions."""
+    pool = rng.random((3 * n, 2))
+    x = pool[rng.integers(0, 3 * n, size=n)]  # some rows repeat another
+    design = pd.DataFrame({"sample_id": np.arange(n), "X13": x[:, 0], "X14": x[:, 1]})
+    tracks = [
+        pd.DataFrame({"sample_id": np.arange(n), "seed": rng.integers(0, 10 * n, size=n)})
+        for _ in range(n_conditions)
+    ]
+    return design, tracks
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_no_track_seed_or_parameter_set_in_two_parts(seed):
+    rng = np.random.default_rng(seed)
+    design, tracks = _synthetic(60, rng)
+    assert design.duplicated(["X13", "X14"]).any()  # the case the grouping is there for
+    assert any(t.seed.duplicated().any() for t in tracks)
+    split = split_by_track_and_parameters(design, tracks, seed=seed)
+    ids = {p: set(split.part(p).tolist()) for p in PARTS}
+    assert set().union(*ids.values()) == set(range(60))
+    assert all(ids[p] for p in PARTS)
+    owner_seed, owner_row = {}, {}
+    for p in PARTS:
+        for i in ids[p]:
+            for t in tracks:  # a seed in any condition belongs to one part only
+                assert owner_seed.setdefault(int(t.seed[i]), p) == p
+            row = tuple(design.loc[i, ["X13", "X14"]])
+            assert owner_row.setdefault(row, p) == p
+
+
+def test_distinct_samples_split_near_the_fractions_and_common_seeds_hold_out_parameters():
+    n = 100
+    design = pd.DataFrame({"sample_id": np.arange(n), "X13": np.arange(n, dtype=float)})
+    indep = [pd.DataFrame({"sample_id": np.arange(n), "seed": np.arange(n) + 1000})]
+    s = split_by_track_and_parameters(design, indep, seed=1)
+    assert (len(s.train), len(s.val), len(s.test)) == (70, 15, 15)
+    assert s.held_out_tracks and s.held_out == "tracks and parameters"
+    common = [pd.DataFrame({"sample_id": np.arange(n), "seed": np.full(n, 7)})]
+    c = split_by_track_and_parameters(design, common, seed=1)
+    assert not c.held_out_tracks and len(c.test) == 15  # parameters only, no grouping
+    one = pd.DataFrame({"sample_id": np.arange(4), "X13": np.ones(4)})
+    with pytest.raises(RailsuspInputError, match="4 samples form 1 distinct"):
+        split_by_track_and_parameters(one, [], seed=0)
+    with pytest.raises(RailsuspInputError, match="split fractions"):
+        split_by_track_and_parameters(design, indep, fractions=(0.5, 0.5, 0.5))
+
+
+def test_split_file_round_trip_and_refusals(tmp_path):
+    rng = np.random.default_rng(3)
+    design, tracks = _synthetic(30, rng)
+    split = split_by_track_and_parameters(design, tracks, seed=5)
+    path = save_split(tmp_path / "splits" / "seed-5.json", split)
+    back = load_split(path)
+    for p in PARTS:
+        np.testing.assert_array_equal(back.part(p), split.part(p))
+    assert (back.seed, back.fractions, back.held_out_tracks) == (5, split.fractions, True)
+    doc = json.loads(path.read_text())
+    doc["test"].append(doc["train"][0])  # a sample in two parts
+    path.write_text(json.dumps(doc))
+    with pytest.raises(RailsuspInputError, match="share samples"):
+        load_split(path)
+    path.write_text("[1, 2]")
+    with pytest.raises(RailsuspInputError, match="not a railsusp split"):
+        load_split(path)
+
+
+@pytest.fixture(scope="module")
+def many_tracks(tmp_path_factory):
+    out = tmp_path_factory.mktemp("tracks") / "run"
+    cond = get_condition("curve", duration_s=2.0, n_steps=100)
+    cfg = make_config(
+        [cond],
+        20,
+        parameters=KEYS,
+        seed=11,
+        batch_size=10,
+        independent_seeds=True,
+        track_family={"curve_radius_m": (250.0, 400.0), "cant_mm": (60.0, 110.0)},
+        other_parameters={"X19": (20e6, 40e6)},
+    )
+    run_campaign(cfg, out)
+    return out
+
+
+def test_campaign_split_is_stored_and_checked(many_tracks, tmp_path):
+    camp = load_campaign(many_tracks)
+    split = campaign_split(camp, seed=0)
+    assert split_path(many_tracks, 0).exists() and split.held_out_tracks
+    again = campaign_split(camp, seed=0)
+    np.testing.assert_array_equal(again.test, split.test)
+    seeds = camp.tracks("curve").set_index("sample_id").seed
+    assert not set(seeds[split.test]) & set(seeds[split.train])
+    with pytest.raises(RailsuspInputError, match="fractions"):
+        campaign_split(camp, seed=0, fractions=(0.6, 0.2, 0.2))
+    doc = json.loads(split_path(many_tracks, 0).read_text())
+    doc["campaign_hash"] = "0000"
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    for f in ("campaign.json", "design.parquet"):
+        (bad / f).write_bytes((many_tracks / f).read_bytes())
+    save_path = split_path(bad, 0)
+    save_path.parent.mkdir()
+    save_path.write_text(json.dumps(doc))
+    with pytest.raises(RailsuspInputError, match="another campaign configuration"):
+        campaign_split(load_campaign(bad), seed=0)
+
+
+def test_many_track_training_is_scored_on_unseen_tracks(many_tracks):
+    """A tiny end to end: many-track campaign -> CNN-GRU for two epochs, and RBF ->
+    Table 7 on the test samples, whose tracks and parameters no network saw."""
+    tcfg = TrainConfig(epochs=2, batches_per_epoch=4, batch_size=32, val_windows=200)
+    table = compare(many_tracks, models=("cnn-gru", "rbf"), train=tcfg)
+    split = campaign_split(load_campaign(many_tracks))
+    assert set(table.held_out) == {"tracks and parameters"}
+    assert (table.test_tracks == len(split.test)).all()
+    assert (table.n_samples == len(split.test)).all()
+    assert np.isfinite(table.relative_error_of_mean).all() and np.isfinite(table.nrmse).all()
+    t7 = table7(table)
+    assert set(t7["held out"]) == {"tracks and parameters"} and len(t7) == 2
+    sur = load(many_tracks / "surrogates" / "cnn-gru" / "curve")
+    assert sur.meta["test_ids"] == split.test.tolist()
+    assert sur.meta["split"]["held_out_tracks"] and sur.meta["track_realisations"] == 20
+    assert "cant" in sur.spec.track_channels  # the cant varies, so the windows carry it
+    assumed = {r["symbol"]: r["assumed"] for r in sur.meta["assumed_parameters"]}
+    assert assumed["X19"] == "varied" and assumed["X20"] == "nominal"
+    # it serves its condition anywhere in the family, and refuses outside it
+    cond = sur.condition.with_changes(curve_radius_m=300.0, cant_mm=80.0, seed=99)
+    x = np.array([[16.1e6, 8.3e6, 2.5e6]])
+    assert np.isfinite(sur.predict(x, cond)[0, 20:]).all()
+    with pytest.raises(ValueError, match="differs in curve_radius_m"):
+        sur.predict(x, cond.with_changes(curve_radius_m=600.0))
+
+
+def test_train_surrogate_uses_the_stored_split(many_tracks):
+    tcfg = TrainConfig(epochs=1, batches_per_epoch=4, batch_size=64, val_windows=300)
+    sur = train_surrogate(
+        many_tracks, "curve", kind="bp", train=tcfg, split_seed=3, record_correction=False
+    )
+    split = load_split(split_path(many_tracks, 3))
+    assert sur.meta["train_ids"] == split.train.tolist()
+    assert sur.meta["val_ids"] == split.val.tolist()
+
+
+def test_estimate_lists_the_parameters_it_did_not_estimate(many_tracks, tmp_path):
+    """What the force model assumed of the parameters not estimated goes into the estimate's
+    record and the summary table: X19 varied over its prior in training, X20 at nominal."""
+    from railsusp import summary
+    from railsusp.store import write_json
+    from railsusp.surrogate import not_estimated
+
+    tcfg = TrainConfig(epochs=1, batches_per_epoch=2, batch_size=32, val_windows=200)
+    train_surrogate(many_tracks, "curve", kind="bp", train=tcfg, record_correction=False)
+    rows = {r["symbol"]: r for r in not_estimated(many_tracks / "surrogates" / "bp", KEYS)}
+    assert set(rows) == {"X11", "X12", "X16", "X17", "X18", "X19", "X20"}
+    assert (rows["X19"]["low"], rows["X19"]["high"]) == pytest.approx((20000, 40000))
+    assert rows["X20"]["assumed"] == "nominal"
+    held = not_estimated(None, KEYS)  # the simulator holds the others at nominal
+    assert {r["assumed"] for r in held} == {"nominal"} and len(held) == 7
+    run = tmp_path / "run"
+    write_json(
+        run / "estimate" / "estimate.json",
+        {
+            "parameters": list(KEYS),
+            "estimate_display": {"X13": 16.1, "X14": 8.3, "X15": 170.0},
+            "not_estimated": list(rows.values()),
+        },
+    )
+    t = summary.estimate_table(run)
+    assert t.loc["X19", "verdict"] == (
+        "not estimated: varied over 20000-40000 kN/m in the surrogate's training"
+    )
+    assert t.loc["X20", "verdict"].startswith("not estimated: held at 1000 MN/m")
