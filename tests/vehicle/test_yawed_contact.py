@@ -5,6 +5,7 @@ yawed wheelset in flange contact, left/right mirror symmetry, and zero yaw equal
 zero-yaw contact bit for bit."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -45,7 +46,7 @@ def _geometry(ca, y, yaw, *, vy=0.0, vyaw=0.0, side=1.0, block=1):
     """contact_geometry of one wheel of a wheelset at shift ``y`` (rail at 0, no roll)."""
     return contact_geometry(
         y, 0.0, 0.0, yaw, vy, 0.0, 0.0, vyaw, side, block, 0.0, 0.0, 0.0, 0.0,
-        ca.table, ca.y0, 1.0 / ca.dy, 0.0, 0.0, R0, 1.0,
+        ca.table, ca.y0, 1.0 / ca.dy, 0.0, 0.0, R0, 1.0 / R0, 1.0,
     )  # fmt: skip
 
 
@@ -225,3 +226,23 @@ def test_zero_yaw_is_the_zero_yaw_contact_bit_for_bit(setup):
             else:
                 changed += new != ref
     assert changed > 150
+
+
+ZERO_YAW_REFERENCE = Path(__file__).resolve().parents[1] / "data" / "force_reference_zero_yaw.npz"
+
+
+def test_zero_yaw_switch_reproduces_the_forces_before_the_yawed_contact():
+    """``[contact] yaw_geometry = false`` is the model before 2026-11-24: the curve's forces of
+    bench/force_reference.py's three parameter sets equal those stored with that model
+    (tests/data/force_reference_zero_yaw.npz, the reference file of commit 9c5e975) to 1e-9
+    of the largest force."""
+    from railsusp.params import MAIN_SUSPENSION, bounds
+    from railsusp.vehicle.simulate import simulate_batch
+
+    lo, hi = bounds(MAIN_SUSPENSION)
+    sets = lo + (hi - lo) * np.array([[0.5] * len(lo), [0.2] * len(lo), [0.8] * len(lo)])
+    cond = get_condition("curve", duration_s=4.0, n_steps=200, lead_in_m=100.0)
+    r = simulate_batch(sets, cond, symbols=MAIN_SUSPENSION, wagon=_zero_yaw_wagon())
+    ref = np.load(ZERO_YAW_REFERENCE)
+    for name, force in (("curve_Y", r.Y), ("curve_Q", r.Q)):
+        assert np.max(np.abs(force - ref[name])) / np.max(np.abs(ref[name])) < 1e-9

@@ -148,7 +148,7 @@ def _cell(ctab, c, i, f):
 @nb.njit(cache=True, inline="always")
 def contact_geometry(
     ws_y, ws_z, ws_roll, ws_yaw, vy, vz, vroll, vyaw, side, block, rail_y, rail_z, rail_vy,
-    rail_vz, ctab, y0, inv_dy, H0, Z0, r0, lift_max,
+    rail_vz, ctab, y0, inv_dy, H0, Z0, r0, inv_r0, lift_max,
 ):  # fmt: skip
     """Geometry of one contact point (``block`` 0 tread, 1 flange) of one wheel (side +1
     left, -1 right) of a wheelset yawed by ``ws_yaw`` (rad, relative to the rail; yaw rate
@@ -169,7 +169,9 @@ def contact_geometry(
     the wheel l cos(psi) from the centre: both wheels move inwards), the touching height is
     raised by x_c^2 / (2 r) and the rolling radius lowered by as much. The gap rate follows:
     the move's rate is (x_c + x_pos) psi' and d(x_c^2 / 2r)/dt = x_c x_c' / r (the lead
-    coefficient and the arm taken as constant over the step).
+    coefficient and the arm taken as constant over the step). 1 / r is one Newton step of
+    the reciprocal from 1 / r0, r0^-1 (2 - r / r0): relative error (1 - r / r0)^2, 1e-3 on
+    the flange, of a term that is itself second order (no division in the kernel's path).
     """
     col0 = block * L.CT_FLANGE + (0 if side > 0 else NCTW)
     yrel = ws_y + r0 * ws_roll - rail_y  # the wheel's shift at contact level
@@ -178,11 +180,13 @@ def contact_geometry(
         return L.FAIL_FLANGE_CLIMB, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     lead = _cell(ctab, col0 + CT_LEAD, i, f)  # r tan(delta), m per rad of yaw
     x_c = side * lead * ws_yaw
-    lead_rate = side * lead * vyaw  # d x_c / dt
     x_pos = 0.0
     if x_c != 0.0:  # the yawed contact's rail point
         x_pos = x_c - side * _cell(ctab, col0 + CT_L, i, f) * ws_yaw
-        i, f = table_index(yrel + 0.5 * (x_c + x_pos) * ws_yaw, y0, inv_dy, ctab.shape[1])
+        move = 0.5 * (x_c + x_pos) * ws_yaw
+        f += move * inv_dy  # mostly within the same table interval: no new index
+        if f < 0.0 or f > 1.0:
+            i, f = table_index(yrel + move, y0, inv_dy, ctab.shape[1])
         if i < 0:
             return (
                 L.FAIL_FLANGE_CLIMB, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
@@ -190,7 +194,10 @@ def contact_geometry(
     lat = _cell(ctab, col0 + CT_L, i, f)
     h = _cell(ctab, col0 + CT_H, i, f)
     r = _cell(ctab, col0 + CT_R, i, f)
-    drop = x_c * x_c / (2.0 * r)  # the led point's height above the axle's lowest point
+    drop = inv_2r = 0.0  # the led point's height above the axle's lowest point
+    if x_c != 0.0:
+        inv_2r = 0.5 * inv_r0 * (2.0 - r * inv_r0)
+        drop = x_c * x_c * inv_2r
     gap = ws_z + side * lat * ws_roll - rail_z - (h - H0) - Z0 + drop
     if block > 0 and gap >= 0.0:  # the flange is mostly clear of its rail
         return L.OK, gap, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
@@ -202,7 +209,8 @@ def contact_geometry(
     slope = side * sd / cd  # dH/dy of this wheel
     rate = (
         vz + side * lat * vroll - rail_vz
-        - slope * (vy + r0 * vroll - rail_vy + (x_c + x_pos) * vyaw) + x_c * lead_rate / r
+        - slope * (vy + r0 * vroll - rail_vy + (x_c + x_pos) * vyaw)
+        + 2.0 * x_c * (side * lead * vyaw) * inv_2r
     )  # fmt: skip
     return (
         L.OK, gap, cd, sd, lat, r - drop, _cell(ctab, col0 + CT_G, i, f),
@@ -321,13 +329,14 @@ def wheel_rail_forces(
     one contact potential), tread normal force, shift towards the flange, its rate).
     """
     r0 = K[I_R0]
+    inv_r0 = K[I_INVR0]
     inv_dy = 1.0 / dy
     shift = side * (ws_y + r0 * ws_roll - rail_y)
     shift_rate = side * (vy + r0 * vroll - rail_vy)
     lift_max = K[I_LIFTMAX]
     code, gap0, c0, s0, lat0, r_0, g0, f11_0, f22_0, f23_0, rate0, x0, p0 = contact_geometry(
         ws_y, ws_z, ws_roll, ws_yaw, vy, vz, vroll, vyaw, side, 0, rail_y, rail_z, rail_vy,
-        rail_vz, ctab, y0, inv_dy, H0, Z0, r0, lift_max,
+        rail_vz, ctab, y0, inv_dy, H0, Z0, r0, inv_r0, lift_max,
     )  # fmt: skip
     if code != 0:
         return code, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, shift, shift_rate
@@ -338,7 +347,7 @@ def wheel_rail_forces(
     if two:
         code, gap1, c1, s1, lat1, r_1, g1, f11_1, f22_1, f23_1, rate1, x1, p1 = contact_geometry(
             ws_y, ws_z, ws_roll, ws_yaw, vy, vz, vroll, vyaw, side, 1, rail_y, rail_z,
-            rail_vy, rail_vz, ctab, y0, inv_dy, H0, Z0, r0, lift_max,
+            rail_vy, rail_vz, ctab, y0, inv_dy, H0, Z0, r0, inv_r0, lift_max,
         )  # fmt: skip
         if code != 0:
             return code, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, shift, shift_rate
