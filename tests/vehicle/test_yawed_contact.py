@@ -246,3 +246,20 @@ def test_zero_yaw_switch_reproduces_the_forces_before_the_yawed_contact():
     ref = np.load(ZERO_YAW_REFERENCE)
     for name, force in (("curve_Y", r.Y), ("curve_Q", r.Q)):
         assert np.max(np.abs(force - ref[name])) / np.max(np.abs(ref[name])) < 1e-9
+
+
+def test_yaw_geometry_is_checked_in_the_wagon_file(tmp_path):
+    from importlib import resources
+
+    from railsusp.errors import RailsuspInputError
+
+    text = resources.files("railsusp").joinpath("data/c80_k6.toml").read_text("utf-8")
+    assert load_wagon().contact.yaw_geometry is True  # the default
+    for value, ok in (("false", True), ('"sometimes"', False)):
+        path = tmp_path / "wagon.toml"
+        path.write_text(text.replace("[contact]\n", f"[contact]\nyaw_geometry = {value}\n"))
+        if ok:
+            assert contact_arrays(load_wagon(path)).yaw_geometry is False
+        else:
+            with pytest.raises(RailsuspInputError, match=r"contact\.yaw_geometry = 'sometimes'"):
+                load_wagon(path)
