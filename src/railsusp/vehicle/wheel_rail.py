@@ -14,10 +14,12 @@ for a yawed wheel is not below the axle but ahead of or behind it: the contact l
 x_c = side r tan(delta) psi (the left wheel's contact leads for psi > 0, nose to the left;
 the leading outer wheel of a curving bogie runs with its flange contact ahead of the axle).
 This is the first-order "contact lead" of the yawed wheelset (Iwnicki (ed.), Handbook of
-Railway Vehicle Dynamics, 2nd ed. 2019, ch. 4, wheel-rail contact of a yawed wheelset;
-Shabana, Zaazaa & Sugiyama, Railroad Vehicle Dynamics: A Computational Approach, 2008,
-ch. 4; Wang Kaiyun, Wheel-rail contact geometry, the "contact trace line" method), derived
-here for the tables' wheel-shift coordinate: minimising the gap of the wheel section at the
+Railway Vehicle Dynamics, the chapter on wheel-rail contact; Shabana, Zaazaa & Sugiyama,
+Railroad Vehicle Dynamics: A Computational Approach, 2008; Wang Kaiyun's "contact trace
+line" method; the longitudinal contact location of a yawed wheelset and its effect on the
+wheelset's motion, up to about 10 mm from the axle's vertical plane and small: Mathematical
+Problems in Engineering 2016, article 1901089), derived here for the tables' wheel-shift
+coordinate: minimising the gap of the wheel section at the
 angle theta from the bottom, which is shifted laterally by r theta psi and raised by
 r theta^2 / 2, gives theta = tan(delta) psi, i.e. the lead above, a touching height higher by
 x_c^2 / (2 r) = r tan^2(delta) psi^2 / 2, a rail contact point moved by x_c psi (where the
@@ -28,13 +30,13 @@ brute-force search over the yawed wheel of revolution). The contact normal stays
 rail's cross-section (the rail is a prism), so the normal/lateral force split follows the
 contact angle at the moved point, the lateral force acts at x_c - side l psi from the
 wheelset centre (a yaw moment: the gradient of the touching height's psi^2 terms, so the
-normal forces stay conservative) and
-the material of the led point has the vertical velocity -V x_c / r0 of the wheel's spin,
-whose part in the contact plane adds -side sin(delta) x_c / r0 to the lateral creepage: with
-the yaw slip's own projection -psi cos(delta) the classical -psi / cos(delta) of a yawed
-wheelset in flange contact. The table's lead column holds r tan(delta) (0 for the zero-yaw
-model); at psi = 0 every correction is an exact 0.0 and the forces are those of the zero-yaw
-kernel bit for bit (tests/vehicle/test_yawed_contact.py).
+normal forces stay conservative) and the material of the led point has the vertical velocity
+-V x_c / r0 of the wheel's spin, whose part in the contact plane adds -side sin(delta) x_c / r0
+to the lateral creepage: with the yaw slip's own projection -psi cos(delta) the classical
+-psi / cos(delta) of a yawed wheelset in flange contact (the lateral velocity's part keeps the
+unprojected (y' + r roll') / V of the zero-yaw kernel). The table's lead column holds
+r tan(delta) (0 for the zero-yaw model); at psi = 0 every correction is an exact 0.0 and the
+forces are those of the zero-yaw kernel bit for bit (tests/vehicle/test_yawed_contact.py).
 """
 
 from __future__ import annotations
@@ -323,7 +325,9 @@ def wheel_rail_forces(
     contact acting at the same time on the same elastic rail.
 
     Per contact: Hertz normal force (:func:`shared_rail_normal_forces`), rail support damping
-    along the normal, Kalker creep with Shen-Hedrick-Elkins saturation. Returns (code,
+    along the normal, Kalker creep with Shen-Hedrick-Elkins saturation, each at the contact
+    point of the wheelset yawed by ``ws_yaw`` relative to the track (rate ``vyaw``; module
+    docstring). Returns (code,
     Y_on_wheel, Q_on_wheel (up), Fx_on_wheel, roll and yaw moments of the contact forces
     about the wheelset centre (lever r0 for Y, so that normal forces stay the gradient of
     one contact potential), tread normal force, shift towards the flange, its rate).
