@@ -71,8 +71,10 @@ N_K = len(_K_NAMES)
 
 # ---- contact table columns, per wheel and contact point ----
 # blocks of CT_PER_WHEEL rows: tread left, tread right, flange left, flange right
-CT_R, CT_DELTA, CT_L, CT_H, CT_G, CT_F11, CT_F22, CT_F23 = range(8)
-CT_PER_WHEEL = 8
+# CT_LEAD: the contact point's longitudinal lead per radian of wheelset yaw, r tan(delta) (m;
+# 0 everywhere for the zero-yaw contact model, wagon [contact] yaw_geometry = false)
+CT_R, CT_DELTA, CT_L, CT_H, CT_G, CT_F11, CT_F22, CT_F23, CT_LEAD = range(9)
+CT_PER_WHEEL = 9
 CT_RIGHT = CT_PER_WHEEL
 CT_FLANGE = 2 * CT_PER_WHEEL  # offset of the flange contact's blocks
 N_CT = 4 * CT_PER_WHEEL

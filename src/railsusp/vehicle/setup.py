@@ -113,6 +113,7 @@ class ContactArrays:
     flange_shift: float  # smallest shift of a wheel towards its flange with flange contact, m
     contact_points: int  # per wheel: 1 (tread table only) or 2 (tread and flange)
     flange_split: float | None  # wheel profile abscissa splitting tread from flange, m
+    yaw_geometry: bool = True  # the lead column holds r tan(delta) (else 0: zero-yaw contact)
 
 
 #: lateral shift range of the contact table (m): the field side of the tread must stay in
@@ -123,13 +124,18 @@ CONTACT_TABLE_HALF_RANGE = 0.035
 MIN_RELATIVE_CURVATURE = 0.5
 
 
-def _kernel_blocks(tab: ContactTable, y: np.ndarray, n_ref: float) -> np.ndarray:
+def _kernel_blocks(
+    tab: ContactTable, y: np.ndarray, n_ref: float, yaw_geometry: bool = True
+) -> np.ndarray:
     """Kernel rows (2 x CT_PER_WHEEL: left, right) of one contact table.
 
-    Rolling radius, contact angle, lateral arm, touching height H, Hertz constant G and
-    Kalker f11, f22, f23 at the static load. Shifts at which the table's wheel part has
-    nothing above the rail (NaN rows of a flange table) take the nearest finite values and a
-    touching height 50 mm below the lowest one, so they never touch.
+    Rolling radius, contact angle, lateral arm, touching height H, Hertz constant G,
+    Kalker f11, f22, f23 at the static load, and the contact point's longitudinal lead per
+    radian of wheelset yaw, r tan(delta) (0 without ``yaw_geometry``; the kernel's yawed
+    wheelset geometry, :func:`railsusp.vehicle.wheel_rail.contact_geometry`). Shifts at
+    which the table's wheel part has nothing above the rail (NaN rows of a flange table) take
+    the nearest finite values and a touching height 50 mm below the lowest one, so they never
+    touch.
     """
     out = np.empty((2 * L.CT_PER_WHEEL, y.size))
     for col0, wheel in ((0, 0), (L.CT_RIGHT, 1)):
@@ -152,13 +158,15 @@ def _kernel_blocks(tab: ContactTable, y: np.ndarray, n_ref: float) -> np.ndarray
         out[col0 + L.CT_R] = radius
         # contact angle consistent with the rigid-contact rise (normal force = gradient of the
         # contact potential, so the table forces are conservative): tan(delta) = +-dH/dy
-        out[col0 + L.CT_DELTA] = np.arctan(np.gradient(rise, y) * sign)
+        tan_delta = np.gradient(rise, y) * sign
+        out[col0 + L.CT_DELTA] = np.arctan(tan_delta)
         out[col0 + L.CT_L] = arm
         out[col0 + L.CT_H] = rise
         out[col0 + L.CT_G] = patch.approach / n_ref ** (2.0 / 3.0)
         out[col0 + L.CT_F11] = f11
         out[col0 + L.CT_F22] = f22
         out[col0 + L.CT_F23] = f23
+        out[col0 + L.CT_LEAD] = radius * tan_delta if yaw_geometry else 0.0
     return out
 
 
@@ -175,6 +183,10 @@ def contact_arrays(wagon: WagonData) -> ContactArrays:
     and flange (:func:`railsusp.vehicle.contact.flange_split`) and each part gets its own
     table, so the tread keeps its load while the flange contact builds up. Single-point:
     one table of the whole profile, whose contact jumps from tread to flange.
+
+    ``wagon.contact.yaw_geometry`` (default) fills the lead column r tan(delta), with which
+    the kernel places the contact of a yawed wheelset ahead of or behind the axle; false
+    fills it with 0: the zero-yaw contact of the model before 2026-11-24.
     """
     tr = wagon.track
     # Decoupled wheels (no wheelset roll in the table): each wheel's touching height is a
@@ -203,8 +215,9 @@ def contact_arrays(wagon: WagonData) -> ContactArrays:
     y = tab.y
     arrays = np.empty((L.N_CT, y.size))
     split = flange_split(tab) if wagon.contact.model == "two-point" else None
+    yaw = wagon.contact.yaw_geometry
     if split is None:  # single point (or a conformal profile): the flange block never touches
-        arrays[: L.CT_FLANGE] = _kernel_blocks(tab, y, n_ref)
+        arrays[: L.CT_FLANGE] = _kernel_blocks(tab, y, n_ref, yaw)
         arrays[L.CT_FLANGE :] = arrays[: L.CT_FLANGE]
         arrays[L.CT_FLANGE + L.CT_H] = -1.0
         arrays[L.CT_FLANGE + L.CT_RIGHT + L.CT_H] = -1.0
@@ -212,8 +225,8 @@ def contact_arrays(wagon: WagonData) -> ContactArrays:
     else:
         tread = contact_table(wheel, rail, wheel_range=(split, math.inf), **kw)
         flange = contact_table(wheel, rail, wheel_range=(-math.inf, split), **kw)
-        arrays[: L.CT_FLANGE] = _kernel_blocks(tread, y, n_ref)
-        arrays[L.CT_FLANGE :] = _kernel_blocks(flange, y, n_ref)
+        arrays[: L.CT_FLANGE] = _kernel_blocks(tread, y, n_ref, yaw)
+        arrays[L.CT_FLANGE :] = _kernel_blocks(flange, y, n_ref, yaw)
         points = 2
     i0 = int(np.argmin(np.abs(y)))
     for col0 in (0, L.CT_RIGHT):  # heights from the centred tread contact of each wheel
@@ -232,6 +245,7 @@ def contact_arrays(wagon: WagonData) -> ContactArrays:
         flange_shift=min(left, -right),
         contact_points=points,
         flange_split=split,
+        yaw_geometry=yaw,
     )
 
 

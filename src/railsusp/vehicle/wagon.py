@@ -140,10 +140,12 @@ class ContactData(_Section):
     """Wheel-rail contact: ``creep_factor`` scales Kalker's coefficients; ``model`` is
     ``two-point`` (tread and flange contacts act together, the default) or ``single-point``
     (the contact jumps from tread to flange, the model before 2026-11-23, kept for
-    comparison)."""
+    comparison); ``yaw_geometry`` (default true) moves the contact point with the wheelset
+    yaw (docs/model.md), false keeps the zero-yaw contact of the model before 2026-11-24."""
 
     creep_factor: float = Field(gt=0.0, le=2.0)
     model: Literal["two-point", "single-point"] = "two-point"
+    yaw_geometry: bool = True  # contact lead of the yawed wheelset (false: zero-yaw tables)
 
 
 #: built-in profile names; anything else is a profile file (two columns y, z in mm)
