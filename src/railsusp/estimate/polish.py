@@ -2,8 +2,9 @@
 
 Time-aligned costs have local minima, and an estimate from statistics can sit in the wrong
 basin: :func:`refine_estimate` scores candidate starts by their time-aligned cost
-(:func:`aligned_cost`), refines the best (:func:`railsusp.estimate.refine.refine`) and
-attaches the winner to the :class:`~railsusp.estimate.result.CalibrationResult`.
+(:func:`aligned_cost`), refines the best together
+(:func:`railsusp.estimate.refine.refine_starts`) and attaches the winner to the
+:class:`~railsusp.estimate.result.CalibrationResult`.
 :func:`check_refinable` refuses, before NSGA-II runs, recordings the refinement cannot use.
 """
 
@@ -13,11 +14,13 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.config import REFINE_RANGES, check_range
 from railsusp.estimate.forces import ForceModel, SimulatorForces
-from railsusp.estimate.problem import CalibrationProblem, display_values
-from railsusp.estimate.refine import GEOMETRY_DRAWS, refine
+from railsusp.estimate.output_error import OutputError
+from railsusp.estimate.problem import CalibrationProblem, check_aligned, display_values
+from railsusp.estimate.refine import GEOMETRY_DRAWS, refine_starts
 from railsusp.estimate.result import CalibrationResult
 from railsusp.estimate.statistics import ALIGNED
 from railsusp.measured import Recording
@@ -72,11 +75,13 @@ def refine_estimate(
 
     Time-aligned costs have local minima, and an estimate from statistics can sit in the
     wrong basin, so the starts are screened first: the Pareto set, the nominal parameters
-    and ``screen`` Latin hypercube points are scored by :func:`aligned_cost` in one batch,
-    :func:`refine` runs from the ``starts`` best, and the lowest final cost wins. Every
-    start's result is kept in ``result.refinement.starts``. The winner's uncertainty then
-    takes in the geometry's stated measurement error (``geometry_draws`` draws; see
-    :meth:`~railsusp.estimate.refine.OutputError.geometry_shifts`), and with
+    and ``screen`` Latin hypercube points are scored by :func:`aligned_cost` in one batch
+    (each distinct point once), the ``starts`` best are refined together
+    (:func:`~railsusp.estimate.refine.refine_starts`: their simulations share batches, and
+    the screened series of the starts are not simulated again), and the lowest final cost
+    wins. Every start's result is kept in ``result.refinement.starts``. The winner's
+    uncertainty then takes in the geometry's stated measurement error (``geometry_draws``
+    draws; see :meth:`~railsusp.estimate.output_error.OutputError.geometry_shifts`), and with
     ``remove_geometry_bias`` the estimate is the refined point less the bias those draws
     estimate (:attr:`~railsusp.estimate.refine.Refinement.geometry_bias_si`).
     The standard errors stay those of the refined point (the removal is itself uncertain by
@@ -94,6 +99,7 @@ def refine_estimate(
     check_refinable(recordings)
     params = result.parameters
     model = SimulatorForces(params) if model is None else model
+    check_aligned(model, recordings)  # the screen below sees the model through _Kept
     lo, hi = bounds(params)
     nominal = np.array([ParameterSet.nominal()[p] for p in params])
     lhs = qmc.LatinHypercube(d=len(params), seed=seed).random(screen) if screen else None
@@ -101,25 +107,18 @@ def refine_estimate(
         [result.pareto_x[result.chosen][None], result.pareto_x, nominal[None]]
         + ([lo + lhs * (hi - lo)] if lhs is not None else [])
     )
-    costs = aligned_cost(model, recordings, params, candidates)
+    # each distinct candidate once (the chosen point is also on the Pareto set), and the
+    # series kept, so that a refinement starting from a candidate need not simulate it again
+    distinct, inverse = _distinct_rows(candidates)
+    kept = _Kept(model)
+    costs = aligned_cost(kept, recordings, params, distinct)[inverse]
+    problem = OutputError(model, recordings, params, gains=gains)
+    problem.remember(distinct, kept.returned)
     best = np.argsort(costs, kind="stable")[:starts]
-    runs = [
-        refine(
-            model,
-            recordings,
-            params,
-            candidates[i],
-            max_evaluations=max_evaluations,
-            gains=gains,
-            geometry_draws=0,
-        )
-        for i in best
-    ]
+    runs = refine_starts(problem, [candidates[i] for i in best], max_evaluations)
     winner = min(runs, key=lambda r: r.cost)
-    assert winner.problem is not None and winner.solution is not None
-    winner.geometry_shifts_si = winner.problem.geometry_shifts(
-        winner.solution, geometry_draws, seed
-    )
+    assert winner.solution is not None
+    winner.geometry_shifts_si = problem.geometry_shifts(winner.solution, geometry_draws, seed)
     winner.geometry_bias_removed = remove_geometry_bias and winner.geometry_shifts_si.size > 0
     winner.starts = [
         {
@@ -133,3 +132,26 @@ def refine_estimate(
     winner.screened = len(candidates)
     result.refinement = winner
     return result
+
+
+def _distinct_rows(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct rows of ``x`` in order of first appearance, and for each row of ``x``
+    the index of its distinct row."""
+    _, first, inverse = np.unique(x, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    return x[first[order]], rank[inverse.reshape(-1)]
+
+
+class _Kept:
+    """A force model that keeps the series it returns (``returned``, one per call)."""
+
+    def __init__(self, model: ForceModel):
+        self.model = model
+        self.returned: list[np.ndarray] = []
+
+    def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
+        out = self.model.series(x_si, condition)
+        self.returned.append(out)
+        return out

@@ -6,39 +6,30 @@ compared with them sample by sample. :func:`refine` runs bounded least squares o
 time-aligned residuals (the output-error method of system identification: Maine & Iliff,
 *Identification of dynamic systems*, NASA RP-1168, 1986), estimating the gains of the force
 channels alongside, and reports standard errors and the share of the uncertainty that the
-track geometry's measurement error causes. Screening the starts and attaching the result to
-an NSGA-II estimate is :func:`railsusp.estimate.polish.refine_estimate`.
+track geometry's measurement error causes; :func:`refine_starts` refines several starts in
+step, their simulations batched together. The problem itself (residuals, Jacobians, cached
+simulations) is :class:`~railsusp.estimate.output_error.OutputError`. Screening the starts
+and attaching the result to an NSGA-II estimate is
+:func:`railsusp.estimate.polish.refine_estimate`.
 """
 
 from __future__ import annotations
 
 import logging
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
+from functools import partial
 
 import numpy as np
 
-from railsusp.estimate.comparison import (
-    compared_measurement,
-    comparison_filter,
-    comparison_samples,
-)
 from railsusp.estimate.forces import ForceModel
-from railsusp.estimate.problem import check_aligned, display_values
+from railsusp.estimate.output_error import REFINE_STEP, OutputError
+from railsusp.estimate.problem import display_values
 from railsusp.measured import Recording
 from railsusp.params import bounds
-from railsusp.vehicle import track
 
 #: progress lines for the command line
 log = logging.getLogger("railsusp.estimate")
-
-#: forward-difference step of the refinement's Jacobian, share of each parameter's range:
-#: wider than the small-scale roughness of the time-aligned cost (wedge friction, contact
-#: tables), on which a 2 % step stalled in flat valleys 3-5 % of the range from the optimum
-REFINE_STEP = 0.05
-
 
 #: the refinement's channel gains stay within 1 ± this (instrumented-wheelset calibration)
 GAIN_LIMIT = 0.1
@@ -67,7 +58,8 @@ class Refinement:
     starts: list[dict] = field(default_factory=list)  # every start refined, when screened
     screened: int = 0  # candidate starts scored
     #: (draws, k) first-order shift of the estimate, SI, that each draw of geometry error of
-    #: the stated accuracy causes (:func:`gauss_newton_step`); empty on exact geometry
+    #: the stated accuracy causes (:func:`~railsusp.estimate.output_error.gauss_newton_step`);
+    #: empty on exact geometry
     geometry_shifts_si: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     #: whether the estimate is the refined point less :attr:`geometry_bias_si`
     geometry_bias_removed: bool = False
@@ -173,14 +165,45 @@ def refine(
     per period of its upper frequency (:func:`~railsusp.estimate.comparison_samples`).
     Standard errors are s^2 (J^T J)^-1 with white residuals, so they are optimistic where the
     residuals are correlated. Where the geometry has a stated accuracy, its measurement
-    error is propagated too (:func:`gauss_newton_step` on ``geometry_draws`` draws seeded by
-    ``seed``): on 0.5 mm geometry it, not the sensor noise, sets the uncertainty. The method
-    is the classical one of system identification (Maine & Iliff, NASA RP-1168, 1986,
-    including the scale-factor estimation of measurement channels).
+    error is propagated too (:func:`~railsusp.estimate.output_error.gauss_newton_step` on
+    ``geometry_draws`` draws seeded by ``seed``): on 0.5 mm geometry it, not the sensor
+    noise, sets the uncertainty. The method is the classical one of system identification
+    (Maine & Iliff, NASA RP-1168, 1986, including the scale-factor estimation of
+    measurement channels). Several starts on one problem: :func:`refine_starts`.
     """
+    problem = OutputError(model, recordings, parameters, step, gains)
+    result = least_squares_from(problem, start_si, max_evaluations)
+    assert result.solution is not None
+    result.geometry_shifts_si = problem.geometry_shifts(result.solution, geometry_draws, seed)
+    return result
+
+
+def refine_starts(
+    problem: OutputError, starts_si: Sequence[np.ndarray], max_evaluations: int = 40
+) -> list[Refinement]:
+    """:func:`refine` (without the geometry-error draws) from each of ``starts_si`` on one
+    problem, the starts in step (:attr:`OutputError.lockstep`): each trial point and
+    Jacobian of one start is simulated in the same batch as those of the others, so that
+    the simulator's parallel sets fill the cores, and a set that two starts need is
+    simulated once. Each start's result is the one it gets alone, bit for bit, as the
+    simulations are independent per set."""
+    solvers = [
+        partial(least_squares_from, problem, s, max_evaluations, f"start {i + 1}: ")
+        for i, s in enumerate(starts_si)
+    ]
+    if len(solvers) == 1:
+        return [solvers[0]()]
+    return problem.lockstep.run(solvers)
+
+
+def least_squares_from(
+    problem: OutputError, start_si: np.ndarray, max_evaluations: int = 40, label: str = ""
+) -> Refinement:
+    """The bounded least squares of :func:`refine` from one start (SI) on ``problem``
+    (scipy's trust-region reflective method, forward-difference Jacobians); ``label``
+    prefixes its progress lines."""
     from scipy.optimize import least_squares
 
-    problem = OutputError(model, recordings, parameters, step, gains)
     k, n_gain = problem.k, problem.n_gain
     lo, hi = problem.lo, problem.hi
     history: list[np.ndarray] = []
@@ -191,8 +214,8 @@ def refine(
     def jacobian(z: np.ndarray) -> np.ndarray:
         history.append(lo + z[:k] * (hi - lo))
         log.info(
-            "refinement step %d (at most %d evaluations): %d simulations of %d parameters",
-            len(history), max_evaluations, k + 1, k,
+            "%srefinement step %d (at most %d evaluations): %d simulations of %d parameters",
+            label, len(history), max_evaluations, k + 1, k,
         )  # fmt: skip
         return problem.jacobian_of(problem.predictions(problem.steps(z[:k])), z)
 
@@ -229,174 +252,13 @@ def refine(
             for i, rec in enumerate(problem.recordings)
             for c, force in enumerate(("Y", "Q"))
         }
-        if gains
+        if problem.gains
         else {},
-        geometry_shifts_si=problem.geometry_shifts(sol.x, geometry_draws, seed),
         problem=problem,
         solution=sol.x,
         residuals=sol.fun,
         residual_blocks=tuple(u[c].size for u in problem.samples for c in range(2)),
     )
-
-
-class OutputError:
-    """The time-aligned least-squares problem of :func:`refine` in unit parameters (and
-    channel gains): the compared measurement and its scale per recording and channel,
-    predictions with a cache, residuals and forward-difference Jacobians."""
-
-    def __init__(
-        self,
-        model: ForceModel,
-        recordings: Sequence[Recording],
-        parameters: Sequence[str],
-        step: float = REFINE_STEP,
-        gains: bool = True,
-    ):
-        self.model = model
-        self.parameters = tuple(parameters)
-        self.recordings = list(recordings)
-        check_aligned(model, self.recordings)
-        self.lo, self.hi = bounds(self.parameters)
-        self.k = len(self.parameters)
-        self.step = step
-        self.gains = gains
-        self.n_gain = 2 * len(self.recordings) if gains else 0
-        # per recording and channel (Y, Q): the compared measurement at the samples compared
-        # and its scale, so that each channel's part of the cost is half its squared
-        # aligned_error
-        self.samples = [comparison_samples(rec) for rec in self.recordings]
-        self.scales: list[list[float]] = []
-        self.targets: list[np.ndarray] = []  # scaled measurement per recording and channel
-        for rec, used in zip(self.recordings, self.samples, strict=True):
-            meas = compared_measurement(rec)
-            self.scales.append([meas[:, c].std() * np.sqrt(used[c].size) for c in range(2)])
-            self.targets += [meas[used[c], c] / self.scales[-1][c] for c in range(2)]
-        self._cache: dict[bytes, list[np.ndarray]] = {}
-
-    def predictions(self, unit: np.ndarray) -> list[np.ndarray]:
-        """Compared series (n, T, 2) per recording; undefined leading steps count zero.
-        Parameter sets already simulated (the start, the base point of each Jacobian) are
-        taken from a cache, the others simulated in one batch."""
-        rows = np.atleast_2d(unit)
-        cache = self._cache
-        new = [i for i, u in enumerate(rows) if u.tobytes() not in cache]
-        if new:
-            x = self.lo + rows[new] * (self.hi - self.lo)
-            series = [
-                np.nan_to_num(comparison_filter(self.model.series(x, rec.condition), rec))
-                for rec in self.recordings
-            ]
-            for j, i in enumerate(new):
-                cache[rows[i].tobytes()] = [s[j] for s in series]
-        return [
-            np.stack([cache[u.tobytes()][r] for u in rows]) for r in range(len(self.recordings))
-        ]
-
-    def blocks(self, preds: list[np.ndarray]) -> list[np.ndarray]:
-        """(n, T_c) scaled prediction per recording and channel, the gains' Jacobian too."""
-        return [
-            p[:, used[c], c] / sc[c]
-            for p, used, sc in zip(preds, self.samples, self.scales, strict=True)
-            for c in range(2)
-        ]
-
-    def residuals(self, preds: list[np.ndarray], g: np.ndarray) -> np.ndarray:
-        g = g if self.gains else np.ones(2 * len(self.recordings))
-        return np.concatenate(
-            [b * gc - t for b, gc, t in zip(self.blocks(preds), g, self.targets, strict=True)],
-            axis=1,
-        )
-
-    def steps(self, unit: np.ndarray) -> np.ndarray:
-        """(k + 1, k) the point and its forward-difference neighbours, stepping inwards at
-        the upper bound."""
-        h = np.where(unit + self.step <= 1.0, self.step, -self.step)
-        return np.vstack([unit, unit + np.diag(h)])
-
-    def jacobian_of(self, preds: list[np.ndarray], z: np.ndarray) -> np.ndarray:
-        """Jacobian at ``z`` from the predictions at :meth:`steps` of ``z``."""
-        k = self.k
-        h = np.diag(self.steps(z[:k])[1:] - z[:k])
-        r = self.residuals(preds, z[k:])
-        jac = np.zeros((r.shape[1], k + self.n_gain))
-        jac[:, :k] = ((r[1:] - r[0]) / h[:, None]).T
-        if self.gains:  # d r / d gain of a channel: its scaled prediction, in its rows only
-            row = 0
-            for j, b in enumerate(self.blocks(preds)):
-                jac[row : row + b.shape[1], k + j] = b[0]
-                row += b.shape[1]
-        return jac
-
-    def geometry_shifts(self, z: np.ndarray, draws: int, seed: int) -> np.ndarray:
-        """(draws, k) shift of the estimate ``z``, SI, that each draw of geometry error of
-        the recordings' stated accuracy causes: a :func:`gauss_newton_step` on the residuals
-        and Jacobian with the perturbed geometry (:func:`geometry_error_series`), less the
-        step on the measured geometry itself (zero at a converged interior optimum).
-        Empty where no recording states an accuracy or ``draws`` is 0."""
-        k = self.k
-        if draws <= 0 or not any(rec.condition.track_accuracy_mm for rec in self.recordings):
-            return np.zeros((0, k))
-        batch = self.steps(z[:k])
-        base = self.predictions(batch)
-        drawn = geometry_error_series(
-            self.model, self.recordings, self.lo + batch * (self.hi - self.lo), draws, seed
-        )
-
-        def shift(preds: list[np.ndarray]) -> np.ndarray:
-            jac = self.jacobian_of(preds, z)
-            return gauss_newton_step(jac, self.residuals(preds, z[k:])[0])[:k]
-
-        unmoved = shift(base)
-        return np.stack(
-            [
-                shift([b if d is None else d for b, d in zip(base, draw, strict=True)]) - unmoved
-                for draw in drawn
-            ]
-        ) * (self.hi - self.lo)
-
-
-def geometry_error_series(
-    model: ForceModel,
-    recordings: Sequence[Recording],
-    x_si: np.ndarray,
-    draws: int,
-    seed: int,
-) -> list[list[np.ndarray | None]]:
-    """Per draw and recording, the compared series (n, T, 2) of the parameter sets ``x_si``
-    (n, k) with the recording's measured geometry perturbed by a fresh draw of its stated
-    measurement error (:func:`~railsusp.vehicle.track.with_measurement_error`:
-    ``track_accuracy_mm`` RMS, down to ``wavelength_min_m``); None for recordings on exact
-    geometry. The perturbed geometries go to a temporary folder, as the simulator reads
-    geometry files."""
-    rng = np.random.default_rng(seed)
-    out: list[list[np.ndarray | None]] = [[None] * len(recordings) for _ in range(draws)]
-    with tempfile.TemporaryDirectory(prefix="railsusp-geometry-") as tmp:
-        for i, rec in enumerate(recordings):
-            cond = rec.condition
-            if not cond.track_accuracy_mm:
-                continue
-            irr = track.read_track_geometry(cond.track_geometry)
-            rms_m = cond.track_accuracy_mm * 1e-3
-            for d in range(draws):
-                path = Path(tmp) / f"{i}-{d}.parquet"
-                noisy = track.with_measurement_error(irr, rms_m, cond.wavelength_min_m, rng)
-                track.write_track_geometry(path, noisy)
-                series = model.series(x_si, cond.with_changes(track_geometry=str(path)))
-                out[d][i] = np.nan_to_num(comparison_filter(series, rec))
-    return out
-
-
-def gauss_newton_step(jac: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """The Gauss-Newton step -(JᵀJ)⁻¹Jᵀr of least squares with Jacobian ``jac`` and
-    residuals ``r``; columns the residuals do not depend on stay put. At an estimate, with
-    the Jacobian and residuals of perturbed input data, it is the estimate's shift that the
-    perturbation causes (exact where the residuals are linear in the parameters), the
-    propagation of errors-in-variables used by SIMEX (Cook & Stefanski, JASA 89, 1994)."""
-    d = np.einsum("ij,ij->j", jac, jac)
-    active = d > 1e-12 * max(float(d.max()), 1e-300)
-    out = np.zeros(jac.shape[1])
-    out[active] = -np.linalg.lstsq(jac[:, active], r, rcond=None)[0]
-    return out
 
 
 def standard_errors(jac: np.ndarray, s2: float) -> np.ndarray:

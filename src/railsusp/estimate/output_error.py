@@ -1,0 +1,234 @@
+"""The time-aligned least-squares problem of the output-error refinement, and its simulations.
+
+:class:`OutputError` holds what :func:`railsusp.estimate.refine.refine` minimises: the
+residuals of every recording's lateral and vertical force on its measured track, in unit
+parameters (and channel gains), with forward-difference Jacobians. Its predictions are
+simulated in as few calls as the method allows: every set a step needs goes in one batch per
+recording, sets already simulated come from a cache, and several starts refined together
+(:func:`railsusp.estimate.refine.refine_starts`) share their batches through a
+:class:`~railsusp.estimate.lockstep.Lockstep`. :func:`geometry_error_series` and
+:func:`gauss_newton_step` propagate the track geometry's measurement error.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from railsusp.estimate.comparison import (
+    compared_measurement,
+    comparison_filter,
+    comparison_samples,
+)
+from railsusp.estimate.forces import ForceModel
+from railsusp.estimate.lockstep import Lockstep
+from railsusp.estimate.problem import check_aligned
+from railsusp.measured import Recording
+from railsusp.params import bounds
+from railsusp.vehicle import track
+
+#: forward-difference step of the refinement's Jacobian, share of each parameter's range:
+#: wider than the small-scale roughness of the time-aligned cost (wedge friction, contact
+#: tables), on which a 2 % step stalled in flat valleys 3-5 % of the range from the optimum
+REFINE_STEP = 0.05
+
+
+class OutputError:
+    """The time-aligned least-squares problem of :func:`~railsusp.estimate.refine.refine` in
+    unit parameters (and channel gains): the compared measurement and its scale per
+    recording and channel, predictions with a cache, residuals and forward-difference
+    Jacobians. ``lockstep`` gathers the simulations of several solvers on this problem."""
+
+    def __init__(
+        self,
+        model: ForceModel,
+        recordings: Sequence[Recording],
+        parameters: Sequence[str],
+        step: float = REFINE_STEP,
+        gains: bool = True,
+    ):
+        self.model = model
+        self.parameters = tuple(parameters)
+        self.recordings = list(recordings)
+        check_aligned(model, self.recordings)
+        self.lo, self.hi = bounds(self.parameters)
+        self.k = len(self.parameters)
+        self.step = step
+        self.gains = gains
+        self.n_gain = 2 * len(self.recordings) if gains else 0
+        # per recording and channel (Y, Q): the compared measurement at the samples compared
+        # and its scale, so that each channel's part of the cost is half its squared
+        # aligned_error
+        self.samples = [comparison_samples(rec) for rec in self.recordings]
+        self.scales: list[list[float]] = []
+        self.targets: list[np.ndarray] = []  # scaled measurement per recording and channel
+        for rec, used in zip(self.recordings, self.samples, strict=True):
+            meas = compared_measurement(rec)
+            self.scales.append([meas[:, c].std() * np.sqrt(used[c].size) for c in range(2)])
+            self.targets += [meas[used[c], c] / self.scales[-1][c] for c in range(2)]
+        self._cache: dict[bytes, list[np.ndarray]] = {}
+        self.lockstep: Lockstep[np.ndarray] = Lockstep(self._simulate)
+
+    def predictions(self, unit: np.ndarray) -> list[np.ndarray]:
+        """Compared series (n, T, 2) per recording; undefined leading steps count zero.
+        Parameter sets already simulated (the start, the base point of each Jacobian) are
+        taken from a cache, the others simulated in one batch per recording, together with
+        those of the other solvers running in step (:attr:`lockstep`)."""
+        rows = np.atleast_2d(unit)
+        new = [u for u in rows if u.tobytes() not in self._cache]
+        if new:
+            self.lockstep.request(np.array(new))
+        return [
+            np.stack([self._cache[u.tobytes()][r] for u in rows])
+            for r in range(len(self.recordings))
+        ]
+
+    def _simulate(self, requests: list[np.ndarray]) -> None:
+        """Simulate the sets of all ``requests`` (unit rows) not yet in the cache, each once,
+        in one batch per recording, and cache their compared series."""
+        rows: dict[bytes, np.ndarray] = {}
+        for u in np.vstack(requests):
+            if u.tobytes() not in self._cache:
+                rows.setdefault(u.tobytes(), u)
+        if not rows:
+            return
+        unit = np.array(list(rows.values()))
+        x = self.lo + unit * (self.hi - self.lo)
+        series = [self.model.series(x, rec.condition) for rec in self.recordings]
+        self._keep(unit, series)
+
+    def _keep(self, unit: np.ndarray, series: list[np.ndarray]) -> None:
+        """Cache the compared series of the unit rows from their raw series per recording."""
+        compared = [
+            np.nan_to_num(comparison_filter(s, rec))
+            for s, rec in zip(series, self.recordings, strict=True)
+        ]
+        for j, u in enumerate(unit):
+            self._cache[u.tobytes()] = [c[j] for c in compared]
+
+    def remember(self, x_si: np.ndarray, series: list[np.ndarray]) -> int:
+        """Cache series already simulated elsewhere: ``series`` (n, T, 2) per recording of the
+        parameter sets ``x_si`` (n, k), SI, in their recordings' conditions (the screening of
+        starts). Only sets that this problem would simulate bit for bit alike are kept: those
+        inside the ranges whose unit coordinates map back to ``x_si`` exactly (a start is
+        taken to unit coordinates and back). Returns how many were kept."""
+        x = np.atleast_2d(np.asarray(x_si, dtype=float))
+        unit = np.clip((x - self.lo) / (self.hi - self.lo), 0.0, 1.0)
+        exact = np.all(self.lo + unit * (self.hi - self.lo) == x, axis=1)
+        fresh = np.array(
+            [e and u.tobytes() not in self._cache for u, e in zip(unit, exact, strict=True)],
+            dtype=bool,
+        )
+        if fresh.any():
+            self._keep(unit[fresh], [s[fresh] for s in series])
+        return int(fresh.sum())
+
+    def blocks(self, preds: list[np.ndarray]) -> list[np.ndarray]:
+        """(n, T_c) scaled prediction per recording and channel, the gains' Jacobian too."""
+        return [
+            p[:, used[c], c] / sc[c]
+            for p, used, sc in zip(preds, self.samples, self.scales, strict=True)
+            for c in range(2)
+        ]
+
+    def residuals(self, preds: list[np.ndarray], g: np.ndarray) -> np.ndarray:
+        g = g if self.gains else np.ones(2 * len(self.recordings))
+        return np.concatenate(
+            [b * gc - t for b, gc, t in zip(self.blocks(preds), g, self.targets, strict=True)],
+            axis=1,
+        )
+
+    def steps(self, unit: np.ndarray) -> np.ndarray:
+        """(k + 1, k) the point and its forward-difference neighbours, stepping inwards at
+        the upper bound."""
+        h = np.where(unit + self.step <= 1.0, self.step, -self.step)
+        return np.vstack([unit, unit + np.diag(h)])
+
+    def jacobian_of(self, preds: list[np.ndarray], z: np.ndarray) -> np.ndarray:
+        """Jacobian at ``z`` from the predictions at :meth:`steps` of ``z``."""
+        k = self.k
+        h = np.diag(self.steps(z[:k])[1:] - z[:k])
+        r = self.residuals(preds, z[k:])
+        jac = np.zeros((r.shape[1], k + self.n_gain))
+        jac[:, :k] = ((r[1:] - r[0]) / h[:, None]).T
+        if self.gains:  # d r / d gain of a channel: its scaled prediction, in its rows only
+            row = 0
+            for j, b in enumerate(self.blocks(preds)):
+                jac[row : row + b.shape[1], k + j] = b[0]
+                row += b.shape[1]
+        return jac
+
+    def geometry_shifts(self, z: np.ndarray, draws: int, seed: int) -> np.ndarray:
+        """(draws, k) shift of the estimate ``z``, SI, that each draw of geometry error of
+        the recordings' stated accuracy causes: a :func:`gauss_newton_step` on the residuals
+        and Jacobian with the perturbed geometry (:func:`geometry_error_series`), less the
+        step on the measured geometry itself (zero at a converged interior optimum).
+        Empty where no recording states an accuracy or ``draws`` is 0."""
+        k = self.k
+        if draws <= 0 or not any(rec.condition.track_accuracy_mm for rec in self.recordings):
+            return np.zeros((0, k))
+        batch = self.steps(z[:k])
+        base = self.predictions(batch)
+        drawn = geometry_error_series(
+            self.model, self.recordings, self.lo + batch * (self.hi - self.lo), draws, seed
+        )
+
+        def shift(preds: list[np.ndarray]) -> np.ndarray:
+            jac = self.jacobian_of(preds, z)
+            return gauss_newton_step(jac, self.residuals(preds, z[k:])[0])[:k]
+
+        unmoved = shift(base)
+        return np.stack(
+            [
+                shift([b if d is None else d for b, d in zip(base, draw, strict=True)]) - unmoved
+                for draw in drawn
+            ]
+        ) * (self.hi - self.lo)
+
+
+def geometry_error_series(
+    model: ForceModel,
+    recordings: Sequence[Recording],
+    x_si: np.ndarray,
+    draws: int,
+    seed: int,
+) -> list[list[np.ndarray | None]]:
+    """Per draw and recording, the compared series (n, T, 2) of the parameter sets ``x_si``
+    (n, k) with the recording's measured geometry perturbed by a fresh draw of its stated
+    measurement error (:func:`~railsusp.vehicle.track.with_measurement_error`:
+    ``track_accuracy_mm`` RMS, down to ``wavelength_min_m``); None for recordings on exact
+    geometry. The perturbed geometries go to a temporary folder, as the simulator reads
+    geometry files; each draw of each recording is one batch of all the sets (the simulator
+    takes one track geometry per call)."""
+    rng = np.random.default_rng(seed)
+    out: list[list[np.ndarray | None]] = [[None] * len(recordings) for _ in range(draws)]
+    with tempfile.TemporaryDirectory(prefix="railsusp-geometry-") as tmp:
+        for i, rec in enumerate(recordings):
+            cond = rec.condition
+            if not cond.track_accuracy_mm:
+                continue
+            irr = track.read_track_geometry(cond.track_geometry)
+            rms_m = cond.track_accuracy_mm * 1e-3
+            for d in range(draws):
+                path = Path(tmp) / f"{i}-{d}.parquet"
+                noisy = track.with_measurement_error(irr, rms_m, cond.wavelength_min_m, rng)
+                track.write_track_geometry(path, noisy)
+                series = model.series(x_si, cond.with_changes(track_geometry=str(path)))
+                out[d][i] = np.nan_to_num(comparison_filter(series, rec))
+    return out
+
+
+def gauss_newton_step(jac: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The Gauss-Newton step -(JᵀJ)⁻¹Jᵀr of least squares with Jacobian ``jac`` and
+    residuals ``r``; columns the residuals do not depend on stay put. At an estimate, with
+    the Jacobian and residuals of perturbed input data, it is the estimate's shift that the
+    perturbation causes (exact where the residuals are linear in the parameters), the
+    propagation of errors-in-variables used by SIMEX (Cook & Stefanski, JASA 89, 1994)."""
+    d = np.einsum("ij,ij->j", jac, jac)
+    active = d > 1e-12 * max(float(d.max()), 1e-300)
+    out = np.zeros(jac.shape[1])
+    out[active] = -np.linalg.lstsq(jac[:, active], r, rcond=None)[0]
+    return out
