@@ -149,8 +149,9 @@ def _fail_first(real):
 
 def test_campaign_counts_failed_simulations_and_exits_1(short, tmp_path, monkeypatch):
     import railsusp.campaign as campaign
+    import railsusp.campaign.run as campaign_run
 
-    monkeypatch.setattr(campaign, "simulate_batch", _fail_first(campaign.simulate_batch))
+    monkeypatch.setattr(campaign_run, "simulate_batch", _fail_first(campaign_run.simulate_batch))
     run = tmp_path / "r"
     args = ["campaign", "--out", run, "--conditions", short, "--samples", "3"]
     args += ["--parameters", "X13", "--batch-size", "2"]

@@ -1,0 +1,240 @@
+"""Campaign configuration and sampling design: what a campaign runs (validated, hashed into
+the run directory) and the parameter samples and per-sample tracks it runs them on."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import pandas as pd
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    SerializerFunctionWrapHandler,
+    ValidationInfo,
+    field_validator,
+    model_serializer,
+)
+from scipy.stats import qmc
+
+from railsusp.conditions import WorkingCondition
+from railsusp.errors import RailsuspInputError
+from railsusp.params import MAIN_SUSPENSION, bounds, spec
+from railsusp.store import (
+    content_hash,
+    read_json,
+)
+from railsusp.variation import (
+    TrackFamily,
+    check_other_parameters,
+    sample_others,
+    sample_tracks,
+)
+from railsusp.vehicle.simulate import WHEEL_NAMES, SolverSettings
+from railsusp.vehicle.wagon import WagonData, load_wagon
+
+CHANNELS = (
+    tuple(f"Y_{w}" for w in WHEEL_NAMES)
+    + tuple(f"Q_{w}" for w in WHEEL_NAMES)
+    + ("car_acc_y", "car_acc_z")
+)
+STATISTICS = ("mean", "rms", "p99", "max")
+
+
+class CampaignError(RailsuspInputError):
+    """A campaign cannot start or resume as asked."""
+
+
+class CampaignConfig(BaseModel):
+    """Everything that determines a campaign's results (its hash names the run)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    parameters: tuple[str, ...] = Field(MAIN_SUSPENSION, min_length=1)
+    samples: int = Field(ge=2, le=1_000_000, description="LHS samples, or Saltelli base N")
+    design: Literal["lhs", "lhs-optimised", "sobol"] = "lhs"
+    second_order: bool = False
+    seed: int = Field(0, ge=0)
+    conditions: tuple[WorkingCondition, ...] = Field(min_length=1)
+    independent_seeds: bool = False
+    batch_size: int = Field(32, ge=1, le=10_000)
+    wheel: str = "auto"
+    wagon: WagonData
+    solver: dict[str, float | str] = Field(
+        default_factory=lambda: asdict(SolverSettings()), validate_default=True
+    )
+    #: per-sample FRA class / curve radius / cant within a family (needs independent_seeds)
+    track_family: TrackFamily | None = None
+    #: parameters not estimated, varied over these SI ranges (not held at nominal)
+    other_parameters: dict[str, tuple[float, float]] = Field(default_factory=dict)
+
+    @model_serializer(mode="wrap")
+    def _without_unset_variation(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
+        """Leave ``track_family`` and ``other_parameters`` out when unset, so that the
+        content hashes of run directories made before they existed stay as they were."""
+        data = handler(self)
+        if data.get("track_family", "") is None:
+            del data["track_family"]
+        if data.get("other_parameters", None) == {}:
+            del data["other_parameters"]
+        return data
+
+    @field_validator("other_parameters")
+    @classmethod
+    def _known_others(
+        cls, v: dict[str, tuple[float, float]], info: ValidationInfo
+    ) -> dict[str, tuple[float, float]]:
+        return check_other_parameters(v, info.data.get("parameters", ()))
+
+    @field_validator("parameters")
+    @classmethod
+    def _known_sampled(cls, v: tuple[str, ...]) -> tuple[str, ...]:
+        syms = tuple(spec(s).symbol for s in v)
+        for s in syms:
+            if not spec(s).is_sampled:
+                raise ValueError(f"{s} is a fixed parameter; sampled ones are X11..X20")
+        if len(set(syms)) != len(syms):
+            raise ValueError(f"parameters repeat: {syms}")
+        return syms
+
+    def model_post_init(self, _ctx: Any) -> None:
+        if self.design == "sobol" and self.samples & (self.samples - 1):
+            raise ValueError(f"a Sobol/Saltelli design needs N a power of two, got {self.samples}")
+        names = [c.name for c in self.conditions]
+        if len(set(names)) != len(names):
+            raise ValueError(f"condition names repeat: {names}")
+        if self.wheel != "auto" and self.wheel not in WHEEL_NAMES:
+            raise ValueError(f"wheel {self.wheel!r}: accepted auto or {', '.join(WHEEL_NAMES)}")
+        fam = self.track_family
+        if fam is not None:
+            if not self.independent_seeds:
+                raise ValueError(
+                    "track_family needs independent_seeds (each sample its own realisation)"
+                )
+            if fam.varies_layout and all(c.curve_radius_m is None for c in self.conditions):
+                raise ValueError(
+                    "track_family: curve_radius_m / cant_mm need a curve condition "
+                    f"(conditions: {', '.join(names)})"
+                )
+
+    @property
+    def simulated_parameters(self) -> tuple[str, ...]:
+        """The design's parameter columns: the sampled (key) ones, then the varied others."""
+        return (*self.parameters, *self.other_parameters)
+
+    @property
+    def n_runs(self) -> int:
+        """Number of parameter sets (rows of the design)."""
+        d = len(self.parameters)
+        if self.design == "sobol":
+            return self.samples * (2 * d + 2 if self.second_order else d + 2)
+        return self.samples
+
+    @property
+    def n_batches(self) -> int:
+        return -(-self.n_runs // self.batch_size)
+
+    def hash(self) -> str:
+        return content_hash(self.model_dump(mode="json"))
+
+    def settings(self) -> SolverSettings:
+        return SolverSettings(**self.solver)
+
+
+def make_config(conditions: Sequence[WorkingCondition], samples: int, **kw: Any) -> CampaignConfig:
+    """A validated campaign configuration; errors name the field (one line)."""
+    from pydantic import ValidationError
+
+    wagon = kw.pop("wagon", None) or load_wagon()
+    try:
+        return CampaignConfig(conditions=tuple(conditions), samples=samples, wagon=wagon, **kw)
+    except ValidationError as exc:
+        msgs = [
+            f"{'.'.join(str(p) for p in e['loc']) or 'campaign'}: "
+            f"{e['msg'].removeprefix('Value error, ')}"
+            for e in exc.errors()
+        ]
+        raise CampaignError("campaign configuration: " + "; ".join(msgs)) from None
+
+
+# ------------------------------------------------------------------------------- design
+def salib_problem(parameters: Sequence[str]) -> dict[str, Any]:
+    """SALib problem description over the given parameters (SI bounds)."""
+    lo, hi = bounds(parameters)
+    return {
+        "num_vars": len(parameters),
+        "names": list(parameters),
+        "bounds": [[float(a), float(b)] for a, b in zip(lo, hi, strict=True)],
+    }
+
+
+def make_design(config: CampaignConfig) -> pd.DataFrame:
+    """The design: one row per parameter set, columns sample_id and the parameters (SI).
+
+    ``lhs``: Latin hypercube (scipy.stats.qmc.LatinHypercube, seeded); ``lhs-optimised``: the
+    same with random-CD optimisation of its centred discrepancy; ``sobol``: SALib's Saltelli
+    scheme on a scrambled Sobol sequence, N (D + 2) rows (N (2D + 2) with second order).
+    """
+    params = list(config.parameters)
+    lo, hi = bounds(params)
+    if config.design == "sobol":
+        from SALib.sample import sobol as sobol_sample
+
+        x = sobol_sample.sample(
+            salib_problem(params),
+            config.samples,
+            calc_second_order=config.second_order,
+            seed=config.seed,
+        )
+    else:
+        opt = "random-cd" if config.design == "lhs-optimised" else None
+        unit = qmc.LatinHypercube(
+            d=len(params), optimization=opt, rng=np.random.default_rng(config.seed)
+        ).random(config.samples)
+        x = lo + (hi - lo) * unit
+    df = pd.DataFrame(x, columns=params)
+    df.insert(0, "sample_id", np.arange(len(df), dtype=np.int64))
+    others = sample_others(config.other_parameters, len(df), config.seed)
+    for col in others.columns:
+        df[col] = others[col].to_numpy()
+    return df
+
+
+def track_seeds(config: CampaignConfig, condition: WorkingCondition) -> np.ndarray | None:
+    """Irregularity seed per sample: None (common random numbers: the condition's seed for
+    all) unless ``independent_seeds``, then distinct seeds derived from the campaign seed."""
+    if not config.independent_seeds:
+        return None
+    ss = np.random.SeedSequence([config.seed, condition.seed])
+    return np.random.default_rng(ss).integers(0, 2**31 - 1, size=config.n_runs)
+
+
+def track_table(config: CampaignConfig, condition: WorkingCondition) -> pd.DataFrame:
+    """The track of every sample of one condition (:func:`railsusp.variation.sample_tracks`):
+    sample_id, seed, irregularity_class, curve_radius_m, cant_mm."""
+    return sample_tracks(
+        config.track_family,
+        condition,
+        track_seeds(config, condition),
+        config.n_runs,
+        config.seed,
+    )
+
+
+# ---- the run directory
+def batch_paths(out: Path, condition: str, b: int) -> tuple[Path, Path]:
+    """Series and features files of batch ``b`` of ``condition`` in run directory ``out``."""
+    folder = out / "batches" / condition
+    return folder / f"batch-{b:05d}.parquet", folder / f"batch-{b:05d}.features.parquet"
+
+
+def read_meta(meta_path: Path) -> dict[str, Any]:
+    """``campaign.json``, or a one-line error when it is unreadable or not a JSON object."""
+    meta = read_json(meta_path)
+    if not isinstance(meta, dict):
+        raise CampaignError(f"{meta_path} is corrupt: a JSON object was expected")
+    return meta

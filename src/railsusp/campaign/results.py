@@ -1,0 +1,120 @@
+"""Reading a campaign run directory back: design, tracks, features and series."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from railsusp.campaign.design import (
+    CHANNELS,
+    CampaignConfig,
+    CampaignError,
+    batch_paths,
+    read_meta,
+    track_table,
+)
+
+
+class Campaign:
+    """A campaign run directory opened for reading."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        meta_path = self.path / "campaign.json"
+        if not meta_path.exists():
+            raise CampaignError(f"{self.path} is not a campaign run directory (no campaign.json)")
+        self.meta = read_meta(meta_path)
+        try:
+            self.config = CampaignConfig.model_validate(self.meta["config"])
+        except (KeyError, TypeError, ValueError) as exc:
+            first = str(exc).strip().splitlines()[0]
+            raise CampaignError(
+                f"{meta_path} is corrupt: its configuration does not validate ({first})"
+            ) from None
+
+    @property
+    def complete(self) -> bool:
+        return "completed" in self.meta
+
+    def design(self) -> pd.DataFrame:
+        return pd.read_parquet(self.path / "design.parquet")
+
+    def tracks(self, condition: str) -> pd.DataFrame:
+        """The track of every sample of one condition (seed, FRA class, radius, cant),
+        recomputed from the configuration (``tracks.parquet`` holds the same)."""
+        cond = next((c for c in self.config.conditions if c.name == condition), None)
+        if cond is None:
+            raise CampaignError(f"no condition {condition!r} in {self.path}")
+        return track_table(self.config, cond)
+
+    def features(self) -> pd.DataFrame:
+        """All tidy features (complete or not: read from the finished batches)."""
+        p = self.path / "features.parquet"
+        if p.exists():
+            return pd.read_parquet(p)
+        files = sorted((self.path / "batches").glob("*/batch-*.features.parquet"))
+        done = [f for f in files if f.with_name(f.name.replace(".features", "")).exists()]
+        if not done:
+            raise CampaignError(f"{self.path}: no finished batch yet")
+        return pd.concat([pd.read_parquet(f) for f in done], ignore_index=True)
+
+    def feature_matrix(
+        self, condition: str, quantity: str, statistic: str, features: pd.DataFrame | None = None
+    ) -> pd.Series:
+        """One feature for all samples (index sample_id); NaN for failed samples.
+        ``features``: the table of :meth:`features` when already read (many lookups)."""
+        f = self.features() if features is None else features
+        sel = f[(f.condition == condition) & (f.quantity == quantity) & (f.statistic == statistic)]
+        if sel.empty:
+            raise CampaignError(f"no feature {quantity}/{statistic} in condition {condition!r}")
+        return sel.set_index("sample_id")["value"].sort_index()
+
+    def series(self, condition: str) -> tuple[np.ndarray, np.ndarray]:
+        """(sample_ids, series (n, channels, n_t)) of one condition from the finished batches."""
+        folder = self.path / "batches" / condition
+        files = sorted(f for f in folder.glob("batch-*.parquet") if ".features" not in f.name)
+        if not files:
+            raise CampaignError(f"{self.path}: no series for condition {condition!r}")
+        df = pd.concat([pd.read_parquet(f) for f in files], ignore_index=True)
+        ids = np.unique(df["sample_id"].to_numpy())
+        n_t = int(df["step"].max()) + 1
+        arr = df[list(CHANNELS)].to_numpy().reshape(len(ids), n_t, len(CHANNELS))
+        return ids, arr.transpose(0, 2, 1)
+
+
+def require_complete(campaign: Campaign) -> Campaign:
+    """``campaign`` if every batch of it is stored; a one-line error saying how to finish it
+    otherwise (a surrogate trained on part of a campaign would silently see fewer runs)."""
+    if not campaign.complete:
+        cfg = campaign.config
+        done = sum(
+            batch_paths(campaign.path, c.name, b)[0].exists()
+            for c in cfg.conditions
+            for b in range(cfg.n_batches)
+        )
+        raise CampaignError(
+            f"{campaign.path}: the campaign is incomplete ({done} of "
+            f"{cfg.n_batches * len(cfg.conditions)} batches); run the same `railsusp "
+            f"campaign` command again to finish it"
+        )
+    return campaign
+
+
+def failed_runs(path: str | Path) -> pd.DataFrame:
+    """The failed simulations (derailed, diverged) of a run directory's finished batches:
+    one row per condition and sample, with its status code."""
+    feats = Campaign(path).features()
+    failed = feats[feats["status"] != 0]
+    return (
+        failed[["condition", "sample_id", "status"]]
+        .drop_duplicates()
+        .sort_values(["condition", "sample_id"])
+        .reset_index(drop=True)
+    )
+
+
+def load_campaign(path: str | Path) -> Campaign:
+    """Open a campaign run directory."""
+    return Campaign(path)

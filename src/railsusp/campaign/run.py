@@ -1,0 +1,301 @@
+"""Running a campaign: simulate batches of samples (locally or on Dask), reduce them to
+features, write each finished batch atomically, resume from what is stored."""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from railsusp.campaign.design import (
+    CHANNELS,
+    STATISTICS,
+    CampaignConfig,
+    CampaignError,
+    batch_paths,
+    make_design,
+    read_meta,
+    track_seeds,
+    track_table,
+)
+from railsusp.errors import RailsuspInputError
+from railsusp.store import (
+    check_output_folder,
+    provenance,
+    read_json,
+    write_json,
+    write_parquet,
+)
+from railsusp.variation import (
+    layout_groups,
+)
+from railsusp.vehicle.simulate import WHEEL_NAMES, simulate_batch
+
+
+def simulate_task(
+    config_json: str,
+    condition_index: int,
+    sample_ids: np.ndarray,
+    x: np.ndarray,
+    seeds: np.ndarray | None,
+) -> dict[str, Any]:
+    """Simulate one batch (runs on a Dask worker or locally); returns series and features.
+
+    With a track family, samples that share FRA class, radius and cant are simulated
+    together (one batched call per layout), each on its own seed."""
+    config = CampaignConfig.model_validate_json(config_json)
+    cond = config.conditions[condition_index]
+    if config.track_family is None:
+        groups = [(cond, np.arange(len(sample_ids)))]
+    else:
+        tracks = track_table(config, cond).set_index("sample_id").loc[sample_ids]
+        groups = layout_groups(cond, tracks.reset_index())
+    series = np.zeros((len(sample_ids), len(CHANNELS), cond.n_steps), dtype=np.float32)
+    status = np.zeros(len(sample_ids), dtype=np.int64)
+    features = []
+    for gcond, idx in groups:
+        r = simulate_batch(
+            x[idx],
+            gcond,
+            symbols=config.simulated_parameters,
+            seeds=None if seeds is None else [int(s) for s in seeds[idx]],
+            wagon=config.wagon,
+            settings=config.settings(),
+        )
+        series[idx] = np.concatenate([r.Y, r.Q, r.car_acc_y[:, None], r.car_acc_z[:, None]], axis=1)
+        status[idx] = r.status
+        features.append(features_table(r, sample_ids[idx], config.wheel, cond.name))
+    feats = pd.concat(features, ignore_index=True)
+    if len(groups) > 1:  # the order of one batched call: quantity, statistic, sample
+        order = {int(s): i for i, s in enumerate(sample_ids)}
+        feats = (
+            feats.assign(_q=feats.quantity.map({"Y": 0, "Q": 1, "YQ": 2, "dQQ": 3}))
+            .assign(_s=feats.statistic.map({s: i for i, s in enumerate(STATISTICS)}))
+            .assign(_i=feats.sample_id.map(order))
+            .sort_values(["_q", "_s", "_i"], kind="stable")
+            .drop(columns=["_q", "_s", "_i"])
+            .reset_index(drop=True)
+        )
+    return {
+        "condition": cond.name,
+        "sample_ids": sample_ids,
+        "series": series,
+        "status": status,
+        "features": feats,
+    }
+
+
+def features_table(
+    result, sample_ids: np.ndarray, wheel: str = "auto", condition: str | None = None
+) -> pd.DataFrame:
+    """Tidy scalar features of the measured wheel (forces in kN): one row per sample,
+    quantity (Y, Q, YQ, dQQ) and statistic (mean, rms, p99, max). ``condition``: the name
+    stored (default: the result's)."""
+    s = result.statistics(wheel, set_index=None)
+    rows = []
+    for q in ("Y", "Q"):
+        for st in STATISTICS:
+            rows.append((q, st, s[f"{q}_{st}"]))
+    rows.append(("YQ", "max", s["YQ_max"]))
+    rows.append(("dQQ", "max", s["dQQ_max"]))
+    frames = [
+        pd.DataFrame(
+            {
+                "sample_id": sample_ids,
+                "condition": result.condition.name if condition is None else condition,
+                "wheel": WHEEL_NAMES[result.measured_wheel(wheel)],
+                "quantity": q,
+                "statistic": st,
+                "value": np.asarray(v, float),
+                "status": result.status.astype(np.int64),
+            }
+        )
+        for q, st, v in rows
+    ]
+    return pd.concat(frames, ignore_index=True)
+
+
+# ------------------------------------------------------------------------------- store
+def _write_batch(out: Path, b: int, res: dict[str, Any], n_t: int) -> None:
+    series_path, feat_path = batch_paths(out, res["condition"], b)
+    write_parquet(feat_path, res["features"])
+    s = res["series"]  # (n, channels, n_t)
+    n = s.shape[0]
+    df = pd.DataFrame(
+        {
+            "sample_id": np.repeat(res["sample_ids"], n_t),
+            "step": np.tile(np.arange(n_t, dtype=np.int32), n),
+        }
+    )
+    for c, name in enumerate(CHANNELS):
+        df[name] = s[:, c, :].reshape(-1)
+    write_parquet(
+        series_path, df, metadata={"railsusp.status": ",".join(str(int(v)) for v in res["status"])}
+    )  # series last: marks the batch done
+
+
+def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
+    """Create or re-open a run directory; refuse a different configuration unless forced."""
+    check_output_folder(out)
+    meta_path = out / "campaign.json"
+    if meta_path.exists():
+        try:
+            meta = read_meta(meta_path)
+        except RailsuspInputError as exc:
+            if not force:
+                raise CampaignError(
+                    f"{exc}; use --force to discard that run directory's results"
+                ) from None
+            meta = {}  # corrupt: discarded below like another configuration
+        if meta.get("config_hash") != config.hash():
+            if not force:
+                raise CampaignError(
+                    f"{out} holds a campaign with another configuration (hash "
+                    f"{meta.get('config_hash')}, now {config.hash()}); use a new --out, or "
+                    f"--force to discard the old results"
+                )
+            for sub in (
+                "batches",
+                "features.parquet",
+                "design.parquet",
+                "tracks.parquet",
+                "sensitivity",
+                "splits",
+            ):
+                p = out / sub
+                if p.is_dir():
+                    shutil.rmtree(p)
+                elif p.exists():
+                    p.unlink()
+        elif (out / "design.parquet").exists():
+            return pd.read_parquet(out / "design.parquet")
+    design = make_design(config)
+    write_parquet(out / "design.parquet", design)
+    write_parquet(
+        out / "tracks.parquet",
+        pd.concat(
+            [track_table(config, c).assign(condition=c.name) for c in config.conditions],
+            ignore_index=True,
+        ),
+    )
+    write_json(
+        meta_path,
+        {
+            "kind": "railsusp campaign",
+            "config_hash": config.hash(),
+            "config": config.model_dump(mode="json"),
+            "n_runs": config.n_runs,
+            "n_batches": config.n_batches,
+            "channels": list(CHANNELS),
+            "created": provenance(),
+        },
+    )
+    return design
+
+
+def run_campaign(
+    config: CampaignConfig,
+    out: str | Path,
+    *,
+    force: bool = False,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    max_batches: int | None = None,
+) -> Path:
+    """Run (or resume) a campaign into ``out``; returns the run directory.
+
+    ``scheduler`` (``tcp://host:port``) or ``workers`` (a local Dask cluster of that many
+    processes) send batches to Dask; otherwise batches run here, one after another, each on
+    all cores. ``progress(done_runs, total_runs)`` reports finished simulations (samples x
+    conditions). ``max_batches`` stops after that many new batches (partial runs, tests).
+    """
+    out = Path(out)
+    if workers is not None and workers < 1:
+        raise CampaignError(f"--workers = {workers}: accepted an integer >= 1")
+    if max_batches is not None and max_batches < 0:
+        raise CampaignError(f"--max-batches = {max_batches}: accepted an integer >= 0")
+    design = _prepare(config, out, force)
+    x_all = design[list(config.simulated_parameters)].to_numpy()
+    ids_all = design["sample_id"].to_numpy()
+    n_t = {c.name: c.n_steps for c in config.conditions}
+    todo: list[tuple[int, int]] = []
+    done_runs = 0
+    for ci, cond in enumerate(config.conditions):
+        for b in range(config.n_batches):
+            if batch_paths(out, cond.name, b)[0].exists():
+                done_runs += len(ids_all[b * config.batch_size : (b + 1) * config.batch_size])
+            else:
+                todo.append((ci, b))
+    total = config.n_runs * len(config.conditions)
+    if progress:
+        progress(done_runs, total)
+    if max_batches is not None:
+        todo = todo[:max_batches]
+    cfg_json = config.model_dump_json()
+    seeds = {ci: track_seeds(config, c) for ci, c in enumerate(config.conditions)}
+
+    def args(ci: int, b: int):
+        sl = slice(b * config.batch_size, (b + 1) * config.batch_size)
+        s = seeds[ci]
+        return cfg_json, ci, ids_all[sl], x_all[sl], None if s is None else s[sl]
+
+    def finish(b: int, res: dict[str, Any]) -> None:
+        nonlocal done_runs
+        _write_batch(out, b, res, n_t[res["condition"]])
+        done_runs += len(res["sample_ids"])
+        if progress:
+            progress(done_runs, total)
+
+    if scheduler is None and workers is None:
+        for ci, b in todo:
+            finish(b, simulate_task(*args(ci, b)))
+    else:
+        _run_dask(todo, args, finish, scheduler, workers)
+    if all(
+        batch_paths(out, c.name, b)[0].exists()
+        for c in config.conditions
+        for b in range(config.n_batches)
+    ):
+        feats = pd.concat(
+            [
+                pd.read_parquet(batch_paths(out, c.name, b)[1])
+                for c in config.conditions
+                for b in range(config.n_batches)
+            ],
+            ignore_index=True,
+        )
+        write_parquet(out / "features.parquet", feats)
+        meta = read_json(out / "campaign.json")
+        meta["completed"] = provenance()
+        write_json(out / "campaign.json", meta)
+    return out
+
+
+def _run_dask(todo, args, finish, scheduler: str | None, workers: int | None) -> None:
+    """Submit batches to a Dask cluster and store them as they complete."""
+    from dask.distributed import Client, LocalCluster, as_completed
+
+    cluster = None
+    if scheduler is None:
+        cluster = LocalCluster(
+            n_workers=workers or 1, threads_per_worker=1, processes=True, dashboard_address=None
+        )
+        client = Client(cluster)
+    else:
+        client = Client(scheduler)
+    try:
+        futures = {}
+        for ci, b in todo:
+            fut = client.submit(simulate_task, *args(ci, b), pure=False)
+            futures[fut] = b
+        for fut in as_completed(futures):
+            finish(futures[fut], fut.result())
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
