@@ -230,14 +230,12 @@ def shared_rail_normal_forces(a1, g1, a2, g2, m11, m12, m22):
     by Newton from the single-contact solutions (upper bounds, since m12 > 0); a contact
     that the other one's deflection opens carries nothing.
     """
-    n1 = hertz_rail_normal_force(a1, g1, 1.0 / m11) if a1 > 0.0 else 0.0
-    n2 = hertz_rail_normal_force(a2, g2, 1.0 / m22) if a2 > 0.0 else 0.0
+    n1, u1 = hertz_rail_solve(a1, g1, 1.0 / m11)  # (0, 0) for a1 <= 0
+    n2, u2 = hertz_rail_solve(a2, g2, 1.0 / m22)
     if n2 == 0.0 or a2 - m12 * n1 <= 0.0:
         return n1, 0.0
     if n1 == 0.0 or a1 - m12 * n2 <= 0.0:
         return 0.0, n2
-    u1 = np.cbrt(n1)
-    u2 = np.cbrt(n2)
     for _ in range(8):
         c1 = u1 * u1 * u1
         c2 = u2 * u2 * u2
@@ -247,9 +245,9 @@ def shared_rail_normal_forces(a1, g1, a2, g2, m11, m12, m22):
         j12 = 3.0 * m12 * u2 * u2
         j21 = 3.0 * m12 * u1 * u1
         j22 = 2.0 * g2 * u2 + 3.0 * m22 * u2 * u2
-        det = j11 * j22 - j12 * j21
-        d1 = (j22 * f1 - j12 * f2) / det
-        d2 = (j11 * f2 - j21 * f1) / det
+        inv_det = 1.0 / (j11 * j22 - j12 * j21)
+        d1 = (j22 * f1 - j12 * f2) * inv_det
+        d2 = (j11 * f2 - j21 * f1) * inv_det
         u1 = max(u1 - d1, 0.0)
         u2 = max(u2 - d2, 0.0)
         if abs(d1) + abs(d2) < 1e-9 * (u1 + u2):  # N to ~3e-9 relative
