@@ -121,16 +121,18 @@ def table_on_tracks(
     models: Sequence[str] = MODELS,
     train: TrainConfig | None = None,
     variant_window: int | None = None,
+    variant_conditions: Sequence[str] | None = None,
     split_seed: int = 0,
     progress: Callable[[str], None] | None = None,
 ) -> pd.DataFrame:
     """The accuracy table (one row per condition, model and force) of every model on the
-    campaign's held-out test runs, the variant's rows after the reference's."""
+    campaign's held-out test runs, the variant's rows (in ``variant_conditions``, all by
+    default) after the reference's."""
     table = compare(run, models=models, train=train, split_seed=split_seed, progress=progress)
     if variant_window is None:
         return table
     rows = []
-    for cond in table.condition.unique():
+    for cond in variant_conditions or table.condition.unique():
         if progress:
             progress(f"{cond}: cnn-gru w{variant_window}")
         rows += variant_rows(run, cond, variant_window, train, split_seed)
@@ -252,6 +254,7 @@ def main() -> None:
     ap.add_argument(
         "--variant-window", type=int, default=0, help="also a CNN-GRU with these windows (0: no)"
     )
+    ap.add_argument("--variant-conditions", help="conditions of the variant (default: all)")
     ap.add_argument("--threads", type=int, default=2, help="torch threads for throughput")
     ap.add_argument("--repeats", type=int, default=3, help="timed predict calls, best kept")
     ap.add_argument("--out", default="bench/results/surrogate_tracks.json")
@@ -293,6 +296,7 @@ def main() -> None:
         models=models,
         train=tcfg,
         variant_window=args.variant_window or None,
+        variant_conditions=args.variant_conditions.split(",") if args.variant_conditions else None,
         progress=tick,
     )
     tick("done")
@@ -322,6 +326,7 @@ def main() -> None:
             },
             "train_config": tcfg.to_dict(),
             "variant_window": args.variant_window or None,
+            "variant_conditions": args.variant_conditions,
             "table7": t7.to_dict(orient="records"),
             "table": table.to_dict(orient="records"),
             "train_seconds": seconds,
