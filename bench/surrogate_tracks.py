@@ -122,13 +122,21 @@ def table_on_tracks(
     train: TrainConfig | None = None,
     variant_window: int | None = None,
     variant_conditions: Sequence[str] | None = None,
+    conditions: Sequence[str] | None = None,
     split_seed: int = 0,
     progress: Callable[[str], None] | None = None,
 ) -> pd.DataFrame:
     """The accuracy table (one row per condition, model and force) of every model on the
-    campaign's held-out test runs, the variant's rows (in ``variant_conditions``, all by
-    default) after the reference's."""
-    table = compare(run, models=models, train=train, split_seed=split_seed, progress=progress)
+    campaign's held-out test runs in ``conditions`` (all by default), the variant's rows (in
+    ``variant_conditions``, all by default) after the reference's."""
+    table = compare(
+        run,
+        models=models,
+        conditions=conditions,
+        train=train,
+        split_seed=split_seed,
+        progress=progress,
+    )
     if variant_window is None:
         return table
     rows = []
@@ -255,6 +263,7 @@ def main() -> None:
         "--variant-window", type=int, default=0, help="also a CNN-GRU with these windows (0: no)"
     )
     ap.add_argument("--variant-conditions", help="conditions of the variant (default: all)")
+    ap.add_argument("--train-conditions", help="conditions whose models are trained (default: all)")
     ap.add_argument("--threads", type=int, default=2, help="torch threads for throughput")
     ap.add_argument("--repeats", type=int, default=3, help="timed predict calls, best kept")
     ap.add_argument("--out", default="bench/results/surrogate_tracks.json")
@@ -297,6 +306,7 @@ def main() -> None:
         train=tcfg,
         variant_window=args.variant_window or None,
         variant_conditions=args.variant_conditions.split(",") if args.variant_conditions else None,
+        conditions=args.train_conditions.split(",") if args.train_conditions else None,
         progress=tick,
     )
     tick("done")
