@@ -13,9 +13,11 @@ vertical Q and lateral |Y| per held-out run (mean and worst) and pooled, the NRM
 the series, and the inference rate (windows per second, batched, ``--threads`` torch threads).
 
 Everything is resumable: the campaign resumes from its stored batches, the networks from their
-checkpoints (a finished training is reloaded, not repeated). The scale options (``--samples``,
-``--duration``, ``--epochs``, ``--batches-per-epoch``) set how far it is from the issue's
-targets; bench/README.md has the measured table and the command.
+checkpoints (a finished training is reloaded, not repeated; its record correction is fitted
+again). ``--train-conditions`` and ``--variant-conditions`` train some conditions of the
+campaign only. The scale options (``--samples``, ``--duration``, ``--epochs``,
+``--batches-per-epoch``) set how far it is from the issue's targets; bench/README.md has the
+measured tables and the commands.
 """
 
 from __future__ import annotations
@@ -212,7 +214,7 @@ def print_table(t7: pd.DataFrame, seconds: dict[str, float]) -> None:
     print(
         f"\n{'condition':<9} {'model':<12} {'Q run%':>7} {'Q max%':>7} {'Q pool%':>7} "
         f"{'Y run%':>7} {'Y max%':>7} {'Y pool%':>7} {'Y alone%':>8} {'Q NRMSE':>7} "
-        f"{'Y NRMSE':>7} {'Q R2':>6} {'Y R2':>6} {'train s':>7}"
+        f"{'Y NRMSE':>7} {'Q R2':>6} {'Y R2':>6} {'wall s':>7}"
     )
     for r in t7.to_dict(orient="records"):
         t = seconds.get(f"{r['condition']}: {r['model']}", float("nan"))
