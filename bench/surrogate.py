@@ -2,11 +2,14 @@
 prediction throughput (windows per second, batched). Writes bench/results/surrogate.json.
 
 Needs a campaign run directory (``--run``, e.g. ``railsusp campaign --samples 256 --out RUN``);
-all models are trained on the same 70/15/15 split by sample. ``--throughput-only`` needs no
-campaign: it times randomly initialised default-size networks on 64 series x 980 windows
-(bench/results/surrogate_throughput.json). Throughput is the fast whole-series path
-(``Surrogate.predict``), plus the per-window reference path (``fast=False``) for the CNN-GRU,
-with ``--threads`` torch threads (2), best of ``--repeats`` calls (3).
+all models are trained on the campaign's stored 70/15/15 split (by track and parameter set,
+``RUN/splits/seed-0.json``; on a many-track campaign the test runs hold tracks no network saw:
+bench/surrogate_tracks.py makes such a campaign and prints its table).
+``--throughput-only`` needs no campaign: it times randomly initialised default-size networks
+on 64 series x 980 windows (bench/results/surrogate_throughput.json). Throughput is the
+fast whole-series path (``Surrogate.predict``), plus the per-window reference path
+(``fast=False``) for the CNN-GRU, with ``--threads`` torch threads (2), best of
+``--repeats`` calls (3).
 """
 
 from __future__ import annotations

@@ -1,0 +1,353 @@
+"""Table 7 on held-out tracks and parameters: the CNN-GRU and the four baselines trained on a
+many-track campaign (issue 19, item 2). Writes bench/results/surrogate_tracks.json.
+
+One command makes (or resumes) a keys campaign in which every sample runs on its own track
+(FRA class, and radius and cant in the curve, drawn from a family) with the key parameters
+sampled by Latin hypercube and every other main-suspension parameter varied over its Table 2
+range (``--vary-others``); trains the CNN-GRU (the study's architecture, the default
+:class:`~railsusp.surrogate.models.NetConfig`), CNN-LSTM, CNN-BiLSTM, BP and RBF per condition
+on the campaign's stored split (:mod:`railsusp.surrogate.split`: the test samples hold tracks
+and parameter sets that no network saw), optionally a CNN-GRU variant with longer windows
+(``--variant-window``), and prints per condition the relative error of the record mean of
+vertical Q and lateral |Y| per held-out run (mean and worst) and pooled, the NRMSE and R² of
+the series, and the inference rate (windows per second, batched, ``--threads`` torch threads).
+
+Everything is resumable: the campaign resumes from its stored batches, the networks from their
+checkpoints (a finished training is reloaded, not repeated; its record correction is fitted
+again). ``--train-conditions`` and ``--variant-conditions`` train some conditions of the
+campaign only. The scale options (``--samples``, ``--duration``, ``--epochs``,
+``--batches-per-epoch``) set how far it is from the issue's targets; bench/README.md has the
+measured tables and the commands.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import platform
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import torch
+
+from railsusp.campaign import CampaignConfig, load_campaign, make_config, run_campaign
+from railsusp.conditions import get_condition
+from railsusp.store import write_json
+from railsusp.surrogate import TrainConfig, feature_spec, key_parameters, load, train_surrogate
+from railsusp.surrogate.compare import compare
+from railsusp.surrogate.data import load_series
+from railsusp.surrogate.evaluate import accuracy, predict_with_alone
+from railsusp.surrogate.split import campaign_split
+from railsusp.variation import full_ranges, parse_range
+
+#: the key parameters of the current model's sensitivity analysis (bench/README.md)
+KEYS = ("X13", "X18", "X14", "X19", "X17", "X16")
+MODELS = ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp", "rbf")
+NETWORKS = ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp")
+#: the issue's targets for the CNN-GRU per held-out run (fractions) and its inference rate
+TARGET_Q, TARGET_Y, TARGET_RATE = 0.01, 0.02, 1e5
+
+
+def tracks_config(
+    samples: int,
+    *,
+    conditions: Sequence[str] = ("straight", "curve", "uphill"),
+    duration_s: float = 20.0,
+    keys: Sequence[str] = KEYS,
+    classes: tuple[int, int] = (4, 6),
+    radius_m: tuple[float, float] | None = (250.0, 400.0),
+    cant_mm: tuple[float, float] | None = (0.0, 100.0),
+    seed: int = 0,
+    batch_size: int = 32,
+) -> CampaignConfig:
+    """A many-track keys campaign: each sample on its own track of the family (radius and
+    cant only when a condition is a curve), the keys sampled, every other main-suspension
+    parameter varied over its Table 2 range."""
+    conds = [get_condition(c).with_duration(duration_s) for c in conditions]
+    family: dict[str, tuple] = {"irregularity_classes": classes}
+    curved = any(c.curve_radius_m is not None for c in conds)  # radius and cant: curves only
+    if radius_m is not None and curved:
+        family["curve_radius_m"] = radius_m
+    if cant_mm is not None and curved:
+        family["cant_mm"] = cant_mm
+    return make_config(
+        conds,
+        samples,
+        parameters=tuple(keys),
+        seed=seed,
+        batch_size=batch_size,
+        independent_seeds=True,
+        track_family=family,
+        other_parameters=full_ranges(tuple(keys)),
+    )
+
+
+def variant_rows(
+    run: str | Path,
+    condition: str,
+    window: int,
+    train: TrainConfig | None,
+    split_seed: int = 0,
+) -> list[dict]:
+    """Train the CNN-GRU with ``window``-step windows on the same split (saved under
+    ``RUN/surrogates/cnn-gru-w<window>/``) and score it on the same test runs (steps
+    ``window`` .. T; the reference scores from step 20)."""
+    camp = load_campaign(run)
+    params = key_parameters(run)
+    out = Path(run) / "surrogates" / f"cnn-gru-w{window}" / condition
+    sur = train_surrogate(
+        run, condition, kind="cnn-gru", window=window, train=train, split_seed=split_seed, out=out
+    )
+    data = load_series(camp, condition, feature_spec(camp, params, window))
+    split = campaign_split(camp, split_seed)
+    test = data.subset(split.positions(data.sample_ids, "test"))
+    pred, raw = predict_with_alone(sur, test)
+    sim = test.targets.astype(float)
+    alone = accuracy(sim, raw, sur.spec.targets, window) if raw is not None else None
+    held = {"held_out": split.held_out, "test_tracks": len(np.unique(test.seeds))}
+    rows = []
+    for j, r in enumerate(accuracy(sim, pred, sur.spec.targets, window)):
+        r["relative_error_of_mean_network_alone"] = (
+            alone[j]["relative_error_of_mean"] if alone else float("nan")
+        )
+        rows.append({"condition": condition, "model": f"cnn-gru w{window}", **r, **held})
+    return rows
+
+
+def table_on_tracks(
+    run: str | Path,
+    *,
+    models: Sequence[str] = MODELS,
+    train: TrainConfig | None = None,
+    variant_window: int | None = None,
+    variant_conditions: Sequence[str] | None = None,
+    conditions: Sequence[str] | None = None,
+    split_seed: int = 0,
+    progress: Callable[[str], None] | None = None,
+) -> pd.DataFrame:
+    """The accuracy table (one row per condition, model and force) of every model on the
+    campaign's held-out test runs in ``conditions`` (all by default), the variant's rows (in
+    ``variant_conditions``, all by default) after the reference's."""
+    table = compare(
+        run,
+        models=models,
+        conditions=conditions,
+        train=train,
+        split_seed=split_seed,
+        progress=progress,
+    )
+    if variant_window is None:
+        return table
+    rows = []
+    for cond in variant_conditions or table.condition.unique():
+        if progress:
+            progress(f"{cond}: cnn-gru w{variant_window}")
+        rows += variant_rows(run, cond, variant_window, train, split_seed)
+    return pd.concat([table, pd.DataFrame(rows)], ignore_index=True)
+
+
+def table7_per_run(table: pd.DataFrame) -> pd.DataFrame:
+    """Table 7 per condition and model: relative error (%) of the record mean of Q and |Y|
+    per held-out run (mean and worst) and pooled, NRMSE and R² of the series."""
+    rows = []
+    for (cond, model), g in table.groupby(["condition", "model"], sort=False):
+        q, y = (g[g.target == t].iloc[0] for t in ("Q", "Y"))
+        rows.append(
+            {
+                "condition": cond,
+                "model": model,
+                "Q per run %": 100 * q.relative_error_of_mean,
+                "Q worst run %": 100 * q.relative_error_of_mean_max,
+                "Q pooled %": 100 * q.relative_error_of_pooled_mean,
+                "Y per run %": 100 * y.relative_error_of_mean,
+                "Y worst run %": 100 * y.relative_error_of_mean_max,
+                "Y pooled %": 100 * y.relative_error_of_pooled_mean,
+                "Y per run, network alone %": 100
+                * y.get("relative_error_of_mean_network_alone", float("nan")),
+                "Q NRMSE": q.nrmse,
+                "Y NRMSE": y.nrmse,
+                "Q R2": q.r2,
+                "Y R2": y.r2,
+                "test runs": int(q.n_samples),
+                "test tracks": int(q.test_tracks),
+                "held out": q.held_out,
+            }
+        )
+    return pd.DataFrame(rows)
+
+
+def _surrogate_bench():
+    """bench/surrogate.py as a module (its batched throughput timer)."""
+    path = Path(__file__).resolve().parent / "surrogate.py"
+    spec = importlib.util.spec_from_file_location("bench_surrogate", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def inference_rates(
+    run: str | Path, condition: str, kinds: Sequence[str], threads: int = 2, repeats: int = 3
+) -> dict[str, float]:
+    """Windows per second of each trained network's fast path (64 parameter sets per call,
+    on the first test run's track), with ``threads`` torch threads."""
+    camp = load_campaign(run)
+    data = load_series(camp, condition, feature_spec(camp, key_parameters(run)))
+    test = data.subset(campaign_split(camp).positions(data.sample_ids, "test")[:1])
+    rate = _surrogate_bench()._rate
+    before = torch.get_num_threads()
+    torch.set_num_threads(threads)
+    try:
+        return {
+            k: rate(
+                load(Path(run) / "surrogates" / k / condition), 64, repeats, True, test.track[0]
+            )
+            for k in kinds
+        }
+    finally:
+        torch.set_num_threads(before)
+
+
+def print_table(t7: pd.DataFrame, seconds: dict[str, float]) -> None:
+    print(
+        f"\n{'condition':<9} {'model':<12} {'Q run%':>7} {'Q max%':>7} {'Q pool%':>7} "
+        f"{'Y run%':>7} {'Y max%':>7} {'Y pool%':>7} {'Y alone%':>8} {'Q NRMSE':>7} "
+        f"{'Y NRMSE':>7} {'Q R2':>6} {'Y R2':>6} {'wall s':>7}"
+    )
+    for r in t7.to_dict(orient="records"):
+        t = seconds.get(f"{r['condition']}: {r['model']}", float("nan"))
+        print(
+            f"{r['condition']:<9} {r['model']:<12} {r['Q per run %']:7.2f} "
+            f"{r['Q worst run %']:7.2f} {r['Q pooled %']:7.2f} {r['Y per run %']:7.2f} "
+            f"{r['Y worst run %']:7.2f} {r['Y pooled %']:7.2f} "
+            f"{r['Y per run, network alone %']:8.2f} {r['Q NRMSE']:7.3f} {r['Y NRMSE']:7.3f} "
+            f"{r['Q R2']:6.3f} {r['Y R2']:6.3f} {t:7.0f}"
+        )
+    for cond, g in t7.groupby("condition", sort=False):
+        r = g.iloc[0]
+        print(f"{cond}: {r['test runs']} test runs on {r['test tracks']} tracks ({r['held out']})")
+
+
+def targets_met(t7: pd.DataFrame, rates: dict[str, float], model: str = "cnn-gru") -> dict:
+    """The issue's targets for ``model``: per held-out run Q <= 1 % and |Y| <= 2 % in every
+    condition, and >= 1e5 windows per second."""
+    g = t7[t7.model == model]
+    return {
+        "model": model,
+        "vertical_per_run_ok": bool((g["Q per run %"] <= 100 * TARGET_Q).all()),
+        "lateral_per_run_ok": bool((g["Y per run %"] <= 100 * TARGET_Y).all()),
+        "windows_per_second_ok": bool(rates.get(model, 0.0) >= TARGET_RATE),
+    }
+
+
+def _pair(text: str | None, option: str) -> tuple[float, float] | None:
+    return None if text in (None, "", "none") else parse_range(text, option)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--run", default="runs/bench-tracks", help="campaign run directory")
+    ap.add_argument("--samples", type=int, default=256)
+    ap.add_argument("--duration", type=float, default=20.0, help="record length, s")
+    ap.add_argument("--conditions", default="straight,curve,uphill")
+    ap.add_argument("--classes", default="4:6", help="FRA classes LO:HI")
+    ap.add_argument("--radius", default="250:400", help="curve radius LO:HI m, or none")
+    ap.add_argument("--cant", default="0:100", help="cant LO:HI mm, or none")
+    ap.add_argument("--seed", type=int, default=0, help="campaign design seed")
+    ap.add_argument("--models", default=",".join(MODELS))
+    ap.add_argument("--epochs", type=int, default=4)
+    ap.add_argument("--batches-per-epoch", type=int, default=100)
+    ap.add_argument("--batch-size", type=int, default=512)
+    ap.add_argument("--device", default="cpu", help="training device: cpu, cuda or auto")
+    ap.add_argument(
+        "--variant-window", type=int, default=0, help="also a CNN-GRU with these windows (0: no)"
+    )
+    ap.add_argument("--variant-conditions", help="conditions of the variant (default: all)")
+    ap.add_argument("--train-conditions", help="conditions whose models are trained (default: all)")
+    ap.add_argument("--threads", type=int, default=2, help="torch threads for throughput")
+    ap.add_argument("--repeats", type=int, default=3, help="timed predict calls, best kept")
+    ap.add_argument("--out", default="bench/results/surrogate_tracks.json")
+    args = ap.parse_args()
+    lo, hi = parse_range(args.classes, "--classes")
+    cfg = tracks_config(
+        args.samples,
+        conditions=[c.strip() for c in args.conditions.split(",") if c.strip()],
+        duration_s=args.duration,
+        classes=(int(lo), int(hi)),
+        radius_m=_pair(args.radius, "--radius"),
+        cant_mm=_pair(args.cant, "--cant"),
+        seed=args.seed,
+    )
+    t0 = time.perf_counter()
+    print(f"campaign: {cfg.n_runs} samples x {len(cfg.conditions)} conditions into {args.run}")
+    run_campaign(cfg, args.run)
+    campaign_s = time.perf_counter() - t0
+    print(f"  {campaign_s:.0f} s (resumed runs cost nothing)", flush=True)
+    tcfg = TrainConfig(
+        epochs=args.epochs,
+        batches_per_epoch=args.batches_per_epoch,
+        batch_size=args.batch_size,
+        device=args.device,
+    )
+    seconds: dict[str, float] = {}
+    state: dict = {"t": None, "m": None}
+
+    def tick(msg: str) -> None:
+        now = time.perf_counter()
+        if state["m"] is not None:
+            seconds[state["m"]] = now - state["t"]
+        state["t"], state["m"] = now, msg
+        print(f"  training {msg}", flush=True)
+
+    models = [m.strip() for m in args.models.split(",") if m.strip()]
+    table = table_on_tracks(
+        args.run,
+        models=models,
+        train=tcfg,
+        variant_window=args.variant_window or None,
+        variant_conditions=args.variant_conditions.split(",") if args.variant_conditions else None,
+        conditions=args.train_conditions.split(",") if args.train_conditions else None,
+        progress=tick,
+    )
+    tick("done")
+    t7 = table7_per_run(table)
+    kinds = [k for k in models if k in NETWORKS]
+    rates = inference_rates(args.run, table.condition.iloc[0], kinds, args.threads, args.repeats)
+    print_table(t7, seconds)
+    print(f"\ninference, windows / s ({args.threads} threads, 64 parameter sets per call):")
+    for k, v in rates.items():
+        print(f"  {k:<11} {v:12.0f}")
+    met = targets_met(t7, rates)
+    print(f"issue 19 targets for the CNN-GRU: {met}")
+    out = write_json(
+        args.out,
+        {
+            "date": time.strftime("%Y-%m-%d"),
+            "machine": platform.platform(),
+            "run": str(args.run),
+            "campaign": {
+                "samples": cfg.n_runs,
+                "conditions": [c.name for c in cfg.conditions],
+                "duration_s": args.duration,
+                "parameters": list(cfg.parameters),
+                "other_parameters": sorted(cfg.other_parameters),
+                "track_family": cfg.track_family.ranges() if cfg.track_family else None,
+                "seconds": campaign_s,
+            },
+            "train_config": tcfg.to_dict(),
+            "variant_window": args.variant_window or None,
+            "variant_conditions": args.variant_conditions,
+            "table7": t7.to_dict(orient="records"),
+            "table": table.to_dict(orient="records"),
+            "train_seconds": seconds,
+            "windows_per_second": rates,
+            "targets": met,
+        },
+    )
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()

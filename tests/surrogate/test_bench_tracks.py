@@ -1,0 +1,85 @@
+"""bench/surrogate_tracks.py: Table 7 on held-out tracks and parameters from a tiny many-track
+campaign (short records, one short epoch), and the campaign it makes."""
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from railsusp.campaign import load_campaign, run_campaign
+from railsusp.errors import RailsuspInputError
+from railsusp.params import MAIN_SUSPENSION
+from railsusp.surrogate import TrainConfig, load
+from railsusp.surrogate.split import campaign_split
+
+BENCH = Path(__file__).resolve().parents[2] / "bench" / "surrogate_tracks.py"
+
+
+def _bench():
+    spec = importlib.util.spec_from_file_location("surrogate_tracks", BENCH)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def bench():
+    return _bench()
+
+
+@pytest.fixture(scope="module")
+def tiny_run(bench, tmp_path_factory):
+    out = tmp_path_factory.mktemp("tracks") / "run"
+    cfg = bench.tracks_config(20, conditions=("straight",), duration_s=2.0, seed=3, batch_size=10)
+    run_campaign(cfg, out)
+    return out
+
+
+def test_the_campaign_varies_tracks_and_every_parameter_not_a_key(bench):
+    cfg = bench.tracks_config(16, duration_s=3.0)
+    assert cfg.independent_seeds and cfg.parameters == bench.KEYS
+    assert set(cfg.other_parameters) == set(MAIN_SUSPENSION) - set(bench.KEYS)
+    assert cfg.track_family.ranges()["curve_radius_m"] == [250.0, 400.0]
+    assert [c.name for c in cfg.conditions] == ["straight", "curve", "uphill"]
+    assert all(c.duration_s == 3.0 for c in cfg.conditions)
+    with pytest.raises(RailsuspInputError, match="curve_radius_m"):
+        bench.tracks_config(16, radius_m=(10.0, 400.0))
+
+
+def test_table7_on_held_out_tracks(bench, tiny_run):
+    tcfg = TrainConfig(epochs=1, batches_per_epoch=2, batch_size=32, val_windows=200)
+    table = bench.table_on_tracks(tiny_run, models=("bp", "rbf"), train=tcfg, variant_window=30)
+    t7 = bench.table7_per_run(table)
+    assert list(t7.model) == ["bp", "rbf", "cnn-gru w30"]
+    camp = load_campaign(tiny_run)
+    split = campaign_split(camp)
+    seeds = camp.tracks("straight").set_index("sample_id").seed
+    assert not set(seeds[split.test]) & (set(seeds[split.train]) | set(seeds[split.val]))
+    assert (t7["test runs"] == len(split.test)).all()
+    assert (t7["test tracks"] == len(split.test)).all()  # every test run on its own track
+    assert set(t7["held out"]) == {"tracks and parameters"}
+    errors = t7[[c for c in t7.columns if c.endswith("%") and "alone" not in c]]
+    assert np.isfinite(errors.to_numpy()).all() and (errors.to_numpy() >= 0).all()
+    assert (t7["Y worst run %"] >= t7["Y per run %"]).all()
+    assert (t7["Q worst run %"] >= t7["Q per run %"]).all()
+    var = load(tiny_run / "surrogates" / "cnn-gru-w30" / "straight")
+    assert var.spec.window == 30 and var.meta["test_ids"] == split.test.tolist()
+    rates = bench.inference_rates(tiny_run, "straight", ["bp"], threads=1, repeats=1)
+    assert rates["bp"] > 0 and np.isfinite(rates["bp"])
+
+
+def test_targets_are_judged_per_run_in_every_condition(bench):
+    t7 = pd.DataFrame(
+        {
+            "model": ["cnn-gru", "cnn-gru", "bp"],
+            "Q per run %": [0.5, 1.2, 0.1],
+            "Y per run %": [1.0, 1.9, 0.1],
+        }
+    )
+    met = bench.targets_met(t7, {"cnn-gru": 2e5})
+    assert not met["vertical_per_run_ok"] and met["lateral_per_run_ok"]
+    assert met["windows_per_second_ok"]
+    assert not bench.targets_met(t7.iloc[[0, 2]], {"cnn-gru": 9e4})["windows_per_second_ok"]
+    assert bench.targets_met(t7.iloc[[0, 2]], {})["vertical_per_run_ok"]
