@@ -1,7 +1,22 @@
 """Test-suite settings: tests marked ``slow`` are left out of the default run, as the marker
-says (pyproject.toml); ``pytest -m slow`` (or any ``-m`` naming it) runs them."""
+says (pyproject.toml); ``pytest -m slow`` (or any ``-m`` naming it) runs them. Tests of a
+bench script load it with :func:`bench_script` (bench/ is not a package)."""
+
+import importlib.util
+from pathlib import Path
+from types import ModuleType
 
 import pytest
+
+BENCH = Path(__file__).resolve().parents[1] / "bench"
+
+
+def bench_script(name: str) -> ModuleType:
+    """The script bench/NAME.py as a module (its ``main`` not run)."""
+    spec = importlib.util.spec_from_file_location(name, BENCH / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def pytest_collection_modifyitems(config, items):

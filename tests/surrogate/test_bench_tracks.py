@@ -1,32 +1,21 @@
 """bench/surrogate_tracks.py: Table 7 on held-out tracks and parameters from a tiny many-track
 campaign (short records, one short epoch), and the campaign it makes."""
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pandas as pd
 import pytest
 
+from conftest import bench_script
 from railsusp.campaign import load_campaign, run_campaign
 from railsusp.errors import RailsuspInputError
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.surrogate import TrainConfig, load
 from railsusp.surrogate.split import campaign_split
 
-BENCH = Path(__file__).resolve().parents[2] / "bench" / "surrogate_tracks.py"
-
-
-def _bench():
-    spec = importlib.util.spec_from_file_location("surrogate_tracks", BENCH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
 
 @pytest.fixture(scope="module")
 def bench():
-    return _bench()
+    return bench_script("surrogate_tracks")
 
 
 @pytest.fixture(scope="module")

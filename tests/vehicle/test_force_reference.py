@@ -1,20 +1,14 @@
 """The simulator's forces against stored reference forces (bench/force_reference.py): a speed
 change of the right-hand side must leave them unchanged to 1e-9 of the largest force."""
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-BENCH = Path(__file__).resolve().parents[2] / "bench" / "force_reference.py"
+from conftest import bench_script
 
 
 def _bench():
-    spec = importlib.util.spec_from_file_location("force_reference", BENCH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return bench_script("force_reference")
 
 
 @pytest.mark.parametrize("condition", ["straight", "curve"])
