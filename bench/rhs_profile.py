@@ -12,13 +12,8 @@ from __future__ import annotations
 
 import argparse
 import inspect
-import json
 import os
-import subprocess
-import sys
-import tempfile
 import time
-from pathlib import Path
 
 import numba as nb
 import numpy as np
@@ -32,6 +27,7 @@ from railsusp.vehicle.integrate import _run_one
 from railsusp.vehicle.model import rhs
 from railsusp.vehicle.setup import SolverSettings, constants, contact_arrays, track_arrays
 from railsusp.vehicle.wagon import load_wagon
+from reference_run import reference_rows
 
 TIMES_S = (7.0, 9.0, 11.0, 13.0, 15.0, 17.0, 19.0, 21.0)
 DT = 1e-3
@@ -102,14 +98,9 @@ def main() -> None:
     rows = [{"condition": c, "us_per_eval": time_rhs(c, args.reps, args.repeats)}
             for c in ("straight", "curve")]  # fmt: skip
     if args.reference_src:
-        with tempfile.TemporaryDirectory() as tmp:
-            ref_out = Path(tmp) / "ref.json"
-            env = dict(os.environ, PYTHONPATH=str(Path(args.reference_src).resolve()))
-            cmd = [sys.executable, __file__, "--reps", str(args.reps), "--out", str(ref_out)]
-            subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)
-            ref = {
-                r["condition"]: r["us_per_eval"] for r in json.loads(ref_out.read_text())["rows"]
-            }
+        argv = ["--reps", str(args.reps), "--repeats", str(args.repeats)]
+        ref_rows = reference_rows(__file__, argv, args.reference_src)
+        ref = {r["condition"]: r["us_per_eval"] for r in ref_rows}
         for row in rows:
             row["reference_us_per_eval"] = ref[row["condition"]]
             row["speed_up"] = ref[row["condition"]] / row["us_per_eval"]

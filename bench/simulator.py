@@ -15,16 +15,13 @@ the table then gains their rates and this model's ratio to each.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import re
 import resource
 import subprocess
 import sys
-import tempfile
 import time
-from pathlib import Path
 
 import numba
 import numpy as np
@@ -35,6 +32,7 @@ from railsusp.store import write_json
 from railsusp.vehicle.setup import SolverSettings
 from railsusp.vehicle.simulate import simulate_batch
 from railsusp.vehicle.wagon import load_wagon
+from reference_run import reference_rows
 
 
 def main() -> None:
@@ -128,15 +126,10 @@ def main() -> None:
 
 def _reference_rates(args: argparse.Namespace) -> dict[int, float]:
     """Wagon-s per wall-s of this script run on ``args.reference_src``, per batch size."""
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "reference.json"
-        cmd = [sys.executable, __file__, "--sizes", args.sizes, "--condition", args.condition]
-        cmd += ["--contact", args.contact, "--out", str(out)]
-        if args.flange_substeps is not None:
-            cmd += ["--flange-substeps", str(args.flange_substeps)]
-        env = dict(os.environ, PYTHONPATH=str(Path(args.reference_src).resolve()))
-        subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)
-        rows = json.loads(out.read_text())["rows"]
+    argv = ["--sizes", args.sizes, "--condition", args.condition, "--contact", args.contact]
+    if args.flange_substeps is not None:
+        argv += ["--flange-substeps", str(args.flange_substeps)]
+    rows = reference_rows(__file__, argv, args.reference_src)
     return {r["sets"]: r["wagon_s_per_wall_s"] for r in rows}
 
 
