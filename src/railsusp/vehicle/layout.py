@@ -62,6 +62,8 @@ _K_NAMES = (
     "flange_watch", "flange_split_speed",
     # contact points per wheel: 1 (tread table only) or 2 (tread and flange tables)
     "contact_points",
+    # yaw-aware contact (wagon [contact] yaw_geometry): 1.0 on, 0.0 the zero-yaw contact
+    "yaw_geometry",
     # reciprocals the contact kernel multiplies by (a division costs several multiplications):
     # 1/V, 1/r0 and the rail support compliances 1/k_ry, 1/k_rz
     "inv_V", "inv_r0", "inv_k_ry", "inv_k_rz",

@@ -301,6 +301,7 @@ def constants(
         "flange_watch": ca.flange_shift - settings.flange_margin,
         "flange_split_speed": settings.flange_split_speed,
         "contact_points": ca.contact_points,
+        "yaw_geometry": 1.0 if ca.yaw_geometry else 0.0,
         "N_ref": ca.n_ref,
         "inv_V": 1.0 / condition.speed, "inv_r0": 1.0 / wagon.wheelset.rolling_radius,
         "inv_k_ry": 1.0 / wagon.track.rail_lateral_stiffness,
