@@ -27,9 +27,17 @@ R0 = 0.42
 BACK_TO_BACK, BACK_FACE_OFFSET = 1.353, 0.070  # contact_table's defaults
 
 
-def _zero_yaw_wagon() -> WagonData:
+def _zero_yaw_wagon(rigid_bowl: bool = False) -> WagonData:
+    """The wagon with the zero-yaw contact; ``rigid_bowl``: and with the centre bowl of the
+    model before 2026-11-24's rocking stiffness (a ring of the bowl's vertical stiffness on a
+    bolster rigid in bending and pitch)."""
     data = load_wagon().model_dump()
     data["contact"]["yaw_geometry"] = False
+    if rigid_bowl:
+        radius = data["bogie"]["centre_plate_radius"]
+        cp = data["centre_plate"]
+        cp["rocking_stiffness"] = cp["vertical_stiffness"] * radius * radius / 2.0
+        cp["bolster_pitch_stiffness"] = 1.0e30
     return WagonData(**data)
 
 
@@ -239,14 +247,14 @@ def test_zero_yaw_switch_reproduces_the_forces_before_the_yawed_contact():
     """``[contact] yaw_geometry = false`` is the model before 2026-11-24: the curve's forces of
     bench/force_reference.py's three parameter sets equal those stored with that model
     (tests/data/force_reference_zero_yaw.npz, the reference file of commit 9c5e975) to 1e-9
-    of the largest force."""
+    of the largest force, with that model's centre bowl (a rigid bolster under the ring)."""
     from railsusp.params import MAIN_SUSPENSION, bounds
     from railsusp.vehicle.simulate import simulate_batch
 
     lo, hi = bounds(MAIN_SUSPENSION)
     sets = lo + (hi - lo) * np.array([[0.5] * len(lo), [0.2] * len(lo), [0.8] * len(lo)])
     cond = get_condition("curve", duration_s=4.0, n_steps=200, lead_in_m=100.0)
-    r = simulate_batch(sets, cond, symbols=MAIN_SUSPENSION, wagon=_zero_yaw_wagon())
+    r = simulate_batch(sets, cond, symbols=MAIN_SUSPENSION, wagon=_zero_yaw_wagon(rigid_bowl=True))
     ref = np.load(ZERO_YAW_REFERENCE)
     for name, force in (("curve_Y", r.Y), ("curve_Q", r.Q)):
         assert np.max(np.abs(force - ref[name])) / np.max(np.abs(ref[name])) < 1e-9
