@@ -159,14 +159,14 @@ def test_modal_lateral_car_body_frequencies_of_the_loaded_wagon(sliding):
 
 def test_modal_car_body_modes_are_damped_with_the_wedges_stuck(stuck):
     """Small motions stick the wedges: the car-body modes must still be damped (pre-sliding
-    losses of wedges and bowl, rubber pads, side-bearer elastomer). The model before
+    losses of wedges and bowl, rubber pads, side-bearer elastomer, creep). The model before
     2026-11-24 had bounce and pitch at 4.5 / 4.7 Hz with damping ratio 0.0008 here, lower
-    sway 0.005. 0.04: the lower sway's 0.043 (the decay test asks 0.05 and is an expected
-    failure for it)."""
+    sway 0.005; with the bowl's rocking stiffness at its vertical ring's 17.6 MN m/rad the
+    lower sway had 0.043 (now 0.12: docs/model.md, where the lower sway's energy goes)."""
     kinds = stuck.car_body_kinds()
     weak = {k: round(float(stuck.damping_ratio[i]), 4) for k, i in kinds.items()
-            if stuck.damping_ratio[i] < 0.04}  # fmt: skip
-    assert not weak, f"car-body modes with the wedges stuck damped below 0.04: {weak}"
+            if stuck.damping_ratio[i] < 0.05}  # fmt: skip
+    assert not weak, f"car-body modes with the wedges stuck damped below 0.05: {weak}"
 
 
 # ---------------------------------------------------------------- decay
@@ -197,27 +197,17 @@ def test_decay_of_the_frictionless_model_matches_its_eigenvalues():
 
 def test_decay_every_car_body_mode_is_damped_with_friction_on(decay_stuck):
     """Issue 18: every car-body mode below 20 Hz has an equivalent damping ratio of at least
-    0.05 in free decay with friction on (5 mm dip, 5 mm cross-level dip, 5 mm kink)."""
+    0.05 in free decay with friction on (5 mm dip, 5 mm cross-level dip, 5 mm kink). The
+    lower sway had 0.045 with the bowl's rocking stiffness at its vertical ring's 17.6 MN
+    m/rad (the model of 2026-11-24 before the liner's 194 MN m/rad), 0.0055 before the
+    rework."""
     df = decay_stuck.to_dataframe()
     assert len(df) >= 4, df
-    df = df[df["mode"] != "lower sway"]  # below: a known shortfall, tested on its own
+    assert "lower sway" in set(df["mode"]), df
     weak = df[~(df["damping_ratio"] >= 0.05)]
     assert weak.empty, "under-damped car-body modes:\n" + weak[
         ["mode", "excitation", "frequency_Hz", "damping_ratio"]
     ].to_string(index=False)
-
-
-@pytest.mark.xfail(
-    strict=True,
-    reason="lower sway at 60 km/h: equivalent damping ratio 0.045 in free decay (0.043 "
-    "linearised, stuck wedges: the body rocks on the centre bowl, whose stiffness and the "
-    "light bolster's damping the explicit 1 ms step limits) -- issue 18, open",
-)
-def test_decay_lower_sway_is_damped_with_friction_on(decay_stuck):
-    """The 0.05 of issue 18 for the lower sway too (strict: passes only when it is met)."""
-    df = decay_stuck.to_dataframe()
-    row = df[df["mode"] == "lower sway"]
-    assert not row.empty and (row["damping_ratio"] >= 0.05).all(), row
 
 
 # ---------------------------------------------------------------- command

@@ -110,7 +110,9 @@ def test_slider_holds_a_static_load_and_slides_at_its_limit():
 def _ring(droll, dpitch=0.0, mu=0.0, state=0.0, R=0.1875, k=200e6, f0=400e3):
     """Centre-bowl ring at rest (no rates), no vertical compression."""
     d = np.zeros(1)
-    return bowl_ring_forces(0.0, droll, dpitch, 0.0, R, k, f0, mu, 1e6, 0.0, state, d, 0)
+    return bowl_ring_forces(
+        0.0, droll, dpitch, 0.0, R, k, 1e30, 1e30, f0, mu, 1e6, 0.0, state, d, 0
+    )
 
 
 def test_centre_bowl_ring_roll_stiffness_and_rocking_capacity():
@@ -136,6 +138,77 @@ def test_centre_bowl_ring_roll_stiffness_and_rocking_capacity():
     assert BOWL_POINTS >= 8
 
 
+def _bowl(dz, droll, dpitch, k_rock=194e6, k_v=1e9, k_pitch=2.8e6, R=0.1875, f0=400e3):
+    """The bowl of the wagon data: ring k_ring = 2 k_rock / R^2 on the bolster's bending
+    (in series: k_v in all) and its pitch restraint k_pitch."""
+    k_ring = 2.0 * k_rock / (R * R)
+    k_bend = 1.0 / (1.0 / k_v - 1.0 / k_ring)
+    d = np.zeros(1)
+    return bowl_ring_forces(
+        dz, droll, dpitch, 0.0, R, k_ring, k_bend, k_pitch, f0, 0.0, 1e6, 0.0, 0.0, d, 0
+    )[:3]
+
+
+def test_centre_bowl_rocks_on_its_ring_and_bounces_on_the_bending_bolster():
+    """Before lift-off: roll stiffness k_rock (the ring), vertical k_v (the ring in series
+    with the bolster's bending), pitch k_rock in series with the bolster's pitch restraint;
+    lift-off still starts at the moment N R / 2."""
+    R, f0, k_rock, k_v, k_pitch = 0.1875, 400e3, 194e6, 1e9, 2.8e6
+    n, m_roll, m_pitch = _bowl(0.0, 1e-5, 0.0)
+    assert n == pytest.approx(f0, rel=1e-12) and m_pitch == pytest.approx(0.0, abs=1e-6)
+    assert m_roll == pytest.approx(-k_rock * 1e-5, rel=1e-9)
+    n, m_roll, m_pitch = _bowl(0.0, 0.0, 1e-4)
+    series = 1.0 / (1.0 / k_rock + 1.0 / k_pitch)
+    assert m_pitch == pytest.approx(-series * 1e-4, rel=1e-9)
+    assert m_roll == pytest.approx(0.0, abs=1e-6)
+    n, *_ = _bowl(1e-5, 0.0, 0.0)
+    assert n == pytest.approx(f0 + k_v * 1e-5, rel=1e-9)
+    lift = f0 * R / 2 / k_rock  # the angle at which the moment reaches N R / 2
+    _, m_roll, _ = _bowl(0.0, 0.99 * lift, 0.0)
+    assert abs(m_roll) == pytest.approx(0.99 * f0 * R / 2, rel=1e-9)
+    _, m_roll, _ = _bowl(0.0, 1.5 * lift, 0.0)  # lifted at one edge: softer
+    assert abs(m_roll) < 0.999 * k_rock * 1.5 * lift
+
+
+@pytest.mark.parametrize("state", [(2e-5, 8e-4, 3e-3), (-3e-4, 5e-4, -1e-2), (1e-4, 0.0, 2e-2)])
+def test_centre_bowl_with_lift_off_is_conservative(state):
+    """With points lifted, the bowl's forces stay the gradient of one potential U(dz, droll,
+    dpitch) (the quasi-static bending and pitch minimise it): normal force dU/d(dz), roll
+    moment -dU/d(droll), pitch moment -dU/d(dpitch), so the mixed derivatives agree. A ring
+    whose roll and pitch stiffnesses were set apart point by point fails this."""
+    h = (1e-9, 1e-7, 1e-7)
+    grad = []
+    for i in range(3):
+        up = list(state)
+        dn = list(state)
+        up[i] += h[i]
+        dn[i] -= h[i]
+        f_up, f_dn = _bowl(*up), _bowl(*dn)
+        grad.append([(a - b) / (2 * h[i]) for a, b in zip(f_up, f_dn, strict=True)])
+    n0 = _bowl(*state)[0]
+    assert 0.0 < n0 and n0 != pytest.approx(400e3, rel=1e-3)  # a lifted, loaded state
+    g = np.array(grad)  # g[i][j]: d(force j)/d(coordinate i)
+    tol = {"rel": 1e-4, "abs": 1e-6 * np.abs(g).max()}
+    assert g[1][0] == pytest.approx(-g[0][1], **tol)  # dn/droll = -dm_roll/ddz
+    assert g[2][0] == pytest.approx(-g[0][2], **tol)
+    assert g[2][1] == pytest.approx(g[1][2], **tol)
+
+
+def test_a_bowl_that_rocks_more_easily_than_its_ring_compresses_is_refused():
+    from railsusp.errors import RailsuspInputError
+    from railsusp.vehicle.operating_point import linearisation_point
+    from railsusp.vehicle.wagon import WagonData, load_wagon
+
+    data = load_wagon().model_dump()
+    data["centre_plate"]["rocking_stiffness"] = 10.0e6  # below 1 GN/m x R^2 / 2 = 17.6
+    needle = (
+        r"^centre_plate\.rocking_stiffness = 1e\+07 N m/rad: accepted from "
+        r"vertical_stiffness x R\^2 / 2 = 1\.758e\+07 up"
+    )
+    with pytest.raises(RailsuspInputError, match=needle):
+        linearisation_point(wagon=WagonData(**data))
+
+
 def _perturbed_state():
     x0 = np.zeros(L.N_STATE)
     x0[L.CB_Y] = 0.004
@@ -151,14 +224,18 @@ def _perturbed_state():
     return x0
 
 
-@pytest.mark.parametrize(("creep", "tolerance"), [(False, 5e-4), (True, 0.01)])
+@pytest.mark.parametrize(("creep", "tolerance"), [(False, 2e-3), (True, 0.01)])
 def test_energy_audit_nonconservative_work_equals_change_of_mechanical_energy(creep, tolerance):
     # d/dt (T + V) = (F - F_c) . v: the work of dampers, friction and creep forces must
     # equal the change of kinetic plus potential energy (issue 18: within 1 %) from a
     # perturbed state on ideal track; and the perturbation must really be damped out.
-    # Without creep the audit is held to 0.05 % (measured 0.01 %): the centre bowl's roll
-    # moment applied to the bolster 20 % short (a missing reaction) gives 0.1 % there
-    # (checked 2026-11-24 on a mutated copy), which the 1 % of the creep case would pass.
+    # Without creep the audit is held to 0.2 % (measured 0.096 %, 0.073 % with creep). What
+    # remains is the wheel-rail normal force, not quite the gradient of the contact gap (the
+    # table's contact angle is a central difference of its heights, the gap the secant of
+    # their interpolation: d(Y)/d(roll) and d(M_roll)/d(y) of a wheelset differ by 10 %);
+    # since the bowl's rocking stiffness (2026-11-24) the wheelsets take more of the
+    # perturbation (0.01 % before). The centre bowl's roll moment applied to the bolster
+    # 20 % short (a missing reaction) gives 1.27 % (checked on a mutated copy).
     audit = energy_audit(_perturbed_state(), duration_s=1.5, creep=creep)
     assert audit.relative_error < tolerance, audit
     assert audit.work_nonconservative < 0.0

@@ -27,9 +27,17 @@ R0 = 0.42
 BACK_TO_BACK, BACK_FACE_OFFSET = 1.353, 0.070  # contact_table's defaults
 
 
-def _zero_yaw_wagon() -> WagonData:
+def _zero_yaw_wagon(rigid_bowl: bool = False) -> WagonData:
+    """The wagon with the zero-yaw contact; ``rigid_bowl``: and with the centre bowl of the
+    model before 2026-11-24's rocking stiffness (a ring of the bowl's vertical stiffness on a
+    bolster rigid in bending and pitch)."""
     data = load_wagon().model_dump()
     data["contact"]["yaw_geometry"] = False
+    if rigid_bowl:
+        radius = data["bogie"]["centre_plate_radius"]
+        cp = data["centre_plate"]
+        cp["rocking_stiffness"] = cp["vertical_stiffness"] * radius * radius / 2.0
+        cp["bolster_pitch_stiffness"] = 1.0e30
     return WagonData(**data)
 
 
@@ -46,7 +54,7 @@ def _geometry(ca, y, yaw, *, vy=0.0, vyaw=0.0, side=1.0, block=1):
     """contact_geometry of one wheel of a wheelset at shift ``y`` (rail at 0, no roll)."""
     return contact_geometry(
         y, 0.0, 0.0, yaw, vy, 0.0, 0.0, vyaw, side, block, 0.0, 0.0, 0.0, 0.0,
-        ca.table, ca.y0, 1.0 / ca.dy, 0.0, 0.0, R0, 1.0 / R0, 1.0,
+        ca.table, ca.y0, 1.0 / ca.dy, 0.0, 0.0, R0, 1.0 / R0, 1.0, True,
     )  # fmt: skip
 
 
@@ -161,8 +169,8 @@ def test_lateral_creepage_is_the_classical_yawed_flange_value():
             x_c = side * R0 * math.tan(delta) * yaw
             args = (1e5, 0.0, cd, sd, 0.75, R0, 1e-8, 1e6, 1e6, 0.0)
             x_pos = x_c - side * 0.75 * yaw
-            f0 = creep_contact_forces(*args, 0.0, 0.0, side, 0.0, 0.0, 0.0, 0.0, 0.0, K)
-            f1 = creep_contact_forces(*args, x_c, x_pos, side, 0.0, 0.0, yaw, 0.0, 0.0, K)
+            f0 = creep_contact_forces(*args, 0.0, 0.0, side, 0.0, 0.0, 0.0, 0.0, 0.0, K, False)
+            f1 = creep_contact_forces(*args, x_c, x_pos, side, 0.0, 0.0, yaw, 0.0, 0.0, K, True)
             # fy = -c22 xi_y along the contact-plane lateral t = (cos d, side sin d)
             dfy = (f1[1] - f0[1]) / cd
             assert dfy == pytest.approx(1e6 * yaw / cd, rel=1e-9)  # -c22 (-psi / cos d)
@@ -204,6 +212,10 @@ def test_zero_yaw_is_the_zero_yaw_contact_bit_for_bit(setup):
     _, ca, k = setup
     old = contact_arrays(_zero_yaw_wagon())
     assert old.yaw_geometry is False and ca.yaw_geometry is True
+    cond = get_condition("curve", irregularity_class=None)
+    k_old = constants(_zero_yaw_wagon(), cond, ParameterSet.nominal().to_array(), old,
+                      SolverSettings())  # fmt: skip
+    assert k[L.K["yaw_geometry"]] == 1.0 and k_old[L.K["yaw_geometry"]] == 0.0
     lead_rows = [b + w + L.CT_LEAD for b in (0, L.CT_FLANGE) for w in (0, L.CT_RIGHT)]
     other = np.setdiff1d(np.arange(L.N_CT), lead_rows)
     np.testing.assert_array_equal(old.table[other], ca.table[other])
@@ -220,7 +232,7 @@ def test_zero_yaw_is_the_zero_yaw_contact_bit_for_bit(setup):
             args = (*state, yaw, *rates, 1.0 / 300.0, side, 0.0, 0.0, 0.0, 0.0)
             h0 = ca.H0L if side > 0 else ca.H0R
             new = wheel_rail_forces(*args, ca.table, ca.y0, ca.dy, h0, 0.0, k)
-            ref = wheel_rail_forces(*args, old.table, old.y0, old.dy, h0, 0.0, k)
+            ref = wheel_rail_forces(*args, old.table, old.y0, old.dy, h0, 0.0, k_old)
             if expect_equal:
                 assert new == ref
             else:
@@ -235,14 +247,14 @@ def test_zero_yaw_switch_reproduces_the_forces_before_the_yawed_contact():
     """``[contact] yaw_geometry = false`` is the model before 2026-11-24: the curve's forces of
     bench/force_reference.py's three parameter sets equal those stored with that model
     (tests/data/force_reference_zero_yaw.npz, the reference file of commit 9c5e975) to 1e-9
-    of the largest force."""
+    of the largest force, with that model's centre bowl (a rigid bolster under the ring)."""
     from railsusp.params import MAIN_SUSPENSION, bounds
     from railsusp.vehicle.simulate import simulate_batch
 
     lo, hi = bounds(MAIN_SUSPENSION)
     sets = lo + (hi - lo) * np.array([[0.5] * len(lo), [0.2] * len(lo), [0.8] * len(lo)])
     cond = get_condition("curve", duration_s=4.0, n_steps=200, lead_in_m=100.0)
-    r = simulate_batch(sets, cond, symbols=MAIN_SUSPENSION, wagon=_zero_yaw_wagon())
+    r = simulate_batch(sets, cond, symbols=MAIN_SUSPENSION, wagon=_zero_yaw_wagon(rigid_bowl=True))
     ref = np.load(ZERO_YAW_REFERENCE)
     for name, force in (("curve_Y", r.Y), ("curve_Q", r.Q)):
         assert np.max(np.abs(force - ref[name])) / np.max(np.abs(ref[name])) < 1e-9
@@ -263,3 +275,46 @@ def test_yaw_geometry_is_checked_in_the_wagon_file(tmp_path):
         else:
             with pytest.raises(RailsuspInputError, match=r"contact\.yaw_geometry = 'sometimes'"):
                 load_wagon(path)
+
+
+def test_a_row_of_zero_lead_keeps_the_yawed_axle_arm(setup):
+    """A tread stretch with a flat touching height (contact angle 0, so lead r tan(delta) = 0,
+    as on a cylindrical wheel) under a yawed wheelset: the lateral force still acts at the
+    wheel's place x_pos = -side l psi of the yawed axle, so the yaw moment is continuous in
+    the lateral shift across the edge of the flat stretch. A kernel that took a zero lead for
+    the zero-yaw contact dropped the arm there: a jump of about l psi F_y."""
+    _, ca, k = setup
+    table = ca.table.copy()
+    i = round(-ca.y0 / ca.dy)  # the centred tread row
+    # left wheel: rows i - 2 .. i flat, the right wheel the mirror image, rows i .. i + 2
+    for side0, rows in ((0, slice(i - 2, i + 1)), (L.CT_RIGHT, slice(i, i + 3))):
+        table[side0 + L.CT_DELTA, rows] = 0.0
+        table[side0 + L.CT_LEAD, rows] = 0.0
+        table[side0 + L.CT_H, rows] = table[side0 + L.CT_H, i]
+    yaw, z = 0.01, -0.4e-3  # 10 mrad, pressed into the rail
+    edge = ca.y0 + i * ca.dy
+
+    def forces(y, side, psi=yaw):
+        res = wheel_rail_forces(
+            side * y, z, 0.0, side * psi, 0.0, 0.0, 0.0, 0.0, 0.0, side, 0.0, 0.0, 0.0, 0.0,
+            table, ca.y0, ca.dy, 0.0, 0.0, k,
+        )  # fmt: skip
+        assert res[0] == 0
+        return res
+
+    for side in (1.0, -1.0):
+        inside, outside = forces(edge - 1e-9, side), forces(edge + 1e-9, side)
+        f_y = inside[1]
+        arm = ca.table[L.CT_L, i] * yaw
+        assert abs(arm * f_y) > 10.0  # the moment the old kernel lost, N m
+        assert outside[5] == pytest.approx(inside[5], abs=1e-3 * abs(arm * f_y))
+        assert outside[1] == pytest.approx(f_y, rel=1e-6)
+        # inside the flat stretch: the lateral force acts at x_pos = -l psi (3e-3: the
+        # arm is read at the yawed contact's moved rail point, the old kernel is off by 50 %)
+        lat = ca.table[L.CT_L, i]
+        assert inside[5] == pytest.approx(-lat * yaw * f_y - side * lat * inside[3],
+                                          rel=3e-3)  # fmt: skip
+        # and the forces are continuous in the yaw there too: psi -> 0 meets the zero-yaw ones
+        small = forces(edge - 1e-4, side, 1e-7)
+        zero = forces(edge - 1e-4, side, 0.0)
+        assert small[5] == pytest.approx(zero[5], abs=1e-3 * abs(arm * f_y))

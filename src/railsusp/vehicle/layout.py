@@ -48,7 +48,9 @@ _K_NAMES = (
     # X18 nominal (the wedge normal forces scale with X18 / X18 nominal)
     "tan_wedge", "cos_wedge", "mu_column", "mu_slope", "k_ctrl", "F0_ctrl",
     "k_wedge", "c_wedge", "x18_ref",
-    "k_cpz", "k_cpy", "mu_cp", "k_yaw", "c_yaw", "k_roll", "c_roll",
+    # centre bowl: its ring's stiffness (liner and rim), the bolster's bending under it and
+    # the bolster's pitch restraint in the side-frame windows (quasi-static, suspension.py)
+    "k_cpz", "k_cpb", "k_cpp", "k_cpy", "mu_cp", "k_yaw", "c_yaw", "k_roll", "c_roll",
     "k_sb", "c_sb", "P_sb", "mu_sb", "sb_travel", "k_sb_stop",
     "k_rz", "k_ry", "c_rz", "c_ry",
     # static preloads, N
@@ -62,6 +64,8 @@ _K_NAMES = (
     "flange_watch", "flange_split_speed",
     # contact points per wheel: 1 (tread table only) or 2 (tread and flange tables)
     "contact_points",
+    # yaw-aware contact (wagon [contact] yaw_geometry): 1.0 on, 0.0 the zero-yaw contact
+    "yaw_geometry",
     # reciprocals the contact kernel multiplies by (a division costs several multiplications):
     # 1/V, 1/r0 and the rail support compliances 1/k_ry, 1/k_rz
     "inv_V", "inv_r0", "inv_k_ry", "inv_k_rz",

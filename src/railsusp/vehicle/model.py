@@ -69,6 +69,7 @@ I_TANW, I_COSW, I_MUC, I_MUS = _K["tan_wedge"], _K["cos_wedge"], _K["mu_column"]
 I_KCTRL, I_F0CTRL, I_X18REF = _K["k_ctrl"], _K["F0_ctrl"], _K["x18_ref"]
 I_KCPZ, I_KCPY, I_MUCP, I_KYAW = _K["k_cpz"], _K["k_cpy"], _K["mu_cp"], _K["k_yaw"]
 I_CYAW, I_KROLL, I_CROLL = _K["c_yaw"], _K["k_roll"], _K["c_roll"]
+I_KCPB, I_KCPP = _K["k_cpb"], _K["k_cpp"]
 I_KSB, I_PSB, I_MUSB = _K["k_sb"], _K["P_sb"], _K["mu_sb"]
 I_SBTRAVEL, I_KSBSTOP, I_CSB = _K["sb_travel"], _K["k_sb_stop"], _K["c_sb"]
 I_F0CP, I_F0N, I_F0P = _K["F0_cp"], _K["F0_nest"], _K["F0_prim"]
@@ -178,14 +179,15 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         acc[L.CB_Y] -= f_cpy
         acc[L.CB_ROLL] -= hcp * f_cpy
         acc[L.CB_YAW] -= d * f_cpy
-        # centre bowl: ring of contact points with edge lift-off (vertical, roll, pitch) and
-        # roll friction
+        # centre bowl: ring of contact points with edge lift-off (vertical, roll, pitch) on
+        # the bolster's quasi-static bending and pitch restraint, and roll friction
         z_car = q[L.CB_Z] - d * q[L.CB_PITCH]
         roll_rate_b_c = v[ib + 2] - v[L.CB_ROLL] - cant_rate_c
         roll_rate_b_c += track_rate(trk, L.TR_CANT, i_b, in_b, ds, V)
         n_cp, m_roll, m_pitch, m_rfr = bowl_ring_forces(
             q[ib + 1] - z_car, roll_c_b - q[ib + 2], q[L.CB_PITCH], -roll_rate_b_c, K[I_RCP],
-            K[I_KCPZ], K[I_F0CP], K[I_MUCP], K[I_KROLL], K[I_CROLL], x[AUXR + k], dxdt, AUXR + k,
+            K[I_KCPZ], K[I_KCPB], K[I_KCPP], K[I_F0CP], K[I_MUCP], K[I_KROLL], K[I_CROLL],
+            x[AUXR + k], dxdt, AUXR + k,
         )  # fmt: skip
         acc[L.CB_Z] += n_cp - K[I_F0CP]
         acc[L.CB_PITCH] += -d * (n_cp - K[I_F0CP]) + m_pitch

@@ -282,7 +282,6 @@ def constants(
         "c_px": wagon.primary.longitudinal_damping, "c_py": wagon.primary.lateral_damping,
         "c_pz": wagon.primary.vertical_damping, "k_sz": wagon.secondary.vertical_stiffness,
         "c_sx": wagon.secondary.longitudinal_damping, "k_gib": wagon.secondary.gib_stiffness,
-        "k_cpz": wagon.centre_plate.vertical_stiffness,
         "k_cpy": wagon.centre_plate.lateral_stiffness,
         "mu_cp": wagon.centre_plate.friction_coefficient,
         "k_yaw": wagon.centre_plate.yaw_stick_stiffness,
@@ -301,6 +300,7 @@ def constants(
         "flange_watch": ca.flange_shift - settings.flange_margin,
         "flange_split_speed": settings.flange_split_speed,
         "contact_points": ca.contact_points,
+        "yaw_geometry": 1.0 if ca.yaw_geometry else 0.0,
         "N_ref": ca.n_ref,
         "inv_V": 1.0 / condition.speed, "inv_r0": 1.0 / wagon.wheelset.rolling_radius,
         "inv_k_ry": 1.0 / wagon.track.rail_lateral_stiffness,
@@ -316,6 +316,7 @@ def constants(
     f_nest = (w_body / 2.0 + bo.mass * gn) / 2.0
     f_prim = (f_nest + sf.mass * gn) / 2.0
     vals.update(_wedge_constants(wagon, f_nest))
+    vals.update(_bowl_constants(wagon))
     q0 = f_prim + m_w * gn / 2.0
     vals.update(F0_cp=f_cp, F0_nest=f_nest, F0_prim=f_prim, Q0=q0)
     # static approach: Q0 = N0 cos(delta0) + f23(N0) sin(delta0)^2 / r0 (normal force plus the
@@ -344,6 +345,31 @@ def constants(
     for name, value in vals.items():
         k[L.K[name]] = value
     return k
+
+
+#: stiffness standing for a rigid bolster under the bowl (N/m) or in pitch (N m/rad): the
+#: quasi-static bending and pitch it leaves are below the round-off of the ring's compression
+RIGID = 1.0e30
+
+
+def _bowl_constants(wagon: WagonData) -> dict[str, float]:
+    """Centre-bowl ring (suspension.bowl_ring_forces): its stiffness in all from the rocking
+    stiffness, k_ring = 2 k_rock / R^2, and the bolster's bending under the bowl in series
+    with it, so that the two give the bowl's vertical stiffness. A rocking stiffness equal to
+    vertical_stiffness R^2 / 2 is a ring on a rigid bolster (the bowl before 2026-11-24)."""
+    cp = wagon.centre_plate
+    radius = wagon.bogie.centre_plate_radius
+    k_ring = 2.0 * cp.rocking_stiffness / (radius * radius)
+    compliance = 1.0 / cp.vertical_stiffness - 1.0 / k_ring  # of the bolster's bending
+    if compliance < -1e-12 / cp.vertical_stiffness:
+        raise RailsuspInputError(
+            f"centre_plate.rocking_stiffness = {cp.rocking_stiffness:.4g} N m/rad: accepted "
+            f"from vertical_stiffness x R^2 / 2 = "
+            f"{cp.vertical_stiffness * radius * radius / 2.0:.4g} up (the bowl cannot rock "
+            "more easily than its ring compresses)"
+        )
+    k_bend = RIGID if compliance <= 1e-12 / cp.vertical_stiffness else 1.0 / compliance
+    return {"k_cpz": k_ring, "k_cpb": k_bend, "k_cpp": min(cp.bolster_pitch_stiffness, RIGID)}
 
 
 def _wedge_constants(wagon: WagonData, f_nest: float) -> dict[str, float]:

@@ -26,6 +26,11 @@ SLIDER_RELAXATION = 2.0e-3
 BOWL_POINTS = 8
 BOWL_COS = tuple(math.cos(2.0 * math.pi * j / BOWL_POINTS) for j in range(BOWL_POINTS))
 BOWL_SIN = tuple(math.sin(2.0 * math.pi * j / BOWL_POINTS) for j in range(BOWL_POINTS))
+#: Newton steps of the bowl's quasi-static bolster bending and pitch at most (the active set
+#: of a ring of 8 changes a few times at most), and the balance asked of them, relative to
+#: the static load: forces to 1e-10 of it
+BOWL_ITERATIONS = 12
+BOWL_TOLERANCE = 1.0e-10
 
 
 @nb.njit(cache=True, inline="always")
@@ -167,42 +172,76 @@ def friction_wedges(
 
 @nb.njit(cache=True, inline="always")
 def bowl_ring_forces(
-    dz, droll, dpitch, droll_rate, radius, k_total, preload_total, mu, k_stick, c_stick,
-    state_roll, dxdt, idx,
+    dz, droll, dpitch, droll_rate, radius, k_ring, k_bend, k_pitch, preload_total, mu,
+    k_stick, c_stick, state_roll, dxdt, idx,
 ):  # fmt: skip
-    """Centre bowl (flat annulus) as a ring of BOWL_POINTS compression-only springs, with
-    friction against relative roll.
+    """Centre bowl (flat annulus) as a ring of BOWL_POINTS compression-only springs on the
+    bolster, which bends under it and pitches in the side-frame windows, with friction
+    against relative roll.
 
     dz: compression at the bowl centre (bolster up minus car body down, m); droll, dpitch:
     relative roll and pitch of the car body seen from the bolster (rad; roll + lifts the
     left side, pitch + lifts the front). The point at (x, y) = radius (cos t, sin t) is
-    compressed by dz - y droll + x dpitch and carries preload/n + (k/n) x compression, never
-    a pull (edge lift-off); ``droll_rate`` is the time rate of droll. The bowl carries roll
-    and pitch moments elastically (roll
-    stiffness k R^2 / 2) up to lift-off at N R / 2 and about N R when it rocks on its rim.
-    Friction moment against relative roll: elasto-plastic (:func:`damped_slider`), limit
-    mu N (2/3) R, the friction moment of a flat disc: rocking before lift-off shears the
-    bowl liner like yaw does.
+    compressed by (dz - u) + x (dpitch - th) - y droll and carries preload/n + (k_ring/n) x
+    compression, never a pull (edge lift-off). The ring (``k_ring``, N/m in all: the liner
+    and the bowl's rim) sits on the bolster's bending under the bowl (``k_bend``, N/m: u)
+    and on the bolster's pitch restraint in the side-frame windows (``k_pitch``, N m/rad:
+    th; the bolster has no pitch freedom of its own). Both are massless and quasi-static: u
+    and th make the ring's vertical force and pitch moment equal to the bending force
+    k_bend u (over the static load) and the restraint k_pitch th, i.e. they minimise the
+    ring's and the bolster's elastic energy, so the bowl stays conservative with lift-off
+    (the forces are the gradient of that minimum). Before lift-off: vertical stiffness
+    k_ring k_bend / (k_ring + k_bend), roll k_ring R^2 / 2 (rocking bends no bolster span),
+    pitch k_ring R^2 / 2 in series with k_pitch; the bowl carries roll and pitch moments
+    elastically up to lift-off at N R / 2 and about N R when it rocks on its rim. Solved by
+    Newton on the active points from the all-in-contact solution, which is exact (one pass)
+    while no point lifts. ``droll_rate`` is the time rate of droll. Friction moment against
+    relative roll: elasto-plastic (:func:`damped_slider`), limit mu N (2/3) R, the friction
+    moment of a flat disc: rocking before lift-off shears the bowl liner like yaw does.
 
     Returns (normal force, roll moment on the car body, pitch moment on the car body about
     the bowl centre, friction roll moment on the car body), N and N m; the roll moment is
     sum(y f), the pitch moment sum(-x f).
     """
     n = BOWL_POINTS
-    kp = k_total / n
+    kp = k_ring / n
     fp = preload_total / n
+    k_ring_pitch = 0.5 * k_ring * radius * radius
+    u = k_ring * dz / (k_ring + k_bend)  # all points in contact
+    th = k_ring_pitch * dpitch / (k_ring_pitch + k_pitch)
+    tol = BOWL_TOLERANCE * preload_total
     n_tot = 0.0
     m_roll = 0.0
     m_pitch = 0.0
-    for j in range(n):
-        x = radius * BOWL_COS[j]
-        y = radius * BOWL_SIN[j]
-        f = fp + kp * (dz - y * droll + x * dpitch)
-        if f < 0.0:
-            f = 0.0
-        n_tot += f
-        m_roll += y * f
-        m_pitch += -x * f
+    for _ in range(BOWL_ITERATIONS):
+        n_tot = 0.0
+        m_roll = 0.0
+        m_pitch = 0.0
+        s0 = 0.0  # active points: count, sum of x, sum of x^2
+        s1 = 0.0
+        s2 = 0.0
+        for j in range(n):
+            x = radius * BOWL_COS[j]
+            y = radius * BOWL_SIN[j]
+            f = fp + kp * ((dz - u) - y * droll + x * (dpitch - th))
+            if f > 0.0:
+                n_tot += f
+                m_roll += y * f
+                m_pitch += -x * f
+                s0 += 1.0
+                s1 += x
+                s2 += x * x
+        g1 = n_tot - preload_total - k_bend * u  # bending out of balance, N
+        g2 = -m_pitch - k_pitch * th  # pitch restraint out of balance, N m
+        if abs(g1) <= tol and abs(g2) <= tol * radius:
+            break
+        # Newton step on the active set: J (du, dth) = -g
+        j11 = -kp * s0 - k_bend
+        j12 = -kp * s1
+        j22 = -kp * s2 - k_pitch
+        det = j11 * j22 - j12 * j12
+        u -= (j22 * g1 - j12 * g2) / det
+        th -= (j11 * g2 - j12 * g1) / det
     lim = disc_friction_moment(mu, n_tot, radius)
     m_fr = damped_slider(state_roll, lim, k_stick, c_stick, -droll_rate, dxdt, idx)
     return n_tot, m_roll, m_pitch, m_fr

@@ -110,6 +110,12 @@ class Secondary(_Section):
 
 class CentrePlate(_Section):
     vertical_stiffness: float = Field(**_POS)
+    rocking_stiffness: float = Field(
+        **_POS, description="relative roll of body and bolster before lift-off, N m/rad"
+    )
+    bolster_pitch_stiffness: float = Field(
+        **_POS, description="the bolster's pitch restraint in the side-frame windows, N m/rad"
+    )
     lateral_stiffness: float = Field(**_POS)
     friction_coefficient: float = Field(ge=0.0, le=1.0)
     yaw_stick_stiffness: float = Field(**_POS)

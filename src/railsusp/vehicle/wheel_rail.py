@@ -35,8 +35,10 @@ normal forces stay conservative) and the material of the led point has the verti
 to the lateral creepage: with the yaw slip's own projection -psi cos(delta) the classical
 -psi / cos(delta) of a yawed wheelset in flange contact (the lateral velocity's part keeps the
 unprojected (y' + r roll') / V of the zero-yaw kernel). The table's lead column holds
-r tan(delta) (0 for the zero-yaw model); at psi = 0 every correction is an exact 0.0 and the
-forces are those of the zero-yaw kernel bit for bit (tests/vehicle/test_yawed_contact.py).
+r tan(delta) (0 for the zero-yaw model); the constant K yaw_geometry switches the yaw terms
+on, so that a row of zero lead (a flat touching height) keeps the arm -side l psi of the
+yawed axle; at psi = 0 every correction is an exact 0.0 and the forces are those of the
+zero-yaw kernel bit for bit (tests/vehicle/test_yawed_contact.py).
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ _K = L.K
 I_R0, I_MU, I_CREEP = _K["r0"], _K["mu"], _K["creep_factor"]
 I_CRZ, I_CRY = _K["c_rz"], _K["c_ry"]
 I_NREF, I_PENMAX, I_LIFTMAX = _K["N_ref"], _K["pen_max"], _K["lift_max"]
-I_NPTS = _K["contact_points"]
+I_NPTS, I_YAWGEO = _K["contact_points"], _K["yaw_geometry"]
 I_INVV, I_INVR0, I_INVKRY, I_INVKRZ = _K["inv_V"], _K["inv_r0"], _K["inv_k_ry"], _K["inv_k_rz"]
 
 NCTW = L.CT_PER_WHEEL
@@ -147,11 +149,12 @@ def _cell(ctab, c, i, f):
 @nb.njit(cache=True, inline="always")
 def contact_geometry(
     ws_y, ws_z, ws_roll, ws_yaw, vy, vz, vroll, vyaw, side, block, rail_y, rail_z, rail_vy,
-    rail_vz, ctab, y0, inv_dy, H0, Z0, r0, inv_r0, lift_max,
+    rail_vz, ctab, y0, inv_dy, H0, Z0, r0, inv_r0, lift_max, yawed,
 ):  # fmt: skip
     """Geometry of one contact point (``block`` 0 tread, 1 flange) of one wheel (side +1
     left, -1 right) of a wheelset yawed by ``ws_yaw`` (rad, relative to the rail; yaw rate
-    ``vyaw``).
+    ``vyaw``); ``yawed``: the yaw-aware contact is on (wagon ``[contact] yaw_geometry``),
+    else the zero-yaw contact (lead and arm 0, the table read at the wheel's shift).
 
     Returns (code, gap, cd, sd, lat, r, hertz, f11, f22, f23, rate, x_c, x_pos): failure
     code; vertical gap to the undeflected rail (m, < 0 when touching); cosine and sine of the
@@ -180,7 +183,8 @@ def contact_geometry(
     lead = _cell(ctab, col0 + CT_LEAD, i, f)  # r tan(delta), m per rad of yaw
     x_c = side * lead * ws_yaw
     x_pos = 0.0
-    if x_c != 0.0:  # the yawed contact's rail point
+    # the switch, not x_c != 0: a row of zero lead (flat touching height) keeps the arm
+    if yawed:  # the yawed contact's rail point
         x_pos = x_c - side * _cell(ctab, col0 + CT_L, i, f) * ws_yaw
         move = 0.5 * (x_c + x_pos) * ws_yaw
         f += move * inv_dy  # mostly within the same table interval: no new index
@@ -194,7 +198,7 @@ def contact_geometry(
     h = _cell(ctab, col0 + CT_H, i, f)
     r = _cell(ctab, col0 + CT_R, i, f)
     drop = inv_2r = 0.0  # the led point's height above the axle's lowest point
-    if x_c != 0.0:
+    if yawed:
         inv_2r = 0.5 * inv_r0 * (2.0 - r * inv_r0)
         drop = x_c * x_c * inv_2r
     gap = ws_z + side * lat * ws_roll - rail_z - (h - H0) - Z0 + drop
@@ -258,21 +262,21 @@ def shared_rail_normal_forces(a1, g1, a2, g2, m11, m12, m22):
 @nb.njit(cache=True, inline="always")
 def creep_contact_forces(
     N, rate, cd, sd, lat, r, hertz, f11, f22, f23, x_c, x_pos, side, vy, vroll, ws_yaw, vyaw,
-    kappa, K,
+    kappa, K, yawed,
 ):  # fmt: skip
     """Forces of one loaded contact point on the wheel, in the track frame.
 
     N: Hertz normal force (N) before the rail support's damping along the normal; cd, sd:
     cosine and sine of the contact angle; x_c, x_pos: the contact's lead ahead of the
     wheel's axle point and its longitudinal place from the wheelset centre (m,
-    :func:`contact_geometry`). With a lead the lateral creepage is that of the led point:
-    the yaw slip -psi projected on the contact plane (cos delta), the spin's vertical velocity
-    -V x_c / r0 projected on it (side sin delta) and the yaw rate's lateral velocity at
-    x_pos; the lateral force acts at x_pos (yaw moment x_pos F_y). Without one (x_c = 0.0)
-    the creepage is the zero-yaw kernel's (yaw slip -psi unprojected). Returns (code, lateral force,
-    vertical force, longitudinal force, roll moment, yaw moment, normal force) — all 0 for a
-    contact that the damping unloads. Kalker coefficients scale with the contact area:
-    f11, f22 ~ N^(2/3), f23 ~ N (one cube root of N / N_ref for both).
+    :func:`contact_geometry`). With the yaw-aware contact (``yawed``) the lateral creepage
+    is that of the led point: the yaw slip -psi projected on the contact plane (cos delta),
+    the spin's vertical velocity -V x_c / r0 projected on it (side sin delta) and the yaw
+    rate's lateral velocity at x_pos; the lateral force acts at x_pos (yaw moment x_pos F_y).
+    Without it the creepage is the zero-yaw kernel's (yaw slip -psi unprojected). Returns
+    (code, lateral force, vertical force, longitudinal force, roll moment, yaw moment, normal
+    force) — all 0 for a contact that the damping unloads. Kalker coefficients scale with the
+    contact area: f11, f22 ~ N^(2/3), f23 ~ N (one cube root of N / N_ref for both).
     """
     r0 = K[I_R0]
     inv_r0 = K[I_INVR0]
@@ -294,7 +298,7 @@ def creep_contact_forces(
     # creepages (Kalker): longitudinal, lateral, spin
     yaw_rate = vyaw * inv_v + kappa  # wheelset yaw per metre run, absolute
     xi_x = 1.0 - r * inv_r0 - side * lat * yaw_rate
-    if x_c != 0.0:
+    if yawed:
         xi_y = (vy + r * vroll) * inv_v - ws_yaw * cd - side * sd * x_c * inv_r0 + yaw_rate * x_pos
     else:
         xi_y = (vy + r * vroll) * inv_v - ws_yaw
@@ -322,7 +326,7 @@ def wheel_rail_forces(
     Per contact: Hertz normal force (:func:`shared_rail_normal_forces`), rail support damping
     along the normal, Kalker creep with Shen-Hedrick-Elkins saturation, each at the contact
     point of the wheelset yawed by ``ws_yaw`` relative to the track (rate ``vyaw``; module
-    docstring). Returns (code,
+    docstring) when K yaw_geometry is 1 (else the zero-yaw contact). Returns (code,
     Y_on_wheel, Q_on_wheel (up), Fx_on_wheel, roll and yaw moments of the contact forces
     about the wheelset centre (lever r0 for Y, so that normal forces stay the gradient of
     one contact potential), tread normal force, shift towards the flange, its rate).
@@ -333,9 +337,10 @@ def wheel_rail_forces(
     shift = side * (ws_y + r0 * ws_roll - rail_y)
     shift_rate = side * (vy + r0 * vroll - rail_vy)
     lift_max = K[I_LIFTMAX]
+    yawed = K[I_YAWGEO] > 0.5
     code, gap0, c0, s0, lat0, r_0, g0, f11_0, f22_0, f23_0, rate0, x0, p0 = contact_geometry(
         ws_y, ws_z, ws_roll, ws_yaw, vy, vz, vroll, vyaw, side, 0, rail_y, rail_z, rail_vy,
-        rail_vz, ctab, y0, inv_dy, H0, Z0, r0, inv_r0, lift_max,
+        rail_vz, ctab, y0, inv_dy, H0, Z0, r0, inv_r0, lift_max, yawed,
     )  # fmt: skip
     if code != 0:
         return code, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, shift, shift_rate
@@ -346,7 +351,7 @@ def wheel_rail_forces(
     if two:
         code, gap1, c1, s1, lat1, r_1, g1, f11_1, f22_1, f23_1, rate1, x1, p1 = contact_geometry(
             ws_y, ws_z, ws_roll, ws_yaw, vy, vz, vroll, vyaw, side, 1, rail_y, rail_z,
-            rail_vy, rail_vz, ctab, y0, inv_dy, H0, Z0, r0, inv_r0, lift_max,
+            rail_vy, rail_vz, ctab, y0, inv_dy, H0, Z0, r0, inv_r0, lift_max, yawed,
         )  # fmt: skip
         if code != 0:
             return code, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, shift, shift_rate
@@ -367,14 +372,14 @@ def wheel_rail_forces(
     if n0 > 0.0:
         code, fy, fz, fx, mx, mz, n_tread = creep_contact_forces(
             n0, rate0, c0, s0, lat0, r_0, g0, f11_0, f22_0, f23_0, x0, p0, side, vy, vroll,
-            ws_yaw, vyaw, kappa, K,
+            ws_yaw, vyaw, kappa, K, yawed,
         )  # fmt: skip
         if code != 0:
             return code, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, shift, shift_rate
     if n1 > 0.0:
         code, gy, gz, gx, nx, nz, _ = creep_contact_forces(
             n1, rate1, c1, s1, lat1, r_1, g1, f11_1, f22_1, f23_1, x1, p1, side, vy, vroll,
-            ws_yaw, vyaw, kappa, K,
+            ws_yaw, vyaw, kappa, K, yawed,
         )  # fmt: skip
         if code != 0:
             return code, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, shift, shift_rate

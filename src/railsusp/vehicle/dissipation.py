@@ -1,0 +1,163 @@
+"""Where a mode's energy goes: the damping ratio of one linearised mode split over the force
+elements that dissipate it.
+
+For a mode x(t) = Re(φ e^{λt}) of the linearised wagon (:mod:`railsusp.vehicle.modes`) every
+viscous element c (a damper, or the stick damping of a stuck friction slider) with relative
+velocity amplitude u dissipates on average P = c |u|² / 2. The mode's mean mechanical energy
+is twice its mean kinetic energy, E = Σ m |v|² / 2 (v = λ q, kinetic and potential energy
+equal on average for light damping), and the energy decays as e^{2σt} with σ = -ζ |λ|, so
+each element's share of the damping ratio is ζ_e = P_e / (2 |λ| E) and the shares add up to
+ζ. The suspension's elements are evaluated from their relative velocities (the kinematics of
+``model.rhs`` on straight, level track). The wheel-rail contact (creep forces and the rail
+support's damping) is the negative mean power of the contact forces on the wheelsets, whose
+linearised values are the wheelsets' rows of the state matrix less the primary suspension's
+forces (the gyroscopic moments do no work). Their sum is checked against the eigenvalue's ζ
+(``residual``): a missing element or a wrong lever shows there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from railsusp.vehicle import layout as L
+from railsusp.vehicle.modes import ModalResult
+from railsusp.vehicle.operating_point import LinearisationPoint
+from railsusp.vehicle.suspension import series_stiffness
+
+#: the elements, in the order they are reported
+ELEMENTS: tuple[str, ...] = (
+    "centre bowl ring (elastic)",
+    "centre bowl roll friction (stick damping)",
+    "body-bolster yaw friction (stick damping)",
+    "side bearers (elastomer loss)",
+    "wedges, vertical (stick damping)",
+    "wedges, lateral (stick damping)",
+    "wedges, warp (stick damping)",
+    "secondary longitudinal damping",
+    "primary pads, longitudinal",
+    "primary pads, lateral",
+    "primary pads, vertical",
+    "wheel-rail (creep and rail support damping)",
+)
+
+
+@dataclass
+class ModeDissipation:
+    """Damping ratio of one mode per element (``shares``, summing to ``total``) beside the
+    eigenvalue's damping ratio ``zeta``; ``residual`` = total - zeta."""
+
+    mode: str
+    frequency_hz: float
+    zeta: float
+    shares: dict[str, float]
+
+    @property
+    def total(self) -> float:
+        return float(sum(self.shares.values()))
+
+    @property
+    def residual(self) -> float:
+        return self.total - self.zeta
+
+
+def mode_dissipation(result: ModalResult, point: LinearisationPoint, mode: int) -> ModeDissipation:
+    """Split mode ``mode`` of ``result`` (linearised at ``point``) over the elements."""
+    lam = complex(result.eigenvalues[mode])
+    q = np.asarray(result.shapes[mode], dtype=complex)
+    v = lam * q
+    K, P = point.K, point.P
+    k = L.K
+    m = point.dof_inertia()
+    w = abs(lam)
+    energy = 0.5 * float(np.sum(m * np.abs(v) ** 2))  # mean mechanical energy E
+    power = dict.fromkeys(ELEMENTS, 0.0)
+
+    def add(name: str, c: float, u: complex) -> None:
+        power[name] += 0.5 * c * abs(u) ** 2
+
+    # the stick damping acts while a slider sticks; at zero limits (the sliding variant) the
+    # sliders pass no force at all
+    stick = 0.0 if point.friction == "sliding" else 1.0
+
+    lc, a = K[k["l_c"]], K[k["a"]]
+    b1, b2 = K[k["b1"]], K[k["b2"]]
+    sb_half = 0.5 * P[10]
+    for b in range(2):
+        d = lc if b == 0 else -lc
+        ib = L.BOL0 + 4 * b
+        roll_rate = v[ib + 2] - v[L.CB_ROLL]
+        add(ELEMENTS[1], stick * K[k["c_roll"]], roll_rate)
+        add(ELEMENTS[2], stick * K[k["c_yaw"]], v[L.CB_YAW] - v[ib + 3])
+        dz_rate = v[ib + 1] - v[L.CB_Z] + d * v[L.CB_PITCH]
+        for side in (1.0, -1.0):
+            add(ELEMENTS[3], K[k["c_sb"]], dz_rate + side * sb_half * roll_rate)
+        for sidx, side in enumerate((1.0, -1.0)):
+            jf = L.SF0 + 5 * (2 * b + sidx)
+            vxn = v[jf] + side * b2 * v[ib + 3]
+            add(
+                ELEMENTS[4],
+                stick * K[k["c_wedge"]],
+                v[jf + 2] - (v[ib + 1] + side * b2 * v[ib + 2]),
+            )
+            add(ELEMENTS[5], stick * K[k["c_wedge"]], v[jf + 1] - v[ib])
+            add(ELEMENTS[6], stick * K[k["c_wedge"]], vxn)
+            add(ELEMENTS[7], K[k["c_sx"]], vxn)
+    # primary suspension (forces on the wheelsets kept for the contact's power below)
+    k_px = series_stiffness(P[12], P[19])
+    k_py = series_stiffness(P[13], P[19])
+    k_pz = P[14]
+    c_px, c_py, c_pz = K[k["c_px"]], K[k["c_py"]], K[k["c_pz"]]
+    n = L.N_DOF
+    acc = (result.jacobian @ _full_vector(result, mode))[n : 2 * n]
+    contact_power = 0.0
+    for ws in range(4):
+        b, wi = divmod(ws, 2)
+        e = a if wi == 0 else -a
+        iw = L.WS0 + 4 * ws
+        f = m[iw : iw + 4] * acc[iw : iw + 4]  # all generalised forces on the wheelset
+        for sidx, side in enumerate((1.0, -1.0)):
+            jf = L.SF0 + 5 * (2 * b + sidx)
+            dvx = v[jf] + side * b1 * v[iw + 3]
+            dvy = v[jf + 1] + e * v[jf + 4] - v[iw]
+            dvz = (v[iw + 1] + side * b1 * v[iw + 2]) - (v[jf + 2] - e * v[jf + 3])
+            add(ELEMENTS[8], c_px, dvx)
+            add(ELEMENTS[9], c_py, dvy)
+            add(ELEMENTS[10], c_pz, dvz)
+            fx = k_px * (q[jf] + side * b1 * q[iw + 3]) + c_px * dvx
+            fy = k_py * (q[jf + 1] + e * q[jf + 4] - q[iw]) + c_py * dvy
+            dz = (q[iw + 1] + side * b1 * q[iw + 2]) - (q[jf + 2] - e * q[jf + 3])
+            fz = k_pz * dz + c_pz * dvz
+            f[0] -= fy
+            f[1] += fz
+            f[2] += side * b1 * fz
+            f[3] += side * b1 * fx
+        h_spin = P[2] * K[k["V"]] / K[k["r0"]]  # gyroscopic moments: no work, taken out
+        f[2] -= h_spin * v[iw + 3]
+        f[3] += h_spin * v[iw + 2]
+        contact_power += 0.5 * float(np.real(np.vdot(v[iw : iw + 4], f)))
+    power[ELEMENTS[-1]] = -contact_power
+    shares = {name: p / (2.0 * w * energy) for name, p in power.items()}
+    return ModeDissipation(
+        mode=result.names[mode],
+        frequency_hz=float(result.frequency_hz[mode]),
+        zeta=float(result.damping_ratio[mode]),
+        shares=shares,
+    )
+
+
+def _full_vector(result: ModalResult, mode: int) -> np.ndarray:
+    """The mode's full state vector (displacements, velocities, auxiliary friction states)
+    from the state matrix: the eigenvector of ``result.jacobian`` for its eigenvalue."""
+    lam = result.eigenvalues[mode]
+    vals, vecs = np.linalg.eig(result.jacobian)
+    j = int(np.argmin(np.abs(vals - lam)))
+    vec = vecs[:, j]
+    q = vec[: L.N_DOF]
+    shape = np.asarray(result.shapes[mode], dtype=complex)
+    k = int(np.argmax(np.abs(shape)))
+    return vec * (shape[k] / q[k])  # scaled to the stored shape
+
+
+__all__ = ["ELEMENTS", "ModeDissipation", "mode_dissipation"]
