@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 from railsusp.cli import app
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate import calibration, posterior, posterior_data
+from railsusp.estimate import calibration, posterior, posterior_data, posterior_fusion
 from railsusp.estimate.posterior_data import PosteriorSettings
 from railsusp.estimate.summaries import (
     band_rms,
@@ -135,6 +135,28 @@ def test_spread_correction_beyond_its_bound_is_flagged_and_round_trips():
         calibration.SpreadCorrection.fit(draws[:5], truth[:5], ["a"])
 
 
+def test_fusion_adds_the_sections_information_and_clips_what_is_below_the_prior():
+    """Gaussian sections in logit coordinates: the fused precision is the prior's plus the
+    sum of each section's precision less the prior's; a section wider than the prior (its
+    draws' precision below the prior's) adds nothing."""
+    rng = np.random.default_rng(5)
+    p0 = 1.0 / (np.pi**2 / 3.0)
+    sd, means = np.array([0.5, 1.0]), np.array([1.0, -0.5])
+    z = means[:, None, None] + sd[:, None, None] * rng.standard_normal((2, 200_000, 1))
+    precision, mean = posterior_fusion.fused_precision(z)
+    info = 1 / sd**2 - p0
+    assert precision[0, 0] == pytest.approx(p0 + info.sum(), rel=0.01)
+    assert mean[0] == pytest.approx(np.sum(means / sd**2) / precision[0, 0], abs=0.01)
+    wide = np.concatenate([z, 3.0 * rng.standard_normal((1, 200_000, 1))])  # sd 3 > 1.81
+    assert posterior_fusion.fused_precision(wide)[0][0, 0] == pytest.approx(
+        precision[0, 0], rel=0.01
+    )
+    u = np.array([1e-9, 0.3, 0.5, 1.0])
+    assert np.allclose(
+        posterior_fusion.from_logit(posterior_fusion.to_logit(u)), np.clip(u, 1e-6, 1 - 1e-6)
+    )
+
+
 def test_ranks_and_bad_shapes():
     samples = np.array([[[1.0], [2.0], [3.0]]])
     assert calibration.ranks(samples, np.array([[2.5]])).tolist() == [[2]]
@@ -153,6 +175,8 @@ def _settings(**kw) -> PosteriorSettings:
         n_train=150,
         n_check=50,
         n_calibration=40,
+        product_sections=(2,),
+        n_product=20,
         samples=300,
         hidden_features=20,
         num_transforms=2,
@@ -185,11 +209,13 @@ def test_hidden_truth_inside_the_interval_of_a_long_recording(trained, tmp_path)
     for p, value in (("X13", 12.6), ("X14", 11.0)):
         assert df.loc[p, "lo90"] <= value <= df.loc[p, "hi90"], df
         assert df.loc[p, "width_pct_range"] < 90.0  # the record told it something
-    assert result.n_sections == 3 and not result.calibrated  # the check covers one section
-    assert any("3 sections" in w and "NOT calibrated" in w for w in result.warnings)
-    assert any("FAILED" in w for w in result.warnings) == (
-        not est.calibration[0].passed or not est.calibration[1].passed
-    )
+    assert result.n_sections == 3 and result.checked_as is None and not result.calibrated
+    assert any("3 sections" in w and "checked up to 2 section(s)" in w for w in result.warnings)
+    two = posterior.estimate(est, [_cut(r, 6.0) for r in read_field(tmp_path / "field")])
+    (product,) = est.products
+    assert two.checked_as == 2 and two.correction == product.correction
+    assert two.calibrated == product.passed
+    assert any("FAILED" in w for w in two.warnings) == (not all(c.passed for c in product.checks))
     one = posterior.estimate(est, [_cut(r, 3.0) for r in read_field(tmp_path / "field")])
     assert one.n_sections == 1 and one.calibrated == est.calibrated
     w_one = one.to_dataframe()["width_pct_range"].to_numpy()
@@ -217,6 +243,11 @@ def test_calibration_is_stored_with_the_estimator(trained):
     assert corr["n"] == cal["cases"] and set(corr["factors"]) == {"X13", "X14"}
     assert all(f >= 1.0 for f in corr["factors"].values())
     assert est.correction.factors == tuple(corr["factors"][p] for p in ("X13", "X14"))
+    (prod,) = data["products"]  # the fused posterior of two sections, corrected and checked
+    assert prod["sections"] == 2 and prod["calibration_cases"] + prod["cases"] <= 40
+    assert prod["passed"] == est.products[0].passed
+    assert set(prod["correction"]["factors"]) == {"X13", "X14"}
+    assert set(prod["width_pct_range"]) == {"X13", "X14"}
 
 
 def test_draws_stay_in_the_prior_box_and_the_correction_widens_them(trained):
@@ -265,6 +296,7 @@ def test_resume_reads_the_cache_and_refuses_other_settings(trained, monkeypatch)
     monkeypatch.setattr(posterior_data, "simulate_long_cases", no_simulation)
     again = posterior.load(run)
     assert again.correction == est.correction  # stored and reloaded
+    assert again.products == est.products
     u = np.array([[0.3, 0.6], [0.5, 0.5]])
     x = np.atleast_2d(np.load(next((run / "posterior" / "simulations").glob("check_*")))["x"][0])
     assert np.allclose(again.log_q(u, x), est.log_q(u, x))
@@ -308,6 +340,8 @@ def test_cli_estimate_prints_the_table(trained, tmp_path):
         (["train", "--simulations", "5"], "--simulations 5: accepted 20 to"),
         (["train", "--calibration", "5"], "--calibration 5: accepted 0 (no correction) or 20"),
         (["train", "--ensemble", "0"], "--ensemble 0: accepted 1 to 20"),
+        (["train", "--product-sections", "1,4"], "--product-sections 1,4: accepted distinct"),
+        (["train", "--product-sections", "two"], "--product-sections two: accepted whole"),
         (["train", "--conditions", "nowhere"], "nowhere"),
         (["train", "--lead-in", "-5"], "--lead-in -5"),
         (["estimate", "--measured", "MISSING", "--estimator", "RUN"], "MISSING"),

@@ -20,7 +20,8 @@ app.add_typer(posterior_app, name="posterior")
 #: settings field -> command-line option, for the error messages
 _OPTIONS = {"section_s": "--section", "n_train": "--simulations", "n_check": "--check",
             "noise": "--noise", "parameters": "--parameters",
-            "n_calibration": "--calibration", "ensemble": "--ensemble"}  # fmt: skip
+            "n_calibration": "--calibration", "ensemble": "--ensemble",
+            "product_sections": "--product-sections", "n_product": "--product-cases"}  # fmt: skip
 
 
 def _calibration_table(est) -> None:
@@ -47,6 +48,23 @@ def _calibration_table(est) -> None:
     ]
     title = f"90 % intervals on {record['cases']} untouched held-out simulations"
     console.print(frame_table(pd.DataFrame(rows), title))
+    for p in record.get("products", []):
+        cov = [c["coverage"] for c in p["parameters"]]
+        console.print(
+            f"{p['sections']} sections fused: widening up to "
+            f"{max(p['correction']['factors'].values()):.2f}, coverage after "
+            f"{min(cov):.2f}-{max(cov):.2f} on {p['cases']} cases: "
+            + ("passed" if p["passed"] else "FAILED")
+        )
+
+
+def _counts(text: str) -> tuple[int, ...]:
+    try:
+        return tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise RailsuspInputError(
+            f"--product-sections {text}: accepted whole numbers from 2 to 1000, comma-separated"
+        ) from None
 
 
 @posterior_app.command(
@@ -67,6 +85,17 @@ def train_command(
         int, typer.Option(help="held-out simulations fitting the spread correction (0: none)")
     ] = 200,
     ensemble: Annotated[int, typer.Option(help="flows in the ensemble")] = 1,
+    product_sections: Annotated[
+        str,
+        typer.Option(
+            help="numbers of sections at which the fused posterior is corrected and "
+            "checked, comma-separated (empty: records of several sections are not "
+            "calibrated)"
+        ),
+    ] = "",
+    product_cases: Annotated[
+        int, typer.Option(help="held-out cases per set (calibration, test) of several sections")
+    ] = 100,
     noise: Annotated[float, typer.Option(help="instrument noise, fraction of RMS")] = 0.03,
     lead_in: Annotated[
         float | None, typer.Option(help="lead-in before each section, m (default: the condition's)")
@@ -98,6 +127,8 @@ def train_command(
             n_check=check,
             n_calibration=calibration,
             ensemble=ensemble,
+            product_sections=_counts(product_sections),
+            n_product=product_cases,
             noise=noise,
             sum_y=sum_y,
             seed=seed,

@@ -42,7 +42,7 @@ import io
 import logging
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -57,21 +57,12 @@ from railsusp.estimate.posterior_data import (
     recording_summaries,
     to_si,
 )
+from railsusp.estimate.posterior_fusion import from_logit, fused_samples, to_logit
 from railsusp.estimate.posterior_result import PosteriorResult
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import atomic_write_bytes, content_hash, read_json, write_json
 
 log = logging.getLogger(__name__)
-
-
-def to_logit(u: np.ndarray) -> np.ndarray:
-    """Fractions of range -> unbounded coordinates, where the spread correction acts."""
-    u = np.clip(np.asarray(u, float), 1e-6, 1.0 - 1e-6)
-    return np.log(u) - np.log1p(-u)
-
-
-def from_logit(z: np.ndarray) -> np.ndarray:
-    return 1.0 / (1.0 + np.exp(-np.asarray(z, float)))
 
 
 @contextmanager
@@ -100,6 +91,7 @@ class PosteriorEstimator:
     calibration: list[ParameterCalibration]
     correction: SpreadCorrection | None = None
     run: Path | None = None
+    products: list[posterior_check.ProductCalibration] = field(default_factory=list)
 
     @property
     def calibrated(self) -> bool:
@@ -140,7 +132,7 @@ class PosteriorEstimator:
         x = np.atleast_2d(np.asarray(x, dtype=float))
         if x.shape[0] == 1:
             return self.correct(self.sample_raw(x[0], n, seed))
-        return self.correct(_fused_samples(self, x, n, np.random.default_rng(seed)))
+        return self.correct(fused_samples(self, x, n, np.random.default_rng(seed)))
 
     def log_qz(self, z: np.ndarray, x: np.ndarray) -> np.ndarray:
         """(M, sections) log q(z | x_i) of the ensemble (the mean of its flows' densities)
@@ -168,27 +160,6 @@ class PosteriorEstimator:
         out = per_section.sum(axis=1) + per_section.shape[1] * jacobian
         out[~inside] = -np.inf
         return out
-
-
-def _fused_samples(est: PosteriorEstimator, x: np.ndarray, n: int, rng) -> np.ndarray:
-    """Draws (unit box) of the posterior of several sections by fusing the sections'
-    Gaussian approximations in logit coordinates (module docstring): each section's
-    information is the precision of its posterior's draws less the prior's, its negative
-    part (less information than the prior, only noise of the approximation) clipped to
-    zero; the informations add, and the fused Gaussian is drawn from."""
-    d = len(est.settings.parameters)
-    z = to_logit(est.sample_raw(x, 1000, seed=int(rng.integers(2**31))))  # (k, S, d)
-    prior_precision = np.eye(d) / (np.pi**2 / 3.0)  # the standard logistic's variance
-    precision, shift = prior_precision.copy(), np.zeros(d)
-    for zi in z:
-        p_i = np.linalg.inv(np.cov(zi.T) + 1e-9 * np.eye(d))
-        lam, vec = np.linalg.eigh(p_i - prior_precision)
-        keep = lam > 0
-        precision += (vec[:, keep] * lam[keep]) @ vec[:, keep].T
-        shift += vec[:, keep] @ (vec[:, keep].T @ (p_i @ zi.mean(axis=0)))
-    cov = np.linalg.inv(precision)
-    mean = cov @ shift
-    return from_logit(rng.multivariate_normal(mean, (cov + cov.T) / 2, size=n))
 
 
 class _TrainingLog:
@@ -290,7 +261,7 @@ def train(settings: PosteriorSettings, run: str | Path) -> PosteriorEstimator:
     for net in nets:
         net.eval()
     est = PosteriorEstimator(settings, nets, [], None, Path(run))
-    est.correction, est.calibration = posterior_check.calibrate(est, folder)
+    est.correction, est.calibration, est.products = posterior_check.calibrate(est, folder)
     return est
 
 
@@ -309,38 +280,52 @@ def load(run: str | Path) -> PosteriorEstimator:
 
 def estimate(est: PosteriorEstimator, recordings, seed: int = 0) -> PosteriorResult:
     """Posterior of the recordings (one per trained condition, any length of at least one
-    section): the product over their sections (module docstring)."""
+    section): one section's, or the sections' fused (module docstring), each with the
+    correction and the check that belong to its number of sections."""
     x, used = recording_summaries(est.settings, recordings)
     s = est.settings
+    n = len(x)
     notes = []
-    bad = [c.parameter for c in est.calibration if not c.passed]
-    if bad:
-        notes.append(
-            "the estimator FAILED its coverage check on held-out simulations for "
-            f"{', '.join(bad)}: its intervals are too narrow; do not use them as they are"
-        )
-    wide = est.correction.excessive if est.correction else []
-    if wide:
-        factors = dict(zip(est.correction.parameters, est.correction.factors, strict=True))
-        notes.append(
-            "the estimator needed its intervals widened by more than "
-            f"{est.correction.max_inflation:g} times to hold the truth on the calibration "
-            f"cases for {', '.join(f'{p} ({factors[p]:.1f})' for p in wide)}: its posterior "
-            "is misshapen there, not only too narrow; train on more simulations"
-        )
-    if len(x) == 1:
+    correction, checks, checked_as = est.correction, est.calibration, 1
+    if n == 1:
         u = est.sample(x[0], s.samples, seed)
     else:
-        u = est.correct(_fused_samples(est, x, s.samples, np.random.default_rng(seed)))
+        raw = fused_samples(est, x, s.samples, np.random.default_rng(seed))
+        product = next((p for p in est.products if p.sections >= n), None)
+        if product is None:
+            u, checked_as = est.correct(raw), None
+            longest = max((p.sections for p in est.products), default=1)
+            notes.append(
+                f"the posterior of {n} sections (their informations fused) is NOT "
+                f"calibrated: the estimator was checked up to {longest} section(s) "
+                "(--product-sections); the fusion adds each section's small spurious "
+                "information, so a longer record's intervals may be too narrow"
+            )
+        else:
+            u = from_logit(product.correction.apply(to_logit(raw)))
+            correction, checks, checked_as = (
+                product.correction,
+                list(product.checks),
+                product.sections,
+            )
+    label = "" if n == 1 else f" of {checked_as} sections"
+    bad = [c.parameter for c in checks if not c.passed]
+    if bad:
         notes.append(
-            f"the posterior of {len(x)} sections (their informations fused) has not passed "
-            "a coverage check: the built-in check covers one section, and at 4 and 8 "
-            "sections bench/posterior.py measured coverage below 90 % (each section's small "
-            "spurious information adds up); NOT calibrated"
+            f"the estimator FAILED its coverage check{label} on held-out simulations for "
+            f"{', '.join(bad)}: its intervals are too narrow; do not use them as they are"
+        )
+    wide = correction.excessive if correction else []
+    if wide:
+        factors = dict(zip(correction.parameters, correction.factors, strict=True))
+        notes.append(
+            f"the estimator needed its intervals{label} widened by more than "
+            f"{correction.max_inflation:g} times to hold the truth on the calibration "
+            f"cases for {', '.join(f'{p} ({factors[p]:.1f})' for p in wide)}: its posterior "
+            "is misshapen there, not only too narrow; train on more simulations"
         )
     for note in notes:
         log.warning("posterior: %s", note)
     return PosteriorResult(
-        s.parameters, to_si(u, s.parameters), est.calibration, used, len(x), notes,
-        est.correction,
-    )  # fmt: skip
+        s.parameters, to_si(u, s.parameters), checks, used, n, notes, correction, checked_as
+    )

@@ -40,7 +40,7 @@ GAIN_ERROR = 0.01
 #: training, the untouched coverage test ("check"), the calibration set that fits the
 #: correction, and the long test cases of several consecutive sections
 SEED_BASE = {"train": 10_000_000, "check": 20_000_000, "calibration": 30_000_000,
-             "long": 40_000_000}  # fmt: skip
+             "long": 40_000_000, "long-calibration": 50_000_000}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -51,7 +51,11 @@ class PosteriorSettings:
     correction (0: no correction) and ``n_check`` other held-out cases that test it, the
     instrument ``noise`` (fraction of channel RMS), ``sum_y`` (also the wheelset sum of Y:
     both wheels of the leading wheelset recorded), the network size, the number of flows
-    in the ``ensemble`` and the ``seed`` of every draw."""
+    in the ``ensemble`` and the ``seed`` of every draw. ``product_sections``: the numbers
+    of sections at which the fused posterior of several sections is corrected and checked
+    (none: an estimate of several sections is not calibrated), on ``n_product`` held-out
+    cases of consecutive sections for the correction and ``n_product`` others for the
+    check."""
 
     conditions: tuple[WorkingCondition, ...]
     parameters: tuple[str, ...] = MAIN_SUSPENSION
@@ -66,6 +70,8 @@ class PosteriorSettings:
     seed: int = 0
     n_calibration: int = 200
     ensemble: int = 1
+    product_sections: tuple[int, ...] = ()
+    n_product: int = 100
 
     def __post_init__(self) -> None:
         params = tuple(spec(p).symbol for p in self.parameters)
@@ -92,6 +98,15 @@ class PosteriorSettings:
                 f"n_calibration = {self.n_calibration:g}: accepted 0 (no correction) or 20 to "
                 "100000"
             )
+        ks = tuple(sorted({int(k) for k in self.product_sections}))
+        if any(not 2 <= k <= 1000 for k in ks) or len(ks) != len(self.product_sections):
+            raise RailsuspInputError(
+                f"product_sections = {','.join(map(str, self.product_sections))}: accepted "
+                "distinct section counts from 2 to 1000"
+            )
+        object.__setattr__(self, "product_sections", ks)
+        if ks and not 20 <= self.n_product <= 100_000:
+            raise RailsuspInputError(f"n_product = {self.n_product:g}: accepted 20 to 100000")
         if not self.conditions:
             raise RailsuspInputError("conditions: at least one working condition is needed")
         conds = tuple(c.with_duration(self.section_s) for c in self.conditions)
@@ -101,6 +116,7 @@ class PosteriorSettings:
         d = {k: getattr(self, k) for k in self.__dataclass_fields__}
         d["conditions"] = [c.model_dump() for c in self.conditions]
         d["parameters"] = list(self.parameters)
+        d["product_sections"] = list(self.product_sections)
         return d
 
     @classmethod
@@ -108,6 +124,7 @@ class PosteriorSettings:
         d = dict(d)
         d["conditions"] = tuple(make_condition(c) for c in d["conditions"])
         d["parameters"] = tuple(d["parameters"])
+        d["product_sections"] = tuple(d.get("product_sections", ()))
         return cls(**d)
 
     @property

@@ -28,14 +28,15 @@ class PosteriorResult:
     n_sections: int = 1
     warnings: list[str] = field(default_factory=list)
     correction: SpreadCorrection | None = None
+    checked_as: int | None = 1  # the number of sections whose check applies; None: none
 
     @property
     def calibrated(self) -> bool:
-        """One section (what the check tests) of an estimator that passed its coverage
-        check after a correction within bounds."""
+        """A check covers this number of sections, and the estimator passed it after a
+        correction within bounds."""
         excessive = self.correction.excessive if self.correction else []
-        checked = all(c.passed for c in self.calibration) and not excessive
-        return checked and self.n_sections == 1
+        passed = all(c.passed for c in self.calibration) and not excessive
+        return passed and self.checked_as is not None
 
     def intervals(self, level: float = LEVEL) -> Intervals:
         """Median and central ``level`` credible interval of each parameter (the one
@@ -65,7 +66,7 @@ class PosteriorResult:
                     "widening": self.correction.factors[j] if self.correction else 1.0,
                     "calibrated": self.calibration[j].passed
                     and p not in (self.correction.excessive if self.correction else [])
-                    and self.n_sections == 1,
+                    and self.checked_as is not None,
                     "median [90 % interval]": iv[p].text(),
                 }
             )
@@ -85,6 +86,7 @@ class PosteriorResult:
                 "correction": None if self.correction is None else self.correction.to_dict(),
                 "sections": self.sections,
                 "sections_combined": self.n_sections,
+                "checked_as_sections": self.checked_as,
                 "warnings": self.warnings,
             },
         )
