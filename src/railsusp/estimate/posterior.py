@@ -10,7 +10,7 @@ recording's posterior costs a forward pass, no simulation.
 The parameters are inferred as fractions u in [0, 1] of their ranges (a uniform prior on
 the unit box), reported in display units. The flows model z = logit(u), whose prior is the
 standard logistic distribution: a flow on the unbounded z puts no mass outside the prior
-box (one trained on u itself leaked 20-80 % of its mass out of the box, and the truncation
+box (one trained on u itself leaked 43-81 % of its mass out of the box, and the truncation
 of that density made its intervals too narrow). An ``ensemble`` of flows is their equal
 mixture.
 
@@ -21,19 +21,14 @@ The result stores the correction and the verdict, and the estimate of a recordin
 ``calibrated = False`` (and warns) for an estimator whose check failed or whose correction
 widened a parameter beyond its bound: it is never used silently.
 
-**Long recordings** are cut into sections of the training length. Sections far apart on
-the track see nearly independent irregularities, so the posterior of the whole is the
-product of the sections' likelihoods, p(theta | x_1..x_n) proportional to
-prior(theta) prod_i q(theta | x_i) / prior(theta). Evaluated with the flows' densities that
-product is dominated by their tails (importance sampling of it, in box or logit
-coordinates, collapsed to effective sample sizes of 1-10 at the ends of the ranges), so
-the sections are combined by **information fusion** of Gaussian approximations in logit
-coordinates: section i contributes the precision of its draws less the prior's (clipped
-at zero: a section never removes information) and the matching linear term, and the fused
-Gaussian is the posterior of the whole. It narrows with the number of sections; its
-coverage is *not* what the built-in check tests (one section), so an estimate of several
-sections is reported as not calibrated, with bench/posterior.py's measured coverage
-against record length behind the warning.
+**Long recordings** are cut into sections of the training length, and the sections'
+posteriors are fused (:mod:`railsusp.estimate.posterior_fusion`: their informations add, in
+Gaussian approximations in logit coordinates; the exact product of the flows' densities
+is ruled by their tails). The fusion adds each section's small spurious information too,
+so the fused posterior has its own correction and check per number of sections
+(``product_sections``, :mod:`railsusp.estimate.posterior_check`); a recording of n sections
+uses those of the smallest checked number k >= n, and one longer than any checked number
+is reported not calibrated.
 """
 
 from __future__ import annotations
@@ -126,13 +121,23 @@ class PosteriorEstimator:
             return u
         return from_logit(self.correction.apply(to_logit(u)))
 
+    def product_for(self, sections: int) -> posterior_check.ProductCalibration | None:
+        """The correction and check of the smallest checked number of sections >= the
+        given one (None: none that long)."""
+        return next((p for p in self.products if p.sections >= sections), None)
+
     def sample(self, x: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
         """(n, d) corrected draws (unit box) of the posterior of one summary vector ``x``
-        (D,) or of the product over sections, ``x`` (sections, D)."""
+        (D,) or of the sections ``x`` (sections, D) fused, with the correction of their
+        number of sections (:meth:`product_for`; the one-section correction when none)."""
         x = np.atleast_2d(np.asarray(x, dtype=float))
         if x.shape[0] == 1:
             return self.correct(self.sample_raw(x[0], n, seed))
-        return self.correct(fused_samples(self, x, n, np.random.default_rng(seed)))
+        raw = fused_samples(self, x, n, np.random.default_rng(seed))
+        product = self.product_for(x.shape[0])
+        if product is None:
+            return self.correct(raw)
+        return from_logit(product.correction.apply(to_logit(raw)))
 
     def log_qz(self, z: np.ndarray, x: np.ndarray) -> np.ndarray:
         """(M, sections) log q(z | x_i) of the ensemble (the mean of its flows' densities)
@@ -287,13 +292,11 @@ def estimate(est: PosteriorEstimator, recordings, seed: int = 0) -> PosteriorRes
     n = len(x)
     notes = []
     correction, checks, checked_as = est.correction, est.calibration, 1
-    if n == 1:
-        u = est.sample(x[0], s.samples, seed)
-    else:
-        raw = fused_samples(est, x, s.samples, np.random.default_rng(seed))
-        product = next((p for p in est.products if p.sections >= n), None)
+    u = est.sample(x, s.samples, seed)
+    if n > 1:
+        product = est.product_for(n)
         if product is None:
-            u, checked_as = est.correct(raw), None
+            checked_as = None
             longest = max((p.sections for p in est.products), default=1)
             notes.append(
                 f"the posterior of {n} sections (their informations fused) is NOT "
@@ -302,13 +305,12 @@ def estimate(est: PosteriorEstimator, recordings, seed: int = 0) -> PosteriorRes
                 "information, so a longer record's intervals may be too narrow"
             )
         else:
-            u = from_logit(product.correction.apply(to_logit(raw)))
             correction, checks, checked_as = (
                 product.correction,
                 list(product.checks),
                 product.sections,
             )
-    label = "" if n == 1 else f" of {checked_as} sections"
+    label = f" of {checked_as} sections" if n > 1 and checked_as else ""
     bad = [c.parameter for c in checks if not c.passed]
     if bad:
         notes.append(
