@@ -242,12 +242,16 @@ def test_calibration_is_stored_with_the_estimator(trained):
     corr = data["correction"]
     assert corr["n"] == cal["cases"] and set(corr["factors"]) == {"X13", "X14"}
     assert all(f >= 1.0 for f in corr["factors"].values())
+    # split conformal: on its own calibration cases the corrected intervals hold at least
+    # ceil(0.9 (n + 1)) of n truths, in the coordinates the correction is applied in
+    assert all(c["coverage"] >= 0.9 for c in cal["after"]), cal["after"]
     assert est.correction.factors == tuple(corr["factors"][p] for p in ("X13", "X14"))
     (prod,) = data["products"]  # the fused posterior of two sections, corrected and checked
     assert prod["sections"] == 2 and prod["calibration_cases"] + prod["cases"] <= 40
     assert prod["passed"] == est.products[0].passed
     assert set(prod["correction"]["factors"]) == {"X13", "X14"}
     assert set(prod["width_pct_range"]) == {"X13", "X14"}
+    assert all(c["coverage"] >= 0.9 for c in prod["calibration_after"]), prod
 
 
 def test_draws_stay_in_the_prior_box_and_the_correction_widens_them(trained):

@@ -96,7 +96,7 @@ def _products(est: PosteriorEstimator, folder: Path) -> tuple[list[ProductCalibr
     test, t_test = fused_draws(est, folder, "long")
     out, record = [], []
     for k in est.settings.product_sections:
-        corr = SpreadCorrection.fit(cal[k], t_cal, names)
+        corr = SpreadCorrection.fit(to_logit(cal[k]), to_logit(t_cal), names)
         widened = from_logit(corr.apply(to_logit(test[k])))
         checks = tuple(check(widened, t_test, names))
         out.append(ProductCalibration(k, corr, checks))
@@ -109,6 +109,10 @@ def _products(est: PosteriorEstimator, folder: Path) -> tuple[list[ProductCalibr
                 "before": [c.to_dict() for c in check(test[k], t_test, names)],
                 "parameters": [c.to_dict() for c in checks],
                 "width_pct_range": median_width(widened, names),
+                "calibration_after": [
+                    c.to_dict()
+                    for c in check(from_logit(corr.apply(to_logit(cal[k]))), t_cal, names)
+                ],
                 "passed": out[-1].passed,
             }
         )
@@ -147,7 +151,7 @@ def calibrate(
     correction = None
     if s.n_calibration:
         draws, truth, failed = raw_draws(est, folder, "calibration", s.n_calibration)
-        correction = SpreadCorrection.fit(draws, truth, names)
+        correction = SpreadCorrection.fit(to_logit(draws), to_logit(truth), names)  # as applied
         record["calibration_set"] = {
             "cases": len(truth),
             "failed_simulations": failed,
