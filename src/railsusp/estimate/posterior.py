@@ -44,8 +44,8 @@ from typing import Any
 import numpy as np
 
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate import posterior_check
 from railsusp.estimate.calibration import ParameterCalibration, SpreadCorrection
+from railsusp.estimate.posterior_check import ProductCalibration, calibrate
 from railsusp.estimate.posterior_data import (
     PosteriorSettings,
     cached_cases,
@@ -86,7 +86,7 @@ class PosteriorEstimator:
     calibration: list[ParameterCalibration]
     correction: SpreadCorrection | None = None
     run: Path | None = None
-    products: list[posterior_check.ProductCalibration] = field(default_factory=list)
+    products: list[ProductCalibration] = field(default_factory=list)
 
     @property
     def calibrated(self) -> bool:
@@ -121,7 +121,7 @@ class PosteriorEstimator:
             return u
         return from_logit(self.correction.apply(to_logit(u)))
 
-    def product_for(self, sections: int) -> posterior_check.ProductCalibration | None:
+    def product_for(self, sections: int) -> ProductCalibration | None:
         """The correction and check of the smallest checked number of sections >= the
         given one (None: none that long)."""
         return next((p for p in self.products if p.sections >= sections), None)
@@ -266,7 +266,7 @@ def train(settings: PosteriorSettings, run: str | Path) -> PosteriorEstimator:
     for net in nets:
         net.eval()
     est = PosteriorEstimator(settings, nets, [], None, Path(run))
-    est.correction, est.calibration, est.products = posterior_check.calibrate(est, folder)
+    est.correction, est.calibration, est.products = calibrate(est, folder)
     return est
 
 

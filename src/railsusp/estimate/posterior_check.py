@@ -30,18 +30,22 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from railsusp.estimate.calibration import LEVEL, ParameterCalibration, SpreadCorrection, check
 from railsusp.estimate.posterior_data import cached_cases
-from railsusp.estimate.posterior_fusion import from_logit, fused_samples, to_logit
+from railsusp.estimate.posterior_fusion import SectionSampler, from_logit, fused_samples, to_logit
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import read_json, write_json
 
-if TYPE_CHECKING:
-    from railsusp.estimate.posterior import PosteriorEstimator
+
+class Estimator(SectionSampler, Protocol):
+    """What the check needs of an estimator (:class:`railsusp.estimate.posterior.
+    PosteriorEstimator`): the fusion's needs and the one-section correction."""
+
+    def correct(self, u: np.ndarray) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
@@ -57,7 +61,7 @@ class ProductCalibration:
         return all(c.passed for c in self.checks) and not self.correction.excessive
 
 
-def raw_draws(est: PosteriorEstimator, folder: Path, kind: str, n: int):
+def raw_draws(est: Estimator, folder: Path, kind: str, n: int):
     """The flows' uncorrected draws (cases, S, d) for the first ``n`` cases of ``kind``,
     their truths (cases, d) and the number of failed simulations left out."""
     s = est.settings
@@ -74,7 +78,7 @@ def median_width(draws: np.ndarray, names: list[str]) -> dict[str, float]:
     return dict(zip(names, np.round(100 * np.median(q[1] - q[0], axis=0), 1).tolist(), strict=True))
 
 
-def fused_draws(est: PosteriorEstimator, folder: Path, kind: str):
+def fused_draws(est: Estimator, folder: Path, kind: str):
     """Per checked number of sections k, the uncorrected fused draws (cases, S, d) of the
     first k sections of ``n_product`` cases of ``kind``, and the truths (cases, d)."""
     s = est.settings
@@ -89,7 +93,7 @@ def fused_draws(est: PosteriorEstimator, folder: Path, kind: str):
     return draws, u[ok][:, cols]
 
 
-def _products(est: PosteriorEstimator, folder: Path) -> tuple[list[ProductCalibration], list]:
+def _products(est: Estimator, folder: Path) -> tuple[list[ProductCalibration], list]:
     """The correction and check of every checked number of sections, and their record."""
     names = list(est.settings.parameters)
     cal, t_cal = fused_draws(est, folder, "long-calibration")
@@ -131,7 +135,7 @@ def _read_products(data: dict) -> list[ProductCalibration]:
 
 
 def calibrate(
-    est: PosteriorEstimator, folder: Path
+    est: Estimator, folder: Path
 ) -> tuple[SpreadCorrection | None, list[ParameterCalibration], list[ProductCalibration]]:
     """The correction (None with ``n_calibration = 0``), the check of the corrected
     estimator on the untouched test cases, and the same for the checked numbers of

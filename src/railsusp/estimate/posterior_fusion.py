@@ -18,12 +18,18 @@ the ends of the ranges, bench/README.md.)
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from railsusp.estimate.posterior import PosteriorEstimator
+
+class SectionSampler(Protocol):
+    """What the fusion needs of an estimator (:class:`railsusp.estimate.posterior.
+    PosteriorEstimator`): its settings and uncorrected draws per section."""
+
+    settings: Any
+
+    def sample_raw(self, x: np.ndarray, n: int, seed: int = 0) -> np.ndarray: ...
 
 
 def to_logit(u: np.ndarray) -> np.ndarray:
@@ -53,7 +59,7 @@ def fused_precision(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return precision, np.linalg.solve(precision, shift)
 
 
-def fused_samples(est: PosteriorEstimator, x: np.ndarray, n: int, rng) -> np.ndarray:
+def fused_samples(est: SectionSampler, x: np.ndarray, n: int, rng) -> np.ndarray:
     """(n, d) uncorrected draws (unit box) of the posterior of the sections ``x``
     (sections, D), their informations fused (module docstring)."""
     z = to_logit(est.sample_raw(x, 1000, seed=int(rng.integers(2**31))))  # (k, S, d)
