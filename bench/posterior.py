@@ -47,7 +47,7 @@ def main() -> None:
     ap.add_argument("--calibration", type=int, default=200, help="cases fitting the correction")
     ap.add_argument("--check", type=int, default=200, help="untouched test cases")
     ap.add_argument("--ensemble", type=int, default=1, help="flows in the ensemble")
-    ap.add_argument("--long", type=int, default=100, help="cases per set of several sections")
+    ap.add_argument("--long", type=int, default=200, help="cases per set of several sections")
     ap.add_argument("--lengths", default="5,10,20,40", help="record lengths checked, s")
     ap.add_argument("--hidden", type=int, default=50, help="flow: hidden features")
     ap.add_argument("--transforms", type=int, default=5, help="flow: number of transforms")
