@@ -12,7 +12,13 @@ from typer.testing import CliRunner
 from railsusp.cli import app
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate import calibration, posterior, posterior_data, posterior_fusion
+from railsusp.estimate import (
+    calibration,
+    posterior,
+    posterior_check,
+    posterior_data,
+    posterior_fusion,
+)
 from railsusp.estimate.posterior_data import PosteriorSettings
 from railsusp.estimate.summaries import (
     band_rms,
@@ -155,6 +161,46 @@ def test_fusion_adds_the_sections_information_and_clips_what_is_below_the_prior(
     assert np.allclose(
         posterior_fusion.from_logit(posterior_fusion.to_logit(u)), np.clip(u, 1e-6, 1 - 1e-6)
     )
+
+
+class _OverConfident:
+    """An estimator of X13 from x = logit(u) + N(0, 0.5^2) whose draws are N(x, 0.3^2) in
+    logit coordinates: 0.6 of the likelihood's spread (the logistic prior is much wider)."""
+
+    def __init__(self, settings):
+        self.settings = settings
+
+    def sample_raw(self, x, n, seed=0):
+        rng = np.random.default_rng(seed)
+        z = x[:, None, :] + 0.3 * rng.standard_normal((x.shape[0], n, 1))
+        return posterior_fusion.from_logit(z)
+
+
+def _synthetic_cases(settings, folder, kind, n, sections=1):
+    u = posterior_data.prior_draws(settings, kind, n)
+    rng = np.random.default_rng(posterior_data.SEED_BASE[kind])
+    x = posterior_fusion.to_logit(u[:, [2]]) + 0.5 * rng.standard_normal((n, 1))
+    return u, x
+
+
+def test_the_calibration_step_fits_on_one_set_and_passes_on_the_untouched_one(
+    tmp_path, monkeypatch
+):
+    """The training's calibration step end to end on an over-confident estimator: its
+    check fails before the correction and passes after it, on test cases nothing was
+    fitted on; the factor is stored and read back."""
+    monkeypatch.setattr(posterior_check, "cached_cases", _synthetic_cases)
+    s = _settings(parameters=("X13",), n_calibration=300, n_check=300, samples=400)
+    s = PosteriorSettings.from_dict({**s.to_dict(), "product_sections": []})
+    correction, after, products = posterior_check.calibrate(_OverConfident(s), tmp_path)
+    record = read_json(tmp_path / "calibration.json")
+    (before,) = record["before"]
+    assert not before["passed"] and before["coverage"] < 0.8
+    assert correction.factors[0] == pytest.approx(1 / 0.6, rel=0.15) and not correction.excessive
+    (c,) = after
+    assert c.passed and 0.85 <= c.coverage <= 0.95 and record["passed"] and products == []
+    again = posterior_check.calibrate(_OverConfident(s), tmp_path)  # read back
+    assert again[0] == correction and again[1] == after
 
 
 def test_ranks_and_bad_shapes():

@@ -45,7 +45,7 @@ import numpy as np
 
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.calibration import ParameterCalibration, SpreadCorrection
-from railsusp.estimate.posterior_check import ProductCalibration, calibrate
+from railsusp.estimate.posterior_check import ProductCalibration, calibrate, widen
 from railsusp.estimate.posterior_data import (
     PosteriorSettings,
     cached_cases,
@@ -117,9 +117,7 @@ class PosteriorEstimator:
     def correct(self, u: np.ndarray) -> np.ndarray:
         """Draws (..., S, d) on the unit box widened by the spread correction (in logit
         coordinates, about their median), or as they are without one."""
-        if self.correction is None:
-            return u
-        return from_logit(self.correction.apply(to_logit(u)))
+        return widen(self.correction, u)
 
     def product_for(self, sections: int) -> ProductCalibration | None:
         """The correction and check of the smallest checked number of sections >= the
@@ -135,9 +133,7 @@ class PosteriorEstimator:
             return self.correct(self.sample_raw(x[0], n, seed))
         raw = fused_samples(self, x, n, np.random.default_rng(seed))
         product = self.product_for(x.shape[0])
-        if product is None:
-            return self.correct(raw)
-        return from_logit(product.correction.apply(to_logit(raw)))
+        return widen(product.correction, raw) if product else self.correct(raw)
 
     def log_qz(self, z: np.ndarray, x: np.ndarray) -> np.ndarray:
         """(M, sections) log q(z | x_i) of the ensemble (the mean of its flows' densities)

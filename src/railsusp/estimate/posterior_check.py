@@ -43,9 +43,8 @@ from railsusp.store import read_json, write_json
 
 class Estimator(SectionSampler, Protocol):
     """What the check needs of an estimator (:class:`railsusp.estimate.posterior.
-    PosteriorEstimator`): the fusion's needs and the one-section correction."""
-
-    def correct(self, u: np.ndarray) -> np.ndarray: ...
+    PosteriorEstimator`): its settings and uncorrected draws (the corrections are fitted
+    here, before the estimator has any)."""
 
 
 @dataclass(frozen=True)
@@ -101,7 +100,7 @@ def _products(est: Estimator, folder: Path) -> tuple[list[ProductCalibration], l
     out, record = [], []
     for k in est.settings.product_sections:
         corr = SpreadCorrection.fit(to_logit(cal[k]), to_logit(t_cal), names)
-        widened = from_logit(corr.apply(to_logit(test[k])))
+        widened = widen(corr, test[k])
         checks = tuple(check(widened, t_test, names))
         out.append(ProductCalibration(k, corr, checks))
         record.append(
@@ -114,13 +113,17 @@ def _products(est: Estimator, folder: Path) -> tuple[list[ProductCalibration], l
                 "parameters": [c.to_dict() for c in checks],
                 "width_pct_range": median_width(widened, names),
                 "calibration_after": [
-                    c.to_dict()
-                    for c in check(from_logit(corr.apply(to_logit(cal[k]))), t_cal, names)
+                    c.to_dict() for c in check(widen(corr, cal[k]), t_cal, names)
                 ],
                 "passed": out[-1].passed,
             }
         )
     return out, record
+
+
+def widen(correction: SpreadCorrection | None, draws: np.ndarray) -> np.ndarray:
+    """Draws on the unit box widened by ``correction`` in logit coordinates (as is: None)."""
+    return draws if correction is None else from_logit(correction.apply(to_logit(draws)))
 
 
 def _read_products(data: dict) -> list[ProductCalibration]:
@@ -160,12 +163,12 @@ def calibrate(
             "cases": len(truth),
             "failed_simulations": failed,
             "before": [c.to_dict() for c in check(draws, truth, names)],
-            "after": [c.to_dict() for c in check(est.correct(draws), truth, names)],
+            "after": [c.to_dict() for c in check(widen(correction, draws), truth, names)],
         }
     draws, truth, failed = raw_draws(est, folder, "check", s.n_check)
     before = check(draws, truth, names)
-    after = check(est.correct(draws), truth, names) if correction else before
-    record["width_pct_range"] = median_width(est.correct(draws), names)
+    after = check(widen(correction, draws), truth, names) if correction else before
+    record["width_pct_range"] = median_width(widen(correction, draws), names)
     excessive = correction.excessive if correction else []
     products, product_record = _products(est, folder) if s.product_sections else ([], [])
     record.update(
