@@ -1,21 +1,22 @@
-"""Simulation-based posterior: coverage on held-out simulations and posterior width against
-record length (issue 20). Prints two tables and writes JSON.
+"""Simulation-based posterior: coverage before and after the spread correction, on the
+calibration cases and on untouched test cases, one section and products of sections
+(issue 20). Prints the tables and writes JSON.
 
     python bench/posterior.py                 # small scale, bench/results/posterior.json
-    python bench/posterior.py --train 10000 --check 200 --section 20 \\
-        --conditions straight,curve --lengths 20,60,120,600 --sets 12  # the issue's scale
+    python bench/posterior.py --train 10000 --calibration 200 --check 200 --section 20 \\
+        --conditions straight,curve --lengths 20,60,120,600 --long 200  # the issue's scale
 
 1. Trains (or resumes, ``--run``) the estimator: ``--train`` cases drawn from the Table 2
-   prior, a new track realisation each, ``--section`` seconds per condition; its coverage
-   and SBC check run on ``--check`` held-out cases (railsusp.estimate.calibration).
-2. Draws ``--sets`` parameter sets in the middle 80 % of the ranges, simulates each on a
-   fresh track for the longest of ``--lengths`` seconds, makes synthetic recordings of
-   them (instrument noise as ``railsusp synth-field``), and estimates each from its first
-   L seconds for every L: the median width of the 90 % intervals (% of range), how many
-   truths they hold, and how many medians lie within 5 % of range of the truth.
-
-Throughput of the simulator is measured on the way, and the cost of the issue's targets
-is extrapolated from it (printed and in the JSON).
+   prior, a new track realisation each, ``--section`` seconds per condition, an ensemble of
+   ``--ensemble`` flows. Its spread correction is fitted on ``--calibration`` held-out
+   cases and checked on ``--check`` other, untouched ones
+   (railsusp.estimate.posterior_check): coverage per parameter before and after.
+2. The same for the sections fused at every length of ``--lengths`` above one section:
+   ``--long`` calibration cases and ``--long`` untouched test cases, each simulated for
+   the longest length on one track and cut into consecutive sections; per length the
+   coverage before and after that length's correction, the widening factors and the
+   median 90 % interval width (% of range). All of it is the estimator's stored record
+   (posterior/calibration.json), printed and copied into the JSON.
 """
 
 from __future__ import annotations
@@ -29,10 +30,9 @@ import numpy as np
 
 from railsusp.conditions import resolve_conditions
 from railsusp.estimate import posterior
-from railsusp.estimate.posterior_data import PosteriorSettings, to_si
-from railsusp.measured import add_sensor_noise, recording_from_simulation
+from railsusp.estimate.posterior_data import PosteriorSettings, cached_cases
 from railsusp.params import MAIN_SUSPENSION
-from railsusp.vehicle.simulate import simulate_batch
+from railsusp.store import read_json
 
 
 def main() -> None:
@@ -44,13 +44,16 @@ def main() -> None:
     ap.add_argument("--section", type=float, default=5.0)
     ap.add_argument("--lead-in", type=float, default=30.0)
     ap.add_argument("--train", type=int, default=600)
-    ap.add_argument("--check", type=int, default=100)
-    ap.add_argument("--lengths", default="5,10,20,40")
-    ap.add_argument("--sets", type=int, default=12)
+    ap.add_argument("--calibration", type=int, default=200, help="cases fitting the correction")
+    ap.add_argument("--check", type=int, default=200, help="untouched test cases")
+    ap.add_argument("--ensemble", type=int, default=1, help="flows in the ensemble")
+    ap.add_argument("--long", type=int, default=200, help="cases per set of several sections")
+    ap.add_argument("--lengths", default="5,10,20,40", help="record lengths checked, s")
     ap.add_argument("--hidden", type=int, default=50, help="flow: hidden features")
     ap.add_argument("--transforms", type=int, default=5, help="flow: number of transforms")
     a = ap.parse_args()
 
+    sections = sorted({max(1, round(float(v) / a.section)) for v in a.lengths.split(",")})
     conds = [c.with_changes(lead_in_m=a.lead_in) for c in resolve_conditions(a.conditions)]
     settings = PosteriorSettings(
         tuple(conds),
@@ -58,113 +61,39 @@ def main() -> None:
         section_s=a.section,
         n_train=a.train,
         n_check=a.check,
+        n_calibration=a.calibration,
+        ensemble=a.ensemble,
+        product_sections=tuple(k for k in sections if k > 1),
+        n_product=a.long,
         hidden_features=a.hidden,
         num_transforms=a.transforms,
     )
+    names = list(settings.parameters)
     t0 = time.perf_counter()
     est = posterior.train(settings, a.run)
     t_train = time.perf_counter() - t0
-    print(f"\ntrain + check: {t_train:.0f} s (cached parts are read, not redone)")
-    print(f"{'parameter':>9} {'coverage90':>10} {'p(cov)':>8} {'p(SBC)':>8} {'passed':>6}")
-    for c in est.calibration:
-        print(
-            f"{c.parameter:>9} {c.coverage:10.3f} {c.coverage_p:8.3f} {c.sbc_p:8.3f} "
-            f"{'yes' if c.passed else 'NO':>6}"
-        )
+    record = read_json(Path(a.run) / "posterior" / "calibration.json")
+    print(f"\ntrain + correction + check: {t_train:.0f} s (cached parts are read, not redone)")
+    _coverage_table(record, names)
 
-    lengths = [float(v) for v in a.lengths.split(",")]
-    rng = np.random.default_rng(2026)
-    u = 0.1 + 0.8 * rng.random((a.sets, len(MAIN_SUSPENSION)))
-    theta = to_si(u)
-    cols = [MAIN_SUSPENSION.index(p) for p in settings.parameters]
-    wagon_s, t_sim = 0.0, 0.0
-    results = {c.name: [] for c in conds}
-    for k, cond in enumerate(settings.conditions):
-        long = cond.with_duration(max(lengths))
-        t1 = time.perf_counter()
-        res = simulate_batch(
-            theta,
-            long,
-            symbols=MAIN_SUSPENSION,
-            seeds=[5_000_000 + 100 * i + k for i in range(a.sets)],
-        )
-        t_sim += time.perf_counter() - t1
-        wagon_s += a.sets * (max(lengths) + cond.lead_in_m / cond.speed)
-        for i in range(a.sets):
-            rec = recording_from_simulation(res, set_index=i) if res.ok[i] else None
-            results[cond.name].append(None if rec is None else add_sensor_noise(rec, 0.03, i))
-    rows = []
+    rows = [_row(1, a.section, record)] + [
+        _row(p["sections"], a.section, p) for p in record["products"]
+    ]
+    _length_table(rows, names)
+    k = max(sections)
+    _, x = cached_cases(settings, Path(a.run) / "posterior" / "simulations", "long", a.long, k)
     t_est = []
-    for length in lengths:
-        widths, inside, close = [], [], []
-        for i in range(a.sets):
-            recs = [results[c.name][i] for c in conds]
-            if any(r is None for r in recs):
-                continue
-            n = round(length / settings.conditions[0].sample_interval)
-            cut = [_first(r, n) for r in recs]
-            t1 = time.perf_counter()
-            r = posterior.estimate(est, cut, seed=i)
-            t_est.append(time.perf_counter() - t1)
-            df = r.to_dataframe()
-            lo, hi = (to_si(np.zeros((1, 10)))[0, cols], to_si(np.ones((1, 10)))[0, cols])
-            q = np.quantile(r.samples, [0.05, 0.5, 0.95], axis=0)
-            truth = theta[i, cols]
-            widths.append(df["width_pct_range"].to_numpy())
-            inside.append((truth >= q[0]) & (truth <= q[2]))
-            close.append(np.abs(q[1] - truth) <= 0.05 * (hi - lo))
-        rows.append(
-            {
-                "length_s": length,
-                "sections": int(length // settings.section_s),
-                "cases": len(widths),
-                "median_width_pct": dict(
-                    zip(
-                        settings.parameters,
-                        np.median(widths, axis=0).round(1).tolist(),
-                        strict=True,
-                    )
-                ),
-                "truth_inside_90": dict(
-                    zip(settings.parameters, np.mean(inside, axis=0).round(3).tolist(), strict=True)
-                ),
-                "median_within_5pct": float(np.mean(close)),
-            }
-        )
-    print("\nmedian 90 % interval width, % of range, against record length per condition")
-    print(
-        f"{'length s':>8} {'sec.':>4} "
-        + " ".join(f"{p:>5}" for p in settings.parameters)
-        + "  inside90  within5%"
-    )
-    for row in rows:
-        ins = np.mean(list(row["truth_inside_90"].values()))
-        print(
-            f"{row['length_s']:8g} {row['sections']:4d} "
-            + " ".join(f"{w:5.0f}" for w in row["median_width_pct"].values())
-            + f"  {ins:8.2f}  {row['median_within_5pct']:8.2f}"
-        )
-    rate = wagon_s / t_sim
-    n_cond = len(conds)
-    lead = conds[0].lead_in_m / conds[0].speed
-    full = {  # the issue's targets, at this machine's measured throughput
-        "training_10000_cases_20s": 10000 * n_cond * (20 + lead) / rate,
-        "heldout_200_cases_120s": 200 * n_cond * (120 + lead) / rate,
-        "sets_12_of_600s": 12 * n_cond * (600 + lead) / rate,
-    }
-    print(
-        f"\nsimulator: {rate:.0f} wagon-s per wall-s here; the issue's scale would take "
-        + ", ".join(f"{k} {v / 60:.0f} min" for k, v in full.items())
-    )
-    print(f"estimate of one recording: median {np.median(t_est):.1f} s, max {max(t_est):.1f} s")
+    for i, xi in enumerate(x[np.all(np.isfinite(x), axis=(1, 2))][:5]):
+        t1 = time.perf_counter()
+        est.sample(xi[:k], settings.samples, seed=i)
+        t_est.append(time.perf_counter() - t1)
+    print(f"posterior of {k} sections: median {np.median(t_est):.2f} s over 5 cases")
     out = {
         "date": time.strftime("%Y-%m-%d"),
         "settings": settings.to_dict(),
-        "train_and_check_s": t_train,
-        "calibration": [c.to_dict() for c in est.calibration],
-        "width_against_length": rows,
-        "wagon_s_per_wall_s": rate,
-        "issue_scale_estimated_s": full,
+        "train_correct_and_check_s": t_train,
+        "calibration_record": record,
+        "coverage_against_length": rows,
         "estimate_s_median": float(np.median(t_est)),
     }
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
@@ -172,17 +101,59 @@ def main() -> None:
     print(f"wrote {a.out}")
 
 
-def _first(rec, n):
-    """The recording's first ``n`` samples (a shorter recording of the same run)."""
-    from railsusp.measured import Recording
-
-    return Recording(
-        rec.time[:n],
-        {w: v[:n] for w, v in rec.Y.items()},
-        {w: v[:n] for w, v in rec.Q.items()},
-        rec.condition,
-        rec.meta,
+def _coverage_table(record: dict, names: list[str]) -> None:
+    """Coverage per parameter: calibration set and untouched test set, before and after."""
+    corr = record.get("correction") or {}
+    factors = corr.get("factors", {})
+    lines = []
+    cal = record.get("calibration_set")
+    if cal:
+        lines += [("calibration, before", cal["before"]), ("calibration, after", cal["after"])]
+    lines += [("test, before", record["before"]), ("test, after", record["parameters"])]
+    print(f"coverage of the 90 % intervals; calibration {cal['cases'] if cal else 0} cases, "
+          f"test {record['cases']} cases")  # fmt: skip
+    print(f"{'':>20} " + " ".join(f"{p:>5}" for p in names) + "  passed")
+    for label, checks in lines:
+        cells = " ".join(f"{c['coverage']:5.2f}" for c in checks)
+        print(f"{label:>20} {cells}  {sum(c['passed'] for c in checks)}/{len(checks)}")
+    if factors:
+        print(f"{'widening factor':>20} " + " ".join(f"{factors[p]:5.2f}" for p in names))
+    print(
+        f"calibrated: {record['passed']}; excessive widening: {record.get('excessive_correction')}"
     )
+
+
+def _row(k: int, section_s: float, rec: dict) -> dict:
+    """One row of the length table from a stored check (one section, or a product)."""
+    return {
+        "length_s": k * section_s,
+        "sections": k,
+        "cases": rec["cases"],
+        "coverage_before": {c["parameter"]: c["coverage"] for c in rec["before"]},
+        "coverage_after": {c["parameter"]: c["coverage"] for c in rec["parameters"]},
+        "factors": rec["correction"]["factors"] if rec.get("correction") else {},
+        "passed_after": sum(c["passed"] for c in rec["parameters"]),
+        "median_width_pct": rec["width_pct_range"],
+    }
+
+
+def _length_table(rows: list[dict], names: list[str]) -> None:
+    print("\ncoverage of the 90 % intervals on untouched test cases against record length,")
+    print("before / after the correction of that length; widening factors; median width")
+    head = " ".join(f"{p:>9}" for p in names)
+    print(f"{'length s':>8} {'sec.':>4} {'cases':>5} {head}  passed  width %")
+    for r in rows:
+        cells = " ".join(
+            f"{r['coverage_before'][p]:4.2f}/{r['coverage_after'][p]:4.2f}" for p in names
+        )
+        widths = list(r["median_width_pct"].values())
+        print(
+            f"{r['length_s']:8g} {r['sections']:4d} {r['cases']:5d} {cells}  "
+            f"{r['passed_after']:2d}/{len(names)}  {min(widths):.0f}-{max(widths):.0f}"
+        )
+        if r["factors"]:
+            cells = " ".join(f"{r['factors'][p]:9.2f}" for p in names)
+            print(f"{'':>8} {'':>4} {'':>5} {cells}  (widening)")
 
 
 if __name__ == "__main__":

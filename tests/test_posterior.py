@@ -12,7 +12,13 @@ from typer.testing import CliRunner
 from railsusp.cli import app
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate import calibration, posterior, posterior_data
+from railsusp.estimate import (
+    calibration,
+    posterior,
+    posterior_check,
+    posterior_data,
+    posterior_fusion,
+)
 from railsusp.estimate.posterior_data import PosteriorSettings
 from railsusp.estimate.summaries import (
     band_rms,
@@ -101,6 +107,102 @@ def test_calibration_sees_a_biased_posterior_in_the_ranks():
     assert not c.passed and c.sbc_p < 1e-6
 
 
+def test_spread_correction_makes_an_over_confident_posterior_pass_on_untouched_cases():
+    """Fitted on one set, checked on a third, untouched one: draws at 0.6 of the exact
+    posterior's spread fail; the conformal factor is close to 1 / 0.6 and passes."""
+    names = ["theta"]
+    test = _gaussian_case(scale=0.6, seed=11)
+    (before,) = calibration.check(*test, names)
+    assert not before.passed and before.coverage < 0.80
+    corr = calibration.SpreadCorrection.fit(*_gaussian_case(scale=0.6, seed=7), names)
+    assert corr.factors[0] == pytest.approx(1 / 0.6, rel=0.12) and corr.excessive == []
+    (after,) = calibration.check(corr.apply(test[0]), test[1], names)
+    assert after.passed and 0.85 <= after.coverage <= 0.95
+    assert np.allclose(np.median(corr.apply(test[0]), axis=1), np.median(test[0], axis=1))
+
+
+def test_spread_correction_leaves_an_honest_posterior_nearly_alone():
+    corr = calibration.SpreadCorrection.fit(*_gaussian_case(seed=7), ["theta"])
+    assert 1.0 <= corr.factors[0] < 1.15  # never narrows; the raw factor is near 1
+    assert corr.raw_factors[0] == pytest.approx(1.0, abs=0.15)
+    wide = calibration.SpreadCorrection.fit(*_gaussian_case(scale=2.0, seed=7), ["theta"])
+    assert wide.factors == (1.0,) and wide.raw_factors[0] < 0.6  # too wide: left as it is
+
+
+def test_spread_correction_beyond_its_bound_is_flagged_and_round_trips():
+    draws, truth = _gaussian_case(n=400, scale=0.3, seed=7)
+    two = np.concatenate([draws, _gaussian_case(n=400, seed=8)[0]], axis=2)
+    truths = np.concatenate([truth, _gaussian_case(n=400, seed=8)[1]], axis=1)
+    corr = calibration.SpreadCorrection.fit(two, truths, ["a", "b"])
+    assert corr.factors[0] > calibration.MAX_INFLATION and corr.excessive == ["a"]
+    again = calibration.SpreadCorrection.from_dict(corr.to_dict())
+    assert again == corr and again.excessive == ["a"]
+    with pytest.raises(ValueError, match="at least 9 are needed"):
+        calibration.SpreadCorrection.fit(draws[:5], truth[:5], ["a"])
+
+
+def test_fusion_adds_the_sections_information_and_clips_what_is_below_the_prior():
+    """Gaussian sections in logit coordinates: the fused precision is the prior's plus the
+    sum of each section's precision less the prior's; a section wider than the prior (its
+    draws' precision below the prior's) adds nothing."""
+    rng = np.random.default_rng(5)
+    p0 = 1.0 / (np.pi**2 / 3.0)
+    sd, means = np.array([0.5, 1.0]), np.array([1.0, -0.5])
+    z = means[:, None, None] + sd[:, None, None] * rng.standard_normal((2, 200_000, 1))
+    precision, mean = posterior_fusion.fused_precision(z)
+    info = 1 / sd**2 - p0
+    assert precision[0, 0] == pytest.approx(p0 + info.sum(), rel=0.01)
+    assert mean[0] == pytest.approx(np.sum(means / sd**2) / precision[0, 0], abs=0.01)
+    wide = np.concatenate([z, 3.0 * rng.standard_normal((1, 200_000, 1))])  # sd 3 > 1.81
+    assert posterior_fusion.fused_precision(wide)[0][0, 0] == pytest.approx(
+        precision[0, 0], rel=0.01
+    )
+    u = np.array([1e-9, 0.3, 0.5, 1.0])
+    assert np.allclose(
+        posterior_fusion.from_logit(posterior_fusion.to_logit(u)), np.clip(u, 1e-6, 1 - 1e-6)
+    )
+
+
+class _OverConfident:
+    """An estimator of X13 from x = logit(u) + N(0, 0.5^2) whose draws are N(x, 0.3^2) in
+    logit coordinates: 0.6 of the likelihood's spread (the logistic prior is much wider)."""
+
+    def __init__(self, settings):
+        self.settings = settings
+
+    def sample_raw(self, x, n, seed=0):
+        rng = np.random.default_rng(seed)
+        z = x[:, None, :] + 0.3 * rng.standard_normal((x.shape[0], n, 1))
+        return posterior_fusion.from_logit(z)
+
+
+def _synthetic_cases(settings, folder, kind, n, sections=1):
+    u = posterior_data.prior_draws(settings, kind, n)
+    rng = np.random.default_rng(posterior_data.SEED_BASE[kind])
+    x = posterior_fusion.to_logit(u[:, [2]]) + 0.5 * rng.standard_normal((n, 1))
+    return u, x
+
+
+def test_the_calibration_step_fits_on_one_set_and_passes_on_the_untouched_one(
+    tmp_path, monkeypatch
+):
+    """The training's calibration step end to end on an over-confident estimator: its
+    check fails before the correction and passes after it, on test cases nothing was
+    fitted on; the factor is stored and read back."""
+    monkeypatch.setattr(posterior_check, "cached_cases", _synthetic_cases)
+    s = _settings(parameters=("X13",), n_calibration=300, n_check=300, samples=400)
+    s = PosteriorSettings.from_dict({**s.to_dict(), "product_sections": []})
+    correction, after, products = posterior_check.calibrate(_OverConfident(s), tmp_path)
+    record = read_json(tmp_path / "calibration.json")
+    (before,) = record["before"]
+    assert not before["passed"] and before["coverage"] < 0.8
+    assert correction.factors[0] == pytest.approx(1 / 0.6, rel=0.15) and not correction.excessive
+    (c,) = after
+    assert c.passed and 0.85 <= c.coverage <= 0.95 and record["passed"] and products == []
+    again = posterior_check.calibrate(_OverConfident(s), tmp_path)  # read back
+    assert again[0] == correction and again[1] == after
+
+
 def test_ranks_and_bad_shapes():
     samples = np.array([[[1.0], [2.0], [3.0]]])
     assert calibration.ranks(samples, np.array([[2.5]])).tolist() == [[2]]
@@ -118,6 +220,9 @@ def _settings(**kw) -> PosteriorSettings:
         section_s=3.0,
         n_train=150,
         n_check=50,
+        n_calibration=40,
+        product_sections=(2,),
+        n_product=20,
         samples=300,
         hidden_features=20,
         num_transforms=2,
@@ -150,10 +255,15 @@ def test_hidden_truth_inside_the_interval_of_a_long_recording(trained, tmp_path)
     for p, value in (("X13", 12.6), ("X14", 11.0)):
         assert df.loc[p, "lo90"] <= value <= df.loc[p, "hi90"], df
         assert df.loc[p, "width_pct_range"] < 90.0  # the record told it something
-    assert result.ess is not None and result.ess > 50
-    assert result.calibrated == all(c.passed for c in est.calibration)
-    assert any("FAILED" in w for w in result.warnings) == (not result.calibrated)
+    assert result.n_sections == 3 and result.checked_as is None and not result.calibrated
+    assert any("3 sections" in w and "checked up to 2 section(s)" in w for w in result.warnings)
+    two = posterior.estimate(est, [_cut(r, 6.0) for r in read_field(tmp_path / "field")])
+    (product,) = est.products
+    assert two.checked_as == 2 and two.correction == product.correction
+    assert two.calibrated == product.passed
+    assert any("FAILED" in w for w in two.warnings) == (not all(c.passed for c in product.checks))
     one = posterior.estimate(est, [_cut(r, 3.0) for r in read_field(tmp_path / "field")])
+    assert one.n_sections == 1 and one.calibrated == est.calibrated
     w_one = one.to_dataframe()["width_pct_range"].to_numpy()
     assert np.all(df["width_pct_range"].to_numpy() < w_one)  # three sections: narrower
 
@@ -170,8 +280,61 @@ def test_calibration_is_stored_with_the_estimator(trained):
     est, run = trained
     data = read_json(run / "posterior" / "calibration.json")
     assert data["cases"] + data["failed_simulations"] == 50
+    cal = data["calibration_set"]
+    assert cal["cases"] + cal["failed_simulations"] == 40  # a set of its own
     assert [c["parameter"] for c in data["parameters"]] == ["X13", "X14"]
+    assert [c["parameter"] for c in data["before"]] == ["X13", "X14"]
     assert data["passed"] == est.calibrated
+    corr = data["correction"]
+    assert corr["n"] == cal["cases"] and set(corr["factors"]) == {"X13", "X14"}
+    assert all(f >= 1.0 for f in corr["factors"].values())
+    # split conformal: on its own calibration cases the corrected intervals hold at least
+    # ceil(0.9 (n + 1)) of n truths, in the coordinates the correction is applied in
+    assert all(c["coverage"] >= 0.9 for c in cal["after"]), cal["after"]
+    assert est.correction.factors == tuple(corr["factors"][p] for p in ("X13", "X14"))
+    (prod,) = data["products"]  # the fused posterior of two sections, corrected and checked
+    assert prod["sections"] == 2 and prod["calibration_cases"] + prod["cases"] <= 40
+    assert prod["passed"] == est.products[0].passed
+    assert set(prod["correction"]["factors"]) == {"X13", "X14"}
+    assert set(prod["width_pct_range"]) == {"X13", "X14"}
+    assert all(c["coverage"] >= 0.9 for c in prod["calibration_after"]), prod
+
+
+def test_draws_stay_in_the_prior_box_and_the_correction_widens_them(trained):
+    est, run = trained
+    x = np.load(next((run / "posterior" / "simulations").glob("check_*")))["x"][:3]
+    raw = est.sample_raw(x, 400, seed=1)
+    assert raw.shape == (3, 400, 2) and np.all((raw > 0) & (raw < 1))
+    assert np.array_equal(est.sample_raw(x, 400, seed=1), raw)  # reproducible
+    u = np.array([[0.5, 0.5], [1.2, 0.5], [0.5, -0.1]])
+    lq = est.log_q(u, x[:1])
+    assert np.isfinite(lq[0]) and np.all(np.isneginf(lq[1:]))
+    wider = posterior.PosteriorEstimator(
+        est.settings, est.members, est.calibration,
+        calibration.SpreadCorrection(("X13", "X14"), (1.5, 1.0), 40),
+    )  # fmt: skip
+    z, zw = posterior.to_logit(raw), posterior.to_logit(wider.correct(raw))
+    iqr = np.subtract(*np.quantile(z, [0.95, 0.05], axis=1))
+    iqr_w = np.subtract(*np.quantile(zw, [0.95, 0.05], axis=1))
+    assert np.allclose(iqr_w[:, 0], 1.5 * iqr[:, 0], rtol=1e-6)
+    assert np.allclose(iqr_w[:, 1], iqr[:, 1]) and np.all((zw > -50) & (zw < 50))
+
+
+def test_an_excessive_correction_flags_the_estimator_and_its_estimates(trained, tmp_path):
+    est, _ = trained
+    wide = posterior.PosteriorEstimator(
+        est.settings, est.members, est.calibration,
+        calibration.SpreadCorrection(("X13", "X14"), (1.0, 2.6), 40),
+    )  # fmt: skip
+    assert not wide.calibrated
+    synthesise_field(ParameterSet.nominal(), [CONDITION], tmp_path / "f", duration_s=3.0)
+    result = posterior.estimate(wide, read_field(tmp_path / "f"))
+    assert not result.calibrated
+    assert any("widened by more than 2 times" in w and "X14 (2.6)" in w for w in result.warnings)
+    saved = read_json(result.save(tmp_path / "post.json"))
+    assert saved["calibrated"] is False and saved["correction"]["excessive"] == ["X14"]
+    flags = {r["parameter"]: r["calibrated"] for r in saved["estimates"]}
+    assert flags["X14"] is False
 
 
 def test_resume_reads_the_cache_and_refuses_other_settings(trained, monkeypatch):
@@ -180,11 +343,14 @@ def test_resume_reads_the_cache_and_refuses_other_settings(trained, monkeypatch)
     def no_simulation(*a, **k):
         raise AssertionError("simulated again")
 
-    monkeypatch.setattr(posterior_data, "simulate_cases", no_simulation)
+    monkeypatch.setattr(posterior_data, "simulate_long_cases", no_simulation)
     again = posterior.load(run)
+    assert again.correction == est.correction  # stored and reloaded
+    assert again.products == est.products
     u = np.array([[0.3, 0.6], [0.5, 0.5]])
     x = np.atleast_2d(np.load(next((run / "posterior" / "simulations").glob("check_*")))["x"][0])
     assert np.allclose(again.log_q(u, x), est.log_q(u, x))
+    assert np.array_equal(again.sample(x[0], 200, seed=4), est.sample(x[0], 200, seed=4))
     (run / "posterior" / "calibration.json").unlink()  # recomputed from cached simulations
     assert [c.coverage for c in posterior.train(est.settings, run).calibration] == [
         c.coverage for c in est.calibration
@@ -222,6 +388,10 @@ def test_cli_estimate_prints_the_table(trained, tmp_path):
         (["train", "--section", "0.2"], "--section 0.2: accepted 1 to 600"),
         (["train", "--noise", "0.9"], "--noise 0.9: accepted 0 to 0.5"),
         (["train", "--simulations", "5"], "--simulations 5: accepted 20 to"),
+        (["train", "--calibration", "5"], "--calibration 5: accepted 0 (no correction) or 20"),
+        (["train", "--ensemble", "0"], "--ensemble 0: accepted 1 to 20"),
+        (["train", "--product-sections", "1,4"], "--product-sections 1,4: accepted distinct"),
+        (["train", "--product-sections", "two"], "--product-sections two: accepted whole"),
         (["train", "--conditions", "nowhere"], "nowhere"),
         (["train", "--lead-in", "-5"], "--lead-in -5"),
         (["estimate", "--measured", "MISSING", "--estimator", "RUN"], "MISSING"),
@@ -247,10 +417,11 @@ def test_cli_train_writes_the_estimator_and_its_check(tmp_path, monkeypatch):
     run = tmp_path / "run"
     args = ["posterior", "train", "--out", str(run), "--conditions", "straight"]
     args += ["--parameters", "X14", "--section", "2", "--simulations", "40", "--check", "10"]
+    args += ["--calibration", "20"]
     result = runner.invoke(app, [*args, "--lead-in", "20"])
     assert result.exit_code == 0, result.output
-    assert "coverage" in result.output and "X14" in result.output
+    assert "coverage_after" in result.output and "widening" in result.output
     for name in ("settings.json", "estimator.pt", "calibration.json"):
         assert (run / "posterior" / name).exists()
-    assert len(list((run / "posterior" / "simulations").glob("*.npz"))) == 2
+    assert len(list((run / "posterior" / "simulations").glob("*.npz"))) == 3
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]

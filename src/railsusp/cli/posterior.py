@@ -19,14 +19,52 @@ app.add_typer(posterior_app, name="posterior")
 
 #: settings field -> command-line option, for the error messages
 _OPTIONS = {"section_s": "--section", "n_train": "--simulations", "n_check": "--check",
-            "noise": "--noise", "parameters": "--parameters"}  # fmt: skip
+            "noise": "--noise", "parameters": "--parameters",
+            "n_calibration": "--calibration", "ensemble": "--ensemble",
+            "product_sections": "--product-sections", "n_product": "--product-cases"}  # fmt: skip
 
 
-def _calibration_table(checks) -> None:
+def _calibration_table(est) -> None:
+    """Per parameter: the widening fitted on the calibration cases and the coverage on the
+    untouched test cases before and after it."""
     import pandas as pd
 
-    df = pd.DataFrame([c.to_dict() for c in checks])
-    console.print(frame_table(df, "calibration on held-out simulations (90 % intervals)"))
+    from railsusp.store import read_json
+
+    record = read_json(est.run / "posterior" / "calibration.json")
+    before = {c["parameter"]: c["coverage"] for c in record["before"]}
+    factors = (record.get("correction") or {}).get("factors", {})
+    rows = [
+        {
+            "parameter": c.parameter,
+            "widening": factors.get(c.parameter, 1.0),
+            "coverage_before": before[c.parameter],
+            "coverage_after": c.coverage,
+            "coverage_p": c.coverage_p,
+            "sbc_p": c.sbc_p,
+            "passed": c.passed and c.parameter not in record.get("excessive_correction", []),
+        }
+        for c in est.calibration
+    ]
+    title = f"90 % intervals on {record['cases']} untouched held-out simulations"
+    console.print(frame_table(pd.DataFrame(rows), title))
+    for p in record.get("products", []):
+        cov = [c["coverage"] for c in p["parameters"]]
+        console.print(
+            f"{p['sections']} sections fused: widening up to "
+            f"{max(p['correction']['factors'].values()):.2f}, coverage after "
+            f"{min(cov):.2f}-{max(cov):.2f} on {p['cases']} cases: "
+            + ("passed" if p["passed"] else "FAILED")
+        )
+
+
+def _counts(text: str) -> tuple[int, ...]:
+    try:
+        return tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise RailsuspInputError(
+            f"--product-sections {text}: accepted whole numbers from 2 to 1000, comma-separated"
+        ) from None
 
 
 @posterior_app.command(
@@ -42,7 +80,22 @@ def train_command(
     ] = "X11,X12,X13,X14,X15,X16,X17,X18,X19,X20",
     section: Annotated[float, typer.Option(help="training section per condition, s")] = 20.0,
     simulations: Annotated[int, typer.Option(help="training simulations (cases)")] = 2000,
-    check: Annotated[int, typer.Option(help="held-out simulations for the check")] = 200,
+    check: Annotated[int, typer.Option(help="untouched held-out simulations for the check")] = 200,
+    calibration: Annotated[
+        int, typer.Option(help="held-out simulations fitting the spread correction (0: none)")
+    ] = 200,
+    ensemble: Annotated[int, typer.Option(help="flows in the ensemble")] = 1,
+    product_sections: Annotated[
+        str,
+        typer.Option(
+            help="numbers of sections at which the fused posterior is corrected and "
+            "checked, comma-separated (empty: records of several sections are not "
+            "calibrated)"
+        ),
+    ] = "",
+    product_cases: Annotated[
+        int, typer.Option(help="held-out cases per set (calibration, test) of several sections")
+    ] = 100,
     noise: Annotated[float, typer.Option(help="instrument noise, fraction of RMS")] = 0.03,
     lead_in: Annotated[
         float | None, typer.Option(help="lead-in before each section, m (default: the condition's)")
@@ -72,6 +125,10 @@ def train_command(
             section_s=section,
             n_train=simulations,
             n_check=check,
+            n_calibration=calibration,
+            ensemble=ensemble,
+            product_sections=_counts(product_sections),
+            n_product=product_cases,
             noise=noise,
             sum_y=sum_y,
             seed=seed,
@@ -88,9 +145,16 @@ def train_command(
                 message = option + " " + message.removeprefix(f"{field} = ")
         fail(message)
     if not is_quiet():
-        _calibration_table(est.calibration)
+        _calibration_table(est)
+    excessive = est.correction.excessive if est.correction else []
     if est.calibrated:
         console.print(f"estimator in {out / 'posterior'}: coverage check passed")
+    elif excessive:
+        err_console.print(
+            f"warning: the estimator in {out / 'posterior'} needed its intervals widened more "
+            f"than {est.correction.max_inflation:g} times for {', '.join(excessive)}: flagged "
+            "as not calibrated; train on more simulations"
+        )
     else:
         err_console.print(
             f"warning: the estimator in {out / 'posterior'} FAILED its coverage check "

@@ -8,26 +8,27 @@ is a new realisation each (:mod:`railsusp.estimate.posterior_data`). Once traine
 recording's posterior costs a forward pass, no simulation.
 
 The parameters are inferred as fractions u in [0, 1] of their ranges (a uniform prior on
-the unit box), reported in display units.
+the unit box), reported in display units. The flows model z = logit(u), whose prior is the
+standard logistic distribution: a flow on the unbounded z puts no mass outside the prior
+box (one trained on u itself leaked 43-81 % of its mass out of the box, and the truncation
+of that density made its intervals too narrow). An ``ensemble`` of flows is their equal
+mixture.
 
-**Calibration** is part of training: held-out simulated cases, drawn as the training ones,
-are estimated, and the coverage of their 90 % intervals and the SBC ranks are checked per
-parameter (:mod:`railsusp.estimate.calibration`). The result stores the verdict, and the
-estimate of a recording says ``calibrated = False`` (and warns) for an estimator whose
-check failed: it is never used silently.
+**Calibration** is part of training (:mod:`railsusp.estimate.posterior_check`): a spread
+correction is fitted on held-out calibration cases and the corrected estimator is checked
+on other, untouched held-out cases, per parameter (:mod:`railsusp.estimate.calibration`).
+The result stores the correction and the verdict, and the estimate of a recording says
+``calibrated = False`` (and warns) for an estimator whose check failed or whose correction
+widened a parameter beyond its bound: it is never used silently.
 
-**Long recordings** are cut into sections of the training length, and the posterior of
-the whole is the product of the sections' likelihoods: p(theta | x_1..x_n) is proportional
-to prior(theta) prod_i p(x_i | theta), and with a uniform prior and q(theta | x_i)
-proportional to p(x_i | theta) on the box, to prod_i q(theta | x_i). Sections far apart
-on the track see nearly independent irregularities, so their statistics are nearly
-independent given theta, and this is the posterior a long record supports: its width
-shrinks with the number of sections, unlike an average of the sections' statistics, whose
-smaller scatter the estimator trained on one section would not know (its posterior would
-keep the width of one section). The product is sampled by adaptive importance sampling
-(Student-t proposals refitted to the weighted draws, Cappé et al. 2004, "Population Monte
-Carlo"), and its effective sample size is reported: a product of approximate densities
-amplifies their errors, so its coverage is checked in bench/posterior.py per record length.
+**Long recordings** are cut into sections of the training length, and the sections'
+posteriors are fused (:mod:`railsusp.estimate.posterior_fusion`: their informations add, in
+Gaussian approximations in logit coordinates; the exact product of the flows' densities
+is ruled by their tails). The fusion adds each section's small spurious information too,
+so the fused posterior has its own correction and check per number of sections
+(``product_sections``, :mod:`railsusp.estimate.posterior_check`); a recording of n sections
+uses those of the smallest checked number k >= n, and one longer than any checked number
+is reported not calibrated.
 """
 
 from __future__ import annotations
@@ -35,92 +36,131 @@ from __future__ import annotations
 import io
 import logging
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate.calibration import LEVEL, ParameterCalibration
-from railsusp.estimate.calibration import check as check_calibration
-from railsusp.estimate.intervals import Intervals, from_samples
+from railsusp.estimate.calibration import ParameterCalibration, SpreadCorrection
+from railsusp.estimate.posterior_check import ProductCalibration, calibrate, widen
 from railsusp.estimate.posterior_data import (
     PosteriorSettings,
     cached_cases,
     recording_summaries,
     to_si,
 )
-from railsusp.params import MAIN_SUSPENSION, spec
+from railsusp.estimate.posterior_fusion import from_logit, fused_samples, to_logit
+from railsusp.estimate.posterior_result import PosteriorResult
+from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import atomic_write_bytes, content_hash, read_json, write_json
 
 log = logging.getLogger(__name__)
 
-#: effective sample size below which a combined posterior is flagged
-MIN_ESS = 200.0
+
+@contextmanager
+def one_thread():
+    """Torch on one thread while the flows train or sample: their networks are small, and
+    on a shared 2-core machine two threads contend (sampling measured 7 times slower)."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
 
 
 @dataclass
 class PosteriorEstimator:
-    """A trained estimator: settings, the sbi posterior, and its calibration."""
+    """A trained estimator: settings, its ensemble of flows q(z | x) over the logit
+    coordinates z of the parameters, the spread correction fitted on the calibration cases
+    (None: not corrected) and the coverage check of the corrected estimator on the
+    untouched test cases."""
 
     settings: PosteriorSettings
-    posterior: Any  # sbi DirectPosterior on the unit box
+    members: list[Any]  # sbi conditional density estimators of z = logit(u)
     calibration: list[ParameterCalibration]
+    correction: SpreadCorrection | None = None
     run: Path | None = None
+    products: list[ProductCalibration] = field(default_factory=list)
 
     @property
     def calibrated(self) -> bool:
-        return all(c.passed for c in self.calibration)
+        """The coverage check passed for every parameter and no correction was excessive."""
+        excessive = self.correction.excessive if self.correction else []
+        return all(c.passed for c in self.calibration) and not excessive
+
+    def sample_raw(self, x: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
+        """(n, d) draws (unit box) of the ensemble's q(u | x) for a summary vector ``x``
+        (D,), uncorrected; ``x`` (cases, D) gives (cases, n, d)."""
+        import torch
+
+        x = np.asarray(x, dtype=float)
+        xt = torch.as_tensor(np.atleast_2d(x), dtype=torch.float32)
+        counts = np.random.default_rng(seed).multinomial(
+            n, [1 / len(self.members)] * len(self.members)
+        )
+        torch.manual_seed(seed)
+        parts = []
+        with one_thread(), torch.no_grad():
+            for flow, k in zip(self.members, counts, strict=True):
+                if k:
+                    parts.append(np.swapaxes(flow.sample((int(k),), condition=xt).numpy(), 0, 1))
+        draws = from_logit(np.concatenate(parts, axis=1).astype(float))  # (cases, n, d)
+        draws = draws[:, np.random.default_rng(seed + 1).permutation(n)]  # members mixed
+        return draws if x.ndim == 2 else draws[0]
+
+    def correct(self, u: np.ndarray) -> np.ndarray:
+        """Draws (..., S, d) on the unit box widened by the spread correction (in logit
+        coordinates, about their median), or as they are without one."""
+        return widen(self.correction, u)
+
+    def product_for(self, sections: int) -> ProductCalibration | None:
+        """The correction and check of the smallest checked number of sections >= the
+        given one (None: none that long)."""
+        return next((p for p in self.products if p.sections >= sections), None)
 
     def sample(self, x: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
-        """(n, d) draws (unit box) of the posterior of one summary vector ``x`` (D,) or of
-        the product over sections, ``x`` (sections, D)."""
+        """(n, d) corrected draws (unit box) of the posterior of one summary vector ``x``
+        (D,) or of the sections ``x`` (sections, D) fused, with the correction of their
+        number of sections (:meth:`product_for`; the one-section correction when none)."""
+        x = np.atleast_2d(np.asarray(x, dtype=float))
+        if x.shape[0] == 1:
+            return self.correct(self.sample_raw(x[0], n, seed))
+        raw = fused_samples(self, x, n, np.random.default_rng(seed))
+        product = self.product_for(x.shape[0])
+        return widen(product.correction, raw) if product else self.correct(raw)
+
+    def log_qz(self, z: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """(M, sections) log q(z | x_i) of the ensemble (the mean of its flows' densities)
+        over logit coordinates, for (M, d) ``z`` and the sections ``x`` (sections, D)."""
         import torch
 
-        x = np.atleast_2d(np.asarray(x, dtype=float))
-        torch.manual_seed(seed)
-        if x.shape[0] == 1:
-            xt = torch.as_tensor(x, dtype=torch.float32)
-            return self.posterior.sample((n,), x=xt, show_progress_bars=False).numpy()
-        return _product_samples(self, x, n, np.random.default_rng(seed))[0]
+        zt = torch.as_tensor(np.asarray(z, float), dtype=torch.float32)
+        xt = torch.as_tensor(np.atleast_2d(x), dtype=torch.float32)
+        with one_thread(), torch.no_grad():
+            lp = torch.stack(
+                [f.log_prob(zt[:, None, :].expand(-1, xt.shape[0], -1), condition=xt).double()
+                 for f in self.members]
+            )  # fmt: skip
+        return torch.logsumexp(lp, dim=0).numpy() - np.log(len(self.members))
 
     def log_q(self, u: np.ndarray, x: np.ndarray) -> np.ndarray:
-        """log q(u | x_i) summed over the sections ``x`` (sections, D), for (M, d) ``u``;
-        -inf outside the unit box."""
-        import torch
-
-        est = self.posterior.posterior_estimator
-        ut = torch.as_tensor(u, dtype=torch.float32)
-        xt = torch.as_tensor(np.atleast_2d(x), dtype=torch.float32)
-        with torch.no_grad():
-            lp = est.log_prob(ut[:, None, :].expand(-1, xt.shape[0], -1), condition=xt)
-        out = lp.sum(dim=1).double().numpy()
-        out[~np.all((u >= 0) & (u <= 1), axis=1)] = -np.inf
+        """log q(u | x_i), the density on the unit box (with the Jacobian of the logit),
+        summed over the sections ``x`` (sections, D), for (M, d) ``u``; -inf outside the
+        open box."""
+        u = np.asarray(u, dtype=float)
+        inside = np.all((u > 0) & (u < 1), axis=1)
+        safe = np.where(inside[:, None], u, 0.5)
+        per_section = self.log_qz(to_logit(safe), x)
+        jacobian = -np.sum(np.log(safe) + np.log1p(-safe), axis=1)
+        out = per_section.sum(axis=1) + per_section.shape[1] * jacobian
+        out[~inside] = -np.inf
         return out
-
-
-def _product_samples(est: PosteriorEstimator, x: np.ndarray, n: int, rng, rounds: int = 4):
-    """Draws of prod_i q(u | x_i) on the unit box by population Monte Carlo; returns the
-    draws (resampled by weight) and the effective sample size of the last round."""
-    from scipy.stats import multivariate_t
-
-    pooled = np.concatenate([est.sample(xi, max(50, 2000 // len(x)), seed=i) for i, xi in
-                             enumerate(x)])  # fmt: skip
-    mean, cov = pooled.mean(axis=0), np.cov(pooled.T) + 1e-6 * np.eye(pooled.shape[1])
-    m = 4000
-    for r in range(rounds):
-        prop = multivariate_t(mean, cov, df=5, seed=rng)
-        u = np.atleast_2d(prop.rvs(m if r < rounds - 1 else 2 * m))
-        logw = est.log_q(u, x) - prop.logpdf(u)
-        w = np.exp(logw - np.max(logw))
-        w /= w.sum()
-        mean = w @ u
-        cov = 2.0 * ((u - mean).T * w) @ (u - mean) + 1e-6 * np.eye(u.shape[1])
-    ess = 1.0 / np.sum(w**2)
-    pick = rng.choice(u.shape[0], size=n, replace=True, p=w)
-    return u[pick], float(ess)
 
 
 class _TrainingLog:
@@ -150,29 +190,35 @@ class _TrainingLog:
 
 
 def _build(settings: PosteriorSettings, u: np.ndarray, x: np.ndarray):
-    """The sbi NPE object and the flow's builder for the estimated parameters."""
+    """The prior of the logit coordinates (independent standard logistic: the image of the
+    uniform prior on the box), the flow's builder and the training tensors."""
     import torch
-    from sbi.inference import NPE
     from sbi.neural_nets import posterior_nn
-    from sbi.utils import BoxUniform
+    from torch.distributions import Independent, TransformedDistribution, Uniform
+    from torch.distributions.transforms import SigmoidTransform
 
     d = len(settings.parameters)
-    prior = BoxUniform(torch.zeros(d), torch.ones(d))
+    prior = Independent(
+        TransformedDistribution(Uniform(torch.zeros(d), torch.ones(d)), [SigmoidTransform().inv]),
+        1,
+    )
     builder = posterior_nn(
         "maf", hidden_features=settings.hidden_features, num_transforms=settings.num_transforms
     )
     cols = [MAIN_SUSPENSION.index(p) for p in settings.parameters]
     ok = np.all(np.isfinite(x), axis=1)
-    theta_t = torch.as_tensor(u[ok][:, cols], dtype=torch.float32)
+    theta_t = torch.as_tensor(to_logit(u[ok][:, cols]), dtype=torch.float32)
     x_t = torch.as_tensor(x[ok], dtype=torch.float32)
-    return prior, builder, theta_t, x_t, NPE
+    return prior, builder, theta_t, x_t
 
 
 def train(settings: PosteriorSettings, run: str | Path) -> PosteriorEstimator:
-    """Simulate (or read the cached) cases, train the estimator, check its calibration on
-    held-out cases, all into ``run`` (``posterior/``); every step found finished on disk is
+    """Simulate (or read the cached) cases, train the ensemble of flows, fit the spread
+    correction on the calibration cases and check the corrected estimator on the untouched
+    test cases, all into ``run`` (``posterior/``); every step found finished on disk is
     read back, not repeated."""
     import torch
+    from sbi.inference import NPE
 
     folder = Path(run) / "posterior"
     key = content_hash(settings.to_dict())
@@ -184,52 +230,40 @@ def train(settings: PosteriorSettings, run: str | Path) -> PosteriorEstimator:
             )
     write_json(folder / "settings.json", {"hash": key, "settings": settings.to_dict()})
     u, x = cached_cases(settings, folder / "simulations", "train", settings.n_train)
-    prior, builder, theta_t, x_t, NPE = _build(settings, u, x)
+    prior, builder, theta_t, x_t = _build(settings, u, x)
     weights = folder / "estimator.pt"
-    torch.manual_seed(settings.seed)
     if weights.exists():
-        net = builder(theta_t, x_t)
-        net.load_state_dict(torch.load(weights, weights_only=True))
+        states = torch.load(weights, weights_only=True)
+        nets = []
+        for state in states:
+            net = builder(theta_t, x_t)
+            net.load_state_dict(state)
+            nets.append(net)
     else:
-        t0 = time.perf_counter()
-        inference = NPE(
-            prior=prior, density_estimator=builder, show_progress_bars=False, tracker=_TrainingLog()
-        )
-        net = inference.append_simulations(theta_t, x_t).train(show_train_summary=False)
+        nets = []
+        for m in range(settings.ensemble):
+            t0 = time.perf_counter()
+            torch.manual_seed(settings.seed + 1000 * m)  # its own initialisation and split
+            inference = NPE(
+                prior=prior, density_estimator=builder, show_progress_bars=False,
+                tracker=_TrainingLog(),
+            )  # fmt: skip
+            with one_thread():
+                inference.append_simulations(theta_t, x_t)
+                nets.append(inference.train(show_train_summary=False))
+            log.info(
+                "posterior: flow %d of %d trained on %d cases in %.0f s (%d epochs)",
+                m + 1, settings.ensemble, len(x_t), time.perf_counter() - t0,
+                inference.summary["epochs_trained"][-1],
+            )  # fmt: skip
         buf = io.BytesIO()
-        torch.save(net.state_dict(), buf)
+        torch.save([net.state_dict() for net in nets], buf)
         atomic_write_bytes(weights, buf.getvalue())
-        log.info("posterior: trained on %d cases in %.0f s", len(x_t), time.perf_counter() - t0)
-    from sbi.inference import DirectPosterior
-
-    net.eval()
-    est = PosteriorEstimator(settings, DirectPosterior(net, prior), [], Path(run))
-    est.calibration = _calibrate(est, folder)
+    for net in nets:
+        net.eval()
+    est = PosteriorEstimator(settings, nets, [], None, Path(run))
+    est.correction, est.calibration, est.products = calibrate(est, folder)
     return est
-
-
-def _calibrate(est: PosteriorEstimator, folder: Path) -> list[ParameterCalibration]:
-    """Coverage and SBC ranks on the held-out cases (cached in ``calibration.json``)."""
-    path = folder / "calibration.json"
-    if path.exists():
-        return [ParameterCalibration(**c) for c in read_json(path)["parameters"]]
-    s = est.settings
-    u, x = cached_cases(s, folder / "simulations", "check", s.n_check)
-    ok = np.all(np.isfinite(x), axis=1)
-    cols = [MAIN_SUSPENSION.index(p) for p in s.parameters]
-    draws = np.stack([est.sample(xi, s.samples, seed=i) for i, xi in enumerate(x[ok])])
-    checks = check_calibration(draws, u[ok][:, cols], list(s.parameters))
-    write_json(
-        path,
-        {
-            "level": LEVEL,
-            "cases": int(ok.sum()),
-            "failed_simulations": int((~ok).sum()),
-            "parameters": [c.to_dict() for c in checks],
-            "passed": all(c.passed for c in checks),
-        },
-    )
-    return checks
 
 
 def load(run: str | Path) -> PosteriorEstimator:
@@ -245,98 +279,51 @@ def load(run: str | Path) -> PosteriorEstimator:
     return train(settings, run)
 
 
-@dataclass
-class PosteriorResult:
-    """The posterior of a recording: draws (SI) of the estimated parameters, the verdict
-    of the estimator's calibration check and how the recording was used."""
-
-    parameters: tuple[str, ...]
-    samples: np.ndarray  # (S, d) SI
-    calibration: list[ParameterCalibration]
-    sections: dict[str, dict]
-    ess: float | None = None
-    warnings: list[str] = field(default_factory=list)
-
-    @property
-    def calibrated(self) -> bool:
-        return all(c.passed for c in self.calibration)
-
-    def intervals(self, level: float = LEVEL) -> Intervals:
-        """Median and central ``level`` credible interval of each parameter (the one
-        interval type of every route, :mod:`railsusp.estimate.intervals`)."""
-        return from_samples(self.parameters, self.samples, level)
-
-    def to_dataframe(self) -> pd.DataFrame:
-        """Per parameter: median and central 90 % interval in display units, the
-        interval's width as % of the prior range, and the held-out coverage."""
-        rows = []
-        lo_q, hi_q = (1 - LEVEL) / 2, (1 + LEVEL) / 2
-        iv = self.intervals()
-        for j, p in enumerate(self.parameters):
-            sp = spec(p)
-            lo, hi = sp.bounds
-            q = np.quantile(self.samples[:, j], [0.5, lo_q, hi_q])
-            rows.append(
-                {
-                    "parameter": p,
-                    "name": sp.name,
-                    "unit": sp.display_unit,
-                    "median": sp.to_display(q[0]),
-                    "lo90": sp.to_display(q[1]),
-                    "hi90": sp.to_display(q[2]),
-                    "width_pct_range": 100.0 * (q[2] - q[1]) / (hi - lo),
-                    "coverage_heldout": self.calibration[j].coverage,
-                    "calibrated": self.calibration[j].passed,
-                    "median [90 % interval]": iv[p].text(),
-                }
-            )
-        return pd.DataFrame(rows)
-
-    def save(self, path: str | Path) -> Path:
-        """The table and the verdict as JSON (atomic)."""
-        return write_json(
-            path,
-            {
-                "route": "posterior",
-                "parameters": list(self.parameters),
-                "estimate_display": {i.parameter: i.value for i in self.intervals().items},
-                "intervals": self.intervals().to_dict(),
-                "estimates": self.to_dataframe().to_dict(orient="records"),
-                "calibrated": self.calibrated,
-                "sections": self.sections,
-                "effective_sample_size": self.ess,
-                "warnings": self.warnings,
-            },
-        )
-
-
 def estimate(est: PosteriorEstimator, recordings, seed: int = 0) -> PosteriorResult:
     """Posterior of the recordings (one per trained condition, any length of at least one
-    section): the product over their sections (module docstring)."""
+    section): one section's, or the sections' fused (module docstring), each with the
+    correction and the check that belong to its number of sections."""
     x, used = recording_summaries(est.settings, recordings)
     s = est.settings
+    n = len(x)
     notes = []
-    if not est.calibrated:
-        bad = [c.parameter for c in est.calibration if not c.passed]
+    correction, checks, checked_as = est.correction, est.calibration, 1
+    u = est.sample(x, s.samples, seed)
+    if n > 1:
+        product = est.product_for(n)
+        if product is None:
+            checked_as = None
+            longest = max((p.sections for p in est.products), default=1)
+            notes.append(
+                f"the posterior of {n} sections (their informations fused) is NOT "
+                f"calibrated: the estimator was checked up to {longest} section(s) "
+                "(--product-sections); the fusion adds each section's small spurious "
+                "information, so a longer record's intervals may be too narrow"
+            )
+        else:
+            correction, checks, checked_as = (
+                product.correction,
+                list(product.checks),
+                product.sections,
+            )
+    label = f" of {checked_as} sections" if n > 1 and checked_as else ""
+    bad = [c.parameter for c in checks if not c.passed]
+    if bad:
         notes.append(
-            "the estimator FAILED its coverage check on held-out simulations for "
+            f"the estimator FAILED its coverage check{label} on held-out simulations for "
             f"{', '.join(bad)}: its intervals are too narrow; do not use them as they are"
         )
-    ess = None
-    if len(x) == 1:
-        u = est.sample(x[0], s.samples, seed)
-    else:
-        u, ess = _product_samples(est, x, s.samples, np.random.default_rng(seed))
+    wide = correction.excessive if correction else []
+    if wide:
+        factors = dict(zip(correction.parameters, correction.factors, strict=True))
         notes.append(
-            f"the product of {len(x)} sections is not what the built-in check tested (one "
-            "section): an over-confident section posterior gets more so in the product "
-            "(bench/posterior.py measures the coverage against record length)"
+            f"the estimator needed its intervals{label} widened by more than "
+            f"{correction.max_inflation:g} times to hold the truth on the calibration "
+            f"cases for {', '.join(f'{p} ({factors[p]:.1f})' for p in wide)}: its posterior "
+            "is misshapen there, not only too narrow; train on more simulations"
         )
-        if ess < MIN_ESS:
-            notes.append(
-                f"the product of {len(x)} sections' posteriors was sampled with an effective "
-                f"sample size of {ess:.0f} (< {MIN_ESS:g}): its intervals are rough"
-            )
     for note in notes:
         log.warning("posterior: %s", note)
-    return PosteriorResult(s.parameters, to_si(u, s.parameters), est.calibration, used, ess, notes)
+    return PosteriorResult(
+        s.parameters, to_si(u, s.parameters), checks, used, n, notes, correction, checked_as
+    )

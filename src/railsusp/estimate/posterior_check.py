@@ -1,0 +1,187 @@
+"""The calibration step of a trained posterior estimator: fit its spread correction on one
+set of held-out simulations and check the corrected estimator on another, untouched one.
+
+Three disjoint sets of simulated cases, drawn alike from the prior on new track
+realisations (:mod:`railsusp.estimate.posterior_data`, their own seeds):
+
+1. ``train``: the flows learn from these;
+2. ``calibration`` (``n_calibration`` cases): the split-conformal widening factor of each
+   parameter is fitted on the flows' draws for these
+   (:class:`railsusp.estimate.calibration.SpreadCorrection`, in logit coordinates of the
+   fraction of range, so the widened draws stay inside the prior box);
+3. ``check`` (``n_check`` cases): the coverage and SBC check of the estimator before and
+   after the correction. Nothing was fitted on these, so the check after the correction is
+   an honest one; it decides ``calibrated``, together with the bound on the widening
+   (a factor above ``MAX_INFLATION`` is flagged, whatever the coverage).
+
+**Several sections.** With ``product_sections`` (k_1 < k_2 < ...), the same is done for
+the fused posterior of k consecutive sections (:mod:`railsusp.estimate.posterior_fusion`):
+``n_product`` calibration cases (``long-calibration``) and ``n_product`` test cases
+(``long``), each of k_max consecutive sections on one track, give a correction and a
+check per k (:class:`ProductCalibration`). The fusion adds each section's small spurious
+information, so its factors grow with k; a recording of n sections uses the correction of
+the smallest checked k >= n (wider than n needs, if the factors grow with k), and one
+longer than k_max is not calibrated.
+
+Everything goes into ``posterior/calibration.json``, which a re-run reads back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+
+from railsusp.estimate.calibration import LEVEL, ParameterCalibration, SpreadCorrection, check
+from railsusp.estimate.posterior_data import cached_cases
+from railsusp.estimate.posterior_fusion import SectionSampler, from_logit, fused_samples, to_logit
+from railsusp.params import MAIN_SUSPENSION
+from railsusp.store import read_json, write_json
+
+
+class Estimator(SectionSampler, Protocol):
+    """What the check needs of an estimator (:class:`railsusp.estimate.posterior.
+    PosteriorEstimator`): its settings and uncorrected draws (the corrections are fitted
+    here, before the estimator has any)."""
+
+
+@dataclass(frozen=True)
+class ProductCalibration:
+    """Correction and check of the fused posterior of ``sections`` sections."""
+
+    sections: int
+    correction: SpreadCorrection
+    checks: tuple[ParameterCalibration, ...]
+
+    @property
+    def passed(self) -> bool:
+        return all(c.passed for c in self.checks) and not self.correction.excessive
+
+
+def raw_draws(est: Estimator, folder: Path, kind: str, n: int):
+    """The flows' uncorrected draws (cases, S, d) for the first ``n`` cases of ``kind``,
+    their truths (cases, d) and the number of failed simulations left out."""
+    s = est.settings
+    u, x = cached_cases(s, folder / "simulations", kind, n)
+    ok = np.all(np.isfinite(x), axis=1)
+    cols = [MAIN_SUSPENSION.index(p) for p in s.parameters]
+    draws = est.sample_raw(x[ok], s.samples, seed=s.seed)
+    return draws, u[ok][:, cols], int((~ok).sum())
+
+
+def median_width(draws: np.ndarray, names: list[str]) -> dict[str, float]:
+    """Median over cases of the central 90 % interval's width, % of the prior range."""
+    q = np.quantile(draws, [(1 - LEVEL) / 2, (1 + LEVEL) / 2], axis=1)
+    return dict(zip(names, np.round(100 * np.median(q[1] - q[0], axis=0), 1).tolist(), strict=True))
+
+
+def fused_draws(est: Estimator, folder: Path, kind: str):
+    """Per checked number of sections k, the uncorrected fused draws (cases, S, d) of the
+    first k sections of ``n_product`` cases of ``kind``, and the truths (cases, d)."""
+    s = est.settings
+    u, x = cached_cases(s, folder / "simulations", kind, s.n_product, max(s.product_sections))
+    ok = np.all(np.isfinite(x), axis=(1, 2))
+    cols = [MAIN_SUSPENSION.index(p) for p in s.parameters]
+    draws = {
+        k: np.stack([fused_samples(est, xi[:k], s.samples, np.random.default_rng([s.seed, i, k]))
+                     for i, xi in enumerate(x[ok])])
+        for k in s.product_sections
+    }  # fmt: skip
+    return draws, u[ok][:, cols]
+
+
+def _products(est: Estimator, folder: Path) -> tuple[list[ProductCalibration], list]:
+    """The correction and check of every checked number of sections, and their record."""
+    names = list(est.settings.parameters)
+    cal, t_cal = fused_draws(est, folder, "long-calibration")
+    test, t_test = fused_draws(est, folder, "long")
+    out, record = [], []
+    for k in est.settings.product_sections:
+        corr = SpreadCorrection.fit(to_logit(cal[k]), to_logit(t_cal), names)
+        widened = widen(corr, test[k])
+        checks = tuple(check(widened, t_test, names))
+        out.append(ProductCalibration(k, corr, checks))
+        record.append(
+            {
+                "sections": k,
+                "calibration_cases": len(t_cal),
+                "cases": len(t_test),
+                "correction": corr.to_dict(),
+                "before": [c.to_dict() for c in check(test[k], t_test, names)],
+                "parameters": [c.to_dict() for c in checks],
+                "width_pct_range": median_width(widened, names),
+                "calibration_after": [
+                    c.to_dict() for c in check(widen(corr, cal[k]), t_cal, names)
+                ],
+                "passed": out[-1].passed,
+            }
+        )
+    return out, record
+
+
+def widen(correction: SpreadCorrection | None, draws: np.ndarray) -> np.ndarray:
+    """Draws on the unit box widened by ``correction`` in logit coordinates (as is: None)."""
+    return draws if correction is None else from_logit(correction.apply(to_logit(draws)))
+
+
+def _read_products(data: dict) -> list[ProductCalibration]:
+    return [
+        ProductCalibration(
+            p["sections"],
+            SpreadCorrection.from_dict(p["correction"]),
+            tuple(ParameterCalibration(**c) for c in p["parameters"]),
+        )
+        for p in data.get("products", [])
+    ]
+
+
+def calibrate(
+    est: Estimator, folder: Path
+) -> tuple[SpreadCorrection | None, list[ParameterCalibration], list[ProductCalibration]]:
+    """The correction (None with ``n_calibration = 0``), the check of the corrected
+    estimator on the untouched test cases, and the same for the checked numbers of
+    sections; read from ``calibration.json`` when there."""
+    path = folder / "calibration.json"
+    if path.exists():
+        data = read_json(path)
+        corr = data.get("correction")
+        return (
+            None if corr is None else SpreadCorrection.from_dict(corr),
+            [ParameterCalibration(**c) for c in data["parameters"]],
+            _read_products(data),
+        )
+    s = est.settings
+    names = list(s.parameters)
+    record: dict = {"level": LEVEL}
+    correction = None
+    if s.n_calibration:
+        draws, truth, failed = raw_draws(est, folder, "calibration", s.n_calibration)
+        correction = SpreadCorrection.fit(to_logit(draws), to_logit(truth), names)  # as applied
+        record["calibration_set"] = {
+            "cases": len(truth),
+            "failed_simulations": failed,
+            "before": [c.to_dict() for c in check(draws, truth, names)],
+            "after": [c.to_dict() for c in check(widen(correction, draws), truth, names)],
+        }
+    draws, truth, failed = raw_draws(est, folder, "check", s.n_check)
+    before = check(draws, truth, names)
+    after = check(widen(correction, draws), truth, names) if correction else before
+    record["width_pct_range"] = median_width(widen(correction, draws), names)
+    excessive = correction.excessive if correction else []
+    products, product_record = _products(est, folder) if s.product_sections else ([], [])
+    record.update(
+        {
+            "cases": len(truth),
+            "failed_simulations": failed,
+            "correction": None if correction is None else correction.to_dict(),
+            "before": [c.to_dict() for c in before],
+            "parameters": [c.to_dict() for c in after],
+            "excessive_correction": excessive,
+            "passed": all(c.passed for c in after) and not excessive,
+            "products": product_record,
+        }
+    )
+    write_json(path, record)
+    return correction, after, products

@@ -1,0 +1,92 @@
+"""The posterior of a recording (:func:`railsusp.estimate.posterior.estimate`): draws of
+the estimated parameters, the verdict of the estimator's calibration and its correction,
+how the recording was used; the table in display units and the result JSON."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from railsusp.estimate.calibration import LEVEL, ParameterCalibration, SpreadCorrection
+from railsusp.estimate.intervals import Intervals, from_samples
+from railsusp.params import spec
+from railsusp.store import write_json
+
+
+@dataclass
+class PosteriorResult:
+    """The posterior of a recording: draws (SI) of the estimated parameters, the verdict
+    of the estimator's calibration check and how the recording was used."""
+
+    parameters: tuple[str, ...]
+    samples: np.ndarray  # (S, d) SI
+    calibration: list[ParameterCalibration]
+    sections: dict[str, dict]
+    n_sections: int = 1
+    warnings: list[str] = field(default_factory=list)
+    correction: SpreadCorrection | None = None
+    checked_as: int | None = 1  # the number of sections whose check applies; None: none
+
+    @property
+    def calibrated(self) -> bool:
+        """A check covers this number of sections, and the estimator passed it after a
+        correction within bounds."""
+        excessive = self.correction.excessive if self.correction else []
+        passed = all(c.passed for c in self.calibration) and not excessive
+        return passed and self.checked_as is not None
+
+    def intervals(self, level: float = LEVEL) -> Intervals:
+        """Median and central ``level`` credible interval of each parameter (the one
+        interval type of every route, :mod:`railsusp.estimate.intervals`)."""
+        return from_samples(self.parameters, self.samples, level)
+
+    def to_dataframe(self) -> pd.DataFrame:
+        """Per parameter: median and central 90 % interval in display units, the
+        interval's width as % of the prior range, and the held-out coverage."""
+        rows = []
+        lo_q, hi_q = (1 - LEVEL) / 2, (1 + LEVEL) / 2
+        iv = self.intervals()
+        for j, p in enumerate(self.parameters):
+            sp = spec(p)
+            lo, hi = sp.bounds
+            q = np.quantile(self.samples[:, j], [0.5, lo_q, hi_q])
+            rows.append(
+                {
+                    "parameter": p,
+                    "name": sp.name,
+                    "unit": sp.display_unit,
+                    "median": sp.to_display(q[0]),
+                    "lo90": sp.to_display(q[1]),
+                    "hi90": sp.to_display(q[2]),
+                    "width_pct_range": 100.0 * (q[2] - q[1]) / (hi - lo),
+                    "coverage_heldout": self.calibration[j].coverage,
+                    "widening": self.correction.factors[j] if self.correction else 1.0,
+                    "calibrated": self.calibration[j].passed
+                    and p not in (self.correction.excessive if self.correction else [])
+                    and self.checked_as is not None,
+                    "median [90 % interval]": iv[p].text(),
+                }
+            )
+        return pd.DataFrame(rows)
+
+    def save(self, path: str | Path) -> Path:
+        """The table and the verdict as JSON (atomic)."""
+        return write_json(
+            path,
+            {
+                "route": "posterior",
+                "parameters": list(self.parameters),
+                "estimate_display": {i.parameter: i.value for i in self.intervals().items},
+                "intervals": self.intervals().to_dict(),
+                "estimates": self.to_dataframe().to_dict(orient="records"),
+                "calibrated": self.calibrated,
+                "correction": None if self.correction is None else self.correction.to_dict(),
+                "sections": self.sections,
+                "sections_combined": self.n_sections,
+                "checked_as_sections": self.checked_as,
+                "warnings": self.warnings,
+            },
+        )
