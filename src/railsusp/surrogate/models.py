@@ -8,6 +8,9 @@ All take windows (batch, L, F) and return the standardised targets (batch, n_tar
   optionally bidirectional), dense layers 64 -> 8 -> 8 -> outputs. ``cell="lstm"`` is the
   CNN-LSTM baseline, ``cell="lstm", bidirectional=True`` the CNN-BiLSTM.
 * :class:`WindowMLP`: the "BP" baseline, a multilayer perceptron on the flattened window.
+* ``"cnn-gru-seq"``: the study's layers run causally over whole series with the state carried
+  along (:class:`~railsusp.surrogate.sequence.CNNSequence`): it takes chunks (batch, C, F)
+  and returns the targets at their steps after its washout (batch, C - washout, n_targets).
 
 :meth:`CNNRecurrent.predict_series` gives the same outputs as ``forward`` for many
 overlapping windows of whole series at a fraction of the cost (see its docstring).
@@ -22,6 +25,10 @@ import numpy as np
 import torch
 from torch import nn
 
+from railsusp.surrogate.kernels import linear as _linear
+from railsusp.surrogate.kernels import linear_add as _linear_add
+from railsusp.surrogate.sequence import CNNSequence
+
 
 @dataclass(frozen=True)
 class NetConfig:
@@ -29,6 +36,8 @@ class NetConfig:
 
     kind: str = "cnn-gru"
     n_features: int = 21
+    #: steps of input before the first prediction: the window length, or for the sequence
+    #: CNN-GRU its washout (:data:`DEFAULT_WASHOUT`)
     window: int = 20
     n_outputs: int = 2
     conv_channels: tuple[int, ...] = (21, 128)
@@ -47,7 +56,19 @@ KINDS = {
     "cnn-lstm": {"cell": "lstm", "bidirectional": False},
     "cnn-bilstm": {"cell": "lstm", "bidirectional": True},
     "bp": {},
+    "cnn-gru-seq": {"cell": "gru", "bidirectional": False},
 }
+#: kinds that run over whole series (:mod:`.sequence`), trained on chunks (:mod:`.chunks`)
+SEQUENCE_KINDS = ("cnn-gru-seq",)
+#: the window networks' window and the sequence CNN-GRU's washout, steps: 2 s at 50 Hz, about
+#: twice the period of the wheelset's kinematic oscillation on tangent at 60 km/h
+DEFAULT_WINDOW = 20
+DEFAULT_WASHOUT = 100
+
+
+def default_window(kind: str) -> int:
+    """The steps before a kind's first prediction when none is given."""
+    return DEFAULT_WASHOUT if kind in SEQUENCE_KINDS else DEFAULT_WINDOW
 
 
 class CNNRecurrent(nn.Module):
@@ -252,27 +273,6 @@ class CNNRecurrent(nn.Module):
         return torch.stack(outs, 1)
 
 
-_ONEDNN = torch.backends.mkldnn.is_available() and hasattr(torch.ops.mkldnn, "_linear_pointwise")
-
-
-def _linear(x: torch.Tensor, w: torch.Tensor, b: torch.Tensor | None = None) -> torch.Tensor:
-    """x W^T + b for 2-D float32 ``x``, through oneDNN where torch has it (the op torch's
-    Inductor compiles CPU linear layers to), else torch.nn.functional.linear (MKL). For these
-    thin matrices oneDNN measured about twice MKL's FLOP rate on the bench machine (AMD EPYC,
-    where MKL seems to run its AVX2 kernels). The op is private to torch (pinned to 2.13): where it
-    is missing, ``_ONEDNN`` is false and the torch path is taken."""
-    if _ONEDNN and x.dtype == torch.float32:
-        return torch.ops.mkldnn._linear_pointwise(x, w, b, "none", [], "")
-    return nn.functional.linear(x, w, b)
-
-
-def _linear_add(x: torch.Tensor, w: torch.Tensor, other: torch.Tensor) -> torch.Tensor:
-    """other + x W^T (a new tensor), fused by oneDNN where available (see ``_linear``)."""
-    if _ONEDNN and x.dtype == torch.float32:
-        return torch.ops.mkldnn._linear_pointwise.binary(x, other, w, None, "add")
-    return torch.addmm(other, x, w.t())
-
-
 def _tanh_from_doubled_(x: torch.Tensor) -> torch.Tensor:
     """tanh(y) from x = 2y, in place: 2 sigmoid(x) - 1 (to float32 rounding)."""
     return x.sigmoid_().mul_(2.0).sub_(1.0)
@@ -332,9 +332,11 @@ class WindowMLP(nn.Module):
 
 
 def build_network(cfg: NetConfig) -> nn.Module:
-    """The network for ``cfg.kind`` (cnn-gru, cnn-lstm, cnn-bilstm, bp)."""
+    """The network for ``cfg.kind`` (cnn-gru, cnn-lstm, cnn-bilstm, bp, cnn-gru-seq)."""
     if cfg.kind not in KINDS:
         raise ValueError(f"unknown surrogate kind {cfg.kind!r}; accepted {', '.join(KINDS)}")
+    if cfg.kind in SEQUENCE_KINDS:
+        return CNNSequence(cfg)
     if cfg.kind == "bp":
         return WindowMLP(cfg)
     opts = KINDS[cfg.kind]
