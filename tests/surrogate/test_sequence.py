@@ -235,3 +235,24 @@ def _test_data(sur, run):
 
     data = load_series(load_campaign(run), "straight", sur.spec)
     return data.subset(np.flatnonzero(np.isin(data.sample_ids, sur.meta["test_ids"])))
+
+
+def test_the_bench_scripts_train_score_and_time_the_kind(trained):
+    from conftest import bench_script
+
+    run, sur = trained
+    tracks = bench_script("surrogate_tracks")
+    tcfg = TrainConfig(**sur.meta["train_config"])  # the finished training is reloaded
+    rows = tracks.network_rows(
+        run, "straight", kind="cnn-gru-seq", window=30, label="cnn-gru-seq", train=tcfg
+    )
+    assert [r["target"] for r in rows] == ["Y", "Q"]
+    assert all(r["n_samples"] == len(sur.meta["test_ids"]) for r in rows)
+    assert all(
+        np.isfinite(r["relative_error_of_mean"]) and r["model"] == "cnn-gru-seq" for r in rows
+    )
+    assert "cnn-gru-seq" in tracks.NETWORKS
+    bench = bench_script("surrogate")
+    rand = bench.random_surrogate("cnn-gru-seq")
+    assert rand.spec.window == rand.net_config.window == DEFAULT_WASHOUT
+    assert bench.generation_seconds(rand, n_sets=2, n_steps=300, repeats=1) > 0

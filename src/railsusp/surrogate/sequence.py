@@ -28,8 +28,6 @@ from typing import TYPE_CHECKING
 import torch
 from torch import nn
 
-from railsusp.surrogate.kernels import linear
-
 if TYPE_CHECKING:
     from railsusp.surrogate.models import NetConfig
 
@@ -103,8 +101,8 @@ class CNNSequence(nn.Module):
         from its start; the washout steps are left in (the caller masks them).
 
         Series go through torch's GRU (its C++ loop over time) in groups of about
-        ``group_steps`` steps in all; the 1x1 convolutions, as the dense layers they are,
-        through oneDNN where torch has it (:func:`~railsusp.surrogate.kernels.linear`).
+        ``group_steps`` steps in all; the 1x1 convolutions as the dense layers they are, on
+        contiguous time-major rows.
         ``stepwise=True`` is the reference: one step at a time with the state carried, as the
         network would run online; it gives the same numbers to float32 rounding."""
         if self.training:
@@ -126,8 +124,6 @@ class CNNSequence(nn.Module):
 
 
 def _dense(x: torch.Tensor, w: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """x W^T + b over the last axis of (T, B, F) ``x``: a 1x1 convolution along time. Without
-    autograd (inference) through oneDNN on the contiguous (T * B, F) rows."""
-    if torch.is_grad_enabled():
-        return nn.functional.linear(x, w, b)
-    return linear(x.reshape(-1, x.shape[-1]), w, b).view(*x.shape[:-1], -1)
+    """x W^T + b over the last axis of (T, B, F) ``x``: a 1x1 convolution along time, as one
+    matrix product over the contiguous (T * B, F) rows."""
+    return nn.functional.linear(x.reshape(-1, x.shape[-1]), w, b).view(*x.shape[:-1], -1)
