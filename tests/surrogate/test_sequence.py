@@ -126,8 +126,10 @@ def test_chunks_are_slices_of_the_series_and_targets_skip_the_washout():
     )
     long = ChunkSampler(shared, norm, washout=5, chunk_steps=500)
     assert long.chunk == 60 and len(long.index) == 4
-    with pytest.raises(ValueError, match="accepted chunk steps > 60"):
+    with pytest.raises(ValueError, match=r"washout \(window\) = 60 steps: accepted fewer than"):
         ChunkSampler(data, norm, washout=60, chunk_steps=400)
+    with pytest.raises(ValueError, match="chunk_steps = 20: accepted more than the washout of 30"):
+        ChunkSampler(data, norm, washout=30, chunk_steps=20)
 
 
 def test_the_sampler_follows_the_kind():
@@ -227,6 +229,18 @@ def test_predict_keeps_the_window_networks_contract(trained):
     rows = evaluate(back, _test_data(back, run))
     assert {r["target"] for r in rows} == {"Y", "Q"}
     assert all(np.isfinite(r["relative_error_of_mean"]) for r in rows)
+
+
+def test_the_cli_trains_the_kind_and_refuses_a_washout_as_long_as_the_records(trained):
+    from typer.testing import CliRunner
+
+    from railsusp.cli import app
+
+    run, _ = trained
+    result = CliRunner().invoke(app, ["train", str(run), "--model", "cnn-gru-seq"])
+    assert result.exit_code == 2, result.output
+    errors = [line for line in result.output.splitlines() if line.startswith("error:")]
+    assert errors == ["error: washout (window) = 100 steps: accepted fewer than the series' 100"]
 
 
 def _test_data(sur, run):

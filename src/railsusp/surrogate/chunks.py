@@ -21,12 +21,16 @@ class ChunkSampler:
     """Chunks (sample, start step) of one data set's series, normalised, as tensors."""
 
     def __init__(self, data: SeriesData, norm: Normaliser, washout: int, chunk_steps: int):
-        self.chunk = min(chunk_steps, data.n_steps)
-        if self.chunk <= washout:
+        if data.n_steps <= washout:
             raise ValueError(
-                f"chunks of {self.chunk} steps (series of {data.n_steps}) leave no step after "
-                f"the washout of {washout}: accepted chunk steps > {washout}"
+                f"washout (window) = {washout} steps: accepted fewer than the series' "
+                f"{data.n_steps}"
             )
+        if chunk_steps <= washout:
+            raise ValueError(
+                f"chunk_steps = {chunk_steps}: accepted more than the washout of {washout} steps"
+            )
+        self.chunk = min(chunk_steps, data.n_steps)
         self.params = data.params_unit.astype(np.float32)
         self.track = norm.track(data.track)
         self.targets = norm.target(data.targets)
