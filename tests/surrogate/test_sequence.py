@@ -270,3 +270,34 @@ def test_the_bench_scripts_train_score_and_time_the_kind(trained):
     rand = bench.random_surrogate("cnn-gru-seq")
     assert rand.spec.window == rand.net_config.window == DEFAULT_WASHOUT
     assert bench.generation_seconds(rand, n_sets=2, n_steps=300, repeats=1) > 0
+
+
+def test_chunk_settings_do_not_restart_a_window_training(tmp_path):
+    """A window network's checkpoint resumes whatever the chunk settings (it does not use
+    them); the sequence network's restarts when they change."""
+    train, val = _data(6, 0), _data(3, 1)
+    norm = Normaliser.fit(train)
+    cfg = NetConfig(**{**_small().to_dict(), "kind": "bp", "mlp_hidden": (8,)})
+
+    def run(epochs: int, chunk_steps: int, kind: str, net_cfg: NetConfig) -> list:
+        tcfg = TrainConfig(
+            epochs=epochs,
+            batches_per_epoch=2,
+            batch_size=16,
+            val_windows=50,
+            chunk_steps=chunk_steps,
+        )
+        return train_network(
+            build_network(net_cfg),
+            sampler_for(kind, train, norm, 5, tcfg),
+            sampler_for(kind, val, norm, 5, tcfg),
+            tcfg,
+            checkpoint=tmp_path / f"{kind}.pt",
+        )
+
+    first = run(1, 20, "bp", cfg)
+    assert run(2, 30, "bp", cfg)[0] == first[0]  # resumed: its first epoch kept
+    first = run(1, 20, "cnn-gru-seq", _small())
+    again = run(2, 30, "cnn-gru-seq", _small())
+    assert again[0]["val_loss"] != first[0]["val_loss"]  # afresh, on other chunks
+    assert run(3, 30, "cnn-gru-seq", _small())[:2] == again  # resumed

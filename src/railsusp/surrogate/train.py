@@ -234,11 +234,15 @@ def train_network(
     # a checkpoint resumes only the same training: settings (but for the epoch limits, which
     # may be raised to train on), architecture and data (windows, features, samples,
     # normalisation), so another window length or campaign starts afresh; settings added
-    # later count only when changed, so checkpoints from before they existed still resume
+    # later count only when changed, so checkpoints from before they existed still resume,
+    # and the chunk settings only for the network that trains on chunks
+    unused = ("epochs", "fine_tune_epochs")
+    if not isinstance(train, ChunkSampler):
+        unused += ("chunk_steps", "chunks_per_batch")
     settings = {
         k: v
         for k, v in cfg.to_dict().items()
-        if k not in ("epochs", "fine_tune_epochs") and _LATER_SETTINGS.get(k, object()) != v
+        if k not in unused and _LATER_SETTINGS.get(k, object()) != v
     }
     key = content_hash({"cfg": settings, "arch": repr(net), "data": _fingerprint(train, val)})
     if checkpoint is not None and checkpoint.exists():
