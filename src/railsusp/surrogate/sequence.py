@@ -23,13 +23,25 @@ would read the future.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import torch
 from torch import nn
 
-if TYPE_CHECKING:
-    from railsusp.surrogate.models import NetConfig
+
+class Sizes(Protocol):
+    """What the network reads of :class:`~railsusp.surrogate.models.NetConfig` (declared
+    here so that the two modules do not import each other)."""
+
+    n_features: int
+    window: int
+    n_outputs: int
+    conv_channels: tuple[int, ...]
+    rnn_hidden: tuple[int, ...]
+    bidirectional: bool
+    dense: tuple[int, ...]
+    dropout: float
+
 
 #: what the network carries from one stretch of a series to the next: the last convolution
 #: output (for the pooling) and each GRU layer's hidden state
@@ -39,7 +51,7 @@ SequenceState = tuple[torch.Tensor, list[torch.Tensor]]
 class CNNSequence(nn.Module):
     """1x1 convolutions -> causal max pool -> dropout -> stacked GRUs -> dense head, per step."""
 
-    def __init__(self, cfg: NetConfig):
+    def __init__(self, cfg: Sizes):
         super().__init__()
         if cfg.bidirectional:
             raise ValueError(
