@@ -6,8 +6,10 @@ all models are trained on the campaign's stored 70/15/15 split (by track and par
 ``RUN/splits/seed-0.json``; on a many-track campaign the test runs hold tracks no network saw:
 bench/surrogate_tracks.py makes such a campaign and prints its table).
 ``--throughput-only`` needs no campaign: it times randomly initialised default-size networks
-on 64 series x 980 windows (bench/results/surrogate_throughput.json). Throughput is the
-fast whole-series path (``Surrogate.predict``), plus the per-window reference path
+on 64 series x 980 windows (bench/results/surrogate_throughput.json), and the prediction of
+one NSGA-II generation (50 parameter sets x 3000 steps, a 60 s record at 50 Hz). For the
+sequence CNN-GRU (``cnn-gru-seq``) a "window" is a predicted step (after its washout).
+Throughput is the fast whole-series path (``Surrogate.predict``), plus the per-window reference path
 (``fast=False``) for the CNN-GRU, with ``--threads`` torch threads (2), best of
 ``--repeats`` calls (3).
 """
@@ -28,10 +30,10 @@ from railsusp.surrogate import TrainConfig, load
 from railsusp.surrogate.bundle import Surrogate
 from railsusp.surrogate.compare import ALL_MODELS, compare, table7
 from railsusp.surrogate.data import FeatureSpec, Normaliser
-from railsusp.surrogate.models import NetConfig, build_network
+from railsusp.surrogate.models import NetConfig, build_network, default_window
 from railsusp.vehicle.wagon import load_wagon
 
-NETWORKS = ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp")
+NETWORKS = ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp", "cnn-gru-seq")
 KEYS = ("X11", "X12", "X13", "X14", "X17", "X18")
 
 
@@ -51,6 +53,24 @@ def _rate(
     return float(np.isfinite(out[:, :, 0]).sum() / best)
 
 
+def generation_seconds(
+    sur: Surrogate, n_sets: int = 50, n_steps: int = 3000, repeats: int = 3
+) -> float:
+    """Seconds of ``sur.predict`` for one NSGA-II generation: ``n_sets`` parameter sets on
+    one ``n_steps``-step track (random features), best of ``repeats`` after a warm-up."""
+    lo, hi = bounds(sur.spec.parameters)
+    x = lo + (hi - lo) * np.random.default_rng(0).random((n_sets, len(lo)))
+    n_track = sur.spec.n_features - len(lo)
+    track = np.random.default_rng(2).normal(size=(n_steps, n_track))
+    sur.predict(x[:2], track=track[:400])  # warm-up
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        sur.predict(x, track=track)
+        best = min(best, time.perf_counter() - t0)
+    return float(best)
+
+
 def throughput(path, n_sets: int = 64, repeats: int = 3, fast: bool = True) -> float:
     """Windows predicted per second by a saved surrogate, batched over parameter sets."""
     return _rate(load(path), n_sets, repeats, fast)
@@ -59,8 +79,8 @@ def throughput(path, n_sets: int = 64, repeats: int = 3, fast: bool = True) -> f
 def random_surrogate(kind: str, n_steps: int = 1000, seed: int = 0) -> Surrogate:
     """A surrogate bundle with randomly initialised default-size weights (timing only)."""
     torch.manual_seed(seed)
-    cfg = NetConfig(kind=kind)
-    spec = FeatureSpec(parameters=KEYS)
+    cfg = NetConfig(kind=kind, window=default_window(kind))
+    spec = FeatureSpec(parameters=KEYS, window=cfg.window)
     n_track = spec.n_features - len(KEYS)
     return Surrogate(
         build_network(cfg).eval(),
@@ -99,6 +119,10 @@ def throughput_only(args: argparse.Namespace) -> None:
     track = np.random.default_rng(1).normal(size=(1000, 15))
     rates = rates_of(random_surrogate, kinds, args.repeats, track)
     print_rates(rates, args.threads)
+    gen = {k: generation_seconds(random_surrogate(k), repeats=args.repeats) for k in kinds}
+    print("one NSGA-II generation (50 parameter sets x 3000 steps), s:")
+    for k, v in gen.items():
+        print(f"  {k:<19} {v:8.3f}")
     out = write_json(
         args.out or "bench/results/surrogate_throughput.json",
         {
@@ -107,6 +131,7 @@ def throughput_only(args: argparse.Namespace) -> None:
             "threads": args.threads,
             "repeats": args.repeats,
             "windows_per_second": rates,
+            "generation_seconds_50x3000": gen,
         },
     )
     print(f"wrote {out}")

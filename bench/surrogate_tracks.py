@@ -8,7 +8,9 @@ range (``--vary-others``); trains the CNN-GRU (the study's architecture, the def
 :class:`~railsusp.surrogate.models.NetConfig`), CNN-LSTM, CNN-BiLSTM, BP and RBF per condition
 on the campaign's stored split (:mod:`railsusp.surrogate.split`: the test samples hold tracks
 and parameter sets that no network saw), optionally a CNN-GRU variant with longer windows
-(``--variant-window``), and prints per condition the relative error of the record mean of
+(``--variant-window``) and the sequence CNN-GRU (``--models ...,cnn-gru-seq``:
+:mod:`railsusp.surrogate.sequence`, scored from the end of its washout), and prints per
+condition the relative error of the record mean of
 vertical Q and lateral |Y| per held-out run (mean and worst) and pooled, the NRMSE and R² of
 the series, and the inference rate (windows per second, batched, ``--threads`` torch threads).
 
@@ -46,7 +48,9 @@ from railsusp.variation import full_ranges, parse_range
 #: the key parameters of the current model's sensitivity analysis (bench/README.md)
 KEYS = ("X13", "X18", "X14", "X19", "X17", "X16")
 MODELS = ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp", "rbf")
-NETWORKS = ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp")
+NETWORKS = ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp", "cnn-gru-seq")
+#: models trained beside the comparison (:func:`network_rows`), not by ``compare``
+SEQUENCE = ("cnn-gru-seq",)
 #: the issue's targets for the CNN-GRU per held-out run (fractions) and its inference rate
 TARGET_Q, TARGET_Y, TARGET_RATE = 0.01, 0.02, 1e5
 
@@ -85,6 +89,43 @@ def tracks_config(
     )
 
 
+def network_rows(
+    run: str | Path,
+    condition: str,
+    *,
+    kind: str,
+    window: int | None,
+    label: str,
+    train: TrainConfig | None,
+    split_seed: int = 0,
+    out: str | Path | None = None,
+) -> list[dict]:
+    """Train one network (``window``: its window, or the sequence CNN-GRU's washout; None:
+    the kind's default) on the campaign's split, saved under ``out`` (default
+    ``RUN/surrogates/<label>/<condition>/``), and score it on the same test runs from the end
+    of its own window or washout (the reference scores from step 20)."""
+    camp = load_campaign(run)
+    out = Path(run) / "surrogates" / label / condition if out is None else Path(out)
+    sur = train_surrogate(
+        run, condition, kind=kind, window=window, train=train, split_seed=split_seed, out=out
+    )
+    first = sur.spec.window
+    data = load_series(camp, condition, feature_spec(camp, sur.spec.parameters, first))
+    split = campaign_split(camp, split_seed)
+    test = data.subset(split.positions(data.sample_ids, "test"))
+    pred, raw = predict_with_alone(sur, test)
+    sim = test.targets.astype(float)
+    alone = accuracy(sim, raw, sur.spec.targets, first) if raw is not None else None
+    held = {"held_out": split.held_out, "test_tracks": len(np.unique(test.seeds))}
+    rows = []
+    for j, r in enumerate(accuracy(sim, pred, sur.spec.targets, first)):
+        r["relative_error_of_mean_network_alone"] = (
+            alone[j]["relative_error_of_mean"] if alone else float("nan")
+        )
+        rows.append({"condition": condition, "model": label, **r, **held})
+    return rows
+
+
 def variant_rows(
     run: str | Path,
     condition: str,
@@ -95,26 +136,16 @@ def variant_rows(
     """Train the CNN-GRU with ``window``-step windows on the same split (saved under
     ``RUN/surrogates/cnn-gru-w<window>/``) and score it on the same test runs (steps
     ``window`` .. T; the reference scores from step 20)."""
-    camp = load_campaign(run)
-    params = key_parameters(run)
-    out = Path(run) / "surrogates" / f"cnn-gru-w{window}" / condition
-    sur = train_surrogate(
-        run, condition, kind="cnn-gru", window=window, train=train, split_seed=split_seed, out=out
+    return network_rows(
+        run,
+        condition,
+        kind="cnn-gru",
+        window=window,
+        label=f"cnn-gru w{window}",
+        train=train,
+        split_seed=split_seed,
+        out=Path(run) / "surrogates" / f"cnn-gru-w{window}" / condition,
     )
-    data = load_series(camp, condition, feature_spec(camp, params, window))
-    split = campaign_split(camp, split_seed)
-    test = data.subset(split.positions(data.sample_ids, "test"))
-    pred, raw = predict_with_alone(sur, test)
-    sim = test.targets.astype(float)
-    alone = accuracy(sim, raw, sur.spec.targets, window) if raw is not None else None
-    held = {"held_out": split.held_out, "test_tracks": len(np.unique(test.seeds))}
-    rows = []
-    for j, r in enumerate(accuracy(sim, pred, sur.spec.targets, window)):
-        r["relative_error_of_mean_network_alone"] = (
-            alone[j]["relative_error_of_mean"] if alone else float("nan")
-        )
-        rows.append({"condition": condition, "model": f"cnn-gru w{window}", **r, **held})
-    return rows
 
 
 def table_on_tracks(
@@ -129,20 +160,40 @@ def table_on_tracks(
     progress: Callable[[str], None] | None = None,
 ) -> pd.DataFrame:
     """The accuracy table (one row per condition, model and force) of every model on the
-    campaign's held-out test runs in ``conditions`` (all by default), the variant's rows (in
-    ``variant_conditions``, all by default) after the reference's."""
-    table = compare(
-        run,
-        models=models,
-        conditions=conditions,
-        train=train,
-        split_seed=split_seed,
-        progress=progress,
+    campaign's held-out test runs in ``conditions`` (all by default): the compared models,
+    then the sequence CNN-GRU, then the variant's rows (in ``variant_conditions``, all by
+    default)."""
+    compared = [m for m in models if m not in SEQUENCE]
+    conds = (
+        list(conditions) if conditions else [c.name for c in load_campaign(run).config.conditions]
     )
+    tables = []
+    if compared:
+        tables.append(
+            compare(
+                run,
+                models=compared,
+                conditions=conds,
+                train=train,
+                split_seed=split_seed,
+                progress=progress,
+            )
+        )
+    rows = []
+    for kind in (m for m in models if m in SEQUENCE):
+        for cond in conds:
+            if progress:
+                progress(f"{cond}: {kind}")
+            rows += network_rows(
+                run, cond, kind=kind, window=None, label=kind, train=train, split_seed=split_seed
+            )
+    if rows:
+        tables.append(pd.DataFrame(rows))
+    table = pd.concat(tables, ignore_index=True)
     if variant_window is None:
         return table
     rows = []
-    for cond in variant_conditions or table.condition.unique():
+    for cond in variant_conditions or conds:
         if progress:
             progress(f"{cond}: cnn-gru w{variant_window}")
         rows += variant_rows(run, cond, variant_window, train, split_seed)
@@ -260,6 +311,8 @@ def main() -> None:
     ap.add_argument("--epochs", type=int, default=4)
     ap.add_argument("--batches-per-epoch", type=int, default=100)
     ap.add_argument("--batch-size", type=int, default=512)
+    ap.add_argument("--chunk-steps", type=int, default=400, help="cnn-gru-seq: steps per chunk")
+    ap.add_argument("--chunks-per-batch", type=int, default=32, help="cnn-gru-seq: chunks")
     ap.add_argument("--device", default="cpu", help="training device: cpu, cuda or auto")
     ap.add_argument(
         "--variant-window", type=int, default=0, help="also a CNN-GRU with these windows (0: no)"
@@ -290,6 +343,8 @@ def main() -> None:
         batches_per_epoch=args.batches_per_epoch,
         batch_size=args.batch_size,
         device=args.device,
+        chunk_steps=args.chunk_steps,
+        chunks_per_batch=args.chunks_per_batch,
     )
     seconds: dict[str, float] = {}
     state: dict = {"t": None, "m": None}

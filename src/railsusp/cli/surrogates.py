@@ -49,14 +49,23 @@ def _train_config(epochs, batches_per_epoch, batch_size, device, seed, fine_tune
 def train(
     run: Annotated[Path, typer.Argument(help="campaign run directory")],
     model: Annotated[
-        str, typer.Option(help="cnn-gru, cnn-lstm, cnn-bilstm, bp, or gp-stats (statistics GPs)")
+        str,
+        typer.Option(
+            help="cnn-gru, cnn-lstm, cnn-bilstm, bp, cnn-gru-seq (sequence CNN-GRU), or "
+            "gp-stats (statistics GPs)"
+        ),
     ] = "cnn-gru",
     conditions: Annotated[str | None, typer.Option(help="default: all of the campaign")] = None,
     epochs: Annotated[int, typer.Option(help="maximum epochs (early stopping)")] = 40,
     fine_tune_epochs: FineTuneEpochs = 0,
     batches_per_epoch: Annotated[int, typer.Option(help="mini-batches per epoch")] = 200,
-    batch_size: Annotated[int, typer.Option(help="windows per mini-batch")] = 512,
-    window: Annotated[int, typer.Option(help="window length, steps")] = 20,
+    batch_size: Annotated[
+        int, typer.Option(help="windows per mini-batch (cnn-gru-seq: 32 chunks of 400 steps)")
+    ] = 512,
+    window: Annotated[
+        int | None,
+        typer.Option(help="window length, steps (20); cnn-gru-seq: its washout (100)"),
+    ] = None,
     device: Annotated[str, typer.Option(help="cpu, cuda or auto")] = "cpu",
     seed: Annotated[int, typer.Option(help="training seed")] = 0,
     record_correction: Annotated[
@@ -85,7 +94,7 @@ def train(
         if model not in (*KINDS, "gp-stats"):
             raise RailsuspInputError(f"--model {model!r}: accepted {', '.join(KINDS)}, gp-stats")
         tcfg = _train_config(epochs, batches_per_epoch, batch_size, device, seed, fine_tune_epochs)
-        if not 2 <= window <= 10_000:
+        if window is not None and not 2 <= window <= 10_000:
             raise RailsuspInputError(f"--window = {window}: accepted 2 .. 10000 steps")
         camp = require_complete(load_campaign(run))
         conds = (
@@ -193,7 +202,9 @@ def compare(
     epochs: Annotated[int, typer.Option(help="maximum epochs (early stopping)")] = 40,
     fine_tune_epochs: FineTuneEpochs = 0,
     batches_per_epoch: Annotated[int, typer.Option(help="mini-batches per epoch")] = 200,
-    batch_size: Annotated[int, typer.Option(help="windows per mini-batch")] = 512,
+    batch_size: Annotated[
+        int, typer.Option(help="windows per mini-batch (cnn-gru-seq: 32 chunks of 400 steps)")
+    ] = 512,
     device: Annotated[str, typer.Option(help="cpu, cuda or auto")] = "cpu",
     seed: Annotated[int, typer.Option(help="training seed")] = 0,
 ) -> None:

@@ -23,9 +23,9 @@ from railsusp.surrogate.data import (
     load_series,
 )
 from railsusp.surrogate.evaluate import accuracy, evaluate, predict_series, predict_with_alone
-from railsusp.surrogate.models import KINDS, NetConfig, build_network
+from railsusp.surrogate.models import KINDS, NetConfig, build_network, default_window
 from railsusp.surrogate.split import Split, campaign_split
-from railsusp.surrogate.train import TrainConfig, WindowSampler, train_network
+from railsusp.surrogate.train import TrainConfig, sampler_for, train_network
 from railsusp.variation import assumed_parameters
 
 __all__ = [
@@ -134,7 +134,7 @@ def train_surrogate(
     *,
     kind: str = "cnn-gru",
     parameters: Sequence[str] | None = None,
-    window: int = 20,
+    window: int | None = None,
     train: TrainConfig | None = None,
     net: NetConfig | None = None,
     split_seed: int = 0,
@@ -143,6 +143,9 @@ def train_surrogate(
     record_correction: bool = True,
 ) -> Surrogate:
     """Train a window surrogate of one condition of a campaign; save and return it.
+
+    ``window``: the window length, or for ``kind="cnn-gru-seq"`` the washout (steps before
+    the first prediction); by default 20 and 100 steps (:func:`.models.default_window`).
 
     Samples are split 70/15/15 into train/validation/test by track and parameter set (the
     campaign's stored split, :func:`~railsusp.surrogate.split.campaign_split`); the test
@@ -157,6 +160,7 @@ def train_surrogate(
 
     camp = require_complete(load_campaign(run))  # never train on part of a campaign
     params = tuple(parameters) if parameters else key_parameters(run)
+    window = default_window(kind) if window is None else window
     spec = feature_spec(camp, params, window)
     data = load_series(camp, condition, spec)
     split = campaign_split(camp, split_seed)
@@ -178,8 +182,8 @@ def train_surrogate(
     out = Path(out) if out else camp.path / "surrogates" / kind / condition
     history = train_network(
         network,
-        WindowSampler(train_data, norm, window),
-        WindowSampler(val_data, norm, window),
+        sampler_for(kind, train_data, norm, window, tcfg),
+        sampler_for(kind, val_data, norm, window, tcfg),
         tcfg,
         checkpoint=out / "checkpoint.pt",
         progress=progress,

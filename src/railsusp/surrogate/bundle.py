@@ -4,7 +4,8 @@ condition, wagon and training provenance, saved to and loaded from one folder.
 ``Surrogate.predict(params, ...)`` returns force series (kN) of the measured wheel for any
 batch of parameter sets in its condition, on the campaign's track or another realisation.
 CNN-recurrent networks predict whole series at once (:meth:`CNNRecurrent.predict_series`,
-about 4x the windows per second of running the network on every gathered window).
+about 4x the windows per second of running the network on every gathered window); the
+sequence CNN-GRU runs once over each series (:meth:`CNNSequence.predict_series`).
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from railsusp.surrogate.data import (
     window_index,
 )
 from railsusp.surrogate.models import CNNRecurrent, NetConfig, build_network
+from railsusp.surrogate.sequence import CNNSequence
 from railsusp.vehicle.wagon import WagonData
 
 FORMAT = "railsusp-surrogate/1"
@@ -61,7 +63,7 @@ def series_features(params: np.ndarray, track: np.ndarray) -> np.ndarray:
 
 @dataclass
 class Surrogate:
-    """A trained window network for one working condition."""
+    """A trained window (or sequence) network for one working condition."""
 
     net: torch.nn.Module
     net_config: NetConfig
@@ -131,7 +133,8 @@ class Surrogate:
         fast: bool = True,
         corrected: bool = True,
     ) -> np.ndarray:
-        """Force series (n_sets, T, n_targets) in kN; the first ``window`` steps are NaN.
+        """Force series (n_sets, T, n_targets) in kN; the first ``window`` steps are NaN (for
+        the sequence CNN-GRU, its washout).
 
         ``params``: (n, n_key) SI values of the key parameters, or ParameterSets. The track
         is the training track (``track_seed``) unless ``condition`` (the surrogate's own
@@ -199,8 +202,14 @@ class Surrogate:
         inputs of the whole series (built once), which computes the convolutions, pooling and
         first input projection once per series step instead of once per window step; the
         others, or ``fast=False`` (the reference), run the network on every gathered window.
-        Both give the same numbers to float32 rounding."""
+        Both give the same numbers to float32 rounding. The sequence CNN-GRU runs once over
+        each whole series, from its start (``fast=False``: one step at a time, the state
+        carried), and its outputs at the asked steps are returned."""
         self.net.eval()
+        if isinstance(self.net, CNNSequence):
+            feats = series_features(unit, track_norm).astype(np.float32, copy=False)
+            full = self.net.predict_series(torch.from_numpy(feats), stepwise=not fast).numpy()
+            return full[idx[:, 0], idx[:, 1]]
         if fast and isinstance(self.net, CNNRecurrent):
             feats = series_features(unit, track_norm).astype(np.float32, copy=False)
             with torch.inference_mode():

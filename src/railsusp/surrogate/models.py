@@ -8,6 +8,9 @@ All take windows (batch, L, F) and return the standardised targets (batch, n_tar
   optionally bidirectional), dense layers 64 -> 8 -> 8 -> outputs. ``cell="lstm"`` is the
   CNN-LSTM baseline, ``cell="lstm", bidirectional=True`` the CNN-BiLSTM.
 * :class:`WindowMLP`: the "BP" baseline, a multilayer perceptron on the flattened window.
+* ``"cnn-gru-seq"``: the study's layers run causally over whole series with the state carried
+  along (:class:`~railsusp.surrogate.sequence.CNNSequence`): it takes chunks (batch, C, F)
+  and returns the targets at their steps after its washout (batch, C - washout, n_targets).
 
 :meth:`CNNRecurrent.predict_series` gives the same outputs as ``forward`` for many
 overlapping windows of whole series at a fraction of the cost (see its docstring).
@@ -22,6 +25,8 @@ import numpy as np
 import torch
 from torch import nn
 
+from railsusp.surrogate.sequence import CNNSequence
+
 
 @dataclass(frozen=True)
 class NetConfig:
@@ -29,6 +34,8 @@ class NetConfig:
 
     kind: str = "cnn-gru"
     n_features: int = 21
+    #: steps of input before the first prediction: the window length, or for the sequence
+    #: CNN-GRU its washout (:data:`DEFAULT_WASHOUT`)
     window: int = 20
     n_outputs: int = 2
     conv_channels: tuple[int, ...] = (21, 128)
@@ -47,7 +54,19 @@ KINDS = {
     "cnn-lstm": {"cell": "lstm", "bidirectional": False},
     "cnn-bilstm": {"cell": "lstm", "bidirectional": True},
     "bp": {},
+    "cnn-gru-seq": {"cell": "gru", "bidirectional": False},
 }
+#: kinds that run over whole series (:mod:`.sequence`), trained on chunks (:mod:`.chunks`)
+SEQUENCE_KINDS = ("cnn-gru-seq",)
+#: the window networks' window and the sequence CNN-GRU's washout, steps: 2 s at 50 Hz, about
+#: twice the period of the wheelset's kinematic oscillation on tangent at 60 km/h
+DEFAULT_WINDOW = 20
+DEFAULT_WASHOUT = 100
+
+
+def default_window(kind: str) -> int:
+    """The steps before a kind's first prediction when none is given."""
+    return DEFAULT_WASHOUT if kind in SEQUENCE_KINDS else DEFAULT_WINDOW
 
 
 class CNNRecurrent(nn.Module):
@@ -332,9 +351,11 @@ class WindowMLP(nn.Module):
 
 
 def build_network(cfg: NetConfig) -> nn.Module:
-    """The network for ``cfg.kind`` (cnn-gru, cnn-lstm, cnn-bilstm, bp)."""
+    """The network for ``cfg.kind`` (cnn-gru, cnn-lstm, cnn-bilstm, bp, cnn-gru-seq)."""
     if cfg.kind not in KINDS:
         raise ValueError(f"unknown surrogate kind {cfg.kind!r}; accepted {', '.join(KINDS)}")
+    if cfg.kind in SEQUENCE_KINDS:
+        return CNNSequence(cfg)
     if cfg.kind == "bp":
         return WindowMLP(cfg)
     opts = KINDS[cfg.kind]

@@ -2,7 +2,9 @@
 
 An "epoch" is a fixed number of mini-batches of windows drawn at random (seeded) from the
 training samples, so that its cost does not grow with the campaign; validation uses a fixed
-random subset of the validation samples' windows. The state is checkpointed atomically after
+random subset of the validation samples' windows. The sequence CNN-GRU trains in the same loop
+on chunks of whole series instead of windows (:class:`~railsusp.surrogate.chunks.ChunkSampler`,
+chosen by :func:`sampler_for`). The state is checkpointed atomically after
 every epoch and a killed training resumes from the last checkpoint with the same result.
 
 On the CPU a training is bitwise reproducible for a given seed: the initial weights are drawn
@@ -28,7 +30,9 @@ from torch import nn
 
 from railsusp.errors import RailsuspInputError
 from railsusp.store import atomic_write_bytes, content_hash
+from railsusp.surrogate.chunks import ChunkSampler
 from railsusp.surrogate.data import Normaliser, SeriesData, gather_windows, window_index
+from railsusp.surrogate.models import SEQUENCE_KINDS
 
 #: one debug line per epoch (``railsusp --verbose`` shows it)
 log = logging.getLogger("railsusp.surrogate.train")
@@ -50,6 +54,10 @@ class TrainConfig:
     val_windows: int = 20_000
     seed: int = 0
     device: str = "cpu"
+    #: the sequence CNN-GRU only: steps per training chunk (washout included) and chunks per
+    #: mini-batch (it ignores ``batch_size``, which counts windows)
+    chunk_steps: int = 400
+    chunks_per_batch: int = 32
 
     def __post_init__(self) -> None:
         """Refuse settings that would train nothing or fail later (one-line errors)."""
@@ -61,6 +69,8 @@ class TrainConfig:
             ("fine_tune_epochs", 0),
             ("val_windows", 1),
             ("seed", 0),
+            ("chunk_steps", 2),
+            ("chunks_per_batch", 1),
         ):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < lo:
@@ -103,6 +113,15 @@ def seed_weights(net: nn.Module, seed: int) -> None:
     torch.set_rng_state(gen_state)
 
 
+#: settings added after checkpoints existed: they count in a checkpoint's key only when
+#: changed from these defaults, so older checkpoints still resume
+_LATER_SETTINGS = {
+    "fine_tune_lr_factor": 0.1,
+    "chunk_steps": 400,
+    "chunks_per_batch": 32,
+}
+
+
 class WindowSampler:
     """Windows of one data set, normalised, as tensors."""
 
@@ -113,6 +132,15 @@ class WindowSampler:
         self.window = window
         self.index = window_index(data.n_samples, data.n_steps, window)
 
+    def rows_per_batch(self, batch_size: int, chunks_per_batch: int) -> int:
+        """Windows per training mini-batch: ``batch_size`` (``chunks_per_batch`` is the
+        sequence network's)."""
+        return batch_size
+
+    def validation_rows(self, val_windows: int) -> int:
+        """Validation windows: ``val_windows``, at most all."""
+        return min(val_windows, len(self.index))
+
     def batch(self, rows: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
         idx = self.index[rows]
         x = gather_windows(self.params, self.track, idx, self.window)
@@ -120,11 +148,27 @@ class WindowSampler:
         return torch.from_numpy(np.ascontiguousarray(x)), torch.from_numpy(y)
 
 
-def _fingerprint(*samplers: WindowSampler) -> str:
-    """SHA-256 of the samplers' windows, inputs and targets."""
+Sampler = WindowSampler | ChunkSampler
+
+
+def sampler_for(
+    kind: str, data: SeriesData, norm: Normaliser, window: int, cfg: TrainConfig
+) -> Sampler:
+    """The training data of a network kind: windows of ``window`` steps, or for the
+    sequence CNN-GRU chunks of ``cfg.chunk_steps`` steps whose first ``window`` (its
+    washout) are not in the loss."""
+    if kind in SEQUENCE_KINDS:
+        return ChunkSampler(data, norm, window, cfg.chunk_steps)
+    return WindowSampler(data, norm, window)
+
+
+def _fingerprint(*samplers: Sampler) -> str:
+    """SHA-256 of the samplers' windows or chunks, inputs and targets."""
     h = hashlib.sha256()
     for smp in samplers:
         h.update(str(smp.window).encode())
+        if isinstance(smp, ChunkSampler):
+            h.update(f"chunk {smp.chunk}".encode())
         for arr in (smp.params, smp.track, smp.targets, smp.index):
             h.update(str(arr.shape).encode())
             h.update(np.ascontiguousarray(arr).tobytes())
@@ -135,7 +179,7 @@ def _train_epoch(
     net: nn.Module,
     opt: torch.optim.Optimizer,
     loss_fn: nn.Module,
-    train: WindowSampler,
+    train: Sampler,
     rng: np.random.Generator,
     cfg: TrainConfig,
     device: torch.device,
@@ -143,8 +187,9 @@ def _train_epoch(
     """One epoch of ``cfg.batches_per_epoch`` random mini-batches; the mean training loss."""
     net.train()
     total = 0.0
+    n_rows = train.rows_per_batch(cfg.batch_size, cfg.chunks_per_batch)
     for _ in range(cfg.batches_per_epoch):
-        xb, yb = train.batch(rng.integers(0, len(train.index), cfg.batch_size))
+        xb, yb = train.batch(rng.integers(0, len(train.index), n_rows))
         xb, yb = xb.to(device), yb.to(device)
         opt.zero_grad()
         loss = loss_fn(net(xb), yb)
@@ -156,8 +201,8 @@ def _train_epoch(
 
 def train_network(
     net: nn.Module,
-    train: WindowSampler,
-    val: WindowSampler,
+    train: Sampler,
+    val: Sampler,
     cfg: TrainConfig,
     checkpoint: Path | None = None,
     progress: Callable[[int, float, float], None] | None = None,
@@ -180,7 +225,7 @@ def train_network(
     loss_fn = nn.MSELoss()
     rng = np.random.default_rng(cfg.seed)
     val_rows = np.random.default_rng(cfg.seed + 1).choice(
-        len(val.index), min(cfg.val_windows, len(val.index)), replace=False
+        len(val.index), val.validation_rows(cfg.val_windows), replace=False
     )
     xv, yv = val.batch(val_rows)
     xv, yv = xv.to(device), yv.to(device)
@@ -188,13 +233,16 @@ def train_network(
     best, best_state, stale = float("inf"), None, 0
     # a checkpoint resumes only the same training: settings (but for the epoch limits, which
     # may be raised to train on), architecture and data (windows, features, samples,
-    # normalisation), so another window length or campaign starts afresh; the fine-tune
-    # factor counts only when changed, so checkpoints from before it existed still resume
+    # normalisation), so another window length or campaign starts afresh; settings added
+    # later count only when changed, so checkpoints from before they existed still resume,
+    # and the chunk settings only for the network that trains on chunks
+    unused = ("epochs", "fine_tune_epochs")
+    if not isinstance(train, ChunkSampler):
+        unused += ("chunk_steps", "chunks_per_batch")
     settings = {
         k: v
         for k, v in cfg.to_dict().items()
-        if k not in ("epochs", "fine_tune_epochs")
-        and not (k == "fine_tune_lr_factor" and v == TrainConfig.fine_tune_lr_factor)
+        if k not in unused and _LATER_SETTINGS.get(k, object()) != v
     }
     key = content_hash({"cfg": settings, "arch": repr(net), "data": _fingerprint(train, val)})
     if checkpoint is not None and checkpoint.exists():

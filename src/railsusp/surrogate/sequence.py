@@ -1,0 +1,141 @@
+"""The sequence CNN-GRU ("cnn-gru-seq"): the study's layers run causally over a whole series.
+
+The study's CNN-GRU reads 20-step windows (0.4 s at 50 Hz, 6.7 m of track at 60 km/h) and
+restarts its recurrences from the zero state in every window. The wheelset and bogie lateral
+motion on tangent has a kinematic wavelength of about 15-20 m and the lateral forces remember
+3-5 s of irregularities, far beyond such a window; and predicting a T-step series costs
+T x L recurrent steps. This network keeps the study's layers (two 1x1 convolutions over the
+features, F then 128 channels, ReLU then LeakyReLU; max pooling of width 2 along time;
+dropout; three stacked GRUs of 64, 32 and 16 units; dense layers 64 -> 8 -> 8 -> outputs at
+every step) but runs them once over the series with the recurrent state carried along:
+T recurrent steps per series, and a memory as long as the dynamics need.
+
+The pooling is kept, made causal: step t pools the convolution outputs of steps t - 1 and t
+(step 0 pools with itself), so the output at step k reads inputs 0 .. k only. It keeps the
+layer stack, and its weights, the study's; at 50 Hz it costs nothing measurable.
+
+Its first ``washout`` outputs (``NetConfig.window`` of this kind) are not predictions: the
+state has not yet forgotten its zero start. Training (:mod:`.chunks`) leaves them out of the
+loss and :meth:`~railsusp.surrogate.bundle.Surrogate.predict` returns NaN there, as the window
+networks do in their first ``window`` steps. Only unidirectional layers: a backward direction
+would read the future.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import torch
+from torch import nn
+
+
+class Sizes(Protocol):
+    """What the network reads of :class:`~railsusp.surrogate.models.NetConfig` (declared
+    here so that the two modules do not import each other)."""
+
+    n_features: int
+    window: int
+    n_outputs: int
+    conv_channels: tuple[int, ...]
+    rnn_hidden: tuple[int, ...]
+    bidirectional: bool
+    dense: tuple[int, ...]
+    dropout: float
+
+
+#: what the network carries from one stretch of a series to the next: the last convolution
+#: output (for the pooling) and each GRU layer's hidden state
+SequenceState = tuple[torch.Tensor, list[torch.Tensor]]
+
+
+class CNNSequence(nn.Module):
+    """1x1 convolutions -> causal max pool -> dropout -> stacked GRUs -> dense head, per step."""
+
+    def __init__(self, cfg: Sizes):
+        super().__init__()
+        if cfg.bidirectional:
+            raise ValueError(
+                "bidirectional = True: the sequence CNN-GRU is causal, accepted False only"
+            )
+        if cfg.window < 0:
+            raise ValueError(f"washout (window) = {cfg.window}: accepted an integer >= 0")
+        c1, c2 = cfg.conv_channels
+        self.conv = nn.Sequential(
+            nn.Conv1d(cfg.n_features, c1, kernel_size=1),
+            nn.ReLU(),
+            nn.Conv1d(c1, c2, kernel_size=1),
+            nn.LeakyReLU(),
+        )
+        self.dropout = nn.Dropout(cfg.dropout)
+        layers, size = [], c2
+        for h in cfg.rnn_hidden:
+            layers.append(nn.GRU(size, h))  # time-major: each step's batch is contiguous
+            size = h
+        self.rnn = nn.ModuleList(layers)
+        dense, prev = [], size
+        for h in cfg.dense:
+            dense += [nn.Linear(prev, h), nn.ReLU()]
+            prev = h
+        dense.append(nn.Linear(prev, cfg.n_outputs))
+        self.head = nn.Sequential(*dense)
+        self.washout = cfg.window
+
+    def steps(
+        self, x: torch.Tensor, state: SequenceState | None = None
+    ) -> tuple[torch.Tensor, SequenceState]:
+        """Outputs at every step of ``x`` (B, T, F) -> (B, T, n_outputs), and the state at
+        its end. ``state``: the one a previous call returned for the steps just before (a
+        series run in stretches gives the outputs of one run over it), ``None`` for the start
+        of a series (zero recurrent state)."""
+        c1, c2 = self.conv[0], self.conv[2]
+        h = torch.relu(_dense(x.transpose(0, 1), c1.weight[:, :, 0], c1.bias))  # (T, B, C)
+        conv = nn.functional.leaky_relu(
+            _dense(h, c2.weight[:, :, 0], c2.bias), self.conv[3].negative_slope
+        )
+        before = conv[:1] if state is None else state[0]
+        h = self.dropout(torch.maximum(conv, torch.cat([before, conv[:-1]])))
+        hidden = []
+        for i, layer in enumerate(self.rnn):
+            h, hn = layer(h, None if state is None else state[1][i])
+            hidden.append(hn)
+        return self.head(h).transpose(0, 1), (conv[-1:], hidden)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Training and validation: the outputs of chunks ``x`` (B, C, F) after the washout,
+        (B, C - washout, n_outputs), each chunk from the zero state."""
+        return self.steps(x)[0][:, self.washout :]
+
+    @torch.inference_mode()
+    def predict_series(
+        self, features: torch.Tensor, *, group_steps: int = 1 << 18, stepwise: bool = False
+    ) -> torch.Tensor:
+        """Eval-mode outputs (n, T, n_outputs) at every step of whole series (n, T, F), each
+        from its start; the washout steps are left in (the caller masks them).
+
+        Series go through torch's GRU (its C++ loop over time) in groups of about
+        ``group_steps`` steps in all; the 1x1 convolutions as the dense layers they are, on
+        contiguous time-major rows.
+        ``stepwise=True`` is the reference: one step at a time with the state carried, as the
+        network would run online; it gives the same numbers to float32 rounding."""
+        if self.training:
+            raise RuntimeError("predict_series computes eval-mode outputs; call .eval() first")
+        w = next(self.parameters())
+        features = torch.as_tensor(features).to(w.dtype)
+        n, t_steps, _ = features.shape
+        out = torch.empty(n, t_steps, self.head[-1].out_features, dtype=w.dtype)
+        per_group = max(1, group_steps // max(t_steps, 1))
+        for lo in range(0, n, per_group):
+            x = features[lo : lo + per_group]
+            if not stepwise:
+                out[lo : lo + per_group] = self.steps(x)[0]
+                continue
+            state = None
+            for k in range(t_steps):
+                out[lo : lo + per_group, k : k + 1], state = self.steps(x[:, k : k + 1], state)
+        return out
+
+
+def _dense(x: torch.Tensor, w: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """x W^T + b over the last axis of (T, B, F) ``x``: a 1x1 convolution along time, as one
+    matrix product over the contiguous (T * B, F) rows."""
+    return nn.functional.linear(x.reshape(-1, x.shape[-1]), w, b).view(*x.shape[:-1], -1)
