@@ -66,7 +66,7 @@ class SurrogateSection(_Cfg):
     their accuracy (bench/README.md, surrogate.py).
     """
 
-    model: Literal["cnn-gru", "cnn-lstm", "cnn-bilstm", "bp", "gp-stats"] = Field(
+    model: Literal["cnn-gru", "cnn-gru-seq", "cnn-lstm", "cnn-bilstm", "bp", "gp-stats"] = Field(
         "bp", description="force model of the calibration (gp-stats: statistics GPs)"
     )
     samples: int = Field(

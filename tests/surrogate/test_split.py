@@ -197,3 +197,17 @@ def test_estimate_lists_the_parameters_it_did_not_estimate(many_tracks, tmp_path
         "not estimated: varied over 20000-40000 kN/m in the surrogate's training"
     )
     assert t.loc["X20", "verdict"].startswith("not estimated: held at 1000 MN/m")
+
+
+def test_the_sequence_network_is_compared_on_the_same_steps_as_the_others(many_tracks):
+    """compare() trains the sequence CNN-GRU beside a baseline and scores every model from
+    the longest washout, so both rows cover the same samples."""
+    tcfg = TrainConfig(epochs=1, batches_per_epoch=2, chunk_steps=60, chunks_per_batch=4)
+    table = compare(
+        many_tracks, models=("cnn-gru-seq", "rbf"), conditions=["curve"], train=tcfg,
+        washout=40,
+    )  # fmt: skip
+    assert set(table.model) == {"cnn-gru-seq", "rbf"} and (table.first_step == 40).all()
+    assert np.isfinite(table.relative_error_of_mean).all()
+    sur = load(many_tracks / "surrogates" / "cnn-gru-seq" / "curve")
+    assert sur.kind == "cnn-gru-seq" and sur.spec.window == 40

@@ -20,10 +20,13 @@ from railsusp.surrogate.evaluate import (
     predict_series,
     predict_with_alone,
 )
+from railsusp.surrogate.models import SEQUENCE_KINDS, default_window
 from railsusp.surrogate.split import campaign_split
 from railsusp.surrogate.train import TrainConfig
 
-ALL_MODELS = ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp", "rbf", "gp-stats")
+ALL_MODELS = ("cnn-gru", "cnn-gru-seq", "cnn-lstm", "cnn-bilstm", "bp", "rbf", "gp-stats")
+#: the networks trained through :func:`train_surrogate`
+NETWORK_KINDS = ("cnn-gru", "cnn-gru-seq", "cnn-lstm", "cnn-bilstm", "bp")
 
 
 def compare(
@@ -33,6 +36,7 @@ def compare(
     conditions: Sequence[str] | None = None,
     train: TrainConfig | None = None,
     window: int = 20,
+    washout: int | None = None,
     split_seed: int = 0,
     progress: Callable[[str], None] | None = None,
 ) -> pd.DataFrame:
@@ -41,7 +45,12 @@ def compare(
 
     Every model trains on the campaign's stored split (:mod:`.split`) and is scored on its
     test samples; the table says what they hold out (``held_out``: tracks and parameters
-    with a many-track campaign) and on how many distinct tracks (``test_tracks``)."""
+    with a many-track campaign) and on how many distinct tracks (``test_tracks``).
+
+    ``window`` is the window networks' window; the sequence CNN-GRU (``cnn-gru-seq``) keeps
+    ``washout`` (default :func:`~railsusp.surrogate.models.default_window`, 2 s). All
+    models are scored from the same first step (column ``first_step``), the longest window
+    or washout among them, so that their errors cover the same samples."""
     from railsusp.report import plot_surrogate_overlay
 
     camp = require_complete(load_campaign(run))  # never train on part of a campaign
@@ -49,6 +58,8 @@ def compare(
     params = key_parameters(run)
     spec = feature_spec(camp, params, window)
     split = campaign_split(camp, split_seed)
+    seq_washout = default_window("cnn-gru-seq") if washout is None else washout
+    first = max([window] + [seq_washout for k in models if k in SEQUENCE_KINDS])
     rows = []
     out_dir = camp.path / "surrogates"
     for cond in conds:
@@ -69,19 +80,19 @@ def compare(
         for kind in models:
             if progress:
                 progress(f"{cond}: {kind}")
-            if kind in ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp"):
+            if kind in NETWORK_KINDS:
                 sur = train_surrogate(
                     run,
                     cond,
                     kind=kind,
                     parameters=params,
-                    window=window,
+                    window=seq_washout if kind in SEQUENCE_KINDS else window,
                     train=train,
                     split_seed=split_seed,
                 )
                 pred, raw = predict_with_alone(sur, test)
                 if raw is not None:
-                    alone[kind] = accuracy(test.targets.astype(float), raw, spec.targets, window)
+                    alone[kind] = accuracy(test.targets.astype(float), raw, spec.targets, first)
             elif kind == "rbf":
                 sur = RBFWindowModel(spec, norm).fit(train_data)
                 pred = predict_series(sur, test)
@@ -116,12 +127,12 @@ def compare(
                 raise ValueError(f"unknown model {kind!r}; accepted {', '.join(ALL_MODELS)}")
             overlays[kind] = pred[0]
             rows_alone = alone.get(kind)
-            for j, r in enumerate(accuracy(test.targets.astype(float), pred, spec.targets, window)):
+            for j, r in enumerate(accuracy(test.targets.astype(float), pred, spec.targets, first)):
                 # the network's own error, before its record correction (:mod:`.correction`)
                 r["relative_error_of_mean_network_alone"] = (
                     rows_alone[j]["relative_error_of_mean"] if rows_alone else float("nan")
                 )
-                rows.append({"condition": cond, "model": kind, **r, **held})
+                rows.append({"condition": cond, "model": kind, **r, **held, "first_step": first})
         if overlays:
             plot_surrogate_overlay(
                 test.targets[0],
