@@ -135,6 +135,23 @@ def test_campaign_workers_0_and_corrupt_campaign_json(short, tmp_path):
     one_line_error(["train", run], "its configuration does not validate")
 
 
+def test_a_campaign_of_an_older_wagon_model_says_so(tmp_path):
+    """A campaign stored before a wagon-data field existed (the centre bowl's rocking
+    stiffness, 2026-11-24) is of another model: the error says that and what to do, instead
+    of calling the file corrupt."""
+    from railsusp.campaign import make_config
+    from railsusp.conditions import get_condition
+
+    cfg = make_config([get_condition("straight", duration_s=1.0)], 2)
+    stored = json.loads(cfg.model_dump_json())
+    del stored["wagon"]["centre_plate"]["rocking_stiffness"]
+    run = tmp_path / "old"
+    run.mkdir()
+    (run / "campaign.json").write_text(json.dumps({"config": stored}))
+    msg = one_line_error(["train", run], "was simulated with an older wagon model")
+    assert "centre_plate.rocking_stiffness" in msg and "re-run the campaign" in msg
+
+
 def _fail_first(real):
     """A simulate_batch that reports its first run as derailed (flange climb)."""
 

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from pydantic import ValidationError
 
 from railsusp.campaign.design import (
     CHANNELS,
@@ -15,6 +16,22 @@ from railsusp.campaign.design import (
     read_meta,
     track_table,
 )
+
+
+def _config_error(meta_path: Path, exc: ValidationError) -> str:
+    """One line for a stored configuration that does not validate. Wagon-data fields that
+    the stored copy lacks mean an older model (a field added since, e.g. the centre bowl's
+    rocking stiffness): its simulations are of that model, so the campaign is to be re-run,
+    not repaired."""
+    errors = exc.errors()
+    missing = [".".join(map(str, e["loc"][1:])) for e in errors if e["type"] == "missing"]
+    if missing and len(missing) == len(errors) and all(e["loc"][0] == "wagon" for e in errors):
+        return (
+            f"{meta_path} was simulated with an older wagon model (its wagon data lacks "
+            f"{', '.join(missing)}): re-run the campaign into a new --out"
+        )
+    first = str(exc).strip().splitlines()[0]
+    return f"{meta_path} is corrupt: its configuration does not validate ({first})"
 
 
 class Campaign:
@@ -28,6 +45,8 @@ class Campaign:
         self.meta = read_meta(meta_path)
         try:
             self.config = CampaignConfig.model_validate(self.meta["config"])
+        except ValidationError as exc:
+            raise CampaignError(_config_error(meta_path, exc)) from None
         except (KeyError, TypeError, ValueError) as exc:
             first = str(exc).strip().splitlines()[0]
             raise CampaignError(
