@@ -55,6 +55,10 @@ class SurrogateForces:
     def conditions(self) -> list[str]:
         return list(self._models)
 
+    def surrogate(self, name: str) -> Any:
+        """The :class:`~railsusp.surrogate.bundle.Surrogate` of condition ``name``."""
+        return self._models[name]
+
     def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
         if condition.name not in self._models:
             raise ValueError(
