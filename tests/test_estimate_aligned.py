@@ -10,6 +10,7 @@ import pytest
 import torch
 from typer.testing import CliRunner
 
+from railsusp import summary
 from railsusp.cli import app
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
@@ -114,10 +115,17 @@ def test_refinement_after_aligned_objectives_is_a_polish_beside_the_estimate(tmp
     assert table.loc["X13", "polished"] == pytest.approx(res.polished_x[0] / 1e6)
     assert "nsga_estimate" not in table.columns
     assert res.intervals().method == "pareto"  # the estimate's own interval
-    saved = json.loads((res.save(tmp_path / "polish") / "estimate.json").read_text())
+    run = tmp_path / "run"
+    saved = json.loads((res.save(run / "estimate") / "estimate.json").read_text())
     assert saved["estimate_source"] == "nsga-ii" and "polish" in saved["route"]
     assert saved["polished_display"]["X13"] == pytest.approx(res.polished_x[0] / 1e6)
     assert saved["estimate_display"]["X13"] == pytest.approx(nsga[0] / 1e6)
+    # the summary's table: NSGA-II's estimate as the estimate, the polish beside it
+    (run / "pipeline.json").write_text(json.dumps({"config": {"wagon": None}, "stages": {}}))
+    t = summary.estimate_table(run)
+    assert t.loc["X13", "estimate"] == pytest.approx(nsga[0] / 1e6)
+    assert t.loc["X13", "polished"] == pytest.approx(res.polished_x[0] / 1e6)
+    assert np.isnan(t.loc["X15", "polished"])  # not estimated
     # asked to, the refinement makes the estimate
     refine_estimate(
         res, [rec], Waves(), gains=False, screen=4, starts=1, geometry_draws=0, polish=False
