@@ -191,9 +191,10 @@ def plot_surrogate_overlay(
 
 def _final(result) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """The final estimate (SI) and, when refined, its confidence interval's low and high
-    (SI; None without refinement: the Pareto set is drawn instead)."""
+    (SI; None without refinement, or when the refinement is a polish beside NSGA-II's
+    estimate: the Pareto set is drawn instead)."""
     ref = result.refinement
-    if ref is None:
+    if ref is None or not result.refined:
         return result.pareto_x[result.chosen], None, None
     iv = result.intervals()
     return (
@@ -211,7 +212,7 @@ def plot_pareto(result, path: str | Path):
     from railsusp.params import bounds
 
     f = result.pareto_f
-    refined = result.refinement is not None
+    refined = result.refined
     fig, (ax, bx) = plt.subplots(
         1, 2, figsize=(12, 5), constrained_layout=True, gridspec_kw={"width_ratios": [1, 1.2]}
     )
@@ -254,6 +255,9 @@ def plot_pareto(result, path: str | Path):
         label="final estimate"
         + (f" and {100 * result.intervals().level:g} % interval" if err is not None else ""),
     )
+    if result.polished_x is not None:
+        polished = 100 * (result.polished_x - lo) / span
+        bx.scatter(polished, y, s=50, marker="x", color="C2", zorder=5, label="simulator polish")
     bx.set_yticks(y, result.parameters)
     bx.set_xlim(-5, 105)
     bx.set_xlabel("position in the parameter's range (%)")

@@ -43,6 +43,8 @@ HEADERS = {
     "initial": "nominal",
     "estimated": "estimate",
     "nsga_estimate": "NSGA-II's choice",
+    "polished": "simulator polish",
+    "polish_standard_error_pct_range": "polish standard error (% of range)",
     "pareto_spread_pct_range": "Pareto spread (% of range)",
     "seed_spread_pct_range": "spread over seeds (% of range)",
     "standard_error_pct_range": "standard error (% of range)",

@@ -115,6 +115,8 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
     camp = read_json(run / "campaign" / "campaign.json")["config"] if st or sens.exists() else {}
     sampled = set(camp.get("parameters", MAIN_SUSPENSION))
     assumed = {r["symbol"]: r for r in est.get("not_estimated", [])}
+    # the simulator polish beside NSGA-II's estimate (time-aligned route), when there is one
+    polished = est.get("polished_display") or {}
     rows = []
     for p in MAIN_SUSPENSION:
         s = spec(p)
@@ -134,6 +136,8 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
             "verdict": "",
             "note": "",
         }
+        if polished:
+            row["polished"] = float(polished.get(p, float("nan")))
         if p not in params:
             row["estimate"] = s.nominal_display
             row["change_pct"] = 0.0

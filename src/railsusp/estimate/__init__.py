@@ -14,6 +14,8 @@ One module per job, imports running one way (top to bottom depends only on those
 - :mod:`~railsusp.estimate.alignment`: registration of measured track with the forces
 - :mod:`~railsusp.estimate.intervals`: the interval every route reports, the verdict
 - :mod:`~railsusp.estimate.refine_intervals`: the refinement's confidence intervals
+- :mod:`~railsusp.estimate.aligned_identifiability`: Cramér-Rao bounds of the time-aligned
+  comparison
 - :mod:`~railsusp.estimate.result`: the estimate result (save, table)
 - :mod:`~railsusp.estimate.nsga`: the NSGA-II run (pymoo), log, choice rule, seed spread
 - :mod:`~railsusp.estimate.polish`: screened starts and refinement of an NSGA-II estimate

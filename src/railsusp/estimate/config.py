@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate.statistics import check_weighting, parse_statistics
+from railsusp.estimate.statistics import ALIGNED, check_weighting, parse_statistics
 
 #: accepted range (inclusive) of each numeric NSGA-II setting, by :class:`NSGAConfig` field.
 #: A population below 4 leaves the binary tournament nothing to choose from; pymoo's seed
@@ -27,6 +27,28 @@ REFINE_RANGES: dict[str, tuple[int, int]] = {
     "starts": (1, 20),
     "geometry_draws": (0, 100),
 }
+
+
+#: how the estimate is picked from the Pareto front, by name: the point closest to the ideal
+#: point of the front normalised to [0, 1] (record statistics: relative errors of different
+#: quantities, whose trade-off has no common scale), or the point of least summed squared
+#: objectives (time-aligned errors: every objective is already in units of the measured
+#: force's standard deviation, so their squares add up to the time-aligned cost, and
+#: normalising a narrow front would weigh a trade-off of 0.001 as much as one of 0.1)
+IDEAL_POINT = "ideal-point"
+LEAST_SQUARES = "least-squares"
+CHOICE_RULES: dict[str, str] = {
+    IDEAL_POINT: "closest to the ideal point of the front normalised to [0, 1]",
+    LEAST_SQUARES: "least sum of squared objectives (time-aligned errors in units of the "
+    "measured force's standard deviation): the least time-aligned cost on the front",
+}
+
+
+def choice_rule(statistic: str) -> str:
+    """The rule (:data:`CHOICE_RULES`) that picks the estimate on the Pareto front of an
+    objective on ``statistic``: least squares for the time-aligned comparison alone, the
+    normalised ideal point otherwise (record statistics, or a mixture with them)."""
+    return LEAST_SQUARES if parse_statistics(statistic) == (ALIGNED,) else IDEAL_POINT
 
 
 def _number(value: float) -> str:

@@ -37,6 +37,7 @@ class SurrogateForces:
         self.folder = Path(folder)
         self._models: dict[str, Any] = {}
         self._warned: set[str] = set()
+        self._tracks: dict[str, np.ndarray] = {}
         for sub in sorted(self.folder.iterdir()) if self.folder.is_dir() else []:
             if (sub / "surrogate.json").exists():
                 self._models[sub.name] = load(sub)
@@ -53,6 +54,10 @@ class SurrogateForces:
     @property
     def conditions(self) -> list[str]:
         return list(self._models)
+
+    def surrogate(self, name: str) -> Any:
+        """The :class:`~railsusp.surrogate.bundle.Surrogate` of condition ``name``."""
+        return self._models[name]
 
     def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
         if condition.name not in self._models:
@@ -75,7 +80,55 @@ class SurrogateForces:
                 OneTrackWarning,
                 stacklevel=2,
             )
-        return self._models[condition.name].predict(x_si, condition=on)
+        if on is None:
+            return self._models[condition.name].predict(x_si)
+        return self._models[condition.name].predict(x_si, condition=on, track=self.track_input(on))
+
+    def check_condition(self, condition: WorkingCondition) -> None:
+        """Refuse, in one line naming the field, its value and what the network was trained
+        on, a condition its surrogate cannot serve: no surrogate of that name, or a field
+        other than the track input (irregularity seed, measured geometry) and the record
+        length that differs from the surrogate's condition and lies outside the track family
+        it was trained on (FRA class, curve radius, cant). Checked before any optimisation,
+        not in its first generation."""
+        from railsusp.errors import RailsuspInputError
+        from railsusp.surrogate.bundle import _FAMILY_FIELDS  # the family's field names
+
+        model = self._models.get(condition.name)
+        if model is None:
+            raise RailsuspInputError(
+                f"recording {condition.name!r}: no surrogate of that condition in "
+                f"{self.folder} (has {', '.join(self._models)})"
+            )
+        ignore = (*TRACK_INPUT_FIELDS, "duration_s", "n_steps")
+        for name in model.condition.differences(condition, ignore):
+            value = getattr(condition, name)
+            if model.in_track_family(name, value):
+                continue
+            family = (model.meta.get("track_family") or {}).get(_FAMILY_FIELDS.get(name, ""))
+            trained = (
+                f"the track family {family[0]:g} to {family[1]:g}"
+                if family
+                else f"{getattr(model.condition, name)!r} only"
+            )
+            raise RailsuspInputError(
+                f"recording {condition.name!r}: {name} = {value!r} is outside what its "
+                f"surrogate in {self.folder} was trained on ({trained}); accepted: a recording "
+                "in that range, or a surrogate trained on a family that holds it"
+            )
+
+    def track_input(self, condition: WorkingCondition) -> np.ndarray:
+        """(T, n_track) the network's track input on a condition's measured track, as
+        :meth:`~railsusp.surrogate.bundle.Surrogate.predict` computes it from the condition
+        (the geometry read, lined up and sampled at the axles): computed once per condition
+        and kept, since an objective predicts on the same track every generation."""
+        from railsusp.surrogate.data import track_features
+
+        key = condition.model_dump_json()
+        if key not in self._tracks:
+            model = self._models[condition.name]
+            self._tracks[key] = track_features(condition, condition.seed, model.spec, model.wagon)
+        return self._tracks[key]
 
     def reads_track(self, condition: WorkingCondition) -> bool:
         """Whether the network of ``condition`` predicts on its measured track: not when it

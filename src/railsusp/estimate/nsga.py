@@ -23,7 +23,15 @@ from pymoo.operators.sampling.rnd import FloatRandomSampling
 from pymoo.optimize import minimize
 from pymoo.util.display.multi import MultiObjectiveOutput
 
-from railsusp.estimate.config import SEEDS_RANGE, NSGAConfig, check_range
+from railsusp.estimate.config import (
+    CHOICE_RULES,
+    IDEAL_POINT,
+    LEAST_SQUARES,
+    SEEDS_RANGE,
+    NSGAConfig,
+    check_range,
+    choice_rule,
+)
 from railsusp.estimate.forces import ForceModel, StatisticsForces
 from railsusp.estimate.identifiability import cramer_rao_pct_range
 from railsusp.estimate.problem import CalibrationProblem
@@ -67,9 +75,15 @@ class _Log(Callback):
             )  # fmt: skip
 
 
-def choose(front: np.ndarray) -> int:
-    """Index of the Pareto point closest to the ideal point after normalising each objective
-    to [0, 1] over the front (the documented choice rule)."""
+def choose(front: np.ndarray, rule: str = IDEAL_POINT) -> int:
+    """Index of the estimate on a Pareto front (n, n_obj) by a choice rule
+    (:data:`~railsusp.estimate.config.CHOICE_RULES`): ``ideal-point``, the point closest to
+    the ideal point after normalising each objective to [0, 1] over the front;
+    ``least-squares``, the point of least summed squared objectives (ties: the first)."""
+    if rule == LEAST_SQUARES:
+        return int(np.argmin((np.asarray(front) ** 2).sum(axis=1)))
+    if rule != IDEAL_POINT:
+        raise ValueError(f"choice rule {rule!r}: accepted {', '.join(CHOICE_RULES)}")
     lo, hi = front.min(axis=0), front.max(axis=0)
     span = np.where(hi > lo, hi - lo, 1.0)
     return int(np.argmin(np.linalg.norm((front - lo) / span, axis=1)))
@@ -111,14 +125,22 @@ def estimate(
     f = np.atleast_2d(res.F)
     order = np.argsort(f[:, 0])
     x, f = x[order], f[order]
+    rule = choice_rule(cfg.statistic)
     history = np.array(
         [
-            problem.to_si(fx[choose(ff)])
+            problem.to_si(fx[choose(ff, rule)])
             for fx, ff in zip(progress.front_x, progress.front_f, strict=True)
         ]
     )
     result = CalibrationResult(
-        tuple(parameters), problem.to_si(x), f, choose(f), pd.DataFrame(progress.rows), history, cfg
+        tuple(parameters),
+        problem.to_si(x),
+        f,
+        choose(f, rule),
+        pd.DataFrame(progress.rows),
+        history,
+        cfg,
+        choice_rule=rule,
     )
     if isinstance(model, StatisticsForces) and problem.stats:
         result.cramer_rao = cramer_rao_pct_range(

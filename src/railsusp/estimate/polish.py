@@ -22,7 +22,7 @@ from railsusp.estimate.output_error import OutputError
 from railsusp.estimate.problem import CalibrationProblem, check_aligned, display_values
 from railsusp.estimate.refine import GEOMETRY_DRAWS, refine_starts
 from railsusp.estimate.result import CalibrationResult
-from railsusp.estimate.statistics import ALIGNED
+from railsusp.estimate.statistics import ALIGNED, parse_statistics
 from railsusp.measured import Recording
 from railsusp.params import ParameterSet, bounds
 
@@ -69,6 +69,7 @@ def refine_estimate(
     seed: int = 0,
     geometry_draws: int = GEOMETRY_DRAWS,
     remove_geometry_bias: bool = True,
+    polish: bool | None = None,
 ) -> CalibrationResult:
     """Refine NSGA-II's estimate in place and return the result (its estimate is now the
     refined one); by default with the simulator itself.
@@ -85,7 +86,13 @@ def refine_estimate(
     ``remove_geometry_bias`` the estimate is the refined point less the bias those draws
     estimate (:attr:`~railsusp.estimate.refine.Refinement.geometry_bias_si`).
     The standard errors stay those of the refined point (the removal is itself uncertain by
-    about its size)."""
+    about its size).
+
+    ``polish``: whether the refinement is a polish shown beside NSGA-II's estimate, which
+    then stays the estimate (:attr:`~railsusp.estimate.result.CalibrationResult.polished_x`),
+    rather than the estimate itself; by default it is one when NSGA-II compared time-aligned
+    forces (statistic ``aligned``), where the force model on the recordings' own track gives
+    the answer, and not after record statistics, which the refinement corrects."""
     from scipy.stats import qmc
 
     settings = {
@@ -131,6 +138,9 @@ def refine_estimate(
     ]
     winner.screened = len(candidates)
     result.refinement = winner
+    if polish is None:
+        polish = ALIGNED in parse_statistics(result.config.statistic)
+    result.refinement_is_polish = polish
     return result
 
 

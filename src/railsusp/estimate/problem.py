@@ -17,7 +17,7 @@ import numpy as np
 from pymoo.core.problem import Problem
 
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate.comparison import aligned_error
+from railsusp.estimate.comparison import AlignedComparison
 from railsusp.estimate.forces import (
     ForceModel,
     SimulatorForces,
@@ -71,6 +71,8 @@ class CalibrationProblem(Problem):
             check_statistics_model(self.stats)
         check_recordings(self.recordings, self.stats, self.aligned, weighting == "relative")
         self.measured = [measured_statistics(rec, self.stats) for rec in self.recordings]
+        # the measurement side of the time-aligned comparison, once, not every generation
+        self.comparisons = [AlignedComparison(r) for r in self.recordings] if self.aligned else []
         n_obj = 2 * len(self.recordings) if per_condition else 2
         super().__init__(n_var=len(self.parameters), n_obj=n_obj, xl=0.0, xu=1.0)
 
@@ -82,11 +84,11 @@ class CalibrationProblem(Problem):
         the statistics of a combination: relative error, or with ``weighting="noise"`` the
         absolute error over the predictive standard deviation."""
         errs = []
-        for rec, meas in zip(self.recordings, self.measured, strict=True):
+        for k, (rec, meas) in enumerate(zip(self.recordings, self.measured, strict=True)):
             parts = []
             if self.aligned:
                 series = self.model.series(x_si, rec.condition)
-                parts.append(aligned_error(series, rec)[:, :, None])
+                parts.append(self.comparisons[k].error(series)[:, :, None])
                 if self.stats:
                     pred = series_statistics(series, rec.condition, self.stats)
                     parts.append(np.abs(pred - meas) / np.abs(meas))
@@ -182,6 +184,8 @@ def check_aligned(model: Any, recordings: Sequence[Recording]) -> None:
                     f"force model wheel {model.wheel!r} gives {sim_wheel}"
                 )
     if isinstance(model, SurrogateForces):
+        for r in recordings:
+            model.check_condition(r.condition)
         other = [
             r.condition.name
             for r in recordings

@@ -17,11 +17,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from railsusp.estimate.config import NSGAConfig
+from railsusp.estimate.config import CHOICE_RULES, IDEAL_POINT, NSGAConfig
 from railsusp.estimate.intervals import LEVEL, PARETO, Intervals, from_pareto
 from railsusp.estimate.problem import display_values
 from railsusp.estimate.refine import Refinement
 from railsusp.estimate.refine_intervals import refinement_intervals
+from railsusp.estimate.statistics import ALIGNED, parse_statistics
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import atomic_write_bytes, write_json, write_parquet
 
@@ -41,13 +42,46 @@ class CalibrationResult:
     refinement: Refinement | None = None
     #: Cramér-Rao bound of each parameter at NSGA-II's choice, % of range (statistics GPs)
     cramer_rao: dict[str, float] = field(default_factory=dict)
+    #: how ``chosen`` was picked on the front (:data:`~railsusp.estimate.config.CHOICE_RULES`)
+    choice_rule: str = IDEAL_POINT
+    #: the refinement is a polish shown beside NSGA-II's estimate, which stays the estimate
+    #: (time-aligned objectives: the surrogate on the recordings' track gives the answer),
+    #: rather than the estimate itself (record statistics, which it corrects)
+    refinement_is_polish: bool = False
     #: intervals computed, by level and refinement (a refinement attached later recomputes)
     _intervals: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
+    def refined(self) -> bool:
+        """Whether the refinement made the estimate (not when it is a polish beside it)."""
+        return self.refinement is not None and not self.refinement_is_polish
+
+    @property
     def chosen_x(self) -> np.ndarray:
-        """The estimate, SI: the refined one when refined, else NSGA-II's choice."""
-        return self.refinement.estimate_si if self.refinement else self.pareto_x[self.chosen]
+        """The estimate, SI: the refined one when the refinement makes the estimate, else
+        NSGA-II's choice (also when the refinement is a polish: :attr:`polished_x`)."""
+        if self.refinement is not None and self.refined:
+            return self.refinement.estimate_si
+        return self.pareto_x[self.chosen]
+
+    @property
+    def polished_x(self) -> np.ndarray | None:
+        """The simulator polish of NSGA-II's estimate, SI, when the refinement is one."""
+        if self.refinement is None or self.refined:
+            return None
+        return self.refinement.estimate_si
+
+    @property
+    def route(self) -> str:
+        """How the estimate was made, in words (estimate.json, reports)."""
+        aligned = ALIGNED in parse_statistics(self.config.statistic)
+        on = "time-aligned forces on measured track" if aligned else "record statistics"
+        text = f"NSGA-II against {on} ({self.config.statistic})"
+        if self.refinement is None:
+            return text
+        if self.refinement_is_polish:
+            return text + "; the simulator's output-error refinement is a polish beside it"
+        return text + ", then refined by output-error least squares with the simulator"
 
     @property
     def estimate(self) -> dict[str, float]:
@@ -58,9 +92,9 @@ class CalibrationResult:
         """Per-parameter intervals of the estimate: the refinement's ``level`` confidence
         intervals when refined (computed once; with the simulator this includes one batch of
         simulations for the parameters held at nominal), else the Pareto set's range."""
-        key = (level, id(self.refinement))
+        key = (level, id(self.refinement), self.refinement_is_polish)
         if key not in self._intervals:
-            if self.refinement is not None:
+            if self.refinement is not None and self.refined:
                 self._intervals[key] = refinement_intervals(self.refinement, level)
             else:
                 got = from_pareto(self.parameters, self.pareto_x, self.chosen_x)
@@ -89,7 +123,7 @@ class CalibrationResult:
         nsga = display_values(self.parameters, self.pareto_x[self.chosen])
         refined = self.refinement.to_dict() if self.refinement else {}
         rows = []
-        for p, v in self.estimate.items():
+        for k, (p, v) in enumerate(self.estimate.items()):
             row = {
                 "parameter": p,
                 "unit": spec(p).display_unit,
@@ -99,7 +133,10 @@ class CalibrationResult:
                 "pareto_spread_pct_range": ps[p],
                 "seed_spread_pct_range": self.seeds_spread.get(p, float("nan")),
             }
-            if self.refinement:
+            if self.refinement and self.refinement_is_polish:
+                row["polished"] = spec(p).to_display(self.refinement.estimate_si[k])
+                row["polish_standard_error_pct_range"] = refined["standard_error_pct_range"][p]
+            elif self.refinement:
                 row["nsga_estimate"] = nsga[p]
                 row["standard_error_pct_range"] = refined["standard_error_pct_range"][p]
                 if refined["geometry_draws"]:
@@ -128,8 +165,14 @@ class CalibrationResult:
                 "config": self.config.to_dict(),
                 "pareto_spread_pct_range": self.pareto_spread(),
                 "seed_spread_pct_range": self.seeds_spread,
-                "choice_rule": "closest to the ideal point of the front normalised to [0, 1]"
-                + (", then refined by output-error least squares" if self.refinement else ""),
+                "choice_rule": CHOICE_RULES[self.choice_rule]
+                + (", then refined by output-error least squares" if self.refined else ""),
+                "choice": self.choice_rule,
+                "route": self.route,
+                "estimate_source": "refinement" if self.refined else "nsga-ii",
+                "polished_display": None
+                if self.polished_x is None
+                else display_values(self.parameters, self.polished_x),
                 "nsga_estimate_display": display_values(
                     self.parameters, self.pareto_x[self.chosen]
                 ),

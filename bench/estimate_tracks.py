@@ -1,0 +1,360 @@
+"""The study's method gives the estimate: NSGA-II on a many-track surrogate against
+time-aligned forces (issue 19, item 3, its third target). Writes
+bench/results/estimate_tracks.json.
+
+Given a run directory whose ``surrogates/KIND/<condition>/`` were trained on a track-family
+campaign (bench/surrogate_tracks.py, or ``railsusp campaign --independent-seeds
+--irregularity-classes ... --vary-others`` and ``railsusp train``), it draws ``--sets``
+parameter sets (seeded) uniformly over the middle 80 % of the Table 2 range of all ten
+main-suspension parameters, and for each set:
+
+1. synthesises recordings of ``--duration`` s per condition of the surrogates (the study's
+   conditions, moved into the surrogates' track family where a field lies outside it, e.g.
+   the curve's 110 mm cant into a family of 0-100 mm: that is extrapolation, not the target)
+   on a track realisation no network saw, with ``--noise`` instrument noise (fraction of the
+   channel RMS, with the instrument's gain error and 15 Hz bandwidth) and the track
+   geometry written with ``--track-noise`` mm RMS error, stated as its accuracy;
+2. runs NSGA-II (``--pop-size`` x ``--n-gen``, the study's 50 x 100) on the surrogate alone
+   against the time-aligned forces (statistic ``aligned``; the estimate is the Pareto point
+   of least summed squared time-aligned error, :data:`railsusp.estimate.config.LEAST_SQUARES`),
+   no simulator refinement;
+3. scores each key parameter's error in % of its range, and decides which key parameters
+   are identifiable: those whose time-aligned Cramér-Rao bound at the truth, computed with
+   the same surrogate on the same recordings
+   (:func:`railsusp.estimate.aligned_identifiability.aligned_cramer_rao_pct_range`), is at
+   most 5 % of the range (:data:`railsusp.estimate.identifiability.BOUND_LIMIT_PCT`, the
+   project's identifiability limit). The 90 % interval rule of
+   :mod:`railsusp.estimate.intervals` cannot decide it here: NSGA-II's only interval is the
+   Pareto range, which is not a confidence interval.
+
+The six key parameters are the surrogate's inputs; the other four main-suspension
+parameters are drawn with the truth too (the recordings carry their effect), and the
+surrogate, trained with them varied over their ranges, predicts their average effect: they
+are marginalised by its training, not estimated.
+
+Per set it prints and stores the errors, the identifiable parameters, the seconds per
+estimate (wall and CPU, with the machine's load average) and the surrogate's prediction time
+per generation. Resumable per set: a rerun with the same settings skips the sets already in
+the JSON (``--limit`` runs at most that many new sets per call). Field folders go to
+``--work`` (default ``runs/estimate_tracks/``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from railsusp.conditions import WorkingCondition
+from railsusp.errors import RailsuspInputError
+from railsusp.estimate import NSGAConfig, SurrogateForces, estimate
+from railsusp.estimate.aligned_identifiability import aligned_cramer_rao_pct_range, identifiable
+from railsusp.estimate.identifiability import BOUND_LIMIT_PCT
+from railsusp.measured import read_field, synthesise_field
+from railsusp.params import MAIN_SUSPENSION, ParameterSet, bounds
+from railsusp.store import read_json, write_json
+
+#: share of each range the truths are drawn from (its middle)
+MIDDLE = 0.8
+#: the issue's target: this share of the identifiable key parameters within WITHIN_PCT of
+#: their range, in under TARGET_SECONDS per estimate on 2 cores
+WITHIN_PCT, TARGET_SHARE, TARGET_SECONDS = 5.0, 0.9, 60.0
+#: condition fields a track-family campaign varies, by their name in the family
+FAMILY_FIELDS = {
+    "irregularity_class": "irregularity_classes",
+    "curve_radius_m": "curve_radius_m",
+    "cant_mm": "cant_mm",
+}
+
+
+def draw_sets(
+    n: int, seed: int, parameters: Sequence[str] = MAIN_SUSPENSION, middle: float = MIDDLE
+) -> np.ndarray:
+    """(n, len(parameters)) SI parameter sets drawn uniformly over the middle ``middle`` of
+    each Table 2 range, seeded; set i is the same whatever ``n`` (row by row)."""
+    if n < 1 or not 0.0 < middle <= 1.0:
+        raise RailsuspInputError(f"sets {n}, middle {middle}: accepted sets >= 1, 0 < middle <= 1")
+    lo, hi = bounds(parameters)
+    u = np.random.default_rng(seed).random((n, len(parameters)))
+    return lo + ((1.0 - middle) / 2.0 + middle * u) * (hi - lo)
+
+
+def family_conditions(
+    model: SurrogateForces, duration_s: float, names: Sequence[str] | None = None
+) -> tuple[list[WorkingCondition], dict[str, dict[str, list[float]]]]:
+    """The surrogates' conditions (or ``names`` of them) at ``duration_s``, each field a
+    track family varies moved into the family where it lies outside (``moved``: condition ->
+    field -> [from, to])."""
+    conds, moved = [], {}
+    for name in names or model.conditions:
+        if name not in model.conditions:
+            raise RailsuspInputError(
+                f"condition {name!r}: no surrogate of it in {model.folder} "
+                f"(has {', '.join(model.conditions)})"
+            )
+        sur = model.surrogate(name)
+        cond = sur.condition.with_duration(duration_s)
+        family = sur.meta.get("track_family") or {}
+        for field, key in FAMILY_FIELDS.items():
+            rng, value = family.get(key), getattr(cond, field)
+            if rng is None or value is None or rng[0] <= value <= rng[1]:
+                continue
+            new = type(value)(min(max(value, rng[0]), rng[1]))
+            cond = cond.with_changes(**{field: new})
+            moved.setdefault(name, {})[field] = [value, new]
+        conds.append(cond)
+    return conds, moved
+
+
+class _Timed:
+    """A force model that adds up the seconds its predictions take."""
+
+    def __init__(self, model: SurrogateForces):
+        self.model = model
+        self.seconds = 0.0
+        self.calls = 0
+
+    def __getattr__(self, name):
+        return getattr(self.model, name)
+
+    def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
+        t = time.perf_counter()
+        out = self.model.series(x_si, condition)
+        self.seconds += time.perf_counter() - t
+        self.calls += 1
+        return out
+
+
+def run_set(
+    index: int,
+    truth_si: np.ndarray,
+    model: SurrogateForces,
+    conditions: list[WorkingCondition],
+    work: Path,
+    args: argparse.Namespace,
+) -> dict:
+    """Synthesise one set's recordings (reused if already written for this truth), estimate
+    with NSGA-II on the surrogate, and score it."""
+    truth = ParameterSet.nominal().replace(dict(zip(MAIN_SUSPENSION, truth_si, strict=True)))
+    folder = work / f"set-{index:02d}"
+    done = folder / "truth.json"
+    if not done.exists() or read_json(done)["parameters_display"] != truth.to_display():
+        synthesise_field(
+            truth,
+            conditions,
+            folder,
+            seed=args.seed * 1000 + index,
+            noise=args.noise,
+            duration_s=args.duration,
+            with_track=True,
+            track_noise_mm=args.track_noise,
+        )
+    recs = read_field(folder)
+    params = model.parameters
+    cfg = NSGAConfig(pop_size=args.pop_size, n_gen=args.n_gen, seed=index, statistic="aligned")
+    timed = _Timed(model)
+    t0, c0, load0 = time.perf_counter(), time.process_time(), os.getloadavg()[0]
+    res = estimate(timed, recs, params, cfg)
+    seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
+    load = (load0 + os.getloadavg()[0]) / 2.0
+    lo, hi = bounds(params)
+    true_keys = np.array([truth[p] for p in params])
+    err = 100.0 * (res.chosen_x - true_keys) / (hi - lo)
+    bound = aligned_cramer_rao_pct_range(model, recs, params, true_keys)
+    ident = identifiable(bound)
+    within = [p for p, e in zip(params, err, strict=True) if abs(e) <= WITHIN_PCT]
+    hit = [p for p in ident if p in within]
+    return {
+        "set": index,
+        "truth_display": {p: truth.to_display()[p] for p in MAIN_SUSPENSION},
+        "estimate_display": res.estimate,
+        "error_pct_range": {p: float(e) for p, e in zip(params, err, strict=True)},
+        "cramer_rao_pct_range": bound,
+        "identifiable": ident,
+        "within_pct": within,
+        "identifiable_within": hit,
+        "share_identifiable_within": len(hit) / len(ident) if ident else None,
+        "pareto_spread_pct_range": res.pareto_spread(),
+        "choice_rule": res.choice_rule,
+        "seconds": seconds,
+        "cpu_seconds": cpu,
+        "load_average": load,
+        "predict_seconds_per_generation": timed.seconds / cfg.n_gen,
+        "predict_calls": timed.calls,
+    }
+
+
+def overall(sets: list[dict], parameters: Sequence[str]) -> dict:
+    """Per key parameter the mean and largest |error| (% of range) and how often it was
+    identifiable; pooled, the share of identifiable key parameters within WITHIN_PCT, and
+    the seconds per estimate; whether the issue's targets are met."""
+    per = {}
+    for p in parameters:
+        e = np.abs([s["error_pct_range"][p] for s in sets])
+        per[p] = {
+            "mean_abs_error_pct_range": float(e.mean()),
+            "max_abs_error_pct_range": float(e.max()),
+            "identifiable_sets": sum(p in s["identifiable"] for s in sets),
+        }
+    n_ident = sum(len(s["identifiable"]) for s in sets)
+    n_hit = sum(len(s["identifiable_within"]) for s in sets)
+    share = n_hit / n_ident if n_ident else None
+    seconds = float(np.mean([s["seconds"] for s in sets]))
+    return {
+        "sets": len(sets),
+        "parameters": per,
+        "identifiable": n_ident,
+        "identifiable_within": n_hit,
+        "share_identifiable_within": share,
+        "share_all_within": sum(len(s["within_pct"]) for s in sets) / (len(sets) * len(parameters)),
+        "seconds_per_estimate": seconds,
+        "cpu_seconds_per_estimate": float(np.mean([s["cpu_seconds"] for s in sets])),
+        "predict_seconds_per_generation": float(
+            np.mean([s["predict_seconds_per_generation"] for s in sets])
+        ),
+        "targets": {
+            "share_ok": share is not None and share >= TARGET_SHARE,
+            "seconds_ok": seconds < TARGET_SECONDS,
+        },
+    }
+
+
+def print_table(sets: list[dict], parameters: Sequence[str], summary: dict) -> None:
+    head = f"{'set':>3} " + " ".join(f"{p:>7}" for p in parameters)
+    print(f"\nerror of the estimate, % of range (* identifiable: bound <= {BOUND_LIMIT_PCT:g} %)")
+    print(head + f" {'ident. in 5 %':>13} {'s/estimate':>10} {'predict s/gen':>13}")
+    for s in sets:
+        cells = " ".join(
+            f"{s['error_pct_range'][p]:+6.1f}{'*' if p in s['identifiable'] else ' '}"
+            for p in parameters
+        )
+        share = f"{len(s['identifiable_within'])}/{len(s['identifiable'])}"
+        print(
+            f"{s['set']:>3} {cells} {share:>13} {s['seconds']:>10.1f} "
+            f"{s['predict_seconds_per_generation']:>13.2f}"
+        )
+    mean = " ".join(
+        f"{summary['parameters'][p]['mean_abs_error_pct_range']:6.1f} " for p in parameters
+    )
+    print(f"{'|e|':>3} {mean}")
+    share = summary["share_identifiable_within"]
+    print(
+        f"identifiable key parameters within {WITHIN_PCT:g} % of range: "
+        f"{summary['identifiable_within']}/{summary['identifiable']}"
+        + (f" = {100 * share:.0f} %" if share is not None else "")
+        + f" (target {100 * TARGET_SHARE:g} %); all key parameters: "
+        f"{100 * summary['share_all_within']:.0f} %; "
+        f"{summary['seconds_per_estimate']:.1f} s per estimate (target < {TARGET_SECONDS:g} s)"
+    )
+
+
+def settings_of(args: argparse.Namespace, folder: Path) -> dict:
+    """What makes a stored set comparable with a new one (resuming needs them equal)."""
+    return {
+        "surrogates": str(folder.resolve()),
+        "seed": args.seed,
+        "duration_s": args.duration,
+        "track_noise_mm": args.track_noise,
+        "noise": args.noise,
+        "pop_size": args.pop_size,
+        "n_gen": args.n_gen,
+        "conditions": args.conditions,
+        "statistic": "aligned",
+        "middle": MIDDLE,
+    }
+
+
+def main(argv: Sequence[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("run", type=Path, help="run directory with surrogates/KIND/<condition>/")
+    ap.add_argument("--kind", default="cnn-gru", help="surrogate kind (folder under surrogates/)")
+    ap.add_argument("--sets", type=int, default=12, help="parameter sets drawn")
+    ap.add_argument("--limit", type=int, default=0, help="most new sets this call (0: all)")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the drawn sets and the noise")
+    ap.add_argument("--duration", type=float, default=60.0, help="recorded s per condition")
+    ap.add_argument("--track-noise", type=float, default=0.5, help="geometry error, mm RMS")
+    ap.add_argument("--noise", type=float, default=0.03, help="instrument noise, share of RMS")
+    ap.add_argument("--pop-size", type=int, default=50)
+    ap.add_argument("--n-gen", type=int, default=100)
+    ap.add_argument("--conditions", default="", help="conditions (default: the surrogates')")
+    ap.add_argument("--threads", type=int, default=2, help="torch threads")
+    ap.add_argument("--work", type=Path, default=Path("runs/estimate_tracks"))
+    ap.add_argument("--out", type=Path, default=Path("bench/results/estimate_tracks.json"))
+    args = ap.parse_args(argv)
+    torch.set_num_threads(args.threads)
+    folder = args.run / "surrogates" / args.kind
+    try:
+        model = SurrogateForces(folder)
+    except (FileNotFoundError, ValueError) as exc:
+        sys.exit(f"error: {exc}")
+    names = [c.strip() for c in args.conditions.split(",") if c.strip()] or None
+    conditions, moved = family_conditions(model, args.duration, names)
+    settings = settings_of(args, folder)
+    sets: list[dict] = []
+    if args.out.exists():
+        old = read_json(args.out)
+        if old.get("settings") == settings:
+            sets = old.get("per_set", [])
+    done = {s["set"] for s in sets}
+    truths = draw_sets(args.sets, args.seed)
+    print(
+        f"NSGA-II {args.pop_size} x {args.n_gen} on {args.kind} surrogates ({folder}), "
+        f"{len(conditions)} condition(s) x {args.duration:g} s, geometry error "
+        f"{args.track_noise:g} mm, noise {args.noise:g}; {len(done)} set(s) already done"
+    )
+    for cond, fields in moved.items():
+        print(f"  {cond}: moved into the surrogate's track family: {fields}")
+    new = 0
+    doc: dict = {}
+    for i, truth in enumerate(truths):
+        if i in done or (args.limit and new >= args.limit):
+            continue
+        row = run_set(i, truth, model, conditions, args.work / args.run.name, args)
+        sets = sorted([*sets, row], key=lambda s: s["set"])
+        new += 1
+        print(
+            f"  set {i}: {row['seconds']:.1f} s, identifiable within {WITHIN_PCT:g} %: "
+            f"{len(row['identifiable_within'])}/{len(row['identifiable'])}",
+            flush=True,
+        )
+        doc = write_out(args, settings, sets, model, moved)
+    if not sets:
+        print("no sets")
+        return {}
+    doc = write_out(args, settings, sets, model, moved)
+    print_table(sets, model.parameters, doc["overall"])
+    print(f"wrote {args.out}")
+    return doc
+
+
+def write_out(args, settings, sets, model, moved) -> dict:
+    """Write the JSON (after every set, so that a run can be resumed)."""
+    first = model.surrogate(model.conditions[0])
+    doc = {
+        "date": time.strftime("%Y-%m-%d %H:%M"),
+        "machine": platform.platform(),
+        "torch_threads": args.threads,
+        "kind": args.kind,
+        "settings": settings,
+        "key_parameters": list(model.parameters),
+        "marginalised_parameters": first.meta.get("assumed_parameters"),
+        "track_family": first.meta.get("track_family"),
+        "moved_into_family": moved,
+        "identifiable_rule": f"time-aligned Cramér-Rao bound at the truth <= {BOUND_LIMIT_PCT:g} "
+        "% of range, with the surrogate on the recordings",
+        "per_set": sets,
+        "overall": overall(sets, model.parameters),
+    }
+    write_json(args.out, doc)
+    return doc
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,75 @@
+"""bench/estimate_tracks.py: the sets it draws, the conditions it synthesises, and a tiny end
+to end run (a random-weight surrogate, two seconds, NSGA-II 4 x 2) that writes its JSON and
+resumes per set."""
+
+import json
+
+import numpy as np
+import pytest
+
+from conftest import bench_script
+from railsusp.conditions import get_condition
+from railsusp.errors import RailsuspInputError
+from railsusp.estimate import SurrogateForces
+from railsusp.params import MAIN_SUSPENSION, bounds
+from test_estimate_aligned import KEYS, tiny_surrogate
+
+
+@pytest.fixture(scope="module")
+def bench():
+    return bench_script("estimate_tracks")
+
+
+def test_sets_are_drawn_inside_the_middle_80_percent(bench):
+    lo, hi = bounds(MAIN_SUSPENSION)
+    x = bench.draw_sets(300, seed=5)
+    assert x.shape == (300, 10)
+    u = (x - lo) / (hi - lo)
+    assert u.min() >= 0.1 and u.max() <= 0.9
+    assert u.min() < 0.12 and u.max() > 0.88  # spread over the whole middle
+    np.testing.assert_array_equal(bench.draw_sets(3, seed=5), x[:3])  # set i whatever n
+    assert not np.array_equal(bench.draw_sets(3, seed=6), x[:3])
+    with pytest.raises(RailsuspInputError, match="sets 0"):
+        bench.draw_sets(0, seed=5)
+
+
+def test_conditions_are_moved_into_the_track_family(bench, tmp_path):
+    folder = tiny_surrogate(tmp_path / "s", family=(4, 6))
+    sur = SurrogateForces(folder).surrogate("straight")
+    sur.meta["track_family"]["cant_mm"] = [0.0, 100.0]
+    sur.condition = get_condition("curve").with_changes(name="straight")  # cant 110 mm
+    model = SurrogateForces(folder)
+    model._models["straight"] = sur
+    conds, moved = bench.family_conditions(model, 60.0)
+    assert conds[0].cant_mm == 100.0 and conds[0].duration_s == 60.0
+    assert moved == {"straight": {"cant_mm": [110.0, 100.0]}}
+    with pytest.raises(RailsuspInputError, match="'uphill': no surrogate"):
+        bench.family_conditions(model, 60.0, ["uphill"])
+
+
+def test_tiny_run_writes_its_json_and_resumes_per_set(bench, tmp_path):
+    run = tmp_path / "run"
+    tiny_surrogate(run / "surrogates" / "cnn-gru")
+    out = tmp_path / "out.json"
+    argv = [str(run), "--sets", "2", "--limit", "1", "--duration", "2", "--pop-size", "4"]
+    argv += ["--n-gen", "2", "--threads", "1", "--work", str(tmp_path / "w"), "--out", str(out)]
+    doc = bench.main(argv)
+    first = json.loads(out.read_text())
+    assert [s["set"] for s in first["per_set"]] == [0]
+    s0 = first["per_set"][0]
+    assert set(s0["error_pct_range"]) == set(KEYS) == set(first["key_parameters"])
+    assert all(np.isfinite(v) for v in s0["error_pct_range"].values())
+    assert all(p in KEYS for p in s0["identifiable"])
+    assert s0["choice_rule"] == "least-squares" and s0["seconds"] > 0
+    assert s0["predict_calls"] == 2  # one condition, two generations
+    assert s0["truth_display"].keys() == set(MAIN_SUSPENSION)
+    assert doc["overall"]["sets"] == 1
+    # resumed: set 0 kept as it was, set 1 added
+    second = bench.main(argv)
+    assert [s["set"] for s in second["per_set"]] == [0, 1]
+    assert second["per_set"][0] == s0
+    assert second["overall"]["sets"] == 2
+    # other settings: the stored sets are not mixed in
+    third = bench.main([*argv[:-2], "--out", str(out), "--seed", "1"])
+    assert [s["set"] for s in third["per_set"]] == [0]
+    assert third["per_set"][0]["truth_display"] != s0["truth_display"]
