@@ -25,7 +25,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from railsusp.surrogate.sequence import CNNSequence
+from railsusp.surrogate.sequence import CNNSequence, dense_head
 
 
 @dataclass(frozen=True)
@@ -90,12 +90,7 @@ class CNNRecurrent(nn.Module):
             layers.append(rnn_cls(size, h, batch_first=True, bidirectional=cfg.bidirectional))
             size = h * mult
         self.rnn = nn.ModuleList(layers)
-        dense, prev = [], size
-        for h in cfg.dense:
-            dense += [nn.Linear(prev, h), nn.ReLU()]
-            prev = h
-        dense.append(nn.Linear(prev, cfg.n_outputs))
-        self.head = nn.Sequential(*dense)
+        self.head = dense_head(size, cfg.dense, cfg.n_outputs)
         self.cell = cell
         self.window = cfg.window
 

@@ -48,6 +48,18 @@ class Sizes(Protocol):
 SequenceState = tuple[torch.Tensor, list[torch.Tensor]]
 
 
+def dense_head(n_in: int, hidden: tuple[int, ...], n_outputs: int) -> nn.Sequential:
+    """The study's dense layers after the recurrences: Linear + ReLU per hidden size, then a
+    linear output layer (shared by the window and the sequence networks)."""
+    layers: list[nn.Module] = []
+    prev = n_in
+    for h in hidden:
+        layers += [nn.Linear(prev, h), nn.ReLU()]
+        prev = h
+    layers.append(nn.Linear(prev, n_outputs))
+    return nn.Sequential(*layers)
+
+
 class CNNSequence(nn.Module):
     """1x1 convolutions -> causal max pool -> dropout -> stacked GRUs -> dense head, per step."""
 
@@ -72,12 +84,7 @@ class CNNSequence(nn.Module):
             layers.append(nn.GRU(size, h))  # time-major: each step's batch is contiguous
             size = h
         self.rnn = nn.ModuleList(layers)
-        dense, prev = [], size
-        for h in cfg.dense:
-            dense += [nn.Linear(prev, h), nn.ReLU()]
-            prev = h
-        dense.append(nn.Linear(prev, cfg.n_outputs))
-        self.head = nn.Sequential(*dense)
+        self.head = dense_head(size, cfg.dense, cfg.n_outputs)
         self.washout = cfg.window
 
     def steps(
