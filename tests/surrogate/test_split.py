@@ -156,6 +156,15 @@ def test_many_track_training_is_scored_on_unseen_tracks(many_tracks):
     assert np.isfinite(sur.predict(x, cond)[0, 20:]).all()
     with pytest.raises(ValueError, match="differs in curve_radius_m"):
         sur.predict(x, cond.with_changes(curve_radius_m=600.0))
+    # a family field is checked against the family even where it equals the surrogate's own
+    # condition: with the family's cant up to 100 mm, the condition's own 110 mm is outside
+    sur.meta["track_family"]["cant_mm"] = [60.0, 100.0]
+    assert sur.condition.cant_mm == 110.0
+    with pytest.raises(
+        ValueError, match=r"cant_mm = 110.0 \(trained on the track family 60 to 100\)"
+    ):
+        sur.predict(x, sur.condition)
+    assert np.isfinite(sur.predict(x, sur.condition.with_changes(cant_mm=90.0))[0, 20:]).all()
 
 
 def test_train_surrogate_uses_the_stored_split(many_tracks):

@@ -87,12 +87,11 @@ class SurrogateForces:
     def check_condition(self, condition: WorkingCondition) -> None:
         """Refuse, in one line naming the field, its value and what the network was trained
         on, a condition its surrogate cannot serve: no surrogate of that name, or a field
-        other than the track input (irregularity seed, measured geometry) and the record
-        length that differs from the surrogate's condition and lies outside the track family
-        it was trained on (FRA class, curve radius, cant). Checked before any optimisation,
-        not in its first generation."""
+        the surrogate was not trained on
+        (:meth:`~railsusp.surrogate.bundle.Surrogate.untrained_fields`: one that differs from
+        its condition outside the track family, or a family field outside the family's
+        range). Checked before any optimisation, not in its first generation."""
         from railsusp.errors import RailsuspInputError
-        from railsusp.surrogate.bundle import _FAMILY_FIELDS  # the family's field names
 
         model = self._models.get(condition.name)
         if model is None:
@@ -100,17 +99,9 @@ class SurrogateForces:
                 f"recording {condition.name!r}: no surrogate of that condition in "
                 f"{self.folder} (has {', '.join(self._models)})"
             )
-        ignore = (*TRACK_INPUT_FIELDS, "duration_s", "n_steps")
-        for name in model.condition.differences(condition, ignore):
-            value = getattr(condition, name)
-            if model.in_track_family(name, value):
-                continue
-            family = (model.meta.get("track_family") or {}).get(_FAMILY_FIELDS.get(name, ""))
-            trained = (
-                f"the track family {family[0]:g} to {family[1]:g}"
-                if family
-                else f"{getattr(model.condition, name)!r} only"
-            )
+        outside = model.untrained_fields(condition)
+        if outside:
+            name, value, trained = outside[0]
             raise RailsuspInputError(
                 f"recording {condition.name!r}: {name} = {value!r} is outside what its "
                 f"surrogate in {self.folder} was trained on ({trained}); accepted: a recording "

@@ -110,6 +110,34 @@ class Surrogate:
         rng = fam.get(_FAMILY_FIELDS.get(field_name, ""))
         return rng is not None and value is not None and rng[0] <= value <= rng[1]
 
+    def untrained_fields(self, condition: WorkingCondition) -> list[tuple[str, Any, str]]:
+        """(field, value, what the network was trained on) for each field of ``condition``
+        outside the surrogate's training: a field other than the track input (irregularity
+        seed, measured geometry) and the record length that differs from its condition and
+        is not in its track family, and a family field (FRA class, curve radius, cant)
+        outside the family's range even where it equals the surrogate's own condition: a
+        family campaign draws those per sample, so the condition's nominal value (the
+        study's 110 mm cant, say) need not lie in the family (0-100 mm) and would be an
+        extrapolation."""
+        fam = self.meta.get("track_family") or {}
+        ignore = (*TRACK_INPUT_FIELDS, "duration_s", "n_steps")
+        names = list(self.condition.differences(condition, ignore))
+        for name, key in _FAMILY_FIELDS.items():
+            if key in fam and name not in names and getattr(condition, name) is not None:
+                names.append(name)
+        out = []
+        for name in names:
+            value = getattr(condition, name)
+            if self.in_track_family(name, value):
+                continue
+            rng = fam.get(_FAMILY_FIELDS.get(name, ""))
+            if rng is not None:
+                trained = f"the track family {rng[0]:g} to {rng[1]:g}"
+            else:
+                trained = f"{getattr(self.condition, name)!r} only"
+            out.append((name, value, trained))
+        return out
+
     def _unit(self, params: np.ndarray | list[ParameterSet]) -> np.ndarray:
         if isinstance(params, np.ndarray):
             x = np.atleast_2d(params)
@@ -151,17 +179,12 @@ class Surrogate:
         if condition is not None:
             # the network reads the track, so another realisation, a measured track or
             # another record length is new input, not another condition
-            diff = [
-                d
-                for d in self.condition.differences(
-                    condition, (*TRACK_INPUT_FIELDS, "duration_s", "n_steps")
-                )
-                if not self.in_track_family(d, getattr(condition, d))
-            ]
+            diff = self.untrained_fields(condition)
             if diff:
                 raise ValueError(
                     f"this surrogate was trained for condition {self.condition.name!r}; the "
-                    f"given condition differs in {', '.join(diff)}"
+                    "given condition differs in "
+                    + ", ".join(f"{n} = {v!r} (trained on {t})" for n, v, t in diff)
                 )
             seed = condition.seed if seed is None else seed
             on = condition
