@@ -20,13 +20,11 @@ from railsusp.surrogate.evaluate import (
     predict_series,
     predict_with_alone,
 )
-from railsusp.surrogate.models import SEQUENCE_KINDS, default_window
+from railsusp.surrogate.models import DEFAULT_WASHOUT, KINDS, SEQUENCE_KINDS
 from railsusp.surrogate.split import campaign_split
 from railsusp.surrogate.train import TrainConfig
 
 ALL_MODELS = ("cnn-gru", "cnn-gru-seq", "cnn-lstm", "cnn-bilstm", "bp", "rbf", "gp-stats")
-#: the networks trained through :func:`train_surrogate`
-NETWORK_KINDS = ("cnn-gru", "cnn-gru-seq", "cnn-lstm", "cnn-bilstm", "bp")
 
 
 def compare(
@@ -48,7 +46,7 @@ def compare(
     with a many-track campaign) and on how many distinct tracks (``test_tracks``).
 
     ``window`` is the window networks' window; the sequence CNN-GRU (``cnn-gru-seq``) keeps
-    ``washout`` (default :func:`~railsusp.surrogate.models.default_window`, 2 s). All
+    ``washout`` (default :data:`~railsusp.surrogate.models.DEFAULT_WASHOUT`, 2 s). All
     models are scored from the same first step (column ``first_step``), the longest window
     or washout among them, so that their errors cover the same samples."""
     from railsusp.report import plot_surrogate_overlay
@@ -58,7 +56,7 @@ def compare(
     params = key_parameters(run)
     spec = feature_spec(camp, params, window)
     split = campaign_split(camp, split_seed)
-    seq_washout = default_window("cnn-gru-seq") if washout is None else washout
+    seq_washout = DEFAULT_WASHOUT if washout is None else washout
     first = max([window] + [seq_washout for k in models if k in SEQUENCE_KINDS])
     rows = []
     out_dir = camp.path / "surrogates"
@@ -80,7 +78,7 @@ def compare(
         for kind in models:
             if progress:
                 progress(f"{cond}: {kind}")
-            if kind in NETWORK_KINDS:
+            if kind in KINDS:  # the networks, trained through train_surrogate
                 sur = train_surrogate(
                     run,
                     cond,
