@@ -11,9 +11,8 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-from scipy.signal import butter, sosfiltfilt
 
-from railsusp.measured import Recording
+from railsusp.measured import Recording, bandwidth_filter
 from railsusp.vehicle.track import CHANNEL_COMPONENTS, accurate_wavelength_m, read_track_geometry
 
 
@@ -29,6 +28,16 @@ def measurement_filter(series: np.ndarray, rec: Recording) -> np.ndarray:
     return _lowpass_defined(series, rec.sampling_rate, np.full(series.shape[-1], float(bw)))
 
 
+def _leading_gaps(series: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Of series (n, T, channels): each set's first step with every channel defined, and
+    whether the set is defined from there to its end (undefined steps only lead, as a window
+    surrogate's first steps or a washout do; a set that breaks off is not defined)."""
+    ok = np.isfinite(series).all(axis=-1)  # (n, T)
+    first = np.argmax(ok, axis=1)
+    after_first = np.arange(ok.shape[1])[None, :] >= first[:, None]
+    return first, ok.any(axis=1) & np.all(ok | ~after_first, axis=1)
+
+
 def _lowpass_defined(series: np.ndarray, fs: float, bandwidths: np.ndarray) -> np.ndarray:
     """Series (n, T, channels) low-passed along time, channel c at ``bandwidths[c]`` Hz
     (:func:`~railsusp.measured.bandwidth_filter`); leading undefined steps stay undefined,
@@ -42,28 +51,18 @@ def _lowpass_defined(series: np.ndarray, fs: float, bandwidths: np.ndarray) -> n
     def lowpass(x: np.ndarray) -> np.ndarray:  # (n, T, channels)
         out = np.empty_like(x)
         for c, bw in enumerate(bandwidths):
-            out[..., c] = sosfiltfilt(_bandwidth_sos(float(fs), float(bw)), x[..., c], axis=-1)
+            out[..., c] = bandwidth_filter(x[..., c], fs, float(bw), axis=-1)
         return out
 
     if np.isfinite(series).all():
         return lowpass(series)
     out = np.full_like(series, np.nan)
-    ok = np.isfinite(series).all(axis=2)  # (n, T)
-    first = np.argmax(ok, axis=1)
-    after_first = np.arange(ok.shape[1])[None, :] >= first[:, None]
-    usable = ok.any(axis=1) & np.all(ok | ~after_first, axis=1) & (ok.shape[1] - first > 30)
+    first, defined = _leading_gaps(series)
+    usable = defined & (series.shape[1] - first > 30)
     for start in np.unique(first[usable]):
         sets = np.flatnonzero(usable & (first == start))
         out[sets, start:] = lowpass(series[sets, start:])
     return out
-
-
-@lru_cache(maxsize=64)
-def _bandwidth_sos(fs: float, bandwidth_hz: float) -> np.ndarray:
-    """The sections of :func:`~railsusp.measured.bandwidth_filter` (4th-order Butterworth,
-    cut-off capped at 0.45 of the rate), designed once per rate and bandwidth: the objective
-    filters every generation's predictions with the same few filters."""
-    return butter(4, min(bandwidth_hz, 0.45 * fs), fs=fs, output="sos")
 
 
 def comparison_band_hz(rec: Recording) -> np.ndarray | None:
@@ -168,10 +167,7 @@ class AlignedComparison:
                 f"recording {rec.condition.name!r} has {self.n_samples} samples, the model "
                 f"predicts {pred.shape[-2]}: time-aligned comparison needs the same time base"
             )
-        ok = np.isfinite(pred).all(axis=-1)  # (n, T)
-        first = np.argmax(ok, axis=1)
-        after_first = np.arange(ok.shape[1])[None, :] >= first[:, None]
-        defined = ok.any(axis=1) & np.all(ok | ~after_first, axis=1)  # only leading gaps
+        _, defined = _leading_gaps(pred)
         diff = comparison_filter(pred, rec) - self.measured
         err = np.empty(diff.shape[::2])
         for c, used in enumerate(self.samples):

@@ -5,6 +5,7 @@ folder whose truth the estimator never reads.
 
 from __future__ import annotations
 
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -43,11 +44,18 @@ def simulated_forces(pset, rec: Recording) -> np.ndarray:
     return recording_from_simulation(simulate(pset, rec.condition), rec.wheels[:1]).forces()
 
 
+@lru_cache(maxsize=64)
+def _bandwidth_sos(fs: float, bandwidth_hz: float) -> np.ndarray:
+    """The second-order sections of :func:`bandwidth_filter`, designed once per rate and
+    bandwidth: the time-aligned objective filters every generation's predictions with the
+    same few filters."""
+    return butter(4, min(bandwidth_hz, 0.45 * fs), fs=fs, output="sos")
+
+
 def bandwidth_filter(x: np.ndarray, fs: float, bandwidth_hz: float, axis: int = -1) -> np.ndarray:
     """An instrument's bandwidth limit: 4th-order Butterworth low-pass, zero phase (scipy
     ``sosfiltfilt``), cut-off ``bandwidth_hz`` capped at 0.45 of the sampling rate ``fs``."""
-    sos = butter(4, min(bandwidth_hz, 0.45 * fs), fs=fs, output="sos")
-    return sosfiltfilt(sos, x, axis=axis)
+    return sosfiltfilt(_bandwidth_sos(float(fs), float(bandwidth_hz)), x, axis=axis)
 
 
 def add_sensor_noise(
