@@ -37,19 +37,32 @@ NETWORKS = ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp", "cnn-gru-seq")
 KEYS = ("X11", "X12", "X13", "X14", "X17", "X18")
 
 
+def _random_sets(sur: Surrogate, n_sets: int) -> np.ndarray:
+    """``n_sets`` parameter sets drawn (seeded) uniformly over the surrogate's key ranges."""
+    lo, hi = bounds(sur.spec.parameters)
+    return lo + (hi - lo) * np.random.default_rng(0).random((n_sets, len(lo)))
+
+
+def _best_predict(
+    sur: Surrogate, x: np.ndarray, track: np.ndarray | None, repeats: int, fast: bool = True
+) -> tuple[float, np.ndarray]:
+    """(best seconds, last output) of ``sur.predict(x, track=track)`` over ``repeats`` calls
+    after a warm-up on two sets (at most 400 steps of ``track``)."""
+    sur.predict(x[:2], track=None if track is None else track[:400], fast=fast)  # warm-up
+    best, out = np.inf, None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = sur.predict(x, track=track, fast=fast)
+        best = min(best, time.perf_counter() - t0)
+    return float(best), out
+
+
 def _rate(
     sur: Surrogate, n_sets: int, repeats: int, fast: bool, track: np.ndarray | None = None
 ) -> float:
     """Windows per second of ``sur.predict`` on ``n_sets`` parameter sets, best of
     ``repeats`` calls after a warm-up."""
-    lo, hi = bounds(sur.spec.parameters)
-    x = lo + (hi - lo) * np.random.default_rng(0).random((n_sets, len(lo)))
-    sur.predict(x[:2], track=track, fast=fast)  # warm-up
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = sur.predict(x, track=track, fast=fast)
-        best = min(best, time.perf_counter() - t0)
+    best, out = _best_predict(sur, _random_sets(sur, n_sets), track, repeats, fast)
     return float(np.isfinite(out[:, :, 0]).sum() / best)
 
 
@@ -58,17 +71,9 @@ def generation_seconds(
 ) -> float:
     """Seconds of ``sur.predict`` for one NSGA-II generation: ``n_sets`` parameter sets on
     one ``n_steps``-step track (random features), best of ``repeats`` after a warm-up."""
-    lo, hi = bounds(sur.spec.parameters)
-    x = lo + (hi - lo) * np.random.default_rng(0).random((n_sets, len(lo)))
-    n_track = sur.spec.n_features - len(lo)
+    n_track = sur.spec.n_features - len(sur.spec.parameters)
     track = np.random.default_rng(2).normal(size=(n_steps, n_track))
-    sur.predict(x[:2], track=track[:400])  # warm-up
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        sur.predict(x, track=track)
-        best = min(best, time.perf_counter() - t0)
-    return float(best)
+    return _best_predict(sur, _random_sets(sur, n_sets), track, repeats)[0]
 
 
 def throughput(path, n_sets: int = 64, repeats: int = 3, fast: bool = True) -> float:
