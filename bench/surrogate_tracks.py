@@ -45,8 +45,9 @@ from railsusp.surrogate.evaluate import accuracy, predict_with_alone
 from railsusp.surrogate.split import campaign_split
 from railsusp.variation import full_ranges, parse_range
 
-#: the key parameters of the current model's sensitivity analysis (bench/README.md)
-KEYS = ("X13", "X18", "X14", "X19", "X17", "X16")
+#: the key parameters of the current model's sensitivity analysis (bench/README.md, the
+#: re-run after the centre bowl's rocking stiffness: the five that pass the 0.05 rule)
+KEYS = ("X18", "X13", "X11", "X14", "X19")
 MODELS = ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp", "rbf")
 NETWORKS = ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp", "cnn-gru-seq")
 #: models trained beside the comparison (:func:`network_rows`), not by ``compare``
@@ -63,7 +64,7 @@ def tracks_config(
     keys: Sequence[str] = KEYS,
     classes: tuple[int, int] = (4, 6),
     radius_m: tuple[float, float] | None = (250.0, 400.0),
-    cant_mm: tuple[float, float] | None = (0.0, 100.0),
+    cant_mm: tuple[float, float] | None = (0.0, 120.0),
     seed: int = 0,
     batch_size: int = 32,
 ) -> CampaignConfig:
@@ -305,7 +306,8 @@ def main() -> None:
     ap.add_argument("--conditions", default="straight,curve,uphill")
     ap.add_argument("--classes", default="4:6", help="FRA classes LO:HI")
     ap.add_argument("--radius", default="250:400", help="curve radius LO:HI m, or none")
-    ap.add_argument("--cant", default="0:100", help="cant LO:HI mm, or none")
+    ap.add_argument("--cant", default="0:120", help="cant LO:HI mm, or none")
+    ap.add_argument("--keys", default=",".join(KEYS), help="key parameters (sampled by LHS)")
     ap.add_argument("--seed", type=int, default=0, help="campaign design seed")
     ap.add_argument("--models", default=",".join(MODELS))
     ap.add_argument("--epochs", type=int, default=4)
@@ -331,6 +333,7 @@ def main() -> None:
         classes=(int(lo), int(hi)),
         radius_m=_pair(args.radius, "--radius"),
         cant_mm=_pair(args.cant, "--cant"),
+        keys=[k.strip() for k in args.keys.split(",") if k.strip()],
         seed=args.seed,
     )
     t0 = time.perf_counter()
