@@ -132,16 +132,16 @@ class _Timed:
         return out
 
 
-def run_set(
+def set_recordings(
     index: int,
     truth_si: np.ndarray,
-    model: SurrogateForces,
     conditions: list[WorkingCondition],
     work: Path,
     args: argparse.Namespace,
-) -> dict:
-    """Synthesise one set's recordings (reused if already written for this truth), estimate
-    with NSGA-II on the surrogate, and score it."""
+) -> tuple[ParameterSet, list]:
+    """Set ``index``'s truth (all ten parameters ``truth_si``, the rest nominal) and its
+    recordings on their measured track (``args``: seed, noise, duration, track_noise),
+    synthesised into ``work/set-NN`` unless already written there for this truth."""
     truth = ParameterSet.nominal().replace(dict(zip(MAIN_SUSPENSION, truth_si, strict=True)))
     folder = work / f"set-{index:02d}"
     done = folder / "truth.json"
@@ -156,7 +156,20 @@ def run_set(
             with_track=True,
             track_noise_mm=args.track_noise,
         )
-    recs = read_field(folder)
+    return truth, read_field(folder)
+
+
+def run_set(
+    index: int,
+    truth_si: np.ndarray,
+    model: SurrogateForces,
+    conditions: list[WorkingCondition],
+    work: Path,
+    args: argparse.Namespace,
+) -> dict:
+    """Synthesise one set's recordings (reused if already written for this truth), estimate
+    with NSGA-II on the surrogate, and score it."""
+    truth, recs = set_recordings(index, truth_si, conditions, work, args)
     params = model.parameters
     cfg = NSGAConfig(pop_size=args.pop_size, n_gen=args.n_gen, seed=index, statistic="aligned")
     timed = _Timed(model)

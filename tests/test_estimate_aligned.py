@@ -24,7 +24,11 @@ from railsusp.estimate import (
     estimate,
     refine_estimate,
 )
-from railsusp.estimate.aligned_identifiability import aligned_cramer_rao_pct_range, identifiable
+from railsusp.estimate.aligned_identifiability import (
+    aligned_cramer_rao_pct_range,
+    identifiable,
+    jacobian_agreement,
+)
 from railsusp.estimate.comparison import AlignedComparison, _lowpass_defined
 from railsusp.estimate.config import IDEAL_POINT, LEAST_SQUARES, choice_rule
 from railsusp.measured import Recording, bandwidth_filter, read_field, synthesise_field
@@ -184,6 +188,54 @@ def test_aligned_cramer_rao_bound():
     assert b4["X14"] / b["X14"] == pytest.approx(4.0, rel=0.25)
     both = aligned_cramer_rao_pct_range(Waves(), [wave_recording(truth)], PARAMS, truth)
     assert all(np.isfinite(v) for v in both.values())
+
+
+class HalfWaves(Waves):
+    """Waves whose X13 term is half as strong and whose X14 term on Q runs in a different
+    rhythm: a surrogate with the wrong sensitivities."""
+
+    def series(self, x_si, condition):
+        t = np.arange(condition.n_steps) * condition.sample_interval
+        a = (x_si[:, 0] / 14e6)[:, None]
+        b = (x_si[:, 1] / 10e6)[:, None]
+        y = 1.5 * a * np.sin(2 * np.pi * 1.3 * t) + b
+        q = 120.0 + 5.0 * b * np.cos(2 * np.pi * 1.9 * t)
+        return np.stack([y, q], axis=2)
+
+
+def test_jacobian_agreement_finds_wrong_sensitivities():
+    """A model against itself agrees exactly (gain and cosine 1); one whose X13 term is half
+    as strong has gain 0.5 in X13 with the right shape (cosine 1); one whose X14 effect on Q
+    has another rhythm keeps Y's agreement but loses Q's cosine."""
+    truth = np.array([16.1e6, 8.3e6])
+    rec = wave_recording(truth, noise=0.02)
+    same = jacobian_agreement(Waves(), Waves(), [rec], PARAMS, truth)
+    for p in PARAMS:
+        assert same[p]["gain"] == pytest.approx(1.0) and same[p]["cosine"] == pytest.approx(1.0)
+    half = jacobian_agreement(HalfWaves(), Waves(), [rec], PARAMS, truth)
+    assert half["X13"]["gain"] == pytest.approx(0.5, rel=1e-6)
+    assert half["X13"]["cosine"] == pytest.approx(1.0, abs=1e-9)
+    by = half["X14"]["by_channel"]
+    assert set(by) == {"straight:Y", "straight:Q"}
+    assert by["straight:Y"]["cosine"] == pytest.approx(1.0, abs=1e-9)
+    assert abs(by["straight:Q"]["cosine"]) < 0.2
+    flat = jacobian_agreement(Waves(ignore_x13=True), Waves(), [rec], PARAMS, truth)
+    assert flat["X13"]["gain"] == 0.0 and np.isnan(flat["X13"]["cosine"])
+
+
+def test_simulator_forces_hold_the_other_parameters_at_their_base():
+    """The simulator reference holds the parameters it does not vary at ``base``: a base
+    with a stiffer primary lateral spring (X14, not varied) moves the forces; the nominal
+    base gives the forces of the nominal default."""
+    from railsusp.estimate.forces import SimulatorForces
+
+    cond = get_condition("straight", duration_s=1.0)
+    x = np.array([[16.1e6]])
+    plain = SimulatorForces(["X13"]).series(x, cond)
+    nominal = SimulatorForces(["X13"], base=ParameterSet.nominal()).series(x, cond)
+    stiff = SimulatorForces(["X13"], base=ParameterSet.nominal().replace({"X14": 11e6}))
+    np.testing.assert_array_equal(plain, nominal)
+    assert np.nanmax(np.abs(stiff.series(x, cond) - plain)) > 1e-3
 
 
 def tiny_surrogate(folder, realisations=24, family=(4, 6), irregularity_class=5):

@@ -18,6 +18,7 @@ import numpy as np
 from railsusp.conditions import TRACK_INPUT_FIELDS, WorkingCondition
 from railsusp.estimate.statistics import recording_segments, series_statistics
 from railsusp.measured import Recording
+from railsusp.params import ParameterSet
 
 
 class ForceModel(Protocol):
@@ -230,15 +231,25 @@ def force_statistics(
 
 
 class SimulatorForces:
-    """The batched simulator on the design track of each condition (slow reference)."""
+    """The batched simulator on the track of each condition (its measured geometry where it
+    carries one, else the design track; slow reference). The parameters not in
+    ``parameters`` are held at ``base`` (nominal by default)."""
 
-    def __init__(self, parameters: Sequence[str], wheel: str = "auto"):
+    def __init__(
+        self, parameters: Sequence[str], wheel: str = "auto", base: ParameterSet | None = None
+    ):
         self.parameters = tuple(parameters)
         self.wheel = wheel
+        self.base = base
 
     def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
         from railsusp.vehicle.simulate import simulate_batch
 
-        r = simulate_batch(x_si, condition, symbols=self.parameters)
+        x = np.atleast_2d(np.asarray(x_si, dtype=float))
+        if self.base is None:
+            r = simulate_batch(x, condition, symbols=self.parameters)
+        else:
+            sets = [self.base.replace(dict(zip(self.parameters, row, strict=True))) for row in x]
+            r = simulate_batch(sets, condition)
         j = r.measured_wheel(self.wheel)
         return np.stack([r.Y[:, j], r.Q[:, j]], axis=2) / 1e3

@@ -1,0 +1,192 @@
+"""Does the surrogate make the forces depend on the parameters as the simulator does?
+(issue 19: a network that is to be inverted needs the simulator's parameter sensitivity, not
+only a small held-out error). Writes bench/results/jacobian_check.json.
+
+For ``--sets`` parameter sets drawn as in bench/estimate_tracks.py (all ten parameters over
+the middle 80 % of their ranges, the same seeds, so the same recordings: 60 s per condition
+on a track no network saw, 3 % instrument noise, the geometry written with 0.5 mm error),
+it computes at the truth the forward-difference Jacobian of the time-aligned comparison's
+scaled residuals (:func:`railsusp.estimate.aligned_identifiability.aligned_jacobian`, the
+refinement's 5 %-of-range step) twice: with the surrogate of ``RUN/surrogates/KIND`` and
+with the simulator on the same measured geometry, the parameters that are not network
+inputs held at the truth. Per key parameter and condition it reports:
+
+- ``effect``: the simulator's column norm, i.e. the RMS change of the compared force over
+  the parameter's whole range in units of the measured force's standard deviation
+  (linearised): how much there is to see;
+- ``gain``: the least-squares slope of the surrogate's column on the simulator's (1: the
+  right size) and ``cosine`` (1: the right shape in time);
+- the residual RMS at the truth (units of the force's standard deviation), with the
+  surrogate and with the simulator (noise and geometry error only);
+- the time-aligned Cramér-Rao bounds (% of range) with each model.
+
+::
+
+    python bench/jacobian_check.py RUN --kind cnn-gru --sets 4
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from estimate_tracks import draw_sets, family_conditions, set_recordings
+from railsusp.estimate import SurrogateForces
+from railsusp.estimate.aligned_identifiability import (
+    agreement_of,
+    aligned_jacobian,
+    bounds_pct_range,
+    channel_names,
+)
+from railsusp.estimate.forces import SimulatorForces
+from railsusp.store import write_json
+
+
+def block_rms(r: np.ndarray, blocks: list[int], names: list[str]) -> dict[str, float]:
+    """RMS of the scaled residuals per channel block, in units of the measured force's
+    standard deviation (the scale is std x sqrt(samples))."""
+    edges = np.cumsum([0, *blocks])
+    return {
+        n: float(np.sqrt(np.sum(r[a:b] ** 2)))
+        for n, a, b in zip(names, edges[:-1], edges[1:], strict=True)
+    }
+
+
+def column_norms(jac: np.ndarray, blocks: list[int], names: list[str], params) -> dict:
+    """Per parameter and channel block the Jacobian column's norm (the linearised RMS
+    change over the whole range, in force standard deviations)."""
+    edges = np.cumsum([0, *blocks])
+    return {
+        p: {
+            n: float(np.linalg.norm(jac[a:b, j]))
+            for n, a, b in zip(names, edges[:-1], edges[1:], strict=True)
+        }
+        for j, p in enumerate(params)
+    }
+
+
+def check_set(index, truth_si, model, conditions, work, args) -> dict:
+    truth, recs = set_recordings(index, truth_si, conditions, work, args)
+    params = model.parameters
+    x = np.array([truth[p] for p in params])
+    names = channel_names(recs)
+    t0 = time.perf_counter()
+    rn, jn, blocks = aligned_jacobian(model, recs, params, x)
+    t1 = time.perf_counter()
+    rs, js, _ = aligned_jacobian(SimulatorForces(params, base=truth), recs, params, x)
+    t2 = time.perf_counter()
+    return {
+        "set": index,
+        "truth_display": {p: truth.to_display()[p] for p in params},
+        "agreement": agreement_of(jn, js, blocks, names, params),
+        "effect": column_norms(js, blocks, names, params),
+        "residual_rms": {
+            "surrogate": block_rms(rn, blocks, names),
+            "simulator": block_rms(rs, blocks, names),
+        },
+        "bounds_pct_range": {
+            "surrogate": dict(
+                zip(params, map(float, bounds_pct_range(rn, jn, blocks)), strict=True)
+            ),
+            "simulator": dict(
+                zip(params, map(float, bounds_pct_range(rs, js, blocks)), strict=True)
+            ),
+        },
+        "seconds": {"surrogate": t1 - t0, "simulator": t2 - t1},
+    }
+
+
+def print_set(row: dict, params) -> None:
+    res = row["residual_rms"]
+    names = list(res["surrogate"])
+    print(f"\nset {row['set']}: residual RMS / force std, surrogate | simulator:")
+    print(
+        "  "
+        + "  ".join(f"{n} {res['surrogate'][n]:.3f} | {res['simulator'][n]:.3f}" for n in names)
+    )
+    print(
+        f"  {'param':<5} {'bound net %':>11} {'bound sim %':>11} "
+        + " ".join(f"{n + ' eff/gain/cos':>26}" for n in names)
+    )
+    for p in params:
+        a = row["agreement"][p]["by_channel"]
+        cells = " ".join(
+            f"{row['effect'][p][n]:8.3f} {a[n]['gain']:+7.2f} {a[n]['cosine']:+6.2f}   "
+            for n in names
+        )
+        b = row["bounds_pct_range"]
+        print(f"  {p:<5} {b['surrogate'][p]:11.1f} {b['simulator'][p]:11.1f} {cells}")
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("run", type=Path, help="run directory with surrogates/KIND/<condition>/")
+    ap.add_argument("--kind", default="cnn-gru")
+    ap.add_argument("--sets", type=int, default=4)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--duration", type=float, default=60.0)
+    ap.add_argument("--track-noise", type=float, default=0.5)
+    ap.add_argument("--noise", type=float, default=0.03)
+    ap.add_argument("--conditions", default="")
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--work", type=Path, default=Path("runs/estimate_tracks"))
+    ap.add_argument("--out", type=Path, default=Path("bench/results/jacobian_check.json"))
+    args = ap.parse_args(argv)
+    torch.set_num_threads(args.threads)
+    model = SurrogateForces(args.run / "surrogates" / args.kind)
+    names = [c.strip() for c in args.conditions.split(",") if c.strip()] or None
+    conditions, moved = family_conditions(model, args.duration, names)
+    rows = []
+    for i, truth in enumerate(draw_sets(args.sets, args.seed)):
+        row = check_set(i, truth, model, conditions, args.work / args.run.name, args)
+        print_set(row, model.parameters)
+        rows.append(row)
+    params = model.parameters
+    chans = list(rows[0]["effect"][params[0]])
+    summary = {
+        p: {
+            n: {
+                "effect": float(np.median([r["effect"][p][n] for r in rows])),
+                "gain": float(
+                    np.median([r["agreement"][p]["by_channel"][n]["gain"] for r in rows])
+                ),
+                "cosine": float(
+                    np.median([r["agreement"][p]["by_channel"][n]["cosine"] for r in rows])
+                ),
+            }
+            for n in chans
+        }
+        for p in params
+    }
+    print("\nmedian over the sets: effect (force std over the range) / gain / cosine")
+    for p in params:
+        print(
+            f"  {p:<5} "
+            + "  ".join(
+                f"{n} {m['effect']:.3f}/{m['gain']:+.2f}/{m['cosine']:+.2f}"
+                for n, m in summary[p].items()
+            )
+        )
+    doc = {
+        "date": time.strftime("%Y-%m-%d %H:%M"),
+        "machine": platform.platform(),
+        "run": str(args.run),
+        "kind": args.kind,
+        "settings": vars(args)
+        | {"run": str(args.run), "work": str(args.work), "out": str(args.out)},
+        "moved_into_family": moved,
+        "per_set": rows,
+        "median": summary,
+    }
+    write_json(args.out, doc)
+    print(f"wrote {args.out}")
+    return doc
+
+
+if __name__ == "__main__":
+    main()
