@@ -36,9 +36,10 @@ import pandas as pd
 import torch
 
 from railsusp.campaign import CampaignConfig, load_campaign, make_config, run_campaign
+from railsusp.campaign.twins import run_nominal_twins
 from railsusp.conditions import get_condition
 from railsusp.store import write_json
-from railsusp.surrogate import TrainConfig, feature_spec, key_parameters, load, train_surrogate
+from railsusp.surrogate import TrainConfig, feature_spec, load, train_surrogate
 from railsusp.surrogate.compare import compare
 from railsusp.surrogate.data import load_series
 from railsusp.surrogate.evaluate import accuracy, predict_with_alone
@@ -100,18 +101,28 @@ def network_rows(
     train: TrainConfig | None,
     split_seed: int = 0,
     out: str | Path | None = None,
+    nominal_response: bool = False,
 ) -> list[dict]:
     """Train one network (``window``: its window, or the sequence CNN-GRU's washout; None:
-    the kind's default) on the campaign's split, saved under ``out`` (default
-    ``RUN/surrogates/<label>/<condition>/``), and score it on the same test runs from the end
-    of its own window or washout (the reference scores from step 20)."""
+    the kind's default; ``nominal_response``: reading the nominal wagon's forces on each
+    track, from the campaign's nominal twins) on the campaign's split, saved under ``out``
+    (default ``RUN/surrogates/<label>/<condition>/``), and score it on the same test runs
+    from the end of its own window or washout (the reference scores from step 20)."""
     camp = load_campaign(run)
     out = Path(run) / "surrogates" / label / condition if out is None else Path(out)
     sur = train_surrogate(
-        run, condition, kind=kind, window=window, train=train, split_seed=split_seed, out=out
+        run,
+        condition,
+        kind=kind,
+        window=window,
+        train=train,
+        split_seed=split_seed,
+        out=out,
+        nominal_response=nominal_response,
     )
     first = sur.spec.window
-    data = load_series(camp, condition, feature_spec(camp, sur.spec.parameters, first))
+    spec = feature_spec(camp, sur.spec.parameters, first, sur.spec.nominal_response)
+    data = load_series(camp, condition, spec)
     split = campaign_split(camp, split_seed)
     test = data.subset(split.positions(data.sample_ids, "test"))
     pred, raw = predict_with_alone(sur, test)
@@ -125,6 +136,24 @@ def network_rows(
         )
         rows.append({"condition": condition, "model": label, **r, **held})
     return rows
+
+
+def nominal_rows(
+    run: str | Path, condition: str, train: TrainConfig | None, split_seed: int = 0
+) -> list[dict]:
+    """Train the CNN-GRU that also reads the nominal wagon's forces on each track
+    (:mod:`railsusp.surrogate.nominal`; saved under ``RUN/surrogates/cnn-gru-nominal/``) and
+    score it on the same test runs."""
+    return network_rows(
+        run,
+        condition,
+        kind="cnn-gru",
+        window=None,
+        label="cnn-gru-nominal",
+        train=train,
+        split_seed=split_seed,
+        nominal_response=True,
+    )
 
 
 def variant_rows(
@@ -159,11 +188,13 @@ def table_on_tracks(
     conditions: Sequence[str] | None = None,
     split_seed: int = 0,
     progress: Callable[[str], None] | None = None,
+    nominal: bool = False,
 ) -> pd.DataFrame:
     """The accuracy table (one row per condition, model and force) of every model on the
     campaign's held-out test runs in ``conditions`` (all by default): the compared models,
-    then the sequence CNN-GRU, then the variant's rows (in ``variant_conditions``, all by
-    default)."""
+    then the sequence CNN-GRU, then (``nominal``) the CNN-GRU reading the nominal wagon's
+    forces (its campaign's nominal twins made first, or resumed), then the variant's rows
+    (in ``variant_conditions``, all by default)."""
     compared = [m for m in models if m not in SEQUENCE]
     conds = (
         list(conditions) if conditions else [c.name for c in load_campaign(run).config.conditions]
@@ -188,6 +219,12 @@ def table_on_tracks(
             rows += network_rows(
                 run, cond, kind=kind, window=None, label=kind, train=train, split_seed=split_seed
             )
+    if nominal:
+        run_nominal_twins(run, progress=None)
+        for cond in conds:
+            if progress:
+                progress(f"{cond}: cnn-gru-nominal")
+            rows += nominal_rows(run, cond, train, split_seed)
     if rows:
         tables.append(pd.DataFrame(rows))
     table = pd.concat(tables, ignore_index=True)
@@ -244,20 +281,23 @@ def inference_rates(
     run: str | Path, condition: str, kinds: Sequence[str], threads: int = 2, repeats: int = 3
 ) -> dict[str, float]:
     """Windows per second of each trained network's fast path (64 parameter sets per call,
-    on the first test run's track), with ``threads`` torch threads."""
+    on the first test run's track, its nominal response included where the network reads
+    it: that simulation is made once per track, not timed), with ``threads`` torch
+    threads."""
     camp = load_campaign(run)
-    data = load_series(camp, condition, feature_spec(camp, key_parameters(run)))
-    test = data.subset(campaign_split(camp).positions(data.sample_ids, "test")[:1])
+    first = campaign_split(camp).positions
     rate = _surrogate_bench()._rate
     before = torch.get_num_threads()
     torch.set_num_threads(threads)
     try:
-        return {
-            k: rate(
-                load(Path(run) / "surrogates" / k / condition), 64, repeats, True, test.track[0]
-            )
-            for k in kinds
-        }
+        rates = {}
+        for k in kinds:
+            sur = load(Path(run) / "surrogates" / k / condition)
+            spec = feature_spec(camp, sur.spec.parameters, 20, sur.spec.nominal_response)
+            data = load_series(camp, condition, spec)
+            test = data.subset(first(data.sample_ids, "test")[:1])
+            rates[k] = rate(sur, 64, repeats, True, test.track[0])
+        return rates
     finally:
         torch.set_num_threads(before)
 
@@ -320,6 +360,11 @@ def main() -> None:
         "--variant-window", type=int, default=0, help="also a CNN-GRU with these windows (0: no)"
     )
     ap.add_argument("--variant-conditions", help="conditions of the variant (default: all)")
+    ap.add_argument(
+        "--nominal",
+        action="store_true",
+        help="also the CNN-GRU reading the nominal wagon's forces (makes the nominal twins)",
+    )
     ap.add_argument("--train-conditions", help="conditions whose models are trained (default: all)")
     ap.add_argument("--threads", type=int, default=2, help="torch threads for throughput")
     ap.add_argument("--repeats", type=int, default=3, help="timed predict calls, best kept")
@@ -368,10 +413,11 @@ def main() -> None:
         variant_conditions=args.variant_conditions.split(",") if args.variant_conditions else None,
         conditions=args.train_conditions.split(",") if args.train_conditions else None,
         progress=tick,
+        nominal=args.nominal,
     )
     tick("done")
     t7 = table7_per_run(table)
-    kinds = [k for k in models if k in NETWORKS]
+    kinds = [k for k in models if k in NETWORKS] + (["cnn-gru-nominal"] if args.nominal else [])
     rates = inference_rates(args.run, table.condition.iloc[0], kinds, args.threads, args.repeats)
     print_table(t7, seconds)
     print(f"\ninference, windows / s ({args.threads} threads, 64 parameter sets per call):")

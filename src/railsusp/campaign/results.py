@@ -92,15 +92,21 @@ class Campaign:
 
     def series(self, condition: str) -> tuple[np.ndarray, np.ndarray]:
         """(sample_ids, series (n, channels, n_t)) of one condition from the finished batches."""
-        folder = self.path / "batches" / condition
-        files = sorted(f for f in folder.glob("batch-*.parquet") if ".features" not in f.name)
-        if not files:
-            raise CampaignError(f"{self.path}: no series for condition {condition!r}")
-        df = pd.concat([pd.read_parquet(f) for f in files], ignore_index=True)
-        ids = np.unique(df["sample_id"].to_numpy())
-        n_t = int(df["step"].max()) + 1
-        arr = df[list(CHANNELS)].to_numpy().reshape(len(ids), n_t, len(CHANNELS))
-        return ids, arr.transpose(0, 2, 1)
+        return read_series(self.path, condition)
+
+
+def read_series(root: Path, condition: str) -> tuple[np.ndarray, np.ndarray]:
+    """(sample_ids, series (n, channels, n_t)) of one condition from the finished batches
+    under ``root/batches`` (a run directory, or its nominal twins)."""
+    folder = root / "batches" / condition
+    files = sorted(f for f in folder.glob("batch-*.parquet") if ".features" not in f.name)
+    if not files:
+        raise CampaignError(f"{root}: no series for condition {condition!r}")
+    df = pd.concat([pd.read_parquet(f) for f in files], ignore_index=True)
+    ids = np.unique(df["sample_id"].to_numpy())
+    n_t = int(df["step"].max()) + 1
+    arr = df[list(CHANNELS)].to_numpy().reshape(len(ids), n_t, len(CHANNELS))
+    return ids, arr.transpose(0, 2, 1)
 
 
 def require_complete(campaign: Campaign) -> Campaign:

@@ -112,8 +112,9 @@ class SurrogateForces:
     def track_input(self, condition: WorkingCondition) -> np.ndarray:
         """(T, n_track) the network's track input on a condition's measured track, as
         :meth:`~railsusp.surrogate.bundle.Surrogate.predict` computes it from the condition
-        (the geometry read, lined up and sampled at the axles): computed once per condition
-        and kept, since an objective predicts on the same track every generation."""
+        (the geometry read, lined up and sampled at the axles, and for a network that reads
+        it the nominal wagon simulated on that geometry): computed once per condition and
+        kept, since an objective predicts on the same track every generation."""
         from railsusp.surrogate.data import track_features
 
         key = condition.model_dump_json()

@@ -33,7 +33,7 @@ class ChunkSampler:
         self.chunk = min(chunk_steps, data.n_steps)
         self.params = data.params_unit.astype(np.float32)
         self.track = norm.track(data.track)
-        self.targets = norm.target(data.targets)
+        self.targets = norm.target(data.learned)
         self.window = washout
         starts = np.arange(data.n_steps - self.chunk + 1)
         self.index = np.stack(

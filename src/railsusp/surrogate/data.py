@@ -26,13 +26,14 @@ irregularity seed and, in a track-family campaign, its FRA class, radius and can
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
 from railsusp.campaign import CHANNELS, Campaign
 from railsusp.conditions import CANT_BASE_M, WorkingCondition
 from railsusp.params import bounds
+from railsusp.surrogate.nominal import nominal_forces
 from railsusp.variation import layout_key, sample_condition
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.simulate import (
@@ -74,20 +75,32 @@ class FeatureSpec:
     axles: tuple[int, ...] = (0, 1, 2)  # wheelset indices: 0 = w1 (leading) ...
     window: int = 20
     targets: tuple[str, ...] = ("Y", "Q")
+    #: the nominal wagon's forces on the same track as inputs, after the track channels
+    #: (:mod:`.nominal`); the network then learns the force minus the nominal force
+    nominal_response: bool = False
+
+    @property
+    def n_baseline(self) -> int:
+        """Trailing track-input columns that are the nominal response (one per target)."""
+        return len(self.targets) if self.nominal_response else 0
 
     @property
     def n_features(self) -> int:
-        return len(self.parameters) + len(self.track_channels) * len(self.axles)
+        return len(self.parameters) + len(self.track_channels) * len(self.axles) + self.n_baseline
 
     def names(self) -> list[str]:
         """Feature names in input order."""
         return [
             *(f"{p}_unit" for p in self.parameters),
             *(f"{c}@w{a + 1}" for a in self.axles for c in self.track_channels),
+            *(f"{t}_nominal" for t in self.targets[: self.n_baseline]),
         ]
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        doc = asdict(self)
+        if not self.nominal_response:  # surrogates saved before the option read the same
+            del doc["nominal_response"]
+        return doc
 
     @classmethod
     def from_dict(cls, doc: dict) -> FeatureSpec:
@@ -108,9 +121,20 @@ def track_features(
     spec: FeatureSpec,
     wagon: WagonData,
     settings: SolverSettings | None = None,
+    nominal: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Track input seen by the chosen axles at every output step: (T, channels x axles)."""
+    """Track input seen by the chosen axles at every output step: (T, channels x axles),
+    then, with ``spec.nominal_response``, the nominal wagon's forces on that track (kN, one
+    column per target): ``nominal`` (T, n_targets) when already simulated (a campaign's
+    nominal twin), else simulated here (:func:`.nominal.nominal_forces`)."""
     settings = SolverSettings() if settings is None else settings
+    if spec.nominal_response:
+        if nominal is None:
+            nominal = nominal_forces(condition, seed, wagon, spec.targets, settings)
+        plain = track_features(
+            condition, seed, replace(spec, nominal_response=False), wagon, settings
+        )
+        return np.concatenate([plain, np.asarray(nominal, dtype=plain.dtype)], axis=1)
     tr, s0, ds = track_arrays(condition.with_changes(seed=seed), [seed], wagon, settings)
     grid = s0 + ds * np.arange(tr.shape[2])
     t = np.arange(condition.n_steps) * condition.sample_interval
@@ -137,6 +161,16 @@ class SeriesData:
     #: parameters varied in the campaign but not network inputs: names and SI values (n, k)
     other_names: tuple[str, ...] = ()
     others: np.ndarray | None = None
+    #: trailing track columns holding the nominal response (FeatureSpec.n_baseline)
+    n_baseline: int = 0
+
+    @property
+    def learned(self) -> np.ndarray:
+        """What a network learns (n, T, n_targets): the targets, less the nominal response
+        where the inputs carry it (:mod:`.nominal`)."""
+        if not self.n_baseline:
+            return self.targets
+        return self.targets - self.track[..., -self.n_baseline :]
 
     @property
     def n_samples(self) -> int:
@@ -157,6 +191,7 @@ class SeriesData:
             self.seeds[idx],
             self.other_names,
             None if self.others is None else self.others[idx],
+            self.n_baseline,
         )
 
 
@@ -193,14 +228,17 @@ def load_series(
     rows = tracks.to_dict("records")
     seeds = tracks["seed"].to_numpy()
     keys = [(int(r["seed"]), layout_key(r)) for r in rows]
+    plain = replace(spec, nominal_response=False)
     per_key = {
-        k: track_features(sample_condition(cond, r), k[0], spec, cfg.wagon, cfg.settings())
+        k: track_features(sample_condition(cond, r), k[0], plain, cfg.wagon, cfg.settings())
         for k, r in dict(zip(keys, rows, strict=True)).items()
     }
-    if len(per_key) == 1:
+    if len(per_key) == 1 and not spec.nominal_response:
         track = next(iter(per_key.values()))[None]
     else:
         track = np.stack([per_key[k] for k in keys])
+    if spec.nominal_response:
+        track = np.concatenate([track, twin_forces(campaign, condition, ids, w, spec)], axis=2)
     other_names = tuple(p for p in cfg.simulated_parameters if p not in spec.parameters)
     data = SeriesData(
         ids,
@@ -213,8 +251,30 @@ def load_series(
         seeds,
         other_names,
         design[list(other_names)].to_numpy(float),
+        spec.n_baseline,
     )
+    ok &= np.isfinite(data.track).all(axis=(1, 2)) if spec.nominal_response else True
     return data.subset(np.flatnonzero(ok))
+
+
+def twin_forces(
+    campaign: Campaign, condition: str, ids: np.ndarray, wheel: int, spec: FeatureSpec
+) -> np.ndarray:
+    """(n, T, n_targets) forces (kN) of wheel ``wheel`` of the nominal twins of samples
+    ``ids`` (:mod:`railsusp.campaign.twins`); NaN for a twin that failed."""
+    from railsusp.campaign.results import read_series
+    from railsusp.campaign.twins import nominal_folder, twins_complete
+
+    if not twins_complete(campaign.path):
+        raise ValueError(
+            f"{campaign.path}: the nominal twins are missing or incomplete; make them with "
+            "`railsusp.campaign.twins.run_nominal_twins` before training with the nominal response"
+        )
+    twin_ids, series = read_series(nominal_folder(campaign.path), condition)
+    pos = {int(s): i for i, s in enumerate(twin_ids)}
+    rows = np.array([pos[int(s)] for s in ids])
+    cols = [CHANNELS.index(f"{t}_{WHEEL_NAMES[wheel]}") for t in spec.targets]
+    return np.stack([series[rows, c, :] / 1e3 for c in cols], axis=2)
 
 
 def split_samples(
@@ -249,7 +309,7 @@ class Normaliser:
     @classmethod
     def fit(cls, data: SeriesData) -> Normaliser:
         tr = data.track.reshape(-1, data.track.shape[-1]).astype(np.float64)
-        y = data.targets.reshape(-1, data.targets.shape[-1]).astype(np.float64)
+        y = data.learned.reshape(-1, data.targets.shape[-1]).astype(np.float64)
         ts = tr.std(axis=0)
         ys = y.std(axis=0)
         return cls(

@@ -128,7 +128,7 @@ class WindowSampler:
     def __init__(self, data: SeriesData, norm: Normaliser, window: int):
         self.params = data.params_unit.astype(np.float32)
         self.track = norm.track(data.track)
-        self.targets = norm.target(data.targets)
+        self.targets = norm.target(data.learned)
         self.window = window
         self.index = window_index(data.n_samples, data.n_steps, window)
 

@@ -1,0 +1,86 @@
+"""Nominal twins of a many-track campaign: every sample's own track run again with every
+parameter at its nominal value.
+
+A surrogate that reads the nominal wagon's forces on the same track as an input
+(:attr:`railsusp.surrogate.data.FeatureSpec.nominal_response`) only has to learn what the
+parameters change, not the whole response to the track: on 20 s of Class 4-6 track the
+nominal wagon's lateral force alone explains a median 0.89-0.94 of the variance of a wagon
+with other parameters drawn over the middle 80 % of their ranges (0.97 in the curve;
+bench/README.md, "nominal response"), where a window network reading the track reached
+0.55 on tangent. The twins are stored beside the campaign (``<run>/nominal/batches/...``,
+the campaign's batch layout), batch by batch and atomically, so that a run resumes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from railsusp.campaign.design import CampaignError, batch_paths, track_seeds
+from railsusp.campaign.results import load_campaign
+from railsusp.campaign.run import _write_batch, simulate_task
+from railsusp.params import ParameterSet
+
+#: sub-directory of a run directory holding its nominal twins
+NOMINAL_DIR = "nominal"
+
+
+def nominal_folder(run: str | Path) -> Path:
+    """Where the nominal twins of run directory ``run`` are stored."""
+    return Path(run) / NOMINAL_DIR
+
+
+def twins_complete(run: str | Path) -> bool:
+    """Whether every batch of every condition of the campaign has its nominal twin."""
+    cfg = load_campaign(run).config
+    out = nominal_folder(run)
+    return all(
+        batch_paths(out, c.name, b)[0].exists()
+        for c in cfg.conditions
+        for b in range(cfg.n_batches)
+    )
+
+
+def run_nominal_twins(
+    run: str | Path,
+    *,
+    progress: Callable[[int, int], None] | None = None,
+    max_batches: int | None = None,
+) -> Path:
+    """Simulate (or resume) the nominal twin of every sample of a many-track campaign: its
+    condition, track seed, FRA class, radius and cant, every parameter nominal. Returns the
+    twins' folder. ``progress(done, total)`` counts batches; ``max_batches`` stops after
+    that many new ones."""
+    camp = load_campaign(run)
+    cfg = camp.config
+    if not cfg.independent_seeds:
+        raise CampaignError(
+            f"{run}: nominal twins need a campaign with a track per sample "
+            "(independent_seeds); on a common track one nominal run serves every sample"
+        )
+    out = nominal_folder(run)
+    x0 = ParameterSet.nominal().to_array(cfg.simulated_parameters)
+    ids_all = camp.design()["sample_id"].to_numpy()
+    cfg_json = cfg.model_dump_json()
+    todo = [
+        (ci, b)
+        for ci, c in enumerate(cfg.conditions)
+        for b in range(cfg.n_batches)
+        if not batch_paths(out, c.name, b)[0].exists()
+    ]
+    total = len(cfg.conditions) * cfg.n_batches
+    done = total - len(todo)
+    if progress:
+        progress(done, total)
+    for ci, b in todo[:max_batches] if max_batches is not None else todo:
+        cond = cfg.conditions[ci]
+        ids = ids_all[b * cfg.batch_size : (b + 1) * cfg.batch_size]
+        seeds = track_seeds(cfg, cond)
+        res = simulate_task(cfg_json, ci, ids, np.tile(x0, (len(ids), 1)), seeds[ids])
+        _write_batch(out, b, res, cond.n_steps)
+        done += 1
+        if progress:
+            progress(done, total)
+    return out

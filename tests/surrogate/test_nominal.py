@@ -1,0 +1,140 @@
+"""The nominal response as a surrogate input (railsusp.surrogate.nominal): the campaign's
+nominal twins (railsusp.campaign.twins), the same forces simulated at prediction time, the
+target the network learns, and the nominal forces added back when it predicts."""
+
+import numpy as np
+import pytest
+import torch
+
+from railsusp.campaign import CampaignError, load_campaign, make_config, run_campaign
+from railsusp.campaign.twins import nominal_folder, run_nominal_twins, twins_complete
+from railsusp.conditions import get_condition
+from railsusp.params import ParameterSet
+from railsusp.surrogate import TrainConfig, feature_spec, train_surrogate
+from railsusp.surrogate.data import FeatureSpec, Normaliser, load_series, track_features
+from railsusp.surrogate.nominal import nominal_forces
+from railsusp.variation import full_ranges, sample_condition
+from railsusp.vehicle.simulate import measured_wheel_index, simulate_batch
+
+KEYS = ("X13", "X14")
+CURVE = get_condition("curve", duration_s=2.0, n_steps=100)
+FAMILY = {"irregularity_classes": (4, 6), "curve_radius_m": (250.0, 400.0), "cant_mm": (0, 100)}
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("twins") / "run"
+    cfg = make_config(
+        [CURVE],
+        12,
+        parameters=KEYS,
+        seed=3,
+        batch_size=6,
+        independent_seeds=True,
+        track_family=FAMILY,
+        other_parameters=full_ranges(KEYS),
+    )
+    run_campaign(cfg, out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def twins(run):
+    seen = []
+    run_nominal_twins(run, progress=lambda d, t: seen.append((d, t)), max_batches=1)
+    assert not twins_complete(run) and seen == [(0, 2), (1, 2)]
+    run_nominal_twins(run)
+    assert twins_complete(run)
+    return run
+
+
+def test_twins_resume_and_are_the_nominal_wagon_on_each_samples_track(twins):
+    """A twin is the nominal wagon on its sample's own class, radius, cant and seed; a
+    second call simulates nothing (it resumes from the stored batches)."""
+    files = sorted(nominal_folder(twins).rglob("batch-*.parquet"))
+    stamps = [f.stat().st_mtime_ns for f in files]
+    seen = []
+    run_nominal_twins(twins, progress=lambda d, t: seen.append((d, t)))
+    assert seen == [(2, 2)] and [f.stat().st_mtime_ns for f in files] == stamps
+    camp = load_campaign(twins)
+    row = camp.tracks("curve").iloc[4]
+    r = simulate_batch(
+        [ParameterSet.nominal()],
+        sample_condition(CURVE, row),
+        seeds=[int(row.seed)],
+        wagon=camp.config.wagon,
+        settings=camp.config.settings(),
+    )
+    spec = feature_spec(camp, KEYS, nominal_response=True)
+    data = load_series(camp, "curve", spec)
+    i = list(data.sample_ids).index(4)
+    j = measured_wheel_index(CURVE, "auto")
+    np.testing.assert_allclose(data.track[i, :, -2], r.Y[0, j] / 1e3, rtol=1e-5, atol=1e-3)
+    np.testing.assert_allclose(data.track[i, :, -1], r.Q[0, j] / 1e3, rtol=1e-5, atol=1e-3)
+    # what the network learns: the change from the nominal wagon, much smaller in Q
+    np.testing.assert_allclose(data.learned, data.targets - data.track[..., -2:])
+    assert np.abs(data.learned[..., 1]).mean() < 0.2 * np.abs(data.targets[..., 1]).mean()
+
+
+def test_prediction_time_nominal_equals_the_twin(twins):
+    """The nominal forces simulated when a surrogate predicts on a new track are those its
+    training read from the twins (same wheel, settings, lead-in and track)."""
+    camp = load_campaign(twins)
+    row = camp.tracks("curve").iloc[2]
+    cond = sample_condition(CURVE, row)
+    spec = feature_spec(camp, KEYS, nominal_response=True)
+    live = track_features(cond, int(row.seed), spec, camp.config.wagon)
+    data = load_series(camp, "curve", spec)
+    i = list(data.sample_ids).index(int(row.sample_id))
+    np.testing.assert_allclose(live, data.track[i], rtol=1e-4, atol=1e-3)
+    np.testing.assert_allclose(
+        live[:, -2:], nominal_forces(cond, int(row.seed), camp.config.wagon), rtol=1e-6
+    )
+
+
+def test_nominal_surrogate_adds_the_nominal_forces_back(twins, tmp_path):
+    """A surrogate with the nominal response predicts the nominal forces plus its network's
+    output: with the network's output layer zeroed and the learned targets' mean at zero it
+    predicts the nominal wagon exactly. Its inputs are two columns wider and it refuses a
+    track input without them."""
+    tcfg = TrainConfig(epochs=1, batches_per_epoch=2, batch_size=32, val_windows=200)
+    sur = train_surrogate(
+        twins,
+        "curve",
+        parameters=KEYS,
+        train=tcfg,
+        out=tmp_path / "s",
+        record_correction=False,
+        nominal_response=True,
+    )
+    plain = FeatureSpec(parameters=KEYS, track_channels=sur.spec.track_channels)
+    assert sur.spec.n_features == plain.n_features + 2
+    assert sur.spec.names()[-2:] == ["Y_nominal", "Q_nominal"]
+    last = [m for m in sur.net.modules() if isinstance(m, torch.nn.Linear)][-1]
+    with torch.no_grad():
+        last.weight.zero_()
+        last.bias.zero_()
+    sur.normaliser = Normaliser(
+        sur.normaliser.track_mean, sur.normaliser.track_std, [0.0, 0.0], [1.0, 1.0]
+    )
+    camp = load_campaign(twins)
+    data = load_series(camp, "curve", sur.spec)
+    x = np.array([[16e6, 8e6], [12e6, 6e6]])
+    pred = sur.predict(x, track=data.track[0])
+    w = sur.spec.window
+    for k in range(2):
+        np.testing.assert_allclose(pred[k, w:], data.track[0, w:, -2:], rtol=1e-6)
+    assert np.isnan(pred[:, :w]).all()
+    with pytest.raises(ValueError, match="track input has 18 columns, this surrogate reads 20"):
+        sur.predict(x, track=data.track[0, :, :-2])
+
+
+def test_twins_need_a_track_per_sample(tmp_path):
+    cond = get_condition("straight", duration_s=1.0, n_steps=50, lead_in_m=20.0)
+    out = tmp_path / "common"
+    run_campaign(make_config([cond], 2, parameters=KEYS, batch_size=2), out)
+    with pytest.raises(CampaignError, match="nominal twins need a campaign with a track per"):
+        run_nominal_twins(out)
+    spec = FeatureSpec(parameters=KEYS, nominal_response=True)
+    with pytest.raises(ValueError, match="nominal twins are missing or incomplete"):
+        load_series(load_campaign(out), "straight", spec)
