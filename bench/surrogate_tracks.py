@@ -39,7 +39,7 @@ from railsusp.campaign import CampaignConfig, load_campaign, make_config, run_ca
 from railsusp.campaign.twins import run_nominal_twins
 from railsusp.conditions import get_condition
 from railsusp.store import write_json
-from railsusp.surrogate import TrainConfig, feature_spec, load, train_surrogate
+from railsusp.surrogate import TrainConfig, feature_spec, key_parameters, load, train_surrogate
 from railsusp.surrogate.compare import compare
 from railsusp.surrogate.data import load_series
 from railsusp.surrogate.evaluate import accuracy, predict_with_alone
@@ -144,7 +144,7 @@ def nominal_rows(
     """Train the CNN-GRU that also reads the nominal wagon's forces on each track
     (:mod:`railsusp.surrogate.nominal`; saved under ``RUN/surrogates/cnn-gru-nominal/``) and
     score it on the same test runs."""
-    return network_rows(
+    rows = network_rows(
         run,
         condition,
         kind="cnn-gru",
@@ -154,6 +154,29 @@ def nominal_rows(
         split_seed=split_seed,
         nominal_response=True,
     )
+    return rows + nominal_alone_rows(run, condition, split_seed)
+
+
+def nominal_alone_rows(run: str | Path, condition: str, split_seed: int = 0) -> list[dict]:
+    """The nominal wagon's forces on each test run's track taken as the prediction (no
+    network, no parameters): how much of each run the track alone explains."""
+    camp = load_campaign(run)
+    spec = feature_spec(camp, key_parameters(run), 20, nominal_response=True)
+    data = load_series(camp, condition, spec)
+    split = campaign_split(camp, split_seed)
+    test = data.subset(split.positions(data.sample_ids, "test"))
+    pred = test.track[..., -spec.n_baseline :].astype(float)
+    held = {"held_out": split.held_out, "test_tracks": len(np.unique(test.seeds))}
+    return [
+        {
+            "condition": condition,
+            "model": "nominal wagon",
+            **r,
+            **held,
+            "relative_error_of_mean_network_alone": float("nan"),
+        }
+        for r in accuracy(test.targets.astype(float), pred, spec.targets, spec.window)
+    ]
 
 
 def variant_rows(

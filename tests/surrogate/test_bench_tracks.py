@@ -59,6 +59,25 @@ def test_table7_on_held_out_tracks(bench, tiny_run):
     assert rates["bp"] > 0 and np.isfinite(rates["bp"])
 
 
+def test_nominal_variant_and_the_nominal_wagon_alone(bench, tiny_run):
+    """``nominal=True`` makes the nominal twins, trains the CNN-GRU that reads them and
+    scores the nominal wagon's own forces as a prediction beside it."""
+    from railsusp.campaign.twins import twins_complete
+
+    tcfg = TrainConfig(epochs=1, batches_per_epoch=2, batch_size=32, val_windows=200)
+    table = bench.table_on_tracks(tiny_run, models=("bp",), train=tcfg, nominal=True)
+    assert twins_complete(tiny_run)
+    t7 = bench.table7_per_run(table)
+    assert list(t7.model) == ["bp", "cnn-gru-nominal", "nominal wagon"]
+    alone = t7[t7.model == "nominal wagon"].iloc[0]
+    # the nominal wagon explains part of each test run, not all of it (parameters differ)
+    assert 0.0 < alone["Y per run %"] < 100.0 and alone["Y R2"] < 1.0
+    sur = load(tiny_run / "surrogates" / "cnn-gru-nominal" / "straight")
+    assert sur.spec.nominal_response
+    rates = bench.inference_rates(tiny_run, "straight", ["cnn-gru-nominal"], threads=1, repeats=1)
+    assert rates["cnn-gru-nominal"] > 0
+
+
 def test_targets_are_judged_per_run_in_every_condition(bench):
     t7 = pd.DataFrame(
         {
