@@ -136,5 +136,5 @@ def test_twins_need_a_track_per_sample(tmp_path):
     with pytest.raises(CampaignError, match="nominal twins need a campaign with a track per"):
         run_nominal_twins(out)
     spec = FeatureSpec(parameters=KEYS, nominal_response=True)
-    with pytest.raises(ValueError, match="nominal twins are missing or incomplete"):
+    with pytest.raises(ValueError, match="nominal twins of 'straight' are missing or incomp"):
         load_series(load_campaign(out), "straight", spec)

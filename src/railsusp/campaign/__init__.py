@@ -17,6 +17,8 @@ Run directory::
     batches/<condition>/batch-NNNNN.features.parquet   tidy features of the batch
     batches/<condition>/batch-NNNNN.parquet            force series of the batch (float32)
     features.parquet                 all tidy features, written when the campaign completes
+    nominal/batches/<condition>/...  optional: each sample's track run with every parameter
+                                     nominal (railsusp.campaign.twins), same batch layout
 
 A batch counts as done when its series file exists (it is written last, atomically and
 fsynced, after its features file), so a campaign killed at any moment, or a power loss,

@@ -120,7 +120,9 @@ def features_table(
 
 
 # ------------------------------------------------------------------------------- store
-def _write_batch(out: Path, b: int, res: dict[str, Any], n_t: int) -> None:
+def write_batch(out: Path, b: int, res: dict[str, Any], n_t: int) -> None:
+    """Store batch ``b`` of a :func:`simulate_task` result under ``out/batches``: features,
+    then the series (atomically, last: its file marks the batch done)."""
     series_path, feat_path = batch_paths(out, res["condition"], b)
     write_parquet(feat_path, res["features"])
     s = res["series"]  # (n, channels, n_t)
@@ -246,7 +248,7 @@ def run_campaign(
 
     def finish(b: int, res: dict[str, Any]) -> None:
         nonlocal done_runs
-        _write_batch(out, b, res, n_t[res["condition"]])
+        write_batch(out, b, res, n_t[res["condition"]])
         done_runs += len(res["sample_ids"])
         if progress:
             progress(done_runs, total)

@@ -20,7 +20,7 @@ import numpy as np
 
 from railsusp.campaign.design import CampaignError, batch_paths, track_seeds
 from railsusp.campaign.results import load_campaign
-from railsusp.campaign.run import _write_batch, simulate_task
+from railsusp.campaign.run import simulate_task, write_batch
 from railsusp.params import ParameterSet
 
 #: sub-directory of a run directory holding its nominal twins
@@ -32,13 +32,15 @@ def nominal_folder(run: str | Path) -> Path:
     return Path(run) / NOMINAL_DIR
 
 
-def twins_complete(run: str | Path) -> bool:
-    """Whether every batch of every condition of the campaign has its nominal twin."""
+def twins_complete(run: str | Path, condition: str | None = None) -> bool:
+    """Whether every batch of the campaign (of ``condition`` only, when given) has its
+    nominal twin."""
     cfg = load_campaign(run).config
     out = nominal_folder(run)
     return all(
         batch_paths(out, c.name, b)[0].exists()
         for c in cfg.conditions
+        if condition is None or c.name == condition
         for b in range(cfg.n_batches)
     )
 
@@ -79,7 +81,7 @@ def run_nominal_twins(
         ids = ids_all[b * cfg.batch_size : (b + 1) * cfg.batch_size]
         seeds = track_seeds(cfg, cond)
         res = simulate_task(cfg_json, ci, ids, np.tile(x0, (len(ids), 1)), seeds[ids])
-        _write_batch(out, b, res, cond.n_steps)
+        write_batch(out, b, res, cond.n_steps)
         done += 1
         if progress:
             progress(done, total)

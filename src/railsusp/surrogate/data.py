@@ -265,9 +265,10 @@ def twin_forces(
     from railsusp.campaign.results import read_series
     from railsusp.campaign.twins import nominal_folder, twins_complete
 
-    if not twins_complete(campaign.path):
+    if not twins_complete(campaign.path, condition):
         raise ValueError(
-            f"{campaign.path}: the nominal twins are missing or incomplete; make them with "
+            f"{campaign.path}: the nominal twins of {condition!r} are missing or incomplete; "
+            "make them with "
             "`railsusp.campaign.twins.run_nominal_twins` before training with the nominal response"
         )
     twin_ids, series = read_series(nominal_folder(campaign.path), condition)
