@@ -238,6 +238,11 @@ def load_series(
     else:
         track = np.stack([per_key[k] for k in keys])
     if spec.nominal_response:
+        if w != measured_wheel_index(cond, "auto"):  # the wheel a prediction simulates
+            raise ValueError(
+                f"wheel {WHEEL_NAMES[w]}: the nominal response is read at the automatically "
+                f"chosen measured wheel ({WHEEL_NAMES[measured_wheel_index(cond, 'auto')]})"
+            )
         track = np.concatenate([track, twin_forces(campaign, condition, ids, w, spec)], axis=2)
     other_names = tuple(p for p in cfg.simulated_parameters if p not in spec.parameters)
     data = SeriesData(
