@@ -236,6 +236,13 @@ def shared_rail_normal_forces(a1, g1, a2, g2, m11, m12, m22):
     """
     n1, u1 = hertz_rail_solve(a1, g1, 1.0 / m11)  # (0, 0) for a1 <= 0
     n2, u2 = hertz_rail_solve(a2, g2, 1.0 / m22)
+    return shared_rail_newton(n1, u1, n2, u2, a1, g1, a2, g2, m11, m12, m22)
+
+
+@nb.njit(cache=True)
+def shared_rail_newton(n1, u1, n2, u2, a1, g1, a2, g2, m11, m12, m22):
+    """:func:`shared_rail_normal_forces` from the single-contact solutions (n_i, u_i = n_i^(1/3);
+    0 where a contact does not touch)."""
     if n2 == 0.0 or a2 - m12 * n1 <= 0.0:
         return n1, 0.0
     if n1 == 0.0 or a1 - m12 * n2 <= 0.0:
