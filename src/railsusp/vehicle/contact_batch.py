@@ -2,13 +2,14 @@
 
 The same force laws as :func:`railsusp.vehicle.wheel_rail.wheel_rail_forces` (one wheel,
 scalar), evaluated for all eight wheels in loops over the wheels that LLVM vectorises (one
-AVX-512 register holds the eight wheels' values): branch-free geometry (every table cell read
-for every wheel, the cases chosen by selects), the Hertz solves of tread and flange as
-Newton steps of all sixteen contact points in step until the slowest has converged, Kalker
-creep and saturation; cube root, sine and cosine from :mod:`railsusp.vehicle.vector_math`
-(the C library's are not vectorised). Only the flange's shared-rail 2 x 2 solve, needed by
-the wheels whose flange touches, runs wheel by wheel. Forces agree with the scalar kernel to
-round-off (tests/vehicle/test_contact_batch.py).
+AVX-512 register holds the eight wheels' values): branch-free geometry (both sides of every
+case computed, one selected), the Hertz solves of tread and flange as Newton steps of all
+sixteen contact points in step until the slowest has converged, Kalker creep and
+saturation; cube root, sine and cosine from :mod:`railsusp.vehicle.vector_math` (the C
+library's are not vectorised). Two parts run wheel by wheel: the contact table reads (gathers,
+which LLVM does not vectorise next to stores whose bounds it cannot check) and the flange's
+shared-rail 2 x 2 solve where a flange touches. Forces agree with the scalar kernel to
+round-off and the failure codes are the same (tests/vehicle/test_contact_batch.py).
 
 Every value lives in the work vector ``wk`` (rows of eight wheels, ``W_*``), which the right-
 hand side keeps in its output work array (``layout.OUT_CONTACT``): nothing is allocated.
@@ -322,7 +323,8 @@ def _forces(K, wk):
 @nb.njit(cache=True)
 def contact_forces_8(x, ctab, y0, dy, H0L, H0R, K, wk):
     """Contact forces of the eight wheels of state x into the work vector ``wk`` (module
-    docstring), given its rows W_KAPPA, W_RY, W_RZ, W_RVY, W_RVZ."""
+    docstring; exactly N_WORK long: its loops take their length from it), given its rows
+    W_KAPPA, W_RY, W_RZ, W_RVY, W_RVZ."""
     inv_dy = 1.0 / dy
     _read_tables(x, ctab, y0, inv_dy, H0L, H0R, K, wk, 0)
     _geometry(K, wk, 0)

@@ -6,7 +6,8 @@ and tests), rewritten for the right-hand side: every function returns its result
 (no array is allocated per evaluation), each trigonometric function of the contact angle is
 evaluated once per contact, and the fractional powers of the normal force are one cube root.
 The two-point contact (tread and flange acting together on one elastic rail) follows
-docs/model.md.
+docs/model.md. The right-hand side evaluates the eight wheels together with
+:mod:`railsusp.vehicle.contact_batch` (SIMD), which is tested against this kernel.
 
 Yawed wheelset (angle of attack psi, relative to the rail): the contact point of a wheel of
 revolution on a prismatic rail lies where the wheel's surface is parallel to the rail's, which
