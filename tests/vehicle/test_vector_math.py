@@ -6,7 +6,7 @@ import numpy as np
 
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.setup import contact_arrays
-from railsusp.vehicle.vector_math import SIN_COS_RANGE, cbrt_positive, sin_cos
+from railsusp.vehicle.vector_math import SIN_COS_RANGE, cbrt_positive, cbrt_rough, sin_cos
 from railsusp.vehicle.wagon import load_wagon
 
 
@@ -15,6 +15,14 @@ def _cbrt_all(a):
     out = np.empty_like(a)
     for i in range(a.size):
         out[i] = cbrt_positive(a[i])
+    return out
+
+
+@nb.njit(error_model="numpy")
+def _cbrt_rough_all(a):
+    out = np.empty_like(a)
+    for i in range(a.size):
+        out[i] = cbrt_rough(a[i])
     return out
 
 
@@ -33,6 +41,11 @@ def test_cbrt_within_a_few_ulp_of_the_c_library():
     ref = np.cbrt(x)
     assert np.max(np.abs(_cbrt_all(x) - ref) / np.spacing(ref)) <= 4
     assert _cbrt_all(np.array([8.0, 27.0, 1.0]))[0] == 2.0
+
+
+def test_rough_cbrt_is_a_start_within_1e_4():
+    x = np.geomspace(1e-200, 1e200, 40001)
+    assert np.max(np.abs(_cbrt_rough_all(x) / np.cbrt(x) - 1.0)) < 1e-4
 
 
 def test_sin_cos_within_round_off_over_their_range():

@@ -33,7 +33,7 @@ import numpy as np
 
 import railsusp.vehicle.kernel_cache  # noqa: F401  (before any kernel is compiled)
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.vector_math import cbrt_positive, sin_cos
+from railsusp.vehicle.vector_math import cbrt_positive, cbrt_rough, sin_cos
 from railsusp.vehicle.wheel_rail import (
     HERTZ_ITERATIONS,
     HERTZ_TOLERANCE,
@@ -175,7 +175,7 @@ def _geometry(K, wk, p):
         cc = krn * g
         d = krn * a
         touching = a > 0.0
-        ur = cbrt_positive(d if touching else 1.0)  # rail alone
+        ur = cbrt_rough(d if touching else 1.0)  # rail alone
         uh = math.sqrt(a / g if touching else 1.0)  # Hertz alone
         u0 = ur - cc / 3.0 + cc * cc / (9.0 * ur) if ur > cc else min(uh, ur)
         if gap > lift_max and wk[W_CODE * NW + c] == 0.0:
