@@ -4,7 +4,10 @@ States are captured from a straight and a curve run (nominal parameters, at 7, 9
 running, flanging in the curve), then ``rhs`` alone is evaluated on them many times in one
 compiled loop, single-threaded; the figure is the minimum over repeats of CPU time per
 evaluation. ``--reference-src DIR`` times another checkout's ``src`` in a subprocess in the
-same sitting (the right-hand side's signature has not changed), for an A/B ratio. Prints a
+same sitting (the right-hand side's signature has not changed), for an A/B ratio.
+``--contact`` also times the wheel-rail contact of the eight wheels alone on the same states,
+the scalar kernel (``wheel_rail.wheel_rail_forces`` wheel by wheel) against the SIMD one
+(``contact_batch.contact_forces_8``), and checks that they give the same forces. Prints a
 table and writes JSON (bench/results/rhs_profile.json).
 """
 
@@ -92,6 +95,7 @@ def main() -> None:
     ap.add_argument("--reps", type=int, default=10000)
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--reference-src", default=None, help="another checkout's src, for A/B")
+    ap.add_argument("--contact", action="store_true", help="also time the contact alone")
     ap.add_argument("--out", default="bench/results/rhs_profile.json")
     args = ap.parse_args()
     os.environ.setdefault("NUMBA_NUM_THREADS", "1")
@@ -113,8 +117,20 @@ def main() -> None:
         if args.reference_src:
             line += f" {row['reference_us_per_eval']:10.3f} {row['speed_up']:9.2f}"
         print(line)
-    out = write_json(args.out, {"date": time.strftime("%Y-%m-%d"), "rows": rows,
-                                "reference_src": args.reference_src})  # fmt: skip
+    contact = []
+    if args.contact:  # (imported here: a reference checkout may have no SIMD contact)
+        from contact_timing import time_contact
+
+        print(
+            f"{'contact of 8 wheels':<20} {'scalar ns':>10} {'SIMD ns':>8} {'max |dF|/max |F|':>17}"
+        )
+        for c in ("straight", "curve"):
+            row = time_contact(_states(c), args.reps, args.repeats)
+            contact.append({"condition": c, **row})
+            print(f"{c:<20} {row['scalar_ns']:10.0f} {row['simd_ns']:8.0f}"
+                  f" {row['max_rel_diff']:17.1e}")  # fmt: skip
+    result = {"date": time.strftime("%Y-%m-%d"), "rows": rows, "contact": contact}
+    out = write_json(args.out, {**result, "reference_src": args.reference_src})
     print(f"wrote {out}")
 
 

@@ -17,7 +17,7 @@ from pathlib import Path
 #: the modules with compiled kernels, and the layout they read
 KERNEL_SOURCES = (
     "layout.py", "suspension.py", "track_lookup.py", "wheel_rail.py", "model.py",
-    "integrate.py", "decay.py", "wheelset.py", "settle.py",
+    "integrate.py", "decay.py", "wheelset.py", "settle.py", "vector_math.py", "contact_batch.py",
 )  # fmt: skip
 
 

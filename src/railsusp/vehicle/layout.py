@@ -97,7 +97,11 @@ N_OUT = 18
 #: the fastest approach to its own flange (m/s) of the wheels within the watch distance of
 #: it (-1e9 when none is)
 OUT_FLANGE_RATE = N_OUT
-N_OUT_WORK = N_OUT + 1
+#: then the eight wheels' contact work vector (railsusp.vehicle.contact_batch), so that the
+#: right-hand side allocates nothing
+OUT_CONTACT = N_OUT + 1
+N_CONTACT_WORK = 63 * 8
+N_OUT_WORK = OUT_CONTACT + N_CONTACT_WORK
 
 #: wheel names, output order: wheelset w1 (leading) .. w4, left / right in the running direction
 WHEEL_NAMES = tuple(f"w{w + 1}{side}" for w in range(4) for side in ("L", "R"))

@@ -41,7 +41,9 @@ import math
 import numba as nb
 
 import railsusp.vehicle.kernel_cache  # noqa: F401  (before any kernel is compiled)
+from railsusp.vehicle import contact_batch as CB
 from railsusp.vehicle import layout as L
+from railsusp.vehicle.contact_batch import contact_forces_8
 from railsusp.vehicle.suspension import (
     bowl_ring_forces,
     damped_slider,
@@ -51,7 +53,6 @@ from railsusp.vehicle.suspension import (
     series_stiffness,
 )
 from railsusp.vehicle.track_lookup import track_frame, track_point, track_rate, track_value
-from railsusp.vehicle.wheel_rail import wheel_rail_forces
 
 _K = L.K
 
@@ -114,6 +115,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         acc[i] = 0.0
     # generalised forces accumulate in acc, divided by inertia at the end
     n_trk = trk.shape[1]
+    wk = out[L.OUT_CONTACT : L.OUT_CONTACT + L.N_CONTACT_WORK]  # contact work (contact_batch)
     flange_rate = -1.0e9  # fastest approach to its flange of a wheel near it (step control)
 
     # ---- catalogue parameters ----
@@ -306,39 +308,49 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
                 acc[iw + 1] -= f_z
                 acc[iw + 2] -= side * b1 * (f_z + K[I_F0P])
 
-            # ---- wheel-rail contact ----
-            zl = track_value(trk, L.TR_ZL, i_w, f_w)
-            zr = track_value(trk, L.TR_ZR, i_w, f_w)
-            yl = track_value(trk, L.TR_YL, i_w, f_w)
-            yr = track_value(trk, L.TR_YR, i_w, f_w)
-            vzl = track_rate(trk, L.TR_ZL, i_w, in_w, ds, V)
-            vzr = track_rate(trk, L.TR_ZR, i_w, in_w, ds, V)
-            vyl = track_rate(trk, L.TR_YL, i_w, in_w, ds, V)
-            vyr = track_rate(trk, L.TR_YR, i_w, in_w, ds, V)
+            # ---- wheel-rail contact: the rails under the wheelset, for the eight wheels'
+            # contacts evaluated together after both bogies (contact_batch) ----
             for sidx in range(2):
-                side = 1.0 if sidx == 0 else -1.0
+                c = 2 * w + sidx
                 left = sidx == 0
-                code, f_yw, f_zw, _, m_roll_w, m_yaw_w, _, shift, shift_rate = wheel_rail_forces(
-                    q[iw], q[iw + 1], q[iw + 2], q[iw + 3], v[iw], v[iw + 1], v[iw + 2],
-                    v[iw + 3], kap_w, side, yl if left else yr, zl if left else zr,
-                    vyl if left else vyr, vzl if left else vzr, ctab, y0, dy,
-                    H0L if left else H0R, K[I_Z0L] if left else K[I_Z0R], K,
-                )  # fmt: skip
-                if code != 0:
-                    return code
-                if shift > K[I_WATCH]:
-                    flange_rate = max(flange_rate, shift_rate)
-                acc[iw] += f_yw
-                acc[iw + 1] += f_zw - K[I_Q0]
-                acc[iw + 2] += m_roll_w
-                acc[iw + 3] += m_yaw_w
-                # outputs: force on the rail; Y + outward (field side), Q + down
-                out[L.OUT_Y + 2 * w + sidx] = -side * f_yw
-                out[L.OUT_Q + 2 * w + sidx] = f_zw
-            # gyroscopic coupling of the spinning wheelset (spin V / r0 about +y)
-            h_spin = Iy_w * V / K[I_R0]
-            acc[iw + 2] += h_spin * v[iw + 3]
-            acc[iw + 3] -= h_spin * v[iw + 2]
+                wk[CB.W_KAPPA * CB.NW + c] = kap_w
+                wk[CB.W_RY * CB.NW + c] = track_value(trk, L.TR_YL if left else L.TR_YR, i_w, f_w)
+                wk[CB.W_RZ * CB.NW + c] = track_value(trk, L.TR_ZL if left else L.TR_ZR, i_w, f_w)
+                wk[CB.W_RVY * CB.NW + c] = track_rate(
+                    trk, L.TR_YL if left else L.TR_YR, i_w, in_w, ds, V
+                )
+                wk[CB.W_RVZ * CB.NW + c] = track_rate(
+                    trk, L.TR_ZL if left else L.TR_ZR, i_w, in_w, ds, V
+                )
+
+    # ---- wheel-rail contact forces (the eight wheels together) ----
+    contact_forces_8(x, ctab, y0, dy, H0L, H0R, K, wk)
+    r0 = K[I_R0]
+    h_spin = Iy_w * V / r0  # spinning wheelset's angular momentum (spin V / r0 about +y)
+    for w in range(4):
+        iw = WS0 + 4 * w
+        for sidx in range(2):
+            c = 2 * w + sidx
+            side = 1.0 if sidx == 0 else -1.0
+            code = int(wk[CB.W_CODE * CB.NW + c])
+            if code != 0:
+                return code
+            shift = side * (q[iw] + r0 * q[iw + 2] - wk[CB.W_RY * CB.NW + c])
+            if shift > K[I_WATCH]:
+                shift_rate = side * (v[iw] + r0 * v[iw + 2] - wk[CB.W_RVY * CB.NW + c])
+                flange_rate = max(flange_rate, shift_rate)
+            f_yw = wk[CB.W_FY * CB.NW + c]
+            f_zw = wk[CB.W_FZ * CB.NW + c]
+            acc[iw] += f_yw
+            acc[iw + 1] += f_zw - K[I_Q0]
+            acc[iw + 2] += wk[CB.W_MX * CB.NW + c]
+            acc[iw + 3] += wk[CB.W_MZ * CB.NW + c]
+            # outputs: force on the rail; Y + outward (field side), Q + down
+            out[L.OUT_Y + c] = -side * f_yw
+            out[L.OUT_Q + c] = f_zw
+        # gyroscopic coupling of the spinning wheelset
+        acc[iw + 2] += h_spin * v[iw + 3]
+        acc[iw + 3] -= h_spin * v[iw + 2]
 
     # ---- divide by inertia ----
     acc[L.CB_Y] /= m_c

@@ -6,7 +6,8 @@ and tests), rewritten for the right-hand side: every function returns its result
 (no array is allocated per evaluation), each trigonometric function of the contact angle is
 evaluated once per contact, and the fractional powers of the normal force are one cube root.
 The two-point contact (tread and flange acting together on one elastic rail) follows
-docs/model.md.
+docs/model.md. The right-hand side evaluates the eight wheels together with
+:mod:`railsusp.vehicle.contact_batch` (SIMD), which is tested against this kernel.
 
 Yawed wheelset (angle of attack psi, relative to the rail): the contact point of a wheel of
 revolution on a prismatic rail lies where the wheel's surface is parallel to the rail's, which
@@ -236,6 +237,13 @@ def shared_rail_normal_forces(a1, g1, a2, g2, m11, m12, m22):
     """
     n1, u1 = hertz_rail_solve(a1, g1, 1.0 / m11)  # (0, 0) for a1 <= 0
     n2, u2 = hertz_rail_solve(a2, g2, 1.0 / m22)
+    return shared_rail_newton(n1, u1, n2, u2, a1, g1, a2, g2, m11, m12, m22)
+
+
+@nb.njit(cache=True)
+def shared_rail_newton(n1, u1, n2, u2, a1, g1, a2, g2, m11, m12, m22):
+    """:func:`shared_rail_normal_forces` from the single-contact solutions (n_i, u_i = n_i^(1/3);
+    0 where a contact does not touch)."""
     if n2 == 0.0 or a2 - m12 * n1 <= 0.0:
         return n1, 0.0
     if n1 == 0.0 or a1 - m12 * n2 <= 0.0:
