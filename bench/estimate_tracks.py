@@ -141,11 +141,25 @@ def set_recordings(
 ) -> tuple[ParameterSet, list]:
     """Set ``index``'s truth (all ten parameters ``truth_si``, the rest nominal) and its
     recordings on their measured track (``args``: seed, noise, duration, track_noise),
-    synthesised into ``work/set-NN`` unless already written there for this truth."""
+    synthesised into ``work/set-NN`` unless already written there for this truth and these
+    conditions."""
     truth = ParameterSet.nominal().replace(dict(zip(MAIN_SUSPENSION, truth_si, strict=True)))
     folder = work / f"set-{index:02d}"
     done = folder / "truth.json"
-    if not done.exists() or read_json(done)["parameters_display"] != truth.to_display():
+    made = folder / "synthesis.json"  # what the recordings were made with
+    wanted = {
+        "conditions": [c.model_dump(mode="json") for c in conditions],
+        "seed": args.seed * 1000 + index,
+        "noise": args.noise,
+        "duration_s": args.duration,
+        "track_noise_mm": args.track_noise,
+    }
+    if (
+        not done.exists()
+        or read_json(done)["parameters_display"] != truth.to_display()
+        or not made.exists()
+        or read_json(made) != wanted
+    ):
         synthesise_field(
             truth,
             conditions,
@@ -156,6 +170,7 @@ def set_recordings(
             with_track=True,
             track_noise_mm=args.track_noise,
         )
+        write_json(made, wanted)
     return truth, read_field(folder)
 
 

@@ -73,3 +73,21 @@ def test_tiny_run_writes_its_json_and_resumes_per_set(bench, tmp_path):
     third = bench.main([*argv[:-2], "--out", str(out), "--seed", "1"])
     assert [s["set"] for s in third["per_set"]] == [0]
     assert third["per_set"][0]["truth_display"] != s0["truth_display"]
+
+
+def test_recordings_are_made_again_for_other_conditions(bench, tmp_path):
+    """A set's recordings are reused only when made for the same conditions and settings:
+    a folder written for one condition is not read as the recordings of another."""
+    import argparse
+
+    args = argparse.Namespace(seed=0, noise=0.03, duration=2.0, track_noise=0.5)
+    straight = get_condition("straight").with_duration(2.0)
+    curve = get_condition("curve").with_duration(2.0)
+    truth = bench.draw_sets(1, seed=0)[0]
+    _, recs = bench.set_recordings(0, truth, [straight], tmp_path, args)
+    assert [r.condition.name for r in recs] == ["straight"]
+    _, again = bench.set_recordings(0, truth, [straight, curve], tmp_path, args)
+    assert sorted(r.condition.name for r in again) == ["curve", "straight"]
+    stamp = (tmp_path / "set-00" / "synthesis.json").stat().st_mtime_ns
+    bench.set_recordings(0, truth, [straight, curve], tmp_path, args)  # reused
+    assert (tmp_path / "set-00" / "synthesis.json").stat().st_mtime_ns == stamp
