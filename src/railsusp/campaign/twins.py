@@ -2,12 +2,9 @@
 parameter at its nominal value.
 
 A surrogate that reads the nominal wagon's forces on the same track as an input
-(:attr:`railsusp.surrogate.data.FeatureSpec.nominal_response`) only has to learn what the
-parameters change, not the whole response to the track: on 20 s of Class 4-6 track the
-nominal wagon's lateral force alone explains a median 0.89-0.94 of the variance of a wagon
-with other parameters drawn over the middle 80 % of their ranges (0.97 in the curve;
-bench/README.md, "nominal response"), where a window network reading the track reached
-0.55 on tangent. The twins are stored beside the campaign (``<run>/nominal/batches/...``,
+(:attr:`railsusp.surrogate.data.FeatureSpec.nominal_response`, :mod:`railsusp.surrogate.nominal`)
+only has to learn what the parameters change, not the whole response to the track.
+The twins are stored beside the campaign (``<run>/nominal/batches/...``,
 the campaign's batch layout), batch by batch and atomically, so that a run resumes.
 """
 
