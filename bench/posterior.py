@@ -59,7 +59,7 @@ def main() -> None:
     ap.add_argument("--conditions", default="straight")
     ap.add_argument("--parameters", default=",".join(MAIN_SUSPENSION))
     ap.add_argument("--section", type=float, default=5.0)
-    ap.add_argument("--lead-in", type=float, default=30.0)
+    ap.add_argument("--lead-in", type=float, default=30.0, help="m; a curve keeps at least its own")
     ap.add_argument("--train", type=int, default=600)
     ap.add_argument("--calibration", type=int, default=200, help="cases fitting the correction")
     ap.add_argument("--check", type=int, default=200, help="untouched test cases")
@@ -70,6 +70,9 @@ def main() -> None:
     ap.add_argument("--lengths", default="5,10,20,40", help="record lengths checked, s")
     ap.add_argument("--sets", type=int, default=0, help="middle-80 %% sets identified (0: none)")
     ap.add_argument("--set-length", type=float, default=600.0, help="their record length, s")
+    ap.add_argument(
+        "--set-lengths", default=None, help="lengths they are scored at, s (default --lengths)"
+    )
     ap.add_argument("--keys", default=KEYS, help="key parameters of the verdict")
     ap.add_argument("--hidden", type=int, default=50, help="flow: hidden features")
     ap.add_argument("--transforms", type=int, default=5, help="flow: number of transforms")
@@ -78,7 +81,10 @@ def main() -> None:
     sections = sorted({max(1, round(float(v) / a.section)) for v in a.lengths.split(",")})
     many = [k for k in sections if k > 1]
     counts = long_counts(a.long, len(many))
-    conds = [c.with_changes(lead_in_m=a.lead_in) for c in resolve_conditions(a.conditions)]
+    conds = [  # a curve keeps its own lead-in, which holds its entry (a longer one stays)
+        c.with_changes(lead_in_m=max(a.lead_in, c.lead_in_m if c.curve_radius_m else 0.0))
+        for c in resolve_conditions(a.conditions)
+    ]
     settings = PosteriorSettings(
         tuple(conds),
         parameters=tuple(a.parameters.split(",")),
@@ -109,7 +115,9 @@ def main() -> None:
     ident, verdicts = None, []
     if a.sets:
         t1 = time.perf_counter()
-        _, x, ident = identification(est, a.run, a.sets, a.set_length, lengths_s(a.lengths))
+        _, x, ident = identification(
+            est, a.run, a.sets, a.set_length, lengths_s(a.set_lengths or a.lengths)
+        )
         print(f"\nidentification of {a.sets} sets: {time.perf_counter() - t1:.0f} s")
         keys = a.keys.split(",")
         print_tables(ident, names, keys)

@@ -274,6 +274,20 @@ def test_cached_cases_simulate_given_draws_and_refuse_a_wrong_shape(tmp_path, mo
         posterior_data.cached_cases(s, tmp_path, "identification", 3, 2, draws=u[:2])
 
 
+def test_a_curve_must_be_steady_under_the_wagon_in_every_section():
+    """The sections of a long recording of a curve are steady curving; a training section
+    that holds the entry (curve from 20 m, 60 m spiral, a wagon of about 10 m) is not
+    like them, nor a record that outlasts the arc."""
+    curve = get_condition("curve")
+    PosteriorSettings((curve,), product_sections=(30,))  # lead-in 100 m: in the arc
+    with pytest.raises(RailsuspInputError, match=r"lead_in_m = 30 m .* accepted at least 90"):
+        PosteriorSettings((curve.with_changes(lead_in_m=30.0),))
+    short = curve.with_changes(arc_length_m=500.0)  # 30 s at 60 km/h
+    PosteriorSettings((short,), section_s=20.0)
+    with pytest.raises(RailsuspInputError, match=r"arc_length_m = 500 m .* within the 40 s"):
+        PosteriorSettings((short,), section_s=20.0, product_sections=(2,))
+
+
 def test_ranks_and_bad_shapes():
     samples = np.array([[[1.0], [2.0], [3.0]]])
     assert calibration.ranks(samples, np.array([[2.5]])).tolist() == [[2]]
