@@ -479,6 +479,7 @@ def test_cli_estimate_prints_the_table(trained, tmp_path):
         (["train", "--product-sections", "two"], "--product-sections two: accepted whole"),
         (["train", "--conditions", "nowhere"], "nowhere"),
         (["train", "--lead-in", "-5"], "--lead-in -5"),
+        (["train", "--conditions", "curve", "--lead-in", "30"], "accepted at least 90.03 m"),
         (["estimate", "--measured", "MISSING", "--estimator", "RUN"], "MISSING"),
     ],
 )
