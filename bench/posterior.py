@@ -27,7 +27,8 @@ the identification of parameter sets in the middle of the ranges against record 
    interval width and the median error of the posterior median (% of range), and the
    issue's verdict on the key parameters (``--keys``): identifiable (median width at most
    45 % of range, half the prior's), >= 80 % of them within 5 % of range, median width
-   <= 10 % of range. A length above the longest checked one is marked not calibrated.
+   <= 10 % of range. A length above the longest checked one, or whose check failed or
+   needed a widening flagged excessive (above 2), is marked not calibrated.
 4. The time of one recording's posterior (the longest length available).
 """
 
@@ -276,7 +277,7 @@ def score_sets(est, x: np.ndarray, u: np.ndarray, lengths: list[int]) -> list[di
             {
                 "sections": k,
                 "length_s": k * s.section_s,
-                "calibrated": k == 1 or est.product_for(k) is not None,
+                "calibrated": _calibrated(est, k),
                 "sets": int(ok.sum()),
                 "median_error_pct": dict(
                     zip(s.parameters, np.median(err, 0).round(1).tolist(), strict=True)
@@ -290,6 +291,16 @@ def score_sets(est, x: np.ndarray, u: np.ndarray, lengths: list[int]) -> list[di
             }
         )
     return rows
+
+
+def _calibrated(est, k: int) -> bool:
+    """Whether the estimator's check covers k sections and passed without an excessive
+    widening (one section: its own check; several: that of the smallest checked number
+    >= k)."""
+    if k == 1:
+        return bool(est.calibrated)
+    product = est.product_for(k)
+    return product is not None and bool(product.passed)
 
 
 def verdict(row: dict, keys: list[str]) -> dict:

@@ -2,6 +2,8 @@
 truth (analytic draws), the issue's verdict, the lengths it scores and which of them it
 calls calibrated, and its --long counts."""
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -55,8 +57,12 @@ class _Shrinking:
         rng = np.random.default_rng(seed)
         return x.mean(axis=0) + 0.2 / np.sqrt(k) * rng.standard_normal((n, x.shape[1]))
 
+    calibrated = True
+
     def product_for(self, sections):
-        return "checked" if sections <= self.checked else None
+        if sections > self.checked:
+            return None
+        return SimpleNamespace(passed=sections < self.checked)  # the longest one flagged
 
 
 def test_score_sets_narrow_with_length_and_mark_unchecked_lengths(bench):
@@ -68,8 +74,11 @@ def test_score_sets_narrow_with_length_and_mark_unchecked_lengths(bench):
     x[3, 5] = np.nan  # a failed simulation: the set is left out
     rows = bench.score_sets(_Shrinking(s, 4), x, u, [1, 4, 16])
     assert [(r["sections"], r["length_s"], r["calibrated"], r["sets"]) for r in rows] == [
-        (1, 20.0, True, 39), (4, 80.0, True, 39), (16, 320.0, False, 39)
-    ]  # fmt: skip
+        (1, 20.0, True, 39),
+        (4, 80.0, False, 39),
+        (16, 320.0, False, 39),
+    ]  # fmt: skip  (4: checked, but its check failed or widened too much; 16: not checked)
+    assert bench.score_sets(_Shrinking(s, 5), x, u, [4])[0]["calibrated"]
     for r, k in zip(rows, (1, 4, 16), strict=True):
         # the 90 % interval of N(., (0.2/sqrt k)^2) is 2 * 1.645 * 0.2 / sqrt(k) wide
         expect = 100 * 2 * 1.645 * 0.2 / np.sqrt(k)
@@ -115,10 +124,11 @@ def test_identification_simulates_the_sets_for_the_longest_length(bench, monkeyp
     monkeypatch.setattr(bench, "cached_cases", cases)
     s = _settings()
     u, x, rows = bench.identification(_Shrinking(s, 6), tmp_path, 5, 600.0, [20, 120, 300, 900])
+    # 120 s is 6 sections, checked but flagged; 300 s and the 600 s record not checked
     assert calls == [("identification", 5, 30)] and x.shape == (5, 30, 2)
     assert np.array_equal(u, bench.middle_draws(s, 5))
     assert [(r["sections"], r["calibrated"]) for r in rows] == [
-        (1, True), (6, True), (15, False), (30, False)
+        (1, True), (6, False), (15, False), (30, False)
     ]  # fmt: skip
 
 
