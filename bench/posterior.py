@@ -1,10 +1,12 @@
 """Simulation-based posterior: coverage before and after the spread correction, on the
-calibration cases and on untouched test cases, one section and products of sections
+calibration cases and on untouched test cases, one section and products of sections; and
+the identification of parameter sets in the middle of the ranges against record length
 (issue 20). Prints the tables and writes JSON.
 
     python bench/posterior.py                 # small scale, bench/results/posterior.json
-    python bench/posterior.py --train 10000 --calibration 200 --check 200 --section 20 \\
-        --conditions straight,curve --lengths 20,60,120,600 --long 200  # the issue's scale
+    python bench/posterior.py --train 3000 --calibration 200 --check 200 --section 20 \\
+        --conditions straight,curve --lengths 20,40,60,120,300,600 \\
+        --long 200,200,200,100,100 --sets 12 --set-length 600   # near the issue's scale
 
 1. Trains (or resumes, ``--run``) the estimator: ``--train`` cases drawn from the Table 2
    prior, a new track realisation each, ``--section`` seconds per condition, an ensemble of
@@ -16,7 +18,18 @@ calibration cases and on untouched test cases, one section and products of secti
    the longest length on one track and cut into consecutive sections; per length the
    coverage before and after that length's correction, the widening factors and the
    median 90 % interval width (% of range). All of it is the estimator's stored record
-   (posterior/calibration.json), printed and copied into the JSON.
+   (posterior/calibration.json), printed and copied into the JSON. ``--long`` is one count
+   for every length, or one per length above one section (the longest records, costliest
+   to simulate, checked on fewer cases).
+3. With ``--sets N``: N parameter sets in the middle 80 % of every range, each simulated
+   for ``--set-length`` seconds per condition on a track of its own, their posterior at
+   every length of ``--lengths`` up to that; per length and parameter the median 90 %
+   interval width and the median error of the posterior median (% of range), and the
+   issue's verdict on the key parameters (``--keys``): identifiable (median width at most
+   45 % of range, half the prior's), >= 80 % of them within 5 % of range, median width
+   <= 10 % of range. A length above the longest checked one, or whose check failed or
+   needed a widening flagged excessive (above 2), is marked not calibrated.
+4. The time of one recording's posterior (the longest length available).
 """
 
 from __future__ import annotations
@@ -29,10 +42,15 @@ from pathlib import Path
 import numpy as np
 
 from railsusp.conditions import resolve_conditions
+from railsusp.errors import RailsuspInputError
 from railsusp.estimate import posterior
-from railsusp.estimate.posterior_data import PosteriorSettings, cached_cases
+from railsusp.estimate.calibration import LEVEL
+from railsusp.estimate.posterior_data import PosteriorSettings, cached_cases, prior_draws
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import read_json
+
+#: the key parameters of the current model (Sobol re-run of the sensitivity, 2026-11-24)
+KEYS = "X18,X13,X11,X14,X19"
 
 
 def main() -> None:
@@ -42,19 +60,32 @@ def main() -> None:
     ap.add_argument("--conditions", default="straight")
     ap.add_argument("--parameters", default=",".join(MAIN_SUSPENSION))
     ap.add_argument("--section", type=float, default=5.0)
-    ap.add_argument("--lead-in", type=float, default=30.0)
+    ap.add_argument("--lead-in", type=float, default=30.0, help="m; a curve keeps at least its own")
     ap.add_argument("--train", type=int, default=600)
     ap.add_argument("--calibration", type=int, default=200, help="cases fitting the correction")
     ap.add_argument("--check", type=int, default=200, help="untouched test cases")
     ap.add_argument("--ensemble", type=int, default=1, help="flows in the ensemble")
-    ap.add_argument("--long", type=int, default=200, help="cases per set of several sections")
+    ap.add_argument(
+        "--long", default="200", help="cases per set of several sections: one, or one per length"
+    )
     ap.add_argument("--lengths", default="5,10,20,40", help="record lengths checked, s")
+    ap.add_argument("--sets", type=int, default=0, help="middle-80 %% sets identified (0: none)")
+    ap.add_argument("--set-length", type=float, default=600.0, help="their record length, s")
+    ap.add_argument(
+        "--set-lengths", default=None, help="lengths they are scored at, s (default --lengths)"
+    )
+    ap.add_argument("--keys", default=KEYS, help="key parameters of the verdict")
     ap.add_argument("--hidden", type=int, default=50, help="flow: hidden features")
     ap.add_argument("--transforms", type=int, default=5, help="flow: number of transforms")
     a = ap.parse_args()
 
     sections = sorted({max(1, round(float(v) / a.section)) for v in a.lengths.split(",")})
-    conds = [c.with_changes(lead_in_m=a.lead_in) for c in resolve_conditions(a.conditions)]
+    many = [k for k in sections if k > 1]
+    counts = long_counts(a.long, len(many))
+    conds = [  # a curve keeps its own lead-in, which holds its entry (a longer one stays)
+        c.with_changes(lead_in_m=max(a.lead_in, c.lead_in_m if c.curve_radius_m else 0.0))
+        for c in resolve_conditions(a.conditions)
+    ]
     settings = PosteriorSettings(
         tuple(conds),
         parameters=tuple(a.parameters.split(",")),
@@ -63,8 +94,9 @@ def main() -> None:
         n_check=a.check,
         n_calibration=a.calibration,
         ensemble=a.ensemble,
-        product_sections=tuple(k for k in sections if k > 1),
-        n_product=a.long,
+        product_sections=tuple(many),
+        n_product=counts[0] if counts else 200,
+        product_cases=counts if len(set(counts)) > 1 else (),
         hidden_features=a.hidden,
         num_transforms=a.transforms,
     )
@@ -80,14 +112,29 @@ def main() -> None:
         _row(p["sections"], a.section, p) for p in record["products"]
     ]
     _length_table(rows, names)
-    k = max(sections)
-    _, x = cached_cases(settings, Path(a.run) / "posterior" / "simulations", "long", a.long, k)
+    _width_table(rows, names)
+    ident, verdicts = None, []
+    if a.sets:
+        t1 = time.perf_counter()
+        _, x, ident = identification(
+            est, a.run, a.sets, a.set_length, lengths_s(a.set_lengths or a.lengths)
+        )
+        print(f"\nidentification of {a.sets} sets: {time.perf_counter() - t1:.0f} s")
+        keys = a.keys.split(",")
+        print_tables(ident, names, keys)
+        verdicts = [verdict(r, keys) for r in ident]
+    else:
+        n, longest, _ = settings.product_sets()[-1] if many else (a.check, 1, ())
+        folder = Path(a.run) / "posterior" / "simulations"
+        _, x = cached_cases(settings, folder, "long" if many else "check", n, longest)
+        x = x[:, None, :] if x.ndim == 2 else x
+    k = x.shape[1]
     t_est = []
     for i, xi in enumerate(x[np.all(np.isfinite(x), axis=(1, 2))][:5]):
         t1 = time.perf_counter()
         est.sample(xi[:k], settings.samples, seed=i)
         t_est.append(time.perf_counter() - t1)
-    print(f"posterior of {k} sections: median {np.median(t_est):.2f} s over 5 cases")
+    print(f"posterior of {k} sections: median {np.median(t_est):.2f} s over {len(t_est)} cases")
     out = {
         "date": time.strftime("%Y-%m-%d"),
         "settings": settings.to_dict(),
@@ -95,10 +142,41 @@ def main() -> None:
         "calibration_record": record,
         "coverage_against_length": rows,
         "estimate_s_median": float(np.median(t_est)),
+        "estimate_sections": k,
+        "identification": ident,
+        "identification_verdicts": verdicts,
     }
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(out, indent=2) + "\n")
     print(f"wrote {a.out}")
+
+
+def lengths_s(text: str) -> list[float]:
+    return [float(v) for v in text.split(",") if v.strip()]
+
+
+def long_counts(text: str, lengths: int) -> tuple[int, ...]:
+    """``--long``: one count for every length above one section, or one per length."""
+    try:
+        counts = tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        counts = ()
+    if not counts or (len(counts) != 1 and len(counts) != lengths):
+        raise RailsuspInputError(
+            f"--long {text}: accepted one whole number, or one per length above one section "
+            f"({lengths})"
+        )
+    return counts * lengths if len(counts) == 1 else counts
+
+
+def _width_table(rows: list[dict], names: list[str]) -> None:
+    """Median 90 % interval width (% of range) per parameter against record length, on
+    the untouched test cases (prior draws) after that length's correction."""
+    print("\nmedian 90 % interval width, % of range, untouched test cases (prior draws)")
+    print(f"{'length s':>8} {'cases':>5} " + " ".join(f"{p:>5}" for p in names))
+    for r in rows:
+        cells = " ".join(f"{r['median_width_pct'][p]:5.1f}" for p in names)
+        print(f"{r['length_s']:8g} {r['cases']:5d} {cells}")
 
 
 def _coverage_table(record: dict, names: list[str]) -> None:
@@ -154,6 +232,142 @@ def _length_table(rows: list[dict], names: list[str]) -> None:
         if r["factors"]:
             cells = " ".join(f"{r['factors'][p]:9.2f}" for p in names)
             print(f"{'':>8} {'':>4} {'':>5} {cells}  (widening)")
+
+
+#: a median within this share of the range counts as identified (the issue's target)
+WITHIN = 5.0
+#: a key parameter counts as identifiable when its median 90 % interval at the longest
+#: length is at most this wide (% of range): half the prior's own 90 % interval
+IDENTIFIABLE_WIDTH = 45.0
+
+
+def middle_draws(settings: PosteriorSettings, n: int) -> np.ndarray:
+    """(n, 10) parameter sets, fractions of the ranges of X11-X20, in the middle 80 % of
+    every range: a Latin hypercube (each parameter's n values one in each of n equal strata
+    of [0.1, 0.9]), reproducible from the settings' seed."""
+    return 0.1 + 0.8 * prior_draws(settings, "identification", n)
+
+
+def interval_scores(draws: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]:
+    """Per parameter of draws (S, d) on the unit box and the truth (d,): the median's
+    error and the central 90 % interval's width (% of range), and whether it holds the
+    truth."""
+    lo, med, hi = np.quantile(draws, [(1 - LEVEL) / 2, 0.5, (1 + LEVEL) / 2], axis=0)
+    return {
+        "error_pct": 100.0 * np.abs(med - truth),
+        "width_pct": 100.0 * (hi - lo),
+        "covered": (truth >= lo) & (truth <= hi),
+    }
+
+
+def score_sets(est, x: np.ndarray, u: np.ndarray, lengths: list[int]) -> list[dict]:
+    """One row per number of sections k in ``lengths``: per parameter the median over the
+    sets of the error and the width (% of range), the coverage, and the per-set values;
+    ``x`` (sets, sections, D) summaries, ``u`` (sets, 10) truths (fractions of range).
+    Sets whose simulation failed (NaN) are left out."""
+    s = est.settings
+    cols = [MAIN_SUSPENSION.index(p) for p in s.parameters]
+    ok = np.all(np.isfinite(x), axis=(1, 2))
+    rows = []
+    for k in lengths:
+        per = [interval_scores(est.sample(xi[:k], s.samples, seed=i), ui[cols])
+               for i, (xi, ui) in enumerate(zip(x[ok], u[ok], strict=True))]  # fmt: skip
+        err, width, cov = (np.array([p[key] for p in per]) for key in per[0])
+        rows.append(
+            {
+                "sections": k,
+                "length_s": k * s.section_s,
+                "calibrated": _calibrated(est, k),
+                "sets": int(ok.sum()),
+                "median_error_pct": dict(
+                    zip(s.parameters, np.median(err, 0).round(1).tolist(), strict=True)
+                ),
+                "median_width_pct": dict(
+                    zip(s.parameters, np.median(width, 0).round(1).tolist(), strict=True)
+                ),
+                "coverage": dict(zip(s.parameters, cov.mean(0).round(3).tolist(), strict=True)),
+                "error_pct": {p: err[:, j].round(2).tolist() for j, p in enumerate(s.parameters)},
+                "width_pct": {p: width[:, j].round(2).tolist() for j, p in enumerate(s.parameters)},
+            }
+        )
+    return rows
+
+
+def _calibrated(est, k: int) -> bool:
+    """Whether the estimator's check covers k sections and passed without an excessive
+    widening (one section: its own check; several: that of the smallest checked number
+    >= k)."""
+    if k == 1:
+        return bool(est.calibrated)
+    product = est.product_for(k)
+    return product is not None and bool(product.passed)
+
+
+def verdict(row: dict, keys: list[str]) -> dict:
+    """The issue's target on one length's row: the key parameters identifiable (median
+    width at most :data:`IDENTIFIABLE_WIDTH`), the share of their (set, parameter) medians
+    within :data:`WITHIN` % of range, and the median width over the identifiable ones;
+    the same share over all keys."""
+    keys = [k for k in keys if k in row["error_pct"]]
+    ident = [k for k in keys if row["median_width_pct"][k] <= IDENTIFIABLE_WIDTH]
+
+    def share(names: list[str]) -> float | None:
+        errs = [e for k in names for e in row["error_pct"][k]]
+        return float(np.mean(np.array(errs) <= WITHIN)) if errs else None
+
+    widths = [w for k in ident for w in row["width_pct"][k]]
+    return {
+        "length_s": row["length_s"],
+        "calibrated": row["calibrated"],
+        "keys": keys,
+        "identifiable": ident,
+        "within_5pct_identifiable": share(ident),
+        "within_5pct_all_keys": share(keys),
+        "median_width_pct_identifiable": float(np.median(widths)) if widths else None,
+        "targets_met": bool(
+            ident and share(ident) >= 0.8 and float(np.median(widths)) <= 10.0 and row["calibrated"]
+        ),
+    }
+
+
+def identification(est, run: str | Path, n: int, length_s: float, lengths_s: list[float]):
+    """Simulate (or read) ``n`` middle-80 % sets of ``length_s`` per condition and score
+    their posterior at every record length of ``lengths_s`` up to it (and at ``length_s``):
+    (truths u (n, 10), summaries x, rows of :func:`score_sets`)."""
+    s = est.settings
+    longest = max(1, round(length_s / s.section_s))
+    ks = sorted({max(1, round(v / s.section_s)) for v in lengths_s} | {longest})
+    u = middle_draws(s, n)
+    folder = Path(run) / "posterior" / "simulations"
+    _, x = cached_cases(s, folder, "identification", n, longest, draws=u)
+    x = x[:, None, :] if x.ndim == 2 else x
+    return u, x, score_sets(est, x, u, [k for k in ks if k <= longest])
+
+
+def print_tables(rows: list[dict], names: list[str], keys: list[str]) -> None:
+    """Median width and error against record length, and the verdict at each length."""
+    print(f"\n{rows[0]['sets']} sets in the middle 80 % of the ranges: median 90 % interval "
+          "width (% of range) against record length per condition")  # fmt: skip
+    head = " ".join(f"{p:>5}" for p in names)
+    print(f"{'length s':>8} {'calib.':>6} {head}")
+    for r in rows:
+        cells = " ".join(f"{r['median_width_pct'][p]:5.1f}" for p in names)
+        print(f"{r['length_s']:8g} {'yes' if r['calibrated'] else 'NO':>6} {cells}")
+    print("median error of the posterior median (% of range); coverage of the sets' intervals")
+    for r in rows:
+        cells = " ".join(f"{r['median_error_pct'][p]:5.1f}" for p in names)
+        cov = " ".join(f"{r['coverage'][p]:5.2f}" for p in names)
+        print(f"{r['length_s']:8g} {'':>6} {cells}\n{'':>8} {'cov.':>6} {cov}")
+    for r in rows:
+        v = verdict(r, keys)
+        share = v["within_5pct_identifiable"]
+        print(
+            f"{r['length_s']:6g} s: identifiable keys {','.join(v['identifiable']) or 'none'}; "
+            f"within 5 %: {'-' if share is None else f'{share:.0%}'} of them, "
+            f"{v['within_5pct_all_keys']:.0%} of all keys; median width "
+            f"{v['median_width_pct_identifiable'] or float('nan'):.1f} %; "
+            f"targets met: {v['targets_met']}"
+        )
 
 
 if __name__ == "__main__":

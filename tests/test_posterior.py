@@ -203,6 +203,91 @@ def test_the_calibration_step_fits_on_one_set_and_passes_on_the_untouched_one(
     assert again[0] == correction and again[1] == after
 
 
+def _synthetic_long_cases(calls):
+    """Cases of X13 whose sections are x_i = logit(u) + N(0, 0.5^2) each, recording the
+    (kind, cases, sections) asked for."""
+
+    def cases(settings, folder, kind, n, sections=1, draws=None):
+        calls.append((kind, n, sections))
+        u = posterior_data.prior_draws(settings, kind, n)
+        rng = np.random.default_rng([posterior_data.SEED_BASE[kind], sections])
+        z = posterior_fusion.to_logit(u[:, [2]])
+        if sections == 1:
+            return u, z + 0.5 * rng.standard_normal((n, 1))
+        return u, z[:, None, :] + 0.5 * rng.standard_normal((n, sections, 1))
+
+    return cases
+
+
+def test_each_number_of_sections_is_checked_on_its_own_count_of_cases(tmp_path, monkeypatch):
+    """With ``product_cases``, the numbers of sections of one count share a set simulated
+    for the longest of them, the others get their own; the truths stay with their cases
+    (the over-confident fused posterior then passes after its correction)."""
+    calls = []
+    monkeypatch.setattr(posterior_check, "cached_cases", _synthetic_long_cases(calls))
+    s = _settings(
+        parameters=("X13",), n_calibration=100, n_check=100, samples=300,
+        product_sections=(4, 2, 3), product_cases=(60, 150, 150),
+    )  # fmt: skip
+    assert s.product_sets() == [(150, 3, (2, 3)), (60, 4, (4,))]
+    _, _, products = posterior_check.calibrate(_OverConfident(s), tmp_path)
+    assert {c for c in calls if c[0] == "long"} == {("long", 150, 3), ("long", 60, 4)}
+    record = read_json(tmp_path / "calibration.json")["products"]
+    assert [(p["sections"], p["calibration_cases"], p["cases"]) for p in record] == [
+        (2, 150, 150), (3, 150, 150), (4, 60, 60)
+    ]  # fmt: skip
+    for p, prod in zip(record, products, strict=True):
+        (before,) = p["before"]
+        assert before["coverage"] < 0.8  # k sections of 0.6 times the spread each
+        assert prod.correction.factors[0] > 1.3 and prod.passed, p
+
+
+def test_product_cases_are_one_count_per_number_of_sections():
+    s = _settings(product_sections=(6, 2, 30), product_cases=(200, 200, 100))
+    assert s.product_sections == (2, 6, 30) and s.product_cases == (200, 200, 100)
+    assert s.product_sets() == [(200, 6, (2, 6)), (100, 30, (30,))]
+    assert PosteriorSettings.from_dict(s.to_dict()) == s
+    plain = _settings(product_sections=(2, 6))
+    assert plain.product_sets() == [(20, 6, (2, 6))]  # n_product for all: one set
+    assert "product_cases" not in plain.to_dict()  # the hash of earlier estimators holds
+    with pytest.raises(RailsuspInputError, match="product_cases = 200,100: accepted one count"):
+        _settings(product_sections=(2, 6, 30), product_cases=(200, 100))
+    with pytest.raises(RailsuspInputError, match=r"product_cases = 5,200: .* 20 to 100000"):
+        _settings(product_sections=(2, 6), product_cases=(5, 200))
+
+
+def test_cached_cases_simulate_given_draws_and_refuse_a_wrong_shape(tmp_path, monkeypatch):
+    seen = []
+
+    def fake(settings, u, first, kind, sections):
+        seen.append(u.copy())
+        return np.tile(u[:, None, :1], (1, sections, 1))
+
+    monkeypatch.setattr(posterior_data, "simulate_long_cases", fake)
+    s = _settings()
+    u = np.full((3, 10), 0.25)
+    got_u, x = posterior_data.cached_cases(s, tmp_path, "identification", 3, 2, draws=u)
+    assert np.array_equal(got_u, u) and x.shape == (3, 2, 1) and np.all(x == 0.25)
+    posterior_data.cached_cases(s, tmp_path, "identification", 3, 2, draws=u)  # cached
+    assert len(seen) == 1
+    with pytest.raises(ValueError, match=r"draws \(2, 10\): need \(3, 10\)"):
+        posterior_data.cached_cases(s, tmp_path, "identification", 3, 2, draws=u[:2])
+
+
+def test_a_curve_must_be_steady_under_the_wagon_in_every_section():
+    """The sections of a long recording of a curve are steady curving; a training section
+    that holds the entry (curve from 20 m, 60 m spiral, a wagon of about 10 m) is not
+    like them, nor a record that outlasts the arc."""
+    curve = get_condition("curve")
+    PosteriorSettings((curve,), product_sections=(30,))  # lead-in 100 m: in the arc
+    with pytest.raises(RailsuspInputError, match=r"lead_in_m = 30 m .* accepted at least 90"):
+        PosteriorSettings((curve.with_changes(lead_in_m=30.0),))
+    short = curve.with_changes(arc_length_m=500.0)  # 30 s at 60 km/h
+    PosteriorSettings((short,), section_s=20.0)
+    with pytest.raises(RailsuspInputError, match=r"arc_length_m = 500 m .* within the 40 s"):
+        PosteriorSettings((short,), section_s=20.0, product_sections=(2,))
+
+
 def test_ranks_and_bad_shapes():
     samples = np.array([[[1.0], [2.0], [3.0]]])
     assert calibration.ranks(samples, np.array([[2.5]])).tolist() == [[2]]
@@ -394,6 +479,7 @@ def test_cli_estimate_prints_the_table(trained, tmp_path):
         (["train", "--product-sections", "two"], "--product-sections two: accepted whole"),
         (["train", "--conditions", "nowhere"], "nowhere"),
         (["train", "--lead-in", "-5"], "--lead-in -5"),
+        (["train", "--conditions", "curve", "--lead-in", "30"], "accepted at least 90.03 m"),
         (["estimate", "--measured", "MISSING", "--estimator", "RUN"], "MISSING"),
     ],
 )

@@ -18,10 +18,11 @@ realisations (:mod:`railsusp.estimate.posterior_data`, their own seeds):
 the fused posterior of k consecutive sections (:mod:`railsusp.estimate.posterior_fusion`):
 ``n_product`` calibration cases (``long-calibration``) and ``n_product`` test cases
 (``long``), each of k_max consecutive sections on one track, give a correction and a
-check per k (:class:`ProductCalibration`). The fusion adds each section's small spurious
-information, so its factors grow with k; a recording of n sections uses the correction of
-the smallest checked k >= n (wider than n needs, if the factors grow with k), and one
-longer than k_max is not calibrated.
+check per k (:class:`ProductCalibration`); with ``product_cases`` each k has its own
+count, and the k of one count share a set simulated for the longest of them. The fusion
+adds each section's small spurious information, so its factors grow with k; a recording
+of n sections uses the correction of the smallest checked k >= n (wider than n needs, if
+the factors grow with k), and one longer than k_max is not calibrated.
 
 Everything goes into ``posterior/calibration.json``, which a re-run reads back.
 """
@@ -79,17 +80,22 @@ def median_width(draws: np.ndarray, names: list[str]) -> dict[str, float]:
 
 def fused_draws(est: Estimator, folder: Path, kind: str):
     """Per checked number of sections k, the uncorrected fused draws (cases, S, d) of the
-    first k sections of ``n_product`` cases of ``kind``, and the truths (cases, d)."""
+    first k sections of the cases of ``kind`` in k's held-out set
+    (:meth:`~railsusp.estimate.posterior_data.PosteriorSettings.product_sets`), and their
+    truths (cases, d)."""
     s = est.settings
-    u, x = cached_cases(s, folder / "simulations", kind, s.n_product, max(s.product_sections))
-    ok = np.all(np.isfinite(x), axis=(1, 2))
     cols = [MAIN_SUSPENSION.index(p) for p in s.parameters]
-    draws = {
-        k: np.stack([fused_samples(est, xi[:k], s.samples, np.random.default_rng([s.seed, i, k]))
-                     for i, xi in enumerate(x[ok])])
-        for k in s.product_sections
-    }  # fmt: skip
-    return draws, u[ok][:, cols]
+    draws, truths = {}, {}
+    for n, longest, ks in s.product_sets():
+        u, x = cached_cases(s, folder / "simulations", kind, n, longest)
+        ok = np.all(np.isfinite(x), axis=(1, 2))
+        for k in ks:
+            draws[k] = np.stack(
+                [fused_samples(est, xi[:k], s.samples, np.random.default_rng([s.seed, i, k]))
+                 for i, xi in enumerate(x[ok])]
+            )  # fmt: skip
+            truths[k] = u[ok][:, cols]
+    return draws, truths
 
 
 def _products(est: Estimator, folder: Path) -> tuple[list[ProductCalibration], list]:
@@ -99,21 +105,21 @@ def _products(est: Estimator, folder: Path) -> tuple[list[ProductCalibration], l
     test, t_test = fused_draws(est, folder, "long")
     out, record = [], []
     for k in est.settings.product_sections:
-        corr = SpreadCorrection.fit(to_logit(cal[k]), to_logit(t_cal), names)
+        corr = SpreadCorrection.fit(to_logit(cal[k]), to_logit(t_cal[k]), names)
         widened = widen(corr, test[k])
-        checks = tuple(check(widened, t_test, names))
+        checks = tuple(check(widened, t_test[k], names))
         out.append(ProductCalibration(k, corr, checks))
         record.append(
             {
                 "sections": k,
-                "calibration_cases": len(t_cal),
-                "cases": len(t_test),
+                "calibration_cases": len(t_cal[k]),
+                "cases": len(t_test[k]),
                 "correction": corr.to_dict(),
-                "before": [c.to_dict() for c in check(test[k], t_test, names)],
+                "before": [c.to_dict() for c in check(test[k], t_test[k], names)],
                 "parameters": [c.to_dict() for c in checks],
                 "width_pct_range": median_width(widened, names),
                 "calibration_after": [
-                    c.to_dict() for c in check(widen(corr, cal[k]), t_cal, names)
+                    c.to_dict() for c in check(widen(corr, cal[k]), t_cal[k], names)
                 ],
                 "passed": out[-1].passed,
             }

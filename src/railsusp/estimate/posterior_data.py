@@ -38,9 +38,11 @@ BANDWIDTH_HZ = 15.0
 GAIN_ERROR = 0.01
 #: track seeds of the simulated cases start here (the synthetic field uses seed + 1000):
 #: training, the untouched coverage test ("check"), the calibration set that fits the
-#: correction, and the long test cases of several consecutive sections
+#: correction, the long test cases of several consecutive sections, and the parameter sets
+#: of the identification benchmark (bench/posterior.py, drawn in the middle of the ranges)
 SEED_BASE = {"train": 10_000_000, "check": 20_000_000, "calibration": 30_000_000,
-             "long": 40_000_000, "long-calibration": 50_000_000}  # fmt: skip
+             "long": 40_000_000, "long-calibration": 50_000_000,
+             "identification": 60_000_000}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -55,7 +57,10 @@ class PosteriorSettings:
     of sections at which the fused posterior of several sections is corrected and checked
     (none: an estimate of several sections is not calibrated), on ``n_product`` held-out
     cases of consecutive sections for the correction and ``n_product`` others for the
-    check."""
+    check; ``product_cases`` (one count per entry of ``product_sections``, in the same
+    order) gives each number of sections its own count instead, so that the longest
+    records, the costliest to simulate, can be checked on fewer cases (see
+    :meth:`product_sets`)."""
 
     conditions: tuple[WorkingCondition, ...]
     parameters: tuple[str, ...] = MAIN_SUSPENSION
@@ -72,6 +77,7 @@ class PosteriorSettings:
     ensemble: int = 1
     product_sections: tuple[int, ...] = ()
     n_product: int = 100
+    product_cases: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         params = tuple(spec(p).symbol for p in self.parameters)
@@ -104,19 +110,34 @@ class PosteriorSettings:
                 f"product_sections = {','.join(map(str, self.product_sections))}: accepted "
                 "distinct section counts from 2 to 1000"
             )
+        counts = tuple(int(n) for n in self.product_cases)
+        if counts:
+            if len(counts) != len(ks) or any(not 20 <= n <= 100_000 for n in counts):
+                raise RailsuspInputError(
+                    f"product_cases = {','.join(map(str, counts))}: accepted one count from "
+                    f"20 to 100000 per entry of product_sections ({len(ks)})"
+                )
+            order = sorted(range(len(ks)), key=lambda i: int(self.product_sections[i]))
+            counts = tuple(counts[i] for i in order)
         object.__setattr__(self, "product_sections", ks)
-        if ks and not 20 <= self.n_product <= 100_000:
+        object.__setattr__(self, "product_cases", counts)
+        if ks and not counts and not 20 <= self.n_product <= 100_000:
             raise RailsuspInputError(f"n_product = {self.n_product:g}: accepted 20 to 100000")
         if not self.conditions:
             raise RailsuspInputError("conditions: at least one working condition is needed")
         conds = tuple(c.with_duration(self.section_s) for c in self.conditions)
         object.__setattr__(self, "conditions", conds)
+        for c in conds:
+            _check_uniform_record(c, self.section_s * max(ks, default=1))
 
     def to_dict(self) -> dict[str, Any]:
         d = {k: getattr(self, k) for k in self.__dataclass_fields__}
         d["conditions"] = [c.model_dump() for c in self.conditions]
         d["parameters"] = list(self.parameters)
         d["product_sections"] = list(self.product_sections)
+        d["product_cases"] = list(self.product_cases)
+        if not self.product_cases:  # the settings (and hash) of estimators trained before it
+            del d["product_cases"]
         return d
 
     @classmethod
@@ -125,12 +146,57 @@ class PosteriorSettings:
         d["conditions"] = tuple(make_condition(c) for c in d["conditions"])
         d["parameters"] = tuple(d["parameters"])
         d["product_sections"] = tuple(d.get("product_sections", ()))
+        d["product_cases"] = tuple(d.get("product_cases", ()))
         return cls(**d)
+
+    def product_sets(self) -> list[tuple[int, int, tuple[int, ...]]]:
+        """The held-out sets of several sections, as (cases, sections simulated, numbers
+        of sections checked on them): the numbers of sections with the same count of cases
+        share one set, simulated for the longest of them and cut (the first k sections for
+        k); with one ``n_product`` for all, a single set."""
+        counts = self.product_cases or (self.n_product,) * len(self.product_sections)
+        out = []
+        for n in dict.fromkeys(counts):
+            ks = tuple(k for k, c in zip(self.product_sections, counts, strict=True) if c == n)
+            out.append((n, max(ks), ks))
+        return out
 
     @property
     def summary_names(self) -> list[str]:
         """Names of the summary vector: conditions one after the other."""
         return [f"{c.name}:{n}" for c in self.conditions for n in summary_names(self.sum_y)]
+
+
+def _check_uniform_record(cond: WorkingCondition, record_s: float) -> None:
+    """Refuse a condition whose design track (curvature, cant) changes under the wagon
+    while it records ``record_s`` seconds: the sections of a long recording must be drawn
+    like the training section, and a training section that holds the entry to a curve is
+    not like the steady curving of the sections after it (measured: the curve's median
+    Y/Q 0.281 in the first section against 0.303 in the next five, 2 standard deviations
+    of its scatter over the prior; the fused posterior of 6 sections then held X13's truth
+    in 12 % of the cases)."""
+    if cond.curve_radius_m is None:
+        return
+    from railsusp.vehicle.settle import design_is_uniform
+    from railsusp.vehicle.setup import axle_spread
+    from railsusp.vehicle.wagon import load_wagon
+
+    spread = axle_spread(load_wagon())
+    start = cond.lead_in_m - spread  # the trailing wheelset when the record starts
+    entry = cond.curve_start_m + cond.entry_spiral_m
+    if start < entry:
+        raise RailsuspInputError(
+            f"lead_in_m = {cond.lead_in_m:g} m (condition {cond.name!r}): the recorded "
+            f"sections would hold the entry to the curve (until {entry:g} m, the wagon "
+            f"{spread:.3g} m long), unlike the steady curving of a long recording's later "
+            f"sections; accepted at least {entry + spread:.4g} m"
+        )
+    if not design_is_uniform(cond, start, cond.lead_in_m + cond.speed * record_s):
+        raise RailsuspInputError(
+            f"arc_length_m = {cond.arc_length_m:g} m (condition {cond.name!r}): the curve "
+            f"ends within the {record_s:g} s of the longest checked record; accepted an arc "
+            "that lasts it (or none: until the end)"
+        )
 
 
 def prior_draws(settings: PosteriorSettings, kind: str, n: int) -> np.ndarray:
@@ -208,12 +274,23 @@ def simulate_long_cases(
     return np.concatenate(per_condition, axis=2)
 
 
-def cached_cases(settings: PosteriorSettings, folder: Path, kind: str, n: int, sections: int = 1):
+def cached_cases(
+    settings: PosteriorSettings,
+    folder: Path,
+    kind: str,
+    n: int,
+    sections: int = 1,
+    draws: np.ndarray | None = None,
+):
     """(u (n, 10), x) of the first ``n`` cases of ``kind`` (a key of :data:`SEED_BASE`),
     simulated in chunks of :data:`CHUNK` cached in ``folder`` (``KIND_NNNN_K.npz``; with
     several ``sections`` per case ``KIND-xS_NNNN_K.npz``); a chunk on disk is read, not
-    simulated again. ``x`` is (n, D) for one section, (n, sections, D) for several."""
-    u_all = prior_draws(settings, kind, n)
+    simulated again. ``x`` is (n, D) for one section, (n, sections, D) for several.
+    ``draws`` (n, 10 fractions of the ranges): these parameter sets instead of the
+    prior's draws of ``kind`` (whose seeds the tracks keep)."""
+    u_all = prior_draws(settings, kind, n) if draws is None else np.asarray(draws, float)
+    if u_all.shape != (n, len(MAIN_SUSPENSION)):
+        raise ValueError(f"draws {u_all.shape}: need ({n}, {len(MAIN_SUSPENSION)})")
     name = kind if sections == 1 else f"{kind}-x{sections}"
     xs = []
     for k, lo in enumerate(range(0, n, CHUNK)):
