@@ -114,17 +114,21 @@ def test_nominal_surrogate_adds_the_nominal_forces_back(twins, tmp_path):
     with torch.no_grad():
         last.weight.zero_()
         last.bias.zero_()
-    sur.normaliser = Normaliser(
-        sur.normaliser.track_mean, sur.normaliser.track_std, [0.0, 0.0], [1.0, 1.0]
-    )
     camp = load_campaign(twins)
     data = load_series(camp, "curve", sur.spec)
+    # the targets' normalisation is fitted on what the network learns (force - nominal)
+    fitted = Normaliser.fit(data)
+    np.testing.assert_allclose(fitted.target_mean, data.learned.mean(axis=(0, 1)), rtol=1e-4)
+    mean, std = [3.0, -5.0], [2.0, 4.0]  # the network's zero output is this change
+    sur.normaliser = Normaliser(sur.normaliser.track_mean, sur.normaliser.track_std, mean, std)
     x = np.array([[16e6, 8e6], [12e6, 6e6]])
     pred = sur.predict(x, track=data.track[0])
     w = sur.spec.window
     for k in range(2):
-        np.testing.assert_allclose(pred[k, w:], data.track[0, w:, -2:], rtol=1e-6)
+        np.testing.assert_allclose(pred[k, w:], data.track[0, w:, -2:] + mean, rtol=1e-6)
     assert np.isnan(pred[:, :w]).all()
+    # the nominal response at prediction is simulated with the campaign's solver settings
+    assert sur.solver_settings() == camp.config.settings()
     with pytest.raises(ValueError, match="track input has 18 columns, this surrogate reads 20"):
         sur.predict(x, track=data.track[0, :, :-2])
 
@@ -136,5 +140,35 @@ def test_twins_need_a_track_per_sample(tmp_path):
     with pytest.raises(CampaignError, match="nominal twins need a campaign with a track per"):
         run_nominal_twins(out)
     spec = FeatureSpec(parameters=KEYS, nominal_response=True)
-    with pytest.raises(ValueError, match="nominal twins of 'straight' are missing or incomp"):
+    with pytest.raises(CampaignError, match="nominal twins need a campaign with a track per"):
         load_series(load_campaign(out), "straight", spec)
+
+
+def test_twins_of_another_configuration_are_not_used(twins, tmp_path):
+    """Twins stamped with another configuration's hash count as missing and are not
+    completed; a negative batch limit is refused in one line."""
+    import shutil
+
+    run = tmp_path / "copy"
+    shutil.copytree(twins, run)
+    stamp = nominal_folder(run) / "twins.json"
+    stamp.write_text('{"config_hash": "0123456789abcdef"}')
+    assert not twins_complete(run)
+    with pytest.raises(CampaignError, match="nominal twins of another configuration"):
+        run_nominal_twins(run)
+    spec = feature_spec(load_campaign(run), KEYS, nominal_response=True)
+    with pytest.raises(ValueError, match="missing, incomplete or of another configuration"):
+        load_series(load_campaign(run), "curve", spec)
+    with pytest.raises(CampaignError, match="max_batches = -1: accepted an integer >= 0"):
+        run_nominal_twins(run, max_batches=-1)
+
+
+def test_a_campaign_rerun_with_another_configuration_discards_its_twins(tmp_path):
+    cond = get_condition("straight", duration_s=1.0, n_steps=50, lead_in_m=20.0)
+    out = tmp_path / "run"
+    kw = {"parameters": KEYS, "batch_size": 2, "independent_seeds": True}
+    run_campaign(make_config([cond], 2, seed=1, **kw), out)
+    run_nominal_twins(out)
+    assert twins_complete(out)
+    run_campaign(make_config([cond], 2, seed=2, **kw), out, force=True)
+    assert not nominal_folder(out).exists() and not twins_complete(out)

@@ -167,6 +167,7 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
                 "tracks.parquet",
                 "sensitivity",
                 "splits",
+                "nominal",  # the nominal twins (railsusp.campaign.twins) of the old design
             ):
                 p = out / sub
                 if p.is_dir():

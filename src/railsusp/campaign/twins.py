@@ -15,10 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
-from railsusp.campaign.design import CampaignError, batch_paths, track_seeds
+from railsusp.campaign.design import CampaignConfig, CampaignError, batch_paths, track_seeds
 from railsusp.campaign.results import load_campaign
 from railsusp.campaign.run import simulate_task, write_batch
 from railsusp.params import ParameterSet
+from railsusp.store import read_json, write_json
 
 #: sub-directory of a run directory holding its nominal twins
 NOMINAL_DIR = "nominal"
@@ -29,17 +30,35 @@ def nominal_folder(run: str | Path) -> Path:
     return Path(run) / NOMINAL_DIR
 
 
+def _stamp(run: str | Path) -> Path:
+    """The file naming the configuration the twins were made for."""
+    return nominal_folder(run) / "twins.json"
+
+
 def twins_complete(run: str | Path, condition: str | None = None) -> bool:
     """Whether every batch of the campaign (of ``condition`` only, when given) has its
-    nominal twin."""
+    nominal twin, made for the campaign's present configuration."""
     cfg = load_campaign(run).config
     out = nominal_folder(run)
+    stamp = _stamp(run)
+    if not stamp.exists() or read_json(stamp).get("config_hash") != cfg.hash():
+        return False
     return all(
         batch_paths(out, c.name, b)[0].exists()
         for c in cfg.conditions
         if condition is None or c.name == condition
         for b in range(cfg.n_batches)
     )
+
+
+def check_twins_possible(cfg: CampaignConfig, run: str | Path) -> None:
+    """Refuse, in one line, a campaign on one common track: its twins would all be the same
+    run (one nominal simulation serves every sample)."""
+    if not cfg.independent_seeds:
+        raise CampaignError(
+            f"{run}: nominal twins need a campaign with a track per sample "
+            "(independent_seeds); on a common track one nominal run serves every sample"
+        )
 
 
 def run_nominal_twins(
@@ -52,14 +71,20 @@ def run_nominal_twins(
     condition, track seed, FRA class, radius and cant, every parameter nominal. Returns the
     twins' folder. ``progress(done, total)`` counts batches; ``max_batches`` stops after
     that many new ones."""
+    if max_batches is not None and max_batches < 0:
+        raise CampaignError(f"max_batches = {max_batches}: accepted an integer >= 0")
     camp = load_campaign(run)
     cfg = camp.config
-    if not cfg.independent_seeds:
-        raise CampaignError(
-            f"{run}: nominal twins need a campaign with a track per sample "
-            "(independent_seeds); on a common track one nominal run serves every sample"
-        )
+    check_twins_possible(cfg, run)
     out = nominal_folder(run)
+    stamp = _stamp(run)
+    if stamp.exists() and read_json(stamp).get("config_hash") != cfg.hash():
+        raise CampaignError(
+            f"{out} holds the nominal twins of another configuration (hash "
+            f"{read_json(stamp).get('config_hash')}, the campaign's {cfg.hash()}); delete that "
+            "folder to make them again"
+        )
+    write_json(stamp, {"kind": "railsusp nominal twins", "config_hash": cfg.hash()})
     x0 = ParameterSet.nominal().to_array(cfg.simulated_parameters)
     ids_all = camp.design()["sample_id"].to_numpy()
     cfg_json = cfg.model_dump_json()

@@ -120,7 +120,9 @@ class SurrogateForces:
         key = condition.model_dump_json()
         if key not in self._tracks:
             model = self._models[condition.name]
-            self._tracks[key] = track_features(condition, condition.seed, model.spec, model.wagon)
+            self._tracks[key] = track_features(
+                condition, condition.seed, model.spec, model.wagon, model.solver_settings()
+            )
         return self._tracks[key]
 
     def reads_track(self, condition: WorkingCondition) -> bool:

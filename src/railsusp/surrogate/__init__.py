@@ -213,6 +213,7 @@ def train_surrogate(
         meta={
             "campaign": str(camp.path),
             "campaign_hash": camp.config.hash(),
+            "solver": dict(camp.config.solver),  # the nominal response is simulated with it
             **split_meta(split, data),
             "train_config": tcfg.to_dict(),
             "track_realisations": len(np.unique(data.seeds)),

@@ -34,6 +34,7 @@ from railsusp.surrogate.data import (
 )
 from railsusp.surrogate.models import CNNRecurrent, NetConfig, build_network
 from railsusp.surrogate.sequence import CNNSequence
+from railsusp.vehicle.simulate import SolverSettings
 from railsusp.vehicle.wagon import WagonData
 
 FORMAT = "railsusp-surrogate/1"
@@ -79,6 +80,12 @@ class Surrogate:
     @property
     def kind(self) -> str:
         return self.net_config.kind
+
+    def solver_settings(self) -> SolverSettings:
+        """The training campaign's solver settings (the defaults for surrogates saved before
+        they were kept): a nominal response simulated at prediction must be simulated as the
+        twins the network was trained on were."""
+        return SolverSettings(**self.meta.get("solver", {}))
 
     @property
     def one_track(self) -> bool:
@@ -201,7 +208,7 @@ class Surrogate:
             )
         if track is None:
             s = self.track_seed if seed is None else seed
-            track = track_features(on, s, self.spec, self.wagon)
+            track = track_features(on, s, self.spec, self.wagon, self.solver_settings())
         raw = np.asarray(track)
         if raw.shape[-1] != self.spec.n_features - len(self.spec.parameters):
             raise ValueError(

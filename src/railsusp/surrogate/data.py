@@ -222,6 +222,8 @@ def load_series(
     for t in spec.targets:
         ch = CHANNELS.index(f"{t}_{WHEEL_NAMES[w]}")
         targets.append(series[:, ch, :] / 1e3)
+    if spec.nominal_response:  # before the tracks' features, which take minutes
+        check_nominal(campaign, cond, w)
     y = np.stack(targets, axis=2).astype(np.float32)
     ok = np.isfinite(y).all(axis=(1, 2))
     tracks = campaign.tracks(condition).set_index("sample_id").loc[ids].reset_index()
@@ -238,11 +240,6 @@ def load_series(
     else:
         track = np.stack([per_key[k] for k in keys])
     if spec.nominal_response:
-        if w != measured_wheel_index(cond, "auto"):  # the wheel a prediction simulates
-            raise ValueError(
-                f"wheel {WHEEL_NAMES[w]}: the nominal response is read at the automatically "
-                f"chosen measured wheel ({WHEEL_NAMES[measured_wheel_index(cond, 'auto')]})"
-            )
         track = np.concatenate([track, twin_forces(campaign, condition, ids, w, spec)], axis=2)
     other_names = tuple(p for p in cfg.simulated_parameters if p not in spec.parameters)
     data = SeriesData(
@@ -262,20 +259,36 @@ def load_series(
     return data.subset(np.flatnonzero(ok))
 
 
+def check_nominal(campaign: Campaign, cond: WorkingCondition, wheel: int) -> None:
+    """Refuse, in one line, what the nominal response cannot be read from: a campaign on one
+    common track, a wheel other than the automatically chosen one (the wheel a prediction
+    simulates), or twins missing, incomplete or of another configuration."""
+    from railsusp.campaign.twins import check_twins_possible, twins_complete
+
+    check_twins_possible(campaign.config, campaign.path)
+    auto = measured_wheel_index(cond, "auto")
+    if wheel != auto:
+        raise ValueError(
+            f"wheel {WHEEL_NAMES[wheel]}: the nominal response is read at the automatically "
+            f"chosen measured wheel ({WHEEL_NAMES[auto]})"
+        )
+    if not twins_complete(campaign.path, cond.name):
+        raise ValueError(
+            f"{campaign.path}: the nominal twins of {cond.name!r} are missing, incomplete or "
+            "of another configuration; make them with "
+            "`railsusp.campaign.twins.run_nominal_twins` before training with the nominal response"
+        )
+
+
 def twin_forces(
     campaign: Campaign, condition: str, ids: np.ndarray, wheel: int, spec: FeatureSpec
 ) -> np.ndarray:
     """(n, T, n_targets) forces (kN) of wheel ``wheel`` of the nominal twins of samples
-    ``ids`` (:mod:`railsusp.campaign.twins`); NaN for a twin that failed."""
+    ``ids`` (:mod:`railsusp.campaign.twins`, checked by :func:`check_nominal`); NaN for a
+    twin that failed."""
     from railsusp.campaign.results import read_series
-    from railsusp.campaign.twins import nominal_folder, twins_complete
+    from railsusp.campaign.twins import nominal_folder
 
-    if not twins_complete(campaign.path, condition):
-        raise ValueError(
-            f"{campaign.path}: the nominal twins of {condition!r} are missing or incomplete; "
-            "make them with "
-            "`railsusp.campaign.twins.run_nominal_twins` before training with the nominal response"
-        )
     twin_ids, series = read_series(nominal_folder(campaign.path), condition)
     pos = {int(s): i for i, s in enumerate(twin_ids)}
     rows = np.array([pos[int(s)] for s in ids])
