@@ -25,7 +25,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from railsusp.surrogate.sequence import CNNSequence, dense_head
+from railsusp.surrogate.sequence import CNNSequence, conv_front, dense_head
 
 
 @dataclass(frozen=True)
@@ -74,12 +74,9 @@ class CNNRecurrent(nn.Module):
 
     def __init__(self, cfg: NetConfig, cell: str = "gru"):
         super().__init__()
-        c1, c2 = cfg.conv_channels
+        c2 = cfg.conv_channels[1]
         self.conv = nn.Sequential(
-            nn.Conv1d(cfg.n_features, c1, kernel_size=1),
-            nn.ReLU(),
-            nn.Conv1d(c1, c2, kernel_size=1),
-            nn.LeakyReLU(),
+            *conv_front(cfg),
             nn.MaxPool1d(kernel_size=2, stride=1),
             nn.Dropout(cfg.dropout),
         )

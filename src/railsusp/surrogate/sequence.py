@@ -60,6 +60,19 @@ def dense_head(n_in: int, hidden: tuple[int, ...], n_outputs: int) -> nn.Sequent
     return nn.Sequential(*layers)
 
 
+def conv_front(cfg: Sizes) -> list[nn.Module]:
+    """The study's two 1x1 convolutions (ReLU, then leaky ReLU) over the input features,
+    shared by the window and the sequence networks; both keep them as the first four
+    modules of their ``conv`` (weights and fast paths index them there)."""
+    c1, c2 = cfg.conv_channels
+    return [
+        nn.Conv1d(cfg.n_features, c1, kernel_size=1),
+        nn.ReLU(),
+        nn.Conv1d(c1, c2, kernel_size=1),
+        nn.LeakyReLU(),
+    ]
+
+
 class CNNSequence(nn.Module):
     """1x1 convolutions -> causal max pool -> dropout -> stacked GRUs -> dense head, per step."""
 
@@ -71,13 +84,8 @@ class CNNSequence(nn.Module):
             )
         if cfg.window < 0:
             raise ValueError(f"washout (window) = {cfg.window}: accepted an integer >= 0")
-        c1, c2 = cfg.conv_channels
-        self.conv = nn.Sequential(
-            nn.Conv1d(cfg.n_features, c1, kernel_size=1),
-            nn.ReLU(),
-            nn.Conv1d(c1, c2, kernel_size=1),
-            nn.LeakyReLU(),
-        )
+        c2 = cfg.conv_channels[1]
+        self.conv = nn.Sequential(*conv_front(cfg))
         self.dropout = nn.Dropout(cfg.dropout)
         layers, size = [], c2
         for h in cfg.rnn_hidden:
