@@ -40,6 +40,7 @@ from railsusp.estimate import SurrogateForces
 from railsusp.estimate.aligned_identifiability import (
     agreement_of,
     aligned_jacobian,
+    block_slices,
     bounds_pct_range,
     channel_names,
 )
@@ -50,21 +51,19 @@ from railsusp.store import write_json
 def block_rms(r: np.ndarray, blocks: list[int], names: list[str]) -> dict[str, float]:
     """RMS of the scaled residuals per channel block, in units of the measured force's
     standard deviation (the scale is std x sqrt(samples))."""
-    edges = np.cumsum([0, *blocks])
     return {
-        n: float(np.sqrt(np.sum(r[a:b] ** 2)))
-        for n, a, b in zip(names, edges[:-1], edges[1:], strict=True)
+        n: float(np.linalg.norm(r[rows]))
+        for n, rows in zip(names, block_slices(blocks), strict=True)
     }
 
 
 def column_norms(jac: np.ndarray, blocks: list[int], names: list[str], params) -> dict:
     """Per parameter and channel block the Jacobian column's norm (the linearised RMS
     change over the whole range, in force standard deviations)."""
-    edges = np.cumsum([0, *blocks])
     return {
         p: {
-            n: float(np.linalg.norm(jac[a:b, j]))
-            for n, a, b in zip(names, edges[:-1], edges[1:], strict=True)
+            n: float(np.linalg.norm(jac[rows, j]))
+            for n, rows in zip(names, block_slices(blocks), strict=True)
         }
         for j, p in enumerate(params)
     }

@@ -39,9 +39,9 @@ from railsusp.campaign import CampaignConfig, load_campaign, make_config, run_ca
 from railsusp.campaign.twins import run_nominal_twins
 from railsusp.conditions import get_condition
 from railsusp.store import write_json
-from railsusp.surrogate import TrainConfig, feature_spec, key_parameters, load, train_surrogate
+from railsusp.surrogate import TrainConfig, feature_spec, load, train_surrogate
 from railsusp.surrogate.compare import compare
-from railsusp.surrogate.data import load_series
+from railsusp.surrogate.data import FeatureSpec, SeriesData, load_series
 from railsusp.surrogate.evaluate import accuracy, predict_with_alone
 from railsusp.surrogate.split import campaign_split
 from railsusp.variation import full_ranges, parse_range
@@ -135,6 +135,8 @@ def network_rows(
             alone[j]["relative_error_of_mean"] if alone else float("nan")
         )
         rows.append({"condition": condition, "model": label, **r, **held})
+    if sur.spec.nominal_response:
+        rows += nominal_alone_rows(test, sur.spec, condition, held)
     return rows
 
 
@@ -143,8 +145,8 @@ def nominal_rows(
 ) -> list[dict]:
     """Train the CNN-GRU that also reads the nominal wagon's forces on each track
     (:mod:`railsusp.surrogate.nominal`; saved under ``RUN/surrogates/cnn-gru-nominal/``) and
-    score it on the same test runs."""
-    rows = network_rows(
+    score it, with the nominal wagon's own forces beside it, on the same test runs."""
+    return network_rows(
         run,
         condition,
         kind="cnn-gru",
@@ -154,19 +156,15 @@ def nominal_rows(
         split_seed=split_seed,
         nominal_response=True,
     )
-    return rows + nominal_alone_rows(run, condition, split_seed)
 
 
-def nominal_alone_rows(run: str | Path, condition: str, split_seed: int = 0) -> list[dict]:
-    """The nominal wagon's forces on each test run's track taken as the prediction (no
-    network, no parameters): how much of each run the track alone explains."""
-    camp = load_campaign(run)
-    spec = feature_spec(camp, key_parameters(run), 20, nominal_response=True)
-    data = load_series(camp, condition, spec)
-    split = campaign_split(camp, split_seed)
-    test = data.subset(split.positions(data.sample_ids, "test"))
+def nominal_alone_rows(
+    test: SeriesData, spec: FeatureSpec, condition: str, held: dict
+) -> list[dict]:
+    """The nominal wagon's forces on each test run's track (the trailing input columns of
+    a network that reads them) taken as the prediction, no network, no parameters: how much
+    of each run the track alone explains."""
     pred = test.track[..., -spec.n_baseline :].astype(float)
-    held = {"held_out": split.held_out, "test_tracks": len(np.unique(test.seeds))}
     return [
         {
             "condition": condition,
@@ -243,7 +241,7 @@ def table_on_tracks(
                 run, cond, kind=kind, window=None, label=kind, train=train, split_seed=split_seed
             )
     if nominal:
-        run_nominal_twins(run, progress=None)
+        run_nominal_twins(run, conditions=conds)  # only the conditions trained here
         for cond in conds:
             if progress:
                 progress(f"{cond}: cnn-gru-nominal")
@@ -313,13 +311,15 @@ def inference_rates(
     before = torch.get_num_threads()
     torch.set_num_threads(threads)
     try:
-        rates = {}
+        rates, tracks = {}, {}
         for k in kinds:
             sur = load(Path(run) / "surrogates" / k / condition)
-            spec = feature_spec(camp, sur.spec.parameters, 20, sur.spec.nominal_response)
-            data = load_series(camp, condition, spec)
-            test = data.subset(first(data.sample_ids, "test")[:1])
-            rates[k] = rate(sur, 64, repeats, True, test.track[0])
+            nominal = sur.spec.nominal_response
+            if nominal not in tracks:  # the track input, read once per kind of input
+                spec = feature_spec(camp, sur.spec.parameters, 20, nominal)
+                data = load_series(camp, condition, spec)
+                tracks[nominal] = data.subset(first(data.sample_ids, "test")[:1]).track[0]
+            rates[k] = rate(sur, 64, repeats, True, tracks[nominal])
         return rates
     finally:
         torch.set_num_threads(before)

@@ -56,6 +56,9 @@ def test_twins_resume_and_are_the_nominal_wagon_on_each_samples_track(twins):
     seen = []
     run_nominal_twins(twins, progress=lambda d, t: seen.append((d, t)))
     assert seen == [(2, 2)] and [f.stat().st_mtime_ns for f in files] == stamps
+    only = []  # limited to conditions the campaign lacks: nothing to do
+    run_nominal_twins(twins, progress=lambda d, t: only.append((d, t)), conditions=["uphill"])
+    assert only == [(0, 0)]
     camp = load_campaign(twins)
     row = camp.tracks("curve").iloc[4]
     r = simulate_batch(

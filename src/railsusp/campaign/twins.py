@@ -10,7 +10,7 @@ the campaign's batch layout), batch by batch and atomically, so that a run resum
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -66,11 +66,12 @@ def run_nominal_twins(
     *,
     progress: Callable[[int, int], None] | None = None,
     max_batches: int | None = None,
+    conditions: Sequence[str] | None = None,
 ) -> Path:
     """Simulate (or resume) the nominal twin of every sample of a many-track campaign: its
     condition, track seed, FRA class, radius and cant, every parameter nominal. Returns the
     twins' folder. ``progress(done, total)`` counts batches; ``max_batches`` stops after
-    that many new ones."""
+    that many new ones; ``conditions`` (names) limits them to those conditions."""
     if max_batches is not None and max_batches < 0:
         raise CampaignError(f"max_batches = {max_batches}: accepted an integer >= 0")
     camp = load_campaign(run)
@@ -91,10 +92,12 @@ def run_nominal_twins(
     todo = [
         (ci, b)
         for ci, c in enumerate(cfg.conditions)
+        if conditions is None or c.name in conditions
         for b in range(cfg.n_batches)
         if not batch_paths(out, c.name, b)[0].exists()
     ]
-    total = len(cfg.conditions) * cfg.n_batches
+    n_conds = sum(conditions is None or c.name in conditions for c in cfg.conditions)
+    total = n_conds * cfg.n_batches
     done = total - len(todo)
     if progress:
         progress(done, total)

@@ -25,6 +25,7 @@ recordings and the force model, not of any estimate), with whatever force model 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from itertools import pairwise
 
 import numpy as np
 
@@ -89,6 +90,13 @@ def _agreement(col: np.ndarray, ref: np.ndarray) -> dict[str, float]:
     }
 
 
+def block_slices(blocks: Sequence[int]) -> list[slice]:
+    """The rows of each block of :func:`aligned_jacobian`'s residuals and Jacobian (one
+    recording's lateral or vertical force), in order."""
+    edges = np.cumsum([0, *blocks])
+    return [slice(int(a), int(b)) for a, b in pairwise(edges)]
+
+
 def agreement_of(
     jac: np.ndarray,
     reference: np.ndarray,
@@ -98,13 +106,13 @@ def agreement_of(
 ) -> dict[str, dict]:
     """Per parameter the agreement of Jacobian ``jac``'s column with ``reference``'s
     (:func:`jacobian_agreement`), overall and per block of rows (``channels`` names them)."""
-    edges = np.cumsum([0, *blocks])
+    rows = block_slices(blocks)
     out: dict[str, dict] = {}
     for j, p in enumerate(parameters):
         row: dict = _agreement(jac[:, j], reference[:, j])
         row["by_channel"] = {
-            name: _agreement(jac[a:b, j], reference[a:b, j])
-            for name, a, b in zip(channels, edges[:-1], edges[1:], strict=True)
+            name: _agreement(jac[r, j], reference[r, j])
+            for name, r in zip(channels, rows, strict=True)
         }
         out[p] = row
     return out
