@@ -13,13 +13,24 @@ each as the mean over seeds of one record's value. Each is compared with Table 8
 *measured* value (the instrumented wheelset, the target) and shown beside the study's
 simulated one. Targets of issue 18 for the study's statistic: vertical within 3 %, lateral
 within 25 % of the measured value. Writes JSON (bench/results/credibility.json).
+
+The options take the gap apart, one cause at a time (issue 18: track class, gauge
+irregularity, friction, cant): ``--track-class`` (0: perfect track), ``--irregularities``
+(the components kept, e.g. ``vertical,alignment,crosslevel`` runs Class 5 without its gauge
+irregularity: each seed's synthesised track is written as a track-geometry file with the
+other components zeroed and run as measured geometry), ``--friction``, ``--cant-mm``,
+``--wavelength-min`` (the shortest irregularity wavelength, m; 1 m by default),
+``--creep-factor`` (Kalker's coefficients scaled) and ``--conditions``.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import platform
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -27,14 +38,18 @@ from railsusp.conditions import STANDARD_CONDITIONS
 from railsusp.params import ParameterSet
 from railsusp.store import write_json
 from railsusp.study import TABLE8_BEFORE
+from railsusp.vehicle.setup import section_irregularities
 from railsusp.vehicle.simulate import WHEEL_NAMES, simulate_batch
-from railsusp.vehicle.wagon import load_wagon
+from railsusp.vehicle.track import COMPONENTS, write_track_geometry
+from railsusp.vehicle.wagon import WagonData, load_wagon
 
 #: the study's statistic (docs/model.md, "Which statistic Table 8 gives")
 STUDY_STATISTIC = "max"
 STATISTICS = ("max", "p99.85", "p99", "mean")
 #: issue 18's targets for the study's statistic, relative to Table 8's measured values
 TARGET = {"Y": 0.25, "Q": 0.03}
+#: the wheels in the order the tables give them (wheel A, wheel B)
+ROLE_ORDER = ("outer", "inner", "left", "right")
 
 
 def record_values(force: np.ndarray, statistic: str, lateral: bool) -> np.ndarray:
@@ -55,6 +70,112 @@ def wheel_roles(condition, measured: int) -> tuple[tuple[int, str], tuple[int, s
     return (0, "left"), (1, "right")
 
 
+def parse_components(text: str) -> tuple[str, ...]:
+    """The irregularity components named in ``text`` (comma-separated), in the track's order."""
+    names = tuple(c.strip() for c in text.split(",") if c.strip())
+    bad = [c for c in names if c not in COMPONENTS]
+    if bad or not names:
+        raise SystemExit(
+            f"--irregularities {text!r}: accepted a comma-separated subset of "
+            f"{', '.join(COMPONENTS)}"
+        )
+    return tuple(c for c in COMPONENTS if c in names)
+
+
+def with_creep_factor(wagon: WagonData, factor: float) -> WagonData:
+    """The same wagon with Kalker's coefficients scaled by ``factor`` (validated)."""
+    data = wagon.model_dump()
+    data["contact"]["creep_factor"] = factor
+    return WagonData(**data)
+
+
+def component_tracks(
+    cond, seeds: list[int], keep: tuple[str, ...], wagon: WagonData, folder: Path
+) -> list:
+    """One condition per seed that runs on that seed's synthesised irregularities with only
+    the components ``keep`` (the others zeroed), written as a track-geometry file."""
+    out = []
+    for seed in seeds:
+        c = cond.with_changes(seed=seed)
+        irr = section_irregularities(c, [seed], wagon)
+        zero = {k: irr.component(k) * 0.0 for k in COMPONENTS if k not in keep}
+        path = folder / f"{cond.name}-{seed}.track.csv"
+        write_track_geometry(path, dataclasses.replace(irr, **zero), origin_m=c.lead_in_m)
+        out.append(c.with_changes(track_geometry=str(path)))
+    return out
+
+
+def simulate_records(cond, seeds: list[int], wagon: WagonData, keep: tuple[str, ...]):
+    """(Y, Q, ok, measured wheel) of the nominal wagon's records on ``seeds`` tracks: one
+    batch on the synthesised tracks, or, with components left out, one run per seed on its
+    written geometry."""
+    nominal = ParameterSet.nominal()
+    if keep == COMPONENTS or cond.irregularity_class is None:
+        r = simulate_batch([nominal] * len(seeds), cond, seeds=seeds, wagon=wagon)
+        if not r.ok.all():
+            print(f"{cond.name}: {int((~r.ok).sum())} of {len(seeds)} failed: {r.failures()}")
+        return r.Y, r.Q, r.ok, r.measured_wheel()
+    with tempfile.TemporaryDirectory() as tmp:
+        runs = [
+            simulate_batch([nominal], c, wagon=wagon)
+            for c in component_tracks(cond, seeds, keep, wagon, Path(tmp))
+        ]
+    for r in runs:
+        if not r.ok.all():
+            print(f"{cond.name} seed {r.condition.seed}: failed: {r.failures()}")
+    return (
+        np.concatenate([r.Y for r in runs]),
+        np.concatenate([r.Q for r in runs]),
+        np.concatenate([r.ok for r in runs]),
+        runs[0].measured_wheel(),
+    )
+
+
+def variant_label(payload: dict) -> str:
+    """What a result file changed against the study's setting (Class 5, every component,
+    friction 0.3, the curve's cant, creep factor 1)."""
+    parts = []
+    if payload.get("track_class", 5) != 5:
+        parts.append(f"class {payload['track_class']}" if payload["track_class"] else "perfect")
+    kept = payload.get("irregularities", list(COMPONENTS))
+    if payload.get("track_class", 5) and len(kept) < len(COMPONENTS):
+        parts.append("only " + "+".join(kept))
+    for key, fmt in (
+        ("friction", "mu {:g}"),
+        ("cant_mm", "cant {:g} mm"),
+        ("wavelength_min_m", "shortest wavelength {:g} m"),
+    ):
+        if payload.get(key) is not None:
+            parts.append(fmt.format(payload[key]))
+    if payload.get("creep_factor", 1.0) != 1.0:
+        parts.append(f"creep factor {payload['creep_factor']:g}")
+    return ", ".join(parts) or "as the study (Class 5)"
+
+
+def summarise(paths: list[str]) -> None:
+    """One row per result file: the study's statistic of each wheel against Table 8's
+    measured value (the decomposition table of bench/README.md)."""
+    import json
+
+    print(
+        "| variant | straight \\|Y\\| | straight Q | curve \\|Y\\| outer / inner | "
+        "curve Q outer / inner | uphill \\|Y\\| | uphill Q |"
+    )
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    for path in paths:
+        payload = json.loads(Path(path).read_text())
+        cells = {}
+        for row in payload["rows"]:
+            if row["statistic"] == payload["study_statistic"]:
+                roles = sorted(row["wheels"], key=ROLE_ORDER.index)
+                w = [row["wheels"][r] for r in roles]
+                cells[row["condition"], row["force"]] = (
+                    f"{w[0]['vs_measured']:+.0%} / {w[1]['vs_measured']:+.0%}"
+                )
+        cols = [cells.get((c, f), "") for c in ("straight", "curve", "uphill") for f in ("Y", "Q")]
+        print(f"| {variant_label(payload)} | " + " | ".join(cols) + " |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seeds", type=int, default=32, help="track seeds per condition")
@@ -65,26 +186,54 @@ def main() -> None:
     )
     ap.add_argument("--friction", type=float, default=None, help="wheel-rail friction (0.3)")
     ap.add_argument("--cant-mm", type=float, default=None, help="the curve's cant (its default)")
+    ap.add_argument(
+        "--irregularities",
+        default=",".join(COMPONENTS),
+        help="irregularity components kept (default all: vertical,alignment,crosslevel,gauge)",
+    )
+    ap.add_argument(
+        "--wavelength-min", type=float, default=None, help="shortest irregularity wavelength, m"
+    )
+    ap.add_argument("--creep-factor", type=float, default=None, help="Kalker scale (wagon's)")
+    ap.add_argument("--conditions", default="", help="conditions run (default all three)")
     ap.add_argument("--out", default="bench/results/credibility.json")
+    ap.add_argument(
+        "--summarise", nargs="+", metavar="JSON", help="print the table of earlier results"
+    )
     args = ap.parse_args()
+    if args.summarise:
+        summarise(args.summarise)
+        return
+    keep = parse_components(args.irregularities)
     wagon = load_wagon(args.wagon).with_contact_model(args.contact)
+    if args.creep_factor is not None:
+        wagon = with_creep_factor(wagon, args.creep_factor)
+    names = [c.strip() for c in args.conditions.split(",") if c.strip()] or list(
+        STANDARD_CONDITIONS
+    )
+    unknown = [c for c in names if c not in STANDARD_CONDITIONS]
+    if unknown:
+        raise SystemExit(
+            f"--conditions {args.conditions!r}: accepted {', '.join(STANDARD_CONDITIONS)}"
+        )
     rows = []
     t0 = time.perf_counter()
-    for name, base in STANDARD_CONDITIONS.items():
+    for name in names:
+        base = STANDARD_CONDITIONS[name]
         # FRA Class 5, as the study says; the other settings for the gap decomposition
         changes = {"irregularity_class": args.track_class or None}
         if args.friction is not None:
             changes["wheel_rail_friction"] = args.friction
+        if args.wavelength_min is not None:
+            changes["wavelength_min_m"] = args.wavelength_min
         if args.cant_mm is not None and base.curve_radius_m is not None:
             changes["cant_mm"] = args.cant_mm
         cond = base.with_changes(**changes)
         seeds = [cond.seed + 1000 * k for k in range(args.seeds)]
-        r = simulate_batch([ParameterSet.nominal()] * len(seeds), cond, seeds=seeds, wagon=wagon)
-        if not r.ok.all():
-            print(f"{name}: {int((~r.ok).sum())} of {len(seeds)} records failed: {r.failures()}")
+        Y, Q, ok, measured_wheel = simulate_records(cond, seeds, wagon, keep)
         sim_y, meas_y, sim_q, meas_q = TABLE8_BEFORE[name]
         for force, study_sim, measured in (("Y", sim_y, meas_y), ("Q", sim_q, meas_q)):
-            series = r.Y if force == "Y" else r.Q
+            series = Y if force == "Y" else Q
             for stat in STATISTICS:
                 row = {
                     "condition": name,
@@ -95,8 +244,8 @@ def main() -> None:
                     "measured_kN": measured,
                     "wheels": {},
                 }
-                for j, role in wheel_roles(cond, r.measured_wheel()):
-                    v = record_values(series[r.ok, j] / 1e3, stat, force == "Y")
+                for j, role in wheel_roles(cond, measured_wheel):
+                    v = record_values(series[ok, j] / 1e3, stat, force == "Y")
                     row["wheels"][role] = {
                         "wheel": WHEEL_NAMES[j],
                         "seed_mean_kN": float(v.mean()),
@@ -110,7 +259,8 @@ def main() -> None:
     wall = time.perf_counter() - t0
     print(
         f"Leading wheelset, {args.seeds} seeds of 20 s per condition, FRA class "
-        f"{args.track_class or 'none (perfect track)'}, {wagon.name}; "
+        f"{args.track_class or 'none (perfect track)'} ({', '.join(keep)}), {wagon.name}, "
+        f"creep factor {wagon.contact.creep_factor:g}; "
         f"value = seed mean (± std) in kN, % = against Table 8's measured value; "
         f"* = the study's statistic ({STUDY_STATISTIC}); target Y ±25 %, Q ±3 %\n"
     )
@@ -137,6 +287,12 @@ def main() -> None:
         "seeds": args.seeds,
         "wagon": wagon.name,
         "contact": wagon.contact.model,
+        "track_class": args.track_class,
+        "irregularities": list(keep),
+        "friction": args.friction,
+        "cant_mm": args.cant_mm,
+        "wavelength_min_m": args.wavelength_min,
+        "creep_factor": wagon.contact.creep_factor,
         "study_statistic": STUDY_STATISTIC,
         "targets": TARGET,
         "wall_s": wall,
