@@ -135,3 +135,31 @@ def test_bundle_predict_is_unchanged_by_the_fast_path(kind):
     a = sur.predict_windows(unit, tr, idx, batch_size=64)
     b = sur.predict_windows(unit, tr, idx, fast=False)
     np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-5)
+
+
+@pytest.mark.parametrize(("window", "hidden", "n_tracks"), [(20, (256, 128, 64), 1), (5, (9,), 3)])
+def test_bp_predict_series_equals_forward_on_every_window(window, hidden, n_tracks):
+    """The BP network's split first layer (track convolution + summed parameter weights)
+    gives what the network gives on each gathered window: first and last windows, random
+    ones out of order, one shared track or one per sample, chunks smaller than the call."""
+    torch.manual_seed(2)
+    net = build_network(NetConfig(kind="bp", window=window, mlp_hidden=hidden)).eval()
+    rng = np.random.default_rng(6)
+    n, t_steps = 3, 50
+    params = rng.random((n, 6)).astype(np.float32)
+    track = rng.normal(size=(n_tracks, t_steps, 15)).astype(np.float32) * 2
+    ends = np.r_[window - 1, t_steps - 1, rng.integers(window - 1, t_steps, 30)]
+    index = np.stack([rng.integers(0, n, len(ends)), ends], 1)
+    with torch.inference_mode():
+        ref = net(torch.from_numpy(gather_windows(params, track, index, window)))
+        fast = net.predict_series(torch.from_numpy(params), torch.from_numpy(track), index, chunk=7)
+    assert fast.shape == ref.shape == (len(index), 2)
+    assert torch.allclose(fast, ref, rtol=1e-5, atol=1e-5), (fast - ref).abs().max()
+    # a parameter change moves only the parameter part: the track's convolution is shared
+    params2 = params.copy()
+    params2[0] += 0.5
+    with torch.inference_mode():
+        ref2 = net(torch.from_numpy(gather_windows(params2, track, index, window)))
+        fast2 = net.predict_series(torch.from_numpy(params2), torch.from_numpy(track), index)
+    assert torch.allclose(fast2, ref2, rtol=1e-5, atol=1e-5)
+    assert not torch.allclose(fast2[index[:, 0] == 0], fast[index[:, 0] == 0])

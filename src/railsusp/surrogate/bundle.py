@@ -32,7 +32,7 @@ from railsusp.surrogate.data import (
     track_features,
     window_index,
 )
-from railsusp.surrogate.models import CNNRecurrent, NetConfig, build_network
+from railsusp.surrogate.models import CNNRecurrent, NetConfig, WindowMLP, build_network
 from railsusp.surrogate.sequence import CNNSequence
 from railsusp.vehicle.simulate import SolverSettings
 from railsusp.vehicle.wagon import WagonData
@@ -242,8 +242,10 @@ class Surrogate:
 
         CNN-recurrent networks go through :meth:`CNNRecurrent.predict_series` on the per-step
         inputs of the whole series (built once), which computes the convolutions, pooling and
-        first input projection once per series step instead of once per window step; the
-        others, or ``fast=False`` (the reference), run the network on every gathered window.
+        first input projection once per series step instead of once per window step; the BP
+        network through :meth:`WindowMLP.predict_series` (its first layer split into a
+        convolution of the track and the parameters' part); the others, or ``fast=False``
+        (the reference), run the network on every gathered window.
         Both give the same numbers to float32 rounding. The sequence CNN-GRU runs once over
         each whole series, from its start (``fast=False``: one step at a time, the state
         carried), and its outputs at the asked steps are returned."""
@@ -256,6 +258,15 @@ class Surrogate:
             feats = series_features(unit, track_norm).astype(np.float32, copy=False)
             with torch.inference_mode():
                 pred = self.net.predict_series(torch.from_numpy(feats), idx, chunk=batch_size)
+            return pred.numpy()
+        if fast and isinstance(self.net, WindowMLP):
+            with torch.inference_mode():
+                pred = self.net.predict_series(
+                    torch.from_numpy(np.ascontiguousarray(unit, dtype=np.float32)),
+                    torch.from_numpy(np.ascontiguousarray(track_norm, dtype=np.float32)),
+                    idx,
+                    chunk=batch_size,
+                )
             return pred.numpy()
         res = []
         with torch.inference_mode():
