@@ -5,7 +5,10 @@ straight and curve conditions (10 s simulated each: 100 m lead-in, 4 s record) i
 tests/data/force_reference.npz; without it, the script simulates again and prints, per
 condition, the largest difference from the stored forces relative to the largest force.
 tests/vehicle/test_force_reference.py asserts the same at 1e-9. A deliberate change of the
-model's physics rewrites the file (``--write``) in the same commit, saying why.
+model's physics rewrites the file (``--write``) in the same commit, saying why, with a new
+:data:`railsusp.vehicle.MODEL_REVISION` (stored with the forces; ``--write`` refuses changed
+forces under the stored revision, since run directories are re-simulated only when it
+changes).
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ import numpy as np
 from railsusp.conditions import get_condition
 from railsusp.params import MAIN_SUSPENSION, bounds
 from railsusp.store import write_json
+from railsusp.vehicle import MODEL_REVISION
 from railsusp.vehicle.simulate import simulate_batch
 
 REFERENCE = Path(__file__).resolve().parents[1] / "tests" / "data" / "force_reference.npz"
@@ -43,6 +47,31 @@ def relative_difference(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
 
 
+def stored_revision() -> str | None:
+    """The model revision the stored forces were made with (None: no file, or one written
+    before revisions were stored)."""
+    if not REFERENCE.exists():
+        return None
+    ref = np.load(REFERENCE)
+    return str(ref["model_revision"]) if "model_revision" in ref.files else None
+
+
+def write_reference(forces: dict[str, np.ndarray]) -> Path:
+    """Store ``forces`` with :data:`MODEL_REVISION`; refused when they differ from forces
+    stored under that same revision."""
+    if stored_revision() == MODEL_REVISION:
+        ref = np.load(REFERENCE)
+        moved = max(relative_difference(forces[k], ref[k]) for k in forces)
+        if moved > 1e-9:
+            raise SystemExit(
+                f"the forces moved by {moved:.2e} of the largest under the stored model revision "
+                f"{MODEL_REVISION!r}: give railsusp.vehicle.MODEL_REVISION a new value first"
+            )
+    REFERENCE.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(REFERENCE, model_revision=np.array(MODEL_REVISION), **forces)
+    return REFERENCE
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--write", action="store_true", help="store the reference forces")
@@ -52,9 +81,7 @@ def main() -> None:
     for c in CONDITIONS:
         forces[f"{c}_Y"], forces[f"{c}_Q"] = reference_forces(c)
     if args.write:
-        REFERENCE.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(REFERENCE, **forces)
-        print(f"wrote {REFERENCE}")
+        print(f"wrote {write_reference(forces)}")
         return
     ref = np.load(REFERENCE)
     rows = [

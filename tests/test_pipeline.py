@@ -251,3 +251,32 @@ def test_report_renders_every_figure_in_headless_chromium(tiny, tmp_path):
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert proc.stdout.count('data-ok="true"') == n_figures
     assert 'data-ok="false"' not in proc.stdout
+
+
+def test_stage_hashes_follow_the_model_not_only_the_configuration(monkeypatch, tmp_path):
+    """A run directory made with another model is simulated again: the force laws' revision
+    and the wagon's data as read (a wagon file edited in place) are in the simulated stages'
+    hashes. (A demo folder of an older railsusp was reused, and its estimate stage failed.)"""
+    from importlib import resources
+
+    import railsusp.vehicle
+    from railsusp import pipeline
+    from railsusp.store import content_hash
+
+    cfg = demo_config()
+
+    def hashes(config):
+        return {s: content_hash(pipeline._section(config, s)) for s in ("campaign", "field")}
+
+    before = hashes(cfg)
+    monkeypatch.setattr(railsusp.vehicle, "MODEL_REVISION", "another")
+    after = hashes(cfg)
+    assert all(before[s] != after[s] for s in before)
+    monkeypatch.undo()
+    wagon = tmp_path / "wagon.toml"
+    text = resources.files("railsusp").joinpath("data/c80_k6.toml").read_text("utf-8")
+    wagon.write_text(text)
+    own = cfg.model_copy(update={"wagon": str(wagon)})
+    first = hashes(own)
+    wagon.write_text(text.replace("gib_stiffness = 50.0e6", "gib_stiffness = 40.0e6"))
+    assert all(first[s] != hashes(own)[s] for s in first)

@@ -343,8 +343,26 @@ def run_pipeline(
     return state
 
 
+def model_identity(config: PipelineConfig) -> dict[str, str]:
+    """What the simulated stages' results depend on beyond the configuration: the wagon's
+    data as read (a wagon file edited in place, or the embedded data of another railsusp)
+    and the force laws' revision (:data:`railsusp.vehicle.MODEL_REVISION`). In the stage
+    hashes, so that a run directory made with another model is simulated again instead of
+    being reused (the demo's did, and its estimate stage then failed reading surrogates
+    saved with an older wagon description)."""
+    from railsusp.vehicle import MODEL_REVISION
+    from railsusp.vehicle.wagon import load_wagon
+
+    wagon = load_wagon(config.wagon).model_dump(mode="json")
+    return {"wagon_data": content_hash(wagon), "model_revision": MODEL_REVISION}
+
+
 def _section(config: PipelineConfig, stage: str) -> Any:
-    base = {"wagon": config.wagon, "conditions": list(config.conditions)}
+    base = {
+        "wagon": config.wagon,
+        "conditions": list(config.conditions),
+        "model": model_identity(config),
+    }
     source = config.run_source()
     if source is not None:  # the conditions, and the field, come from the recording's cut
         base["conditions"] = [c.model_dump(mode="json") for c in config.working_conditions()]

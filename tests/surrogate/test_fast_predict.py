@@ -163,3 +163,29 @@ def test_bp_predict_series_equals_forward_on_every_window(window, hidden, n_trac
         fast2 = net.predict_series(torch.from_numpy(params2), torch.from_numpy(track), index)
     assert torch.allclose(fast2, ref2, rtol=1e-5, atol=1e-5)
     assert not torch.allclose(fast2[index[:, 0] == 0], fast[index[:, 0] == 0])
+
+
+def test_a_surrogate_of_an_older_wagon_description_is_refused_in_one_line(tmp_path):
+    import json
+
+    from railsusp.errors import RailsuspInputError
+    from railsusp.surrogate.bundle import load
+
+    cfg = NetConfig(kind="bp", mlp_hidden=(4,))
+    sur = Surrogate(
+        build_network(cfg),
+        cfg,
+        FeatureSpec(parameters=KEYS),
+        Normaliser([0.0] * 15, [2.0] * 15, [10.0, 120.0], [5.0, 20.0]),
+        get_condition("straight"),
+        load_wagon(),
+        0,
+    )
+    sur.save(tmp_path / "s")
+    assert load(tmp_path / "s").wagon == load_wagon()
+    meta = tmp_path / "s" / "surrogate.json"
+    doc = json.loads(meta.read_text())
+    del doc["wagon"]["centre_plate"]["rocking_stiffness"]  # as saved before 2026-11-24
+    meta.write_text(json.dumps(doc))
+    with pytest.raises(RailsuspInputError, match="centre_plate.rocking_stiffness.*train it again"):
+        load(tmp_path / "s")

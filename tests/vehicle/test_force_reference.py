@@ -27,3 +27,27 @@ def test_the_reference_check_sees_a_changed_force():
     changed = ref.copy()
     changed[0, 0, 100] += 1e-6 * np.max(np.abs(ref))
     assert fr.relative_difference(changed, ref) > 1e-9
+
+
+def test_the_reference_is_of_this_model_revision():
+    """Forces and revision go together: a physics change writes new forces under a new
+    railsusp.vehicle.MODEL_REVISION, which re-simulates the run directories of the old one."""
+    from railsusp.vehicle import MODEL_REVISION
+
+    assert _bench().stored_revision() == MODEL_REVISION
+
+
+def test_writing_changed_forces_under_the_stored_revision_is_refused(tmp_path, monkeypatch):
+    fr = _bench()
+    path = tmp_path / "ref.npz"
+    monkeypatch.setattr(fr, "REFERENCE", path)
+    forces = {"straight_Q": np.full((1, 8, 4), 1.0e5)}
+    fr.write_reference(forces)
+    assert fr.stored_revision() == fr.MODEL_REVISION
+    fr.write_reference(forces)  # the same forces again: fine
+    moved = {"straight_Q": forces["straight_Q"] * (1 + 1e-6)}
+    with pytest.raises(SystemExit, match="give railsusp.vehicle.MODEL_REVISION a new value"):
+        fr.write_reference(moved)
+    monkeypatch.setattr(fr, "MODEL_REVISION", "next")
+    fr.write_reference(moved)
+    assert fr.stored_revision() == "next"

@@ -19,8 +19,10 @@ from typing import Any
 
 import numpy as np
 import torch
+from pydantic import ValidationError
 
 from railsusp.conditions import TRACK_INPUT_FIELDS, WorkingCondition
+from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet, spec
 from railsusp.store import atomic_folder, atomic_write_bytes, provenance, write_json
 from railsusp.surrogate.correction import RecordCorrection
@@ -325,13 +327,21 @@ def load(path: str | Path) -> Surrogate:
     for p in feats.parameters:
         spec(p)  # validates the stored parameter names
     corr = doc.get("record_correction")  # absent in files saved before it existed
+    try:
+        wagon = WagonData(**doc["wagon"])
+    except ValidationError as exc:
+        fields = ", ".join(".".join(map(str, e["loc"])) for e in exc.errors())
+        raise RailsuspInputError(
+            f"{meta_path}: its wagon description ({fields}) is not one this railsusp reads: the "
+            "surrogate was trained on an older model; train it again"
+        ) from None
     return Surrogate(
         net,
         net_cfg,
         feats,
         Normaliser(**doc["normaliser"]),
         WorkingCondition(**doc["condition"]),
-        WagonData(**doc["wagon"]),
+        wagon,
         int(doc["track_seed"]),
         doc.get("meta", {}),
         None if corr is None else RecordCorrection.from_dict(corr),
