@@ -477,6 +477,12 @@ def test_cli_estimate_prints_the_table(trained, tmp_path):
         (["train", "--ensemble", "0"], "--ensemble 0: accepted 1 to 20"),
         (["train", "--product-sections", "1,4"], "--product-sections 1,4: accepted distinct"),
         (["train", "--product-sections", "two"], "--product-sections two: accepted whole"),
+        (
+            ["train", "--product-sections", "2,4", "--product-cases", "50,40,30"],
+            "--product-cases 50,40,30: accepted one count from 20 to 100000 per entry",
+        ),
+        (["train", "--product-sections", "2", "--product-cases", "5"], "--product-cases 5: acc"),
+        (["train", "--product-cases", "many"], "--product-cases many: accepted whole numbers"),
         (["train", "--conditions", "nowhere"], "nowhere"),
         (["train", "--lead-in", "-5"], "--lead-in -5"),
         (["train", "--conditions", "curve", "--lead-in", "30"], "accepted at least 90.03 m"),
@@ -511,3 +517,14 @@ def test_cli_train_writes_the_estimator_and_its_check(tmp_path, monkeypatch):
         assert (run / "posterior" / name).exists()
     assert len(list((run / "posterior" / "simulations").glob("*.npz"))) == 3
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+def test_cli_product_cases_one_count_or_one_per_number_of_sections():
+    from railsusp.cli.posterior import _product_cases
+    from railsusp.estimate.posterior_data import PosteriorSettings
+
+    assert _product_cases("80") == {"n_product": 80}
+    per = _product_cases("100, 40")
+    assert per == {"product_cases": (100, 40)}
+    s = PosteriorSettings((CONDITION,), product_sections=(8, 2), **_product_cases("40,100"))
+    assert s.product_sections == (2, 8) and s.product_cases == (100, 40)

@@ -21,7 +21,8 @@ app.add_typer(posterior_app, name="posterior")
 _OPTIONS = {"section_s": "--section", "n_train": "--simulations", "n_check": "--check",
             "noise": "--noise", "parameters": "--parameters",
             "n_calibration": "--calibration", "ensemble": "--ensemble",
-            "product_sections": "--product-sections", "n_product": "--product-cases"}  # fmt: skip
+            "product_sections": "--product-sections", "n_product": "--product-cases",
+            "product_cases": "--product-cases"}  # fmt: skip
 
 
 def _calibration_table(est) -> None:
@@ -58,13 +59,23 @@ def _calibration_table(est) -> None:
         )
 
 
-def _counts(text: str) -> tuple[int, ...]:
+def _counts(text: str, option: str = "--product-sections", accepted: str = "2 to 1000"):
     try:
         return tuple(int(v) for v in text.split(",") if v.strip())
     except ValueError:
         raise RailsuspInputError(
-            f"--product-sections {text}: accepted whole numbers from 2 to 1000, comma-separated"
+            f"{option} {text}: accepted whole numbers from {accepted}, comma-separated"
         ) from None
+
+
+def _product_cases(text: str) -> dict:
+    """``--product-cases``: one count for every number of sections (``n_product``), or one
+    per entry of ``--product-sections`` (``product_cases``), so the longest records, the
+    costliest to simulate, can be checked on fewer cases."""
+    counts = _counts(text, "--product-cases", "20 to 100000")
+    if len(counts) == 1:
+        return {"n_product": counts[0]}
+    return {"product_cases": counts}
 
 
 @posterior_app.command(
@@ -94,8 +105,12 @@ def train_command(
         ),
     ] = "",
     product_cases: Annotated[
-        int, typer.Option(help="held-out cases per set (calibration, test) of several sections")
-    ] = 100,
+        str,
+        typer.Option(
+            help="held-out cases per set (calibration, test) of several sections: one count "
+            "for every entry of --product-sections, or one per entry, comma-separated"
+        ),
+    ] = "100",
     noise: Annotated[float, typer.Option(help="instrument noise, fraction of RMS")] = 0.03,
     lead_in: Annotated[
         float | None, typer.Option(help="lead-in before each section, m (default: the condition's)")
@@ -128,7 +143,7 @@ def train_command(
             n_calibration=calibration,
             ensemble=ensemble,
             product_sections=_counts(product_sections),
-            n_product=product_cases,
+            **_product_cases(product_cases),
             noise=noise,
             sum_y=sum_y,
             seed=seed,
