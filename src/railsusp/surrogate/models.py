@@ -365,6 +365,7 @@ class WindowMLP(nn.Module):
         w_track = w[:, :, n_par:].permute(0, 2, 1).contiguous()  # (H, n_track, L)
         # output j of the convolution is the window of steps j .. j + L - 1 (end j + L - 1)
         conv = torch.nn.functional.conv1d(track.permute(0, 2, 1), w_track)  # (S, H, T - L + 1)
+        conv = conv.permute(0, 2, 1).contiguous()  # (S, T - L + 1, H): a window's row is gathered
         par = params @ w_par.T + first.bias  # (n, H)
         rest = self.net[2:]
         i = torch.from_numpy(np.ascontiguousarray(index[:, 0]))
@@ -373,7 +374,7 @@ class WindowMLP(nn.Module):
         out = []
         for lo in range(0, len(index), chunk):
             sl = slice(lo, lo + chunk)
-            out.append(rest(conv[ti[sl], :, j[sl]] + par[i[sl]]))
+            out.append(rest(conv[ti[sl], j[sl]] + par[i[sl]]))
         return torch.cat(out) if out else torch.zeros((0, self.net[-1].out_features))
 
 
