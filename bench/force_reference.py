@@ -5,7 +5,10 @@ straight and curve conditions (10 s simulated each: 100 m lead-in, 4 s record) i
 tests/data/force_reference.npz; without it, the script simulates again and prints, per
 condition, the largest difference from the stored forces relative to the largest force.
 tests/vehicle/test_force_reference.py asserts the same at 1e-9. A deliberate change of the
-model's physics rewrites the file (``--write``) in the same commit, saying why.
+model's physics rewrites the file (``--write``) in the same commit, saying why; the file it
+replaces can stay beside it as the reference of a switch that restores the old model
+(tests/data/force_reference_zero_yaw.npz: ``[contact] yaw_geometry = false``;
+force_reference_wedge_pair.npz: ``[secondary] wedge_half_spacing = 0``).
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ from railsusp.conditions import get_condition
 from railsusp.params import MAIN_SUSPENSION, bounds
 from railsusp.store import write_json
 from railsusp.vehicle.simulate import simulate_batch
+from railsusp.vehicle.wagon import WagonData
 
 REFERENCE = Path(__file__).resolve().parents[1] / "tests" / "data" / "force_reference.npz"
 CONDITIONS = ("straight", "curve")
@@ -31,10 +35,13 @@ def reference_sets() -> np.ndarray:
     return lo + (hi - lo) * np.array([[0.5] * len(lo), [0.2] * len(lo), [0.8] * len(lo)])
 
 
-def reference_forces(condition: str) -> tuple[np.ndarray, np.ndarray]:
-    """(Y, Q) of the reference sets in ``condition``, N, shape (3, 8, 200)."""
+def reference_forces(
+    condition: str, wagon: WagonData | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(Y, Q) of the reference sets in ``condition``, N, shape (3, 8, 200); ``wagon``: the
+    packaged loaded wagon by default."""
     cond = get_condition(condition, duration_s=4.0, n_steps=200, lead_in_m=100.0)
-    r = simulate_batch(reference_sets(), cond, symbols=MAIN_SUSPENSION)
+    r = simulate_batch(reference_sets(), cond, symbols=MAIN_SUSPENSION, wagon=wagon)
     return r.Y, r.Q
 
 
