@@ -2,8 +2,9 @@
 and behind the bolster end at +-l_w (``[secondary] wedge_half_spacing``), slide on their
 column faces in opposite directions when the bolster yaws relative to the side frame, and
 their column friction makes a yaw moment mu_column N_col l_w against it (docs/model.md,
-friction wedges). The wedge pair of the model before 2026-11-24 acted at the nest centre and
-resisted no warp: ``wedge_half_spacing = 0`` is that model, bit for bit."""
+friction wedges). The wedge pair of the model before the warp friction (2026-11-24) acted at
+the nest centre and resisted no warp: ``wedge_half_spacing = 0`` is that model, bit for bit
+(its stored forces: tests/vehicle/test_force_reference.py)."""
 
 import dataclasses
 import math
@@ -83,8 +84,8 @@ def test_warp_lozenge_is_resisted_by_the_wedges_friction_moment_hysteresis():
     """Moment on the side frame against the warp angle: a friction loop whose sliding value
     is mu_column N_col l_w (4.4 kN m per nest with the K6 data) and whose area is that of
     an elasto-plastic slider, 4 M (A - M / k_w) with the warp stick stiffness
-    k_w = 2 (k_stick / 2) l_w^2; the wedge pair at the nest centre (the model before
-    2026-11-24) gives no moment at all."""
+    k_w = 2 (k_stick / 2) l_w^2; the wedge pair at the nest centre (the model before the
+    warp friction) gives no moment at all."""
     point = _point(L_W)
     A = 0.01  # rad
     w, m = _lozenge_loop(point, A)
