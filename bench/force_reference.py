@@ -8,7 +8,9 @@ tests/vehicle/test_force_reference.py asserts the same at 1e-9. A deliberate cha
 model's physics rewrites the file (``--write``) in the same commit, saying why, with a new
 :data:`railsusp.vehicle.MODEL_REVISION` (stored with the forces; ``--write`` refuses changed
 forces under the stored revision, since run directories are re-simulated only when it
-changes).
+changes). The file it replaces can stay beside it as the reference of a switch that restores
+the old model (tests/data/force_reference_zero_yaw.npz: ``[contact] yaw_geometry = false``;
+force_reference_wedge_pair.npz: ``[secondary] wedge_half_spacing = 0``).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from railsusp.params import MAIN_SUSPENSION, bounds
 from railsusp.store import write_json
 from railsusp.vehicle import MODEL_REVISION
 from railsusp.vehicle.simulate import simulate_batch
+from railsusp.vehicle.wagon import WagonData
 
 REFERENCE = Path(__file__).resolve().parents[1] / "tests" / "data" / "force_reference.npz"
 CONDITIONS = ("straight", "curve")
@@ -35,10 +38,13 @@ def reference_sets() -> np.ndarray:
     return lo + (hi - lo) * np.array([[0.5] * len(lo), [0.2] * len(lo), [0.8] * len(lo)])
 
 
-def reference_forces(condition: str) -> tuple[np.ndarray, np.ndarray]:
-    """(Y, Q) of the reference sets in ``condition``, N, shape (3, 8, 200)."""
+def reference_forces(
+    condition: str, wagon: WagonData | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(Y, Q) of the reference sets in ``condition``, N, shape (3, 8, 200); ``wagon``: the
+    packaged loaded wagon by default."""
     cond = get_condition(condition, duration_s=4.0, n_steps=200, lead_in_m=100.0)
-    r = simulate_batch(reference_sets(), cond, symbols=MAIN_SUSPENSION)
+    r = simulate_batch(reference_sets(), cond, symbols=MAIN_SUSPENSION, wagon=wagon)
     return r.Y, r.Q
 
 

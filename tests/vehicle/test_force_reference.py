@@ -1,10 +1,18 @@
 """The simulator's forces against stored reference forces (bench/force_reference.py): a speed
 change of the right-hand side must leave them unchanged to 1e-9 of the largest force."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from conftest import bench_script
+
+#: the reference forces of the model before the wedges' warp friction (2026-11-24), whose
+#: wedge pair acted at the nest centre: tests/data/force_reference.npz of commit 2192499
+WEDGE_PAIR_REFERENCE = (
+    Path(__file__).resolve().parents[1] / "data" / "force_reference_wedge_pair.npz"
+)
 
 
 def _bench():
@@ -51,3 +59,20 @@ def test_writing_changed_forces_under_the_stored_revision_is_refused(tmp_path, m
     monkeypatch.setattr(fr, "MODEL_REVISION", "next")
     fr.write_reference(moved)
     assert fr.stored_revision() == "next"
+
+
+@pytest.mark.parametrize("condition", ["straight", "curve"])
+def test_wedges_at_the_nest_centre_reproduce_the_forces_before_the_warp_friction(condition):
+    """``[secondary] wedge_half_spacing = 0`` is the model before the front and rear wedges
+    were split (one wedge pair at the nest centre, no warp friction): its forces equal those
+    stored with that model to 1e-9 of the largest force (measured: bit for bit against a
+    fresh run of that model, 3e-14 against the stored file, the machine's round-off)."""
+    from railsusp.vehicle.wagon import WagonData, load_wagon
+
+    fr = _bench()
+    data = load_wagon().model_dump()
+    data["secondary"]["wedge_half_spacing"] = 0.0
+    y, q = fr.reference_forces(condition, WagonData(**data))
+    ref = np.load(WEDGE_PAIR_REFERENCE)
+    assert fr.relative_difference(y, ref[f"{condition}_Y"]) < 1e-9
+    assert fr.relative_difference(q, ref[f"{condition}_Q"]) < 1e-9

@@ -28,15 +28,15 @@ def _wedge_loop(amplitude, f_ctrl0, k_ctrl, mu, k_stick, c_stick, n=4000, cycles
     force on the bolster over the last cycle."""
     w = 2.0 * math.pi
     dt = cycles / n
-    state = np.zeros(3)
-    d = np.zeros(3)
+    state = np.zeros(L.WEDGE_STATES)
+    d = np.zeros(L.WEDGE_STATES)
     xs, fs = [], []
     for i in range(n):
         t = i * dt
         x = amplitude * math.sin(w * t)
         v = amplitude * w * math.cos(w * t)
         fz, *_ = friction_wedges(
-            x, v, 0.0, 0.0, f_ctrl0, k_ctrl, TAN40, COS40, mu, 0.2, 1.0, k_stick, c_stick,
+            x, v, 0.0, 0.0, 0.0, f_ctrl0, k_ctrl, TAN40, COS40, mu, 0.2, 1.0, k_stick, c_stick,
             state, d, 0,
         )  # fmt: skip
         state += dt * d

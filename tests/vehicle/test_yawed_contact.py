@@ -30,7 +30,8 @@ BACK_TO_BACK, BACK_FACE_OFFSET = 1.353, 0.070  # contact_table's defaults
 def _zero_yaw_wagon(rigid_bowl: bool = False) -> WagonData:
     """The wagon with the zero-yaw contact; ``rigid_bowl``: and with the centre bowl of the
     model before 2026-11-24's rocking stiffness (a ring of the bowl's vertical stiffness on a
-    bolster rigid in bending and pitch)."""
+    bolster rigid in bending and pitch) and its wedge pair at the nest centre (no warp
+    friction)."""
     data = load_wagon().model_dump()
     data["contact"]["yaw_geometry"] = False
     if rigid_bowl:
@@ -38,6 +39,7 @@ def _zero_yaw_wagon(rigid_bowl: bool = False) -> WagonData:
         cp = data["centre_plate"]
         cp["rocking_stiffness"] = cp["vertical_stiffness"] * radius * radius / 2.0
         cp["bolster_pitch_stiffness"] = 1.0e30
+        data["secondary"]["wedge_half_spacing"] = 0.0
     return WagonData(**data)
 
 

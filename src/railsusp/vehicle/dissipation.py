@@ -34,7 +34,8 @@ ELEMENTS: tuple[str, ...] = (
     "side bearers (elastomer loss)",
     "wedges, vertical (stick damping)",
     "wedges, lateral (stick damping)",
-    "wedges, warp (stick damping)",
+    "wedges, warp (column faces, stick damping)",
+    "wedges, longitudinal (slope faces, stick damping)",
     "secondary longitudinal damping",
     "primary pads, longitudinal",
     "primary pads, lateral",
@@ -83,6 +84,7 @@ def mode_dissipation(result: ModalResult, point: LinearisationPoint, mode: int) 
 
     lc, a = K[k["l_c"]], K[k["a"]]
     b1, b2 = K[k["b1"]], K[k["b2"]]
+    c_wedge, l_w = K[k["c_wedge"]], K[k["l_wedge"]]
     sb_half = 0.5 * P[10]
     for b in range(2):
         d = lc if b == 0 else -lc
@@ -96,14 +98,19 @@ def mode_dissipation(result: ModalResult, point: LinearisationPoint, mode: int) 
         for sidx, side in enumerate((1.0, -1.0)):
             jf = L.SF0 + 5 * (2 * b + sidx)
             vxn = v[jf] + side * b2 * v[ib + 3]
+            # each of the nest's two wedges has half the stick damping; both slip vertically
+            # with the nest, laterally the front one v_y + v_w and the rear one v_y - v_w
+            # (v_w = l_w times the relative yaw rate), so together they dissipate c |v_y|^2 / 2
+            # laterally and c |v_w|^2 / 2 in warp: the cross terms cancel
             add(
                 ELEMENTS[4],
-                stick * K[k["c_wedge"]],
+                stick * c_wedge,
                 v[jf + 2] - (v[ib + 1] + side * b2 * v[ib + 2]),
             )
-            add(ELEMENTS[5], stick * K[k["c_wedge"]], v[jf + 1] - v[ib])
-            add(ELEMENTS[6], stick * K[k["c_wedge"]], vxn)
-            add(ELEMENTS[7], K[k["c_sx"]], vxn)
+            add(ELEMENTS[5], stick * c_wedge, v[jf + 1] - v[ib])
+            add(ELEMENTS[6], stick * c_wedge, l_w * (v[jf + 4] - v[ib + 3]))
+            add(ELEMENTS[7], stick * c_wedge, vxn)
+            add(ELEMENTS[8], K[k["c_sx"]], vxn)
     # primary suspension (forces on the wheelsets kept for the contact's power below)
     k_px = series_stiffness(P[12], P[19])
     k_py = series_stiffness(P[13], P[19])
@@ -122,9 +129,9 @@ def mode_dissipation(result: ModalResult, point: LinearisationPoint, mode: int) 
             dvx = v[jf] + side * b1 * v[iw + 3]
             dvy = v[jf + 1] + e * v[jf + 4] - v[iw]
             dvz = (v[iw + 1] + side * b1 * v[iw + 2]) - (v[jf + 2] - e * v[jf + 3])
-            add(ELEMENTS[8], c_px, dvx)
-            add(ELEMENTS[9], c_py, dvy)
-            add(ELEMENTS[10], c_pz, dvz)
+            add(ELEMENTS[9], c_px, dvx)
+            add(ELEMENTS[10], c_py, dvy)
+            add(ELEMENTS[11], c_pz, dvz)
             fx = k_px * (q[jf] + side * b1 * q[iw + 3]) + c_px * dvx
             fy = k_py * (q[jf + 1] + e * q[jf + 4] - q[iw]) + c_py * dvy
             dz = (q[iw + 1] + side * b1 * q[iw + 2]) - (q[jf + 2] - e * q[jf + 3])

@@ -9,16 +9,24 @@ right-handed: roll about x, pitch about y, yaw about z):
 * side frame j = 2k + (0 left, 1 right): x, y, z, pitch, yaw (5 each)
 * wheelset w = 0..3 front to rear: y, z, roll, yaw (4 each)
 
-Auxiliary first-order states (16): per spring nest n = 2k + side, the friction forces of its
-wedge pair on the side-frame columns, vertical and lateral, and on the bolster slope faces,
-longitudinal (warp) (3 each, 12); the car-body/bolster yaw friction moment of each bogie (2);
-the centre-bowl roll friction moment of each bogie (2).
+Auxiliary first-order states (24): per spring nest n = 2k + side (5 each, 20), the column
+friction forces of its front wedge (ahead of the bolster end), vertical and lateral, those of
+its rear wedge, vertical and lateral, and the friction force of the pair's bolster slope faces
+against longitudinal slip; the car-body/bolster yaw friction moment of each bogie (2); the
+centre-bowl roll friction moment of each bogie (2). The front and rear wedges' lateral
+friction forces differ when the bolster yaws relative to the side frame (warp): their
+difference times the wedges' half spacing is the wedges' warp moment.
 """
 
 from __future__ import annotations
 
 N_DOF = 49
-N_AUX = 16
+#: auxiliary states per spring nest (its wedges' friction forces) and their offsets from the
+#: nest's first one
+WEDGE_STATES = 5
+W_FRONT_Z, W_FRONT_Y, W_REAR_Z, W_REAR_Y, W_LONG = range(WEDGE_STATES)
+N_WEDGE_AUX = 4 * WEDGE_STATES
+N_AUX = N_WEDGE_AUX + 4
 N_STATE = 2 * N_DOF + N_AUX
 
 # car body
@@ -30,9 +38,9 @@ SF0 = 13
 # wheelset w: base + (0 y, 1 z, 2 roll, 3 yaw)
 WS0 = 33
 # auxiliary states (offset into the full state vector)
-AUX_WEDGE = 2 * N_DOF  # nest n: + 3n vertical, + 3n + 1 lateral, + 3n + 2 longitudinal, N
-AUX_YAWFR = 2 * N_DOF + 12  # 2 body-bolster yaw friction moments, N m
-AUX_ROLLFR = 2 * N_DOF + 14  # 2 centre-bowl roll friction moments, N m
+AUX_WEDGE = 2 * N_DOF  # nest n: + WEDGE_STATES n + W_*, N
+AUX_YAWFR = AUX_WEDGE + N_WEDGE_AUX  # 2 body-bolster yaw friction moments, N m
+AUX_ROLLFR = AUX_YAWFR + 2  # 2 centre-bowl roll friction moments, N m
 
 # ---- constants vector (wagon + condition), K[...] ----
 _K_NAMES = (
@@ -44,10 +52,11 @@ _K_NAMES = (
     # fixed elements
     "c_px", "c_py", "c_pz", "k_sz", "c_sx", "k_gib",
     # friction wedges, per nest: tan(wedge angle), cos, column and slope friction, control
-    # springs (all wedges of the nest) and their static force, stick stiffness and damping,
-    # X18 nominal (the wedge normal forces scale with X18 / X18 nominal)
+    # springs (all wedges of the nest) and their static force, stick stiffness and damping
+    # (all wedges of the nest), X18 nominal (the wedge normal forces scale with X18 / X18
+    # nominal), the front and rear wedges' longitudinal offset from the nest centre (m)
     "tan_wedge", "cos_wedge", "mu_column", "mu_slope", "k_ctrl", "F0_ctrl",
-    "k_wedge", "c_wedge", "x18_ref",
+    "k_wedge", "c_wedge", "x18_ref", "l_wedge",
     # centre bowl: its ring's stiffness (liner and rim), the bolster's bending under it and
     # the bolster's pitch restraint in the side-frame windows (quasi-static, suspension.py)
     "k_cpz", "k_cpb", "k_cpp", "k_cpy", "mu_cp", "k_yaw", "c_yaw", "k_roll", "c_roll",

@@ -11,15 +11,18 @@ Force elements (the ten sampled parameters in brackets):
 
 * primary, per axle box: rubber pad shear in series with the adapter seat, longitudinal
   [X13 + X20] and lateral [X14 + X20]; vertical compression [X15]; linear viscous loss.
-* secondary, per spring nest: vertical springs (control springs included) and a pair of
-  variable-damping friction wedges (:mod:`railsusp.vehicle.suspension`): column normal force
-  F_s / (tan a -+ mu) from the control springs' force, scaled by X18 / X18 nominal (wedge
-  rise and wear); Coulomb friction on the column face against vertical and lateral slip
-  together (one friction circle), on the slope faces against longitudinal slip (warp);
-  longitudinal shear [X16], lateral shear [X17] and a bolster gib stop beyond the clearance
-  [X12].
+* secondary, per spring nest: vertical springs (control springs included) and two
+  variable-damping friction wedges, ahead of and behind the bolster end at +- l_w
+  (:mod:`railsusp.vehicle.suspension`): column normal force F_s / (tan a -+ mu) from the
+  control springs' force, scaled by X18 / X18 nominal (wedge rise and wear), half on each
+  wedge; Coulomb friction on each wedge's column face against its vertical and lateral slip
+  together (one friction circle per wedge: a bolster yawing relative to the side frame
+  slides the two in opposite directions, a warp friction moment), on the slope faces
+  against the bolster end's longitudinal slip; longitudinal shear [X16], lateral shear
+  [X17] and a bolster gib stop beyond the clearance [X12].
 * cross-bracing: two diagonal bars between the side frames, axial stiffness [X19], pin-hole
-  spans X9 (longitudinal) and X10 (lateral): warp (parallelogram) stiffness.
+  spans X9 (longitudinal) and X10 (lateral): warp (parallelogram) stiffness, beside the
+  wedges' warp friction.
 * car body to bolster: centre bowl as a ring of compression-only contact points (vertical
   stiffness, roll and pitch moments up to edge lift-off), lateral spring (bowl rim), yaw and
   roll friction; two constant-contact side bearers at +- X11/2 [X11] with lift-off and a
@@ -67,7 +70,7 @@ I_HCG, I_HCP, I_HB, I_HK, I_XK, I_RCP = (_K["h_cg_c"], _K["h_cp"], _K["h_cg_b"],
 I_CPX, I_CPY, I_CPZ, I_KSZ, I_CSX = _K["c_px"], _K["c_py"], _K["c_pz"], _K["k_sz"], _K["c_sx"]
 I_KW, I_CW, I_KGIB = _K["k_wedge"], _K["c_wedge"], _K["k_gib"]
 I_TANW, I_COSW, I_MUC, I_MUS = _K["tan_wedge"], _K["cos_wedge"], _K["mu_column"], _K["mu_slope"]
-I_KCTRL, I_F0CTRL, I_X18REF = _K["k_ctrl"], _K["F0_ctrl"], _K["x18_ref"]
+I_KCTRL, I_F0CTRL, I_X18REF, I_LW = _K["k_ctrl"], _K["F0_ctrl"], _K["x18_ref"], _K["l_wedge"]
 I_KCPZ, I_KCPY, I_MUCP, I_KYAW = _K["k_cpz"], _K["k_cpy"], _K["mu_cp"], _K["k_yaw"]
 I_CYAW, I_KROLL, I_CROLL = _K["c_yaw"], _K["k_roll"], _K["c_roll"]
 I_KCPB, I_KCPP = _K["k_cpb"], _K["k_cpp"]
@@ -131,6 +134,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
     k_sx = P[15]  # X16
     k_sy = P[16]  # X17
     wedge_scale = P[17] / K[I_X18REF]  # X18: wedge normal forces relative to nominal
+    l_w = K[I_LW]  # front and rear wedges' longitudinal offset from the nest centre
     k_bar = P[18]  # X19
     h9 = 0.5 * P[8]
     bar_len = math.sqrt(P[8] * P[8] + P[9] * P[9])
@@ -227,18 +231,22 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             side = 1.0 if sidx == 0 else -1.0
             jf = SF0 + 5 * (2 * k + sidx)
             add_frame_forces(acc, jf + 1, jf + 2, K[I_MF], kap_b, cos_b, sin_b, V, gn)
-            # vertical nest springs + friction wedge pair: column friction (vertical and
-            # lateral, one friction circle) and slope friction (longitudinal, warp)
+            # vertical nest springs + the nest's two friction wedges, ahead of and behind the
+            # bolster end at +-l_w: column friction (vertical and lateral, one friction
+            # circle each; their lateral forces' difference makes the warp moment) and slope
+            # friction (longitudinal)
             comp = q[jf + 2] - (q[ib + 1] + side * b2 * q[ib + 2])
             comp_rate = v[jf + 2] - (v[ib + 1] + side * b2 * v[ib + 2])
             f_spring = K[I_F0N] + K[I_KSZ] * comp
-            ia = AUXW + 3 * (2 * k + sidx)
+            ia = AUXW + L.WEDGE_STATES * (2 * k + sidx)
             dyn = q[jf + 1] - q[ib]
             dxn = q[jf] + side * b2 * q[ib + 3]
             vxn = v[jf] + side * b2 * v[ib + 3]
-            f_wz, f_wy, f_warp = friction_wedges(
-                comp, comp_rate, v[jf + 1] - v[ib], vxn, K[I_F0CTRL], K[I_KCTRL], K[I_TANW],
-                K[I_COSW], K[I_MUC], K[I_MUS], wedge_scale, K[I_KW], K[I_CW], x, dxdt, ia,
+            v_warp = l_w * (v[jf + 4] - v[ib + 3])  # front wedge's lateral slip from warp
+            f_wz, f_wy, df_wy, f_wx = friction_wedges(
+                comp, comp_rate, v[jf + 1] - v[ib], v_warp, vxn, K[I_F0CTRL], K[I_KCTRL],
+                K[I_TANW], K[I_COSW], K[I_MUC], K[I_MUS], wedge_scale, K[I_KW], K[I_CW], x,
+                dxdt, ia,
             )  # fmt: skip
             f_up = f_spring - K[I_F0N] + f_wz  # on bolster, deviation from static
             acc[ib + 1] += f_up
@@ -248,9 +256,14 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             f_lat = k_sy * dyn + f_wy + gap_spring(dyn, gib, K[I_KGIB])
             acc[ib] += f_lat
             acc[jf + 1] -= f_lat
-            # longitudinal shear [X16] and wedge slope friction (warp): bolster yaw against
-            # side-frame longitudinal motion
-            f_lon = k_sx * dxn + K[I_CSX] * vxn + f_warp
+            # warp: the front and rear wedges' column friction, l_w (F_front - F_rear), on
+            # the bolster's yaw against the side frame's
+            m_warp = l_w * df_wy
+            acc[ib + 3] += m_warp
+            acc[jf + 4] -= m_warp
+            # longitudinal shear [X16] and wedge slope friction: the bolster end's
+            # longitudinal slip (bolster yaw against side-frame longitudinal motion)
+            f_lon = k_sx * dxn + K[I_CSX] * vxn + f_wx
             acc[ib + 3] += -side * b2 * f_lon
             acc[jf] -= f_lon
 

@@ -65,7 +65,7 @@ STAGE_TOLERANCE = 1.0
 CLAMP_PASSES = 1
 
 I_KW, I_KYAW, I_KROLL = L.K["k_wedge"], L.K["k_yaw"], L.K["k_roll"]
-I_LC, I_B2 = L.K["l_c"], L.K["b2"]
+I_LC, I_B2, I_LW = L.K["l_c"], L.K["b2"], L.K["l_wedge"]
 #: solved states kept in memory
 CACHE_SIZE = 4096
 
@@ -146,10 +146,13 @@ def start_plan(
 def _slip(x, kappa, K, out):
     """Relative displacements whose rates are the friction sliders' velocities in the
     equations of motion, per friction state (order of the states from AUX_WEDGE): per nest
-    the column's vertical and lateral and the slope's longitudinal slip, per bogie the
-    body-bolster yaw (with the chord angle -κ d at the bolster's track position d) and the
-    bowl roll; of the displacements of x on uniform track of curvature ``kappa``."""
+    its front and its rear wedge's vertical and lateral slip on the column (the lateral one
+    with the warp, +- l_w times the side frame's yaw less the bolster's) and the slope's
+    longitudinal slip, per bogie the body-bolster yaw (with the chord angle -κ d at the
+    bolster's track position d) and the bowl roll; of the displacements of x on uniform
+    track of curvature ``kappa``."""
     b2 = K[I_B2]
+    l_w = K[I_LW]
     for k in range(2):
         d = K[I_LC] if k == 0 else -K[I_LC]
         ib = L.BOL0 + 4 * k
@@ -157,11 +160,26 @@ def _slip(x, kappa, K, out):
             side = 1.0 if sidx == 0 else -1.0
             n = 2 * k + sidx
             jf = L.SF0 + 5 * n
-            out[3 * n] = x[jf + 2] - (x[ib + 1] + side * b2 * x[ib + 2])
-            out[3 * n + 1] = x[jf + 1] - x[ib]
-            out[3 * n + 2] = x[jf] + side * b2 * x[ib + 3]
-        out[12 + k] = x[L.CB_YAW] - x[ib + 3] - kappa * d
-        out[14 + k] = x[ib + 2] - x[L.CB_ROLL]
+            i0 = L.WEDGE_STATES * n
+            dz = x[jf + 2] - (x[ib + 1] + side * b2 * x[ib + 2])
+            dy = x[jf + 1] - x[ib]
+            warp = l_w * (x[jf + 4] - x[ib + 3])
+            out[i0 + L.W_FRONT_Z] = dz
+            out[i0 + L.W_FRONT_Y] = dy + warp
+            out[i0 + L.W_REAR_Z] = dz
+            out[i0 + L.W_REAR_Y] = dy - warp
+            out[i0 + L.W_LONG] = x[jf] + side * b2 * x[ib + 3]
+        out[L.N_WEDGE_AUX + k] = x[L.CB_YAW] - x[ib + 3] - kappa * d
+        out[L.N_WEDGE_AUX + 2 + k] = x[ib + 2] - x[L.CB_ROLL]
+
+
+@nb.njit(cache=True)
+def _stick_stiffness(i, K):
+    """Stick stiffness of friction state ``i`` (from AUX_WEDGE): each wedge's column slider
+    has half the nest's, the slope slider the nest's, then the yaw and roll sliders'."""
+    if i < L.N_WEDGE_AUX:
+        return K[I_KW] if i % L.WEDGE_STATES == L.W_LONG else 0.5 * K[I_KW]
+    return K[I_KYAW] if i < L.N_WEDGE_AUX + 2 else K[I_KROLL]
 
 
 @nb.njit(cache=True)
@@ -175,8 +193,7 @@ def _residual(x, f, r, m, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, ka
     u = np.empty(L.N_AUX)
     _slip(x, kappa, K, u)
     for i in range(L.N_AUX):
-        k_stick = K[I_KW] if i < 12 else (K[I_KYAW] if i < 14 else K[I_KROLL])
-        x[L.AUX_WEDGE + i] = fref[i] + k_stick * (u[i] - uref[i])
+        x[L.AUX_WEDGE + i] = fref[i] + _stick_stiffness(i, K) * (u[i] - uref[i])
     for _ in range(CLAMP_PASSES):  # a wedge's limit depends on its own state: clamp again
         code = rhs(x, f, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, o)
         if code != 0:

@@ -373,7 +373,7 @@ def _bowl_constants(wagon: WagonData) -> dict[str, float]:
 
 
 def _wedge_constants(wagon: WagonData, f_nest: float) -> dict[str, float]:
-    """Constants of the friction-wedge pair of one spring nest: the control springs (all
+    """Constants of the friction wedges of one spring nest: the control springs (all
     wedges of the nest) are compressed with the nest, so their static force is their share
     k_ctrl / k_nest of the static nest force."""
     sec = wagon.secondary
@@ -389,6 +389,7 @@ def _wedge_constants(wagon: WagonData, f_nest: float) -> dict[str, float]:
         "k_wedge": sec.wedge_stick_stiffness,
         "c_wedge": sec.wedge_stick_damping,
         "x18_ref": spec("X18").nominal,
+        "l_wedge": sec.wedge_half_spacing,
     }
 
 

@@ -17,6 +17,7 @@ import math
 import numba as nb
 
 import railsusp.vehicle.kernel_cache  # noqa: F401  (before any kernel is compiled)
+from railsusp.vehicle.layout import W_FRONT_Z, W_LONG, W_REAR_Z
 
 #: relaxation time of a friction state pushed beyond its (shrinking) limit, s
 SLIDER_RELAXATION = 2.0e-3
@@ -145,29 +146,56 @@ def wedge_column_normal_force(spring_force, tan_alpha, mu_column, loading):
 
 @nb.njit(cache=True, inline="always")
 def friction_wedges(
-    comp, v_vert, v_lat, v_long, f_ctrl0, k_ctrl, tan_a, cos_a, mu_column, mu_slope, scale,
-    k_stick, c_stick, x, dxdt, ia,
+    comp, v_vert, v_lat, v_warp, v_long, f_ctrl0, k_ctrl, tan_a, cos_a, mu_column, mu_slope,
+    scale, k_stick, c_stick, x, dxdt, ia,
 ):  # fmt: skip
-    """Friction forces (N) of the wedge pair of one spring nest on the bolster: vertical (+
-    up), lateral and longitudinal, each opposing the side frame's motion relative to the
-    bolster (v_* = side frame minus bolster; comp = nest compression from static, m).
+    """Friction forces (N) of the two wedges of one spring nest on the bolster, the front one
+    ahead of the bolster end and the rear one behind it: vertical (+ up), lateral, the front
+    wedge's lateral force less the rear one's, and longitudinal, each opposing the side
+    frame's motion relative to the bolster (v_* = side frame minus bolster; comp = nest
+    compression from static, m).
 
     The control springs (f_ctrl0 + k_ctrl comp, all wedges of the nest) set the column
     normal force (:func:`wedge_column_normal_force`), times ``scale`` (wedge rise and wear:
-    X18 / X18 nominal). The column face carries Coulomb friction mu_column N against
-    vertical and lateral slip together (:func:`damped_slider_2d`, states x[ia], x[ia + 1]);
-    the slope faces, with normal force N / cos a, carry mu_slope N / cos a against
-    longitudinal slip (warp, state x[ia + 2]).
+    X18 / X18 nominal); each wedge carries half of it, with half the nest's stick stiffness
+    and stick damping (``k_stick``, ``c_stick``: the nest's). Each wedge's column face
+    carries Coulomb friction mu_column N / 2 against its vertical and lateral slip together
+    (:func:`damped_slider_2d`; states x[ia + W_FRONT_Z], x[ia + W_FRONT_Y] and
+    x[ia + W_REAR_Z], x[ia + W_REAR_Y], layout.py), its compression/rebound branch set by its
+    own vertical friction force. Both wedges slip vertically with the nest (``v_vert``);
+    laterally the front wedge slips ``v_lat + v_warp`` and the rear one ``v_lat - v_warp``,
+    where v_warp = l_w (yaw rate of the side frame - yaw rate of the bolster) at the wedges'
+    longitudinal offsets +-l_w: a bolster yawing in its window (warp, lozenging) slides the
+    two wedges on their columns in opposite directions, and l_w times the third returned
+    force is their friction moment on the bolster's yaw (on the side frame's, minus that).
+    The slope faces, with normal force N / cos a (both wedges), carry mu_slope N / cos a
+    against the bolster end's longitudinal slip (one slider, state x[ia + W_LONG]).
+
+    With v_warp = 0 the two wedges are the same and the sums are the forces of one wedge pair
+    acting at the nest centre bit for bit (halving is exact in binary floating point).
     """
     f_ctrl = f_ctrl0 + k_ctrl * comp
-    n_reb = f_ctrl / (tan_a + mu_column) * scale  # column normal force on rebound
-    loading = x[ia] / (mu_column * n_reb) if n_reb > 0.0 and mu_column > 0.0 else 0.0
-    n_col = scale * wedge_column_normal_force(f_ctrl, tan_a, mu_column, loading)
-    fz, fy = damped_slider_2d(
-        x[ia], x[ia + 1], mu_column * n_col, k_stick, c_stick, v_vert, v_lat, dxdt, ia, ia + 1
-    )
-    fx = damped_slider(x[ia + 2], mu_slope * n_col / cos_a, k_stick, c_stick, v_long, dxdt, ia + 2)
-    return fz, fy, fx
+    n_reb = 0.5 * (f_ctrl / (tan_a + mu_column) * scale)  # one wedge's normal force, rebound
+    lim_reb = mu_column * n_reb
+    k_one = 0.5 * k_stick
+    c_one = 0.5 * c_stick
+    i_f = ia + W_FRONT_Z
+    i_r = ia + W_REAR_Z
+    loading = x[i_f] / lim_reb if n_reb > 0.0 and mu_column > 0.0 else 0.0
+    n_f = 0.5 * (scale * wedge_column_normal_force(f_ctrl, tan_a, mu_column, loading))
+    fz_f, fy_f = damped_slider_2d(
+        x[i_f], x[i_f + 1], mu_column * n_f, k_one, c_one, v_vert, v_lat + v_warp, dxdt, i_f,
+        i_f + 1,
+    )  # fmt: skip
+    loading = x[i_r] / lim_reb if n_reb > 0.0 and mu_column > 0.0 else 0.0
+    n_r = 0.5 * (scale * wedge_column_normal_force(f_ctrl, tan_a, mu_column, loading))
+    fz_r, fy_r = damped_slider_2d(
+        x[i_r], x[i_r + 1], mu_column * n_r, k_one, c_one, v_vert, v_lat - v_warp, dxdt, i_r,
+        i_r + 1,
+    )  # fmt: skip
+    i_x = ia + W_LONG
+    fx = damped_slider(x[i_x], mu_slope * (n_f + n_r) / cos_a, k_stick, c_stick, v_long, dxdt, i_x)
+    return fz_f + fz_r, fy_f + fy_r, fy_f - fy_r, fx
 
 
 @nb.njit(cache=True, inline="always")

@@ -77,7 +77,11 @@ class Primary(_Section):
 class Secondary(_Section):
     """Spring nest with its friction wedges (per bogie side). ``vertical_stiffness`` is the
     whole nest's, control springs included; the wedges' control springs carry their share
-    of the static load. The wedge's column normal force is F_s / (tan a -+ mu_column)."""
+    of the static load. The wedge's column normal force is F_s / (tan a -+ mu_column).
+    ``wedge_half_spacing``: the wedges sit this far ahead of and behind the nest centre
+    (half of them each way), so that a bolster yawing in the side-frame window slides them on
+    their columns in opposite directions (the wedges' warp friction moment); 0 puts them all
+    at the nest centre, where they resist no warp."""
 
     vertical_stiffness: float = Field(**_POS)
     longitudinal_damping: float = Field(ge=0.0)
@@ -88,6 +92,9 @@ class Secondary(_Section):
     slope_friction_coefficient: float = Field(ge=0.0, le=1.0)
     wedge_stick_stiffness: float = Field(**_POS)
     wedge_stick_damping: float = Field(ge=0.0)
+    wedge_half_spacing: float = Field(
+        ge=0.0, le=0.5, allow_inf_nan=False, description="wedges ahead of/behind the nest, m"
+    )
     gib_stiffness: float = Field(**_POS)
 
     @model_validator(mode="after")
@@ -104,6 +111,12 @@ class Secondary(_Section):
             raise ValueError(
                 f"column_friction_coefficient = {self.column_friction_coefficient:g}: accepted "
                 f"below tan(wedge_angle_deg) = {tan_a:.3g} (else the wedge locks)"
+            )
+        if self.wedge_half_spacing > 0.0 and self.wedges_per_nest % 2:
+            raise ValueError(
+                f"wedge_half_spacing = {self.wedge_half_spacing:g} m with wedges_per_nest = "
+                f"{self.wedges_per_nest}: accepted an even number of wedges (as many ahead of "
+                f"the bolster end as behind it), or wedge_half_spacing = 0"
             )
         return self
 
