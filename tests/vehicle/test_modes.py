@@ -335,6 +335,19 @@ def test_decay_fits_are_the_modes_they_name(decay_stuck):
     assert not decay_stuck.unreliable
 
 
+def test_decay_fit_check_flags_the_wedges_sliding(stuck, sliding):
+    """A 30 mm dip makes the wedges slide: the bounce rings between its stuck and its
+    sliding frequency (2026-11-24: 3.59 Hz between 4.82 and 2.48, R² 0.87), and Coulomb
+    friction takes more per cycle than the pre-sliding loss (ζ_eq 0.235 against 0.073).
+    The fit check must flag that decay as not the stuck mode's."""
+    result = free_decay(amplitude_m=0.03, excitations=("dip",), modal=stuck)
+    row = result.row("car body bounce")
+    assert not row["fit_ok"] and row in result.unreliable
+    f_sliding = kind_frequency(sliding, "bounce")
+    assert 1.05 * f_sliding < row["frequency_Hz"] < 0.95 * kind_frequency(stuck, "bounce")
+    assert row["damping_ratio"] > 2.0 * row["linear_damping_ratio"]
+
+
 def test_decay_every_car_body_mode_is_damped_with_friction_on(decay_stuck):
     """Issue 18: every car-body mode below 20 Hz has an equivalent damping ratio of at least
     0.05 in free decay with friction on (5 mm dip, 5 mm cross-level dip, 5 mm kink), every
