@@ -71,7 +71,7 @@ def modes(
     )
     console.print(frame_table(df, title, fmt="{:.3g}"))
     if decayed is not None:
-        dd = decayed.to_dataframe().drop(columns=["linear_mode", "amplitude"])
+        dd = decayed.to_dataframe().drop(columns=["amplitude", "frequency_ratio"])
         dd = dd.rename(
             columns={
                 "linear_frequency_Hz": "linear f Hz",
@@ -79,6 +79,8 @@ def modes(
                 "frequency_Hz": "decay f Hz",
                 "damping_ratio": "equivalent damping",
                 "fit_R2": "fit R²",
+                "car_body_energy": "car body KE",
+                "fit_ok": "fit ok",
             }
         )
         console.print(

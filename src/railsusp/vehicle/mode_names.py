@@ -33,14 +33,15 @@ GROUPS: dict[str, slice] = {
 
 
 def name_mode(
-    energy: np.ndarray, q: np.ndarray, h_cg: float, l_c: float, speed: float
+    energy: np.ndarray, q: np.ndarray, h_cg: float, l_c: float, speed: float, h_cp: float
 ) -> tuple[str, str]:
     """(body group, engineering name) of a mode from its kinetic-energy shares per degree
-    of freedom and its displacement shape q (complex)."""
+    of freedom and its displacement shape q (complex); heights above rail: h_cg of the car
+    body's CG, h_cp of the centre plate; l_c: half the bogie spacing (m)."""
     shares = {g: energy[s].sum() for g, s in GROUPS.items()}
     group = max(shares, key=shares.get)
     if group == "car body":
-        return group, _car_body_name(energy, q, h_cg, l_c)
+        return group, _car_body_name(energy, q, h_cg, l_c, h_cp)
     if group == "bolster":
         dirs = ("lateral", "bounce", "roll", "yaw")
         e = energy[GROUPS["bolster"]].reshape(2, 4)
@@ -93,7 +94,7 @@ def _which(per_bogie: np.ndarray, q: np.ndarray, idx: list[int]) -> str:
     return "bogies in phase" if same else "bogies anti-phase"
 
 
-def _car_body_name(energy: np.ndarray, q: np.ndarray, h_cg: float, l_c: float) -> str:
+def _car_body_name(energy: np.ndarray, q: np.ndarray, h_cg: float, l_c: float, h_cp: float) -> str:
     """Bounce, pitch, yaw, lateral, lower sway (roll) or upper sway of the car body, or a
     kinematic (hunting-like) lateral or yaw mode when the wheelsets move with the body.
 
@@ -109,7 +110,7 @@ def _car_body_name(energy: np.ndarray, q: np.ndarray, h_cg: float, l_c: float) -
         "sway": e[L.CB_Y] + e[L.CB_ROLL],
     }
     kind = max(parts, key=parts.get)
-    if kind in ("sway", "yaw") and _kinematic(q, l_c):
+    if kind in ("sway", "yaw") and _kinematic(q, l_c, h_cp - h_cg):
         return f"car body kinematic (hunting-like) {'yaw' if kind == 'yaw' else 'lateral'}"
     if kind != "sway":
         return f"car body {kind}"
@@ -123,10 +124,20 @@ def _car_body_name(energy: np.ndarray, q: np.ndarray, h_cg: float, l_c: float) -
     return f"car body {'lower' if z_rc < 0 else 'upper'} sway (roll centre {height:+.1f} m)"
 
 
-def _kinematic(q: np.ndarray, l_c: float) -> bool:
+def _kinematic(q: np.ndarray, l_c: float, dz_cp: float) -> bool:
     """Whether the wheelsets move sideways at least half as much as the car body above
     them: the mode rides on the wheelsets' rolling kinematics (body hunting-like) rather
-    than on the suspension, which holds the wheelsets nearly still in a body mode."""
-    body = 0.5 * sum(abs(q[L.CB_Y] + d * q[L.CB_YAW]) for d in (l_c, -l_c))
+    than on the suspension, which holds the wheelsets nearly still in a body mode.
+
+    The body's lateral motion above a bogie is taken at its CG and at the centre plate
+    (``dz_cp`` below the CG, where the body rests on the bogie; a point at z above the CG
+    moves y - z roll + x yaw), the larger of the two: in an upper sway the body rolls about a
+    point near its CG, which hardly moves sideways, while the centre plates swing."""
+
+    def lateral(z: float) -> float:
+        y = q[L.CB_Y] - z * q[L.CB_ROLL]
+        return 0.5 * sum(abs(y + d * q[L.CB_YAW]) for d in (l_c, -l_c))
+
+    body = max(lateral(0.0), lateral(dz_cp))
     wheels = np.abs(q[[L.WS0 + 4 * w for w in range(4)]]).mean()
     return bool(wheels >= 0.5 * body)

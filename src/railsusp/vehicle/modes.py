@@ -217,9 +217,10 @@ def modes_of(
     energy = np.divide(ke, ke_sum, out=np.zeros_like(ke), where=ke_sum > 0)
     h_cg = point.K[L.K["h_cg_c"]]
     l_c = point.K[L.K["l_c"]]
+    h_cp = point.K[L.K["h_cp"]]
     names, groups = [], []
     for i in range(lam.size):
-        group, name = name_mode(energy[i], q[:, i], h_cg, l_c, point.speed)
+        group, name = name_mode(energy[i], q[:, i], h_cg, l_c, point.speed, h_cp)
         groups.append(group)
         names.append(name)
     mag = np.abs(lam)
