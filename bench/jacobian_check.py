@@ -9,7 +9,10 @@ it computes at the truth the forward-difference Jacobian of the time-aligned com
 scaled residuals (:func:`railsusp.estimate.aligned_identifiability.aligned_jacobian`, the
 refinement's 5 %-of-range step) twice: with the surrogate of ``RUN/surrogates/KIND`` and
 with the simulator on the same measured geometry, the parameters that are not network
-inputs held at the truth. Per key parameter and condition it reports:
+inputs held at the truth, both on the samples where the surrogate is defined (after its
+window or washout). ``--segment`` sets a sequence network's prediction segment
+(:meth:`railsusp.surrogate.bundle.Surrogate.segment_steps`). Per key parameter and
+condition it reports:
 
 - ``effect``: the simulator's column norm, i.e. the RMS change of the compared force over
   the parameter's whole range in units of the measured force's standard deviation
@@ -43,6 +46,7 @@ from railsusp.estimate.aligned_identifiability import (
     block_slices,
     bounds_pct_range,
     channel_names,
+    defined_from,
 )
 from railsusp.estimate.forces import SimulatorForces
 from railsusp.store import write_json
@@ -69,18 +73,31 @@ def column_norms(jac: np.ndarray, blocks: list[int], names: list[str], params) -
     }
 
 
+def set_segment(model: SurrogateForces, segment: str) -> None:
+    """Give every sequence network of ``model`` the prediction segment ``segment`` ('auto':
+    leave each its own, 'none': one run per series, or a number of steps)."""
+    if segment == "auto":
+        return
+    steps = None if segment == "none" else int(segment)
+    for name in model.conditions:
+        model.surrogate(name).meta["segment_steps"] = steps
+
+
 def check_set(index, truth_si, model, conditions, work, args) -> dict:
     truth, recs = set_recordings(index, truth_si, conditions, work, args)
     params = model.parameters
     x = np.array([truth[p] for p in params])
     names = channel_names(recs)
     t0 = time.perf_counter()
-    rn, jn, blocks = aligned_jacobian(model, recs, params, x)
+    lead = defined_from(model, recs, x)  # both models compared on the same samples
+    rn, jn, blocks = aligned_jacobian(model, recs, params, x, defined_from=lead)
     t1 = time.perf_counter()
-    rs, js, _ = aligned_jacobian(SimulatorForces(params, base=truth), recs, params, x)
+    sim = SimulatorForces(params, base=truth)
+    rs, js, _ = aligned_jacobian(sim, recs, params, x, defined_from=lead)
     t2 = time.perf_counter()
     return {
         "set": index,
+        "compared_from_step": dict(zip([r.condition.name for r in recs], lead, strict=True)),
         "truth_display": {p: truth.to_display()[p] for p in params},
         "agreement": agreement_of(jn, js, blocks, names, params),
         "effect": column_norms(js, blocks, names, params),
@@ -133,11 +150,18 @@ def main(argv=None) -> dict:
     ap.add_argument("--noise", type=float, default=0.03)
     ap.add_argument("--conditions", default="")
     ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument(
+        "--segment",
+        default="auto",
+        help="sequence networks: prediction segment in steps, 'none' (one run, state carried) "
+        "or 'auto' (the surrogate's own: its training chunk)",
+    )
     ap.add_argument("--work", type=Path, default=Path("runs/estimate_tracks"))
     ap.add_argument("--out", type=Path, default=Path("bench/results/jacobian_check.json"))
     args = ap.parse_args(argv)
     torch.set_num_threads(args.threads)
     model = SurrogateForces(args.run / "surrogates" / args.kind)
+    set_segment(model, args.segment)
     names = [c.strip() for c in args.conditions.split(",") if c.strip()] or None
     conditions, moved = family_conditions(model, args.duration, names)
     rows = []
@@ -176,6 +200,7 @@ def main(argv=None) -> dict:
         "machine": platform.platform(),
         "run": str(args.run),
         "kind": args.kind,
+        "segment_steps": {c: model.surrogate(c).segment_steps for c in model.conditions},
         "settings": vars(args)
         | {"run": str(args.run), "work": str(args.work), "out": str(args.out)},
         "moved_into_family": moved,

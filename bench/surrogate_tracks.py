@@ -14,6 +14,11 @@ condition the relative error of the record mean of
 vertical Q and lateral |Y| per held-out run (mean and worst) and pooled, the NRMSE and R² of
 the series, and the inference rate (windows per second, batched, ``--threads`` torch threads).
 
+``--nominal`` also trains the networks that read the nominal wagon's response on each track
+(the campaign's nominal twins are made first): the window CNN-GRU (``cnn-gru-nominal``) by
+default, the sequence CNN-GRU too or instead with ``--nominal-kinds cnn-gru,cnn-gru-seq``
+(``cnn-gru-seq-nominal``; ``--models ""`` trains nothing else).
+
 Everything is resumable: the campaign resumes from its stored batches, the networks from their
 checkpoints (a finished training is reloaded, not repeated; its record correction is fitted
 again). ``--train-conditions`` and ``--variant-conditions`` train some conditions of the
@@ -141,17 +146,22 @@ def network_rows(
 
 
 def nominal_rows(
-    run: str | Path, condition: str, train: TrainConfig | None, split_seed: int = 0
+    run: str | Path,
+    condition: str,
+    train: TrainConfig | None,
+    split_seed: int = 0,
+    kind: str = "cnn-gru",
 ) -> list[dict]:
-    """Train the CNN-GRU that also reads the nominal wagon's forces on each track
-    (:mod:`railsusp.surrogate.nominal`; saved under ``RUN/surrogates/cnn-gru-nominal/``) and
+    """Train the ``kind`` network (the window CNN-GRU, or the sequence CNN-GRU
+    ``cnn-gru-seq``) that also reads the nominal wagon's forces on each track
+    (:mod:`railsusp.surrogate.nominal`; saved under ``RUN/surrogates/<kind>-nominal/``) and
     score it, with the nominal wagon's own forces beside it, on the same test runs."""
     return network_rows(
         run,
         condition,
-        kind="cnn-gru",
+        kind=kind,
         window=None,
-        label="cnn-gru-nominal",
+        label=f"{kind}-nominal",
         train=train,
         split_seed=split_seed,
         nominal_response=True,
@@ -210,11 +220,13 @@ def table_on_tracks(
     split_seed: int = 0,
     progress: Callable[[str], None] | None = None,
     nominal: bool = False,
+    nominal_kinds: Sequence[str] = ("cnn-gru",),
 ) -> pd.DataFrame:
     """The accuracy table (one row per condition, model and force) of every model on the
     campaign's held-out test runs in ``conditions`` (all by default): the compared models,
     then the sequence CNN-GRU, then (``nominal``) the CNN-GRU reading the nominal wagon's
-    forces (its campaign's nominal twins made first, or resumed), then the variant's rows
+    forces (of each of ``nominal_kinds``: ``<kind>-nominal``; its campaign's nominal twins
+    made first, or resumed), then the variant's rows
     (in ``variant_conditions``, all by default)."""
     compared = [m for m in models if m not in SEQUENCE]
     conds = (
@@ -242,10 +254,11 @@ def table_on_tracks(
             )
     if nominal:
         run_nominal_twins(run, conditions=conds)  # only the conditions trained here
-        for cond in conds:
-            if progress:
-                progress(f"{cond}: cnn-gru-nominal")
-            rows += nominal_rows(run, cond, train, split_seed)
+        for kind in nominal_kinds:
+            for cond in conds:
+                if progress:
+                    progress(f"{cond}: {kind}-nominal")
+                rows += nominal_rows(run, cond, train, split_seed, kind)
     if rows:
         tables.append(pd.DataFrame(rows))
     table = pd.concat(tables, ignore_index=True)
@@ -388,6 +401,11 @@ def main() -> None:
         action="store_true",
         help="also the CNN-GRU reading the nominal wagon's forces (makes the nominal twins)",
     )
+    ap.add_argument(
+        "--nominal-kinds",
+        default="cnn-gru",
+        help="with --nominal: the kinds trained on the nominal response (cnn-gru, cnn-gru-seq)",
+    )
     ap.add_argument("--train-conditions", help="conditions whose models are trained (default: all)")
     ap.add_argument("--threads", type=int, default=2, help="torch threads for throughput")
     ap.add_argument("--repeats", type=int, default=3, help="timed predict calls, best kept")
@@ -428,6 +446,9 @@ def main() -> None:
         print(f"  training {msg}", flush=True)
 
     models = [m.strip() for m in args.models.split(",") if m.strip()]
+    nominal_kinds = [k.strip() for k in args.nominal_kinds.split(",") if k.strip()]
+    if not set(nominal_kinds) <= {"cnn-gru", "cnn-gru-seq"}:
+        ap.error(f"--nominal-kinds {args.nominal_kinds}: accepted cnn-gru, cnn-gru-seq")
     table = table_on_tracks(
         args.run,
         models=models,
@@ -437,10 +458,13 @@ def main() -> None:
         conditions=args.train_conditions.split(",") if args.train_conditions else None,
         progress=tick,
         nominal=args.nominal,
+        nominal_kinds=nominal_kinds,
     )
     tick("done")
     t7 = table7_per_run(table)
-    kinds = [k for k in models if k in NETWORKS] + (["cnn-gru-nominal"] if args.nominal else [])
+    kinds = [k for k in models if k in NETWORKS] + (
+        [f"{k}-nominal" for k in nominal_kinds] if args.nominal else []
+    )
     rates = inference_rates(args.run, table.condition.iloc[0], kinds, args.threads, args.repeats)
     print_table(t7, seconds)
     print(f"\ninference, windows / s ({args.threads} threads, 64 parameter sets per call):")

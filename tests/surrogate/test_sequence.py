@@ -231,6 +231,36 @@ def test_predict_keeps_the_window_networks_contract(trained):
     assert all(np.isfinite(r["relative_error_of_mean"]) for r in rows)
 
 
+def test_a_long_record_is_predicted_in_segments_of_the_training_chunk(trained):
+    """The bundle predicts in segments of its training chunk (60 steps here): a track three
+    records long gives each step the output of the segment that keeps it, and
+    ``meta["segment_steps"] = None`` the one run with the state carried (another answer)."""
+    _, sur = trained
+    assert sur.segment_steps == sur.meta["train_config"]["chunk_steps"] == 60
+    x = np.array([[450e3, 5.5e6, 140e6, 1.1e6, 1.7e6, 55e6]])[:, : len(sur.spec.parameters)]
+    rng = np.random.default_rng(0)
+    n_track = sur.spec.n_features - len(sur.spec.parameters)
+    track = rng.standard_normal((300, n_track))
+    out = sur.predict(x, track=track, corrected=False)
+    feats = torch.from_numpy(
+        np.concatenate(
+            [np.repeat(sur._unit(x)[:, None], 300, 1), sur.normaliser.track(track[None])], 2
+        ).astype(np.float32)
+    )
+    ref = sur.normaliser.target_inverse(sur.net.predict_series(feats, segment=60).numpy())
+    np.testing.assert_allclose(out[:, 30:], ref[:, 30:], rtol=1e-5, atol=1e-4)
+    np.testing.assert_allclose(
+        sur.predict(x, track=track[:60], corrected=False), out[:, :60], rtol=1e-5
+    )
+    sur.meta["segment_steps"] = None
+    try:
+        carried = sur.predict(x, track=track, corrected=False)
+    finally:
+        del sur.meta["segment_steps"]
+    np.testing.assert_allclose(carried[:, :60], out[:, :60], rtol=1e-5)
+    assert np.abs(carried[:, 60:] - out[:, 60:]).max() > 1e-3
+
+
 def test_the_cli_trains_the_kind_and_refuses_a_washout_as_long_as_the_records(trained):
     from typer.testing import CliRunner
 

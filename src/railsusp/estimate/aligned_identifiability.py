@@ -29,6 +29,7 @@ from itertools import pairwise
 
 import numpy as np
 
+from railsusp.estimate.comparison import comparison_filter
 from railsusp.estimate.forces import ForceModel
 from railsusp.estimate.identifiability import BOUND_LIMIT_PCT
 from railsusp.estimate.output_error import OutputError
@@ -42,18 +43,59 @@ def aligned_jacobian(
     recordings: Sequence[Recording],
     parameters: Sequence[str],
     x_si: np.ndarray,
+    *,
+    defined_from: Sequence[int] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, list[int]]:
     """The time-aligned comparison's scaled residuals at ``x_si`` (SI) and their
     forward-difference Jacobian in unit-range parameters
     (:class:`~railsusp.estimate.output_error.OutputError` without channel gains), and the
-    number of compared samples of each recording's lateral and vertical force, in order."""
+    number of compared samples of each recording's lateral and vertical force, in order.
+
+    Only samples where the model's prediction is defined are compared: a surrogate's first
+    steps (a window network's window, a sequence network's washout, through the
+    comparison's filter) are undefined, and the refinement's problem counts them as zero
+    force, which would make a 100 kN wheel load look like a residual of several standard
+    deviations. ``defined_from`` (per recording, the first step to compare, e.g. another
+    model's :func:`defined_from`) leaves out more, so that two models are compared on the
+    same samples. Each block stays scaled so that its norm is the RMS residual over the
+    measured force's standard deviation."""
     problem = OutputError(model, recordings, parameters, gains=False)
     unit = np.clip((np.asarray(x_si, dtype=float) - problem.lo) / (problem.hi - problem.lo), 0, 1)
+    base = problem.lo + unit * (problem.hi - problem.lo)
+    series = [model.series(base[None], rec.condition) for rec in recordings]
+    problem.remember(base[None], series)  # the base point is not predicted twice
+    first = [_first_defined(s, rec) for s, rec in zip(series, recordings, strict=True)]
+    if defined_from is not None:
+        first = [max(a, int(b)) for a, b in zip(first, defined_from, strict=True)]
     preds = problem.predictions(problem.steps(unit))
     jac = problem.jacobian_of(preds, unit)
     r = problem.residuals(preds, np.ones(0))[0]
-    blocks = [u[c].size for u in problem.samples for c in range(2)]
-    return r, jac, blocks
+    keep, scale = [], []
+    for u, start in zip(problem.samples, first, strict=True):
+        for c in range(2):
+            used = u[c] >= start
+            keep.append(used)
+            scale.append(np.full(int(used.sum()), np.sqrt(used.size / max(int(used.sum()), 1))))
+    rows = np.concatenate(keep)
+    factor = np.concatenate(scale)
+    blocks = [int(k.sum()) for k in keep]
+    return r[rows] * factor, jac[rows] * factor[:, None], blocks
+
+
+def defined_from(model: ForceModel, recordings: Sequence[Recording], x_si: np.ndarray) -> list[int]:
+    """Per recording, the first step from which ``model``'s prediction at ``x_si`` (SI) is
+    defined through the time-aligned comparison's filter (0 for the simulator)."""
+    x = np.atleast_2d(np.asarray(x_si, dtype=float))
+    return [_first_defined(model.series(x, rec.condition), rec) for rec in recordings]
+
+
+def _first_defined(series: np.ndarray, rec: Recording) -> int:
+    """The first step from which every set of ``series`` (n, T, 2) is defined after the
+    comparison's filter (T where one never is)."""
+    ok = np.isfinite(comparison_filter(series, rec)).all(axis=-1)  # (n, T)
+    if not ok.any(axis=1).all():
+        return ok.shape[1]
+    return int(np.argmax(ok, axis=1).max())
 
 
 def bounds_pct_range(r: np.ndarray, jac: np.ndarray, blocks: Sequence[int]) -> np.ndarray:
@@ -141,8 +183,9 @@ def jacobian_agreement(
     is to identify; its held-out error says nothing about either (issue 19). Both Jacobians
     are forward differences of :data:`~railsusp.estimate.output_error.REFINE_STEP` of the
     range, on the same recordings and samples."""
-    _, jm, blocks = aligned_jacobian(model, recordings, parameters, x_si)
-    _, jr, _ = aligned_jacobian(reference, recordings, parameters, x_si)
+    lead = defined_from(model, recordings, x_si)
+    _, jm, blocks = aligned_jacobian(model, recordings, parameters, x_si, defined_from=lead)
+    _, jr, _ = aligned_jacobian(reference, recordings, parameters, x_si, defined_from=lead)
     return agreement_of(jm, jr, blocks, channel_names(recordings), parameters)
 
 

@@ -98,6 +98,21 @@ class Surrogate:
         the count was kept."""
         return self.meta.get("track_realisations") == 1
 
+    @property
+    def segment_steps(self) -> int | None:
+        """The sequence CNN-GRU's prediction segment (steps; None: each series in one run
+        with the state carried, and for window networks): ``meta["segment_steps"]`` when
+        set, else the length of the chunks it was trained on (``train_config.chunk_steps``,
+        at most its campaign's record length), so that no prediction runs its state longer
+        than training did (:func:`~railsusp.surrogate.sequence.segment_plan`)."""
+        if not isinstance(self.net, CNNSequence):
+            return None
+        if "segment_steps" in self.meta:
+            seg = self.meta["segment_steps"]
+            return None if seg is None else int(seg)
+        chunk = (self.meta.get("train_config") or {}).get("chunk_steps")
+        return None if chunk is None else min(int(chunk), self.condition.n_steps)
+
     def reads_training_track(
         self, condition: WorkingCondition | None = None, seed: int | None = None
     ) -> bool:
@@ -248,13 +263,16 @@ class Surrogate:
         network through :meth:`WindowMLP.predict_series` (its first layer split into a
         convolution of the track and the parameters' part); the others, or ``fast=False``
         (the reference), run the network on every gathered window.
-        Both give the same numbers to float32 rounding. The sequence CNN-GRU runs once over
-        each whole series, from its start (``fast=False``: one step at a time, the state
-        carried), and its outputs at the asked steps are returned."""
+        Both give the same numbers to float32 rounding. The sequence CNN-GRU runs over each
+        whole series from its start, in segments of :attr:`segment_steps` when the series is
+        longer (``fast=False``: one step at a time, the state carried within a segment), and
+        its outputs at the asked steps are returned."""
         self.net.eval()
         if isinstance(self.net, CNNSequence):
             feats = series_features(unit, track_norm).astype(np.float32, copy=False)
-            full = self.net.predict_series(torch.from_numpy(feats), stepwise=not fast).numpy()
+            full = self.net.predict_series(
+                torch.from_numpy(feats), stepwise=not fast, segment=self.segment_steps
+            ).numpy()
             return full[idx[:, 0], idx[:, 1]]
         if fast and isinstance(self.net, CNNRecurrent):
             feats = series_features(unit, track_norm).astype(np.float32, copy=False)
