@@ -44,10 +44,18 @@ def main() -> None:
     ap.add_argument("--out", default="bench/results/simulator.json")
     ap.add_argument("--reference-src", default=None, help="another checkout's src, for A/B")
     ap.add_argument("--kernel", default=None, help="path of throughput_kernel.py")
+    ap.add_argument(
+        "--physics-before-2026-11-24",
+        action="store_true",
+        help="this code on the model of before 2026-11-24's fidelity changes (the same model "
+        "as commit 328b8dd, for a same-model A/B with --reference-src)",
+    )
     args = ap.parse_args()
     reference = _reference_rates(args) if args.reference_src else None
     cond = get_condition(args.condition)
     wagon = load_wagon().with_contact_model(args.contact)
+    if args.physics_before_2026_11_24:
+        wagon = wagon.with_physics_before_2026_11_24()
     settings = SolverSettings()
     if args.flange_substeps is not None:
         settings = SolverSettings(flange_substeps=args.flange_substeps)
@@ -114,6 +122,7 @@ def main() -> None:
         "threads": numba.get_num_threads(),
         "condition": cond.name,
         "contact": args.contact,
+        "physics_before_2026_11_24": args.physics_before_2026_11_24,
         "flange_substeps": settings.flange_substeps,
         "rows": rows,
         "peak_rss_mb": peak_mb,

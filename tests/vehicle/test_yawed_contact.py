@@ -32,14 +32,10 @@ def _zero_yaw_wagon(rigid_bowl: bool = False) -> WagonData:
     model before 2026-11-24's rocking stiffness (a ring of the bowl's vertical stiffness on a
     bolster rigid in bending and pitch) and its wedge pair at the nest centre (no warp
     friction)."""
+    if rigid_bowl:
+        return load_wagon().with_physics_before_2026_11_24()
     data = load_wagon().model_dump()
     data["contact"]["yaw_geometry"] = False
-    if rigid_bowl:
-        radius = data["bogie"]["centre_plate_radius"]
-        cp = data["centre_plate"]
-        cp["rocking_stiffness"] = cp["vertical_stiffness"] * radius * radius / 2.0
-        cp["bolster_pitch_stiffness"] = 1.0e30
-        data["secondary"]["wedge_half_spacing"] = 0.0
     return WagonData(**data)
 
 

@@ -213,6 +213,23 @@ class WagonData(_Section):
                 f"contact.model = {model!r}: accepted two-point or single-point"
             ) from None
 
+    def with_physics_before_2026_11_24(self) -> WagonData:
+        """The same wagon with the force laws of the model before 2026-11-24's fidelity
+        changes: the zero-yaw contact (``yaw_geometry = false``), a centre bowl whose ring
+        has the bowl's vertical stiffness on a bolster rigid in bending and pitch (no
+        rocking stiffness of its own) and the wedge pair at the nest centre (no warp
+        friction). It reproduces that model's forces (commit 328b8dd: to 3e-14 of the
+        largest; tests/data/force_reference_zero_yaw.npz), so speed can be compared with an
+        older commit on the same model (bench/simulator.py ``--physics-before-2026-11-24``)."""
+        data = self.model_dump()
+        data["contact"]["yaw_geometry"] = False
+        radius = data["bogie"]["centre_plate_radius"]
+        cp = data["centre_plate"]
+        cp["rocking_stiffness"] = cp["vertical_stiffness"] * radius * radius / 2.0
+        cp["bolster_pitch_stiffness"] = 1.0e30
+        data["secondary"]["wedge_half_spacing"] = 0.0
+        return WagonData(**data)
+
 
 #: wagon files shipped with the package, by name (``--wagon tare``); a file path wins
 PACKAGED_WAGONS = {
