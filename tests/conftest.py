@@ -26,3 +26,20 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if "slow" in item.keywords:
             item.add_marker(skip)
+
+
+def harmonic_drive(amplitude: float, n: int = 4000, cycles: int = 2):
+    """Steps of a harmonic drive x = A sin(2 pi t) at 1 Hz over ``cycles`` periods in ``n``
+    explicit-Euler steps: yields (dt, x, dx/dt, in the last cycle) for hysteresis loops."""
+    import math
+
+    omega = 2.0 * math.pi
+    dt = cycles / n
+    for i in range(n):
+        t = i * dt
+        yield (
+            dt,
+            amplitude * math.sin(omega * t),
+            amplitude * omega * math.cos(omega * t),
+            i >= n - n // cycles,
+        )

@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 
+from conftest import harmonic_drive
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.energy import energy_audit
 from railsusp.vehicle.operating_point import linearisation_point
@@ -26,21 +27,16 @@ def _wedge_loop(amplitude, f_ctrl0, k_ctrl, mu, k_stick, c_stick, n=4000, cycles
     """Drive one nest's wedge pair through harmonic compression x = A sin(w t) at 1 Hz with
     explicit Euler on the friction states (small steps); returns x and the vertical friction
     force on the bolster over the last cycle."""
-    w = 2.0 * math.pi
-    dt = cycles / n
     state = np.zeros(L.WEDGE_STATES)
     d = np.zeros(L.WEDGE_STATES)
     xs, fs = [], []
-    for i in range(n):
-        t = i * dt
-        x = amplitude * math.sin(w * t)
-        v = amplitude * w * math.cos(w * t)
+    for dt, x, v, last in harmonic_drive(amplitude, n, cycles):
         fz, *_ = friction_wedges(
             x, v, 0.0, 0.0, 0.0, f_ctrl0, k_ctrl, TAN40, COS40, mu, 0.2, 1.0, k_stick, c_stick,
             state, d, 0,
         )  # fmt: skip
         state += dt * d
-        if i >= n - n // cycles:
+        if last:
             xs.append(x)
             fs.append(fz)
     return np.array(xs), np.array(fs)

@@ -12,6 +12,7 @@ import math
 import numpy as np
 import pytest
 
+from conftest import harmonic_drive
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.operating_point import linearisation_point
 from railsusp.vehicle.suspension import friction_wedges
@@ -50,21 +51,16 @@ def _lozenge_loop(point, amplitude, n=4000, cycles=2):
     iz_f = point.K[L.K["Iz_f"]]
     ib = L.BOL0
     jl, jr = L.SF0, L.SF0 + 5
-    omega = 2.0 * math.pi
-    dt = cycles / n
     x = np.zeros(L.N_STATE)
     ws, ms = [], []
-    for i in range(n):
-        t = i * dt
-        w = amplitude * math.sin(omega * t)
-        dw = amplitude * omega * math.cos(omega * t)
+    for dt, w, dw, last in harmonic_drive(amplitude, n, cycles):
         x[:NQ] = 0.0
         x[NQ : 2 * NQ] = 0.0
         x[ib + 3], x[NQ + ib + 3] = -w, -dw
         for j, side in ((jl, 1.0), (jr, -1.0)):
             x[j], x[NQ + j] = side * b2 * w, side * b2 * dw
         d = point.rhs(x)
-        if i >= n - n // cycles:
+        if last:
             ws.append(w)
             ms.append(iz_f * d[NQ + jl + 4])
         x[2 * NQ :] += dt * d[2 * NQ :]
