@@ -82,13 +82,6 @@ def parse_components(text: str) -> tuple[str, ...]:
     return tuple(c for c in COMPONENTS if c in names)
 
 
-def with_creep_factor(wagon: WagonData, factor: float) -> WagonData:
-    """The same wagon with Kalker's coefficients scaled by ``factor`` (validated)."""
-    data = wagon.model_dump()
-    data["contact"]["creep_factor"] = factor
-    return WagonData(**data)
-
-
 def component_tracks(
     cond, seeds: list[int], keep: tuple[str, ...], wagon: WagonData, folder: Path
 ) -> list:
@@ -207,7 +200,7 @@ def main() -> None:
     keep = parse_components(args.irregularities)
     wagon = load_wagon(args.wagon).with_contact_model(args.contact)
     if args.creep_factor is not None:
-        wagon = with_creep_factor(wagon, args.creep_factor)
+        wagon = wagon.with_values({"contact.creep_factor": args.creep_factor})
     names = [c.strip() for c in args.conditions.split(",") if c.strip()] or list(
         STANDARD_CONDITIONS
     )

@@ -26,7 +26,7 @@ from railsusp.vehicle.stability import (
     write_kink_geometry,
 )
 from railsusp.vehicle.track import read_track_geometry
-from railsusp.vehicle.wagon import WagonData, load_wagon
+from railsusp.vehicle.wagon import load_wagon
 
 
 def test_kink_geometry_is_one_alignment_wave_on_ideal_track(tmp_path):
@@ -54,15 +54,11 @@ def test_tare_wagon_kink_response_dies_out_at_80_kmh():
 
 
 def _wagon_with_bowl_rocking(rocking_stiffness: float):
-    data = load_wagon().model_dump()
-    data["centre_plate"]["rocking_stiffness"] = rocking_stiffness
-    return WagonData(**data)
+    return load_wagon().with_values({"centre_plate.rocking_stiffness": rocking_stiffness})
 
 
 def _tare_with_side_bearer_friction(mu: float):
-    data = load_wagon("tare").model_dump()
-    data["side_bearer"]["friction_coefficient"] = mu
-    return WagonData(**data)
+    return load_wagon("tare").with_values({"side_bearer.friction_coefficient": mu})
 
 
 @pytest.mark.parametrize("speed_kmh", [140.0, 200.0])

@@ -67,12 +67,11 @@ def test_wedges_at_the_nest_centre_reproduce_the_forces_before_the_warp_friction
     were split (one wedge pair at the nest centre, no warp friction): its forces equal those
     stored with that model to 1e-9 of the largest force (measured: bit for bit against a
     fresh run of that model, 3e-14 against the stored file, the machine's round-off)."""
-    from railsusp.vehicle.wagon import WagonData, load_wagon
+    from railsusp.vehicle.wagon import load_wagon
 
     fr = _bench()
-    data = load_wagon().model_dump()
-    data["secondary"]["wedge_half_spacing"] = 0.0
-    y, q = fr.reference_forces(condition, WagonData(**data))
+    wagon = load_wagon().with_values({"secondary.wedge_half_spacing": 0.0})
+    y, q = fr.reference_forces(condition, wagon)
     ref = np.load(WEDGE_PAIR_REFERENCE)
     assert fr.relative_difference(y, ref[f"{condition}_Y"]) < 1e-9
     assert fr.relative_difference(q, ref[f"{condition}_Q"]) < 1e-9

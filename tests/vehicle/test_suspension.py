@@ -193,16 +193,16 @@ def test_centre_bowl_with_lift_off_is_conservative(state):
 def test_a_bowl_that_rocks_more_easily_than_its_ring_compresses_is_refused():
     from railsusp.errors import RailsuspInputError
     from railsusp.vehicle.operating_point import linearisation_point
-    from railsusp.vehicle.wagon import WagonData, load_wagon
+    from railsusp.vehicle.wagon import load_wagon
 
-    data = load_wagon().model_dump()
-    data["centre_plate"]["rocking_stiffness"] = 10.0e6  # below 1 GN/m x R^2 / 2 = 17.6
     needle = (
         r"^centre_plate\.rocking_stiffness = 1e\+07 N m/rad: accepted from "
         r"vertical_stiffness x R\^2 / 2 = 1\.758e\+07 up"
     )
     with pytest.raises(RailsuspInputError, match=needle):
-        linearisation_point(wagon=WagonData(**data))
+        # below 1 GN/m x R^2 / 2 = 17.6
+        wagon = load_wagon().with_values({"centre_plate.rocking_stiffness": 10.0e6})
+        linearisation_point(wagon=wagon)
 
 
 def _perturbed_state():

@@ -93,3 +93,20 @@ def test_packaged_name_works_in_the_command_line_and_the_configuration(tmp_path)
     cfg = tmp_path / "c.toml"
     cfg.write_text('wagon = "tare"\n')
     assert load_config(cfg).wagon == "tare"
+
+
+def test_with_values_changes_named_fields_and_validates_them():
+    base = load_wagon("tare")
+    changed = base.with_values(
+        {"side_bearer.friction_coefficient": 0.0, "contact.model": "single-point"}
+    )
+    assert changed.side_bearer.friction_coefficient == 0.0
+    assert changed.contact.model == "single-point"
+    assert base.side_bearer.friction_coefficient == 0.3  # the original is left alone
+    assert changed.with_values({}) == changed
+    with pytest.raises(KeyError, match="wagon field 'side_bearer.stiffness' does not exist"):
+        base.with_values({"side_bearer.stiffness": 1.0})
+    with pytest.raises(KeyError, match="'bearer.travel'"):
+        base.with_values({"bearer.travel": 1.0})
+    with pytest.raises(Exception, match="creep_factor"):  # out of its range (0, 2]
+        base.with_values({"contact.creep_factor": 3.0})

@@ -23,9 +23,7 @@ L_W = 0.25  # m, the K6 estimate of the wagon data
 
 
 def _wagon(half_spacing: float) -> WagonData:
-    data = load_wagon().model_dump()
-    data["secondary"]["wedge_half_spacing"] = half_spacing
-    return WagonData(**data)
+    return load_wagon().with_values({"secondary.wedge_half_spacing": half_spacing})
 
 
 def _point(half_spacing: float):

@@ -34,9 +34,7 @@ def _zero_yaw_wagon(rigid_bowl: bool = False) -> WagonData:
     friction)."""
     if rigid_bowl:
         return load_wagon().with_physics_before_2026_11_24()
-    data = load_wagon().model_dump()
-    data["contact"]["yaw_geometry"] = False
-    return WagonData(**data)
+    return load_wagon().with_values({"contact.yaw_geometry": False})
 
 
 @pytest.fixture(scope="module")

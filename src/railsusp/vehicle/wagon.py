@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import math
 import tomllib
+from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
@@ -201,13 +202,22 @@ class WagonData(_Section):
     def name(self) -> str:
         return self.wagon.name
 
+    def with_values(self, changes: Mapping[str, Any]) -> WagonData:
+        """The same wagon with some fields changed, given as ``{"section.field": value}``
+        (e.g. ``{"contact.creep_factor": 0.6}``), validated as a wagon file is."""
+        data = self.model_dump()
+        for key, value in changes.items():
+            section, _, name = key.partition(".")
+            if not isinstance(data.get(section), dict) or name not in data[section]:
+                raise KeyError(f"wagon field {key!r} does not exist")
+            data[section][name] = value
+        return WagonData(**data)
+
     def with_contact_model(self, model: str) -> WagonData:
         """The same wagon with another wheel-rail contact model (``two-point`` or
         ``single-point``), validated."""
-        data = self.model_dump()
-        data["contact"]["model"] = model
         try:
-            return WagonData(**data)
+            return self.with_values({"contact.model": model})
         except ValidationError:
             raise RailsuspInputError(
                 f"contact.model = {model!r}: accepted two-point or single-point"
@@ -221,14 +231,17 @@ class WagonData(_Section):
         friction). It reproduces that model's forces (commit 328b8dd: to 3e-14 of the
         largest; tests/data/force_reference_zero_yaw.npz), so speed can be compared with an
         older commit on the same model (bench/simulator.py ``--physics-before-2026-11-24``)."""
-        data = self.model_dump()
-        data["contact"]["yaw_geometry"] = False
-        radius = data["bogie"]["centre_plate_radius"]
-        cp = data["centre_plate"]
-        cp["rocking_stiffness"] = cp["vertical_stiffness"] * radius * radius / 2.0
-        cp["bolster_pitch_stiffness"] = 1.0e30
-        data["secondary"]["wedge_half_spacing"] = 0.0
-        return WagonData(**data)
+        radius = self.bogie.centre_plate_radius
+        return self.with_values(
+            {
+                "contact.yaw_geometry": False,
+                "centre_plate.rocking_stiffness": (
+                    self.centre_plate.vertical_stiffness * radius * radius / 2.0
+                ),
+                "centre_plate.bolster_pitch_stiffness": 1.0e30,
+                "secondary.wedge_half_spacing": 0.0,
+            }
+        )
 
 
 #: wagon files shipped with the package, by name (``--wagon tare``); a file path wins
