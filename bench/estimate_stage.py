@@ -52,22 +52,22 @@ def main() -> None:
 
     phases: list[dict] = []
     sims: list[dict] = []
-    inner_batch = simulate.simulate_batch
+    inner = simulate.simulate_conditions  # simulate_batch calls it too
 
-    def simulate_batch(sets, condition, **kwargs):
+    def simulate_conditions(sets, conditions, **kwargs):
         t0 = time.perf_counter()
-        r = inner_batch(sets, condition, **kwargs)
+        runs = inner(sets, conditions, **kwargs)
         sims.append(
             {
-                "condition": condition.name,
-                "sets": int(r.n_sets),
-                "simulated_s": float(r.n_sets * r.time[-1]),
+                "conditions": [c.name for c in conditions],
+                "sets": int(sum(r.n_sets for r in runs)),
+                "simulated_s": float(sum(r.n_sets * r.time[-1] for r in runs)),
                 "seconds": time.perf_counter() - t0,
             }
         )
-        return r
+        return runs
 
-    simulate.simulate_batch = simulate_batch
+    simulate.simulate_conditions = simulate_conditions
     _timed(phases, est, "estimate_with_seeds", "NSGA-II on the surrogates")
     _timed(phases, polish, "aligned_cost", "screening of starts")
     for name in ("refine", "refine_starts"):  # one start at a time, or all at once

@@ -30,7 +30,7 @@ from itertools import pairwise
 import numpy as np
 
 from railsusp.estimate.comparison import comparison_filter
-from railsusp.estimate.forces import ForceModel
+from railsusp.estimate.forces import ForceModel, series_in_conditions
 from railsusp.estimate.identifiability import BOUND_LIMIT_PCT
 from railsusp.estimate.output_error import OutputError
 from railsusp.estimate.refine import standard_errors
@@ -62,7 +62,7 @@ def aligned_jacobian(
     problem = OutputError(model, recordings, parameters, gains=False)
     unit = np.clip((np.asarray(x_si, dtype=float) - problem.lo) / (problem.hi - problem.lo), 0, 1)
     base = problem.lo + unit * (problem.hi - problem.lo)
-    series = [model.series(base[None], rec.condition) for rec in recordings]
+    series = series_in_conditions(model, base[None], [rec.condition for rec in recordings])
     problem.remember(base[None], series)  # the base point is not predicted twice
     first = [_first_defined(s, rec) for s, rec in zip(series, recordings, strict=True)]
     if defined_from is not None:
@@ -86,7 +86,8 @@ def defined_from(model: ForceModel, recordings: Sequence[Recording], x_si: np.nd
     """Per recording, the first step from which ``model``'s prediction at ``x_si`` (SI) is
     defined through the time-aligned comparison's filter (0 for the simulator)."""
     x = np.atleast_2d(np.asarray(x_si, dtype=float))
-    return [_first_defined(model.series(x, rec.condition), rec) for rec in recordings]
+    series = series_in_conditions(model, x, [rec.condition for rec in recordings])
+    return [_first_defined(s, rec) for s, rec in zip(series, recordings, strict=True)]
 
 
 def _first_defined(series: np.ndarray, rec: Recording) -> int:

@@ -246,13 +246,35 @@ class SimulatorForces:
         self.base = base
 
     def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
-        from railsusp.vehicle.simulate import simulate_batch
+        return self.series_conditions(x_si, [condition])[0]
+
+    def series_conditions(
+        self, x_si: np.ndarray, conditions: Sequence[WorkingCondition]
+    ) -> list[np.ndarray]:
+        """:meth:`series` in each condition, the conditions sharing the simulator's parallel
+        calls (:func:`~railsusp.vehicle.simulate.simulate_conditions`)."""
+        from railsusp.vehicle.simulate import simulate_conditions
 
         x = np.atleast_2d(np.asarray(x_si, dtype=float))
         if self.base is None:
-            r = simulate_batch(x, condition, symbols=self.parameters)
+            runs = simulate_conditions(x, conditions, symbols=self.parameters)
         else:
             sets = [self.base.replace(dict(zip(self.parameters, row, strict=True))) for row in x]
-            r = simulate_batch(sets, condition)
-        j = r.measured_wheel(self.wheel)
-        return np.stack([r.Y[:, j], r.Q[:, j]], axis=2) / 1e3
+            runs = simulate_conditions(sets, conditions)
+        out = []
+        for r in runs:
+            j = r.measured_wheel(self.wheel)
+            out.append(np.stack([r.Y[:, j], r.Q[:, j]], axis=2) / 1e3)
+        return out
+
+
+def series_in_conditions(
+    model: ForceModel, x_si: np.ndarray, conditions: Sequence[WorkingCondition]
+) -> list[np.ndarray]:
+    """``model``'s series for ``x_si`` in each condition: in one go where the model offers it
+    (the simulator shares its parallel calls between conditions, so a trial point's one set
+    on three recordings keeps two cores busy), else condition by condition."""
+    together = getattr(model, "series_conditions", None)
+    if together is not None:
+        return together(x_si, conditions)
+    return [model.series(x_si, c) for c in conditions]

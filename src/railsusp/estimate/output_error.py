@@ -23,7 +23,7 @@ from railsusp.estimate.comparison import (
     comparison_filter,
     comparison_samples,
 )
-from railsusp.estimate.forces import ForceModel
+from railsusp.estimate.forces import ForceModel, series_in_conditions
 from railsusp.estimate.lockstep import Lockstep
 from railsusp.estimate.problem import check_aligned
 from railsusp.measured import Recording
@@ -97,7 +97,7 @@ class OutputError:
             return
         unit = np.array(list(rows.values()))
         x = self.lo + unit * (self.hi - self.lo)
-        series = [self.model.series(x, rec.condition) for rec in self.recordings]
+        series = series_in_conditions(self.model, x, [rec.condition for rec in self.recordings])
         self._keep(unit, series)
 
     def _keep(self, unit: np.ndarray, series: list[np.ndarray]) -> None:

@@ -11,26 +11,18 @@ reason and carry NaN series; they never disturb the other sets of the batch.
 
 from __future__ import annotations
 
-import time
 import warnings
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.signal import butter
 
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.params import SYMBOLS, ParameterSet, check_matrix, spec
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.settle import lead_in_plan, settled_states, start_plan
-from railsusp.vehicle.setup import (
-    SolverSettings,
-    constants,
-    contact_arrays,
-    track_arrays,
-)
+from railsusp.vehicle.setup import SolverSettings, contact_arrays
 from railsusp.vehicle.wagon import WagonData, load_wagon
 
 WHEEL_NAMES = L.WHEEL_NAMES
@@ -293,12 +285,45 @@ def simulate_batch(
     set (default: the condition's seed for every set, i.e. common random numbers).
     ``progress(done, total)`` is called after each chunk of ``chunk_size`` sets.
     """
-    from railsusp.vehicle.integrate import integrate_batch
+    return simulate_conditions(
+        sets,
+        [condition],
+        symbols=symbols,
+        seeds=seeds,
+        wagon=wagon,
+        settings=settings,
+        progress=progress,
+        chunk_size=chunk_size,
+    )[0]
 
+
+def simulate_conditions(
+    sets: np.ndarray | Iterable[ParameterSet],
+    conditions: Sequence[WorkingCondition],
+    *,
+    symbols: Sequence[str] | None = None,
+    seeds: Sequence[int] | None = None,
+    wagon: WagonData | None = None,
+    settings: SolverSettings | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    chunk_size: int = 32,
+) -> list[SimulationResult]:
+    """Simulate the same N parameter sets in each of several conditions, one result per
+    condition, each equal to :func:`simulate_batch`'s in that condition.
+
+    Conditions whose integrator settings agree (the study's three at 60 km/h do) share the
+    compiled integrator's parallel calls (:mod:`railsusp.vehicle.batch_runs`), so a few sets
+    in three conditions keep every core busy. Arguments as :func:`simulate_batch`; ``seeds``
+    apply in every condition; ``progress`` counts the sets of all conditions;
+    ``wall_time`` of each result is its preparation and the calls its sets were in.
+    """
+    from railsusp.vehicle.batch_runs import integrate_conditions
+
+    if not conditions:
+        raise RailsuspInputError("conditions: none given, accepted at least one")
     wagon = load_wagon() if wagon is None else wagon
     settings = SolverSettings() if settings is None else settings
     P = np.ascontiguousarray(_param_matrix(sets, symbols))
-    n = P.shape[0]
     ca = contact_arrays(wagon)
     if ca.contact_points == 1 and settings.flange_substeps == 1:
         warnings.warn(
@@ -306,93 +331,27 @@ def simulate_batch(
             "SolverSettings(flange_substeps=2) to stay numerically on the rail (docs/model.md)",
             stacklevel=2,
         )
-    K = np.ascontiguousarray(
-        np.stack([constants(wagon, condition, P[i], ca, settings) for i in range(n)])
-    )
-    if seeds is None:
-        track_seeds, track_index = [condition.seed], np.zeros(n, dtype=np.int64)
-    else:
-        if len(seeds) != n:
-            raise RailsuspInputError(f"seeds: {len(seeds)} given for {n} parameter sets")
-        track_seeds, inverse = np.unique(np.asarray(seeds, dtype=np.int64), return_inverse=True)
-        track_seeds, track_index = list(track_seeds), inverse.astype(np.int64)
-    dt_out = condition.sample_interval
-    n_sub = max(1, int(np.ceil(dt_out / settings.max_step - 1e-9)))
-    dt = dt_out / n_sub
-    n_out = condition.n_steps
-    sos = butter(
-        settings.filter_order, settings.anti_alias * 0.5 / dt_out, fs=1.0 / dt, output="sos"
-    )
-    out = np.zeros((n, L.N_OUT, n_out))
-    status = np.zeros(n, dtype=np.int64)
-    fail_time = np.zeros(n)
-    settled = np.zeros(n, dtype=bool)
-    sos = np.ascontiguousarray(sos)
-    t0 = time.perf_counter()
-    plan = start_plan(condition, wagon, settings, dt)
-    groups = []  # (start plan, track arrays, set indices, initial states)
-    if plan.settled:
-        track = track_arrays(condition, track_seeds, wagon, settings, **plan.track_options)
-        X0, settled = settled_states(P, K, track[0][0], track[1], track[2], ca, plan.s_start)
-        groups.append((plan, track, np.flatnonzero(settled), X0))
-    if not settled.all():  # the lead-in for every set, or for those whose solve failed
-        track = track_arrays(condition, track_seeds, wagon, settings)
-        X0 = np.zeros((n, L.N_STATE))  # static equilibrium on straight track
-        groups.append((lead_in_plan(condition, dt), track, np.flatnonzero(~settled), X0))
-    done = 0
-    for start, (tracks, s0, ds), sets, X0 in groups:
-        chunk = max(1, sets.size if progress is None else chunk_size)
-        for lo in range(0, sets.size, chunk):
-            idx = sets[lo : lo + chunk]
-            o = np.zeros((idx.size, L.N_OUT, n_out))
-            st = np.zeros(idx.size, dtype=np.int64)
-            ft = np.zeros(idx.size)
-            integrate_batch(
-                np.ascontiguousarray(P[idx]),
-                np.ascontiguousarray(K[idx]),
-                np.ascontiguousarray(X0[idx]),
-                tracks,
-                np.ascontiguousarray(track_index[idx]),
-                s0,
-                ds,
-                ca.table,
-                ca.y0,
-                ca.dy,
-                ca.H0L,
-                ca.H0R,
-                dt,
-                start.s_start,
-                start.n_pre,
-                n_sub,
-                n_out,
-                sos,
-                settings.flange_substeps,
-                o,
-                st,
-                ft,
-            )
-            out[idx], status[idx] = o, st
-            fail_time[idx] = ft + start.s_start / condition.speed  # from the section start
-            done += idx.size
-            if progress is not None:
-                progress(done, n)
-    wall = time.perf_counter() - t0
-    return SimulationResult(
-        condition=condition,
-        params=P,
-        time=np.arange(n_out) * dt_out,
-        Y=out[:, L.OUT_Y : L.OUT_Y + 8],
-        Q=out[:, L.OUT_Q : L.OUT_Q + 8],
-        car_acc_y=out[:, L.OUT_ACC_Y],
-        car_acc_z=out[:, L.OUT_ACC_Z],
-        status=status,
-        fail_time=fail_time,
-        static_wheel_load=float(K[0, L.K["Q0"]]),
-        wall_time=wall,
-        settings=settings,
-        wagon_name=wagon.name,
-        settled_start=settled,
-    )
+    requests = [(P, c, seeds) for c in conditions]
+    runs = integrate_conditions(requests, wagon, settings, ca, progress, chunk_size)
+    return [
+        SimulationResult(
+            condition=r.condition,
+            params=P,
+            time=np.arange(r.condition.n_steps) * r.condition.sample_interval,
+            Y=r.out[:, L.OUT_Y : L.OUT_Y + 8],
+            Q=r.out[:, L.OUT_Q : L.OUT_Q + 8],
+            car_acc_y=r.out[:, L.OUT_ACC_Y],
+            car_acc_z=r.out[:, L.OUT_ACC_Z],
+            status=r.status,
+            fail_time=r.fail_time,
+            static_wheel_load=float(r.K[0, L.K["Q0"]]),
+            wall_time=r.wall_time,
+            settings=settings,
+            wagon_name=wagon.name,
+            settled_start=r.settled,
+        )
+        for r in runs
+    ]
 
 
 def simulate(

@@ -1,0 +1,95 @@
+"""Several conditions in one integrator call: the same numbers as one condition at a time."""
+
+import numpy as np
+import pytest
+
+import railsusp.vehicle.integrate as integrate
+from railsusp.conditions import get_condition
+from railsusp.errors import RailsuspInputError
+from railsusp.params import ParameterSet
+from railsusp.vehicle.simulate import SolverSettings, simulate_batch, simulate_conditions
+
+SHORT = {"duration_s": 2.0, "n_steps": 100, "lead_in_m": 40.0}
+SETS = np.array(
+    [
+        ParameterSet.nominal().to_array(),
+        ParameterSet.nominal().replace({"X14": 6.0e6, "X18": 60e3}).to_array(),
+    ]
+)
+
+
+@pytest.fixture
+def calls(monkeypatch):
+    """The sets per call of the compiled integrator, while the test runs."""
+    sizes: list[int] = []
+    inner = integrate.integrate_batch
+
+    def counted(P, *args):
+        sizes.append(P.shape[0])
+        return inner(P, *args)
+
+    monkeypatch.setattr(integrate, "integrate_batch", counted)
+    return sizes
+
+
+def _same(a, b):
+    for name in ("Y", "Q", "car_acc_y", "car_acc_z", "status", "fail_time", "settled_start"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    assert a.condition == b.condition and a.static_wheel_load == b.static_wheel_load
+
+
+@pytest.mark.parametrize("start", ["lead-in", "settled"])
+def test_three_study_conditions_share_one_call_with_unchanged_forces(calls, start):
+    """The study's three conditions at 60 km/h: one call of 6 sets, and every set's series
+    bit for bit what simulate_batch gives in its condition alone (3 calls of 2). Settled:
+    with a lead-in long enough that the curve's record starts past its spiral."""
+    settings = SolverSettings(start=start, run_in_m=30.0)
+    short = SHORT | {"lead_in_m": 100.0} if start == "settled" else SHORT
+    conds = [get_condition(n, **short) for n in ("straight", "curve", "uphill")]
+    together = simulate_conditions(SETS, conds, settings=settings)
+    assert calls == [6]
+    alone = [simulate_batch(SETS, c, settings=settings) for c in conds]
+    assert calls == [6, 2, 2, 2]
+    for a, b in zip(together, alone, strict=True):
+        _same(a, b)
+        assert a.ok.all()
+        assert a.settled_start.all() == (start == "settled")
+    # the conditions differ, so a mix-up of tracks or constants would show
+    assert np.abs(together[1].Y[0, 1].mean() - together[0].Y[0, 1].mean()) > 10e3
+
+
+def test_conditions_the_integrator_cannot_share_run_in_their_own_calls(calls):
+    """A different speed changes the steps before the record: two calls, same numbers."""
+    slow = get_condition("straight", speed_kmh=40.0, **SHORT)
+    conds = [get_condition("curve", **SHORT), slow, get_condition("straight", **SHORT)]
+    seeds = [3, 4]
+    together = simulate_conditions(SETS, conds, seeds=seeds)
+    assert sorted(calls) == [2, 4]
+    for a, c in zip(together, conds, strict=True):
+        _same(a, simulate_batch(SETS, c, seeds=seeds))
+
+
+def test_a_settled_and_a_lead_in_start_run_in_their_own_calls(calls):
+    """The curve's record starts in its spiral 40 m in: it runs the lead-in, the tangent
+    starts settled; each gets its own call and its own numbers."""
+    settings = SolverSettings(start="settled", run_in_m=30.0)
+    conds = [get_condition(n, **SHORT) for n in ("straight", "curve")]
+    together = simulate_conditions(SETS, conds, settings=settings)
+    assert calls == [2, 2]
+    assert together[0].settled_start.all() and not together[1].settled_start.any()
+    for a, c in zip(together, conds, strict=True):
+        _same(a, simulate_batch(SETS, c, settings=settings))
+
+
+def test_progress_counts_the_sets_of_every_condition():
+    seen = []
+    conds = [get_condition(n, **SHORT) for n in ("straight", "curve")]
+    simulate_conditions(SETS, conds, progress=lambda d, t: seen.append((d, t)), chunk_size=3)
+    assert seen == [(3, 4), (4, 4)]
+
+
+def test_bad_requests_are_refused_in_one_line():
+    with pytest.raises(RailsuspInputError, match="conditions: none given"):
+        simulate_conditions(SETS, [])
+    with pytest.raises(RailsuspInputError, match="seeds: 1 given for 2 parameter sets"):
+        simulate_conditions(SETS, [get_condition("straight", **SHORT)], seeds=[1])
