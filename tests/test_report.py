@@ -7,6 +7,7 @@ import re
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -59,6 +60,9 @@ def test_readme_python_blocks_run_as_pasted(readme):
     assert stats["Q_mean"] > 0 and stats["YQ_max"] > 0
     per_set = ns["batch"].statistics(set_index=None)["Y_mean"]
     assert per_set.shape == (2,) and per_set[0] != per_set[1]
+    straight, curve = ns["both"]
+    np.testing.assert_array_equal(straight.Y, ns["batch"].Y)  # the same as alone
+    assert curve.condition.name == "curve" and curve.ok.all()
     assert isinstance(ns["result"], railsusp.RunResult)
 
 
