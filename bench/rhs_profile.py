@@ -7,8 +7,11 @@ evaluation. ``--reference-src DIR`` times another checkout's ``src`` in a subpro
 same sitting (the right-hand side's signature has not changed), for an A/B ratio.
 ``--contact`` also times the wheel-rail contact of the eight wheels alone on the same states,
 the scalar kernel (``wheel_rail.wheel_rail_forces`` wheel by wheel) against the SIMD one
-(``contact_batch.contact_forces_8``), and checks that they give the same forces. Prints a
-table and writes JSON (bench/results/rhs_profile.json).
+(``contact_batch.contact_forces_8``), and checks that they give the same forces.
+``--states DIR`` keeps the captured states in DIR (written on the first run, read on the
+next): an ablated copy of the source (an element's call replaced by constant forces, run
+with PYTHONPATH at the copy) is then timed on the whole model's states, not on those of its
+own, different motion. Prints a table and writes JSON (bench/results/rhs_profile.json).
 """
 
 from __future__ import annotations
