@@ -282,7 +282,6 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             # circle each; their lateral forces' difference makes the warp moment) and slope
             # friction (longitudinal)
             comp = q[jf + 2] - (q[ib + 1] + side * b2 * q[ib + 2])
-            comp_rate = v[jf + 2] - (v[ib + 1] + side * b2 * v[ib + 2])
             f_spring = K[I_F0N] + K[I_KSZ] * comp
             dyn = q[jf + 1] - q[ib]
             dxn = q[jf] + side * b2 * q[ib + 3]
