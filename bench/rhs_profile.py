@@ -7,8 +7,11 @@ evaluation. ``--reference-src DIR`` times another checkout's ``src`` in a subpro
 same sitting (the right-hand side's signature has not changed), for an A/B ratio.
 ``--contact`` also times the wheel-rail contact of the eight wheels alone on the same states,
 the scalar kernel (``wheel_rail.wheel_rail_forces`` wheel by wheel) against the SIMD one
-(``contact_batch.contact_forces_8``), and checks that they give the same forces. Prints a
-table and writes JSON (bench/results/rhs_profile.json).
+(``contact_batch.contact_forces_8``), and checks that they give the same forces.
+``--states DIR`` keeps the captured states in DIR (written on the first run, read on the
+next): an ablated copy of the source (an element's call replaced by constant forces, run
+with PYTHONPATH at the copy) is then timed on the whole model's states, not on those of its
+own, different motion. Prints a table and writes JSON (bench/results/rhs_profile.json).
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import argparse
 import inspect
 import os
 import time
+from pathlib import Path
 
 import numba as nb
 import numpy as np
@@ -57,8 +61,17 @@ def _arguments(condition: str):
     return P, K, tracks[0], s0, ds, ca
 
 
-def _states(condition: str):
+def _states(condition: str, states_dir: str | None = None):
+    """(rhs arguments with the captured states first, s_front). With ``states_dir``, the
+    states and positions are read from STATES_DIR/CONDITION.npz if it exists, else captured
+    and written there: an ablated copy of the source is then timed on the states of the
+    whole model (its own motion would differ)."""
     P, K, trk, s0, ds, ca = _arguments(condition)
+    path = Path(states_dir) / f"{condition}.npz" if states_dir else None
+    if path is not None and path.exists():
+        with np.load(path) as f:
+            args = (f["states"], P, K, trk, s0, ds, ca.table, ca.y0, ca.dy, ca.H0L, ca.H0R)
+            return args, f["s_front"]
     sos = np.ascontiguousarray(butter(2, 0.4, output="sos"))
     states, s_front = [], []
     for t in TIMES_S:
@@ -72,12 +85,15 @@ def _states(condition: str):
         states.append(x)
         s_front.append(K[L.K["V"]] * (n + 1) * DT)
     args = (np.array(states), P, K, trk, s0, ds, ca.table, ca.y0, ca.dy, ca.H0L, ca.H0R)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(path, states=args[0], s_front=np.array(s_front))
     return args, np.array(s_front)
 
 
-def time_rhs(condition: str, reps: int, repeats: int) -> float:
+def time_rhs(condition: str, reps: int, repeats: int, states_dir: str | None = None) -> float:
     """Minimum CPU time per evaluation (us) over ``repeats`` loops of ``reps`` passes."""
-    args, s_front = _states(condition)
+    args, s_front = _states(condition, states_dir)
     n = args[0].shape[0]
     dxdt = np.zeros_like(args[0])
     out = np.zeros((n, L.N_OUT_WORK))
@@ -96,10 +112,15 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--reference-src", default=None, help="another checkout's src, for A/B")
     ap.add_argument("--contact", action="store_true", help="also time the contact alone")
+    ap.add_argument(
+        "--states",
+        default=None,
+        help="folder of captured states: read if there, else captured and written (ablation)",
+    )
     ap.add_argument("--out", default="bench/results/rhs_profile.json")
     args = ap.parse_args()
     os.environ.setdefault("NUMBA_NUM_THREADS", "1")
-    rows = [{"condition": c, "us_per_eval": time_rhs(c, args.reps, args.repeats)}
+    rows = [{"condition": c, "us_per_eval": time_rhs(c, args.reps, args.repeats, args.states)}
             for c in ("straight", "curve")]  # fmt: skip
     if args.reference_src:
         argv = ["--reps", str(args.reps), "--repeats", str(args.repeats)]
@@ -125,7 +146,7 @@ def main() -> None:
             f"{'contact of 8 wheels':<20} {'scalar ns':>10} {'SIMD ns':>8} {'max |dF|/max |F|':>17}"
         )
         for c in ("straight", "curve"):
-            row = time_contact(_states(c), args.reps, args.repeats)
+            row = time_contact(_states(c, args.states), args.reps, args.repeats)
             contact.append({"condition": c, **row})
             print(f"{c:<20} {row['scalar_ns']:10.0f} {row['simd_ns']:8.0f}"
                   f" {row['max_rel_diff']:17.1e}")  # fmt: skip

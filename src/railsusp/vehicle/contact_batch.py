@@ -84,14 +84,16 @@ def _cell(ctab, c, i, f):
     return ctab[c, i] * (1.0 - f) + ctab[c, i + 1] * f
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _read_tables(x, ctab, y0, inv_dy, H0L, H0R, K, wk, p):
-    """Wheel by wheel (the table reads are gathers, which LLVM does not vectorise next to
-    stores): the wheelset's state into the W_* rows (tread, p = 0), and the contact table of
-    point p read at the wheel's shift, for the yawed wheelset at the contact point's rail
-    point (:func:`railsusp.vehicle.wheel_rail.contact_geometry`); a shift beyond the table
-    (flange climb) sets W_CODE where none is yet (for the flange only with two-point
-    contact)."""
+    """Wheel by wheel: the wheelset's state into the W_* rows (tread, p = 0), and the
+    contact table of point p read at the wheel's shift, for the yawed wheelset at the contact
+    point's rail point (:func:`railsusp.vehicle.wheel_rail.contact_geometry`); a shift beyond
+    the table (flange climb) sets W_CODE where none is yet (for the flange only with
+    two-point contact). The reads stay scalar: as gathers LLVM does not vectorise them next
+    to stores, and AVX-512 gathers (vectorised with a stack buffer) were slower than these
+    scalar loads on the bench's AMD Zen 5, as was a table laid out by shift
+    (bench/README.md, stop 22). Inlined: the call cost about 1 % of the right-hand side."""
     n = ctab.shape[1]
     r0 = K[I_R0]
     yawed = K[I_YAWGEO] > 0.5

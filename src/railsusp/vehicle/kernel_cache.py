@@ -18,6 +18,7 @@ from pathlib import Path
 KERNEL_SOURCES = (
     "layout.py", "suspension.py", "track_lookup.py", "wheel_rail.py", "model.py",
     "integrate.py", "decay.py", "wheelset.py", "settle.py", "vector_math.py", "contact_batch.py",
+    "wedge_batch.py",
 )  # fmt: skip
 
 

@@ -46,16 +46,17 @@ import numba as nb
 import railsusp.vehicle.kernel_cache  # noqa: F401  (before any kernel is compiled)
 from railsusp.vehicle import contact_batch as CB
 from railsusp.vehicle import layout as L
+from railsusp.vehicle import wedge_batch as WB
 from railsusp.vehicle.contact_batch import contact_forces_8
 from railsusp.vehicle.suspension import (
     bowl_ring_forces,
     damped_slider,
     disc_friction_moment,
-    friction_wedges,
     gap_spring,
     series_stiffness,
 )
 from railsusp.vehicle.track_lookup import track_frame, track_point, track_rate, track_value
+from railsusp.vehicle.wedge_batch import wedge_forces
 
 _K = L.K
 
@@ -96,6 +97,20 @@ def add_frame_forces(acc, i_lat, i_vert, m, kappa, c, s, V, gn):
     angle φ (each evaluated once per track position, for all bodies there)."""
     acc[i_lat] += -m * (V * V * kappa * c + gn * s)
     acc[i_vert] += -m * (gn * c - V * V * kappa * s) + m * gn
+
+
+@nb.njit(cache=True, inline="always")
+def cant_cos_sin(cant, cant_near, cos_near, sin_near):
+    """Cosine and sine of the cant angle, bit for bit those of ``math.cos`` and ``math.sin``:
+    1 and the angle itself (+-0) where there is no cant (tangent track), those of a body
+    nearby (``cos_near``, ``sin_near`` of ``cant_near``) where its cant is the same number
+    (the body of a curve), else the C library's. Of the fourteen calls per evaluation, none
+    is left on tangent and two in a curve's body (issue 24)."""
+    if cant == 0.0:
+        return 1.0, cant
+    if cant == cant_near:  # (nonzero: equal numbers are the same bits)
+        return cos_near, sin_near
+    return math.cos(cant), math.sin(cant)
 
 
 @nb.njit(cache=True)
@@ -141,6 +156,39 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
     ux = P[8] / bar_len
     uy = P[9] / bar_len
 
+    # ---- the eight friction wedges of the four spring nests, together (wedge_batch: SIMD
+    # loops; friction_wedges's numbers bit for bit), into the contact work's point blocks,
+    # which the contact fills only later; their forces are applied nest by nest below ----
+    for n in range(4):
+        ib = BOL0 + 4 * (n >> 1)
+        side = 1.0 if (n & 1) == 0 else -1.0
+        jf = SF0 + 5 * n
+        ia = AUXW + L.WEDGE_STATES * n
+        v_lat = v[jf + 1] - v[ib]
+        v_warp = l_w * (v[jf + 4] - v[ib + 3])  # front wedge's lateral slip from warp
+        for r in range(2):
+            c = WB.BASE + n + WB.NN * r
+            wk[c + WB.R_COMP * WB.NL] = q[jf + 2] - (q[ib + 1] + side * b2 * q[ib + 2])
+            wk[c + WB.R_VV * WB.NL] = v[jf + 2] - (v[ib + 1] + side * b2 * v[ib + 2])
+            wk[c + WB.R_VY * WB.NL] = v_lat + v_warp if r == 0 else v_lat - v_warp
+            iz = ia + (L.W_FRONT_Z if r == 0 else L.W_REAR_Z)
+            wk[c + WB.R_SZ * WB.NL] = x[iz]
+            wk[c + WB.R_SY * WB.NL] = x[iz + 1]
+        wk[WB.BASE + n + WB.R_SX * WB.NL] = x[ia + L.W_LONG]
+        wk[WB.BASE + n + WB.R_VX * WB.NL] = v[jf] + side * b2 * v[ib + 3]
+    wedge_forces(
+        wk, K[I_F0CTRL], K[I_KCTRL], K[I_TANW], K[I_COSW], K[I_MUC], K[I_MUS], wedge_scale,
+        K[I_KW], K[I_CW],
+    )  # fmt: skip
+    for n in range(4):
+        ia = AUXW + L.WEDGE_STATES * n
+        for r in range(2):
+            c = WB.BASE + n + WB.NN * r
+            iz = ia + (L.W_FRONT_Z if r == 0 else L.W_REAR_Z)
+            dxdt[iz] = wk[c + WB.R_DZ * WB.NL]
+            dxdt[iz + 1] = wk[c + WB.R_DY * WB.NL]
+        dxdt[ia + L.W_LONG] = wk[WB.BASE + n + WB.R_DX * WB.NL]
+
     # ---- track positions ----
     s_c = s_front - (lc + a)
     i_c, f_c, in_c = track_point(s_c, s0, ds, n_trk)
@@ -149,8 +197,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
 
     # ---- car body pseudo-forces ----
     m_c = K[I_MC]
-    cos_c = math.cos(cant_c)
-    sin_c = math.sin(cant_c)
+    cos_c, sin_c = cant_cos_sin(cant_c, 0.0, 1.0, 0.0)
     add_frame_forces(acc, L.CB_Y, L.CB_Z, m_c, kap_c, cos_c, sin_c, V, gn)
     # grade: pitch moment of the net coupler force (at coupler height) and of the bogies'
     # reaction (at centre-plate height); lateral coupler components in curves (chord angle)
@@ -168,8 +215,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         kap_b, cant_b, head_b, off_b = track_frame(trk, i_b, f_b)
         ib = BOL0 + 4 * k
         m_b = K[I_MB]
-        cos_b = math.cos(cant_b)
-        sin_b = math.sin(cant_b)
+        cos_b, sin_b = cant_cos_sin(cant_b, cant_c, cos_c, sin_c)
         add_frame_forces(acc, ib, ib + 1, m_b, kap_b, cos_b, sin_b, V, gn)
 
         # ===== car body <-> bolster k =====
@@ -236,18 +282,17 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             # circle each; their lateral forces' difference makes the warp moment) and slope
             # friction (longitudinal)
             comp = q[jf + 2] - (q[ib + 1] + side * b2 * q[ib + 2])
-            comp_rate = v[jf + 2] - (v[ib + 1] + side * b2 * v[ib + 2])
             f_spring = K[I_F0N] + K[I_KSZ] * comp
-            ia = AUXW + L.WEDGE_STATES * (2 * k + sidx)
             dyn = q[jf + 1] - q[ib]
             dxn = q[jf] + side * b2 * q[ib + 3]
             vxn = v[jf] + side * b2 * v[ib + 3]
-            v_warp = l_w * (v[jf + 4] - v[ib + 3])  # front wedge's lateral slip from warp
-            f_wz, f_wy, df_wy, f_wx = friction_wedges(
-                comp, comp_rate, v[jf + 1] - v[ib], v_warp, vxn, K[I_F0CTRL], K[I_KCTRL],
-                K[I_TANW], K[I_COSW], K[I_MUC], K[I_MUS], wedge_scale, K[I_KW], K[I_CW], x,
-                dxdt, ia,
-            )  # fmt: skip
+            c = WB.BASE + 2 * k + sidx  # the nest's front wedge, from wedge_forces above
+            fy_f = wk[c + WB.R_FY * WB.NL]
+            fy_r = wk[c + WB.R_FY * WB.NL + WB.NN]
+            f_wz = wk[c + WB.R_FZ * WB.NL] + wk[c + WB.R_FZ * WB.NL + WB.NN]
+            f_wy = fy_f + fy_r
+            df_wy = fy_f - fy_r
+            f_wx = wk[c + WB.R_FX * WB.NL]
             f_up = f_spring - K[I_F0N] + f_wz  # on bolster, deviation from static
             acc[ib + 1] += f_up
             acc[ib + 2] += side * b2 * (f_up + K[I_F0N])
@@ -293,7 +338,8 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             i_w, f_w, in_w = track_point(s_w, s0, ds, n_trk)
             kap_w, cant_w, head_w, off_w = track_frame(trk, i_w, f_w)
             iw = WS0 + 4 * w
-            add_frame_forces(acc, iw, iw + 1, m_w, kap_w, math.cos(cant_w), math.sin(cant_w), V, gn)
+            cos_w, sin_w = cant_cos_sin(cant_w, cant_b, cos_b, sin_b)
+            add_frame_forces(acc, iw, iw + 1, m_w, kap_w, cos_w, sin_w, V, gn)
             dev_w = off_w - off_b - e * head_b
             yaw_w_b = q[iw + 3] + head_w - head_b  # wheelset yaw in the bogie frame
             for sidx in range(2):
