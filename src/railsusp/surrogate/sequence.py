@@ -291,7 +291,10 @@ class CNNSequence(nn.Module):
             conv = linear(h, c2.weight[:, :, 0], c2.bias)
             conv = nn.functional.leaky_relu_(conv, slope).view(k, rows, -1)
             before = conv[:1] if last is None else last  # a segment's step 0 pools with itself
-            seq, last = torch.maximum(conv, torch.cat([before, conv[:-1]])), conv[-1:]
+            seq = torch.empty_like(conv)  # max pool of width 2 (dropout: identity)
+            torch.maximum(conv[1:], conv[:-1], out=seq[1:])
+            torch.maximum(conv[:1], before, out=seq[:1])
+            last = conv[-1:]
             for i, (w_ih, b_in, w_hh, b_h) in enumerate(cells):
                 gates = linear(seq.view(k * rows, -1), w_ih, b_in).view(k, rows, -1)
                 seq = torch.empty(k, rows, w_hh.shape[1], dtype=gates.dtype)
