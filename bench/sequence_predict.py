@@ -2,10 +2,11 @@
 (:meth:`railsusp.surrogate.sequence.CNNSequence.predict_sets`) saves (issue 19: < 60 s per
 estimate of 50 x 100 on 2 cores). Writes bench/results/sequence_predict.json.
 
-On the recordings of bench/estimate_tracks.py's set ``--set`` (60 s per condition on measured
-track, synthesised into ``--work`` as that bench does unless already there) and the
-surrogates of ``RUN/surrogates/KIND``, for ``--pop`` parameter sets drawn at random (seeded)
-it times, per torch thread count of ``--threads``, ``--repeats`` times alternating:
+On the recordings of bench/estimate_tracks.py's set ``--set`` (``--duration`` 60 s per
+condition on measured track, synthesised into ``--work`` as that bench does unless already
+there) and the surrogates of ``RUN/surrogates/KIND``, for ``--pop`` parameter sets drawn at
+random (seeded) it times, per torch thread count of ``--threads``, ``--repeats`` times
+alternating:
 
 - ``reference``: the path before the fast one, :meth:`CNNSequence.predict_series` on the
   per-step inputs built by :func:`railsusp.surrogate.bundle.series_features` (all segments
@@ -73,6 +74,7 @@ def main(argv=None) -> dict:
     ap.add_argument("run", type=Path, help="run directory with surrogates/KIND/<condition>/")
     ap.add_argument("--kind", default="cnn-gru-seq-nominal-e30")
     ap.add_argument("--set", type=int, default=0, help="estimate_tracks.py's set (recordings)")
+    ap.add_argument("--duration", type=float, default=60.0, help="recorded s per condition")
     ap.add_argument("--pop", type=int, default=50, help="parameter sets per generation")
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--threads", default="1,2", help="torch thread counts, comma-separated")
@@ -80,8 +82,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--out", type=Path, default=Path("bench/results/sequence_predict.json"))
     args = ap.parse_args(argv)
     model = SurrogateForces(args.run / "surrogates" / args.kind)
-    # the recordings of estimate_tracks.py's set (its defaults: seed 0, 3 % noise, 60 s, 0.5 mm)
-    rec_args = argparse.Namespace(seed=0, noise=0.03, duration=60.0, track_noise=0.5)
+    # the recordings of estimate_tracks.py's set (its defaults: seed 0, 3 % noise, 0.5 mm)
+    rec_args = argparse.Namespace(seed=0, noise=0.03, duration=args.duration, track_noise=0.5)
     conditions, _ = family_conditions(model, rec_args.duration)
     truth = draw_sets(args.set + 1, rec_args.seed)[args.set]
     _, recs = set_recordings(args.set, truth, conditions, args.work / args.run.name, rec_args)
