@@ -150,7 +150,8 @@ class CNNSequence(nn.Module):
         segment: int | None = None,
     ) -> torch.Tensor:
         """Eval-mode outputs (n, T, n_outputs) at every step of whole series (n, T, F), each
-        from its start; the washout steps are left in (the caller masks them).
+        from its start; the washout steps are left in (the caller masks them). The reference
+        of :meth:`predict_sets`, which ``Surrogate.predict`` uses.
 
         ``segment``: None runs each series once from its start with the state carried to its
         end; an integer (the training chunk's length, greater than the washout) predicts a
@@ -207,7 +208,7 @@ class CNNSequence(nn.Module):
         """:meth:`predict_series` of the per-step inputs that
         :func:`~railsusp.surrogate.bundle.series_features` builds from parameter sets
         ``params`` (n, n_par) and track features ``track`` (1 or n, T, n_track), the same
-        numbers to float32 rounding, about three times faster (an NSGA-II generation of 50
+        numbers to float32 rounding, three to four times faster (an NSGA-II generation of 50
         sets on a 3000-step record: bench/README.md), without building those inputs.
 
         * The first convolution is linear and 1x1: its track part is computed once per
