@@ -259,9 +259,8 @@ class CNNSequence(nn.Module):
             part = track_part[:1] if track.shape[0] == 1 else track_part[sets]
             seg = self._segments(part, param_part[sets], starts, length, block_steps)
             for j, ((start, keep), end) in enumerate(zip(plan, ends, strict=True)):
-                out[lo : lo + len(sets), keep:end] = seg[keep - start : end - start, j].transpose(
-                    0, 1
-                )
+                kept = seg[keep - start : end - start, j]  # (steps, sets, n_outputs)
+                out[lo : lo + len(sets), keep:end] = kept.transpose(0, 1)
         return out
 
     def _segments(
@@ -304,11 +303,8 @@ class CNNSequence(nn.Module):
                     seq[t] = hidden[i]
             h = seq.view(k * rows, -1)
             for layer in self.head:
-                h = (
-                    linear(h, layer.weight, layer.bias)
-                    if isinstance(layer, nn.Linear)
-                    else layer(h)
-                )
+                is_linear = isinstance(layer, nn.Linear)
+                h = linear(h, layer.weight, layer.bias) if is_linear else layer(h)
             out[lo : lo + k] = h.view(k, n_seg, n, -1)
         return out
 
