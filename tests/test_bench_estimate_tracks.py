@@ -62,6 +62,7 @@ def test_tiny_run_writes_its_json_and_resumes_per_set(bench, tmp_path):
     assert all(p in KEYS for p in s0["identifiable"])
     assert s0["choice_rule"] == "least-squares" and s0["seconds"] > 0
     assert s0["predict_calls"] == 2  # one condition, two generations
+    assert 0 < s0["predict_cpu_seconds_per_generation"]
     assert s0["truth_display"].keys() == set(MAIN_SUSPENSION)
     assert doc["overall"]["sets"] == 1
     # resumed: set 0 kept as it was, set 1 added

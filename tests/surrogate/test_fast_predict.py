@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from railsusp.conditions import get_condition
-from railsusp.surrogate import models
+from railsusp.surrogate import recurrence
 from railsusp.surrogate.bundle import Surrogate, series_features
 from railsusp.surrogate.data import FeatureSpec, Normaliser, gather_windows, window_index
 from railsusp.surrogate.models import NetConfig, build_network
@@ -65,7 +65,7 @@ def test_predict_series_equals_forward_on_every_window(kind, opts):
 @pytest.mark.parametrize("kind", ["cnn-gru", "cnn-bilstm"])
 def test_predict_series_without_onednn(kind, monkeypatch):
     """The torch (MKL) matmuls taken where torch lacks oneDNN give the same outputs."""
-    monkeypatch.setattr(models, "_ONEDNN", False)
+    monkeypatch.setattr(recurrence, "ONEDNN", False)
     net = _net(kind, SMALL)
     feats = torch.randn(2, 40, 21)
     index = window_index(2, 40, 19)

@@ -5,7 +5,8 @@ condition, wagon and training provenance, saved to and loaded from one folder.
 batch of parameter sets in its condition, on the campaign's track or another realisation.
 CNN-recurrent networks predict whole series at once (:meth:`CNNRecurrent.predict_series`,
 about 4x the windows per second of running the network on every gathered window); the
-sequence CNN-GRU runs once over each series (:meth:`CNNSequence.predict_series`).
+sequence CNN-GRU runs once over each series, or each segment of it
+(:meth:`CNNSequence.predict_sets`).
 """
 
 from __future__ import annotations
@@ -265,14 +266,24 @@ class Surrogate:
         (the reference), run the network on every gathered window.
         Both give the same numbers to float32 rounding. The sequence CNN-GRU runs over each
         whole series from its start, in segments of :attr:`segment_steps` when the series is
-        longer (``fast=False``: one step at a time, the state carried within a segment), and
-        its outputs at the asked steps are returned."""
+        longer, through :meth:`CNNSequence.predict_sets` (the first convolution split into
+        the track's part, once per step, and the parameters', once per set; all segments
+        one batch, a few steps at a time; ``fast=False``: one step at a time through torch's
+        GRU, the state carried within a segment), and its outputs at the asked steps are
+        returned."""
         self.net.eval()
         if isinstance(self.net, CNNSequence):
-            feats = series_features(unit, track_norm).astype(np.float32, copy=False)
-            full = self.net.predict_series(
-                torch.from_numpy(feats), stepwise=not fast, segment=self.segment_steps
-            ).numpy()
+            if fast:
+                full = self.net.predict_sets(
+                    torch.from_numpy(np.ascontiguousarray(unit, dtype=np.float32)),
+                    torch.from_numpy(np.ascontiguousarray(track_norm, dtype=np.float32)),
+                    segment=self.segment_steps,
+                ).numpy()
+            else:
+                feats = series_features(unit, track_norm).astype(np.float32, copy=False)
+                full = self.net.predict_series(
+                    torch.from_numpy(feats), stepwise=True, segment=self.segment_steps
+                ).numpy()
             return full[idx[:, 0], idx[:, 1]]
         if fast and isinstance(self.net, CNNRecurrent):
             feats = series_features(unit, track_norm).astype(np.float32, copy=False)

@@ -25,6 +25,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from railsusp.surrogate.recurrence import cell_params, gru_step, linear, lstm_step
 from railsusp.surrogate.sequence import CNNSequence, conv_front, dense_head
 
 
@@ -123,8 +124,8 @@ class CNNRecurrent(nn.Module):
         ``chunk`` windows with torch's GRU/LSTM equations on the module's own weights. For a
         bidirectional last layer only its output at the window's last step reaches the head,
         so its backward direction runs one step. The matmuls go through oneDNN where torch has
-        it (``_linear``) and tanh is taken as 2 sigmoid(2y) - 1 (``_cell_params``), for speed
-        on CPU. Matches ``forward`` to float32 rounding.
+        it and tanh is taken as 2 sigmoid(2y) - 1 (:mod:`.recurrence`), for speed on CPU.
+        Matches ``forward`` to float32 rounding.
         """
         if self.training:
             raise RuntimeError("predict_series computes eval-mode outputs; call .eval() first")
@@ -167,32 +168,9 @@ class CNNRecurrent(nn.Module):
         return out
 
     def _cell_params(self) -> list[list[tuple[torch.Tensor, ...]]]:
-        """Per layer, per direction: (W_ih, input-side bias, W_hh, hidden-side bias or None).
-
-        The biases that torch's equations add to the input projection are folded into it: for
-        the LSTM b_ih + b_hh, for the GRU b_ih plus the r and z parts of b_hh; the GRU's
-        hidden-side bias is (0, 0, b_hn), since the reset gate multiplies W_hn h + b_hn. The
-        rows of the gate that goes through tanh (GRU n, LSTM g) are doubled, an exact scaling:
-        the steps take tanh(y) = 2 sigmoid(2y) - 1, as torch's CPU tanh is several times
-        slower than its sigmoid."""
-        res = []
-        for layer in self.rnn:
-            hs, dirs = layer.hidden_size, []
-            scale = torch.ones(layer.weight_hh_l0.shape[0], 1)
-            scale[2 * hs : 3 * hs] = 2.0
-            for sfx in ("", "_reverse")[: 2 if layer.bidirectional else 1]:
-                w_ih = getattr(layer, f"weight_ih_l0{sfx}") * scale
-                w_hh = getattr(layer, f"weight_hh_l0{sfx}") * scale
-                b_ih = getattr(layer, f"bias_ih_l0{sfx}")
-                b_hh = getattr(layer, f"bias_hh_l0{sfx}")
-                if self.cell == "lstm":
-                    dirs.append((w_ih, (b_ih + b_hh) * scale[:, 0], w_hh, None))
-                else:
-                    b_in = torch.cat([b_ih[: 2 * hs] + b_hh[: 2 * hs], 2.0 * b_ih[2 * hs :]])
-                    b_h = torch.cat([torch.zeros(2 * hs), 2.0 * b_hh[2 * hs :]])
-                    dirs.append((w_ih, b_in, w_hh, b_h))
-            res.append(dirs)
-        return res
+        """Per layer, per direction: (W_ih, input-side bias, W_hh, hidden-side bias or None),
+        biases folded, tanh rows doubled (:func:`~railsusp.surrogate.recurrence.cell_params`)."""
+        return [cell_params(layer, self.cell) for layer in self.rnn]
 
     def _first_gates(
         self, x: torch.Tensor, prm: list[tuple[torch.Tensor, ...]]
@@ -200,11 +178,11 @@ class CNNRecurrent(nn.Module):
         """Input gates of the first recurrent layer at every pooled step of whole series
         (n, T, F): per direction a (n * (T - 1), gates) table, row s * (T - 1) + t."""
         c1, c2 = self.conv[0], self.conv[2]
-        h = torch.relu(_linear(x.flatten(0, 1), c1.weight[:, :, 0], c1.bias))
-        h = _linear(h, c2.weight[:, :, 0], c2.bias)
+        h = torch.relu(linear(x.flatten(0, 1), c1.weight[:, :, 0], c1.bias))
+        h = linear(h, c2.weight[:, :, 0], c2.bias)
         h = nn.functional.leaky_relu(h, self.conv[3].negative_slope).view(*x.shape[:2], -1)
         pooled = torch.maximum(h[:, :-1], h[:, 1:])  # MaxPool1d(2, stride=1); dropout: identity
-        return [_linear(pooled.flatten(0, 1), w_ih, b) for w_ih, b, _, _ in prm]
+        return [linear(pooled.flatten(0, 1), w_ih, b) for w_ih, b, _, _ in prm]
 
     def _windows(
         self,
@@ -221,10 +199,10 @@ class CNNRecurrent(nn.Module):
                 fns = []
                 for d, (w_ih, b, _, _) in enumerate(dirs):
                     if last and d == 1:  # only the input at the last step is needed
-                        g = _linear(seq[:, -1].contiguous(), w_ih, b)
+                        g = linear(seq[:, -1].contiguous(), w_ih, b)
                         fns.append(lambda j, g=g: g)
                     else:
-                        g = _linear(seq.flatten(0, 1), w_ih, b).view(*seq.shape[:2], -1)
+                        g = linear(seq.flatten(0, 1), w_ih, b).view(*seq.shape[:2], -1)
                         fns.append(lambda j, g=g: g[:, j])
             fwd = self._direction(fns[0], range(n), dirs[0], keep=not last)
             if len(dirs) == 1:
@@ -250,10 +228,10 @@ class CNNRecurrent(nn.Module):
         state, outs = None, []
         for j in steps:
             if self.cell == "lstm":
-                state = _lstm_step(gates(j), state, w_hh)
+                state = lstm_step(gates(j), state, w_hh)
                 h = state[0]
             else:
-                state = h = _gru_step(gates(j), state, w_hh, b_h)
+                state = h = gru_step(gates(j), state, w_hh, b_h)
             if keep:
                 outs.append(h)
         if not keep:
@@ -261,69 +239,6 @@ class CNNRecurrent(nn.Module):
         if steps[0] > steps[-1]:
             outs.reverse()
         return torch.stack(outs, 1)
-
-
-_ONEDNN = torch.backends.mkldnn.is_available() and hasattr(torch.ops.mkldnn, "_linear_pointwise")
-
-
-def _linear(x: torch.Tensor, w: torch.Tensor, b: torch.Tensor | None = None) -> torch.Tensor:
-    """x W^T + b for 2-D float32 ``x``, through oneDNN where torch has it (the op torch's
-    Inductor compiles CPU linear layers to), else torch.nn.functional.linear (MKL). For these
-    thin matrices oneDNN measured about twice MKL's FLOP rate on the bench machine (AMD EPYC,
-    where MKL seems to run its AVX2 kernels). The op is private to torch (pinned to 2.13): where it
-    is missing, ``_ONEDNN`` is false and the torch path is taken."""
-    if _ONEDNN and x.dtype == torch.float32:
-        return torch.ops.mkldnn._linear_pointwise(x, w, b, "none", [], "")
-    return nn.functional.linear(x, w, b)
-
-
-def _linear_add(x: torch.Tensor, w: torch.Tensor, other: torch.Tensor) -> torch.Tensor:
-    """other + x W^T (a new tensor), fused by oneDNN where available (see ``_linear``)."""
-    if _ONEDNN and x.dtype == torch.float32:
-        return torch.ops.mkldnn._linear_pointwise.binary(x, other, w, None, "add")
-    return torch.addmm(other, x, w.t())
-
-
-def _tanh_from_doubled_(x: torch.Tensor) -> torch.Tensor:
-    """tanh(y) from x = 2y, in place: 2 sigmoid(x) - 1 (to float32 rounding)."""
-    return x.sigmoid_().mul_(2.0).sub_(1.0)
-
-
-def _gru_step(
-    gi: torch.Tensor, h: torch.Tensor | None, w_hh: torch.Tensor, b_h: torch.Tensor
-) -> torch.Tensor:
-    """One torch.nn.GRU step (its documented equations):
-    r = sigmoid(W_ir x + b_ir + W_hr h + b_hr), z = sigmoid(W_iz x + b_iz + W_hz h + b_hz),
-    n = tanh(W_in x + b_in + r * (W_hn h + b_hn)), h' = (1 - z) * n + z * h.
-
-    ``gi``: the input terms (b_hr, b_hz folded in, n rows doubled, see ``_cell_params``),
-    overwritten; ``h=None``: the zero state, whose hidden terms are just the biases."""
-    hs = w_hh.shape[1]
-    if h is None:
-        rz = gi[:, : 2 * hs].sigmoid_()
-        n = _tanh_from_doubled_(gi[:, 2 * hs :].addcmul_(rz[:, :hs], b_h[2 * hs :]))
-        return torch.addcmul(n, rz[:, hs:], n, value=-1.0)
-    gh = _linear(h, w_hh, b_h)
-    rz = gi[:, : 2 * hs].add_(gh[:, : 2 * hs]).sigmoid_()
-    n = _tanh_from_doubled_(gi[:, 2 * hs :].addcmul_(rz[:, :hs], gh[:, 2 * hs :]))
-    return torch.lerp(n, h, rz[:, hs:])
-
-
-def _lstm_step(
-    gi: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor] | None, w_hh: torch.Tensor
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """One torch.nn.LSTM step (its documented equations): i, f, g, o = sigmoid, sigmoid,
-    tanh, sigmoid of W_ih x + b_ih + W_hh h + b_hh; c' = f * c + i * g, h' = o * tanh(c').
-
-    ``gi``: the input terms (both biases folded in, g rows doubled), may be overwritten;
-    ``state=None``: the zero (h, c)."""
-    hs = w_hh.shape[1]
-    gates = gi if state is None else _linear_add(state[0], w_hh, gi)
-    gates.sigmoid_()
-    i, f, o = gates[:, :hs], gates[:, hs : 2 * hs], gates[:, 3 * hs :]
-    g = gates[:, 2 * hs : 3 * hs].mul_(2.0).sub_(1.0)  # tanh from the doubled rows
-    c = i * g if state is None else torch.addcmul(f * state[1], i, g)
-    return o * _tanh_from_doubled_(c * 2.0), c
 
 
 class WindowMLP(nn.Module):

@@ -39,6 +39,15 @@ from typing import Protocol
 import torch
 from torch import nn
 
+from railsusp.surrogate.recurrence import cell_params, gru_step, linear
+
+#: time steps of all segments run through the layers together (see
+#: :meth:`CNNSequence.predict_sets`): a block of 500 segments' activations then stays in the
+#: processor's cache between the layers
+BLOCK_STEPS = 16
+#: segments (parameter sets x segments of each) run as one batch by ``predict_sets``
+GROUP_ROWS = 512
+
 
 class Sizes(Protocol):
     """What the network reads of :class:`~railsusp.surrogate.models.NetConfig` (declared
@@ -141,7 +150,8 @@ class CNNSequence(nn.Module):
         segment: int | None = None,
     ) -> torch.Tensor:
         """Eval-mode outputs (n, T, n_outputs) at every step of whole series (n, T, F), each
-        from its start; the washout steps are left in (the caller masks them).
+        from its start; the washout steps are left in (the caller masks them). The reference
+        of :meth:`predict_sets`, which ``Surrogate.predict`` uses.
 
         ``segment``: None runs each series once from its start with the state carried to its
         end; an integer (the training chunk's length, greater than the washout) predicts a
@@ -183,6 +193,119 @@ class CNNSequence(nn.Module):
             state = None
             for k in range(t_steps):
                 out[lo : lo + per_group, k : k + 1], state = self.steps(x[:, k : k + 1], state)
+        return out
+
+    @torch.inference_mode()
+    def predict_sets(
+        self,
+        params: torch.Tensor,
+        track: torch.Tensor,
+        *,
+        segment: int | None = None,
+        block_steps: int = BLOCK_STEPS,
+        group_rows: int = GROUP_ROWS,
+    ) -> torch.Tensor:
+        """:meth:`predict_series` of the per-step inputs that
+        :func:`~railsusp.surrogate.bundle.series_features` builds from parameter sets
+        ``params`` (n, n_par) and track features ``track`` (1 or n, T, n_track), the same
+        numbers to float32 rounding, three to four times faster (an NSGA-II generation of 50
+        sets on a 3000-step record: bench/README.md), without building those inputs.
+
+        * The first convolution is linear and 1x1: its track part is computed once per
+          track step, its parameter part once per set (the parameters are the same at
+          every step), and they are added per step and set, as
+          :meth:`WindowMLP.predict_series <railsusp.surrogate.models.WindowMLP.predict_series>`
+          splits its first layer.
+        * The segments of all sets (``segment``, :func:`segment_plan`) are one batch, in
+          groups of about ``group_rows``, and go through all the layers ``block_steps``
+          steps at a time with the state carried (as :meth:`steps` in stretches), so that
+          the activations between the layers stay in the cache instead of whole series of
+          128 channels going to memory and back after every layer.
+        * The GRUs run torch's equations one step at a time on oneDNN matmuls
+          (:mod:`.recurrence`), about twice the speed of ``nn.GRU`` on the bench machine.
+
+        The recurrences themselves (one small matmul per layer and step) are what is left;
+        a segment's washout is recomputed as the method asks (each from the zero state)."""
+        if self.training:
+            raise RuntimeError("predict_sets computes eval-mode outputs; call .eval() first")
+        w = next(self.parameters())
+        params, track = torch.as_tensor(params).to(w.dtype), torch.as_tensor(track).to(w.dtype)
+        c1 = self.conv[0]
+        n, n_par = params.shape
+        if (
+            track.ndim != 3
+            or track.shape[0] not in (1, n)
+            or n_par + track.shape[2] != c1.in_channels
+        ):
+            raise ValueError(
+                f"params {tuple(params.shape)} and track {tuple(track.shape)}: accepted "
+                f"(n, n_par) and (1 or n, T, n_track) with n_par + n_track = {c1.in_channels}"
+            )
+        t_steps = track.shape[1]
+        plan = [(0, 0)]
+        if segment is not None and t_steps > segment:
+            plan = segment_plan(t_steps, segment, self.washout)
+        length = t_steps if len(plan) == 1 else segment
+        w1 = c1.weight[:, :, 0]
+        track_part = linear(track.flatten(0, 1), w1[:, n_par:].contiguous(), c1.bias)
+        track_part = track_part.view(*track.shape[:2], -1)
+        param_part = linear(params, w1[:, :n_par].contiguous())
+        out = torch.empty(n, t_steps, self.head[-1].out_features, dtype=w.dtype)
+        starts = torch.tensor([s for s, _ in plan])
+        ends = [keep for _, keep in plan[1:]] + [t_steps]
+        per_group = max(1, group_rows // len(plan))
+        for lo in range(0, n, per_group):
+            sets = torch.arange(lo, min(n, lo + per_group))
+            part = track_part[:1] if track.shape[0] == 1 else track_part[sets]
+            seg = self._segments(part, param_part[sets], starts, length, block_steps)
+            for j, ((start, keep), end) in enumerate(zip(plan, ends, strict=True)):
+                kept = seg[keep - start : end - start, j]  # (steps, sets, n_outputs)
+                out[lo : lo + len(sets), keep:end] = kept.transpose(0, 1)
+        return out
+
+    def _segments(
+        self,
+        track_part: torch.Tensor,
+        param_part: torch.Tensor,
+        starts: torch.Tensor,
+        length: int,
+        block_steps: int,
+    ) -> torch.Tensor:
+        """Outputs (length, J, n, n_outputs) of the segments of ``length`` steps starting at
+        ``starts`` (J) of n sets, each from the zero state: ``track_part`` (1 or n, T, C)
+        and ``param_part`` (n, C) are the two parts of the first convolution's input."""
+        n, n_seg = param_part.shape[0], len(starts)
+        rows = n_seg * n
+        c2, slope = self.conv[2], self.conv[3].negative_slope
+        cells = [cell_params(layer, "gru")[0] for layer in self.rnn]
+        out = torch.empty(length, n_seg, n, self.head[-1].out_features, dtype=param_part.dtype)
+        last, hidden = None, [None] * len(cells)
+        for lo in range(0, length, block_steps):
+            k = min(block_steps, length - lo)
+            steps = starts[None, :] + torch.arange(lo, lo + k)[:, None]  # (k, J)
+            if track_part.shape[0] == 1:
+                shared = track_part[0][steps][:, :, None]  # (k, J, 1, C)
+            else:
+                shared = track_part[torch.arange(n)[None, None, :], steps[:, :, None]]
+            h = torch.relu_(shared + param_part).view(k * rows, -1)
+            conv = linear(h, c2.weight[:, :, 0], c2.bias)
+            conv = nn.functional.leaky_relu_(conv, slope).view(k, rows, -1)
+            before = conv[:1] if last is None else last  # a segment's step 0 pools with itself
+            seq = torch.empty_like(conv)  # max pool of width 2 (dropout: identity)
+            torch.maximum(conv[1:], conv[:-1], out=seq[1:])
+            torch.maximum(conv[:1], before, out=seq[:1])
+            last = conv[-1:]
+            for i, (w_ih, b_in, w_hh, b_h) in enumerate(cells):
+                gates = linear(seq.view(k * rows, -1), w_ih, b_in).view(k, rows, -1)
+                seq = torch.empty(k, rows, w_hh.shape[1], dtype=gates.dtype)
+                for t in range(k):
+                    hidden[i] = gru_step(gates[t], hidden[i], w_hh, b_h)
+                    seq[t] = hidden[i]
+            h = seq.view(k * rows, -1)
+            for layer in self.head:
+                is_linear = isinstance(layer, nn.Linear)
+                h = linear(h, layer.weight, layer.bias) if is_linear else layer(h)
+            out[lo : lo + k] = h.view(k, n_seg, n, -1)
         return out
 
 
