@@ -95,6 +95,9 @@ def test_the_configuration_takes_a_prior_and_refuses_a_bad_one_before_any_stage(
     alone = BASE.replace("refine = true", "refine = false")
     with pytest.raises(RailsuspInputError, match="used by the refinement's intervals only"):
         load_config(_write(tmp_path, alone + "held_prior = {X19 = [20000, 40000]}\n"))
+    polish = BASE + 'statistic = "aligned"\n'
+    with pytest.raises(RailsuspInputError, match='held_prior with estimate.statistic "aligned"'):
+        load_config(_write(tmp_path, polish + "held_prior = {X19 = [20000, 40000]}\n"))
     out = tmp_path / "run"
     bad = _write(tmp_path, BASE + "held_prior = {X9 = [0.9, 1.1]}\n")
     result = CliRunner().invoke(app, ["run", str(bad), "--out", str(out)])

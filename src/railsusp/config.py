@@ -233,7 +233,8 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
 def _check_held_prior(cfg: Any, bad: Any) -> None:
     """``[estimate] held_prior``: known main-suspension symbols, [low, high] inside Table 2
     with low < high (:class:`~railsusp.estimate.config.HeldPrior`), and a refinement whose
-    intervals use it (NSGA-II alone reports the Pareto range, which holds nothing)."""
+    intervals use it (NSGA-II alone, or with the refinement as a polish beside it, reports
+    the Pareto range, which takes no prior)."""
     from railsusp.estimate.config import HELD_PRIOR_FIELD, HeldPrior
 
     e = cfg.estimate
@@ -247,6 +248,12 @@ def _check_held_prior(cfg: Any, bad: Any) -> None:
         raise bad(
             f"{HELD_PRIOR_FIELD} is used by the refinement's intervals only; set "
             "estimate.refine = true or leave held_prior out"
+        )
+    if ALIGNED in e.statistic.split("+"):
+        raise bad(
+            f'{HELD_PRIOR_FIELD} with estimate.statistic "aligned": the refinement is then a '
+            "polish beside NSGA-II's estimate, whose interval (the Pareto range) uses no "
+            "prior; leave held_prior out or choose record statistics"
         )
 
 
