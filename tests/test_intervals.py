@@ -283,3 +283,51 @@ def test_parameters_held_at_nominal_widen_the_simulator_refinements_interval(tmp
     for p in PARAMS:
         assert held.details["held_parameters_error_pct_range"][p] > 0.0
         assert held[p].width_pct_range >= alone[p].width_pct_range
+
+
+def test_a_held_prior_scales_the_held_part_and_an_offset_adds_to_it(tmp_path):
+    """With the simulator: a prior of the middle 80 % of every held range (centred on
+    nominal) scales the held parameters' part of the interval by exactly 0.8 (same
+    Jacobian, standard deviation 0.8 times); a prior around values far from those held
+    adds their offset; the values held are the force model's ``base`` where it has one."""
+    from railsusp.conditions import get_condition
+    from railsusp.estimate import SimulatorForces
+    from railsusp.estimate.config import HeldPrior
+    from railsusp.estimate.refine_intervals import held_parameter_variance
+    from railsusp.measured import read_field, synthesise_field
+    from railsusp.params import ParameterSet
+
+    cond = get_condition("curve", duration_s=1.0, n_steps=50, lead_in_m=20.0)
+    truth = ParameterSet({"X13": 16.1, "X14": 8.3}, units="display")
+    recs = read_field(synthesise_field(truth, [cond], tmp_path / "f", with_track=True))
+    lo, hi = bounds(PARAMS)
+    held = [p for p in MAIN_SUSPENSION if p not in PARAMS]
+
+    def middle(fraction: float, at: ParameterSet | None = None) -> HeldPrior:
+        ranges = {}
+        for p in held:
+            a, b = spec(p).bounds
+            c = (at or ParameterSet.nominal())[p]
+            w = fraction * (b - a) / 2
+            ranges[p] = [spec(p).to_display(max(c - w, a)), spec(p).to_display(min(c + w, b))]
+        return HeldPrior.from_display(ranges)
+
+    r = refine(SimulatorForces(PARAMS), recs, PARAMS, lo + 0.5 * (hi - lo), max_evaluations=2,
+               gains=False, geometry_draws=0)  # fmt: skip
+    whole = held_parameter_variance(r)
+    assert np.all(whole > 0)
+    assert held_parameter_variance(r, middle(0.8)) == pytest.approx(0.64 * whole, rel=1e-9)
+    iv = refinement_intervals(r, prior=middle(0.8))
+    assert iv.details["held_parameters_assumed"]["X19"]["range"] == "prior"
+    assert iv.details["held_prior_unused"] == []
+    # a simulator holding the others at a base off-centre: a narrow prior around the base
+    # leaves almost nothing; the same prior around nominal a part of its offsets
+    base = ParameterSet({p: spec(p).bounds[0] + 0.2 * np.diff(spec(p).bounds)[0] for p in held})
+    rb = refine(SimulatorForces(PARAMS, base=base), recs, PARAMS, lo + 0.5 * (hi - lo),
+                max_evaluations=2, gains=False, geometry_draws=0)  # fmt: skip
+    near = held_parameter_variance(rb, middle(0.02, base))
+    far = held_parameter_variance(rb, middle(0.02))
+    assert np.all(near < 1e-2 * far)
+    assert refinement_intervals(rb).details["held_parameters_assumed"]["X19"][
+        "held_at_display"
+    ] == pytest.approx(spec("X19").to_display(base["X19"]))

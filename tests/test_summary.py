@@ -176,3 +176,33 @@ def test_wagon_tolerances_are_read_and_checked(tmp_path):
         wagon.write_text(base + f"\n[tolerances]\n{bad}\n")
         with pytest.raises(RailsuspInputError, match=msg):
             summary.read_tolerances(wagon)
+
+
+def test_held_parameters_are_listed_with_the_range_the_intervals_assumed(tmp_path):
+    """A refined estimate's intervals record what they assumed of each held parameter: the
+    value held and the range it is taken uniform over, the user's (estimate.held_prior) or
+    Table 2's; the summary says it."""
+    from railsusp.estimate.config import HeldPrior
+    from railsusp.estimate.intervals import REFINEMENT, from_standard_errors
+    from railsusp.estimate.refine_intervals import held_assumptions
+
+    run = make_run(tmp_path, {"X13": 10.5, "X17": 1.9}, None)
+    path = run / "estimate" / "estimate.json"
+    doc = json.loads(path.read_text())
+    prior = HeldPrior.from_display({"X19": [20000, 40000]})
+    details = {"held_parameters_assumed": held_assumptions(("X13", "X17"), prior)}
+    iv = from_standard_errors(
+        ("X13", "X17"), np.array([10.5e6, 1.9e6]), np.array([0.1e6, 0.01e6]), 0.9, 50.0,
+        REFINEMENT, details,
+    )  # fmt: skip
+    doc["intervals"] = iv.to_dict()
+    path.write_text(json.dumps(doc))
+    t = summary.estimate_table(run)
+    assert t.loc["X19"].verdict == (
+        "not estimated: held at 30000 kN/m, in the intervals anywhere in 20000-40000 kN/m "
+        "(estimate.held_prior)"
+    )
+    assert t.loc["X14"].verdict == (
+        "not estimated: held at 10.0 MN/m, in the intervals anywhere in 5.00-15.0 MN/m "
+        "(Table 2 range)"
+    )

@@ -8,7 +8,8 @@ would fail in its fifth stage fails at once, with a one-line error naming the fi
 * booleans where numbers are expected (``samples = true`` is a slip, not one sample);
 * every working condition built (names, ranges, ``base``), names distinct;
 * parameters: campaign parameters sampled and distinct, ``[field] truth`` symbols known
-  and inside their ranges (``truth = {X99 = 1.0}`` used to fail after three stages);
+  and inside their ranges (``truth = {X99 = 1.0}`` used to fail after three stages),
+  ``[estimate] held_prior`` ranges known, inside Table 2, low below high, with a refinement;
 * combinations: ``refine = true`` and the statistic ``aligned`` need recordings with track
   geometry (``with_track`` for synthetic ones, ``track_geometry`` in the sidecars of a
   ``measured`` folder; never the sections of a long ``recording``), ``aligned`` and
@@ -97,6 +98,12 @@ def _booleans(doc: Any, model: type[BaseModel], where: str) -> str | None:
             for sym, v in value.items():
                 if isinstance(v, bool):
                     return f"{name}.{sym} = {str(v).lower()}: a boolean is not a number"
+        elif isinstance(value, dict) and key == "held_prior":
+            for sym, pair in value.items():
+                if isinstance(pair, bool) or (
+                    isinstance(pair, list) and any(isinstance(v, bool) for v in pair)
+                ):
+                    return f"{name}.{sym} = {pair!r}: a boolean is not a number"
     return None
 
 
@@ -211,6 +218,7 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
             'estimate.statistic "p99.85" (EN 14363) is computed from force series; the '
             'statistics GPs of surrogate.model = "gp-stats" predict mean, rms, p99 and std only'
         )
+    _check_held_prior(cfg, bad)
     if cfg.surrogate.device not in DEVICES:
         raise bad(f"surrogate.device = {cfg.surrogate.device!r}: accepted {', '.join(DEVICES)}")
     if cfg.wagon is not None:
@@ -220,6 +228,33 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
             raise bad(f"wagon: {exc}") from None
     if cfg.scheduler is not None and not cfg.scheduler.startswith(("tcp://", "tls://")):
         raise bad(f"scheduler = {cfg.scheduler!r}: expected tcp://host:port or tls://host:port")
+
+
+def _check_held_prior(cfg: Any, bad: Any) -> None:
+    """``[estimate] held_prior``: known main-suspension symbols, [low, high] inside Table 2
+    with low < high (:class:`~railsusp.estimate.config.HeldPrior`), and a refinement whose
+    intervals use it (NSGA-II alone, or with the refinement as a polish beside it, reports
+    the Pareto range, which takes no prior)."""
+    from railsusp.estimate.config import HELD_PRIOR_FIELD, HeldPrior
+
+    e = cfg.estimate
+    if not e.held_prior:
+        return
+    try:
+        HeldPrior.from_display(e.held_prior, HELD_PRIOR_FIELD)
+    except RailsuspInputError as exc:
+        raise bad(str(exc)) from None
+    if not e.refine:
+        raise bad(
+            f"{HELD_PRIOR_FIELD} is used by the refinement's intervals only; set "
+            "estimate.refine = true or leave held_prior out"
+        )
+    if ALIGNED in e.statistic.split("+"):
+        raise bad(
+            f'{HELD_PRIOR_FIELD} with estimate.statistic "aligned": the refinement is then a '
+            "polish beside NSGA-II's estimate, whose interval (the Pareto range) uses no "
+            "prior; leave held_prior out or choose record statistics"
+        )
 
 
 def _blind_recordings(folder: Path) -> list[str]:

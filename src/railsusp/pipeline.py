@@ -164,6 +164,11 @@ class EstimateSection(_Cfg):
         description="take the geometry-error bias that the draws estimate (first SIMEX "
         "step) off the refined estimate",
     )
+    held_prior: dict[str, Any] = Field(
+        default_factory=dict,
+        description="{symbol: [low, high]} display units: the range each main-suspension "
+        "parameter the refinement holds at nominal is known to lie in (docs/configuration.md)",
+    )
 
     @field_validator("statistic")
     @classmethod
@@ -372,7 +377,10 @@ def _section(config: PipelineConfig, stage: str) -> Any:
         "sensitivity": config.sensitivity.model_dump(),
         "surrogate": config.surrogate.model_dump(),
         "field": {**base, **config.field.model_dump()},
-        "estimate": config.estimate.model_dump(),
+        # without a held_prior the section hashes as before it existed (runs stay up to date)
+        "estimate": config.estimate.model_dump(
+            exclude=None if config.estimate.held_prior else {"held_prior"}
+        ),
         "validate": {},
         "report": {"name": config.name},
     }
@@ -484,6 +492,7 @@ def _stage_runners(
             open_force_model,
             refine_estimate,
         )
+        from railsusp.estimate.config import HeldPrior
         from railsusp.measured import read_field
         from railsusp.surrogate import key_parameters, not_estimated
 
@@ -515,6 +524,7 @@ def _stage_runners(
                 geometry_draws=e.geometry_draws,
                 remove_geometry_bias=e.remove_geometry_bias,
             )
+            res.held_prior = HeldPrior.from_display(e.held_prior)
         res.save(
             out / "estimate",
             extra={

@@ -142,8 +142,17 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
             row["estimate"] = s.nominal_display
             row["change_pct"] = 0.0
             row["verdict"] = f"{NOT_ESTIMATED}: held at {sig3(s.nominal_display)} {s.display_unit}"
+            held = (intervals.details.get("held_parameters_assumed") or {}).get(p)
+            if held:  # the refinement's intervals took it uniform over a range
+                row["verdict"] = (
+                    f"{NOT_ESTIMATED}: held at {sig3(held['held_at_display'])} {s.display_unit}, "
+                    f"in the intervals anywhere in {sig3(held['low_display'])}-"
+                    f"{sig3(held['high_display'])} {s.display_unit} ("
+                    + ("estimate.held_prior" if held["range"] == "prior" else "Table 2 range")
+                    + ")"
+                )
             varied = assumed.get(p, {})  # the force model's training varied it (a range)
-            if varied.get("assumed") == "varied":
+            if varied.get("assumed") == "varied" and not held:
                 row["verdict"] = (
                     f"{NOT_ESTIMATED}: varied over {sig3(varied['low'])}-{sig3(varied['high'])} "
                     f"{s.display_unit} in the surrogate's training"

@@ -3,10 +3,14 @@ accepted range of each setting, checked before any work runs."""
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import asdict, dataclass, field
+from typing import Any
 
-from railsusp.errors import RailsuspInputError
+from railsusp.errors import ParameterError, RailsuspInputError
 from railsusp.estimate.statistics import ALIGNED, check_weighting, parse_statistics
+from railsusp.params import MAIN_SUSPENSION, spec
 
 #: accepted range (inclusive) of each numeric NSGA-II setting, by :class:`NSGAConfig` field.
 #: A population below 4 leaves the binary tournament nothing to choose from; pymoo's seed
@@ -89,3 +93,100 @@ class NSGAConfig:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+#: where a configuration gives the held parameters' prior (error messages)
+HELD_PRIOR_FIELD = "estimate.held_prior"
+
+
+@dataclass(frozen=True)
+class HeldPrior:
+    """The user's knowledge of main-suspension parameters an estimate may hold at nominal:
+    per parameter the range ``[low, high]`` (SI) it is known to lie in, within its Table 2
+    range. The refinement's intervals take each held parameter uniform over this range
+    instead of its whole Table 2 range (:func:`~railsusp.estimate.refine_intervals.
+    held_parameter_variance`). A parameter the estimate estimates uses its prior nowhere
+    (its search range stays Table 2's); a parameter without a prior keeps Table 2's range.
+
+    Build it from a configuration's display units with :meth:`from_display`, which refuses
+    an unknown or fixed parameter, a non-number, ``low >= high`` and a range outside Table 2
+    with a one-line error naming the field and the accepted range."""
+
+    ranges_si: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+    @classmethod
+    def from_display(
+        cls, ranges: Mapping[str, Any] | None, where: str = HELD_PRIOR_FIELD
+    ) -> HeldPrior:
+        """The prior of ``{symbol or name: [low, high]}`` in each parameter's display unit
+        (MN/m, kN/m, kN·s/m, mm, m: docs/parameters.md), checked; ``where`` names the field
+        in the errors."""
+        out: dict[str, tuple[float, float]] = {}
+        for key, pair in (ranges or {}).items():
+            try:
+                s = spec(str(key))
+            except ParameterError:
+                raise RailsuspInputError(
+                    f"{where}.{key}: unknown parameter; accepted the main-suspension "
+                    f"parameters {MAIN_SUSPENSION[0]}..{MAIN_SUSPENSION[-1]} or their names"
+                ) from None
+            name = f"{where}.{key}"
+            if not s.is_sampled:
+                raise RailsuspInputError(
+                    f"{name}: {s.symbol} is fixed and never held with a range; accepted "
+                    f"{MAIN_SUSPENSION[0]}..{MAIN_SUSPENSION[-1]}"
+                )
+            if s.symbol in out:
+                raise RailsuspInputError(f"{name}: {s.symbol} is given twice")
+            lo_t, hi_t = s.bounds_display  # type: ignore[misc]
+            accepted = (
+                f"accepted [low, high] with {lo_t:g} <= low < high <= {hi_t:g} {s.display_unit}"
+            )
+            lo, hi = _pair(pair, f"{name} = {pair!r}: {accepted}")
+            shown = f"{name} = [{lo:g}, {hi:g}] {s.display_unit}"
+            if not lo < hi:
+                raise RailsuspInputError(f"{shown}: low must be below high; {accepted}")
+            tol = 1e-9 * max(abs(lo_t), abs(hi_t))
+            if lo < lo_t - tol or hi > hi_t + tol:
+                raise RailsuspInputError(
+                    f"{shown} reaches outside {s.symbol}'s Table 2 range; {accepted}"
+                )
+            out[s.symbol] = (max(lo, lo_t) * s.scale, min(hi, hi_t) * s.scale)
+        return cls(out)
+
+    def range_si(self, symbol: str) -> tuple[float, float]:
+        """The range (SI) a held ``symbol`` is taken uniform over: the user's, or Table 2's."""
+        got = self.ranges_si.get(symbol)
+        return got if got is not None else spec(symbol).bounds  # type: ignore[return-value]
+
+    def given(self, symbol: str) -> bool:
+        """Whether the user gave ``symbol``'s range (else Table 2's is taken)."""
+        return symbol in self.ranges_si
+
+    def unused(self, estimated: Iterable[str]) -> list[str]:
+        """The parameters with a prior that the estimate estimates (the prior is not used)."""
+        est = set(estimated)
+        return [p for p in self.ranges_si if p in est]
+
+    def to_display(self) -> dict[str, list[float]]:
+        """``{symbol: [low, high]}`` in display units (estimate.json, reports)."""
+        return {
+            p: [spec(p).to_display(lo), spec(p).to_display(hi)]
+            for p, (lo, hi) in self.ranges_si.items()
+        }
+
+
+def _pair(value: Any, message: str) -> tuple[float, float]:
+    """``value`` as two finite numbers (not booleans), else a RailsuspInputError(message)."""
+    if isinstance(value, str | bytes | Mapping) or not isinstance(value, Iterable):
+        raise RailsuspInputError(message)
+    items = list(value)
+    if len(items) != 2 or any(isinstance(v, bool) for v in items):
+        raise RailsuspInputError(message)
+    try:
+        lo, hi = (float(v) for v in items)
+    except (TypeError, ValueError):
+        raise RailsuspInputError(message) from None
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise RailsuspInputError(message)
+    return lo, hi

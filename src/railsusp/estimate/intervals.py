@@ -13,8 +13,9 @@ interval in SI (shown in display units, e.g. ``X14 = 8.3 [7.6-9.1] MN/m``), with
   Zwiers 1984; Geyer 1992 for the truncation), with a Student-t quantile on the effective
   degrees of freedom, and in quadrature the spread that the track geometry's stated error
   causes and, where the simulator can tell it, the linear response of the estimate to the
-  main-suspension parameters held at nominal, each uniformly unknown over its range
-  (variance range²/12). Clipped to the parameter's range (the prior).
+  main-suspension parameters held at nominal, each uniformly unknown over the user's range
+  (``[estimate] held_prior``) or its whole Table 2 range, as its second moment about the
+  value held. Clipped to the parameter's range (the prior).
 - ``standard-error``: an estimate.json written before intervals were stored: estimate ±
   z·standard error of the refinement (normal quantile), as optimistic as those errors were.
 - ``pareto``: the range of NSGA-II's Pareto set: the parameter sets that trade the objectives

@@ -6,7 +6,9 @@ bandwidth, model error), and the refinement holds the other main-suspension para
 nominal. Here the standard errors are inflated by the residuals' integrated autocorrelation
 time (their effective sample size), a Student-t quantile is taken on the effective degrees
 of freedom, and the track-geometry error's spread and the linear response to the held
-parameters are added in quadrature (docs/intervals.md).
+parameters are added in quadrature (docs/intervals.md): each held parameter uniform over the
+user's range (:class:`~railsusp.estimate.config.HeldPrior`, ``[estimate] held_prior``) or
+else its whole Table 2 range, taken as its second moment about the value held.
 """
 
 from __future__ import annotations
@@ -15,10 +17,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from railsusp.estimate.config import HeldPrior
 from railsusp.estimate.forces import SimulatorForces
 from railsusp.estimate.intervals import LEVEL, REFINEMENT, Intervals, from_standard_errors
 from railsusp.estimate.refine import OutputError, Refinement
-from railsusp.params import MAIN_SUSPENSION, ParameterSet, bounds
+from railsusp.params import MAIN_SUSPENSION, ParameterSet, bounds, spec
 
 
 def autocorrelation_time(r: np.ndarray) -> float:
@@ -63,14 +66,50 @@ def held_parameters(parameters: Sequence[str]) -> tuple[str, ...]:
     return tuple(p for p in MAIN_SUSPENSION if p not in set(parameters))
 
 
-def held_parameter_variance(refinement: Refinement) -> np.ndarray | None:
-    """(k,) variance, SI², of the refined estimate caused by the main-suspension parameters
-    held at nominal, each uniform over its range (variance range²/12 in unit coordinates
-    1/12): the estimate moves by -A·δh for a change δh of them, with A the least-squares
-    response (J_e⁺ J_h) of the estimated parameters and channel gains to the held ones, the
-    Jacobians taken at the estimate with the held parameters at nominal. None where it
-    cannot be computed: no held parameter, or a force model other than the simulator (the
-    surrogates know the key parameters only). One batch of k + h + 1 simulations."""
+def held_moments(
+    held: Sequence[str], held_at_si: np.ndarray, prior: HeldPrior | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(variance, offset) of each ``held`` parameter about the value it is held at, in unit
+    coordinates of its Table 2 range: uniform over the user's range [a, b] (``prior``) or
+    else its whole Table 2 range, so variance (b - a)²/12 and offset (a + b)/2 - held value.
+    The default holds at nominal, the centre of every Table 2 range (nominal ± 50 %), so
+    its offsets are zero; a user's range off-centre, or one that leaves nominal out, has
+    an offset, the mean of the error holding at nominal causes."""
+    prior = prior or HeldPrior()
+    if not len(held):
+        return np.zeros(0), np.zeros(0)
+    lo_t, hi_t = bounds(held)
+    span = hi_t - lo_t
+    ab = np.array([prior.range_si(p) for p in held], dtype=float)
+    var = ((ab[:, 1] - ab[:, 0]) / span) ** 2 / 12.0
+    offset = (ab.mean(axis=1) - np.asarray(held_at_si, dtype=float)) / span
+    return var, offset
+
+
+def held_error_variance(
+    response: np.ndarray, variance: np.ndarray, offset: np.ndarray
+) -> np.ndarray:
+    """(k,) second moment E[e²] of the estimate's error e = R·δ that held parameters cause,
+    with R (k, h) the estimate's response to them and δ their independent deviations from
+    the held values, of ``variance`` and mean ``offset``: Σ_j R_ij² var_j + (Σ_j R_ij m_j)².
+    The offsets shift the estimate coherently (a bias R·m), so their squares do not simply
+    add per held parameter; with no offset this is the variance Σ R² var."""
+    r = np.atleast_2d(np.asarray(response, dtype=float))
+    return (r**2) @ np.asarray(variance, dtype=float) + (r @ np.asarray(offset, dtype=float)) ** 2
+
+
+def held_parameter_variance(
+    refinement: Refinement, prior: HeldPrior | None = None
+) -> np.ndarray | None:
+    """(k,) second moment, SI², of the refined estimate's error caused by the main-suspension
+    parameters it holds (at nominal, or the force model's ``base``), each uniform over the
+    user's range in ``prior`` or else its whole Table 2 range (:func:`held_moments`,
+    :func:`held_error_variance`): the estimate moves by A·δh for a change δh of them, with
+    A the least-squares response (J_e⁺ J_h) of the estimated parameters and channel gains
+    to the held ones, the Jacobians taken at the estimate with the held parameters at the
+    values held. None where it cannot be computed: no held parameter, or a force model
+    other than the simulator (the surrogates know the key parameters only). One batch of
+    k + h + 1 simulations."""
     prob, z = refinement.problem, refinement.solution
     if prob is None or z is None or not isinstance(prob.model, SimulatorForces):
         return None
@@ -79,28 +118,65 @@ def held_parameter_variance(refinement: Refinement) -> np.ndarray | None:
         return None
     k, h = prob.k, len(held)
     every = (*prob.parameters, *held)
+    base = prob.model.base
     ext = OutputError(
-        SimulatorForces(every, prob.model.wheel), prob.recordings, every, prob.step, prob.gains
+        SimulatorForces(every, prob.model.wheel, base=base),
+        prob.recordings,
+        every,
+        prob.step,
+        prob.gains,
     )
-    nominal = ParameterSet.nominal()
+    held_at = held_values(held, base)
     lo_h, hi_h = bounds(held)
-    u_held = np.clip((np.array([nominal[p] for p in held]) - lo_h) / (hi_h - lo_h), 0.0, 1.0)
+    u_held = np.clip((held_at - lo_h) / (hi_h - lo_h), 0.0, 1.0)
     zz = np.concatenate([z[:k], u_held, z[k:]])
     jac = ext.jacobian_of(ext.predictions(ext.steps(zz[: k + h])), zz)
     est_cols = np.r_[0:k, k + h : jac.shape[1]]
     j_e, j_h = jac[:, est_cols], jac[:, k : k + h]
     response = np.linalg.lstsq(j_e, j_h, rcond=None)[0][:k]  # (k, h), unit coordinates
-    var_u = (response**2).sum(axis=1) / 12.0
+    var_u = held_error_variance(response, *held_moments(held, held_at, prior))
     return var_u * (prob.hi - prob.lo) ** 2
 
 
+def held_values(held: Sequence[str], base: ParameterSet | None = None) -> np.ndarray:
+    """(h,) SI values the ``held`` parameters are held at: ``base``'s, else nominal."""
+    values = base or ParameterSet.nominal()
+    return np.array([values[p] for p in held], dtype=float)
+
+
+def held_assumptions(
+    parameters: Sequence[str], prior: HeldPrior | None = None, base: ParameterSet | None = None
+) -> dict[str, dict]:
+    """What the intervals assume of each held parameter (display units): the value it is
+    held at and the range it is taken uniform over, the user's (``"range": "prior"``) or
+    Table 2's; for estimate.json and the report."""
+    prior = prior or HeldPrior()
+    held = held_parameters(parameters)
+    out = {}
+    for p, v in zip(held, held_values(held, base), strict=True):
+        s = spec(p)
+        lo, hi = prior.range_si(p)
+        out[p] = {
+            "held_at_display": s.to_display(v),
+            "low_display": s.to_display(lo),
+            "high_display": s.to_display(hi),
+            "unit": s.display_unit,
+            "range": "prior" if prior.given(p) else "Table 2",
+        }
+    return out
+
+
 def refinement_intervals(
-    refinement: Refinement, level: float = LEVEL, held: bool = True
+    refinement: Refinement,
+    level: float = LEVEL,
+    held: bool = True,
+    prior: HeldPrior | None = None,
 ) -> Intervals:
     """The refinement's ``level`` confidence intervals (module docstring): Gauss-Newton
     standard errors inflated by the residuals' autocorrelation time, a Student-t quantile
     on n_eff - p degrees of freedom, and in quadrature the geometry-error spread and, with
-    ``held``, the held parameters' part (:func:`held_parameter_variance`)."""
+    ``held``, the held parameters' part (:func:`held_parameter_variance`), each held one
+    uniform over its range in ``prior`` or else over its whole Table 2 range."""
     ref = refinement
     k = len(ref.parameters)
     lo, hi = bounds(ref.parameters)
@@ -115,7 +191,7 @@ def refinement_intervals(
         n_eff, tau, dof = None, 1.0, None
     noise = np.sqrt(tau) * ref.standard_error_si
     geometry = ref.geometry_error_si
-    held_var = held_parameter_variance(ref) if held else None
+    held_var = held_parameter_variance(ref, prior) if held else None
     held_sd = np.sqrt(held_var) if held_var is not None else np.zeros(k)
     total = np.sqrt(noise**2 + geometry**2 + held_sd**2)
 
@@ -130,8 +206,19 @@ def refinement_intervals(
         "geometry_error_pct_range": pct(geometry),
         "held_parameters": list(held_parameters(ref.parameters)) if held_var is not None else [],
         "held_parameters_error_pct_range": pct(held_sd),
+        "held_parameters_assumed": held_assumptions(ref.parameters, prior, _base(ref))
+        if held_var is not None
+        else {},
+        "held_prior_display": (prior or HeldPrior()).to_display(),
+        "held_prior_unused": (prior or HeldPrior()).unused(ref.parameters),
         "total_standard_error_pct_range": pct(total),
     }
     return from_standard_errors(
         ref.parameters, ref.estimate_si, total, level, dof, REFINEMENT, details
     )
+
+
+def _base(refinement: Refinement) -> ParameterSet | None:
+    """The values the refinement's simulator holds the other parameters at (None: nominal)."""
+    prob = refinement.problem
+    return getattr(prob.model, "base", None) if prob is not None else None

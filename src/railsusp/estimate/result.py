@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from railsusp.estimate.config import CHOICE_RULES, IDEAL_POINT, NSGAConfig
+from railsusp.estimate.config import CHOICE_RULES, IDEAL_POINT, HeldPrior, NSGAConfig
 from railsusp.estimate.intervals import LEVEL, PARETO, Intervals, from_pareto
 from railsusp.estimate.problem import display_values
 from railsusp.estimate.refine import Refinement
@@ -48,6 +48,9 @@ class CalibrationResult:
     #: (time-aligned objectives: the surrogate on the recordings' track gives the answer),
     #: rather than the estimate itself (record statistics, which it corrects)
     refinement_is_polish: bool = False
+    #: the user's ranges of the parameters the refinement holds, for its intervals (None:
+    #: each held one over its whole Table 2 range)
+    held_prior: HeldPrior | None = None
     #: intervals computed, by level and refinement (a refinement attached later recomputes)
     _intervals: dict = field(default_factory=dict, repr=False, compare=False)
 
@@ -92,10 +95,12 @@ class CalibrationResult:
         """Per-parameter intervals of the estimate: the refinement's ``level`` confidence
         intervals when refined (computed once; with the simulator this includes one batch of
         simulations for the parameters held at nominal), else the Pareto set's range."""
-        key = (level, id(self.refinement), self.refinement_is_polish)
+        key = (level, id(self.refinement), self.refinement_is_polish, id(self.held_prior))
         if key not in self._intervals:
             if self.refinement is not None and self.refined:
-                self._intervals[key] = refinement_intervals(self.refinement, level)
+                self._intervals[key] = refinement_intervals(
+                    self.refinement, level, prior=self.held_prior
+                )
             else:
                 got = from_pareto(self.parameters, self.pareto_x, self.chosen_x)
                 if self.cramer_rao:
