@@ -285,10 +285,16 @@ def test_measured_track_flow(tmp_path):
         ["estimate", "--measured", str(field), "--surrogate", str(run / "surrogates" / "gp-stats"),
          "--out", str(est), "--pop-size", "8", "--n-gen", "3", "--refine",
          "--refine-evaluations", "3", "--refine-screen", "4", "--refine-starts", "1",
-         "--geometry-draws", "2", "--keep-geometry-bias"],
+         "--geometry-draws", "2", "--keep-geometry-bias", "--held-prior", "X15=150:190"],
     )  # fmt: skip
     assert result.exit_code == 0, result.output
     doc = json.loads((est / "estimate.json").read_text())
+    # --held-prior reaches the refined intervals and is recorded with what they assumed
+    details = doc["intervals"]["details"]
+    held = details["held_parameters_assumed"]
+    assert held["X15"]["range"] == "prior" and held["X16"]["range"] == "Table 2"
+    assert (held["X15"]["low_display"], held["X15"]["high_display"]) == (150.0, 190.0)
+    assert details["held_prior_display"] == {"X15": [150.0, 190.0]}
     assert doc["refinement"]["n_evaluations"] <= 3 + 1
     # the recordings state 0.1 mm geometry accuracy: its error is in the standard errors
     ref = doc["refinement"]

@@ -62,6 +62,26 @@ def field(tmp_path_factory):
         (["--refine-screen", "-1"], "--refine-screen -1: accepted 0 to 10000"),
         (["--refine-evaluations", "0"], "--refine-evaluations 0: accepted 1 to 500"),
         (["--geometry-draws", "101"], "--geometry-draws 101: accepted 0 to 100"),
+        (
+            ["--held-prior", "X15=100:200"],
+            "--held-prior: only with --refine and a statistic other than aligned (the refined "
+            "intervals take it)",
+        ),
+        (
+            ["--refine", "--held-prior", "X15=100"],
+            "--held-prior: 'X15=100': accepted SYMBOL=LOW:HIGH in display units, "
+            "comma-separated (e.g. X15=100:200,X19=20:40)",
+        ),
+        (
+            ["--refine", "--held-prior", "X15=10:200"],
+            "--held-prior.X15 = [10, 200] MN/m reaches outside X15's Table 2 range; accepted "
+            "[low, high] with 85 <= low < high <= 255 MN/m",
+        ),
+        (
+            ["--refine", "--held-prior", "X99=1:2"],
+            "--held-prior.X99: unknown parameter; accepted the main-suspension parameters "
+            "X11..X20 or their names",
+        ),
     ],
 )
 def test_bad_option_is_refused_before_the_recordings_are_read(tmp_path, args, message):

@@ -191,6 +191,14 @@ def estimate(
             "off the refined estimate",
         ),
     ] = True,
+    held_prior: Annotated[
+        str | None,
+        typer.Option(
+            help="with --refine: ranges the held parameters are known to lie in, display "
+            "units, e.g. X15=100:200,X19=20:40 (the intervals take them uniform over these "
+            "instead of Table 2's ranges; docs/intervals.md)"
+        ),
+    ] = None,
 ) -> None:
     """NSGA-II estimate of the key parameters from measured recordings (Tables 3-5, Figs 8-9)."""
     from railsusp.estimate import (
@@ -222,6 +230,7 @@ def estimate(
         ):
             check_range(name, value, low, high)
         parse_statistics(statistic)
+        prior = parse_held_prior(held_prior, refine, statistic)
         if (surrogate is None) == (not simulator):
             raise RailsuspInputError("give --surrogate FOLDER or --simulator (one of them)")
         check_output_folder(out)  # an existing file or an unwritable folder, before any work
@@ -261,6 +270,7 @@ def estimate(
                     geometry_draws=geometry_draws,
                     remove_geometry_bias=remove_geometry_bias,
                 )
+            res.held_prior = prior
         res.save(
             out,
             extra={
@@ -278,6 +288,32 @@ def estimate(
     )
     console.print(frame_table(res.table(), "Estimate (the study's Table 5 layout)"))
     console.print(f"wrote {out}")
+
+
+def parse_held_prior(text: str | None, refine: bool, statistic: str):
+    """``--held-prior X15=100:200,X19=20:40`` as a checked
+    :class:`~railsusp.estimate.config.HeldPrior` (None without the option); refused without
+    ``--refine`` and with ``--statistic aligned``, where no refined interval takes it."""
+    from railsusp.estimate.config import HeldPrior
+
+    if not text:
+        return None
+    if not refine or statistic == "aligned":
+        raise RailsuspInputError(
+            "--held-prior: only with --refine and a statistic other than aligned (the "
+            "refined intervals take it)"
+        )
+    ranges: dict[str, list[str]] = {}
+    for item in text.split(","):
+        key, eq, pair = item.partition("=")
+        low, colon, high = pair.partition(":")
+        if not (eq and colon and key.strip()):
+            raise RailsuspInputError(
+                f"--held-prior: {item.strip()!r}: accepted SYMBOL=LOW:HIGH in display units, "
+                "comma-separated (e.g. X15=100:200,X19=20:40)"
+            )
+        ranges[key.strip()] = [low.strip(), high.strip()]
+    return HeldPrior.from_display(ranges, where="--held-prior")
 
 
 @app.command()
