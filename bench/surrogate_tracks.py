@@ -387,6 +387,12 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0, help="campaign design seed")
     ap.add_argument("--models", default=",".join(MODELS))
     ap.add_argument("--epochs", type=int, default=4)
+    ap.add_argument(
+        "--fine-tune-epochs",
+        type=int,
+        default=0,
+        help="then epochs at a tenth of the learning rate (a finished network resumes into them)",
+    )
     ap.add_argument("--batches-per-epoch", type=int, default=100)
     ap.add_argument("--batch-size", type=int, default=512)
     ap.add_argument("--chunk-steps", type=int, default=400, help="cnn-gru-seq: steps per chunk")
@@ -429,6 +435,7 @@ def main() -> None:
     print(f"  {campaign_s:.0f} s (resumed runs cost nothing)", flush=True)
     tcfg = TrainConfig(
         epochs=args.epochs,
+        fine_tune_epochs=args.fine_tune_epochs,
         batches_per_epoch=args.batches_per_epoch,
         batch_size=args.batch_size,
         device=args.device,
