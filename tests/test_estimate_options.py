@@ -68,6 +68,11 @@ def field(tmp_path_factory):
             "intervals take it)",
         ),
         (
+            ["--refine", "--statistic", "mean+aligned", "--held-prior", "X15=100:200"],
+            "--held-prior: only with --refine and a statistic other than aligned (the refined "
+            "intervals take it)",
+        ),
+        (
             ["--refine", "--held-prior", "X15=100"],
             "--held-prior: 'X15=100': accepted SYMBOL=LOW:HIGH in display units, "
             "comma-separated (e.g. X15=100:200,X19=20:40)",

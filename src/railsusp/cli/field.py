@@ -298,7 +298,7 @@ def parse_held_prior(text: str | None, refine: bool, statistic: str):
 
     if not text:
         return None
-    if not refine or statistic == "aligned":
+    if not refine or "aligned" in statistic.split("+"):
         raise RailsuspInputError(
             "--held-prior: only with --refine and a statistic other than aligned (the "
             "refined intervals take it)"
