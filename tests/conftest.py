@@ -3,6 +3,7 @@ says (pyproject.toml); ``pytest -m slow`` (or any ``-m`` naming it) runs them. T
 bench script load it with :func:`bench_script` (bench/ is not a package)."""
 
 import importlib.util
+import sys
 from pathlib import Path
 from types import ModuleType
 
@@ -12,10 +13,16 @@ BENCH = Path(__file__).resolve().parents[1] / "bench"
 
 
 def bench_script(name: str) -> ModuleType:
-    """The script bench/NAME.py as a module (its ``main`` not run)."""
+    """The script bench/NAME.py as a module (its ``main`` not run). bench/ is on the import
+    path while it loads, so that its imports of sibling scripts (``from estimate_tracks
+    import ...``, as the scripts run from bench/ do) resolve; the path is restored after."""
     spec = importlib.util.spec_from_file_location(name, BENCH / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    sys.path.insert(0, str(BENCH))
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(BENCH))
     return module
 
 

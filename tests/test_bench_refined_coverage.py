@@ -5,7 +5,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from conftest import BENCH, bench_script
+from conftest import bench_script
 from railsusp.config import check_config
 from railsusp.params import MAIN_SUSPENSION, ParameterSet, bounds, spec
 from railsusp.pipeline import demo_config
@@ -13,9 +13,7 @@ from railsusp.pipeline import demo_config
 
 @pytest.fixture(scope="module")
 def bench():
-    with pytest.MonkeyPatch.context() as mp:
-        mp.syspath_prepend(str(BENCH))  # it imports its sibling estimate_tracks
-        yield bench_script("refined_coverage")
+    return bench_script("refined_coverage")  # it imports its sibling estimate_tracks
 
 
 def test_drawn_sets_become_the_field_truth_in_display_units(bench):

@@ -7,7 +7,7 @@ import json
 import pytest
 import torch
 
-from conftest import BENCH, bench_script
+from conftest import bench_script
 from railsusp.conditions import get_condition
 from railsusp.surrogate.bundle import Surrogate
 from railsusp.surrogate.data import FeatureSpec, Normaliser
@@ -18,9 +18,7 @@ from test_estimate_aligned import KEYS
 
 @pytest.fixture(scope="module")
 def bench():
-    with pytest.MonkeyPatch.context() as mp:
-        mp.syspath_prepend(str(BENCH))  # it imports its sibling estimate_tracks
-        yield bench_script("sequence_predict")
+    return bench_script("sequence_predict")  # it imports its sibling estimate_tracks
 
 
 def tiny_sequence_surrogate(folder):
