@@ -173,6 +173,11 @@ def friction_wedges(
 
     With v_warp = 0 the two wedges are the same and the sums are the forces of one wedge pair
     acting at the nest centre bit for bit (halving is exact in binary floating point).
+
+    The right-hand side runs the eight wedges of the four nests together as SIMD loops
+    (:func:`railsusp.vehicle.wedge_batch.wedge_forces`, the same arithmetic operation for
+    operation); this scalar form is the readable reference that is tested bit for bit
+    against them (tests/vehicle/test_wedge_batch.py) and that the hysteresis tests call.
     """
     f_ctrl = f_ctrl0 + k_ctrl * comp
     n_reb = 0.5 * (f_ctrl / (tan_a + mu_column) * scale)  # one wedge's normal force, rebound
@@ -182,7 +187,8 @@ def friction_wedges(
     i_f = ia + W_FRONT_Z
     i_r = ia + W_REAR_Z
     # the two wedges written out: a helper for one wedge, called twice from this inlined
-    # function, is not inlined by Numba and made the whole rhs 5-7 % slower (measured)
+    # function, was not inlined by Numba and made the whole rhs 5-7 % slower (measured
+    # when the rhs still called this function)
     loading = x[i_f] / lim_reb if n_reb > 0.0 and mu_column > 0.0 else 0.0
     n_f = 0.5 * (scale * wedge_column_normal_force(f_ctrl, tan_a, mu_column, loading))
     fz_f, fy_f = damped_slider_2d(
