@@ -34,6 +34,7 @@ import importlib.util
 import platform
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -44,10 +45,11 @@ from railsusp.campaign import CampaignConfig, load_campaign, make_config, run_ca
 from railsusp.campaign.twins import run_nominal_twins
 from railsusp.conditions import get_condition
 from railsusp.store import write_json
-from railsusp.surrogate import TrainConfig, feature_spec, load, train_surrogate
+from railsusp.surrogate import TrainConfig, feature_spec, key_parameters, load, train_surrogate
 from railsusp.surrogate.compare import compare
 from railsusp.surrogate.data import FeatureSpec, SeriesData, load_series
 from railsusp.surrogate.evaluate import accuracy, predict_with_alone
+from railsusp.surrogate.models import NetConfig, default_window
 from railsusp.surrogate.split import campaign_split
 from railsusp.variation import full_ranges, parse_range
 
@@ -107,14 +109,27 @@ def network_rows(
     split_seed: int = 0,
     out: str | Path | None = None,
     nominal_response: bool = False,
+    architecture: dict | None = None,
 ) -> list[dict]:
     """Train one network (``window``: its window, or the sequence CNN-GRU's washout; None:
     the kind's default; ``nominal_response``: reading the nominal wagon's forces on each
-    track, from the campaign's nominal twins) on the campaign's split, saved under ``out``
-    (default ``RUN/surrogates/<label>/<condition>/``), and score it on the same test runs
-    from the end of its own window or washout (the reference scores from step 20)."""
+    track, from the campaign's nominal twins; ``architecture``: :class:`NetConfig` fields
+    that differ from the study's, e.g. ``{"dropout": 0.0}``) on the campaign's split, saved
+    under ``out`` (default ``RUN/surrogates/<label>/<condition>/``), and score it on the
+    same test runs from the end of its own window or washout (the reference scores from
+    step 20)."""
     camp = load_campaign(run)
     out = Path(run) / "surrogates" / label / condition if out is None else Path(out)
+    net = None
+    if architecture:
+        first = default_window(kind) if window is None else window
+        n_in = feature_spec(camp, key_parameters(run), first, nominal_response)
+        net = replace(
+            NetConfig(
+                kind=kind, n_features=n_in.n_features, window=first, n_outputs=len(n_in.targets)
+            ),
+            **architecture,
+        )
     sur = train_surrogate(
         run,
         condition,
@@ -124,6 +139,7 @@ def network_rows(
         split_seed=split_seed,
         out=out,
         nominal_response=nominal_response,
+        net=net,
     )
     first = sur.spec.window
     spec = feature_spec(camp, sur.spec.parameters, first, sur.spec.nominal_response)
@@ -151,20 +167,25 @@ def nominal_rows(
     train: TrainConfig | None,
     split_seed: int = 0,
     kind: str = "cnn-gru",
+    architecture: dict | None = None,
+    tag: str = "",
+    window: int | None = None,
 ) -> list[dict]:
     """Train the ``kind`` network (the window CNN-GRU, or the sequence CNN-GRU
     ``cnn-gru-seq``) that also reads the nominal wagon's forces on each track
-    (:mod:`railsusp.surrogate.nominal`; saved under ``RUN/surrogates/<kind>-nominal/``) and
-    score it, with the nominal wagon's own forces beside it, on the same test runs."""
+    (:mod:`railsusp.surrogate.nominal`; saved under ``RUN/surrogates/<kind>-nominal<tag>/``)
+    and score it, with the nominal wagon's own forces beside it, on the same test runs
+    (``window``: its window or washout, None: the kind's default)."""
     return network_rows(
         run,
         condition,
         kind=kind,
-        window=None,
-        label=f"{kind}-nominal",
+        window=window,
+        label=f"{kind}-nominal{tag}",
         train=train,
         split_seed=split_seed,
         nominal_response=True,
+        architecture=architecture,
     )
 
 
@@ -221,13 +242,15 @@ def table_on_tracks(
     progress: Callable[[str], None] | None = None,
     nominal: bool = False,
     nominal_kinds: Sequence[str] = ("cnn-gru",),
+    architecture: dict | None = None,
+    tag: str = "",
 ) -> pd.DataFrame:
     """The accuracy table (one row per condition, model and force) of every model on the
     campaign's held-out test runs in ``conditions`` (all by default): the compared models,
     then the sequence CNN-GRU, then (``nominal``) the CNN-GRU reading the nominal wagon's
     forces (of each of ``nominal_kinds``: ``<kind>-nominal``; its campaign's nominal twins
-    made first, or resumed), then the variant's rows
-    (in ``variant_conditions``, all by default)."""
+    made first, or resumed; ``architecture`` and ``tag`` as :func:`nominal_rows`), then the
+    variant's rows (in ``variant_conditions``, all by default)."""
     compared = [m for m in models if m not in SEQUENCE]
     conds = (
         list(conditions) if conditions else [c.name for c in load_campaign(run).config.conditions]
@@ -257,8 +280,8 @@ def table_on_tracks(
         for kind in nominal_kinds:
             for cond in conds:
                 if progress:
-                    progress(f"{cond}: {kind}-nominal")
-                rows += nominal_rows(run, cond, train, split_seed, kind)
+                    progress(f"{cond}: {kind}-nominal{tag}")
+                rows += nominal_rows(run, cond, train, split_seed, kind, architecture, tag)
     if rows:
         tables.append(pd.DataFrame(rows))
     table = pd.concat(tables, ignore_index=True)
@@ -412,6 +435,15 @@ def main() -> None:
         default="cnn-gru",
         help="with --nominal: the kinds trained on the nominal response (cnn-gru, cnn-gru-seq)",
     )
+    ap.add_argument(
+        "--dropout", type=float, help="with --nominal: dropout of those networks (study: 0.2)"
+    )
+    ap.add_argument(
+        "--rnn-hidden", help="with --nominal: their GRU sizes, e.g. 128,64,32 (study: 64,32,16)"
+    )
+    ap.add_argument(
+        "--tag", default="", help="with --dropout/--rnn-hidden: suffix of their folder names"
+    )
     ap.add_argument("--train-conditions", help="conditions whose models are trained (default: all)")
     ap.add_argument("--threads", type=int, default=2, help="torch threads for throughput")
     ap.add_argument("--repeats", type=int, default=3, help="timed predict calls, best kept")
@@ -456,6 +488,20 @@ def main() -> None:
     nominal_kinds = [k.strip() for k in args.nominal_kinds.split(",") if k.strip()]
     if not set(nominal_kinds) <= {"cnn-gru", "cnn-gru-seq"}:
         ap.error(f"--nominal-kinds {args.nominal_kinds}: accepted cnn-gru, cnn-gru-seq")
+    architecture: dict = {}
+    if args.dropout is not None:
+        if not 0.0 <= args.dropout < 1.0:
+            ap.error(f"--dropout {args.dropout}: accepted 0 <= dropout < 1")
+        architecture["dropout"] = args.dropout
+    if args.rnn_hidden:
+        try:
+            architecture["rnn_hidden"] = tuple(int(h) for h in args.rnn_hidden.split(","))
+        except ValueError:
+            ap.error(f"--rnn-hidden {args.rnn_hidden}: accepted sizes like 64,32,16")
+        if min(architecture["rnn_hidden"]) < 1:
+            ap.error(f"--rnn-hidden {args.rnn_hidden}: accepted sizes >= 1")
+    if architecture and not args.tag:
+        ap.error("--dropout/--rnn-hidden: give --tag, so the study's networks are not overwritten")
     table = table_on_tracks(
         args.run,
         models=models,
@@ -466,11 +512,13 @@ def main() -> None:
         progress=tick,
         nominal=args.nominal,
         nominal_kinds=nominal_kinds,
+        architecture=architecture or None,
+        tag=args.tag,
     )
     tick("done")
     t7 = table7_per_run(table)
     kinds = [k for k in models if k in NETWORKS] + (
-        [f"{k}-nominal" for k in nominal_kinds] if args.nominal else []
+        [f"{k}-nominal{args.tag}" for k in nominal_kinds] if args.nominal else []
     )
     rates = inference_rates(args.run, table.condition.iloc[0], kinds, args.threads, args.repeats)
     print_table(t7, seconds)

@@ -78,6 +78,31 @@ def test_nominal_variant_and_the_nominal_wagon_alone(bench, tiny_run):
     assert rates["cnn-gru-nominal"] > 0
 
 
+def test_an_architecture_variant_is_saved_under_its_tag_and_loads_as_built(bench, tiny_run):
+    """``architecture`` changes the nominal network's sizes and dropout, ``tag`` keeps it
+    beside the study's network instead of over it, and the saved network is the one built."""
+    tcfg = TrainConfig(
+        epochs=1,
+        batches_per_epoch=1,
+        batch_size=32,
+        val_windows=200,
+        chunk_steps=60,
+        chunks_per_batch=4,
+    )
+    from railsusp.campaign.twins import run_nominal_twins
+
+    run_nominal_twins(tiny_run)  # made by the test above when it ran first; resumes
+    arch = {"dropout": 0.0, "rnn_hidden": (24, 12, 8)}
+    rows = bench.nominal_rows(
+        tiny_run, "straight", tcfg, 0, "cnn-gru-seq", arch, "-small", window=20
+    )
+    assert {r["model"] for r in rows} == {"cnn-gru-seq-nominal-small", "nominal wagon"}
+    sur = load(tiny_run / "surrogates" / "cnn-gru-seq-nominal-small" / "straight")
+    assert sur.net_config.dropout == 0.0 and sur.net_config.rnn_hidden == (24, 12, 8)
+    assert sur.spec.nominal_response and sur.net_config.kind == "cnn-gru-seq"
+    assert not (tiny_run / "surrogates" / "cnn-gru-seq-nominal").exists()
+
+
 def test_targets_are_judged_per_run_in_every_condition(bench):
     t7 = pd.DataFrame(
         {
