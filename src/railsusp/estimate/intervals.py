@@ -259,6 +259,28 @@ def from_standard_errors(
     return Intervals(method, level, items, dict(details or {}))
 
 
+def from_error_quantiles(
+    parameters: Sequence[str],
+    x_si: np.ndarray,
+    lower_si: np.ndarray,
+    upper_si: np.ndarray,
+    level: float = LEVEL,
+    method: str = REFINEMENT,
+    details: Mapping[str, Any] | None = None,
+) -> Intervals:
+    """[x - upper, x - lower], clipped to the ranges: the ``level`` interval for the truth
+    of an estimate ``x_si`` whose error (estimate less truth) has the (1 - level)/2 and
+    (1 + level)/2 quantiles ``lower_si`` and ``upper_si`` (an infinite one: the range's end)."""
+    _check_level(level)
+    x = np.asarray(x_si, dtype=float)
+    low, high = _clip(parameters, x - np.asarray(upper_si), x - np.asarray(lower_si))
+    items = tuple(
+        ParameterInterval(par, float(x[j]), float(low[j]), float(high[j]), level, method)
+        for j, par in enumerate(parameters)
+    )
+    return Intervals(method, level, items, dict(details or {}))
+
+
 def intervals_of(doc: Mapping[str, Any], level: float = LEVEL) -> Intervals:
     """The intervals of a result JSON (estimate.json, a posterior result): its stored
     ``intervals``; for an estimate.json saved before they were, the refinement's standard
