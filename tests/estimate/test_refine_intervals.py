@@ -100,3 +100,43 @@ def test_intervals_cover_the_truth_when_one_channel_is_far_noisier():
     assert iv.details["interval_quantiles"] == STUDENT_T  # no held part: Student-t
     assert np.all((0.82 <= covered / n) & (covered / n <= 0.97))
     assert np.median(pooled_ratio) > 5.0  # the pooled interval: far too wide for X13
+
+
+def test_with_held_parameters_the_interval_is_the_quantiles_of_the_errors_distribution(tmp_path):
+    """With the simulator (parameters held): the interval is the estimate less the central
+    90 % quantiles of the error's distribution, which are within 1.645 total standard
+    deviations (uniform parts have lighter tails than a normal), symmetric for a prior
+    centred on the values held and lopsided for one in the upper part of every range."""
+    from railsusp.conditions import get_condition
+    from railsusp.estimate import SimulatorForces
+    from railsusp.estimate.config import HeldPrior
+    from railsusp.estimate.refine_intervals import MONTE_CARLO, held_parameters
+    from railsusp.measured import read_field, synthesise_field
+    from railsusp.params import ParameterSet, spec
+
+    cond = get_condition("curve", duration_s=1.0, n_steps=50, lead_in_m=20.0)
+    truth = ParameterSet({"X13": 16.1, "X14": 8.3}, units="display")
+    recs = read_field(synthesise_field(truth, [cond], tmp_path / "f", with_track=True))
+    lo, hi = bounds(PARAMS)
+    r = refine(SimulatorForces(PARAMS), recs, PARAMS, lo + 0.5 * (hi - lo), max_evaluations=2,
+               gains=False, geometry_draws=0)  # fmt: skip
+    iv = refinement_intervals(r)
+    d = iv.details
+    assert d["interval_quantiles"] == MONTE_CARLO and d["monte_carlo_draws"] == 200_000
+    assert d["noise_standard_error_method"] == PER_CHANNEL
+    for p, x in zip(PARAMS, r.estimate_si, strict=True):
+        span = spec(p).bounds[1] - spec(p).bounds[0]
+        q_lo, q_hi = (v / 100 * span for v in d["error_quantiles_pct_range"][p])
+        assert iv[p].low_si == pytest.approx(max(x - q_hi, spec(p).bounds[0]), rel=1e-12)
+        assert iv[p].high_si == pytest.approx(min(x - q_lo, spec(p).bounds[1]), rel=1e-12)
+        total = d["total_standard_error_pct_range"][p] / 100 * span
+        assert q_lo == pytest.approx(-q_hi, rel=0.02)  # centred: symmetric
+        assert q_hi <= 1.645 * total * 1.01
+    upper = HeldPrior.from_display(
+        {
+            p: [spec(p).to_display(spec(p).nominal), spec(p).to_display(spec(p).bounds[1])]
+            for p in held_parameters(PARAMS)
+        }
+    )
+    lopsided = refinement_intervals(r, prior=upper).details["error_quantiles_pct_range"]
+    assert any(abs(a + b) > 0.2 * (b - a) for a, b in lopsided.values())

@@ -1,14 +1,16 @@
 """The output-error refinement's confidence intervals (:mod:`railsusp.estimate.intervals`).
 
 The Gauss-Newton standard errors of :func:`railsusp.estimate.refine.refine` assume white
-residuals; time-aligned force residuals are correlated over neighbouring samples (sensor
-bandwidth, model error), and the refinement holds the other main-suspension parameters at
-nominal. Here the standard errors are inflated by the residuals' integrated autocorrelation
-time (their effective sample size), a Student-t quantile is taken on the effective degrees
-of freedom, and the track-geometry error's spread and the linear response to the held
-parameters are added in quadrature (docs/intervals.md): each held parameter uniform over the
+residuals of one variance; time-aligned force residuals are correlated over neighbouring
+samples (sensor bandwidth, model error), their channels are unequally noisy, and the
+refinement holds the other main-suspension parameters at nominal. Here the noise part takes
+each recording's channel with its own residual variance, inflated by its integrated
+autocorrelation time (the sandwich covariance, :func:`noise_standard_errors`), a Student-t
+variable on the effective degrees of freedom; the track-geometry error's spread is normal;
+the held parameters' part is their linear response, each held parameter uniform over the
 user's range (:class:`~railsusp.estimate.config.HeldPrior`, ``[estimate] held_prior``) or
-else its whole Table 2 range, taken as its second moment about the value held.
+else its whole Table 2 range. The interval is the central quantiles of the sum of the three
+(:mod:`railsusp.estimate.interval_distribution`, JCGM 101:2008), docs/intervals.md.
 """
 
 from __future__ import annotations
