@@ -22,7 +22,9 @@ the truth itself, noiseless) gives, in % of the parameter's range:
 Prints per parameter the slope of the actual error on the linear prediction and the noise
 part (1 and 1 where the model is right), the RMS of each part and of what they leave, and
 the RMS of the noise part, and of the error less the linear held part, over each standard
-error (1 where it is right); writes JSON
+error (1 where it is right), and the coverage of the 90 % intervals that each noise
+standard error and each quantile (normal or the error's distribution) would give under
+each prior (:data:`PRIORS`); writes JSON
 (bench/results/refined_error_parts.json).
 
     python bench/refined_error_parts.py --work runs/refined_coverage/noise-0
@@ -39,6 +41,7 @@ import pandas as pd
 
 from railsusp.estimate.comparison import comparison_samples
 from railsusp.estimate.forces import SimulatorForces
+from railsusp.estimate.interval_distribution import error_quantiles
 from railsusp.estimate.output_error import OutputError
 from railsusp.estimate.refine import standard_errors
 from railsusp.estimate.refine_intervals import (
@@ -91,6 +94,7 @@ def error_parts(set_dir: Path) -> list[dict]:
     pooled = np.sqrt(tau) * standard_errors(j_e, r_est @ r_est / (r_est.size - n_fit))[:k]
     per_channel = noise_standard_errors(j_e, r_est, blocks, n_fit)[:k]
     held_sd = np.sqrt((response**2).sum(axis=1) / 12.0)
+    half = half_widths(response, pooled, per_channel)
     rec = pd.read_csv(set_dir / "estimate" / "validation" / "recovery.csv")
     identifiable = set(rec.loc[rec["identifiable"].astype(bool), "parameter"])
     taus = [autocorrelation_time(b) for b in np.split(r_est, np.cumsum(blocks)[:-1])]
@@ -109,10 +113,58 @@ def error_parts(set_dir: Path) -> list[dict]:
                 float(b @ b / b.size) for b in np.split(r_est, np.cumsum(blocks)[:-1])
             ],
             "channel_tau": taus,
+            **{name: 100 * w[i] for name, w in half.items()},
         }
         for i, p in enumerate(params)
         if p in identifiable
     ]
+
+
+#: the held parameters' prior as the intervals may assume it, by name: each uniform over its
+#: whole Table 2 range, or over the middle 80 % the sets are drawn from (both centred on
+#: nominal, the value held, so a fraction of the range's half-width)
+PRIORS = {"table2": 1.0, "middle80": 0.8}
+
+
+def half_widths(
+    response: np.ndarray, pooled: np.ndarray, per_channel: np.ndarray
+) -> dict[str, np.ndarray]:
+    """(k,) half-widths of the 90 % interval, unit coordinates, for each prior, noise
+    standard error (``pooled``, ``channel``) and quantile (``normal``: 1.645 times the total
+    standard deviation; ``quantiles``: the central 90 % of the error's distribution,
+    :func:`~railsusp.estimate.interval_distribution.error_quantiles`); the priors are
+    centred on the values held, so the intervals are symmetric."""
+    out = {}
+    for prior, f in PRIORS.items():
+        held_sd = f * np.sqrt((response**2).sum(axis=1) / 12.0)
+        for noise_name, se in (("pooled", pooled), ("channel", per_channel)):
+            out[f"half_{prior}_{noise_name}_normal"] = 1.645 * np.hypot(se, held_sd)
+            _, upper = error_quantiles(response, np.full(response.shape[1], -f / 2),
+                                       np.full(response.shape[1], f / 2), se)  # fmt: skip
+            out[f"half_{prior}_{noise_name}_quantiles"] = upper
+    return out
+
+
+def coverage(rows: pd.DataFrame) -> pd.DataFrame:
+    """Per prior and interval (noise standard error, quantile): the pooled share of the
+    errors within the half-width and the 90th percentile of |error| over it (1: calibrated;
+    the intervals before 2026-11-24 stop 23 are pooled + normal, those after channel +
+    quantiles)."""
+    out = []
+    for col in [c for c in rows if c.startswith("half_")]:
+        _, prior, noise, quantile = col.split("_")
+        ratio = rows["error"].abs() / rows[col]
+        out.append(
+            {
+                "prior": prior,
+                "noise_standard_error": noise,
+                "quantile": quantile,
+                "covered": int((ratio <= 1.0).sum()),
+                "cases": len(rows),
+                "error_over_half_width_p90": float(np.quantile(ratio, 0.9)),
+            }
+        )
+    return pd.DataFrame(out)
 
 
 def rms(v: pd.Series) -> float:
@@ -159,6 +211,8 @@ def main(argv: list[str] | None = None) -> dict:
     print(f"{rows['set'].nunique()} sets under {args.work}; % of range, identifiable only\n")
     print(table.to_string(float_format=lambda v: f"{v:.3g}"))
     ms = np.array(rows.groupby("set").first()["channel_mean_square"].tolist())
+    cover = coverage(rows)
+    print("\n" + cover.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
     print(f"\nresidual mean square per channel at the estimate (median over sets): "
           f"{np.round(np.median(ms, axis=0), 7).tolist()}")  # fmt: skip
     doc = {
@@ -167,6 +221,7 @@ def main(argv: list[str] | None = None) -> dict:
         "seconds": time.perf_counter() - t0,
         "per_case": rows.to_dict(orient="records"),
         "by_parameter": table.reset_index(names="parameter").to_dict(orient="records"),
+        "coverage": cover.to_dict(orient="records"),
     }
     write_json(args.out, doc)
     print(f"wrote {args.out}")

@@ -183,11 +183,12 @@ def noise_standard_errors(
 
     One pooled s² (JᵀJ)⁻¹ assumes every residual equally noisy; the channels are not: each
     is scaled by its measured series' spread, and 3 % noise on the vertical force, whose
-    spread is small beside its static load, leaves residuals some fifty times the lateral
-    force's in variance. The pooled variance then overstates the error of a parameter the
-    lateral force fixes (measured on 12 refinements: 2-4 times, bench/README.md) and
-    understates one fixed by the vertical force. With one block this is the pooled formula
-    times τ. Columns the residuals do not depend on get an infinite error."""
+    spread is small beside its static load, leaves residuals 10 to 40 times the lateral
+    force's in variance (the demo's recordings). The pooled variance then overstates the
+    error of a parameter the lateral force fixes (measured on 12 refinements: 2-4 times,
+    bench/README.md) and understates one fixed by the vertical force. With one block this
+    is the pooled formula times τ. Columns the residuals do not depend on get an infinite
+    error."""
     j = np.asarray(jac, dtype=float)
     r = np.asarray(residuals, dtype=float).ravel()
     sizes = [int(b) for b in blocks] if blocks else [r.size]
