@@ -23,8 +23,18 @@ parameter's whole Table 2 range: the coverage with an honest, correctly stated p
 sets run under their own ``--work`` folder and write their own JSON
 (bench/results/refined_coverage-middle80.json).
 
+``--rescore FOLDER`` forms today's intervals of the sets already run under FOLDER (exact
+track) without running the pipeline again: each set's refinement is rebuilt from its
+estimate.json (refined point, channel gains) and field recordings
+(:func:`stored_refinement`), and only the intervals' simulations are run (the Jacobian at
+the solution and the held parameters' batch). The estimates are those of the runs; the
+intervals are what a re-run would give (a set re-run in full gave the same bounds to the
+last digit). The stored intervals are reported beside them; JSON
+bench/results/refined_coverage[-middle80]-rescored.json.
+
     python bench/refined_coverage.py --run runs/demo --sets 12 [--limit 4]
     python bench/refined_coverage.py --run runs/demo --sets 12 --held-prior middle80
+    python bench/refined_coverage.py --sets 12 --rescore runs/refined_coverage/noise-0
 """
 
 from __future__ import annotations
