@@ -152,10 +152,9 @@ def held_parameter_variance(
     if got is None:
         return None
     held, response = got
-    prob = refinement.problem
-    assert prob is not None
-    moments = held_moments(held, held_values(held, prob.model.base), prior)  # type: ignore[attr-defined]
-    return held_error_variance(response, *moments) * (prob.hi - prob.lo) ** 2
+    moments = held_moments(held, held_values(held, _base(refinement)), prior)
+    lo, hi = bounds(refinement.parameters)
+    return held_error_variance(response, *moments) * (hi - lo) ** 2
 
 
 def held_deviation_range(
