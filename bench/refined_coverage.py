@@ -23,8 +23,18 @@ parameter's whole Table 2 range: the coverage with an honest, correctly stated p
 sets run under their own ``--work`` folder and write their own JSON
 (bench/results/refined_coverage-middle80.json).
 
+``--rescore FOLDER`` forms today's intervals of the sets already run under FOLDER (exact
+track) without running the pipeline again: each set's refinement is rebuilt from its
+estimate.json (refined point, channel gains) and field recordings
+(:func:`stored_refinement`), and only the intervals' simulations are run (the Jacobian at
+the solution and the held parameters' batch). The estimates are those of the runs; the
+intervals are what a re-run would give (a set re-run in full gave the same bounds to the
+last digit). The stored intervals are reported beside them; JSON
+bench/results/refined_coverage[-middle80]-rescored.json.
+
     python bench/refined_coverage.py --run runs/demo --sets 12 [--limit 4]
     python bench/refined_coverage.py --run runs/demo --sets 12 --held-prior middle80
+    python bench/refined_coverage.py --sets 12 --rescore runs/refined_coverage/noise-0
 """
 
 from __future__ import annotations
@@ -152,6 +162,75 @@ def run_set(run: Path, work: Path, config, k: int) -> dict:
     }
 
 
+def stored_refinement(set_dir: Path):
+    """The refinement of a scored set rebuilt from its files, without refining again: the
+    stored estimate and channel gains (estimate.json) on the set's field recordings, with
+    its problem, residuals and solution as :func:`~railsusp.estimate.refine.refine` leaves
+    them, so that :func:`~railsusp.estimate.refine_intervals.refinement_intervals` forms
+    today's intervals of that same estimate. Simulates the solution's Jacobian (k + 1
+    parameter sets; the held parameters' batch is the intervals' own). Exact track only:
+    the geometry-error draws are not repeated."""
+    from railsusp.estimate.forces import SimulatorForces
+    from railsusp.estimate.output_error import OutputError
+    from railsusp.estimate.refine import Refinement, standard_errors
+    from railsusp.measured import read_field
+    from railsusp.params import ParameterSet, bounds
+
+    doc = read_json(set_dir / "estimate" / "estimate.json")
+    params = tuple(doc["parameters"])
+    if doc["refinement"].get("geometry_draws"):
+        raise ValueError(f"{set_dir}: --rescore rebuilds refinements on exact track only")
+    recs = read_field(set_dir / "field")
+    prob = OutputError(SimulatorForces(params), recs, params)
+    lo, hi = bounds(params)
+    x = ParameterSet(doc["estimate_display"], units="display").to_array(params)
+    gains = doc["refinement"]["channel_gains"]
+    g = [gains[f"{r.condition.name}:{f}_{r.wheels[0]}"] for r in recs for f in ("Y", "Q")]
+    z = np.concatenate([(x - lo) / (hi - lo), g])
+    jac = prob.jacobian_of(prob.predictions(prob.steps(z[: prob.k])), z)
+    res = prob.residuals(prob.predictions(z[: prob.k]), z[prob.k :])[0]
+    se = standard_errors(jac, float(res @ res) / max(res.size - z.size, 1))[: prob.k]
+    return Refinement(
+        params, x, x, np.nan, float(0.5 * res @ res), 0, 0, "rebuilt from estimate.json",
+        se * (hi - lo), np.zeros((0, len(params))), dict(gains), problem=prob, solution=z,
+        residuals=res, residual_blocks=tuple(u[c].size for u in prob.samples for c in range(2)),
+    )  # fmt: skip
+
+
+def rescore_set(set_dir: Path, prior: dict) -> list[dict]:
+    """Today's intervals of a stored set's estimate (:func:`stored_refinement`) under the
+    held ``prior`` (display units), scored like :func:`score` on the parameters its
+    validator called identifiable, with the stored intervals beside them."""
+    from railsusp.estimate.config import HeldPrior
+    from railsusp.estimate.refine_intervals import refinement_intervals
+
+    rec = pd.read_csv(set_dir / "estimate" / "validation" / "recovery.csv")
+    old = score(rec).set_index("parameter")
+    iv = refinement_intervals(stored_refinement(set_dir), prior=HeldPrior.from_display(prior))
+    rows = []
+    for p, r in old.iterrows():
+        s = spec(str(p))
+        lo, hi = s.bounds_display  # type: ignore[misc]
+        low, high = iv[str(p)].low, iv[str(p)].high
+        rows.append(
+            {
+                "parameter": p,
+                "truth": r["truth"],
+                "estimate": iv[str(p)].value,
+                "interval_low": low,
+                "interval_high": high,
+                "interval_width_pct_range": 100.0 * (high - low) / (hi - lo),
+                "error_pct_of_range": 100.0 * (iv[str(p)].value - r["truth"]) / (hi - lo),
+                "truth_in_interval": bool(low <= r["truth"] <= high),
+                "stored_interval_low": r["interval_low"],
+                "stored_interval_high": r["interval_high"],
+                "noise_pct_range": iv.details["noise_standard_error_pct_range"][p],
+                "held_pct_range": iv.details["held_parameters_error_pct_range"][p],
+            }
+        )
+    return rows
+
+
 def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--run", type=Path, default=Path("runs/demo"), help="finished run")
@@ -169,10 +248,18 @@ def main(argv: list[str] | None = None) -> dict:
         "the sets are drawn from",
     )
     ap.add_argument("--out", type=Path, help="JSON (default bench/results/refined_coverage*.json)")
+    ap.add_argument(
+        "--rescore",
+        type=Path,
+        help="recompute the intervals of the sets stored under this folder (set-NN) with "
+        "today's code instead of running the pipeline (exact track)",
+    )
     args = ap.parse_args(argv)
     base = load_config(args.config) if args.config else demo_config()
     tag = "" if args.held_prior == "table2" else f"-{args.held_prior}"
     work = args.work / f"noise-{args.track_noise:g}{tag}"
+    if args.rescore is not None:
+        work, tag = args.rescore, f"{tag}-rescored"
     if args.out is None:
         args.out = Path(f"bench/results/refined_coverage{tag}.json")
     prior = held_prior(args.held_prior)
@@ -186,7 +273,13 @@ def main(argv: list[str] | None = None) -> dict:
         if args.limit and new >= args.limit:
             break
         cfg = set_config(base, truth_display(sets[k]), 100 + k, args.track_noise, prior)
-        done[k] = run_set(args.run, work, cfg, k)
+        if args.rescore is not None:
+            t0 = time.perf_counter()
+            rows = rescore_set(work / f"set-{k:02d}", prior)
+            done[k] = {"set": k, "truth": cfg.field.truth, "rows": rows}
+            done[k]["seconds"] = time.perf_counter() - t0
+        else:
+            done[k] = run_set(args.run, work, cfg, k)
         new += 1
         per_set = [done[i] for i in sorted(done)]
         doc = {
@@ -223,6 +316,17 @@ def main(argv: list[str] | None = None) -> dict:
     q90 = float(np.quantile(rows["error_over_half_width"], 0.9))
     print(f"\npooled coverage of the 90 % intervals: {pooled:.2f} ({len(rows)} cases)")
     print(f"90th percentile of |error| / half-width: {q90:.2f} (calibrated: 1)")
+    if "stored_interval_low" in rows:  # --rescore: the intervals the runs stored, beside
+        stored = rows.assign(interval_low=rows.stored_interval_low)
+        stored = stored.assign(interval_high=rows.stored_interval_high)
+        inside = (stored.interval_low <= stored.truth) & (stored.truth <= stored.interval_high)
+        q90_stored = float(np.quantile(error_over_half_width(stored), 0.9))
+        print(
+            "intervals stored with the runs (the prior they ran with): coverage "
+            f"{inside.mean():.2f}, 90th percentile of |error| / half-width {q90_stored:.2f}"
+        )
+        doc["stored_pooled_coverage"] = float(inside.mean())
+        doc["stored_error_over_half_width_p90"] = q90_stored
     doc["by_parameter"] = table.reset_index().to_dict(orient="records")
     doc["pooled_coverage"] = pooled
     doc["cases"] = len(rows)

@@ -80,3 +80,59 @@ def test_error_over_half_width_on_the_truths_side(bench):
     got = bench.error_over_half_width(rows)
     # the 2nd and 4th (interval clipped at the estimate) do not cover the truth
     assert got.tolist() == pytest.approx([0.1 / 0.3, 0.1 / 0.05, 0.0, np.inf])
+
+
+def test_rescore_rebuilds_a_stored_refinement_and_gives_its_intervals(bench, tmp_path):
+    """``--rescore``: a set's refinement rebuilt from its estimate.json (estimate, channel
+    gains) and field folder gives the intervals the refinement itself gives, and the scored
+    rows carry them beside the stored ones."""
+    from railsusp.conditions import get_condition
+    from railsusp.estimate import SimulatorForces
+    from railsusp.estimate.problem import display_values
+    from railsusp.estimate.refine import refine
+    from railsusp.estimate.refine_intervals import refinement_intervals
+    from railsusp.measured import read_field, synthesise_field
+    from railsusp.store import write_json
+
+    params = ("X13", "X14")
+    cond = get_condition("curve", duration_s=1.0, n_steps=50, lead_in_m=20.0)
+    truth = ParameterSet({"X13": 16.1, "X14": 8.3}, units="display")
+    field = synthesise_field(truth, [cond], tmp_path / "set-00" / "field", with_track=True)
+    lo, hi = bounds(params)
+    r = refine(SimulatorForces(params), read_field(field), params, lo + 0.5 * (hi - lo),
+               max_evaluations=2, geometry_draws=0)  # fmt: skip
+    est = tmp_path / "set-00" / "estimate"
+    write_json(
+        est / "estimate.json",
+        {
+            "parameters": list(params),
+            "estimate_display": display_values(params, r.estimate_si),
+            "refinement": {"channel_gains": r.channel_gains, "geometry_draws": 0},
+        },
+    )
+    (est / "validation").mkdir()
+    pd.DataFrame(
+        {
+            "parameter": list(params),
+            "truth": [16.1, 8.3],
+            "estimate": [spec(p).to_display(x) for p, x in zip(params, r.estimate_si, strict=True)],
+            "interval_low": [6.0, 3.0],
+            "interval_high": [26.0, 15.0],
+            "interval_width_pct_range": [100.0, 100.0],
+            "error_pct_of_range": [0.0, 0.0],
+            "truth_in_interval": [True, True],
+            "identifiable": [True, False],
+        }
+    ).to_csv(est / "validation" / "recovery.csv", index=False)
+    rebuilt = bench.stored_refinement(tmp_path / "set-00")
+    assert rebuilt.residuals == pytest.approx(r.residuals, rel=1e-6, abs=1e-9)
+    want = refinement_intervals(r)
+    got = refinement_intervals(rebuilt)
+    for p in params:
+        assert got[p].low_si == pytest.approx(want[p].low_si, rel=1e-6)
+        assert got[p].high_si == pytest.approx(want[p].high_si, rel=1e-6)
+    rows = bench.rescore_set(tmp_path / "set-00", {})
+    assert [row["parameter"] for row in rows] == ["X13"]  # identifiable only
+    assert rows[0]["interval_low"] == pytest.approx(want["X13"].low, rel=1e-6)
+    assert rows[0]["stored_interval_low"] == 6.0
+    assert rows[0]["truth_in_interval"] == (want["X13"].low <= 16.1 <= want["X13"].high)

@@ -8,14 +8,16 @@ interval in SI (shown in display units, e.g. ``X14 = 8.3 [7.6-9.1] MN/m``), with
   posterior's draws (:mod:`railsusp.estimate.posterior`); the point is the median.
 - ``refinement``: the ``level`` confidence interval of the output-error refinement
   (:mod:`railsusp.estimate.refine`, formed in :mod:`railsusp.estimate.refine_intervals`):
-  the Gauss-Newton covariance s²(JᵀJ)⁻¹, inflated by the
-  integrated autocorrelation time of the residuals (their effective sample size, Thiébaux &
-  Zwiers 1984; Geyer 1992 for the truncation), with a Student-t quantile on the effective
-  degrees of freedom, and in quadrature the spread that the track geometry's stated error
-  causes and, where the simulator can tell it, the linear response of the estimate to the
-  main-suspension parameters held at nominal, each uniformly unknown over the user's range
-  (``[estimate] held_prior``) or its whole Table 2 range, as its second moment about the
-  value held. Clipped to the parameter's range (the prior).
+  the least-squares covariance with each force channel's own residual variance, inflated by
+  its residuals' integrated autocorrelation time (their effective sample size, Thiébaux &
+  Zwiers 1984; Geyer 1992 for the truncation), Student-t on the effective degrees of
+  freedom; the spread that the track geometry's stated error causes; and, where the
+  simulator can tell it, the linear response of the estimate to the main-suspension
+  parameters held at nominal, each uniformly unknown over the user's range
+  (``[estimate] held_prior``) or its whole Table 2 range. The interval is the central
+  ``level`` quantiles of the sum of these parts (JCGM 101:2008 Monte Carlo), or the
+  Student-t quantile times the total standard error where nothing is held. Clipped to the
+  parameter's range (the prior).
 - ``standard-error``: an estimate.json written before intervals were stored: estimate ±
   z·standard error of the refinement (normal quantile), as optimistic as those errors were.
 - ``pareto``: the range of NSGA-II's Pareto set: the parameter sets that trade the objectives
@@ -53,9 +55,10 @@ STATISTICAL = (POSTERIOR, REFINEMENT, STANDARD_ERROR)
 #: what each method's interval is, for tables, reports and estimate.json
 DESCRIPTIONS = {
     POSTERIOR: "central {pct} credible interval: quantiles of the simulation-based posterior",
-    REFINEMENT: "{pct} confidence interval of the output-error refinement: Gauss-Newton "
-    "covariance, Student-t on the effective sample size of the correlated residuals, with "
-    "track-geometry error and the parameters held at nominal",
+    REFINEMENT: "{pct} confidence interval of the output-error refinement: least-squares "
+    "covariance with each channel's residual variance, Student-t on the effective sample size "
+    "of the correlated residuals, with track-geometry error and the parameters held at "
+    "nominal (quantiles of their sum)",
     STANDARD_ERROR: "{pct} interval from the refinement's standard errors (normal quantile; "
     "an estimate saved before intervals were stored)",
     PARETO: "range of the NSGA-II Pareto set (the trade-off between the objectives): not a "
@@ -252,6 +255,28 @@ def from_standard_errors(
     q = float(norm.ppf(p) if dof is None else t.ppf(p, max(dof, 1.0)))
     half = np.where(np.isfinite(se), q * se, np.inf)
     low, high = _clip(parameters, x - half, x + half)
+    items = tuple(
+        ParameterInterval(par, float(x[j]), float(low[j]), float(high[j]), level, method)
+        for j, par in enumerate(parameters)
+    )
+    return Intervals(method, level, items, dict(details or {}))
+
+
+def from_error_quantiles(
+    parameters: Sequence[str],
+    x_si: np.ndarray,
+    lower_si: np.ndarray,
+    upper_si: np.ndarray,
+    level: float = LEVEL,
+    method: str = REFINEMENT,
+    details: Mapping[str, Any] | None = None,
+) -> Intervals:
+    """[x - upper, x - lower], clipped to the ranges: the ``level`` interval for the truth
+    of an estimate ``x_si`` whose error (estimate less truth) has the (1 - level)/2 and
+    (1 + level)/2 quantiles ``lower_si`` and ``upper_si`` (an infinite one: the range's end)."""
+    _check_level(level)
+    x = np.asarray(x_si, dtype=float)
+    low, high = _clip(parameters, x - np.asarray(upper_si), x - np.asarray(lower_si))
     items = tuple(
         ParameterInterval(par, float(x[j]), float(low[j]), float(high[j]), level, method)
         for j, par in enumerate(parameters)

@@ -1,14 +1,16 @@
 """The output-error refinement's confidence intervals (:mod:`railsusp.estimate.intervals`).
 
 The Gauss-Newton standard errors of :func:`railsusp.estimate.refine.refine` assume white
-residuals; time-aligned force residuals are correlated over neighbouring samples (sensor
-bandwidth, model error), and the refinement holds the other main-suspension parameters at
-nominal. Here the standard errors are inflated by the residuals' integrated autocorrelation
-time (their effective sample size), a Student-t quantile is taken on the effective degrees
-of freedom, and the track-geometry error's spread and the linear response to the held
-parameters are added in quadrature (docs/intervals.md): each held parameter uniform over the
+residuals of one variance; time-aligned force residuals are correlated over neighbouring
+samples (sensor bandwidth, model error), their channels are unequally noisy, and the
+refinement holds the other main-suspension parameters at nominal. Here the noise part takes
+each recording's channel with its own residual variance, inflated by its integrated
+autocorrelation time (the sandwich covariance, :func:`noise_standard_errors`), a Student-t
+variable on the effective degrees of freedom; the track-geometry error's spread is normal;
+the held parameters' part is their linear response, each held parameter uniform over the
 user's range (:class:`~railsusp.estimate.config.HeldPrior`, ``[estimate] held_prior``) or
-else its whole Table 2 range, taken as its second moment about the value held.
+else its whole Table 2 range. The interval is the central quantiles of the sum of the three
+(:mod:`railsusp.estimate.interval_distribution`, JCGM 101:2008), docs/intervals.md.
 """
 
 from __future__ import annotations
@@ -19,7 +21,14 @@ import numpy as np
 
 from railsusp.estimate.config import HeldPrior
 from railsusp.estimate.forces import SimulatorForces
-from railsusp.estimate.intervals import LEVEL, REFINEMENT, Intervals, from_standard_errors
+from railsusp.estimate.interval_distribution import DRAWS, SEED, error_quantiles
+from railsusp.estimate.intervals import (
+    LEVEL,
+    REFINEMENT,
+    Intervals,
+    from_error_quantiles,
+    from_standard_errors,
+)
 from railsusp.estimate.refine import OutputError, Refinement
 from railsusp.params import MAIN_SUSPENSION, ParameterSet, bounds, spec
 
@@ -98,17 +107,14 @@ def held_error_variance(
     return (r**2) @ np.asarray(variance, dtype=float) + (r @ np.asarray(offset, dtype=float)) ** 2
 
 
-def held_parameter_variance(
-    refinement: Refinement, prior: HeldPrior | None = None
-) -> np.ndarray | None:
-    """(k,) second moment, SI², of the refined estimate's error caused by the main-suspension
-    parameters it holds (at nominal, or the force model's ``base``), each uniform over the
-    user's range in ``prior`` or else its whole Table 2 range (:func:`held_moments`,
-    :func:`held_error_variance`): the estimate moves by A·δh for a change δh of them, with
-    A the least-squares response (J_e⁺ J_h) of the estimated parameters and channel gains
+def held_response(refinement: Refinement) -> tuple[tuple[str, ...], np.ndarray] | None:
+    """(held, R): the main-suspension parameters the refined estimate holds (at nominal, or
+    the force model's ``base``) and the estimate's linear response R (k, h) to them, unit
+    coordinates of the Table 2 ranges: the estimate moves by R·δh for a change δh of them,
+    R = J_e⁺ J_h the least-squares response of the estimated parameters and channel gains
     to the held ones, the Jacobians taken at the estimate with the held parameters at the
-    values held. None where it cannot be computed: no held parameter, or a force model
-    other than the simulator (the surrogates know the key parameters only). One batch of
+    values held. None where it cannot be computed: no held parameter, or a force model other
+    than the simulator (the surrogates know the key parameters only). One batch of
     k + h + 1 simulations."""
     prob, z = refinement.problem, refinement.solution
     if prob is None or z is None or not isinstance(prob.model, SimulatorForces):
@@ -126,16 +132,94 @@ def held_parameter_variance(
         prob.step,
         prob.gains,
     )
-    held_at = held_values(held, base)
     lo_h, hi_h = bounds(held)
-    u_held = np.clip((held_at - lo_h) / (hi_h - lo_h), 0.0, 1.0)
+    u_held = np.clip((held_values(held, base) - lo_h) / (hi_h - lo_h), 0.0, 1.0)
     zz = np.concatenate([z[:k], u_held, z[k:]])
     jac = ext.jacobian_of(ext.predictions(ext.steps(zz[: k + h])), zz)
     est_cols = np.r_[0:k, k + h : jac.shape[1]]
     j_e, j_h = jac[:, est_cols], jac[:, k : k + h]
-    response = np.linalg.lstsq(j_e, j_h, rcond=None)[0][:k]  # (k, h), unit coordinates
-    var_u = held_error_variance(response, *held_moments(held, held_at, prior))
-    return var_u * (prob.hi - prob.lo) ** 2
+    return held, np.linalg.lstsq(j_e, j_h, rcond=None)[0][:k]
+
+
+def held_parameter_variance(
+    refinement: Refinement, prior: HeldPrior | None = None
+) -> np.ndarray | None:
+    """(k,) second moment, SI², of the refined estimate's error caused by the main-suspension
+    parameters it holds, each uniform over the user's range in ``prior`` or else its whole
+    Table 2 range (:func:`held_response`, :func:`held_moments`, :func:`held_error_variance`).
+    None where the response cannot be computed."""
+    got = held_response(refinement)
+    if got is None:
+        return None
+    held, response = got
+    moments = held_moments(held, held_values(held, _base(refinement)), prior)
+    lo, hi = bounds(refinement.parameters)
+    return held_error_variance(response, *moments) * (hi - lo) ** 2
+
+
+def held_deviation_range(
+    held: Sequence[str], held_at_si: np.ndarray, prior: HeldPrior | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) of each ``held`` parameter's deviation from the value it is held at, unit
+    coordinates of its Table 2 range: the user's range [a, b] (``prior``) or else Table 2's,
+    less the value held. The support of the uniform δ whose moments :func:`held_moments`
+    gives."""
+    prior = prior or HeldPrior()
+    lo_t, hi_t = bounds(held)
+    ab = np.array([prior.range_si(p) for p in held], dtype=float).reshape(-1, 2)
+    at = np.asarray(held_at_si, dtype=float)
+    return (ab[:, 0] - at) / (hi_t - lo_t), (ab[:, 1] - at) / (hi_t - lo_t)
+
+
+def noise_standard_errors(
+    jac: np.ndarray, residuals: np.ndarray, blocks: Sequence[int], n_fit: int
+) -> np.ndarray:
+    """(columns,) standard errors of the least-squares estimate that the residuals' noise
+    causes, each block of residuals (one recording's channel) with its own variance and
+    autocorrelation time: sqrt(diag((JᵀJ)⁻¹ Jᵀ Σ J (JᵀJ)⁻¹)), Σ diagonal with block b's
+    s_b² τ_b, s_b² = Σ r_b² / n_b · n / (n - n_fit) (the heteroscedasticity-consistent
+    "sandwich" covariance, White 1980, with each block's long-run variance).
+
+    One pooled s² (JᵀJ)⁻¹ assumes every residual equally noisy; the channels are not: each
+    is scaled by its measured series' spread, and 3 % noise on the vertical force, whose
+    spread is small beside its static load, leaves residuals 10 to 40 times the lateral
+    force's in variance (the demo's recordings). The pooled variance then overstates the
+    error of a parameter the lateral force fixes (measured on 12 refinements: 2-4 times,
+    bench/README.md) and understates one fixed by the vertical force. With one block this
+    is the pooled formula times τ. Columns the residuals do not depend on get an infinite
+    error."""
+    j = np.asarray(jac, dtype=float)
+    r = np.asarray(residuals, dtype=float).ravel()
+    sizes = [int(b) for b in blocks] if blocks else [r.size]
+    if sum(sizes) != r.size:
+        sizes = [r.size]
+    scale = r.size / max(r.size - n_fit, 1)
+    w, start = np.empty(r.size), 0
+    for size in sizes:
+        block = r[start : start + size]
+        w[start : start + size] = scale * (block @ block) / size * autocorrelation_time(block)
+        start += size
+    d = np.einsum("ij,ij->j", j, j)
+    active = d > 1e-12 * max(float(d.max()), 1e-300)
+    se = np.full(j.shape[1], np.inf)
+    try:
+        ja = j[:, active]
+        bread = np.linalg.inv(ja.T @ ja)
+        cov = bread @ (ja.T @ (w[:, None] * ja)) @ bread
+        se[active] = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    except np.linalg.LinAlgError:
+        pass
+    return se
+
+
+def solution_jacobian(refinement: Refinement) -> np.ndarray | None:
+    """The refinement's Jacobian at its solution (unit parameters, then gains), from its
+    problem's cache of simulations where the last step computed it; None for a refinement
+    read back, which keeps no problem."""
+    prob, z = refinement.problem, refinement.solution
+    if prob is None or z is None:
+        return None
+    return prob.jacobian_of(prob.predictions(prob.steps(z[: prob.k])), z)
 
 
 def held_values(held: Sequence[str], base: ParameterSet | None = None) -> np.ndarray:
@@ -166,33 +250,60 @@ def held_assumptions(
     return out
 
 
+#: how the noise part's standard error was formed (``noise_standard_error_method``)
+PER_CHANNEL = "per-channel variance and autocorrelation time (sandwich covariance)"
+POOLED = "pooled residual variance times the autocorrelation time"
+#: how the interval was formed from its parts (``interval_quantiles``)
+MONTE_CARLO = "central quantiles of the error's distribution (JCGM 101:2008 Monte Carlo)"
+STUDENT_T = "Student-t quantile times the total standard error"
+
+
 def refinement_intervals(
     refinement: Refinement,
     level: float = LEVEL,
     held: bool = True,
     prior: HeldPrior | None = None,
 ) -> Intervals:
-    """The refinement's ``level`` confidence intervals (module docstring): Gauss-Newton
-    standard errors inflated by the residuals' autocorrelation time, a Student-t quantile
-    on n_eff - p degrees of freedom, and in quadrature the geometry-error spread and, with
-    ``held``, the held parameters' part (:func:`held_parameter_variance`), each held one
-    uniform over its range in ``prior`` or else over its whole Table 2 range."""
+    """The refinement's ``level`` confidence intervals (module docstring). The noise part:
+    the standard errors of the least squares with each recording's channel its own residual
+    variance and autocorrelation time (:func:`noise_standard_errors`), or, for a refinement
+    read back without its residuals' Jacobian, the pooled Gauss-Newton ones times the
+    autocorrelation time. With ``held``, the held parameters' linear response
+    (:func:`held_response`), each held one uniform over its range in ``prior`` or else over
+    its whole Table 2 range, offsets from the value held included; the geometry error's
+    spread. Where there is a held part, the interval is the central ``level`` quantiles of
+    the sum of the three (:func:`~railsusp.estimate.interval_distribution.error_quantiles`:
+    uniform, Student-t on n_eff - p degrees of freedom, normal), not a multiple of its
+    standard deviation; without one the sum is Student-t and normal, and the interval the
+    Student-t quantile times the total standard error, as before."""
     ref = refinement
     k = len(ref.parameters)
     lo, hi = bounds(ref.parameters)
     span = hi - lo
     residuals = getattr(ref, "residuals", None)
     blocks = getattr(ref, "residual_blocks", ())
+    noise_method = POOLED
     if residuals is not None and np.size(residuals):
         n_eff, tau = effective_sample_size(residuals, blocks)  # type: ignore[assignment]
         n_fit = k + (len(ref.channel_gains) or 0)
         dof: float | None = max(n_eff - n_fit, 1.0)
+        noise = np.sqrt(tau) * ref.standard_error_si
+        jac = solution_jacobian(ref)
+        if jac is not None and jac.shape == (np.size(residuals), n_fit):
+            noise = noise_standard_errors(jac, residuals, blocks, n_fit)[:k] * span
+            noise_method = PER_CHANNEL
     else:  # residuals not kept (a refinement read back): white, normal quantile
         n_eff, tau, dof = None, 1.0, None
-    noise = np.sqrt(tau) * ref.standard_error_si
+        noise = ref.standard_error_si
     geometry = ref.geometry_error_si
-    held_var = held_parameter_variance(ref, prior) if held else None
-    held_sd = np.sqrt(held_var) if held_var is not None else np.zeros(k)
+    response = held_response(ref) if held else None
+    held_names: tuple[str, ...] = ()
+    held_sd = np.zeros(k)
+    if response is not None:
+        held_names, r_unit = response
+        held_at = held_values(held_names, _base(ref))
+        var_u = held_error_variance(r_unit, *held_moments(held_names, held_at, prior))
+        held_sd = np.sqrt(var_u) * span
     total = np.sqrt(noise**2 + geometry**2 + held_sd**2)
 
     def pct(v: np.ndarray) -> dict[str, float]:
@@ -202,19 +313,40 @@ def refinement_intervals(
         "residual_autocorrelation_time": tau,
         "effective_sample_size": n_eff,
         "degrees_of_freedom": dof,
+        "noise_standard_error_method": noise_method,
         "noise_standard_error_pct_range": pct(noise),
         "geometry_error_pct_range": pct(geometry),
-        "held_parameters": list(held_parameters(ref.parameters)) if held_var is not None else [],
+        "held_parameters": list(held_names),
         "held_parameters_error_pct_range": pct(held_sd),
         "held_parameters_assumed": held_assumptions(ref.parameters, prior, _base(ref))
-        if held_var is not None
+        if response is not None
         else {},
         "held_prior_display": (prior or HeldPrior()).to_display(),
         "held_prior_unused": (prior or HeldPrior()).unused(ref.parameters),
         "total_standard_error_pct_range": pct(total),
     }
-    return from_standard_errors(
-        ref.parameters, ref.estimate_si, total, level, dof, REFINEMENT, details
+    if response is None:
+        details["interval_quantiles"] = STUDENT_T
+        return from_standard_errors(
+            ref.parameters, ref.estimate_si, total, level, dof, REFINEMENT, details
+        )
+    low_u, high_u = held_deviation_range(held_names, held_at, prior)
+    lower, upper = error_quantiles(
+        r_unit, low_u, high_u, noise / span, dof, geometry / span, level, DRAWS, SEED
+    )
+    details.update(
+        {
+            "interval_quantiles": MONTE_CARLO,
+            "monte_carlo_draws": DRAWS,
+            "monte_carlo_seed": SEED,
+            "error_quantiles_pct_range": {
+                p: [float(100 * a), float(100 * b)]
+                for p, a, b in zip(ref.parameters, lower, upper, strict=True)
+            },
+        }
+    )
+    return from_error_quantiles(
+        ref.parameters, ref.estimate_si, lower * span, upper * span, level, REFINEMENT, details
     )
 
 
