@@ -50,6 +50,7 @@ from railsusp.surrogate.compare import compare
 from railsusp.surrogate.data import FeatureSpec, SeriesData, load_series
 from railsusp.surrogate.evaluate import accuracy, predict_with_alone
 from railsusp.surrogate.models import NetConfig, default_window
+from railsusp.surrogate.nominal import CONTEXT_CHANNELS
 from railsusp.surrogate.split import campaign_split
 from railsusp.variation import full_ranges, parse_range
 
@@ -110,11 +111,13 @@ def network_rows(
     out: str | Path | None = None,
     nominal_response: bool = False,
     architecture: dict | None = None,
+    nominal_context: Sequence[str] = (),
 ) -> list[dict]:
     """Train one network (``window``: its window, or the sequence CNN-GRU's washout; None:
     the kind's default; ``nominal_response``: reading the nominal wagon's forces on each
     track, from the campaign's nominal twins; ``architecture``: :class:`NetConfig` fields
-    that differ from the study's, e.g. ``{"dropout": 0.0}``) on the campaign's split, saved
+    that differ from the study's, e.g. ``{"dropout": 0.0}``; ``nominal_context``: more
+    channels of the nominal wagon's response as inputs) on the campaign's split, saved
     under ``out`` (default ``RUN/surrogates/<label>/<condition>/``), and score it on the
     same test runs from the end of its own window or washout (the reference scores from
     step 20)."""
@@ -123,7 +126,7 @@ def network_rows(
     net = None
     if architecture:
         first = default_window(kind) if window is None else window
-        n_in = feature_spec(camp, key_parameters(run), first, nominal_response)
+        n_in = feature_spec(camp, key_parameters(run), first, nominal_response, nominal_context)
         net = replace(
             NetConfig(
                 kind=kind, n_features=n_in.n_features, window=first, n_outputs=len(n_in.targets)
@@ -140,9 +143,10 @@ def network_rows(
         out=out,
         nominal_response=nominal_response,
         net=net,
+        nominal_context=nominal_context,
     )
     first = sur.spec.window
-    spec = feature_spec(camp, sur.spec.parameters, first, sur.spec.nominal_response)
+    spec = sur.spec
     data = load_series(camp, condition, spec)
     split = campaign_split(camp, split_seed)
     test = data.subset(split.positions(data.sample_ids, "test"))
@@ -170,12 +174,15 @@ def nominal_rows(
     architecture: dict | None = None,
     tag: str = "",
     window: int | None = None,
+    context: Sequence[str] = (),
 ) -> list[dict]:
     """Train the ``kind`` network (the window CNN-GRU, or the sequence CNN-GRU
     ``cnn-gru-seq``) that also reads the nominal wagon's forces on each track
     (:mod:`railsusp.surrogate.nominal`; saved under ``RUN/surrogates/<kind>-nominal<tag>/``)
     and score it, with the nominal wagon's own forces beside it, on the same test runs
-    (``window``: its window or washout, None: the kind's default)."""
+    (``window``: its window or washout, None: the kind's default; ``context``: more
+    channels of the nominal wagon's response as inputs,
+    :data:`~railsusp.surrogate.nominal.CONTEXT_CHANNELS`)."""
     return network_rows(
         run,
         condition,
@@ -186,6 +193,7 @@ def nominal_rows(
         split_seed=split_seed,
         nominal_response=True,
         architecture=architecture,
+        nominal_context=context,
     )
 
 
@@ -244,13 +252,15 @@ def table_on_tracks(
     nominal_kinds: Sequence[str] = ("cnn-gru",),
     architecture: dict | None = None,
     tag: str = "",
+    context: Sequence[str] = (),
 ) -> pd.DataFrame:
     """The accuracy table (one row per condition, model and force) of every model on the
     campaign's held-out test runs in ``conditions`` (all by default): the compared models,
     then the sequence CNN-GRU, then (``nominal``) the CNN-GRU reading the nominal wagon's
     forces (of each of ``nominal_kinds``: ``<kind>-nominal``; its campaign's nominal twins
-    made first, or resumed; ``architecture`` and ``tag`` as :func:`nominal_rows`), then the
-    variant's rows (in ``variant_conditions``, all by default)."""
+    made first, or resumed; ``architecture``, ``tag`` and ``context`` as
+    :func:`nominal_rows`), then the variant's rows (in ``variant_conditions``, all by
+    default)."""
     compared = [m for m in models if m not in SEQUENCE]
     conds = (
         list(conditions) if conditions else [c.name for c in load_campaign(run).config.conditions]
@@ -281,7 +291,9 @@ def table_on_tracks(
             for cond in conds:
                 if progress:
                     progress(f"{cond}: {kind}-nominal{tag}")
-                rows += nominal_rows(run, cond, train, split_seed, kind, architecture, tag)
+                rows += nominal_rows(
+                    run, cond, train, split_seed, kind, architecture, tag, context=context
+                )
     if rows:
         tables.append(pd.DataFrame(rows))
     table = pd.concat(tables, ignore_index=True)
@@ -350,12 +362,12 @@ def inference_rates(
         rates, tracks = {}, {}
         for k in kinds:
             sur = load(Path(run) / "surrogates" / k / condition)
-            nominal = sur.spec.nominal_response
-            if nominal not in tracks:  # the track input, read once per kind of input
-                spec = feature_spec(camp, sur.spec.parameters, 20, nominal)
+            what = (sur.spec.nominal_response, sur.spec.nominal_context)
+            if what not in tracks:  # the track input, read once per kind of input
+                spec = feature_spec(camp, sur.spec.parameters, 20, *what)
                 data = load_series(camp, condition, spec)
-                tracks[nominal] = data.subset(first(data.sample_ids, "test")[:1]).track[0]
-            rates[k] = rate(sur, 64, repeats, True, tracks[nominal])
+                tracks[what] = data.subset(first(data.sample_ids, "test")[:1]).track[0]
+            rates[k] = rate(sur, 64, repeats, True, tracks[what])
         return rates
     finally:
         torch.set_num_threads(before)
@@ -442,6 +454,13 @@ def main() -> None:
         "--rnn-hidden", help="with --nominal: their GRU sizes, e.g. 128,64,32 (study: 64,32,16)"
     )
     ap.add_argument(
+        "--nominal-context",
+        default="none",
+        help="with --nominal: more channels of the nominal wagon's response as inputs of "
+        "those networks: none, all (every wheel's Y and Q, the car body's accelerations) or "
+        "a comma list",
+    )
+    ap.add_argument(
         "--tag", default="", help="with --dropout/--rnn-hidden: suffix of their folder names"
     )
     ap.add_argument("--train-conditions", help="conditions whose models are trained (default: all)")
@@ -500,8 +519,21 @@ def main() -> None:
             ap.error(f"--rnn-hidden {args.rnn_hidden}: accepted sizes like 64,32,16")
         if min(architecture["rnn_hidden"]) < 1:
             ap.error(f"--rnn-hidden {args.rnn_hidden}: accepted sizes >= 1")
-    if architecture and not args.tag:
-        ap.error("--dropout/--rnn-hidden: give --tag, so the study's networks are not overwritten")
+    context: tuple[str, ...] = ()
+    if args.nominal_context == "all":
+        context = CONTEXT_CHANNELS
+    elif args.nominal_context != "none":
+        context = tuple(c.strip() for c in args.nominal_context.split(",") if c.strip())
+        bad = sorted(set(context) - set(CONTEXT_CHANNELS))
+        if bad:
+            ap.error(
+                f"--nominal-context {bad}: accepted none, all or {', '.join(CONTEXT_CHANNELS)}"
+            )
+    if (architecture or context) and not args.tag:
+        ap.error(
+            "--dropout/--rnn-hidden/--nominal-context: give --tag, so the study's networks "
+            "are not overwritten"
+        )
     table = table_on_tracks(
         args.run,
         models=models,
@@ -514,6 +546,7 @@ def main() -> None:
         nominal_kinds=nominal_kinds,
         architecture=architecture or None,
         tag=args.tag,
+        context=context,
     )
     tick("done")
     t7 = table7_per_run(table)

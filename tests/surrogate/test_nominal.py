@@ -95,6 +95,43 @@ def test_prediction_time_nominal_equals_the_twin(twins):
     )
 
 
+def test_the_nominal_context_is_the_twins_other_channels_read_as_at_prediction(twins):
+    """``nominal_context`` inserts the nominal wagon's other channels (every wheel's forces
+    in kN, the car body's accelerations in m/s²) before its measured-wheel forces, in the
+    same order and units whether read from the twins (training) or simulated when a
+    surrogate predicts; the measured wheel's forces stay the last columns."""
+    camp = load_campaign(twins)
+    row = camp.tracks("curve").iloc[3]
+    cond = sample_condition(CURVE, row)
+    ctx = ("Y_w2R", "Q_w3L", "car_acc_y", "car_acc_z")
+    spec = feature_spec(camp, KEYS, nominal_response=True, nominal_context=ctx)
+    plain = feature_spec(camp, KEYS, nominal_response=True)
+    assert spec.n_features == plain.n_features + 4 and spec.n_baseline == 2
+    assert spec.names()[-6:] == [f"{c}_nominal" for c in ctx] + ["Y_nominal", "Q_nominal"]
+    data = load_series(camp, "curve", spec)
+    i = list(data.sample_ids).index(int(row.sample_id))
+    live = track_features(cond, int(row.seed), spec, camp.config.wagon)
+    np.testing.assert_allclose(live, data.track[i], rtol=1e-4, atol=1e-4)
+    r = simulate_batch(
+        [ParameterSet.nominal()],
+        cond,
+        seeds=[int(row.seed)],
+        wagon=camp.config.wagon,
+        settings=camp.config.settings(),
+    )
+    want = np.stack([r.Y[0, 3] / 1e3, r.Q[0, 4] / 1e3, r.car_acc_y[0], r.car_acc_z[0]], axis=1)
+    np.testing.assert_allclose(data.track[i, :, -6:-2], want, rtol=1e-5, atol=1e-5)
+    # what the network learns is still the change from the measured wheel's nominal forces
+    base = load_series(camp, "curve", plain)
+    np.testing.assert_allclose(data.learned, base.learned)
+    assert FeatureSpec.from_dict(spec.to_dict()) == spec
+    assert "nominal_context" not in plain.to_dict()  # older surrogates read the same
+    with pytest.raises(ValueError, match="nominal_context \\['Y_w9L'\\]: accepted channels"):
+        FeatureSpec(parameters=KEYS, nominal_response=True, nominal_context=("Y_w9L",))
+    with pytest.raises(ValueError, match="only with nominal_response"):
+        FeatureSpec(parameters=KEYS, nominal_context=("Y_w2R",))
+
+
 def test_nominal_surrogate_adds_the_nominal_forces_back(twins, tmp_path):
     """A surrogate with the nominal response predicts the nominal forces plus its network's
     output: with the network's output layer zeroed and the learned targets' mean at zero it

@@ -104,11 +104,16 @@ def not_estimated(folder: str | Path | None, estimated: Sequence[str]) -> list[d
 
 
 def feature_spec(
-    campaign, parameters: Sequence[str], window: int = 20, nominal_response: bool = False
+    campaign,
+    parameters: Sequence[str],
+    window: int = 20,
+    nominal_response: bool = False,
+    nominal_context: Sequence[str] = (),
 ) -> FeatureSpec:
     """The window features for a campaign: the track channels gain the cant at each axle
     when the campaign's track family varies the cant (the curvature cannot tell it), and
-    with ``nominal_response`` the nominal wagon's forces on the track (:mod:`.nominal`)."""
+    with ``nominal_response`` the nominal wagon's forces on the track, after its
+    ``nominal_context`` channels (:mod:`.nominal`)."""
     fam = campaign.config.track_family
     channels = DEFAULT_TRACK_CHANNELS
     if fam is not None and fam.cant_mm is not None and fam.cant_mm[0] != fam.cant_mm[1]:
@@ -118,6 +123,7 @@ def feature_spec(
         track_channels=channels,
         window=window,
         nominal_response=nominal_response,
+        nominal_context=tuple(nominal_context),
     )
 
 
@@ -150,6 +156,7 @@ def train_surrogate(
     progress: Callable[[int, float, float], None] | None = None,
     record_correction: bool = True,
     nominal_response: bool = False,
+    nominal_context: Sequence[str] = (),
 ) -> Surrogate:
     """Train a window surrogate of one condition of a campaign; save and return it.
 
@@ -163,7 +170,9 @@ def train_surrogate(
     training samples) a record correction is fitted on the training samples' predictions
     (:mod:`.correction`). ``nominal_response``: the network also reads the nominal wagon's
     forces on each track and learns the change from them (:mod:`.nominal`; the campaign's
-    nominal twins must exist: :func:`railsusp.campaign.twins.run_nominal_twins`). The saved
+    nominal twins must exist: :func:`railsusp.campaign.twins.run_nominal_twins`);
+    ``nominal_context``: and these more channels of its response
+    (:data:`.nominal.CONTEXT_CHANNELS`). The saved
     surrogate lists the parameters it does not take as
     inputs and what it assumes of them (``meta.assumed_parameters``: varied over a range in
     its training campaign, or held at nominal).
@@ -173,7 +182,7 @@ def train_surrogate(
     camp = require_complete(load_campaign(run))  # never train on part of a campaign
     params = tuple(parameters) if parameters else key_parameters(run)
     window = default_window(kind) if window is None else window
-    spec = feature_spec(camp, params, window, nominal_response)
+    spec = feature_spec(camp, params, window, nominal_response, nominal_context)
     data = load_series(camp, condition, spec)
     split = campaign_split(camp, split_seed)
     tr_i, va_i = split.positions(data.sample_ids, "train"), split.positions(data.sample_ids, "val")

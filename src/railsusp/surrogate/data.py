@@ -13,7 +13,10 @@ end, but does not say what the 21 features are. railsusp's default feature set
   3 x 5 = 15;
 * optionally the cant angle at each axle (``"cant"``, in mm of superelevation over the
   1.5 m base): added by training when the campaign varies the cant (a track family), since
-  the curvature channel alone cannot tell two cants apart.
+  the curvature channel alone cannot tell two cants apart;
+* optionally the nominal wagon's response on the same track (:mod:`.nominal`): more of its
+  channels as context (``nominal_context``), then its forces at the measured wheel, which
+  the network's output is added to (``nominal_response``).
 
 The window ending at step k covers steps k - L + 1 .. k and predicts Y and Q of the measured
 wheel at step k, for k = L .. T - 1 (T - L windows: 980 for the study's 1000 and 20).
@@ -33,7 +36,7 @@ import numpy as np
 from railsusp.campaign import CHANNELS, Campaign
 from railsusp.conditions import CANT_BASE_M, WorkingCondition
 from railsusp.params import bounds
-from railsusp.surrogate.nominal import nominal_forces
+from railsusp.surrogate.nominal import check_context, nominal_forces
 from railsusp.variation import layout_key, sample_condition
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.setup import track_arrays
@@ -74,6 +77,15 @@ class FeatureSpec:
     #: the nominal wagon's forces on the same track as inputs, after the track channels
     #: (:mod:`.nominal`); the network then learns the force minus the nominal force
     nominal_response: bool = False
+    #: more channels of the nominal wagon's response (:data:`.nominal.CONTEXT_CHANNELS`)
+    #: as inputs, between the track channels and the nominal forces (needs
+    #: ``nominal_response``)
+    nominal_context: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        check_context(self.nominal_context)
+        if self.nominal_context and not self.nominal_response:
+            raise ValueError("nominal_context: accepted only with nominal_response = true")
 
     @property
     def n_baseline(self) -> int:
@@ -82,13 +94,19 @@ class FeatureSpec:
 
     @property
     def n_features(self) -> int:
-        return len(self.parameters) + len(self.track_channels) * len(self.axles) + self.n_baseline
+        return (
+            len(self.parameters)
+            + len(self.track_channels) * len(self.axles)
+            + len(self.nominal_context)
+            + self.n_baseline
+        )
 
     def names(self) -> list[str]:
         """Feature names in input order."""
         return [
             *(f"{p}_unit" for p in self.parameters),
             *(f"{c}@w{a + 1}" for a in self.axles for c in self.track_channels),
+            *(f"{c}_nominal" for c in self.nominal_context),
             *(f"{t}_nominal" for t in self.targets[: self.n_baseline]),
         ]
 
@@ -96,6 +114,8 @@ class FeatureSpec:
         doc = asdict(self)
         if not self.nominal_response:  # surrogates saved before the option read the same
             del doc["nominal_response"]
+        if not self.nominal_context:  # nor before this one
+            del doc["nominal_context"]
         return doc
 
     @classmethod
@@ -120,15 +140,22 @@ def track_features(
     nominal: np.ndarray | None = None,
 ) -> np.ndarray:
     """Track input seen by the chosen axles at every output step: (T, channels x axles),
-    then, with ``spec.nominal_response``, the nominal wagon's forces on that track (kN, one
-    column per target): ``nominal`` (T, n_targets) when already simulated (a campaign's
-    nominal twin), else simulated here (:func:`.nominal.nominal_forces`)."""
+    then, with ``spec.nominal_response``, the nominal wagon's response on that track: its
+    ``spec.nominal_context`` channels and its forces (kN, one column per target):
+    ``nominal`` (T, n_context + n_targets) when already simulated (a campaign's nominal
+    twin), else simulated here (:func:`.nominal.nominal_forces`)."""
     settings = SolverSettings() if settings is None else settings
     if spec.nominal_response:
         if nominal is None:
-            nominal = nominal_forces(condition, seed, wagon, spec.targets, settings)
+            nominal = nominal_forces(
+                condition, seed, wagon, spec.targets, settings, spec.nominal_context
+            )
         plain = track_features(
-            condition, seed, replace(spec, nominal_response=False), wagon, settings
+            condition,
+            seed,
+            replace(spec, nominal_response=False, nominal_context=()),
+            wagon,
+            settings,
         )
         return np.concatenate([plain, np.asarray(nominal, dtype=plain.dtype)], axis=1)
     tr, s0, ds = track_arrays(condition.with_changes(seed=seed), [seed], wagon, settings)
@@ -226,7 +253,7 @@ def load_series(
     rows = tracks.to_dict("records")
     seeds = tracks["seed"].to_numpy()
     keys = [(int(r["seed"]), layout_key(r)) for r in rows]
-    plain = replace(spec, nominal_response=False)
+    plain = replace(spec, nominal_response=False, nominal_context=())
     per_key = {
         k: track_features(sample_condition(cond, r), k[0], plain, cfg.wagon, cfg.settings())
         for k, r in dict(zip(keys, rows, strict=True)).items()
@@ -280,17 +307,20 @@ def check_nominal(campaign: Campaign, cond: WorkingCondition, wheel: int) -> Non
 def twin_forces(
     campaign: Campaign, condition: str, ids: np.ndarray, wheel: int, spec: FeatureSpec
 ) -> np.ndarray:
-    """(n, T, n_targets) forces (kN) of wheel ``wheel`` of the nominal twins of samples
-    ``ids`` (:mod:`railsusp.campaign.twins`, checked by :func:`check_nominal`); NaN for a
-    twin that failed."""
+    """(n, T, n_context + n_targets): the ``spec.nominal_context`` channels (kN, m/s²), then
+    the forces (kN) of wheel ``wheel``, of the nominal twins of samples ``ids``
+    (:mod:`railsusp.campaign.twins`, checked by :func:`check_nominal`); NaN for a twin that
+    failed."""
     from railsusp.campaign.results import read_series
     from railsusp.campaign.twins import nominal_folder
 
     twin_ids, series = read_series(nominal_folder(campaign.path), condition)
     pos = {int(s): i for i, s in enumerate(twin_ids)}
     rows = np.array([pos[int(s)] for s in ids])
-    cols = [CHANNELS.index(f"{t}_{WHEEL_NAMES[wheel]}") for t in spec.targets]
-    return np.stack([series[rows, c, :] / 1e3 for c in cols], axis=2)
+    names = [*spec.nominal_context, *(f"{t}_{WHEEL_NAMES[wheel]}" for t in spec.targets)]
+    scale = [1.0 if n.startswith("car_acc") else 1e-3 for n in names]
+    cols = [CHANNELS.index(n) for n in names]
+    return np.stack([series[rows, c, :] * f for c, f in zip(cols, scale, strict=True)], axis=2)
 
 
 def split_samples(

@@ -11,6 +11,13 @@ one more input and learns only what the parameters change: its target is the for
 the nominal force, added back when it predicts (measured: lateral R² 0.91 on tangent and
 grade, 0.98 in the curve). The price is one simulation of the nominal wagon per track (per
 recording and condition, seconds), not per parameter set.
+
+:attr:`~railsusp.surrogate.data.FeatureSpec.nominal_context` adds more of the nominal
+wagon's response as inputs (the forces at all eight wheels and the car body's
+accelerations, :data:`CONTEXT_CHANNELS`): what a parameter changes depends on the bogie's
+motion (a yaw resistance acts on the bogie's yaw, a primary stiffness on the wheelset's
+displacement in the frame), which the measured wheel's two forces show only in part, and
+the other wheelsets' forces show more of it.
 """
 
 from __future__ import annotations
@@ -21,8 +28,29 @@ import numpy as np
 
 from railsusp.conditions import WorkingCondition
 from railsusp.params import ParameterSet
-from railsusp.vehicle.simulate import SolverSettings, measured_wheel_index, simulate_batch
+from railsusp.vehicle.simulate import (
+    WHEEL_NAMES,
+    SolverSettings,
+    measured_wheel_index,
+    simulate_batch,
+)
 from railsusp.vehicle.wagon import WagonData
+
+#: the nominal wagon's channels a network may read as context (the campaign's stored
+#: channels, :data:`railsusp.campaign.design.CHANNELS`): kN for forces, m/s² for accelerations
+CONTEXT_CHANNELS = (
+    tuple(f"Y_{w}" for w in WHEEL_NAMES)
+    + tuple(f"Q_{w}" for w in WHEEL_NAMES)
+    + ("car_acc_y", "car_acc_z")
+)
+
+
+def check_context(channels: Sequence[str]) -> tuple[str, ...]:
+    """The context channels as a tuple, refused in one line where one is not a channel."""
+    bad = [c for c in channels if c not in CONTEXT_CHANNELS]
+    if bad:
+        raise ValueError(f"nominal_context {bad}: accepted channels {', '.join(CONTEXT_CHANNELS)}")
+    return tuple(channels)
 
 
 def nominal_forces(
@@ -31,9 +59,11 @@ def nominal_forces(
     wagon: WagonData,
     targets: Sequence[str] = ("Y", "Q"),
     settings: SolverSettings | None = None,
+    context: Sequence[str] = (),
 ) -> np.ndarray:
-    """(T, len(targets)) forces of the measured wheel (kN, the campaign's automatic choice
-    of wheel) of the nominal wagon on ``condition``'s track with irregularity ``seed`` (its
+    """(T, len(context) + len(targets)): the ``context`` channels (:data:`CONTEXT_CHANNELS`,
+    kN and m/s²), then the forces of the measured wheel (kN, the campaign's automatic choice
+    of wheel), of the nominal wagon on ``condition``'s track with irregularity ``seed`` (its
     measured geometry where it carries one)."""
     r = simulate_batch(
         [ParameterSet.nominal()],
@@ -48,5 +78,9 @@ def nominal_forces(
             f"(status {int(r.status[0])}): no nominal response to read"
         )
     j = measured_wheel_index(condition, "auto")
-    series = {"Y": r.Y[0, j], "Q": r.Q[0, j]}
-    return np.stack([series[t] / 1e3 for t in targets], axis=1)
+    series = {"Y": r.Y[0, j] / 1e3, "Q": r.Q[0, j] / 1e3}
+    for i, w in enumerate(WHEEL_NAMES):
+        series[f"Y_{w}"], series[f"Q_{w}"] = r.Y[0, i] / 1e3, r.Q[0, i] / 1e3
+    series["car_acc_y"], series["car_acc_z"] = r.car_acc_y[0], r.car_acc_z[0]
+    names = (*check_context(context), *targets)
+    return np.stack([np.asarray(series[c], dtype=float) for c in names], axis=1)
