@@ -231,6 +231,38 @@ def test_predict_keeps_the_window_networks_contract(trained):
     assert all(np.isfinite(r["relative_error_of_mean"]) for r in rows)
 
 
+def test_runs_each_on_its_own_track_are_predicted_together_as_one_by_one(trained):
+    """``predict(track=(n, T, n_track))``, one track per set, gives each set what it gets
+    alone on its track (segments and record correction included), and predict_series scores
+    a campaign's runs that way in batches; a window network refuses per-set tracks."""
+    run, sur = trained
+    data = _test_data(sur, run)
+    x = np.array(
+        [[420e3, 5.2e6, 130e6, 0.9e6, 1.6e6, 52e6], [480e3, 6.1e6, 150e6, 1.2e6, 1.9e6, 61e6]]
+    )
+    x = np.vstack([x, x])[:, : len(sur.spec.parameters)]
+    rng = np.random.default_rng(1)
+    n_track = sur.spec.n_features - len(sur.spec.parameters)
+    tracks = rng.standard_normal((4, 150, n_track))
+    together = sur.predict(x, track=tracks)
+    for i in range(4):
+        np.testing.assert_allclose(
+            together[i], sur.predict(x[i : i + 1], track=tracks[i])[0], rtol=1e-5, atol=1e-5
+        )
+    assert np.abs(together[0, 30:] - together[2, 30:]).max() > 1e-3  # the tracks matter
+    from railsusp.surrogate.evaluate import _si, predict_series
+
+    one_by_one = np.concatenate(
+        [
+            sur.predict(_si(sur, data.params_unit[i : i + 1]), track=data.track[i])
+            for i in range(data.n_samples)
+        ]
+    )
+    np.testing.assert_allclose(predict_series(sur, data), one_by_one, rtol=1e-5, atol=1e-5)
+    with pytest.raises(ValueError, match="one track per set .* with n = 4 sets"):
+        sur.predict(x, track=tracks[:3])
+
+
 def test_a_long_record_is_predicted_in_segments_of_the_training_chunk(trained):
     """The bundle predicts in segments of its training chunk (60 steps here): a track three
     records long gives each step the output of the segment that keeps it, and

@@ -193,7 +193,9 @@ class Surrogate:
         is the training track (``track_seed``) unless ``condition`` (the surrogate's own
         condition, possibly with another irregularity seed, a measured ``track_geometry`` or
         another record length), ``seed`` or raw ``track`` features (T, n_track) say
-        otherwise. With ``spec.nominal_response`` the track input ends with the nominal
+        otherwise; for the sequence CNN-GRU ``track`` may also hold one track per set (n, T,
+        n_track), all of one length (a campaign's runs scored together). With
+        ``spec.nominal_response`` the track input ends with the nominal
         wagon's forces on that track (simulated here unless ``track`` is given), which are
         added to the network's output. A surrogate serves one condition only, or, trained
         on a track family, that condition with its FRA class, radius and cant anywhere in
@@ -228,20 +230,26 @@ class Surrogate:
             s = self.track_seed if seed is None else seed
             track = track_features(on, s, self.spec, self.wagon, self.solver_settings())
         raw = np.asarray(track)
+        per_set = raw.ndim == 3
+        if per_set and (raw.shape[0] != len(unit) or not isinstance(self.net, CNNSequence)):
+            raise ValueError(
+                f"track input {raw.shape}: one track per set (n, T, n_track) is accepted for "
+                f"the sequence CNN-GRU only, with n = {len(unit)} sets"
+            )
         if raw.shape[-1] != self.spec.n_features - len(self.spec.parameters):
             raise ValueError(
                 f"track input has {raw.shape[-1]} columns, this surrogate reads "
                 f"{self.spec.n_features - len(self.spec.parameters)} "
                 f"({', '.join(self.spec.names()[len(self.spec.parameters) :])})"
             )
-        tr = self.normaliser.track(raw[None])
+        tr = self.normaliser.track(raw if per_set else raw[None])
         n, t_steps = unit.shape[0], tr.shape[1]
         idx = window_index(n, t_steps, self.spec.window)
         out = np.full((n, t_steps, len(self.spec.targets)), np.nan)
         preds = self.predict_windows(unit, tr, idx, batch_size, fast=fast)
         out[idx[:, 0], idx[:, 1]] = self.normaliser.target_inverse(preds)
         if self.spec.n_baseline:  # the network's part is the change from the nominal wagon
-            out += raw[None, :, -self.spec.n_baseline :]
+            out += (raw if per_set else raw[None])[..., -self.spec.n_baseline :]
         if corrected and self.correction is not None:
             out = self.correction.apply(out, unit)
         return out

@@ -18,15 +18,33 @@ import numpy as np
 
 from railsusp.surrogate.bundle import Surrogate
 from railsusp.surrogate.data import SeriesData
+from railsusp.surrogate.models import SEQUENCE_KINDS
 from railsusp.vehicle.simulate import record_statistic
+
+#: runs per call when the sequence CNN-GRU predicts a campaign's runs, each on its own track
+RUNS_PER_CALL = 64
 
 
 def predict_series(sur: Surrogate, data: SeriesData, corrected: bool = True) -> np.ndarray:
     """Predictions (n, T, n_targets) for data samples, each on its own track
-    (``corrected=False``: without the surrogate's record correction)."""
+    (``corrected=False``: without the surrogate's record correction). The sequence CNN-GRU
+    takes :data:`RUNS_PER_CALL` runs per call, each with its own track (one batch through
+    its layers: a campaign's 1434 training runs in minutes, not half an hour one by one);
+    the window networks one run per call."""
     if data.track.shape[0] == 1:
         x = np.column_stack([data.params_unit])
         return sur.predict(_si(sur, x), track=data.track[0], corrected=corrected)
+    if sur.kind in SEQUENCE_KINDS:
+        return np.concatenate(
+            [
+                sur.predict(
+                    _si(sur, data.params_unit[lo : lo + RUNS_PER_CALL]),
+                    track=data.track[lo : lo + RUNS_PER_CALL],
+                    corrected=corrected,
+                )
+                for lo in range(0, data.n_samples, RUNS_PER_CALL)
+            ]
+        )
     return np.concatenate(
         [
             sur.predict(
