@@ -20,11 +20,8 @@ from railsusp.estimate.refine_intervals import (
 )
 from railsusp.measured import Recording
 from railsusp.params import bounds
-from test_estimate import COND, WaveForces  # the series model with a known answer
-
-PARAMS = ("X13", "X14")
-TRUTH = np.array([16.1e6, 8.3e6])
-LONG = COND.with_changes(track_geometry="measured-track.csv", duration_s=20.0, n_steps=1000)
+from test_estimate import WaveForces  # the series model with a known answer
+from test_intervals import LONG, PARAMS, TRUTH  # its 20 s recording of a known truth
 
 
 def test_one_block_is_the_pooled_formula_times_the_autocorrelation_time():

@@ -26,6 +26,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from railsusp.campaign.design import CHANNELS
 from railsusp.conditions import WorkingCondition
 from railsusp.params import ParameterSet
 from railsusp.vehicle.simulate import (
@@ -36,13 +37,9 @@ from railsusp.vehicle.simulate import (
 )
 from railsusp.vehicle.wagon import WagonData
 
-#: the nominal wagon's channels a network may read as context (the campaign's stored
-#: channels, :data:`railsusp.campaign.design.CHANNELS`): kN for forces, m/s² for accelerations
-CONTEXT_CHANNELS = (
-    tuple(f"Y_{w}" for w in WHEEL_NAMES)
-    + tuple(f"Q_{w}" for w in WHEEL_NAMES)
-    + ("car_acc_y", "car_acc_z")
-)
+#: the nominal wagon's channels a network may read as context: every channel a campaign
+#: (and so its nominal twins) stores, kN for forces, m/s² for accelerations
+CONTEXT_CHANNELS = CHANNELS
 
 
 def check_context(channels: Sequence[str]) -> tuple[str, ...]:
