@@ -465,6 +465,12 @@ def main() -> None:
     )
     ap.add_argument("--train-conditions", help="conditions whose models are trained (default: all)")
     ap.add_argument("--threads", type=int, default=2, help="torch threads for throughput")
+    ap.add_argument(
+        "--train-threads",
+        type=int,
+        help="torch threads while training (default: torch's; on a shared 2-core machine 1, "
+        "as two threads that wait for each other are several times slower)",
+    )
     ap.add_argument("--repeats", type=int, default=3, help="timed predict calls, best kept")
     ap.add_argument("--out", default="bench/results/surrogate_tracks.json")
     args = ap.parse_args()
@@ -534,6 +540,10 @@ def main() -> None:
             "--dropout/--rnn-hidden/--nominal-context: give --tag, so the study's networks "
             "are not overwritten"
         )
+    if args.train_threads is not None:
+        if args.train_threads < 1:
+            ap.error(f"--train-threads {args.train_threads}: accepted an integer >= 1")
+        torch.set_num_threads(args.train_threads)
     table = table_on_tracks(
         args.run,
         models=models,
