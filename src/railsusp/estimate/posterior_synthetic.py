@@ -1,0 +1,131 @@
+"""Posterior of a long recording by a Gaussian synthetic likelihood of the MEAN of its
+section statistics (Wood 2010, "Statistical inference for noisy nonlinear ecological
+dynamic systems"; Price, Drovandi, Lee & Nott 2018, "Bayesian synthetic likelihood").
+
+A recording of k sections gives k summary vectors x_1..x_k (:mod:`railsusp.estimate.
+summaries`); their mean s_k is, by the central limit theorem over nearly independent
+sections of stationary random track, Gaussian about mu(u) with covariance
+
+    C_k(u) = G(u) + (Sigma(u) - G(u)) / k + E(u)
+
+- Sigma(u): one section's covariance of the statistics; it shrinks with k;
+- G(u): the part every section of one record shares, which does NOT average out: the
+  instrument's gain error (one per channel and record, :data:`railsusp.estimate.
+  posterior_data.GAIN_ERROR`), propagated to the statistics by their derivative with
+  respect to the gain (percentiles scale with it, log band RMS shift by it / ln 10);
+- E(u): the emulator's uncertainty about mu(u) (the bagged ensemble's spread,
+  :mod:`railsusp.estimate.posterior_emulator`). It does not shrink with k either, so the
+  posterior of a long record cannot narrow below what the emulator knows, and its error is
+  counted once, not once per section as in the fusion of per-section posteriors
+  (:mod:`railsusp.estimate.posterior_fusion`, whose widening grew to 2.5 at 30 sections).
+
+The posterior is the uniform prior on the box of all ten parameters times this
+likelihood, drawn by tempered SMC (:mod:`railsusp.estimate.posterior_smc`): no new
+simulation at inference. The estimated parameters' columns are reported; the others are
+marginalised. The emulator learns from the estimator's own training cases; its check is
+coverage on the held-out records of several sections (:mod:`railsusp.estimate.
+posterior_synthetic_check`), with no widening fitted.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from railsusp.errors import RailsuspInputError
+from railsusp.estimate.posterior_emulator import StatisticsEmulator
+from railsusp.estimate.posterior_smc import smc_sample
+
+#: the ``long_record`` methods of a recording's posterior of several sections
+LONG_RECORD_METHODS = ("fusion", "synthetic-likelihood")
+
+SharedCovariance = Callable[[np.ndarray], np.ndarray]
+
+
+def check_long_record(method: str) -> str:
+    """The method's name, or a one-line error naming the accepted ones."""
+    if method not in LONG_RECORD_METHODS:
+        raise RailsuspInputError(
+            f"long_record = {method!r}: accepted {', '.join(LONG_RECORD_METHODS)}"
+        )
+    return method
+
+
+def gain_covariance(names: list[str], gain_error: float) -> SharedCovariance:
+    """G(mean): the statistics' covariance (N, D, D) from independent relative gain errors
+    of standard deviation ``gain_error``, one per channel and condition, for the summary
+    ``names`` (``condition:channel_statistic``, :func:`railsusp.estimate.summaries.
+    summary_names`). Percentiles of Y and Q scale with their channel's gain, those of Y/Q
+    with the difference of the two, those of the wheelset sum of Y with the mean of its two
+    wheels' gains; a log10 band RMS shifts by its channel's gain / ln 10."""
+    sources: dict[str, int] = {}
+    rows: list[list[tuple[int, float, bool]]] = []  # (source, factor, times the value)
+
+    def src(cond: str, ch: str) -> int:
+        return sources.setdefault(f"{cond}:{ch}", len(sources))
+
+    for name in names:
+        cond, stat = name.split(":", 1) if ":" in name else ("", name)
+        channel, kind = stat.split("_", 1)
+        band = kind.startswith("band")
+        if channel == "YQ":
+            rows.append([(src(cond, "Y"), 1.0, True), (src(cond, "Q"), -1.0, True)])
+        elif channel == "sumY":
+            rows.append([(src(cond, "Y"), 0.5, True), (src(cond, "partner"), 0.5, True)])
+        else:
+            rows.append([(src(cond, channel), 1.0 / np.log(10.0) if band else 1.0, not band)])
+    n_src = len(sources)
+
+    def shared(mean: np.ndarray) -> np.ndarray:
+        mean = np.atleast_2d(mean)
+        jac = np.zeros((mean.shape[0], len(names), n_src))
+        for i, terms in enumerate(rows):
+            for s, factor, scaled in terms:
+                jac[:, i, s] += factor * (mean[:, i] if scaled else 1.0)
+        return gain_error**2 * np.einsum("nis,njs->nij", jac, jac)
+
+    return shared
+
+
+@dataclass
+class SyntheticLikelihood:
+    """The synthetic likelihood of the mean of k sections' statistics (module
+    docstring); ``shared``: G(mean), or None when nothing is shared between sections."""
+
+    emulator: StatisticsEmulator
+    shared: SharedCovariance | None = None
+    emulator_variance: bool = True  # False only to show what leaving E(u) out does
+
+    def mean_and_covariance(self, u: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """mu(u) (N, D) and C_k(u) (N, D, D) for the mean of ``k`` sections."""
+        mean, section, emulator = self.emulator.moments(u)
+        shared = self.shared(mean) if self.shared is not None else np.zeros_like(section)
+        cov = shared * (1.0 - 1.0 / k) + section / k  # G + (Sigma - G) / k, PSD for k >= 1
+        if self.emulator_variance:
+            cov = cov + emulator
+        return mean, cov
+
+    def log_likelihood(self, u: np.ndarray, s: np.ndarray, k: int) -> np.ndarray:
+        """(N,) log N(s; mu(u), C_k(u)) of the mean ``s`` (D,) of ``k`` sections."""
+        mean, cov = self.mean_and_covariance(u, k)
+        d = mean.shape[1]
+        cov = cov + 1e-10 * np.trace(cov, axis1=1, axis2=2)[:, None, None] / d * np.eye(d)
+        chol = np.linalg.cholesky(cov)
+        r = np.linalg.solve(chol, (np.asarray(s, float) - mean)[:, :, None])[:, :, 0]
+        logdet = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1)
+        return -0.5 * (np.sum(r**2, axis=1) + logdet + d * np.log(2.0 * np.pi))
+
+    def sample(self, sections: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
+        """(n, d) draws on the unit box of the posterior (uniform prior on the box of
+        the emulator's inputs) of the sections ``sections`` (k, D), from their mean."""
+        x = np.atleast_2d(np.asarray(sections, float))
+        if x.ndim != 2 or x.shape[1] != self.emulator.dim or not np.all(np.isfinite(x)):
+            raise RailsuspInputError(
+                f"sections {x.shape}: accepted finite summaries (k, {self.emulator.dim})"
+            )
+        s, k = x.mean(axis=0), x.shape[0]
+        d = self.emulator.weights[0][0][0].shape[0]
+        rng = np.random.default_rng(seed)
+        return smc_sample(lambda u: self.log_likelihood(u, s, k), d, n, rng)
