@@ -3,7 +3,8 @@ estimator's training cases, checked on held-out records of several sections, and
 to a recording (``long_record = "synthetic-likelihood"``; the method in
 :mod:`railsusp.estimate.posterior_synthetic`).
 
-Files, in ``posterior/synthetic/``: ``emulator.npz`` (the fitted emulator) and
+Files, in ``posterior/synthetic/``: ``settings.json`` (the estimator's settings and the
+hash of what the emulator learnt from), ``emulator.npz`` (the fitted emulator) and
 ``check.json`` (per checked number of sections: coverage of the 90 % intervals per
 parameter on held-out records, median width). The check uses the held-out sets that the
 fusion's check uses (``check`` for one section; ``long`` of ``product_sections``,
@@ -124,7 +125,8 @@ def fit_emulator(settings: PosteriorSettings, run: str | Path) -> StatisticsEmul
     emu = fit(u, x, members=MEMBERS, hidden=HIDDEN, seed=settings.seed, log=log)
     log.info("synthetic likelihood: emulator fitted in %.0f s", time.perf_counter() - t0)
     emu.save(path)
-    write_json(stamp, {"hash": key, "members": MEMBERS, "hidden": HIDDEN})
+    write_json(stamp, {"hash": key, "members": MEMBERS, "hidden": HIDDEN,
+                       "settings": settings.to_dict()})  # fmt: skip
     return emu
 
 
@@ -187,19 +189,17 @@ def _stamp(run: str | Path) -> str | None:
 
 def load(run: str | Path) -> SyntheticPosterior:
     """The fitted and checked synthetic likelihood of a run (nothing is fitted here)."""
-    folder = Path(run) / "posterior"
-    for name in ("settings.json", "synthetic/emulator.npz", "synthetic/check.json"):
+    folder = Path(run) / "posterior" / "synthetic"
+    for name in ("settings.json", "emulator.npz", "check.json"):
         if not (folder / name).exists():
             raise RailsuspInputError(
                 f"{folder / name} does not exist: fit the synthetic likelihood first "
                 "(railsusp posterior train --long-record synthetic-likelihood)"
             )
     settings = PosteriorSettings.from_dict(read_json(folder / "settings.json")["settings"])
-    post = SyntheticPosterior(settings, likelihood(settings, StatisticsEmulator.load(
-        folder / "synthetic" / "emulator.npz")))  # fmt: skip
-    post.checks = [
-        SectionsCheck.from_dict(c) for c in read_json(folder / "synthetic/check.json")["checks"]
-    ]
+    emulator = StatisticsEmulator.load(folder / "emulator.npz")
+    post = SyntheticPosterior(settings, likelihood(settings, emulator))
+    post.checks = [SectionsCheck.from_dict(c) for c in read_json(folder / "check.json")["checks"]]
     return post
 
 
