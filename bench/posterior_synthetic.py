@@ -7,7 +7,7 @@ training cases, held-out records, the middle-80 % sets) and its scoring.
 
     python bench/posterior_synthetic.py --run RUN --conditions straight,curve --section 20 \\
         --train 2000 --check 200 --long 100 --long-length 600 --lengths 20,120,600 \\
-        --sets 12 --set-length 600
+        --sets 12 --set-length 600 --set-lengths 20,60,120,300,600
 
 1. Fits (or reads) the emulator on the ``--train`` training cases (one section each, all
    ten parameters from the prior, a new track each): ``RUN/posterior/synthetic/``.
@@ -49,8 +49,18 @@ def main() -> None:
     ap.add_argument("--long", type=int, default=200, help="held-out records of several sections")
     ap.add_argument("--long-length", type=float, default=40.0, help="their length, s")
     ap.add_argument("--lengths", default="5,10,20,40", help="record lengths checked, s")
+    ap.add_argument(
+        "--scale-records",
+        type=int,
+        default=0,
+        help="held-out calibration records of --long-length fitting the covariance's scales "
+        "(0: not fitted)",
+    )
     ap.add_argument("--sets", type=int, default=0, help="middle-80 %% sets identified (0: none)")
     ap.add_argument("--set-length", type=float, default=600.0, help="their record length, s")
+    ap.add_argument(
+        "--set-lengths", default=None, help="lengths they are scored at, s (default --lengths)"
+    )
     ap.add_argument("--keys", default=KEYS, help="key parameters of the verdict")
     a = ap.parse_args()
 
@@ -74,7 +84,10 @@ def main() -> None:
         sets.append(("long", a.long, longest, tuple(k for k in ks if 1 < k <= longest)))
     names = list(settings.parameters)
     t0 = time.perf_counter()
-    post = synthetic.train(settings, a.run, sets)
+    where = ("long-calibration", a.scale_records, longest) if a.scale_records else None
+    post = synthetic.train(settings, a.run, sets, scales_on=where)
+    scales = {k: getattr(post.likelihood, k) for k in ("within_scale", "model_error")}
+    print(f"covariance scales: {scales}")
     t_train = time.perf_counter() - t0
     print(f"\nemulator + checks: {t_train:.0f} s (cached parts are read, not redone)")
     rows = [c.to_dict() for c in post.checks]
@@ -83,7 +96,9 @@ def main() -> None:
     ident, verdicts = None, []
     if a.sets:
         t1 = time.perf_counter()
-        _, x, ident = identification(post, a.run, a.sets, a.set_length, lengths_s(a.lengths))
+        _, x, ident = identification(
+            post, a.run, a.sets, a.set_length, lengths_s(a.set_lengths or a.lengths)
+        )
         print(f"\nidentification of {a.sets} sets: {time.perf_counter() - t1:.0f} s")
         keys = a.keys.split(",")
         print_tables(ident, names, keys)
@@ -103,6 +118,8 @@ def main() -> None:
         "members": synthetic.MEMBERS,
         "hidden": synthetic.HIDDEN,
         "emulator_and_checks_s": t_train,
+        "scale_records": a.scale_records,
+        "scales": scales,
         "checks": rows,
         "identification": ident,
         "identification_verdicts": verdicts,

@@ -19,6 +19,7 @@ from railsusp.estimate.posterior_smc import smc_sample
 from railsusp.estimate.posterior_synthetic import (
     SyntheticLikelihood,
     check_long_record,
+    fit_scales,
     gain_covariance,
 )
 
@@ -155,3 +156,36 @@ def test_bad_input_is_refused_in_one_line(emulator, tmp_path):
         StatisticsEmulator.load(tmp_path / "emulator.npz")
     with pytest.raises(RailsuspInputError, match="accepted at least 20 cases"):
         fit(np.zeros((5, 2)), np.zeros((5, 3)))
+
+
+class _Known(StatisticsEmulator):
+    """An emulator of known moments: mean 0, one section's covariance I, spread E = e I."""
+
+    def __init__(self, d: int, e: float):
+        super().__init__([], np.zeros(d), np.ones(d), np.zeros((1, d)), np.eye(d))
+        self.e = e
+
+    def moments(self, u):
+        n, d = len(u), self.dim
+        eye = np.repeat(np.eye(d)[None], n, 0)
+        return np.zeros((n, d)), eye.copy(), self.e * eye
+
+
+def test_the_covariance_scales_recover_an_underestimated_scatter_and_emulator_error():
+    """Records whose sections scatter 1.5 times the emulator's Sigma = I about a mean
+    that is off by N(0, 0.04 I) per record, where the emulator says E = 0.01 I: the
+    scatter's scale comes back near 1.5 and the model error near 0.03 of Sigma; records
+    drawn as the emulator says leave them at 1 and 0."""
+    rng = np.random.default_rng(0)
+    n, k, d = 400, 30, 5
+    sl = SyntheticLikelihood(_Known(d, 0.01))
+    u = np.zeros((n, 2))
+    bias = 0.2 * rng.standard_normal((n, 1, d))
+    records = bias + np.sqrt(1.5) * rng.standard_normal((n, k, d))
+    within, model = fit_scales(sl, u, records)
+    assert within == pytest.approx(1.5, rel=0.05)
+    assert model == pytest.approx(0.03, abs=0.01)
+    honest = 0.1 * rng.standard_normal((n, 1, d)) + rng.standard_normal((n, k, d))
+    assert fit_scales(sl, u, honest) == pytest.approx((1.0, 0.0), abs=0.06)
+    with pytest.raises(RailsuspInputError, match="records of 1 section: accepted at least 2"):
+        fit_scales(sl, u, records[:, :1])

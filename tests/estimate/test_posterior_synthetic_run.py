@@ -56,6 +56,7 @@ def run(tmp_path_factory):
     _cache(run, s, "train", s.n_train)
     _cache(run, s, "check", s.n_check)
     _cache(run, s, "long", s.n_product, 4)
+    _cache(run, s, "long-calibration", s.n_product, 4)
     return run
 
 
@@ -63,7 +64,8 @@ def test_fitted_checked_stored_and_read_back_the_same(run):
     s = _settings()
     post = synthetic.train(s, run)
     folder = run / "posterior" / "synthetic"
-    assert {p.name for p in folder.iterdir()} >= {"settings.json", "emulator.npz", "check.json"}
+    names = {"settings.json", "emulator.npz", "scales.json", "check.json"}
+    assert {p.name for p in folder.iterdir()} >= names
     assert [c.sections for c in post.checks] == [1, 4]
     assert all(c.checks[0].n == 30 for c in post.checks)
     x18 = s.parameters.index("X18")

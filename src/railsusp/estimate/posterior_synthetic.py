@@ -92,19 +92,31 @@ def gain_covariance(names: list[str], gain_error: float) -> SharedCovariance:
 @dataclass
 class SyntheticLikelihood:
     """The synthetic likelihood of the mean of k sections' statistics (module
-    docstring); ``shared``: G(mean), or None when nothing is shared between sections."""
+    docstring); ``shared``: G(mean), or None when nothing is shared between sections.
+    ``within_scale`` (at least 1) multiplies Sigma; ``model_error`` (at least 0) adds
+    that fraction of Sigma as the emulator's error its bootstrap spread does not see
+    (both fitted on held-out records of several sections, :func:`fit_scales`; 1 and 0:
+    as the emulator says)."""
 
     emulator: StatisticsEmulator
     shared: SharedCovariance | None = None
     emulator_variance: bool = True  # False only to show what leaving E(u) out does
+    within_scale: float = 1.0
+    model_error: float = 0.0
+
+    def parts(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """At ``u``: mu (N, D), G, Sigma and E (as the emulator says, unscaled)."""
+        mean, section, emulator = self.emulator.moments(u)
+        shared = self.shared(mean) if self.shared is not None else np.zeros_like(section)
+        return mean, shared, section, emulator
 
     def mean_and_covariance(self, u: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
         """mu(u) (N, D) and C_k(u) (N, D, D) for the mean of ``k`` sections."""
-        mean, section, emulator = self.emulator.moments(u)
-        shared = self.shared(mean) if self.shared is not None else np.zeros_like(section)
-        cov = shared * (1.0 - 1.0 / k) + section / k  # G + (Sigma - G) / k, PSD for k >= 1
+        mean, shared, section, emulator = self.parts(u)
+        # G + (c Sigma - G) / k = G (1 - 1/k) + c Sigma / k: PSD for k >= 1 and c >= 1
+        cov = shared + (self.within_scale * section - shared) / k
         if self.emulator_variance:
-            cov = cov + emulator
+            cov = cov + emulator + self.model_error * section
         return mean, cov
 
     def log_likelihood(self, u: np.ndarray, s: np.ndarray, k: int) -> np.ndarray:
@@ -129,3 +141,45 @@ class SyntheticLikelihood:
         d = self.emulator.weights[0][0][0].shape[0]
         rng = np.random.default_rng(seed)
         return smc_sample(lambda u: self.log_likelihood(u, s, k), d, n, rng)
+
+
+def fit_scales(sl: SyntheticLikelihood, u: np.ndarray, records: np.ndarray) -> tuple[float, float]:
+    """(within_scale, model_error) from held-out records ``records`` (n, k, D) of k
+    consecutive sections at parameters ``u`` (n, d), k >= 2:
+
+    - within_scale c: the sections' scatter about their record's mean, whose covariance
+      is c Sigma - G (its expected quadratic form in Sigma^-1 is (k - 1) (c D -
+      tr(Sigma^-1 G)));
+    - model_error m: the fraction of Sigma added to E that makes the records' means' mean
+      Mahalanobis distance from mu(u), under C_k, equal to D (its expectation): the
+      emulator's error that its bootstrap spread does not see (the fitted mean's bias;
+      the spread of 10 networks spans at most 9 of the D directions), measured where it
+      matters most, on the longest records. 1 / m is the number of sections the emulator
+      is worth: a record far longer cannot narrow the posterior further.
+
+    A model that already covers the records is left as it is (c = 1, m = 0)."""
+    x = np.asarray(records, float)
+    _, k, d = x.shape
+    if k < 2:
+        raise RailsuspInputError(f"records of {k} section: accepted at least 2 for the scales")
+    mean, shared, section, emulator = sl.parts(u)
+    section_inv = np.linalg.inv(section)
+    w = x - x.mean(axis=1, keepdims=True)
+    seen = np.einsum("nki,nij,nkj->", w, section_inv, w) / (k - 1)
+    gain = np.einsum("nij,nji->", section_inv, shared)
+    within_scale = max(1.0, float((seen + gain) / (len(x) * d)))
+    r = x.mean(axis=1) - mean
+
+    def mahalanobis(m: float) -> float:
+        cov = shared + (within_scale * section - shared) / k + emulator + m * section
+        return float(np.mean(np.einsum("ni,nij,nj->n", r, np.linalg.inv(cov), r)))
+
+    if mahalanobis(0.0) <= d:
+        return within_scale, 0.0
+    lo, hi = 0.0, 1.0 / k
+    while mahalanobis(hi) > d and hi < 1e3:
+        hi *= 2.0
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if mahalanobis(mid) > d else (lo, mid)
+    return within_scale, float(hi)

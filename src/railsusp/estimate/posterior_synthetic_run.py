@@ -36,7 +36,11 @@ from railsusp.estimate.posterior_data import (
 )
 from railsusp.estimate.posterior_emulator import StatisticsEmulator, fit
 from railsusp.estimate.posterior_result import PosteriorResult
-from railsusp.estimate.posterior_synthetic import SyntheticLikelihood, gain_covariance
+from railsusp.estimate.posterior_synthetic import (
+    SyntheticLikelihood,
+    fit_scales,
+    gain_covariance,
+)
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import content_hash, read_json, write_json
 
@@ -104,10 +108,56 @@ class SyntheticPosterior:
         return c is not None and c.sections == 1 and c.passed
 
 
-def likelihood(settings: PosteriorSettings, emulator: StatisticsEmulator) -> SyntheticLikelihood:
+def likelihood(
+    settings: PosteriorSettings, emulator: StatisticsEmulator, scales: dict | None = None
+) -> SyntheticLikelihood:
     """The likelihood of these settings' statistics: the gain error shared by a record's
-    sections is the instrument model's (the training simulations')."""
-    return SyntheticLikelihood(emulator, gain_covariance(settings.summary_names, GAIN_ERROR))
+    sections is the instrument model's (the training simulations'); ``scales``: the
+    covariance's fitted scales (``scales.json``; none: 1)."""
+    scales = scales or {}
+    return SyntheticLikelihood(
+        emulator,
+        gain_covariance(settings.summary_names, GAIN_ERROR),
+        within_scale=float(scales.get("within_scale", 1.0)),
+        model_error=float(scales.get("model_error", 0.0)),
+    )
+
+
+def scale_set(settings: PosteriorSettings) -> tuple[str, int, int] | None:
+    """(kind, records, sections) the scales are fitted on: the fusion's calibration
+    records (``long-calibration``) of the longest checked number of sections; None
+    without ``product_sections``."""
+    if not settings.product_sections:
+        return None
+    n, longest, _ = settings.product_sets()[-1]
+    return ("long-calibration", n, longest)
+
+
+def fit_covariance_scales(post: SyntheticPosterior, run: str | Path, where) -> dict:
+    """Fit (or read) the covariance's scales on the held-out records ``where`` ((kind,
+    records, sections), or None: scales 1), into ``posterior/synthetic/scales.json``."""
+    path = Path(run) / "posterior" / "synthetic" / "scales.json"
+    record = {"records": None, "within_scale": 1.0, "model_error": 0.0}
+    if where is not None:
+        kind, n, k = where
+        record["records"] = [kind, int(n), int(k)]
+        record["emulator"] = _stamp(run)
+        if path.exists():
+            old = read_json(path)
+            if (
+                old.get("records") == record["records"]
+                and old.get("emulator") == record["emulator"]
+            ):
+                return old
+        s = post.settings
+        u, x = cached_cases(s, Path(run) / "posterior" / "simulations", kind, n, k)
+        ok = np.all(np.isfinite(x), axis=(1, 2))
+        within, model = fit_scales(post.likelihood, u[ok], x[ok])
+        record.update(within_scale=within, model_error=model, used=int(ok.sum()))
+        log.info("synthetic likelihood: sections' scatter x %.2f, model error %.4f of it",
+                 within, model)  # fmt: skip
+    write_json(path, record)
+    return record
 
 
 def fit_emulator(settings: PosteriorSettings, run: str | Path) -> StatisticsEmulator:
@@ -161,19 +211,27 @@ def run_checks(post: SyntheticPosterior, run: str | Path, sets=None) -> list[Sec
     return sorted(out, key=lambda c: c.sections)
 
 
-def train(settings: PosteriorSettings, run: str | Path, sets=None) -> SyntheticPosterior:
-    """Fit (or read) the emulator and check (or read the check of) the posterior;
-    ``posterior/synthetic/check.json``."""
-    post = SyntheticPosterior(settings, likelihood(settings, fit_emulator(settings, run)))
+def train(
+    settings: PosteriorSettings, run: str | Path, sets=None, scales_on="default"
+) -> SyntheticPosterior:
+    """Fit (or read) the emulator, its covariance scales (on ``scales_on``: (kind,
+    records, sections); "default": :func:`scale_set`; None: not fitted, 1) and check (or
+    read the check of) the posterior; ``posterior/synthetic/``."""
+    emulator = fit_emulator(settings, run)
+    post = SyntheticPosterior(settings, likelihood(settings, emulator))
+    where = scale_set(settings) if scales_on == "default" else scales_on
+    scales = fit_covariance_scales(post, run, where)
+    post.likelihood = likelihood(settings, emulator, scales)
     path = Path(run) / "posterior" / "synthetic" / "check.json"
     sets = [list(map(_plain, st)) for st in (sets or held_out_sets(settings))]
+    stamp = [_stamp(run), scales["within_scale"], scales["model_error"]]
     if path.exists():
         old = read_json(path)
-        if old.get("sets") == sets and old.get("emulator") == _stamp(run):
+        if old.get("sets") == sets and old.get("emulator") == stamp:
             post.checks = [SectionsCheck.from_dict(c) for c in old["checks"]]
             return post
     post.checks = run_checks(post, run, sets)
-    write_json(path, {"method": "synthetic-likelihood", "sets": sets, "emulator": _stamp(run),
+    write_json(path, {"method": "synthetic-likelihood", "sets": sets, "emulator": stamp,
                       "checks": [c.to_dict() for c in post.checks]})  # fmt: skip
     return post
 
@@ -190,7 +248,7 @@ def _stamp(run: str | Path) -> str | None:
 def load(run: str | Path) -> SyntheticPosterior:
     """The fitted and checked synthetic likelihood of a run (nothing is fitted here)."""
     folder = Path(run) / "posterior" / "synthetic"
-    for name in ("settings.json", "emulator.npz", "check.json"):
+    for name in ("settings.json", "emulator.npz", "scales.json", "check.json"):
         if not (folder / name).exists():
             raise RailsuspInputError(
                 f"{folder / name} does not exist: fit the synthetic likelihood first "
@@ -198,7 +256,8 @@ def load(run: str | Path) -> SyntheticPosterior:
             )
     settings = PosteriorSettings.from_dict(read_json(folder / "settings.json")["settings"])
     emulator = StatisticsEmulator.load(folder / "emulator.npz")
-    post = SyntheticPosterior(settings, likelihood(settings, emulator))
+    scales = read_json(folder / "scales.json")
+    post = SyntheticPosterior(settings, likelihood(settings, emulator, scales))
     post.checks = [SectionsCheck.from_dict(c) for c in read_json(folder / "check.json")["checks"]]
     return post
 
