@@ -59,6 +59,16 @@ def _calibration_table(est) -> None:
         )
 
 
+def _long_record(method: str) -> str:
+    """``--long-record``: a known method, or a one-line error naming the accepted ones."""
+    from railsusp.estimate.posterior_synthetic import check_long_record
+
+    try:
+        return check_long_record(method)
+    except RailsuspInputError as exc:
+        raise RailsuspInputError(str(exc).replace("long_record = ", "--long-record ")) from None
+
+
 def _counts(text: str, option: str = "--product-sections", accepted: str = "2 to 1000"):
     try:
         return tuple(int(v) for v in text.split(",") if v.strip())
@@ -119,6 +129,13 @@ def train_command(
         bool, typer.Option(help="also the wheelset sum of Y (both wheels recorded)")
     ] = False,
     seed: Annotated[int, typer.Option(help="seed of every draw")] = 0,
+    long_record: Annotated[
+        str,
+        typer.Option(
+            help="also fit and check the posterior of long records: 'synthetic-likelihood' "
+            "(the mean of the sections' statistics); 'fusion' (default): only the flows"
+        ),
+    ] = "fusion",
 ) -> None:
     """Train the posterior estimator on simulations from the prior (cached: a re-run
     resumes) and check its calibration on held-out simulations."""
@@ -129,6 +146,7 @@ def train_command(
 
     try:
         check_output_folder(out)
+        _long_record(long_record)
         conds = resolve_conditions(conditions)
         if lead_in is not None:
             if not 0.0 <= lead_in <= 5000.0:
@@ -153,6 +171,10 @@ def train_command(
         else:
             with console.status("simulating and training"):
                 est = posterior.train(settings, out)
+        if long_record == "synthetic-likelihood":
+            from railsusp.estimate import posterior_synthetic_run
+
+            synthetic = posterior_synthetic_run.train(settings, out)
     except RailsuspInputError as exc:
         message = str(exc)
         for field, option in _OPTIONS.items():  # the option the user typed, not the field
@@ -161,6 +183,14 @@ def train_command(
         fail(message)
     if not is_quiet():
         _calibration_table(est)
+    if long_record == "synthetic-likelihood":
+        for c in synthetic.checks:
+            cov = [p.coverage for p in c.checks]
+            console.print(
+                f"synthetic likelihood, {c.sections} section(s): coverage {min(cov):.2f}-"
+                f"{max(cov):.2f} on {c.checks[0].n} cases, no widening: "
+                + ("passed" if c.passed else "FAILED")
+            )
     excessive = est.correction.excessive if est.correction else []
     if est.calibrated:
         console.print(f"estimator in {out / 'posterior'}: coverage check passed")
@@ -186,6 +216,14 @@ def estimate_command(
     estimator: Annotated[Path, typer.Option(help="run directory of a trained estimator")],
     out: Annotated[Path | None, typer.Option(help="JSON file for the result")] = None,
     seed: Annotated[int, typer.Option(help="seed of the posterior draws")] = 0,
+    long_record: Annotated[
+        str,
+        typer.Option(
+            help="how several sections combine: 'fusion' (the flows' posteriors fused, "
+            "default) or 'synthetic-likelihood' (the mean of their statistics; fitted by "
+            "train --long-record synthetic-likelihood)"
+        ),
+    ] = "fusion",
 ) -> None:
     """Posterior median and 90 % interval of each parameter for a field folder."""
     from railsusp.estimate import posterior
@@ -195,9 +233,16 @@ def estimate_command(
     try:
         if out is not None:
             check_output_file(out)
+        _long_record(long_record)
         recordings = read_field(measured)
-        est = posterior.load(estimator)
-        result = posterior.estimate(est, recordings, seed=seed)
+        if long_record == "synthetic-likelihood":
+            from railsusp.estimate import posterior_synthetic_run
+
+            est = posterior_synthetic_run.load(estimator)
+            result = posterior_synthetic_run.estimate(est, recordings, seed=seed)
+        else:
+            est = posterior.load(estimator)
+            result = posterior.estimate(est, recordings, seed=seed)
     except RailsuspInputError as exc:
         fail(str(exc))
     console.print(frame_table(result.to_dataframe(), "posterior: median and 90 % interval"))

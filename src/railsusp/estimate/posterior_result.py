@@ -29,6 +29,9 @@ class PosteriorResult:
     warnings: list[str] = field(default_factory=list)
     correction: SpreadCorrection | None = None
     checked_as: int | None = 1  # the number of sections whose check applies; None: none
+    long_record: str = (
+        "fusion"  # how the sections combine (posterior_synthetic.LONG_RECORD_METHODS)
+    )
 
     @property
     def calibrated(self) -> bool:
@@ -87,6 +90,7 @@ class PosteriorResult:
                 "sections": self.sections,
                 "sections_combined": self.n_sections,
                 "checked_as_sections": self.checked_as,
+                "long_record": self.long_record,
                 "warnings": self.warnings,
             },
         )

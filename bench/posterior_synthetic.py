@@ -1,0 +1,149 @@
+"""Synthetic likelihood of a long record's mean statistics (railsusp.estimate.
+posterior_synthetic) against the section fusion of bench/posterior.py: coverage of the 90 %
+intervals on held-out records of several sections, and the issue's identification of
+parameter sets in the middle of the ranges at 600 s per condition (issue 20). Prints the
+tables and writes JSON. Reuses bench/posterior.py's run folder (its cached simulations:
+training cases, held-out records, the middle-80 % sets) and its scoring.
+
+    python bench/posterior_synthetic.py --run RUN --conditions straight,curve --section 20 \\
+        --train 2000 --check 200 --long 100 --long-length 600 --lengths 20,120,600 \\
+        --sets 12 --set-length 600 --set-lengths 20,60,120,300,600
+
+1. Fits (or reads) the emulator on the ``--train`` training cases (one section each, all
+   ten parameters from the prior, a new track each): ``RUN/posterior/synthetic/``.
+2. Checks the posterior, with no widening fitted: one section on ``--check`` held-out
+   cases, k sections on the first k of ``--long`` held-out records of ``--long-length``
+   seconds per condition (the fusion's ``long`` records, same seeds), for every length of
+   ``--lengths``; coverage per parameter and median 90 % width (% of range).
+3. With ``--sets N``: the N middle-80 % sets of bench/posterior.py at every length of
+   ``--lengths`` up to ``--set-length``, scored and judged exactly as there.
+4. The time of one recording's posterior at the longest length.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from posterior import KEYS, identification, lengths_s, print_tables, verdict
+from railsusp.conditions import resolve_conditions
+from railsusp.estimate import posterior_synthetic_run as synthetic
+from railsusp.estimate.posterior_data import PosteriorSettings
+from railsusp.params import MAIN_SUSPENSION
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--run", default="bench/results/posterior_run", help="run directory (cache)")
+    ap.add_argument("--out", default="bench/results/posterior_synthetic.json")
+    ap.add_argument("--conditions", default="straight")
+    ap.add_argument("--parameters", default=",".join(MAIN_SUSPENSION))
+    ap.add_argument("--section", type=float, default=5.0)
+    ap.add_argument("--lead-in", type=float, default=30.0, help="m; a curve keeps at least its own")
+    ap.add_argument("--train", type=int, default=600)
+    ap.add_argument("--check", type=int, default=200, help="held-out one-section cases")
+    ap.add_argument("--long", type=int, default=200, help="held-out records of several sections")
+    ap.add_argument("--long-length", type=float, default=40.0, help="their length, s")
+    ap.add_argument("--lengths", default="5,10,20,40", help="record lengths checked, s")
+    ap.add_argument(
+        "--scale-records",
+        type=int,
+        default=0,
+        help="held-out calibration records of --long-length fitting the covariance's scales "
+        "(0: not fitted)",
+    )
+    ap.add_argument("--sets", type=int, default=0, help="middle-80 %% sets identified (0: none)")
+    ap.add_argument("--set-length", type=float, default=600.0, help="their record length, s")
+    ap.add_argument(
+        "--set-lengths", default=None, help="lengths they are scored at, s (default --lengths)"
+    )
+    ap.add_argument("--keys", default=KEYS, help="key parameters of the verdict")
+    a = ap.parse_args()
+
+    conds = [
+        c.with_changes(lead_in_m=max(a.lead_in, c.lead_in_m if c.curve_radius_m else 0.0))
+        for c in resolve_conditions(a.conditions)
+    ]
+    longest = max(1, round(a.long_length / a.section))
+    settings = PosteriorSettings(
+        tuple(conds),
+        parameters=tuple(a.parameters.split(",")),
+        section_s=a.section,
+        n_train=a.train,
+        n_check=a.check,
+        product_sections=(longest,) if longest > 1 else (),
+        n_product=a.long,
+    )
+    ks = sorted({max(1, round(v / a.section)) for v in lengths_s(a.lengths)})
+    sets = [("check", a.check, 1, (1,))] if 1 in ks else []
+    if any(k > 1 for k in ks):
+        sets.append(("long", a.long, longest, tuple(k for k in ks if 1 < k <= longest)))
+    names = list(settings.parameters)
+    t0 = time.perf_counter()
+    where = ("long-calibration", a.scale_records, longest) if a.scale_records else None
+    post = synthetic.train(settings, a.run, sets, scales_on=where)
+    scales = {k: getattr(post.likelihood, k) for k in ("within_scale", "model_error")}
+    print(f"covariance scales: {scales}")
+    t_train = time.perf_counter() - t0
+    print(f"\nemulator + checks: {t_train:.0f} s (cached parts are read, not redone)")
+    rows = [c.to_dict() for c in post.checks]
+    _coverage_table(rows, names, a.section)
+
+    ident, verdicts = None, []
+    if a.sets:
+        t1 = time.perf_counter()
+        _, x, ident = identification(
+            post, a.run, a.sets, a.set_length, lengths_s(a.set_lengths or a.lengths)
+        )
+        print(f"\nidentification of {a.sets} sets: {time.perf_counter() - t1:.0f} s")
+        keys = a.keys.split(",")
+        print_tables(ident, names, keys)
+        verdicts = [verdict(r, keys) for r in ident]
+        xs = x[np.all(np.isfinite(x), axis=(1, 2))][:5]
+        t_est = []
+        for i, xi in enumerate(xs):
+            t1 = time.perf_counter()
+            post.sample(xi, settings.samples, seed=i)
+            t_est.append(time.perf_counter() - t1)
+        print(f"posterior of {xs.shape[1]} sections: median {np.median(t_est):.2f} s over "
+              f"{len(t_est)} records")  # fmt: skip
+    out = {
+        "date": time.strftime("%Y-%m-%d"),
+        "method": "synthetic-likelihood",
+        "settings": settings.to_dict(),
+        "members": synthetic.MEMBERS,
+        "hidden": synthetic.HIDDEN,
+        "emulator_and_checks_s": t_train,
+        "scale_records": a.scale_records,
+        "scales": scales,
+        "checks": rows,
+        "identification": ident,
+        "identification_verdicts": verdicts,
+        "estimate_s_median": float(np.median(t_est)) if a.sets else None,
+    }
+    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(a.out).write_text(json.dumps(out, indent=2) + "\n")
+    print(f"wrote {a.out}")
+
+
+def _coverage_table(rows: list[dict], names: list[str], section_s: float) -> None:
+    """Coverage per parameter and median width against record length (no widening)."""
+    print("\ncoverage of the 90 % intervals on held-out records (no widening fitted)")
+    print(f"{'length s':>8} {'cases':>5} " + " ".join(f"{p:>5}" for p in names) + "  passed")
+    for r in rows:
+        cov = {c["parameter"]: c["coverage"] for c in r["parameters"]}
+        passed = sum(c["passed"] for c in r["parameters"])
+        cells = " ".join(f"{cov[p]:5.2f}" for p in names)
+        print(f"{r['sections'] * section_s:8g} {r['cases']:5d} {cells}  {passed}/{len(names)}")
+    print("median 90 % interval width, % of range")
+    for r in rows:
+        cells = " ".join(f"{r['width_pct_range'][p]:5.1f}" for p in names)
+        print(f"{r['sections'] * section_s:8g} {r['cases']:5d} {cells}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,191 @@
+"""The synthetic likelihood of a long record's mean statistics (railsusp.estimate.
+posterior_synthetic, posterior_emulator, posterior_smc) against a linear-Gaussian
+simulator whose exact posterior is known: x = A u + b + e, e ~ N(0, S) per section,
+independent sections, so the mean of k sections is N(A u + b, S / k) and, away from the
+box's edges, the posterior of u is Gaussian with precision A' (S / k)^-1 A. The method's
+posterior must match it while the sections' scatter dominates (k = 10, 30), and must stay
+as wide as the emulator's own uncertainty when k grows without bound (where the exact
+posterior collapses onto the truth): an emulator whose variance were dropped would be
+over-confident there, which the last test shows."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from railsusp.errors import RailsuspInputError
+from railsusp.estimate.posterior_emulator import StatisticsEmulator, fit
+from railsusp.estimate.posterior_smc import smc_sample
+from railsusp.estimate.posterior_synthetic import (
+    SyntheticLikelihood,
+    check_long_record,
+    fit_scales,
+    gain_covariance,
+)
+
+A = np.array([[2.0, 0.5], [0.3, 1.5], [1.0, -1.0]])
+B = np.array([1.0, -2.0, 0.5])
+L = np.array([[0.5, 0.0, 0.0], [0.2, 0.4, 0.0], [0.1, -0.1, 0.3]])
+S = L @ L.T
+TRUTH = np.array([0.45, 0.55])
+
+
+@pytest.fixture(scope="module")
+def emulator() -> StatisticsEmulator:
+    rng = np.random.default_rng(1)
+    u = rng.random((1000, 2))
+    x = u @ A.T + B + rng.standard_normal((1000, 3)) @ L.T
+    return fit(u, x, members=8, hidden=16, seed=0)
+
+
+def _exact(s_bar: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and covariance of the Gaussian posterior of u for a mean statistic s_bar ~
+    N(A u + B, cov) under a flat prior (the box's edges far in standard deviations)."""
+    prec = A.T @ np.linalg.solve(cov, A)
+    c = np.linalg.inv(prec)
+    return c @ A.T @ np.linalg.solve(cov, s_bar - B), c
+
+
+def _draws(sl: SyntheticLikelihood, s_bar: np.ndarray, k: int) -> np.ndarray:
+    return smc_sample(lambda u: sl.log_likelihood(u, s_bar, k), 2, 4000,
+                      np.random.default_rng(3))  # fmt: skip
+
+
+def test_the_emulator_learns_the_mean_and_the_section_covariance(emulator):
+    mean, section, spread = emulator.moments(TRUTH[None])
+    assert mean[0] == pytest.approx(A @ TRUTH + B, abs=0.06)
+    assert np.diag(section[0]) == pytest.approx(np.diag(S), rel=0.25)
+    assert np.all(np.diag(spread[0]) > 0) and np.all(np.diag(spread[0]) < 0.05 * np.diag(S))
+
+
+@pytest.mark.parametrize("k", [10, 30])
+def test_the_posterior_of_k_sections_matches_the_exact_one(emulator, k):
+    rng = np.random.default_rng(k)
+    sections = TRUTH @ A.T + B + rng.standard_normal((k, 3)) @ L.T
+    sl = SyntheticLikelihood(emulator)
+    draws = sl.sample(sections, 4000, seed=3)
+    mean, cov = _exact(sections.mean(axis=0), S / k)
+    sd = np.sqrt(np.diag(cov))
+    assert draws.std(axis=0) == pytest.approx(sd, rel=0.2)
+    assert np.all(np.abs(draws.mean(axis=0) - mean) < 0.5 * sd)
+
+
+def test_a_record_without_end_is_as_uncertain_as_the_emulator_not_more(emulator):
+    """k = 10^6 sections: the exact posterior's sd is 0.0002; the method's stays at the
+    emulator's own uncertainty (its covariance E at the truth), and the truth lies within
+    a few of its standard deviations of the posterior mean."""
+    k = 10**6
+    s_bar = A @ TRUTH + B  # the mean of endless sections is the truth's mean statistic
+    _, exact = _exact(s_bar, S / k)
+    _, _, spread = emulator.moments(TRUTH[None])
+    _, floor = _exact(s_bar, S / k + spread[0])
+    draws = _draws(SyntheticLikelihood(emulator), s_bar, k)
+    sd = draws.std(axis=0)
+    assert np.all(sd > 0.7 * np.sqrt(np.diag(floor)))
+    assert np.all(sd > 10 * np.sqrt(np.diag(exact)))
+    z = (draws.mean(axis=0) - TRUTH) / sd
+    assert np.all(np.abs(z) < 4.0), z
+
+
+def test_dropping_the_emulator_variance_makes_the_endless_record_over_confident(emulator):
+    """The broken variant of the test above (E left out of the covariance): the
+    posterior collapses to the exact one's width about the emulator's biased mean, and
+    the truth lies tens of standard deviations away (the check above would fail)."""
+    k = 10**6
+    s_bar = A @ TRUTH + B
+    draws = _draws(SyntheticLikelihood(emulator, emulator_variance=False), s_bar, k)
+    z = (draws.mean(axis=0) - TRUTH) / draws.std(axis=0)
+    assert np.max(np.abs(z)) > 4.0
+
+
+def test_a_shared_part_does_not_average_out():
+    """With a gain error shared by all sections, the mean of k sections keeps it:
+    C_k = G + (Sigma - G) / k -> G; without sections' scatter left, G alone."""
+    names = ["c:Y_p50", "c:Q_p50", "c:YQ_p50", "c:Y_band_1-2Hz"]
+    shared = gain_covariance(names, 0.01)
+    mean = np.array([[40.0, 100.0, 0.4, 0.5]])
+    g = shared(mean)[0]
+    # Y percentile 40 kN, 1 % gain: sd 0.4 kN; Y/Q 0.4 with Y's and Q's gains: 0.4 * 0.01 * sqrt 2
+    assert np.sqrt(np.diag(g)) == pytest.approx([0.4, 1.0, 0.004 * np.sqrt(2), 0.01 / np.log(10)])
+    assert g[0, 2] == pytest.approx(40 * 0.4 * 1e-4)  # Y and Y/Q share Y's gain
+    assert g[1, 2] == pytest.approx(-100 * 0.4 * 1e-4)  # Q's gain lowers Y/Q
+    assert g[0, 3] == pytest.approx(40 * 1e-4 / np.log(10))
+    assert g[0, 1] == 0.0
+
+    class Fixed(StatisticsEmulator):
+        def moments(self, u):
+            n = len(u)
+            return (np.repeat(mean, n, 0), np.repeat((g + np.eye(4))[None], n, 0),
+                    np.zeros((n, 4, 4)))  # fmt: skip
+
+    emu = Fixed([], np.zeros(4), np.ones(4), np.zeros((1, 4)), np.eye(4))
+    _, cov = SyntheticLikelihood(emu, shared).mean_and_covariance(np.zeros((1, 2)), 10**9)
+    assert cov[0] == pytest.approx(g, abs=1e-8)
+    _, one = SyntheticLikelihood(emu, shared).mean_and_covariance(np.zeros((1, 2)), 1)
+    assert one[0] == pytest.approx(g + np.eye(4))
+
+
+def test_smc_draws_a_truncated_gaussian_on_the_box():
+    """N(0.9, 0.1^2) in each of two coordinates, cut at 1: the truncated normal's mean
+    0.9 - 0.1 phi(1) / Phi(1) = 0.8712 and sd 0.0760."""
+    draws = smc_sample(lambda u: -0.5 * np.sum(((u - 0.9) / 0.1) ** 2, axis=1), 2, 4000,
+                       np.random.default_rng(0))  # fmt: skip
+    assert draws.max() < 1.0 and draws.min() > 0.0
+    assert draws.mean(axis=0) == pytest.approx([0.8712, 0.8712], abs=0.006)
+    assert draws.std(axis=0) == pytest.approx([0.0760, 0.0760], rel=0.06)
+
+
+def test_the_saved_emulator_is_read_back_the_same(emulator, tmp_path):
+    path = emulator.save(tmp_path / "posterior" / "synthetic" / "emulator.npz")
+    back = StatisticsEmulator.load(path)
+    u = np.random.default_rng(5).random((7, 2))
+    for a, b in zip(emulator.moments(u), back.moments(u), strict=True):
+        assert np.array_equal(a, b)
+    assert back.members == emulator.members and back.cases == 1000
+
+
+def test_bad_input_is_refused_in_one_line(emulator, tmp_path):
+    with pytest.raises(RailsuspInputError, match="long_record = 'exact': accepted fusion, "):
+        check_long_record("exact")
+    sl = SyntheticLikelihood(emulator)
+    with pytest.raises(RailsuspInputError, match=r"sections \(2, 4\): accepted finite"):
+        sl.sample(np.zeros((2, 4)), 100)
+    with pytest.raises(RailsuspInputError, match="accepted finite"):
+        sl.sample(np.array([[0.0, np.nan, 1.0]]), 100)
+    with pytest.raises(RailsuspInputError, match="emulator.npz does not exist: fit the"):
+        StatisticsEmulator.load(tmp_path / "emulator.npz")
+    with pytest.raises(RailsuspInputError, match="accepted at least 20 cases"):
+        fit(np.zeros((5, 2)), np.zeros((5, 3)))
+
+
+class _Known(StatisticsEmulator):
+    """An emulator of known moments: mean 0, one section's covariance I, spread E = e I."""
+
+    def __init__(self, d: int, e: float):
+        super().__init__([], np.zeros(d), np.ones(d), np.zeros((1, d)), np.eye(d))
+        self.e = e
+
+    def moments(self, u):
+        n, d = len(u), self.dim
+        eye = np.repeat(np.eye(d)[None], n, 0)
+        return np.zeros((n, d)), eye.copy(), self.e * eye
+
+
+def test_the_covariance_scales_recover_an_underestimated_scatter_and_emulator_error():
+    """Records whose sections scatter 1.5 times the emulator's Sigma = I about a mean
+    that is off by N(0, 0.04 I) per record, where the emulator says E = 0.01 I: the
+    scatter's scale comes back near 1.5 and the model error near 0.03 of Sigma; records
+    drawn as the emulator says leave them at 1 and 0."""
+    rng = np.random.default_rng(0)
+    n, k, d = 400, 30, 5
+    sl = SyntheticLikelihood(_Known(d, 0.01))
+    u = np.zeros((n, 2))
+    bias = 0.2 * rng.standard_normal((n, 1, d))
+    records = bias + np.sqrt(1.5) * rng.standard_normal((n, k, d))
+    within, model = fit_scales(sl, u, records)
+    assert within == pytest.approx(1.5, rel=0.05)
+    assert model == pytest.approx(0.03, abs=0.01)
+    honest = 0.1 * rng.standard_normal((n, 1, d)) + rng.standard_normal((n, k, d))
+    assert fit_scales(sl, u, honest) == pytest.approx((1.0, 0.0), abs=0.06)
+    with pytest.raises(RailsuspInputError, match="records of 1 section: accepted at least 2"):
+        fit_scales(sl, u, records[:, :1])

@@ -1,0 +1,94 @@
+"""The synthetic-likelihood posterior in a run directory (railsusp.estimate.
+posterior_synthetic_run): fitted from the cached training cases, checked on the cached
+held-out sets, stored, read back the same by ``load``; its verdict per number of sections.
+The cases' statistics come from a linear-Gaussian stand-in for the simulator written into
+the simulation cache (the cache is read when its parameter draws match), so no wagon is
+simulated here; the simulator's own statistics are measured in bench/posterior_synthetic.py."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+
+from railsusp.conditions import get_condition
+from railsusp.errors import RailsuspInputError
+from railsusp.estimate import posterior_synthetic_run as synthetic
+from railsusp.estimate.posterior_data import PosteriorSettings, prior_draws
+
+D = 17  # the summary statistics of one condition without the sum of Y
+
+
+def _settings() -> PosteriorSettings:
+    cond = get_condition("straight").with_changes(lead_in_m=30.0)
+    return PosteriorSettings((cond,), section_s=5.0, n_train=300, n_check=30, samples=200,
+                             product_sections=(4,), n_product=30)  # fmt: skip
+
+
+def _statistics(u: np.ndarray, rng, sections: int) -> np.ndarray:
+    """Summaries (n, sections, D) of a linear stand-in: X18 and X13 move them."""
+    a = np.zeros((10, D))
+    a[7, :6] = 3.0  # X18
+    a[2, 6:12] = 2.0  # X13
+    mean = 40.0 + u @ a
+    return mean[:, None, :] + rng.standard_normal((len(u), sections, D))
+
+
+def _cache(run, settings, kind, n, sections=1):
+    folder = run / "posterior" / "simulations"
+    folder.mkdir(parents=True, exist_ok=True)
+    u = prior_draws(settings, kind, n)
+    x = _statistics(u, np.random.default_rng(len(kind) + sections), sections)
+    x = x[:, 0] if sections == 1 else x
+    name = kind if sections == 1 else f"{kind}-x{sections}"
+    for k, lo in enumerate(range(0, n, 50)):
+        hi = min(n, lo + 50)
+        buf = io.BytesIO()
+        np.savez(buf, u=u[lo:hi], x=x[lo:hi])
+        (folder / f"{name}_{k:04d}_{hi - lo}.npz").write_bytes(buf.getvalue())
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    run = tmp_path_factory.mktemp("synthetic_run")
+    s = _settings()
+    _cache(run, s, "train", s.n_train)
+    _cache(run, s, "check", s.n_check)
+    _cache(run, s, "long", s.n_product, 4)
+    _cache(run, s, "long-calibration", s.n_product, 4)
+    return run
+
+
+def test_fitted_checked_stored_and_read_back_the_same(run):
+    s = _settings()
+    post = synthetic.train(s, run)
+    folder = run / "posterior" / "synthetic"
+    names = {"settings.json", "emulator.npz", "scales.json", "check.json"}
+    assert {p.name for p in folder.iterdir()} >= names
+    assert [c.sections for c in post.checks] == [1, 4]
+    assert all(c.checks[0].n == 30 for c in post.checks)
+    x18 = s.parameters.index("X18")
+    w1, w4 = (c.width_pct_range["X18"] for c in post.checks)
+    assert w4 < w1 < 60.0  # X18 moves six statistics: learnt, better from four sections
+    back = synthetic.load(run)
+    assert [c.to_dict() for c in back.checks] == [c.to_dict() for c in post.checks]
+    x = _statistics(np.full((1, 10), 0.5), np.random.default_rng(9), 4)[0]
+    a, b = post.sample(x, 200, seed=1), back.sample(x, 200, seed=1)
+    assert np.array_equal(a, b)
+    assert abs(np.median(a[:, x18]) - 0.5) < 0.1
+    mtime = (folder / "emulator.npz").stat().st_mtime_ns
+    synthetic.train(s, run)  # a re-run reads what is there
+    assert (folder / "emulator.npz").stat().st_mtime_ns == mtime
+
+
+def test_the_verdict_follows_the_check_of_the_number_of_sections(run):
+    post = synthetic.load(run)
+    assert post.product_for(1).sections == 1
+    assert post.product_for(2).sections == 4  # the smallest checked number >= 2
+    assert post.product_for(5) is None  # longer than any check: not calibrated
+
+
+def test_a_run_without_the_fitted_likelihood_is_refused_in_one_line(tmp_path):
+    with pytest.raises(RailsuspInputError, match=r"synthetic.settings\.json does not exist: fit"):
+        synthetic.load(tmp_path)

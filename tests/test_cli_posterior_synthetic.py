@@ -1,0 +1,63 @@
+"""``railsusp posterior train/estimate --long-record synthetic-likelihood``: a small train on
+the wagon fits and checks the synthetic likelihood next to the flows, an estimate of a
+recording of several sections uses it (and says it is not calibrated beyond the checked
+number of sections), and bad input gives one line and exit status 2."""
+
+from __future__ import annotations
+
+import pytest
+from typer.testing import CliRunner
+
+from railsusp.cli import app
+from railsusp.conditions import get_condition
+from railsusp.measured import synthesise_field
+from railsusp.params import ParameterSet
+from railsusp.store import read_json
+
+runner = CliRunner()
+CONDITION = get_condition("straight").with_changes(lead_in_m=20.0)
+
+
+def test_train_and_estimate_with_the_synthetic_likelihood(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    run = tmp_path / "run"
+    args = ["posterior", "train", "--out", str(run), "--conditions", "straight"]
+    args += ["--parameters", "X14,X18", "--section", "2", "--simulations", "40", "--check", "10"]
+    args += ["--calibration", "0", "--lead-in", "20", "--long-record", "synthetic-likelihood"]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    assert "synthetic likelihood, 1 section(s): coverage" in result.output
+    for name in ("settings.json", "emulator.npz", "check.json"):
+        assert (run / "posterior" / "synthetic" / name).exists()
+    synthesise_field(ParameterSet.nominal(), [CONDITION], tmp_path / "f", duration_s=6.5)
+    out = tmp_path / "post.json"
+    args = ["posterior", "estimate", "--measured", str(tmp_path / "f"), "--estimator", str(run)]
+    result = runner.invoke(app, [*args, "--out", str(out), "--long-record", "synthetic-likelihood"])
+    assert result.exit_code == 0, result.output
+    assert "3 section(s) of 2 s" in result.output
+    saved = read_json(out)
+    assert saved["long_record"] == "synthetic-likelihood" and saved["sections_combined"] == 3
+    assert saved["calibrated"] is False  # checked at one section only
+    assert "NOT calibrated" in saved["warnings"][0]
+
+
+@pytest.mark.parametrize("command", ["train", "estimate"])
+def test_an_unknown_method_is_one_line_exit_2(command, tmp_path):
+    args = ["posterior", command, "--long-record", "exact"]
+    args += ["--out", str(tmp_path / "run")] if command == "train" else []
+    args += (
+        ["--measured", str(tmp_path), "--estimator", str(tmp_path)] if command == "estimate" else []
+    )
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2, result.output
+    assert "--long-record 'exact': accepted fusion, synthetic-likelihood" in result.output
+    assert len(result.output.strip().splitlines()) == 1
+
+
+def test_estimate_without_a_fitted_synthetic_likelihood(tmp_path):
+    synthesise_field(ParameterSet.nominal(), [CONDITION], tmp_path / "f", duration_s=3.0)
+    args = ["posterior", "estimate", "--measured", str(tmp_path / "f")]
+    args += ["--estimator", str(tmp_path), "--long-record", "synthetic-likelihood"]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2
+    assert "does not exist: fit the synthetic likelihood first" in result.output
