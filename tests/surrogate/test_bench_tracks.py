@@ -116,3 +116,7 @@ def test_targets_are_judged_per_run_in_every_condition(bench):
     assert met["windows_per_second_ok"]
     assert not bench.targets_met(t7.iloc[[0, 2]], {"cnn-gru": 9e4})["windows_per_second_ok"]
     assert bench.targets_met(t7.iloc[[0, 2]], {})["vertical_per_run_ok"]
+    # a run that trained other networks measured nothing of the CNN-GRU: not "met"
+    absent = bench.targets_met(t7[t7.model == "bp"], {"bp": 5e5})
+    assert absent["lateral_per_run_ok"] is None and absent["vertical_per_run_ok"] is None
+    assert absent["windows_per_second_ok"] is None
