@@ -318,9 +318,9 @@ def twin_forces(
     pos = {int(s): i for i, s in enumerate(twin_ids)}
     rows = np.array([pos[int(s)] for s in ids])
     names = [*spec.nominal_context, *(f"{t}_{WHEEL_NAMES[wheel]}" for t in spec.targets)]
-    scale = [1.0 if n.startswith("car_acc") else 1e-3 for n in names]
+    per_unit = [1.0 if n.startswith("car_acc") else 1e3 for n in names]  # N -> kN
     cols = [CHANNELS.index(n) for n in names]
-    return np.stack([series[rows, c, :] * f for c, f in zip(cols, scale, strict=True)], axis=2)
+    return np.stack([series[rows, c, :] / d for c, d in zip(cols, per_unit, strict=True)], axis=2)
 
 
 def split_samples(
