@@ -34,7 +34,6 @@ import importlib.util
 import platform
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -45,11 +44,10 @@ from railsusp.campaign import CampaignConfig, load_campaign, make_config, run_ca
 from railsusp.campaign.twins import run_nominal_twins
 from railsusp.conditions import get_condition
 from railsusp.store import write_json
-from railsusp.surrogate import TrainConfig, feature_spec, key_parameters, load, train_surrogate
+from railsusp.surrogate import TrainConfig, feature_spec, load, train_surrogate
 from railsusp.surrogate.compare import compare
 from railsusp.surrogate.data import FeatureSpec, SeriesData, load_series
 from railsusp.surrogate.evaluate import accuracy, predict_with_alone
-from railsusp.surrogate.models import NetConfig, default_window
 from railsusp.surrogate.nominal import CONTEXT_CHANNELS
 from railsusp.surrogate.split import campaign_split
 from railsusp.variation import full_ranges, parse_range
@@ -115,7 +113,7 @@ def network_rows(
 ) -> list[dict]:
     """Train one network (``window``: its window, or the sequence CNN-GRU's washout; None:
     the kind's default; ``nominal_response``: reading the nominal wagon's forces on each
-    track, from the campaign's nominal twins; ``architecture``: :class:`NetConfig` fields
+    track, from the campaign's nominal twins; ``architecture``: NetConfig fields
     that differ from the study's, e.g. ``{"dropout": 0.0}``; ``nominal_context``: more
     channels of the nominal wagon's response as inputs) on the campaign's split, saved
     under ``out`` (default ``RUN/surrogates/<label>/<condition>/``), and score it on the
@@ -123,16 +121,6 @@ def network_rows(
     step 20)."""
     camp = load_campaign(run)
     out = Path(run) / "surrogates" / label / condition if out is None else Path(out)
-    net = None
-    if architecture:
-        first = default_window(kind) if window is None else window
-        n_in = feature_spec(camp, key_parameters(run), first, nominal_response, nominal_context)
-        net = replace(
-            NetConfig(
-                kind=kind, n_features=n_in.n_features, window=first, n_outputs=len(n_in.targets)
-            ),
-            **architecture,
-        )
     sur = train_surrogate(
         run,
         condition,
@@ -142,12 +130,11 @@ def network_rows(
         split_seed=split_seed,
         out=out,
         nominal_response=nominal_response,
-        net=net,
         nominal_context=nominal_context,
+        architecture=architecture,
     )
     first = sur.spec.window
-    spec = sur.spec
-    data = load_series(camp, condition, spec)
+    data = load_series(camp, condition, sur.spec)
     split = campaign_split(camp, split_seed)
     test = data.subset(split.positions(data.sample_ids, "test"))
     pred, raw = predict_with_alone(sur, test)

@@ -7,8 +7,10 @@ under ``RUN/surrogates/<kind>/<condition>/``; ``load(path)`` gives back a
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -157,6 +159,7 @@ def train_surrogate(
     record_correction: bool = True,
     nominal_response: bool = False,
     nominal_context: Sequence[str] = (),
+    architecture: Mapping[str, Any] | None = None,
 ) -> Surrogate:
     """Train a window surrogate of one condition of a campaign; save and return it.
 
@@ -172,7 +175,8 @@ def train_surrogate(
     forces on each track and learns the change from them (:mod:`.nominal`; the campaign's
     nominal twins must exist: :func:`railsusp.campaign.twins.run_nominal_twins`);
     ``nominal_context``: and these more channels of its response
-    (:data:`.nominal.CONTEXT_CHANNELS`). The saved
+    (:data:`.nominal.CONTEXT_CHANNELS`). ``architecture``: fields of the default
+    :class:`NetConfig` to change (e.g. ``{"dropout": 0.0}``), ignored with ``net``. The saved
     surrogate lists the parameters it does not take as
     inputs and what it assumes of them (``meta.assumed_parameters``: varied over a range in
     its training campaign, or held at nominal).
@@ -194,7 +198,12 @@ def train_surrogate(
     train_data, val_data = data.subset(tr_i), data.subset(va_i)
     norm = Normaliser.fit(train_data)
     cfg = (
-        NetConfig(kind=kind, n_features=spec.n_features, window=window, n_outputs=len(spec.targets))
+        replace(
+            NetConfig(
+                kind=kind, n_features=spec.n_features, window=window, n_outputs=len(spec.targets)
+            ),
+            **(architecture or {}),
+        )
         if net is None
         else net
     )
