@@ -55,26 +55,12 @@ KEYS = "X18,X13,X11,X14,X19"
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--run", default="bench/results/posterior_run", help="run directory (cache)")
-    ap.add_argument("--out", default="bench/results/posterior.json")
-    ap.add_argument("--conditions", default="straight")
-    ap.add_argument("--parameters", default=",".join(MAIN_SUSPENSION))
-    ap.add_argument("--section", type=float, default=5.0)
-    ap.add_argument("--lead-in", type=float, default=30.0, help="m; a curve keeps at least its own")
-    ap.add_argument("--train", type=int, default=600)
+    add_common_arguments(ap, "bench/results/posterior.json")
     ap.add_argument("--calibration", type=int, default=200, help="cases fitting the correction")
-    ap.add_argument("--check", type=int, default=200, help="untouched test cases")
     ap.add_argument("--ensemble", type=int, default=1, help="flows in the ensemble")
     ap.add_argument(
         "--long", default="200", help="cases per set of several sections: one, or one per length"
     )
-    ap.add_argument("--lengths", default="5,10,20,40", help="record lengths checked, s")
-    ap.add_argument("--sets", type=int, default=0, help="middle-80 %% sets identified (0: none)")
-    ap.add_argument("--set-length", type=float, default=600.0, help="their record length, s")
-    ap.add_argument(
-        "--set-lengths", default=None, help="lengths they are scored at, s (default --lengths)"
-    )
-    ap.add_argument("--keys", default=KEYS, help="key parameters of the verdict")
     ap.add_argument("--hidden", type=int, default=50, help="flow: hidden features")
     ap.add_argument("--transforms", type=int, default=5, help="flow: number of transforms")
     a = ap.parse_args()
@@ -82,12 +68,8 @@ def main() -> None:
     sections = sorted({max(1, round(float(v) / a.section)) for v in a.lengths.split(",")})
     many = [k for k in sections if k > 1]
     counts = long_counts(a.long, len(many))
-    conds = [  # a curve keeps its own lead-in, which holds its entry (a longer one stays)
-        c.with_changes(lead_in_m=max(a.lead_in, c.lead_in_m if c.curve_radius_m else 0.0))
-        for c in resolve_conditions(a.conditions)
-    ]
     settings = PosteriorSettings(
-        tuple(conds),
+        bench_conditions(a),
         parameters=tuple(a.parameters.split(",")),
         section_s=a.section,
         n_train=a.train,
@@ -115,14 +97,7 @@ def main() -> None:
     _width_table(rows, names)
     ident, verdicts = None, []
     if a.sets:
-        t1 = time.perf_counter()
-        _, x, ident = identification(
-            est, a.run, a.sets, a.set_length, lengths_s(a.set_lengths or a.lengths)
-        )
-        print(f"\nidentification of {a.sets} sets: {time.perf_counter() - t1:.0f} s")
-        keys = a.keys.split(",")
-        print_tables(ident, names, keys)
-        verdicts = [verdict(r, keys) for r in ident]
+        x, ident, verdicts = identify_sets(est, a, names)
     else:
         n, longest, _ = settings.product_sets()[-1] if many else (a.check, 1, ())
         folder = Path(a.run) / "posterior" / "simulations"
@@ -149,6 +124,49 @@ def main() -> None:
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(out, indent=2) + "\n")
     print(f"wrote {a.out}")
+
+
+def add_common_arguments(ap: argparse.ArgumentParser, out: str) -> None:
+    """The options every posterior bench shares: the run (its cache), the output, the
+    estimator's conditions, parameters, sections and training cases, the lengths checked
+    and the middle-80 % sets identified."""
+    ap.add_argument("--run", default="bench/results/posterior_run", help="run directory (cache)")
+    ap.add_argument("--out", default=out)
+    ap.add_argument("--conditions", default="straight")
+    ap.add_argument("--parameters", default=",".join(MAIN_SUSPENSION))
+    ap.add_argument("--section", type=float, default=5.0)
+    ap.add_argument("--lead-in", type=float, default=30.0, help="m; a curve keeps at least its own")
+    ap.add_argument("--train", type=int, default=600)
+    ap.add_argument("--check", type=int, default=200, help="untouched one-section test cases")
+    ap.add_argument("--lengths", default="5,10,20,40", help="record lengths checked, s")
+    ap.add_argument("--sets", type=int, default=0, help="middle-80 %% sets identified (0: none)")
+    ap.add_argument("--set-length", type=float, default=600.0, help="their record length, s")
+    ap.add_argument(
+        "--set-lengths", default=None, help="lengths they are scored at, s (default --lengths)"
+    )
+    ap.add_argument("--keys", default=KEYS, help="key parameters of the verdict")
+
+
+def bench_conditions(a: argparse.Namespace) -> tuple:
+    """``--conditions`` with ``--lead-in``: a curve keeps its own lead-in, which holds its
+    entry (a longer one stays)."""
+    return tuple(
+        c.with_changes(lead_in_m=max(a.lead_in, c.lead_in_m if c.curve_radius_m else 0.0))
+        for c in resolve_conditions(a.conditions)
+    )
+
+
+def identify_sets(est, a: argparse.Namespace, names: list[str]):
+    """``--sets`` middle-80 % sets identified at every length (:func:`identification`),
+    their tables printed: (statistics x, rows, the issue's verdict per length)."""
+    t1 = time.perf_counter()
+    _, x, ident = identification(
+        est, a.run, a.sets, a.set_length, lengths_s(a.set_lengths or a.lengths)
+    )
+    print(f"\nidentification of {a.sets} sets: {time.perf_counter() - t1:.0f} s")
+    keys = a.keys.split(",")
+    print_tables(ident, names, keys)
+    return x, ident, [verdict(r, keys) for r in ident]
 
 
 def lengths_s(text: str) -> list[float]:

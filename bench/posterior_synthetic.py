@@ -29,26 +29,16 @@ from pathlib import Path
 
 import numpy as np
 
-from posterior import KEYS, identification, lengths_s, print_tables, verdict
-from railsusp.conditions import resolve_conditions
+from posterior import add_common_arguments, bench_conditions, identify_sets, lengths_s
 from railsusp.estimate import posterior_synthetic_run as synthetic
 from railsusp.estimate.posterior_data import PosteriorSettings
-from railsusp.params import MAIN_SUSPENSION
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--run", default="bench/results/posterior_run", help="run directory (cache)")
-    ap.add_argument("--out", default="bench/results/posterior_synthetic.json")
-    ap.add_argument("--conditions", default="straight")
-    ap.add_argument("--parameters", default=",".join(MAIN_SUSPENSION))
-    ap.add_argument("--section", type=float, default=5.0)
-    ap.add_argument("--lead-in", type=float, default=30.0, help="m; a curve keeps at least its own")
-    ap.add_argument("--train", type=int, default=600)
-    ap.add_argument("--check", type=int, default=200, help="held-out one-section cases")
+    add_common_arguments(ap, "bench/results/posterior_synthetic.json")
     ap.add_argument("--long", type=int, default=200, help="held-out records of several sections")
     ap.add_argument("--long-length", type=float, default=40.0, help="their length, s")
-    ap.add_argument("--lengths", default="5,10,20,40", help="record lengths checked, s")
     ap.add_argument(
         "--scale-records",
         type=int,
@@ -56,21 +46,11 @@ def main() -> None:
         help="held-out calibration records of --long-length fitting the covariance's scales "
         "(0: not fitted)",
     )
-    ap.add_argument("--sets", type=int, default=0, help="middle-80 %% sets identified (0: none)")
-    ap.add_argument("--set-length", type=float, default=600.0, help="their record length, s")
-    ap.add_argument(
-        "--set-lengths", default=None, help="lengths they are scored at, s (default --lengths)"
-    )
-    ap.add_argument("--keys", default=KEYS, help="key parameters of the verdict")
     a = ap.parse_args()
 
-    conds = [
-        c.with_changes(lead_in_m=max(a.lead_in, c.lead_in_m if c.curve_radius_m else 0.0))
-        for c in resolve_conditions(a.conditions)
-    ]
     longest = max(1, round(a.long_length / a.section))
     settings = PosteriorSettings(
-        tuple(conds),
+        bench_conditions(a),
         parameters=tuple(a.parameters.split(",")),
         section_s=a.section,
         n_train=a.train,
@@ -95,14 +75,7 @@ def main() -> None:
 
     ident, verdicts = None, []
     if a.sets:
-        t1 = time.perf_counter()
-        _, x, ident = identification(
-            post, a.run, a.sets, a.set_length, lengths_s(a.set_lengths or a.lengths)
-        )
-        print(f"\nidentification of {a.sets} sets: {time.perf_counter() - t1:.0f} s")
-        keys = a.keys.split(",")
-        print_tables(ident, names, keys)
-        verdicts = [verdict(r, keys) for r in ident]
+        x, ident, verdicts = identify_sets(post, a, names)
         xs = x[np.all(np.isfinite(x), axis=(1, 2))][:5]
         t_est = []
         for i, xi in enumerate(xs):
