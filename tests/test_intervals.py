@@ -261,10 +261,10 @@ def test_a_point_25_percent_off_with_a_wide_interval_is_not_identified(tmp_path)
     assert why["X14"] == "90 % interval 60.0 % of range wide"
 
 
-def test_parameters_held_at_nominal_widen_the_simulator_refinements_interval(tmp_path):
-    """With the simulator, the refinement's interval takes in the main-suspension parameters
-    it held at nominal: each uniformly unknown over its range, propagated linearly through
-    one batch of simulations (k + h + 1 parameter sets)."""
+def simulator_refinement(tmp_path):
+    """A short refinement of X13 and X14 with the simulator (the other eight held at
+    nominal) on one second of a curve with its measured track: its problem is kept, so
+    the held parameters' response can be computed."""
     from railsusp.conditions import get_condition
     from railsusp.estimate import SimulatorForces
     from railsusp.measured import read_field, synthesise_field
@@ -274,8 +274,15 @@ def test_parameters_held_at_nominal_widen_the_simulator_refinements_interval(tmp
     truth = ParameterSet({"X13": 16.1, "X14": 8.3}, units="display")
     recs = read_field(synthesise_field(truth, [cond], tmp_path / "f", with_track=True))
     lo, hi = bounds(PARAMS)
-    r = refine(SimulatorForces(PARAMS), recs, PARAMS, lo + 0.5 * (hi - lo), max_evaluations=2,
-               gains=False, geometry_draws=0)  # fmt: skip
+    return refine(SimulatorForces(PARAMS), recs, PARAMS, lo + 0.5 * (hi - lo),
+                  max_evaluations=2, gains=False, geometry_draws=0)  # fmt: skip
+
+
+def test_parameters_held_at_nominal_widen_the_simulator_refinements_interval(tmp_path):
+    """With the simulator, the refinement's interval takes in the main-suspension parameters
+    it held at nominal: each uniformly unknown over its range, propagated linearly through
+    one batch of simulations (k + h + 1 parameter sets)."""
+    r = simulator_refinement(tmp_path)
     held = refinement_intervals(r)
     alone = refinement_intervals(r, held=False)
     assert held.details["held_parameters"] == [p for p in MAIN_SUSPENSION if p not in PARAMS]

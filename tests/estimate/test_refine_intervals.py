@@ -21,7 +21,12 @@ from railsusp.estimate.refine_intervals import (
 from railsusp.measured import Recording
 from railsusp.params import bounds
 from test_estimate import WaveForces  # the series model with a known answer
-from test_intervals import LONG, PARAMS, TRUTH  # its 20 s recording of a known truth
+from test_intervals import (  # its 20 s recording of a known truth, and the simulator's
+    LONG,
+    PARAMS,
+    TRUTH,
+    simulator_refinement,
+)
 
 
 def test_one_block_is_the_pooled_formula_times_the_autocorrelation_time():
@@ -104,19 +109,11 @@ def test_with_held_parameters_the_interval_is_the_quantiles_of_the_errors_distri
     90 % quantiles of the error's distribution, which are within 1.645 total standard
     deviations (uniform parts have lighter tails than a normal), symmetric for a prior
     centred on the values held and lopsided for one in the upper part of every range."""
-    from railsusp.conditions import get_condition
-    from railsusp.estimate import SimulatorForces
     from railsusp.estimate.config import HeldPrior
     from railsusp.estimate.refine_intervals import MONTE_CARLO, held_parameters
-    from railsusp.measured import read_field, synthesise_field
-    from railsusp.params import ParameterSet, spec
+    from railsusp.params import spec
 
-    cond = get_condition("curve", duration_s=1.0, n_steps=50, lead_in_m=20.0)
-    truth = ParameterSet({"X13": 16.1, "X14": 8.3}, units="display")
-    recs = read_field(synthesise_field(truth, [cond], tmp_path / "f", with_track=True))
-    lo, hi = bounds(PARAMS)
-    r = refine(SimulatorForces(PARAMS), recs, PARAMS, lo + 0.5 * (hi - lo), max_evaluations=2,
-               gains=False, geometry_draws=0)  # fmt: skip
+    r = simulator_refinement(tmp_path)
     iv = refinement_intervals(r)
     d = iv.details
     assert d["interval_quantiles"] == MONTE_CARLO and d["monte_carlo_draws"] == 200_000
