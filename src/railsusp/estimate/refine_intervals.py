@@ -142,13 +142,16 @@ def held_response(refinement: Refinement) -> tuple[tuple[str, ...], np.ndarray] 
 
 
 def held_parameter_variance(
-    refinement: Refinement, prior: HeldPrior | None = None
+    refinement: Refinement,
+    prior: HeldPrior | None = None,
+    response: tuple[tuple[str, ...], np.ndarray] | None = None,
 ) -> np.ndarray | None:
     """(k,) second moment, SI², of the refined estimate's error caused by the main-suspension
     parameters it holds, each uniform over the user's range in ``prior`` or else its whole
     Table 2 range (:func:`held_response`, :func:`held_moments`, :func:`held_error_variance`).
-    None where the response cannot be computed."""
-    got = held_response(refinement)
+    ``response``: :func:`held_response`'s answer where already computed (it costs a batch of
+    simulations). None where the response cannot be computed."""
+    got = held_response(refinement) if response is None else response
     if got is None:
         return None
     held, response = got
@@ -302,8 +305,7 @@ def refinement_intervals(
     if response is not None:
         held_names, r_unit = response
         held_at = held_values(held_names, _base(ref))
-        var_u = held_error_variance(r_unit, *held_moments(held_names, held_at, prior))
-        held_sd = np.sqrt(var_u) * span
+        held_sd = np.sqrt(held_parameter_variance(ref, prior, response))
     total = np.sqrt(noise**2 + geometry**2 + held_sd**2)
 
     def pct(v: np.ndarray) -> dict[str, float]:
