@@ -41,6 +41,7 @@ import pandas as pd
 import torch
 
 from railsusp.campaign import CampaignConfig, load_campaign, make_config, run_campaign
+from railsusp.campaign.perturbed import DEFAULT_STEP, run_perturbed_twins
 from railsusp.campaign.twins import run_nominal_twins
 from railsusp.conditions import get_condition
 from railsusp.store import write_json
@@ -110,12 +111,14 @@ def network_rows(
     nominal_response: bool = False,
     architecture: dict | None = None,
     nominal_context: Sequence[str] = (),
+    init_from: str | Path | None = None,
 ) -> list[dict]:
     """Train one network (``window``: its window, or the sequence CNN-GRU's washout; None:
     the kind's default; ``nominal_response``: reading the nominal wagon's forces on each
     track, from the campaign's nominal twins; ``architecture``: NetConfig fields
     that differ from the study's, e.g. ``{"dropout": 0.0}``; ``nominal_context``: more
-    channels of the nominal wagon's response as inputs) on the campaign's split, saved
+    channels of the nominal wagon's response as inputs; ``init_from``: a saved surrogate
+    to start from) on the campaign's split, saved
     under ``out`` (default ``RUN/surrogates/<label>/<condition>/``), and score it on the
     same test runs from the end of its own window or washout (the reference scores from
     step 20)."""
@@ -132,6 +135,7 @@ def network_rows(
         nominal_response=nominal_response,
         nominal_context=nominal_context,
         architecture=architecture,
+        init_from=init_from,
     )
     first = sur.spec.window
     data = load_series(camp, condition, sur.spec)
@@ -162,6 +166,7 @@ def nominal_rows(
     tag: str = "",
     window: int | None = None,
     context: Sequence[str] = (),
+    init_label: str | None = None,
 ) -> list[dict]:
     """Train the ``kind`` network (the window CNN-GRU, or the sequence CNN-GRU
     ``cnn-gru-seq``) that also reads the nominal wagon's forces on each track
@@ -169,7 +174,8 @@ def nominal_rows(
     and score it, with the nominal wagon's own forces beside it, on the same test runs
     (``window``: its window or washout, None: the kind's default; ``context``: more
     channels of the nominal wagon's response as inputs,
-    :data:`~railsusp.surrogate.nominal.CONTEXT_CHANNELS`)."""
+    :data:`~railsusp.surrogate.nominal.CONTEXT_CHANNELS`; ``init_label``: start from the
+    network saved under ``RUN/surrogates/<init_label>/<condition>/``)."""
     return network_rows(
         run,
         condition,
@@ -181,6 +187,7 @@ def nominal_rows(
         nominal_response=True,
         architecture=architecture,
         nominal_context=context,
+        init_from=None if init_label is None else Path(run) / "surrogates" / init_label / condition,
     )
 
 
@@ -240,14 +247,18 @@ def table_on_tracks(
     architecture: dict | None = None,
     tag: str = "",
     context: Sequence[str] = (),
+    init_label: str | None = None,
+    pair_twins: int = 1,
+    pair_step: float = DEFAULT_STEP,
 ) -> pd.DataFrame:
     """The accuracy table (one row per condition, model and force) of every model on the
     campaign's held-out test runs in ``conditions`` (all by default): the compared models,
     then the sequence CNN-GRU, then (``nominal``) the CNN-GRU reading the nominal wagon's
     forces (of each of ``nominal_kinds``: ``<kind>-nominal``; its campaign's nominal twins
-    made first, or resumed; ``architecture``, ``tag`` and ``context`` as
-    :func:`nominal_rows`), then the variant's rows (in ``variant_conditions``, all by
-    default)."""
+    made first, or resumed; ``architecture``, ``tag``, ``context`` and ``init_label`` as
+    :func:`nominal_rows`; with ``train.pair_weight`` > 0 their perturbed twins too,
+    ``pair_twins`` per sample at ``pair_step`` of the range), then the variant's rows (in
+    ``variant_conditions``, all by default)."""
     compared = [m for m in models if m not in SEQUENCE]
     conds = (
         list(conditions) if conditions else [c.name for c in load_campaign(run).config.conditions]
@@ -274,12 +285,22 @@ def table_on_tracks(
             )
     if nominal:
         run_nominal_twins(run, conditions=conds)  # only the conditions trained here
+        if train is not None and train.pair_weight > 0:
+            run_perturbed_twins(run, step=pair_step, per_sample=pair_twins, conditions=conds)
         for kind in nominal_kinds:
             for cond in conds:
                 if progress:
                     progress(f"{cond}: {kind}-nominal{tag}")
                 rows += nominal_rows(
-                    run, cond, train, split_seed, kind, architecture, tag, context=context
+                    run,
+                    cond,
+                    train,
+                    split_seed,
+                    kind,
+                    architecture,
+                    tag,
+                    context=context,
+                    init_label=init_label,
                 )
     if rows:
         tables.append(pd.DataFrame(rows))
@@ -424,6 +445,7 @@ def main() -> None:
         help="then epochs at a tenth of the learning rate (a finished network resumes into them)",
     )
     ap.add_argument("--batches-per-epoch", type=int, default=100)
+    ap.add_argument("--learning-rate", type=float, default=1e-3, help="Adam's step")
     ap.add_argument("--batch-size", type=int, default=512)
     ap.add_argument("--chunk-steps", type=int, default=400, help="cnn-gru-seq: steps per chunk")
     ap.add_argument("--chunks-per-batch", type=int, default=32, help="cnn-gru-seq: chunks")
@@ -456,7 +478,25 @@ def main() -> None:
         "a comma list",
     )
     ap.add_argument(
-        "--tag", default="", help="with --dropout/--rnn-hidden: suffix of their folder names"
+        "--pair-weight",
+        type=float,
+        default=0.0,
+        help="with --nominal --nominal-kinds cnn-gru-seq --models '': gradient-enhanced "
+        "training, weight of the pair term on the campaign's perturbed twins (made first)",
+    )
+    ap.add_argument("--pair-twins", type=int, default=1, help="perturbed twins per sample")
+    ap.add_argument(
+        "--pair-step", type=float, default=DEFAULT_STEP, help="their step, fraction of range"
+    )
+    ap.add_argument(
+        "--init-from",
+        help="with --nominal: start each network from RUN/surrogates/LABEL/<condition>",
+    )
+    ap.add_argument(
+        "--tag",
+        default="",
+        help="with --dropout/--rnn-hidden/--nominal-context/--pair-weight/--init-from: suffix "
+        "of their folder names",
     )
     ap.add_argument("--train-conditions", help="conditions whose models are trained (default: all)")
     ap.add_argument("--threads", type=int, default=2, help="torch threads for throughput")
@@ -489,10 +529,12 @@ def main() -> None:
         epochs=args.epochs,
         fine_tune_epochs=args.fine_tune_epochs,
         batches_per_epoch=args.batches_per_epoch,
+        learning_rate=args.learning_rate,
         batch_size=args.batch_size,
         device=args.device,
         chunk_steps=args.chunk_steps,
         chunks_per_batch=args.chunks_per_batch,
+        pair_weight=args.pair_weight,
     )
     seconds: dict[str, float] = {}
     state: dict = {"t": None, "m": None}
@@ -530,10 +572,15 @@ def main() -> None:
             ap.error(
                 f"--nominal-context {bad}: accepted none, all or {', '.join(CONTEXT_CHANNELS)}"
             )
-    if (architecture or context) and not args.tag:
+    if (architecture or context or args.pair_weight or args.init_from) and not args.tag:
         ap.error(
-            "--dropout/--rnn-hidden/--nominal-context: give --tag, so the study's networks "
-            "are not overwritten"
+            "--dropout/--rnn-hidden/--nominal-context/--pair-weight/--init-from: give --tag, "
+            "so the study's networks are not overwritten"
+        )
+    if args.pair_weight and (models or nominal_kinds != ["cnn-gru-seq"] or not args.nominal):
+        ap.error(
+            "--pair-weight: accepted with --nominal --nominal-kinds cnn-gru-seq --models '' "
+            "only (pairs train the sequence network)"
         )
     if args.train_threads is not None:
         if args.train_threads < 1:
@@ -552,6 +599,9 @@ def main() -> None:
         architecture=architecture or None,
         tag=args.tag,
         context=context,
+        init_label=args.init_from,
+        pair_twins=args.pair_twins,
+        pair_step=args.pair_step,
     )
     tick("done")
     t7 = table7_per_run(table)

@@ -168,6 +168,7 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
                 "sensitivity",
                 "splits",
                 "nominal",  # the nominal twins (railsusp.campaign.twins) of the old design
+                "perturbed",  # and its perturbed twins (railsusp.campaign.perturbed)
             ):
                 p = out / sub
                 if p.is_dir():

@@ -87,6 +87,30 @@ def run_nominal_twins(
         )
     write_json(stamp, {"kind": "railsusp nominal twins", "config_hash": cfg.hash()})
     x0 = ParameterSet.nominal().to_array(cfg.simulated_parameters)
+    x_all = np.tile(x0, (len(camp.design()), 1))
+    simulate_twin_batches(
+        run, out, x_all, progress=progress, max_batches=max_batches, conditions=conditions
+    )
+    return out
+
+
+def simulate_twin_batches(
+    run: str | Path,
+    out: Path,
+    x_all: np.ndarray,
+    *,
+    progress: Callable[[int, int], None] | None = None,
+    max_batches: int | None = None,
+    conditions: Sequence[str] | None = None,
+) -> None:
+    """Simulate (or resume) every sample of campaign ``run`` again on its own track (its
+    condition, seed, FRA class, radius and cant) with parameters ``x_all`` (n_samples,
+    simulated parameters, SI; row i for sample i), batch by batch into ``out`` in the
+    campaign's batch layout. Arguments as :func:`run_nominal_twins`."""
+    if max_batches is not None and max_batches < 0:
+        raise CampaignError(f"max_batches = {max_batches}: accepted an integer >= 0")
+    camp = load_campaign(run)
+    cfg = camp.config
     ids_all = camp.design()["sample_id"].to_numpy()
     cfg_json = cfg.model_dump_json()
     todo = [
@@ -105,9 +129,8 @@ def run_nominal_twins(
         cond = cfg.conditions[ci]
         ids = ids_all[b * cfg.batch_size : (b + 1) * cfg.batch_size]
         seeds = track_seeds(cfg, cond)
-        res = simulate_task(cfg_json, ci, ids, np.tile(x0, (len(ids), 1)), seeds[ids])
+        res = simulate_task(cfg_json, ci, ids, x_all[ids], seeds[ids])
         write_batch(out, b, res, cond.n_steps)
         done += 1
         if progress:
             progress(done, total)
-    return out

@@ -13,7 +13,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 
+from railsusp.errors import RailsuspInputError
 from railsusp.params import STUDY_KEY_PARAMETERS
 from railsusp.store import read_json
 from railsusp.surrogate.bundle import Surrogate, load
@@ -26,6 +28,7 @@ from railsusp.surrogate.data import (
 )
 from railsusp.surrogate.evaluate import accuracy, evaluate, predict_series, predict_with_alone
 from railsusp.surrogate.models import KINDS, NetConfig, build_network, default_window
+from railsusp.surrogate.pairs import TwinRuns, load_twins
 from railsusp.surrogate.split import Split, campaign_split
 from railsusp.surrogate.train import TrainConfig, sampler_for, train_network
 from railsusp.variation import assumed_parameters
@@ -144,6 +147,44 @@ def split_meta(split: Split, data) -> dict:
     }
 
 
+def _part(twins: TwinRuns | None, idx: np.ndarray) -> TwinRuns | None:
+    return None if twins is None else twins.subset(idx)
+
+
+def warm_start(
+    path: str | Path, cfg: NetConfig, spec: FeatureSpec, norm: Normaliser
+) -> dict[str, torch.Tensor]:
+    """The weights of the saved surrogate at ``path``, refused in one line unless it is the
+    same network (configuration), reads the same features and was normalised the same way
+    (to 1e-5 of each standard deviation: the features of one campaign, rebuilt, agree to
+    about 1e-7): weights of another network would start the training from a state that
+    means nothing."""
+    src = load(path)
+    for what, same in (
+        ("network", cfg == src.net_config),
+        ("features", spec == src.spec),
+        ("normalisation", _same_normalisation(norm, src.normaliser)),
+    ):
+        if not same:
+            raise RailsuspInputError(
+                f"init_from {path}: its {what} differs from this training's; accepted a "
+                "surrogate of the same network, features and training data"
+            )
+    return {k: v.detach().clone() for k, v in src.net.state_dict().items()}
+
+
+def _same_normalisation(a: Normaliser, b: Normaliser, tol: float = 1e-5) -> bool:
+    """Whether two normalisations agree to ``tol`` of each channel's standard deviation."""
+    for mean, std in (("track_mean", "track_std"), ("target_mean", "target_std")):
+        ma, mb = np.asarray(getattr(a, mean)), np.asarray(getattr(b, mean))
+        sa, sb = np.asarray(getattr(a, std)), np.asarray(getattr(b, std))
+        if ma.shape != mb.shape or sa.shape != sb.shape:
+            return False
+        if np.any(np.abs(ma - mb) > tol * sa) or np.any(np.abs(sa - sb) > tol * sa):
+            return False
+    return True
+
+
 def train_surrogate(
     run: str | Path,
     condition: str,
@@ -160,6 +201,7 @@ def train_surrogate(
     nominal_response: bool = False,
     nominal_context: Sequence[str] = (),
     architecture: Mapping[str, Any] | None = None,
+    init_from: str | Path | None = None,
 ) -> Surrogate:
     """Train a window surrogate of one condition of a campaign; save and return it.
 
@@ -176,7 +218,12 @@ def train_surrogate(
     nominal twins must exist: :func:`railsusp.campaign.twins.run_nominal_twins`);
     ``nominal_context``: and these more channels of its response
     (:data:`.nominal.CONTEXT_CHANNELS`). ``architecture``: fields of the default
-    :class:`NetConfig` to change (e.g. ``{"dropout": 0.0}``), ignored with ``net``. The saved
+    :class:`NetConfig` to change (e.g. ``{"dropout": 0.0}``), ignored with ``net``.
+    ``train.pair_weight`` > 0 trains the sequence network on pairs with the campaign's
+    perturbed twins as well (gradient-enhanced, :mod:`.pairs`; make them with
+    :func:`railsusp.campaign.perturbed.run_perturbed_twins`). ``init_from``: a saved
+    surrogate of the same network, features and normalisation to start from (a warm start;
+    e.g. a network trained on the forces alone, then on pairs). The saved
     surrogate lists the parameters it does not take as
     inputs and what it assumes of them (``meta.assumed_parameters``: varied over a range in
     its training campaign, or held at nominal).
@@ -210,13 +257,15 @@ def train_surrogate(
     network = build_network(cfg)
     tcfg = TrainConfig() if train is None else train
     out = Path(out) if out else camp.path / "surrogates" / kind / condition
+    twins = load_twins(camp, data, spec) if tcfg.pair_weight > 0 else None
     history = train_network(
         network,
-        sampler_for(kind, train_data, norm, window, tcfg),
-        sampler_for(kind, val_data, norm, window, tcfg),
+        sampler_for(kind, train_data, norm, window, tcfg, _part(twins, tr_i)),
+        sampler_for(kind, val_data, norm, window, tcfg, _part(twins, va_i)),
         tcfg,
         checkpoint=out / "checkpoint.pt",
         progress=progress,
+        initial=None if init_from is None else warm_start(init_from, cfg, spec, norm),
     )
     seed = int(np.unique(data.seeds)[0]) if len(np.unique(data.seeds)) == 1 else None
     fam = camp.config.track_family

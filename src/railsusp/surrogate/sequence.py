@@ -116,29 +116,37 @@ class CNNSequence(nn.Module):
         self.washout = cfg.window
 
     def steps(
-        self, x: torch.Tensor, state: SequenceState | None = None
+        self, x: torch.Tensor, state: SequenceState | None = None, pairs: bool = False
     ) -> tuple[torch.Tensor, SequenceState]:
         """Outputs at every step of ``x`` (B, T, F) -> (B, T, n_outputs), and the state at
         its end. ``state``: the one a previous call returned for the steps just before (a
         series run in stretches gives the outputs of one run over it), ``None`` for the start
-        of a series (zero recurrent state)."""
+        of a series (zero recurrent state). ``pairs``: rows b and B/2 + b are a pair
+        (:mod:`.pairs`) and get the same dropout mask in training."""
         c1, c2 = self.conv[0], self.conv[2]
         h = torch.relu(_dense(x.transpose(0, 1), c1.weight[:, :, 0], c1.bias))  # (T, B, C)
         conv = nn.functional.leaky_relu(
             _dense(h, c2.weight[:, :, 0], c2.bias), self.conv[3].negative_slope
         )
         before = conv[:1] if state is None else state[0]
-        h = self.dropout(torch.maximum(conv, torch.cat([before, conv[:-1]])))
+        h = torch.maximum(conv, torch.cat([before, conv[:-1]]))
+        if pairs and self.training and self.dropout.p > 0:
+            half = h.shape[1] // 2
+            mask = self.dropout(torch.ones_like(h[:, :half]))
+            h = h * torch.cat([mask, mask], dim=1)
+        else:
+            h = self.dropout(h)
         hidden = []
         for i, layer in enumerate(self.rnn):
             h, hn = layer(h, None if state is None else state[1][i])
             hidden.append(hn)
         return self.head(h).transpose(0, 1), (conv[-1:], hidden)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, pairs: bool = False) -> torch.Tensor:
         """Training and validation: the outputs of chunks ``x`` (B, C, F) after the washout,
-        (B, C - washout, n_outputs), each chunk from the zero state."""
-        return self.steps(x)[0][:, self.washout :]
+        (B, C - washout, n_outputs), each chunk from the zero state; ``pairs`` as
+        :meth:`steps`."""
+        return self.steps(x, pairs=pairs)[0][:, self.washout :]
 
     @torch.inference_mode()
     def predict_series(

@@ -33,6 +33,7 @@ from railsusp.store import atomic_write_bytes, content_hash
 from railsusp.surrogate.chunks import ChunkSampler
 from railsusp.surrogate.data import Normaliser, SeriesData, gather_windows, window_index
 from railsusp.surrogate.models import SEQUENCE_KINDS
+from railsusp.surrogate.pairs import PairSampler, TwinRuns
 
 #: one debug line per epoch (``railsusp --verbose`` shows it)
 log = logging.getLogger("railsusp.surrogate.train")
@@ -58,6 +59,9 @@ class TrainConfig:
     #: mini-batch (it ignores ``batch_size``, which counts windows)
     chunk_steps: int = 400
     chunks_per_batch: int = 32
+    #: the sequence CNN-GRU only: weight of the pair term of gradient-enhanced training on
+    #: the campaign's perturbed twins (:mod:`.pairs`); 0 trains on the forces alone
+    pair_weight: float = 0.0
 
     def __post_init__(self) -> None:
         """Refuse settings that would train nothing or fail later (one-line errors)."""
@@ -75,6 +79,9 @@ class TrainConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < lo:
                 raise RailsuspInputError(f"training {name} = {v!r}: accepted an integer >= {lo}")
+        pw = self.pair_weight
+        if isinstance(pw, bool) or not isinstance(pw, int | float) or not 0 <= pw <= 100:
+            raise RailsuspInputError(f"training pair_weight = {pw!r}: accepted [0, 100]")
         for name, lo, hi in (("learning_rate", 0.0, 1.0), ("fine_tune_lr_factor", 0.0, 1.0)):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and lo < v <= hi):
@@ -119,6 +126,7 @@ _LATER_SETTINGS = {
     "fine_tune_lr_factor": 0.1,
     "chunk_steps": 400,
     "chunks_per_batch": 32,
+    "pair_weight": 0.0,
 }
 
 
@@ -148,18 +156,45 @@ class WindowSampler:
         return torch.from_numpy(np.ascontiguousarray(x)), torch.from_numpy(y)
 
 
-Sampler = WindowSampler | ChunkSampler
+Sampler = WindowSampler | ChunkSampler | PairSampler
 
 
 def sampler_for(
-    kind: str, data: SeriesData, norm: Normaliser, window: int, cfg: TrainConfig
+    kind: str,
+    data: SeriesData,
+    norm: Normaliser,
+    window: int,
+    cfg: TrainConfig,
+    twins: TwinRuns | None = None,
 ) -> Sampler:
     """The training data of a network kind: windows of ``window`` steps, or for the
     sequence CNN-GRU chunks of ``cfg.chunk_steps`` steps whose first ``window`` (its
-    washout) are not in the loss."""
+    washout) are not in the loss, paired with the perturbed ``twins``' chunks when
+    ``cfg.pair_weight`` > 0 (:mod:`.pairs`)."""
+    if cfg.pair_weight > 0:
+        if kind not in SEQUENCE_KINDS:
+            raise RailsuspInputError(
+                f"training pair_weight = {cfg.pair_weight}: accepted 0 for {kind!r} (pairs "
+                f"train the sequence networks only: {', '.join(SEQUENCE_KINDS)})"
+            )
+        if twins is None:
+            raise RailsuspInputError(
+                f"training pair_weight = {cfg.pair_weight}: needs the campaign's perturbed twins"
+            )
+        return PairSampler(data, twins, norm, window, cfg.chunk_steps, cfg.pair_weight)
     if kind in SEQUENCE_KINDS:
         return ChunkSampler(data, norm, window, cfg.chunk_steps)
     return WindowSampler(data, norm, window)
+
+
+def batch_loss(
+    net: nn.Module, sampler: Sampler, xb: torch.Tensor, yb: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor | None]:
+    """(the loss of a batch as ``sampler`` asks for it, its pair term or None): mean squared
+    error, or on pairs :meth:`PairSampler.loss` with pair-shared dropout."""
+    if isinstance(sampler, PairSampler):
+        return sampler.loss(net(xb, pairs=True), yb)
+    return nn.functional.mse_loss(net(xb), yb), None
 
 
 def _fingerprint(*samplers: Sampler) -> str:
@@ -169,7 +204,10 @@ def _fingerprint(*samplers: Sampler) -> str:
         h.update(str(smp.window).encode())
         if isinstance(smp, ChunkSampler):
             h.update(f"chunk {smp.chunk}".encode())
-        for arr in (smp.params, smp.track, smp.targets, smp.index):
+        arrays = [smp.params, smp.track, smp.targets, smp.index]
+        if isinstance(smp, PairSampler):
+            arrays += [smp.twin_params, smp.twin_targets]
+        for arr in arrays:
             h.update(str(arr.shape).encode())
             h.update(np.ascontiguousarray(arr).tobytes())
     return h.hexdigest()
@@ -178,25 +216,45 @@ def _fingerprint(*samplers: Sampler) -> str:
 def _train_epoch(
     net: nn.Module,
     opt: torch.optim.Optimizer,
-    loss_fn: nn.Module,
     train: Sampler,
     rng: np.random.Generator,
     cfg: TrainConfig,
     device: torch.device,
-) -> float:
-    """One epoch of ``cfg.batches_per_epoch`` random mini-batches; the mean training loss."""
+) -> tuple[float, float | None]:
+    """One epoch of ``cfg.batches_per_epoch`` random mini-batches; the mean training loss
+    and, on pairs, the mean of its pair term."""
     net.train()
-    total = 0.0
+    total, total_pair = 0.0, 0.0
     n_rows = train.rows_per_batch(cfg.batch_size, cfg.chunks_per_batch)
     for _ in range(cfg.batches_per_epoch):
         xb, yb = train.batch(rng.integers(0, len(train.index), n_rows))
         xb, yb = xb.to(device), yb.to(device)
         opt.zero_grad()
-        loss = loss_fn(net(xb), yb)
+        loss, pair = batch_loss(net, train, xb, yb)
         loss.backward()
         opt.step()
         total += loss.item()
-    return total / cfg.batches_per_epoch
+        total_pair += 0.0 if pair is None else pair.item()
+    n = cfg.batches_per_epoch
+    return total / n, (total_pair / n if isinstance(train, PairSampler) else None)
+
+
+def validation_loss(
+    net: nn.Module, val: Sampler, xv: torch.Tensor, yv: torch.Tensor
+) -> tuple[float, float | None, float]:
+    """(mean squared error of the validation runs, the pair term or None, the early-stopping
+    criterion). On pairs the first is taken on the runs alone (the twins' half left out), so
+    that it compares with a network trained on the forces alone, and the criterion is the
+    training loss's: that error plus ``pair_weight`` times the pair term."""
+    with torch.no_grad():
+        pred = net(xv)
+        if not isinstance(val, PairSampler):
+            v = float(nn.functional.mse_loss(pred, yv))
+            return v, None, v
+        b = pred.shape[0] // 2
+        v = float(nn.functional.mse_loss(pred[:b], yv[:b]))
+        pair = float(val.loss(pred, yv)[1])
+        return v, pair, v + val.weight * pair
 
 
 def train_network(
@@ -206,9 +264,12 @@ def train_network(
     cfg: TrainConfig,
     checkpoint: Path | None = None,
     progress: Callable[[int, float, float], None] | None = None,
+    initial: dict[str, torch.Tensor] | None = None,
 ) -> list[dict]:
     """Train ``net`` in place; returns the history (epoch, phase, learning rate, train and
-    validation loss, time).
+    validation loss, time; on pairs their pair terms and the stopping criterion).
+    ``initial``: weights to start from instead of the seed's (a warm start, e.g. a network
+    trained on the forces alone, trained on on pairs); they count in the checkpoint's key.
 
     The best validation state is restored at the end (early stopping). With
     ``cfg.fine_tune_epochs`` a second phase restarts Adam from the main phase's best state at
@@ -221,8 +282,9 @@ def train_network(
     seed_weights(net, cfg.seed)
     torch.manual_seed(cfg.seed)
     net.to(device)
+    if initial is not None:  # a warm start: the training begins from these weights
+        net.load_state_dict(initial)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.learning_rate)
-    loss_fn = nn.MSELoss()
     rng = np.random.default_rng(cfg.seed)
     val_rows = np.random.default_rng(cfg.seed + 1).choice(
         len(val.index), val.validation_rows(cfg.val_windows), replace=False
@@ -244,7 +306,10 @@ def train_network(
         for k, v in cfg.to_dict().items()
         if k not in unused and _LATER_SETTINGS.get(k, object()) != v
     }
-    key = content_hash({"cfg": settings, "arch": repr(net), "data": _fingerprint(train, val)})
+    ident = {"cfg": settings, "arch": repr(net), "data": _fingerprint(train, val)}
+    if initial is not None:
+        ident["initial"] = _state_hash(initial)
+    key = content_hash(ident)
     if checkpoint is not None and checkpoint.exists():
         state = _read_checkpoint(checkpoint, device)
         if state is not None and state.get("key") == key:
@@ -271,22 +336,23 @@ def train_network(
             if stale >= cfg.patience:
                 break
             t0 = time.perf_counter()
-            train_loss = _train_epoch(net, opt, loss_fn, train, rng, cfg, device)
+            train_loss, train_pair = _train_epoch(net, opt, train, rng, cfg, device)
             net.eval()
-            with torch.no_grad():
-                vloss = float(loss_fn(net(xv), yv))
-            history.append(
-                {
-                    "epoch": len(history) + 1,
-                    "phase": phase,
-                    "learning_rate": lr,
-                    "train_loss": train_loss,
-                    "val_loss": vloss,
-                    "seconds": time.perf_counter() - t0,
-                }
-            )
-            if vloss < best:
-                best, stale = vloss, 0
+            vloss, val_pair, criterion = validation_loss(net, val, xv, yv)
+            entry = {
+                "epoch": len(history) + 1,
+                "phase": phase,
+                "learning_rate": lr,
+                "train_loss": train_loss,
+                "val_loss": vloss,
+                "seconds": time.perf_counter() - t0,
+            }
+            if val_pair is not None:
+                entry |= {"train_pair_loss": train_pair, "val_pair_loss": val_pair}
+                entry["val_criterion"] = criterion
+            history.append(entry)
+            if criterion < best:
+                best, stale = criterion, 0
                 best_state = {k: v.detach().cpu().clone() for k, v in net.state_dict().items()}
             else:
                 stale += 1
@@ -320,6 +386,15 @@ def train_network(
         net.load_state_dict(best_state)
     net.to("cpu").eval()
     return history
+
+
+def _state_hash(state: dict[str, torch.Tensor]) -> str:
+    """SHA-256 of a state dict's names and values."""
+    h = hashlib.sha256()
+    for name in sorted(state):
+        h.update(name.encode())
+        h.update(state[name].detach().cpu().contiguous().numpy().tobytes())
+    return h.hexdigest()
 
 
 def _read_checkpoint(path: Path, device: torch.device) -> dict | None:

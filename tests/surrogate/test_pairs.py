@@ -1,0 +1,229 @@
+"""Gradient-enhanced training on pairs of runs (railsusp.surrogate.pairs): the campaign's
+perturbed twins (railsusp.campaign.perturbed), how they are read and paired, the pair loss,
+the pair-shared dropout, and training on them from a warm start."""
+
+import shutil
+
+import numpy as np
+import pytest
+import torch
+
+from railsusp.campaign import CampaignError, load_campaign, make_config, run_campaign
+from railsusp.campaign.perturbed import (
+    perturbation_table,
+    perturbed_complete,
+    perturbed_folder,
+    perturbed_parameters,
+    run_perturbed_twins,
+)
+from railsusp.conditions import get_condition
+from railsusp.errors import RailsuspInputError
+from railsusp.params import bounds
+from railsusp.surrogate import TrainConfig, feature_spec, train_surrogate
+from railsusp.surrogate.data import Normaliser, load_series
+from railsusp.surrogate.models import NetConfig, build_network
+from railsusp.surrogate.pairs import PairSampler, load_twins
+from railsusp.surrogate.train import sampler_for
+from railsusp.variation import full_ranges, sample_condition
+from railsusp.vehicle.simulate import measured_wheel_index, simulate_batch
+
+KEYS = ("X13", "X14")
+CURVE = get_condition("curve", duration_s=2.0, n_steps=100)
+FAMILY = {"irregularity_classes": (4, 6), "curve_radius_m": (250.0, 400.0), "cant_mm": (0, 100)}
+STEP = 0.05
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("pairs") / "run"
+    cfg = make_config(
+        [CURVE],
+        12,
+        parameters=KEYS,
+        seed=3,
+        batch_size=6,
+        independent_seeds=True,
+        track_family=FAMILY,
+        other_parameters=full_ranges(KEYS),
+    )
+    run_campaign(cfg, out)
+    seen = []
+    run_perturbed_twins(out, step=STEP, per_sample=2, progress=lambda d, t: seen.append(d))
+    assert perturbed_complete(out) and perturbed_complete(out, "curve")
+    return out
+
+
+def test_each_twin_moves_one_key_by_the_step_inside_its_range(run):
+    """Twin j of sample i moves the keys in turn by ±5 % of the range (down where up would
+    leave it), every other parameter as the sample has it; reproducible."""
+    camp = load_campaign(run)
+    cfg, design = camp.config, camp.design()
+    table = perturbation_table(cfg, design, STEP, 2)
+    assert table.equals(perturbation_table(cfg, design, STEP, 2))
+    assert len(table) == 24 and set(table.twin) == {0, 1}
+    assert np.allclose(np.abs(table.delta_unit), STEP)
+    assert (table.groupby("parameter").size() == 12).all()  # every key as many pairs
+    assert (table.groupby("sample_id").parameter.nunique() == 2).all()  # both keys per sample
+    lo, hi = bounds(cfg.simulated_parameters)
+    base = design.set_index("sample_id")[list(cfg.simulated_parameters)].to_numpy()
+    for j in (0, 1):
+        x = perturbed_parameters(cfg, design, table, j)
+        assert ((x >= lo) & (x <= hi)).all()
+        moved = (x != base).sum(axis=1)
+        assert (moved == 1).all()
+        rows = table[table.twin == j].set_index("sample_id")
+        for i in range(12):
+            c = list(cfg.simulated_parameters).index(rows.parameter[i])
+            assert x[i, c] - base[i, c] == pytest.approx(rows.delta_unit[i] * (hi[c] - lo[c]))
+
+
+def test_a_twin_is_the_perturbed_wagon_on_its_samples_own_track(run):
+    camp = load_campaign(run)
+    cfg = camp.config
+    table = perturbation_table(cfg, camp.design(), STEP, 2)
+    row = camp.tracks("curve").iloc[5]
+    x = perturbed_parameters(cfg, camp.design(), table, 1)[5]
+    r = simulate_batch(
+        x[None],
+        sample_condition(CURVE, row),
+        symbols=cfg.simulated_parameters,
+        seeds=[int(row.seed)],
+        wagon=cfg.wagon,
+        settings=cfg.settings(),
+    )
+    spec = feature_spec(camp, KEYS)
+    data = load_series(camp, "curve", spec)
+    twins = load_twins(camp, data, spec)
+    i = list(data.sample_ids).index(5)
+    w = measured_wheel_index(CURVE, "auto")
+    np.testing.assert_allclose(twins.targets[i, 1, :, 0], r.Y[0, w] / 1e3, rtol=1e-5, atol=1e-4)
+    np.testing.assert_allclose(twins.targets[i, 1, :, 1], r.Q[0, w] / 1e3, rtol=1e-5, atol=1e-4)
+    moved = np.flatnonzero(twins.params_unit[i, 1] != data.params_unit[i])
+    assert len(moved) == 1
+    assert twins.params_unit[i, 1, moved[0]] - data.params_unit[i, moved[0]] == pytest.approx(
+        table.set_index(["sample_id", "twin"]).delta_unit[(5, 1)], abs=1e-6
+    )
+    # the parameter moved changes the force: the pair carries a derivative
+    assert np.abs(twins.targets[i, 1] - data.targets[i]).max() > 1e-3
+
+
+def test_twins_resume_and_refuse_another_step(run, tmp_path):
+    files = sorted(perturbed_folder(run).rglob("batch-*.parquet"))
+    stamps = [f.stat().st_mtime_ns for f in files]
+    seen = []
+    run_perturbed_twins(run, step=STEP, per_sample=2, progress=lambda d, t: seen.append((d, t)))
+    assert seen == [(2, 2), (2, 2)] and [f.stat().st_mtime_ns for f in files] == stamps
+    with pytest.raises(CampaignError, match="perturbed twins of another configuration, step"):
+        run_perturbed_twins(run, step=0.1, per_sample=2)
+    with pytest.raises(CampaignError, match=r"step = 0.7: accepted a fraction of the range in"):
+        run_perturbed_twins(run, step=0.7)
+    with pytest.raises(CampaignError, match="per_sample = 0: accepted an integer >= 1"):
+        run_perturbed_twins(run, per_sample=0)
+    copy = tmp_path / "copy"
+    shutil.copytree(run, copy)
+    shutil.rmtree(perturbed_folder(copy, 1))
+    assert not perturbed_complete(copy)
+    camp = load_campaign(copy)
+    spec = feature_spec(camp, KEYS)
+    with pytest.raises(ValueError, match="perturbed twins of 'curve' are missing, incomplete"):
+        load_twins(camp, load_series(camp, "curve", spec), spec)
+
+
+def _sampler(run, chunk_steps=100, weight=1.0):
+    camp = load_campaign(run)
+    spec = feature_spec(camp, KEYS, window=20)
+    data = load_series(camp, "curve", spec)
+    twins = load_twins(camp, data, spec)
+    norm = Normaliser.fit(data)
+    cfg = TrainConfig(pair_weight=weight, chunk_steps=chunk_steps)
+    return sampler_for("cnn-gru-seq", data, norm, 20, cfg, twins), data, twins, norm, spec
+
+
+def test_a_pair_batch_is_the_run_then_its_twin_on_the_same_track_and_steps(run):
+    smp, data, twins, norm, spec = _sampler(run, chunk_steps=60)
+    assert isinstance(smp, PairSampler)
+    rows = np.array([0, 7, len(smp.index) - 1])
+    x, y = smp.batch(rows)
+    assert x.shape == (6, 60, spec.n_features) and y.shape == (6, 40, 2)
+    n_par = len(KEYS)
+    np.testing.assert_array_equal(x[3:, :, n_par:], x[:3, :, n_par:])  # same track, steps
+    for b, (i, start, j) in enumerate(smp.index[rows]):
+        np.testing.assert_allclose(x[3 + b, 0, :n_par], twins.params_unit[i, j], rtol=1e-6)
+        want = norm.target(twins.targets[i, j, start + 20 : start + 60])
+        np.testing.assert_allclose(y[3 + b], want, rtol=1e-5, atol=1e-6)
+        np.testing.assert_allclose(
+            y[b], norm.target(data.targets[i, start + 20 : start + 60]), rtol=1e-5, atol=1e-6
+        )
+
+
+def test_the_pair_term_is_zero_for_the_right_difference_and_one_for_none(run):
+    """With one chunk per series, predicting every run exactly gives zero loss; predicting
+    each twin as its run (a network the parameter does not move) gives the pair term 1 over
+    the whole set, by its normalisation."""
+    smp, *_ = _sampler(run, chunk_steps=100, weight=0.5)
+    x, y = smp.batch(np.arange(len(smp.index)))
+    total, pair = smp.loss(y.clone(), y)
+    assert float(total) == 0.0 and float(pair) == 0.0
+    b = len(y) // 2
+    still = torch.cat([y[:b], y[:b]])
+    total, pair = smp.loss(still, y)
+    assert float(pair) == pytest.approx(1.0, rel=1e-5)
+    main = float(torch.mean((still - y) ** 2))
+    assert float(total) == pytest.approx(main + 0.5, rel=1e-5)
+
+
+def test_both_members_of_a_pair_get_the_same_dropout_mask():
+    cfg = NetConfig(kind="cnn-gru-seq", n_features=7, window=5, n_outputs=2, dropout=0.5)
+    net = build_network(cfg).train()
+    x = torch.randn(3, 30, 7)
+    xx = torch.cat([x, x])
+    torch.manual_seed(0)
+    out = net(xx, pairs=True)
+    np.testing.assert_allclose(out[:3].detach(), out[3:].detach(), atol=1e-6)  # rounding
+    torch.manual_seed(0)
+    out = net(xx)  # masks drawn per row: the two halves differ
+    assert float((out[:3] - out[3:]).detach().abs().max()) > 1e-3
+
+
+def test_training_on_pairs_from_a_warm_start(run, tmp_path):
+    """The sequence network trains on pairs (history with both pair terms; the stopping
+    criterion is the training loss's), starting from a saved network's weights; a network
+    of other features is refused as a start, and pairs are refused for window networks."""
+    tcfg = TrainConfig(
+        epochs=1, batches_per_epoch=2, chunk_steps=60, chunks_per_batch=4, val_windows=100
+    )
+    kw = {"parameters": KEYS, "kind": "cnn-gru-seq", "window": 20, "record_correction": False}
+    first = train_surrogate(run, "curve", train=tcfg, out=tmp_path / "a", **kw)
+    paired = TrainConfig(**{**tcfg.to_dict(), "pair_weight": 2.0})
+    sur = train_surrogate(
+        run, "curve", train=paired, out=tmp_path / "b", init_from=tmp_path / "a", **kw
+    )
+    h = sur.meta["history"][0]
+    assert h["val_pair_loss"] > 0 and h["train_pair_loss"] > 0
+    assert h["val_criterion"] == pytest.approx(h["val_loss"] + 2.0 * h["val_pair_loss"])
+    # the warm start is the first network: with no step taken its weights come back
+    still = TrainConfig(**{**paired.to_dict(), "learning_rate": 1e-12})
+    same = train_surrogate(
+        run, "curve", train=still, out=tmp_path / "c", init_from=tmp_path / "a", **kw
+    )
+    for k, v in first.net.state_dict().items():
+        np.testing.assert_allclose(same.net.state_dict()[k], v, atol=1e-8)
+    with pytest.raises(RailsuspInputError, match="init_from .*: its network differs"):
+        train_surrogate(
+            run,
+            "curve",
+            train=paired,
+            out=tmp_path / "d",
+            init_from=tmp_path / "a",
+            **{**kw, "window": 30},
+        )
+    with pytest.raises(RailsuspInputError, match="pair_weight = 2.0: accepted 0 for 'cnn-gru'"):
+        train_surrogate(
+            run,
+            "curve",
+            train=paired,
+            out=tmp_path / "e",
+            **{**kw, "kind": "cnn-gru", "window": 20},
+        )
+    with pytest.raises(RailsuspInputError, match=r"training pair_weight = -1: accepted \[0, 100\]"):
+        TrainConfig(pair_weight=-1)
