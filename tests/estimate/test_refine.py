@@ -57,6 +57,7 @@ def test_reported_standard_errors_are_the_intervals_noise_part():
     noise = iv.details["noise_standard_error_pct_range"]
     assert iv.details["interval_quantiles"] == STUDENT_T and iv.details["held_parameters"] == []
     assert d["noise_standard_error_pct_range"] == noise
+    assert d["noise_standard_error_method"] == iv.details["noise_standard_error_method"]
     assert d["standard_error_pct_range"] == noise
     q = t.ppf(0.95, iv.details["degrees_of_freedom"])
     for p in PARAMS:

@@ -25,7 +25,7 @@ import numpy as np
 from railsusp.estimate.forces import ForceModel
 from railsusp.estimate.output_error import REFINE_STEP, OutputError
 from railsusp.estimate.problem import display_values
-from railsusp.estimate.residual_noise import noise_standard_errors
+from railsusp.estimate.residual_noise import PER_CHANNEL, noise_standard_errors
 from railsusp.estimate.residual_noise import standard_errors as standard_errors  # re-export
 from railsusp.measured import Recording
 from railsusp.params import bounds
@@ -133,6 +133,7 @@ class Refinement:
             "message": self.message,
             "standard_error_pct_range": pct(self.total_error_si),
             "noise_standard_error_pct_range": pct(self.standard_error_si),
+            "noise_standard_error_method": PER_CHANNEL,
             "geometry_error_pct_range": pct(self.geometry_error_si),
             "geometry_bias_pct_range": pct(self.geometry_bias_si),
             "geometry_draws": int(self.geometry_shifts_si.shape[0]),

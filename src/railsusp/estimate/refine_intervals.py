@@ -30,6 +30,7 @@ from railsusp.estimate.intervals import (
     from_standard_errors,
 )
 from railsusp.estimate.refine import OutputError, Refinement
+from railsusp.estimate.residual_noise import PER_CHANNEL
 from railsusp.estimate.residual_noise import autocorrelation_time as autocorrelation_time
 from railsusp.estimate.residual_noise import effective_sample_size as effective_sample_size
 from railsusp.estimate.residual_noise import noise_standard_errors as noise_standard_errors
@@ -178,8 +179,6 @@ def held_assumptions(
     return out
 
 
-#: how the noise part's standard error was formed (``noise_standard_error_method``)
-PER_CHANNEL = "per-channel variance and autocorrelation time (sandwich covariance)"
 #: how the interval was formed from its parts (``interval_quantiles``)
 MONTE_CARLO = "central quantiles of the error's distribution (JCGM 101:2008 Monte Carlo)"
 STUDENT_T = "Student-t quantile times the total standard error"

@@ -17,6 +17,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
+#: how :func:`noise_standard_errors` forms them (``noise_standard_error_method`` in
+#: estimate.json's refinement record and intervals)
+PER_CHANNEL = "per-channel variance and autocorrelation time (sandwich covariance)"
+
 
 def autocorrelation_time(r: np.ndarray) -> float:
     """Integrated autocorrelation time τ = 1 + 2 Σ ρ(l) of a series, ρ summed over Geyer's
