@@ -172,7 +172,8 @@ def stored_refinement(set_dir: Path):
     the geometry-error draws are not repeated."""
     from railsusp.estimate.forces import SimulatorForces
     from railsusp.estimate.output_error import OutputError
-    from railsusp.estimate.refine import Refinement, standard_errors
+    from railsusp.estimate.refine import Refinement
+    from railsusp.estimate.residual_noise import noise_standard_errors
     from railsusp.measured import read_field
     from railsusp.params import ParameterSet, bounds
 
@@ -189,11 +190,12 @@ def stored_refinement(set_dir: Path):
     z = np.concatenate([(x - lo) / (hi - lo), g])
     jac = prob.jacobian_of(prob.predictions(prob.steps(z[: prob.k])), z)
     res = prob.residuals(prob.predictions(z[: prob.k]), z[prob.k :])[0]
-    se = standard_errors(jac, float(res @ res) / max(res.size - z.size, 1))[: prob.k]
+    blocks = tuple(u[c].size for u in prob.samples for c in range(2))
+    se = noise_standard_errors(jac, res, blocks, z.size)[: prob.k]  # as refine() forms it
     return Refinement(
         params, x, x, np.nan, float(0.5 * res @ res), 0, 0, "rebuilt from estimate.json",
         se * (hi - lo), np.zeros((0, len(params))), dict(gains), problem=prob, solution=z,
-        residuals=res, residual_blocks=tuple(u[c].size for u in prob.samples for c in range(2)),
+        residuals=res, residual_blocks=blocks,
     )  # fmt: skip
 
 

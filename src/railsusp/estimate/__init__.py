@@ -10,6 +10,7 @@ One module per job, imports running one way (top to bottom depends only on those
 - :mod:`~railsusp.estimate.identifiability`: Cramér-Rao bounds of the statistics
 - :mod:`~railsusp.estimate.lockstep`: independent solvers in step, their requests batched
 - :mod:`~railsusp.estimate.output_error`: the refinement's least-squares problem, simulations
+- :mod:`~railsusp.estimate.residual_noise`: least-squares standard errors, pooled or per channel
 - :mod:`~railsusp.estimate.refine`: output-error refinement with the simulator
 - :mod:`~railsusp.estimate.alignment`: registration of measured track with the forces
 - :mod:`~railsusp.estimate.intervals`: the interval every route reports, the verdict

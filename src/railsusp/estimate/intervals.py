@@ -287,7 +287,9 @@ def from_error_quantiles(
 def intervals_of(doc: Mapping[str, Any], level: float = LEVEL) -> Intervals:
     """The intervals of a result JSON (estimate.json, a posterior result): its stored
     ``intervals``; for an estimate.json saved before they were, the refinement's standard
-    errors at ``level`` (normal quantile) or else the Pareto set's range."""
+    errors at ``level`` (normal quantile; such files hold the pooled white-residual ones,
+    which :class:`~railsusp.estimate.refine.Refinement` no longer reports) or else the
+    Pareto set's range."""
     if doc.get("intervals"):
         return Intervals.from_dict(doc["intervals"])
     params = list(doc["parameters"])

@@ -25,6 +25,8 @@ import numpy as np
 from railsusp.estimate.forces import ForceModel
 from railsusp.estimate.output_error import REFINE_STEP, OutputError
 from railsusp.estimate.problem import display_values
+from railsusp.estimate.residual_noise import PER_CHANNEL, noise_standard_errors
+from railsusp.estimate.residual_noise import standard_errors as standard_errors  # re-export
 from railsusp.measured import Recording
 from railsusp.params import bounds
 
@@ -52,7 +54,11 @@ class Refinement:
     n_evaluations: int
     n_jacobians: int
     message: str
-    standard_error_si: np.ndarray  # white-residual standard errors, SI
+    #: (k,) standard errors, SI, that the sensor noise causes: each recording's force
+    #: channel with its own residual variance and autocorrelation time (the sandwich
+    #: covariance, :func:`~railsusp.estimate.residual_noise.noise_standard_errors`),
+    #: autocorrelation included; the intervals' noise part
+    standard_error_si: np.ndarray
     history_si: np.ndarray  # (n_jacobians, k): the iterate at each Jacobian
     channel_gains: dict[str, float] = field(default_factory=dict)  # estimated, if any
     starts: list[dict] = field(default_factory=list)  # every start refined, when screened
@@ -127,6 +133,7 @@ class Refinement:
             "message": self.message,
             "standard_error_pct_range": pct(self.total_error_si),
             "noise_standard_error_pct_range": pct(self.standard_error_si),
+            "noise_standard_error_method": PER_CHANNEL,
             "geometry_error_pct_range": pct(self.geometry_error_si),
             "geometry_bias_pct_range": pct(self.geometry_bias_si),
             "geometry_draws": int(self.geometry_shifts_si.shape[0]),
@@ -163,8 +170,13 @@ def refine(
     accuracy the series are compared in the band where it is accurate
     (:func:`~railsusp.estimate.comparison_band_hz`) and the residuals taken at four samples
     per period of its upper frequency (:func:`~railsusp.estimate.comparison_samples`).
-    Standard errors are s^2 (J^T J)^-1 with white residuals, so they are optimistic where the
-    residuals are correlated. Where the geometry has a stated accuracy, its measurement
+    The standard errors (:attr:`Refinement.standard_error_si`) are the sandwich covariance
+    (J^T J)^-1 J^T Σ J (J^T J)^-1 with Σ each recording's channel's own residual variance
+    times its integrated autocorrelation time
+    (:func:`~railsusp.estimate.residual_noise.noise_standard_errors`): the channels are
+    unequally noisy and their residuals correlated, so one pooled white-residual s^2 (J^T J)^-1
+    would be 2-4 times too wide for parameters the lateral force fixes and optimistic where
+    the residuals are correlated. Where the geometry has a stated accuracy, its measurement
     error is propagated too (:func:`~railsusp.estimate.output_error.gauss_newton_step` on
     ``geometry_draws`` draws seeded by ``seed``): on 0.5 mm geometry it, not the sensor
     noise, sets the uncertainty. The method is the classical one of system identification
@@ -234,8 +246,8 @@ def least_squares_from(
         max_nfev=max_evaluations,
         method="trf",
     )
-    dof = max(sol.fun.size - k - n_gain, 1)
-    se = standard_errors(sol.jac, 2.0 * sol.cost / dof)
+    blocks = tuple(u[c].size for u in problem.samples for c in range(2))
+    se = noise_standard_errors(sol.jac, sol.fun, blocks, k + n_gain)  # sol.jac: at sol.x
     return Refinement(
         problem.parameters,
         lo + u0 * (hi - lo),
@@ -257,21 +269,5 @@ def least_squares_from(
         problem=problem,
         solution=sol.x,
         residuals=sol.fun,
-        residual_blocks=tuple(u[c].size for u in problem.samples for c in range(2)),
+        residual_blocks=blocks,
     )
-
-
-def standard_errors(jac: np.ndarray, s2: float) -> np.ndarray:
-    """Standard errors sqrt(diag(s² (JᵀJ)⁻¹)) of least-squares estimates; a column the
-    residuals do not depend on at all (e.g. a stop clearance never reached) gets an
-    infinite error without spoiling the others."""
-    jtj = jac.T @ jac
-    d = np.diag(jtj)
-    active = d > 1e-12 * max(float(d.max()), 1e-300)
-    se = np.full(d.size, np.inf)
-    try:
-        cov = s2 * np.linalg.inv(jtj[np.ix_(active, active)])
-        se[active] = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    except np.linalg.LinAlgError:
-        pass
-    return se

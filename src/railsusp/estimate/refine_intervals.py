@@ -1,11 +1,11 @@
 """The output-error refinement's confidence intervals (:mod:`railsusp.estimate.intervals`).
 
-The Gauss-Newton standard errors of :func:`railsusp.estimate.refine.refine` assume white
-residuals of one variance; time-aligned force residuals are correlated over neighbouring
-samples (sensor bandwidth, model error), their channels are unequally noisy, and the
-refinement holds the other main-suspension parameters at nominal. Here the noise part takes
-each recording's channel with its own residual variance, inflated by its integrated
-autocorrelation time (the sandwich covariance, :func:`noise_standard_errors`), a Student-t
+Time-aligned force residuals are correlated over neighbouring samples (sensor bandwidth,
+model error), their channels are unequally noisy, and the refinement holds the other
+main-suspension parameters at nominal. The noise part is the refinement's own standard
+error (:attr:`~railsusp.estimate.refine.Refinement.standard_error_si`: each recording's
+channel with its own residual variance and integrated autocorrelation time, the sandwich
+covariance of :func:`~railsusp.estimate.residual_noise.noise_standard_errors`), a Student-t
 variable on the effective degrees of freedom; the track-geometry error's spread is normal;
 the held parameters' part is their linear response, each held parameter uniform over the
 user's range (:class:`~railsusp.estimate.config.HeldPrior`, ``[estimate] held_prior``) or
@@ -30,44 +30,11 @@ from railsusp.estimate.intervals import (
     from_standard_errors,
 )
 from railsusp.estimate.refine import OutputError, Refinement
+from railsusp.estimate.residual_noise import PER_CHANNEL
+from railsusp.estimate.residual_noise import autocorrelation_time as autocorrelation_time
+from railsusp.estimate.residual_noise import effective_sample_size as effective_sample_size
+from railsusp.estimate.residual_noise import noise_standard_errors as noise_standard_errors
 from railsusp.params import MAIN_SUSPENSION, ParameterSet, bounds, spec
-
-
-def autocorrelation_time(r: np.ndarray) -> float:
-    """Integrated autocorrelation time τ = 1 + 2 Σ ρ(l) of a series, ρ summed over Geyer's
-    initial positive sequence (pairs ρ(2m) + ρ(2m+1) while positive): the factor by which
-    correlation inflates the variance of an average, so a series of n samples carries the
-    information of n / τ independent ones. 1 for white residuals, at least 1."""
-    x = np.asarray(r, dtype=float)
-    x = x - x.mean()
-    n = x.size
-    if n < 4 or not np.any(x):
-        return 1.0
-    f = np.fft.rfft(x, 2 * n)
-    acov = np.fft.irfft(f * np.conj(f))[:n] / n
-    rho = acov / acov[0]
-    tau = -1.0  # 1 + 2 sum_{l >= 1} rho(l) = -1 + 2 sum over pairs from l = 0
-    for m in range(n // 2):
-        pair = rho[2 * m] + rho[2 * m + 1]
-        if pair <= 0.0:
-            break
-        tau += 2.0 * pair
-    return float(max(tau, 1.0))
-
-
-def effective_sample_size(residuals: np.ndarray, blocks: Sequence[int]) -> tuple[float, float]:
-    """(n_eff, τ) of residuals made of consecutive ``blocks`` (one per recording and
-    channel): the sum of each block's length over its autocorrelation time, and the overall
-    inflation n / n_eff."""
-    r = np.asarray(residuals, dtype=float).ravel()
-    sizes = [int(b) for b in blocks] if blocks else [r.size]
-    if sum(sizes) != r.size:
-        sizes = [r.size]
-    n_eff, start = 0.0, 0
-    for size in sizes:
-        n_eff += size / autocorrelation_time(r[start : start + size])
-        start += size
-    return n_eff, r.size / max(n_eff, 1e-12)
 
 
 def held_parameters(parameters: Sequence[str]) -> tuple[str, ...]:
@@ -174,47 +141,6 @@ def held_deviation_range(
     return (ab[:, 0] - at) / (hi_t - lo_t), (ab[:, 1] - at) / (hi_t - lo_t)
 
 
-def noise_standard_errors(
-    jac: np.ndarray, residuals: np.ndarray, blocks: Sequence[int], n_fit: int
-) -> np.ndarray:
-    """(columns,) standard errors of the least-squares estimate that the residuals' noise
-    causes, each block of residuals (one recording's channel) with its own variance and
-    autocorrelation time: sqrt(diag((JᵀJ)⁻¹ Jᵀ Σ J (JᵀJ)⁻¹)), Σ diagonal with block b's
-    s_b² τ_b, s_b² = Σ r_b² / n_b · n / (n - n_fit) (the heteroscedasticity-consistent
-    "sandwich" covariance, White 1980, with each block's long-run variance).
-
-    One pooled s² (JᵀJ)⁻¹ assumes every residual equally noisy; the channels are not: each
-    is scaled by its measured series' spread, and 3 % noise on the vertical force, whose
-    spread is small beside its static load, leaves residuals 10 to 40 times the lateral
-    force's in variance (the demo's recordings). The pooled variance then overstates the
-    error of a parameter the lateral force fixes (measured on 12 refinements: 2-4 times,
-    bench/README.md) and understates one fixed by the vertical force. With one block this
-    is the pooled formula times τ. Columns the residuals do not depend on get an infinite
-    error."""
-    j = np.asarray(jac, dtype=float)
-    r = np.asarray(residuals, dtype=float).ravel()
-    sizes = [int(b) for b in blocks] if blocks else [r.size]
-    if sum(sizes) != r.size:
-        sizes = [r.size]
-    scale = r.size / max(r.size - n_fit, 1)
-    w, start = np.empty(r.size), 0
-    for size in sizes:
-        block = r[start : start + size]
-        w[start : start + size] = scale * (block @ block) / size * autocorrelation_time(block)
-        start += size
-    d = np.einsum("ij,ij->j", j, j)
-    active = d > 1e-12 * max(float(d.max()), 1e-300)
-    se = np.full(j.shape[1], np.inf)
-    try:
-        ja = j[:, active]
-        bread = np.linalg.inv(ja.T @ ja)
-        cov = bread @ (ja.T @ (w[:, None] * ja)) @ bread
-        se[active] = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    except np.linalg.LinAlgError:
-        pass
-    return se
-
-
 def solution_jacobian(refinement: Refinement) -> np.ndarray | None:
     """The refinement's Jacobian at its solution (unit parameters, then gains), from its
     problem's cache of simulations where the last step computed it; None for a refinement
@@ -253,9 +179,6 @@ def held_assumptions(
     return out
 
 
-#: how the noise part's standard error was formed (``noise_standard_error_method``)
-PER_CHANNEL = "per-channel variance and autocorrelation time (sandwich covariance)"
-POOLED = "pooled residual variance times the autocorrelation time"
 #: how the interval was formed from its parts (``interval_quantiles``)
 MONTE_CARLO = "central quantiles of the error's distribution (JCGM 101:2008 Monte Carlo)"
 STUDENT_T = "Student-t quantile times the total standard error"
@@ -268,36 +191,31 @@ def refinement_intervals(
     prior: HeldPrior | None = None,
 ) -> Intervals:
     """The refinement's ``level`` confidence intervals (module docstring). The noise part:
-    the standard errors of the least squares with each recording's channel its own residual
-    variance and autocorrelation time (:func:`noise_standard_errors`), or, for a refinement
-    read back without its residuals' Jacobian, the pooled Gauss-Newton ones times the
-    autocorrelation time. With ``held``, the held parameters' linear response
-    (:func:`held_response`), each held one uniform over its range in ``prior`` or else over
-    its whole Table 2 range, offsets from the value held included; the geometry error's
-    spread. Where there is a held part, the interval is the central ``level`` quantiles of
-    the sum of the three (:func:`~railsusp.estimate.interval_distribution.error_quantiles`:
-    uniform, Student-t on n_eff - p degrees of freedom, normal), not a multiple of its
-    standard deviation; without one the sum is Student-t and normal, and the interval the
-    Student-t quantile times the total standard error, as before."""
+    the refinement's standard errors as they are (:attr:`Refinement.standard_error_si`,
+    each recording's channel its own residual variance and autocorrelation time, so that
+    the autocorrelation time is in them once), on n_eff - p degrees of freedom from its
+    residuals (a normal quantile for one that keeps none). With ``held``, the held
+    parameters' linear response (:func:`held_response`), each held one uniform over its
+    range in ``prior`` or else over its whole Table 2 range, offsets from the value held
+    included; the geometry error's spread. Where there is a held part, the interval is the
+    central ``level`` quantiles of the sum of the three
+    (:func:`~railsusp.estimate.interval_distribution.error_quantiles`: uniform, Student-t on
+    n_eff - p degrees of freedom, normal), not a multiple of its standard deviation; without
+    one the sum is Student-t and normal, and the interval the Student-t quantile times the
+    total standard error, as before."""
     ref = refinement
     k = len(ref.parameters)
     lo, hi = bounds(ref.parameters)
     span = hi - lo
     residuals = getattr(ref, "residuals", None)
-    blocks = getattr(ref, "residual_blocks", ())
-    noise_method = POOLED
     if residuals is not None and np.size(residuals):
+        blocks = getattr(ref, "residual_blocks", ())
         n_eff, tau = effective_sample_size(residuals, blocks)  # type: ignore[assignment]
         n_fit = k + (len(ref.channel_gains) or 0)
         dof: float | None = max(n_eff - n_fit, 1.0)
-        noise = np.sqrt(tau) * ref.standard_error_si
-        jac = solution_jacobian(ref)
-        if jac is not None and jac.shape == (np.size(residuals), n_fit):
-            noise = noise_standard_errors(jac, residuals, blocks, n_fit)[:k] * span
-            noise_method = PER_CHANNEL
-    else:  # residuals not kept (a refinement read back): white, normal quantile
+    else:  # residuals not kept: normal quantile
         n_eff, tau, dof = None, 1.0, None
-        noise = ref.standard_error_si
+    noise = np.asarray(ref.standard_error_si, dtype=float)  # τ included: not applied again
     geometry = ref.geometry_error_si
     response = held_response(ref) if held else None
     held_names: tuple[str, ...] = ()
@@ -315,7 +233,7 @@ def refinement_intervals(
         "residual_autocorrelation_time": tau,
         "effective_sample_size": n_eff,
         "degrees_of_freedom": dof,
-        "noise_standard_error_method": noise_method,
+        "noise_standard_error_method": PER_CHANNEL,
         "noise_standard_error_pct_range": pct(noise),
         "geometry_error_pct_range": pct(geometry),
         "held_parameters": list(held_names),
