@@ -161,7 +161,7 @@ def test_the_pair_term_is_zero_for_the_right_difference_and_one_for_none(run):
     each twin as its run (a network the parameter does not move) gives the pair term 1 over
     the whole set, by its normalisation."""
     smp, *_ = _sampler(run, chunk_steps=100, weight=0.5)
-    x, y = smp.batch(np.arange(len(smp.index)))
+    _x, y = smp.batch(np.arange(len(smp.index)))
     total, pair = smp.loss(y.clone(), y)
     assert float(total) == 0.0 and float(pair) == 0.0
     b = len(y) // 2
@@ -227,3 +227,37 @@ def test_training_on_pairs_from_a_warm_start(run, tmp_path):
         )
     with pytest.raises(RailsuspInputError, match=r"training pair_weight = -1: accepted \[0, 100\]"):
         TrainConfig(pair_weight=-1)
+
+
+def test_validation_takes_the_chunks_a_network_on_forces_alone_takes(run):
+    """The runs' half of the pair sampler's validation batch is the chunk sampler's
+    validation batch from the same seed: the validation losses of both trainings are taken
+    on the same chunks."""
+    smp, data, _twins, norm, _spec = _sampler(run, chunk_steps=60)
+    plain = sampler_for("cnn-gru-seq", data, norm, 20, TrainConfig(chunk_steps=60))
+    count = smp.validation_rows(500)
+    assert count == plain.validation_rows(500) == 13  # ceil(500 / 40 targets per chunk)
+    xp, yp = plain.batch(plain.pick(np.random.default_rng(1), count))
+    x, y = smp.batch(smp.pick(np.random.default_rng(1), count))
+    np.testing.assert_array_equal(x[:count], xp)
+    np.testing.assert_array_equal(y[:count], yp)
+
+
+def test_a_failed_twin_is_replaced_by_its_samples_other_or_by_the_run(run):
+    _smp, data, twins, norm, _spec = _sampler(run, chunk_steps=100)
+    broken = twins.subset(np.arange(data.n_samples))
+    broken.targets = broken.targets.copy()
+    broken.targets[3, 0] = np.nan  # sample 3: twin 0 failed, twin 1 ran
+    broken.targets[5] = np.nan  # sample 5: both failed
+    fixed = PairSampler(data, broken, norm, 20, 100, 1.0)
+    np.testing.assert_array_equal(fixed.twin_params[3, 0], fixed.twin_params[3, 1])
+    np.testing.assert_array_equal(fixed.twin_targets[3, 0], fixed.twin_targets[3, 1])
+    for j in (0, 1):  # paired with itself: no pair term
+        rows = np.flatnonzero((fixed.index[:, 0] == 5) & (fixed.index[:, 2] == j))
+        x, y = fixed.batch(rows)
+        np.testing.assert_array_equal(x[:1], x[1:])
+        assert float(fixed.loss(torch.zeros_like(y), y)[1]) == 0.0
+    assert np.isfinite(fixed.twin_targets).all()
+    with pytest.raises(ValueError, match="no perturbed twin ran"):
+        broken.targets[:] = np.nan
+        PairSampler(data, broken, norm, 20, 100, 1.0)

@@ -54,6 +54,10 @@ class ChunkSampler:
         """Validation chunks: enough for about ``val_windows`` targets, at most all."""
         return min(len(self.index), -(-val_windows // self.targets_per_row))
 
+    def pick(self, rng: np.random.Generator, count: int) -> np.ndarray:
+        """``count`` distinct rows drawn from ``rng`` (the validation chunks)."""
+        return rng.choice(len(self.index), count, replace=False)
+
     def batch(self, rows: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
         """Inputs (B, C, F) of the chunks and their targets after the washout
         (B, C - washout, n_targets)."""

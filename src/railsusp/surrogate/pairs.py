@@ -121,20 +121,36 @@ class PairSampler(ChunkSampler):
         ok = twins.ok
         if not ok.any():
             raise ValueError("no perturbed twin ran: nothing to train the pairs on")
-        starts = np.arange(data.n_steps - self.chunk + 1)
-        sample, twin = np.nonzero(ok)
-        self.index = np.concatenate(
-            [
-                np.repeat(sample, len(starts))[:, None],
-                np.tile(starts, len(sample))[:, None],
-                np.repeat(twin, len(starts))[:, None],
-            ],
-            axis=1,
-        )
-        diff = (self.twin_targets[sample, twin] - self.targets[sample])[:, self.window :]
+        m = ok.shape[1]
+        diff = (self.twin_targets - self.targets[:, None])[ok][:, self.window :]
         self.diff_scale = torch.from_numpy(
             np.maximum(np.mean(diff.astype(np.float64) ** 2, axis=(0, 1)), 1e-12).astype(np.float32)
         )
+        # a twin that failed is replaced by another of its sample, or by the run itself (a
+        # pair of equal runs, whose pair term is zero)
+        for i, j in zip(*np.nonzero(~ok), strict=True):
+            k = np.flatnonzero(ok[i])
+            if len(k):
+                self.twin_params[i, j] = self.twin_params[i, k[0]]
+                self.twin_targets[i, j] = self.twin_targets[i, k[0]]
+            else:
+                self.twin_params[i, j], self.twin_targets[i, j] = self.params[i], self.targets[i]
+        # row r * m + j: the runs' chunk r (ChunkSampler's rows, in its order) with twin j
+        self.n_chunks, self.n_twins = len(self.index), m
+        self.index = np.concatenate(
+            [np.repeat(self.index, m, axis=0), np.tile(np.arange(m), len(self.index))[:, None]],
+            axis=1,
+        )
+
+    def validation_rows(self, val_windows: int) -> int:
+        """Validation chunks as :class:`ChunkSampler` counts them (runs, not pairs)."""
+        return min(self.n_chunks, -(-val_windows // self.targets_per_row))
+
+    def pick(self, rng: np.random.Generator, count: int) -> np.ndarray:
+        """The validation rows: the chunks :class:`ChunkSampler` draws from the same
+        generator, each with its first twin, so that the runs' validation loss is taken on
+        the same chunks as a network trained on the forces alone."""
+        return rng.choice(self.n_chunks, count, replace=False) * self.n_twins
 
     def batch(self, rows: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
         """Inputs (2B, C, F) and targets after the washout (2B, C - washout, n_targets):

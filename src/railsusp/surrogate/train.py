@@ -149,6 +149,10 @@ class WindowSampler:
         """Validation windows: ``val_windows``, at most all."""
         return min(val_windows, len(self.index))
 
+    def pick(self, rng: np.random.Generator, count: int) -> np.ndarray:
+        """``count`` distinct rows drawn from ``rng`` (the validation windows)."""
+        return rng.choice(len(self.index), count, replace=False)
+
     def batch(self, rows: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
         idx = self.index[rows]
         x = gather_windows(self.params, self.track, idx, self.window)
@@ -286,9 +290,7 @@ def train_network(
         net.load_state_dict(initial)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.learning_rate)
     rng = np.random.default_rng(cfg.seed)
-    val_rows = np.random.default_rng(cfg.seed + 1).choice(
-        len(val.index), val.validation_rows(cfg.val_windows), replace=False
-    )
+    val_rows = val.pick(np.random.default_rng(cfg.seed + 1), val.validation_rows(cfg.val_windows))
     xv, yv = val.batch(val_rows)
     xv, yv = xv.to(device), yv.to(device)
     history: list[dict] = []
