@@ -471,6 +471,9 @@ def main() -> None:
         "--rnn-hidden", help="with --nominal: their GRU sizes, e.g. 128,64,32 (study: 64,32,16)"
     )
     ap.add_argument(
+        "--dense", help="with --nominal: their dense head's sizes, e.g. 64,32,16 (study: 64,8,8)"
+    )
+    ap.add_argument(
         "--nominal-context",
         default="none",
         help="with --nominal: more channels of the nominal wagon's response as inputs of "
@@ -495,8 +498,8 @@ def main() -> None:
     ap.add_argument(
         "--tag",
         default="",
-        help="with --dropout/--rnn-hidden/--nominal-context/--pair-weight/--init-from: suffix "
-        "of their folder names",
+        help="with --dropout/--rnn-hidden/--dense/--nominal-context/--pair-weight/--init-from: "
+        "suffix of their folder names",
     )
     ap.add_argument("--train-conditions", help="conditions whose models are trained (default: all)")
     ap.add_argument("--threads", type=int, default=2, help="torch threads for throughput")
@@ -562,6 +565,13 @@ def main() -> None:
             ap.error(f"--rnn-hidden {args.rnn_hidden}: accepted sizes like 64,32,16")
         if min(architecture["rnn_hidden"]) < 1:
             ap.error(f"--rnn-hidden {args.rnn_hidden}: accepted sizes >= 1")
+    if args.dense:
+        try:
+            architecture["dense"] = tuple(int(h) for h in args.dense.split(","))
+        except ValueError:
+            ap.error(f"--dense {args.dense}: accepted sizes like 64,8,8")
+        if min(architecture["dense"]) < 1:
+            ap.error(f"--dense {args.dense}: accepted sizes >= 1")
     context: tuple[str, ...] = ()
     if args.nominal_context == "all":
         context = CONTEXT_CHANNELS
@@ -574,8 +584,8 @@ def main() -> None:
             )
     if (architecture or context or args.pair_weight or args.init_from) and not args.tag:
         ap.error(
-            "--dropout/--rnn-hidden/--nominal-context/--pair-weight/--init-from: give --tag, "
-            "so the study's networks are not overwritten"
+            "--dropout/--rnn-hidden/--dense/--nominal-context/--pair-weight/--init-from: give "
+            "--tag, so the study's networks are not overwritten"
         )
     if args.pair_weight and (models or nominal_kinds != ["cnn-gru-seq"] or not args.nominal):
         ap.error(
