@@ -40,10 +40,17 @@ import numpy as np
 import pandas as pd
 import torch
 
-from railsusp.campaign import CampaignConfig, load_campaign, make_config, run_campaign
-from railsusp.campaign.perturbed import DEFAULT_STEP, run_perturbed_twins
+from railsusp.campaign import (
+    CampaignConfig,
+    CampaignError,
+    load_campaign,
+    make_config,
+    run_campaign,
+)
+from railsusp.campaign.perturbed import DEFAULT_STEP, check_perturbation, run_perturbed_twins
 from railsusp.campaign.twins import run_nominal_twins
 from railsusp.conditions import get_condition
+from railsusp.errors import RailsuspInputError
 from railsusp.store import write_json
 from railsusp.surrogate import TrainConfig, feature_spec, load, train_surrogate
 from railsusp.surrogate.compare import compare
@@ -425,6 +432,15 @@ def _pair(text: str | None, option: str) -> tuple[float, float] | None:
     return None if text in (None, "", "none") else parse_range(text, option)
 
 
+def _sizes(text: str) -> tuple[int, ...] | None:
+    """Layer sizes from a comma list, e.g. "64,32,16"; None unless all are integers >= 1."""
+    try:
+        sizes = tuple(int(h) for h in text.split(","))
+    except ValueError:
+        return None
+    return sizes if sizes and min(sizes) >= 1 else None
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--run", default="runs/bench-tracks", help="campaign run directory")
@@ -523,22 +539,20 @@ def main() -> None:
         keys=[k.strip() for k in args.keys.split(",") if k.strip()],
         seed=args.seed,
     )
-    t0 = time.perf_counter()
-    print(f"campaign: {cfg.n_runs} samples x {len(cfg.conditions)} conditions into {args.run}")
-    run_campaign(cfg, args.run)
-    campaign_s = time.perf_counter() - t0
-    print(f"  {campaign_s:.0f} s (resumed runs cost nothing)", flush=True)
-    tcfg = TrainConfig(
-        epochs=args.epochs,
-        fine_tune_epochs=args.fine_tune_epochs,
-        batches_per_epoch=args.batches_per_epoch,
-        learning_rate=args.learning_rate,
-        batch_size=args.batch_size,
-        device=args.device,
-        chunk_steps=args.chunk_steps,
-        chunks_per_batch=args.chunks_per_batch,
-        pair_weight=args.pair_weight,
-    )
+    try:
+        tcfg = TrainConfig(
+            epochs=args.epochs,
+            fine_tune_epochs=args.fine_tune_epochs,
+            batches_per_epoch=args.batches_per_epoch,
+            learning_rate=args.learning_rate,
+            batch_size=args.batch_size,
+            device=args.device,
+            chunk_steps=args.chunk_steps,
+            chunks_per_batch=args.chunks_per_batch,
+            pair_weight=args.pair_weight,
+        )
+    except RailsuspInputError as exc:
+        ap.error(str(exc))
     seconds: dict[str, float] = {}
     state: dict = {"t": None, "m": None}
 
@@ -558,20 +572,16 @@ def main() -> None:
         if not 0.0 <= args.dropout < 1.0:
             ap.error(f"--dropout {args.dropout}: accepted 0 <= dropout < 1")
         architecture["dropout"] = args.dropout
-    if args.rnn_hidden:
-        try:
-            architecture["rnn_hidden"] = tuple(int(h) for h in args.rnn_hidden.split(","))
-        except ValueError:
-            ap.error(f"--rnn-hidden {args.rnn_hidden}: accepted sizes like 64,32,16")
-        if min(architecture["rnn_hidden"]) < 1:
-            ap.error(f"--rnn-hidden {args.rnn_hidden}: accepted sizes >= 1")
-    if args.dense:
-        try:
-            architecture["dense"] = tuple(int(h) for h in args.dense.split(","))
-        except ValueError:
-            ap.error(f"--dense {args.dense}: accepted sizes like 64,8,8")
-        if min(architecture["dense"]) < 1:
-            ap.error(f"--dense {args.dense}: accepted sizes >= 1")
+    for option, field, example in (
+        ("--rnn-hidden", "rnn_hidden", "64,32,16"),
+        ("--dense", "dense", "64,8,8"),
+    ):
+        text = getattr(args, field)
+        if text:
+            sizes = _sizes(text)
+            if sizes is None:
+                ap.error(f"{option} {text}: accepted sizes >= 1 like {example}")
+            architecture[field] = sizes
     context: tuple[str, ...] = ()
     if args.nominal_context == "all":
         context = CONTEXT_CHANNELS
@@ -596,6 +606,16 @@ def main() -> None:
         if args.train_threads < 1:
             ap.error(f"--train-threads {args.train_threads}: accepted an integer >= 1")
         torch.set_num_threads(args.train_threads)
+    try:
+        check_perturbation(args.pair_step, args.pair_twins)
+    except CampaignError as exc:
+        ap.error(f"--pair-step/--pair-twins: {exc}")
+    # options are checked above, before the campaign's minutes are spent
+    t0 = time.perf_counter()
+    print(f"campaign: {cfg.n_runs} samples x {len(cfg.conditions)} conditions into {args.run}")
+    run_campaign(cfg, args.run)
+    campaign_s = time.perf_counter() - t0
+    print(f"  {campaign_s:.0f} s (resumed runs cost nothing)", flush=True)
     table = table_on_tracks(
         args.run,
         models=models,

@@ -120,3 +120,28 @@ def test_targets_are_judged_per_run_in_every_condition(bench):
     absent = bench.targets_met(t7[t7.model == "bp"], {"bp": 5e5})
     assert absent["lateral_per_run_ok"] is None and absent["vertical_per_run_ok"] is None
     assert absent["windows_per_second_ok"] is None
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--dense", "64,0", "--nominal", "--tag", "x"], "--dense 64,0: accepted sizes >= 1"),
+        (["--pair-weight", "-1", "--tag", "x"], r"pair_weight = -1.0: accepted \[0, 100\]"),
+        (["--pair-step", "0.9", "--tag", "x"], r"step = 0.9: accepted a fraction of the range"),
+        (["--pair-weight", "1", "--tag", "x"], "--pair-weight: accepted with --nominal"),
+    ],
+)
+def test_bad_options_are_refused_before_the_campaign_runs(
+    bench, tmp_path, monkeypatch, capsys, options, message
+):
+    """Exit 2 with the option named, and no campaign simulated (minutes on a real one)."""
+    import re
+    import sys
+
+    run = tmp_path / "never"
+    monkeypatch.setattr(sys, "argv", ["surrogate_tracks.py", "--run", str(run), *options])
+    with pytest.raises(SystemExit) as exc:
+        bench.main()
+    assert exc.value.code == 2
+    assert re.search(message, capsys.readouterr().err)
+    assert not run.exists()
