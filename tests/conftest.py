@@ -50,3 +50,25 @@ def harmonic_drive(amplitude: float, n: int = 4000, cycles: int = 2):
             amplitude * omega * math.cos(omega * t),
             i >= n - n // cycles,
         )
+
+
+def family_campaign(out: Path, keys: tuple[str, ...], condition, samples: int = 12) -> Path:
+    """A tiny many-track campaign into ``out``: ``samples`` samples of ``keys`` by LHS, each
+    on its own track of the FRA 4-6, R250-400 m, cant 0-100 mm family, the other
+    main-suspension parameters varied over their ranges (what twins are made of)."""
+    from railsusp.campaign import make_config, run_campaign
+    from railsusp.variation import full_ranges
+
+    family = {"irregularity_classes": (4, 6), "curve_radius_m": (250.0, 400.0), "cant_mm": (0, 100)}
+    cfg = make_config(
+        [condition],
+        samples,
+        parameters=keys,
+        seed=3,
+        batch_size=samples // 2,
+        independent_seeds=True,
+        track_family=family,
+        other_parameters=full_ranges(keys),
+    )
+    run_campaign(cfg, out)
+    return out

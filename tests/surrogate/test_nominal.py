@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import torch
 
+from conftest import family_campaign
 from railsusp.campaign import CampaignError, load_campaign, make_config, run_campaign
 from railsusp.campaign.twins import nominal_folder, run_nominal_twins, twins_complete
 from railsusp.conditions import get_condition
@@ -13,28 +14,16 @@ from railsusp.params import ParameterSet
 from railsusp.surrogate import TrainConfig, feature_spec, train_surrogate
 from railsusp.surrogate.data import FeatureSpec, Normaliser, load_series, track_features
 from railsusp.surrogate.nominal import nominal_forces
-from railsusp.variation import full_ranges, sample_condition
+from railsusp.variation import sample_condition
 from railsusp.vehicle.simulate import measured_wheel_index, simulate_batch
 
 KEYS = ("X13", "X14")
 CURVE = get_condition("curve", duration_s=2.0, n_steps=100)
-FAMILY = {"irregularity_classes": (4, 6), "curve_radius_m": (250.0, 400.0), "cant_mm": (0, 100)}
 
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("twins") / "run"
-    cfg = make_config(
-        [CURVE],
-        12,
-        parameters=KEYS,
-        seed=3,
-        batch_size=6,
-        independent_seeds=True,
-        track_family=FAMILY,
-        other_parameters=full_ranges(KEYS),
-    )
-    run_campaign(cfg, out)
+    out = family_campaign(tmp_path_factory.mktemp("twins") / "run", KEYS, CURVE)
     return out
 
 

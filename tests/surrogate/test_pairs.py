@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from railsusp.campaign import CampaignError, load_campaign, make_config, run_campaign
+from conftest import family_campaign
+from railsusp.campaign import CampaignError, load_campaign
 from railsusp.campaign.perturbed import (
     perturbation_table,
     perturbed_complete,
@@ -24,29 +25,17 @@ from railsusp.surrogate.data import Normaliser, load_series
 from railsusp.surrogate.models import NetConfig, build_network
 from railsusp.surrogate.pairs import PairSampler, load_twins
 from railsusp.surrogate.train import sampler_for
-from railsusp.variation import full_ranges, sample_condition
+from railsusp.variation import sample_condition
 from railsusp.vehicle.simulate import measured_wheel_index, simulate_batch
 
 KEYS = ("X13", "X14")
 CURVE = get_condition("curve", duration_s=2.0, n_steps=100)
-FAMILY = {"irregularity_classes": (4, 6), "curve_radius_m": (250.0, 400.0), "cant_mm": (0, 100)}
 STEP = 0.05
 
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("pairs") / "run"
-    cfg = make_config(
-        [CURVE],
-        12,
-        parameters=KEYS,
-        seed=3,
-        batch_size=6,
-        independent_seeds=True,
-        track_family=FAMILY,
-        other_parameters=full_ranges(KEYS),
-    )
-    run_campaign(cfg, out)
+    out = family_campaign(tmp_path_factory.mktemp("pairs") / "run", KEYS, CURVE)
     seen = []
     run_perturbed_twins(out, step=STEP, per_sample=2, progress=lambda d, t: seen.append(d))
     assert perturbed_complete(out) and perturbed_complete(out, "curve")
