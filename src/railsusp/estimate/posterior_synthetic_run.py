@@ -38,6 +38,7 @@ from railsusp.estimate.posterior_emulator import StatisticsEmulator, fit
 from railsusp.estimate.posterior_result import PosteriorResult
 from railsusp.estimate.posterior_synthetic import (
     SyntheticLikelihood,
+    fit_model_error,
     fit_scales,
     gain_covariance,
 )
@@ -115,11 +116,13 @@ def likelihood(
     sections is the instrument model's (the training simulations'); ``scales``: the
     covariance's fitted scales (``scales.json``; none: 1)."""
     scales = scales or {}
+    matrix = scales.get("model_error_matrix")
     return SyntheticLikelihood(
         emulator,
         gain_covariance(settings.summary_names, GAIN_ERROR),
         within_scale=float(scales.get("within_scale", 1.0)),
         model_error=float(scales.get("model_error", 0.0)),
+        model_error_matrix=None if matrix is None else np.asarray(matrix, float),
     )
 
 
@@ -147,15 +150,19 @@ def fit_covariance_scales(post: SyntheticPosterior, run: str | Path, where) -> d
             if (
                 old.get("records") == record["records"]
                 and old.get("emulator") == record["emulator"]
+                and "model_error_matrix" in old
             ):
                 return old
         s = post.settings
         u, x = cached_cases(s, Path(run) / "posterior" / "simulations", kind, n, k)
         ok = np.all(np.isfinite(x), axis=(1, 2))
         within, model = fit_scales(post.likelihood, u[ok], x[ok])
-        record.update(within_scale=within, model_error=model, used=int(ok.sum()))
-        log.info("synthetic likelihood: sections' scatter x %.2f, model error %.4f of it",
-                 within, model)  # fmt: skip
+        matrix, rho = fit_model_error(post.likelihood, u[ok], x[ok], within)
+        record.update(within_scale=within, model_error=model, used=int(ok.sum()),
+                      model_error_matrix=matrix.tolist(), shrinkage=rho)  # fmt: skip
+        log.info("synthetic likelihood: sections' scatter x %.2f, model error %.4f of it "
+                 "(isotropic), per direction %.4f to %.4f (shrinkage %.2f)", within, model,
+                 *np.linalg.eigvalsh(matrix)[[0, -1]], rho)  # fmt: skip
     write_json(path, record)
     return record
 
@@ -224,7 +231,8 @@ def train(
     post.likelihood = likelihood(settings, emulator, scales)
     path = Path(run) / "posterior" / "synthetic" / "check.json"
     sets = [list(map(_plain, st)) for st in (sets or held_out_sets(settings))]
-    stamp = [_stamp(run), scales["within_scale"], scales["model_error"]]
+    matrix = content_hash({"model_error_matrix": scales.get("model_error_matrix")})
+    stamp = [_stamp(run), scales["within_scale"], scales["model_error"], matrix]
     if path.exists():
         old = read_json(path)
         if old.get("sets") == sets and old.get("emulator") == stamp:
