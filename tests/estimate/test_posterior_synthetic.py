@@ -294,3 +294,31 @@ def test_the_cramer_rao_width_of_a_linear_gaussian_record_is_the_exact_posterior
     endless = cramer_rao_width(fisher_information(sl, TRUTH[None], 10**6, emulator_error=False))
     wider = cramer_rao_width(fisher_information(sl, TRUTH[None], 10**6))
     assert np.all(wider > 20 * endless)  # the emulator's spread: a bound no length passes
+
+
+class _Hetero(StatisticsEmulator):
+    """u[0] moves the mean (2 u0, u0, -u0); u[1] only one section's scatter, (0.05 + u1)^2 I."""
+
+    def __init__(self):
+        super().__init__([[(np.zeros((2, 1)), np.zeros(1))]], np.zeros(3), np.ones(3),
+                         np.zeros((1, 3)), np.eye(3))  # fmt: skip
+
+    def moments(self, u):
+        n = len(u)
+        mean = u[:, :1] * np.array([2.0, 1.0, -1.0])
+        section = (0.05 + u[:, 1])[:, None, None] ** 2 * np.eye(3)
+        return mean, section, np.zeros((n, 3, 3))
+
+
+def test_the_plug_in_covariance_takes_no_information_from_the_scatter_model():
+    """A parameter that moves only the emulated scatter: with C_k(u) the posterior of one
+    record's mean leans on -log|C_k(u)| / 2 and piles up where the scatter is small; with
+    C_k held at a first posterior's mean it stays the prior (uniform: mean 0.5, sd
+    0.289), while the parameter that moves the mean is found as before."""
+    s = np.array([0.8, 0.4, -0.4])  # the mean at u0 = 0.4
+    full = SyntheticLikelihood(_Hetero(), plug_in_covariance=False).sample(s, 2000, seed=1)
+    plug = SyntheticLikelihood(_Hetero()).sample(s, 2000, seed=1)
+    assert np.mean(full[:, 1]) < 0.3
+    assert np.mean(plug[:, 1]) == pytest.approx(0.5, abs=0.05)
+    assert np.std(plug[:, 1]) == pytest.approx(1 / np.sqrt(12), rel=0.1)
+    assert np.median(plug[:, 0]) == pytest.approx(0.4, abs=0.05)

@@ -232,7 +232,8 @@ def train(
     path = Path(run) / "posterior" / "synthetic" / "check.json"
     sets = [list(map(_plain, st)) for st in (sets or held_out_sets(settings))]
     matrix = content_hash({"model_error_matrix": scales.get("model_error_matrix")})
-    stamp = [_stamp(run), scales["within_scale"], scales["model_error"], matrix]
+    plug_in = post.likelihood.plug_in_covariance
+    stamp = [_stamp(run), scales["within_scale"], scales["model_error"], matrix, plug_in]
     if path.exists():
         old = read_json(path)
         if old.get("sets") == sets and old.get("emulator") == stamp:
