@@ -7,11 +7,13 @@ training cases, held-out records, the middle-80 % sets) and its scoring.
 
     python bench/posterior_synthetic.py --run RUN --conditions straight,curve --section 20 \\
         --train 2000 --check 200 --long 100 --long-length 600 --lengths 20,120,600 \\
-        --sets 12 --set-length 600 --set-lengths 20,60,120,300,600
+        --scale-records 150 --sets 12 --set-length 600 --set-lengths 20,60,120,300,600
 
 1. Fits (or reads) the emulator on the ``--train`` training cases (one section each, all
    ten parameters from the prior, a new track each): ``RUN/posterior/synthetic/``.
-2. Checks the posterior, with no widening fitted: one section on ``--check`` held-out
+2. Fits c and the model error per direction A on ``--scale-records`` calibration records
+   of ``--long-length`` (the fusion's ``long-calibration`` records; never the test records).
+   Checks the posterior, with no widening fitted: one section on ``--check`` held-out
    cases, k sections on the first k of ``--long`` held-out records of ``--long-length``
    seconds per condition (the fusion's ``long`` records, same seeds), for every length of
    ``--lengths``; coverage per parameter and median 90 % width (% of range).

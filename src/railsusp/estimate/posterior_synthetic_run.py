@@ -4,15 +4,16 @@ to a recording (``long_record = "synthetic-likelihood"``; the method in
 :mod:`railsusp.estimate.posterior_synthetic`).
 
 Files, in ``posterior/synthetic/``: ``settings.json`` (the estimator's settings and the
-hash of what the emulator learnt from), ``emulator.npz`` (the fitted emulator) and
-``check.json`` (per checked number of sections: coverage of the 90 % intervals per
-parameter on held-out records, median width). The check uses the held-out sets that the
-fusion's check uses (``check`` for one section; ``long`` of ``product_sections``,
-:meth:`~railsusp.estimate.posterior_data.PosteriorSettings.product_sets`), so both
-methods are measured on the same records; no calibration set is needed because nothing is
-fitted to held-out cases: no widening, the verdict is the check. A recording of n
-sections takes the check of the smallest checked number >= n; longer than any, it is
-reported not calibrated.
+hash of what the emulator learnt from), ``emulator.npz`` (the fitted emulator),
+``scales.json`` (c, the isotropic m and the model error per direction A with its
+shrinkage, fitted on the fusion's calibration records of the longest checked length,
+:func:`fit_covariance_scales`) and ``check.json`` (per checked number of sections:
+coverage of the 90 % intervals per parameter on held-out records, median width). The check
+uses the held-out sets that the fusion's check uses (``check`` for one section; ``long`` of
+``product_sections``, :meth:`~railsusp.estimate.posterior_data.PosteriorSettings.
+product_sets`), so both methods are measured on the same records; nothing is fitted on
+them: no widening, the verdict is the check. A recording of n sections takes the check of
+the smallest checked number >= n; longer than any, it is reported not calibrated.
 """
 
 from __future__ import annotations
