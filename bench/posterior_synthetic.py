@@ -7,17 +7,22 @@ training cases, held-out records, the middle-80 % sets) and its scoring.
 
     python bench/posterior_synthetic.py --run RUN --conditions straight,curve --section 20 \\
         --train 2000 --check 200 --long 100 --long-length 600 --lengths 20,120,600 \\
-        --sets 12 --set-length 600 --set-lengths 20,60,120,300,600
+        --scale-records 150 --sets 12 --set-length 600 --set-lengths 20,60,120,300,600
 
 1. Fits (or reads) the emulator on the ``--train`` training cases (one section each, all
    ten parameters from the prior, a new track each): ``RUN/posterior/synthetic/``.
-2. Checks the posterior, with no widening fitted: one section on ``--check`` held-out
+2. Fits c and the model error per direction A on ``--scale-records`` calibration records
+   of ``--long-length`` (the fusion's ``long-calibration`` records; never the test records).
+   Checks the posterior, with no widening fitted: one section on ``--check`` held-out
    cases, k sections on the first k of ``--long`` held-out records of ``--long-length``
    seconds per condition (the fusion's ``long`` records, same seeds), for every length of
    ``--lengths``; coverage per parameter and median 90 % width (% of range).
 3. With ``--sets N``: the N middle-80 % sets of bench/posterior.py at every length of
    ``--lengths`` up to ``--set-length``, scored and judged exactly as there.
 4. The time of one recording's posterior at the longest length.
+5. With ``--sets N``: the Cramer-Rao bound of the 90 % width at ``--set-length`` at the N
+   sets' truths, from the synthetic likelihood's Fisher information (the emulator's
+   Jacobian of mu, C_k with and without the emulator's error).
 """
 
 from __future__ import annotations
@@ -29,9 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
-from posterior import add_common_arguments, bench_conditions, identify_sets, lengths_s
+from posterior import add_common_arguments, bench_conditions, identify_sets, lengths_s, middle_draws
 from railsusp.estimate import posterior_synthetic_run as synthetic
 from railsusp.estimate.posterior_data import PosteriorSettings
+from railsusp.estimate.posterior_synthetic import cramer_rao_width, fisher_information
 
 
 def main() -> None:
@@ -67,6 +73,9 @@ def main() -> None:
     where = ("long-calibration", a.scale_records, longest) if a.scale_records else None
     post = synthetic.train(settings, a.run, sets, scales_on=where)
     scales = {k: getattr(post.likelihood, k) for k in ("within_scale", "model_error")}
+    matrix = post.likelihood.model_error_matrix
+    if matrix is not None:  # the emulator's error per direction, S A S: A's eigenvalues
+        scales["model_error_eigenvalues"] = np.linalg.eigvalsh(matrix)[::-1].round(4).tolist()
     print(f"covariance scales: {scales}")
     t_train = time.perf_counter() - t0
     print(f"\nemulator + checks: {t_train:.0f} s (cached parts are read, not redone)")
@@ -84,6 +93,7 @@ def main() -> None:
             t_est.append(time.perf_counter() - t1)
         print(f"posterior of {xs.shape[1]} sections: median {np.median(t_est):.2f} s over "
               f"{len(t_est)} records")  # fmt: skip
+    bound = _cramer_rao(post, a, names) if a.sets else None
     out = {
         "date": time.strftime("%Y-%m-%d"),
         "method": "synthetic-likelihood",
@@ -97,10 +107,30 @@ def main() -> None:
         "identification": ident,
         "identification_verdicts": verdicts,
         "estimate_s_median": float(np.median(t_est)) if a.sets else None,
+        "cramer_rao_width_pct": bound,
     }
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(out, indent=2) + "\n")
     print(f"wrote {a.out}")
+
+
+def _cramer_rao(post, a: argparse.Namespace, names: list[str]) -> dict:
+    """Cramer-Rao 90 % widths (% of range) at the ``--sets`` truths for ``--set-length``:
+    per set and parameter, with the emulator's error in C_k (what this emulator can
+    tell) and without it (what the statistics hold, read by a perfect emulator)."""
+    s = post.settings
+    k = max(1, round(a.set_length / s.section_s))
+    u = middle_draws(s, a.sets)
+    out = {"sections": k, "length_s": k * s.section_s}
+    print(f"\nCramer-Rao bound of the 90 % width at {k * s.section_s:g} s, % of range, "
+          f"median over the {a.sets} sets (all ten parameters unknown)")  # fmt: skip
+    print(f"{'C_k':>24} " + " ".join(f"{p:>6}" for p in names))
+    for label, err in (("statistics alone", False), ("with emulator error", True)):
+        w = 100.0 * cramer_rao_width(fisher_information(post.likelihood, u, k, emulator_error=err))
+        w = w[:, post.columns]
+        out[label.replace(" ", "_")] = {p: w[:, i].tolist() for i, p in enumerate(names)}
+        print(f"{label:>24} " + " ".join(f"{np.median(w[:, i]):6.1f}" for i in range(len(names))))
+    return out
 
 
 def _coverage_table(rows: list[dict], names: list[str], section_s: float) -> None:

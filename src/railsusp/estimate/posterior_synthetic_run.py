@@ -4,15 +4,16 @@ to a recording (``long_record = "synthetic-likelihood"``; the method in
 :mod:`railsusp.estimate.posterior_synthetic`).
 
 Files, in ``posterior/synthetic/``: ``settings.json`` (the estimator's settings and the
-hash of what the emulator learnt from), ``emulator.npz`` (the fitted emulator) and
-``check.json`` (per checked number of sections: coverage of the 90 % intervals per
-parameter on held-out records, median width). The check uses the held-out sets that the
-fusion's check uses (``check`` for one section; ``long`` of ``product_sections``,
-:meth:`~railsusp.estimate.posterior_data.PosteriorSettings.product_sets`), so both
-methods are measured on the same records; no calibration set is needed because nothing is
-fitted to held-out cases: no widening, the verdict is the check. A recording of n
-sections takes the check of the smallest checked number >= n; longer than any, it is
-reported not calibrated.
+hash of what the emulator learnt from), ``emulator.npz`` (the fitted emulator),
+``scales.json`` (c, the isotropic m and the model error per direction A with its
+shrinkage, fitted on the fusion's calibration records of the longest checked length,
+:func:`fit_covariance_scales`) and ``check.json`` (per checked number of sections:
+coverage of the 90 % intervals per parameter on held-out records, median width). The check
+uses the held-out sets that the fusion's check uses (``check`` for one section; ``long`` of
+``product_sections``, :meth:`~railsusp.estimate.posterior_data.PosteriorSettings.
+product_sets`), so both methods are measured on the same records; nothing is fitted on
+them: no widening, the verdict is the check. A recording of n sections takes the check of
+the smallest checked number >= n; longer than any, it is reported not calibrated.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from railsusp.estimate.posterior_emulator import StatisticsEmulator, fit
 from railsusp.estimate.posterior_result import PosteriorResult
 from railsusp.estimate.posterior_synthetic import (
     SyntheticLikelihood,
+    fit_model_error,
     fit_scales,
     gain_covariance,
 )
@@ -115,11 +117,13 @@ def likelihood(
     sections is the instrument model's (the training simulations'); ``scales``: the
     covariance's fitted scales (``scales.json``; none: 1)."""
     scales = scales or {}
+    matrix = scales.get("model_error_matrix")
     return SyntheticLikelihood(
         emulator,
         gain_covariance(settings.summary_names, GAIN_ERROR),
         within_scale=float(scales.get("within_scale", 1.0)),
         model_error=float(scales.get("model_error", 0.0)),
+        model_error_matrix=None if matrix is None else np.asarray(matrix, float),
     )
 
 
@@ -147,15 +151,19 @@ def fit_covariance_scales(post: SyntheticPosterior, run: str | Path, where) -> d
             if (
                 old.get("records") == record["records"]
                 and old.get("emulator") == record["emulator"]
+                and "model_error_matrix" in old
             ):
                 return old
         s = post.settings
         u, x = cached_cases(s, Path(run) / "posterior" / "simulations", kind, n, k)
         ok = np.all(np.isfinite(x), axis=(1, 2))
         within, model = fit_scales(post.likelihood, u[ok], x[ok])
-        record.update(within_scale=within, model_error=model, used=int(ok.sum()))
-        log.info("synthetic likelihood: sections' scatter x %.2f, model error %.4f of it",
-                 within, model)  # fmt: skip
+        matrix, rho = fit_model_error(post.likelihood, u[ok], x[ok], within)
+        record.update(within_scale=within, model_error=model, used=int(ok.sum()),
+                      model_error_matrix=matrix.tolist(), shrinkage=rho)  # fmt: skip
+        log.info("synthetic likelihood: sections' scatter x %.2f, model error %.4f of it "
+                 "(isotropic), per direction %.4f to %.4f (shrinkage %.2f)", within, model,
+                 *np.linalg.eigvalsh(matrix)[[0, -1]], rho)  # fmt: skip
     write_json(path, record)
     return record
 
@@ -224,7 +232,9 @@ def train(
     post.likelihood = likelihood(settings, emulator, scales)
     path = Path(run) / "posterior" / "synthetic" / "check.json"
     sets = [list(map(_plain, st)) for st in (sets or held_out_sets(settings))]
-    stamp = [_stamp(run), scales["within_scale"], scales["model_error"]]
+    matrix = content_hash({"model_error_matrix": scales.get("model_error_matrix")})
+    plug_in = post.likelihood.plug_in_covariance
+    stamp = [_stamp(run), scales["within_scale"], scales["model_error"], matrix, plug_in]
     if path.exists():
         old = read_json(path)
         if old.get("sets") == sets and old.get("emulator") == stamp:
