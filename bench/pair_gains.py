@@ -44,6 +44,11 @@ from railsusp.surrogate.split import campaign_split
 BANDS = ((0.0, 0.5), (0.5, 1.0), (1.0, 2.0), (2.0, 4.0), (4.0, 8.0), (8.0, np.inf))
 
 
+def open_band(band: tuple[float, float]) -> tuple[float, float | None]:
+    """A band as JSON writes it: an open upper end as None."""
+    return band[0], None if np.isinf(band[1]) else band[1]
+
+
 def band_gains(dy: np.ndarray, df: np.ndarray, dt: float) -> list[dict]:
     """Per band of :data:`BANDS`: the gain Re Σ conj(Y) F / Σ |Y|² of differences ``df`` on
     ``dy`` (runs, steps), and the band's share of Σ |Y|² (one-sided spectra, mean removed
@@ -60,7 +65,7 @@ def band_gains(dy: np.ndarray, df: np.ndarray, dt: float) -> list[dict]:
         a = auto[sel].sum()
         rows.append(
             {
-                "band_hz": [lo, None if np.isinf(hi) else hi],
+                "band_hz": list(open_band((lo, hi))),
                 "share": float(a / total) if total > 0 else float("nan"),
                 "gain": float(cross[sel].sum() / a) if a > 0 else float("nan"),
             }
@@ -85,9 +90,8 @@ def network_pair_gains(run: Path, kind: str, condition: str, split_seed: int = 0
     sur = load(run / "surrogates" / kind / condition)
     camp = load_campaign(run)
     data = load_series(camp, condition, sur.spec)
-    test_pos = campaign_split(camp, split_seed).positions(data.sample_ids, "test")
-    test = data.subset(test_pos)
-    twins = load_twins(camp, data, sur.spec).subset(test_pos)
+    test = data.subset(campaign_split(camp, split_seed).positions(data.sample_ids, "test"))
+    twins = load_twins(camp, test, sur.spec)
     table = camp_moves(run, test.sample_ids)
     pred = predict_series(sur, test)
     w = sur.spec.window
@@ -156,7 +160,7 @@ def main() -> None:
         "machine": platform.platform(),
         "run": str(args.run),
         "condition": args.condition,
-        "bands_hz": [list(replace_inf(b)) for b in BANDS],
+        "bands_hz": [list(open_band(b)) for b in BANDS],
         "networks": {},
     }
     for kind in kinds:
@@ -165,10 +169,6 @@ def main() -> None:
         result["networks"][kind] = {"seconds": time.perf_counter() - t0, "scores": scores}
         print_scores(kind, scores)
     print(f"wrote {write_json(args.out, result)}")
-
-
-def replace_inf(band: tuple[float, float]) -> tuple[float, float | None]:
-    return band[0], None if np.isinf(band[1]) else band[1]
 
 
 if __name__ == "__main__":

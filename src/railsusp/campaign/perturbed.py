@@ -111,9 +111,10 @@ def perturbed_complete(run: str | Path, condition: str | None = None) -> bool:
     for the campaign's present configuration."""
     cfg = load_campaign(run).config
     stamp = _stamp(run)
-    if not stamp.exists() or read_json(stamp).get("config_hash") != cfg.hash():
+    have = read_json(stamp) if stamp.exists() else {}
+    if have.get("config_hash") != cfg.hash():
         return False
-    per_sample = int(read_json(stamp)["per_sample"])
+    per_sample = int(have["per_sample"])
     return all(
         batch_paths(perturbed_folder(run, j), c.name, b)[0].exists()
         for j in range(per_sample)

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -311,16 +312,28 @@ def twin_forces(
     the forces (kN) of wheel ``wheel``, of the nominal twins of samples ``ids``
     (:mod:`railsusp.campaign.twins`, checked by :func:`check_nominal`); NaN for a twin that
     failed."""
-    from railsusp.campaign.results import read_series
     from railsusp.campaign.twins import nominal_folder
 
-    twin_ids, series = read_series(nominal_folder(campaign.path), condition)
-    pos = {int(s): i for i, s in enumerate(twin_ids)}
-    rows = np.array([pos[int(s)] for s in ids])
     names = [*spec.nominal_context, *(f"{t}_{WHEEL_NAMES[wheel]}" for t in spec.targets)]
+    return twin_channels(nominal_folder(campaign.path), condition, ids, names)
+
+
+def twin_channels(root: Path, condition: str, ids: np.ndarray, names: Sequence[str]) -> np.ndarray:
+    """(n, T, len(names)): channels ``names`` of the runs stored under ``root`` (a campaign's
+    twins, in its batch layout) of samples ``ids``, forces in kN, accelerations in m/s²; NaN
+    for a sample with no stored run."""
+    from railsusp.campaign.results import read_series
+
+    twin_ids, series = read_series(root, condition)
+    pos = {int(s): i for i, s in enumerate(twin_ids)}
+    rows = np.array([pos.get(int(s), -1) for s in ids], dtype=int)
+    found = rows >= 0
     per_unit = [1.0 if n.startswith("car_acc") else 1e3 for n in names]  # N -> kN
     cols = [CHANNELS.index(n) for n in names]
-    return np.stack([series[rows, c, :] / d for c, d in zip(cols, per_unit, strict=True)], axis=2)
+    out = np.full((len(ids), series.shape[2], len(names)), np.nan, dtype=series.dtype)
+    for k, (c, d) in enumerate(zip(cols, per_unit, strict=True)):
+        out[found, :, k] = series[rows[found], c, :] / d
+    return out
 
 
 def split_samples(

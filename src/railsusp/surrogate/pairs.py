@@ -25,9 +25,15 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from railsusp.campaign import CHANNELS, Campaign
+from railsusp.campaign import Campaign
 from railsusp.surrogate.chunks import ChunkSampler
-from railsusp.surrogate.data import FeatureSpec, Normaliser, SeriesData, params_to_unit
+from railsusp.surrogate.data import (
+    FeatureSpec,
+    Normaliser,
+    SeriesData,
+    params_to_unit,
+    twin_channels,
+)
 from railsusp.vehicle.simulate import WHEEL_NAMES, measured_wheel_index
 
 
@@ -58,7 +64,6 @@ def load_twins(campaign: Campaign, data: SeriesData, spec: FeatureSpec) -> TwinR
         perturbed_parameters,
         read_perturbations,
     )
-    from railsusp.campaign.results import read_series
 
     cond = data.condition
     if not perturbed_complete(campaign.path, cond.name):
@@ -77,21 +82,17 @@ def load_twins(campaign: Campaign, data: SeriesData, spec: FeatureSpec) -> TwinR
     cfg = campaign.config
     design = campaign.design()
     w = measured_wheel_index(cond, cfg.wheel)
-    cols = [CHANNELS.index(f"{t}_{WHEEL_NAMES[w]}") for t in spec.targets]
+    names = [f"{t}_{WHEEL_NAMES[w]}" for t in spec.targets]
     per_sample = int(table["twin"].max()) + 1
     ids = data.sample_ids
-    params = np.empty((len(ids), per_sample, len(spec.parameters)), np.float32)
-    targets = np.full((len(ids), per_sample, data.n_steps, len(cols)), np.nan, np.float32)
     sim = list(cfg.simulated_parameters)
     keep = [sim.index(p) for p in spec.parameters]
+    params = np.empty((len(ids), per_sample, len(spec.parameters)), np.float32)
+    targets = np.empty((len(ids), per_sample, data.n_steps, len(names)), np.float32)
     for j in range(per_sample):
         x = perturbed_parameters(cfg, design, table, j)[ids][:, keep]
         params[:, j] = params_to_unit(x, spec.parameters)
-        twin_ids, series = read_series(perturbed_folder(campaign.path, j), cond.name)
-        pos = {int(s): k for k, s in enumerate(twin_ids)}
-        rows = np.array([pos.get(int(s), -1) for s in ids])
-        found = rows >= 0
-        targets[found, j] = (series[rows[found]][:, cols, :] / 1e3).transpose(0, 2, 1)
+        targets[:, j] = twin_channels(perturbed_folder(campaign.path, j), cond.name, ids, names)
     return TwinRuns(params, targets)
 
 
