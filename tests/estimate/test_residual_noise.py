@@ -1,7 +1,7 @@
 """Standard errors that residual noise causes in a least-squares estimate
 (railsusp.estimate.residual_noise): the per-channel sandwich covariance against the pooled
 formula on one channel, and against the exact variance and Monte Carlo on a linear model
-with one quiet and one noisy channel."""
+with one quiet and one noisy channel; the per-channel variances they are formed with."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import pytest
 
 from railsusp.estimate.residual_noise import (
     autocorrelation_time,
+    channel_variances,
     noise_standard_errors,
     standard_errors,
 )
@@ -55,3 +56,23 @@ def test_unequally_noisy_channels_match_the_monte_carlo_spread_of_the_estimate()
     assert spread == pytest.approx(exact, rel=0.05)
     assert np.mean(per_channel) == pytest.approx(exact, rel=0.1)
     assert np.mean(pooled) > 10 * exact
+
+
+def test_channel_variances_are_each_blocks_mean_square_times_its_autocorrelation_time():
+    """Two blocks, one white-like (alternating, τ = 1) and one correlated: each residual
+    gets its own block's Σ r² / n_b · n / (n − n_fit) · τ_b; an empty block adds nothing;
+    blocks that do not add up to the series make it one block."""
+    rng = np.random.default_rng(3)
+    quiet = 0.1 * np.tile([1.0, -1.0], 100)
+    loud = rng.standard_normal(300)
+    for i in range(1, loud.size):
+        loud[i] += 0.7 * loud[i - 1]
+    r = np.r_[quiet, loud]
+    w = channel_variances(r, (200, 0, 300), 5)
+    scale = 500 / 495
+    assert autocorrelation_time(quiet) == 1.0 and autocorrelation_time(loud) > 2.0
+    assert w[:200] == pytest.approx(np.full(200, 0.01 * scale), rel=1e-12)
+    expected = scale * (loud @ loud) / 300 * autocorrelation_time(loud)
+    assert w[200:] == pytest.approx(np.full(300, expected), rel=1e-12)
+    whole = channel_variances(r, (200, 200), 0)
+    assert whole == pytest.approx(np.full(500, (r @ r) / 500 * autocorrelation_time(r)))

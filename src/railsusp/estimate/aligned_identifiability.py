@@ -2,16 +2,46 @@
 
 The time-aligned counterpart of :mod:`railsusp.estimate.identifiability` (which bounds what
 record statistics can tell): for recordings on measured track compared sample by sample
-(:func:`~railsusp.estimate.comparison.aligned_error`), the Fisher information about the key
-parameters in unit-range coordinates is JᵀJ / σ², with J the forward-difference Jacobian of
-the scaled residuals of every recording's lateral and vertical force
+(:func:`~railsusp.estimate.comparison.aligned_error`), the residuals r are the scaled
+differences of every recording's lateral and vertical force
 (:class:`~railsusp.estimate.output_error.OutputError`, the refinement's problem, without
-channel gains) and σ² their variance, inflated by the residuals' integrated autocorrelation
-time (:func:`~railsusp.estimate.refine_intervals.effective_sample_size`: filtered residuals
-are not independent). The square roots of the diagonal of its inverse are the smallest
-standard deviations any unbiased estimator can reach from these recordings; a parameter
-whose bound exceeds :data:`~railsusp.estimate.identifiability.BOUND_LIMIT_PCT` of its range
-is not identifiable to that precision.
+channel gains), J their forward-difference Jacobian in unit-range parameters. The noise
+model is the refinement's (:func:`~railsusp.estimate.residual_noise.channel_variances`):
+each recording's force channel b its own variance s_b² and integrated autocorrelation time
+τ_b (filtered residuals are not independent), Σ diagonal with s_b² τ_b. For Gaussian noise
+of covariance Σ about a mean that depends on θ, the Fisher information is
+
+    F = Jᵀ Σ⁻¹ J                                                       (Kay 1993, eq. 3.31)
+
+(Kay, *Fundamentals of Statistical Signal Processing: Estimation Theory*, §3.9, the
+general Gaussian case, the covariance not depending on θ), and the square roots of the
+diagonal of F⁻¹ are the smallest standard deviations any unbiased estimator can reach from
+these recordings. Σ⁻¹ with s_b² τ_b on its diagonal is the autocorrelated noise's
+information counted in white-equivalent samples: exact where the parameters' effects on a
+channel are slow beside the residuals' correlation (its spectrum near zero frequency,
+§3.10), a guide otherwise, as τ was before.
+
+Why this and not the sandwich (JᵀJ)⁻¹ Jᵀ Σ J (JᵀJ)⁻¹ of
+:func:`~railsusp.estimate.residual_noise.noise_standard_errors`: that is the noise error of
+one estimator, unweighted least squares (the refinement), and it is at least F⁻¹ (Aitken:
+least squares weighted by Σ⁻¹ is the best linear unbiased estimator), equal where every
+channel is equally noisy. The bound decides which key parameters are identifiable
+(:func:`identifiable`; bench/estimate_tracks.py scores "identifiable keys within 5 %" with
+it, for an estimator, NSGA-II on a surrogate, that is neither least squares;
+bench/jacobian_check.py compares a surrogate's bound with the simulator's), so it must be a
+property of the recordings and the force model, not of an estimator: a wider,
+estimator-specific bound would let a poorer estimator shrink the set it is scored on.
+Before 2026-11-24 (stop 24) the bound was s² (JᵀJ)⁻¹ with one residual variance pooled over
+all channels times the overall autocorrelation inflation. The vertical forces' residual
+variance is 10-40 times the lateral ones' on the demo's recordings, and the pooled variance,
+mostly theirs, made the bounds of parameters the lateral force fixes (X11, X13) too wide
+and of those the vertical force alone fixes too narrow (a parameter seen equally by a
+channel and by one 40 times noisier: 3.24 times too wide,
+tests/estimate/test_aligned_identifiability.py). With equal noise in every channel the two
+agree.
+
+A parameter whose bound exceeds :data:`~railsusp.estimate.identifiability.BOUND_LIMIT_PCT`
+of its range is not identifiable to that precision.
 
 :func:`jacobian_agreement` compares two force models' Jacobians on the same recordings:
 whether a surrogate makes the forces depend on each parameter as the simulator does, which
@@ -33,8 +63,7 @@ from railsusp.estimate.comparison import comparison_filter
 from railsusp.estimate.forces import ForceModel, series_in_conditions
 from railsusp.estimate.identifiability import BOUND_LIMIT_PCT
 from railsusp.estimate.output_error import OutputError
-from railsusp.estimate.refine import standard_errors
-from railsusp.estimate.refine_intervals import effective_sample_size
+from railsusp.estimate.residual_noise import channel_variances, standard_errors
 from railsusp.measured import Recording
 
 
@@ -99,13 +128,28 @@ def _first_defined(series: np.ndarray, rec: Recording) -> int:
     return int(np.argmax(ok, axis=1).max())
 
 
+#: a channel whose residual vanishes (a noiseless synthetic record at its truth) is given
+#: this share of the largest channel's variance: its parameters' bounds come out near zero
+#: rather than 0 / 0
+NOISELESS_SHARE = 1e-9
+
+
 def bounds_pct_range(r: np.ndarray, jac: np.ndarray, blocks: Sequence[int]) -> np.ndarray:
-    """Cramér-Rao bounds (% of range) from residuals ``r`` and their Jacobian ``jac`` in
-    unit-range parameters (:func:`aligned_jacobian`): σ² is the residual variance times
-    the residuals' integrated autocorrelation time over ``blocks``."""
-    _, tau = effective_sample_size(r, list(blocks))
-    s2 = float(r @ r) / max(r.size - jac.shape[1], 1) * tau
-    return 100.0 * standard_errors(jac, s2)
+    """Cramér-Rao bounds (% of range), sqrt(diag((Jᵀ Σ⁻¹ J)⁻¹)), from residuals ``r`` at the
+    point and their Jacobian ``jac`` in unit-range parameters (:func:`aligned_jacobian`),
+    ``blocks`` the lengths of their consecutive channels (one recording's lateral or
+    vertical force each): Σ diagonal with each channel's residual variance times its
+    autocorrelation time (:func:`~railsusp.estimate.residual_noise.channel_variances`, the
+    refinement's noise model; the module docstring says why the inverse of the weighted
+    information and not the least-squares sandwich). Infinite for a parameter the residuals
+    do not depend on; with every residual zero, zero for the others."""
+    r = np.asarray(r, dtype=float).ravel()
+    variance = channel_variances(r, blocks, jac.shape[1])
+    top = float(variance.max()) if variance.size else 0.0
+    if top <= 0.0:
+        return 100.0 * standard_errors(jac, 0.0)
+    whiten = 1.0 / np.sqrt(np.maximum(variance, NOISELESS_SHARE * top))
+    return 100.0 * standard_errors(jac * whiten[:, None], 1.0)
 
 
 def aligned_cramer_rao_pct_range(
@@ -116,8 +160,9 @@ def aligned_cramer_rao_pct_range(
 ) -> dict[str, float]:
     """Cramér-Rao bound of each key parameter at ``x_si`` (SI) from the time-aligned
     comparison of ``model`` with ``recordings``, in % of its range; infinite for a parameter
-    the residuals do not depend on. σ² is the residual variance at ``x_si`` (measurement
-    noise, geometry error and model error alike), times the autocorrelation time."""
+    the residuals do not depend on. Each force channel's noise is its residual variance at
+    ``x_si`` (measurement noise, geometry error and model error alike) times its
+    autocorrelation time (:func:`bounds_pct_range`)."""
     bound = bounds_pct_range(*aligned_jacobian(model, recordings, parameters, x_si))
     return {p: float(b) for p, b in zip(parameters, bound, strict=True)}
 

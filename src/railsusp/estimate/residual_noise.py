@@ -3,12 +3,13 @@
 Two formulas for the same quantity: :func:`standard_errors`, the Gauss-Newton s² (JᵀJ)⁻¹ of
 one pooled variance and white residuals, and :func:`noise_standard_errors`, the sandwich
 covariance with each block of residuals (one recording's force channel) its own variance
-and integrated autocorrelation time (:func:`autocorrelation_time`). The output-error
-refinement (:mod:`railsusp.estimate.refine`) reports the second and its intervals
-(:mod:`railsusp.estimate.refine_intervals`) use it; the first stays for the Cramér-Rao
-bounds of :mod:`railsusp.estimate.aligned_identifiability` and for comparison. Pure
-functions on arrays, so that both those modules import them from here and not one from the
-other.
+and integrated autocorrelation time (:func:`autocorrelation_time`), the noise model of
+:func:`channel_variances`. The output-error refinement (:mod:`railsusp.estimate.refine`)
+reports the second and its intervals (:mod:`railsusp.estimate.refine_intervals`) use it;
+the time-aligned Cramér-Rao bounds of :mod:`railsusp.estimate.aligned_identifiability`
+weight the residuals by the same per-channel variances; the first stays for comparison.
+Pure functions on arrays, so that those modules import them from here and not one from
+another.
 """
 
 from __future__ import annotations
@@ -63,6 +64,25 @@ def effective_sample_size(residuals: np.ndarray, blocks: Sequence[int]) -> tuple
     return n_eff, r.size / max(n_eff, 1e-12)
 
 
+def channel_variances(residuals: np.ndarray, blocks: Sequence[int], n_fit: int) -> np.ndarray:
+    """(n,) per residual its block's long-run variance s_b² τ_b: s_b² = Σ r_b² / n_b ·
+    n / (n − n_fit), the block's mean square with the fit's degrees of freedom shared out
+    over all n residuals, τ_b its integrated autocorrelation time
+    (:func:`autocorrelation_time`). Blocks are consecutive, one per recording's force
+    channel (the whole series as one where ``blocks`` do not add up to it). The diagonal of
+    Σ in :func:`noise_standard_errors` and the inverse weights of the time-aligned
+    Cramér-Rao bound."""
+    r = np.asarray(residuals, dtype=float).ravel()
+    scale = r.size / max(r.size - n_fit, 1)
+    w, start = np.empty(r.size), 0
+    for size in _block_sizes(r, blocks):
+        block = r[start : start + size]
+        if size:  # a channel with no compared samples (never defined) has no variance
+            w[start : start + size] = scale * (block @ block) / size * autocorrelation_time(block)
+        start += size
+    return w
+
+
 def standard_errors(jac: np.ndarray, s2: float) -> np.ndarray:
     """Standard errors sqrt(diag(s² (JᵀJ)⁻¹)) of least-squares estimates: one pooled
     residual variance ``s2``, white residuals. A column the residuals do not depend on at
@@ -99,13 +119,7 @@ def noise_standard_errors(
     is the pooled formula times √τ. Columns the residuals do not depend on get an infinite
     error."""
     j = np.asarray(jac, dtype=float)
-    r = np.asarray(residuals, dtype=float).ravel()
-    scale = r.size / max(r.size - n_fit, 1)
-    w, start = np.empty(r.size), 0
-    for size in _block_sizes(r, blocks):
-        block = r[start : start + size]
-        w[start : start + size] = scale * (block @ block) / size * autocorrelation_time(block)
-        start += size
+    w = channel_variances(residuals, blocks, n_fit)
     d = np.einsum("ij,ij->j", j, j)
     active = d > 1e-12 * max(float(d.max()), 1e-300)
     se = np.full(j.shape[1], np.inf)
