@@ -88,9 +88,10 @@ class RunResult:
     def surrogate_accuracy(self) -> pd.DataFrame:
         """The surrogates on held-out simulations (study Table 7 layout, errors in %)."""
         from railsusp.surrogate.compare import table7
+        from railsusp.surrogate.pretrained import surrogates_run
 
-        own = self._config().get("surrogate", {}).get("samples", 0)
-        base = "surrogate-campaign" if own else "campaign"
+        s = self._config().get("surrogate", {})
+        base = surrogates_run(s.get("pretrained"), s.get("samples", 0))
         return table7(pd.read_csv(self._need(f"{base}/surrogates/compare.csv", "surrogate")))
 
     @property

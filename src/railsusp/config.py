@@ -226,8 +226,30 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
             load_wagon(cfg.wagon)
         except RailsuspInputError as exc:
             raise bad(f"wagon: {exc}") from None
+    if cfg.surrogate.pretrained is not None:
+        _check_network_set(cfg, conds, bad)
     if cfg.scheduler is not None and not cfg.scheduler.startswith(("tcp://", "tls://")):
         raise bad(f"scheduler = {cfg.scheduler!r}: expected tcp://host:port or tls://host:port")
+
+
+def _check_network_set(cfg: Any, conds: list, bad: Any) -> None:
+    """``[surrogate] pretrained``: a network set that exists, was trained on this wagon with
+    today's force laws, is of ``surrogate.model``'s kind and covers every condition
+    (:func:`railsusp.surrogate.pretrained.check_network_set`)."""
+    from railsusp.surrogate.pretrained import (
+        check_network_set,
+        read_network_set,
+        resolve_network_set,
+    )
+    from railsusp.vehicle.wagon import load_wagon
+
+    try:
+        ns = read_network_set(resolve_network_set(cfg.surrogate.pretrained))
+        check_network_set(
+            ns, wagon=load_wagon(cfg.wagon), kind=cfg.surrogate.model, conditions=conds
+        )
+    except RailsuspInputError as exc:
+        raise bad(str(exc)) from None
 
 
 def _check_held_prior(cfg: Any, bad: Any) -> None:
@@ -288,6 +310,8 @@ def _check_measured_track(cfg: Any, bad: Any) -> None:
         needs.append(("estimate.refine = true", "refine = false"))
     if ALIGNED in cfg.estimate.statistic.split("+"):
         needs.append(('estimate.statistic "aligned"', "another statistic"))
+    if cfg.surrogate.pretrained is not None:  # its networks read the recording's track
+        needs.append(("surrogate.pretrained", "surrogates trained here"))
     for what, instead in needs:
         if f.recording is not None:
             raise bad(

@@ -83,6 +83,12 @@ class SurrogateSection(_Cfg):
     batches_per_epoch: int = Field(60, ge=1)
     batch_size: int = Field(512, ge=8)
     device: str = "cpu"
+    pretrained: str | None = Field(
+        None,
+        description="a network set trained on many tracks (a name shipped with railsusp, "
+        "e.g. 'c80_k6', or a folder with networks.json) instead of training here; the "
+        "training settings above are then not used",
+    )
 
     @field_validator("samples")
     @classmethod
@@ -375,7 +381,7 @@ def _section(config: PipelineConfig, stage: str) -> Any:
     sections = {
         "campaign": {**base, **config.campaign.model_dump()},
         "sensitivity": config.sensitivity.model_dump(),
-        "surrogate": config.surrogate.model_dump(),
+        "surrogate": _surrogate_section(config),
         "field": {**base, **config.field.model_dump()},
         # without a held_prior the section hashes as before it existed (runs stay up to date)
         "estimate": config.estimate.model_dump(
@@ -385,6 +391,19 @@ def _section(config: PipelineConfig, stage: str) -> Any:
         "report": {"name": config.name},
     }
     return sections[stage]
+
+
+def _surrogate_section(config: PipelineConfig) -> dict:
+    """The surrogate stage's inputs: its settings (without ``pretrained`` when unset, so a
+    run made before the option existed stays up to date), and a network set's manifest,
+    so that another set under the same name trains (copies) again."""
+    s = config.surrogate
+    if s.pretrained is None:
+        return s.model_dump(exclude={"pretrained"})
+    from railsusp.surrogate.pretrained import MANIFEST, resolve_network_set
+
+    manifest = read_json(resolve_network_set(s.pretrained) / MANIFEST)
+    return {**s.model_dump(), "network_set": content_hash(manifest)}
 
 
 _OUTPUTS = {
@@ -397,13 +416,13 @@ _OUTPUTS = {
     "report": "report.html",
 }
 
-#: the surrogates' own campaign (key parameters only), beside the sensitivity campaign
-SURROGATE_CAMPAIGN = "surrogate-campaign"
-
 
 def surrogate_campaign_dir(config: PipelineConfig, out: str | Path) -> Path:
-    """The campaign run directory whose ``surrogates/`` the estimation uses."""
-    return Path(out) / (SURROGATE_CAMPAIGN if config.surrogate.samples else "campaign")
+    """The run directory whose ``surrogates/`` the estimation uses."""
+    from railsusp.surrogate.pretrained import surrogates_run
+
+    s = config.surrogate
+    return Path(out) / surrogates_run(s.pretrained, s.samples)
 
 
 def _outputs_exist(config: PipelineConfig, out: Path, stage: str) -> bool:
@@ -459,6 +478,18 @@ def _stage_runners(
         from railsusp.surrogate.statistics import train_statistics_surrogate
 
         s = config.surrogate
+        if s.pretrained is not None:  # trained on many tracks elsewhere: checked, copied
+            from railsusp.surrogate.pretrained import (
+                check_references,
+                install_network_set,
+                read_network_set,
+                resolve_network_set,
+            )
+
+            ns = read_network_set(resolve_network_set(s.pretrained))
+            check_references(ns, [c.name for c in config.working_conditions()])
+            install_network_set(ns, sur_dir / "surrogates")
+            return {"pretrained": ns.name, "parameters": list(ns.parameters), "models": [ns.kind]}
         info: dict = {}
         if s.samples:
             from railsusp.surrogate import key_parameters
@@ -497,7 +528,8 @@ def _stage_runners(
         from railsusp.surrogate import key_parameters, not_estimated
 
         e = config.estimate
-        params = key_parameters(camp_dir)
+        # a network set's inputs are its own key parameters, whatever the sensitivity found
+        params = None if config.surrogate.pretrained else key_parameters(camp_dir)
         model, params = open_force_model(sur_dir / "surrogates" / config.surrogate.model, params)
         cfg = NSGAConfig(
             pop_size=e.pop_size,

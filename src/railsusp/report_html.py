@@ -194,6 +194,20 @@ def _wagon_section(doc: Doc, run: Path, cfg: dict) -> None:
     )
 
 
+def _network_set_text(doc: Doc, manifest: dict) -> None:
+    """What a shipped network set is, how it was trained and how to reproduce it."""
+    doc.p(
+        f"Network set '{manifest['name']}' ({manifest['kind']}, inputs "
+        f"{', '.join(manifest['parameters'])}), trained once on many track realisations and "
+        f"shipped with railsusp, not trained in this run: {manifest.get('description', '')} "
+        f"Force laws of revision {manifest['model_revision']}. The table below is its "
+        "accuracy on its campaign's held-out tracks and parameter sets. The parameters that "
+        "are not its inputs varied over their ranges in its training (their effect is in "
+        "its spread, not held at nominal)."
+    )
+    doc.p("Reproduced by: " + " ; ".join(manifest.get("reproduce", [])))
+
+
 def _method_sections(doc: Doc, run: Path, state: dict) -> None:
     camp = run / "campaign"
     sens = camp / "sensitivity"
@@ -205,14 +219,19 @@ def _method_sections(doc: Doc, run: Path, state: dict) -> None:
         for png in sorted(sens.glob("sobol-*.png")):
             doc.figure(png, f"Sobol indices, statistic '{png.stem.removeprefix('sobol-')}'")
 
-    own = state.get("config", {}).get("surrogate", {}).get("samples", 0)
-    sur_camp = run / "surrogate-campaign"
-    sur = (sur_camp if own else camp) / "surrogates"
+    from railsusp.surrogate.pretrained import MANIFEST, surrogates_run
+
+    scfg = state.get("config", {}).get("surrogate", {})
+    pretrained, own = scfg.get("pretrained"), scfg.get("samples", 0)
+    sur_camp = run / surrogates_run(pretrained, own)
+    sur = sur_camp / "surrogates"
     if (sur / "compare.csv").exists():
         from railsusp.surrogate.compare import table7
 
         doc.h("Surrogates on held-out simulations (study Table 7, Figures 10/11)")
-        if own:
+        if pretrained is not None and (sur / MANIFEST).exists():
+            _network_set_text(doc, read_json(sur / MANIFEST))
+        elif own:
             sc = read_json(sur_camp / "campaign.json")["config"]
             doc.p(
                 f"Trained on their own campaign: {sc['samples']} LHS samples of the key "

@@ -72,13 +72,20 @@ class RecordCorrection:
         return cls(tuple(targets), x, r, [gp.kernel_.theta for gp in gps], seed, gps)
 
     def _models(self) -> list:
+        """The GPs rebuilt from the stored hyperparameters, once. One BLAS thread: the
+        Cholesky factor of about 1400 training runs takes 0.08 s on one core, and 1.6 s
+        with OpenBLAS's two threads on a two-core machine that is busy with other work
+        (measured 2026-11-24), which made a network set's first prediction take 16 s."""
         if not self._gps:
+            from threadpoolctl import threadpool_limits
+
             from railsusp.sensitivity import fit_gp
 
-            self._gps = [
-                fit_gp(self.x_unit, self.log_ratio[:, j], self.seed, theta=th)
-                for j, th in enumerate(self.thetas)
-            ]
+            with threadpool_limits(1, user_api="blas"):
+                self._gps = [
+                    fit_gp(self.x_unit, self.log_ratio[:, j], self.seed, theta=th)
+                    for j, th in enumerate(self.thetas)
+                ]
         return self._gps
 
     def factors(self, params_unit: np.ndarray) -> np.ndarray:

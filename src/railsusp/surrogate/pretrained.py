@@ -1,0 +1,356 @@
+"""Network sets trained once on many tracks and shipped with railsusp (issue 19, item 5).
+
+Training the study's CNN-GRU on a campaign of many track realisations takes hours on two
+cores (bench/README.md, "surrogate_tracks.py"), far beyond a demo's minutes. A *network
+set* is such a training's result in a form a pipeline can take as its surrogates:
+
+* ``<condition>/surrogate.json`` and ``model.pt``: one bundle per working condition
+  (:mod:`.bundle`), each trained on a track family (FRA class, curve radius, cant drawn
+  per run) with the parameters that are not its inputs varied over their ranges;
+* ``compare.csv``: those networks on their campaign's held-out tracks and parameters, in
+  the layout of the study's Table 7 (:func:`railsusp.surrogate.compare.table7`);
+* ``networks.json`` (the manifest): the force laws' revision
+  (:data:`railsusp.vehicle.MODEL_REVISION`) and the wagon data (content hash) the networks
+  were trained on, their kind and key parameters, the commands that reproduce them, and
+  reference predictions that a loaded set must give again.
+
+A set answers only for the model it was trained on: :func:`check_network_set` refuses
+another force-law revision, another wagon, another network kind or a working condition
+outside the set's training (one line each, before any stage runs), and
+:func:`check_references` predicts the stored references again, so that weights damaged or
+read by an incompatible torch are caught rather than used.
+"""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Sequence
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from railsusp.conditions import WorkingCondition
+from railsusp.errors import RailsuspInputError
+from railsusp.store import atomic_folder, content_hash, read_json, write_csv, write_json
+
+#: the manifest of a network set
+MANIFEST = "networks.json"
+FORMAT = "railsusp-networks/1"
+#: the set's accuracy table (Table 7 layout) on its campaign's held-out runs
+ACCURACY = "compare.csv"
+#: the files of one condition's bundle that a set carries (no training checkpoint)
+BUNDLE_FILES = ("surrogate.json", "model.pt")
+#: reference predictions agree to this relative tolerance (float32 networks; numbers of the
+#: same weights on another CPU or torch build differ in the last bits only)
+REFERENCE_RTOL = 1e-4
+
+
+#: a pipeline run's folders whose ``surrogates/`` the estimation reads: a network set's copy,
+#: the surrogates' own campaign of the key parameters, or the sensitivity campaign
+PRETRAINED_RUN = "surrogate-pretrained"
+OWN_CAMPAIGN_RUN = "surrogate-campaign"
+SENSITIVITY_RUN = "campaign"
+
+
+def surrogates_run(pretrained: str | None, samples: int) -> str:
+    """The folder of a pipeline run (under its output directory) that holds the surrogates
+    of a configuration whose ``[surrogate]`` has ``pretrained`` and ``samples``."""
+    if pretrained is not None:
+        return PRETRAINED_RUN
+    return OWN_CAMPAIGN_RUN if samples else SENSITIVITY_RUN
+
+
+def packaged_root() -> Path:
+    """The folder of the network sets shipped inside the package."""
+    return Path(str(resources.files("railsusp") / "data" / "networks"))
+
+
+def packaged_sets() -> list[str]:
+    """Names of the network sets shipped with railsusp."""
+    root = packaged_root()
+    if not root.is_dir():
+        return []
+    return sorted(p.name for p in root.iterdir() if (p / MANIFEST).is_file())
+
+
+def resolve_network_set(source: str | Path, field: str = "surrogate.pretrained") -> Path:
+    """The folder of a network set: a name of :func:`packaged_sets` or a folder holding a
+    :data:`MANIFEST`. ``field`` names the setting in the one-line error."""
+    names = packaged_sets()
+    if str(source) in names:
+        return packaged_root() / str(source)
+    folder = Path(source)
+    if (folder / MANIFEST).is_file():
+        return folder
+    shipped = ", ".join(names) or "none"
+    raise RailsuspInputError(
+        f"{field} = {str(source)!r}: neither a network set shipped with railsusp ({shipped}) "
+        f"nor a folder holding {MANIFEST}"
+    )
+
+
+@dataclass(frozen=True)
+class NetworkSet:
+    """A network set's manifest (:data:`MANIFEST`) and where it lies."""
+
+    folder: Path
+    name: str
+    kind: str
+    model_revision: str
+    wagon_hash: str
+    parameters: tuple[str, ...]
+    conditions: tuple[str, ...]
+    #: the commands that trained the set, in order (campaign, twins, training, copy here)
+    reproduce: tuple[str, ...]
+    #: per condition: the seed, the parameter sets (SI) and the statistics of their predicted
+    #: series that :func:`check_references` recomputes
+    references: dict[str, dict[str, Any]]
+    description: str = ""
+
+    def bundle(self, condition: str) -> Path:
+        return self.folder / condition
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "format": FORMAT,
+            "name": self.name,
+            "description": self.description,
+            "kind": self.kind,
+            "model_revision": self.model_revision,
+            "wagon_hash": self.wagon_hash,
+            "parameters": list(self.parameters),
+            "conditions": list(self.conditions),
+            "reproduce": list(self.reproduce),
+            "references": self.references,
+        }
+
+
+def read_network_set(folder: str | Path) -> NetworkSet:
+    """The manifest of the network set in ``folder``; a one-line error if it is missing,
+    of another format, or names a condition whose bundle is not there."""
+    folder = Path(folder)
+    path = folder / MANIFEST
+    try:
+        doc = read_json(path)
+    except (OSError, ValueError) as exc:
+        raise RailsuspInputError(f"{path}: not a readable network manifest ({exc})") from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        got = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
+        raise RailsuspInputError(f"{path}: format {got!r}, accepted {FORMAT!r}")
+    try:
+        ns = NetworkSet(
+            folder=folder,
+            name=str(doc["name"]),
+            description=str(doc.get("description", "")),
+            kind=str(doc["kind"]),
+            model_revision=str(doc["model_revision"]),
+            wagon_hash=str(doc["wagon_hash"]),
+            parameters=tuple(doc["parameters"]),
+            conditions=tuple(doc["conditions"]),
+            reproduce=tuple(doc["reproduce"]),
+            references=dict(doc["references"]),
+        )
+    except (KeyError, TypeError) as exc:
+        raise RailsuspInputError(f"{path}: manifest field {exc} missing or malformed") from None
+    for cond in ns.conditions:
+        missing = [f for f in BUNDLE_FILES if not (ns.bundle(cond) / f).is_file()]
+        if missing:
+            raise RailsuspInputError(
+                f"{path}: condition {cond!r} lacks {', '.join(missing)} in {ns.bundle(cond)}"
+            )
+    return ns
+
+
+def wagon_hash(wagon: Any) -> str:
+    """The content hash of a wagon's data as the pipeline's stage hashes take it
+    (:func:`railsusp.pipeline.model_identity`)."""
+    return content_hash(wagon.model_dump(mode="json"))
+
+
+def check_network_set(
+    ns: NetworkSet,
+    *,
+    wagon: Any,
+    kind: str,
+    conditions: Sequence[WorkingCondition],
+    field: str = "surrogate.pretrained",
+) -> None:
+    """Refuse, in one line naming ``field``, a network set that cannot serve this run:
+    trained with another force-law revision, on another wagon, of another network kind
+    than ``kind``, without a network for one of ``conditions``, or with one whose training
+    does not cover that condition (:meth:`~railsusp.surrogate.bundle.Surrogate.untrained_fields`:
+    speed, grade, coupler force, or FRA class, radius or cant outside the track family)."""
+    from railsusp.surrogate.bundle import load
+    from railsusp.vehicle import MODEL_REVISION
+
+    where = f"{field} = {ns.name!r}"
+    if ns.model_revision != MODEL_REVISION:
+        raise RailsuspInputError(
+            f"{where} was trained on the force laws of revision {ns.model_revision}, this "
+            f"railsusp simulates revision {MODEL_REVISION}: retrain it "
+            f"({ns.folder / MANIFEST}, 'reproduce') or train the surrogates here"
+        )
+    if ns.wagon_hash != wagon_hash(wagon):
+        raise RailsuspInputError(
+            f"{where} was trained on another wagon's data (hash {ns.wagon_hash}): it serves "
+            "that wagon only; leave the wagon out (the embedded C80/K6) or train the "
+            "surrogates for this wagon"
+        )
+    if ns.kind != kind:
+        raise RailsuspInputError(
+            f"{where} holds {ns.kind!r} networks; set surrogate.model = {ns.kind!r}"
+        )
+    for cond in conditions:
+        if cond.name not in ns.conditions:
+            raise RailsuspInputError(
+                f"{where} has no network for condition {cond.name!r} (has "
+                f"{', '.join(ns.conditions)})"
+            )
+        outside = load(ns.bundle(cond.name)).untrained_fields(cond)
+        if outside:
+            name, value, trained = outside[0]
+            raise RailsuspInputError(
+                f"{where}: condition {cond.name!r} has {name} = {value!r}, outside what its "
+                f"network was trained on ({trained})"
+            )
+
+
+def reference_statistics(series: np.ndarray) -> dict[str, list[float]]:
+    """What a reference keeps of predicted series (n, T, 2): per set, the mean of |Y| and
+    of Q and the RMS of Y over the steps past the washout, kN."""
+    s = np.asarray(series, dtype=float)
+    ok = ~np.isnan(s[..., 0])
+    out: dict[str, list[float]] = {"mean_abs_Y": [], "mean_Q": [], "rms_Y": []}
+    for i in range(s.shape[0]):
+        y, q = s[i, ok[i], 0], s[i, ok[i], 1]
+        out["mean_abs_Y"].append(float(np.mean(np.abs(y))))
+        out["mean_Q"].append(float(np.mean(q)))
+        out["rms_Y"].append(float(np.sqrt(np.mean(y**2))))
+    return out
+
+
+def predict_reference(bundle: Path, seed: int, params_si: np.ndarray) -> np.ndarray:
+    """The bundle's series for ``params_si`` on its own condition at track seed ``seed``
+    (the nominal wagon simulated on that track where the network reads it)."""
+    from railsusp.surrogate.bundle import load
+
+    sur = load(bundle)
+    cond = sur.condition.model_copy(update={"seed": int(seed)})
+    return sur.predict(np.asarray(params_si, dtype=float), condition=cond)
+
+
+def make_references(
+    folder: Path, conditions: Sequence[str], parameters: Sequence[str], seed: int = 11
+) -> dict[str, dict[str, Any]]:
+    """References for a new set: per condition the nominal wagon and one set with every key
+    parameter at 25 % of its range, on the track of ``seed`` (not a training seed of the
+    shipped campaign, whose seeds count up from its own base)."""
+    from railsusp.params import bounds
+
+    lo, hi = bounds(parameters)
+    nominal = lo + 0.5 * (hi - lo)
+    low = lo + 0.25 * (hi - lo)
+    x = np.vstack([nominal, low])
+    return {
+        c: {
+            "seed": seed,
+            "params_si": x.tolist(),
+            "statistics": reference_statistics(predict_reference(folder / c, seed, x)),
+        }
+        for c in conditions
+    }
+
+
+def check_references(ns: NetworkSet, conditions: Sequence[str] | None = None) -> None:
+    """Predict the manifest's references again and refuse (one line) a set whose networks
+    no longer give them to :data:`REFERENCE_RTOL`: damaged weights, or a torch that reads
+    them otherwise."""
+    for cond in conditions or ns.conditions:
+        ref = ns.references.get(cond)
+        if ref is None:
+            raise RailsuspInputError(f"network set {ns.name!r}: no reference for {cond!r}")
+        got = reference_statistics(
+            predict_reference(ns.bundle(cond), ref["seed"], np.asarray(ref["params_si"]))
+        )
+        for key, want in ref["statistics"].items():
+            a, b = np.asarray(got[key]), np.asarray(want)
+            if not np.allclose(a, b, rtol=REFERENCE_RTOL, atol=0.0):
+                worst = float(np.max(np.abs(a - b) / np.abs(b)))
+                raise RailsuspInputError(
+                    f"network set {ns.name!r}, condition {cond!r}: {key} predicted "
+                    f"{a.tolist()} against the reference {b.tolist()} (relative difference "
+                    f"{worst:.1e}, accepted {REFERENCE_RTOL:g}): its weights are damaged or "
+                    "this torch reads them otherwise"
+                )
+
+
+def install_network_set(ns: NetworkSet, dest: str | Path) -> Path:
+    """Copy the set's bundles (as ``dest/<kind>/<condition>/``), accuracy table and manifest
+    into ``dest``, a run's ``surrogates/`` folder, atomically: the run then looks like one
+    whose surrogates were trained in place."""
+    dest = Path(dest)
+    with atomic_folder(dest, keep=False) as tmp:
+        for cond in ns.conditions:
+            target = tmp / ns.kind / cond
+            target.mkdir(parents=True)
+            for f in BUNDLE_FILES:
+                shutil.copy2(ns.bundle(cond) / f, target / f)
+        shutil.copy2(ns.folder / MANIFEST, tmp / MANIFEST)
+        table = pd.read_csv(ns.folder / ACCURACY)
+        write_csv(tmp / ACCURACY, table)  # last: the pipeline's mark of a finished stage
+    return dest
+
+
+def write_network_set(
+    source: str | Path,
+    dest: str | Path,
+    *,
+    name: str,
+    conditions: Sequence[str],
+    accuracy: pd.DataFrame,
+    reproduce: Sequence[str],
+    description: str = "",
+) -> NetworkSet:
+    """Make a network set in ``dest`` from trained bundles ``source/<condition>/`` (all of
+    one kind, key parameters and wagon), with its accuracy table and the commands that
+    trained it; the manifest records today's force-law revision and the references."""
+    from railsusp.surrogate.bundle import load
+    from railsusp.vehicle import MODEL_REVISION
+
+    source = Path(source)
+    surs = {c: load(source / c) for c in conditions}
+    first = next(iter(surs.values()))
+    for c, s in surs.items():
+        if s.kind != first.kind or s.spec.parameters != first.spec.parameters:
+            raise RailsuspInputError(
+                f"{source / c}: {s.kind} of {s.spec.parameters}, the set's first network is "
+                f"{first.kind} of {first.spec.parameters}; a set holds one kind and one "
+                "parameter list"
+            )
+        if wagon_hash(s.wagon) != wagon_hash(first.wagon):
+            raise RailsuspInputError(f"{source / c}: trained on another wagon than the set's")
+    dest = Path(dest)
+    with atomic_folder(dest, keep=False) as tmp:
+        for c in conditions:
+            (tmp / c).mkdir()
+            for f in BUNDLE_FILES:
+                shutil.copy2(source / c / f, tmp / c / f)
+        write_csv(tmp / ACCURACY, accuracy)
+        ns = NetworkSet(
+            folder=tmp,
+            name=name,
+            description=description,
+            kind=first.kind,
+            model_revision=MODEL_REVISION,
+            wagon_hash=wagon_hash(first.wagon),
+            parameters=tuple(first.spec.parameters),
+            conditions=tuple(conditions),
+            reproduce=tuple(reproduce),
+            references=make_references(tmp, conditions, first.spec.parameters),
+        )
+        write_json(tmp / MANIFEST, ns.to_json())
+    return read_network_set(dest)

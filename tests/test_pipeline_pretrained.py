@@ -1,0 +1,120 @@
+"""A pipeline whose surrogates are a network set trained on many tracks and shipped with
+railsusp (``[surrogate] pretrained``, issue 19 item 5): the set is checked before any stage
+runs, copied into the run, read by NSGA-II on the recordings' track, and described in the
+report; the parameters it does not take are listed as varied in its training."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from railsusp.config import ConfigError
+from railsusp.pipeline import STAGES, _section, load_config, run_pipeline
+from railsusp.surrogate.pretrained import PRETRAINED_RUN, read_network_set, resolve_network_set
+
+RUN = """
+name = "pretrained"
+conditions = [{{base="straight", duration_s=4.0, n_steps=200}}]
+[campaign]
+samples = 8
+batch_size = 8
+parameters = ["X13", "X14", "X17"]
+[sensitivity]
+base_samples = 64
+statistics = ["mean"]
+max_keys = 2
+[surrogate]
+model = "{model}"
+pretrained = "{pretrained}"
+[field]
+truth = {{ X13 = 16.1, X18 = 45.0 }}
+with_track = {with_track}
+[estimate]
+pop_size = 6
+n_gen = 2
+statistic = "{statistic}"
+refine = false
+"""
+
+
+def config(tmp_path, model="cnn-gru-seq", pretrained="c80_k6", with_track="true", stat="aligned"):
+    path = tmp_path / "c.toml"
+    path.write_text(
+        RUN.format(model=model, pretrained=pretrained, with_track=with_track, statistic=stat)
+    )
+    return path
+
+
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        ({"model": "bp"}, r"surrogate.pretrained = 'c80_k6' holds 'cnn-gru-seq' networks"),
+        ({"pretrained": "no-such-set"}, r"'no-such-set': neither a network set shipped"),
+        (
+            {"with_track": "false", "stat": "mean"},
+            "surrogate.pretrained with field.with_track = false: time-aligned comparison",
+        ),
+    ],
+)
+def test_a_network_set_that_cannot_serve_is_refused_before_any_stage(tmp_path, change, match):
+    path = config(tmp_path, **change)
+    with pytest.raises(ConfigError, match=match) as err:
+        load_config(path)
+    assert "\n" not in str(err.value)
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_condition_outside_the_set_s_training_is_refused(tmp_path):
+    path = config(tmp_path)
+    path.write_text(
+        path.read_text().replace('base="straight"', 'base="curve", curve_radius_m=900.0')
+    )
+    with pytest.raises(ConfigError, match="curve_radius_m = 900.0, outside"):
+        load_config(path)
+
+
+def test_without_a_network_set_the_surrogate_stage_hashes_as_before(tmp_path):
+    cfg = load_config(config(tmp_path))
+    assert _section(cfg, "surrogate")["network_set"]  # another set under the name reruns
+    own = cfg.model_copy(
+        update={"surrogate": cfg.surrogate.model_copy(update={"pretrained": None})}
+    )
+    # a run made before the option existed keeps its surrogate stage's hash
+    assert _section(own, "surrogate") == own.surrogate.model_dump(exclude={"pretrained"})
+
+
+@pytest.fixture(scope="module")
+def pretrained_run(tmp_path_factory):
+    root = tmp_path_factory.mktemp("pre")
+    out = root / "run"
+    seen = []
+    state = run_pipeline(load_config(config(root)), out, progress=lambda s, m: seen.append((s, m)))
+    return out, state, seen
+
+
+def test_the_run_estimates_with_the_shipped_networks(pretrained_run):
+    out, state, seen = pretrained_run
+    assert [s for s, _ in seen] == list(STAGES)
+    ns = read_network_set(resolve_network_set("c80_k6"))
+    sur = out / PRETRAINED_RUN / "surrogates"
+    assert (sur / "compare.csv").exists()
+    assert (sur / "cnn-gru-seq" / "straight" / "model.pt").exists()
+    assert state["stages"]["surrogate"]["info"]["pretrained"] == "c80_k6"
+    est = json.loads((out / "estimate" / "estimate.json").read_text())
+    # the set's own key parameters, not the sensitivity stage's two
+    assert tuple(est["parameters"]) == ns.parameters
+    assert est["config"]["statistic"] == "aligned"
+    held = {e["symbol"]: e["assumed"] for e in est["not_estimated"]}
+    assert set(held) == {f"X{i}" for i in range(11, 21)} - set(ns.parameters)
+    assert set(held.values()) == {"varied"}
+    report = (out / "report.html").read_text("utf-8")
+    assert "Network set &#x27;c80_k6&#x27;" in report or "Network set 'c80_k6'" in report
+    assert "Reproduced by" in report
+
+
+def test_an_unchanged_run_keeps_its_copied_networks(pretrained_run, tmp_path):
+    out, _, _ = pretrained_run
+    seen = []
+    run_pipeline(load_config(config(tmp_path)), out, progress=lambda s, m: seen.append((s, m)))
+    assert dict(seen) == dict.fromkeys(STAGES, "up to date")
