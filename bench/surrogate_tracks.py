@@ -458,7 +458,14 @@ def main() -> None:
         "--fine-tune-epochs",
         type=int,
         default=0,
-        help="then epochs at a tenth of the learning rate (a finished network resumes into them)",
+        help="then epochs at --fine-tune-lr-factor times the learning rate (a finished "
+        "network resumes into them)",
+    )
+    ap.add_argument(
+        "--fine-tune-lr-factor", type=float, default=0.1, help="the fine-tune phase's step factor"
+    )
+    ap.add_argument(
+        "--patience", type=int, default=6, help="epochs without a better validation loss to stop"
     )
     ap.add_argument("--batches-per-epoch", type=int, default=100)
     ap.add_argument("--learning-rate", type=float, default=1e-3, help="Adam's step")
@@ -543,6 +550,8 @@ def main() -> None:
         tcfg = TrainConfig(
             epochs=args.epochs,
             fine_tune_epochs=args.fine_tune_epochs,
+            fine_tune_lr_factor=args.fine_tune_lr_factor,
+            patience=args.patience,
             batches_per_epoch=args.batches_per_epoch,
             learning_rate=args.learning_rate,
             batch_size=args.batch_size,
