@@ -176,6 +176,41 @@ def set_recordings(
     return truth, read_field(folder)
 
 
+def scored(
+    model: SurrogateForces, recs: list, params: Sequence[str], true_keys: np.ndarray, err
+) -> dict:
+    """The identifiable key parameters (time-aligned Cramér-Rao bound at the truth, with the
+    surrogate on the recordings) and which of them the estimate has within WITHIN_PCT."""
+    bound = aligned_cramer_rao_pct_range(model, recs, params, true_keys)
+    ident = identifiable(bound)
+    within = [p for p, e in zip(params, err, strict=True) if abs(e) <= WITHIN_PCT]
+    hit = [p for p in ident if p in within]
+    return {
+        "cramer_rao_pct_range": bound,
+        "identifiable": ident,
+        "within_pct": within,
+        "identifiable_within": hit,
+        "share_identifiable_within": len(hit) / len(ident) if ident else None,
+    }
+
+
+def rescore_set(
+    row: dict,
+    truth_si: np.ndarray,
+    model: SurrogateForces,
+    conditions: list[WorkingCondition],
+    work: Path,
+    args: argparse.Namespace,
+) -> dict:
+    """A stored set scored again with today's identifiability rule: same recordings (read
+    from ``work``, or synthesised again identically), same estimate, new bounds."""
+    truth, recs = set_recordings(row["set"], truth_si, conditions, work, args)
+    params = model.parameters
+    true_keys = np.array([truth[p] for p in params])
+    err = [row["error_pct_range"][p] for p in params]
+    return {**row, **scored(model, recs, params, true_keys, err)}
+
+
 def run_set(
     index: int,
     truth_si: np.ndarray,
@@ -197,20 +232,12 @@ def run_set(
     lo, hi = bounds(params)
     true_keys = np.array([truth[p] for p in params])
     err = 100.0 * (res.chosen_x - true_keys) / (hi - lo)
-    bound = aligned_cramer_rao_pct_range(model, recs, params, true_keys)
-    ident = identifiable(bound)
-    within = [p for p, e in zip(params, err, strict=True) if abs(e) <= WITHIN_PCT]
-    hit = [p for p in ident if p in within]
     return {
         "set": index,
         "truth_display": {p: truth.to_display()[p] for p in MAIN_SUSPENSION},
         "estimate_display": res.estimate,
         "error_pct_range": {p: float(e) for p, e in zip(params, err, strict=True)},
-        "cramer_rao_pct_range": bound,
-        "identifiable": ident,
-        "within_pct": within,
-        "identifiable_within": hit,
-        "share_identifiable_within": len(hit) / len(ident) if ident else None,
+        **scored(model, recs, params, true_keys, err),
         "pareto_spread_pct_range": res.pareto_spread(),
         "choice_rule": res.choice_rule,
         "seconds": seconds,
@@ -318,6 +345,11 @@ def main(argv: Sequence[str] | None = None) -> dict:
     ap.add_argument("--threads", type=int, default=2, help="torch threads")
     ap.add_argument("--work", type=Path, default=Path("runs/estimate_tracks"))
     ap.add_argument("--out", type=Path, default=Path("bench/results/estimate_tracks.json"))
+    ap.add_argument(
+        "--rescore",
+        action="store_true",
+        help="score the stored sets again (identifiability only; no NSGA-II run)",
+    )
     args = ap.parse_args(argv)
     torch.set_num_threads(args.threads)
     folder = args.run / "surrogates" / args.kind
@@ -342,10 +374,15 @@ def main(argv: Sequence[str] | None = None) -> dict:
     )
     for cond, fields in moved.items():
         print(f"  {cond}: moved into the surrogate's track family: {fields}")
+    if args.rescore:
+        work = args.work / args.run.name
+        sets = [rescore_set(s, truths[s["set"]], model, conditions, work, args) for s in sets]
+        done = {s["set"] for s in sets}
+        args.limit = -1  # no new sets
     new = 0
     doc: dict = {}
     for i, truth in enumerate(truths):
-        if i in done or (args.limit and new >= args.limit):
+        if i in done or args.limit < 0 or (args.limit and new >= args.limit):
             continue
         row = run_set(i, truth, model, conditions, args.work / args.run.name, args)
         sets = sorted([*sets, row], key=lambda s: s["set"])

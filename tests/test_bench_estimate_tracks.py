@@ -92,3 +92,25 @@ def test_recordings_are_made_again_for_other_conditions(bench, tmp_path):
     stamp = (tmp_path / "set-00" / "synthesis.json").stat().st_mtime_ns
     bench.set_recordings(0, truth, [straight, curve], tmp_path, args)  # reused
     assert (tmp_path / "set-00" / "synthesis.json").stat().st_mtime_ns == stamp
+
+
+def test_rescore_keeps_the_estimates_and_scores_them_again(bench, tmp_path):
+    """--rescore recomputes each stored set's bounds on its own recordings, keeps the
+    estimate and runs no NSGA-II (no new sets, no predictions counted again)."""
+    run = tmp_path / "run"
+    tiny_surrogate(run / "surrogates" / "cnn-gru")
+    out = tmp_path / "out.json"
+    argv = [str(run), "--sets", "2", "--limit", "1", "--duration", "2", "--pop-size", "4"]
+    argv += ["--n-gen", "2", "--threads", "1", "--work", str(tmp_path / "w"), "--out", str(out)]
+    first = bench.main(argv)["per_set"][0]
+    doc = json.loads(out.read_text())
+    doc["per_set"][0]["cramer_rao_pct_range"] = dict.fromkeys(KEYS, 99.0)  # a stale score
+    doc["per_set"][0]["identifiable"] = []
+    out.write_text(json.dumps(doc))
+    again = bench.main([*argv, "--rescore"])
+    assert [s["set"] for s in again["per_set"]] == [0]  # set 1 not run
+    row = again["per_set"][0]
+    assert row["error_pct_range"] == first["error_pct_range"]
+    assert row["seconds"] == first["seconds"] and row["predict_calls"] == first["predict_calls"]
+    assert row["cramer_rao_pct_range"] == pytest.approx(first["cramer_rao_pct_range"])
+    assert row["identifiable"] == first["identifiable"]
