@@ -118,3 +118,11 @@ def test_an_unchanged_run_keeps_its_copied_networks(pretrained_run, tmp_path):
     seen = []
     run_pipeline(load_config(config(tmp_path)), out, progress=lambda s, m: seen.append((s, m)))
     assert dict(seen) == dict.fromkeys(STAGES, "up to date")
+
+
+def test_the_pretrained_example_loads_with_the_shipped_set():
+    from pathlib import Path
+
+    cfg = load_config(Path(__file__).resolve().parents[1] / "examples" / "pretrained.toml")
+    assert cfg.surrogate.pretrained == "c80_k6" and cfg.surrogate.model == "cnn-gru-seq"
+    assert cfg.estimate.statistic == "aligned" and cfg.field.with_track
