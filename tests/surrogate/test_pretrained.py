@@ -77,6 +77,8 @@ def test_the_shipped_set_serves_the_study_conditions_on_this_wagon(shipped):
         ({"condition": {"speed_kmh": 80.0}}, "speed_kmh = 80.0, outside"),
         ({"condition": {"curve_radius_m": 600.0}}, "curve_radius_m = 600.0, outside"),
         ({"condition": {"name": "bridge"}}, "no network for condition 'bridge'"),
+        # 20 s at 100 Hz: the length may differ, the network's time step may not
+        ({"condition": {"n_steps": 2000}}, r"sample_interval = 0.01, outside .*0.02 s only"),
     ],
 )
 def test_a_set_that_cannot_serve_the_run_is_refused_in_one_line(shipped, change, match):

@@ -139,7 +139,9 @@ class Surrogate:
         """(field, value, what the network was trained on) for each field of ``condition``
         outside the surrogate's training: a field other than the track input (irregularity
         seed, measured geometry) and the record length that differs from its condition and
-        is not in its track family, and a family field (FRA class, curve radius, cant)
+        is not in its track family, a sampling interval other than the training's (the
+        record length may differ, not the time step of the network's series), and a
+        family field (FRA class, curve radius, cant)
         outside the family's range even where it equals the surrogate's own condition: a
         family campaign draws those per sample, so the condition's nominal value (the
         study's 110 mm cant, say) need not lie in the family (0-100 mm) and would be an
@@ -151,6 +153,11 @@ class Surrogate:
             if key in fam and name not in names and getattr(condition, name) is not None:
                 names.append(name)
         out = []
+        # the record length may differ, its sampling may not: the network's steps are the
+        # training's time step (a 100 Hz recording read as 50 Hz would halve every frequency)
+        mine, theirs = self.condition.sample_interval, condition.sample_interval
+        if abs(theirs - mine) > 1e-9 * mine:
+            out.append(("sample_interval", theirs, f"{mine!r} s only"))
         for name in names:
             value = getattr(condition, name)
             if self.in_track_family(name, value):
