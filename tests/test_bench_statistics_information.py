@@ -75,13 +75,16 @@ def test_ledoit_wolf_is_the_sample_covariance_with_many_samples_and_invertible_w
 
 def test_widths_of_a_known_information_and_of_an_unidentified_direction(bench):
     info = np.diag([100.0, 4.0])
-    w = bench.widths_pct(info)
+    w = bench.widths_pct(info, prior=0.0)
     assert w == pytest.approx([100 * 2 * 1.6448536 / 10, 100 * 2 * 1.6448536 / 2])
-    assert bench.widths_pct(np.diag([100.0, -1.0]))[1] > 1e4  # no information: no interval
+    assert bench.widths_pct(np.diag([100.0, -1.0]), 0.0)[1] > 1e4  # no information: no interval
+    # with the uniform prior's variance as a Gaussian prior: 2 x 1.645 / sqrt(12) = 95 %
+    assert bench.widths_pct(np.diag([100.0, -1e-9]))[1] == pytest.approx(95.0, abs=0.1)
+    assert bench.widths_pct(info)[0] == pytest.approx(100 * 2 * 1.6448536 / np.sqrt(112))
     # one parameter alone: the others known, so a correlation does not widen it
     corr = np.array([[100.0, 18.0], [18.0, 4.0]])
     assert bench.widths_alone_pct(corr) == pytest.approx(w)
-    assert np.all(bench.widths_pct(corr) > w)
+    assert np.all(bench.widths_pct(corr, 0.0) > w)
     assert bench.widths_alone_pct(np.diag([1.0, -1.0]))[1] == np.inf
 
 
