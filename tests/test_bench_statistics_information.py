@@ -1,6 +1,6 @@
-"""bench/statistics_information.py: the unbiased information estimator on an analytic
-linear-Gaussian case, and the candidate statistics (bench/statistics_candidates.py) on
-analytic signals."""
+"""bench/statistics_information.py: the unbiased information estimator
+(bench/information_estimate.py) on an analytic linear-Gaussian case, and the candidate
+statistics (bench/statistics_candidates.py) on analytic signals."""
 
 import numpy as np
 import pytest
@@ -10,7 +10,7 @@ from conftest import bench_script
 
 @pytest.fixture(scope="module")
 def bench():
-    return bench_script("statistics_information")
+    return bench_script("information_estimate")
 
 
 @pytest.fixture(scope="module")
