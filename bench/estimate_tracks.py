@@ -420,6 +420,10 @@ def write_out(args, settings, sets, model, moved) -> dict:
         "per_set": sets,
         "overall": overall(sets, model.parameters),
     }
+    if args.rescore and args.out.exists():  # the timings are the original run's: keep its
+        old = read_json(args.out)  # provenance, and say when it was scored again
+        doc.update({k: old[k] for k in ("date", "machine", "torch_threads") if k in old})
+        doc["rescored"] = time.strftime("%Y-%m-%d %H:%M")
     write_json(args.out, doc)
     return doc
 

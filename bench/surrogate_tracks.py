@@ -462,10 +462,16 @@ def main() -> None:
         "network resumes into them)",
     )
     ap.add_argument(
-        "--fine-tune-lr-factor", type=float, default=0.1, help="the fine-tune phase's step factor"
+        "--fine-tune-lr-factor",
+        type=float,
+        default=TrainConfig.fine_tune_lr_factor,
+        help="the fine-tune phase's step factor",
     )
     ap.add_argument(
-        "--patience", type=int, default=6, help="epochs without a better validation loss to stop"
+        "--patience",
+        type=int,
+        default=TrainConfig.patience,
+        help="epochs without a better validation loss to stop",
     )
     ap.add_argument("--batches-per-epoch", type=int, default=100)
     ap.add_argument("--learning-rate", type=float, default=1e-3, help="Adam's step")

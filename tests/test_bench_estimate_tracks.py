@@ -106,8 +106,11 @@ def test_rescore_keeps_the_estimates_and_scores_them_again(bench, tmp_path):
     doc = json.loads(out.read_text())
     doc["per_set"][0]["cramer_rao_pct_range"] = dict.fromkeys(KEYS, 99.0)  # a stale score
     doc["per_set"][0]["identifiable"] = []
+    doc["torch_threads"], doc["date"] = 2, "2026-01-01 00:00"  # the original run's
     out.write_text(json.dumps(doc))
     again = bench.main([*argv, "--rescore"])
+    assert (again["torch_threads"], again["date"]) == (2, "2026-01-01 00:00")
+    assert again["rescored"]
     assert [s["set"] for s in again["per_set"]] == [0]  # set 1 not run
     row = again["per_set"][0]
     assert row["error_pct_range"] == first["error_pct_range"]

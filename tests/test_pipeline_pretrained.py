@@ -53,7 +53,7 @@ def config(tmp_path, model="cnn-gru-seq", pretrained="c80_k6", with_track="true"
         ({"pretrained": "no-such-set"}, r"'no-such-set': neither a network set shipped"),
         (
             {"with_track": "false", "stat": "mean"},
-            "surrogate.pretrained with field.with_track = false: time-aligned comparison",
+            "surrogate.pretrained needs recordings with their measured track geometry",
         ),
     ],
 )
@@ -75,13 +75,44 @@ def test_a_condition_outside_the_set_s_training_is_refused(tmp_path):
 
 
 def test_without_a_network_set_the_surrogate_stage_hashes_as_before(tmp_path):
+    from railsusp.pipeline import PipelineConfig
+
+    # the demo's surrogate section as hashed before [surrogate] pretrained existed
+    before = {
+        "model": "bp",
+        "samples": 128,
+        "seed": 1,
+        "epochs": 8,
+        "fine_tune_epochs": 0,
+        "batches_per_epoch": 60,
+        "batch_size": 512,
+        "device": "cpu",
+    }
+    own = PipelineConfig.model_validate({"surrogate": before})
+    assert _section(own, "surrogate") == before
+
+
+def test_a_set_is_hashed_by_its_content_and_not_by_unused_training_settings(tmp_path):
+    import shutil
+
     cfg = load_config(config(tmp_path))
-    assert _section(cfg, "surrogate")["network_set"]  # another set under the name reruns
-    own = cfg.model_copy(
-        update={"surrogate": cfg.surrogate.model_copy(update={"pretrained": None})}
+    first = _section(cfg, "surrogate")
+    assert set(first) == {"model", "pretrained", "network_set"}
+    more = cfg.model_copy(update={"surrogate": cfg.surrogate.model_copy(update={"epochs": 99})})
+    assert _section(more, "surrogate") == first  # not used with a set: nothing reruns
+    # the same set under its folder with one network's weights replaced: another set
+    copy = tmp_path / "set"
+    shutil.copytree(resolve_network_set("c80_k6"), copy)
+    mine = cfg.model_copy(
+        update={"surrogate": cfg.surrogate.model_copy(update={"pretrained": str(copy)})}
     )
-    # a run made before the option existed keeps its surrogate stage's hash
-    assert _section(own, "surrogate") == own.surrogate.model_dump(exclude={"pretrained"})
+    same = _section(mine, "surrogate")["network_set"]
+    assert same == first["network_set"]
+    weights = copy / "curve" / "model.pt"
+    data = bytearray(weights.read_bytes())
+    data[len(data) // 2] ^= 0xFF  # one byte of the weights changed
+    weights.write_bytes(bytes(data))
+    assert _section(mine, "surrogate")["network_set"] != same
 
 
 @pytest.fixture(scope="module")

@@ -310,8 +310,16 @@ def _check_measured_track(cfg: Any, bad: Any) -> None:
         needs.append(("estimate.refine = true", "refine = false"))
     if ALIGNED in cfg.estimate.statistic.split("+"):
         needs.append(('estimate.statistic "aligned"', "another statistic"))
-    if cfg.surrogate.pretrained is not None:  # its networks read the recording's track
-        needs.append(("surrogate.pretrained", "surrogates trained here"))
+    if cfg.surrogate.pretrained is not None and (
+        (f.measured is not None and _blind_recordings(Path(f.measured)))
+        or (f.measured is None and (f.recording is not None or not f.with_track))
+    ):
+        raise bad(
+            "surrogate.pretrained needs recordings with their measured track geometry (the "
+            "set's networks read the track they predict on): synthetic ones with "
+            "field.with_track = true, or measured ones whose sidecars give track_geometry; "
+            "else leave surrogate.pretrained out and train the surrogates here"
+        )
     for what, instead in needs:
         if f.recording is not None:
             raise bad(

@@ -361,11 +361,11 @@ def model_identity(config: PipelineConfig) -> dict[str, str]:
     hashes, so that a run directory made with another model is simulated again instead of
     being reused (the demo's did, and its estimate stage then failed reading surrogates
     saved with an older wagon description)."""
+    from railsusp.surrogate.pretrained import wagon_hash
     from railsusp.vehicle import MODEL_REVISION
     from railsusp.vehicle.wagon import load_wagon
 
-    wagon = load_wagon(config.wagon).model_dump(mode="json")
-    return {"wagon_data": content_hash(wagon), "model_revision": MODEL_REVISION}
+    return {"wagon_data": wagon_hash(load_wagon(config.wagon)), "model_revision": MODEL_REVISION}
 
 
 def _section(config: PipelineConfig, stage: str) -> Any:
@@ -395,15 +395,16 @@ def _section(config: PipelineConfig, stage: str) -> Any:
 
 def _surrogate_section(config: PipelineConfig) -> dict:
     """The surrogate stage's inputs: its settings (without ``pretrained`` when unset, so a
-    run made before the option existed stays up to date), and a network set's manifest,
-    so that another set under the same name trains (copies) again."""
+    run made before the option existed stays up to date); with a network set only what
+    is used, the model and the set (its manifest and the bytes of its networks), so that
+    another set under the same name copies again and training settings change nothing."""
     s = config.surrogate
     if s.pretrained is None:
         return s.model_dump(exclude={"pretrained"})
-    from railsusp.surrogate.pretrained import MANIFEST, resolve_network_set
+    from railsusp.surrogate.pretrained import read_network_set, resolve_network_set, set_hash
 
-    manifest = read_json(resolve_network_set(s.pretrained) / MANIFEST)
-    return {**s.model_dump(), "network_set": content_hash(manifest)}
+    ns = read_network_set(resolve_network_set(s.pretrained))
+    return {"model": s.model, "pretrained": s.pretrained, "network_set": set_hash(ns)}
 
 
 _OUTPUTS = {

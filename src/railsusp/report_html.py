@@ -194,16 +194,26 @@ def _wagon_section(doc: Doc, run: Path, cfg: dict) -> None:
     )
 
 
-def _network_set_text(doc: Doc, manifest: dict) -> None:
-    """What a shipped network set is, how it was trained and how to reproduce it."""
+def _network_set_text(doc: Doc, manifest: dict, assumed: list[dict]) -> None:
+    """What a shipped network set is, how its other parameters entered its training (from
+    its bundles' ``assumed_parameters``), and how to reproduce it."""
+    varied = [a["symbol"] for a in assumed if a.get("assumed") == "varied"]
+    held = [f"{a['symbol']} = {a.get('value')}" for a in assumed if a.get("assumed") != "varied"]
+    others = []
+    if varied:
+        others.append(
+            f"{', '.join(varied)} varied over their ranges in its training (their effect is "
+            "in its spread, not held at nominal)"
+        )
+    if held:
+        others.append(f"{', '.join(held)} held in its training")
     doc.p(
         f"Network set '{manifest['name']}' ({manifest['kind']}, inputs "
         f"{', '.join(manifest['parameters'])}), trained once on many track realisations and "
         f"shipped with railsusp, not trained in this run: {manifest.get('description', '')} "
         f"Force laws of revision {manifest['model_revision']}. The table below is its "
-        "accuracy on its campaign's held-out tracks and parameter sets. The parameters that "
-        "are not its inputs varied over their ranges in its training (their effect is in "
-        "its spread, not held at nominal)."
+        "accuracy on its campaign's held-out tracks and parameter sets."
+        + (f" Not its inputs: {'; '.join(others)}." if others else "")
     )
     doc.p("Reproduced by: " + " ; ".join(manifest.get("reproduce", [])))
 
@@ -230,7 +240,10 @@ def _method_sections(doc: Doc, run: Path, state: dict) -> None:
 
         doc.h("Surrogates on held-out simulations (study Table 7, Figures 10/11)")
         if pretrained is not None and (sur / MANIFEST).exists():
-            _network_set_text(doc, read_json(sur / MANIFEST))
+            manifest = read_json(sur / MANIFEST)
+            first = sur / manifest["kind"] / manifest["conditions"][0] / "surrogate.json"
+            meta = read_json(first).get("meta", {}) if first.exists() else {}
+            _network_set_text(doc, manifest, meta.get("assumed_parameters") or [])
         elif own:
             sc = read_json(sur_camp / "campaign.json")["config"]
             doc.p(

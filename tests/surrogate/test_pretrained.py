@@ -172,3 +172,26 @@ def test_the_run_folder_of_the_surrogates():
     assert surrogates_run("c80_k6", 128) == PRETRAINED_RUN
     assert surrogates_run(None, 128) == OWN_CAMPAIGN_RUN
     assert surrogates_run(None, 0) == SENSITIVITY_RUN
+
+
+def test_an_unreadable_network_is_refused_in_one_line(shipped, tmp_path):
+    copy = tmp_path / "set"
+    shutil.copytree(shipped.folder, copy)
+    weights = copy / "curve" / "model.pt"
+    weights.write_bytes(weights.read_bytes()[:1000])  # truncated
+    with pytest.raises(RailsuspInputError, match=r"surrogate.pretrained: the network in .*curve"):
+        check_network_set(
+            read_network_set(copy),
+            wagon=load_wagon(None),
+            kind="cnn-gru-seq",
+            conditions=[get_condition("curve")],
+        )
+    try:
+        check_network_set(
+            read_network_set(copy),
+            wagon=load_wagon(None),
+            kind="cnn-gru-seq",
+            conditions=[get_condition("curve")],
+        )
+    except RailsuspInputError as exc:
+        assert "\n" not in str(exc)

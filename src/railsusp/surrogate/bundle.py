@@ -51,6 +51,10 @@ _FAMILY_FIELDS = {
 }
 
 
+#: relative difference of sample intervals a network accepts (whole-step and whole-ms cuts)
+SAMPLING_TOLERANCE = 1e-3
+
+
 class OneTrackWarning(UserWarning):
     """A surrogate trained on one track realisation was asked to predict on another."""
 
@@ -155,9 +159,10 @@ class Surrogate:
         out = []
         # the record length may differ, its sampling may not: the network's steps are the
         # training's time step (a 100 Hz recording read as 50 Hz would halve every frequency)
+        # (to 0.1 %: a record cut to whole milliseconds or whole steps keeps its rate)
         mine, theirs = self.condition.sample_interval, condition.sample_interval
-        if abs(theirs - mine) > 1e-9 * mine:
-            out.append(("sample_interval", theirs, f"{mine!r} s only"))
+        if abs(theirs - mine) > SAMPLING_TOLERANCE * mine:
+            out.append(("sample_interval", float(f"{theirs:.6g}"), f"{mine:g} s only"))
         for name in names:
             value = getattr(condition, name)
             if self.in_track_family(name, value):

@@ -165,6 +165,34 @@ def read_network_set(folder: str | Path) -> NetworkSet:
     return ns
 
 
+def load_bundle(path: Path, field: str = "surrogate.pretrained") -> Any:
+    """A set's bundle, or a one-line error naming ``field`` and the bundle when it cannot
+    be read (truncated weights, a damaged surrogate.json): torch's own messages run over
+    several lines."""
+    import pickle
+
+    from railsusp.surrogate.bundle import load
+
+    try:
+        return load(path)
+    except RailsuspInputError:
+        raise
+    except (OSError, ValueError, KeyError, TypeError, RuntimeError, pickle.UnpicklingError) as e:
+        first = (str(e).strip().splitlines() or [type(e).__name__])[0]
+        raise RailsuspInputError(
+            f"{field}: the network in {path} cannot be read ({first})"
+        ) from None
+
+
+def set_hash(ns: NetworkSet) -> str:
+    """Content hash of a set: its manifest and the bytes of every bundle file, so that
+    weights replaced under an unchanged manifest count as another set."""
+    from railsusp.store import file_hash
+
+    files = {f"{c}/{f}": file_hash(ns.bundle(c) / f) for c in ns.conditions for f in BUNDLE_FILES}
+    return content_hash({"manifest": ns.to_json(), "files": files})
+
+
 def wagon_hash(wagon: Any) -> str:
     """The content hash of a wagon's data as the pipeline's stage hashes take it
     (:func:`railsusp.pipeline.model_identity`)."""
@@ -184,7 +212,6 @@ def check_network_set(
     than ``kind``, without a network for one of ``conditions``, or with one whose training
     does not cover that condition (:meth:`~railsusp.surrogate.bundle.Surrogate.untrained_fields`:
     speed, grade, coupler force, or FRA class, radius or cant outside the track family)."""
-    from railsusp.surrogate.bundle import load
     from railsusp.vehicle import MODEL_REVISION
 
     where = f"{field} = {ns.name!r}"
@@ -196,9 +223,9 @@ def check_network_set(
         )
     if ns.wagon_hash != wagon_hash(wagon):
         raise RailsuspInputError(
-            f"{where} was trained on another wagon's data (hash {ns.wagon_hash}): it serves "
-            "that wagon only; leave the wagon out (the embedded C80/K6) or train the "
-            "surrogates for this wagon"
+            f"{where} was trained on another wagon's data (hash {ns.wagon_hash}, not "
+            f"{wagon_hash(wagon)}): it serves that wagon only ({ns.description or ns.name}); "
+            "choose that wagon or train the surrogates for this one"
         )
     if ns.kind != kind:
         raise RailsuspInputError(
@@ -210,7 +237,7 @@ def check_network_set(
                 f"{where} has no network for condition {cond.name!r} (has "
                 f"{', '.join(ns.conditions)})"
             )
-        outside = load(ns.bundle(cond.name)).untrained_fields(cond)
+        outside = load_bundle(ns.bundle(cond.name), field).untrained_fields(cond)
         if outside:
             name, value, trained = outside[0]
             raise RailsuspInputError(
@@ -236,9 +263,7 @@ def reference_statistics(series: np.ndarray) -> dict[str, list[float]]:
 def predict_reference(bundle: Path, seed: int, params_si: np.ndarray) -> np.ndarray:
     """The bundle's series for ``params_si`` on its own condition at track seed ``seed``
     (the nominal wagon simulated on that track where the network reads it)."""
-    from railsusp.surrogate.bundle import load
-
-    sur = load(bundle)
+    sur = load_bundle(bundle)
     cond = sur.condition.model_copy(update={"seed": int(seed)})
     return sur.predict(np.asarray(params_si, dtype=float), condition=cond)
 
@@ -247,8 +272,8 @@ def make_references(
     folder: Path, conditions: Sequence[str], parameters: Sequence[str], seed: int = 11
 ) -> dict[str, dict[str, Any]]:
     """References for a new set: per condition the nominal wagon and one set with every key
-    parameter at 25 % of its range, on the track of ``seed`` (not a training seed of the
-    shipped campaign, whose seeds count up from its own base)."""
+    parameter at 25 % of its range, on the track of ``seed`` (any fixed seed: that it is
+    not one of the training campaign's track seeds was checked for c80_k6, not required)."""
     from railsusp.params import bounds
 
     lo, hi = bounds(parameters)
