@@ -56,7 +56,7 @@ from railsusp.store import read_json, write_json
 
 #: what a set's copy of the run directory takes from the finished run: every stage before
 #: the field's (the field, estimate, validate and report stages run again)
-REUSED = ("campaign", "surrogate-campaign", "pipeline.json")
+REUSED = ("campaign", "surrogate-campaign", "surrogate-pretrained", "pipeline.json")
 
 
 def _link(src: str, dst: str) -> None:
@@ -142,6 +142,8 @@ def run_set(run: Path, work: Path, config, k: int) -> dict:
         dest.mkdir(parents=True, exist_ok=True)
         for name in REUSED:
             src = run / name
+            if not src.exists():  # the surrogates' own campaign or a network set's copy
+                continue
             if src.is_dir():  # hard links: railsusp replaces files atomically, never in place
                 shutil.copytree(src, dest / name, dirs_exist_ok=True, copy_function=_link)
             else:

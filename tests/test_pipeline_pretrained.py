@@ -157,3 +157,16 @@ def test_the_pretrained_example_loads_with_the_shipped_set():
     cfg = load_config(Path(__file__).resolve().parents[1] / "examples" / "pretrained.toml")
     assert cfg.surrogate.pretrained == "c80_k6" and cfg.surrogate.model == "cnn-gru-seq"
     assert cfg.estimate.statistic == "aligned" and cfg.field.with_track
+
+
+def test_the_answer_says_why_the_set_s_other_parameters_are_not_estimated(pretrained_run):
+    """The set's training varied X15 and X17 (X17 also sampled by this run's campaign, X15
+    not): the answer says they are not the force model's inputs, rather than "not a key
+    parameter" or "not varied", which described surrogates trained in the run."""
+    from railsusp import summary
+
+    out, _, _ = pretrained_run
+    table = summary.estimate_table(out)
+    note = "not an input of the force model (varied in its training)"
+    assert table.loc["X17"].note == note and table.loc["X15"].note == note
+    assert table.loc["X17"].verdict.startswith(summary.NOT_ESTIMATED + ": varied over")

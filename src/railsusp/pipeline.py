@@ -275,6 +275,8 @@ def demo_config() -> PipelineConfig:
     """The embedded default (identical to examples/quick.toml, checked by a test)."""
     return PipelineConfig(
         name="quick demo: C80/K6, synthetic field data of a degraded wagon",
+        # the study's CNN-GRU trained on many tracks, shipped: nothing trained in the demo
+        surrogate=SurrogateSection(model="cnn-gru-seq", pretrained="c80_k6"),
         field=FieldSection(truth=DEMO_TRUTH, with_track=True),
         estimate=EstimateSection(refine=True),
     )

@@ -157,11 +157,14 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
                     f"{NOT_ESTIMATED}: varied over {sig3(varied['low'])}-{sig3(varied['high'])} "
                     f"{s.display_unit} in the surrogate's training"
                 )
-            row["note"] = (
-                "not a key parameter of the sensitivity analysis"
-                if p in sampled
-                else "not varied in the campaign"
-            )
+            if varied.get("assumed") == "varied":  # a network set's, whatever the sensitivity
+                row["note"] = "not an input of the force model (varied in its training)"
+            else:
+                row["note"] = (
+                    "not a key parameter of the sensitivity analysis"
+                    if p in sampled
+                    else "not varied in the campaign"
+                )
             rows.append(row)
             continue
         v = float(est["estimate_display"][p])
