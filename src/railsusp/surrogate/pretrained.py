@@ -320,14 +320,18 @@ def install_network_set(ns: NetworkSet, dest: str | Path) -> Path:
     dest = Path(dest)
     with atomic_folder(dest, keep=False) as tmp:
         for cond in ns.conditions:
-            target = tmp / ns.kind / cond
-            target.mkdir(parents=True)
-            for f in BUNDLE_FILES:
-                shutil.copy2(ns.bundle(cond) / f, target / f)
+            _copy_bundle(ns.bundle(cond), tmp / ns.kind / cond)
         shutil.copy2(ns.folder / MANIFEST, tmp / MANIFEST)
-        table = pd.read_csv(ns.folder / ACCURACY)
-        write_csv(tmp / ACCURACY, table)  # last: the pipeline's mark of a finished stage
+        # last: the pipeline's mark of a finished stage (the folder is swapped in whole)
+        shutil.copy2(ns.folder / ACCURACY, tmp / ACCURACY)
     return dest
+
+
+def _copy_bundle(source: Path, target: Path) -> None:
+    """A condition's bundle files (:data:`BUNDLE_FILES`, no training checkpoint)."""
+    target.mkdir(parents=True)
+    for f in BUNDLE_FILES:
+        shutil.copy2(source / f, target / f)
 
 
 def write_network_set(
@@ -361,9 +365,7 @@ def write_network_set(
     dest = Path(dest)
     with atomic_folder(dest, keep=False) as tmp:
         for c in conditions:
-            (tmp / c).mkdir()
-            for f in BUNDLE_FILES:
-                shutil.copy2(source / c / f, tmp / c / f)
+            _copy_bundle(source / c, tmp / c)
         write_csv(tmp / ACCURACY, accuracy)
         ns = NetworkSet(
             folder=tmp,
