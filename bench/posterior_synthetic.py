@@ -52,6 +52,11 @@ def main() -> None:
         help="held-out calibration records of --long-length fitting the covariance's scales "
         "(0: not fitted)",
     )
+    ap.add_argument(
+        "--statistics",
+        default="en14363",
+        help="families of statistics (railsusp.estimate.statistic_families), or 'all'",
+    )
     a = ap.parse_args()
 
     longest = max(1, round(a.long_length / a.section))
@@ -63,6 +68,7 @@ def main() -> None:
         n_check=a.check,
         product_sections=(longest,) if longest > 1 else (),
         n_product=a.long,
+        statistics=tuple(a.statistics.split(",")),
     )
     ks = sorted({max(1, round(v / a.section)) for v in lengths_s(a.lengths)})
     sets = [("check", a.check, 1, (1,))] if 1 in ks else []

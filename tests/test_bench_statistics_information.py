@@ -1,6 +1,7 @@
 """bench/statistics_information.py: the unbiased information estimator
 (bench/information_estimate.py) on an analytic linear-Gaussian case, and the candidate
-statistics (bench/statistics_candidates.py) on analytic signals."""
+statistics' groups (bench/statistics_candidates.py), which are the posterior's families
+(their own tests: tests/estimate/test_statistic_families.py)."""
 
 import numpy as np
 import pytest
@@ -86,42 +87,6 @@ def test_widths_of_a_known_information_and_of_an_unidentified_direction(bench):
     assert bench.widths_alone_pct(corr) == pytest.approx(w)
     assert np.all(bench.widths_pct(corr, 0.0) > w)
     assert bench.widths_alone_pct(np.diag([1.0, -1.0]))[1] == np.inf
-
-
-def test_band_rms_of_a_sine_is_its_rms_in_its_third_octave_band(cand):
-    fs = 50.0
-    t = np.arange(1000) / fs
-    x = 3.0 * np.sin(2 * np.pi * 10.7 * t) + 0.5
-    out = 10 ** cand.log_band_rms(x, fs, cand.THIRD_OCTAVE_HZ)
-    k = next(i for i, (lo, hi) in enumerate(cand.THIRD_OCTAVE_HZ) if lo <= 10.7 < hi)
-    assert out[k] == pytest.approx(3.0 / np.sqrt(2), rel=0.02)
-    assert np.delete(out, k).max() < 0.01 * out[k]
-
-
-def test_coherency_of_identical_and_delayed_signals(cand):
-    fs = 50.0
-    rng = np.random.default_rng(2)
-    x = rng.standard_normal(1000)
-    re_im = cand.band_coherency(x, 2.5 * x, fs)
-    n = len(cand.CROSS_BANDS_HZ)
-    assert re_im[:n] == pytest.approx(np.ones(n)) and re_im[n:] == pytest.approx(np.zeros(n))
-    t = np.arange(1000) / fs
-    tau = 0.05
-    c = cand.band_coherency(np.sin(2 * np.pi * 2.2 * t), np.sin(2 * np.pi * 2.2 * (t - tau)), fs)
-    k = next(i for i, (lo, hi) in enumerate(cand.CROSS_BANDS_HZ) if lo <= 2.2 < hi)
-    z = complex(c[k], c[n + k])
-    assert abs(z) == pytest.approx(1.0, abs=1e-3)
-    assert np.angle(z) == pytest.approx(-2 * np.pi * 2.2 * tau, abs=0.02)
-    # independent noises: small coherency in every band
-    assert np.abs(cand.band_coherency(x, rng.standard_normal(1000), fs)).max() < 0.4
-
-
-def test_lagged_correlation_of_a_sine(cand):
-    fs = 50.0
-    t = np.arange(2000) / fs
-    x = np.sin(2 * np.pi * 2.5 * t)  # a period of 20 samples
-    r = cand.lagged_correlation(x, x, fs, (0.0, 0.2, 0.1, -0.2))
-    assert r == pytest.approx([1.0, -1.0, 0.0, -1.0], abs=0.01)
 
 
 def test_section_statistics_have_their_names_and_today_is_the_posteriors(cand):

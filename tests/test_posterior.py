@@ -261,13 +261,13 @@ def test_cached_cases_simulate_given_draws_and_refuse_a_wrong_shape(tmp_path, mo
 
     def fake(settings, u, first, kind, sections):
         seen.append(u.copy())
-        return np.tile(u[:, None, :1], (1, sections, 1))
+        return np.tile(u[:, None, :1], (1, sections, len(settings.summary_names)))
 
     monkeypatch.setattr(posterior_data, "simulate_long_cases", fake)
     s = _settings()
     u = np.full((3, 10), 0.25)
     got_u, x = posterior_data.cached_cases(s, tmp_path, "identification", 3, 2, draws=u)
-    assert np.array_equal(got_u, u) and x.shape == (3, 2, 1) and np.all(x == 0.25)
+    assert np.array_equal(got_u, u) and x.shape == (3, 2, 17) and np.all(x == 0.25)
     posterior_data.cached_cases(s, tmp_path, "identification", 3, 2, draws=u)  # cached
     assert len(seen) == 1
     with pytest.raises(ValueError, match=r"draws \(2, 10\): need \(3, 10\)"):
@@ -484,6 +484,8 @@ def test_cli_estimate_prints_the_table(trained, tmp_path):
         (["train", "--product-sections", "2", "--product-cases", "5"], "--product-cases 5: acc"),
         (["train", "--product-cases", "many"], "--product-cases many: accepted whole numbers"),
         (["train", "--conditions", "nowhere"], "nowhere"),
+        (["train", "--statistics", "spectra"], "--statistics spectra: accepted 'all' or"),
+        (["train", "--statistics", "wheelset", "--sum-y"], "--sum-y true with statistics wheel"),
         (["train", "--lead-in", "-5"], "--lead-in -5"),
         (["train", "--conditions", "curve", "--lead-in", "30"], "accepted at least 90.03 m"),
         (["estimate", "--measured", "MISSING", "--estimator", "RUN"], "MISSING"),

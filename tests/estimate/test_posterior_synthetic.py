@@ -35,6 +35,13 @@ S = L @ L.T
 TRUTH = np.array([0.45, 0.55])
 
 
+class _Exact(StatisticsEmulator):
+    """Base of the emulators of known moments below: the mean is that of ``moments``."""
+
+    def mean(self, u):
+        return self.moments(np.atleast_2d(u))[0]
+
+
 @pytest.fixture(scope="module")
 def emulator() -> StatisticsEmulator:
     rng = np.random.default_rng(1)
@@ -117,7 +124,7 @@ def test_a_shared_part_does_not_average_out():
     assert g[0, 3] == pytest.approx(40 * 1e-4 / np.log(10))
     assert g[0, 1] == 0.0
 
-    class Fixed(StatisticsEmulator):
+    class Fixed(_Exact):
         def moments(self, u):
             n = len(u)
             return (np.repeat(mean, n, 0), np.repeat((g + np.eye(4))[None], n, 0),
@@ -163,7 +170,7 @@ def test_bad_input_is_refused_in_one_line(emulator, tmp_path):
         fit(np.zeros((5, 2)), np.zeros((5, 3)))
 
 
-class _Known(StatisticsEmulator):
+class _Known(_Exact):
     """An emulator of known moments: mean 0, one section's covariance I, spread E = e I."""
 
     def __init__(self, d: int, e: float):
@@ -196,7 +203,7 @@ def test_the_covariance_scales_recover_an_underestimated_scatter_and_emulator_er
         fit_scales(sl, u, records[:, :1])
 
 
-class _Scaled(StatisticsEmulator):
+class _Scaled(_Exact):
     """An emulator of known moments: mean 0, one section's covariance diag(sd^2), no spread."""
 
     def __init__(self, sd: np.ndarray):
@@ -265,7 +272,7 @@ def test_few_records_are_shrunk_towards_the_isotropic_model():
     assert np.abs(np.linalg.eigvalsh(none)).max() < 0.01
 
 
-class _Linear(StatisticsEmulator):
+class _Linear(_Exact):
     """The linear-Gaussian simulator's exact moments: mean A u + B, covariance S, no spread."""
 
     def __init__(self):
@@ -296,7 +303,7 @@ def test_the_cramer_rao_width_of_a_linear_gaussian_record_is_the_exact_posterior
     assert np.all(wider > 20 * endless)  # the emulator's spread: a bound no length passes
 
 
-class _Hetero(StatisticsEmulator):
+class _Hetero(_Exact):
     """u[0] moves the mean (2 u0, u0, -u0); u[1] only one section's scatter, (0.05 + u1)^2 I."""
 
     def __init__(self):

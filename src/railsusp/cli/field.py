@@ -42,6 +42,13 @@ def synth_field(
             "limits the time-aligned comparison to the wavelengths the geometry resolves"
         ),
     ] = 0.0,
+    wheelset: Annotated[
+        bool,
+        typer.Option(
+            help="record both wheels of the instrumented wheelset (the measured wheel, then "
+            "its partner), for the posterior's wheelset and coherence statistics"
+        ),
+    ] = False,
 ) -> None:
     """Synthetic instrumented-wheelset recordings of hidden true parameters (truth.json)."""
     from railsusp.measured import synthesise_field
@@ -66,6 +73,7 @@ def synth_field(
                 duration_s=duration,
                 with_track=with_track,
                 track_noise_mm=track_noise,
+                wheelset=wheelset,
             )
     except RailsuspInputError as exc:
         fail(str(exc))

@@ -22,7 +22,8 @@ _OPTIONS = {"section_s": "--section", "n_train": "--simulations", "n_check": "--
             "noise": "--noise", "parameters": "--parameters",
             "n_calibration": "--calibration", "ensemble": "--ensemble",
             "product_sections": "--product-sections", "n_product": "--product-cases",
-            "product_cases": "--product-cases"}  # fmt: skip
+            "product_cases": "--product-cases", "statistics": "--statistics",
+            "sum_y": "--sum-y"}  # fmt: skip
 
 
 def _calibration_table(est) -> None:
@@ -128,6 +129,14 @@ def train_command(
     sum_y: Annotated[
         bool, typer.Option(help="also the wheelset sum of Y (both wheels recorded)")
     ] = False,
+    statistics: Annotated[
+        str,
+        typer.Option(
+            help="families of statistics, comma-separated or 'all': en14363 (always), "
+            "third-octave, wheelset, coherence (the last two need both wheels of the "
+            "instrumented wheelset recorded)"
+        ),
+    ] = "en14363",
     seed: Annotated[int, typer.Option(help="seed of every draw")] = 0,
     long_record: Annotated[
         str,
@@ -164,6 +173,7 @@ def train_command(
             **_product_cases(product_cases),
             noise=noise,
             sum_y=sum_y,
+            statistics=tuple(statistics.split(",")),
             seed=seed,
         )
         if is_quiet():

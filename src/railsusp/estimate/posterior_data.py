@@ -24,7 +24,13 @@ import numpy as np
 
 from railsusp.conditions import WorkingCondition, make_condition
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate.summaries import cut_sections, section_summary, summary_names
+from railsusp.estimate.statistic_families import (
+    needs_partner,
+    parse_families,
+    section_statistics,
+    statistic_names,
+)
+from railsusp.estimate.summaries import cut_sections
 from railsusp.measured.synthetic import bandwidth_filter
 from railsusp.params import MAIN_SUSPENSION, bounds, spec
 from railsusp.store import atomic_write_bytes
@@ -52,15 +58,17 @@ class PosteriorSettings:
     ``n_train`` training cases, ``n_calibration`` held-out cases that fit the spread
     correction (0: no correction) and ``n_check`` other held-out cases that test it, the
     instrument ``noise`` (fraction of channel RMS), ``sum_y`` (also the wheelset sum of Y:
-    both wheels of the leading wheelset recorded), the network size, the number of flows
-    in the ``ensemble`` and the ``seed`` of every draw. ``product_sections``: the numbers
-    of sections at which the fused posterior of several sections is corrected and checked
-    (none: an estimate of several sections is not calibrated), on ``n_product`` held-out
-    cases of consecutive sections for the correction and ``n_product`` others for the
-    check; ``product_cases`` (one count per entry of ``product_sections``, in the same
-    order) gives each number of sections its own count instead, so that the longest
-    records, the costliest to simulate, can be checked on fewer cases (see
-    :meth:`product_sets`)."""
+    both wheels of the leading wheelset recorded), ``statistics``: the families of
+    statistics (:mod:`railsusp.estimate.statistic_families`; the default, the EN 14363
+    summary alone, is the estimator's before the families existed), the network size, the
+    number of flows in the ``ensemble`` and the ``seed`` of every draw.
+    ``product_sections``: the numbers of sections at which the fused posterior of several
+    sections is corrected and checked (none: an estimate of several sections is not
+    calibrated), on ``n_product`` held-out cases of consecutive sections for the correction
+    and ``n_product`` others for the check; ``product_cases`` (one count per entry of
+    ``product_sections``, in the same order) gives each number of sections its own count
+    instead, so that the longest records, the costliest to simulate, can be checked on fewer
+    cases (see :meth:`product_sets`)."""
 
     conditions: tuple[WorkingCondition, ...]
     parameters: tuple[str, ...] = MAIN_SUSPENSION
@@ -78,8 +86,16 @@ class PosteriorSettings:
     product_sections: tuple[int, ...] = ()
     n_product: int = 100
     product_cases: tuple[int, ...] = ()
+    statistics: tuple[str, ...] = ("en14363",)
 
     def __post_init__(self) -> None:
+        families = parse_families(self.statistics)
+        if self.sum_y and "wheelset" in families:
+            raise RailsuspInputError(
+                "sum_y = true with statistics wheelset: the wheelset family holds the "
+                "wheelset sum of Y already; accepted one of the two"
+            )
+        object.__setattr__(self, "statistics", families)
         params = tuple(spec(p).symbol for p in self.parameters)
         wrong = [p for p in params if p not in MAIN_SUSPENSION]
         if wrong or not params or len(set(params)) != len(params):
@@ -136,8 +152,11 @@ class PosteriorSettings:
         d["parameters"] = list(self.parameters)
         d["product_sections"] = list(self.product_sections)
         d["product_cases"] = list(self.product_cases)
+        d["statistics"] = list(self.statistics)
         if not self.product_cases:  # the settings (and hash) of estimators trained before it
             del d["product_cases"]
+        if self.statistics == ("en14363",):  # likewise
+            del d["statistics"]
         return d
 
     @classmethod
@@ -147,6 +166,7 @@ class PosteriorSettings:
         d["parameters"] = tuple(d["parameters"])
         d["product_sections"] = tuple(d.get("product_sections", ()))
         d["product_cases"] = tuple(d.get("product_cases", ()))
+        d["statistics"] = tuple(d.get("statistics", ("en14363",)))
         return cls(**d)
 
     def product_sets(self) -> list[tuple[int, int, tuple[int, ...]]]:
@@ -164,7 +184,13 @@ class PosteriorSettings:
     @property
     def summary_names(self) -> list[str]:
         """Names of the summary vector: conditions one after the other."""
-        return [f"{c.name}:{n}" for c in self.conditions for n in summary_names(self.sum_y)]
+        names = statistic_names(self.statistics, self.sum_y)
+        return [f"{c.name}:{n}" for c in self.conditions for n in names]
+
+    @property
+    def partner(self) -> bool:
+        """Whether the statistics read the partner wheel of the measured wheelset."""
+        return needs_partner(self.statistics, self.sum_y)
 
 
 def _check_uniform_record(cond: WorkingCondition, record_s: float) -> None:
@@ -242,7 +268,7 @@ def simulate_long_cases(
 
     n = u.shape[0]
     theta = to_si(u)
-    width = len(summary_names(settings.sum_y))
+    width = len(statistic_names(settings.statistics, settings.sum_y))
     per_condition = []
     for c, cond in enumerate(settings.conditions):
         idx = np.arange(first, first + n)
@@ -257,18 +283,28 @@ def simulate_long_cases(
                 continue
             rng = np.random.default_rng([settings.seed, SEED_BASE[kind], int(idx[i]), c])
             Y, Q = (_instrument(a[i, j] / 1e3, fs, rng, settings.noise) for a in (res.Y, res.Q))
-            partner = (
+            # the partner's channels draw their noise after the measured wheel's, Y then Q:
+            # Y alone (sum_y) keeps the draws of estimators trained before Q was added
+            Yp = (
                 _instrument(res.Y[i, j ^ 1] / 1e3, fs, rng, settings.noise)
-                if settings.sum_y
+                if settings.partner
+                else None
+            )
+            Qp = (
+                _instrument(res.Q[i, j ^ 1] / 1e3, fs, rng, settings.noise)
+                if settings.partner and settings.statistics != ("en14363",)
                 else None
             )
             for k, s in enumerate(cut_sections(Y.size, cond.n_steps)[:sections]):
-                out[i, k] = section_summary(
+                out[i, k] = section_statistics(
+                    settings.statistics,
                     Y[s],
-                    np.maximum(Q[s], 0.0),
+                    Q[s],
                     fs,
                     cond.speed,
-                    None if partner is None else partner[s],
+                    None if Yp is None else Yp[s],
+                    None if Qp is None else Qp[s],
+                    settings.sum_y,
                 )
         per_condition.append(out)
     return np.concatenate(per_condition, axis=2)
@@ -284,7 +320,8 @@ def cached_cases(
 ):
     """(u (n, 10), x) of the first ``n`` cases of ``kind`` (a key of :data:`SEED_BASE`),
     simulated in chunks of :data:`CHUNK` cached in ``folder`` (``KIND_NNNN_K.npz``; with
-    several ``sections`` per case ``KIND-xS_NNNN_K.npz``); a chunk on disk is read, not
+    several ``sections`` per case ``KIND-xS_NNNN_K.npz``; with statistics families beyond
+    the EN 14363 summary, ``+family`` after the kind); a chunk on disk is read, not
     simulated again. ``x`` is (n, D) for one section, (n, sections, D) for several.
     ``draws`` (n, 10 fractions of the ranges): these parameter sets instead of the
     prior's draws of ``kind`` (whose seeds the tracks keep)."""
@@ -292,13 +329,17 @@ def cached_cases(
     if u_all.shape != (n, len(MAIN_SUSPENSION)):
         raise ValueError(f"draws {u_all.shape}: need ({n}, {len(MAIN_SUSPENSION)})")
     name = kind if sections == 1 else f"{kind}-x{sections}"
+    if settings.statistics != ("en14363",):  # the default keeps the files of before
+        name += "+" + "+".join(settings.statistics[1:])
+    width = len(settings.summary_names)
     xs = []
     for k, lo in enumerate(range(0, n, CHUNK)):
         hi = min(n, lo + CHUNK)
         path = folder / f"{name}_{k:04d}_{hi - lo}.npz"
         if path.exists():
             with np.load(path, allow_pickle=False) as z:
-                if np.array_equal(z["u"], u_all[lo:hi]):  # else: another design, simulate
+                # else another design, or statistics of other settings: simulate
+                if np.array_equal(z["u"], u_all[lo:hi]) and z["x"].shape[-1] == width:
                     xs.append(z["x"])
                     continue
         log.info("posterior: simulating %s cases %d-%d of %d", name, lo + 1, hi, n)
@@ -338,17 +379,22 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
         if abs(rec.sampling_rate - fs) > 0.01 * fs:
             rec = rec.resampled(fs)
         w = rec.wheels[0]
-        partner = None
-        if settings.sum_y:
+        Yp = Qp = None
+        if settings.partner:
             from railsusp.vehicle.layout import WHEEL_NAMES
 
             other = WHEEL_NAMES[WHEEL_NAMES.index(w) ^ 1]
-            if other not in rec.Y:
-                raise RailsuspInputError(
-                    f"recording {cond.name!r}: the estimator uses the wheelset sum of Y and "
-                    f"needs wheel {other} as well as {w}"
+            if other not in rec.Y or (settings.statistics != ("en14363",) and other not in rec.Q):
+                what = (
+                    "the wheelset sum of Y"
+                    if settings.statistics == ("en14363",)
+                    else (f"statistics {','.join(settings.statistics)}")
                 )
-            partner = rec.Y[other]
+                raise RailsuspInputError(
+                    f"recording {cond.name!r}: the estimator uses {what} and needs wheel "
+                    f"{other} as well as {w}"
+                )
+            Yp, Qp = rec.Y[other], rec.Q.get(other)
         sections = cut_sections(rec.time.size, cond.n_steps)
         if not sections:
             raise RailsuspInputError(
@@ -356,12 +402,15 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
                 f"needs at least one section of {settings.section_s:g} s"
             )
         rows = [
-            section_summary(
+            section_statistics(
+                settings.statistics,
                 rec.Y[w][s],
-                np.maximum(rec.Q[w][s], 0.0),
+                rec.Q[w][s],
                 fs,
                 cond.speed,
-                None if partner is None else partner[s],
+                None if Yp is None else Yp[s],
+                None if Qp is None else Qp[s],
+                settings.sum_y,
             )
             for s in sections
         ]

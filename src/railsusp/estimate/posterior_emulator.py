@@ -83,6 +83,11 @@ class StatisticsEmulator:
             out.append(h)
         return np.stack(out) * self.x_scale + self.x_mean
 
+    def mean(self, u: np.ndarray) -> np.ndarray:
+        """(N, D) the mean statistics at ``u`` (N, d): the members' average, without the
+        covariances of :meth:`moments` (which cost N D^2 memory)."""
+        return self.member_means(u).mean(axis=0)
+
     def section_sd(self, u: np.ndarray) -> np.ndarray:
         """(N, D) standard deviation of one section's statistics at ``u``."""
         logvar = quadratic_features(u) @ self.logvar_coef

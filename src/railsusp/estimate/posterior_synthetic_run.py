@@ -52,7 +52,8 @@ log = logging.getLogger(__name__)
 MEMBERS = 10
 HIDDEN = 48
 #: the settings the emulator depends on (the training cases and their statistics)
-TRAINED_ON = ("conditions", "parameters", "section_s", "n_train", "noise", "sum_y", "seed")
+TRAINED_ON = ("conditions", "parameters", "section_s", "n_train", "noise", "sum_y", "seed",
+              "statistics")  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -93,6 +93,7 @@ def synthesise_field(
     with_track: bool = False,
     track_noise_mm: float = 0.0,
     stated_accuracy_mm: float | None = None,
+    wheelset: bool = False,
 ) -> Path:
     """Synthetic field recordings of the ``truth`` ParameterSet with hidden truth.
 
@@ -109,6 +110,10 @@ def synthesise_field(
     (RMS, mm, within the measured wavelengths) on each component. The recordings state the
     geometry's accuracy (``track_accuracy_mm``) as ``stated_accuracy_mm``, by default the
     true ``track_noise_mm``: an engineer knows the specification of the geometry car.
+
+    ``wheelset``: both wheels of the instrumented wheelset are recorded (the measured wheel
+    first, then its partner), as an instrumented wheelset measures them; the posterior's
+    wheelset and coherence statistics need the partner. Default: the measured wheel only.
     """
     from railsusp.vehicle.setup import section_irregularities
     from railsusp.vehicle.simulate import simulate
@@ -125,7 +130,10 @@ def synthesise_field(
             if duration_s is not None:
                 cond = cond.with_duration(duration_s)
             field_cond = cond.with_changes(seed=cond.seed + track_seed_offset)
-            rec = recording_from_simulation(simulate(truth, field_cond))
+            result = simulate(truth, field_cond)
+            j = result.measured_wheel()
+            both = (WHEEL_NAMES[j], WHEEL_NAMES[j ^ 1]) if wheelset else None
+            rec = recording_from_simulation(result, both)
             rec = add_sensor_noise(rec, noise, seed + i)
             rec.condition = cond  # the engineer knows the condition, not the track realisation
             if with_track:

@@ -1,0 +1,284 @@
+"""Families of geometry-free statistics of one section of an instrumented wheelset's
+forces, beyond the EN 14363 summary (:mod:`railsusp.estimate.summaries`), for the
+simulation-based posterior (``PosteriorSettings.statistics``).
+
+One instrumented wheelset gives four channels: the measured wheel's lateral force Y and
+vertical force Q, and the same of the other wheel of the wheelset (the partner, ``Yp``,
+``Qp``). Each family is a function of one section of them (kN, sampled at ``fs`` Hz, the
+wagon at ``speed_ms``):
+
+- ``en14363`` (always first): the measured wheel's EN 14363 percentiles of Y, Q, Y/Q and
+  log10 band RMS of Y and Q in four bands (17 statistics; :func:`~railsusp.estimate.
+  summaries.section_summary`);
+- ``third-octave``: log10 RMS of the measured wheel's Y and Q in 18 third-octave bands
+  from 0.3 to 19.2 Hz (a finer spectrum: where the suspension's modes let the track's
+  excitation through);
+- ``wheelset``: the partner wheel's own 17, and the percentiles and four band RMS of the
+  wheelset sum of Y (the track-shifting force) and of the left-right difference of Q;
+- ``coherence``: band coherency (real and imaginary parts of the band-integrated cross
+  spectrum over the geometric mean of the two band powers: magnitude and phase without a
+  wrap) of Y with Q on the measured wheel, of the two wheels' Y and of their Q, in six
+  bands; lagged auto-correlations of Y and Q and cross-correlations of Y with Q.
+
+Why these (bench/statistics_information.py, measured from common-random-number
+simulations at 600 s per condition, all ten parameters unknown): the Cramer-Rao 90 % width
+of X13 falls from 17.7 % of range with the EN 14363 17 to 7.5 % with all four families,
+X11 from 33 to 13 %, X14 from 39 to 13 %. None depends on where along the track a section
+was taken, so a recording on unmeasured track has them.
+
+Names are ``CHANNEL_KIND``: the channel says which instrument gains the statistic depends
+on (:func:`gain_dependence`); coherencies and correlations depend on none.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.signal import csd, welch
+
+from railsusp.errors import RailsuspInputError
+from railsusp.estimate.summaries import (
+    BAND_FLOOR_KN,
+    BANDS_HZ,
+    PERCENTILE_NAMES,
+    band_rms,
+    en14363_percentiles,
+    section_summary,
+    summary_names,
+)
+
+#: the families, in the order their statistics follow one another
+FAMILIES = ("en14363", "third-octave", "wheelset", "coherence")
+#: the families that need the partner wheel's channels
+PARTNER_FAMILIES = ("wheelset", "coherence")
+#: third-octave bands from 0.3 Hz, Hz (18 of them, to 19.2 Hz)
+THIRD_OCTAVE_HZ: tuple[tuple[float, float], ...] = tuple(
+    (0.3 * 2 ** (k / 3), 0.3 * 2 ** ((k + 1) / 3)) for k in range(18)
+)
+#: bands of the coherencies, Hz
+CROSS_BANDS_HZ: tuple[tuple[float, float], ...] = (
+    (0.3, 0.8), (0.8, 1.5), (1.5, 3.0), (3.0, 5.0), (5.0, 8.0), (8.0, 15.0)
+)  # fmt: skip
+#: lags of the auto-correlations of Y and Q, s
+AUTO_LAGS_S = (0.04, 0.1, 0.2, 0.5, 1.0)
+#: lags of the cross-correlation of Y with Q (Q later than Y for a positive lag), s
+CROSS_LAGS_S = (-0.5, -0.1, 0.0, 0.1, 0.5)
+
+
+def parse_families(text: str | tuple[str, ...] | list[str]) -> tuple[str, ...]:
+    """The families of ``text`` (comma-separated, or ``all``) in :data:`FAMILIES` order,
+    ``en14363`` always included; a one-line error naming the accepted ones."""
+    items = text.split(",") if isinstance(text, str) else list(text)
+    items = [t.strip() for t in items if t.strip()]
+    if items == ["all"]:
+        return FAMILIES
+    wrong = [t for t in items if t not in FAMILIES]
+    if wrong or not items:
+        raise RailsuspInputError(
+            f"statistics = {','.join(items) or '(none)'}: accepted 'all' or a comma-separated "
+            f"choice of {', '.join(FAMILIES)}"
+        )
+    return tuple(f for f in FAMILIES if f in items or f == "en14363")
+
+
+def needs_partner(families: tuple[str, ...], sum_y: bool = False) -> bool:
+    """Whether the families (or the EN 14363 summary's wheelset sum) read the partner
+    wheel."""
+    return sum_y or any(f in PARTNER_FAMILIES for f in families)
+
+
+def family_names(family: str, sum_y: bool = False) -> list[str]:
+    """Names of the statistics of ``family``, in the order of :func:`section_statistics`."""
+    bands4 = [f"band_{lo:g}-{hi:g}Hz" for lo, hi in BANDS_HZ]
+    if family == "en14363":
+        return summary_names(sum_y)
+    if family == "third-octave":
+        return [f"{c}_3oct_{lo:.3g}-{hi:.3g}Hz" for c in "YQ" for lo, hi in THIRD_OCTAVE_HZ]
+    if family == "wheelset":
+        partner = ["{}p_{}".format(*n.split("_", 1)) for n in summary_names()]
+        level = [*PERCENTILE_NAMES, *bands4]
+        return partner + [f"{c}_{n}" for c in ("sumY", "dQ") for n in level]
+    if family == "coherence":
+        coh = [
+            f"coh{pair}_{part}_{lo:g}-{hi:g}Hz"
+            for pair in ("YQ", "YY", "QQ")
+            for part in ("re", "im")
+            for lo, hi in CROSS_BANDS_HZ
+        ]
+        auto = [f"acorr{c}_{lag:g}s" for c in "YQ" for lag in AUTO_LAGS_S]
+        return coh + auto + [f"xcorrYQ_{lag:g}s" for lag in CROSS_LAGS_S]
+    raise RailsuspInputError(f"statistics family {family!r}: accepted {', '.join(FAMILIES)}")
+
+
+def statistic_names(families: tuple[str, ...], sum_y: bool = False) -> list[str]:
+    """Names of the whole summary vector of ``families``."""
+    return [n for f in families for n in family_names(f, sum_y)]
+
+
+def log_band_rms(x: np.ndarray, fs: float, bands, segment_fraction: float = 0.5) -> np.ndarray:
+    """log10 of the RMS (units of ``x``, floored at :data:`BAND_FLOOR_KN`) of the de-meaned
+    ``x`` in each band: the integral of its one-sided Welch spectral density (Hann,
+    segments of ``segment_fraction`` of the record, half overlapping) over the band. Half
+    the record resolves 0.1 Hz in a 20 s section, so the narrowest third-octave band
+    (0.3-0.38 Hz) holds a line."""
+    x = np.asarray(x, dtype=float)
+    nper = int(min(x.size, max(32, round(segment_fraction * x.size))))
+    f, pxx = welch(x - x.mean(), fs=fs, nperseg=nper, detrend="constant")
+    df = f[1] - f[0]
+    out = np.empty(len(bands))
+    for i, (lo, hi) in enumerate(bands):
+        sel = (f >= lo) & (f < min(hi, 0.45 * fs))
+        out[i] = np.sqrt(np.sum(pxx[sel]) * df) if sel.any() else 0.0
+    return np.log10(np.maximum(out, BAND_FLOOR_KN))
+
+
+def band_coherency(x: np.ndarray, y: np.ndarray, fs: float, bands=CROSS_BANDS_HZ) -> np.ndarray:
+    """Band coherency of ``x`` and ``y``: per band, sum of the cross spectrum
+    conj(X) Y over the band divided by sqrt(sum |X|^2 sum |Y|^2) (Welch, segments of a
+    quarter of the record), as the real parts of all bands then the imaginary parts. Its
+    magnitude is at most 1 (1 for y a multiple of x), its angle is y's phase lead on x
+    (-2 pi f tau for y delayed by tau). Independent of either channel's gain."""
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    nper = int(min(x.size, max(32, x.size // 4)))
+    kw = {"fs": fs, "nperseg": nper, "detrend": "constant"}
+    f, sxy = csd(x, y, **kw)
+    _, sxx = welch(x, **kw)
+    _, syy = welch(y, **kw)
+    out = np.zeros(len(bands), dtype=complex)
+    for i, (lo, hi) in enumerate(bands):
+        sel = (f >= lo) & (f < min(hi, 0.45 * fs))
+        den = np.sqrt(np.sum(sxx[sel]) * np.sum(syy[sel]))
+        if sel.any() and den > 0:
+            out[i] = np.sum(sxy[sel]) / den
+    return np.concatenate([out.real, out.imag])
+
+
+def lagged_correlation(x: np.ndarray, y: np.ndarray, fs: float, lags_s) -> np.ndarray:
+    """Correlation of x(t) with y(t + lag) for each lag (s, rounded to samples), over the
+    samples the two overlap in, of the de-meaned series scaled by their whole-record
+    standard deviations (1 at lag 0 for y = x; -1 at half a period for a sine).
+    Independent of either channel's gain."""
+    x = np.asarray(x, dtype=float) - np.mean(x)
+    y = np.asarray(y, dtype=float) - np.mean(y)
+    scale = np.std(x) * np.std(y)
+    out = np.empty(len(lags_s))
+    for i, lag in enumerate(lags_s):
+        k = round(lag * fs)
+        a, b = (x[: x.size - k], y[k:]) if k >= 0 else (x[-k:], y[: y.size + k])
+        out[i] = np.mean(a * b) / scale if scale > 0 else 0.0
+    return out
+
+
+def _level_and_bands(x: np.ndarray, fs: float, speed_ms: float) -> np.ndarray:
+    """Percentiles (EN 14363) and log10 band RMS (:data:`BANDS_HZ`) of one series."""
+    bands = np.log10(np.maximum(band_rms(x, fs), BAND_FLOOR_KN))
+    return np.concatenate([en14363_percentiles(x, fs, speed_ms), bands])
+
+
+def family_statistics(
+    family: str,
+    Y: np.ndarray,
+    Q: np.ndarray,
+    fs: float,
+    speed_ms: float,
+    Yp: np.ndarray | None = None,
+    Qp: np.ndarray | None = None,
+    sum_y: bool = False,
+) -> np.ndarray:
+    """One family's statistics (:func:`family_names`) of one section; Q and Qp are
+    floored at 0 (a lifted wheel carries no load). ``Yp``/``Qp``: the partner wheel, needed
+    by :data:`PARTNER_FAMILIES` and by ``sum_y``."""
+    Q = np.maximum(np.asarray(Q, float), 0.0)
+    if family in PARTNER_FAMILIES or (family == "en14363" and sum_y):
+        if Yp is None or (family != "en14363" and Qp is None):
+            raise RailsuspInputError(
+                f"statistics family {family!r} needs the partner wheel's Y and Q"
+            )
+    if family == "en14363":
+        return section_summary(Y, Q, fs, speed_ms, Yp if sum_y else None)
+    if family == "third-octave":
+        return np.concatenate([log_band_rms(c, fs, THIRD_OCTAVE_HZ) for c in (Y, Q)])
+    Yp = np.asarray(Yp, float)
+    Qp = np.maximum(np.asarray(Qp, float), 0.0)
+    if family == "wheelset":
+        parts = [section_summary(Yp, Qp, fs, speed_ms)]
+        parts += [_level_and_bands(Y + Yp, fs, speed_ms), _level_and_bands(Q - Qp, fs, speed_ms)]
+        return np.concatenate(parts)
+    if family == "coherence":
+        parts = [band_coherency(Y, Q, fs), band_coherency(Y, Yp, fs), band_coherency(Q, Qp, fs)]
+        parts += [lagged_correlation(c, c, fs, AUTO_LAGS_S) for c in (Y, Q)]
+        parts.append(lagged_correlation(Y, Q, fs, CROSS_LAGS_S))
+        return np.concatenate(parts)
+    raise RailsuspInputError(f"statistics family {family!r}: accepted {', '.join(FAMILIES)}")
+
+
+def section_statistics(
+    families: tuple[str, ...],
+    Y: np.ndarray,
+    Q: np.ndarray,
+    fs: float,
+    speed_ms: float,
+    Yp: np.ndarray | None = None,
+    Qp: np.ndarray | None = None,
+    sum_y: bool = False,
+) -> np.ndarray:
+    """The summary vector (:func:`statistic_names`) of one section: the families one after
+    the other."""
+    return np.concatenate(
+        [family_statistics(f, Y, Q, fs, speed_ms, Yp, Qp, sum_y) for f in families]
+    )
+
+
+#: per channel of a statistic's name: (instrument channel, weight) of its gain dependence
+_GAIN_SOURCES: dict[str, tuple[tuple[str, float], ...]] = {
+    "Y": (("Y", 1.0),),
+    "Q": (("Q", 1.0),),
+    "YQ": (("Y", 1.0), ("Q", -1.0)),
+    "Yp": (("Yp", 1.0),),
+    "Qp": (("Qp", 1.0),),
+    "YQp": (("Yp", 1.0), ("Qp", -1.0)),
+}
+#: a channel's level, as a combination of medians of the same condition's statistics
+_LEVEL = {
+    "Y": (("Y_p50", 1.0),),
+    "Q": (("Q_p50", 1.0),),
+    "Yp": (("sumY_p50", 1.0), ("Y_p50", -1.0)),
+    "Qp": (("Q_p50", 1.0), ("dQ_p50", -1.0)),
+}
+
+GainTerm = tuple[str, float, tuple[tuple[str, float], ...]]
+
+
+def gain_dependence(name: str) -> list[GainTerm]:
+    """How the statistic ``name`` (``CHANNEL_KIND``, without the condition) moves with
+    small relative gain errors of the instrument's channels: a list of (channel, factor,
+    scale): d statistic / d gain = factor times the sum of weight x mean of the statistics
+    of ``scale`` ((name, weight) pairs of the same condition; none: times 1).
+
+    - a percentile scales with its channel's gain (scale: itself); Y/Q with the
+      difference of the two gains;
+    - a percentile of the wheelset sum of Y (of the left-right difference of Q) moves by
+      each wheel's level times its gain (minus the partner's for the difference); the
+      levels are the medians (the partner's: the sum's or difference's median less the
+      measured wheel's). Not half the sum per wheel: on straight track the two wheels'
+      Y are of opposite sign and the sum is far smaller than either;
+    - a log10 band RMS shifts by its channel's gain / ln 10; of the sum or difference,
+      by half of each wheel's gain / ln 10 (exact for uncorrelated wheels of equal
+      fluctuation; otherwise the calibration records' model error takes the rest);
+    - coherencies and correlations do not depend on the gains.
+    """
+    channel, kind = name.split("_", 1)
+    if channel.startswith(("coh", "acorr", "xcorr")):
+        return []
+    log_kind = kind.startswith(("band", "3oct"))
+    if channel in ("sumY", "dQ"):
+        wheels = (("Y", "Yp", 1.0), ("Q", "Qp", -1.0))[channel == "dQ"]
+        own, partner, sign = wheels
+        if log_kind:
+            return [(own, 0.5 / np.log(10.0), ()), (partner, 0.5 / np.log(10.0), ())]
+        return [(own, 1.0, _LEVEL[own]), (partner, sign, _LEVEL[partner])]
+    if channel not in _GAIN_SOURCES:
+        raise ValueError(f"statistic {name!r}: no gain model for channel {channel!r}")
+    if log_kind:
+        return [(src, w / np.log(10.0), ()) for src, w in _GAIN_SOURCES[channel]]
+    return [(src, w, ((name, 1.0),)) for src, w in _GAIN_SOURCES[channel]]
