@@ -80,6 +80,10 @@ def test_families_parse_in_order_with_the_en14363_summary_always_first():
         sf.parse_families("spectra")
     with pytest.raises(RailsuspInputError, match=r"statistics = \(none\)"):
         sf.parse_families("")
+    assert sf.parse_families("all,en14363") == sf.FAMILIES
+    for bad in (None, 5, ("wheelset", 1)):
+        with pytest.raises(RailsuspInputError, match="statistics = .*: accepted 'all'"):
+            sf.parse_families(bad)
 
 
 def test_every_family_has_its_names_and_the_first_is_the_en14363_summary():
@@ -113,29 +117,54 @@ def _gain_derivatives(chans, channel_index: int):
     return np.array(names), got, want
 
 
-def test_the_gain_model_matches_finite_differences():
+def _swaying(seed: int, n: int = 1000) -> tuple[np.ndarray, ...]:
+    """Y, Q, Yp, Qp (kN) of wheels whose Y sway about zero (straight track, no flange
+    contact) and whose Q differ by a few kN: the fluctuation dominates the sum and the
+    difference, not the wheels' levels."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / FS
+    sway = 3.0 * np.sin(2 * np.pi * 0.9 * t + seed)
+    return (
+        sway + 2 * rng.standard_normal(n),
+        100 + 4 * sway + 5 * rng.standard_normal(n),
+        0.5 * sway + 2 * rng.standard_normal(n),
+        97 - 4 * sway + 5 * rng.standard_normal(n),
+    )
+
+
+@pytest.mark.parametrize("wheels", [_wheelset, _swaying], ids=["levels", "sway"])
+def test_the_gain_model_matches_finite_differences(wheels):
     """Each channel's gain moved by 1e-4: every statistic's change against gain_dependence.
     Exact, section by section, for one channel's percentiles and band RMS, Y/Q, the
-    coherencies and correlations (zero). The percentiles of the sum of Y and of the
-    difference of Q move with each wheel's force where the percentile falls, whose mean
-    over sections is the wheel's level: over 40 sections the medians' within 5 % of it
-    and the extremes' within 25 % (the model's median level), on two wheels whose lateral
-    forces are of opposite sign and sway together, where the sum is far smaller than
-    either wheel (half the sum per wheel, the model before: 0.5 kN against 5)."""
-    for c in range(4):
-        got, want = [], []
-        for seed in range(40):
-            names, g, w = _gain_derivatives(_wheelset(seed), c)
+    coherencies and correlations (zero); for the percentiles of the sum of Y and the
+    difference of Q the two wheels' terms add up to the percentile itself (both gains
+    moved together scale it). One wheel's term is the mean of its force where the
+    percentile falls: over 40 sections the model within 30 % of the derivatives' scale
+    (the wheel's level plus the sum's excursion; the model's share 1/2 of the excursion
+    assumes equal wheels, and the swaying wheels here differ by 2 in sway), both on wheels of
+    opposite-sign levels where the sum is far smaller than either (half the sum per wheel,
+    the model before: 0.5 kN against 5) and on wheels that sway about zero, where the
+    wheels' medians alone (this model's first form) gave -0.03 against 4.7."""
+    got, want = np.zeros((4, 135)), np.zeros((4, 135))
+    for seed in range(40):
+        chans = wheels(seed)
+        for c in range(4):
+            names, g, w = _gain_derivatives(chans, c)
             combined = np.char.startswith(names, "sumY") | np.char.startswith(names, "dQ")
             assert g[~combined] == pytest.approx(w[~combined], rel=1e-3, abs=1e-4), c
-            got.append(g)
-            want.append(w)
-        got, want = np.mean(got, axis=0), np.mean(want, axis=0)
-        level = np.abs(np.median(_wheelset(0)[c]))
-        for kind, tol in (("_p50", 0.05), ("_p0.15", 0.25), ("_p99.85", 0.25)):
-            sel = combined & np.char.endswith(names, kind)
-            assert np.all(np.abs(got[sel] - want[sel]) <= tol * level), (kind, c)
-            assert np.abs(want[sel]).max() > 0.9 * level  # the wheel's own level, not half
+            got[c] += g / 40
+            want[c] += w / 40
+        base = sf.section_statistics(sf.FAMILIES, *chans[:2], FS, SPEED, *chans[2:])
+        pct = combined & (np.char.find(names, "band") < 0)
+        for first, second in ((0, 2), (1, 3)):  # Y and Yp; Q and Qp
+            _, _, ws = _gain_derivatives(chans, first)
+            _, _, wp = _gain_derivatives(chans, second)
+            sel = pct & np.char.startswith(names, ("sumY", "dQ")[first])
+            assert (ws + wp)[sel] == pytest.approx(base[sel], rel=1e-9, abs=1e-9)
+    for c in range(4):
+        sel = pct & (want[c] != 0)
+        scale = np.abs(got[c][sel]).max()
+        assert np.all(np.abs(got[c][sel] - want[c][sel]) <= 0.3 * scale), (names[sel], c)
 
 
 def test_the_band_rms_of_the_sum_and_difference_move_half_with_each_wheel():
@@ -171,7 +200,9 @@ def test_settings_choose_families_and_keep_the_hash_of_earlier_estimators():
     assert PosteriorSettings.from_dict(rich.to_dict()) == rich
     assert len(rich.summary_names) == 17 + 36 + 51
     assert rich.summary_names[17] == "straight:Y_3oct_0.3-0.378Hz"
-    with pytest.raises(RailsuspInputError, match="sum_y = true with statistics wheelset"):
+    with pytest.raises(
+        RailsuspInputError, match="sum_y = true conflicts with the statistics family 'wheelset'"
+    ):
         PosteriorSettings((CONDITION,), statistics=("wheelset",), sum_y=True)
 
 
@@ -191,17 +222,28 @@ def test_simulated_families_keep_the_en14363_summary_of_the_same_case():
 
 
 def test_a_recording_gives_the_families_and_must_hold_the_partner_wheel(tmp_path):
-    synthesise_field(
-        ParameterSet.nominal(), [CONDITION], tmp_path / "f", duration_s=6.0, wheelset=True
-    )
+    """The curve's measured wheel is the outer one, w1R in the left-hand curve: it comes
+    first, before its partner w1L; the recording of both wheels keeps the measured wheel's
+    channels as a recording of it alone (same seed); a partner's missing Y or Q is refused
+    in one line."""
+    curve = get_condition("curve")
+    truth = ParameterSet.nominal()
+    synthesise_field(truth, [curve], tmp_path / "one", duration_s=6.0)
+    synthesise_field(truth, [curve], tmp_path / "f", duration_s=6.0, wheelset=True)
+    (alone,) = read_field(tmp_path / "one")
     (rec,) = read_field(tmp_path / "f")
-    assert rec.wheels == ("w1L", "w1R")  # the measured wheel first
-    rich = PosteriorSettings((CONDITION,), section_s=3.0, n_train=20, n_check=10,
+    assert alone.wheels == ("w1R",) and rec.wheels == ("w1R", "w1L")
+    assert np.array_equal(rec.Y["w1R"], alone.Y["w1R"])
+    assert np.array_equal(rec.Q["w1R"], alone.Q["w1R"])
+    rich = PosteriorSettings((curve,), section_s=3.0, n_train=20, n_check=10,
                              statistics=("all",))  # fmt: skip
     x, used = recording_summaries(rich, [rec])
     assert x.shape == (2, len(rich.summary_names)) and np.all(np.isfinite(x))
-    assert used == {"straight": {"sections": 2, "seconds_left_out": 0.0}}
-    partner = next(w for w in rec.Q if w != rec.wheels[0])
-    del rec.Q[partner]
-    with pytest.raises(RailsuspInputError, match=f"needs wheel {partner} as well"):
+    assert used == {"curve": {"sections": 2, "seconds_left_out": 0.0}}
+    with pytest.raises(RailsuspInputError, match="needs wheel w1L as well as w1R"):
+        recording_summaries(rich, [alone])
+    del rec.Q["w1L"]
+    with pytest.raises(RailsuspInputError, match="needs wheel w1L as well as w1R"):
         recording_summaries(rich, [rec])
+    sum_y = PosteriorSettings((curve,), section_s=3.0, n_train=20, n_check=10, sum_y=True)
+    assert recording_summaries(sum_y, [rec])[0].shape == (2, 20)  # the sum reads only Y

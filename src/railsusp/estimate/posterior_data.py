@@ -26,6 +26,7 @@ from railsusp.conditions import WorkingCondition, make_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.statistic_families import (
     needs_partner,
+    needs_partner_q,
     parse_families,
     section_statistics,
     statistic_names,
@@ -92,8 +93,8 @@ class PosteriorSettings:
         families = parse_families(self.statistics)
         if self.sum_y and "wheelset" in families:
             raise RailsuspInputError(
-                "sum_y = true with statistics wheelset: the wheelset family holds the "
-                "wheelset sum of Y already; accepted one of the two"
+                "sum_y = true conflicts with the statistics family 'wheelset', which holds "
+                "the wheelset sum of Y already; accepted one of the two"
             )
         object.__setattr__(self, "statistics", families)
         params = tuple(spec(p).symbol for p in self.parameters)
@@ -191,6 +192,11 @@ class PosteriorSettings:
     def partner(self) -> bool:
         """Whether the statistics read the partner wheel of the measured wheelset."""
         return needs_partner(self.statistics, self.sum_y)
+
+    @property
+    def partner_q(self) -> bool:
+        """Whether they read the partner wheel's Q too."""
+        return needs_partner_q(self.statistics)
 
 
 def _check_uniform_record(cond: WorkingCondition, record_s: float) -> None:
@@ -292,7 +298,7 @@ def simulate_long_cases(
             )
             Qp = (
                 _instrument(res.Q[i, j ^ 1] / 1e3, fs, rng, settings.noise)
-                if settings.partner and settings.statistics != ("en14363",)
+                if settings.partner_q
                 else None
             )
             for k, s in enumerate(cut_sections(Y.size, cond.n_steps)[:sections]):
@@ -384,17 +390,14 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
             from railsusp.vehicle.layout import WHEEL_NAMES
 
             other = WHEEL_NAMES[WHEEL_NAMES.index(w) ^ 1]
-            if other not in rec.Y or (settings.statistics != ("en14363",) and other not in rec.Q):
-                what = (
-                    "the wheelset sum of Y"
-                    if settings.statistics == ("en14363",)
-                    else (f"statistics {','.join(settings.statistics)}")
-                )
+            if other not in rec.Y or (settings.partner_q and other not in rec.Q):
+                what = ("the wheelset sum of Y" if settings.statistics == ("en14363",)
+                        else f"statistics {','.join(settings.statistics)}")  # fmt: skip
                 raise RailsuspInputError(
                     f"recording {cond.name!r}: the estimator uses {what} and needs wheel "
                     f"{other} as well as {w}"
                 )
-            Yp, Qp = rec.Y[other], rec.Q.get(other)
+            Yp, Qp = rec.Y[other], rec.Q[other] if settings.partner_q else None
         sections = cut_sections(rec.time.size, cond.n_steps)
         if not sections:
             raise RailsuspInputError(

@@ -59,9 +59,6 @@ from railsusp.estimate.statistic_families import gain_dependence
 LONG_RECORD_METHODS = ("fusion", "synthetic-likelihood")
 
 SharedCovariance = Callable[[np.ndarray], np.ndarray]
-#: most statistics for which the first of a posterior's two SMC runs evaluates C_k(u) at
-#: every particle (:meth:`SyntheticLikelihood.sample`); above, it holds C_k at the centre
-FIRST_PASS_FULL_MAX = 64
 
 
 def check_long_record(method: str) -> str:
@@ -124,6 +121,7 @@ class SyntheticLikelihood:
     model_error: float = 0.0
     model_error_matrix: np.ndarray | None = None  # A (D, D): S A S replaces m Sigma
     plug_in_covariance: bool = True  # C_k fixed at a first posterior's mean (sample)
+    first_pass_at_centre: bool = False  # that first posterior with C_k at the box's centre
 
     def parts(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """At ``u``: mu (N, D), G, Sigma and E (as the emulator says, unscaled)."""
@@ -163,10 +161,11 @@ class SyntheticLikelihood:
         """(n, d) draws on the unit box of the posterior (uniform prior on the box of
         the emulator's inputs) of the sections ``sections`` (k, D), from their mean:
         with ``plug_in_covariance``, a first posterior with C_k(u) gives the point u0 at
-        which a second holds C_k (:meth:`plug_in_log_likelihood`); two SMC runs. Above
-        :data:`FIRST_PASS_FULL_MAX` statistics the first posterior holds C_k at the box's
-        centre instead: C_k(u) for every particle costs N D^3 / 3 per call (1000 particles
-        of 270 statistics: 6.6 GFLOP and 0.6 GB a call, hundreds of calls)."""
+        which a second holds C_k (:meth:`plug_in_log_likelihood`); two SMC runs. With
+        ``first_pass_at_centre`` (the statistics families beyond the EN 14363 summary) the
+        first posterior holds C_k at the box's centre too: C_k(u) for every particle costs
+        N D^3 / 3 per call (1000 particles of 270 statistics: 6.6 GFLOP and 0.6 GB a call,
+        hundreds of calls)."""
         x = np.atleast_2d(np.asarray(sections, float))
         if x.ndim != 2 or x.shape[1] != self.emulator.dim or not np.all(np.isfinite(x)):
             raise RailsuspInputError(
@@ -175,7 +174,7 @@ class SyntheticLikelihood:
         s, k = x.mean(axis=0), x.shape[0]
         d = self.emulator.weights[0][0][0].shape[0]
         rng = np.random.default_rng(seed)
-        if self.emulator.dim > FIRST_PASS_FULL_MAX:
+        if self.plug_in_covariance and self.first_pass_at_centre:
             first = self.plug_in_log_likelihood(np.full(d, 0.5), s, k)
         else:
             first = lambda u: self.log_likelihood(u, s, k)  # noqa: E731

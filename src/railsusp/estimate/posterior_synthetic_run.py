@@ -116,7 +116,9 @@ def likelihood(
 ) -> SyntheticLikelihood:
     """The likelihood of these settings' statistics: the gain error shared by a record's
     sections is the instrument model's (the training simulations'); ``scales``: the
-    covariance's fitted scales (``scales.json``; none: 1)."""
+    covariance's fitted scales (``scales.json``; none: 1). With statistics families beyond
+    the EN 14363 summary (hundreds of statistics) the first of a posterior's two SMC runs
+    holds the covariance at the box's centre (:meth:`SyntheticLikelihood.sample`)."""
     scales = scales or {}
     matrix = scales.get("model_error_matrix")
     return SyntheticLikelihood(
@@ -125,6 +127,7 @@ def likelihood(
         within_scale=float(scales.get("within_scale", 1.0)),
         model_error=float(scales.get("model_error", 0.0)),
         model_error_matrix=None if matrix is None else np.asarray(matrix, float),
+        first_pass_at_centre=settings.statistics != ("en14363",),
     )
 
 

@@ -64,13 +64,19 @@ AUTO_LAGS_S = (0.04, 0.1, 0.2, 0.5, 1.0)
 CROSS_LAGS_S = (-0.5, -0.1, 0.0, 0.1, 0.5)
 
 
-def parse_families(text: str | tuple[str, ...] | list[str]) -> tuple[str, ...]:
-    """The families of ``text`` (comma-separated, or ``all``) in :data:`FAMILIES` order,
-    ``en14363`` always included; a one-line error naming the accepted ones."""
-    items = text.split(",") if isinstance(text, str) else list(text)
+def parse_families(text) -> tuple[str, ...]:
+    """The families of ``text`` (a comma-separated string or a sequence of names; ``all``
+    for every family) in :data:`FAMILIES` order, ``en14363`` always included; a one-line
+    error naming the accepted ones."""
+    if isinstance(text, str):
+        items = text.split(",")
+    elif isinstance(text, (tuple, list)) and all(isinstance(t, str) for t in text):
+        items = list(text)
+    else:
+        items = [repr(text)]
     items = [t.strip() for t in items if t.strip()]
-    if items == ["all"]:
-        return FAMILIES
+    if "all" in items:
+        items = [t for t in items if t != "all"] + list(FAMILIES)
     wrong = [t for t in items if t not in FAMILIES]
     if wrong or not items:
         raise RailsuspInputError(
@@ -82,8 +88,14 @@ def parse_families(text: str | tuple[str, ...] | list[str]) -> tuple[str, ...]:
 
 def needs_partner(families: tuple[str, ...], sum_y: bool = False) -> bool:
     """Whether the families (or the EN 14363 summary's wheelset sum) read the partner
-    wheel."""
+    wheel's Y."""
     return sum_y or any(f in PARTNER_FAMILIES for f in families)
+
+
+def needs_partner_q(families: tuple[str, ...]) -> bool:
+    """Whether the families read the partner wheel's Q too (the EN 14363 summary's
+    wheelset sum reads only its Y)."""
+    return any(f in PARTNER_FAMILIES for f in families)
 
 
 def family_names(family: str, sum_y: bool = False) -> list[str]:
@@ -257,11 +269,14 @@ def gain_dependence(name: str) -> list[GainTerm]:
 
     - a percentile scales with its channel's gain (scale: itself); Y/Q with the
       difference of the two gains;
-    - a percentile of the wheelset sum of Y (of the left-right difference of Q) moves by
-      each wheel's level times its gain (minus the partner's for the difference); the
-      levels are the medians (the partner's: the sum's or difference's median less the
-      measured wheel's). Not half the sum per wheel: on straight track the two wheels'
-      Y are of opposite sign and the sum is far smaller than either;
+    - a percentile s_p of the wheelset sum of Y moves with a wheel's gain by that wheel's
+      force where the sum is at s_p, E[Y | S = s_p] = level + share (s_p - median of S)
+      (regression on the sum, Gaussian forces), with the level the wheel's median (the
+      partner's: the sum's median less the measured wheel's) and the share 1/2 (equal
+      wheels). The two wheels' terms add up to s_p, exact for equal gains. The difference
+      of Q alike, the partner's term with its sign: E[Qp | D = d_p] = level - (d_p -
+      median of D) / 2. Why not half the sum per wheel (the model before): on straight
+      track the two wheels' Y are of opposite sign and the sum is far smaller than either;
     - a log10 band RMS shifts by its channel's gain / ln 10; of the sum or difference,
       by half of each wheel's gain / ln 10 (exact for uncorrelated wheels of equal
       fluctuation; otherwise the calibration records' model error takes the rest);
@@ -272,11 +287,12 @@ def gain_dependence(name: str) -> list[GainTerm]:
         return []
     log_kind = kind.startswith(("band", "3oct"))
     if channel in ("sumY", "dQ"):
-        wheels = (("Y", "Yp", 1.0), ("Q", "Qp", -1.0))[channel == "dQ"]
-        own, partner, sign = wheels
+        own, partner, sign = ("Y", "Yp", 1.0) if channel == "sumY" else ("Q", "Qp", -1.0)
         if log_kind:
             return [(own, 0.5 / np.log(10.0), ()), (partner, 0.5 / np.log(10.0), ())]
-        return [(own, 1.0, _LEVEL[own]), (partner, sign, _LEVEL[partner])]
+        spread = ((name, 0.5), (f"{channel}_p50", -0.5))  # (s_p - median) / 2
+        partner_spread = tuple((n, sign * w) for n, w in spread)
+        return [(own, 1.0, _LEVEL[own] + spread), (partner, sign, _LEVEL[partner] + partner_spread)]
     if channel not in _GAIN_SOURCES:
         raise ValueError(f"statistic {name!r}: no gain model for channel {channel!r}")
     if log_kind:

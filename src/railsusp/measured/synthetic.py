@@ -63,7 +63,8 @@ def add_sensor_noise(
 ) -> Recording:
     """Instrumented-wheelset errors: a gain error (normal, sd ``gain_error``) per channel, a
     bandwidth limit (4th-order zero-phase low-pass), and white noise of ``noise`` times the
-    channel's RMS."""
+    channel's RMS. Draws wheel by wheel (Y, then Q), so the first wheel's errors are those
+    of a recording of it alone."""
     rng = np.random.default_rng(seed)
     fs = rec.sampling_rate
 
@@ -71,10 +72,15 @@ def add_sensor_noise(
         y = bandwidth_filter(x, fs, bandwidth_hz) * (1.0 + gain_error * rng.standard_normal())
         return y + noise * np.sqrt(np.mean(x**2)) * rng.standard_normal(len(x))
 
+    # wheel by wheel, Y then Q: a recording of more wheels keeps its first wheel's noise
+    Y, Q = {}, {}
+    for w in rec.wheels:
+        Y[w] = corrupt(rec.Y[w])
+        Q[w] = np.maximum(corrupt(rec.Q[w]), 0.0)
     return Recording(
         rec.time.copy(),
-        {w: corrupt(v) for w, v in rec.Y.items()},
-        {w: np.maximum(corrupt(v), 0.0) for w, v in rec.Q.items()},
+        Y,
+        Q,
         rec.condition,
         {**rec.meta, "filter_bandwidth_hz": bandwidth_hz, "synthetic": True},
     )
