@@ -351,3 +351,27 @@ def test_a_first_pass_at_the_centre_is_the_same_posterior_when_the_scatter_is_co
     assert not likelihood(PosteriorSettings(cond), _Linear()).first_pass_at_centre
     rich = PosteriorSettings(cond, statistics=("coherence",))
     assert likelihood(rich, _Linear()).first_pass_at_centre
+
+
+def test_a_projection_on_the_jacobian_keeps_the_information_and_the_posterior():
+    """x = A u + B + e with two parameters: the two combinations of the three statistics
+    that informative_projection keeps carry all the information (kept = 1, the same
+    Cramer-Rao widths) and the likelihood of them differs from the full one by a constant,
+    so the posterior's draws are the same; one combination keeps less."""
+    from railsusp.estimate.posterior_synthetic import informative_projection
+
+    emu = _Linear()
+    emu.weights = [[(np.zeros((2, 1)), np.zeros(1))]]
+    full = SyntheticLikelihood(emu)
+    u = np.random.default_rng(0).random((50, 2))
+    p, kept = informative_projection(full, u, 10, 2)
+    assert p.shape == (2, 3) and kept == pytest.approx(1.0, abs=1e-12)
+    projected = SyntheticLikelihood(emu, projection=p)
+    for k in (1, 30):
+        assert cramer_rao_width(fisher_information(projected, TRUTH[None], k)) == pytest.approx(
+            cramer_rao_width(fisher_information(full, TRUTH[None], k)), rel=1e-6
+        )
+    s = (A @ TRUTH + B)[None]
+    assert np.allclose(projected.sample(s, 500, seed=3), full.sample(s, 500, seed=3), atol=1e-9)
+    _, one = informative_projection(full, u, 10, 1)
+    assert one < 0.99

@@ -26,22 +26,25 @@ def _settings() -> PosteriorSettings:
                              product_sections=(4,), n_product=30)  # fmt: skip
 
 
-def _statistics(u: np.ndarray, rng, sections: int) -> np.ndarray:
-    """Summaries (n, sections, D) of a linear stand-in: X18 and X13 move them."""
-    a = np.zeros((10, D))
+def _statistics(u: np.ndarray, rng, sections: int, d: int = D) -> np.ndarray:
+    """Summaries (n, sections, d) of a linear stand-in: X18 and X13 move them."""
+    a = np.zeros((10, d))
     a[7, :6] = 3.0  # X18
     a[2, 6:12] = 2.0  # X13
     mean = 40.0 + u @ a
-    return mean[:, None, :] + rng.standard_normal((len(u), sections, D))
+    return mean[:, None, :] + rng.standard_normal((len(u), sections, d))
 
 
 def _cache(run, settings, kind, n, sections=1):
     folder = run / "posterior" / "simulations"
     folder.mkdir(parents=True, exist_ok=True)
     u = prior_draws(settings, kind, n)
-    x = _statistics(u, np.random.default_rng(len(kind) + sections), sections)
+    d = len(settings.summary_names)
+    x = _statistics(u, np.random.default_rng(len(kind) + sections), sections, d)
     x = x[:, 0] if sections == 1 else x
     name = kind if sections == 1 else f"{kind}-x{sections}"
+    if settings.statistics != ("en14363",):
+        name += "+" + "+".join(settings.statistics[1:])
     for k, lo in enumerate(range(0, n, 50)):
         hi = min(n, lo + 50)
         buf = io.BytesIO()
@@ -96,3 +99,29 @@ def test_the_verdict_follows_the_check_of_the_number_of_sections(run):
 def test_a_run_without_the_fitted_likelihood_is_refused_in_one_line(tmp_path):
     with pytest.raises(RailsuspInputError, match=r"synthetic.settings\.json does not exist: fit"):
         synthetic.load(tmp_path)
+
+
+def test_statistics_beyond_the_en14363_summary_are_read_through_their_projection(tmp_path):
+    """With the coherence family (68 statistics) the likelihood reads 30 combinations of
+    them (rank 30 of 68), fitted on training cases once per emulator and read back by
+    ``load``: the same draws; the stand-in's two informative parameters keep nearly all
+    their information, and X18's interval holds its truth."""
+    s = PosteriorSettings(_settings().conditions, section_s=5.0, n_train=300, n_check=30,
+                          samples=200, product_sections=(4,), n_product=30,
+                          statistics=("coherence",))  # fmt: skip
+    for kind, n, k in (("train", 300, 1), ("check", 30, 1), ("long", 30, 4),
+                       ("long-calibration", 30, 4)):  # fmt: skip
+        _cache(tmp_path, s, kind, n, k)
+    post = synthetic.train(s, tmp_path)
+    p = post.likelihood.projection
+    assert p.shape == (synthetic.PROJECTION_RANK, 68) and post.likelihood.dim == 30
+    assert post.likelihood.model_error_matrix.shape == (30, 30)
+    with np.load(tmp_path / "posterior" / "synthetic" / "projection.npz") as z:
+        assert float(z["kept"]) > 0.9
+    back = synthetic.load(tmp_path)
+    assert np.array_equal(back.likelihood.projection, p)
+    x = _statistics(np.full((1, 10), 0.5), np.random.default_rng(9), 4, 68)[0]
+    a = post.sample(x, 200, seed=1)
+    assert np.array_equal(a, back.sample(x, 200, seed=1))
+    lo, hi = np.quantile(a[:, s.parameters.index("X18")], [0.05, 0.95])
+    assert lo < 0.5 < hi and hi - lo < 0.8  # 30 calibration records for 30 combinations

@@ -18,6 +18,7 @@ the smallest checked number >= n; longer than any, it is reported not calibrated
 
 from __future__ import annotations
 
+import io
 import logging
 import time
 from dataclasses import dataclass, field
@@ -42,15 +43,21 @@ from railsusp.estimate.posterior_synthetic import (
     fit_model_error,
     fit_scales,
     gain_covariance,
+    informative_projection,
 )
 from railsusp.params import MAIN_SUSPENSION
-from railsusp.store import content_hash, read_json, write_json
+from railsusp.store import atomic_write_bytes, content_hash, read_json, write_json
 
 log = logging.getLogger(__name__)
 
 #: networks in the emulator's bagged ensemble, and their hidden width
 MEMBERS = 10
 HIDDEN = 48
+#: linear combinations of the statistics the likelihood reads when the statistics go beyond
+#: the EN 14363 summary (:func:`~railsusp.estimate.posterior_synthetic.
+#: informative_projection`), and the training cases it is averaged over
+PROJECTION_RANK = 30
+PROJECTION_CASES = 200
 #: the settings the emulator depends on (the training cases and their statistics)
 TRAINED_ON = ("conditions", "parameters", "section_s", "n_train", "noise", "sum_y", "seed",
               "statistics")  # fmt: skip
@@ -112,13 +119,18 @@ class SyntheticPosterior:
 
 
 def likelihood(
-    settings: PosteriorSettings, emulator: StatisticsEmulator, scales: dict | None = None
+    settings: PosteriorSettings,
+    emulator: StatisticsEmulator,
+    scales: dict | None = None,
+    projection: np.ndarray | None = None,
 ) -> SyntheticLikelihood:
     """The likelihood of these settings' statistics: the gain error shared by a record's
     sections is the instrument model's (the training simulations'); ``scales``: the
-    covariance's fitted scales (``scales.json``; none: 1). With statistics families beyond
-    the EN 14363 summary (hundreds of statistics) the first of a posterior's two SMC runs
-    holds the covariance at the box's centre (:meth:`SyntheticLikelihood.sample`)."""
+    covariance's fitted scales (``scales.json``; none: 1); ``projection``: the likelihood
+    of these combinations of the statistics (:func:`fit_projection`). With statistics
+    families beyond the EN 14363 summary (hundreds of statistics) the first of a
+    posterior's two SMC runs holds the covariance at the box's centre
+    (:meth:`SyntheticLikelihood.sample`)."""
     scales = scales or {}
     matrix = scales.get("model_error_matrix")
     return SyntheticLikelihood(
@@ -128,7 +140,36 @@ def likelihood(
         model_error=float(scales.get("model_error", 0.0)),
         model_error_matrix=None if matrix is None else np.asarray(matrix, float),
         first_pass_at_centre=settings.statistics != ("en14363",),
+        projection=projection,
     )
+
+
+def fit_projection(settings: PosteriorSettings, emulator: StatisticsEmulator, run) -> dict:
+    """The informative projection of statistics beyond the EN 14363 summary
+    (:data:`PROJECTION_RANK` combinations for the mean of the longest checked number of
+    sections, averaged over the first :data:`PROJECTION_CASES` training cases), fitted once
+    per emulator into ``posterior/synthetic/projection.npz``; ``{}`` for the EN 14363
+    summary alone (its 17 per condition are read as they are)."""
+    if settings.statistics == ("en14363",):
+        return {}
+    path = Path(run) / "posterior" / "synthetic" / "projection.npz"
+    k = max(settings.product_sections, default=1)
+    stamp = content_hash({"emulator": _stamp(run), "rank": PROJECTION_RANK, "sections": k,
+                          "cases": PROJECTION_CASES})  # fmt: skip
+    if path.exists():
+        with np.load(path, allow_pickle=False) as z:
+            if str(z["stamp"]) == stamp:
+                return {"matrix": z["matrix"], "kept": float(z["kept"]), "stamp": stamp}
+    u, _ = cached_cases(settings, Path(run) / "posterior" / "simulations", "train",
+                        settings.n_train)  # fmt: skip
+    base = likelihood(settings, emulator)
+    matrix, kept = informative_projection(base, u[:PROJECTION_CASES], k, PROJECTION_RANK)
+    buf = io.BytesIO()
+    np.savez(buf, matrix=matrix, kept=np.array(kept), stamp=np.array(stamp))
+    atomic_write_bytes(path, buf.getvalue())
+    log.info("synthetic likelihood: %d of %d combinations keep %.4f of the information",
+             PROJECTION_RANK, emulator.dim, kept)  # fmt: skip
+    return {"matrix": matrix, "kept": kept, "stamp": stamp}
 
 
 def scale_set(settings: PosteriorSettings) -> tuple[str, int, int] | None:
@@ -150,11 +191,14 @@ def fit_covariance_scales(post: SyntheticPosterior, run: str | Path, where) -> d
         kind, n, k = where
         record["records"] = [kind, int(n), int(k)]
         record["emulator"] = _stamp(run)
+        if post.likelihood.projection is not None:
+            record["projection"] = content_hash({"p": post.likelihood.projection.tolist()})
         if path.exists():
             old = read_json(path)
             if (
                 old.get("records") == record["records"]
                 and old.get("emulator") == record["emulator"]
+                and old.get("projection") == record.get("projection")
                 and "model_error_matrix" in old
             ):
                 return old
@@ -230,15 +274,18 @@ def train(
     records, sections); "default": :func:`scale_set`; None: not fitted, 1) and check (or
     read the check of) the posterior; ``posterior/synthetic/``."""
     emulator = fit_emulator(settings, run)
-    post = SyntheticPosterior(settings, likelihood(settings, emulator))
+    projection = fit_projection(settings, emulator, run).get("matrix")
+    post = SyntheticPosterior(settings, likelihood(settings, emulator, None, projection))
     where = scale_set(settings) if scales_on == "default" else scales_on
     scales = fit_covariance_scales(post, run, where)
-    post.likelihood = likelihood(settings, emulator, scales)
+    post.likelihood = likelihood(settings, emulator, scales, projection)
     path = Path(run) / "posterior" / "synthetic" / "check.json"
     sets = [list(map(_plain, st)) for st in (sets or held_out_sets(settings))]
     matrix = content_hash({"model_error_matrix": scales.get("model_error_matrix")})
     plug_in = post.likelihood.plug_in_covariance
     stamp = [_stamp(run), scales["within_scale"], scales["model_error"], matrix, plug_in]
+    if projection is not None:
+        stamp.append(scales.get("projection"))
     if path.exists():
         old = read_json(path)
         if old.get("sets") == sets and old.get("emulator") == stamp:
@@ -271,7 +318,11 @@ def load(run: str | Path) -> SyntheticPosterior:
     settings = PosteriorSettings.from_dict(read_json(folder / "settings.json")["settings"])
     emulator = StatisticsEmulator.load(folder / "emulator.npz")
     scales = read_json(folder / "scales.json")
-    post = SyntheticPosterior(settings, likelihood(settings, emulator, scales))
+    projection = None
+    if settings.statistics != ("en14363",) and (folder / "projection.npz").exists():
+        with np.load(folder / "projection.npz", allow_pickle=False) as z:
+            projection = z["matrix"]
+    post = SyntheticPosterior(settings, likelihood(settings, emulator, scales, projection))
     post.checks = [SectionsCheck.from_dict(c) for c in read_json(folder / "check.json")["checks"]]
     return post
 
