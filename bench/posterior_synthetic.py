@@ -57,6 +57,12 @@ def main() -> None:
         default="en14363",
         help="families of statistics (railsusp.estimate.statistic_families), or 'all'",
     )
+    ap.add_argument(
+        "--projection-rank",
+        type=int,
+        default=30,
+        help="combinations of the statistics read beyond the EN 14363 summary",
+    )
     a = ap.parse_args()
 
     longest = max(1, round(a.long_length / a.section))
@@ -69,6 +75,7 @@ def main() -> None:
         product_sections=(longest,) if longest > 1 else (),
         n_product=a.long,
         statistics=tuple(a.statistics.split(",")),
+        projection_rank=a.projection_rank,
     )
     ks = sorted({max(1, round(v / a.section)) for v in lengths_s(a.lengths)})
     sets = [("check", a.check, 1, (1,))] if 1 in ks else []

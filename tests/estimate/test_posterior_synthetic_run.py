@@ -114,7 +114,7 @@ def test_statistics_beyond_the_en14363_summary_are_read_through_their_projection
         _cache(tmp_path, s, kind, n, k)
     post = synthetic.train(s, tmp_path)
     p = post.likelihood.projection
-    assert p.shape == (synthetic.PROJECTION_RANK, 68) and post.likelihood.dim == 30
+    assert p.shape == (s.projection_rank, 68) and post.likelihood.dim == 30
     assert post.likelihood.model_error_matrix.shape == (30, 30)
     with np.load(tmp_path / "posterior" / "synthetic" / "projection.npz") as z:
         assert float(z["kept"]) > 0.9

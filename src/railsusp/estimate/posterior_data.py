@@ -61,7 +61,9 @@ class PosteriorSettings:
     instrument ``noise`` (fraction of channel RMS), ``sum_y`` (also the wheelset sum of Y:
     both wheels of the leading wheelset recorded), ``statistics``: the families of
     statistics (:mod:`railsusp.estimate.statistic_families`; the default, the EN 14363
-    summary alone, is the estimator's before the families existed), the network size, the
+    summary alone, is the estimator's before the families existed), ``projection_rank``: the
+    number of their combinations the synthetic likelihood reads beyond that summary
+    (:func:`~railsusp.estimate.posterior_synthetic.informative_projection`), the network size, the
     number of flows in the ``ensemble`` and the ``seed`` of every draw.
     ``product_sections``: the numbers of sections at which the fused posterior of several
     sections is corrected and checked (none: an estimate of several sections is not
@@ -88,6 +90,7 @@ class PosteriorSettings:
     n_product: int = 100
     product_cases: tuple[int, ...] = ()
     statistics: tuple[str, ...] = ("en14363",)
+    projection_rank: int = 30
 
     def __post_init__(self) -> None:
         families = parse_families(self.statistics)
@@ -112,6 +115,7 @@ class PosteriorSettings:
             ("noise", self.noise, 0.0, 0.5),
             ("samples", self.samples, 100, 100_000),
             ("ensemble", self.ensemble, 1, 20),
+            ("projection_rank", self.projection_rank, 1, 1000),
         ]
         for name, value, lo, hi in checks:
             if not lo <= value <= hi:
@@ -156,8 +160,8 @@ class PosteriorSettings:
         d["statistics"] = list(self.statistics)
         if not self.product_cases:  # the settings (and hash) of estimators trained before it
             del d["product_cases"]
-        if self.statistics == ("en14363",):  # likewise
-            del d["statistics"]
+        if self.statistics == ("en14363",):  # likewise; the summary is read as it is
+            del d["statistics"], d["projection_rank"]
         return d
 
     @classmethod

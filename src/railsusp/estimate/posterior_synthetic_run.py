@@ -53,10 +53,8 @@ log = logging.getLogger(__name__)
 #: networks in the emulator's bagged ensemble, and their hidden width
 MEMBERS = 10
 HIDDEN = 48
-#: linear combinations of the statistics the likelihood reads when the statistics go beyond
-#: the EN 14363 summary (:func:`~railsusp.estimate.posterior_synthetic.
-#: informative_projection`), and the training cases it is averaged over
-PROJECTION_RANK = 30
+#: the training cases the informative projection of statistics beyond the EN 14363 summary
+#: is averaged over (:func:`~railsusp.estimate.posterior_synthetic.informative_projection`)
 PROJECTION_CASES = 200
 #: the settings the emulator depends on (the training cases and their statistics)
 TRAINED_ON = ("conditions", "parameters", "section_s", "n_train", "noise", "sum_y", "seed",
@@ -146,7 +144,7 @@ def likelihood(
 
 def fit_projection(settings: PosteriorSettings, emulator: StatisticsEmulator, run) -> dict:
     """The informative projection of statistics beyond the EN 14363 summary
-    (:data:`PROJECTION_RANK` combinations for the mean of the longest checked number of
+    (``settings.projection_rank`` combinations for the mean of the longest checked number of
     sections, averaged over the first :data:`PROJECTION_CASES` training cases), fitted once
     per emulator into ``posterior/synthetic/projection.npz``; ``{}`` for the EN 14363
     summary alone (its 17 per condition are read as they are)."""
@@ -154,7 +152,7 @@ def fit_projection(settings: PosteriorSettings, emulator: StatisticsEmulator, ru
         return {}
     path = Path(run) / "posterior" / "synthetic" / "projection.npz"
     k = max(settings.product_sections, default=1)
-    stamp = content_hash({"emulator": _stamp(run), "rank": PROJECTION_RANK, "sections": k,
+    stamp = content_hash({"emulator": _stamp(run), "rank": settings.projection_rank, "sections": k,
                           "cases": PROJECTION_CASES})  # fmt: skip
     if path.exists():
         with np.load(path, allow_pickle=False) as z:
@@ -163,12 +161,13 @@ def fit_projection(settings: PosteriorSettings, emulator: StatisticsEmulator, ru
     u, _ = cached_cases(settings, Path(run) / "posterior" / "simulations", "train",
                         settings.n_train)  # fmt: skip
     base = likelihood(settings, emulator)
-    matrix, kept = informative_projection(base, u[:PROJECTION_CASES], k, PROJECTION_RANK)
+    rank = settings.projection_rank
+    matrix, kept = informative_projection(base, u[:PROJECTION_CASES], k, rank)
     buf = io.BytesIO()
     np.savez(buf, matrix=matrix, kept=np.array(kept), stamp=np.array(stamp))
     atomic_write_bytes(path, buf.getvalue())
     log.info("synthetic likelihood: %d of %d combinations keep %.4f of the information",
-             PROJECTION_RANK, emulator.dim, kept)  # fmt: skip
+             rank, emulator.dim, kept)  # fmt: skip
     return {"matrix": matrix, "kept": kept, "stamp": stamp}
 
 
