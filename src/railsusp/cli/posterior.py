@@ -23,6 +23,7 @@ _OPTIONS = {"section_s": "--section", "n_train": "--simulations", "n_check": "--
             "n_calibration": "--calibration", "ensemble": "--ensemble",
             "product_sections": "--product-sections", "n_product": "--product-cases",
             "product_cases": "--product-cases", "statistics": "--statistics",
+            "projection_rank": "--projection-rank",
             "sum_y": "--sum-y"}  # fmt: skip
 
 
@@ -137,6 +138,13 @@ def train_command(
             "instrumented wheelset recorded)"
         ),
     ] = "en14363",
+    projection_rank: Annotated[
+        int,
+        typer.Option(
+            help="combinations of the statistics the synthetic likelihood reads beyond the "
+            "EN 14363 summary"
+        ),
+    ] = 30,
     seed: Annotated[int, typer.Option(help="seed of every draw")] = 0,
     long_record: Annotated[
         str,
@@ -174,6 +182,7 @@ def train_command(
             noise=noise,
             sum_y=sum_y,
             statistics=tuple(statistics.split(",")),
+            projection_rank=projection_rank,
             seed=seed,
         )
         if is_quiet():
