@@ -125,3 +125,22 @@ def test_statistics_beyond_the_en14363_summary_are_read_through_their_projection
     assert np.array_equal(a, back.sample(x, 200, seed=1))
     lo, hi = np.quantile(a[:, s.parameters.index("X18")], [0.05, 0.95])
     assert lo < 0.5 < hi and hi - lo < 0.8  # 30 calibration records for 30 combinations
+    # another rank in the same folder: its own projection, scales and check; load follows
+    from dataclasses import replace
+
+    check = tmp_path / "posterior" / "synthetic" / "check.json"
+    before = check.read_bytes()
+    five = synthetic.train(replace(s, projection_rank=5), tmp_path)
+    assert five.likelihood.projection.shape == (5, 68) and check.read_bytes() != before
+    back = synthetic.load(tmp_path)
+    assert back.settings.projection_rank == 5 and back.likelihood.projection.shape == (5, 68)
+    # a projection that is not the checked one (an interrupted training) is refused
+    path = tmp_path / "posterior" / "synthetic" / "projection.npz"
+    with np.load(path) as z:
+        stale = dict(z)
+    stale["stamp"] = np.array("another")
+    buf = io.BytesIO()
+    np.savez(buf, **stale)
+    path.write_bytes(buf.getvalue())
+    with pytest.raises(RailsuspInputError, match="projection.npz does not belong to the check"):
+        synthetic.load(tmp_path)

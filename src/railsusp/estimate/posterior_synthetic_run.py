@@ -273,7 +273,9 @@ def train(
     records, sections); "default": :func:`scale_set`; None: not fitted, 1) and check (or
     read the check of) the posterior; ``posterior/synthetic/``."""
     emulator = fit_emulator(settings, run)
-    projection = fit_projection(settings, emulator, run).get("matrix")
+    _restamp_settings(settings, run)
+    fitted = fit_projection(settings, emulator, run)
+    projection = fitted.get("matrix")
     post = SyntheticPosterior(settings, likelihood(settings, emulator, None, projection))
     where = scale_set(settings) if scales_on == "default" else scales_on
     scales = fit_covariance_scales(post, run, where)
@@ -283,8 +285,8 @@ def train(
     matrix = content_hash({"model_error_matrix": scales.get("model_error_matrix")})
     plug_in = post.likelihood.plug_in_covariance
     stamp = [_stamp(run), scales["within_scale"], scales["model_error"], matrix, plug_in]
-    if projection is not None:
-        stamp.append(scales.get("projection"))
+    if projection is not None:  # the projection's own stamp: emulator, rank, sections
+        stamp.append(fitted["stamp"])
     if path.exists():
         old = read_json(path)
         if old.get("sets") == sets and old.get("emulator") == stamp:
@@ -298,6 +300,16 @@ def train(
 
 def _plain(v):
     return list(v) if isinstance(v, tuple) else v
+
+
+def _restamp_settings(settings: PosteriorSettings, run: str | Path) -> None:
+    """Write the settings being trained into ``settings.json`` (keeping the emulator's
+    hash): settings the emulator does not depend on (``projection_rank``) change what
+    :func:`load` must rebuild."""
+    path = Path(run) / "posterior" / "synthetic" / "settings.json"
+    record = read_json(path)
+    if record.get("settings") != settings.to_dict():
+        write_json(path, {**record, "settings": settings.to_dict()})
 
 
 def _stamp(run: str | Path) -> str | None:
@@ -317,12 +329,22 @@ def load(run: str | Path) -> SyntheticPosterior:
     settings = PosteriorSettings.from_dict(read_json(folder / "settings.json")["settings"])
     emulator = StatisticsEmulator.load(folder / "emulator.npz")
     scales = read_json(folder / "scales.json")
+    checked = read_json(folder / "check.json")
     projection = None
-    if settings.statistics != ("en14363",) and (folder / "projection.npz").exists():
-        with np.load(folder / "projection.npz", allow_pickle=False) as z:
-            projection = z["matrix"]
+    if settings.statistics != ("en14363",):
+        path = folder / "projection.npz"
+        stamp = None
+        if path.exists():
+            with np.load(path, allow_pickle=False) as z:
+                projection, stamp = z["matrix"], str(z["stamp"])
+        if stamp is None or checked.get("emulator", [None])[-1] != stamp:
+            raise RailsuspInputError(
+                f"{path} does not belong to the check in {folder / 'check.json'} (an "
+                "interrupted or other training): run railsusp posterior train "
+                "--long-record synthetic-likelihood again on this folder"
+            )
     post = SyntheticPosterior(settings, likelihood(settings, emulator, scales, projection))
-    post.checks = [SectionsCheck.from_dict(c) for c in read_json(folder / "check.json")["checks"]]
+    post.checks = [SectionsCheck.from_dict(c) for c in checked["checks"]]
     return post
 
 
