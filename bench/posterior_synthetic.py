@@ -60,7 +60,7 @@ def main() -> None:
     ap.add_argument(
         "--projection-rank",
         type=int,
-        default=30,
+        default=15,
         help="combinations of the statistics read beyond the EN 14363 summary",
     )
     a = ap.parse_args()

@@ -102,8 +102,8 @@ def test_a_run_without_the_fitted_likelihood_is_refused_in_one_line(tmp_path):
 
 
 def test_statistics_beyond_the_en14363_summary_are_read_through_their_projection(tmp_path):
-    """With the coherence family (68 statistics) the likelihood reads 30 combinations of
-    them (rank 30 of 68), fitted on training cases once per emulator and read back by
+    """With the coherence family (68 statistics) the likelihood reads 15 combinations of
+    them (the default rank, 15 of 68), fitted on training cases once per emulator and read back by
     ``load``: the same draws; the stand-in's two informative parameters keep nearly all
     their information, and X18's interval holds its truth."""
     s = PosteriorSettings(_settings().conditions, section_s=5.0, n_train=300, n_check=30,
@@ -114,8 +114,8 @@ def test_statistics_beyond_the_en14363_summary_are_read_through_their_projection
         _cache(tmp_path, s, kind, n, k)
     post = synthetic.train(s, tmp_path)
     p = post.likelihood.projection
-    assert p.shape == (s.projection_rank, 68) and post.likelihood.dim == 30
-    assert post.likelihood.model_error_matrix.shape == (30, 30)
+    assert p.shape == (s.projection_rank, 68) and post.likelihood.dim == s.projection_rank == 15
+    assert post.likelihood.model_error_matrix.shape == (15, 15)
     with np.load(tmp_path / "posterior" / "synthetic" / "projection.npz") as z:
         assert float(z["kept"]) > 0.9
     back = synthetic.load(tmp_path)
@@ -124,7 +124,7 @@ def test_statistics_beyond_the_en14363_summary_are_read_through_their_projection
     a = post.sample(x, 200, seed=1)
     assert np.array_equal(a, back.sample(x, 200, seed=1))
     lo, hi = np.quantile(a[:, s.parameters.index("X18")], [0.05, 0.95])
-    assert lo < 0.5 < hi and hi - lo < 0.8  # 30 calibration records for 30 combinations
+    assert lo < 0.5 < hi and hi - lo < 0.8  # 30 calibration records for 15 combinations
     # another rank in the same folder: its own projection, scales and check; load follows
     from dataclasses import replace
 

@@ -144,7 +144,7 @@ def train_command(
             help="combinations of the statistics the synthetic likelihood reads beyond the "
             "EN 14363 summary"
         ),
-    ] = 30,
+    ] = 15,
     seed: Annotated[int, typer.Option(help="seed of every draw")] = 0,
     long_record: Annotated[
         str,

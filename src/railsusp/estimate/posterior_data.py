@@ -90,7 +90,7 @@ class PosteriorSettings:
     n_product: int = 100
     product_cases: tuple[int, ...] = ()
     statistics: tuple[str, ...] = ("en14363",)
-    projection_rank: int = 30
+    projection_rank: int = 15
 
     def __post_init__(self) -> None:
         families = parse_families(self.statistics)
