@@ -329,6 +329,20 @@ def fit_model_error(
 Z90 = 1.6448536269514722
 
 
+def mean_jacobian(sl: SyntheticLikelihood, u: np.ndarray, step: float = 0.01) -> np.ndarray:
+    """(N, dim, d) the Jacobian of mu (projected as ``sl`` reads it) at ``u`` (N, d) by
+    central differences of ``step`` (a fraction of range)."""
+    u = np.atleast_2d(np.asarray(u, float))
+    n, d = u.shape
+    jac = np.empty((n, sl.dim, d))
+    for j in range(d):
+        hi, lo = u.copy(), u.copy()
+        hi[:, j] += step
+        lo[:, j] -= step
+        jac[:, :, j] = (sl.mean(hi) - sl.mean(lo)) / (2 * step)
+    return jac
+
+
 def fisher_information(
     sl: SyntheticLikelihood, u: np.ndarray, k: int, step: float = 0.01, emulator_error=True
 ) -> np.ndarray:
@@ -340,13 +354,7 @@ def fisher_information(
     emulator). Only the mean's term: the covariance's own dependence on u is left out (its
     term does not grow with k, and Sigma(u) is a quadratic fit)."""
     u = np.atleast_2d(np.asarray(u, float))
-    n, d = u.shape
-    jac = np.empty((n, sl.dim, d))
-    for j in range(d):
-        hi, lo = u.copy(), u.copy()
-        hi[:, j] += step
-        lo[:, j] -= step
-        jac[:, :, j] = (sl.mean(hi) - sl.mean(lo)) / (2 * step)
+    jac = mean_jacobian(sl, u, step)
     _, shared, section, emulator = sl.parts(u)
     cov = shared + (sl.within_scale * section - shared) / k
     if emulator_error:
@@ -388,13 +396,8 @@ def informative_projection(
     cov = np.mean(shared + (section - shared) / k + emulator, axis=0)
     vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
     whiten = (vecs / np.sqrt(np.maximum(vals, 1e-12 * vals.max()))) @ vecs.T
-    m = np.zeros_like(cov)
-    for j in range(u.shape[1]):
-        hi, lo = u.copy(), u.copy()
-        hi[:, j] += step
-        lo[:, j] -= step
-        w = (base.emulator.mean(hi) - base.emulator.mean(lo)) / (2 * step) @ whiten
-        m += w.T @ w / len(u)
+    w = np.einsum("ij,njb->nib", whiten, mean_jacobian(base, u, step))  # whitened J
+    m = np.einsum("nib,njb->ij", w, w) / len(u)
     vals, vecs = np.linalg.eigh(m)
     order = np.argsort(vals)[::-1][:rank]
     kept = float(np.sum(vals[order]) / np.sum(np.maximum(vals, 0.0)))
