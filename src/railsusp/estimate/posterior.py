@@ -52,7 +52,7 @@ from railsusp.estimate.posterior_data import (
     recording_summaries,
     to_si,
 )
-from railsusp.estimate.posterior_fusion import from_logit, fused_samples, to_logit
+from railsusp.estimate.posterior_fusion import from_logit, fused_samples, logistic_prior, to_logit
 from railsusp.estimate.posterior_result import PosteriorResult
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import atomic_write_bytes, content_hash, read_json, write_json
@@ -194,14 +194,8 @@ def _build(settings: PosteriorSettings, u: np.ndarray, x: np.ndarray):
     uniform prior on the box), the flow's builder and the training tensors."""
     import torch
     from sbi.neural_nets import posterior_nn
-    from torch.distributions import Independent, TransformedDistribution, Uniform
-    from torch.distributions.transforms import SigmoidTransform
 
-    d = len(settings.parameters)
-    prior = Independent(
-        TransformedDistribution(Uniform(torch.zeros(d), torch.ones(d)), [SigmoidTransform().inv]),
-        1,
-    )
+    prior = logistic_prior(len(settings.parameters))
     builder = posterior_nn(
         "maf", hidden_features=settings.hidden_features, num_transforms=settings.num_transforms
     )

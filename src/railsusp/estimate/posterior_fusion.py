@@ -32,6 +32,20 @@ class SectionSampler(Protocol):
     def sample_raw(self, x: np.ndarray, n: int, seed: int = 0) -> np.ndarray: ...
 
 
+def logistic_prior(d: int):
+    """The prior of the logit coordinates of ``d`` parameters: independent standard
+    logistic distributions, the image of the uniform prior on the box (a torch
+    distribution, for sbi's trainers)."""
+    import torch
+    from torch.distributions import Independent, TransformedDistribution, Uniform
+    from torch.distributions.transforms import SigmoidTransform
+
+    return Independent(
+        TransformedDistribution(Uniform(torch.zeros(d), torch.ones(d)), [SigmoidTransform().inv]),
+        1,
+    )
+
+
 def to_logit(u: np.ndarray) -> np.ndarray:
     """Fractions of range -> unbounded coordinates z, where the flows and the spread
     correction act."""

@@ -1,0 +1,309 @@
+"""Neural posterior (NPE) against neural likelihood (NLE) and ratio (NRE) estimation with
+sbi, on the same simulations and the same held-out records (issue 20, item 1: "compare with
+its neural likelihood or ratio estimators"). Prints the tables and writes JSON.
+
+    python bench/posterior_estimators.py --run RUN --conditions straight,curve --section 20 \\
+        --train 2000 --check 200 --long 200 --long-length 120 [--statistics all] \\
+        [--read en14363] [--methods npe,nle,nre]
+
+Reads (or simulates what is missing, like every posterior bench) the cached cases of
+``RUN/posterior/simulations``: the first ``--train`` training cases (one section each, all
+ten parameters from the prior, a new track each), ``--check`` held-out one-section cases
+and ``--long`` held-out records of ``--long-length`` seconds per condition cut into
+sections; ``--statistics`` names the families the run's files hold (its cache names
+them), ``--read`` the families the estimators read (the EN 14363 summary by default: the
+estimators are compared on the statistics every recording has).
+
+Every estimator models the logit coordinates z of the parameters' fractions of range under
+the logistic prior (the uniform box's image, as railsusp.estimate.posterior does), with the
+same network size (``--hidden``, ``--transforms``), trained by sbi with its defaults on one
+thread:
+
+- **npe**: a masked autoregressive flow q(z | x), the production estimator; several sections
+  are combined by its information fusion (railsusp.estimate.posterior_fusion), as in
+  production, but with no spread correction (that needs the production's calibration
+  cases; it is fitted on top of any of the three);
+- **nle**: a flow q(x | z) of one section's statistics: a record's sections are independent
+  given the parameters (each runs on its own stretch of track), so the record's likelihood
+  is the product of the sections' and needs no fusion;
+- **nre**: a classifier of (z, x) pairs (sbi's NRE, contrastive), whose log-ratios add over
+  the sections likewise.
+
+NLE's and NRE's posteriors are sampled by importance sampling (``--proposal`` draws per
+record), resampled to ``--samples`` draws: for one section from the prior (sbi's
+ImportanceSamplingPosterior); for several sections, whose product is far narrower than the
+prior, from a defensive mixture of the prior and the NPE fusion's Gaussian widened
+(``--guide npe``, the default; ``--guide prior`` keeps the prior, whose effective sample size
+collapses there). The effective sample size is reported (a small one makes intervals noisy).
+Scored per parameter on the held-out cases: coverage of the central 90 % interval with its
+binomial check and the SBC rank test (railsusp.estimate.calibration.check), the median 90 %
+width (% of range); plus training time and seconds per record.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from posterior import add_common_arguments, bench_conditions
+from railsusp.estimate.calibration import check
+from railsusp.estimate.posterior import PosteriorEstimator, one_thread
+from railsusp.estimate.posterior_check import median_width
+from railsusp.estimate.posterior_data import PosteriorSettings, cached_cases
+from railsusp.estimate.posterior_fusion import (
+    from_logit,
+    fused_precision,
+    fused_samples,
+    logistic_prior,
+    to_logit,
+)
+from railsusp.params import MAIN_SUSPENSION
+
+METHODS = ("npe", "nle", "nre")
+
+
+def read_columns(stored: PosteriorSettings, read: PosteriorSettings) -> np.ndarray:
+    """Indices into the stored statistics of those the estimators read."""
+    names = list(stored.summary_names)
+    missing = [n for n in read.summary_names if n not in names]
+    if missing:
+        raise SystemExit(f"--read: the run's statistics lack {missing[:3]} ...")
+    return np.array([names.index(n) for n in read.summary_names])
+
+
+def train_method(
+    method: str, z: np.ndarray, x: np.ndarray, hidden: int, transforms: int, seed: int
+):
+    """(sbi inference object, trained network, seconds, epochs) of one method on (z, x)."""
+    import torch
+    from sbi.inference import NLE, NPE, NRE
+    from sbi.neural_nets import classifier_nn, likelihood_nn, posterior_nn
+
+    prior = logistic_prior(z.shape[1])
+    torch.manual_seed(seed)
+    if method == "npe":
+        inference = NPE(prior=prior, density_estimator=posterior_nn(
+            "maf", hidden_features=hidden, num_transforms=transforms),
+            show_progress_bars=False)  # fmt: skip
+    elif method == "nle":
+        inference = NLE(prior=prior, density_estimator=likelihood_nn(
+            "maf", hidden_features=hidden, num_transforms=transforms),
+            show_progress_bars=False)  # fmt: skip
+    else:
+        inference = NRE(prior=prior, classifier=classifier_nn("resnet", hidden_features=hidden),
+                        show_progress_bars=False)  # fmt: skip
+    t0 = time.perf_counter()
+    with one_thread():
+        inference.append_simulations(
+            torch.as_tensor(z, dtype=torch.float32), torch.as_tensor(x, dtype=torch.float32)
+        )
+        net = inference.train(show_train_summary=False)
+    net.eval()
+    return inference, net, time.perf_counter() - t0, int(inference.summary["epochs_trained"][-1])
+
+
+class _Flow:
+    """The NPE flow as production's estimator sees it (sample_raw, for the fusion)."""
+
+    def __init__(self, settings: PosteriorSettings, net) -> None:
+        self.est = PosteriorEstimator(settings, [net], [], None)
+        self.settings = settings
+
+    def sample_raw(self, x: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
+        return self.est.sample_raw(x, n, seed)
+
+
+def draws_npe(flow: _Flow, x: np.ndarray, n: int, seed: int) -> tuple[np.ndarray, float]:
+    """(n, d) uncorrected draws on the unit box of the sections ``x`` (k, D); ESS nan."""
+    if x.shape[0] == 1:
+        return flow.sample_raw(x[0], n, seed), float("nan")
+    return fused_samples(flow, x, n, np.random.default_rng(seed)), float("nan")
+
+
+def draws_importance(posterior, x: np.ndarray, n: int, proposal: int, seed: int, guide=None):
+    """(n, d) draws on the unit box of the sections ``x`` (k, D) as independent trials,
+    resampled (systematic) from ``proposal`` draws weighted by the estimator's likelihood
+    (or ratio) times the prior over the proposal's density; and the effective sample size
+    of the weights. The proposal is the prior (sbi's ImportanceSamplingPosterior), or with
+    ``guide`` = (mean, covariance) in logit coordinates a defensive mixture: half from the
+    prior, half from that Gaussian with its covariance doubled (the NPE fusion's posterior:
+    where the product of several sections' likelihoods is far narrower than the prior,
+    prior draws leave too few effective samples)."""
+    import torch
+
+    torch.manual_seed(seed)
+    xt = torch.as_tensor(x, dtype=torch.float32)
+    with one_thread(), torch.no_grad():
+        if guide is None:
+            z, logw = posterior.sample(
+                (proposal,), x=xt, method="importance", show_progress_bars=False
+            )
+        else:
+            prior = posterior.proposal  # the prior, sbi's default proposal
+            mean, cov = (torch.as_tensor(v, dtype=torch.float32) for v in guide)
+            gauss = torch.distributions.MultivariateNormal(mean, 2.0 * cov)
+            half = proposal // 2
+            z = torch.cat([prior.sample((half,)), gauss.sample((proposal - half,))])
+            log_mix = torch.logaddexp(prior.log_prob(z), gauss.log_prob(z)) - np.log(2.0)
+            logw = posterior.potential(z, x=xt) - log_mix
+    logw = logw.double().numpy()
+    logw[~np.isfinite(logw)] = -np.inf
+    w = np.exp(logw - logw.max())
+    w /= w.sum()
+    ess = float(1.0 / np.sum(w**2))
+    rng = np.random.default_rng(seed)
+    positions = (rng.random() + np.arange(n)) / n
+    idx = np.minimum(np.searchsorted(np.cumsum(w), positions), len(w) - 1)
+    return from_logit(z.double().numpy()[idx]), ess
+
+
+def fusion_guide(flow: _Flow, x: np.ndarray, seed: int):
+    """(mean, covariance) in logit coordinates of the NPE fusion of the sections ``x``."""
+    z = to_logit(flow.sample_raw(x, 1000, seed=seed))
+    precision, mean = fused_precision(z)
+    cov = np.linalg.inv(precision)
+    return mean, (cov + cov.T) / 2
+
+
+def score(draws: np.ndarray, truth: np.ndarray, names: list[str]) -> dict:
+    """Coverage (90 %), its checks and the median width per parameter."""
+    cal = check(draws, truth, names)
+    widths = median_width(draws, names)
+    return {
+        "coverage": {c.parameter: c.coverage for c in cal},
+        "passed": {c.parameter: bool(c.passed) for c in cal},
+        "sbc_p": {c.parameter: c.sbc_p for c in cal},
+        "width_pct": widths,
+        "n_passed": int(sum(c.passed for c in cal)),
+        "n_in_band": int(sum(0.85 <= c.coverage <= 0.95 for c in cal)),
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_common_arguments(ap, "bench/results/posterior_estimators.json")
+    ap.add_argument("--long", type=int, default=200, help="held-out records of several sections")
+    ap.add_argument("--long-length", type=float, default=120.0, help="their length, s")
+    ap.add_argument("--statistics", default="en14363", help="the families the run's files hold")
+    ap.add_argument("--read", default="en14363", help="the families the estimators read")
+    ap.add_argument("--methods", default=",".join(METHODS))
+    ap.add_argument("--samples", type=int, default=1000, help="draws per record")
+    ap.add_argument("--proposal", type=int, default=50_000, help="NLE/NRE: prior draws per record")
+    ap.add_argument(
+        "--guide",
+        default="npe",
+        help="NLE/NRE over several sections: importance proposal 'prior', or 'npe' (half "
+        "prior, half the NPE fusion's Gaussian, widened)",
+    )
+    ap.add_argument("--hidden", type=int, default=50)
+    ap.add_argument("--transforms", type=int, default=5)
+    a = ap.parse_args()
+    if a.guide not in ("prior", "npe"):
+        raise SystemExit(f"--guide {a.guide}: accepted prior or npe")
+    methods = [m for m in a.methods.split(",") if m]
+    if not methods or any(m not in METHODS for m in methods):
+        raise SystemExit(f"--methods {a.methods}: accepted a comma list of {', '.join(METHODS)}")
+
+    longest = max(1, round(a.long_length / a.section))
+    common = dict(
+        parameters=tuple(a.parameters.split(",")), section_s=a.section, n_train=a.train,
+        n_check=a.check, product_sections=(longest,) if longest > 1 else (), n_product=a.long,
+        hidden_features=a.hidden, num_transforms=a.transforms,
+    )  # fmt: skip
+    conditions = bench_conditions(a)
+    stored = PosteriorSettings(conditions, statistics=tuple(a.statistics.split(",")), **common)
+    read = PosteriorSettings(conditions, statistics=tuple(a.read.split(",")), **common)
+    cols_x = read_columns(stored, read)
+    cols_p = [MAIN_SUSPENSION.index(p) for p in read.parameters]
+    names = list(read.parameters)
+    folder = Path(a.run) / "posterior" / "simulations"
+
+    u, x = cached_cases(stored, folder, "train", a.train)
+    ok = np.all(np.isfinite(x), axis=1)
+    z_train, x_train = to_logit(u[ok][:, cols_p]), x[ok][:, cols_x]
+    held = []
+    u1, x1 = cached_cases(stored, folder, "check", a.check)
+    ok1 = np.all(np.isfinite(x1), axis=1)
+    held.append((1, u1[ok1][:, cols_p], x1[ok1][:, None, cols_x]))
+    if longest > 1:
+        ul, xl = cached_cases(stored, folder, "long", a.long, longest)
+        okl = np.all(np.isfinite(xl), axis=(1, 2))
+        held.append((longest, ul[okl][:, cols_p], xl[okl][:, :, cols_x]))
+    print(f"{len(x_train)} training cases, {x_train.shape[1]} statistics ({a.read}); held out: "
+          + ", ".join(f"{len(t)} x {k} sections" for k, t, _ in held))  # fmt: skip
+
+    results = []
+    trained = {}
+    guided = a.guide == "npe"
+    for method in (["npe"] if guided and "npe" not in methods else []) + methods:
+        inference, net, t_train, epochs = train_method(
+            method, z_train, x_train, a.hidden, a.transforms, read.seed
+        )
+        trained[method] = (inference, net)
+        print(f"\n{method}: trained in {t_train:.0f} s ({epochs} epochs)")
+        if method not in methods:
+            continue
+        flow = _Flow(read, net) if method == "npe" else None
+        posterior = None if method == "npe" else inference.build_posterior(sample_with="importance")
+        npe_flow = _Flow(read, trained["npe"][1]) if guided else None
+        for k, truth, xs in held:
+            t0 = time.perf_counter()
+            out, ess = [], []
+            proposal = "prior" if method == "npe" or k == 1 or not guided else "prior+npe-fusion"
+            for i, xi in enumerate(xs):
+                if method == "npe":
+                    d, e = draws_npe(flow, xi, a.samples, read.seed + i)
+                else:
+                    g = fusion_guide(npe_flow, xi, read.seed + i) if k > 1 and guided else None
+                    d, e = draws_importance(posterior, xi, a.samples, a.proposal, read.seed + i, g)
+                out.append(d)
+                ess.append(e)
+            per_record = (time.perf_counter() - t0) / len(xs)
+            row = {"method": method, "sections": k, "length_s": k * a.section, "cases": len(xs),
+                   "proposal": proposal if method != "npe" else None,
+                   "train_s": t_train, "epochs": epochs, "s_per_record": per_record,
+                   "ess_median": float(np.nanmedian(ess)) if method != "npe" else None,
+                   "ess_min": float(np.nanmin(ess)) if method != "npe" else None,
+                   **score(np.stack(out), truth, names)}  # fmt: skip
+            results.append(row)
+            ess_text = (
+                f", ESS median {row['ess_median']:.0f}, min {row['ess_min']:.0f}"
+                if method != "npe"
+                else ""
+            )
+            print(
+                f"  {k * a.section:g} s ({len(xs)} cases, {per_record:.2f} s each{ess_text}): "
+                f"{row['n_passed']} of {len(names)} pass"
+            )
+    _tables(results, names)
+    out = {
+        "date": time.strftime("%Y-%m-%d"),
+        "settings_stored": stored.to_dict(),
+        "read": a.read,
+        "proposal": a.proposal,
+        "samples": a.samples,
+        "results": results,
+    }
+    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(a.out).write_text(json.dumps(out, indent=2) + "\n")
+    print(f"wrote {a.out}")
+
+
+def _tables(results: list[dict], names: list[str]) -> None:
+    for what, key, fmt in (("coverage of the 90 % intervals", "coverage", "{:5.2f}"),
+                           ("median 90 % width, % of range", "width_pct", "{:5.1f}")):  # fmt: skip
+        print(f"\n{what}, held-out cases")
+        print(f"{'method':>6} {'length':>6} " + " ".join(f"{p:>5}" for p in names)
+              + "  passed  in 85-95 %")  # fmt: skip
+        for r in results:
+            cells = " ".join(fmt.format(r[key][p]) for p in names)
+            print(f"{r['method']:>6} {r['length_s']:>5g}s {cells}  {r['n_passed']:>2}/{len(names)}"
+                  f"    {r['n_in_band']:>2}/{len(names)}")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
