@@ -86,3 +86,25 @@ def test_guided_proposal_keeps_the_samples_of_a_narrow_posterior():
     assert ess > 500  # from the prior alone: about 4000 x 0.05^2 x 2 pi / 4^2, i.e. 4
     assert np.allclose(z.mean(axis=0), 0.3, atol=0.01)
     assert np.allclose(z.std(axis=0), 0.05, rtol=0.1)
+
+
+@pytest.mark.parametrize("method", ["nle", "nre"])
+def test_sbi_importance_posterior_is_the_prior_and_sums_the_sections(method, tmp_path, monkeypatch):
+    """What the bench relies on in sbi itself: an importance posterior's proposal is the
+    prior, and its potential over k sections is the prior plus the k sections' terms."""
+    monkeypatch.chdir(tmp_path)  # anything sbi writes stays here
+    bench = bench_script("posterior_estimators")
+    rng = np.random.default_rng(0)
+    z = rng.logistic(size=(200, 2))
+    x = np.c_[z, z[:, :1] ** 2] + 0.3 * rng.normal(size=(200, 3))
+    inference, _, _, _ = bench.train_method(method, z, x, 8, 1, seed=0, max_epochs=2)
+    post = inference.build_posterior(sample_with="importance")
+    zz = torch.tensor([[0.1, -0.2], [1.0, 0.5]])
+    assert torch.allclose(post.proposal.log_prob(zz), logistic_prior(2).log_prob(zz))
+    xs = torch.as_tensor(x[:3], dtype=torch.float32)
+    with torch.no_grad():
+        prior = post.proposal.log_prob(zz)
+        whole = post.potential(zz, x=xs) - prior
+        parts = sum(post.potential(zz, x=xs[i : i + 1]) - prior for i in range(3))
+    assert torch.allclose(whole, parts, rtol=1e-4, atol=1e-3)
+    assert not (tmp_path / "sbi-logs").exists()

@@ -163,7 +163,7 @@ class PosteriorEstimator:
         return out
 
 
-class _TrainingLog:
+class TrainingLog:
     """sbi's training tracker kept in memory (its default writes TensorBoard logs into the
     working directory): the last value of each metric, for the log."""
 
@@ -240,7 +240,7 @@ def train(settings: PosteriorSettings, run: str | Path) -> PosteriorEstimator:
             torch.manual_seed(settings.seed + 1000 * m)  # its own initialisation and split
             inference = NPE(
                 prior=prior, density_estimator=builder, show_progress_bars=False,
-                tracker=_TrainingLog(),
+                tracker=TrainingLog(),
             )  # fmt: skip
             with one_thread():
                 inference.append_simulations(theta_t, x_t)
