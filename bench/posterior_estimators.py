@@ -241,8 +241,8 @@ def main() -> None:
     ap.add_argument(
         "--guide",
         default="npe",
-        help="NLE/NRE over several sections: importance proposal 'prior', or 'npe' (half "
-        "prior, half the NPE fusion's Gaussian, widened)",
+        help="NLE/NRE over several sections: importance proposal 'prior', or 'npe' (two "
+        "adaptive rounds started from the NPE fusion's Gaussian, with a share of prior)",
     )
     ap.add_argument("--min-ess", type=float, default=200.0, help="records scored as well sampled")
     ap.add_argument("--hidden", type=int, default=50)
@@ -300,7 +300,7 @@ def main() -> None:
         for k, truth, xs in held:
             t0 = time.perf_counter()
             out, ess = [], []
-            proposal = "prior" if method == "npe" or k == 1 or not guided else "prior+npe-fusion"
+            proposal = "prior" if method == "npe" or k == 1 or not guided else "adaptive-npe"
             for i, xi in enumerate(xs):
                 if method == "npe":
                     d, e = draws_npe(flow, xi, a.samples, read.seed + i)
