@@ -61,7 +61,7 @@ from railsusp.estimate.posterior_check import median_width
 from railsusp.estimate.posterior_data import PosteriorSettings, cached_cases
 from railsusp.estimate.posterior_fusion import (
     from_logit,
-    fused_precision,
+    fused_gaussian,
     fused_samples,
     logistic_prior,
     to_logit,
@@ -117,18 +117,9 @@ def train_method(
     return inference, net, time.perf_counter() - t0, int(inference.summary["epochs_trained"][-1])
 
 
-class _Flow:
-    """The NPE flow as production's estimator sees it (sample_raw, for the fusion)."""
-
-    def __init__(self, settings: PosteriorSettings, net) -> None:
-        self.est = PosteriorEstimator(settings, [net], [], None)
-        self.settings = settings
-
-    def sample_raw(self, x: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
-        return self.est.sample_raw(x, n, seed)
-
-
-def draws_npe(flow: _Flow, x: np.ndarray, n: int, seed: int) -> tuple[np.ndarray, float]:
+def draws_npe(
+    flow: PosteriorEstimator, x: np.ndarray, n: int, seed: int
+) -> tuple[np.ndarray, float]:
     """(n, d) uncorrected draws on the unit box of the sections ``x`` (k, D); ESS nan."""
     if x.shape[0] == 1:
         return flow.sample_raw(x[0], n, seed), float("nan")
@@ -199,14 +190,6 @@ def draws_importance(posterior, x: np.ndarray, n: int, proposal: int, seed: int,
     positions = (rng.random() + np.arange(n)) / n
     idx = np.minimum(np.searchsorted(np.cumsum(w), positions), len(w) - 1)
     return from_logit(z.double().numpy()[idx]), ess
-
-
-def fusion_guide(flow: _Flow, x: np.ndarray, seed: int):
-    """(mean, covariance) in logit coordinates of the NPE fusion of the sections ``x``."""
-    z = to_logit(flow.sample_raw(x, 1000, seed=seed))
-    precision, mean = fused_precision(z)
-    cov = np.linalg.inv(precision)
-    return mean, (cov + cov.T) / 2
 
 
 def score(draws: np.ndarray, truth: np.ndarray, names: list[str]) -> dict:
@@ -294,9 +277,9 @@ def main() -> None:
         print(f"\n{method}: trained in {t_train:.0f} s ({epochs} epochs)")
         if method not in methods:
             continue
-        flow = _Flow(read, net) if method == "npe" else None
+        flow = PosteriorEstimator(read, [net], []) if method == "npe" else None
         posterior = None if method == "npe" else inference.build_posterior(sample_with="importance")
-        npe_flow = _Flow(read, trained["npe"][1]) if guided else None
+        npe_flow = PosteriorEstimator(read, [trained["npe"][1]], []) if guided else None
         for k, truth, xs in held:
             t0 = time.perf_counter()
             out, ess = [], []
@@ -305,7 +288,7 @@ def main() -> None:
                 if method == "npe":
                     d, e = draws_npe(flow, xi, a.samples, read.seed + i)
                 else:
-                    g = fusion_guide(npe_flow, xi, read.seed + i) if k > 1 and guided else None
+                    g = fused_gaussian(npe_flow, xi, read.seed + i) if k > 1 and guided else None
                     d, e = draws_importance(posterior, xi, a.samples, a.proposal, read.seed + i, g)
                 out.append(d)
                 ess.append(e)

@@ -73,10 +73,18 @@ def fused_precision(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return precision, np.linalg.solve(precision, shift)
 
 
+def fused_gaussian(est: SectionSampler, x: np.ndarray, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """(mean (d,), covariance (d, d)) in logit coordinates of the fused posterior of the
+    sections ``x`` (sections, D), from 1000 uncorrected draws per section (module
+    docstring)."""
+    z = to_logit(est.sample_raw(x, 1000, seed=seed))  # (k, S, d)
+    precision, mean = fused_precision(z)
+    cov = np.linalg.inv(precision)
+    return mean, (cov + cov.T) / 2
+
+
 def fused_samples(est: SectionSampler, x: np.ndarray, n: int, rng) -> np.ndarray:
     """(n, d) uncorrected draws (unit box) of the posterior of the sections ``x``
     (sections, D), their informations fused (module docstring)."""
-    z = to_logit(est.sample_raw(x, 1000, seed=int(rng.integers(2**31))))  # (k, S, d)
-    precision, mean = fused_precision(z)
-    cov = np.linalg.inv(precision)
-    return from_logit(rng.multivariate_normal(mean, (cov + cov.T) / 2, size=n))
+    mean, cov = fused_gaussian(est, x, int(rng.integers(2**31)))
+    return from_logit(rng.multivariate_normal(mean, cov, size=n))
