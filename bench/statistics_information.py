@@ -164,10 +164,11 @@ def gain_derivatives(forces, fs: float, speed: float, noise: float, seed: int):
     return out
 
 
-def condition_data(a, cond, ci: int, p: int, u0: np.ndarray, seed: int) -> dict:
-    """Pairs, covariance sections and gain derivatives of one point and condition, the
-    tracks and noise of ``seed``."""
-    folder = Path(a.work) / "simulations"
+def run_design(a, cond, ci: int, p: int, u0: np.ndarray, seed: int) -> dict:
+    """The runs of one point and condition with the tracks and noise of ``seed``: for the
+    pairs and for the covariance sections, the parameter sets ``u`` (fractions), the track
+    seeds, the noise keys of :func:`statistics_of` and the cache name of
+    :func:`simulate_cached` (``tag`` names the point, condition and seed)."""
     npar, k = len(MAIN_SUSPENSION), a.tracks
     base = SEED_BASE + ((seed * 16 + p) * 4 + ci) * 100_000
     # run order: track k, parameter j, sign (+, -): more tracks append chunks
@@ -175,25 +176,44 @@ def condition_data(a, cond, ci: int, p: int, u0: np.ndarray, seed: int) -> dict:
     kk, jj, ss = kk.ravel(), jj.ravel(), ss.ravel()
     u = np.repeat(u0[None], kk.size, axis=0)
     u[np.arange(kk.size), jj] += ss * a.delta
-    seeds = base + kk * npar + jj
     tag = f"s{seed}_p{p}_{cond.name}"
-    design = f"d{a.delta:g}_k{k}_c{a.cov}_n{a.noise:g}_g{a.gain_sections}"
-    cache = Path(a.work) / "statistics" / f"{tag}_{design}_{STATISTICS_VERSION}.npz"
+    cseeds = base + 50_000 + np.arange(a.cov)
+    return {
+        "tag": tag,
+        "pairs": (u, base + kk * npar + jj,
+                  np.stack([np.full(kk.size, p), np.full(kk.size, ci), kk, jj], axis=1),
+                  f"{tag}_d{a.delta:g}_pairs"),
+        "cov": (np.repeat(u0[None], a.cov, axis=0), cseeds,
+                np.stack([np.full(a.cov, p), np.full(a.cov, ci), np.full(a.cov, 999), cseeds],
+                         axis=1),
+                f"{tag}_cov"),
+    }  # fmt: skip
+
+
+def pair_differences(s: np.ndarray, tracks: int, delta: float) -> np.ndarray:
+    """(P, K, ...) Jacobian samples (s+ - s-) / 2 delta of per-run values ``s`` (runs in
+    :func:`run_design`'s order: track, parameter, sign)."""
+    s = s.reshape(tracks, len(MAIN_SUSPENSION), 2, *s.shape[1:])
+    return np.moveaxis((s[:, :, 0] - s[:, :, 1]) / (2 * delta), 0, 1)
+
+
+def condition_data(a, cond, ci: int, p: int, u0: np.ndarray, seed: int) -> dict:
+    """Pairs, covariance sections and gain derivatives of one point and condition, the
+    tracks and noise of ``seed``."""
+    folder = Path(a.work) / "simulations"
+    design = run_design(a, cond, ci, p, u0, seed)
+    cache_design = f"d{a.delta:g}_k{a.tracks}_c{a.cov}_n{a.noise:g}_g{a.gain_sections}"
+    cache = Path(a.work) / "statistics" / f"{design['tag']}_{cache_design}_{STATISTICS_VERSION}.npz"
     if cache.exists():
         with np.load(cache) as z:
             return {part: {g: z[f"{part}_{g}"] for g in GROUPS} for part in ("d", "cov", "gains")}
     fs, speed = 1.0 / cond.sample_interval, cond.speed
-    forces = simulate_cached(cond, u, seeds, folder, f"{tag}_d{a.delta:g}_pairs")
-    keys = np.stack([np.full(kk.size, p), np.full(kk.size, ci), kk, jj], axis=1)
+    u, seeds, keys, name = design["pairs"]
+    forces = simulate_cached(cond, u, seeds, folder, name)
     st = statistics_of(forces, keys, fs, speed, a.noise, seed)
-    d = {}
-    for g, s in st.items():  # (P, K, D): (s+ - s-) / 2 delta
-        s = s.reshape(k, npar, 2, -1)
-        d[g] = np.transpose((s[:, :, 0] - s[:, :, 1]) / (2 * a.delta), (1, 0, 2))
-    cseeds = base + 50_000 + np.arange(a.cov)
-    cu = np.repeat(u0[None], a.cov, axis=0)
-    cforces = simulate_cached(cond, cu, cseeds, folder, f"{tag}_cov")
-    ckeys = np.stack([np.full(a.cov, p), np.full(a.cov, ci), np.full(a.cov, 999), cseeds], axis=1)
+    d = {g: pair_differences(s, a.tracks, a.delta) for g, s in st.items()}
+    cu, cseeds, ckeys, cname = design["cov"]
+    cforces = simulate_cached(cond, cu, cseeds, folder, cname)
     cov = statistics_of(cforces, ckeys, fs, speed, a.noise, seed)
     gains = gain_derivatives(cforces[: a.gain_sections], fs, speed, a.noise, seed)
     out = {"d": d, "cov": cov, "gains": gains}
