@@ -1,5 +1,6 @@
 """Imports flow one way: the pipeline calls the report, the report reads the run directory
-and never imports the pipeline (no pipeline <-> report circle)."""
+and never imports the pipeline (no pipeline <-> report circle); the pipeline imports its
+configuration, which never imports the pipeline."""
 
 import ast
 import subprocess
@@ -34,10 +35,16 @@ def test_importing_the_report_loads_neither_pipeline_nor_api():
     code = (
         "import sys, railsusp.report_html, railsusp.summary; "
         "print(sorted(m for m in sys.modules if m in "
-        "('railsusp.pipeline', 'railsusp.api', 'railsusp.cli')))"
+        "('railsusp.pipeline', 'railsusp.pipeline_config', 'railsusp.api', 'railsusp.cli')))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_the_configuration_does_not_import_the_stages():
+    mods = imported_modules(SRC / "pipeline_config.py")
+    assert not {m for m in mods if m == "railsusp.pipeline" or m.startswith("railsusp.pipeline.")}
+    assert not {m for m in mods if m.startswith(("railsusp.api", "railsusp.cli"))}, mods
 
 
 def test_import_railsusp_stays_light_and_api_loads_on_first_use():

@@ -200,10 +200,11 @@ def run(
 ) -> RunResult:
     """Run the whole method (stages that are up to date are skipped) and open the result.
 
-    ``config``: a pipeline TOML path, a :class:`~railsusp.pipeline.PipelineConfig`, or a
+    ``config``: a pipeline TOML path, a :class:`~railsusp.pipeline_config.PipelineConfig`, or a
     dict of the same sections; ``out``: the run directory (default ``runs/<TOML stem>``).
     """
-    from railsusp.pipeline import PipelineConfig, load_config, run_pipeline
+    from railsusp.pipeline import run_pipeline
+    from railsusp.pipeline_config import PipelineConfig, load_config
 
     if isinstance(config, PipelineConfig):
         cfg = config

@@ -1,8 +1,8 @@
 """Validation of a pipeline configuration, all of it before any stage runs.
 
-The section models of :mod:`railsusp.pipeline` type and range-check every field and refuse
-unknown keys; this module adds what a field-by-field check cannot see, so that a run that
-would fail in its fifth stage fails at once, with a one-line error naming the field:
+The section models of :mod:`railsusp.pipeline_config` type and range-check every field and
+refuse unknown keys; this module adds what a field-by-field check cannot see, so that a run
+that would fail in its fifth stage fails at once, with a one-line error naming the field:
 
 * the file itself: unreadable, a folder, not UTF-8, not TOML, not a table of tables;
 * booleans where numbers are expected (``samples = true`` is a slip, not one sample);
@@ -19,7 +19,7 @@ would fail in its fifth stage fails at once, with a one-line error naming the fi
   not with ``measured``, ``truth``, ``conditions`` or ``refine``) or synthetic ones, a
   readable wagon file, a scheduler address, the training device.
 
-The pipeline's :func:`~railsusp.pipeline.load_config` calls :func:`read_config` and
+The pipeline's :func:`~railsusp.pipeline_config.load_config` calls :func:`read_config` and
 :func:`check_config`; this module imports nothing of the pipeline (the models come in as
 arguments), so imports flow one way.
 """
@@ -123,7 +123,7 @@ def _takes_bool(annotation: Any) -> bool:
 
 
 def check_config(cfg: Any, where: str = "configuration") -> None:
-    """Check a validated :class:`~railsusp.pipeline.PipelineConfig` as a whole; raise
+    """Check a validated :class:`~railsusp.pipeline_config.PipelineConfig` as a whole; raise
     :class:`ConfigError` (one line, naming the field) at the first thing that would make a
     stage fail."""
     from railsusp.params import ParameterSet, spec

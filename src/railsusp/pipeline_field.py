@@ -3,8 +3,8 @@
 Three sources, as ``[field]`` says: a long run cut into sections (``recording``, through
 :mod:`railsusp.measured.cut`, the same cut as ``railsusp sections``), a copy of a measured
 field folder (``measured``), or synthetic recordings of a hidden truth (``truth``). The
-configuration comes in as an argument (a :class:`~railsusp.pipeline.PipelineConfig`); this
-module does not import the pipeline, so imports flow one way.
+configuration comes in as an argument (a :class:`~railsusp.pipeline_config.PipelineConfig`);
+this module imports neither the pipeline nor its configuration, so imports flow one way.
 """
 
 from __future__ import annotations

@@ -104,7 +104,7 @@ def run(
 ) -> None:
     """The whole method: campaign, sensitivity, surrogates, field data, estimation,
     validation, report; up-to-date stages are skipped."""
-    from railsusp.pipeline import load_config
+    from railsusp.pipeline_config import load_config
 
     try:
         cfg = load_config(config)
@@ -121,7 +121,7 @@ def demo(
 ) -> None:
     """The main job on the embedded default (examples/quick.toml): a degraded C80 wagon's
     synthetic recordings, calibrated end to end, with an HTML report (a few minutes)."""
-    from railsusp.pipeline import demo_config
+    from railsusp.pipeline_config import demo_config
 
     console.rule("railsusp demo: C80 wagon on K6 bogies, hidden degraded parameters")
     try:

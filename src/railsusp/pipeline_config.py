@@ -1,0 +1,270 @@
+"""The pipeline's configuration: the sections of a run's TOML as pydantic models, reading
+and validating a file (:func:`load_config`), and the embedded demo (:func:`demo_config`).
+
+Each section model types and range-checks its fields and refuses unknown keys;
+:mod:`railsusp.config` adds the checks of the configuration as a whole. The stages that run
+it are in :mod:`railsusp.pipeline`, which imports this module and re-exports
+:class:`PipelineConfig`, :func:`load_config` and :func:`demo_config`; this module imports
+nothing of the pipeline, so imports flow one way and a configuration can be read without
+loading the stages.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+)
+
+from railsusp.conditions import WorkingCondition, get_condition, make_condition
+from railsusp.errors import RailsuspInputError
+from railsusp.estimate.config import NSGA_RANGES, REFINE_RANGES, SEEDS_RANGE
+from railsusp.params import MAIN_SUSPENSION
+
+_NSGA, _REF = NSGA_RANGES, REFINE_RANGES
+
+
+class _Cfg(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class CampaignSection(_Cfg):
+    samples: int = Field(64, ge=4, description="LHS samples")
+    design: Literal["lhs", "lhs-optimised"] = "lhs"
+    seed: int = Field(0, ge=0)
+    batch_size: int = Field(32, ge=1)
+    parameters: tuple[str, ...] = MAIN_SUSPENSION
+
+
+class SensitivitySection(_Cfg):
+    threshold: float = Field(0.05, gt=0.0, lt=1.0, description="ST threshold of the key rule")
+    max_keys: int = Field(6, ge=1, le=10)
+    statistics: tuple[str, ...] = ("mean", "p99")
+    base_samples: int = Field(512, ge=64)
+
+
+class SurrogateSection(_Cfg):
+    """The surrogates and their training data.
+
+    With ``samples > 0`` (the default) the surrogates train on a second campaign that samples
+    only the key parameters (others nominal), as the estimator uses them; with ``samples = 0``
+    they train on the sensitivity campaign, where the other parameters vary unseen and limit
+    their accuracy (bench/README.md, surrogate.py).
+    """
+
+    model: Literal["cnn-gru", "cnn-gru-seq", "cnn-lstm", "cnn-bilstm", "bp", "gp-stats"] = Field(
+        "bp", description="force model of the calibration (gp-stats: statistics GPs)"
+    )
+    samples: int = Field(
+        128,
+        ge=0,
+        description="LHS samples of the key parameters for the surrogates' own campaign "
+        "(0: train on the sensitivity campaign)",
+    )
+    seed: int = Field(1, ge=0, description="design seed of that campaign")
+    epochs: int = Field(8, ge=1)
+    fine_tune_epochs: int = Field(
+        0, ge=0, description="then epochs at a tenth of the learning rate, from the best state"
+    )
+    batches_per_epoch: int = Field(60, ge=1)
+    batch_size: int = Field(512, ge=8)
+    device: str = "cpu"
+    pretrained: str | None = Field(
+        None,
+        description="a network set trained on many tracks (a name shipped with railsusp, "
+        "e.g. 'c80_k6', or a folder with networks.json) instead of training here; the "
+        "training settings above are then not used",
+    )
+
+    @field_validator("samples")
+    @classmethod
+    def _samples(cls, v: int) -> int:
+        if 0 < v < 8:
+            raise ValueError(
+                "0 (train on the sensitivity campaign) or at least 8 samples, to split "
+                "them into train, validation and test runs"
+            )
+        return v
+
+
+class FieldSection(_Cfg):
+    """Measured recordings: a folder (``measured``), a long run cut into sections here
+    (``recording``), or synthetic ones from ``truth``."""
+
+    measured: str | None = Field(None, description="folder with index.json of recordings")
+    recording: str | None = Field(
+        None, description="long run (.mf4, .csv, .parquet) cut into sections by the field stage"
+    )
+    channel_map: str | None = Field(None, description="channel map TOML of the recording")
+    line: str | None = Field(None, description="line description CSV to cut the recording by")
+    sections: str | None = Field(None, description="section table CSV (start_m, end_m[, name])")
+    speed_tolerance: float = Field(
+        0.10, ge=0.0, le=1.0, description="largest (max - min) / mean speed in a section"
+    )
+    min_length_m: float = Field(150.0, ge=1.0, le=100_000.0, description="shortest section")
+    max_duration_s: float = Field(120.0, ge=1.0, le=600.0, description="longer ones are split")
+    rate_hz: float = Field(50.0, ge=10.0, le=5000.0, description="rate of the section records")
+    truth: dict[str, float] = Field(
+        default_factory=dict, description="hidden true parameters, display units"
+    )
+    seed: int = Field(7, ge=0, le=2**63 - 1)
+    noise: float = Field(0.03, ge=0.0, le=0.5)
+    with_track: bool = Field(
+        False, description="synthetic recordings also carry their measured track geometry"
+    )
+    track_noise_mm: float = Field(0.0, ge=0.0, le=10.0, description="RMS error of that track")
+
+
+class EstimateSection(_Cfg):
+    # the ranges of the estimate's own settings (one source: railsusp.estimate.config)
+    pop_size: int = Field(50, ge=_NSGA["pop_size"][0], le=_NSGA["pop_size"][1])
+    n_gen: int = Field(100, ge=_NSGA["n_gen"][0], le=_NSGA["n_gen"][1])
+    crossover_prob: float = Field(0.9, ge=0.0, le=1.0)
+    mutation_prob: float = Field(0.05, ge=0.0, le=1.0)
+    statistic: str = Field(
+        "mean", description="mean, rms, p99, std, p99.85 (EN 14363) or a '+' combination"
+    )
+    per_condition: bool = Field(False, description="two objectives per condition")
+    weighting: Literal["relative", "noise"] = Field(
+        "relative", description="relative errors, or in units of the gp-stats predictive SD"
+    )
+    seeds: int = Field(1, ge=SEEDS_RANGE[0], le=SEEDS_RANGE[1])
+    seed: int = Field(0, ge=_NSGA["seed"][0], le=_NSGA["seed"][1])
+    refine: bool = Field(
+        False,
+        description="refine by output-error least squares with the simulator on the "
+        "recordings' measured track (needs recordings with track geometry)",
+    )
+    refine_evaluations: int = Field(
+        40, ge=_REF["max_evaluations"][0], le=_REF["max_evaluations"][1]
+    )
+    refine_screen: int = Field(
+        64, ge=_REF["screen"][0], le=_REF["screen"][1], description="LHS points screened for starts"
+    )
+    refine_starts: int = Field(
+        2, ge=_REF["starts"][0], le=_REF["starts"][1], description="best screened starts refined"
+    )
+    geometry_draws: int = Field(
+        8,
+        ge=_REF["geometry_draws"][0],
+        le=_REF["geometry_draws"][1],
+        description="draws of the recordings' stated track-geometry error propagated into "
+        "the refined estimate's standard errors",
+    )
+    remove_geometry_bias: bool = Field(
+        True,
+        description="take the geometry-error bias that the draws estimate (first SIMEX "
+        "step) off the refined estimate",
+    )
+    held_prior: dict[str, Any] = Field(
+        default_factory=dict,
+        description="{symbol: [low, high]} display units: the range each main-suspension "
+        "parameter the refinement holds at nominal is known to lie in (docs/configuration.md)",
+    )
+
+    @field_validator("statistic")
+    @classmethod
+    def _statistic(cls, v: str) -> str:
+        from railsusp.estimate import parse_statistics
+
+        return "+".join(parse_statistics(v))
+
+
+class PipelineConfig(_Cfg):
+    """The whole configuration of a run (examples/quick.toml, examples/study.toml)."""
+
+    name: str = "railsusp run"
+    wagon: str | None = Field(None, description="wagon data TOML (default: C80/K6)")
+    conditions: tuple[str | dict[str, Any], ...] = ("straight", "curve", "uphill")
+    campaign: CampaignSection = CampaignSection()
+    sensitivity: SensitivitySection = SensitivitySection()
+    surrogate: SurrogateSection = SurrogateSection()
+    field: FieldSection = FieldSection()
+    estimate: EstimateSection = EstimateSection()
+    scheduler: str | None = Field(None, description="Dask scheduler tcp://host:port")
+
+    def run_source(self) -> Any:
+        """The long run of ``[field] recording`` and how to cut it
+        (:class:`~railsusp.measured.cut.RunSource`), or None."""
+        from railsusp.pipeline_field import run_source
+
+        return run_source(self.field)
+
+    def working_conditions(self) -> list[WorkingCondition]:
+        """The conditions of the run: those given, or with ``[field] recording`` the kept
+        sections' conditions of the recording (:mod:`railsusp.measured.cut`)."""
+        source = self.run_source()
+        if source is not None:
+            from railsusp.measured.cut import section_conditions
+
+            return section_conditions(source)
+        out = []
+        for c in self.conditions:
+            if isinstance(c, str):
+                out.append(get_condition(c))
+            else:
+                fields = dict(c)
+                base = fields.pop("base", None)
+                start = get_condition(base).model_dump() if base else {}
+                out.append(make_condition({**start, **fields}))
+        return out
+
+
+def load_config(path: str | Path) -> PipelineConfig:
+    """Read and validate a pipeline TOML; errors name the field (one line)."""
+    from railsusp.config import check_config, read_config, validation_message
+
+    path = Path(path)
+    try:
+        cfg = PipelineConfig(**read_config(path, PipelineConfig))
+    except ValidationError as exc:
+        raise RailsuspInputError(validation_message(path, exc)) from None
+    cfg = _beside(cfg, path.parent)
+    check_config(cfg, str(path))
+    return cfg
+
+
+#: ``[field]`` files of a long run, named relative to the configuration file's folder
+RUN_FILES = ("recording", "channel_map", "line", "sections")
+
+
+def _beside(cfg: PipelineConfig, folder: Path) -> PipelineConfig:
+    """``cfg`` with the long run's relative file names resolved against ``folder`` (the
+    configuration file's), so that a configuration travels with its recording."""
+    update = {
+        k: str(folder / v)
+        for k in RUN_FILES
+        if (v := getattr(cfg.field, k)) is not None and not Path(v).is_absolute()
+    }
+    if not update:
+        return cfg
+    return cfg.model_copy(update={"field": cfg.field.model_copy(update=update)})
+
+
+#: the hidden truth of the demo: a degraded wagon (display units)
+DEMO_TRUTH = {
+    "X11": 1.3,
+    "X13": 16.1,
+    "X14": 8.3,
+    "X15": 164.0,
+    "X16": 1.7,
+    "X17": 1.91,
+    "X18": 51.3,
+}
+
+
+def demo_config() -> PipelineConfig:
+    """The embedded default (identical to examples/quick.toml, checked by a test)."""
+    return PipelineConfig(
+        name="quick demo: C80/K6, synthetic field data of a degraded wagon",
+        # the study's CNN-GRU trained on many tracks, shipped: nothing trained in the demo
+        surrogate=SurrogateSection(model="cnn-gru-seq", pretrained="c80_k6"),
+        field=FieldSection(truth=DEMO_TRUTH, with_track=True),
+        estimate=EstimateSection(refine=True),
+    )
