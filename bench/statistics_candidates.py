@@ -8,7 +8,8 @@ them:
 - ``third_octave``: log10 RMS of Y and Q in 18 third-octave bands (``third-octave``);
 - ``both_wheels``: the partner wheel's own 17, and the sum of Y and difference of Q
   (``wheelset``);
-- ``cross``: coherencies and lagged correlations (``coherence``).
+- ``cross``: coherencies and lagged correlations (``coherence``);
+- ``spectra``: the four channels' cross-spectral matrix in 1 Hz bands (``cross-spectra``).
 """
 
 from __future__ import annotations
@@ -21,8 +22,10 @@ from railsusp.estimate.statistic_families import family_names, family_statistics
 CHANNELS = ("Y", "Q", "Y_partner", "Q_partner")
 #: the bench's groups and the posterior's families they are
 FAMILY_OF = {"today": "en14363", "third_octave": "third-octave", "both_wheels": "wheelset",
-             "cross": "coherence"}  # fmt: skip
+             "cross": "coherence", "spectra": "cross-spectra"}  # fmt: skip
 GROUPS = tuple(FAMILY_OF)
+#: the groups of the first measurement (stop 24), the sets "all groups" of its tables
+FIRST_GROUPS = ("today", "third_octave", "both_wheels", "cross")
 
 
 def group_names(group: str) -> list[str]:

@@ -61,7 +61,7 @@ from railsusp.estimate.posterior_data import BANDWIDTH_HZ, GAIN_ERROR, to_si
 from railsusp.measured.synthetic import bandwidth_filter
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import atomic_write_bytes
-from statistics_candidates import GROUPS, group_names, section_statistics
+from statistics_candidates import FIRST_GROUPS, GROUPS, group_names, section_statistics
 
 KEYS = ("X18", "X13", "X11", "X14", "X19")
 #: candidate statistic sets: (label, groups of statistics_candidates, conditions)
@@ -71,8 +71,11 @@ SETS: tuple[tuple[str, tuple[str, ...], tuple[str, ...]], ...] = (
     ("c + both wheels", ("today", "both_wheels"), ("straight", "curve")),
     ("d + cross", ("today", "cross"), ("straight", "curve")),
     ("e today's, + uphill", ("today",), ("straight", "curve", "uphill")),
-    ("f all groups", GROUPS, ("straight", "curve")),
-    ("g all groups, + uphill", GROUPS, ("straight", "curve", "uphill")),
+    ("f all groups", FIRST_GROUPS, ("straight", "curve")),
+    ("g all groups, + uphill", FIRST_GROUPS, ("straight", "curve", "uphill")),
+    ("h today's + cross-spectra", ("today", "spectra"), ("straight", "curve")),
+    ("i f + cross-spectra", GROUPS, ("straight", "curve")),
+    ("j g + cross-spectra", GROUPS, ("straight", "curve", "uphill")),
 )
 #: track seeds of this bench start here (the posterior's kinds use 10-60 million)
 SEED_BASE = 70_000_000
@@ -80,7 +83,7 @@ CHUNK = 64
 #: the information estimates of :func:`condition_information`
 ESTIMATES = ("unbiased", "split", "naive", "null_unbiased", "null_naive")
 #: the statistics' version in the names of their cache files (change it with the statistics)
-STATISTICS_VERSION = "v1"
+STATISTICS_VERSION = "v2"
 #: relative gain step of the statistics' gain derivative
 GAIN_STEP = 0.01
 

@@ -109,4 +109,4 @@ def test_section_statistics_have_their_names_and_today_is_the_posteriors(cand):
         assert v.shape == (len(cand.group_names(g)),) and np.all(np.isfinite(v))
     assert np.array_equal(st["today"], section_summary(sig[0], sig[1], fs, speed))
     with pytest.raises(ValueError, match="accepted today"):
-        cand.group_names("spectra")
+        cand.group_names("cross-spectra")

@@ -484,7 +484,7 @@ def test_cli_estimate_prints_the_table(trained, tmp_path):
         (["train", "--product-sections", "2", "--product-cases", "5"], "--product-cases 5: acc"),
         (["train", "--product-cases", "many"], "--product-cases many: accepted whole numbers"),
         (["train", "--conditions", "nowhere"], "nowhere"),
-        (["train", "--statistics", "spectra"], "--statistics spectra: accepted 'all' or"),
+        (["train", "--statistics", "spectra"], "--statistics spectra: accepted 'all' (en14363"),
         (["train", "--projection-rank", "0"], "--projection-rank 0: accepted 1 to 1000"),
         (["train", "--statistics", "wheelset", "--sum-y"], "--sum-y true conflicts with the st"),
         (["train", "--lead-in", "-5"], "--lead-in -5"),

@@ -65,6 +65,40 @@ def test_coherency_of_identical_and_delayed_signals():
     assert np.abs(sf.band_coherency(x, rng.standard_normal(1000), FS)).max() < 0.4
 
 
+def test_cross_spectra_of_a_sway_shared_by_four_channels_and_of_independent_noise():
+    """Four channels that are multiples of one sine at 3.4 Hz (the partner's lateral
+    force the opposite sign, Q delayed): in the sine's band each channel's RMS is its
+    amplitude / sqrt 2, every pair's coherency has magnitude 1 and the phase of the
+    channels' delay; the statistics are one to one with the band's Hermitian matrix (16
+    per band, 15 bands); independent noises have small coherencies everywhere."""
+    t = np.arange(1000) / FS
+    tau = 0.03
+    s = np.sin(2 * np.pi * 3.4 * t)
+    late = np.sin(2 * np.pi * 3.4 * (t - tau))
+    amps = np.array([2.0, 5.0, 2.0, 5.0])
+    x = np.stack([2 * s + 5, 5 * late + 100, -2 * s - 4, 5 * late + 96])
+    out = sf.band_cross_spectra(x, FS)
+    names = sf.family_names("cross-spectra")
+    assert out.shape == (len(names),) == (15 * 16,) and len(set(names)) == len(names)
+    k = next(i for i, (lo, hi) in enumerate(sf.SPECTRAL_BANDS_HZ) if lo <= 3.4 < hi)
+    band = out[16 * k : 16 * (k + 1)]
+    assert names[16 * k] == "Y_xs_3-4Hz" and names[16 * k + 4] == "xcohYQ_re_3-4Hz"
+    assert 10 ** band[:4] == pytest.approx(amps / np.sqrt(2), rel=0.03)
+    coh = band[4:10] + 1j * band[10:]
+    assert np.abs(coh) == pytest.approx(np.ones(6), abs=1e-3)
+    # pairs Y-Q, Y-Yp, Y-Qp, Q-Yp, Q-Qp, Yp-Qp: phase of the second on the first
+    lag = -2 * np.pi * 3.4 * tau
+    want = np.array([lag, np.pi, lag, np.pi - lag, 0.0, lag - np.pi])
+    assert np.angle(coh * np.exp(-1j * want)) == pytest.approx(np.zeros(6), abs=0.03)
+    # the other bands hold next to nothing (the sine's leakage, the floor)
+    others = np.delete(out.reshape(15, 16)[:, :4], k, axis=0)
+    assert np.all(10**others < 0.05 * amps / np.sqrt(2))
+    rng = np.random.default_rng(8)
+    noise = sf.band_cross_spectra(rng.standard_normal((4, 1000)), FS).reshape(15, 16)
+    assert np.abs(noise[:, 4:]).max() < 0.6
+    assert np.abs(noise[1:, 4:]).mean() < 0.15
+
+
 def test_lagged_correlation_of_a_sine():
     t = np.arange(2000) / FS
     x = np.sin(2 * np.pi * 2.5 * t)  # a period of 20 samples
@@ -74,13 +108,18 @@ def test_lagged_correlation_of_a_sine():
 
 def test_families_parse_in_order_with_the_en14363_summary_always_first():
     assert sf.parse_families("coherence,wheelset") == ("en14363", "wheelset", "coherence")
-    assert sf.parse_families("all") == sf.FAMILIES
+    assert sf.parse_families("all") == sf.ALL_FAMILIES == sf.FAMILIES[:4]
+    assert sf.parse_families("all,cross-spectra") == sf.FAMILIES
     assert sf.parse_families(("en14363",)) == ("en14363",)
-    with pytest.raises(RailsuspInputError, match=r"statistics = spectra: accepted 'all' or"):
+    with pytest.raises(
+        RailsuspInputError,
+        match=r"statistics = spectra: accepted 'all' \(en14363, third-octave, wheelset, "
+        r"coherence\) or a comma-separated choice of .*, cross-spectra$",
+    ):
         sf.parse_families("spectra")
     with pytest.raises(RailsuspInputError, match=r"statistics = \(none\)"):
         sf.parse_families("")
-    assert sf.parse_families("all,en14363") == sf.FAMILIES
+    assert sf.parse_families("all,en14363") == sf.ALL_FAMILIES
     for bad in (None, 5, ("wheelset", 1)):
         with pytest.raises(RailsuspInputError, match="statistics = .*: accepted 'all'"):
             sf.parse_families(bad)
@@ -90,7 +129,7 @@ def test_every_family_has_its_names_and_the_first_is_the_en14363_summary():
     Y, Q, Yp, Qp = _wheelset()
     x = sf.section_statistics(sf.FAMILIES, Y, Q, FS, SPEED, Yp, Qp)
     names = sf.statistic_names(sf.FAMILIES)
-    assert x.shape == (len(names),) == (17 + 36 + 31 + 51,) and np.all(np.isfinite(x))
+    assert x.shape == (len(names),) == (17 + 36 + 31 + 51 + 240,) and np.all(np.isfinite(x))
     assert len(set(names)) == len(names)
     assert np.array_equal(x[:17], section_summary(Y, Q, FS, SPEED))
     wheelset = sf.family_statistics("wheelset", Y, Q, FS, SPEED, Yp, Qp)
@@ -145,7 +184,8 @@ def test_the_gain_model_matches_finite_differences(wheels):
     opposite-sign levels where the sum is far smaller than either (half the sum per wheel,
     the model before: 0.5 kN against 5) and on wheels that sway about zero, where the
     wheels' medians alone (this model's first form) gave -0.03 against 4.7."""
-    got, want = np.zeros((4, 135)), np.zeros((4, 135))
+    size = len(sf.statistic_names(sf.FAMILIES))
+    got, want = np.zeros((4, size)), np.zeros((4, size))
     for seed in range(40):
         chans = wheels(seed)
         for c in range(4):
@@ -186,7 +226,7 @@ def test_gain_covariance_of_the_families_leaves_the_coherencies_out():
     mean = sf.section_statistics(sf.FAMILIES, Y, Q, FS, SPEED, Yp, Qp)
     g = gain_covariance(names, 0.01)(mean)[0]
     coh = [i for i, n in enumerate(names) if "coh" in n or "corr" in n]
-    assert len(coh) == 51 and np.all(g[coh] == 0.0) and np.all(g[:, coh] == 0.0)
+    assert len(coh) == 51 + 180 and np.all(g[coh] == 0.0) and np.all(g[:, coh] == 0.0)
     i = names.index("straight:dQ_p50")
     q, dq = mean[names.index("straight:Q_p50")], mean[i]
     assert g[i, i] == pytest.approx(1e-4 * (q**2 + (q - dq) ** 2))  # the partner's: Q - dQ

@@ -46,7 +46,7 @@ def synth_field(
         bool,
         typer.Option(
             help="record both wheels of the instrumented wheelset (the measured wheel, then "
-            "its partner), for the posterior's wheelset and coherence statistics"
+            "its partner), for the posterior's wheelset, coherence and cross-spectra statistics"
         ),
     ] = False,
 ) -> None:

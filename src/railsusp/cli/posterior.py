@@ -133,9 +133,9 @@ def train_command(
     statistics: Annotated[
         str,
         typer.Option(
-            help="families of statistics, comma-separated or 'all': en14363 (always), "
-            "third-octave, wheelset, coherence (the last two need both wheels of the "
-            "instrumented wheelset recorded)"
+            help="families of statistics, comma-separated or 'all' (the first four): en14363 "
+            "(always), third-octave, wheelset, coherence, cross-spectra (the last three need "
+            "both wheels of the instrumented wheelset recorded)"
         ),
     ] = "en14363",
     projection_rank: Annotated[

@@ -18,13 +18,19 @@ wagon at ``speed_ms``):
 - ``coherence``: band coherency (real and imaginary parts of the band-integrated cross
   spectrum over the geometric mean of the two band powers: magnitude and phase without a
   wrap) of Y with Q on the measured wheel, of the two wheels' Y and of their Q, in six
-  bands; lagged auto-correlations of Y and Q and cross-correlations of Y with Q.
+  bands; lagged auto-correlations of Y and Q and cross-correlations of Y with Q;
+- ``cross-spectra``: the four channels' whole cross-spectral matrix in 1 Hz bands from
+  0.2 to 15 Hz (:data:`SPECTRAL_BANDS_HZ`): per band the log10 RMS of each channel and the
+  coherency of each of the six pairs (16 numbers, one to one with the band's Hermitian
+  4 x 4 matrix).
 
 Why these (bench/statistics_information.py, measured from common-random-number
 simulations at 600 s per condition, all ten parameters unknown): the Cramer-Rao 90 % width
 of X13 falls from 17.7 % of range with the EN 14363 17 to 7.5 % with all four families,
-X11 from 33 to 13 %, X14 from 39 to 13 %. None depends on where along the track a section
-was taken, so a recording on unmeasured track has them.
+X11 from 33 to 13 %, X14 from 39 to 13 %; bench/spectral_information.py measures what
+the means and the whole cross-spectral matrix of the four channels carry, which
+``cross-spectra`` reads in 1 Hz bands. None depends on where along the track a section was
+taken, so a recording on unmeasured track has them.
 
 Names are ``CHANNEL_KIND``: the channel says which instrument gains the statistic depends
 on (:func:`gain_dependence`); coherencies and correlations depend on none.
@@ -47,9 +53,14 @@ from railsusp.estimate.summaries import (
 )
 
 #: the families, in the order their statistics follow one another
-FAMILIES = ("en14363", "third-octave", "wheelset", "coherence")
+FAMILIES = ("en14363", "third-octave", "wheelset", "coherence", "cross-spectra")
+#: what ``all`` selects: the families whose posterior bench/README.md has checked
+#: ("Richer statistics in the posterior"); ``cross-spectra`` (its information measured by
+#: bench/spectral_information.py and statistics_information.py, a posterior on it not yet
+#: checked, and 480 more statistics for the synthetic likelihood's covariance) only by name
+ALL_FAMILIES = ("en14363", "third-octave", "wheelset", "coherence")
 #: the families that need the partner wheel's channels
-PARTNER_FAMILIES = ("wheelset", "coherence")
+PARTNER_FAMILIES = ("wheelset", "coherence", "cross-spectra")
 #: third-octave bands from 0.3 Hz, Hz (18 of them, to 19.2 Hz)
 THIRD_OCTAVE_HZ: tuple[tuple[float, float], ...] = tuple(
     (0.3 * 2 ** (k / 3), 0.3 * 2 ** ((k + 1) / 3)) for k in range(18)
@@ -58,6 +69,16 @@ THIRD_OCTAVE_HZ: tuple[tuple[float, float], ...] = tuple(
 CROSS_BANDS_HZ: tuple[tuple[float, float], ...] = (
     (0.3, 0.8), (0.8, 1.5), (1.5, 3.0), (3.0, 5.0), (5.0, 8.0), (8.0, 15.0)
 )  # fmt: skip
+#: bands of the cross-spectral matrix (``cross-spectra``), Hz: 0.2-1, then 1 Hz wide to 15
+SPECTRAL_BANDS_HZ: tuple[tuple[float, float], ...] = (
+    (0.2, 1.0),
+    *((float(k), float(k + 1)) for k in range(1, 15)),
+)
+#: the channels of the cross-spectral matrix and its pairs, in the order of the statistics
+SPECTRAL_CHANNELS = ("Y", "Q", "Yp", "Qp")
+SPECTRAL_PAIRS = tuple(
+    (a, b) for i, a in enumerate(SPECTRAL_CHANNELS) for b in SPECTRAL_CHANNELS[i + 1 :]
+)
 #: lags of the auto-correlations of Y and Q, s
 AUTO_LAGS_S = (0.04, 0.1, 0.2, 0.5, 1.0)
 #: lags of the cross-correlation of Y with Q (Q later than Y for a positive lag), s
@@ -66,8 +87,8 @@ CROSS_LAGS_S = (-0.5, -0.1, 0.0, 0.1, 0.5)
 
 def parse_families(text) -> tuple[str, ...]:
     """The families of ``text`` (a comma-separated string or a sequence of names; ``all``
-    for every family) in :data:`FAMILIES` order, ``en14363`` always included; a one-line
-    error naming the accepted ones."""
+    for :data:`ALL_FAMILIES`) in :data:`FAMILIES` order, ``en14363`` always included; a
+    one-line error naming the accepted ones."""
     if isinstance(text, str):
         items = text.split(",")
     elif isinstance(text, (tuple, list)) and all(isinstance(t, str) for t in text):
@@ -76,12 +97,12 @@ def parse_families(text) -> tuple[str, ...]:
         items = [repr(text)]
     items = [t.strip() for t in items if t.strip()]
     if "all" in items:
-        items = [t for t in items if t != "all"] + list(FAMILIES)
+        items = [t for t in items if t != "all"] + list(ALL_FAMILIES)
     wrong = [t for t in items if t not in FAMILIES]
     if wrong or not items:
         raise RailsuspInputError(
-            f"statistics = {','.join(items) or '(none)'}: accepted 'all' or a comma-separated "
-            f"choice of {', '.join(FAMILIES)}"
+            f"statistics = {','.join(items) or '(none)'}: accepted 'all' "
+            f"({', '.join(ALL_FAMILIES)}) or a comma-separated choice of {', '.join(FAMILIES)}"
         )
     return tuple(f for f in FAMILIES if f in items or f == "en14363")
 
@@ -118,6 +139,13 @@ def family_names(family: str, sum_y: bool = False) -> list[str]:
         ]
         auto = [f"acorr{c}_{lag:g}s" for c in "YQ" for lag in AUTO_LAGS_S]
         return coh + auto + [f"xcorrYQ_{lag:g}s" for lag in CROSS_LAGS_S]
+    if family == "cross-spectra":
+        out = []
+        for lo, hi in SPECTRAL_BANDS_HZ:
+            out += [f"{c}_xs_{lo:g}-{hi:g}Hz" for c in SPECTRAL_CHANNELS]
+            out += [f"xcoh{a}{b}_{part}_{lo:g}-{hi:g}Hz"
+                    for part in ("re", "im") for a, b in SPECTRAL_PAIRS]  # fmt: skip
+        return out
     raise RailsuspInputError(f"statistics family {family!r}: accepted {', '.join(FAMILIES)}")
 
 
@@ -163,6 +191,33 @@ def band_coherency(x: np.ndarray, y: np.ndarray, fs: float, bands=CROSS_BANDS_HZ
         if sel.any() and den > 0:
             out[i] = np.sum(sxy[sel]) / den
     return np.concatenate([out.real, out.imag])
+
+
+def band_cross_spectra(channels: np.ndarray, fs: float, bands=SPECTRAL_BANDS_HZ) -> np.ndarray:
+    """The cross-spectral matrix of ``channels`` (C, T), band by band: per band the log10
+    RMS of each channel (de-meaned, floored at :data:`BAND_FLOOR_KN`), then the coherency
+    of each pair i < j (the band's cross spectrum conj(X_i) X_j summed over the band over
+    the geometric mean of the two band powers), real parts then imaginary parts. Welch
+    estimates, Hann segments of a quarter of the record overlapping by half (a 20 s
+    section: 0.2 Hz lines, seven segments; half-overlapping segments keep nearly all of
+    the section's information, where one tapered periodogram keeps about half of it:
+    tests/test_bench_spectral_information.py). The log RMS moves with its channel's gain
+    by gain / ln 10; the coherencies do not depend on the gains."""
+    x = np.asarray(channels, dtype=float)
+    nper = int(min(x.shape[1], max(32, x.shape[1] // 4)))
+    f, sxy = csd(x[:, None, :], x[None, :, :], fs=fs, nperseg=nper, detrend="constant")
+    df = f[1] - f[0]
+    iu = np.triu_indices(len(x), 1)
+    out = []
+    for lo, hi in bands:
+        sel = (f >= lo) & (f < min(hi, 0.45 * fs))
+        band = np.sum(sxy[:, :, sel], axis=-1)
+        power = np.real(np.diagonal(band)).copy()
+        rms = np.sqrt(np.maximum(power, 0.0) * df)
+        den = np.sqrt(np.outer(power, power))[iu]
+        coh = np.where(den > 0, band[iu] / np.where(den > 0, den, 1.0), 0.0)
+        out.append(np.concatenate([np.log10(np.maximum(rms, BAND_FLOOR_KN)), coh.real, coh.imag]))
+    return np.concatenate(out)
 
 
 def lagged_correlation(x: np.ndarray, y: np.ndarray, fs: float, lags_s) -> np.ndarray:
@@ -221,6 +276,8 @@ def family_statistics(
         parts += [lagged_correlation(c, c, fs, AUTO_LAGS_S) for c in (Y, Q)]
         parts.append(lagged_correlation(Y, Q, fs, CROSS_LAGS_S))
         return np.concatenate(parts)
+    if family == "cross-spectra":
+        return band_cross_spectra(np.stack([Y, Q, Yp, Qp]), fs)
     raise RailsuspInputError(f"statistics family {family!r}: accepted {', '.join(FAMILIES)}")
 
 
@@ -283,9 +340,9 @@ def gain_dependence(name: str) -> list[GainTerm]:
     - coherencies and correlations do not depend on the gains.
     """
     channel, kind = name.split("_", 1)
-    if channel.startswith(("coh", "acorr", "xcorr")):
+    if channel.startswith(("coh", "xcoh", "acorr", "xcorr")):
         return []
-    log_kind = kind.startswith(("band", "3oct"))
+    log_kind = kind.startswith(("band", "3oct", "xs_"))
     if channel in ("sumY", "dQ"):
         own, partner, sign = ("Y", "Yp", 1.0) if channel == "sumY" else ("Q", "Qp", -1.0)
         if log_kind:

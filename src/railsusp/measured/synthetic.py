@@ -119,7 +119,8 @@ def synthesise_field(
 
     ``wheelset``: both wheels of the instrumented wheelset are recorded (the measured wheel
     first, then its partner), as an instrumented wheelset measures them; the posterior's
-    wheelset and coherence statistics need the partner. Default: the measured wheel only.
+    wheelset, coherence and cross-spectra statistics need the partner. Default: the
+    measured wheel only.
     """
     from railsusp.vehicle.setup import section_irregularities
     from railsusp.vehicle.simulate import simulate
