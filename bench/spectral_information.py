@@ -18,9 +18,13 @@ with S(f) the (channels x channels) cross-spectral density matrix and m the chan
 (C_m their covariance over the record). Every periodogram ordinate of the record (one per
 1/T Hz) is a complex Gaussian vector of covariance S, independent of the others; the
 integral is their information summed. Here it is read in bands of ``--bandwidths`` Hz
-(``B T`` ordinates each, S and its derivatives the band averages; a coarser band is a
-coarser reading and can only carry less, so the figures grow towards the integral as the
-band narrows; the table shows how far they have come). What lies beyond a Gaussian
+(``B T`` ordinates each, S and its derivatives the band averages, which the Welch segments
+of ``--segment`` s already smooth). This is an approximation of the integral, neither a
+bound nor monotone in the band width: averaging S and dS over a band can overstate the
+information about a resonance's damping and understate that about its frequency. The
+table shows how much the figures move with the band. The ``sections`` reading
+(:func:`condition_information`) is a statistic, so a coarser band there can only carry
+less. What lies beyond a Gaussian
 process's second-order structure (the forces' skewness and peaks, which EN 14363's
 percentiles read) is not in it: for the linearised wagon it is the whole information, for
 the real one (flange contact, friction wedges) it is a measurement of the information in
