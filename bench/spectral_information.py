@@ -62,15 +62,16 @@ from information_estimate import (
     widths_alone_pct,
     widths_pct,
 )
-from railsusp.conditions import resolve_conditions
 from railsusp.estimate.posterior_data import GAIN_ERROR
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import atomic_write_bytes
 from statistics_information import (
     KEYS,
+    add_design_arguments,
     instrument,
     pair_differences,
     parameter_points,
+    parse_design,
     run_design,
     simulate_cached,
 )
@@ -335,16 +336,7 @@ def point_rows(data, edges, bw, p, lengths, seconds_main, section_s, seed, covar
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--work", default="runs/statistics_information", help="simulation cache")
-    ap.add_argument("--out", default="bench/results/spectral_information.json")
-    ap.add_argument("--points", type=int, default=3, help="nominal + middle-80 %% draws")
-    ap.add_argument("--point-seed", type=int, default=0)
-    ap.add_argument("--seed", default="0", help="seed of tracks and noise; several: pooled")
-    ap.add_argument("--tracks", type=int, default=24, help="pairs per parameter (K)")
-    ap.add_argument("--cov", type=int, default=300, help="sections at the point")
-    ap.add_argument("--delta", type=float, default=0.05, help="half-step, fraction of range")
-    ap.add_argument("--noise", type=float, default=0.03, help="instrument noise, of the RMS")
-    ap.add_argument("--seconds", type=float, default=600.0, help="record per condition, s")
+    add_design_arguments(ap, "bench/results/spectral_information.json")
     ap.add_argument("--bandwidths", default="1,0.5,0.25", help="band widths, Hz")
     ap.add_argument("--segment", type=float, default=5.0, help="Welch segment, s")
     ap.add_argument(
@@ -355,33 +347,22 @@ def main() -> None:
     )
     ap.add_argument("--fmin", type=float, default=0.1, help="lowest frequency, Hz")
     ap.add_argument("--fmax", type=float, default=15.0, help="highest: the instrument's band")
-    ap.add_argument("--conditions", default="straight,curve,uphill")
-    ap.add_argument("--lead-in", type=float, default=30.0, help="m; a curve keeps its own")
     a = ap.parse_args()
     try:
-        seeds = [int(v) for v in a.seed.split(",") if v.strip()]
         widths = [float(v) for v in a.bandwidths.split(",") if v.strip()]
     except ValueError:
-        seeds, widths = [], []
-    if not seeds or any(not 0 <= v <= 99 for v in seeds) or len(set(seeds)) != len(seeds):
-        ap.error(f"--seed {a.seed}: accepted distinct whole numbers 0 to 99, comma-separated")
+        widths = []
     if not widths or any(not 0.05 <= w <= 5.0 for w in widths):
         ap.error(f"--bandwidths {a.bandwidths}: accepted 0.05 to 5 Hz, comma-separated")
+    seeds, conds = parse_design(
+        ap,
+        a,
+        [("--segment", a.segment, 1.0, 20.0), ("--fmin", a.fmin, 0.05, 10.0),
+         ("--fmax", a.fmax, a.fmin + 0.05, 25.0)],
+    )  # fmt: skip
     if min(widths) < 1.0 / a.segment - 1e-9:
         ap.error(f"--bandwidths {a.bandwidths}: every band at least 1 / --segment "
                  f"= {1.0 / a.segment:g} Hz wide (the segments' frequency step)")  # fmt: skip
-    checks = [("--points", a.points, 1, 16), ("--tracks", a.tracks, 4, 1000),
-              ("--cov", a.cov, 20, 50_000), ("--delta", a.delta, 0.001, 0.1),
-              ("--noise", a.noise, 0.0, 0.5), ("--seconds", a.seconds, 20.0, 36_000.0),
-              ("--segment", a.segment, 1.0, 20.0), ("--fmin", a.fmin, 0.05, 10.0),
-              ("--fmax", a.fmax, a.fmin + 0.05, 25.0)]  # fmt: skip
-    for name, value, lo, hi in checks:
-        if not lo <= value <= hi:
-            ap.error(f"{name} {value:g}: accepted {lo:g} to {hi:g}")
-    conds = [
-        c.with_changes(lead_in_m=max(a.lead_in, c.lead_in_m if c.curve_radius_m else 0.0))
-        for c in resolve_conditions(a.conditions)
-    ]
     section_s = conds[0].duration_s
     points = parameter_points(a.points, a.point_seed)
     lengths = sorted({a.seconds, *LENGTHS_S})

@@ -327,10 +327,11 @@ def print_tables(rows: list[dict], names: list[str], points: int) -> None:
         print(f"  p{r['point']} {r['set']:24s} unbiased {nu}   plug-in {nn}")
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def add_design_arguments(ap: argparse.ArgumentParser, out: str) -> None:
+    """The options of the simulation design (points, seeds, pairs, sections, instrument,
+    record length, conditions) that this bench and spectral_information.py share."""
     ap.add_argument("--work", default="runs/statistics_information", help="simulation cache")
-    ap.add_argument("--out", default="bench/results/statistics_information.json")
+    ap.add_argument("--out", default=out)
     ap.add_argument("--points", type=int, default=3, help="nominal + middle-80 %% draws")
     ap.add_argument("--point-seed", type=int, default=0, help="seed of the points' draws")
     ap.add_argument("--seed", default="0", help="seed of tracks and noise; several (0,1,2): pooled")
@@ -339,27 +340,38 @@ def main() -> None:
     ap.add_argument("--delta", type=float, default=0.05, help="half-step, fraction of range")
     ap.add_argument("--noise", type=float, default=0.03, help="instrument noise, of the RMS")
     ap.add_argument("--seconds", type=float, default=600.0, help="record per condition, s")
-    ap.add_argument("--gain-sections", type=int, default=40, help="sections for G")
     ap.add_argument("--conditions", default="straight,curve,uphill")
     ap.add_argument("--lead-in", type=float, default=30.0, help="m; a curve keeps its own")
-    a = ap.parse_args()
+
+
+def parse_design(ap: argparse.ArgumentParser, a, checks=()) -> tuple[list[int], list]:
+    """(seeds, conditions) of :func:`add_design_arguments`' options, with their ranges and
+    the further ``checks`` (name, value, low, high) checked: a one-line error otherwise."""
     try:
         seeds = [int(v) for v in a.seed.split(",") if v.strip()]
     except ValueError:
         seeds = []
     if not seeds or any(not 0 <= v <= 99 for v in seeds) or len(set(seeds)) != len(seeds):
         ap.error(f"--seed {a.seed}: accepted distinct whole numbers 0 to 99, comma-separated")
-    checks = [("--points", a.points, 1, 16), ("--tracks", a.tracks, 4, 1000),
+    design = [("--points", a.points, 1, 16), ("--tracks", a.tracks, 4, 1000),
               ("--cov", a.cov, 20, 50_000), ("--delta", a.delta, 0.001, 0.1),
-              ("--noise", a.noise, 0.0, 0.5), ("--seconds", a.seconds, 20.0, 36_000.0),
-              ("--gain-sections", a.gain_sections, 1, 50_000)]  # fmt: skip
-    for name, value, lo, hi in checks:
+              ("--noise", a.noise, 0.0, 0.5), ("--seconds", a.seconds, 20.0, 36_000.0)]  # fmt: skip
+    for name, value, lo, hi in [*design, *checks]:
         if not lo <= value <= hi:
             ap.error(f"{name} {value:g}: accepted {lo:g} to {hi:g}")
     conds = [
         c.with_changes(lead_in_m=max(a.lead_in, c.lead_in_m if c.curve_radius_m else 0.0))
         for c in resolve_conditions(a.conditions)
     ]
+    return seeds, conds
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_design_arguments(ap, "bench/results/statistics_information.json")
+    ap.add_argument("--gain-sections", type=int, default=40, help="sections for G")
+    a = ap.parse_args()
+    seeds, conds = parse_design(ap, a, [("--gain-sections", a.gain_sections, 1, 50_000)])
     points = parameter_points(a.points, a.point_seed)
     sections = round(a.seconds / conds[0].duration_s)
     names = list(MAIN_SUSPENSION)
