@@ -47,25 +47,34 @@ def information_naive(d: np.ndarray, weight: np.ndarray) -> np.ndarray:
     return jb @ weight @ jb.T
 
 
-def information_unbiased(d: np.ndarray, weight: np.ndarray) -> np.ndarray:
+def _gram(x: np.ndarray, weight: np.ndarray | None, y: np.ndarray) -> np.ndarray:
+    """x^T W y over the last axis (x (A, D), y (B, D)); ``weight`` None: the identity,
+    without forming a (D, D) matrix."""
+    return x @ y.T if weight is None else x @ weight @ y.T
+
+
+def information_unbiased(d: np.ndarray, weight: np.ndarray | None) -> np.ndarray:
     """J^T W J (P, P) from the Jacobian samples ``d`` (P, K, D: K independent pairs per
     parameter): the mean of d_ak^T W d_bl over pairs k != l only, (K^2 J-bar^T W J-bar -
     sum_k d_k^T W d_k) / (K (K - 1)). Each product is of independent noises, so the noise
     adds nothing on average (a U-statistic); it can come out negative where there is
-    no information."""
+    no information. ``weight`` None: the identity (features already whitened)."""
     k = d.shape[1]
     jb = d.mean(axis=1)
-    same = np.einsum("akd,de,bke->ab", d, weight, d)
-    return (k**2 * (jb @ weight @ jb.T) - same) / (k * (k - 1))
+    if weight is None:
+        same = np.einsum("akd,bkd->ab", d, d)
+    else:
+        same = np.einsum("akd,de,bke->ab", d, weight, d)
+    return (k**2 * _gram(jb, weight, jb) - same) / (k * (k - 1))
 
 
-def information_split(d: np.ndarray, weight: np.ndarray) -> np.ndarray:
+def information_split(d: np.ndarray, weight: np.ndarray | None) -> np.ndarray:
     """The split-half estimate: sym(J1^T W J2), J1 and J2 the means of the first and the
     second half of the pairs (independent noises): unbiased, noisier than the
-    U-statistic."""
+    U-statistic. ``weight`` None: the identity."""
     h = d.shape[1] // 2
     j1, j2 = d[:, :h].mean(axis=1), d[:, h : 2 * h].mean(axis=1)
-    m = j1 @ weight @ j2.T
+    m = _gram(j1, weight, j2)
     return 0.5 * (m + m.T)
 
 

@@ -68,7 +68,8 @@ from railsusp.store import atomic_write_bytes
 from statistics_information import (
     KEYS,
     add_design_arguments,
-    instrument,
+    instrumented,
+    named,
     pair_differences,
     parameter_points,
     parse_design,
@@ -129,15 +130,13 @@ def section_spectra(x: np.ndarray, fs: float, bands: list[np.ndarray], segments:
 
 def spectra_of(forces, keys, fs: float, noise: float, seed: int, bands, segments: int) -> tuple:
     """(means (n, C), [spectra (n, nb, C, C) per set of band edges]) of the runs ``forces``
-    (n, C, T) through the instrument of statistics_information.py (same noise draws:
-    ``keys`` as its ``statistics_of``); NaN for a failed run."""
+    (n, C, T) through the instrument of statistics_information.py (its ``instrumented``:
+    the same noise draws as its statistics); NaN for a failed run."""
     c = forces.shape[1]
     means = np.full((len(forces), c), np.nan)
     spectra = [np.full((len(forces), len(e) - 1, c, c), np.nan, dtype=complex) for e in bands]
-    for i, (f, key) in enumerate(zip(forces, keys, strict=True)):
-        if np.all(np.isfinite(f)):
-            rng = np.random.default_rng([seed, *[int(k) for k in key]])
-            x = instrument(f, fs, rng, noise)
+    for i, x in enumerate(instrumented(forces, keys, fs, noise, seed)):
+        if x is not None:
             means[i], per_band = section_spectra(x, fs, bands, segments)
             for out, sb in zip(spectra, per_band, strict=True):
                 out[i] = sb
@@ -172,17 +171,6 @@ def whitened_features(d: np.ndarray, s: np.ndarray, ordinates: np.ndarray) -> np
     feats = hermitian_features(0.5 * (white + np.swapaxes(white.conj(), -1, -2)))
     feats = feats * np.sqrt(ordinates)[:, None]
     return feats.reshape(*feats.shape[:-2], -1)
-
-
-def unbiased_gram(f: np.ndarray) -> np.ndarray:
-    """sum over features of f_a . f_b (P, P) from K independent samples f (P, K, D) of each
-    parameter's feature vector: the U-statistic of ``information_estimate.
-    information_unbiased`` with the identity as weight (products of different samples only),
-    without forming a (D, D) weight."""
-    k = f.shape[1]
-    fb = f.mean(axis=1)
-    same = np.einsum("akd,bkd->ab", f, f)
-    return (k**2 * (fb @ fb.T) - same) / (k * (k - 1))
 
 
 def gain_marginal(i_tt: np.ndarray, i_tg: np.ndarray, i_gg: np.ndarray) -> np.ndarray:
@@ -231,13 +219,12 @@ def condition_information(
         root_m = inverse_sqrt(np.atleast_2d(np.cov(mc.T)) * section_s / seconds).real
         feats = np.concatenate([md @ root_m, whitened_features(sd, s, ordinates)], axis=-1)
         g_feats = np.concatenate([dm_g @ root_m, whitened_features(ds_g, s, ordinates)], axis=-1)
-        i_tt = unbiased_gram(feats)
-        fbar = feats.mean(axis=1)
-        out["unbiased"] = gain_marginal(i_tt, fbar @ g_feats.T, g_feats @ g_feats.T)
+        i_tt = information_unbiased(feats, None)
+        i_tg, i_gg = feats.mean(axis=1) @ g_feats.T, g_feats @ g_feats.T
+        out["unbiased"] = gain_marginal(i_tt, i_tg, i_gg)
         out["gains_known"] = i_tt
         if rng is None:
-            split = information_split(feats, np.eye(feats.shape[-1]))
-            out["split"] = gain_marginal(split, fbar @ g_feats.T, g_feats @ g_feats.T)
+            out["split"] = gain_marginal(information_split(feats, None), i_tg, i_gg)
     else:
         ones = np.ones(len(edges) - 1)
         feats = np.concatenate([md, whitened_features(sd, s, ones)], axis=-1)
@@ -277,7 +264,7 @@ def condition_spectra(a, cond, ci: int, p: int, u0: np.ndarray, seed: int, bands
 
 
 def _named(values) -> dict[str, float]:
-    return dict(zip(MAIN_SUSPENSION, np.asarray(values, float).tolist(), strict=True))
+    return named(list(MAIN_SUSPENSION), values)
 
 
 def widths_row(total: dict) -> dict:
@@ -298,15 +285,21 @@ def point_rows(data, edges, bw, p, lengths, seconds_main, section_s, seed, covar
     ``seconds_main`` also the null test."""
     rows = []
     names = list(data)
+    csets = [cs for cs in (("straight", "curve"), tuple(names)) if all(c in data for c in cs)]
     for covariance in covariances:
         for label, channels in CHANNEL_SETS.items():
-            for cset in (("straight", "curve"), tuple(names)):
-                if any(c not in data for c in cset):
-                    continue
+            # each condition's information once per length, summed for every set of conditions
+            kws = {seconds: dict(edges=edges, channels=channels, seconds=seconds,
+                                 section_s=section_s, covariance=covariance)
+                   for seconds in lengths}  # fmt: skip
+            per_condition = {
+                seconds: {c: condition_information(**data[c], **kw) for c in names}
+                for seconds, kw in kws.items()
+            }
+            for cset in csets:
                 for seconds in lengths:
-                    kw = dict(edges=edges, channels=channels, seconds=seconds,
-                              section_s=section_s, covariance=covariance)  # fmt: skip
-                    infos = [condition_information(**data[c], **kw) for c in cset]
+                    kw = kws[seconds]
+                    infos = [per_condition[seconds][c] for c in cset]
                     total = {
                         k: sum(i[k] for i in infos) for k in ("unbiased", "split", "gains_known")
                     }

@@ -133,16 +133,24 @@ def instrument(forces: np.ndarray, fs: float, rng: np.random.Generator, noise: f
     return bandwidth_filter(x, fs, BANDWIDTH_HZ) + noise * rms * rng.standard_normal(x.shape)
 
 
-def statistics_of(forces, keys, fs: float, speed: float, noise: float, seed: int):
-    """{group: (n, D_g)} statistics of the runs ``forces`` (n, 4, T); ``keys`` (n, ...)
-    seed each run's noise draw (equal keys, equal draw: the pairs' common numbers)."""
-    rows = []
+def instrumented(forces, keys, fs: float, noise: float, seed: int):
+    """Each run of ``forces`` (n, 4, T) through :func:`instrument`, or None for a failed
+    run; ``keys`` (n, ...) seed each run's noise draw (equal keys, equal draw: the pairs'
+    common numbers; the spectral bench reads the same draws)."""
     for f, key in zip(forces, keys, strict=True):
         if not np.all(np.isfinite(f)):
-            rows.append(None)
+            yield None
             continue
-        rng = np.random.default_rng([seed, *[int(k) for k in key]])
-        rows.append(section_statistics(instrument(f, fs, rng, noise), fs, speed))
+        yield instrument(f, fs, np.random.default_rng([seed, *[int(k) for k in key]]), noise)
+
+
+def statistics_of(forces, keys, fs: float, speed: float, noise: float, seed: int):
+    """{group: (n, D_g)} statistics of the runs ``forces`` (n, 4, T) through the instrument
+    (:func:`instrumented`); NaN for a failed run."""
+    rows = [
+        section_statistics(x, fs, speed) if x is not None else None
+        for x in instrumented(forces, keys, fs, noise, seed)
+    ]
     sizes = {g: len(group_names(g)) for g in GROUPS}
     return {
         g: np.array([r[g] if r is not None else np.full(sizes[g], np.nan) for r in rows])
@@ -262,7 +270,8 @@ def condition_information(data: dict, groups, sections: int, rng, half_cov=False
     }
 
 
-def _named(names: list[str], values: np.ndarray) -> dict[str, float]:
+def named(names: list[str], values: np.ndarray) -> dict[str, float]:
+    """{name: value} of a vector over ``names``, for the JSON."""
     return dict(zip(names, np.asarray(values, float).tolist(), strict=True))
 
 
@@ -284,14 +293,14 @@ def set_results(data: dict, names: list[str], sections: int, seed: int) -> list[
                 "statistics": sum(i["statistics"] for i in infos),
                 "pairs": min(i["pairs"] for i in infos),
                 "cov_sections": min(i["cov_sections"] for i in infos),
-                "width_pct": _named(names, widths_pct(total["unbiased"])),
-                "width_no_prior_pct": _named(names, widths_pct(total["unbiased"], 0.0)),
-                "width_alone_pct": _named(names, widths_alone_pct(total["unbiased"])),
-                "width_split_pct": _named(names, widths_pct(total["split"])),
-                "width_naive_pct": _named(names, widths_pct(total["naive"])),
-                "width_half_cov_pct": _named(names, widths_pct(sum(i["unbiased"] for i in half))),
-                "null_over_information": _named(names, np.diag(total["null_unbiased"]) / diag),
-                "null_naive_over_information": _named(names, np.diag(total["null_naive"]) / diag),
+                "width_pct": named(names, widths_pct(total["unbiased"])),
+                "width_no_prior_pct": named(names, widths_pct(total["unbiased"], 0.0)),
+                "width_alone_pct": named(names, widths_alone_pct(total["unbiased"])),
+                "width_split_pct": named(names, widths_pct(total["split"])),
+                "width_naive_pct": named(names, widths_pct(total["naive"])),
+                "width_half_cov_pct": named(names, widths_pct(sum(i["unbiased"] for i in half))),
+                "null_over_information": named(names, np.diag(total["null_unbiased"]) / diag),
+                "null_naive_over_information": named(names, np.diag(total["null_naive"]) / diag),
                 "information": total["unbiased"].tolist(),
             }
             out.append(row)

@@ -62,6 +62,14 @@ def test_unbiased_information_on_noise_free_pairs_is_the_exact_one(bench):
     assert bench.information_split(d, w) == pytest.approx(2.0 * a.T @ a)
 
 
+def test_no_weight_is_the_identity_without_forming_it(bench):
+    rng = np.random.default_rng(5)
+    d = rng.standard_normal((3, 8, 20))
+    eye = np.eye(20)
+    assert bench.information_unbiased(d, None) == pytest.approx(bench.information_unbiased(d, eye))
+    assert bench.information_split(d, None) == pytest.approx(bench.information_split(d, eye))
+
+
 def test_ledoit_wolf_is_the_sample_covariance_with_many_samples_and_invertible_with_few(bench):
     rng = np.random.default_rng(1)
     scale = np.array([1.0, 10.0, 0.1, 3.0])
