@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from posterior import add_common_arguments, bench_conditions, identify_sets, lengths_s, middle_draws
+from railsusp.estimate import posterior_synthetic_fit as synthetic_fit
 from railsusp.estimate import posterior_synthetic_run as synthetic
 from railsusp.estimate.posterior_data import PosteriorSettings
 from railsusp.estimate.posterior_synthetic import cramer_rao_width, fisher_information
@@ -63,6 +64,13 @@ def main() -> None:
         default=15,
         help="combinations of the statistics read beyond the EN 14363 summary",
     )
+    ap.add_argument(
+        "--statistics-emulator-cases",
+        type=int,
+        default=0,
+        help="0: one emulator of all statistics on every training case; N: it on the first "
+        "N cases, and an emulator of the projected combinations on all of them",
+    )
     a = ap.parse_args()
 
     longest = max(1, round(a.long_length / a.section))
@@ -76,6 +84,7 @@ def main() -> None:
         n_product=a.long,
         statistics=tuple(a.statistics.split(",")),
         projection_rank=a.projection_rank,
+        statistics_emulator_cases=a.statistics_emulator_cases,
     )
     ks = sorted({max(1, round(v / a.section)) for v in lengths_s(a.lengths)})
     sets = [("check", a.check, 1, (1,))] if 1 in ks else []
@@ -111,8 +120,9 @@ def main() -> None:
         "date": time.strftime("%Y-%m-%d"),
         "method": "synthetic-likelihood",
         "settings": settings.to_dict(),
-        "members": synthetic.MEMBERS,
-        "hidden": synthetic.HIDDEN,
+        "members": synthetic_fit.MEMBERS,
+        "hidden": synthetic_fit.HIDDEN,
+        "projected_hidden": synthetic_fit.PROJECTED_HIDDEN,
         "emulator_and_checks_s": t_train,
         "scale_records": a.scale_records,
         "scales": scales,

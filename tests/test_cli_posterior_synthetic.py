@@ -61,3 +61,15 @@ def test_estimate_without_a_fitted_synthetic_likelihood(tmp_path):
     result = runner.invoke(app, args)
     assert result.exit_code == 2
     assert "does not exist: fit the synthetic likelihood first" in result.output
+
+
+def test_a_second_emulator_without_a_projection_is_one_line_exit_2(tmp_path):
+    """The EN 14363 summary alone is read as it is: there are no combinations for a
+    second emulator to learn; refused before anything is simulated."""
+    args = ["posterior", "train", "--out", str(tmp_path / "run"), "--conditions", "straight"]
+    args += ["--statistics-emulator-cases", "100", "--long-record", "synthetic-likelihood"]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2, result.output
+    assert "--statistics-emulator-cases 100 conflicts with statistics = en14363" in result.output
+    assert len(result.output.strip().splitlines()) == 1
+    assert not (tmp_path / "run" / "posterior").exists()

@@ -144,3 +144,70 @@ def test_statistics_beyond_the_en14363_summary_are_read_through_their_projection
     path.write_bytes(buf.getvalue())
     with pytest.raises(RailsuspInputError, match="projection.npz does not belong to the check"):
         synthetic.load(tmp_path)
+
+
+def test_the_projected_combinations_get_an_emulator_of_their_own_on_every_case(tmp_path):
+    """``statistics_emulator_cases``: the emulator of all 68 statistics learns from the
+    first 100 cases only (it chooses the projection), the emulator of the 15 combinations
+    from all 300. The likelihood's mean, section scatter and emulator spread are the second
+    one's, and its spread is narrower than the first one's read through the projection
+    (three times the cases). Stored, read back by ``load`` with the same draws; a
+    projected emulator that is not the checked one is refused."""
+    s = PosteriorSettings(_settings().conditions, section_s=5.0, n_train=300, n_check=30,
+                          samples=200, product_sections=(4,), n_product=30,
+                          statistics=("coherence",), statistics_emulator_cases=100)  # fmt: skip
+    for kind, n, k in (("train", 300, 1), ("check", 30, 1), ("long", 30, 4),
+                       ("long-calibration", 30, 4)):  # fmt: skip
+        _cache(tmp_path, s, kind, n, k)
+    post = synthetic.train(s, tmp_path)
+    folder = tmp_path / "posterior" / "synthetic"
+    sl = post.likelihood
+    assert sl.emulator.cases == 100 and sl.emulator.dim == 68
+    assert sl.projected.cases == 300 and sl.projected.dim == sl.dim == 15
+    u = np.full((1, 10), 0.5)
+    mean, shared, section, spread = sl.parts(u)
+    assert np.array_equal(mean, sl.projected.mean(u))
+    assert np.array_equal(section, sl.projected.moments(u)[1])
+    full_spread = sl.projection @ sl.emulator.moments(u)[2][0] @ sl.projection.T
+    assert np.trace(spread[0]) < np.trace(full_spread)
+    assert np.allclose(shared[0], shared[0].T) and np.all(np.linalg.eigvalsh(shared[0]) > -1e-12)
+    back = synthetic.load(tmp_path)
+    x = _statistics(u, np.random.default_rng(9), 4, 68)[0]
+    a = post.sample(x, 200, seed=1)
+    assert np.array_equal(a, back.sample(x, 200, seed=1))
+    lo, hi = np.quantile(a[:, s.parameters.index("X18")], [0.05, 0.95])
+    assert lo < 0.5 < hi
+    from railsusp.estimate.posterior_synthetic import SyntheticLikelihood
+
+    with pytest.raises(RailsuspInputError, match="only with a projection of as many"):
+        SyntheticLikelihood(sl.emulator, projected=sl.projected)  # no projection to read
+    record = folder / "projected.json"
+    record.write_text(record.read_text().replace('"hash": "', '"hash": "x'))
+    with pytest.raises(RailsuspInputError, match="projected_emulator.npz does not belong"):
+        synthetic.load(tmp_path)
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"statistics_emulator_cases": 100}, "conflicts with statistics = en14363"),
+        ({"statistics": ("coherence",), "statistics_emulator_cases": 301},
+         r"statistics_emulator_cases = 301: accepted 0 .* or 20 to n_train \(300\)"),
+    ],
+)  # fmt: skip
+def test_statistics_emulator_cases_that_cannot_work_are_refused(changes, message):
+    from dataclasses import replace
+
+    with pytest.raises(RailsuspInputError, match=message):
+        replace(_settings(), **changes)
+
+
+def test_one_emulator_keeps_the_settings_and_hash_of_before():
+    """0 (the default) is left out of the stored settings, so estimators trained before
+    the field existed keep their hashes; a value is stored and read back."""
+    from dataclasses import replace
+
+    s = replace(_settings(), statistics=("coherence",))
+    assert "statistics_emulator_cases" not in s.to_dict()
+    two = replace(s, statistics_emulator_cases=100)
+    assert PosteriorSettings.from_dict(two.to_dict()) == two

@@ -24,6 +24,7 @@ _OPTIONS = {"section_s": "--section", "n_train": "--simulations", "n_check": "--
             "product_sections": "--product-sections", "n_product": "--product-cases",
             "product_cases": "--product-cases", "statistics": "--statistics",
             "projection_rank": "--projection-rank",
+            "statistics_emulator_cases": "--statistics-emulator-cases",
             "sum_y": "--sum-y"}  # fmt: skip
 
 
@@ -145,6 +146,15 @@ def train_command(
             "EN 14363 summary"
         ),
     ] = 15,
+    statistics_emulator_cases: Annotated[
+        int,
+        typer.Option(
+            help="0: the synthetic likelihood's emulator of all statistics learns from every "
+            "simulation; N: from the first N only (it chooses the combinations), and an "
+            "emulator of the combinations alone from all of them (tens of thousands of "
+            "simulations: docs/posterior.md)"
+        ),
+    ] = 0,
     seed: Annotated[int, typer.Option(help="seed of every draw")] = 0,
     long_record: Annotated[
         str,
@@ -183,6 +193,7 @@ def train_command(
             sum_y=sum_y,
             statistics=tuple(statistics.split(",")),
             projection_rank=projection_rank,
+            statistics_emulator_cases=statistics_emulator_cases,
             seed=seed,
         )
         if is_quiet():

@@ -63,7 +63,12 @@ class PosteriorSettings:
     statistics (:mod:`railsusp.estimate.statistic_families`; the default, the EN 14363
     summary alone, is the estimator's before the families existed), ``projection_rank``: the
     number of their combinations the synthetic likelihood reads beyond that summary
-    (:func:`~railsusp.estimate.posterior_synthetic.informative_projection`), the network size, the
+    (:func:`~railsusp.estimate.posterior_synthetic.informative_projection`),
+    ``statistics_emulator_cases``: 0, the synthetic likelihood's emulator of all the
+    statistics is fitted on every training case and read through the projection; N > 0, it
+    is fitted on the first N cases only (it chooses the projection and gives the gain
+    model its levels) and a second emulator of the projected combinations alone is fitted
+    on all ``n_train`` (:mod:`railsusp.estimate.posterior_emulator`), the network size, the
     number of flows in the ``ensemble`` and the ``seed`` of every draw.
     ``product_sections``: the numbers of sections at which the fused posterior of several
     sections is corrected and checked (none: an estimate of several sections is not
@@ -91,6 +96,7 @@ class PosteriorSettings:
     product_cases: tuple[int, ...] = ()
     statistics: tuple[str, ...] = ("en14363",)
     projection_rank: int = 15
+    statistics_emulator_cases: int = 0
 
     def __post_init__(self) -> None:
         families = parse_families(self.statistics)
@@ -108,6 +114,7 @@ class PosteriorSettings:
                 f"{','.join(MAIN_SUSPENSION)} without repeats"
             )
         object.__setattr__(self, "parameters", params)
+        _check_statistics_emulator(self.statistics_emulator_cases, self.n_train, families)
         checks = [
             ("section_s", self.section_s, 1.0, 600.0),
             ("n_train", self.n_train, 20, 1_000_000),
@@ -162,6 +169,8 @@ class PosteriorSettings:
             del d["product_cases"]
         if self.statistics == ("en14363",):  # likewise; the summary is read as it is
             del d["statistics"], d["projection_rank"]
+        if not self.statistics_emulator_cases:  # likewise: one emulator, of all statistics
+            del d["statistics_emulator_cases"]
         return d
 
     @classmethod
@@ -201,6 +210,22 @@ class PosteriorSettings:
     def partner_q(self) -> bool:
         """Whether they read the partner wheel's Q too."""
         return needs_partner_q(self.statistics)
+
+
+def _check_statistics_emulator(cases: int, n_train: int, families: tuple[str, ...]) -> None:
+    """A one-line error unless ``statistics_emulator_cases`` is 0 or 20 to ``n_train``, and
+    0 with the EN 14363 summary alone (read as it is: there is no projection to emulate)."""
+    if cases and families == ("en14363",):
+        raise RailsuspInputError(
+            f"statistics_emulator_cases = {cases} conflicts with statistics = en14363: the "
+            "summary alone is read as it is, without a projection; accepted 0, or statistics "
+            "families beyond it"
+        )
+    if cases and not 20 <= cases <= n_train:
+        raise RailsuspInputError(
+            f"statistics_emulator_cases = {cases}: accepted 0 (one emulator of all "
+            f"statistics) or 20 to n_train ({n_train})"
+        )
 
 
 def _check_uniform_record(cond: WorkingCondition, record_s: float) -> None:

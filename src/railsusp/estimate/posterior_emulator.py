@@ -70,6 +70,11 @@ class StatisticsEmulator:
     def dim(self) -> int:
         return self.x_mean.size
 
+    @property
+    def inputs(self) -> int:
+        """The number of parameters the emulator reads (d)."""
+        return self.weights[0][0][0].shape[0]
+
     def member_means(self, u: np.ndarray) -> np.ndarray:
         """(members, N, D) each network's mean statistics at ``u`` (N, d)."""
         h0 = 2.0 * np.atleast_2d(np.asarray(u, float)) - 1.0

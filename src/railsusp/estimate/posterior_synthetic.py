@@ -112,7 +112,10 @@ class SyntheticLikelihood:
     that fraction of Sigma as the emulator's error its bootstrap spread does not see
     (both fitted on held-out records of several sections, :func:`fit_scales`; 1 and 0:
     as the emulator says); ``model_error_matrix`` A (D, D), when given, replaces m Sigma
-    by S A S (:func:`fit_model_error`)."""
+    by S A S (:func:`fit_model_error`). ``projected``, with a ``projection`` P: an
+    emulator of P x itself (fitted on the projected training statistics, on more cases
+    than the emulator of all D statistics can take), which then gives mu, Sigma and E;
+    ``emulator`` still gives the statistics' levels that the gain model G reads."""
 
     emulator: StatisticsEmulator
     shared: SharedCovariance | None = None
@@ -123,6 +126,16 @@ class SyntheticLikelihood:
     plug_in_covariance: bool = True  # C_k fixed at a first posterior's mean (sample)
     first_pass_at_centre: bool = False  # that first posterior with C_k at the box's centre
     projection: np.ndarray | None = None  # P (r, D): the likelihood of P s (informative_projection)
+    projected: StatisticsEmulator | None = None  # an emulator of P x itself (r outputs)
+
+    def __post_init__(self) -> None:
+        if self.projected is not None and (
+            self.projection is None or self.projected.dim != self.projection.shape[0]
+        ):
+            raise RailsuspInputError(
+                f"projected emulator of {self.projected.dim} statistics: accepted only with "
+                "a projection of as many combinations"
+            )
 
     @property
     def dim(self) -> int:
@@ -136,11 +149,19 @@ class SyntheticLikelihood:
 
     def mean(self, u: np.ndarray) -> np.ndarray:
         """mu(u) (N, dim), projected."""
+        if self.projected is not None:
+            return self.projected.mean(u)
         return self.project(self.emulator.mean(u))
 
     def parts(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """At ``u``: mu (N, dim), G, Sigma and E (as the emulator says, unscaled), projected
         (G from the full statistics' mean: the gain model reads their values)."""
+        if self.projected is not None:
+            mean, section, emulator = self.projected.moments(u)
+            if self.shared is None:
+                return mean, np.zeros_like(section), section, emulator
+            p = self.projection
+            return mean, p @ self.shared(self.emulator.mean(u)) @ p.T, section, emulator
         mean, section, emulator = self.emulator.moments(u)
         shared = self.shared(mean) if self.shared is not None else np.zeros_like(section)
         if self.projection is None:
@@ -191,7 +212,7 @@ class SyntheticLikelihood:
                 f"sections {x.shape}: accepted finite summaries (k, {self.emulator.dim})"
             )
         s, k = self.project(x.mean(axis=0)), x.shape[0]
-        d = self.emulator.weights[0][0][0].shape[0]
+        d = self.emulator.inputs
         rng = np.random.default_rng(seed)
         if self.plug_in_covariance and self.first_pass_at_centre:
             first = self.plug_in_log_likelihood(np.full(d, 0.5), s, k)

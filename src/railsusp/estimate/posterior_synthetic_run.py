@@ -4,7 +4,10 @@ to a recording (``long_record = "synthetic-likelihood"``; the method in
 :mod:`railsusp.estimate.posterior_synthetic`).
 
 Files, in ``posterior/synthetic/``: ``settings.json`` (the estimator's settings and the
-hash of what the emulator learnt from), ``emulator.npz`` (the fitted emulator),
+hash of what the emulator learnt from), ``emulator.npz`` (the fitted emulator of all the
+statistics), ``projection.npz`` (the informative combinations the likelihood reads, beyond
+the EN 14363 summary), with ``statistics_emulator_cases`` ``projected_emulator.npz`` and
+``projected.json`` (the emulator of those combinations alone, on every training case),
 ``scales.json`` (c, the isotropic m and the model error per direction A with its
 shrinkage, fitted on the fusion's calibration records of the longest checked length,
 :func:`fit_covariance_scales`) and ``check.json`` (per checked number of sections:
@@ -18,7 +21,6 @@ the smallest checked number >= n; longer than any, it is reported not calibrated
 
 from __future__ import annotations
 
-import io
 import logging
 import time
 from dataclasses import dataclass, field
@@ -30,35 +32,30 @@ from railsusp.errors import RailsuspInputError
 from railsusp.estimate.calibration import ParameterCalibration, check
 from railsusp.estimate.posterior_check import median_width
 from railsusp.estimate.posterior_data import (
-    GAIN_ERROR,
     PosteriorSettings,
     cached_cases,
     recording_summaries,
     to_si,
 )
-from railsusp.estimate.posterior_emulator import StatisticsEmulator, fit
+from railsusp.estimate.posterior_emulator import StatisticsEmulator
 from railsusp.estimate.posterior_result import PosteriorResult
 from railsusp.estimate.posterior_synthetic import (
     SyntheticLikelihood,
-    fit_model_error,
-    fit_scales,
-    gain_covariance,
-    informative_projection,
+)
+from railsusp.estimate.posterior_synthetic_fit import (
+    emulator_stamp,
+    fit_covariance_scales,
+    fit_emulator,
+    fit_projected_emulator,
+    fit_projection,
+    likelihood,
+    restamp_settings,
+    scale_set,
 )
 from railsusp.params import MAIN_SUSPENSION
-from railsusp.store import atomic_write_bytes, content_hash, read_json, write_json
+from railsusp.store import content_hash, read_json, write_json
 
 log = logging.getLogger(__name__)
-
-#: networks in the emulator's bagged ensemble, and their hidden width
-MEMBERS = 10
-HIDDEN = 48
-#: the training cases the informative projection of statistics beyond the EN 14363 summary
-#: is averaged over (:func:`~railsusp.estimate.posterior_synthetic.informative_projection`)
-PROJECTION_CASES = 200
-#: the settings the emulator depends on (the training cases and their statistics)
-TRAINED_ON = ("conditions", "parameters", "section_s", "n_train", "noise", "sum_y", "seed",
-              "statistics")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -116,125 +113,6 @@ class SyntheticPosterior:
         return c is not None and c.sections == 1 and c.passed
 
 
-def likelihood(
-    settings: PosteriorSettings,
-    emulator: StatisticsEmulator,
-    scales: dict | None = None,
-    projection: np.ndarray | None = None,
-) -> SyntheticLikelihood:
-    """The likelihood of these settings' statistics: the gain error shared by a record's
-    sections is the instrument model's (the training simulations'); ``scales``: the
-    covariance's fitted scales (``scales.json``; none: 1); ``projection``: the likelihood
-    of these combinations of the statistics (:func:`fit_projection`). With statistics
-    families beyond the EN 14363 summary (hundreds of statistics) the first of a
-    posterior's two SMC runs holds the covariance at the box's centre
-    (:meth:`SyntheticLikelihood.sample`)."""
-    scales = scales or {}
-    matrix = scales.get("model_error_matrix")
-    return SyntheticLikelihood(
-        emulator,
-        gain_covariance(settings.summary_names, GAIN_ERROR),
-        within_scale=float(scales.get("within_scale", 1.0)),
-        model_error=float(scales.get("model_error", 0.0)),
-        model_error_matrix=None if matrix is None else np.asarray(matrix, float),
-        first_pass_at_centre=settings.statistics != ("en14363",),
-        projection=projection,
-    )
-
-
-def fit_projection(settings: PosteriorSettings, emulator: StatisticsEmulator, run) -> dict:
-    """The informative projection of statistics beyond the EN 14363 summary
-    (``settings.projection_rank`` combinations for the mean of the longest checked number of
-    sections, averaged over the first :data:`PROJECTION_CASES` training cases), fitted once
-    per emulator into ``posterior/synthetic/projection.npz``; ``{}`` for the EN 14363
-    summary alone (its 17 per condition are read as they are)."""
-    if settings.statistics == ("en14363",):
-        return {}
-    path = Path(run) / "posterior" / "synthetic" / "projection.npz"
-    k = max(settings.product_sections, default=1)
-    stamp = content_hash({"emulator": _stamp(run), "rank": settings.projection_rank, "sections": k,
-                          "cases": PROJECTION_CASES})  # fmt: skip
-    if path.exists():
-        with np.load(path, allow_pickle=False) as z:
-            if str(z["stamp"]) == stamp:
-                return {"matrix": z["matrix"], "kept": float(z["kept"]), "stamp": stamp}
-    u, _ = cached_cases(settings, Path(run) / "posterior" / "simulations", "train",
-                        settings.n_train)  # fmt: skip
-    base = likelihood(settings, emulator)
-    rank = settings.projection_rank
-    matrix, kept = informative_projection(base, u[:PROJECTION_CASES], k, rank)
-    buf = io.BytesIO()
-    np.savez(buf, matrix=matrix, kept=np.array(kept), stamp=np.array(stamp))
-    atomic_write_bytes(path, buf.getvalue())
-    log.info("synthetic likelihood: %d of %d combinations keep %.4f of the information",
-             rank, emulator.dim, kept)  # fmt: skip
-    return {"matrix": matrix, "kept": kept, "stamp": stamp}
-
-
-def scale_set(settings: PosteriorSettings) -> tuple[str, int, int] | None:
-    """(kind, records, sections) the scales are fitted on: the fusion's calibration
-    records (``long-calibration``) of the longest checked number of sections; None
-    without ``product_sections``."""
-    if not settings.product_sections:
-        return None
-    n, longest, _ = settings.product_sets()[-1]
-    return ("long-calibration", n, longest)
-
-
-def fit_covariance_scales(post: SyntheticPosterior, run: str | Path, where) -> dict:
-    """Fit (or read) the covariance's scales on the held-out records ``where`` ((kind,
-    records, sections), or None: scales 1), into ``posterior/synthetic/scales.json``."""
-    path = Path(run) / "posterior" / "synthetic" / "scales.json"
-    record = {"records": None, "within_scale": 1.0, "model_error": 0.0}
-    if where is not None:
-        kind, n, k = where
-        record["records"] = [kind, int(n), int(k)]
-        record["emulator"] = _stamp(run)
-        if post.likelihood.projection is not None:
-            record["projection"] = content_hash({"p": post.likelihood.projection.tolist()})
-        if path.exists():
-            old = read_json(path)
-            if (
-                old.get("records") == record["records"]
-                and old.get("emulator") == record["emulator"]
-                and old.get("projection") == record.get("projection")
-                and "model_error_matrix" in old
-            ):
-                return old
-        s = post.settings
-        u, x = cached_cases(s, Path(run) / "posterior" / "simulations", kind, n, k)
-        ok = np.all(np.isfinite(x), axis=(1, 2))
-        within, model = fit_scales(post.likelihood, u[ok], x[ok])
-        matrix, rho = fit_model_error(post.likelihood, u[ok], x[ok], within)
-        record.update(within_scale=within, model_error=model, used=int(ok.sum()),
-                      model_error_matrix=matrix.tolist(), shrinkage=rho)  # fmt: skip
-        log.info("synthetic likelihood: sections' scatter x %.2f, model error %.4f of it "
-                 "(isotropic), per direction %.4f to %.4f (shrinkage %.2f)", within, model,
-                 *np.linalg.eigvalsh(matrix)[[0, -1]], rho)  # fmt: skip
-    write_json(path, record)
-    return record
-
-
-def fit_emulator(settings: PosteriorSettings, run: str | Path) -> StatisticsEmulator:
-    """The emulator of the run's training cases (simulated if not cached), fitted once and
-    stored in ``posterior/synthetic/emulator.npz``; read back when there."""
-    folder = Path(run) / "posterior"
-    path = folder / "synthetic" / "emulator.npz"
-    trained_on = {k: v for k, v in settings.to_dict().items() if k in TRAINED_ON}
-    key = content_hash({"settings": trained_on, "members": MEMBERS, "hidden": HIDDEN})
-    stamp = folder / "synthetic" / "settings.json"
-    if path.exists() and stamp.exists() and read_json(stamp).get("hash") == key:
-        return StatisticsEmulator.load(path)
-    u, x = cached_cases(settings, folder / "simulations", "train", settings.n_train)
-    t0 = time.perf_counter()
-    emu = fit(u, x, members=MEMBERS, hidden=HIDDEN, seed=settings.seed, log=log)
-    log.info("synthetic likelihood: emulator fitted in %.0f s", time.perf_counter() - t0)
-    emu.save(path)
-    write_json(stamp, {"hash": key, "members": MEMBERS, "hidden": HIDDEN,
-                       "settings": settings.to_dict()})  # fmt: skip
-    return emu
-
-
 def held_out_sets(settings: PosteriorSettings) -> list[tuple[str, int, int, tuple[int, ...]]]:
     """(kind, cases, sections simulated, numbers of sections checked) of the settings'
     held-out sets: one section on ``check``, the fusion's ``long`` sets for the rest."""
@@ -273,18 +151,23 @@ def train(
     records, sections); "default": :func:`scale_set`; None: not fitted, 1) and check (or
     read the check of) the posterior; ``posterior/synthetic/``."""
     emulator = fit_emulator(settings, run)
-    _restamp_settings(settings, run)
+    restamp_settings(settings, run)
     fitted = fit_projection(settings, emulator, run)
     projection = fitted.get("matrix")
-    post = SyntheticPosterior(settings, likelihood(settings, emulator, None, projection))
+    second = fit_projected_emulator(settings, run, fitted)
+    projected, projected_stamp = second if second is not None else (None, None)
+    post = SyntheticPosterior(settings, likelihood(settings, emulator, None, projection,
+                                                   projected))  # fmt: skip
     where = scale_set(settings) if scales_on == "default" else scales_on
-    scales = fit_covariance_scales(post, run, where)
-    post.likelihood = likelihood(settings, emulator, scales, projection)
+    scales = fit_covariance_scales(settings, post.likelihood, run, where, projected_stamp)
+    post.likelihood = likelihood(settings, emulator, scales, projection, projected)
     path = Path(run) / "posterior" / "synthetic" / "check.json"
     sets = [list(map(_plain, st)) for st in (sets or held_out_sets(settings))]
     matrix = content_hash({"model_error_matrix": scales.get("model_error_matrix")})
     plug_in = post.likelihood.plug_in_covariance
-    stamp = [_stamp(run), scales["within_scale"], scales["model_error"], matrix, plug_in]
+    stamp = [emulator_stamp(run), scales["within_scale"], scales["model_error"], matrix, plug_in]
+    if projected_stamp is not None:  # the projected combinations' own emulator
+        stamp.append(projected_stamp)
     if projection is not None:  # the projection's own stamp: emulator, rank, sections
         stamp.append(fitted["stamp"])
     if path.exists():
@@ -300,21 +183,6 @@ def train(
 
 def _plain(v):
     return list(v) if isinstance(v, tuple) else v
-
-
-def _restamp_settings(settings: PosteriorSettings, run: str | Path) -> None:
-    """Write the settings being trained into ``settings.json`` (keeping the emulator's
-    hash): settings the emulator does not depend on (``projection_rank``) change what
-    :func:`load` must rebuild."""
-    path = Path(run) / "posterior" / "synthetic" / "settings.json"
-    record = read_json(path)
-    if record.get("settings") != settings.to_dict():
-        write_json(path, {**record, "settings": settings.to_dict()})
-
-
-def _stamp(run: str | Path) -> str | None:
-    path = Path(run) / "posterior" / "synthetic" / "settings.json"
-    return read_json(path).get("hash") if path.exists() else None
 
 
 def load(run: str | Path) -> SyntheticPosterior:
@@ -343,7 +211,20 @@ def load(run: str | Path) -> SyntheticPosterior:
                 "interrupted or other training): run railsusp posterior train "
                 "--long-record synthetic-likelihood again on this folder"
             )
-    post = SyntheticPosterior(settings, likelihood(settings, emulator, scales, projection))
+    projected = None
+    if settings.statistics_emulator_cases:
+        path = folder / "projected_emulator.npz"
+        record = read_json(folder / "projected.json") if path.exists() else {}
+        if record.get("hash") not in checked.get("emulator", []):
+            raise RailsuspInputError(
+                f"{path} does not belong to the check in {folder / 'check.json'} (an "
+                "interrupted or other training): run railsusp posterior train "
+                "--long-record synthetic-likelihood again on this folder"
+            )
+        projected = StatisticsEmulator.load(path)
+    post = SyntheticPosterior(
+        settings, likelihood(settings, emulator, scales, projection, projected)
+    )
     post.checks = [SectionsCheck.from_dict(c) for c in checked["checks"]]
     return post
 

@@ -1,0 +1,226 @@
+"""The fitted pieces of the synthetic-likelihood posterior, each fitted once and cached in
+``posterior/synthetic/`` under a stamp of what it learnt from (:mod:`railsusp.estimate.
+posterior_synthetic_run` trains, checks and loads them): the emulator of all the
+statistics, the informative projection, the emulator of the projected combinations alone
+and the covariance's scales fitted on calibration records."""
+
+from __future__ import annotations
+
+import io
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+
+from railsusp.estimate.posterior_data import GAIN_ERROR, PosteriorSettings, cached_cases
+from railsusp.estimate.posterior_emulator import StatisticsEmulator, fit
+from railsusp.estimate.posterior_synthetic import (
+    SyntheticLikelihood,
+    fit_model_error,
+    fit_scales,
+    gain_covariance,
+    informative_projection,
+)
+from railsusp.store import atomic_write_bytes, content_hash, read_json, write_json
+
+log = logging.getLogger("railsusp.estimate.posterior_synthetic_run")
+
+#: networks in the emulator's bagged ensemble, and their hidden width
+MEMBERS = 10
+HIDDEN = 48
+#: the hidden width of the emulator of the projected combinations (its members: MEMBERS)
+PROJECTED_HIDDEN = 48
+#: the training cases the informative projection of statistics beyond the EN 14363 summary
+#: is averaged over (:func:`~railsusp.estimate.posterior_synthetic.informative_projection`)
+PROJECTION_CASES = 200
+#: the settings the emulator depends on (the training cases and their statistics)
+TRAINED_ON = ("conditions", "parameters", "section_s", "n_train", "noise", "sum_y", "seed",
+              "statistics")  # fmt: skip
+
+
+def likelihood(
+    settings: PosteriorSettings,
+    emulator: StatisticsEmulator,
+    scales: dict | None = None,
+    projection: np.ndarray | None = None,
+    projected: StatisticsEmulator | None = None,
+) -> SyntheticLikelihood:
+    """The likelihood of these settings' statistics: the gain error shared by a record's
+    sections is the instrument model's (the training simulations'); ``scales``: the
+    covariance's fitted scales (``scales.json``; none: 1); ``projection``: the likelihood
+    of these combinations of the statistics (:func:`fit_projection`), ``projected``
+    their own emulator (:func:`fit_projected_emulator`; None: ``emulator`` read through
+    the projection). With statistics
+    families beyond the EN 14363 summary (hundreds of statistics) the first of a
+    posterior's two SMC runs holds the covariance at the box's centre
+    (:meth:`SyntheticLikelihood.sample`)."""
+    scales = scales or {}
+    matrix = scales.get("model_error_matrix")
+    return SyntheticLikelihood(
+        emulator,
+        gain_covariance(settings.summary_names, GAIN_ERROR),
+        within_scale=float(scales.get("within_scale", 1.0)),
+        model_error=float(scales.get("model_error", 0.0)),
+        model_error_matrix=None if matrix is None else np.asarray(matrix, float),
+        first_pass_at_centre=settings.statistics != ("en14363",),
+        projection=projection,
+        projected=projected,
+    )
+
+
+def fit_projection(settings: PosteriorSettings, emulator: StatisticsEmulator, run) -> dict:
+    """The informative projection of statistics beyond the EN 14363 summary
+    (``settings.projection_rank`` combinations for the mean of the longest checked number of
+    sections, averaged over the first :data:`PROJECTION_CASES` training cases), fitted once
+    per emulator into ``posterior/synthetic/projection.npz``; ``{}`` for the EN 14363
+    summary alone (its 17 per condition are read as they are)."""
+    if settings.statistics == ("en14363",):
+        return {}
+    path = Path(run) / "posterior" / "synthetic" / "projection.npz"
+    k = max(settings.product_sections, default=1)
+    stamp = content_hash({"emulator": emulator_stamp(run), "rank": settings.projection_rank,
+                          "sections": k, "cases": PROJECTION_CASES})  # fmt: skip
+    if path.exists():
+        with np.load(path, allow_pickle=False) as z:
+            if str(z["stamp"]) == stamp:
+                return {"matrix": z["matrix"], "kept": float(z["kept"]), "stamp": stamp}
+    u, _ = cached_cases(settings, Path(run) / "posterior" / "simulations", "train",
+                        settings.n_train)  # fmt: skip
+    base = likelihood(settings, emulator)
+    rank = settings.projection_rank
+    matrix, kept = informative_projection(base, u[:PROJECTION_CASES], k, rank)
+    buf = io.BytesIO()
+    np.savez(buf, matrix=matrix, kept=np.array(kept), stamp=np.array(stamp))
+    atomic_write_bytes(path, buf.getvalue())
+    log.info("synthetic likelihood: %d of %d combinations keep %.4f of the information",
+             rank, emulator.dim, kept)  # fmt: skip
+    return {"matrix": matrix, "kept": kept, "stamp": stamp}
+
+
+def scale_set(settings: PosteriorSettings) -> tuple[str, int, int] | None:
+    """(kind, records, sections) the scales are fitted on: the fusion's calibration
+    records (``long-calibration``) of the longest checked number of sections; None
+    without ``product_sections``."""
+    if not settings.product_sections:
+        return None
+    n, longest, _ = settings.product_sets()[-1]
+    return ("long-calibration", n, longest)
+
+
+def fit_covariance_scales(
+    settings: PosteriorSettings,
+    sl: SyntheticLikelihood,
+    run: str | Path,
+    where,
+    projected: str | None = None,
+) -> dict:
+    """Fit (or read) the covariance's scales on the held-out records ``where`` ((kind,
+    records, sections), or None: scales 1), into ``posterior/synthetic/scales.json``;
+    ``projected``: the stamp of the projected combinations' emulator, if there is one."""
+    path = Path(run) / "posterior" / "synthetic" / "scales.json"
+    record = {"records": None, "within_scale": 1.0, "model_error": 0.0}
+    if where is not None:
+        kind, n, k = where
+        record["records"] = [kind, int(n), int(k)]
+        record["emulator"] = emulator_stamp(run)
+        if sl.projection is not None:
+            record["projection"] = content_hash({"p": sl.projection.tolist()})
+        if projected is not None:
+            record["projected"] = projected
+        if path.exists():
+            old = read_json(path)
+            if (
+                old.get("records") == record["records"]
+                and old.get("emulator") == record["emulator"]
+                and old.get("projection") == record.get("projection")
+                and old.get("projected") == record.get("projected")
+                and "model_error_matrix" in old
+            ):
+                return old
+        s = settings
+        u, x = cached_cases(s, Path(run) / "posterior" / "simulations", kind, n, k)
+        ok = np.all(np.isfinite(x), axis=(1, 2))
+        within, model = fit_scales(sl, u[ok], x[ok])
+        matrix, rho = fit_model_error(sl, u[ok], x[ok], within)
+        record.update(within_scale=within, model_error=model, used=int(ok.sum()),
+                      model_error_matrix=matrix.tolist(), shrinkage=rho)  # fmt: skip
+        log.info("synthetic likelihood: sections' scatter x %.2f, model error %.4f of it "
+                 "(isotropic), per direction %.4f to %.4f (shrinkage %.2f)", within, model,
+                 *np.linalg.eigvalsh(matrix)[[0, -1]], rho)  # fmt: skip
+    write_json(path, record)
+    return record
+
+
+def fit_emulator(settings: PosteriorSettings, run: str | Path) -> StatisticsEmulator:
+    """The emulator of all the statistics, on the run's training cases (simulated if not
+    cached; the first ``statistics_emulator_cases`` of them when set), fitted once and
+    stored in ``posterior/synthetic/emulator.npz``; read back when there."""
+    folder = Path(run) / "posterior"
+    path = folder / "synthetic" / "emulator.npz"
+    cases = settings.statistics_emulator_cases or settings.n_train
+    trained_on = {k: v for k, v in settings.to_dict().items() if k in TRAINED_ON}
+    trained_on["n_train"] = cases  # the hash of an emulator of as many cases, as before
+    key = content_hash({"settings": trained_on, "members": MEMBERS, "hidden": HIDDEN})
+    stamp = folder / "synthetic" / "settings.json"
+    if path.exists() and stamp.exists() and read_json(stamp).get("hash") == key:
+        return StatisticsEmulator.load(path)
+    u, x = cached_cases(settings, folder / "simulations", "train", cases)
+    t0 = time.perf_counter()
+    emu = fit(u, x, members=MEMBERS, hidden=HIDDEN, seed=settings.seed, log=log)
+    log.info("synthetic likelihood: emulator fitted in %.0f s", time.perf_counter() - t0)
+    emu.save(path)
+    write_json(stamp, {"hash": key, "members": MEMBERS, "hidden": HIDDEN,
+                       "settings": settings.to_dict()})  # fmt: skip
+    return emu
+
+
+def fit_projected_emulator(
+    settings: PosteriorSettings, run: str | Path, fitted: dict
+) -> tuple[StatisticsEmulator, str] | None:
+    """With ``statistics_emulator_cases``: (the emulator of the projected combinations P x
+    on all ``n_train`` training cases, its stamp), fitted once per projection into
+    ``posterior/synthetic/projected_emulator.npz``; None without (or without a projection).
+
+    Why: the record's mean of 30 sections scatters by 1/30 of a section's variance, and
+    the emulator's error must be small beside that. Measured on the 8000-case emulator of
+    the four families with ``cross-spectra`` (bench/README.md): the record means of 250
+    held-out records of 600 s lay 0.10 of a section's variance from it, against 0.033 for
+    their own scatter, and 50 replicate records at the same parameters on other tracks
+    agreed to 0.032: the excess is the emulator's error at those parameters, not a
+    record's randomness, so only more training cases shrink it; an emulator of 750
+    statistics on tens of thousands of cases costs hours, one of 15 combinations minutes."""
+    if not settings.statistics_emulator_cases or "matrix" not in fitted:
+        return None
+    folder = Path(run) / "posterior"
+    path = folder / "synthetic" / "projected_emulator.npz"
+    record_path = folder / "synthetic" / "projected.json"
+    trained_on = {k: v for k, v in settings.to_dict().items() if k in TRAINED_ON}
+    key = content_hash({"settings": trained_on, "projection": fitted["stamp"],
+                        "members": MEMBERS, "hidden": PROJECTED_HIDDEN})  # fmt: skip
+    if path.exists() and record_path.exists() and read_json(record_path).get("hash") == key:
+        return StatisticsEmulator.load(path), key
+    u, x = cached_cases(settings, folder / "simulations", "train", settings.n_train)
+    t0 = time.perf_counter()
+    emu = fit(u, x @ fitted["matrix"].T, members=MEMBERS, hidden=PROJECTED_HIDDEN,
+              seed=settings.seed, log=log)  # fmt: skip
+    log.info("synthetic likelihood: emulator of %d combinations on %d cases fitted in %.0f s",
+             emu.dim, emu.cases, time.perf_counter() - t0)  # fmt: skip
+    emu.save(path)
+    write_json(record_path, {"hash": key, "cases": emu.cases, "hidden": PROJECTED_HIDDEN})
+    return emu, key
+
+
+def restamp_settings(settings: PosteriorSettings, run: str | Path) -> None:
+    """Write the settings being trained into ``settings.json`` (keeping the emulator's
+    hash): settings the emulator does not depend on (``projection_rank``) change what
+    :func:`load` must rebuild."""
+    path = Path(run) / "posterior" / "synthetic" / "settings.json"
+    record = read_json(path)
+    if record.get("settings") != settings.to_dict():
+        write_json(path, {**record, "settings": settings.to_dict()})
+
+
+def emulator_stamp(run: str | Path) -> str | None:
+    path = Path(run) / "posterior" / "synthetic" / "settings.json"
+    return read_json(path).get("hash") if path.exists() else None
