@@ -23,6 +23,12 @@ training cases, held-out records, the middle-80 % sets) and its scoring.
 5. With ``--sets N``: the Cramer-Rao bound of the 90 % width at ``--set-length`` at the N
    sets' truths, from the synthetic likelihood's Fisher information (the emulator's
    Jacobian of mu, C_k with and without the emulator's error).
+6. With ``--replicates N``: the first N held-out ``long`` records simulated again at the
+   same parameters on other tracks (``replicate`` cases). Per combination the likelihood
+   reads: how far the two records' means lie apart (half their mean squared difference, in
+   a section's variance; 1/k if a record holds nothing but its k sections' scatter) against
+   how far each lies from the emulator's mean: the emulator's error, told apart from a
+   record's own randomness.
 """
 
 from __future__ import annotations
@@ -37,7 +43,7 @@ import numpy as np
 from posterior import add_common_arguments, bench_conditions, identify_sets, lengths_s, middle_draws
 from railsusp.estimate import posterior_synthetic_fit as synthetic_fit
 from railsusp.estimate import posterior_synthetic_run as synthetic
-from railsusp.estimate.posterior_data import PosteriorSettings
+from railsusp.estimate.posterior_data import PosteriorSettings, cached_cases
 from railsusp.estimate.posterior_synthetic import cramer_rao_width, fisher_information
 
 
@@ -63,6 +69,12 @@ def main() -> None:
         type=int,
         default=15,
         help="combinations of the statistics read beyond the EN 14363 summary",
+    )
+    ap.add_argument(
+        "--replicates",
+        type=int,
+        default=0,
+        help="held-out long records simulated again at their parameters on other tracks",
     )
     ap.add_argument(
         "--statistics-emulator-cases",
@@ -116,6 +128,7 @@ def main() -> None:
         print(f"posterior of {xs.shape[1]} sections: median {np.median(t_est):.2f} s over "
               f"{len(t_est)} records")  # fmt: skip
     bound = _cramer_rao(post, a, names) if a.sets else None
+    replicates = _replicates(post, a, longest) if a.replicates else None
     out = {
         "date": time.strftime("%Y-%m-%d"),
         "method": "synthetic-likelihood",
@@ -127,6 +140,7 @@ def main() -> None:
         "scale_records": a.scale_records,
         "scales": scales,
         "checks": rows,
+        "replicates": replicates,
         "identification": ident,
         "identification_verdicts": verdicts,
         "estimate_s_median": float(np.median(t_est)) if a.sets else None,
@@ -153,6 +167,50 @@ def _cramer_rao(post, a: argparse.Namespace, names: list[str]) -> dict:
         w = w[:, post.columns]
         out[label.replace(" ", "_")] = {p: w[:, i].tolist() for i, p in enumerate(names)}
         print(f"{label:>24} " + " ".join(f"{np.median(w[:, i]):6.1f}" for i in range(len(names))))
+    return out
+
+
+def replicate_split(sl, u: np.ndarray, first: np.ndarray, second: np.ndarray) -> dict:
+    """Per combination the likelihood reads (``sl.project``), for records ``first`` and
+    ``second`` (n, k, D) simulated at the same parameters ``u`` (n, d) on different tracks,
+    in units of one section's variance as the emulator gives it: ``between``, half the mean
+    squared difference of the two records' means (their own scatter; 1/k for k independent
+    sections and nothing shared by a record); ``from_emulator``, the mean squared distance of
+    each record's mean from the emulator's mean (its own scatter plus the emulator's error
+    at u); ``correlation`` of the two records' distances (near 1 when the emulator's error,
+    the same for both, dominates)."""
+    a, b = (sl.project(np.asarray(x, float)).mean(axis=1) for x in (first, second))
+    _, _, section, _ = sl.parts(u)
+    sd = np.sqrt(np.diagonal(section, axis1=1, axis2=2))
+    mean = sl.mean(u)
+    ra, rb = (a - mean) / sd, (b - mean) / sd
+    return {
+        "records": len(u),
+        "sections": int(np.shape(first)[1]),
+        "between": (np.mean(((a - b) / sd) ** 2, axis=0) / 2).tolist(),
+        "from_emulator": (np.mean(ra**2 + rb**2, axis=0) / 2).tolist(),
+        "correlation": [float(np.corrcoef(ra[:, j], rb[:, j])[0, 1]) for j in range(a.shape[1])],
+    }
+
+
+def _replicates(post, a: argparse.Namespace, longest: int) -> dict:
+    """:func:`replicate_split` on the first ``--replicates`` ``long`` records and their
+    ``replicate`` cases (cached in the run folder like every simulation); printed."""
+    s = post.settings
+    folder = Path(a.run) / "posterior" / "simulations"
+    u, first = cached_cases(s, folder, "long", a.long, longest)
+    n = min(a.replicates, a.long)
+    _, second = cached_cases(s, folder, "replicate", n, longest, draws=u[:n])
+    ok = np.all(np.isfinite(first[:n]), axis=(1, 2)) & np.all(np.isfinite(second), axis=(1, 2))
+    out = replicate_split(post.likelihood, u[:n][ok], first[:n][ok], second[ok])
+    k = out["sections"]
+    print(
+        f"\nreplicate records: {out['records']} pairs of {k} sections at the same parameters "
+        f"on other tracks; per combination, in a section's variance (1/k = {1 / k:.3f})"
+    )
+    print(f"{'':>16} " + " ".join(f"{j + 1:>6}" for j in range(len(out["between"]))))
+    for key in ("between", "from_emulator", "correlation"):
+        print(f"{key:>16} " + " ".join(f"{v:6.3f}" for v in out[key]))
     return out
 
 

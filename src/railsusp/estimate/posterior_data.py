@@ -46,10 +46,11 @@ GAIN_ERROR = 0.01
 #: track seeds of the simulated cases start here (the synthetic field uses seed + 1000):
 #: training, the untouched coverage test ("check"), the calibration set that fits the
 #: correction, the long test cases of several consecutive sections, and the parameter sets
-#: of the identification benchmark (bench/posterior.py, drawn in the middle of the ranges)
+#: of the identification benchmark (bench/posterior.py, drawn in the middle of the ranges),
+#: and held-out records simulated again on other tracks (bench/posterior_synthetic.py)
 SEED_BASE = {"train": 10_000_000, "check": 20_000_000, "calibration": 30_000_000,
              "long": 40_000_000, "long-calibration": 50_000_000,
-             "identification": 60_000_000}  # fmt: skip
+             "identification": 60_000_000, "replicate": 70_000_000}  # fmt: skip
 
 
 @dataclass(frozen=True)
