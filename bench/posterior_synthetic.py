@@ -128,7 +128,9 @@ def main() -> None:
         print(f"posterior of {xs.shape[1]} sections: median {np.median(t_est):.2f} s over "
               f"{len(t_est)} records")  # fmt: skip
     bound = _cramer_rao(post, a, names) if a.sets else None
-    replicates = _replicates(post, a, longest) if a.replicates else None
+    replicates = _replicates(post, a, longest) if a.replicates and longest > 1 else None
+    if a.replicates and longest == 1:
+        print("--replicates: not measured, --long-length holds one section (accepted several)")
     out = {
         "date": time.strftime("%Y-%m-%d"),
         "method": "synthetic-likelihood",

@@ -8,6 +8,7 @@ simulated here; the simulator's own statistics are measured in bench/posterior_s
 from __future__ import annotations
 
 import io
+import json
 
 import numpy as np
 import pytest
@@ -170,7 +171,8 @@ def test_the_projected_combinations_get_an_emulator_of_their_own_on_every_case(t
     assert np.array_equal(section, sl.projected.moments(u)[1])
     full_spread = sl.projection @ sl.emulator.moments(u)[2][0] @ sl.projection.T
     assert np.trace(spread[0]) < np.trace(full_spread)
-    assert np.allclose(shared[0], shared[0].T) and np.all(np.linalg.eigvalsh(shared[0]) > -1e-12)
+    gain = sl.projection @ sl.shared(sl.emulator.mean(u))[0] @ sl.projection.T
+    assert np.trace(gain) > 0 and np.allclose(shared[0], gain)  # the gain model's levels
     back = synthetic.load(tmp_path)
     x = _statistics(u, np.random.default_rng(9), 4, 68)[0]
     a = post.sample(x, 200, seed=1)
@@ -181,10 +183,33 @@ def test_the_projected_combinations_get_an_emulator_of_their_own_on_every_case(t
 
     with pytest.raises(RailsuspInputError, match="only with a projection of as many"):
         SyntheticLikelihood(sl.emulator, projected=sl.projected)  # no projection to read
-    record = folder / "projected.json"
-    record.write_text(record.read_text().replace('"hash": "', '"hash": "x'))
+    # the emulator of all statistics is the one an old training of 100 cases would have had
+    from dataclasses import replace
+
+    from railsusp.estimate.posterior_synthetic_fit import emulator_key
+    from railsusp.store import read_json
+
+    old = replace(s, n_train=100, statistics_emulator_cases=0)
+    assert read_json(folder / "settings.json")["hash"] == emulator_key(old) == emulator_key(s)
+    assert emulator_key(replace(s, statistics_emulator_cases=150)) != emulator_key(s)
+    # scales of another training (an interrupted one) are refused
+    scales = folder / "scales.json"
+    kept = scales.read_text()
+    scales.write_text(json.dumps({**json.loads(kept), "within_scale": 2.0}))
+    with pytest.raises(RailsuspInputError, match="scales.json does not belong to the check"):
+        synthetic.load(tmp_path)
+    scales.write_text(kept)
+    # so is a projected emulator that is not the checked one
+    path = folder / "projected_emulator.npz"
+    stale = synthetic.StatisticsEmulator.load(path)
+    stale.stamp = "another"
+    stale.save(path)
     with pytest.raises(RailsuspInputError, match="projected_emulator.npz does not belong"):
         synthetic.load(tmp_path)
+    # and a re-run of the training fits it again (its stamp no longer matches)
+    synthetic.train(s, tmp_path)
+    assert synthetic.StatisticsEmulator.load(path).stamp != "another"
+    synthetic.load(tmp_path)
 
 
 @pytest.mark.parametrize(

@@ -61,6 +61,7 @@ class StatisticsEmulator:
     logvar_coef: np.ndarray  # (F, D) quadratic regression of the log section variance
     correlation: np.ndarray  # (D, D)
     cases: int = 0
+    stamp: str = ""  # what it learnt from, stored with it (a hash; "" for none)
 
     @property
     def members(self) -> int:
@@ -121,6 +122,8 @@ class StatisticsEmulator:
             "cases": np.array(self.cases),
             "layout": np.array([[len(layers) for layers in self.weights]]),
         }
+        if self.stamp:
+            arrays["stamp"] = np.array(self.stamp)
         for m, layers in enumerate(self.weights):
             for i, (w, b) in enumerate(layers):
                 arrays[f"w_{m}_{i}"], arrays[f"b_{m}_{i}"] = w, b
@@ -149,6 +152,7 @@ class StatisticsEmulator:
                 z["logvar_coef"],
                 z["correlation"],
                 int(z["cases"]),
+                str(z["stamp"]) if "stamp" in z.files else "",
             )
 
 

@@ -152,6 +152,16 @@ def fit_covariance_scales(
     return record
 
 
+def emulator_key(settings: PosteriorSettings) -> str:
+    """The hash of what the emulator of all the statistics learns from: the training
+    settings with the cases it reads (``statistics_emulator_cases`` when set, else
+    ``n_train``), so that it is the hash of an emulator of as many cases trained before
+    the setting existed, and the network size."""
+    trained_on = {k: v for k, v in settings.to_dict().items() if k in TRAINED_ON}
+    trained_on["n_train"] = settings.statistics_emulator_cases or settings.n_train
+    return content_hash({"settings": trained_on, "members": MEMBERS, "hidden": HIDDEN})
+
+
 def fit_emulator(settings: PosteriorSettings, run: str | Path) -> StatisticsEmulator:
     """The emulator of all the statistics, on the run's training cases (simulated if not
     cached; the first ``statistics_emulator_cases`` of them when set), fitted once and
@@ -159,9 +169,7 @@ def fit_emulator(settings: PosteriorSettings, run: str | Path) -> StatisticsEmul
     folder = Path(run) / "posterior"
     path = folder / "synthetic" / "emulator.npz"
     cases = settings.statistics_emulator_cases or settings.n_train
-    trained_on = {k: v for k, v in settings.to_dict().items() if k in TRAINED_ON}
-    trained_on["n_train"] = cases  # the hash of an emulator of as many cases, as before
-    key = content_hash({"settings": trained_on, "members": MEMBERS, "hidden": HIDDEN})
+    key = emulator_key(settings)
     stamp = folder / "synthetic" / "settings.json"
     if path.exists() and stamp.exists() and read_json(stamp).get("hash") == key:
         return StatisticsEmulator.load(path)
@@ -180,7 +188,8 @@ def fit_projected_emulator(
 ) -> tuple[StatisticsEmulator, str] | None:
     """With ``statistics_emulator_cases``: (the emulator of the projected combinations P x
     on all ``n_train`` training cases, its stamp), fitted once per projection into
-    ``posterior/synthetic/projected_emulator.npz``; None without (or without a projection).
+    ``posterior/synthetic/projected_emulator.npz`` with its stamp inside; None without (or
+    without a projection).
 
     Why: the record's mean of 30 sections scatters by 1/30 of a section's variance, and
     the emulator's error must be small beside that. Measured on the 8000-case emulator of
@@ -194,21 +203,38 @@ def fit_projected_emulator(
         return None
     folder = Path(run) / "posterior"
     path = folder / "synthetic" / "projected_emulator.npz"
-    record_path = folder / "synthetic" / "projected.json"
     trained_on = {k: v for k, v in settings.to_dict().items() if k in TRAINED_ON}
     key = content_hash({"settings": trained_on, "projection": fitted["stamp"],
                         "members": MEMBERS, "hidden": PROJECTED_HIDDEN})  # fmt: skip
-    if path.exists() and record_path.exists() and read_json(record_path).get("hash") == key:
-        return StatisticsEmulator.load(path), key
+    if path.exists():
+        emu = StatisticsEmulator.load(path)
+        if emu.stamp == key:
+            return emu, key
     u, x = cached_cases(settings, folder / "simulations", "train", settings.n_train)
     t0 = time.perf_counter()
     emu = fit(u, x @ fitted["matrix"].T, members=MEMBERS, hidden=PROJECTED_HIDDEN,
               seed=settings.seed, log=log)  # fmt: skip
     log.info("synthetic likelihood: emulator of %d combinations on %d cases fitted in %.0f s",
              emu.dim, emu.cases, time.perf_counter() - t0)  # fmt: skip
+    emu.stamp = key
     emu.save(path)
-    write_json(record_path, {"hash": key, "cases": emu.cases, "hidden": PROJECTED_HIDDEN})
     return emu, key
+
+
+def check_stamp(
+    run: str | Path, scales: dict, plug_in: bool, projected: str | None, projection: str | None
+) -> list:
+    """What a coverage check was made with, stored in ``check.json`` and required by
+    ``load``: the emulator's hash, the covariance's scales (c, m, A's hash), whether the
+    covariance is plugged in, the projected emulator's stamp and the projection's, when
+    there are these."""
+    matrix = content_hash({"model_error_matrix": scales.get("model_error_matrix")})
+    stamp = [emulator_stamp(run), scales["within_scale"], scales["model_error"], matrix, plug_in]
+    if projected is not None:  # the projected combinations' own emulator
+        stamp.append(projected)
+    if projection is not None:  # the projection's own stamp: emulator, rank, sections
+        stamp.append(projection)
+    return stamp
 
 
 def restamp_settings(settings: PosteriorSettings, run: str | Path) -> None:

@@ -6,8 +6,8 @@ to a recording (``long_record = "synthetic-likelihood"``; the method in
 Files, in ``posterior/synthetic/``: ``settings.json`` (the estimator's settings and the
 hash of what the emulator learnt from), ``emulator.npz`` (the fitted emulator of all the
 statistics), ``projection.npz`` (the informative combinations the likelihood reads, beyond
-the EN 14363 summary), with ``statistics_emulator_cases`` ``projected_emulator.npz`` and
-``projected.json`` (the emulator of those combinations alone, on every training case),
+the EN 14363 summary), with ``statistics_emulator_cases`` ``projected_emulator.npz`` (the
+emulator of those combinations alone, on every training case, with its stamp),
 ``scales.json`` (c, the isotropic m and the model error per direction A with its
 shrinkage, fitted on the fusion's calibration records of the longest checked length,
 :func:`fit_covariance_scales`) and ``check.json`` (per checked number of sections:
@@ -43,7 +43,7 @@ from railsusp.estimate.posterior_synthetic import (
     SyntheticLikelihood,
 )
 from railsusp.estimate.posterior_synthetic_fit import (
-    emulator_stamp,
+    check_stamp,
     fit_covariance_scales,
     fit_emulator,
     fit_projected_emulator,
@@ -53,7 +53,7 @@ from railsusp.estimate.posterior_synthetic_fit import (
     scale_set,
 )
 from railsusp.params import MAIN_SUSPENSION
-from railsusp.store import content_hash, read_json, write_json
+from railsusp.store import read_json, write_json
 
 log = logging.getLogger(__name__)
 
@@ -163,13 +163,8 @@ def train(
     post.likelihood = likelihood(settings, emulator, scales, projection, projected)
     path = Path(run) / "posterior" / "synthetic" / "check.json"
     sets = [list(map(_plain, st)) for st in (sets or held_out_sets(settings))]
-    matrix = content_hash({"model_error_matrix": scales.get("model_error_matrix")})
-    plug_in = post.likelihood.plug_in_covariance
-    stamp = [emulator_stamp(run), scales["within_scale"], scales["model_error"], matrix, plug_in]
-    if projected_stamp is not None:  # the projected combinations' own emulator
-        stamp.append(projected_stamp)
-    if projection is not None:  # the projection's own stamp: emulator, rank, sections
-        stamp.append(fitted["stamp"])
+    stamp = check_stamp(run, scales, post.likelihood.plug_in_covariance, projected_stamp,
+                        fitted.get("stamp"))  # fmt: skip
     if path.exists():
         old = read_json(path)
         if old.get("sets") == sets and old.get("emulator") == stamp:
@@ -206,27 +201,31 @@ def load(run: str | Path) -> SyntheticPosterior:
             with np.load(path, allow_pickle=False) as z:
                 projection, stamp = z["matrix"], str(z["stamp"])
         if stamp is None or checked.get("emulator", [None])[-1] != stamp:
-            raise RailsuspInputError(
-                f"{path} does not belong to the check in {folder / 'check.json'} (an "
-                "interrupted or other training): run railsusp posterior train "
-                "--long-record synthetic-likelihood again on this folder"
-            )
+            raise _not_checked(path, folder)
     projected = None
     if settings.statistics_emulator_cases:
         path = folder / "projected_emulator.npz"
-        record = read_json(folder / "projected.json") if path.exists() else {}
-        if record.get("hash") not in checked.get("emulator", []):
-            raise RailsuspInputError(
-                f"{path} does not belong to the check in {folder / 'check.json'} (an "
-                "interrupted or other training): run railsusp posterior train "
-                "--long-record synthetic-likelihood again on this folder"
-            )
-        projected = StatisticsEmulator.load(path)
+        projected = StatisticsEmulator.load(path) if path.exists() else None
+        if projected is None or projected.stamp not in checked.get("emulator", []):
+            raise _not_checked(path, folder)
     post = SyntheticPosterior(
         settings, likelihood(settings, emulator, scales, projection, projected)
     )
+    made_with = check_stamp(run, scales, post.likelihood.plug_in_covariance,
+                            projected.stamp if projected is not None else None,
+                            stamp if projection is not None else None)  # fmt: skip
+    if checked.get("emulator") != made_with:  # emulator, scales or settings of another training
+        raise _not_checked(folder / "scales.json", folder)
     post.checks = [SectionsCheck.from_dict(c) for c in checked["checks"]]
     return post
+
+
+def _not_checked(path: Path, folder: Path) -> RailsuspInputError:
+    return RailsuspInputError(
+        f"{path} does not belong to the check in {folder / 'check.json'} (an interrupted or "
+        "other training): run railsusp posterior train --long-record synthetic-likelihood "
+        "again on this folder"
+    )
 
 
 def estimate(post: SyntheticPosterior, recordings, seed: int = 0) -> PosteriorResult:
