@@ -236,27 +236,3 @@ def test_one_emulator_keeps_the_settings_and_hash_of_before():
     assert "statistics_emulator_cases" not in s.to_dict()
     two = replace(s, statistics_emulator_cases=100)
     assert PosteriorSettings.from_dict(two.to_dict()) == two
-
-
-def test_a_steep_statistic_is_emulated_closer_with_the_quadratic_trend():
-    """A statistic that a parameter moves by 30 sections' standard deviations over its
-    range (as X18 moves the first combination): the networks alone keep an error of a
-    noticeable share of a section's variance after early stopping, the networks on the
-    quadratic trend's remainder do not; with fewer cases than the trend needs it is not
-    used (the networks alone, bit for bit)."""
-    from railsusp.estimate.posterior_emulator import TREND_CASES_PER_TERM, fit
-
-    rng = np.random.default_rng(0)
-    n = TREND_CASES_PER_TERM * 66
-    u = rng.random((n, 10))
-    mean = 30.0 * u[:, 7] + 3.0 * np.sin(3.0 * u[:, 2])
-    x = (mean + rng.standard_normal(n))[:, None]
-    test = rng.random((400, 10))
-    truth = 30.0 * test[:, 7] + 3.0 * np.sin(3.0 * test[:, 2])
-    err = {t: np.mean((fit(u, x, members=2, hidden=8, trend=t).mean(test)[:, 0] - truth) ** 2)
-           for t in (False, True)}  # fmt: skip
-    assert err[True] < 0.02 and err[True] < err[False] / 2
-    few = fit(u[:500], x[:500], members=2, hidden=8, trend=True)
-    assert few.trend is None
-    alone = fit(u[:500], x[:500], members=2, hidden=8)
-    assert np.array_equal(few.mean(test), alone.mean(test))

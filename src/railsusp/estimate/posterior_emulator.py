@@ -10,15 +10,6 @@ parameters u (fractions of their ranges), learnt from the posterior's training c
   bootstrap's estimate of an estimator's variance): it is returned as ``emulator_cov`` and
   enters the likelihood's covariance, so a long record, whose own scatter shrinks as 1/k,
   can never be more certain than the emulator that reads it.
-- **Trend** (``trend=True``, the emulator of the projected combinations): each member
-  first fits a quadratic in u (ridge) on its bootstrap cases and its network learns what
-  the quadratic leaves, rescaled to unit spread. Why: a combination that a parameter moves
-  by many sections' standard deviations over its range (the first, X18's) is a network's
-  output of spread ~1 in which the sections' own scatter is a few per cent; early stopping
-  left 0.25 of a section's variance of error there (against 1/30 for a 600 s record's
-  scatter; bench/README.md, replicate records), and the trend takes that range out. Only
-  with at least :data:`TREND_CASES_PER_TERM` cases per term of the quadratic: its own
-  sampling error, terms / cases of a section's variance, is then under 1 %.
 - **Section covariance**: Sigma(u) = S(u) R S(u), with the per-statistic standard
   deviations S(u) from a quadratic regression of the log squared out-of-bag residuals
   (offset by E[log chi2_1] = -1.27, so that it estimates the log variance) and one
@@ -41,8 +32,6 @@ import numpy as np
 from railsusp.errors import RailsuspInputError
 from railsusp.store import atomic_write_bytes
 
-#: the cases per term of the quadratic (66 for ten parameters) a trend needs
-TREND_CASES_PER_TERM = 100
 #: E[log chi2_1]: a squared standard normal's log mean (the log-variance regression's offset)
 LOG_CHI2_1_MEAN = -1.2703628454614782
 
@@ -73,8 +62,6 @@ class StatisticsEmulator:
     correlation: np.ndarray  # (D, D)
     cases: int = 0
     stamp: str = ""  # what it learnt from, stored with it (a hash; "" for none)
-    trend: np.ndarray | None = None  # (members, F, D) each member's quadratic trend
-    resid_scale: np.ndarray | None = None  # (members, D) its network's output scale
 
     @property
     def members(self) -> int:
@@ -100,11 +87,7 @@ class StatisticsEmulator:
                 if i < len(layers) - 1:
                     h = np.tanh(h)
             out.append(h)
-        y = np.stack(out)
-        if self.trend is not None:
-            feats = quadratic_features(h0 * 0.5 + 0.5)
-            y = y * self.resid_scale[:, None, :] + np.einsum("nf,mfd->mnd", feats, self.trend)
-        return y * self.x_scale + self.x_mean
+        return np.stack(out) * self.x_scale + self.x_mean
 
     def mean(self, u: np.ndarray) -> np.ndarray:
         """(N, D) the mean statistics at ``u`` (N, d): the members' average, without the
@@ -141,8 +124,6 @@ class StatisticsEmulator:
         }
         if self.stamp:
             arrays["stamp"] = np.array(self.stamp)
-        if self.trend is not None:
-            arrays["trend"], arrays["resid_scale"] = self.trend, self.resid_scale
         for m, layers in enumerate(self.weights):
             for i, (w, b) in enumerate(layers):
                 arrays[f"w_{m}_{i}"], arrays[f"b_{m}_{i}"] = w, b
@@ -172,8 +153,6 @@ class StatisticsEmulator:
                 z["correlation"],
                 int(z["cases"]),
                 str(z["stamp"]) if "stamp" in z.files else "",
-                z["trend"] if "trend" in z.files else None,
-                z["resid_scale"] if "trend" in z.files else None,
             )
 
 
@@ -223,11 +202,9 @@ def fit(
     hidden: int = 48,
     seed: int = 0,
     log=None,
-    trend: bool = False,
 ) -> StatisticsEmulator:
     """Fit the emulator to cases ``u`` (N, d, fractions of range) and their one-section
-    statistics ``x`` (N, D); rows with a non-finite statistic are left out. ``trend``: each
-    member's network learns what its quadratic trend leaves (module docstring)."""
+    statistics ``x`` (N, D); rows with a non-finite statistic are left out."""
     from railsusp.estimate.posterior import one_thread
 
     u = np.asarray(u, float)
@@ -245,26 +222,15 @@ def fit(
     y = (x - x_mean) / x_scale
     rng = np.random.default_rng(seed)
     weights, oob_sum, oob_count = [], np.zeros_like(y), np.zeros(n)
-    trends, scales = [], []
-    feats = quadratic_features(u)
-    trend = trend and n >= TREND_CASES_PER_TERM * feats.shape[1]
     with one_thread():
         for m in range(members):
             t0 = time.perf_counter()
             boot = rng.integers(0, n, n)
             valid = np.setdiff1d(np.arange(n), boot)
-            target = y
-            if trend:
-                trends.append(_ridge(feats[boot], y[boot]))
-                left = y - feats @ trends[-1]
-                scales.append(np.maximum(left[boot].std(axis=0), 1e-12))
-                target = left / scales[-1]
-            layers = _fit_member(u, target, boot, valid, hidden, seed + 7919 * (m + 1))
+            layers = _fit_member(u, y, boot, valid, hidden, seed + 7919 * (m + 1))
             weights.append(layers)
             part = StatisticsEmulator([layers], np.zeros(y.shape[1]), np.ones(y.shape[1]),
                                       np.zeros((1, 1)), np.eye(1))  # fmt: skip
-            if trend:
-                part.trend, part.resid_scale = trends[-1][None], scales[-1][None]
             oob_sum[valid] += part.member_means(u[valid])[0]
             oob_count[valid] += 1
             if log is not None:
@@ -276,8 +242,6 @@ def fit(
     coef = _ridge(feats, np.log(resid**2 + 1e-30 * x_scale**2))
     coef[0] -= LOG_CHI2_1_MEAN
     emu = StatisticsEmulator(weights, x_mean, x_scale, coef, np.eye(x.shape[1]), n)
-    if trend:
-        emu.trend, emu.resid_scale = np.stack(trends), np.stack(scales)
     z = resid / emu.section_sd(u[seen])
     emu.correlation = np.cov(z.T)
     return emu

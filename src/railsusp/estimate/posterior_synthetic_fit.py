@@ -205,7 +205,7 @@ def fit_projected_emulator(
     path = folder / "synthetic" / "projected_emulator.npz"
     trained_on = {k: v for k, v in settings.to_dict().items() if k in TRAINED_ON}
     key = content_hash({"settings": trained_on, "projection": fitted["stamp"],
-                        "members": MEMBERS, "hidden": PROJECTED_HIDDEN, "trend": True})  # fmt: skip
+                        "members": MEMBERS, "hidden": PROJECTED_HIDDEN})  # fmt: skip
     if path.exists():
         emu = StatisticsEmulator.load(path)
         if emu.stamp == key:
@@ -213,7 +213,7 @@ def fit_projected_emulator(
     u, x = cached_cases(settings, folder / "simulations", "train", settings.n_train)
     t0 = time.perf_counter()
     emu = fit(u, x @ fitted["matrix"].T, members=MEMBERS, hidden=PROJECTED_HIDDEN,
-              seed=settings.seed, log=log, trend=True)  # fmt: skip
+              seed=settings.seed, log=log)  # fmt: skip
     log.info("synthetic likelihood: emulator of %d combinations on %d cases fitted in %.0f s",
              emu.dim, emu.cases, time.perf_counter() - t0)  # fmt: skip
     emu.stamp = key
