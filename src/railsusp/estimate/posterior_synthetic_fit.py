@@ -24,7 +24,7 @@ from railsusp.estimate.posterior_synthetic import (
 )
 from railsusp.store import atomic_write_bytes, content_hash, read_json, write_json
 
-log = logging.getLogger("railsusp.estimate.posterior_synthetic_run")
+log = logging.getLogger(__name__)
 
 #: networks in the emulator's bagged ensemble, and their hidden width
 MEMBERS = 10
@@ -113,11 +113,10 @@ def fit_covariance_scales(
     sl: SyntheticLikelihood,
     run: str | Path,
     where,
-    projected: str | None = None,
 ) -> dict:
-    """Fit (or read) the covariance's scales on the held-out records ``where`` ((kind,
-    records, sections), or None: scales 1), into ``posterior/synthetic/scales.json``;
-    ``projected``: the stamp of the projected combinations' emulator, if there is one."""
+    """Fit (or read) the covariance's scales of the likelihood ``sl`` on the held-out
+    records ``where`` ((kind, records, sections), or None: scales 1), into
+    ``posterior/synthetic/scales.json``, stamped with the emulators and the projection."""
     path = Path(run) / "posterior" / "synthetic" / "scales.json"
     record = {"records": None, "within_scale": 1.0, "model_error": 0.0}
     if where is not None:
@@ -126,8 +125,8 @@ def fit_covariance_scales(
         record["emulator"] = emulator_stamp(run)
         if sl.projection is not None:
             record["projection"] = content_hash({"p": sl.projection.tolist()})
-        if projected is not None:
-            record["projected"] = projected
+        if sl.projected is not None:
+            record["projected"] = sl.projected.stamp
         if path.exists():
             old = read_json(path)
             if (
@@ -138,8 +137,7 @@ def fit_covariance_scales(
                 and "model_error_matrix" in old
             ):
                 return old
-        s = settings
-        u, x = cached_cases(s, Path(run) / "posterior" / "simulations", kind, n, k)
+        u, x = cached_cases(settings, Path(run) / "posterior" / "simulations", kind, n, k)
         ok = np.all(np.isfinite(x), axis=(1, 2))
         within, model = fit_scales(sl, u[ok], x[ok])
         matrix, rho = fit_model_error(sl, u[ok], x[ok], within)
@@ -185,9 +183,9 @@ def fit_emulator(settings: PosteriorSettings, run: str | Path) -> StatisticsEmul
 
 def fit_projected_emulator(
     settings: PosteriorSettings, run: str | Path, fitted: dict
-) -> tuple[StatisticsEmulator, str] | None:
-    """With ``statistics_emulator_cases``: (the emulator of the projected combinations P x
-    on all ``n_train`` training cases, its stamp), fitted once per projection into
+) -> StatisticsEmulator | None:
+    """With ``statistics_emulator_cases``: the emulator of the projected combinations P x
+    on all ``n_train`` training cases, fitted once per projection into
     ``posterior/synthetic/projected_emulator.npz`` with its stamp inside; None without (or
     without a projection).
 
@@ -209,7 +207,7 @@ def fit_projected_emulator(
     if path.exists():
         emu = StatisticsEmulator.load(path)
         if emu.stamp == key:
-            return emu, key
+            return emu
     u, x = cached_cases(settings, folder / "simulations", "train", settings.n_train)
     t0 = time.perf_counter()
     emu = fit(u, x @ fitted["matrix"].T, members=MEMBERS, hidden=PROJECTED_HIDDEN,
@@ -218,20 +216,21 @@ def fit_projected_emulator(
              emu.dim, emu.cases, time.perf_counter() - t0)  # fmt: skip
     emu.stamp = key
     emu.save(path)
-    return emu, key
+    return emu
 
 
 def check_stamp(
-    run: str | Path, scales: dict, plug_in: bool, projected: str | None, projection: str | None
+    run: str | Path, scales: dict, sl: SyntheticLikelihood, projection: str | None
 ) -> list:
-    """What a coverage check was made with, stored in ``check.json`` and required by
-    ``load``: the emulator's hash, the covariance's scales (c, m, A's hash), whether the
-    covariance is plugged in, the projected emulator's stamp and the projection's, when
-    there are these."""
+    """What a coverage check of the likelihood ``sl`` was made with, stored in
+    ``check.json`` and required by ``load``: the emulator's hash, the covariance's scales
+    (c, m, A's hash), whether the covariance is plugged in, the projected emulator's stamp
+    and the projection's (``projection``, from ``projection.npz``), when there are these."""
     matrix = content_hash({"model_error_matrix": scales.get("model_error_matrix")})
-    stamp = [emulator_stamp(run), scales["within_scale"], scales["model_error"], matrix, plug_in]
-    if projected is not None:  # the projected combinations' own emulator
-        stamp.append(projected)
+    stamp = [emulator_stamp(run), scales["within_scale"], scales["model_error"], matrix,
+             sl.plug_in_covariance]  # fmt: skip
+    if sl.projected is not None:  # the projected combinations' own emulator
+        stamp.append(sl.projected.stamp)
     if projection is not None:  # the projection's own stamp: emulator, rank, sections
         stamp.append(projection)
     return stamp

@@ -154,17 +154,15 @@ def train(
     restamp_settings(settings, run)
     fitted = fit_projection(settings, emulator, run)
     projection = fitted.get("matrix")
-    second = fit_projected_emulator(settings, run, fitted)
-    projected, projected_stamp = second if second is not None else (None, None)
+    projected = fit_projected_emulator(settings, run, fitted)
     post = SyntheticPosterior(settings, likelihood(settings, emulator, None, projection,
                                                    projected))  # fmt: skip
     where = scale_set(settings) if scales_on == "default" else scales_on
-    scales = fit_covariance_scales(settings, post.likelihood, run, where, projected_stamp)
+    scales = fit_covariance_scales(settings, post.likelihood, run, where)
     post.likelihood = likelihood(settings, emulator, scales, projection, projected)
     path = Path(run) / "posterior" / "synthetic" / "check.json"
     sets = [list(map(_plain, st)) for st in (sets or held_out_sets(settings))]
-    stamp = check_stamp(run, scales, post.likelihood.plug_in_covariance, projected_stamp,
-                        fitted.get("stamp"))  # fmt: skip
+    stamp = check_stamp(run, scales, post.likelihood, fitted.get("stamp"))
     if path.exists():
         old = read_json(path)
         if old.get("sets") == sets and old.get("emulator") == stamp:
@@ -193,14 +191,13 @@ def load(run: str | Path) -> SyntheticPosterior:
     emulator = StatisticsEmulator.load(folder / "emulator.npz")
     scales = read_json(folder / "scales.json")
     checked = read_json(folder / "check.json")
-    projection = None
+    projection, projection_stamp = None, None
     if settings.statistics != ("en14363",):
         path = folder / "projection.npz"
-        stamp = None
         if path.exists():
             with np.load(path, allow_pickle=False) as z:
-                projection, stamp = z["matrix"], str(z["stamp"])
-        if stamp is None or checked.get("emulator", [None])[-1] != stamp:
+                projection, projection_stamp = z["matrix"], str(z["stamp"])
+        if projection_stamp is None or checked.get("emulator", [None])[-1] != projection_stamp:
             raise _not_checked(path, folder)
     projected = None
     if settings.statistics_emulator_cases:
@@ -211,9 +208,7 @@ def load(run: str | Path) -> SyntheticPosterior:
     post = SyntheticPosterior(
         settings, likelihood(settings, emulator, scales, projection, projected)
     )
-    made_with = check_stamp(run, scales, post.likelihood.plug_in_covariance,
-                            projected.stamp if projected is not None else None,
-                            stamp if projection is not None else None)  # fmt: skip
+    made_with = check_stamp(run, scales, post.likelihood, projection_stamp)
     if checked.get("emulator") != made_with:  # emulator, scales or settings of another training
         raise _not_checked(folder / "scales.json", folder)
     post.checks = [SectionsCheck.from_dict(c) for c in checked["checks"]]
