@@ -40,6 +40,20 @@ def ledoit_wolf(x: np.ndarray) -> np.ndarray:
     return corr * np.outer(sd, sd)
 
 
+def unbiased_precision(x: np.ndarray) -> np.ndarray:
+    """Sigma^-1 (D, D) estimated without bias from the rows of ``x`` (N, D; Gaussian, N >
+    D + 2): (N - D - 2) / (N - 1) S^-1, S the sample covariance, whose own inverse
+    overstates Sigma^-1 by (N - 1) / (N - D - 2) on average (the inverse Wishart's mean,
+    Anderson 2003, "An introduction to multivariate statistical analysis", 7.7). An
+    information read through S^-1 is inflated by the same factor: 2.4 for 375 statistics
+    per condition from 900 sections."""
+    x = np.asarray(x, dtype=float)
+    n, d = x.shape
+    if n <= d + 2:
+        raise ValueError(f"{n} rows for {d} statistics: need more than {d + 2}")
+    return np.linalg.inv(np.cov(x.T)) * (n - d - 2) / (n - 1)
+
+
 def information_naive(d: np.ndarray, weight: np.ndarray) -> np.ndarray:
     """J-bar^T W J-bar (P, P), J-bar the mean over the K pairs of ``d`` (P, K, D): biased
     upwards by the noise in J-bar."""
