@@ -17,11 +17,13 @@ widths (% of range, all ten unknown, with the uniform prior's information) at
 - **full, sample S^-1 / unbiased**: gains known, C = S / k, S the sample covariance of the
   point's sections per condition, read raw and through :func:`information_estimate.
   unbiased_precision` (the raw inverse overstates the information by (N - 1) / (N - D - 2));
-- **through the projection P**: gains known or with the gain prior, C = P (S / k) P^T
-  (r combinations from N sections: nearly unbiased after the same correction with r);
+- **through the projection P**: gains known, C = P (S / k) P^T, or with the gain prior,
+  P (S / k + G) P^T (r combinations from N sections, after the same correction with r,
+  which errs on the wide side: :func:`projected_weight`);
 - **the emulator's own bound** at the point (its Jacobian and covariance, statistics
   alone: what bench/posterior_synthetic.py's ``--sets`` table prints);
-- **a projection chosen at the point** from the emulator's Jacobian there, whitened with
+- **a projection chosen at the point** from the Jacobian there of the run's emulator of
+  all the statistics (the one its global combinations were chosen with), whitened with
   the Ledoit-Wolf covariance of half the sections and read through the other half
   (cross-validated; gains known): whether a covariance estimated from sections can choose
   better combinations than the run's global ones.
@@ -38,6 +40,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from scipy.linalg import block_diag
 
 from information_estimate import (
     information_unbiased,
@@ -50,6 +53,8 @@ from railsusp.estimate.posterior_synthetic import (
     SyntheticLikelihood,
     fisher_information,
     mean_jacobian,
+    top_directions,
+    whitening,
 )
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import atomic_write_bytes
@@ -81,38 +86,17 @@ def columns_of(summary_names: list[str], conditions: list[str]) -> list[int]:
     return [bench[n] for n in summary_names]
 
 
-def block_diagonal(blocks: list[np.ndarray]) -> np.ndarray:
-    """One matrix of the conditions' blocks (conditions are independent runs)."""
-    size = sum(len(b) for b in blocks)
-    out, lo = np.zeros((size, size)), 0
-    for b in blocks:
-        out[lo : lo + len(b), lo : lo + len(b)] = b
-        lo += len(b)
-    return out
-
-
 def projected_weight(p: np.ndarray, cov: np.ndarray, n: int | None = None) -> np.ndarray:
     """W = P^T (P C P^T)^-1 P (D, D): the weight by which J^T W J is the information of
     the combinations P s (r, D) of statistics of covariance C. ``n``: C is a sample
     covariance of n sections, and (P C P^T)^-1 is scaled by (n - r - 2) / (n - 1) (the
-    inverse Wishart's bias, :func:`information_estimate.unbiased_precision`)."""
+    inverse Wishart's bias, :func:`information_estimate.unbiased_precision`), exact for
+    one sample covariance. For the conditions' independent blocks, or with a known gain
+    covariance added, the factor over-corrects (by up to about 5 % of the information at
+    r = 80 from 900 sections): the reading errs on the wide side."""
     r = p.shape[0]
     w = p.T @ np.linalg.solve(p @ cov @ p.T, p)
     return w if n is None else w * (n - r - 2) / (n - 1)
-
-
-def top_combinations(whiten: np.ndarray, jac: np.ndarray, rank: int) -> np.ndarray:
-    """(rank, D) P = V_r^T W: the ``rank`` eigenvectors of W J J^T W (``whiten`` W =
-    C^-1/2, ``jac`` J (D, d)) with the largest eigenvalues, the combinations of most
-    information when C is the covariance W was made from."""
-    w = whiten @ jac
-    vals, vecs = np.linalg.eigh(w @ w.T)
-    return vecs[:, np.argsort(vals)[::-1][:rank]].T @ whiten
-
-
-def inverse_sqrt(c: np.ndarray) -> np.ndarray:
-    vals, vecs = np.linalg.eigh(0.5 * (c + c.T))
-    return (vecs / np.sqrt(np.maximum(vals, 1e-12 * vals.max()))) @ vecs.T
 
 
 def point_readings(data: dict, cols, post, u0: np.ndarray, k: int, rng) -> dict:
@@ -126,8 +110,8 @@ def point_readings(data: dict, cols, post, u0: np.ndarray, k: int, rng) -> dict:
     good = np.all([np.all(np.isfinite(xc), axis=1) for xc in x], axis=0)
     x = np.concatenate([xc[good] for xc in x], axis=1)[:, cols]
     n = len(x)
-    g = block_diagonal([GAIN_ERROR**2 * data[c]["gains_all"].T @ data[c]["gains_all"]
-                        for c in conds])[np.ix_(cols, cols)]  # fmt: skip
+    g = block_diag(*[GAIN_ERROR**2 * data[c]["gains_all"].T @ data[c]["gains_all"]
+                     for c in conds])[np.ix_(cols, cols)]  # fmt: skip
     # conditions are independent runs: their sections' cross-covariance is zero
     cond_of = np.repeat(np.arange(len(conds)), [data[c]["d_all"].shape[2] for c in conds])[cols]
     blocks = [np.flatnonzero(cond_of == i) for i in range(len(conds))]
@@ -163,18 +147,22 @@ def point_readings(data: dict, cols, post, u0: np.ndarray, k: int, rng) -> dict:
         for blk in blocks:
             choose[np.ix_(blk, blk)] = ledoit_wolf(x[np.ix_(a, blk)]) / k
             read[np.ix_(blk, blk)] = np.cov(x[np.ix_(b, blk)].T) / k
-        q = top_combinations(inverse_sqrt(choose), jac, LOCAL_RANK)
+        q, _ = top_directions(whitening(choose), jac, LOCAL_RANK)
         local.append(width(projected_weight(q, read, len(b))))
     out["chosen_at_point_cross_validated"] = np.mean(local, axis=0)
     # the emulator's Jacobian through P against the pairs'
-    whiten = inverse_sqrt(p @ sample @ p.T)
-    pairs = whiten @ p @ d.mean(axis=1).T
+    # (the pairs' mean's norm is overstated by their noise: its square is read unbiased, by
+    # the products of different pairs; its product with the emulator's is unbiased as it is)
+    whiten = whitening(p @ sample @ p.T)
+    samples = np.einsum("ij,akj->aki", whiten @ p, d)
+    squares = np.diag(information_unbiased(samples, None))
     emulated = whiten @ mean_jacobian(sl, u0[None])[0]
     jacobians = {}
     for j, name in enumerate(MAIN_SUSPENSION):
-        na, nb = np.linalg.norm(pairs[:, j]), np.linalg.norm(emulated[:, j])
+        na, nb = np.sqrt(max(squares[j], 0.0)), np.linalg.norm(emulated[:, j])
         # None where a parameter moves nothing (X12 at the nominal wagon: its pairs are equal)
-        cosine = float(pairs[:, j] @ emulated[:, j] / (na * nb)) if na * nb > 0 else None
+        product = samples[j].mean(axis=0) @ emulated[:, j]
+        cosine = float(product / (na * nb)) if na * nb > 0 else None
         jacobians[name] = {"pairs": float(na), "emulator": float(nb), "cosine": cosine}
     return {"widths_pct": {key: dict(zip(MAIN_SUSPENSION, np.asarray(v).tolist(), strict=True))
                            for key, v in out.items()},
@@ -201,18 +189,25 @@ def main() -> None:
         cols = columns_of(post.settings.summary_names, names)
     except ValueError as e:
         ap.error(f"--run {a.run}: {e}")
+    # the bench's sections are its conditions' whole runs; the run's must be as long
+    by_name = {c.name: (ci, c) for ci, c in enumerate(conds)}
+    for name in names:
+        run_s = by_name[name][1].duration_s
+        if abs(run_s - post.settings.section_s) > 1e-9:
+            ap.error(f"--run {a.run}: its sections of {post.settings.section_s:g} s, the "
+                     f"bench's {name} runs {run_s:g} s: accepted equal")  # fmt: skip
     k = round(a.seconds / post.settings.section_s)
     t0 = time.perf_counter()
     rows = []
     for p, u0 in enumerate(parameter_points(a.points, a.point_seed)):
-        data = {}
-        for ci, cond in enumerate(conds):
-            if cond.name in names:
-                q = pooled([condition_data(a, cond, ci, p, u0, s) for s in seeds])
-                data[cond.name] = {
-                    f"{part}_all": np.concatenate([q[part][g] for g in GROUPS], axis=-1)
-                    for part in ("d", "cov", "gains")
-                }
+        data = {}  # in the run's order of conditions, as its columns are
+        for name in names:
+            ci, cond = by_name[name]
+            q = pooled([condition_data(a, cond, ci, p, u0, s) for s in seeds])
+            data[name] = {
+                f"{part}_all": np.concatenate([q[part][g] for g in GROUPS], axis=-1)
+                for part in ("d", "cov", "gains")
+            }
         rows.append({"point": p, **point_readings(data, cols, post, u0, k,
                                                   np.random.default_rng([p, 41]))})  # fmt: skip
         print(f"point {p}: {time.perf_counter() - t0:.0f} s", flush=True)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from conftest import bench_script
+from railsusp.estimate.posterior_synthetic import top_directions, whitening
 
 
 @pytest.fixture(scope="module")
@@ -36,12 +37,16 @@ def test_unbiased_precision_removes_the_inverse_wishart_bias(est):
         corrected.append(np.trace(est.unbiased_precision(x) @ c))
         raw.append(np.trace(np.linalg.inv(np.cov(x.T)) @ c))
     assert np.mean(corrected) == pytest.approx(d, rel=0.03)
+    # the raw inverse's bias is what the correction removes (the case is one where it shows)
     assert np.mean(raw) == pytest.approx(d * (n - 1) / (n - d - 2), rel=0.03)
 
 
 def test_unbiased_precision_refuses_too_few_rows(est):
-    with pytest.raises(ValueError, match="10 rows for 9 statistics: need more than 11"):
-        est.unbiased_precision(np.zeros((10, 9)))
+    """N = D + 2 rows leave the inverse Wishart without a mean: refused; D + 3 read."""
+    with pytest.raises(ValueError, match="11 rows for 9 statistics: need more than 11"):
+        est.unbiased_precision(np.zeros((11, 9)))
+    x = np.random.default_rng(0).standard_normal((12, 9))
+    assert est.unbiased_precision(x) == pytest.approx(np.linalg.inv(np.cov(x.T)) / 11)
 
 
 def test_projection_spanning_the_score_keeps_all_the_information(bench):
@@ -62,17 +67,20 @@ def test_projection_spanning_the_score_keeps_all_the_information(bench):
     assert w == pytest.approx(bench.projected_weight(p, c) * (100 - 7 - 2) / 99, rel=1e-12)
 
 
-def test_top_combinations_are_the_score_directions(bench):
-    """Whitened by C^-1/2, the top q combinations of a rank-q Jacobian span C^-1 J: they
+def test_top_directions_are_the_score_directions(bench):
+    """(:mod:`railsusp.estimate.posterior_synthetic`'s, which the informative projection
+    uses.) Whitened by C^-1/2, the top q combinations of a rank-q Jacobian span C^-1 J: they
     keep all of its information, which fewer cannot."""
     rng = np.random.default_rng(4)
     d, q = 20, 2
     c = _covariance(rng, d)
     jac = rng.standard_normal((d, q))
     full = jac.T @ np.linalg.solve(c, jac)
-    p = bench.top_combinations(bench.inverse_sqrt(c), jac, q)
+    p, kept = top_directions(whitening(c), jac, q)
+    assert kept == pytest.approx(1.0)
     assert jac.T @ bench.projected_weight(p, c) @ jac == pytest.approx(full, rel=1e-8)
-    one = bench.top_combinations(bench.inverse_sqrt(c), jac, 1)
+    one, kept_one = top_directions(whitening(c), jac, 1)
+    assert kept_one < 1.0
     assert np.linalg.det(jac.T @ bench.projected_weight(one, c) @ jac) == pytest.approx(0, abs=1e-8)
 
 

@@ -414,11 +414,26 @@ def informative_projection(
     base = SyntheticLikelihood(sl.emulator, sl.shared)
     u = np.atleast_2d(np.asarray(u, float))
     _, shared, section, emulator = base.parts(u)
-    cov = np.mean(shared + (section - shared) / k + emulator, axis=0)
+    whiten = whitening(np.mean(shared + (section - shared) / k + emulator, axis=0))
+    return top_directions(whiten, mean_jacobian(base, u, step), rank)
+
+
+def whitening(cov: np.ndarray) -> np.ndarray:
+    """W = C^-1/2 (D, D) of a symmetric covariance ``cov``, its eigenvalues floored at
+    1e-12 of the largest (directions of no variance are not amplified without bound)."""
     vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
-    whiten = (vecs / np.sqrt(np.maximum(vals, 1e-12 * vals.max()))) @ vecs.T
-    w = np.einsum("ij,njb->nib", whiten, mean_jacobian(base, u, step))  # whitened J
-    m = np.einsum("nib,njb->ij", w, w) / len(u)
+    return (vecs / np.sqrt(np.maximum(vals, 1e-12 * vals.max()))) @ vecs.T
+
+
+def top_directions(whiten: np.ndarray, jac: np.ndarray, rank: int) -> tuple[np.ndarray, float]:
+    """(P (rank, D), the fraction kept): P = V_r^T W, V_r the ``rank`` eigenvectors of
+    largest eigenvalue of the whitened information W J J^T W averaged over the Jacobians
+    ``jac`` (N, D, d; or one, (D, d)); the fraction is of its trace. Where W whitens J's
+    statistics, these are the combinations that carry the most information about the
+    parameters."""
+    jac = np.asarray(jac, float)
+    w = np.einsum("ij,njb->nib", whiten, jac[None] if jac.ndim == 2 else jac)  # whitened J
+    m = np.einsum("nib,njb->ij", w, w) / len(w)
     vals, vecs = np.linalg.eigh(m)
     order = np.argsort(vals)[::-1][:rank]
     kept = float(np.sum(vals[order]) / np.sum(np.maximum(vals, 0.0)))
