@@ -51,7 +51,14 @@ def unbiased_precision(x: np.ndarray) -> np.ndarray:
     n, d = x.shape
     if n <= d + 2:
         raise ValueError(f"{n} rows for {d} statistics: need more than {d + 2}")
-    return np.linalg.inv(np.cov(x.T)) * (n - d - 2) / (n - 1)
+    return np.linalg.inv(np.cov(x.T)) * inverse_wishart_factor(n, d)
+
+
+def inverse_wishart_factor(n: int, d: int) -> float:
+    """(n - d - 2) / (n - 1): what makes the inverse of the sample covariance of ``n``
+    Gaussian rows in ``d`` dimensions an unbiased estimate of Sigma^-1
+    (:func:`unbiased_precision`)."""
+    return (n - d - 2) / (n - 1)
 
 
 def information_naive(d: np.ndarray, weight: np.ndarray) -> np.ndarray:

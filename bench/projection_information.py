@@ -44,6 +44,7 @@ from scipy.linalg import block_diag
 
 from information_estimate import (
     information_unbiased,
+    inverse_wishart_factor,
     ledoit_wolf,
     unbiased_precision,
     widths_pct,
@@ -94,9 +95,8 @@ def projected_weight(p: np.ndarray, cov: np.ndarray, n: int | None = None) -> np
     one sample covariance. For the conditions' independent blocks, or with a known gain
     covariance added, the factor over-corrects (by up to about 5 % of the information at
     r = 80 from 900 sections): the reading errs on the wide side."""
-    r = p.shape[0]
     w = p.T @ np.linalg.solve(p @ cov @ p.T, p)
-    return w if n is None else w * (n - r - 2) / (n - 1)
+    return w if n is None else w * inverse_wishart_factor(n, p.shape[0])
 
 
 def point_readings(data: dict, cols, post, u0: np.ndarray, k: int, rng) -> dict:
@@ -182,7 +182,8 @@ def main() -> None:
     if post.likelihood.projection is None:
         ap.error(f"--run {a.run}: its likelihood reads no projection (statistics en14363)")
     names = [c.name for c in post.settings.conditions]
-    missing = [c for c in names if c not in [c.name for c in conds]]
+    by_name = {c.name: (ci, c) for ci, c in enumerate(conds)}
+    missing = [c for c in names if c not in by_name]
     if missing:
         ap.error(f"--conditions {a.conditions}: the run's condition {missing[0]} is missing")
     try:
@@ -190,7 +191,6 @@ def main() -> None:
     except ValueError as e:
         ap.error(f"--run {a.run}: {e}")
     # the bench's sections are its conditions' whole runs; the run's must be as long
-    by_name = {c.name: (ci, c) for ci, c in enumerate(conds)}
     for name in names:
         run_s = by_name[name][1].duration_s
         if abs(run_s - post.settings.section_s) > 1e-9:

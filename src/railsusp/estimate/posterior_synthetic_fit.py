@@ -155,9 +155,14 @@ def emulator_key(settings: PosteriorSettings) -> str:
     settings with the cases it reads (``statistics_emulator_cases`` when set, else
     ``n_train``), so that it is the hash of an emulator of as many cases trained before
     the setting existed, and the network size."""
-    trained_on = {k: v for k, v in settings.to_dict().items() if k in TRAINED_ON}
+    trained_on = _trained_on(settings)
     trained_on["n_train"] = settings.statistics_emulator_cases or settings.n_train
     return content_hash({"settings": trained_on, "members": MEMBERS, "hidden": HIDDEN})
+
+
+def _trained_on(settings: PosteriorSettings) -> dict:
+    """The settings an emulator depends on (:data:`TRAINED_ON`), for its hash."""
+    return {k: v for k, v in settings.to_dict().items() if k in TRAINED_ON}
 
 
 def fit_emulator(settings: PosteriorSettings, run: str | Path) -> StatisticsEmulator:
@@ -201,8 +206,7 @@ def fit_projected_emulator(
         return None
     folder = Path(run) / "posterior"
     path = folder / "synthetic" / "projected_emulator.npz"
-    trained_on = {k: v for k, v in settings.to_dict().items() if k in TRAINED_ON}
-    key = content_hash({"settings": trained_on, "projection": fitted["stamp"],
+    key = content_hash({"settings": _trained_on(settings), "projection": fitted["stamp"],
                         "members": MEMBERS, "hidden": PROJECTED_HIDDEN})  # fmt: skip
     if path.exists():
         emu = StatisticsEmulator.load(path)
