@@ -83,6 +83,13 @@ def main() -> None:
         help="0: one emulator of all statistics on every training case; N: it on the first "
         "N cases, and an emulator of the projected combinations on all of them",
     )
+    ap.add_argument(
+        "--condition-offset",
+        type=int,
+        default=0,
+        help="index of the first condition in a joint design (another run of the same cases "
+        "holds the conditions before it): its own tracks and noise",
+    )
     a = ap.parse_args()
 
     longest = max(1, round(a.long_length / a.section))
@@ -97,6 +104,7 @@ def main() -> None:
         statistics=tuple(a.statistics.split(",")),
         projection_rank=a.projection_rank,
         statistics_emulator_cases=a.statistics_emulator_cases,
+        condition_offset=a.condition_offset,
     )
     ks = sorted({max(1, round(v / a.section)) for v in lengths_s(a.lengths)})
     sets = [("check", a.check, 1, (1,))] if 1 in ks else []

@@ -73,3 +73,41 @@ def test_a_second_emulator_without_a_projection_is_one_line_exit_2(tmp_path):
     assert "--statistics-emulator-cases 100 conflicts with statistics = en14363" in result.output
     assert len(result.output.strip().splitlines()) == 1
     assert not (tmp_path / "run" / "posterior").exists()
+
+
+def test_join_two_estimators_of_different_conditions_and_estimate(tmp_path, monkeypatch):
+    """Straight and uphill trained apart (the second with its own tracks), joined, checked
+    on their held-out records, and a recording of both conditions estimated by the joint
+    posterior; the same estimators at one offset, or an estimate by the flows' method, are
+    refused in one line."""
+    monkeypatch.chdir(tmp_path)
+    common = ["--parameters", "X14,X18", "--section", "2", "--simulations", "40", "--check", "10"]
+    common += ["--calibration", "0", "--lead-in", "20", "--long-record", "synthetic-likelihood"]
+    for name, offset in (("straight", 0), ("uphill", 1)):
+        args = ["posterior", "train", "--out", str(tmp_path / name), "--conditions", name]
+        result = runner.invoke(app, [*args, *common, "--condition-offset", str(offset)])
+        assert result.exit_code == 0, result.output
+    joined = tmp_path / "joint"
+    args = ["posterior", "join", "--estimators", f"{tmp_path / 'straight'},{tmp_path / 'uphill'}"]
+    result = runner.invoke(app, [*args, "--out", str(joined)])
+    assert result.exit_code == 0, result.output
+    assert "joint posterior of straight, uphill" in result.output
+    assert "1 section(s): coverage" in result.output
+    conditions = [CONDITION, get_condition("uphill").with_changes(lead_in_m=20.0)]
+    synthesise_field(ParameterSet.nominal(), conditions, tmp_path / "f", duration_s=4.5)
+    out = tmp_path / "post.json"
+    args = ["posterior", "estimate", "--measured", str(tmp_path / "f"), "--estimator", str(joined)]
+    result = runner.invoke(app, [*args, "--out", str(out), "--long-record", "synthetic-likelihood"])
+    assert result.exit_code == 0, result.output
+    assert "straight: 2 section(s) of 2 s" in result.output
+    assert "uphill: 2 section(s) of 2 s" in result.output
+    saved = read_json(out)
+    assert saved["sections_combined"] == 2 and saved["calibrated"] is False  # checked at 1
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2
+    assert "a joint posterior (railsusp posterior join) reads --long-record" in result.output
+    same = ["posterior", "join", "--estimators", f"{tmp_path / 'straight'},{tmp_path / 'straight'}"]
+    result = runner.invoke(app, [*same, "--out", str(tmp_path / "j2")])
+    assert result.exit_code == 2
+    assert "condition 'straight' in estimators 1 and 2" in result.output
+    assert len(result.output.strip().splitlines()) == 1

@@ -25,7 +25,7 @@ _OPTIONS = {"section_s": "--section", "n_train": "--simulations", "n_check": "--
             "product_cases": "--product-cases", "statistics": "--statistics",
             "projection_rank": "--projection-rank",
             "statistics_emulator_cases": "--statistics-emulator-cases",
-            "sum_y": "--sum-y"}  # fmt: skip
+            "condition_offset": "--condition-offset", "sum_y": "--sum-y"}  # fmt: skip
 
 
 def _calibration_table(est) -> None:
@@ -155,6 +155,14 @@ def train_command(
             "simulations: docs/posterior.md)"
         ),
     ] = 0,
+    condition_offset: Annotated[
+        int,
+        typer.Option(
+            help="for an estimator of further conditions of the same wagon: the number of "
+            "conditions of the estimators before it (their tracks and noise are not reused), "
+            "joined to them by railsusp posterior join"
+        ),
+    ] = 0,
     seed: Annotated[int, typer.Option(help="seed of every draw")] = 0,
     long_record: Annotated[
         str,
@@ -194,6 +202,7 @@ def train_command(
             statistics=tuple(statistics.split(",")),
             projection_rank=projection_rank,
             statistics_emulator_cases=statistics_emulator_cases,
+            condition_offset=condition_offset,
             seed=seed,
         )
         if is_quiet():
@@ -265,7 +274,18 @@ def estimate_command(
             check_output_file(out)
         _long_record(long_record)
         recordings = read_field(measured)
-        if long_record == "synthetic-likelihood":
+        joined = (estimator / "posterior" / "joint.json").exists()
+        if joined and long_record != "synthetic-likelihood":
+            raise RailsuspInputError(
+                f"--estimator {estimator}: a joint posterior (railsusp posterior join) reads "
+                "--long-record synthetic-likelihood; accepted that method"
+            )
+        if joined:
+            from railsusp.estimate import posterior_joint
+
+            est = posterior_joint.load(estimator)
+            result = posterior_joint.estimate(est, recordings, seed=seed)
+        elif long_record == "synthetic-likelihood":
             from railsusp.estimate import posterior_synthetic_run
 
             est = posterior_synthetic_run.load(estimator)
@@ -284,3 +304,48 @@ def estimate_command(
     if out is not None:
         result.save(out)
         console.print(f"wrote {out}")
+
+
+@posterior_app.command(
+    "join",
+    epilog="Example: railsusp posterior join --estimators runs/post_sc,runs/post_up "
+    "--out runs/post_all",
+)
+def join_command(
+    estimators: Annotated[
+        str,
+        typer.Option(
+            help="run directories of synthetic-likelihood estimators of different conditions "
+            "of the same wagon (trained with the same seed and held-out counts, each later "
+            "one with --condition-offset past the conditions before it), comma-separated"
+        ),
+    ],
+    out: Annotated[Path, typer.Option(help="folder of the joint posterior (posterior/joint.json)")],
+) -> None:
+    """One posterior of all the estimators' conditions (their likelihoods multiply), checked
+    on their held-out records; then railsusp posterior estimate --estimator OUT
+    --long-record synthetic-likelihood."""
+    from railsusp.estimate import posterior_joint
+
+    runs = [Path(r) for r in estimators.split(",") if r.strip()]
+    try:
+        if is_quiet():
+            joint = posterior_joint.train(runs, out)
+        else:
+            with console.status("checking the joint posterior on the held-out records"):
+                joint = posterior_joint.train(runs, out)
+    except RailsuspInputError as exc:
+        fail(str(exc))
+    names = [c.name for p in joint.parts for c in p.settings.conditions]
+    console.print(f"joint posterior of {', '.join(names)} in {out / 'posterior' / 'joint.json'}")
+    for c in joint.checks:
+        cov = [p.coverage for p in c.checks]
+        console.print(
+            f"{c.sections} section(s): coverage {min(cov):.2f}-{max(cov):.2f} on "
+            f"{c.checks[0].n} cases, no widening: " + ("passed" if c.passed else "FAILED")
+        )
+    if not all(c.passed for c in joint.checks):
+        err_console.print(
+            "warning: the joint posterior FAILED its coverage check (intervals too narrow); "
+            "train its estimators on more simulations"
+        )

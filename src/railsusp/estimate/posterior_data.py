@@ -51,6 +51,10 @@ GAIN_ERROR = 0.01
 SEED_BASE = {"train": 10_000_000, "check": 20_000_000, "calibration": 30_000_000,
              "long": 40_000_000, "long-calibration": 50_000_000,
              "identification": 60_000_000, "replicate": 70_000_000}  # fmt: skip
+#: the track seeds of ``condition_offset`` o > 0 start at o times this (past every kind's)
+OFFSET_SEED_BASE = 100_000_000
+#: the largest ``condition_offset``
+MAX_CONDITION_OFFSET = 9
 
 
 @dataclass(frozen=True)
@@ -98,6 +102,7 @@ class PosteriorSettings:
     statistics: tuple[str, ...] = ("en14363",)
     projection_rank: int = 15
     statistics_emulator_cases: int = 0
+    condition_offset: int = 0
 
     def __post_init__(self) -> None:
         families = parse_families(self.statistics)
@@ -124,6 +129,7 @@ class PosteriorSettings:
             ("samples", self.samples, 100, 100_000),
             ("ensemble", self.ensemble, 1, 20),
             ("projection_rank", self.projection_rank, 1, 1000),
+            ("condition_offset", self.condition_offset, 0, MAX_CONDITION_OFFSET),
         ]
         for name, value, lo, hi in checks:
             if not lo <= value <= hi:
@@ -172,6 +178,8 @@ class PosteriorSettings:
             del d["statistics"], d["projection_rank"]
         if not self.statistics_emulator_cases:  # likewise: one emulator, of all statistics
             del d["statistics_emulator_cases"]
+        if not self.condition_offset:  # likewise: the conditions alone
+            del d["condition_offset"]
         return d
 
     @classmethod
@@ -294,6 +302,17 @@ def simulate_cases(settings: PosteriorSettings, u: np.ndarray, first: int, kind:
     return simulate_long_cases(settings, u, first, kind, 1)[:, 0, :]
 
 
+def track_seeds(settings: PosteriorSettings, kind: str, idx: np.ndarray, c: int) -> np.ndarray:
+    """The irregularity seeds of cases ``idx`` of ``kind`` in condition ``c`` (of the
+    settings' conditions): each case and condition its own track. With a
+    ``condition_offset`` o > 0 they start at o x :data:`OFFSET_SEED_BASE`, clear of the
+    seeds at every other offset (the kinds' bases are 10 000 000 apart, as at offset 0), so
+    that an estimator of further conditions for the same cases never shares a track with
+    another's."""
+    base = SEED_BASE[kind] + settings.condition_offset * OFFSET_SEED_BASE
+    return base + np.asarray(idx) * len(settings.conditions) + c
+
+
 def simulate_long_cases(
     settings: PosteriorSettings, u: np.ndarray, first: int, kind: str, sections: int
 ) -> np.ndarray:
@@ -308,7 +327,7 @@ def simulate_long_cases(
     per_condition = []
     for c, cond in enumerate(settings.conditions):
         idx = np.arange(first, first + n)
-        seeds = SEED_BASE[kind] + idx * len(settings.conditions) + c
+        seeds = track_seeds(settings, kind, idx, c)
         run = cond if sections == 1 else cond.with_duration(sections * settings.section_s)
         res = simulate_batch(theta, run, symbols=MAIN_SUSPENSION, seeds=list(seeds))
         j = res.measured_wheel()
@@ -317,7 +336,9 @@ def simulate_long_cases(
         for i in range(n):
             if not res.ok[i]:
                 continue
-            rng = np.random.default_rng([settings.seed, SEED_BASE[kind], int(idx[i]), c])
+            rng = np.random.default_rng(
+                [settings.seed, SEED_BASE[kind], int(idx[i]), settings.condition_offset + c]
+            )
             Y, Q = (_instrument(a[i, j] / 1e3, fs, rng, settings.noise) for a in (res.Y, res.Q))
             # the partner's channels draw their noise after the measured wheel's, Y then Q:
             # Y alone (sum_y) keeps the draws of estimators trained before Q was added
@@ -367,6 +388,8 @@ def cached_cases(
     name = kind if sections == 1 else f"{kind}-x{sections}"
     if settings.statistics != ("en14363",):  # the default keeps the files of before
         name += "+" + "+".join(settings.statistics[1:])
+    if settings.condition_offset:  # other tracks and noise: never the files of offset 0
+        name += f"@{settings.condition_offset}"
     width = len(settings.summary_names)
     xs = []
     for k, lo in enumerate(range(0, n, CHUNK)):

@@ -206,22 +206,39 @@ class SyntheticLikelihood:
         first posterior holds C_k at the box's centre too: C_k(u) for every particle costs
         N D^3 / 3 per call (1000 particles of 270 statistics: 6.6 GFLOP and 0.6 GB a call,
         hundreds of calls)."""
+        s, k = self.reading(sections)
+        d = self.emulator.inputs
+        rng = np.random.default_rng(seed)
+        draws = smc_sample(self.first_log_likelihood(s, k), d, n, rng)
+        if not self.plug_in_covariance:
+            return draws
+        return smc_sample(self.second_log_likelihood(draws.mean(axis=0), s, k), d, n, rng)
+
+    def reading(self, sections: np.ndarray) -> tuple[np.ndarray, int]:
+        """(s, k): the mean of the sections ``sections`` (k, D) as the likelihood reads it
+        (projected) and their number; a one-line error for another width or a non-finite
+        statistic."""
         x = np.atleast_2d(np.asarray(sections, float))
         if x.ndim != 2 or x.shape[1] != self.emulator.dim or not np.all(np.isfinite(x)):
             raise RailsuspInputError(
                 f"sections {x.shape}: accepted finite summaries (k, {self.emulator.dim})"
             )
-        s, k = self.project(x.mean(axis=0)), x.shape[0]
-        d = self.emulator.inputs
-        rng = np.random.default_rng(seed)
+        return self.project(x.mean(axis=0)), x.shape[0]
+
+    def first_log_likelihood(self, s: np.ndarray, k: int):
+        """The first of :meth:`sample`'s two SMC runs' log-likelihood of the reading ``s``
+        of ``k`` sections: C_k(u), or C_k held at the box's centre with
+        ``first_pass_at_centre``."""
         if self.plug_in_covariance and self.first_pass_at_centre:
-            first = self.plug_in_log_likelihood(np.full(d, 0.5), s, k)
-        else:
-            first = lambda u: self.log_likelihood(u, s, k)  # noqa: E731
-        draws = smc_sample(first, d, n, rng)
+            return self.plug_in_log_likelihood(np.full(self.emulator.inputs, 0.5), s, k)
+        return lambda u: self.log_likelihood(u, s, k)
+
+    def second_log_likelihood(self, u0: np.ndarray, s: np.ndarray, k: int):
+        """The second run's, C_k held at the first run's mean ``u0`` (with
+        ``plug_in_covariance``; without, C_k(u) as in the first)."""
         if not self.plug_in_covariance:
-            return draws
-        return smc_sample(self.plug_in_log_likelihood(draws.mean(axis=0), s, k), d, n, rng)
+            return lambda u: self.log_likelihood(u, s, k)
+        return self.plug_in_log_likelihood(u0, s, k)
 
     def plug_in_log_likelihood(self, u0: np.ndarray, s: np.ndarray, k: int):
         """log N(s; mu(u), C_k(u0)) up to a constant, C_k held at ``u0``: the mean alone

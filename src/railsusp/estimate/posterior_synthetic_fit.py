@@ -34,9 +34,10 @@ PROJECTED_HIDDEN = 48
 #: the training cases the informative projection of statistics beyond the EN 14363 summary
 #: is averaged over (:func:`~railsusp.estimate.posterior_synthetic.informative_projection`)
 PROJECTION_CASES = 200
-#: the settings the emulator depends on (the training cases and their statistics)
+#: the settings the emulator depends on (the training cases and their statistics; the
+#: condition offset, their tracks, only where it is set: the hashes of before stay)
 TRAINED_ON = ("conditions", "parameters", "section_s", "n_train", "noise", "sum_y", "seed",
-              "statistics")  # fmt: skip
+              "statistics", "condition_offset")  # fmt: skip
 
 
 def likelihood(

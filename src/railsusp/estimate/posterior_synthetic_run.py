@@ -124,11 +124,19 @@ def run_checks(post: SyntheticPosterior, run: str | Path, sets=None) -> list[Sec
     """Coverage of the posterior on held-out records: per set (``held_out_sets``'s
     form; default the settings'), the first k sections of each record for each k."""
     s = post.settings
-    names = list(s.parameters)
     folder = Path(run) / "posterior" / "simulations"
+    return check_sets(post, lambda kind, n, longest: cached_cases(s, folder, kind, n, longest),
+                      sets or held_out_sets(s))  # fmt: skip
+
+
+def check_sets(post, cases, sets) -> list[SectionsCheck]:
+    """:func:`run_checks` of a posterior ``post`` (its ``settings`` and ``sample``) whose
+    held-out cases ``cases(kind, n, sections)`` gives as (u, x)."""
+    s = post.settings
+    names = list(s.parameters)
     out = []
-    for kind, n, longest, ks in sets or held_out_sets(s):
-        u, x = cached_cases(s, folder, kind, n, longest)
+    for kind, n, longest, ks in sets:
+        u, x = cases(kind, n, longest)
         x = x[:, None, :] if x.ndim == 2 else x
         ok = np.all(np.isfinite(x), axis=(1, 2))
         truth = u[ok][:, post.columns]
@@ -227,6 +235,13 @@ def estimate(post: SyntheticPosterior, recordings, seed: int = 0) -> PosteriorRe
     """Posterior of the recordings (one per trained condition) from the mean of their
     sections' statistics, with the check of its number of sections."""
     x, used = recording_summaries(post.settings, recordings)
+    return result_of(post, x, used, seed)
+
+
+def result_of(post, x: np.ndarray, used: dict, seed: int = 0) -> PosteriorResult:
+    """The posterior result of the sections ``x`` (k, D) of a posterior ``post`` (its
+    ``settings``, ``sample``, ``product_for``: one estimator or a joint one), ``used``
+    the recordings' use per condition, with the check of its number of sections."""
     s = post.settings
     n = len(x)
     u = post.sample(x, s.samples, seed)

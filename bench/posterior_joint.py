@@ -1,0 +1,133 @@
+"""The joint posterior of synthetic-likelihood estimators of different working conditions
+(railsusp.estimate.posterior_joint), measured as bench/posterior_synthetic.py measures one
+estimator: coverage of the 90 % intervals on the parts' held-out records, the issue's
+identification of the middle-80 % sets, and the Cramer-Rao bound at the sets (issue 20).
+
+    python bench/posterior_joint.py --runs RUN_SC,RUN_U --joint JOINT --lengths 20,120,600 \\
+        --long 100 --long-length 600 --sets 12 --set-length 600 --set-lengths 20,60,120,300,600
+
+Each run is an estimator trained and checked by bench/posterior_synthetic.py on the same
+parameter draws (the same seed and held-out counts), the second with ``--condition-offset``
+past the first's conditions (its own tracks and noise). Nothing is simulated or fitted
+here beyond what the runs hold (their caches must hold the held-out records and the sets):
+
+1. the joint check on the held-out records (one section on ``--check`` cases, k sections
+   on the first k of the ``--long`` records, every length of ``--lengths``), stored in
+   ``JOINT/posterior/joint.json`` with the parts' stamps;
+2. with ``--sets N``: the N middle-80 % sets (bench/posterior.py's draws, each part's
+   cached ``identification`` records) scored and judged at every length of
+   ``--set-lengths`` as there;
+3. the Cramer-Rao bound at the sets' truths for ``--set-length``: the parts' Fisher
+   informations added (the conditions are independent given the parameters), with and
+   without the emulators' error.
+Prints the tables and writes JSON.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from posterior import KEYS, lengths_s, middle_draws, print_tables, score_sets, verdict
+from posterior_synthetic import _coverage_table
+from railsusp.estimate import posterior_joint as joint
+from railsusp.estimate import posterior_synthetic_run as synthetic
+from railsusp.estimate.posterior_synthetic import cramer_rao_width, fisher_information
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", required=True, help="the estimators' run folders, comma-separated")
+    ap.add_argument("--joint", required=True, help="folder of the joint check (joint.json)")
+    ap.add_argument("--out", default="bench/results/posterior_joint.json")
+    ap.add_argument("--lengths", default="20,120,600", help="record lengths checked, s")
+    ap.add_argument("--check", type=int, default=200, help="one-section held-out cases")
+    ap.add_argument("--long", type=int, default=100, help="held-out records of several sections")
+    ap.add_argument("--long-length", type=float, default=600.0, help="their length, s")
+    ap.add_argument("--sets", type=int, default=0, help="middle-80 %% sets identified (0: none)")
+    ap.add_argument("--set-length", type=float, default=600.0, help="their record length, s")
+    ap.add_argument("--set-lengths", default=None, help="lengths they are scored at, s")
+    ap.add_argument("--keys", default=KEYS, help="key parameters of the verdict")
+    a = ap.parse_args()
+    runs = [r for r in a.runs.split(",") if r.strip()]
+    if len(runs) < 2:
+        ap.error(f"--runs {a.runs}: accepted two or more run folders, comma-separated")
+
+    t0 = time.perf_counter()
+    parts = [synthetic.load(r) for r in runs]
+    s = parts[0].settings
+    section = s.section_s
+    longest = max(1, round(a.long_length / section))
+    ks = sorted({max(1, round(v / section)) for v in lengths_s(a.lengths)})
+    sets = [("check", a.check, 1, (1,))] if 1 in ks else []
+    if any(k > 1 for k in ks):
+        sets.append(("long", a.long, longest, tuple(k for k in ks if 1 < k <= longest)))
+    post = joint.train(runs, a.joint, sets)
+    names = list(s.parameters)
+    conditions = [c.name for p in post.parts for c in p.settings.conditions]
+    print(f"joint posterior of {', '.join(runs)}: conditions {', '.join(conditions)}; "
+          f"checked in {time.perf_counter() - t0:.0f} s (a stored check is read)")  # fmt: skip
+    rows = [c.to_dict() for c in post.checks]
+    _coverage_table(rows, names, section)
+
+    ident, verdicts, bound = None, [], None
+    if a.sets:
+        k_set = max(1, round(a.set_length / section))
+        u = middle_draws(s, a.sets)
+        _, x = joint.joint_cases(post.parts, runs, "identification", a.sets, k_set, draws=u)
+        x = x[:, None, :] if x.ndim == 2 else x
+        scored = lengths_s(a.set_lengths or a.lengths)
+        score_at = sorted({max(1, round(v / section)) for v in scored} | {k_set})
+        t1 = time.perf_counter()
+        ident = score_sets(post, x, u, [k for k in score_at if k <= k_set])
+        print(f"\nidentification of {a.sets} sets: {time.perf_counter() - t1:.0f} s")
+        keys = a.keys.split(",")
+        print_tables(ident, names, keys)
+        verdicts = [verdict(r, keys) for r in ident]
+        xs = x[np.all(np.isfinite(x), axis=(1, 2))][:5]
+        times = []
+        for i, xi in enumerate(xs):
+            t2 = time.perf_counter()
+            post.sample(xi, s.samples, seed=i)
+            times.append(time.perf_counter() - t2)
+        print(f"posterior of {xs.shape[1]} sections: median {np.median(times):.2f} s")
+        bound = _cramer_rao(post, u, k_set, names)
+    out = {
+        "date": time.strftime("%Y-%m-%d"),
+        "method": "joint-synthetic-likelihood",
+        "runs": runs,
+        "conditions": conditions,
+        "settings": [p.settings.to_dict() for p in post.parts],
+        "checks": rows,
+        "identification": ident,
+        "identification_verdicts": verdicts,
+        "cramer_rao_width_pct": bound,
+        "seconds": time.perf_counter() - t0,
+    }
+    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(a.out).write_text(json.dumps(out, indent=2) + "\n")
+    print(f"wrote {a.out}")
+
+
+def _cramer_rao(post: joint.JointPosterior, u: np.ndarray, k: int, names: list[str]) -> dict:
+    """Cramer-Rao 90 % widths (% of range) at the sets' truths ``u`` for ``k`` sections per
+    condition: the parts' informations added, with the emulators' error in C_k and without
+    (the statistics alone, read by perfect emulators)."""
+    out = {"sections": k, "length_s": k * post.settings.section_s}
+    print(f"\nCramer-Rao bound of the 90 % width at {k * post.settings.section_s:g} s, % of "
+          f"range, median over the {len(u)} sets (all ten parameters unknown)")  # fmt: skip
+    print(f"{'C_k':>24} " + " ".join(f"{p:>6}" for p in names))
+    for label, err in (("statistics alone", False), ("with emulator error", True)):
+        info = sum(fisher_information(p.likelihood, u, k, emulator_error=err) for p in post.parts)
+        w = 100.0 * cramer_rao_width(info)[:, post.columns]
+        out[label.replace(" ", "_")] = {p: w[:, i].tolist() for i, p in enumerate(names)}
+        print(f"{label:>24} " + " ".join(f"{np.median(w[:, i]):6.1f}" for i in range(len(names))))
+    return out
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,268 @@
+"""One posterior from synthetic-likelihood estimators of different working conditions of the
+same wagon (issue 20): their likelihoods multiply.
+
+Why it is exact: each condition of a recording runs on its own stretch of track, and the
+instrument's gain error and noise are drawn per condition (:mod:`railsusp.estimate.
+posterior_data`), so given the parameters the conditions' statistics are independent, and
+the likelihood of all of them is the product of each estimator's (Wood 2010's synthetic
+likelihood of each condition's section mean). An estimator of the straight and the curve
+and another of the grade, trained apart on the same parameter draws (the same ``seed``,
+the second with ``condition_offset`` past the first's conditions, so that its tracks and
+noise are its own), then give the posterior of a recording of all three conditions: the
+conditions' costs add instead of one estimator's emulator learning all their statistics
+together, and a recording of fewer conditions uses the estimators it has.
+
+A product of posteriors that each passed its own coverage check is not checked by those
+checks, so the joint posterior is checked again (:func:`train`) on the parts' held-out
+records, which are the same cases in every part (same settings, same draws; verified), and
+stored in ``posterior/joint.json`` of its own folder with the parts' folders and the stamps
+of their checks: a part trained again afterwards makes the joint's check stale, and
+:func:`load` refuses it in one line.
+
+The sampler is the parts' own (:meth:`~railsusp.estimate.posterior_synthetic.
+SyntheticLikelihood.sample`): a first tempered SMC run on the sum of the parts' first
+log-likelihoods, a second with each part's covariance held at the first run's mean.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from railsusp.errors import RailsuspInputError
+from railsusp.estimate.posterior_data import cached_cases, recording_summaries
+from railsusp.estimate.posterior_result import PosteriorResult
+from railsusp.estimate.posterior_smc import smc_sample
+from railsusp.estimate.posterior_synthetic_run import (
+    SectionsCheck,
+    SyntheticPosterior,
+    check_sets,
+    held_out_sets,
+    result_of,
+)
+from railsusp.estimate.posterior_synthetic_run import load as load_part
+from railsusp.params import MAIN_SUSPENSION
+from railsusp.store import read_json, write_json
+
+log = logging.getLogger(__name__)
+
+#: the settings every part must share: what is estimated, how records are cut and
+#: checked, and the draws of every kind of case (the seed)
+SHARED = ("parameters", "section_s", "seed", "noise", "samples", "n_check", "product_sections",
+          "n_product", "product_cases")  # fmt: skip
+
+
+@dataclass
+class JointPosterior:
+    """The product of the synthetic likelihoods of ``parts`` (module docstring); the
+    summary vector is the parts' one after the other, as an estimator of all their
+    conditions would hold them."""
+
+    parts: tuple[SyntheticPosterior, ...]
+    checks: list[SectionsCheck] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        check_parts(self.parts)
+
+    @property
+    def settings(self):
+        """The first part's settings (the shared ones, :data:`SHARED`, are every part's)."""
+        return self.parts[0].settings
+
+    @property
+    def columns(self) -> list[int]:
+        return [MAIN_SUSPENSION.index(p) for p in self.settings.parameters]
+
+    @property
+    def widths(self) -> list[int]:
+        """The number of statistics each part reads from the summary vector."""
+        return [p.likelihood.emulator.dim for p in self.parts]
+
+    def split(self, x: np.ndarray) -> list[np.ndarray]:
+        """The parts' sections (k, D_i) of the summary vectors ``x`` (k, sum D_i)."""
+        x = np.atleast_2d(np.asarray(x, float))
+        if x.ndim != 2 or x.shape[1] != sum(self.widths):
+            raise RailsuspInputError(
+                f"sections {x.shape}: accepted summaries (k, {sum(self.widths)}), the parts' "
+                f"{' + '.join(map(str, self.widths))} one after the other"
+            )
+        return np.split(x, np.cumsum(self.widths)[:-1], axis=1)
+
+    def sample(self, x: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
+        """(n, d) draws (unit box) of the estimated parameters for the sections ``x``."""
+        return sample_product([p.likelihood for p in self.parts], self.split(x), n, seed)[
+            :, self.columns
+        ]
+
+    def product_for(self, sections: int) -> SectionsCheck | None:
+        """The check of the smallest checked number of sections >= ``sections``."""
+        return next((c for c in self.checks if c.sections >= sections), None)
+
+    @property
+    def calibrated(self) -> bool:
+        """One section's joint check passed."""
+        c = self.product_for(1)
+        return c is not None and c.sections == 1 and c.passed
+
+
+def sample_product(likelihoods, sections, n: int, seed: int = 0) -> np.ndarray:
+    """(n, 10) draws on the unit box of the posterior whose likelihood is the product of
+    ``likelihoods``' of their ``sections`` (each (k_i, D_i): the parts may hold different
+    numbers of sections): two SMC runs as :meth:`SyntheticLikelihood.sample`, which this
+    is, draw for draw, for one part."""
+    readings = [sl.reading(x) for sl, x in zip(likelihoods, sections, strict=True)]
+    d = likelihoods[0].emulator.inputs
+    rng = np.random.default_rng(seed)
+    pairs = list(zip(likelihoods, readings, strict=True))
+    first = [sl.first_log_likelihood(s, k) for sl, (s, k) in pairs]
+    draws = smc_sample(_total(first), d, n, rng)
+    if not any(sl.plug_in_covariance for sl in likelihoods):
+        return draws
+    u0 = draws.mean(axis=0)
+    second = [sl.second_log_likelihood(u0, s, k) for sl, (s, k) in pairs]
+    return smc_sample(_total(second), d, n, rng)
+
+
+def _total(logliks):
+    """The sum of log-likelihoods (each (N, d) -> (N,)); one is returned as it is."""
+    if len(logliks) == 1:
+        return logliks[0]
+    return lambda u: sum(f(u) for f in logliks)
+
+
+def check_parts(parts) -> None:
+    """A one-line error unless ``parts`` (at least two) share :data:`SHARED`, read all ten
+    parameters, hold disjoint conditions and their tracks are their own (disjoint
+    ``condition_offset`` ranges)."""
+    if len(parts) < 2:
+        raise RailsuspInputError(
+            f"joint posterior of {len(parts)} estimator(s): accepted two or more"
+        )
+    first = parts[0].settings.to_dict()
+    for i, p in enumerate(parts[1:], start=2):
+        other = p.settings.to_dict()
+        for name in SHARED:
+            if first.get(name) != other.get(name):
+                raise RailsuspInputError(
+                    f"joint posterior: estimator {i}'s {name} = {other.get(name)} differs from "
+                    f"the first's ({first.get(name)}); accepted the same in every estimator"
+                )
+    seen: dict[str, int] = {}
+    slots: dict[int, int] = {}
+    for i, p in enumerate(parts, start=1):
+        s = p.settings
+        if p.likelihood.emulator.inputs != len(MAIN_SUSPENSION):
+            raise RailsuspInputError(
+                f"joint posterior: estimator {i} reads {p.likelihood.emulator.inputs} "
+                f"parameters; accepted all {len(MAIN_SUSPENSION)}"
+            )
+        for c in s.conditions:
+            if c.name in seen:
+                raise RailsuspInputError(
+                    f"joint posterior: condition {c.name!r} in estimators {seen[c.name]} and "
+                    f"{i}; accepted each condition in one estimator"
+                )
+            seen[c.name] = i
+        for slot in range(s.condition_offset, s.condition_offset + len(s.conditions)):
+            if slot in slots:
+                raise RailsuspInputError(
+                    f"joint posterior: estimators {slots[slot]} and {i} both simulate "
+                    f"condition index {slot} (condition_offset = {s.condition_offset}): they "
+                    "share tracks; accepted a condition_offset past the other's conditions"
+                )
+            slots[slot] = i
+
+
+def joint_cases(parts, runs, kind: str, n: int, sections: int, draws=None):
+    """(u, x) of the held-out cases ``kind`` (``draws``: at these parameter sets, as
+    :func:`~railsusp.estimate.posterior_data.cached_cases`) in every part's run folder, x
+    the parts' statistics one after the other; a one-line error where the parts' cases are
+    not the same parameter sets."""
+    us, xs = [], []
+    for p, run in zip(parts, runs, strict=True):
+        folder = Path(run) / "posterior" / "simulations"
+        u, x = cached_cases(p.settings, folder, kind, n, sections, draws=draws)
+        us.append(u)
+        xs.append(x)
+    for i, u in enumerate(us[1:], start=2):
+        if not np.array_equal(u, us[0]):
+            raise RailsuspInputError(
+                f"joint posterior: estimator {i}'s {kind} cases are other parameter sets than "
+                "the first's; accepted estimators trained with the same seed"
+            )
+    return us[0], np.concatenate(xs, axis=-1)
+
+
+def part_stamps(runs) -> list:
+    """Each part's check stamp (``check.json``'s ``emulator``)."""
+    return [read_json(Path(r) / "posterior" / "synthetic" / "check.json").get("emulator")
+            for r in runs]  # fmt: skip
+
+
+def train(runs, out: str | Path, sets=None) -> JointPosterior:
+    """The joint posterior of the trained estimators in ``runs``, checked on their
+    held-out records (``sets`` as :func:`held_out_sets`; default the first part's) into
+    ``out``/posterior/joint.json; a stored check of the same parts and sets is read."""
+    runs = [str(Path(r).resolve()) for r in runs]
+    parts = tuple(load_part(r) for r in runs)
+    joint = JointPosterior(parts)
+    sets = sets or held_out_sets(joint.settings)
+    plain = [[list(v) if isinstance(v, tuple) else v for v in st] for st in sets]
+    path = Path(out) / "posterior" / "joint.json"
+    stamps = part_stamps(runs)
+    if path.exists():
+        old = read_json(path)
+        if old.get("runs") == runs and old.get("stamps") == stamps and old.get("sets") == plain:
+            joint.checks = [SectionsCheck.from_dict(c) for c in old["checks"]]
+            return joint
+    joint.checks = check_sets(joint, lambda kind, n, k: joint_cases(parts, runs, kind, n, k), sets)
+    write_json(path, {"method": "joint-synthetic-likelihood", "runs": runs, "stamps": stamps,
+                      "sets": plain, "checks": [c.to_dict() for c in joint.checks]})  # fmt: skip
+    return joint
+
+
+def load(out: str | Path) -> JointPosterior:
+    """The joint posterior stored in ``out`` (:func:`train`); a one-line error when a
+    part was trained again since its check."""
+    path = Path(out) / "posterior" / "joint.json"
+    if not path.exists():
+        raise RailsuspInputError(f"{path} does not exist: check the joint posterior first")
+    record = read_json(path)
+    runs = record["runs"]
+    if part_stamps(runs) != record["stamps"]:
+        raise RailsuspInputError(
+            f"{path}: an estimator of {', '.join(runs)} was trained again after the joint "
+            "check; check the joint posterior again"
+        )
+    joint = JointPosterior(tuple(load_part(r) for r in runs))
+    joint.checks = [SectionsCheck.from_dict(c) for c in record["checks"]]
+    return joint
+
+
+def recording_sections(joint: JointPosterior, recordings) -> tuple[np.ndarray, dict]:
+    """(k, sum D_i) summary vectors of recordings of every part's conditions, each part's
+    sections (:func:`~railsusp.estimate.posterior_data.recording_summaries`) with the part
+    of the fewest setting their number, and the recordings' use per condition."""
+    xs, used = [], {}
+    for p in joint.parts:
+        x, u = recording_summaries(p.settings, recordings)
+        xs.append(x)
+        used.update(u)
+    k = min(len(x) for x in xs)
+    section = joint.settings.section_s
+    for info in used.values():  # a part's sections beyond the fewest are left out too
+        info["seconds_left_out"] = round(
+            info["seconds_left_out"] + (info["sections"] - k) * section, 3
+        )
+        info["sections"] = k
+    return np.concatenate([x[:k] for x in xs], axis=1), used
+
+
+def estimate(joint: JointPosterior, recordings, seed: int = 0) -> PosteriorResult:
+    """The joint posterior of recordings of every part's conditions (one per condition),
+    with the joint check of its number of sections."""
+    x, used = recording_sections(joint, recordings)
+    return result_of(joint, x, used, seed)

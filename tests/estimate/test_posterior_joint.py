@@ -1,0 +1,311 @@
+"""The joint posterior of synthetic-likelihood estimators of different conditions
+(railsusp.estimate.posterior_joint) and the ``condition_offset`` that gives an estimator
+of further conditions its own tracks and noise (railsusp.estimate.posterior_data).
+
+- seeds: offset 0 keeps every earlier estimator's tracks; another offset never meets them;
+- the product: with one part it is that part's sampler, draw for draw; with two parts of a
+  linear-Gaussian stand-in its log-likelihood is that of one estimator holding both parts'
+  statistics with a block-diagonal covariance (the conditions independent), and its draws
+  learn what each part alone cannot;
+- in run directories: two estimators trained apart on the same draws, checked jointly on
+  their held-out records, stored and read back the same; a part trained again makes the
+  joint check stale; estimators that cannot be joined are refused in one line.
+The stand-in statistics are written into the simulation caches as in
+tests/estimate/test_posterior_synthetic_run.py: no wagon is simulated here."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+
+from railsusp.conditions import get_condition
+from railsusp.errors import RailsuspInputError
+from railsusp.estimate import posterior_data
+from railsusp.estimate import posterior_joint as joint
+from railsusp.estimate import posterior_synthetic_run as synthetic
+from railsusp.estimate.posterior_data import (
+    SEED_BASE,
+    PosteriorSettings,
+    cached_cases,
+    prior_draws,
+    track_seeds,
+)
+from railsusp.estimate.posterior_emulator import StatisticsEmulator
+from railsusp.estimate.posterior_synthetic import SyntheticLikelihood
+
+STRAIGHT = get_condition("straight").with_changes(lead_in_m=30.0)
+UPHILL = get_condition("uphill").with_changes(lead_in_m=30.0)
+
+
+def _settings(cond=STRAIGHT, offset=0, **kw) -> PosteriorSettings:
+    base = dict(section_s=5.0, n_train=300, n_check=30, samples=200, product_sections=(4,),
+                n_product=30, condition_offset=offset)  # fmt: skip
+    return PosteriorSettings((cond,), **{**base, **kw})
+
+
+# -- seeds --------------------------------------------------------------------------------
+
+
+def test_offset_zero_keeps_the_tracks_and_the_hash_of_every_estimator_before_it():
+    two = PosteriorSettings((STRAIGHT, UPHILL))
+    idx = np.arange(5)
+    for kind in SEED_BASE:
+        for c in (0, 1):
+            assert np.array_equal(track_seeds(two, kind, idx, c), SEED_BASE[kind] + idx * 2 + c)
+    assert "condition_offset" not in two.to_dict()
+    assert PosteriorSettings.from_dict(two.to_dict()) == two
+    moved = PosteriorSettings((UPHILL,), condition_offset=2)
+    assert moved.to_dict()["condition_offset"] == 2
+    assert PosteriorSettings.from_dict(moved.to_dict()) == moved
+
+
+def test_an_offset_estimator_never_shares_a_track_with_the_first():
+    first = PosteriorSettings((STRAIGHT, UPHILL))
+    second = PosteriorSettings((UPHILL,), condition_offset=2)
+    n = 32_000
+    idx = np.arange(n)
+    seen = np.concatenate([track_seeds(first, k, idx, c) for k in SEED_BASE for c in (0, 1)])
+    mine = np.concatenate([track_seeds(second, k, idx, 0) for k in SEED_BASE])
+    assert np.unique(mine).size == mine.size
+    assert not np.intersect1d(seen, mine).size
+
+
+def test_an_offset_out_of_range_is_refused_in_one_line():
+    with pytest.raises(RailsuspInputError, match=r"^condition_offset = 10: accepted 0 to 9$"):
+        PosteriorSettings((UPHILL,), condition_offset=10)
+
+
+def test_an_offset_estimator_does_not_read_the_cache_of_offset_zero(tmp_path, monkeypatch):
+    """The same conditions and draws at another offset are other tracks: a chunk cached
+    at offset 0 must be simulated again, under its own name."""
+    calls = []
+
+    def fake(settings, u, first, kind, sections):
+        calls.append(settings.condition_offset)
+        return np.full((len(u), sections, len(settings.summary_names)), float(len(calls)))
+
+    monkeypatch.setattr(posterior_data, "simulate_long_cases", fake)
+    zero, two = _settings(), _settings(offset=2)
+    _, a = cached_cases(zero, tmp_path, "check", 30)
+    _, b = cached_cases(two, tmp_path, "check", 30)
+    assert calls == [0, 2] and a[0, 0] == 1.0 and b[0, 0] == 2.0
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "check@2_0000_30.npz",
+        "check_0000_30.npz",
+    ]
+    _, again = cached_cases(two, tmp_path, "check", 30)  # read back, not simulated
+    assert calls == [0, 2] and np.array_equal(again, b)
+
+
+# -- the product of likelihoods -------------------------------------------------------------
+
+A = np.array([[2.0, 0.5], [0.3, 1.5], [1.0, -1.0]])  # three statistics of two parameters
+B = np.array([1.0, -2.0, 0.5])
+S = np.diag([0.25, 0.2, 0.09])  # one section's covariance: the statistics independent
+
+
+class _Linear(StatisticsEmulator):
+    """Exact moments of x = A[rows] u + B[rows] + e, e ~ N(0, S[rows, rows])."""
+
+    def __init__(self, rows):
+        self.rows = list(rows)
+        d = len(self.rows)
+        super().__init__([[(np.zeros((2, 1)), np.zeros(1))]], np.zeros(d), np.ones(d),
+                         np.zeros((1, d)), np.eye(d))  # fmt: skip
+
+    def moments(self, u):
+        u = np.atleast_2d(u)
+        n, r = len(u), self.rows
+        cov = np.repeat(S[np.ix_(r, r)][None], n, 0)
+        return u @ A[r].T + B[r], cov, np.zeros_like(cov)
+
+    def mean(self, u):
+        return self.moments(u)[0]
+
+
+def test_one_part_is_the_parts_own_sampler_draw_for_draw():
+    sl = SyntheticLikelihood(_Linear([0, 1, 2]))
+    x = (A @ [0.4, 0.6] + B)[None] + 0.1
+    assert np.array_equal(joint.sample_product([sl], [x], 300, seed=4), sl.sample(x, 300, 4))
+
+
+def test_the_product_is_one_estimator_of_both_parts_statistics():
+    """Parts of statistics {0, 1} and {2}: their summed log-likelihoods equal the one of
+    all three with the block-diagonal covariance (independent conditions), in both SMC
+    runs, so the draws agree with that estimator's; and the product knows the parameter
+    the second part alone does not pin (its one statistic moves both)."""
+    whole = SyntheticLikelihood(_Linear([0, 1, 2]))
+    parts = [SyntheticLikelihood(_Linear([0, 1])), SyntheticLikelihood(_Linear([2]))]
+    truth = np.array([0.45, 0.55])
+    x = np.stack([A @ truth + B + d for d in (0.05, -0.05, 0.02)])  # three sections
+    u = np.random.default_rng(0).random((50, 2))
+    u0 = np.array([0.4, 0.6])
+    for name in ("first", "second"):
+        total = 0.0
+        for sl, xs in zip(parts, (x[:, :2], x[:, 2:]), strict=True):
+            s, k = sl.reading(xs)
+            f = sl.first_log_likelihood(s, k) if name == "first" else sl.second_log_likelihood(
+                u0, s, k)  # fmt: skip
+            total = total + f(u)
+        s, k = whole.reading(x)
+        f = whole.first_log_likelihood(s, k) if name == "first" else whole.second_log_likelihood(
+            u0, s, k)  # fmt: skip
+        diff = total - f(u)  # equal up to a constant (the normalisation)
+        assert np.ptp(diff) < 1e-9 * np.ptp(f(u))
+    a = joint.sample_product(parts, [x[:, :2], x[:, 2:]], 4000, seed=2)
+    b = whole.sample(x, 4000, seed=2)
+    assert np.allclose(a.mean(axis=0), b.mean(axis=0), atol=0.01)
+    assert np.allclose(a.std(axis=0), b.std(axis=0), rtol=0.08)
+    alone = parts[1].sample(x[:, 2:], 4000, seed=2)
+    assert np.all(a.std(axis=0) < 0.7 * alone.std(axis=0))
+
+
+# -- in run directories ---------------------------------------------------------------------
+
+
+def _statistics(u, rng, sections, d, column):
+    """A linear stand-in in which only one parameter (``column``) moves the statistics."""
+    mean = 40.0 + 3.0 * u[:, [column]] * np.ones(d)
+    return mean[:, None, :] + rng.standard_normal((len(u), sections, d))
+
+
+def _cache(run, settings, kind, n, sections, column, seed, draws=None):
+    folder = run / "posterior" / "simulations"
+    folder.mkdir(parents=True, exist_ok=True)
+    u = prior_draws(settings, kind, n) if draws is None else draws
+    d = len(settings.summary_names)
+    x = _statistics(u, np.random.default_rng([seed, len(kind), sections]), sections, d, column)
+    x = x[:, 0] if sections == 1 else x
+    name = kind if sections == 1 else f"{kind}-x{sections}"
+    if settings.condition_offset:
+        name += f"@{settings.condition_offset}"
+    for k, lo in enumerate(range(0, n, 50)):
+        hi = min(n, lo + 50)
+        buf = io.BytesIO()
+        np.savez(buf, u=u[lo:hi], x=x[lo:hi])
+        (folder / f"{name}_{k:04d}_{hi - lo}.npz").write_bytes(buf.getvalue())
+
+
+def _trained(root, name, settings, column, seed):
+    run = root / name
+    for kind, n, k in (("train", 300, 1), ("check", 30, 1), ("long", 30, 4),
+                       ("long-calibration", 30, 4)):  # fmt: skip
+        _cache(run, settings, kind, n, k, column, seed)
+    sets = 0.1 + 0.8 * prior_draws(settings, "identification", SETS)  # bench/posterior.py's
+    _cache(run, settings, "identification", SETS, 4, column, seed, draws=sets)
+    synthetic.train(settings, run)
+    return run
+
+
+X18, X13 = 7, 2  # the columns of X18 and X13 in X11-X20
+SETS = 3  # middle-80 % sets in the bench's test
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    root = tmp_path_factory.mktemp("joint")
+    a = _trained(root, "straight", _settings(), X18, 1)
+    b = _trained(root, "uphill", _settings(UPHILL, offset=1), X13, 2)
+    return root, a, b
+
+
+def test_two_estimators_checked_jointly_stored_and_read_back(runs):
+    root, a, b = runs
+    j = joint.train([a, b], root / "joint")
+    assert [c.sections for c in j.checks] == [1, 4]
+    assert all(c.checks[0].n == 30 for c in j.checks)
+    widths = {c.sections: c.width_pct_range for c in j.checks}
+    alone_a = {c.sections: c.width_pct_range for c in synthetic.load(a).checks}
+    alone_b = {c.sections: c.width_pct_range for c in synthetic.load(b).checks}
+    # each part pins its own parameter, the joint both
+    assert widths[4]["X18"] < 0.8 * alone_b[4]["X18"]
+    assert widths[4]["X13"] < 0.8 * alone_a[4]["X13"]
+    back = joint.load(root / "joint")
+    assert [c.to_dict() for c in back.checks] == [c.to_dict() for c in j.checks]
+    x = np.full((4, 2 * 17), 41.5)
+    assert np.array_equal(j.sample(x, 200, seed=1), back.sample(x, 200, seed=1))
+    assert back.product_for(2).sections == 4 and back.product_for(5) is None
+
+
+def test_a_part_trained_again_makes_the_joint_check_stale(runs, tmp_path):
+    root, a, b = runs
+    joint.train([a, b], root / "joint")
+    check = b / "posterior" / "synthetic" / "check.json"
+    saved = check.read_text()
+    try:
+        check.write_text(saved.replace('"emulator": [', '"emulator": ["other", ', 1))
+        with pytest.raises(RailsuspInputError, match=r"trained again after the joint check"):
+            joint.load(root / "joint")
+    finally:
+        check.write_text(saved)
+
+
+def test_estimators_that_cannot_be_joined_are_refused_in_one_line(runs, tmp_path):
+    _, a, b = runs
+    part_a, part_b = synthetic.load(a), synthetic.load(b)
+    with pytest.raises(RailsuspInputError, match=r"condition 'straight' in estimators 1 and 2"):
+        joint.JointPosterior((part_a, part_a))
+    with pytest.raises(RailsuspInputError, match=r"accepted two or more"):
+        joint.JointPosterior((part_a,))
+    same_tracks = synthetic.SyntheticPosterior(_settings(UPHILL), part_b.likelihood)
+    with pytest.raises(RailsuspInputError, match=r"both simulate condition index 0"):
+        joint.JointPosterior((part_a, same_tracks))
+    other = synthetic.SyntheticPosterior(_settings(UPHILL, offset=1, section_s=10.0),
+                                         part_b.likelihood)  # fmt: skip
+    with pytest.raises(RailsuspInputError, match=r"section_s = 10.0 differs from the first's"):
+        joint.JointPosterior((part_a, other))
+    j = joint.JointPosterior((part_a, part_b))
+    with pytest.raises(RailsuspInputError, match=r"accepted summaries \(k, 34\), the parts'"):
+        j.sample(np.zeros((2, 33)), 100)
+    with pytest.raises(RailsuspInputError, match=r"does not exist: check the joint"):
+        joint.load(tmp_path)
+
+
+def test_the_bench_checks_scores_the_sets_and_adds_the_parts_information(runs, monkeypatch):
+    """bench/posterior_joint.py on the two stand-in estimators: the joint check per
+    length, the sets scored, and a bound from the parts' informations added, so narrower
+    for each parameter than the part that does not see it."""
+    import json
+    import sys
+
+    from conftest import bench_script
+
+    root, a, b = runs
+    bench = bench_script("posterior_joint")
+    out = root / "bench.json"
+    argv = ["posterior_joint.py", "--runs", f"{a},{b}", "--joint", str(root / "bench_joint"),
+            "--out", str(out), "--lengths", "5,20", "--check", "30", "--long", "30",
+            "--long-length", "20", "--sets", str(SETS), "--set-length", "20"]  # fmt: skip
+    monkeypatch.setattr(sys, "argv", argv)
+    bench.main()
+    got = json.loads(out.read_text())
+    assert got["conditions"] == ["straight", "uphill"]
+    assert [c["sections"] for c in got["checks"]] == [1, 4]
+    assert [r["sections"] for r in got["identification"]] == [1, 4]
+    assert got["identification"][-1]["sets"] == SETS
+    bound = got["cramer_rao_width_pct"]["statistics_alone"]
+    parts = [synthetic.load(r) for r in (a, b)]
+    u = 0.1 + 0.8 * prior_draws(parts[0].settings, "identification", SETS)
+    from railsusp.estimate.posterior_synthetic import cramer_rao_width, fisher_information
+
+    info = [fisher_information(p.likelihood, u, 4, emulator_error=False) for p in parts]
+    both = 100 * cramer_rao_width(info[0] + info[1])
+    assert np.allclose(bound["X18"], both[:, X18]) and np.allclose(bound["X13"], both[:, X13])
+    # each part alone cannot bound the parameter it does not see; together both are pinned
+    with np.errstate(invalid="ignore", divide="ignore"):
+        alone = [100 * cramer_rao_width(i) for i in info]
+    assert not np.all(alone[1][:, X18] < 90) and not np.all(alone[0][:, X13] < 90)
+    assert np.all(both[:, [X18, X13]] < 70)  # the prior alone: 90
+
+
+def test_the_emulators_hash_holds_the_offset_only_where_set():
+    """An estimator at another offset learns from other tracks: its emulator is not the
+    offset-0 one; at offset 0 the hash is the one of estimators trained before the offset
+    existed (their run folders load)."""
+    from railsusp.estimate.posterior_synthetic_fit import _trained_on, emulator_key
+
+    assert "condition_offset" not in _trained_on(_settings())
+    assert _trained_on(_settings(offset=2))["condition_offset"] == 2
+    assert emulator_key(_settings()) != emulator_key(_settings(offset=2))
