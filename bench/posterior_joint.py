@@ -33,10 +33,9 @@ from pathlib import Path
 import numpy as np
 
 from posterior import KEYS, lengths_s, middle_draws, print_tables, score_sets, verdict
-from posterior_synthetic import _coverage_table
+from posterior_synthetic import coverage_table, cramer_rao_table
 from railsusp.estimate import posterior_joint as joint
 from railsusp.estimate import posterior_synthetic_run as synthetic
-from railsusp.estimate.posterior_synthetic import cramer_rao_width, fisher_information
 
 
 def main() -> None:
@@ -72,7 +71,7 @@ def main() -> None:
     print(f"joint posterior of {', '.join(runs)}: conditions {', '.join(conditions)}; "
           f"checked in {time.perf_counter() - t0:.0f} s (a stored check is read)")  # fmt: skip
     rows = [c.to_dict() for c in post.checks]
-    _coverage_table(rows, names, section)
+    coverage_table(rows, names, section)
 
     ident, verdicts, bound = None, [], None
     if a.sets:
@@ -95,7 +94,8 @@ def main() -> None:
             post.sample(xi, s.samples, seed=i)
             times.append(time.perf_counter() - t2)
         print(f"posterior of {xs.shape[1]} sections: median {np.median(times):.2f} s")
-        bound = _cramer_rao(post, u, k_set, names)
+        likelihoods = [p.likelihood for p in post.parts]
+        bound = cramer_rao_table(likelihoods, post.columns, u, k_set, section, names)
     out = {
         "date": time.strftime("%Y-%m-%d"),
         "method": "joint-synthetic-likelihood",
@@ -111,22 +111,6 @@ def main() -> None:
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(out, indent=2) + "\n")
     print(f"wrote {a.out}")
-
-
-def _cramer_rao(post: joint.JointPosterior, u: np.ndarray, k: int, names: list[str]) -> dict:
-    """Cramer-Rao 90 % widths (% of range) at the sets' truths ``u`` for ``k`` sections per
-    condition: the parts' informations added, with the emulators' error in C_k and without
-    (the statistics alone, read by perfect emulators)."""
-    out = {"sections": k, "length_s": k * post.settings.section_s}
-    print(f"\nCramer-Rao bound of the 90 % width at {k * post.settings.section_s:g} s, % of "
-          f"range, median over the {len(u)} sets (all ten parameters unknown)")  # fmt: skip
-    print(f"{'C_k':>24} " + " ".join(f"{p:>6}" for p in names))
-    for label, err in (("statistics alone", False), ("with emulator error", True)):
-        info = sum(fisher_information(p.likelihood, u, k, emulator_error=err) for p in post.parts)
-        w = 100.0 * cramer_rao_width(info)[:, post.columns]
-        out[label.replace(" ", "_")] = {p: w[:, i].tolist() for i, p in enumerate(names)}
-        print(f"{label:>24} " + " ".join(f"{np.median(w[:, i]):6.1f}" for i in range(len(names))))
-    return out
 
 
 if __name__ == "__main__":

@@ -122,7 +122,7 @@ def main() -> None:
     t_train = time.perf_counter() - t0
     print(f"\nemulator + checks: {t_train:.0f} s (cached parts are read, not redone)")
     rows = [c.to_dict() for c in post.checks]
-    _coverage_table(rows, names, a.section)
+    coverage_table(rows, names, a.section)
 
     ident, verdicts = None, []
     if a.sets:
@@ -162,19 +162,27 @@ def main() -> None:
 
 
 def _cramer_rao(post, a: argparse.Namespace, names: list[str]) -> dict:
-    """Cramer-Rao 90 % widths (% of range) at the ``--sets`` truths for ``--set-length``:
-    per set and parameter, with the emulator's error in C_k (what this emulator can
-    tell) and without it (what the statistics hold, read by a perfect emulator)."""
+    """Cramer-Rao 90 % widths (% of range) at the ``--sets`` truths for ``--set-length``
+    (:func:`cramer_rao_table` of the posterior's likelihood)."""
     s = post.settings
     k = max(1, round(a.set_length / s.section_s))
     u = middle_draws(s, a.sets)
-    out = {"sections": k, "length_s": k * s.section_s}
-    print(f"\nCramer-Rao bound of the 90 % width at {k * s.section_s:g} s, % of range, "
-          f"median over the {a.sets} sets (all ten parameters unknown)")  # fmt: skip
+    return cramer_rao_table([post.likelihood], post.columns, u, k, s.section_s, names)
+
+
+def cramer_rao_table(likelihoods, columns, u, k: int, section_s: float, names) -> dict:
+    """Cramer-Rao 90 % widths (% of range) at the truths ``u`` for ``k`` sections per
+    condition, the ``likelihoods``' informations added (independent conditions: one
+    likelihood, or a joint posterior's parts): per set and parameter, with the emulator's
+    error in C_k (what this emulator can tell) and without it (what the statistics hold,
+    read by a perfect emulator); printed as the median over the sets."""
+    out = {"sections": k, "length_s": k * section_s}
+    print(f"\nCramer-Rao bound of the 90 % width at {k * section_s:g} s, % of range, "
+          f"median over the {len(u)} sets (all ten parameters unknown)")  # fmt: skip
     print(f"{'C_k':>24} " + " ".join(f"{p:>6}" for p in names))
     for label, err in (("statistics alone", False), ("with emulator error", True)):
-        w = 100.0 * cramer_rao_width(fisher_information(post.likelihood, u, k, emulator_error=err))
-        w = w[:, post.columns]
+        info = sum(fisher_information(sl, u, k, emulator_error=err) for sl in likelihoods)
+        w = 100.0 * cramer_rao_width(info)[:, columns]
         out[label.replace(" ", "_")] = {p: w[:, i].tolist() for i, p in enumerate(names)}
         print(f"{label:>24} " + " ".join(f"{np.median(w[:, i]):6.1f}" for i in range(len(names))))
     return out
@@ -224,7 +232,7 @@ def _replicates(post, a: argparse.Namespace, longest: int) -> dict:
     return out
 
 
-def _coverage_table(rows: list[dict], names: list[str], section_s: float) -> None:
+def coverage_table(rows: list[dict], names: list[str], section_s: float) -> None:
     """Coverage per parameter and median width against record length (no widening)."""
     print("\ncoverage of the 90 % intervals on held-out records (no widening fitted)")
     print(f"{'length s':>8} {'cases':>5} " + " ".join(f"{p:>5}" for p in names) + "  passed")

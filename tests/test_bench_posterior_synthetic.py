@@ -20,7 +20,7 @@ def test_coverage_table_per_length(capsys):
         }
         for k, cov in ((1, 0.9), (30, 0.8))
     ]
-    bench._coverage_table(rows, ["X13", "X18"], 20.0)
+    bench.coverage_table(rows, ["X13", "X18"], 20.0)
     out = capsys.readouterr().out.splitlines()
     assert any(line.split() == ["20", "100", "0.91", "0.90", "2/2"] for line in out)
     assert any(line.split() == ["600", "100", "0.91", "0.80", "1/2"] for line in out)

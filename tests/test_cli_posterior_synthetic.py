@@ -78,8 +78,8 @@ def test_a_second_emulator_without_a_projection_is_one_line_exit_2(tmp_path):
 def test_join_two_estimators_of_different_conditions_and_estimate(tmp_path, monkeypatch):
     """Straight and uphill trained apart (the second with its own tracks), joined, checked
     on their held-out records, and a recording of both conditions estimated by the joint
-    posterior; the same estimators at one offset, or an estimate by the flows' method, are
-    refused in one line."""
+    posterior; an estimate by the flows' method, one estimator joined to itself, a single
+    estimator and an estimator's folder as the joint's are refused in one line."""
     monkeypatch.chdir(tmp_path)
     common = ["--parameters", "X14,X18", "--section", "2", "--simulations", "40", "--check", "10"]
     common += ["--calibration", "0", "--lead-in", "20", "--long-record", "synthetic-likelihood"]
@@ -111,3 +111,10 @@ def test_join_two_estimators_of_different_conditions_and_estimate(tmp_path, monk
     assert result.exit_code == 2
     assert "condition 'straight' in estimators 1 and 2" in result.output
     assert len(result.output.strip().splitlines()) == 1
+    one = ["posterior", "join", "--estimators", f"{tmp_path / 'straight'}, "]
+    result = runner.invoke(app, [*one, "--out", str(tmp_path / "j3")])
+    assert result.exit_code == 2 and "accepted two or more run folders" in result.output
+    both = f" {tmp_path / 'straight'} , {tmp_path / 'uphill'}"  # spaces are stripped
+    result = runner.invoke(app, ["posterior", "join", "--estimators", both, "--out",
+                                 str(tmp_path / "uphill")])  # fmt: skip
+    assert result.exit_code == 2 and "an estimator's folder" in result.output

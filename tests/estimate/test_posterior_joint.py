@@ -29,6 +29,7 @@ from railsusp.estimate.posterior_data import (
     SEED_BASE,
     PosteriorSettings,
     cached_cases,
+    noise_rng,
     prior_draws,
     track_seeds,
 )
@@ -39,10 +40,13 @@ STRAIGHT = get_condition("straight").with_changes(lead_in_m=30.0)
 UPHILL = get_condition("uphill").with_changes(lead_in_m=30.0)
 
 
+def _common() -> dict:
+    return dict(section_s=5.0, n_train=300, n_check=30, samples=200, product_sections=(4,),
+                n_product=30)  # fmt: skip
+
+
 def _settings(cond=STRAIGHT, offset=0, **kw) -> PosteriorSettings:
-    base = dict(section_s=5.0, n_train=300, n_check=30, samples=200, product_sections=(4,),
-                n_product=30, condition_offset=offset)  # fmt: skip
-    return PosteriorSettings((cond,), **{**base, **kw})
+    return PosteriorSettings((cond,), **{**_common(), "condition_offset": offset, **kw})
 
 
 # -- seeds --------------------------------------------------------------------------------
@@ -70,6 +74,28 @@ def test_an_offset_estimator_never_shares_a_track_with_the_first():
     mine = np.concatenate([track_seeds(second, k, idx, 0) for k in SEED_BASE])
     assert np.unique(mine).size == mine.size
     assert not np.intersect1d(seen, mine).size
+
+
+def test_the_instrument_noise_of_an_offset_estimator_is_its_own():
+    """The gain error and noise of case i in condition c are keyed by the condition's index
+    in the joint design: at offset 0 the key of every estimator before the offset (its
+    records keep their noise); an estimator at offset 1 does not repeat offset 0's."""
+    zero, one = _settings(), _settings(UPHILL, offset=1)
+    for kind in ("train", "long"):
+        old = np.random.default_rng([zero.seed, SEED_BASE[kind], 7, 0]).random(5)
+        assert np.array_equal(noise_rng(zero, kind, 7, 0).random(5), old)
+        assert not np.array_equal(noise_rng(one, kind, 7, 0).random(5), old)
+    two = PosteriorSettings((STRAIGHT, UPHILL))  # its second condition is offset 1's slot
+    assert np.array_equal(noise_rng(two, "train", 7, 1).random(5),
+                          noise_rng(one, "train", 7, 0).random(5))  # fmt: skip
+
+
+def test_the_emulator_hash_at_offset_zero_is_the_one_of_before():
+    """Pinned to the value computed by 7b2f92d (before the offset existed) for these
+    settings: run folders trained then still load their emulator."""
+    from railsusp.estimate.posterior_synthetic_fit import emulator_key
+
+    assert emulator_key(_settings()) == "b2b9d5c673b120c0"
 
 
 def test_an_offset_out_of_range_is_refused_in_one_line():
@@ -250,8 +276,14 @@ def test_estimators_that_cannot_be_joined_are_refused_in_one_line(runs, tmp_path
     with pytest.raises(RailsuspInputError, match=r"accepted two or more"):
         joint.JointPosterior((part_a,))
     same_tracks = synthetic.SyntheticPosterior(_settings(UPHILL), part_b.likelihood)
-    with pytest.raises(RailsuspInputError, match=r"both simulate condition index 0"):
+    with pytest.raises(RailsuspInputError, match=r"both hold condition index 0 .* share tracks"):
         joint.JointPosterior((part_a, same_tracks))
+    # a first estimator of two conditions holds slots 0 and 1: offset 1 overlaps it
+    two = synthetic.SyntheticPosterior(PosteriorSettings((STRAIGHT, get_condition("curve")),
+                                       **_common()), part_a.likelihood)  # fmt: skip
+    curve_less = synthetic.SyntheticPosterior(_settings(UPHILL, offset=1), part_b.likelihood)
+    with pytest.raises(RailsuspInputError, match=r"both hold condition index 1"):
+        joint.JointPosterior((two, curve_less))
     other = synthetic.SyntheticPosterior(_settings(UPHILL, offset=1, section_s=10.0),
                                          part_b.likelihood)  # fmt: skip
     with pytest.raises(RailsuspInputError, match=r"section_s = 10.0 differs from the first's"):
@@ -309,3 +341,34 @@ def test_the_emulators_hash_holds_the_offset_only_where_set():
     assert "condition_offset" not in _trained_on(_settings())
     assert _trained_on(_settings(offset=2))["condition_offset"] == 2
     assert emulator_key(_settings()) != emulator_key(_settings(offset=2))
+
+
+def test_a_joint_folder_is_its_own_and_reads_only_cached_records(runs, tmp_path):
+    """The joint check goes into a folder of its own (an estimator's would read as the
+    joint afterwards), and it reads the parts' caches only: held-out cases a part has not
+    simulated are a one-line error, never simulated by the join."""
+    _, a, b = runs
+    with pytest.raises(RailsuspInputError, match=r"an estimator's folder; accepted a folder"):
+        joint.train([a, b], a)
+    with pytest.raises(RailsuspInputError, match=r"is not cached \(cases 1-40 of 40 check"):
+        joint.train([a, b], tmp_path / "j", [("check", 40, 1, (1,))])
+    assert not (tmp_path / "j" / "posterior" / "joint.json").exists()
+
+
+def test_a_recordings_sections_are_the_fewest_of_the_parts(runs, monkeypatch):
+    """Each part cuts its own conditions; the part with the fewest sections sets their
+    number, and the other's sections beyond it are counted as left out."""
+    _, a, b = runs
+    j = joint.JointPosterior((synthetic.load(a), synthetic.load(b)))
+    counts = {"straight": 5, "uphill": 3}
+
+    def summaries(settings, recordings):
+        name = settings.conditions[0].name
+        k = counts[name]
+        return np.zeros((k, 17)), {name: {"sections": k, "seconds_left_out": 1.5}}
+
+    monkeypatch.setattr(joint, "recording_summaries", summaries)
+    x, used = joint.recording_sections(j, [])
+    assert x.shape == (3, 34)
+    assert used == {"straight": {"sections": 3, "seconds_left_out": 11.5},
+                    "uphill": {"sections": 3, "seconds_left_out": 1.5}}  # fmt: skip

@@ -28,6 +28,16 @@ _OPTIONS = {"section_s": "--section", "n_train": "--simulations", "n_check": "--
             "condition_offset": "--condition-offset", "sum_y": "--sum-y"}  # fmt: skip
 
 
+def _print_checks(checks, label: str = "") -> None:
+    """One line per checked number of sections: the coverage range and the verdict."""
+    for c in checks:
+        cov = [p.coverage for p in c.checks]
+        console.print(
+            f"{label}{c.sections} section(s): coverage {min(cov):.2f}-{max(cov):.2f} on "
+            f"{c.checks[0].n} cases, no widening: " + ("passed" if c.passed else "FAILED")
+        )
+
+
 def _calibration_table(est) -> None:
     """Per parameter: the widening fitted on the calibration cases and the coverage on the
     untouched test cases before and after it."""
@@ -223,13 +233,7 @@ def train_command(
     if not is_quiet():
         _calibration_table(est)
     if long_record == "synthetic-likelihood":
-        for c in synthetic.checks:
-            cov = [p.coverage for p in c.checks]
-            console.print(
-                f"synthetic likelihood, {c.sections} section(s): coverage {min(cov):.2f}-"
-                f"{max(cov):.2f} on {c.checks[0].n} cases, no widening: "
-                + ("passed" if c.passed else "FAILED")
-            )
+        _print_checks(synthetic.checks, "synthetic likelihood, ")
     excessive = est.correction.excessive if est.correction else []
     if est.calibrated:
         console.print(f"estimator in {out / 'posterior'}: coverage check passed")
@@ -326,9 +330,15 @@ def join_command(
     on their held-out records; then railsusp posterior estimate --estimator OUT
     --long-record synthetic-likelihood."""
     from railsusp.estimate import posterior_joint
+    from railsusp.store import check_output_folder
 
-    runs = [Path(r) for r in estimators.split(",") if r.strip()]
+    runs = [Path(r.strip()) for r in estimators.split(",") if r.strip()]
     try:
+        if len(runs) < 2:
+            raise RailsuspInputError(
+                f"--estimators {estimators}: accepted two or more run folders, comma-separated"
+            )
+        check_output_folder(out)
         if is_quiet():
             joint = posterior_joint.train(runs, out)
         else:
@@ -338,12 +348,7 @@ def join_command(
         fail(str(exc))
     names = [c.name for p in joint.parts for c in p.settings.conditions]
     console.print(f"joint posterior of {', '.join(names)} in {out / 'posterior' / 'joint.json'}")
-    for c in joint.checks:
-        cov = [p.coverage for p in c.checks]
-        console.print(
-            f"{c.sections} section(s): coverage {min(cov):.2f}-{max(cov):.2f} on "
-            f"{c.checks[0].n} cases, no widening: " + ("passed" if c.passed else "FAILED")
-        )
+    _print_checks(joint.checks)
     if not all(c.passed for c in joint.checks):
         err_console.print(
             "warning: the joint posterior FAILED its coverage check (intervals too narrow); "

@@ -53,7 +53,8 @@ SEED_BASE = {"train": 10_000_000, "check": 20_000_000, "calibration": 30_000_000
              "identification": 60_000_000, "replicate": 70_000_000}  # fmt: skip
 #: the track seeds of ``condition_offset`` o > 0 start at o times this (past every kind's)
 OFFSET_SEED_BASE = 100_000_000
-#: the largest ``condition_offset``
+#: the largest ``condition_offset``: ten condition slots, and every seed below 2^31
+#: (9 x 100 000 000 + the largest kind's base and span)
 MAX_CONDITION_OFFSET = 9
 
 
@@ -306,11 +307,21 @@ def track_seeds(settings: PosteriorSettings, kind: str, idx: np.ndarray, c: int)
     """The irregularity seeds of cases ``idx`` of ``kind`` in condition ``c`` (of the
     settings' conditions): each case and condition its own track. With a
     ``condition_offset`` o > 0 they start at o x :data:`OFFSET_SEED_BASE`, clear of the
-    seeds at every other offset (the kinds' bases are 10 000 000 apart, as at offset 0), so
-    that an estimator of further conditions for the same cases never shares a track with
-    another's."""
+    seeds at every other offset while a kind's cases times conditions stay under 10 000 000
+    (the kinds' bases are that far apart, as at offset 0), so that an estimator of further
+    conditions for the same cases never shares a track with another's."""
     base = SEED_BASE[kind] + settings.condition_offset * OFFSET_SEED_BASE
     return base + np.asarray(idx) * len(settings.conditions) + c
+
+
+def noise_rng(settings: PosteriorSettings, kind: str, case: int, c: int) -> np.random.Generator:
+    """The instrument's random stream (gain error, then noise) of case ``case`` of ``kind`` in
+    condition ``c``: keyed by the condition's index in the joint design (``condition_offset``
+    + c), so that estimators joined by :mod:`railsusp.estimate.posterior_joint` never share
+    a stream; at offset 0 the key of every estimator before the offset existed."""
+    return np.random.default_rng(
+        [settings.seed, SEED_BASE[kind], case, settings.condition_offset + c]
+    )
 
 
 def simulate_long_cases(
@@ -336,9 +347,7 @@ def simulate_long_cases(
         for i in range(n):
             if not res.ok[i]:
                 continue
-            rng = np.random.default_rng(
-                [settings.seed, SEED_BASE[kind], int(idx[i]), settings.condition_offset + c]
-            )
+            rng = noise_rng(settings, kind, int(idx[i]), c)
             Y, Q = (_instrument(a[i, j] / 1e3, fs, rng, settings.noise) for a in (res.Y, res.Q))
             # the partner's channels draw their noise after the measured wheel's, Y then Q:
             # Y alone (sum_y) keeps the draws of estimators trained before Q was added
@@ -374,6 +383,7 @@ def cached_cases(
     n: int,
     sections: int = 1,
     draws: np.ndarray | None = None,
+    simulate: bool = True,
 ):
     """(u (n, 10), x) of the first ``n`` cases of ``kind`` (a key of :data:`SEED_BASE`),
     simulated in chunks of :data:`CHUNK` cached in ``folder`` (``KIND_NNNN_K.npz``; with
@@ -381,7 +391,8 @@ def cached_cases(
     the EN 14363 summary, ``+family`` after the kind); a chunk on disk is read, not
     simulated again. ``x`` is (n, D) for one section, (n, sections, D) for several.
     ``draws`` (n, 10 fractions of the ranges): these parameter sets instead of the
-    prior's draws of ``kind`` (whose seeds the tracks keep)."""
+    prior's draws of ``kind`` (whose seeds the tracks keep). ``simulate`` False: only read,
+    a one-line error naming the first chunk that is not cached."""
     u_all = prior_draws(settings, kind, n) if draws is None else np.asarray(draws, float)
     if u_all.shape != (n, len(MAIN_SUSPENSION)):
         raise ValueError(f"draws {u_all.shape}: need ({n}, {len(MAIN_SUSPENSION)})")
@@ -401,6 +412,11 @@ def cached_cases(
                 if np.array_equal(z["u"], u_all[lo:hi]) and z["x"].shape[-1] == width:
                     xs.append(z["x"])
                     continue
+        if not simulate:
+            raise RailsuspInputError(
+                f"{path} is not cached (cases {lo + 1}-{hi} of {n} {name}, these draws): "
+                "simulate them with the estimator's own settings first"
+            )
         log.info("posterior: simulating %s cases %d-%d of %d", name, lo + 1, hi, n)
         x = simulate_long_cases(settings, u_all[lo:hi], lo, kind, sections)
         x = x[:, 0, :] if sections == 1 else x

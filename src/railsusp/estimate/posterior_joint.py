@@ -10,11 +10,13 @@ and another of the grade, trained apart on the same parameter draws (the same ``
 the second with ``condition_offset`` past the first's conditions, so that its tracks and
 noise are its own), then give the posterior of a recording of all three conditions: the
 conditions' costs add instead of one estimator's emulator learning all their statistics
-together, and a recording of fewer conditions uses the estimators it has.
+together, and the first estimator is not trained again (a recording of fewer conditions
+takes a join of the estimators of its conditions).
 
 A product of posteriors that each passed its own coverage check is not checked by those
 checks, so the joint posterior is checked again (:func:`train`) on the parts' held-out
-records, which are the same cases in every part (same settings, same draws; verified), and
+records (the same parameter draws in every part: the shared seed and counts), read from
+the parts' caches only (nothing is simulated: a missing record is a one-line error), and
 stored in ``posterior/joint.json`` of its own folder with the parts' folders and the stamps
 of their checks: a part trained again afterwards makes the joint's check stale, and
 :func:`load` refuses it in one line.
@@ -37,10 +39,12 @@ from railsusp.estimate.posterior_data import cached_cases, recording_summaries
 from railsusp.estimate.posterior_result import PosteriorResult
 from railsusp.estimate.posterior_smc import smc_sample
 from railsusp.estimate.posterior_synthetic_run import (
+    Checked,
     SectionsCheck,
     SyntheticPosterior,
     check_sets,
     held_out_sets,
+    plain_sets,
     result_of,
 )
 from railsusp.estimate.posterior_synthetic_run import load as load_part
@@ -56,7 +60,7 @@ SHARED = ("parameters", "section_s", "seed", "noise", "samples", "n_check", "pro
 
 
 @dataclass
-class JointPosterior:
+class JointPosterior(Checked):
     """The product of the synthetic likelihoods of ``parts`` (module docstring); the
     summary vector is the parts' one after the other, as an estimator of all their
     conditions would hold them."""
@@ -69,12 +73,9 @@ class JointPosterior:
 
     @property
     def settings(self):
-        """The first part's settings (the shared ones, :data:`SHARED`, are every part's)."""
+        """The first part's settings: the shared ones (:data:`SHARED`) are every part's, but
+        its ``conditions`` and ``summary_names`` are the first part's only."""
         return self.parts[0].settings
-
-    @property
-    def columns(self) -> list[int]:
-        return [MAIN_SUSPENSION.index(p) for p in self.settings.parameters]
 
     @property
     def widths(self) -> list[int]:
@@ -97,19 +98,9 @@ class JointPosterior:
             :, self.columns
         ]
 
-    def product_for(self, sections: int) -> SectionsCheck | None:
-        """The check of the smallest checked number of sections >= ``sections``."""
-        return next((c for c in self.checks if c.sections >= sections), None)
-
-    @property
-    def calibrated(self) -> bool:
-        """One section's joint check passed."""
-        c = self.product_for(1)
-        return c is not None and c.sections == 1 and c.passed
-
 
 def sample_product(likelihoods, sections, n: int, seed: int = 0) -> np.ndarray:
-    """(n, 10) draws on the unit box of the posterior whose likelihood is the product of
+    """(n, d) draws on the unit box of the posterior whose likelihood is the product of
     ``likelihoods``' of their ``sections`` (each (k_i, D_i): the parts may hold different
     numbers of sections): two SMC runs as :meth:`SyntheticLikelihood.sample`, which this
     is, draw for draw, for one part."""
@@ -169,9 +160,10 @@ def check_parts(parts) -> None:
         for slot in range(s.condition_offset, s.condition_offset + len(s.conditions)):
             if slot in slots:
                 raise RailsuspInputError(
-                    f"joint posterior: estimators {slots[slot]} and {i} both simulate "
-                    f"condition index {slot} (condition_offset = {s.condition_offset}): they "
-                    "share tracks; accepted a condition_offset past the other's conditions"
+                    f"joint posterior: estimators {slots[slot]} and {i} both hold condition "
+                    f"index {slot} (condition_offset = {s.condition_offset}): they share "
+                    "tracks or instrument noise; accepted a condition_offset past the other's "
+                    "conditions"
                 )
             slots[slot] = i
 
@@ -179,12 +171,14 @@ def check_parts(parts) -> None:
 def joint_cases(parts, runs, kind: str, n: int, sections: int, draws=None):
     """(u, x) of the held-out cases ``kind`` (``draws``: at these parameter sets, as
     :func:`~railsusp.estimate.posterior_data.cached_cases`) in every part's run folder, x
-    the parts' statistics one after the other; a one-line error where the parts' cases are
-    not the same parameter sets."""
+    the parts' statistics one after the other. Read only: a case a part has not cached is
+    a one-line error (it would be simulated otherwise), as are parts whose cases are other
+    parameter sets (they cannot be, with the seed and counts :func:`check_parts` requires:
+    a guard against a cache changed by hand)."""
     us, xs = [], []
     for p, run in zip(parts, runs, strict=True):
         folder = Path(run) / "posterior" / "simulations"
-        u, x = cached_cases(p.settings, folder, kind, n, sections, draws=draws)
+        u, x = cached_cases(p.settings, folder, kind, n, sections, draws=draws, simulate=False)
         us.append(u)
         xs.append(x)
     for i, u in enumerate(us[1:], start=2):
@@ -205,33 +199,56 @@ def part_stamps(runs) -> list:
 def train(runs, out: str | Path, sets=None) -> JointPosterior:
     """The joint posterior of the trained estimators in ``runs``, checked on their
     held-out records (``sets`` as :func:`held_out_sets`; default the first part's) into
-    ``out``/posterior/joint.json; a stored check of the same parts and sets is read."""
+    ``out``/posterior/joint.json; a stored check of the same parts and sets is read. ``out``
+    must not be an estimator's folder (it would read as the joint posterior afterwards)."""
     runs = [str(Path(r).resolve()) for r in runs]
+    target = Path(out).resolve()
+    if (
+        str(target) in runs
+        or (target / "posterior" / "settings.json").exists()
+        or (target / "posterior" / "synthetic").exists()
+    ):
+        raise RailsuspInputError(
+            f"--out {out}: an estimator's folder; accepted a folder of its own for the joint "
+            "posterior"
+        )
     parts = tuple(load_part(r) for r in runs)
     joint = JointPosterior(parts)
     sets = sets or held_out_sets(joint.settings)
-    plain = [[list(v) if isinstance(v, tuple) else v for v in st] for st in sets]
     path = Path(out) / "posterior" / "joint.json"
     stamps = part_stamps(runs)
     if path.exists():
         old = read_json(path)
-        if old.get("runs") == runs and old.get("stamps") == stamps and old.get("sets") == plain:
+        same = old.get("runs") == runs and old.get("stamps") == stamps
+        if same and old.get("sets") == plain_sets(sets):
             joint.checks = [SectionsCheck.from_dict(c) for c in old["checks"]]
             return joint
     joint.checks = check_sets(joint, lambda kind, n, k: joint_cases(parts, runs, kind, n, k), sets)
     write_json(path, {"method": "joint-synthetic-likelihood", "runs": runs, "stamps": stamps,
-                      "sets": plain, "checks": [c.to_dict() for c in joint.checks]})  # fmt: skip
+                      "sets": plain_sets(sets),
+                      "checks": [c.to_dict() for c in joint.checks]})  # fmt: skip
     return joint
 
 
 def load(out: str | Path) -> JointPosterior:
     """The joint posterior stored in ``out`` (:func:`train`); a one-line error when a
-    part was trained again since its check."""
+    part was trained again (or moved) since its check, or the file is not a joint check."""
     path = Path(out) / "posterior" / "joint.json"
     if not path.exists():
         raise RailsuspInputError(f"{path} does not exist: check the joint posterior first")
     record = read_json(path)
+    if not all(key in record for key in ("runs", "stamps", "checks")):
+        raise RailsuspInputError(
+            f"{path}: not a joint posterior's check (runs, stamps, checks); run railsusp "
+            "posterior join again"
+        )
     runs = record["runs"]
+    moved = [r for r in runs if not (Path(r) / "posterior" / "synthetic" / "check.json").exists()]
+    if moved:
+        raise RailsuspInputError(
+            f"{path}: the estimator {moved[0]} is not there (moved or removed); run railsusp "
+            "posterior join again on the estimators' folders"
+        )
     if part_stamps(runs) != record["stamps"]:
         raise RailsuspInputError(
             f"{path}: an estimator of {', '.join(runs)} was trained again after the joint "

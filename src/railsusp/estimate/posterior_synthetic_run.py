@@ -85,22 +85,13 @@ class SectionsCheck:
         return cls(int(d["sections"]), checks, dict(d["width_pct_range"]))
 
 
-@dataclass
-class SyntheticPosterior:
-    """The synthetic likelihood of a trained estimator's settings, and its checks."""
-
-    settings: PosteriorSettings
-    likelihood: SyntheticLikelihood
-    checks: list[SectionsCheck] = field(default_factory=list)
+class Checked:
+    """What a checked posterior (its ``settings`` and ``checks``) answers: the estimated
+    parameters' columns, the check of a number of sections, the verdict."""
 
     @property
     def columns(self) -> list[int]:
         return [MAIN_SUSPENSION.index(p) for p in self.settings.parameters]
-
-    def sample(self, x: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
-        """(n, d) draws (unit box) of the estimated parameters for the sections ``x``
-        (k, D) or one section (D,)."""
-        return self.likelihood.sample(np.atleast_2d(x), n, seed)[:, self.columns]
 
     def product_for(self, sections: int) -> SectionsCheck | None:
         """The check of the smallest checked number of sections >= ``sections``."""
@@ -111,6 +102,20 @@ class SyntheticPosterior:
         """One section's check passed."""
         c = self.product_for(1)
         return c is not None and c.sections == 1 and c.passed
+
+
+@dataclass
+class SyntheticPosterior(Checked):
+    """The synthetic likelihood of a trained estimator's settings, and its checks."""
+
+    settings: PosteriorSettings
+    likelihood: SyntheticLikelihood
+    checks: list[SectionsCheck] = field(default_factory=list)
+
+    def sample(self, x: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
+        """(n, d) draws (unit box) of the estimated parameters for the sections ``x``
+        (k, D) or one section (D,)."""
+        return self.likelihood.sample(np.atleast_2d(x), n, seed)[:, self.columns]
 
 
 def held_out_sets(settings: PosteriorSettings) -> list[tuple[str, int, int, tuple[int, ...]]]:
@@ -169,7 +174,7 @@ def train(
     scales = fit_covariance_scales(settings, post.likelihood, run, where)
     post.likelihood = likelihood(settings, emulator, scales, projection, projected)
     path = Path(run) / "posterior" / "synthetic" / "check.json"
-    sets = [list(map(_plain, st)) for st in (sets or held_out_sets(settings))]
+    sets = plain_sets(sets or held_out_sets(settings))
     stamp = check_stamp(run, scales, post.likelihood, fitted.get("stamp"))
     if path.exists():
         old = read_json(path)
@@ -184,6 +189,11 @@ def train(
 
 def _plain(v):
     return list(v) if isinstance(v, tuple) else v
+
+
+def plain_sets(sets) -> list:
+    """Held-out sets (:func:`held_out_sets`' form) as JSON stores them (lists)."""
+    return [list(map(_plain, st)) for st in sets]
 
 
 def load(run: str | Path) -> SyntheticPosterior:
