@@ -11,8 +11,10 @@ parameter draws (the same seed and held-out counts), the second with ``--conditi
 past the first's conditions (its own tracks and noise). Nothing is simulated or fitted
 here beyond what the runs hold (their caches must hold the held-out records and the sets):
 
-1. the joint check on the held-out records (one section on ``--check`` cases, k sections
-   on the first k of the ``--long`` records, every length of ``--lengths``), stored in
+1. the joint widening per checked length, fitted on the first k sections of the parts'
+   ``--calibration-records`` calibration records, and the joint check of the widened draws
+   on the held-out records (one section on ``--check`` cases, k sections on the first k of
+   the ``--long`` records, every length of ``--lengths``), stored in
    ``JOINT/posterior/joint.json`` with the parts' stamps;
 2. with ``--sets N``: the N middle-80 % sets (bench/posterior.py's draws, each part's
    cached ``identification`` records) scored and judged at every length of
@@ -47,6 +49,13 @@ def main() -> None:
     ap.add_argument("--check", type=int, default=200, help="one-section held-out cases")
     ap.add_argument("--long", type=int, default=100, help="held-out records of several sections")
     ap.add_argument("--long-length", type=float, default=600.0, help="their length, s")
+    ap.add_argument(
+        "--calibration-records",
+        type=int,
+        default=150,
+        help="the parts' long-calibration records of --long-length the widening is fitted on "
+        "(0: no widening)",
+    )
     ap.add_argument("--sets", type=int, default=0, help="middle-80 %% sets identified (0: none)")
     ap.add_argument("--set-length", type=float, default=600.0, help="their record length, s")
     ap.add_argument("--set-lengths", default=None, help="lengths they are scored at, s")
@@ -65,13 +74,18 @@ def main() -> None:
     sets = [("check", a.check, 1, (1,))] if 1 in ks else []
     if any(k > 1 for k in ks):
         sets.append(("long", a.long, longest, tuple(k for k in ks if 1 < k <= longest)))
-    post = joint.train(runs, a.joint, sets)
+    where = ("long-calibration", a.calibration_records, longest) if a.calibration_records else None
+    post = joint.train(runs, a.joint, sets, calibration=where)
     names = list(s.parameters)
     conditions = [c.name for p in post.parts for c in p.settings.conditions]
     print(f"joint posterior of {', '.join(runs)}: conditions {', '.join(conditions)}; "
           f"checked in {time.perf_counter() - t0:.0f} s (a stored check is read)")  # fmt: skip
     rows = [c.to_dict() for c in post.checks]
     coverage_table(rows, names, section)
+    widening = {k: dict(zip(names, c.factors, strict=True)) for k, c in post.corrections.items()}
+    print("widening (logit coordinates, fitted on the calibration records), per parameter")
+    for k, factors in sorted(widening.items()):
+        print(f"{k * section:8g} " + " ".join(f"{factors[p]:5.2f}" for p in names))
 
     ident, verdicts, bound = None, [], None
     if a.sets:
@@ -103,6 +117,8 @@ def main() -> None:
         "conditions": conditions,
         "settings": [p.settings.to_dict() for p in post.parts],
         "checks": rows,
+        "calibration_records": a.calibration_records,
+        "widening": {str(k): v for k, v in widening.items()},
         "identification": ident,
         "identification_verdicts": verdicts,
         "cramer_rao_width_pct": bound,

@@ -309,7 +309,8 @@ def test_the_bench_checks_scores_the_sets_and_adds_the_parts_information(runs, m
     out = root / "bench.json"
     argv = ["posterior_joint.py", "--runs", f"{a},{b}", "--joint", str(root / "bench_joint"),
             "--out", str(out), "--lengths", "5,20", "--check", "30", "--long", "30",
-            "--long-length", "20", "--sets", str(SETS), "--set-length", "20"]  # fmt: skip
+            "--long-length", "20", "--calibration-records", "30", "--sets", str(SETS),
+            "--set-length", "20"]  # fmt: skip
     monkeypatch.setattr(sys, "argv", argv)
     bench.main()
     got = json.loads(out.read_text())
@@ -372,3 +373,40 @@ def test_a_recordings_sections_are_the_fewest_of_the_parts(runs, monkeypatch):
     assert x.shape == (3, 34)
     assert used == {"straight": {"sections": 3, "seconds_left_out": 11.5},
                     "uphill": {"sections": 3, "seconds_left_out": 1.5}}  # fmt: skip
+
+
+def test_the_widening_is_fitted_on_calibration_records_stored_and_applied(runs):
+    """The join fits a split-conformal widening per checked number of sections on the
+    parts' calibration records (never below 1), stores it and reads it back; the draws
+    are widened about their median in logit coordinates by its factors; a factor above
+    the bound marks the parameter as failed in that check."""
+    from railsusp.estimate.calibration import SpreadCorrection
+    from railsusp.estimate.posterior_fusion import to_logit
+
+    root, a, b = runs
+    j = joint.train([a, b], root / "joint")
+    assert sorted(j.corrections) == [1, 4]
+    assert all(f >= 1.0 for c in j.corrections.values() for f in c.factors)
+    assert all(c.n == 30 for c in j.corrections.values())  # the parts' 30 records
+    back = joint.load(root / "joint")
+    assert {k: c.to_dict() for k, c in back.corrections.items()} == {
+        k: c.to_dict() for k, c in j.corrections.items()
+    }
+    names = list(j.settings.parameters)
+    j.corrections = {4: SpreadCorrection(tuple(names), (2.0,) * 10, 30)}
+    assert j.correction_for(2) is j.corrections[4] and j.correction_for(5) is None
+    x = np.full((4, 2 * 17), 41.5)
+    raw, wide = (to_logit(f(x, 400, seed=3)) for f in (j.raw_sample, j.sample))
+    assert np.allclose(np.median(wide, axis=0), np.median(raw, axis=0), atol=1e-9)
+    spread = np.subtract(*np.quantile(wide, [0.95, 0.05], axis=0))
+    assert spread == pytest.approx(2.0 * np.subtract(*np.quantile(raw, [0.95, 0.05], axis=0)))
+    factors = [2.5 if p == "X18" else 1.0 for p in names]
+    j.corrections = {4: SpreadCorrection(tuple(names), tuple(factors), 30)}
+    flagged = joint.flag_excessive(j, back.checks)
+    x18 = names.index("X18")
+    assert not flagged[-1].checks[x18].passed and flagged[-1].sections == 4
+    assert [c.passed for c in flagged[-1].checks if c.parameter != "X18"] == [
+        c.passed for c in back.checks[-1].checks if c.parameter != "X18"
+    ]
+    # one section takes the widening of the smallest corrected number above it, here 4's
+    assert not flagged[0].checks[x18].passed

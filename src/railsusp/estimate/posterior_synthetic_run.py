@@ -276,6 +276,8 @@ def result_of(post, x: np.ndarray, used: dict, seed: int = 0) -> PosteriorResult
             )
     for note in notes:
         log.warning("posterior: %s", note)
+    widening = getattr(post, "correction_for", None)  # a joint posterior's
+    correction = None if widening is None or chk is None else widening(n)
     return PosteriorResult(s.parameters, to_si(u, s.parameters), checks, used, n, notes,
-                           None, None if chk is None else chk.sections,
+                           correction, None if chk is None else chk.sections,
                            "synthetic-likelihood")  # fmt: skip
