@@ -93,6 +93,7 @@ def test_join_two_estimators_of_different_conditions_and_estimate(tmp_path, monk
     assert result.exit_code == 0, result.output
     assert "joint posterior of straight, uphill" in result.output
     assert "1 section(s): coverage" in result.output
+    assert "widened" not in result.output  # no records of several sections to fit it on
     conditions = [CONDITION, get_condition("uphill").with_changes(lead_in_m=20.0)]
     synthesise_field(ParameterSet.nominal(), conditions, tmp_path / "f", duration_s=4.5)
     out = tmp_path / "post.json"

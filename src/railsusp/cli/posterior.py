@@ -326,9 +326,9 @@ def join_command(
     ],
     out: Annotated[Path, typer.Option(help="folder of the joint posterior (posterior/joint.json)")],
 ) -> None:
-    """One posterior of all the estimators' conditions (their likelihoods multiply), checked
-    on their held-out records; then railsusp posterior estimate --estimator OUT
-    --long-record synthetic-likelihood."""
+    """One posterior of all the estimators' conditions (their likelihoods multiply), widened
+    where its calibration records say so and checked on their held-out records; then
+    railsusp posterior estimate --estimator OUT --long-record synthetic-likelihood."""
     from railsusp.estimate import posterior_joint
     from railsusp.store import check_output_folder
 
@@ -342,12 +342,18 @@ def join_command(
         if is_quiet():
             joint = posterior_joint.train(runs, out)
         else:
-            with console.status("checking the joint posterior on the held-out records"):
+            with console.status("widening and checking the joint posterior"):
                 joint = posterior_joint.train(runs, out)
     except RailsuspInputError as exc:
         fail(str(exc))
     names = [c.name for p in joint.parts for c in p.settings.conditions]
     console.print(f"joint posterior of {', '.join(names)} in {out / 'posterior' / 'joint.json'}")
+    for k, c in sorted(joint.corrections.items()):
+        most = max(range(len(c.factors)), key=lambda i: c.factors[i])
+        console.print(
+            f"{k} section(s): widened by up to {c.factors[most]:.2f} ({c.parameters[most]}), "
+            f"fitted on {c.n} calibration records"
+        )
     _print_checks(joint.checks)
     if not all(c.passed for c in joint.checks):
         err_console.print(
