@@ -41,7 +41,7 @@ UPHILL = get_condition("uphill").with_changes(lead_in_m=30.0)
 
 
 def _common() -> dict:
-    return dict(section_s=5.0, n_train=300, n_check=30, samples=200, product_sections=(4,),
+    return dict(section_s=5.0, n_train=300, n_check=30, samples=100, product_sections=(4,),
                 n_product=30)  # fmt: skip
 
 
@@ -307,7 +307,8 @@ def test_the_bench_checks_scores_the_sets_and_adds_the_parts_information(runs, m
     root, a, b = runs
     bench = bench_script("posterior_joint")
     out = root / "bench.json"
-    argv = ["posterior_joint.py", "--runs", f"{a},{b}", "--joint", str(root / "bench_joint"),
+    # the joint check of the first test (same sets and calibration records): read, not redone
+    argv = ["posterior_joint.py", "--runs", f"{a},{b}", "--joint", str(root / "joint"),
             "--out", str(out), "--lengths", "5,20", "--check", "30", "--long", "30",
             "--long-length", "20", "--calibration-records", "30", "--sets", str(SETS),
             "--set-length", "20"]  # fmt: skip
