@@ -156,13 +156,15 @@ def bench_conditions(a: argparse.Namespace) -> tuple:
     )
 
 
-def identify_sets(est, a: argparse.Namespace, names: list[str]):
-    """``--sets`` middle-80 % sets identified at every length (:func:`identification`),
-    their tables printed: (statistics x, rows, the issue's verdict per length)."""
+def identify_sets(est, a: argparse.Namespace, names: list[str], cases=None):
+    """``--sets`` middle-80 % sets identified at every length (:func:`identification`;
+    ``cases`` as there, else the sets in ``--run``), their tables printed: (statistics x,
+    rows, the issue's verdict per length)."""
     t1 = time.perf_counter()
     _, x, ident = identification(
-        est, a.run, a.sets, a.set_length, lengths_s(a.set_lengths or a.lengths)
-    )
+        est, None if cases else a.run, a.sets, a.set_length,
+        lengths_s(a.set_lengths or a.lengths), cases,
+    )  # fmt: skip
     print(f"\nidentification of {a.sets} sets: {time.perf_counter() - t1:.0f} s")
     keys = a.keys.split(",")
     print_tables(ident, names, keys)
@@ -348,16 +350,22 @@ def verdict(row: dict, keys: list[str]) -> dict:
     }
 
 
-def identification(est, run: str | Path, n: int, length_s: float, lengths_s: list[float]):
+def identification(
+    est, run: str | Path | None, n: int, length_s: float, lengths_s: list[float], cases=None
+):
     """Simulate (or read) ``n`` middle-80 % sets of ``length_s`` per condition and score
     their posterior at every record length of ``lengths_s`` up to it (and at ``length_s``):
-    (truths u (n, 10), summaries x, rows of :func:`score_sets`)."""
+    (truths u (n, 10), summaries x, rows of :func:`score_sets`). ``cases(kind, n, sections,
+    draws)`` -> (u, x) reads them instead of ``run``'s cache (a joint posterior's parts)."""
     s = est.settings
     longest = max(1, round(length_s / s.section_s))
     ks = sorted({max(1, round(v / s.section_s)) for v in lengths_s} | {longest})
     u = middle_draws(s, n)
-    folder = Path(run) / "posterior" / "simulations"
-    _, x = cached_cases(s, folder, "identification", n, longest, draws=u)
+    if cases is None:
+        folder = Path(run) / "posterior" / "simulations"
+        _, x = cached_cases(s, folder, "identification", n, longest, draws=u)
+    else:
+        _, x = cases("identification", n, longest, u)
     x = x[:, None, :] if x.ndim == 2 else x
     return u, x, score_sets(est, x, u, [k for k in ks if k <= longest])
 

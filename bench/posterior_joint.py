@@ -32,10 +32,8 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
-
-from posterior import KEYS, lengths_s, middle_draws, print_tables, score_sets, verdict
-from posterior_synthetic import coverage_table, cramer_rao_table
+from posterior import KEYS, identify_sets, middle_draws
+from posterior_synthetic import checked_sets, coverage_table, cramer_rao_table, posterior_seconds
 from railsusp.estimate import posterior_joint as joint
 from railsusp.estimate import posterior_synthetic_run as synthetic
 
@@ -70,10 +68,7 @@ def main() -> None:
     s = parts[0].settings
     section = s.section_s
     longest = max(1, round(a.long_length / section))
-    ks = sorted({max(1, round(v / section)) for v in lengths_s(a.lengths)})
-    sets = [("check", a.check, 1, (1,))] if 1 in ks else []
-    if any(k > 1 for k in ks):
-        sets.append(("long", a.long, longest, tuple(k for k in ks if 1 < k <= longest)))
+    sets = checked_sets(a, section, longest)
     where = ("long-calibration", a.calibration_records, longest) if a.calibration_records else None
     post = joint.train(runs, a.joint, sets, calibration=where)
     names = list(s.parameters)
@@ -89,25 +84,14 @@ def main() -> None:
 
     ident, verdicts, bound = None, [], None
     if a.sets:
-        k_set = max(1, round(a.set_length / section))
+
+        def cases(kind, n, k, draws):
+            return joint.joint_cases(post.parts, runs, kind, n, k, draws=draws)
+
+        x, ident, verdicts = identify_sets(post, a, names, cases)
+        posterior_seconds(post, x)
         u = middle_draws(s, a.sets)
-        _, x = joint.joint_cases(post.parts, runs, "identification", a.sets, k_set, draws=u)
-        x = x[:, None, :] if x.ndim == 2 else x
-        scored = lengths_s(a.set_lengths or a.lengths)
-        score_at = sorted({max(1, round(v / section)) for v in scored} | {k_set})
-        t1 = time.perf_counter()
-        ident = score_sets(post, x, u, [k for k in score_at if k <= k_set])
-        print(f"\nidentification of {a.sets} sets: {time.perf_counter() - t1:.0f} s")
-        keys = a.keys.split(",")
-        print_tables(ident, names, keys)
-        verdicts = [verdict(r, keys) for r in ident]
-        xs = x[np.all(np.isfinite(x), axis=(1, 2))][:5]
-        times = []
-        for i, xi in enumerate(xs):
-            t2 = time.perf_counter()
-            post.sample(xi, s.samples, seed=i)
-            times.append(time.perf_counter() - t2)
-        print(f"posterior of {xs.shape[1]} sections: median {np.median(times):.2f} s")
+        k_set = max(1, round(a.set_length / section))
         likelihoods = [p.likelihood for p in post.parts]
         bound = cramer_rao_table(likelihoods, post.columns, u, k_set, section, names)
     out = {

@@ -106,10 +106,7 @@ def main() -> None:
         statistics_emulator_cases=a.statistics_emulator_cases,
         condition_offset=a.condition_offset,
     )
-    ks = sorted({max(1, round(v / a.section)) for v in lengths_s(a.lengths)})
-    sets = [("check", a.check, 1, (1,))] if 1 in ks else []
-    if any(k > 1 for k in ks):
-        sets.append(("long", a.long, longest, tuple(k for k in ks if 1 < k <= longest)))
+    sets = checked_sets(a, a.section, longest)
     names = list(settings.parameters)
     t0 = time.perf_counter()
     where = ("long-calibration", a.scale_records, longest) if a.scale_records else None
@@ -127,14 +124,7 @@ def main() -> None:
     ident, verdicts = None, []
     if a.sets:
         x, ident, verdicts = identify_sets(post, a, names)
-        xs = x[np.all(np.isfinite(x), axis=(1, 2))][:5]
-        t_est = []
-        for i, xi in enumerate(xs):
-            t1 = time.perf_counter()
-            post.sample(xi, settings.samples, seed=i)
-            t_est.append(time.perf_counter() - t1)
-        print(f"posterior of {xs.shape[1]} sections: median {np.median(t_est):.2f} s over "
-              f"{len(t_est)} records")  # fmt: skip
+        t_est = posterior_seconds(post, x)
     bound = _cramer_rao(post, a, names) if a.sets else None
     replicates = _replicates(post, a, longest) if a.replicates and longest > 1 else None
     if a.replicates and longest == 1:
@@ -159,6 +149,31 @@ def main() -> None:
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(out, indent=2) + "\n")
     print(f"wrote {a.out}")
+
+
+def checked_sets(a: argparse.Namespace, section_s: float, longest: int) -> list[tuple]:
+    """The held-out sets checked at every length of ``--lengths`` (``held_out_sets``'
+    form): one section on ``--check`` cases, k sections on the first k of the ``--long``
+    records of ``longest`` sections."""
+    ks = sorted({max(1, round(v / section_s)) for v in lengths_s(a.lengths)})
+    sets = [("check", a.check, 1, (1,))] if 1 in ks else []
+    if any(k > 1 for k in ks):
+        sets.append(("long", a.long, longest, tuple(k for k in ks if 1 < k <= longest)))
+    return sets
+
+
+def posterior_seconds(post, x: np.ndarray, records: int = 5) -> list[float]:
+    """Seconds of one recording's posterior, for the first ``records`` finite records of
+    ``x`` (records, sections, D); their median printed."""
+    xs = x[np.all(np.isfinite(x), axis=(1, 2))][:records]
+    seconds = []
+    for i, xi in enumerate(xs):
+        t1 = time.perf_counter()
+        post.sample(xi, post.settings.samples, seed=i)
+        seconds.append(time.perf_counter() - t1)
+    print(f"posterior of {xs.shape[1]} sections: median {np.median(seconds):.2f} s over "
+          f"{len(seconds)} records")  # fmt: skip
+    return seconds
 
 
 def _cramer_rao(post, a: argparse.Namespace, names: list[str]) -> dict:

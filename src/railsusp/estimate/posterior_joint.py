@@ -47,10 +47,12 @@ import numpy as np
 
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.calibration import SpreadCorrection
+from railsusp.estimate.posterior_check import widen
 from railsusp.estimate.posterior_data import cached_cases, recording_summaries
-from railsusp.estimate.posterior_fusion import from_logit, to_logit
+from railsusp.estimate.posterior_fusion import to_logit
 from railsusp.estimate.posterior_result import PosteriorResult
 from railsusp.estimate.posterior_smc import smc_sample
+from railsusp.estimate.posterior_synthetic_fit import scale_set
 from railsusp.estimate.posterior_synthetic_run import (
     Checked,
     SectionsCheck,
@@ -59,7 +61,6 @@ from railsusp.estimate.posterior_synthetic_run import (
     held_out_sets,
     plain_sets,
     result_of,
-    scale_set,
 )
 from railsusp.estimate.posterior_synthetic_run import load as load_part
 from railsusp.params import MAIN_SUSPENSION
@@ -118,9 +119,7 @@ class JointPosterior(Checked):
     def sample(self, x: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
         """(n, d) draws (unit box) for the sections ``x``, widened by the correction of
         their number of sections (:meth:`correction_for`) where there is one."""
-        draws = self.raw_sample(x, n, seed)
-        correction = self.correction_for(len(np.atleast_2d(x)))
-        return draws if correction is None else from_logit(correction.apply(to_logit(draws)))
+        return widen(self.correction_for(len(np.atleast_2d(x))), self.raw_sample(x, n, seed))
 
     def correction_for(self, sections: int) -> SpreadCorrection | None:
         """The widening of the smallest corrected number of sections >= ``sections``."""
