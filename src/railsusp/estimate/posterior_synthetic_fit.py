@@ -29,8 +29,14 @@ log = logging.getLogger(__name__)
 #: networks in the emulator's bagged ensemble, and their hidden width
 MEMBERS = 10
 HIDDEN = 48
-#: the hidden width of the emulator of the projected combinations (its members: MEMBERS)
-PROJECTED_HIDDEN = 48
+#: the emulator of the projected combinations (its members: MEMBERS): hidden width, and
+#: its training: mini-batches, each network learning what its linear trend leaves. Measured
+#: on the 32 000 training cases of stops 30-31 (bench/README.md, stop 32): full-batch
+#: networks of 48 left the first combination (X18's, moved by ~30 sections' standard
+#: deviations over X18's range) a wave of up to 0.44 section standard deviations along
+#: X18, the same shape in the straight-and-curve and the grade estimators
+PROJECTED_HIDDEN = 64
+PROJECTED_TRAINING = {"batch": 256, "trend": True}
 #: the training cases the informative projection of statistics beyond the EN 14363 summary
 #: is averaged over (:func:`~railsusp.estimate.posterior_synthetic.informative_projection`)
 PROJECTION_CASES = 200
@@ -208,7 +214,8 @@ def fit_projected_emulator(
     folder = Path(run) / "posterior"
     path = folder / "synthetic" / "projected_emulator.npz"
     key = content_hash({"settings": _trained_on(settings), "projection": fitted["stamp"],
-                        "members": MEMBERS, "hidden": PROJECTED_HIDDEN})  # fmt: skip
+                        "members": MEMBERS, "hidden": PROJECTED_HIDDEN,
+                        "training": PROJECTED_TRAINING})  # fmt: skip
     if path.exists():
         emu = StatisticsEmulator.load(path)
         if emu.stamp == key:
@@ -216,7 +223,7 @@ def fit_projected_emulator(
     u, x = cached_cases(settings, folder / "simulations", "train", settings.n_train)
     t0 = time.perf_counter()
     emu = fit(u, x @ fitted["matrix"].T, members=MEMBERS, hidden=PROJECTED_HIDDEN,
-              seed=settings.seed, log=log)  # fmt: skip
+              seed=settings.seed, log=log, **PROJECTED_TRAINING)  # fmt: skip
     log.info("synthetic likelihood: emulator of %d combinations on %d cases fitted in %.0f s",
              emu.dim, emu.cases, time.perf_counter() - t0)  # fmt: skip
     emu.stamp = key
