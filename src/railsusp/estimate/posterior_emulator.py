@@ -193,8 +193,9 @@ def _fit_member(u, y, train, valid, hidden, seed, batch=None):
     """One MLP on the cases ``train``, early-stopped on ``valid`` (the best out-of-bag
     state is kept). ``batch`` None: full-batch Adam with weight decay, up to 3000 steps
     (the emulators fitted before stop 32); an int: mini-batches of that size, the step
-    halved when the out-of-bag loss stalls for 8 epochs, stopped after 30 without gain
-    (up to 400 epochs)."""
+    halved after 9 epochs without a relative gain of 1e-4 in the out-of-bag loss
+    (``ReduceLROnPlateau``), stopped at the 31st epoch without a new best (up to 400
+    epochs)."""
     import torch
 
     torch.manual_seed(seed)
