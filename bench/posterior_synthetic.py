@@ -136,7 +136,7 @@ def main() -> None:
         "members": synthetic_fit.MEMBERS,
         "hidden": synthetic_fit.HIDDEN,
         "projected_hidden": synthetic_fit.PROJECTED_HIDDEN,
-        "projected_training": synthetic_fit.PROJECTED_TRAINING,
+        "training": synthetic_fit.TRAINING,
         "emulator_and_checks_s": t_train,
         "scale_records": a.scale_records,
         "scales": scales,

@@ -90,12 +90,15 @@ def test_the_instrument_noise_of_an_offset_estimator_is_its_own():
                           noise_rng(one, "train", 7, 0).random(5))  # fmt: skip
 
 
-def test_the_emulator_hash_at_offset_zero_is_the_one_of_before():
-    """Pinned to the value computed by 7b2f92d (before the offset existed) for these
-    settings: run folders trained then still load their emulator."""
+def test_the_emulator_hash_at_offset_zero_leaves_the_offset_out():
+    """At offset 0 the hash is that of the settings without the offset (7b2f92d's rule,
+    before the offset existed); pinned to its value since stop 32 put the emulators'
+    training into it (before: b2b9d5c673b120c0). A folder of before still loads (``load``
+    reads its stored hash and checks); training it again fits its emulators anew."""
     from railsusp.estimate.posterior_synthetic_fit import emulator_key
 
-    assert emulator_key(_settings()) == "b2b9d5c673b120c0"
+    assert emulator_key(_settings()) == "48984690e8893b1c"
+    assert emulator_key(_settings(offset=1)) != emulator_key(_settings())
 
 
 def test_an_offset_out_of_range_is_refused_in_one_line():

@@ -262,8 +262,10 @@ def fit(
 ) -> StatisticsEmulator:
     """Fit the emulator to cases ``u`` (N, d, fractions of range) and their one-section
     statistics ``x`` (N, D); rows with a non-finite statistic are left out. ``batch``:
-    the networks' mini-batch size (None: full batch); ``trend``: each member's network
-    learns what its resample's least-squares linear trend leaves (module docstring)."""
+    the networks' mini-batch size, at most N/16 (at least 32) so that a small training
+    set still takes 16 steps an epoch (None: full batch); ``trend``: each member's
+    network learns what its resample's least-squares linear trend leaves (module
+    docstring)."""
     from railsusp.estimate.posterior import one_thread
 
     u = np.asarray(u, float)
@@ -279,6 +281,8 @@ def fit(
     x_mean = x.mean(axis=0)
     x_scale = np.maximum(x.std(axis=0), 1e-12)
     y = (x - x_mean) / x_scale
+    if batch is not None:
+        batch = min(batch, max(32, n // 16))
     rng = np.random.default_rng(seed)
     weights, trends, oob_sum, oob_count = [], [], np.zeros_like(y), np.zeros(n)
     features = linear_features(u)

@@ -26,17 +26,21 @@ from railsusp.store import atomic_write_bytes, content_hash, read_json, write_js
 
 log = logging.getLogger(__name__)
 
-#: networks in the emulator's bagged ensemble, and their hidden width
+#: networks in the emulators' bagged ensembles, and their hidden width
 MEMBERS = 10
-HIDDEN = 48
-#: the emulator of the projected combinations (its members: MEMBERS): hidden width, and
-#: its training: mini-batches, each network learning what its linear trend leaves. Measured
-#: on the 32 000 training cases of stops 30-31 (bench/README.md, stop 32): full-batch
-#: networks of 48 left the first combination (X18's, moved by ~30 sections' standard
+HIDDEN = 64
+#: how both emulators (of all the statistics, and of the projected combinations alone)
+#: are trained since stop 32: each network learns, in mini-batches, what its resample's
+#: linear trend leaves (:func:`~railsusp.estimate.posterior_emulator.fit`). Measured on
+#: the 32 000 training cases of stops 30-31 (bench/README.md, stop 32): full-batch
+#: networks of 48 left the first combination (X18's, moved by 25-30 sections' standard
 #: deviations over X18's range) a wave of up to 0.44 section standard deviations along
-#: X18, the same shape in the straight-and-curve and the grade estimators
-PROJECTED_HIDDEN = 64
-PROJECTED_TRAINING = {"batch": 256, "trend": True}
+#: X18, the same shape in the straight-and-curve and the grade estimators, so that a
+#: joint posterior of the two added it; the emulator of all statistics trained so chose
+#: combinations whose estimators passed their checks at 20, 120 and 600 s
+TRAINING = {"batch": 256, "trend": True}
+#: the hidden width of the emulator of the projected combinations
+PROJECTED_HIDDEN = HIDDEN
 #: the training cases the informative projection of statistics beyond the EN 14363 summary
 #: is averaged over (:func:`~railsusp.estimate.posterior_synthetic.informative_projection`)
 PROJECTION_CASES = 200
@@ -161,10 +165,11 @@ def emulator_key(settings: PosteriorSettings) -> str:
     """The hash of what the emulator of all the statistics learns from: the training
     settings with the cases it reads (``statistics_emulator_cases`` when set, else
     ``n_train``), so that it is the hash of an emulator of as many cases trained before
-    the setting existed, and the network size."""
+    the setting existed, the network size and its training."""
     trained_on = _trained_on(settings)
     trained_on["n_train"] = settings.statistics_emulator_cases or settings.n_train
-    return content_hash({"settings": trained_on, "members": MEMBERS, "hidden": HIDDEN})
+    return content_hash({"settings": trained_on, "members": MEMBERS, "hidden": HIDDEN,
+                         "training": TRAINING})  # fmt: skip
 
 
 def _trained_on(settings: PosteriorSettings) -> dict:
@@ -185,7 +190,7 @@ def fit_emulator(settings: PosteriorSettings, run: str | Path) -> StatisticsEmul
         return StatisticsEmulator.load(path)
     u, x = cached_cases(settings, folder / "simulations", "train", cases)
     t0 = time.perf_counter()
-    emu = fit(u, x, members=MEMBERS, hidden=HIDDEN, seed=settings.seed, log=log)
+    emu = fit(u, x, members=MEMBERS, hidden=HIDDEN, seed=settings.seed, log=log, **TRAINING)
     log.info("synthetic likelihood: emulator fitted in %.0f s", time.perf_counter() - t0)
     emu.save(path)
     write_json(stamp, {"hash": key, "members": MEMBERS, "hidden": HIDDEN,
@@ -215,7 +220,7 @@ def fit_projected_emulator(
     path = folder / "synthetic" / "projected_emulator.npz"
     key = content_hash({"settings": _trained_on(settings), "projection": fitted["stamp"],
                         "members": MEMBERS, "hidden": PROJECTED_HIDDEN,
-                        "training": PROJECTED_TRAINING})  # fmt: skip
+                        "training": TRAINING})  # fmt: skip
     if path.exists():
         emu = StatisticsEmulator.load(path)
         if emu.stamp == key:
@@ -223,7 +228,7 @@ def fit_projected_emulator(
     u, x = cached_cases(settings, folder / "simulations", "train", settings.n_train)
     t0 = time.perf_counter()
     emu = fit(u, x @ fitted["matrix"].T, members=MEMBERS, hidden=PROJECTED_HIDDEN,
-              seed=settings.seed, log=log, **PROJECTED_TRAINING)  # fmt: skip
+              seed=settings.seed, log=log, **TRAINING)  # fmt: skip
     log.info("synthetic likelihood: emulator of %d combinations on %d cases fitted in %.0f s",
              emu.dim, emu.cases, time.perf_counter() - t0)  # fmt: skip
     emu.stamp = key
