@@ -285,22 +285,21 @@ def fit(
         batch = min(batch, max(32, n // 16))
     rng = np.random.default_rng(seed)
     weights, trends, oob_sum, oob_count = [], [], np.zeros_like(y), np.zeros(n)
-    features = linear_features(u)
+    features = linear_features(u) if trend else None
     with one_thread():
         for m in range(members):
             t0 = time.perf_counter()
             boot = rng.integers(0, n, n)
             valid = np.setdiff1d(np.arange(n), boot)
-            line = np.zeros((features.shape[1], y.shape[1]))
+            rest = y
             if trend:
-                line = np.linalg.lstsq(features[boot], y[boot], rcond=None)[0]
-            rest = y - features @ line
+                trends.append(np.linalg.lstsq(features[boot], y[boot], rcond=None)[0])
+                rest = y - features @ trends[-1]
             layers = _fit_member(u, rest, boot, valid, hidden, seed + 7919 * (m + 1), batch)
             weights.append(layers)
-            trends.append(line)
             part = StatisticsEmulator([layers], np.zeros(y.shape[1]), np.ones(y.shape[1]),
                                       np.zeros((1, 1)), np.eye(1),
-                                      trends=line[None] if trend else None)  # fmt: skip
+                                      trends=np.stack(trends[-1:]) if trend else None)  # fmt: skip
             oob_sum[valid] += part.member_means(u[valid])[0]
             oob_count[valid] += 1
             if log is not None:

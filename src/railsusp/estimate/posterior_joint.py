@@ -26,10 +26,11 @@ SyntheticLikelihood.sample`): a first tempered SMC run on the sum of the parts' 
 log-likelihoods, a second with each part's covariance held at the first run's mean.
 
 **Widening, fitted and checked.** Each part's emulator error is modelled on its own
-calibration records, but the parts learnt from the same parameter draws, and an error both
-emulators make alike at the same parameters does not average out in their product
-(measured at 600 s: X18's 90 % intervals held 77 % of 100 test truths without it,
-bench/README.md). So, as the flows' estimator does
+calibration records, but an error both emulators make alike at the same parameters does
+not average out in their product, and each part's own small over-confidence carries into
+it (measured at 600 s: with full-batch emulators X18's 90 % intervals held 77 % of 100
+test truths; with the emulators fitted on their linear trend (stop 32) every parameter
+passed, but the ten held 0.86 pooled, bench/README.md). So, as the flows' estimator does
 (:class:`~railsusp.estimate.calibration.SpreadCorrection`), the joint posterior's draws
 are widened per parameter and per checked number of sections, in logit coordinates about
 their median, by split-conformal factors fitted on the parts' calibration records (the
