@@ -119,13 +119,16 @@ def network_rows(
     architecture: dict | None = None,
     nominal_context: Sequence[str] = (),
     init_from: str | Path | None = None,
+    init_inputs: bool = False,
 ) -> list[dict]:
     """Train one network (``window``: its window, or the sequence CNN-GRU's washout; None:
     the kind's default; ``nominal_response``: reading the nominal wagon's forces on each
     track, from the campaign's nominal twins; ``architecture``: NetConfig fields
     that differ from the study's, e.g. ``{"dropout": 0.0}``; ``nominal_context``: more
     channels of the nominal wagon's response as inputs; ``init_from``: a saved surrogate
-    to start from) on the campaign's split, saved
+    to start from, with its own features and normalisation when ``init_inputs``) on the
+    campaign's
+    split, saved
     under ``out`` (default ``RUN/surrogates/<label>/<condition>/``), and score it on the
     same test runs from the end of its own window or washout (the reference scores from
     step 20)."""
@@ -143,7 +146,15 @@ def network_rows(
         nominal_context=nominal_context,
         architecture=architecture,
         init_from=init_from,
+        init_inputs=init_inputs,
     )
+    return score_rows(camp, condition, sur, label, split_seed)
+
+
+def score_rows(camp, condition: str, sur, label: str, split_seed: int = 0) -> list[dict]:
+    """Score the surrogate ``sur`` (trained here, or elsewhere: e.g. a shipped network
+    set's) on the campaign ``camp``'s held-out test runs of ``condition`` from the end of
+    its own window or washout: the rows of :func:`network_rows`."""
     first = sur.spec.window
     data = load_series(camp, condition, sur.spec)
     split = campaign_split(camp, split_seed)
@@ -174,6 +185,7 @@ def nominal_rows(
     window: int | None = None,
     context: Sequence[str] = (),
     init_label: str | None = None,
+    init_inputs: bool = False,
 ) -> list[dict]:
     """Train the ``kind`` network (the window CNN-GRU, or the sequence CNN-GRU
     ``cnn-gru-seq``) that also reads the nominal wagon's forces on each track
@@ -182,7 +194,8 @@ def nominal_rows(
     (``window``: its window or washout, None: the kind's default; ``context``: more
     channels of the nominal wagon's response as inputs,
     :data:`~railsusp.surrogate.nominal.CONTEXT_CHANNELS`; ``init_label``: start from the
-    network saved under ``RUN/surrogates/<init_label>/<condition>/``)."""
+    network saved under ``RUN/surrogates/<init_label>/<condition>/``, with its own
+    features and normalisation when ``init_inputs``: a network of another campaign)."""
     return network_rows(
         run,
         condition,
@@ -195,6 +208,7 @@ def nominal_rows(
         architecture=architecture,
         nominal_context=context,
         init_from=None if init_label is None else Path(run) / "surrogates" / init_label / condition,
+        init_inputs=init_inputs,
     )
 
 
@@ -257,12 +271,14 @@ def table_on_tracks(
     init_label: str | None = None,
     pair_twins: int = 1,
     pair_step: float = DEFAULT_STEP,
+    init_inputs: bool = False,
 ) -> pd.DataFrame:
     """The accuracy table (one row per condition, model and force) of every model on the
     campaign's held-out test runs in ``conditions`` (all by default): the compared models,
     then the sequence CNN-GRU, then (``nominal``) the CNN-GRU reading the nominal wagon's
     forces (of each of ``nominal_kinds``: ``<kind>-nominal``; its campaign's nominal twins
-    made first, or resumed; ``architecture``, ``tag``, ``context`` and ``init_label`` as
+    made first, or resumed; ``architecture``, ``tag``, ``context``, ``init_label`` and
+    ``init_inputs`` as
     :func:`nominal_rows`; with ``train.pair_weight`` > 0 their perturbed twins too,
     ``pair_twins`` per sample at ``pair_step`` of the range), then the variant's rows (in
     ``variant_conditions``, all by default)."""
@@ -308,6 +324,7 @@ def table_on_tracks(
                     tag,
                     context=context,
                     init_label=init_label,
+                    init_inputs=init_inputs,
                 )
     if rows:
         tables.append(pd.DataFrame(rows))
@@ -320,6 +337,22 @@ def table_on_tracks(
             progress(f"{cond}: cnn-gru w{variant_window}")
         rows += variant_rows(run, cond, variant_window, train, split_seed)
     return pd.concat([table, pd.DataFrame(rows)], ignore_index=True)
+
+
+def scored_networks(
+    run: str | Path, folders: Sequence[str], conditions: Sequence[str]
+) -> list[dict]:
+    """The rows of the saved networks ``folders`` (each ``DIR/<condition>/``, labelled
+    ``scored:<DIR's name>``) on the campaign's test runs of ``conditions`` where they have a
+    network: how networks trained on another campaign do on these tracks."""
+    camp = load_campaign(run)
+    rows: list[dict] = []
+    for folder in folders:
+        for cond in conditions:
+            path = Path(folder) / cond
+            if (path / "surrogate.json").exists():
+                rows += score_rows(camp, cond, load(path), f"scored:{Path(folder).name}")
+    return [r for r in rows if r["model"] != "nominal wagon"]  # the trained rows have them
 
 
 def table7_per_run(table: pd.DataFrame) -> pd.DataFrame:
@@ -525,6 +558,20 @@ def main() -> None:
         help="with --nominal: start each network from RUN/surrogates/LABEL/<condition>",
     )
     ap.add_argument(
+        "--init-inputs",
+        action="store_true",
+        help="with --init-from: train on that network's features and normalisation (a "
+        "network of another campaign of the same family, copied under RUN/surrogates/LABEL/)",
+    )
+    ap.add_argument(
+        "--score",
+        action="append",
+        default=[],
+        metavar="DIR",
+        help="also score the saved networks DIR/<condition>/ (e.g. a network set's folder) "
+        "on this campaign's test runs, without training them (repeatable)",
+    )
+    ap.add_argument(
         "--tag",
         default="",
         help="with --dropout/--rnn-hidden/--dense/--nominal-context/--pair-weight/--init-from: "
@@ -617,6 +664,11 @@ def main() -> None:
             "--pair-weight: accepted with --nominal --nominal-kinds cnn-gru-seq --models '' "
             "only (pairs train the sequence network)"
         )
+    if args.init_inputs and not args.init_from:
+        ap.error("--init-inputs: accepted only with --init-from")
+    for folder in args.score:
+        if not Path(folder).is_dir():
+            ap.error(f"--score {folder}: accepted a folder of saved networks, one per condition")
     if args.train_threads is not None:
         if args.train_threads < 1:
             ap.error(f"--train-threads {args.train_threads}: accepted an integer >= 1")
@@ -647,7 +699,11 @@ def main() -> None:
         init_label=args.init_from,
         pair_twins=args.pair_twins,
         pair_step=args.pair_step,
+        init_inputs=args.init_inputs,
     )
+    scored = scored_networks(args.run, args.score, list(table.condition.unique()))
+    if scored:
+        table = pd.concat([table, pd.DataFrame(scored)], ignore_index=True)
     tick("done")
     t7 = table7_per_run(table)
     kinds = [k for k in models if k in NETWORKS] + (

@@ -52,19 +52,30 @@ def harmonic_drive(amplitude: float, n: int = 4000, cycles: int = 2):
         )
 
 
-def family_campaign(out: Path, keys: tuple[str, ...], condition, samples: int = 12) -> Path:
+def family_campaign(
+    out: Path,
+    keys: tuple[str, ...],
+    condition,
+    samples: int = 12,
+    seed: int = 3,
+    cant_mm: tuple[float, float] | None = (0, 100),
+) -> Path:
     """A tiny many-track campaign into ``out``: ``samples`` samples of ``keys`` by LHS, each
     on its own track of the FRA 4-6, R250-400 m, cant 0-100 mm family, the other
-    main-suspension parameters varied over their ranges (what twins are made of)."""
+    main-suspension parameters varied over their ranges (what twins are made of); another
+    ``seed``: other tracks and parameter sets; ``cant_mm`` None: the cant not varied (no
+    cant channel in the networks' features)."""
     from railsusp.campaign import make_config, run_campaign
     from railsusp.variation import full_ranges
 
-    family = {"irregularity_classes": (4, 6), "curve_radius_m": (250.0, 400.0), "cant_mm": (0, 100)}
+    family = {"irregularity_classes": (4, 6), "curve_radius_m": (250.0, 400.0)}
+    if cant_mm is not None:
+        family["cant_mm"] = cant_mm
     cfg = make_config(
         [condition],
         samples,
         parameters=keys,
-        seed=3,
+        seed=seed,
         batch_size=samples // 2,
         independent_seeds=True,
         track_family=family,

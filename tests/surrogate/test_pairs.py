@@ -250,3 +250,54 @@ def test_a_failed_twin_is_replaced_by_its_samples_other_or_by_the_run(run):
     with pytest.raises(ValueError, match="no perturbed twin ran"):
         broken.targets[:] = np.nan
         PairSampler(data, broken, norm, 20, 100, 1.0)
+
+
+def test_a_warm_start_from_another_campaign_trains_on_its_inputs(run, tmp_path):
+    """A network of one campaign starts a training on another campaign of the same family
+    (other tracks and parameter sets, the cant not varied) only with ``init_inputs``: its
+    features (the cant channel, which this campaign's own features leave out) and its
+    normalisation are kept, so that its weights mean what they meant (with no step taken
+    they come back). Without it the network of the other campaign's features (one input
+    fewer) is refused; the option
+    without a network to start from, or from a network of other parameters, is refused."""
+    other = family_campaign(tmp_path / "other", KEYS, CURVE, seed=4, cant_mm=None)
+    tcfg = TrainConfig(
+        epochs=1, batches_per_epoch=2, chunk_steps=60, chunks_per_batch=4, val_windows=100
+    )
+    kw = {"parameters": KEYS, "kind": "cnn-gru-seq", "window": 20, "record_correction": False}
+    first = train_surrogate(run, "curve", train=tcfg, out=tmp_path / "a", **kw)
+    assert "cant" in first.spec.track_channels
+    with pytest.raises(RailsuspInputError, match="init_from .*: its network differs"):
+        train_surrogate(
+            other, "curve", train=tcfg, out=tmp_path / "b", init_from=tmp_path / "a", **kw
+        )
+    still = TrainConfig(**{**tcfg.to_dict(), "learning_rate": 1e-12})
+    moved = train_surrogate(
+        other,
+        "curve",
+        train=still,
+        out=tmp_path / "c",
+        init_from=tmp_path / "a",
+        init_inputs=True,
+        **kw,
+    )
+    assert moved.spec == first.spec
+    for field in ("track_mean", "track_std", "target_mean", "target_std"):
+        np.testing.assert_array_equal(
+            getattr(moved.normaliser, field), getattr(first.normaliser, field)
+        )
+    for k, v in first.net.state_dict().items():
+        np.testing.assert_allclose(moved.net.state_dict()[k], v, atol=1e-8)
+    assert moved.meta["campaign"] == str(other)  # trained (and split) on the other campaign
+    with pytest.raises(RailsuspInputError, match="init_inputs: accepted only with init_from"):
+        train_surrogate(tmp_path / "missing", "curve", init_inputs=True, **kw)
+    with pytest.raises(RailsuspInputError, match=r"its parameters \['X13', 'X14'\]; accepted"):
+        train_surrogate(
+            other,
+            "curve",
+            train=still,
+            out=tmp_path / "d",
+            init_from=tmp_path / "a",
+            init_inputs=True,
+            **{**kw, "parameters": ("X14", "X13")},
+        )

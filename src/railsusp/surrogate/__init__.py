@@ -202,6 +202,7 @@ def train_surrogate(
     nominal_context: Sequence[str] = (),
     architecture: Mapping[str, Any] | None = None,
     init_from: str | Path | None = None,
+    init_inputs: bool = False,
 ) -> Surrogate:
     """Train a window surrogate of one condition of a campaign; save and return it.
 
@@ -223,17 +224,33 @@ def train_surrogate(
     perturbed twins as well (gradient-enhanced, :mod:`.pairs`; make them with
     :func:`railsusp.campaign.perturbed.run_perturbed_twins`). ``init_from``: a saved
     surrogate of the same network, features and normalisation to start from (a warm start;
-    e.g. a network trained on the forces alone, then on pairs). The saved
+    e.g. a network trained on the forces alone, then on pairs). ``init_inputs`` (with
+    ``init_from``): train on that surrogate's inputs, its features and normalisation,
+    instead of those of this campaign (its track channels and a normalisation fitted on its
+    training runs), so that its weights mean what they meant: a warm start on another
+    campaign of the same family (more tracks and parameter sets, whose own normalisation
+    differs and would be refused; a campaign of the grade alone has no cant channel). The
+    saved
     surrogate lists the parameters it does not take as
     inputs and what it assumes of them (``meta.assumed_parameters``: varied over a range in
     its training campaign, or held at nominal).
     """
     from railsusp.campaign import load_campaign, require_complete
 
+    if init_inputs and init_from is None:
+        raise RailsuspInputError("init_inputs: accepted only with init_from")
     camp = require_complete(load_campaign(run))  # never train on part of a campaign
     params = tuple(parameters) if parameters else key_parameters(run)
     window = default_window(kind) if window is None else window
     spec = feature_spec(camp, params, window, nominal_response, nominal_context)
+    source = load(init_from) if init_inputs else None
+    if source is not None:
+        if source.spec.parameters != spec.parameters:
+            raise RailsuspInputError(
+                f"init_from {init_from}: its parameters {list(source.spec.parameters)}; "
+                f"accepted a surrogate of this training's {list(spec.parameters)}"
+            )
+        spec = source.spec
     data = load_series(camp, condition, spec)
     split = campaign_split(camp, split_seed)
     tr_i, va_i = split.positions(data.sample_ids, "train"), split.positions(data.sample_ids, "val")
@@ -243,7 +260,7 @@ def train_surrogate(
             "validation samples that ran (too few samples, or too many failed)"
         )
     train_data, val_data = data.subset(tr_i), data.subset(va_i)
-    norm = Normaliser.fit(train_data)
+    norm = source.normaliser if source is not None else Normaliser.fit(train_data)
     cfg = (
         replace(
             NetConfig(
