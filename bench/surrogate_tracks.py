@@ -14,6 +14,12 @@ condition the relative error of the record mean of
 vertical Q and lateral |Y| per held-out run (mean and worst) and pooled, the NRMSE and R² of
 the series, and the inference rate (windows per second, batched, ``--threads`` torch threads).
 
+``--init-from LABEL --init-inputs`` starts them from networks of another campaign of the
+same family copied under ``RUN/surrogates/LABEL/`` (their features and normalisation kept);
+``--score DIR`` scores saved networks (e.g. a shipped network set's folder) on this
+campaign's test runs beside the trained ones (give the campaign a ``--seed`` theirs did not
+use: irregularity seeds follow the design seed).
+
 ``--nominal`` also trains the networks that read the nominal wagon's response on each track
 (the campaign's nominal twins are made first): the window CNN-GRU (``cnn-gru-nominal``) by
 default, the sequence CNN-GRU too or instead with ``--nominal-kinds cnn-gru,cnn-gru-seq``
@@ -34,6 +40,7 @@ import importlib.util
 import platform
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -127,11 +134,9 @@ def network_rows(
     that differ from the study's, e.g. ``{"dropout": 0.0}``; ``nominal_context``: more
     channels of the nominal wagon's response as inputs; ``init_from``: a saved surrogate
     to start from, with its own features and normalisation when ``init_inputs``) on the
-    campaign's
-    split, saved
-    under ``out`` (default ``RUN/surrogates/<label>/<condition>/``), and score it on the
-    same test runs from the end of its own window or washout (the reference scores from
-    step 20)."""
+    campaign's split, saved under ``out`` (default ``RUN/surrogates/<label>/<condition>/``),
+    and score it on the same test runs from the end of its own window or washout (the
+    reference scores from step 20)."""
     camp = load_campaign(run)
     out = Path(run) / "surrogates" / label / condition if out is None else Path(out)
     sur = train_surrogate(
@@ -344,15 +349,56 @@ def scored_networks(
 ) -> list[dict]:
     """The rows of the saved networks ``folders`` (each ``DIR/<condition>/``, labelled
     ``scored:<DIR's name>``) on the campaign's test runs of ``conditions`` where they have a
-    network: how networks trained on another campaign do on these tracks."""
+    network: how networks trained on another campaign do on these tracks. Their ``held_out``
+    names the campaign they were trained on: these runs are held out from it only if its
+    design seed differs from this campaign's (irregularity seeds follow the design seed,
+    so two campaigns of one seed share tracks), which the saved networks do not record."""
     camp = load_campaign(run)
     rows: list[dict] = []
     for folder in folders:
         for cond in conditions:
             path = Path(folder) / cond
             if (path / "surrogate.json").exists():
-                rows += score_rows(camp, cond, load(path), f"scored:{Path(folder).name}")
-    return [r for r in rows if r["model"] != "nominal wagon"]  # the trained rows have them
+                sur = load(path)
+                held = (
+                    f"tracks of design seed {camp.config.seed}; the network's own campaign: "
+                    f"{sur.meta.get('campaign')}"
+                )
+                rows += [
+                    {**r, "held_out": held}
+                    for r in score_rows(camp, cond, sur, f"scored:{Path(folder).name}")
+                    if r["model"] != "nominal wagon"  # the trained networks' rows have it
+                ]
+    return rows
+
+
+def check_scored(folders: Sequence[str], conditions: Sequence[str], params, nominal: bool) -> str:
+    """Why the ``--score`` folders cannot be scored on a campaign of ``conditions`` and
+    ``params`` (``nominal``: its nominal twins are made), or "" when they can: checked
+    before the campaign and the training, not after them."""
+    names = [Path(f).name for f in folders]
+    if len(set(names)) < len(names):
+        return f"--score {', '.join(folders)}: accepted folders of different names (the labels)"
+    for folder in folders:
+        found = [c for c in conditions if (Path(folder) / c / "surrogate.json").exists()]
+        if not Path(folder).is_dir() or not found:
+            return (
+                f"--score {folder}: accepted a folder of saved networks DIR/<condition>/ for "
+                f"some of {', '.join(conditions)}"
+            )
+        for cond in found:
+            sur = load(Path(folder) / cond)
+            if not set(sur.spec.parameters) <= set(params):
+                return (
+                    f"--score {folder}: its {cond} network reads {list(sur.spec.parameters)}; "
+                    f"accepted networks of this campaign's parameters {list(params)}"
+                )
+            if sur.spec.nominal_response and not nominal:
+                return (
+                    f"--score {folder}: its {cond} network reads the nominal response; "
+                    "accepted with --nominal"
+                )
+    return ""
 
 
 def table7_per_run(table: pd.DataFrame) -> pd.DataFrame:
@@ -410,10 +456,10 @@ def inference_rates(
         rates, tracks = {}, {}
         for k in kinds:
             sur = load(Path(run) / "surrogates" / k / condition)
-            what = (sur.spec.nominal_response, sur.spec.nominal_context)
+            what = (sur.spec.track_channels, sur.spec.nominal_response, sur.spec.nominal_context)
             if what not in tracks:  # the track input, read once per kind of input
-                spec = feature_spec(camp, sur.spec.parameters, 20, *what)
-                data = load_series(camp, condition, spec)
+                spec = feature_spec(camp, sur.spec.parameters, 20, *what[1:])
+                data = load_series(camp, condition, replace(spec, track_channels=what[0]))
                 tracks[what] = data.subset(first(data.sample_ids, "test")[:1]).track[0]
             rates[k] = rate(sur, 64, repeats, True, tracks[what])
         return rates
@@ -423,14 +469,14 @@ def inference_rates(
 
 def print_table(t7: pd.DataFrame, seconds: dict[str, float]) -> None:
     print(
-        f"\n{'condition':<9} {'model':<12} {'Q run%':>7} {'Q max%':>7} {'Q pool%':>7} "
+        f"\n{'condition':<9} {'model':<16} {'Q run%':>7} {'Q max%':>7} {'Q pool%':>7} "
         f"{'Y run%':>7} {'Y max%':>7} {'Y pool%':>7} {'Y alone%':>8} {'Q NRMSE':>7} "
         f"{'Y NRMSE':>7} {'Q R2':>6} {'Y R2':>6} {'wall s':>7}"
     )
     for r in t7.to_dict(orient="records"):
         t = seconds.get(f"{r['condition']}: {r['model']}", float("nan"))
         print(
-            f"{r['condition']:<9} {r['model']:<12} {r['Q per run %']:7.2f} "
+            f"{r['condition']:<9} {r['model']:<16} {r['Q per run %']:7.2f} "
             f"{r['Q worst run %']:7.2f} {r['Q pooled %']:7.2f} {r['Y per run %']:7.2f} "
             f"{r['Y worst run %']:7.2f} {r['Y pooled %']:7.2f} "
             f"{r['Y per run, network alone %']:8.2f} {r['Q NRMSE']:7.3f} {r['Y NRMSE']:7.3f} "
@@ -666,9 +712,14 @@ def main() -> None:
         )
     if args.init_inputs and not args.init_from:
         ap.error("--init-inputs: accepted only with --init-from")
-    for folder in args.score:
-        if not Path(folder).is_dir():
-            ap.error(f"--score {folder}: accepted a folder of saved networks, one per condition")
+    trained = (
+        args.train_conditions.split(",")
+        if args.train_conditions
+        else [c.name for c in cfg.conditions]
+    )
+    why = check_scored(args.score, trained, cfg.simulated_parameters, args.nominal)
+    if why:
+        ap.error(why)
     if args.train_threads is not None:
         if args.train_threads < 1:
             ap.error(f"--train-threads {args.train_threads}: accepted an integer >= 1")
@@ -701,6 +752,7 @@ def main() -> None:
         pair_step=args.pair_step,
         init_inputs=args.init_inputs,
     )
+    tick("scoring the networks of --score")
     scored = scored_networks(args.run, args.score, list(table.condition.unique()))
     if scored:
         table = pd.concat([table, pd.DataFrame(scored)], ignore_index=True)

@@ -1,6 +1,9 @@
 """bench/surrogate_tracks.py: Table 7 on held-out tracks and parameters from a tiny many-track
 campaign (short records, one short epoch), and the campaign it makes."""
 
+import shutil
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -11,6 +14,9 @@ from railsusp.errors import RailsuspInputError
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.surrogate import TrainConfig, load
 from railsusp.surrogate.split import campaign_split
+
+#: the network set shipped with railsusp (the sequence CNN-GRU reading the nominal response)
+SHIPPED = str(Path(__file__).parents[2] / "src" / "railsusp" / "data" / "networks" / "c80_k6")
 
 
 @pytest.fixture(scope="module")
@@ -134,6 +140,13 @@ def test_targets_are_judged_per_run_in_every_condition(bench):
             ["--fine-tune-lr-factor", "2", "--tag", "x"],
             r"fine_tune_lr_factor = 2.0: accepted",
         ),
+        (["--init-inputs", "--tag", "x"], "--init-inputs: accepted only with --init-from"),
+        (["--score", "/nowhere/set"], "--score /nowhere/set: accepted a folder of saved networks"),
+        (["--score", SHIPPED], "its straight network reads the nominal response; accepted with"),
+        (
+            ["--nominal", "--score", SHIPPED, "--score", SHIPPED],
+            "accepted folders of different names",
+        ),
     ],
 )
 def test_bad_options_are_refused_before_the_campaign_runs(
@@ -150,3 +163,55 @@ def test_bad_options_are_refused_before_the_campaign_runs(
     assert exc.value.code == 2
     assert re.search(message, capsys.readouterr().err)
     assert not run.exists()
+
+
+def test_a_network_of_another_campaign_trained_on_its_inputs_and_scored(bench, tiny_run, tmp_path):
+    """A network trained on a campaign with curves (whose straight network reads the cant
+    channel) starts, with ``init_inputs``, a training on this campaign of the straight alone
+    (no cant channel of its own): the trained network keeps the cant channel and its
+    provenance, its inference rate is measured on inputs of its own features, and the
+    first network scored on this campaign's test runs names the campaign it came from."""
+    from railsusp.campaign.twins import run_nominal_twins
+
+    other = tmp_path / "curves"
+    run_campaign(
+        bench.tracks_config(
+            12, conditions=("straight", "curve"), duration_s=2.0, seed=4, batch_size=6
+        ),
+        other,
+    )
+    run_nominal_twins(other, conditions=["straight"])
+    run_nominal_twins(tiny_run)
+    tcfg = TrainConfig(epochs=1, batches_per_epoch=2, batch_size=32, val_windows=200)
+    bench.nominal_rows(other, "straight", tcfg, 0, "cnn-gru", window=20)
+    source = load(other / "surrogates" / "cnn-gru-nominal" / "straight")
+    assert "cant" in source.spec.track_channels
+    shutil.copytree(other / "surrogates" / "cnn-gru-nominal", tiny_run / "surrogates" / "curves")
+    rows = bench.nominal_rows(
+        tiny_run,
+        "straight",
+        tcfg,
+        0,
+        "cnn-gru",
+        tag="-moved",
+        window=20,
+        init_label="curves",
+        init_inputs=True,
+    )
+    assert {r["model"] for r in rows} == {"cnn-gru-nominal-moved", "nominal wagon"}
+    moved = load(tiny_run / "surrogates" / "cnn-gru-nominal-moved" / "straight")
+    assert moved.spec == source.spec
+    assert moved.meta["init_inputs"]["campaign"] == str(other)
+    assert moved.meta["campaign"] == str(tiny_run)
+    assert all(np.isfinite(h["val_loss"]) for h in moved.meta["history"])
+    rates = bench.inference_rates(
+        tiny_run, "straight", ["cnn-gru-nominal-moved"], threads=1, repeats=1
+    )
+    assert rates["cnn-gru-nominal-moved"] > 0
+    scored = bench.scored_networks(
+        tiny_run, [str(other / "surrogates" / "cnn-gru-nominal")], ["straight"]
+    )
+    assert {r["model"] for r in scored} == {"scored:cnn-gru-nominal"}
+    assert all(str(other) in r["held_out"] and "design seed 3" in r["held_out"] for r in scored)
+    t7 = bench.table7_per_run(pd.concat([pd.DataFrame(rows), pd.DataFrame(scored)]))
+    assert np.isfinite(t7["Y per run %"]).all()

@@ -168,9 +168,34 @@ def warm_start(
         if not same:
             raise RailsuspInputError(
                 f"init_from {path}: its {what} differs from this training's; accepted a "
-                "surrogate of the same network, features and training data"
+                "surrogate of the same network, features and training data (init_inputs: "
+                "one of another campaign of the same family)"
             )
     return {k: v.detach().clone() for k, v in src.net.state_dict().items()}
+
+
+def source_inputs(path: str | Path, spec: FeatureSpec, condition: str, wagon: Any) -> Surrogate:
+    """The saved surrogate at ``path`` whose inputs (features and normalisation) a training
+    on another campaign keeps (``train_surrogate(init_inputs=True)``), refused in one line
+    unless it is of this ``condition`` and ``wagon`` and its features differ from this
+    campaign's ``spec`` in the track channels alone (e.g. the cant channel of a family with
+    curves, which a campaign of the grade alone has no use for): any other difference
+    (parameters, window, nominal response) is a setting of this training it would override."""
+    src = load(path)
+    if src.condition.name != condition or src.wagon != wagon:
+        what = "condition" if src.condition.name != condition else "wagon"
+        raise RailsuspInputError(
+            f"init_from {path}: its {what} differs from this training's; accepted with "
+            "init_inputs a surrogate of the same condition and wagon"
+        )
+    for field in ("parameters", "axles", "window", "targets", "nominal_response",
+                  "nominal_context"):  # fmt: skip
+        if getattr(src.spec, field) != getattr(spec, field):
+            raise RailsuspInputError(
+                f"init_from {path}: its {field} {getattr(src.spec, field)!r}; accepted with "
+                f"init_inputs a surrogate of this training's {getattr(spec, field)!r}"
+            )
+    return src
 
 
 def _same_normalisation(a: Normaliser, b: Normaliser, tol: float = 1e-5) -> bool:
@@ -229,11 +254,11 @@ def train_surrogate(
     instead of those of this campaign (its track channels and a normalisation fitted on its
     training runs), so that its weights mean what they meant: a warm start on another
     campaign of the same family (more tracks and parameter sets, whose own normalisation
-    differs and would be refused; a campaign of the grade alone has no cant channel). The
-    saved
-    surrogate lists the parameters it does not take as
-    inputs and what it assumes of them (``meta.assumed_parameters``: varied over a range in
-    its training campaign, or held at nominal).
+    differs and would be refused; a campaign of the grade alone has no cant channel;
+    :func:`source_inputs`), recorded in ``meta.init_inputs``. The saved surrogate lists the
+    parameters it does not take as inputs and what it assumes of them
+    (``meta.assumed_parameters``: varied over a range in its training campaign, or held at
+    nominal).
     """
     from railsusp.campaign import load_campaign, require_complete
 
@@ -243,14 +268,8 @@ def train_surrogate(
     params = tuple(parameters) if parameters else key_parameters(run)
     window = default_window(kind) if window is None else window
     spec = feature_spec(camp, params, window, nominal_response, nominal_context)
-    source = load(init_from) if init_inputs else None
-    if source is not None:
-        if source.spec.parameters != spec.parameters:
-            raise RailsuspInputError(
-                f"init_from {init_from}: its parameters {list(source.spec.parameters)}; "
-                f"accepted a surrogate of this training's {list(spec.parameters)}"
-            )
-        spec = source.spec
+    source = source_inputs(init_from, spec, condition, camp.config.wagon) if init_inputs else None
+    spec = spec if source is None else source.spec
     data = load_series(camp, condition, spec)
     split = campaign_split(camp, split_seed)
     tr_i, va_i = split.positions(data.sample_ids, "train"), split.positions(data.sample_ids, "val")
@@ -308,6 +327,11 @@ def train_surrogate(
             "history": history,
         },
     )
+    if source is not None:  # the inputs are another campaign's: say which
+        sur.meta["init_inputs"] = {
+            "from": str(init_from),
+            **{k: source.meta.get(k) for k in ("campaign", "campaign_hash", "track_family")},
+        }
     if record_correction and train_data.n_samples >= MIN_RUNS:
         raw = predict_series(sur, train_data, corrected=False)
         sur.correction = RecordCorrection.fit(
