@@ -291,7 +291,9 @@ def test_a_warm_start_from_another_campaign_trains_on_its_inputs(run, tmp_path):
     assert moved.meta["campaign"] == str(other)  # trained (and split) on the other campaign
     with pytest.raises(RailsuspInputError, match="init_inputs: accepted only with init_from"):
         train_surrogate(tmp_path / "missing", "curve", init_inputs=True, **kw)
-    with pytest.raises(RailsuspInputError, match=r"its parameters \['X13', 'X14'\]; accepted"):
+    with pytest.raises(
+        RailsuspInputError, match=r"its parameters \('X13', 'X14'\); accepted with init_inputs"
+    ):
         train_surrogate(
             other,
             "curve",
