@@ -272,15 +272,19 @@ def test_a_warm_start_from_another_campaign_trains_on_its_inputs(run, tmp_path):
             other, "curve", train=tcfg, out=tmp_path / "b", init_from=tmp_path / "a", **kw
         )
     still = TrainConfig(**{**tcfg.to_dict(), "learning_rate": 1e-12})
-    moved = train_surrogate(
-        other,
-        "curve",
-        train=still,
-        out=tmp_path / "c",
-        init_from=tmp_path / "a",
-        init_inputs=True,
-        **kw,
-    )
+
+    def onto_other(out: str, **changed):
+        return train_surrogate(
+            other,
+            "curve",
+            train=still,
+            out=tmp_path / out,
+            init_from=tmp_path / "a",
+            init_inputs=True,
+            **{**kw, **changed},
+        )
+
+    moved = onto_other("c")
     assert moved.spec == first.spec
     for field in ("track_mean", "track_std", "target_mean", "target_std"):
         np.testing.assert_array_equal(
@@ -289,17 +293,10 @@ def test_a_warm_start_from_another_campaign_trains_on_its_inputs(run, tmp_path):
     for k, v in first.net.state_dict().items():
         np.testing.assert_allclose(moved.net.state_dict()[k], v, atol=1e-8)
     assert moved.meta["campaign"] == str(other)  # trained (and split) on the other campaign
+    assert moved.meta["init_inputs"]["campaign"] == str(run)  # on the inputs of the first
     with pytest.raises(RailsuspInputError, match="init_inputs: accepted only with init_from"):
         train_surrogate(tmp_path / "missing", "curve", init_inputs=True, **kw)
     with pytest.raises(
         RailsuspInputError, match=r"its parameters \('X13', 'X14'\); accepted with init_inputs"
     ):
-        train_surrogate(
-            other,
-            "curve",
-            train=still,
-            out=tmp_path / "d",
-            init_from=tmp_path / "a",
-            init_inputs=True,
-            **{**kw, "parameters": ("X14", "X13")},
-        )
+        onto_other("d", parameters=("X14", "X13"))
