@@ -469,14 +469,14 @@ def inference_rates(
 
 def print_table(t7: pd.DataFrame, seconds: dict[str, float]) -> None:
     print(
-        f"\n{'condition':<9} {'model':<16} {'Q run%':>7} {'Q max%':>7} {'Q pool%':>7} "
+        f"\n{'condition':<9} {'model':<24} {'Q run%':>7} {'Q max%':>7} {'Q pool%':>7} "
         f"{'Y run%':>7} {'Y max%':>7} {'Y pool%':>7} {'Y alone%':>8} {'Q NRMSE':>7} "
         f"{'Y NRMSE':>7} {'Q R2':>6} {'Y R2':>6} {'wall s':>7}"
     )
     for r in t7.to_dict(orient="records"):
         t = seconds.get(f"{r['condition']}: {r['model']}", float("nan"))
         print(
-            f"{r['condition']:<9} {r['model']:<16} {r['Q per run %']:7.2f} "
+            f"{r['condition']:<9} {r['model']:<24} {r['Q per run %']:7.2f} "
             f"{r['Q worst run %']:7.2f} {r['Q pooled %']:7.2f} {r['Y per run %']:7.2f} "
             f"{r['Y worst run %']:7.2f} {r['Y pooled %']:7.2f} "
             f"{r['Y per run, network alone %']:8.2f} {r['Q NRMSE']:7.3f} {r['Y NRMSE']:7.3f} "
