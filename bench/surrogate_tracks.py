@@ -59,7 +59,7 @@ from railsusp.campaign.twins import run_nominal_twins
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.store import write_json
-from railsusp.surrogate import TrainConfig, feature_spec, load, train_surrogate
+from railsusp.surrogate import TrainConfig, load, train_surrogate
 from railsusp.surrogate.compare import compare
 from railsusp.surrogate.data import FeatureSpec, SeriesData, load_series
 from railsusp.surrogate.evaluate import accuracy, predict_with_alone
@@ -456,10 +456,9 @@ def inference_rates(
         rates, tracks = {}, {}
         for k in kinds:
             sur = load(Path(run) / "surrogates" / k / condition)
-            what = (sur.spec.track_channels, sur.spec.nominal_response, sur.spec.nominal_context)
+            what = replace(sur.spec, parameters=(), window=0)  # what the track input reads
             if what not in tracks:  # the track input, read once per kind of input
-                spec = feature_spec(camp, sur.spec.parameters, 20, *what[1:])
-                data = load_series(camp, condition, replace(spec, track_channels=what[0]))
+                data = load_series(camp, condition, sur.spec)
                 tracks[what] = data.subset(first(data.sample_ids, "test")[:1]).track[0]
             rates[k] = rate(sur, 64, repeats, True, tracks[what])
         return rates

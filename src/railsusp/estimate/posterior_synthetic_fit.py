@@ -194,7 +194,7 @@ def fit_emulator(settings: PosteriorSettings, run: str | Path) -> StatisticsEmul
     log.info("synthetic likelihood: emulator fitted in %.0f s", time.perf_counter() - t0)
     emu.save(path)
     write_json(stamp, {"hash": key, "members": MEMBERS, "hidden": HIDDEN,
-                       "settings": settings.to_dict()})  # fmt: skip
+                       "training": TRAINING, "settings": settings.to_dict()})  # fmt: skip
     return emu
 
 

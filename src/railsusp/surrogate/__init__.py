@@ -152,14 +152,13 @@ def _part(twins: TwinRuns | None, idx: np.ndarray) -> TwinRuns | None:
 
 
 def warm_start(
-    path: str | Path, cfg: NetConfig, spec: FeatureSpec, norm: Normaliser
+    src: Surrogate, path: str | Path, cfg: NetConfig, spec: FeatureSpec, norm: Normaliser
 ) -> dict[str, torch.Tensor]:
-    """The weights of the saved surrogate at ``path``, refused in one line unless it is the
-    same network (configuration), reads the same features and was normalised the same way
-    (to 1e-5 of each standard deviation: the features of one campaign, rebuilt, agree to
-    about 1e-7): weights of another network would start the training from a state that
-    means nothing."""
-    src = load(path)
+    """The weights of the surrogate ``src`` (saved at ``path``), refused in one line unless
+    it is the same network (configuration), reads the same features and was normalised the
+    same way (to 1e-5 of each standard deviation: the features of one campaign, rebuilt,
+    agree to about 1e-7): weights of another network would start the training from a state
+    that means nothing."""
     for what, same in (
         ("network", cfg == src.net_config),
         ("features", spec == src.spec),
@@ -174,14 +173,16 @@ def warm_start(
     return {k: v.detach().clone() for k, v in src.net.state_dict().items()}
 
 
-def source_inputs(path: str | Path, spec: FeatureSpec, condition: str, wagon: Any) -> Surrogate:
-    """The saved surrogate at ``path`` whose inputs (features and normalisation) a training
-    on another campaign keeps (``train_surrogate(init_inputs=True)``), refused in one line
-    unless it is of this ``condition`` and ``wagon`` and its features differ from this
-    campaign's ``spec`` in the track channels alone (e.g. the cant channel of a family with
-    curves, which a campaign of the grade alone has no use for): any other difference
-    (parameters, window, nominal response) is a setting of this training it would override."""
-    src = load(path)
+def check_source_inputs(
+    src: Surrogate, path: str | Path, spec: FeatureSpec, condition: str, wagon: Any
+) -> None:
+    """Refuse in one line the surrogate ``src`` (saved at ``path``) as the one whose inputs
+    (features and normalisation) a training on another campaign keeps
+    (``train_surrogate(init_inputs=True)``) unless it is of this ``condition`` and
+    ``wagon`` and its features differ from this campaign's ``spec`` in the track channels
+    alone (e.g. the cant channel of a family with curves, which a campaign of the grade
+    alone has no use for): any other difference (parameters, window, nominal response) is
+    a setting of this training it would override."""
     if src.condition.name != condition or src.wagon != wagon:
         what = "condition" if src.condition.name != condition else "wagon"
         raise RailsuspInputError(
@@ -195,7 +196,6 @@ def source_inputs(path: str | Path, spec: FeatureSpec, condition: str, wagon: An
                 f"init_from {path}: its {field} {getattr(src.spec, field)!r}; accepted with "
                 f"init_inputs a surrogate of this training's {getattr(spec, field)!r}"
             )
-    return src
 
 
 def _same_normalisation(a: Normaliser, b: Normaliser, tol: float = 1e-5) -> bool:
@@ -255,7 +255,7 @@ def train_surrogate(
     training runs), so that its weights mean what they meant: a warm start on another
     campaign of the same family (more tracks and parameter sets, whose own normalisation
     differs and would be refused; a campaign of the grade alone has no cant channel;
-    :func:`source_inputs`), recorded in ``meta.init_inputs``. The saved surrogate lists the
+    :func:`check_source_inputs`), recorded in ``meta.init_inputs``. The saved surrogate lists the
     parameters it does not take as inputs and what it assumes of them
     (``meta.assumed_parameters``: varied over a range in its training campaign, or held at
     nominal).
@@ -268,8 +268,10 @@ def train_surrogate(
     params = tuple(parameters) if parameters else key_parameters(run)
     window = default_window(kind) if window is None else window
     spec = feature_spec(camp, params, window, nominal_response, nominal_context)
-    source = source_inputs(init_from, spec, condition, camp.config.wagon) if init_inputs else None
-    spec = spec if source is None else source.spec
+    start = None if init_from is None else load(init_from)  # read once, checked twice
+    if init_inputs:
+        check_source_inputs(start, init_from, spec, condition, camp.config.wagon)
+        spec = start.spec
     data = load_series(camp, condition, spec)
     split = campaign_split(camp, split_seed)
     tr_i, va_i = split.positions(data.sample_ids, "train"), split.positions(data.sample_ids, "val")
@@ -279,7 +281,7 @@ def train_surrogate(
             "validation samples that ran (too few samples, or too many failed)"
         )
     train_data, val_data = data.subset(tr_i), data.subset(va_i)
-    norm = source.normaliser if source is not None else Normaliser.fit(train_data)
+    norm = start.normaliser if init_inputs else Normaliser.fit(train_data)
     cfg = (
         replace(
             NetConfig(
@@ -301,7 +303,7 @@ def train_surrogate(
         tcfg,
         checkpoint=out / "checkpoint.pt",
         progress=progress,
-        initial=None if init_from is None else warm_start(init_from, cfg, spec, norm),
+        initial=None if start is None else warm_start(start, init_from, cfg, spec, norm),
     )
     seed = int(np.unique(data.seeds)[0]) if len(np.unique(data.seeds)) == 1 else None
     fam = camp.config.track_family
@@ -327,10 +329,10 @@ def train_surrogate(
             "history": history,
         },
     )
-    if source is not None:  # the inputs are another campaign's: say which
+    if init_inputs:  # the inputs are another campaign's: say which
         sur.meta["init_inputs"] = {
             "from": str(init_from),
-            **{k: source.meta.get(k) for k in ("campaign", "campaign_hash", "track_family")},
+            **{k: start.meta.get(k) for k in ("campaign", "campaign_hash", "track_family")},
         }
     if record_correction and train_data.n_samples >= MIN_RUNS:
         raw = predict_series(sur, train_data, corrected=False)
