@@ -16,8 +16,11 @@ def bench_script(name: str) -> ModuleType:
     """The script bench/NAME.py as a module (its ``main`` not run). bench/ is on the import
     path while it loads, so that its imports of sibling scripts (``from estimate_tracks
     import ...``, as the scripts run from bench/ do) resolve; the path is restored after."""
-    spec = importlib.util.spec_from_file_location(name, BENCH / f"{name}.py")
+    # registered under a name no library module has, so that a script's dataclasses (which
+    # look their module up in sys.modules) can be built
+    spec = importlib.util.spec_from_file_location(f"_bench_{name}", BENCH / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
     sys.path.insert(0, str(BENCH))
     try:
         spec.loader.exec_module(module)

@@ -56,3 +56,36 @@ def test_too_few_runs_with_finite_means_are_refused():
     pred[:2, :, 0] = 0.0  # two runs predicted flat: no finite ratio
     with pytest.raises(ValueError, match=f"at least {MIN_RUNS} runs"):
         RecordCorrection.fit(x, sim, pred, TARGETS, WINDOW)
+
+
+def test_more_runs_than_the_cap_are_fitted_on_a_seeded_draw(monkeypatch):
+    """The GP's cost grows as the cube of its runs: past ``MAX_RUNS`` it is fitted on a
+    draw of them (the same draw for the same seed), and still removes the error."""
+    import railsusp.surrogate.correction as correction
+
+    x, sim = _runs(60, 6)
+    pred = sim * _shrink(x)[:, None, :]
+    monkeypatch.setattr(correction, "MAX_RUNS", 40)
+    corr = RecordCorrection.fit(x, sim, pred, TARGETS, WINDOW, seed=1)
+    assert corr.x_unit.shape == (40, 3) and corr.log_ratio.shape == (40, 2)
+    rows = {tuple(r) for r in x.round(12)}
+    assert all(tuple(r) in rows for r in corr.x_unit.round(12))  # runs of the training set
+    again = RecordCorrection.fit(x, sim, pred, TARGETS, WINDOW, seed=1)
+    np.testing.assert_array_equal(again.x_unit, corr.x_unit)
+    other = RecordCorrection.fit(x, sim, pred, TARGETS, WINDOW, seed=2)
+    assert not np.array_equal(other.x_unit, corr.x_unit)
+    assert RecordCorrection.fit(x, sim, pred, TARGETS, WINDOW, max_runs=60).x_unit.shape[0] == 60
+    x_new, _ = _runs(20, 7)
+    np.testing.assert_allclose(corr.factors(x_new), 1.0 / _shrink(x_new), rtol=3e-3)
+
+
+def test_the_cap_draws_from_the_runs_with_finite_means_only():
+    x, sim = _runs(30, 8)
+    pred = sim * _shrink(x)[:, None, :]
+    pred[:5, :, 0] = 0.0  # five runs predicted flat: no finite ratio, never drawn
+    corr = RecordCorrection.fit(x, sim, pred, TARGETS, WINDOW, max_runs=20)
+    assert corr.x_unit.shape[0] == 20 and np.isfinite(corr.log_ratio).all()
+    flat = {tuple(r) for r in x[:5].round(12)}
+    assert not flat & {tuple(r) for r in corr.x_unit.round(12)}
+    with pytest.raises(ValueError, match=f"max_runs: 3, accepted {MIN_RUNS} or more"):
+        RecordCorrection.fit(x, sim, pred, TARGETS, WINDOW, max_runs=3)

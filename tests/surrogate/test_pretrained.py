@@ -153,6 +153,16 @@ def test_a_written_set_reproduces_the_references_of_its_networks(shipped, tmp_pa
     assert mine["seed"] == theirs["seed"] and mine["params_si"] == theirs["params_si"]
     for key, values in theirs["statistics"].items():
         assert mine["statistics"][key] == pytest.approx(values, rel=1e-6)
+    with pytest.raises(RailsuspInputError, match=r"no network given for condition\(s\) curve"):
+        write_network_set(
+            {"straight": shipped.bundle("straight")},
+            tmp_path / "short",
+            name="short",
+            conditions=["straight", "curve"],
+            accuracy=table,
+            reproduce=[],
+        )
+    assert not (tmp_path / "short").exists()
     with pytest.raises(RailsuspInputError, match="one kind and one parameter list"):
         bp = tmp_path / "mixed"
         shutil.copytree(shipped.folder, bp)

@@ -19,16 +19,17 @@ from railsusp.errors import RailsuspInputError
 from railsusp.params import STUDY_KEY_PARAMETERS
 from railsusp.store import read_json
 from railsusp.surrogate.bundle import Surrogate, load
-from railsusp.surrogate.correction import MIN_RUNS, RecordCorrection
+from railsusp.surrogate.correction import MIN_RUNS
 from railsusp.surrogate.data import (
     DEFAULT_TRACK_CHANNELS,
     FeatureSpec,
     Normaliser,
     load_series,
 )
-from railsusp.surrogate.evaluate import accuracy, evaluate, predict_series, predict_with_alone
+from railsusp.surrogate.evaluate import evaluate
 from railsusp.surrogate.models import KINDS, NetConfig, build_network, default_window
 from railsusp.surrogate.pairs import TwinRuns, load_twins
+from railsusp.surrogate.refit import fit_record_correction
 from railsusp.surrogate.split import Split, campaign_split
 from railsusp.surrogate.train import TrainConfig, sampler_for, train_network
 from railsusp.variation import assumed_parameters
@@ -239,8 +240,9 @@ def train_surrogate(
     samples are recorded in the saved surrogate for :func:`evaluate`. With
     ``record_correction`` (and at least :data:`~railsusp.surrogate.correction.MIN_RUNS`
     training samples) a record correction is fitted on the training samples' predictions
-    (:mod:`.correction`). ``nominal_response``: the network also reads the nominal wagon's
-    forces on each track and learns the change from them (:mod:`.nominal`; the campaign's
+    (at most :data:`~railsusp.surrogate.correction.MAX_RUNS` of them; :mod:`.correction`).
+    ``nominal_response``: the network also reads the nominal wagon's forces on each track
+    and learns the change from them (:mod:`.nominal`; the campaign's
     nominal twins must exist: :func:`railsusp.campaign.twins.run_nominal_twins`);
     ``nominal_context``: and these more channels of its response
     (:data:`.nominal.CONTEXT_CHANNELS`). ``architecture``: fields of the default
@@ -335,22 +337,6 @@ def train_surrogate(
             **{k: start.meta.get(k) for k in ("campaign", "campaign_hash", "track_family")},
         }
     if record_correction and train_data.n_samples >= MIN_RUNS:
-        raw = predict_series(sur, train_data, corrected=False)
-        sur.correction = RecordCorrection.fit(
-            train_data.params_unit, train_data.targets, raw, spec.targets, window, split_seed
-        )
-        corrected, alone = predict_with_alone(sur, val_data)
-        sim = val_data.targets.astype(float)
-        sur.meta["record_correction"] = {
-            "fitted_on": "train",
-            "n_runs": int(train_data.n_samples),
-            **{
-                f"validation_error_{name}": {
-                    r["target"]: r["relative_error_of_mean"]
-                    for r in accuracy(sim, pred, spec.targets, window)
-                }
-                for name, pred in (("raw", alone), ("corrected", corrected))
-            },
-        }
+        fit_record_correction(sur, train_data, val_data, split_seed)
     sur.save(out)
     return sur

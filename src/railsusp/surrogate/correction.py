@@ -6,7 +6,8 @@ compares: the part of the force a window cannot explain is shrunk towards its co
 mean, so the record mean of |Y| comes out low, by an amount that varies smoothly with the
 suspension parameters (per-run errors of two trainings correlate at 0.84). A Gaussian
 process per target from the key parameters to log(simulated / predicted record mean) over
-the training runs learns that part; the predicted series are scaled by its exponential.
+the training runs (at most :data:`MAX_RUNS` of them) learns that part; the predicted series
+are scaled by its exponential.
 On tangent (1024-run campaign, 50-step windows) it took the CNN-GRU's lateral error of the
 record mean from 2.55 % to 0.99 % per held-out run (bench/README.md).
 """
@@ -22,6 +23,14 @@ from railsusp.vehicle.simulate import record_statistic
 
 #: fewer training runs than this leave a network uncorrected (a GP of six inputs needs more)
 MIN_RUNS = 8
+
+#: the GP is fitted on at most this many training runs (a seeded draw where there are more).
+#: Its cost grows as the cube of the runs: rebuilt from the saved hyperparameters it took
+#: 0.19 s for 1434 runs, 0.63 s for 2048 and 8-18 s (and 1.9 GB at peak) for 5734, once in
+#: every process that predicts; the uphill network of 5734 training runs read 1.878 % lateral
+#: per held-out run corrected on all of them and 1.886 % on 2048 (measured 2026-11-25,
+#: bench/README.md "The shipped network set").
+MAX_RUNS = 2048
 
 
 def record_means(series: np.ndarray, targets: Sequence[str], window: int) -> np.ndarray:
@@ -53,8 +62,11 @@ class RecordCorrection:
         targets: Sequence[str],
         window: int,
         seed: int = 0,
+        max_runs: int | None = None,
     ) -> RecordCorrection:
-        """Fit on runs' simulated and network-predicted series (n, T, n_targets), kN."""
+        """Fit on runs' simulated and network-predicted series (n, T, n_targets), kN: on
+        all runs with finite record means, or on ``max_runs`` (default :data:`MAX_RUNS`) of
+        them drawn with ``seed``."""
         from railsusp.sensitivity import fit_gp
 
         sim = record_means(simulated, targets, window)
@@ -68,6 +80,12 @@ class RecordCorrection:
                 f"got {int(ok.sum())}"
             )
         x, r = np.asarray(params_unit, float)[ok], ratio[ok]
+        max_runs = MAX_RUNS if max_runs is None else max_runs
+        if max_runs < MIN_RUNS:
+            raise ValueError(f"max_runs: {max_runs}, accepted {MIN_RUNS} or more")
+        if len(x) > max_runs:
+            keep = np.sort(np.random.default_rng(seed).choice(len(x), max_runs, replace=False))
+            x, r = x[keep], r[keep]
         gps = [fit_gp(x, r[:, j], seed) for j in range(r.shape[1])]
         return cls(tuple(targets), x, r, [gp.kernel_.theta for gp in gps], seed, gps)
 

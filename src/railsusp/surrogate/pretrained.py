@@ -24,7 +24,7 @@ read by an incompatible torch are caught rather than used.
 from __future__ import annotations
 
 import shutil
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -335,7 +335,7 @@ def _copy_bundle(source: Path, target: Path) -> None:
 
 
 def write_network_set(
-    source: str | Path,
+    source: str | Path | Mapping[str, str | Path],
     dest: str | Path,
     *,
     name: str,
@@ -344,28 +344,38 @@ def write_network_set(
     reproduce: Sequence[str],
     description: str = "",
 ) -> NetworkSet:
-    """Make a network set in ``dest`` from trained bundles ``source/<condition>/`` (all of
-    one kind, key parameters and wagon), with its accuracy table and the commands that
-    trained it; the manifest records today's force-law revision and the references."""
+    """Make a network set in ``dest`` from trained bundles (all of one kind, key parameters
+    and wagon), with its accuracy table and the commands that trained them; the manifest
+    records today's force-law revision and the references. ``source`` is a folder holding
+    ``<condition>/`` bundles, or a mapping from each condition to its bundle folder where
+    the conditions' networks come from different campaigns."""
     from railsusp.surrogate.bundle import load
     from railsusp.vehicle import MODEL_REVISION
 
-    source = Path(source)
-    surs = {c: load(source / c) for c in conditions}
+    if isinstance(source, Mapping):
+        missing = [c for c in conditions if c not in source]
+        if missing:
+            raise RailsuspInputError(
+                f"source: no network given for condition(s) {', '.join(missing)}"
+            )
+        bundles = {c: Path(source[c]) for c in conditions}
+    else:
+        bundles = {c: Path(source) / c for c in conditions}
+    surs = {c: load(bundles[c]) for c in conditions}
     first = next(iter(surs.values()))
     for c, s in surs.items():
         if s.kind != first.kind or s.spec.parameters != first.spec.parameters:
             raise RailsuspInputError(
-                f"{source / c}: {s.kind} of {s.spec.parameters}, the set's first network is "
+                f"{bundles[c]}: {s.kind} of {s.spec.parameters}, the set's first network is "
                 f"{first.kind} of {first.spec.parameters}; a set holds one kind and one "
                 "parameter list"
             )
         if wagon_hash(s.wagon) != wagon_hash(first.wagon):
-            raise RailsuspInputError(f"{source / c}: trained on another wagon than the set's")
+            raise RailsuspInputError(f"{bundles[c]}: trained on another wagon than the set's")
     dest = Path(dest)
     with atomic_folder(dest, keep=False) as tmp:
         for c in conditions:
-            _copy_bundle(source / c, tmp / c)
+            _copy_bundle(bundles[c], tmp / c)
         write_csv(tmp / ACCURACY, accuracy)
         ns = NetworkSet(
             folder=tmp,
