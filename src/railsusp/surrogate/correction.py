@@ -28,8 +28,8 @@ MIN_RUNS = 8
 #: Its cost grows as the cube of the runs: rebuilt from the saved hyperparameters it took
 #: 0.19 s for 1434 runs, 0.63 s for 2048 and 8-18 s (and 1.9 GB at peak) for 5734, once in
 #: every process that predicts; the uphill network of 5734 training runs read 1.878 % lateral
-#: per held-out run corrected on all of them and 1.886 % on 2048 (measured 2026-11-25,
-#: bench/README.md "The shipped network set").
+#: per held-out run corrected on all of them, 1.886 % on 2048 in a first fit and 1.900 % as
+#: shipped (measured 2026-11-25, bench/README.md "Shipped: the uphill network of 8192 tracks").
 MAX_RUNS = 2048
 
 
