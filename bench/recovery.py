@@ -106,7 +106,7 @@ def main() -> None:
         type=float,
         default=None,
         help="geometry-to-error power ratio that ends the comparison band (default: "
-        "railsusp.vehicle.track.GEOMETRY_SNR_MIN)",
+        "railsusp.vehicle.track_geometry.GEOMETRY_SNR_MIN)",
     )
     ap.add_argument(
         "--keep-geometry-bias",

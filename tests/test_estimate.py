@@ -428,7 +428,8 @@ def test_comparison_band_leaves_out_what_inaccurate_geometry_cannot_explain(tmp_
     the band's stride and still recovers the truth and the channel gains."""
     from railsusp.estimate import aligned_error, comparison_band_hz, comparison_samples
     from railsusp.estimate.refine import refine
-    from railsusp.vehicle.track import synthesise, write_track_geometry
+    from railsusp.vehicle.track import synthesise
+    from railsusp.vehicle.track_geometry import write_track_geometry
 
     geometry = write_track_geometry(tmp_path / "g.csv", synthesise(600.0, 5, 1, dx=0.125))
     truth = np.array([16.1e6, 8.3e6])
@@ -460,7 +461,7 @@ class TrackForces:
     read at s = speed x t (as the simulator reads the measured track)."""
 
     def series(self, x_si, condition):
-        from railsusp.vehicle.track import read_track_geometry
+        from railsusp.vehicle.track_geometry import read_track_geometry
 
         irr = read_track_geometry(condition.track_geometry)
         s = condition.speed * np.arange(condition.n_steps) * condition.sample_interval
@@ -477,7 +478,8 @@ def test_geometry_error_propagates_into_the_refined_estimate(tmp_path, monkeypat
     geometry; part of the standard error; none on exact geometry."""
     from railsusp.estimate import comparison as estimate_module
     from railsusp.estimate.refine import refine
-    from railsusp.vehicle.track import synthesise, with_measurement_error, write_track_geometry
+    from railsusp.vehicle.track import synthesise
+    from railsusp.vehicle.track_geometry import with_measurement_error, write_track_geometry
 
     true_track = synthesise(600.0, 5, 1, dx=0.125)
     cond = COND.with_changes(duration_s=20.0, n_steps=1000)

@@ -15,7 +15,8 @@ from railsusp.estimate.refine import refine, refine_starts
 from railsusp.measured.synthetic import recording_from_simulation
 from railsusp.params import ParameterSet, bounds
 from railsusp.vehicle.simulate import simulate_batch
-from railsusp.vehicle.track import synthesise, write_track_geometry
+from railsusp.vehicle.track import synthesise
+from railsusp.vehicle.track_geometry import write_track_geometry
 from test_estimate import PARAMS, WaveForces, wave_recording
 
 TRUTH = np.array([16.1e6, 8.3e6])

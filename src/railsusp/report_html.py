@@ -390,7 +390,7 @@ def build_report(run: str | Path) -> list[Path]:
     """Write ``RUN/report.html`` and ``RUN/report.md`` from the stages' outputs."""
     from railsusp.conditions import WorkingCondition
     from railsusp.report import plot_track_irregularities
-    from railsusp.vehicle.track import irregularities_for
+    from railsusp.vehicle.track_geometry import irregularities_for
 
     run = Path(run)
     state = read_json(run / "pipeline.json")

@@ -248,7 +248,7 @@ def test_predict_on_a_measured_track_and_another_record_length(trained, tmp_path
     longer record gives a longer series."""
     from railsusp.params import bounds
     from railsusp.vehicle.setup import section_irregularities
-    from railsusp.vehicle.track import write_track_geometry
+    from railsusp.vehicle.track_geometry import write_track_geometry
 
     _, path = trained
     sur = load(path)

@@ -25,7 +25,7 @@ from railsusp.vehicle.stability import (
     kink_response,
     write_kink_geometry,
 )
-from railsusp.vehicle.track import read_track_geometry
+from railsusp.vehicle.track_geometry import read_track_geometry
 from railsusp.vehicle.wagon import load_wagon
 
 

@@ -7,14 +7,8 @@ import pytest
 from scipy.signal import welch
 
 from railsusp.conditions import get_condition
-from railsusp.vehicle.track import (
-    COMPONENTS,
-    TrackLayout,
-    band_rms,
-    fra_psd,
-    irregularities_for,
-    synthesise,
-)
+from railsusp.vehicle.track import COMPONENTS, TrackLayout, band_rms, fra_psd, synthesise
+from railsusp.vehicle.track_geometry import irregularities_for
 
 
 @pytest.mark.parametrize(

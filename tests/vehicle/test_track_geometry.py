@@ -9,13 +9,8 @@ from railsusp.errors import ConditionError, RailsuspInputError
 from railsusp.params import ParameterSet
 from railsusp.vehicle.setup import axle_spread, section_irregularities
 from railsusp.vehicle.simulate import simulate
-from railsusp.vehicle.track import (
-    COMPONENTS,
-    TRACK_TAPER_M,
-    read_track_geometry,
-    synthesise,
-    write_track_geometry,
-)
+from railsusp.vehicle.track import COMPONENTS, synthesise
+from railsusp.vehicle.track_geometry import TRACK_TAPER_M, read_track_geometry, write_track_geometry
 from railsusp.vehicle.wagon import load_wagon
 
 COND = get_condition("straight", duration_s=2.0, n_steps=100, lead_in_m=20.0)
@@ -136,7 +131,8 @@ def test_accurate_wavelength_follows_the_fra_spectrum():
     wavelength, and a larger error gives a longer shortest-accurate wavelength."""
     from scipy.optimize import brentq
 
-    from railsusp.vehicle.track import GEOMETRY_SNR_MIN, accurate_wavelength_m, fra_psd
+    from railsusp.vehicle.track import fra_psd
+    from railsusp.vehicle.track_geometry import GEOMETRY_SNR_MIN, accurate_wavelength_m
 
     irr = synthesise(2000.0, 5, 3, dx=0.125)
     for sigma in (0.25e-3, 1e-3):

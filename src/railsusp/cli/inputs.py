@@ -19,7 +19,8 @@ from railsusp.conditions import (
 from railsusp.errors import RailsuspInputError
 from railsusp.params import CATALOGUE, ParameterSet, parse_overrides
 from railsusp.store import check_output_file
-from railsusp.vehicle.track import COMPONENTS, band_rms, irregularities_for, synthesise
+from railsusp.vehicle.track import COMPONENTS, band_rms, synthesise
+from railsusp.vehicle.track_geometry import irregularities_for
 
 
 def parameter_table(pset: ParameterSet, title: str = "Parameter catalogue (C80 / K6)") -> Table:

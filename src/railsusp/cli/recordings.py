@@ -67,7 +67,7 @@ def check_recording(
         )
     console.print(table)
     if rec.condition.track_geometry is not None:
-        from railsusp.vehicle.track import read_track_geometry
+        from railsusp.vehicle.track_geometry import read_track_geometry
 
         geo = read_track_geometry(rec.condition.track_geometry)
         console.print(

@@ -13,7 +13,11 @@ from pathlib import Path
 import numpy as np
 
 from railsusp.measured import Recording, bandwidth_filter
-from railsusp.vehicle.track import CHANNEL_COMPONENTS, accurate_wavelength_m, read_track_geometry
+from railsusp.vehicle.track_geometry import (
+    CHANNEL_COMPONENTS,
+    accurate_wavelength_m,
+    read_track_geometry,
+)
 
 
 def measurement_filter(series: np.ndarray, rec: Recording) -> np.ndarray:
@@ -68,7 +72,7 @@ def _lowpass_defined(series: np.ndarray, fs: float, bandwidths: np.ndarray) -> n
 def comparison_band_hz(rec: Recording) -> np.ndarray | None:
     """(2,) upper frequency (Hz) of the time-aligned comparison of lateral and vertical
     force: the speed over the shortest wavelength down to which the recording's track
-    geometry is accurate (:func:`~railsusp.vehicle.track.accurate_wavelength_m`, from the
+    geometry is accurate (:func:`~railsusp.vehicle.track_geometry.accurate_wavelength_m`, from the
     condition's ``track_accuracy_mm``; the components that drive each channel). None where
     the geometry is exact (accuracy 0): the whole instrument band is compared.
 

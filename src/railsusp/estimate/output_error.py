@@ -198,7 +198,7 @@ def geometry_error_series(
 ) -> list[list[np.ndarray | None]]:
     """Per draw and recording, the compared series (n, T, 2) of the parameter sets ``x_si``
     (n, k) with the recording's measured geometry perturbed by a fresh draw of its stated
-    measurement error (:func:`~railsusp.vehicle.track.with_measurement_error`:
+    measurement error (:func:`~railsusp.vehicle.track_geometry.with_measurement_error`:
     ``track_accuracy_mm`` RMS, down to ``wavelength_min_m``); None for recordings on exact
     geometry. The perturbed geometries go to a temporary folder, as the simulator reads
     geometry files; each draw of each recording is one batch of all the sets (the simulator

@@ -27,7 +27,7 @@ from railsusp.measured.raw import read_raw
 from railsusp.measured.recording import FORMAT, Recording, RecordingError
 from railsusp.measured.units import si_factor, split_header
 from railsusp.vehicle.layout import WHEEL_NAMES
-from railsusp.vehicle.track import read_track_geometry
+from railsusp.vehicle.track_geometry import read_track_geometry
 
 #: relative disagreement of a sidecar's sampling rate with the data's that is refused
 RATE_TOLERANCE = 0.01

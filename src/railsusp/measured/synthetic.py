@@ -16,7 +16,7 @@ from railsusp.errors import RailsuspInputError
 from railsusp.measured.recording import FORMAT, Recording, SimulationFailedError
 from railsusp.store import atomic_folder, write_json
 from railsusp.vehicle.layout import WHEEL_NAMES
-from railsusp.vehicle.track import with_measurement_error, write_track_geometry
+from railsusp.vehicle.track_geometry import with_measurement_error, write_track_geometry
 
 
 def recording_from_simulation(

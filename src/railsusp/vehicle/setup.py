@@ -22,12 +22,8 @@ from railsusp.vehicle import layout as L
 from railsusp.vehicle.contact import ContactTable, contact_table, flange_split
 from railsusp.vehicle.contact_forces import hertz_contact, kalker_creep_coefficients
 from railsusp.vehicle.profiles import chn60_rail, lm_worn_wheel, read_profile
-from railsusp.vehicle.track import (
-    Irregularities,
-    TrackLayout,
-    irregularities_for,
-    smoothstep,
-)
+from railsusp.vehicle.track import Irregularities, TrackLayout, smoothstep
+from railsusp.vehicle.track_geometry import irregularities_for
 from railsusp.vehicle.wagon import WagonData
 
 #: how a run starts (:class:`SolverSettings` ``start``)
