@@ -45,7 +45,8 @@ from railsusp.conditions import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate import posterior
 from railsusp.estimate.calibration import LEVEL
-from railsusp.estimate.posterior_data import PosteriorSettings, cached_cases, prior_draws
+from railsusp.estimate.posterior_data import cached_cases, prior_draws
+from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import read_json
 

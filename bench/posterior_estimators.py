@@ -58,7 +58,7 @@ from posterior import add_common_arguments, bench_conditions
 from railsusp.estimate.calibration import check
 from railsusp.estimate.posterior import PosteriorEstimator, TrainingLog, one_thread
 from railsusp.estimate.posterior_check import median_width
-from railsusp.estimate.posterior_data import PosteriorSettings, cached_cases
+from railsusp.estimate.posterior_data import cached_cases
 from railsusp.estimate.posterior_fusion import (
     from_logit,
     fused_gaussian,
@@ -66,6 +66,7 @@ from railsusp.estimate.posterior_fusion import (
     logistic_prior,
     to_logit,
 )
+from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.params import MAIN_SUSPENSION
 
 METHODS = ("npe", "nle", "nre")

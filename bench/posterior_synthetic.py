@@ -43,7 +43,8 @@ import numpy as np
 from posterior import add_common_arguments, bench_conditions, identify_sets, lengths_s, middle_draws
 from railsusp.estimate import posterior_synthetic_fit as synthetic_fit
 from railsusp.estimate import posterior_synthetic_run as synthetic
-from railsusp.estimate.posterior_data import PosteriorSettings, cached_cases
+from railsusp.estimate.posterior_data import cached_cases
+from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.estimate.posterior_synthetic import cramer_rao_width, fisher_information
 
 

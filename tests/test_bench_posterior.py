@@ -10,7 +10,7 @@ import pytest
 from conftest import bench_script
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate.posterior_data import PosteriorSettings
+from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.params import MAIN_SUSPENSION
 
 

@@ -8,8 +8,8 @@ import torch
 
 from conftest import bench_script
 from railsusp.conditions import resolve_conditions
-from railsusp.estimate.posterior_data import PosteriorSettings
 from railsusp.estimate.posterior_fusion import logistic_prior
+from railsusp.estimate.posterior_settings import PosteriorSettings
 
 
 def test_logistic_prior_is_the_uniform_box_in_logit_coordinates():

@@ -19,7 +19,7 @@ from railsusp.estimate import (
     posterior_data,
     posterior_fusion,
 )
-from railsusp.estimate.posterior_data import PosteriorSettings
+from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.estimate.summaries import (
     band_rms,
     cut_sections,
@@ -524,7 +524,7 @@ def test_cli_train_writes_the_estimator_and_its_check(tmp_path, monkeypatch):
 
 def test_cli_product_cases_one_count_or_one_per_number_of_sections():
     from railsusp.cli.posterior import _product_cases
-    from railsusp.estimate.posterior_data import PosteriorSettings
+    from railsusp.estimate.posterior_settings import PosteriorSettings
 
     assert _product_cases("80") == {"n_product": 80}
     per = _product_cases("100, 40")

@@ -27,13 +27,13 @@ from railsusp.estimate import posterior_joint as joint
 from railsusp.estimate import posterior_synthetic_run as synthetic
 from railsusp.estimate.posterior_data import (
     SEED_BASE,
-    PosteriorSettings,
     cached_cases,
     noise_rng,
     prior_draws,
     track_seeds,
 )
 from railsusp.estimate.posterior_emulator import StatisticsEmulator
+from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.estimate.posterior_synthetic import SyntheticLikelihood
 
 STRAIGHT = get_condition("straight").with_changes(lead_in_m=30.0)

@@ -337,7 +337,7 @@ def test_a_first_pass_at_the_centre_is_the_same_posterior_when_the_scatter_is_co
     first runs' log-likelihoods differ by a constant, which tempering ignores, so the
     draws are the same; the estimator sets it only beyond the EN 14363 summary."""
     from railsusp.conditions import get_condition
-    from railsusp.estimate.posterior_data import PosteriorSettings
+    from railsusp.estimate.posterior_settings import PosteriorSettings
     from railsusp.estimate.posterior_synthetic_fit import likelihood
 
     s = A @ TRUTH + B

@@ -16,7 +16,8 @@ import pytest
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate import posterior_synthetic_run as synthetic
-from railsusp.estimate.posterior_data import PosteriorSettings, prior_draws
+from railsusp.estimate.posterior_data import prior_draws
+from railsusp.estimate.posterior_settings import PosteriorSettings
 
 D = 17  # the summary statistics of one condition without the sum of Y
 

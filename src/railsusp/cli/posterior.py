@@ -186,7 +186,7 @@ def train_command(
     resumes) and check its calibration on held-out simulations."""
     from railsusp.conditions import resolve_conditions
     from railsusp.estimate import posterior
-    from railsusp.estimate.posterior_data import PosteriorSettings
+    from railsusp.estimate.posterior_settings import PosteriorSettings
     from railsusp.store import check_output_folder
 
     try:

@@ -46,14 +46,10 @@ import numpy as np
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.calibration import ParameterCalibration, SpreadCorrection
 from railsusp.estimate.posterior_check import ProductCalibration, calibrate, widen
-from railsusp.estimate.posterior_data import (
-    PosteriorSettings,
-    cached_cases,
-    recording_summaries,
-    to_si,
-)
+from railsusp.estimate.posterior_data import cached_cases, recording_summaries, to_si
 from railsusp.estimate.posterior_fusion import from_logit, fused_samples, logistic_prior, to_logit
 from railsusp.estimate.posterior_result import PosteriorResult
+from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import atomic_write_bytes, content_hash, read_json, write_json
 

@@ -81,7 +81,7 @@ def median_width(draws: np.ndarray, names: list[str]) -> dict[str, float]:
 def fused_draws(est: Estimator, folder: Path, kind: str):
     """Per checked number of sections k, the uncorrected fused draws (cases, S, d) of the
     first k sections of the cases of ``kind`` in k's held-out set
-    (:meth:`~railsusp.estimate.posterior_data.PosteriorSettings.product_sets`), and their
+    (:meth:`~railsusp.estimate.posterior_settings.PosteriorSettings.product_sets`), and their
     truths (cases, d)."""
     s = est.settings
     cols = [MAIN_SUSPENSION.index(p) for p in s.parameters]

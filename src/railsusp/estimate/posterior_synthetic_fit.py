@@ -13,8 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from railsusp.estimate.posterior_data import GAIN_ERROR, PosteriorSettings, cached_cases
+from railsusp.estimate.posterior_data import GAIN_ERROR, cached_cases
 from railsusp.estimate.posterior_emulator import StatisticsEmulator, fit
+from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.estimate.posterior_synthetic import (
     SyntheticLikelihood,
     fit_model_error,

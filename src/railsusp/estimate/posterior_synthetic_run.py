@@ -13,7 +13,7 @@ shrinkage, fitted on the fusion's calibration records of the longest checked len
 :func:`fit_covariance_scales`) and ``check.json`` (per checked number of sections:
 coverage of the 90 % intervals per parameter on held-out records, median width). The check
 uses the held-out sets that the fusion's check uses (``check`` for one section; ``long`` of
-``product_sections``, :meth:`~railsusp.estimate.posterior_data.PosteriorSettings.
+``product_sections``, :meth:`~railsusp.estimate.posterior_settings.PosteriorSettings.
 product_sets`), so both methods are measured on the same records; nothing is fitted on
 them: no widening, the verdict is the check. A recording of n sections takes the check of
 the smallest checked number >= n; longer than any, it is reported not calibrated.
@@ -31,14 +31,10 @@ import numpy as np
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.calibration import ParameterCalibration, check
 from railsusp.estimate.posterior_check import median_width
-from railsusp.estimate.posterior_data import (
-    PosteriorSettings,
-    cached_cases,
-    recording_summaries,
-    to_si,
-)
+from railsusp.estimate.posterior_data import cached_cases, recording_summaries, to_si
 from railsusp.estimate.posterior_emulator import StatisticsEmulator
 from railsusp.estimate.posterior_result import PosteriorResult
+from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.estimate.posterior_synthetic import (
     SyntheticLikelihood,
 )

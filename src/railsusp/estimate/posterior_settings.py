@@ -1,0 +1,235 @@
+"""What the simulation-based posterior is trained on (:class:`PosteriorSettings`): the
+estimated parameters, conditions, section length, statistics families, training counts,
+noise and seeds, each checked in one line naming the field and the accepted range when the
+settings are made, before any simulation (docs/posterior.md)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from railsusp.conditions import WorkingCondition, make_condition
+from railsusp.errors import RailsuspInputError
+from railsusp.estimate.statistic_families import (
+    needs_partner,
+    needs_partner_q,
+    parse_families,
+    statistic_names,
+)
+from railsusp.params import MAIN_SUSPENSION, spec
+
+#: the largest ``condition_offset``: ten condition slots, and every seed below 2^31
+#: (9 x 100 000 000 + the largest kind's base and span)
+MAX_CONDITION_OFFSET = 9
+
+
+@dataclass(frozen=True)
+class PosteriorSettings:
+    """What the posterior estimator is trained on: ``parameters`` estimated (of X11-X20),
+    the working ``conditions`` (each recorded in sections of ``section_s`` seconds),
+    ``n_train`` training cases, ``n_calibration`` held-out cases that fit the spread
+    correction (0: no correction) and ``n_check`` other held-out cases that test it, the
+    instrument ``noise`` (fraction of channel RMS), ``sum_y`` (also the wheelset sum of Y:
+    both wheels of the leading wheelset recorded), ``statistics``: the families of
+    statistics (:mod:`railsusp.estimate.statistic_families`; the default, the EN 14363
+    summary alone, is the estimator's before the families existed), ``projection_rank``: the
+    number of their combinations the synthetic likelihood reads beyond that summary
+    (:func:`~railsusp.estimate.posterior_synthetic.informative_projection`),
+    ``statistics_emulator_cases``: 0, the synthetic likelihood's emulator of all the
+    statistics is fitted on every training case and read through the projection; N > 0, it
+    is fitted on the first N cases only (it chooses the projection and gives the gain
+    model its levels) and a second emulator of the projected combinations alone is fitted
+    on all ``n_train`` (:mod:`railsusp.estimate.posterior_emulator`), the network size, the
+    number of flows in the ``ensemble`` and the ``seed`` of every draw.
+    ``product_sections``: the numbers of sections at which the fused posterior of several
+    sections is corrected and checked (none: an estimate of several sections is not
+    calibrated), on ``n_product`` held-out cases of consecutive sections for the correction
+    and ``n_product`` others for the check; ``product_cases`` (one count per entry of
+    ``product_sections``, in the same order) gives each number of sections its own count
+    instead, so that the longest records, the costliest to simulate, can be checked on fewer
+    cases (see :meth:`product_sets`)."""
+
+    conditions: tuple[WorkingCondition, ...]
+    parameters: tuple[str, ...] = MAIN_SUSPENSION
+    section_s: float = 20.0
+    n_train: int = 2000
+    n_check: int = 200
+    noise: float = 0.03
+    sum_y: bool = False
+    samples: int = 1000
+    hidden_features: int = 50
+    num_transforms: int = 5
+    seed: int = 0
+    n_calibration: int = 200
+    ensemble: int = 1
+    product_sections: tuple[int, ...] = ()
+    n_product: int = 100
+    product_cases: tuple[int, ...] = ()
+    statistics: tuple[str, ...] = ("en14363",)
+    projection_rank: int = 15
+    statistics_emulator_cases: int = 0
+    condition_offset: int = 0
+
+    def __post_init__(self) -> None:
+        families = parse_families(self.statistics)
+        if self.sum_y and "wheelset" in families:
+            raise RailsuspInputError(
+                "sum_y = true conflicts with the statistics family 'wheelset', which holds "
+                "the wheelset sum of Y already; accepted one of the two"
+            )
+        object.__setattr__(self, "statistics", families)
+        params = tuple(spec(p).symbol for p in self.parameters)
+        wrong = [p for p in params if p not in MAIN_SUSPENSION]
+        if wrong or not params or len(set(params)) != len(params):
+            raise RailsuspInputError(
+                f"parameters {','.join(self.parameters) or '(none)'}: accepted a subset of "
+                f"{','.join(MAIN_SUSPENSION)} without repeats"
+            )
+        object.__setattr__(self, "parameters", params)
+        _check_statistics_emulator(self.statistics_emulator_cases, self.n_train, families)
+        checks = [
+            ("section_s", self.section_s, 1.0, 600.0),
+            ("n_train", self.n_train, 20, 1_000_000),
+            ("n_check", self.n_check, 10, 100_000),
+            ("noise", self.noise, 0.0, 0.5),
+            ("samples", self.samples, 100, 100_000),
+            ("ensemble", self.ensemble, 1, 20),
+            ("projection_rank", self.projection_rank, 1, 1000),
+            ("condition_offset", self.condition_offset, 0, MAX_CONDITION_OFFSET),
+        ]
+        for name, value, lo, hi in checks:
+            if not lo <= value <= hi:
+                raise RailsuspInputError(f"{name} = {value:g}: accepted {lo:g} to {hi:g}")
+        if self.n_calibration and not 20 <= self.n_calibration <= 100_000:
+            raise RailsuspInputError(
+                f"n_calibration = {self.n_calibration:g}: accepted 0 (no correction) or 20 to "
+                "100000"
+            )
+        ks = tuple(sorted({int(k) for k in self.product_sections}))
+        if any(not 2 <= k <= 1000 for k in ks) or len(ks) != len(self.product_sections):
+            raise RailsuspInputError(
+                f"product_sections = {','.join(map(str, self.product_sections))}: accepted "
+                "distinct section counts from 2 to 1000"
+            )
+        counts = tuple(int(n) for n in self.product_cases)
+        if counts:
+            if len(counts) != len(ks) or any(not 20 <= n <= 100_000 for n in counts):
+                raise RailsuspInputError(
+                    f"product_cases = {','.join(map(str, counts))}: accepted one count from "
+                    f"20 to 100000 per entry of product_sections ({len(ks)})"
+                )
+            order = sorted(range(len(ks)), key=lambda i: int(self.product_sections[i]))
+            counts = tuple(counts[i] for i in order)
+        object.__setattr__(self, "product_sections", ks)
+        object.__setattr__(self, "product_cases", counts)
+        if ks and not counts and not 20 <= self.n_product <= 100_000:
+            raise RailsuspInputError(f"n_product = {self.n_product:g}: accepted 20 to 100000")
+        if not self.conditions:
+            raise RailsuspInputError("conditions: at least one working condition is needed")
+        conds = tuple(c.with_duration(self.section_s) for c in self.conditions)
+        object.__setattr__(self, "conditions", conds)
+        for c in conds:
+            _check_uniform_record(c, self.section_s * max(ks, default=1))
+
+    def to_dict(self) -> dict[str, Any]:
+        d = {k: getattr(self, k) for k in self.__dataclass_fields__}
+        d["conditions"] = [c.model_dump() for c in self.conditions]
+        d["parameters"] = list(self.parameters)
+        d["product_sections"] = list(self.product_sections)
+        d["product_cases"] = list(self.product_cases)
+        d["statistics"] = list(self.statistics)
+        if not self.product_cases:  # the settings (and hash) of estimators trained before it
+            del d["product_cases"]
+        if self.statistics == ("en14363",):  # likewise; the summary is read as it is
+            del d["statistics"], d["projection_rank"]
+        if not self.statistics_emulator_cases:  # likewise: one emulator, of all statistics
+            del d["statistics_emulator_cases"]
+        if not self.condition_offset:  # likewise: the conditions alone
+            del d["condition_offset"]
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> PosteriorSettings:
+        d = dict(d)
+        d["conditions"] = tuple(make_condition(c) for c in d["conditions"])
+        d["parameters"] = tuple(d["parameters"])
+        d["product_sections"] = tuple(d.get("product_sections", ()))
+        d["product_cases"] = tuple(d.get("product_cases", ()))
+        d["statistics"] = tuple(d.get("statistics", ("en14363",)))
+        return cls(**d)
+
+    def product_sets(self) -> list[tuple[int, int, tuple[int, ...]]]:
+        """The held-out sets of several sections, as (cases, sections simulated, numbers
+        of sections checked on them): the numbers of sections with the same count of cases
+        share one set, simulated for the longest of them and cut (the first k sections for
+        k); with one ``n_product`` for all, a single set."""
+        counts = self.product_cases or (self.n_product,) * len(self.product_sections)
+        out = []
+        for n in dict.fromkeys(counts):
+            ks = tuple(k for k, c in zip(self.product_sections, counts, strict=True) if c == n)
+            out.append((n, max(ks), ks))
+        return out
+
+    @property
+    def summary_names(self) -> list[str]:
+        """Names of the summary vector: conditions one after the other."""
+        names = statistic_names(self.statistics, self.sum_y)
+        return [f"{c.name}:{n}" for c in self.conditions for n in names]
+
+    @property
+    def partner(self) -> bool:
+        """Whether the statistics read the partner wheel of the measured wheelset."""
+        return needs_partner(self.statistics, self.sum_y)
+
+    @property
+    def partner_q(self) -> bool:
+        """Whether they read the partner wheel's Q too."""
+        return needs_partner_q(self.statistics)
+
+
+def _check_statistics_emulator(cases: int, n_train: int, families: tuple[str, ...]) -> None:
+    """A one-line error unless ``statistics_emulator_cases`` is 0 or 20 to ``n_train``, and
+    0 with the EN 14363 summary alone (read as it is: there is no projection to emulate)."""
+    if cases and families == ("en14363",):
+        raise RailsuspInputError(
+            f"statistics_emulator_cases = {cases} conflicts with statistics = en14363: the "
+            "summary alone is read as it is, without a projection; accepted 0, or statistics "
+            "families beyond it"
+        )
+    if cases and not 20 <= cases <= n_train:
+        raise RailsuspInputError(
+            f"statistics_emulator_cases = {cases}: accepted 0 (one emulator of all "
+            f"statistics) or 20 to n_train ({n_train})"
+        )
+
+
+def _check_uniform_record(cond: WorkingCondition, record_s: float) -> None:
+    """Refuse a condition whose design track (curvature, cant) changes under the wagon
+    while it records ``record_s`` seconds: the sections of a long recording must be drawn
+    like the training section, and a training section that holds the entry to a curve is
+    not like the steady curving of the sections after it (measured: the curve's median
+    Y/Q 0.281 in the first section against 0.303 in the next five, 2 standard deviations
+    of its scatter over the prior; the fused posterior of 6 sections then held X13's truth
+    in 12 % of the cases)."""
+    if cond.curve_radius_m is None:
+        return
+    from railsusp.vehicle.settle import design_is_uniform
+    from railsusp.vehicle.setup import axle_spread
+    from railsusp.vehicle.wagon import load_wagon
+
+    spread = axle_spread(load_wagon())
+    start = cond.lead_in_m - spread  # the trailing wheelset when the record starts
+    entry = cond.curve_start_m + cond.entry_spiral_m
+    if start < entry:
+        raise RailsuspInputError(
+            f"lead_in_m = {cond.lead_in_m:g} m (condition {cond.name!r}): the recorded "
+            f"sections would hold the entry to the curve (until {entry:g} m, the wagon "
+            f"{spread:.3g} m long), unlike the steady curving of a long recording's later "
+            f"sections; accepted at least {entry + spread:.4g} m"
+        )
+    if not design_is_uniform(cond, start, cond.lead_in_m + cond.speed * record_s):
+        raise RailsuspInputError(
+            f"arc_length_m = {cond.arc_length_m:g} m (condition {cond.name!r}): the curve "
+            f"ends within the {record_s:g} s of the longest checked record; accepted an arc "
+            "that lasts it (or none: until the end)"
+        )
