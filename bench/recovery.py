@@ -35,7 +35,7 @@ from railsusp.store import write_json
 from railsusp.surrogate import key_parameters
 from railsusp.surrogate.statistics import train_statistics_surrogate
 from railsusp.validate import validate
-from railsusp.vehicle import track
+from railsusp.vehicle import track_geometry
 
 
 def track_matched_model(field: Path, params: tuple[str, ...], samples: int, out: Path, seed: int):
@@ -116,7 +116,7 @@ def main() -> None:
     ap.add_argument("--out", default="bench/results/recovery.json")
     args = ap.parse_args()
     if args.geometry_snr is not None:
-        track.GEOMETRY_SNR_MIN = args.geometry_snr
+        track_geometry.GEOMETRY_SNR_MIN = args.geometry_snr
     run = Path(args.run)
     params = key_parameters(run)
     conds = list(load_campaign(run).config.conditions)
@@ -286,7 +286,7 @@ def main() -> None:
             "refine": args.refine,
             "track_noise_mm": args.track_noise,
             "stated_accuracy_mm": args.stated_accuracy,
-            "geometry_snr_min": track.GEOMETRY_SNR_MIN,
+            "geometry_snr_min": track_geometry.GEOMETRY_SNR_MIN,
             "geometry_bias_removed": args.refine and not args.keep_geometry_bias,
             "weighting": args.weighting,
             "summary": summary,

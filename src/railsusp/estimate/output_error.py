@@ -28,7 +28,7 @@ from railsusp.estimate.lockstep import Lockstep
 from railsusp.estimate.problem import check_aligned
 from railsusp.measured import Recording
 from railsusp.params import bounds
-from railsusp.vehicle import track
+from railsusp.vehicle import track_geometry
 
 #: forward-difference step of the refinement's Jacobian, share of each parameter's range:
 #: wider than the small-scale roughness of the time-aligned cost (wedge friction, contact
@@ -210,12 +210,14 @@ def geometry_error_series(
             cond = rec.condition
             if not cond.track_accuracy_mm:
                 continue
-            irr = track.read_track_geometry(cond.track_geometry)
+            irr = track_geometry.read_track_geometry(cond.track_geometry)
             rms_m = cond.track_accuracy_mm * 1e-3
             for d in range(draws):
                 path = Path(tmp) / f"{i}-{d}.parquet"
-                noisy = track.with_measurement_error(irr, rms_m, cond.wavelength_min_m, rng)
-                track.write_track_geometry(path, noisy)
+                noisy = track_geometry.with_measurement_error(
+                    irr, rms_m, cond.wavelength_min_m, rng
+                )
+                track_geometry.write_track_geometry(path, noisy)
                 series = model.series(x_si, cond.with_changes(track_geometry=str(path)))
                 out[d][i] = np.nan_to_num(comparison_filter(series, rec))
     return out

@@ -46,7 +46,8 @@ GAIN_ERROR = 0.01
 SEED_BASE = {"train": 10_000_000, "check": 20_000_000, "calibration": 30_000_000,
              "long": 40_000_000, "long-calibration": 50_000_000,
              "identification": 60_000_000, "replicate": 70_000_000}  # fmt: skip
-#: the track seeds of ``condition_offset`` o > 0 start at o times this (past every kind's)
+#: the track seeds of ``condition_offset`` o > 0 start at o times this (past every kind's;
+#: with SEED_BASE it bounds :data:`~railsusp.estimate.posterior_settings.MAX_CONDITION_OFFSET`)
 OFFSET_SEED_BASE = 100_000_000
 
 

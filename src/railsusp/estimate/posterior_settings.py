@@ -19,7 +19,8 @@ from railsusp.estimate.statistic_families import (
 from railsusp.params import MAIN_SUSPENSION, spec
 
 #: the largest ``condition_offset``: ten condition slots, and every seed below 2^31
-#: (9 x 100 000 000 + the largest kind's base and span)
+#: (9 x :data:`~railsusp.estimate.posterior_data.OFFSET_SEED_BASE` + the largest kind's base
+#: in :data:`~railsusp.estimate.posterior_data.SEED_BASE` and its span: change them together)
 MAX_CONDITION_OFFSET = 9
 
 

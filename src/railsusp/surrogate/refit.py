@@ -9,7 +9,7 @@ from pathlib import Path
 
 from railsusp.errors import RailsuspInputError
 from railsusp.surrogate.bundle import Surrogate, load
-from railsusp.surrogate.correction import RecordCorrection
+from railsusp.surrogate.correction import MIN_RUNS, RecordCorrection
 from railsusp.surrogate.data import SeriesData, load_series
 from railsusp.surrogate.evaluate import accuracy, predict_series, predict_with_alone
 from railsusp.surrogate.split import campaign_split
@@ -54,8 +54,8 @@ def refit_record_correction(bundle: str | Path, run: str | Path) -> Surrogate:
     sur = load(bundle)
     if sur.correction is None:
         raise RailsuspInputError(
-            f"{bundle}: trained without a record correction (record_correction off); "
-            "nothing to fit again"
+            f"{bundle}: trained without a record correction (record_correction off, or "
+            f"fewer than {MIN_RUNS} training runs); nothing to fit again"
         )
     camp = require_complete(load_campaign(run))
     if sur.meta.get("campaign_hash") != camp.config.hash():

@@ -8,7 +8,9 @@ file, column and row) and :func:`write_track_geometry` writes one atomically.
 simulated span; :func:`irregularities_for` gives a condition's section its irregularities,
 synthesised from its FRA class and seed (:mod:`railsusp.vehicle.track`) or measured;
 :func:`with_measurement_error` and :func:`accurate_wavelength_m` model what a recording car
-gets wrong, for the recovery and credibility benches.
+gets wrong: the synthetic recordings' geometry error (:mod:`railsusp.measured.synthetic`),
+the refinement's geometry-error draws (:mod:`railsusp.estimate.output_error`) and the
+time-aligned comparison's band (:mod:`railsusp.estimate.comparison`).
 """
 
 from __future__ import annotations
