@@ -76,3 +76,21 @@ def test_a_network_of_another_campaign_or_without_a_correction_is_refused(copy, 
     sur.save(bundle)
     with pytest.raises(RailsuspInputError, match="trained without a record correction"):
         refit_record_correction(bundle, run)
+
+
+def test_the_bench_script_refits_and_refuses_in_one_line(copy, tmp_path, capsys):
+    """bench/refit_correction.py: before and after printed per network; a campaign the
+    network was not trained on ends in one line and exit 2, the bundle untouched."""
+    from conftest import bench_script
+
+    run, bundle = copy
+    script = bench_script("refit_correction")
+    assert script.main(["--run", str(run), str(bundle)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert [ln.split(": fitted on")[0] for ln in out] == [f"{bundle} before", f"{bundle} after"]
+    before = (bundle / "surrogate.json").read_bytes()
+    other = family_campaign(tmp_path / "other", KEYS, CURVE, seed=7)
+    assert script.main(["--run", str(other), str(bundle)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "not on" in err
+    assert (bundle / "surrogate.json").read_bytes() == before
