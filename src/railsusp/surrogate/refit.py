@@ -12,7 +12,7 @@ from railsusp.surrogate.bundle import Surrogate, load
 from railsusp.surrogate.correction import MIN_RUNS, RecordCorrection
 from railsusp.surrogate.data import SeriesData, load_series
 from railsusp.surrogate.evaluate import accuracy, predict_series, predict_with_alone
-from railsusp.surrogate.split import campaign_split
+from railsusp.surrogate.split import own_split
 
 
 def fit_record_correction(
@@ -58,19 +58,14 @@ def refit_record_correction(bundle: str | Path, run: str | Path) -> Surrogate:
             f"fewer than {MIN_RUNS} training runs); nothing to fit again"
         )
     camp = require_complete(load_campaign(run))
-    if sur.meta.get("campaign_hash") != camp.config.hash():
-        raise RailsuspInputError(
-            f"{bundle}: trained on campaign {sur.meta.get('campaign')!r}, not on {run}; "
-            "its correction is fitted on its own campaign's training runs"
-        )
+    why = "its correction is fitted on its own campaign's training runs"
+    split = own_split(sur.meta, camp, str(bundle), why)
     data = load_series(camp, sur.condition.name, sur.spec)
-    seed = int(sur.meta.get("split", {}).get("seed", 0))
-    split = campaign_split(camp, seed)
     fit_record_correction(
         sur,
         data.subset(split.positions(data.sample_ids, "train")),
         data.subset(split.positions(data.sample_ids, "val")),
-        seed,
+        split.seed,
     )
     sur.save(bundle)
     return sur

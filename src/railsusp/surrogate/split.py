@@ -198,6 +198,18 @@ def load_split(path: str | Path) -> Split:
         raise RailsuspInputError(f"{path}: corrupt split ({first})") from None
 
 
+def own_split(meta: dict[str, Any], campaign: Campaign, where: str, why: str) -> Split:
+    """The split a saved network (its ``meta``, saved at ``where``) was trained with, of the
+    campaign it was trained on: refused in one line, ending with ``why`` the network's own
+    campaign is needed, for any other ``campaign`` (its test runs may be the network's
+    training runs)."""
+    if meta.get("campaign_hash") != campaign.config.hash():
+        raise RailsuspInputError(
+            f"{where}: trained on campaign {meta.get('campaign')!r}, not on {campaign.path}; {why}"
+        )
+    return campaign_split(campaign, int(meta.get("split", {}).get("seed", 0)))
+
+
 def campaign_split(
     campaign: Campaign,
     seed: int = 0,
