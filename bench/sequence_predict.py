@@ -15,17 +15,24 @@ alternating:
 - ``objective``: the whole NSGA-II objective of a generation
   (:meth:`railsusp.estimate.problem.CalibrationProblem.errors` with the statistic
   ``aligned``: prediction through ``Surrogate.predict``, then the time-aligned comparison);
+- ``in step``: the three conditions' networks run in step on the same sets and tracks
+  (:func:`railsusp.surrogate.sequence_sets.predict_sets_in_step`);
+- ``series 1by1`` and ``series step``: the force series in kN of every condition, as the
+  objective gets them, condition by condition (``SurrogateForces.series``) and in step
+  (``SurrogateForces.series_conditions``, which the objective now uses);
 - ``recurrence``: the GRUs' recurrences alone (per layer and step the hidden-side matmul
   and the gate equations, on the same batch of segments in the same blocks of steps, no
   input side, convolutions or head): the floor of the fast path while the method runs
   every segment from its start.
 
 and the largest difference between the fast and the reference outputs (standardised units,
-and over the output's RMS). Each row is the sum over the conditions (one generation).
+and over the output's RMS), and between the in-step and the one-by-one outputs. Each row is
+the sum over the conditions (one generation).
 
 ::
 
     nice -n 10 python bench/sequence_predict.py RUN --kind cnn-gru-seq-nominal-e30
+    python bench/sequence_predict.py --networks src/railsusp/data/networks/c80_k6 --duration 20
 """
 
 from __future__ import annotations
@@ -46,6 +53,7 @@ from railsusp.store import write_json
 from railsusp.surrogate.bundle import series_features
 from railsusp.surrogate.recurrence import cell_params, gru_step
 from railsusp.surrogate.sequence import BLOCK_STEPS, CNNSequence, segment_plan
+from railsusp.surrogate.sequence_sets import predict_sets_in_step
 
 
 @torch.inference_mode()
@@ -71,8 +79,13 @@ def timed(fn) -> tuple[float, float]:
 
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("run", type=Path, help="run directory with surrogates/KIND/<condition>/")
+    ap.add_argument(
+        "run", type=Path, nargs="?", help="run directory with surrogates/KIND/<condition>/"
+    )
     ap.add_argument("--kind", default="cnn-gru-seq-nominal-e30")
+    ap.add_argument(
+        "--networks", type=Path, help="a folder of <condition>/ bundles instead of RUN and KIND"
+    )
     ap.add_argument("--set", type=int, default=0, help="estimate_tracks.py's set (recordings)")
     ap.add_argument("--duration", type=float, default=60.0, help="recorded s per condition")
     ap.add_argument("--pop", type=int, default=50, help="parameter sets per generation")
@@ -81,19 +94,23 @@ def main(argv=None) -> dict:
     ap.add_argument("--work", type=Path, default=Path("runs/estimate_tracks"))
     ap.add_argument("--out", type=Path, default=Path("bench/results/sequence_predict.json"))
     args = ap.parse_args(argv)
-    model = SurrogateForces(args.run / "surrogates" / args.kind)
+    if (args.run is None) == (args.networks is None):
+        ap.error("give RUN (with --kind) or --networks FOLDER, one of them")
+    folder = args.networks or args.run / "surrogates" / args.kind
+    model = SurrogateForces(folder)
     # the recordings of estimate_tracks.py's set (its defaults: seed 0, 3 % noise, 0.5 mm)
     rec_args = argparse.Namespace(seed=0, noise=0.03, duration=args.duration, track_noise=0.5)
     conditions, _ = family_conditions(model, rec_args.duration)
     truth = draw_sets(args.set + 1, rec_args.seed)[args.set]
-    _, recs = set_recordings(args.set, truth, conditions, args.work / args.run.name, rec_args)
+    work = args.work / (args.run.name if args.run else folder.name)
+    _, recs = set_recordings(args.set, truth, conditions, work, rec_args)
     problem = CalibrationProblem(model, recs, model.parameters, "aligned")
     x_si = problem.to_si(np.random.default_rng(1).random((args.pop, len(model.parameters))))
     cases = []
     for rec in recs:
         sur = model.surrogate(rec.condition.name)
         if not isinstance(sur.net, CNNSequence):
-            raise SystemExit(f"error: {args.kind} is not a sequence CNN-GRU ({sur.kind})")
+            raise SystemExit(f"error: {folder} is not a sequence CNN-GRU ({sur.kind})")
         unit = sur._unit(x_si)
         track = sur.normaliser.track(model.track_input(rec.condition)[None]).astype(np.float32)
         cases.append((sur, unit, track))
@@ -108,6 +125,22 @@ def main(argv=None) -> dict:
             sur.net.predict_sets(
                 torch.from_numpy(unit), torch.from_numpy(track), segment=sur.segment_steps
             )
+
+    def in_step():
+        predict_sets_in_step(
+            [sur.net for sur, _, _ in cases],
+            torch.from_numpy(cases[0][1]),
+            [torch.from_numpy(track) for _, _, track in cases],
+            segment=cases[0][0].segment_steps,
+        )
+
+    conditions_of = [rec.condition for rec in recs]
+
+    def one_by_one():
+        return [model.series(x_si, c) for c in conditions_of]
+
+    def stepped():
+        return model.series_conditions(x_si, conditions_of)
 
     def floor():
         for sur, unit, track in cases:
@@ -130,8 +163,13 @@ def main(argv=None) -> dict:
                 "max_difference_over_rms": float(((new - ref).abs() / rms).max()),
             }
         )
-    runs = {"reference": reference, "fast": fast, "objective": lambda: problem.errors(x_si)}
-    runs["recurrence"] = floor
+    alone, together = one_by_one(), stepped()
+    in_step_difference = max(
+        float(np.nanmax(np.abs(a - b))) for a, b in zip(alone, together, strict=True)
+    )
+    runs = {"reference": reference, "fast": fast, "in step": in_step}
+    runs |= {"series 1by1": one_by_one, "series step": stepped}
+    runs |= {"objective": lambda: problem.errors(x_si), "recurrence": floor}
     rows = []
     for n_threads in [int(t) for t in args.threads.split(",")]:
         torch.set_num_threads(n_threads)
@@ -159,10 +197,10 @@ def main(argv=None) -> dict:
         f"one generation: {args.pop} sets x {len(cases)} conditions x "
         f"{cases[0][2].shape[1]} steps, segments of {cases[0][0].segment_steps}"
     )
-    print(f"{'threads':>7} {'path':>10} {'min s':>7} {'median s':>9} {'CPU s':>7} {'load':>5}")
+    print(f"{'threads':>7} {'path':>11} {'min s':>7} {'median s':>9} {'CPU s':>7} {'load':>5}")
     for r in rows:
         print(
-            f"{r['threads']:>7} {r['path']:>10} {r['min_s']:7.3f} {r['median_s']:9.3f} "
+            f"{r['threads']:>7} {r['path']:>11} {r['min_s']:7.3f} {r['median_s']:9.3f} "
             f"{r['cpu_s_median']:7.3f} {r['load_average']:5.1f}"
         )
     for d in diffs:
@@ -170,16 +208,18 @@ def main(argv=None) -> dict:
             f"{d['condition']}: fast - reference max {d['max_abs_difference']:.2e} "
             f"(standardised), {d['max_difference_over_rms']:.2e} of the output's RMS"
         )
+    print(f"series in step - one by one: max {in_step_difference:.2e} kN")
     doc = {
         "date": time.strftime("%Y-%m-%d %H:%M"),
         "machine": platform.platform(),
         "cpus": os.cpu_count(),
-        "kind": args.kind,
+        "networks": str(folder),
         "set": args.set,
         "pop": args.pop,
         "repeats": args.repeats,
         "rows": rows,
         "differences": diffs,
+        "in_step_max_abs_difference_kN": in_step_difference,
     }
     write_json(args.out, doc)
     print(f"wrote {args.out}")

@@ -85,6 +85,37 @@ class SurrogateForces:
             return self._models[condition.name].predict(x_si)
         return self._models[condition.name].predict(x_si, condition=on, track=self.track_input(on))
 
+    def series_conditions(
+        self, x_si: np.ndarray, conditions: Sequence[WorkingCondition]
+    ) -> list[np.ndarray]:
+        """:meth:`series` in each condition, those whose sequence CNN-GRUs read their
+        measured tracks and share an architecture, segment and record length predicted in
+        step (:func:`~railsusp.surrogate.in_step.predict_in_step`: one loop through all
+        their networks, each condition's series those it gets alone to float32 rounding;
+        an NSGA-II generation of the study's three conditions in 0.6-0.7 of the time,
+        bench/README.md), the others one by one."""
+        from railsusp.surrogate.in_step import in_step_key, predict_in_step
+
+        groups: dict[tuple, list[int]] = {}
+        for i, c in enumerate(conditions):
+            if c.name in self._models and self.reads_track(c):
+                key = in_step_key(self._models[c.name], self.track_input(c))
+                if key is not None:
+                    groups.setdefault(key, []).append(i)
+        out: dict[int, np.ndarray] = {}
+        for members in groups.values():
+            if len(members) < 2:
+                continue
+            chosen = [conditions[i] for i in members]
+            series = predict_in_step(
+                [self._models[c.name] for c in chosen],
+                x_si,
+                chosen,
+                [self.track_input(c) for c in chosen],
+            )
+            out.update(zip(members, series, strict=True))
+        return [out[i] if i in out else self.series(x_si, c) for i, c in enumerate(conditions)]
+
     def check_condition(self, condition: WorkingCondition) -> None:
         """Refuse, in one line naming the field, its value and what the network was trained
         on, a condition its surrogate cannot serve: no surrogate of that name, or a field

@@ -24,6 +24,7 @@ from railsusp.estimate.forces import (
     StatisticsForces,
     SurrogateForces,
     force_statistics,
+    series_in_conditions,
 )
 from railsusp.estimate.statistics import (
     ALIGNED,
@@ -84,10 +85,13 @@ class CalibrationProblem(Problem):
         the statistics of a combination: relative error, or with ``weighting="noise"`` the
         absolute error over the predictive standard deviation."""
         errs = []
+        every = None  # a series model's series, all conditions at once where it can
+        if not isinstance(self.model, StatisticsForces):
+            every = series_in_conditions(self.model, x_si, [r.condition for r in self.recordings])
         for k, (rec, meas) in enumerate(zip(self.recordings, self.measured, strict=True)):
             parts = []
             if self.aligned:
-                series = self.model.series(x_si, rec.condition)
+                series = every[k]
                 parts.append(self.comparisons[k].error(series)[:, :, None])
                 if self.stats:
                     pred = series_statistics(series, rec.condition, self.stats)
@@ -98,7 +102,11 @@ class CalibrationProblem(Problem):
                 )
                 parts.append(np.abs(pred - meas) / np.maximum(sd, 1e-9))
             else:
-                pred = force_statistics(self.model, x_si, rec.condition, self.stats)
+                pred = (
+                    force_statistics(self.model, x_si, rec.condition, self.stats)
+                    if every is None
+                    else series_statistics(every[k], rec.condition, self.stats)
+                )
                 parts.append(np.abs(pred - meas) / np.abs(meas))
             errs.append(np.concatenate(parts, axis=2).mean(axis=2))
         return np.stack(errs, axis=1)

@@ -216,6 +216,23 @@ class Surrogate:
         ``corrected=False`` leaves out the record correction (:mod:`.correction`), when the
         surrogate has one.
         """
+        unit, raw = self.inputs(params, condition, seed=seed, track=track)
+        tr = self.normaliser.track(raw if raw.ndim == 3 else raw[None])
+        idx = window_index(unit.shape[0], tr.shape[1], self.spec.window)
+        preds = self.predict_windows(unit, tr, idx, batch_size, fast=fast)
+        return self.outputs(preds, idx, unit, raw, corrected=corrected)
+
+    def inputs(
+        self,
+        params: np.ndarray | list[ParameterSet],
+        condition: WorkingCondition | None = None,
+        *,
+        seed: int | None = None,
+        track: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """What :meth:`predict` feeds the network, checked: the parameters' unit values (n,
+        n_key) and the raw track input, (T, n_track) or one per set (n, T, n_track).
+        Arguments and refusals as :meth:`predict`."""
         unit = self._unit(params)
         on = self.condition
         if condition is not None:
@@ -236,14 +253,13 @@ class Surrogate:
                 f"realisation (seed {self.track_seed}) and does not predict another: train it "
                 "on a campaign with --independent-seeds, or on the recordings' measured track",
                 OneTrackWarning,
-                stacklevel=2,
+                stacklevel=3,
             )
         if track is None:
             s = self.track_seed if seed is None else seed
             track = track_features(on, s, self.spec, self.wagon, self.solver_settings())
         raw = np.asarray(track)
-        per_set = raw.ndim == 3
-        if per_set and (raw.shape[0] != len(unit) or not isinstance(self.net, CNNSequence)):
+        if raw.ndim == 3 and (raw.shape[0] != len(unit) or not isinstance(self.net, CNNSequence)):
             raise ValueError(
                 f"track input {raw.shape}: one track per set (n, T, n_track) is accepted for "
                 f"the sequence CNN-GRU only, with n = {len(unit)} sets"
@@ -254,14 +270,25 @@ class Surrogate:
                 f"{self.spec.n_features - len(self.spec.parameters)} "
                 f"({', '.join(self.spec.names()[len(self.spec.parameters) :])})"
             )
-        tr = self.normaliser.track(raw if per_set else raw[None])
-        n, t_steps = unit.shape[0], tr.shape[1]
-        idx = window_index(n, t_steps, self.spec.window)
-        out = np.full((n, t_steps, len(self.spec.targets)), np.nan)
-        preds = self.predict_windows(unit, tr, idx, batch_size, fast=fast)
+        return unit, raw
+
+    def outputs(
+        self,
+        preds: np.ndarray,
+        idx: np.ndarray,
+        unit: np.ndarray,
+        raw: np.ndarray,
+        *,
+        corrected: bool = True,
+    ) -> np.ndarray:
+        """Force series (n, T, n_targets), kN, from the network's standardised outputs
+        ``preds`` at the (set, step) pairs ``idx`` (:func:`window_index`; NaN elsewhere):
+        in physical units, the nominal wagon's forces added where the network predicts the
+        change from them, and the record correction applied (``corrected``)."""
+        out = np.full((unit.shape[0], raw.shape[-2], len(self.spec.targets)), np.nan)
         out[idx[:, 0], idx[:, 1]] = self.normaliser.target_inverse(preds)
         if self.spec.n_baseline:  # the network's part is the change from the nominal wagon
-            out += (raw if per_set else raw[None])[..., -self.spec.n_baseline :]
+            out += (raw if raw.ndim == 3 else raw[None])[..., -self.spec.n_baseline :]
         if corrected and self.correction is not None:
             out = self.correction.apply(out, unit)
         return out

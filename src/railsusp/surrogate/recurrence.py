@@ -70,23 +70,30 @@ def tanh_from_doubled_(x: torch.Tensor) -> torch.Tensor:
 
 
 def gru_step(
-    gi: torch.Tensor, h: torch.Tensor | None, w_hh: torch.Tensor, b_h: torch.Tensor
+    gi: torch.Tensor,
+    h: torch.Tensor | None,
+    w_hh: torch.Tensor,
+    b_h: torch.Tensor,
+    hidden_side: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """One torch.nn.GRU step (its documented equations):
     r = sigmoid(W_ir x + b_ir + W_hr h + b_hr), z = sigmoid(W_iz x + b_iz + W_hz h + b_hz),
     n = tanh(W_in x + b_in + r * (W_hn h + b_hn)), h' = (1 - z) * n + z * h.
 
-    ``gi``: the input terms (b_hr, b_hz folded in, n rows doubled, see :func:`cell_params`),
-    overwritten; ``h=None``: the zero state, whose hidden terms are just the biases."""
-    hs = w_hh.shape[1]
+    ``gi``: the input terms (..., 3H) (b_hr, b_hz folded in, n rows doubled, see
+    :func:`cell_params`), overwritten; ``h=None``: the zero state, whose hidden terms are just
+    the biases ``b_h``. ``hidden_side``: W_hh h + b_h when the caller has computed it (several
+    networks' in one batched product, :mod:`.sequence_sets`); otherwise it is
+    ``linear(h, w_hh, b_h)``."""
+    hs = gi.shape[-1] // 3
     if h is None:
-        rz = gi[:, : 2 * hs].sigmoid_()
-        n = tanh_from_doubled_(gi[:, 2 * hs :].addcmul_(rz[:, :hs], b_h[2 * hs :]))
-        return torch.addcmul(n, rz[:, hs:], n, value=-1.0)
-    gh = linear(h, w_hh, b_h)
-    rz = gi[:, : 2 * hs].add_(gh[:, : 2 * hs]).sigmoid_()
-    n = tanh_from_doubled_(gi[:, 2 * hs :].addcmul_(rz[:, :hs], gh[:, 2 * hs :]))
-    return torch.lerp(n, h, rz[:, hs:])
+        rz = gi[..., : 2 * hs].sigmoid_()
+        n = tanh_from_doubled_(gi[..., 2 * hs :].addcmul_(rz[..., :hs], b_h[..., 2 * hs :]))
+        return torch.addcmul(n, rz[..., hs:], n, value=-1.0)
+    gh = linear(h, w_hh, b_h) if hidden_side is None else hidden_side
+    rz = gi[..., : 2 * hs].add_(gh[..., : 2 * hs]).sigmoid_()
+    n = tanh_from_doubled_(gi[..., 2 * hs :].addcmul_(rz[..., :hs], gh[..., 2 * hs :]))
+    return torch.lerp(n, h, rz[..., hs:])
 
 
 def lstm_step(

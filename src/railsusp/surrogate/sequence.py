@@ -39,14 +39,12 @@ from typing import Protocol
 import torch
 from torch import nn
 
-from railsusp.surrogate.recurrence import cell_params, gru_step, linear
-
-#: time steps of all segments run through the layers together (see
-#: :meth:`CNNSequence.predict_sets`): a block of 500 segments' activations then stays in the
-#: processor's cache between the layers
-BLOCK_STEPS = 16
-#: segments (parameter sets x segments of each) run as one batch by ``predict_sets``
-GROUP_ROWS = 512
+from railsusp.surrogate.sequence_sets import (
+    BLOCK_STEPS,
+    GROUP_ROWS,
+    predict_sets_in_step,
+    segment_plan,
+)
 
 
 class Sizes(Protocol):
@@ -233,111 +231,16 @@ class CNNSequence(nn.Module):
           (:mod:`.recurrence`), about twice the speed of ``nn.GRU`` on the bench machine.
 
         The recurrences themselves (one small matmul per layer and step) are what is left;
-        a segment's washout is recomputed as the method asks (each from the zero state)."""
-        if self.training:
-            raise RuntimeError("predict_sets computes eval-mode outputs; call .eval() first")
-        w = next(self.parameters())
-        params, track = torch.as_tensor(params).to(w.dtype), torch.as_tensor(track).to(w.dtype)
-        c1 = self.conv[0]
-        n, n_par = params.shape
-        if (
-            track.ndim != 3
-            or track.shape[0] not in (1, n)
-            or n_par + track.shape[2] != c1.in_channels
-        ):
-            raise ValueError(
-                f"params {tuple(params.shape)} and track {tuple(track.shape)}: accepted "
-                f"(n, n_par) and (1 or n, T, n_track) with n_par + n_track = {c1.in_channels}"
-            )
-        t_steps = track.shape[1]
-        plan = [(0, 0)]
-        if segment is not None and t_steps > segment:
-            plan = segment_plan(t_steps, segment, self.washout)
-        length = t_steps if len(plan) == 1 else segment
-        w1 = c1.weight[:, :, 0]
-        track_part = linear(track.flatten(0, 1), w1[:, n_par:].contiguous(), c1.bias)
-        track_part = track_part.view(*track.shape[:2], -1)
-        param_part = linear(params, w1[:, :n_par].contiguous())
-        out = torch.empty(n, t_steps, self.head[-1].out_features, dtype=w.dtype)
-        starts = torch.tensor([s for s, _ in plan])
-        ends = [keep for _, keep in plan[1:]] + [t_steps]
-        per_group = max(1, group_rows // len(plan))
-        for lo in range(0, n, per_group):
-            sets = torch.arange(lo, min(n, lo + per_group))
-            part = track_part[:1] if track.shape[0] == 1 else track_part[sets]
-            seg = self._segments(part, param_part[sets], starts, length, block_steps)
-            for j, ((start, keep), end) in enumerate(zip(plan, ends, strict=True)):
-                kept = seg[keep - start : end - start, j]  # (steps, sets, n_outputs)
-                out[lo : lo + len(sets), keep:end] = kept.transpose(0, 1)
-        return out
-
-    def _segments(
-        self,
-        track_part: torch.Tensor,
-        param_part: torch.Tensor,
-        starts: torch.Tensor,
-        length: int,
-        block_steps: int,
-    ) -> torch.Tensor:
-        """Outputs (length, J, n, n_outputs) of the segments of ``length`` steps starting at
-        ``starts`` (J) of n sets, each from the zero state: ``track_part`` (1 or n, T, C)
-        and ``param_part`` (n, C) are the two parts of the first convolution's input."""
-        n, n_seg = param_part.shape[0], len(starts)
-        rows = n_seg * n
-        c2, slope = self.conv[2], self.conv[3].negative_slope
-        cells = [cell_params(layer, "gru")[0] for layer in self.rnn]
-        out = torch.empty(length, n_seg, n, self.head[-1].out_features, dtype=param_part.dtype)
-        last, hidden = None, [None] * len(cells)
-        for lo in range(0, length, block_steps):
-            k = min(block_steps, length - lo)
-            steps = starts[None, :] + torch.arange(lo, lo + k)[:, None]  # (k, J)
-            if track_part.shape[0] == 1:
-                shared = track_part[0][steps][:, :, None]  # (k, J, 1, C)
-            else:
-                shared = track_part[torch.arange(n)[None, None, :], steps[:, :, None]]
-            h = torch.relu_(shared + param_part).view(k * rows, -1)
-            conv = linear(h, c2.weight[:, :, 0], c2.bias)
-            conv = nn.functional.leaky_relu_(conv, slope).view(k, rows, -1)
-            before = conv[:1] if last is None else last  # a segment's step 0 pools with itself
-            seq = torch.empty_like(conv)  # max pool of width 2 (dropout: identity)
-            torch.maximum(conv[1:], conv[:-1], out=seq[1:])
-            torch.maximum(conv[:1], before, out=seq[:1])
-            last = conv[-1:]
-            for i, (w_ih, b_in, w_hh, b_h) in enumerate(cells):
-                gates = linear(seq.view(k * rows, -1), w_ih, b_in).view(k, rows, -1)
-                seq = torch.empty(k, rows, w_hh.shape[1], dtype=gates.dtype)
-                for t in range(k):
-                    hidden[i] = gru_step(gates[t], hidden[i], w_hh, b_h)
-                    seq[t] = hidden[i]
-            h = seq.view(k * rows, -1)
-            for layer in self.head:
-                is_linear = isinstance(layer, nn.Linear)
-                h = linear(h, layer.weight, layer.bias) if is_linear else layer(h)
-            out[lo : lo + k] = h.view(k, n_seg, n, -1)
-        return out
-
-
-def segment_plan(t_steps: int, segment: int, washout: int) -> list[tuple[int, int]]:
-    """How a series of ``t_steps`` steps is predicted as segments of ``segment`` steps, each
-    run from the zero state: (first input step, first kept output step) per segment. Segment
-    j reads steps start .. start + segment - 1 and gives the outputs from its kept step to the
-    next segment's kept step (the last: to the series' end). The first segment starts and
-    keeps at step 0 (its washout is the series', masked by the caller); every later one
-    starts at least ``washout`` steps before the first step it keeps (exactly that many, but
-    the last, which is moved back to end at the series' end so that all segments have the
-    same length). Successive kept stretches are ``segment - washout`` steps long."""
-    if segment <= washout:
-        raise ValueError(
-            f"segment = {segment} steps: accepted more than the washout of {washout} steps"
-        )
-    if t_steps <= segment:
-        return [(0, 0)]
-    plan = [(0, 0)]
-    keep = segment
-    while keep < t_steps:
-        plan.append((min(keep - washout, t_steps - segment), keep))
-        keep += segment - washout
-    return plan
+        a segment's washout is recomputed as the method asks (each from the zero state).
+        Several conditions' networks run in step: :mod:`.sequence_sets`."""
+        return predict_sets_in_step(
+            [self],
+            params,
+            [track],
+            segment=segment,
+            block_steps=block_steps,
+            group_rows=group_rows,
+        )[0]
 
 
 def _dense(x: torch.Tensor, w: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
