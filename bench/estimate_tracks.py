@@ -126,11 +126,20 @@ class _Timed:
         return getattr(self.model, name)
 
     def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
+        return self._timed(lambda: self.model.series(x_si, condition), 1)
+
+    def series_conditions(
+        self, x_si: np.ndarray, conditions: Sequence[WorkingCondition]
+    ) -> list[np.ndarray]:
+        """The objective's path: every condition at once (their networks in step)."""
+        return self._timed(lambda: self.model.series_conditions(x_si, conditions), len(conditions))
+
+    def _timed(self, predict, calls: int):
         t, c = time.perf_counter(), time.process_time()
-        out = self.model.series(x_si, condition)
+        out = predict()
         self.seconds += time.perf_counter() - t
         self.cpu_seconds += time.process_time() - c
-        self.calls += 1
+        self.calls += calls  # one per condition predicted
         return out
 
 

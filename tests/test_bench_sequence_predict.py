@@ -62,11 +62,38 @@ def test_tiny_run_times_the_paths_and_finds_the_same_outputs(bench, tmp_path):
     doc = bench.main([*argv, "--threads", "1", "--work", str(tmp_path / "w"), "--out", str(out)])
     assert json.loads(out.read_text()) == json.loads(json.dumps(doc))
     paths = {r["path"] for r in doc["rows"]}
-    assert paths == {"reference", "fast", "objective", "recurrence"}
+    assert paths == {
+        "reference",
+        "fast",
+        "in step",
+        "series 1by1",
+        "series step",
+        "objective",
+        "recurrence",
+    }
     assert all(r["threads"] == 1 and r["min_s"] > 0 for r in doc["rows"])
     (diff,) = doc["differences"]
     assert diff["condition"] == "straight"
     assert 0 <= diff["max_difference_over_rms"] < 1e-4
+    assert 0 <= doc["in_step_max_abs_difference_kN"] < 1e-3
+    assert doc["networks"] == str(run / "surrogates" / "seq")
+
+
+def test_a_folder_of_networks_is_taken_instead_of_a_run(bench, tmp_path):
+    folder = tiny_sequence_surrogate(tmp_path / "set")
+    argv = ["--networks", str(folder), "--duration", "2", "--pop", "2", "--repeats", "1"]
+    out = tmp_path / "out.json"
+    doc = bench.main([*argv, "--threads", "1", "--work", str(tmp_path / "w"), "--out", str(out)])
+    assert doc["networks"] == str(folder)
+    assert (tmp_path / "w" / "set").is_dir()  # the recordings are kept under the folder's name
+
+
+@pytest.mark.parametrize("argv", [[], ["RUN", "--networks", "SET"]])
+def test_a_run_and_a_folder_of_networks_are_one_or_the_other(bench, argv, capsys):
+    with pytest.raises(SystemExit) as err:
+        bench.main(argv)
+    assert err.value.code == 2
+    assert "give RUN (with --kind) or --networks FOLDER" in capsys.readouterr().err
 
 
 def test_a_window_network_is_refused(bench, tmp_path):
