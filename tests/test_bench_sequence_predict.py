@@ -9,6 +9,7 @@ import torch
 
 from conftest import bench_script
 from railsusp.conditions import get_condition
+from railsusp.surrogate import recurrence
 from railsusp.surrogate.bundle import Surrogate
 from railsusp.surrogate.data import FeatureSpec, Normaliser
 from railsusp.surrogate.models import NetConfig, build_network
@@ -21,9 +22,10 @@ def bench():
     return bench_script("sequence_predict")  # it imports its sibling estimate_tracks
 
 
-def tiny_sequence_surrogate(folder):
-    """A random-weight sequence CNN-GRU bundle of 'straight', predicting in segments of 40
-    steps after a washout of 10, trained (as its metadata says) on a track family."""
+def tiny_sequence_surrogate(folder, conditions=("straight",)):
+    """Random-weight sequence CNN-GRU bundles of ``conditions`` (each its own weights),
+    predicting in segments of 40 steps after a washout of 10, trained (as their metadata
+    says) on a track family."""
     spec = FeatureSpec(parameters=KEYS)
     cfg = NetConfig(
         kind="cnn-gru-seq",
@@ -40,17 +42,18 @@ def tiny_sequence_surrogate(folder):
         "track_family": {"irregularity_classes": (4, 6)},
         "segment_steps": 40,
     }
-    sur = Surrogate(
-        build_network(cfg),
-        cfg,
-        spec,
-        Normaliser([0.0] * n_track, [1.0] * n_track, [10.0, 120.0], [5.0, 20.0]),
-        get_condition("straight", irregularity_class=5),
-        load_wagon(),
-        0,
-        meta,
-    )
-    sur.save(folder / "straight")
+    for name in conditions:
+        sur = Surrogate(
+            build_network(cfg),
+            cfg,
+            spec,
+            Normaliser([0.0] * n_track, [1.0] * n_track, [10.0, 120.0], [5.0, 20.0]),
+            get_condition(name, irregularity_class=5),
+            load_wagon(),
+            0,
+            meta,
+        )
+        sur.save(folder / name)
     return folder
 
 
@@ -79,13 +82,17 @@ def test_tiny_run_times_the_paths_and_finds_the_same_outputs(bench, tmp_path):
     assert doc["networks"] == str(run / "surrogates" / "seq")
 
 
-def test_a_folder_of_networks_is_taken_instead_of_a_run(bench, tmp_path):
-    folder = tiny_sequence_surrogate(tmp_path / "set")
+def test_a_folder_of_two_conditions_runs_their_networks_in_step(bench, tmp_path):
+    folder = tiny_sequence_surrogate(tmp_path / "set", ("straight", "curve"))
     argv = ["--networks", str(folder), "--duration", "2", "--pop", "2", "--repeats", "1"]
     out = tmp_path / "out.json"
     doc = bench.main([*argv, "--threads", "1", "--work", str(tmp_path / "w"), "--out", str(out)])
     assert doc["networks"] == str(folder)
     assert (tmp_path / "w" / "set").is_dir()  # the recordings are kept under the folder's name
+    assert {d["condition"] for d in doc["differences"]} == {"straight", "curve"}
+    # two networks really ran in step: MKL's sums, not oneDNN's one-network path, so not zero
+    assert doc["in_step_max_abs_difference_kN"] < 1e-3
+    assert doc["in_step_max_abs_difference_kN"] > 0 or not recurrence.ONEDNN
 
 
 @pytest.mark.parametrize("argv", [[], ["RUN", "--networks", "SET"]])

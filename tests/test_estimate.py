@@ -555,3 +555,28 @@ def test_geometry_error_propagates_into_the_refined_estimate(tmp_path, monkeypat
             refit.x_si - r.x_si,
             rtol=0.02,
         )
+
+
+def test_the_screen_keeps_one_series_per_recording_when_they_are_predicted_together():
+    """The refinement's screen sees the force model through polish._Kept; a model that
+    predicts all recordings at once (the simulator, the networks in step) is asked once, and
+    one series per recording is kept in their order for the refinement to reuse."""
+    from railsusp.estimate.forces import series_in_conditions
+    from railsusp.estimate.polish import _Kept
+
+    class Together:
+        calls = 0
+
+        def series(self, x_si, condition):
+            raise AssertionError("asked one recording at a time")
+
+        def series_conditions(self, x_si, conditions):
+            Together.calls += 1
+            return [np.full((len(x_si), 4, 2), float(i)) for i, _ in enumerate(conditions)]
+
+    kept = _Kept(Together())
+    conditions = [get_condition("straight"), get_condition("curve"), get_condition("uphill")]
+    out = series_in_conditions(kept, np.zeros((3, 2)), conditions)
+    assert Together.calls == 1
+    assert [k[0, 0, 0] for k in kept.returned] == [0.0, 1.0, 2.0]
+    assert all(a is b for a, b in zip(out, kept.returned, strict=True))

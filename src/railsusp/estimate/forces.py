@@ -60,12 +60,17 @@ class SurrogateForces:
         """The :class:`~railsusp.surrogate.bundle.Surrogate` of condition ``name``."""
         return self._models[name]
 
-    def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
+    def _model_of(self, condition: WorkingCondition) -> Any:
+        """The surrogate of a condition, refused in one line when the folder has none."""
         if condition.name not in self._models:
             raise ValueError(
                 f"no surrogate for condition {condition.name!r} in {self.folder} "
                 f"(has {', '.join(self._models)})"
             )
+        return self._models[condition.name]
+
+    def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
+        model = self._model_of(condition)
         # on a measured track the network reads that track, if it can; otherwise it predicts
         # its training track, whose statistics the recording's are compared with
         on = condition if self.reads_track(condition) else None
@@ -82,8 +87,8 @@ class SurrogateForces:
                 stacklevel=2,
             )
         if on is None:
-            return self._models[condition.name].predict(x_si)
-        return self._models[condition.name].predict(x_si, condition=on, track=self.track_input(on))
+            return model.predict(x_si)
+        return model.predict(x_si, condition=on, track=self.track_input(on))
 
     def series_conditions(
         self, x_si: np.ndarray, conditions: Sequence[WorkingCondition]
@@ -92,13 +97,16 @@ class SurrogateForces:
         measured tracks and share an architecture, segment and record length predicted in
         step (:func:`~railsusp.surrogate.in_step.predict_in_step`: one loop through all
         their networks, each condition's series those it gets alone to float32 rounding;
-        an NSGA-II generation of the study's three conditions in 0.6-0.7 of the time,
-        bench/README.md), the others one by one."""
+        an NSGA-II generation of the study's three conditions in 0.63-0.80 of the time,
+        bench/README.md), the others one by one. (The import is lazy: importing
+        ``railsusp.estimate`` loads neither torch nor the surrogates.)"""
         from railsusp.surrogate.in_step import in_step_key, predict_in_step
 
+        for c in conditions:  # a condition without a surrogate, refused before any work
+            self._model_of(c)
         groups: dict[tuple, list[int]] = {}
         for i, c in enumerate(conditions):
-            if c.name in self._models and self.reads_track(c):
+            if self.reads_track(c):
                 key = in_step_key(self._models[c.name], self.track_input(c))
                 if key is not None:
                     groups.setdefault(key, []).append(i)

@@ -17,7 +17,7 @@ import numpy as np
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.config import REFINE_RANGES, check_range
-from railsusp.estimate.forces import ForceModel, SimulatorForces
+from railsusp.estimate.forces import ForceModel, SimulatorForces, series_in_conditions
 from railsusp.estimate.output_error import OutputError
 from railsusp.estimate.problem import CalibrationProblem, check_aligned, display_values
 from railsusp.estimate.refine import GEOMETRY_DRAWS, refine_starts
@@ -164,4 +164,14 @@ class _Kept:
     def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
         out = self.model.series(x_si, condition)
         self.returned.append(out)
+        return out
+
+    def series_conditions(
+        self, x_si: np.ndarray, conditions: Sequence[WorkingCondition]
+    ) -> list[np.ndarray]:
+        """All conditions at once where the model can (the simulator: one call of all the
+        candidates in every recording, which keeps the cores busier than one per recording;
+        each set's numbers are those it gets alone), one kept series per condition."""
+        out = series_in_conditions(self.model, x_si, conditions)
+        self.returned.extend(out)
         return out

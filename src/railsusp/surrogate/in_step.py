@@ -57,7 +57,7 @@ def predict_in_step(
     if keys[0] is None or any(k != keys[0] for k in keys):
         raise ValueError(
             "these surrogates cannot be predicted in step: accepted sequence CNN-GRUs of one "
-            "architecture and segment, on tracks of one length"
+            "architecture and segment, each on one track (T, n_track) of one length"
         )
     if len({tuple(s.spec.parameters) for s in surrogates}) > 1:
         raise ValueError(

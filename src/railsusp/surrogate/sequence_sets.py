@@ -7,7 +7,7 @@ bench/networks_c80_k6.txt). The fast path (:meth:`CNNSequence.predict_sets
 <railsusp.surrogate.sequence.CNNSequence.predict_sets>`) runs the segments of all sets a few
 steps at a time; its GRU recurrences are one small matrix product and five gate operations
 per layer and step, which at the 200 rows of a demo generation cost torch's dispatch more
-than their arithmetic (bench/README.md, "Three conditions' networks in step").
+than their arithmetic (bench/README.md, "The recorded conditions' networks in step").
 :func:`predict_sets_in_step` therefore runs G networks through the same loop at once:
 
 * the recurrences' hidden-side products of all G networks are one batched product
@@ -17,10 +17,11 @@ than their arithmetic (bench/README.md, "Three conditions' networks in step").
   dense head: thousands of rows) stay one product per network, written into one buffer.
 
 Each network's outputs are those it gives alone to float32 rounding, not bit for bit: one
-network alone takes oneDNN's product (:func:`~railsusp.surrogate.recurrence.linear`, its
-numbers unchanged), several in step MKL's ``addmm`` and ``baddbmm``, which sum in another
-order (on the shipped networks, 20 s records: at most 1.5e-5 kN apart; the tests check 1e-5
-relative). One network through :func:`predict_sets_in_step` is the one-network path.
+network alone takes oneDNN's product where torch has it
+(:func:`~railsusp.surrogate.recurrence.linear`, its numbers unchanged), several in step
+MKL's ``addmm`` and ``baddbmm``, which sum in another order (on the shipped networks at
+most 1.6e-5 kN apart; the tests check 1e-5 relative). One network through
+:func:`predict_sets_in_step` is the one-network path.
 """
 
 from __future__ import annotations
