@@ -145,7 +145,7 @@ def test_in_step_key_pairs_sequence_networks_of_one_architecture_segment_and_tra
     [
         ({"kind": "cnn-gru"}, "these surrogates cannot be predicted in step"),
         ({"segment": 30}, "accepted sequence CNN-GRUs of one architecture and segment"),
-        ({"track_steps": T_STEPS + 10}, "on tracks of one length"),
+        ({"track_steps": T_STEPS + 10}, "of one length"),
         ({"keys": ("X14", "X13", "X15", "X16", "X17", "X18")}, "of different key parameters"),
     ],
 )
