@@ -10,34 +10,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from test_predict_sets import N_PAR, N_TRACK, _net  # a small network of the e30 network's shape
 
 from railsusp.surrogate.bundle import series_features
-from railsusp.surrogate.models import NetConfig, build_network
 from railsusp.surrogate.sequence import CNNSequence
 from railsusp.surrogate.sequence_sets import architecture, predict_sets_in_step
-
-N_PAR, N_TRACK = 3, 4
-
-
-def _net(washout: int = 6, seed: int = 0, layers: tuple[int, ...] = (8, 4, 3)) -> CNNSequence:
-    """A small network of the e30 network's shape (three GRUs, head 8 -> 5 -> outputs), its
-    weights doubled so that the biases are of a trained network's size; ``seed``: another
-    network of the same architecture."""
-    torch.manual_seed(seed)
-    cfg = NetConfig(
-        kind="cnn-gru-seq",
-        n_features=N_PAR + N_TRACK,
-        window=washout,
-        conv_channels=(N_PAR + N_TRACK, 12),
-        rnn_hidden=layers,
-        dense=(8, 5),
-        dropout=0.2,
-    )
-    net = build_network(cfg).eval()
-    with torch.no_grad():
-        for p in net.parameters():
-            p.mul_(2.0)
-    return net
 
 
 def _params(n: int, seed: int = 1) -> torch.Tensor:
