@@ -164,3 +164,18 @@ def test_bad_tracks_counts_and_training_mode_are_refused_in_one_line():
     nets[1].eval()
     out = predict_sets_in_step(nets, params[:0], [track, track])
     assert [o.shape for o in out] == [(0, 30, 2), (0, 30, 2)]
+
+
+def test_networks_in_step_without_onednn_give_each_networks_own_outputs(monkeypatch):
+    """Where torch lacks oneDNN's product, one network alone takes torch's; in step the
+    products are torch's batched ones either way, and the outputs still agree."""
+    from railsusp.surrogate import recurrence
+
+    monkeypatch.setattr(recurrence, "ONEDNN", False)
+    nets = [_net(seed=g) for g in range(3)]
+    params, tracks = _params(5), [_track(100, seed=10 + g) for g in range(3)]
+    together = predict_sets_in_step(nets, params, tracks, segment=35)
+    for net, track, out in zip(nets, tracks, together, strict=True):
+        alone = net.predict_sets(params, track, segment=35)
+        torch.testing.assert_close(out, alone, rtol=1e-5, atol=1e-6)
+        torch.testing.assert_close(out, _reference(net, params, track, 35), rtol=1e-5, atol=1e-5)
