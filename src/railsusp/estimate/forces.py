@@ -105,9 +105,11 @@ class SurrogateForces:
         for c in conditions:  # a condition without a surrogate, refused before any work
             self._model_of(c)
         groups: dict[tuple, list[int]] = {}
+        tracks: dict[int, np.ndarray] = {}  # the measured tracks' inputs, looked up once
         for i, c in enumerate(conditions):
             if self.reads_track(c):
-                key = in_step_key(self._models[c.name], self.track_input(c))
+                tracks[i] = self.track_input(c)
+                key = in_step_key(self._models[c.name], tracks[i])
                 if key is not None:
                     groups.setdefault(key, []).append(i)
         out: dict[int, np.ndarray] = {}
@@ -119,7 +121,7 @@ class SurrogateForces:
                 [self._models[c.name] for c in chosen],
                 x_si,
                 chosen,
-                [self.track_input(c) for c in chosen],
+                [tracks[i] for i in members],
             )
             out.update(zip(members, series, strict=True))
         return [out[i] if i in out else self.series(x_si, c) for i, c in enumerate(conditions)]
