@@ -23,6 +23,12 @@ condition it reports:
   surrogate and with the simulator (noise and geometry error only);
 - the time-aligned Cramér-Rao bounds (% of range) with each model.
 
+``--steps 0.05,0.02,0.005,0.001`` adds a check of the simulator itself: its forward
+differences at each step (fraction of the range) against the first step's, cosine and gain,
+on the same compared samples. A response that is not smooth in the compared band (chaos,
+stick-slip switching) would make the simulator's own columns disagree, and cap what any
+surrogate's gain and cosine could reach (stop 36: they agree, bench/README.md).
+
 ::
 
     python bench/jacobian_check.py RUN --kind cnn-gru --sets 4
@@ -48,7 +54,9 @@ from railsusp.estimate.aligned_identifiability import (
     channel_names,
     defined_from,
 )
-from railsusp.estimate.forces import SimulatorForces
+from railsusp.estimate.comparison import comparison_filter, comparison_samples
+from railsusp.estimate.forces import SimulatorForces, series_in_conditions
+from railsusp.params import bounds
 from railsusp.store import write_json
 
 
@@ -83,6 +91,41 @@ def set_segment(model: SurrogateForces, segment: str) -> None:
         model.surrogate(name).meta["segment_steps"] = steps
 
 
+def simulator_steps(sim, recs, params, x, steps, lead) -> dict:
+    """Per parameter and step h (fraction of the range), the cosine and gain of the
+    simulator's forward difference at h against its difference at ``steps[0]``, on the
+    compared samples of every recording from ``lead`` on (each channel over the measured
+    force's standard deviation)."""
+    lo, hi = bounds(params)
+    points = [x]
+    for j in range(len(params)):
+        for h in steps:
+            moved = np.array(x, dtype=float)
+            moved[j] += h * (hi[j] - lo[j])
+            points.append(moved)
+    series = series_in_conditions(sim, np.array(points), [r.condition for r in recs])
+    blocks = []
+    for rec, ser, first in zip(recs, series, lead, strict=True):
+        f = comparison_filter(ser, rec)
+        std = rec.forces().std(axis=0)
+        for c, rows in enumerate(comparison_samples(rec)):
+            rows = rows[rows >= first]
+            blocks.append(f[:, rows, c] / std[c])
+    cols = np.concatenate(blocks, axis=1)  # (points, samples)
+    out = {}
+    for j, p in enumerate(params):
+        diffs = [(cols[1 + j * len(steps) + k] - cols[0]) / h for k, h in enumerate(steps)]
+        ref = diffs[0]
+        out[p] = {
+            f"{h:g}": {
+                "cosine": float(d @ ref / (np.linalg.norm(d) * np.linalg.norm(ref))),
+                "gain": float(d @ ref / (ref @ ref)),
+            }
+            for h, d in zip(steps, diffs, strict=True)
+        }
+    return out
+
+
 def check_set(index, truth_si, model, conditions, work, args) -> dict:
     truth, recs = set_recordings(index, truth_si, conditions, work, args)
     params = model.parameters
@@ -95,7 +138,10 @@ def check_set(index, truth_si, model, conditions, work, args) -> dict:
     sim = SimulatorForces(params, base=truth)
     rs, js, _ = aligned_jacobian(sim, recs, params, x, defined_from=lead)
     t2 = time.perf_counter()
-    return {
+    row = {}
+    if args.steps:
+        row["simulator_steps"] = simulator_steps(sim, recs, params, x, args.steps, lead)
+    return row | {
         "set": index,
         "compared_from_step": dict(zip([r.condition.name for r in recs], lead, strict=True)),
         "truth_display": {p: truth.to_display()[p] for p in params},
@@ -137,6 +183,13 @@ def print_set(row: dict, params) -> None:
         )
         b = row["bounds_pct_range"]
         print(f"  {p:<5} {b['surrogate'][p]:11.1f} {b['simulator'][p]:11.1f} {cells}")
+    if "simulator_steps" in row:
+        print("  the simulator's forward difference at each step against the first's, cos/gain:")
+        for p, by_step in row["simulator_steps"].items():
+            cells = "  ".join(
+                f"{h}: {v['cosine']:+.2f}/{v['gain']:+.2f}" for h, v in by_step.items()
+            )
+            print(f"  {p:<5} {cells}")
 
 
 def main(argv=None) -> dict:
@@ -156,9 +209,21 @@ def main(argv=None) -> dict:
         help="sequence networks: prediction segment in steps, 'none' (one run, state carried) "
         "or 'auto' (the surrogate's own: its training chunk)",
     )
+    ap.add_argument(
+        "--steps",
+        default="",
+        help="e.g. 0.05,0.02,0.005,0.001: the simulator's forward differences at these steps "
+        "(fractions of the range) against the first's",
+    )
     ap.add_argument("--work", type=Path, default=Path("runs/estimate_tracks"))
     ap.add_argument("--out", type=Path, default=Path("bench/results/jacobian_check.json"))
     args = ap.parse_args(argv)
+    try:
+        args.steps = [float(h) for h in args.steps.split(",") if h.strip()]
+    except ValueError:
+        ap.error(f"--steps {args.steps}: accepted fractions of the range like 0.05,0.01")
+    if any(not 0.0 < h <= 0.5 for h in args.steps):
+        ap.error(f"--steps {args.steps}: accepted fractions in (0, 0.5]")
     torch.set_num_threads(args.threads)
     model = SurrogateForces(args.run / "surrogates" / args.kind)
     set_segment(model, args.segment)

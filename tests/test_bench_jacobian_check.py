@@ -36,3 +36,27 @@ def test_tiny_check_compares_the_surrogate_with_the_simulator(bench, tmp_path):
     cos = [a["cosine"] for a in row["agreement"].values()]
     assert all(np.isnan(c) or -1.0 <= c <= 1.0 for c in cos)
     assert set(doc["median"]) == set(KEYS)
+
+
+def test_simulator_steps_compare_its_own_differences(bench, tmp_path):
+    run = tmp_path / "run"
+    tiny_surrogate(run / "surrogates" / "cnn-gru")
+    argv = [str(run), "--sets", "1", "--duration", "2", "--work", str(tmp_path / "w")]
+    doc = bench.main([*argv, "--steps", "0.05,0.01", "--out", str(tmp_path / "o.json")])
+    steps = doc["per_set"][0]["simulator_steps"]
+    assert set(steps) == set(KEYS)
+    for by_step in steps.values():
+        assert list(by_step) == ["0.05", "0.01"]
+        assert by_step["0.05"]["cosine"] == pytest.approx(1.0)
+        assert by_step["0.05"]["gain"] == pytest.approx(1.0)
+        assert -1.0 <= by_step["0.01"]["cosine"] <= 1.0 + 1e-12
+    # the primary lateral stiffness is smooth over a fifth of the step: the same column
+    assert steps["X14"]["0.01"]["cosine"] > 0.9
+
+
+@pytest.mark.parametrize("steps", ["0.7", "a,b", "0"])
+def test_simulator_steps_refuse_a_bad_step(bench, tmp_path, steps, capsys):
+    with pytest.raises(SystemExit) as exc:
+        bench.main([str(tmp_path), "--steps", steps])
+    assert exc.value.code == 2
+    assert "--steps" in capsys.readouterr().err
