@@ -80,12 +80,15 @@ import torch
 import railsusp.surrogate.sequence as sequence
 from railsusp.surrogate.models import NetConfig, build_network
 from railsusp.surrogate.sequence_sets import predict_sets_in_step as fast
+from railsusp.surrogate.train import seed_weights
 
 cfg = NetConfig(kind="cnn-gru-seq", n_features=7, window=5, conv_channels=(5, 12),
                 rnn_hidden=(6, 4, 3), dense=(5, 4), dropout=0.0)
 torch.manual_seed(0)
 net = build_network(cfg).eval()
 assert len(net.film) == 4
+seed_weights(net, 3)  # a cold start's seeding leaves the modulation at zero
+assert all(float(p.abs().max()) == 0.0 for p in net.film.parameters())
 plain = {k: v for k, v in net.state_dict().items() if not k.startswith("film.")}
 net.load_state_dict(plain)  # a warm start from a network without modulation
 params, track = torch.rand(3, 2), torch.randn(1, 90, 5)
@@ -95,7 +98,11 @@ with torch.no_grad():
     net.film[1].weight.normal_()
 moved = sequence.predict_sets_in_step([net], params, [track], segment=40)[0]
 assert (moved - start).abs().max() > 1e-3
-print("film ok")
+bad = dict(plain, extra=torch.zeros(1))
+try:
+    net.load_state_dict(bad)
+except KeyError:
+    print("film ok")
 """
 
 
