@@ -54,13 +54,7 @@ from railsusp.estimate.aligned_identifiability import (
     channel_names,
     defined_from,
 )
-from railsusp.estimate.comparison import (
-    compared_measurement,
-    comparison_filter,
-    comparison_samples,
-)
-from railsusp.estimate.forces import SimulatorForces, series_in_conditions
-from railsusp.params import bounds
+from railsusp.estimate.forces import SimulatorForces
 from railsusp.store import write_json
 
 
@@ -97,42 +91,22 @@ def set_segment(model: SurrogateForces, segment: str) -> None:
 
 def simulator_steps(sim, recs, params, x, steps, lead) -> dict:
     """Per parameter and step h (fraction of the range), the cosine and gain of the
-    simulator's forward difference at h against its difference at ``steps[0]``, on the
-    compared samples of every recording from ``lead`` on, each channel over the standard
-    deviation of the measured force in its comparison band (as the comparison scales it).
-    A step that would leave the range goes inwards, as the refinement's do."""
-    lo, hi = bounds(params)
-    unit = (np.asarray(x, dtype=float) - lo) / (hi - lo)
-    points, signed = [np.asarray(x, dtype=float)], []
-    for j in range(len(params)):
-        for h in steps:
-            step = h if unit[j] + h <= 1.0 else -h
-            moved = points[0].copy()
-            moved[j] += step * (hi[j] - lo[j])
-            points.append(moved)
-            signed.append(step)
-    series = series_in_conditions(sim, np.array(points), [r.condition for r in recs])
-    blocks = []
-    for rec, ser, first in zip(recs, series, lead, strict=True):
-        f = comparison_filter(ser, rec)
-        std = compared_measurement(rec).std(axis=0)
-        for c, rows in enumerate(comparison_samples(rec)):
-            rows = rows[rows >= first]
-            blocks.append(f[:, rows, c] / std[c])
-    cols = np.concatenate(blocks, axis=1)  # (points, samples)
-    out = {}
-    for j, p in enumerate(params):
-        at = [1 + j * len(steps) + k for k in range(len(steps))]
-        diffs = [(cols[i] - cols[0]) / signed[i - 1] for i in at]
-        ref = diffs[0]
-        out[p] = {
+    simulator's Jacobian column at step h (:func:`aligned_jacobian`: the comparison's
+    samples and scaling, inwards at the upper bound) against its column at ``steps[0]``."""
+    cols = [aligned_jacobian(sim, recs, params, x, defined_from=lead, step=h)[1] for h in steps]
+    ref = cols[0]
+    return {
+        p: {
             f"{h:g}": {
-                "cosine": float(d @ ref / (np.linalg.norm(d) * np.linalg.norm(ref))),
-                "gain": float(d @ ref / (ref @ ref)),
+                "cosine": float(
+                    c[:, j] @ ref[:, j] / np.linalg.norm(c[:, j]) / np.linalg.norm(ref[:, j])
+                ),
+                "gain": float(c[:, j] @ ref[:, j] / (ref[:, j] @ ref[:, j])),
             }
-            for h, d in zip(steps, diffs, strict=True)
+            for h, c in zip(steps, cols, strict=True)
         }
-    return out
+        for j, p in enumerate(params)
+    }
 
 
 def check_set(index, truth_si, model, conditions, work, args) -> dict:

@@ -44,6 +44,7 @@ import railsusp.surrogate as surrogate
 import railsusp.surrogate.in_step as in_step
 import railsusp.surrogate.sequence as sequence
 import railsusp.surrogate.train as train
+from railsusp.surrogate.bundle import series_features
 from railsusp.surrogate.models import build_network
 from railsusp.surrogate.pairs import PairSampler
 
@@ -139,15 +140,14 @@ def film(n_par: int) -> None:
 
     @torch.inference_mode()
     def reference(nets, params, tracks, *, segment=None, block_steps=None, group_rows=None):
-        params = torch.as_tensor(params).float()
-        out = []
-        for net, track in zip(nets, tracks, strict=True):
-            track = torch.as_tensor(track).float()
-            n, t_steps = params.shape[0], track.shape[1]
-            rows = params[:, None].expand(n, t_steps, -1)
-            features = torch.cat([rows, track.expand(n, -1, -1)], -1)
-            out.append(net.predict_series(features, segment=segment))
-        return out
+        params = np.asarray(params, dtype=np.float32)
+        return [
+            net.predict_series(
+                torch.from_numpy(series_features(params, np.asarray(track, dtype=np.float32))),
+                segment=segment,
+            )
+            for net, track in zip(nets, tracks, strict=True)
+        ]
 
     sequence.CNNSequence.__init__ = __init__
     sequence.CNNSequence.steps = steps

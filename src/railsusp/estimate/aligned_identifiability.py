@@ -62,7 +62,7 @@ import numpy as np
 from railsusp.estimate.comparison import comparison_filter
 from railsusp.estimate.forces import ForceModel, series_in_conditions
 from railsusp.estimate.identifiability import BOUND_LIMIT_PCT
-from railsusp.estimate.output_error import OutputError
+from railsusp.estimate.output_error import REFINE_STEP, OutputError
 from railsusp.estimate.residual_noise import channel_variances, standard_errors
 from railsusp.measured import Recording
 
@@ -74,9 +74,11 @@ def aligned_jacobian(
     x_si: np.ndarray,
     *,
     defined_from: Sequence[int] | None = None,
+    step: float = REFINE_STEP,
 ) -> tuple[np.ndarray, np.ndarray, list[int]]:
     """The time-aligned comparison's scaled residuals at ``x_si`` (SI) and their
-    forward-difference Jacobian in unit-range parameters
+    forward-difference Jacobian in unit-range parameters (steps of ``step`` of the range,
+    inwards at the upper bound)
     (:class:`~railsusp.estimate.output_error.OutputError` without channel gains), and the
     number of compared samples of each recording's lateral and vertical force, in order.
 
@@ -88,7 +90,7 @@ def aligned_jacobian(
     model's :func:`defined_from`) leaves out more, so that two models are compared on the
     same samples. Each block stays scaled so that its norm is the RMS residual over the
     measured force's standard deviation."""
-    problem = OutputError(model, recordings, parameters, gains=False)
+    problem = OutputError(model, recordings, parameters, gains=False, step=step)
     unit = np.clip((np.asarray(x_si, dtype=float) - problem.lo) / (problem.hi - problem.lo), 0, 1)
     base = problem.lo + unit * (problem.hi - problem.lo)
     series = series_in_conditions(model, base[None], [rec.condition for rec in recordings])
