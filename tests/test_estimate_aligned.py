@@ -34,7 +34,7 @@ from railsusp.estimate.aligned_identifiability import (
 from railsusp.estimate.comparison import AlignedComparison, _lowpass_defined
 from railsusp.estimate.config import IDEAL_POINT, LEAST_SQUARES, choice_rule
 from railsusp.measured import Recording, bandwidth_filter, read_field, synthesise_field
-from railsusp.params import ParameterSet, bounds
+from railsusp.params import ParameterSet, bounds, spec
 from railsusp.surrogate.bundle import Surrogate
 from railsusp.surrogate.data import FeatureSpec, Normaliser
 from railsusp.surrogate.models import NetConfig, build_network
@@ -334,6 +334,28 @@ def test_cli_estimate_on_measured_track_with_a_family_surrogate(on_track, tmp_pa
     saved = json.loads((out / "estimate.json").read_text())
     assert saved["choice"] == LEAST_SQUARES and saved["estimate_source"] == "nsga-ii"
     assert set(saved["estimate_display"]) == set(KEYS)
+    # the recordings' 0.5 mm geometry error drawn 8 times (the default), its bias taken off
+    # NSGA-II's choice with the same surrogate
+    geometry = saved["nsga_geometry"]
+    assert geometry["draws"] == 8 and geometry["bias_removed"]
+    assert set(geometry["bias_pct_range"]) == set(KEYS)
+    bias = np.array([geometry["bias_pct_range"][p] for p in KEYS])
+    lo, hi = bounds(KEYS)
+    choice = np.array([saved["nsga_choice_display"][p] for p in KEYS])
+    est = np.array([saved["estimate_display"][p] for p in KEYS])
+    scale = np.array([spec(p).to_display(1.0) for p in KEYS])  # display units per SI unit
+    np.testing.assert_allclose(
+        est, np.clip(choice - bias / 100 * (hi - lo) * scale, lo * scale, hi * scale)
+    )
+    kept = runner.invoke(
+        app,
+        [*args[:-1], str(tmp_path / "kept"), "--surrogate", str(on_track["family"]),
+         "--geometry-draws", "2", "--keep-geometry-bias"],
+    )  # fmt: skip
+    assert kept.exit_code == 0, kept.output
+    saved = json.loads((tmp_path / "kept" / "estimate.json").read_text())
+    assert saved["nsga_geometry"]["draws"] == 2 and not saved["nsga_geometry"]["bias_removed"]
+    assert saved["estimate_display"] == saved["nsga_choice_display"]
 
 
 def one_line_error(result) -> str:

@@ -30,18 +30,27 @@ pretrained = "{pretrained}"
 [field]
 truth = {{ X13 = 16.1, X18 = 45.0 }}
 with_track = {with_track}
+track_noise_mm = {track_noise}
 [estimate]
 pop_size = 6
 n_gen = 2
 statistic = "{statistic}"
 refine = false
+geometry_draws = 3
 """
 
 
 def config(tmp_path, model="cnn-gru-seq", pretrained="c80_k6", with_track="true", stat="aligned"):
     path = tmp_path / "c.toml"
+    noise = 0.5 if with_track == "true" else 0.0  # the geometry's error, stated
     path.write_text(
-        RUN.format(model=model, pretrained=pretrained, with_track=with_track, statistic=stat)
+        RUN.format(
+            model=model,
+            pretrained=pretrained,
+            with_track=with_track,
+            statistic=stat,
+            track_noise=noise,
+        )
     )
     return path
 
@@ -136,6 +145,9 @@ def test_the_run_estimates_with_the_shipped_networks(pretrained_run):
     # the set's own key parameters, not the sensitivity stage's two
     assert tuple(est["parameters"]) == ns.parameters
     assert est["config"]["statistic"] == "aligned"
+    # the geometry's stated 0.5 mm error drawn, its bias taken off NSGA-II's choice
+    assert est["nsga_geometry"]["draws"] == 3 and est["nsga_geometry"]["bias_removed"]
+    assert "errors in variables" in (out / "report.html").read_text("utf-8")
     held = {e["symbol"]: e["assumed"] for e in est["not_estimated"]}
     assert set(held) == {f"X{i}" for i in range(11, 21)} - set(ns.parameters)
     assert set(held.values()) == {"varied"}

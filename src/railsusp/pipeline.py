@@ -274,13 +274,16 @@ def _stage_runners(
 
     def estimate() -> dict:
         from railsusp.estimate import (
+            ALIGNED,
             NSGAConfig,
             check_refinable,
             estimate_with_seeds,
             open_force_model,
+            parse_statistics,
             refine_estimate,
         )
         from railsusp.estimate.config import HeldPrior
+        from railsusp.estimate.nsga_geometry import remove_nsga_geometry_bias
         from railsusp.measured import read_field
         from railsusp.surrogate import key_parameters, not_estimated
 
@@ -302,6 +305,10 @@ def _stage_runners(
         if e.refine:  # before NSGA-II runs
             check_refinable(recs, "estimate.refine")
         res = estimate_with_seeds(model, recs, params, cfg, e.seeds)
+        if ALIGNED in parse_statistics(cfg.statistic):
+            remove_nsga_geometry_bias(
+                res, recs, model, e.geometry_draws, e.seed, e.remove_geometry_bias
+            )
         if e.refine:
             refine_estimate(
                 res,

@@ -155,12 +155,12 @@ class EstimateSection(_Cfg):
         ge=_REF["geometry_draws"][0],
         le=_REF["geometry_draws"][1],
         description="draws of the recordings' stated track-geometry error propagated into "
-        "the refined estimate's standard errors",
+        "NSGA-II's time-aligned estimate and the refined estimate's standard errors",
     )
     remove_geometry_bias: bool = Field(
         True,
         description="take the geometry-error bias that the draws estimate (first SIMEX "
-        "step) off the refined estimate",
+        "step) off NSGA-II's time-aligned estimate and off the refined estimate",
     )
     held_prior: dict[str, Any] = Field(
         default_factory=dict,

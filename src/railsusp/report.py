@@ -190,12 +190,12 @@ def plot_surrogate_overlay(
 
 
 def _final(result) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
-    """The final estimate (SI) and, when refined, its confidence interval's low and high
-    (SI; None without refinement, or when the refinement is a polish beside NSGA-II's
-    estimate: the Pareto set is drawn instead)."""
+    """The final estimate (SI; NSGA-II's less its geometry bias where removed) and, when
+    refined, its confidence interval's low and high (SI; None without refinement, or when the
+    refinement is a polish beside NSGA-II's estimate: the Pareto set is drawn instead)."""
     ref = result.refinement
     if ref is None or not result.refined:
-        return result.pareto_x[result.chosen], None, None
+        return result.nsga_x, None, None
     iv = result.intervals()
     return (
         ref.estimate_si,

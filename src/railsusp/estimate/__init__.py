@@ -11,6 +11,7 @@ One module per job, imports running one way (top to bottom depends only on those
 - :mod:`~railsusp.estimate.lockstep`: independent solvers in step, their requests batched
 - :mod:`~railsusp.estimate.output_error`: the refinement's least-squares problem, simulations
 - :mod:`~railsusp.estimate.residual_noise`: least-squares standard errors, pooled or per channel
+- :mod:`~railsusp.estimate.geometry_bias`: the track geometry's error in an estimate (SIMEX)
 - :mod:`~railsusp.estimate.refine`: output-error refinement with the simulator
 - :mod:`~railsusp.estimate.alignment`: registration of measured track with the forces
 - :mod:`~railsusp.estimate.intervals`: the interval every route reports, the verdict
@@ -19,6 +20,7 @@ One module per job, imports running one way (top to bottom depends only on those
   comparison
 - :mod:`~railsusp.estimate.result`: the estimate result (save, table)
 - :mod:`~railsusp.estimate.nsga`: the NSGA-II run (pymoo), log, choice rule, seed spread
+- :mod:`~railsusp.estimate.nsga_geometry`: the geometry error's bias off NSGA-II's estimate
 - :mod:`~railsusp.estimate.polish`: screened starts and refinement of an NSGA-II estimate
 
 This package re-exports the public names other code uses, so ``from railsusp.estimate

@@ -18,9 +18,10 @@ from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.config import REFINE_RANGES, check_range
 from railsusp.estimate.forces import ForceModel, SimulatorForces, series_in_conditions
+from railsusp.estimate.geometry_bias import GEOMETRY_DRAWS
 from railsusp.estimate.output_error import OutputError
 from railsusp.estimate.problem import CalibrationProblem, check_aligned, display_values
-from railsusp.estimate.refine import GEOMETRY_DRAWS, refine_starts
+from railsusp.estimate.refine import refine_starts
 from railsusp.estimate.result import CalibrationResult
 from railsusp.estimate.statistics import ALIGNED, parse_statistics
 from railsusp.measured import Recording
@@ -75,7 +76,8 @@ def refine_estimate(
     refined one); by default with the simulator itself.
 
     Time-aligned costs have local minima, and an estimate from statistics can sit in the
-    wrong basin, so the starts are screened first: the Pareto set, the nominal parameters
+    wrong basin, so the starts are screened first: NSGA-II's choice and its estimate (the
+    choice less its geometry bias, where removed), the Pareto set, the nominal parameters
     and ``screen`` Latin hypercube points are scored by :func:`aligned_cost` in one batch
     (each distinct point once), the ``starts`` best are refined together
     (:func:`~railsusp.estimate.refine.refine_starts`: their simulations share batches, and
@@ -111,7 +113,9 @@ def refine_estimate(
     nominal = np.array([ParameterSet.nominal()[p] for p in params])
     lhs = qmc.LatinHypercube(d=len(params), seed=seed).random(screen) if screen else None
     candidates = np.vstack(
-        [result.pareto_x[result.chosen][None], result.pareto_x, nominal[None]]
+        [result.pareto_x[result.chosen][None]]
+        + ([result.nsga_x[None]] if result.geometry_bias_removed else [])
+        + [result.pareto_x, nominal[None]]
         + ([lo + lhs * (hi - lo)] if lhs is not None else [])
     )
     # each distinct candidate once (the chosen point is also on the Pareto set), and the

@@ -23,6 +23,7 @@ from functools import partial
 import numpy as np
 
 from railsusp.estimate.forces import ForceModel
+from railsusp.estimate.geometry_bias import GEOMETRY_DRAWS, less_bias, simex_bias, simex_spread
 from railsusp.estimate.output_error import REFINE_STEP, OutputError
 from railsusp.estimate.problem import display_values
 from railsusp.estimate.residual_noise import PER_CHANNEL, noise_standard_errors
@@ -35,11 +36,6 @@ log = logging.getLogger("railsusp.estimate")
 
 #: the refinement's channel gains stay within 1 ± this (instrumented-wheelset calibration)
 GAIN_LIMIT = 0.1
-
-
-#: draws of track-geometry measurement error propagated into the refined estimate's
-#: uncertainty, where the recordings state their geometry's accuracy
-GEOMETRY_DRAWS = 8
 
 
 @dataclass
@@ -84,27 +80,20 @@ class Refinement:
         it is removed (kept within the ranges)."""
         if not self.geometry_bias_removed:
             return self.x_si
-        lo, hi = bounds(self.parameters)
-        return np.clip(self.x_si - self.geometry_bias_si, lo, hi)
+        return less_bias(self.parameters, self.x_si, self.geometry_shifts_si)
 
     @property
     def geometry_error_si(self) -> np.ndarray:
         """(k,) RMS shift of the estimate over the geometry-error draws, SI: the part of its
-        uncertainty that the track geometry's measurement error causes (zeros if none)."""
-        if self.geometry_shifts_si.size == 0:
-            return np.zeros(len(self.parameters))
-        return np.sqrt(np.mean(self.geometry_shifts_si**2, axis=0))
+        uncertainty that the track geometry's measurement error causes (zeros if none;
+        :func:`~railsusp.estimate.geometry_bias.simex_spread`)."""
+        return simex_spread(self.geometry_shifts_si, len(self.parameters))
 
     @property
     def geometry_bias_si(self) -> np.ndarray:
         """(k,) mean shift of the estimate over the geometry-error draws, SI: the first
-        SIMEX step (Cook & Stefanski, 1994). Doubling the error variance moves the estimate
-        by about the bias the error already caused, so the refined point less this
-        approximates the estimate on exact geometry (linear extrapolation in the error
-        variance; zeros if none)."""
-        if self.geometry_shifts_si.size == 0:
-            return np.zeros(len(self.parameters))
-        return self.geometry_shifts_si.mean(axis=0)
+        SIMEX step (:func:`~railsusp.estimate.geometry_bias.simex_bias`; zeros if none)."""
+        return simex_bias(self.geometry_shifts_si, len(self.parameters))
 
     @property
     def total_error_si(self) -> np.ndarray:

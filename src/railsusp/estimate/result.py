@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from railsusp.estimate.config import CHOICE_RULES, IDEAL_POINT, HeldPrior, NSGAConfig
+from railsusp.estimate.geometry_bias import less_bias, simex_bias, simex_spread
 from railsusp.estimate.intervals import LEVEL, PARETO, Intervals, from_pareto
 from railsusp.estimate.problem import display_values
 from railsusp.estimate.refine import Refinement
@@ -51,6 +52,13 @@ class CalibrationResult:
     #: the user's ranges of the parameters the refinement holds, for its intervals (None:
     #: each held one over its whole Table 2 range)
     held_prior: HeldPrior | None = None
+    #: (draws, k) shift of NSGA-II's choice, SI, that each draw of the recordings' stated
+    #: geometry error causes, with the model NSGA-II ran on (time-aligned forces only;
+    #: :func:`~railsusp.estimate.nsga_geometry.remove_nsga_geometry_bias`); empty if none
+    geometry_shifts_si: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    #: whether NSGA-II's estimate is its choice less the mean of those shifts (first SIMEX
+    #: step; the Pareto set moved with it)
+    geometry_bias_removed: bool = False
     #: intervals computed, by level and refinement (a refinement attached later recomputes)
     _intervals: dict = field(default_factory=dict, repr=False, compare=False)
 
@@ -65,7 +73,21 @@ class CalibrationResult:
         NSGA-II's choice (also when the refinement is a polish: :attr:`polished_x`)."""
         if self.refinement is not None and self.refined:
             return self.refinement.estimate_si
-        return self.pareto_x[self.chosen]
+        return self.nsga_x
+
+    @property
+    def nsga_x(self) -> np.ndarray:
+        """NSGA-II's estimate, SI: its choice on the front, less the geometry error's bias
+        where that is removed (:attr:`geometry_bias_removed`)."""
+        return self._less_bias(self.pareto_x[self.chosen])
+
+    def _less_bias(self, x_si: np.ndarray) -> np.ndarray:
+        """``x_si`` (one set or rows of them) less NSGA-II's geometry bias, if removed."""
+        if not self.geometry_bias_removed:
+            return x_si
+        return np.array(
+            [less_bias(self.parameters, x, self.geometry_shifts_si) for x in np.atleast_2d(x_si)]
+        ).reshape(np.shape(x_si))
 
     @property
     def polished_x(self) -> np.ndarray | None:
@@ -80,6 +102,8 @@ class CalibrationResult:
         aligned = ALIGNED in parse_statistics(self.config.statistic)
         on = "time-aligned forces on measured track" if aligned else "record statistics"
         text = f"NSGA-II against {on} ({self.config.statistic})"
+        if self.geometry_bias_removed:
+            text += ", less the track geometry error's bias (first SIMEX step)"
         if self.refinement is None:
             return text
         if self.refinement_is_polish:
@@ -102,7 +126,7 @@ class CalibrationResult:
                     self.refinement, level, prior=self.held_prior
                 )
             else:
-                got = from_pareto(self.parameters, self.pareto_x, self.chosen_x)
+                got = from_pareto(self.parameters, self._less_bias(self.pareto_x), self.chosen_x)
                 if self.cramer_rao:
                     got = Intervals(
                         got.method, got.level, got.items, {"cramer_rao_pct_range": self.cramer_rao}
@@ -125,8 +149,9 @@ class CalibrationResult:
         ps = self.pareto_spread()
         iv = self.intervals()
         shown = "Pareto range" if iv.method == PARETO else f"{100 * (iv.level or 0):g} % interval"
-        nsga = display_values(self.parameters, self.pareto_x[self.chosen])
+        nsga = display_values(self.parameters, self.nsga_x)
         refined = self.refinement.to_dict() if self.refinement else {}
+        geometry = self.nsga_geometry_pct_range()
         rows = []
         for k, (p, v) in enumerate(self.estimate.items()):
             row = {
@@ -146,10 +171,33 @@ class CalibrationResult:
                 row["standard_error_pct_range"] = refined["standard_error_pct_range"][p]
                 if refined["geometry_draws"]:
                     row["geometry_error_pct_range"] = refined["geometry_error_pct_range"][p]
+            if geometry and not self.refined:
+                row["nsga_choice"] = spec(p).to_display(self.pareto_x[self.chosen][k])
+                row["geometry_bias_pct_range"] = geometry["bias"][p]
+                row["geometry_scatter_pct_range"] = geometry["scatter"][p]
             if self.cramer_rao:
                 row["cramer_rao_pct_range"] = self.cramer_rao[p]
             rows.append(row)
         return pd.DataFrame(rows)
+
+    def nsga_geometry_pct_range(self) -> dict[str, dict[str, float]]:
+        """NSGA-II's geometry error in % of each range: ``bias`` (the mean shift, removed or
+        not) and ``scatter`` (the RMS shift); empty without draws."""
+        if self.geometry_shifts_si.size == 0:
+            return {}
+        lo, hi = bounds(self.parameters)
+        k = len(self.parameters)
+        parts = {
+            "bias": simex_bias(self.geometry_shifts_si, k),
+            "scatter": simex_spread(self.geometry_shifts_si, k),
+        }
+        return {
+            name: {
+                p: float(100 * v / (h - low))
+                for p, v, low, h in zip(self.parameters, vals, lo, hi, strict=True)
+            }
+            for name, vals in parts.items()
+        }
 
     def save(self, out: str | Path, extra: dict | None = None) -> Path:
         """Write the log, the Table 5 layout, the JSON record (with ``extra`` provenance such
@@ -178,9 +226,13 @@ class CalibrationResult:
                 "polished_display": None
                 if self.polished_x is None
                 else display_values(self.parameters, self.polished_x),
-                "nsga_estimate_display": display_values(
-                    self.parameters, self.pareto_x[self.chosen]
-                ),
+                "nsga_estimate_display": display_values(self.parameters, self.nsga_x),
+                "nsga_choice_display": display_values(self.parameters, self.pareto_x[self.chosen]),
+                "nsga_geometry": {
+                    "draws": int(self.geometry_shifts_si.shape[0]),
+                    "bias_removed": self.geometry_bias_removed,
+                    **{f"{n}_pct_range": v for n, v in self.nsga_geometry_pct_range().items()},
+                },
                 "refinement": self.refinement.to_dict() if self.refinement else None,
                 "cramer_rao_pct_range": self.cramer_rao,
                 "intervals": self.intervals().to_dict(),
