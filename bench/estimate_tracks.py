@@ -289,12 +289,8 @@ def overall(sets: list[dict], parameters: Sequence[str]) -> dict:
     n_ident = sum(len(s["identifiable"]) for s in sets)
     n_hit = sum(len(s["identifiable_within"]) for s in sets)
     share = n_hit / n_ident if n_ident else None
-    # NSGA-II's choice itself, before the geometry bias is taken off (sets of old files: the
-    # choice was the estimate)
-    n_choice = sum(
-        len([p for p in s["identifiable"] if p in s.get("choice_within", s["within_pct"])])
-        for s in sets
-    )
+    # NSGA-II's choice itself, before the geometry bias is taken off
+    n_choice = sum(len([p for p in s["identifiable"] if p in s["choice_within"]]) for s in sets)
     seconds = float(np.mean([s["seconds"] for s in sets]))
     return {
         "sets": len(sets),

@@ -11,7 +11,7 @@ from conftest import bench_script
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate import SurrogateForces
-from railsusp.params import MAIN_SUSPENSION, bounds
+from railsusp.params import MAIN_SUSPENSION, bounds, spec
 from test_estimate_aligned import KEYS, tiny_surrogate
 
 
@@ -65,6 +65,17 @@ def test_tiny_run_writes_its_json_and_resumes_per_set(bench, tmp_path):
     assert 0 < s0["predict_cpu_seconds_per_generation"]
     assert s0["truth_display"].keys() == set(MAIN_SUSPENSION)
     assert doc["overall"]["sets"] == 1
+    # the geometry's 0.5 mm error drawn (8 by default): the estimate is the choice less the
+    # bias of the parameters the draws do not throw by more than half the range; both scored
+    assert set(s0["geometry_bias_pct_range"]) == set(KEYS)
+    for p in KEYS:
+        moved = s0["error_pct_range"][p] - s0["choice_error_pct_range"][p]
+        at_bound = s0["estimate_display"][p] in spec(p).bounds_display
+        if s0["geometry_scatter_pct_range"][p] > 50.0:
+            assert moved == 0.0
+        elif not at_bound:
+            assert moved == pytest.approx(-s0["geometry_bias_pct_range"][p], abs=1e-6)
+    assert 0 <= doc["overall"]["identifiable_choice_within"] <= doc["overall"]["identifiable"]
     # resumed: set 0 kept as it was, set 1 added
     second = bench.main(argv)
     assert [s["set"] for s in second["per_set"]] == [0, 1]

@@ -182,3 +182,15 @@ def test_the_answer_says_why_the_set_s_other_parameters_are_not_estimated(pretra
     note = "not an input of the force model (varied in its training)"
     assert table.loc["X17"].note == note and table.loc["X15"].note == note
     assert table.loc["X17"].verdict.startswith(summary.NOT_ESTIMATED + ": varied over")
+
+
+def test_a_time_aligned_run_estimates_again_for_the_geometry_bias(tmp_path):
+    """Runs on time-aligned forces hash their estimate stage with NSGA-II's geometry route
+    (since the choice gets the geometry error's bias taken off, such a run estimates again);
+    runs on record statistics hash as before."""
+    aligned = load_config(config(tmp_path))
+    assert _section(aligned, "estimate")["nsga_geometry"] == "first SIMEX step"
+    means = load_config(config(tmp_path, stat="mean"))
+    section = _section(means, "estimate")
+    assert "nsga_geometry" not in section
+    assert section == means.estimate.model_dump(exclude={"held_prior"})

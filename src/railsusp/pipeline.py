@@ -139,14 +139,23 @@ def _section(config: PipelineConfig, stage: str) -> Any:
         "sensitivity": config.sensitivity.model_dump(),
         "surrogate": _surrogate_section(config),
         "field": {**base, **config.field.model_dump()},
-        # without a held_prior the section hashes as before it existed (runs stay up to date)
-        "estimate": config.estimate.model_dump(
-            exclude=None if config.estimate.held_prior else {"held_prior"}
-        ),
+        "estimate": _estimate_section(config),
         "validate": {},
         "report": {"name": config.name},
     }
     return sections[stage]
+
+
+def _estimate_section(config: PipelineConfig) -> dict:
+    """The estimate stage's inputs: its settings (without a held_prior the section hashes as
+    before it existed, so runs stay up to date); on time-aligned forces also the route of
+    NSGA-II's estimate, which since 2026-11-28 takes the geometry error's bias off its
+    choice where the recordings state their accuracy, so that such a run estimates again."""
+    e = config.estimate
+    section = e.model_dump(exclude=None if e.held_prior else {"held_prior"})
+    if e.statistic == "aligned":
+        section["nsga_geometry"] = "first SIMEX step"
+    return section
 
 
 def _surrogate_section(config: PipelineConfig) -> dict:
@@ -274,16 +283,17 @@ def _stage_runners(
 
     def estimate() -> dict:
         from railsusp.estimate import (
-            ALIGNED,
             NSGAConfig,
             check_refinable,
             estimate_with_seeds,
             open_force_model,
-            parse_statistics,
             refine_estimate,
         )
         from railsusp.estimate.config import HeldPrior
-        from railsusp.estimate.nsga_geometry import remove_nsga_geometry_bias
+        from railsusp.estimate.nsga_geometry import (
+            remove_nsga_geometry_bias,
+            takes_geometry_bias,
+        )
         from railsusp.measured import read_field
         from railsusp.surrogate import key_parameters, not_estimated
 
@@ -305,7 +315,7 @@ def _stage_runners(
         if e.refine:  # before NSGA-II runs
             check_refinable(recs, "estimate.refine")
         res = estimate_with_seeds(model, recs, params, cfg, e.seeds)
-        if ALIGNED in parse_statistics(cfg.statistic):
+        if takes_geometry_bias(cfg.statistic, e.geometry_draws, recs):
             remove_nsga_geometry_bias(
                 res, recs, model, e.geometry_draws, e.seed, e.remove_geometry_bias
             )

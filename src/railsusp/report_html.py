@@ -298,7 +298,7 @@ def _estimate_section(doc: Doc, est: Path) -> None:
     ref = info.get("refinement")
     if ref and info.get("polished_display"):
         doc.p(
-            "The estimate is NSGA-II's choice on the surrogate against the recordings' "
+            "The estimate is NSGA-II's on the surrogate against the recordings' "
             "time-aligned forces on their measured track ("
             + info.get("choice_rule", "")
             + "); the study's method gives it without the simulator. Beside it, as a polish, "
@@ -347,9 +347,16 @@ def _estimate_section(doc: Doc, est: Path) -> None:
             "fit on forces computed from erroneous geometry is biased (errors in variables). "
             + (
                 "NSGA-II's estimate is its choice less that mean (the first SIMEX step); the "
-                "choice itself is shown beside it."
+                "choice itself is shown beside it"
+                + (
+                    f", and {', '.join(geometry['bias_kept'])} keep the choice: the draws move "
+                    "them by more than half their range, so the forces do not fix them."
+                    if geometry.get("bias_kept")
+                    else "."
+                )
                 if geometry.get("bias_removed")
-                else "The bias was kept in the estimate (remove_geometry_bias = false)."
+                else "The bias was kept in the estimate (remove_geometry_bias = false, "
+                "--keep-geometry-bias)."
             )
         )
     if info.get("cramer_rao_pct_range"):

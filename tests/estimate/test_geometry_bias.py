@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from railsusp.estimate import NSGAConfig, estimate
-from railsusp.estimate.geometry_bias import less_bias, simex_bias, simex_spread
+from railsusp.estimate.geometry_bias import MAX_SCATTER, less_bias, simex_bias, simex_spread
 from railsusp.estimate.nsga_geometry import remove_nsga_geometry_bias
 from railsusp.measured import Recording
 from railsusp.params import bounds
@@ -75,8 +75,8 @@ def test_the_bias_of_an_attenuated_estimate_is_taken_off(long_record, tmp_path):
     corrected = pct(res.chosen_x)
     assert np.all(np.abs(corrected) < 0.5 * np.abs(raw)), (raw, corrected)
     np.testing.assert_array_equal(res.pareto_x[res.chosen], choice)  # the choice is kept
-    np.testing.assert_allclose(res.nsga_x, np.clip(choice - bias, LO, HI))
-    np.testing.assert_allclose(res.chosen_x, res.nsga_x)
+    np.testing.assert_allclose(res.chosen_x, choice - bias)
+    assert res.bias_kept() == []
     # the Pareto set's range moves with the estimate and still holds it
     iv = res.intervals()
     moved = res.pareto_x - bias
@@ -100,6 +100,17 @@ def test_the_bias_of_an_attenuated_estimate_is_taken_off(long_record, tmp_path):
     geometry = saved["nsga_geometry"]
     assert geometry["draws"] == 8 and geometry["bias_removed"]
     assert geometry["bias_pct_range"]["X13"] == pytest.approx(100 * bias[0] / (HI - LO)[0])
+
+
+def test_intervals_computed_before_the_draws_are_not_reused_after(long_record):
+    rec = long_record["measured"]
+    res = nsga(rec)
+    before = res.intervals()
+    remove_nsga_geometry_bias(res, [rec], TrackForces(), draws=2, seed=3)
+    after = res.intervals()
+    assert after is not before
+    assert after["X13"].value_si == pytest.approx(res.chosen_x[0])
+    assert before["X13"].value_si == pytest.approx(res.pareto_x[res.chosen][0])
 
 
 def test_kept_bias_is_reported_but_not_taken_off(long_record):
@@ -137,6 +148,14 @@ def test_record_statistics_are_refused(long_record):
     )
     with pytest.raises(ValueError, match="NSGA-II compared 'mean'"):
         remove_nsga_geometry_bias(res, [long_record["measured"]], TrackForces())
+    both = estimate(
+        TrackForces(),
+        [long_record["measured"]],
+        PARAMS,
+        NSGAConfig(pop_size=8, n_gen=2, statistic="aligned+std"),
+    )
+    with pytest.raises(ValueError, match="alone"):
+        remove_nsga_geometry_bias(both, [long_record["measured"]], TrackForces())
 
 
 def test_simex_arithmetic():
@@ -146,9 +165,18 @@ def test_simex_arithmetic():
     np.testing.assert_array_equal(simex_bias(np.zeros((0, 0)), 2), [0.0, 0.0])
     np.testing.assert_array_equal(simex_spread(np.zeros((0, 0)), 2), [0.0, 0.0])
     # kept within the ranges: a bias past a bound stops at it
+    span = HI - LO
     x = np.array([LO[0] + 1.0, HI[1] - 1.0])
-    big = np.array([[1e9, -1e9]])
-    np.testing.assert_array_equal(less_bias(PARAMS, x, big), [LO[0], HI[1]])
+    far = np.array([[0.4, -0.4], [0.4, -0.4]]) * span
+    np.testing.assert_array_equal(less_bias(PARAMS, x, far), [LO[0], HI[1]])
+    # rows of sets at once, each less the same bias
+    rows = np.stack([LO + 0.5 * span, LO + 0.6 * span])
+    np.testing.assert_allclose(less_bias(PARAMS, rows, shifts), rows - [2.0, -3.0])
+    # a parameter the draws throw by more than MAX_SCATTER of its range keeps its value
+    wild = np.array([[0.1, 0.1], [0.1, 1.5]]) * span
+    assert simex_spread(wild, 2)[1] > MAX_SCATTER * span[1]
+    mid = LO + 0.5 * span
+    np.testing.assert_allclose(less_bias(PARAMS, mid, wild), [mid[0] - 0.1 * span[0], mid[1]])
 
 
 def test_the_refinement_screens_nsga_ii_s_estimate_beside_its_choice(long_record):

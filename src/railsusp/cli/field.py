@@ -211,7 +211,6 @@ def estimate(
 ) -> None:
     """NSGA-II estimate of the key parameters from measured recordings (Tables 3-5, Figs 8-9)."""
     from railsusp.estimate import (
-        ALIGNED,
         NSGAConfig,
         SimulatorForces,
         check_refinable,
@@ -221,8 +220,7 @@ def estimate(
         refine_estimate,
     )
     from railsusp.estimate.config import NSGA_RANGES, REFINE_RANGES, SEEDS_RANGE, check_range
-    from railsusp.estimate.geometry_bias import stated_accuracy
-    from railsusp.estimate.nsga_geometry import remove_nsga_geometry_bias
+    from railsusp.estimate.nsga_geometry import remove_nsga_geometry_bias, takes_geometry_bias
     from railsusp.measured import read_field
     from railsusp.surrogate import not_estimated
 
@@ -270,7 +268,7 @@ def estimate(
             model = SimulatorForces(params)
         with console.status(f"NSGA-II {pop_size} x {n_gen} on {len(recs)} recording(s)"):
             res = estimate_with_seeds(model, recs, params, cfg, n_seeds=seeds)
-        if ALIGNED in parse_statistics(statistic) and geometry_draws and stated_accuracy(recs):
+        if takes_geometry_bias(statistic, geometry_draws, recs):
             with console.status(f"{geometry_draws} draws of the track geometry's error"):
                 remove_nsga_geometry_bias(
                     res, recs, model, geometry_draws, seed, remove_geometry_bias

@@ -23,7 +23,13 @@ from functools import partial
 import numpy as np
 
 from railsusp.estimate.forces import ForceModel
-from railsusp.estimate.geometry_bias import GEOMETRY_DRAWS, less_bias, simex_bias, simex_spread
+from railsusp.estimate.geometry_bias import (
+    GEOMETRY_DRAWS,
+    less_bias,
+    removable,
+    simex_bias,
+    simex_spread,
+)
 from railsusp.estimate.output_error import REFINE_STEP, OutputError
 from railsusp.estimate.problem import display_values
 from railsusp.estimate.residual_noise import PER_CHANNEL, noise_standard_errors
@@ -125,6 +131,15 @@ class Refinement:
             "noise_standard_error_method": PER_CHANNEL,
             "geometry_error_pct_range": pct(self.geometry_error_si),
             "geometry_bias_pct_range": pct(self.geometry_bias_si),
+            "geometry_bias_kept": [
+                p
+                for p, able in zip(
+                    self.parameters,
+                    removable(self.parameters, self.geometry_shifts_si),
+                    strict=True,
+                )
+                if self.geometry_bias_removed and not able
+            ],
             "geometry_draws": int(self.geometry_shifts_si.shape[0]),
             "channel_gains": self.channel_gains,
             "screened_starts": self.screened,

@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from railsusp.estimate.config import CHOICE_RULES, IDEAL_POINT, HeldPrior, NSGAConfig
-from railsusp.estimate.geometry_bias import less_bias, simex_bias, simex_spread
+from railsusp.estimate.geometry_bias import less_bias, removable, simex_bias, simex_spread
 from railsusp.estimate.intervals import LEVEL, PARETO, Intervals, from_pareto
 from railsusp.estimate.problem import display_values
 from railsusp.estimate.refine import Refinement
@@ -57,7 +57,7 @@ class CalibrationResult:
     #: :func:`~railsusp.estimate.nsga_geometry.remove_nsga_geometry_bias`); empty if none
     geometry_shifts_si: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     #: whether NSGA-II's estimate is its choice less the mean of those shifts (first SIMEX
-    #: step; the Pareto set moved with it)
+    #: step; its Pareto range, the interval, moves with it; ``pareto_x`` stays NSGA-II's)
     geometry_bias_removed: bool = False
     #: intervals computed, by level and refinement (a refinement attached later recomputes)
     _intervals: dict = field(default_factory=dict, repr=False, compare=False)
@@ -70,7 +70,7 @@ class CalibrationResult:
     @property
     def chosen_x(self) -> np.ndarray:
         """The estimate, SI: the refined one when the refinement makes the estimate, else
-        NSGA-II's choice (also when the refinement is a polish: :attr:`polished_x`)."""
+        NSGA-II's (:attr:`nsga_x`; also when the refinement is a polish: :attr:`polished_x`)."""
         if self.refinement is not None and self.refined:
             return self.refinement.estimate_si
         return self.nsga_x
@@ -85,9 +85,7 @@ class CalibrationResult:
         """``x_si`` (one set or rows of them) less NSGA-II's geometry bias, if removed."""
         if not self.geometry_bias_removed:
             return x_si
-        return np.array(
-            [less_bias(self.parameters, x, self.geometry_shifts_si) for x in np.atleast_2d(x_si)]
-        ).reshape(np.shape(x_si))
+        return less_bias(self.parameters, x_si, self.geometry_shifts_si)
 
     @property
     def polished_x(self) -> np.ndarray | None:
@@ -119,7 +117,14 @@ class CalibrationResult:
         """Per-parameter intervals of the estimate: the refinement's ``level`` confidence
         intervals when refined (computed once; with the simulator this includes one batch of
         simulations for the parameters held at nominal), else the Pareto set's range."""
-        key = (level, id(self.refinement), self.refinement_is_polish, id(self.held_prior))
+        key = (
+            level,
+            id(self.refinement),
+            self.refinement_is_polish,
+            id(self.held_prior),
+            self.geometry_bias_removed,
+            id(self.geometry_shifts_si),
+        )
         if key not in self._intervals:
             if self.refinement is not None and self.refined:
                 self._intervals[key] = refinement_intervals(
@@ -136,12 +141,7 @@ class CalibrationResult:
 
     def pareto_spread(self) -> dict[str, float]:
         """Spread (max - min) of each parameter over the Pareto set, in % of its range."""
-        lo, hi = bounds(self.parameters)
-        span = self.pareto_x.max(axis=0) - self.pareto_x.min(axis=0)
-        return {
-            p: float(100 * s / (h - low))
-            for p, s, low, h in zip(self.parameters, span, lo, hi, strict=True)
-        }
+        return self._pct_range(self.pareto_x.max(axis=0) - self.pareto_x.min(axis=0))
 
     def table(self) -> pd.DataFrame:
         """The study's Table 5 layout: initial (nominal) and estimated value, display units,
@@ -185,18 +185,27 @@ class CalibrationResult:
         not) and ``scatter`` (the RMS shift); empty without draws."""
         if self.geometry_shifts_si.size == 0:
             return {}
-        lo, hi = bounds(self.parameters)
         k = len(self.parameters)
-        parts = {
-            "bias": simex_bias(self.geometry_shifts_si, k),
-            "scatter": simex_spread(self.geometry_shifts_si, k),
-        }
         return {
-            name: {
-                p: float(100 * v / (h - low))
-                for p, v, low, h in zip(self.parameters, vals, lo, hi, strict=True)
-            }
-            for name, vals in parts.items()
+            "bias": self._pct_range(simex_bias(self.geometry_shifts_si, k)),
+            "scatter": self._pct_range(simex_spread(self.geometry_shifts_si, k)),
+        }
+
+    def bias_kept(self) -> list[str]:
+        """The parameters whose geometry bias is not taken off although it is removed: their
+        draws move them by more than half their range
+        (:func:`~railsusp.estimate.geometry_bias.removable`)."""
+        if not self.geometry_bias_removed:
+            return []
+        able = removable(self.parameters, self.geometry_shifts_si)
+        return [p for p, a in zip(self.parameters, able, strict=True) if not a]
+
+    def _pct_range(self, values_si: np.ndarray) -> dict[str, float]:
+        """Per parameter, ``values_si`` in % of its range."""
+        lo, hi = bounds(self.parameters)
+        return {
+            p: float(100 * v / (h - low))
+            for p, v, low, h in zip(self.parameters, values_si, lo, hi, strict=True)
         }
 
     def save(self, out: str | Path, extra: dict | None = None) -> Path:
@@ -231,6 +240,7 @@ class CalibrationResult:
                 "nsga_geometry": {
                     "draws": int(self.geometry_shifts_si.shape[0]),
                     "bias_removed": self.geometry_bias_removed,
+                    "bias_kept": self.bias_kept(),
                     **{f"{n}_pct_range": v for n, v in self.nsga_geometry_pct_range().items()},
                 },
                 "refinement": self.refinement.to_dict() if self.refinement else None,
