@@ -38,10 +38,10 @@ import numpy as np
 from scipy.linalg import eig
 from scipy.optimize import least_squares
 
-import railsusp.vehicle.kernel_cache  # noqa: F401  (before any kernel is compiled)
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet
 from railsusp.vehicle import layout as L
+from railsusp.vehicle.kernel_cache import FASTMATH  # (sets the kernel cache before any compiles)
 from railsusp.vehicle.model import rhs
 from railsusp.vehicle.modes import (
     DOF_NAMES,
@@ -78,7 +78,7 @@ FREQUENCY_BAND = 0.05
 
 
 # ---------------------------------------------------------------- integration
-@nb.njit(cache=True)
+@nb.njit(cache=True, fastmath=FASTMATH)
 def run_states(x, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, dt, n_steps, every, idx, out):
     """Integrate from state x (changed in place) for n_steps RK4 steps of dt, the leading
     wheelset at s = V t; every ``every`` steps store x[idx] in the next row of ``out``

@@ -12,8 +12,8 @@ import math
 import numba as nb
 import numpy as np
 
-import railsusp.vehicle.kernel_cache  # noqa: F401  (before any kernel is compiled)
 from railsusp.vehicle import layout as L
+from railsusp.vehicle.kernel_cache import FASTMATH  # (sets the kernel cache before any compiles)
 from railsusp.vehicle.model import rhs
 
 NQ = L.N_DOF
@@ -23,7 +23,7 @@ I_V = L.K["V"]
 I_SPLIT_SPEED = L.K["flange_split_speed"]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, fastmath=FASTMATH)
 def _rk4_finish(x, ks, xt, h, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s, V, o_dummy):
     """Stages 2-4 of one RK4 step of length h from x at track position s (stage 1 already
     in ks[0]) and the update of x. Returns a failure code (0 ok)."""
@@ -43,7 +43,7 @@ def _rk4_finish(x, ks, xt, h, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s, V, o
     return 0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, fastmath=FASTMATH)
 def _run_one(
     x, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, dt, s_init, n_pre, n_sub, n_out, sos,
     out_series, n_fine,
@@ -111,7 +111,7 @@ def _run_one(
     return L.OK, n_total * dt
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, fastmath=FASTMATH, parallel=True)
 def integrate_batch(
     P, K, X0, tracks, track_index, s0, ds, ctab, y0, dy, H0L, H0R, dt, s_init, n_pre, n_sub,
     n_out, sos, n_fine, out, status, fail_time,

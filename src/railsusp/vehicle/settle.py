@@ -32,10 +32,10 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-import railsusp.vehicle.kernel_cache  # noqa: F401  (before any kernel is compiled)
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.vehicle import layout as L
+from railsusp.vehicle.kernel_cache import FASTMATH  # (sets the kernel cache before any compiles)
 from railsusp.vehicle.model import rhs
 from railsusp.vehicle.operating_point import dof_inertia
 from railsusp.vehicle.setup import ContactArrays, SolverSettings, axle_spread
@@ -142,7 +142,7 @@ def start_plan(
 
 
 # ---------------------------------------------------------------- steady state
-@nb.njit(cache=True)
+@nb.njit(cache=True, fastmath=FASTMATH)
 def _slip(x, kappa, K, out):
     """Relative displacements whose rates are the friction sliders' velocities in the
     equations of motion, per friction state (order of the states from AUX_WEDGE): per nest
@@ -173,7 +173,7 @@ def _slip(x, kappa, K, out):
         out[L.N_WEDGE_AUX + 2 + k] = x[ib + 2] - x[L.CB_ROLL]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, fastmath=FASTMATH)
 def _stick_stiffness(i, K):
     """Stick stiffness of friction state ``i`` (from AUX_WEDGE): each wedge's column slider
     has half the nest's, the slope slider the nest's, then the yaw and roll sliders'."""
@@ -182,7 +182,7 @@ def _stick_stiffness(i, K):
     return K[I_KYAW] if i < L.N_WEDGE_AUX + 2 else K[I_KROLL]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, fastmath=FASTMATH)
 def _residual(x, f, r, m, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, kappa, fref, uref):
     """Generalised forces m * acceleration of the displacements of x into r, the friction
     states following them as sticking sliders do: reference force plus stick stiffness
@@ -212,7 +212,7 @@ def _residual(x, f, r, m, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, ka
     return 0, worst
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, fastmath=FASTMATH)
 def _newton(
     x, m, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, kappa, fref, uref, tol, max_iter
 ):
@@ -276,7 +276,7 @@ def _newton(
     return norm < tol, norm
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, fastmath=FASTMATH)
 def _settle_one(x, m, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, kappa, tol, max_iter):
     """Steady state by continuation in the design track's curvature and cant, as a slow
     entry spiral brings it about: from the static start on straight track (displacements and
@@ -304,7 +304,7 @@ def _settle_one(x, m, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, kappa,
     return True, norm
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, fastmath=FASTMATH, parallel=True)
 def _settle_batch(
     X, M, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, kappa, tol, max_iter, ok, res
 ):

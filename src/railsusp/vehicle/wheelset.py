@@ -11,17 +11,17 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-import railsusp.vehicle.kernel_cache  # noqa: F401  (before any kernel is compiled)
 from railsusp.conditions import WorkingCondition
 from railsusp.params import ParameterSet
 from railsusp.vehicle import layout as L
+from railsusp.vehicle.kernel_cache import FASTMATH  # (sets the kernel cache before any compiles)
 from railsusp.vehicle.wagon import WagonData, load_wagon
 from railsusp.vehicle.wheel_rail import wheel_rail_forces
 
 I_Z0L, I_Z0R, I_R0, I_V = L.K["Z0_L"], L.K["Z0_R"], L.K["r0"], L.K["V"]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, fastmath=FASTMATH)
 def _wheelset_rhs(x, dxdt, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R):
     q = x[:4]
     v = x[4:]
@@ -51,7 +51,7 @@ def _wheelset_rhs(x, dxdt, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R):
     return 0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, fastmath=FASTMATH)
 def _integrate(x, n, dt, m, Ix, Iz, Iy, axle_load, K, ctab, y0, dy, H0L, H0R, out):
     k1 = np.empty(8)
     k2 = np.empty(8)
