@@ -558,6 +558,19 @@ def main() -> None:
     ap.add_argument("--chunks-per-batch", type=int, default=32, help="cnn-gru-seq: chunks")
     ap.add_argument("--device", default="cpu", help="training device: cpu, cuda or auto")
     ap.add_argument(
+        "--max-minutes",
+        type=float,
+        help="wall-clock budget of each network's training, min (the main phase stops after "
+        "its share by epochs, the fine-tune phase after the rest; default: the epoch limits)",
+    )
+    ap.add_argument(
+        "--prepare-only",
+        action="store_true",
+        help="make the campaign (with --nominal its nominal twins of the conditions trained, "
+        "with --pair-weight > 0 their perturbed twins too) and stop: trainings of several "
+        "networks may then share it concurrently",
+    )
+    ap.add_argument(
         "--variant-window", type=int, default=0, help="also a CNN-GRU with these windows (0: no)"
     )
     ap.add_argument("--variant-conditions", help="conditions of the variant (default: all)")
@@ -657,9 +670,10 @@ def main() -> None:
             chunk_steps=args.chunk_steps,
             chunks_per_batch=args.chunks_per_batch,
             pair_weight=args.pair_weight,
+            max_seconds=None if args.max_minutes is None else 60.0 * args.max_minutes,
         )
     except RailsuspInputError as exc:
-        ap.error(str(exc))
+        ap.error(str(exc).replace("training max_seconds", "--max-minutes (in s)"))
     seconds: dict[str, float] = {}
     state: dict = {"t": None, "m": None}
 
@@ -733,6 +747,16 @@ def main() -> None:
     run_campaign(cfg, args.run)
     campaign_s = time.perf_counter() - t0
     print(f"  {campaign_s:.0f} s (resumed runs cost nothing)", flush=True)
+    if args.prepare_only:
+        if args.nominal:
+            run_nominal_twins(args.run, conditions=trained)
+            print(f"  nominal twins of {', '.join(trained)}: {time.perf_counter() - t0:.0f} s")
+        if args.pair_weight > 0:
+            run_perturbed_twins(
+                args.run, step=args.pair_step, per_sample=args.pair_twins, conditions=trained
+            )
+            print(f"  perturbed twins: {time.perf_counter() - t0:.0f} s")
+        return
     table = table_on_tracks(
         args.run,
         models=models,

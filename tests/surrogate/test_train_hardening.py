@@ -29,7 +29,7 @@ def _data(n: int, seed: int) -> SeriesData:
     )
 
 
-def _train(epochs: int, checkpoint=None, kind: str = "cnn-gru") -> tuple[dict, list]:
+def _train(epochs: int, checkpoint=None, kind: str = "cnn-gru", **settings) -> tuple[dict, list]:
     train, val = _data(6, 0), _data(3, 1)
     norm = Normaliser.fit(train)
     cfg = NetConfig(
@@ -43,7 +43,9 @@ def _train(epochs: int, checkpoint=None, kind: str = "cnn-gru") -> tuple[dict, l
     )
     torch.manual_seed(np.random.default_rng().integers(1000))  # the global state must not count
     net = build_network(cfg)
-    tcfg = TrainConfig(epochs=epochs, batches_per_epoch=3, batch_size=16, val_windows=50, seed=3)
+    tcfg = TrainConfig(
+        epochs=epochs, batches_per_epoch=3, batch_size=16, val_windows=50, seed=3, **settings
+    )
     hist = train_network(
         net,
         WindowSampler(train, norm, SPEC.window),
@@ -107,8 +109,25 @@ def test_a_crafted_pickle_checkpoint_is_refused_and_runs_no_code(tmp_path):
         ("batches_per_epoch", -1, "batches_per_epoch = -1"),
         ("device", "tpu", "device 'tpu': accepted cpu, cuda, auto"),
         ("learning_rate", float("nan"), "learning_rate = nan"),
+        ("max_seconds", 0, "max_seconds = 0: accepted a number of seconds > 0"),
+        ("max_seconds", True, "max_seconds = True"),
     ],
 )
 def test_training_settings_that_would_train_nothing_are_refused(field, value, message):
     with pytest.raises(RailsuspInputError, match=message):
         TrainConfig(**{field: value})
+
+
+def test_a_wall_clock_budget_stops_each_phase_and_keeps_the_checkpoint_resumable(tmp_path):
+    """``max_seconds`` ends the main phase after its share and the fine-tune phase after the
+    rest (an exhausted budget leaves the training's first epoch only); it is
+    not part of the checkpoint's key, so a training stopped by its budget resumes under
+    another budget into the same result as one run without any."""
+    ck = tmp_path / "checkpoint.pt"
+    _, h = _train(6, ck, fine_tune_epochs=2, max_seconds=1e-9)
+    assert [e["phase"] for e in h] == ["main"]  # the first epoch always, no other
+    resumed, h_res = _train(6, ck, fine_tune_epochs=2, max_seconds=3600.0)
+    whole, h_whole = _train(6, fine_tune_epochs=2)
+    assert [e["phase"] for e in h_res] == ["main"] * 6 + ["fine-tune"] * 2
+    assert [e["val_loss"] for e in h_res] == [e["val_loss"] for e in h_whole]
+    assert _same(resumed, whole)

@@ -7,7 +7,12 @@ import railsusp.vehicle.integrate as integrate
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet
-from railsusp.vehicle.simulate import SolverSettings, simulate_batch, simulate_conditions
+from railsusp.vehicle.simulate import (
+    SolverSettings,
+    simulate_batch,
+    simulate_conditions,
+    simulate_requests,
+)
 
 SHORT = {"duration_s": 2.0, "n_steps": 100, "lead_in_m": 40.0}
 SETS = np.array(
@@ -79,6 +84,30 @@ def test_a_settled_and_a_lead_in_start_run_in_their_own_calls(calls):
     assert together[0].settled_start.all() and not together[1].settled_start.any()
     for a, c in zip(together, conds, strict=True):
         _same(a, simulate_batch(SETS, c, settings=settings))
+
+
+def test_requests_of_their_own_sets_layouts_and_seeds_share_one_call(calls):
+    """Two curves of another radius and cant, each with its own sets (over a subset of the
+    parameters) and seeds, as a many-track campaign batch asks: one call of 3 sets, and
+    each request's series bit for bit its own simulate_batch."""
+    a = get_condition("curve", curve_radius_m=280.0, cant_mm=40.0, **SHORT)
+    b = get_condition("curve", curve_radius_m=390.0, cant_mm=110.0, **SHORT)
+    symbols = ("X14", "X18")
+    xa, xb = np.array([[7.0e6, 45e3], [9.0e6, 55e3]]), np.array([[8.0e6, 50e3]])
+    together = simulate_requests([(xa, a, [5, 6]), (xb, b, [7])], symbols=symbols)
+    assert calls == [3]
+    alone = [
+        simulate_batch(xa, a, symbols=symbols, seeds=[5, 6]),
+        simulate_batch(xb, b, symbols=symbols, seeds=[7]),
+    ]
+    for t, s in zip(together, alone, strict=True):
+        _same(t, s)
+        assert t.ok.all()
+    np.testing.assert_array_equal(together[1].params[0, :], alone[1].params[0, :])
+    # the layouts differ, so a mix-up of tracks or constants would show
+    assert np.abs(together[1].Y[0, 1].mean() - together[0].Y[0, 1].mean()) > 1e3
+    with pytest.raises(RailsuspInputError, match="requests: none given"):
+        simulate_requests([])
 
 
 def test_progress_counts_the_sets_of_every_condition():

@@ -33,7 +33,7 @@ from railsusp.store import (
 from railsusp.variation import (
     layout_groups,
 )
-from railsusp.vehicle.simulate import WHEEL_NAMES, simulate_batch
+from railsusp.vehicle.simulate import WHEEL_NAMES, simulate_requests
 
 
 def simulate_task(
@@ -45,8 +45,10 @@ def simulate_task(
 ) -> dict[str, Any]:
     """Simulate one batch (runs on a Dask worker or locally); returns series and features.
 
-    With a track family, samples that share FRA class, radius and cant are simulated
-    together (one batched call per layout), each on its own seed."""
+    With a track family, each layout (FRA class, radius and cant) is a request of its own
+    and every sample runs on its own seed; the requests share the integrator's parallel calls
+    (:func:`~railsusp.vehicle.simulate.simulate_requests`), so a curve batch whose samples
+    each have their own radius and cant keeps every core busy."""
     config = CampaignConfig.model_validate_json(config_json)
     cond = config.conditions[condition_index]
     if config.track_family is None:
@@ -57,15 +59,16 @@ def simulate_task(
     series = np.zeros((len(sample_ids), len(CHANNELS), cond.n_steps), dtype=np.float32)
     status = np.zeros(len(sample_ids), dtype=np.int64)
     features = []
-    for gcond, idx in groups:
-        r = simulate_batch(
-            x[idx],
-            gcond,
-            symbols=config.simulated_parameters,
-            seeds=None if seeds is None else [int(s) for s in seeds[idx]],
-            wagon=config.wagon,
-            settings=config.settings(),
-        )
+    results = simulate_requests(  # every layout in as few parallel calls as they allow
+        [
+            (x[idx], gcond, None if seeds is None else [int(s) for s in seeds[idx]])
+            for gcond, idx in groups
+        ],
+        symbols=config.simulated_parameters,
+        wagon=config.wagon,
+        settings=config.settings(),
+    )
+    for (_, idx), r in zip(groups, results, strict=True):
         series[idx] = np.concatenate([r.Y, r.Q, r.car_acc_y[:, None], r.car_acc_z[:, None]], axis=1)
         status[idx] = r.status
         features.append(features_table(r, sample_ids[idx], config.wheel, cond.name))

@@ -62,6 +62,12 @@ class TrainConfig:
     #: the sequence CNN-GRU only: weight of the pair term of gradient-enhanced training on
     #: the campaign's perturbed twins (:mod:`.pairs`); 0 trains on the forces alone
     pair_weight: float = 0.0
+    #: wall-clock budget of the whole training, s (None: the epoch limits alone). The main
+    #: phase stops starting epochs after its share, ``epochs / (epochs + fine_tune_epochs)``
+    #: of it, the fine-tune phase after the rest (the training's first epoch always runs);
+    #: the best state is kept as always. For a
+    #: training on a lent machine whose time is fixed (bench/README.md, "Trained on a GPU").
+    max_seconds: float | None = None
 
     def __post_init__(self) -> None:
         """Refuse settings that would train nothing or fail later (one-line errors)."""
@@ -82,6 +88,11 @@ class TrainConfig:
         pw = self.pair_weight
         if isinstance(pw, bool) or not isinstance(pw, int | float) or not 0 <= pw <= 100:
             raise RailsuspInputError(f"training pair_weight = {pw!r}: accepted [0, 100]")
+        ms = self.max_seconds
+        if ms is not None and (isinstance(ms, bool) or not isinstance(ms, int | float) or ms <= 0):
+            raise RailsuspInputError(
+                f"training max_seconds = {ms!r}: accepted a number of seconds > 0, or None"
+            )
         for name, lo, hi in (("learning_rate", 0.0, 1.0), ("fine_tune_lr_factor", 0.0, 1.0)):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and lo < v <= hi):
@@ -127,6 +138,7 @@ _LATER_SETTINGS = {
     "chunk_steps": 400,
     "chunks_per_batch": 32,
     "pair_weight": 0.0,
+    "max_seconds": None,
 }
 
 
@@ -300,7 +312,7 @@ def train_network(
     # normalisation), so another window length or campaign starts afresh; settings added
     # later count only when changed, so checkpoints from before they existed still resume,
     # and the chunk settings only for the network that trains on chunks
-    unused = ("epochs", "fine_tune_epochs")
+    unused = ("epochs", "fine_tune_epochs", "max_seconds")
     if not isinstance(train, ChunkSampler):
         unused += ("chunk_steps", "chunks_per_batch")
     settings = {
@@ -325,6 +337,8 @@ def train_network(
     if cfg.fine_tune_epochs > 0:
         lr = cfg.learning_rate * cfg.fine_tune_lr_factor
         phases.append(("fine-tune", cfg.fine_tune_epochs, lr))
+    started = time.perf_counter()
+    deadlines = _phase_deadlines(cfg, started)
     for n, (phase, n_epochs, lr) in enumerate(phases):
         done = sum(h.get("phase", "main") == phase for h in history)
         if n == 0 and any(h.get("phase", "main") != "main" for h in history):
@@ -335,8 +349,8 @@ def train_network(
             opt = torch.optim.Adam(net.parameters(), lr=lr)
             stale = 0
         for _ in range(done, n_epochs):
-            if stale >= cfg.patience:
-                break
+            if stale >= cfg.patience or (history and time.perf_counter() >= deadlines[n]):
+                break  # (a budget never leaves a training without its first epoch)
             t0 = time.perf_counter()
             train_loss, train_pair = _train_epoch(net, opt, train, rng, cfg, device)
             net.eval()
@@ -388,6 +402,16 @@ def train_network(
         net.load_state_dict(best_state)
     net.to("cpu").eval()
     return history
+
+
+def _phase_deadlines(cfg: TrainConfig, started: float) -> list[float]:
+    """The clock reading after which each phase (main, fine-tune) starts no new epoch: its
+    share of ``cfg.max_seconds`` by epochs, the fine-tune phase's deadline the whole
+    budget's end (infinite without a budget)."""
+    if cfg.max_seconds is None:
+        return [float("inf"), float("inf")]
+    main_share = cfg.epochs / (cfg.epochs + cfg.fine_tune_epochs)
+    return [started + main_share * cfg.max_seconds, started + cfg.max_seconds]
 
 
 def _state_hash(state: dict[str, torch.Tensor]) -> str:

@@ -317,22 +317,66 @@ def simulate_conditions(
     apply in every condition; ``progress`` counts the sets of all conditions;
     ``wall_time`` of each result is its preparation and the calls its sets were in.
     """
-    from railsusp.vehicle.batch_runs import integrate_conditions
-
     if not conditions:
         raise RailsuspInputError("conditions: none given, accepted at least one")
+    P = np.ascontiguousarray(_param_matrix(sets, symbols))
+    return _simulate_full(
+        [(P, c, seeds) for c in conditions], wagon, settings, progress, chunk_size
+    )
+
+
+#: one request of :func:`simulate_requests`: parameter sets (ParameterSets or an SI matrix
+#: over the call's ``symbols``), the condition they run in, their irregularity seeds or None
+Request = tuple[np.ndarray | Iterable[ParameterSet], WorkingCondition, Sequence[int] | None]
+
+
+def simulate_requests(
+    requests: Sequence[Request],
+    *,
+    symbols: Sequence[str] | None = None,
+    wagon: WagonData | None = None,
+    settings: SolverSettings | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    chunk_size: int = 32,
+) -> list[SimulationResult]:
+    """Simulate several requests, each its own (sets, condition, seeds), one result per
+    request, each equal to :func:`simulate_batch`'s of that request.
+
+    Requests whose integrator settings agree share the compiled integrator's parallel calls
+    (:mod:`railsusp.vehicle.batch_runs`): the samples of a many-track campaign batch that
+    each run on their own curve radius and cant (one request per layout) then keep every core
+    busy, where one :func:`simulate_batch` per layout ran them one at a time. ``progress``
+    counts the sets of all requests; ``wall_time`` of each result is its preparation and the
+    calls its sets were in."""
+    if not requests:
+        raise RailsuspInputError("requests: none given, accepted at least one")
+    prepared = [
+        (np.ascontiguousarray(_param_matrix(sets, symbols)), cond, seeds)
+        for sets, cond, seeds in requests
+    ]
+    return _simulate_full(prepared, wagon, settings, progress, chunk_size)
+
+
+def _simulate_full(
+    prepared: Sequence[tuple[np.ndarray, WorkingCondition, Sequence[int] | None]],
+    wagon: WagonData | None,
+    settings: SolverSettings | None,
+    progress: Callable[[int, int], None] | None,
+    chunk_size: int,
+) -> list[SimulationResult]:
+    """:func:`simulate_requests` of requests whose sets are full (n, 20) SI matrices."""
+    from railsusp.vehicle.batch_runs import integrate_conditions
+
     wagon = load_wagon() if wagon is None else wagon
     settings = SolverSettings() if settings is None else settings
-    P = np.ascontiguousarray(_param_matrix(sets, symbols))
     ca = contact_arrays(wagon)
     if ca.contact_points == 1 and settings.flange_substeps == 1:
         warnings.warn(
             "single-point wheel-rail contact with the plain step: its jump to the flange needs "
             "SolverSettings(flange_substeps=2) to stay numerically on the rail (docs/model.md)",
-            stacklevel=2,
+            stacklevel=3,
         )
-    requests = [(P, c, seeds) for c in conditions]
-    runs = integrate_conditions(requests, wagon, settings, ca, progress, chunk_size)
+    runs = integrate_conditions(prepared, wagon, settings, ca, progress, chunk_size)
     return [
         SimulationResult(
             condition=r.condition,
@@ -350,7 +394,7 @@ def simulate_conditions(
             wagon_name=wagon.name,
             settled_start=r.settled,
         )
-        for r in runs
+        for r, (P, _, _) in zip(runs, prepared, strict=True)
     ]
 
 
