@@ -311,3 +311,46 @@ def test_the_objectives_on_a_series_model_are_those_of_each_conditions_series(
     np.testing.assert_allclose(errors, expected, rtol=1e-5, atol=1e-6)
     # the recordings differ: an objective of another recording's series would show
     assert np.abs(expected[:, 0] - expected[:, 1]).max() > 1e-2
+
+
+def test_prime_tracks_batches_the_nominal_wagons_and_keeps_each_input_bit_for_bit(
+    tmp_path, monkeypatch
+):
+    """Networks that read the nominal wagon's response on the measured track: priming three
+    tracks (two of 'straight', one of 'curve') simulates the nominal wagon in fewer calls
+    than tracks, each track input is the one :meth:`track_input` computes alone, and a
+    primed track is not simulated again."""
+    import railsusp.vehicle.integrate as integrate
+
+    folder = tmp_path / "surrogates"
+    surs = {"straight": _surrogate("straight", 0, nominal=True)}
+    surs["curve"] = _surrogate("curve", 1, nominal=True)
+    for name, s in surs.items():
+        s.save(folder / name)
+    wagon = load_wagon()
+    conds = []
+    for name, seed in [("straight", 21), ("straight", 22), ("curve", 23)]:
+        cond = surs[name].condition.with_changes(seed=seed)
+        irr = section_irregularities(cond, [seed], wagon)
+        path = write_track_geometry(tmp_path / f"{seed}.track.csv", irr, origin_m=cond.lead_in_m)
+        conds.append(cond.with_changes(track_geometry=str(path)))
+    alone = SurrogateForces(folder)
+    expected = [alone.track_input(c) for c in conds]
+    sizes: list[int] = []
+    inner = integrate.integrate_batch
+
+    def counted(P, *args):
+        sizes.append(P.shape[0])
+        return inner(P, *args)
+
+    monkeypatch.setattr(integrate, "integrate_batch", counted)
+    model = SurrogateForces(folder)
+    model.prime_tracks(conds)
+    assert sum(sizes) == 3 and len(sizes) < 3, sizes
+    for c, want in zip(conds, expected, strict=True):
+        assert want.shape[1] == surs[c.name].spec.n_features - len(KEYS)
+        np.testing.assert_array_equal(model.track_input(c), want)
+    model.prime_tracks(conds)
+    model.series_conditions(_sets(2), conds)
+    assert sum(sizes) == 3  # kept: no nominal wagon simulated again
+    assert np.abs(expected[0][:, -2:] - expected[1][:, -2:]).max() > 0.01  # two tracks

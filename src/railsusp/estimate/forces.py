@@ -104,6 +104,7 @@ class SurrogateForces:
 
         for c in conditions:  # a condition without a surrogate, refused before any work
             self._model_of(c)
+        self.prime_tracks(conditions)  # the nominal wagon on new tracks, in parallel calls
         groups: dict[tuple, list[int]] = {}
         tracks: dict[int, np.ndarray] = {}  # the measured tracks' inputs, looked up once
         for i, c in enumerate(conditions):
@@ -165,6 +166,50 @@ class SurrogateForces:
                 condition, condition.seed, model.spec, model.wagon, model.solver_settings()
             )
         return self._tracks[key]
+
+    def prime_tracks(self, conditions: Sequence[WorkingCondition]) -> None:
+        """Compute the :meth:`track_input` of every condition not yet kept, the nominal
+        wagon's simulations of those whose networks read it in as few parallel calls as
+        their settings allow (:func:`~railsusp.surrogate.nominal.nominal_forces_many`): the
+        draws of a geometry error (:func:`~railsusp.estimate.output_error.geometry_error_series`)
+        are each a track of their own, 24 one-set simulations one after another otherwise.
+        Each input is the one :meth:`track_input` computes alone, bit for bit."""
+        from railsusp.surrogate.data import track_features
+        from railsusp.surrogate.nominal import nominal_forces_many
+
+        todo: dict[str, WorkingCondition] = {}
+        for c in conditions:
+            key = c.model_dump_json()
+            if key not in self._tracks and self.reads_track(c):
+                todo.setdefault(key, c)
+        groups: list[tuple[tuple, list[str]]] = []  # (what one call shares, keys)
+        for key, c in todo.items():
+            spec = self._models[c.name].spec
+            if not spec.nominal_response:
+                continue
+            model = self._models[c.name]
+            shared = (model.wagon, model.solver_settings(), spec.targets, spec.nominal_context)
+            for have, keys in groups:
+                if have == shared:
+                    keys.append(key)
+                    break
+            else:
+                groups.append((shared, [key]))
+        nominal: dict[str, np.ndarray] = {}
+        for (wagon, settings, targets, context), keys in groups:
+            tracks = [(todo[k], todo[k].seed) for k in keys]
+            nominal.update(
+                zip(
+                    keys,
+                    nominal_forces_many(tracks, wagon, targets, settings, context),
+                    strict=True,
+                )
+            )
+        for key, c in todo.items():
+            model = self._models[c.name]
+            self._tracks[key] = track_features(
+                c, c.seed, model.spec, model.wagon, model.solver_settings(), nominal.get(key)
+            )
 
     def reads_track(self, condition: WorkingCondition) -> bool:
         """Whether the network of ``condition`` predicts on its measured track: not when it

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from railsusp.conditions import WorkingCondition
 from railsusp.estimate.comparison import (
     compared_measurement,
     comparison_filter,
@@ -201,11 +202,15 @@ def geometry_error_series(
     measurement error (:func:`~railsusp.vehicle.track_geometry.with_measurement_error`:
     ``track_accuracy_mm`` RMS, down to ``wavelength_min_m``); None for recordings on exact
     geometry. The perturbed geometries go to a temporary folder, as the simulator reads
-    geometry files; each draw of each recording is one batch of all the sets (the simulator
-    takes one track geometry per call)."""
+    geometry files; all draws of all recordings go to the model in one
+    :func:`~railsusp.estimate.forces.series_in_conditions` call (the simulator's parallel
+    calls, the networks in step and their nominal wagons batched), each a condition of its
+    own geometry."""
     rng = np.random.default_rng(seed)
     out: list[list[np.ndarray | None]] = [[None] * len(recordings) for _ in range(draws)]
     with tempfile.TemporaryDirectory(prefix="railsusp-geometry-") as tmp:
+        where: list[tuple[int, int]] = []  # (draw, recording) of each condition
+        conditions: list[WorkingCondition] = []
         for i, rec in enumerate(recordings):
             cond = rec.condition
             if not cond.track_accuracy_mm:
@@ -218,8 +223,12 @@ def geometry_error_series(
                     irr, rms_m, cond.wavelength_min_m, rng
                 )
                 track_geometry.write_track_geometry(path, noisy)
-                series = model.series(x_si, cond.with_changes(track_geometry=str(path)))
-                out[d][i] = np.nan_to_num(comparison_filter(series, rec))
+                where.append((d, i))
+                conditions.append(cond.with_changes(track_geometry=str(path)))
+        if conditions:
+            series = series_in_conditions(model, x_si, conditions)
+            for (d, i), s in zip(where, series, strict=True):
+                out[d][i] = np.nan_to_num(comparison_filter(s, recordings[i]))
     return out
 
 

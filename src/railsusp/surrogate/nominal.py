@@ -33,7 +33,7 @@ from railsusp.vehicle.simulate import (
     WHEEL_NAMES,
     SolverSettings,
     measured_wheel_index,
-    simulate_batch,
+    simulate_requests,
 )
 from railsusp.vehicle.wagon import WagonData
 
@@ -62,22 +62,40 @@ def nominal_forces(
     kN and m/s²), then the forces of the measured wheel (kN, the campaign's automatic choice
     of wheel), of the nominal wagon on ``condition``'s track with irregularity ``seed`` (its
     measured geometry where it carries one)."""
-    r = simulate_batch(
-        [ParameterSet.nominal()],
-        condition.with_changes(seed=seed),
-        seeds=[seed],
+    return nominal_forces_many([(condition, seed)], wagon, targets, settings, context)[0]
+
+
+def nominal_forces_many(
+    tracks: Sequence[tuple[WorkingCondition, int]],
+    wagon: WagonData,
+    targets: Sequence[str] = ("Y", "Q"),
+    settings: SolverSettings | None = None,
+    context: Sequence[str] = (),
+) -> list[np.ndarray]:
+    """:func:`nominal_forces` on each (condition, seed) of ``tracks``, the simulations in as
+    few parallel calls as their integrator settings allow
+    (:func:`~railsusp.vehicle.simulate.simulate_requests`): the draws of a measured
+    geometry's error, each its own track, keep every core busy instead of one."""
+    names = (*check_context(context), *targets)
+    results = simulate_requests(
+        [
+            ([ParameterSet.nominal()], condition.with_changes(seed=seed), [seed])
+            for condition, seed in tracks
+        ],
         wagon=wagon,
         settings=settings,
     )
-    if int(r.status[0]) != 0:
-        raise ValueError(
-            f"the nominal wagon's simulation on condition {condition.name!r} failed "
-            f"(status {int(r.status[0])}): no nominal response to read"
-        )
-    j = measured_wheel_index(condition, "auto")
-    series = {"Y": r.Y[0, j] / 1e3, "Q": r.Q[0, j] / 1e3}
-    for i, w in enumerate(WHEEL_NAMES):
-        series[f"Y_{w}"], series[f"Q_{w}"] = r.Y[0, i] / 1e3, r.Q[0, i] / 1e3
-    series["car_acc_y"], series["car_acc_z"] = r.car_acc_y[0], r.car_acc_z[0]
-    names = (*check_context(context), *targets)
-    return np.stack([np.asarray(series[c], dtype=float) for c in names], axis=1)
+    out = []
+    for (condition, _), r in zip(tracks, results, strict=True):
+        if int(r.status[0]) != 0:
+            raise ValueError(
+                f"the nominal wagon's simulation on condition {condition.name!r} failed "
+                f"(status {int(r.status[0])}): no nominal response to read"
+            )
+        j = measured_wheel_index(condition, "auto")
+        series = {"Y": r.Y[0, j] / 1e3, "Q": r.Q[0, j] / 1e3}
+        for i, w in enumerate(WHEEL_NAMES):
+            series[f"Y_{w}"], series[f"Q_{w}"] = r.Y[0, i] / 1e3, r.Q[0, i] / 1e3
+        series["car_acc_y"], series["car_acc_z"] = r.car_acc_y[0], r.car_acc_z[0]
+        out.append(np.stack([np.asarray(series[c], dtype=float) for c in names], axis=1))
+    return out
