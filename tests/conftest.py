@@ -1,6 +1,7 @@
 """Test-suite settings: tests marked ``slow`` are left out of the default run, as the marker
 says (pyproject.toml); ``pytest -m slow`` (or any ``-m`` naming it) runs them. Tests of a
-bench script load it with :func:`bench_script` (bench/ is not a package)."""
+bench script load it with :func:`bench_script` (bench/ is not a package); the fixture
+``integrator_calls`` counts the simulator's parallel calls."""
 
 import importlib.util
 import sys
@@ -27,6 +28,24 @@ def bench_script(name: str) -> ModuleType:
     finally:
         sys.path.remove(str(BENCH))
     return module
+
+
+@pytest.fixture
+def integrator_calls(monkeypatch) -> list[int]:
+    """The parameter sets of each call of the compiled integrator while the test runs
+    (``railsusp.vehicle.integrate.integrate_batch``, which every simulation goes through):
+    how a test sees which simulations share a parallel call."""
+    import railsusp.vehicle.integrate as integrate
+
+    sizes: list[int] = []
+    inner = integrate.integrate_batch
+
+    def counted(P, *args):
+        sizes.append(P.shape[0])
+        return inner(P, *args)
+
+    monkeypatch.setattr(integrate, "integrate_batch", counted)
+    return sizes
 
 
 def pytest_collection_modifyitems(config, items):

@@ -148,28 +148,19 @@ def test_each_sample_is_simulated_on_its_own_track(family_run):
     assert y_mean.loc[4] == pytest.approx(r.statistics("auto", set_index=None)["Y_mean"][0])
 
 
-def test_a_batch_of_curve_layouts_is_one_parallel_call(family_run, monkeypatch):
+def test_a_batch_of_curve_layouts_is_one_parallel_call(family_run, integrator_calls):
     """Every sample of a curve batch has its own radius and cant (a layout each): the batch
     is one integrator call of 3 sets (one call per layout would run them one at a time, on
     one core), and its series are the stored ones."""
-    import railsusp.vehicle.integrate as integrate
     from railsusp.campaign.run import simulate_task, track_seeds
 
-    sizes: list[int] = []
-    inner = integrate.integrate_batch
-
-    def counted(P, *args):
-        sizes.append(P.shape[0])
-        return inner(P, *args)
-
-    monkeypatch.setattr(integrate, "integrate_batch", counted)
     camp = load_campaign(family_run)
     cfg = camp.config
     design = camp.design()
     x = design[list(cfg.simulated_parameters)].to_numpy()[:3]
     ids = design.sample_id.to_numpy()[:3]
     res = simulate_task(cfg.model_dump_json(), 0, ids, x, track_seeds(cfg, CURVE)[:3])
-    assert sizes == [3]
+    assert integrator_calls == [3]
     stored_ids, stored = camp.series("curve")
     rows = [list(stored_ids).index(i) for i in ids]
     np.testing.assert_array_equal(res["series"], stored[rows])

@@ -314,14 +314,12 @@ def test_the_objectives_on_a_series_model_are_those_of_each_conditions_series(
 
 
 def test_prime_tracks_batches_the_nominal_wagons_and_keeps_each_input_bit_for_bit(
-    tmp_path, monkeypatch
+    tmp_path, integrator_calls
 ):
     """Networks that read the nominal wagon's response on the measured track: priming three
     tracks (two of 'straight', one of 'curve') simulates the nominal wagon in fewer calls
     than tracks, each track input is the one :meth:`track_input` computes alone, and a
     primed track is not simulated again."""
-    import railsusp.vehicle.integrate as integrate
-
     folder = tmp_path / "surrogates"
     surs = {"straight": _surrogate("straight", 0, nominal=True)}
     surs["curve"] = _surrogate("curve", 1, nominal=True)
@@ -336,14 +334,8 @@ def test_prime_tracks_batches_the_nominal_wagons_and_keeps_each_input_bit_for_bi
         conds.append(cond.with_changes(track_geometry=str(path)))
     alone = SurrogateForces(folder)
     expected = [alone.track_input(c) for c in conds]
-    sizes: list[int] = []
-    inner = integrate.integrate_batch
-
-    def counted(P, *args):
-        sizes.append(P.shape[0])
-        return inner(P, *args)
-
-    monkeypatch.setattr(integrate, "integrate_batch", counted)
+    sizes = integrator_calls
+    sizes.clear()  # the nominal wagons of the inputs computed alone, above
     model = SurrogateForces(folder)
     model.prime_tracks(conds)
     assert sum(sizes) == 3 and len(sizes) < 3, sizes

@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 
-import railsusp.vehicle.integrate as integrate
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet
@@ -23,20 +22,6 @@ SETS = np.array(
 )
 
 
-@pytest.fixture
-def calls(monkeypatch):
-    """The sets per call of the compiled integrator, while the test runs."""
-    sizes: list[int] = []
-    inner = integrate.integrate_batch
-
-    def counted(P, *args):
-        sizes.append(P.shape[0])
-        return inner(P, *args)
-
-    monkeypatch.setattr(integrate, "integrate_batch", counted)
-    return sizes
-
-
 def _same(a, b):
     for name in ("Y", "Q", "car_acc_y", "car_acc_z", "status", "fail_time", "settled_start"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
@@ -44,7 +29,7 @@ def _same(a, b):
 
 
 @pytest.mark.parametrize("start", ["lead-in", "settled"])
-def test_three_study_conditions_share_one_call_with_unchanged_forces(calls, start):
+def test_three_study_conditions_share_one_call_with_unchanged_forces(integrator_calls, start):
     """The study's three conditions at 60 km/h: one call of 6 sets, and every set's series
     bit for bit what simulate_batch gives in its condition alone (3 calls of 2). Settled:
     with a lead-in long enough that the curve's record starts past its spiral."""
@@ -52,9 +37,9 @@ def test_three_study_conditions_share_one_call_with_unchanged_forces(calls, star
     short = SHORT | {"lead_in_m": 100.0} if start == "settled" else SHORT
     conds = [get_condition(n, **short) for n in ("straight", "curve", "uphill")]
     together = simulate_conditions(SETS, conds, settings=settings)
-    assert calls == [6]
+    assert integrator_calls == [6]
     alone = [simulate_batch(SETS, c, settings=settings) for c in conds]
-    assert calls == [6, 2, 2, 2]
+    assert integrator_calls == [6, 2, 2, 2]
     for a, b in zip(together, alone, strict=True):
         _same(a, b)
         assert a.ok.all()
@@ -63,30 +48,30 @@ def test_three_study_conditions_share_one_call_with_unchanged_forces(calls, star
     assert np.abs(together[1].Y[0, 1].mean() - together[0].Y[0, 1].mean()) > 10e3
 
 
-def test_conditions_the_integrator_cannot_share_run_in_their_own_calls(calls):
+def test_conditions_the_integrator_cannot_share_run_in_their_own_calls(integrator_calls):
     """A different speed changes the steps before the record: two calls, same numbers."""
     slow = get_condition("straight", speed_kmh=40.0, **SHORT)
     conds = [get_condition("curve", **SHORT), slow, get_condition("straight", **SHORT)]
     seeds = [3, 4]
     together = simulate_conditions(SETS, conds, seeds=seeds)
-    assert sorted(calls) == [2, 4]
+    assert sorted(integrator_calls) == [2, 4]
     for a, c in zip(together, conds, strict=True):
         _same(a, simulate_batch(SETS, c, seeds=seeds))
 
 
-def test_a_settled_and_a_lead_in_start_run_in_their_own_calls(calls):
+def test_a_settled_and_a_lead_in_start_run_in_their_own_calls(integrator_calls):
     """The curve's record starts in its spiral 40 m in: it runs the lead-in, the tangent
     starts settled; each gets its own call and its own numbers."""
     settings = SolverSettings(start="settled", run_in_m=30.0)
     conds = [get_condition(n, **SHORT) for n in ("straight", "curve")]
     together = simulate_conditions(SETS, conds, settings=settings)
-    assert calls == [2, 2]
+    assert integrator_calls == [2, 2]
     assert together[0].settled_start.all() and not together[1].settled_start.any()
     for a, c in zip(together, conds, strict=True):
         _same(a, simulate_batch(SETS, c, settings=settings))
 
 
-def test_requests_of_their_own_sets_layouts_and_seeds_share_one_call(calls):
+def test_requests_of_their_own_sets_layouts_and_seeds_share_one_call(integrator_calls):
     """Two curves of another radius and cant, each with its own sets (over a subset of the
     parameters) and seeds, as a many-track campaign batch asks: one call of 3 sets, and
     each request's series bit for bit its own simulate_batch."""
@@ -95,7 +80,7 @@ def test_requests_of_their_own_sets_layouts_and_seeds_share_one_call(calls):
     symbols = ("X14", "X18")
     xa, xb = np.array([[7.0e6, 45e3], [9.0e6, 55e3]]), np.array([[8.0e6, 50e3]])
     together = simulate_requests([(xa, a, [5, 6]), (xb, b, [7])], symbols=symbols)
-    assert calls == [3]
+    assert integrator_calls == [3]
     alone = [
         simulate_batch(xa, a, symbols=symbols, seeds=[5, 6]),
         simulate_batch(xb, b, symbols=symbols, seeds=[7]),
