@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Issue 19 on a lent GPU (bench/README.md, "Trained on a GPU"): the many-track campaign of
-# the shipped networks (2048 samples x 3 conditions, design seed 0, so the same held-out
-# tracks), its nominal twins and the straight condition's perturbed twins made on the
-# machine's CPU cores, then at once on the GPU, within one wall-clock budget:
+# the shipped networks in CONDITIONS (default straight; 2048 samples, design seed 0: a
+# campaign of some conditions has the samples and tracks of the three-condition one, so the
+# same held-out tracks), its nominal twins and the straight condition's perturbed twins made
+# on the machine's CPU cores, then at once on the GPU, within one wall-clock budget:
 #   -gpu   the study's CNN-GRU of each condition continued from the shipped set's network
 #          (its features and normalisation kept) in batches of 256 chunks;
 #   -gpuw  a wider sequence network on tangent, from scratch (GRU 128,64,32, dense 64,32,16);
@@ -28,7 +29,9 @@ log=$out/logs
 mkdir -p "$log"
 export PYTHONUNBUFFERED=1 PYTHONPATH=$PWD/src${PYTHONPATH:+:$PYTHONPATH}
 py=${PYTHON:-python3}
-st="$py bench/surrogate_tracks.py --run $run --samples $samples --models '' --nominal --nominal-kinds cnn-gru-seq"
+conditions=${CONDITIONS:-straight}
+st="$py bench/surrogate_tracks.py --run $run --samples $samples --conditions $conditions \
+--models '' --nominal --nominal-kinds cnn-gru-seq"
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader || true
 $py -c "import torch; print('torch', torch.__version__, 'cuda', torch.cuda.is_available())"
 
@@ -36,7 +39,7 @@ $py -c "import torch; print('torch', torch.__version__, 'cuda', torch.cuda.is_av
 eval "$st --prepare-only" 2>&1 | tee "$log/campaign.txt"
 eval "$st --prepare-only --train-conditions straight --pair-weight 1 --pair-twins 1 --tag=-p" \
     2>&1 | tee -a "$log/campaign.txt"
-for c in straight curve uphill; do
+for c in ${conditions//,/ }; do
     mkdir -p "$run/surrogates/ship"
     cp -r "src/railsusp/data/networks/c80_k6/$c" "$run/surrogates/ship/"
 done
@@ -50,7 +53,7 @@ echo "training for $minutes min"
 common="--device ${DEVICE:-cuda} --chunks-per-batch ${CHUNKS:-256} --batches-per-epoch ${BATCHES:-100} --max-minutes $minutes --patience 30 \
 --train-threads 2 --threads 2 --repeats 1"
 pids=()
-for c in straight curve uphill; do
+for c in ${conditions//,/ }; do
     eval "$st $common --train-conditions $c --init-from ship --init-inputs --tag=-gpu \
         --epochs 2000 --fine-tune-epochs 500 --fine-tune-lr-factor 0.2 --learning-rate 1e-3 \
         --out $out/tracks-gpu-$c.json" > "$log/gpu-$c.txt" 2>&1 &

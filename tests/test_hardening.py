@@ -153,13 +153,14 @@ def test_a_campaign_of_an_older_wagon_model_says_so(tmp_path):
 
 
 def _fail_first(real):
-    """A simulate_batch that reports its first run as derailed (flange climb)."""
+    """A simulate_requests that reports the first run of its first request as derailed
+    (flange climb): a campaign batch's first sample."""
 
     def wrapped(*args, **kwargs):
-        r = real(*args, **kwargs)
-        status = r.status.copy()
+        results = real(*args, **kwargs)
+        status = results[0].status.copy()
         status[0] = 4
-        return dataclasses.replace(r, status=status)
+        return [dataclasses.replace(results[0], status=status), *results[1:]]
 
     return wrapped
 
@@ -168,7 +169,9 @@ def test_campaign_counts_failed_simulations_and_exits_1(short, tmp_path, monkeyp
     import railsusp.campaign as campaign
     import railsusp.campaign.run as campaign_run
 
-    monkeypatch.setattr(campaign_run, "simulate_batch", _fail_first(campaign_run.simulate_batch))
+    monkeypatch.setattr(
+        campaign_run, "simulate_requests", _fail_first(campaign_run.simulate_requests)
+    )
     run = tmp_path / "r"
     args = ["campaign", "--out", run, "--conditions", short, "--samples", "3"]
     args += ["--parameters", "X13", "--batch-size", "2"]
