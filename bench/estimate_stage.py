@@ -52,14 +52,14 @@ def main() -> None:
 
     phases: list[dict] = []
     sims: list[dict] = []
-    inner = simulate.simulate_conditions  # simulate_batch calls it too
+    inner = simulate._simulate_full  # simulate_batch, _conditions and _requests all call it
 
-    def simulate_conditions(sets, conditions, **kwargs):
+    def simulate_full(prepared, *args, **kwargs):
         t0 = time.perf_counter()
-        runs = inner(sets, conditions, **kwargs)
+        runs = inner(prepared, *args, **kwargs)
         sims.append(
             {
-                "conditions": [c.name for c in conditions],
+                "conditions": [c.name for _, c, _ in prepared],
                 "sets": int(sum(r.n_sets for r in runs)),
                 "simulated_s": float(sum(r.n_sets * r.time[-1] for r in runs)),
                 "seconds": time.perf_counter() - t0,
@@ -67,7 +67,7 @@ def main() -> None:
         )
         return runs
 
-    simulate.simulate_conditions = simulate_conditions
+    simulate._simulate_full = simulate_full
     _timed(phases, est, "estimate_with_seeds", "NSGA-II on the surrogates")
     _timed(phases, polish, "aligned_cost", "screening of starts")
     for name in ("refine", "refine_starts"):  # one start at a time, or all at once

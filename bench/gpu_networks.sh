@@ -30,6 +30,8 @@ mkdir -p "$log"
 export PYTHONUNBUFFERED=1 PYTHONPATH=$PWD/src${PYTHONPATH:+:$PYTHONPATH}
 py=${PYTHON:-python3}
 conditions=${CONDITIONS:-straight}
+# the perturbed twins and the wider network are the tangent's
+case ",$conditions," in *,straight,*) ;; *) echo "CONDITIONS must hold straight"; exit 2 ;; esac
 st="$py bench/surrogate_tracks.py --run $run --samples $samples --conditions $conditions \
 --models '' --nominal --nominal-kinds cnn-gru-seq"
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader || true

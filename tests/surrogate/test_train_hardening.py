@@ -111,6 +111,8 @@ def test_a_crafted_pickle_checkpoint_is_refused_and_runs_no_code(tmp_path):
         ("learning_rate", float("nan"), "learning_rate = nan"),
         ("max_seconds", 0, "max_seconds = 0: accepted a number of seconds > 0"),
         ("max_seconds", True, "max_seconds = True"),
+        ("max_seconds", float("nan"), "max_seconds = nan"),
+        ("max_seconds", float("inf"), "max_seconds = inf"),
     ],
 )
 def test_training_settings_that_would_train_nothing_are_refused(field, value, message):
@@ -121,8 +123,8 @@ def test_training_settings_that_would_train_nothing_are_refused(field, value, me
 def test_a_wall_clock_budget_stops_each_phase_and_keeps_the_checkpoint_resumable(tmp_path):
     """``max_seconds`` ends the main phase after its share and the fine-tune phase after the
     rest (an exhausted budget leaves the training's first epoch only); it is
-    not part of the checkpoint's key, so a training stopped by its budget resumes under
-    another budget into the same result as one run without any."""
+    not part of the checkpoint's key, so a training its budget stopped in the main phase
+    resumes under another budget into the same result as one run without any."""
     ck = tmp_path / "checkpoint.pt"
     _, h = _train(6, ck, fine_tune_epochs=2, max_seconds=1e-9)
     assert [e["phase"] for e in h] == ["main"]  # the first epoch always, no other
@@ -131,3 +133,23 @@ def test_a_wall_clock_budget_stops_each_phase_and_keeps_the_checkpoint_resumable
     assert [e["phase"] for e in h_res] == ["main"] * 6 + ["fine-tune"] * 2
     assert [e["val_loss"] for e in h_res] == [e["val_loss"] for e in h_whole]
     assert _same(resumed, whole)
+
+
+def test_a_budget_gives_each_phase_its_share_by_epochs(monkeypatch):
+    """With a clock that moves 10 s per epoch, 6 main and 2 fine-tune epochs and 40 s: the
+    main phase starts epochs before 30 s (its 6/8 share: 3 epochs), the fine-tune phase
+    before 40 s (1 epoch)."""
+    import railsusp.surrogate.train as train_mod
+
+    clock = [1000.0]
+    real_epoch = train_mod._train_epoch
+
+    def epoch(*args):
+        out = real_epoch(*args)
+        clock[0] += 10.0
+        return out
+
+    monkeypatch.setattr(train_mod.time, "perf_counter", lambda: clock[0])
+    monkeypatch.setattr(train_mod, "_train_epoch", epoch)
+    _, h = _train(6, fine_tune_epochs=2, max_seconds=40.0)
+    assert [e["phase"] for e in h] == ["main"] * 3 + ["fine-tune"]

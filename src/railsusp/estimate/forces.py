@@ -173,12 +173,14 @@ class SurrogateForces:
         their settings allow (:func:`~railsusp.surrogate.nominal.nominal_forces_many`): the
         draws of a geometry error (:func:`~railsusp.estimate.output_error.geometry_error_series`)
         are each a track of their own, 24 one-set simulations one after another otherwise.
-        Each input is the one :meth:`track_input` computes alone, bit for bit."""
+        Each input is the one :meth:`track_input` computes alone, bit for bit; the inputs are
+        kept as :meth:`track_input` keeps them (one per condition, for the model's life)."""
         from railsusp.surrogate.data import track_features
         from railsusp.surrogate.nominal import nominal_forces_many
 
         todo: dict[str, WorkingCondition] = {}
         for c in conditions:
+            self._model_of(c)  # a condition without a surrogate, refused in one line
             key = c.model_dump_json()
             if key not in self._tracks and self.reads_track(c):
                 todo.setdefault(key, c)

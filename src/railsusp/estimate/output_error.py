@@ -190,6 +190,13 @@ class OutputError:
         ) * (self.hi - self.lo)
 
 
+#: conditions (draws x recordings) given to the model at once by
+#: :func:`geometry_error_series`: the study's 8 draws of 3 recordings in two calls, and a
+#: bounded memory for the 100 draws a configuration may ask (the simulator holds each call's
+#: series twice, float64)
+DRAW_CHUNK = 12
+
+
 def geometry_error_series(
     model: ForceModel,
     recordings: Sequence[Recording],
@@ -202,10 +209,14 @@ def geometry_error_series(
     measurement error (:func:`~railsusp.vehicle.track_geometry.with_measurement_error`:
     ``track_accuracy_mm`` RMS, down to ``wavelength_min_m``); None for recordings on exact
     geometry. The perturbed geometries go to a temporary folder, as the simulator reads
-    geometry files; all draws of all recordings go to the model in one
-    :func:`~railsusp.estimate.forces.series_in_conditions` call (the simulator's parallel
-    calls, the networks in step and their nominal wagons batched), each a condition of its
-    own geometry."""
+    geometry files; every draw of every recording is a condition of its own geometry, and
+    they go to the model :data:`DRAW_CHUNK` at a time (all drawn first, so the draws do not
+    depend on the chunks): a network model computes their track inputs together
+    (:meth:`~railsusp.estimate.forces.SurrogateForces.prime_tracks`: the nominal wagons in
+    batched parallel calls) and then predicts each alone, as before, bit for bit; the
+    simulator runs a chunk in shared parallel calls
+    (:func:`~railsusp.estimate.forces.series_in_conditions`), each set's series bit for bit
+    its own."""
     rng = np.random.default_rng(seed)
     out: list[list[np.ndarray | None]] = [[None] * len(recordings) for _ in range(draws)]
     with tempfile.TemporaryDirectory(prefix="railsusp-geometry-") as tmp:
@@ -225,9 +236,15 @@ def geometry_error_series(
                 track_geometry.write_track_geometry(path, noisy)
                 where.append((d, i))
                 conditions.append(cond.with_changes(track_geometry=str(path)))
-        if conditions:
-            series = series_in_conditions(model, x_si, conditions)
-            for (d, i), s in zip(where, series, strict=True):
+        prime = getattr(model, "prime_tracks", None)
+        for lo in range(0, len(conditions), DRAW_CHUNK):
+            chunk = conditions[lo : lo + DRAW_CHUNK]
+            if prime is not None:
+                prime(chunk)
+                series = [model.series(x_si, c) for c in chunk]
+            else:
+                series = series_in_conditions(model, x_si, chunk)
+            for (d, i), s in zip(where[lo : lo + DRAW_CHUNK], series, strict=True):
                 out[d][i] = np.nan_to_num(comparison_filter(s, recordings[i]))
     return out
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 import hashlib
 import io
 import logging
+import math
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -65,7 +66,9 @@ class TrainConfig:
     #: wall-clock budget of the whole training, s (None: the epoch limits alone). The main
     #: phase stops starting epochs after its share, ``epochs / (epochs + fine_tune_epochs)``
     #: of it, the fine-tune phase after the rest (the training's first epoch always runs);
-    #: the best state is kept as always. For a
+    #: the best state is kept as always. A training resumed under another budget goes on in
+    #: the phase it was in: once the fine-tune phase has begun, the main phase's cut-short
+    #: epochs are not made up. For a
     #: training on a lent machine whose time is fixed (bench/README.md, "Trained on a GPU").
     max_seconds: float | None = None
 
@@ -89,7 +92,9 @@ class TrainConfig:
         if isinstance(pw, bool) or not isinstance(pw, int | float) or not 0 <= pw <= 100:
             raise RailsuspInputError(f"training pair_weight = {pw!r}: accepted [0, 100]")
         ms = self.max_seconds
-        if ms is not None and (isinstance(ms, bool) or not isinstance(ms, int | float) or ms <= 0):
+        if ms is not None and (
+            isinstance(ms, bool) or not isinstance(ms, int | float) or not 0 < ms < math.inf
+        ):
             raise RailsuspInputError(
                 f"training max_seconds = {ms!r}: accepted a number of seconds > 0, or None"
             )
