@@ -191,3 +191,20 @@ def test_the_refinement_screens_nsga_ii_s_estimate_beside_its_choice(long_record
     assert res.refinement.screened == 1 + 1 + len(res.pareto_x) + 1
     assert not res.refined  # time-aligned: the refinement is a polish beside the estimate
     np.testing.assert_array_equal(res.chosen_x, res.nsga_x)
+
+
+def test_the_draws_do_not_depend_on_how_they_are_chunked(long_record, monkeypatch):
+    """All geometries are drawn before any goes to the model, so the chunks of
+    :data:`~railsusp.estimate.output_error.DRAW_CHUNK` conditions change no draw."""
+    import railsusp.estimate.output_error as oe
+
+    rec = long_record["measured"]
+    x = TRUTH[None]
+    whole = oe.geometry_error_series(TrackForces(), [rec, rec], x, draws=5, seed=2)
+    monkeypatch.setattr(oe, "DRAW_CHUNK", 3)
+    chunked = oe.geometry_error_series(TrackForces(), [rec, rec], x, draws=5, seed=2)
+    for a, b in zip(whole, chunked, strict=True):
+        for s, t in zip(a, b, strict=True):
+            np.testing.assert_array_equal(s, t)
+    assert np.abs(whole[0][0] - whole[1][0]).max() > 0  # the draws differ
+    assert np.abs(whole[0][0] - whole[0][1]).max() > 0  # and so do the two recordings'
