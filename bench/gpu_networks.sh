@@ -16,7 +16,10 @@
 # BUDGET_S (default 540) is the whole script's: the trainings get what the campaign leaves,
 # less RESERVE_S (150) for scoring. SAMPLES=32 with DEVICE=cpu BATCHES=2 CHUNKS=8 is a smoke
 # run of the same steps on a CPU (about 2 min); PYTHON names the interpreter (python3),
-# RUN_DIR the campaign's folder (/tmp/gpu-tracks). Tried on 2026-11-28 (stop 46): the
+# RUN_DIR the campaign's folder (/tmp/gpu-tracks). The lent machine's python3 (3.12, torch
+# with CUDA, numba) had no pydantic on 2026-11-28: its wheels (pydantic, pydantic_core,
+# annotated_types, typing_inspection, typing_extensions, cp312 manylinux) were carried and
+# installed with --target before this script ran. Tried on 2026-11-28 (stop 46): the
 # campaign, its curve then simulated one layout at a time, took 508 s of the lease
 # (bench/README.md).
 set -euo pipefail
