@@ -157,39 +157,40 @@ class SurrogateForces:
         (the geometry read, lined up and sampled at the axles, and for a network that reads
         it the nominal wagon simulated on that geometry): computed once per condition and
         kept, since an objective predicts on the same track every generation."""
-        from railsusp.surrogate.data import track_features
-
         key = condition.model_dump_json()
         if key not in self._tracks:
-            model = self._models[condition.name]
-            self._tracks[key] = track_features(
-                condition, condition.seed, model.spec, model.wagon, model.solver_settings()
-            )
+            self._compute_tracks({key: condition})
         return self._tracks[key]
 
     def prime_tracks(self, conditions: Sequence[WorkingCondition]) -> None:
-        """Compute the :meth:`track_input` of every condition not yet kept, the nominal
-        wagon's simulations of those whose networks read it in as few parallel calls as
-        their settings allow (:func:`~railsusp.surrogate.nominal.nominal_forces_many`): the
-        draws of a geometry error (:func:`~railsusp.estimate.output_error.geometry_error_series`)
-        are each a track of their own, 24 one-set simulations one after another otherwise.
-        Each input is the one :meth:`track_input` computes alone, bit for bit; the inputs are
-        kept as :meth:`track_input` keeps them (one per condition, for the model's life)."""
-        from railsusp.surrogate.data import track_features
-        from railsusp.surrogate.nominal import nominal_forces_many
-
+        """Compute the :meth:`track_input` of every condition whose network reads its track
+        and that is not yet kept, together (:meth:`_compute_tracks`): the draws of a
+        geometry error (:func:`~railsusp.estimate.output_error.geometry_error_series`) are
+        each a track of their own, 24 one-set simulations one after another otherwise. Each
+        input is the one :meth:`track_input` computes alone, bit for bit, and is kept as it
+        keeps them (one per condition, for the model's life)."""
         todo: dict[str, WorkingCondition] = {}
         for c in conditions:
             self._model_of(c)  # a condition without a surrogate, refused in one line
             key = c.model_dump_json()
             if key not in self._tracks and self.reads_track(c):
                 todo.setdefault(key, c)
+        self._compute_tracks(todo)
+
+    def _compute_tracks(self, todo: dict[str, WorkingCondition]) -> None:
+        """Compute and keep the track inputs of ``todo`` (key -> condition), the nominal
+        wagon's simulations of those whose networks read it in as few parallel calls as
+        their settings allow (:func:`~railsusp.surrogate.nominal.nominal_forces_many`; one
+        call per wagon, solver settings, targets and context)."""
+        from railsusp.surrogate.data import track_features
+        from railsusp.surrogate.nominal import nominal_forces_many
+
         groups: list[tuple[tuple, list[str]]] = []  # (what one call shares, keys)
         for key, c in todo.items():
-            spec = self._models[c.name].spec
+            model = self._models[c.name]
+            spec = model.spec
             if not spec.nominal_response:
                 continue
-            model = self._models[c.name]
             shared = (model.wagon, model.solver_settings(), spec.targets, spec.nominal_context)
             for have, keys in groups:
                 if have == shared:

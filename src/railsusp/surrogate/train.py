@@ -68,8 +68,8 @@ class TrainConfig:
     #: of it, the fine-tune phase after the rest (the training's first epoch always runs);
     #: the best state is kept as always. A training resumed under another budget goes on in
     #: the phase it was in: once the fine-tune phase has begun, the main phase's cut-short
-    #: epochs are not made up. For a
-    #: training on a lent machine whose time is fixed (bench/README.md, "Trained on a GPU").
+    #: epochs are not made up. For a training on a lent machine whose time is fixed
+    #: (bench/README.md, "Trained on a GPU").
     max_seconds: float | None = None
 
     def __post_init__(self) -> None:
