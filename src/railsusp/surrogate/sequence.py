@@ -227,8 +227,9 @@ class CNNSequence(nn.Module):
           steps at a time with the state carried (as :meth:`steps` in stretches), so that
           the activations between the layers stay in the cache instead of whole series of
           128 channels going to memory and back after every layer.
-        * The GRUs run torch's equations one step at a time on oneDNN matmuls
-          (:mod:`.recurrence`), about twice the speed of ``nn.GRU`` on the bench machine.
+        * The GRUs run torch's equations one step at a time: the hidden side's product on
+          oneDNN (:mod:`.recurrence`), about twice the speed of ``nn.GRU`` on the bench
+          machine, the gates in one compiled pass per row (:mod:`.gru_kernel`).
 
         The recurrences themselves (one small matmul per layer and step) are what is left;
         a segment's washout is recomputed as the method asks (each from the zero state).

@@ -11,8 +11,9 @@ than their arithmetic (bench/README.md, "The recorded conditions' networks in st
 :func:`predict_sets_in_step` therefore runs G networks through the same loop at once:
 
 * the recurrences' hidden-side products of all G networks are one batched product
-  (``torch.baddbmm``), and every gate operation, pooling and activation one call on the
-  (G, rows, ...) stack;
+  (``torch.baddbmm``), their gates one compiled pass over the (G, rows, ...) stack
+  (:func:`~railsusp.surrogate.gru_kernel.gru_gates`), and every pooling and activation one
+  call on the stack;
 * the per-block input products (the second convolution, each GRU's input projection, the
   dense head: thousands of rows) stay one product per network, written into one buffer.
 
@@ -32,7 +33,8 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from railsusp.surrogate.recurrence import cell_params, gru_step, linear
+from railsusp.surrogate.gru_kernel import gru_gates, kernel_threads
+from railsusp.surrogate.recurrence import cell_params, linear
 
 #: time steps of all segments run through the layers together, so that a block's activations
 #: stay in the processor's cache between the layers (16 until stop 35; 8 measured 4-7 % faster
@@ -188,13 +190,14 @@ def predict_sets_in_step(
     starts = torch.tensor([s for s, _ in plan])
     ends = [keep for _, keep in plan[1:]] + [t_steps]
     per_group = max(1, group_rows // len(plan))
-    for lo in range(0, n, per_group):
-        sets = torch.arange(lo, min(n, lo + per_group))
-        part = track_part[:, :1] if tracks[0].shape[0] == 1 else track_part[:, sets]
-        seg = _segments(weights, part, param_part[:, sets], starts, length, block_steps)
-        for j, ((start, keep), end) in enumerate(zip(plan, ends, strict=True)):
-            kept = seg[:, keep - start : end - start, j]  # (G, steps, sets, n_outputs)
-            out[:, lo : lo + len(sets), keep:end] = kept.transpose(1, 2)
+    with kernel_threads(torch.get_num_threads()):
+        for lo in range(0, n, per_group):
+            sets = torch.arange(lo, min(n, lo + per_group))
+            part = track_part[:, :1] if tracks[0].shape[0] == 1 else track_part[:, sets]
+            seg = _segments(weights, part, param_part[:, sets], starts, length, block_steps)
+            for j, ((start, keep), end) in enumerate(zip(plan, ends, strict=True)):
+                kept = seg[:, keep - start : end - start, j]  # (G, steps, sets, n_outputs)
+                out[:, lo : lo + len(sets), keep:end] = kept.transpose(1, 2)
     return list(out)
 
 
@@ -233,11 +236,12 @@ def _segments(
         for i, (inputs, w_hh, b_h) in enumerate(w.cells):
             gates = _each(seq.view(n_nets, k * rows, -1), inputs).view(n_nets, k, rows, -1)
             seq = torch.empty(n_nets, k, rows, gates.shape[-1] // 3, dtype=gates.dtype)
-            for t in range(k):
-                state = hidden[i]
-                side = None if state is None else _hidden_side(state, w_hh, b_h)
-                hidden[i] = gru_step(gates[:, t], state, w_hh, b_h, hidden_side=side)
-                seq[:, t] = hidden[i]
+            if hidden[i] is None:  # the zero state: its hidden side is b_h exactly
+                hidden[i] = torch.zeros(n_nets, rows, seq.shape[-1], dtype=gates.dtype)
+            state, gates_np, seq_np = hidden[i].numpy(), gates.numpy(), seq.numpy()
+            for t in range(k):  # the product torch's, the gates one compiled pass
+                side = _hidden_side(hidden[i], w_hh, b_h)
+                gru_gates(gates_np, t, side.contiguous().numpy(), state, seq_np)
         h = seq.view(n_nets, k * rows, -1)
         for layer in w.head:
             h = _each(h, layer) if isinstance(layer, list) else layer(h)
