@@ -21,9 +21,9 @@ alternating:
   objective gets them, condition by condition (``SurrogateForces.series``) and in step
   (``SurrogateForces.series_conditions``, which the objective now uses);
 - ``recurrence``: the GRUs' recurrences alone (per layer and step the hidden-side matmul
-  and the gate equations, on the same batch of segments in the same blocks of steps, no
-  input side, convolutions or head): the floor of the fast path while the method runs
-  every segment from its start.
+  and the compiled gate pass, :func:`railsusp.surrogate.gru_kernel.gru_gates`, on the same
+  batch of segments in the same blocks of steps, no input side, convolutions or head): the
+  floor of the fast path while the method runs every segment from its start.
 
 and the largest difference between the fast and the reference outputs (standardised units,
 and over the output's RMS), and between the in-step and the one-by-one outputs. Each row is
@@ -51,7 +51,8 @@ from railsusp.estimate import SurrogateForces
 from railsusp.estimate.problem import CalibrationProblem
 from railsusp.store import write_json
 from railsusp.surrogate.bundle import series_features
-from railsusp.surrogate.recurrence import cell_params, gru_step
+from railsusp.surrogate.gru_kernel import gru_gates, kernel_threads
+from railsusp.surrogate.recurrence import cell_params, linear
 from railsusp.surrogate.sequence import BLOCK_STEPS, CNNSequence, segment_plan
 from railsusp.surrogate.sequence_sets import predict_sets_in_step
 
@@ -59,16 +60,19 @@ from railsusp.surrogate.sequence_sets import predict_sets_in_step
 @torch.inference_mode()
 def recurrence_only(net: CNNSequence, rows: int, length: int) -> None:
     """The GRUs' hidden-side work over ``length`` steps of ``rows`` segments, in the fast
-    path's blocks of steps (each block's input gates a copy of one fixed block, as the
-    steps overwrite them): the floor."""
+    path's blocks of steps, as the fast path does it (per step the hidden side's product, then
+    the compiled gate pass; each block's input gates a copy of one fixed block): the floor."""
     g = torch.Generator().manual_seed(0)
     for w_ih, _, w_hh, b_h in (cell_params(layer, "gru")[0] for layer in net.rnn):
-        source = torch.randn(BLOCK_STEPS, rows, w_ih.shape[0], generator=g)
-        h = None
-        for lo in range(0, length, BLOCK_STEPS):
-            gates = source.clone()
-            for t in range(min(BLOCK_STEPS, length - lo)):
-                h = gru_step(gates[t], h, w_hh, b_h)
+        source = torch.randn(1, BLOCK_STEPS, rows, w_ih.shape[0], generator=g)
+        state = torch.zeros(1, rows, w_hh.shape[1])
+        seq = np.empty((1, BLOCK_STEPS, rows, w_hh.shape[1]), np.float32)
+        with kernel_threads(torch.get_num_threads()):
+            for lo in range(0, length, BLOCK_STEPS):
+                gates = source.clone().numpy()
+                for t in range(min(BLOCK_STEPS, length - lo)):
+                    side = linear(state[0], w_hh, b_h)[None]
+                    gru_gates(gates, t, side.numpy(), state.numpy(), seq)
 
 
 def timed(fn) -> tuple[float, float]:
