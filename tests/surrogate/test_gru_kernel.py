@@ -4,6 +4,11 @@ one, for several networks at once; its logistic function against the exact one; 
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+import textwrap
+
 import numba as nb
 import numpy as np
 import pytest
@@ -12,9 +17,10 @@ from torch import nn
 
 from railsusp.surrogate.gru_kernel import _sigmoid, gru_gates, kernel_threads
 from railsusp.surrogate.recurrence import cell_params, linear
+from railsusp.vehicle.kernel_cache import FASTMATH
 
 
-@nb.njit(cache=False)
+@nb.njit(cache=False, fastmath=FASTMATH, error_model="numpy")  # (as the kernel compiles it)
 def _sigmoids(x):
     out = np.empty_like(x)
     for i in range(x.shape[0]):
@@ -113,3 +119,26 @@ def test_kernel_threads_sets_and_restores_numba_threads():
     with kernel_threads(10_000):  # bounded by Numba's pool
         assert nb.get_num_threads() == nb.config.NUMBA_NUM_THREADS
     assert nb.get_num_threads() == before
+
+
+def test_a_prediction_leaves_torch_thread_count_alone():
+    """The first use of Numba's thread pool in a process sets OpenMP's thread count, which
+    torch shares: a process told to use one thread must keep predicting on one (a fresh
+    process, since the pool starts once per process)."""
+    script = textwrap.dedent(
+        """
+        import torch
+        from railsusp.surrogate.models import NetConfig, build_network
+        cfg = NetConfig(kind="cnn-gru-seq", n_features=5, window=4, conv_channels=(5, 6),
+                        rnn_hidden=(4, 3), dense=(4,), dropout=0.0)
+        net = build_network(cfg).eval()
+        before = torch.get_num_threads()
+        net.predict_sets(torch.rand(3, 2), torch.randn(1, 30, 3), segment=20)
+        print(before, torch.get_num_threads())
+        """
+    )
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "2"}
+    done = subprocess.run(
+        [sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True
+    )
+    assert done.stdout.split() == ["1", "1"]

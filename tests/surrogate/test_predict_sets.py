@@ -123,3 +123,15 @@ def test_bad_inputs_and_training_mode_are_refused_in_one_line():
     with pytest.raises(RuntimeError, match="eval"):
         net.train().predict_sets(params, track)
     assert net.eval().predict_sets(params[:0], track).shape == (0, 20, 2)
+
+
+def test_a_float64_network_keeps_float64_through_its_gates():
+    """The compiled gate pass is float32's; a float64 network takes torch's steps and keeps
+    its precision (the reference path to 1e-12, far below float32's 1e-7)."""
+    net = _net().double()
+    params, track = _inputs(5, 60)
+    feats = series_features(params.numpy(), track.numpy())
+    ref = net.predict_series(torch.from_numpy(feats), segment=40)
+    out = net.predict_sets(params.double(), track.double(), segment=40)
+    assert out.dtype == torch.float64
+    torch.testing.assert_close(out, ref, rtol=1e-12, atol=1e-12)

@@ -24,12 +24,14 @@ from contextlib import contextmanager
 
 import numba as nb
 import numpy as np
+import torch
 
 from railsusp.vehicle.kernel_cache import FASTMATH  # (the kernels' flags and cache folder)
 
 #: rows of one parallel task
 CHUNK_ROWS = 32
-#: beyond this |x| the logistic function is 1 or 0 in float32 (e^-24 = 4e-11)
+#: beyond this |x| the logistic function is taken as e^-24 = 3.8e-11 from 1 or 0 (1 in float32
+#: on that side; on the other 3.8e-11 instead of less, far below the gates' float32 sums)
 _SIGMOID_CLAMP = 24.0
 #: e^-|x| as (e^(-|x| / 64))^64: the Taylor polynomial of degree 8 of e^-y for y <= 0.375
 _REDUCTION = 1.0 / 64.0
@@ -39,11 +41,11 @@ _REDUCTION = 1.0 / 64.0
 def _sigmoid(x):
     """The logistic function 1 / (1 + e^-x) of a float64, branch-free so that loops over it
     vectorise (the C library's exp does not): e^-|x| by range reduction, the Taylor
-    polynomial of degree 8 of e^-y at y = |x| / 64 (remainder 4e-10 relative at y = 0.375,
-    |x| = 24, and 2e-15 at |x| = 8), then six squarings, which multiply its relative error by
+    polynomial of degree 8 of e^-y at y = |x| / 64 (remainder 5.7e-10 relative at y = 0.375,
+    |x| = 24, and 3e-14 at |x| = 8), then six squarings, which multiply its relative error by
     64. Beyond |x| = 24 the result is clamped at e^-24 = 3.8e-11 from 0 or 1. The error is
-    far below float32's resolution of the gates (tested: 1e-13 absolute within |x| <= 24). A
-    NaN gives NaN (a diverging input is not hidden)."""
+    far below float32's resolution of the gates (tested: 1e-13 absolute within |x| <= 24,
+    4e-8 relative). A NaN gives NaN (a diverging input is not hidden)."""
     a = abs(x)
     a = _SIGMOID_CLAMP if a > _SIGMOID_CLAMP else a  # (a NaN stays NaN, as in torch)
     y = a * _REDUCTION
@@ -92,10 +94,24 @@ def gru_gates(gates, t, gh, h, seq):
 def kernel_threads(n: int) -> Iterator[None]:
     """Run :func:`gru_gates` on ``n`` threads (torch's count for the products beside it, so
     that one setting governs the prediction), at most Numba's; the count before is restored
-    after, for the simulator's parallel kernels."""
+    after, for the simulator's parallel kernels. torch's own count is kept: the start of
+    Numba's pool (its OpenMP layer) sets the calling thread's OpenMP count to the whole pool,
+    and torch, unless its count was set explicitly, reads that as its own: a process run with
+    OMP_NUM_THREADS=1 would otherwise predict on two threads from its first prediction on.
+    (A simulation in the same process starts the pool too, with the same effect on such a
+    process's torch.)"""
+    torch_threads = torch.get_num_threads()  # (first: asking Numba starts its pool)
     before = nb.get_num_threads()
     nb.set_num_threads(max(1, min(n, nb.config.NUMBA_NUM_THREADS)))
+    _keep_torch_threads(torch_threads)
     try:
         yield
     finally:
         nb.set_num_threads(before)
+        _keep_torch_threads(torch_threads)
+
+
+def _keep_torch_threads(n: int) -> None:
+    """torch's thread count back to ``n`` where starting Numba's pool moved it."""
+    if torch.get_num_threads() != n:
+        torch.set_num_threads(n)

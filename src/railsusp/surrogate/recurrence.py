@@ -1,7 +1,9 @@
 """The GRU and LSTM equations one step at a time, on oneDNN matmuls: the fast prediction
 paths of the window CNN-recurrent networks (:meth:`CNNRecurrent.predict_series
-<railsusp.surrogate.models.CNNRecurrent.predict_series>`) and of the sequence CNN-GRU
-(:meth:`CNNSequence.predict_sets <railsusp.surrogate.sequence.CNNSequence.predict_sets>`).
+<railsusp.surrogate.models.CNNRecurrent.predict_series>`) and the hidden-side products of
+the sequence CNN-GRU's (:meth:`CNNSequence.predict_sets
+<railsusp.surrogate.sequence.CNNSequence.predict_sets>`, whose float32 gates are one compiled
+pass: :mod:`.gru_kernel`; these steps are its path for other precisions).
 
 torch's own ``nn.GRU`` runs the same equations in a C++ loop, but with MKL's matmuls (on the
 bench machine, an AMD EPYC, MKL seems to run its AVX2 kernels) and its CPU tanh, several

@@ -5,7 +5,7 @@ NSGA-II asks, every generation, for the forces of the same parameter sets in eac
 condition, and each condition has its own network of one architecture (the study's layers;
 bench/networks_c80_k6.txt). The fast path (:meth:`CNNSequence.predict_sets
 <railsusp.surrogate.sequence.CNNSequence.predict_sets>`) runs the segments of all sets a few
-steps at a time; its GRU recurrences are one small matrix product and five gate operations
+steps at a time; its GRU recurrences are one small matrix product and the gate equations
 per layer and step, which at the 200 rows of a demo generation cost torch's dispatch more
 than their arithmetic (bench/README.md, "The recorded conditions' networks in step").
 :func:`predict_sets_in_step` therefore runs G networks through the same loop at once:
@@ -34,7 +34,7 @@ import torch
 from torch import nn
 
 from railsusp.surrogate.gru_kernel import gru_gates, kernel_threads
-from railsusp.surrogate.recurrence import cell_params, linear
+from railsusp.surrogate.recurrence import cell_params, gru_step, linear
 
 #: time steps of all segments run through the layers together, so that a block's activations
 #: stay in the processor's cache between the layers (16 until stop 35; 8 measured 4-7 % faster
@@ -236,6 +236,13 @@ def _segments(
         for i, (inputs, w_hh, b_h) in enumerate(w.cells):
             gates = _each(seq.view(n_nets, k * rows, -1), inputs).view(n_nets, k, rows, -1)
             seq = torch.empty(n_nets, k, rows, gates.shape[-1] // 3, dtype=gates.dtype)
+            if gates.dtype != torch.float32:  # (the compiled pass is float32's)
+                for t in range(k):
+                    state = hidden[i]
+                    side = None if state is None else _hidden_side(state, w_hh, b_h)
+                    hidden[i] = gru_step(gates[:, t], state, w_hh, b_h, hidden_side=side)
+                    seq[:, t] = hidden[i]
+                continue
             if hidden[i] is None:  # the zero state: its hidden side is b_h exactly
                 hidden[i] = torch.zeros(n_nets, rows, seq.shape[-1], dtype=gates.dtype)
             state, gates_np, seq_np = hidden[i].numpy(), gates.numpy(), seq.numpy()
