@@ -21,7 +21,7 @@ alternating:
   objective gets them, condition by condition (``SurrogateForces.series``) and in step
   (``SurrogateForces.series_conditions``, which the objective now uses);
 - ``recurrence``: the GRUs' recurrences alone (per layer and step the hidden-side matmul
-  and the compiled gate pass, :func:`railsusp.surrogate.gru_kernel.gru_gates`, on the same
+  and the compiled gate pass, :func:`railsusp.surrogate.sequence_sets.gru_steps`, on the same
   batch of segments in the same blocks of steps, no input side, convolutions or head): the
   floor of the fast path while the method runs every segment from its start.
 
@@ -51,10 +51,10 @@ from railsusp.estimate import SurrogateForces
 from railsusp.estimate.problem import CalibrationProblem
 from railsusp.store import write_json
 from railsusp.surrogate.bundle import series_features
-from railsusp.surrogate.gru_kernel import gru_gates, kernel_threads
-from railsusp.surrogate.recurrence import cell_params, linear
+from railsusp.surrogate.gru_kernel import kernel_threads
+from railsusp.surrogate.recurrence import cell_params
 from railsusp.surrogate.sequence import BLOCK_STEPS, CNNSequence, segment_plan
-from railsusp.surrogate.sequence_sets import predict_sets_in_step
+from railsusp.surrogate.sequence_sets import gru_steps, predict_sets_in_step
 
 
 @torch.inference_mode()
@@ -65,14 +65,11 @@ def recurrence_only(net: CNNSequence, rows: int, length: int) -> None:
     g = torch.Generator().manual_seed(0)
     for w_ih, _, w_hh, b_h in (cell_params(layer, "gru")[0] for layer in net.rnn):
         source = torch.randn(1, BLOCK_STEPS, rows, w_ih.shape[0], generator=g)
-        state = torch.zeros(1, rows, w_hh.shape[1])
-        seq = np.empty((1, BLOCK_STEPS, rows, w_hh.shape[1]), np.float32)
+        state = None
         with kernel_threads(torch.get_num_threads()):
             for lo in range(0, length, BLOCK_STEPS):
-                gates = source.clone().numpy()
-                for t in range(min(BLOCK_STEPS, length - lo)):
-                    side = linear(state[0], w_hh, b_h)[None]
-                    gru_gates(gates, t, side.numpy(), state.numpy(), seq)
+                gates = source[:, : min(BLOCK_STEPS, length - lo)].clone()
+                _, state = gru_steps(gates, state, w_hh[None], b_h[None])
 
 
 def timed(fn) -> tuple[float, float]:

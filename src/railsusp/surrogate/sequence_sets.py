@@ -130,6 +130,34 @@ def _hidden_side(h: torch.Tensor, w_hh: torch.Tensor, b_h: torch.Tensor) -> torc
     return torch.baddbmm(b_h, h, w_hh)
 
 
+def gru_steps(
+    gates: torch.Tensor, state: torch.Tensor | None, w_hh: torch.Tensor, b_h: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """k steps of G GRUs over ``rows`` rows each: (every step's hidden states (G, k, rows, H),
+    the state after the last). ``gates``: (G, k, rows, 3H) contiguous, the input side
+    (:func:`~railsusp.surrogate.recurrence.cell_params`'s folding and doubling; may be
+    overwritten); ``state``: (G, rows, H), or None for the zero state; ``w_hh``, ``b_h`` as
+    :class:`_Weights` keeps them. Per step the hidden side's product is torch's
+    (:func:`_hidden_side`); in float32 the gates are one compiled pass
+    (:func:`~railsusp.surrogate.gru_kernel.gru_gates`, which updates the state in place),
+    in other precisions torch's steps (:func:`~railsusp.surrogate.recurrence.gru_step`)."""
+    n_nets, k, rows, h3 = gates.shape
+    seq = torch.empty(n_nets, k, rows, h3 // 3, dtype=gates.dtype)
+    if gates.dtype != torch.float32:
+        for t in range(k):
+            side = None if state is None else _hidden_side(state, w_hh, b_h)
+            state = gru_step(gates[:, t], state, w_hh, b_h, hidden_side=side)
+            seq[:, t] = state
+        return seq, state
+    if state is None:  # the zero state: its hidden side is b_h exactly
+        state = torch.zeros(n_nets, rows, h3 // 3, dtype=gates.dtype)
+    state_np, gates_np, seq_np = state.numpy(), gates.numpy(), seq.numpy()
+    for t in range(k):
+        side = _hidden_side(state, w_hh, b_h)
+        gru_gates(gates_np, t, side.contiguous().numpy(), state_np, seq_np)
+    return seq, state
+
+
 @torch.inference_mode()
 def predict_sets_in_step(
     nets: Sequence[nn.Module],
@@ -235,20 +263,7 @@ def _segments(
         last = conv[:, -1:]
         for i, (inputs, w_hh, b_h) in enumerate(w.cells):
             gates = _each(seq.view(n_nets, k * rows, -1), inputs).view(n_nets, k, rows, -1)
-            seq = torch.empty(n_nets, k, rows, gates.shape[-1] // 3, dtype=gates.dtype)
-            if gates.dtype != torch.float32:  # (the compiled pass is float32's)
-                for t in range(k):
-                    state = hidden[i]
-                    side = None if state is None else _hidden_side(state, w_hh, b_h)
-                    hidden[i] = gru_step(gates[:, t], state, w_hh, b_h, hidden_side=side)
-                    seq[:, t] = hidden[i]
-                continue
-            if hidden[i] is None:  # the zero state: its hidden side is b_h exactly
-                hidden[i] = torch.zeros(n_nets, rows, seq.shape[-1], dtype=gates.dtype)
-            state, gates_np, seq_np = hidden[i].numpy(), gates.numpy(), seq.numpy()
-            for t in range(k):  # the product torch's, the gates one compiled pass
-                side = _hidden_side(hidden[i], w_hh, b_h)
-                gru_gates(gates_np, t, side.contiguous().numpy(), state, seq_np)
+            seq, hidden[i] = gru_steps(gates, hidden[i], w_hh, b_h)
         h = seq.view(n_nets, k * rows, -1)
         for layer in w.head:
             h = _each(h, layer) if isinstance(layer, list) else layer(h)
