@@ -224,6 +224,9 @@ def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
         app, [*common, "--simulator", "--out", str(est), "--statistic", "mean+median"]
     )
     assert result.exit_code == 2 and "mean, rms, p99, std" in result.output
+    result = runner.invoke(app, [*common, "--simulator", "--out", str(est), "--channel-gains"])
+    assert result.exit_code == 2
+    assert "channel_gains with statistic 'mean': accepted only with" in result.output
 
 
 def test_synth_field_and_check_recording(tmp_path):

@@ -94,6 +94,13 @@ CASES = [
         'estimate.weighting = "noise" needs the predictive SD of surrogate.model = "gp-stats"',
     ),
     (
+        "channel-gains-without-aligned",
+        ("truth = {X13 = 16.1}", 'statistic = "mean+p99"\nchannel_gains = true', ""),
+        ({"truth": {"X13": 16.1}}, {"statistic": "mean+p99", "channel_gains": True}, {}),
+        "estimate.channel_gains = true profiles the gains out of the time-aligned comparison; "
+        'estimate.statistic = "mean+p99" has none',
+    ),
+    (
         "track-noise-without-track",
         ("truth = {X13 = 16.1}\ntrack_noise_mm = 0.5", "", ""),
         ({"truth": {"X13": 16.1}, "track_noise_mm": 0.5}, {}, {}),

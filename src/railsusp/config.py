@@ -213,6 +213,12 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
             'statistics GPs of surrogate.model = "gp-stats" predict statistics only: choose a '
             'window surrogate (e.g. "bp") or another statistic'
         )
+    if cfg.estimate.channel_gains and ALIGNED not in cfg.estimate.statistic.split("+"):
+        raise bad(
+            "estimate.channel_gains = true profiles the gains out of the time-aligned "
+            f'comparison; estimate.statistic = "{cfg.estimate.statistic}" has none: add "aligned"'
+            " or set channel_gains = false"
+        )
     if cfg.surrogate.model == "gp-stats" and "p99.85" in cfg.estimate.statistic.split("+"):
         raise bad(
             'estimate.statistic "p99.85" (EN 14363) is computed from force series; the '

@@ -310,6 +310,7 @@ def _stage_runners(
             statistic=e.statistic,
             per_condition=e.per_condition,
             weighting=e.weighting,
+            channel_gains=e.channel_gains,
         )
         recs = read_field(out / "field")
         if e.refine:  # before NSGA-II runs

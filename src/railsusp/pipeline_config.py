@@ -131,6 +131,11 @@ class EstimateSection(_Cfg):
         "mean", description="mean, rms, p99, std, p99.85 (EN 14363) or a '+' combination"
     )
     per_condition: bool = Field(False, description="two objectives per condition")
+    channel_gains: bool = Field(
+        False,
+        description="the time-aligned comparison profiles each force channel's gain "
+        "(calibration factor, within 1 ± 0.1) out of the misfit",
+    )
     weighting: Literal["relative", "noise"] = Field(
         "relative", description="relative errors, or in units of the gp-stats predictive SD"
     )

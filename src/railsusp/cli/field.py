@@ -156,6 +156,13 @@ def estimate(
         ),
     ] = "mean",
     per_condition: Annotated[bool, typer.Option(help="two objectives per condition")] = False,
+    channel_gains: Annotated[
+        bool,
+        typer.Option(
+            help="with --statistic aligned: profile each force channel's gain (calibration "
+            "factor, within 1 ± 0.1) out of the comparison"
+        ),
+    ] = False,
     weighting: Annotated[
         str,
         typer.Option(
@@ -253,6 +260,7 @@ def estimate(
             statistic=statistic,
             per_condition=per_condition,
             weighting=weighting,
+            channel_gains=channel_gains,
         )
         recs = read_field(measured)
         if refine:

@@ -84,12 +84,20 @@ class NSGAConfig:
     statistic: str = "mean"
     per_condition: bool = False
     weighting: str = "relative"
+    #: the time-aligned comparison profiles each channel's gain out
+    #: (:func:`~railsusp.estimate.comparison.channel_gains`)
+    channel_gains: bool = False
 
     def __post_init__(self):
         for name, (low, high) in NSGA_RANGES.items():
             check_range(name, getattr(self, name), low, high)
         parse_statistics(self.statistic)  # fail early with the accepted values
         check_weighting(self.weighting)
+        if self.channel_gains and ALIGNED not in parse_statistics(self.statistic):
+            raise RailsuspInputError(
+                f"channel_gains with statistic {self.statistic!r}: accepted only with the "
+                "time-aligned comparison (a statistic with 'aligned')"
+            )
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -29,6 +29,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from railsusp.estimate.comparison import channel_gains
 from railsusp.estimate.forces import ForceModel
 from railsusp.estimate.output_error import OutputError
 from railsusp.measured import Recording
@@ -87,12 +88,21 @@ def geometry_shifts_at(
     x_si: np.ndarray,
     draws: int = GEOMETRY_DRAWS,
     seed: int = 0,
+    gains: bool = False,
 ) -> np.ndarray:
     """(draws, k) shift, SI, of an estimate ``x_si`` of the time-aligned least squares
-    (without channel gains, as NSGA-II compares) that each draw of the recordings' stated
-    geometry error causes, computed with ``model``, the force model that made the estimate
-    (each draw: the model on the perturbed geometry at ``x_si`` and k forward steps).
-    Empty where no recording states an accuracy or ``draws`` is 0."""
-    problem = OutputError(model, recordings, parameters, gains=False)
-    unit = (np.asarray(x_si, dtype=float) - problem.lo) / (problem.hi - problem.lo)
-    return problem.geometry_shifts(np.clip(unit, 0.0, 1.0), draws, seed)
+    that each draw of the recordings' stated geometry error causes, computed with ``model``,
+    the force model that made the estimate (each draw: the model on the perturbed geometry
+    at ``x_si`` and k forward steps). ``gains``: the least squares profiled each channel's
+    gain out, as NSGA-II's comparison with channel gains does
+    (:func:`~railsusp.estimate.comparison.channel_gains`): the shifts are then the
+    parameters' part of the step with the gains estimated alongside, from the gains at
+    ``x_si``. Empty where no recording states an accuracy or ``draws`` is 0."""
+    problem = OutputError(model, recordings, parameters, gains=gains)
+    unit = np.clip((np.asarray(x_si, dtype=float) - problem.lo) / (problem.hi - problem.lo), 0, 1)
+    z = unit
+    if gains:
+        blocks = problem.blocks(problem.predictions(unit))
+        g = [channel_gains(b, t)[0] for b, t in zip(blocks, problem.targets, strict=True)]
+        z = np.concatenate([unit, g])
+    return problem.geometry_shifts(z, draws, seed)

@@ -102,7 +102,13 @@ def estimate(
     set of a cheaper estimate), topped up with random sets to the population size."""
     cfg = NSGAConfig() if config is None else config
     problem = CalibrationProblem(
-        model, recordings, parameters, cfg.statistic, cfg.per_condition, cfg.weighting
+        model,
+        recordings,
+        parameters,
+        cfg.statistic,
+        cfg.per_condition,
+        cfg.weighting,
+        cfg.channel_gains,
     )
     sampling: Any = FloatRandomSampling()
     if initial_si is not None:
@@ -142,6 +148,8 @@ def estimate(
         cfg,
         choice_rule=rule,
     )
+    if cfg.channel_gains:
+        result.channel_gains = problem.channel_gains_at(result.pareto_x[result.chosen])
     if isinstance(model, StatisticsForces) and problem.stats:
         result.cramer_rao = cramer_rao_pct_range(
             model, problem.recordings, result.parameters, result.chosen_x, problem.stats

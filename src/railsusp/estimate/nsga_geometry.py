@@ -49,7 +49,13 @@ def remove_nsga_geometry_bias(
     if not takes_geometry_bias(result.config.statistic, draws, recordings):
         return result
     result.geometry_shifts_si = geometry_shifts_at(
-        model, recordings, result.parameters, result.pareto_x[result.chosen], draws, seed
+        model,
+        recordings,
+        result.parameters,
+        result.pareto_x[result.chosen],
+        draws,
+        seed,
+        gains=result.config.channel_gains,
     )
     result.geometry_bias_removed = remove
     return result

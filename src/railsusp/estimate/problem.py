@@ -42,7 +42,9 @@ class CalibrationProblem(Problem):
     """Two objectives over the key parameters (decision variables scaled to [0, 1]):
     relative error of the lateral and of the vertical force statistic against the
     recordings (averaged over the statistics of a combination such as ``mean+p99+std``),
-    averaged over the conditions (or one pair per condition)."""
+    averaged over the conditions (or one pair per condition). ``gains``: the time-aligned
+    comparison profiles each recording's channel gain out
+    (:func:`~railsusp.estimate.comparison.channel_gains`)."""
 
     def __init__(
         self,
@@ -52,8 +54,10 @@ class CalibrationProblem(Problem):
         statistic: str = "mean",
         per_condition: bool = False,
         weighting: str = "relative",
+        gains: bool = False,
     ):
         self.model, self.recordings = model, list(recordings)
+        self.gains = gains
         self.parameters = tuple(parameters)
         self.statistic, self.per_condition = statistic, per_condition
         if check_weighting(weighting) == "noise" and not isinstance(model, StatisticsForces):
@@ -68,6 +72,11 @@ class CalibrationProblem(Problem):
         self.stats = tuple(st for st in combination if st != ALIGNED)
         if self.aligned:
             check_aligned(model, self.recordings)
+        elif gains:
+            raise RailsuspInputError(
+                f"channel gains with the statistic {statistic!r}: accepted only with the "
+                "time-aligned comparison (statistic 'aligned'), whose samples a gain scales"
+            )
         if isinstance(model, StatisticsForces):
             check_statistics_model(self.stats)
         check_recordings(self.recordings, self.stats, self.aligned, weighting == "relative")
@@ -92,7 +101,7 @@ class CalibrationProblem(Problem):
             parts = []
             if self.aligned:
                 series = every[k]
-                parts.append(self.comparisons[k].error(series)[:, :, None])
+                parts.append(self.comparisons[k].error(series, self.gains)[:, :, None])
                 if self.stats:
                     pred = series_statistics(series, rec.condition, self.stats)
                     parts.append(np.abs(pred - meas) / np.abs(meas))
@@ -110,6 +119,19 @@ class CalibrationProblem(Problem):
                 parts.append(np.abs(pred - meas) / np.abs(meas))
             errs.append(np.concatenate(parts, axis=2).mean(axis=2))
         return np.stack(errs, axis=1)
+
+    def channel_gains_at(self, x_si: np.ndarray) -> dict[str, float]:
+        """Each recording's lateral and vertical channel gain at one parameter set ``x_si``
+        (SI) as the time-aligned comparison profiles them, by "<condition>:<Y|Q>_<wheel>"
+        (the refinement's names)."""
+        every = series_in_conditions(
+            self.model, np.atleast_2d(x_si), [r.condition for r in self.recordings]
+        )
+        return {
+            f"{rec.condition.name}:{force}_{rec.wheels[0]}": float(g)
+            for rec, comp, series in zip(self.recordings, self.comparisons, every, strict=True)
+            for force, g in zip(("Y", "Q"), comp.gains(series)[0], strict=True)
+        }
 
     def _evaluate(self, x, out, *args, **kwargs):
         e = self.errors(self.to_si(x))

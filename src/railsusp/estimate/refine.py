@@ -22,6 +22,7 @@ from functools import partial
 
 import numpy as np
 
+from railsusp.estimate.comparison import GAIN_LIMIT
 from railsusp.estimate.forces import ForceModel
 from railsusp.estimate.geometry_bias import (
     GEOMETRY_DRAWS,
@@ -39,9 +40,6 @@ from railsusp.params import bounds
 
 #: progress lines for the command line
 log = logging.getLogger("railsusp.estimate")
-
-#: the refinement's channel gains stay within 1 ± this (instrumented-wheelset calibration)
-GAIN_LIMIT = 0.1
 
 
 @dataclass

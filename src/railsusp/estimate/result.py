@@ -59,6 +59,9 @@ class CalibrationResult:
     #: whether NSGA-II's estimate is its choice less the mean of those shifts (first SIMEX
     #: step; its Pareto range, the interval, moves with it; ``pareto_x`` stays NSGA-II's)
     geometry_bias_removed: bool = False
+    #: each recording's channel gain at NSGA-II's choice, by "<condition>:<Y|Q>_<wheel>",
+    #: where the time-aligned comparison profiled them out (``config.channel_gains``)
+    channel_gains: dict[str, float] = field(default_factory=dict)
     #: intervals computed, by level and refinement (a refinement attached later recomputes)
     _intervals: dict = field(default_factory=dict, repr=False, compare=False)
 
@@ -243,6 +246,7 @@ class CalibrationResult:
                     "bias_kept": self.bias_kept(),
                     **{f"{n}_pct_range": v for n, v in self.nsga_geometry_pct_range().items()},
                 },
+                "channel_gains": self.channel_gains,
                 "refinement": self.refinement.to_dict() if self.refinement else None,
                 "cramer_rao_pct_range": self.cramer_rao,
                 "intervals": self.intervals().to_dict(),
