@@ -20,7 +20,9 @@ main-suspension parameters, and for each set:
    no simulator refinement; the estimate is that choice less the bias that
    ``--geometry-draws`` draws of the stated geometry error cause, computed with the same
    surrogate (the first SIMEX step, :mod:`railsusp.estimate.geometry_bias`; 0 draws: the
-   choice itself); both are scored;
+   choice itself); both are scored. ``--gains``: the comparison profiles each force
+   channel's gain out (NSGA-II's ``channel_gains``; the recordings carry a 1 % gain error
+   per channel, as an instrumented wheelset's calibration does);
 3. scores each key parameter's error in % of its range, and decides which key parameters
    are identifiable: those whose time-aligned Cramér-Rao bound at the truth, computed with
    the same surrogate on the same recordings
@@ -30,10 +32,10 @@ main-suspension parameters, and for each set:
    :mod:`railsusp.estimate.intervals` cannot decide it here: NSGA-II's only interval is the
    Pareto range, which is not a confidence interval.
 
-The six key parameters are the surrogate's inputs; the other four main-suspension
-parameters are drawn with the truth too (the recordings carry their effect), and the
-surrogate, trained with them varied over their ranges, predicts their average effect: they
-are marginalised by its training, not estimated.
+The key parameters are the surrogate's inputs (five for the shipped set); the other
+main-suspension parameters are drawn with the truth too (the recordings carry their
+effect), and the surrogate, trained with them varied over their ranges, predicts their
+average effect: they are marginalised by its training, not estimated.
 
 Per set it prints and stores the errors, the identifiable parameters, the seconds per
 estimate (wall and CPU, with the machine's load average) and the surrogate's prediction time
@@ -49,7 +51,7 @@ import os
 import platform
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -237,7 +239,13 @@ def run_set(
     with NSGA-II on the surrogate, and score it."""
     truth, recs = set_recordings(index, truth_si, conditions, work, args)
     params = model.parameters
-    cfg = NSGAConfig(pop_size=args.pop_size, n_gen=args.n_gen, seed=index, statistic="aligned")
+    cfg = NSGAConfig(
+        pop_size=args.pop_size,
+        n_gen=args.n_gen,
+        seed=index,
+        statistic="aligned",
+        channel_gains=args.gains,
+    )
     timed = _Timed(model)
     t0, c0, load0 = time.perf_counter(), time.process_time(), os.getloadavg()[0]
     res = estimate(timed, recs, params, cfg)
@@ -357,19 +365,53 @@ def settings_of(args: argparse.Namespace, folder: Path) -> dict:
         "statistic": "aligned",
         "middle": MIDDLE,
         "geometry_draws": args.geometry_draws,
+        "channel_gains": args.gains,
     }
 
 
-def main(argv: Sequence[str] | None = None) -> dict:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("run", type=Path, help="run directory with surrogates/KIND/<condition>/")
-    ap.add_argument("--kind", default="cnn-gru", help="surrogate kind (folder under surrogates/)")
+def run_new_sets(
+    truths: np.ndarray,
+    sets: list[dict],
+    limit: int,
+    run_one: Callable[[int, np.ndarray], dict],
+    save: Callable[[list[dict]], object],
+) -> list[dict]:
+    """Run each set of ``truths`` not yet among the rows ``sets`` (at most ``limit`` new
+    ones; 0: all, negative: none) with ``run_one(index, truth)``, saving all rows after
+    each (a run resumes where it stopped); returns the rows in set order."""
+    done = {s["set"] for s in sets}
+    new = 0
+    for i, truth in enumerate(truths):
+        if i in done or limit < 0 or (limit and new >= limit):
+            continue
+        row = run_one(i, truth)
+        sets = sorted([*sets, row], key=lambda s: s["set"])
+        new += 1
+        print(
+            f"  set {i}: {row['seconds']:.1f} s, identifiable within {WITHIN_PCT:g} %: "
+            f"{len(row['identifiable_within'])}/{len(row['identifiable'])}",
+            flush=True,
+        )
+        save(sets)
+    return sets
+
+
+def add_set_arguments(ap: argparse.ArgumentParser) -> None:
+    """The options that fix the sets and their recordings (shared with
+    bench/estimate_ceiling.py, which scores other estimates on the same ones)."""
     ap.add_argument("--sets", type=int, default=12, help="parameter sets drawn")
     ap.add_argument("--limit", type=int, default=0, help="most new sets this call (0: all)")
     ap.add_argument("--seed", type=int, default=0, help="seed of the drawn sets and the noise")
     ap.add_argument("--duration", type=float, default=60.0, help="recorded s per condition")
     ap.add_argument("--track-noise", type=float, default=0.5, help="geometry error, mm RMS")
     ap.add_argument("--noise", type=float, default=0.03, help="instrument noise, share of RMS")
+
+
+def main(argv: Sequence[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("run", type=Path, help="run directory with surrogates/KIND/<condition>/")
+    ap.add_argument("--kind", default="cnn-gru", help="surrogate kind (folder under surrogates/)")
+    add_set_arguments(ap)
     ap.add_argument("--pop-size", type=int, default=50)
     ap.add_argument("--n-gen", type=int, default=100)
     ap.add_argument("--conditions", default="", help="conditions (default: the surrogates')")
@@ -380,6 +422,11 @@ def main(argv: Sequence[str] | None = None) -> dict:
         default=GEOMETRY_DRAWS,
         help="draws of the geometry error whose mean shift is taken off NSGA-II's choice "
         "(first SIMEX step; 0: the choice itself is the estimate)",
+    )
+    ap.add_argument(
+        "--gains",
+        action="store_true",
+        help="the comparison profiles each channel's gain out (NSGA-II's channel_gains)",
     )
     ap.add_argument("--work", type=Path, default=Path("runs/estimate_tracks"))
     ap.add_argument("--out", type=Path, default=Path("bench/results/estimate_tracks.json"))
@@ -403,34 +450,25 @@ def main(argv: Sequence[str] | None = None) -> dict:
         old = read_json(args.out)
         if old.get("settings") == settings:
             sets = old.get("per_set", [])
-    done = {s["set"] for s in sets}
     truths = draw_sets(args.sets, args.seed)
     print(
         f"NSGA-II {args.pop_size} x {args.n_gen} on {args.kind} surrogates ({folder}), "
         f"{len(conditions)} condition(s) x {args.duration:g} s, geometry error "
-        f"{args.track_noise:g} mm, noise {args.noise:g}; {len(done)} set(s) already done"
+        f"{args.track_noise:g} mm, noise {args.noise:g}; {len(sets)} set(s) already done"
     )
     for cond, fields in moved.items():
         print(f"  {cond}: moved into the surrogate's track family: {fields}")
     if args.rescore:
         work = args.work / args.run.name
         sets = [rescore_set(s, truths[s["set"]], model, conditions, work, args) for s in sets]
-        done = {s["set"] for s in sets}
         args.limit = -1  # no new sets
-    new = 0
-    doc: dict = {}
-    for i, truth in enumerate(truths):
-        if i in done or args.limit < 0 or (args.limit and new >= args.limit):
-            continue
-        row = run_set(i, truth, model, conditions, args.work / args.run.name, args)
-        sets = sorted([*sets, row], key=lambda s: s["set"])
-        new += 1
-        print(
-            f"  set {i}: {row['seconds']:.1f} s, identifiable within {WITHIN_PCT:g} %: "
-            f"{len(row['identifiable_within'])}/{len(row['identifiable'])}",
-            flush=True,
-        )
-        doc = write_out(args, settings, sets, model, moved)
+    sets = run_new_sets(
+        truths,
+        sets,
+        args.limit,
+        lambda i, truth: run_set(i, truth, model, conditions, args.work / args.run.name, args),
+        lambda rows: write_out(args, settings, rows, model, moved),
+    )
     if not sets:
         print("no sets")
         return {}
