@@ -17,7 +17,8 @@ replaces the surrogate by the simulator:
    parameters, **started at the truth**: the minimum of the misfit nearest the truth, which
    a global search on a perfect surrogate could at best find;
 2. its geometry bias taken off as the estimate's is (the first SIMEX step,
-   ``--geometry-draws`` draws of the stated error, :mod:`railsusp.estimate.geometry_bias`);
+   ``--geometry-draws`` draws of the stated error, :mod:`railsusp.estimate.geometry_bias`;
+   seeded 0 in every set, where estimate_tracks.py seeds a set's draws with its index);
 3. scored as estimate_tracks.py scores, the identifiable parameters decided by the same rule
    with the same networks (``--networks``, the time-aligned Cramér-Rao bound at the truth
    <= 5 % of range), and by the simulator's own bound beside it.

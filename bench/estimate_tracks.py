@@ -365,7 +365,8 @@ def settings_of(args: argparse.Namespace, folder: Path) -> dict:
         "statistic": "aligned",
         "middle": MIDDLE,
         "geometry_draws": args.geometry_draws,
-        "channel_gains": args.gains,
+        # only when on: results written before the option existed still resume
+        **({"channel_gains": True} if args.gains else {}),
     }
 
 

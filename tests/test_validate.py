@@ -129,3 +129,25 @@ def test_a_derailing_resimulation_is_reported_not_raised(case, monkeypatch):
     assert v.forces.before_kN.isna().all() and np.isfinite(v.forces.after_kN).all()
     out = v.save(est / "validation-failed")
     assert json.loads((out / "validation.json").read_text())["failures"] == v.failures
+
+
+def test_time_aligned_validation_profiles_the_gains_where_the_estimate_did(tmp_path):
+    """Noise-free recordings on exactly known track, read through the synthetic wheelset's
+    1 % gain errors: the true parameters' time-aligned error is those gains' misfit, unless
+    the estimate profiled the gains out (``channel_gains``), as its validation then does."""
+    cond = get_condition("straight", duration_s=2.0, n_steps=100, lead_in_m=30.0)
+    truth = ParameterSet({"X13": 18.0, "X17": 2.3}, units="display")
+    field = synthesise_field(truth, [cond], tmp_path / "field", noise=0.0, with_track=True)
+    res = estimate(
+        SimulatorForces(PARAMS),
+        read_field(field),
+        PARAMS,
+        NSGAConfig(pop_size=4, n_gen=1, statistic="aligned"),
+    )
+    errors = {}
+    for gains in (False, True):
+        res.config = NSGAConfig(pop_size=4, n_gen=1, statistic="aligned", channel_gains=gains)
+        est = res.save(tmp_path / f"est-{gains}", extra={"measured": str(field)})
+        v = validate(est, truth=field / "truth.json", statistic="aligned")
+        errors[gains] = v.forces.set_index("force")["truth_error"]
+    assert errors[True].max() < 1e-4 < 0.01 < errors[False].max()  # Q's gain: 10 % of its SD

@@ -147,12 +147,14 @@ def _section(config: PipelineConfig, stage: str) -> Any:
 
 
 def _estimate_section(config: PipelineConfig) -> dict:
-    """The estimate stage's inputs: its settings (without a held_prior the section hashes as
-    before it existed, so runs stay up to date); on time-aligned forces also the route of
-    NSGA-II's estimate, which since 2026-11-28 takes the geometry error's bias off its
-    choice where the recordings state their accuracy, so that such a run estimates again."""
+    """The estimate stage's inputs: its settings (without a held_prior, and with
+    channel_gains off, the section hashes as before those existed, so runs stay up to date);
+    on time-aligned forces also the route of NSGA-II's estimate, which since 2026-11-28
+    takes the geometry error's bias off its choice where the recordings state their
+    accuracy, so that such a run estimates again."""
     e = config.estimate
-    section = e.model_dump(exclude=None if e.held_prior else {"held_prior"})
+    unset = {k for k in ("held_prior", "channel_gains") if not getattr(e, k)}
+    section = e.model_dump(exclude=unset or None)
     if e.statistic == "aligned":
         section["nsga_geometry"] = "first SIMEX step"
     return section

@@ -93,7 +93,8 @@ def validate(
     ``truth.json`` of synthetic recordings (scored only when given); ``sensitivity`` a
     ``key_parameters.json`` or ``indices.parquet`` of the campaign, for the Sobol flag.
     ``statistic`` defaults to the estimate's, with ``aligned`` added when every recording
-    carries measured track geometry.
+    carries measured track geometry; the time-aligned errors profile the channel gains out
+    where the estimate did (its ``channel_gains``).
     """
     est = read_json(Path(estimate_dir) / "estimate.json")
     params = tuple(est["parameters"])
@@ -116,6 +117,7 @@ def validate(
     if truth_set is not None:
         sims["truth"] = _simulate(truth_set, recs, "true parameters", failures)
     aligned = ALIGNED in stats
+    gains = bool(est["config"].get("channel_gains", False))
     stats = tuple(st for st in stats if st != ALIGNED)
     rows, series = [], {}
     for i, rec in enumerate(recs):
@@ -134,7 +136,7 @@ def validate(
                     "measured_kN": sd,
                 }
                 for key, s in sims.items():
-                    e = float(aligned_error(s[i][None], rec)[0, j])
+                    e = float(aligned_error(s[i][None], rec, gains)[0, j])
                     row[f"{key}_kN"], row[f"{key}_error"] = e * sd, e
                 rows.append(row)
             for k, st in enumerate(stats):

@@ -137,9 +137,40 @@ def test_nsga_with_gains_reports_them_and_is_not_led_off_by_a_gain_error(tmp_pat
     profiled = estimate(WaveForces(), [rec], PARAMS, NSGAConfig(**cfg, channel_gains=True))
     assert plain.channel_gains == {}
     err = lambda r: np.abs(r.pareto_x[r.chosen] - TRUTH) / (hi - lo)  # noqa: E731
-    assert err(profiled).max() < 0.01 and err(plain)[1] > 3 * err(profiled)[1]
+    # X14 and the wheel load's gain are fixed by the 120 kN mean; X13 and the lateral gain
+    # trade along a flat valley (Y = g 3 a sin + g b), so only their product is asserted
+    assert err(profiled)[1] < 0.01 and err(plain)[1] > 0.05
     assert profiled.channel_gains["straight:Q_w1L"] == pytest.approx(1.04, abs=0.002)
-    assert profiled.channel_gains["straight:Y_w1L"] == pytest.approx(1.0, abs=0.002)
+    x13 = profiled.pareto_x[profiled.chosen][0]
+    assert profiled.channel_gains["straight:Y_w1L"] * x13 == pytest.approx(TRUTH[0], rel=0.01)
+    assert "each force channel's gain profiled out" in profiled.route
     saved = json.loads((profiled.save(tmp_path / "est") / "estimate.json").read_text())
     assert saved["channel_gains"] == profiled.channel_gains
     assert saved["config"]["channel_gains"] is True
+
+
+def test_the_geometry_draws_and_the_run_hash_follow_the_setting(monkeypatch):
+    """NSGA-II's geometry shifts are taken with the gains where its comparison profiled
+    them; a pipeline run with the setting off hashes its estimate stage as before the
+    setting existed (old runs stay up to date), on re-estimates."""
+    from railsusp.estimate import estimate, nsga_geometry
+    from railsusp.pipeline import _section
+    from railsusp.pipeline_config import PipelineConfig
+
+    asked = []
+
+    def shifts(model, recordings, parameters, x_si, draws, seed, gains=False):
+        asked.append(gains)
+        return np.zeros((draws, len(parameters)))
+
+    monkeypatch.setattr(nsga_geometry, "geometry_shifts_at", shifts)
+    monkeypatch.setattr(nsga_geometry, "takes_geometry_bias", lambda *a: True)
+    rec = wave_recording(TRUTH)
+    for on in (False, True):
+        cfg = NSGAConfig(pop_size=8, n_gen=2, statistic="aligned", channel_gains=on)
+        res = estimate(WaveForces(), [rec], PARAMS, cfg)
+        nsga_geometry.remove_nsga_geometry_bias(res, [rec], WaveForces(), draws=2)
+    assert asked == [False, True]
+    assert "channel_gains" not in _section(PipelineConfig(), "estimate")
+    on = PipelineConfig(estimate={"statistic": "aligned", "channel_gains": True})
+    assert _section(on, "estimate")["channel_gains"] is True

@@ -101,8 +101,8 @@ def geometry_shifts_at(
     problem = OutputError(model, recordings, parameters, gains=gains)
     unit = np.clip((np.asarray(x_si, dtype=float) - problem.lo) / (problem.hi - problem.lo), 0, 1)
     z = unit
-    if gains:
-        blocks = problem.blocks(problem.predictions(unit))
+    if gains:  # the step's batch (the point first), which the shifts then reuse from cache
+        blocks = [b[:1] for b in problem.blocks(problem.predictions(problem.steps(unit)))]
         g = [channel_gains(b, t)[0] for b, t in zip(blocks, problem.targets, strict=True)]
         z = np.concatenate([unit, g])
     return problem.geometry_shifts(z, draws, seed)

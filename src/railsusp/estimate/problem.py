@@ -44,7 +44,8 @@ class CalibrationProblem(Problem):
     recordings (averaged over the statistics of a combination such as ``mean+p99+std``),
     averaged over the conditions (or one pair per condition). ``gains``: the time-aligned
     comparison profiles each recording's channel gain out
-    (:func:`~railsusp.estimate.comparison.channel_gains`)."""
+    (:func:`~railsusp.estimate.comparison.channel_gains`); record statistics combined with
+    it (``aligned+mean``) still compare the unscaled prediction."""
 
     def __init__(
         self,

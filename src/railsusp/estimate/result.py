@@ -103,6 +103,8 @@ class CalibrationResult:
         aligned = ALIGNED in parse_statistics(self.config.statistic)
         on = "time-aligned forces on measured track" if aligned else "record statistics"
         text = f"NSGA-II against {on} ({self.config.statistic})"
+        if self.config.channel_gains:
+            text += ", each force channel's gain profiled out"
         if self.geometry_bias_removed:
             text += ", less the track geometry error's bias (first SIMEX step)"
         if self.refinement is None:
