@@ -174,3 +174,20 @@ def test_the_geometry_draws_and_the_run_hash_follow_the_setting(monkeypatch):
     assert "channel_gains" not in _section(PipelineConfig(), "estimate")
     on = PipelineConfig(estimate={"statistic": "aligned", "channel_gains": True})
     assert _section(on, "estimate")["channel_gains"] is True
+
+
+def test_statistics_beside_the_comparison_see_the_same_gains():
+    """With ``aligned+mean`` the mean wheel load is compared as the gain-scaled prediction
+    gives it: at the truth, on a recording whose wheel load reads 4 % high, both parts
+    vanish with gains and the mean's relative error is the gain's 4 % without."""
+    rec = wave_recording(TRUTH)
+    rec.Q["w1L"] = rec.Q["w1L"] * 1.04
+    x = TRUTH[None]
+    with_gains = CalibrationProblem(WaveForces(), [rec], PARAMS, "aligned+mean", gains=True)
+    plain = CalibrationProblem(WaveForces(), [rec], PARAMS, "aligned+mean")
+    assert with_gains.errors(x)[0, 0, 1] < 1e-6
+    # the vertical objective averages the aligned error and the mean's relative error
+    mean_part = (
+        2 * plain.errors(x)[0, 0, 1] - aligned_error(WaveForces().series(x, ON_TRACK), rec)[0, 1]
+    )
+    assert mean_part == pytest.approx(1 - 1 / 1.04, rel=1e-3)

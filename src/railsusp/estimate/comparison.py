@@ -217,6 +217,11 @@ class AlignedComparison:
     def error(self, pred: np.ndarray, gains: bool = False) -> np.ndarray:
         """(n, 2) :func:`aligned_error` of predicted series (n, T, 2), each set's channel
         scaled by its :func:`channel_gains` first with ``gains``."""
+        return self.profiled(pred, gains)[0]
+
+    def profiled(self, pred: np.ndarray, gains: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """(:meth:`error`, the (n, 2) gains it scaled each set's channels by: their
+        :func:`channel_gains` with ``gains``, else ones)."""
         rec = self.recording
         self._check(pred)
         _, defined = _leading_gaps(pred)
@@ -229,4 +234,4 @@ class AlignedComparison:
             count = np.isfinite(d).sum(axis=1)
             err[:, c] = np.where(count > 0, np.sqrt(sq / np.maximum(count, 1)), np.inf)
         err /= self.scale
-        return np.where(defined[:, None] & np.isfinite(err), err, FAILED_ALIGNED_ERROR)
+        return np.where(defined[:, None] & np.isfinite(err), err, FAILED_ALIGNED_ERROR), g

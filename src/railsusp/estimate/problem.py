@@ -44,8 +44,8 @@ class CalibrationProblem(Problem):
     recordings (averaged over the statistics of a combination such as ``mean+p99+std``),
     averaged over the conditions (or one pair per condition). ``gains``: the time-aligned
     comparison profiles each recording's channel gain out
-    (:func:`~railsusp.estimate.comparison.channel_gains`); record statistics combined with
-    it (``aligned+mean``) still compare the unscaled prediction."""
+    (:func:`~railsusp.estimate.comparison.channel_gains`), and record statistics combined
+    with it (``aligned+mean``) are taken of the prediction scaled by the same gains."""
 
     def __init__(
         self,
@@ -102,8 +102,10 @@ class CalibrationProblem(Problem):
             parts = []
             if self.aligned:
                 series = every[k]
-                parts.append(self.comparisons[k].error(series, self.gains)[:, :, None])
+                err, g = self.comparisons[k].profiled(series, self.gains)
+                parts.append(err[:, :, None])
                 if self.stats:
+                    series = series * g[:, None, :] if self.gains else series
                     pred = series_statistics(series, rec.condition, self.stats)
                     parts.append(np.abs(pred - meas) / np.abs(meas))
             elif self.weighting == "noise":
