@@ -229,7 +229,8 @@ class AlignedComparison:
         g = self._gains(compared) if gains else np.ones(compared.shape[::2])
         err = np.empty(compared.shape[::2])
         for c, used in enumerate(self.samples):
-            d = g[:, c, None] * compared[:, used, c] - self.measured[used, c]
+            p = compared[:, used, c]
+            d = (g[:, c, None] * p if gains else p) - self.measured[used, c]
             sq = np.where(np.isfinite(d), d**2, 0.0).sum(axis=1)
             count = np.isfinite(d).sum(axis=1)
             err[:, c] = np.where(count > 0, np.sqrt(sq / np.maximum(count, 1)), np.inf)
