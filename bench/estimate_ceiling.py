@@ -57,6 +57,7 @@ from estimate_tracks import (
 )
 from railsusp.estimate import SurrogateForces
 from railsusp.estimate.aligned_identifiability import aligned_cramer_rao_pct_range, identifiable
+from railsusp.estimate.expected_forces import ExpectedForces
 from railsusp.estimate.forces import SimulatorForces
 from railsusp.estimate.geometry_bias import GEOMETRY_DRAWS
 from railsusp.estimate.refine import refine
@@ -82,8 +83,13 @@ def run_set(index: int, truth_si: np.ndarray, net: SurrogateForces, conditions: 
     params = net.parameters
     x_true = np.array([truth.get(p) for p in params])
     sim = SimulatorForces(params, base=truth if args.held == "truth" else None)
+    model = (
+        ExpectedForces(sim, args.expected_draws, antithetic=not args.independent_draws)
+        if args.expected_draws
+        else sim
+    )
     result = refine(
-        sim, recs, params, x_true, gains=args.gains, geometry_draws=args.geometry_draws, seed=0
+        model, recs, params, x_true, gains=args.gains, geometry_draws=args.geometry_draws, seed=0
     )
     result.geometry_bias_removed = args.geometry_draws > 0
     err = pct_of_range(params, result.estimate_si, x_true)
@@ -181,7 +187,11 @@ def settings_of(args: argparse.Namespace) -> dict:
         "gains": args.gains,
         "geometry_draws": args.geometry_draws,
         "conditions": args.conditions,
-    }
+    } | (
+        {"expected_draws": args.expected_draws, "antithetic": not args.independent_draws}
+        if args.expected_draws
+        else {}
+    )
 
 
 def main(argv: Sequence[str] | None = None) -> dict:
@@ -209,6 +219,19 @@ def main(argv: Sequence[str] | None = None) -> dict:
         help="draws of the geometry error whose mean shift is taken off (0: the refined point)",
     )
     ap.add_argument(
+        "--expected-draws",
+        type=int,
+        default=0,
+        help="compare the simulator's mean over this many draws of the true geometry given "
+        "the measured one (railsusp.estimate.expected_forces; 0: its response to the "
+        "measured geometry itself)",
+    )
+    ap.add_argument(
+        "--independent-draws",
+        action="store_true",
+        help="with --expected-draws: independent draws, not antithetic pairs",
+    )
+    ap.add_argument(
         "--work",
         type=Path,
         default=None,
@@ -217,11 +240,17 @@ def main(argv: Sequence[str] | None = None) -> dict:
     )
     ap.add_argument("--out", type=Path, default=Path("bench/results/estimate_ceiling.json"))
     args = ap.parse_args(argv)
-    if args.sets < 1 or args.duration <= 0 or args.track_noise < 0 or args.geometry_draws < 0:
+    if (
+        args.sets < 1
+        or args.duration <= 0
+        or args.track_noise < 0
+        or args.geometry_draws < 0
+        or args.expected_draws < 0
+    ):
         ap.error(
             f"--sets {args.sets}, --duration {args.duration}, --track-noise {args.track_noise}, "
-            f"--geometry-draws {args.geometry_draws}: accepted sets >= 1, duration > 0, "
-            "track noise >= 0, draws >= 0"
+            f"--geometry-draws {args.geometry_draws}, --expected-draws {args.expected_draws}: "
+            "accepted sets >= 1, duration > 0, track noise >= 0, draws >= 0"
         )
     try:
         net = SurrogateForces(args.networks)

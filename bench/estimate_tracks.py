@@ -22,7 +22,11 @@ main-suspension parameters, and for each set:
    surrogate (the first SIMEX step, :mod:`railsusp.estimate.geometry_bias`; 0 draws: the
    choice itself); both are scored. ``--gains``: the comparison profiles each force
    channel's gain out (NSGA-II's ``channel_gains``; the recordings carry a 1 % gain error
-   per channel, as an instrumented wheelset's calibration does);
+   per channel, as an instrumented wheelset's calibration does). ``--expected-draws N``:
+   NSGA-II compares the networks' mean over N draws of the true geometry given the
+   measured one (:class:`railsusp.estimate.expected_forces.ExpectedForces`: the error's
+   extra roughness is not fed to them; N times the predictions), usually with
+   ``--geometry-draws 0``;
 3. scores each key parameter's error in % of its range, and decides which key parameters
    are identifiable: those whose time-aligned Cramér-Rao bound at the truth, computed with
    the same surrogate on the same recordings
@@ -61,6 +65,7 @@ from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate import NSGAConfig, SurrogateForces, estimate
 from railsusp.estimate.aligned_identifiability import aligned_cramer_rao_pct_range, identifiable
+from railsusp.estimate.expected_forces import ExpectedForces
 from railsusp.estimate.geometry_bias import GEOMETRY_DRAWS
 from railsusp.estimate.identifiability import BOUND_LIMIT_PCT
 from railsusp.estimate.nsga_geometry import remove_nsga_geometry_bias
@@ -246,11 +251,13 @@ def run_set(
         statistic="aligned",
         channel_gains=args.gains,
     )
-    timed = _Timed(model)
+    # the mean over draws of the true geometry (--expected-draws), or the measured one
+    compared = ExpectedForces(model, args.expected_draws) if args.expected_draws else model
+    timed = _Timed(compared)
     t0, c0, load0 = time.perf_counter(), time.process_time(), os.getloadavg()[0]
     res = estimate(timed, recs, params, cfg)
     t_nsga = time.perf_counter() - t0
-    remove_nsga_geometry_bias(res, recs, model, args.geometry_draws, index)
+    remove_nsga_geometry_bias(res, recs, compared, args.geometry_draws, index)
     seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     load = (load0 + os.getloadavg()[0]) / 2.0
     lo, hi = bounds(params)
@@ -365,8 +372,9 @@ def settings_of(args: argparse.Namespace, folder: Path) -> dict:
         "statistic": "aligned",
         "middle": MIDDLE,
         "geometry_draws": args.geometry_draws,
-        # only when on: results written before the option existed still resume
+        # only when on: results written before the options existed still resume
         **({"channel_gains": True} if args.gains else {}),
+        **({"expected_draws": args.expected_draws} if args.expected_draws else {}),
     }
 
 
@@ -429,6 +437,14 @@ def main(argv: Sequence[str] | None = None) -> dict:
         action="store_true",
         help="the comparison profiles each channel's gain out (NSGA-II's channel_gains)",
     )
+    ap.add_argument(
+        "--expected-draws",
+        type=int,
+        default=0,
+        help="NSGA-II compares the networks' mean over this many draws of the true geometry "
+        "given the measured one (railsusp.estimate.expected_forces; 0: their prediction on "
+        "the measured geometry itself)",
+    )
     ap.add_argument("--work", type=Path, default=Path("runs/estimate_tracks"))
     ap.add_argument("--out", type=Path, default=Path("bench/results/estimate_tracks.json"))
     ap.add_argument(
@@ -437,6 +453,11 @@ def main(argv: Sequence[str] | None = None) -> dict:
         help="score the stored sets again (identifiability only; no NSGA-II run)",
     )
     args = ap.parse_args(argv)
+    if args.expected_draws < 0 or args.geometry_draws < 0:
+        ap.error(
+            f"--expected-draws {args.expected_draws}, --geometry-draws {args.geometry_draws}: "
+            "accepted 0 or more"
+        )
     torch.set_num_threads(args.threads)
     folder = args.run / "surrogates" / args.kind
     try:

@@ -88,3 +88,32 @@ def test_bad_settings_are_refused_naming_the_flag(bench, capsys):
         bench.main(["--track-noise", "-1"])
     assert exc.value.code == 2
     assert "--track-noise -1" in capsys.readouterr().err
+
+
+def test_expected_draws_are_a_setting_and_refused_below_zero(bench, capsys):
+    """The arm comparing the simulator's mean over drawn true geometries is stored as a
+    setting only when on (JSON written before it resumes), and a negative count exits 2."""
+    import argparse
+
+    args = argparse.Namespace(
+        networks=".",
+        seed=0,
+        duration=60.0,
+        track_noise=0.5,
+        noise=0.03,
+        held="nominal",
+        gains=False,
+        geometry_draws=0,
+        conditions="",
+        expected_draws=0,
+        independent_draws=False,
+    )
+    assert "expected_draws" not in bench.settings_of(args)
+    args.expected_draws = 8
+    assert bench.settings_of(args)["expected_draws"] == 8
+    assert bench.settings_of(args)["antithetic"]
+    assert bench.settings_of(args)["antithetic"]
+    with pytest.raises(SystemExit) as exc:
+        bench.main(["--expected-draws", "-1"])
+    assert exc.value.code == 2
+    assert "--expected-draws -1" in capsys.readouterr().err

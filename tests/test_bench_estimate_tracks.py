@@ -128,3 +128,24 @@ def test_rescore_keeps_the_estimates_and_scores_them_again(bench, tmp_path):
     assert row["seconds"] == first["seconds"] and row["predict_calls"] == first["predict_calls"]
     assert row["cramer_rao_pct_range"] == pytest.approx(first["cramer_rao_pct_range"])
     assert row["identifiable"] == first["identifiable"]
+
+
+def test_expected_forces_arm_is_its_own_setting(bench, tmp_path, capsys):
+    """--expected-draws: NSGA-II compares the networks' mean over drawn true geometries
+    (the setting stored, so such sets never resume into a plain run's JSON); without the
+    SIMEX draws the estimate is NSGA-II's choice itself. A negative count exits 2."""
+    run = tmp_path / "run"
+    tiny_surrogate(run / "surrogates" / "cnn-gru")
+    argv = [str(run), "--sets", "1", "--duration", "2", "--pop-size", "4", "--n-gen", "2"]
+    argv += ["--threads", "1", "--work", str(tmp_path / "w"), "--geometry-draws", "0"]
+    doc = bench.main([*argv, "--expected-draws", "2", "--out", str(tmp_path / "e.json")])
+    s0 = doc["per_set"][0]
+    assert doc["settings"]["expected_draws"] == 2
+    assert s0["error_pct_range"] == s0["choice_error_pct_range"]
+    plain = bench.main([*argv, "--out", str(tmp_path / "p.json")])
+    assert "expected_draws" not in plain["settings"]
+    assert plain["per_set"][0]["truth_display"] == s0["truth_display"]
+    with pytest.raises(SystemExit) as exc:
+        bench.main([*argv, "--expected-draws", "-1"])
+    assert exc.value.code == 2
+    assert "--expected-draws -1" in capsys.readouterr().err

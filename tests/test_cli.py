@@ -227,6 +227,12 @@ def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
     result = runner.invoke(app, [*common, "--simulator", "--out", str(est), "--channel-gains"])
     assert result.exit_code == 2
     assert "channel_gains with statistic 'mean': accepted only with" in result.output
+    for bad, needle in [
+        (["--expected-draws", "4"], "expected_draws 4 with statistic 'mean': accepted only"),
+        (["--statistic", "aligned", "--expected-draws", "65"], "expected_draws 65: accepted 0"),
+    ]:
+        result = runner.invoke(app, [*common, "--simulator", "--out", str(est), *bad])
+        assert result.exit_code == 2 and needle in result.output, result.output
 
 
 def test_synth_field_and_check_recording(tmp_path):

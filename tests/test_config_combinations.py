@@ -101,6 +101,13 @@ CASES = [
         'estimate.statistic = "mean+p99" has none',
     ),
     (
+        "expected-draws-without-aligned",
+        ("truth = {X13 = 16.1}", 'statistic = "mean"\nexpected_draws = 8', ""),
+        ({"truth": {"X13": 16.1}}, {"statistic": "mean", "expected_draws": 8}, {}),
+        "estimate.expected_draws = 8 averages the time-aligned comparison's predictions; "
+        'estimate.statistic = "mean" has none',
+    ),
+    (
         "track-noise-without-track",
         ("truth = {X13 = 16.1}\ntrack_noise_mm = 0.5", "", ""),
         ({"truth": {"X13": 16.1}, "track_noise_mm": 0.5}, {}, {}),

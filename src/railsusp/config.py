@@ -219,6 +219,12 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
             f'comparison; estimate.statistic = "{cfg.estimate.statistic}" has none: add "aligned"'
             " or set channel_gains = false"
         )
+    if cfg.estimate.expected_draws and ALIGNED not in cfg.estimate.statistic.split("+"):
+        raise bad(
+            f"estimate.expected_draws = {cfg.estimate.expected_draws} averages the time-aligned "
+            f'comparison\'s predictions; estimate.statistic = "{cfg.estimate.statistic}" has '
+            'none: add "aligned" or set expected_draws = 0'
+        )
     if cfg.surrogate.model == "gp-stats" and "p99.85" in cfg.estimate.statistic.split("+"):
         raise bad(
             'estimate.statistic "p99.85" (EN 14363) is computed from force series; the '

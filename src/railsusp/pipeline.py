@@ -148,12 +148,13 @@ def _section(config: PipelineConfig, stage: str) -> Any:
 
 def _estimate_section(config: PipelineConfig) -> dict:
     """The estimate stage's inputs: its settings (without a held_prior, and with
-    channel_gains off, the section hashes as before those existed, so runs stay up to date);
+    channel_gains and expected_draws off, the section hashes as before those existed, so
+    runs stay up to date);
     on time-aligned forces also the route of NSGA-II's estimate, which since 2026-11-28
     takes the geometry error's bias off its choice where the recordings state their
     accuracy, so that such a run estimates again."""
     e = config.estimate
-    unset = {k for k in ("held_prior", "channel_gains") if not getattr(e, k)}
+    unset = {k for k in ("held_prior", "channel_gains", "expected_draws") if not getattr(e, k)}
     section = e.model_dump(exclude=unset or None)
     if e.statistic == "aligned":
         section["nsga_geometry"] = "first SIMEX step"
@@ -313,6 +314,7 @@ def _stage_runners(
             per_condition=e.per_condition,
             weighting=e.weighting,
             channel_gains=e.channel_gains,
+            expected_draws=e.expected_draws,
         )
         recs = read_field(out / "field")
         if e.refine:  # before NSGA-II runs

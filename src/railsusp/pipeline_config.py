@@ -136,6 +136,14 @@ class EstimateSection(_Cfg):
         description="the time-aligned comparison profiles each force channel's gain "
         "(calibration factor, within 1 ± 0.1) out of the misfit",
     )
+    expected_draws: int = Field(
+        0,
+        ge=_NSGA["expected_draws"][0],
+        le=_NSGA["expected_draws"][1],
+        description="with 'aligned': compare the surrogate's mean over this many draws of "
+        "the true track geometry given the measured one (0: its prediction on the measured "
+        "geometry)",
+    )
     weighting: Literal["relative", "noise"] = Field(
         "relative", description="relative errors, or in units of the gp-stats predictive SD"
     )

@@ -163,6 +163,14 @@ def estimate(
             "factor, within 1 ± 0.1) out of the comparison"
         ),
     ] = False,
+    expected_draws: Annotated[
+        int,
+        typer.Option(
+            help="with --statistic aligned: compare the model's mean over this many draws of "
+            "the true track geometry given the recordings' measured one (0: the model on the "
+            "measured geometry)"
+        ),
+    ] = 0,
     weighting: Annotated[
         str,
         typer.Option(
@@ -261,6 +269,7 @@ def estimate(
             per_condition=per_condition,
             weighting=weighting,
             channel_gains=channel_gains,
+            expected_draws=expected_draws,
         )
         recs = read_field(measured)
         if refine:

@@ -5,6 +5,8 @@ One module per job, imports running one way (top to bottom depends only on those
 - :mod:`~railsusp.estimate.statistics`: record statistics of recordings and predictions
 - :mod:`~railsusp.estimate.comparison`: the time-aligned comparison on measured track
 - :mod:`~railsusp.estimate.forces`: force models (window or statistics surrogates, simulator)
+- :mod:`~railsusp.estimate.expected_forces`: a model's mean over draws of the true track
+  geometry given a measured one
 - :mod:`~railsusp.estimate.problem`: the calibration problem (objectives), input checks
 - :mod:`~railsusp.estimate.config`: NSGA-II settings and their accepted ranges
 - :mod:`~railsusp.estimate.identifiability`: Cramér-Rao bounds of the statistics

@@ -21,6 +21,7 @@ NSGA_RANGES: dict[str, tuple[float, float]] = {
     "crossover_prob": (0.0, 1.0),
     "mutation_prob": (0.0, 1.0),
     "seed": (0, 2**32 - 1),
+    "expected_draws": (0, 64),
 }
 #: independent NSGA-II runs for the seed spread
 SEEDS_RANGE: tuple[int, int] = (1, 10)
@@ -87,6 +88,11 @@ class NSGAConfig:
     #: the time-aligned comparison profiles each channel's gain out
     #: (:func:`~railsusp.estimate.comparison.channel_gains`)
     channel_gains: bool = False
+    #: the time-aligned comparison is with the model's mean over this many draws of the
+    #: true track geometry given the measured one
+    #: (:class:`~railsusp.estimate.expected_forces.ExpectedForces`; 0: the model on the
+    #: measured geometry itself)
+    expected_draws: int = 0
 
     def __post_init__(self):
         for name, (low, high) in NSGA_RANGES.items():
@@ -97,6 +103,11 @@ class NSGAConfig:
             raise RailsuspInputError(
                 f"channel_gains with statistic {self.statistic!r}: accepted only with the "
                 "time-aligned comparison (a statistic with 'aligned')"
+            )
+        if self.expected_draws and ALIGNED not in parse_statistics(self.statistic):
+            raise RailsuspInputError(
+                f"expected_draws {self.expected_draws} with statistic {self.statistic!r}: "
+                "accepted only with the time-aligned comparison (a statistic with 'aligned')"
             )
 
     def to_dict(self) -> dict:

@@ -32,6 +32,7 @@ from railsusp.estimate.config import (
     check_range,
     choice_rule,
 )
+from railsusp.estimate.expected_forces import ExpectedForces
 from railsusp.estimate.forces import ForceModel, StatisticsForces
 from railsusp.estimate.identifiability import cramer_rao_pct_range
 from railsusp.estimate.problem import CalibrationProblem
@@ -99,8 +100,27 @@ def estimate(
     """Run NSGA-II and pick the estimate; deterministic for a given seed.
 
     ``initial_si``: parameter sets (n, k), SI, to start the population from (e.g. the Pareto
-    set of a cheaper estimate), topped up with random sets to the population size."""
+    set of a cheaper estimate), topped up with random sets to the population size. With
+    ``config.expected_draws`` the time-aligned comparison is with the model's mean over that
+    many draws of the true track geometry given each recording's measured one
+    (:class:`~railsusp.estimate.expected_forces.ExpectedForces`, seeded by ``config.seed``;
+    that many times the predictions)."""
     cfg = NSGAConfig() if config is None else config
+    if cfg.expected_draws:  # on stated-accuracy geometry: the mean over drawn true tracks
+        with ExpectedForces(model, cfg.expected_draws, seed=cfg.seed) as expected:
+            result = _estimate(expected, recordings, parameters, cfg, initial_si)
+        return result
+    return _estimate(model, recordings, parameters, cfg, initial_si)
+
+
+def _estimate(
+    model: ForceModel,
+    recordings: Sequence[Recording],
+    parameters: Sequence[str],
+    cfg: NSGAConfig,
+    initial_si: np.ndarray | None,
+) -> CalibrationResult:
+    """:func:`estimate` with the model it compares (the expected forces, where asked)."""
     problem = CalibrationProblem(
         model,
         recordings,

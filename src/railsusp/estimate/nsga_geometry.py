@@ -35,7 +35,10 @@ def remove_nsga_geometry_bias(
     draws' scatter is at most half their range
     (:func:`~railsusp.estimate.geometry_bias.removable`), and its Pareto range moves with it.
     Needs the statistic ``aligned`` alone, and does nothing where no recording states its
-    geometry's accuracy or ``draws`` is 0 (then nothing is known of the error). With several
+    geometry's accuracy or ``draws`` is 0 (then nothing is known of the error), and where
+    NSGA-II compared expected forces (``config.expected_draws``: the error is already in its
+    comparison, and the draws' shifts of an estimate on them would cost draws x expected
+    draws predictions per step). With several
     NSGA-II seeds (:func:`~railsusp.estimate.nsga.estimate_with_seeds`) the shifts are taken
     at the first seed's choice, and the seed spread stays that of the choices. On 12
     parameter sets with 0.5 mm geometry it took NSGA-II on the shipped CNN-GRUs from 15 to
@@ -46,7 +49,9 @@ def remove_nsga_geometry_bias(
             "the geometry's bias is that of the time-aligned least squares (statistic "
             f"'aligned' alone); NSGA-II compared {result.config.statistic!r}"
         )
-    if not takes_geometry_bias(result.config.statistic, draws, recordings):
+    if result.config.expected_draws or not takes_geometry_bias(
+        result.config.statistic, draws, recordings
+    ):
         return result
     result.geometry_shifts_si = geometry_shifts_at(
         model,

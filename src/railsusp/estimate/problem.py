@@ -200,7 +200,12 @@ def check_statistics_model(statistics: Sequence[str]) -> None:
 
 
 def check_aligned(model: Any, recordings: Sequence[Recording]) -> None:
-    """Time-aligned comparison needs series from a model and recordings on measured track."""
+    """Time-aligned comparison needs series from a model and recordings on measured track
+    (a model averaged over drawn geometries is checked as the model it averages)."""
+    from railsusp.estimate.expected_forces import ExpectedForces
+
+    while isinstance(model, ExpectedForces):
+        model = model.model
     if isinstance(model, StatisticsForces):
         raise ValueError(
             "statistic 'aligned' compares series: use a window surrogate or the simulator, "

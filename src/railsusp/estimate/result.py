@@ -105,6 +105,11 @@ class CalibrationResult:
         text = f"NSGA-II against {on} ({self.config.statistic})"
         if self.config.channel_gains:
             text += ", each force channel's gain profiled out"
+        if self.config.expected_draws:
+            text += (
+                f", predicted as the mean over {self.config.expected_draws} draws of the true "
+                "track geometry given the measured one"
+            )
         if self.geometry_bias_removed:
             text += ", less the track geometry error's bias (first SIMEX step)"
         if self.refinement is None:
