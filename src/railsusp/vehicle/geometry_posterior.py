@@ -6,10 +6,14 @@ band, ``accuracy`` RMS per component). A model that runs on the measured geometr
 were true is excited by the error as well: at short wavelengths, where the error's power
 approaches the geometry's, the measured track is rougher than the true one. In a wagon with
 friction wedges that extra roughness is not a zero-mean disturbance the comparison averages
-out: it keeps the wedges slipping, lowers their effective damping at every frequency, and a
-fit of the forces pays it back with a wedge friction (X18) about 10 % of its range too high
-and a primary lateral stiffness (X14) 5-15 % too low (bench/README.md,
-"estimate_ceiling.py"). SIMEX's linear extrapolation does not undo a bias of that kind.
+out (it outlasts the comparison's low-pass band: short-wavelength excitation presumably
+keeps the wedges slipping and so changes their damping at all frequencies), and a fit of
+the forces pays it back with a wedge friction (X18) 8-14 % of its range too high and a
+primary lateral stiffness (X14) up to 15 % too low (the simulator's own fit on 0.5 mm
+geometry; in two sets the same over eight fresh draws of the error, so a bias and not a
+scatter; taking the excess power alone out of the measured geometry removes X18's:
+bench/README.md, "Expected forces on a track measured with error"). SIMEX's linear
+extrapolation takes most of X18's off and leaves X14's.
 
 What a model on an uncertain track should predict is the expected force given the
 measurement, the mean over the true geometries the measurement allows (a Berkson
