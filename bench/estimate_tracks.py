@@ -24,9 +24,11 @@ main-suspension parameters, and for each set:
    channel's gain out (NSGA-II's ``channel_gains``; the recordings carry a 1 % gain error
    per channel, as an instrumented wheelset's calibration does). ``--expected-draws N``:
    NSGA-II compares the networks' mean over N draws of the true geometry given the
-   measured one (:class:`railsusp.estimate.expected_forces.ExpectedForces`: the error's
-   extra roughness is not fed to them; N times the predictions), usually with
-   ``--geometry-draws 0``;
+   measured one (NSGA-II's ``expected_draws``,
+   :class:`railsusp.estimate.expected_forces.ExpectedForces`: the error's extra roughness is
+   not fed to them; N times the predictions, each counted in ``predict_calls``; no SIMEX
+   step). ``--expected-polish N``: after NSGA-II, the networks' own least squares on such
+   expected forces from its choice, scored beside the estimate;
 3. scores each key parameter's error in % of its range, and decides which key parameters
    are identifiable: those whose time-aligned Cramér-Rao bound at the truth, computed with
    the same surrogate on the same recordings
@@ -250,14 +252,13 @@ def run_set(
         seed=index,
         statistic="aligned",
         channel_gains=args.gains,
+        expected_draws=args.expected_draws,  # the SIMEX step is then not taken
     )
-    # the mean over draws of the true geometry (--expected-draws), or the measured one
-    compared = ExpectedForces(model, args.expected_draws) if args.expected_draws else model
-    timed = _Timed(compared)
+    timed = _Timed(model)
     t0, c0, load0 = time.perf_counter(), time.process_time(), os.getloadavg()[0]
     res = estimate(timed, recs, params, cfg)
     t_nsga = time.perf_counter() - t0
-    remove_nsga_geometry_bias(res, recs, compared, args.geometry_draws, index)
+    remove_nsga_geometry_bias(res, recs, model, args.geometry_draws, index)
     seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     load = (load0 + os.getloadavg()[0]) / 2.0
     lo, hi = bounds(params)
@@ -265,6 +266,9 @@ def run_set(
     err = 100.0 * (res.chosen_x - true_keys) / (hi - lo)
     choice_err = 100.0 * (res.pareto_x[res.chosen] - true_keys) / (hi - lo)
     geometry = res.nsga_geometry_pct_range()
+    polished = (
+        expected_polish(model, recs, params, res, true_keys, args) if args.expected_polish else {}
+    )
     return {
         "set": index,
         "truth_display": {p: truth.to_display()[p] for p in MAIN_SUSPENSION},
@@ -286,6 +290,36 @@ def run_set(
         "predict_seconds_per_generation": timed.seconds / cfg.n_gen,
         "predict_cpu_seconds_per_generation": timed.cpu_seconds / cfg.n_gen,
         "predict_calls": timed.calls,
+        **polished,
+    }
+
+
+def expected_polish(
+    model: SurrogateForces,
+    recs: list,
+    params: Sequence[str],
+    res,
+    true_keys: np.ndarray,
+    args: argparse.Namespace,
+) -> dict:
+    """The surrogate's own time-aligned least squares on its expected forces
+    (``--expected-polish`` draws of the true geometry, antithetic), started at NSGA-II's
+    choice (before any SIMEX step; no geometry draws): the expected forces' fix of the
+    geometry's bias at the cost of a local search instead of N times every generation."""
+    from railsusp.estimate.refine import refine
+
+    t0 = time.perf_counter()
+    with ExpectedForces(model, args.expected_polish) as expected:
+        polish = refine(
+            expected, recs, params, res.pareto_x[res.chosen], gains=args.gains, geometry_draws=0
+        )
+    lo, hi = bounds(params)
+    err = 100.0 * (polish.x_si - true_keys) / (hi - lo)
+    return {
+        "polish_error_pct_range": {p: float(e) for p, e in zip(params, err, strict=True)},
+        "polish_within": [p for p, e in zip(params, err, strict=True) if abs(e) <= WITHIN_PCT],
+        "polish_seconds": time.perf_counter() - t0,
+        "polish_evaluations": polish.n_jacobians,
     }
 
 
@@ -307,7 +341,20 @@ def overall(sets: list[dict], parameters: Sequence[str]) -> dict:
     # NSGA-II's choice itself, before the geometry bias is taken off
     n_choice = sum(len([p for p in s["identifiable"] if p in s["choice_within"]]) for s in sets)
     seconds = float(np.mean([s["seconds"] for s in sets]))
+    polished = [s for s in sets if "polish_within" in s]
+    polish = (
+        {
+            "identifiable_polish_within": sum(
+                len([p for p in s["identifiable"] if p in s["polish_within"]]) for s in polished
+            ),
+            "identifiable_polished": sum(len(s["identifiable"]) for s in polished),
+            "polish_seconds": float(np.mean([s["polish_seconds"] for s in polished])),
+        }
+        if polished
+        else {}
+    )
     return {
+        **polish,
         "sets": len(sets),
         "parameters": per,
         "identifiable": n_ident,
@@ -356,6 +403,12 @@ def print_table(sets: list[dict], parameters: Sequence[str], summary: dict) -> N
         f"{100 * summary['share_all_within']:.0f} %; "
         f"{summary['seconds_per_estimate']:.1f} s per estimate (target < {TARGET_SECONDS:g} s)"
     )
+    if "identifiable_polish_within" in summary:
+        print(
+            f"polished on expected forces: {summary['identifiable_polish_within']}/"
+            f"{summary['identifiable_polished']} identifiable within {WITHIN_PCT:g} %, "
+            f"{summary['polish_seconds']:.1f} s per polish"
+        )
 
 
 def settings_of(args: argparse.Namespace, folder: Path) -> dict:
@@ -375,6 +428,7 @@ def settings_of(args: argparse.Namespace, folder: Path) -> dict:
         # only when on: results written before the options existed still resume
         **({"channel_gains": True} if args.gains else {}),
         **({"expected_draws": args.expected_draws} if args.expected_draws else {}),
+        **({"expected_polish": args.expected_polish} if args.expected_polish else {}),
     }
 
 
@@ -445,6 +499,13 @@ def main(argv: Sequence[str] | None = None) -> dict:
         "given the measured one (railsusp.estimate.expected_forces; 0: their prediction on "
         "the measured geometry itself)",
     )
+    ap.add_argument(
+        "--expected-polish",
+        type=int,
+        default=0,
+        help="after NSGA-II, the surrogate's least squares on its mean over this many draws "
+        "of the true geometry, from NSGA-II's choice (scored beside the estimate; 0: none)",
+    )
     ap.add_argument("--work", type=Path, default=Path("runs/estimate_tracks"))
     ap.add_argument("--out", type=Path, default=Path("bench/results/estimate_tracks.json"))
     ap.add_argument(
@@ -453,10 +514,10 @@ def main(argv: Sequence[str] | None = None) -> dict:
         help="score the stored sets again (identifiability only; no NSGA-II run)",
     )
     args = ap.parse_args(argv)
-    if args.expected_draws < 0 or args.geometry_draws < 0:
+    if min(args.expected_draws, args.geometry_draws, args.expected_polish) < 0:
         ap.error(
-            f"--expected-draws {args.expected_draws}, --geometry-draws {args.geometry_draws}: "
-            "accepted 0 or more"
+            f"--expected-draws {args.expected_draws}, --geometry-draws {args.geometry_draws}, "
+            f"--expected-polish {args.expected_polish}: accepted 0 or more"
         )
     torch.set_num_threads(args.threads)
     folder = args.run / "surrogates" / args.kind

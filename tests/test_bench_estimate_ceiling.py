@@ -112,7 +112,6 @@ def test_expected_draws_are_a_setting_and_refused_below_zero(bench, capsys):
     args.expected_draws = 8
     assert bench.settings_of(args)["expected_draws"] == 8
     assert bench.settings_of(args)["antithetic"]
-    assert bench.settings_of(args)["antithetic"]
     with pytest.raises(SystemExit) as exc:
         bench.main(["--expected-draws", "-1"])
     assert exc.value.code == 2

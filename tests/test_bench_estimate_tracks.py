@@ -133,7 +133,9 @@ def test_rescore_keeps_the_estimates_and_scores_them_again(bench, tmp_path):
 def test_expected_forces_arm_is_its_own_setting(bench, tmp_path, capsys):
     """--expected-draws: NSGA-II compares the networks' mean over drawn true geometries
     (the setting stored, so such sets never resume into a plain run's JSON); without the
-    SIMEX draws the estimate is NSGA-II's choice itself. A negative count exits 2."""
+    SIMEX draws the estimate is NSGA-II's choice itself. --expected-polish: the networks'
+    least squares on expected forces from that choice, scored beside it. A negative count
+    exits 2."""
     run = tmp_path / "run"
     tiny_surrogate(run / "surrogates" / "cnn-gru")
     argv = [str(run), "--sets", "1", "--duration", "2", "--pop-size", "4", "--n-gen", "2"]
@@ -142,6 +144,14 @@ def test_expected_forces_arm_is_its_own_setting(bench, tmp_path, capsys):
     s0 = doc["per_set"][0]
     assert doc["settings"]["expected_draws"] == 2
     assert s0["error_pct_range"] == s0["choice_error_pct_range"]
+    assert "polish_error_pct_range" not in s0
+    # the polish on expected forces from NSGA-II's choice, scored beside the estimate
+    pol = bench.main([*argv, "--expected-polish", "2", "--out", str(tmp_path / "q.json")])
+    s1 = pol["per_set"][0]
+    assert pol["settings"]["expected_polish"] == 2
+    assert set(s1["polish_error_pct_range"]) == set(KEYS) and s1["polish_evaluations"] >= 1
+    assert set(s1["polish_within"]) <= set(KEYS)
+    assert 0 <= pol["overall"]["identifiable_polish_within"] <= pol["overall"]["identifiable"]
     plain = bench.main([*argv, "--out", str(tmp_path / "p.json")])
     assert "expected_draws" not in plain["settings"]
     assert plain["per_set"][0]["truth_display"] == s0["truth_display"]

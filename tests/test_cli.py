@@ -229,7 +229,8 @@ def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
     assert "channel_gains with statistic 'mean': accepted only with" in result.output
     for bad, needle in [
         (["--expected-draws", "4"], "expected_draws 4 with statistic 'mean': accepted only"),
-        (["--statistic", "aligned", "--expected-draws", "65"], "expected_draws 65: accepted 0"),
+        (["--statistic", "aligned", "--expected-draws", "65"], "--expected-draws 65: accepted 0"),
+        (["--statistic", "aligned+std", "--expected-draws", "8"], "accepted only with 'aligned'"),
     ]:
         result = runner.invoke(app, [*common, "--simulator", "--out", str(est), *bad])
         assert result.exit_code == 2 and needle in result.output, result.output

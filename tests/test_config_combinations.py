@@ -104,8 +104,8 @@ CASES = [
         "expected-draws-without-aligned",
         ("truth = {X13 = 16.1}", 'statistic = "mean"\nexpected_draws = 8', ""),
         ({"truth": {"X13": 16.1}}, {"statistic": "mean", "expected_draws": 8}, {}),
-        "estimate.expected_draws = 8 averages the time-aligned comparison's predictions; "
-        'estimate.statistic = "mean" has none',
+        "estimate.expected_draws = 8 compares mean predictions over drawn tracks; "
+        "estimate.statistic = \"mean\": accepted 'aligned', alone or with 'mean'",
     ),
     (
         "track-noise-without-track",

@@ -219,11 +219,14 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
             f'comparison; estimate.statistic = "{cfg.estimate.statistic}" has none: add "aligned"'
             " or set channel_gains = false"
         )
-    if cfg.estimate.expected_draws and ALIGNED not in cfg.estimate.statistic.split("+"):
+    from railsusp.estimate.config import EXPECTED_STATISTICS_TEXT, expected_statistics_ok
+
+    if cfg.estimate.expected_draws and not expected_statistics_ok(cfg.estimate.statistic):
         raise bad(
-            f"estimate.expected_draws = {cfg.estimate.expected_draws} averages the time-aligned "
-            f'comparison\'s predictions; estimate.statistic = "{cfg.estimate.statistic}" has '
-            'none: add "aligned" or set expected_draws = 0'
+            f"estimate.expected_draws = {cfg.estimate.expected_draws} compares mean predictions "
+            f'over drawn tracks; estimate.statistic = "{cfg.estimate.statistic}": accepted '
+            f"{EXPECTED_STATISTICS_TEXT} (the spread statistics of a mean series are too low),"
+            " or set expected_draws = 0"
         )
     if cfg.surrogate.model == "gp-stats" and "p99.85" in cfg.estimate.statistic.split("+"):
         raise bad(

@@ -184,3 +184,29 @@ def test_nsga_on_expected_forces_finds_b_where_on_measured_geometry_it_does_not(
     assert expected.geometry_shifts_si.size == 0 and not expected.geometry_bias_removed
     with pytest.raises(Exception, match="expected_draws 8 with statistic 'mean'"):
         NSGAConfig(statistic="mean", expected_draws=8)
+
+
+def test_refusals_spread_statistics_one_track_networks_and_a_closed_model(track):
+    """Expected forces compare a mean series: its spread statistics (std, percentiles) would
+    be those of a smoothed series, so only 'aligned', alone or with 'mean', is accepted. A
+    surrogate that predicts only its training track cannot predict on drawn geometries:
+    refused on first use, naming the condition. After close nothing new is drawn."""
+    from railsusp.errors import RailsuspInputError
+    from railsusp.estimate import NSGAConfig
+
+    with pytest.raises(RailsuspInputError, match="'aligned', alone or with 'mean'"):
+        NSGAConfig(statistic="aligned+std", expected_draws=4)
+    assert NSGAConfig(statistic="aligned+mean", expected_draws=4).expected_draws == 4
+
+    class OneTrack(RoughnessForces):
+        def reads_track(self, condition):
+            return False
+
+    _, on_measured = track
+    x = np.array([[14e6, 10e6]])
+    with pytest.raises(RailsuspInputError, match="condition 'straight' was trained on one track"):
+        ExpectedForces(OneTrack(), draws=2).series(x, on_measured)
+    expected = ExpectedForces(RoughnessForces(), draws=2)
+    expected.close()
+    with pytest.raises(RuntimeError, match="expected forces closed"):
+        expected.series(x, on_measured)

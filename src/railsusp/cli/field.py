@@ -252,6 +252,7 @@ def estimate(
             ("--refine-screen", refine_screen, REFINE_RANGES["screen"]),
             ("--refine-starts", refine_starts, REFINE_RANGES["starts"]),
             ("--geometry-draws", geometry_draws, REFINE_RANGES["geometry_draws"]),
+            ("--expected-draws", expected_draws, NSGA_RANGES["expected_draws"]),
         ):
             check_range(name, value, low, high)
         parse_statistics(statistic)
@@ -285,7 +286,7 @@ def estimate(
             model = SimulatorForces(params)
         with console.status(f"NSGA-II {pop_size} x {n_gen} on {len(recs)} recording(s)"):
             res = estimate_with_seeds(model, recs, params, cfg, n_seeds=seeds)
-        if takes_geometry_bias(statistic, geometry_draws, recs):
+        if not expected_draws and takes_geometry_bias(statistic, geometry_draws, recs):
             with console.status(f"{geometry_draws} draws of the track geometry's error"):
                 remove_nsga_geometry_bias(
                     res, recs, model, geometry_draws, seed, remove_geometry_bias

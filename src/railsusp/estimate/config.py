@@ -34,6 +34,19 @@ REFINE_RANGES: dict[str, tuple[int, int]] = {
 }
 
 
+#: what the expected forces (``expected_draws``) can be compared by: the time-aligned
+#: comparison, and the mean, which is linear in the series; the spread statistics (rms, std,
+#: percentiles) of a mean over draws are those of a smoothed series, lower than a record's
+EXPECTED_STATISTICS_TEXT = "'aligned', alone or with 'mean'"
+
+
+def expected_statistics_ok(statistic: str) -> bool:
+    """Whether expected forces can be compared by ``statistic``: it has ``aligned`` and
+    nothing but ``mean`` beside it."""
+    stats = set(parse_statistics(statistic))
+    return ALIGNED in stats and stats <= {ALIGNED, "mean"}
+
+
 #: how the estimate is picked from the Pareto front, by name: the point closest to the ideal
 #: point of the front normalised to [0, 1] (record statistics: relative errors of different
 #: quantities, whose trade-off has no common scale), or the point of least summed squared
@@ -104,10 +117,10 @@ class NSGAConfig:
                 f"channel_gains with statistic {self.statistic!r}: accepted only with the "
                 "time-aligned comparison (a statistic with 'aligned')"
             )
-        if self.expected_draws and ALIGNED not in parse_statistics(self.statistic):
+        if self.expected_draws and not expected_statistics_ok(self.statistic):
             raise RailsuspInputError(
                 f"expected_draws {self.expected_draws} with statistic {self.statistic!r}: "
-                "accepted only with the time-aligned comparison (a statistic with 'aligned')"
+                f"accepted only with {EXPECTED_STATISTICS_TEXT}"
             )
 
     def to_dict(self) -> dict:

@@ -34,14 +34,16 @@ from pathlib import Path
 import numpy as np
 
 from railsusp.conditions import WorkingCondition
+from railsusp.errors import RailsuspInputError
 from railsusp.estimate.forces import ForceModel, series_in_conditions
 from railsusp.vehicle.geometry_posterior import geometry_posterior
 from railsusp.vehicle.track import COMPONENTS
 from railsusp.vehicle.track_geometry import read_track_geometry, write_track_geometry
 
-#: draws of the true geometry whose mean response is predicted: the least squares then sees
-#: a mean whose Monte-Carlo variance is 1/8 of the geometry's unknown part's, a bias of
-#: under 1 % of range on the bench's sets (8 against 4 draws: bench/README.md)
+#: draws of the true geometry whose mean response is predicted (four antithetic pairs): the
+#: part of the mean's Monte-Carlo error that the least squares pays for shrinks with more
+#: draws (on the toy wagon of tests/estimate/test_expected_forces.py 3 % of b with 4 draws,
+#: 2 % with 8, 1 % with 32); 8 is what bench/estimate_ceiling.py measured (bench/README.md)
 EXPECTED_DRAWS = 8
 
 
@@ -72,6 +74,7 @@ class ExpectedForces:
     def close(self) -> None:
         """Remove the drawn geometry files (the model cannot predict afterwards)."""
         self._finalizer()
+        self._drawn.clear()
 
     def __enter__(self) -> ExpectedForces:
         return self
@@ -87,6 +90,8 @@ class ExpectedForces:
             return [condition]
         key = condition.model_dump_json()
         if key not in self._drawn:
+            if not self._finalizer.alive:
+                raise RuntimeError("expected forces closed: their drawn geometry is removed")
             irr = read_track_geometry(condition.track_geometry)
             post = geometry_posterior(
                 irr, condition.track_accuracy_mm * 1e-3, condition.wavelength_min_m
@@ -105,6 +110,14 @@ class ExpectedForces:
                 write_track_geometry(path, geometry)
                 drawn.append(
                     condition.with_changes(track_geometry=str(path), track_accuracy_mm=0.0)
+                )
+            reads = getattr(self.model, "reads_track", None)
+            if reads is not None and not reads(drawn[0]):
+                raise RailsuspInputError(
+                    f"expected_draws {self.draws}: the surrogate of condition "
+                    f"{condition.name!r} was trained on one track and predicts only that one, "
+                    "not drawn geometries; use a surrogate trained on a track family "
+                    "(docs/data-format.md) or expected_draws = 0"
                 )
             self._drawn[key] = drawn
         return self._drawn[key]

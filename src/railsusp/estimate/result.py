@@ -108,7 +108,7 @@ class CalibrationResult:
         if self.config.expected_draws:
             text += (
                 f", predicted as the mean over {self.config.expected_draws} draws of the true "
-                "track geometry given the measured one"
+                "track geometry given the measured one where its accuracy is stated"
             )
         if self.geometry_bias_removed:
             text += ", less the track geometry error's bias (first SIMEX step)"

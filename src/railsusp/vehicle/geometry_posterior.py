@@ -30,7 +30,10 @@ as the measured PSD less S_e (Welch over 128 m segments, as
 :func:`~railsusp.vehicle.track_geometry.accurate_wavelength_m` does). Each draw
 (:meth:`GeometryPosterior.draws`) has the true geometry's spectrum, not the measured one's,
 and the draws' mean response is what the measured forces are compared with
-(:class:`railsusp.estimate.expected_forces.ExpectedForces`).
+(:class:`railsusp.estimate.expected_forces.ExpectedForces`). Each component is taken alone
+(their cross-spectra, e.g. vertical with cross-level, are left out: the synthetic tracks'
+components are independent), and the grid is taken as uniform (its median spacing), as
+:func:`~railsusp.vehicle.track_geometry.with_measurement_error` takes it.
 """
 
 from __future__ import annotations
@@ -71,7 +74,7 @@ def measurement_error_psd(
     return norm * np.abs(sosfreqz(sos, worN=np.asarray(k, float), fs=fs)[1]) ** 4
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class GeometryPosterior:
     """The true geometry given a measured one (:func:`geometry_posterior`): ``mean`` (the
     Wiener-filtered measurement), and per component ``wiener`` the filter W(k) and
