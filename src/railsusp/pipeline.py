@@ -320,7 +320,7 @@ def _stage_runners(
         if e.refine:  # before NSGA-II runs
             check_refinable(recs, "estimate.refine")
         res = estimate_with_seeds(model, recs, params, cfg, e.seeds)
-        if takes_geometry_bias(cfg.statistic, e.geometry_draws, recs):
+        if takes_geometry_bias(cfg, e.geometry_draws, recs):
             remove_nsga_geometry_bias(
                 res, recs, model, e.geometry_draws, e.seed, e.remove_geometry_bias
             )

@@ -210,3 +210,21 @@ def test_refusals_spread_statistics_one_track_networks_and_a_closed_model(track)
     expected.close()
     with pytest.raises(RuntimeError, match="expected forces closed"):
         expected.series(x, on_measured)
+
+
+def test_a_networks_drawn_tracks_are_primed_once(track):
+    """A model that computes track inputs (a network set) is asked to prime the drawn tracks
+    when they are drawn, all of a call's together, not again on every prediction (NSGA-II
+    predicts a hundred generations on the same draws)."""
+    on_true, on_measured = track
+    primed: list[int] = []
+
+    class Primed(RoughnessForces):
+        def prime_tracks(self, conditions):
+            primed.append(len(conditions))
+
+    expected = ExpectedForces(Primed(), draws=4)
+    x = np.array([[14e6, 10e6]])
+    for _ in range(3):
+        expected.series_conditions(x, [on_measured, on_true])
+    assert primed == [5]  # four draws and the exact-track condition, once

@@ -286,7 +286,7 @@ def estimate(
             model = SimulatorForces(params)
         with console.status(f"NSGA-II {pop_size} x {n_gen} on {len(recs)} recording(s)"):
             res = estimate_with_seeds(model, recs, params, cfg, n_seeds=seeds)
-        if not expected_draws and takes_geometry_bias(statistic, geometry_draws, recs):
+        if takes_geometry_bias(cfg, geometry_draws, recs):
             with console.status(f"{geometry_draws} draws of the track geometry's error"):
                 remove_nsga_geometry_bias(
                     res, recs, model, geometry_draws, seed, remove_geometry_bias

@@ -131,11 +131,13 @@ class ExpectedForces:
     ) -> list[np.ndarray]:
         """:meth:`series` in each condition, every draw of every condition given to the
         model at once (:func:`~railsusp.estimate.forces.series_in_conditions`: the simulator
-        shares its parallel calls; a network computes the drawn tracks' inputs together)."""
+        shares its parallel calls; a network computes the inputs of the tracks drawn in this
+        call together, once: later calls find them kept)."""
+        known = len(self._drawn)
         groups = [self.drawn_conditions(c) for c in conditions]
         flat = [c for g in groups for c in g]
         prime = getattr(self.model, "prime_tracks", None)
-        if prime is not None:
+        if prime is not None and len(self._drawn) > known:
             prime(flat)
         series = series_in_conditions(self.model, x_si, flat)
         out, at = [], 0

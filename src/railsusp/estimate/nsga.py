@@ -108,8 +108,7 @@ def estimate(
     cfg = NSGAConfig() if config is None else config
     if cfg.expected_draws:  # on stated-accuracy geometry: the mean over drawn true tracks
         with ExpectedForces(model, cfg.expected_draws, seed=cfg.seed) as expected:
-            result = _estimate(expected, recordings, parameters, cfg, initial_si)
-        return result
+            return _estimate(expected, recordings, parameters, cfg, initial_si)
     return _estimate(model, recordings, parameters, cfg, initial_si)
 
 
