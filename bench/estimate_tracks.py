@@ -23,12 +23,16 @@ main-suspension parameters, and for each set:
    choice itself); both are scored. ``--gains``: the comparison profiles each force
    channel's gain out (NSGA-II's ``channel_gains``; the recordings carry a 1 % gain error
    per channel, as an instrumented wheelset's calibration does). ``--expected-draws N``:
-   NSGA-II compares the networks' mean over N draws of the true geometry given the
-   measured one (NSGA-II's ``expected_draws``,
-   :class:`railsusp.estimate.expected_forces.ExpectedForces`: the error's extra roughness is
-   not fed to them; N times the predictions, each counted in ``predict_calls``; no SIMEX
-   step). ``--expected-polish N``: after NSGA-II, the networks' own least squares on such
-   expected forces from its choice, scored beside the estimate;
+   the estimate is NSGA-II's choice polished by the networks' own time-aligned least
+   squares on their mean over N draws of the true geometry given the measured one, instead
+   of the SIMEX step (NSGA-II's ``expected_draws``,
+   :func:`railsusp.estimate.nsga_geometry.polish_on_expected_forces`: the error's extra
+   roughness is not fed to them); ``--expected-generations``: NSGA-II's generations
+   compare those expected forces too (N times the predictions, each counted in
+   ``predict_calls``); ``--simulator-corrections N``: then the networks' level error at
+   the estimate is taken from N simulations of it and their least squares repeated with it
+   (:func:`railsusp.estimate.level_correction.correct_by_simulator`; NSGA-II's own estimate
+   scored beside, ``nsga_error_pct_range``);
 3. scores each key parameter's error in % of its range, and decides which key parameters
    are identifiable: those whose time-aligned Cramér-Rao bound at the truth, computed with
    the same surrogate on the same recordings
@@ -67,10 +71,10 @@ from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate import NSGAConfig, SurrogateForces, estimate
 from railsusp.estimate.aligned_identifiability import aligned_cramer_rao_pct_range, identifiable
-from railsusp.estimate.expected_forces import ExpectedForces
 from railsusp.estimate.geometry_bias import GEOMETRY_DRAWS
 from railsusp.estimate.identifiability import BOUND_LIMIT_PCT
-from railsusp.estimate.nsga_geometry import remove_nsga_geometry_bias
+from railsusp.estimate.level_correction import correct_by_simulator
+from railsusp.estimate.nsga_geometry import account_for_geometry
 from railsusp.measured import read_field, synthesise_field
 from railsusp.params import MAIN_SUSPENSION, ParameterSet, bounds
 from railsusp.store import read_json, write_json
@@ -252,22 +256,40 @@ def run_set(
         seed=index,
         statistic="aligned",
         channel_gains=args.gains,
-        expected_draws=args.expected_draws,  # the SIMEX step is then not taken
+        expected_draws=args.expected_draws,  # a polish then, not the SIMEX step
+        expected_generations=args.expected_generations,
     )
     timed = _Timed(model)
     t0, c0, load0 = time.perf_counter(), time.process_time(), os.getloadavg()[0]
     res = estimate(timed, recs, params, cfg)
     t_nsga = time.perf_counter() - t0
-    remove_nsga_geometry_bias(res, recs, model, args.geometry_draws, index)
+    account_for_geometry(res, recs, model, args.geometry_draws, index)
+    t_geometry = time.perf_counter() - t0
+    correct_by_simulator(res, recs, model, args.simulator_corrections)
     seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     load = (load0 + os.getloadavg()[0]) / 2.0
     lo, hi = bounds(params)
     true_keys = np.array([truth[p] for p in params])
     err = 100.0 * (res.chosen_x - true_keys) / (hi - lo)
     choice_err = 100.0 * (res.pareto_x[res.chosen] - true_keys) / (hi - lo)
+    nsga_err = 100.0 * (res.nsga_x - true_keys) / (hi - lo)
     geometry = res.nsga_geometry_pct_range()
+    polish = res.expected_polish
     polished = (
-        expected_polish(model, recs, params, res, true_keys, args) if args.expected_polish else {}
+        {"polish_seconds": t_geometry - t_nsga, "polish_evaluations": polish.n_jacobians}
+        if polish is not None
+        else {}
+    )
+    corrected = (
+        {
+            "correction_seconds": seconds - t_geometry,
+            "nsga_error_pct_range": {p: float(e) for p, e in zip(params, nsga_err, strict=True)},
+            "nsga_within": [
+                p for p, e in zip(params, nsga_err, strict=True) if abs(e) <= WITHIN_PCT
+            ],
+        }
+        if res.corrections
+        else {}
     )
     return {
         "set": index,
@@ -291,35 +313,7 @@ def run_set(
         "predict_cpu_seconds_per_generation": timed.cpu_seconds / cfg.n_gen,
         "predict_calls": timed.calls,
         **polished,
-    }
-
-
-def expected_polish(
-    model: SurrogateForces,
-    recs: list,
-    params: Sequence[str],
-    res,
-    true_keys: np.ndarray,
-    args: argparse.Namespace,
-) -> dict:
-    """The surrogate's own time-aligned least squares on its expected forces
-    (``--expected-polish`` draws of the true geometry, antithetic), started at NSGA-II's
-    choice (before any SIMEX step; no geometry draws): the expected forces' fix of the
-    geometry's bias at the cost of a local search instead of N times every generation."""
-    from railsusp.estimate.refine import refine
-
-    t0 = time.perf_counter()
-    with ExpectedForces(model, args.expected_polish) as expected:
-        polish = refine(
-            expected, recs, params, res.pareto_x[res.chosen], gains=args.gains, geometry_draws=0
-        )
-    lo, hi = bounds(params)
-    err = 100.0 * (polish.x_si - true_keys) / (hi - lo)
-    return {
-        "polish_error_pct_range": {p: float(e) for p, e in zip(params, err, strict=True)},
-        "polish_within": [p for p, e in zip(params, err, strict=True) if abs(e) <= WITHIN_PCT],
-        "polish_seconds": time.perf_counter() - t0,
-        "polish_evaluations": polish.n_jacobians,
+        **corrected,
     }
 
 
@@ -341,18 +335,14 @@ def overall(sets: list[dict], parameters: Sequence[str]) -> dict:
     # NSGA-II's choice itself, before the geometry bias is taken off
     n_choice = sum(len([p for p in s["identifiable"] if p in s["choice_within"]]) for s in sets)
     seconds = float(np.mean([s["seconds"] for s in sets]))
-    polished = [s for s in sets if "polish_within" in s]
-    polish = (
-        {
-            "identifiable_polish_within": sum(
-                len([p for p in s["identifiable"] if p in s["polish_within"]]) for s in polished
-            ),
-            "identifiable_polished": sum(len(s["identifiable"]) for s in polished),
-            "polish_seconds": float(np.mean([s["polish_seconds"] for s in polished])),
-        }
-        if polished
-        else {}
-    )
+    polished = [s["polish_seconds"] for s in sets if "polish_seconds" in s]
+    polish = {"polish_seconds": float(np.mean(polished))} if polished else {}
+    corrected = [s for s in sets if "correction_seconds" in s]
+    if corrected:  # NSGA-II's own estimate (the surrogate alone) scored beside
+        polish["correction_seconds"] = float(np.mean([s["correction_seconds"] for s in corrected]))
+        polish["identifiable_nsga_within"] = sum(
+            len([p for p in s["identifiable"] if p in s["nsga_within"]]) for s in corrected
+        )
     return {
         **polish,
         "sets": len(sets),
@@ -398,16 +388,18 @@ def print_table(sets: list[dict], parameters: Sequence[str], summary: dict) -> N
         f"identifiable key parameters within {WITHIN_PCT:g} % of range: "
         f"{summary['identifiable_within']}/{summary['identifiable']}"
         + (f" = {100 * share:.0f} %" if share is not None else "")
-        + f" (target {100 * TARGET_SHARE:g} %; NSGA-II's choice before the geometry bias is "
-        f"taken off: {summary['identifiable_choice_within']}); all key parameters: "
+        + f" (target {100 * TARGET_SHARE:g} %; NSGA-II's choice before the geometry's error is "
+        f"accounted for: {summary['identifiable_choice_within']}); all key parameters: "
         f"{100 * summary['share_all_within']:.0f} %; "
         f"{summary['seconds_per_estimate']:.1f} s per estimate (target < {TARGET_SECONDS:g} s)"
     )
-    if "identifiable_polish_within" in summary:
+    if "polish_seconds" in summary:
+        print(f"of which the polish on expected forces: {summary['polish_seconds']:.1f} s")
+    if "correction_seconds" in summary:
         print(
-            f"polished on expected forces: {summary['identifiable_polish_within']}/"
-            f"{summary['identifiable_polished']} identifiable within {WITHIN_PCT:g} %, "
-            f"{summary['polish_seconds']:.1f} s per polish"
+            f"of which the simulator corrections: {summary['correction_seconds']:.1f} s; "
+            f"NSGA-II's estimate before them: {summary['identifiable_nsga_within']}/"
+            f"{summary['identifiable']} identifiable within {WITHIN_PCT:g} %"
         )
 
 
@@ -428,7 +420,16 @@ def settings_of(args: argparse.Namespace, folder: Path) -> dict:
         # only when on: results written before the options existed still resume
         **({"channel_gains": True} if args.gains else {}),
         **({"expected_draws": args.expected_draws} if args.expected_draws else {}),
-        **({"expected_polish": args.expected_polish} if args.expected_polish else {}),
+        # with draws, always which route: before stop 50 expected_draws alone meant the
+        # generations, so such stored sets must not resume as polished ones
+        **(
+            {"expected_generations": bool(args.expected_generations)} if args.expected_draws else {}
+        ),
+        **(
+            {"simulator_corrections": args.simulator_corrections}
+            if args.simulator_corrections
+            else {}
+        ),
     }
 
 
@@ -495,16 +496,22 @@ def main(argv: Sequence[str] | None = None) -> dict:
         "--expected-draws",
         type=int,
         default=0,
-        help="NSGA-II compares the networks' mean over this many draws of the true geometry "
-        "given the measured one (railsusp.estimate.expected_forces; 0: their prediction on "
-        "the measured geometry itself)",
+        help="polish NSGA-II's choice by the networks' least squares on their mean over this "
+        "many draws of the true geometry given the measured one, instead of the SIMEX step "
+        "(railsusp.estimate.nsga_geometry.polish_on_expected_forces; 0: no polish)",
     )
     ap.add_argument(
-        "--expected-polish",
+        "--simulator-corrections",
         type=int,
         default=0,
-        help="after NSGA-II, the surrogate's least squares on its mean over this many draws "
-        "of the true geometry, from NSGA-II's choice (scored beside the estimate; 0: none)",
+        help="then correct the networks' level error at the estimate by this many simulations "
+        "of it, repeating their least squares with each (railsusp.estimate.level_correction; "
+        "0: the networks alone)",
+    )
+    ap.add_argument(
+        "--expected-generations",
+        action="store_true",
+        help="with --expected-draws: NSGA-II's generations compare the expected forces too",
     )
     ap.add_argument("--work", type=Path, default=Path("runs/estimate_tracks"))
     ap.add_argument("--out", type=Path, default=Path("bench/results/estimate_tracks.json"))
@@ -514,11 +521,13 @@ def main(argv: Sequence[str] | None = None) -> dict:
         help="score the stored sets again (identifiability only; no NSGA-II run)",
     )
     args = ap.parse_args(argv)
-    if min(args.expected_draws, args.geometry_draws, args.expected_polish) < 0:
+    if min(args.expected_draws, args.geometry_draws, args.simulator_corrections) < 0:
         ap.error(
             f"--expected-draws {args.expected_draws}, --geometry-draws {args.geometry_draws}, "
-            f"--expected-polish {args.expected_polish}: accepted 0 or more"
+            f"--simulator-corrections {args.simulator_corrections}: accepted 0 or more"
         )
+    if args.expected_generations and not args.expected_draws:
+        ap.error("--expected-generations needs --expected-draws 1 or more")
     torch.set_num_threads(args.threads)
     folder = args.run / "surrogates" / args.kind
     try:

@@ -131,11 +131,11 @@ def test_rescore_keeps_the_estimates_and_scores_them_again(bench, tmp_path):
 
 
 def test_expected_forces_arm_is_its_own_setting(bench, tmp_path, capsys):
-    """--expected-draws: NSGA-II compares the networks' mean over drawn true geometries
-    (the setting stored, so such sets never resume into a plain run's JSON); without the
-    SIMEX draws the estimate is NSGA-II's choice itself. --expected-polish: the networks'
-    least squares on expected forces from that choice, scored beside it. A negative count
-    exits 2."""
+    """--expected-draws: NSGA-II's choice polished on the networks' mean over drawn true
+    geometries (the setting stored, so such sets never resume into a plain run's JSON), its
+    seconds and Jacobians recorded; --expected-generations: NSGA-II compares them in its
+    generations too (stored too; without --expected-draws refused). A negative count exits
+    2."""
     run = tmp_path / "run"
     tiny_surrogate(run / "surrogates" / "cnn-gru")
     argv = [str(run), "--sets", "1", "--duration", "2", "--pop-size", "4", "--n-gen", "2"]
@@ -143,18 +143,44 @@ def test_expected_forces_arm_is_its_own_setting(bench, tmp_path, capsys):
     doc = bench.main([*argv, "--expected-draws", "2", "--out", str(tmp_path / "e.json")])
     s0 = doc["per_set"][0]
     assert doc["settings"]["expected_draws"] == 2
-    assert s0["error_pct_range"] == s0["choice_error_pct_range"]
-    assert "polish_error_pct_range" not in s0
-    # the polish on expected forces from NSGA-II's choice, scored beside the estimate
-    pol = bench.main([*argv, "--expected-polish", "2", "--out", str(tmp_path / "q.json")])
-    s1 = pol["per_set"][0]
-    assert pol["settings"]["expected_polish"] == 2
-    assert set(s1["polish_error_pct_range"]) == set(KEYS) and s1["polish_evaluations"] >= 1
-    assert set(s1["polish_within"]) <= set(KEYS)
-    assert 0 <= pol["overall"]["identifiable_polish_within"] <= pol["overall"]["identifiable"]
+    assert doc["settings"]["expected_generations"] is False  # stored: the route resumed
+    assert s0["polish_evaluations"] >= 1 and 0.0 < s0["polish_seconds"] < s0["seconds"]
+    assert s0["error_pct_range"] != s0["choice_error_pct_range"]  # the polish moved it
+    assert doc["overall"]["polish_seconds"] == pytest.approx(s0["polish_seconds"])
+    both = bench.main(
+        [
+            *argv,
+            "--expected-draws",
+            "2",
+            "--expected-generations",
+            "--out",
+            str(tmp_path / "g.json"),
+        ]
+    )
+    assert both["settings"]["expected_generations"] is True
+    assert both["per_set"][0]["predict_calls"] > s0["predict_calls"]  # 2 draws per prediction
+    corrected = bench.main(
+        [*argv, "--expected-draws", "2", "--simulator-corrections", "1", "--out",
+         str(tmp_path / "c.json")]
+    )  # fmt: skip
+    c0 = corrected["per_set"][0]
+    assert corrected["settings"]["simulator_corrections"] == 1
+    assert c0["correction_seconds"] > 0 and set(c0["nsga_error_pct_range"]) == set(KEYS)
+    assert c0["nsga_error_pct_range"] == s0["error_pct_range"]  # before: the polished one
+    assert (
+        0
+        <= corrected["overall"]["identifiable_nsga_within"]
+        <= corrected["overall"]["identifiable"]
+    )
     plain = bench.main([*argv, "--out", str(tmp_path / "p.json")])
-    assert "expected_draws" not in plain["settings"]
+    assert "expected_draws" not in plain["settings"] and "polish_seconds" not in plain["overall"]
+    assert "simulator_corrections" not in plain["settings"]
     assert plain["per_set"][0]["truth_display"] == s0["truth_display"]
+    assert plain["per_set"][0]["error_pct_range"] == plain["per_set"][0]["choice_error_pct_range"]
+    with pytest.raises(SystemExit) as exc:
+        bench.main([*argv, "--expected-generations"])
+    assert exc.value.code == 2
+    assert "--expected-generations needs --expected-draws" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exc:
         bench.main([*argv, "--expected-draws", "-1"])
     assert exc.value.code == 2

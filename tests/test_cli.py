@@ -231,6 +231,8 @@ def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
         (["--expected-draws", "4"], "expected_draws 4 with statistic 'mean': accepted only"),
         (["--statistic", "aligned", "--expected-draws", "65"], "--expected-draws 65: accepted 0"),
         (["--statistic", "aligned+std", "--expected-draws", "8"], "accepted only with 'aligned'"),
+        (["--statistic", "aligned+mean", "--expected-draws", "8"], "'aligned' alone"),
+        (["--statistic", "aligned", "--expected-generations"], "needs expected_draws 1 or more"),
     ]:
         result = runner.invoke(app, [*common, "--simulator", "--out", str(est), *bad])
         assert result.exit_code == 2 and needle in result.output, result.output
@@ -316,6 +318,36 @@ def test_measured_track_flow(tmp_path):
 
     v = validate(est, truth=field / "truth.json", statistic="mean+aligned")
     assert set(v.forces.statistic) == {"mean", "aligned"}
+    # expected forces: NSGA-II's choice polished on them, the refinement compares them too
+    result = runner.invoke(
+        app,
+        ["estimate", "--measured", str(field), "--simulator", "--parameters", "X13",
+         "--statistic", "aligned", "--expected-draws", "2", "--out", str(tmp_path / "exp"),
+         "--pop-size", "4", "--n-gen", "2", "--refine", "--refine-evaluations", "2",
+         "--refine-screen", "2", "--refine-starts", "1", "--simulator-corrections", "1"],
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    doc = json.loads((tmp_path / "exp" / "estimate.json").read_text())
+    assert doc["expected_polish"]["draws"] == 2 and doc["expected_polish"]["n_jacobians"] >= 1
+    assert doc["nsga_estimate_display"] == doc["expected_polish"]["polished_display"]
+    corrected = doc["simulator_corrections"][0]["corrected_display"]
+    assert doc["estimate_display"] == corrected
+    assert doc["nsga_geometry"]["draws"] == 0  # no SIMEX step beside the polish
+    assert "polished by the same model's time-aligned least squares" in doc["route"]
+    assert doc["refinement"]["geometry_draws"] == 0  # the error is in the comparison
+    assert doc["route"].endswith(
+        "the simulator's output-error refinement on its mean over 2 draws of the true track "
+        "geometry is a polish beside it"
+    )
+    assert "corrected for the surrogate's level error by 1 simulation" in doc["route"]
+    assert doc["simulator_corrections"][0]["expected_draws"] == 2
+    bad = runner.invoke(
+        app,
+        ["estimate", "--measured", str(field), "--simulator", "--out", str(tmp_path / "x"),
+         "--simulator-corrections", "1", "--n-gen", "1", "--pop-size", "4"],
+    )  # fmt: skip
+    assert bad.exit_code == 2 and "--simulator-corrections corrects" in bad.output
+    assert doc["polished_display"] == doc["refinement"]["refined_display"]
     for option, value, accepted in (
         ("--refine-evaluations", "0", "1 to 500"),
         ("--geometry-draws", "101", "0 to 100"),

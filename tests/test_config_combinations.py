@@ -105,7 +105,44 @@ CASES = [
         ("truth = {X13 = 16.1}", 'statistic = "mean"\nexpected_draws = 8', ""),
         ({"truth": {"X13": 16.1}}, {"statistic": "mean", "expected_draws": 8}, {}),
         "estimate.expected_draws = 8 compares mean predictions over drawn tracks; "
-        "estimate.statistic = \"mean\": accepted 'aligned', alone or with 'mean'",
+        "estimate.statistic = \"mean\": accepted 'aligned' alone (the polish is the "
+        "time-aligned least squares; 'aligned+mean' with expected_generations)",
+    ),
+    (
+        "expected-draws-with-mean-outside-the-generations",
+        (
+            "truth = {X13 = 16.1}\nwith_track = true",
+            'statistic = "aligned+mean"\nexpected_draws = 8',
+            "",
+        ),
+        (
+            {"truth": {"X13": 16.1}, "with_track": True},
+            {"statistic": "aligned+mean", "expected_draws": 8},
+            {},
+        ),
+        "estimate.statistic = \"aligned+mean\": accepted 'aligned' alone",
+    ),
+    (
+        "simulator-corrections-without-aligned",
+        ("truth = {X13 = 16.1}", 'statistic = "mean"\nsimulator_corrections = 1', ""),
+        ({"truth": {"X13": 16.1}}, {"statistic": "mean", "simulator_corrections": 1}, {}),
+        "estimate.simulator_corrections = 1 corrects the time-aligned least squares; "
+        'estimate.statistic = "mean": accepted "aligned" alone',
+    ),
+    (
+        "expected-generations-without-draws",
+        (
+            "truth = {X13 = 16.1}\nwith_track = true",
+            'statistic = "aligned"\nexpected_generations = true',
+            "",
+        ),
+        (
+            {"truth": {"X13": 16.1}, "with_track": True},
+            {"statistic": "aligned", "expected_generations": True},
+            {},
+        ),
+        "estimate.expected_generations = true compares expected forces in NSGA-II's "
+        "generations; estimate.expected_draws = 0 draws none",
     ),
     (
         "track-noise-without-track",

@@ -10,7 +10,13 @@ from pathlib import Path
 import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "railsusp"
-REPORT_MODULES = ("report.py", "report_html.py", "report_doc.py", "summary.py")
+REPORT_MODULES = (
+    "report.py",
+    "report_html.py",
+    "report_doc.py",
+    "report_estimate.py",
+    "summary.py",
+)
 
 
 def imported_modules(path: Path) -> set[str]:

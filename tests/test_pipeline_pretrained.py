@@ -194,5 +194,66 @@ def test_a_time_aligned_run_estimates_again_for_the_geometry_bias(tmp_path):
     section = _section(means, "estimate")
     assert "nsga_geometry" not in section
     assert section == means.estimate.model_dump(
-        exclude={"held_prior", "channel_gains", "expected_draws"}
+        exclude={
+            "held_prior",
+            "channel_gains",
+            "expected_draws",
+            "expected_generations",
+            "simulator_corrections",
+        }
     )
+
+
+def test_expected_draws_hash_their_route_and_whether_the_generations_use_them(tmp_path):
+    """Without expected draws the estimate section hashes as before they existed; with them
+    it names the expected-forces polish as NSGA-II's geometry route and always carries
+    expected_generations (before 2026-11-29 expected draws meant NSGA-II's generations, so a
+    run hashed then estimates again), and turning the generations on changes the hash."""
+    import tomllib
+
+    from railsusp.pipeline_config import PipelineConfig
+
+    text = tomllib.loads(config(tmp_path).read_text())
+    plain = _section(PipelineConfig.model_validate(text), "estimate")
+    assert "expected_generations" not in plain and "expected_draws" not in plain
+    text["estimate"]["expected_draws"] = 8
+    polished = _section(PipelineConfig.model_validate(text), "estimate")
+    assert polished["nsga_geometry"] == "expected-forces polish"
+    assert polished["expected_draws"] == 8 and polished["expected_generations"] is False
+    text["estimate"]["expected_generations"] = True
+    assert _section(PipelineConfig.model_validate(text), "estimate") != polished
+
+
+def test_a_run_with_expected_draws_polishes_and_validates_on_them(pretrained_run, tmp_path):
+    """The same run with ``expected_draws = 2`` and one simulator correction: only the
+    estimate and what follows run again; NSGA-II's choice is polished on the shipped
+    networks' expected forces instead of the SIMEX step, then corrected for their level
+    error by one simulation of it on the same draws; the validation averages its
+    re-simulations over the same draws, and the report says all three."""
+    import shutil
+    import tomllib
+
+    from railsusp.pipeline_config import PipelineConfig
+
+    out, _, _ = pretrained_run
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    text = tomllib.loads(config(tmp_path).read_text())
+    text["estimate"]["expected_draws"] = 2
+    text["estimate"]["simulator_corrections"] = 1
+    seen = []
+    cfg = PipelineConfig.model_validate(text)
+    run_pipeline(cfg, run, progress=lambda s, m: seen.append((s, m)))
+    rerun = [s for s, m in seen if m != "up to date"]
+    assert rerun == ["estimate", "validate", "report"], seen
+    est = json.loads((run / "estimate" / "estimate.json").read_text())
+    assert est["expected_polish"]["draws"] == 2 and est["nsga_geometry"]["draws"] == 0
+    assert est["nsga_estimate_display"] == est["expected_polish"]["polished_display"]
+    (step,) = est["simulator_corrections"]
+    assert step["expected_draws"] == 2
+    assert est["estimate_display"] == step["corrected_display"]
+    val = json.loads((run / "estimate" / "validation" / "validation.json").read_text())
+    assert val["expected_draws"] == 2
+    report = (run / "report.html").read_text("utf-8")
+    assert "polished by the force model" in report and "mean over 2 draws" in report
+    assert "level error at NSGA-II&#x27;s estimate" in report

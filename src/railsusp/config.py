@@ -221,12 +221,25 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
         )
     from railsusp.estimate.config import EXPECTED_STATISTICS_TEXT, expected_statistics_ok
 
-    if cfg.estimate.expected_draws and not expected_statistics_ok(cfg.estimate.statistic):
+    e = cfg.estimate
+    if e.simulator_corrections and e.statistic != ALIGNED:
         raise bad(
-            f"estimate.expected_draws = {cfg.estimate.expected_draws} compares mean predictions "
-            f'over drawn tracks; estimate.statistic = "{cfg.estimate.statistic}": accepted '
-            f"{EXPECTED_STATISTICS_TEXT} (the spread statistics of a mean series are too low),"
-            " or set expected_draws = 0"
+            f"estimate.simulator_corrections = {e.simulator_corrections} corrects the "
+            f'time-aligned least squares; estimate.statistic = "{e.statistic}": accepted '
+            '"aligned" alone, or set simulator_corrections = 0'
+        )
+    if e.expected_generations and not e.expected_draws:
+        raise bad(
+            "estimate.expected_generations = true compares expected forces in NSGA-II's "
+            "generations; estimate.expected_draws = 0 draws none: set expected_draws 1 to 64 "
+            "or expected_generations = false"
+        )
+    if e.expected_draws and not expected_statistics_ok(e.statistic, e.expected_generations):
+        raise bad(
+            f"estimate.expected_draws = {e.expected_draws} compares mean predictions "
+            f'over drawn tracks; estimate.statistic = "{e.statistic}": accepted '
+            f"{EXPECTED_STATISTICS_TEXT[e.expected_generations]} (spread statistics of a mean "
+            "series are too low), or set expected_draws = 0"
         )
     if cfg.surrogate.model == "gp-stats" and "p99.85" in cfg.estimate.statistic.split("+"):
         raise bad(

@@ -149,15 +149,22 @@ def _section(config: PipelineConfig, stage: str) -> Any:
 def _estimate_section(config: PipelineConfig) -> dict:
     """The estimate stage's inputs: its settings (without a held_prior, and with
     channel_gains and expected_draws off, the section hashes as before those existed, so
-    runs stay up to date);
+    runs stay up to date; ``expected_generations`` counts only with expected draws, and
+    then always: before 2026-11-29 expected draws meant NSGA-II's generations, now a polish
+    after them, so such a run estimates again);
     on time-aligned forces also the route of NSGA-II's estimate, which since 2026-11-28
     takes the geometry error's bias off its choice where the recordings state their
     accuracy, so that such a run estimates again."""
     e = config.estimate
-    unset = {k for k in ("held_prior", "channel_gains", "expected_draws") if not getattr(e, k)}
+    optional = ("held_prior", "channel_gains", "expected_draws", "simulator_corrections")
+    unset = {k for k in optional if not getattr(e, k)}
+    if not e.expected_draws:
+        unset.add("expected_generations")
     section = e.model_dump(exclude=unset or None)
     if e.statistic == "aligned":
-        section["nsga_geometry"] = "first SIMEX step"
+        section["nsga_geometry"] = (
+            "expected-forces polish" if e.expected_draws else "first SIMEX step"
+        )
     return section
 
 
@@ -293,10 +300,8 @@ def _stage_runners(
             refine_estimate,
         )
         from railsusp.estimate.config import HeldPrior
-        from railsusp.estimate.nsga_geometry import (
-            remove_nsga_geometry_bias,
-            takes_geometry_bias,
-        )
+        from railsusp.estimate.level_correction import check_correctable, correct_by_simulator
+        from railsusp.estimate.nsga_geometry import account_for_geometry
         from railsusp.measured import read_field
         from railsusp.surrogate import key_parameters, not_estimated
 
@@ -315,15 +320,16 @@ def _stage_runners(
             weighting=e.weighting,
             channel_gains=e.channel_gains,
             expected_draws=e.expected_draws,
+            expected_generations=e.expected_generations,
         )
         recs = read_field(out / "field")
         if e.refine:  # before NSGA-II runs
             check_refinable(recs, "estimate.refine")
+        if e.simulator_corrections:
+            check_correctable(recs, e.statistic, "estimate.simulator_corrections")
         res = estimate_with_seeds(model, recs, params, cfg, e.seeds)
-        if takes_geometry_bias(cfg, e.geometry_draws, recs):
-            remove_nsga_geometry_bias(
-                res, recs, model, e.geometry_draws, e.seed, e.remove_geometry_bias
-            )
+        account_for_geometry(res, recs, model, e.geometry_draws, e.seed, e.remove_geometry_bias)
+        correct_by_simulator(res, recs, model, e.simulator_corrections)
         if e.refine:
             refine_estimate(
                 res,
@@ -334,6 +340,7 @@ def _stage_runners(
                 seed=e.seed,
                 geometry_draws=e.geometry_draws,
                 remove_geometry_bias=e.remove_geometry_bias,
+                expected_draws=e.expected_draws,
             )
             res.held_prior = HeldPrior.from_display(e.held_prior)
         res.save(

@@ -24,10 +24,10 @@ from pydantic import (
 
 from railsusp.conditions import WorkingCondition, get_condition, make_condition
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate.config import NSGA_RANGES, REFINE_RANGES, SEEDS_RANGE
+from railsusp.estimate.config import CORRECTIONS_RANGE, NSGA_RANGES, REFINE_RANGES, SEEDS_RANGE
 from railsusp.params import MAIN_SUSPENSION
 
-_NSGA, _REF = NSGA_RANGES, REFINE_RANGES
+_NSGA, _REF, _CORRECTIONS = NSGA_RANGES, REFINE_RANGES, CORRECTIONS_RANGE
 
 
 class _Cfg(BaseModel):
@@ -140,9 +140,23 @@ class EstimateSection(_Cfg):
         0,
         ge=_NSGA["expected_draws"][0],
         le=_NSGA["expected_draws"][1],
-        description="with 'aligned': compare the surrogate's mean over this many draws of "
-        "the true track geometry given the measured one (0: its prediction on the measured "
-        "geometry)",
+        description="with 'aligned', on recordings whose geometry states its accuracy: "
+        "polish NSGA-II's choice by the surrogate's least squares on its mean over this many "
+        "draws of the true track geometry given the measured one, instead of the first SIMEX "
+        "step; the simulator refinement compares such means too (0: neither)",
+    )
+    simulator_corrections: int = Field(
+        0,
+        ge=_CORRECTIONS[0],
+        le=_CORRECTIONS[1],
+        description="with 'aligned' alone: correct the surrogate's level error at NSGA-II's "
+        "estimate by this many simulations of it, repeating the surrogate's least squares "
+        "with each (output space mapping; 0: the surrogate alone)",
+    )
+    expected_generations: bool = Field(
+        False,
+        description="NSGA-II's generations compare the expected forces too (expected_draws "
+        "times the predictions; with 'aligned' alone or with 'mean')",
     )
     weighting: Literal["relative", "noise"] = Field(
         "relative", description="relative errors, or in units of the gp-stats predictive SD"
@@ -168,12 +182,14 @@ class EstimateSection(_Cfg):
         ge=_REF["geometry_draws"][0],
         le=_REF["geometry_draws"][1],
         description="draws of the recordings' stated track-geometry error propagated into "
-        "NSGA-II's time-aligned estimate and the refined estimate's standard errors",
+        "NSGA-II's time-aligned estimate and the refined estimate's standard errors (not "
+        "used with expected_draws)",
     )
     remove_geometry_bias: bool = Field(
         True,
         description="take the geometry-error bias that the draws estimate (first SIMEX "
-        "step) off NSGA-II's time-aligned estimate and off the refined estimate",
+        "step) off NSGA-II's time-aligned estimate and off the refined estimate (not used "
+        "with expected_draws)",
     )
     held_prior: dict[str, Any] = Field(
         default_factory=dict,

@@ -190,12 +190,13 @@ def plot_surrogate_overlay(
 
 
 def _final(result) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
-    """The final estimate (SI; NSGA-II's less its geometry bias where removed) and, when
-    refined, its confidence interval's low and high (SI; None without refinement, or when the
-    refinement is a polish beside NSGA-II's estimate: the Pareto set is drawn instead)."""
+    """The final estimate (SI; NSGA-II's after its geometry step and the simulator's
+    corrections, where taken) and, when refined, its confidence interval's low and high (SI;
+    None without refinement, or when the refinement is a polish beside NSGA-II's estimate:
+    the Pareto set is drawn instead)."""
     ref = result.refinement
     if ref is None or not result.refined:
-        return result.nsga_x, None, None
+        return result.chosen_x, None, None
     iv = result.intervals()
     return (
         ref.estimate_si,
@@ -223,6 +224,10 @@ def plot_pareto(result, path: str | Path):
         if refined
         else "NSGA-II's choice (its geometry bias taken off: final estimate)"
         if result.geometry_bias_removed
+        else "NSGA-II's choice (then corrected by the simulator)"
+        if result.corrections
+        else "NSGA-II's choice (polished on expected forces: final estimate)"
+        if result.expected_polish is not None
         else "NSGA-II's choice = estimate"
     )
     ax.scatter(100 * f[c, 0], 100 * f[c, 1], s=80, marker="*", color="C3", label=star)

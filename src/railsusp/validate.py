@@ -5,6 +5,10 @@ The measured conditions are re-simulated with the simulator (not the surrogate) 
 nominal and with the estimated parameters, on the recordings' measured track geometry when
 they carry one, else on the design track of each condition, and their record statistics
 (and, on measured track, the time-aligned mismatch) are compared with the recordings'.
+Where the estimate compared expected forces (``expected_draws``) and a recording states its
+geometry's accuracy, each simulation is one per draw of the true geometry given the measured
+one (the estimate's draws: same seed), and the comparison is with their mean series
+(time-aligned) and the mean of their statistics, as the estimate was made.
 For synthetic recordings the validator, and only the validator, reads the hidden truth: the
 recovery error per parameter, and the noise floor, i.e. the error that a simulation with the
 true parameters itself makes against the same recording.
@@ -13,12 +17,15 @@ true parameters itself makes against the same recording.
 from __future__ import annotations
 
 import json
+import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from railsusp.conditions import WorkingCondition
 from railsusp.estimate import (
     ALIGNED,
     BOUND_LIMIT_PCT,
@@ -27,9 +34,12 @@ from railsusp.estimate import (
     parse_statistics,
     recording_segments,
 )
+from railsusp.estimate.config import NSGA_RANGES, check_range
+from railsusp.estimate.expected_forces import draw_true_tracks
 from railsusp.estimate.intervals import identification, intervals_of
 from railsusp.estimate.statistics import force_statistic
-from railsusp.measured import SimulationFailedError, read_field, simulated_forces
+from railsusp.measured import Recording, SimulationFailedError, read_field
+from railsusp.measured.synthetic import recording_from_simulation
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import atomic_write_bytes, read_json, write_json
 
@@ -47,6 +57,9 @@ class ValidationResult:
     series: dict  # condition -> {"time", "measured", "before", "after"} for the overlays
     #: simulations that stopped (derailment, divergence): their rows hold NaN
     failures: list[str] = field(default_factory=list)
+    #: draws of the true track geometry each simulation on geometry of stated accuracy is
+    #: averaged over (the estimate's ``expected_draws``; 0: on the measured geometry)
+    expected_draws: int = 0
 
     def save(self, out: str | Path) -> Path:
         from railsusp.report import plot_validation_overlay
@@ -54,7 +67,11 @@ class ValidationResult:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         atomic_write_bytes(out / "validation.csv", self.forces.to_csv(index=False).encode())
-        payload = {"forces": self.forces.to_dict(orient="records"), "failures": self.failures}
+        payload = {
+            "forces": self.forces.to_dict(orient="records"),
+            "failures": self.failures,
+            "expected_draws": self.expected_draws,
+        }
         if self.recovery is not None:
             csv = self.recovery.to_csv(index=False).encode()
             atomic_write_bytes(out / "recovery.csv", csv)
@@ -65,17 +82,34 @@ class ValidationResult:
         return out
 
 
-def _simulate(pset: ParameterSet, recs, label: str, failures: list[str]) -> list[np.ndarray]:
-    """Measured-wheel series (T, 2) in kN of each recording's condition and wheel; a
-    simulation that stops gives NaN and a line in ``failures`` (the parameters derail
-    there: a finding, not a crash)."""
-    out = []
-    for rec in recs:
-        try:
-            out.append(simulated_forces(pset, rec))
-        except SimulationFailedError as exc:
-            failures.append(f"{label}: {exc}")
-            out.append(np.full((rec.time.size, 2), np.nan))
+def _simulate(
+    sets: dict[str, ParameterSet],
+    recs: Sequence[Recording],
+    conditions: Sequence[Sequence[WorkingCondition]],
+    failures: list[str],
+) -> dict[str, list[np.ndarray]]:
+    """Per label of ``sets``, per recording, (draws, T, 2) series in kN of its first wheel in
+    each of that recording's ``conditions`` (its own, or its drawn true tracks), the sets and
+    conditions of a recording in one batched call; a simulation that stops gives NaN and a
+    line in ``failures`` (the parameters derail there: a finding, not a crash)."""
+    from railsusp.vehicle.simulate import simulate_conditions
+
+    out: dict[str, list[np.ndarray]] = {label: [] for label in sets}
+    labels = list(sets)
+    for rec, conds in zip(recs, conditions, strict=True):
+        runs = simulate_conditions([sets[label] for label in labels], conds)
+        for k, label in enumerate(labels):
+            series, stopped = [], []
+            for run in runs:
+                try:
+                    series.append(recording_from_simulation(run, rec.wheels[:1], k).forces())
+                except SimulationFailedError as exc:
+                    stopped.append(str(exc))
+                    series.append(np.full((rec.time.size, 2), np.nan))
+            if stopped:  # one line per recording: the first reason, and how many draws
+                many = f" ({len(stopped)} of {len(runs)} drawn tracks)" if len(runs) > 1 else ""
+                failures.append(f"{label}: {stopped[0]}{many}")
+            out[label].append(np.stack(series))
     return out
 
 
@@ -86,6 +120,7 @@ def validate(
     truth: str | Path | None = None,
     sensitivity: str | Path | None = None,
     statistic: str | None = None,
+    expected_draws: int | None = None,
 ) -> ValidationResult:
     """Validate the estimate in ``estimate_dir`` against its recordings.
 
@@ -94,7 +129,10 @@ def validate(
     ``key_parameters.json`` or ``indices.parquet`` of the campaign, for the Sobol flag.
     ``statistic`` defaults to the estimate's, with ``aligned`` added when every recording
     carries measured track geometry; the time-aligned errors profile the channel gains out
-    where the estimate did (its ``channel_gains``).
+    where the estimate did (its ``channel_gains``). ``expected_draws`` defaults to the
+    estimate's: on recordings whose geometry states its accuracy the simulations are then
+    compared by their mean over that many draws of the true geometry (seeded as the
+    estimate's), its statistics by their mean over the draws.
     """
     est = read_json(Path(estimate_dir) / "estimate.json")
     params = tuple(est["parameters"])
@@ -110,14 +148,25 @@ def validate(
         doc = json.loads(Path(truth).read_text("utf-8"))
         truth_set = ParameterSet(doc["parameters_display"], units="display")
     failures: list[str] = []
-    sims = {
-        "before": _simulate(nominal, recs, "nominal parameters", failures),
-        "after": _simulate(chosen, recs, "estimate", failures),
-    }
+    labels = {"before": "nominal parameters", "after": "estimate", "truth": "true parameters"}
+    sets = {"before": nominal, "after": chosen}
     if truth_set is not None:
-        sims["truth"] = _simulate(truth_set, recs, "true parameters", failures)
+        sets["truth"] = truth_set
+    config = est["config"]
+    draws = int(config.get("expected_draws", 0) if expected_draws is None else expected_draws)
+    check_range("expected_draws", draws, *NSGA_RANGES["expected_draws"])
+    with tempfile.TemporaryDirectory(prefix="railsusp-validate-") as folder:
+        conditions = [
+            draw_true_tracks(r.condition, draws, int(config.get("seed", 0)),
+                             Path(folder), f"{i:03d}-{r.condition.name}")
+            if draws
+            else [r.condition]
+            for i, r in enumerate(recs)
+        ]  # fmt: skip
+        named = _simulate({labels[k]: v for k, v in sets.items()}, recs, conditions, failures)
+    sims = {key: named[labels[key]] for key in sets}
     aligned = ALIGNED in stats
-    gains = bool(est["config"].get("channel_gains", False))
+    gains = bool(config.get("channel_gains", False))
     stats = tuple(st for st in stats if st != ALIGNED)
     rows, series = [], {}
     for i, rec in enumerate(recs):
@@ -136,7 +185,7 @@ def validate(
                     "measured_kN": sd,
                 }
                 for key, s in sims.items():
-                    e = float(aligned_error(s[i][None], rec, gains)[0, j])
+                    e = float(aligned_error(s[i].mean(axis=0)[None], rec, gains)[0, j])
                     row[f"{key}_kN"], row[f"{key}_error"] = e * sd, e
                 rows.append(row)
             for k, st in enumerate(stats):
@@ -149,13 +198,18 @@ def validate(
                 }
                 for key, s in sims.items():
                     v = float(
-                        force_statistic(
-                            s[i][:, j],
-                            st,
-                            force == "Y",
-                            segments,
-                            rate_hz=rec.sampling_rate,
-                            speed_ms=rec.condition.speed,
+                        np.mean(
+                            [
+                                force_statistic(
+                                    drawn[:, j],
+                                    st,
+                                    force == "Y",
+                                    segments,
+                                    rate_hz=rec.sampling_rate,
+                                    speed_ms=rec.condition.speed,
+                                )
+                                for drawn in s[i]
+                            ]
                         )
                     )
                     row[f"{key}_kN"] = v
@@ -164,15 +218,15 @@ def validate(
         series[rec.condition.name] = {
             "time": rec.time,
             "measured": rec.forces(),
-            "before": sims["before"][i],
-            "after": sims["after"][i],
+            "before": sims["before"][i].mean(axis=0),
+            "after": sims["after"][i].mean(axis=0),
             "measured_track": rec.condition.track_geometry is not None,
         }
     forces = pd.DataFrame(rows)
     recovery = None
     if truth_set is not None:
         recovery = _recovery(params, chosen, truth_set, est, sensitivity)
-    return ValidationResult(forces, recovery, series, failures)
+    return ValidationResult(forces, recovery, series, failures, draws)
 
 
 def identification_issues(est: dict, max_st: dict[str, float] | None = None) -> dict[str, str]:

@@ -166,11 +166,27 @@ def estimate(
     expected_draws: Annotated[
         int,
         typer.Option(
-            help="with --statistic aligned: compare the model's mean over this many draws of "
-            "the true track geometry given the recordings' measured one (0: the model on the "
-            "measured geometry)"
+            help="with --statistic aligned, on recordings whose geometry states its "
+            "accuracy: polish NSGA-II's choice by the model's least squares on its mean over "
+            "this many draws of the true track geometry given the measured one (instead of "
+            "the SIMEX step); --refine compares such means too (0: neither)"
         ),
     ] = 0,
+    simulator_corrections: Annotated[
+        int,
+        typer.Option(
+            help="with --statistic aligned: correct the surrogate's level error at NSGA-II's "
+            "estimate by this many simulations of it, repeating the surrogate's least squares "
+            "with each (output space mapping; 0: the surrogate alone)"
+        ),
+    ] = 0,
+    expected_generations: Annotated[
+        bool,
+        typer.Option(
+            help="NSGA-II's generations compare the expected forces too (--expected-draws "
+            "times the predictions; --statistic aligned, alone or with mean)"
+        ),
+    ] = False,
     weighting: Annotated[
         str,
         typer.Option(
@@ -204,7 +220,8 @@ def estimate(
         typer.Option(
             help="draws of the recordings' stated track-geometry error propagated into "
             "NSGA-II's time-aligned estimate and the refined estimate's standard errors (0: "
-            "sensor noise only)"
+            "sensor noise only; not used with --expected-draws, which compares the mean over "
+            "drawn true tracks instead)"
         ),
     ] = 8,
     remove_geometry_bias: Annotated[
@@ -212,7 +229,8 @@ def estimate(
         typer.Option(
             "--remove-geometry-bias/--keep-geometry-bias",
             help="take the bias that the geometry-error draws estimate (first SIMEX step) "
-            "off NSGA-II's time-aligned estimate and off the refined estimate",
+            "off NSGA-II's time-aligned estimate and off the refined estimate (not used with "
+            "--expected-draws)",
         ),
     ] = True,
     held_prior: Annotated[
@@ -234,8 +252,19 @@ def estimate(
         parse_statistics,
         refine_estimate,
     )
-    from railsusp.estimate.config import NSGA_RANGES, REFINE_RANGES, SEEDS_RANGE, check_range
-    from railsusp.estimate.nsga_geometry import remove_nsga_geometry_bias, takes_geometry_bias
+    from railsusp.estimate.config import (
+        CORRECTIONS_RANGE,
+        NSGA_RANGES,
+        REFINE_RANGES,
+        SEEDS_RANGE,
+        check_range,
+    )
+    from railsusp.estimate.level_correction import check_correctable, correct_by_simulator
+    from railsusp.estimate.nsga_geometry import (
+        account_for_geometry,
+        takes_expected_polish,
+        takes_geometry_bias,
+    )
     from railsusp.measured import read_field
     from railsusp.surrogate import not_estimated
 
@@ -253,6 +282,7 @@ def estimate(
             ("--refine-starts", refine_starts, REFINE_RANGES["starts"]),
             ("--geometry-draws", geometry_draws, REFINE_RANGES["geometry_draws"]),
             ("--expected-draws", expected_draws, NSGA_RANGES["expected_draws"]),
+            ("--simulator-corrections", simulator_corrections, CORRECTIONS_RANGE),
         ):
             check_range(name, value, low, high)
         parse_statistics(statistic)
@@ -271,10 +301,13 @@ def estimate(
             weighting=weighting,
             channel_gains=channel_gains,
             expected_draws=expected_draws,
+            expected_generations=expected_generations,
         )
         recs = read_field(measured)
         if refine:
             check_refinable(recs, "--refine")
+        if simulator_corrections:
+            check_correctable(recs, statistic, "--simulator-corrections")
         if surrogate is not None:
             model, params = open_force_model(
                 surrogate, tuple(parameters.split(",")) if parameters else None
@@ -286,11 +319,18 @@ def estimate(
             model = SimulatorForces(params)
         with console.status(f"NSGA-II {pop_size} x {n_gen} on {len(recs)} recording(s)"):
             res = estimate_with_seeds(model, recs, params, cfg, n_seeds=seeds)
-        if takes_geometry_bias(cfg, geometry_draws, recs):
-            with console.status(f"{geometry_draws} draws of the track geometry's error"):
-                remove_nsga_geometry_bias(
-                    res, recs, model, geometry_draws, seed, remove_geometry_bias
-                )
+        if takes_expected_polish(cfg, recs):
+            doing = f"polishing on the mean over {expected_draws} drawn true tracks"
+        elif takes_geometry_bias(cfg, geometry_draws, recs):
+            doing = f"{geometry_draws} draws of the track geometry's error"
+        else:
+            doing = ""
+        if doing:
+            with console.status(doing):
+                account_for_geometry(res, recs, model, geometry_draws, seed, remove_geometry_bias)
+        if simulator_corrections:
+            with console.status(f"{simulator_corrections} simulator correction(s) of the estimate"):
+                correct_by_simulator(res, recs, model, simulator_corrections)
         if refine:
             with console.status("refining on the measured track (simulator, output error)"):
                 refine_estimate(
@@ -302,6 +342,7 @@ def estimate(
                     seed=seed,
                     geometry_draws=geometry_draws,
                     remove_geometry_bias=remove_geometry_bias,
+                    expected_draws=expected_draws,
                 )
             res.held_prior = prior
         res.save(

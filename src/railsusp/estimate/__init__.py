@@ -22,7 +22,8 @@ One module per job, imports running one way (top to bottom depends only on those
   comparison
 - :mod:`~railsusp.estimate.result`: the estimate result (save, table)
 - :mod:`~railsusp.estimate.nsga`: the NSGA-II run (pymoo), log, choice rule, seed spread
-- :mod:`~railsusp.estimate.nsga_geometry`: the geometry error's bias off NSGA-II's estimate
+- :mod:`~railsusp.estimate.nsga_geometry`: the geometry error in NSGA-II's estimate: its
+  bias off the choice (first SIMEX step) or the choice polished on expected forces
 - :mod:`~railsusp.estimate.polish`: screened starts and refinement of an NSGA-II estimate
 
 This package re-exports the public names other code uses, so ``from railsusp.estimate

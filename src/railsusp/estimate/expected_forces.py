@@ -92,33 +92,13 @@ class ExpectedForces:
         if key not in self._drawn:
             if not self._finalizer.alive:
                 raise RuntimeError("expected forces closed: their drawn geometry is removed")
-            irr = read_track_geometry(condition.track_geometry)
-            post = geometry_posterior(
-                irr, condition.track_accuracy_mm * 1e-3, condition.wavelength_min_m
-            )
-            # seeded by what the track is, not where its file lies: the same recording in
-            # another run folder gets the same draws
-            content = zlib.crc32(
-                np.stack([irr.component(c)[0] for c in COMPONENTS]).tobytes(),
-                zlib.crc32(condition.name.encode()),
-            )
-            rng = np.random.default_rng([self.seed, content])
             tag = f"{len(self._drawn):03d}-{condition.name}"
-            drawn = []
-            for d, geometry in enumerate(post.draws(self.draws, rng, self.antithetic)):
-                path = Path(self._folder.name) / f"{tag}-{d}.parquet"
-                write_track_geometry(path, geometry)
-                drawn.append(
-                    condition.with_changes(track_geometry=str(path), track_accuracy_mm=0.0)
-                )
+            drawn = draw_true_tracks(
+                condition, self.draws, self.seed, Path(self._folder.name), tag, self.antithetic
+            )
             reads = getattr(self.model, "reads_track", None)
             if reads is not None and not reads(drawn[0]):
-                raise RailsuspInputError(
-                    f"expected_draws {self.draws}: the surrogate of condition "
-                    f"{condition.name!r} was trained on one track and predicts only that one, "
-                    "not drawn geometries; use a surrogate trained on a track family "
-                    "(docs/data-format.md) or expected_draws = 0"
-                )
+                raise RailsuspInputError(_one_track_text(self.draws, condition.name))
             self._drawn[key] = drawn
         return self._drawn[key]
 
@@ -145,3 +125,57 @@ class ExpectedForces:
             out.append(np.mean(series[at : at + len(g)], axis=0))
             at += len(g)
         return out
+
+
+def check_drawable(model: ForceModel, recordings: Sequence, draws: int) -> None:
+    """Refuse, before any work, ``draws`` expected-force draws with a surrogate that cannot
+    predict on a drawn track: one trained on one track realisation, in a recording that
+    states its geometry's accuracy (elsewhere nothing is drawn). The same one-line input
+    error as on first use (:meth:`ExpectedForces.drawn_conditions`), but before NSGA-II's
+    generations rather than after them."""
+    reads = getattr(model, "reads_any_track", None)
+    if not draws or reads is None:
+        return
+    for rec in recordings:
+        c = rec.condition
+        if c.track_geometry is not None and c.track_accuracy_mm and not reads(c):
+            raise RailsuspInputError(_one_track_text(draws, c.name))
+
+
+def _one_track_text(draws: int, name: str) -> str:
+    return (
+        f"expected_draws {draws}: the surrogate of condition {name!r} was trained on one "
+        "track and predicts only that one, not drawn geometries; use a surrogate trained on "
+        "a track family (docs/data-format.md) or expected_draws = 0"
+    )
+
+
+def draw_true_tracks(
+    condition: WorkingCondition,
+    draws: int,
+    seed: int,
+    folder: Path,
+    tag: str = "",
+    antithetic: bool = True,
+) -> list[WorkingCondition]:
+    """``condition`` on ``draws`` draws of its true track geometry given its measured one
+    and stated accuracy (:func:`~railsusp.vehicle.geometry_posterior.geometry_posterior`),
+    each written to ``folder`` (named by ``tag``) and stated exact; itself alone where its
+    geometry is exact or absent. Seeded by ``seed`` and what the track is (the condition's
+    name and its measured geometry), not where its file lies: the same recording in another
+    run folder gets the same draws, and so do the estimate and its validation."""
+    if condition.track_geometry is None or not condition.track_accuracy_mm:
+        return [condition]
+    irr = read_track_geometry(condition.track_geometry)
+    post = geometry_posterior(irr, condition.track_accuracy_mm * 1e-3, condition.wavelength_min_m)
+    content = zlib.crc32(
+        np.stack([irr.component(c)[0] for c in COMPONENTS]).tobytes(),
+        zlib.crc32(condition.name.encode()),
+    )
+    rng = np.random.default_rng([seed, content])
+    drawn = []
+    for d, geometry in enumerate(post.draws(draws, rng, antithetic)):
+        path = Path(folder) / f"{tag or condition.name}-{d}.parquet"
+        write_track_geometry(path, geometry)
+        drawn.append(condition.with_changes(track_geometry=str(path), track_accuracy_mm=0.0))
+    return drawn

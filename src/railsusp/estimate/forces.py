@@ -223,6 +223,12 @@ class SurrogateForces:
         model = self._models[condition.name]
         return not model.one_track or model.reads_training_track(condition)
 
+    def reads_any_track(self, condition: WorkingCondition) -> bool:
+        """Whether the network of ``condition`` predicts on any track geometry (trained on a
+        track family), not only on the one it was trained on: what drawn true tracks need
+        (:class:`~railsusp.estimate.expected_forces.ExpectedForces`)."""
+        return condition.track_geometry is not None and not self._models[condition.name].one_track
+
 
 class StatisticsForces:
     """Statistics surrogates, one per condition name (a folder of ``<condition>/`` bundles

@@ -32,7 +32,7 @@ from railsusp.estimate.config import (
     check_range,
     choice_rule,
 )
-from railsusp.estimate.expected_forces import ExpectedForces
+from railsusp.estimate.expected_forces import ExpectedForces, check_drawable
 from railsusp.estimate.forces import ForceModel, StatisticsForces
 from railsusp.estimate.identifiability import cramer_rao_pct_range
 from railsusp.estimate.problem import CalibrationProblem
@@ -101,12 +101,15 @@ def estimate(
 
     ``initial_si``: parameter sets (n, k), SI, to start the population from (e.g. the Pareto
     set of a cheaper estimate), topped up with random sets to the population size. With
-    ``config.expected_draws`` the time-aligned comparison is with the model's mean over that
-    many draws of the true track geometry given each recording's measured one
-    (:class:`~railsusp.estimate.expected_forces.ExpectedForces`, seeded by ``config.seed``;
-    that many times the predictions)."""
+    ``config.expected_generations`` the time-aligned comparison is with the model's mean
+    over ``config.expected_draws`` draws of the true track geometry given each recording's
+    measured one (:class:`~railsusp.estimate.expected_forces.ExpectedForces`, seeded by
+    ``config.seed``; that many times the predictions); else on the measured geometry itself
+    (the expected forces' polish of the choice comes after:
+    :func:`~railsusp.estimate.nsga_geometry.polish_on_expected_forces`)."""
     cfg = NSGAConfig() if config is None else config
-    if cfg.expected_draws:  # on stated-accuracy geometry: the mean over drawn true tracks
+    check_drawable(model, recordings, cfg.expected_draws)  # before the generations
+    if cfg.expected_generations:  # on stated-accuracy geometry: the mean over drawn tracks
         with ExpectedForces(model, cfg.expected_draws, seed=cfg.seed) as expected:
             return _estimate(expected, recordings, parameters, cfg, initial_si)
     return _estimate(model, recordings, parameters, cfg, initial_si)

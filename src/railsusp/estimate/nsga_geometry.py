@@ -1,28 +1,38 @@
-"""The track geometry's measurement error in NSGA-II's estimate on time-aligned forces: the
-shifts that draws of it cause, with the model NSGA-II ran on, and their mean taken off its
-choice (the first SIMEX step; :mod:`railsusp.estimate.geometry_bias`)."""
+"""The track geometry's measurement error in NSGA-II's estimate on time-aligned forces.
+
+Two ways, one per estimate (:func:`account_for_geometry` picks): the shifts that draws of
+the error cause, with the model NSGA-II ran on, and their mean taken off its choice (the
+first SIMEX step, :func:`remove_nsga_geometry_bias`; :mod:`railsusp.estimate.geometry_bias`);
+or, with ``expected_draws``, the model's own time-aligned least squares from its choice on
+its expected forces, the mean over draws of the true geometry given the measured one
+(:func:`polish_on_expected_forces`; :mod:`railsusp.estimate.expected_forces`), which
+removes the bias the SIMEX step leaves (bench/README.md)."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
 from railsusp.estimate.config import NSGAConfig
+from railsusp.estimate.expected_forces import ExpectedForces
 from railsusp.estimate.forces import ForceModel
 from railsusp.estimate.geometry_bias import GEOMETRY_DRAWS, geometry_shifts_at, stated_accuracy
+from railsusp.estimate.refine import refine
 from railsusp.estimate.result import CalibrationResult
 from railsusp.estimate.statistics import ALIGNED, parse_statistics
 from railsusp.measured import Recording
+
+#: the expected-forces polish's most evaluations of the residuals (its Jacobians are more)
+POLISH_EVALUATIONS = 40
 
 
 def takes_geometry_bias(config: NSGAConfig, draws: int, recordings: Sequence[Recording]) -> bool:
     """Whether NSGA-II's estimate (run with ``config``) gets the geometry's error: it
     compared time-aligned forces alone (statistic ``aligned``: its choice is then the
     time-aligned least-squares point whose shifts the draws measure; a combination with
-    record statistics is chosen by the ideal point of another front), on the measured
-    geometry itself (not expected forces, ``config.expected_draws``: the error is then
-    already in its comparison, and the draws' shifts of an estimate on them would cost draws
-    x expected draws predictions per step), ``draws`` > 0, and a recording states its
-    accuracy."""
+    record statistics is chosen by the ideal point of another front), not with expected
+    forces (``config.expected_draws``: their polish, or NSGA-II's generations on them, take
+    the error in instead, :func:`takes_expected_polish`), ``draws`` > 0, and a recording
+    states its accuracy."""
     return (
         parse_statistics(config.statistic) == (ALIGNED,)
         and not config.expected_draws
@@ -46,7 +56,8 @@ def remove_nsga_geometry_bias(
     (:func:`~railsusp.estimate.geometry_bias.removable`), and its Pareto range moves with it.
     Needs the statistic ``aligned`` alone, and does nothing where no recording states its
     geometry's accuracy or ``draws`` is 0 (then nothing is known of the error), and where
-    NSGA-II compared expected forces (:func:`takes_geometry_bias`). With several
+    its configuration asks for expected forces instead (``expected_draws``: their polish
+    takes the SIMEX step's place; :func:`takes_geometry_bias`). With several
     NSGA-II seeds (:func:`~railsusp.estimate.nsga.estimate_with_seeds`) the shifts are taken
     at the first seed's choice, and the seed spread stays that of the choices. On 12
     parameter sets with 0.5 mm geometry it took NSGA-II on the shipped CNN-GRUs from 15 to
@@ -69,4 +80,78 @@ def remove_nsga_geometry_bias(
         gains=result.config.channel_gains,
     )
     result.geometry_bias_removed = remove
+    return result
+
+
+def takes_expected_polish(config: NSGAConfig, recordings: Sequence[Recording]) -> bool:
+    """Whether NSGA-II's estimate (run with ``config``) is polished on expected forces:
+    ``config.expected_draws`` > 0, statistic ``aligned`` alone (the polish is the
+    time-aligned least squares), and a recording states its geometry's accuracy (elsewhere
+    the expected forces are the model's own)."""
+    return (
+        bool(config.expected_draws)
+        and parse_statistics(config.statistic) == (ALIGNED,)
+        and stated_accuracy(recordings)
+    )
+
+
+def polish_on_expected_forces(
+    result: CalibrationResult,
+    recordings: Sequence[Recording],
+    model: ForceModel,
+    max_evaluations: int = POLISH_EVALUATIONS,
+) -> CalibrationResult:
+    """Polish NSGA-II's choice in place, where :func:`takes_expected_polish` says so: the
+    bounded least squares of the time-aligned residuals
+    (:func:`~railsusp.estimate.refine.refine`, channel gains alongside where NSGA-II
+    profiled them) with ``model``'s mean over ``config.expected_draws`` draws of the true
+    track geometry given each recording's measured one
+    (:class:`~railsusp.estimate.expected_forces.ExpectedForces`, seeded by
+    ``config.seed``), started at the choice; the result
+    (:attr:`~railsusp.estimate.result.CalibrationResult.expected_polish`) becomes NSGA-II's
+    estimate and its Pareto range moves with it. The measured geometry carries its error as
+    extra short-wavelength roughness, which biases a comparison on it (the wedge friction
+    X18 by about +10 % of range at 0.5 mm); the expected forces are what the model predicts
+    on the tracks the measurement allows. A local search of a few Jacobians, not expected
+    forces in all of NSGA-II's generations: on the shipped networks the two land alike, at
+    8-10 s against 800-1200 s per estimate (bench/README.md). With several NSGA-II seeds the
+    first seed's choice is polished."""
+    if not takes_expected_polish(result.config, recordings):
+        return result
+    cfg = result.config
+    with ExpectedForces(model, cfg.expected_draws, seed=cfg.seed) as expected:
+        polish = refine(
+            expected,
+            recordings,
+            result.parameters,
+            result.pareto_x[result.chosen],
+            max_evaluations=max_evaluations,
+            gains=cfg.channel_gains,
+            geometry_draws=0,
+        )
+    polish.problem = None  # its drawn geometry files are gone; keep no series cache
+    polish.expected_draws = cfg.expected_draws
+    result.expected_polish = polish
+    if cfg.channel_gains:  # the estimate's gains are the polish's
+        result.channel_gains = dict(polish.channel_gains)
+    return result
+
+
+def account_for_geometry(
+    result: CalibrationResult,
+    recordings: Sequence[Recording],
+    model: ForceModel,
+    draws: int = GEOMETRY_DRAWS,
+    seed: int = 0,
+    remove: bool = True,
+) -> CalibrationResult:
+    """Give NSGA-II's estimate the recordings' stated geometry error, in place, the way its
+    configuration asks: the expected-forces polish (:func:`polish_on_expected_forces`)
+    with ``expected_draws``, else the first SIMEX step with ``draws`` draws
+    (:func:`remove_nsga_geometry_bias`, ``remove``: take the bias off); nothing where the
+    comparison is not time-aligned alone or no recording states its accuracy."""
+    if takes_expected_polish(result.config, recordings):
+        return polish_on_expected_forces(result, recordings, model)
+    if takes_geometry_bias(result.config, draws, recordings):
+        return remove_nsga_geometry_bias(result, recordings, model, draws, seed, remove)
     return result

@@ -69,6 +69,9 @@ class Refinement:
     geometry_shifts_si: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     #: whether the estimate is the refined point less :attr:`geometry_bias_si`
     geometry_bias_removed: bool = False
+    #: draws of the true geometry whose mean response was compared (expected forces, on
+    #: recordings that state their geometry's accuracy; 0: the measured geometry itself)
+    expected_draws: int = 0
     #: the least-squares problem solved, with its cache of simulated series, and its
     #: solution (unit parameters, then gains), for more work at the estimate (not saved)
     problem: OutputError | None = field(default=None, repr=False, compare=False)
@@ -115,7 +118,14 @@ class Refinement:
 
         return {
             "method": "output-error least squares (scipy least_squares, trust-region "
-            "reflective) on time-aligned series of recordings on measured track",
+            "reflective) on time-aligned series of recordings on measured track"
+            + (
+                f", the model's mean over {self.expected_draws} draws of the true geometry "
+                "given the measured one (expected forces)"
+                if self.expected_draws
+                else ""
+            ),
+            "expected_draws": self.expected_draws,
             "start_display": display_values(self.parameters, self.start_si),
             "refined_display": display_values(self.parameters, self.x_si),
             "geometry_bias_removed": self.geometry_bias_removed,

@@ -20,7 +20,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from railsusp.estimate.config import HeldPrior
-from railsusp.estimate.forces import SimulatorForces
+from railsusp.estimate.expected_forces import ExpectedForces
+from railsusp.estimate.forces import ForceModel, SimulatorForces
 from railsusp.estimate.interval_distribution import DRAWS, SEED, error_quantiles
 from railsusp.estimate.intervals import (
     LEVEL,
@@ -82,27 +83,32 @@ def held_response(refinement: Refinement) -> tuple[tuple[str, ...], np.ndarray] 
     to the held ones, the Jacobians taken at the estimate with the held parameters at the
     values held. None where it cannot be computed: no held parameter, or a force model other
     than the simulator (the surrogates know the key parameters only). One batch of
-    k + h + 1 simulations."""
+    k + h + 1 simulations; where the refinement compared the simulator's expected forces
+    (:class:`~railsusp.estimate.expected_forces.ExpectedForces`), the response is that of
+    the same expected forces (the same draws: they are seeded by the tracks), that many
+    times the simulations."""
     prob, z = refinement.problem, refinement.solution
-    if prob is None or z is None or not isinstance(prob.model, SimulatorForces):
+    sim = _simulator(refinement)
+    if prob is None or z is None or sim is None:
         return None
     held = held_parameters(prob.parameters)
     if not held:
         return None
     k, h = prob.k, len(held)
     every = (*prob.parameters, *held)
-    base = prob.model.base
-    ext = OutputError(
-        SimulatorForces(every, prob.model.wheel, base=base),
-        prob.recordings,
-        every,
-        prob.step,
-        prob.gains,
-    )
+    model: ForceModel = SimulatorForces(every, sim.wheel, base=sim.base)
+    if isinstance(prob.model, ExpectedForces):
+        expected = prob.model
+        model = ExpectedForces(model, expected.draws, expected.seed, expected.antithetic)
+    ext = OutputError(model, prob.recordings, every, prob.step, prob.gains)
     lo_h, hi_h = bounds(held)
-    u_held = np.clip((held_values(held, base) - lo_h) / (hi_h - lo_h), 0.0, 1.0)
+    u_held = np.clip((held_values(held, sim.base) - lo_h) / (hi_h - lo_h), 0.0, 1.0)
     zz = np.concatenate([z[:k], u_held, z[k:]])
-    jac = ext.jacobian_of(ext.predictions(ext.steps(zz[: k + h])), zz)
+    try:
+        jac = ext.jacobian_of(ext.predictions(ext.steps(zz[: k + h])), zz)
+    finally:
+        if isinstance(model, ExpectedForces):
+            model.close()
     est_cols = np.r_[0:k, k + h : jac.shape[1]]
     j_e, j_h = jac[:, est_cols], jac[:, k : k + h]
     return held, np.linalg.lstsq(j_e, j_h, rcond=None)[0][:k]
@@ -270,7 +276,17 @@ def refinement_intervals(
     )
 
 
+def _simulator(refinement: Refinement) -> SimulatorForces | None:
+    """The simulator the refinement compared (itself, or averaged over drawn tracks by
+    :class:`~railsusp.estimate.expected_forces.ExpectedForces`); None for another model."""
+    prob = refinement.problem
+    model = prob.model if prob is not None else None
+    while isinstance(model, ExpectedForces):
+        model = model.model
+    return model if isinstance(model, SimulatorForces) else None
+
+
 def _base(refinement: Refinement) -> ParameterSet | None:
     """The values the refinement's simulator holds the other parameters at (None: nominal)."""
-    prob = refinement.problem
-    return getattr(prob.model, "base", None) if prob is not None else None
+    sim = _simulator(refinement)
+    return sim.base if sim is not None else None

@@ -59,7 +59,19 @@ class CalibrationResult:
     #: whether NSGA-II's estimate is its choice less the mean of those shifts (first SIMEX
     #: step; its Pareto range, the interval, moves with it; ``pareto_x`` stays NSGA-II's)
     geometry_bias_removed: bool = False
-    #: each recording's channel gain at NSGA-II's choice, by "<condition>:<Y|Q>_<wheel>",
+    #: the force model's own time-aligned least squares on its expected forces (mean over
+    #: ``config.expected_draws`` draws of the true geometry given the measured one), from
+    #: NSGA-II's choice: NSGA-II's estimate where present (in the SIMEX step's place;
+    #: :func:`~railsusp.estimate.nsga_geometry.polish_on_expected_forces`), its Pareto
+    #: range moved with it
+    expected_polish: Refinement | None = None
+    #: the simulator's corrections of the surrogate's level error at NSGA-II's estimate, each
+    #: the surrogate's least squares again with it (output space mapping,
+    #: :func:`~railsusp.estimate.level_correction.correct_by_simulator`); the last one's
+    #: point is the estimate where present (:attr:`corrected_x`)
+    corrections: list[Refinement] = field(default_factory=list)
+    #: each recording's channel gain at NSGA-II's estimate (its choice, or the expected-forces
+    #: polish, which estimates them again), by "<condition>:<Y|Q>_<wheel>",
     #: where the time-aligned comparison profiled them out (``config.channel_gains``)
     channel_gains: dict[str, float] = field(default_factory=dict)
     #: intervals computed, by level and refinement (a refinement attached later recomputes)
@@ -73,19 +85,48 @@ class CalibrationResult:
     @property
     def chosen_x(self) -> np.ndarray:
         """The estimate, SI: the refined one when the refinement makes the estimate, else
+        NSGA-II's corrected by the simulator (:attr:`corrected_x`) where it was, else
         NSGA-II's (:attr:`nsga_x`; also when the refinement is a polish: :attr:`polished_x`)."""
         if self.refinement is not None and self.refined:
             return self.refinement.estimate_si
+        if self.corrections:
+            return self.corrected_x
         return self.nsga_x
 
     @property
-    def nsga_x(self) -> np.ndarray:
-        """NSGA-II's estimate, SI: its choice on the front, less the geometry error's bias
-        where that is removed (:attr:`geometry_bias_removed`)."""
-        return self._less_bias(self.pareto_x[self.chosen])
+    def corrected_x(self) -> np.ndarray:
+        """NSGA-II's estimate after the simulator's corrections of the surrogate's level
+        error, SI (:attr:`nsga_x` where none was made)."""
+        return self.corrections[-1].x_si if self.corrections else self.nsga_x
 
-    def _less_bias(self, x_si: np.ndarray) -> np.ndarray:
-        """``x_si`` (one set or rows of them) less NSGA-II's geometry bias, if removed."""
+    @property
+    def nsga_x(self) -> np.ndarray:
+        """NSGA-II's estimate, SI: its choice on the front, polished on expected forces
+        (:attr:`expected_polish`) or less the geometry error's bias where that is removed
+        (:attr:`geometry_bias_removed`)."""
+        if self.expected_polish is not None:
+            return self.expected_polish.x_si
+        return self._geometry_moved(self.pareto_x[self.chosen])
+
+    def _moved(self, x_si: np.ndarray) -> np.ndarray:
+        """``x_si`` (one set or rows of them) moved as NSGA-II's choice is to the estimate
+        it makes (:meth:`_geometry_moved`, then by the simulator corrections' step); within
+        the ranges."""
+        moved = self._geometry_moved(x_si)
+        if not self.corrections:
+            return moved
+        lo, hi = bounds(self.parameters)
+        return np.clip(moved + (self.corrected_x - self.nsga_x), lo, hi)
+
+    def _geometry_moved(self, x_si: np.ndarray) -> np.ndarray:
+        """``x_si`` (one set or rows of them) moved as NSGA-II's choice is to its estimate:
+        by the expected-forces polish's step, or less the geometry bias if removed; within
+        the ranges."""
+        if self.expected_polish is not None:
+            # clipped: points moved past a bound sit on it, and the range narrows there
+            lo, hi = bounds(self.parameters)
+            step = self.expected_polish.x_si - self.expected_polish.start_si
+            return np.clip(np.asarray(x_si, float) + step, lo, hi)
         if not self.geometry_bias_removed:
             return x_si
         return less_bias(self.parameters, x_si, self.geometry_shifts_si)
@@ -105,18 +146,33 @@ class CalibrationResult:
         text = f"NSGA-II against {on} ({self.config.statistic})"
         if self.config.channel_gains:
             text += ", each force channel's gain profiled out"
-        if self.config.expected_draws:
+        if self.config.expected_generations:
             text += (
                 f", predicted as the mean over {self.config.expected_draws} draws of the true "
                 "track geometry given the measured one where its accuracy is stated"
             )
+        if self.expected_polish is not None:
+            text += (
+                ", then polished by the same model's time-aligned least squares on its mean "
+                f"over {self.config.expected_draws} draws of the true track geometry given the "
+                "measured one (expected forces)"
+            )
         if self.geometry_bias_removed:
             text += ", less the track geometry error's bias (first SIMEX step)"
+        if self.corrections:
+            n = len(self.corrections)
+            text += (
+                f", then corrected for the surrogate's level error by {n} simulation"
+                f"{'s' if n > 1 else ''} of the estimate, its least squares repeated with "
+                "each (output space mapping)"
+            )
         if self.refinement is None:
             return text
+        drawn = self.refinement.expected_draws
+        on = f" on its mean over {drawn} draws of the true track geometry" if drawn else ""
         if self.refinement_is_polish:
-            return text + "; the simulator's output-error refinement is a polish beside it"
-        return text + ", then refined by output-error least squares with the simulator"
+            return text + f"; the simulator's output-error refinement{on} is a polish beside it"
+        return text + f", then refined by output-error least squares with the simulator{on}"
 
     @property
     def estimate(self) -> dict[str, float]:
@@ -134,6 +190,8 @@ class CalibrationResult:
             id(self.held_prior),
             self.geometry_bias_removed,
             id(self.geometry_shifts_si),
+            id(self.expected_polish),
+            len(self.corrections),
         )
         if key not in self._intervals:
             if self.refinement is not None and self.refined:
@@ -141,7 +199,7 @@ class CalibrationResult:
                     self.refinement, level, prior=self.held_prior
                 )
             else:
-                got = from_pareto(self.parameters, self._less_bias(self.pareto_x), self.chosen_x)
+                got = from_pareto(self.parameters, self._moved(self.pareto_x), self.chosen_x)
                 if self.cramer_rao:
                     got = Intervals(
                         got.method, got.level, got.items, {"cramer_rao_pct_range": self.cramer_rao}
@@ -181,8 +239,11 @@ class CalibrationResult:
                 row["standard_error_pct_range"] = refined["standard_error_pct_range"][p]
                 if refined["geometry_draws"]:
                     row["geometry_error_pct_range"] = refined["geometry_error_pct_range"][p]
-            if geometry and not self.refined:
+            if self.corrections and not self.refined:
+                row["nsga_estimate"] = nsga[p]
+            if (geometry or self.expected_polish is not None) and not self.refined:
                 row["nsga_choice"] = spec(p).to_display(self.pareto_x[self.chosen][k])
+            if geometry and not self.refined:
                 row["geometry_bias_pct_range"] = geometry["bias"][p]
                 row["geometry_scatter_pct_range"] = geometry["scatter"][p]
             if self.cramer_rao:
@@ -241,7 +302,11 @@ class CalibrationResult:
                 + (", then refined by output-error least squares" if self.refined else ""),
                 "choice": self.choice_rule,
                 "route": self.route,
-                "estimate_source": "refinement" if self.refined else "nsga-ii",
+                "estimate_source": "refinement"
+                if self.refined
+                else "nsga-ii, simulator-corrected"
+                if self.corrections
+                else "nsga-ii",
                 "polished_display": None
                 if self.polished_x is None
                 else display_values(self.parameters, self.polished_x),
@@ -254,6 +319,8 @@ class CalibrationResult:
                     **{f"{n}_pct_range": v for n, v in self.nsga_geometry_pct_range().items()},
                 },
                 "channel_gains": self.channel_gains,
+                "expected_polish": self._expected_polish_record(),
+                "simulator_corrections": [self._correction_record(c) for c in self.corrections],
                 "refinement": self.refinement.to_dict() if self.refinement else None,
                 "cramer_rao_pct_range": self.cramer_rao,
                 "intervals": self.intervals().to_dict(),
@@ -265,6 +332,44 @@ class CalibrationResult:
         plot_pareto(self, out / "pareto.png")
         plot_convergence(self, out / "convergence.png")
         return out
+
+    def _expected_polish_record(self) -> dict | None:
+        """estimate.json's account of the expected-forces polish (None without one)."""
+        pol = self.expected_polish
+        if pol is None:
+            return None
+        return {
+            "method": "the force model's own time-aligned least squares (scipy least_squares, "
+            "trust-region reflective) on its mean over draws of the true track geometry "
+            "given the measured one, from NSGA-II's choice",
+            "draws": self.config.expected_draws,
+            "start_display": display_values(self.parameters, pol.start_si),
+            "polished_display": display_values(self.parameters, pol.x_si),
+            "step_pct_range": self._pct_range(pol.x_si - pol.start_si),
+            "cost_start": pol.cost_start,
+            "cost": pol.cost,
+            "n_evaluations": pol.n_evaluations,
+            "n_jacobians": pol.n_jacobians,
+            "message": pol.message,
+            "channel_gains": pol.channel_gains,
+        }
+
+    def _correction_record(self, step: Refinement) -> dict:
+        """estimate.json's account of one simulator correction step."""
+        return {
+            "method": "the surrogate plus its level error at the start (simulator minus "
+            "surrogate there, per recording), its time-aligned least squares from there",
+            "expected_draws": step.expected_draws,
+            "start_display": display_values(self.parameters, step.start_si),
+            "corrected_display": display_values(self.parameters, step.x_si),
+            "step_pct_range": self._pct_range(step.x_si - step.start_si),
+            "cost_start": step.cost_start,
+            "cost": step.cost,
+            "n_evaluations": step.n_evaluations,
+            "n_jacobians": step.n_jacobians,
+            "message": step.message,
+            "channel_gains": step.channel_gains,
+        }
 
     def estimate_set(self, base: ParameterSet | None = None) -> ParameterSet:
         """The chosen estimate as a full ParameterSet (others from ``base`` or nominal)."""

@@ -1,0 +1,154 @@
+"""The report's estimation and validation sections (study Tables 3-5 and 8-9): what made
+the estimate, said in words beside its tables and figures, and how it was validated."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from railsusp.report_doc import Doc, fraction_errors_to_pct
+from railsusp.store import read_json
+
+
+def validation_section(doc: Doc, val: Path) -> None:
+    """The before/after validation (``val``: its folder), when it was run."""
+    if not (val / "validation.csv").exists():
+        return
+    doc.h("Validation before and after calibration (study Tables 8/9, Figures 12/13)")
+    doc.p(
+        "Errors in % of the measured value; for the statistic 'aligned', the RMS of the "
+        "sample-by-sample difference in % of the measured series' standard deviation."
+    )
+    doc.table(fraction_errors_to_pct(pd.read_csv(val / "validation.csv")))
+    checked = read_json(val / "validation.json")
+    if checked.get("expected_draws"):
+        doc.p(
+            "As the estimate was made, on recordings whose track geometry states its "
+            "accuracy each simulation is the mean over "
+            f"{checked['expected_draws']} draws of the true geometry given the measured "
+            "one (its statistics the mean of the draws' statistics)."
+        )
+    for line in checked.get("failures", []):
+        doc.p(f"Simulation stopped (its rows are empty): {line}")
+    for png in sorted(val.glob("validation-*.png")):
+        doc.figure(
+            png,
+            f"Measured vs simulated, {png.stem.removeprefix('validation-')}: an excerpt of "
+            "the series and the whole record's statistics",
+        )
+    if (val / "recovery.csv").exists():
+        doc.h("Parameter recovery against the hidden truth", 3)
+        doc.table(pd.read_csv(val / "recovery.csv"))
+
+
+def estimate_section(doc: Doc, est: Path) -> None:
+    """NSGA-II's estimate: its log, how it was made (choice, SIMEX step or expected-forces
+    polish, the simulator refinement beside it or making it), the table and figures."""
+    doc.h("NSGA-II estimation (study Tables 3-5, Figures 8/9)")
+    log = pd.read_csv(est / "nsga_log.csv")
+    doc.p("First and last generations of the NSGA-II log:")
+    doc.table(pd.concat([log.head(4), log.tail(4)]).drop_duplicates())
+    info = read_json(est / "estimate.json")
+    ref = info.get("refinement")
+    drawn = (ref or {}).get("expected_draws")
+    on_drawn = f" (the mean over {drawn} draws of the true track geometry)" if drawn else ""
+    if ref and info.get("polished_display"):
+        doc.p(
+            "The estimate is NSGA-II's on the surrogate against the recordings' "
+            "time-aligned forces on their measured track ("
+            + info.get("choice_rule", "")
+            + "); the study's method gives it without the simulator. Beside it, as a polish, "
+            f"the simulator's output-error refinement on the same track{on_drawn}: "
+            "time-aligned cost "
+            f"{ref['cost_start']:.3g} -> {ref['cost']:.3g} in {ref['n_evaluations']} "
+            "evaluations (the 'polished' column of the tables). Its interval is the Pareto "
+            "set's range, not a confidence interval."
+        )
+    elif ref:
+        doc.p(
+            "NSGA-II's choice was refined by output-error least squares with the simulator on "
+            f"the recordings' measured track{on_drawn}: time-aligned cost "
+            f"{ref['cost_start']:.3g} -> {ref['cost']:.3g} in {ref['n_evaluations']} "
+            "evaluations. The estimate is the refined point"
+            + (
+                " less the bias that draws of the track geometry's stated error estimate "
+                "(the first SIMEX step)"
+                if ref.get("geometry_bias_removed")
+                else ""
+            )
+            + ". Its intervals are "
+            + (info.get("intervals") or {}).get("description", "± 2 standard errors")
+            + (
+                f" (geometry error from {ref['geometry_draws']} draws)."
+                if ref.get("geometry_draws")
+                else "."
+            )
+            + " The Pareto spread is the range of parameter sets whose force statistics the "
+            "surrogate objectives cannot tell apart; the refinement's time-aligned series "
+            "can, hence a standard error far below that spread."
+        )
+    else:
+        doc.p(
+            "The estimate is NSGA-II's choice on the Pareto front (closest to the ideal "
+            "point). Its interval is the Pareto set's range: the parameter sets whose force "
+            "statistics the objectives cannot tell apart. That is not a confidence interval "
+            "(a narrow Pareto set can lie far from the truth), so no parameter is called "
+            "identified from it."
+        )
+    geometry = info.get("nsga_geometry") or {}
+    if geometry.get("draws"):
+        doc.p(
+            f"{geometry['draws']} draws of the track geometry's stated measurement error, "
+            "each added to the measured geometry, moved NSGA-II's choice (columns: the track "
+            "geometry error's bias, their mean, and its scatter, their RMS): a least-squares "
+            "fit on forces computed from erroneous geometry is biased (errors in variables). "
+            + (
+                "NSGA-II's estimate is its choice less that mean (the first SIMEX step); the "
+                "choice itself is shown beside it"
+                + (
+                    f", and {', '.join(geometry['bias_kept'])} keep the choice: the draws move "
+                    "them by more than half their range, so the forces do not fix them."
+                    if geometry.get("bias_kept")
+                    else "."
+                )
+                if geometry.get("bias_removed")
+                else "The bias was kept in the estimate (remove_geometry_bias = false, "
+                "--keep-geometry-bias)."
+            )
+        )
+    polish = info.get("expected_polish")
+    if polish:
+        doc.p(
+            "The recordings' track geometry states its accuracy, and the measured geometry "
+            "carries its error as extra roughness, which biases a comparison on it. NSGA-II's "
+            "choice (column nsga_choice) was therefore polished by the force model's own "
+            "time-aligned least squares on its expected forces, the mean over "
+            f"{polish['draws']} draws of the true geometry given the measured one: cost "
+            f"{polish['cost_start']:.3g} -> {polish['cost']:.3g} in {polish['n_evaluations']} "
+            "evaluations. That is NSGA-II's estimate, and its Pareto range moved with it."
+        )
+    corrections = info.get("simulator_corrections") or []
+    if corrections:
+        n, last = len(corrections), corrections[-1]
+        drawn = last.get("expected_draws")
+        doc.p(
+            f"The surrogate's level error at NSGA-II's estimate was then measured by {n} "
+            f"simulation{'s' if n > 1 else ''} of it on the recordings' tracks"
+            + (f" (the mean over the same {drawn} drawn true tracks)" if drawn else "")
+            + ": the simulator's forces less the surrogate's, sample by sample, added to the "
+            "surrogate, whose time-aligned least squares was repeated (output space mapping): "
+            f"cost {last['cost_start']:.3g} -> {last['cost']:.3g}. The estimate is that point; "
+            "NSGA-II's own is the column nsga_estimate, and the Pareto range moved with it."
+        )
+    if info.get("cramer_rao_pct_range"):
+        doc.p(
+            "Cramér-Rao bound: the smallest standard deviation (% of the range) that any "
+            "estimator can reach from these statistics, at the estimate; above 5 % the data "
+            "cannot fix the parameter to that precision."
+        )
+    doc.table(pd.read_csv(est / "estimate.csv"))
+    doc.figure(
+        est / "pareto.png", "Pareto front, and each parameter's Pareto set with the final estimate"
+    )
+    doc.figure(est / "convergence.png", "Convergence of the estimate towards the final one")

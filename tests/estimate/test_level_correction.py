@@ -1,0 +1,114 @@
+"""The simulator's correction of a surrogate's level error at the estimate
+(railsusp.estimate.level_correction): output space mapping on analytic force models."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from railsusp.errors import RailsuspInputError
+from railsusp.estimate import NSGAConfig, estimate
+from railsusp.estimate.level_correction import correct_by_simulator
+from railsusp.measured import Recording
+from railsusp.store import read_json
+from test_estimate import COND
+
+PARAMS = ("X13", "X14")
+TRUTH = np.array([14e6, 10e6])
+
+
+class Linear:
+    """Forces linear in a = X13 / 14 MN/m and b = X14 / 10 MN/m on two fixed shapes:
+    Y = a u(t), Q = 120 + slope b v(t) + offset v(t) (kN). With slope 1 and offset 0 it is
+    the reference ("simulator"); a surrogate with an offset has a level error along b's own
+    column, with a slope other than 1 a slope error too."""
+
+    parameters = PARAMS
+
+    def __init__(self, slope: float = 1.0, offset: float = 0.0):
+        self.slope, self.offset = slope, offset
+
+    def series(self, x_si, condition):
+        t = np.arange(condition.n_steps) * condition.sample_interval
+        u = np.sin(2 * np.pi * 1.3 * t) + 0.4 * np.sin(2 * np.pi * 3.1 * t)
+        v = np.cos(2 * np.pi * 0.7 * t) + 0.5 * np.sin(2 * np.pi * 2.3 * t + 1.0)
+        a = (x_si[:, 0] / 14e6)[:, None]
+        b = (x_si[:, 1] / 10e6)[:, None]
+        q = 120.0 + (self.slope * b + self.offset) * 10.0 * v
+        return np.stack([3.0 * a * u, q], axis=2)
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    """The reference model's forces at the truth on an exactly measured track (a track
+    file, accuracy 0: the time-aligned comparison needs one; nothing is drawn)."""
+    from railsusp.vehicle.track import synthesise
+    from railsusp.vehicle.track_geometry import write_track_geometry
+
+    folder = tmp_path_factory.mktemp("level")
+    cond = COND.with_changes(duration_s=20.0, n_steps=1000)
+    track = write_track_geometry(folder / "t.csv", synthesise(400.0, 5, 1, dx=0.25))
+    cond = cond.with_changes(track_geometry=str(track))
+    s = Linear().series(TRUTH[None], cond)[0]
+    t = np.arange(cond.n_steps) * cond.sample_interval
+    return Recording(t, {"w1L": s[:, 0]}, {"w1L": s[:, 1]}, cond)
+
+
+def _nsga(model, rec):
+    cfg = NSGAConfig(pop_size=12, n_gen=10, seed=3, statistic="aligned")
+    return estimate(model, [rec], PARAMS, cfg)
+
+
+def test_one_correction_removes_a_level_error_the_surrogate_has_along_a_column(recording, tmp_path):
+    """A surrogate whose wheel load carries a level error along b's own column (offset
+    -0.2) puts b 0.2 too high by least squares, whatever NSGA-II does; with its slopes
+    right, one simulation at the estimate makes it exact there and everywhere, and the
+    corrected least squares lands on the truth (within 0.5 %). The route, the table and
+    estimate.json say what was done, and NSGA-II's own estimate is kept beside it."""
+    surrogate = Linear(offset=-0.2)
+    res = _nsga(surrogate, recording)
+    assert res.nsga_x[1] / 10e6 == pytest.approx(1.2, abs=0.03)
+    correct_by_simulator(res, [recording], surrogate, 1, simulator=Linear())
+    assert len(res.corrections) == 1
+    assert res.chosen_x[1] / 10e6 == pytest.approx(1.0, abs=0.005)
+    assert res.chosen_x[0] / 14e6 == pytest.approx(1.0, abs=0.005)
+    assert res.nsga_x[1] / 10e6 == pytest.approx(1.2, abs=0.03)  # kept
+    assert "corrected for the surrogate's level error by 1 simulation" in res.route
+    iv = res.intervals()["X14"]
+    assert iv.low_si <= res.chosen_x[1] <= iv.high_si  # the Pareto range moved with it
+    assert "nsga_estimate" in res.table().columns
+    res.save(tmp_path)
+    doc = read_json(tmp_path / "estimate.json")
+    assert doc["estimate_source"] == "nsga-ii, simulator-corrected"
+    (step,) = doc["simulator_corrections"]
+    assert step["corrected_display"]["X14"] == pytest.approx(res.estimate["X14"])
+    assert step["step_pct_range"]["X14"] < -15.0  # from 1.2 down to 1.0: -20 % of range
+
+
+def test_with_a_slope_error_the_corrections_converge_on_the_truth(recording):
+    """A surrogate that passes on 0.9 of b's effect, with a level error besides: each
+    correction is exact at its start but keeps the surrogate's slope, so one step leaves
+    (1 - 0.1 b0) / 0.9 - 1 of b (about 2 %) and a second about a tenth of that."""
+    surrogate = Linear(slope=0.9, offset=-0.1)
+    errors = []
+    for steps in (1, 2):
+        res = correct_by_simulator(
+            _nsga(surrogate, recording), [recording], surrogate, steps, simulator=Linear()
+        )
+        errors.append(abs(res.chosen_x[1] / 10e6 - 1.0))
+    assert 0.005 < errors[0] < 0.05
+    assert errors[1] < 0.3 * errors[0]
+
+
+def test_refusals(recording):
+    """Corrections need the time-aligned least squares alone, and 0-5 steps; with 0 the
+    estimate is NSGA-II's untouched."""
+    res = _nsga(Linear(offset=-0.2), recording)
+    with pytest.raises(RailsuspInputError, match="simulator_corrections 6: accepted 0 to 5"):
+        correct_by_simulator(res, [recording], Linear(), 6, simulator=Linear())
+    before = res.chosen_x.copy()
+    correct_by_simulator(res, [recording], Linear(), 0, simulator=Linear())
+    assert res.corrections == [] and np.array_equal(res.chosen_x, before)
+    mean = estimate(Linear(), [recording], PARAMS, NSGAConfig(pop_size=4, n_gen=1))
+    with pytest.raises(RailsuspInputError, match="accepted 'aligned' alone"):
+        correct_by_simulator(mean, [recording], Linear(), 1, simulator=Linear())
