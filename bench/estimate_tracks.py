@@ -276,13 +276,14 @@ def run_set(
     geometry = res.nsga_geometry_pct_range()
     polish = res.expected_polish
     polished = (
-        {"polish_seconds": t_geometry - t_nsga, "polish_evaluations": polish.n_jacobians}
+        {"polish_seconds": t_geometry - t_nsga, "polish_jacobians": polish.n_jacobians}
         if polish is not None
         else {}
     )
     corrected = (
         {
             "correction_seconds": seconds - t_geometry,
+            "correction_jacobians": [c.n_jacobians for c in res.corrections],
             "nsga_error_pct_range": {p: float(e) for p, e in zip(params, nsga_err, strict=True)},
             "nsga_within": [
                 p for p, e in zip(params, nsga_err, strict=True) if abs(e) <= WITHIN_PCT

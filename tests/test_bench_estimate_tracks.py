@@ -144,7 +144,7 @@ def test_expected_forces_arm_is_its_own_setting(bench, tmp_path, capsys):
     s0 = doc["per_set"][0]
     assert doc["settings"]["expected_draws"] == 2
     assert doc["settings"]["expected_generations"] is False  # stored: the route resumed
-    assert s0["polish_evaluations"] >= 1 and 0.0 < s0["polish_seconds"] < s0["seconds"]
+    assert s0["polish_jacobians"] >= 1 and 0.0 < s0["polish_seconds"] < s0["seconds"]
     assert s0["error_pct_range"] != s0["choice_error_pct_range"]  # the polish moved it
     assert doc["overall"]["polish_seconds"] == pytest.approx(s0["polish_seconds"])
     both = bench.main(
@@ -166,6 +166,7 @@ def test_expected_forces_arm_is_its_own_setting(bench, tmp_path, capsys):
     c0 = corrected["per_set"][0]
     assert corrected["settings"]["simulator_corrections"] == 1
     assert c0["correction_seconds"] > 0 and set(c0["nsga_error_pct_range"]) == set(KEYS)
+    assert len(c0["correction_jacobians"]) == 1 and c0["correction_jacobians"][0] >= 1
     assert c0["nsga_error_pct_range"] == s0["error_pct_range"]  # before: the polished one
     assert (
         0

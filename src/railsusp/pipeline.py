@@ -326,7 +326,7 @@ def _stage_runners(
         if e.refine:  # before NSGA-II runs
             check_refinable(recs, "estimate.refine")
         if e.simulator_corrections:
-            check_correctable(recs, e.statistic, "estimate.simulator_corrections")
+            check_correctable(recs, e.statistic, "estimate.simulator_corrections", model)
         res = estimate_with_seeds(model, recs, params, cfg, e.seeds)
         account_for_geometry(res, recs, model, e.geometry_draws, e.seed, e.remove_geometry_bias)
         correct_by_simulator(res, recs, model, e.simulator_corrections)

@@ -222,10 +222,10 @@ def plot_pareto(result, path: str | Path):
     star = (
         "NSGA-II's choice (then refined)"
         if refined
-        else "NSGA-II's choice (its geometry bias taken off: final estimate)"
-        if result.geometry_bias_removed
         else "NSGA-II's choice (then corrected by the simulator)"
         if result.corrections
+        else "NSGA-II's choice (its geometry bias taken off: final estimate)"
+        if result.geometry_bias_removed
         else "NSGA-II's choice (polished on expected forces: final estimate)"
         if result.expected_polish is not None
         else "NSGA-II's choice = estimate"

@@ -53,12 +53,20 @@ def estimate_section(doc: Doc, est: Path) -> None:
     ref = info.get("refinement")
     drawn = (ref or {}).get("expected_draws")
     on_drawn = f" (the mean over {drawn} draws of the true track geometry)" if drawn else ""
+    corrected = bool(info.get("simulator_corrections"))
+    made = (
+        "The estimate starts from NSGA-II's on the surrogate against the recordings' "
+        "time-aligned forces on their measured track ("
+        + info.get("choice_rule", "")
+        + "), corrected by the simulator as said below."
+        if corrected
+        else "The estimate is NSGA-II's on the surrogate against the recordings' time-aligned "
+        "forces on their measured track (" + info.get("choice_rule", "") + "); the study's "
+        "method gives it without the simulator."
+    )
     if ref and info.get("polished_display"):
         doc.p(
-            "The estimate is NSGA-II's on the surrogate against the recordings' "
-            "time-aligned forces on their measured track ("
-            + info.get("choice_rule", "")
-            + "); the study's method gives it without the simulator. Beside it, as a polish, "
+            made + " Beside it, as a polish, "
             f"the simulator's output-error refinement on the same track{on_drawn}: "
             "time-aligned cost "
             f"{ref['cost_start']:.3g} -> {ref['cost']:.3g} in {ref['n_evaluations']} "
@@ -87,6 +95,12 @@ def estimate_section(doc: Doc, est: Path) -> None:
             + " The Pareto spread is the range of parameter sets whose force statistics the "
             "surrogate objectives cannot tell apart; the refinement's time-aligned series "
             "can, hence a standard error far below that spread."
+        )
+    elif corrected or info.get("expected_polish") or info.get("choice") == "least-squares":
+        doc.p(
+            made + " Its interval is the Pareto set's range, moved with the estimate: not a "
+            "confidence interval (a narrow Pareto set can lie far from the truth), so no "
+            "parameter is called identified from it."
         )
     else:
         doc.p(
@@ -138,9 +152,12 @@ def estimate_section(doc: Doc, est: Path) -> None:
             + (f" (the mean over the same {drawn} drawn true tracks)" if drawn else "")
             + ": the simulator's forces less the surrogate's, sample by sample, added to the "
             "surrogate, whose time-aligned least squares was repeated (output space mapping): "
-            f"cost {last['cost_start']:.3g} -> {last['cost']:.3g}. The estimate is that point; "
-            "NSGA-II's own is the column nsga_estimate, and the Pareto range moved with it."
+            f"cost {last['cost_start']:.3g} -> {last['cost']:.3g}. The estimate is that point"
+            + (", less the same geometry bias" if last.get("geometry_bias_removed") else "")
+            + "; NSGA-II's own is the column nsga_estimate, and the Pareto range moved with it."
         )
+    if info.get("simulator_corrections_stopped"):
+        doc.p(f"Simulator corrections stopped: {info['simulator_corrections_stopped']}.")
     if info.get("cramer_rao_pct_range"):
         doc.p(
             "Cramér-Rao bound: the smallest standard deviation (% of the range) that any "

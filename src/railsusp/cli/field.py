@@ -306,8 +306,6 @@ def estimate(
         recs = read_field(measured)
         if refine:
             check_refinable(recs, "--refine")
-        if simulator_corrections:
-            check_correctable(recs, statistic, "--simulator-corrections")
         if surrogate is not None:
             model, params = open_force_model(
                 surrogate, tuple(parameters.split(",")) if parameters else None
@@ -317,6 +315,8 @@ def estimate(
 
             params = tuple(parameters.split(",")) if parameters else STUDY_KEY_PARAMETERS
             model = SimulatorForces(params)
+        if simulator_corrections:  # before NSGA-II runs
+            check_correctable(recs, statistic, "--simulator-corrections", model)
         with console.status(f"NSGA-II {pop_size} x {n_gen} on {len(recs)} recording(s)"):
             res = estimate_with_seeds(model, recs, params, cfg, n_seeds=seeds)
         if takes_expected_polish(cfg, recs):

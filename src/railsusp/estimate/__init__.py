@@ -25,6 +25,8 @@ One module per job, imports running one way (top to bottom depends only on those
 - :mod:`~railsusp.estimate.nsga_geometry`: the geometry error in NSGA-II's estimate: its
   bias off the choice (first SIMEX step) or the choice polished on expected forces
 - :mod:`~railsusp.estimate.polish`: screened starts and refinement of an NSGA-II estimate
+- :mod:`~railsusp.estimate.level_correction`: the surrogate's level error at the estimate
+  from the simulator, its least squares repeated with it (output space mapping)
 
 This package re-exports the public names other code uses, so ``from railsusp.estimate
 import estimate, NSGAConfig, refine_estimate`` works; the refinement's own

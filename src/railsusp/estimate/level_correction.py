@@ -37,12 +37,12 @@ from railsusp.estimate.problem import check_aligned
 from railsusp.estimate.refine import Refinement, refine
 from railsusp.estimate.result import CalibrationResult
 from railsusp.estimate.statistics import ALIGNED, parse_statistics
-from railsusp.measured import Recording
+from railsusp.measured import Recording, SimulationFailedError
 
 
 class LevelCorrected:
-    """``model``'s series plus a fixed series per condition name (``corrections``, (T, 2)
-    kN): the surrogate made exact where the corrections were taken."""
+    """``model``'s series plus a fixed series per condition (``corrections``, (T, 2) kN, by
+    :func:`condition_key`): the surrogate made exact where the corrections were taken."""
 
     def __init__(self, model: ForceModel, corrections: dict[str, np.ndarray]):
         self.model = model
@@ -58,18 +58,45 @@ class LevelCorrected:
         """The model's series in each condition (together, where it can) plus its
         correction."""
         out = series_in_conditions(self.model, x_si, conditions)
-        return [s + self.corrections[c.name][None] for s, c in zip(out, conditions, strict=True)]
+        return [
+            s + self.corrections[condition_key(c)][None]
+            for s, c in zip(out, conditions, strict=True)
+        ]
 
 
-def check_correctable(recordings: Sequence[Recording], statistic: str, setting: str) -> None:
-    """Refuse, before NSGA-II runs, simulator corrections the recordings or the comparison
-    cannot take (``setting`` names the option): they compare time-aligned series (the
-    statistic ``aligned`` alone) on the recordings' measured track, at the wheel the
-    simulator gives."""
+def condition_key(condition: WorkingCondition) -> str:
+    """What a correction is kept by: the whole condition (two recordings of one name on
+    different tracks keep their own)."""
+    return condition.model_dump_json()
+
+
+def _unwrapped(model: ForceModel) -> ForceModel:
+    """The model an :class:`ExpectedForces` averages (itself otherwise)."""
+    while isinstance(model, ExpectedForces):
+        model = model.model
+    return model
+
+
+def check_correctable(
+    recordings: Sequence[Recording],
+    statistic: str,
+    setting: str,
+    model: ForceModel | None = None,
+) -> None:
+    """Refuse, before NSGA-II runs, simulator corrections the recordings, the comparison or
+    the force ``model`` cannot take (``setting`` names the option): they compare
+    time-aligned series (the statistic ``aligned`` alone) on the recordings' measured
+    track, at the wheel the simulator gives, and correct a surrogate (the simulator
+    corrected by itself would be a second refinement)."""
     if parse_statistics(statistic) != (ALIGNED,):
         raise RailsuspInputError(
             f"{setting} corrects the time-aligned least squares; statistic {statistic!r}: "
             "accepted 'aligned' alone"
+        )
+    if model is not None and isinstance(_unwrapped(model), SimulatorForces):
+        raise RailsuspInputError(
+            f"{setting} corrects a surrogate's level error by the simulator; the force model "
+            "is the simulator itself: use a surrogate, or the refinement"
         )
     try:
         check_aligned(SimulatorForces(()), recordings)
@@ -83,14 +110,21 @@ def level_corrections(
     recordings: Sequence[Recording],
     x_si: np.ndarray,
 ) -> dict[str, np.ndarray]:
-    """Per recording's condition name, (T, 2) simulator minus ``model`` at ``x_si``: the
-    model's level error there (both through the same wrapper, e.g. expected forces over
-    the same draws)."""
+    """Per recording's condition (:func:`condition_key`), (T, 2) simulator minus ``model``
+    at ``x_si``: the model's level error there (both through the same wrapper, e.g.
+    expected forces over the same draws). A simulation that stopped (derailment,
+    divergence: NaN series) is an error naming the condition."""
     conds = [r.condition for r in recordings]
     x = np.atleast_2d(np.asarray(x_si, dtype=float))
     sim = series_in_conditions(simulator, x, conds)
+    stopped = [c.name for c, s in zip(conds, sim, strict=True) if not np.isfinite(s).all()]
+    if stopped:
+        raise SimulationFailedError(
+            f"simulator_corrections: the simulation of the estimate stopped in "
+            f"{', '.join(stopped)} (derailment or divergence); no correction can be taken there"
+        )
     own = series_in_conditions(model, x, conds)
-    return {c.name: s[0] - m[0] for c, s, m in zip(conds, sim, own, strict=True)}
+    return {condition_key(c): s[0] - m[0] for c, s, m in zip(conds, sim, own, strict=True)}
 
 
 def correct_by_simulator(
@@ -106,7 +140,13 @@ def correct_by_simulator(
     first SIMEX step), the level error d = simulator(x) - model(x) on each recording's
     track, then the bounded time-aligned least squares of model + d from x
     (:func:`~railsusp.estimate.refine.refine`, channel gains alongside where NSGA-II
-    profiled them), whose point is the next x. With ``config.expected_draws`` on recordings
+    profiled them), whose point is the next x; where NSGA-II's estimate had the geometry
+    error's bias taken off (the first SIMEX step: the least squares on the measured geometry
+    lands on the biased point again), the same bias comes off each corrected point
+    (measured only with expected forces, bench/README.md). If a simulation of x stops
+    (derailment, divergence) the corrections made so far stand and the reason is kept
+    (``result.corrections_stopped``). The model must be a surrogate: the simulator
+    corrected by itself is refused. With ``config.expected_draws`` on recordings
     of stated accuracy, both are the expected forces over the same draws (seeded by
     ``config.seed``). The last point is the estimate
     (:attr:`~railsusp.estimate.result.CalibrationResult.corrected_x`); each step's least
@@ -122,7 +162,7 @@ def correct_by_simulator(
     if not steps:
         return result
     cfg = result.config
-    check_correctable(recordings, cfg.statistic, "simulator_corrections")
+    check_correctable(recordings, cfg.statistic, "simulator_corrections", model)
     params = result.parameters
     drawn = cfg.expected_draws if stated_accuracy(recordings) else 0
     x = result.nsga_x
@@ -134,7 +174,11 @@ def correct_by_simulator(
             surrogate = stack.enter_context(ExpectedForces(model, drawn, seed=cfg.seed))
             simulator = stack.enter_context(ExpectedForces(simulator, drawn, seed=cfg.seed))
         for _ in range(steps):
-            d = level_corrections(surrogate, simulator, recordings, x)
+            try:
+                d = level_corrections(surrogate, simulator, recordings, x)
+            except SimulationFailedError as exc:
+                result.corrections_stopped = str(exc)
+                break
             step = refine(
                 LevelCorrected(surrogate, d),
                 recordings,
@@ -146,9 +190,12 @@ def correct_by_simulator(
             )
             step.problem = None  # the drawn files go with the context; keep no cache
             step.expected_draws = drawn
+            if result.geometry_bias_removed:  # its least squares is biased as NSGA-II's was
+                step.geometry_shifts_si = result.geometry_shifts_si
+                step.geometry_bias_removed = True
             done.append(step)
-            x = step.x_si
+            x = step.estimate_si
     result.corrections = done
-    if cfg.channel_gains:
+    if cfg.channel_gains and done:
         result.channel_gains = dict(done[-1].channel_gains)
     return result

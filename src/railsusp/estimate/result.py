@@ -70,8 +70,12 @@ class CalibrationResult:
     #: :func:`~railsusp.estimate.level_correction.correct_by_simulator`); the last one's
     #: point is the estimate where present (:attr:`corrected_x`)
     corrections: list[Refinement] = field(default_factory=list)
-    #: each recording's channel gain at NSGA-II's estimate (its choice, or the expected-forces
-    #: polish, which estimates them again), by "<condition>:<Y|Q>_<wheel>",
+    #: why the corrections stopped before the steps asked (a simulation of the estimate
+    #: that derailed or diverged); empty if they did not
+    corrections_stopped: str = ""
+    #: each recording's channel gain at the estimate (NSGA-II's choice, or the last of the
+    #: expected-forces polish and the simulator corrections, which estimate them again), by
+    #: "<condition>:<Y|Q>_<wheel>",
     #: where the time-aligned comparison profiled them out (``config.channel_gains``)
     channel_gains: dict[str, float] = field(default_factory=dict)
     #: intervals computed, by level and refinement (a refinement attached later recomputes)
@@ -97,7 +101,7 @@ class CalibrationResult:
     def corrected_x(self) -> np.ndarray:
         """NSGA-II's estimate after the simulator's corrections of the surrogate's level
         error, SI (:attr:`nsga_x` where none was made)."""
-        return self.corrections[-1].x_si if self.corrections else self.nsga_x
+        return self.corrections[-1].estimate_si if self.corrections else self.nsga_x
 
     @property
     def nsga_x(self) -> np.ndarray:
@@ -191,7 +195,7 @@ class CalibrationResult:
             self.geometry_bias_removed,
             id(self.geometry_shifts_si),
             id(self.expected_polish),
-            len(self.corrections),
+            tuple(id(c) for c in self.corrections),
         )
         if key not in self._intervals:
             if self.refinement is not None and self.refined:
@@ -321,6 +325,7 @@ class CalibrationResult:
                 "channel_gains": self.channel_gains,
                 "expected_polish": self._expected_polish_record(),
                 "simulator_corrections": [self._correction_record(c) for c in self.corrections],
+                "simulator_corrections_stopped": self.corrections_stopped,
                 "refinement": self.refinement.to_dict() if self.refinement else None,
                 "cramer_rao_pct_range": self.cramer_rao,
                 "intervals": self.intervals().to_dict(),
@@ -361,8 +366,9 @@ class CalibrationResult:
             "surrogate there, per recording), its time-aligned least squares from there",
             "expected_draws": step.expected_draws,
             "start_display": display_values(self.parameters, step.start_si),
-            "corrected_display": display_values(self.parameters, step.x_si),
-            "step_pct_range": self._pct_range(step.x_si - step.start_si),
+            "corrected_display": display_values(self.parameters, step.estimate_si),
+            "geometry_bias_removed": step.geometry_bias_removed,
+            "step_pct_range": self._pct_range(step.estimate_si - step.start_si),
             "cost_start": step.cost_start,
             "cost": step.cost,
             "n_evaluations": step.n_evaluations,
