@@ -157,7 +157,8 @@ def correct_by_simulator(
     On issue 19's 12 sets (shipped networks, 60 s per condition, 0.5 mm geometry, 8 drawn
     tracks) one step took the identifiable key parameters within 5 % of range from 30 to
     39 of 44 (the simulator's own least squares from the truth: 39) for 10.7-14.5 s per
-    estimate (bench/README.md, "The networks' level error from one simulation")."""
+    estimate, and on exactly known track from 41 to 47 of 50 for 1.6-3.2 s (bench/README.md,
+    "The networks' level error from one simulation")."""
     check_range("simulator_corrections", steps, *CORRECTIONS_RANGE)
     if not steps:
         return result
