@@ -169,7 +169,6 @@ def test_the_pretrained_example_loads_with_the_shipped_set():
     cfg = load_config(Path(__file__).resolve().parents[1] / "examples" / "pretrained.toml")
     assert cfg.surrogate.pretrained == "c80_k6" and cfg.surrogate.model == "cnn-gru-seq"
     assert cfg.estimate.statistic == "aligned" and cfg.field.with_track
-    assert cfg.estimate.simulator_corrections == 1  # the level correction, measured
 
 
 def test_the_answer_says_why_the_set_s_other_parameters_are_not_estimated(pretrained_run):
