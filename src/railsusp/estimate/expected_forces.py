@@ -127,6 +127,14 @@ class ExpectedForces:
         return out
 
 
+def averaged_model(model: ForceModel) -> ForceModel:
+    """The model an :class:`ExpectedForces` averages, through any nesting (``model`` itself
+    otherwise): what checks of the model's kind look at."""
+    while isinstance(model, ExpectedForces):
+        model = model.model
+    return model
+
+
 def check_drawable(model: ForceModel, recordings: Sequence, draws: int) -> None:
     """Refuse, before any work, ``draws`` expected-force draws with a surrogate that cannot
     predict on a drawn track: one trained on one track realisation, in a recording that

@@ -29,12 +29,12 @@ import numpy as np
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.config import CORRECTIONS_RANGE, check_range
-from railsusp.estimate.expected_forces import ExpectedForces
+from railsusp.estimate.expected_forces import ExpectedForces, averaged_model
 from railsusp.estimate.forces import ForceModel, SimulatorForces, series_in_conditions
 from railsusp.estimate.geometry_bias import stated_accuracy
-from railsusp.estimate.nsga_geometry import POLISH_EVALUATIONS
+from railsusp.estimate.nsga_geometry import POLISH_EVALUATIONS, local_least_squares
 from railsusp.estimate.problem import check_aligned
-from railsusp.estimate.refine import Refinement, refine
+from railsusp.estimate.refine import Refinement
 from railsusp.estimate.result import CalibrationResult
 from railsusp.estimate.statistics import ALIGNED, parse_statistics
 from railsusp.measured import Recording, SimulationFailedError
@@ -70,13 +70,6 @@ def condition_key(condition: WorkingCondition) -> str:
     return condition.model_dump_json()
 
 
-def _unwrapped(model: ForceModel) -> ForceModel:
-    """The model an :class:`ExpectedForces` averages (itself otherwise)."""
-    while isinstance(model, ExpectedForces):
-        model = model.model
-    return model
-
-
 def check_correctable(
     recordings: Sequence[Recording],
     statistic: str,
@@ -93,7 +86,7 @@ def check_correctable(
             f"{setting} corrects the time-aligned least squares; statistic {statistic!r}: "
             "accepted 'aligned' alone"
         )
-    if model is not None and isinstance(_unwrapped(model), SimulatorForces):
+    if model is not None and isinstance(averaged_model(model), SimulatorForces):
         raise RailsuspInputError(
             f"{setting} corrects a surrogate's level error by the simulator; the force model "
             "is the simulator itself: use a surrogate, or the refinement"
@@ -180,17 +173,9 @@ def correct_by_simulator(
             except SimulationFailedError as exc:
                 result.corrections_stopped = str(exc)
                 break
-            step = refine(
-                LevelCorrected(surrogate, d),
-                recordings,
-                params,
-                x,
-                max_evaluations=max_evaluations,
-                gains=cfg.channel_gains,
-                geometry_draws=0,
+            step = local_least_squares(
+                LevelCorrected(surrogate, d), recordings, result, x, drawn, max_evaluations
             )
-            step.problem = None  # the drawn files go with the context; keep no cache
-            step.expected_draws = drawn
             if result.geometry_bias_removed:  # its least squares is biased as NSGA-II's was
                 step.geometry_shifts_si = result.geometry_shifts_si
                 step.geometry_bias_removed = True

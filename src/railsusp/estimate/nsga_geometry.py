@@ -12,11 +12,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
+
 from railsusp.estimate.config import NSGAConfig
 from railsusp.estimate.expected_forces import ExpectedForces
 from railsusp.estimate.forces import ForceModel
 from railsusp.estimate.geometry_bias import GEOMETRY_DRAWS, geometry_shifts_at, stated_accuracy
-from railsusp.estimate.refine import refine
+from railsusp.estimate.refine import Refinement, refine
 from railsusp.estimate.result import CalibrationResult
 from railsusp.estimate.statistics import ALIGNED, parse_statistics
 from railsusp.measured import Recording
@@ -95,6 +97,34 @@ def takes_expected_polish(config: NSGAConfig, recordings: Sequence[Recording]) -
     )
 
 
+def local_least_squares(
+    model: ForceModel,
+    recordings: Sequence[Recording],
+    result: CalibrationResult,
+    start_si: np.ndarray,
+    expected_draws: int,
+    max_evaluations: int = POLISH_EVALUATIONS,
+) -> Refinement:
+    """``model``'s bounded time-aligned least squares from ``start_si`` as NSGA-II's
+    configuration compares (channel gains alongside where it profiled them), no geometry
+    draws (:func:`~railsusp.estimate.refine.refine`): what the expected-forces polish and
+    each simulator correction (:mod:`railsusp.estimate.level_correction`) solve. The result
+    records the ``expected_draws`` its model averaged over and keeps no problem (the drawn
+    files of an expected-forces model go with it; no series cache is kept)."""
+    step = refine(
+        model,
+        recordings,
+        result.parameters,
+        start_si,
+        max_evaluations=max_evaluations,
+        gains=result.config.channel_gains,
+        geometry_draws=0,
+    )
+    step.problem = None
+    step.expected_draws = expected_draws
+    return step
+
+
 def polish_on_expected_forces(
     result: CalibrationResult,
     recordings: Sequence[Recording],
@@ -120,17 +150,14 @@ def polish_on_expected_forces(
         return result
     cfg = result.config
     with ExpectedForces(model, cfg.expected_draws, seed=cfg.seed) as expected:
-        polish = refine(
+        polish = local_least_squares(
             expected,
             recordings,
-            result.parameters,
+            result,
             result.pareto_x[result.chosen],
-            max_evaluations=max_evaluations,
-            gains=cfg.channel_gains,
-            geometry_draws=0,
+            cfg.expected_draws,
+            max_evaluations,
         )
-    polish.problem = None  # its drawn geometry files are gone; keep no series cache
-    polish.expected_draws = cfg.expected_draws
     result.expected_polish = polish
     if cfg.channel_gains:  # the estimate's gains are the polish's
         result.channel_gains = dict(polish.channel_gains)

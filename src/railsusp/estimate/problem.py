@@ -18,6 +18,7 @@ from pymoo.core.problem import Problem
 
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.comparison import AlignedComparison
+from railsusp.estimate.expected_forces import averaged_model
 from railsusp.estimate.forces import (
     ForceModel,
     SimulatorForces,
@@ -202,10 +203,7 @@ def check_statistics_model(statistics: Sequence[str]) -> None:
 def check_aligned(model: Any, recordings: Sequence[Recording]) -> None:
     """Time-aligned comparison needs series from a model and recordings on measured track
     (a model averaged over drawn geometries is checked as the model it averages)."""
-    from railsusp.estimate.expected_forces import ExpectedForces
-
-    while isinstance(model, ExpectedForces):
-        model = model.model
+    model = averaged_model(model)
     if isinstance(model, StatisticsForces):
         raise ValueError(
             "statistic 'aligned' compares series: use a window surrogate or the simulator, "

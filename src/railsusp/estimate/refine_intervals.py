@@ -20,7 +20,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from railsusp.estimate.config import HeldPrior
-from railsusp.estimate.expected_forces import ExpectedForces
+from railsusp.estimate.expected_forces import ExpectedForces, averaged_model
 from railsusp.estimate.forces import ForceModel, SimulatorForces
 from railsusp.estimate.interval_distribution import DRAWS, SEED, error_quantiles
 from railsusp.estimate.intervals import (
@@ -280,9 +280,7 @@ def _simulator(refinement: Refinement) -> SimulatorForces | None:
     """The simulator the refinement compared (itself, or averaged over drawn tracks by
     :class:`~railsusp.estimate.expected_forces.ExpectedForces`); None for another model."""
     prob = refinement.problem
-    model = prob.model if prob is not None else None
-    while isinstance(model, ExpectedForces):
-        model = model.model
+    model = averaged_model(prob.model) if prob is not None else None
     return model if isinstance(model, SimulatorForces) else None
 
 
