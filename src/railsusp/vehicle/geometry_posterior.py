@@ -43,9 +43,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from railsusp.vehicle.track import COMPONENTS, Irregularities
+from railsusp.vehicle.track_geometry import measurement_error_filter, welch_segment
 
-#: Welch segment of the measured geometry's PSD, m (as accurate_wavelength_m)
-WELCH_SEGMENT_M = 128.0
 #: reflected padding at each end before the Wiener filter, m: longer than its impulse
 #: response, so the record's ends are filtered as its middle is (no circular wrap)
 PAD_M = 64.0
@@ -59,7 +58,7 @@ def measurement_error_psd(
     ``dx``: white noise through a 4th-order Butterworth low-pass at 1 / ``wavelength_min_m``
     applied forwards and backwards (power gain |H|⁴), scaled to ``accuracy_m`` RMS (its
     integral over 0 .. 1/(2 dx) is accuracy²)."""
-    from scipy.signal import butter, sosfreqz
+    from scipy.signal import sosfreqz
 
     if not accuracy_m > 0.0 or not wavelength_min_m > 0.0 or not dx > 0.0:
         raise ValueError(
@@ -67,7 +66,7 @@ def measurement_error_psd(
             "all must be positive"
         )
     fs = 1.0 / dx
-    sos = butter(4, min(1.0 / wavelength_min_m, 0.45 * fs), fs=fs, output="sos")
+    sos = measurement_error_filter(wavelength_min_m, dx)
     grid = np.linspace(0.0, fs / 2.0, 4097)
     power = np.abs(sosfreqz(sos, worN=grid, fs=fs)[1]) ** 4
     norm = accuracy_m**2 / np.trapezoid(power, grid)
@@ -134,7 +133,7 @@ def geometry_posterior(
     pad = min(round(PAD_M / dx), n - 1)
     k = np.fft.rfftfreq(n, dx)
     k_pad = np.fft.rfftfreq(n + 2 * pad, dx)
-    nperseg = int(min(n, 2 ** np.ceil(np.log2(WELCH_SEGMENT_M / dx))))
+    nperseg = welch_segment(n, dx)
     error_pad = measurement_error_psd(k_pad, accuracy_m, wavelength_min_m, dx)
     error = measurement_error_psd(k, accuracy_m, wavelength_min_m, dx)
     mean, wiener, spread = {}, {}, {}

@@ -174,6 +174,8 @@ def measured_irregularities(condition: WorkingCondition, axle_spread_m: float) -
     )
 
 
+#: Welch segment of a geometry record's PSD estimate, m (:func:`welch_segment`)
+WELCH_SEGMENT_M = 128.0
 #: power ratio of measured geometry to its measurement error above which a wavelength of the
 #: geometry counts as accurate: an error amplitude below about 30 % of the geometry's
 GEOMETRY_SNR_MIN = 10.0
@@ -209,7 +211,7 @@ def accurate_wavelength_m(
         raise ValueError(f"accuracy_m = {accuracy_m:g}: give a positive RMS error")
     dx = float(np.median(np.diff(irr.s)))
     n = irr.s.size
-    nperseg = int(min(n, 2 ** np.ceil(np.log2(128.0 / dx))))
+    nperseg = welch_segment(n, dx)
     error_psd = accuracy_m**2 * wavelength_min_m
     snr_min = GEOMETRY_SNR_MIN if snr_min is None else snr_min
     out = {}
@@ -226,6 +228,22 @@ def accurate_wavelength_m(
     return out
 
 
+def welch_segment(n: int, dx: float) -> int:
+    """Samples per Welch segment of a geometry record's PSD estimate (``n`` samples at
+    spacing ``dx``): the power of two covering :data:`WELCH_SEGMENT_M`, at most the record."""
+    return int(min(n, 2 ** np.ceil(np.log2(WELCH_SEGMENT_M / dx))))
+
+
+def measurement_error_filter(wavelength_min_m: float, dx: float) -> np.ndarray:
+    """Second-order sections of the low-pass that shapes a geometry car's measurement error
+    (:func:`with_measurement_error`): 4th-order Butterworth at 1 / ``wavelength_min_m``, at
+    most 0.45 of the sampling rate of spacing ``dx``. One design, so that the error's PSD
+    the geometry posterior assumes is the error's (:mod:`railsusp.vehicle.geometry_posterior`)."""
+    from scipy.signal import butter
+
+    return butter(4, min(1.0 / wavelength_min_m, 0.45 / dx), fs=1.0 / dx, output="sos")
+
+
 def with_measurement_error(
     irr: Irregularities, rms_m: float, wavelength_min_m: float, rng: np.random.Generator
 ) -> Irregularities:
@@ -234,10 +252,10 @@ def with_measurement_error(
     low-passed at the shortest measured wavelength (4th-order Butterworth, zero phase), as a
     track recording system's error lies within its band. Unfiltered noise on a fine grid
     would be rail roughness, which no geometry car reports."""
-    from scipy.signal import butter, sosfiltfilt
+    from scipy.signal import sosfiltfilt
 
     dx = float(np.median(np.diff(irr.s)))
-    sos = butter(4, min(1.0 / wavelength_min_m, 0.45 / dx), fs=1.0 / dx, output="sos")
+    sos = measurement_error_filter(wavelength_min_m, dx)
     noisy = {}
     for c in COMPONENTS:
         e = sosfiltfilt(sos, rng.standard_normal(irr.s.size))
