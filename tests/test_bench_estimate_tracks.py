@@ -186,3 +186,19 @@ def test_expected_forces_arm_is_its_own_setting(bench, tmp_path, capsys):
         bench.main([*argv, "--expected-draws", "-1"])
     assert exc.value.code == 2
     assert "--expected-draws -1" in capsys.readouterr().err
+
+
+def test_the_efficient_expectation_sums_each_identifiable_keys_chance(bench):
+    """An identifiable key at a bound of 5 % of range is within 5 % about 68 % of the time,
+    one at 1 % nearly always; keys not identifiable are not counted."""
+    sets = [
+        {
+            "identifiable": ["X18", "X14"],
+            "cramer_rao_pct_range": {"X18": 1.0, "X14": 5.0, "X19": 9.0},
+        },
+        {"identifiable": [], "cramer_rao_pct_range": {"X19": 12.0}},
+    ]
+    got = bench.efficient_expectation(sets)
+    assert got["count"] == pytest.approx(1.0 + 0.6827, abs=1e-3)
+    assert got["share"] == pytest.approx(got["count"] / 2)
+    assert got["sd"] == pytest.approx((0.6827 * 0.3173) ** 0.5, abs=1e-3)

@@ -292,16 +292,9 @@ def _stage_runners(
         return field_stage(config, out)
 
     def estimate() -> dict:
-        from railsusp.estimate import (
-            NSGAConfig,
-            check_refinable,
-            estimate_with_seeds,
-            open_force_model,
-            refine_estimate,
-        )
+        from railsusp.estimate import NSGAConfig, open_force_model
         from railsusp.estimate.config import HeldPrior
-        from railsusp.estimate.level_correction import check_correctable, correct_by_simulator
-        from railsusp.estimate.nsga_geometry import account_for_geometry
+        from railsusp.estimate.route import EstimateRoute
         from railsusp.measured import read_field
         from railsusp.surrogate import key_parameters, not_estimated
 
@@ -322,27 +315,21 @@ def _stage_runners(
             expected_draws=e.expected_draws,
             expected_generations=e.expected_generations,
         )
-        recs = read_field(out / "field")
-        if e.refine:  # before NSGA-II runs
-            check_refinable(recs, "estimate.refine")
-        if e.simulator_corrections:
-            check_correctable(recs, e.statistic, "estimate.simulator_corrections", model)
-        res = estimate_with_seeds(model, recs, params, cfg, e.seeds)
-        account_for_geometry(res, recs, model, e.geometry_draws, e.seed, e.remove_geometry_bias)
-        correct_by_simulator(res, recs, model, e.simulator_corrections)
-        if e.refine:
-            refine_estimate(
-                res,
-                recs,
-                max_evaluations=e.refine_evaluations,
-                screen=e.refine_screen,
-                starts=e.refine_starts,
-                seed=e.seed,
-                geometry_draws=e.geometry_draws,
-                remove_geometry_bias=e.remove_geometry_bias,
-                expected_draws=e.expected_draws,
-            )
-            res.held_prior = HeldPrior.from_display(e.held_prior)
+        route = EstimateRoute(
+            nsga=cfg,
+            seeds=e.seeds,
+            geometry_draws=e.geometry_draws,
+            remove_geometry_bias=e.remove_geometry_bias,
+            simulator_corrections=e.simulator_corrections,
+            refine=e.refine,
+            refine_evaluations=e.refine_evaluations,
+            refine_screen=e.refine_screen,
+            refine_starts=e.refine_starts,
+            held_prior=HeldPrior.from_display(e.held_prior) if e.refine else None,
+            refine_setting="estimate.refine",
+            corrections_setting="estimate.simulator_corrections",
+        )
+        res = route.run(model, read_field(out / "field"), params)
         res.save(
             out / "estimate",
             extra={

@@ -346,3 +346,33 @@ def test_prime_tracks_batches_the_nominal_wagons_and_keeps_each_input_bit_for_bi
     model.series_conditions(_sets(2), conds)
     assert sum(sizes) == 3  # kept: no nominal wagon simulated again
     assert np.abs(expected[0][:, -2:] - expected[1][:, -2:]).max() > 0.01  # two tracks
+
+
+def test_a_track_input_is_kept_by_the_geometrys_content_not_its_path(tmp_path, integrator_calls):
+    """The same geometry written again under another name (the drawn true tracks of the
+    expected-forces polish, then of a simulator correction, each in its own temporary
+    folder) is not simulated again: its input is the kept one, bit for bit. A file of other
+    content at the first one's path (rewritten) is a new track and is computed anew."""
+    folder = tmp_path / "surrogates"
+    sur = _surrogate("straight", 0, nominal=True)
+    sur.save(folder / "straight")
+    wagon = load_wagon()
+    cond = sur.condition.with_changes(seed=31)
+    irr = section_irregularities(cond, [31], wagon)
+    first = write_track_geometry(tmp_path / "a.track.csv", irr, origin_m=cond.lead_in_m)
+    again = write_track_geometry(tmp_path / "b.track.csv", irr, origin_m=cond.lead_in_m)
+    model = SurrogateForces(folder)
+    sizes = integrator_calls
+    sizes.clear()
+    kept = model.track_input(cond.with_changes(track_geometry=str(first)))
+    assert sum(sizes) == 1
+    model.prime_tracks([cond.with_changes(track_geometry=str(again))])
+    np.testing.assert_array_equal(
+        model.track_input(cond.with_changes(track_geometry=str(again))), kept
+    )
+    assert sum(sizes) == 1  # the copy: no nominal wagon simulated again
+    other = section_irregularities(cond.with_changes(seed=32), [32], wagon)
+    write_track_geometry(first, other, origin_m=cond.lead_in_m)  # other content, same path
+    new = model.track_input(cond.with_changes(track_geometry=str(first)))
+    assert sum(sizes) == 2
+    assert np.abs(new[:, -2:] - kept[:, -2:]).max() > 0.01

@@ -246,11 +246,8 @@ def estimate(
     from railsusp.estimate import (
         NSGAConfig,
         SimulatorForces,
-        check_refinable,
-        estimate_with_seeds,
         open_force_model,
         parse_statistics,
-        refine_estimate,
     )
     from railsusp.estimate.config import (
         CORRECTIONS_RANGE,
@@ -259,12 +256,7 @@ def estimate(
         SEEDS_RANGE,
         check_range,
     )
-    from railsusp.estimate.level_correction import check_correctable, correct_by_simulator
-    from railsusp.estimate.nsga_geometry import (
-        account_for_geometry,
-        takes_expected_polish,
-        takes_geometry_bias,
-    )
+    from railsusp.estimate.route import EstimateRoute
     from railsusp.measured import read_field
     from railsusp.surrogate import not_estimated
 
@@ -303,9 +295,21 @@ def estimate(
             expected_draws=expected_draws,
             expected_generations=expected_generations,
         )
+        route = EstimateRoute(
+            nsga=cfg,
+            seeds=seeds,
+            geometry_draws=geometry_draws,
+            remove_geometry_bias=remove_geometry_bias,
+            simulator_corrections=simulator_corrections,
+            refine=refine,
+            refine_evaluations=refine_evaluations,
+            refine_screen=refine_screen,
+            refine_starts=refine_starts,
+            held_prior=prior,
+            refine_setting="--refine",
+            corrections_setting="--simulator-corrections",
+        )
         recs = read_field(measured)
-        if refine:
-            check_refinable(recs, "--refine")
         if surrogate is not None:
             model, params = open_force_model(
                 surrogate, tuple(parameters.split(",")) if parameters else None
@@ -315,36 +319,7 @@ def estimate(
 
             params = tuple(parameters.split(",")) if parameters else STUDY_KEY_PARAMETERS
             model = SimulatorForces(params)
-        if simulator_corrections:  # before NSGA-II runs
-            check_correctable(recs, statistic, "--simulator-corrections", model)
-        with console.status(f"NSGA-II {pop_size} x {n_gen} on {len(recs)} recording(s)"):
-            res = estimate_with_seeds(model, recs, params, cfg, n_seeds=seeds)
-        if takes_expected_polish(cfg, recs):
-            doing = f"polishing on the mean over {expected_draws} drawn true tracks"
-        elif takes_geometry_bias(cfg, geometry_draws, recs):
-            doing = f"{geometry_draws} draws of the track geometry's error"
-        else:
-            doing = ""
-        if doing:
-            with console.status(doing):
-                account_for_geometry(res, recs, model, geometry_draws, seed, remove_geometry_bias)
-        if simulator_corrections:
-            with console.status(f"{simulator_corrections} simulator correction(s) of the estimate"):
-                correct_by_simulator(res, recs, model, simulator_corrections)
-        if refine:
-            with console.status("refining on the measured track (simulator, output error)"):
-                refine_estimate(
-                    res,
-                    recs,
-                    max_evaluations=refine_evaluations,
-                    screen=refine_screen,
-                    starts=refine_starts,
-                    seed=seed,
-                    geometry_draws=geometry_draws,
-                    remove_geometry_bias=remove_geometry_bias,
-                    expected_draws=expected_draws,
-                )
-            res.held_prior = prior
+        res = route.run(model, recs, params, progress=console.status)
         res.save(
             out,
             extra={

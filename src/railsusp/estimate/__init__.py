@@ -27,6 +27,8 @@ One module per job, imports running one way (top to bottom depends only on those
 - :mod:`~railsusp.estimate.polish`: screened starts and refinement of an NSGA-II estimate
 - :mod:`~railsusp.estimate.level_correction`: the surrogate's level error at the estimate
   from the simulator, its least squares repeated with it (output space mapping)
+- :mod:`~railsusp.estimate.route`: the estimate's steps in order (NSGA-II, the geometry
+  error, the simulator corrections, the refinement), for the command line and the pipeline
 
 This package re-exports the public names other code uses, so ``from railsusp.estimate
 import estimate, NSGAConfig, refine_estimate`` works; the refinement's own

@@ -8,6 +8,7 @@ reference). :func:`open_force_model` picks the surrogate kind from a folder's co
 
 from __future__ import annotations
 
+import os
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -19,6 +20,7 @@ from railsusp.conditions import TRACK_INPUT_FIELDS, WorkingCondition
 from railsusp.estimate.statistics import recording_segments, series_statistics
 from railsusp.measured import Recording
 from railsusp.params import ParameterSet
+from railsusp.store import canonical_json, file_hash
 
 
 class ForceModel(Protocol):
@@ -39,6 +41,7 @@ class SurrogateForces:
         self._models: dict[str, Any] = {}
         self._warned: set[str] = set()
         self._tracks: dict[str, np.ndarray] = {}
+        self._digests: dict[tuple[str, int, int], str] = {}
         for sub in sorted(self.folder.iterdir()) if self.folder.is_dir() else []:
             if (sub / "surrogate.json").exists():
                 self._models[sub.name] = load(sub)
@@ -156,11 +159,32 @@ class SurrogateForces:
         :meth:`~railsusp.surrogate.bundle.Surrogate.predict` computes it from the condition
         (the geometry read, lined up and sampled at the axles, and for a network that reads
         it the nominal wagon simulated on that geometry): computed once per condition and
-        kept, since an objective predicts on the same track every generation."""
-        key = condition.model_dump_json()
+        kept, since an objective predicts on the same track every generation (by the
+        geometry's content, :meth:`track_key`)."""
+        key = self.track_key(condition)
         if key not in self._tracks:
             self._compute_tracks({key: condition})
         return self._tracks[key]
+
+    def track_key(self, condition: WorkingCondition) -> str:
+        """What a track input is kept by: the condition with its geometry file named by
+        the SHA-256 of its bytes, not by its path. The same drawn true tracks written again
+        elsewhere (the expected-forces polish, then each simulator correction, draw them
+        with the same seed into their own temporary folders) are then computed once: 24
+        nominal-wagon simulations, 3.9 s of a correction's 10.7-14.5 s on issue 19's sets
+        (bench/README.md). The digest is read once per file (by path, modification time and
+        size), not every generation."""
+        if condition.track_geometry is None:
+            return condition.model_dump_json()
+        path = str(condition.track_geometry)
+        stat = os.stat(path)
+        seen = (path, stat.st_mtime_ns, stat.st_size)
+        digest = self._digests.get(seen)
+        if digest is None:
+            digest = self._digests[seen] = file_hash(path)
+        fields = condition.model_dump(mode="json")
+        fields["track_geometry"] = f"sha256:{digest}"
+        return canonical_json(fields)
 
     def prime_tracks(self, conditions: Sequence[WorkingCondition]) -> None:
         """Compute the :meth:`track_input` of every condition whose network reads its track
@@ -172,7 +196,7 @@ class SurrogateForces:
         todo: dict[str, WorkingCondition] = {}
         for c in conditions:
             self._model_of(c)  # a condition without a surrogate, refused in one line
-            key = c.model_dump_json()
+            key = self.track_key(c)
             if key not in self._tracks and self.reads_track(c):
                 todo.setdefault(key, c)
         self._compute_tracks(todo)

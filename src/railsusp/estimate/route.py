@@ -1,0 +1,124 @@
+"""The estimate's steps in their order: one definition for ``railsusp estimate`` and the
+pipeline's estimate stage.
+
+An estimate is NSGA-II on the force model (:func:`~railsusp.estimate.nsga.estimate_with_seeds`),
+then the recordings' stated geometry error (the expected-forces polish or the first SIMEX
+step, :func:`~railsusp.estimate.nsga_geometry.account_for_geometry`), then the simulator's
+level corrections of a surrogate (:func:`~railsusp.estimate.level_correction.correct_by_simulator`),
+then, optionally, the output-error refinement with the simulator
+(:func:`~railsusp.estimate.polish.refine_estimate`). Each step reads what the one before it
+left in the :class:`~railsusp.estimate.result.CalibrationResult`, so the order is part of the
+method; until stop 51 the command line and the pipeline each wrote it out, with the checks
+that must come before NSGA-II. :class:`EstimateRoute` holds the settings of every step and
+:meth:`EstimateRoute.check` refuses, before any work and naming the setting as its caller
+spells it (``--refine`` or ``estimate.refine``), what a later step cannot take.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager, nullcontext
+from dataclasses import dataclass
+
+from railsusp.estimate.config import HeldPrior, NSGAConfig
+from railsusp.estimate.forces import ForceModel
+from railsusp.estimate.level_correction import check_correctable, correct_by_simulator
+from railsusp.estimate.nsga import estimate_with_seeds
+from railsusp.estimate.nsga_geometry import (
+    account_for_geometry,
+    takes_expected_polish,
+    takes_geometry_bias,
+)
+from railsusp.estimate.polish import check_refinable, refine_estimate
+from railsusp.estimate.result import CalibrationResult
+from railsusp.measured import Recording
+
+#: what shows a step while it runs: given the step's description, a context manager
+#: (the command line's spinner, ``rich.console.Console.status``); none by default
+Progress = Callable[[str], AbstractContextManager]
+
+
+def _quiet(_: str) -> AbstractContextManager:
+    return nullcontext()
+
+
+@dataclass(frozen=True)
+class EstimateRoute:
+    """Every step's settings (NSGA-II's in ``nsga``) and how the caller names the two
+    settings whose refusals depend on the recordings: ``refine_setting`` and
+    ``corrections_setting``."""
+
+    nsga: NSGAConfig
+    seeds: int
+    geometry_draws: int
+    remove_geometry_bias: bool
+    simulator_corrections: int
+    refine: bool
+    refine_evaluations: int
+    refine_screen: int
+    refine_starts: int
+    held_prior: HeldPrior | None = None
+    refine_setting: str = "refine"
+    corrections_setting: str = "simulator_corrections"
+
+    def check(self, recordings: Sequence[Recording], model: ForceModel) -> None:
+        """Refuse, in one line naming the setting, a refinement the recordings cannot take
+        (no measured track) and simulator corrections that the recordings, the comparison
+        or ``model`` cannot: before NSGA-II runs, not after it."""
+        if self.refine:
+            check_refinable(recordings, self.refine_setting)
+        if self.simulator_corrections:
+            check_correctable(recordings, self.nsga.statistic, self.corrections_setting, model)
+
+    def run(
+        self,
+        model: ForceModel,
+        recordings: Sequence[Recording],
+        parameters: Sequence[str],
+        progress: Progress = _quiet,
+        simulator: ForceModel | None = None,
+    ) -> CalibrationResult:
+        """The estimate of ``parameters`` from ``recordings`` with ``model``: the checks
+        (:meth:`check`), then each step in order, each shown by ``progress`` while it runs.
+        ``simulator``: the corrections' reference model (default the simulator,
+        :func:`~railsusp.estimate.level_correction.correct_by_simulator`)."""
+        self.check(recordings, model)
+        cfg = self.nsga
+        with progress(f"NSGA-II {cfg.pop_size} x {cfg.n_gen} on {len(recordings)} recording(s)"):
+            res = estimate_with_seeds(model, recordings, parameters, cfg, n_seeds=self.seeds)
+        if takes_expected_polish(cfg, recordings):
+            doing = f"polishing on the mean over {cfg.expected_draws} drawn true tracks"
+        elif takes_geometry_bias(cfg, self.geometry_draws, recordings):
+            doing = f"{self.geometry_draws} draws of the track geometry's error"
+        else:
+            doing = ""
+        if doing:
+            with progress(doing):
+                account_for_geometry(
+                    res,
+                    recordings,
+                    model,
+                    self.geometry_draws,
+                    cfg.seed,
+                    self.remove_geometry_bias,
+                )
+        if self.simulator_corrections:
+            with progress(f"{self.simulator_corrections} simulator correction(s) of the estimate"):
+                correct_by_simulator(
+                    res, recordings, model, self.simulator_corrections, simulator=simulator
+                )
+        if self.refine:
+            with progress("refining on the measured track (simulator, output error)"):
+                refine_estimate(
+                    res,
+                    recordings,
+                    max_evaluations=self.refine_evaluations,
+                    screen=self.refine_screen,
+                    starts=self.refine_starts,
+                    seed=cfg.seed,
+                    geometry_draws=self.geometry_draws,
+                    remove_geometry_bias=self.remove_geometry_bias,
+                    expected_draws=cfg.expected_draws,
+                )
+            res.held_prior = self.held_prior
+        return res

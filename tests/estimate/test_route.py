@@ -1,0 +1,84 @@
+"""The estimate's steps in order (railsusp.estimate.route), shared by ``railsusp estimate``
+and the pipeline's estimate stage."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_level_correction import PARAMS, TRUTH, Linear, recording  # noqa: F401 (fixture)
+
+from railsusp.errors import RailsuspInputError
+from railsusp.estimate import NSGAConfig, estimate_with_seeds
+from railsusp.estimate.level_correction import correct_by_simulator
+from railsusp.estimate.route import EstimateRoute
+from railsusp.measured import Recording
+from test_estimate import COND
+
+
+def _route(**changes) -> EstimateRoute:
+    settings = {
+        "nsga": NSGAConfig(pop_size=12, n_gen=10, seed=3, statistic="aligned"),
+        "seeds": 1,
+        "geometry_draws": 0,
+        "remove_geometry_bias": True,
+        "simulator_corrections": 1,
+        "refine": False,
+        "refine_evaluations": 10,
+        "refine_screen": 4,
+        "refine_starts": 1,
+    }
+    return EstimateRoute(**(settings | changes))
+
+
+class Counted(Linear):
+    """The linear model, counting its predictions."""
+
+    calls = 0
+
+    def series(self, x_si, condition):
+        Counted.calls += 1
+        return super().series(x_si, condition)
+
+
+def test_the_route_runs_its_steps_in_order_and_shows_each(recording):  # noqa: F811
+    """NSGA-II, then (exact track: no geometry step) one simulator correction: the same
+    estimate as the two calls made by hand, each step shown while it runs, in order."""
+    surrogate, reference = Linear(offset=-0.2), Linear()
+    shown: list[str] = []
+
+    class Shown:
+        def __init__(self, text: str):
+            shown.append(text)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+    res = _route().run(surrogate, [recording], PARAMS, progress=Shown, simulator=reference)
+    assert shown == [
+        "NSGA-II 12 x 10 on 1 recording(s)",
+        "1 simulator correction(s) of the estimate",
+    ]
+    by_hand = estimate_with_seeds(surrogate, [recording], PARAMS, _route().nsga, n_seeds=1)
+    correct_by_simulator(by_hand, [recording], surrogate, 1, simulator=reference)
+    np.testing.assert_array_equal(res.chosen_x, by_hand.chosen_x)
+    assert res.chosen_x[1] == pytest.approx(TRUTH[1], rel=0.005)  # the level error gone
+
+
+def test_its_refusals_name_the_setting_as_the_caller_spells_it_before_nsga_ii(recording):  # noqa: F811
+    """A refinement of recordings without measured track and simulator corrections of a
+    comparison other than 'aligned' are refused in one line naming the caller's setting
+    (the command line's option or the configuration's key), before any prediction."""
+    Counted.calls = 0
+    blind = Recording(recording.time, recording.Y, recording.Q, COND.with_changes(
+        duration_s=20.0, n_steps=1000))  # fmt: skip
+    with pytest.raises(RailsuspInputError, match="--refine"):
+        _route(refine=True, refine_setting="--refine").run(Counted(), [blind], PARAMS)
+    mean = NSGAConfig(pop_size=12, n_gen=10, seed=3, statistic="mean")
+    with pytest.raises(RailsuspInputError, match="estimate.simulator_corrections"):
+        _route(nsga=mean, corrections_setting="estimate.simulator_corrections").run(
+            Counted(), [recording], PARAMS
+        )
+    assert Counted.calls == 0
