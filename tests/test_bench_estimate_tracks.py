@@ -190,15 +190,23 @@ def test_expected_forces_arm_is_its_own_setting(bench, tmp_path, capsys):
 
 def test_the_efficient_expectation_sums_each_identifiable_keys_chance(bench):
     """An identifiable key at a bound of 5 % of range is within 5 % about 68 % of the time,
-    one at 1 % nearly always; keys not identifiable are not counted."""
+    one at 1 % nearly always; keys not identifiable are not counted. The mean squared error
+    over bound is per key, over the sets where it is identifiable."""
     sets = [
         {
             "identifiable": ["X18", "X14"],
             "cramer_rao_pct_range": {"X18": 1.0, "X14": 5.0, "X19": 9.0},
+            "error_pct_range": {"X18": 2.0, "X14": -5.0, "X19": 30.0},
         },
-        {"identifiable": [], "cramer_rao_pct_range": {"X19": 12.0}},
+        {
+            "identifiable": ["X14"],
+            "cramer_rao_pct_range": {"X14": 2.0, "X19": 12.0},
+            "error_pct_range": {"X14": 6.0, "X19": 1.0},
+        },
     ]
     got = bench.efficient_expectation(sets)
-    assert got["count"] == pytest.approx(1.0 + 0.6827, abs=1e-3)
-    assert got["share"] == pytest.approx(got["count"] / 2)
-    assert got["sd"] == pytest.approx((0.6827 * 0.3173) ** 0.5, abs=1e-3)
+    assert got["count"] == pytest.approx(1.0 + 0.6827 + 0.9876, abs=1e-3)
+    assert got["share"] == pytest.approx(got["count"] / 3)
+    var = 0.6827 * 0.3173 + 0.9876 * 0.0124
+    assert got["sd"] == pytest.approx(var**0.5, abs=1e-3)
+    assert got["mean_squared_z"] == pytest.approx({"X18": 4.0, "X14": (1.0 + 9.0) / 2})
