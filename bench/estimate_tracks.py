@@ -32,7 +32,8 @@ main-suspension parameters, and for each set:
    ``predict_calls``); ``--simulator-corrections N``: then the networks' level error at
    the estimate is taken from N simulations of it and their least squares repeated with it
    (:func:`railsusp.estimate.level_correction.correct_by_simulator`; NSGA-II's own estimate
-   scored beside, ``nsga_error_pct_range``);
+   scored beside, ``nsga_error_pct_range``); ``--correction-slopes``: each of those
+   corrections first order (the simulator's slopes too, in a trust region);
 3. scores each key parameter's error in % of its range, and decides which key parameters
    are identifiable: those whose time-aligned Cramér-Rao bound at the truth, computed with
    the same surrogate on the same recordings
@@ -266,7 +267,9 @@ def run_set(
     t_nsga = time.perf_counter() - t0
     account_for_geometry(res, recs, model, args.geometry_draws, index)
     t_geometry = time.perf_counter() - t0
-    correct_by_simulator(res, recs, model, args.simulator_corrections)
+    correct_by_simulator(
+        res, recs, model, args.simulator_corrections, slopes=args.correction_slopes
+    )
     seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     load = (load0 + os.getloadavg()[0]) / 2.0
     lo, hi = bounds(params)
@@ -467,6 +470,7 @@ def settings_of(args: argparse.Namespace, folder: Path) -> dict:
             if args.simulator_corrections
             else {}
         ),
+        **({"correction_slopes": True} if args.correction_slopes else {}),
     }
 
 
@@ -546,6 +550,12 @@ def main(argv: Sequence[str] | None = None) -> dict:
         "0: the networks alone)",
     )
     ap.add_argument(
+        "--correction-slopes",
+        action="store_true",
+        help="with --simulator-corrections: each correction takes the simulator's slopes too "
+        "(first order, its least squares in a trust region)",
+    )
+    ap.add_argument(
         "--expected-generations",
         action="store_true",
         help="with --expected-draws: NSGA-II's generations compare the expected forces too",
@@ -563,6 +573,8 @@ def main(argv: Sequence[str] | None = None) -> dict:
             f"--expected-draws {args.expected_draws}, --geometry-draws {args.geometry_draws}, "
             f"--simulator-corrections {args.simulator_corrections}: accepted 0 or more"
         )
+    if args.correction_slopes and not args.simulator_corrections:
+        ap.error("--correction-slopes: only with --simulator-corrections 1 or more")
     if args.expected_generations and not args.expected_draws:
         ap.error("--expected-generations needs --expected-draws 1 or more")
     torch.set_num_threads(args.threads)

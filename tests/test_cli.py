@@ -338,6 +338,15 @@ def test_measured_track_flow(tmp_path):
         "the simulator's output-error refinement on its mean over 2 draws of the true track "
         "geometry is a polish beside it"
     )
+    slopes_alone = runner.invoke(
+        app,
+        ["estimate", "--measured", str(field), "--simulator", "--out", str(tmp_path / "x"),
+         "--correction-slopes", "--n-gen", "1", "--pop-size", "4"],
+    )  # fmt: skip
+    assert slopes_alone.exit_code == 2
+    assert "--correction-slopes makes each simulator correction first order" in (
+        slopes_alone.output
+    )
     for extra, needle in (
         ([], "--simulator-corrections corrects the time-aligned least squares"),
         (["--statistic", "aligned"], "the force model is the simulator itself"),

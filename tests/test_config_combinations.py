@@ -130,6 +130,21 @@ CASES = [
         'estimate.statistic = "mean": accepted "aligned" alone',
     ),
     (
+        "correction-slopes-without-corrections",
+        (
+            "truth = {X13 = 16.1}\nwith_track = true",
+            'statistic = "aligned"\ncorrection_slopes = true',
+            "",
+        ),
+        (
+            {"truth": {"X13": 16.1}, "with_track": True},
+            {"statistic": "aligned", "correction_slopes": True},
+            {},
+        ),
+        "estimate.correction_slopes = true makes each simulator correction first order; "
+        "estimate.simulator_corrections = 0 asks for none",
+    ),
+    (
         "expected-generations-without-draws",
         (
             "truth = {X13 = 16.1}\nwith_track = true",

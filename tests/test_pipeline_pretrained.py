@@ -200,6 +200,7 @@ def test_a_time_aligned_run_estimates_again_for_the_geometry_bias(tmp_path):
             "expected_draws",
             "expected_generations",
             "simulator_corrections",
+            "correction_slopes",
         }
     )
 

@@ -219,7 +219,11 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
             f'comparison; estimate.statistic = "{cfg.estimate.statistic}" has none: add "aligned"'
             " or set channel_gains = false"
         )
-    from railsusp.estimate.config import EXPECTED_STATISTICS_TEXT, expected_statistics_ok
+    from railsusp.estimate.config import (
+        CORRECTIONS_RANGE,
+        EXPECTED_STATISTICS_TEXT,
+        expected_statistics_ok,
+    )
 
     e = cfg.estimate
     if e.simulator_corrections and e.statistic != ALIGNED:
@@ -227,6 +231,12 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
             f"estimate.simulator_corrections = {e.simulator_corrections} corrects the "
             f'time-aligned least squares; estimate.statistic = "{e.statistic}": accepted '
             '"aligned" alone, or set simulator_corrections = 0'
+        )
+    if e.correction_slopes and not e.simulator_corrections:
+        raise bad(
+            "estimate.correction_slopes = true makes each simulator correction first order; "
+            "estimate.simulator_corrections = 0 asks for none: set simulator_corrections 1 "
+            f"to {CORRECTIONS_RANGE[1]} or correction_slopes = false"
         )
     if e.expected_generations and not e.expected_draws:
         raise bad(

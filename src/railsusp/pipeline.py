@@ -156,7 +156,13 @@ def _estimate_section(config: PipelineConfig) -> dict:
     takes the geometry error's bias off its choice where the recordings state their
     accuracy, so that such a run estimates again."""
     e = config.estimate
-    optional = ("held_prior", "channel_gains", "expected_draws", "simulator_corrections")
+    optional = (
+        "held_prior",
+        "channel_gains",
+        "expected_draws",
+        "simulator_corrections",
+        "correction_slopes",
+    )
     unset = {k for k in optional if not getattr(e, k)}
     if not e.expected_draws:
         unset.add("expected_generations")
@@ -321,6 +327,7 @@ def _stage_runners(
             geometry_draws=e.geometry_draws,
             remove_geometry_bias=e.remove_geometry_bias,
             simulator_corrections=e.simulator_corrections,
+            correction_slopes=e.correction_slopes,
             refine=e.refine,
             refine_evaluations=e.refine_evaluations,
             refine_screen=e.refine_screen,

@@ -153,6 +153,12 @@ class EstimateSection(_Cfg):
         "estimate by this many simulations of it, repeating the surrogate's least squares "
         "with each (output space mapping; 0: the surrogate alone)",
     )
+    correction_slopes: bool = Field(
+        False,
+        description="each simulator correction also simulates the estimate stepped in every "
+        "key and matches the simulator's slopes there (first order), its least squares "
+        "within 15 % of each range; k + 1 simulations per recording and step instead of one",
+    )
     expected_generations: bool = Field(
         False,
         description="NSGA-II's generations compare the expected forces too (expected_draws "

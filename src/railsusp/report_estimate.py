@@ -146,13 +146,24 @@ def estimate_section(doc: Doc, est: Path) -> None:
     if corrections:
         n, last = len(corrections), corrections[-1]
         drawn = last.get("expected_draws")
+        slopes = info.get("correction_slopes")
         doc.p(
             f"The surrogate's level error at NSGA-II's estimate was then measured by {n} "
-            f"simulation{'s' if n > 1 else ''} of it on the recordings' tracks"
+            f"{'first-order correction' if slopes else 'simulation'}{'s' if n > 1 else ''} "
+            "of it on the recordings' tracks"
             + (f" (the mean over the same {drawn} drawn true tracks)" if drawn else "")
-            + ": the simulator's forces less the surrogate's, sample by sample, added to the "
-            "surrogate, whose time-aligned least squares was repeated (output space mapping): "
-            f"cost {last['cost_start']:.3g} -> {last['cost']:.3g}. The estimate is that point"
+            + ": the simulator's forces less the surrogate's, sample by sample"
+            + (
+                ", and the same for their slopes in every key (the estimate stepped by "
+                f"{100 * slopes['step_of_range']:g} % of each range), added to the surrogate, "
+                "whose time-aligned least squares was repeated within "
+                f"{100 * slopes['trust_box_of_range']:g} % of each range (output space "
+                "mapping): "
+                if slopes
+                else ", added to the surrogate, whose time-aligned least squares was repeated "
+                "(output space mapping): "
+            )
+            + f"cost {last['cost_start']:.3g} -> {last['cost']:.3g}. The estimate is that point"
             + (", less the same geometry bias" if last.get("geometry_bias_removed") else "")
             + "; NSGA-II's own is the column nsga_estimate, and the Pareto range moved with it."
         )

@@ -169,3 +169,48 @@ def test_refusals(recording):
     for itself in (SimulatorForces(PARAMS), ExpectedForces(SimulatorForces(PARAMS), 2)):
         with pytest.raises(RailsuspInputError, match="the force model is the simulator itself"):
             correct_by_simulator(res, [recording], itself, 1)
+
+
+def test_first_order_corrections_take_the_simulators_slope_and_land_on_the_truth(recording):
+    """A surrogate that passes on 0.8 of b's effect with a level error besides (NSGA-II's b
+    about 1.125, inside the trust box): the zeroth-order correction keeps its slope and
+    leaves about 3 % of b; one correction with slopes makes the corrected surrogate the
+    reference itself here (linear), and its least squares lands on the truth within
+    0.2 %. The route says which."""
+    surrogate = Linear(slope=0.8, offset=0.1)
+    plain = correct_by_simulator(
+        _nsga(surrogate, recording), [recording], surrogate, 1, simulator=Linear()
+    )
+    first = correct_by_simulator(
+        _nsga(surrogate, recording), [recording], surrogate, 1, simulator=Linear(), slopes=True
+    )
+    assert abs(plain.chosen_x[1] / 10e6 - 1.0) > 0.015
+    assert first.chosen_x[1] / 10e6 == pytest.approx(1.0, abs=0.002)
+    assert first.chosen_x[0] / 14e6 == pytest.approx(1.0, abs=0.002)
+    assert "first-order correction" in first.route and "first-order" not in plain.route
+
+
+def test_each_first_order_step_stays_in_its_trust_box_and_the_steps_walk_to_the_truth(
+    recording, tmp_path
+):
+    """A level error of -0.5 b puts NSGA-II's b at 1.5 (X14 on its upper bound, half the
+    range from the truth). With slopes each correction may move X14 by at most
+    TRUST_BOX of its range: three steps leave it 5 % of range short, the fourth reaches the
+    truth; estimate.json records the step and the box."""
+    from railsusp.estimate.config import TRUST_BOX
+
+    surrogate = Linear(offset=-0.5)
+    res = _nsga(surrogate, recording)
+    assert res.nsga_x[1] / 10e6 == pytest.approx(1.5, abs=0.03)
+    correct_by_simulator(res, [recording], surrogate, 4, simulator=Linear(), slopes=True)
+    moves = [c.estimate_si[1] - c.start_si[1] for c in res.corrections]
+    span = 10e6  # X14's range, 5-15 MN/m
+    assert all(abs(m) <= TRUST_BOX * span * (1 + 1e-9) for m in moves)
+    assert res.corrections[2].estimate_si[1] / 10e6 == pytest.approx(
+        res.nsga_x[1] / 10e6 - 3 * TRUST_BOX, abs=1e-6
+    )
+    assert res.chosen_x[1] / 10e6 == pytest.approx(1.0, abs=0.005)
+    res.save(tmp_path)
+    doc = read_json(tmp_path / "estimate.json")
+    assert doc["correction_slopes"] == {"step_of_range": 0.05, "trust_box_of_range": TRUST_BOX}
+    assert "within a trust region" in doc["simulator_corrections"][0]["method"]

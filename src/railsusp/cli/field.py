@@ -180,6 +180,14 @@ def estimate(
             "with each (output space mapping; 0: the surrogate alone)"
         ),
     ] = 0,
+    correction_slopes: Annotated[
+        bool,
+        typer.Option(
+            help="with --simulator-corrections: each correction matches the simulator's "
+            "slopes too (first order; k + 1 simulations per recording and step), its least "
+            "squares within 15 % of each range"
+        ),
+    ] = False,
     expected_generations: Annotated[
         bool,
         typer.Option(
@@ -279,6 +287,12 @@ def estimate(
             check_range(name, value, low, high)
         parse_statistics(statistic)
         prior = parse_held_prior(held_prior, refine, statistic)
+        if correction_slopes and not simulator_corrections:
+            raise RailsuspInputError(
+                "--correction-slopes makes each simulator correction first order; "
+                "--simulator-corrections 0 asks for none: give --simulator-corrections 1 to "
+                f"{CORRECTIONS_RANGE[1]}"
+            )
         if (surrogate is None) == (not simulator):
             raise RailsuspInputError("give --surrogate FOLDER or --simulator (one of them)")
         check_output_folder(out)  # an existing file or an unwritable folder, before any work
@@ -301,6 +315,7 @@ def estimate(
             geometry_draws=geometry_draws,
             remove_geometry_bias=remove_geometry_bias,
             simulator_corrections=simulator_corrections,
+            correction_slopes=correction_slopes,
             refine=refine,
             refine_evaluations=refine_evaluations,
             refine_screen=refine_screen,

@@ -29,6 +29,17 @@ SEEDS_RANGE: tuple[int, int] = (1, 10)
 #: (:func:`~railsusp.estimate.level_correction.correct_by_simulator`; each: one simulation
 #: of the estimate per recording and drawn track, and the surrogate's least squares again)
 CORRECTIONS_RANGE: tuple[int, int] = (0, 5)
+#: each key's step, as a fraction of its range, for the simulator's and the surrogate's
+#: slopes at the estimate (inwards at the upper bound): the refinement's finite-difference
+#: step (:data:`~railsusp.estimate.output_error.REFINE_STEP`, the same 5 %)
+SLOPE_STEP = 0.05
+#: how far, as a fraction of each range, a first-order correction's least squares may move
+#: each key from the point where the slopes were taken: three times their step (on the
+#: pretrained example three steps took X19 from its bound to +4.8 % of range, X13 and X14
+#: within 2.3 %; one step without the box sent X19 from one bound to near the other in one
+#: of issue 19's sets, bench/README.md)
+TRUST_BOX = 0.15
+
 #: accepted range of each setting of the refinement (:func:`~railsusp.estimate.refine_estimate`)
 REFINE_RANGES: dict[str, tuple[int, int]] = {
     "max_evaluations": (1, 500),

@@ -15,6 +15,19 @@ Giunta & Collis, AIAA 2004-4457); repeated, it converges where the surrogate's s
 close to the simulator's. On geometry of stated accuracy both sides are expected forces
 (the mean over the same drawn true tracks, :mod:`railsusp.estimate.expected_forces`).
 
+**With slopes** (``slopes=True``): where the surrogate's slopes differ from the simulator's
+(the networks pass on 0.51-0.69 of X14's effect), the zeroth-order fixed point is not the
+simulator's optimum, and where NSGA-II left a parameter the forces hardly fix on its bound
+(X19, along the X13/X14-X19 valley) one zeroth-order correction can move a key the wrong
+way. Each correction then also simulates the estimate stepped by
+:data:`~railsusp.estimate.config.SLOPE_STEP` of each key's range, so that the corrected
+surrogate has the simulator's value *and* slopes at x (first-order consistency, the
+condition under which a corrected surrogate's optimisation converges to the simulator's
+optimum: Alexandrov, Dennis, Lewis & Torczon, Structural Optimization 15, 1998), and its
+least squares is kept within :data:`~railsusp.estimate.config.TRUST_BOX` of each range about
+x, where the correction is trusted; repeated, the steps walk to the simulator's own least-
+squares point. k + 1 simulations per recording (and drawn track) per step instead of one.
+
 The simulator holds the other main-suspension parameters at nominal, as the refinement does;
 the networks average their effect over the ranges they were trained on.
 """
@@ -28,7 +41,7 @@ import numpy as np
 
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate.config import CORRECTIONS_RANGE, check_range
+from railsusp.estimate.config import CORRECTIONS_RANGE, SLOPE_STEP, TRUST_BOX, check_range
 from railsusp.estimate.expected_forces import ExpectedForces, averaged_model
 from railsusp.estimate.forces import ForceModel, SimulatorForces, series_in_conditions
 from railsusp.estimate.geometry_bias import stated_accuracy
@@ -38,16 +51,33 @@ from railsusp.estimate.refine import Refinement
 from railsusp.estimate.result import CalibrationResult
 from railsusp.estimate.statistics import ALIGNED, parse_statistics
 from railsusp.measured import Recording, SimulationFailedError
+from railsusp.params import bounds
+
+#: per key index, per condition (:func:`condition_key`), (T, 2) kN per SI unit of the key
+Slopes = dict[int, dict[str, np.ndarray]]
 
 
 class LevelCorrected:
     """``model``'s series plus a fixed series per condition (``corrections``, (T, 2) kN, by
-    :func:`condition_key`): the surrogate made exact where the corrections were taken."""
+    :func:`condition_key`): the surrogate made exact where the corrections were taken; with
+    ``slopes`` (:func:`slope_corrections`) taken at ``at`` (SI), plus each key's slope
+    correction times its distance from there, so that its slopes there are the
+    simulator's too."""
 
-    def __init__(self, model: ForceModel, corrections: dict[str, np.ndarray]):
+    def __init__(
+        self,
+        model: ForceModel,
+        corrections: dict[str, np.ndarray],
+        slopes: Slopes | None = None,
+        at: np.ndarray | None = None,
+    ):
+        if slopes and at is None:
+            raise ValueError("slope corrections need the point they were taken at")
         self.model = model
         self.parameters = tuple(model.parameters)  # type: ignore[attr-defined]
         self.corrections = corrections
+        self.slopes = slopes or {}
+        self.at = None if at is None else np.asarray(at, dtype=float)
 
     def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
         return self.series_conditions(x_si, [condition])[0]
@@ -57,11 +87,17 @@ class LevelCorrected:
     ) -> list[np.ndarray]:
         """The model's series in each condition (together, where it can) plus its
         correction."""
-        out = series_in_conditions(self.model, x_si, conditions)
-        return [
-            s + self.corrections[condition_key(c)][None]
-            for s, c in zip(out, conditions, strict=True)
-        ]
+        x = np.atleast_2d(np.asarray(x_si, dtype=float))
+        out = series_in_conditions(self.model, x, conditions)
+        corrected = []
+        for s, c in zip(out, conditions, strict=True):
+            key = condition_key(c)
+            add = s + self.corrections[key][None]
+            for j, slope in self.slopes.items():
+                assert self.at is not None
+                add += slope[key][None] * (x[:, j] - self.at[j])[:, None, None]
+            corrected.append(add)
+        return corrected
 
 
 def condition_key(condition: WorkingCondition) -> str:
@@ -120,6 +156,42 @@ def level_corrections(
     return {condition_key(c): s[0] - m[0] for c, s, m in zip(conds, sim, own, strict=True)}
 
 
+def slope_corrections(
+    model: ForceModel,
+    simulator: ForceModel,
+    recordings: Sequence[Recording],
+    x_si: np.ndarray,
+    level: dict[str, np.ndarray],
+) -> Slopes:
+    """Per key j, per recording's condition, the simulator's slope less ``model``'s at
+    ``x_si`` (SI), (T, 2) kN per SI unit: forward differences of
+    :data:`~railsusp.estimate.config.SLOPE_STEP` of each range (inwards at the upper bound),
+    all k stepped sets in one batched call of each model, ``level`` the corrections at
+    ``x_si`` (:func:`level_corrections`). A stopped simulation is an error naming the
+    condition, as there."""
+    conds = [r.condition for r in recordings]
+    x = np.asarray(x_si, dtype=float)
+    lo, hi = bounds(tuple(model.parameters))  # type: ignore[attr-defined]
+    step = SLOPE_STEP * (hi - lo)
+    step = np.where(x + step > hi, -step, step)
+    stepped = x[None] + np.diag(step)
+    sim = series_in_conditions(simulator, stepped, conds)
+    stopped = [c.name for c, s in zip(conds, sim, strict=True) if not np.isfinite(s).all()]
+    if stopped:
+        raise SimulationFailedError(
+            f"simulator_corrections: the simulation of the estimate's slopes stopped in "
+            f"{', '.join(stopped)} (derailment or divergence); no slope can be taken there"
+        )
+    own = series_in_conditions(model, stepped, conds)
+    return {
+        j: {
+            condition_key(c): (s[j] - m[j] - level[condition_key(c)]) / step[j]
+            for c, s, m in zip(conds, sim, own, strict=True)
+        }
+        for j in range(x.size)
+    }
+
+
 def correct_by_simulator(
     result: CalibrationResult,
     recordings: Sequence[Recording],
@@ -127,6 +199,7 @@ def correct_by_simulator(
     steps: int = 1,
     max_evaluations: int = POLISH_EVALUATIONS,
     simulator: ForceModel | None = None,
+    slopes: bool = False,
 ) -> CalibrationResult:
     """Correct NSGA-II's estimate in place by ``steps`` simulator corrections: at the
     estimate x (NSGA-II's, after its geometry step: the expected-forces polish or the
@@ -146,6 +219,9 @@ def correct_by_simulator(
     squares is kept (``result.corrections``). The simulator runs one parameter set per
     recording (and drawn track) per step, in one batched call. ``simulator``: the reference
     model (default the simulator on the estimated parameters, the others at nominal).
+    ``slopes``: first-order corrections (the module's docstring): the simulator's slopes
+    too, k more simulations per step, each least squares within
+    :data:`~railsusp.estimate.config.TRUST_BOX`.
 
     On issue 19's 12 sets (shipped networks, 60 s per condition, 0.5 mm geometry, 8 drawn
     tracks) one step took the identifiable key parameters within 5 % of range from 30 to
@@ -170,11 +246,18 @@ def correct_by_simulator(
         for _ in range(steps):
             try:
                 d = level_corrections(surrogate, simulator, recordings, x)
+                g = slope_corrections(surrogate, simulator, recordings, x, d) if slopes else None
             except SimulationFailedError as exc:
                 result.corrections_stopped = str(exc)
                 break
             step = local_least_squares(
-                LevelCorrected(surrogate, d), recordings, result, x, drawn, max_evaluations
+                LevelCorrected(surrogate, d, g, x),
+                recordings,
+                result,
+                x,
+                drawn,
+                max_evaluations,
+                box=TRUST_BOX if slopes else None,
             )
             if result.geometry_bias_removed:  # its least squares is biased as NSGA-II's was
                 step.geometry_shifts_si = result.geometry_shifts_si
@@ -182,6 +265,7 @@ def correct_by_simulator(
             done.append(step)
             x = step.estimate_si
     result.corrections = done
+    result.correction_slopes = slopes
     if cfg.channel_gains and done:
         result.channel_gains = dict(done[-1].channel_gains)
     return result

@@ -104,13 +104,15 @@ def local_least_squares(
     start_si: np.ndarray,
     expected_draws: int,
     max_evaluations: int = POLISH_EVALUATIONS,
+    box: float | None = None,
 ) -> Refinement:
     """``model``'s bounded time-aligned least squares from ``start_si`` as NSGA-II's
     configuration compares (channel gains alongside where it profiled them), no geometry
-    draws (:func:`~railsusp.estimate.refine.refine`): what the expected-forces polish and
-    each simulator correction (:mod:`railsusp.estimate.level_correction`) solve. The result
-    records the ``expected_draws`` its model averaged over and keeps no problem (the drawn
-    files of an expected-forces model go with it; no series cache is kept)."""
+    draws (:func:`~railsusp.estimate.refine.refine`; ``box`` its trust region): what the
+    expected-forces polish and each simulator correction
+    (:mod:`railsusp.estimate.level_correction`) solve. The result records the
+    ``expected_draws`` its model averaged over and keeps no problem (the drawn files of an
+    expected-forces model go with it; no series cache is kept)."""
     step = refine(
         model,
         recordings,
@@ -119,6 +121,7 @@ def local_least_squares(
         max_evaluations=max_evaluations,
         gains=result.config.channel_gains,
         geometry_draws=0,
+        box=box,
     )
     step.problem = None
     step.expected_draws = expected_draws

@@ -167,6 +167,7 @@ def refine(
     gains: bool = True,
     geometry_draws: int = GEOMETRY_DRAWS,
     seed: int = 0,
+    box: float | None = None,
 ) -> Refinement:
     """Refine an estimate by the output-error method: least squares on the time-aligned
     residuals of every recording (lateral and vertical force, each over the standard
@@ -194,9 +195,12 @@ def refine(
     noise, sets the uncertainty. The method is the classical one of system identification
     (Maine & Iliff, NASA RP-1168, 1986, including the scale-factor estimation of
     measurement channels). Several starts on one problem: :func:`refine_starts`.
+    ``box``: each parameter kept within that fraction of its range about the start (a trust
+    region for a model trusted only near it, :mod:`~railsusp.estimate.level_correction`);
+    None: the whole range.
     """
     problem = OutputError(model, recordings, parameters, step, gains)
-    result = least_squares_from(problem, start_si, max_evaluations)
+    result = least_squares_from(problem, start_si, max_evaluations, box=box)
     assert result.solution is not None
     result.geometry_shifts_si = problem.geometry_shifts(result.solution, geometry_draws, seed)
     return result
@@ -221,11 +225,15 @@ def refine_starts(
 
 
 def least_squares_from(
-    problem: OutputError, start_si: np.ndarray, max_evaluations: int = 40, label: str = ""
+    problem: OutputError,
+    start_si: np.ndarray,
+    max_evaluations: int = 40,
+    label: str = "",
+    box: float | None = None,
 ) -> Refinement:
     """The bounded least squares of :func:`refine` from one start (SI) on ``problem``
     (scipy's trust-region reflective method, forward-difference Jacobians); ``label``
-    prefixes its progress lines."""
+    prefixes its progress lines; ``box`` as :func:`refine`'s."""
     from scipy.optimize import least_squares
 
     k, n_gain = problem.k, problem.n_gain
@@ -246,13 +254,16 @@ def least_squares_from(
     u0 = np.clip((np.asarray(start_si, dtype=float) - lo) / (hi - lo), 0.0, 1.0)
     z0 = np.concatenate([u0, np.ones(n_gain)])
     r0 = fun(z0)
+    low, high = np.zeros(k), np.ones(k)
+    if box is not None:
+        low, high = np.maximum(low, u0 - box), np.minimum(high, u0 + box)
     sol = least_squares(
         fun,
         z0,
         jac=jacobian,
         bounds=(
-            np.concatenate([np.zeros(k), np.full(n_gain, 1.0 - GAIN_LIMIT)]),
-            np.concatenate([np.ones(k), np.full(n_gain, 1.0 + GAIN_LIMIT)]),
+            np.concatenate([low, np.full(n_gain, 1.0 - GAIN_LIMIT)]),
+            np.concatenate([high, np.full(n_gain, 1.0 + GAIN_LIMIT)]),
         ),
         x_scale=np.concatenate([np.ones(k), np.full(n_gain, GAIN_LIMIT)]),
         max_nfev=max_evaluations,

@@ -17,7 +17,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from railsusp.estimate.config import CHOICE_RULES, IDEAL_POINT, HeldPrior, NSGAConfig
+from railsusp.estimate.config import (
+    CHOICE_RULES,
+    IDEAL_POINT,
+    SLOPE_STEP,
+    TRUST_BOX,
+    HeldPrior,
+    NSGAConfig,
+)
 from railsusp.estimate.geometry_bias import less_bias, removable, simex_bias, simex_spread
 from railsusp.estimate.intervals import LEVEL, PARETO, Intervals, from_pareto
 from railsusp.estimate.problem import display_values
@@ -73,6 +80,9 @@ class CalibrationResult:
     #: why the corrections stopped before the steps asked (a simulation of the estimate
     #: that derailed or diverged); empty if they did not
     corrections_stopped: str = ""
+    #: whether each correction matched the simulator's slopes too (first order, in a trust
+    #: region; :func:`~railsusp.estimate.level_correction.correct_by_simulator`)
+    correction_slopes: bool = False
     #: each recording's channel gain at the estimate (NSGA-II's choice, or the last of the
     #: expected-forces polish and the simulator corrections, which estimate them again), by
     #: "<condition>:<Y|Q>_<wheel>",
@@ -165,11 +175,19 @@ class CalibrationResult:
             text += ", less the track geometry error's bias (first SIMEX step)"
         if self.corrections:
             n = len(self.corrections)
-            text += (
-                f", then corrected for the surrogate's level error by {n} simulation"
-                f"{'s' if n > 1 else ''} of the estimate, its least squares repeated with "
-                "each (output space mapping)"
-            )
+            if self.correction_slopes:
+                text += (
+                    f", then corrected by {n} first-order correction{'s' if n > 1 else ''}"
+                    " (the simulator's forces and their slopes at the estimate added to the "
+                    "surrogate's, its least squares repeated within a trust region: output "
+                    "space mapping)"
+                )
+            else:
+                text += (
+                    f", then corrected for the surrogate's level error by {n} simulation"
+                    f"{'s' if n > 1 else ''} of the estimate, its least squares repeated with "
+                    "each (output space mapping)"
+                )
         if self.refinement is None:
             return text
         drawn = self.refinement.expected_draws
@@ -326,6 +344,11 @@ class CalibrationResult:
                 "expected_polish": self._expected_polish_record(),
                 "simulator_corrections": [self._correction_record(c) for c in self.corrections],
                 "simulator_corrections_stopped": self.corrections_stopped,
+                "correction_slopes": (
+                    {"step_of_range": SLOPE_STEP, "trust_box_of_range": TRUST_BOX}
+                    if self.correction_slopes
+                    else None
+                ),
                 "refinement": self.refinement.to_dict() if self.refinement else None,
                 "cramer_rao_pct_range": self.cramer_rao,
                 "intervals": self.intervals().to_dict(),
@@ -362,8 +385,14 @@ class CalibrationResult:
     def _correction_record(self, step: Refinement) -> dict:
         """estimate.json's account of one simulator correction step."""
         return {
-            "method": "the surrogate plus its level error at the start (simulator minus "
-            "surrogate there, per recording), its time-aligned least squares from there",
+            "method": (
+                "the surrogate plus its level error and its slopes' error at the start "
+                "(simulator minus surrogate there, per recording), its time-aligned least "
+                "squares from there within a trust region"
+                if self.correction_slopes
+                else "the surrogate plus its level error at the start (simulator minus "
+                "surrogate there, per recording), its time-aligned least squares from there"
+            ),
             "expected_draws": step.expected_draws,
             "start_display": display_values(self.parameters, step.start_si),
             "corrected_display": display_values(self.parameters, step.estimate_si),

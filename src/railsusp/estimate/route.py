@@ -58,6 +58,7 @@ class EstimateRoute:
     refine_screen: int
     refine_starts: int
     held_prior: HeldPrior | None = None
+    correction_slopes: bool = False
     refine_setting: str = "refine"
     corrections_setting: str = "simulator_corrections"
 
@@ -103,9 +104,16 @@ class EstimateRoute:
                     self.remove_geometry_bias,
                 )
         if self.simulator_corrections:
-            with progress(f"{self.simulator_corrections} simulator correction(s) of the estimate"):
+            order = "first-order " if self.correction_slopes else ""
+            n = self.simulator_corrections
+            with progress(f"{n} {order}simulator correction(s) of the estimate"):
                 correct_by_simulator(
-                    res, recordings, model, self.simulator_corrections, simulator=simulator
+                    res,
+                    recordings,
+                    model,
+                    self.simulator_corrections,
+                    simulator=simulator,
+                    slopes=self.correction_slopes,
                 )
         if self.refine:
             with progress("refining on the measured track (simulator, output error)"):
