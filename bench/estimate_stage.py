@@ -45,9 +45,9 @@ def main() -> None:
     args = ap.parse_args()
     config = load_config(args.config) if args.config else demo_config()
 
-    import railsusp.estimate as est
     import railsusp.estimate.polish as polish
     import railsusp.estimate.refine as refine
+    import railsusp.estimate.route as route  # the stage's steps call NSGA-II from there
     import railsusp.vehicle.simulate as simulate
 
     phases: list[dict] = []
@@ -68,7 +68,7 @@ def main() -> None:
         return runs
 
     simulate._simulate_full = simulate_full
-    _timed(phases, est, "estimate_with_seeds", "NSGA-II on the surrogates")
+    _timed(phases, route, "estimate_with_seeds", "NSGA-II on the surrogates")
     _timed(phases, polish, "aligned_cost", "screening of starts")
     for name in ("refine", "refine_starts"):  # one start at a time, or all at once
         if hasattr(polish, name):

@@ -24,7 +24,13 @@ from pydantic import (
 
 from railsusp.conditions import WorkingCondition, get_condition, make_condition
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate.config import CORRECTIONS_RANGE, NSGA_RANGES, REFINE_RANGES, SEEDS_RANGE
+from railsusp.estimate.config import (
+    CORRECTIONS_RANGE,
+    NSGA_RANGES,
+    REFINE_RANGES,
+    SEEDS_RANGE,
+    TRUST_BOX,
+)
 from railsusp.params import MAIN_SUSPENSION
 
 _NSGA, _REF, _CORRECTIONS = NSGA_RANGES, REFINE_RANGES, CORRECTIONS_RANGE
@@ -157,7 +163,8 @@ class EstimateSection(_Cfg):
         False,
         description="each simulator correction also simulates the estimate stepped in every "
         "key and matches the simulator's slopes there (first order), its least squares "
-        "within 15 % of each range; k + 1 simulations per recording and step instead of one",
+        f"within {100 * TRUST_BOX:g} % of each range; k + 1 simulations per recording and "
+        "step instead of one",
     )
     expected_generations: bool = Field(
         False,

@@ -148,9 +148,15 @@ def estimate_section(doc: Doc, est: Path) -> None:
         drawn = last.get("expected_draws")
         slopes = info.get("correction_slopes")
         doc.p(
-            f"The surrogate's level error at NSGA-II's estimate was then measured by {n} "
-            f"{'first-order correction' if slopes else 'simulation'}{'s' if n > 1 else ''} "
-            "of it on the recordings' tracks"
+            (
+                f"The surrogate's error at NSGA-II's estimate was then corrected {n} time"
+                f"{'s' if n > 1 else ''} to first order, each from {len(info['parameters']) + 1} "
+                "simulations of the estimate and its steps in every key per recording"
+                if slopes
+                else f"The surrogate's level error at NSGA-II's estimate was then measured by "
+                f"{n} simulation{'s' if n > 1 else ''} of it"
+            )
+            + " on the recordings' tracks"
             + (f" (the mean over the same {drawn} drawn true tracks)" if drawn else "")
             + ": the simulator's forces less the surrogate's, sample by sample"
             + (

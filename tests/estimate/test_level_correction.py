@@ -193,13 +193,14 @@ def test_first_order_corrections_take_the_simulators_slope_and_land_on_the_truth
 def test_each_first_order_step_stays_in_its_trust_box_and_the_steps_walk_to_the_truth(
     recording, tmp_path
 ):
-    """A level error of -0.5 b puts NSGA-II's b at 1.5 (X14 on its upper bound, half the
-    range from the truth). With slopes each correction may move X14 by at most
-    TRUST_BOX of its range: three steps leave it 5 % of range short, the fourth reaches the
-    truth; estimate.json records the step and the box."""
+    """A surrogate passing on 0.8 of b's effect, 0.3 low, puts NSGA-II's b at 1.5 (X14 on
+    its upper bound, half the range from the truth), where the slopes are taken by a step
+    inwards. With slopes each correction may move X14 by at most TRUST_BOX of its range:
+    three steps leave it 5 % of range short, the fourth reaches the truth; estimate.json
+    records the step and the box."""
     from railsusp.estimate.config import TRUST_BOX
 
-    surrogate = Linear(offset=-0.5)
+    surrogate = Linear(slope=0.8, offset=-0.3)
     res = _nsga(surrogate, recording)
     assert res.nsga_x[1] / 10e6 == pytest.approx(1.5, abs=0.03)
     correct_by_simulator(res, [recording], surrogate, 4, simulator=Linear(), slopes=True)
@@ -214,3 +215,29 @@ def test_each_first_order_step_stays_in_its_trust_box_and_the_steps_walk_to_the_
     doc = read_json(tmp_path / "estimate.json")
     assert doc["correction_slopes"] == {"step_of_range": 0.05, "trust_box_of_range": TRUST_BOX}
     assert "within a trust region" in doc["simulator_corrections"][0]["method"]
+
+
+def test_slope_corrections_are_the_analytic_slope_difference_on_and_off_the_upper_bound(
+    recording,
+):
+    """d(reference - surrogate)/dX14 of the linear models is (1 - 0.8) 10 v(t) / (10 MN/m)
+    in the wheel load and nothing in the lateral force, nor along X13 (which both models
+    share): so the slopes, taken by a forward step mid-range and by a step inwards where
+    X14 sits on its upper bound, must be exactly that."""
+    from railsusp.estimate.level_correction import (
+        condition_key,
+        level_corrections,
+        slope_corrections,
+    )
+
+    surrogate, reference = Linear(slope=0.8), Linear()
+    key = condition_key(recording.condition)
+    t = np.arange(recording.condition.n_steps) * recording.condition.sample_interval
+    v = np.cos(2 * np.pi * 0.7 * t) + 0.5 * np.sin(2 * np.pi * 2.3 * t + 1.0)
+    for x14 in (10e6, 15e6):  # mid-range, and on the upper bound (5-15 MN/m)
+        x = np.array([14e6, x14])
+        level = level_corrections(surrogate, reference, [recording], x)
+        slopes = slope_corrections(surrogate, reference, [recording], x, level)
+        np.testing.assert_allclose(slopes[1][key][:, 1], 0.2 * 10.0 * v / 10e6, atol=1e-15)
+        np.testing.assert_allclose(slopes[1][key][:, 0], 0.0, atol=1e-15)
+        np.testing.assert_allclose(slopes[0][key], 0.0, atol=1e-15)

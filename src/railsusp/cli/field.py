@@ -185,7 +185,7 @@ def estimate(
         typer.Option(
             help="with --simulator-corrections: each correction matches the simulator's "
             "slopes too (first order; k + 1 simulations per recording and step), its least "
-            "squares within 15 % of each range"
+            "squares within a trust region about the estimate"
         ),
     ] = False,
     expected_generations: Annotated[

@@ -171,12 +171,12 @@ class SurrogateForces:
         the SHA-256 of its bytes, not by its path. The same drawn true tracks written again
         elsewhere (the expected-forces polish, then each simulator correction, draw them
         with the same seed into their own temporary folders) are then computed once: 24
-        nominal-wagon simulations, 3.9 s of a correction's 10.7-14.5 s on issue 19's sets
-        (bench/README.md). The digest is read once per file (by path, modification time and
-        size), not every generation."""
+        nominal-wagon simulations, which took a correction on issue 19's sets from 12.5 to
+        9.6 s on average (bench/README.md). The digest is read once per file (by absolute
+        path, modification time and size), not every generation."""
         if condition.track_geometry is None:
             return condition.model_dump_json()
-        path = str(condition.track_geometry)
+        path = os.path.abspath(condition.track_geometry)
         stat = os.stat(path)
         seen = (path, stat.st_mtime_ns, stat.st_size)
         digest = self._digests.get(seen)
@@ -196,8 +196,10 @@ class SurrogateForces:
         todo: dict[str, WorkingCondition] = {}
         for c in conditions:
             self._model_of(c)  # a condition without a surrogate, refused in one line
+            if not self.reads_track(c):
+                continue
             key = self.track_key(c)
-            if key not in self._tracks and self.reads_track(c):
+            if key not in self._tracks:
                 todo.setdefault(key, c)
         self._compute_tracks(todo)
 

@@ -25,7 +25,7 @@ surrogate has the simulator's value *and* slopes at x (first-order consistency, 
 condition under which a corrected surrogate's optimisation converges to the simulator's
 optimum: Alexandrov, Dennis, Lewis & Torczon, Structural Optimization 15, 1998), and its
 least squares is kept within :data:`~railsusp.estimate.config.TRUST_BOX` of each range about
-x, where the correction is trusted; repeated, the steps walk to the simulator's own least-
+x, where the correction is trusted; repeated, the steps move toward the simulator's own least-
 squares point. k + 1 simulations per recording (and drawn track) per step instead of one.
 
 The simulator holds the other main-suspension parameters at nominal, as the refinement does;
@@ -265,7 +265,7 @@ def correct_by_simulator(
             done.append(step)
             x = step.estimate_si
     result.corrections = done
-    result.correction_slopes = slopes
+    result.correction_slopes = slopes and bool(done)
     if cfg.channel_gains and done:
         result.channel_gains = dict(done[-1].channel_gains)
     return result
