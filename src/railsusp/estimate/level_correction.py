@@ -145,15 +145,29 @@ def level_corrections(
     divergence: NaN series) is an error naming the condition."""
     conds = [r.condition for r in recordings]
     x = np.atleast_2d(np.asarray(x_si, dtype=float))
+    sim = _simulated(simulator, x, conds, "the estimate", "correction")
+    own = series_in_conditions(model, x, conds)
+    return {condition_key(c): s[0] - m[0] for c, s, m in zip(conds, sim, own, strict=True)}
+
+
+def _simulated(
+    simulator: ForceModel,
+    x: np.ndarray,
+    conds: Sequence[WorkingCondition],
+    what: str,
+    taken: str,
+) -> list[np.ndarray]:
+    """The simulator's series of the sets ``x`` in each condition; a simulation that
+    stopped (derailment, divergence: NaN series) is an error naming the conditions, what
+    was simulated and what cannot be taken."""
     sim = series_in_conditions(simulator, x, conds)
     stopped = [c.name for c, s in zip(conds, sim, strict=True) if not np.isfinite(s).all()]
     if stopped:
         raise SimulationFailedError(
-            f"simulator_corrections: the simulation of the estimate stopped in "
-            f"{', '.join(stopped)} (derailment or divergence); no correction can be taken there"
+            f"simulator_corrections: the simulation of {what} stopped in "
+            f"{', '.join(stopped)} (derailment or divergence); no {taken} can be taken there"
         )
-    own = series_in_conditions(model, x, conds)
-    return {condition_key(c): s[0] - m[0] for c, s, m in zip(conds, sim, own, strict=True)}
+    return sim
 
 
 def slope_corrections(
@@ -175,13 +189,7 @@ def slope_corrections(
     step = SLOPE_STEP * (hi - lo)
     step = np.where(x + step > hi, -step, step)
     stepped = x[None] + np.diag(step)
-    sim = series_in_conditions(simulator, stepped, conds)
-    stopped = [c.name for c, s in zip(conds, sim, strict=True) if not np.isfinite(s).all()]
-    if stopped:
-        raise SimulationFailedError(
-            f"simulator_corrections: the simulation of the estimate's slopes stopped in "
-            f"{', '.join(stopped)} (derailment or divergence); no slope can be taken there"
-        )
+    sim = _simulated(simulator, stepped, conds, "the estimate's slopes", "slope")
     own = series_in_conditions(model, stepped, conds)
     return {
         j: {
