@@ -73,6 +73,7 @@ from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate import NSGAConfig, SurrogateForces, estimate
 from railsusp.estimate.aligned_identifiability import aligned_cramer_rao_pct_range, identifiable
+from railsusp.estimate.config import SIMULATED, SLOPE_UPDATES
 from railsusp.estimate.geometry_bias import GEOMETRY_DRAWS
 from railsusp.estimate.identifiability import BOUND_LIMIT_PCT
 from railsusp.estimate.level_correction import correct_by_simulator
@@ -268,7 +269,12 @@ def run_set(
     account_for_geometry(res, recs, model, args.geometry_draws, index)
     t_geometry = time.perf_counter() - t0
     correct_by_simulator(
-        res, recs, model, args.simulator_corrections, slopes=args.correction_slopes
+        res,
+        recs,
+        model,
+        args.simulator_corrections,
+        slopes=args.correction_slopes,
+        slope_update=args.slope_update,
     )
     seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     load = (load0 + os.getloadavg()[0]) / 2.0
@@ -288,6 +294,7 @@ def run_set(
         {
             "correction_seconds": seconds - t_geometry,
             "correction_jacobians": [c.n_jacobians for c in res.corrections],
+            "correction_checks": [c.to_dict() for c in res.correction_checks],
             "nsga_error_pct_range": {p: float(e) for p, e in zip(params, nsga_err, strict=True)},
             "nsga_within": [
                 p for p, e in zip(params, nsga_err, strict=True) if abs(e) <= WITHIN_PCT
@@ -471,6 +478,7 @@ def settings_of(args: argparse.Namespace, folder: Path) -> dict:
             else {}
         ),
         **({"correction_slopes": True} if args.correction_slopes else {}),
+        **({"slope_update": args.slope_update} if args.correction_slopes else {}),
     }
 
 
@@ -554,6 +562,13 @@ def main(argv: Sequence[str] | None = None) -> dict:
         action="store_true",
         help="with --simulator-corrections: each correction takes the simulator's slopes too "
         "(first order, its least squares in a trust region)",
+    )
+    ap.add_argument(
+        "--slope-update",
+        choices=SLOPE_UPDATES,
+        default=SIMULATED,
+        help="with --correction-slopes: the slopes at each later point simulated again, or "
+        "Broyden's update from the level's change (railsusp.estimate.level_correction)",
     )
     ap.add_argument(
         "--expected-generations",

@@ -347,6 +347,16 @@ def test_measured_track_flow(tmp_path):
     assert "--correction-slopes makes each simulator correction first order" in (
         slopes_alone.output
     )
+    for update, needle in (
+        ("broyden", "--slope-update 'broyden' updates the slopes of first-order corrections"),
+        ("newton", "--slope-update 'newton': accepted 'simulated', 'broyden'"),
+    ):
+        bad = runner.invoke(
+            app,
+            ["estimate", "--measured", str(field), "--simulator", "--out", str(tmp_path / "x"),
+             "--slope-update", update, "--n-gen", "1", "--pop-size", "4"],
+        )  # fmt: skip
+        assert bad.exit_code == 2 and needle in bad.output, bad.output
     for extra, needle in (
         ([], "--simulator-corrections corrects the time-aligned least squares"),
         (["--statistic", "aligned"], "the force model is the simulator itself"),

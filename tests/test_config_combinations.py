@@ -145,6 +145,21 @@ CASES = [
         "estimate.simulator_corrections = 0 asks for none",
     ),
     (
+        "slope-update-without-correction-slopes",
+        (
+            "truth = {X13 = 16.1}\nwith_track = true",
+            'statistic = "aligned"\nsimulator_corrections = 1\nslope_update = "broyden"',
+            "",
+        ),
+        (
+            {"truth": {"X13": 16.1}, "with_track": True},
+            {"statistic": "aligned", "simulator_corrections": 1, "slope_update": "broyden"},
+            {},
+        ),
+        'estimate.slope_update = "broyden" updates the slopes of first-order corrections; '
+        "estimate.correction_slopes = false asks for none",
+    ),
+    (
         "expected-generations-without-draws",
         (
             "truth = {X13 = 16.1}\nwith_track = true",

@@ -201,8 +201,28 @@ def test_a_time_aligned_run_estimates_again_for_the_geometry_bias(tmp_path):
             "expected_generations",
             "simulator_corrections",
             "correction_slopes",
+            "slope_update",
         }
     )
+
+
+def test_first_order_corrections_hash_the_simulators_check_of_their_steps(tmp_path):
+    """With correction_slopes the section names the trust region's check (since it came,
+    such a run estimates again); without it the section has no such entry. slope_update
+    counts only when not the default ('simulated', as before it existed)."""
+    import tomllib
+
+    from railsusp.pipeline_config import PipelineConfig
+
+    text = tomllib.loads(config(tmp_path).read_text())
+    assert "correction_steps" not in _section(PipelineConfig.model_validate(text), "estimate")
+    text["estimate"].update(simulator_corrections=2, correction_slopes=True)
+    section = _section(PipelineConfig.model_validate(text), "estimate")
+    assert section["correction_steps"] == "checked by the simulator's cost (trust region)"
+    assert "slope_update" not in section
+    text["estimate"]["slope_update"] = "broyden"
+    broyden = _section(PipelineConfig.model_validate(text), "estimate")
+    assert broyden["slope_update"] == "broyden"
 
 
 def test_expected_draws_hash_their_route_and_whether_the_generations_use_them(tmp_path):

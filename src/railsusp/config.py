@@ -238,6 +238,12 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
             "estimate.simulator_corrections = 0 asks for none: set simulator_corrections 1 "
             f"to {CORRECTIONS_RANGE[1]} or correction_slopes = false"
         )
+    if e.slope_update != "simulated" and not e.correction_slopes:
+        raise bad(
+            f'estimate.slope_update = "{e.slope_update}" updates the slopes of first-order '
+            "corrections; estimate.correction_slopes = false asks for none: set "
+            'correction_slopes = true or slope_update = "simulated"'
+        )
     if e.expected_generations and not e.expected_draws:
         raise bad(
             "estimate.expected_generations = true compares expected forces in NSGA-II's "

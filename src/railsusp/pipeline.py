@@ -154,7 +154,9 @@ def _estimate_section(config: PipelineConfig) -> dict:
     after them, so such a run estimates again);
     on time-aligned forces also the route of NSGA-II's estimate, which since 2026-11-28
     takes the geometry error's bias off its choice where the recordings state their
-    accuracy, so that such a run estimates again."""
+    accuracy, so that such a run estimates again; with ``correction_slopes`` the trust
+    region's check (since 2026-11-29 the simulator checks each first-order step's point, and
+    the box resizes), so that such a run estimates again."""
     e = config.estimate
     optional = (
         "held_prior",
@@ -164,6 +166,8 @@ def _estimate_section(config: PipelineConfig) -> dict:
         "correction_slopes",
     )
     unset = {k for k in optional if not getattr(e, k)}
+    if e.slope_update == "simulated":  # as before the setting existed
+        unset.add("slope_update")
     if not e.expected_draws:
         unset.add("expected_generations")
     section = e.model_dump(exclude=unset or None)
@@ -171,6 +175,8 @@ def _estimate_section(config: PipelineConfig) -> dict:
         section["nsga_geometry"] = (
             "expected-forces polish" if e.expected_draws else "first SIMEX step"
         )
+    if e.correction_slopes:
+        section["correction_steps"] = "checked by the simulator's cost (trust region)"
     return section
 
 
@@ -328,6 +334,7 @@ def _stage_runners(
             remove_geometry_bias=e.remove_geometry_bias,
             simulator_corrections=e.simulator_corrections,
             correction_slopes=e.correction_slopes,
+            slope_update=e.slope_update,
             refine=e.refine,
             refine_evaluations=e.refine_evaluations,
             refine_screen=e.refine_screen,

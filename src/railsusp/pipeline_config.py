@@ -163,8 +163,16 @@ class EstimateSection(_Cfg):
         False,
         description="each simulator correction also simulates the estimate stepped in every "
         "key and matches the simulator's slopes there (first order), its least squares "
-        f"within {100 * TRUST_BOX:g} % of each range; k + 1 simulations per recording and "
+        f"within a trust box ({100 * TRUST_BOX:g} % of each range at first), each proposed "
+        "point checked by the simulator's cost there; k + 1 simulations per recording and "
         "step instead of one",
+    )
+    slope_update: Literal["simulated", "broyden"] = Field(
+        "simulated",
+        description="with correction_slopes: the slopes at each later point of the "
+        "corrections simulated again ('simulated', k more simulations per recording and "
+        "step) or carried by Broyden's update from the simulated level's change along each "
+        "step ('broyden', none)",
     )
     expected_generations: bool = Field(
         False,

@@ -150,8 +150,15 @@ def estimate_section(doc: Doc, est: Path) -> None:
         doc.p(
             (
                 f"The surrogate's error at NSGA-II's estimate was then corrected {n} time"
-                f"{'s' if n > 1 else ''} to first order, each from {len(info['parameters']) + 1} "
-                "simulations of the estimate and its steps in every key per recording"
+                f"{'s' if n > 1 else ''} to first order, "
+                + (
+                    f"the first from {len(info['parameters']) + 1} simulations of the estimate "
+                    "and its steps in every key per recording, the later ones from one each "
+                    "(the slopes carried by Broyden's update)"
+                    if slopes and slopes.get("slope_update") == "broyden"
+                    else f"each from {len(info['parameters']) + 1} simulations of the estimate "
+                    "and its steps in every key per recording"
+                )
                 if slopes
                 else f"The surrogate's level error at NSGA-II's estimate was then measured by "
                 f"{n} simulation{'s' if n > 1 else ''} of it"
@@ -162,8 +169,8 @@ def estimate_section(doc: Doc, est: Path) -> None:
             + (
                 ", and the same for their slopes in every key (the estimate stepped by "
                 f"{100 * slopes['step_of_range']:g} % of each range), added to the surrogate, "
-                "whose time-aligned least squares was repeated within "
-                f"{100 * slopes['trust_box_of_range']:g} % of each range (output space "
+                "whose time-aligned least squares was repeated within a trust box of "
+                f"{100 * slopes['trust_box_of_range']:g} % of each range at first (output space "
                 "mapping): "
                 if slopes
                 else ", added to the surrogate, whose time-aligned least squares was repeated "
@@ -172,6 +179,22 @@ def estimate_section(doc: Doc, est: Path) -> None:
             + f"cost {last['cost_start']:.3g} -> {last['cost']:.3g}. The estimate is that point"
             + (", less the same geometry bias" if last.get("geometry_bias_removed") else "")
             + "; NSGA-II's own is the column nsga_estimate, and the Pareto range moved with it."
+        )
+    checks = [c["check"] for c in corrections if c.get("check")]
+    checked = [c for c in checks if c["accepted"] is not None]
+    if checked:
+        kept = sum(c["accepted"] for c in checked)
+        boxes = ", ".join(f"{100 * c['box']:.3g}" for c in checks)
+        stopped = sum(bool(c["stopped"]) for c in checked)
+        doc.p(
+            f"The simulator checked the point each step proposed at the next correction: {kept} "
+            f"of {len(checked)} kept (its cost fell by at least a tenth of the fall the "
+            "corrected surrogate predicted, or did not rise where none was predicted), "
+            f"{len(checked) - kept} rejected"
+            + (f", {stopped} of them because the simulation stopped" if stopped else "")
+            + " (the next least squares then started from the same point in a smaller box)"
+            + ("; the last step's point is unchecked" if checks[-1]["accepted"] is None else "")
+            + f". Trust boxes, % of each range: {boxes}."
         )
     if info.get("simulator_corrections_stopped"):
         doc.p(f"Simulator corrections stopped: {info['simulator_corrections_stopped']}.")

@@ -84,6 +84,7 @@ def test_one_correction_removes_a_level_error_the_surrogate_has_along_a_column(r
     (step,) = doc["simulator_corrections"]
     assert step["corrected_display"]["X14"] == pytest.approx(res.estimate["X14"])
     assert step["step_pct_range"]["X14"] < -15.0  # from 1.2 down to 1.0: -20 % of range
+    assert step["check"] is None and res.correction_checks == []  # zeroth order: no check
 
 
 def test_with_a_slope_error_the_corrections_converge_on_the_truth(recording):
@@ -190,31 +191,118 @@ def test_first_order_corrections_take_the_simulators_slope_and_land_on_the_truth
     assert "first-order correction" in first.route and "first-order" not in plain.route
 
 
-def test_each_first_order_step_stays_in_its_trust_box_and_the_steps_walk_to_the_truth(
+def test_each_first_order_step_stays_in_its_trust_box_which_grows_after_good_steps(
     recording, tmp_path
 ):
     """A surrogate passing on 0.8 of b's effect, 0.3 low, puts NSGA-II's b at 1.5 (X14 on
     its upper bound, half the range from the truth), where the slopes are taken by a step
-    inwards. With slopes each correction may move X14 by at most TRUST_BOX of its range:
-    three steps leave it 5 % of range short, the fourth reaches the truth; estimate.json
-    records the step and the box."""
+    inwards. The first correction may move X14 by TRUST_BOX of its range; the reference is
+    linear, so the simulator confirms the corrected surrogate's predicted fall exactly
+    (ratio 1) and, the step being on the box's edge, the box doubles: the second step moves
+    by 2 TRUST_BOX (BOX_MAX) and the third reaches the truth. estimate.json records each
+    step's box and check."""
     from railsusp.estimate.config import TRUST_BOX
+    from railsusp.estimate.trust_region import BOX_MAX
 
     surrogate = Linear(slope=0.8, offset=-0.3)
     res = _nsga(surrogate, recording)
     assert res.nsga_x[1] / 10e6 == pytest.approx(1.5, abs=0.03)
-    correct_by_simulator(res, [recording], surrogate, 4, simulator=Linear(), slopes=True)
-    moves = [c.estimate_si[1] - c.start_si[1] for c in res.corrections]
-    span = 10e6  # X14's range, 5-15 MN/m
-    assert all(abs(m) <= TRUST_BOX * span * (1 + 1e-9) for m in moves)
-    assert res.corrections[2].estimate_si[1] / 10e6 == pytest.approx(
-        res.nsga_x[1] / 10e6 - 3 * TRUST_BOX, abs=1e-6
-    )
-    assert res.chosen_x[1] / 10e6 == pytest.approx(1.0, abs=0.005)
+    correct_by_simulator(res, [recording], surrogate, 3, simulator=Linear(), slopes=True)
+    moves = [(c.estimate_si[1] - c.start_si[1]) / 10e6 for c in res.corrections]  # range 10
+    boxes = [c.box for c in res.correction_checks]
+    assert boxes == [TRUST_BOX, BOX_MAX, BOX_MAX] and BOX_MAX == pytest.approx(2 * TRUST_BOX)
+    assert moves[:2] == pytest.approx([-TRUST_BOX, -BOX_MAX], abs=1e-6)
+    assert [c.ratio for c in res.correction_checks[:2]] == pytest.approx([1.0, 1.0], abs=1e-6)
+    assert [c.accepted for c in res.correction_checks] == [True, True, None]  # last: unchecked
+    assert res.chosen_x[1] / 10e6 == pytest.approx(1.0, abs=0.002)
     res.save(tmp_path)
     doc = read_json(tmp_path / "estimate.json")
-    assert doc["correction_slopes"] == {"step_of_range": 0.05, "trust_box_of_range": TRUST_BOX}
-    assert "within a trust region" in doc["simulator_corrections"][0]["method"]
+    assert doc["correction_slopes"] == {
+        "step_of_range": 0.05,
+        "trust_box_of_range": TRUST_BOX,
+        "slope_update": "simulated",
+    }
+    first = doc["simulator_corrections"][0]
+    assert "within a trust region" in first["method"]
+    assert first["check"]["box"] == TRUST_BOX and first["check"]["accepted"] is True
+
+
+class Kinked(Linear):
+    """The reference, with the wheel load's response to b flat above the truth and steep
+    below it: Q = 120 + 10 (1 + psi(b - 1)) v(t), psi(e) = tanh(15 e) / 15 for e >= 0,
+    4 e below. From b = 1.1 the slope there (0.1 of the linear model's) asks for a step far
+    past the truth, which the box cuts to b = 0.95, where the cost is 11 times that at
+    1.1. ``derail_below``: b under which the simulation stops (NaN series)."""
+
+    def __init__(self, derail_below: float = 0.0):
+        super().__init__()
+        self.derail_below = derail_below
+
+    def series(self, x_si, condition):
+        out = super().series(x_si, condition)
+        e = x_si[:, 1] / 10e6 - 1.0
+        psi = np.where(e >= 0.0, np.tanh(15.0 * e) / 15.0, 4.0 * e)
+        t = np.arange(condition.n_steps) * condition.sample_interval
+        v = np.cos(2 * np.pi * 0.7 * t) + 0.5 * np.sin(2 * np.pi * 2.3 * t + 1.0)
+        out[:, :, 1] = 120.0 + 10.0 * (1.0 + psi)[:, None] * v
+        out[x_si[:, 1] / 10e6 < self.derail_below] = np.nan
+        return out
+
+
+def test_a_step_that_raises_the_simulators_cost_is_rejected_and_the_next_starts_where_it_did(
+    recording, tmp_path
+):
+    """On the kinked reference the first first-order step from b = 1.1 lands at 0.95, where
+    the simulator's cost is higher than at its start: the step is rejected (negative
+    ratio), the second least squares starts from the first's start again, with the same
+    corrected surrogate, in a box of a quarter of the rejected step's extent, and that
+    step (kept: the cost falls more than predicted) brings b closer to the truth. Without
+    the check (before it) the second step started at the rejected point. The route,
+    estimate.json and the report say it."""
+    from railsusp.estimate.trust_region import SHRINK
+    from railsusp.report_doc import Doc
+    from railsusp.report_estimate import estimate_section
+
+    surrogate = Linear(offset=-0.1)  # NSGA-II's b at 1.1
+    res = _nsga(surrogate, recording)
+    assert res.nsga_x[1] / 10e6 == pytest.approx(1.1, abs=0.01)
+    correct_by_simulator(res, [recording], surrogate, 3, simulator=Kinked(), slopes=True)
+    first, second, _ = res.correction_checks
+    assert first.accepted is False and first.ratio < 0.0
+    assert first.cost_simulated > 5.0 * first.cost_start
+    step1, step2, _ = res.corrections
+    np.testing.assert_array_equal(step2.start_si, step1.start_si)
+    extent = abs(step1.estimate_si[1] - step1.start_si[1]) / 10e6
+    assert extent == pytest.approx(0.15, abs=1e-6)
+    assert second.box == pytest.approx(SHRINK * extent)
+    assert second.accepted is True and second.cost_simulated < first.cost_start
+    assert abs(step2.estimate_si[1] / 10e6 - 1.0) < abs(res.nsga_x[1] / 10e6 - 1.0)
+    assert "1 proposed point rejected" in res.route
+    res.save(tmp_path)
+    records = read_json(tmp_path / "estimate.json")["simulator_corrections"]
+    assert [r["check"]["accepted"] for r in records] == [False, True, None]
+    doc = Doc(tmp_path)
+    estimate_section(doc, tmp_path)
+    text = "\n".join(doc.md)
+    assert "1 of 2 kept" in text and "Trust boxes, % of each range: 15, 3.75, 7.5" in text
+
+
+def test_a_proposed_point_that_derails_is_rejected_and_the_corrections_go_on(recording):
+    """If the simulation of a first-order step's point stops (here: derails below b =
+    0.97), that point is rejected as one that raised the cost, and the corrections go on
+    from the last point simulated whole; before, they stopped there and the derailed point
+    became the estimate."""
+    surrogate = Linear(offset=-0.1)
+    res = _nsga(surrogate, recording)
+    correct_by_simulator(
+        res, [recording], surrogate, 3, simulator=Kinked(derail_below=0.97), slopes=True
+    )
+    assert res.corrections_stopped == ""
+    assert len(res.corrections) == 3
+    first = res.correction_checks[0]
+    assert first.accepted is False and "stopped in straight" in first.stopped
+    assert res.chosen_x[1] / 10e6 > 0.97
+    assert abs(res.chosen_x[1] / 10e6 - 1.0) < abs(res.nsga_x[1] / 10e6 - 1.0)
 
 
 def test_slope_corrections_are_the_analytic_slope_difference_on_and_off_the_upper_bound(
@@ -241,3 +329,147 @@ def test_slope_corrections_are_the_analytic_slope_difference_on_and_off_the_uppe
         np.testing.assert_allclose(slopes[1][key][:, 1], 0.2 * 10.0 * v / 10e6, atol=1e-15)
         np.testing.assert_allclose(slopes[1][key][:, 0], 0.0, atol=1e-15)
         np.testing.assert_allclose(slopes[0][key], 0.0, atol=1e-15)
+
+
+def test_broyden_slopes_carry_the_level_change_along_the_step_and_nothing_across():
+    """Broyden's update makes the slope corrections reproduce the level correction's change
+    along the step (the secant condition) and leaves their action on a direction
+    orthogonal to the step (in range units) unchanged."""
+    from railsusp.estimate.level_correction import broyden_slopes
+
+    rng = np.random.default_rng(0)
+    span = np.array([20e6, 10e6])
+    g = {j: {"c": rng.normal(size=(50, 2)) * 1e-6} for j in range(2)}
+    before, after = {"c": rng.normal(size=(50, 2))}, {"c": rng.normal(size=(50, 2))}
+    step = np.array([0.1, -0.05]) * span
+    new = broyden_slopes(g, before, after, step, span)
+    carried = sum(new[j]["c"] * step[j] for j in range(2))
+    np.testing.assert_allclose(carried, after["c"] - before["c"], rtol=1e-12, atol=1e-12)
+    across = np.array([0.05, 0.1]) * span  # orthogonal to the step in range units
+    np.testing.assert_allclose(
+        sum(new[j]["c"] * across[j] for j in range(2)),
+        sum(g[j]["c"] * across[j] for j in range(2)),
+        rtol=1e-12,
+        atol=1e-12,
+    )
+    assert broyden_slopes(g, before, after, np.zeros(2), span) is g
+
+
+class Counting(Linear):
+    """The reference, counting the parameter sets it simulates."""
+
+    def __init__(self, base):
+        self.base, self.sets = base, 0
+        self.parameters = base.parameters
+
+    def series(self, x_si, condition):
+        self.sets += len(x_si)
+        return self.base.series(x_si, condition)
+
+
+def _three_first_order_steps(recording, surrogate, reference, update):
+    """Three first-order corrections of NSGA-II's estimate on ``surrogate`` against the
+    ``reference`` (counted), slopes updated by ``update``: the result and the sets it
+    simulated."""
+    ref = Counting(reference)
+    res = correct_by_simulator(
+        _nsga(surrogate, recording),
+        [recording],
+        surrogate,
+        3,
+        simulator=ref,
+        slopes=True,
+        slope_update=update,
+    )
+    return res, ref.sets
+
+
+def test_broyden_updates_take_the_slopes_once_and_match_the_simulated_ones_on_a_linear_model(
+    recording,
+):
+    """With slope_update = 'broyden' only the first point's slopes are simulated (k + 1
+    sets, then one per step): here 3 + 1 + 1 against 3 + 3 + 3. On the linear reference the
+    slope correction is the same everywhere, so the update leaves it as simulated and both
+    land on the same points. An unknown update, or Broyden's without slopes, is refused."""
+    surrogate = Linear(slope=0.8, offset=-0.3)
+    runs = {
+        update: _three_first_order_steps(recording, surrogate, Linear(), update)
+        for update in ("simulated", "broyden")
+    }
+    assert {u: sets for u, (_, sets) in runs.items()} == {"simulated": 9, "broyden": 5}
+    np.testing.assert_allclose(
+        [c.estimate_si for c in runs["simulated"][0].corrections],
+        [c.estimate_si for c in runs["broyden"][0].corrections],
+        rtol=1e-9,
+    )
+    res = _nsga(surrogate, recording)
+    needle = "slope_update 'broyden' updates the slopes of first-order corrections; slopes = F"
+    with pytest.raises(RailsuspInputError, match=needle):
+        correct_by_simulator(res, [recording], surrogate, 1, slope_update="broyden")
+    with pytest.raises(RailsuspInputError, match="slope_update 'newton': accepted"):
+        correct_by_simulator(res, [recording], surrogate, 1, slopes=True, slope_update="newton")
+
+
+def test_broyden_after_a_rejection_takes_the_rejected_points_secant(recording):
+    """With Broyden's update a rejected point's simulation is not thrown away: the slopes
+    at the start take the secant to it, so on the kinked reference (linear on either side
+    of the truth) the corrected surrogate's next point is where that secant crosses the
+    measurement, at predicted cost 0, where the simulated slopes (kept after a rejection)
+    predict a cost well above it. The simulator runs 3 + 1 + 1 sets against 3 + 1 + 3."""
+    surrogate = Linear(offset=-0.1)
+    second, counts = {}, {}
+    for update in ("simulated", "broyden"):
+        res, counts[update] = _three_first_order_steps(recording, surrogate, Kinked(), update)
+        assert res.correction_checks[0].accepted is False
+        second[update] = res.correction_checks[1]
+    assert second["broyden"].cost_predicted < 1e-12 * second["broyden"].cost_start
+    assert second["simulated"].cost_predicted > 0.5 * second["simulated"].cost_start
+    assert counts == {"simulated": 7, "broyden": 5}
+
+
+def test_the_check_keeps_a_converged_point_and_the_box_never_shrinks_below_its_floor():
+    """StepCheck's rules: falls of the cost within rounding of it are convergence (kept,
+    box unchanged); with no predicted fall a point is kept if the cost did not rise (no
+    ratio); a kept point with a poor ratio still shrinks the box; no box goes below BOX_MIN
+    or above BOX_MAX."""
+    from railsusp.estimate.trust_region import BOX_MAX, BOX_MIN, StepCheck
+
+    flat = StepCheck(box=0.15, cost_start=4.0, cost_predicted=4.0 - 1e-12, extent=1e-7)
+    flat.judge(4.0 + 1e-12)
+    assert flat.accepted is True and flat.ratio is None and flat.next_box() == 0.15
+    uphill = StepCheck(box=0.15, cost_start=4.0, cost_predicted=4.1, extent=0.1)
+    uphill.judge(3.9)
+    assert uphill.accepted is True and uphill.ratio is None and uphill.next_box() == 0.15
+    uphill.judge(4.2)
+    assert uphill.accepted is False and uphill.next_box() == pytest.approx(0.025)
+    poor = StepCheck(box=0.15, cost_start=4.0, cost_predicted=3.0, extent=0.15)
+    poor.judge(3.8)  # a fifth of the predicted fall: kept, box shrunk
+    assert poor.accepted is True and poor.ratio == pytest.approx(0.2)
+    assert poor.next_box() == pytest.approx(0.0375)
+    tiny = StepCheck(box=0.15, cost_start=4.0, cost_predicted=3.0, extent=1e-6)
+    tiny.judge(4.5)
+    assert tiny.accepted is False and tiny.next_box() == BOX_MIN
+    good = StepCheck(box=BOX_MAX, cost_start=4.0, cost_predicted=3.0, extent=BOX_MAX)
+    good.judge(3.0)
+    assert good.ratio == pytest.approx(1.0) and good.next_box() == BOX_MAX
+    assert good.to_dict()["accepted"] is True
+
+
+def test_a_derailing_stepped_set_at_a_kept_point_stops_the_corrections_there(recording):
+    """If a slope's stepped set derails at a point the check kept (here b in 1.38-1.42: the
+    point 1.35 is kept, its step to 1.40 derails), no corrected surrogate can be made
+    there: the corrections stop with the reason, and the kept point is the estimate."""
+
+    class DerailsInBand(Linear):
+        def series(self, x_si, condition):
+            out = super().series(x_si, condition)
+            b = x_si[:, 1] / 10e6
+            out[(b > 1.38) & (b < 1.42)] = np.nan
+            return out
+
+    surrogate = Linear(slope=0.8, offset=-0.3)
+    res = _nsga(surrogate, recording)
+    correct_by_simulator(res, [recording], surrogate, 3, simulator=DerailsInBand(), slopes=True)
+    assert "the estimate's slopes stopped in straight" in res.corrections_stopped
+    assert len(res.corrections) == 1 and res.correction_checks[0].accepted is True
+    assert res.chosen_x[1] / 10e6 == pytest.approx(res.nsga_x[1] / 10e6 - 0.15, abs=1e-6)

@@ -82,3 +82,19 @@ def test_its_refusals_name_the_setting_as_the_caller_spells_it_before_nsga_ii(re
             Counted(), [recording], PARAMS
         )
     assert Counted.calls == 0
+
+
+def test_the_route_passes_first_order_settings_to_the_corrections(recording):  # noqa: F811
+    """correction_slopes and slope_update reach the corrections: the route's estimate is
+    the one made by hand with them, and the result records the update."""
+    surrogate, reference = Linear(slope=0.8, offset=-0.3), Linear()
+    route = _route(simulator_corrections=2, correction_slopes=True, slope_update="broyden")
+    res = route.run(surrogate, [recording], PARAMS, simulator=reference)
+    by_hand = estimate_with_seeds(surrogate, [recording], PARAMS, route.nsga, n_seeds=1)
+    correct_by_simulator(
+        by_hand, [recording], surrogate, 2, simulator=reference, slopes=True,
+        slope_update="broyden",
+    )  # fmt: skip
+    np.testing.assert_array_equal(res.chosen_x, by_hand.chosen_x)
+    assert res.correction_slopes and res.correction_slope_update == "broyden"
+    assert len(res.correction_checks) == 2

@@ -188,6 +188,14 @@ def estimate(
             "squares within a trust region about the estimate"
         ),
     ] = False,
+    slope_update: Annotated[
+        str,
+        typer.Option(
+            help="with --correction-slopes: the slopes at each later point simulated again "
+            "('simulated') or carried by Broyden's update from the level's change ('broyden', "
+            "no simulation)"
+        ),
+    ] = "simulated",
     expected_generations: Annotated[
         bool,
         typer.Option(
@@ -263,6 +271,7 @@ def estimate(
         REFINE_RANGES,
         SEEDS_RANGE,
         check_range,
+        check_slope_update,
     )
     from railsusp.estimate.route import EstimateRoute
     from railsusp.measured import read_field
@@ -293,6 +302,9 @@ def estimate(
                 "--simulator-corrections 0 asks for none: give --simulator-corrections 1 to "
                 f"{CORRECTIONS_RANGE[1]}"
             )
+        check_slope_update(
+            slope_update, correction_slopes, "--slope-update", "no --correction-slopes"
+        )
         if (surrogate is None) == (not simulator):
             raise RailsuspInputError("give --surrogate FOLDER or --simulator (one of them)")
         check_output_folder(out)  # an existing file or an unwritable folder, before any work
@@ -316,6 +328,7 @@ def estimate(
             remove_geometry_bias=remove_geometry_bias,
             simulator_corrections=simulator_corrections,
             correction_slopes=correction_slopes,
+            slope_update=slope_update,
             refine=refine,
             refine_evaluations=refine_evaluations,
             refine_screen=refine_screen,

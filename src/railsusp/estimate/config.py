@@ -33,12 +33,21 @@ CORRECTIONS_RANGE: tuple[int, int] = (0, 5)
 #: slopes at the estimate (inwards at the upper bound): the refinement's finite-difference
 #: step (:data:`~railsusp.estimate.output_error.REFINE_STEP`, the same 5 %)
 SLOPE_STEP = 0.05
-#: how far, as a fraction of each range, a first-order correction's least squares may move
-#: each key from the point where the slopes were taken: three times their step (on the
+#: how far, as a fraction of each range, a first-order correction's first least squares may
+#: move each key from the point where the slopes were taken (the trust box's start; it then
+#: shrinks or grows by the simulator's check, :mod:`railsusp.estimate.trust_region`): three
+#: times their step (on the
 #: pretrained example three steps took X19 from its bound to +4.8 % of range, X13 and X14
 #: within 2.3 %; one step without the box sent X19 from one bound to near the other in one
 #: of issue 19's sets, bench/README.md)
 TRUST_BOX = 0.15
+#: how a first-order correction gets the slopes at each later point it moves to: simulated
+#: again (k more simulations per recording and drawn track), or Broyden's update from the
+#: level corrections' change along the step (no simulation;
+#: :func:`~railsusp.estimate.level_correction.broyden_slopes`); the first point's are always
+#: simulated
+SIMULATED, BROYDEN = "simulated", "broyden"
+SLOPE_UPDATES: tuple[str, ...] = (SIMULATED, BROYDEN)
 
 #: accepted range of each setting of the refinement (:func:`~railsusp.estimate.refine_estimate`)
 REFINE_RANGES: dict[str, tuple[int, int]] = {
@@ -103,6 +112,21 @@ def check_range(name: str, value: float, low: float, high: float) -> None:
     if isinstance(value, bool) or not low <= value <= high:
         raise RailsuspInputError(
             f"{name} {_number(value)}: accepted {_number(low)} to {_number(high)}"
+        )
+
+
+def check_slope_update(update: str, slopes: bool, setting: str, slopes_setting: str) -> None:
+    """Refuse, in one line naming the settings as the caller spells them (``setting``; the
+    first-order switch ``slopes_setting``), a slope update not in :data:`SLOPE_UPDATES`, or
+    Broyden's where no first-order corrections are asked for (it would change nothing)."""
+    if update not in SLOPE_UPDATES:
+        raise RailsuspInputError(
+            f"{setting} {update!r}: accepted {', '.join(map(repr, SLOPE_UPDATES))}"
+        )
+    if update != SIMULATED and not slopes:
+        raise RailsuspInputError(
+            f"{setting} {update!r} updates the slopes of first-order corrections; "
+            f"{slopes_setting} asks for none: accepted {SIMULATED!r} without them"
         )
 
 

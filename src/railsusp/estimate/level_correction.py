@@ -24,9 +24,14 @@ way. Each correction then also simulates the estimate stepped by
 surrogate has the simulator's value *and* slopes at x (first-order consistency, the
 condition under which a corrected surrogate's optimisation converges to the simulator's
 optimum: Alexandrov, Dennis, Lewis & Torczon, Structural Optimization 15, 1998), and its
-least squares is kept within :data:`~railsusp.estimate.config.TRUST_BOX` of each range about
-x, where the correction is trusted; repeated, the steps move toward the simulator's own least-
-squares point. k + 1 simulations per recording (and drawn track) per step instead of one.
+least squares is kept within a trust box about x, :data:`~railsusp.estimate.config.TRUST_BOX`
+of each range at first, where the correction is trusted; repeated, the steps move toward the
+simulator's own least-squares point. k + 1 simulations per recording (and drawn track) per
+step instead of one. The next step's simulation of the point a step proposed also checks it
+(:mod:`railsusp.estimate.trust_region`): a point where the simulator's cost did not fall as
+the corrected surrogate predicted (or whose simulation stopped) is rejected, and the least
+squares is repeated from the step's start in a smaller box, without simulating its slopes;
+after a confirmed step on its edge the box grows.
 
 The simulator holds the other main-suspension parameters at nominal, as the refinement does;
 the networks average their effect over the ranges they were trained on.
@@ -41,7 +46,15 @@ import numpy as np
 
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate.config import CORRECTIONS_RANGE, SLOPE_STEP, TRUST_BOX, check_range
+from railsusp.estimate.config import (
+    BROYDEN,
+    CORRECTIONS_RANGE,
+    SIMULATED,
+    SLOPE_STEP,
+    TRUST_BOX,
+    check_range,
+    check_slope_update,
+)
 from railsusp.estimate.expected_forces import ExpectedForces, averaged_model
 from railsusp.estimate.forces import ForceModel, SimulatorForces, series_in_conditions
 from railsusp.estimate.geometry_bias import stated_accuracy
@@ -50,6 +63,7 @@ from railsusp.estimate.problem import check_aligned
 from railsusp.estimate.refine import Refinement
 from railsusp.estimate.result import CalibrationResult
 from railsusp.estimate.statistics import ALIGNED, parse_statistics
+from railsusp.estimate.trust_region import StepCheck, profiled_cost, step_extent
 from railsusp.measured import Recording, SimulationFailedError
 from railsusp.params import bounds
 
@@ -200,6 +214,45 @@ def slope_corrections(
     }
 
 
+def broyden_slopes(
+    slopes: Slopes,
+    level_before: dict[str, np.ndarray],
+    level_after: dict[str, np.ndarray],
+    step_si: np.ndarray,
+    span_si: np.ndarray,
+) -> Slopes:
+    """The slope corrections after a step ``step_si`` (SI) without simulating the slopes
+    again: Broyden's update (Broyden, Math. Comp. 19, 1965; in space mapping Bakr, Bandler,
+    Madsen et al., IEEE Trans. MTT 46(12), 1998), the least change of ``slopes`` (in each
+    key's range as its unit, ``span_si``) that makes them carry the level correction's
+    change along the step, sum_j G'_j s_j = d_after - d_before, per condition and sample.
+    Along other directions the slopes stay as they were."""
+    u = np.asarray(step_si, dtype=float) / span_si
+    uu = float(u @ u)
+    if uu == 0.0:
+        return slopes
+    out: Slopes = {j: {} for j in slopes}
+    for key, after in level_after.items():
+        carried = sum(slopes[j][key] * step_si[j] for j in slopes)
+        miss = after - level_before[key] - carried
+        for j in slopes:
+            out[j][key] = slopes[j][key] + miss * (u[j] / (uu * span_si[j]))
+    return out
+
+
+def _broyden_at(
+    corrected: LevelCorrected | None,
+    level: dict[str, np.ndarray],
+    x_si: np.ndarray,
+    start_si: np.ndarray,
+    span_si: np.ndarray,
+) -> Slopes:
+    """:func:`broyden_slopes` of the corrected surrogate made at ``start_si`` after the step
+    to ``x_si``, where the level correction ``level`` was simulated."""
+    assert corrected is not None
+    return broyden_slopes(corrected.slopes, corrected.corrections, level, x_si - start_si, span_si)
+
+
 def correct_by_simulator(
     result: CalibrationResult,
     recordings: Sequence[Recording],
@@ -208,6 +261,7 @@ def correct_by_simulator(
     max_evaluations: int = POLISH_EVALUATIONS,
     simulator: ForceModel | None = None,
     slopes: bool = False,
+    slope_update: str = SIMULATED,
 ) -> CalibrationResult:
     """Correct NSGA-II's estimate in place by ``steps`` simulator corrections: at the
     estimate x (NSGA-II's, after its geometry step: the expected-forces polish or the
@@ -228,8 +282,11 @@ def correct_by_simulator(
     recording (and drawn track) per step, in one batched call. ``simulator``: the reference
     model (default the simulator on the estimated parameters, the others at nominal).
     ``slopes``: first-order corrections (the module's docstring): the simulator's slopes
-    too, k more simulations per step, each least squares within
-    :data:`~railsusp.estimate.config.TRUST_BOX`.
+    too, k more simulations per step, each least squares within a trust box
+    (:data:`~railsusp.estimate.config.TRUST_BOX` at first), each proposed point checked by
+    the next step's simulation of it (``result.correction_checks``,
+    :mod:`railsusp.estimate.trust_region`): a rejected point is not a start, and a point
+    whose simulation stopped is rejected rather than ending the corrections.
 
     On issue 19's 12 sets (shipped networks, 60 s per condition, 0.5 mm geometry, 8 drawn
     tracks) one step took the identifiable key parameters within 5 % of range from 30 to
@@ -237,43 +294,83 @@ def correct_by_simulator(
     estimate, and on exactly known track from 41 to 47 of 50 for 1.6-3.2 s (bench/README.md,
     "The networks' level error from one simulation")."""
     check_range("simulator_corrections", steps, *CORRECTIONS_RANGE)
+    check_slope_update(slope_update, slopes, "slope_update", "slopes = False")
     if not steps:
         return result
     cfg = result.config
     check_correctable(recordings, cfg.statistic, "simulator_corrections", model)
     params = result.parameters
     drawn = cfg.expected_draws if stated_accuracy(recordings) else 0
-    x = result.nsga_x
+    x = result.nsga_x  # the point simulated next
+    span = np.diff(bounds(params), axis=0)[0]
     done: list[Refinement] = []
+    checks: list[StepCheck] = []
+    box = TRUST_BOX
     with ExitStack() as stack:
         surrogate = model
         simulator = SimulatorForces(params) if simulator is None else simulator
         if drawn:  # both as the mean over the same drawn true tracks
             surrogate = stack.enter_context(ExpectedForces(model, drawn, seed=cfg.seed))
             simulator = stack.enter_context(ExpectedForces(simulator, drawn, seed=cfg.seed))
+
+        def cost(m: ForceModel, at: np.ndarray) -> float:
+            return profiled_cost(m, recordings, params, at, cfg.channel_gains)
+
+        base, corrected, base_cost = x, None, 0.0
         for _ in range(steps):
+            # the point the previous first-order step proposed, checked by this simulation
+            checked = checks[-1] if slopes and checks else None
+            d: dict[str, np.ndarray] | None = None
             try:
                 d = level_corrections(surrogate, simulator, recordings, x)
-                g = slope_corrections(surrogate, simulator, recordings, x, d) if slopes else None
             except SimulationFailedError as exc:
-                result.corrections_stopped = str(exc)
-                break
+                if checked is None:  # nothing to fall back on: stop here
+                    result.corrections_stopped = str(exc)
+                    break
+                checked.reject_stopped(str(exc))  # a proposed point that derailed
+            if checked is not None:
+                if d is not None:
+                    checked.judge(cost(LevelCorrected(surrogate, d), x))
+                box = checked.next_box()
+            if checked is None or checked.accepted:  # x becomes the start, made exact there
+                assert d is not None
+                try:
+                    if checked is not None and slope_update == BROYDEN:
+                        g = _broyden_at(corrected, d, x, base, span)
+                    elif slopes:
+                        g = slope_corrections(surrogate, simulator, recordings, x, d)
+                    else:
+                        g = None
+                except SimulationFailedError as exc:  # a stepped set derailed: stop here
+                    result.corrections_stopped = str(exc)
+                    break
+                base, corrected = x, LevelCorrected(surrogate, d, g, x)
+                base_cost = cost(corrected, x) if slopes else 0.0
+            elif d is not None and slope_update == BROYDEN:  # the rejected point's secant
+                assert corrected is not None
+                g = _broyden_at(corrected, d, x, base, span)
+                corrected = LevelCorrected(surrogate, corrected.corrections, g, base)
             step = local_least_squares(
-                LevelCorrected(surrogate, d, g, x),
+                corrected,
                 recordings,
                 result,
-                x,
+                base,
                 drawn,
                 max_evaluations,
-                box=TRUST_BOX if slopes else None,
+                box=box if slopes else None,
             )
             if result.geometry_bias_removed:  # its least squares is biased as NSGA-II's was
                 step.geometry_shifts_si = result.geometry_shifts_si
                 step.geometry_bias_removed = True
             done.append(step)
             x = step.estimate_si
+            if slopes:
+                extent = step_extent(params, step.start_si, step.x_si)  # the move in the box
+                checks.append(StepCheck(box, base_cost, cost(corrected, x), extent))
     result.corrections = done
+    result.correction_checks = checks
     result.correction_slopes = slopes and bool(done)
+    result.correction_slope_update = slope_update
     if cfg.channel_gains and done:
         result.channel_gains = dict(done[-1].channel_gains)
     return result

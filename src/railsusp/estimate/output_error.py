@@ -20,6 +20,7 @@ import numpy as np
 
 from railsusp.conditions import WorkingCondition
 from railsusp.estimate.comparison import (
+    GAIN_LIMIT,
     compared_measurement,
     comparison_filter,
     comparison_samples,
@@ -141,6 +142,22 @@ class OutputError:
             [b * gc - t for b, gc, t in zip(self.blocks(preds), g, self.targets, strict=True)],
             axis=1,
         )
+
+    def profiled_cost(self, unit: np.ndarray) -> float:
+        """The cost at the unit point ``unit`` (k,) with each channel's gain at its best
+        (within ±:data:`~railsusp.estimate.comparison.GAIN_LIMIT`; 1 without gains): what the
+        least squares minimises, as a function of the parameters alone. A channel's residual
+        is linear in its gain, so its best gain is the closed-form g = <b, t> / <b, b>,
+        clipped (the cost is convex in each gain apart)."""
+        total = 0.0
+        for b, t in zip(self.blocks(self.predictions(unit)), self.targets, strict=True):
+            b = b[0]
+            g, bb = 1.0, float(b @ b)
+            if self.gains and bb > 0.0:
+                g = float(np.clip((b @ t) / bb, 1.0 - GAIN_LIMIT, 1.0 + GAIN_LIMIT))
+            r = g * b - t
+            total += 0.5 * float(r @ r)
+        return total
 
     def steps(self, unit: np.ndarray) -> np.ndarray:
         """(k + 1, k) the point and its forward-difference neighbours, stepping inwards at

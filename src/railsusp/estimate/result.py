@@ -18,8 +18,10 @@ import numpy as np
 import pandas as pd
 
 from railsusp.estimate.config import (
+    BROYDEN,
     CHOICE_RULES,
     IDEAL_POINT,
+    SIMULATED,
     SLOPE_STEP,
     TRUST_BOX,
     HeldPrior,
@@ -31,6 +33,7 @@ from railsusp.estimate.problem import display_values
 from railsusp.estimate.refine import Refinement
 from railsusp.estimate.refine_intervals import refinement_intervals
 from railsusp.estimate.statistics import ALIGNED, parse_statistics
+from railsusp.estimate.trust_region import StepCheck
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import atomic_write_bytes, write_json, write_parquet
 
@@ -83,6 +86,13 @@ class CalibrationResult:
     #: whether each correction matched the simulator's slopes too (first order, in a trust
     #: region; :func:`~railsusp.estimate.level_correction.correct_by_simulator`)
     correction_slopes: bool = False
+    #: the simulator's check of the point each first-order correction proposed (kept or
+    #: rejected, and the trust box; :mod:`~railsusp.estimate.trust_region`), one per step of
+    #: :attr:`corrections`; empty for zeroth-order corrections
+    correction_checks: list[StepCheck] = field(default_factory=list)
+    #: how the first-order corrections got the slopes at each later point: simulated again,
+    #: or Broyden's update (:data:`~railsusp.estimate.config.SLOPE_UPDATES`)
+    correction_slope_update: str = SIMULATED
     #: each recording's channel gain at the estimate (NSGA-II's choice, or the last of the
     #: expected-forces polish and the simulator corrections, which estimate them again), by
     #: "<condition>:<Y|Q>_<wheel>",
@@ -182,6 +192,14 @@ class CalibrationResult:
                     "surrogate's, its least squares repeated within a trust region: output "
                     "space mapping)"
                 )
+                if self.correction_slope_update == BROYDEN:
+                    text += ", the slopes after the first point by Broyden's update"
+                rejected = sum(c.accepted is False for c in self.correction_checks)
+                if rejected:
+                    text += (
+                        f", {rejected} proposed point{'s' if rejected > 1 else ''} rejected "
+                        "by the simulator's check (its cost there, or a stopped simulation)"
+                    )
             else:
                 text += (
                     f", then corrected for the surrogate's level error by {n} simulation"
@@ -342,10 +360,16 @@ class CalibrationResult:
                 },
                 "channel_gains": self.channel_gains,
                 "expected_polish": self._expected_polish_record(),
-                "simulator_corrections": [self._correction_record(c) for c in self.corrections],
+                "simulator_corrections": [
+                    self._correction_record(i, c) for i, c in enumerate(self.corrections)
+                ],
                 "simulator_corrections_stopped": self.corrections_stopped,
                 "correction_slopes": (
-                    {"step_of_range": SLOPE_STEP, "trust_box_of_range": TRUST_BOX}
+                    {
+                        "step_of_range": SLOPE_STEP,
+                        "trust_box_of_range": TRUST_BOX,
+                        "slope_update": self.correction_slope_update,
+                    }
                     if self.correction_slopes
                     else None
                 ),
@@ -382,13 +406,21 @@ class CalibrationResult:
             "channel_gains": pol.channel_gains,
         }
 
-    def _correction_record(self, step: Refinement) -> dict:
-        """estimate.json's account of one simulator correction step."""
+    def _correction_record(self, i: int, step: Refinement) -> dict:
+        """estimate.json's account of simulator correction step ``i``: with slopes, its
+        trust box and the simulator's check of the point it proposed (``check``: its
+        costs, ratio, whether kept; None without slopes)."""
+        check = self.correction_checks[i] if i < len(self.correction_checks) else None
         return {
             "method": (
                 "the surrogate plus its level error and its slopes' error at the start "
-                "(simulator minus surrogate there, per recording), its time-aligned least "
-                "squares from there within a trust region"
+                "(simulator minus surrogate there, per recording; "
+                + (
+                    "the slopes simulated at the first start, carried by Broyden's update after"
+                    if self.correction_slope_update == BROYDEN
+                    else "the slopes simulated at each start"
+                )
+                + "), its time-aligned least squares from there within a trust region"
                 if self.correction_slopes
                 else "the surrogate plus its level error at the start (simulator minus "
                 "surrogate there, per recording), its time-aligned least squares from there"
@@ -404,6 +436,7 @@ class CalibrationResult:
             "n_jacobians": step.n_jacobians,
             "message": step.message,
             "channel_gains": step.channel_gains,
+            "check": None if check is None else check.to_dict(),
         }
 
     def estimate_set(self, base: ParameterSet | None = None) -> ParameterSet:

@@ -20,7 +20,7 @@ from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
 
-from railsusp.estimate.config import HeldPrior, NSGAConfig
+from railsusp.estimate.config import SIMULATED, HeldPrior, NSGAConfig
 from railsusp.estimate.forces import ForceModel
 from railsusp.estimate.level_correction import check_correctable, correct_by_simulator
 from railsusp.estimate.nsga import estimate_with_seeds
@@ -59,6 +59,7 @@ class EstimateRoute:
     refine_starts: int
     held_prior: HeldPrior | None = None
     correction_slopes: bool = False
+    slope_update: str = SIMULATED
     refine_setting: str = "refine"
     corrections_setting: str = "simulator_corrections"
 
@@ -114,6 +115,7 @@ class EstimateRoute:
                     self.simulator_corrections,
                     simulator=simulator,
                     slopes=self.correction_slopes,
+                    slope_update=self.slope_update,
                 )
         if self.refine:
             with progress("refining on the measured track (simulator, output error)"):
