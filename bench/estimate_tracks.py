@@ -590,6 +590,8 @@ def main(argv: Sequence[str] | None = None) -> dict:
         )
     if args.correction_slopes and not args.simulator_corrections:
         ap.error("--correction-slopes: only with --simulator-corrections 1 or more")
+    if args.slope_update != SIMULATED and not args.correction_slopes:
+        ap.error(f"--slope-update {args.slope_update}: only with --correction-slopes")
     if args.expected_generations and not args.expected_draws:
         ap.error("--expected-generations needs --expected-draws 1 or more")
     torch.set_num_threads(args.threads)

@@ -155,9 +155,10 @@ def estimate_section(doc: Doc, est: Path) -> None:
                     f"the first from {len(info['parameters']) + 1} simulations of the estimate "
                     "and its steps in every key per recording, the later ones from one each "
                     "(the slopes carried by Broyden's update)"
-                    if slopes and slopes.get("slope_update") == "broyden"
-                    else f"each from {len(info['parameters']) + 1} simulations of the estimate "
-                    "and its steps in every key per recording"
+                    if slopes and slopes.get("slope_update") == "broyden" and n > 1
+                    else f"each kept point from {len(info['parameters']) + 1} simulations of "
+                    "the estimate and its steps in every key per recording (a rejected one "
+                    "from one)"
                 )
                 if slopes
                 else f"The surrogate's level error at NSGA-II's estimate was then measured by "
@@ -192,7 +193,11 @@ def estimate_section(doc: Doc, est: Path) -> None:
             "corrected surrogate predicted, or did not rise where none was predicted), "
             f"{len(checked) - kept} rejected"
             + (f", {stopped} of them because the simulation stopped" if stopped else "")
-            + " (the next least squares then started from the same point in a smaller box)"
+            + (
+                " (the next least squares then started from the same point in a smaller box)"
+                if kept < len(checked)
+                else ""
+            )
             + ("; the last step's point is unchecked" if checks[-1]["accepted"] is None else "")
             + f". Trust boxes, % of each range: {boxes}."
         )

@@ -98,3 +98,12 @@ def test_the_route_passes_first_order_settings_to_the_corrections(recording):  #
     np.testing.assert_array_equal(res.chosen_x, by_hand.chosen_x)
     assert res.correction_slopes and res.correction_slope_update == "broyden"
     assert len(res.correction_checks) == 2
+
+
+def test_broyden_without_first_order_corrections_is_refused_before_nsga_ii(recording):  # noqa: F811
+    """The route refuses slope_update = 'broyden' without correction_slopes before NSGA-II
+    runs (the model is never called)."""
+    Counted.calls = 0
+    with pytest.raises(RailsuspInputError, match="slope_update 'broyden' updates the slopes"):
+        _route(slope_update="broyden").run(Counted(), [recording], PARAMS, simulator=Linear())
+    assert Counted.calls == 0

@@ -34,12 +34,10 @@ CORRECTIONS_RANGE: tuple[int, int] = (0, 5)
 #: step (:data:`~railsusp.estimate.output_error.REFINE_STEP`, the same 5 %)
 SLOPE_STEP = 0.05
 #: how far, as a fraction of each range, a first-order correction's first least squares may
-#: move each key from the point where the slopes were taken (the trust box's start; it then
-#: shrinks or grows by the simulator's check, :mod:`railsusp.estimate.trust_region`): three
-#: times their step (on the
-#: pretrained example three steps took X19 from its bound to +4.8 % of range, X13 and X14
-#: within 2.3 %; one step without the box sent X19 from one bound to near the other in one
-#: of issue 19's sets, bench/README.md)
+#: move each key from the point where the slopes were taken: three times their step. The box
+#: then shrinks or grows by the simulator's check of each step
+#: (:mod:`railsusp.estimate.trust_region`). One step without a box sent X19 from one bound
+#: to near the other in one of issue 19's sets (bench/README.md, "First-order corrections")
 TRUST_BOX = 0.15
 #: how a first-order correction gets the slopes at each later point it moves to: simulated
 #: again (k more simulations per recording and drawn track), or Broyden's update from the

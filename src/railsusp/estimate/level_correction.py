@@ -241,7 +241,7 @@ def broyden_slopes(
 
 
 def _broyden_at(
-    corrected: LevelCorrected | None,
+    corrected: LevelCorrected,
     level: dict[str, np.ndarray],
     x_si: np.ndarray,
     start_si: np.ndarray,
@@ -249,7 +249,6 @@ def _broyden_at(
 ) -> Slopes:
     """:func:`broyden_slopes` of the corrected surrogate made at ``start_si`` after the step
     to ``x_si``, where the level correction ``level`` was simulated."""
-    assert corrected is not None
     return broyden_slopes(corrected.slopes, corrected.corrections, level, x_si - start_si, span_si)
 
 
@@ -268,7 +267,8 @@ def correct_by_simulator(
     first SIMEX step), the level error d = simulator(x) - model(x) on each recording's
     track, then the bounded time-aligned least squares of model + d from x
     (:func:`~railsusp.estimate.refine.refine`, channel gains alongside where NSGA-II
-    profiled them), whose point is the next x; where NSGA-II's estimate had the geometry
+    profiled them), whose point is the next x (with slopes: unless the check rejects it,
+    below); where NSGA-II's estimate had the geometry
     error's bias taken off (the first SIMEX step: the least squares on the measured geometry
     lands on the biased point again), the same bias comes off each corrected point
     (measured only with expected forces, bench/README.md). If a simulation of x stops
@@ -286,7 +286,11 @@ def correct_by_simulator(
     (:data:`~railsusp.estimate.config.TRUST_BOX` at first), each proposed point checked by
     the next step's simulation of it (``result.correction_checks``,
     :mod:`railsusp.estimate.trust_region`): a rejected point is not a start, and a point
-    whose simulation stopped is rejected rather than ending the corrections.
+    whose simulation stopped is rejected rather than ending the corrections (a stepped set
+    of the slopes that stops still ends them, at the last kept point). ``slope_update``:
+    the slopes at each later kept point simulated again (``"simulated"``) or carried by
+    Broyden's update (``"broyden"``, :func:`broyden_slopes`, also at rejected points);
+    refused without ``slopes``.
 
     On issue 19's 12 sets (shipped networks, 60 s per condition, 0.5 mm geometry, 8 drawn
     tracks) one step took the identifiable key parameters within 5 % of range from 30 to
@@ -334,13 +338,13 @@ def correct_by_simulator(
                 box = checked.next_box()
             if checked is None or checked.accepted:  # x becomes the start, made exact there
                 assert d is not None
+                g: Slopes | None = None
                 try:
                     if checked is not None and slope_update == BROYDEN:
+                        assert corrected is not None
                         g = _broyden_at(corrected, d, x, base, span)
                     elif slopes:
                         g = slope_corrections(surrogate, simulator, recordings, x, d)
-                    else:
-                        g = None
                 except SimulationFailedError as exc:  # a stepped set derailed: stop here
                     result.corrections_stopped = str(exc)
                     break
@@ -350,6 +354,7 @@ def correct_by_simulator(
                 assert corrected is not None
                 g = _broyden_at(corrected, d, x, base, span)
                 corrected = LevelCorrected(surrogate, corrected.corrections, g, base)
+            assert corrected is not None
             step = local_least_squares(
                 corrected,
                 recordings,
@@ -370,7 +375,7 @@ def correct_by_simulator(
     result.corrections = done
     result.correction_checks = checks
     result.correction_slopes = slopes and bool(done)
-    result.correction_slope_update = slope_update
+    result.correction_slope_update = slope_update if result.correction_slopes else SIMULATED
     if cfg.channel_gains and done:
         result.channel_gains = dict(done[-1].channel_gains)
     return result

@@ -192,7 +192,7 @@ class CalibrationResult:
                     "surrogate's, its least squares repeated within a trust region: output "
                     "space mapping)"
                 )
-                if self.correction_slope_update == BROYDEN:
+                if self.correction_slope_update == BROYDEN and n > 1:
                     text += ", the slopes after the first point by Broyden's update"
                 rejected = sum(c.accepted is False for c in self.correction_checks)
                 if rejected:

@@ -20,7 +20,7 @@ from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
 
-from railsusp.estimate.config import SIMULATED, HeldPrior, NSGAConfig
+from railsusp.estimate.config import SIMULATED, HeldPrior, NSGAConfig, check_slope_update
 from railsusp.estimate.forces import ForceModel
 from railsusp.estimate.level_correction import check_correctable, correct_by_simulator
 from railsusp.estimate.nsga import estimate_with_seeds
@@ -71,6 +71,9 @@ class EstimateRoute:
             check_refinable(recordings, self.refine_setting)
         if self.simulator_corrections:
             check_correctable(recordings, self.nsga.statistic, self.corrections_setting, model)
+        check_slope_update(
+            self.slope_update, self.correction_slopes, "slope_update", "correction_slopes off"
+        )
 
     def run(
         self,

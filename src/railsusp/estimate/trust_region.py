@@ -12,10 +12,15 @@ Lewis & Torczon, Structural Optimization 15, 1998). The check is the ratio
 
 where f is the simulator's time-aligned cost, m the corrected surrogate's (m(x) = f(x) by
 construction), x the step's start and y the point it proposed. The point is kept when rho
->= :data:`ACCEPT_RATIO`; otherwise the next least squares starts from x again, with the same
-corrected surrogate, in a smaller box, and the proposed point's slopes are not simulated.
-The box shrinks to :data:`SHRINK` of the step's extent (not below :data:`BOX_MIN`) when rho <
-:data:`SHRINK_BELOW`, whether the point is kept or not. It doubles, up to :data:`BOX_MAX`,
+>= :data:`ACCEPT_RATIO`; otherwise the next least squares starts from x again in a smaller
+box, and the proposed point's slopes are not simulated (with Broyden's slopes,
+:func:`~railsusp.estimate.level_correction.broyden_slopes`, the corrected surrogate takes the
+rejected point's secant; otherwise it stays as it was). The box shrinks to :data:`SHRINK` of
+the step's extent (not below :data:`BOX_MIN`) when the point is rejected, for whatever reason,
+or kept with rho < :data:`SHRINK_BELOW`. A rejected step of a few per cent of the range or
+less thus leaves the steps after it within a quarter of it about the last kept point: there
+the simulator's cost is rough on the scale of the falls judged (a few millionths of it,
+bench/README.md), and staying is the corrections' convergence. It doubles, up to :data:`BOX_MAX`,
 when rho > :data:`EXPAND_ABOVE` and the step reached its edge. Costs are profiled over the
 channel gains (:meth:`~railsusp.estimate.output_error.OutputError.profiled_cost`), so that
 the comparison does not depend on where the gains were left.
@@ -54,10 +59,11 @@ EXPAND = 2.0
 BOX_MAX = 2.0 * TRUST_BOX
 #: a step whose extent is at least this share of its box is on the box's edge
 ON_EDGE = 0.99
-#: the smallest box, as a fraction of each range: a fifth of the slopes' step
-#: (:data:`~railsusp.estimate.config.SLOPE_STEP`), a fifth of the 5 % that issue 19 scores;
-#: a box shrunk further would freeze the steps left after a rejection near convergence
-BOX_MIN = 0.01
+#: the smallest box, as a fraction of each range: small enough that a rejected step of less
+#: than a few per cent of the range is not proposed again (the box a quarter of it), so that
+#: the steps left stay near the last kept point, which is what convergence looks like here;
+#: large enough that the least squares' bounds stay apart (scipy refuses equal bounds)
+BOX_MIN = 1e-4
 #: a predicted and an actual fall of the cost both within this share of it are taken as
 #: converged (the point kept, the box as it was): the ratio of two such falls is rounding
 CONVERGED = 1e-9
