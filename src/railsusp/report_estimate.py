@@ -157,8 +157,12 @@ def estimate_section(doc: Doc, est: Path) -> None:
                     "(the slopes carried by Broyden's update)"
                     if slopes and slopes.get("slope_update") == "broyden" and n > 1
                     else f"each kept point from {len(info['parameters']) + 1} simulations of "
-                    "the estimate and its steps in every key per recording (a rejected one "
-                    "from one)"
+                    "the estimate and its steps in every key per recording"
+                    + (
+                        " (a rejected one from one)"
+                        if any((c.get("check") or {}).get("accepted") is False for c in corrections)
+                        else ""
+                    )
                 )
                 if slopes
                 else f"The surrogate's level error at NSGA-II's estimate was then measured by "

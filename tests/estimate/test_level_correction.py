@@ -285,6 +285,7 @@ def test_a_step_that_raises_the_simulators_cost_is_rejected_and_the_next_starts_
     estimate_section(doc, tmp_path)
     text = "\n".join(doc.md)
     assert "1 of 2 kept" in text and "Trust boxes, % of each range: 15, 3.75, 7.5" in text
+    assert "(a rejected one from one)" in text
 
 
 def test_a_proposed_point_that_derails_is_rejected_and_the_corrections_go_on(recording):
