@@ -142,69 +142,7 @@ def estimate_section(doc: Doc, est: Path) -> None:
             f"{polish['cost_start']:.3g} -> {polish['cost']:.3g} in {polish['n_evaluations']} "
             "evaluations. That is NSGA-II's estimate, and its Pareto range moved with it."
         )
-    corrections = info.get("simulator_corrections") or []
-    if corrections:
-        n, last = len(corrections), corrections[-1]
-        drawn = last.get("expected_draws")
-        slopes = info.get("correction_slopes")
-        doc.p(
-            (
-                f"The surrogate's error at NSGA-II's estimate was then corrected {n} time"
-                f"{'s' if n > 1 else ''} to first order, "
-                + (
-                    f"the first from {len(info['parameters']) + 1} simulations of the estimate "
-                    "and its steps in every key per recording, the later ones from one each "
-                    "(the slopes carried by Broyden's update)"
-                    if slopes and slopes.get("slope_update") == "broyden" and n > 1
-                    else f"each kept point from {len(info['parameters']) + 1} simulations of "
-                    "the estimate and its steps in every key per recording"
-                    + (
-                        " (a rejected one from one)"
-                        if any((c.get("check") or {}).get("accepted") is False for c in corrections)
-                        else ""
-                    )
-                )
-                if slopes
-                else f"The surrogate's level error at NSGA-II's estimate was then measured by "
-                f"{n} simulation{'s' if n > 1 else ''} of it"
-            )
-            + " on the recordings' tracks"
-            + (f" (the mean over the same {drawn} drawn true tracks)" if drawn else "")
-            + ": the simulator's forces less the surrogate's, sample by sample"
-            + (
-                ", and the same for their slopes in every key (the estimate stepped by "
-                f"{100 * slopes['step_of_range']:g} % of each range), added to the surrogate, "
-                "whose time-aligned least squares was repeated within a trust box of "
-                f"{100 * slopes['trust_box_of_range']:g} % of each range at first (output space "
-                "mapping): "
-                if slopes
-                else ", added to the surrogate, whose time-aligned least squares was repeated "
-                "(output space mapping): "
-            )
-            + f"cost {last['cost_start']:.3g} -> {last['cost']:.3g}. The estimate is that point"
-            + (", less the same geometry bias" if last.get("geometry_bias_removed") else "")
-            + "; NSGA-II's own is the column nsga_estimate, and the Pareto range moved with it."
-        )
-    checks = [c["check"] for c in corrections if c.get("check")]
-    checked = [c for c in checks if c["accepted"] is not None]
-    if checked:
-        kept = sum(c["accepted"] for c in checked)
-        boxes = ", ".join(f"{100 * c['box']:.3g}" for c in checks)
-        stopped = sum(bool(c["stopped"]) for c in checked)
-        doc.p(
-            f"The simulator checked the point each step proposed at the next correction: {kept} "
-            f"of {len(checked)} kept (its cost fell by at least a tenth of the fall the "
-            "corrected surrogate predicted, or did not rise where none was predicted), "
-            f"{len(checked) - kept} rejected"
-            + (f", {stopped} of them because the simulation stopped" if stopped else "")
-            + (
-                " (the next least squares then started from the same point in a smaller box)"
-                if kept < len(checked)
-                else ""
-            )
-            + ("; the last step's point is unchecked" if checks[-1]["accepted"] is None else "")
-            + f". Trust boxes, % of each range: {boxes}."
-        )
+    _corrections_paragraphs(doc, info)
     if info.get("simulator_corrections_stopped"):
         doc.p(f"Simulator corrections stopped: {info['simulator_corrections_stopped']}.")
     if info.get("cramer_rao_pct_range"):
@@ -218,3 +156,79 @@ def estimate_section(doc: Doc, est: Path) -> None:
         est / "pareto.png", "Pareto front, and each parameter's Pareto set with the final estimate"
     )
     doc.figure(est / "convergence.png", "Convergence of the estimate towards the final one")
+
+
+def _corrections_paragraphs(doc: Doc, info: dict) -> None:
+    """What the simulator corrections did (estimate.json's ``simulator_corrections``): how
+    many, from how many simulations, and, for first-order ones, the simulator's check of
+    each step and the trust boxes."""
+    corrections = info.get("simulator_corrections") or []
+    if not corrections:
+        return
+    n, last = len(corrections), corrections[-1]
+    drawn = last.get("expected_draws")
+    slopes = info.get("correction_slopes")
+    checks = [c["check"] for c in corrections if c.get("check")]
+    checked = [c for c in checks if c["accepted"] is not None]
+    rejected = sum(c["accepted"] is False for c in checked)
+    per_point = len(info["parameters"]) + 1
+    if not slopes:
+        how = (
+            "The surrogate's level error at NSGA-II's estimate was then measured by "
+            f"{n} simulation{'s' if n > 1 else ''} of it"
+        )
+        added = (
+            ", added to the surrogate, whose time-aligned least squares was repeated "
+            "(output space mapping): "
+        )
+    else:
+        how = (
+            f"The surrogate's error at NSGA-II's estimate was then corrected {n} time"
+            f"{'s' if n > 1 else ''} to first order, "
+        )
+        if slopes.get("slope_update") == "broyden" and n > 1:
+            how += (
+                f"the first from {per_point} simulations of the estimate and its steps in "
+                "every key per recording, the later ones from one each (the slopes carried "
+                "by Broyden's update)"
+            )
+        else:
+            how += (
+                f"each kept point from {per_point} simulations of the estimate and its steps "
+                "in every key per recording" + (" (a rejected one from one)" if rejected else "")
+            )
+        added = (
+            ", and the same for their slopes in every key (the estimate stepped by "
+            f"{100 * slopes['step_of_range']:g} % of each range), added to the surrogate, "
+            "whose time-aligned least squares was repeated within a trust box of "
+            f"{100 * slopes['trust_box_of_range']:g} % of each range at first (output space "
+            "mapping): "
+        )
+    doc.p(
+        how
+        + " on the recordings' tracks"
+        + (f" (the mean over the same {drawn} drawn true tracks)" if drawn else "")
+        + ": the simulator's forces less the surrogate's, sample by sample"
+        + added
+        + f"cost {last['cost_start']:.3g} -> {last['cost']:.3g}. The estimate is that point"
+        + (", less the same geometry bias" if last.get("geometry_bias_removed") else "")
+        + "; NSGA-II's own is the column nsga_estimate, and the Pareto range moved with it."
+    )
+    if not checked:
+        return
+    boxes = ", ".join(f"{100 * c['box']:.3g}" for c in checks)
+    stopped = sum(bool(c["stopped"]) for c in checked)
+    doc.p(
+        "The simulator checked the point each step proposed at the next correction: "
+        f"{len(checked) - rejected} of {len(checked)} kept (its cost fell by at least a tenth "
+        "of the fall the corrected surrogate predicted, or did not rise where none was "
+        f"predicted), {rejected} rejected"
+        + (f", {stopped} of them because the simulation stopped" if stopped else "")
+        + (
+            " (the next least squares then started from the same point in a smaller box)"
+            if rejected
+            else ""
+        )
+        + ("; the last step's point is unchecked" if checks[-1]["accepted"] is None else "")
+        + f". Trust boxes, % of each range: {boxes}."
+    )

@@ -349,7 +349,11 @@ def correct_by_simulator(
                     result.corrections_stopped = str(exc)
                     break
                 base, corrected = x, LevelCorrected(surrogate, d, g, x)
-                base_cost = cost(corrected, x) if slopes else 0.0
+                if checked is not None:  # judged just now, at x, where g adds nothing
+                    assert checked.cost_simulated is not None
+                    base_cost = checked.cost_simulated
+                elif slopes:
+                    base_cost = cost(corrected, x)
             elif d is not None and slope_update == BROYDEN:  # the rejected point's secant
                 assert corrected is not None
                 g = _broyden_at(corrected, d, x, base, span)
