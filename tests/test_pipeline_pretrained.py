@@ -209,7 +209,8 @@ def test_a_time_aligned_run_estimates_again_for_the_geometry_bias(tmp_path):
 def test_first_order_corrections_hash_the_simulators_check_of_their_steps(tmp_path):
     """With correction_slopes the section names the trust region's check (since it came,
     such a run estimates again); without it the section has no such entry. slope_update
-    counts only when not the default ('simulated', as before it existed)."""
+    counts only when not the default ('simulated', as before it existed), and Broyden's
+    update names its step floor (a run made before the floor estimates again)."""
     import tomllib
 
     from railsusp.pipeline_config import PipelineConfig
@@ -223,6 +224,8 @@ def test_first_order_corrections_hash_the_simulators_check_of_their_steps(tmp_pa
     text["estimate"]["slope_update"] = "broyden"
     broyden = _section(PipelineConfig.model_validate(text), "estimate")
     assert broyden["slope_update"] == "broyden"
+    assert broyden["broyden_min_step"] == 0.01  # the floor of the update, since it came
+    assert "broyden_min_step" not in section
 
 
 def test_expected_draws_hash_their_route_and_whether_the_generations_use_them(tmp_path):

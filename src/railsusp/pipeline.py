@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from railsusp.errors import RailsuspInputError
+from railsusp.estimate.config import BROYDEN_MIN_STEP
 
 # the configuration's public names, imported from here by users, tests, benches and docs
 from railsusp.pipeline_config import PipelineConfig as PipelineConfig  # re-export
@@ -177,6 +178,8 @@ def _estimate_section(config: PipelineConfig) -> dict:
         )
     if e.correction_slopes:
         section["correction_steps"] = "checked by the simulator's cost (trust region)"
+        if e.slope_update == "broyden":  # the floor came after Broyden's update: estimate again
+            section["broyden_min_step"] = BROYDEN_MIN_STEP
     return section
 
 

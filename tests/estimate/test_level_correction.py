@@ -356,6 +356,28 @@ def test_broyden_slopes_carry_the_level_change_along_the_step_and_nothing_across
     assert broyden_slopes(g, before, after, np.zeros(2), span) is g
 
 
+def test_broyden_slopes_are_kept_across_a_step_shorter_than_the_floor():
+    """A step of 0.72 % of range (under BROYDEN_MIN_STEP, 1 %) leaves the slopes as they
+    were, so that the simulator's roughness across the small steps near convergence does
+    not enter them; the same step with no floor updates them, and a step of exactly the
+    floor along one key does too."""
+    from railsusp.estimate.config import BROYDEN_MIN_STEP
+    from railsusp.estimate.level_correction import broyden_slopes
+
+    rng = np.random.default_rng(1)
+    span = np.array([20e6, 10e6])
+    g = {j: {"c": rng.normal(size=(50, 2)) * 1e-6} for j in range(2)}
+    before, after = {"c": rng.normal(size=(50, 2))}, {"c": rng.normal(size=(50, 2))}
+    short = np.array([0.006, -0.004]) * span
+    assert broyden_slopes(g, before, after, short, span) is g
+    assert broyden_slopes(g, before, after, short, span, min_step=0.0) is not g
+    along = np.array([BROYDEN_MIN_STEP, 0.0]) * span
+    moved = broyden_slopes(g, before, after, along, span)
+    np.testing.assert_allclose(
+        sum(moved[j]["c"] * along[j] for j in range(2)), after["c"] - before["c"], atol=1e-12
+    )
+
+
 class Counting(Linear):
     """The reference, counting the parameter sets it simulates."""
 

@@ -39,6 +39,11 @@ SLOPE_STEP = 0.05
 #: (:mod:`railsusp.estimate.trust_region`). One step without a box sent X19 from one bound
 #: to near the other in one of issue 19's sets (bench/README.md, "First-order corrections")
 TRUST_BOX = 0.15
+#: the shortest step (Euclidean, as a fraction of each range) across which Broyden's update
+#: changes the slopes (:func:`~railsusp.estimate.level_correction.broyden_slopes`): across a
+#: shorter one the level's change is mostly the simulator's small-scale roughness, and the
+#: secant divides it by the step's length
+BROYDEN_MIN_STEP = 0.01
 #: how a first-order correction gets the slopes at each later point it moves to: simulated
 #: again (k more simulations per recording and drawn track), or Broyden's update from the
 #: level corrections' change along the step (no simulation;

@@ -48,6 +48,7 @@ from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.config import (
     BROYDEN,
+    BROYDEN_MIN_STEP,
     CORRECTIONS_RANGE,
     SIMULATED,
     SLOPE_STEP,
@@ -220,16 +221,25 @@ def broyden_slopes(
     level_after: dict[str, np.ndarray],
     step_si: np.ndarray,
     span_si: np.ndarray,
+    min_step: float = BROYDEN_MIN_STEP,
 ) -> Slopes:
     """The slope corrections after a step ``step_si`` (SI) without simulating the slopes
     again: Broyden's update (Broyden, Math. Comp. 19, 1965; in space mapping Bakr, Bandler,
     Madsen et al., IEEE Trans. MTT 46(12), 1998), the least change of ``slopes`` (in each
     key's range as its unit, ``span_si``) that makes them carry the level correction's
     change along the step, sum_j G'_j s_j = d_after - d_before, per condition and sample.
-    Along other directions the slopes stay as they were."""
+    Along other directions the slopes stay as they were. A step shorter than ``min_step``
+    of range (Euclidean, in range units;
+    :data:`~railsusp.estimate.config.BROYDEN_MIN_STEP`, 1 %) leaves the slopes as they
+    were: across it the level's change is mostly the simulator's small-scale roughness
+    (falls of a few millionths of the cost near convergence), which the secant would divide
+    by the step's length. On issue 19's 12 sets the 1 % floor left the count as it was
+    (42 of 44) and kept the last steps of two near-converged sets from moving 0.2-0.4 % of
+    range on such a secant; a floor at the slopes' own 5 % lost two keys of one set whose
+    3.8 % step had carried the curvature (bench/README.md, "Broyden's update: a floor")."""
     u = np.asarray(step_si, dtype=float) / span_si
     uu = float(u @ u)
-    if uu == 0.0:
+    if uu == 0.0 or uu < min_step * min_step:
         return slopes
     out: Slopes = {j: {} for j in slopes}
     for key, after in level_after.items():
