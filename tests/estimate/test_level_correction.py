@@ -89,17 +89,20 @@ def test_one_correction_removes_a_level_error_the_surrogate_has_along_a_column(r
 
 def test_with_a_slope_error_the_corrections_converge_on_the_truth(recording):
     """A surrogate that passes on 0.9 of b's effect, with a level error besides: each
-    correction is exact at its start but keeps the surrogate's slope, so one step leaves
-    (1 - 0.1 b0) / 0.9 - 1 of b (about 2 %) and a second about a tenth of that."""
+    correction is exact at its start but keeps the surrogate's slope, so one step from
+    NSGA-II's b0 leaves e0 = (1 - 0.1 b0) / 0.9 - 1 of b (about -2 %) and a second
+    -e0 / 9 (the same map from 1 + e0)."""
     surrogate = Linear(slope=0.9, offset=-0.1)
     errors = []
     for steps in (1, 2):
         res = correct_by_simulator(
             _nsga(surrogate, recording), [recording], surrogate, steps, simulator=Linear()
         )
-        errors.append(abs(res.chosen_x[1] / 10e6 - 1.0))
-    assert 0.005 < errors[0] < 0.05
-    assert errors[1] < 0.3 * errors[0]
+        errors.append(res.chosen_x[1] / 10e6 - 1.0)
+    b0 = res.nsga_x[1] / 10e6
+    assert errors[0] == pytest.approx((1.0 - 0.1 * b0) / 0.9 - 1.0, rel=0.05)
+    assert abs(errors[0]) > 0.005
+    assert errors[1] == pytest.approx(-errors[0] / 9.0, rel=0.05)
 
 
 def test_after_the_simex_step_each_corrected_point_has_the_same_bias_taken_off(recording):
@@ -118,6 +121,13 @@ def test_after_the_simex_step_each_corrected_point_has_the_same_bias_taken_off(r
     assert res.chosen_x[1] == pytest.approx(TRUTH[1] - 0.05 * span[1], rel=0.005)
     assert res.corrections[0].x_si[1] == pytest.approx(TRUTH[1], rel=0.005)
     assert "first SIMEX step), then corrected" in res.route
+    first_order = _nsga(surrogate, recording)  # the same, first order: the step's extent
+    first_order.geometry_shifts_si = res.geometry_shifts_si  # is the least squares' own
+    first_order.geometry_bias_removed = True  # move, not the move of the biased point
+    correct_by_simulator(first_order, [recording], surrogate, 1, simulator=Linear(), slopes=True)
+    (step,), (check,) = first_order.corrections, first_order.correction_checks
+    assert check.extent == pytest.approx(abs(step.x_si[1] - step.start_si[1]) / span[1])
+    assert check.extent != pytest.approx(abs(step.estimate_si[1] - step.start_si[1]) / span[1])
 
 
 def test_a_stopped_simulation_keeps_the_estimate_and_says_why(recording):
@@ -148,8 +158,11 @@ def test_two_recordings_of_one_name_keep_their_own_correction(recording):
     other = Recording(t, {"w1L": s[:, 0]}, {"w1L": s[:, 1]}, short)
     d = level_corrections(Linear(offset=-0.2), Linear(), [recording, other], TRUTH)
     assert len(d) == 2
-    assert d[condition_key(short)].shape == (500, 2)
-    assert d[condition_key(recording.condition)].shape == (1000, 2)
+    v = np.cos(2 * np.pi * 0.7 * t) + 0.5 * np.sin(2 * np.pi * 2.3 * t + 1.0)
+    for key, n in ((condition_key(short), 500), (condition_key(recording.condition), 1000)):
+        assert d[key].shape == (n, 2)  # the offset's 0.2 x 10 v(t) in Q, none in Y
+        np.testing.assert_allclose(d[key][:500, 1], 2.0 * v, atol=1e-12)
+        np.testing.assert_allclose(d[key][:, 0], 0.0, atol=1e-12)
 
 
 def test_refusals(recording):
@@ -214,6 +227,9 @@ def test_each_first_order_step_stays_in_its_trust_box_which_grows_after_good_ste
     assert moves[:2] == pytest.approx([-TRUST_BOX, -BOX_MAX], abs=1e-6)
     assert [c.ratio for c in res.correction_checks[:2]] == pytest.approx([1.0, 1.0], abs=1e-6)
     assert [c.accepted for c in res.correction_checks] == [True, True, None]  # last: unchecked
+    checks = res.correction_checks  # a kept point's simulated cost is the next step's start
+    assert [c.cost_start for c in checks[1:]] == [c.cost_simulated for c in checks[:2]]
+    assert checks[1].cost_start < 0.5 * checks[0].cost_start
     assert res.chosen_x[1] / 10e6 == pytest.approx(1.0, abs=0.002)
     res.save(tmp_path)
     doc = read_json(tmp_path / "estimate.json")
@@ -276,6 +292,7 @@ def test_a_step_that_raises_the_simulators_cost_is_rejected_and_the_next_starts_
     assert extent == pytest.approx(0.15, abs=1e-6)
     assert second.box == pytest.approx(SHRINK * extent)
     assert second.accepted is True and second.cost_simulated < first.cost_start
+    assert second.cost_start == first.cost_start  # a rejected point is no start
     assert abs(step2.estimate_si[1] / 10e6 - 1.0) < abs(res.nsga_x[1] / 10e6 - 1.0)
     assert "1 proposed point rejected" in res.route
     res.save(tmp_path)
@@ -288,15 +305,23 @@ def test_a_step_that_raises_the_simulators_cost_is_rejected_and_the_next_starts_
     assert "(a rejected one from one)" in text
 
 
-def test_a_proposed_point_that_derails_is_rejected_and_the_corrections_go_on(recording):
+@pytest.mark.parametrize("update", ["simulated", "broyden"])
+def test_a_proposed_point_that_derails_is_rejected_and_the_corrections_go_on(recording, update):
     """If the simulation of a first-order step's point stops (here: derails below b =
     0.97), that point is rejected as one that raised the cost, and the corrections go on
     from the last point simulated whole; before, they stopped there and the derailed point
-    became the estimate."""
+    became the estimate. With Broyden's update the derailed point has no level to take a
+    secant to, so the slopes stay as they were."""
     surrogate = Linear(offset=-0.1)
     res = _nsga(surrogate, recording)
     correct_by_simulator(
-        res, [recording], surrogate, 3, simulator=Kinked(derail_below=0.97), slopes=True
+        res,
+        [recording],
+        surrogate,
+        3,
+        simulator=Kinked(derail_below=0.97),
+        slopes=True,
+        slope_update=update,
     )
     assert res.corrections_stopped == ""
     assert len(res.corrections) == 3
@@ -359,22 +384,39 @@ def test_broyden_slopes_carry_the_level_change_along_the_step_and_nothing_across
 def test_broyden_slopes_are_kept_across_a_step_shorter_than_the_floor():
     """A step of 0.72 % of range (under BROYDEN_MIN_STEP, 1 %) leaves the slopes as they
     were, so that the simulator's roughness across the small steps near convergence does
-    not enter them; the same step with no floor updates them, and a step of exactly the
-    floor along one key does too."""
+    not enter them; the same step with no floor updates them (the secant holds), and so do
+    a step of exactly the floor along one key and a diagonal one whose length (Euclidean,
+    in range units) passes the floor though no key's move does."""
+    from types import SimpleNamespace
+
     from railsusp.estimate.config import BROYDEN_MIN_STEP
-    from railsusp.estimate.level_correction import broyden_slopes
+    from railsusp.estimate.level_correction import _broyden_at, broyden_slopes
 
     rng = np.random.default_rng(1)
     span = np.array([20e6, 10e6])
     g = {j: {"c": rng.normal(size=(50, 2)) * 1e-6} for j in range(2)}
     before, after = {"c": rng.normal(size=(50, 2))}, {"c": rng.normal(size=(50, 2))}
+
+    def carried(slopes, step):
+        return sum(slopes[j]["c"] * step[j] for j in range(2))
+
+    change = after["c"] - before["c"]
     short = np.array([0.006, -0.004]) * span
     assert broyden_slopes(g, before, after, short, span) is g
-    assert broyden_slopes(g, before, after, short, span, min_step=0.0) is not g
+    unfloored = broyden_slopes(g, before, after, short, span, min_step=0.0)
+    np.testing.assert_allclose(carried(unfloored, short), change, atol=1e-12)
+    assert broyden_slopes(g, before, after, np.zeros(2), span, min_step=0.0) is g
     along = np.array([BROYDEN_MIN_STEP, 0.0]) * span
-    moved = broyden_slopes(g, before, after, along, span)
     np.testing.assert_allclose(
-        sum(moved[j]["c"] * along[j] for j in range(2)), after["c"] - before["c"], atol=1e-12
+        carried(broyden_slopes(g, before, after, along, span), along), change, atol=1e-12
+    )
+    x0 = np.array([14e6, 10e6])  # and so inside the corrections, for a kept or rejected point
+    made_at = SimpleNamespace(slopes=g, corrections=before)
+    assert _broyden_at(made_at, after, x0 + short, x0, span) is g
+    assert _broyden_at(made_at, after, x0 + along, x0, span) is not g
+    diagonal = np.array([0.008, 0.008]) * span  # 1.13 % long, though no key moves 1 %
+    np.testing.assert_allclose(
+        carried(broyden_slopes(g, before, after, diagonal, span), diagonal), change, atol=1e-12
     )
 
 
@@ -476,6 +518,50 @@ def test_the_check_keeps_a_converged_point_and_the_box_never_shrinks_below_its_f
     good.judge(3.0)
     assert good.ratio == pytest.approx(1.0) and good.next_box() == BOX_MAX
     assert good.to_dict()["accepted"] is True
+
+
+@pytest.mark.parametrize(
+    ("box", "predicted", "extent", "simulated", "accepted", "ratio", "next_box"),
+    [
+        (0.15, 4.0, 0.01, 4.4, False, None, 0.0025),  # no fall predicted, the cost rose
+        (0.15, 3.0, 0.02, 4.5, False, -0.5, 0.005),  # rejected: a quarter of the extent
+        (0.15, 3.0, 2e-4, 4.5, False, -0.5, 1e-4),  # ... never under 0.01 % of range
+        (0.15, 3.0, 0.15, 3.95, False, 0.05, 0.0375),  # under 0.1 of the fall: rejected
+        (0.15, 3.0, 0.15, 3.85, True, 0.15, 0.0375),  # kept, under 0.25: box shrunk
+        (0.15, 3.0, 0.15, 3.5, True, 0.5, 0.15),  # kept, box as it was
+        (0.15, 3.0, 0.15, 3.2, True, 0.8, 0.3),  # over 0.75 on the edge: doubled
+        (0.15, 3.0, 0.149, 3.0, True, 1.0, 0.3),  # 0.99 of the box is its edge
+        (0.15, 3.0, 0.148, 3.0, True, 1.0, 0.15),  # inside the box: as it was
+        (0.3, 3.0, 0.3, 3.2, True, 0.8, 0.3),  # never over 30 % of range
+        (0.15, 3.99, 0.01, 3.9999, False, 0.01, 0.0025),  # a small fall is judged
+    ],
+)
+def test_the_checks_rules_in_numbers(box, predicted, extent, simulated, accepted, ratio, next_box):
+    """StepCheck's verdicts and next boxes, from a start cost of 4, against the numbers of
+    Nocedal & Wright's Algorithm 4.1 as set in trust_region (eta 0.1, shrink below 0.25 to a
+    quarter of the step's extent, at least 1e-4; double above 0.75 on the edge, at most
+    0.3), written out rather than read from the module's constants."""
+    from railsusp.estimate.trust_region import StepCheck
+
+    check = StepCheck(box=box, cost_start=4.0, cost_predicted=predicted, extent=extent)
+    check.judge(simulated)
+    assert check.accepted is accepted
+    assert check.ratio == (None if ratio is None else pytest.approx(ratio))
+    assert check.next_box() == pytest.approx(next_box)
+
+
+def test_convergence_is_judged_relative_to_the_cost():
+    """Falls within 1e-9 of a cost of 4e6 (here 1e-4, a rise in the simulator's) are
+    convergence: kept, no ratio, the box as it was; the same falls on a cost of 4 are
+    judged, and the rise rejects the point."""
+    from railsusp.estimate.trust_region import StepCheck
+
+    big = StepCheck(box=0.15, cost_start=4e6, cost_predicted=4e6 - 1e-4, extent=1e-7)
+    big.judge(4e6 + 1e-4)
+    assert big.accepted is True and big.ratio is None and big.next_box() == 0.15
+    small = StepCheck(box=0.15, cost_start=4.0, cost_predicted=4.0 - 1e-4, extent=1e-3)
+    small.judge(4.0 + 1e-4)
+    assert small.accepted is False and small.ratio == pytest.approx(-1.0)
 
 
 def test_a_derailing_stepped_set_at_a_kept_point_stops_the_corrections_there(recording):

@@ -74,10 +74,13 @@ def test_its_refusals_name_the_setting_as_the_caller_spells_it_before_nsga_ii(re
     Counted.calls = 0
     blind = Recording(recording.time, recording.Y, recording.Q, COND.with_changes(
         duration_s=20.0, n_steps=1000))  # fmt: skip
-    with pytest.raises(RailsuspInputError, match="--refine"):
+    with pytest.raises(RailsuspInputError, match="--refine compares time-aligned series"):
         _route(refine=True, refine_setting="--refine").run(Counted(), [blind], PARAMS)
     mean = NSGAConfig(pop_size=12, n_gen=10, seed=3, statistic="mean")
-    with pytest.raises(RailsuspInputError, match="estimate.simulator_corrections"):
+    needle = (
+        "estimate.simulator_corrections corrects the time-aligned least squares; statistic 'mean'"
+    )
+    with pytest.raises(RailsuspInputError, match=needle):
         _route(nsga=mean, corrections_setting="estimate.simulator_corrections").run(
             Counted(), [recording], PARAMS
         )
