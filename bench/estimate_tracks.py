@@ -73,7 +73,7 @@ from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate import NSGAConfig, SurrogateForces, estimate
 from railsusp.estimate.aligned_identifiability import aligned_cramer_rao_pct_range, identifiable
-from railsusp.estimate.config import SIMULATED, SLOPE_UPDATES
+from railsusp.estimate.config import BROYDEN, BROYDEN_MIN_STEP, SIMULATED, SLOPE_UPDATES
 from railsusp.estimate.geometry_bias import GEOMETRY_DRAWS
 from railsusp.estimate.identifiability import BOUND_LIMIT_PCT
 from railsusp.estimate.level_correction import correct_by_simulator
@@ -275,6 +275,7 @@ def run_set(
         args.simulator_corrections,
         slopes=args.correction_slopes,
         slope_update=args.slope_update,
+        broyden_min_step=args.broyden_min_step,
     )
     seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     load = (load0 + os.getloadavg()[0]) / 2.0
@@ -479,6 +480,8 @@ def settings_of(args: argparse.Namespace, folder: Path) -> dict:
         ),
         **({"correction_slopes": True} if args.correction_slopes else {}),
         **({"slope_update": args.slope_update} if args.correction_slopes else {}),
+        # Broyden's update skips steps under this (stop 53; none before it)
+        **({"broyden_min_step": args.broyden_min_step} if args.slope_update == BROYDEN else {}),
     }
 
 
@@ -571,6 +574,13 @@ def main(argv: Sequence[str] | None = None) -> dict:
         "Broyden's update from the level's change (railsusp.estimate.level_correction)",
     )
     ap.add_argument(
+        "--broyden-min-step",
+        type=float,
+        default=BROYDEN_MIN_STEP,
+        help="with --slope-update broyden: no update across a step shorter than this, "
+        "fraction of range (Euclidean)",
+    )
+    ap.add_argument(
         "--expected-generations",
         action="store_true",
         help="with --expected-draws: NSGA-II's generations compare the expected forces too",
@@ -592,6 +602,8 @@ def main(argv: Sequence[str] | None = None) -> dict:
         ap.error("--correction-slopes: only with --simulator-corrections 1 or more")
     if args.slope_update != SIMULATED and not args.correction_slopes:
         ap.error(f"--slope-update {args.slope_update}: only with --correction-slopes")
+    if not 0.0 <= args.broyden_min_step < 1.0:
+        ap.error(f"--broyden-min-step {args.broyden_min_step}: accepted 0 to under 1")
     if args.expected_generations and not args.expected_draws:
         ap.error("--expected-generations needs --expected-draws 1 or more")
     torch.set_num_threads(args.threads)

@@ -186,6 +186,30 @@ def test_expected_forces_arm_is_its_own_setting(bench, tmp_path, capsys):
         bench.main([*argv, "--expected-draws", "-1"])
     assert exc.value.code == 2
     assert "--expected-draws -1" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        bench.main([*argv, "--broyden-min-step", "1.5"])
+    assert exc.value.code == 2
+    assert "--broyden-min-step 1.5: accepted 0 to under 1" in capsys.readouterr().err
+
+
+def test_broydens_floor_is_a_setting_of_broyden_runs_only(bench, tmp_path):
+    """The floor of Broyden's update is stored with the settings of runs that use the
+    update (so runs with another floor, or stop 52's without one, never resume into each
+    other's JSON), and not with simulated slopes."""
+    import argparse
+
+    common = dict(seed=0, duration=60.0, track_noise=0.5, noise=0.03, pop_size=50, n_gen=100)
+    common |= dict(conditions="", geometry_draws=8, gains=True, expected_draws=8)
+    common |= dict(expected_generations=False, simulator_corrections=3, correction_slopes=True)
+
+    def settings(update: str, floor: float) -> dict:
+        args = argparse.Namespace(**common, slope_update=update, broyden_min_step=floor)
+        return bench.settings_of(args, tmp_path)
+
+    assert settings("broyden", 0.01)["broyden_min_step"] == 0.01
+    assert settings("broyden", 0.01) != settings("broyden", 0.05)
+    assert "broyden_min_step" not in settings("simulated", 0.01)
+    assert settings("simulated", 0.01) == settings("simulated", 0.05)
 
 
 def test_the_efficient_expectation_sums_each_identifiable_keys_chance(bench):

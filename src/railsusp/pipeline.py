@@ -157,7 +157,8 @@ def _estimate_section(config: PipelineConfig) -> dict:
     takes the geometry error's bias off its choice where the recordings state their
     accuracy, so that such a run estimates again; with ``correction_slopes`` the trust
     region's check (since 2026-11-29 the simulator checks each first-order step's point, and
-    the box resizes), so that such a run estimates again."""
+    the box resizes), so that such a run estimates again; with Broyden's update also its
+    step floor (since stop 53 no update across a step under it), for the same reason."""
     e = config.estimate
     optional = (
         "held_prior",

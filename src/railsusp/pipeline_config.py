@@ -172,7 +172,7 @@ class EstimateSection(_Cfg):
         description="with correction_slopes: the slopes at each later point of the "
         "corrections simulated again ('simulated', k more simulations per recording and "
         "step) or carried by Broyden's update from the simulated level's change along each "
-        "step ('broyden', none)",
+        "step ('broyden', none; not across a step under 1 % of range)",
     )
     expected_generations: bool = Field(
         False,

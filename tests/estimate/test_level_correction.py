@@ -310,8 +310,8 @@ def test_a_proposed_point_that_derails_is_rejected_and_the_corrections_go_on(rec
     """If the simulation of a first-order step's point stops (here: derails below b =
     0.97), that point is rejected as one that raised the cost, and the corrections go on
     from the last point simulated whole; before, they stopped there and the derailed point
-    became the estimate. With Broyden's update the derailed point has no level to take a
-    secant to, so the slopes stay as they were."""
+    became the estimate. With Broyden's update the same holds: the derailed point has no
+    simulated level, and no secant is taken to it (one would fail on the missing level)."""
     surrogate = Linear(offset=-0.1)
     res = _nsga(surrogate, recording)
     correct_by_simulator(
@@ -412,8 +412,8 @@ def test_broyden_slopes_are_kept_across_a_step_shorter_than_the_floor():
     )
     x0 = np.array([14e6, 10e6])  # and so inside the corrections, for a kept or rejected point
     made_at = SimpleNamespace(slopes=g, corrections=before)
-    assert _broyden_at(made_at, after, x0 + short, x0, span) is g
-    assert _broyden_at(made_at, after, x0 + along, x0, span) is not g
+    assert _broyden_at(made_at, after, x0 + short, x0, span, BROYDEN_MIN_STEP) is g
+    assert _broyden_at(made_at, after, x0 + along, x0, span, BROYDEN_MIN_STEP) is not g
     diagonal = np.array([0.008, 0.008]) * span  # 1.13 % long, though no key moves 1 %
     np.testing.assert_allclose(
         carried(broyden_slopes(g, before, after, diagonal, span), diagonal), change, atol=1e-12

@@ -193,7 +193,7 @@ def estimate(
         typer.Option(
             help="with --correction-slopes: the slopes at each later point simulated again "
             "('simulated') or carried by Broyden's update from the level's change ('broyden', "
-            "no simulation)"
+            "no simulation; not across a step under 1 % of range)"
         ),
     ] = "simulated",
     expected_generations: Annotated[

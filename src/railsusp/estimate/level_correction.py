@@ -256,10 +256,12 @@ def _broyden_at(
     x_si: np.ndarray,
     start_si: np.ndarray,
     span_si: np.ndarray,
+    min_step: float,
 ) -> Slopes:
     """:func:`broyden_slopes` of the corrected surrogate made at ``start_si`` after the step
     to ``x_si``, where the level correction ``level`` was simulated."""
-    return broyden_slopes(corrected.slopes, corrected.corrections, level, x_si - start_si, span_si)
+    step = x_si - start_si
+    return broyden_slopes(corrected.slopes, corrected.corrections, level, step, span_si, min_step)
 
 
 def correct_by_simulator(
@@ -271,6 +273,7 @@ def correct_by_simulator(
     simulator: ForceModel | None = None,
     slopes: bool = False,
     slope_update: str = SIMULATED,
+    broyden_min_step: float = BROYDEN_MIN_STEP,
 ) -> CalibrationResult:
     """Correct NSGA-II's estimate in place by ``steps`` simulator corrections: at the
     estimate x (NSGA-II's, after its geometry step: the expected-forces polish or the
@@ -299,7 +302,8 @@ def correct_by_simulator(
     whose simulation stopped is rejected rather than ending the corrections (a stepped set
     of the slopes that stops still ends them, at the last kept point). ``slope_update``:
     the slopes at each later kept point simulated again (``"simulated"``) or carried by
-    Broyden's update (``"broyden"``, :func:`broyden_slopes`, also at rejected points);
+    Broyden's update (``"broyden"``, :func:`broyden_slopes`, also at rejected points; not
+    across a step shorter than ``broyden_min_step`` of range, Euclidean);
     refused without ``slopes``.
 
     On issue 19's 12 sets (shipped networks, 60 s per condition, 0.5 mm geometry, 8 drawn
@@ -352,7 +356,7 @@ def correct_by_simulator(
                 try:
                     if checked is not None and slope_update == BROYDEN:
                         assert corrected is not None
-                        g = _broyden_at(corrected, d, x, base, span)
+                        g = _broyden_at(corrected, d, x, base, span, broyden_min_step)
                     elif slopes:
                         g = slope_corrections(surrogate, simulator, recordings, x, d)
                 except SimulationFailedError as exc:  # a stepped set derailed: stop here
@@ -366,7 +370,7 @@ def correct_by_simulator(
                     base_cost = cost(corrected, x)
             elif d is not None and slope_update == BROYDEN:  # the rejected point's secant
                 assert corrected is not None
-                g = _broyden_at(corrected, d, x, base, span)
+                g = _broyden_at(corrected, d, x, base, span, broyden_min_step)
                 corrected = LevelCorrected(surrogate, corrected.corrections, g, base)
             assert corrected is not None
             step = local_least_squares(
