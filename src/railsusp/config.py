@@ -164,6 +164,13 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
         if s.symbol in sampled:
             raise bad(f"campaign.parameters: {s.symbol} is given twice")
         sampled.append(s.symbol)
+    if not cfg.campaign.parameters:
+        raise bad("campaign.parameters: none given; accepted one or more of X11..X20")
+    if not cfg.sensitivity.statistics:
+        raise bad(
+            f"sensitivity.statistics: none given; accepted one or more of "
+            f"{', '.join(SENSITIVITY_STATISTICS)}"
+        )
     for st in cfg.sensitivity.statistics:
         if st not in SENSITIVITY_STATISTICS:
             raise bad(

@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from railsusp.campaign import Campaign, CampaignError, salib_problem
+from railsusp.errors import RailsuspInputError
 from railsusp.params import bounds
 from railsusp.store import write_csv, write_json, write_parquet
 from railsusp.study import KEY_LATERAL, KEY_VERTICAL
@@ -346,6 +347,38 @@ def agreement(a: pd.DataFrame, b: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def check_settings(
+    statistics: Sequence[str],
+    threshold: float,
+    key_statistics: Sequence[str],
+    max_keys: int,
+    min_cv: float,
+    base_samples: int,
+    seed: int,
+) -> None:
+    """Refuse, in one line naming the setting and its accepted range, an analysis setting
+    that would write a meaningless ``key_parameters.json`` (before any file is touched)."""
+    from railsusp.vehicle.simulate import RECORD_STATISTICS
+
+    for name, chosen in (("statistics", statistics), ("key_statistics", key_statistics)):
+        unknown = [st for st in chosen if st not in RECORD_STATISTICS]
+        if not chosen or unknown:
+            raise RailsuspInputError(
+                f"{name} {','.join(unknown) or '(none)'}: accepted one or more of "
+                f"{', '.join(RECORD_STATISTICS)}"
+            )
+    if not 0.0 < threshold < 1.0:  # NaN fails too
+        raise RailsuspInputError(f"threshold {threshold:g}: accepted above 0 and below 1")
+    if not 1 <= max_keys <= 10:
+        raise RailsuspInputError(f"max_keys {max_keys}: accepted 1 to 10")
+    if not 0.0 <= min_cv < 1.0:
+        raise RailsuspInputError(f"min_cv {min_cv:g}: accepted 0 to below 1")
+    if base_samples < 64:
+        raise RailsuspInputError(f"base_samples {base_samples}: accepted 64 or more")
+    if seed < 0:
+        raise RailsuspInputError(f"seed {seed}: accepted 0 or more")
+
+
 def analyse(
     run: str | Path,
     *,
@@ -366,6 +399,7 @@ def analyse(
     """
     from railsusp.campaign import load_campaign
 
+    check_settings(statistics, threshold, key_statistics, max_keys, min_cv, base_samples, seed)
     camp = load_campaign(run)
     out = camp.path / "sensitivity"
     fits: list[MetamodelFit] = []

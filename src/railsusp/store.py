@@ -184,6 +184,22 @@ def check_output_file(path: str | Path, option: str = "--out") -> Path:
     return path
 
 
+#: the figure formats the command line's ``--plot`` writes (matplotlib's, by suffix)
+FIGURE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
+
+
+def check_figure_file(path: str | Path, option: str = "--plot") -> Path:
+    """Refuse a figure file as :func:`check_output_file` does, and one whose suffix names no
+    format in :data:`FIGURE_SUFFIXES`, before any work is done."""
+    path = check_output_file(path, option)
+    if path.suffix.lower() not in FIGURE_SUFFIXES:
+        raise RailsuspInputError(
+            f"{option} {path}: format {path.suffix or '(no suffix)'} unknown; accepted "
+            f"{', '.join(FIGURE_SUFFIXES)}"
+        )
+    return path
+
+
 def _default(obj: Any) -> Any:
     if isinstance(obj, np.generic):
         return obj.item()

@@ -3,6 +3,7 @@ features, write each finished batch atomically, resume from what is stored."""
 
 from __future__ import annotations
 
+import re
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -226,6 +227,8 @@ def run_campaign(
         raise CampaignError(f"--workers = {workers}: accepted an integer >= 1")
     if max_batches is not None and max_batches < 0:
         raise CampaignError(f"--max-batches = {max_batches}: accepted an integer >= 0")
+    if scheduler is not None and not re.fullmatch(r"(tcp|tls)://[^\s:/]+:\d{1,5}/?", scheduler):
+        raise CampaignError(f"--scheduler {scheduler!r}: accepted tcp://host:port (or tls://)")
     design = _prepare(config, out, force)
     x_all = design[list(config.simulated_parameters)].to_numpy()
     ids_all = design["sample_id"].to_numpy()
@@ -294,7 +297,13 @@ def _run_dask(todo, args, finish, scheduler: str | None, workers: int | None) ->
         )
         client = Client(cluster)
     else:
-        client = Client(scheduler)
+        try:  # the run directory is written and resumes once a scheduler answers
+            client = Client(scheduler, timeout="10s")
+        except (OSError, TimeoutError) as exc:
+            raise CampaignError(
+                f"--scheduler {scheduler}: no Dask scheduler answered ({exc}); accepted the "
+                "address of a running one (the campaign resumes from what is stored)"
+            ) from None
     try:
         futures = {}
         for ci, b in todo:

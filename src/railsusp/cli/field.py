@@ -413,6 +413,16 @@ def validate(
     from railsusp.validate import validate as run_validate
 
     try:
+        if out is not None:  # before the simulations, not after them
+            check_output_folder(out, "--out")
+        if truth is not None and not truth.is_file():
+            raise RailsuspInputError(f"--truth {truth}: no such file; accepted a truth.json")
+        readable = (sensitivity / "key_parameters.json", sensitivity) if sensitivity else ()
+        if sensitivity is not None and not any(p.is_file() for p in readable):
+            raise RailsuspInputError(
+                f"--sensitivity {sensitivity}: no Sobol indices there; accepted a campaign's "
+                "RUN/sensitivity folder, its key_parameters.json or indices.parquet"
+            )
         with console.status("re-simulating the measured conditions"):
             res = run_validate(
                 estimate_dir, measured=measured, truth=truth, sensitivity=sensitivity

@@ -18,7 +18,7 @@ from railsusp.conditions import (
 )
 from railsusp.errors import RailsuspInputError
 from railsusp.params import CATALOGUE, ParameterSet, parse_overrides
-from railsusp.store import check_output_file
+from railsusp.store import check_figure_file
 from railsusp.vehicle.track import COMPONENTS, band_rms, synthesise
 from railsusp.vehicle.track_geometry import irregularities_for
 
@@ -148,7 +148,7 @@ def track(
         if not 0 < length <= 1e6:  # also refuses nan
             raise RailsuspInputError(f"--length = {length:g} m: accepted range (0, 1e6] m")
         if plot is not None:
-            check_output_file(plot, "--plot")
+            check_figure_file(plot, "--plot")
         for name, v in (("--wavelength-min", wavelength_min), ("--wavelength-max", wavelength_max)):
             if v != v or v in (float("inf"), float("-inf")):
                 raise RailsuspInputError(f"{name} = {v:g} m is not finite")

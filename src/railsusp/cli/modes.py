@@ -34,6 +34,7 @@ def modes(
     damping from free-decay runs of the nonlinear model, friction on (docs/model.md)."""
     from railsusp.vehicle.decay import free_decay
     from railsusp.vehicle.modes import FRICTION_MODES, modal_analysis
+    from railsusp.vehicle.operating_point import OperatingPointError
     from railsusp.vehicle.wagon import load_wagon
 
     try:
@@ -56,6 +57,10 @@ def modes(
                 decayed = free_decay(pset, wagon_data, speed)
     except RailsuspInputError as exc:
         fail(str(exc))
+    except OperatingPointError as exc:
+        fail(
+            f"--wagon {wagon}: the wagon has no operating point to analyse ({exc}); check its data"
+        )
     df = result.to_dataframe(f_max=fmax)
     df["car_body_energy"] *= 100.0
     df = df.rename(

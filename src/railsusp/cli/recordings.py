@@ -12,6 +12,7 @@ from rich.table import Table
 
 from railsusp.cli.common import app, console, fail, frame_table
 from railsusp.errors import RailsuspInputError
+from railsusp.store import check_figure_file
 
 
 def print_problems(exc) -> None:
@@ -157,6 +158,8 @@ def sections_command(
             raise RailsuspInputError("give --line or --table, not both")
         if not 10.0 <= rate <= 5000.0:
             raise RailsuspInputError(f"--rate {rate:g}: accepted 10 to 5000 Hz")
+        if plot is not None:
+            check_figure_file(plot, "--plot")
         rules = SectionRules(
             speed_tolerance=speed_tolerance, min_length_m=min_length, max_duration_s=max_duration
         )

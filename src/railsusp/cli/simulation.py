@@ -13,7 +13,7 @@ from railsusp.cli.common import app, console, err_console, fail
 from railsusp.conditions import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet, parse_overrides
-from railsusp.store import check_output_file
+from railsusp.store import check_figure_file, check_output_file
 from railsusp.study import TABLE8_BEFORE
 
 
@@ -109,9 +109,10 @@ def simulate(
         conds = resolve_conditions(condition)
         if seed is not None:
             conds = [c.with_changes(seed=seed) for c in conds]
-        for option, path in (("--out", out), ("--plot", plot)):
-            if path is not None:
-                check_output_file(path, option)
+        if out is not None:
+            check_output_file(out, "--out")
+        if plot is not None:
+            check_figure_file(plot, "--plot")
         wagon_data = load_wagon(wagon)  # a packaged name or a file, one-line errors
         if wheel != "auto" and wheel not in WHEEL_NAMES:
             raise RailsuspInputError(

@@ -215,8 +215,11 @@ def compare(
 
     names = [m.strip() for m in models.split(",") if m.strip()]
     bad = [m for m in names if m not in ALL_MODELS]
-    if bad:
-        fail(f"--models {', '.join(bad)}: accepted {', '.join(ALL_MODELS)}")
+    if bad or not names:
+        fail(
+            f"--models {', '.join(bad) or '(none)'}: accepted one or more of "
+            f"{', '.join(ALL_MODELS)}"
+        )
     try:
         tcfg = _train_config(epochs, batches_per_epoch, batch_size, device, seed, fine_tune_epochs)
         require_complete(load_campaign(run))

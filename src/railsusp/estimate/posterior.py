@@ -265,7 +265,13 @@ def load(run: str | Path) -> PosteriorEstimator:
             raise RailsuspInputError(
                 f"{folder / name} does not exist: train first (railsusp posterior train)"
             )
-    settings = PosteriorSettings.from_dict(read_json(folder / "settings.json")["settings"])
+    stored = read_json(folder / "settings.json")
+    if not isinstance(stored, dict) or not isinstance(stored.get("settings"), dict):
+        raise RailsuspInputError(
+            f"{folder / 'settings.json'} holds no estimator settings: train again "
+            "(railsusp posterior train)"
+        )
+    settings = PosteriorSettings.from_dict(stored["settings"])
     return train(settings, run)
 
 

@@ -128,7 +128,21 @@ def synthesise_field(
 
     if not 0.0 <= track_noise_mm <= 10.0:
         raise RailsuspInputError(f"track_noise_mm = {track_noise_mm:g}: accepted 0 to 10 mm")
+    if seed < 0:
+        raise RailsuspInputError(f"seed = {seed}: accepted 0 or more")
+    if not conditions:
+        raise RailsuspInputError("conditions: none given, accepted at least one")
+    named = [c.name for c in conditions]
+    twice = sorted({n for n in named if named.count(n) > 1})
+    if twice:  # each recording is written under its condition's name
+        raise RailsuspInputError(
+            f"conditions: {', '.join(twice)} named more than once; accepted distinct names"
+        )
     out = Path(out)
+    if out.exists() and not out.is_dir():  # never replace a file by a field folder
+        raise RailsuspInputError(
+            f"out = {out}: a file, not a folder; accepted a new or field folder"
+        )
     # the folder as one artefact: a crash leaves the old folder as it was, never a table
     # without its sidecar or an index that lists recordings not written
     with atomic_folder(out) as folder:

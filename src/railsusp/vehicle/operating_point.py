@@ -26,6 +26,12 @@ FRICTION_MODES: tuple[str, ...] = ("stuck", "sliding")
 FRICTION_LIMIT_KEYS: tuple[str, ...] = tuple(n for n in L.K if n.startswith("mu_"))
 
 
+class OperatingPointError(RuntimeError):
+    """The model fails at the state it is linearised about (a failure code of its right-hand
+    side: a wheel through its rail, a state not finite), as wagon data far outside what a
+    wagon is (a car body of 1e30 kg) make it."""
+
+
 @dataclass(frozen=True)
 class LinearisationPoint:
     """Everything ``model.rhs`` needs on ideal straight, level track at one speed: the
@@ -43,7 +49,8 @@ class LinearisationPoint:
     friction: str
 
     def rhs(self, x: np.ndarray, s_front: float | None = None) -> np.ndarray:
-        """d x / d t at state x (raises RuntimeError on a failure code of the model)."""
+        """d x / d t at state x (raises :class:`OperatingPointError` on a failure code of the
+        model)."""
         dxdt = np.zeros(L.N_STATE)
         out = np.zeros(L.N_OUT_WORK)
         ca = self.contact
@@ -53,7 +60,7 @@ class LinearisationPoint:
             self.s_front if s_front is None else s_front, out,
         )  # fmt: skip
         if code != 0:
-            raise RuntimeError(f"model.rhs failed: {L.FAILURE_REASONS.get(code, code)}")
+            raise OperatingPointError(f"model.rhs failed: {L.FAILURE_REASONS.get(code, code)}")
         return dxdt
 
     def dof_inertia(self) -> np.ndarray:

@@ -1,0 +1,165 @@
+"""Bad input found by a fuzzing pass over the command line (stop 53), each now a one-line
+error naming the option and what is accepted, exit status 2, with nothing written or lost:
+before, each of these printed a traceback, exited 0 on nonsense, or replaced a user's file."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from railsusp.cli import app
+
+runner = CliRunner()
+
+SHORT = '[[condition]]\nbase = "straight"\nname = "short"\nduration_s = 1.0\nn_steps = 50\n'
+
+
+def refused(args: list[str], needle: str) -> str:
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2, result.output
+    assert needle in result.output, result.output
+    assert "Traceback" not in result.output
+    return result.output
+
+
+@pytest.fixture
+def short_conditions(tmp_path) -> Path:
+    path = tmp_path / "short.toml"
+    path.write_text(SHORT + "lead_in_m = 20.0\n")
+    return path
+
+
+def test_synth_field_never_replaces_a_file_and_refuses_empty_or_repeated_conditions(
+    tmp_path, short_conditions
+):
+    """Before: a file given as --out was deleted and replaced by a field folder (exit 0), no
+    conditions wrote an index listing none over an existing field, two conditions of one
+    name wrote one recording over the other, and a negative seed was a traceback."""
+    precious = tmp_path / "precious.txt"
+    precious.write_text("field notes")
+    refused(
+        ["synth-field", "--conditions", str(short_conditions), "--out", str(precious)],
+        "a file, not a folder",
+    )
+    assert precious.read_text() == "field notes"
+    refused(["synth-field", "--conditions", "", "--out", str(tmp_path / "e")], "none given")
+    twice = tmp_path / "twice.toml"
+    twice.write_text(SHORT + SHORT)
+    refused(
+        ["synth-field", "--conditions", str(twice), "--out", str(tmp_path / "d")],
+        "short named more than once",
+    )
+    refused(
+        ["synth-field", "--conditions", "straight", "--out", str(tmp_path / "s"), "--seed", "-1"],
+        "seed = -1: accepted 0 or more",
+    )
+    assert not any((tmp_path / n).exists() for n in ("e", "d", "s"))
+
+
+@pytest.mark.parametrize("name", ["x.txt", "x"])
+def test_a_plot_of_an_unknown_format_is_refused_before_the_work(tmp_path, name):
+    """Before: matplotlib's ValueError after the track was synthesised (a traceback)."""
+    refused(
+        ["track", "--class", "5", "--length", "200", "--plot", str(tmp_path / name)],
+        "accepted .png, .pdf, .svg, .jpg, .jpeg",
+    )
+
+
+def test_a_plot_into_a_folder_is_refused(tmp_path):
+    """Before: `sections --plot /tmp` wrote /tmp.png and said it wrote /tmp."""
+    from railsusp.store import check_figure_file
+
+    with pytest.raises(Exception, match="is a folder, not a file"):
+        check_figure_file(tmp_path, "--plot")
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "needle"),
+    [
+        ("--threshold", "-1", "threshold -1: accepted above 0 and below 1"),
+        ("--threshold", "nan", "threshold nan: accepted above 0 and below 1"),
+        ("--max-keys", "0", "max_keys 0: accepted 1 to 10"),
+        ("--min-cv", "-1", "min_cv -1: accepted 0 to below 1"),
+        ("--base-samples", "0", "base_samples 0: accepted 64 or more"),
+        ("--seed", "-5", "seed -5: accepted 0 or more"),
+        ("--statistics", "bogus", "statistics bogus: accepted one or more of mean, rms"),
+    ],
+)
+def test_sensitivity_settings_are_refused_before_any_file_is_written(
+    tmp_path, option, value, needle
+):
+    """Before: each of these ran and wrote a meaningless key_parameters.json over the good
+    one (exit 0), or failed deep in SALib or scikit-learn naming no option."""
+    refused(["sensitivity", str(tmp_path / "run"), option, value], needle)
+
+
+def test_validate_checks_its_paths_before_simulating(tmp_path):
+    """Before: an existing file as --out raised FileExistsError after the re-simulations; a
+    missing --truth was a bare [Errno 2]; a missing --sensitivity was silently ignored."""
+    existing = tmp_path / "out.txt"
+    existing.write_text("keep")
+    est = str(tmp_path / "est")
+    refused(["validate", est, "--out", str(existing)], "--out")
+    assert existing.read_text() == "keep"
+    refused(["validate", est, "--truth", str(tmp_path / "no.json")], "--truth")
+    refused(["validate", est, "--sensitivity", str(tmp_path)], "--sensitivity")
+
+
+def test_campaign_refuses_a_scheduler_address_before_writing(tmp_path):
+    """Before: ValueError 'missing port number' (a traceback) with the run directory
+    already written."""
+    out = tmp_path / "camp"
+    refused(
+        ["campaign", "--conditions", "straight", "--samples", "4", "--out", str(out),
+         "--scheduler", "bogus"],
+        "--scheduler 'bogus': accepted tcp://host:port",
+    )  # fmt: skip
+    assert not out.exists()
+
+
+def test_compare_refuses_no_models(tmp_path):
+    """Before: KeyError 'condition' from pandas after training nothing."""
+    refused(["compare", str(tmp_path), "--models", ""], "--models (none): accepted one or more")
+
+
+def test_modes_of_a_wagon_without_an_operating_point_is_an_input_error(tmp_path):
+    """Before: RuntimeError 'model.rhs failed' (a traceback) for a car body of 1e30 kg."""
+    from importlib.resources import files
+
+    text = (files("railsusp") / "data" / "c80_k6.toml").read_text()
+    huge = tmp_path / "huge.toml"
+    huge.write_text(text.replace("mass = 91600.0", "mass = 1e30", 1))
+    refused(["modes", "--wagon", str(huge)], "has no operating point to analyse")
+
+
+def test_a_posterior_settings_file_without_settings_is_refused(tmp_path):
+    """Before: KeyError 'settings' from an estimator folder whose settings.json is {}."""
+    from railsusp.errors import RailsuspInputError
+    from railsusp.estimate.posterior import load
+
+    folder = tmp_path / "posterior"
+    folder.mkdir()
+    (folder / "settings.json").write_text(json.dumps({}))
+    (folder / "estimator.pt").write_bytes(b"")
+    (folder / "calibration.json").write_text("{}")
+    with pytest.raises(RailsuspInputError, match="holds no estimator settings: train again"):
+        load(tmp_path)
+
+
+@pytest.mark.parametrize(
+    ("section", "needle"),
+    [
+        ("[campaign]\nsamples = 10\nparameters = []\n", "campaign.parameters: none given"),
+        ("[sensitivity]\nstatistics = []\n", "sensitivity.statistics: none given"),
+    ],
+)
+def test_empty_lists_in_a_configuration_are_refused_before_any_stage(tmp_path, section, needle):
+    """Before: the campaign stage, or the sensitivity stage after the campaign had run,
+    failed on them ('Tuple should have at least 1 item', 'No objects to concatenate')."""
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(f'name = "t"\n{section}')
+    refused(["run", str(cfg), "--out", str(tmp_path / "run")], needle)
+    assert not (tmp_path / "run" / "campaign").exists()
