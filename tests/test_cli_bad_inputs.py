@@ -45,7 +45,7 @@ def test_synth_field_never_replaces_a_file_and_refuses_empty_or_repeated_conditi
         "a file, not a folder",
     )
     assert precious.read_text() == "field notes"
-    refused(["synth-field", "--conditions", "", "--out", str(tmp_path / "e")], "none given")
+    refused(["synth-field", "--conditions", "", "--out", str(tmp_path / "e")], "none named")
     twice = tmp_path / "twice.toml"
     twice.write_text(SHORT + SHORT)
     refused(
@@ -163,3 +163,38 @@ def test_empty_lists_in_a_configuration_are_refused_before_any_stage(tmp_path, s
     cfg.write_text(f'name = "t"\n{section}')
     refused(["run", str(cfg), "--out", str(tmp_path / "run")], needle)
     assert not (tmp_path / "run" / "campaign").exists()
+
+
+@pytest.mark.parametrize("command", ["conditions", "simulate"])
+def test_a_condition_list_naming_none_is_refused(command):
+    """Before: `conditions ""` and `simulate ""` printed empty tables with exit 0."""
+    refused([command, ""], "none named; accepted straight, curve, uphill")
+
+
+def test_a_configurations_missing_track_geometry_is_refused_before_any_stage(tmp_path):
+    """Before: the configuration passed its check and the campaign stage failed on it."""
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(
+        'name = "t"\nconditions = [{base = "straight", name = "short", duration_s = 1.0, '
+        f'n_steps = 50, track_geometry = "{tmp_path / "none.csv"}"}}]\n'
+    )
+    refused(["run", str(cfg), "--out", str(tmp_path / "run")], "track_geometry")
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("rate", ["-1", "0", "nan"])
+def test_check_recording_refuses_a_minimum_rate_out_of_range(tmp_path, rate):
+    """Before: any --min-rate passed, even a negative one."""
+    refused(["check-recording", str(tmp_path / "r.csv"), "--min-rate", rate], "--min-rate")
+
+
+def test_synthesise_field_refuses_no_conditions_from_python_too(tmp_path):
+    """The Python API refuses what the command line does (the CLI's condition list is
+    refused earlier, by resolve_conditions)."""
+    from railsusp.errors import RailsuspInputError
+    from railsusp.measured import synthesise_field
+    from railsusp.params import ParameterSet
+
+    with pytest.raises(RailsuspInputError, match="conditions: none given"):
+        synthesise_field(ParameterSet.nominal(), [], tmp_path / "f")
+    assert not (tmp_path / "f").exists()

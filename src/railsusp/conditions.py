@@ -428,7 +428,14 @@ def load_conditions(source: str | Path) -> list[WorkingCondition]:
 
 
 def resolve_conditions(spec: str) -> list[WorkingCondition]:
-    """Comma-separated standard names (``"straight,curve"``) or a TOML file path."""
+    """Comma-separated standard names (``"straight,curve"``) or a TOML file path; refuses
+    a spec that names none (an empty string, commas alone)."""
     if spec.endswith(".toml") or Path(spec).is_file():
         return load_conditions(spec)
-    return [get_condition(n) for n in spec.split(",") if n.strip()]
+    conds = [get_condition(n) for n in spec.split(",") if n.strip()]
+    if not conds:
+        raise RailsuspInputError(
+            f"conditions {spec!r}: none named; accepted {', '.join(STANDARD_CONDITIONS)} "
+            "(comma-separated) or a TOML file"
+        )
+    return conds

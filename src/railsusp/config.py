@@ -151,6 +151,12 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:
         raise bad(f"conditions: names repeat ({', '.join(dupes)}); give each a distinct name")
+    for c in conds:  # read only in the campaign stage: a missing file would stop it there
+        if c.track_geometry and not Path(c.track_geometry).is_file():
+            raise bad(
+                f"conditions: {c.name}'s track_geometry {c.track_geometry} does not exist; "
+                "accepted a track geometry file (docs/data-format.md)"
+            )
 
     # parameters
     sampled: list[str] = []

@@ -42,6 +42,8 @@ def check_recording(
     from railsusp.measured import RecordingError, read_recording
     from railsusp.measured.raw import MDF_SUFFIXES
 
+    if not 1.0 <= min_rate <= 100_000.0:  # NaN fails too
+        fail(f"--min-rate {min_rate:g} Hz: accepted 1 to 100000 Hz")
     if channel_map is not None or path.suffix.lower() in MDF_SUFFIXES:
         _check_run(path, channel_map)
         return
