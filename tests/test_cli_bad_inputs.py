@@ -198,3 +198,39 @@ def test_synthesise_field_refuses_no_conditions_from_python_too(tmp_path):
     with pytest.raises(RailsuspInputError, match="conditions: none given"):
         synthesise_field(ParameterSet.nominal(), [], tmp_path / "f")
     assert not (tmp_path / "f").exists()
+
+
+def test_simulate_writes_parquet_only_to_a_parquet_file(tmp_path):
+    """Before: `simulate --out sim.csv` wrote Parquet bytes into a .csv file."""
+    refused(["simulate", "straight", "--out", str(tmp_path / "sim.csv")], "accepted a .parquet")
+    assert not (tmp_path / "sim.csv").exists()
+
+
+def test_a_conditions_file_with_a_stray_table_is_refused(tmp_path):
+    """Before: a misspelt table ([conditon]) or a stray key was ignored without a word."""
+    path = tmp_path / "c.toml"
+    path.write_text(SHORT + '[conditon.extra]\nbase = "curve"\n')
+    refused(["conditions", str(path)], "conditon unknown")
+
+
+@pytest.mark.parametrize(
+    ("index", "needle"),
+    [
+        ({"format": "bogus/9", "recordings": ["a.csv"]}, "format 'bogus/9'; accepted"),
+        ({"recordings": ["a.csv", "a.csv"]}, "a.csv listed more than once"),
+    ],
+)
+def test_a_field_index_of_another_format_or_listing_a_recording_twice_is_refused(
+    tmp_path, index, needle
+):
+    """Before: both were read (a recording listed twice weighs double in the estimate)."""
+    from railsusp.errors import RailsuspInputError
+    from railsusp.measured.reader import read_index
+
+    (tmp_path / "index.json").write_text(json.dumps(index))
+    with pytest.raises(RailsuspInputError, match=needle):
+        read_index(tmp_path)
+    index.pop("format", None)  # without a format, once each: read
+    index["recordings"] = ["a.csv"]
+    (tmp_path / "index.json").write_text(json.dumps(index))
+    assert read_index(tmp_path) == [tmp_path / "a.csv"]

@@ -402,6 +402,9 @@ def load_conditions(source: str | Path) -> list[WorkingCondition]:
         raise ConditionError(str(exc)) from None
     raw = doc.get("condition")
     expected = "expected [[condition]] or [condition.NAME] tables"
+    other = sorted(k for k in doc if k != "condition")
+    if other:  # a misspelt table ([conditon]) or a key meant for one would be lost
+        raise ConditionError(f"{path}: {', '.join(other)} unknown; {expected} only")
     if isinstance(raw, dict) and all(isinstance(v, dict) for v in raw.values()):
         tables = [{"name": k, **v} for k, v in raw.items()]
     elif isinstance(raw, list) and all(isinstance(v, dict) for v in raw):

@@ -111,6 +111,8 @@ def simulate(
             conds = [c.with_changes(seed=seed) for c in conds]
         if out is not None:
             check_output_file(out, "--out")
+            if out.suffix.lower() != ".parquet":  # the series are written as Parquet
+                raise RailsuspInputError(f"--out {out}: accepted a .parquet file")
         if plot is not None:
             check_figure_file(plot, "--plot")
         wagon_data = load_wagon(wagon)  # a packaged name or a file, one-line errors

@@ -277,7 +277,15 @@ def read_index(folder: str | Path) -> list[Path]:
         )
     if not doc["recordings"]:
         raise RailsuspInputError(f"{index}: the recordings list is empty")
-    return [inside(folder, n, f"{index} recordings") for n in doc["recordings"]]
+    if "format" in doc and doc["format"] != FORMAT:
+        raise RailsuspInputError(f"{index}: format {doc['format']!r}; accepted {FORMAT!r}")
+    names = doc["recordings"]
+    twice = sorted({str(n) for n in names if names.count(n) > 1})
+    if twice:  # the same recording counted twice would weigh it double in the estimate
+        raise RailsuspInputError(
+            f"{index} recordings: {', '.join(twice)} listed more than once; accepted each once"
+        )
+    return [inside(folder, n, f"{index} recordings") for n in names]
 
 
 def read_field(folder: str | Path) -> list[Recording]:
