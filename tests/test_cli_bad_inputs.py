@@ -105,6 +105,7 @@ def test_validate_checks_its_paths_before_simulating(tmp_path):
     refused(["validate", est, "--out", str(existing)], "--out")
     assert existing.read_text() == "keep"
     refused(["validate", est, "--truth", str(tmp_path / "no.json")], "--truth")
+    refused(["validate", est, "--truth", str(existing)], "--truth")  # not JSON
     refused(["validate", est, "--sensitivity", str(tmp_path)], "--sensitivity")
 
 
@@ -234,3 +235,9 @@ def test_a_field_index_of_another_format_or_listing_a_recording_twice_is_refused
     index["recordings"] = ["a.csv"]
     (tmp_path / "index.json").write_text(json.dumps(index))
     assert read_index(tmp_path) == [tmp_path / "a.csv"]
+
+
+@pytest.mark.parametrize("option", ["--line", "--table", "--map"])
+def test_sections_names_a_missing_side_file(tmp_path, option):
+    """Before: a bare [Errno 2] naming no option."""
+    refused(["sections", str(tmp_path / "run.csv"), option, str(tmp_path / "x")], option)

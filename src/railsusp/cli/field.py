@@ -3,6 +3,7 @@ estimate and validate."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Annotated
 
@@ -417,6 +418,13 @@ def validate(
             check_output_folder(out, "--out")
         if truth is not None and not truth.is_file():
             raise RailsuspInputError(f"--truth {truth}: no such file; accepted a truth.json")
+        if truth is not None:
+            try:
+                json.loads(truth.read_text("utf-8"))
+            except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+                raise RailsuspInputError(
+                    f"--truth {truth}: not valid JSON ({exc}); accepted a truth.json"
+                ) from None
         readable = (sensitivity / "key_parameters.json", sensitivity) if sensitivity else ()
         if sensitivity is not None and not any(p.is_file() for p in readable):
             raise RailsuspInputError(

@@ -162,6 +162,9 @@ def sections_command(
             raise RailsuspInputError(f"--rate {rate:g}: accepted 10 to 5000 Hz")
         if plot is not None:
             check_figure_file(plot, "--plot")
+        for option, given in (("--line", line), ("--table", table), ("--map", channel_map)):
+            if given is not None and not Path(given).is_file():
+                raise RailsuspInputError(f"{option} {given}: no such file")
         rules = SectionRules(
             speed_tolerance=speed_tolerance, min_length_m=min_length, max_duration_s=max_duration
         )
