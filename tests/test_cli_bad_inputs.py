@@ -96,6 +96,19 @@ def test_sensitivity_settings_are_refused_before_any_file_is_written(
     refused(["sensitivity", str(tmp_path / "run"), option, value], needle)
 
 
+def test_sensitivity_accepts_the_campaigns_own_statistics_and_no_other():
+    """The statistics are the campaign features' (mean, rms, p99, max): max is accepted,
+    std (a record statistic that campaigns do not store) is not."""
+    from railsusp.campaign import STATISTICS
+    from railsusp.errors import RailsuspInputError
+    from railsusp.sensitivity import check_settings
+
+    assert "max" in STATISTICS and "std" not in STATISTICS
+    check_settings(STATISTICS, 0.05, ("max",), 6, 0.005, 64, 0)
+    with pytest.raises(RailsuspInputError, match="statistics std: accepted one or more of"):
+        check_settings(("std",), 0.05, ("mean",), 6, 0.005, 64, 0)
+
+
 def test_validate_checks_its_paths_before_simulating(tmp_path):
     """Before: an existing file as --out raised FileExistsError after the re-simulations; a
     missing --truth was a bare [Errno 2]; a missing --sensitivity was silently ignored."""

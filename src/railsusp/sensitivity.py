@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from railsusp.campaign import Campaign, CampaignError, salib_problem
+from railsusp.campaign import STATISTICS, Campaign, CampaignError, salib_problem
 from railsusp.errors import RailsuspInputError
 from railsusp.params import bounds
 from railsusp.store import write_csv, write_json, write_parquet
@@ -357,15 +357,14 @@ def check_settings(
     seed: int,
 ) -> None:
     """Refuse, in one line naming the setting and its accepted range, an analysis setting
-    that would write a meaningless ``key_parameters.json`` (before any file is touched)."""
-    from railsusp.vehicle.simulate import RECORD_STATISTICS
-
+    that would write a meaningless ``key_parameters.json`` (before any file is touched).
+    The statistics are the campaign's features' (:data:`railsusp.campaign.STATISTICS`)."""
     for name, chosen in (("statistics", statistics), ("key_statistics", key_statistics)):
-        unknown = [st for st in chosen if st not in RECORD_STATISTICS]
+        unknown = [st for st in chosen if st not in STATISTICS]
         if not chosen or unknown:
             raise RailsuspInputError(
                 f"{name} {','.join(unknown) or '(none)'}: accepted one or more of "
-                f"{', '.join(RECORD_STATISTICS)}"
+                f"{', '.join(STATISTICS)}"
             )
     if not 0.0 < threshold < 1.0:  # NaN fails too
         raise RailsuspInputError(f"threshold {threshold:g}: accepted above 0 and below 1")

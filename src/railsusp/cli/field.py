@@ -416,9 +416,9 @@ def validate(
     try:
         if out is not None:  # before the simulations, not after them
             check_output_folder(out, "--out")
-        if truth is not None and not truth.is_file():
-            raise RailsuspInputError(f"--truth {truth}: no such file; accepted a truth.json")
         if truth is not None:
+            if not truth.is_file():
+                raise RailsuspInputError(f"--truth {truth}: no such file; accepted a truth.json")
             try:
                 json.loads(truth.read_text("utf-8"))
             except (UnicodeDecodeError, json.JSONDecodeError) as exc:
