@@ -83,7 +83,8 @@ def test_a_plot_into_a_folder_is_refused(tmp_path):
         ("--threshold", "nan", "threshold nan: accepted above 0 and below 1"),
         ("--max-keys", "0", "max_keys 0: accepted 1 to 10"),
         ("--min-cv", "-1", "min_cv -1: accepted 0 to below 1"),
-        ("--base-samples", "0", "base_samples 0: accepted 64 or more"),
+        ("--base-samples", "0", "base_samples 0: accepted 64 to 65536"),
+        ("--base-samples", "1000000", "base_samples 1000000: accepted 64 to 65536"),
         ("--seed", "-5", "seed -5: accepted 0 or more"),
         ("--statistics", "bogus", "statistics bogus: accepted one or more of mean, rms"),
     ],
@@ -254,3 +255,26 @@ def test_a_field_index_of_another_format_or_listing_a_recording_twice_is_refused
 def test_sections_names_a_missing_side_file(tmp_path, option):
     """Before: a bare [Errno 2] naming no option."""
     refused(["sections", str(tmp_path / "run.csv"), option, str(tmp_path / "x")], option)
+
+
+@pytest.mark.parametrize(
+    ("given", "needle"),
+    [
+        ("X99", "--parameters X99: unknown parameter 'X99'; accepted a comma-separated list of"),
+        ("X13,X1", "--parameters X13,X1: X1 is fixed (no range)"),
+        ("X13,X13", "--parameters X13,X13: X13 is given twice"),
+        ("", "unknown parameter ''"),
+    ],
+)
+def test_estimate_names_an_unknown_parameter(tmp_path, given, needle):
+    """Before: X99 read as a mismatch with the surrogate's parameters, naming no option."""
+    args = ["estimate", "--measured", str(tmp_path), "--simulator", "--parameters", given]
+    refused([*args, "--out", str(tmp_path / "est")], needle)
+
+
+def test_a_folder_named_like_a_table_is_called_a_folder(tmp_path):
+    """Before: 'no .csv or .parquet table found' and 'no such file' for an existing folder."""
+    folder = tmp_path / "run.csv"
+    folder.mkdir()
+    refused(["check-recording", str(folder)], "a folder, not a recording table")
+    refused(["sections", str(folder)], "a folder, not a recording file")

@@ -31,9 +31,15 @@ def _write(tmp_path, text: str):
     [
         (BASE.replace("X13 = 16.1", "X99 = 1.0"), "field.truth: unknown parameter 'X99'"),
         (BASE.replace("X13 = 16.1", "X13 = 99.0"), "field.truth: X13"),
-        (BASE.replace("X13 = 16.1", "X13 = true"), "field.truth.X13 = true: a boolean"),
+        (
+            BASE.replace("X13 = 16.1", "X13 = true"),
+            "field.truth.X13 = true: a number is needed, not a boolean",
+        ),
         (BASE + "with_track = false\n[estimate]\nrefine = true\n", "set field.with_track = true"),
-        (BASE.replace("samples = 10", "samples = true"), "campaign.samples = true: a boolean"),
+        (
+            BASE.replace("samples = 10", "samples = true"),
+            "campaign.samples = true: a whole number is needed, not a boolean",
+        ),
         (BASE.replace("samples = 10", "sample = 10"), "campaign.sample"),
         (BASE + "[estimate]\nweighting = 'noise'\n", "needs the predictive SD of surrogate.model"),
         (BASE + "[surrogate]\ndevice = 'tpu'\n", "surrogate.device = 'tpu'"),

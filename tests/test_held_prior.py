@@ -85,7 +85,7 @@ def test_the_configuration_takes_a_prior_and_refuses_a_bad_one_before_any_stage(
         ("held_prior = {X19 = [20000, 50000]}\n", "estimate.held_prior.X19 = [20000, 50000]"),
         (
             "held_prior = {X19 = [true, 40000]}\n",
-            "estimate.held_prior.X19 = [True, 40000]: a boolean",
+            "estimate.held_prior.X19 = [True, 40000]: accepted [low, high] with 15000",
         ),
         ("held_prior = {X19 = 20000}\n", "estimate.held_prior.X19 = 20000"),
     ]:

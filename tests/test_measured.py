@@ -225,6 +225,16 @@ def test_synthetic_field_with_measured_track(tmp_path):
     # a campaign can take the recordings' conditions, measured track included
     (c,) = conditions_from(str(moved))
     assert c.track_geometry == rec.condition.track_geometry
+    # a file too short for the record is reported by the reader (check-recording), not
+    # first by the simulation (stop 53's fuzzing: 2 m of geometry passed)
+    track = moved / "straight.track.csv"
+    full = track.read_text()
+    lines = full.splitlines()
+    short = [ln for ln in lines[1:] if 0.0 <= float(ln.split(",")[0]) <= 2.0]
+    track.write_text("\n".join([lines[0], *short]) + "\n")
+    with pytest.raises(RecordingError, match=r"straight.json: track_geometry: .* covers "):
+        read_field(moved)
+    track.write_text(full)
     # a missing track file is reported as a recording problem
     (moved / "straight.track.csv").unlink()
     with pytest.raises(RecordingError, match="track_geometry.*not found"):

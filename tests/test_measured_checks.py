@@ -156,9 +156,9 @@ def test_a_sidecar_that_is_a_list_or_gives_text_for_a_number_is_refused(tmp_path
     assert "rec.json: a JSON object {...} is needed, not a list" in problems(p)
     cli_refuses(p, "rec.json")
     side.write_text(good.replace('"speed_kmh": 60.0', '"speed_kmh": "60"'))
-    assert "condition.speed_kmh = '60' is str; a JSON number is needed" in problems(p)
+    assert "speed_kmh = '60': a number is needed, not a string" in problems(p)
     side.write_text(good.replace('"speed_kmh": 60.0', '"speed_kmh": true'))
-    assert "condition.speed_kmh = True is bool" in problems(p)
+    assert "speed_kmh = True: a boolean is not accepted" in problems(p)
 
 
 def test_paths_in_sidecars_and_index_must_stay_inside_the_folder(tmp_path):
@@ -183,3 +183,56 @@ def test_paths_in_sidecars_and_index_must_stay_inside_the_folder(tmp_path):
         read_field(folder)
     index.write_text(json.dumps({"recordings": ["rec.csv"]}))
     assert len(read_field(folder)) == 1
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "needle"),
+    [
+        ("wheels", '"w1L"', 'wheels = "w1L": accepted a list of distinct wheel names w1L .. w4R'),
+        ("wheels", '["w1R", "w9X"]', 'wheels = ["w1R", "w9X"]: accepted a list'),
+        ("wheels", '["w1R", "w1R"]', 'wheels = ["w1R", "w1R"]: accepted a list of distinct'),
+        ("filter_bandwidth_hz", '"x"', 'filter_bandwidth_hz = "x": accepted a number of Hz'),
+        ("filter_bandwidth_hz", "-20", "filter_bandwidth_hz = -20: accepted a number of Hz"),
+        ("filter_bandwidth_hz", "0", "filter_bandwidth_hz = 0: accepted a number of Hz above 0"),
+        ("filter_bandwidth_hz", "true", "filter_bandwidth_hz = true: accepted"),
+    ],
+)
+def test_sidecar_wheels_and_bandwidth_are_checked(tmp_path, key, value, needle):
+    """Passed check-recording before; the comparison then failed on them naming nothing."""
+    p = recording().write(tmp_path / "rec")
+    side = p.with_suffix(".json")
+    doc = json.loads(side.read_text())
+    doc[key] = json.loads(value)
+    side.write_text(json.dumps(doc))
+    assert needle in problems(p)
+    cli_refuses(p, needle)
+
+
+def test_sidecar_bandwidth_may_be_null_or_a_number(tmp_path):
+    p = recording().write(tmp_path / "rec")
+    side = p.with_suffix(".json")
+    doc = json.loads(side.read_text())
+    for bw in (None, 20, 12.5):
+        side.write_text(json.dumps({**doc, "filter_bandwidth_hz": bw}))
+        assert read_recording(p).meta["filter_bandwidth_hz"] == bw
+
+
+def test_a_wheel_with_one_force_column_is_reported_once(tmp_path):
+    """Before: its Y column was also 'not recognised (did you mean 'Y_w1L_kN'?)', itself."""
+    t = np.arange(200) / 100.0
+    p = write_table(tmp_path, ["time_s", "Y_w1L_kN"], [t, 10.0 * np.sin(t)])
+    text = problems(p)
+    assert "wheel w1L: column 'Q_w1L_kN' missing" in text
+    assert "not recognised" not in text
+
+
+def test_a_csv_cut_inside_its_last_line_is_refused_and_one_without_a_line_end_is_not(tmp_path):
+    """The Python API fuzzing (stop 54): a copy cut mid-line read its last Y digit-short and
+    its Q as a gap to interpolate."""
+    p = recording().write(tmp_path / "rec")
+    whole = p.read_bytes()
+    p.write_bytes(whole.rstrip(b"\n"))  # no final line end: fine
+    assert read_recording(p).time.size == 200
+    last = whole.rstrip(b"\n").rsplit(b"\n", 1)[-1]
+    p.write_bytes(whole.rstrip(b"\n")[: -(len(last) - last.index(b",") - 2)])
+    assert "the last line is cut short" in problems(p)

@@ -8,6 +8,7 @@ whose tables and figures read the run directory (the same tables the report show
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -185,9 +186,19 @@ class RunResult:
 
 def open_run(path: str | Path, *, tolerances: summary.Tolerances | None = None) -> RunResult:
     """A finished (or partly finished) run directory, read."""
+    if not isinstance(path, str | os.PathLike):
+        raise RailsuspInputError(f"path = {path!r}: a run directory (str or Path) is needed")
+    if tolerances is not None and not isinstance(tolerances, summary.Tolerances):
+        raise RailsuspInputError(
+            f"tolerances = {tolerances!r}: a railsusp.Tolerances(default_pct, per_parameter) "
+            "is needed"
+        )
     path = Path(path).resolve()
     if not (path / "pipeline.json").is_file():
         raise RailsuspInputError(f"{path}: not a run directory (no pipeline.json)")
+    state = read_json(path / "pipeline.json")
+    if not isinstance(state, dict) or not isinstance(state.get("stages"), dict):
+        raise RailsuspInputError(f"{path}: its pipeline.json is not a railsusp run's (no stages)")
     return RunResult(path, tolerances)
 
 
@@ -206,13 +217,17 @@ def run(
     from railsusp.pipeline import run_pipeline
     from railsusp.pipeline_config import PipelineConfig, load_config
 
+    if out is not None and not isinstance(out, str | os.PathLike):
+        raise RailsuspInputError(f"out = {out!r}: a folder path (str or Path) is needed")
+    if progress is not None and not callable(progress):
+        raise RailsuspInputError(f"progress = {progress!r}: a function (stage, message) or None")
     if isinstance(config, PipelineConfig):
         cfg = config
     elif isinstance(config, Mapping):
         from pydantic import ValidationError
 
         try:
-            cfg = PipelineConfig(**config)
+            cfg = PipelineConfig.model_validate(dict(config))
         except ValidationError as exc:
             msgs = [f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors()]
             raise RailsuspInputError("configuration: " + "; ".join(msgs)) from None
@@ -225,5 +240,5 @@ def run(
         )
     if out is None:
         raise RailsuspInputError("out: the run directory is needed for a configuration object")
-    run_pipeline(cfg, out, start_from=start_from, progress=progress)
+    run_pipeline(cfg, out, start_from=start_from, progress=progress, options=("out", "start_from"))
     return open_run(out)

@@ -29,6 +29,7 @@ length (50 Hz output).
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, Literal
@@ -155,8 +156,8 @@ class WorkingCondition(BaseModel):
     def _no_booleans(cls, data: Any) -> Any:
         """``speed_kmh = true`` is a slip, not 1 km/h: no field takes a boolean."""
         if isinstance(data, dict):
-            for key, value in data.items():
-                if isinstance(value, bool):
+            for key, value in data.items():  # unknown keys are extra_forbidden's to name
+                if key in cls.model_fields and isinstance(value, bool):
                     raise ValueError(f"{key} = {value!r}: a boolean is not accepted here")
         return data
 
@@ -284,9 +285,9 @@ class WorkingCondition(BaseModel):
     def with_duration(self, duration_s: float) -> WorkingCondition:
         """A validated copy recording ``duration_s`` seconds at the same sampling interval."""
         lo, hi = 1.0, 600.0
-        if isinstance(duration_s, bool) or not (
-            isinstance(duration_s, int | float) and lo <= duration_s <= hi
-        ):
+        if isinstance(duration_s, numbers.Real) and not isinstance(duration_s, bool):
+            duration_s = float(duration_s)  # NumPy scalars too
+        if not (isinstance(duration_s, float) and lo <= duration_s <= hi):
             raise ConditionError(
                 f"condition {self.name!r}: duration_s = {duration_s!r}: accepted range "
                 f"[{lo:g}, {hi:g}] s"
@@ -312,9 +313,17 @@ TRACK_INPUT_FIELDS: tuple[str, ...] = (
 )
 
 
-def make_condition(fields: dict[str, Any]) -> WorkingCondition:
-    """Build a condition from a dict, turning validation failures into one-line errors."""
+def make_condition(fields: dict[str, Any], *, from_file: bool = False) -> WorkingCondition:
+    """Build a condition from a dict, turning validation failures into one-line errors.
+
+    ``from_file``: the dict was read from a TOML or JSON file, so a value of the wrong type
+    (``speed_kmh = "80"``) is refused, not converted
+    (:func:`railsusp.store.validate_document`)."""
+    from railsusp.store import validate_document
+
     try:
+        if from_file:
+            return validate_document(WorkingCondition, fields)
         return WorkingCondition(**fields)
     except ValidationError as exc:
         raise ConditionError(_format_errors(fields.get("name", "custom"), exc)) from None
@@ -324,6 +333,8 @@ def make_condition(fields: dict[str, Any]) -> WorkingCondition:
 
 def _format_errors(name: str, exc: ValidationError) -> str:
     """One line per pydantic error, naming field, value and accepted range with unit."""
+    from railsusp.store import type_error_text
+
     msgs = []
     for err in exc.errors():
         field = ".".join(str(p) for p in err["loc"]) or "condition"
@@ -342,7 +353,8 @@ def _format_errors(name: str, exc: ValidationError) -> str:
             continue
         value = err.get("input")
         shown = "" if field == "condition" else f"{field} = {value!r}: "
-        text = err["msg"].removeprefix("Value error, ")
+        wrong_type = type_error_text(err)
+        text = wrong_type or err["msg"].removeprefix("Value error, ")
         if err["type"] == "string_pattern_mismatch" and field == "name":
             text = (
                 "a condition name becomes a folder name: letters, digits, '_', '-' and '.', "
@@ -350,7 +362,11 @@ def _format_errors(name: str, exc: ValidationError) -> str:
             )
         if lo is not None or hi is not None:
             rng = f"[{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
-            msgs.append(f"{shown}accepted range {rng} {unit}".rstrip() + f" ({text})")
+            accepted = f"accepted range {rng} {unit}".rstrip()
+            if wrong_type:
+                msgs.append(f"{shown}{wrong_type}; {accepted}")
+            else:
+                msgs.append(f"{shown}{accepted} ({text})")
         else:
             msgs.append(f"{shown}{text}")
     return f"condition {name!r}: " + "; ".join(msgs)
@@ -424,9 +440,16 @@ def load_conditions(source: str | Path) -> list[WorkingCondition]:
                 start = get_condition(base).model_dump()
                 start.update(fields)
                 fields = start
-            out.append(make_condition(fields))
+            cond = make_condition(fields, from_file=True)
         except ConditionError as exc:
             raise ConditionError(f"{path}: {exc}") from None
+        if cond.track_geometry is not None and not Path(cond.track_geometry).is_file():
+            raise ConditionError(  # read only when simulating: a missing file would stop there
+                f"{path}: condition {cond.name!r}: track_geometry {cond.track_geometry} does "
+                "not exist (relative to the working folder); accepted a track geometry file "
+                "(docs/data-format.md)"
+            )
+        out.append(cond)
     return out
 
 

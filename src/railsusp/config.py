@@ -5,7 +5,8 @@ refuse unknown keys; this module adds what a field-by-field check cannot see, so
 that would fail in its fifth stage fails at once, with a one-line error naming the field:
 
 * the file itself: unreadable, a folder, not UTF-8, not TOML, not a table of tables;
-* booleans where numbers are expected (``samples = true`` is a slip, not one sample);
+  (values of the wrong type, ``samples = true`` or ``samples = "10"``, are refused by
+  the models' strict validation, :func:`railsusp.store.validate_document`);
 * every working condition built (names, ranges, ``base``), names distinct;
 * parameters: campaign parameters sampled and distinct, ``[field] truth`` symbols known
   and inside their ranges (``truth = {X99 = 1.0}`` used to fail after three stages),
@@ -26,12 +27,9 @@ arguments), so imports flow one way.
 
 from __future__ import annotations
 
-import types
-import typing
+import json
 from pathlib import Path
 from typing import Any
-
-from pydantic import BaseModel
 
 from railsusp.errors import RailsuspInputError
 
@@ -47,85 +45,52 @@ class ConfigError(RailsuspInputError):
     """A pipeline configuration that cannot run as written."""
 
 
-def read_config(path: str | Path, model: type[BaseModel]) -> dict[str, Any]:
-    """The TOML document of a configuration file, after the checks a model cannot make:
-    it is a readable UTF-8 TOML file, and no number field holds a boolean."""
+def read_config(path: str | Path) -> dict[str, Any]:
+    """The TOML document of a configuration file, checked to be a readable UTF-8 TOML
+    file (one line naming the file otherwise)."""
     from railsusp.store import read_toml
 
-    path = Path(path)
     try:
-        doc = read_toml(path, "configuration")
+        return read_toml(Path(path), "configuration")
     except RailsuspInputError as exc:
         raise ConfigError(str(exc)) from None
-    problem = _booleans(doc, model, "")
-    if problem:
-        raise ConfigError(f"{path}: {problem}")
-    return doc
 
 
 def validation_message(where: str | Path, exc: Any) -> str:
     """A pydantic ValidationError as one line: ``where: loc: message; ...``, with field names
-    that are not plain identifiers (a key holding a newline, a dot) shown quoted."""
+    that are not plain identifiers (a key holding a newline, a dot) shown quoted, and a value
+    of the wrong type shown as the file wrote it (``campaign.samples = "10": a whole number
+    is needed, not a string``)."""
+    from railsusp.store import type_error_text
 
     def part(p: Any) -> str:
         s = str(p)
         return s if s.replace("_", "a").isalnum() and s.isascii() else repr(s)
 
-    msgs = [
-        f"{'.'.join(part(p) for p in e['loc']) or 'combination'}: {' '.join(e['msg'].split())}"
-        for e in exc.errors()
-    ]
-    return f"{where}: " + "; ".join(msgs)
+    def one(e: Any) -> str:
+        loc = ".".join(part(p) for p in e["loc"]) or "combination"
+        wrong_type = type_error_text(e)
+        if wrong_type is not None:
+            return f"{loc} = {_as_toml(e.get('input'))}: {wrong_type}"
+        return f"{loc}: {' '.join(e['msg'].removeprefix('Value error, ').split())}"
+
+    return f"{where}: " + "; ".join(one(e) for e in exc.errors())
 
 
-def _booleans(doc: Any, model: type[BaseModel], where: str) -> str | None:
-    """The first ``field = true/false`` whose field takes numbers, not booleans; or None."""
-    if not isinstance(doc, dict):
-        return None
-    for key, value in doc.items():
-        info = model.model_fields.get(key) if isinstance(key, str) else None
-        if info is None:
-            continue  # unknown keys are the model's to refuse
-        name = f"{where}{key}"
-        sub = _model_of(info.annotation)
-        if sub is not None:
-            found = _booleans(value, sub, f"{name}.")
-            if found:
-                return found
-        elif isinstance(value, bool) and not _takes_bool(info.annotation):
-            return f"{name} = {str(value).lower()}: a boolean is not accepted here"
-        elif isinstance(value, dict) and key == "truth":
-            for sym, v in value.items():
-                if isinstance(v, bool):
-                    return f"{name}.{sym} = {str(v).lower()}: a boolean is not a number"
-        elif isinstance(value, dict) and key == "held_prior":
-            for sym, pair in value.items():
-                if isinstance(pair, bool) or (
-                    isinstance(pair, list) and any(isinstance(v, bool) for v in pair)
-                ):
-                    return f"{name}.{sym} = {pair!r}: a boolean is not a number"
-    return None
+def _as_toml(value: Any) -> str:
+    """A scalar as a TOML file writes it (``true``, ``"10"``); others as Python shows them."""
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, str):
+        return json.dumps(value)  # a TOML basic string escapes as JSON does
+    return repr(value)
 
 
-def _model_of(annotation: Any) -> type[BaseModel] | None:
-    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-        return annotation
-    return None
-
-
-def _takes_bool(annotation: Any) -> bool:
-    if annotation is bool:
-        return True
-    origin = typing.get_origin(annotation)
-    if origin in (typing.Union, types.UnionType):
-        return any(_takes_bool(a) for a in typing.get_args(annotation))
-    return annotation is Any
-
-
-def check_config(cfg: Any, where: str = "configuration") -> None:
+def check_config(cfg: Any, where: str = "configuration", *, from_file: bool = False) -> None:
     """Check a validated :class:`~railsusp.pipeline_config.PipelineConfig` as a whole; raise
     :class:`ConfigError` (one line, naming the field) at the first thing that would make a
-    stage fail."""
+    stage fail. ``from_file``: read from a TOML file, so the conditions' values are checked
+    as strictly as the rest (a Python dict's are converted as pydantic does)."""
     from railsusp.params import ParameterSet, spec
     from railsusp.vehicle.wagon import load_wagon
 
@@ -142,7 +107,7 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
 
     # conditions: each one builds, names distinct (a recording's: its cut)
     try:
-        conds = cfg.working_conditions()
+        conds = cfg.working_conditions(from_file=from_file)
     except RailsuspInputError as exc:
         raise bad(f"conditions: {exc}") from None
     if not conds:

@@ -368,6 +368,40 @@ def bounds(symbols: Iterable[str]) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
+def _check_units(units: object) -> None:
+    if units not in ("si", "display"):
+        raise ParameterError(f"units must be 'si' or 'display', got {units!r}")
+
+
+def _keyed(values: object) -> list[tuple[ParameterSpec, object]]:
+    """The (spec, value) pairs of a mapping of symbols or names to values; anything else (a
+    list of pairs, a string, a key that is not a string) is a one-line ParameterError."""
+    if values is None:
+        return []
+    if not isinstance(values, Mapping):
+        raise ParameterError(
+            f"parameter values: a mapping {{symbol: value}} is needed, not "
+            f"{type(values).__name__} (e.g. {{'X13': 16.1}}; text: parse_overrides)"
+        )
+    out = []
+    for key, value in values.items():
+        if not isinstance(key, str):
+            raise ParameterError(f"parameter {key!r}: a symbol or name (a string) is needed")
+        out.append((spec(key), value))
+    return out
+
+
+def _to_si(s: ParameterSpec, value: object, units: str) -> object:
+    """``value`` in SI for ``units`` = 'display' (left as given when it is not a number, for
+    :meth:`ParameterSpec.check` to name it)."""
+    if units != "display" or isinstance(value, bool):
+        return value
+    try:
+        return float(value) * s.scale  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return value
+
+
 class ParameterSet(Mapping[str, float]):
     """A complete, validated set of the 20 catalogue parameters, in SI units.
 
@@ -383,20 +417,10 @@ class ParameterSet(Mapping[str, float]):
     __slots__ = ("_values",)
 
     def __init__(self, values: Mapping[str, float] | None = None, *, units: Units = "si"):
-        if units not in ("si", "display"):
-            raise ParameterError(f"units must be 'si' or 'display', got {units!r}")
+        _check_units(units)
         data = {s.symbol: s.nominal for s in CATALOGUE}
-        for key, value in (values or {}).items():
-            s = spec(key)
-            v = value
-            if units == "display":
-                try:
-                    if isinstance(value, bool):
-                        raise TypeError
-                    v = float(value) * s.scale
-                except (TypeError, ValueError):
-                    v = value  # let check() produce the message
-            data[s.symbol] = s.check(v)
+        for s, value in _keyed(values):
+            data[s.symbol] = s.check(_to_si(s, value, units))
         self._values = data
 
     @classmethod
@@ -406,10 +430,10 @@ class ParameterSet(Mapping[str, float]):
 
     def replace(self, values: Mapping[str, float], *, units: Units = "si") -> ParameterSet:
         """A copy with some parameters changed (given in ``units``)."""
+        _check_units(units)
         merged: dict[str, float] = dict(self._values)
-        for key, value in values.items():
-            s = spec(key)
-            merged[s.symbol] = float(value) * s.scale if units == "display" else value
+        for s, value in _keyed(values):
+            merged[s.symbol] = s.check(_to_si(s, value, units))
         return ParameterSet(merged)
 
     def __getitem__(self, key: str) -> float:
@@ -461,10 +485,36 @@ class ParameterSet(Mapping[str, float]):
         table = doc.get("parameters", doc)
         if not isinstance(table, dict):
             raise ParameterError(f"{where}: [parameters] must be a table of name = value")
+        for key, value in table.items():  # as strictly as the other files: "16.1" is a slip
+            if isinstance(value, str):
+                raise ParameterError(
+                    f"{where}: {key} = {value!r}: a number is needed, not a string (write it "
+                    "without quotes)"
+                )
         try:
             return cls(table, units="display")
         except ParameterError as exc:
             raise ParameterError(f"{where}: {exc}") from None
+
+
+def parse_sampled(text: str, option: str = "--parameters") -> tuple[str, ...]:
+    """Symbols of a comma-separated list of sampled parameters (``"X13,X14"``, names
+    accepted), each known, with a range, and given once; else one line naming ``option``."""
+    accepted = f"accepted a comma-separated list of {MAIN_SUSPENSION[0]}..{MAIN_SUSPENSION[-1]}"
+    out: list[str] = []
+    for part in (p.strip() for p in text.split(",")):
+        try:
+            s = spec(part)
+        except ParameterError:
+            raise ParameterError(
+                f"{option} {text}: unknown parameter {part!r}; {accepted}"
+            ) from None
+        if s.bounds is None:
+            raise ParameterError(f"{option} {text}: {s.symbol} is fixed (no range); {accepted}")
+        if s.symbol in out:
+            raise ParameterError(f"{option} {text}: {s.symbol} is given twice")
+        out.append(s.symbol)
+    return tuple(out)
 
 
 def parse_overrides(items: str | Iterable[str]) -> dict[str, float]:
@@ -504,7 +554,15 @@ def check_matrix(symbols: Iterable[str], matrix: np.ndarray) -> np.ndarray:
     row, parameter, value and range.
     """
     syms = [spec(s).symbol for s in symbols]
-    x = np.asarray(matrix, dtype=float)
+    twice = sorted({s for s in syms if syms.count(s) > 1})
+    if twice:
+        raise ParameterError(f"symbols: {', '.join(twice)} given twice; give each column once")
+    try:
+        x = np.asarray(matrix, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(
+            f"parameter matrix: numbers in shape (n_sets, {len(syms)}) are needed"
+        ) from None
     if x.ndim != 2 or x.shape[1] != len(syms):
         raise ParameterError(
             f"parameter matrix must have shape (n_sets, {len(syms)}) for {syms}, got {x.shape}"
@@ -512,12 +570,10 @@ def check_matrix(symbols: Iterable[str], matrix: np.ndarray) -> np.ndarray:
     for j, sym in enumerate(syms):
         col = x[:, j]
         s = spec(sym)
-        if s.bounds is None:
-            bad = ~np.isfinite(col) | (col <= 0)
-        else:
-            lo, hi = s.bounds
-            tol = 1e-9 * max(abs(lo), abs(hi))
-            bad = ~np.isfinite(col) | (col < lo - tol) | (col > hi + tol)
+        # a fixed parameter: inside its plausible range, as ParameterSet checks it
+        lo, hi = (v * s.scale for v in s.plausible_display) if s.bounds is None else s.bounds
+        tol = 1e-9 * max(abs(lo), abs(hi))
+        bad = ~np.isfinite(col) | (col < lo - tol) | (col > hi + tol)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
             try:

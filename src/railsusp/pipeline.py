@@ -37,6 +37,33 @@ class StageError(RailsuspInputError):
     """A stage failed; earlier stages' outputs are intact."""
 
 
+def _ignorable(entry: Path) -> bool:
+    """A file a new run directory may already hold: hidden (``.gitkeep``, ``.DS_Store``) or
+    a configuration (the study's TOML kept beside its run); the stages write neither."""
+    return entry.name.startswith(".") or (entry.is_file() and entry.suffix == ".toml")
+
+
+def _run_state(out: Path, option: str) -> dict:
+    """The state of the run directory ``out`` (its ``pipeline.json``), or a new state for a
+    folder that does not exist or holds nothing the stages could write over; refuse a
+    folder of other files, or one whose ``pipeline.json`` is not a railsusp run's."""
+    state_path = out / "pipeline.json"
+    if not state_path.exists():
+        if out.is_dir() and any(not _ignorable(p) for p in out.iterdir()):
+            raise RailsuspInputError(
+                f"{option} {out}: a folder holding other files and no pipeline.json; give a "
+                "new or empty folder, or a railsusp run directory to resume"
+            )
+        return {"stages": {}}
+    state = read_json(state_path)
+    if not isinstance(state, dict) or not isinstance(state.get("stages"), dict):
+        raise RailsuspInputError(
+            f"{option} {out}: its pipeline.json is not a railsusp run's (no stages table); "
+            "give a new or empty folder"
+        )
+    return state
+
+
 def run_pipeline(
     config: PipelineConfig,
     out: str | Path,
@@ -44,22 +71,26 @@ def run_pipeline(
     start_from: str | None = None,
     progress: Callable[[str, str], None] | None = None,
     run_progress: Callable[[int, int], None] | None = None,
+    options: tuple[str, str] = ("--out", "--from"),
 ) -> dict:
     """Run the stages in order, skipping the up-to-date ones; returns ``pipeline.json``.
 
     ``progress(stage, message)`` reports stage starts; ``run_progress(done, total)`` the
-    campaign's simulations.
+    campaign's simulations. ``out`` is a new or empty folder, or a run directory to resume:
+    a folder holding other files is refused (the stages would write over them). ``options``
+    name ``out`` and ``start_from`` in the errors (the command line's, or the API's).
     """
     from railsusp.config import check_config
     from railsusp.store import check_output_folder
 
-    out = check_output_folder(out)
+    out_option, from_option = options
+    out = check_output_folder(out, out_option)
     if start_from is not None and start_from not in STAGES:
-        raise RailsuspInputError(f"--from {start_from!r}: accepted {', '.join(STAGES)}")
+        raise RailsuspInputError(f"{from_option} {start_from!r}: accepted {', '.join(STAGES)}")
+    state = _run_state(out, out_option)
     check_config(config)  # every combination, before any stage runs
     out.mkdir(parents=True, exist_ok=True)
     state_path = out / "pipeline.json"
-    state = read_json(state_path) if state_path.exists() else {"stages": {}}
     state["config"] = config.model_dump(mode="json")
     forced = STAGES.index(start_from) if start_from else len(STAGES)
     upstream: dict[str, str] = {}

@@ -41,10 +41,10 @@ class _Cfg(BaseModel):
 
 
 class CampaignSection(_Cfg):
-    samples: int = Field(64, ge=4, description="LHS samples")
+    samples: int = Field(64, ge=4, le=1_000_000, description="LHS samples")
     design: Literal["lhs", "lhs-optimised"] = "lhs"
     seed: int = Field(0, ge=0)
-    batch_size: int = Field(32, ge=1)
+    batch_size: int = Field(32, ge=1, le=10_000)
     parameters: tuple[str, ...] = MAIN_SUSPENSION
 
 
@@ -52,7 +52,7 @@ class SensitivitySection(_Cfg):
     threshold: float = Field(0.05, gt=0.0, lt=1.0, description="ST threshold of the key rule")
     max_keys: int = Field(6, ge=1, le=10)
     statistics: tuple[str, ...] = ("mean", "p99")
-    base_samples: int = Field(512, ge=64)
+    base_samples: int = Field(512, ge=64, le=65_536)  # railsusp.sensitivity.BASE_SAMPLES
 
 
 class SurrogateSection(_Cfg):
@@ -70,16 +70,20 @@ class SurrogateSection(_Cfg):
     samples: int = Field(
         128,
         ge=0,
+        le=1_000_000,
         description="LHS samples of the key parameters for the surrogates' own campaign "
         "(0: train on the sensitivity campaign)",
     )
     seed: int = Field(1, ge=0, description="design seed of that campaign")
-    epochs: int = Field(8, ge=1)
+    epochs: int = Field(8, ge=1, le=10_000)
     fine_tune_epochs: int = Field(
-        0, ge=0, description="then epochs at a tenth of the learning rate, from the best state"
+        0,
+        ge=0,
+        le=10_000,
+        description="then epochs at a tenth of the learning rate, from the best state",
     )
-    batches_per_epoch: int = Field(60, ge=1)
-    batch_size: int = Field(512, ge=8)
+    batches_per_epoch: int = Field(60, ge=1, le=100_000)
+    batch_size: int = Field(512, ge=8, le=65_536)
     device: str = "cpu"
     pretrained: str | None = Field(
         None,
@@ -218,6 +222,18 @@ class EstimateSection(_Cfg):
         "parameter the refinement holds at nominal is known to lie in (docs/configuration.md)",
     )
 
+    @field_validator("held_prior")
+    @classmethod
+    def _prior_numbers(cls, v: dict[str, Any]) -> dict[str, Any]:
+        """``{X19 = ["20000", "40000"]}`` is a slip, not a range (the rest of the range
+        checks are :class:`~railsusp.estimate.config.HeldPrior`'s)."""
+        for sym, pair in v.items():
+            if isinstance(pair, list) and any(isinstance(x, str) for x in pair):
+                raise ValueError(
+                    f"{sym} = {pair!r}: numbers are needed, not strings (write them without quotes)"
+                )
+        return v
+
     @field_validator("statistic")
     @classmethod
     def _statistic(cls, v: str) -> str:
@@ -246,9 +262,11 @@ class PipelineConfig(_Cfg):
 
         return run_source(self.field)
 
-    def working_conditions(self) -> list[WorkingCondition]:
+    def working_conditions(self, *, from_file: bool = False) -> list[WorkingCondition]:
         """The conditions of the run: those given, or with ``[field] recording`` the kept
-        sections' conditions of the recording (:mod:`railsusp.measured.cut`)."""
+        sections' conditions of the recording (:mod:`railsusp.measured.cut`). ``from_file``:
+        the configuration was read from a file, so its conditions' values are validated
+        strictly (:func:`railsusp.conditions.make_condition`)."""
         source = self.run_source()
         if source is not None:
             from railsusp.measured.cut import section_conditions
@@ -262,21 +280,22 @@ class PipelineConfig(_Cfg):
                 fields = dict(c)
                 base = fields.pop("base", None)
                 start = get_condition(base).model_dump() if base else {}
-                out.append(make_condition({**start, **fields}))
+                out.append(make_condition({**start, **fields}, from_file=from_file))
         return out
 
 
 def load_config(path: str | Path) -> PipelineConfig:
     """Read and validate a pipeline TOML; errors name the field (one line)."""
     from railsusp.config import check_config, read_config, validation_message
+    from railsusp.store import validate_document
 
     path = Path(path)
     try:
-        cfg = PipelineConfig(**read_config(path, PipelineConfig))
+        cfg = validate_document(PipelineConfig, read_config(path))
     except ValidationError as exc:
         raise RailsuspInputError(validation_message(path, exc)) from None
     cfg = _beside(cfg, path.parent)
-    check_config(cfg, str(path))
+    check_config(cfg, str(path), from_file=True)
     return cfg
 
 

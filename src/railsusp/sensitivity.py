@@ -347,6 +347,12 @@ def agreement(a: pd.DataFrame, b: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+#: the accepted Saltelli base samples N of an analysis on the metamodel (N (2d + 2)
+#: evaluations: 65 536 with ten parameters is 1.4 million); the configuration's
+#: ``[sensitivity] base_samples`` has the same bounds
+BASE_SAMPLES = (64, 65_536)
+
+
 def check_settings(
     statistics: Sequence[str],
     threshold: float,
@@ -372,8 +378,10 @@ def check_settings(
         raise RailsuspInputError(f"max_keys {max_keys}: accepted 1 to 10")
     if not 0.0 <= min_cv < 1.0:
         raise RailsuspInputError(f"min_cv {min_cv:g}: accepted 0 to below 1")
-    if base_samples < 64:
-        raise RailsuspInputError(f"base_samples {base_samples}: accepted 64 or more")
+    if not BASE_SAMPLES[0] <= base_samples <= BASE_SAMPLES[1]:
+        raise RailsuspInputError(
+            f"base_samples {base_samples}: accepted {BASE_SAMPLES[0]} to {BASE_SAMPLES[1]}"
+        )
     if seed < 0:
         raise RailsuspInputError(f"seed {seed}: accepted 0 or more")
 

@@ -15,6 +15,7 @@ import hashlib
 import json
 import os
 import platform
+import re
 import shutil
 import socket
 import subprocess
@@ -155,6 +156,72 @@ def read_toml(path: str | Path, what: str = "file") -> dict[str, Any]:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise RailsuspInputError(f"{what} {path}: not valid TOML ({exc})") from None
+
+
+#: pydantic's strict-mode type errors, as what the field needs
+_NEEDED = {
+    "int_type": "a whole number",
+    "float_type": "a number",
+    "bool_type": "true or false",
+    "string_type": "a string",
+    "tuple_type": "a list",
+    "list_type": "a list",
+    "dict_type": "a table",
+    "model_type": "a table",
+}
+
+
+#: a TOML date or time, as :func:`validate_document` writes it (``1979-05-27``, ``07:32:00``)
+_ISO_DATE = re.compile(r"^(\d{4}-\d{2}-\d{2}|\d{2}:\d{2}:\d{2})")
+
+
+def validate_document(model: Any, doc: Any) -> Any:
+    """``doc``, read from a TOML or JSON file, validated by the pydantic ``model`` in strict
+    mode, so that a value of the wrong type is refused rather than converted: a number
+    written as a string (``speed_kmh = "80"``), a boolean given as a number
+    (``with_track = 1``) or as a string (``refine = "false"``), a float where a count is
+    meant (``n_gen = 2.0``). An integer still stands for a float (``mass = 91600``).
+
+    The document goes through JSON because strict validation of JSON input takes a file's
+    arrays for tuples and its strings for paths, as a file can only write them; TOML dates
+    become strings (refused wherever a number is needed)."""
+    return model.model_validate_json(json.dumps(doc, default=_plain), strict=True)
+
+
+def _plain(value: Any) -> Any:
+    """A value JSON cannot write: a NumPy scalar as its Python value, else its text."""
+    return value.item() if isinstance(value, np.generic) else str(value)
+
+
+def json_numbers(doc: Any) -> Any:
+    """``doc`` (read from JSON) with its whole-number floats as integers: JSON has one number
+    type, so ``"n_steps": 1000.0`` (as MATLAB or pandas write it) is the whole number 1000 for
+    :func:`validate_document`; floats stay floats where a real number is meant."""
+    if isinstance(doc, dict):
+        return {k: json_numbers(v) for k, v in doc.items()}
+    if isinstance(doc, list):
+        return [json_numbers(v) for v in doc]
+    if isinstance(doc, float) and doc.is_integer():
+        return int(doc)
+    return doc
+
+
+def type_error_text(err: Any) -> str | None:
+    """For a strict-mode type error of :func:`validate_document` (one of pydantic's
+    ``ValidationError.errors()``), what the field needs and what it was given, e.g.
+    ``a whole number is needed, not a string (write it without quotes)``; else None."""
+    needed = _NEEDED.get(err.get("type", ""))
+    if needed is None:
+        return None
+    value = err.get("input")
+    if isinstance(value, str) and _ISO_DATE.match(value):
+        return f"{needed} is needed, not a date or time"
+    if isinstance(value, str):
+        quotes = "" if needed in ("a string", "a list", "a table") else " (write it without quotes)"
+        return f"{needed} is needed, not a string{quotes}"
+    got = {bool: "a boolean", int: "an integer", float: "a float", list: "a list", dict: "a table"}
+    got[type(None)] = "null"
+    return f"{needed} is needed, not {got.get(type(value), type(value).__name__)}"
 
 
 def check_output_folder(path: str | Path, option: str = "--out") -> Path:

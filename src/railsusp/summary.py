@@ -10,11 +10,13 @@ Python API and the report never disagree.
 from __future__ import annotations
 
 import math
+import numbers
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from railsusp.errors import RailsuspInputError
@@ -39,13 +41,21 @@ class Tolerances:
     default_pct: float = DEFAULT_TOLERANCE_PCT
     parameters: Mapping[str, float] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        """Each tolerance in (0, 100] % and keyed by a main suspension parameter (symbol or
+        name, kept as its symbol): a negative or NaN tolerance would judge every element
+        degraded, a misspelt key would fall back to the default unseen."""
+        default, per = _checked("Tolerances", self.default_pct, self.parameters)
+        object.__setattr__(self, "default_pct", default)
+        object.__setattr__(self, "parameters", per)
+
     def of(self, symbol: str) -> float:
         """The tolerance of one parameter, % of its nominal value."""
         return float(self.parameters.get(symbol, self.default_pct))
 
 
 def _check_pct(where: str, key: str, value: object) -> float:
-    ok = isinstance(value, int | float) and not isinstance(value, bool)
+    ok = isinstance(value, numbers.Real) and not isinstance(value, bool | np.bool_)
     if not ok or not 0.0 < float(value) <= 100.0:  # type: ignore[arg-type]
         raise RailsuspInputError(
             f"{where}: tolerances.{key} = {value!r}: accepted a number in (0, 100] "
@@ -70,18 +80,36 @@ def read_tolerances(wagon: str | Path | None = None) -> Tolerances:
         raise RailsuspInputError(f"{path}: not valid TOML ({exc})") from None
     if not isinstance(doc, dict):
         raise RailsuspInputError(f"{path}: tolerances must be a table ([tolerances])")
-    default = _check_pct(str(path), "default_pct", doc.get("default_pct", DEFAULT_TOLERANCE_PCT))
-    per = {}
-    for key, value in doc.items():
-        if key == "default_pct":
-            continue
-        if key not in MAIN_SUSPENSION:
+    per = {k: v for k, v in doc.items() if k != "default_pct"}
+    default = doc.get("default_pct", DEFAULT_TOLERANCE_PCT)
+    return Tolerances(*_checked(str(path), default, per, "default_pct or "))
+
+
+def _checked(
+    where: str, default: object, per: object, also: str = ""
+) -> tuple[float, dict[str, float]]:
+    """``default`` and ``per`` (a mapping of main suspension parameter to tolerance) checked
+    (one line naming ``where`` and the key otherwise), keys as symbols."""
+    if not isinstance(per, Mapping):
+        raise RailsuspInputError(
+            f"{where}: tolerances per parameter: a mapping {{symbol: %}} is needed, not "
+            f"{type(per).__name__}"
+        )
+    out = {}
+    for key, value in per.items():
+        try:
+            symbol = spec(str(key)).symbol
+        except RailsuspInputError:
+            symbol = None
+        if symbol not in MAIN_SUSPENSION:
             raise RailsuspInputError(
-                f"{path}: tolerances.{key}: accepted default_pct or a main suspension "
+                f"{where}: tolerances.{key}: accepted {also}a main suspension "
                 f"parameter ({', '.join(MAIN_SUSPENSION)})"
             )
-        per[key] = _check_pct(str(path), key, value)
-    return Tolerances(default, per)
+        if symbol in out:
+            raise RailsuspInputError(f"{where}: tolerances.{key}: {symbol} is given twice")
+        out[symbol] = _check_pct(where, str(key), value)
+    return _check_pct(where, "default_pct", default), out
 
 
 def _config(run: Path) -> dict:

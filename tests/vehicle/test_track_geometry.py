@@ -93,6 +93,18 @@ def test_implausible_magnitudes(tmp_path):
     assert "look like metres" in metres
 
 
+def test_one_component_in_metres_is_refused_and_one_not_measured_is_not(tmp_path):
+    """Stop 53's fuzzing: a single column left in metres passed the all-columns test."""
+    rows = good_rows()
+    for r in rows:
+        r[4] *= 1e-3  # gauge in metres
+    msg = problems(write_table(tmp_path, as_csv(rows)))
+    assert "column 'gauge_mm': every value below 0.1 mm" in msg and "looks like metres" in msg
+    for r in rows:
+        r[4] = 0.0  # gauge not measured
+    assert read_track_geometry(write_table(tmp_path, as_csv(rows))).component("gauge").max() == 0
+
+
 def test_missing_file_and_bad_suffix():
     with pytest.raises(RailsuspInputError, match="not found"):
         read_track_geometry("/nonexistent/track.csv")

@@ -338,15 +338,14 @@ def estimate(
             refine_setting="--refine",
             corrections_setting="--simulator-corrections",
         )
+        from railsusp.params import STUDY_KEY_PARAMETERS, parse_sampled
+
+        chosen = parse_sampled(parameters) if parameters is not None else None
         recs = read_field(measured)
         if surrogate is not None:
-            model, params = open_force_model(
-                surrogate, tuple(parameters.split(",")) if parameters else None
-            )
+            model, params = open_force_model(surrogate, chosen)
         else:
-            from railsusp.params import STUDY_KEY_PARAMETERS
-
-            params = tuple(parameters.split(",")) if parameters else STUDY_KEY_PARAMETERS
+            params = chosen or STUDY_KEY_PARAMETERS
             model = SimulatorForces(params)
         res = route.run(model, recs, params, progress=console.status)
         res.save(

@@ -5,8 +5,11 @@ CSV and Parquet tables with unit-aware headers (``Y_kN``, ``Y [N]``, ``Y (kN)``)
 
 from __future__ import annotations
 
+import gc
+import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -39,6 +42,8 @@ class RawChannel:
 def read_raw(path: str | Path, time_column: str | None = None) -> dict[str, RawChannel]:
     """Every channel of a recording, by name; errors name the file and what is wrong."""
     path = Path(path)
+    if path.is_dir():
+        raise RailsuspInputError(f"recording {path}: a folder, not a recording file")
     if not path.is_file():
         raise RailsuspInputError(f"recording {path}: no such file")
     suffix = path.suffix.lower()
@@ -54,12 +59,7 @@ def read_raw(path: str | Path, time_column: str | None = None) -> dict[str, RawC
 
 def _read_mdf(path: Path) -> dict[str, RawChannel]:
     """Channels of an MDF file, each on its own group's time base (as the file states it)."""
-    from asammdf import MDF
-
-    try:
-        mdf = MDF(str(path))
-    except Exception as exc:  # asammdf raises many types on a damaged file
-        raise RailsuspInputError(f"recording {path}: not a readable MDF file ({exc})") from None
+    mdf = _open_mdf(path)
     out: dict[str, RawChannel] = {}
     try:
         for sig in mdf.iter_channels(skip_master=True):
@@ -88,6 +88,29 @@ def _read_mdf(path: Path) -> dict[str, RawChannel]:
     return out
 
 
+def _open_mdf(path: Path) -> Any:
+    """asammdf's MDF of ``path``; a damaged file is a one-line input error. The half-built
+    object asammdf leaves behind then fails again in its ``__del__`` ("Exception ignored in
+    MDF4.__del__" on stderr after our error): that one message is silenced while it goes."""
+    from asammdf import MDF
+
+    def hook(unraisable: Any) -> None:
+        if not getattr(unraisable.object, "__qualname__", "").startswith("MDF"):
+            default(unraisable)
+
+    default = sys.unraisablehook
+    sys.unraisablehook = hook
+    try:
+        try:
+            return MDF(str(path))
+        except Exception as exc:  # asammdf raises many types on a damaged file
+            message = f"recording {path}: not a readable MDF file ({exc})"
+        gc.collect()  # the half-built object's __del__ runs now, under the hook
+    finally:
+        sys.unraisablehook = default
+    raise RailsuspInputError(message)
+
+
 def _read_table(path: Path, time_column: str | None) -> dict[str, RawChannel]:
     """Channels of a CSV/Parquet table sharing its time column (``time_s``, ``t [s]``, ...)."""
     try:
@@ -103,6 +126,12 @@ def _read_table(path: Path, time_column: str | None) -> dict[str, RawChannel]:
             f"({(str(exc).splitlines() or [type(exc).__name__])[0]})"
         ) from None
     cols = [str(c) for c in df.columns]
+    if path.suffix.lower() != ".parquet" and _last_line_cut(path, len(cols)):
+        raise RailsuspInputError(
+            f"recording {path}: the last line is cut short (fewer cells than the header's "
+            f"{len(cols)}, no line end): a file truncated in copying? Its last value would "
+            "be read wrong; remove the line or copy the file again"
+        )
     tcol = time_column
     if tcol is None:
         tcol = next((c for c in cols if split_header(c)[0] in ("time", "t")), None)
@@ -114,6 +143,19 @@ def _read_table(path: Path, time_column: str | None) -> dict[str, RawChannel]:
     tunit = split_header(tcol)[1]
     t = values[tcol] * (1e-3 if tunit == "ms" else 1.0)
     return {c: RawChannel(c, split_header(c)[1], t, v) for c, v in values.items() if c != tcol}
+
+
+def _last_line_cut(path: Path, n_columns: int) -> bool:
+    """Whether a CSV file ends inside a line that has fewer cells than its header: the mark
+    of a truncated copy (a hand-written file may lack the last line end, never a cell)."""
+    with path.open("rb") as f:
+        f.seek(0, 2)
+        f.seek(max(0, f.tell() - 65536))
+        tail = f.read()
+    if not tail or tail.endswith((b"\n", b"\r")):
+        return False
+    last = tail.rsplit(b"\n", 1)[-1]
+    return last.count(b",") + 1 < n_columns
 
 
 def _numeric(raw: pd.Series, path: Path, col: str) -> np.ndarray:

@@ -7,7 +7,8 @@ at once, naming file, column and rows; every path a file names must lie inside i
 from __future__ import annotations
 
 import json
-import typing
+import math
+import numbers
 import warnings
 from pathlib import Path
 from typing import Any
@@ -26,8 +27,11 @@ from railsusp.measured.checks import (
 from railsusp.measured.raw import read_raw
 from railsusp.measured.recording import FORMAT, Recording, RecordingError
 from railsusp.measured.units import si_factor, split_header
+from railsusp.store import json_numbers
 from railsusp.vehicle.layout import WHEEL_NAMES
-from railsusp.vehicle.track_geometry import read_track_geometry
+from railsusp.vehicle.setup import axle_spread
+from railsusp.vehicle.track_geometry import check_coverage, read_track_geometry
+from railsusp.vehicle.wagon import load_wagon
 
 #: relative disagreement of a sidecar's sampling rate with the data's that is refused
 RATE_TOLERANCE = 0.01
@@ -73,6 +77,13 @@ def read_recording(
     wheel load against the wagon's static wheel load; physical bounds."""
     from railsusp.measured.run import static_wheel_load
 
+    if not (_real(min_rate_hz) and 1.0 <= min_rate_hz <= 100_000.0):
+        raise RailsuspInputError(f"min_rate_hz = {min_rate_hz!r}: accepted 1 to 100000 Hz")
+    if wheel_load_N is not None and not (_real(wheel_load_N) and 1e3 <= wheel_load_N <= 1e6):
+        raise RailsuspInputError(
+            f"wheel_load_N = {wheel_load_N!r}: accepted a static wheel load of 1000 to "
+            "1000000 N, or None (the wagon's)"
+        )
     path = Path(path)
     table_path = next(
         (
@@ -83,7 +94,12 @@ def read_recording(
         None,
     )
     if table_path is None:
-        raise RecordingError(path, ["no .csv or .parquet table found"])
+        what = (
+            "a folder, not a recording table"
+            if path.is_dir()
+            else "no .csv or .parquet table found"
+        )
+        raise RecordingError(path, [what])
     problems: list[str] = []
     notes: list[str] = []
     meta = _read_sidecar(table_path.with_suffix(".json"), problems)
@@ -95,9 +111,15 @@ def read_recording(
         ) from None
     cols = list(raw)
     cmap = default_map([*cols, "time_s"])
+    half = sorted(
+        {split_header(h)[0][2:] for h in cols if h[:2] in ("Y_", "Q_")} - set(cmap.wheels)
+    )
+    half = [w for w in half if w in WHEEL_NAMES]  # a wheel with Y or Q only: reported below
     for c in cols:
         base = split_header(c)[0]
         if c in cmap.used() or base in ("distance", "speed", "curvature", "cant", "grade"):
+            continue
+        if base[2:] in half and base[:2] in ("Y_", "Q_"):
             continue
         hint = did_you_mean(c, _DOCUMENTED)
         if hint or base.startswith(("Y_", "Q_")):
@@ -112,10 +134,6 @@ def read_recording(
             f"sampling rate {1.0 / np.median(np.diff(t)):.4g} Hz below the "
             f"{min_rate_hz:g} Hz the pipeline needs"
         )
-    half = sorted(
-        {split_header(h)[0][2:] for h in cols if h[:2] in ("Y_", "Q_")} - set(cmap.wheels)
-    )
-    half = [w for w in half if w in WHEEL_NAMES]
     for w in half:
         have = {split_header(h)[0][0] for h in cols if split_header(h)[0][2:] == w}
         for f in sorted({"Y", "Q"} - have):
@@ -167,6 +185,11 @@ def read_recording(
     return Recording(np.asarray(t), Y, Q, condition, extra)  # type: ignore[arg-type]
 
 
+def _real(value: Any) -> bool:
+    """A real number (NumPy's too), not a boolean."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool | np.bool_)
+
+
 def _raw(table_path: Path):
     """The table's channels on its ``time_s`` column, or on ``distance_m`` over the speed."""
     import pandas as pd
@@ -215,33 +238,48 @@ def _read_sidecar(side: Path, problems: list[str]) -> dict[str, Any]:
         return {}
     if meta.get("format") != FORMAT:
         problems.append(f"{side.name}: format {meta.get('format')!r}, expected {FORMAT!r}")
+    problems += _sidecar_fields(meta, side.name)
     return meta
 
 
-_NUMERIC = {
-    name
-    for name, f in WorkingCondition.model_fields.items()
-    if {int, float} & set(typing.get_args(f.annotation) or (f.annotation,))
-}
+def _sidecar_fields(meta: dict[str, Any], side: str) -> list[str]:
+    """Problems of the sidecar's ``wheels`` (a list of distinct wheel names) and
+    ``filter_bandwidth_hz`` (null, or a positive number of Hz: the comparison low-passes the
+    model's forces at it, so a string or a negative value would fail there, naming nothing)."""
+    out = []
+    wheels = meta.get("wheels")
+    if wheels is not None and (
+        not isinstance(wheels, list)
+        or not all(isinstance(w, str) and w in WHEEL_NAMES for w in wheels)
+        or len(set(wheels)) != len(wheels)
+    ):
+        out.append(
+            f"{side}: wheels = {json.dumps(wheels)}: accepted a list of distinct wheel names "
+            f'{WHEEL_NAMES[0]} .. {WHEEL_NAMES[-1]} (e.g. ["w1R"])'
+        )
+    bw = meta.get("filter_bandwidth_hz")
+    if bw is not None and (
+        isinstance(bw, bool) or not isinstance(bw, int | float) or not 0.0 < bw < math.inf
+    ):
+        out.append(
+            f"{side}: filter_bandwidth_hz = {json.dumps(bw)}: accepted a number of Hz above 0 "
+            "(the instrument's bandwidth; null or left out: none)"
+        )
+    return out
 
 
 def _condition(
     meta: dict[str, Any], table_path: Path, problems: list[str]
 ) -> WorkingCondition | None:
     """The sidecar's working condition (numbers must be JSON numbers), its track geometry
-    resolved inside the recording's folder."""
+    resolved inside the recording's folder, read and checked to cover the record under
+    every axle of the default wagon (:func:`~railsusp.vehicle.track_geometry.check_coverage`;
+    the simulation checks again with the run's wagon)."""
     side = table_path.with_suffix(".json").name
     cdoc = meta.get("condition")
     try:
         if isinstance(cdoc, dict):
-            for key, value in cdoc.items():
-                if key in _NUMERIC and (isinstance(value, (str, bool))):
-                    problems.append(
-                        f"{side}: condition.{key} = {value!r} is {type(value).__name__}; "
-                        "a JSON number is needed"
-                    )
-                    return None
-            condition = make_condition(cdoc)
+            condition = make_condition(json_numbers(cdoc), from_file=True)
         elif isinstance(meta.get("condition_name"), str):
             condition = get_condition(meta["condition_name"])
         else:
@@ -254,11 +292,12 @@ def _condition(
         return condition
     try:
         geo = inside(table_path.parent, condition.track_geometry, f"{side}: track_geometry")
-        read_track_geometry(geo)
+        condition = condition.with_changes(track_geometry=str(geo))
+        check_coverage(read_track_geometry(geo), condition, axle_spread(load_wagon()))
     except RailsuspInputError as exc:
         problems.append(str(exc) if str(exc).startswith(side) else f"{side}: track_geometry: {exc}")
         return None
-    return condition.with_changes(track_geometry=str(geo))
+    return condition
 
 
 def read_index(folder: str | Path) -> list[Path]:

@@ -26,6 +26,11 @@ from railsusp.measured.line import (  # noqa: F401  (the sources of a cut, with 
 )
 from railsusp.measured.run import MeasuredRun
 
+#: the smallest curve radius of a working condition (its ``curve_radius_m`` bound), m
+MIN_RADIUS_M: float = next(
+    m.ge for m in WorkingCondition.model_fields["curve_radius_m"].metadata if hasattr(m, "ge")
+)
+
 
 @dataclass(frozen=True)
 class SectionRules:
@@ -261,6 +266,12 @@ def _section(
     if np.mean(geo["transition"][sl]) > 0.5:
         sec.kept = False
         sec.reason = "transition (curvature or grade changing)"
+    elif radius is not None and radius < MIN_RADIUS_M:
+        sec.kept = False
+        sec.reason = (
+            f"radius {radius:.3g} m, below the {MIN_RADIUS_M:g} m a working condition takes "
+            "(a curvature channel in another unit?)"
+        )
     elif length < rules.min_length_m:
         sec.kept = False
         sec.reason = f"{length:.0f} m, shorter than {rules.min_length_m:g} m" + (
@@ -282,7 +293,7 @@ def sections_table(sections: list[Section]) -> pd.DataFrame:
                 "kind": s.kind if s.kept or "transition" not in s.reason else "transition",
                 "from_m": round(d["start_m"], 1),
                 "to_m": round(d["end_m"], 1),
-                "length_m": round(d["end_m"] - d["start_m"], 1),
+                "length_m": round(abs(d["end_m"] - d["start_m"]), 1),  # against the km posts too
                 "speed_kmh": round(s.speed_kmh, 1),
                 "speed_spread_pct": round(100 * s.speed_spread, 1),
                 "cant_mm": round(s.cant_mm, 0),

@@ -86,9 +86,18 @@ def _track_seeds(
     condition's seed for every set, i.e. common random numbers)."""
     if seeds is None:
         return [condition.seed], np.zeros(n, dtype=np.int64)
-    if len(seeds) != n:
-        raise RailsuspInputError(f"seeds: {len(seeds)} given for {n} parameter sets")
-    distinct, inverse = np.unique(np.asarray(seeds, dtype=np.int64), return_inverse=True)
+    given = np.asarray(seeds) if not isinstance(seeds, str | bytes) else np.asarray(None)
+    if given.ndim != 1 or not (
+        np.issubdtype(given.dtype, np.integer) and not np.issubdtype(given.dtype, np.bool_)
+    ):
+        raise RailsuspInputError(
+            f"seeds = {seeds!r}: accepted a list of integers, one per parameter set"
+        )
+    if len(given) != n:
+        raise RailsuspInputError(f"seeds: {len(given)} given for {n} parameter sets")
+    if (given < 0).any():
+        raise RailsuspInputError(f"seeds: {int(given.min())} given; accepted integers >= 0")
+    distinct, inverse = np.unique(given.astype(np.int64), return_inverse=True)
     return list(distinct), inverse.astype(np.int64)
 
 

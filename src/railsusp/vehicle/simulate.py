@@ -12,7 +12,7 @@ reason and carry NaN series; they never disturb the other sets of the batch.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -246,9 +246,37 @@ class SimulationResult:
 
 # ---------------------------------------------------------------- entry points
 def _param_matrix(sets: np.ndarray | Iterable[ParameterSet], symbols: Sequence[str] | None):
-    """Full (n, 20) SI matrix from ParameterSets, or from a matrix over ``symbols``."""
+    """Full (n, 20) SI matrix from ParameterSets, or from a matrix over ``symbols``; other
+    input (a dict, a list of lists, a matrix of other than 20 columns without ``symbols``)
+    is a one-line error naming the argument."""
+    accepted = "accepted ParameterSets, or an SI matrix (n_sets, len(symbols)) with symbols="
+    if isinstance(sets, ParameterSet):
+        sets = [sets]
+    elif isinstance(sets, Mapping | str | bytes):
+        raise RailsuspInputError(
+            f"sets: a {type(sets).__name__} is not a parameter set; {accepted} (a dict of "
+            "display values: ParameterSet(values, units='display'))"
+        )
+    if isinstance(symbols, str) or (
+        symbols is not None and not all(isinstance(s, str) for s in symbols)
+    ):
+        raise RailsuspInputError(f"symbols = {symbols!r}: accepted a list of symbols (X13, ...)")
     if isinstance(sets, np.ndarray) or (symbols is not None):
         syms = list(symbols) if symbols is not None else list(SYMBOLS)
+        try:
+            shape = np.asarray(sets, dtype=float).shape
+        except (TypeError, ValueError):
+            raise RailsuspInputError(
+                "sets: not a matrix of numbers (rows of unequal length, or text?); " + accepted
+            ) from None
+        if symbols is None and (len(shape) not in (1, 2) or shape[-1] != len(SYMBOLS)):
+            raise RailsuspInputError(
+                f"sets: a matrix of shape {shape} without symbols=; a matrix of all "
+                f"{len(SYMBOLS)} parameters X1..X20 has {len(SYMBOLS)} columns, others need "
+                "symbols=[...] naming its columns"
+            )
+        if 0 in shape:
+            raise RailsuspInputError("sets: no parameter sets given (an empty matrix)")
         x = (
             check_matrix(syms, np.atleast_2d(np.asarray(sets, dtype=float)))
             if syms != list(SYMBOLS)
@@ -261,10 +289,13 @@ def _param_matrix(sets: np.ndarray | Iterable[ParameterSet], symbols: Sequence[s
             for i in range(full.shape[0]):  # validate every row as a full set
                 ParameterSet(dict(zip(SYMBOLS, full[i], strict=True)))
         return full
-    rows = [p.to_array() for p in sets]
+    rows = list(sets)
     if not rows:
         raise RailsuspInputError("no parameter sets given")
-    return np.array(rows)
+    wrong = next((r for r in rows if not isinstance(r, ParameterSet)), None)
+    if wrong is not None:
+        raise RailsuspInputError(f"sets: an item {wrong!r} is not a ParameterSet; {accepted}")
+    return np.array([p.to_array() for p in rows])
 
 
 def simulate_batch(
@@ -317,8 +348,12 @@ def simulate_conditions(
     apply in every condition; ``progress`` counts the sets of all conditions;
     ``wall_time`` of each result is its preparation and the calls its sets were in.
     """
-    if not conditions:
+    if not isinstance(conditions, WorkingCondition | str) and not conditions:
         raise RailsuspInputError("conditions: none given, accepted at least one")
+    if isinstance(conditions, WorkingCondition | str):
+        raise RailsuspInputError(
+            f"conditions = {conditions!r}: accepted a list of one or more WorkingConditions"
+        )
     P = np.ascontiguousarray(_param_matrix(sets, symbols))
     return _simulate_full(
         [(P, c, seeds) for c in conditions], wagon, settings, progress, chunk_size
@@ -364,11 +399,24 @@ def _simulate_full(
     progress: Callable[[int, int], None] | None,
     chunk_size: int,
 ) -> list[SimulationResult]:
-    """:func:`simulate_requests` of requests whose sets are full (n, 20) SI matrices."""
+    """:func:`simulate_requests` of requests whose sets are full (n, 20) SI matrices; the
+    conditions, ``wagon`` (a WagonData, a wagon file or None) and ``settings`` checked."""
     from railsusp.vehicle.batch_runs import integrate_conditions
 
-    wagon = load_wagon() if wagon is None else wagon
+    for _, cond, _ in prepared:
+        if not isinstance(cond, WorkingCondition):
+            raise RailsuspInputError(
+                f"condition {cond!r}: a WorkingCondition is needed "
+                "(railsusp.get_condition('curve'), or a list of them where conditions go)"
+            )
+    wagon = load_wagon(wagon) if wagon is None or isinstance(wagon, str | Path) else wagon
+    if not isinstance(wagon, WagonData):
+        raise RailsuspInputError(f"wagon = {wagon!r}: accepted a WagonData, a wagon file or None")
     settings = SolverSettings() if settings is None else settings
+    if not isinstance(settings, SolverSettings):
+        raise RailsuspInputError(
+            f"settings = {settings!r}: accepted a railsusp.vehicle.setup.SolverSettings or None"
+        )
     ca = contact_arrays(wagon)
     if ca.contact_points == 1 and settings.flange_substeps == 1:
         warnings.warn(
@@ -402,4 +450,9 @@ def simulate(
     params: ParameterSet | None, condition: WorkingCondition, **kwargs
 ) -> SimulationResult:
     """Simulate one parameter set (nominal if None) in one condition."""
+    if params is not None and not isinstance(params, ParameterSet):
+        raise RailsuspInputError(
+            f"params: a {type(params).__name__} is not a ParameterSet; give "
+            "ParameterSet(values) (SI) or ParameterSet(values, units='display'), or None"
+        )
     return simulate_batch([params or ParameterSet.nominal()], condition, **kwargs)

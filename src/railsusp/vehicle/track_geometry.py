@@ -128,6 +128,15 @@ def _read_track_geometry(path: str, _mtime_ns: int, _size: int) -> Irregularitie
         problems.append(
             "all irregularities are below 0.1 mm: the values look like metres, give millimetres"
         )
+    else:  # one component in metres among millimetres (a column left unconverted)
+        for c in COMPONENTS:
+            x = np.abs(cols[f"{c}_mm"])
+            if np.all(np.isfinite(x)) and 0.0 < np.max(x) < 0.1:
+                problems.append(
+                    f"column '{c}_mm': every value below 0.1 mm while other components reach "
+                    f"{np.nanmax(np.abs(values)):.3g} mm: it looks like metres, give millimetres "
+                    "(a component not measured is all zeros)"
+                )
     if problems:
         raise RailsuspInputError(f"track geometry file {path}: " + "; ".join(problems))
     return Irregularities(
@@ -141,16 +150,11 @@ def _read_track_geometry(path: str, _mtime_ns: int, _size: int) -> Irregularitie
     )
 
 
-def measured_irregularities(condition: WorkingCondition, axle_spread_m: float) -> Irregularities:
-    """A condition's measured irregularities in section coordinates (recording start at
-    ``lead_in_m``; the file's distances shifted by ``track_offset_m``), faded in over
-    :data:`TRACK_TAPER_M` from the file's first point.
-
-    The file must cover the recorded stretch under every axle: from ``axle_spread_m`` plus the
-    fade-in length behind the recording start to the end of the record.
-    """
-    assert condition.track_geometry is not None
-    irr = read_track_geometry(condition.track_geometry)
+def check_coverage(irr: Irregularities, condition: WorkingCondition, axle_spread_m: float) -> None:
+    """Refuse (one line) measured irregularities ``irr`` of ``condition``'s
+    ``track_geometry`` that do not cover the recorded stretch under every axle: from
+    ``axle_spread_m`` plus the fade-in length behind the recording start (the file's
+    distances shifted by ``track_offset_m``) to the end of the record."""
     shift = condition.track_offset_m
     first, last = float(irr.s[0]) + shift, float(irr.s[-1]) + shift
     need_from = -(axle_spread_m + TRACK_TAPER_M)
@@ -162,6 +166,20 @@ def measured_irregularities(condition: WorkingCondition, axle_spread_m: float) -
             f"at least {need_from:g} to {need_to:g} m (the wagon's axles over the "
             f"{condition.duration_s:g} s record)"
         )
+
+
+def measured_irregularities(condition: WorkingCondition, axle_spread_m: float) -> Irregularities:
+    """A condition's measured irregularities in section coordinates (recording start at
+    ``lead_in_m``; the file's distances shifted by ``track_offset_m``), faded in over
+    :data:`TRACK_TAPER_M` from the file's first point.
+
+    The file must cover the recorded stretch under every axle: from ``axle_spread_m`` plus the
+    fade-in length behind the recording start to the end of the record.
+    """
+    assert condition.track_geometry is not None
+    irr = read_track_geometry(condition.track_geometry)
+    check_coverage(irr, condition, axle_spread_m)
+    shift = condition.track_offset_m
     fade = smoothstep((irr.s - irr.s[0]) / TRACK_TAPER_M)
     return Irregularities(
         s=irr.s + shift + condition.lead_in_m,

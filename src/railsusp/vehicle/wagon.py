@@ -256,7 +256,7 @@ PACKAGED_WAGONS = {
 def load_wagon(source: str | Path | None = None) -> WagonData:
     """Read and validate a wagon file; None gives the embedded C80/K6 data (loaded), a
     name of :data:`PACKAGED_WAGONS` (``"tare"``) another embedded file."""
-    from railsusp.store import read_toml
+    from railsusp.store import read_toml, type_error_text, validate_document
 
     name = None if source is None else str(source)
     if name is None or (name in PACKAGED_WAGONS and not Path(name).is_file()):
@@ -287,7 +287,7 @@ def load_wagon(source: str | Path | None = None) -> WagonData:
                         )
                     prof[key] = str(path)
         doc.pop("tolerances", None)  # the report's verdicts (railsusp.summary), not the model
-        return WagonData(**doc)
+        return validate_document(WagonData, doc)  # strict: mass = "91600" is refused
     except tomllib.TOMLDecodeError as exc:
         raise RailsuspInputError(f"{where}: not valid TOML ({exc})") from None
     except ValidationError as exc:
@@ -296,5 +296,6 @@ def load_wagon(source: str | Path | None = None) -> WagonData:
             loc = ".".join(str(p) for p in err["loc"])
             value = err.get("input")
             where_value = loc if isinstance(value, dict) else f"{loc} = {value!r}"
-            msgs.append(f"{where_value}: {err['msg'].removeprefix('Value error, ')}")
+            text = type_error_text(err) or err["msg"].removeprefix("Value error, ")
+            msgs.append(f"{where_value}: {text}")
         raise RailsuspInputError(f"{where}: " + "; ".join(msgs)) from None
