@@ -253,3 +253,15 @@ def test_tolerances_of_a_key_that_is_no_parameter_say_what_is_accepted():
 def test_ragged_rows_are_an_input_error():
     with pytest.raises(RailsuspInputError, match="sets: not a matrix of numbers"):
         simulate_batch([[16.1e6, 8.3e6], [16.1e6]], COND, symbols=["X13", "X14"])
+
+
+def test_an_empty_table_in_a_run_directory_is_an_input_error(tmp_path):
+    """Before: pandas' EmptyDataError from .validation and .agreement."""
+    (tmp_path / "pipeline.json").write_text('{"stages": {}}')
+    table = tmp_path / "estimate" / "validation" / "validation.csv"
+    table.parent.mkdir(parents=True)
+    table.write_text("")
+    result = railsusp.open_run(tmp_path)
+    for name in ("validation", "agreement"):
+        with pytest.raises(RailsuspInputError, match="validation.csv: not a readable table"):
+            getattr(result, name)

@@ -18,7 +18,7 @@ import pandas as pd
 
 import railsusp.summary as summary
 from railsusp.errors import RailsuspInputError
-from railsusp.store import read_json
+from railsusp.store import read_csv, read_json
 from railsusp.summary import Tolerances
 
 __all__ = ["RunResult", "Tolerances", "open_run", "run"]
@@ -56,7 +56,7 @@ class RunResult:
     def validation(self) -> pd.DataFrame:
         """Force statistics before (nominal) and after (estimate) calibration per condition,
         force and statistic, kN; errors in % of the measured value (``*_error_pct``)."""
-        df = pd.read_csv(self._need("estimate/validation/validation.csv", "validate"))
+        df = read_csv(self._need("estimate/validation/validation.csv", "validate"))
         for c in [c for c in df.columns if c.endswith("_error")]:
             df[f"{c}_pct"] = 100.0 * df.pop(c)
         return df
@@ -71,7 +71,7 @@ class RunResult:
     def recovery(self) -> pd.DataFrame | None:
         """For synthetic recordings, the error of each estimate against the hidden truth."""
         p = self.path / "estimate" / "validation" / "recovery.csv"
-        return pd.read_csv(p) if p.exists() else None
+        return read_csv(p) if p.exists() else None
 
     @property
     def sensitivity(self) -> pd.DataFrame:
@@ -93,7 +93,7 @@ class RunResult:
 
         s = self._config().get("surrogate", {})
         base = surrogates_run(s.get("pretrained"), s.get("samples", 0))
-        return table7(pd.read_csv(self._need(f"{base}/surrogates/compare.csv", "surrogate")))
+        return table7(read_csv(self._need(f"{base}/surrogates/compare.csv", "surrogate")))
 
     @property
     def stages(self) -> pd.DataFrame:

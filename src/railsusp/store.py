@@ -83,6 +83,19 @@ def write_csv(path: str | Path, df: pd.DataFrame, **kw: Any) -> Path:
     return atomic_write_text(path, df.to_csv(**kw))
 
 
+def read_csv(path: str | Path) -> pd.DataFrame:
+    """A table of a run directory; an empty or unparsable file (a hand-edited run) is a
+    one-line input error naming it, not pandas' traceback."""
+    path = Path(path)
+    try:
+        return pd.read_csv(path)
+    except FileNotFoundError:
+        raise RailsuspInputError(f"{path} does not exist") from None
+    except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError) as exc:
+        first = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise RailsuspInputError(f"{path}: not a readable table ({first})") from None
+
+
 @contextmanager
 def atomic_folder(path: str | Path, keep: bool = True) -> Iterator[Path]:
     """Write a multi-file artefact as one: yields a temporary sibling folder to write into;

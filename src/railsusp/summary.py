@@ -22,7 +22,7 @@ import pandas as pd
 from railsusp.errors import RailsuspInputError
 from railsusp.numbers import sig3
 from railsusp.params import MAIN_SUSPENSION, spec
-from railsusp.store import read_json
+from railsusp.store import read_csv, read_json
 
 #: change from nominal (% of the nominal value) that an element may show and still be
 #: "within tolerance", where the wagon data give no ``[tolerances]`` (docs/wagon-data.md)
@@ -240,7 +240,7 @@ def force_agreement(run: str | Path) -> pd.DataFrame:
     and with the estimated parameters (and with the true ones, for synthetic recordings:
     the noise floor). Time-aligned where the recordings carry their track, else the first
     statistic of the estimate."""
-    val = pd.read_csv(Path(run) / "estimate" / "validation" / "validation.csv")
+    val = read_csv(Path(run) / "estimate" / "validation" / "validation.csv")
     rows = []
     for cond, g in val.groupby("condition", sort=False):
         stats = list(dict.fromkeys(g.statistic))
