@@ -1,6 +1,7 @@
 """Campaigns: design properties, run directory, resume, Dask equivalence, features."""
 
 import json
+import shutil
 
 import numpy as np
 import pandas as pd
@@ -13,6 +14,7 @@ from railsusp.campaign import (
     make_design,
     run_campaign,
 )
+from railsusp.campaign.design import batch_paths
 from railsusp.conditions import get_condition
 from railsusp.params import MAIN_SUSPENSION, bounds
 
@@ -140,4 +142,38 @@ def test_dask_local_cluster_gives_identical_results(full_run, tmp_path):
     run_campaign(cfg, tmp_path / "dask", workers=2)
     pd.testing.assert_frame_equal(
         _sorted(load_campaign(tmp_path / "dask").features()), _sorted(load_campaign(out).features())
+    )
+
+
+def test_results_without_their_campaign_json_are_not_taken_in(full_run, tmp_path):
+    """The kill/resume pass (stop 54): with campaign.json gone, a campaign of another seed
+    took in the old batches as its own (seed-5 parameters paired with seed-3 forces)."""
+    _cfg, out = full_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    (copy / "campaign.json").unlink()
+    other = make_config(TINY, 10, batch_size=4, seed=5)
+    with pytest.raises(CampaignError, match="holds campaign results but no campaign.json"):
+        run_campaign(other, copy)
+    run_campaign(other, copy, force=True, max_batches=1)
+    assert len(list((copy / "batches").glob("*/batch-?????.parquet"))) == 1  # old ones gone
+
+
+@pytest.mark.parametrize("which", [0, 1])  # the series file, the features file
+def test_a_batch_file_cut_short_is_simulated_again(full_run, tmp_path, which):
+    """Before: a truncated series file counted as done (found only by training); a truncated
+    features file crashed the resume with pyarrow's traceback."""
+    cfg, out = full_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    path = batch_paths(copy, "curve", 1)[which]
+    path.write_bytes(path.read_bytes()[:300])
+    calls = []
+    run_campaign(cfg, copy, progress=lambda d, t: calls.append(d))
+    assert calls[0] == 16  # all but the damaged batch of 4
+    pd.testing.assert_frame_equal(
+        _sorted(load_campaign(copy).features()), _sorted(load_campaign(out).features())
+    )
+    np.testing.assert_array_equal(
+        load_campaign(copy).series("curve")[1], load_campaign(out).series("curve")[1]
     )

@@ -65,3 +65,37 @@ def test_bad_runs_and_maps_are_one_line_errors(tmp_path):
     )
     assert result.exit_code == 2 and "speed_tolerance = -1: accepted 0 to 1" in result.output
     assert "Traceback" not in result.output
+
+
+def test_sections_write_replaces_the_folder_whole(tmp_path, monkeypatch):
+    """The kill/resume pass (stop 54): a rewrite killed midway left new recordings beside
+    the old index and sidecars. Now the folder is swapped in at once: a failure leaves the
+    old one as it was; other files of the folder are carried over."""
+    import railsusp.measured.sections_out as sections_out
+
+    run, cmap = example(tmp_path)
+    table = tmp_path / "sections.csv"
+    table.write_text("start_m,end_m,name\n50,500,level-65\n800,1150,curve-600\n")
+    out = tmp_path / "field"
+    args = ["sections", str(run), "--map", str(cmap), "--table", str(table), "--write", str(out)]
+    assert runner.invoke(app, args).exit_code == 0
+    (out / "notes.txt").write_text("mine")
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    real, calls = sections_out.section_recording, []
+
+    def dies_second(*a, **k):
+        calls.append(1)
+        if len(calls) == 2:
+            raise RuntimeError("killed")
+        return real(*a, **k)
+
+    monkeypatch.setattr(sections_out, "section_recording", dies_second)
+    result = runner.invoke(app, [*args, "--rate", "25"])
+    assert result.exit_code != 0
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert not list(tmp_path.glob(".field.*"))
+    monkeypatch.setattr(sections_out, "section_recording", real)
+    assert runner.invoke(app, [*args, "--rate", "25"]).exit_code == 0
+    assert (out / "notes.txt").read_text() == "mine"
+    t = np.loadtxt(out / "curve-600.csv", delimiter=",", skiprows=1)[:, 0]
+    np.testing.assert_allclose(np.diff(t), 0.04, rtol=1e-6)

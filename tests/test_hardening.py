@@ -354,3 +354,42 @@ def test_corrupt_json_is_an_input_error(tmp_path):
     p.write_text("{")
     with pytest.raises(RailsuspInputError, match="corrupt"):
         read_json(p)
+
+
+def test_outputs_get_the_mode_of_plainly_written_files_and_stale_temporaries_go(tmp_path):
+    """The kill/resume pass (stop 54): every output was 0600 (folders 0700) from mkstemp and
+    mkdtemp, and a kill inside atomic_folder left .NAME.new-* for good."""
+    import os
+    import stat
+
+    import pandas as pd
+
+    from railsusp.store import atomic_folder, atomic_write_text, write_parquet
+
+    mask = os.umask(0o022)
+    os.umask(mask)
+    mode = lambda p: stat.S_IMODE(p.stat().st_mode)  # noqa: E731
+    assert mode(atomic_write_text(tmp_path / "a.json", "{}")) == 0o666 & ~mask
+    assert mode(write_parquet(tmp_path / "b.parquet", pd.DataFrame({"x": [1]}))) == 0o666 & ~mask
+    stale = tmp_path / ".net.new-abc123"
+    stale.mkdir()
+    (stale / "half.pt").write_bytes(b"x")
+    with atomic_folder(tmp_path / "net") as tmp:
+        (tmp / "model.pt").write_bytes(b"y")
+    assert mode(tmp_path / "net") == 0o777 & ~mask
+    assert not stale.exists() and (tmp_path / "net" / "model.pt").read_bytes() == b"y"
+
+
+def test_ctrl_c_ends_a_command_with_a_line_saying_what_is_kept(monkeypatch, capsys):
+    """Typer turns a KeyboardInterrupt into a silent exit 130 (the kill/resume pass of stop
+    54); the console script now says what is kept and how to resume."""
+    import railsusp.cli as cli
+
+    def interrupted() -> None:
+        raise SystemExit(130)
+
+    monkeypatch.setattr(cli, "app", interrupted)
+    with pytest.raises(SystemExit) as info:
+        cli.main()
+    assert info.value.code == 130
+    assert "interrupted: what was finished is kept" in capsys.readouterr().err

@@ -280,3 +280,19 @@ def test_stage_hashes_follow_the_model_not_only_the_configuration(monkeypatch, t
     first = hashes(own)
     wagon.write_text(text.replace("gib_stiffness = 50.0e6", "gib_stiffness = 40.0e6"))
     assert all(first[s] != hashes(own)[s] for s in first)
+
+
+def test_a_stage_failing_on_an_earlier_stages_file_names_that_stage(tmp_path):
+    """The kill/resume pass (stop 54): a truncated features.parquet failed the sensitivity
+    stage, and the hint '--from sensitivity' failed the same way; it now names --from
+    campaign (the most specific earlier output folder the message names)."""
+    from railsusp.pipeline import _blame
+    from railsusp.pipeline_config import PipelineConfig
+
+    cfg = PipelineConfig()
+    msg = f"{tmp_path}/campaign/features.parquet is corrupt"
+    assert _blame(cfg, tmp_path, "sensitivity", msg).endswith("--from campaign remakes it")
+    deeper = f"{tmp_path}/campaign/sensitivity/key_parameters.json is corrupt"
+    assert "stage 'sensitivity'" in _blame(cfg, tmp_path, "estimate", deeper)
+    assert _blame(cfg, tmp_path, "campaign", msg) == ""  # its own output: no earlier stage
+    assert _blame(cfg, tmp_path, "estimate", "X13 out of range") == ""

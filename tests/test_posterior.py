@@ -531,3 +531,30 @@ def test_cli_product_cases_one_count_or_one_per_number_of_sections():
     assert per == {"product_cases": (100, 40)}
     s = PosteriorSettings((CONDITION,), product_sections=(8, 2), **_product_cases("40,100"))
     assert s.product_sections == (2, 8) and s.product_cases == (100, 40)
+
+
+def test_a_cached_chunk_or_estimator_cut_short_is_made_again(trained, tmp_path, monkeypatch):
+    """The kill/resume pass (stop 54): a truncated simulation chunk or estimator.pt stopped
+    `posterior train` with numpy's / torch's traceback; each is now made again."""
+    import shutil
+
+    est, run = trained
+    copy = tmp_path / "run"
+    shutil.copytree(run, copy)
+    chunk = sorted((copy / "posterior" / "simulations").glob("train_*"))[0]
+    chunk.write_bytes(chunk.read_bytes()[:300])
+    weights = copy / "posterior" / "estimator.pt"
+    weights.write_bytes(weights.read_bytes()[:300])
+    (copy / "posterior" / "calibration.json").unlink()
+    real = posterior_data.simulate_long_cases
+    simulated = []
+
+    def counted(settings, u, *a, **k):
+        simulated.append(len(u))
+        return real(settings, u, *a, **k)
+
+    monkeypatch.setattr(posterior_data, "simulate_long_cases", counted)
+    again = posterior.train(est.settings, copy)
+    assert simulated == [int(chunk.name.split("_")[-1].split(".")[0])]  # that chunk alone
+    assert np.load(chunk)["x"].shape[0] == simulated[0]
+    assert [c.coverage for c in again.calibration] == [c.coverage for c in est.calibration]

@@ -125,6 +125,7 @@ def run_pipeline(
                 raise StageError(
                     f"stage {stage!r} failed: {exc}. Earlier stages are kept; fix the cause "
                     f"and run the same command again (or --from {stage})"
+                    + _blame(config, out, stage, str(exc))
                 ) from exc
             state["stages"][stage] = {
                 "hash": h,
@@ -238,6 +239,21 @@ _OUTPUTS = {
     "validate": "estimate/validation/validation.json",
     "report": "report.html",
 }
+
+
+def _blame(config: PipelineConfig, out: Path, stage: str, message: str) -> str:
+    """Where a stage's error names a file in an earlier stage's output folder (a damaged
+    ``features.parquet`` failing the sensitivity stage), the hint to remake that stage:
+    rerunning the failed one alone would fail the same way."""
+    earlier = {}
+    for s in STAGES[: STAGES.index(stage)]:
+        base = surrogate_campaign_dir(config, out) if s == "surrogate" else out
+        earlier[s] = str((base / _OUTPUTS[s]).parent)
+    named = [s for s, folder in earlier.items() if folder + "/" in message]
+    if not named:
+        return ""
+    culprit = max(named, key=lambda s: len(earlier[s]))  # the most specific folder
+    return f"; the file it names is stage {culprit!r}'s output: --from {culprit} remakes it"
 
 
 def surrogate_campaign_dir(config: PipelineConfig, out: str | Path) -> Path:

@@ -17,6 +17,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy.signal import welch
 
+from railsusp.store import plain_mode
 from railsusp.vehicle.track import COMPONENTS, Irregularities, fra_psd
 
 _LABELS = {
@@ -35,6 +36,7 @@ def save_figure(fig: plt.Figure, path: str | Path, dpi: int = 120) -> Path:
     os.close(fd)
     try:
         fig.savefig(tmp, dpi=dpi, bbox_inches="tight")
+        plain_mode(tmp)
         os.replace(tmp, path)
     finally:
         plt.close(fig)

@@ -62,8 +62,10 @@ def sobol_from_samples(
     if bad.any():  # failed simulations: replace by the mean so the design stays whole
         warnings.warn(f"{int(bad.sum())} failed runs replaced by the mean output", stacklevel=2)
         y = np.where(bad, np.nanmean(y), y)
+    # SALib seeds its bootstrap only for a truthy seed (``if seed:``): seed 0 drew unseeded
+    # confidence intervals, different on every run; seed + 1 makes every seed reproducible
     res = sobol.analyze(
-        problem, y, calc_second_order=second_order, num_resamples=num_resamples, seed=seed
+        problem, y, calc_second_order=second_order, num_resamples=num_resamples, seed=seed + 1
     )
     return pd.DataFrame(
         {

@@ -54,8 +54,27 @@ def fsync_file(path: str | Path) -> None:
         os.fsync(fh.fileno())
 
 
+def _process_umask() -> int:
+    """The process's umask (read by setting it and back; done once, at import)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+#: the umask the outputs' modes follow: a temporary file is created 0600 (a folder 0700),
+#: and renamed into place it would stay so; a file written in place would be 0666 & ~umask
+_UMASK = _process_umask()
+
+
+def plain_mode(path: str | Path) -> None:
+    """Give a temporary file (created 0600) the mode a plainly written one gets, before it
+    is renamed into place."""
+    os.chmod(path, 0o666 & ~_UMASK)
+
+
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically (temporary file + rename)."""
+    """Write ``data`` to ``path`` atomically (temporary file + rename), with the mode a
+    plainly written file gets (0666 less the umask), not the temporary file's 0600."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
@@ -63,6 +82,7 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
+            os.fchmod(fh.fileno(), 0o666 & ~_UMASK)
             os.fsync(fh.fileno())
         os.replace(tmp, path)
         fsync_dir(path.parent)
@@ -104,15 +124,19 @@ def atomic_folder(path: str | Path, keep: bool = True) -> Iterator[Path]:
     ``keep``: other entries of an existing ``path`` (a training checkpoint, figures) are
     carried into the new folder (hard links where possible). The swap is two renames (the
     old folder aside, the new one in); a crash between them leaves the old folder beside
-    ``path`` as ``.NAME.old-*``, which the next save removes.
+    ``path`` as ``.NAME.old-*``, and a process killed while writing leaves ``.NAME.new-*``:
+    the next save removes both. The folder gets the mode a plainly made one gets (0777 less
+    the umask), not the temporary folder's 0700.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    for stale in path.parent.glob(f".{path.name}.old-*"):
-        shutil.rmtree(stale, ignore_errors=True)
+    for pattern in (f".{path.name}.old-*", f".{path.name}.new-*"):
+        for stale in path.parent.glob(pattern):
+            shutil.rmtree(stale, ignore_errors=True)
     tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.new-"))
     try:
         yield tmp
+        os.chmod(tmp, 0o777 & ~_UMASK)
         for f in tmp.rglob("*"):
             if f.is_file():
                 fsync_file(f)
@@ -350,6 +374,7 @@ def write_parquet(
     try:
         pq.write_table(table, tmp, row_group_size=row_group_size or max(1, table.num_rows))
         fsync_file(tmp)
+        plain_mode(tmp)
         os.replace(tmp, path)
         fsync_dir(path.parent)
     finally:

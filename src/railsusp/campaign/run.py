@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 
 from railsusp.campaign.design import (
     CHANNELS,
@@ -144,6 +145,37 @@ def write_batch(out: Path, b: int, res: dict[str, Any], n_t: int) -> None:
     )  # series last: marks the batch done
 
 
+def _batch_done(out: Path, condition: str, b: int) -> bool:
+    """Both files of a batch present, each with an intact Parquet footer: a file cut short
+    (a copy interrupted, a full disk) is simulated again rather than taken as finished
+    work (batches are written atomically, so a kill never leaves one)."""
+    for path in batch_paths(out, condition, b):
+        try:
+            pq.ParquetFile(path).metadata  # noqa: B018  (reads and checks the footer)
+        except (OSError, ValueError):  # missing; ArrowInvalid (not Parquet, cut short)
+            return False
+    return True
+
+
+def _discard(out: Path) -> None:
+    """Remove the results of a campaign of another (or an unknown) configuration."""
+    for sub in (
+        "batches",
+        "features.parquet",
+        "design.parquet",
+        "tracks.parquet",
+        "sensitivity",
+        "splits",
+        "nominal",  # the nominal twins (railsusp.campaign.twins) of the old design
+        "perturbed",  # and its perturbed twins (railsusp.campaign.perturbed)
+    ):
+        p = out / sub
+        if p.is_dir():
+            shutil.rmtree(p)
+        elif p.exists():
+            p.unlink()
+
+
 def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
     """Create or re-open a run directory; refuse a different configuration unless forced."""
     check_output_folder(out)
@@ -164,23 +196,18 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
                     f"{meta.get('config_hash')}, now {config.hash()}); use a new --out, or "
                     f"--force to discard the old results"
                 )
-            for sub in (
-                "batches",
-                "features.parquet",
-                "design.parquet",
-                "tracks.parquet",
-                "sensitivity",
-                "splits",
-                "nominal",  # the nominal twins (railsusp.campaign.twins) of the old design
-                "perturbed",  # and its perturbed twins (railsusp.campaign.perturbed)
-            ):
-                p = out / sub
-                if p.is_dir():
-                    shutil.rmtree(p)
-                elif p.exists():
-                    p.unlink()
+            _discard(out)
         elif (out / "design.parquet").exists():
             return pd.read_parquet(out / "design.parquet")
+    elif any((out / sub).exists() for sub in ("batches", "features.parquet")):
+        # results without the configuration that made them: they would be taken in as this
+        # configuration's (forces of one design paired with another's parameters)
+        if not force:
+            raise CampaignError(
+                f"{out} holds campaign results but no campaign.json saying which "
+                "configuration made them; use a new --out, or --force to discard them"
+            )
+        _discard(out)
     design = make_design(config)
     write_parquet(out / "design.parquet", design)
     write_parquet(
@@ -237,7 +264,7 @@ def run_campaign(
     done_runs = 0
     for ci, cond in enumerate(config.conditions):
         for b in range(config.n_batches):
-            if batch_paths(out, cond.name, b)[0].exists():
+            if _batch_done(out, cond.name, b):
                 done_runs += len(ids_all[b * config.batch_size : (b + 1) * config.batch_size])
             else:
                 todo.append((ci, b))
@@ -266,11 +293,7 @@ def run_campaign(
             finish(b, simulate_task(*args(ci, b)))
     else:
         _run_dask(todo, args, finish, scheduler, workers)
-    if all(
-        batch_paths(out, c.name, b)[0].exists()
-        for c in config.conditions
-        for b in range(config.n_batches)
-    ):
+    if all(_batch_done(out, c.name, b) for c in config.conditions for b in range(config.n_batches)):
         feats = pd.concat(
             [
                 pd.read_parquet(batch_paths(out, c.name, b)[1])

@@ -85,6 +85,13 @@ __all__ = [
 ]
 
 
+#: the line a Ctrl-C ends a command with
+INTERRUPTED = (
+    "interrupted: what was finished is kept (every file is saved whole); run the same "
+    "command again to resume"
+)
+
+
 def main() -> None:
     """Console-script entry point."""
     try:
@@ -92,3 +99,7 @@ def main() -> None:
     except RailsuspInputError as exc:  # pragma: no cover - commands catch their own
         err_console.print(f"error: {exc}")
         sys.exit(2)
+    except SystemExit as exc:  # typer turns a Ctrl-C into a silent exit 130
+        if exc.code == 130:
+            err_console.print(INTERRUPTED)
+        raise

@@ -191,7 +191,14 @@ def sections_command(
         if plot is not None:
             console.print(f"wrote {plot_sections(run, secs, plot)}")
         if write is not None:
-            write_sections(run, secs, write, rate)
+            from railsusp.store import atomic_folder
+
+            if write.exists() and not write.is_dir():
+                raise RailsuspInputError(f"--write {write}: exists and is not a folder")
+            # the whole folder at once: a kill mid-write left new recordings beside an old
+            # index and sidecars (other files of the folder are carried over)
+            with atomic_folder(write) as tmp:
+                write_sections(run, secs, tmp, rate, final=write)
             console.print(f"wrote {sum(s.kept for s in secs)} section recording(s) to {write}")
     except RecordingError as exc:
         print_problems(exc)

@@ -222,8 +222,8 @@ def train(settings: PosteriorSettings, run: str | Path) -> PosteriorEstimator:
     u, x = cached_cases(settings, folder / "simulations", "train", settings.n_train)
     prior, builder, theta_t, x_t = _build(settings, u, x)
     weights = folder / "estimator.pt"
-    if weights.exists():
-        states = torch.load(weights, weights_only=True)
+    states = _saved_states(weights)
+    if states is not None:
         nets = []
         for state in states:
             net = builder(theta_t, x_t)
@@ -254,6 +254,21 @@ def train(settings: PosteriorSettings, run: str | Path) -> PosteriorEstimator:
     est = PosteriorEstimator(settings, nets, [], None, Path(run))
     est.correction, est.calibration, est.products = calibrate(est, folder)
     return est
+
+
+def _saved_states(weights: Path) -> list | None:
+    """The flows' saved states, or None where there are none or the file is unreadable (cut
+    short by a copy or a full disk: trained again rather than a traceback; the weights are
+    written atomically, so a killed training never leaves such a file)."""
+    import torch
+
+    if not weights.is_file():
+        return None
+    try:
+        return torch.load(weights, weights_only=True)
+    except (OSError, RuntimeError, EOFError, ValueError) as exc:
+        log.warning("posterior: %s unreadable (%s); training again", weights.name, exc)
+        return None
 
 
 def load(run: str | Path) -> PosteriorEstimator:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import io
 import logging
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -157,6 +158,19 @@ def simulate_long_cases(
     return np.concatenate(per_condition, axis=2)
 
 
+def _read_chunk(path: Path) -> tuple[np.ndarray, np.ndarray] | None:
+    """A cached chunk's draws and statistics, or None where it is missing or unreadable
+    (a file cut short by a copy or a full disk is simulated again, not a traceback)."""
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return np.asarray(z["u"]), np.asarray(z["x"])
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        log.warning("posterior: %s unreadable; simulated again", path.name)
+        return None
+
+
 def cached_cases(
     settings: PosteriorSettings,
     folder: Path,
@@ -187,12 +201,12 @@ def cached_cases(
     for k, lo in enumerate(range(0, n, CHUNK)):
         hi = min(n, lo + CHUNK)
         path = folder / f"{name}_{k:04d}_{hi - lo}.npz"
-        if path.exists():
-            with np.load(path, allow_pickle=False) as z:
-                # else another design, or statistics of other settings: simulate
-                if np.array_equal(z["u"], u_all[lo:hi]) and z["x"].shape[-1] == width:
-                    xs.append(z["x"])
-                    continue
+        cached = _read_chunk(path)
+        # else missing, unreadable (cut short), another design or other settings: simulate
+        if cached is not None and np.array_equal(cached[0], u_all[lo:hi]):
+            if cached[1].shape[-1] == width:
+                xs.append(cached[1])
+                continue
         if not simulate:
             raise RailsuspInputError(
                 f"{path} is not cached (cases {lo + 1}-{hi} of {n} {name}, these draws): "
