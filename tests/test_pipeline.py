@@ -296,3 +296,32 @@ def test_a_stage_failing_on_an_earlier_stages_file_names_that_stage(tmp_path):
     assert "stage 'sensitivity'" in _blame(cfg, tmp_path, "estimate", deeper)
     assert _blame(cfg, tmp_path, "campaign", msg) == ""  # its own output: no earlier stage
     assert _blame(cfg, tmp_path, "estimate", "X13 out of range") == ""
+
+
+def test_a_damaged_stage_output_makes_that_stage_run_again(tiny, tmp_path):
+    """The kill/resume pass (stop 54): a truncated features.parquet or estimate.json in a
+    finished run passed as done (the next stage, or the summary, then failed on it with a
+    hint that looped); now the stage whose output does not read runs again, and the stages
+    after it, as after any rerun."""
+    import shutil
+
+    from railsusp.pipeline import _outputs_exist
+
+    cfg_path, out, _, _ = tiny
+    cfg = load_config(cfg_path)
+    copy = tmp_path / "run"
+    shutil.copytree(out, copy)
+    run_pipeline(cfg, copy)  # up to date for this configuration (other tests change out's)
+    reference = json.loads((copy / "estimate/estimate.json").read_text())
+    for rel, stage in (("campaign/features.parquet", "campaign"), ("estimate/estimate.json",
+                                                                    "estimate")):  # fmt: skip
+        assert _outputs_exist(cfg, copy, stage)
+        f = copy / rel
+        f.write_bytes(f.read_bytes()[:200])
+        assert not _outputs_exist(cfg, copy, stage)
+    shutil.copy2(out / "campaign/features.parquet", copy / "campaign/features.parquet")
+    seen = []
+    run_pipeline(cfg, copy, progress=lambda s, m: seen.append((s, m)))
+    assert [s for s, m in seen if m == "running"] == ["estimate", "validate", "report"], seen
+    est = json.loads((copy / "estimate/estimate.json").read_text())
+    assert est["estimate_display"] == reference["estimate_display"]

@@ -265,8 +265,26 @@ def surrogate_campaign_dir(config: PipelineConfig, out: str | Path) -> Path:
 
 
 def _outputs_exist(config: PipelineConfig, out: Path, stage: str) -> bool:
+    """The stage's output file is present and reads (a Parquet footer, a JSON document, a
+    table with a header): a file damaged after the run (a copy cut short) makes the stage
+    run again rather than fail a later one."""
     base = surrogate_campaign_dir(config, out) if stage == "surrogate" else out
-    return (base / _OUTPUTS[stage]).exists()
+    path = base / _OUTPUTS[stage]
+    if not path.is_file():
+        return False
+    try:
+        if path.suffix == ".parquet":
+            import pyarrow.parquet as pq
+
+            pq.ParquetFile(path).metadata  # noqa: B018  (reads and checks the footer)
+        elif path.suffix == ".json":
+            read_json(path)
+        elif path.suffix == ".csv":
+            return bool(path.read_text("utf-8").strip())
+    except (OSError, ValueError, RailsuspInputError):  # ArrowInvalid is a ValueError
+        log.warning("stage %s: %s does not read; the stage runs again", stage, path)
+        return False
+    return True
 
 
 def _stage_runners(
