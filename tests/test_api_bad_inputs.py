@@ -265,3 +265,20 @@ def test_an_empty_table_in_a_run_directory_is_an_input_error(tmp_path):
     for name in ("validation", "agreement"):
         with pytest.raises(RailsuspInputError, match="validation.csv: not a readable table"):
             getattr(result, name)
+
+
+def test_a_run_directory_that_lost_its_pipeline_json_resumes_and_a_lookalike_does_not(tmp_path):
+    """The kill/resume pass (stop 54): a deleted pipeline.json read as 'a folder holding
+    other files'. A folder of the stages' own outputs with its campaign.json resumes; a
+    report.html of the user's, or any other file beside, is still refused."""
+    from railsusp.pipeline import _run_state
+
+    (tmp_path / "campaign").mkdir()
+    (tmp_path / "report.html").write_text("MY OWN REPORT")
+    with pytest.raises(RailsuspInputError, match="a folder holding other files"):
+        _run_state(tmp_path, "--out")  # no campaign.json of railsusp's
+    (tmp_path / "campaign" / "campaign.json").write_text('{"kind": "railsusp campaign"}')
+    assert _run_state(tmp_path, "--out") == {"stages": {}}
+    (tmp_path / "notes.txt").write_text("mine")
+    with pytest.raises(RailsuspInputError, match="a folder holding other files"):
+        _run_state(tmp_path, "--out")

@@ -37,10 +37,35 @@ class StageError(RailsuspInputError):
     """A stage failed; earlier stages' outputs are intact."""
 
 
+#: what the stages write at the top of a run directory (a run whose pipeline.json was lost
+#: holds only these, and resumes: its campaign's batches are still matched by campaign.json)
+RUN_ENTRIES = (
+    "campaign",
+    "field",
+    "estimate",
+    "surrogate-campaign",
+    "surrogate-pretrained",
+    "report.html",
+    "report.md",
+    "report_assets",
+)
+
+
 def _ignorable(entry: Path) -> bool:
     """A file a new run directory may already hold: hidden (``.gitkeep``, ``.DS_Store``) or
     a configuration (the study's TOML kept beside its run); the stages write neither."""
     return entry.name.startswith(".") or (entry.is_file() and entry.suffix == ".toml")
+
+
+def _lost_its_state(out: Path, entries: list[Path]) -> bool:
+    """A railsusp run directory whose ``pipeline.json`` was lost: nothing but the stages'
+    own outputs, its campaign's ``campaign.json`` among them (a user's own ``report.html``
+    alone is not that)."""
+    try:
+        made_here = read_json(out / "campaign" / "campaign.json").get("kind")
+    except (RailsuspInputError, AttributeError):
+        return False
+    return made_here == "railsusp campaign" and all(e.name in RUN_ENTRIES for e in entries)
 
 
 def _run_state(out: Path, option: str) -> dict:
@@ -49,7 +74,8 @@ def _run_state(out: Path, option: str) -> dict:
     folder of other files, or one whose ``pipeline.json`` is not a railsusp run's."""
     state_path = out / "pipeline.json"
     if not state_path.exists():
-        if out.is_dir() and any(not _ignorable(p) for p in out.iterdir()):
+        others = [p for p in out.iterdir() if not _ignorable(p)] if out.is_dir() else []
+        if others and not _lost_its_state(out, others):
             raise RailsuspInputError(
                 f"{option} {out}: a folder holding other files and no pipeline.json; give a "
                 "new or empty folder, or a railsusp run directory to resume"
