@@ -25,7 +25,7 @@ from railsusp.estimate.config import BROYDEN_MIN_STEP
 from railsusp.pipeline_config import PipelineConfig as PipelineConfig  # re-export
 from railsusp.pipeline_config import demo_config as demo_config  # re-export
 from railsusp.pipeline_config import load_config as load_config  # re-export
-from railsusp.store import content_hash, provenance, read_json, write_json
+from railsusp.store import content_hash, parquet_readable, provenance, read_json, write_json
 
 #: stage finishes with their elapsed time (info) and starts (debug), for the command line
 log = logging.getLogger("railsusp.pipeline")
@@ -298,19 +298,20 @@ def _outputs_exist(config: PipelineConfig, out: Path, stage: str) -> bool:
     path = base / _OUTPUTS[stage]
     if not path.is_file():
         return False
-    try:
-        if path.suffix == ".parquet":
-            import pyarrow.parquet as pq
-
-            pq.ParquetFile(path).metadata  # noqa: B018  (reads and checks the footer)
-        elif path.suffix == ".json":
-            read_json(path)
-        elif path.suffix == ".csv":
-            return bool(path.read_text("utf-8").strip())
-    except (OSError, ValueError, RailsuspInputError):  # ArrowInvalid is a ValueError
+    readable = True
+    if path.suffix == ".parquet":
+        readable = parquet_readable(path)
+    elif path.suffix in (".json", ".csv"):
+        try:
+            if path.suffix == ".json":
+                read_json(path)
+            else:
+                readable = bool(path.read_text("utf-8").strip())
+        except (OSError, ValueError, RailsuspInputError):
+            readable = False
+    if not readable:
         log.warning("stage %s: %s does not read; the stage runs again", stage, path)
-        return False
-    return True
+    return readable
 
 
 def _stage_runners(

@@ -103,6 +103,17 @@ def write_csv(path: str | Path, df: pd.DataFrame, **kw: Any) -> Path:
     return atomic_write_text(path, df.to_csv(**kw))
 
 
+def parquet_readable(path: str | Path) -> bool:
+    """Whether ``path`` is a Parquet file whose footer reads: a file cut short (a copy
+    interrupted, a full disk) or missing is not (our writes are atomic, so a kill never
+    leaves one)."""
+    try:
+        pq.ParquetFile(path).metadata  # noqa: B018  (reads and checks the footer)
+    except (OSError, ValueError):  # missing; ArrowInvalid (not Parquet, cut short)
+        return False
+    return True
+
+
 def read_csv(path: str | Path) -> pd.DataFrame:
     """A table of a run directory; an empty or unparsable file (a hand-edited run) is a
     one-line input error naming it, not pandas' traceback."""

@@ -11,7 +11,6 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import pyarrow.parquet as pq
 
 from railsusp.campaign.design import (
     CHANNELS,
@@ -27,6 +26,7 @@ from railsusp.campaign.design import (
 from railsusp.errors import RailsuspInputError
 from railsusp.store import (
     check_output_folder,
+    parquet_readable,
     provenance,
     read_json,
     write_json,
@@ -147,14 +147,8 @@ def write_batch(out: Path, b: int, res: dict[str, Any], n_t: int) -> None:
 
 def _batch_done(out: Path, condition: str, b: int) -> bool:
     """Both files of a batch present, each with an intact Parquet footer: a file cut short
-    (a copy interrupted, a full disk) is simulated again rather than taken as finished
-    work (batches are written atomically, so a kill never leaves one)."""
-    for path in batch_paths(out, condition, b):
-        try:
-            pq.ParquetFile(path).metadata  # noqa: B018  (reads and checks the footer)
-        except (OSError, ValueError):  # missing; ArrowInvalid (not Parquet, cut short)
-            return False
-    return True
+    is simulated again rather than taken as finished work."""
+    return all(parquet_readable(p) for p in batch_paths(out, condition, b))
 
 
 def _discard(out: Path) -> None:
