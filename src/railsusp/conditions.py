@@ -29,7 +29,6 @@ length (50 Hz output).
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, Literal
@@ -45,6 +44,7 @@ from pydantic import (
 )
 
 from railsusp.errors import ConditionError, RailsuspInputError
+from railsusp.numbers import is_real
 
 GRAVITY = 9.81  # m/s^2
 #: A condition name becomes a folder of run directories: a safe slug (no '/', no '..' alone,
@@ -285,7 +285,7 @@ class WorkingCondition(BaseModel):
     def with_duration(self, duration_s: float) -> WorkingCondition:
         """A validated copy recording ``duration_s`` seconds at the same sampling interval."""
         lo, hi = 1.0, 600.0
-        if isinstance(duration_s, numbers.Real) and not isinstance(duration_s, bool):
+        if is_real(duration_s):
             duration_s = float(duration_s)  # NumPy scalars too
         if not (isinstance(duration_s, float) and lo <= duration_s <= hi):
             raise ConditionError(

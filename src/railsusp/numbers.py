@@ -3,6 +3,13 @@
 from __future__ import annotations
 
 import math
+import numbers
+
+
+def is_real(value: object) -> bool:
+    """A real number, NumPy's scalars included, and not a boolean (``True`` is an ``int``
+    to Python, a slip in an input); NumPy's ``bool_`` is not a real to :mod:`numbers`."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
 def sig3(v: float) -> str:

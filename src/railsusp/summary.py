@@ -10,17 +10,15 @@ Python API and the report never disagree.
 from __future__ import annotations
 
 import math
-import numbers
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from railsusp.errors import RailsuspInputError
-from railsusp.numbers import sig3
+from railsusp.numbers import is_real, sig3
 from railsusp.params import MAIN_SUSPENSION, spec
 from railsusp.store import read_csv, read_json
 
@@ -55,8 +53,7 @@ class Tolerances:
 
 
 def _check_pct(where: str, key: str, value: object) -> float:
-    ok = isinstance(value, numbers.Real) and not isinstance(value, bool | np.bool_)
-    if not ok or not 0.0 < float(value) <= 100.0:  # type: ignore[arg-type]
+    if not is_real(value) or not 0.0 < float(value) <= 100.0:  # type: ignore[arg-type]
         raise RailsuspInputError(
             f"{where}: tolerances.{key} = {value!r}: accepted a number in (0, 100] "
             "(% of the nominal value)"

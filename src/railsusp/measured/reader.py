@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import math
-import numbers
 import warnings
 from pathlib import Path
 from typing import Any
@@ -27,6 +26,7 @@ from railsusp.measured.checks import (
 from railsusp.measured.raw import read_raw
 from railsusp.measured.recording import FORMAT, Recording, RecordingError
 from railsusp.measured.units import si_factor, split_header
+from railsusp.numbers import is_real
 from railsusp.store import json_numbers
 from railsusp.vehicle.layout import WHEEL_NAMES
 from railsusp.vehicle.setup import axle_spread
@@ -77,9 +77,9 @@ def read_recording(
     wheel load against the wagon's static wheel load; physical bounds."""
     from railsusp.measured.run import static_wheel_load
 
-    if not (_real(min_rate_hz) and 1.0 <= min_rate_hz <= 100_000.0):
+    if not (is_real(min_rate_hz) and 1.0 <= min_rate_hz <= 100_000.0):
         raise RailsuspInputError(f"min_rate_hz = {min_rate_hz!r}: accepted 1 to 100000 Hz")
-    if wheel_load_N is not None and not (_real(wheel_load_N) and 1e3 <= wheel_load_N <= 1e6):
+    if wheel_load_N is not None and not (is_real(wheel_load_N) and 1e3 <= wheel_load_N <= 1e6):
         raise RailsuspInputError(
             f"wheel_load_N = {wheel_load_N!r}: accepted a static wheel load of 1000 to "
             "1000000 N, or None (the wagon's)"
@@ -185,11 +185,6 @@ def read_recording(
     return Recording(np.asarray(t), Y, Q, condition, extra)  # type: ignore[arg-type]
 
 
-def _real(value: Any) -> bool:
-    """A real number (NumPy's too), not a boolean."""
-    return isinstance(value, numbers.Real) and not isinstance(value, bool | np.bool_)
-
-
 def _raw(table_path: Path):
     """The table's channels on its ``time_s`` column, or on ``distance_m`` over the speed."""
     import pandas as pd
@@ -258,9 +253,7 @@ def _sidecar_fields(meta: dict[str, Any], side: str) -> list[str]:
             f'{WHEEL_NAMES[0]} .. {WHEEL_NAMES[-1]} (e.g. ["w1R"])'
         )
     bw = meta.get("filter_bandwidth_hz")
-    if bw is not None and (
-        isinstance(bw, bool) or not isinstance(bw, int | float) or not 0.0 < bw < math.inf
-    ):
+    if bw is not None and not (is_real(bw) and 0.0 < bw < math.inf):
         out.append(
             f"{side}: filter_bandwidth_hz = {json.dumps(bw)}: accepted a number of Hz above 0 "
             "(the instrument's bandwidth; null or left out: none)"
