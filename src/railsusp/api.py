@@ -193,12 +193,12 @@ def open_run(path: str | Path, *, tolerances: summary.Tolerances | None = None) 
             f"tolerances = {tolerances!r}: a railsusp.Tolerances(default_pct, per_parameter) "
             "is needed"
         )
+    from railsusp.pipeline import read_run_state
+
     path = Path(path).resolve()
     if not (path / "pipeline.json").is_file():
         raise RailsuspInputError(f"{path}: not a run directory (no pipeline.json)")
-    state = read_json(path / "pipeline.json")
-    if not isinstance(state, dict) or not isinstance(state.get("stages"), dict):
-        raise RailsuspInputError(f"{path}: its pipeline.json is not a railsusp run's (no stages)")
+    read_run_state(path, str(path))
     return RunResult(path, tolerances)
 
 

@@ -81,11 +81,16 @@ def _run_state(out: Path, option: str) -> dict:
                 "new or empty folder, or a railsusp run directory to resume"
             )
         return {"stages": {}}
-    state = read_json(state_path)
+    return read_run_state(out, f"{option} {out}", "; give a new or empty folder")
+
+
+def read_run_state(out: Path, where: str, hint: str = "") -> dict:
+    """The ``pipeline.json`` of the run directory ``out``; one that is not a railsusp run's
+    (no table of stages) is a one-line error naming ``where``, ``hint`` appended."""
+    state = read_json(out / "pipeline.json")
     if not isinstance(state, dict) or not isinstance(state.get("stages"), dict):
         raise RailsuspInputError(
-            f"{option} {out}: its pipeline.json is not a railsusp run's (no stages table); "
-            "give a new or empty folder"
+            f"{where}: its pipeline.json is not a railsusp run's (no stages table){hint}"
         )
     return state
 
