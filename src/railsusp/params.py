@@ -433,8 +433,8 @@ class ParameterSet(Mapping[str, float]):
         _check_units(units)
         merged: dict[str, float] = dict(self._values)
         for s, value in _keyed(values):
-            merged[s.symbol] = s.check(_to_si(s, value, units))
-        return ParameterSet(merged)
+            merged[s.symbol] = _to_si(s, value, units)
+        return ParameterSet(merged)  # checks every value
 
     def __getitem__(self, key: str) -> float:
         return self._values[spec(key).symbol]

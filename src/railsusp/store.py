@@ -82,8 +82,8 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
-            os.fchmod(fh.fileno(), 0o666 & ~_UMASK)
             os.fsync(fh.fileno())
+        plain_mode(tmp)
         os.replace(tmp, path)
         fsync_dir(path.parent)
     finally:
@@ -267,8 +267,14 @@ def type_error_text(err: Any) -> str | None:
     if isinstance(value, str):
         quotes = "" if needed in ("a string", "a list", "a table") else " (write it without quotes)"
         return f"{needed} is needed, not a string{quotes}"
-    got = {bool: "a boolean", int: "an integer", float: "a float", list: "a list", dict: "a table"}
-    got[type(None)] = "null"
+    got = {
+        bool: "a boolean",
+        int: "an integer",
+        float: "a float",
+        list: "a list",
+        dict: "a table",
+        type(None): "null",
+    }
     return f"{needed} is needed, not {got.get(type(value), type(value).__name__)}"
 
 

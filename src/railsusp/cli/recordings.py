@@ -191,10 +191,9 @@ def sections_command(
         if plot is not None:
             console.print(f"wrote {plot_sections(run, secs, plot)}")
         if write is not None:
-            from railsusp.store import atomic_folder
+            from railsusp.store import atomic_folder, check_output_folder
 
-            if write.exists() and not write.is_dir():
-                raise RailsuspInputError(f"--write {write}: exists and is not a folder")
+            check_output_folder(write, "--write")
             # the whole folder at once: a kill mid-write left new recordings beside an old
             # index and sidecars (other files of the folder are carried over)
             with atomic_folder(write) as tmp:

@@ -29,7 +29,7 @@ from railsusp.measured.units import si_factor, split_header
 from railsusp.numbers import is_real
 from railsusp.store import json_numbers
 from railsusp.vehicle.layout import WHEEL_NAMES
-from railsusp.vehicle.setup import axle_spread
+from railsusp.vehicle.setup import _static_wheel_load, axle_spread
 from railsusp.vehicle.track_geometry import check_coverage, read_track_geometry
 from railsusp.vehicle.wagon import load_wagon
 
@@ -75,8 +75,6 @@ def read_recording(
     ``Y_w1R [N]``); non-finite values (±inf refused, NaN gaps over 5 samples refused,
     shorter ones interpolated with a warning); all-zero or constant force channels; median
     wheel load against the wagon's static wheel load; physical bounds."""
-    from railsusp.measured.run import static_wheel_load
-
     if not (is_real(min_rate_hz) and 1.0 <= min_rate_hz <= 100_000.0):
         raise RailsuspInputError(f"min_rate_hz = {min_rate_hz!r}: accepted 1 to 100000 Hz")
     if wheel_load_N is not None and not (is_real(wheel_load_N) and 1e3 <= wheel_load_N <= 1e6):
@@ -142,7 +140,8 @@ def read_recording(
         problems.append("no force columns (Y_<wheel>_kN, Q_<wheel>_kN, wheel w1L..w4R)")
     Y: dict[str, np.ndarray] = {}
     Q: dict[str, np.ndarray] = {}
-    wl = static_wheel_load() if wheel_load_N is None else wheel_load_N
+    wagon = load_wagon()  # the default wagon: its static wheel load and axle spread
+    wl = _static_wheel_load(wagon) if wheel_load_N is None else wheel_load_N
     for w, chans in cmap.wheels.items():
         si = {}
         for f, col in chans.items():
@@ -176,7 +175,7 @@ def read_recording(
             problems.append(
                 f"sidecar wheels {side_wheels}, the table's force columns {list(cmap.wheels)}"
             )
-    condition = _condition(meta, table_path, problems) if meta else None
+    condition = _condition(meta, table_path, problems, axle_spread(wagon)) if meta else None
     if problems:
         raise RecordingError(table_path, problems)
     for note in notes:
@@ -262,12 +261,13 @@ def _sidecar_fields(meta: dict[str, Any], side: str) -> list[str]:
 
 
 def _condition(
-    meta: dict[str, Any], table_path: Path, problems: list[str]
+    meta: dict[str, Any], table_path: Path, problems: list[str], axle_spread_m: float
 ) -> WorkingCondition | None:
     """The sidecar's working condition (numbers must be JSON numbers), its track geometry
     resolved inside the recording's folder, read and checked to cover the record under
-    every axle of the default wagon (:func:`~railsusp.vehicle.track_geometry.check_coverage`;
-    the simulation checks again with the run's wagon)."""
+    every axle, ``axle_spread_m`` (the default wagon's;
+    :func:`~railsusp.vehicle.track_geometry.check_coverage`; the simulation checks again
+    with the run's wagon)."""
     side = table_path.with_suffix(".json").name
     cdoc = meta.get("condition")
     try:
@@ -286,7 +286,7 @@ def _condition(
     try:
         geo = inside(table_path.parent, condition.track_geometry, f"{side}: track_geometry")
         condition = condition.with_changes(track_geometry=str(geo))
-        check_coverage(read_track_geometry(geo), condition, axle_spread(load_wagon()))
+        check_coverage(read_track_geometry(geo), condition, axle_spread_m)
     except RailsuspInputError as exc:
         problems.append(str(exc) if str(exc).startswith(side) else f"{side}: track_geometry: {exc}")
         return None

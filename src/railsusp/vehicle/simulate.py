@@ -264,11 +264,12 @@ def _param_matrix(sets: np.ndarray | Iterable[ParameterSet], symbols: Sequence[s
     if isinstance(sets, np.ndarray) or (symbols is not None):
         syms = list(symbols) if symbols is not None else list(SYMBOLS)
         try:
-            shape = np.asarray(sets, dtype=float).shape
+            given = np.asarray(sets, dtype=float)
         except (TypeError, ValueError):
             raise RailsuspInputError(
                 "sets: not a matrix of numbers (rows of unequal length, or text?); " + accepted
             ) from None
+        shape = given.shape
         if symbols is None and (len(shape) not in (1, 2) or shape[-1] != len(SYMBOLS)):
             raise RailsuspInputError(
                 f"sets: a matrix of shape {shape} without symbols=; a matrix of all "
@@ -278,9 +279,9 @@ def _param_matrix(sets: np.ndarray | Iterable[ParameterSet], symbols: Sequence[s
         if 0 in shape:
             raise RailsuspInputError("sets: no parameter sets given (an empty matrix)")
         x = (
-            check_matrix(syms, np.atleast_2d(np.asarray(sets, dtype=float)))
+            check_matrix(syms, np.atleast_2d(given))
             if syms != list(SYMBOLS)
-            else np.atleast_2d(np.asarray(sets, float))
+            else np.atleast_2d(given)
         )
         full = np.tile(ParameterSet.nominal().to_array(), (x.shape[0], 1))
         for j, s in enumerate(syms):
@@ -348,12 +349,12 @@ def simulate_conditions(
     apply in every condition; ``progress`` counts the sets of all conditions;
     ``wall_time`` of each result is its preparation and the calls its sets were in.
     """
-    if not isinstance(conditions, WorkingCondition | str) and not conditions:
-        raise RailsuspInputError("conditions: none given, accepted at least one")
     if isinstance(conditions, WorkingCondition | str):
         raise RailsuspInputError(
             f"conditions = {conditions!r}: accepted a list of one or more WorkingConditions"
         )
+    if not conditions:
+        raise RailsuspInputError("conditions: none given, accepted at least one")
     P = np.ascontiguousarray(_param_matrix(sets, symbols))
     return _simulate_full(
         [(P, c, seeds) for c in conditions], wagon, settings, progress, chunk_size
