@@ -7,6 +7,7 @@ command line can print it as one line (exit status 2) without a traceback.
 from __future__ import annotations
 
 import difflib
+from collections.abc import Sequence
 
 
 class RailsuspInputError(ValueError):
@@ -26,3 +27,9 @@ def did_you_mean(name: str, options: list[str]) -> str:
     same_case = [o for o in options if o.lower() == name.lower()]
     m = same_case or difflib.get_close_matches(name, options, n=1, cutoff=0.6)
     return f" (did you mean {m[0]!r}?)" if m else ""
+
+
+def repeated(items: Sequence[object]) -> list[str]:
+    """The items that ``items`` holds more than once, as sorted text for a message
+    (``"X13, X14"``): a name given twice would overwrite or weigh double."""
+    return sorted({str(x) for x in items if items.count(x) > 1})

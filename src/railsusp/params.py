@@ -42,7 +42,7 @@ from typing import Literal
 
 import numpy as np
 
-from railsusp.errors import ParameterError, RailsuspInputError
+from railsusp.errors import ParameterError, RailsuspInputError, repeated
 
 Units = Literal["si", "display"]
 
@@ -554,7 +554,7 @@ def check_matrix(symbols: Iterable[str], matrix: np.ndarray) -> np.ndarray:
     row, parameter, value and range.
     """
     syms = [spec(s).symbol for s in symbols]
-    twice = sorted({s for s in syms if syms.count(s) > 1})
+    twice = repeated(syms)
     if twice:
         raise ParameterError(f"symbols: {', '.join(twice)} given twice; give each column once")
     try:

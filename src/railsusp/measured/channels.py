@@ -28,7 +28,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from railsusp.errors import RailsuspInputError, did_you_mean
+from railsusp.errors import RailsuspInputError, did_you_mean, repeated
 from railsusp.measured.units import split_header
 from railsusp.vehicle.layout import WHEEL_NAMES
 
@@ -113,7 +113,7 @@ def channel_map_from(doc: dict, source: str = "channel map") -> ChannelMap:
         if key in doc and not isinstance(doc[key], str):
             raise bad(f"{key}: text is needed")
     used = [c for w in wheels.values() for c in w.values()] + list(signals.values())
-    twice = sorted({c for c in used if used.count(c) > 1})
+    twice = repeated(used)
     if twice:
         raise bad(f"channel {twice[0]!r} mapped to two quantities")
     return ChannelMap(

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from railsusp.conditions import WorkingCondition, get_condition, make_condition
-from railsusp.errors import RailsuspInputError, did_you_mean
+from railsusp.errors import RailsuspInputError, did_you_mean, repeated
 from railsusp.measured.channels import default_map
 from railsusp.measured.checks import (
     check_finite,
@@ -312,7 +312,7 @@ def read_index(folder: str | Path) -> list[Path]:
     if "format" in doc and doc["format"] != FORMAT:
         raise RailsuspInputError(f"{index}: format {doc['format']!r}; accepted {FORMAT!r}")
     names = doc["recordings"]
-    twice = sorted({str(n) for n in names if names.count(n) > 1})
+    twice = repeated(names)
     if twice:  # the same recording counted twice would weigh it double in the estimate
         raise RailsuspInputError(
             f"{index} recordings: {', '.join(twice)} listed more than once; accepted each once"

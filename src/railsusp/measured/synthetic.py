@@ -12,7 +12,7 @@ import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
 from railsusp.conditions import WorkingCondition
-from railsusp.errors import RailsuspInputError
+from railsusp.errors import RailsuspInputError, repeated
 from railsusp.measured.recording import FORMAT, Recording, SimulationFailedError
 from railsusp.store import atomic_folder, write_json
 from railsusp.vehicle.layout import WHEEL_NAMES
@@ -133,7 +133,7 @@ def synthesise_field(
     if not conditions:
         raise RailsuspInputError("conditions: none given, accepted at least one")
     named = [c.name for c in conditions]
-    twice = sorted({n for n in named if named.count(n) > 1})
+    twice = repeated(named)
     if twice:  # each recording is written under its condition's name
         raise RailsuspInputError(
             f"conditions: {', '.join(twice)} named more than once; accepted distinct names"
