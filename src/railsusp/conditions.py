@@ -404,6 +404,17 @@ def get_condition(name: str, **overrides: Any) -> WorkingCondition:
     return cond.with_changes(**overrides) if overrides else cond
 
 
+def check_track_file(cond: WorkingCondition) -> None:
+    """Refuse a condition whose ``track_geometry`` file does not exist: it is read only when
+    simulating, so a missing file would stop a run there, after other work."""
+    if cond.track_geometry is not None and not Path(cond.track_geometry).is_file():
+        raise ConditionError(
+            f"condition {cond.name!r}: track_geometry {cond.track_geometry} does not exist "
+            "(relative to the working folder); accepted a track geometry file "
+            "(docs/data-format.md)"
+        )
+
+
 def load_conditions(source: str | Path) -> list[WorkingCondition]:
     """Read conditions from TOML: ``[[condition]]`` tables, or ``[condition.NAME]`` tables.
 
@@ -443,12 +454,10 @@ def load_conditions(source: str | Path) -> list[WorkingCondition]:
             cond = make_condition(fields, from_file=True)
         except ConditionError as exc:
             raise ConditionError(f"{path}: {exc}") from None
-        if cond.track_geometry is not None and not Path(cond.track_geometry).is_file():
-            raise ConditionError(  # read only when simulating: a missing file would stop there
-                f"{path}: condition {cond.name!r}: track_geometry {cond.track_geometry} does "
-                "not exist (relative to the working folder); accepted a track geometry file "
-                "(docs/data-format.md)"
-            )
+        try:
+            check_track_file(cond)
+        except ConditionError as exc:
+            raise ConditionError(f"{path}: {exc}") from None
         out.append(cond)
     return out
 

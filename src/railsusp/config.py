@@ -91,6 +91,7 @@ def check_config(cfg: Any, where: str = "configuration", *, from_file: bool = Fa
     :class:`ConfigError` (one line, naming the field) at the first thing that would make a
     stage fail. ``from_file``: read from a TOML file, so the conditions' values are checked
     as strictly as the rest (a Python dict's are converted as pydantic does)."""
+    from railsusp.conditions import check_track_file
     from railsusp.params import ParameterSet, spec
     from railsusp.vehicle.wagon import load_wagon
 
@@ -117,11 +118,10 @@ def check_config(cfg: Any, where: str = "configuration", *, from_file: bool = Fa
     if dupes:
         raise bad(f"conditions: names repeat ({', '.join(dupes)}); give each a distinct name")
     for c in conds:  # read only in the campaign stage: a missing file would stop it there
-        if c.track_geometry and not Path(c.track_geometry).is_file():
-            raise bad(
-                f"conditions: {c.name}'s track_geometry {c.track_geometry} does not exist; "
-                "accepted a track geometry file (docs/data-format.md)"
-            )
+        try:
+            check_track_file(c)
+        except RailsuspInputError as exc:
+            raise bad(f"conditions: {exc}") from None
 
     # parameters
     sampled: list[str] = []
