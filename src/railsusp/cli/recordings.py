@@ -41,9 +41,11 @@ def check_recording(
     each naming file, channel and rows; exit status 2)."""
     from railsusp.measured import RecordingError, read_recording
     from railsusp.measured.raw import MDF_SUFFIXES
+    from railsusp.measured.reader import MIN_RATE_RANGE_HZ
 
-    if not 1.0 <= min_rate <= 100_000.0:  # NaN fails too
-        fail(f"--min-rate {min_rate:g} Hz: accepted 1 to 100000 Hz")
+    lo, hi = MIN_RATE_RANGE_HZ
+    if not lo <= min_rate <= hi:  # NaN fails too (checked here too: a run file is not read)
+        fail(f"--min-rate {min_rate:g} Hz: accepted {lo:g} to {hi:g} Hz")
     if channel_map is not None or path.suffix.lower() in MDF_SUFFIXES:
         _check_run(path, channel_map)
         return

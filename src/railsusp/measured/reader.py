@@ -33,6 +33,8 @@ from railsusp.vehicle.setup import _static_wheel_load, axle_spread
 from railsusp.vehicle.track_geometry import check_coverage, read_track_geometry
 from railsusp.vehicle.wagon import load_wagon
 
+#: the accepted lowest usable sampling rate (read_recording's ``min_rate_hz``), Hz
+MIN_RATE_RANGE_HZ = (1.0, 100_000.0)
 #: relative disagreement of a sidecar's sampling rate with the data's that is refused
 RATE_TOLERANCE = 0.01
 
@@ -75,8 +77,9 @@ def read_recording(
     ``Y_w1R [N]``); non-finite values (±inf refused, NaN gaps over 5 samples refused,
     shorter ones interpolated with a warning); all-zero or constant force channels; median
     wheel load against the wagon's static wheel load; physical bounds."""
-    if not (is_real(min_rate_hz) and 1.0 <= min_rate_hz <= 100_000.0):
-        raise RailsuspInputError(f"min_rate_hz = {min_rate_hz!r}: accepted 1 to 100000 Hz")
+    lo, hi = MIN_RATE_RANGE_HZ
+    if not (is_real(min_rate_hz) and lo <= min_rate_hz <= hi):
+        raise RailsuspInputError(f"min_rate_hz = {min_rate_hz!r}: accepted {lo:g} to {hi:g} Hz")
     if wheel_load_N is not None and not (is_real(wheel_load_N) and 1e3 <= wheel_load_N <= 1e6):
         raise RailsuspInputError(
             f"wheel_load_N = {wheel_load_N!r}: accepted a static wheel load of 1000 to "
