@@ -159,6 +159,58 @@ def test_results_without_their_campaign_json_are_not_taken_in(full_run, tmp_path
     assert len(list((copy / "batches").glob("*/batch-?????.parquet"))) == 1  # old ones gone
 
 
+@pytest.mark.parametrize("damage", ["cut", "gone"])
+def test_a_lost_or_damaged_campaign_json_keeps_the_batches_stamped_as_this_configurations(
+    full_run, tmp_path, damage
+):
+    """Stop 54 left this open: a campaign.json cut short could only be --force'd, which
+    discarded every intact batch, and one that was gone refused the run. Each batch file now
+    carries its configuration's hash; the batches of this configuration are kept, the rest is
+    made again, and the result equals the uninterrupted campaign's."""
+    from railsusp.campaign.run import batch_stamp
+
+    cfg, out = full_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    assert {batch_stamp(p) for p in (copy / "batches").rglob("*.parquet")} == {cfg.hash()}
+    meta = copy / "campaign.json"
+    meta.write_bytes(meta.read_bytes()[:50]) if damage == "cut" else meta.unlink()
+    (copy / "design.parquet").write_bytes(b"PAR1 cut")  # made again from the configuration
+    path = batch_paths(copy, "curve", 1)[0]
+    path.write_bytes(path.read_bytes()[:300])  # and one batch damaged as well
+    calls = []
+    run_campaign(cfg, copy, progress=lambda d, t: calls.append(d))
+    assert calls[0] == 16  # all but the damaged batch of 4
+    assert json.loads(meta.read_text())["config_hash"] == cfg.hash()
+    pd.testing.assert_frame_equal(
+        _sorted(load_campaign(copy).features()), _sorted(load_campaign(out).features())
+    )
+    pd.testing.assert_frame_equal(load_campaign(copy).design(), load_campaign(out).design())
+
+
+def test_with_campaign_json_damaged_force_discards_only_other_configurations_batches(
+    full_run, tmp_path
+):
+    """Batches of another seed (stamped with its hash) beside this configuration's: refused,
+    naming how many are whose; --force discards those alone."""
+    cfg, out = full_run
+    copy = tmp_path / "copy"
+    other = make_config(TINY, 10, batch_size=4, seed=5)
+    run_campaign(other, copy, max_batches=2)  # the first batches of both conditions
+    for p in sorted((out / "batches").rglob("batch-00002*.parquet")):  # and two of cfg's
+        (copy / p.relative_to(out)).parent.mkdir(exist_ok=True)
+        shutil.copy2(p, copy / p.relative_to(out))
+    (copy / "campaign.json").write_text("{")
+    with pytest.raises(CampaignError, match=r"4 of its batch files are not stamped .*\(the 4 that"):
+        run_campaign(cfg, copy)
+    calls = []
+    run_campaign(cfg, copy, force=True, progress=lambda d, t: calls.append(d))
+    assert calls[0] == 4  # the kept batches: the last of each condition, of 2 samples
+    pd.testing.assert_frame_equal(
+        _sorted(load_campaign(copy).features()), _sorted(load_campaign(out).features())
+    )
+
+
 @pytest.mark.parametrize("which", [0, 1])  # the series file, the features file
 def test_a_batch_file_cut_short_is_simulated_again(full_run, tmp_path, which):
     """Before: a truncated series file counted as done (found only by training); a truncated

@@ -125,9 +125,12 @@ def test_campaign_workers_0_and_corrupt_campaign_json(short, tmp_path):
     run.mkdir()
     (run / "campaign.json").write_bytes(b'{"config": ')
     one_line_error(["train", run], "is corrupt: not valid JSON")
+    # a batch of unknown origin beside it (an unstamped one: written by an older railsusp)
+    (run / "batches" / "short").mkdir(parents=True)
+    pd.DataFrame({"sample_id": [0]}).to_parquet(run / "batches/short/batch-00000.parquet")
     one_line_error(
         ["campaign", "--out", run, "--conditions", short, "--samples", "2"],
-        "use --force to discard",
+        "1 of its batch files are not stamped as this configuration's",
     )
     (run / "campaign.json").write_text("[1, 2]")
     one_line_error(["train", run], "a JSON object was expected")

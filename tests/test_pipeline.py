@@ -1,10 +1,12 @@
 """The one-command pipeline: stages, skipping, restarts, failures, report, configuration."""
 
+import io
 import json
 from pathlib import Path
 
 import pandas as pd
 import pytest
+import torch
 from typer.testing import CliRunner
 
 from railsusp.cli import app
@@ -325,3 +327,50 @@ def test_a_damaged_stage_output_makes_that_stage_run_again(tiny, tmp_path):
     assert [s for s, m in seen if m == "running"] == ["estimate", "validate", "report"], seen
     est = json.loads((copy / "estimate/estimate.json").read_text())
     assert est["estimate_display"] == reference["estimate_display"]
+
+
+def test_a_damaged_file_beside_a_stages_output_makes_that_stage_run_again(tiny, tmp_path):
+    """Stop 54's kill/resume pass left this open: a network (model.pt) or a field recording
+    cut short in a finished run passed as done until a later stage read it. Now every file a
+    stage wrote is checked by its format, and against the size recorded when the stage
+    finished (a CSV cut inside its last number still has all its cells); a training
+    checkpoint is not (only a resume point), and a run recorded before sizes were gets the
+    format checks alone."""
+    import shutil
+
+    from railsusp.pipeline import _outputs_exist
+
+    cfg_path, out, _, _ = tiny
+    cfg = load_config(cfg_path)
+    copy = tmp_path / "run"
+    shutil.copytree(out, copy)
+    run_pipeline(cfg, copy)  # up to date for this configuration (other tests change out's)
+    state = json.loads((copy / "pipeline.json").read_text())
+    model = next((copy / "surrogate-campaign/surrogates").rglob("model.pt"))
+    recording = copy / "field/short.csv"
+    assert model.relative_to(copy).as_posix() in state["stages"]["surrogate"]["files"]
+    assert "field/short.csv" in state["stages"]["field"]["files"]
+    assert not any("checkpoint" in f for f in state["stages"]["surrogate"]["files"])
+    network, table = model.read_bytes(), recording.read_bytes()
+
+    checkpoint = model.with_name("checkpoint.pt")
+    checkpoint.write_bytes(checkpoint.read_bytes()[:100])
+    assert _outputs_exist(cfg, copy, "surrogate", state["stages"]["surrogate"]["files"])
+
+    model.write_bytes(network[: len(network) // 2])
+    assert not _outputs_exist(cfg, copy, "surrogate", state["stages"]["surrogate"]["files"])
+    recording.write_bytes(table[:-3])  # inside the last number: every cell is still there
+    assert _outputs_exist(cfg, copy, "field")  # the format alone cannot tell
+    assert not _outputs_exist(cfg, copy, "field", state["stages"]["field"]["files"])
+
+    seen = []
+    run_pipeline(cfg, copy, progress=lambda s, m: seen.append((s, m)))
+    assert [s for s, m in seen if m == "running"] == list(STAGES[2:]), seen
+    assert recording.read_bytes() == table  # remade as it was
+    new, old = _weights(model.read_bytes()), _weights(network)
+    assert new.keys() == old.keys()
+    assert all(torch.equal(new[k], old[k]) for k in old)  # trained again (its checkpoint cut)
+
+
+def _weights(data: bytes) -> dict:
+    return torch.load(io.BytesIO(data), weights_only=True)

@@ -20,12 +20,13 @@ from typing import Any
 
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.config import BROYDEN_MIN_STEP
+from railsusp.integrity import changed_files, file_sizes, files_under, unreadable_files
 
 # the configuration's public names, imported from here by users, tests, benches and docs
 from railsusp.pipeline_config import PipelineConfig as PipelineConfig  # re-export
 from railsusp.pipeline_config import demo_config as demo_config  # re-export
 from railsusp.pipeline_config import load_config as load_config  # re-export
-from railsusp.store import content_hash, parquet_readable, provenance, read_json, write_json
+from railsusp.store import content_hash, provenance, read_json, write_json
 
 #: stage finishes with their elapsed time (info) and starts (debug), for the command line
 log = logging.getLogger("railsusp.pipeline")
@@ -134,7 +135,7 @@ def run_pipeline(
             prev.get("hash") == h
             and prev.get("state") == "done"
             and i < forced
-            and _outputs_exist(config, out, stage)
+            and _outputs_exist(config, out, stage, prev.get("files"))
         )
         if up_to_date:
             log.debug("stage %s: up to date", stage)
@@ -164,6 +165,7 @@ def run_pipeline(
                 "info": info,
                 "seconds": time.perf_counter() - t0,
                 "finished": provenance()["utc"],
+                "files": file_sizes(_stage_files(config, out, stage), out),
             }
             write_json(state_path, state)
             log.info("stage %s: done in %.1f s", stage, state["stages"][stage]["seconds"])
@@ -295,28 +297,57 @@ def surrogate_campaign_dir(config: PipelineConfig, out: str | Path) -> Path:
     return Path(out) / surrogates_run(s.pretrained, s.samples)
 
 
-def _outputs_exist(config: PipelineConfig, out: Path, stage: str) -> bool:
-    """The stage's output file is present and reads (a Parquet footer, a JSON document, a
-    table with a header): a file damaged after the run (a copy cut short) makes the stage
-    run again rather than fail a later one."""
+def _stage_folders(config: PipelineConfig, out: Path, stage: str) -> list[tuple[Path, tuple]]:
+    """The folders a stage writes, each with the subfolders in it that other stages own."""
+    sur = surrogate_campaign_dir(config, out)
+    shared = sur == out / "campaign"  # the surrogates trained on the sensitivity campaign
+    folders: dict[str, list[tuple[Path, tuple]]] = {
+        "campaign": [(out / "campaign", ("sensitivity", "surrogates"))],
+        "sensitivity": [(out / "campaign" / "sensitivity", ())],
+        "surrogate": [(sur / "surrogates", ())] + ([] if shared else [(sur, ("surrogates",))]),
+        "field": [(out / "field", ())],
+        "estimate": [(out / "estimate", ("validation",))],
+        "validate": [(out / "estimate" / "validation", ())],
+        "report": [(out / "report_assets", ())],
+    }
+    return folders[stage]
+
+
+#: files not checked: a training checkpoint is only a resume point, and one that does not
+#: read is trained past (:func:`railsusp.surrogate.train.train_network`)
+_UNCHECKED = ("checkpoint.pt",)
+
+
+def _stage_files(config: PipelineConfig, out: Path, stage: str) -> list[Path]:
+    """The files a stage wrote (the marked output among them), without other stages' and
+    without resume points."""
+    base = surrogate_campaign_dir(config, out) if stage == "surrogate" else out
+    files = [base / _OUTPUTS[stage]]
+    for folder, others in _stage_folders(config, out, stage):
+        files += files_under(folder, skip_folders=others, skip_names=_UNCHECKED)
+    return list(dict.fromkeys(files))
+
+
+def _outputs_exist(
+    config: PipelineConfig, out: Path, stage: str, recorded: dict[str, int] | None = None
+) -> bool:
+    """The stage's output file is present, the files the run recorded when the stage finished
+    (``recorded``, sizes by path) are there with their sizes, and every file the stage wrote
+    reads (:mod:`railsusp.integrity`: Parquet footers, JSON, whole CSV lines, the zips of
+    networks): a file damaged after the run (a copy cut short) makes the stage run again
+    rather than fail a later one. Runs made before sizes were recorded get the format checks
+    alone."""
     base = surrogate_campaign_dir(config, out) if stage == "surrogate" else out
     path = base / _OUTPUTS[stage]
     if not path.is_file():
         return False
-    readable = True
-    if path.suffix == ".parquet":
-        readable = parquet_readable(path)
-    elif path.suffix in (".json", ".csv"):
-        try:
-            if path.suffix == ".json":
-                read_json(path)
-            else:
-                readable = bool(path.read_text("utf-8").strip())
-        except (OSError, ValueError, RailsuspInputError):
-            readable = False
-    if not readable:
-        log.warning("stage %s: %s does not read; the stage runs again", stage, path)
-    return readable
+    bad = changed_files(recorded or {}, out)
+    bad += [p for p in unreadable_files(_stage_files(config, out, stage)) if p not in bad]
+    if bad:
+        more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
+        names = ", ".join(str(p) for p in bad[:3]) + more
+        log.warning("stage %s: %s is damaged or gone; the stage runs again", stage, names)
+    return not bad
 
 
 def _stage_runners(

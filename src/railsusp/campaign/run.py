@@ -3,6 +3,7 @@ features, write each finished batch atomically, resume from what is stored."""
 
 from __future__ import annotations
 
+import logging
 import re
 import shutil
 from collections.abc import Callable
@@ -11,6 +12,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 
 from railsusp.campaign.design import (
     CHANNELS,
@@ -36,6 +38,8 @@ from railsusp.variation import (
     layout_groups,
 )
 from railsusp.vehicle.simulate import WHEEL_NAMES, simulate_requests
+
+log = logging.getLogger("railsusp.campaign")
 
 
 def simulate_task(
@@ -125,11 +129,21 @@ def features_table(
 
 
 # ------------------------------------------------------------------------------- store
-def write_batch(out: Path, b: int, res: dict[str, Any], n_t: int) -> None:
+#: the Parquet metadata key of a batch file that names the campaign configuration (its
+#: :meth:`~railsusp.campaign.design.CampaignConfig.hash`) that simulated it
+STAMP_KEY = "railsusp.config_hash"
+
+
+def write_batch(
+    out: Path, b: int, res: dict[str, Any], n_t: int, config_hash: str | None = None
+) -> None:
     """Store batch ``b`` of a :func:`simulate_task` result under ``out/batches``: features,
-    then the series (atomically, last: its file marks the batch done)."""
+    then the series (atomically, last: its file marks the batch done). ``config_hash``
+    stamps both files with the configuration that simulated them, so that a campaign whose
+    ``campaign.json`` was lost or damaged keeps the batches that are its own."""
     series_path, feat_path = batch_paths(out, res["condition"], b)
-    write_parquet(feat_path, res["features"])
+    stamp = {} if config_hash is None else {STAMP_KEY: config_hash}
+    write_parquet(feat_path, res["features"], metadata=stamp)
     s = res["series"]  # (n, channels, n_t)
     n = s.shape[0]
     df = pd.DataFrame(
@@ -140,9 +154,8 @@ def write_batch(out: Path, b: int, res: dict[str, Any], n_t: int) -> None:
     )
     for c, name in enumerate(CHANNELS):
         df[name] = s[:, c, :].reshape(-1)
-    write_parquet(
-        series_path, df, metadata={"railsusp.status": ",".join(str(int(v)) for v in res["status"])}
-    )  # series last: marks the batch done
+    status = {"railsusp.status": ",".join(str(int(v)) for v in res["status"])}
+    write_parquet(series_path, df, metadata={**status, **stamp})  # last: marks the batch done
 
 
 def _batch_done(out: Path, condition: str, b: int) -> bool:
@@ -151,10 +164,51 @@ def _batch_done(out: Path, condition: str, b: int) -> bool:
     return all(parquet_readable(p) for p in batch_paths(out, condition, b))
 
 
-def _discard(out: Path) -> None:
-    """Remove the results of a campaign of another (or an unknown) configuration."""
+def batch_stamp(path: Path) -> str | None:
+    """The configuration hash a batch file was stamped with; None for a file that does not
+    read or that carries none (written before batches were stamped)."""
+    try:
+        meta = pq.ParquetFile(path).schema_arrow.metadata or {}
+    except (OSError, ValueError):
+        return None
+    stamp = meta.get(STAMP_KEY.encode())
+    return None if stamp is None else stamp.decode()
+
+
+def _foreign_batches(out: Path, config_hash: str) -> tuple[list[Path], int]:
+    """The batch files under ``out`` not stamped with ``config_hash`` (another
+    configuration's, or unstamped), and the number of files that are; a file that does not
+    read is neither (its batch is simulated again, :func:`_batch_done`)."""
+    files = [f for f in sorted((out / "batches").glob("*/batch-*.parquet")) if parquet_readable(f)]
+    foreign = [f for f in files if batch_stamp(f) != config_hash]
+    return foreign, len(files) - len(foreign)
+
+
+def _keep_own_batches(out: Path, config: CampaignConfig, problem: str, force: bool) -> None:
+    """A campaign folder whose ``campaign.json`` is gone or damaged (``problem``): its
+    batches stamped with this configuration are kept, and what was made from them (features,
+    splits, sensitivity, twins) is made again; other batches are another configuration's, or
+    unknown, and are discarded with ``force`` only."""
+    foreign, own = _foreign_batches(out, config.hash())
+    if foreign and not force:
+        raise CampaignError(
+            f"{problem}, and {len(foreign)} of its batch files are not stamped as this "
+            "configuration's (another campaign's, or written before batches were stamped); "
+            "use a new --out, or --force to discard them"
+            + (f" (the {own} that are this configuration's are kept)" if own else "")
+        )
+    for f in foreign:
+        f.unlink()
+    _discard(out, keep_batches=True)
+    if own:
+        log.warning("%s: kept the %d batch files stamped as this configuration's", problem, own)
+
+
+def _discard(out: Path, keep_batches: bool = False) -> None:
+    """Remove the results of a campaign of another (or an unknown) configuration; with
+    ``keep_batches`` only what was made from the batches."""
     for sub in (
-        "batches",
+        *(() if keep_batches else ("batches",)),
         "features.parquet",
         "design.parquet",
         "tracks.parquet",
@@ -177,31 +231,26 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
     if meta_path.exists():
         try:
             meta = read_meta(meta_path)
-        except RailsuspInputError as exc:
-            if not force:
-                raise CampaignError(
-                    f"{exc}; use --force to discard that run directory's results"
-                ) from None
-            meta = {}  # corrupt: discarded below like another configuration
-        if meta.get("config_hash") != config.hash():
-            if not force:
-                raise CampaignError(
-                    f"{out} holds a campaign with another configuration (hash "
-                    f"{meta.get('config_hash')}, now {config.hash()}); use a new --out, or "
-                    f"--force to discard the old results"
-                )
-            _discard(out)
-        elif (out / "design.parquet").exists():
-            return pd.read_parquet(out / "design.parquet")
+        except RailsuspInputError as exc:  # damaged: the batches' stamps say whose they are
+            _keep_own_batches(out, config, str(exc), force)
+        else:
+            if meta.get("config_hash") != config.hash():
+                if not force:
+                    raise CampaignError(
+                        f"{out} holds a campaign with another configuration (hash "
+                        f"{meta.get('config_hash')}, now {config.hash()}); use a new --out, "
+                        f"or --force to discard the old results"
+                    )
+                _discard(out)
+            elif parquet_readable(out / "design.parquet"):
+                return pd.read_parquet(out / "design.parquet")
+            # (a design that is gone or does not read is made again below: it follows from
+            # the configuration, as the batches that campaign.json vouches for do)
     elif any((out / sub).exists() for sub in ("batches", "features.parquet")):
-        # results without the configuration that made them: they would be taken in as this
-        # configuration's (forces of one design paired with another's parameters)
-        if not force:
-            raise CampaignError(
-                f"{out} holds campaign results but no campaign.json saying which "
-                "configuration made them; use a new --out, or --force to discard them"
-            )
-        _discard(out)
+        # results without the configuration that made them: only batches stamped with this
+        # configuration are taken in (others would pair forces of one design with another's
+        # parameters)
+        _keep_own_batches(out, config, f"{out} holds campaign results but no campaign.json", force)
     design = make_design(config)
     write_parquet(out / "design.parquet", design)
     write_parquet(
@@ -277,7 +326,7 @@ def run_campaign(
 
     def finish(b: int, res: dict[str, Any]) -> None:
         nonlocal done_runs
-        write_batch(out, b, res, n_t[res["condition"]])
+        write_batch(out, b, res, n_t[res["condition"]], config.hash())
         done_runs += len(res["sample_ids"])
         if progress:
             progress(done_runs, total)

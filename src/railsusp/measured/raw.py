@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 
 from railsusp.errors import RailsuspInputError
+from railsusp.integrity import csv_last_line_cut
 from railsusp.measured.units import split_header
 
 MDF_SUFFIXES = (".mf4", ".mdf", ".dat")
@@ -126,7 +127,7 @@ def _read_table(path: Path, time_column: str | None) -> dict[str, RawChannel]:
             f"({(str(exc).splitlines() or [type(exc).__name__])[0]})"
         ) from None
     cols = [str(c) for c in df.columns]
-    if path.suffix.lower() != ".parquet" and _last_line_cut(path, len(cols)):
+    if path.suffix.lower() != ".parquet" and csv_last_line_cut(path, len(cols)):
         raise RailsuspInputError(
             f"recording {path}: the last line is cut short (fewer cells than the header's "
             f"{len(cols)}, no line end): a file truncated in copying? Its last value would "
@@ -143,19 +144,6 @@ def _read_table(path: Path, time_column: str | None) -> dict[str, RawChannel]:
     tunit = split_header(tcol)[1]
     t = values[tcol] * (1e-3 if tunit == "ms" else 1.0)
     return {c: RawChannel(c, split_header(c)[1], t, v) for c, v in values.items() if c != tcol}
-
-
-def _last_line_cut(path: Path, n_columns: int) -> bool:
-    """Whether a CSV file ends inside a line that has fewer cells than its header: the mark
-    of a truncated copy (a hand-written file may lack the last line end, never a cell)."""
-    with path.open("rb") as f:
-        f.seek(0, 2)
-        f.seek(max(0, f.tell() - 65536))
-        tail = f.read()
-    if not tail or tail.endswith((b"\n", b"\r")):
-        return False
-    last = tail.rsplit(b"\n", 1)[-1]
-    return last.count(b",") + 1 < n_columns
 
 
 def _numeric(raw: pd.Series, path: Path, col: str) -> np.ndarray:

@@ -1,0 +1,127 @@
+"""Whether the files of a run directory read: a file damaged after it was written (a copy cut
+short, a full disk, a hand edit) is found when a run resumes, not when a later stage trips
+over it.
+
+railsusp writes every file atomically, so a kill never leaves one half-written; these checks
+are about what happens to a run directory afterwards. Each kind of file has a check that costs
+little more than opening it: a Parquet footer, a JSON document, a CSV whose last line is whole,
+a zip archive's directory and checksums (PyTorch's ``.pt`` and NumPy's ``.npz`` are zips).
+Other files (figures, HTML, Markdown) are not checked: nothing in railsusp reads them back.
+"""
+
+from __future__ import annotations
+
+import zipfile
+from collections.abc import Iterable
+from pathlib import Path
+
+from railsusp.errors import RailsuspInputError
+from railsusp.store import parquet_readable, read_json
+
+#: suffixes whose files are zip archives: PyTorch's ``torch.save`` and NumPy's ``savez``
+ZIP_SUFFIXES = (".pt", ".npz")
+#: bytes read from a CSV file's end to find its last line
+_TAIL_BYTES = 65536
+
+
+def csv_last_line_cut(path: str | Path, n_columns: int) -> bool:
+    """Whether a CSV file ends inside a line that has fewer cells than its header's
+    ``n_columns``: the mark of a truncated copy (a hand-written file may lack the last line
+    end, never a cell)."""
+    with Path(path).open("rb") as f:
+        f.seek(0, 2)
+        f.seek(max(0, f.tell() - _TAIL_BYTES))
+        tail = f.read()
+    if not tail or tail.endswith((b"\n", b"\r")):
+        return False
+    last = tail.rsplit(b"\n", 1)[-1]
+    return last.count(b",") + 1 < n_columns
+
+
+def _csv_readable(path: Path) -> bool:
+    """A header line and no last line cut short (cells counted by commas: railsusp's own
+    tables quote no commas)."""
+    with path.open("rb") as f:
+        header = f.readline()
+    if not header.strip():
+        return False
+    return not csv_last_line_cut(path, header.count(b",") + 1)
+
+
+def zip_readable(path: Path) -> bool:
+    """The zip's central directory reads and every member's CRC checks."""
+    try:
+        with zipfile.ZipFile(path) as z:
+            return z.testzip() is None
+    except (OSError, zipfile.BadZipFile, EOFError, ValueError):
+        return False
+
+
+def file_readable(path: str | Path) -> bool:
+    """Whether ``path`` exists and reads as its suffix says (see the module's docstring);
+    a file of another suffix only has to exist."""
+    path = Path(path)
+    if not path.is_file():
+        return False
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".parquet":
+            return parquet_readable(path)
+        if suffix == ".json":
+            read_json(path)
+        elif suffix == ".csv":
+            return _csv_readable(path)
+        elif suffix in ZIP_SUFFIXES:
+            return zip_readable(path)
+    except (OSError, RailsuspInputError):
+        return False
+    return True
+
+
+def files_under(
+    root: str | Path, *, skip_folders: Iterable[str] = (), skip_names: Iterable[str] = ()
+) -> list[Path]:
+    """The files under ``root``, in path order.
+
+    ``skip_folders``: names of ``root``'s subfolders that belong to something else (another
+    pipeline stage's output inside this one's folder); ``skip_names``: file names left out
+    (a training checkpoint, which is only a resume point and is trained past when it does
+    not read). Hidden files (the temporary of an atomic write in progress) are left out."""
+    root = Path(root)
+    if not root.is_dir():
+        return []
+    skip_folders, skip_names = set(skip_folders), set(skip_names)
+    found = []
+    for path in sorted(root.rglob("*")):
+        rel = path.relative_to(root).parts
+        if rel[0] in skip_folders or any(p.startswith(".") for p in rel):
+            continue
+        if path.name not in skip_names and path.is_file():
+            found.append(path)
+    return found
+
+
+def file_sizes(paths: Iterable[Path], base: str | Path) -> dict[str, int]:
+    """Each file's size in bytes, keyed by its path relative to ``base`` (POSIX form): what a
+    run records of a finished stage's files, so that one cut short afterwards is found
+    whatever its format (a CSV cut inside its last number still has all its cells)."""
+    return {p.relative_to(base).as_posix(): p.stat().st_size for p in paths}
+
+
+def changed_files(sizes: dict[str, int], base: str | Path) -> list[Path]:
+    """The files of a :func:`file_sizes` record that are gone or have another size now."""
+    base = Path(base)
+    changed = []
+    for rel, size in sizes.items():
+        path = base / rel
+        try:
+            if path.stat().st_size != size:
+                changed.append(path)
+        except OSError:
+            changed.append(path)
+    return changed
+
+
+def unreadable_files(paths: Iterable[Path]) -> list[Path]:
+    """The files among ``paths`` that do not read (:func:`file_readable`)."""
+    return [p for p in paths if not file_readable(p)]

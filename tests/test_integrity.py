@@ -1,0 +1,105 @@
+"""Whether a run directory's files read (railsusp.integrity): each format's check finds a
+copy cut short, and a file's recorded size finds a cut that its format cannot show."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+import torch
+
+from railsusp.integrity import (
+    changed_files,
+    csv_last_line_cut,
+    file_readable,
+    file_sizes,
+    files_under,
+    unreadable_files,
+)
+from railsusp.store import write_json, write_parquet
+
+
+def _cut(path, keep: int | None = None) -> None:
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2 if keep is None else keep])
+
+
+@pytest.fixture()
+def files(tmp_path):
+    df = pd.DataFrame({"a": np.arange(50.0), "b": np.arange(50.0) ** 2})
+    paths = {
+        "parquet": write_parquet(tmp_path / "t.parquet", df),
+        "json": write_json(tmp_path / "t.json", {"x": list(range(50))}),
+        "csv": tmp_path / "t.csv",
+        "pt": tmp_path / "model.pt",
+        "npz": tmp_path / "t.npz",
+    }
+    df.to_csv(paths["csv"], index=False)
+    torch.save({"w": torch.arange(1000.0)}, paths["pt"])
+    np.savez(paths["npz"], x=np.arange(1000.0))
+    return paths
+
+
+@pytest.mark.parametrize("kind", ["parquet", "json", "csv", "pt", "npz"])
+def test_each_format_reads_whole_and_not_cut_short(files, kind):
+    path = files[kind]
+    assert file_readable(path)
+    # a CSV cut inside its last line's first number (a cut after its last comma is the
+    # size record's to find, below)
+    _cut(path, len(path.read_bytes()) - len(b"0,2401.0\n") if kind == "csv" else None)
+    assert not file_readable(path)
+
+
+def test_a_zip_with_a_flipped_byte_fails_its_checksum(files):
+    """A damaged network file is found even where its length is intact."""
+    path = files["pt"]
+    data = bytearray(path.read_bytes())
+    i = data.find(b"\x00\x00\x80?")  # inside the stored tensor (1.0 as float32)
+    assert i > 0
+    data[i + 3] ^= 0x01
+    path.write_bytes(bytes(data))
+    assert not file_readable(path)
+
+
+def test_other_files_need_only_exist(tmp_path):
+    fig = tmp_path / "figure.png"
+    fig.write_bytes(b"\x89PNG cut")
+    assert file_readable(fig)
+    assert not file_readable(tmp_path / "gone.png")
+    assert not file_readable(tmp_path)  # a folder is not a file
+
+
+def test_a_csv_cut_inside_its_last_number_passes_the_format_check_but_not_its_size(files):
+    """The limit of reading a CSV's format: every cell is still there. The size recorded
+    when the file was written finds it."""
+    path = files["csv"]
+    sizes = file_sizes([path], path.parent)
+    assert changed_files(sizes, path.parent) == []
+    path.write_bytes(path.read_bytes()[:-3])  # '2401.0\n' -> '2401'
+    assert file_readable(path)
+    assert changed_files(sizes, path.parent) == [path]
+    path.unlink()
+    assert changed_files(sizes, path.parent) == [path]
+
+
+def test_csv_last_line_rules(tmp_path):
+    path = tmp_path / "r.csv"
+    path.write_bytes(b"t,y,q\n0,1,2\n1,2")
+    assert csv_last_line_cut(path, 3)
+    path.write_bytes(b"t,y,q\n0,1,2\n1,2,3")  # only the last line end missing
+    assert not csv_last_line_cut(path, 3)
+    path.write_bytes(b"")
+    assert not file_readable(path)  # no header
+
+
+def test_files_under_leaves_out_hidden_files_other_stages_folders_and_named_files(tmp_path):
+    (tmp_path / "own" / "deep").mkdir(parents=True)
+    (tmp_path / "other").mkdir()
+    for rel in ("a.json", "own/deep/b.csv", "other/c.json", ".a.json.tmp", "own/checkpoint.pt"):
+        (tmp_path / rel).write_text("t,y\n1" if rel.endswith(".csv") else "{}")
+    (tmp_path / ".hidden").mkdir()
+    (tmp_path / ".hidden" / "d.json").write_text("{")
+    found = files_under(tmp_path, skip_folders=("other",), skip_names=("checkpoint.pt",))
+    assert [p.relative_to(tmp_path).as_posix() for p in found] == ["a.json", "own/deep/b.csv"]
+    assert files_under(tmp_path / "missing") == []
+    assert unreadable_files(found) == [tmp_path / "own/deep/b.csv"]  # its last line lacks a cell
