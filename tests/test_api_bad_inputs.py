@@ -194,14 +194,14 @@ def test_read_recording_checks_its_arguments(tmp_path, kwargs, needle):
 
 
 def test_a_new_run_may_go_into_a_folder_of_hidden_files_and_its_configuration(tmp_path):
-    from railsusp.pipeline import _run_state
+    from railsusp.pipeline_state import run_state
 
     (tmp_path / ".gitkeep").write_text("")
     (tmp_path / "study.toml").write_text("")
-    assert _run_state(tmp_path, "--out") == {"stages": {}}
+    assert run_state(tmp_path, "--out") == {"stages": {}}
     (tmp_path / "notes.txt").write_text("mine")
     with pytest.raises(RailsuspInputError, match="--out .*: a folder holding other files"):
-        _run_state(tmp_path, "--out")
+        run_state(tmp_path, "--out")
 
 
 def test_the_command_line_names_its_option_for_a_folder_of_other_files(tmp_path):
@@ -271,14 +271,14 @@ def test_a_run_directory_that_lost_its_pipeline_json_resumes_and_a_lookalike_doe
     """The kill/resume pass (stop 54): a deleted pipeline.json read as 'a folder holding
     other files'. A folder of the stages' own outputs with its campaign.json resumes; a
     report.html of the user's, or any other file beside, is still refused."""
-    from railsusp.pipeline import _run_state
+    from railsusp.pipeline_state import run_state
 
     (tmp_path / "campaign").mkdir()
     (tmp_path / "report.html").write_text("MY OWN REPORT")
     with pytest.raises(RailsuspInputError, match="a folder holding other files"):
-        _run_state(tmp_path, "--out")  # no campaign.json of railsusp's
+        run_state(tmp_path, "--out")  # no campaign.json of railsusp's
     (tmp_path / "campaign" / "campaign.json").write_text('{"kind": "railsusp campaign"}')
-    assert _run_state(tmp_path, "--out") == {"stages": {}}
+    assert run_state(tmp_path, "--out") == {"stages": {}}
     (tmp_path / "notes.txt").write_text("mine")
     with pytest.raises(RailsuspInputError, match="a folder holding other files"):
-        _run_state(tmp_path, "--out")
+        run_state(tmp_path, "--out")

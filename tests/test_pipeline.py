@@ -288,16 +288,16 @@ def test_a_stage_failing_on_an_earlier_stages_file_names_that_stage(tmp_path):
     """The kill/resume pass (stop 54): a truncated features.parquet failed the sensitivity
     stage, and the hint '--from sensitivity' failed the same way; it now names --from
     campaign (the most specific earlier output folder the message names)."""
-    from railsusp.pipeline import _blame
     from railsusp.pipeline_config import PipelineConfig
+    from railsusp.pipeline_state import blame
 
     cfg = PipelineConfig()
     msg = f"{tmp_path}/campaign/features.parquet is corrupt"
-    assert _blame(cfg, tmp_path, "sensitivity", msg).endswith("--from campaign remakes it")
+    assert blame(cfg, tmp_path, "sensitivity", msg).endswith("--from campaign remakes it")
     deeper = f"{tmp_path}/campaign/sensitivity/key_parameters.json is corrupt"
-    assert "stage 'sensitivity'" in _blame(cfg, tmp_path, "estimate", deeper)
-    assert _blame(cfg, tmp_path, "campaign", msg) == ""  # its own output: no earlier stage
-    assert _blame(cfg, tmp_path, "estimate", "X13 out of range") == ""
+    assert "stage 'sensitivity'" in blame(cfg, tmp_path, "estimate", deeper)
+    assert blame(cfg, tmp_path, "campaign", msg) == ""  # its own output: no earlier stage
+    assert blame(cfg, tmp_path, "estimate", "X13 out of range") == ""
 
 
 def test_a_damaged_stage_output_makes_that_stage_run_again(tiny, tmp_path):
@@ -307,7 +307,7 @@ def test_a_damaged_stage_output_makes_that_stage_run_again(tiny, tmp_path):
     after it, as after any rerun."""
     import shutil
 
-    from railsusp.pipeline import _outputs_exist
+    from railsusp.pipeline_state import outputs_exist
 
     cfg_path, out, _, _ = tiny
     cfg = load_config(cfg_path)
@@ -317,10 +317,10 @@ def test_a_damaged_stage_output_makes_that_stage_run_again(tiny, tmp_path):
     reference = json.loads((copy / "estimate/estimate.json").read_text())
     for rel, stage in (("campaign/features.parquet", "campaign"), ("estimate/estimate.json",
                                                                     "estimate")):  # fmt: skip
-        assert _outputs_exist(cfg, copy, stage)
+        assert outputs_exist(cfg, copy, stage)
         f = copy / rel
         f.write_bytes(f.read_bytes()[:200])
-        assert not _outputs_exist(cfg, copy, stage)
+        assert not outputs_exist(cfg, copy, stage)
     shutil.copy2(out / "campaign/features.parquet", copy / "campaign/features.parquet")
     seen = []
     run_pipeline(cfg, copy, progress=lambda s, m: seen.append((s, m)))
@@ -338,7 +338,7 @@ def test_a_damaged_file_beside_a_stages_output_makes_that_stage_run_again(tiny, 
     format checks alone."""
     import shutil
 
-    from railsusp.pipeline import _outputs_exist
+    from railsusp.pipeline_state import outputs_exist
 
     cfg_path, out, _, _ = tiny
     cfg = load_config(cfg_path)
@@ -355,13 +355,13 @@ def test_a_damaged_file_beside_a_stages_output_makes_that_stage_run_again(tiny, 
 
     checkpoint = model.with_name("checkpoint.pt")
     checkpoint.write_bytes(checkpoint.read_bytes()[:100])
-    assert _outputs_exist(cfg, copy, "surrogate", state["stages"]["surrogate"]["files"])
+    assert outputs_exist(cfg, copy, "surrogate", state["stages"]["surrogate"]["files"])
 
     model.write_bytes(network[: len(network) // 2])
-    assert not _outputs_exist(cfg, copy, "surrogate", state["stages"]["surrogate"]["files"])
+    assert not outputs_exist(cfg, copy, "surrogate", state["stages"]["surrogate"]["files"])
     recording.write_bytes(table[:-3])  # inside the last number: every cell is still there
-    assert _outputs_exist(cfg, copy, "field")  # the format alone cannot tell
-    assert not _outputs_exist(cfg, copy, "field", state["stages"]["field"]["files"])
+    assert outputs_exist(cfg, copy, "field")  # the format alone cannot tell
+    assert not outputs_exist(cfg, copy, "field", state["stages"]["field"]["files"])
 
     seen = []
     run_pipeline(cfg, copy, progress=lambda s, m: seen.append((s, m)))

@@ -193,7 +193,7 @@ def open_run(path: str | Path, *, tolerances: summary.Tolerances | None = None) 
             f"tolerances = {tolerances!r}: a railsusp.Tolerances(default_pct, per_parameter) "
             "is needed"
         )
-    from railsusp.pipeline import read_run_state
+    from railsusp.pipeline_state import read_run_state
 
     path = Path(path).resolve()
     if not (path / "pipeline.json").is_file():

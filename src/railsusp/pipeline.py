@@ -20,80 +20,28 @@ from typing import Any
 
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.config import BROYDEN_MIN_STEP
-from railsusp.integrity import changed_files, file_sizes, files_under, unreadable_files
+from railsusp.integrity import file_sizes
 
 # the configuration's public names, imported from here by users, tests, benches and docs
 from railsusp.pipeline_config import PipelineConfig as PipelineConfig  # re-export
 from railsusp.pipeline_config import demo_config as demo_config  # re-export
 from railsusp.pipeline_config import load_config as load_config  # re-export
-from railsusp.store import content_hash, provenance, read_json, write_json
+from railsusp.pipeline_state import STAGES as STAGES  # re-export
+from railsusp.pipeline_state import (
+    blame,
+    outputs_exist,
+    run_state,
+    stage_files,
+    surrogate_campaign_dir,
+)
+from railsusp.store import content_hash, provenance, write_json
 
 #: stage finishes with their elapsed time (info) and starts (debug), for the command line
 log = logging.getLogger("railsusp.pipeline")
 
-STAGES = ("campaign", "sensitivity", "surrogate", "field", "estimate", "validate", "report")
-
 
 class StageError(RailsuspInputError):
     """A stage failed; earlier stages' outputs are intact."""
-
-
-#: what the stages write at the top of a run directory (a run whose pipeline.json was lost
-#: holds only these, and resumes: its campaign's batches are still matched by campaign.json)
-RUN_ENTRIES = (
-    "campaign",
-    "field",
-    "estimate",
-    "surrogate-campaign",
-    "surrogate-pretrained",
-    "report.html",
-    "report.md",
-    "report_assets",
-)
-
-
-def _ignorable(entry: Path) -> bool:
-    """A file a new run directory may already hold: hidden (``.gitkeep``, ``.DS_Store``) or
-    a configuration (the study's TOML kept beside its run); the stages write neither."""
-    return entry.name.startswith(".") or (entry.is_file() and entry.suffix == ".toml")
-
-
-def _lost_its_state(out: Path, entries: list[Path]) -> bool:
-    """A railsusp run directory whose ``pipeline.json`` was lost: nothing but the stages'
-    own outputs, its campaign's ``campaign.json`` among them (a user's own ``report.html``
-    alone is not that)."""
-    try:
-        made_here = read_json(out / "campaign" / "campaign.json").get("kind")
-    except (RailsuspInputError, AttributeError):
-        return False
-    return made_here == "railsusp campaign" and all(e.name in RUN_ENTRIES for e in entries)
-
-
-def _run_state(out: Path, option: str) -> dict:
-    """The state of the run directory ``out`` (its ``pipeline.json``), or a new state for a
-    folder that does not exist or holds nothing the stages could write over; refuse a
-    folder of other files, or one whose ``pipeline.json`` is not a railsusp run's."""
-    state_path = out / "pipeline.json"
-    if not state_path.exists():
-        others = [p for p in out.iterdir() if not _ignorable(p)] if out.is_dir() else []
-        if others and not _lost_its_state(out, others):
-            raise RailsuspInputError(
-                f"{option} {out}: a folder holding other files and no pipeline.json; give a "
-                "new or empty folder, or a railsusp run directory to resume"
-            )
-        return {"stages": {}}
-    return read_run_state(out, f"{option} {out}", "; give a new or empty folder")
-
-
-def read_run_state(out: Path, where: str, hint: str = "") -> dict:
-    """The ``pipeline.json`` of the run directory ``out``; one that is not a railsusp run's
-    (no table of stages) is a one-line error naming ``where``, ``hint`` appended."""
-    state = read_json(out / "pipeline.json")
-    if not isinstance(state, dict) or not isinstance(state.get("stages"), dict):
-        raise RailsuspInputError(
-            f"{where}: its pipeline.json is not a railsusp run's (no stages table){hint}"
-        )
-    return state
 
 
 def run_pipeline(
@@ -119,7 +67,7 @@ def run_pipeline(
     out = check_output_folder(out, out_option)
     if start_from is not None and start_from not in STAGES:
         raise RailsuspInputError(f"{from_option} {start_from!r}: accepted {', '.join(STAGES)}")
-    state = _run_state(out, out_option)
+    state = run_state(out, out_option)
     check_config(config)  # every combination, before any stage runs
     out.mkdir(parents=True, exist_ok=True)
     state_path = out / "pipeline.json"
@@ -135,7 +83,7 @@ def run_pipeline(
             prev.get("hash") == h
             and prev.get("state") == "done"
             and i < forced
-            and _outputs_exist(config, out, stage, prev.get("files"))
+            and outputs_exist(config, out, stage, prev.get("files"))
         )
         if up_to_date:
             log.debug("stage %s: up to date", stage)
@@ -157,7 +105,7 @@ def run_pipeline(
                 raise StageError(
                     f"stage {stage!r} failed: {exc}. Earlier stages are kept; fix the cause "
                     f"and run the same command again (or --from {stage})"
-                    + _blame(config, out, stage, str(exc))
+                    + blame(config, out, stage, str(exc))
                 ) from exc
             state["stages"][stage] = {
                 "hash": h,
@@ -165,7 +113,7 @@ def run_pipeline(
                 "info": info,
                 "seconds": time.perf_counter() - t0,
                 "finished": provenance()["utc"],
-                "files": file_sizes(_stage_files(config, out, stage), out),
+                "files": file_sizes(stage_files(config, out, stage), out),
             }
             write_json(state_path, state)
             log.info("stage %s: done in %.1f s", stage, state["stages"][stage]["seconds"])
@@ -261,93 +209,6 @@ def _surrogate_section(config: PipelineConfig) -> dict:
 
     ns = read_network_set(resolve_network_set(s.pretrained))
     return {"model": s.model, "pretrained": s.pretrained, "network_set": set_hash(ns)}
-
-
-_OUTPUTS = {
-    "campaign": "campaign/features.parquet",
-    "sensitivity": "campaign/sensitivity/key_parameters.json",
-    "surrogate": "surrogates/compare.csv",  # under surrogate_campaign_dir
-    "field": "field/index.json",
-    "estimate": "estimate/estimate.json",
-    "validate": "estimate/validation/validation.json",
-    "report": "report.html",
-}
-
-
-def _blame(config: PipelineConfig, out: Path, stage: str, message: str) -> str:
-    """Where a stage's error names a file in an earlier stage's output folder (a damaged
-    ``features.parquet`` failing the sensitivity stage), the hint to remake that stage:
-    rerunning the failed one alone would fail the same way."""
-    earlier = {}
-    for s in STAGES[: STAGES.index(stage)]:
-        base = surrogate_campaign_dir(config, out) if s == "surrogate" else out
-        earlier[s] = str((base / _OUTPUTS[s]).parent)
-    named = [s for s, folder in earlier.items() if folder + "/" in message]
-    if not named:
-        return ""
-    culprit = max(named, key=lambda s: len(earlier[s]))  # the most specific folder
-    return f"; the file it names is stage {culprit!r}'s output: --from {culprit} remakes it"
-
-
-def surrogate_campaign_dir(config: PipelineConfig, out: str | Path) -> Path:
-    """The run directory whose ``surrogates/`` the estimation uses."""
-    from railsusp.surrogate.pretrained import surrogates_run
-
-    s = config.surrogate
-    return Path(out) / surrogates_run(s.pretrained, s.samples)
-
-
-def _stage_folders(config: PipelineConfig, out: Path, stage: str) -> list[tuple[Path, tuple]]:
-    """The folders a stage writes, each with the subfolders in it that other stages own."""
-    sur = surrogate_campaign_dir(config, out)
-    shared = sur == out / "campaign"  # the surrogates trained on the sensitivity campaign
-    folders: dict[str, list[tuple[Path, tuple]]] = {
-        "campaign": [(out / "campaign", ("sensitivity", "surrogates"))],
-        "sensitivity": [(out / "campaign" / "sensitivity", ())],
-        "surrogate": [(sur / "surrogates", ())] + ([] if shared else [(sur, ("surrogates",))]),
-        "field": [(out / "field", ())],
-        "estimate": [(out / "estimate", ("validation",))],
-        "validate": [(out / "estimate" / "validation", ())],
-        "report": [(out / "report_assets", ())],
-    }
-    return folders[stage]
-
-
-#: files not checked: a training checkpoint is only a resume point, and one that does not
-#: read is trained past (:func:`railsusp.surrogate.train.train_network`)
-_UNCHECKED = ("checkpoint.pt",)
-
-
-def _stage_files(config: PipelineConfig, out: Path, stage: str) -> list[Path]:
-    """The files a stage wrote (the marked output among them), without other stages' and
-    without resume points."""
-    base = surrogate_campaign_dir(config, out) if stage == "surrogate" else out
-    files = [base / _OUTPUTS[stage]]
-    for folder, others in _stage_folders(config, out, stage):
-        files += files_under(folder, skip_folders=others, skip_names=_UNCHECKED)
-    return list(dict.fromkeys(files))
-
-
-def _outputs_exist(
-    config: PipelineConfig, out: Path, stage: str, recorded: dict[str, int] | None = None
-) -> bool:
-    """The stage's output file is present, the files the run recorded when the stage finished
-    (``recorded``, sizes by path) are there with their sizes, and every file the stage wrote
-    reads (:mod:`railsusp.integrity`: Parquet footers, JSON, whole CSV lines, the zips of
-    networks): a file damaged after the run (a copy cut short) makes the stage run again
-    rather than fail a later one. Runs made before sizes were recorded get the format checks
-    alone."""
-    base = surrogate_campaign_dir(config, out) if stage == "surrogate" else out
-    path = base / _OUTPUTS[stage]
-    if not path.is_file():
-        return False
-    bad = changed_files(recorded or {}, out)
-    bad += [p for p in unreadable_files(_stage_files(config, out, stage)) if p not in bad]
-    if bad:
-        more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
-        names = ", ".join(str(p) for p in bad[:3]) + more
-        log.warning("stage %s: %s is damaged or gone; the stage runs again", stage, names)
-    return not bad
 
 
 def _stage_runners(
