@@ -178,6 +178,8 @@ def test_a_lost_or_damaged_campaign_json_keeps_the_batches_stamped_as_this_confi
     (copy / "design.parquet").write_bytes(b"PAR1 cut")  # made again from the configuration
     path = batch_paths(copy, "curve", 1)[0]
     path.write_bytes(path.read_bytes()[:300])  # and one batch damaged as well
+    (copy / "nominal").mkdir()  # twins of this design (hours of simulation in a real one)
+    (copy / "nominal" / "kept").write_text("")
     calls = []
     run_campaign(cfg, copy, progress=lambda d, t: calls.append(d))
     assert calls[0] == 16  # all but the damaged batch of 4
@@ -186,6 +188,7 @@ def test_a_lost_or_damaged_campaign_json_keeps_the_batches_stamped_as_this_confi
         _sorted(load_campaign(copy).features()), _sorted(load_campaign(out).features())
     )
     pd.testing.assert_frame_equal(load_campaign(copy).design(), load_campaign(out).design())
+    assert (copy / "nominal" / "kept").exists()  # what was made from its own batches stays
 
 
 def test_with_campaign_json_damaged_force_discards_only_other_configurations_batches(
@@ -201,7 +204,7 @@ def test_with_campaign_json_damaged_force_discards_only_other_configurations_bat
         (copy / p.relative_to(out)).parent.mkdir(exist_ok=True)
         shutil.copy2(p, copy / p.relative_to(out))
     (copy / "campaign.json").write_text("{")
-    with pytest.raises(CampaignError, match=r"4 of its batch files are not stamped .*\(the 4 that"):
+    with pytest.raises(CampaignError, match=r"2 of its batches are not stamped .*\(the 2 that"):
         run_campaign(cfg, copy)
     calls = []
     run_campaign(cfg, copy, force=True, progress=lambda d, t: calls.append(d))

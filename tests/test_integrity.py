@@ -103,3 +103,30 @@ def test_files_under_leaves_out_hidden_files_other_stages_folders_and_named_file
     assert [p.relative_to(tmp_path).as_posix() for p in found] == ["a.json", "own/deep/b.csv"]
     assert files_under(tmp_path / "missing") == []
     assert unreadable_files(found) == [tmp_path / "own/deep/b.csv"]  # its last line lacks a cell
+
+
+def test_what_a_users_copied_folder_may_hold_reads(tmp_path):
+    """A reviewer's finds: the field stage copies a user's measured folder, and a CSV with a
+    quoted comma and no last line end, or a JSON file with a byte-order mark (Windows
+    editors), read as they are; before, they were called damaged on every run, which ran
+    the field stage and every stage after it again each time."""
+    table = tmp_path / "log.csv"
+    table.write_bytes(b'id,"where, when",x\n1,"Pinsk, 09:00",2')
+    assert file_readable(table)
+    table.write_bytes(b'id,"where, when",x\n1,"Pinsk, 09:00"')  # a cell short: cut
+    assert not file_readable(table)
+    notes = tmp_path / "notes.json"
+    notes.write_bytes(b'\xef\xbb\xbf{"line": "Kola"}')
+    assert file_readable(notes)
+
+
+def test_a_damaged_compressed_archive_is_unreadable_not_an_error(tmp_path):
+    """zlib's own error, from a compressed member that does not inflate, was let through
+    (a traceback that ended the run)."""
+    path = tmp_path / "t.npz"
+    np.savez_compressed(path, x=np.random.default_rng(0).random(5000))
+    data = bytearray(path.read_bytes())
+    for i in range(60, 68):  # the start of the deflate stream: "invalid code lengths set"
+        data[i] ^= 0xFF
+    path.write_bytes(bytes(data))
+    assert not file_readable(path)

@@ -369,8 +369,53 @@ def test_a_damaged_file_beside_a_stages_output_makes_that_stage_run_again(tiny, 
     assert recording.read_bytes() == table  # remade as it was
     new, old = _weights(model.read_bytes()), _weights(network)
     assert new.keys() == old.keys()
-    assert all(torch.equal(new[k], old[k]) for k in old)  # trained again (its checkpoint cut)
+    assert all(torch.equal(new[k], old[k]) for k in old)  # remade as it was
 
 
 def _weights(data: bytes) -> dict:
     return torch.load(io.BytesIO(data), weights_only=True)
+
+
+def test_surrogates_on_the_sensitivity_campaign_and_a_damaged_split(tmp_path):
+    """A reviewer's finds: with the surrogates trained on the sensitivity campaign
+    (``samples = 0``) the split they draw lies in the campaign's folder, and a damaged one
+    made the campaign stage run again, which does not remake it, then fail (a dead end). The
+    split is the surrogate stage's, and one that does not read is drawn again, as it was."""
+    cfg_path = tmp_path / "shared.toml"
+    cfg_path.write_text(TINY.replace("samples = 8\n", "samples = 0\n"))
+    cfg = load_config(cfg_path)
+    out = tmp_path / "run"
+    run_pipeline(cfg, out)
+    seen = []
+    run_pipeline(cfg, out, progress=lambda s, m: seen.append((s, m)))
+    assert all(m == "up to date" for _, m in seen), seen
+    split = out / "campaign/splits/seed-0.json"
+    drawn = split.read_bytes()
+    split.write_bytes(drawn[:40])
+    seen = []
+    run_pipeline(cfg, out, progress=lambda s, m: seen.append((s, m)))
+    assert [s for s, m in seen if m == "running"] == list(STAGES[2:]), seen
+    assert split.read_bytes() == drawn
+
+
+def test_a_measured_folder_with_a_users_own_files_stays_up_to_date(tiny, tmp_path):
+    """The field stage copies a measured folder as it is: a note of the user's (a CSV with
+    a quoted comma and no last line end) read as damaged made that stage, and every one
+    after it, run again on every run."""
+    import shutil
+
+    _, out, _, _ = tiny
+    measured = tmp_path / "measured"
+    shutil.copytree(out / "field", measured)
+    (measured / "log.csv").write_bytes(b'id,"where, when",x\n1,Pinsk,2')
+    cfg_path = tmp_path / "measured.toml"
+    head, _ = TINY.split("[field]")
+    estimate = TINY[TINY.index("[estimate]") :]
+    cfg_path.write_text(f"{head}[field]\nmeasured = {str(measured)!r}\n{estimate}")
+    cfg = load_config(cfg_path)
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    run_pipeline(cfg, run)
+    seen = []
+    run_pipeline(cfg, run, progress=lambda s, m: seen.append((s, m)))
+    assert all(m == "up to date" for _, m in seen), seen

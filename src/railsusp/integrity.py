@@ -11,17 +11,24 @@ Other files (figures, HTML, Markdown) are not checked: nothing in railsusp reads
 
 from __future__ import annotations
 
+import csv
+import json
 import zipfile
 from collections.abc import Iterable
 from pathlib import Path
 
-from railsusp.errors import RailsuspInputError
-from railsusp.store import parquet_readable, read_json
+from railsusp.store import parquet_readable
 
 #: suffixes whose files are zip archives: PyTorch's ``torch.save`` and NumPy's ``savez``
 ZIP_SUFFIXES = (".pt", ".npz")
 #: bytes read from a CSV file's end to find its last line
 _TAIL_BYTES = 65536
+
+
+def _cells(line: bytes) -> int:
+    """The cells of one CSV line, quoted commas counted as text (the ``csv`` module)."""
+    text = line.decode("utf-8-sig", errors="replace").rstrip("\r\n")
+    return max((len(row) for row in csv.reader([text])), default=0)
 
 
 def csv_last_line_cut(path: str | Path, n_columns: int) -> bool:
@@ -34,26 +41,34 @@ def csv_last_line_cut(path: str | Path, n_columns: int) -> bool:
         tail = f.read()
     if not tail or tail.endswith((b"\n", b"\r")):
         return False
-    last = tail.rsplit(b"\n", 1)[-1]
-    return last.count(b",") + 1 < n_columns
+    return _cells(tail.rsplit(b"\n", 1)[-1]) < n_columns
 
 
 def _csv_readable(path: Path) -> bool:
-    """A header line and no last line cut short (cells counted by commas: railsusp's own
-    tables quote no commas)."""
+    """A header line and no last line cut short."""
     with path.open("rb") as f:
         header = f.readline()
     if not header.strip():
         return False
-    return not csv_last_line_cut(path, header.count(b",") + 1)
+    return not csv_last_line_cut(path, _cells(header))
+
+
+def _json_readable(path: Path) -> bool:
+    """A JSON document (a byte-order mark, as Windows editors write, allowed)."""
+    try:
+        json.loads(path.read_bytes().decode("utf-8-sig"))
+    except (UnicodeDecodeError, ValueError):
+        return False
+    return True
 
 
 def zip_readable(path: Path) -> bool:
-    """The zip's central directory reads and every member's CRC checks."""
+    """The zip's central directory reads and every member's CRC checks (a compressed
+    member that does not inflate counts as damaged, whatever zlib raises)."""
     try:
         with zipfile.ZipFile(path) as z:
             return z.testzip() is None
-    except (OSError, zipfile.BadZipFile, EOFError, ValueError):
+    except Exception:  # BadZipFile, EOFError, zlib.error, NotImplementedError, ...
         return False
 
 
@@ -68,12 +83,12 @@ def file_readable(path: str | Path) -> bool:
         if suffix == ".parquet":
             return parquet_readable(path)
         if suffix == ".json":
-            read_json(path)
-        elif suffix == ".csv":
+            return _json_readable(path)
+        if suffix == ".csv":
             return _csv_readable(path)
-        elif suffix in ZIP_SUFFIXES:
+        if suffix in ZIP_SUFFIXES:
             return zip_readable(path)
-    except (OSError, RailsuspInputError):
+    except OSError:
         return False
     return True
 

@@ -112,14 +112,21 @@ def surrogate_campaign_dir(config: PipelineConfig, out: str | Path) -> Path:
     return Path(out) / surrogates_run(s.pretrained, s.samples)
 
 
+#: what other work keeps in a campaign folder: a sensitivity analysis, surrogates, the
+#: train/validation/test splits (drawn when a surrogate first trains on the campaign) and
+#: twin campaigns (made outside the pipeline, each with its own marks)
+_CAMPAIGN_EXTRAS = ("sensitivity", "surrogates", "splits", "nominal", "perturbed")
+
+
 def _stage_folders(config: PipelineConfig, out: Path, stage: str) -> list[tuple[Path, tuple]]:
-    """The folders a stage writes, each with the subfolders in it that other stages own."""
+    """The folders a stage writes, each with the subfolders in it that are not its own."""
     sur = surrogate_campaign_dir(config, out)
-    shared = sur == out / "campaign"  # the surrogates trained on the sensitivity campaign
+    # the surrogates trained on the sensitivity campaign: theirs are its surrogates and splits
+    own_campaign = [] if sur == out / "campaign" else [(sur, _CAMPAIGN_EXTRAS)]
     folders: dict[str, list[tuple[Path, tuple]]] = {
-        "campaign": [(out / "campaign", ("sensitivity", "surrogates"))],
+        "campaign": [(out / "campaign", _CAMPAIGN_EXTRAS)],
         "sensitivity": [(out / "campaign" / "sensitivity", ())],
-        "surrogate": [(sur / "surrogates", ())] + ([] if shared else [(sur, ("surrogates",))]),
+        "surrogate": [(sur / "surrogates", ()), (sur / "splits", ()), *own_campaign],
         "field": [(out / "field", ())],
         "estimate": [(out / "estimate", ("validation",))],
         "validate": [(out / "estimate" / "validation", ())],
@@ -147,17 +154,21 @@ def outputs_exist(
     config: PipelineConfig, out: Path, stage: str, recorded: dict[str, int] | None = None
 ) -> bool:
     """The stage's output file is present, the files the run recorded when the stage finished
-    (``recorded``, sizes by path) are there with their sizes, and every file the stage wrote
-    reads (:mod:`railsusp.integrity`: Parquet footers, JSON, whole CSV lines, the zips of
+    (``recorded``, sizes by path) are there with their sizes, and they read
+    (:mod:`railsusp.integrity`: Parquet footers, JSON, whole CSV lines, the zips of
     networks): a file damaged after the run (a copy cut short) makes the stage run again
-    rather than fail a later one. Runs made before sizes were recorded get the format checks
-    alone."""
+    rather than fail a later one. A run made before sizes were recorded has every file in the
+    stage's folders checked by its format alone."""
     base = surrogate_campaign_dir(config, out) if stage == "surrogate" else out
     path = base / _OUTPUTS[stage]
     if not path.is_file():
         return False
-    bad = changed_files(recorded or {}, out)
-    bad += [p for p in unreadable_files(stage_files(config, out, stage)) if p not in bad]
+    if isinstance(recorded, dict) and recorded:
+        bad = changed_files(recorded, out)
+        to_read = [path, *(out / rel for rel in recorded)]
+    else:
+        bad, to_read = [], stage_files(config, out, stage)
+    bad += [p for p in unreadable_files(dict.fromkeys(to_read)) if p not in bad]
     if bad:
         more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
         names = ", ".join(str(p) for p in bad[:3]) + more

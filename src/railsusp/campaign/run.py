@@ -176,37 +176,50 @@ def batch_stamp(path: Path) -> str | None:
 
 
 def _foreign_batches(out: Path, config_hash: str) -> tuple[list[Path], int]:
-    """The batch files under ``out`` not stamped with ``config_hash`` (another
-    configuration's, or unstamped), and the number of files that are; a file that does not
-    read is neither (its batch is simulated again, :func:`_batch_done`)."""
-    files = [f for f in sorted((out / "batches").glob("*/batch-*.parquet")) if parquet_readable(f)]
-    foreign = [f for f in files if batch_stamp(f) != config_hash]
-    return foreign, len(files) - len(foreign)
+    """The batches under ``out`` not stamped with ``config_hash`` (another configuration's,
+    or unstamped: a file of theirs that reads carries another stamp or none), as their
+    series files, and the number that are; a file that does not read decides nothing (its
+    batch is simulated again, :func:`_batch_done`)."""
+    batches: dict[Path, list[Path]] = {}
+    for f in sorted((out / "batches").glob("*/batch-*.parquet")):
+        series = f.with_name(f.name.replace(".features", ""))
+        batches.setdefault(series, []).append(f)
+    foreign = [
+        series
+        for series, files in batches.items()
+        if any(parquet_readable(f) and batch_stamp(f) != config_hash for f in files)
+    ]
+    return foreign, len(batches) - len(foreign)
 
 
 def _keep_own_batches(out: Path, config: CampaignConfig, problem: str, force: bool) -> None:
     """A campaign folder whose ``campaign.json`` is gone or damaged (``problem``): its
-    batches stamped with this configuration are kept, and what was made from them (features,
-    splits, sensitivity, twins) is made again; other batches are another configuration's, or
-    unknown, and are discarded with ``force`` only."""
+    batches stamped with this configuration are kept and the files made from the design
+    again (design, tracks, features; what was made from the batches, their sensitivity,
+    splits and twins, is this configuration's and stays); other batches are another
+    configuration's, or unknown, and are discarded with ``force`` only."""
     foreign, own = _foreign_batches(out, config.hash())
     if foreign and not force:
         raise CampaignError(
-            f"{problem}, and {len(foreign)} of its batch files are not stamped as this "
+            f"{problem}, and {len(foreign)} of its batches are not stamped as this "
             "configuration's (another campaign's, or written before batches were stamped); "
             "use a new --out, or --force to discard them"
             + (f" (the {own} that are this configuration's are kept)" if own else "")
         )
-    for f in foreign:
-        f.unlink()
-    _discard(out, keep_batches=True)
+    for series in foreign:
+        for f in (series, series.with_name(series.name.replace(".parquet", ".features.parquet"))):
+            f.unlink(missing_ok=True)
+    if foreign:  # what was made from other batches goes with them
+        _discard(out, keep_batches=True)
+    for name in ("features.parquet", "design.parquet", "tracks.parquet"):
+        (out / name).unlink(missing_ok=True)
     if own:
-        log.warning("%s: kept the %d batch files stamped as this configuration's", problem, own)
+        log.warning("%s: kept the %d batches stamped as this configuration's", problem, own)
 
 
 def _discard(out: Path, keep_batches: bool = False) -> None:
     """Remove the results of a campaign of another (or an unknown) configuration; with
-    ``keep_batches`` only what was made from the batches."""
+    ``keep_batches`` all but the batches."""
     for sub in (
         *(() if keep_batches else ("batches",)),
         "features.parquet",

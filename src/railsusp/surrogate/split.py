@@ -17,6 +17,7 @@ same one and a later reader can check which runs a network never saw.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,7 +27,10 @@ import pandas as pd
 
 from railsusp.campaign import Campaign
 from railsusp.errors import RailsuspInputError
+from railsusp.integrity import file_readable
 from railsusp.store import read_json, write_json
+
+log = logging.getLogger("railsusp.surrogate")
 
 FORMAT = "railsusp-split/1"
 PARTS = ("train", "val", "test")
@@ -217,10 +221,13 @@ def campaign_split(
 ) -> Split:
     """The campaign's split for ``seed``: read from ``RUN/splits/seed-<N>.json``, or drawn
     by :func:`split_by_track_and_parameters` and stored there on first use. A stored split
-    of another campaign configuration or other fractions is refused."""
+    of another campaign configuration or other fractions is refused; one that does not read
+    as JSON (a copy cut short) is drawn again, as it was (the draw is seeded)."""
     path = split_path(campaign.path, seed)
     chash = campaign.config.hash()
-    if path.exists():
+    if path.exists() and not file_readable(path):
+        log.warning("%s is cut short or damaged; the split is drawn again", path)
+    elif path.exists():
         split = load_split(path)
         if split.campaign_hash != chash:
             raise RailsuspInputError(

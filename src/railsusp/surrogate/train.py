@@ -430,11 +430,12 @@ def _state_hash(state: dict[str, torch.Tensor]) -> str:
 
 
 def _cut_short(path: Path) -> bool:
-    """An empty file, or a zip (``torch.save``'s format) whose directory or checksums do not
-    read; a file of another format is left to :func:`torch.load` to refuse."""
+    """A file too short to be a zip's first header (``torch.save``'s format), or a zip whose
+    directory or checksums do not read; a file of another format is left to
+    :func:`torch.load` to refuse."""
     with path.open("rb") as f:
         head = f.read(4)
-    return not head or (head == b"PK\x03\x04" and not zip_readable(path))
+    return len(head) < 4 or (head == b"PK\x03\x04" and not zip_readable(path))
 
 
 def _read_checkpoint(path: Path, device: torch.device) -> dict | None:
