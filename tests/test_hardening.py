@@ -130,7 +130,7 @@ def test_campaign_workers_0_and_corrupt_campaign_json(short, tmp_path):
     pd.DataFrame({"sample_id": [0]}).to_parquet(run / "batches/short/batch-00000.parquet")
     one_line_error(
         ["campaign", "--out", run, "--conditions", short, "--samples", "2"],
-        "1 of its batches are not stamped as this configuration's",
+        "1 of its batches is not stamped as this configuration's",
     )
     (run / "campaign.json").write_text("[1, 2]")
     one_line_error(["train", run], "a JSON object was expected")

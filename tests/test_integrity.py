@@ -130,3 +130,41 @@ def test_a_damaged_compressed_archive_is_unreadable_not_an_error(tmp_path):
         data[i] ^= 0xFF
     path.write_bytes(bytes(data))
     assert not file_readable(path)
+
+
+@pytest.mark.parametrize(
+    ("content", "reads"),
+    [
+        (b"a,b\r1,2\r3,4", True),  # old Mac Excel: bare CR line ends, no last one
+        (b"a,b\r1,2\r3", False),  # the same cut inside its last line
+        (b"a,b\n1,2\r3,4", True),  # a stray CR inside the last line
+        (b'id,x\n1,"unterminated', True),  # a stray quote: counted by commas
+        (b"9" * 300_000, True),  # one line, a cell beyond the csv module's field size limit
+        (b"\x00" * 4096, False),  # zeroed by a crash, size intact
+        (b"a,b\n1,2\n" + b"\x00" * 64, False),
+    ],
+)
+def test_a_csv_that_the_csv_module_cannot_parse_is_judged_not_raised(tmp_path, content, reads):
+    """A second review's finds: these raised csv.Error (a traceback from check-recording,
+    and a run directory that could no longer resume); a file of NUL bytes passed."""
+    path = tmp_path / "t.csv"
+    path.write_bytes(content)
+    assert file_readable(path) is reads
+
+
+def test_random_bytes_named_as_a_table_are_unreadable_not_an_error(tmp_path):
+    data = np.random.default_rng(1).integers(0, 256, 5000, dtype=np.uint8).tobytes()
+    for name in ("t.csv", "t.json", "t.parquet", "t.pt"):
+        (tmp_path / name).write_bytes(data)
+        assert file_readable(tmp_path / name) is (name == "t.csv" and b"\x00" not in data)
+
+
+def test_json_with_a_byte_order_mark_reads_where_railsusp_reads_it(tmp_path):
+    """The check accepted a BOM that read_json refused (a split file with one passed the
+    check, then failed as 'corrupt split')."""
+    from railsusp.store import read_json
+
+    path = tmp_path / "split.json"
+    path.write_bytes(b'\xef\xbb\xbf{"seed": 0}')
+    assert file_readable(path)
+    assert read_json(path) == {"seed": 0}

@@ -300,20 +300,27 @@ def test_a_stage_failing_on_an_earlier_stages_file_names_that_stage(tmp_path):
     assert blame(cfg, tmp_path, "estimate", "X13 out of range") == ""
 
 
-def test_a_damaged_stage_output_makes_that_stage_run_again(tiny, tmp_path):
-    """The kill/resume pass (stop 54): a truncated features.parquet or estimate.json in a
-    finished run passed as done (the next stage, or the summary, then failed on it with a
-    hint that looped); now the stage whose output does not read runs again, and the stages
-    after it, as after any rerun."""
+def _up_to_date_copy(tiny, tmp_path):
+    """The tiny run's configuration, its folder, and a copy of it brought up to date for
+    that configuration (other tests change the original's)."""
     import shutil
-
-    from railsusp.pipeline_state import outputs_exist
 
     cfg_path, out, _, _ = tiny
     cfg = load_config(cfg_path)
     copy = tmp_path / "run"
     shutil.copytree(out, copy)
-    run_pipeline(cfg, copy)  # up to date for this configuration (other tests change out's)
+    run_pipeline(cfg, copy)
+    return cfg, out, copy
+
+
+def test_a_damaged_stage_output_makes_that_stage_run_again(tiny, tmp_path):
+    """The kill/resume pass (stop 54): a truncated features.parquet or estimate.json in a
+    finished run passed as done (the next stage, or the summary, then failed on it with a
+    hint that looped); now the stage whose output does not read runs again, and the stages
+    after it, as after any rerun."""
+    from railsusp.pipeline_state import outputs_exist
+
+    cfg, out, copy = _up_to_date_copy(tiny, tmp_path)
     reference = json.loads((copy / "estimate/estimate.json").read_text())
     for rel, stage in (("campaign/features.parquet", "campaign"), ("estimate/estimate.json",
                                                                     "estimate")):  # fmt: skip
@@ -321,7 +328,8 @@ def test_a_damaged_stage_output_makes_that_stage_run_again(tiny, tmp_path):
         f = copy / rel
         f.write_bytes(f.read_bytes()[:200])
         assert not outputs_exist(cfg, copy, stage)
-    shutil.copy2(out / "campaign/features.parquet", copy / "campaign/features.parquet")
+    features = "campaign/features.parquet"
+    (copy / features).write_bytes((out / features).read_bytes())
     seen = []
     run_pipeline(cfg, copy, progress=lambda s, m: seen.append((s, m)))
     assert [s for s, m in seen if m == "running"] == ["estimate", "validate", "report"], seen
@@ -336,15 +344,9 @@ def test_a_damaged_file_beside_a_stages_output_makes_that_stage_run_again(tiny, 
     finished (a CSV cut inside its last number still has all its cells); a training
     checkpoint is not (only a resume point), and a run recorded before sizes were gets the
     format checks alone."""
-    import shutil
-
     from railsusp.pipeline_state import outputs_exist
 
-    cfg_path, out, _, _ = tiny
-    cfg = load_config(cfg_path)
-    copy = tmp_path / "run"
-    shutil.copytree(out, copy)
-    run_pipeline(cfg, copy)  # up to date for this configuration (other tests change out's)
+    cfg, _, copy = _up_to_date_copy(tiny, tmp_path)
     state = json.loads((copy / "pipeline.json").read_text())
     model = next((copy / "surrogate-campaign/surrogates").rglob("model.pt"))
     recording = copy / "field/short.csv"
@@ -408,6 +410,9 @@ def test_a_measured_folder_with_a_users_own_files_stays_up_to_date(tiny, tmp_pat
     measured = tmp_path / "measured"
     shutil.copytree(out / "field", measured)
     (measured / "log.csv").write_bytes(b'id,"where, when",x\n1,Pinsk,2')
+    # and files railsusp does not read: their format is not its to judge (a second review)
+    (measured / "notes.json").write_bytes('{"line": "Kola"}'.encode("utf-16"))
+    (measured / "extra.csv").write_bytes(b"id,a,b\n1,2,3\n4,5")
     cfg_path = tmp_path / "measured.toml"
     head, _ = TINY.split("[field]")
     estimate = TINY[TINY.index("[estimate]") :]

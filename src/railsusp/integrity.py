@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import zipfile
 from collections.abc import Iterable
 from pathlib import Path
@@ -25,10 +26,19 @@ ZIP_SUFFIXES = (".pt", ".npz")
 _TAIL_BYTES = 65536
 
 
+#: the line ends a CSV file may use (Windows, Unix, and old Mac Excel's bare CR)
+_LINE_END = re.compile(rb"\r\n|\r|\n")
+
+
 def _cells(line: bytes) -> int:
-    """The cells of one CSV line, quoted commas counted as text (the ``csv`` module)."""
-    text = line.decode("utf-8-sig", errors="replace").rstrip("\r\n")
-    return max((len(row) for row in csv.reader([text])), default=0)
+    """The cells of one CSV line, quoted commas counted as text (the ``csv`` module); a line
+    the ``csv`` module cannot parse (a stray quote, a cell beyond its field size limit) is
+    counted by its commas."""
+    text = line.decode("utf-8-sig", errors="replace")
+    try:
+        return max((len(row) for row in csv.reader([text])), default=0)
+    except csv.Error:
+        return text.count(",") + 1
 
 
 def csv_last_line_cut(path: str | Path, n_columns: int) -> bool:
@@ -41,14 +51,18 @@ def csv_last_line_cut(path: str | Path, n_columns: int) -> bool:
         tail = f.read()
     if not tail or tail.endswith((b"\n", b"\r")):
         return False
-    return _cells(tail.rsplit(b"\n", 1)[-1]) < n_columns
+    return _cells(_LINE_END.split(tail)[-1]) < n_columns
 
 
 def _csv_readable(path: Path) -> bool:
-    """A header line and no last line cut short."""
+    """A header line, no NUL byte at either end (a text table has none; a file zeroed by a
+    crash is nothing but), and no last line cut short."""
     with path.open("rb") as f:
-        header = f.readline()
-    if not header.strip():
+        head = f.read(_TAIL_BYTES)
+        f.seek(max(0, f.seek(0, 2) - _TAIL_BYTES))
+        tail = f.read()
+    header = _LINE_END.split(head, maxsplit=1)[0]
+    if not header.strip() or b"\x00" in head or b"\x00" in tail:
         return False
     return not csv_last_line_cut(path, _cells(header))
 

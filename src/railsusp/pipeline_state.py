@@ -168,9 +168,26 @@ def outputs_exist(
         to_read = [path, *(out / rel for rel in recorded)]
     else:
         bad, to_read = [], stage_files(config, out, stage)
+    if stage == "field":
+        to_read = _field_files_read(out / "field", to_read)
     bad += [p for p in unreadable_files(dict.fromkeys(to_read)) if p not in bad]
     if bad:
         more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
         names = ", ".join(str(p) for p in bad[:3]) + more
         log.warning("stage %s: %s is damaged or gone; the stage runs again", stage, names)
     return not bad
+
+
+def _field_files_read(field: Path, files: list[Path]) -> list[Path]:
+    """Of the field stage's files, those railsusp reads: its index, the recordings it names
+    with their sidecars, and a synthetic field's truth. The stage copies a measured folder
+    whole, and the user's other files in it (notes, logs, in any encoding) are checked by
+    their recorded size alone: their format is not railsusp's to judge."""
+    try:
+        names = read_json(field / "index.json").get("recordings", [])
+    except (RailsuspInputError, AttributeError):
+        return files  # no index that reads: every file is checked (and the stage reruns)
+    read = {"index.json", "truth.json"}
+    for name in names if isinstance(names, list) else []:
+        read |= {str(name), Path(str(name)).with_suffix(".json").as_posix()}
+    return [p for p in files if p.relative_to(field).as_posix() in read]

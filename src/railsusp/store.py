@@ -361,7 +361,7 @@ def read_json(path: str | Path) -> Any:
     error naming the file."""
     path = Path(path)
     try:
-        return json.loads(path.read_bytes().decode("utf-8"))
+        return json.loads(path.read_bytes().decode("utf-8-sig"))  # a BOM (Windows) allowed
     except FileNotFoundError:
         raise RailsuspInputError(f"{path} does not exist") from None
     except OSError as exc:

@@ -178,43 +178,52 @@ def batch_stamp(path: Path) -> str | None:
 def _foreign_batches(out: Path, config_hash: str) -> tuple[list[Path], int]:
     """The batches under ``out`` not stamped with ``config_hash`` (another configuration's,
     or unstamped: a file of theirs that reads carries another stamp or none), as their
-    series files, and the number that are; a file that does not read decides nothing (its
-    batch is simulated again, :func:`_batch_done`)."""
+    series files, and the number of this configuration's that are whole (both files read);
+    a file that does not read decides nothing (its batch is simulated again,
+    :func:`_batch_done`)."""
     batches: dict[Path, list[Path]] = {}
     for f in sorted((out / "batches").glob("*/batch-*.parquet")):
         series = f.with_name(f.name.replace(".features", ""))
         batches.setdefault(series, []).append(f)
-    foreign = [
-        series
-        for series, files in batches.items()
-        if any(parquet_readable(f) and batch_stamp(f) != config_hash for f in files)
-    ]
-    return foreign, len(batches) - len(foreign)
+    foreign, own = [], 0
+    for series, files in batches.items():
+        readable = [f for f in files if parquet_readable(f)]
+        if any(batch_stamp(f) != config_hash for f in readable):
+            foreign.append(series)
+        elif len(readable) == 2:
+            own += 1
+    return foreign, own
+
+
+def _batches(n: int) -> str:
+    return f"{n} batch" if n == 1 else f"{n} batches"
 
 
 def _keep_own_batches(out: Path, config: CampaignConfig, problem: str, force: bool) -> None:
     """A campaign folder whose ``campaign.json`` is gone or damaged (``problem``): its
     batches stamped with this configuration are kept and the files made from the design
-    again (design, tracks, features; what was made from the batches, their sensitivity,
-    splits and twins, is this configuration's and stays); other batches are another
-    configuration's, or unknown, and are discarded with ``force`` only."""
+    written again (design, tracks, features); what was made from its batches (their
+    sensitivity, splits and twins) stays where every batch is this configuration's.
+    Other batches are another configuration's, or unknown, and are discarded with
+    ``force`` only."""
     foreign, own = _foreign_batches(out, config.hash())
     if foreign and not force:
+        n = len(foreign)
         raise CampaignError(
-            f"{problem}, and {len(foreign)} of its batches are not stamped as this "
-            "configuration's (another campaign's, or written before batches were stamped); "
-            "use a new --out, or --force to discard them"
-            + (f" (the {own} that are this configuration's are kept)" if own else "")
+            f"{problem}, and {n} of its batches {'is' if n == 1 else 'are'} not "
+            "stamped as this configuration's (another campaign's, or written before batches "
+            "were stamped); use a new --out, or --force to discard them"
+            + (f" ({_batches(own)} of this configuration would be kept)" if own else "")
         )
     for series in foreign:
         for f in (series, series.with_name(series.name.replace(".parquet", ".features.parquet"))):
             f.unlink(missing_ok=True)
-    if foreign:  # what was made from other batches goes with them
+    if foreign or not own:  # what was made from other batches, or from unknown ones, goes
         _discard(out, keep_batches=True)
     for name in ("features.parquet", "design.parquet", "tracks.parquet"):
         (out / name).unlink(missing_ok=True)
     if own:
-        log.warning("%s: kept the %d batches stamped as this configuration's", problem, own)
+        log.warning("%s: kept %s stamped as this configuration's", problem, _batches(own))
 
 
 def _discard(out: Path, keep_batches: bool = False) -> None:
