@@ -168,3 +168,9 @@ def test_json_with_a_byte_order_mark_reads_where_railsusp_reads_it(tmp_path):
     path.write_bytes(b'\xef\xbb\xbf{"seed": 0}')
     assert file_readable(path)
     assert read_json(path) == {"seed": 0}
+
+
+def test_json_nested_deeper_than_python_can_parse_is_unreadable_not_an_error(tmp_path):
+    path = tmp_path / "deep.json"
+    path.write_text("[" * 100_000 + "]" * 100_000)
+    assert not file_readable(path)

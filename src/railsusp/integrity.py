@@ -22,10 +22,8 @@ from railsusp.store import parquet_readable
 
 #: suffixes whose files are zip archives: PyTorch's ``torch.save`` and NumPy's ``savez``
 ZIP_SUFFIXES = (".pt", ".npz")
-#: bytes read from a CSV file's end to find its last line
+#: bytes read from a CSV file's start and end to find its header and last line
 _TAIL_BYTES = 65536
-
-
 #: the line ends a CSV file may use (Windows, Unix, and old Mac Excel's bare CR)
 _LINE_END = re.compile(rb"\r\n|\r|\n")
 
@@ -71,7 +69,7 @@ def _json_readable(path: Path) -> bool:
     """A JSON document (a byte-order mark, as Windows editors write, allowed)."""
     try:
         json.loads(path.read_bytes().decode("utf-8-sig"))
-    except (UnicodeDecodeError, ValueError):
+    except (UnicodeDecodeError, ValueError, RecursionError):  # (nesting deeper than Python's)
         return False
     return True
 
