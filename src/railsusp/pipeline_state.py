@@ -190,4 +190,4 @@ def _field_files_read(field: Path, files: list[Path]) -> list[Path]:
     read = {"index.json", "truth.json"}
     for name in names if isinstance(names, list) else []:
         read |= {str(name), Path(str(name)).with_suffix(".json").as_posix()}
-    return [p for p in files if p.relative_to(field).as_posix() in read]
+    return [p for p in files if p.is_relative_to(field) and p.relative_to(field).as_posix() in read]
