@@ -17,6 +17,7 @@ import re
 import zipfile
 from collections.abc import Iterable
 from pathlib import Path
+from typing import BinaryIO
 
 from railsusp.store import parquet_readable
 
@@ -39,17 +40,26 @@ def _cells(line: bytes) -> int:
         return text.count(",") + 1
 
 
+def _tail(f: BinaryIO) -> bytes:
+    """The last :data:`_TAIL_BYTES` of an open file."""
+    f.seek(max(0, f.seek(0, 2) - _TAIL_BYTES))
+    return f.read()
+
+
+def _last_line_short(tail: bytes, n_columns: int) -> bool:
+    """Whether a file ending in ``tail`` ends inside a line of fewer than ``n_columns``
+    cells (no line end after it)."""
+    if not tail or tail.endswith((b"\n", b"\r")):
+        return False
+    return _cells(_LINE_END.split(tail)[-1]) < n_columns
+
+
 def csv_last_line_cut(path: str | Path, n_columns: int) -> bool:
     """Whether a CSV file ends inside a line that has fewer cells than its header's
     ``n_columns``: the mark of a truncated copy (a hand-written file may lack the last line
     end, never a cell)."""
     with Path(path).open("rb") as f:
-        f.seek(0, 2)
-        f.seek(max(0, f.tell() - _TAIL_BYTES))
-        tail = f.read()
-    if not tail or tail.endswith((b"\n", b"\r")):
-        return False
-    return _cells(_LINE_END.split(tail)[-1]) < n_columns
+        return _last_line_short(_tail(f), n_columns)
 
 
 def _csv_readable(path: Path) -> bool:
@@ -57,12 +67,11 @@ def _csv_readable(path: Path) -> bool:
     crash is nothing but), and no last line cut short."""
     with path.open("rb") as f:
         head = f.read(_TAIL_BYTES)
-        f.seek(max(0, f.seek(0, 2) - _TAIL_BYTES))
-        tail = f.read()
+        tail = _tail(f)
     header = _LINE_END.split(head, maxsplit=1)[0]
     if not header.strip() or b"\x00" in head or b"\x00" in tail:
         return False
-    return not csv_last_line_cut(path, _cells(header))
+    return not _last_line_short(tail, _cells(header))
 
 
 def _json_readable(path: Path) -> bool:

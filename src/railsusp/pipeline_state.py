@@ -93,15 +93,18 @@ def blame(config: PipelineConfig, out: Path, stage: str, message: str) -> str:
     """Where a stage's error names a file in an earlier stage's output folder (a damaged
     ``features.parquet`` failing the sensitivity stage), the hint to remake that stage:
     rerunning the failed one alone would fail the same way."""
-    earlier = {}
-    for s in STAGES[: STAGES.index(stage)]:
-        base = surrogate_campaign_dir(config, out) if s == "surrogate" else out
-        earlier[s] = str((base / _OUTPUTS[s]).parent)
+    earlier = {s: str(_marked_output(config, out, s).parent) for s in STAGES[: STAGES.index(stage)]}
     named = [s for s, folder in earlier.items() if folder + "/" in message]
     if not named:
         return ""
     culprit = max(named, key=lambda s: len(earlier[s]))  # the most specific folder
     return f"; the file it names is stage {culprit!r}'s output: --from {culprit} remakes it"
+
+
+def _marked_output(config: PipelineConfig, out: Path, stage: str) -> Path:
+    """The file whose presence marks ``stage`` done (:data:`_OUTPUTS`)."""
+    base = surrogate_campaign_dir(config, out) if stage == "surrogate" else out
+    return base / _OUTPUTS[stage]
 
 
 def surrogate_campaign_dir(config: PipelineConfig, out: str | Path) -> Path:
@@ -143,8 +146,7 @@ _UNCHECKED = ("checkpoint.pt",)
 def stage_files(config: PipelineConfig, out: Path, stage: str) -> list[Path]:
     """The files a stage wrote (the marked output among them), without other stages' and
     without resume points."""
-    base = surrogate_campaign_dir(config, out) if stage == "surrogate" else out
-    files = [base / _OUTPUTS[stage]]
+    files = [_marked_output(config, out, stage)]
     for folder, others in _stage_folders(config, out, stage):
         files += files_under(folder, skip_folders=others, skip_names=_UNCHECKED)
     return list(dict.fromkeys(files))
@@ -159,8 +161,7 @@ def outputs_exist(
     networks): a file damaged after the run (a copy cut short) makes the stage run again
     rather than fail a later one. A run made before sizes were recorded has every file in the
     stage's folders checked by its format alone."""
-    base = surrogate_campaign_dir(config, out) if stage == "surrogate" else out
-    path = base / _OUTPUTS[stage]
+    path = _marked_output(config, out, stage)
     if not path.is_file():
         return False
     if isinstance(recorded, dict) and recorded:

@@ -164,33 +164,35 @@ def _batch_done(out: Path, condition: str, b: int) -> bool:
     return all(parquet_readable(p) for p in batch_paths(out, condition, b))
 
 
+def _batch_metadata(path: Path) -> dict[bytes, bytes] | None:
+    """A batch file's Parquet key/value metadata, or None where its footer does not read."""
+    try:
+        return pq.ParquetFile(path).schema_arrow.metadata or {}
+    except (OSError, ValueError):
+        return None
+
+
 def batch_stamp(path: Path) -> str | None:
     """The configuration hash a batch file was stamped with; None for a file that does not
     read or that carries none (written before batches were stamped)."""
-    try:
-        meta = pq.ParquetFile(path).schema_arrow.metadata or {}
-    except (OSError, ValueError):
-        return None
-    stamp = meta.get(STAMP_KEY.encode())
+    stamp = (_batch_metadata(path) or {}).get(STAMP_KEY.encode())
     return None if stamp is None else stamp.decode()
 
 
-def _foreign_batches(out: Path, config_hash: str) -> tuple[list[Path], int]:
+def _foreign_batches(out: Path, config_hash: str) -> tuple[list[list[Path]], int]:
     """The batches under ``out`` not stamped with ``config_hash`` (another configuration's,
     or unstamped: a file of theirs that reads carries another stamp or none), as their
-    series files, and the number of this configuration's that are whole (both files read);
-    a file that does not read decides nothing (its batch is simulated again,
-    :func:`_batch_done`)."""
-    batches: dict[Path, list[Path]] = {}
+    files, and the number of this configuration's that are whole (both files read); a file
+    that does not read decides nothing (its batch is simulated again, :func:`_batch_done`)."""
+    batches: dict[Path, list[Path]] = {}  # by the series file's path
     for f in sorted((out / "batches").glob("*/batch-*.parquet")):
-        series = f.with_name(f.name.replace(".features", ""))
-        batches.setdefault(series, []).append(f)
+        batches.setdefault(f.with_name(f.name.replace(".features", "")), []).append(f)
     foreign, own = [], 0
-    for series, files in batches.items():
-        readable = [f for f in files if parquet_readable(f)]
-        if any(batch_stamp(f) != config_hash for f in readable):
-            foreign.append(series)
-        elif len(readable) == 2:
+    for files in batches.values():
+        metas = [m for m in map(_batch_metadata, files) if m is not None]
+        if any(m.get(STAMP_KEY.encode()) != config_hash.encode() for m in metas):
+            foreign.append(files)
+        elif len(metas) == 2:
             own += 1
     return foreign, own
 
@@ -215,35 +217,40 @@ def _keep_own_batches(out: Path, config: CampaignConfig, problem: str, force: bo
             "were stamped); use a new --out, or --force to discard them"
             + (f" ({_batches(own)} of this configuration would be kept)" if own else "")
         )
-    for series in foreign:
-        for f in (series, series.with_name(series.name.replace(".parquet", ".features.parquet"))):
-            f.unlink(missing_ok=True)
+    for files in foreign:
+        for f in files:
+            f.unlink()
     if foreign or not own:  # what was made from other batches, or from unknown ones, goes
-        _discard(out, keep_batches=True)
-    for name in ("features.parquet", "design.parquet", "tracks.parquet"):
-        (out / name).unlink(missing_ok=True)
+        _remove(out, _FROM_BATCHES)
+    _remove(out, _FROM_DESIGN)
     if own:
         log.warning("%s: kept %s stamped as this configuration's", problem, _batches(own))
 
 
-def _discard(out: Path, keep_batches: bool = False) -> None:
-    """Remove the results of a campaign of another (or an unknown) configuration; with
-    ``keep_batches`` all but the batches."""
-    for sub in (
-        *(() if keep_batches else ("batches",)),
-        "features.parquet",
-        "design.parquet",
-        "tracks.parquet",
-        "sensitivity",
-        "splits",
-        "nominal",  # the nominal twins (railsusp.campaign.twins) of the old design
-        "perturbed",  # and its perturbed twins (railsusp.campaign.perturbed)
-    ):
-        p = out / sub
+#: what a campaign folder holds that follows from its design alone (written again from it)
+_FROM_DESIGN = ("features.parquet", "design.parquet", "tracks.parquet")
+#: what other work made from its batches
+_FROM_BATCHES = (
+    "sensitivity",
+    "splits",
+    "nominal",  # the nominal twins (railsusp.campaign.twins) of the old design
+    "perturbed",  # and its perturbed twins (railsusp.campaign.perturbed)
+)
+
+
+def _remove(out: Path, names: tuple[str, ...]) -> None:
+    """Remove these files or folders of ``out`` where they exist."""
+    for name in names:
+        p = out / name
         if p.is_dir():
             shutil.rmtree(p)
         elif p.exists():
             p.unlink()
+
+
+def _discard(out: Path) -> None:
+    """Remove the results of a campaign of another configuration."""
+    _remove(out, ("batches", *_FROM_DESIGN, *_FROM_BATCHES))
 
 
 def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
