@@ -533,6 +533,42 @@ def test_cli_product_cases_one_count_or_one_per_number_of_sections():
     assert s.product_sections == (2, 8) and s.product_cases == (100, 40)
 
 
+@pytest.mark.parametrize("content", ["crafted", "dict", "two flows", "other flows"])
+def test_an_estimator_file_that_reads_but_is_not_this_estimator_s_is_refused(
+    trained, tmp_path, content
+):
+    """estimator.pt judged as the surrogates' checkpoints are (stop 56): a pickle that would
+    run code ended in torch's UnpicklingError traceback, a dict or another number of flows
+    in a TypeError or a silently short ensemble, other layers in load_state_dict's
+    RuntimeError; each is now one line naming the file, and nothing is trained over it."""
+    import shutil
+
+    import torch
+
+    est, run = trained
+    copy = tmp_path / "run"
+    shutil.copytree(run, copy)
+    weights = copy / "posterior" / "estimator.pt"
+    states = torch.load(weights, weights_only=True)
+    marker = tmp_path / "pwned"
+
+    class Evil:
+        def __reduce__(self):
+            return (exec, (f"open({str(marker)!r}, 'w').write('ran')",))
+
+    saved = {
+        "crafted": [{"w": Evil()}],
+        "dict": states[0],
+        "two flows": states * (est.settings.ensemble + 1),
+        "other flows": [{"layer.weight": torch.ones(2)}] * est.settings.ensemble,
+    }[content]
+    torch.save(saved, weights)
+    before = weights.read_bytes()
+    with pytest.raises(RailsuspInputError, match=r"posterior estimator .*estimator\.pt refused"):
+        posterior.train(est.settings, copy)
+    assert weights.read_bytes() == before and not marker.exists()
+
+
 def test_a_cached_chunk_or_estimator_cut_short_is_made_again(trained, tmp_path, monkeypatch):
     """The kill/resume pass (stop 54): a truncated simulation chunk or estimator.pt stopped
     `posterior train` with numpy's / torch's traceback; each is now made again."""

@@ -17,8 +17,9 @@ import re
 import zipfile
 from collections.abc import Iterable
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
+from railsusp.errors import RailsuspInputError
 from railsusp.store import parquet_readable
 
 #: suffixes whose files are zip archives: PyTorch's ``torch.save`` and NumPy's ``savez``
@@ -91,6 +92,37 @@ def zip_readable(path: Path) -> bool:
             return z.testzip() is None
     except Exception:  # BadZipFile, EOFError, zlib.error, NotImplementedError, ...
         return False
+
+
+def torch_file_cut_short(path: Path) -> bool:
+    """A file too short to be a zip's first header (``torch.save``'s format), or a zip whose
+    directory or checksums do not read: a copy interrupted or a full disk, nothing in it to
+    trust. A file of another format is not "cut short": :func:`read_torch_file` refuses it."""
+    with Path(path).open("rb") as f:
+        head = f.read(4)
+    return len(head) < 4 or (head == b"PK\x03\x04" and not zip_readable(path))
+
+
+def read_torch_file(path: Path, what: str, remedy: str, map_location: str = "cpu") -> Any:
+    """What ``torch.save`` wrote to ``path``, read with ``weights_only=True`` (tensors,
+    numbers, strings and containers: no code runs). Anything else (a file cut short, a
+    pickle that would run code, another format) is refused with one line naming ``what``
+    and the ``remedy``, never trusted and never a traceback. Callers that can do without
+    the file ask :func:`torch_file_cut_short` first and make it again instead."""
+    import torch
+
+    if torch_file_cut_short(path):
+        raise RailsuspInputError(
+            f"{what} {path} is cut short or damaged (its zip does not read); {remedy}"
+        )
+    try:
+        return torch.load(path, map_location=map_location, weights_only=True)
+    except Exception as exc:  # torch raises UnpicklingError, RuntimeError, EOFError, ...
+        text = str(exc).strip()
+        first = text.splitlines()[0] if text else type(exc).__name__
+        raise RailsuspInputError(
+            f"{what} {path} refused: not a plain PyTorch state ({first}); {remedy}"
+        ) from None
 
 
 def file_readable(path: str | Path) -> bool:

@@ -370,6 +370,8 @@ def read_json(path: str | Path) -> Any:
         raise RailsuspInputError(f"{path} is not UTF-8 text (byte {exc.start})") from None
     except json.JSONDecodeError as exc:
         raise RailsuspInputError(f"{path} is corrupt: not valid JSON ({exc})") from None
+    except RecursionError:
+        raise RailsuspInputError(f"{path} is corrupt: nested deeper than JSON data is") from None
 
 
 def write_parquet(

@@ -50,6 +50,7 @@ from railsusp.estimate.posterior_data import cached_cases, recording_summaries, 
 from railsusp.estimate.posterior_fusion import from_logit, fused_samples, logistic_prior, to_logit
 from railsusp.estimate.posterior_result import PosteriorResult
 from railsusp.estimate.posterior_settings import PosteriorSettings
+from railsusp.integrity import read_torch_file, torch_file_cut_short
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import atomic_write_bytes, content_hash, read_json, write_json
 
@@ -222,12 +223,19 @@ def train(settings: PosteriorSettings, run: str | Path) -> PosteriorEstimator:
     u, x = cached_cases(settings, folder / "simulations", "train", settings.n_train)
     prior, builder, theta_t, x_t = _build(settings, u, x)
     weights = folder / "estimator.pt"
-    states = _saved_states(weights)
+    states = _saved_states(weights, settings.ensemble)
     if states is not None:
         nets = []
         for state in states:
             net = builder(theta_t, x_t)
-            net.load_state_dict(state)
+            try:
+                net.load_state_dict(state)
+            except (RuntimeError, KeyError, TypeError) as exc:
+                first = str(exc).strip().splitlines()[0]
+                raise RailsuspInputError(
+                    f"posterior estimator {weights} refused: its flows are not those of "
+                    f"settings.json ({first}); delete it to train again"
+                ) from None
             nets.append(net)
     else:
         nets = []
@@ -256,19 +264,30 @@ def train(settings: PosteriorSettings, run: str | Path) -> PosteriorEstimator:
     return est
 
 
-def _saved_states(weights: Path) -> list | None:
-    """The flows' saved states, or None where there are none or the file is unreadable (cut
-    short by a copy or a full disk: trained again rather than a traceback; the weights are
-    written atomically, so a killed training never leaves such a file)."""
-    import torch
-
+def _saved_states(weights: Path, ensemble: int) -> list | None:
+    """The flows' saved states, or None where there are none or the file is cut short (a
+    copy interrupted or a full disk: trained again rather than a traceback; the weights are
+    written atomically, so a killed training never leaves such a file). A file that reads
+    but is not a list of states (a pickle that would run code, another program's file) is
+    refused in one line, as the surrogates' checkpoints are
+    (:func:`railsusp.integrity.read_torch_file`)."""
     if not weights.is_file():
         return None
-    try:
-        return torch.load(weights, weights_only=True)
-    except (OSError, RuntimeError, EOFError, ValueError) as exc:
-        log.warning("posterior: %s unreadable (%s); training again", weights.name, exc)
+    if torch_file_cut_short(weights):
+        log.warning("posterior: %s is cut short or damaged; training again", weights.name)
         return None
+    remedy = "delete it to train again (railsusp posterior train)"
+    states = read_torch_file(weights, "posterior estimator", remedy)
+    if not isinstance(states, list) or not all(isinstance(x, dict) for x in states):
+        raise RailsuspInputError(
+            f"posterior estimator {weights} refused: not a list of the flows' states; {remedy}"
+        )
+    if len(states) != ensemble:
+        raise RailsuspInputError(
+            f"posterior estimator {weights} refused: {len(states)} flows saved, settings.json "
+            f"asks for an ensemble of {ensemble}; {remedy}"
+        )
+    return states
 
 
 def load(run: str | Path) -> PosteriorEstimator:

@@ -12,7 +12,6 @@ sequence CNN-GRU runs once over each series, or each segment of it
 from __future__ import annotations
 
 import io
-import json
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,8 +23,9 @@ from pydantic import ValidationError
 
 from railsusp.conditions import TRACK_INPUT_FIELDS, WorkingCondition
 from railsusp.errors import RailsuspInputError
+from railsusp.integrity import read_torch_file
 from railsusp.params import ParameterSet, spec
-from railsusp.store import atomic_folder, atomic_write_bytes, provenance, write_json
+from railsusp.store import atomic_folder, atomic_write_bytes, provenance, read_json, write_json
 from railsusp.surrogate.correction import RecordCorrection
 from railsusp.surrogate.data import (
     FeatureSpec,
@@ -390,15 +390,25 @@ def load(path: str | Path) -> Surrogate:
     meta_path = path / "surrogate.json"
     if not meta_path.exists():
         raise FileNotFoundError(f"{path} holds no surrogate (no surrogate.json)")
-    doc = json.loads(meta_path.read_text("utf-8"))
-    if doc.get("format") != FORMAT:
-        raise ValueError(f"{meta_path}: unknown surrogate format {doc.get('format')!r}")
+    doc = read_json(meta_path)
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        found = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
+        raise RailsuspInputError(f"{meta_path}: unknown surrogate format {found!r}")
     net_cfg = NetConfig(
         **{k: tuple(v) if isinstance(v, list) else v for k, v in doc["net"].items()}
     )
     feats = FeatureSpec.from_dict(doc["features"])
     net = build_network(net_cfg)
-    net.load_state_dict(torch.load(path / "model.pt", map_location="cpu", weights_only=True))
+    remedy = "train the surrogate again"
+    state = read_torch_file(path / "model.pt", "surrogate weights", remedy)
+    try:
+        net.load_state_dict(state)
+    except (RuntimeError, KeyError, TypeError, AttributeError) as exc:
+        first = str(exc).strip().splitlines()[0]
+        raise RailsuspInputError(
+            f"surrogate weights {path / 'model.pt'} refused: not the network surrogate.json "
+            f"describes ({first}); {remedy}"
+        ) from None
     net.eval()
     for p in feats.parameters:
         spec(p)  # validates the stored parameter names

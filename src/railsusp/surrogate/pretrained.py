@@ -175,8 +175,8 @@ def load_bundle(path: Path, field: str = "surrogate.pretrained") -> Any:
 
     try:
         return load(path)
-    except RailsuspInputError:
-        raise
+    except RailsuspInputError as exc:
+        raise RailsuspInputError(f"{field}: {exc}") from None
     except (OSError, ValueError, KeyError, TypeError, RuntimeError, pickle.UnpicklingError) as e:
         first = (str(e).strip().splitlines() or [type(e).__name__])[0]
         raise RailsuspInputError(

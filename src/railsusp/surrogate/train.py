@@ -30,7 +30,7 @@ import torch
 from torch import nn
 
 from railsusp.errors import RailsuspInputError
-from railsusp.integrity import zip_readable
+from railsusp.integrity import read_torch_file, torch_file_cut_short
 from railsusp.store import atomic_write_bytes, content_hash
 from railsusp.surrogate.chunks import ChunkSampler
 from railsusp.surrogate.data import Normaliser, SeriesData, gather_windows, window_index
@@ -429,30 +429,14 @@ def _state_hash(state: dict[str, torch.Tensor]) -> str:
     return h.hexdigest()
 
 
-def _cut_short(path: Path) -> bool:
-    """A file too short to be a zip's first header (``torch.save``'s format), or a zip whose
-    directory or checksums do not read; a file of another format is left to
-    :func:`torch.load` to refuse."""
-    with path.open("rb") as f:
-        head = f.read(4)
-    return len(head) < 4 or (head == b"PK\x03\x04" and not zip_readable(path))
-
-
 def _read_checkpoint(path: Path, device: torch.device) -> dict | None:
     """A checkpoint's state, read with ``weights_only=True`` (tensors, numbers, strings and
     containers only: no code runs). One that holds anything else, or is not a checkpoint,
     is refused with a one-line error rather than trusted or silently overwritten; one cut
     short (its zip does not read: a copy interrupted, a full disk) holds nothing to trust
     and is trained past, from the start."""
-    if _cut_short(path):
+    if torch_file_cut_short(path):
         log.warning("checkpoint %s is cut short or damaged; training starts afresh", path)
         return None
-    try:
-        state = torch.load(path, map_location=device, weights_only=True)
-    except Exception as exc:  # torch raises UnpicklingError, RuntimeError, EOFError, ...
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise RailsuspInputError(
-            f"checkpoint {path} refused: not a plain training checkpoint ({first}); delete it "
-            f"to train afresh"
-        ) from None
+    state = read_torch_file(path, "checkpoint", "delete it to train afresh", str(device))
     return state if isinstance(state, dict) else None
