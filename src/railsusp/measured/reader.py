@@ -29,7 +29,7 @@ from railsusp.measured.units import si_factor, split_header
 from railsusp.numbers import is_real
 from railsusp.store import json_numbers
 from railsusp.vehicle.layout import WHEEL_NAMES
-from railsusp.vehicle.setup import _static_wheel_load, axle_spread
+from railsusp.vehicle.setup import axle_spread, static_wheel_load
 from railsusp.vehicle.track_geometry import check_coverage, read_track_geometry
 from railsusp.vehicle.wagon import load_wagon
 
@@ -144,7 +144,7 @@ def read_recording(
     Y: dict[str, np.ndarray] = {}
     Q: dict[str, np.ndarray] = {}
     wagon = load_wagon()  # the default wagon: its static wheel load and axle spread
-    wl = _static_wheel_load(wagon) if wheel_load_N is None else wheel_load_N
+    wl = static_wheel_load(wagon) if wheel_load_N is None else wheel_load_N
     for w, chans in cmap.wheels.items():
         si = {}
         for f, col in chans.items():

@@ -52,14 +52,6 @@ class MeasuredRun:
         return tuple(self.Y)
 
 
-def static_wheel_load(wagon_path: str | Path | None = None) -> float:
-    """Static wheel load (N) of the wagon data: total weight over 8 wheels."""
-    from railsusp.vehicle.setup import _static_wheel_load
-    from railsusp.vehicle.wagon import load_wagon
-
-    return _static_wheel_load(load_wagon(wagon_path) if wagon_path else load_wagon())
-
-
 def read_run(
     path: str | Path,
     channel_map: ChannelMap | None = None,
@@ -172,7 +164,12 @@ def read_run(
             f"channel {cmap.signals.get('speed')!r}: speed up to {np.max(speed) * 3.6:.4g} km/h "
             f"(read as {si.get(cmap.signals.get('speed', ''), si[base]).unit}): a unit error?"
         )
-    wl = static_wheel_load() if wheel_load_N is None else wheel_load_N
+    if wheel_load_N is None:
+        from railsusp.vehicle.setup import static_wheel_load
+        from railsusp.vehicle.wagon import load_wagon
+
+        wheel_load_N = static_wheel_load(load_wagon())
+    wl = wheel_load_N
     for w, c in cmap.wheels.items():
         problems += check_forces(
             Y[w],

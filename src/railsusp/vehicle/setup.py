@@ -207,7 +207,7 @@ def contact_arrays(wagon: WagonData) -> ContactArrays:
             f"wheel {tab.meta['wheel']!r} on rail {tab.meta['rail']!r}: no flange contact within "
             f"+-{CONTACT_TABLE_HALF_RANGE * 1e3:.0f} mm of shift"
         )
-    n_ref = _static_wheel_load(wagon)
+    n_ref = static_wheel_load(wagon)
     y = tab.y
     arrays = np.empty((L.N_CT, y.size))
     split = flange_split(tab) if wagon.contact.model == "two-point" else None
@@ -245,7 +245,7 @@ def contact_arrays(wagon: WagonData) -> ContactArrays:
     )
 
 
-def _static_wheel_load(wagon: WagonData, wheelset_mass: float | None = None) -> float:
+def static_wheel_load(wagon: WagonData, wheelset_mass: float | None = None) -> float:
     """Static vertical wheel load (N) on level track: total wagon weight / 8."""
     m_w = spec("X1").nominal if wheelset_mass is None else wheelset_mass
     total = wagon.car_body.mass + 2 * wagon.bolster.mass + 4 * wagon.side_frame.mass + 4 * m_w
