@@ -23,7 +23,7 @@ TABLE9_AFTER: dict[str, tuple[float, float, float, float]] = {
     "uphill": (12.38, 11.21, 139.34, 138.17),
 }
 
-#: Table 5: key parameters, initial and estimated values (display units of params.py).
+#: Table 5: key parameters, initial and estimated values (display units of railsusp.params).
 TABLE5_ESTIMATE: dict[str, tuple[float, float]] = {
     "X13": (14.0, 16.1),
     "X14": (10.0, 8.3),
