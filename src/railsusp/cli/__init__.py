@@ -22,6 +22,8 @@ from railsusp.cli import modes
 from railsusp.cli import analysis
 from railsusp.cli import surrogates
 from railsusp.cli import field
+from railsusp.cli import estimation
+from railsusp.cli import validation
 from railsusp.cli import recordings
 from railsusp.cli import pipeline
 from railsusp.cli import posterior
@@ -71,6 +73,7 @@ __all__ = [
     "app",
     "console",
     "err_console",
+    "estimation",
     "fail",
     "field",
     "frame_table",
@@ -82,6 +85,7 @@ __all__ = [
     "recordings",
     "simulation",
     "surrogates",
+    "validation",
 ]
 
 

@@ -1,0 +1,275 @@
+"""The ``estimate`` command: NSGA-II on a surrogate (or the simulator) against measured
+recordings, the optional refinement and its intervals (Tables 3-5, Figs 8-9 of the study)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from railsusp.cli.common import app, console, fail, frame_table
+from railsusp.errors import RailsuspInputError
+from railsusp.store import check_output_folder
+
+
+@app.command()
+def estimate(
+    measured: Annotated[Path, typer.Option(help="field folder (index.json) of recordings")],
+    out: Annotated[Path, typer.Option(help="output folder for the estimate")],
+    surrogate: Annotated[
+        Path | None,
+        typer.Option(
+            help="folder of surrogate bundles per condition, e.g. RUN/surrogates/cnn-gru "
+            "or RUN/surrogates/gp-stats"
+        ),
+    ] = None,
+    simulator: Annotated[
+        bool, typer.Option(help="use the batched simulator instead of a surrogate (slow reference)")
+    ] = False,
+    parameters: Annotated[
+        str | None, typer.Option(help="key parameters (default: the surrogate's)")
+    ] = None,
+    statistic: Annotated[
+        str,
+        typer.Option(
+            help="mean, rms, p99, std, p99.85 (EN 14363 maximum), aligned (time-aligned "
+            "forces on the recordings' measured track: a surrogate trained on a track family, "
+            "or --simulator), or a combination such as mean+p99+std"
+        ),
+    ] = "mean",
+    per_condition: Annotated[bool, typer.Option(help="two objectives per condition")] = False,
+    channel_gains: Annotated[
+        bool,
+        typer.Option(
+            help="with --statistic aligned: profile each force channel's gain (calibration "
+            "factor, within 1 ± 0.1) out of the comparison"
+        ),
+    ] = False,
+    expected_draws: Annotated[
+        int,
+        typer.Option(
+            help="with --statistic aligned, on recordings whose geometry states its "
+            "accuracy: polish NSGA-II's choice by the model's least squares on its mean over "
+            "this many draws of the true track geometry given the measured one (instead of "
+            "the SIMEX step); --refine compares such means too (0: neither)"
+        ),
+    ] = 0,
+    simulator_corrections: Annotated[
+        int,
+        typer.Option(
+            help="with --statistic aligned: correct the surrogate's level error at NSGA-II's "
+            "estimate by this many simulations of it, repeating the surrogate's least squares "
+            "with each (output space mapping; 0: the surrogate alone)"
+        ),
+    ] = 0,
+    correction_slopes: Annotated[
+        bool,
+        typer.Option(
+            help="with --simulator-corrections: each correction matches the simulator's "
+            "slopes too (first order; k + 1 simulations per recording and step), its least "
+            "squares within a trust region about the estimate"
+        ),
+    ] = False,
+    slope_update: Annotated[
+        str,
+        typer.Option(
+            help="with --correction-slopes: the slopes at each later point simulated again "
+            "('simulated') or carried by Broyden's update from the level's change ('broyden', "
+            "no simulation; not across a step under 1 % of range)"
+        ),
+    ] = "simulated",
+    expected_generations: Annotated[
+        bool,
+        typer.Option(
+            help="NSGA-II's generations compare the expected forces too (--expected-draws "
+            "times the predictions; --statistic aligned, alone or with mean)"
+        ),
+    ] = False,
+    weighting: Annotated[
+        str,
+        typer.Option(
+            help="relative (errors relative to the measured statistic) or noise (in units of "
+            "a gp-stats surrogate's predictive standard deviation)"
+        ),
+    ] = "relative",
+    pop_size: Annotated[int, typer.Option(help="NSGA-II population")] = 50,
+    n_gen: Annotated[int, typer.Option(help="generations")] = 100,
+    crossover: Annotated[float, typer.Option(help="crossover probability")] = 0.9,
+    mutation: Annotated[float, typer.Option(help="mutation probability per variable")] = 0.05,
+    seed: Annotated[int, typer.Option(help="NSGA-II seed")] = 0,
+    seeds: Annotated[int, typer.Option(help="independent runs for the seed spread")] = 1,
+    refine: Annotated[
+        bool,
+        typer.Option(
+            help="then refine the estimate by output-error least squares with the simulator "
+            "on the recordings' measured track geometry (time-aligned); after --statistic "
+            "aligned a polish shown beside NSGA-II's estimate, which stays the estimate"
+        ),
+    ] = False,
+    refine_evaluations: Annotated[
+        int, typer.Option(help="most residual evaluations of the refinement")
+    ] = 40,
+    refine_screen: Annotated[
+        int, typer.Option(help="Latin hypercube points screened for refinement starts")
+    ] = 64,
+    refine_starts: Annotated[int, typer.Option(help="best screened starts refined")] = 2,
+    geometry_draws: Annotated[
+        int,
+        typer.Option(
+            help="draws of the recordings' stated track-geometry error propagated into "
+            "NSGA-II's time-aligned estimate and the refined estimate's standard errors (0: "
+            "sensor noise only; not used with --expected-draws, which compares the mean over "
+            "drawn true tracks instead)"
+        ),
+    ] = 8,
+    remove_geometry_bias: Annotated[
+        bool,
+        typer.Option(
+            "--remove-geometry-bias/--keep-geometry-bias",
+            help="take the bias that the geometry-error draws estimate (first SIMEX step) "
+            "off NSGA-II's time-aligned estimate and off the refined estimate (not used with "
+            "--expected-draws)",
+        ),
+    ] = True,
+    held_prior: Annotated[
+        str | None,
+        typer.Option(
+            help="with --refine: ranges the held parameters are known to lie in, display "
+            "units, e.g. X15=100:200,X19=20:40 (the intervals take them uniform over these "
+            "instead of Table 2's ranges; docs/intervals.md)"
+        ),
+    ] = None,
+) -> None:
+    """NSGA-II estimate of the key parameters from measured recordings (Tables 3-5, Figs 8-9)."""
+    from railsusp.estimate import (
+        NSGAConfig,
+        SimulatorForces,
+        open_force_model,
+        parse_statistics,
+    )
+    from railsusp.estimate.config import (
+        CORRECTIONS_RANGE,
+        NSGA_RANGES,
+        REFINE_RANGES,
+        SEEDS_RANGE,
+        check_range,
+        check_slope_update,
+    )
+    from railsusp.estimate.route import EstimateRoute
+    from railsusp.measured import read_field
+    from railsusp.surrogate import not_estimated
+
+    try:
+        # every option is checked before the recordings are read or NSGA-II runs
+        for name, value, (low, high) in (
+            ("--pop-size", pop_size, NSGA_RANGES["pop_size"]),
+            ("--n-gen", n_gen, NSGA_RANGES["n_gen"]),
+            ("--crossover", crossover, NSGA_RANGES["crossover_prob"]),
+            ("--mutation", mutation, NSGA_RANGES["mutation_prob"]),
+            ("--seed", seed, NSGA_RANGES["seed"]),
+            ("--seeds", seeds, SEEDS_RANGE),
+            ("--refine-evaluations", refine_evaluations, REFINE_RANGES["max_evaluations"]),
+            ("--refine-screen", refine_screen, REFINE_RANGES["screen"]),
+            ("--refine-starts", refine_starts, REFINE_RANGES["starts"]),
+            ("--geometry-draws", geometry_draws, REFINE_RANGES["geometry_draws"]),
+            ("--expected-draws", expected_draws, NSGA_RANGES["expected_draws"]),
+            ("--simulator-corrections", simulator_corrections, CORRECTIONS_RANGE),
+        ):
+            check_range(name, value, low, high)
+        parse_statistics(statistic)
+        prior = parse_held_prior(held_prior, refine, statistic)
+        if correction_slopes and not simulator_corrections:
+            raise RailsuspInputError(
+                "--correction-slopes makes each simulator correction first order; "
+                "--simulator-corrections 0 asks for none: give --simulator-corrections 1 to "
+                f"{CORRECTIONS_RANGE[1]}"
+            )
+        check_slope_update(
+            slope_update, correction_slopes, "--slope-update", "no --correction-slopes"
+        )
+        if (surrogate is None) == (not simulator):
+            raise RailsuspInputError("give --surrogate FOLDER or --simulator (one of them)")
+        check_output_folder(out)  # an existing file or an unwritable folder, before any work
+        cfg = NSGAConfig(
+            pop_size=pop_size,
+            n_gen=n_gen,
+            crossover_prob=crossover,
+            mutation_prob=mutation,
+            seed=seed,
+            statistic=statistic,
+            per_condition=per_condition,
+            weighting=weighting,
+            channel_gains=channel_gains,
+            expected_draws=expected_draws,
+            expected_generations=expected_generations,
+        )
+        route = EstimateRoute(
+            nsga=cfg,
+            seeds=seeds,
+            geometry_draws=geometry_draws,
+            remove_geometry_bias=remove_geometry_bias,
+            simulator_corrections=simulator_corrections,
+            correction_slopes=correction_slopes,
+            slope_update=slope_update,
+            refine=refine,
+            refine_evaluations=refine_evaluations,
+            refine_screen=refine_screen,
+            refine_starts=refine_starts,
+            held_prior=prior,
+            refine_setting="--refine",
+            corrections_setting="--simulator-corrections",
+        )
+        from railsusp.params import STUDY_KEY_PARAMETERS, parse_sampled
+
+        chosen = parse_sampled(parameters) if parameters is not None else None
+        recs = read_field(measured)
+        if surrogate is not None:
+            model, params = open_force_model(surrogate, chosen)
+        else:
+            params = chosen or STUDY_KEY_PARAMETERS
+            model = SimulatorForces(params)
+        res = route.run(model, recs, params, progress=console.status)
+        res.save(
+            out,
+            extra={
+                "measured": str(measured.resolve()),
+                "model": str(surrogate.resolve()) if surrogate else "simulator",
+                "not_estimated": not_estimated(surrogate, params),
+            },
+        )
+    except (RailsuspInputError, ValueError, FileNotFoundError) as exc:
+        fail(str(exc))
+    console.print(
+        frame_table(
+            res.log.tail(8), "NSGA-II log (last generations; the study's Table 4)", fmt="{:.6g}"
+        )
+    )
+    console.print(frame_table(res.table(), "Estimate (the study's Table 5 layout)"))
+    console.print(f"wrote {out}")
+
+
+def parse_held_prior(text: str | None, refine: bool, statistic: str):
+    """``--held-prior X15=100:200,X19=20:40`` as a checked
+    :class:`~railsusp.estimate.config.HeldPrior` (None without the option); refused without
+    ``--refine`` and with ``--statistic aligned``, where no refined interval takes it."""
+    from railsusp.estimate.config import HeldPrior
+
+    if not text:
+        return None
+    if not refine or "aligned" in statistic.split("+"):
+        raise RailsuspInputError(
+            "--held-prior: only with --refine and a statistic other than aligned (the "
+            "refined intervals take it)"
+        )
+    ranges: dict[str, list[str]] = {}
+    for item in text.split(","):
+        key, eq, pair = item.partition("=")
+        low, colon, high = pair.partition(":")
+        if not (eq and colon and key.strip()):
+            raise RailsuspInputError(
+                f"--held-prior: {item.strip()!r}: accepted SYMBOL=LOW:HIGH in display units, "
+                "comma-separated (e.g. X15=100:200,X19=20:40)"
+            )
+        ranges[key.strip()] = [low.strip(), high.strip()]
+    return HeldPrior.from_display(ranges, where="--held-prior")

@@ -1,0 +1,115 @@
+"""The ``validate`` command: the wagon simulated again with nominal and estimated
+parameters beside the recordings (Tables 8/9 of the study) and, with a truth, the recovery."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from railsusp.cli.common import app, console, fail
+from railsusp.errors import RailsuspInputError
+from railsusp.store import check_output_folder
+
+
+@app.command()
+def validate(
+    estimate_dir: Annotated[Path, typer.Argument(help="folder written by railsusp estimate")],
+    measured: Annotated[
+        Path | None, typer.Option(help="recordings folder (default: the one the estimate used)")
+    ] = None,
+    truth: Annotated[
+        Path | None,
+        typer.Option(help="truth.json of synthetic recordings, to score parameter recovery"),
+    ] = None,
+    sensitivity: Annotated[
+        Path | None,
+        typer.Option(help="RUN/sensitivity of the campaign, to flag parameters with low Sobol ST"),
+    ] = None,
+    out: Annotated[Path | None, typer.Option(help="default: ESTIMATE_DIR/validation")] = None,
+) -> None:
+    """Re-simulate with nominal and estimated parameters; Tables 8/9 and recovery scores."""
+    from railsusp.validate import validate as run_validate
+
+    try:
+        if out is not None:  # before the simulations, not after them
+            check_output_folder(out, "--out")
+        if truth is not None:
+            if not truth.is_file():
+                raise RailsuspInputError(f"--truth {truth}: no such file; accepted a truth.json")
+            try:
+                json.loads(truth.read_text("utf-8"))
+            except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+                raise RailsuspInputError(
+                    f"--truth {truth}: not valid JSON ({exc}); accepted a truth.json"
+                ) from None
+        readable = (sensitivity / "key_parameters.json", sensitivity) if sensitivity else ()
+        if sensitivity is not None and not any(p.is_file() for p in readable):
+            raise RailsuspInputError(
+                f"--sensitivity {sensitivity}: no Sobol indices there; accepted a campaign's "
+                "RUN/sensitivity folder, its key_parameters.json or indices.parquet"
+            )
+        with console.status("re-simulating the measured conditions"):
+            res = run_validate(
+                estimate_dir, measured=measured, truth=truth, sensitivity=sensitivity
+            )
+        res.save(out or estimate_dir / "validation")
+    except (RailsuspInputError, ValueError, FileNotFoundError, KeyError) as exc:
+        fail(f"{estimate_dir}: {exc}")
+    f = res.forces
+    has_truth = "truth_kN" in f
+    table = Table(
+        title="Simulated vs measured force statistic, before (Table 8) and after "
+        "(Table 9) calibration",
+        title_justify="left",
+    )
+    cols = ["condition", "force", "measured", "before", "error", "after", "error"]
+    if has_truth:
+        cols += ["truth sim.", "noise floor"]
+    for c in cols:
+        table.add_column(c, justify="left" if c in ("condition", "force") else "right")
+    for r in f.itertuples(index=False):
+        cells = [
+            r.condition,
+            f"{r.force} {r.statistic}",
+            f"{r.measured_kN:.2f}",
+            f"{r.before_kN:.2f}",
+            f"{100 * r.before_error:.2f} %",
+            f"{r.after_kN:.2f}",
+            f"{100 * r.after_error:.2f} %",
+        ]
+        if has_truth:
+            cells += [f"{r.truth_kN:.2f}", f"{100 * r.truth_error:.2f} %"]
+        table.add_row(*cells)
+    console.print(table)
+    for line in res.failures:
+        console.print(f"[yellow]simulation stopped, its rows are NaN: {line}[/yellow]")
+    if res.recovery is not None:
+        rec = Table(title="Parameter recovery against the hidden truth", title_justify="left")
+        for c in (
+            "parameter",
+            "unit",
+            "truth",
+            "estimate",
+            "error % value",
+            "error % range",
+            "identified",
+            "why not",
+        ):
+            rec.add_column(c)
+        for r in res.recovery.itertuples(index=False):
+            rec.add_row(
+                r.parameter,
+                r.unit,
+                f"{r.truth:.4g}",
+                f"{r.estimate:.4g}",
+                f"{r.error_pct_of_value:.1f}",
+                f"{r.error_pct_of_range:.1f}",
+                "yes" if r.identifiable else "no",
+                r.why_not,
+            )
+        console.print(rec)
+    console.print(f"wrote {out or estimate_dir / 'validation'}")
