@@ -475,6 +475,7 @@ def test_cli_estimate_prints_the_table(trained, tmp_path):
         (["train", "--simulations", "5"], "--simulations 5: accepted 20 to"),
         (["train", "--calibration", "5"], "--calibration 5: accepted 0 (no correction) or 20"),
         (["train", "--ensemble", "0"], "--ensemble 0: accepted 1 to 20"),
+        (["train", "--samples", "99"], "--samples 99: accepted 100 to 100000"),
         (["train", "--product-sections", "1,4"], "--product-sections 1,4: accepted distinct"),
         (["train", "--product-sections", "two"], "--product-sections two: accepted whole"),
         (

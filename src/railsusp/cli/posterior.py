@@ -25,7 +25,8 @@ _OPTIONS = {"section_s": "--section", "n_train": "--simulations", "n_check": "--
             "product_cases": "--product-cases", "statistics": "--statistics",
             "projection_rank": "--projection-rank",
             "statistics_emulator_cases": "--statistics-emulator-cases",
-            "condition_offset": "--condition-offset", "sum_y": "--sum-y"}  # fmt: skip
+            "condition_offset": "--condition-offset", "sum_y": "--sum-y",
+            "samples": "--samples"}  # fmt: skip
 
 
 def _print_checks(checks, label: str = "") -> None:
@@ -174,6 +175,13 @@ def train_command(
         ),
     ] = 0,
     seed: Annotated[int, typer.Option(help="seed of every draw")] = 0,
+    samples: Annotated[
+        int,
+        typer.Option(
+            help="posterior draws per recording and per held-out case of the checks (100 to "
+            "100000; more draws, steadier interval ends, a longer check)"
+        ),
+    ] = 1000,
     long_record: Annotated[
         str,
         typer.Option(
@@ -214,6 +222,7 @@ def train_command(
             statistics_emulator_cases=statistics_emulator_cases,
             condition_offset=condition_offset,
             seed=seed,
+            samples=samples,
         )
         if is_quiet():
             est = posterior.train(settings, out)
