@@ -77,6 +77,44 @@ def test_simulate_prints_forces_and_writes_files(tmp_path):
     assert png.read_bytes()[:4] == b"\x89PNG"
 
 
+def test_simulate_tabulates_the_wheel_asked_for(tmp_path):
+    """--wheel reached only the figure before stop 56: the table showed the leading wheel
+    whatever was asked. The row's statistics are now the asked wheel's, equal to those of
+    its series in the Parquet file."""
+    import pandas as pd
+
+    from railsusp.conditions import make_condition
+    from railsusp.params import ParameterSet
+    from railsusp.vehicle.simulate import simulate
+
+    cond = tmp_path / "c.toml"
+    cond.write_text('[[condition]]\nname = "short"\nduration_s = 2.0\nlead_in_m = 10.0\n')
+    out = tmp_path / "f.parquet"
+    args = ["simulate", str(cond), "--wheel", "w2R", "--out", str(out)]
+    result = runner.invoke(app, args, terminal_width=200)
+    assert result.exit_code == 0, result.output
+    row = next(line for line in result.output.splitlines() if "short" in line)
+    cells = [c.strip() for c in row.split("│") if c.strip()]
+    assert cells[:2] == ["short", "w2R"]
+    short = make_condition({"name": "short", "duration_s": 2.0, "lead_in_m": 10.0})
+    r = simulate(ParameterSet.nominal(), short)
+    assert float(cells[2]) == pytest.approx(r.statistics("w2R")["Y_mean"], abs=0.051)
+    assert float(cells[2]) != pytest.approx(r.statistics("w1L")["Y_mean"], abs=0.051)
+    assert pd.read_parquet(out)["Y_w2R_kN"].abs().mean() == pytest.approx(
+        float(cells[2]), abs=0.051
+    )
+
+
+def test_simulate_refuses_two_conditions_of_one_name_when_writing_files(tmp_path):
+    """Both were written to f-a.parquet, the second over the first."""
+    cond = tmp_path / "dup.toml"
+    cond.write_text('[[condition]]\nname = "a"\n\n[[condition]]\nname = "a"\nseed = 2\n')
+    result = runner.invoke(app, ["simulate", str(cond), "--out", str(tmp_path / "f.parquet")])
+    assert result.exit_code == 2, result.output
+    assert "conditions: a named more than once" in result.output
+    assert not list(tmp_path.glob("f*"))
+
+
 @pytest.mark.parametrize(
     ("args", "needle"),
     [

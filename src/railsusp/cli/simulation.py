@@ -11,14 +11,15 @@ from rich.table import Table
 from railsusp._version import __version__
 from railsusp.cli.common import app, console, err_console, fail
 from railsusp.conditions import resolve_conditions
-from railsusp.errors import RailsuspInputError
+from railsusp.errors import RailsuspInputError, repeated
 from railsusp.params import ParameterSet, parse_overrides
 from railsusp.store import check_figure_file, check_output_file
 from railsusp.study import TABLE8_BEFORE
 
 
-def _force_table(results: list, title: str) -> Table:
-    """Measured-wheel force statistics per condition beside the study's Table 8."""
+def _force_table(results: list, title: str, wheel: str = "auto") -> Table:
+    """Force statistics of the measured ``wheel`` (auto: the leading wheelset's, outer in
+    curves) per condition beside the study's Table 8."""
     table = Table(title=title, title_justify="left")
     for col in (
         "condition",
@@ -42,12 +43,12 @@ def _force_table(results: list, title: str) -> Table:
     from railsusp.vehicle.simulate import WHEEL_NAMES
 
     for r in results:
-        s = r.statistics()
+        s = r.statistics(wheel)
         ref = TABLE8_BEFORE.get(r.condition.name)
         status = "ok" if r.ok[0] else r.failures()[0][1]
         table.add_row(
             r.condition.name,
-            WHEEL_NAMES[r.measured_wheel()],
+            WHEEL_NAMES[r.measured_wheel(wheel)],
             *(number(s[k], 1) for k in ("Y_mean", "Y_rms", "Y_p99", "Y_max")),
             number(ref[0], 1) if ref else "-",
             *(number(s[k], 1) for k in ("Q_mean", "Q_p99", "Q_max")),
@@ -115,6 +116,12 @@ def simulate(
                 raise RailsuspInputError(f"--out {out}: accepted a .parquet file")
         if plot is not None:
             check_figure_file(plot, "--plot")
+        twice = repeated([c.name for c in conds])
+        if twice and (out is not None or plot is not None):  # one file per condition name
+            raise RailsuspInputError(
+                f"conditions: {', '.join(twice)} named more than once, and --out and --plot "
+                "write one file per condition name; accepted distinct names"
+            )
         wagon_data = load_wagon(wagon)  # a packaged name or a file, one-line errors
         if wheel != "auto" and wheel not in WHEEL_NAMES:
             raise RailsuspInputError(
@@ -128,7 +135,7 @@ def simulate(
                 bar.advance(task)
     except RailsuspInputError as exc:
         fail(str(exc))
-    console.print(_force_table(results, f"Wheel-rail forces (kN), {wagon_data.name}"))
+    console.print(_force_table(results, f"Wheel-rail forces (kN), {wagon_data.name}", wheel))
     for r in results:
         tag = f"-{r.condition.name}" if len(results) > 1 else ""
         if out is not None:
