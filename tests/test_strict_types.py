@@ -38,43 +38,81 @@ def _write(tmp_path, name: str, text: str):
     return p
 
 
-@pytest.mark.parametrize(
-    ("old", "new", "needle"),
-    [
-        (
-            "samples = 10",
-            'samples = "10"',
-            'campaign.samples = "10": a whole number is needed, '
-            "not a string (write it without quotes)",
-        ),
-        (
-            "refine = true",
-            'refine = "false"',
-            'estimate.refine = "false": true or false is needed, not a string',
-        ),
-        (
-            "with_track = true",
-            "with_track = 1",
-            "field.with_track = 1: true or false is needed, not an integer",
-        ),
-        (
-            "n_gen = 20",
-            "n_gen = 2.0",
-            "estimate.n_gen = 2.0: a whole number is needed, not a float",
-        ),
-        ("epochs = 4", "epochs = 1979-05-27", 'surrogate.epochs = "1979-05-27": a whole number'),
-        ("X13 = 16.1", 'X13 = "16.1"', 'field.truth.X13 = "16.1": a number is needed'),
-        ("n_steps=50", 'n_steps="50"', "n_steps = '50': a whole number is needed, not a string"),
-        ('name = "t"', "name = 5", "name = 5: a string is needed, not an integer"),
-        ('name = "t"', 'name = "t"\nsensitivity = 5', "sensitivity = 5: a table is needed"),
-    ],
-)
+#: (text in BASE, its replacement, the error's words)
+WRONG_TYPES = [
+    (
+        "samples = 10",
+        'samples = "10"',
+        'campaign.samples = "10": a whole number is needed, not a string (write it without quotes)',
+    ),
+    (
+        "refine = true",
+        'refine = "false"',
+        'estimate.refine = "false": true or false is needed, not a string',
+    ),
+    (
+        "with_track = true",
+        "with_track = 1",
+        "field.with_track = 1: true or false is needed, not an integer",
+    ),
+    (
+        "n_gen = 20",
+        "n_gen = 2.0",
+        "estimate.n_gen = 2.0: a whole number is needed, not a float",
+    ),
+    ("epochs = 4", "epochs = 1979-05-27", 'surrogate.epochs = "1979-05-27": a whole number'),
+    ("X13 = 16.1", 'X13 = "16.1"', 'field.truth.X13 = "16.1": a number is needed'),
+    ("n_steps=50", 'n_steps="50"', "n_steps = '50': a whole number is needed, not a string"),
+    ('name = "t"', "name = 5", "name = 5: a string is needed, not an integer"),
+    ('name = "t"', 'name = "t"\nsensitivity = 5', "sensitivity = 5: a table is needed"),
+]
+
+
+@pytest.mark.parametrize(("old", "new", "needle"), WRONG_TYPES)
 def test_a_configuration_value_of_the_wrong_type_is_refused(tmp_path, old, new, needle):
     assert old in BASE
     p = _write(tmp_path, "c.toml", BASE.replace(old, new))
     with pytest.raises(RailsuspInputError) as info:
         load_config(p)
     assert needle in str(info.value) and "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize(("old", "new", "needle"), WRONG_TYPES)
+def test_a_dict_given_to_the_python_api_is_checked_as_strictly(tmp_path, old, new, needle):
+    """api.md: a dict of the same sections as a TOML file. Before stop 56 it was validated
+    in pydantic's lax mode: ``{"campaign": {"samples": "10"}}`` ran a whole pipeline of 10
+    samples. The same values are now refused, in the same words, and nothing is written."""
+    import tomllib
+
+    import railsusp
+
+    doc = tomllib.loads(BASE.replace(old, new))
+    with pytest.raises(RailsuspInputError) as info:
+        railsusp.run(doc, out=tmp_path / "run")
+    assert needle in str(info.value) and "\n" not in str(info.value)
+    assert str(info.value).startswith("configuration: ")
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_dict_of_numpy_numbers_and_paths_is_still_accepted(tmp_path):
+    """What a script builds: NumPy scalars and Path objects stand for the numbers, the
+    booleans and the strings a file would hold."""
+    import tomllib
+
+    import numpy as np
+
+    from railsusp.pipeline_config import PipelineConfig
+    from railsusp.store import validate_document
+
+    doc = tomllib.loads(BASE)
+    doc["campaign"]["samples"] = np.int64(10)
+    doc["field"]["truth"]["X13"] = np.float32(16.0)
+    doc["estimate"]["refine"] = np.bool_(True)
+    doc["wagon"] = tmp_path / "w.toml"
+    cfg = validate_document(PipelineConfig, doc)
+    assert type(cfg.campaign.samples) is int and cfg.campaign.samples == 10
+    assert cfg.field.truth == {"X13": 16.0} and cfg.estimate.refine is True
+    assert cfg.wagon == str(tmp_path / "w.toml")
 
 
 def test_integers_stand_for_floats_and_the_types_are_kept(tmp_path):

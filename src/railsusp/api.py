@@ -223,14 +223,17 @@ def run(
         raise RailsuspInputError(f"progress = {progress!r}: a function (stage, message) or None")
     if isinstance(config, PipelineConfig):
         cfg = config
-    elif isinstance(config, Mapping):
+    elif isinstance(config, Mapping):  # the sections of a TOML file: checked as strictly
         from pydantic import ValidationError
 
+        from railsusp.config import check_config, validation_message
+        from railsusp.store import validate_document
+
         try:
-            cfg = PipelineConfig.model_validate(dict(config))
+            cfg = validate_document(PipelineConfig, dict(config))
         except ValidationError as exc:
-            msgs = [f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors()]
-            raise RailsuspInputError("configuration: " + "; ".join(msgs)) from None
+            raise RailsuspInputError(validation_message("configuration", exc)) from None
+        check_config(cfg, "configuration", from_file=True)
     elif isinstance(config, str | Path):
         cfg = load_config(config)
         out = out if out is not None else Path("runs") / Path(config).stem

@@ -89,8 +89,9 @@ def _as_toml(value: Any) -> str:
 def check_config(cfg: Any, where: str = "configuration", *, from_file: bool = False) -> None:
     """Check a validated :class:`~railsusp.pipeline_config.PipelineConfig` as a whole; raise
     :class:`ConfigError` (one line, naming the field) at the first thing that would make a
-    stage fail. ``from_file``: read from a TOML file, so the conditions' values are checked
-    as strictly as the rest (a Python dict's are converted as pydantic does)."""
+    stage fail. ``from_file``: read from a TOML file or given as a dict of its sections
+    (:func:`railsusp.run`), so the conditions' values are checked as strictly as the rest (a
+    :class:`PipelineConfig` built in Python has its conditions converted as pydantic does)."""
     from railsusp.conditions import check_track_file
     from railsusp.params import ParameterSet, spec
     from railsusp.vehicle.wagon import load_wagon
