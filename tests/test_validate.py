@@ -63,10 +63,15 @@ def test_recovery_with_truth_and_noise_floor(case, tmp_path):
 def test_sobol_flag(case, tmp_path):
     field, est, _ = case
     sens = tmp_path / "key_parameters.json"
-    sens.write_text(json.dumps({"key_parameters": {"max_st": {"X13": 0.4, "X17": 0.02}}}))
-    rec = validate(est, truth=field / "truth.json", sensitivity=sens).recovery
-    row = rec.set_index("parameter").loc["X17"]
-    assert not row.identifiable and "Sobol ST 0.02" in row.why_not
+    max_st = {"X13": 0.0959, "X17": 0.02}
+    sens.write_text(json.dumps({"key_parameters": {"max_st": max_st}}))
+    rec = validate(est, truth=field / "truth.json", sensitivity=sens).recovery.set_index(
+        "parameter"
+    )
+    row = rec.loc["X17"]
+    assert not row.identifiable and "largest Sobol ST 0.02 < 0.1" in row.why_not
+    # just under the rule: not rounded up to it ("Sobol ST 0.10" before stop 56)
+    assert "largest Sobol ST 0.0959 < 0.1" in rec.loc["X13", "why_not"]
 
 
 def test_refined_estimate_flags_by_its_interval_width(case, tmp_path):

@@ -259,7 +259,7 @@ def identification_issues(est: dict, max_st: dict[str, float] | None = None) -> 
         if est.get("calibrated") is False:
             reasons.append("the posterior estimator failed its coverage check")
         if p in max_st and max_st[p] < SOBOL_ST_LIMIT:
-            reasons.append(f"Sobol ST {max_st[p]:.2f}")
+            reasons.append(f"largest Sobol ST {max_st[p]:.3g} < {SOBOL_ST_LIMIT:g}")
         # the bound is that of the statistics; a refined estimate used the series instead
         bound = (
             0.0 if est.get("refinement") else (est.get("cramer_rao_pct_range") or {}).get(p, 0.0)
