@@ -240,3 +240,30 @@ def test_settings_that_work_together_are_accepted(tmp_path):
         cfg = tmp_path / "c.toml"
         cfg.write_text(toml(*text))
         load_config(cfg)
+
+
+@pytest.mark.parametrize(
+    ("entry", "needle"),
+    [
+        ("X13 = 101", "tolerances.X13 = 101: accepted a number in (0, 100]"),
+        ("X9 = 10", "tolerances.X9: accepted default_pct or a main suspension parameter"),
+        ("default_pct = -5", "tolerances.default_pct = -5"),
+    ],
+)
+def test_a_bad_tolerance_in_the_wagon_file_is_refused_before_any_stage(tmp_path, entry, needle):
+    """The wagon file's [tolerances] serve only the report's verdicts, so before stop 56 a
+    bad entry passed the configuration's checks and stopped the run in its last stage, after
+    the campaign, the surrogates and the estimate."""
+    from importlib import resources
+
+    wagon = tmp_path / "w.toml"
+    text = resources.files("railsusp").joinpath("data/c80_k6.toml").read_text("utf-8")
+    wagon.write_text(f"{text}\n[tolerances]\n{entry}\n")
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(f'wagon = "{wagon}"\n' + toml("truth = {X13 = 16.1}"))
+    out = tmp_path / "run"
+    result = runner.invoke(app, ["run", str(cfg), "--out", str(out)])
+    assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0] and "wagon: " in lines[0], result.output
+    assert not out.exists()

@@ -245,8 +245,11 @@ def check_config(cfg: Any, where: str = "configuration", *, from_file: bool = Fa
     if cfg.surrogate.device not in DEVICES:
         raise bad(f"surrogate.device = {cfg.surrogate.device!r}: accepted {', '.join(DEVICES)}")
     if cfg.wagon is not None:
+        from railsusp.summary import read_tolerances
+
         try:
             load_wagon(cfg.wagon)
+            read_tolerances(cfg.wagon)  # the report's verdicts: refused now, not after the run
         except RailsuspInputError as exc:
             raise bad(f"wagon: {exc}") from None
     if cfg.surrogate.pretrained is not None:
