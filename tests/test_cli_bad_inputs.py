@@ -120,6 +120,18 @@ def test_validate_checks_its_paths_before_simulating(tmp_path):
     assert existing.read_text() == "keep"
     refused(["validate", est, "--truth", str(tmp_path / "no.json")], "--truth")
     refused(["validate", est, "--truth", str(existing)], "--truth")  # not JSON
+    # JSON, but not a truth file (a recording's sidecar, an empty object): was "est:
+    # 'parameters_display'", a KeyError's text
+    for name, text in (("sidecar.json", '{"format": "railsusp-recording-1"}'), ("e.json", "{}")):
+        (tmp_path / name).write_text(text)
+        needle = f"--truth {tmp_path / name}: no 'parameters_display' table; accepted a truth"
+        refused(["validate", est, "--truth", str(tmp_path / name)], needle)
+    (tmp_path / "t.json").write_text('{"parameters_display": {"X13": 1e9}}')
+    refused(["validate", est, "--truth", str(tmp_path / "t.json")], "X13")
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "estimate.json").write_text('{"parameters": ["X13"]}')
+    needle = "estimate.json: no 'estimate_display', 'config'; accepted the estimate.json of a"
+    refused(["validate", str(tmp_path / "other")], needle)
     refused(["validate", est, "--sensitivity", str(tmp_path)], "--sensitivity")
 
 

@@ -16,7 +16,6 @@ true parameters itself makes against the same recording.
 
 from __future__ import annotations
 
-import json
 import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -26,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from railsusp.conditions import WorkingCondition
+from railsusp.errors import RailsuspInputError
 from railsusp.estimate import (
     ALIGNED,
     BOUND_LIMIT_PCT,
@@ -39,13 +39,15 @@ from railsusp.estimate.expected_forces import draw_true_tracks
 from railsusp.estimate.intervals import identification, intervals_of
 from railsusp.estimate.statistics import force_statistic
 from railsusp.measured import Recording, SimulationFailedError, read_field
-from railsusp.measured.synthetic import recording_from_simulation
+from railsusp.measured.synthetic import read_truth, recording_from_simulation
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import atomic_write_bytes, read_json, write_json
 
 #: a parameter whose largest total Sobol index on the used features is below this is not
 #: identified (nor one whose interval is wider than IDENTIFIED_WIDTH_PCT of its range)
 SOBOL_ST_LIMIT = 0.1
+#: what validate reads of an estimate.json
+ESTIMATE_KEYS = ("parameters", "estimate_display", "config")
 
 
 @dataclass
@@ -134,7 +136,14 @@ def validate(
     compared by their mean over that many draws of the true geometry (seeded as the
     estimate's), its statistics by their mean over the draws.
     """
-    est = read_json(Path(estimate_dir) / "estimate.json")
+    est_path = Path(estimate_dir) / "estimate.json"
+    est = read_json(est_path)
+    lacking = [k for k in ESTIMATE_KEYS if not isinstance(est, dict) or k not in est]
+    if lacking:
+        raise RailsuspInputError(
+            f"{est_path}: no {', '.join(map(repr, lacking))}; accepted the estimate.json of a "
+            "folder written by railsusp estimate"
+        )
     params = tuple(est["parameters"])
     stats = parse_statistics(statistic or est["config"]["statistic"])
     recs = read_field(measured or est["measured"])
@@ -145,8 +154,7 @@ def validate(
     nominal = ParameterSet.nominal()
     truth_set = None
     if truth is not None:
-        doc = json.loads(Path(truth).read_text("utf-8"))
-        truth_set = ParameterSet(doc["parameters_display"], units="display")
+        truth_set = read_truth(truth, "--truth")
     failures: list[str] = []
     labels = {"before": "nominal parameters", "after": "estimate", "truth": "true parameters"}
     sets = {"before": nominal, "after": chosen}

@@ -3,7 +3,6 @@ parameters beside the recordings (Tables 8/9 of the study) and, with a truth, th
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
@@ -37,15 +36,12 @@ def validate(
     try:
         if out is not None:  # before the simulations, not after them
             check_output_folder(out, "--out")
-        if truth is not None:
+        if truth is not None:  # before the simulations, not after them
+            from railsusp.measured import read_truth
+
             if not truth.is_file():
                 raise RailsuspInputError(f"--truth {truth}: no such file; accepted a truth.json")
-            try:
-                json.loads(truth.read_text("utf-8"))
-            except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-                raise RailsuspInputError(
-                    f"--truth {truth}: not valid JSON ({exc}); accepted a truth.json"
-                ) from None
+            read_truth(truth, "--truth")
         readable = (sensitivity / "key_parameters.json", sensitivity) if sensitivity else ()
         if sensitivity is not None and not any(p.is_file() for p in readable):
             raise RailsuspInputError(

@@ -28,6 +28,7 @@ from railsusp.measured.recording import (
 from railsusp.measured.synthetic import (
     add_sensor_noise,
     bandwidth_filter,
+    read_truth,
     recording_from_simulation,
     simulated_forces,
     synthesise_field,
@@ -46,6 +47,7 @@ __all__ = [
     "read_field",
     "read_index",
     "read_recording",
+    "read_truth",
     "recording_from_simulation",
     "simulated_forces",
     "synthesise_field",
