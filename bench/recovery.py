@@ -153,7 +153,7 @@ def main() -> None:
                     noise=args.noise,
                     duration_s=args.field_duration,
                     with_track=measured_track,
-                    track_noise_mm=args.track_noise,
+                    track_noise_mm=args.track_noise if measured_track else 0.0,
                     stated_accuracy_mm=args.stated_accuracy,
                 )
                 break

@@ -56,7 +56,22 @@ def test_synth_field_never_replaces_a_file_and_refuses_empty_or_repeated_conditi
         ["synth-field", "--conditions", "straight", "--out", str(tmp_path / "s"), "--seed", "-1"],
         "seed = -1: accepted 0 or more",
     )
-    assert not any((tmp_path / n).exists() for n in ("e", "d", "s"))
+    # a geometry error without the geometry was ignored (exit 0, no geometry written)
+    refused(
+        ["synth-field", "--conditions", "straight", "--out", str(tmp_path / "n"),
+         "--track-noise", "2"],
+        "--track-noise 2 needs --with-track",
+    )  # fmt: skip
+    assert not any((tmp_path / n).exists() for n in ("e", "d", "s", "n"))
+    from railsusp.conditions import get_condition
+    from railsusp.errors import RailsuspInputError
+    from railsusp.measured import synthesise_field
+    from railsusp.params import ParameterSet
+
+    with pytest.raises(RailsuspInputError, match="track_noise_mm = 0.5 needs with_track = True"):
+        synthesise_field(ParameterSet(), [get_condition("straight")], tmp_path / "p",
+                         track_noise_mm=0.5)  # fmt: skip
+    assert not (tmp_path / "p").exists()
 
 
 @pytest.mark.parametrize("name", ["x.txt", "x"])

@@ -59,6 +59,11 @@ def synth_field(
             raise RailsuspInputError(f"--format {fmt!r}: accepted csv or parquet")
         if duration is not None and not 1.0 <= duration <= 600.0:
             raise RailsuspInputError(f"--duration {duration:g} s outside the accepted 1-600 s")
+        if track_noise and not with_track:  # it was ignored: no geometry is written without
+            raise RailsuspInputError(
+                f"--track-noise {track_noise:g} needs --with-track (the error is that of the "
+                "track geometry written beside the recordings)"
+            )
         pset = ParameterSet(parse_overrides(truth) if truth else {}, units="display")
         conds = resolve_conditions(conditions)
         with console.status("simulating the hidden truth"):

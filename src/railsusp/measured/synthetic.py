@@ -129,6 +129,11 @@ def synthesise_field(
 
     if not 0.0 <= track_noise_mm <= 10.0:
         raise RailsuspInputError(f"track_noise_mm = {track_noise_mm:g}: accepted 0 to 10 mm")
+    if track_noise_mm and not with_track:  # the error of a geometry that is not written
+        raise RailsuspInputError(
+            f"track_noise_mm = {track_noise_mm:g} needs with_track = True (the measurement "
+            "error of the track geometry written beside the recordings)"
+        )
     if seed < 0:
         raise RailsuspInputError(f"seed = {seed}: accepted 0 or more")
     if not conditions:
