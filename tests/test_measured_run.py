@@ -227,6 +227,25 @@ def test_written_sections_are_a_field_folder_the_estimation_reads(tmp_path):
     assert np.median(recs[0].Q["w1R"]) == pytest.approx(120.0, rel=0.01)  # kN again
 
 
+def test_a_left_out_rows_reason_names_what_was_left_out():
+    """Stop 56: a transition's row read "transition ...; 0 m, shorter than 150 m (a
+    transition)" (a piece of a few samples at the band's edge given as a reason of its own),
+    and with a 5000 m minimum the tangents and curves left out were each called "(a
+    transition)". Edge pieces now fold into their neighbour's row silently; a stretch left
+    out for its length says which stretch it is."""
+    data = resources.files("railsusp") / "data"
+    run = read_run(data / "example_run.mf4", read_channel_map(data / "example_run.map.toml"))
+    left = [s for s in cut_sections(run) if not s.kept]
+    assert len(left) == 4
+    assert {s.reason for s in left} == {"transition (curvature or grade changing)"}
+    (whole,) = cut_sections(run, SectionRules(min_length_m=5000.0))  # one left-out stretch
+    reasons = whole.reason.split("; ")
+    assert reasons[0] == "tangent of 539 m, shorter than the 5000 m minimum"
+    assert "curve R600 of 451 m, shorter than the 5000 m minimum" in reasons
+    assert "transition (curvature or grade changing)" in reasons
+    assert len(reasons) == 6 and not any("(a transition)" in r for r in reasons)
+
+
 def test_the_shipped_example_reads_and_cuts_into_its_five_sections(tmp_path):
     data = resources.files("railsusp") / "data"
     path = data / "example_run.mf4"

@@ -196,6 +196,18 @@ def _label_runs(geo: dict, rules: SectionRules) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(starts, ends, strict=True) if band[a] != -2]
 
 
+#: the words of a short piece's reason
+SHORTER = "shorter than"
+#: a left-out piece shorter than this (m) beside another left-out stretch is where a band's
+#: edge fell (a few samples between a transition and the next stretch), not a reason of its
+#: own: its row names the neighbour's reason alone
+EDGE_PIECE_M = 10.0
+
+
+def _edge_piece(sec: Section) -> bool:
+    return SHORTER in sec.reason and abs(sec.end_m - sec.start_m) < EDGE_PIECE_M
+
+
 def _pieces(
     run: MeasuredRun, geo: dict, a: int, b: int, rules: SectionRules, name: str | None
 ) -> list[Section]:
@@ -223,7 +235,8 @@ def _pieces(
 def _merged(run: MeasuredRun, a: Section, b: Section) -> Section:
     """Two adjacent left-out stretches as one row, with both reasons."""
     v = run.speed[a.start : b.end]
-    reason = a.reason if b.reason in a.reason.split("; ") else f"{a.reason}; {b.reason}"
+    parts = [s.reason for s in (a, b) if not _edge_piece(s)] or [a.reason]
+    reason = "; ".join(dict.fromkeys(r for part in parts for r in part.split("; ")))
     return Section(
         "",
         a.start,
@@ -274,8 +287,9 @@ def _section(
         )
     elif length < rules.min_length_m:
         sec.kept = False
-        sec.reason = f"{length:.0f} m, shorter than {rules.min_length_m:g} m" + (
-            " (speed varies beyond the tolerance)" if split else " (a transition)"
+        what = "tangent" if radius is None else f"curve R{radius:.0f}"
+        sec.reason = f"{what} of {length:.0f} m, {SHORTER} the {rules.min_length_m:g} m minimum" + (
+            " (speed varies beyond the tolerance)" if split else ""
         )
     elif float(v.mean()) * 3.6 < 1.0:
         sec.kept, sec.reason = False, "standing"
