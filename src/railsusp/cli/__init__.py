@@ -2,7 +2,7 @@
 
 Bad input (unknown parameter, out-of-range value, bad condition) prints one line on stderr
 and exits with status 2, never a traceback. Commands live in the submodules by topic.
-Global options: ``--version``, ``--quiet`` (errors and warnings only, no progress) and
+Global options: ``--version``, ``--quiet`` (no progress: the results, errors and warnings only) and
 ``--verbose`` (also the library's debug log: when each stage starts); a Python warning is
 said once, as one line (``warning: ...``), not with its source line.
 """

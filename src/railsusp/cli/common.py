@@ -72,7 +72,7 @@ def _global(
         ),
     ] = False,
     quiet: Annotated[
-        bool, typer.Option("--quiet", "-q", help="errors and warnings only, no progress")
+        bool, typer.Option("--quiet", "-q", help="no progress: the results, errors and warnings only")
     ] = False,
     verbose: Annotated[
         bool,
