@@ -267,3 +267,18 @@ def test_a_bad_tolerance_in_the_wagon_file_is_refused_before_any_stage(tmp_path,
     lines = result.output.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0] and "wagon: " in lines[0], result.output
     assert not out.exists()
+
+
+def test_a_packaged_wagon_named_in_the_configuration_has_the_default_tolerances(tmp_path):
+    """``wagon = "tare"`` (a packaged wagon, as load_wagon takes it) failed the report stage
+    with "wagon file tare does not exist", after every other stage: the tolerances were read
+    from a file of that name. They are now read from the packaged file, before any stage."""
+    from railsusp.summary import DEFAULT_TOLERANCE_PCT, read_tolerances
+
+    for name in ("tare", "loaded", "c80_k6_tare"):
+        assert read_tolerances(name).default_pct == DEFAULT_TOLERANCE_PCT
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('wagon = "tare"\n' + toml("truth = {X13 = 16.1}"))
+    assert load_config(cfg).wagon == "tare"
+    with pytest.raises(railsusp.RailsuspInputError, match="wagon file nowhere does not exist"):
+        read_tolerances("nowhere")

@@ -62,24 +62,34 @@ def _check_pct(where: str, key: str, value: object) -> float:
 
 
 def read_tolerances(wagon: str | Path | None = None) -> Tolerances:
-    """The ``[tolerances]`` table of a wagon data file: ``default_pct`` and one entry per
-    main suspension parameter (``X13 = 10.0``), % of the nominal value; the defaults
-    (:data:`DEFAULT_TOLERANCE_PCT` for every element) where the file or the table is absent
+    """The ``[tolerances]`` table of a wagon data file, or of a packaged wagon named as
+    :func:`~railsusp.vehicle.wagon.load_wagon` takes it (``"tare"``): ``default_pct`` and one
+    entry per main suspension parameter (``X13 = 10.0``), % of the nominal value; the
+    defaults (:data:`DEFAULT_TOLERANCE_PCT` for every element) where the table is absent
     (None: the embedded C80/K6 data, which have none)."""
+    from importlib import resources
+
+    from railsusp.vehicle.wagon import PACKAGED_WAGONS
+
     if wagon is None:
         return Tolerances()
     path = Path(wagon)
-    if not path.is_file():
+    if str(wagon) in PACKAGED_WAGONS and not path.is_file():
+        packaged = resources.files("railsusp").joinpath(f"data/{PACKAGED_WAGONS[str(wagon)]}")
+        text, where = packaged.read_text("utf-8"), f"packaged wagon {wagon}"
+    elif not path.is_file():
         raise RailsuspInputError(f"wagon file {path} does not exist")
+    else:
+        text, where = path.read_text("utf-8"), str(path)
     try:
-        doc = tomllib.loads(path.read_text("utf-8")).get("tolerances", {})
+        doc = tomllib.loads(text).get("tolerances", {})
     except tomllib.TOMLDecodeError as exc:
-        raise RailsuspInputError(f"{path}: not valid TOML ({exc})") from None
+        raise RailsuspInputError(f"{where}: not valid TOML ({exc})") from None
     if not isinstance(doc, dict):
-        raise RailsuspInputError(f"{path}: tolerances must be a table ([tolerances])")
+        raise RailsuspInputError(f"{where}: tolerances must be a table ([tolerances])")
     per = {k: v for k, v in doc.items() if k != "default_pct"}
     default = doc.get("default_pct", DEFAULT_TOLERANCE_PCT)
-    return Tolerances(*_checked(str(path), default, per, "default_pct or "))
+    return Tolerances(*_checked(where, default, per, "default_pct or "))
 
 
 def _checked(

@@ -72,7 +72,8 @@ def _global(
         ),
     ] = False,
     quiet: Annotated[
-        bool, typer.Option("--quiet", "-q", help="no progress: the results, errors and warnings only")
+        bool,
+        typer.Option("--quiet", "-q", help="no progress: the results, errors and warnings only"),
     ] = False,
     verbose: Annotated[
         bool,
