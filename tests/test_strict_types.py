@@ -115,6 +115,40 @@ def test_a_dict_of_numpy_numbers_and_paths_is_still_accepted(tmp_path):
     assert cfg.wagon == str(tmp_path / "w.toml")
 
 
+def test_a_dict_of_arrays_mappings_and_sections_reads_as_the_file_would(tmp_path):
+    """The review of stop 56: values JSON cannot write were validated as their printed text
+    (an array's '[1. 2.]', a section object's repr) and refused as strings, or a Decimal
+    with advice about quotes; a tuple key was a TypeError traceback."""
+    import tomllib
+    from decimal import Decimal
+    from types import MappingProxyType
+
+    import numpy as np
+
+    import railsusp
+    from railsusp.pipeline_config import CampaignSection, PipelineConfig
+    from railsusp.store import validate_document
+
+    doc = tomllib.loads(BASE)
+    doc["campaign"] = CampaignSection(samples=10)
+    doc["field"]["truth"] = MappingProxyType({"X13": np.float64(16.1)})
+    doc["estimate"]["held_prior"] = {"X19": np.array([20000.0, 40000.0])}
+    cfg = validate_document(PipelineConfig, doc)
+    assert cfg.campaign.samples == 10 and cfg.field.truth == {"X13": 16.1}
+    assert cfg.estimate.held_prior == {"X19": [20000.0, 40000.0]}
+    for value, needle in (
+        ({"X13": Decimal("16.1")}, "configuration: a Decimal (Decimal('16.1')) where a number"),
+        ({("X13",): 16.1}, "configuration: keys must be str"),
+    ):
+        bad = tomllib.loads(BASE)
+        bad["field"]["truth"] = value
+        with pytest.raises(
+            RailsuspInputError, match=needle.replace("(", r"\(").replace(")", r"\)")
+        ):
+            railsusp.run(bad, out=tmp_path / "run")
+        assert not (tmp_path / "run").exists()
+
+
 def test_integers_stand_for_floats_and_the_types_are_kept(tmp_path):
     text = BASE.replace("X13 = 16.1", "X13 = 16").replace("duration_s=1.0", "duration_s=1")
     cfg = load_config(_write(tmp_path, "c.toml", text))

@@ -233,6 +233,8 @@ def run(
             cfg = validate_document(PipelineConfig, dict(config))
         except ValidationError as exc:
             raise RailsuspInputError(validation_message("configuration", exc)) from None
+        except (TypeError, ValueError) as exc:  # a value or a key JSON cannot hold
+            raise RailsuspInputError(f"configuration: {exc}") from None
         check_config(cfg, "configuration", from_file=True)
     elif isinstance(config, str | Path):
         cfg = load_config(config)

@@ -21,9 +21,9 @@ import socket
 import subprocess
 import tempfile
 import tomllib
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
-from pathlib import Path
+from pathlib import Path, PurePath
 from typing import Any
 
 import numpy as np
@@ -237,8 +237,25 @@ def validate_document(model: Any, doc: Any) -> Any:
 
 
 def _plain(value: Any) -> Any:
-    """A value JSON cannot write: a NumPy scalar as its Python value, else its text."""
-    return value.item() if isinstance(value, np.generic) else str(value)
+    """A value JSON cannot write, as a file would hold it: a NumPy scalar or array as its
+    Python number(s), any mapping as a table, a pydantic model as its fields, a path, date
+    or time (TOML's) as its text. Anything else is refused (TypeError naming its type)
+    rather than validated as its printed text: a Decimal read as the string "16.1" would be
+    refused with advice about quotes that a script cannot follow."""
+    from pydantic import BaseModel
+
+    if isinstance(value, np.generic | np.ndarray):
+        return value.tolist()
+    if isinstance(value, Mapping):
+        return dict(value)
+    if isinstance(value, BaseModel):
+        return value.model_dump(mode="json")
+    if isinstance(value, PurePath | _dt.date | _dt.time):  # a datetime is a date
+        return str(value)
+    raise TypeError(
+        f"a {type(value).__name__} ({value!r:.40}) where a number, a string, a boolean, a list "
+        "or a table goes"
+    )
 
 
 def json_numbers(doc: Any) -> Any:
