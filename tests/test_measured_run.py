@@ -231,19 +231,37 @@ def test_a_left_out_rows_reason_names_what_was_left_out():
     """Stop 56: a transition's row read "transition ...; 0 m, shorter than 150 m (a
     transition)" (a piece of a few samples at the band's edge given as a reason of its own),
     and with a 5000 m minimum the tangents and curves left out were each called "(a
-    transition)". Edge pieces now fold into their neighbour's row silently; a stretch left
-    out for its length says which stretch it is."""
+    transition)". Edge pieces now fold into their neighbour's row; the stretches left out
+    for their length are named, and counted where there are several."""
     data = resources.files("railsusp") / "data"
     run = read_run(data / "example_run.mf4", read_channel_map(data / "example_run.map.toml"))
     left = [s for s in cut_sections(run) if not s.kept]
     assert len(left) == 4
     assert {s.reason for s in left} == {"transition (curvature or grade changing)"}
     (whole,) = cut_sections(run, SectionRules(min_length_m=5000.0))  # one left-out stretch
-    reasons = whole.reason.split("; ")
-    assert reasons[0] == "tangent of 539 m, shorter than the 5000 m minimum"
-    assert "curve R600 of 451 m, shorter than the 5000 m minimum" in reasons
-    assert "transition (curvature or grade changing)" in reasons
-    assert len(reasons) == 6 and not any("(a transition)" in r for r in reasons)
+    assert whole.reason.split("; ") == [
+        "tangent: 3 pieces of 327-579 m, each shorter than the 5000 m minimum",
+        "transition (curvature or grade changing)",
+        "curve R600 of 451 m, shorter than the 5000 m minimum",
+        "curve R350 of 367 m, shorter than the 5000 m minimum",
+    ]
+
+
+def test_a_stop_is_named_with_its_duration_not_folded_away():
+    """A review of the edge-piece folding: a standing wagon covers no length, so a stop
+    judged by metres was folded into its neighbours unseen; the "standing" reason could
+    never show, as the length came first."""
+    dt = 0.02  # cruise 15 m/s 60 s, brake over 30 s, stand 180 s, start over 30 s, cruise
+    v = np.concatenate([np.full(3000, 15.0), np.linspace(15, 0, 1500), np.zeros(9000),
+                        np.linspace(0, 15, 1500), np.full(3000, 15.0)])  # fmt: skip
+    t = np.arange(v.size) * dt
+    x = np.concatenate([[0.0], np.cumsum(v[:-1] * dt)])
+    z = np.zeros_like(t)
+    run = MeasuredRun("stop", t, {"w1R": z}, {"w1R": z + 1e5}, v, x)
+    secs = cut_sections(run)
+    assert [s.kept for s in secs] == [True, False, True]
+    assert secs[1].reason.endswith("; standing (180 s)")
+    assert secs[1].reason.startswith("tangent: 20 pieces of 5-35 m, each shorter than the 150 m")
 
 
 def test_the_shipped_example_reads_and_cuts_into_its_five_sections(tmp_path):

@@ -12,7 +12,7 @@ the recordings of a field folder (:func:`write_sections`) that the estimation re
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -79,6 +79,8 @@ class Section:
     speed_spread: float  # (max - min) / mean
     kept: bool = True
     reason: str = ""
+    #: a left-out row's pieces, (kind, label, seconds, metres), that its reason sums up
+    pieces: tuple[tuple[str, str, float, float], ...] = field(default=(), repr=False)
 
     @property
     def kind(self) -> str:
@@ -196,16 +198,37 @@ def _label_runs(geo: dict, rules: SectionRules) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(starts, ends, strict=True) if band[a] != -2]
 
 
-#: the words of a short piece's reason
-SHORTER = "shorter than"
-#: a left-out piece shorter than this (m) beside another left-out stretch is where a band's
-#: edge fell (a few samples between a transition and the next stretch), not a reason of its
-#: own: its row names the neighbour's reason alone
-EDGE_PIECE_M = 10.0
+#: a left-out piece too short for a condition, of less than this (s), beside another
+#: left-out stretch is where a band's edge fell (a few samples between a transition and the
+#: next stretch), not a reason of its own: its row names the neighbour's reason alone.
+#: Judged by time, not length, so that a stop (no length at all) is never folded away.
+EDGE_PIECE_S = 1.0
 
 
-def _edge_piece(sec: Section) -> bool:
-    return SHORTER in sec.reason and abs(sec.end_m - sec.start_m) < EDGE_PIECE_M
+def _describe(pieces: tuple[tuple[str, str, float, float], ...]) -> str:
+    """A left-out row's reason from its pieces, one phrase per kind in their order: a
+    stop's seconds summed, pieces too short for a condition counted with their lengths
+    (edge pieces left out where there is more), a transition or a radius by its words."""
+    real = [p for p in pieces if not (p[0] == "short" and p[2] < EDGE_PIECE_S)] or pieces
+    groups: dict[tuple[str, str], list[tuple[float, float]]] = {}
+    for kind, label, seconds, metres in real:
+        groups.setdefault((kind, label), []).append((seconds, metres))
+    out = []
+    for (kind, label), items in groups.items():
+        if kind == "standing":
+            out.append(f"standing ({sum(t for t, _ in items):.0f} s)")
+        elif kind == "short":
+            what, minimum, why = label.split("|")
+            ms = [m for _, m in items]
+            out.append(
+                f"{what} of {ms[0]:.0f} m, shorter than the {minimum} m minimum{why}"
+                if len(ms) == 1
+                else f"{what}: {len(ms)} pieces of {min(ms):.0f}-{max(ms):.0f} m, each shorter "
+                f"than the {minimum} m minimum{why}"
+            )
+        else:
+            out.append(label)
+    return "; ".join(out)
 
 
 def _pieces(
@@ -235,8 +258,7 @@ def _pieces(
 def _merged(run: MeasuredRun, a: Section, b: Section) -> Section:
     """Two adjacent left-out stretches as one row, with both reasons."""
     v = run.speed[a.start : b.end]
-    parts = [s.reason for s in (a, b) if not _edge_piece(s)] or [a.reason]
-    reason = "; ".join(dict.fromkeys(r for part in parts for r in part.split("; ")))
+    pieces = a.pieces + b.pieces
     return Section(
         "",
         a.start,
@@ -250,7 +272,8 @@ def _merged(run: MeasuredRun, a: Section, b: Section) -> Section:
         float(v.mean()) * 3.6,
         float((v.max() - v.min()) / max(v.mean(), 1e-9)),
         False,
-        reason,
+        _describe(pieces),
+        pieces,
     )
 
 
@@ -276,23 +299,22 @@ def _section(
         float(v.mean()) * 3.6,
         spread,
     )
+    seconds = float(run.time[j - 1] - run.time[i])
     if np.mean(geo["transition"][sl]) > 0.5:
-        sec.kept = False
-        sec.reason = "transition (curvature or grade changing)"
+        piece = ("transition", "transition (curvature or grade changing)")
     elif radius is not None and radius < MIN_RADIUS_M:
-        sec.kept = False
-        sec.reason = (
-            f"radius {radius:.3g} m, below the {MIN_RADIUS_M:g} m a working condition takes "
-            "(a curvature channel in another unit?)"
-        )
+        piece = ("radius", f"radius {radius:.3g} m, below the {MIN_RADIUS_M:g} m a working "
+                 "condition takes (a curvature channel in another unit?)")  # fmt: skip
+    elif float(v.mean()) * 3.6 < 1.0:  # before the length: a stop has none
+        piece = ("standing", "")
     elif length < rules.min_length_m:
-        sec.kept = False
-        what = "tangent" if radius is None else f"curve R{radius:.0f}"
-        sec.reason = f"{what} of {length:.0f} m, {SHORTER} the {rules.min_length_m:g} m minimum" + (
-            " (speed varies beyond the tolerance)" if split else ""
-        )
-    elif float(v.mean()) * 3.6 < 1.0:
-        sec.kept, sec.reason = False, "standing"
+        why = " (speed varies beyond the tolerance)" if split else ""
+        piece = ("short", f"{sec.kind}|{rules.min_length_m:g}|{why}")
+    else:
+        return sec
+    sec.kept = False
+    sec.pieces = ((*piece, seconds, length),)
+    sec.reason = _describe(sec.pieces)
     return sec
 
 
