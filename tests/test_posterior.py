@@ -570,6 +570,21 @@ def test_an_estimator_file_that_reads_but_is_not_this_estimator_s_is_refused(
     assert weights.read_bytes() == before and not marker.exists()
 
 
+def test_loading_an_estimator_cut_short_is_refused_not_trained_again(trained, tmp_path):
+    """posterior.load reads a finished estimator and trains nothing (its docstring); an
+    estimator.pt cut short was trained again in silence inside it (the review of stop 56)."""
+    import shutil
+
+    _, run = trained
+    copy = tmp_path / "run"
+    shutil.copytree(run, copy)
+    weights = copy / "posterior" / "estimator.pt"
+    weights.write_bytes(weights.read_bytes()[:300])
+    with pytest.raises(RailsuspInputError, match=r"estimator\.pt is cut short or damaged: train"):
+        posterior.load(copy)
+    assert len(weights.read_bytes()) == 300
+
+
 def test_a_cached_chunk_or_estimator_cut_short_is_made_again(trained, tmp_path, monkeypatch):
     """The kill/resume pass (stop 54): a truncated simulation chunk or estimator.pt stopped
     `posterior train` with numpy's / torch's traceback; each is now made again."""

@@ -35,8 +35,8 @@ def test_cut_short_is_a_short_file_or_a_zip_that_does_not_read(tmp_path):
     torch.save({"a": torch.ones(100)}, f)
     whole = f.read_bytes()
     assert not torch_file_cut_short(f)
-    for damaged in (b"", whole[:3], whole[:-40], whole[:200]):
-        f.write_bytes(damaged)
+    for damaged in (b"", whole[:3], whole[:-40], whole[:200], bytes(len(whole))):
+        f.write_bytes(damaged)  # the last: the zeros a crash can leave
         assert torch_file_cut_short(f), len(damaged)
     f.write_bytes(pickle.dumps({"a": 1}))  # another format: for read_torch_file to judge
     assert not torch_file_cut_short(f)
@@ -55,7 +55,24 @@ def test_a_crafted_pickle_is_refused_in_one_line_and_runs_no_code(tmp_path, zipp
     text = str(info.value)
     assert text.startswith(f"surrogate weights {f} refused: not a plain PyTorch state (")
     assert text.endswith("; train it again") and "\n" not in text
+    assert "it holds objects that are not tensors: " in text  # the global it refused
+    assert "weights_only" not in text  # torch's advice to load it unsafely is not passed on
     assert not marker.exists()
+
+
+def test_the_refusal_names_what_torch_found_in_plain_words(tmp_path):
+    """The review of stop 56: a NumPy array's refusal carried torch's terminal colour codes
+    and its advice to load unsafely; a text file's was a bare "101"."""
+    import numpy as np
+
+    f = tmp_path / "w.pt"
+    torch.save({"a": np.arange(3)}, f)
+    with pytest.raises(RailsuspInputError) as info:
+        read_torch_file(f, "checkpoint", "delete it")
+    assert "not tensors: numpy." in str(info.value) and "\x1b" not in str(info.value)
+    f.write_text("hello world")
+    with pytest.raises(RailsuspInputError, match=r"\(no file torch.save writes: KeyError"):
+        read_torch_file(f, "checkpoint", "delete it")
 
 
 def test_a_plain_state_reads_back(tmp_path):
@@ -116,3 +133,37 @@ def test_a_surrogate_with_weights_cut_short_says_so(network):
     weights.write_bytes(weights.read_bytes()[:1000])
     with pytest.raises(RailsuspInputError, match=r"model\.pt is cut short or damaged"):
         load(network)
+
+
+@pytest.mark.parametrize(
+    ("change", "needle"),
+    [
+        (lambda d: d.update(net="cnn"), "not a surrogate description this railsusp reads ("),
+        (
+            lambda d: d.pop("features"),
+            "not a surrogate description this railsusp reads (no 'features')",
+        ),
+        (lambda d: d.pop("normaliser"), "(no 'normaliser')"),
+        (lambda d: d.update(track_seed="x"), "not a surrogate description"),
+    ],
+)
+def test_a_surrogate_json_of_another_shape_is_one_line(network, change, needle):
+    """Before: AttributeError or KeyError tracebacks from bundle.load, which `railsusp
+    estimate --surrogate` calls directly."""
+    doc = json.loads((network / "surrogate.json").read_text())
+    change(doc)
+    (network / "surrogate.json").write_text(json.dumps(doc))
+    with pytest.raises(RailsuspInputError) as info:
+        load(network)
+    assert needle in str(info.value) and str(info.value).endswith("train the surrogate again")
+
+
+def test_a_damaged_shipped_set_is_not_told_to_train_again(tmp_path):
+    from railsusp.surrogate.pretrained import SET_REMEDY, load_bundle
+
+    copy = tmp_path / "straight"
+    shutil.copytree(SHIPPED_STRAIGHT, copy)
+    (copy / "model.pt").write_bytes((copy / "model.pt").read_bytes()[:500])
+    with pytest.raises(RailsuspInputError) as info:
+        load_bundle(copy)
+    assert str(info.value).endswith(SET_REMEDY) and "train the" not in str(info.value)

@@ -95,12 +95,15 @@ def zip_readable(path: Path) -> bool:
 
 
 def torch_file_cut_short(path: Path) -> bool:
-    """A file too short to be a zip's first header (``torch.save``'s format), or a zip whose
+    """A file too short to be a zip's first header (``torch.save``'s format), one that
+    starts with zeros (what a crash can leave of a file being written), or a zip whose
     directory or checksums do not read: a copy interrupted or a full disk, nothing in it to
     trust. A file of another format is not "cut short": :func:`read_torch_file` refuses it."""
     with Path(path).open("rb") as f:
         head = f.read(4)
-    return len(head) < 4 or (head == b"PK\x03\x04" and not zip_readable(path))
+    if len(head) < 4 or head == b"\0\0\0\0":  # empty, or the zeros a crash leaves
+        return True
+    return head == b"PK\x03\x04" and not zip_readable(path)
 
 
 def read_torch_file(path: Path, what: str, remedy: str, map_location: str = "cpu") -> Any:
@@ -118,11 +121,28 @@ def read_torch_file(path: Path, what: str, remedy: str, map_location: str = "cpu
     try:
         return torch.load(path, map_location=map_location, weights_only=True)
     except Exception as exc:  # torch raises UnpicklingError, RuntimeError, EOFError, ...
-        text = str(exc).strip()
-        first = text.splitlines()[0] if text else type(exc).__name__
         raise RailsuspInputError(
-            f"{what} {path} refused: not a plain PyTorch state ({first}); {remedy}"
+            f"{what} {path} refused: not a plain PyTorch state ({_torch_reason(exc)}); {remedy}"
         ) from None
+
+
+#: terminal colour codes, which torch puts in some of its messages
+_ANSI = re.compile(r"\x1b\[[0-9;]*m")
+
+
+def _torch_reason(exc: Exception) -> str:
+    """What ``torch.load`` found wrong, in a few words: the global it would not load (a
+    pickle of code or of objects that are not tensors), else the first sentence of its
+    message; never its advice to load the file unsafely."""
+    text = _ANSI.sub("", str(exc))
+    found = re.search(r"GLOBAL ([\w.]+)", text)
+    if found:
+        return f"it holds objects that are not tensors: {found.group(1).rstrip('.')}"
+    first = text.strip().splitlines()[0] if text.strip() else ""
+    first = first.split(" In PyTorch 2.6")[0].strip()
+    if len(first) < 12:  # a bare key or number: what torch.load tripped over, not why
+        return f"no file torch.save writes: {type(exc).__name__} {first}".strip()
+    return first
 
 
 def file_readable(path: str | Path) -> bool:

@@ -305,6 +305,11 @@ def load(run: str | Path) -> PosteriorEstimator:
             f"{folder / 'settings.json'} holds no estimator settings: train again "
             "(railsusp posterior train)"
         )
+    if torch_file_cut_short(folder / "estimator.pt"):  # train() would train it again
+        raise RailsuspInputError(
+            f"{folder / 'estimator.pt'} is cut short or damaged: train again "
+            "(railsusp posterior train)"
+        )
     settings = PosteriorSettings.from_dict(stored["settings"])
     return train(settings, run)
 

@@ -384,8 +384,10 @@ class Surrogate:
         )
 
 
-def load(path: str | Path) -> Surrogate:
-    """Load a surrogate saved by :meth:`Surrogate.save`."""
+def load(path: str | Path, remedy: str = "train the surrogate again") -> Surrogate:
+    """Load a surrogate saved by :meth:`Surrogate.save`. A description or weights that do
+    not read (damaged, of another railsusp, crafted) are one line naming the file and the
+    ``remedy`` (a shipped network set's is not "train it again")."""
     path = Path(path)
     meta_path = path / "surrogate.json"
     if not meta_path.exists():
@@ -394,12 +396,16 @@ def load(path: str | Path) -> Surrogate:
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         found = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
         raise RailsuspInputError(f"{meta_path}: unknown surrogate format {found!r}")
-    net_cfg = NetConfig(
-        **{k: tuple(v) if isinstance(v, list) else v for k, v in doc["net"].items()}
-    )
-    feats = FeatureSpec.from_dict(doc["features"])
-    net = build_network(net_cfg)
-    remedy = "train the surrogate again"
+    try:
+        net_cfg = NetConfig(
+            **{k: tuple(v) if isinstance(v, list) else v for k, v in doc["net"].items()}
+        )
+        feats = FeatureSpec.from_dict(doc["features"])
+        net = build_network(net_cfg)
+    except RailsuspInputError:
+        raise
+    except (KeyError, TypeError, AttributeError, ValueError) as exc:
+        raise RailsuspInputError(f"{meta_path}: {_unread(exc)}; {remedy}") from None
     state = read_torch_file(path / "model.pt", "surrogate weights", remedy)
     try:
         net.load_state_dict(state)
@@ -421,14 +427,29 @@ def load(path: str | Path) -> Surrogate:
             f"{meta_path}: its wagon description ({fields}) is not one this railsusp reads: the "
             "surrogate was trained on an older model; train it again"
         ) from None
-    return Surrogate(
-        net,
-        net_cfg,
-        feats,
-        Normaliser(**doc["normaliser"]),
-        WorkingCondition(**doc["condition"]),
-        wagon,
-        int(doc["track_seed"]),
-        doc.get("meta", {}),
-        None if corr is None else RecordCorrection.from_dict(corr),
-    )
+    except (KeyError, TypeError) as exc:
+        raise RailsuspInputError(f"{meta_path}: {_unread(exc)}; {remedy}") from None
+    try:
+        return Surrogate(
+            net,
+            net_cfg,
+            feats,
+            Normaliser(**doc["normaliser"]),
+            WorkingCondition(**doc["condition"]),
+            wagon,
+            int(doc["track_seed"]),
+            doc.get("meta", {}),
+            None if corr is None else RecordCorrection.from_dict(corr),
+        )
+    except RailsuspInputError:
+        raise
+    except (KeyError, TypeError, AttributeError, ValueError) as exc:
+        raise RailsuspInputError(f"{meta_path}: {_unread(exc)}; {remedy}") from None
+
+
+def _unread(exc: Exception) -> str:
+    """Why a surrogate.json does not describe a surrogate, in a few words."""
+    if isinstance(exc, KeyError):
+        return f"not a surrogate description this railsusp reads (no {exc.args[0]!r})"
+    first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+    return f"not a surrogate description this railsusp reads ({first})"

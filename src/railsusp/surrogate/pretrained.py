@@ -165,6 +165,10 @@ def read_network_set(folder: str | Path) -> NetworkSet:
     return ns
 
 
+#: what to do about a network set whose files do not read
+SET_REMEDY = "the set's files are damaged: copy the set again (a shipped set: reinstall railsusp)"
+
+
 def load_bundle(path: Path, field: str = "surrogate.pretrained") -> Any:
     """A set's bundle, or a one-line error naming ``field`` and the bundle when it cannot
     be read (truncated weights, a damaged surrogate.json): torch's own messages run over
@@ -174,7 +178,7 @@ def load_bundle(path: Path, field: str = "surrogate.pretrained") -> Any:
     from railsusp.surrogate.bundle import load
 
     try:
-        return load(path)
+        return load(path, remedy=SET_REMEDY)
     except RailsuspInputError as exc:
         raise RailsuspInputError(f"{field}: {exc}") from None
     except (OSError, ValueError, KeyError, TypeError, RuntimeError, pickle.UnpicklingError) as e:

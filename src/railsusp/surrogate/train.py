@@ -331,7 +331,7 @@ def train_network(
         ident["initial"] = _state_hash(initial)
     key = content_hash(ident)
     if checkpoint is not None and checkpoint.exists():
-        state = _read_checkpoint(checkpoint, device)
+        state = _read_checkpoint(checkpoint)  # on the CPU: the RNG state must stay there
         if state is not None and state.get("key") == key:
             net.load_state_dict(state["model"])
             opt.load_state_dict(state["optim"])
@@ -429,7 +429,7 @@ def _state_hash(state: dict[str, torch.Tensor]) -> str:
     return h.hexdigest()
 
 
-def _read_checkpoint(path: Path, device: torch.device) -> dict | None:
+def _read_checkpoint(path: Path) -> dict | None:
     """A checkpoint's state, read with ``weights_only=True`` (tensors, numbers, strings and
     containers only: no code runs). One that holds anything else, or is not a checkpoint,
     is refused with a one-line error rather than trusted or silently overwritten; one cut
@@ -438,5 +438,8 @@ def _read_checkpoint(path: Path, device: torch.device) -> dict | None:
     if torch_file_cut_short(path):
         log.warning("checkpoint %s is cut short or damaged; training starts afresh", path)
         return None
-    state = read_torch_file(path, "checkpoint", "delete it to train afresh", str(device))
+    # read onto the CPU whatever device trains: load_state_dict moves the network's and the
+    # optimiser's tensors to their parameters' device, and torch.set_rng_state takes a CPU
+    # tensor only (a checkpoint of a GPU training read onto the GPU could not resume)
+    state = read_torch_file(path, "checkpoint", "delete it to train afresh")
     return state if isinstance(state, dict) else None
