@@ -87,22 +87,28 @@ def test_simulate_tabulates_the_wheel_asked_for(tmp_path):
     from railsusp.params import ParameterSet
     from railsusp.vehicle.simulate import simulate
 
-    cond = tmp_path / "c.toml"
-    cond.write_text('[[condition]]\nname = "short"\nduration_s = 2.0\nlead_in_m = 10.0\n')
+    cond = tmp_path / "c.toml"  # named as the study's tangent, so Table 8 is beside it
+    cond.write_text('[[condition]]\nname = "straight"\nduration_s = 2.0\nlead_in_m = 10.0\n')
     out = tmp_path / "f.parquet"
-    args = ["simulate", str(cond), "--wheel", "w2R", "--out", str(out)]
-    result = runner.invoke(app, args, terminal_width=200)
-    assert result.exit_code == 0, result.output
-    row = next(line for line in result.output.splitlines() if "short" in line)
-    cells = [c.strip() for c in row.split("│") if c.strip()]
-    assert cells[:2] == ["short", "w2R"]
-    short = make_condition({"name": "short", "duration_s": 2.0, "lead_in_m": 10.0})
+
+    def row(wheel: str) -> list[str]:
+        args = ["simulate", str(cond), "--wheel", wheel, "--out", str(out)]
+        result = runner.invoke(app, args, terminal_width=200)
+        assert result.exit_code == 0, result.output
+        line = next(x for x in result.output.splitlines() if "straight" in x)
+        return [c.strip() for c in line.split("│") if c.strip()]
+
+    cells = row("w2R")
+    assert cells[:2] == ["straight", "w2R"]
+    short = make_condition({"name": "straight", "duration_s": 2.0, "lead_in_m": 10.0})
     r = simulate(ParameterSet.nominal(), short)
     assert float(cells[2]) == pytest.approx(r.statistics("w2R")["Y_mean"], abs=0.051)
     assert float(cells[2]) != pytest.approx(r.statistics("w1L")["Y_mean"], abs=0.051)
     assert pd.read_parquet(out)["Y_w2R_kN"].abs().mean() == pytest.approx(
         float(cells[2]), abs=0.051
     )
+    assert cells[6] == "-" and cells[10] == "-"  # the study's Table 8 is the leading wheel's
+    assert row("w1L")[6] == "12.5"  # the wheel Table 8 measured: beside it again
 
 
 def test_simulate_refuses_two_conditions_of_one_name_when_writing_files(tmp_path):
@@ -112,6 +118,9 @@ def test_simulate_refuses_two_conditions_of_one_name_when_writing_files(tmp_path
     result = runner.invoke(app, ["simulate", str(cond), "--out", str(tmp_path / "f.parquet")])
     assert result.exit_code == 2, result.output
     assert "conditions: a named more than once" in result.output
+    cond.write_text('[[condition]]\nname = "A"\n\n[[condition]]\nname = "a"\nseed = 2\n')
+    result = runner.invoke(app, ["simulate", str(cond), "--plot", str(tmp_path / "f.png")])
+    assert result.exit_code == 2 and "named more than once" in result.output  # one file on Windows
     assert not list(tmp_path.glob("f*"))
 
 

@@ -44,7 +44,8 @@ def _force_table(results: list, title: str, wheel: str = "auto") -> Table:
 
     for r in results:
         s = r.statistics(wheel)
-        ref = TABLE8_BEFORE.get(r.condition.name)
+        study_wheel = r.measured_wheel(wheel) == r.measured_wheel()  # Table 8's wheel
+        ref = TABLE8_BEFORE.get(r.condition.name) if study_wheel else None
         status = "ok" if r.ok[0] else r.failures()[0][1]
         table.add_row(
             r.condition.name,
@@ -116,7 +117,7 @@ def simulate(
                 raise RailsuspInputError(f"--out {out}: accepted a .parquet file")
         if plot is not None:
             check_figure_file(plot, "--plot")
-        twice = repeated([c.name for c in conds])
+        twice = repeated([c.name.lower() for c in conds])  # "A" and "a": one file on Windows
         if twice and (out is not None or plot is not None):  # one file per condition name
             raise RailsuspInputError(
                 f"conditions: {', '.join(twice)} named more than once, and --out and --plot "
