@@ -583,6 +583,12 @@ def test_loading_an_estimator_cut_short_is_refused_not_trained_again(trained, tm
     with pytest.raises(RailsuspInputError, match=r"estimator\.pt is cut short or damaged: train"):
         posterior.load(copy)
     assert len(weights.read_bytes()) == 300
+    weights.write_bytes((run / "posterior" / "estimator.pt").read_bytes())
+    chunk = sorted((copy / "posterior" / "simulations").glob("train_*"))[0]
+    chunk.write_bytes(chunk.read_bytes()[:300])  # simulated again inside load before
+    with pytest.raises(RailsuspInputError, match=f"{chunk.name} is not cached"):
+        posterior.load(copy)
+    assert len(chunk.read_bytes()) == 300
 
 
 def test_a_cached_chunk_or_estimator_cut_short_is_made_again(trained, tmp_path, monkeypatch):

@@ -203,11 +203,14 @@ def _build(settings: PosteriorSettings, u: np.ndarray, x: np.ndarray):
     return prior, builder, theta_t, x_t
 
 
-def train(settings: PosteriorSettings, run: str | Path) -> PosteriorEstimator:
+def train(
+    settings: PosteriorSettings, run: str | Path, *, simulate: bool = True
+) -> PosteriorEstimator:
     """Simulate (or read the cached) cases, train the ensemble of flows, fit the spread
     correction on the calibration cases and check the corrected estimator on the untouched
     test cases, all into ``run`` (``posterior/``); every step found finished on disk is
-    read back, not repeated."""
+    read back, not repeated. ``simulate`` False (:func:`load`): a training chunk that is not
+    on disk whole is an error, not simulated again."""
     import torch
     from sbi.inference import NPE
 
@@ -220,7 +223,9 @@ def train(settings: PosteriorSettings, run: str | Path) -> PosteriorEstimator:
                 f"{folder} holds an estimator trained with other settings; give another --out"
             )
     write_json(folder / "settings.json", {"hash": key, "settings": settings.to_dict()})
-    u, x = cached_cases(settings, folder / "simulations", "train", settings.n_train)
+    u, x = cached_cases(
+        settings, folder / "simulations", "train", settings.n_train, simulate=simulate
+    )
     prior, builder, theta_t, x_t = _build(settings, u, x)
     weights = folder / "estimator.pt"
     states = _saved_states(weights, settings.ensemble)
@@ -311,7 +316,7 @@ def load(run: str | Path) -> PosteriorEstimator:
             "(railsusp posterior train)"
         )
     settings = PosteriorSettings.from_dict(stored["settings"])
-    return train(settings, run)
+    return train(settings, run, simulate=False)  # reads the flows' scaling data only
 
 
 def estimate(est: PosteriorEstimator, recordings, seed: int = 0) -> PosteriorResult:
