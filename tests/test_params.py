@@ -126,6 +126,32 @@ def test_toml_errors_name_the_file(tmp_path):
         ParameterSet.from_toml(tmp_path / "missing.toml")
 
 
+@pytest.mark.parametrize(
+    ("text", "needle"),
+    [
+        (
+            "X13 = 16.1\nprimary_longitudinal_stiffness = 7\n",
+            "parameter 'primary_longitudinal_stiffness': X13 is given twice (also as 'X13')",
+        ),
+        ("X13 = 16.1\n[parameters]\nX13 = 8\n", "X13 beside the [parameters] table"),
+        ("[parameters]\nX13 = 8\n[parameters2]\nX14 = 8\n", "parameters2 beside the"),
+    ],
+)
+def test_a_parameter_file_that_says_two_things_is_refused(tmp_path, text, needle):
+    """parameters.md: a parameter given twice is refused. It held for --set only (stop 56's
+    audit): a file naming X13 by symbol and by name took the last, a top-level X13 beside a
+    [parameters] table (or a misspelt table) was ignored, silently."""
+    f = tmp_path / "p.toml"
+    f.write_text(text)
+    with pytest.raises(ParameterError) as info:
+        ParameterSet.from_toml(f)
+    assert str(info.value).startswith(f"{f}: ") and needle in str(info.value)
+    with pytest.raises(ParameterError, match="X14 is given twice"):
+        ParameterSet({"X14": 8.3e6, "primary_lateral_stiffness": 9e6})
+    with pytest.raises(ParameterError, match="X14 is given twice"):
+        ParameterSet().replace({"x14": 8.3, "X14": 9.0}, units="display")
+
+
 def test_replace_validates():
     p = ParameterSet.nominal().replace({"X13": 16.1}, units="display")
     assert p["X13"] == pytest.approx(16.1e6)

@@ -32,11 +32,19 @@ def _keyed(values: object) -> list[tuple[ParameterSpec, object]]:
             f"parameter values: a mapping {{symbol: value}} is needed, not "
             f"{type(values).__name__} (e.g. {{'X13': 16.1}}; text: parse_overrides)"
         )
-    out = []
+    out: list[tuple[ParameterSpec, object]] = []
+    given: dict[str, str] = {}
     for key, value in values.items():
         if not isinstance(key, str):
             raise ParameterError(f"parameter {key!r}: a symbol or name (a string) is needed")
-        out.append((spec(key), value))
+        s = spec(key)
+        if s.symbol in given:  # X13 and primary_longitudinal_stiffness: which one holds?
+            raise ParameterError(
+                f"parameter {key!r}: {s.symbol} is given twice (also as {given[s.symbol]!r}); "
+                "give each parameter once"
+            )
+        given[s.symbol] = key
+        out.append((s, value))
     return out
 
 
@@ -135,6 +143,12 @@ class ParameterSet(Mapping[str, float]):
         table = doc.get("parameters", doc)
         if not isinstance(table, dict):
             raise ParameterError(f"{where}: [parameters] must be a table of name = value")
+        beside = [k for k in doc if k != "parameters"] if table is not doc else []
+        if beside:  # ignored before: a value at the top or in a misspelt table was lost
+            raise ParameterError(
+                f"{where}: {', '.join(beside)} beside the [parameters] table; accepted the "
+                "values at the top level or in [parameters], not both"
+            )
         for key, value in table.items():  # as strictly as the other files: "16.1" is a slip
             if isinstance(value, str):
                 raise ParameterError(
