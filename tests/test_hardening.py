@@ -215,6 +215,28 @@ def test_train_refuses_settings_that_train_nothing(tmp_path):
     one_line_error(["compare", tmp_path, "--epochs", "0"], "epochs = 0")
 
 
+def test_a_window_longer_than_the_series_and_an_early_stop_are_said(short, tmp_path):
+    """The second audit of stop 56: --window at least the series' length trained into
+    numpy's "high <= 0" (and the progress bar's line after it); --max-batches stopped a
+    campaign with "campaign stored" and "0 of 4 simulations failed" of the 2 that ran."""
+    res = runner.invoke(app, ["campaign", "--conditions", str(short), "--samples", "4",
+                              "--batch-size", "2", "--parameters", "X13", "--out",
+                              str(tmp_path / "r"), "--max-batches", "1"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert "stopped by --max-batches 1: " in res.output and "(1 of 2 batches)" in res.output
+    assert "campaign stored" not in res.output and "0 of 2 simulations failed" in res.output
+    res = runner.invoke(app, ["campaign", "--conditions", str(short), "--samples", "4",
+                              "--batch-size", "2", "--parameters", "X13", "--out",
+                              str(tmp_path / "r")])  # fmt: skip
+    assert res.exit_code == 0 and "campaign stored in" in res.output, res.output
+    n_steps = load_conditions(short)[0].n_steps
+    needle = f"window = {n_steps} steps: accepted 2 to {n_steps - 1}, fewer"
+    error = one_line_error(["train", tmp_path / "r", "--model", "bp", "--window", n_steps], needle)
+    res = runner.invoke(app, ["train", str(tmp_path / "r"), "--model", "bp", "--window",
+                              str(n_steps)])  # fmt: skip
+    assert res.output.strip().splitlines()[-1] == error  # no progress bar after it
+
+
 def test_training_on_an_incomplete_campaign_is_refused(short, tmp_path):
     from railsusp.campaign import make_config, run_campaign
 

@@ -186,10 +186,29 @@ def campaign(
                 progress=progress,
                 max_batches=max_batches,
             )
+            error = None
         except RailsuspInputError as exc:
-            fail(str(exc))
-    console.print(f"campaign stored in {out}")
+            error = str(exc)
+            bar.update(task, visible=False)  # the error is the last line, not the bar
+    if error is not None:
+        fail(error)
+    _say_stored(out, max_batches)
     _report_failures(out, total)
+
+
+def _say_stored(out: Path, max_batches: int | None) -> None:
+    """Where the campaign is, and, when --max-batches stopped it early, that it is not
+    whole and how to finish it (the counts below are then of the batches that ran)."""
+    from railsusp.campaign import load_campaign, require_complete
+
+    try:
+        require_complete(load_campaign(out))
+    except RailsuspInputError as exc:
+        if max_batches is not None:
+            console.print(f"stopped by --max-batches {max_batches}: {exc}", highlight=False)
+            return
+        raise
+    console.print(f"campaign stored in {out}")
 
 
 def _variation(
@@ -227,10 +246,12 @@ def _variation(
 
 def _report_failures(out: Path, total: int) -> None:
     """Print how many simulations failed; exit with status 1 when any did."""
-    from railsusp.campaign import failed_runs
+    from railsusp.campaign import Campaign, failed_runs
 
     try:
         failed = failed_runs(out)
+        feats = Campaign(out).features()  # of the batches that ran
+        total = min(total, feats.groupby(["condition", "sample_id"]).ngroups)
     except RailsuspInputError:  # no finished batch yet (--max-batches 0)
         return
     if failed.empty:

@@ -158,8 +158,12 @@ def train(
                     progress=_epoch_reporter(bar, task),
                     record_correction=record_correction,
                 )
+                error = None
             except (RailsuspInputError, ValueError) as exc:
-                fail(str(exc))
+                error = str(exc)
+                bar.update(task, visible=False)  # the error is the last line, not the bar
+        if error is not None:
+            fail(error)
         data = load_series(camp, cond, sur.spec)
         test = data.subset(np.flatnonzero(np.isin(data.sample_ids, sur.meta["test_ids"])))
         pred, raw = predict_with_alone(sur, test)

@@ -27,7 +27,13 @@ from railsusp.surrogate.data import (
     load_series,
 )
 from railsusp.surrogate.evaluate import evaluate
-from railsusp.surrogate.models import KINDS, NetConfig, build_network, default_window
+from railsusp.surrogate.models import (
+    KINDS,
+    SEQUENCE_KINDS,
+    NetConfig,
+    build_network,
+    default_window,
+)
 from railsusp.surrogate.pairs import TwinRuns, load_twins
 from railsusp.surrogate.refit import fit_record_correction
 from railsusp.surrogate.split import Split, campaign_split
@@ -275,6 +281,12 @@ def train_surrogate(
         check_source_inputs(start, init_from, spec, condition, camp.config.wagon)
         spec = start.spec
     data = load_series(camp, condition, spec)
+    n_steps = data.targets.shape[1]
+    if kind not in SEQUENCE_KINDS and window >= n_steps:  # no window would fit a series
+        raise RailsuspInputError(
+            f"window = {window} steps: accepted 2 to {n_steps - 1}, fewer than the "
+            f"{n_steps} steps of the series of condition {condition!r}"
+        )
     split = campaign_split(camp, split_seed)
     tr_i, va_i = split.positions(data.sample_ids, "train"), split.positions(data.sample_ids, "val")
     if len(tr_i) == 0 or len(va_i) == 0:
