@@ -122,3 +122,20 @@ def test_join_two_estimators_of_different_conditions_and_estimate(tmp_path, monk
     result = runner.invoke(app, ["posterior", "join", "--estimators", both, "--out",
                                  str(tmp_path / "uphill")])  # fmt: skip
     assert result.exit_code == 2 and "an estimator's folder" in result.output
+
+
+def test_a_joint_check_of_widened_draws_says_widened(capsys):
+    """The second audit of stop 56: `posterior join` printed "widened by up to 1.70" and
+    then "no widening: passed" for the same draws; the line said "no widening" always."""
+    from railsusp.cli import posterior as cli_posterior
+    from railsusp.estimate.calibration import ParameterCalibration
+    from railsusp.estimate.posterior_synthetic_run import SectionsCheck
+
+    check = ParameterCalibration("X14", 20, 0.9, 0.5, 0.5, True)
+    checks = [SectionsCheck(1, (check,), {"X14": 10.0}), SectionsCheck(4, (check,), {})]
+    cli_posterior._print_checks(checks, widened=lambda k: k == 1)
+    out = capsys.readouterr().out.splitlines()
+    assert out == [
+        "1 section(s): coverage 0.90-0.90 on 20 cases, widened: passed",
+        "4 section(s): coverage 0.90-0.90 on 20 cases, no widening: passed",
+    ]

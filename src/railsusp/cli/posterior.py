@@ -29,13 +29,15 @@ _OPTIONS = {"section_s": "--section", "n_train": "--simulations", "n_check": "--
             "samples": "--samples"}  # fmt: skip
 
 
-def _print_checks(checks, label: str = "") -> None:
-    """One line per checked number of sections: the coverage range and the verdict."""
+def _print_checks(checks, label: str = "", widened=lambda sections: False) -> None:
+    """One line per checked number of sections: the coverage range, whether the draws
+    checked were widened (``widened(sections)``) and the verdict."""
     for c in checks:
         cov = [p.coverage for p in c.checks]
+        how = "widened" if widened(c.sections) else "no widening"
         console.print(
             f"{label}{c.sections} section(s): coverage {min(cov):.2f}-{max(cov):.2f} on "
-            f"{c.checks[0].n} cases, no widening: " + ("passed" if c.passed else "FAILED")
+            f"{c.checks[0].n} cases, {how}: " + ("passed" if c.passed else "FAILED")
         )
 
 
@@ -363,7 +365,7 @@ def join_command(
             f"{k} section(s): widened by up to {c.factors[most]:.2f} ({c.parameters[most]}), "
             f"fitted on {c.n} calibration records"
         )
-    _print_checks(joint.checks)
+    _print_checks(joint.checks, widened=lambda k: joint.correction_for(k) is not None)
     if not all(c.passed for c in joint.checks):
         err_console.print(
             "warning: the joint posterior FAILED its coverage check (intervals too narrow); "
