@@ -194,6 +194,12 @@ def test_statistics_surrogate_round_trip_and_calibration(tmp_path):
     before = StatisticsSurrogate(gp, COND).predict(probe)[0]
     after = forces.predict_statistics(probe, COND, ("mean", "std"))
     np.testing.assert_allclose(after, before, rtol=1e-6)
+    # the folder or its statistics.json, as docs/surrogates.md names it (the file was "no
+    # statistics.json" before stop 56)
+    from railsusp.surrogate.statistics import FILE, load_statistics
+
+    for where in (tmp_path / "gp" / COND.name, tmp_path / "gp" / COND.name / FILE):
+        np.testing.assert_allclose(load_statistics(where).predict(probe)[0], before, rtol=1e-6)
     exact = force_statistics(model, probe, COND, ("mean", "std"))
     np.testing.assert_allclose(after, exact, rtol=0.02, atol=0.05)
     with pytest.raises(ValueError, match="not in this surrogate"):

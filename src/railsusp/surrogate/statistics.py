@@ -96,8 +96,10 @@ def is_statistics_bundle(path: str | Path) -> bool:
 
 
 def load_statistics(path: str | Path) -> StatisticsSurrogate:
-    """Load a saved statistics surrogate folder; predictions equal the saved model's."""
-    p = Path(path) / FILE
+    """Load a saved statistics surrogate (its folder, or the folder's ``statistics.json``);
+    predictions equal the saved model's."""
+    path = Path(path)
+    p = path if path.name == FILE and path.is_file() else path / FILE
     if not p.exists():
         raise FileNotFoundError(f"{path} holds no statistics surrogate (no {FILE})")
     doc = json.loads(p.read_text("utf-8"))
