@@ -203,6 +203,8 @@ def test_range_and_prior_parsing():
     assert parse_priors("X19=20000:40000") == {"X19": pytest.approx((20e6, 40e6))}
     with pytest.raises(RailsuspInputError, match="SYMBOL=LO:HI"):
         parse_priors("X19")
+    with pytest.raises(RailsuspInputError, match="X19 is given twice"):  # the last won
+        parse_priors("X19=20000:40000,cross_brace_node_stiffness=20000:30000")
     others = full_ranges(KEYS, {"X19": X19})
     assert set(others) == {"X11", "X12", "X16", "X17", "X18", "X19", "X20"}
     assert others["X19"] == X19 and others["X20"] == spec("X20").bounds

@@ -72,9 +72,14 @@ def test_a_second_emulator_without_a_projection_is_one_line_exit_2(tmp_path):
     args += ["--statistics-emulator-cases", "100", "--long-record", "synthetic-likelihood"]
     result = runner.invoke(app, args)
     assert result.exit_code == 2, result.output
-    assert "--statistics-emulator-cases 100 conflicts with statistics = en14363" in result.output
+    assert "--statistics-emulator-cases 100 conflicts with --statistics en14363" in result.output
     assert len(result.output.strip().splitlines()) == 1
     assert not (tmp_path / "run" / "posterior").exists()
+    # every field the message names is the option the user typed (n_train was named before)
+    args += ["--statistics", "all", "--statistics-emulator-cases", "10"]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2, result.output
+    assert "or 20 to the training cases, --simulations 2000" in result.output
 
 
 def test_join_two_estimators_of_different_conditions_and_estimate(tmp_path, monkeypatch):

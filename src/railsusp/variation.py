@@ -251,6 +251,8 @@ def parse_priors(text: str, option: str = "--prior") -> dict[str, tuple[float, f
                 f"{option} {item!r}: accepted SYMBOL=LO:HI in display units (e.g. X19=20000:40000)"
             )
         ps = spec(name.strip())
+        if ps.symbol in out:  # the last one would win, silently
+            raise RailsuspInputError(f"{option} {text}: {ps.symbol} is given twice")
         lo, hi = parse_range(rng, f"{option} {ps.symbol}")
         out[ps.symbol] = (lo * ps.scale, hi * ps.scale)
     return out

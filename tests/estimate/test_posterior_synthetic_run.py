@@ -218,7 +218,7 @@ def test_the_projected_combinations_get_an_emulator_of_their_own_on_every_case(t
     [
         ({"statistics_emulator_cases": 100}, "conflicts with statistics = en14363"),
         ({"statistics": ("coherence",), "statistics_emulator_cases": 301},
-         r"statistics_emulator_cases = 301: accepted 0 .* or 20 to n_train \(300\)"),
+         r"statistics_emulator_cases = 301: accepted 0 .* training cases, n_train = 300"),
     ],
 )  # fmt: skip
 def test_statistics_emulator_cases_that_cannot_work_are_refused(changes, message):

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated
 
@@ -237,9 +238,8 @@ def train_command(
             synthetic = posterior_synthetic_run.train(settings, out)
     except RailsuspInputError as exc:
         message = str(exc)
-        for field, option in _OPTIONS.items():  # the option the user typed, not the field
-            if message.startswith(f"{field} = "):
-                message = option + " " + message.removeprefix(f"{field} = ")
+        for field, option in _OPTIONS.items():  # the options the user typed, not the fields
+            message = re.sub(rf"(?<![\w-]){field} = ", f"{option} ", message)
         fail(message)
     if not is_quiet():
         _calibration_table(est)

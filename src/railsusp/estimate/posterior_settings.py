@@ -200,7 +200,7 @@ def _check_statistics_emulator(cases: int, n_train: int, families: tuple[str, ..
     if cases and not 20 <= cases <= n_train:
         raise RailsuspInputError(
             f"statistics_emulator_cases = {cases}: accepted 0 (one emulator of all "
-            f"statistics) or 20 to n_train ({n_train})"
+            f"statistics) or 20 to the training cases, n_train = {n_train}"
         )
 
 
