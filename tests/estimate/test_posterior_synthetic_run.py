@@ -237,3 +237,30 @@ def test_one_emulator_keeps_the_settings_and_hash_of_before():
     assert "statistics_emulator_cases" not in s.to_dict()
     two = replace(s, statistics_emulator_cases=100)
     assert PosteriorSettings.from_dict(two.to_dict()) == two
+
+
+def test_a_degenerate_scatter_scale_is_said(run, tmp_path, monkeypatch):
+    """Stop 56's audit: on 2 s sections the sections' scatter came out 8e21 times the
+    emulator's, in the log alone. A scale beyond WITHIN_SCALE_WARN is now a warning naming
+    the likely cause; an ordinary one is not."""
+    import shutil
+    import warnings
+
+    from railsusp.estimate import posterior_synthetic_fit as fit
+
+    s = _settings()
+    for scale, warned in ((None, False), (1e6, True)):
+        copy = tmp_path / f"run{warned}"
+        shutil.copytree(run, copy)
+        for name in ("scales.json", "check.json"):
+            (copy / "posterior" / "synthetic" / name).unlink(missing_ok=True)
+        if scale is not None:
+            monkeypatch.setattr(fit, "fit_scales", lambda sl, u, x: (scale, 0.0))
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            synthetic.train(s, copy)
+        said = [w for w in seen if "scatter" in str(w.message)]
+        assert bool(said) == warned, [str(w.message) for w in seen]
+        if warned:
+            assert "1e+06 times as much as the emulator expects" in str(said[0].message)
+            assert "longer than the 5 s section" in str(said[0].message)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import io
 import logging
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -110,6 +111,11 @@ def fit_projection(settings: PosteriorSettings, emulator: StatisticsEmulator, ru
     return {"matrix": matrix, "kept": kept, "stamp": stamp}
 
 
+#: a scale of the sections' scatter beyond this is a degenerate fit, said as a warning (on
+#: 2 s sections, the 0.3-1.5 Hz band's statistics: a scale of about 8e21, stop 56's audit)
+WITHIN_SCALE_WARN = 100.0
+
+
 def scale_set(settings: PosteriorSettings) -> tuple[str, int, int] | None:
     """(kind, records, sections) the scales are fitted on: the fusion's calibration
     records (``long-calibration``) of the longest checked number of sections; None
@@ -158,6 +164,15 @@ def fit_covariance_scales(
         log.info("synthetic likelihood: sections' scatter x %.2f, model error %.4f of it "
                  "(isotropic), per direction %.4f to %.4f (shrinkage %.2f)", within, model,
                  *np.linalg.eigvalsh(matrix)[[0, -1]], rho)  # fmt: skip
+        if within > WITHIN_SCALE_WARN:
+            warnings.warn(
+                f"synthetic likelihood: the sections scatter {within:.3g} times as much as "
+                "the emulator expects, so some statistic hardly varies between its training "
+                f"cases (a frequency band longer than the {settings.section_s:g} s section?); "
+                "the check below says whether the posterior holds; a longer --section helps",
+                UserWarning,
+                stacklevel=2,
+            )
     write_json(path, record)
     return record
 
