@@ -255,7 +255,7 @@ def test_a_degenerate_scatter_scale_is_said(run, tmp_path, monkeypatch):
         for name in ("scales.json", "check.json"):
             (copy / "posterior" / "synthetic" / name).unlink(missing_ok=True)
         if scale is not None:
-            monkeypatch.setattr(fit, "fit_scales", lambda sl, u, x: (scale, 0.0))
+            monkeypatch.setattr(fit, "fit_scales", lambda sl, u, x, c=scale: (c, 0.0))
         with warnings.catch_warnings(record=True) as seen:
             warnings.simplefilter("always")
             synthetic.train(s, copy)
