@@ -233,3 +233,15 @@ def test_a_batch_file_cut_short_is_simulated_again(full_run, tmp_path, which):
     np.testing.assert_array_equal(
         load_campaign(copy).series("curve")[1], load_campaign(out).series("curve")[1]
     )
+
+
+def test_condition_names_equal_but_for_case_are_refused():
+    """Their batches go to batches/A and batches/a: one folder on a case-blind disk, so one
+    condition's batches would count as the other's (stop 56's review)."""
+    from railsusp.campaign import CampaignError, make_config
+    from railsusp.conditions import get_condition
+
+    straight = get_condition("straight")
+    conds = [straight.with_changes(name="A"), straight.with_changes(name="a", seed=4)]
+    with pytest.raises(CampaignError, match=r"condition names repeat \(A, a, case ignored\)"):
+        make_config(conds, 4, parameters=("X13",))

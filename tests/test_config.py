@@ -53,6 +53,10 @@ def _write(tmp_path, text: str):
             BASE.replace("conditions = [", 'conditions = ["straight", "straight", '),
             "names repeat (straight)",
         ),
+        (  # one batch folder on a case-blind disk (Windows, macOS): stop 56's review
+            BASE.replace("conditions = [", 'conditions = [{base="straight", name="SHORT"}, '),
+            "names repeat (SHORT, short)",
+        ),
         (BASE.replace("lead_in_m=20.0", "speed_kmh=true"), "a boolean is not accepted"),
         (BASE.replace("X13", "campaign.parameters") + "", "field.truth"),
         (BASE + 'wagon = "nowhere.toml"\n', "field.wagon"),  # after a table: nested

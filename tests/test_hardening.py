@@ -224,13 +224,14 @@ def test_a_window_longer_than_the_series_and_an_early_stop_are_said(short, tmp_p
                               str(tmp_path / "r"), "--max-batches", "1"])  # fmt: skip
     assert res.exit_code == 0, res.output
     assert "stopped by --max-batches 1: " in res.output and "(1 of 2 batches)" in res.output
+    assert "run the same command without --max-batches" in res.output
     assert "campaign stored" not in res.output and "0 of 2 simulations failed" in res.output
     res = runner.invoke(app, ["campaign", "--conditions", str(short), "--samples", "4",
                               "--batch-size", "2", "--parameters", "X13", "--out",
                               str(tmp_path / "r")])  # fmt: skip
     assert res.exit_code == 0 and "campaign stored in" in res.output, res.output
     n_steps = load_conditions(short)[0].n_steps
-    needle = f"window = {n_steps} steps: accepted 2 to {n_steps - 1}, fewer"
+    needle = f"--window {n_steps} steps: accepted 2 to {n_steps - 1}, fewer"
     error = one_line_error(["train", tmp_path / "r", "--model", "bp", "--window", n_steps], needle)
     res = runner.invoke(app, ["train", str(tmp_path / "r"), "--model", "bp", "--window",
                               str(n_steps)])  # fmt: skip

@@ -31,7 +31,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from railsusp.errors import RailsuspInputError, repeated
+from railsusp.errors import RailsuspInputError, repeated_names
 
 #: the statistics a sensitivity analysis can rank on (campaign features)
 SENSITIVITY_STATISTICS = ("mean", "rms", "p99", "max")
@@ -115,7 +115,7 @@ def check_config(cfg: Any, where: str = "configuration", *, from_file: bool = Fa
     if not conds:
         raise bad("conditions: at least one condition is needed")
     names = [c.name for c in conds]
-    dupes = repeated(names)
+    dupes = repeated_names(names)  # case ignored: folder names on a case-blind disk
     if dupes:
         raise bad(f"conditions: names repeat ({', '.join(dupes)}); give each a distinct name")
     for c in conds:  # read only in the campaign stage: a missing file would stop it there

@@ -33,3 +33,11 @@ def repeated(items: Sequence[object]) -> list[str]:
     """The items that ``items`` holds more than once, as sorted text for a message
     (``"X13, X14"``): a name given twice would overwrite or weigh double."""
     return sorted({str(x) for x in items if items.count(x) > 1})
+
+
+def repeated_names(names: Sequence[str]) -> list[str]:
+    """The names of ``names`` that another one equals when case is ignored, as given
+    (``["A", "a"]``): condition names become file and folder names, which are one on a
+    case-blind disk (Windows, macOS)."""
+    folded = [n.casefold() for n in names]
+    return sorted({n for n, f in zip(names, folded, strict=True) if folded.count(f) > 1})

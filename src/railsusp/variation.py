@@ -252,7 +252,9 @@ def parse_priors(text: str, option: str = "--prior") -> dict[str, tuple[float, f
             )
         ps = spec(name.strip())
         if ps.symbol in out:  # the last one would win, silently
-            raise RailsuspInputError(f"{option} {text}: {ps.symbol} is given twice")
+            raise RailsuspInputError(
+                f"{option} {text}: {ps.symbol} is given twice; accepted each parameter once"
+            )
         lo, hi = parse_range(rng, f"{option} {ps.symbol}")
         out[ps.symbol] = (lo * ps.scale, hi * ps.scale)
     return out

@@ -242,25 +242,27 @@ def test_one_emulator_keeps_the_settings_and_hash_of_before():
 def test_a_degenerate_scatter_scale_is_said(run, tmp_path, monkeypatch):
     """Stop 56's audit: on 2 s sections the sections' scatter came out 8e21 times the
     emulator's, in the log alone. A scale beyond WITHIN_SCALE_WARN is now a warning naming
-    the likely cause; an ordinary one is not."""
+    the likely cause; the fitted, ordinary one is not."""
     import shutil
     import warnings
 
     from railsusp.estimate import posterior_synthetic_fit as fit
 
     s = _settings()
+    sl = synthetic.train(s, run).likelihood  # read back where an earlier test trained it
+    where = fit.scale_set(s)
     for scale, warned in ((None, False), (1e6, True)):
         copy = tmp_path / f"run{warned}"
-        shutil.copytree(run, copy)
-        for name in ("scales.json", "check.json"):
-            (copy / "posterior" / "synthetic" / name).unlink(missing_ok=True)
+        shutil.copytree(run / "posterior", copy / "posterior")
+        (copy / "posterior" / "synthetic" / "scales.json").unlink()
         if scale is not None:
             monkeypatch.setattr(fit, "fit_scales", lambda sl, u, x, c=scale: (c, 0.0))
         with warnings.catch_warnings(record=True) as seen:
             warnings.simplefilter("always")
-            synthetic.train(s, copy)
+            record = fit.fit_covariance_scales(s, sl, copy, where)
         said = [w for w in seen if "scatter" in str(w.message)]
         assert bool(said) == warned, [str(w.message) for w in seen]
+        assert (record["within_scale"] == scale) if warned else record["within_scale"] < 10
         if warned:
             assert "1e+06 times as much as the emulator expects" in str(said[0].message)
             assert "longer than the 5 s section" in str(said[0].message)

@@ -22,7 +22,7 @@ from pydantic import (
 from scipy.stats import qmc
 
 from railsusp.conditions import WorkingCondition
-from railsusp.errors import RailsuspInputError
+from railsusp.errors import RailsuspInputError, repeated_names
 from railsusp.params import MAIN_SUSPENSION, bounds, spec
 from railsusp.store import (
     content_hash,
@@ -105,8 +105,11 @@ class CampaignConfig(BaseModel):
         if self.design == "sobol" and self.samples & (self.samples - 1):
             raise ValueError(f"a Sobol/Saltelli design needs N a power of two, got {self.samples}")
         names = [c.name for c in self.conditions]
-        if len(set(names)) != len(names):
-            raise ValueError(f"condition names repeat: {names}")
+        if repeated_names(names):  # one batch folder each, even on a case-blind disk
+            raise ValueError(
+                f"condition names repeat ({', '.join(repeated_names(names))}, case ignored): "
+                f"{names}"
+            )
         if self.wheel != "auto" and self.wheel not in WHEEL_NAMES:
             raise ValueError(f"wheel {self.wheel!r}: accepted auto or {', '.join(WHEEL_NAMES)}")
         fam = self.track_family

@@ -204,8 +204,14 @@ def _say_stored(out: Path, max_batches: int | None) -> None:
     try:
         require_complete(load_campaign(out))
     except RailsuspInputError as exc:
-        if max_batches is not None:
-            console.print(f"stopped by --max-batches {max_batches}: {exc}", highlight=False)
+        if max_batches is not None:  # the same command would stop early again
+            again = str(exc).replace(
+                "run the same `railsusp campaign` command again",
+                "run the same command without --max-batches",
+            )
+            console.print(
+                f"stopped by --max-batches {max_batches}: {again}", highlight=False, soft_wrap=True
+            )
             return
         raise
     console.print(f"campaign stored in {out}")

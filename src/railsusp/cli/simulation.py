@@ -11,7 +11,7 @@ from rich.table import Table
 from railsusp._version import __version__
 from railsusp.cli.common import app, console, err_console, fail
 from railsusp.conditions import resolve_conditions
-from railsusp.errors import RailsuspInputError, repeated
+from railsusp.errors import RailsuspInputError, repeated_names
 from railsusp.params import ParameterSet, parse_overrides
 from railsusp.store import check_figure_file, check_output_file
 from railsusp.study import TABLE8_BEFORE
@@ -117,7 +117,7 @@ def simulate(
                 raise RailsuspInputError(f"--out {out}: accepted a .parquet file")
         if plot is not None:
             check_figure_file(plot, "--plot")
-        twice = repeated([c.name.lower() for c in conds])  # "A" and "a": one file on Windows
+        twice = repeated_names([c.name for c in conds])  # "A" and "a": one file on Windows
         if twice and (out is not None or plot is not None):  # one file per condition name
             raise RailsuspInputError(
                 f"conditions: {', '.join(twice)} named more than once, and --out and --plot "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated
 
@@ -160,7 +161,7 @@ def train(
                 )
                 error = None
             except (RailsuspInputError, ValueError) as exc:
-                error = str(exc)
+                error = re.sub(r"^window = ", "--window ", str(exc))  # the option typed
                 bar.update(task, visible=False)  # the error is the last line, not the bar
         if error is not None:
             fail(error)

@@ -12,7 +12,7 @@ import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
 from railsusp.conditions import WorkingCondition
-from railsusp.errors import RailsuspInputError, repeated
+from railsusp.errors import RailsuspInputError, repeated_names
 from railsusp.measured.recording import FORMAT, Recording, SimulationFailedError
 from railsusp.params import ParameterSet
 from railsusp.store import atomic_folder, read_json, write_json
@@ -139,7 +139,7 @@ def synthesise_field(
     if not conditions:
         raise RailsuspInputError("conditions: none given, accepted at least one")
     named = [c.name for c in conditions]
-    twice = repeated(named)
+    twice = repeated_names(named)
     if twice:  # each recording is written under its condition's name
         raise RailsuspInputError(
             f"conditions: {', '.join(twice)} named more than once; accepted distinct names"
