@@ -12,7 +12,6 @@ Other files (figures, HTML, Markdown) are not checked: nothing in railsusp reads
 from __future__ import annotations
 
 import csv
-import json
 import re
 import zipfile
 from collections.abc import Iterable
@@ -20,7 +19,7 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 from railsusp.errors import RailsuspInputError
-from railsusp.store import parquet_readable
+from railsusp.store import parquet_readable, read_json
 
 #: suffixes whose files are zip archives: PyTorch's ``torch.save`` and NumPy's ``savez``
 ZIP_SUFFIXES = (".pt", ".npz")
@@ -75,15 +74,6 @@ def _csv_readable(path: Path) -> bool:
     return not _last_line_short(tail, _cells(header))
 
 
-def _json_readable(path: Path) -> bool:
-    """A JSON document (a byte-order mark, as Windows editors write, allowed)."""
-    try:
-        json.loads(path.read_bytes().decode("utf-8-sig"))
-    except (UnicodeDecodeError, ValueError, RecursionError):  # (nesting deeper than Python's)
-        return False
-    return True
-
-
 def zip_readable(path: Path) -> bool:
     """The zip's central directory reads and every member's CRC checks (a compressed
     member that does not inflate counts as damaged, whatever zlib raises)."""
@@ -94,11 +84,17 @@ def zip_readable(path: Path) -> bool:
         return False
 
 
+class TorchFileCutShort(RailsuspInputError):
+    """A ``torch.save`` file cut short or damaged (:func:`torch_file_cut_short`): nothing in
+    it to trust, so a caller that can make it again catches this and does."""
+
+
 def torch_file_cut_short(path: Path) -> bool:
     """A file too short to be a zip's first header (``torch.save``'s format), one that
     starts with zeros (what a crash can leave of a file being written), or a zip whose
     directory or checksums do not read: a copy interrupted or a full disk, nothing in it to
-    trust. A file of another format is not "cut short": :func:`read_torch_file` refuses it."""
+    trust. A file of another format is not "cut short": :func:`read_torch_file` refuses it
+    otherwise."""
     with Path(path).open("rb") as f:
         head = f.read(4)
     if len(head) < 4 or head == b"\0\0\0\0":  # empty, or the zeros a crash leaves
@@ -110,12 +106,12 @@ def read_torch_file(path: Path, what: str, remedy: str, map_location: str = "cpu
     """What ``torch.save`` wrote to ``path``, read with ``weights_only=True`` (tensors,
     numbers, strings and containers: no code runs). Anything else (a file cut short, a
     pickle that would run code, another format) is refused with one line naming ``what``
-    and the ``remedy``, never trusted and never a traceback. Callers that can do without
-    the file ask :func:`torch_file_cut_short` first and make it again instead."""
+    and the ``remedy``, never trusted and never a traceback. A file cut short raises
+    :class:`TorchFileCutShort`, which callers that can make the file again catch."""
     import torch
 
     if torch_file_cut_short(path):
-        raise RailsuspInputError(
+        raise TorchFileCutShort(
             f"{what} {path} is cut short or damaged (its zip does not read); {remedy}"
         )
     try:
@@ -156,12 +152,12 @@ def file_readable(path: str | Path) -> bool:
         if suffix == ".parquet":
             return parquet_readable(path)
         if suffix == ".json":
-            return _json_readable(path)
-        if suffix == ".csv":
+            read_json(path)  # a BOM allowed; nesting deeper than Python's is damage
+        elif suffix == ".csv":
             return _csv_readable(path)
-        if suffix in ZIP_SUFFIXES:
+        elif suffix in ZIP_SUFFIXES:
             return zip_readable(path)
-    except OSError:
+    except (OSError, RailsuspInputError):
         return False
     return True
 

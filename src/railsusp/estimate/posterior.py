@@ -50,7 +50,7 @@ from railsusp.estimate.posterior_data import cached_cases, recording_summaries, 
 from railsusp.estimate.posterior_fusion import from_logit, fused_samples, logistic_prior, to_logit
 from railsusp.estimate.posterior_result import PosteriorResult
 from railsusp.estimate.posterior_settings import PosteriorSettings
-from railsusp.integrity import read_torch_file, torch_file_cut_short
+from railsusp.integrity import TorchFileCutShort, read_torch_file
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import atomic_write_bytes, content_hash, read_json, write_json
 
@@ -228,7 +228,7 @@ def train(
     )
     prior, builder, theta_t, x_t = _build(settings, u, x)
     weights = folder / "estimator.pt"
-    states = _saved_states(weights, settings.ensemble)
+    states = _saved_states(weights, settings.ensemble, remake=simulate)
     if states is not None:
         nets = []
         for state in states:
@@ -269,20 +269,25 @@ def train(
     return est
 
 
-def _saved_states(weights: Path, ensemble: int) -> list | None:
-    """The flows' saved states, or None where there are none or the file is cut short (a
-    copy interrupted or a full disk: trained again rather than a traceback; the weights are
-    written atomically, so a killed training never leaves such a file). A file that reads
-    but is not a list of states (a pickle that would run code, another program's file) is
-    refused in one line, as the surrogates' checkpoints are
-    (:func:`railsusp.integrity.read_torch_file`)."""
+def _saved_states(weights: Path, ensemble: int, remake: bool = True) -> list | None:
+    """The flows' saved states, or None where there are none or, with ``remake``, the file
+    is cut short (a copy interrupted or a full disk: trained again rather than a traceback;
+    the weights are written atomically, so a killed training never leaves such a file;
+    without ``remake``, :func:`load`'s, it is refused). A file that reads but is not a list
+    of states (a pickle that would run code, another program's file) is refused in one
+    line, as the surrogates' checkpoints are (:func:`railsusp.integrity.read_torch_file`)."""
     if not weights.is_file():
         return None
-    if torch_file_cut_short(weights):
+    remedy = "delete it to train again (railsusp posterior train)"
+    try:
+        states = read_torch_file(weights, "posterior estimator", remedy)
+    except TorchFileCutShort:
+        if not remake:
+            raise RailsuspInputError(
+                f"{weights} is cut short or damaged: train again (railsusp posterior train)"
+            ) from None
         log.warning("posterior: %s is cut short or damaged; training again", weights.name)
         return None
-    remedy = "delete it to train again (railsusp posterior train)"
-    states = read_torch_file(weights, "posterior estimator", remedy)
     if not isinstance(states, list) or not all(isinstance(x, dict) for x in states):
         raise RailsuspInputError(
             f"posterior estimator {weights} refused: not a list of the flows' states; {remedy}"
@@ -310,13 +315,8 @@ def load(run: str | Path) -> PosteriorEstimator:
             f"{folder / 'settings.json'} holds no estimator settings: train again "
             "(railsusp posterior train)"
         )
-    if torch_file_cut_short(folder / "estimator.pt"):  # train() would train it again
-        raise RailsuspInputError(
-            f"{folder / 'estimator.pt'} is cut short or damaged: train again "
-            "(railsusp posterior train)"
-        )
     settings = PosteriorSettings.from_dict(stored["settings"])
-    return train(settings, run, simulate=False)  # reads the flows' scaling data only
+    return train(settings, run, simulate=False)  # reads; a file cut short is refused
 
 
 def estimate(est: PosteriorEstimator, recordings, seed: int = 0) -> PosteriorResult:

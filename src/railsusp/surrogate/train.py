@@ -30,7 +30,7 @@ import torch
 from torch import nn
 
 from railsusp.errors import RailsuspInputError
-from railsusp.integrity import read_torch_file, torch_file_cut_short
+from railsusp.integrity import TorchFileCutShort, read_torch_file
 from railsusp.store import atomic_write_bytes, content_hash
 from railsusp.surrogate.chunks import ChunkSampler
 from railsusp.surrogate.data import Normaliser, SeriesData, gather_windows, window_index
@@ -435,11 +435,12 @@ def _read_checkpoint(path: Path) -> dict | None:
     is refused with a one-line error rather than trusted or silently overwritten; one cut
     short (its zip does not read: a copy interrupted, a full disk) holds nothing to trust
     and is trained past, from the start."""
-    if torch_file_cut_short(path):
-        log.warning("checkpoint %s is cut short or damaged; training starts afresh", path)
-        return None
     # read onto the CPU whatever device trains: load_state_dict moves the network's and the
     # optimiser's tensors to their parameters' device, and torch.set_rng_state takes a CPU
     # tensor only (a checkpoint of a GPU training read onto the GPU could not resume)
-    state = read_torch_file(path, "checkpoint", "delete it to train afresh")
+    try:
+        state = read_torch_file(path, "checkpoint", "delete it to train afresh")
+    except TorchFileCutShort:
+        log.warning("checkpoint %s is cut short or damaged; training starts afresh", path)
+        return None
     return state if isinstance(state, dict) else None
