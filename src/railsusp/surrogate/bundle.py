@@ -396,11 +396,23 @@ def load(path: str | Path, remedy: str = "train the surrogate again") -> Surroga
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         found = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
         raise RailsuspInputError(f"{meta_path}: unknown surrogate format {found!r}")
-    try:
+    try:  # the description whole before the weights
         net_cfg = NetConfig(
             **{k: tuple(v) if isinstance(v, list) else v for k, v in doc["net"].items()}
         )
         feats = FeatureSpec.from_dict(doc["features"])
+        for p in feats.parameters:
+            spec(p)  # validates the stored parameter names
+        wagon = _stored_wagon(doc["wagon"], meta_path)
+        corr = doc.get("record_correction")  # absent in files saved before it existed
+        parts = (
+            Normaliser(**doc["normaliser"]),
+            WorkingCondition(**doc["condition"]),
+            wagon,
+            int(doc["track_seed"]),
+            doc.get("meta", {}),
+            None if corr is None else RecordCorrection.from_dict(corr),
+        )
         net = build_network(net_cfg)
     except RailsuspInputError:
         raise
@@ -416,35 +428,20 @@ def load(path: str | Path, remedy: str = "train the surrogate again") -> Surroga
             f"describes ({first}); {remedy}"
         ) from None
     net.eval()
-    for p in feats.parameters:
-        spec(p)  # validates the stored parameter names
-    corr = doc.get("record_correction")  # absent in files saved before it existed
+    return Surrogate(net, net_cfg, feats, *parts)
+
+
+def _stored_wagon(fields: object, meta_path: Path) -> WagonData:
+    """The wagon a surrogate was trained on; one of an older model is refused in one line
+    (the surrogate has to be trained again, whatever its files' state)."""
     try:
-        wagon = WagonData(**doc["wagon"])
+        return WagonData(**fields)  # type: ignore[arg-type]
     except ValidationError as exc:
-        fields = ", ".join(".".join(map(str, e["loc"])) for e in exc.errors())
+        names = ", ".join(".".join(map(str, e["loc"])) for e in exc.errors())
         raise RailsuspInputError(
-            f"{meta_path}: its wagon description ({fields}) is not one this railsusp reads: the "
+            f"{meta_path}: its wagon description ({names}) is not one this railsusp reads: the "
             "surrogate was trained on an older model; train it again"
         ) from None
-    except (KeyError, TypeError) as exc:
-        raise RailsuspInputError(f"{meta_path}: {_unread(exc)}; {remedy}") from None
-    try:
-        return Surrogate(
-            net,
-            net_cfg,
-            feats,
-            Normaliser(**doc["normaliser"]),
-            WorkingCondition(**doc["condition"]),
-            wagon,
-            int(doc["track_seed"]),
-            doc.get("meta", {}),
-            None if corr is None else RecordCorrection.from_dict(corr),
-        )
-    except RailsuspInputError:
-        raise
-    except (KeyError, TypeError, AttributeError, ValueError) as exc:
-        raise RailsuspInputError(f"{meta_path}: {_unread(exc)}; {remedy}") from None
 
 
 def _unread(exc: Exception) -> str:
