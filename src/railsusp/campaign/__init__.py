@@ -39,7 +39,14 @@ from railsusp.campaign.design import (
     track_seeds,
     track_table,
 )
-from railsusp.campaign.results import Campaign, failed_runs, load_campaign, require_complete
+from railsusp.campaign.results import (
+    Campaign,
+    failed_of,
+    failed_runs,
+    incomplete,
+    load_campaign,
+    require_complete,
+)
 from railsusp.campaign.run import features_table, run_campaign, simulate_task
 
 __all__ = [
@@ -48,8 +55,10 @@ __all__ = [
     "Campaign",
     "CampaignConfig",
     "CampaignError",
+    "failed_of",
     "failed_runs",
     "features_table",
+    "incomplete",
     "load_campaign",
     "make_config",
     "make_design",

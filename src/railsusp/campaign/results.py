@@ -112,25 +112,39 @@ def read_series(root: Path, condition: str) -> tuple[np.ndarray, np.ndarray]:
 def require_complete(campaign: Campaign) -> Campaign:
     """``campaign`` if every batch of it is stored; a one-line error saying how to finish it
     otherwise (a surrogate trained on part of a campaign would silently see fewer runs)."""
-    if not campaign.complete:
-        cfg = campaign.config
-        done = sum(
-            batch_paths(campaign.path, c.name, b)[0].exists()
-            for c in cfg.conditions
-            for b in range(cfg.n_batches)
-        )
-        raise CampaignError(
-            f"{campaign.path}: the campaign is incomplete ({done} of "
-            f"{cfg.n_batches * len(cfg.conditions)} batches); run the same `railsusp "
-            f"campaign` command again to finish it"
-        )
+    missing = incomplete(campaign)
+    if missing:
+        raise CampaignError(missing)
     return campaign
+
+
+def incomplete(
+    campaign: Campaign, finish: str = "run the same `railsusp campaign` command again"
+) -> str | None:
+    """None where every batch of ``campaign`` is stored, else one line saying how many are
+    and how to ``finish`` it."""
+    if campaign.complete:
+        return None
+    cfg = campaign.config
+    done = sum(
+        batch_paths(campaign.path, c.name, b)[0].exists()
+        for c in cfg.conditions
+        for b in range(cfg.n_batches)
+    )
+    return (
+        f"{campaign.path}: the campaign is incomplete ({done} of "
+        f"{cfg.n_batches * len(cfg.conditions)} batches); {finish} to finish it"
+    )
 
 
 def failed_runs(path: str | Path) -> pd.DataFrame:
     """The failed simulations (derailed, diverged) of a run directory's finished batches:
     one row per condition and sample, with its status code."""
-    feats = Campaign(path).features()
+    return failed_of(Campaign(path).features())
+
+
+def failed_of(feats: pd.DataFrame) -> pd.DataFrame:
+    """:func:`failed_runs` of a campaign's features already read."""
     failed = feats[feats["status"] != 0]
     return (
         failed[["condition", "sample_id", "status"]]

@@ -199,22 +199,15 @@ def campaign(
 def _say_stored(out: Path, max_batches: int | None) -> None:
     """Where the campaign is, and, when --max-batches stopped it early, that it is not
     whole and how to finish it (the counts below are then of the batches that ran)."""
-    from railsusp.campaign import load_campaign, require_complete
+    from railsusp.campaign import incomplete, load_campaign
 
-    try:
-        require_complete(load_campaign(out))
-    except RailsuspInputError as exc:
-        if max_batches is not None:  # the same command would stop early again
-            again = str(exc).replace(
-                "run the same `railsusp campaign` command again",
-                "run the same command without --max-batches",
-            )
-            console.print(
-                f"stopped by --max-batches {max_batches}: {again}", highlight=False, soft_wrap=True
-            )
-            return
-        raise
-    console.print(f"campaign stored in {out}")
+    missing = incomplete(load_campaign(out), "run the same command without --max-batches")
+    if max_batches is not None and missing:  # the same command would stop early again
+        console.print(
+            f"stopped by --max-batches {max_batches}: {missing}", highlight=False, soft_wrap=True
+        )
+    else:
+        console.print(f"campaign stored in {out}")
 
 
 def _variation(
@@ -252,11 +245,11 @@ def _variation(
 
 def _report_failures(out: Path, total: int) -> None:
     """Print how many simulations failed; exit with status 1 when any did."""
-    from railsusp.campaign import Campaign, failed_runs
+    from railsusp.campaign import Campaign, failed_of
 
     try:
-        failed = failed_runs(out)
         feats = Campaign(out).features()  # of the batches that ran
+        failed = failed_of(feats)
         total = min(total, feats.groupby(["condition", "sample_id"]).ngroups)
     except RailsuspInputError:  # no finished batch yet (--max-batches 0)
         return
