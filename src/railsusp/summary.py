@@ -67,16 +67,14 @@ def read_tolerances(wagon: str | Path | None = None) -> Tolerances:
     entry per main suspension parameter (``X13 = 10.0``), % of the nominal value; the
     defaults (:data:`DEFAULT_TOLERANCE_PCT` for every element) where the table is absent
     (None: the embedded C80/K6 data, which have none)."""
-    from importlib import resources
-
-    from railsusp.vehicle.wagon import PACKAGED_WAGONS
+    from railsusp.vehicle.wagon import packaged_wagon_text
 
     if wagon is None:
         return Tolerances()
     path = Path(wagon)
-    if str(wagon) in PACKAGED_WAGONS and not path.is_file():
-        packaged = resources.files("railsusp").joinpath(f"data/{PACKAGED_WAGONS[str(wagon)]}")
-        text, where = packaged.read_text("utf-8"), f"packaged wagon {wagon}"
+    packaged = packaged_wagon_text(wagon)
+    if packaged is not None:
+        text, where = packaged, f"packaged wagon {wagon}"
     elif not path.is_file():
         raise RailsuspInputError(f"wagon file {path} does not exist")
     else:

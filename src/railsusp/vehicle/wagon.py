@@ -253,15 +253,25 @@ PACKAGED_WAGONS = {
 }
 
 
+def packaged_wagon_text(source: str | Path | None) -> str | None:
+    """The text of the packaged wagon data ``source`` names (None: the loaded C80/K6; a
+    name of :data:`PACKAGED_WAGONS` that no file of that name shadows), or None where
+    ``source`` is a file's name."""
+    name = None if source is None else str(source)
+    if name is not None and (name not in PACKAGED_WAGONS or Path(name).is_file()):
+        return None
+    where = PACKAGED_WAGONS.get(name or "loaded", "c80_k6.toml")
+    return resources.files("railsusp").joinpath(f"data/{where}").read_text("utf-8")
+
+
 def load_wagon(source: str | Path | None = None) -> WagonData:
     """Read and validate a wagon file; None gives the embedded C80/K6 data (loaded), a
     name of :data:`PACKAGED_WAGONS` (``"tare"``) another embedded file."""
     from railsusp.store import read_toml, type_error_text, validate_document
 
-    name = None if source is None else str(source)
-    if name is None or (name in PACKAGED_WAGONS and not Path(name).is_file()):
-        where = PACKAGED_WAGONS.get(name or "loaded", "c80_k6.toml")
-        text = resources.files("railsusp").joinpath(f"data/{where}").read_text("utf-8")
+    text = packaged_wagon_text(source)
+    if text is not None:
+        where = PACKAGED_WAGONS[str(source or "loaded")]
         source = None
     else:
         path = Path(source)
