@@ -169,14 +169,13 @@ def read_run(
         from railsusp.vehicle.wagon import load_wagon
 
         wheel_load_N = static_wheel_load(load_wagon())
-    wl = wheel_load_N
     for w, c in cmap.wheels.items():
         problems += check_forces(
             Y[w],
             Q[w],
             (c["Y"], c["Q"]),
             (si[c["Y"]].unit or "", si[c["Q"]].unit or ""),
-            wl,
+            wheel_load_N,
             si[c["Q"]].first_row,
         )
     if problems:
