@@ -105,11 +105,9 @@ class CampaignConfig(BaseModel):
         if self.design == "sobol" and self.samples & (self.samples - 1):
             raise ValueError(f"a Sobol/Saltelli design needs N a power of two, got {self.samples}")
         names = [c.name for c in self.conditions]
-        if repeated_names(names):  # one batch folder each, even on a case-blind disk
-            raise ValueError(
-                f"condition names repeat ({', '.join(repeated_names(names))}, case ignored): "
-                f"{names}"
-            )
+        twice = repeated_names(names)  # one batch folder each, even on a case-blind disk
+        if twice:
+            raise ValueError(f"condition names repeat ({', '.join(twice)}, case ignored): {names}")
         if self.wheel != "auto" and self.wheel not in WHEEL_NAMES:
             raise ValueError(f"wheel {self.wheel!r}: accepted auto or {', '.join(WHEEL_NAMES)}")
         fam = self.track_family
