@@ -108,5 +108,10 @@ def test_with_values_changes_named_fields_and_validates_them():
         base.with_values({"side_bearer.stiffness": 1.0})
     with pytest.raises(KeyError, match="'bearer.travel'"):
         base.with_values({"bearer.travel": 1.0})
-    with pytest.raises(Exception, match="creep_factor"):  # out of its range (0, 2]
+    with pytest.raises(RailsuspInputError) as info:  # out of its range (0, 2]
         base.with_values({"contact.creep_factor": 3.0})
+    assert str(info.value) == (
+        "wagon: contact.creep_factor = 3.0: Input should be less than or equal to 2"
+    )
+    with pytest.raises(RailsuspInputError, match=r"^contact.model = 'one-point': accepted two"):
+        base.with_contact_model("one-point")

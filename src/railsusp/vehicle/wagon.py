@@ -211,17 +211,19 @@ class WagonData(_Section):
             if not isinstance(data.get(section), dict) or name not in data[section]:
                 raise KeyError(f"wagon field {key!r} does not exist")
             data[section][name] = value
-        return WagonData(**data)
+        try:
+            return WagonData(**data)
+        except ValidationError as exc:
+            raise RailsuspInputError(f"wagon: {wagon_error_text(exc)}") from None
 
     def with_contact_model(self, model: str) -> WagonData:
         """The same wagon with another wheel-rail contact model (``two-point`` or
         ``single-point``), validated."""
-        try:
-            return self.with_values({"contact.model": model})
-        except ValidationError:
+        if model not in ("two-point", "single-point"):
             raise RailsuspInputError(
                 f"contact.model = {model!r}: accepted two-point or single-point"
-            ) from None
+            )
+        return self.with_values({"contact.model": model})
 
     def with_physics_before_2026_11_24(self) -> WagonData:
         """The same wagon with the force laws of the model before 2026-11-24's fidelity
@@ -264,10 +266,25 @@ def packaged_wagon_text(source: str | Path | None) -> str | None:
     return resources.files("railsusp").joinpath(f"data/{where}").read_text("utf-8")
 
 
+def wagon_error_text(exc: ValidationError) -> str:
+    """A wagon's validation errors on one line: each as ``section.field = value: why``
+    (the range the field accepts, or the type it needs), joined by "; "."""
+    from railsusp.store import type_error_text
+
+    msgs = []
+    for err in exc.errors():
+        loc = ".".join(str(p) for p in err["loc"])
+        value = err.get("input")
+        where_value = loc if isinstance(value, dict) else f"{loc} = {value!r}"
+        text = type_error_text(err) or err["msg"].removeprefix("Value error, ")
+        msgs.append(f"{where_value}: {text}")
+    return "; ".join(msgs)
+
+
 def load_wagon(source: str | Path | None = None) -> WagonData:
     """Read and validate a wagon file; None gives the embedded C80/K6 data (loaded), a
     name of :data:`PACKAGED_WAGONS` (``"tare"``) another embedded file."""
-    from railsusp.store import read_toml, type_error_text, validate_document
+    from railsusp.store import read_toml, validate_document
 
     text = packaged_wagon_text(source)
     if text is not None:
@@ -301,11 +318,4 @@ def load_wagon(source: str | Path | None = None) -> WagonData:
     except tomllib.TOMLDecodeError as exc:
         raise RailsuspInputError(f"{where}: not valid TOML ({exc})") from None
     except ValidationError as exc:
-        msgs = []
-        for err in exc.errors():
-            loc = ".".join(str(p) for p in err["loc"])
-            value = err.get("input")
-            where_value = loc if isinstance(value, dict) else f"{loc} = {value!r}"
-            text = type_error_text(err) or err["msg"].removeprefix("Value error, ")
-            msgs.append(f"{where_value}: {text}")
-        raise RailsuspInputError(f"{where}: " + "; ".join(msgs)) from None
+        raise RailsuspInputError(f"{where}: {wagon_error_text(exc)}") from None
