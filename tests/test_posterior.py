@@ -5,6 +5,8 @@ the cache and resume, and the command line's one-line errors."""
 
 from __future__ import annotations
 
+import shutil
+
 import numpy as np
 import pytest
 from typer.testing import CliRunner
@@ -444,6 +446,20 @@ def test_resume_reads_the_cache_and_refuses_other_settings(trained, monkeypatch)
         posterior.train(_settings(seed=1), run)
 
 
+def test_training_prints_nothing_of_its_own(trained, tmp_path, capfd):
+    """sbi's convergence line ("\\r Neural network successfully converged ...", no newline)
+    used to reach the terminal and run into the next line; the log says it instead."""
+    est, run = trained
+    copy = tmp_path / "run"
+    shutil.copytree(run, copy)
+    (copy / "posterior" / "estimator.pt").unlink()  # trained again from the cached cases
+    capfd.readouterr()
+    again = posterior.train(est.settings, copy)
+    out = capfd.readouterr().out
+    assert "converged" not in out and out == ""
+    assert len(again.members) == len(est.members)
+
+
 def test_recording_of_another_condition_or_too_short_is_refused(trained, tmp_path):
     est, _ = trained
     synthesise_field(ParameterSet.nominal(), [CONDITION], tmp_path / "f", duration_s=2.0)
@@ -542,7 +558,6 @@ def test_an_estimator_file_that_reads_but_is_not_this_estimator_s_is_refused(
     run code ended in torch's UnpicklingError traceback, a dict or another number of flows
     in a TypeError or a silently short ensemble, other layers in load_state_dict's
     RuntimeError; each is now one line naming the file, and nothing is trained over it."""
-    import shutil
 
     import torch
 
@@ -573,7 +588,6 @@ def test_an_estimator_file_that_reads_but_is_not_this_estimator_s_is_refused(
 def test_loading_an_estimator_cut_short_is_refused_not_trained_again(trained, tmp_path):
     """posterior.load reads a finished estimator and trains nothing (its docstring); an
     estimator.pt cut short was trained again in silence inside it (the review of stop 56)."""
-    import shutil
 
     _, run = trained
     copy = tmp_path / "run"
@@ -594,7 +608,6 @@ def test_loading_an_estimator_cut_short_is_refused_not_trained_again(trained, tm
 def test_a_cached_chunk_or_estimator_cut_short_is_made_again(trained, tmp_path, monkeypatch):
     """The kill/resume pass (stop 54): a truncated simulation chunk or estimator.pt stopped
     `posterior train` with numpy's / torch's traceback; each is now made again."""
-    import shutil
 
     est, run = trained
     copy = tmp_path / "run"

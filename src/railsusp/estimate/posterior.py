@@ -36,7 +36,7 @@ from __future__ import annotations
 import io
 import logging
 import time
-from contextlib import contextmanager
+from contextlib import contextmanager, redirect_stdout
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -251,7 +251,9 @@ def train(
                 prior=prior, density_estimator=builder, show_progress_bars=False,
                 tracker=TrainingLog(),
             )  # fmt: skip
-            with one_thread():
+            # sbi prints its convergence line with "\r" and no newline, which the next line
+            # of the terminal then runs into; the log line below says the same
+            with one_thread(), redirect_stdout(io.StringIO()):
                 inference.append_simulations(theta_t, x_t)
                 nets.append(inference.train(show_train_summary=False))
             log.info(
