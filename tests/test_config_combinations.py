@@ -174,6 +174,20 @@ CASES = [
         "estimate.expected_generations = true compares expected forces in NSGA-II's "
         "generations; estimate.expected_draws = 0 draws none",
     ),
+    (  # used to fail in the estimate stage, after the campaign, sensitivity and surrogates
+        "aligned-with-the-surrogates-trained-here",
+        (
+            "truth = {X13 = 16.1}\nwith_track = true",
+            'refine = true\nstatistic = "mean+aligned"',
+            "",
+        ),
+        (
+            {"truth": {"X13": 16.1}, "with_track": True},
+            {"refine": True, "statistic": "mean+aligned"},
+            {},
+        ),
+        'estimate.statistic "aligned" needs surrogate.pretrained: the surrogates a run trains',
+    ),
     (
         "track-noise-without-track",
         ("truth = {X13 = 16.1}\ntrack_noise_mm = 0.5", "", ""),
@@ -229,11 +243,7 @@ def test_refine_or_aligned_on_a_measured_folder_without_track_geometry(tmp_path,
 
 def test_settings_that_work_together_are_accepted(tmp_path):
     for text in (
-        (
-            "truth = {X13 = 16.1}\nwith_track = true",
-            'refine = true\nstatistic = "mean+aligned"',
-            "",
-        ),
+        ("truth = {X13 = 16.1}\nwith_track = true", "refine = true", ""),
         ("truth = {X13 = 16.1}", 'statistic = "mean+p99"', 'model = "gp-stats"'),
         ("truth = {X13 = 16.1}", 'weighting = "noise"', 'model = "gp-stats"'),
     ):

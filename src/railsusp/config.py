@@ -236,6 +236,7 @@ def check_config(cfg: Any, where: str = "configuration", *, from_file: bool = Fa
             f"{EXPECTED_STATISTICS_TEXT[e.expected_generations]} (spread statistics of a mean "
             "series are too low), or set expected_draws = 0"
         )
+    _check_one_track_surrogate(cfg, bad)
     if cfg.surrogate.model == "gp-stats" and "p99.85" in cfg.estimate.statistic.split("+"):
         raise bad(
             'estimate.statistic "p99.85" (EN 14363) is computed from force series; the '
@@ -323,6 +324,24 @@ def _blind_recordings(folder: Path) -> list[str]:
         except (OSError, ValueError, KeyError, TypeError, AttributeError):
             continue
     return blind
+
+
+def _check_one_track_surrogate(cfg: Any, bad: Any) -> None:
+    """The statistic ``aligned`` (and so ``expected_draws``, which needs it) needs a surrogate
+    that predicts on any track, ``surrogate.pretrained``: a run's campaign is on each
+    condition's one track realisation, so the networks it trains predict that track only
+    (docs/surrogates.md), neither the recordings' measured track nor drawn ones
+    (estimate/problem.py refused it at the estimate stage, after every other stage had
+    run)."""
+    if cfg.surrogate.pretrained is not None or cfg.surrogate.model == "gp-stats":
+        return  # a set trained on a track family; the statistics GPs have their own check
+    if ALIGNED in cfg.estimate.statistic.split("+"):
+        raise bad(
+            'estimate.statistic "aligned" needs surrogate.pretrained: the surrogates a run '
+            "trains are trained on one track realisation per condition and cannot predict "
+            "the recordings' measured track; set surrogate.pretrained (a network set trained "
+            "on a track family, docs/surrogates.md) or another statistic"
+        )
 
 
 def _check_measured_track(cfg: Any, bad: Any) -> None:
