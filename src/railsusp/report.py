@@ -53,10 +53,12 @@ def welch_psd(x: np.ndarray, dx: float, segment_m: float = 400.0) -> tuple[np.nd
 
 
 def plot_track_irregularities(irr: Irregularities, path: str | Path, seed_index: int = 0):
-    """Irregularity traces (mm vs distance) and their Welch PSD against the FRA spectrum."""
+    """Irregularity traces (mm vs distance) and their Welch PSD against the FRA spectrum of
+    their class (none drawn for a measured geometry file without a class)."""
     fig, axes = plt.subplots(len(COMPONENTS), 2, figsize=(12, 10), constrained_layout=True)
     dx = float(irr.s[1] - irr.s[0])
     omega_a = np.geomspace(2 * np.pi / irr.wavelength_max, 2 * np.pi / irr.wavelength_min, 200)
+    measured = irr.source is not None  # a condition's track_geometry file: no seed
     for row, comp in enumerate(COMPONENTS):
         x = irr.component(comp)[seed_index]
         ax = axes[row, 0]
@@ -66,26 +68,24 @@ def plot_track_irregularities(irr: Irregularities, path: str | Path, seed_index:
         ax = axes[row, 1]
         om, s = welch_psd(x, dx)
         keep = om > 0
-        ax.loglog(om[keep], s[keep] * 1e4, lw=0.8, label="synthesised (Welch)")
-        ax.loglog(
-            omega_a,
-            fra_psd(comp, omega_a, irr.track_class) * 1e4,
-            "k--",
-            lw=1.2,
-            label=f"FRA class {irr.track_class}",
-        )
+        label = "measured (Welch)" if measured else "synthesised (Welch)"
+        ax.loglog(om[keep], s[keep] * 1e4, lw=0.8, label=label)
+        if irr.track_class is not None:
+            ref = fra_psd(comp, omega_a, irr.track_class) * 1e4
+            ax.loglog(omega_a, ref, "k--", lw=1.2, label=f"FRA class {irr.track_class}")
+            ax.set_ylim(ref.min() / 100.0, ref.max() * 10.0)
         ax.axvspan(
             2 * np.pi / irr.wavelength_max, 2 * np.pi / irr.wavelength_min, color="0.9", zorder=0
         )
-        ref = fra_psd(comp, omega_a, irr.track_class) * 1e4
-        ax.set_ylim(ref.min() / 100.0, ref.max() * 10.0)
         ax.set_ylabel("PSD (cm²/(rad/m))")
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=8)
     axes[-1, 0].set_xlabel("distance (m)")
     axes[-1, 1].set_xlabel("spatial frequency Ω (rad/m)")
+    which = f"measured ({Path(irr.source).name})" if measured else f"seed {irr.seeds[seed_index]}"
+    fra = "" if irr.track_class is None else f"FRA class {irr.track_class}, "
     fig.suptitle(
-        f"Track irregularities, FRA class {irr.track_class}, seed {irr.seeds[seed_index]}, "
+        f"Track irregularities, {fra}{which}, "
         f"wavelengths {irr.wavelength_min:g}-{irr.wavelength_max:g} m"
     )
     return save_figure(fig, path)

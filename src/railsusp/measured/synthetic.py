@@ -5,6 +5,7 @@ folder whose truth the estimator never reads.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
 
@@ -17,7 +18,12 @@ from railsusp.measured.recording import FORMAT, Recording, SimulationFailedError
 from railsusp.params import ParameterSet
 from railsusp.store import atomic_folder, read_json, write_json
 from railsusp.vehicle.layout import WHEEL_NAMES
-from railsusp.vehicle.track_geometry import with_measurement_error, write_track_geometry
+from railsusp.vehicle.track import Irregularities
+from railsusp.vehicle.track_geometry import (
+    read_track_geometry,
+    with_measurement_error,
+    write_track_geometry,
+)
 
 
 def recording_from_simulation(
@@ -116,16 +122,18 @@ def synthesise_field(
     with the instrumented wagon would give, with a measurement error of ``track_noise_mm``
     (RMS, mm, within the measured wavelengths) on each component. The recordings state the
     geometry's accuracy (``track_accuracy_mm``) as ``stated_accuracy_mm``, by default the
-    true ``track_noise_mm``: an engineer knows the specification of the geometry car.
+    true ``track_noise_mm``: an engineer knows the specification of the geometry car. A
+    condition that names its own ``track_geometry`` file is simulated on that track (no
+    realisation is drawn), and its recording carries a copy of the file whatever
+    ``with_track`` says: the track is known, and the recording's sidecar must not name a file
+    outside its folder.
 
     ``wheelset``: both wheels of the instrumented wheelset are recorded (the measured wheel
     first, then its partner), as an instrumented wheelset measures them; the posterior's
     wheelset, coherence and cross-spectra statistics need the partner. Default: the
     measured wheel only.
     """
-    from railsusp.vehicle.setup import section_irregularities
     from railsusp.vehicle.simulate import simulate
-    from railsusp.vehicle.wagon import load_wagon
 
     if not 0.0 <= track_noise_mm <= 10.0:
         raise RailsuspInputError(f"track_noise_mm = {track_noise_mm:g}: accepted 0 to 10 mm")
@@ -163,9 +171,11 @@ def synthesise_field(
             rec = recording_from_simulation(result, both)
             rec = add_sensor_noise(rec, noise, seed + i)
             rec.condition = cond  # the engineer knows the condition, not the track realisation
-            if with_track:
-                irr = section_irregularities(field_cond, [field_cond.seed], load_wagon())
-                assert irr is not None, "with_track needs a condition with irregularities"
+            if with_track or cond.track_geometry is not None:
+                # a condition's own track_geometry file is the track it names: the recording
+                # carries it whatever with_track says (a copy beside it, unfaded, its offset
+                # applied), as a measured recording on known track would
+                irr = _track_of(field_cond)
                 if track_noise_mm:
                     rng = np.random.default_rng([seed, i, 1])
                     irr = with_measurement_error(
@@ -175,6 +185,7 @@ def synthesise_field(
                 write_track_geometry(folder / track_name, irr, origin_m=cond.lead_in_m)
                 rec.condition = cond.with_changes(
                     track_geometry=track_name,
+                    track_offset_m=0.0,
                     track_accuracy_mm=track_noise_mm
                     if stated_accuracy_mm is None
                     else stated_accuracy_mm,
@@ -195,6 +206,26 @@ def synthesise_field(
             },
         )
     return out
+
+
+def _track_of(cond: WorkingCondition) -> Irregularities:
+    """The irregularities a synthetic recording of ``cond`` was simulated on, in section
+    coordinates: its ``track_geometry`` file as read (the file's distances moved by
+    ``track_offset_m``; not faded in, as the simulation's copy is), else the condition's
+    synthesised realisation."""
+    from railsusp.vehicle.setup import section_irregularities
+    from railsusp.vehicle.wagon import load_wagon
+
+    if cond.track_geometry is not None:
+        irr = read_track_geometry(cond.track_geometry)
+        return replace(irr, s=irr.s + cond.track_offset_m + cond.lead_in_m)
+    irr = section_irregularities(cond, [cond.seed], load_wagon())
+    if irr is None:
+        raise RailsuspInputError(
+            f"condition {cond.name!r}: perfect track (no irregularity_class) has no track "
+            "geometry to write; accepted with_track = false for it"
+        )
+    return irr
 
 
 #: what a truth file is, for the errors of :func:`read_truth`

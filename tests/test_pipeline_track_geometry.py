@@ -1,0 +1,67 @@
+"""A condition that names its own measured track (``track_geometry``) through the synthetic
+field and the whole pipeline. Before stop 57 the field's sidecar named the user's file by a
+path the reader resolves inside the field folder, where it was not (the estimate stage
+failed: "track geometry file .../field/geo.csv not found"), and with ``with_track`` the
+report stage failed on the track figure's seed ("tuple index out of range")."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from railsusp.conditions import get_condition
+from railsusp.measured import read_field, synthesise_field
+from railsusp.params import ParameterSet
+from railsusp.pipeline import load_config, run_pipeline
+
+TINY = Path(__file__).resolve().parents[1] / "examples" / "tiny.toml"
+SHORT = dict(duration_s=1.0, n_steps=50, lead_in_m=20.0)
+
+
+@pytest.fixture(scope="module")
+def geometry(tmp_path_factory) -> Path:
+    """A measured-track file covering the tiny example's 1 s condition: the track a
+    synthetic recording ran on, as a geometry car would give it."""
+    root = tmp_path_factory.mktemp("geometry")
+    cond = get_condition("straight", **SHORT).with_changes(name="short")
+    folder = synthesise_field(ParameterSet({}), [cond], root / "f", with_track=True)
+    return folder / "short.track.csv"
+
+
+def test_the_recording_carries_a_copy_of_its_conditions_track(geometry, tmp_path):
+    cond = get_condition(
+        "straight", track_geometry=str(geometry), track_offset_m=0.5, **SHORT
+    ).with_changes(name="short")
+    for with_track in (False, True):
+        folder = synthesise_field(
+            ParameterSet({}), [cond], tmp_path / f"f{with_track}", with_track=with_track
+        )
+        side = json.loads((folder / "short.json").read_text())["condition"]
+        assert side["track_geometry"] == "short.track.csv"  # inside the folder
+        assert "track_offset_m" not in side  # applied to the copy's distances
+        (rec,) = read_field(folder)  # read back and checked: it covers the record
+        copy = pd.read_csv(folder / "short.track.csv")
+        original = pd.read_csv(geometry)
+        assert np.allclose(copy["distance_m"], original["distance_m"] + 0.5, atol=1e-9)
+        for column in ("vertical_mm", "alignment_mm", "crosslevel_mm", "gauge_mm"):
+            assert np.allclose(copy[column], original[column], atol=1e-9)  # not faded
+        assert rec.condition.track_geometry is not None
+
+
+@pytest.mark.parametrize("with_track", [False, True])
+def test_a_run_on_a_condition_with_its_own_track_completes(geometry, tmp_path, with_track):
+    text = TINY.read_text().replace(
+        "lead_in_m=20.0}", f'lead_in_m=20.0, track_geometry="{geometry}"}}'
+    )
+    if with_track:
+        text = text.replace("[field]\n", "[field]\nwith_track = true\n")
+    cfg = tmp_path / "g.toml"
+    cfg.write_text(text)
+    out = tmp_path / "run"
+    state = run_pipeline(load_config(cfg), out)
+    assert all(s["state"] == "done" for s in state["stages"].values())
+    assert (out / "report_assets" / "track.png").is_file()
