@@ -52,16 +52,26 @@ def test_the_recording_carries_a_copy_of_its_conditions_track(geometry, tmp_path
         assert rec.condition.track_geometry is not None
 
 
-@pytest.mark.parametrize("with_track", [False, True])
-def test_a_run_on_a_condition_with_its_own_track_completes(geometry, tmp_path, with_track):
+@pytest.mark.parametrize(
+    ("with_track", "statistic"), [(False, "mean"), (True, "mean"), (True, "aligned")]
+)
+def test_a_run_on_a_condition_with_its_own_track_completes(
+    geometry, tmp_path, with_track, statistic
+):
+    """With ``aligned`` the surrogates trained here (on the condition's one track) predict
+    the recording's track, since it is that track (``same_measured_track``): the one
+    configuration where ``aligned`` works without a pretrained set."""
     text = TINY.read_text().replace(
         "lead_in_m=20.0}", f'lead_in_m=20.0, track_geometry="{geometry}"}}'
     )
     if with_track:
         text = text.replace("[field]\n", "[field]\nwith_track = true\n")
+    text = text.replace("[estimate]\n", f'[estimate]\nstatistic = "{statistic}"\n')
     cfg = tmp_path / "g.toml"
     cfg.write_text(text)
     out = tmp_path / "run"
     state = run_pipeline(load_config(cfg), out)
     assert all(s["state"] == "done" for s in state["stages"].values())
     assert (out / "report_assets" / "track.png").is_file()
+    estimate = json.loads((out / "estimate" / "estimate.json").read_text())
+    assert estimate["config"]["statistic"] == statistic

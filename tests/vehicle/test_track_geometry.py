@@ -10,7 +10,12 @@ from railsusp.params import ParameterSet
 from railsusp.vehicle.setup import axle_spread, section_irregularities
 from railsusp.vehicle.simulate import simulate
 from railsusp.vehicle.track import COMPONENTS, synthesise
-from railsusp.vehicle.track_geometry import TRACK_TAPER_M, read_track_geometry, write_track_geometry
+from railsusp.vehicle.track_geometry import (
+    TRACK_TAPER_M,
+    read_track_geometry,
+    same_measured_track,
+    write_track_geometry,
+)
 from railsusp.vehicle.wagon import load_wagon
 
 COND = get_condition("straight", duration_s=2.0, n_steps=100, lead_in_m=20.0)
@@ -31,6 +36,26 @@ def test_round_trip(tmp_path, suffix):
     for c in COMPONENTS:
         np.testing.assert_allclose(back.component(c)[0], irr.component(c)[0], atol=1e-9)
     assert back.source == str(path.resolve()) and back.track_class is None
+
+
+def test_same_measured_track_is_one_file_or_a_copy_of_it(tmp_path):
+    """A synthetic recording carries a copy of its condition's geometry file, rewritten with
+    the offset moved into its distances: the surrogate trained on the file must take the
+    copy for its own track, and nothing else for it."""
+    path = exported(tmp_path)
+    on = COND.with_changes(track_geometry=str(path), track_offset_m=1.5)
+    irr = read_track_geometry(path)
+    moved = irr.__class__(**{**vars(irr), "s": irr.s + 1.5})
+    copy = write_track_geometry(tmp_path / "copy.csv", moved)
+    as_copy = COND.with_changes(track_geometry=str(copy))
+    assert same_measured_track(on, on) and same_measured_track(on, as_copy)
+    assert same_measured_track(as_copy, on)
+    assert not same_measured_track(on, as_copy.with_changes(track_offset_m=0.5))  # moved
+    assert not same_measured_track(on, on.with_changes(track_offset_m=0.0))  # same file
+    other = exported(tmp_path, COND.with_changes(seed=COND.seed + 1), "other.csv")
+    assert not same_measured_track(on, COND.with_changes(track_geometry=str(other)))
+    gone = COND.with_changes(track_geometry=str(tmp_path / "gone.csv"))
+    assert not same_measured_track(on, gone) and not same_measured_track(on, COND)
 
 
 def write_table(tmp_path, text: str):

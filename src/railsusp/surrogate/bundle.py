@@ -38,6 +38,7 @@ from railsusp.surrogate.data import (
 from railsusp.surrogate.models import CNNRecurrent, NetConfig, WindowMLP, build_network
 from railsusp.surrogate.sequence import CNNSequence
 from railsusp.vehicle.simulate import SolverSettings
+from railsusp.vehicle.track_geometry import same_measured_track
 from railsusp.vehicle.wagon import WagonData
 
 FORMAT = "railsusp-surrogate/1"
@@ -124,10 +125,8 @@ class Surrogate:
         """Whether ``predict(params, condition, seed=seed)`` runs on the training track."""
         on = self.condition if condition is None else condition
         if on.track_geometry is not None or self.condition.track_geometry is not None:
-            if on.track_geometry is None or self.condition.track_geometry is None:
-                return False
-            mine = Path(self.condition.track_geometry).resolve()
-            return Path(on.track_geometry).resolve() == mine
+            # one file, or a copy of it (a synthetic recording's of its condition's track)
+            return same_measured_track(on, self.condition)
         if seed is None:
             seed = self.track_seed if condition is None else condition.seed
         return seed == self.track_seed

@@ -150,6 +150,29 @@ def _read_track_geometry(path: str, _mtime_ns: int, _size: int) -> Irregularitie
     )
 
 
+def same_measured_track(a: WorkingCondition, b: WorkingCondition) -> bool:
+    """Whether two conditions name the same measured track: one file, or two files whose rows
+    agree once each condition's ``track_offset_m`` is applied (distances to 1 um,
+    irregularities to 1e-6 mm: a file written back at nine significant digits is the same
+    track). A recording's copy of its condition's file (the synthetic field's) is that
+    track; an unreadable file is no match."""
+    if a.track_geometry is None or b.track_geometry is None:
+        return False
+    if Path(a.track_geometry).resolve() == Path(b.track_geometry).resolve():
+        return a.track_offset_m == b.track_offset_m
+    try:
+        ia, ib = read_track_geometry(a.track_geometry), read_track_geometry(b.track_geometry)
+    except (RailsuspInputError, OSError, ValueError):
+        return False
+    if ia.s.shape != ib.s.shape:
+        return False
+    if not np.allclose(ia.s + a.track_offset_m, ib.s + b.track_offset_m, rtol=0.0, atol=1e-6):
+        return False
+    return all(
+        np.allclose(ia.component(c), ib.component(c), rtol=0.0, atol=1e-9) for c in COMPONENTS
+    )
+
+
 def check_coverage(irr: Irregularities, condition: WorkingCondition, axle_spread_m: float) -> None:
     """Refuse (one line) measured irregularities ``irr`` of ``condition``'s
     ``track_geometry`` that do not cover the recorded stretch under every axle: from
