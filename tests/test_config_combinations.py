@@ -188,6 +188,13 @@ CASES = [
         ),
         'estimate.statistic "aligned" needs surrogate.pretrained: the surrogates a run trains',
     ),
+    (  # used to fail in the surrogate stage, after the campaign and the sensitivity analysis
+        "sequence-network-on-a-short-condition",
+        ("truth = {X13 = 16.1}", "", 'model = "cnn-gru-seq"'),
+        ({"truth": {"X13": 16.1}}, {}, {"model": "cnn-gru-seq"}),
+        'surrogate.model = "cnn-gru-seq" reads 100 steps before its first prediction; the '
+        "conditions short have no more steps than that: accepted n_steps > 100",
+    ),
     (
         "track-noise-without-track",
         ("truth = {X13 = 16.1}\ntrack_noise_mm = 0.5", "", ""),
@@ -292,3 +299,16 @@ def test_a_packaged_wagon_named_in_the_configuration_has_the_default_tolerances(
     assert load_config(cfg).wagon == "tare"
     with pytest.raises(railsusp.RailsuspInputError, match="wagon file nowhere does not exist"):
         read_tolerances("nowhere")
+
+
+def test_a_cuda_device_is_refused_before_any_stage_where_there_is_none(tmp_path):
+    import torch
+
+    if torch.cuda.is_available():
+        pytest.skip("this machine has a CUDA device")
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(toml("truth = {X13 = 16.1}", "", 'device = "cuda"'))
+    with pytest.raises(ConfigError, match='surrogate.device = "cuda": no CUDA device'):
+        load_config(cfg)
+    cfg.write_text(toml("truth = {X13 = 16.1}", "", 'device = "auto"'))
+    load_config(cfg)  # takes the CPU here

@@ -245,6 +245,8 @@ def check_config(cfg: Any, where: str = "configuration", *, from_file: bool = Fa
     _check_held_prior(cfg, bad)
     if cfg.surrogate.device not in DEVICES:
         raise bad(f"surrogate.device = {cfg.surrogate.device!r}: accepted {', '.join(DEVICES)}")
+    if cfg.surrogate.pretrained is None:
+        _check_surrogate_training(cfg, conds, bad)
     if cfg.wagon is not None:
         from railsusp.summary import read_tolerances
 
@@ -324,6 +326,32 @@ def _blind_recordings(folder: Path) -> list[str]:
         except (OSError, ValueError, KeyError, TypeError, AttributeError):
             continue
     return blind
+
+
+def _check_surrogate_training(cfg: Any, conds: list, bad: Any) -> None:
+    """What the surrogate stage's training needs of the conditions and the machine, checked
+    before the campaign rather than after it: every condition's series longer than the
+    network's window (the sequence CNN-GRU's washout of 100 steps; the window networks' 20),
+    and a CUDA device where ``device = "cuda"`` asks for one."""
+    from railsusp.surrogate.models import default_window
+
+    kind = "bp" if cfg.surrogate.model == "gp-stats" else cfg.surrogate.model
+    window = default_window(kind)
+    short = [c.name for c in conds if c.n_steps <= window]
+    if short:
+        raise bad(
+            f'surrogate.model = "{cfg.surrogate.model}" reads {window} steps before its first '
+            f"prediction; the conditions {', '.join(short)} have no more steps than that: "
+            f"accepted n_steps > {window} (or another model)"
+        )
+    if cfg.surrogate.device == "cuda":
+        import torch
+
+        if not torch.cuda.is_available():
+            raise bad(
+                'surrogate.device = "cuda": no CUDA device is available on this machine; '
+                'accepted "cpu", or "auto" (a GPU where there is one)'
+            )
 
 
 def _check_one_track_surrogate(cfg: Any, bad: Any) -> None:
