@@ -319,7 +319,7 @@ def _blind_recordings(folder: Path) -> list[str]:
     blind = []
     for table in read_index(folder):
         try:
-            doc = json.loads(table.with_suffix(".json").read_text("utf-8"))
+            doc = json.loads(table.with_suffix(".json").read_text("utf-8-sig"))
             cond = doc["condition"]
             if cond.get("track_geometry") is None:
                 blind.append(str(cond.get("name", table.stem)))

@@ -187,7 +187,7 @@ def read_toml(path: str | Path, what: str = "file") -> dict[str, Any]:
     the file (``what`` says what it is: "configuration", "condition file", ...)."""
     path = Path(path)
     try:
-        text = path.read_bytes().decode("utf-8")
+        text = path.read_bytes().decode("utf-8-sig")  # a byte-order mark (Notepad) is no error
     except IsADirectoryError:
         raise RailsuspInputError(f"{what} {path} is a folder, not a TOML file") from None
     except FileNotFoundError:

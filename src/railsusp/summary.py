@@ -78,7 +78,7 @@ def read_tolerances(wagon: str | Path | None = None) -> Tolerances:
     elif not path.is_file():
         raise RailsuspInputError(f"wagon file {path} does not exist")
     else:
-        text, where = path.read_text("utf-8"), str(path)
+        text, where = path.read_text("utf-8-sig"), str(path)
     try:
         doc = tomllib.loads(text).get("tolerances", {})
     except tomllib.TOMLDecodeError as exc:

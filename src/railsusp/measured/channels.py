@@ -65,7 +65,7 @@ def read_channel_map(path: str | Path) -> ChannelMap:
     """Read and check a channel-map TOML; errors name the key and what is accepted."""
     path = Path(path)
     try:
-        doc = tomllib.loads(path.read_text("utf-8"))
+        doc = tomllib.loads(path.read_text("utf-8-sig"))
     except (OSError, UnicodeDecodeError) as exc:
         raise RailsuspInputError(f"channel map {path}: cannot read it ({exc})") from None
     except tomllib.TOMLDecodeError as exc:

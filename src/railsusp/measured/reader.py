@@ -221,7 +221,7 @@ def _read_sidecar(side: Path, problems: list[str]) -> dict[str, Any]:
         problems.append(f"metadata sidecar {side.name} missing")
         return {}
     try:
-        meta = json.loads(side.read_text("utf-8"))
+        meta = json.loads(side.read_text("utf-8-sig"))
     except UnicodeDecodeError:
         problems.append(f"{side.name}: not UTF-8 text")
         return {}
@@ -303,7 +303,7 @@ def read_index(folder: str | Path) -> list[Path]:
     if not index.is_file():
         raise RailsuspInputError(f"{folder}: no index.json listing the recordings")
     try:
-        doc = json.loads(index.read_text("utf-8"))
+        doc = json.loads(index.read_text("utf-8-sig"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise RailsuspInputError(f"{index}: not valid JSON ({exc})") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("recordings"), list):

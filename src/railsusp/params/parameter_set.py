@@ -170,7 +170,7 @@ def _read_text(source: str | Path) -> tuple[str, str]:
             read_toml(path, "parameter file")  # one-line errors: folder, unreadable, binary
         except RailsuspInputError as exc:
             raise ParameterError(str(exc)) from None
-        return path.read_text(encoding="utf-8"), str(path)
+        return path.read_text(encoding="utf-8-sig"), str(path)
     if isinstance(source, Path) or (isinstance(source, str) and source.endswith(".toml")):
         raise ParameterError(f"parameter file {source} does not exist")
     return str(source), "<toml text>"

@@ -102,7 +102,7 @@ def load_statistics(path: str | Path) -> StatisticsSurrogate:
     p = path if path.name == FILE and path.is_file() else path / FILE
     if not p.exists():
         raise FileNotFoundError(f"{path} holds no statistics surrogate (no {FILE})")
-    doc = json.loads(p.read_text("utf-8"))
+    doc = json.loads(p.read_text("utf-8-sig"))
     if doc.get("format") != FORMAT:
         raise ValueError(f"{p}: unknown statistics-surrogate format {doc.get('format')!r}")
     return StatisticsSurrogate(
