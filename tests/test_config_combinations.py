@@ -312,3 +312,27 @@ def test_a_cuda_device_is_refused_before_any_stage_where_there_is_none(tmp_path)
         load_config(cfg)
     cfg.write_text(toml("truth = {X13 = 16.1}", "", 'device = "auto"'))
     load_config(cfg)  # takes the CPU here
+
+
+@pytest.mark.parametrize("damage", ["index", "table"])
+def test_a_damaged_measured_folder_is_refused_before_any_stage(tmp_path, blind_field, damage):
+    """Before stop 57 a measured folder's recordings were first read in the field stage,
+    after the campaign, the sensitivity analysis and the surrogates had run."""
+    import shutil
+
+    folder = tmp_path / "measured"
+    shutil.copytree(blind_field, folder)
+    if damage == "index":
+        (folder / "index.json").write_text("{garbage")
+        needle = "index.json: not valid JSON"
+    else:
+        (folder / "straight.csv").unlink()
+        needle = "straight"
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(toml(f'measured = "{folder}"'))
+    out = tmp_path / "run"
+    result = runner.invoke(app, ["run", str(cfg), "--out", str(out)])
+    assert result.exit_code == 2, result.output
+    (line,) = result.output.strip().splitlines()
+    assert "field.measured: " in line and needle in line, line
+    assert not out.exists()

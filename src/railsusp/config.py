@@ -165,6 +165,12 @@ def check_config(cfg: Any, where: str = "configuration", *, from_file: bool = Fa
             raise bad(f"field.measured = {f.measured!r} is not a folder")
         if not (folder / "index.json").is_file():
             raise bad(f"field.measured = {f.measured!r} holds no index.json of recordings")
+        from railsusp.measured import read_field
+
+        try:  # every recording read and checked now, not in the field stage after the
+            read_field(folder)  # campaign, the sensitivity analysis and the surrogates
+        except RailsuspInputError as exc:
+            raise bad(f"field.measured: {exc}") from None
     _check_measured_track(cfg, bad)
     if (f.with_track or f.track_noise_mm) and (f.measured or f.recording) is not None:
         raise bad("field.with_track and field.track_noise_mm apply to synthetic recordings only")
