@@ -54,7 +54,8 @@ def test_overrides_are_validated():
         ({"curve_radius_m": 0}, r"curve_radius_m = 0.*\[50, 100000\] m"),
         ({"speed_kmh": 0}, r"speed_kmh = 0"),
         ({"grade_permille": 100}, r"grade_permille = 100.*\[-40, 40\]"),
-        ({"irregularity_class": 7}, r"irregularity_class = 7.*\[1, 6\]"),
+        ({"irregularity_class": 7}, r"irregularity_class = 7.*\[1, 6\] or \"none\""),
+        ({"speed_kmh": True}, r"^condition 'bad': speed_kmh = true: a boolean is not"),
         ({"cant_mm": 100}, "need a curve_radius_m"),
         ({"speed_kmh": float("nan")}, "speed_kmh"),
         ({"wavelength_min_m": 30, "wavelength_max_m": 20}, "must be below"),
@@ -84,6 +85,19 @@ def test_toml_conditions_with_base(tmp_path):
     assert [c.name for c in resolve_conditions(str(f))] == ["tight", "fast"]
     f.write_text("[condition.bad]\nspeed_kmh = 900\n")
     with pytest.raises(ConditionError, match=r"c\.toml: condition 'bad': speed_kmh = 900"):
+        load_conditions(f)
+
+
+def test_perfect_track_in_a_file_is_none(tmp_path):
+    """TOML has no null: docs/conditions.md promised perfect track by leaving the class out,
+    which gives the base's class 5; "none" is the file's spelling of None."""
+    f = tmp_path / "c.toml"
+    f.write_text('[[condition]]\nname = "smooth"\nirregularity_class = "none"\n')
+    (smooth,) = load_conditions(f)
+    assert smooth.irregularity_class is None and "perfect track" in smooth.describe()
+    assert make_condition(smooth.model_dump(mode="json"), from_file=True) == smooth
+    f.write_text('[[condition]]\nname = "smooth"\nirregularity_class = "nine"\n')
+    with pytest.raises(ConditionError, match='accepted range \\[1, 6\\] or "none"'):
         load_conditions(f)
 
 

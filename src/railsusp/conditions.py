@@ -104,7 +104,11 @@ class WorkingCondition(BaseModel):
         0.0, -3000.0, 3000.0, "kN", "longitudinal coupler force (+ tension) from the train"
     )
     irregularity_class: int | None = Field(
-        5, ge=1, le=6, description="FRA/AAR track class of the irregularity PSD; None: perfect"
+        5,
+        ge=1,
+        le=6,
+        description='FRA/AAR track class of the irregularity PSD; None ("none" in a file): '
+        "perfect track",
     )
     wavelength_min_m: float = _f(1.0, 0.1, 50.0, "m", "shortest irregularity wavelength")
     wavelength_max_m: float = _f(120.0, 2.0, 1000.0, "m", "longest irregularity wavelength")
@@ -158,7 +162,20 @@ class WorkingCondition(BaseModel):
         if isinstance(data, dict):
             for key, value in data.items():  # unknown keys are extra_forbidden's to name
                 if key in cls.model_fields and isinstance(value, bool):
-                    raise ValueError(f"{key} = {value!r}: a boolean is not accepted here")
+                    raise ValueError(
+                        f"{key} = {str(value).lower()}: a boolean is not accepted here"
+                    )
+        return data
+
+    @model_validator(mode="before")
+    @classmethod
+    def _perfect_track(cls, data: Any) -> Any:
+        """``irregularity_class = "none"``: perfect track, as None is in Python (TOML and
+        JSON files have no null that a table can hold)."""
+        if isinstance(data, dict):
+            value = data.get("irregularity_class")
+            if isinstance(value, str) and value.strip().lower() == "none":
+                data = {**data, "irregularity_class": None}
         return data
 
     @model_validator(mode="after")
@@ -363,6 +380,8 @@ def _format_errors(name: str, exc: ValidationError) -> str:
         if lo is not None or hi is not None:
             rng = f"[{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
             accepted = f"accepted range {rng} {unit}".rstrip()
+            if field == "irregularity_class":
+                accepted += ' or "none" (perfect track)'
             if wrong_type:
                 msgs.append(f"{shown}{wrong_type}; {accepted}")
             else:
