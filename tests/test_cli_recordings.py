@@ -99,3 +99,39 @@ def test_sections_write_replaces_the_folder_whole(tmp_path, monkeypatch):
     assert (out / "notes.txt").read_text() == "mine"
     t = np.loadtxt(out / "curve-600.csv", delimiter=",", skiprows=1)[:, 0]
     np.testing.assert_allclose(np.diff(t), 0.04, rtol=1e-6)
+
+
+def test_neither_writer_replaces_a_field_folder_it_did_not_write(tmp_path):
+    """Before stop 57 `synth-field --out` into the sections of a measured run replaced the
+    measured recordings with synthetic ones (exit 0), and `sections --write` replaced the
+    index of a synthetic field, leaving its truth.json beside the measured sections."""
+    run, cmap = example(tmp_path)
+    table = tmp_path / "sections.csv"
+    table.write_text("start_m,end_m,name\n50,500,level-65\n")
+    cut = tmp_path / "cut"
+    args = ["sections", str(run), "--map", str(cmap), "--table", str(table), "--write"]
+    assert runner.invoke(app, [*args, str(cut)]).exit_code == 0
+    assert runner.invoke(app, [*args, str(cut)]).exit_code == 0  # its own folder again
+    before = {p.name: p.read_bytes() for p in cut.iterdir()}
+    conditions = tmp_path / "c.toml"
+    conditions.write_text('[[condition]]\nname = "level-65"\nduration_s = 1.0\nn_steps = 50\n')
+    synth = ["synth-field", "--conditions", str(conditions), "--duration", "1", "--out"]
+    result = runner.invoke(app, [*synth, str(cut)])
+    assert result.exit_code == 2, result.output
+    (line,) = result.output.strip().splitlines()
+    assert line == (
+        f"error: --out {cut} holds a field folder written by sections --write; synth-field "
+        "would replace them: accepted a new or empty folder, or one synth-field wrote"
+    )
+    assert {p.name: p.read_bytes() for p in cut.iterdir()} == before  # nothing lost
+    field = tmp_path / "synthetic"
+    assert runner.invoke(app, [*synth, str(field)]).exit_code == 0
+    assert runner.invoke(app, [*synth, str(field)]).exit_code == 0  # its own folder again
+    result = runner.invoke(app, [*args, str(field)])
+    assert result.exit_code == 2 and "holds a field folder written by synth-field" in result.output
+    assert (field / "truth.json").is_file()
+    (tmp_path / "notes").mkdir()
+    (tmp_path / "notes" / "a.txt").write_text("mine")
+    result = runner.invoke(app, [*synth, str(tmp_path / "notes")])
+    assert result.exit_code == 2 and "files of another kind" in result.output
+    assert (tmp_path / "notes" / "a.txt").read_text() == "mine"

@@ -51,6 +51,7 @@ def synth_field(
 ) -> None:
     """Synthetic instrumented-wheelset recordings of hidden true parameters (truth.json)."""
     from railsusp.measured import synthesise_field
+    from railsusp.measured.field_folder import check_field_output
 
     try:
         if not 0.0 <= noise <= 0.5:
@@ -64,6 +65,7 @@ def synth_field(
                 f"--track-noise {track_noise:g} needs --with-track (the error is that of the "
                 "track geometry written beside the recordings)"
             )
+        check_field_output(out, "synthetic", "--out")  # never replaces measured recordings
         pset = ParameterSet(parse_overrides(truth) if truth else {}, units="display")
         conds = resolve_conditions(conditions)
         with console.status("simulating the hidden truth"):

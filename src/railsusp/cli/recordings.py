@@ -193,9 +193,10 @@ def sections_command(
         if plot is not None:
             console.print(f"wrote {plot_sections(run, secs, plot)}")
         if write is not None:
-            from railsusp.store import atomic_folder, check_output_folder
+            from railsusp.measured.field_folder import check_field_output
+            from railsusp.store import atomic_folder
 
-            check_output_folder(write, "--write")
+            check_field_output(write, "sections", "--write")  # never replaces other data
             # the whole folder at once: a kill mid-write left new recordings beside an old
             # index and sidecars (other files of the folder are carried over)
             with atomic_folder(write) as tmp:

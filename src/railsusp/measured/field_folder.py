@@ -1,0 +1,66 @@
+"""Which field folders a command may replace: never measured recordings.
+
+``synth-field --out`` and ``sections --write`` write a whole field folder at once
+(:func:`~railsusp.store.atomic_folder`). Into an existing folder that would replace what it
+holds, so each writer accepts only a folder it could write again itself: a new or empty
+one, or one it wrote before (``synth-field``: an index with its ``seed`` beside
+``truth.json``; ``sections``: an index naming the long run it was cut from, ``source``).
+Anything else, a folder of measured recordings above all, is refused before any work: the
+project's rule that bad input loses no data (before stop 57, ``synth-field`` replaced a
+folder of section recordings with synthetic ones and exited 0).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Literal
+
+from railsusp.errors import RailsuspInputError
+from railsusp.store import check_output_folder
+
+#: what wrote a field folder, by the marks it leaves (:func:`folder_kind`)
+Kind = Literal["new", "empty", "synthetic", "sections", "other"]
+
+_WRITERS = {"synthetic": "synth-field", "sections": "sections --write"}
+
+
+def folder_kind(path: str | Path) -> Kind:
+    """What ``path`` holds: nothing yet, an empty folder, a synthetic field (``synth-field``),
+    the sections of a long run (``sections --write``), or anything else (measured
+    recordings, other files, an index that cannot be read)."""
+    path = Path(path)
+    if not path.exists():
+        return "new"
+    if path.is_dir() and not any(path.iterdir()):
+        return "empty"
+    try:
+        index = json.loads((path / "index.json").read_text("utf-8-sig"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return "other"
+    if not isinstance(index, dict):
+        return "other"
+    if "seed" in index and (path / "truth.json").is_file():
+        return "synthetic"
+    if "source" in index and not (path / "truth.json").exists():
+        return "sections"
+    return "other"
+
+
+def check_field_output(path: str | Path, writer: Literal["synthetic", "sections"], option: str):
+    """Refuse (one line, before any work) an output folder that ``writer`` would replace
+    but did not write: see the module's docstring. Also refuses what
+    :func:`~railsusp.store.check_output_folder` does (a file, an unwritable folder)."""
+    path = check_output_folder(path, option)
+    kind = folder_kind(path)
+    if kind in ("new", "empty", writer):
+        return path
+    held = (
+        f"a field folder written by {_WRITERS[kind]}"
+        if kind in _WRITERS
+        else "files of another kind (measured recordings, another command's output)"
+    )
+    raise RailsuspInputError(
+        f"{option} {path} holds {held}; {_WRITERS[writer]} would replace them: accepted a "
+        f"new or empty folder, or one {_WRITERS[writer]} wrote"
+    )
