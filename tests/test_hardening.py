@@ -411,11 +411,67 @@ def test_ctrl_c_ends_a_command_with_a_line_saying_what_is_kept(monkeypatch, caps
     54); the console script now says what is kept and how to resume."""
     import railsusp.cli as cli
 
-    def interrupted() -> None:
-        raise SystemExit(130)
+    def interrupted(**kwargs) -> int:
+        assert kwargs == {"standalone_mode": False}
+        return 130  # typer's exit status of a KeyboardInterrupt outside standalone mode
 
     monkeypatch.setattr(cli, "app", interrupted)
     with pytest.raises(SystemExit) as info:
         cli.main()
     assert info.value.code == 130
     assert "interrupted: what was finished is kept" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("args", "line"),
+    [
+        (
+            ["simulate", "straight", "--speed", "500"],
+            "error: No such option: --speed (Possible options: --seed, --set) (see railsusp "
+            "simulate --help)",
+        ),
+        (
+            ["track", "--class", "5.5"],
+            "error: Invalid value for '--class': Input should be a valid integer, unable to "
+            "parse string as an integer (see railsusp track --help)",
+        ),
+        (["nosuch"], "error: No such command 'nosuch'. (see railsusp --help)"),
+    ],
+)
+def test_the_console_script_gives_a_usage_error_in_one_line(args, line):
+    """Click printed a usage error as a five-line box (stop 57's audit)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(sys.executable).parent / "railsusp"
+    done = subprocess.run(
+        [str(script), *args], capture_output=True, text=True, timeout=120, env={"COLUMNS": "300"}
+    )
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.strip().splitlines() == [line] and done.stdout == ""
+
+
+@pytest.mark.parametrize(
+    ("error", "status", "line"),
+    [
+        (OSError(28, "No space left on device", "out/f.csv"), 1, "error: out/f.csv: No space left"),
+        (PermissionError(13, "Permission denied", "ro/f"), 2, "error: ro/f: Permission denied"),
+    ],
+)
+def test_an_operating_system_error_is_one_line_not_a_traceback(
+    monkeypatch, capsys, error, status, line
+):
+    """A full disk or a folder that cannot be written ended every writing command in a
+    traceback (stop 57's audit: track --plot, simulate --out, campaign, synth-field, ...)."""
+    import railsusp.cli as cli
+
+    def failing(**kwargs):
+        raise error
+
+    monkeypatch.setattr(cli, "app", failing)
+    with pytest.raises(SystemExit) as info:
+        cli.main()
+    assert info.value.code == status
+    err = capsys.readouterr().err
+    assert err.startswith(line) and len(err.strip().splitlines()) == 1

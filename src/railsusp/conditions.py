@@ -348,6 +348,12 @@ def make_condition(fields: dict[str, Any], *, from_file: bool = False) -> Workin
         raise ConditionError(f"condition {fields.get('name', 'custom')!r}: {exc}") from None
 
 
+def _bound(x: float) -> str:
+    """A range bound as written: a whole number in full (a seed's 9223372036854775807, not
+    9.22337e+18), others as %g."""
+    return str(int(x)) if isinstance(x, int) else f"{x:g}"
+
+
 def _format_errors(name: str, exc: ValidationError) -> str:
     """One line per pydantic error, naming field, value and accepted range with unit."""
     from railsusp.store import type_error_text
@@ -378,7 +384,7 @@ def _format_errors(name: str, exc: ValidationError) -> str:
                 "starting with a letter or digit (no '/', no '..', no absolute path)"
             )
         if lo is not None or hi is not None:
-            rng = f"[{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
+            rng = f"[{'-inf' if lo is None else _bound(lo)}, {'inf' if hi is None else _bound(hi)}]"
             accepted = f"accepted range {rng} {unit}".rstrip()
             if field == "irregularity_class":
                 accepted += ' or "none" (perfect track)'

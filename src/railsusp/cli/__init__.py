@@ -97,13 +97,48 @@ INTERRUPTED = (
 
 
 def main() -> None:
-    """Console-script entry point."""
+    """Console-script entry point. Click runs outside its standalone mode so that what it
+    would print as a boxed usage error (an unknown option, ``--class 5.5``) or a traceback
+    (an operating-system error: disk full, a folder not writable) is one line here, and the
+    exit status is the command's."""
+    import errno
+
+    import typer
+    from rich.markup import escape
+
+    clicks = _click_exceptions()
     try:
-        app()
+        code = app(standalone_mode=False)
+    except clicks.NoArgsIsHelpError as exc:  # a bare group: its help, as typer shows it
+        exc.show()
+        sys.exit(exc.exit_code)
+    except clicks.ClickException as exc:  # a usage error: one line, not click's box
+        ctx = getattr(exc, "ctx", None)
+        where = f" (see {ctx.command_path} --help)" if ctx is not None else ""
+        err_console.print(f"error: {escape(exc.format_message())}{where}", highlight=False)
+        sys.exit(exc.exit_code)
+    except typer.Abort:  # end of input at a prompt
+        err_console.print("aborted")
+        sys.exit(1)
     except RailsuspInputError as exc:  # pragma: no cover - commands catch their own
-        err_console.print(f"error: {exc}")
+        err_console.print(f"error: {escape(str(exc))}", highlight=False)
         sys.exit(2)
-    except SystemExit as exc:  # typer turns a Ctrl-C into a silent exit 130
-        if exc.code == 130:
-            err_console.print(INTERRUPTED)
-        raise
+    except OSError as exc:  # what the machine refused: one line, not a traceback
+        where = f"{exc.filename}: " if exc.filename else ""
+        err_console.print(f"error: {escape(where + (exc.strerror or str(exc)))}", highlight=False)
+        sys.exit(1 if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EIO) else 2)
+    except SystemExit as exc:  # a command that exits itself
+        code = exc.code
+    if code == 130:  # typer turns a Ctrl-C into a silent exit 130
+        err_console.print(INTERRUPTED)
+    sys.exit(code if isinstance(code, int) else 0)
+
+
+def _click_exceptions():
+    """The exception module of the click that typer runs: its own copy since typer 0.20
+    (``typer._click``), click itself before."""
+    try:
+        from typer._click import exceptions
+    except ImportError:  # pragma: no cover - older typer
+        from click import exceptions
+    return exceptions

@@ -281,12 +281,15 @@ def estimate_command(
 ) -> None:
     """Posterior median and 90 % interval of each parameter for a field folder."""
     from railsusp.estimate import posterior
+    from railsusp.estimate.posterior_settings import MAX_SEED
     from railsusp.measured import read_field
     from railsusp.store import check_output_file
 
     try:
         if out is not None:
             check_output_file(out)
+        if not 0 <= seed <= MAX_SEED:  # numpy's generators take no negative seed
+            raise RailsuspInputError(f"--seed {seed}: accepted 0 to {MAX_SEED}")
         _long_record(long_record)
         recordings = read_field(measured)
         joined = (estimator / "posterior" / "joint.json").exists()

@@ -22,6 +22,8 @@ from railsusp.params import MAIN_SUSPENSION, spec
 #: (9 x :data:`~railsusp.estimate.posterior_data.OFFSET_SEED_BASE` + the largest kind's base
 #: in :data:`~railsusp.estimate.posterior_data.SEED_BASE` and its span: change them together)
 MAX_CONDITION_OFFSET = 9
+#: the largest seed of the training and of the draws (numpy's and torch's generators)
+MAX_SEED = 2**32 - 1
 
 
 @dataclass(frozen=True)
@@ -101,6 +103,8 @@ class PosteriorSettings:
         for name, value, lo, hi in checks:
             if not lo <= value <= hi:
                 raise RailsuspInputError(f"{name} = {value:g}: accepted {lo:g} to {hi:g}")
+        if not 0 <= self.seed <= MAX_SEED:  # numpy's generators take no negative seed
+            raise RailsuspInputError(f"seed = {self.seed}: accepted 0 to {MAX_SEED}")
         if self.n_calibration and not 20 <= self.n_calibration <= 100_000:
             raise RailsuspInputError(
                 f"n_calibration = {self.n_calibration:g}: accepted 0 (no correction) or 20 to "
