@@ -44,6 +44,22 @@ class StageError(RailsuspInputError):
     """A stage failed; earlier stages' outputs are intact."""
 
 
+def _drop_other_conditions(surrogates: Path, conditions: list) -> None:
+    """Remove the surrogates of conditions the configuration no longer has from a run's
+    ``surrogates/<model>/`` folders before they are trained again. The estimate loads every
+    bundle of its model's folder: one left from a renamed condition, on other key
+    parameters, stopped every later run in the same folder ("surrogate short uses ('X13',
+    'X14'), the calibration ('X14',)"), even with ``--from campaign``."""
+    import shutil
+
+    names = {c.name for c in conditions}
+    for model in surrogates.iterdir() if surrogates.is_dir() else []:
+        for sub in model.iterdir() if model.is_dir() else []:
+            if sub.is_dir() and sub.name not in names and not sub.name.startswith("."):
+                log.info("surrogates: %s of a condition no longer configured, removed", sub)
+                shutil.rmtree(sub)
+
+
 def run_pipeline(
     config: PipelineConfig,
     out: str | Path,
@@ -286,6 +302,7 @@ def _stage_runners(
             device=s.device,
         )
         window_model = "bp" if s.model == "gp-stats" else s.model
+        _drop_other_conditions(sur_dir / "surrogates", config.working_conditions())
         tab = compare(sur_dir, models=(window_model, "rbf", "gp-stats"), train=tcfg)
         for cond in config.working_conditions():
             train_statistics_surrogate(sur_dir, cond.name)

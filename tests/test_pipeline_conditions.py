@@ -1,8 +1,11 @@
-"""A condition that names its own measured track (``track_geometry``) through the synthetic
-field and the whole pipeline. Before stop 57 the field's sidecar named the user's file by a
-path the reader resolves inside the field folder, where it was not (the estimate stage
-failed: "track geometry file .../field/geo.csv not found"), and with ``with_track`` the
-report stage failed on the track figure's seed ("tuple index out of range")."""
+"""Conditions through the synthetic field and the whole pipeline.
+
+A condition that names its own measured track (``track_geometry``): before stop 57 the
+field's sidecar named the user's file by a path the reader resolves inside the field folder,
+where it was not (the estimate stage failed: "track geometry file .../field/geo.csv not
+found"), and with ``with_track`` the report stage failed on the track figure's seed ("tuple
+index out of range"). A run folder used again after a condition was renamed kept the old
+condition's surrogates, which stopped its estimate stage."""
 
 from __future__ import annotations
 
@@ -75,3 +78,26 @@ def test_a_run_on_a_condition_with_its_own_track_completes(
     assert (out / "report_assets" / "track.png").is_file()
     estimate = json.loads((out / "estimate" / "estimate.json").read_text())
     assert estimate["config"]["statistic"] == statistic
+
+
+def test_a_run_folder_reused_with_a_renamed_condition(tmp_path):
+    """The surrogates of a condition the configuration no longer has were left in the run's
+    surrogate folder, where the estimate loads every bundle: renaming the condition (and so
+    getting other key parameters) stopped the run in its estimate stage, and every later
+    run in that folder, even with --from campaign (stop 57's audit)."""
+    out = tmp_path / "run"
+    first = tmp_path / "a.toml"
+    first.write_text(TINY.read_text())
+    run_pipeline(load_config(first), out)
+    second = tmp_path / "b.toml"
+    second.write_text(
+        TINY.read_text()
+        .replace('name="short"', 'name="renamed"')
+        .replace("max_keys = 2", "max_keys = 1")
+    )
+    state = run_pipeline(load_config(second), out)
+    assert all(s["state"] == "done" for s in state["stages"].values())
+    for model in (out / "surrogate-campaign" / "surrogates").iterdir():
+        if not model.is_dir():
+            continue  # figures, the comparison table
+        assert sorted(p.name for p in model.iterdir() if p.is_dir()) == ["renamed"], model
