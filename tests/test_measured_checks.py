@@ -158,7 +158,7 @@ def test_a_sidecar_that_is_a_list_or_gives_text_for_a_number_is_refused(tmp_path
     side.write_text(good.replace('"speed_kmh": 60.0', '"speed_kmh": "60"'))
     assert "speed_kmh = '60': a number is needed, not a string" in problems(p)
     side.write_text(good.replace('"speed_kmh": 60.0', '"speed_kmh": true'))
-    assert "speed_kmh = True: a boolean is not accepted" in problems(p)
+    assert "speed_kmh = true: a boolean is not accepted" in problems(p)
 
 
 def test_paths_in_sidecars_and_index_must_stay_inside_the_folder(tmp_path):

@@ -118,8 +118,9 @@ def test_a_checkpoint_cut_short_is_trained_past_from_the_start(tmp_path):
 @pytest.mark.parametrize(
     ("field", "value", "message"),
     [
-        ("epochs", 0, "epochs = 0: accepted an integer >= 1"),
+        ("epochs", 0, "epochs = 0: accepted an integer from 1 to 10000"),
         ("batch_size", 0, "batch_size = 0"),
+        ("batch_size", 100_000_000, "batch_size = 100000000: accepted an integer from 1 to 65536"),
         ("batches_per_epoch", -1, "batches_per_epoch = -1"),
         ("device", "tpu", "device 'tpu': accepted cpu, cuda, auto"),
         ("learning_rate", float("nan"), "learning_rate = nan"),

@@ -75,20 +75,24 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         """Refuse settings that would train nothing or fail later (one-line errors)."""
-        for name, lo in (
-            ("epochs", 1),
-            ("batches_per_epoch", 1),
-            ("batch_size", 1),
-            ("patience", 1),
-            ("fine_tune_epochs", 0),
-            ("val_windows", 1),
-            ("seed", 0),
-            ("chunk_steps", 2),
-            ("chunks_per_batch", 1),
+        # the upper bounds are those of a run's [surrogate] section (pipeline_config): a
+        # mini-batch of 1e8 windows asked numpy for 112 GiB instead of being refused
+        for name, lo, hi in (
+            ("epochs", 1, 10_000),
+            ("batches_per_epoch", 1, 100_000),
+            ("batch_size", 1, 65_536),
+            ("patience", 1, 10_000),
+            ("fine_tune_epochs", 0, 10_000),
+            ("val_windows", 1, 10_000_000),
+            ("seed", 0, 2**32 - 1),
+            ("chunk_steps", 2, 1_000_000),
+            ("chunks_per_batch", 1, 65_536),
         ):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < lo:
-                raise RailsuspInputError(f"training {name} = {v!r}: accepted an integer >= {lo}")
+            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+                raise RailsuspInputError(
+                    f"training {name} = {v!r}: accepted an integer from {lo} to {hi}"
+                )
         pw = self.pair_weight
         if isinstance(pw, bool) or not isinstance(pw, int | float) or not 0 <= pw <= 100:
             raise RailsuspInputError(f"training pair_weight = {pw!r}: accepted [0, 100]")
