@@ -370,8 +370,10 @@ def _check_one_track_surrogate(cfg: Any, bad: Any) -> None:
     if cfg.surrogate.pretrained is not None or cfg.surrogate.model == "gp-stats":
         return  # a set trained on a track family; the statistics GPs have their own check
     f = cfg.field
-    own_tracks = f.measured is None and f.recording is None and all(
-        c.track_geometry is not None for c in cfg.working_conditions()
+    own_tracks = (
+        f.measured is None
+        and f.recording is None
+        and all(c.track_geometry is not None for c in cfg.working_conditions())
     )
     if own_tracks:  # trained on the conditions' own measured tracks, which the synthetic
         return  # recordings carry (same_measured_track): those are the tracks predicted

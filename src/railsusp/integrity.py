@@ -122,6 +122,23 @@ def read_torch_file(path: Path, what: str, remedy: str, map_location: str = "cpu
         ) from None
 
 
+def read_npz(path: Path, what: str, remedy: str) -> dict[str, Any]:
+    """Every array of the NumPy archive ``path`` (``np.savez``), read whole, pickles refused.
+    A file cut short, emptied or of another kind is refused with one line naming ``what``
+    and the ``remedy`` (NumPy raised ``BadZipFile``, or ``EOFError``, which the command
+    line took for an interrupted prompt and answered "Aborted.")."""
+    import numpy as np
+
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return {name: z[name] for name in z.files}
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as exc:
+        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        if path.is_file() and path.stat().st_size == 0:
+            reason = "an empty file"
+        raise RailsuspInputError(f"{what} {path} is damaged ({reason}); {remedy}") from None
+
+
 #: terminal colour codes, which torch puts in some of its messages
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
 

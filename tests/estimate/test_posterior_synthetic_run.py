@@ -91,6 +91,28 @@ def test_fitted_checked_stored_and_read_back_the_same(run):
     assert (folder / "emulator.npz").stat().st_mtime_ns == mtime
 
 
+@pytest.mark.parametrize("damage", ["cut", "empty"])
+def test_a_damaged_emulator_is_refused_in_one_line_and_fitted_again(run, tmp_path, damage):
+    """numpy's BadZipFile ended `posterior estimate` and `posterior join` in a traceback, and
+    an empty file in typer's "Aborted." (an EOFError taken for an interrupted prompt)."""
+    import shutil
+
+    s = _settings()
+    synthetic.train(s, run)
+    copy = tmp_path / "run"
+    shutil.copytree(run, copy)
+    path = copy / "posterior" / "synthetic" / "emulator.npz"
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2] if damage == "cut" else b"")
+    with pytest.raises(RailsuspInputError) as info:
+        synthetic.load(copy)
+    assert f"the statistics emulator {path} is damaged (" in str(info.value)
+    assert "\n" not in str(info.value)
+    again = synthetic.train(s, copy)  # training fits it anew
+    assert path.stat().st_size == len(data)
+    assert [c.to_dict() for c in again.checks] == [c.to_dict() for c in synthetic.load(run).checks]
+
+
 def test_the_verdict_follows_the_check_of_the_number_of_sections(run):
     post = synthetic.load(run)
     assert post.product_for(1).sections == 1

@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from railsusp.errors import RailsuspInputError
+from railsusp.integrity import read_npz
 from railsusp.store import atomic_write_bytes
 
 #: E[log chi2_1]: a squared standard normal's log mean (the log-variance regression's offset)
@@ -158,7 +159,8 @@ class StatisticsEmulator:
                 f"{path} does not exist: fit the synthetic likelihood first "
                 "(railsusp posterior train --long-record synthetic-likelihood)"
             )
-        with np.load(path, allow_pickle=False) as z:
+        z = read_npz(path, "the statistics emulator", "delete it and train again to fit it anew")
+        try:
             layout = z["layout"][0]
             weights = [
                 [(z[f"w_{m}_{i}"], z[f"b_{m}_{i}"]) for i in range(int(n))]
@@ -171,9 +173,14 @@ class StatisticsEmulator:
                 z["logvar_coef"],
                 z["correlation"],
                 int(z["cases"]),
-                str(z["stamp"]) if "stamp" in z.files else "",
-                z["trends"] if "trends" in z.files else None,
+                str(z["stamp"]) if "stamp" in z else "",
+                z["trends"] if "trends" in z else None,
             )
+        except (KeyError, IndexError, ValueError) as exc:
+            raise RailsuspInputError(
+                f"the statistics emulator {path} is not one railsusp wrote (missing {exc}); "
+                "delete it and train again to fit it anew"
+            ) from None
 
 
 def _network(d: int, hidden: int, out: int):

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from railsusp.errors import RailsuspInputError
 from railsusp.estimate.posterior_data import GAIN_ERROR, cached_cases
 from railsusp.estimate.posterior_emulator import StatisticsEmulator, fit
 from railsusp.estimate.posterior_settings import PosteriorSettings
@@ -24,6 +25,7 @@ from railsusp.estimate.posterior_synthetic import (
     gain_covariance,
     informative_projection,
 )
+from railsusp.integrity import read_npz
 from railsusp.store import atomic_write_bytes, content_hash, read_json, write_json
 
 log = logging.getLogger(__name__)
@@ -95,9 +97,12 @@ def fit_projection(settings: PosteriorSettings, emulator: StatisticsEmulator, ru
     stamp = content_hash({"emulator": emulator_stamp(run), "rank": settings.projection_rank,
                           "sections": k, "cases": PROJECTION_CASES})  # fmt: skip
     if path.exists():
-        with np.load(path, allow_pickle=False) as z:
+        try:
+            z = read_npz(path, "the projection", "computed again")
             if str(z["stamp"]) == stamp:
                 return {"matrix": z["matrix"], "kept": float(z["kept"]), "stamp": stamp}
+        except (RailsuspInputError, KeyError) as exc:
+            log.warning("%s", exc)
     u, _ = cached_cases(settings, Path(run) / "posterior" / "simulations", "train",
                         settings.n_train)  # fmt: skip
     base = likelihood(settings, emulator)
@@ -193,6 +198,17 @@ def _trained_on(settings: PosteriorSettings) -> dict:
     return {k: v for k, v in settings.to_dict().items() if k in TRAINED_ON}
 
 
+def _cached(path: Path) -> StatisticsEmulator | None:
+    """A stored emulator, or None (with a warning) where its file is damaged: training fits
+    it again rather than stopping (a file cut short by a copy or a full disk)."""
+    try:
+        return StatisticsEmulator.load(path)
+    except RailsuspInputError as exc:
+        fix = "delete it and train again to fit it anew"
+        log.warning("%s", str(exc).replace(fix, "fitted again"))
+        return None
+
+
 def fit_emulator(settings: PosteriorSettings, run: str | Path) -> StatisticsEmulator:
     """The emulator of all the statistics, on the run's training cases (simulated if not
     cached; the first ``statistics_emulator_cases`` of them when set), fitted once and
@@ -203,7 +219,9 @@ def fit_emulator(settings: PosteriorSettings, run: str | Path) -> StatisticsEmul
     key = emulator_key(settings)
     stamp = folder / "synthetic" / "settings.json"
     if path.exists() and stamp.exists() and read_json(stamp).get("hash") == key:
-        return StatisticsEmulator.load(path)
+        cached = _cached(path)
+        if cached is not None:
+            return cached
     u, x = cached_cases(settings, folder / "simulations", "train", cases)
     t0 = time.perf_counter()
     emu = fit(u, x, members=MEMBERS, hidden=HIDDEN, seed=settings.seed, log=log, **TRAINING)
@@ -237,10 +255,9 @@ def fit_projected_emulator(
     key = content_hash({"settings": _trained_on(settings), "projection": fitted["stamp"],
                         "members": MEMBERS, "hidden": PROJECTED_HIDDEN,
                         "training": TRAINING})  # fmt: skip
-    if path.exists():
-        emu = StatisticsEmulator.load(path)
-        if emu.stamp == key:
-            return emu
+    emu = _cached(path) if path.exists() else None
+    if emu is not None and emu.stamp == key:
+        return emu
     u, x = cached_cases(settings, folder / "simulations", "train", settings.n_train)
     t0 = time.perf_counter()
     emu = fit(u, x @ fitted["matrix"].T, members=MEMBERS, hidden=PROJECTED_HIDDEN,

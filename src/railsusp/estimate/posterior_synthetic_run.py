@@ -48,6 +48,7 @@ from railsusp.estimate.posterior_synthetic_fit import (
     restamp_settings,
     scale_set,
 )
+from railsusp.integrity import read_npz
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import read_json, write_json
 
@@ -209,8 +210,8 @@ def load(run: str | Path) -> SyntheticPosterior:
     if settings.statistics != ("en14363",):
         path = folder / "projection.npz"
         if path.exists():
-            with np.load(path, allow_pickle=False) as z:
-                projection, projection_stamp = z["matrix"], str(z["stamp"])
+            z = read_npz(path, "the projection", "delete it and train again to compute it")
+            projection, projection_stamp = z.get("matrix"), str(z.get("stamp"))
         if projection_stamp is None or checked.get("emulator", [None])[-1] != projection_stamp:
             raise _not_checked(path, folder)
     projected = None
