@@ -135,7 +135,10 @@ def test_targets_are_judged_per_run_in_every_condition(bench):
         (["--pair-weight", "-1", "--tag", "x"], r"pair_weight = -1.0: accepted \[0, 100\]"),
         (["--pair-step", "0.9", "--tag", "x"], r"step = 0.9: accepted a fraction of the range"),
         (["--pair-weight", "1", "--tag", "x"], "--pair-weight: accepted with --nominal"),
-        (["--patience", "0", "--tag", "x"], "training patience = 0: accepted an integer from 1 to 10000"),
+        (
+            ["--patience", "0", "--tag", "x"],
+            "training patience = 0: accepted an integer from 1 to 10000",
+        ),
         (
             ["--fine-tune-lr-factor", "2", "--tag", "x"],
             r"fine_tune_lr_factor = 2.0: accepted",

@@ -138,7 +138,7 @@ def test_the_sampler_follows_the_kind():
     tcfg = TrainConfig(chunk_steps=30)
     assert isinstance(sampler_for("cnn-gru-seq", data, norm, 5, tcfg), ChunkSampler)
     assert isinstance(sampler_for("cnn-gru", data, norm, 5, tcfg), WindowSampler)
-    with pytest.raises(RailsuspInputError, match="chunk_steps = 1: accepted an integer from 2 to 1000000"):
+    with pytest.raises(RailsuspInputError, match="chunk_steps = 1: accepted an integer from 2 to"):
         TrainConfig(chunk_steps=1)
     with pytest.raises(RailsuspInputError, match="chunks_per_batch = 0"):
         TrainConfig(chunks_per_batch=0)

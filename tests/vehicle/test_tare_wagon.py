@@ -111,7 +111,12 @@ def test_with_values_changes_named_fields_and_validates_them():
     with pytest.raises(RailsuspInputError) as info:  # out of its range (0, 2]
         base.with_values({"contact.creep_factor": 3.0})
     assert str(info.value) == (
-        "wagon: contact.creep_factor = 3.0: Input should be less than or equal to 2"
+        "wagon: contact.creep_factor = 3.0: accepted (0, 2] (Input should be less than or "
+        "equal to 2)"
     )
+    with pytest.raises(RailsuspInputError, match=r"cg_height = 2050.0: accepted \(0, 5\] m"):
+        base.with_values({"car_body.cg_height": 2050.0})  # typed in millimetres
+    with pytest.raises(RailsuspInputError, match=r"mass = 91.6: accepted \(1000, 250000\] kg"):
+        base.with_values({"car_body.mass": 91.6})  # typed in tonnes
     with pytest.raises(RailsuspInputError, match=r"^contact.model = 'one-point': accepted two"):
         base.with_contact_model("one-point")

@@ -175,8 +175,16 @@ def test_warp_splits_the_wedges_column_friction_between_front_and_rear():
 @pytest.mark.parametrize(
     ("spacing", "wedges", "needle"),
     [
-        ("0.7", "2", "secondary.wedge_half_spacing = 0.7: Input should be less than or equal"),
-        ("-0.1", "2", "secondary.wedge_half_spacing = -0.1: Input should be greater than or"),
+        (
+            "0.7",
+            "2",
+            "secondary.wedge_half_spacing = 0.7: accepted [0, 0.5] (Input should be less than",
+        ),
+        (
+            "-0.1",
+            "2",
+            "secondary.wedge_half_spacing = -0.1: accepted [0, 0.5] (Input should be greater",
+        ),
         ("0.25", "1", "wedges_per_nest = 1: accepted an even number of wedges"),
     ],
 )

@@ -22,6 +22,14 @@ from railsusp.errors import RailsuspInputError
 _POS = {"gt": 0.0, "allow_inf_nan": False}
 
 
+def _within(hi: float, lo: float = 0.0, unit: str = "m", **kw: Any) -> Any:
+    """A positive quantity of a standard-gauge freight wagon, at most ``hi`` (SI): the
+    bounds catch a value typed in another unit (a CG height of 2050 "m" in millimetres, a
+    car body of 91.6 "kg" in tonnes), which the model would otherwise run into a flange
+    climb or a side bearer carrying the car body, far from the field that was wrong."""
+    return Field(gt=lo, le=hi, allow_inf_nan=False, json_schema_extra={"unit": unit}, **kw)
+
+
 class _Section(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -32,41 +40,41 @@ class WagonInfo(_Section):
 
 
 class CarBody(_Section):
-    mass: float = Field(**_POS, description="loaded car body mass, kg")
+    mass: float = _within(250_000.0, 1000.0, "kg", description="loaded car body mass, kg")
     roll_inertia: float = Field(**_POS, description="kg m^2")
     pitch_inertia: float = Field(**_POS, description="kg m^2")
     yaw_inertia: float = Field(**_POS, description="kg m^2")
-    cg_height: float = Field(**_POS, description="centre of gravity above rail top, m")
-    bogie_half_spacing: float = Field(**_POS, description="half bogie centre distance, m")
-    coupler_height: float = Field(**_POS, description="coupler height above rail top, m")
-    coupler_half_spacing: float = Field(**_POS, description="car centre to coupler pivot, m")
+    cg_height: float = _within(5.0, description="centre of gravity above rail top, m")
+    bogie_half_spacing: float = _within(15.0, description="half bogie centre distance, m")
+    coupler_height: float = _within(2.0, description="coupler height above rail top, m")
+    coupler_half_spacing: float = _within(20.0, description="car centre to coupler pivot, m")
 
 
 class Bolster(_Section):
-    mass: float = Field(**_POS)
+    mass: float = _within(5000.0, 10.0, "kg")
     roll_inertia: float = Field(**_POS)
     yaw_inertia: float = Field(**_POS)
-    cg_height: float = Field(**_POS)
+    cg_height: float = _within(2.0, description="m above rail top")
 
 
 class SideFrame(_Section):
-    mass: float = Field(**_POS)
+    mass: float = _within(5000.0, 10.0, "kg")
     pitch_inertia: float = Field(**_POS)
     yaw_inertia: float = Field(**_POS)
-    cg_height: float = Field(**_POS)
+    cg_height: float = _within(2.0, description="m above rail top")
 
 
 class Bogie(_Section):
-    half_wheelbase: float = Field(**_POS)
-    axle_box_half_span: float = Field(**_POS)
-    spring_nest_half_span: float = Field(**_POS)
-    centre_plate_height: float = Field(**_POS)
-    centre_plate_radius: float = Field(**_POS)
+    half_wheelbase: float = _within(2.0)
+    axle_box_half_span: float = _within(2.0)
+    spring_nest_half_span: float = _within(2.0)
+    centre_plate_height: float = _within(2.0, description="m above rail top")
+    centre_plate_radius: float = _within(1.0)
 
 
 class Wheelset(_Section):
-    rolling_radius: float = Field(**_POS)
-    contact_half_distance: float = Field(**_POS)
+    rolling_radius: float = _within(0.7, 0.2, description="wheel diameter / 2, m")
+    contact_half_distance: float = _within(1.5, 0.5)
 
 
 class Primary(_Section):
@@ -277,8 +285,43 @@ def wagon_error_text(exc: ValidationError) -> str:
         value = err.get("input")
         where_value = loc if isinstance(value, dict) else f"{loc} = {value!r}"
         text = type_error_text(err) or err["msg"].removeprefix("Value error, ")
+        accepted = _accepted_range(err["loc"])
+        if accepted and err["type"] in _BOUND_ERRORS:
+            text = f"accepted {accepted} ({text})"
         msgs.append(f"{where_value}: {text}")
     return "; ".join(msgs)
+
+
+#: pydantic's error types of a value outside a field's bounds
+_BOUND_ERRORS = ("greater_than", "greater_than_equal", "less_than", "less_than_equal")
+
+
+def _accepted_range(loc: tuple) -> str:
+    """A wagon field's bounds as an interval, e.g. "(0, 5] m", from its declaration
+    (``section.field``); "" where the field has none or the location is not one."""
+    if len(loc) != 2:
+        return ""
+    section = WagonData.model_fields.get(str(loc[0]))
+    model = section.annotation if section is not None else None
+    info = getattr(model, "model_fields", {}).get(str(loc[1]))
+    if info is None:
+        return ""
+    lo = hi = None
+    left, right = "[", "]"
+    for m in info.metadata:
+        for name, bracket in (("gt", "("), ("ge", "[")):
+            if getattr(m, name, None) is not None:
+                lo, left = getattr(m, name), bracket
+        for name, bracket in (("lt", ")"), ("le", "]")):
+            if getattr(m, name, None) is not None:
+                hi, right = getattr(m, name), bracket
+    if lo is None and hi is None:
+        return ""
+    low = "-inf" if lo is None else f"{lo:g}"
+    high = "inf" if hi is None else f"{hi:g}"
+    extra = info.json_schema_extra
+    unit = extra.get("unit", "") if isinstance(extra, dict) else ""
+    return f"{left}{low}, {high}{right} {unit}".rstrip()
 
 
 def load_wagon(source: str | Path | None = None) -> WagonData:
