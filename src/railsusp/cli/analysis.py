@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from railsusp.cli.common import app, console, err_console, fail
+from railsusp.cli.common import app, console, err_console, fail, show_progress
 from railsusp.errors import RailsuspInputError
 
 
@@ -162,6 +162,7 @@ def campaign(
         TimeElapsedColumn(),
         TimeRemainingColumn(),
         console=err_console,
+        disable=not show_progress(),
     ) as bar:
         task = bar.add_task("runs", total=total, rate="")
         t0 = [None, 0]

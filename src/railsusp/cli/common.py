@@ -35,6 +35,13 @@ def is_quiet() -> bool:
     return verbosity == "quiet"
 
 
+def show_progress() -> bool:
+    """Whether progress bars are drawn: on a terminal and not under ``--quiet``. Written to a
+    file or a pipe, rich prints each bar's last state when it stops, which put a line such
+    as "stages 0/7" before the one-line error that stopped it."""
+    return not is_quiet() and err_console.is_terminal
+
+
 def _say_warning(message, category, filename, lineno, file=None, line=None) -> None:
     """Python's warnings as one readable line each, once per message."""
     text = " ".join(str(message).split())

@@ -9,7 +9,14 @@ import pandas as pd
 import typer
 from rich.table import Table
 
-from railsusp.cli.common import app, console, err_console, fail, frame_table, is_quiet
+from railsusp.cli.common import (
+    app,
+    console,
+    err_console,
+    fail,
+    frame_table,
+    show_progress,
+)
 from railsusp.errors import RailsuspInputError
 from railsusp.store import check_output_folder
 
@@ -33,7 +40,7 @@ def _run(config, out: Path, start_from: str | None) -> dict:
         TimeElapsedColumn(),
         TimeRemainingColumn(),
         console=err_console,
-        disable=is_quiet(),
+        disable=not show_progress(),
     ) as bar:
         stages = bar.add_task("stages", total=len(STAGES))
         runs = bar.add_task("campaign simulations", total=None, visible=False)

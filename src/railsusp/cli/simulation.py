@@ -9,7 +9,7 @@ import typer
 from rich.table import Table
 
 from railsusp._version import __version__
-from railsusp.cli.common import app, console, err_console, fail
+from railsusp.cli.common import app, console, err_console, fail, show_progress
 from railsusp.conditions import resolve_conditions
 from railsusp.errors import RailsuspInputError, repeated_names
 from railsusp.params import ParameterSet, parse_overrides
@@ -169,6 +169,7 @@ def _progress():
         TimeElapsedColumn(),
         console=err_console,
         transient=True,
+        disable=not show_progress(),
     )
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from railsusp.cli.common import app, console, err_console, fail, frame_table
+from railsusp.cli.common import app, console, err_console, fail, frame_table, show_progress
 from railsusp.errors import RailsuspInputError
 
 
@@ -147,6 +147,7 @@ def train(
             MofNCompleteColumn(),
             TextColumn("{task.fields[loss]}"),
             console=err_console,
+            disable=not show_progress(),
         ) as bar:
             task = bar.add_task("train", total=epochs + fine_tune_epochs, loss="")
             try:

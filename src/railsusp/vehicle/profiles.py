@@ -416,9 +416,14 @@ def read_profile(path: str | Path, *, name: str | None = None, kind: str = "whee
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")
     except OSError as exc:
         raise RailsuspInputError(f"profile file {path}: cannot be read ({exc})") from None
+    except UnicodeDecodeError as exc:
+        raise RailsuspInputError(
+            f"profile file {path}: not text (byte {exc.start} is no UTF-8); accepted two "
+            "columns y, z in mm"
+        ) from None
     ys: list[float] = []
     zs: list[float] = []
     lines: list[int] = []

@@ -202,10 +202,11 @@ def contact_arrays(wagon: WagonData) -> ContactArrays:
     }
     tab = contact_table(wheel, rail, **kw)
     left, right = tab.flangeway_clearance()
-    if not (math.isfinite(left) and math.isfinite(right)):
-        raise ValueError(
+    if not (math.isfinite(left) and math.isfinite(right)):  # a profile without a flange
+        raise RailsuspInputError(
             f"wheel {tab.meta['wheel']!r} on rail {tab.meta['rail']!r}: no flange contact within "
-            f"+-{CONTACT_TABLE_HALF_RANGE * 1e3:.0f} mm of shift"
+            f"+-{CONTACT_TABLE_HALF_RANGE * 1e3:.0f} mm of shift; accepted profiles whose "
+            "flanges limit the wheelset's lateral shift"
         )
     n_ref = static_wheel_load(wagon)
     y = tab.y
