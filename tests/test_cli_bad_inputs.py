@@ -42,7 +42,7 @@ def test_synth_field_never_replaces_a_file_and_refuses_empty_or_repeated_conditi
     precious.write_text("field notes")
     refused(
         ["synth-field", "--conditions", str(short_conditions), "--out", str(precious)],
-        "a file, not a folder",
+        "is an existing file, not a folder",
     )
     assert precious.read_text() == "field notes"
     refused(["synth-field", "--conditions", "", "--out", str(tmp_path / "e")], "none named")
@@ -167,14 +167,25 @@ def test_compare_refuses_no_models(tmp_path):
     refused(["compare", str(tmp_path), "--models", ""], "--models (none): accepted one or more")
 
 
-def test_modes_of_a_wagon_without_an_operating_point_is_an_input_error(tmp_path):
-    """Before: RuntimeError 'model.rhs failed' (a traceback) for a car body of 1e30 kg."""
+def test_modes_of_a_wagon_without_an_operating_point_is_an_input_error(tmp_path, monkeypatch):
+    """Before: RuntimeError 'model.rhs failed' (a traceback) for a car body of 1e30 kg; such a
+    mass is now refused when the wagon file is read (stop 57), and a wagon that passes its
+    checks but still has no operating point is one line too."""
     from importlib.resources import files
+
+    import railsusp.vehicle.modes as modes
+    from railsusp.vehicle.operating_point import OperatingPointError
 
     text = (files("railsusp") / "data" / "c80_k6.toml").read_text()
     huge = tmp_path / "huge.toml"
     huge.write_text(text.replace("mass = 91600.0", "mass = 1e30", 1))
-    refused(["modes", "--wagon", str(huge)], "has no operating point to analyse")
+    refused(["modes", "--wagon", str(huge)], "car_body.mass = 1e+30: accepted (1000, 250000] kg")
+
+    def no_operating_point(*args, **kwargs):
+        raise OperatingPointError("model.rhs failed")
+
+    monkeypatch.setattr(modes, "modal_analysis", no_operating_point)
+    refused(["modes"], "has no operating point to analyse (model.rhs failed)")
 
 
 def test_a_posterior_settings_file_without_settings_is_refused(tmp_path):

@@ -196,10 +196,19 @@ def test_statistics_surrogate_round_trip_and_calibration(tmp_path):
     np.testing.assert_allclose(after, before, rtol=1e-6)
     # the folder or its statistics.json, as docs/surrogates.md names it (the file was "no
     # statistics.json" before stop 56)
+    from railsusp.errors import RailsuspInputError
     from railsusp.surrogate.statistics import FILE, load_statistics
 
     for where in (tmp_path / "gp" / COND.name, tmp_path / "gp" / COND.name / FILE):
         np.testing.assert_allclose(load_statistics(where).predict(probe)[0], before, rtol=1e-6)
+    damaged = tmp_path / "damaged"
+    damaged.mkdir()
+    (damaged / FILE).write_text('{"format": ')  # cut short: named, not json's bare message
+    with pytest.raises(RailsuspInputError, match=f"{damaged / FILE} is corrupt: not valid JSON"):
+        load_statistics(damaged)
+    (damaged / FILE).write_text("[1, 2]")
+    with pytest.raises(ValueError, match="unknown statistics-surrogate format None"):
+        load_statistics(damaged)
     exact = force_statistics(model, probe, COND, ("mean", "std"))
     np.testing.assert_allclose(after, exact, rtol=0.02, atol=0.05)
     with pytest.raises(ValueError, match="not in this surrogate"):

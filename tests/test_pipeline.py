@@ -168,12 +168,17 @@ def test_statistics_gp_force_model_with_combined_statistics(tiny, tmp_path):
         load_config(cfg)
 
 
-def test_failing_stage_keeps_earlier_outputs_and_says_how_to_resume(tiny, tmp_path):
+def test_failing_stage_keeps_earlier_outputs_and_says_how_to_resume(tiny, tmp_path, monkeypatch):
+    import railsusp.pipeline_field as pipeline_field
+
     _cfg_path, out, _, _ = tiny
     bad = tmp_path / "bad.toml"
-    (tmp_path / "broken").mkdir()  # a folder of recordings whose index is not JSON: it fails
-    (tmp_path / "broken" / "index.json").write_text("not json")  # only when the stage reads it
-    bad.write_text(TINY.replace("truth = { X13 = 16.1 }", f'measured = "{tmp_path}/broken"'))
+    bad.write_text(TINY.replace("truth = { X13 = 16.1 }", "truth = { X13 = 16.2 }"))
+
+    def failing(*args, **kwargs):  # a measured folder damaged while the run went on, say
+        raise RailsuspInputError("index.json: not valid JSON")
+
+    monkeypatch.setattr(pipeline_field, "field_stage", failing)
     with pytest.raises(StageError, match="stage 'field' failed.*run the same command again"):
         run_pipeline(load_config(bad), out)
     state = json.loads((out / "pipeline.json").read_text())

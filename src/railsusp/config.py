@@ -242,13 +242,13 @@ def check_config(cfg: Any, where: str = "configuration", *, from_file: bool = Fa
             f"{EXPECTED_STATISTICS_TEXT[e.expected_generations]} (spread statistics of a mean "
             "series are too low), or set expected_draws = 0"
         )
-    _check_one_track_surrogate(cfg, bad)
     if cfg.surrogate.model == "gp-stats" and "p99.85" in cfg.estimate.statistic.split("+"):
         raise bad(
             'estimate.statistic "p99.85" (EN 14363) is computed from force series; the '
             'statistics GPs of surrogate.model = "gp-stats" predict mean, rms, p99 and std only'
         )
     _check_held_prior(cfg, bad)
+    _check_one_track_surrogate(cfg, bad)
     if cfg.surrogate.device not in DEVICES:
         raise bad(f"surrogate.device = {cfg.surrogate.device!r}: accepted {', '.join(DEVICES)}")
     if cfg.surrogate.pretrained is None:

@@ -61,6 +61,8 @@ def modes(
         fail(
             f"--wagon {wagon}: the wagon has no operating point to analyse ({exc}); check its data"
         )
+    except RuntimeError as exc:  # a free-decay run that stopped (a flange climb, ...)
+        fail(f"--decay: {exc}; the modes without --decay are those of the linearised wagon")
     df = result.to_dataframe(f_max=fmax)
     df["car_body_energy"] *= 100.0
     df = df.rename(

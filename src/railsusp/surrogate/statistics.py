@@ -10,7 +10,6 @@ noise term, which is what a recording on an unknown track should be compared wit
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,7 +18,7 @@ import numpy as np
 
 from railsusp.conditions import WorkingCondition
 from railsusp.params import bounds
-from railsusp.store import provenance, write_json
+from railsusp.store import provenance, read_json, write_json
 from railsusp.surrogate.baselines import StatisticsGP
 from railsusp.surrogate.data import FeatureSpec, load_series
 from railsusp.vehicle.simulate import RECORD_STATISTICS, statistic_segments
@@ -102,9 +101,10 @@ def load_statistics(path: str | Path) -> StatisticsSurrogate:
     p = path if path.name == FILE and path.is_file() else path / FILE
     if not p.exists():
         raise FileNotFoundError(f"{path} holds no statistics surrogate (no {FILE})")
-    doc = json.loads(p.read_text("utf-8-sig"))
-    if doc.get("format") != FORMAT:
-        raise ValueError(f"{p}: unknown statistics-surrogate format {doc.get('format')!r}")
+    doc = read_json(p)  # a damaged file is one line naming it
+    fmt = doc.get("format") if isinstance(doc, dict) else None
+    if fmt != FORMAT:
+        raise ValueError(f"{p}: unknown statistics-surrogate format {fmt!r}")
     return StatisticsSurrogate(
         StatisticsGP.from_dict(doc["model"]),
         WorkingCondition(**doc["condition"]),
