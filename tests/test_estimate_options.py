@@ -75,7 +75,7 @@ def field(tmp_path_factory):
         (
             ["--refine", "--held-prior", "X15=100"],
             "--held-prior: 'X15=100': accepted SYMBOL=LOW:HIGH in display units, "
-            "comma-separated (e.g. X15=100:200,X19=20:40)",
+            "comma-separated (e.g. X15=100:200,X19=20000:40000)",
         ),
         (
             ["--refine", "--held-prior", "X15=10:200"],
@@ -237,3 +237,16 @@ def test_refinement_settings_and_recordings_are_checked_before_it_simulates():
         refine_estimate(res, [rec], NoSimulation(), starts=0)
     with pytest.raises(RailsuspInputError, match="^refine compares .* straight carry no track"):
         refine_estimate(res, [rec], NoSimulation())
+
+
+def test_the_help_example_of_held_prior_is_accepted():
+    """The option's help gave X19=20:40 (kN/m), which its own check refuses: X19 is entered
+    in kN/m, 15000-45000 (stop 57's audit)."""
+    import re
+
+    from railsusp.cli.estimation import parse_held_prior
+
+    result = CliRunner().invoke(app, ["estimate", "--help"], env={"COLUMNS": "300"})
+    example = re.search(r"e\.g\. (X15=\S+?) \(", result.output).group(1)
+    prior = parse_held_prior(example, True, "mean")
+    assert sorted(prior.ranges_si) == ["X15", "X19"]

@@ -136,7 +136,7 @@ def estimate(
         str | None,
         typer.Option(
             help="with --refine: ranges the held parameters are known to lie in, display "
-            "units, e.g. X15=100:200,X19=20:40 (the intervals take them uniform over these "
+            "units, e.g. X15=100:200,X19=20000:40000 (the intervals take them uniform over these "
             "instead of Table 2's ranges; docs/intervals.md)"
         ),
     ] = None,
@@ -250,7 +250,7 @@ def estimate(
 
 
 def parse_held_prior(text: str | None, refine: bool, statistic: str):
-    """``--held-prior X15=100:200,X19=20:40`` as a checked
+    """``--held-prior X15=100:200,X19=20000:40000`` as a checked
     :class:`~railsusp.estimate.config.HeldPrior` (None without the option); refused without
     ``--refine`` and with ``--statistic aligned``, where no refined interval takes it."""
     from railsusp.estimate.config import HeldPrior
@@ -269,7 +269,7 @@ def parse_held_prior(text: str | None, refine: bool, statistic: str):
         if not (eq and colon and key.strip()):
             raise RailsuspInputError(
                 f"--held-prior: {item.strip()!r}: accepted SYMBOL=LOW:HIGH in display units, "
-                "comma-separated (e.g. X15=100:200,X19=20:40)"
+                "comma-separated (e.g. X15=100:200,X19=20000:40000)"
             )
         ranges[key.strip()] = [low.strip(), high.strip()]
     return HeldPrior.from_display(ranges, where="--held-prior")
