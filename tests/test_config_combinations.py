@@ -336,3 +336,16 @@ def test_a_damaged_measured_folder_is_refused_before_any_stage(tmp_path, blind_f
     (line,) = result.output.strip().splitlines()
     assert "field.measured: " in line and needle in line, line
     assert not out.exists()
+
+
+def test_a_condition_file_named_in_the_list_is_pointed_to_a_table(tmp_path):
+    """The message offered "or a TOML file", which the configuration's list then refused."""
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(
+        toml("truth = {X13 = 16.1}").replace(f"conditions = {SHORT}", 'conditions = ["my.toml"]')
+    )
+    with pytest.raises(ConfigError) as info:
+        load_config(cfg)
+    text = str(info.value)
+    assert "unknown condition 'my.toml'; accepted: straight, curve, uphill, or a table" in text
+    assert "TOML file" not in text

@@ -423,7 +423,7 @@ def get_condition(name: str, **overrides: Any) -> WorkingCondition:
     key = name.strip().lower()
     if key not in STANDARD_CONDITIONS:
         raise ConditionError(
-            f"unknown condition {name!r}; accepted: {', '.join(STANDARD_CONDITIONS)} or a TOML file"
+            f"unknown condition {name!r}; accepted: {', '.join(STANDARD_CONDITIONS)}"
         )
     cond = STANDARD_CONDITIONS[key]
     return cond.with_changes(**overrides) if overrides else cond
@@ -492,7 +492,10 @@ def resolve_conditions(spec: str) -> list[WorkingCondition]:
     a spec that names none (an empty string, commas alone)."""
     if spec.endswith(".toml") or Path(spec).is_file():
         return load_conditions(spec)
-    conds = [get_condition(n) for n in spec.split(",") if n.strip()]
+    try:
+        conds = [get_condition(n) for n in spec.split(",") if n.strip()]
+    except ConditionError as exc:  # here a file of conditions is accepted too
+        raise ConditionError(f"{exc}, or a TOML file of conditions") from None
     if not conds:
         raise RailsuspInputError(
             f"conditions {spec!r}: none named; accepted {', '.join(STANDARD_CONDITIONS)} "

@@ -23,7 +23,7 @@ from pydantic import (
 )
 
 from railsusp.conditions import WorkingCondition, get_condition, make_condition
-from railsusp.errors import RailsuspInputError
+from railsusp.errors import ConditionError, RailsuspInputError
 from railsusp.estimate.config import (
     CORRECTIONS_RANGE,
     NSGA_RANGES,
@@ -275,7 +275,13 @@ class PipelineConfig(_Cfg):
         out = []
         for c in self.conditions:
             if isinstance(c, str):
-                out.append(get_condition(c))
+                try:
+                    out.append(get_condition(c))
+                except ConditionError as exc:  # a file's name: its tables go in the list
+                    raise ConditionError(
+                        f"{exc}, or a table such as {{base = \"curve\", name = \"tight\", "
+                        "curve_radius_m = 250} (docs/conditions.md)"
+                    ) from None
             else:
                 fields = dict(c)
                 base = fields.pop("base", None)
