@@ -4,6 +4,8 @@ the Python API (railsusp.config)."""
 
 from __future__ import annotations
 
+import tomllib
+
 import pytest
 from typer.testing import CliRunner
 
@@ -11,6 +13,7 @@ import railsusp
 from railsusp.cli import app
 from railsusp.conditions import get_condition
 from railsusp.config import ConfigError
+from railsusp.errors import RailsuspInputError
 from railsusp.measured import synthesise_field
 from railsusp.params import ParameterSet
 from railsusp.pipeline import load_config
@@ -349,3 +352,29 @@ def test_a_condition_file_named_in_the_list_is_pointed_to_a_table(tmp_path):
     text = str(info.value)
     assert "unknown condition 'my.toml'; accepted: straight, curve, uphill, or a table" in text
     assert "TOML file" not in text
+
+
+@pytest.mark.parametrize(
+    ("section", "line", "needle"),
+    [
+        ("campaign", "samples = 2", "campaign.samples = 2: accepted [4, 1000000] (Input should"),
+        ("campaign", "sample = 10", "campaign.sample: accepted keys: samples, design, seed,"),
+        ("field", "rate_hz = 9000", "field.rate_hz = 9000: accepted [10, 5000] (Input should"),
+    ],
+)
+def test_a_value_out_of_range_or_an_unknown_key_says_what_is_accepted(
+    tmp_path, section, line, needle
+):
+    """pydantic's message gives one bound ("Input should be greater than or equal to 4") and
+    no keys for a misspelt one; the configuration's rule is the field and its range."""
+    text = toml("truth = {X13 = 16.1}").replace(f"[{section}]\n", f"[{section}]\n{line}\n", 1)
+    if line.startswith("sample"):
+        text = text.replace("samples = 10\n", "", 1)
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(text)
+    with pytest.raises(RailsuspInputError) as info:
+        load_config(cfg)
+    assert needle in str(info.value) and "\n" not in str(info.value)
+    with pytest.raises(RailsuspInputError) as info:  # the Python API says the same
+        railsusp.run(tomllib.loads(text), out=tmp_path / "run")
+    assert needle in str(info.value)

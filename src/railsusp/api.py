@@ -232,7 +232,9 @@ def run(
         try:
             cfg = validate_document(PipelineConfig, dict(config))
         except ValidationError as exc:
-            raise RailsuspInputError(validation_message("configuration", exc)) from None
+            raise RailsuspInputError(
+                validation_message("configuration", exc, PipelineConfig)
+            ) from None
         except (TypeError, ValueError) as exc:  # a value or a key JSON cannot hold
             raise RailsuspInputError(f"configuration: {exc}") from None
         check_config(cfg, "configuration", from_file=True)

@@ -56,12 +56,13 @@ def read_config(path: str | Path) -> dict[str, Any]:
         raise ConfigError(str(exc)) from None
 
 
-def validation_message(where: str | Path, exc: Any) -> str:
+def validation_message(where: str | Path, exc: Any, model: Any = None) -> str:
     """A pydantic ValidationError as one line: ``where: loc: message; ...``, with field names
     that are not plain identifiers (a key holding a newline, a dot) shown quoted, and a value
     of the wrong type shown as the file wrote it (``campaign.samples = "10": a whole number
-    is needed, not a string``)."""
-    from railsusp.store import type_error_text
+    is needed, not a string``). With the ``model`` validated, a value out of bounds gets the
+    field's accepted range and an unknown key the section's keys."""
+    from railsusp.store import error_detail, type_error_text
 
     def part(p: Any) -> str:
         s = str(p)
@@ -72,7 +73,12 @@ def validation_message(where: str | Path, exc: Any) -> str:
         wrong_type = type_error_text(e)
         if wrong_type is not None:
             return f"{loc} = {_as_toml(e.get('input'))}: {wrong_type}"
-        return f"{loc}: {' '.join(e['msg'].removeprefix('Value error, ').split())}"
+        text = " ".join(e["msg"].removeprefix("Value error, ").split())
+        detail = error_detail(model, e) if model is not None else None
+        if detail is None:
+            return f"{loc}: {text}"
+        value = "" if e.get("type") == "extra_forbidden" else f" = {_as_toml(e.get('input'))}"
+        return f"{loc}{value}: {detail} ({text})"
 
     return f"{where}: " + "; ".join(one(e) for e in exc.errors())
 

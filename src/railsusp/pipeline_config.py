@@ -279,7 +279,7 @@ class PipelineConfig(_Cfg):
                     out.append(get_condition(c))
                 except ConditionError as exc:  # a file's name: its tables go in the list
                     raise ConditionError(
-                        f"{exc}, or a table such as {{base = \"curve\", name = \"tight\", "
+                        f'{exc}, or a table such as {{base = "curve", name = "tight", '
                         "curve_radius_m = 250} (docs/conditions.md)"
                     ) from None
             else:
@@ -299,7 +299,7 @@ def load_config(path: str | Path) -> PipelineConfig:
     try:
         cfg = validate_document(PipelineConfig, read_config(path))
     except ValidationError as exc:
-        raise RailsuspInputError(validation_message(path, exc)) from None
+        raise RailsuspInputError(validation_message(path, exc, PipelineConfig)) from None
     cfg = _beside(cfg, path.parent)
     check_config(cfg, str(path), from_file=True)
     return cfg

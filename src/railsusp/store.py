@@ -21,7 +21,7 @@ import socket
 import subprocess
 import tempfile
 import tomllib
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path, PurePath
 from typing import Any
@@ -293,6 +293,64 @@ def type_error_text(err: Any) -> str | None:
         type(None): "null",
     }
     return f"{needed} is needed, not {got.get(type(value), type(value).__name__)}"
+
+
+#: pydantic's error types of a value outside a field's bounds
+BOUND_ERRORS = ("greater_than", "greater_than_equal", "less_than", "less_than_equal")
+
+
+def field_at(model: Any, loc: Sequence[Any]) -> tuple[Any, Any]:
+    """(the model class holding the last key of ``loc``, its pydantic ``FieldInfo`` or None
+    where the key is not a field) for a location of ``model``'s nested sections (an error's
+    ``loc``); (None, None) where the path leaves the models."""
+    holder = model
+    for i, key in enumerate(loc):
+        fields = getattr(holder, "model_fields", None)
+        if not isinstance(fields, dict):
+            return None, None
+        info = fields.get(str(key))
+        if i == len(loc) - 1 or info is None:
+            return (holder, info) if i == len(loc) - 1 else (None, None)
+        holder = info.annotation
+    return None, None
+
+
+def bounds_text(info: Any) -> str:
+    """A field's bounds as an interval, "[4, 1e+06]" or "(0, 5] m" (its ``unit`` from
+    ``json_schema_extra``); "" without bounds."""
+    lo = hi = None
+    left, right = "[", "]"
+    for m in getattr(info, "metadata", ()):
+        for name, bracket in (("gt", "("), ("ge", "[")):
+            if getattr(m, name, None) is not None:
+                lo, left = getattr(m, name), bracket
+        for name, bracket in (("lt", ")"), ("le", "]")):
+            if getattr(m, name, None) is not None:
+                hi, right = getattr(m, name), bracket
+    if lo is None and hi is None:
+        return ""
+
+    def shown(x: float) -> str:
+        return str(x) if isinstance(x, int) else f"{x:g}"
+
+    extra = getattr(info, "json_schema_extra", None)
+    unit = extra.get("unit", "") if isinstance(extra, dict) else ""
+    low = "-inf" if lo is None else shown(lo)
+    high = "inf" if hi is None else shown(hi)
+    return f"{left}{low}, {high}{right} {unit}".rstrip()
+
+
+def error_detail(model: Any, err: Any) -> str | None:
+    """What a pydantic error of ``model`` misses in its own message: the accepted range of a
+    value outside a field's bounds ("accepted [4, 1000000]"), or the keys a section accepts
+    for an unknown one; None otherwise."""
+    holder, info = field_at(model, err.get("loc", ()))
+    if err.get("type") in BOUND_ERRORS and info is not None:
+        text = bounds_text(info)
+        return f"accepted {text}" if text else None
+    if err.get("type") == "extra_forbidden" and holder is not None and info is None:
+        return f"accepted keys: {', '.join(holder.model_fields)}"
+    return None
 
 
 def check_output_folder(path: str | Path, option: str = "--out") -> Path:

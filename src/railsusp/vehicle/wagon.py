@@ -277,7 +277,7 @@ def packaged_wagon_text(source: str | Path | None) -> str | None:
 def wagon_error_text(exc: ValidationError) -> str:
     """A wagon's validation errors on one line: each as ``section.field = value: why``
     (the range the field accepts, or the type it needs), joined by "; "."""
-    from railsusp.store import type_error_text
+    from railsusp.store import BOUND_ERRORS, error_detail, type_error_text
 
     msgs = []
     for err in exc.errors():
@@ -285,43 +285,11 @@ def wagon_error_text(exc: ValidationError) -> str:
         value = err.get("input")
         where_value = loc if isinstance(value, dict) else f"{loc} = {value!r}"
         text = type_error_text(err) or err["msg"].removeprefix("Value error, ")
-        accepted = _accepted_range(err["loc"])
-        if accepted and err["type"] in _BOUND_ERRORS:
-            text = f"accepted {accepted} ({text})"
+        detail = error_detail(WagonData, err)  # the accepted range of a value out of it
+        if detail and err["type"] in BOUND_ERRORS:
+            text = f"{detail} ({text})"
         msgs.append(f"{where_value}: {text}")
     return "; ".join(msgs)
-
-
-#: pydantic's error types of a value outside a field's bounds
-_BOUND_ERRORS = ("greater_than", "greater_than_equal", "less_than", "less_than_equal")
-
-
-def _accepted_range(loc: tuple) -> str:
-    """A wagon field's bounds as an interval, e.g. "(0, 5] m", from its declaration
-    (``section.field``); "" where the field has none or the location is not one."""
-    if len(loc) != 2:
-        return ""
-    section = WagonData.model_fields.get(str(loc[0]))
-    model = section.annotation if section is not None else None
-    info = getattr(model, "model_fields", {}).get(str(loc[1]))
-    if info is None:
-        return ""
-    lo = hi = None
-    left, right = "[", "]"
-    for m in info.metadata:
-        for name, bracket in (("gt", "("), ("ge", "[")):
-            if getattr(m, name, None) is not None:
-                lo, left = getattr(m, name), bracket
-        for name, bracket in (("lt", ")"), ("le", "]")):
-            if getattr(m, name, None) is not None:
-                hi, right = getattr(m, name), bracket
-    if lo is None and hi is None:
-        return ""
-    low = "-inf" if lo is None else f"{lo:g}"
-    high = "inf" if hi is None else f"{hi:g}"
-    extra = info.json_schema_extra
-    unit = extra.get("unit", "") if isinstance(extra, dict) else ""
-    return f"{left}{low}, {high}{right} {unit}".rstrip()
 
 
 def load_wagon(source: str | Path | None = None) -> WagonData:
