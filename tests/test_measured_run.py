@@ -203,6 +203,40 @@ def test_a_line_description_gives_the_same_track_as_the_channels(tmp_path):
         read_line(line)
 
 
+@pytest.mark.parametrize(
+    ("row", "needle"),
+    [
+        ("0,0.5,-300,left,0,0", "radius_m = -300: accepted 50 to 100000, or empty (0 or empty"),
+        ("0,0.5,30,left,0,0", "radius_m = 30: accepted 50 to 100000"),
+        ("0,0.5,400,up,90,0", "direction = 'up': accepted left, right or empty (left)"),
+        ("0,0.5,400,left,900,0", "cant_mm = 900: accepted 0 to 200"),
+        ("0,0.5,,left,0,120", "grade_permille = 120: accepted -40 to 40"),
+        ("0,nan,,left,0,0", "km_end = nan (or empty): a number is needed"),
+    ],
+)
+def test_a_line_description_outside_what_a_condition_takes_is_refused(tmp_path, row, needle):
+    """Before stop 57 a negative radius was taken for tangent, a direction "up" for left, a
+    section ending at NaN kept nothing (numpy's "Mean of empty slice"), and a grade in
+    per cent or a cant in the wrong unit failed at --write without naming the column."""
+    line = tmp_path / "line.csv"
+    line.write_text(f"km_start,km_end,radius_m,direction,cant_mm,grade_permille\n{row}\n")
+    with pytest.raises(RailsuspInputError) as info:
+        read_line(line)
+    assert f"line description {line}, row 2: {needle}" in str(info.value)
+
+
+def test_a_section_table_needs_both_ends_in_every_row(tmp_path):
+    from railsusp.measured.line import read_section_table
+
+    table = tmp_path / "t.csv"
+    table.write_text("start_m,end_m\n50,nan\n")
+    with pytest.raises(RailsuspInputError, match=r"row 2: end_m = nan \(or empty\): a number"):
+        read_section_table(table)
+    table.write_text("start_m,end_m\n,500\n")
+    with pytest.raises(RailsuspInputError, match="row 2: start_m = nan"):
+        read_section_table(table)
+
+
 def test_written_sections_are_a_field_folder_the_estimation_reads(tmp_path):
     run = synthetic_run(np.full(3000, 54.0), np.full(3000, 1.25), np.zeros(3000), rate=200.0)
     secs = cut_sections(run)

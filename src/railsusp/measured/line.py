@@ -37,6 +37,32 @@ def read_line(path: str | Path) -> pd.DataFrame:
     """A line description CSV (see :func:`geometry_from_line`), checked."""
     need = ["km_start", "km_end", "radius_m", "cant_mm", "grade_permille"]
     df = _read_csv(path, need)
+    what = f"line description {path}"
+    _need_values(df, ["km_start", "km_end"], what)
+    # the ranges of a working condition (conditions.py); empty radius, cant, grade: tangent,
+    # level (a negative radius was taken for tangent, a direction "up" for left)
+    for column, lo, hi in (("radius_m", 0.0, 100_000.0), ("cant_mm", 0.0, 200.0),
+                           ("grade_permille", -40.0, 40.0)):  # fmt: skip
+        vals = df[column].to_numpy(dtype=float)
+        out = np.isfinite(vals) & ((vals < lo) | (vals > hi))
+        if column == "radius_m":  # a curve's radius is a condition's: 50 m or more
+            out |= (vals > 0.0) & (vals < 50.0)
+            lo = 50.0
+        if out.any():
+            i = int(np.flatnonzero(out)[0])
+            raise RailsuspInputError(
+                f"{what}, row {i + 2}: {column} = {vals[i]:g}: accepted {lo:g} to {hi:g}, or "
+                "empty" + (" (0 or empty: tangent)" if column == "radius_m" else "")
+            )
+    if "direction" in df:
+        given = df["direction"].fillna("").astype(str).str.strip().str.lower()
+        wrong = ~given.isin(["", "left", "right"])
+        if wrong.any():
+            i = int(np.flatnonzero(wrong.to_numpy())[0])
+            raise RailsuspInputError(
+                f"{what}, row {i + 2}: direction = {df['direction'].iloc[i]!r}: accepted left, "
+                "right or empty (left)"
+            )
     if (df.km_end <= df.km_start).any():
         i = int(np.flatnonzero((df.km_end <= df.km_start).to_numpy())[0])
         raise RailsuspInputError(f"line description {path}, row {i + 2}: km_end <= km_start")
@@ -47,6 +73,7 @@ def read_section_table(path: str | Path) -> pd.DataFrame:
     """A user section table CSV: ``start_m, end_m`` and optional ``name``, checked. Names
     become file names, so they must be plain: letters, digits, ``.``, ``_``, ``-``."""
     df = _read_csv(path, ["start_m", "end_m"])
+    _need_values(df, ["start_m", "end_m"], f"section table {path}")
     if "name" in df:
         for i, name in enumerate(df["name"].astype(str)):
             if not SAFE_NAME.fullmatch(name):
@@ -76,3 +103,16 @@ def _read_csv(path: str | Path, need: list[str]) -> pd.DataFrame:
             raise RailsuspInputError(f"{path}, row {i + 2}: {c} = {df[c].iloc[i]!r} not a number")
         df[c] = vals
     return df
+
+
+def _need_values(df: pd.DataFrame, columns: list[str], what: str) -> None:
+    """Refuse an empty or non-finite cell (``nan``, ``inf``) in columns that must hold a
+    number in every row: a section from NaN to 500 m kept nothing, with only numpy's
+    "Mean of empty slice" to say so."""
+    for c in columns:
+        vals = df[c].to_numpy(dtype=float)
+        bad = ~np.isfinite(vals)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            shown = "nan (or empty)" if np.isnan(vals[i]) else f"{vals[i]:g}"
+            raise RailsuspInputError(f"{what}, row {i + 2}: {c} = {shown}: a number is needed")
