@@ -130,6 +130,20 @@ def test_neither_writer_replaces_a_field_folder_it_did_not_write(tmp_path):
     result = runner.invoke(app, [*args, str(field)])
     assert result.exit_code == 2 and "holds a field folder written by synth-field" in result.output
     assert (field / "truth.json").is_file()
+    # a user's measured folder whose index has a "source" of its own (docs/data-format.md)
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "index.json").write_text('{"recordings": ["a.csv"], "source": "logger B"}')
+    result = runner.invoke(app, [*args, str(mine)])
+    assert result.exit_code == 2 and "files of another kind" in result.output
+    assert json.loads((mine / "index.json").read_text())["source"] == "logger B"
+    # the sections of another run are not replaced by this one's
+    other = tmp_path / "other.mf4"
+    other.write_bytes(run.read_bytes())
+    again = ["sections", str(other), "--map", str(cmap), "--table", str(table), "--write"]
+    result = runner.invoke(app, [*again, str(cut)])
+    assert result.exit_code == 2, result.output
+    assert f"holds the sections of another run ({run.name})" in result.output
     (tmp_path / "notes").mkdir()
     (tmp_path / "notes" / "a.txt").write_text("mine")
     result = runner.invoke(app, [*synth, str(tmp_path / "notes")])

@@ -305,16 +305,24 @@ def test_a_packaged_wagon_named_in_the_configuration_has_the_default_tolerances(
 
 
 def test_a_cuda_device_is_refused_before_any_stage_where_there_is_none(tmp_path):
+    """Refused before the campaign where the surrogates are still to train; a run whose
+    surrogates were trained on a GPU is still estimated again on a machine without one (the
+    review of stop 57 found the first version refusing that too)."""
     import torch
+
+    from railsusp.config import check_cuda
+    from railsusp.pipeline import run_pipeline
 
     if torch.cuda.is_available():
         pytest.skip("this machine has a CUDA device")
     cfg = tmp_path / "c.toml"
     cfg.write_text(toml("truth = {X13 = 16.1}", "", 'device = "cuda"'))
+    config = load_config(cfg)  # the file itself is fine
+    out = tmp_path / "run"
     with pytest.raises(ConfigError, match='surrogate.device = "cuda": no CUDA device'):
-        load_config(cfg)
-    cfg.write_text(toml("truth = {X13 = 16.1}", "", 'device = "auto"'))
-    load_config(cfg)  # takes the CPU here
+        run_pipeline(config, out)
+    assert not out.exists()
+    check_cuda(config, "c.toml", surrogate_done=True)  # trained: nothing to refuse
 
 
 @pytest.mark.parametrize("damage", ["index", "table"])

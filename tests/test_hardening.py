@@ -475,3 +475,16 @@ def test_an_operating_system_error_is_one_line_not_a_traceback(
     assert info.value.code == status
     err = capsys.readouterr().err
     assert err.startswith(line) and len(err.strip().splitlines()) == 1
+
+
+def test_a_command_exiting_itself_exits_as_python_would(monkeypatch):
+    """The review of stop 57: a SystemExit with a message left main() as exit status 0."""
+    import railsusp.cli as cli
+
+    def exiting(**kwargs):
+        raise SystemExit("boom")
+
+    monkeypatch.setattr(cli, "app", exiting)
+    with pytest.raises(SystemExit) as info:
+        cli.main()
+    assert info.value.code == "boom"  # Python prints it and exits 1

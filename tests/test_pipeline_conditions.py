@@ -101,3 +101,43 @@ def test_a_run_folder_reused_with_a_renamed_condition(tmp_path):
         if not model.is_dir():
             continue  # figures, the comparison table
         assert sorted(p.name for p in model.iterdir() if p.is_dir()) == ["renamed"], model
+
+
+def _own_track_config(tmp_path: Path, geometry: Path, field: str, estimate: str) -> Path:
+    text = TINY.read_text().replace(
+        "lead_in_m=20.0}", f'lead_in_m=20.0, track_geometry="{geometry}"}}'
+    )
+    text = text.replace("[field]\n", f"[field]\n{field}").replace(
+        "[estimate]\n", f"[estimate]\n{estimate}"
+    )
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(text)
+    return cfg
+
+
+def test_own_track_recordings_carry_their_track_and_noise_makes_them_other_tracks(
+    geometry, tmp_path
+):
+    """The review of stop 57: without with_track such recordings still carry their track
+    (aligned and refine were refused), and with track_noise_mm their copies are other tracks
+    than the surrogates' (aligned was accepted and failed in the estimate stage)."""
+    from railsusp.errors import RailsuspInputError
+
+    aligned = 'statistic = "aligned"\n'
+    load_config(_own_track_config(tmp_path, geometry, "", aligned))
+    load_config(_own_track_config(tmp_path, geometry, "", "refine = true\n"))
+    noisy = "with_track = true\ntrack_noise_mm = 1.0\n"
+    with pytest.raises(RailsuspInputError, match='statistic "aligned" needs surrogate.pretrained'):
+        load_config(_own_track_config(tmp_path, geometry, noisy, aligned))
+
+
+def test_with_track_on_perfect_track_is_refused_before_any_stage(tmp_path):
+    from railsusp.errors import RailsuspInputError
+
+    text = TINY.read_text().replace("lead_in_m=20.0}", 'lead_in_m=20.0, irregularity_class="none"}')
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(text.replace("[field]\n", "[field]\nwith_track = true\n"))
+    with pytest.raises(RailsuspInputError, match="short on perfect track .* no track geometry"):
+        load_config(cfg)
+    cfg.write_text(text)
+    assert load_config(cfg).working_conditions()[0].irregularity_class is None

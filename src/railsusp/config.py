@@ -182,6 +182,14 @@ def check_config(cfg: Any, where: str = "configuration", *, from_file: bool = Fa
         raise bad("field.with_track and field.track_noise_mm apply to synthetic recordings only")
     if f.track_noise_mm and not f.with_track:
         raise bad("field.track_noise_mm needs field.with_track = true")
+    if f.with_track and f.recording is None and f.measured is None:
+        perfect = [c.name for c in conds if c.irregularity_class is None and not c.track_geometry]
+        if perfect:  # nothing to write: the field stage failed on it after three stages
+            raise bad(
+                f"field.with_track = true: {', '.join(perfect)} on perfect track "
+                '(irregularity_class = "none") have no track geometry to write; give them a '
+                "class, or set with_track = false"
+            )
 
     # estimation, surrogates, wagon, scheduler
     if cfg.estimate.weighting == "noise" and cfg.surrogate.model != "gp-stats":
@@ -343,8 +351,9 @@ def _blind_recordings(folder: Path) -> list[str]:
 def _check_surrogate_training(cfg: Any, conds: list, bad: Any) -> None:
     """What the surrogate stage's training needs of the conditions and the machine, checked
     before the campaign rather than after it: every condition's series longer than the
-    network's window (the sequence CNN-GRU's washout of 100 steps; the window networks' 20),
-    and a CUDA device where ``device = "cuda"`` asks for one."""
+    network's window (the sequence CNN-GRU's washout of 100 steps; the window networks' 20).
+    (A CUDA device for ``device = "cuda"`` is checked by :func:`check_cuda` where the stage
+    is still to run: a run trained on a GPU is estimated again on a machine without one.)"""
     from railsusp.surrogate.models import default_window
 
     kind = "bp" if cfg.surrogate.model == "gp-stats" else cfg.surrogate.model
@@ -356,14 +365,34 @@ def _check_surrogate_training(cfg: Any, conds: list, bad: Any) -> None:
             f"prediction; the conditions {', '.join(short)} have no more steps than that: "
             f"accepted n_steps > {window} (or another model)"
         )
-    if cfg.surrogate.device == "cuda":
-        import torch
 
-        if not torch.cuda.is_available():
-            raise bad(
-                'surrogate.device = "cuda": no CUDA device is available on this machine; '
-                'accepted "cpu", or "auto" (a GPU where there is one)'
-            )
+
+def check_cuda(cfg: Any, where: str, surrogate_done: bool) -> None:
+    """Refuse ``[surrogate] device = "cuda"`` on a machine without a CUDA device, before any
+    stage, where the surrogate stage has still to train (``surrogate_done`` False); a run
+    whose surrogates are trained is resumed or estimated again anywhere."""
+    if cfg.surrogate.device != "cuda" or cfg.surrogate.pretrained is not None or surrogate_done:
+        return
+    import torch
+
+    if not torch.cuda.is_available():
+        raise ConfigError(
+            f'{where}: surrogate.device = "cuda": no CUDA device is available on this '
+            'machine, and the surrogates are still to train; accepted "cpu", or "auto" (a '
+            "GPU where there is one)"
+        )
+
+
+def _own_tracks(cfg: Any) -> bool:
+    """Whether the recordings are synthetic and every condition names its own
+    ``track_geometry``: the recordings then carry a copy of it (with ``with_track`` or
+    without), so they carry their measured track."""
+    f = cfg.field
+    return (
+        f.measured is None
+        and f.recording is None
+        and all(c.track_geometry is not None for c in cfg.working_conditions())
+    )
 
 
 def _check_one_track_surrogate(cfg: Any, bad: Any) -> None:
@@ -375,14 +404,9 @@ def _check_one_track_surrogate(cfg: Any, bad: Any) -> None:
     run)."""
     if cfg.surrogate.pretrained is not None or cfg.surrogate.model == "gp-stats":
         return  # a set trained on a track family; the statistics GPs have their own check
-    f = cfg.field
-    own_tracks = (
-        f.measured is None
-        and f.recording is None
-        and all(c.track_geometry is not None for c in cfg.working_conditions())
-    )
-    if own_tracks:  # trained on the conditions' own measured tracks, which the synthetic
-        return  # recordings carry (same_measured_track): those are the tracks predicted
+    if _own_tracks(cfg) and not cfg.field.track_noise_mm:  # trained on the conditions'
+        return  # own tracks, which the synthetic recordings carry (same_measured_track);
+    # with a measurement error added the recordings' copies are other tracks
     if ALIGNED in cfg.estimate.statistic.split("+"):
         raise bad(
             'estimate.statistic "aligned" needs surrogate.pretrained: the surrogates a run '
@@ -403,9 +427,13 @@ def _check_measured_track(cfg: Any, bad: Any) -> None:
         needs.append(("estimate.refine = true", "refine = false"))
     if ALIGNED in cfg.estimate.statistic.split("+"):
         needs.append(('estimate.statistic "aligned"', "another statistic"))
-    if cfg.surrogate.pretrained is not None and (
-        (f.measured is not None and _blind_recordings(Path(f.measured)))
-        or (f.measured is None and (f.recording is not None or not f.with_track))
+    if (
+        cfg.surrogate.pretrained is not None
+        and (
+            (f.measured is not None and _blind_recordings(Path(f.measured)))
+            or (f.measured is None and (f.recording is not None or not f.with_track))
+        )
+        and not _own_tracks(cfg)
     ):
         raise bad(
             "surrogate.pretrained needs recordings with their measured track geometry (the "
@@ -419,7 +447,7 @@ def _check_measured_track(cfg: Any, bad: Any) -> None:
                 f"{what} with field.recording: the sections of a long run carry no measured "
                 f"track geometry, which time-aligned comparison needs; set {instead}"
             )
-        if f.measured is None and not f.with_track:
+        if f.measured is None and not f.with_track and not _own_tracks(cfg):
             raise bad(
                 f"{what} with field.with_track = false: time-aligned comparison needs the "
                 "recordings' measured track geometry; set field.with_track = true "

@@ -76,7 +76,7 @@ def run_pipeline(
     a folder holding other files is refused (the stages would write over them). ``options``
     name ``out`` and ``start_from`` in the errors (the command line's, or the API's).
     """
-    from railsusp.config import check_config
+    from railsusp.config import check_config, check_cuda
     from railsusp.store import check_output_folder
 
     out_option, from_option = options
@@ -85,6 +85,12 @@ def run_pipeline(
         raise RailsuspInputError(f"{from_option} {start_from!r}: accepted {', '.join(STAGES)}")
     state = run_state(out, out_option)
     check_config(config)  # every combination, before any stage runs
+    done = state["stages"].get("surrogate", {}).get("state") == "done" and start_from not in (
+        "campaign",
+        "sensitivity",
+        "surrogate",
+    )
+    check_cuda(config, "configuration", surrogate_done=done)
     out.mkdir(parents=True, exist_ok=True)
     state_path = out / "pipeline.json"
     state["config"] = config.model_dump(mode="json")

@@ -127,8 +127,10 @@ def main() -> None:
         where = f"{exc.filename}: " if exc.filename else ""
         err_console.print(f"error: {escape(where + (exc.strerror or str(exc)))}", highlight=False)
         sys.exit(1 if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EIO) else 2)
-    except SystemExit as exc:  # a command that exits itself
-        code = exc.code
+    except SystemExit as exc:  # a command that exits itself: as Python would
+        if exc.code == 130:
+            err_console.print(INTERRUPTED)
+        raise
     if code == 130:  # typer turns a Ctrl-C into a silent exit 130
         err_console.print(INTERRUPTED)
     sys.exit(code if isinstance(code, int) else 0)

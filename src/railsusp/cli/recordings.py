@@ -196,7 +196,8 @@ def sections_command(
             from railsusp.measured.field_folder import check_field_output
             from railsusp.store import atomic_folder
 
-            check_field_output(write, "sections", "--write")  # never replaces other data
+            source = Path(run.source).name  # the index names it so (sections_out)
+            check_field_output(write, "sections", "--write", source)  # never other data
             # the whole folder at once: a kill mid-write left new recordings beside an old
             # index and sidecars (other files of the folder are carried over)
             with atomic_folder(write) as tmp:

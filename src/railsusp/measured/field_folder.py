@@ -4,7 +4,9 @@
 (:func:`~railsusp.store.atomic_folder`). Into an existing folder that would replace what it
 holds, so each writer accepts only a folder it could write again itself: a new or empty
 one, or one it wrote before (``synth-field``: an index with its ``seed`` beside
-``truth.json``; ``sections``: an index naming the long run it was cut from, ``source``).
+``truth.json``; ``sections``: an index naming the long run it was cut from, ``source``,
+beside the cut's ``sections.csv``, and only a cut of the same run: a user's index may hold
+a ``source`` of its own, docs/data-format.md).
 Anything else, a folder of measured recordings above all, is refused before any work: the
 project's rule that bad input loses no data (before stop 57, ``synth-field`` replaced a
 folder of section recordings with synthetic ones and exited 0).
@@ -42,19 +44,44 @@ def folder_kind(path: str | Path) -> Kind:
         return "other"
     if "seed" in index and (path / "truth.json").is_file():
         return "synthetic"
-    if "source" in index and not (path / "truth.json").exists():
-        return "sections"
+    if "source" in index and (path / "sections.csv").is_file():
+        if not (path / "truth.json").exists():
+            return "sections"
     return "other"
 
 
-def check_field_output(path: str | Path, writer: Literal["synthetic", "sections"], option: str):
+def _source(path: Path) -> str | None:
+    """The long run a ``sections --write`` folder was cut from (its index's ``source``)."""
+    try:
+        index = json.loads((path / "index.json").read_text("utf-8-sig"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return None
+    return str(index.get("source")) if isinstance(index, dict) else None
+
+
+def check_field_output(
+    path: str | Path,
+    writer: Literal["synthetic", "sections"],
+    option: str,
+    source: str | None = None,
+) -> Path:
     """Refuse (one line, before any work) an output folder that ``writer`` would replace
-    but did not write: see the module's docstring. Also refuses what
+    but did not write: see the module's docstring; for ``sections``, ``source`` is the file
+    name of the long run being cut. Also refuses what
     :func:`~railsusp.store.check_output_folder` does (a file, an unwritable folder)."""
     path = check_output_folder(path, option)
     kind = folder_kind(path)
-    if kind in ("new", "empty", writer):
+    if kind in ("new", "empty") or (kind == writer == "synthetic"):
         return path
+    if kind == writer == "sections":
+        before = _source(path)
+        if source is None or before == source:
+            return path
+        raise RailsuspInputError(
+            f"{option} {path} holds the sections of another run ({before}); sections --write "
+            f"would replace them with those of {source}: accepted a new or empty folder, or "
+            "one holding this run's sections"
+        )
     held = (
         f"a field folder written by {_WRITERS[kind]}"
         if kind in _WRITERS
