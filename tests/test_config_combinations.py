@@ -386,3 +386,16 @@ def test_a_value_out_of_range_or_an_unknown_key_says_what_is_accepted(
     with pytest.raises(RailsuspInputError) as info:  # the Python API says the same
         railsusp.run(tomllib.loads(text), out=tmp_path / "run")
     assert needle in str(info.value)
+
+
+@pytest.mark.parametrize("text", ["", "# only a comment\n"])
+def test_an_empty_configuration_is_refused(tmp_path, text):
+    """It ran the whole default pipeline for minutes and exited 0 (stop 57's audit)."""
+    cfg = tmp_path / "empty.toml"
+    cfg.write_text(text)
+    out = tmp_path / "run"
+    result = runner.invoke(app, ["run", str(cfg), "--out", str(out)])
+    assert result.exit_code == 2, result.output
+    (line,) = result.output.strip().splitlines()
+    assert f"configuration {cfg} is empty: accepted a file with at least one setting" in line
+    assert not out.exists()

@@ -47,13 +47,19 @@ class ConfigError(RailsuspInputError):
 
 def read_config(path: str | Path) -> dict[str, Any]:
     """The TOML document of a configuration file, checked to be a readable UTF-8 TOML
-    file (one line naming the file otherwise)."""
+    file that sets something (one line naming the file otherwise)."""
     from railsusp.store import read_toml
 
     try:
-        return read_toml(Path(path), "configuration")
+        doc = read_toml(Path(path), "configuration")
     except RailsuspInputError as exc:
         raise ConfigError(str(exc)) from None
+    if not doc:  # an empty file (or comments alone) ran the whole default pipeline
+        raise ConfigError(
+            f"configuration {path} is empty: accepted a file with at least one setting or "
+            "section (examples/quick.toml; `railsusp demo` runs the default without one)"
+        )
+    return doc
 
 
 def validation_message(where: str | Path, exc: Any, model: Any = None) -> str:
