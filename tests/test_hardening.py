@@ -203,6 +203,22 @@ def test_simulate_exits_1_when_its_run_derails(short, monkeypatch):
     assert "1 of 1 runs failed: short (wheel lift beyond the flange height" in result.output
 
 
+def test_simulate_writes_no_file_for_a_run_that_stopped(short, monkeypatch, tmp_path):
+    """It wrote the stopped run's series as a parquet file of NaN (stop 57's audit)."""
+    import railsusp.vehicle.simulate as sim
+
+    real = sim.simulate
+
+    def derailing(*args, **kwargs):
+        return dataclasses.replace(real(*args, **kwargs), status=np.array([3]))
+
+    monkeypatch.setattr(sim, "simulate", derailing)
+    out = tmp_path / "f.parquet"
+    result = runner.invoke(app, ["simulate", str(short), "--out", str(out)])
+    assert result.exit_code == 1, result.output
+    assert "no file written for them" in result.output and not out.exists()
+
+
 # ---------------------------------------------------------------- training options
 def test_train_refuses_settings_that_train_nothing(tmp_path):
     for args, needle in (

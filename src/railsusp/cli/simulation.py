@@ -138,6 +138,8 @@ def simulate(
         fail(str(exc))
     console.print(_force_table(results, f"Wheel-rail forces (kN), {wagon_data.name}", wheel))
     for r in results:
+        if not r.ok[0]:  # a run that stopped: no file of NaN series (said below)
+            continue
         tag = f"-{r.condition.name}" if len(results) > 1 else ""
         if out is not None:
             path = out.with_name(f"{out.stem}{tag}{out.suffix}")
@@ -151,7 +153,8 @@ def simulate(
     if failed:
         err_console.print(
             f"{len(failed)} of {len(results)} runs failed: "
-            + ", ".join(f"{r.condition.name} ({r.failures()[0][1]})" for r in failed),
+            + ", ".join(f"{r.condition.name} ({r.failures()[0][1]})" for r in failed)
+            + ("; no file written for them" if out is not None or plot is not None else ""),
             style="bold red",
             markup=False,
             highlight=False,
