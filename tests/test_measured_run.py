@@ -92,6 +92,38 @@ def test_meganewtons_are_converted_when_stated_and_refused_when_not(tmp_path):
         read_run(write_mdf(tmp_path / "b.mf4", q_unit="kN", q_scale=1e-3), channel_map_from(MAP))
 
 
+def test_a_speed_in_the_wrong_unit_is_caught_by_the_distance_it_covers(tmp_path):
+    """54 km/h headed m/s: 54 m/s (194 km/h) is under any speed limit of the reader, but
+    20 s of it cover 1080 m where the distance channel spans 300 m. Before stop 57 such a
+    run was cut into 194 km/h sections, which failed only at --write without the channel
+    named (the audit's 234 km/h case)."""
+    path = write_mdf(tmp_path / "run.mf4", v_unit="m/s")
+    with pytest.raises(RecordingError) as info:
+        read_run(path, channel_map_from(MAP))
+    assert (
+        "channels 's' and 'v': the distance spans 299.9 m while the speed integrates to 1080 m"
+        in (str(info.value))
+    )
+    assert "a unit error in one?" in str(info.value)
+    read_run(write_mdf(tmp_path / "ok.mf4"), channel_map_from(MAP))  # km/h: consistent
+
+
+def test_a_cant_or_grade_no_line_has_is_refused_with_the_channel(tmp_path):
+    from railsusp.measured.run import _plausible_track
+
+    t = np.arange(100) / 10.0
+    v = np.full(100, 15.0)
+    names = {"cant": "cant_x", "grade": "grade_x"}
+    assert (
+        _plausible_track({"cant": np.full(100, 0.11), "grade": np.full(100, 0.012)}, names, v, t)
+        == []
+    )
+    (one,) = _plausible_track({"cant": np.full(100, 110.0)}, names, v, t)  # mm read as m
+    assert one.startswith("channel 'cant_x': cant up to 1.1e+05 mm, beyond a working")
+    (one,) = _plausible_track({"grade": np.full(100, 0.12)}, names, v, t)  # per cent as 1/1000?
+    assert one.startswith("channel 'grade_x': grade up to 120 ‰, beyond a working condition's 40")
+
+
 def test_units_missing_or_contradicting_are_refused_with_the_channel(tmp_path):
     path = write_mdf(tmp_path / "run.mf4", v_unit="")
     with pytest.raises(RecordingError, match="channel 'v': no unit stated"):

@@ -159,11 +159,13 @@ def read_run(
             f"channel {cmap.signals.get('speed', cmap.signals.get('position'))!r}: median "
             f"speed {np.median(np.abs(speed)) * 3.6:.3g} km/h; the wagon does not run"
         )
-    elif np.max(np.abs(speed)) > 100.0:
+    elif np.max(np.abs(speed)) > MAX_SPEED_KMH / 3.6:
         problems.append(
             f"channel {cmap.signals.get('speed')!r}: speed up to {np.max(speed) * 3.6:.4g} km/h "
-            f"(read as {si.get(cmap.signals.get('speed', ''), si[base]).unit}): a unit error?"
+            f"(read as {si.get(cmap.signals.get('speed', ''), si[base]).unit}), beyond a "
+            f"working condition's {MAX_SPEED_KMH:g} km/h: a unit error?"
         )
+    problems += _plausible_track(sig, cmap.signals, speed, t)
     if wheel_load_N is None:
         from railsusp.vehicle.setup import static_wheel_load
         from railsusp.vehicle.wagon import load_wagon
@@ -193,6 +195,46 @@ def read_run(
         rates,
         notes,
     )
+
+
+#: the largest speed, cant and grade a run may show: a working condition's bounds
+#: (conditions.py), beyond which a channel's unit is more likely wrong than the line
+MAX_SPEED_KMH = 200.0
+MAX_CANT_M = 0.2
+MAX_GRADE = 0.04
+#: how far the distance channel's span may differ from the integrated speed (a wheel
+#: diameter's wear and slip are a few per cent; a unit slip is a factor 3.6 or 1000)
+DISTANCE_SPEED_RATIO = (0.8, 1.25)
+
+
+def _plausible_track(
+    sig: dict[str, np.ndarray], names: dict[str, str], speed: np.ndarray, t: np.ndarray
+) -> list[str]:
+    """Problems of a run's track channels whose values no line has, each naming the
+    channel: a cant or grade beyond a working condition's range, and a distance channel
+    whose span disagrees with the integrated speed (one of the two in the wrong unit: a
+    speed headed ``[m/s]`` holding km/h cut sections at 234 km/h)."""
+    problems = []
+    for key, limit, scale, unit in (
+        ("cant", MAX_CANT_M, 1e3, "mm"),
+        ("grade", MAX_GRADE, 1e3, "‰"),
+    ):
+        if key in sig and np.nanmax(np.abs(sig[key])) > limit * (1.0 + 1e-9):
+            problems.append(
+                f"channel {names[key]!r}: {key} up to {np.nanmax(np.abs(sig[key])) * scale:.4g} "
+                f"{unit}, beyond a working condition's {limit * scale:g} {unit}: a unit error?"
+            )
+    if "speed" in sig and "position" in sig:
+        travelled = float(np.trapezoid(np.abs(speed), t))
+        span = float(abs(sig["position"][-1] - sig["position"][0]))
+        lo, hi = DISTANCE_SPEED_RATIO
+        if travelled > 10.0 and not lo <= span / travelled <= hi:
+            problems.append(
+                f"channels {names['position']!r} and {names['speed']!r}: the distance spans "
+                f"{span:.4g} m while the speed integrates to {travelled:.4g} m (ratio "
+                f"{span / travelled:.3g}, accepted {lo:g} to {hi:g}): a unit error in one?"
+            )
+    return problems
 
 
 def _unit(ch: RawChannel, cmap: ChannelMap, problems: list[str]) -> str | None:
