@@ -261,6 +261,25 @@ def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
     )  # fmt: skip
     assert result.exit_code == 0, result.output
     assert json.loads((est / "estimate.json").read_text())["config"]["weighting"] == "noise"
+    # a full disk while the figures are drawn leaves the folder as it was (stop 57's audit
+    # found estimate.json and the CSVs of the new estimate beside the old figures)
+    from railsusp.estimate.result import CalibrationResult
+
+    before = {p.relative_to(est): p.read_bytes() for p in est.rglob("*") if p.is_file()}
+    real_save = CalibrationResult.save
+
+    def disk_full(self, out, extra=None):
+        real_save(self, out, extra)
+        raise OSError(28, "No space left on device", str(out / "pareto.png"))
+
+    monkeypatch.setattr(CalibrationResult, "save", disk_full)
+    result = runner.invoke(
+        app, [*common, "--surrogate", str(run / "surrogates" / "bp"), "--out", str(est)]
+    )
+    monkeypatch.undo()
+    assert isinstance(result.exception, OSError)
+    after = {p.relative_to(est): p.read_bytes() for p in est.rglob("*") if p.is_file()}
+    assert after == before
     result = runner.invoke(
         app,
         [*common, "--surrogate", str(run / "surrogates" / "bp"), "--out", str(est),

@@ -10,7 +10,7 @@ import typer
 
 from railsusp.cli.common import app, console, fail, frame_table
 from railsusp.errors import RailsuspInputError
-from railsusp.store import check_output_folder
+from railsusp.store import atomic_folder, check_output_folder
 
 
 @app.command()
@@ -230,14 +230,17 @@ def estimate(
             params = chosen or STUDY_KEY_PARAMETERS
             model = SimulatorForces(params)
         res = route.run(model, recs, params, progress=console.status)
-        res.save(
-            out,
-            extra={
-                "measured": str(measured.resolve()),
-                "model": str(surrogate.resolve()) if surrogate else "simulator",
-                "not_estimated": not_estimated(surrogate, params),
-            },
-        )
+        # the folder as one artefact: a full disk or a kill while the figures are drawn
+        # leaves the folder as it was, not an estimate.json without its figures
+        with atomic_folder(out) as tmp:
+            res.save(
+                tmp,
+                extra={
+                    "measured": str(measured.resolve()),
+                    "model": str(surrogate.resolve()) if surrogate else "simulator",
+                    "not_estimated": not_estimated(surrogate, params),
+                },
+            )
     except (RailsuspInputError, ValueError, FileNotFoundError) as exc:
         fail(str(exc))
     console.print(
