@@ -56,6 +56,20 @@ def as_dict(field: dict, estimate: dict | None = None, surrogate: dict | None = 
     }
 
 
+def run_refused(tmp_path, text: str, name: str = "c.toml") -> str:
+    """`railsusp run` of the configuration ``text``: exit status 2, one line, and no stage
+    run (not even the run directory made); returns the line."""
+    cfg = tmp_path / name
+    cfg.write_text(text)
+    out = tmp_path / "run"
+    result = runner.invoke(app, ["run", str(cfg), "--out", str(out)])
+    assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1, result.output
+    assert not out.exists()
+    return lines[0]
+
+
 CASES = [
     (  # used to fail after NSGA-II, with a message about statistic 'aligned'
         "refine-without-track",
@@ -209,14 +223,8 @@ CASES = [
 
 @pytest.mark.parametrize(("name", "text", "mapping", "needle"), CASES, ids=[c[0] for c in CASES])
 def test_conflicting_settings_are_refused_before_any_stage(tmp_path, name, text, mapping, needle):
-    cfg = tmp_path / "c.toml"
-    cfg.write_text(toml(*text))
+    assert needle in run_refused(tmp_path, toml(*text))
     out = tmp_path / "run"
-    result = runner.invoke(app, ["run", str(cfg), "--out", str(out)])
-    assert result.exit_code == 2, result.output
-    lines = result.output.strip().splitlines()
-    assert len(lines) == 1 and needle in lines[0], result.output
-    assert not out.exists()  # no stage ran, not even the run directory was made
     with pytest.raises(ConfigError) as info:  # the Python API: the same one-line error
         railsusp.run(as_dict(*mapping), out=out)
     assert needle in str(info.value) and "\n" not in str(info.value)
@@ -231,14 +239,9 @@ def test_refine_or_aligned_on_a_measured_folder_without_track_geometry(tmp_path,
         ("refine = true", "estimate.refine = true"),
         ('statistic = "aligned"', 'estimate.statistic "aligned"'),
     ):
-        cfg = tmp_path / "c.toml"
-        cfg.write_text(toml(f'measured = "{blind_field}"', estimate))
-        out = tmp_path / "run"
-        result = runner.invoke(app, ["run", str(cfg), "--out", str(out)])
-        assert result.exit_code == 2, result.output
-        (line,) = result.output.strip().splitlines()
+        line = run_refused(tmp_path, toml(f'measured = "{blind_field}"', estimate))
         assert f"{what} with field.measured = '{blind_field}': straight carry no track" in line
-        assert not out.exists()
+        out = tmp_path / "run"
         with pytest.raises(ConfigError, match="straight carry no track geometry"):
             railsusp.run(
                 as_dict({"measured": str(blind_field)}, {"refine": "refine" in estimate}
@@ -279,14 +282,8 @@ def test_a_bad_tolerance_in_the_wagon_file_is_refused_before_any_stage(tmp_path,
     wagon = tmp_path / "w.toml"
     text = resources.files("railsusp").joinpath("data/c80_k6.toml").read_text("utf-8")
     wagon.write_text(f"{text}\n[tolerances]\n{entry}\n")
-    cfg = tmp_path / "c.toml"
-    cfg.write_text(f'wagon = "{wagon}"\n' + toml("truth = {X13 = 16.1}"))
-    out = tmp_path / "run"
-    result = runner.invoke(app, ["run", str(cfg), "--out", str(out)])
-    assert result.exit_code == 2, result.output
-    lines = result.output.strip().splitlines()
-    assert len(lines) == 1 and needle in lines[0] and "wagon: " in lines[0], result.output
-    assert not out.exists()
+    line = run_refused(tmp_path, f'wagon = "{wagon}"\n' + toml("truth = {X13 = 16.1}"))
+    assert needle in line and "wagon: " in line
 
 
 def test_a_packaged_wagon_named_in_the_configuration_has_the_default_tolerances(tmp_path):
@@ -339,14 +336,8 @@ def test_a_damaged_measured_folder_is_refused_before_any_stage(tmp_path, blind_f
     else:
         (folder / "straight.csv").unlink()
         needle = "straight"
-    cfg = tmp_path / "c.toml"
-    cfg.write_text(toml(f'measured = "{folder}"'))
-    out = tmp_path / "run"
-    result = runner.invoke(app, ["run", str(cfg), "--out", str(out)])
-    assert result.exit_code == 2, result.output
-    (line,) = result.output.strip().splitlines()
+    line = run_refused(tmp_path, toml(f'measured = "{folder}"'))
     assert "field.measured: " in line and needle in line, line
-    assert not out.exists()
 
 
 def test_a_condition_file_named_in_the_list_is_pointed_to_a_table(tmp_path):
@@ -391,11 +382,6 @@ def test_a_value_out_of_range_or_an_unknown_key_says_what_is_accepted(
 @pytest.mark.parametrize("text", ["", "# only a comment\n"])
 def test_an_empty_configuration_is_refused(tmp_path, text):
     """It ran the whole default pipeline for minutes and exited 0 (stop 57's audit)."""
+    line = run_refused(tmp_path, text, "empty.toml")
     cfg = tmp_path / "empty.toml"
-    cfg.write_text(text)
-    out = tmp_path / "run"
-    result = runner.invoke(app, ["run", str(cfg), "--out", str(out)])
-    assert result.exit_code == 2, result.output
-    (line,) = result.output.strip().splitlines()
     assert f"configuration {cfg} is empty: accepted a file with at least one setting" in line
-    assert not out.exists()
