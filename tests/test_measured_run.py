@@ -101,7 +101,7 @@ def test_a_speed_in_the_wrong_unit_is_caught_by_the_distance_it_covers(tmp_path)
     with pytest.raises(RecordingError) as info:
         read_run(path, channel_map_from(MAP))
     assert (
-        "channels 's' and 'v': the distance spans 299.9 m while the speed integrates to 1080 m"
+        "channels 's' and 'v': the distance runs over 299.9 m while the speed integrates to 1080 m"
         in (str(info.value))
     )
     assert "a unit error in one?" in str(info.value)
@@ -120,7 +120,13 @@ def test_a_cant_or_grade_no_line_has_is_refused_with_the_channel(tmp_path):
     )
     (one,) = _plausible_track({"cant": np.full(100, 110.0)}, names, v, t)  # mm read as m
     assert one.startswith("channel 'cant_x': cant up to 1.1e+05 mm, beyond a working")
-    (one,) = _plausible_track({"grade": np.full(100, 0.12)}, names, v, t)  # per cent as 1/1000?
+    # a run that backs up: the distance's path, not its span, is what the speed covers
+    t = np.linspace(0.0, 30.0, 301)
+    position = np.where(t <= 20.0, 15.0 * t, 300.0 - 10.0 * (t - 20.0))
+    speed = np.where(t <= 20.0, 15.0, 10.0)
+    both = {"speed": speed, "position": position}
+    assert _plausible_track(both, {"speed": "v", "position": "s"}, speed, t) == []
+    (one,) = _plausible_track({"grade": np.full(100, 0.12)}, names, v, t[:100])
     assert one.startswith("channel 'grade_x': grade up to 120 ‰, beyond a working condition's 40")
 
 

@@ -226,11 +226,13 @@ def _plausible_track(
             )
     if "speed" in sig and "position" in sig:
         travelled = float(np.trapezoid(np.abs(speed), t))
-        span = float(abs(sig["position"][-1] - sig["position"][0]))
+        # the path the distance channel runs over, not its span: a run that backs up, or a
+        # line whose chainage jumps at a km post, is not a unit error
+        span = float(np.nansum(np.abs(np.diff(sig["position"]))))
         lo, hi = DISTANCE_SPEED_RATIO
         if travelled > 10.0 and not lo <= span / travelled <= hi:
             problems.append(
-                f"channels {names['position']!r} and {names['speed']!r}: the distance spans "
+                f"channels {names['position']!r} and {names['speed']!r}: the distance runs over "
                 f"{span:.4g} m while the speed integrates to {travelled:.4g} m (ratio "
                 f"{span / travelled:.3g}, accepted {lo:g} to {hi:g}): a unit error in one?"
             )
