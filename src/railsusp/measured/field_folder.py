@@ -36,11 +36,8 @@ def folder_kind(path: str | Path) -> Kind:
         return "new"
     if path.is_dir() and not any(path.iterdir()):
         return "empty"
-    try:
-        index = json.loads((path / "index.json").read_text("utf-8-sig"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-        return "other"
-    if not isinstance(index, dict):
+    index = _index(path)
+    if index is None:
         return "other"
     if "seed" in index and (path / "truth.json").is_file():
         return "synthetic"
@@ -50,13 +47,14 @@ def folder_kind(path: str | Path) -> Kind:
     return "other"
 
 
-def _source(path: Path) -> str | None:
-    """The long run a ``sections --write`` folder was cut from (its index's ``source``)."""
+def _index(path: Path) -> dict | None:
+    """The folder's ``index.json`` as a JSON object, or None where it is missing, unreadable
+    or not an object."""
     try:
         index = json.loads((path / "index.json").read_text("utf-8-sig"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError):
         return None
-    return str(index.get("source")) if isinstance(index, dict) else None
+    return index if isinstance(index, dict) else None
 
 
 def check_field_output(
@@ -73,8 +71,8 @@ def check_field_output(
     kind = folder_kind(path)
     if kind in ("new", "empty") or (kind == writer == "synthetic"):
         return path
-    if kind == writer == "sections":
-        before = _source(path)
+    if kind == writer == "sections":  # the long run it was cut from: its index's source
+        before = str(_index(path)["source"])  # type: ignore[index]
         if source is None or before == source:
             return path
         raise RailsuspInputError(
