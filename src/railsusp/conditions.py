@@ -348,15 +348,20 @@ def make_condition(fields: dict[str, Any], *, from_file: bool = False) -> Workin
         raise ConditionError(f"condition {fields.get('name', 'custom')!r}: {exc}") from None
 
 
-def _bound(x: float) -> str:
-    """A range bound as written: a whole number in full (a seed's 9223372036854775807, not
-    9.22337e+18), others as %g."""
-    return str(int(x)) if isinstance(x, int) else f"{x:g}"
+def field_range(field: str) -> tuple[float | None, float | None]:
+    """(lowest, highest) a working condition's ``field`` accepts (its ``ge``/``le``; None
+    where unbounded): the one source of the ranges that readers of recordings and line
+    descriptions check against too."""
+    lo = hi = None
+    for m in WorkingCondition.model_fields[field].metadata:
+        lo = getattr(m, "ge", lo)
+        hi = getattr(m, "le", hi)
+    return lo, hi
 
 
 def _format_errors(name: str, exc: ValidationError) -> str:
     """One line per pydantic error, naming field, value and accepted range with unit."""
-    from railsusp.store import type_error_text
+    from railsusp.store import bound_text, type_error_text
 
     msgs = []
     for err in exc.errors():
@@ -367,9 +372,7 @@ def _format_errors(name: str, exc: ValidationError) -> str:
         if info is not None:
             extra = info.json_schema_extra
             unit = extra.get("unit", "") if isinstance(extra, dict) else ""
-            for m in info.metadata:
-                lo = getattr(m, "ge", lo)
-                hi = getattr(m, "le", hi)
+            lo, hi = field_range(field)
         if err["type"] == "extra_forbidden":
             known = ", ".join(WorkingCondition.model_fields)
             msgs.append(f"unknown field {field!r} (accepted: {known})")
@@ -384,7 +387,8 @@ def _format_errors(name: str, exc: ValidationError) -> str:
                 "starting with a letter or digit (no '/', no '..', no absolute path)"
             )
         if lo is not None or hi is not None:
-            rng = f"[{'-inf' if lo is None else _bound(lo)}, {'inf' if hi is None else _bound(hi)}]"
+            low = "-inf" if lo is None else bound_text(lo)
+            rng = f"[{low}, {'inf' if hi is None else bound_text(hi)}]"
             accepted = f"accepted range {rng} {unit}".rstrip()
             if field == "irregularity_class":
                 accepted += ' or "none" (perfect track)'

@@ -315,6 +315,12 @@ def field_at(model: Any, loc: Sequence[Any]) -> tuple[Any, Any]:
     return None, None
 
 
+def bound_text(x: float) -> str:
+    """A range bound as written: a whole number in full (a seed's 9223372036854775807, not
+    9.22337e+18), others as %g."""
+    return str(x) if isinstance(x, int) else f"{x:g}"
+
+
 def bounds_text(info: Any) -> str:
     """A field's bounds as an interval, "[4, 1e+06]" or "(0, 5] m" (its ``unit`` from
     ``json_schema_extra``); "" without bounds."""
@@ -329,14 +335,10 @@ def bounds_text(info: Any) -> str:
                 hi, right = getattr(m, name), bracket
     if lo is None and hi is None:
         return ""
-
-    def shown(x: float) -> str:
-        return str(x) if isinstance(x, int) else f"{x:g}"
-
     extra = getattr(info, "json_schema_extra", None)
     unit = extra.get("unit", "") if isinstance(extra, dict) else ""
-    low = "-inf" if lo is None else shown(lo)
-    high = "inf" if hi is None else shown(hi)
+    low = "-inf" if lo is None else bound_text(lo)
+    high = "inf" if hi is None else bound_text(hi)
     return f"{left}{low}, {high}{right} {unit}".rstrip()
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from railsusp.conditions import field_range
 from railsusp.errors import RailsuspInputError
 
 #: a section name, which becomes a file name: no path separators, no leading dot
@@ -39,15 +40,15 @@ def read_line(path: str | Path) -> pd.DataFrame:
     df = _read_csv(path, need)
     what = f"line description {path}"
     _need_values(df, ["km_start", "km_end"], what)
-    # the ranges of a working condition (conditions.py); empty radius, cant, grade: tangent,
-    # level (a negative radius was taken for tangent, a direction "up" for left)
-    for column, lo, hi in (("radius_m", 0.0, 100_000.0), ("cant_mm", 0.0, 200.0),
-                           ("grade_permille", -40.0, 40.0)):  # fmt: skip
+    # the ranges of a working condition; empty radius, cant, grade: tangent, level; radius 0:
+    # tangent (a negative radius was taken for tangent, a direction "up" for left)
+    for column, field in (("radius_m", "curve_radius_m"), ("cant_mm", "cant_mm"),
+                          ("grade_permille", "grade_permille")):  # fmt: skip
+        lo, hi = field_range(field)
         vals = df[column].to_numpy(dtype=float)
         out = np.isfinite(vals) & ((vals < lo) | (vals > hi))
-        if column == "radius_m":  # a curve's radius is a condition's: 50 m or more
-            out |= (vals > 0.0) & (vals < 50.0)
-            lo = 50.0
+        if column == "radius_m":
+            out &= vals != 0.0
         if out.any():
             i = int(np.flatnonzero(out)[0])
             raise RailsuspInputError(

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from railsusp.conditions import field_range
 from railsusp.errors import RailsuspInputError, did_you_mean
 from railsusp.measured.channels import SIGNALS, ChannelMap, default_map
 from railsusp.measured.checks import (
@@ -199,9 +200,9 @@ def read_run(
 
 #: the largest speed, cant and grade a run may show: a working condition's bounds
 #: (conditions.py), beyond which a channel's unit is more likely wrong than the line
-MAX_SPEED_KMH = 200.0
-MAX_CANT_M = 0.2
-MAX_GRADE = 0.04
+MAX_SPEED_KMH = field_range("speed_kmh")[1]
+MAX_CANT_M = field_range("cant_mm")[1] * 1e-3
+MAX_GRADE = field_range("grade_permille")[1] * 1e-3
 #: how far the distance channel's span may differ from the integrated speed (a wheel
 #: diameter's wear and slip are a few per cent; a unit slip is a factor 3.6 or 1000)
 DISTANCE_SPEED_RATIO = (0.8, 1.25)
