@@ -169,6 +169,7 @@ def check_config(cfg: Any, where: str = "configuration", *, from_file: bool = Fa
             raise bad(f"field.truth: {exc}") from None
 
     # recordings
+    recordings: list = []  # a measured folder's, read whole
     if f.measured is not None:
         if f.truth:
             raise bad("field: give measured or truth, not both")
@@ -180,10 +181,12 @@ def check_config(cfg: Any, where: str = "configuration", *, from_file: bool = Fa
         from railsusp.measured import read_field
 
         try:  # every recording read and checked now, not in the field stage after the
-            read_field(folder)  # campaign, the sensitivity analysis and the surrogates
+            recordings = read_field(folder)  # campaign, the sensitivity and the surrogates
         except RailsuspInputError as exc:
             raise bad(f"field.measured: {exc}") from None
-    _check_measured_track(cfg, bad)
+    blind = [r.condition.name for r in recordings if r.condition.track_geometry is None]
+    own_tracks = _own_tracks(cfg, conds)
+    _check_measured_track(cfg, bad, blind, own_tracks)
     if (f.with_track or f.track_noise_mm) and (f.measured or f.recording) is not None:
         raise bad("field.with_track and field.track_noise_mm apply to synthetic recordings only")
     if f.track_noise_mm and not f.with_track:
@@ -268,7 +271,7 @@ def check_config(cfg: Any, where: str = "configuration", *, from_file: bool = Fa
             'statistics GPs of surrogate.model = "gp-stats" predict mean, rms, p99 and std only'
         )
     _check_held_prior(cfg, bad)
-    _check_one_track_surrogate(cfg, bad)
+    _check_one_track_surrogate(cfg, bad, own_tracks)
     if cfg.surrogate.device not in DEVICES:
         raise bad(f"surrogate.device = {cfg.surrogate.device!r}: accepted {', '.join(DEVICES)}")
     if cfg.surrogate.pretrained is None:
@@ -334,26 +337,6 @@ def _check_held_prior(cfg: Any, bad: Any) -> None:
         )
 
 
-def _blind_recordings(folder: Path) -> list[str]:
-    """Names of the recordings in a field folder whose sidecar gives no track geometry (from
-    index.json and the sidecars alone; the tables are read, and checked, by the field
-    stage). Unreadable sidecars are left to the reader's own error."""
-    import json
-
-    from railsusp.measured import read_index
-
-    blind = []
-    for table in read_index(folder):
-        try:
-            doc = json.loads(table.with_suffix(".json").read_text("utf-8-sig"))
-            cond = doc["condition"]
-            if cond.get("track_geometry") is None:
-                blind.append(str(cond.get("name", table.stem)))
-        except (OSError, ValueError, KeyError, TypeError, AttributeError):
-            continue
-    return blind
-
-
 def _check_surrogate_training(cfg: Any, conds: list, bad: Any) -> None:
     """What the surrogate stage's training needs of the conditions and the machine, checked
     before the campaign rather than after it: every condition's series longer than the
@@ -389,19 +372,19 @@ def check_cuda(cfg: Any, where: str, surrogate_done: bool) -> None:
         )
 
 
-def _own_tracks(cfg: Any) -> bool:
-    """Whether the recordings are synthetic and every condition names its own
-    ``track_geometry``: the recordings then carry a copy of it (with ``with_track`` or
-    without), so they carry their measured track."""
+def _own_tracks(cfg: Any, conds: list) -> bool:
+    """Whether the recordings are synthetic and every condition (``conds``, the run's) names
+    its own ``track_geometry``: the recordings then carry a copy of it (with ``with_track``
+    or without), so they carry their measured track."""
     f = cfg.field
     return (
         f.measured is None
         and f.recording is None
-        and all(c.track_geometry is not None for c in cfg.working_conditions())
+        and all(c.track_geometry is not None for c in conds)
     )
 
 
-def _check_one_track_surrogate(cfg: Any, bad: Any) -> None:
+def _check_one_track_surrogate(cfg: Any, bad: Any, own_tracks: bool) -> None:
     """The statistic ``aligned`` (and so ``expected_draws``, which needs it) needs a surrogate
     that predicts on any track, ``surrogate.pretrained``: a run's campaign is on each
     condition's one track realisation, so the networks it trains predict that track only
@@ -410,7 +393,7 @@ def _check_one_track_surrogate(cfg: Any, bad: Any) -> None:
     run)."""
     if cfg.surrogate.pretrained is not None or cfg.surrogate.model == "gp-stats":
         return  # a set trained on a track family; the statistics GPs have their own check
-    if _own_tracks(cfg) and not cfg.field.track_noise_mm:  # trained on the conditions'
+    if own_tracks and not cfg.field.track_noise_mm:  # trained on the conditions'
         return  # own tracks, which the synthetic recordings carry (same_measured_track);
     # with a measurement error added the recordings' copies are other tracks
     if ALIGNED in cfg.estimate.statistic.split("+"):
@@ -422,11 +405,12 @@ def _check_one_track_surrogate(cfg: Any, bad: Any) -> None:
         )
 
 
-def _check_measured_track(cfg: Any, bad: Any) -> None:
+def _check_measured_track(cfg: Any, bad: Any, blind: list[str], own_tracks: bool) -> None:
     """The settings that compare time-aligned series on the recordings' measured track
     (``estimate.refine``, the statistic ``aligned``) need recordings that carry it: not the
-    sections of a long run, not synthetic recordings without ``with_track``, not a
-    ``measured`` folder whose sidecars give no ``track_geometry``."""
+    sections of a long run, not synthetic recordings without ``with_track`` (unless every
+    condition has its own track, ``own_tracks``), not a ``measured`` folder's recordings
+    without ``track_geometry`` (``blind``, their names)."""
     f = cfg.field
     needs = []
     if cfg.estimate.refine:
@@ -436,10 +420,10 @@ def _check_measured_track(cfg: Any, bad: Any) -> None:
     if (
         cfg.surrogate.pretrained is not None
         and (
-            (f.measured is not None and _blind_recordings(Path(f.measured)))
+            (f.measured is not None and blind)
             or (f.measured is None and (f.recording is not None or not f.with_track))
         )
-        and not _own_tracks(cfg)
+        and not own_tracks
     ):
         raise bad(
             "surrogate.pretrained needs recordings with their measured track geometry (the "
@@ -453,20 +437,18 @@ def _check_measured_track(cfg: Any, bad: Any) -> None:
                 f"{what} with field.recording: the sections of a long run carry no measured "
                 f"track geometry, which time-aligned comparison needs; set {instead}"
             )
-        if f.measured is None and not f.with_track and not _own_tracks(cfg):
+        if f.measured is None and not f.with_track and not own_tracks:
             raise bad(
                 f"{what} with field.with_track = false: time-aligned comparison needs the "
                 "recordings' measured track geometry; set field.with_track = true "
                 f"(or {instead})"
             )
-        if f.measured is not None:
-            blind = _blind_recordings(Path(f.measured))
-            if blind:
-                raise bad(
-                    f"{what} with field.measured = {f.measured!r}: {', '.join(blind)} carry "
-                    "no track geometry (condition.track_geometry, docs/data-format.md), which "
-                    f"time-aligned comparison needs; set {instead}"
-                )
+        if f.measured is not None and blind:
+            raise bad(
+                f"{what} with field.measured = {f.measured!r}: {', '.join(blind)} carry "
+                "no track geometry (condition.track_geometry, docs/data-format.md), which "
+                f"time-aligned comparison needs; set {instead}"
+            )
 
 
 def _check_recording_keys(cfg: Any, bad: Any) -> None:
