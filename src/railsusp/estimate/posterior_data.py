@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import io
 import logging
-import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +27,7 @@ from railsusp.estimate.statistic_families import (
     statistic_names,
 )
 from railsusp.estimate.summaries import cut_sections
+from railsusp.integrity import read_npz
 from railsusp.measured.synthetic import bandwidth_filter
 from railsusp.params import MAIN_SUSPENSION, bounds
 from railsusp.store import atomic_write_bytes
@@ -164,9 +164,9 @@ def _read_chunk(path: Path) -> tuple[np.ndarray, np.ndarray] | None:
     if not path.is_file():
         return None
     try:
-        with np.load(path, allow_pickle=False) as z:
-            return np.asarray(z["u"]), np.asarray(z["x"])
-    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        z = read_npz(path, "cached chunk", "simulated again")
+        return np.asarray(z["u"]), np.asarray(z["x"])
+    except (RailsuspInputError, KeyError):
         log.warning("posterior: %s unreadable; simulated again", path.name)
         return None
 
