@@ -55,6 +55,20 @@ def test_the_recording_carries_a_copy_of_its_conditions_track(geometry, tmp_path
         assert rec.condition.track_geometry is not None
 
 
+def _own_track_config(tmp_path: Path, geometry: Path, field: str, estimate: str) -> Path:
+    """The tiny example whose condition names ``geometry`` as its own track, with lines
+    ``field`` and ``estimate`` added to those sections."""
+    text = TINY.read_text().replace(
+        "lead_in_m=20.0}", f'lead_in_m=20.0, track_geometry="{geometry}"}}'
+    )
+    text = text.replace("[field]\n", f"[field]\n{field}").replace(
+        "[estimate]\n", f"[estimate]\n{estimate}"
+    )
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(text)
+    return cfg
+
+
 @pytest.mark.parametrize(
     ("with_track", "statistic"), [(False, "mean"), (True, "mean"), (True, "aligned")]
 )
@@ -64,14 +78,8 @@ def test_a_run_on_a_condition_with_its_own_track_completes(
     """With ``aligned`` the surrogates trained here (on the condition's one track) predict
     the recording's track, since it is that track (``same_measured_track``): the one
     configuration where ``aligned`` works without a pretrained set."""
-    text = TINY.read_text().replace(
-        "lead_in_m=20.0}", f'lead_in_m=20.0, track_geometry="{geometry}"}}'
-    )
-    if with_track:
-        text = text.replace("[field]\n", "[field]\nwith_track = true\n")
-    text = text.replace("[estimate]\n", f'[estimate]\nstatistic = "{statistic}"\n')
-    cfg = tmp_path / "g.toml"
-    cfg.write_text(text)
+    field = "with_track = true\n" if with_track else ""
+    cfg = _own_track_config(tmp_path, geometry, field, f'statistic = "{statistic}"\n')
     out = tmp_path / "run"
     state = run_pipeline(load_config(cfg), out)
     assert all(s["state"] == "done" for s in state["stages"].values())
@@ -101,18 +109,6 @@ def test_a_run_folder_reused_with_a_renamed_condition(tmp_path):
         if not model.is_dir():
             continue  # figures, the comparison table
         assert sorted(p.name for p in model.iterdir() if p.is_dir()) == ["renamed"], model
-
-
-def _own_track_config(tmp_path: Path, geometry: Path, field: str, estimate: str) -> Path:
-    text = TINY.read_text().replace(
-        "lead_in_m=20.0}", f'lead_in_m=20.0, track_geometry="{geometry}"}}'
-    )
-    text = text.replace("[field]\n", f"[field]\n{field}").replace(
-        "[estimate]\n", f"[estimate]\n{estimate}"
-    )
-    cfg = tmp_path / "c.toml"
-    cfg.write_text(text)
-    return cfg
 
 
 def test_own_track_recordings_carry_their_track_and_noise_makes_them_other_tracks(
