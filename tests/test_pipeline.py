@@ -2,6 +2,7 @@
 
 import io
 import json
+import tomllib
 from pathlib import Path
 
 import pandas as pd
@@ -429,3 +430,25 @@ def test_a_measured_folder_with_a_users_own_files_stays_up_to_date(tiny, tmp_pat
     seen = []
     run_pipeline(cfg, run, progress=lambda s, m: seen.append((s, m)))
     assert all(m == "up to date" for _, m in seen), seen
+
+
+def test_a_run_checks_its_configuration_once(tiny, monkeypatch):
+    """load_config checks the configuration (a measured folder's recordings are read in full
+    by that check); the command line and railsusp.run(path or dict) do not check it again,
+    a PipelineConfig built in Python is checked by run_pipeline itself."""
+    import railsusp
+    import railsusp.config
+
+    cfg_path, out, _, _ = tiny
+    calls = []
+    check = railsusp.config.check_config
+    monkeypatch.setattr(
+        railsusp.config, "check_config", lambda *a, **k: (calls.append(a[1:]), check(*a, **k))
+    )
+    result = CliRunner().invoke(app, ["run", str(cfg_path), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert len(calls) == 1
+    for config in (cfg_path, load_config(cfg_path), dict(tomllib.loads(TINY))):
+        calls.clear()
+        railsusp.run(config, out=out)
+        assert len(calls) == 1, config

@@ -247,5 +247,12 @@ def run(
         )
     if out is None:
         raise RailsuspInputError("out: the run directory is needed for a configuration object")
-    run_pipeline(cfg, out, start_from=start_from, progress=progress, options=("out", "start_from"))
+    run_pipeline(
+        cfg,
+        out,
+        start_from=start_from,
+        progress=progress,
+        options=("out", "start_from"),
+        checked=cfg is not config,  # a file or a dict: load_config or the lines above checked it
+    )
     return open_run(out)

@@ -68,6 +68,7 @@ def run_pipeline(
     progress: Callable[[str, str], None] | None = None,
     run_progress: Callable[[int, int], None] | None = None,
     options: tuple[str, str] = ("--out", "--from"),
+    checked: bool = False,
 ) -> dict:
     """Run the stages in order, skipping the up-to-date ones; returns ``pipeline.json``.
 
@@ -75,6 +76,9 @@ def run_pipeline(
     campaign's simulations. ``out`` is a new or empty folder, or a run directory to resume:
     a folder holding other files is refused (the stages would write over them). ``options``
     name ``out`` and ``start_from`` in the errors (the command line's, or the API's).
+    ``checked``: ``config`` has been through :func:`~railsusp.config.check_config` already
+    (:func:`~railsusp.pipeline_config.load_config` does it), so it is not checked again: a
+    measured folder's recordings are read in full by that check.
     """
     from railsusp.config import check_config, check_cuda
     from railsusp.store import check_output_folder
@@ -84,7 +88,8 @@ def run_pipeline(
     if start_from is not None and start_from not in STAGES:
         raise RailsuspInputError(f"{from_option} {start_from!r}: accepted {', '.join(STAGES)}")
     state = run_state(out, out_option)
-    check_config(config)  # every combination, before any stage runs
+    if not checked:
+        check_config(config)  # every combination, before any stage runs
     done = state["stages"].get("surrogate", {}).get("state") == "done" and start_from not in (
         "campaign",
         "sensitivity",

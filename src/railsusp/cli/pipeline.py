@@ -21,7 +21,7 @@ from railsusp.errors import RailsuspInputError
 from railsusp.store import check_output_folder
 
 
-def _run(config, out: Path, start_from: str | None) -> dict:
+def _run(config, out: Path, start_from: str | None, *, checked: bool = False) -> dict:
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -53,7 +53,12 @@ def _run(config, out: Path, start_from: str | None) -> dict:
             bar.update(runs, completed=done, total=total, visible=True)
 
         state = run_pipeline(
-            config, out, start_from=start_from, progress=on_stage, run_progress=on_runs
+            config,
+            out,
+            start_from=start_from,
+            progress=on_stage,
+            run_progress=on_runs,
+            checked=checked,
         )
         bar.update(stages, completed=len(STAGES), description="stages: done")
     return state
@@ -116,7 +121,7 @@ def run(
     try:
         cfg = load_config(config)
         target = check_output_folder(out or Path("runs") / config.stem)
-        _run(cfg, target, start_from)
+        _run(cfg, target, start_from, checked=True)
     except RailsuspInputError as exc:
         fail(str(exc))
     _summary(target)
