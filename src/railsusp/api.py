@@ -18,6 +18,8 @@ import pandas as pd
 
 import railsusp.summary as summary
 from railsusp.errors import RailsuspInputError
+from railsusp.integrity import changed_files
+from railsusp.pipeline_state import STAGES, read_run_state
 from railsusp.store import read_csv, read_json
 from railsusp.summary import Tolerances
 
@@ -36,13 +38,47 @@ class RunResult:
     tolerances: summary.Tolerances | None = None
 
     def _need(self, rel: str, stage: str) -> Path:
+        """``rel``, an output of ``stage``, where pipeline.json says that stage is done and
+        the files it recorded then are there with their sizes: a stage that failed, was
+        interrupted or is stale (an earlier stage ran again after it) left the outputs of
+        an older run, which are not this run's answer."""
         p = self.path / rel
+        resume = f"railsusp run CONFIG --out {self.path}"
         if not p.exists():
             raise RailsuspInputError(
-                f"{self.path}: no {rel}; the {stage} stage has not run (railsusp run CONFIG "
-                f"--out {self.path})"
+                f"{self.path}: no {rel}; the {stage} stage has not run ({resume})"
+            )
+        entry = self._stage_entries().get(stage)
+        if entry is None:  # a run that lost its pipeline.json's record of it
+            return p
+        state = entry.get("state")
+        if state != "done":
+            why = {
+                "failed": f"failed ({entry.get('error', 'no message')})",
+                "running": "was interrupted (or is running now)",
+                "stale": "is stale: an earlier stage ran again after it",
+            }.get(state, f"is {state!r}")
+            raise RailsuspInputError(
+                f"{self.path}: the {stage} stage {why}; its files are an older run's ({resume})"
+            )
+        changed = changed_files(entry.get("files") or {}, self.path)
+        if changed:
+            raise RailsuspInputError(
+                f"{self.path}: {changed[0].relative_to(self.path)} changed or is gone since the "
+                f"{stage} stage wrote it ({resume} writes it again)"
             )
         return p
+
+    def _stage_entries(self) -> dict[str, dict]:
+        """pipeline.json's table of stages, each entry checked to be a table."""
+        stages = read_run_state(self.path, str(self.path))["stages"]
+        for name, entry in stages.items():
+            if not isinstance(entry, dict):
+                raise RailsuspInputError(
+                    f"{self.path}: pipeline.json stages.{name} = {entry!r}: a table of the "
+                    "stage's state is needed (the file is damaged)"
+                )
+        return stages
 
     @property
     def estimate(self) -> pd.DataFrame:
@@ -69,9 +105,11 @@ class RunResult:
 
     @property
     def recovery(self) -> pd.DataFrame | None:
-        """For synthetic recordings, the error of each estimate against the hidden truth."""
-        p = self.path / "estimate" / "validation" / "recovery.csv"
-        return read_csv(p) if p.exists() else None
+        """For synthetic recordings (a hidden truth in ``field/truth.json``), the error of
+        each estimate against it; None for measured ones."""
+        if not (self.path / "field" / "truth.json").exists():
+            return None
+        return read_csv(self._need("estimate/validation/recovery.csv", "validate"))
 
     @property
     def sensitivity(self) -> pd.DataFrame:
@@ -98,12 +136,20 @@ class RunResult:
     @property
     def stages(self) -> pd.DataFrame:
         """Each stage's state and seconds, from ``pipeline.json``."""
-        st = read_json(self._need("pipeline.json", "first")).get("stages", {})
+        self._need("pipeline.json", "first")
+        st = self._stage_entries()
+        order = [s for s in STAGES if s in st] + [s for s in st if s not in STAGES]
         return pd.DataFrame(
             [
-                {"stage": k, "state": v.get("state"), "seconds": v.get("seconds")}
-                for k, v in st.items()
-            ]
+                {
+                    "stage": k,
+                    "state": st[k].get("state"),
+                    "seconds": st[k].get("seconds"),
+                    "error": st[k].get("error"),
+                }
+                for k in order
+            ],
+            columns=["stage", "state", "seconds", "error"],
         )
 
     @property
@@ -193,8 +239,6 @@ def open_run(path: str | Path, *, tolerances: summary.Tolerances | None = None) 
             f"tolerances = {tolerances!r}: a railsusp.Tolerances(default_pct, per_parameter) "
             "is needed"
         )
-    from railsusp.pipeline_state import read_run_state
-
     path = Path(path).resolve()
     if not (path / "pipeline.json").is_file():
         raise RailsuspInputError(f"{path}: not a run directory (no pipeline.json)")

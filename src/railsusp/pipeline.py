@@ -35,6 +35,7 @@ from railsusp.pipeline_state import (
     surrogate_campaign_dir,
 )
 from railsusp.store import content_hash, provenance, write_json
+from railsusp.summary import read_tolerances
 
 #: stage finishes with their elapsed time (info) and starts (debug), for the command line
 log = logging.getLogger("railsusp.pipeline")
@@ -99,6 +100,9 @@ def run_pipeline(
     out.mkdir(parents=True, exist_ok=True)
     state_path = out / "pipeline.json"
     state["config"] = config.model_dump(mode="json")
+    # the verdicts' tolerances as the run read them: open_run judges with these, not with
+    # whatever wagon file a relative path names from its own working folder
+    state["tolerances"] = read_tolerances(config.wagon).to_dict()
     forced = STAGES.index(start_from) if start_from else len(STAGES)
     upstream: dict[str, str] = {}
     runners = _stage_runners(config, out, run_progress)
@@ -122,6 +126,7 @@ def run_pipeline(
                 progress(stage, "running")
             t0 = time.perf_counter()
             state["stages"][stage] = {"hash": h, "state": "running"}
+            _mark_later_stale(state, stage)
             write_json(state_path, state)
             try:
                 info = runners[stage]() or {}
@@ -149,6 +154,17 @@ def run_pipeline(
     state["provenance"] = provenance()
     write_json(state_path, state)
     return state
+
+
+def _mark_later_stale(state: dict, stage: str) -> None:
+    """The stages after ``stage`` that pipeline.json says are done, marked ``stale`` when
+    ``stage`` starts to run: their outputs are of the run before (every later stage runs
+    again after it), so :func:`railsusp.open_run` must not read them as this run's answer if
+    ``stage`` fails or is interrupted."""
+    for later in STAGES[STAGES.index(stage) + 1 :]:
+        entry = state["stages"].get(later)
+        if isinstance(entry, dict) and entry.get("state") == "done":
+            entry["state"] = "stale"
 
 
 def model_identity(config: PipelineConfig) -> dict[str, str]:

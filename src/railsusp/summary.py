@@ -47,9 +47,25 @@ class Tolerances:
         object.__setattr__(self, "default_pct", default)
         object.__setattr__(self, "parameters", per)
 
-    def of(self, symbol: str) -> float:
-        """The tolerance of one parameter, % of its nominal value."""
-        return float(self.parameters.get(symbol, self.default_pct))
+    def of(self, parameter: str) -> float:
+        """The tolerance of one main suspension parameter (symbol or name), % of its nominal
+        value; anything else is refused, as in the table."""
+        _, per = _checked("Tolerances.of", self.default_pct, {parameter: self.default_pct})
+        return float(self.parameters.get(next(iter(per)), self.default_pct))
+
+    def to_dict(self) -> dict:
+        """``{"default_pct": ..., "parameters": {symbol: %}}``, as a run's pipeline.json
+        records them (:meth:`from_dict` reads it back)."""
+        return {"default_pct": self.default_pct, "parameters": dict(self.parameters)}
+
+    @classmethod
+    def from_dict(cls, doc: object, where: str = "tolerances") -> Tolerances:
+        """The tolerances :meth:`to_dict` wrote, checked as the constructor checks them."""
+        if not isinstance(doc, Mapping) or set(doc) != {"default_pct", "parameters"}:
+            raise RailsuspInputError(
+                f"{where}: accepted a table of default_pct and parameters, not {doc!r}"
+            )
+        return cls(*_checked(where, doc["default_pct"], doc["parameters"]))
 
 
 def _check_pct(where: str, key: str, value: object) -> float:
@@ -117,14 +133,19 @@ def _checked(
     return _check_pct(where, "default_pct", default), out
 
 
-def _config(run: Path) -> dict:
+def _state(run: Path) -> dict:
     state = read_json(run / "pipeline.json") if (run / "pipeline.json").exists() else {}
-    return state.get("config", {})
+    return state if isinstance(state, dict) else {}
 
 
 def run_tolerances(run: str | Path) -> Tolerances:
-    """The tolerances of the wagon that a run used (its configuration's ``wagon``)."""
-    return read_tolerances(_config(Path(run)).get("wagon"))
+    """The tolerances of the wagon that a run used: as ``pipeline.json`` recorded them when
+    the run started, else (a run made before they were recorded) read from its
+    configuration's ``wagon`` file."""
+    state = _state(Path(run))
+    if "tolerances" in state:
+        return Tolerances.from_dict(state["tolerances"], f"{run}: pipeline.json tolerances")
+    return read_tolerances((state.get("config") or {}).get("wagon"))
 
 
 def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.DataFrame:
