@@ -7,12 +7,15 @@ import tomllib
 from pathlib import Path
 
 import pytest
-from test_pipeline import TINY, _up_to_date_copy, tiny  # noqa: F401 (the module's fixture)
 
 import railsusp
+import test_pipeline
 from railsusp.errors import RailsuspInputError
 from railsusp.pipeline import STAGES, StageError, load_config, run_pipeline
 from railsusp.summary import Tolerances
+
+TINY, _up_to_date_copy = test_pipeline.TINY, test_pipeline._up_to_date_copy
+tiny = test_pipeline.tiny  # the tiny pipeline run, this module's own (module scope)
 
 
 def _fail_estimate(monkeypatch):
@@ -28,7 +31,7 @@ def test_a_failed_rerun_leaves_no_stale_answer(tiny, tmp_path, monkeypatch):
     """The audit of stop 58: a rerun with another truth whose estimate stage failed left
     validate and report 'done' in pipeline.json, and open_run served the earlier run's
     estimate, recovery and report as if they were this run's."""
-    cfg, _, copy = _up_to_date_copy(tiny, tmp_path)
+    _, _, copy = _up_to_date_copy(tiny, tmp_path)
     before = railsusp.open_run(copy)
     assert before.estimate.loc["X13", "estimate"] > 0 and before.recovery is not None
     changed = tmp_path / "changed.toml"
@@ -50,12 +53,12 @@ def test_a_failed_rerun_leaves_no_stale_answer(tiny, tmp_path, monkeypatch):
     }
     assert "surrogates/bp: no bundle" in result.stages.set_index("stage").loc["estimate", "error"]
     with pytest.raises(RailsuspInputError, match="estimate stage failed .*no bundle.*older run"):
-        result.estimate
+        _ = result.estimate
     for attribute in ("validation", "agreement", "recovery"):
         with pytest.raises(RailsuspInputError, match="validate stage is stale"):
             getattr(result, attribute)
     with pytest.raises(RailsuspInputError, match="report stage is stale"):
-        result.report_path
+        _ = result.report_path
     assert result.key_parameters == before.key_parameters  # earlier stages still read
     monkeypatch.undo()
     run_pipeline(load_config(changed), copy)  # the rerun brings every stage up to date
@@ -64,26 +67,26 @@ def test_a_failed_rerun_leaves_no_stale_answer(tiny, tmp_path, monkeypatch):
 
 
 def test_an_interrupted_stage_and_changed_files_are_refused(tiny, tmp_path):
-    cfg, _, copy = _up_to_date_copy(tiny, tmp_path)
+    _, _, copy = _up_to_date_copy(tiny, tmp_path)
     state_path = copy / "pipeline.json"
     state = json.loads(state_path.read_text())
     state["stages"]["validate"]["state"] = "running"  # killed while validating
     state_path.write_text(json.dumps(state))
     with pytest.raises(RailsuspInputError, match="validate stage was interrupted"):
-        railsusp.open_run(copy).validation
+        _ = railsusp.open_run(copy).validation
     state["stages"]["validate"]["state"] = "done"
     state_path.write_text(json.dumps(state))
     est = copy / "estimate" / "estimate.json"
     est.write_text("{}")  # another tool wrote over it
     with pytest.raises(RailsuspInputError, match="estimate.json changed or is gone since"):
-        railsusp.open_run(copy).estimate
+        _ = railsusp.open_run(copy).estimate
     (copy / "estimate" / "validation" / "recovery.csv").unlink()
     with pytest.raises(RailsuspInputError, match="no estimate/validation/recovery.csv"):
-        railsusp.open_run(copy).recovery  # synthetic recordings: missing, not "measured"
+        _ = railsusp.open_run(copy).recovery  # synthetic recordings: missing, not "measured"
     state["stages"]["campaign"] = "done"
     state_path.write_text(json.dumps(state))
     with pytest.raises(RailsuspInputError, match=r"stages.campaign = 'done': a table"):
-        railsusp.open_run(copy).stages
+        _ = railsusp.open_run(copy).stages
 
 
 def test_open_run_judges_with_the_tolerances_the_run_recorded(tmp_path, monkeypatch):
