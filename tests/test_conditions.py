@@ -95,7 +95,7 @@ def test_perfect_track_in_a_file_is_none(tmp_path):
     f.write_text('[[condition]]\nname = "smooth"\nirregularity_class = "none"\n')
     (smooth,) = load_conditions(f)
     assert smooth.irregularity_class is None and "perfect track" in smooth.describe()
-    assert make_condition(smooth.model_dump(mode="json"), from_file=True) == smooth
+    assert make_condition(smooth.model_dump(mode="json")) == smooth
     f.write_text('[[condition]]\nname = "smooth"\nirregularity_class = "nine"\n')
     with pytest.raises(ConditionError, match='accepted range \\[1, 6\\] or "none"'):
         load_conditions(f)

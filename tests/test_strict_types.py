@@ -11,7 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from railsusp.cli import app
-from railsusp.conditions import ConditionError, load_conditions
+from railsusp.conditions import ConditionError, WorkingCondition, load_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.pipeline import load_config
 from railsusp.vehicle.wagon import load_wagon
@@ -278,8 +278,8 @@ def test_a_condition_file_is_strict_through_make_condition():
     from railsusp.conditions import make_condition
 
     with pytest.raises(ConditionError, match="speed_kmh = '80': a number is needed"):
-        make_condition({"name": "c", "speed_kmh": "80"}, from_file=True)
-    assert make_condition({"name": "c", "speed_kmh": "80"}).speed_kmh == 80.0  # Python: lax
+        make_condition({"name": "c", "speed_kmh": "80"})  # from a file or from Python alike
+    assert WorkingCondition(name="c", speed_kmh="80").speed_kmh == 80.0  # pydantic's own: lax
 
 
 def test_an_unknown_key_holding_a_boolean_is_named_as_unknown_in_one_line():
@@ -287,5 +287,5 @@ def test_an_unknown_key_holding_a_boolean_is_named_as_unknown_in_one_line():
     from railsusp.conditions import make_condition
 
     with pytest.raises(ConditionError) as info:
-        make_condition({"\n": False}, from_file=True)
+        make_condition({"\n": False})
     assert "unknown field '\\n'" in str(info.value) and "\n" not in str(info.value)

@@ -37,6 +37,13 @@ class RunResult:
     path: Path
     tolerances: summary.Tolerances | None = None
 
+    def __post_init__(self) -> None:
+        """``RunResult(path)`` built directly takes a str as open_run does (open_run also
+        checks that the folder is a run directory)."""
+        if not isinstance(self.path, str | os.PathLike):
+            raise RailsuspInputError(f"path = {self.path!r}: a run directory (str or Path)")
+        object.__setattr__(self, "path", Path(self.path))
+
     def _need(self, rel: str, stage: str) -> Path:
         """``rel``, an output of ``stage``, where pipeline.json says that stage is done and
         the files it recorded then are there with their sizes: a stage that failed, was
@@ -169,6 +176,7 @@ class RunResult:
 
         est = self.estimate
         est = est[~est.verdict.str.startswith(summary.NOT_ESTIMATED)]
+        _check_axes(ax)
         if ax is None:
             _, ax = plt.subplots(figsize=(7, 0.6 + 0.5 * len(est)), constrained_layout=True)
         y = np.arange(len(est))
@@ -197,6 +205,7 @@ class RunResult:
         import numpy as np
 
         ag = self.agreement
+        _check_axes(ax)
         if ax is None:
             _, ax = plt.subplots(figsize=(7, 3.5), constrained_layout=True)
         labels, before, after = [], [], []
@@ -221,6 +230,7 @@ class RunResult:
 
         st = self.sensitivity.groupby("parameter")["ST"].max().sort_values(ascending=False)
         keys = set(self.key_parameters)
+        _check_axes(ax)
         if ax is None:
             _, ax = plt.subplots(figsize=(7, 3), constrained_layout=True)
         ax.bar(st.index, st.to_numpy(), color=["C3" if p in keys else "C0" for p in st.index])
@@ -228,6 +238,16 @@ class RunResult:
         ax.set_title("Sensitivity (red: key parameters, estimated)", fontsize=10)
         ax.grid(axis="y", alpha=0.3)
         return ax
+
+
+def _check_axes(ax: Any) -> None:
+    """``ax`` of the plot_* methods: None (a new figure) or one matplotlib Axes."""
+    from matplotlib.axes import Axes
+
+    if ax is not None and not isinstance(ax, Axes):
+        raise RailsuspInputError(
+            f"ax = {ax!r:.60}: accepted one matplotlib Axes (e.g. fig.add_subplot()) or None"
+        )
 
 
 def open_run(path: str | Path, *, tolerances: summary.Tolerances | None = None) -> RunResult:
@@ -281,7 +301,7 @@ def run(
             ) from None
         except (TypeError, ValueError) as exc:  # a value or a key JSON cannot hold
             raise RailsuspInputError(f"configuration: {exc}") from None
-        check_config(cfg, "configuration", from_file=True)
+        check_config(cfg, "configuration")
     elif isinstance(config, str | Path):
         cfg = load_config(config)
         out = out if out is not None else Path("runs") / Path(config).stem

@@ -29,7 +29,7 @@ length (50 Hz output).
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any, Literal
 
@@ -330,22 +330,27 @@ TRACK_INPUT_FIELDS: tuple[str, ...] = (
 )
 
 
-def make_condition(fields: dict[str, Any], *, from_file: bool = False) -> WorkingCondition:
+def make_condition(fields: Mapping[str, Any]) -> WorkingCondition:
     """Build a condition from a dict, turning validation failures into one-line errors.
 
-    ``from_file``: the dict was read from a TOML or JSON file, so a value of the wrong type
-    (``speed_kmh = "80"``) is refused, not converted
-    (:func:`railsusp.store.validate_document`)."""
+    Values are validated strictly, as a file's are (:func:`railsusp.store.validate_document`):
+    a value of the wrong type (``speed_kmh="80"``, ``n_steps=500.5``) is refused, not
+    converted, whether the dict was read from a TOML or JSON file or built in Python (an
+    integer still stands for a real number, NumPy's scalars for Python's)."""
     from railsusp.store import validate_document
 
+    if not isinstance(fields, Mapping):
+        raise ConditionError(
+            f"condition fields: a mapping {{field: value}} is needed, not "
+            f"{type(fields).__name__} (e.g. {{'name': 'fast', 'speed_kmh': 80}})"
+        )
+    name = fields.get("name", "custom")
     try:
-        if from_file:
-            return validate_document(WorkingCondition, fields)
-        return WorkingCondition(**fields)
+        return validate_document(WorkingCondition, dict(fields))
     except ValidationError as exc:
-        raise ConditionError(_format_errors(fields.get("name", "custom"), exc)) from None
-    except TypeError as exc:
-        raise ConditionError(f"condition {fields.get('name', 'custom')!r}: {exc}") from None
+        raise ConditionError(_format_errors(name, exc)) from None
+    except (TypeError, ValueError) as exc:  # a value or a key JSON cannot hold
+        raise ConditionError(f"condition {name!r}: {exc}") from None
 
 
 def field_range(field: str) -> tuple[float | None, float | None]:
@@ -418,8 +423,10 @@ STANDARD_CONDITIONS: dict[str, WorkingCondition] = {
 }
 
 
-def get_condition(name: str, **overrides: Any) -> WorkingCondition:
-    """A standard condition by name, optionally with fields changed."""
+def get_condition(name: str, /, **overrides: Any) -> WorkingCondition:
+    """A standard condition by name, optionally with fields changed, validated strictly
+    (:func:`make_condition`); ``name=`` among the changes renames it
+    (``get_condition("straight", speed_kmh=80, name="straight80")``)."""
     if not isinstance(name, str):
         raise ConditionError(
             f"condition {name!r} is not a name; accepted: {', '.join(STANDARD_CONDITIONS)}"
@@ -480,7 +487,7 @@ def load_conditions(source: str | Path) -> list[WorkingCondition]:
                 start = get_condition(base).model_dump()
                 start.update(fields)
                 fields = start
-            cond = make_condition(fields, from_file=True)
+            cond = make_condition(fields)
         except ConditionError as exc:
             raise ConditionError(f"{path}: {exc}") from None
         try:

@@ -98,12 +98,10 @@ def _as_toml(value: Any) -> str:
     return repr(value)
 
 
-def check_config(cfg: Any, where: str = "configuration", *, from_file: bool = False) -> None:
+def check_config(cfg: Any, where: str = "configuration") -> None:
     """Check a validated :class:`~railsusp.pipeline_config.PipelineConfig` as a whole; raise
     :class:`ConfigError` (one line, naming the field) at the first thing that would make a
-    stage fail. ``from_file``: read from a TOML file or given as a dict of its sections
-    (:func:`railsusp.run`), so the conditions' values are checked as strictly as the rest (a
-    :class:`PipelineConfig` built in Python has its conditions converted as pydantic does)."""
+    stage fail."""
     from railsusp.conditions import check_track_file
     from railsusp.params import ParameterSet, spec
     from railsusp.vehicle.wagon import load_wagon
@@ -121,7 +119,7 @@ def check_config(cfg: Any, where: str = "configuration", *, from_file: bool = Fa
 
     # conditions: each one builds, names distinct (a recording's: its cut)
     try:
-        conds = cfg.working_conditions(from_file=from_file)
+        conds = cfg.working_conditions()
     except RailsuspInputError as exc:
         raise bad(f"conditions: {exc}") from None
     if not conds:

@@ -12,6 +12,12 @@ def is_real(value: object) -> bool:
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
+def is_whole(value: object) -> bool:
+    """A whole number (Python's or NumPy's integers), not a boolean and not a float that
+    happens to be whole (a count given as 4.0 is a slip to refuse, not to round)."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
 def sig3(v: float) -> str:
     """Three significant figures, without an exponent from 0.0001 to 1e6 (the report's and
     the summary's one number format)."""

@@ -262,11 +262,10 @@ class PipelineConfig(_Cfg):
 
         return run_source(self.field)
 
-    def working_conditions(self, *, from_file: bool = False) -> list[WorkingCondition]:
+    def working_conditions(self) -> list[WorkingCondition]:
         """The conditions of the run: those given, or with ``[field] recording`` the kept
-        sections' conditions of the recording (:mod:`railsusp.measured.cut`). ``from_file``:
-        the configuration was read from a file, so its conditions' values are validated
-        strictly (:func:`railsusp.conditions.make_condition`)."""
+        sections' conditions of the recording (:mod:`railsusp.measured.cut`); their values
+        validated strictly (:func:`railsusp.conditions.make_condition`)."""
         source = self.run_source()
         if source is not None:
             from railsusp.measured.cut import section_conditions
@@ -286,7 +285,7 @@ class PipelineConfig(_Cfg):
                 fields = dict(c)
                 base = fields.pop("base", None)
                 start = get_condition(base).model_dump() if base else {}
-                out.append(make_condition({**start, **fields}, from_file=from_file))
+                out.append(make_condition({**start, **fields}))
         return out
 
 
@@ -301,7 +300,7 @@ def load_config(path: str | Path) -> PipelineConfig:
     except ValidationError as exc:
         raise RailsuspInputError(validation_message(path, exc, PipelineConfig)) from None
     cfg = _beside(cfg, path.parent)
-    check_config(cfg, str(path), from_file=True)
+    check_config(cfg, str(path))
     return cfg
 
 

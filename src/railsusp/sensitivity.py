@@ -44,6 +44,11 @@ INDEX_COLUMNS = (
 )
 
 
+#: successful runs a condition's Gaussian-process metamodel needs at the least (a fifth held
+#: out to score it, the rest to fit it)
+MIN_METAMODEL_RUNS = 5
+
+
 def sobol_from_samples(
     problem: dict,
     y: np.ndarray,
@@ -194,6 +199,13 @@ def sobol_metamodel(
         ids = y.index.to_numpy()
         yv = y.to_numpy()
         ok = np.isfinite(yv)
+        if ok.sum() < MIN_METAMODEL_RUNS:  # a Gaussian process on nothing: sklearn's error
+            raise ValueError(
+                f"{campaign.path}: condition {cond!r}: {int(ok.sum())} of {len(yv)} simulations "
+                f"ran through ({len(yv) - int(ok.sum())} failed, e.g. derailed); the "
+                f"metamodel needs at least {MIN_METAMODEL_RUNS}: check the condition (speed "
+                "against curve radius and cant) or the parameter ranges"
+            )
         xu, yv = unit_all[ids[ok]], yv[ok]
         if len(yv) > max_train:
             keep = rng.choice(len(yv), max_train, replace=False)

@@ -361,6 +361,10 @@ def check_output_folder(path: str | Path, option: str = "--out") -> Path:
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise RailsuspInputError(f"{option} {path} is an existing file, not a folder")
+    if path.is_symlink() and not path.exists():
+        raise RailsuspInputError(
+            f"{option} {path} is a link to {os.readlink(path)}, which does not exist"
+        )
     probe = path.absolute()
     while not probe.exists():
         probe = probe.parent

@@ -16,6 +16,7 @@ from scipy.signal import resample_poly
 
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
+from railsusp.numbers import is_real
 from railsusp.store import write_json, write_parquet
 
 FORMAT = "railsusp-recording/1"
@@ -95,7 +96,13 @@ class Recording:
         from fractions import Fraction
 
         src = self.sampling_rate
-        frac = Fraction(rate_hz / src).limit_denominator(1000)
+        lo, hi = src / 1000.0, src * 1000.0  # the ratio's denominator is at most 1000
+        if not (is_real(rate_hz) and lo <= rate_hz <= hi):
+            raise RailsuspInputError(
+                f"rate_hz = {rate_hz!r}: accepted a number from {lo:g} to {hi:g} Hz (a "
+                f"thousandth to a thousand times this recording's {src:g} Hz)"
+            )
+        frac = Fraction(float(rate_hz) / src).limit_denominator(1000)
         up, down = frac.numerator, frac.denominator
 
         def conv(x):

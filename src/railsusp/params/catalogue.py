@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from railsusp.errors import ParameterError
+from railsusp.numbers import is_real
 
 
 @dataclass(frozen=True)
@@ -100,8 +101,8 @@ class ParameterSpec:
     def check(self, value_si: float) -> float:
         """Return ``value_si`` as float after validation; raise ParameterError otherwise."""
         try:
-            if isinstance(value_si, bool):
-                raise TypeError("a boolean is not a number")
+            if not is_real(value_si):  # a boolean, text ("16.1", converted by float) or bytes
+                raise TypeError("not a real number")
             value = float(value_si)
         except (TypeError, ValueError):
             raise ParameterError(
@@ -343,6 +344,11 @@ STUDY_KEY_PARAMETERS: tuple[str, ...] = ("X13", "X14", "X15", "X16", "X17", "X18
 
 def spec(key: str) -> ParameterSpec:
     """Look up a parameter by symbol (``"X13"``, case-insensitive) or name."""
+    if not isinstance(key, str):
+        raise ParameterError(
+            f"parameter {key!r}: a symbol or name (a string) is needed, e.g. X13 or "
+            "primary_longitudinal_stiffness"
+        )
     try:
         return _BY_KEY[key.strip()] if key.strip() in _BY_KEY else _BY_KEY[key.strip().lower()]
     except KeyError:

@@ -4,6 +4,7 @@ file, every value checked against its Table 2 range or plausible span on constru
 
 from __future__ import annotations
 
+import os
 import tomllib
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
@@ -12,6 +13,7 @@ from typing import Literal
 import numpy as np
 
 from railsusp.errors import ParameterError, RailsuspInputError
+from railsusp.numbers import is_real
 from railsusp.params.catalogue import CATALOGUE, SYMBOLS, ParameterSpec, spec
 
 Units = Literal["si", "display"]
@@ -51,12 +53,9 @@ def _keyed(values: object) -> list[tuple[ParameterSpec, object]]:
 def _to_si(s: ParameterSpec, value: object, units: str) -> object:
     """``value`` in SI for ``units`` = 'display' (left as given when it is not a number, for
     :meth:`ParameterSpec.check` to name it)."""
-    if units != "display" or isinstance(value, bool):
+    if units != "display" or not is_real(value):
         return value
-    try:
-        return float(value) * s.scale  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        return value
+    return float(value) * s.scale  # type: ignore[arg-type]
 
 
 class ParameterSet(Mapping[str, float]):
@@ -96,6 +95,19 @@ class ParameterSet(Mapping[str, float]):
 
     def __getitem__(self, key: str) -> float:
         return self._values[spec(key).symbol]
+
+    def __contains__(self, key: object) -> bool:
+        """A catalogue parameter's symbol or name; anything else is not in the set (the
+        Mapping contract: ``"X99" in p`` is False, not an error)."""
+        try:
+            spec(key)  # type: ignore[arg-type]
+        except ParameterError:
+            return False
+        return True
+
+    def get(self, key: str, default: float | None = None) -> float | None:  # type: ignore[override]
+        """The SI value of ``key`` (symbol or name), ``default`` for anything else."""
+        return self[key] if key in self else default
 
     def __iter__(self) -> Iterator[str]:
         return iter(SYMBOLS)
@@ -162,6 +174,12 @@ class ParameterSet(Mapping[str, float]):
 
 
 def _read_text(source: str | Path) -> tuple[str, str]:
+    """The TOML text of ``source`` (a file path, or the text itself) and where it is from:
+    a string holding no ``=`` cannot be TOML values, so it is taken for a path."""
+    if not isinstance(source, str | os.PathLike):
+        raise ParameterError(
+            f"parameter file {source!r}: a path (str or Path) or TOML text is needed"
+        )
     path = Path(source) if not (isinstance(source, str) and "\n" in source) else None
     if path is not None and path.exists():
         from railsusp.store import read_toml
@@ -171,6 +189,6 @@ def _read_text(source: str | Path) -> tuple[str, str]:
         except RailsuspInputError as exc:
             raise ParameterError(str(exc)) from None
         return path.read_text(encoding="utf-8-sig"), str(path)
-    if isinstance(source, Path) or (isinstance(source, str) and source.endswith(".toml")):
+    if not isinstance(source, str) or source.endswith(".toml") or "=" not in source:
         raise ParameterError(f"parameter file {source} does not exist")
     return str(source), "<toml text>"

@@ -38,8 +38,15 @@ def parse_overrides(items: str | Iterable[str]) -> dict[str, float]:
     Keys are validated against the catalogue; values must be numbers. Range checks happen
     when the values are put into a :class:`ParameterSet`.
     """
+    given = [items] if isinstance(items, str) else items
+    given = list(given) if isinstance(given, Iterable) else None
+    if given is None or not all(isinstance(i, str) for i in given):
+        raise ParameterError(
+            f"overrides {items!r}: accepted text such as 'X13=16.1,X14=8.3' or a list of "
+            "'X13=16.1' items"
+        )
     parts: list[str] = []
-    for item in [items] if isinstance(items, str) else items:
+    for item in given:
         parts.extend(p for p in item.replace(";", ",").split(",") if p.strip())
     out: dict[str, float] = {}
     for part in parts:

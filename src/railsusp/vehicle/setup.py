@@ -17,6 +17,7 @@ import numpy as np
 
 from railsusp.conditions import GRAVITY, WorkingCondition
 from railsusp.errors import RailsuspInputError
+from railsusp.numbers import is_real
 from railsusp.params import spec
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.contact import ContactTable, contact_table, flange_split
@@ -70,6 +71,19 @@ class SolverSettings:
     run_in_m: float = 60.0
 
     def __post_init__(self):
+        for name in (
+            "max_step",
+            "flange_margin",
+            "flange_split_speed",
+            "anti_alias",
+            "penetration_max",
+            "lift_max",
+            "track_step",
+            "run_in_m",
+        ):  # text or None would fail the range checks below with a TypeError
+            value = getattr(self, name)
+            if not is_real(value) or not math.isfinite(value):
+                raise RailsuspInputError(f"{name} = {value!r}: accepted a finite number (SI)")
         for name in ("flange_substeps", "filter_order"):  # counts stored as floats in configs
             value = getattr(self, name)
             if isinstance(value, float) and value.is_integer():

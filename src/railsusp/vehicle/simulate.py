@@ -11,6 +11,7 @@ reason and carry NaN series; they never disturb the other sets of the batch.
 
 from __future__ import annotations
 
+import os
 import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -20,6 +21,7 @@ import numpy as np
 
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
+from railsusp.numbers import is_whole
 from railsusp.params import SYMBOLS, ParameterSet, check_matrix, spec
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.setup import SolverSettings, contact_arrays
@@ -69,10 +71,16 @@ _STATISTIC = {
 def measured_wheel_index(condition: WorkingCondition, which: str | int = "auto") -> int:
     """Index 0..7 of the measured wheel: 'auto' = leading wheelset, outer wheel in a curve
     (left wheel on tangent); or a name like 'w1R' or an index."""
-    if isinstance(which, int):
+    if is_whole(which):
+        which = int(which)  # type: ignore[arg-type]
         if not 0 <= which < 8:
             raise RailsuspInputError(f"measured wheel index {which} outside 0..7")
         return which
+    if not isinstance(which, str):
+        raise RailsuspInputError(
+            f"measured wheel {which!r}: accepted 'auto', a wheel name ({', '.join(WHEEL_NAMES)}) "
+            "or an index 0..7"
+        )
     if which == "auto":
         if condition.curve_radius_m is None:
             return 0
@@ -150,6 +158,26 @@ class SimulationResult:
         """Index of the measured wheel (see :func:`measured_wheel_index`)."""
         return measured_wheel_index(self.condition, which)
 
+    def _one_set(self, set_index: object) -> int:
+        """``set_index`` checked (a whole number 0 .. n_sets - 1), with a warning where that
+        set failed: its series are NaN from the start (a failed integration's forces are not
+        kept), and so are its statistics."""
+        if not is_whole(set_index) or not 0 <= int(set_index) < self.n_sets:  # type: ignore[arg-type]
+            raise RailsuspInputError(
+                f"set_index = {set_index!r}: accepted a whole number 0..{self.n_sets - 1} "
+                "(this result holds " + f"{self.n_sets} set{'s' if self.n_sets > 1 else ''})"
+            )
+        i = int(set_index)  # type: ignore[arg-type]
+        if self.status[i] != L.OK:
+            reason, t = L.FAILURE_REASONS[int(self.status[i])], float(self.fail_time[i])
+            warnings.warn(
+                f"set {i} failed ({reason} at {t:.3g} s): its forces and statistics are NaN; "
+                "result.failures() lists the failed sets, result.ok says which ran",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+        return i
+
     def statistics(
         self, wheel: str | int = "auto", set_index: int | None = 0
     ) -> dict[str, float] | dict[str, np.ndarray]:
@@ -158,6 +186,7 @@ class SimulationResult:
         dQ/Q; floats of one set (``set_index``, the first by default, as
         :meth:`to_dataframe`), or with ``set_index=None`` arrays over every set of a batch."""
         j = self.measured_wheel(wheel)
+        i = None if set_index is None else self._one_set(set_index)  # checked before the work
         segments = statistic_segments(self.time.size, self.condition.sample_interval)
         stats = {}
         for name, arr in (("Y", self.Y[:, j] / 1e3), ("Q", self.Q[:, j] / 1e3)):
@@ -170,12 +199,13 @@ class SimulationResult:
         stats["dQQ_max"] = np.max(self.unloading_ratio[:, j], axis=1)
         if set_index is None:
             return stats
-        return {k: float(v[set_index]) for k, v in stats.items()}
+        return {k: float(v[i]) for k, v in stats.items()}
 
     def to_dataframe(self, set_index: int = 0):
         """Time series of one set as a pandas DataFrame (kN, m/s^2), time in s as index."""
         import pandas as pd
 
+        set_index = self._one_set(set_index)
         cols = {}
         for j, name in enumerate(WHEEL_NAMES):
             cols[f"Y_{name}_kN"] = self.Y[set_index, j] / 1e3
@@ -227,21 +257,20 @@ class SimulationResult:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
+        from railsusp.store import atomic_write_bytes, check_output_file
+
+        if not isinstance(path, str | os.PathLike):
+            raise RailsuspInputError(f"path = {path!r}: a file path (str or Path) is needed")
+        path = check_output_file(path, "path")  # not a folder, nor under a file
+        set_index = self._one_set(set_index)
         table = pa.Table.from_pandas(self.to_dataframe(set_index))
         meta = dict(table.schema.metadata or {})
         meta[b"railsusp.condition"] = self.condition.model_dump_json().encode()
         meta[b"railsusp.params"] = ",".join(f"{v:.9g}" for v in self.params[set_index]).encode()
         meta[b"railsusp.status"] = L.FAILURE_REASONS[int(self.status[set_index])].encode()
-        from railsusp.store import fsync_dir, fsync_file
-
-        tmp = path.with_name(f".{path.name}.tmp")
-        pq.write_table(table.replace_schema_metadata(meta), tmp)
-        fsync_file(tmp)  # on disk before the rename makes it the file
-        tmp.replace(path)
-        fsync_dir(path.parent)
-        return path
+        buffer = pa.BufferOutputStream()
+        pq.write_table(table.replace_schema_metadata(meta), buffer)
+        return atomic_write_bytes(path, buffer.getvalue().to_pybytes())
 
 
 # ---------------------------------------------------------------- entry points
@@ -252,7 +281,7 @@ def _param_matrix(sets: np.ndarray | Iterable[ParameterSet], symbols: Sequence[s
     accepted = "accepted ParameterSets, or an SI matrix (n_sets, len(symbols)) with symbols="
     if isinstance(sets, ParameterSet):
         sets = [sets]
-    elif isinstance(sets, Mapping | str | bytes):
+    elif sets is None or isinstance(sets, Mapping | str | bytes):
         raise RailsuspInputError(
             f"sets: a {type(sets).__name__} is not a parameter set; {accepted} (a dict of "
             "display values: ParameterSet(values, units='display'))"
@@ -264,11 +293,18 @@ def _param_matrix(sets: np.ndarray | Iterable[ParameterSet], symbols: Sequence[s
     if isinstance(sets, np.ndarray) or (symbols is not None):
         syms = list(symbols) if symbols is not None else list(SYMBOLS)
         try:
-            given = np.asarray(sets, dtype=float)
+            given = np.asarray(sets)
         except (TypeError, ValueError):
             raise RailsuspInputError(
-                "sets: not a matrix of numbers (rows of unequal length, or text?); " + accepted
+                "sets: not a matrix of numbers (rows of unequal length?); " + accepted
             ) from None
+        if given.dtype.kind not in "iuf":  # text ("1.61e7") or complex: not converted
+            what = {"U": "text", "S": "bytes", "c": "complex numbers", "b": "booleans"}
+            raise RailsuspInputError(
+                f"sets: a matrix of {what.get(given.dtype.kind, str(given.dtype))}; accepted "
+                "real numbers (SI), not converted. " + accepted
+            )
+        given = given.astype(float)
         shape = given.shape
         if symbols is None and (len(shape) not in (1, 2) or shape[-1] != len(SYMBOLS)):
             raise RailsuspInputError(
@@ -404,6 +440,12 @@ def _simulate_full(
     conditions, ``wagon`` (a WagonData, a wagon file or None) and ``settings`` checked."""
     from railsusp.vehicle.batch_runs import integrate_conditions
 
+    if progress is not None and not callable(progress):
+        raise RailsuspInputError(f"progress = {progress!r}: accepted a function (done, total)")
+    if not is_whole(chunk_size) or chunk_size < 1:
+        raise RailsuspInputError(
+            f"chunk_size = {chunk_size!r}: accepted a whole number >= 1 (sets per parallel call)"
+        )
     for _, cond, _ in prepared:
         if not isinstance(cond, WorkingCondition):
             raise RailsuspInputError(
