@@ -31,7 +31,11 @@ def lowpass(x: np.ndarray, fs: float, cutoff_hz: float = FORCE_CUTOFF_HZ, order:
     if not 0.0 < cutoff_hz < 0.5 * fs:
         raise ValueError(f"cut-off {cutoff_hz:g} Hz: accepted above 0, below half of {fs:g} Hz")
     sos = butter(order, cutoff_hz, fs=fs, output="sos")
-    return sosfiltfilt(sos, np.asarray(x, dtype=float), axis=-1)
+    x = np.asarray(x, dtype=float)
+    # scipy's default edge padding (3 (2 n_sections + 1) samples) needs a longer series; a
+    # short one (a section of a few samples cut from a user's table) is padded less
+    pad = min(3 * (2 * len(sos) + 1), max(0, x.shape[-1] - 1))
+    return sosfiltfilt(sos, x, axis=-1, padlen=pad)
 
 
 def sliding_mean(x: np.ndarray, position_m: np.ndarray, window_m: float = WINDOW_M):

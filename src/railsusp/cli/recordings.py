@@ -18,7 +18,7 @@ from railsusp.store import check_figure_file
 def print_problems(exc) -> None:
     """Every problem of a refused recording, one line each, then the one-line error."""
     for p in exc.problems:
-        console.print(f"  - {exc.path}: {p}", highlight=False, soft_wrap=True)
+        console.print(f"  - {exc.path}: {p}", highlight=False, soft_wrap=True, markup=False)
     fail(f"{exc.path}: {len(exc.problems)} problem(s), listed above")
 
 
@@ -47,7 +47,7 @@ def check_recording(
     if not lo <= min_rate <= hi:  # NaN fails too (checked here too: a run file is not read)
         fail(f"--min-rate {min_rate:g} Hz: accepted {lo:g} to {hi:g} Hz")
     if channel_map is not None or path.suffix.lower() in MDF_SUFFIXES:
-        _check_run(path, channel_map)
+        _check_run(path, channel_map, min_rate)
         return
     try:
         rec = read_recording(path, min_rate_hz=min_rate)
@@ -82,20 +82,23 @@ def check_recording(
         )
 
 
-def _check_run(path: Path, channel_map: Path | None) -> None:
-    """check-recording of a long run read through a channel map: its channels as used."""
+def _check_run(path: Path, channel_map: Path | None, min_rate: float) -> None:
+    """check-recording of a long run read through a channel map: its channels as used, the
+    forces at ``min_rate`` Hz or more."""
     from railsusp.measured import RecordingError
     from railsusp.measured.channels import read_channel_map
     from railsusp.measured.run import read_run
 
     try:
-        run = read_run(path, read_channel_map(channel_map) if channel_map else None)
+        run = read_run(
+            path, read_channel_map(channel_map) if channel_map else None, min_rate_hz=min_rate
+        )
     except RecordingError as exc:
         print_problems(exc)
     except RailsuspInputError as exc:
         fail(str(exc))
     for note in run.notes:
-        console.print(f"note: {note}", highlight=False)
+        console.print(f"note: {note}", highlight=False, markup=False)
     table = Table(
         title=f"{path}: {run.time[-1] - run.time[0]:.1f} s at {run.rate_hz:.4g} Hz, "
         f"{run.position[-1] - run.position[0]:.0f} m, speed {run.speed.min() * 3.6:.0f}-"
@@ -179,7 +182,7 @@ def sections_command(
             table=read_section_table(table) if table else None,
         )
         for note in run.notes:
-            console.print(f"note: {note}", highlight=False)
+            console.print(f"note: {note}", highlight=False, markup=False)
         console.print(frame_table(sections_table(secs), f"Sections of {recording}"))
         if any(s.kept for s in secs):
             console.print(

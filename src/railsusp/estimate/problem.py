@@ -82,6 +82,7 @@ class CalibrationProblem(Problem):
         if isinstance(model, StatisticsForces):
             check_statistics_model(self.stats)
         check_recordings(self.recordings, self.stats, self.aligned, weighting == "relative")
+        check_measured_wheel(model, self.recordings)
         self.measured = [measured_statistics(rec, self.stats) for rec in self.recordings]
         # the measurement side of the time-aligned comparison, once, not every generation
         self.comparisons = [AlignedComparison(r) for r in self.recordings] if self.aligned else []
@@ -185,6 +186,25 @@ def check_recordings(
                     f"{'YQ'[c]} of wheel {wheel} is 0 kN; relative errors need a non-zero "
                     "measured statistic (use another statistic, or weighting 'noise')"
                 )
+
+
+def check_measured_wheel(model: Any, recordings: Sequence[Recording]) -> None:
+    """Each recording's first wheel is the one the force model gives in its condition (the
+    surrogates': the leading wheelset's left wheel on tangent, its outer wheel in a curve;
+    the simulator's: its ``wheel``); a recording of another wheel was compared with it
+    silently. :func:`~railsusp.measured.read_recording` puts that wheel first where the
+    recording has it."""
+    from railsusp.vehicle.simulate import WHEEL_NAMES, measured_wheel_index
+
+    which = getattr(averaged_model(model), "wheel", "auto")
+    for r in recordings:
+        wanted = WHEEL_NAMES[measured_wheel_index(r.condition, which)]
+        if r.wheels[0] != wanted:
+            raise RailsuspInputError(
+                f"recording {r.condition.name!r}: its first wheel is {r.wheels[0]}, the force "
+                f"model gives {wanted} in this condition; accepted a recording of {wanted} "
+                "(first in its sidecar's wheels)"
+            )
 
 
 def check_statistics_model(statistics: Sequence[str]) -> None:

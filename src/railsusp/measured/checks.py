@@ -77,6 +77,32 @@ def check_flat(x: np.ndarray, channel: str) -> list[str]:
     return []
 
 
+#: a force channel is taken for saturated where at least this share of its samples sits at
+#: exactly its largest (or smallest) value in runs of at least CLIP_RUN samples: a
+#: continuous force reaches its extreme once, an amplifier's range limit holds it there
+CLIP_SHARE, CLIP_RUN = 0.005, 5
+
+
+def check_clipped(x: np.ndarray, channel: str, unit: str = "") -> list[str]:
+    """A force channel held at its range limit (an amplifier or an A/D converter
+    saturating): its peaks and p99.85 values would be the limit, not the force."""
+    finite = x[np.isfinite(x)]
+    if finite.size < 100 or np.ptp(finite) == 0.0:
+        return []
+    out = []
+    for which, edge in (("largest", finite.max()), ("smallest", finite.min())):
+        at = np.isfinite(x) & (x == edge)
+        held = sum(e - s for s, e in runs(at) if e - s >= CLIP_RUN)
+        if held >= CLIP_SHARE * finite.size:
+            out.append(
+                f"channel {channel!r}: {100.0 * held / finite.size:.3g} % of the samples sit at "
+                f"its {which} value {edge:.6g}{' ' + unit if unit else ''} in runs of "
+                f"{CLIP_RUN} or more: saturated (clipped) at the amplifier's range? Its peaks "
+                "would be the range, not the force"
+            )
+    return out
+
+
 def check_time(t: np.ndarray, channel: str, first_row: int, min_samples: int = 10) -> list[str]:
     """Time base of a channel: enough samples, finite, strictly increasing, one rate."""
     if t.size < min_samples:

@@ -11,6 +11,7 @@ stages all ask for it.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -93,6 +94,10 @@ def section_conditions(source: RunSource) -> list[WorkingCondition]:
 def write_run_field(source: RunSource, out: str | Path, final: str | Path | None = None) -> Path:
     """The kept sections of the run written as a field folder (``railsusp sections
     --write``: recordings, ``index.json``, ``sections.csv``, ``en14363.csv``, ...);
-    ``final``: where the folder will live when ``out`` is a temporary one."""
+    ``final``: where the folder will live when ``out`` is a temporary one. The run's notes
+    (NaN gaps interpolated, channels interpolated onto the forces' rate) are warned of, as
+    ``railsusp check-recording`` prints them: the pipeline's field stage said nothing."""
     run, secs = cut_run(source)
+    for note in run.notes:
+        warnings.warn(f"{Path(source.recording).name}: {note}", stacklevel=2)
     return write_sections(run, secs, out, source.rate_hz, final)

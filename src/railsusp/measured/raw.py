@@ -16,7 +16,7 @@ import pandas as pd
 
 from railsusp.errors import RailsuspInputError
 from railsusp.integrity import csv_last_line_cut
-from railsusp.measured.units import split_header
+from railsusp.measured.units import si_factor, split_header
 
 MDF_SUFFIXES = (".mf4", ".mdf", ".dat")
 TABLE_SUFFIXES = (".csv", ".parquet")
@@ -71,11 +71,17 @@ def _read_mdf(path: Path) -> dict[str, RawChannel]:
                     f"recording {path}: channel {sig.name!r} appears in two groups; "
                     "rename one in the channel map's source"
                 )
+            _check_time_master(mdf, sig, path)
+            values = np.asarray(sig.samples, dtype=float)
+            if sig.invalidation_bits is not None:  # samples the logger marked invalid
+                invalid = np.asarray(sig.invalidation_bits, dtype=bool)
+                if invalid.any():
+                    values = np.where(invalid, np.nan, values)  # then checked as gaps are
             out[sig.name] = RawChannel(
                 sig.name,
                 sig.unit or None,
                 np.asarray(sig.timestamps, dtype=float),
-                np.asarray(sig.samples, dtype=float),
+                values,
                 first_row=0,
             )
     except RailsuspInputError:
@@ -87,6 +93,27 @@ def _read_mdf(path: Path) -> dict[str, RawChannel]:
     if not out:
         raise RailsuspInputError(f"recording {path}: no numeric channel in the file")
     return out
+
+
+#: MDF4 master channels' sync types (ASAM MDF 4.x, cn_sync_type): the samples are on time
+#: only for 1; 2 angle, 3 distance, 4 index
+_SYNC_TIME, _SYNC_NAMES = 1, {2: "angle", 3: "distance", 4: "index"}
+
+
+def _check_time_master(mdf: Any, sig: Any, path: Path) -> None:
+    """Refuse a channel whose group's master is not time (a distance master in metres was
+    read as seconds: a 3 km run at 60 km/h became 50 minutes)."""
+    group = sig.group_index
+    master = mdf.groups[group].channels[mdf.masters_db.get(group, 0)]
+    sync = getattr(master, "sync_type", _SYNC_TIME) or _SYNC_TIME  # MDF3: time always
+    unit = (getattr(master, "unit", "") or "").strip()
+    if sync != _SYNC_TIME or unit not in ("", "s"):
+        what = _SYNC_NAMES.get(sync, f"sync type {sync}") if sync != _SYNC_TIME else unit
+        raise RailsuspInputError(
+            f"recording {path}: channel {sig.name!r} is sampled on a master channel "
+            f"{master.name!r} of {what}, not time in s; accepted groups whose master is time "
+            "(export the run on its time base)"
+        )
 
 
 def _open_mdf(path: Path) -> Any:
@@ -140,9 +167,13 @@ def _read_table(path: Path, time_column: str | None) -> dict[str, RawChannel]:
         raise RailsuspInputError(
             f"recording {path}: no time column ({tcol or 'time_s, time [s]'}); columns {cols}"
         )
-    values = {c: _numeric(df[c], path, c) for c in cols}
     tunit = split_header(tcol)[1]
-    t = values[tcol] * (1e-3 if tunit == "ms" else 1.0)
+    try:  # a unit other than s and ms was read as seconds (a "time [msec]" column of 200 Hz)
+        factor = 1.0 if tunit is None else si_factor("time", tunit, tcol)
+    except RailsuspInputError as exc:
+        raise RailsuspInputError(f"recording {path}: {exc}") from None
+    values = {c: _numeric(df[c], path, c) for c in cols}
+    t = values[tcol] * factor
     return {c: RawChannel(c, split_header(c)[1], t, v) for c, v in values.items() if c != tcol}
 
 

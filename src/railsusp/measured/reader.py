@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import warnings
 from pathlib import Path
 from typing import Any
@@ -18,6 +19,7 @@ from railsusp.conditions import WorkingCondition, get_condition, make_condition
 from railsusp.errors import RailsuspInputError, did_you_mean, repeated
 from railsusp.measured.channels import default_map
 from railsusp.measured.checks import (
+    check_clipped,
     check_finite,
     check_flat,
     check_forces,
@@ -85,12 +87,14 @@ def read_recording(
             f"wheel_load_N = {wheel_load_N!r}: accepted a static wheel load of 1000 to "
             "1000000 N, or None (the wagon's)"
         )
+    if not isinstance(path, str | os.PathLike):
+        raise RailsuspInputError(f"path = {path!r}: a recording's path (str or Path) is needed")
     path = Path(path)
     table_path = next(
         (
             p
             for p in (path, path.with_suffix(".csv"), path.with_suffix(".parquet"))
-            if p.is_file() and p.suffix in (".csv", ".parquet")
+            if p.is_file() and p.suffix.lower() in (".csv", ".parquet")  # up.CSV as up.csv
         ),
         None,
     )
@@ -157,7 +161,7 @@ def read_recording(
             x, p, n = check_finite(ch.values, col, 2)
             problems += p
             notes += n
-            problems += check_flat(x, col)
+            problems += check_flat(x, col) + check_clipped(x, col, ch.unit or "")
             si[f] = x * factor
         if len(si) == 2:
             units = (raw[chans["Y"]].unit or "", raw[chans["Q"]].unit or "")
@@ -169,6 +173,11 @@ def read_recording(
         rate = 1.0 / float(np.median(np.diff(t)))
         if isinstance(stated, bool) or not isinstance(stated, (int, float, type(None))):
             problems.append(f"sidecar sampling_rate_hz: {stated!r} is not a number")
+        elif stated is not None and not (math.isfinite(stated) and stated > 0):
+            problems.append(  # NaN compares false with everything: it passed the check below
+                f"sidecar sampling_rate_hz: {stated!r}: accepted a positive number, the rate of "
+                f"the time column ({rate:.6g} Hz)"
+            )
         elif stated is not None and abs(stated / rate - 1.0) > RATE_TOLERANCE:
             problems.append(
                 f"sidecar sampling_rate_hz {stated:g} Hz, the time column {rate:.6g} Hz"
@@ -181,10 +190,39 @@ def read_recording(
     condition = _condition(meta, table_path, problems, axle_spread(wagon)) if meta else None
     if problems:
         raise RecordingError(table_path, problems)
+    if condition is not None:
+        Y, Q = _measured_wheel_first(Y, Q, condition, table_path.name, notes)
     for note in notes:
         warnings.warn(f"{table_path.name}: {note}", stacklevel=2)
     extra = {k: v for k, v in meta.items() if k not in ("format", "condition", "wheels")}
     return Recording(np.asarray(t), Y, Q, condition, extra)  # type: ignore[arg-type]
+
+
+def _measured_wheel_first(
+    Y: dict[str, np.ndarray],
+    Q: dict[str, np.ndarray],
+    condition: WorkingCondition,
+    name: str,
+    notes: list[str],
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """The wheels reordered so that the one the model compares in ``condition`` (the
+    leading wheelset's left wheel on tangent, its outer wheel in a curve:
+    :func:`~railsusp.vehicle.simulate.measured_wheel_index`) comes first: the estimate,
+    the posterior and the validation compare a recording's first wheel, and a table whose
+    columns began with the other wheel was compared with the wrong one, silently."""
+    from railsusp.vehicle.simulate import measured_wheel_index
+
+    measured = WHEEL_NAMES[measured_wheel_index(condition)]
+    if measured not in Y:
+        notes.append(
+            f"the recorded wheel(s) {', '.join(Y)} do not include {measured}, the wheel the "
+            f"model compares in condition {condition.name!r}; the estimate refuses it"
+        )
+        return Y, Q
+    if next(iter(Y)) == measured:
+        return Y, Q
+    order = [measured, *(w for w in Y if w != measured)]
+    return {w: Y[w] for w in order}, {w: Q[w] for w in order}
 
 
 def _raw(table_path: Path):
@@ -192,7 +230,7 @@ def _raw(table_path: Path):
     import pandas as pd
 
     try:
-        if table_path.suffix == ".csv":
+        if table_path.suffix.lower() == ".csv":
             cols = [str(c) for c in pd.read_csv(table_path, nrows=0, encoding="utf-8").columns]
         else:
             cols = [str(c) for c in pd.read_parquet(table_path).columns]
@@ -275,7 +313,7 @@ def _condition(
     cdoc = meta.get("condition")
     try:
         if isinstance(cdoc, dict):
-            condition = make_condition(json_numbers(cdoc), from_file=True)
+            condition = make_condition(json_numbers(cdoc))
         elif isinstance(meta.get("condition_name"), str):
             condition = get_condition(meta["condition_name"])
         else:

@@ -15,6 +15,7 @@ from railsusp.errors import RailsuspInputError, did_you_mean
 from railsusp.measured.channels import SIGNALS, ChannelMap, default_map
 from railsusp.measured.checks import (
     MAX_GAP_SAMPLES,
+    check_clipped,
     check_finite,
     check_flat,
     check_forces,
@@ -53,15 +54,23 @@ class MeasuredRun:
         return tuple(self.Y)
 
 
+#: the lowest rate of a long run's force channels: the field folders' default minimum
+#: (:func:`railsusp.measured.reader.read_recording`'s ``min_rate_hz``)
+MIN_RUN_RATE_HZ = 50.0
+
+
 def read_run(
     path: str | Path,
     channel_map: ChannelMap | None = None,
     *,
     gap_limit: int = MAX_GAP_SAMPLES,
     wheel_load_N: float | None = None,
+    min_rate_hz: float = MIN_RUN_RATE_HZ,
 ) -> MeasuredRun:
     """Read a recording (MDF4, CSV, Parquet) through its channel map; raise
-    :class:`RecordingError` listing every problem (file, channel, rows)."""
+    :class:`RecordingError` listing every problem (file, channel, rows). The force channels
+    must be sampled at ``min_rate_hz`` or more (the sections are resampled to the pipeline's
+    rate: a 2 Hz run upsampled would pass every later check), the speed channel forward."""
     path = Path(path)
     try:
         raw = read_raw(path, channel_map.time if channel_map else None)
@@ -107,7 +116,7 @@ def read_run(
         problems += finite_problems
         notes += finite_notes
         if q == "force":
-            problems += check_flat(values, name)
+            problems += check_flat(values, name) + check_clipped(values, name, unit or "")
         if not time_problems and not finite_problems:
             si[name] = RawChannel(
                 name, normalise_unit(unit), ch.time, values * factor, ch.first_row
@@ -119,6 +128,11 @@ def read_run(
     base = max(force_names, key=lambda c: si[c].rate_hz)
     t = si[base].time
     rates = {c: si[c].rate_hz for c in quantity}
+    if rates[base] < min_rate_hz:
+        problems.append(
+            f"channel {base!r}: forces sampled at {rates[base]:.4g} Hz; accepted at least "
+            f"{min_rate_hz:g} Hz (the rate the sections are compared at; --min-rate)"
+        )
     for c in quantity:
         ch = si[c]
         if c in force_names and ch.rate_hz < MIN_FORCE_RATE_FRACTION * rates[base]:
@@ -160,9 +174,17 @@ def read_run(
             f"channel {cmap.signals.get('speed', cmap.signals.get('position'))!r}: median "
             f"speed {np.median(np.abs(speed)) * 3.6:.3g} km/h; the wagon does not run"
         )
+    elif "speed" in sig and np.nanmedian(speed) < 0.0:  # signed: the run goes backwards
+        problems.append(
+            f"channel {cmap.signals['speed']!r}: median speed {np.median(speed) * 3.6:.3g} "
+            "km/h, negative: the wagon runs backwards in the recording's sense, wheelset 1 "
+            "trailing and left and right swapped against the model's; accepted a run with "
+            "wheelset 1 leading (speed positive)"
+        )
     elif np.max(np.abs(speed)) > MAX_SPEED_KMH / 3.6:
         problems.append(
-            f"channel {cmap.signals.get('speed')!r}: speed up to {np.max(speed) * 3.6:.4g} km/h "
+            f"channel {cmap.signals.get('speed')!r}: speed up to "
+            f"{np.max(np.abs(speed)) * 3.6:.4g} km/h "
             f"(read as {si.get(cmap.signals.get('speed', ''), si[base]).unit}), beyond a "
             f"working condition's {MAX_SPEED_KMH:g} km/h: a unit error?"
         )

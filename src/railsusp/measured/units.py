@@ -21,11 +21,21 @@ UNITS: dict[str, dict[str, float]] = {
     "curvature": {"1/m": 1.0, "1/km": 1e-3},
     "cant": {"m": 1.0, "mm": 1e-3},
     "grade": {"permille": 1e-3, "‰": 1e-3, "%": 1e-2, "1": 1.0, "-": 1.0, "m/m": 1.0},
-    "time": {"s": 1.0, "ms": 1e-3},
+    "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "min": 60.0, "h": 3600.0},
     "acceleration": {"m/s^2": 1.0, "m/s2": 1.0, "m/s²": 1.0, "g": 9.80665},
 }
 
-_ALIASES = {"kmph": "km/h", "km/hr": "km/h", "mps": "m/s", "per_km": "1/km", "per_m": "1/m"}
+_ALIASES = {
+    "kmph": "km/h",
+    "km/hr": "km/h",
+    "mps": "m/s",
+    "per_km": "1/km",
+    "per_m": "1/m",
+    "sec": "s",
+    "msec": "ms",
+    "usec": "us",
+    "μs": "µs",  # the Greek mu, as the micro sign
+}
 
 
 def normalise_unit(unit: str | None) -> str | None:

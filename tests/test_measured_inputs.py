@@ -1,0 +1,162 @@
+"""Recordings a logger writes that were misread silently (the recordings audit of stop 58):
+a distance master read as time, samples marked invalid used as forces, a time column in
+minutes or microseconds read as seconds, a 2 Hz run upsampled into 50 Hz sections, a run
+going backwards, a saturated amplifier, a field table whose columns start with the wheel
+the model does not compare; and a section too short for the EN 14363 filter."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from asammdf import MDF, Signal
+
+from railsusp.conditions import get_condition
+from railsusp.en14363 import lowpass
+from railsusp.errors import RailsuspInputError
+from railsusp.measured import RecordingError, read_recording
+from railsusp.measured.channels import channel_map_from
+from railsusp.measured.raw import read_raw
+from railsusp.measured.run import read_run
+from test_measured import make_recording
+from test_measured_run import MAP, write_mdf
+
+
+def _groups(path, *, sync_type=None, invalid=None, clip=None):
+    """The write_mdf run, rewritten with its groups' masters set to ``sync_type``, the
+    lateral force's samples ``invalid`` marked so (and zero there), or it clipped."""
+    src = MDF(write_mdf(path))
+    out = MDF(version="4.10")
+    for group in range(len(src.groups)):
+        sigs = []
+        for sig in src.iter_channels(skip_master=True):
+            if sig.group_index != group:
+                continue
+            values = sig.samples.copy()
+            bits = None
+            if sig.name == "Y_R" and invalid is not None:
+                bits = np.zeros(values.size, bool)
+                bits[invalid] = True
+                values[bits] = 0.0
+            if sig.name == "Y_R" and clip is not None:
+                values = np.clip(values, None, clip)
+            sigs.append(
+                Signal(values, sig.timestamps, name=sig.name, unit=sig.unit, invalidation_bits=bits)
+            )
+        out.append(sigs)
+    src.close()
+    if sync_type is not None:
+        for g in out.groups:
+            g.channels[0].sync_type = sync_type
+            g.channels[0].unit = "m"
+    out.save(path, overwrite=True)
+    out.close()
+    return path
+
+
+def test_a_master_channel_of_distance_is_refused_not_read_as_time(tmp_path):
+    path = _groups(tmp_path / "d.mf4", sync_type=3)
+    with pytest.raises(RailsuspInputError, match="master channel .* of distance, not time in s"):
+        read_raw(path)
+
+
+def test_samples_the_logger_marked_invalid_are_gaps_not_zeros(tmp_path):
+    short = _groups(tmp_path / "short.mf4", invalid=slice(1000, 1003))
+    raw = read_raw(short)
+    assert np.isnan(raw["Y_R"].values[1000:1003]).all()
+    assert np.isfinite(raw["Y_R"].values[:1000]).all()
+    run = read_run(short, channel_map_from(MAP))  # 3 samples: interpolated, with a note
+    assert np.all(run.Y["w1R"][1000:1003] != 0.0)
+    assert any("interpolated" in n for n in run.notes)
+    long = _groups(tmp_path / "long.mf4", invalid=slice(1000, 1100))
+    with pytest.raises(RecordingError, match="gap of 100 missing samples"):
+        read_run(long, channel_map_from(MAP))
+
+
+@pytest.mark.parametrize(("unit", "factor"), [("msec", 1e-3), ("us", 1e-6), ("min", 60.0)])
+def test_a_table_time_column_in_other_units_is_converted(tmp_path, unit, factor):
+    t = np.arange(0.0, 20.0, 1 / 200)
+    df = pd.DataFrame({f"time [{unit}]": t / factor, "Y_w1R_kN": 5.0 + 0 * t})
+    df.to_csv(tmp_path / "r.csv", index=False)
+    raw = read_raw(tmp_path / "r.csv")
+    assert raw["Y_w1R_kN"].rate_hz == pytest.approx(200.0)
+
+
+def test_a_table_time_column_in_an_unknown_unit_is_refused(tmp_path):
+    pd.DataFrame({"time [fortnight]": [0.0, 1.0], "Y_kN": [1.0, 2.0]}).to_csv(
+        tmp_path / "r.csv", index=False
+    )
+    with pytest.raises(RailsuspInputError, match="unit 'fortnight' is not a time unit"):
+        read_raw(tmp_path / "r.csv")
+
+
+def test_a_long_run_below_the_minimum_rate_is_refused(tmp_path):
+    path = write_mdf(tmp_path / "slow.mf4", force_rate=20.0)
+    with pytest.raises(RecordingError, match="forces sampled at 20 Hz; accepted at least 50 Hz"):
+        read_run(path, channel_map_from(MAP))
+    assert read_run(path, channel_map_from(MAP), min_rate_hz=10.0).rate_hz == pytest.approx(20.0)
+
+
+def test_a_run_going_backwards_is_refused(tmp_path):
+    src = MDF(write_mdf(tmp_path / "a.mf4"))
+    out = MDF(version="4.10")
+    for group in range(len(src.groups)):
+        sigs = [
+            Signal(
+                -s.samples if s.name in ("v", "s") else s.samples,
+                s.timestamps,
+                name=s.name,
+                unit=s.unit,
+            )
+            for s in src.iter_channels(skip_master=True)
+            if s.group_index == group
+        ]
+        out.append(sigs)
+    src.close()
+    out.save(tmp_path / "back.mf4", overwrite=True)
+    out.close()
+    with pytest.raises(RecordingError, match="median speed -54 km/h, negative"):
+        read_run(tmp_path / "back.mf4", channel_map_from(MAP))
+
+
+def test_a_saturated_force_channel_is_refused(tmp_path):
+    path = _groups(tmp_path / "clip.mf4", clip=5.5)
+    with pytest.raises(
+        RecordingError, match=r"sit at its largest value 5.5 kN.*saturated \(clipped\)"
+    ):
+        read_run(path, channel_map_from(MAP))
+    read_run(write_mdf(tmp_path / "fine.mf4"), channel_map_from(MAP))  # unclipped: read
+
+
+def test_the_compared_wheel_comes_first_whatever_the_column_order(tmp_path):
+    """A left curve compares its outer (right) wheel; a table of w1L, w1R was compared on
+    w1L, silently."""
+    curve = get_condition("curve", duration_s=2.0, n_steps=100)
+    assert curve.curve_direction == "left"
+    t = np.arange(100) / 50.0
+    rec = make_recording(100)
+    rec.condition = curve
+    rec.Y = {"w1L": 5 + 0 * t + t, "w1R": 30 + t}
+    rec.Q = {"w1L": 100 + t, "w1R": 140 + t}
+    rec.write(tmp_path / "c.csv")
+    side = json.loads((tmp_path / "c.json").read_text())
+    assert side["wheels"] == ["w1L", "w1R"]
+    back = read_recording(tmp_path / "c.csv")
+    assert back.wheels == ("w1R", "w1L")
+    assert back.Y["w1R"][0] == pytest.approx(30.0, abs=1e-4)
+
+
+def test_the_estimate_refuses_a_recording_of_another_wheel():
+    from railsusp.estimate.problem import check_measured_wheel
+
+    curve = get_condition("curve", duration_s=2.0, n_steps=100)
+    rec = make_recording(100)
+    rec.condition = curve  # w1L alone, but a left curve compares w1R
+    with pytest.raises(RailsuspInputError, match="its first wheel is w1L, the force model"):
+        check_measured_wheel(object(), [rec])
+    check_measured_wheel(object(), [make_recording(100)])  # tangent: w1L is compared
+
+
+def test_the_en14363_filter_takes_a_short_section():
+    x = np.sin(np.arange(8.0))
+    assert np.isfinite(lowpass(x, 200.0)).all() and lowpass(x, 200.0).shape == (8,)
