@@ -160,3 +160,58 @@ def test_the_estimate_refuses_a_recording_of_another_wheel():
 def test_the_en14363_filter_takes_a_short_section():
     x = np.sin(np.arange(8.0))
     assert np.isfinite(lowpass(x, 200.0)).all() and lowpass(x, 200.0).shape == (8,)
+
+
+def test_a_run_towards_decreasing_km_posts_sees_the_line_mirrored():
+    """A line description states direction and grade towards increasing km; a run whose
+    position fell had its left-hand curves cut as left-hand and its climbs as descents."""
+    from railsusp.measured.sections import geometry_from_line
+
+    line = pd.DataFrame(
+        {
+            "km_start": [0.0, 1.0],
+            "km_end": [1.0, 2.0],
+            "radius_m": [600.0, np.nan],
+            "direction": ["right", "left"],
+            "cant_mm": [60.0, 0.0],
+            "grade_permille": [0.0, -12.0],
+        }
+    )
+    up = geometry_from_line(np.array([500.0, 1500.0]), line)
+    down = geometry_from_line(np.array([1500.0, 500.0]), line)
+    assert up["curvature"][0] == pytest.approx(-1 / 600) and up["grade"][1] == -0.012
+    assert down["curvature"][1] == pytest.approx(1 / 600) and down["grade"][0] == 0.012
+    assert up["cant"][0] == down["cant"][1] == pytest.approx(0.06)
+
+
+def test_a_map_unit_restating_the_files_in_another_spelling_is_accepted(tmp_path):
+    path = write_mdf(tmp_path / "a.mf4")
+    same = channel_map_from({**MAP, "units": {"v": "kmh", "Y_R": "KN"}})
+    assert read_run(path, same).speed.max() == pytest.approx(15.0)  # 54 km/h
+    other = channel_map_from({**MAP, "units": {"Y_R": "N"}})
+    with pytest.raises(RecordingError, match="the file states unit 'kN', the channel map 'N'"):
+        read_run(path, other)
+
+
+def test_a_run_that_stood_for_most_of_its_time_is_read(tmp_path):
+    """A run standing 70 % of its time was refused ("median speed 0 km/h; the wagon does not
+    run"); its standing stretches are for the cut to leave out."""
+    src = MDF(write_mdf(tmp_path / "a.mf4"))
+    out = MDF(version="4.10")
+    for group in range(len(src.groups)):
+        sigs = []
+        for s in src.iter_channels(skip_master=True):
+            if s.group_index != group:
+                continue
+            x = s.samples.copy()
+            if s.name == "v":
+                x = np.where(s.timestamps < 14.0, 0.0, x)
+            if s.name == "s":
+                x = 15.0 * np.clip(s.timestamps - 14.0, 0.0, None)
+            sigs.append(Signal(x, s.timestamps, name=s.name, unit=s.unit))
+        out.append(sigs)
+    src.close()
+    out.save(tmp_path / "stood.mf4", overwrite=True)
+    out.close()
+    run = read_run(tmp_path / "stood.mf4", channel_map_from(MAP))
+    assert np.mean(run.speed < 0.5) > 0.6

@@ -20,7 +20,13 @@ def geometry_from_line(position_m: np.ndarray, line: pd.DataFrame) -> dict[str, 
     """Curvature (1/m, + left), cant (m) and grade (1) under each position from a line
     description with columns ``km_start, km_end, radius_m, cant_mm, grade_permille`` and
     optional ``direction`` (left/right); radius 0 or empty is tangent. Positions outside
-    every row are NaN."""
+    every row are NaN. A line description states direction and grade as seen running
+    towards increasing km posts; a run towards decreasing ones (its position falling) sees
+    a left-hand curve as right-hand and an up-grade as down-grade, so both are mirrored
+    for it (the cant, on the curve's outer rail, is the same either way)."""
+    steps = np.diff(position_m)
+    steps = steps[np.isfinite(steps)]
+    sense = -1.0 if steps.size and np.sum(steps) < 0.0 else 1.0
     curv = np.full(position_m.shape, np.nan)
     cant = np.full(position_m.shape, np.nan)
     grade = np.full(position_m.shape, np.nan)
@@ -28,9 +34,9 @@ def geometry_from_line(position_m: np.ndarray, line: pd.DataFrame) -> dict[str, 
         inside = (position_m >= r.km_start * 1e3) & (position_m < r.km_end * 1e3)
         radius = float(r.radius_m) if np.isfinite(r.radius_m) else 0.0
         sign = -1.0 if str(getattr(r, "direction", "left")).strip().lower() == "right" else 1.0
-        curv[inside] = sign / radius if radius > 0 else 0.0
+        curv[inside] = sense * sign / radius if radius > 0 else 0.0
         cant[inside] = (r.cant_mm if np.isfinite(r.cant_mm) else 0.0) * 1e-3
-        grade[inside] = (r.grade_permille if np.isfinite(r.grade_permille) else 0.0) * 1e-3
+        grade[inside] = sense * (r.grade_permille if np.isfinite(r.grade_permille) else 0.0) * 1e-3
     return {"curvature": curv, "cant": cant, "grade": grade}
 
 

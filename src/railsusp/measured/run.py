@@ -102,7 +102,7 @@ def read_run(
     si: dict[str, RawChannel] = {}
     for name, q in quantity.items():
         ch = raw[name]
-        unit = _unit(ch, cmap, problems)
+        unit = _unit(ch, cmap, problems, q)
         try:
             factor = si_factor(q, unit, name)
         except RailsuspInputError as exc:
@@ -169,14 +169,17 @@ def read_run(
     else:
         position = sig["position"]
         speed = _smoothed_gradient(position, t)
-    if np.nanmedian(np.abs(speed)) < 0.5:
+    running = np.abs(speed) >= 0.5  # standing stretches are cut out as "standing" later
+    if np.mean(running) < MIN_RUNNING_SHARE:
         problems.append(
-            f"channel {cmap.signals.get('speed', cmap.signals.get('position'))!r}: median "
-            f"speed {np.median(np.abs(speed)) * 3.6:.3g} km/h; the wagon does not run"
+            f"channel {cmap.signals.get('speed', cmap.signals.get('position'))!r}: the speed "
+            f"is above 1.8 km/h in {100.0 * np.mean(running):.3g} % of the samples; the wagon "
+            "does not run"
         )
-    elif "speed" in sig and np.nanmedian(speed) < 0.0:  # signed: the run goes backwards
+    elif "speed" in sig and np.nanmedian(speed[running]) < 0.0:  # signed: going backwards
         problems.append(
-            f"channel {cmap.signals['speed']!r}: median speed {np.median(speed) * 3.6:.3g} "
+            f"channel {cmap.signals['speed']!r}: median speed "
+            f"{np.median(speed[running]) * 3.6:.3g} "
             "km/h, negative: the wagon runs backwards in the recording's sense, wheelset 1 "
             "trailing and left and right swapped against the model's; accepted a run with "
             "wheelset 1 leading (speed positive)"
@@ -220,6 +223,9 @@ def read_run(
     )
 
 
+#: the least share of a run's samples at a running speed (1.8 km/h or more): a run that
+#: stood for most of its time is read, its standing stretches left out when it is cut
+MIN_RUNNING_SHARE = 0.05
 #: the largest speed, cant and grade a run may show: a working condition's bounds
 #: (conditions.py), beyond which a channel's unit is more likely wrong than the line
 MAX_SPEED_KMH = field_range("speed_kmh")[1]
@@ -262,11 +268,20 @@ def _plausible_track(
     return problems
 
 
-def _unit(ch: RawChannel, cmap: ChannelMap, problems: list[str]) -> str | None:
+def _same_unit(quantity: str, a: str, b: str, channel: str) -> bool:
+    """``a`` and ``b`` name one unit of ``quantity``: the same factor to SI (``kmh`` and
+    ``km/h``, ``KN`` and ``kN``), or, where either is no unit of it, the same spelling."""
+    try:
+        return si_factor(quantity, a, channel) == si_factor(quantity, b, channel)
+    except RailsuspInputError:
+        return normalise_unit(a) == normalise_unit(b)
+
+
+def _unit(ch: RawChannel, cmap: ChannelMap, problems: list[str], quantity: str) -> str | None:
     """The channel's unit: the file's; the map's where the file states none; a map unit
-    that contradicts the file's is a problem."""
+    that contradicts the file's is a problem (another spelling of it is not)."""
     mapped = cmap.units.get(ch.name)
-    if mapped and ch.unit and normalise_unit(mapped) != normalise_unit(ch.unit):
+    if mapped and ch.unit and not _same_unit(quantity, mapped, ch.unit, ch.name):
         problems.append(
             f"channel {ch.name!r}: the file states unit {ch.unit!r}, the channel map {mapped!r}"
         )
