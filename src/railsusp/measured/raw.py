@@ -167,9 +167,12 @@ def _read_table(path: Path, time_column: str | None) -> dict[str, RawChannel]:
         raise RailsuspInputError(
             f"recording {path}: no time column ({tcol or 'time_s, time [s]'}); columns {cols}"
         )
-    tunit = split_header(tcol)[1]
-    try:  # a unit other than s and ms was read as seconds (a "time [msec]" column of 200 Hz)
-        factor = 1.0 if tunit is None else si_factor("time", tunit, tcol)
+    tname, tunit = split_header(tcol)
+    # a unit other than s and ms was read as seconds (a "time [msec]" column of 200 Hz); a
+    # field table's distance_m is its axis too (put on time by the reader, over the speed)
+    quantity = "position" if tname == "distance" else "time"
+    try:
+        factor = 1.0 if tunit is None else si_factor(quantity, tunit, tcol)
     except RailsuspInputError as exc:
         raise RailsuspInputError(f"recording {path}: {exc}") from None
     values = {c: _numeric(df[c], path, c) for c in cols}

@@ -247,9 +247,31 @@ def _raw(table_path: Path):
         raise RailsuspInputError(
             f"recording {table_path}: distance_m without a speed_kmh column; give time_s"
         )
-    t = speed.time / (speed.values / 3.6)
+    return _on_time(raw, speed.time, speed.values / 3.6)
+
+
+def _on_time(raw: dict, distance: np.ndarray, speed: np.ndarray) -> dict:
+    """Channels sampled along the track (``distance`` m, at ``speed`` m/s) put on a uniform
+    time base: each sample's time is the integral of ds / v from the first (trapezoidal
+    mean speed per step), and the channels are interpolated onto the median interval of
+    those times. Samples that are uniform in distance are not uniform in time where the
+    speed varies (time = distance / speed held only at constant speed). A stretch
+    standing or backing up (speed not positive, distance not increasing) is left to the
+    time checks, unconverted."""
+    step_speed = 0.5 * (speed[1:] + speed[:-1])
+    ds = np.diff(distance)
+    if not (np.all(np.isfinite(step_speed)) and np.all(step_speed > 0) and np.all(ds > 0)):
+        t = distance / speed  # as before; the time checks name what is wrong
+        for ch in raw.values():
+            ch.time = t
+        return raw
+    t = np.concatenate([[0.0], np.cumsum(ds / step_speed)])
+    dt = float(np.median(np.diff(t)))
+    uniform = np.arange(0.0, t[-1] + 0.5 * dt, dt)
+    uniform = uniform[uniform <= t[-1]]
     for ch in raw.values():
-        ch.time = t
+        ch.values = np.interp(uniform, t, ch.values)
+        ch.time = uniform
     return raw
 
 
