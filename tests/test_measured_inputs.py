@@ -244,3 +244,61 @@ def test_a_table_on_distance_at_varying_speed_is_put_on_time(tmp_path):
     assert np.ptp(np.diff(back.time)) < 1e-9  # uniform
     assert back.sampling_rate == pytest.approx(rate, rel=0.02)
     assert np.abs(back.Y["w1L"] - force(back.time)).max() < 0.05
+
+
+def test_a_channel_name_in_two_groups_is_refused_only_where_it_is_used(tmp_path):
+    src = MDF(write_mdf(tmp_path / "a.mf4"))
+    t = np.arange(0, 20, 1 / 200)
+    for name in ("acc_bogie_y_g", "Y_R"):  # a second group holding the name again
+        out = MDF(version="4.10")
+        for group in range(len(src.groups)):
+            out.append(
+                [
+                    Signal(s.samples, s.timestamps, name=s.name, unit=s.unit)
+                    for s in src.iter_channels(skip_master=True)
+                    if s.group_index == group
+                ]
+            )
+        out.append([Signal(np.zeros(t.size), t, name=name, unit="kN")])
+        out.save(tmp_path / f"{name}.mf4", overwrite=True)
+        out.close()
+    src.close()
+    read_run(tmp_path / "acc_bogie_y_g.mf4", channel_map_from(MAP))  # ignored: read
+    with pytest.raises(RecordingError, match="channel 'Y_R' appears in 2 groups"):
+        read_run(tmp_path / "Y_R.mf4", channel_map_from(MAP))
+
+
+def test_a_dropout_is_named_a_dropout_not_mixed_rates(tmp_path):
+    t = np.arange(0.0, 20.0, 1 / 200)
+    t = np.concatenate([t[:2000], t[2200:]])  # a second lost at 10 s
+    table = {"time_s": t, "Y_w1R_kN": 5.0 + np.sin(t), "Q_w1R_kN": 120.0 + np.cos(t)}
+    pd.DataFrame({**table, "speed_kmh": 54.0 + 0 * t}).to_csv(tmp_path / "r.csv", index=False)
+    with pytest.raises(RecordingError) as info:
+        read_run(tmp_path / "r.csv")
+    text = str(info.value)
+    assert "200 sample(s) missing (1 such gap(s)): a dropout cannot be interpolated" in text
+    assert "mixed sampling rates" not in text
+
+
+def test_an_odometer_reset_is_no_unit_error_and_a_capital_kn_gets_its_hint(tmp_path):
+    src = MDF(write_mdf(tmp_path / "a.mf4"))
+    out = MDF(version="4.10")
+    for group in range(len(src.groups)):
+        sigs = []
+        for s in src.iter_channels(skip_master=True):
+            if s.group_index != group:
+                continue
+            x, unit = s.samples, s.unit
+            if s.name == "s":
+                x = np.mod(x, 100.0)  # the odometer resets every 100 m
+            if s.name == "Q_R":
+                x, unit = x * 1e3, "KN"  # in N, stated as KN
+            sigs.append(Signal(x, s.timestamps, name=s.name, unit=unit))
+        out.append(sigs)
+    src.close()
+    out.save(tmp_path / "b.mf4", overwrite=True)
+    out.close()
+    with pytest.raises(RecordingError) as info:
+        read_run(tmp_path / "b.mf4", channel_map_from(MAP))
+    assert "the values look like N, not KN" in str(info.value)
+    assert "a unit error in one" not in str(info.value)  # the resets: not travel

@@ -14,6 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from railsusp.errors import RailsuspInputError
+from railsusp.measured.units import si_factor
+
 #: NaN gaps up to this many samples are interpolated (with a note); longer are refused
 MAX_GAP_SAMPLES = 5
 #: relative deviation of a sampling interval from the median that counts as jitter
@@ -124,6 +127,17 @@ def check_time(t: np.ndarray, channel: str, first_row: int, min_samples: int = 1
     if not off.any():
         return []
     s, e = runs(off)[0]
+    long = d > 1.5 * med
+    if long.any() and not (d < med / 1.5).any() and long.sum() <= 0.01 * d.size:
+        # a few long intervals at one rate: samples lost (a logger's dropout), not two rates
+        i = int(np.flatnonzero(long)[0])
+        lost = round(float(d[i] / med)) - 1
+        return [
+            f"channel {channel!r}, {rows(i, i + 1, first_row)}: {d[i]:.4g} s between two "
+            f"samples at {1.0 / med:.4g} Hz, {lost} sample(s) missing ({int(long.sum())} such "
+            "gap(s)): a dropout cannot be interpolated; cut the recording at it (railsusp "
+            "sections --table) or record without it"
+        ]
     if d.max() / d.min() > 1.5:
         fast, slow = 1.0 / d.min(), 1.0 / d.max()
         return [
@@ -186,4 +200,8 @@ def check_forces(
 
 
 def _factor(unit: str) -> float:
-    return {"N": 1.0, "kN": 1e3, "MN": 1e6, "daN": 10.0}.get(unit, 1.0)
+    """A force unit's factor to N, in any spelling the reader accepts (``KN`` as ``kN``)."""
+    try:
+        return si_factor("force", unit, "force")
+    except RailsuspInputError:
+        return 1.0

@@ -31,6 +31,7 @@ class RawChannel:
     time: np.ndarray
     values: np.ndarray
     first_row: int = 2  # the file line (tables) of the first sample, for messages
+    groups: int = 1  # MDF: how many groups hold a channel of this name (used: refused)
 
     @property
     def rate_hz(self) -> float:
@@ -66,11 +67,9 @@ def _read_mdf(path: Path) -> dict[str, RawChannel]:
         for sig in mdf.iter_channels(skip_master=True):
             if sig.samples.dtype.kind not in "fiub" or sig.samples.ndim != 1:
                 continue  # text, byte-array and composed channels carry no measured value
-            if sig.name in out:
-                raise RailsuspInputError(
-                    f"recording {path}: channel {sig.name!r} appears in two groups; "
-                    "rename one in the channel map's source"
-                )
+            if sig.name in out:  # refused where the channel map uses it (read_run)
+                out[sig.name].groups += 1
+                continue
             _check_time_master(mdf, sig, path)
             values = np.asarray(sig.samples, dtype=float)
             if sig.invalidation_bits is not None:  # samples the logger marked invalid

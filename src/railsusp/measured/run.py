@@ -79,6 +79,12 @@ def read_run(
     cmap = channel_map or default_map(list(raw))
     problems: list[str] = []
     notes: list[str] = []
+    for c in cmap.used():
+        if c in raw and raw[c].groups > 1:
+            problems.append(
+                f"channel {c!r} appears in {raw[c].groups} groups of the file: which one is "
+                "meant cannot be told; export the run with distinct channel names"
+            )
     missing = [c for c in cmap.used() if c not in raw]
     for c in missing:
         problems.append(
@@ -231,6 +237,9 @@ MIN_RUNNING_SHARE = 0.05
 MAX_SPEED_KMH = field_range("speed_kmh")[1]
 MAX_CANT_M = field_range("cant_mm")[1] * 1e-3
 MAX_GRADE = field_range("grade_permille")[1] * 1e-3
+#: a distance channel's step this many times what the speed covers in it is a chainage
+#: jump or an odometer's reset, not travel
+JUMP_FACTOR = 5.0
 #: how far the distance channel's span may differ from the integrated speed (a wheel
 #: diameter's wear and slip are a few per cent; a unit slip is a factor 3.6 or 1000)
 DISTANCE_SPEED_RATIO = (0.8, 1.25)
@@ -255,9 +264,13 @@ def _plausible_track(
             )
     if "speed" in sig and "position" in sig:
         travelled = float(np.trapezoid(np.abs(speed), t))
-        # the path the distance channel runs over, not its span: a run that backs up, or a
-        # line whose chainage jumps at a km post, is not a unit error
-        span = float(np.nansum(np.abs(np.diff(sig["position"]))))
+        # the path the distance channel runs over, not its span: a run that backs up is not
+        # a unit error; nor is a chainage jump at a km post or an odometer's reset: a step
+        # more than JUMP_FACTOR times what the speed covers in it (1 m at the least) is
+        # left out (a unit error of 3.6 or 1000 moves every step, not a few)
+        steps = np.abs(np.diff(sig["position"]))
+        reach = np.abs(0.5 * (speed[1:] + speed[:-1])) * np.diff(t)
+        span = float(np.nansum(np.where(steps > JUMP_FACTOR * reach + 1.0, 0.0, steps)))
         lo, hi = DISTANCE_SPEED_RATIO
         if travelled > 10.0 and not lo <= span / travelled <= hi:
             problems.append(
