@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import gc
 import sys
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -132,7 +133,9 @@ def _open_mdf(path: Path) -> Any:
             return MDF(str(path))
         except Exception as exc:  # asammdf raises many types on a damaged file
             message = f"recording {path}: not a readable MDF file ({exc})"
-        gc.collect()  # the half-built object's __del__ runs now, under the hook
+        with warnings.catch_warnings():  # its file, left open by asammdf: not the user's
+            warnings.simplefilter("ignore", ResourceWarning)
+            gc.collect()  # the half-built object's __del__ runs now, under the hook
     finally:
         sys.unraisablehook = default
     raise RailsuspInputError(message)
