@@ -168,3 +168,26 @@ def test_a_budget_gives_each_phase_its_share_by_epochs(monkeypatch):
     monkeypatch.setattr(train_mod, "_train_epoch", epoch)
     _, h = _train(6, fine_tune_epochs=2, max_seconds=40.0)
     assert [e["phase"] for e in h] == ["main"] * 3 + ["fine-tune"]
+
+
+@pytest.mark.parametrize(("before", "after"), [(1, 4), (4, 1)])
+def test_a_checkpoint_past_its_main_phase_under_other_epochs_trains_afresh(
+    tmp_path, before, after
+):
+    """The interrupt/resume audit of stop 58: a pipeline whose ``[surrogate] epochs``
+    changed resumed the finished checkpoint of the old limit (its fine-tune phase had begun,
+    so the main phase was skipped) and kept that network, silently."""
+    ck = tmp_path / "checkpoint.pt"
+    _train(before, ck, fine_tune_epochs=2)
+    resumed, h_res = _train(after, ck, fine_tune_epochs=2)
+    whole, h_whole = _train(after, fine_tune_epochs=2)
+    assert [e["phase"] for e in h_res] == ["main"] * after + ["fine-tune"] * 2
+    assert [e["val_loss"] for e in h_res] == [e["val_loss"] for e in h_whole]
+    assert _same(resumed, whole)
+
+
+def test_a_main_phase_still_running_trains_on_under_raised_epochs(tmp_path):
+    ck = tmp_path / "checkpoint.pt"
+    _train(2, ck)  # main phase only, interrupted or finished at 2
+    _, h_res = _train(5, ck)
+    assert [e["epoch"] for e in h_res] == [1, 2, 3, 4, 5]

@@ -336,6 +336,15 @@ def train_network(
     key = content_hash(ident)
     if checkpoint is not None and checkpoint.exists():
         state = _read_checkpoint(checkpoint)  # on the CPU: the RNG state must stay there
+        if state is not None and state.get("key") == key and not _resumable(state, cfg):
+            log.warning(
+                "checkpoint %s: trained with other epoch limits past where these resume "
+                "(epochs %s, fine-tune %s); training starts afresh",
+                checkpoint,
+                state.get("epochs", "?"),
+                state.get("fine_tune_epochs", "?"),
+            )
+            state = None
         if state is not None and state.get("key") == key:
             net.load_state_dict(state["model"])
             opt.load_state_dict(state["optim"])
@@ -385,6 +394,8 @@ def train_network(
             if checkpoint is not None:
                 state = {
                     "key": key,
+                    "epochs": cfg.epochs,
+                    "fine_tune_epochs": cfg.fine_tune_epochs,
                     "model": net.state_dict(),
                     "optim": opt.state_dict(),
                     "history": history,
@@ -412,6 +423,24 @@ def train_network(
         net.load_state_dict(best_state)
     net.to("cpu").eval()
     return history
+
+
+def _resumable(state: dict, cfg: TrainConfig) -> bool:
+    """Whether training on from checkpoint ``state`` reaches what a fresh training with
+    ``cfg``'s epoch limits reaches (the limits are not in the checkpoint's key, so that a
+    main phase may be trained on with a raised ``epochs``). Still in the main phase: when
+    it has not run past ``cfg.epochs``. Past it: when the main phase ended where ``cfg``'s
+    would, at ``cfg.epochs`` or stopped early below both limits (by patience), and the
+    fine-tune phase has not run past ``cfg.fine_tune_epochs``. Before this check a
+    pipeline whose ``[surrogate] epochs`` changed kept the network of the old limits."""
+    history = state.get("history") or []
+    main = sum(h.get("phase", "main") == "main" for h in history)
+    fine = len(history) - main
+    if fine == 0:
+        return main <= cfg.epochs
+    old = state.get("epochs")  # None: a checkpoint from before the limits were kept
+    stopped_early = old is not None and main < min(old, cfg.epochs)
+    return (main == cfg.epochs or stopped_early) and 0 < fine <= cfg.fine_tune_epochs
 
 
 def _phase_deadlines(cfg: TrainConfig, started: float) -> list[float]:
