@@ -452,3 +452,85 @@ def test_a_run_checks_its_configuration_once(tiny, monkeypatch):
         calls.clear()
         railsusp.run(config, out=out)
         assert len(calls) == 1, config
+
+
+def test_recordings_replaced_in_a_measured_folder_make_the_field_stage_run_again(tiny, tmp_path):
+    """The interrupt/resume audit of stop 58: the field stage hashed the measured folder's
+    path alone, so recordings replaced in it kept the old copy and the estimate on it."""
+    import shutil
+
+    _, out, _, _ = tiny
+    measured = tmp_path / "measured"
+    shutil.copytree(out / "field", measured)
+    cfg_path = tmp_path / "measured.toml"
+    head, _ = TINY.split("[field]")
+    estimate = TINY[TINY.index("[estimate]") :]
+    cfg_path.write_text(f"{head}[field]\nmeasured = {str(measured)!r}\n{estimate}")
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    run_pipeline(load_config(cfg_path), run)
+    table = measured / "short.csv"
+    lines = table.read_text().splitlines()
+    first = lines[1].split(",")
+    first[1] = f"{float(first[1]) + 0.5:.6g}"  # another recording of the same length
+    table.write_text("\n".join([lines[0], ",".join(first), *lines[2:]]) + "\n")
+    seen = []
+    run_pipeline(load_config(cfg_path), run, progress=lambda s, m: seen.append((s, m)))
+    assert [s for s, m in seen if m == "running"] == ["field", "estimate", "validate", "report"]
+    assert (run / "field" / "short.csv").read_text() == table.read_text()
+
+
+def test_a_deleted_markdown_report_is_written_again(tiny, tmp_path):
+    _, _, copy = _up_to_date_copy(tiny, tmp_path)
+    (copy / "report.md").unlink()
+    cfg_path, _, _, _ = tiny
+    seen = []
+    run_pipeline(load_config(cfg_path), copy, progress=lambda s, m: seen.append((s, m)))
+    assert [s for s, m in seen if m == "running"] == ["report"]
+    assert (copy / "report.md").is_file()
+
+
+def test_a_second_run_in_a_folder_is_refused_while_one_works(tiny, tmp_path):
+    """The interrupt/resume audit of stop 58: two runs on one folder wrote over each other's
+    stages, one failing on a file the other had replaced."""
+    import os
+
+    from railsusp.pipeline_state import run_lock
+
+    cfg_path, _, _, _ = tiny
+    _, _, copy = _up_to_date_copy(tiny, tmp_path)
+    with run_lock(copy, "--out"):  # as another process holds it while it runs
+        with pytest.raises(RailsuspInputError) as info:
+            run_pipeline(load_config(cfg_path), copy)
+    text = str(info.value)
+    assert "another railsusp run is working in this folder" in text
+    assert f"(process {os.getpid()})" in text
+    seen = []
+    run_pipeline(load_config(cfg_path), copy, progress=lambda s, m: seen.append(m))
+    assert seen == ["up to date"] * len(STAGES)  # released: the next run goes on
+
+
+def test_a_damaged_pipeline_json_says_how_to_resume(tiny, tmp_path):
+    cfg_path, _, _, _ = tiny
+    _, _, copy = _up_to_date_copy(tiny, tmp_path)
+    (copy / "pipeline.json").write_text("{not json")
+    with pytest.raises(RailsuspInputError, match="delete it to resume: a run directory without"):
+        run_pipeline(load_config(cfg_path), copy)
+    (copy / "pipeline.json").unlink()
+    run_pipeline(load_config(cfg_path), copy)
+    assert json.loads((copy / "pipeline.json").read_text())["stages"]["report"]["state"] == "done"
+
+
+def test_a_stage_failing_on_a_full_disk_exits_1_not_2():
+    import errno
+
+    from railsusp.cli.common import exit_code
+
+    try:
+        try:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        except OSError as full:
+            raise StageError("stage 'surrogate' failed: [Errno 28]") from full
+    except StageError as exc:
+        assert exit_code(exc) == 1
+    assert exit_code(RailsuspInputError("bad")) == 2

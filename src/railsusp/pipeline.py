@@ -30,6 +30,7 @@ from railsusp.pipeline_state import STAGES as STAGES  # re-export
 from railsusp.pipeline_state import (
     blame,
     outputs_exist,
+    run_lock,
     run_state,
     stage_files,
     surrogate_campaign_dir,
@@ -98,62 +99,64 @@ def run_pipeline(
     )
     check_cuda(config, "configuration", surrogate_done=done)
     out.mkdir(parents=True, exist_ok=True)
-    state_path = out / "pipeline.json"
-    state["config"] = config.model_dump(mode="json")
-    # the verdicts' tolerances as the run read them: open_run judges with these, not with
-    # whatever wagon file a relative path names from its own working folder
-    state["tolerances"] = read_tolerances(config.wagon).to_dict()
-    forced = STAGES.index(start_from) if start_from else len(STAGES)
-    upstream: dict[str, str] = {}
-    runners = _stage_runners(config, out, run_progress)
-    for i, stage in enumerate(STAGES):
-        section = _section(config, stage)
-        h = content_hash({"section": section, "upstream": upstream, "stage": stage})
-        prev = state["stages"].get(stage, {})
-        up_to_date = (
-            prev.get("hash") == h
-            and prev.get("state") == "done"
-            and i < forced
-            and outputs_exist(config, out, stage, prev.get("files"))
-        )
-        if up_to_date:
-            log.debug("stage %s: up to date", stage)
-            if progress:
-                progress(stage, "up to date")
-        else:
-            log.debug("stage %s: running", stage)
-            if progress:
-                progress(stage, "running")
-            t0 = time.perf_counter()
-            state["stages"][stage] = {"hash": h, "state": "running"}
-            _mark_later_stale(state, stage)
-            write_json(state_path, state)
-            try:
-                info = runners[stage]() or {}
-            except Exception as exc:
-                log.info("stage %s: failed after %.1f s", stage, time.perf_counter() - t0)
-                state["stages"][stage] = {"hash": h, "state": "failed", "error": str(exc)}
+    with run_lock(out, out_option):  # one run at a time in a folder
+        state = run_state(out, out_option)  # again: another run may have ended meanwhile
+        state_path = out / "pipeline.json"
+        state["config"] = config.model_dump(mode="json")
+        # the verdicts' tolerances as the run read them: open_run judges with these, not with
+        # whatever wagon file a relative path names from its own working folder
+        state["tolerances"] = read_tolerances(config.wagon).to_dict()
+        forced = STAGES.index(start_from) if start_from else len(STAGES)
+        upstream: dict[str, str] = {}
+        runners = _stage_runners(config, out, run_progress)
+        for i, stage in enumerate(STAGES):
+            section = _section(config, stage)
+            h = content_hash({"section": section, "upstream": upstream, "stage": stage})
+            prev = state["stages"].get(stage, {})
+            up_to_date = (
+                prev.get("hash") == h
+                and prev.get("state") == "done"
+                and i < forced
+                and outputs_exist(config, out, stage, prev.get("files"))
+            )
+            if up_to_date:
+                log.debug("stage %s: up to date", stage)
+                if progress:
+                    progress(stage, "up to date")
+            else:
+                log.debug("stage %s: running", stage)
+                if progress:
+                    progress(stage, "running")
+                t0 = time.perf_counter()
+                state["stages"][stage] = {"hash": h, "state": "running"}
+                _mark_later_stale(state, stage)
                 write_json(state_path, state)
-                raise StageError(
-                    f"stage {stage!r} failed: {exc}. Earlier stages are kept; fix the cause "
-                    f"and run the same command again (or --from {stage})"
-                    + blame(config, out, stage, str(exc))
-                ) from exc
-            state["stages"][stage] = {
-                "hash": h,
-                "state": "done",
-                "info": info,
-                "seconds": time.perf_counter() - t0,
-                "finished": provenance()["utc"],
-                "files": file_sizes(stage_files(config, out, stage), out),
-            }
-            write_json(state_path, state)
-            log.info("stage %s: done in %.1f s", stage, state["stages"][stage]["seconds"])
-            forced = min(forced, i + 1)  # everything downstream reruns
-        upstream[stage] = h
-    state["provenance"] = provenance()
-    write_json(state_path, state)
-    return state
+                try:
+                    info = runners[stage]() or {}
+                except Exception as exc:
+                    log.info("stage %s: failed after %.1f s", stage, time.perf_counter() - t0)
+                    state["stages"][stage] = {"hash": h, "state": "failed", "error": str(exc)}
+                    write_json(state_path, state)
+                    raise StageError(
+                        f"stage {stage!r} failed: {exc}. Earlier stages are kept; fix the cause "
+                        f"and run the same command again (or --from {stage})"
+                        + blame(config, out, stage, str(exc))
+                    ) from exc
+                state["stages"][stage] = {
+                    "hash": h,
+                    "state": "done",
+                    "info": info,
+                    "seconds": time.perf_counter() - t0,
+                    "finished": provenance()["utc"],
+                    "files": file_sizes(stage_files(config, out, stage), out),
+                }
+                write_json(state_path, state)
+                log.info("stage %s: done in %.1f s", stage, state["stages"][stage]["seconds"])
+                forced = min(forced, i + 1)  # everything downstream reruns
+            upstream[stage] = h
+        state["provenance"] = provenance()
+        write_json(state_path, state)
+        return state
 
 
 def _mark_later_stale(state: dict, stage: str) -> None:
@@ -181,6 +184,23 @@ def model_identity(config: PipelineConfig) -> dict[str, str]:
     return {"wagon_data": wagon_hash(load_wagon(config.wagon)), "model_revision": MODEL_REVISION}
 
 
+def _measured_state(config: PipelineConfig) -> dict:
+    """What the field stage's copy of a ``[field] measured`` folder depends on beyond its
+    path: every file's path in it, size and modification time (as a long run's
+    ``[field] recording`` counts its files). Without them a folder whose recordings were
+    replaced kept the old copy, and the estimate on it, up to date. Empty (so the stage
+    hashes as before) without a measured folder."""
+    if config.field.measured is None:
+        return {}
+    folder = Path(config.field.measured)
+    files = []
+    for p in sorted(folder.rglob("*")) if folder.is_dir() else []:
+        if p.is_file() and not any(part.startswith(".") for part in p.relative_to(folder).parts):
+            st = p.stat()
+            files.append((p.relative_to(folder).as_posix(), st.st_size, st.st_mtime_ns))
+    return {"measured_files": files}
+
+
 def _section(config: PipelineConfig, stage: str) -> Any:
     base = {
         "wagon": config.wagon,
@@ -195,7 +215,7 @@ def _section(config: PipelineConfig, stage: str) -> Any:
         "campaign": {**base, **config.campaign.model_dump()},
         "sensitivity": config.sensitivity.model_dump(),
         "surrogate": _surrogate_section(config),
-        "field": {**base, **config.field.model_dump()},
+        "field": {**base, **config.field.model_dump(), **_measured_state(config)},
         "estimate": _estimate_section(config),
         "validate": {},
         "report": {"name": config.name},

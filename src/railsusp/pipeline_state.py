@@ -8,6 +8,9 @@ folder, so that the API (:func:`railsusp.api.open_run`) can read a run without r
 from __future__ import annotations
 
 import logging
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from railsusp.errors import RailsuspInputError
@@ -64,7 +67,48 @@ def run_state(out: Path, option: str) -> dict:
                 "new or empty folder, or a railsusp run directory to resume"
             )
         return {"stages": {}}
-    return read_run_state(out, f"{option} {out}", "; give a new or empty folder")
+    try:
+        return read_run_state(out, f"{option} {out}", "; give a new or empty folder")
+    except RailsuspInputError as exc:
+        if "not a railsusp run's" in str(exc):
+            raise
+        raise RailsuspInputError(  # damaged (a full disk, a copy cut short): say the remedy
+            f"{exc}; delete it to resume: a run directory without pipeline.json resumes from "
+            "its stages' outputs"
+        ) from None
+
+
+@contextmanager
+def run_lock(out: Path, option: str) -> Iterator[None]:
+    """Hold ``out/.railsusp.lock`` while a run works in ``out``: a second ``railsusp run``
+    on the same folder is refused in one line at once (two at a time wrote over each
+    other's stages, and one failed on a file the other had just replaced). An advisory
+    POSIX lock (``flock``), released when the process ends however it ends; the file
+    holds the process id for the message. Where ``fcntl`` is missing, no lock."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX
+        yield
+        return
+    with open(out / ".railsusp.lock", "a+", encoding="utf-8") as fh:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            fh.seek(0)
+            holder = fh.read().strip()
+            raise RailsuspInputError(
+                f"{option} {out}: another railsusp run is working in this folder"
+                + (f" (process {holder})" if holder.isdigit() else "")
+                + "; wait for it to end, or give another folder"
+            ) from None
+        fh.seek(0)
+        fh.truncate()
+        fh.write(str(os.getpid()))
+        fh.flush()
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
 
 
 def read_run_state(out: Path, where: str, hint: str = "") -> dict:
@@ -147,6 +191,8 @@ def stage_files(config: PipelineConfig, out: Path, stage: str) -> list[Path]:
     """The files a stage wrote (the marked output among them), without other stages' and
     without resume points."""
     files = [_marked_output(config, out, stage)]
+    if stage == "report":  # its Markdown twin beside report.html (a lost one was not remade)
+        files.append(out / "report.md")
     for folder, others in _stage_folders(config, out, stage):
         files += files_under(folder, skip_folders=others, skip_names=_UNCHECKED)
     return list(dict.fromkeys(files))

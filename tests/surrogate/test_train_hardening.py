@@ -171,9 +171,7 @@ def test_a_budget_gives_each_phase_its_share_by_epochs(monkeypatch):
 
 
 @pytest.mark.parametrize(("before", "after"), [(1, 4), (4, 1)])
-def test_a_checkpoint_past_its_main_phase_under_other_epochs_trains_afresh(
-    tmp_path, before, after
-):
+def test_a_checkpoint_past_its_main_phase_under_other_epochs_trains_afresh(tmp_path, before, after):
     """The interrupt/resume audit of stop 58: a pipeline whose ``[surrogate] epochs``
     changed resumed the finished checkpoint of the old limit (its fine-tune phase had begun,
     so the main phase was skipped) and kept that network, silently."""

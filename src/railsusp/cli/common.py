@@ -123,7 +123,21 @@ def frame_table(df, title: str, fmt: str = "{:.4g}") -> Table:
     return table
 
 
-def fail(message: str) -> None:
-    """Print a one-line error and exit with status 2."""
+def fail(message: str, code: int = 2) -> None:
+    """Print a one-line error and exit with status ``code`` (2: bad input)."""
     err_console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
-    raise typer.Exit(2)
+    raise typer.Exit(code)
+
+
+def exit_code(exc: BaseException) -> int:
+    """2 for bad input; 1 where what failed underneath was the machine (a full disk, a
+    quota, an I/O error: a stage's error wraps it), as for an OSError the command meets
+    itself (:func:`railsusp.cli.main`)."""
+    import errno
+
+    seen = exc
+    while seen is not None:
+        if isinstance(seen, OSError) and seen.errno in (errno.ENOSPC, errno.EDQUOT, errno.EIO):
+            return 1
+        seen = seen.__cause__ or seen.__context__
+    return 2

@@ -13,6 +13,7 @@ from railsusp.cli.common import (
     app,
     console,
     err_console,
+    exit_code,
     fail,
     frame_table,
     show_progress,
@@ -123,7 +124,7 @@ def run(
         target = check_output_folder(out or Path("runs") / config.stem)
         _run(cfg, target, start_from, checked=True)
     except RailsuspInputError as exc:
-        fail(str(exc))
+        fail(str(exc), exit_code(exc))
     _summary(target)
 
 
@@ -139,5 +140,5 @@ def demo(
     try:
         _run(demo_config(), check_output_folder(out), None)
     except RailsuspInputError as exc:
-        fail(str(exc))
+        fail(str(exc), exit_code(exc))
     _summary(out)
