@@ -6,8 +6,6 @@ Each figure function takes data objects and an output path, and writes the file 
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -17,7 +15,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy.signal import welch
 
-from railsusp.store import plain_mode
+from railsusp.store import atomic_write_figure
 from railsusp.vehicle.track import COMPONENTS, Irregularities, fra_psd
 
 _LABELS = {
@@ -30,19 +28,10 @@ _LABELS = {
 
 def save_figure(fig: plt.Figure, path: str | Path, dpi: int = 120) -> Path:
     """Save ``fig`` atomically to ``path`` (format from the suffix) and close it."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
-    os.close(fd)
     try:
-        fig.savefig(tmp, dpi=dpi, bbox_inches="tight")
-        plain_mode(tmp)
-        os.replace(tmp, path)
+        return atomic_write_figure(fig, path, dpi=dpi, bbox_inches="tight")
     finally:
         plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
 
 
 def welch_psd(x: np.ndarray, dx: float, segment_m: float = 400.0) -> tuple[np.ndarray, np.ndarray]:

@@ -15,7 +15,7 @@ from railsusp.errors import RailsuspInputError
 from railsusp.measured.recording import FORMAT, Recording
 from railsusp.measured.run import MeasuredRun
 from railsusp.measured.sections import Section, sections_table
-from railsusp.store import atomic_write_bytes, write_json
+from railsusp.store import atomic_write_bytes, atomic_write_figure, write_json
 from railsusp.vehicle.layout import WHEEL_NAMES
 from railsusp.vehicle.simulate import measured_wheel_index
 
@@ -184,8 +184,7 @@ def plot_sections(run: MeasuredRun, sections: list[Section], path: str | Path) -
                 rotation=90,
             )
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    try:
+        return atomic_write_figure(fig, path, dpi=100)
+    finally:
+        plt.close(fig)
