@@ -174,7 +174,7 @@ def sections_command(
             speed_tolerance=speed_tolerance, min_length_m=min_length, max_duration_s=max_duration
         )
         cmap = read_channel_map(channel_map) if channel_map else None
-        run = read_run(recording, cmap)
+        run = read_run(recording, cmap, min_rate_hz=rate)  # the sections' rate at the least
         secs = cut_sections(
             run,
             rules,

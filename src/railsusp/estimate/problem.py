@@ -82,7 +82,7 @@ class CalibrationProblem(Problem):
         if isinstance(model, StatisticsForces):
             check_statistics_model(self.stats)
         check_recordings(self.recordings, self.stats, self.aligned, weighting == "relative")
-        check_measured_wheel(model, self.recordings)
+        check_measured_wheel(model, self.recordings, self.aligned)
         self.measured = [measured_statistics(rec, self.stats) for rec in self.recordings]
         # the measurement side of the time-aligned comparison, once, not every generation
         self.comparisons = [AlignedComparison(r) for r in self.recordings] if self.aligned else []
@@ -188,23 +188,37 @@ def check_recordings(
                 )
 
 
-def check_measured_wheel(model: Any, recordings: Sequence[Recording]) -> None:
-    """Each recording's first wheel is the one the force model gives in its condition (the
-    surrogates': the leading wheelset's left wheel on tangent, its outer wheel in a curve;
-    the simulator's: its ``wheel``); a recording of another wheel was compared with it
-    silently. :func:`~railsusp.measured.read_recording` puts that wheel first where the
-    recording has it."""
+def model_wheel(model: Any, condition: Any) -> str:
+    """The wheel whose forces ``model`` gives in ``condition``: the simulator's ``wheel``, a
+    surrogate's campaign's (``meta["wheel"]``, saved since stop 58), else the automatically
+    chosen one (the leading wheelset's left wheel on tangent, its outer wheel in a curve)."""
     from railsusp.vehicle.simulate import WHEEL_NAMES, measured_wheel_index
 
-    which = getattr(averaged_model(model), "wheel", "auto")
+    model = averaged_model(model)
+    which = getattr(model, "wheel", "auto")
+    if hasattr(model, "surrogate") and hasattr(model, "conditions"):
+        if condition.name in model.conditions:
+            which = (model.surrogate(condition.name).meta or {}).get("wheel", "auto")
+    return WHEEL_NAMES[measured_wheel_index(condition, which)]
+
+
+def check_measured_wheel(model: Any, recordings: Sequence[Recording], aligned: bool) -> None:
+    """Refuse a recording whose first wheel (the one compared) is not the wheel the force
+    model gives, where that matters: in a curve (the outer and the inner wheel carry other
+    forces) and in the time-aligned comparison (each rail has its own irregularities). A
+    two-wheel recording whose columns began with the other wheel was compared with the
+    wrong one, silently (the recordings audit of stop 58). On tangent the statistics of
+    the left and the right wheel are alike, and a recording of either is compared."""
     for r in recordings:
-        wanted = WHEEL_NAMES[measured_wheel_index(r.condition, which)]
-        if r.wheels[0] != wanted:
-            raise RailsuspInputError(
-                f"recording {r.condition.name!r}: its first wheel is {r.wheels[0]}, the force "
-                f"model gives {wanted} in this condition; accepted a recording of {wanted} "
-                "(first in its sidecar's wheels)"
-            )
+        wanted = model_wheel(model, r.condition)
+        if r.wheels[0] == wanted or not (aligned or r.condition.curve_radius_m is not None):
+            continue
+        held = f" (it holds {wanted}: list it first)" if wanted in r.wheels else ""
+        raise RailsuspInputError(
+            f"recording {r.condition.name!r}: its first wheel is {r.wheels[0]}, the force "
+            f"model gives {wanted} in this condition{held}; accepted a recording whose first "
+            f"wheel (in the sidecar's wheels) is {wanted}"
+        )
 
 
 def check_statistics_model(statistics: Sequence[str]) -> None:

@@ -83,20 +83,34 @@ def check_flat(x: np.ndarray, channel: str) -> list[str]:
 #: a force channel is taken for saturated where at least this share of its samples sits at
 #: exactly its largest (or smallest) value in runs of at least CLIP_RUN samples: a
 #: continuous force reaches its extreme once, an amplifier's range limit holds it there
-CLIP_SHARE, CLIP_RUN = 0.005, 5
+CLIP_SHARE, CLIP_RUN, CLIP_SMOOTH, CLIP_SHARE_SMOOTH = 0.005, 5, 0.75, 0.05
 
 
 def check_clipped(x: np.ndarray, channel: str, unit: str = "") -> list[str]:
     """A force channel held at its range limit (an amplifier or an A/D converter
-    saturating): its peaks and p99.85 values would be the limit, not the force."""
+    saturating): its peaks and p99.85 values would be the limit, not the force. A smooth
+    signal written with few digits also holds its extreme value over several samples (a
+    slow sine at 6 significant digits: 1 % of its samples), but it creeps onto it and off
+    it, from one quantum (the smallest step of the channel) away; a signal cut by a limit
+    meets it at whatever step it had. Plateaus most of which (CLIP_SMOOTH) are met and left
+    from one quantum away count only from CLIP_SHARE_SMOOTH of the samples."""
     finite = x[np.isfinite(x)]
     if finite.size < 100 or np.ptp(finite) == 0.0:
         return []
+    steps = np.abs(np.diff(finite))
+    quantum = float(steps[steps > 0].min())
     out = []
     for which, edge in (("largest", finite.max()), ("smallest", finite.min())):
         at = np.isfinite(x) & (x == edge)
-        held = sum(e - s for s, e in runs(at) if e - s >= CLIP_RUN)
-        if held >= CLIP_SHARE * finite.size:
+        plateaus = [(s, e) for s, e in runs(at) if e - s >= CLIP_RUN]
+        held = sum(e - s for s, e in plateaus)
+        crept = [
+            abs(x[s - 1] - edge) <= 1.5 * quantum and abs(x[e] - edge) <= 1.5 * quantum
+            for s, e in plateaus
+            if s >= 1 and e < x.size
+        ]
+        smooth = bool(crept) and np.mean(crept) >= CLIP_SMOOTH
+        if held >= (CLIP_SHARE_SMOOTH if smooth else CLIP_SHARE) * finite.size:
             out.append(
                 f"channel {channel!r}: {100.0 * held / finite.size:.3g} % of the samples sit at "
                 f"its {which} value {edge:.6g}{' ' + unit if unit else ''} in runs of "

@@ -71,7 +71,7 @@ def cut_run(source: RunSource) -> tuple[MeasuredRun, list[Section]]:
 @lru_cache(maxsize=4)
 def _cut(source: RunSource, _state: tuple) -> tuple[MeasuredRun, list[Section]]:
     cmap = read_channel_map(source.channel_map) if source.channel_map else None
-    run = read_run(source.recording, cmap)
+    run = read_run(source.recording, cmap, min_rate_hz=source.rate_hz)
     secs = cut_sections(
         run,
         source.rules,

@@ -33,6 +33,7 @@ class RawChannel:
     values: np.ndarray
     first_row: int = 2  # the file line (tables) of the first sample, for messages
     groups: int = 1  # MDF: how many groups hold a channel of this name (used: refused)
+    master: str | None = None  # MDF: what its group's master is where not time in s
 
     @property
     def rate_hz(self) -> float:
@@ -71,7 +72,7 @@ def _read_mdf(path: Path) -> dict[str, RawChannel]:
             if sig.name in out:  # refused where the channel map uses it (read_run)
                 out[sig.name].groups += 1
                 continue
-            _check_time_master(mdf, sig, path)
+            master, scale = _master(mdf, sig)
             values = np.asarray(sig.samples, dtype=float)
             if sig.invalidation_bits is not None:  # samples the logger marked invalid
                 invalid = np.asarray(sig.invalidation_bits, dtype=bool)
@@ -80,9 +81,10 @@ def _read_mdf(path: Path) -> dict[str, RawChannel]:
             out[sig.name] = RawChannel(
                 sig.name,
                 sig.unit or None,
-                np.asarray(sig.timestamps, dtype=float),
+                np.asarray(sig.timestamps, dtype=float) * scale,
                 values,
                 first_row=0,
+                master=master,
             )
     except RailsuspInputError:
         raise
@@ -100,20 +102,26 @@ def _read_mdf(path: Path) -> dict[str, RawChannel]:
 _SYNC_TIME, _SYNC_NAMES = 1, {2: "angle", 3: "distance", 4: "index"}
 
 
-def _check_time_master(mdf: Any, sig: Any, path: Path) -> None:
-    """Refuse a channel whose group's master is not time (a distance master in metres was
-    read as seconds: a 3 km run at 60 km/h became 50 minutes)."""
+def _master(mdf: Any, sig: Any) -> tuple[str | None, float]:
+    """What the channel's group's master is where it is not time (None where it is), and
+    the factor taking its values to seconds (a master in ms). A distance master in metres
+    was read as seconds: a 3 km run at 60 km/h became 50 minutes. :func:`~railsusp.measured
+    .run.read_run` refuses a used channel on such a master; other channels do not count."""
     group = sig.group_index
-    master = mdf.groups[group].channels[mdf.masters_db.get(group, 0)]
+    index = mdf.masters_db.get(group)
+    if index is None:  # no master of its own (MDF 4.2 remote masters): the file's time
+        return None, 1.0
+    master = mdf.groups[group].channels[index]
     sync = getattr(master, "sync_type", _SYNC_TIME) or _SYNC_TIME  # MDF3: time always
+    if sync != _SYNC_TIME:
+        return f"{master.name!r} of {_SYNC_NAMES.get(sync, f'sync type {sync}')}", 1.0
     unit = (getattr(master, "unit", "") or "").strip()
-    if sync != _SYNC_TIME or unit not in ("", "s"):
-        what = _SYNC_NAMES.get(sync, f"sync type {sync}") if sync != _SYNC_TIME else unit
-        raise RailsuspInputError(
-            f"recording {path}: channel {sig.name!r} is sampled on a master channel "
-            f"{master.name!r} of {what}, not time in s; accepted groups whose master is time "
-            "(export the run on its time base)"
-        )
+    if not unit:
+        return None, 1.0
+    try:
+        return None, si_factor("time", unit, master.name)
+    except RailsuspInputError:
+        return f"{master.name!r} in {unit!r}", 1.0
 
 
 def _open_mdf(path: Path) -> Any:

@@ -190,39 +190,10 @@ def read_recording(
     condition = _condition(meta, table_path, problems, axle_spread(wagon)) if meta else None
     if problems:
         raise RecordingError(table_path, problems)
-    if condition is not None:
-        Y, Q = _measured_wheel_first(Y, Q, condition, table_path.name, notes)
     for note in notes:
         warnings.warn(f"{table_path.name}: {note}", stacklevel=2)
     extra = {k: v for k, v in meta.items() if k not in ("format", "condition", "wheels")}
     return Recording(np.asarray(t), Y, Q, condition, extra)  # type: ignore[arg-type]
-
-
-def _measured_wheel_first(
-    Y: dict[str, np.ndarray],
-    Q: dict[str, np.ndarray],
-    condition: WorkingCondition,
-    name: str,
-    notes: list[str],
-) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
-    """The wheels reordered so that the one the model compares in ``condition`` (the
-    leading wheelset's left wheel on tangent, its outer wheel in a curve:
-    :func:`~railsusp.vehicle.simulate.measured_wheel_index`) comes first: the estimate,
-    the posterior and the validation compare a recording's first wheel, and a table whose
-    columns began with the other wheel was compared with the wrong one, silently."""
-    from railsusp.vehicle.simulate import measured_wheel_index
-
-    measured = WHEEL_NAMES[measured_wheel_index(condition)]
-    if measured not in Y:
-        notes.append(
-            f"the recorded wheel(s) {', '.join(Y)} do not include {measured}, the wheel the "
-            f"model compares in condition {condition.name!r}; the estimate refuses it"
-        )
-        return Y, Q
-    if next(iter(Y)) == measured:
-        return Y, Q
-    order = [measured, *(w for w in Y if w != measured)]
-    return {w: Y[w] for w in order}, {w: Q[w] for w in order}
 
 
 def _raw(table_path: Path):
@@ -260,7 +231,9 @@ def _on_time(raw: dict, distance: np.ndarray, speed: np.ndarray) -> dict:
     time checks, unconverted."""
     step_speed = 0.5 * (speed[1:] + speed[:-1])
     ds = np.diff(distance)
-    if not (np.all(np.isfinite(step_speed)) and np.all(step_speed > 0) and np.all(ds > 0)):
+    if ds.size < 2 or not (
+        np.all(np.isfinite(step_speed)) and np.all(step_speed > 0) and np.all(ds > 0)
+    ):
         t = distance / speed  # as before; the time checks name what is wrong
         for ch in raw.values():
             ch.time = t

@@ -69,8 +69,9 @@ def read_run(
 ) -> MeasuredRun:
     """Read a recording (MDF4, CSV, Parquet) through its channel map; raise
     :class:`RecordingError` listing every problem (file, channel, rows). The force channels
-    must be sampled at ``min_rate_hz`` or more (the sections are resampled to the pipeline's
-    rate: a 2 Hz run upsampled would pass every later check), the speed channel forward."""
+    must be sampled at ``min_rate_hz`` or more (the rate the sections are resampled to: a
+    2 Hz run upsampled to 50 Hz would pass every later check), the speed channel forward;
+    a used MDF channel must lie on a time master."""
     path = Path(path)
     try:
         raw = read_raw(path, channel_map.time if channel_map else None)
@@ -80,6 +81,11 @@ def read_run(
     problems: list[str] = []
     notes: list[str] = []
     for c in cmap.used():
+        if c in raw and raw[c].master is not None:
+            problems.append(
+                f"channel {c!r} is sampled on the master channel {raw[c].master}, not time; "
+                "accepted channels on a time master (export the run on its time base)"
+            )
         if c in raw and raw[c].groups > 1:
             problems.append(
                 f"channel {c!r} appears in {raw[c].groups} groups of the file: which one is "
@@ -137,7 +143,8 @@ def read_run(
     if rates[base] < min_rate_hz:
         problems.append(
             f"channel {base!r}: forces sampled at {rates[base]:.4g} Hz; accepted at least "
-            f"{min_rate_hz:g} Hz (the rate the sections are compared at; --min-rate)"
+            f"{min_rate_hz:g} Hz, the rate the sections are resampled to (sections --rate, "
+            "[field] rate_hz; check-recording --min-rate)"
         )
     for c in quantity:
         ch = si[c]

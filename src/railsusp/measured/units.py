@@ -32,7 +32,14 @@ _ALIASES = {
     "per_km": "1/km",
     "per_m": "1/m",
     "sec": "s",
+    "secs": "s",
+    "second": "s",
+    "seconds": "s",
     "msec": "ms",
+    "millisecond": "ms",
+    "milliseconds": "ms",
+    "minute": "min",
+    "minutes": "min",
     "usec": "us",
     "μs": "µs",  # the Greek mu, as the micro sign
 }

@@ -262,8 +262,8 @@ class SimulationResult:
         if not isinstance(path, str | os.PathLike):
             raise RailsuspInputError(f"path = {path!r}: a file path (str or Path) is needed")
         path = check_output_file(path, "path")  # not a folder, nor under a file
-        set_index = self._one_set(set_index)
-        table = pa.Table.from_pandas(self.to_dataframe(set_index))
+        table = pa.Table.from_pandas(self.to_dataframe(set_index))  # set_index checked there
+        set_index = int(set_index)
         meta = dict(table.schema.metadata or {})
         meta[b"railsusp.condition"] = self.condition.model_dump_json().encode()
         meta[b"railsusp.params"] = ",".join(f"{v:.9g}" for v in self.params[set_index]).encode()
