@@ -381,3 +381,26 @@ def test_a_run_slower_than_50_hz_is_cut_into_slower_sections(tmp_path):
     assert run.rate_hz == pytest.approx(40.0)
     with pytest.raises(RecordingError, match="40 Hz; accepted at least 50 Hz"):
         cut_run(RunSource(path, mapping, None, None, SectionRules(), 50.0))
+
+
+def test_a_curve_whose_outer_wheel_is_not_recorded_is_left_out_of_the_cut():
+    """The reviewer of stop 58: with one instrumented wheel, the curves the other way have
+    their outer wheel (the one the model compares) unrecorded; the estimate refuses such a
+    section, so the cut leaves it out with the reason instead of failing the estimate."""
+    import tomllib
+    from importlib import resources
+
+    from railsusp.measured.sections import SectionRules, cut_sections, read_line
+
+    data = resources.files("railsusp") / "data"
+    mapping = tomllib.loads((data / "example_run.map.toml").read_text())
+    mapping["wheels"] = {"w1R": mapping["wheels"]["w1R"]}
+    mapping["ignore"] = [*mapping.get("ignore", []), "WS1_Y_L", "WS1_Q_L"]
+    run = read_run(data / "example_run.mf4", channel_map_from(mapping))
+    secs = cut_sections(run, SectionRules(), line=read_line(data / "example_line.csv"))
+    right = [s for s in secs if s.radius_m is not None and s.direction == "right"]
+    left = [s for s in secs if s.radius_m is not None and s.direction == "left"]
+    assert right and left
+    assert all(not s.kept for s in right)
+    assert all("outer wheel w1L, the one compared, is not recorded" in s.reason for s in right)
+    assert all(s.kept for s in left)
