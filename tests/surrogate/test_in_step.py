@@ -269,12 +269,16 @@ def test_series_conditions_of_conditions_that_cannot_pair_are_series_one_by_one(
 
 
 def _recording(cond, seed: int) -> Recording:
-    """A recording of random forces (lateral about 5 kN, vertical about 115 kN)."""
+    """A recording of random forces (lateral about 5 kN, vertical about 115 kN) of the
+    wheel the models compare in ``cond`` (a curve's outer wheel)."""
+    from railsusp.vehicle.simulate import WHEEL_NAMES, measured_wheel_index
+
     rng = np.random.default_rng(seed)
     t = np.arange(cond.n_steps) * cond.sample_interval
     y = 5.0 + 3.0 * np.sin(2 * np.pi * 1.1 * t + seed) + rng.normal(size=t.size)
     q = 115.0 + 8.0 * np.cos(2 * np.pi * 0.6 * t) + 2.0 * rng.normal(size=t.size)
-    return Recording(t, {"w1L": y}, {"w1L": q}, cond, {})
+    w = WHEEL_NAMES[measured_wheel_index(cond)]
+    return Recording(t, {w: y}, {w: q}, cond, {})
 
 
 @pytest.mark.parametrize("statistic", ["mean", "mean+p99", "aligned", "aligned+std"])
