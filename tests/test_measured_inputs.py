@@ -262,6 +262,7 @@ def test_a_table_on_distance_at_varying_speed_is_put_on_time(tmp_path):
         return 5.0 + 3.0 * np.sin(2 * np.pi * 0.7 * time)
 
     rec = make_recording(t.size, rate)
+    rec.condition = rec.condition.with_duration(float(tg[-1] + 1 / rate))  # the table's
     rec.write(tmp_path / "d.csv")
     pd.DataFrame(
         {
@@ -341,6 +342,7 @@ def test_a_slow_smooth_extreme_written_at_six_digits_is_not_taken_for_clipping(t
     rate = 200.0
     t = np.arange(int(20 * rate)) / rate
     rec = make_recording(t.size, rate)
+    rec.condition = rec.condition.with_duration(20.0)
     rec.Y = {"w1L": 5 + np.sin(t)}
     rec.Q = {"w1L": 120 + np.cos(t)}
     rec.write(tmp_path / "r.csv")
@@ -404,3 +406,28 @@ def test_a_curve_whose_outer_wheel_is_not_recorded_is_left_out_of_the_cut():
     assert all(not s.kept for s in right)
     assert all("outer wheel w1L, the one compared, is not recorded" in s.reason for s in right)
     assert all(s.kept for s in left)
+
+
+def test_a_sidecar_condition_of_another_duration_is_refused_and_an_unstated_one_is_the_tables(
+    tmp_path,
+):
+    """The bad-input audit of stop 58: a 4 s condition on a 1 s table was simulated for 4 s
+    and compared with 1 s of measurement; a condition stating no duration took the default
+    20 s whatever the table."""
+    import json
+
+    make_recording(100, 50.0).write(tmp_path / "r.csv")  # 2 s
+    side = tmp_path / "r.json"
+    doc = json.loads(side.read_text())
+    doc["condition"]["duration_s"], doc["condition"]["n_steps"] = 4.0, 200
+    side.write_text(json.dumps(doc))
+    with pytest.raises(RecordingError, match="condition duration_s 4 s, the table 100 rows"):
+        read_recording(tmp_path / "r.csv")
+    doc["condition"] = {"name": "curve", "speed_kmh": 60, "curve_radius_m": 300, "cant_mm": 110}
+    side.write_text(json.dumps(doc))  # the documented sidecar: no duration stated
+    back = read_recording(tmp_path / "r.csv")
+    assert (back.condition.duration_s, back.condition.n_steps) == (2.0, 100)
+    del doc["condition"]
+    doc["condition_name"] = "uphill"
+    side.write_text(json.dumps(doc))
+    assert read_recording(tmp_path / "r.csv").condition.duration_s == 2.0

@@ -188,12 +188,44 @@ def read_recording(
                 f"sidecar wheels {side_wheels}, the table's force columns {list(cmap.wheels)}"
             )
     condition = _condition(meta, table_path, problems, axle_spread(wagon)) if meta else None
+    if condition is not None and not time_problems and t.size > 1:
+        condition = _on_the_table(
+            condition, meta, t, table_path.with_suffix(".json").name, problems
+        )
     if problems:
         raise RecordingError(table_path, problems)
     for note in notes:
         warnings.warn(f"{table_path.name}: {note}", stacklevel=2)
     extra = {k: v for k, v in meta.items() if k not in ("format", "condition", "wheels")}
     return Recording(np.asarray(t), Y, Q, condition, extra)  # type: ignore[arg-type]
+
+
+def _on_the_table(
+    condition: WorkingCondition, meta: dict, t: np.ndarray, side: str, problems: list[str]
+) -> WorkingCondition | None:
+    """The sidecar's condition against the table it describes: its ``duration_s`` must be
+    the table's (its ``n_steps`` may sample it at another rate), since the estimate simulates
+    the condition's record and compares it with the table (a 4 s condition on a 1 s table
+    compared 4 s of simulation with 1 s of measurement, silently). A condition that states
+    neither (the documented sidecar's), or a standard one named by ``condition_name``,
+    takes the table's record (before, the default 20 s of 1000 steps, whatever the table)."""
+    rows, rate = t.size, 1.0 / float(np.median(np.diff(t)))
+    duration = rows / rate
+    doc = meta.get("condition")
+    if not (isinstance(doc, dict) and ("duration_s" in doc or "n_steps" in doc)):
+        try:
+            return condition.with_changes(duration_s=round(duration, 6), n_steps=rows)
+        except RailsuspInputError as exc:
+            problems.append(f"{side}: {exc}")
+            return None
+    slack = 1.5 * max(1.0 / rate, condition.sample_interval)  # its rate may be its own
+    if abs(condition.duration_s - duration) > slack:
+        problems.append(
+            f"{side}: condition duration_s {condition.duration_s:g} s, the table {rows} rows at "
+            f"{rate:.6g} Hz ({duration:.6g} s): accepted the table's duration (the estimate "
+            "simulates the condition's record and compares it with the table)"
+        )
+    return condition
 
 
 def _raw(table_path: Path):
