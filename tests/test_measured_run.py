@@ -164,7 +164,8 @@ def test_channel_map_errors_name_the_key(tmp_path):
 
 
 def synthetic_run(speed_kmh, curvature_per_km, grade_permille, rate=50.0) -> MeasuredRun:
-    """A run of given per-sample speed, curvature and grade, with plausible forces."""
+    """A run of given per-sample speed, curvature and grade, with plausible forces of both
+    leading wheels (a curve either way has its outer wheel, the compared one, recorded)."""
     v = np.asarray(speed_kmh, float) / 3.6
     t = np.arange(v.size) / rate
     s = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) / rate)])
@@ -172,8 +173,8 @@ def synthetic_run(speed_kmh, curvature_per_km, grade_permille, rate=50.0) -> Mea
     return MeasuredRun(
         "synthetic.csv",
         t,
-        {"w1R": 5e3 + 1e3 * rng.standard_normal(t.size)},
-        {"w1R": 120e3 + 5e3 * rng.standard_normal(t.size)},
+        {w: 5e3 + 1e3 * rng.standard_normal(t.size) for w in ("w1R", "w1L")},
+        {w: 120e3 + 5e3 * rng.standard_normal(t.size) for w in ("w1R", "w1L")},
         v,
         s,
         np.asarray(curvature_per_km, float) * 1e-3,
