@@ -534,3 +534,15 @@ def test_a_stage_failing_on_a_full_disk_exits_1_not_2():
     except StageError as exc:
         assert exit_code(exc) == 1
     assert exit_code(RailsuspInputError("bad")) == 2
+
+
+def test_the_surrogate_comparison_json_is_strict_json(tiny):
+    """The docs audit of stop 58: compare.json held bare NaN, which strict parsers refuse."""
+    _, out, _, _ = tiny
+
+    def refuse(name):
+        raise ValueError(f"{name} is not JSON")
+
+    for path in out.rglob("compare.json"):
+        rows = json.loads(path.read_text(), parse_constant=refuse)
+        assert rows and any(v is None for r in rows for v in r.values())

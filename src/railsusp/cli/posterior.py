@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 from typing import Annotated
@@ -246,7 +247,16 @@ def train_command(
     if long_record == "synthetic-likelihood":
         _print_checks(synthetic.checks, "synthetic likelihood, ")
     excessive = est.correction.excessive if est.correction else []
-    if est.calibrated:
+    failed = [str(p.sections) for p in est.products if not p.passed]
+    if long_record == "synthetic-likelihood":
+        failed += [f"{c.sections} (synthetic likelihood)" for c in synthetic.checks if not c.passed]
+    if est.calibrated and failed:  # "passed" after FAILED lines read as a contradiction
+        err_console.print(
+            f"warning: the estimator in {out / 'posterior'} passed its one-section coverage "
+            f"check, but FAILED those of {', '.join(failed)} sections: a recording of as many "
+            "sections is flagged NOT calibrated; train on more simulations"
+        )
+    elif est.calibrated:
         console.print(f"estimator in {out / 'posterior'}: coverage check passed")
     elif excessive:
         err_console.print(
@@ -288,6 +298,7 @@ def estimate_command(
     try:
         if out is not None:
             check_output_file(out)
+            _result_file(out, {"--measured": measured, "--estimator": estimator})
         if not 0 <= seed <= MAX_SEED:  # numpy's generators take no negative seed
             raise RailsuspInputError(f"--seed {seed}: accepted 0 to {MAX_SEED}")
         _long_record(long_record)
@@ -322,6 +333,29 @@ def estimate_command(
     if out is not None:
         result.save(out)
         console.print(f"wrote {out}")
+
+
+def _result_file(out: Path, inputs: dict[str, Path]) -> None:
+    """Refuse an ``--out`` for a result that lies inside an input folder (it replaced a
+    field folder's index.json, a recording, or the estimator's calibration record, and
+    every later run then failed) or is an existing file other than a posterior result."""
+    target = out.resolve()
+    for option, folder in inputs.items():
+        if folder.resolve() in target.parents:
+            raise RailsuspInputError(
+                f"--out {out}: inside {option} {folder}, whose files it would replace; "
+                "accepted a file elsewhere"
+            )
+    if out.is_file():
+        try:
+            doc = json.loads(out.read_text("utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+            doc = None
+        if not (isinstance(doc, dict) and doc.get("route") == "posterior"):
+            raise RailsuspInputError(
+                f"--out {out}: an existing file that is not a posterior result; accepted a "
+                "new file or an earlier result to replace"
+            )
 
 
 @posterior_app.command(

@@ -29,6 +29,7 @@ Everything goes into ``posterior/calibration.json``, which a re-run reads back.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
@@ -40,6 +41,8 @@ from railsusp.estimate.posterior_data import cached_cases
 from railsusp.estimate.posterior_fusion import SectionSampler, from_logit, fused_samples, to_logit
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import read_json, write_json
+
+log = logging.getLogger(__name__)
 
 
 class Estimator(SectionSampler, Protocol):
@@ -152,12 +155,22 @@ def calibrate(
     path = folder / "calibration.json"
     if path.exists():
         data = read_json(path)
-        corr = data.get("correction")
-        return (
-            None if corr is None else SpreadCorrection.from_dict(corr),
-            [ParameterCalibration(**c) for c in data["parameters"]],
-            _read_products(data),
-        )
+        try:
+            corr = data.get("correction")
+            return (
+                None if corr is None else SpreadCorrection.from_dict(corr),
+                [ParameterCalibration(**c) for c in data["parameters"]],
+                _read_products(data),
+            )
+        except (AttributeError, KeyError, TypeError, ValueError) as exc:
+            # valid JSON of another content (another tool's file, a result written over
+            # it): a traceback on every later run before; the check is made again instead
+            log.warning(
+                "%s is not a calibration record (%s: %s); the check runs again",
+                path,
+                type(exc).__name__,
+                exc,
+            )
     s = est.settings
     names = list(s.parameters)
     record: dict = {"level": LEVEL}

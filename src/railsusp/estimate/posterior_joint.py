@@ -237,7 +237,7 @@ def train(runs, out: str | Path, sets=None, calibration="default") -> JointPoste
     runs = [str(Path(r).resolve()) for r in runs]
     target = Path(out).resolve()
     if (
-        str(target) in runs
+        any(target == Path(r) or Path(r) in target.parents for r in runs)  # or inside one
         or (target / "posterior" / "settings.json").exists()
         or (target / "posterior" / "synthetic").exists()
     ):

@@ -65,7 +65,10 @@ class PosteriorResult:
                     "lo90": sp.to_display(q[1]),
                     "hi90": sp.to_display(q[2]),
                     "width_pct_range": 100.0 * (q[2] - q[1]) / (hi - lo),
-                    "coverage_heldout": self.calibration[j].coverage,
+                    # no check applies beyond the checked numbers of sections: none shown
+                    "coverage_heldout": self.calibration[j].coverage
+                    if self.checked_as is not None
+                    else float("nan"),
                     "widening": self.correction.factors[j] if self.correction else 1.0,
                     "calibrated": self.calibration[j].passed
                     and p not in (self.correction.excessive if self.correction else [])

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from railsusp.conditions import WorkingCondition, make_condition
-from railsusp.errors import RailsuspInputError
+from railsusp.errors import RailsuspInputError, repeated_names
 from railsusp.estimate.statistic_families import (
     needs_partner,
     needs_partner_q,
@@ -74,6 +74,11 @@ class PosteriorSettings:
     condition_offset: int = 0
 
     def __post_init__(self) -> None:
+        dupes = repeated_names([c.name for c in self.conditions])
+        if dupes:  # recordings are matched by name: one would fill every slot of its name
+            raise RailsuspInputError(
+                f"conditions: names repeat ({', '.join(dupes)}); accepted distinct conditions"
+            )
         families = parse_families(self.statistics)
         if self.sum_y and "wheelset" in families:
             raise RailsuspInputError(

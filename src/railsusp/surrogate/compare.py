@@ -142,7 +142,9 @@ def compare(
             )
     table = pd.DataFrame(rows)
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_json(out_dir / "compare.json", table.to_dict(orient="records"))
+    # NaN (a statistic a kind does not give) as null: JSON has no NaN, strict parsers refuse it
+    records = table.astype(object).where(table.notna(), None).to_dict(orient="records")
+    write_json(out_dir / "compare.json", records)
     write_csv(out_dir / "compare.csv", table)  # last: the pipeline's mark of a finished stage
     return table
 

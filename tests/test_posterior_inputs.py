@@ -1,0 +1,71 @@
+"""The posterior commands' inputs and outputs (the docs audit of stop 58): a result written
+over an input, a joint posterior inside an estimator's folder, a condition given twice, a
+calibration record of another content, the last line of a training whose fused checks
+failed."""
+
+import json
+import logging
+
+import pytest
+from typer.testing import CliRunner
+
+from railsusp.cli import app
+from railsusp.conditions import get_condition
+from railsusp.errors import RailsuspInputError
+from railsusp.estimate.posterior_settings import PosteriorSettings
+
+runner = CliRunner()
+
+
+def test_an_estimate_is_not_written_over_its_inputs_or_a_foreign_file(tmp_path):
+    measured, estimator = tmp_path / "field", tmp_path / "runs" / "post"
+    (estimator / "posterior").mkdir(parents=True)
+    measured.mkdir()
+    (measured / "index.json").write_text('{"recordings": []}')
+    args = ["posterior", "estimate", "--measured", str(measured), "--estimator", str(estimator)]
+    for inside, option in (
+        (measured / "index.json", "--measured"),
+        (estimator / "posterior" / "calibration.json", "--estimator"),
+    ):
+        result = runner.invoke(app, [*args, "--out", str(inside)])
+        assert result.exit_code == 2, result.output
+        assert f"inside {option}" in result.output and "Traceback" not in result.output
+    mine = tmp_path / "notes.json"
+    mine.write_text('{"mine": 1}')
+    result = runner.invoke(app, [*args, "--out", str(mine)])
+    assert result.exit_code == 2 and "not a posterior result" in result.output
+    assert json.loads(mine.read_text()) == {"mine": 1}
+    assert (measured / "index.json").read_text() == '{"recordings": []}'
+
+
+def test_a_joint_posterior_is_not_put_inside_an_estimators_folder(tmp_path):
+    from railsusp.estimate import posterior_joint
+
+    a, b = tmp_path / "a", tmp_path / "b"
+    with pytest.raises(RailsuspInputError, match="an estimator's folder"):
+        posterior_joint.train([a, b], b / "posterior")
+
+
+def test_a_condition_given_twice_is_refused():
+    straight = get_condition("straight")
+    with pytest.raises(RailsuspInputError, match=r"conditions: names repeat \(straight\)"):
+        PosteriorSettings((straight, straight))
+
+
+def test_a_calibration_record_of_another_content_is_made_again(tmp_path, caplog):
+    """It was a KeyError traceback on every later estimate and train."""
+    from railsusp.estimate import posterior_check
+
+    (tmp_path / "calibration.json").write_text("{}")
+
+    class Remade(Exception):
+        pass
+
+    class Estimator:
+        @property
+        def settings(self):
+            raise Remade  # the check is being made again
+
+    with caplog.at_level(logging.WARNING), pytest.raises(Remade):
+        posterior_check.calibrate(Estimator(), tmp_path)
+    assert "is not a calibration record" in caplog.text
