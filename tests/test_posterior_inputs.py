@@ -69,3 +69,12 @@ def test_a_calibration_record_of_another_content_is_made_again(tmp_path, caplog)
     with caplog.at_level(logging.WARNING), pytest.raises(Remade):
         posterior_check.calibrate(Estimator(), tmp_path)
     assert "is not a calibration record" in caplog.text
+
+
+def test_product_cases_without_product_sections_is_refused(tmp_path):
+    result = runner.invoke(
+        app, ["posterior", "train", "--out", str(tmp_path / "p"), "--product-cases", "50"]
+    )
+    assert result.exit_code == 2, result.output
+    assert "--product-cases 50: counts the cases of --product-sections" in result.output
+    assert not (tmp_path / "p").exists()

@@ -204,6 +204,11 @@ def train_command(
     try:
         check_output_folder(out)
         _long_record(long_record)
+        if product_cases.strip() != "100" and not product_sections.strip():
+            raise RailsuspInputError(  # ignored before, silently
+                f"--product-cases {product_cases}: counts the cases of --product-sections, "
+                "which is not given; accepted with --product-sections"
+            )
         conds = resolve_conditions(conditions)
         if lead_in is not None:
             if not 0.0 <= lead_in <= 5000.0:
