@@ -78,3 +78,11 @@ def test_product_cases_without_product_sections_is_refused(tmp_path):
     assert result.exit_code == 2, result.output
     assert "--product-cases 50: counts the cases of --product-sections" in result.output
     assert not (tmp_path / "p").exists()
+
+
+def test_join_names_a_missing_estimator_folder(tmp_path):
+    from railsusp.estimate import posterior_joint
+
+    (tmp_path / "a").mkdir()
+    with pytest.raises(RailsuspInputError, match="nosuch: no such folder"):
+        posterior_joint.train([tmp_path / "a", tmp_path / "nosuch"], tmp_path / "joint")

@@ -245,6 +245,9 @@ def train(runs, out: str | Path, sets=None, calibration="default") -> JointPoste
             f"--out {out}: an estimator's folder; accepted a folder of its own for the joint "
             "posterior"
         )
+    missing = [r for r in runs if not Path(r).is_dir()]
+    if missing:
+        raise RailsuspInputError(f"--estimators: {missing[0]}: no such folder")
     parts = tuple(load_part(r) for r in runs)
     joint = JointPosterior(parts)
     sets = sets or held_out_sets(joint.settings)
