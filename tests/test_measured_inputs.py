@@ -20,9 +20,11 @@ from test_measured import make_recording
 from test_measured_run import MAP, write_mdf
 
 
-def _groups(path, *, sync_type=None, invalid=None, clip=None):
-    """The write_mdf run, rewritten with its groups' masters set to ``sync_type``, the
-    lateral force's samples ``invalid`` marked so (and zero there), or it clipped."""
+def _rewritten(path, change=None, extra=(), master=None):
+    """The write_mdf run at ``path``, written again: each channel through ``change(name,
+    time, values, unit) -> (values, unit, invalidation bits or None)``, ``extra`` groups
+    (lists of Signals) appended, every group's master set to ``master`` (a sync type, in
+    m) where given (a negative type: the last group's alone)."""
     src = MDF(write_mdf(path))
     out = MDF(version="4.10")
     for group in range(len(src.groups)):
@@ -30,26 +32,40 @@ def _groups(path, *, sync_type=None, invalid=None, clip=None):
         for sig in src.iter_channels(skip_master=True):
             if sig.group_index != group:
                 continue
-            values = sig.samples.copy()
-            bits = None
-            if sig.name == "Y_R" and invalid is not None:
-                bits = np.zeros(values.size, bool)
-                bits[invalid] = True
-                values[bits] = 0.0
-            if sig.name == "Y_R" and clip is not None:
-                values = np.clip(values, None, clip)
+            values, unit, bits = sig.samples.copy(), sig.unit, None
+            if change is not None:
+                values, unit, bits = change(sig.name, sig.timestamps, values, unit)
             sigs.append(
-                Signal(values, sig.timestamps, name=sig.name, unit=sig.unit, invalidation_bits=bits)
+                Signal(values, sig.timestamps, name=sig.name, unit=unit, invalidation_bits=bits)
             )
         out.append(sigs)
     src.close()
-    if sync_type is not None:
-        for g in out.groups:
-            g.channels[0].sync_type = sync_type
+    for group in extra:
+        out.append(group)
+    if master is not None:
+        for g in out.groups if master > 0 else out.groups[-1:]:
+            g.channels[0].sync_type = abs(master)
             g.channels[0].unit = "m"
     out.save(path, overwrite=True)
     out.close()
     return path
+
+
+def _groups(path, *, sync_type=None, invalid=None, clip=None):
+    """The write_mdf run with its masters set to ``sync_type``, the lateral force's samples
+    ``invalid`` marked so (and zero there), or it clipped."""
+
+    def change(name, t, values, unit):
+        bits = None
+        if name == "Y_R" and invalid is not None:
+            bits = np.zeros(values.size, bool)
+            bits[invalid] = True
+            values[bits] = 0.0
+        if name == "Y_R" and clip is not None:
+            values = np.clip(values, None, clip)
+        return values, unit, bits
+
+    return _rewritten(path, change, master=sync_type)
 
 
 def test_a_master_channel_of_distance_is_refused_not_read_as_time(tmp_path):
@@ -61,26 +77,10 @@ def test_a_master_channel_of_distance_is_refused_not_read_as_time(tmp_path):
 def test_an_unused_channel_on_a_distance_master_does_not_count(tmp_path):
     """The reviewer of stop 58: one group on a distance master made the whole file
     unreadable, though the channel map did not use it."""
-    src = MDF(write_mdf(tmp_path / "a.mf4"))
-    out = MDF(version="4.10")
-    for group in range(len(src.groups)):
-        out.append(
-            [
-                Signal(s.samples, s.timestamps, name=s.name, unit=s.unit)
-                for s in src.iter_channels(skip_master=True)
-                if s.group_index == group
-            ]
-        )
-    src.close()
     grid = np.arange(0.0, 300.0, 0.5)
-    out.append([Signal(1435.0 + 0 * grid, grid, name="gauge_mm", unit="mm")])
-    out.groups[-1].channels[0].sync_type = 3
-    out.groups[-1].channels[0].unit = "m"
-    out.save(tmp_path / "b.mf4", overwrite=True)
-    out.close()
-    run = read_run(
-        tmp_path / "b.mf4", channel_map_from({**MAP, "ignore": ["acc_bogie_y_g", "gauge_mm"]})
-    )
+    gauge = [Signal(1435.0 + 0 * grid, grid, name="gauge_mm", unit="mm")]
+    path = _rewritten(tmp_path / "b.mf4", extra=[gauge], master=-3)
+    run = read_run(path, channel_map_from({**MAP, "ignore": ["acc_bogie_y_g", "gauge_mm"]}))
     assert run.rate_hz == pytest.approx(200.0)
 
 
@@ -122,25 +122,11 @@ def test_a_long_run_below_the_minimum_rate_is_refused(tmp_path):
 
 
 def test_a_run_going_backwards_is_refused(tmp_path):
-    src = MDF(write_mdf(tmp_path / "a.mf4"))
-    out = MDF(version="4.10")
-    for group in range(len(src.groups)):
-        sigs = [
-            Signal(
-                -s.samples if s.name in ("v", "s") else s.samples,
-                s.timestamps,
-                name=s.name,
-                unit=s.unit,
-            )
-            for s in src.iter_channels(skip_master=True)
-            if s.group_index == group
-        ]
-        out.append(sigs)
-    src.close()
-    out.save(tmp_path / "back.mf4", overwrite=True)
-    out.close()
+    def backwards(name, t, values, unit):
+        return (-values if name in ("v", "s") else values), unit, None
+
     with pytest.raises(RecordingError, match="median speed -54 km/h, negative"):
-        read_run(tmp_path / "back.mf4", channel_map_from(MAP))
+        read_run(_rewritten(tmp_path / "back.mf4", backwards), channel_map_from(MAP))
 
 
 def test_a_saturated_force_channel_is_refused(tmp_path):
@@ -227,24 +213,15 @@ def test_a_map_unit_restating_the_files_in_another_spelling_is_accepted(tmp_path
 def test_a_run_that_stood_for_most_of_its_time_is_read(tmp_path):
     """A run standing 70 % of its time was refused ("median speed 0 km/h; the wagon does not
     run"); its standing stretches are for the cut to leave out."""
-    src = MDF(write_mdf(tmp_path / "a.mf4"))
-    out = MDF(version="4.10")
-    for group in range(len(src.groups)):
-        sigs = []
-        for s in src.iter_channels(skip_master=True):
-            if s.group_index != group:
-                continue
-            x = s.samples.copy()
-            if s.name == "v":
-                x = np.where(s.timestamps < 14.0, 0.0, x)
-            if s.name == "s":
-                x = 15.0 * np.clip(s.timestamps - 14.0, 0.0, None)
-            sigs.append(Signal(x, s.timestamps, name=s.name, unit=s.unit))
-        out.append(sigs)
-    src.close()
-    out.save(tmp_path / "stood.mf4", overwrite=True)
-    out.close()
-    run = read_run(tmp_path / "stood.mf4", channel_map_from(MAP))
+
+    def stood(name, t, values, unit):
+        if name == "v":
+            values = np.where(t < 14.0, 0.0, values)
+        if name == "s":
+            values = 15.0 * np.clip(t - 14.0, 0.0, None)
+        return values, unit, None
+
+    run = read_run(_rewritten(tmp_path / "stood.mf4", stood), channel_map_from(MAP))
     assert np.mean(run.speed < 0.5) > 0.6
 
 
@@ -279,22 +256,9 @@ def test_a_table_on_distance_at_varying_speed_is_put_on_time(tmp_path):
 
 
 def test_a_channel_name_in_two_groups_is_refused_only_where_it_is_used(tmp_path):
-    src = MDF(write_mdf(tmp_path / "a.mf4"))
     t = np.arange(0, 20, 1 / 200)
     for name in ("acc_bogie_y_g", "Y_R"):  # a second group holding the name again
-        out = MDF(version="4.10")
-        for group in range(len(src.groups)):
-            out.append(
-                [
-                    Signal(s.samples, s.timestamps, name=s.name, unit=s.unit)
-                    for s in src.iter_channels(skip_master=True)
-                    if s.group_index == group
-                ]
-            )
-        out.append([Signal(np.zeros(t.size), t, name=name, unit="kN")])
-        out.save(tmp_path / f"{name}.mf4", overwrite=True)
-        out.close()
-    src.close()
+        _rewritten(tmp_path / f"{name}.mf4", extra=[[Signal(0 * t, t, name=name, unit="kN")]])
     read_run(tmp_path / "acc_bogie_y_g.mf4", channel_map_from(MAP))  # ignored: read
     with pytest.raises(RecordingError, match="channel 'Y_R' appears in 2 groups"):
         read_run(tmp_path / "Y_R.mf4", channel_map_from(MAP))
@@ -313,25 +277,15 @@ def test_a_dropout_is_named_a_dropout_not_mixed_rates(tmp_path):
 
 
 def test_an_odometer_reset_is_no_unit_error_and_a_capital_kn_gets_its_hint(tmp_path):
-    src = MDF(write_mdf(tmp_path / "a.mf4"))
-    out = MDF(version="4.10")
-    for group in range(len(src.groups)):
-        sigs = []
-        for s in src.iter_channels(skip_master=True):
-            if s.group_index != group:
-                continue
-            x, unit = s.samples, s.unit
-            if s.name == "s":
-                x = np.mod(x, 100.0)  # the odometer resets every 100 m
-            if s.name == "Q_R":
-                x, unit = x * 1e3, "KN"  # in N, stated as KN
-            sigs.append(Signal(x, s.timestamps, name=s.name, unit=unit))
-        out.append(sigs)
-    src.close()
-    out.save(tmp_path / "b.mf4", overwrite=True)
-    out.close()
+    def reset(name, t, values, unit):
+        if name == "s":
+            return np.mod(values, 100.0), unit, None  # the odometer resets every 100 m
+        if name == "Q_R":
+            return values * 1e3, "KN", None  # in N, stated as KN
+        return values, unit, None
+
     with pytest.raises(RecordingError) as info:
-        read_run(tmp_path / "b.mf4", channel_map_from(MAP))
+        read_run(_rewritten(tmp_path / "b.mf4", reset), channel_map_from(MAP))
     assert "the values look like N, not KN" in str(info.value)
     assert "a unit error in one" not in str(info.value)  # the resets: not travel
 
