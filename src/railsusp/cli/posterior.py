@@ -204,7 +204,7 @@ def train_command(
     try:
         check_output_folder(out)
         _long_record(long_record)
-        if product_cases.strip() != "100" and not product_sections.strip():
+        if _product_cases(product_cases) != {"n_product": 100} and not product_sections.strip():
             raise RailsuspInputError(  # ignored before, silently
                 f"--product-cases {product_cases}: counts the cases of --product-sections, "
                 "which is not given; accepted with --product-sections"
