@@ -220,6 +220,14 @@ def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
     assert tab[tab.model == "rbf"]["relative_error_of_mean_network_alone"].isna().all()
     bad = runner.invoke(app, ["compare", str(run), "--models", "svm"])
     assert bad.exit_code == 2 and "svm" in bad.output
+    trained = runner.invoke(
+        app,
+        ["train", str(run), "--model", "bp", "--epochs", "1", "--batches-per-epoch", "2",
+         "--batch-size", "32"],
+    )  # fmt: skip
+    assert trained.exit_code == 0, trained.output
+    held = tab[tab.model == "bp"]["test_tracks"].iloc[0]  # the docs audit of stop 58
+    assert f"on {int(held)} distinct track(s)" in trained.output
     field = tmp_path / "field"
     result = runner.invoke(
         app,

@@ -168,6 +168,7 @@ def train(
             fail(error)
         data = load_series(camp, cond, sur.spec)
         test = data.subset(np.flatnonzero(np.isin(data.sample_ids, sur.meta["test_ids"])))
+        tracks = len(np.unique(test.seeds))
         pred, raw = predict_with_alone(sur, test)
         sim = test.targets.astype(float)
         alone = None if raw is None else accuracy(sim, raw, sur.spec.targets, sur.spec.window)
@@ -191,8 +192,8 @@ def train(
 
     held = sur.meta.get("split", {})
     console.print(
-        f"test runs hold out {held.get('held_out', 'parameter sets')} "
-        f"(split {split_path(run, held.get('seed', 0))})",
+        f"test runs hold out {held.get('held_out', 'parameter sets')}, on {tracks} distinct "
+        f"track(s) (split {split_path(run, held.get('seed', 0))})",
         highlight=False,
     )
     console.print(f"saved under {run / 'surrogates' / model}")
