@@ -222,12 +222,20 @@ def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
     assert bad.exit_code == 2 and "svm" in bad.output
     trained = runner.invoke(
         app,
-        ["train", str(run), "--model", "bp", "--epochs", "1", "--batches-per-epoch", "2",
+        ["train", str(run), "--model", "bp", "--epochs", "1", "--batches-per-epoch", "3",
          "--batch-size", "32"],
     )  # fmt: skip
     assert trained.exit_code == 0, trained.output
     held = tab[tab.model == "bp"]["test_tracks"].iloc[0]  # the docs audit of stop 58
     assert f"on {int(held)} distinct track(s)" in trained.output
+    assert "replacing the network" not in trained.output  # compare's bp: the same settings
+    again = runner.invoke(
+        app,
+        ["train", str(run), "--model", "bp", "--epochs", "2", "--batches-per-epoch", "3",
+         "--batch-size", "32"],
+    )  # fmt: skip
+    assert again.exit_code == 0, again.output
+    assert "note: replacing the network in" in again.output and "epochs 1 -> 2" in again.output
     field = tmp_path / "field"
     result = runner.invoke(
         app,

@@ -46,6 +46,28 @@ def _train_config(epochs, batches_per_epoch, batch_size, device, seed, fine_tune
     )
 
 
+def _note_replaced(folder: Path, settings: dict, window: int | None) -> None:
+    """Say so where the training replaces a saved network of other settings (a rerun with
+    the same settings resumes, and says nothing): nothing but the printed line tells the
+    user that the network read before is gone."""
+    from railsusp.store import read_json
+
+    try:
+        doc = read_json(folder / "surrogate.json")
+        before = dict(doc["meta"].get("train_config") or {})
+        before["window"] = doc["net"].get("window")
+    except (OSError, RailsuspInputError, AttributeError, KeyError, TypeError):
+        return  # none saved, or one that does not read: training writes it anew
+    settings = {**settings, "window": window} if window is not None else settings
+    changed = sorted(k for k in settings if k in before and before[k] != settings[k])
+    if changed:
+        console.print(
+            f"note: replacing the network in {folder}, trained with other settings "
+            f"({', '.join(f'{k} {before[k]} -> {settings[k]}' for k in changed)})",
+            highlight=False,
+        )
+
+
 @app.command()
 def train(
     run: Annotated[Path, typer.Argument(help="campaign run directory")],
@@ -140,6 +162,8 @@ def train(
         table.add_column(col, justify="left" if col in ("condition", "force") else "right")
     for cond in conds:
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+
+        _note_replaced(run / "surrogates" / model / cond, tcfg.to_dict(), window)
 
         with Progress(
             TextColumn(f"{cond} {model}"),
