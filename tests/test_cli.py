@@ -220,21 +220,14 @@ def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
     assert tab[tab.model == "rbf"]["relative_error_of_mean_network_alone"].isna().all()
     bad = runner.invoke(app, ["compare", str(run), "--models", "svm"])
     assert bad.exit_code == 2 and "svm" in bad.output
-    trained = runner.invoke(
-        app,
-        ["train", str(run), "--model", "bp", "--epochs", "1", "--batches-per-epoch", "3",
-         "--batch-size", "32"],
-    )  # fmt: skip
-    assert trained.exit_code == 0, trained.output
+    bp = ["--model", "bp", "--batches-per-epoch", "3", "--batch-size", "32"]  # compare's
+    trained, again = (
+        runner.invoke(app, ["train", str(run), *bp, "--epochs", n]) for n in ("1", "2")
+    )
+    assert trained.exit_code == 0 and again.exit_code == 0, trained.output + again.output
     held = tab[tab.model == "bp"]["test_tracks"].iloc[0]  # the docs audit of stop 58
     assert f"on {int(held)} distinct track(s)" in trained.output
     assert "replacing the network" not in trained.output  # compare's bp: the same settings
-    again = runner.invoke(
-        app,
-        ["train", str(run), "--model", "bp", "--epochs", "2", "--batches-per-epoch", "3",
-         "--batch-size", "32"],
-    )  # fmt: skip
-    assert again.exit_code == 0, again.output
     assert "note: replacing the network in" in again.output and "epochs 1 -> 2" in again.output
     field = tmp_path / "field"
     result = runner.invoke(
