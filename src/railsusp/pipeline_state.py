@@ -67,15 +67,13 @@ def run_state(out: Path, option: str) -> dict:
                 "new or empty folder, or a railsusp run directory to resume"
             )
         return {"stages": {}}
-    try:
-        return read_run_state(out, f"{option} {out}", "; give a new or empty folder")
-    except RailsuspInputError as exc:
-        if "not a railsusp run's" in str(exc):
-            raise
-        raise RailsuspInputError(  # damaged (a full disk, a copy cut short): say the remedy
-            f"{exc}; delete it to resume: a run directory without pipeline.json resumes from "
-            "its stages' outputs"
-        ) from None
+    return read_run_state(
+        out,
+        f"{option} {out}",
+        "; give a new or empty folder",
+        damaged="; delete it to resume: a run directory without pipeline.json resumes from "
+        "its stages' outputs",
+    )
 
 
 @contextmanager
@@ -111,10 +109,17 @@ def run_lock(out: Path, option: str) -> Iterator[None]:
             fcntl.flock(fh, fcntl.LOCK_UN)
 
 
-def read_run_state(out: Path, where: str, hint: str = "") -> dict:
+def read_run_state(out: Path, where: str, hint: str = "", damaged: str = "") -> dict:
     """The ``pipeline.json`` of the run directory ``out``; one that is not a railsusp run's
-    (no table of stages) is a one-line error naming ``where``, ``hint`` appended."""
-    state = read_json(out / "pipeline.json")
+    (no table of stages) is a one-line error naming ``where``, ``hint`` appended; one that
+    does not read (a full disk, a copy cut short) is :func:`~railsusp.store.read_json`'s
+    error, ``damaged`` (the remedy) appended."""
+    try:
+        state = read_json(out / "pipeline.json")
+    except RailsuspInputError as exc:
+        if not damaged:
+            raise
+        raise RailsuspInputError(f"{exc}{damaged}") from None
     if not isinstance(state, dict) or not isinstance(state.get("stages"), dict):
         raise RailsuspInputError(
             f"{where}: its pipeline.json is not a railsusp run's (no stages table){hint}"
