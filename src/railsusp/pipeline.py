@@ -100,63 +100,78 @@ def run_pipeline(
     check_cuda(config, "configuration", surrogate_done=done)
     out.mkdir(parents=True, exist_ok=True)
     with run_lock(out, out_option):  # one run at a time in a folder
-        state = run_state(out, out_option)  # again: another run may have ended meanwhile
-        state_path = out / "pipeline.json"
-        state["config"] = config.model_dump(mode="json")
-        # the verdicts' tolerances as the run read them: open_run judges with these, not with
-        # whatever wagon file a relative path names from its own working folder
-        state["tolerances"] = read_tolerances(config.wagon).to_dict()
-        forced = STAGES.index(start_from) if start_from else len(STAGES)
-        upstream: dict[str, str] = {}
-        runners = _stage_runners(config, out, run_progress)
-        for i, stage in enumerate(STAGES):
-            section = _section(config, stage)
-            h = content_hash({"section": section, "upstream": upstream, "stage": stage})
-            prev = state["stages"].get(stage, {})
-            up_to_date = (
-                prev.get("hash") == h
-                and prev.get("state") == "done"
-                and i < forced
-                and outputs_exist(config, out, stage, prev.get("files"))
-            )
-            if up_to_date:
-                log.debug("stage %s: up to date", stage)
-                if progress:
-                    progress(stage, "up to date")
-            else:
-                log.debug("stage %s: running", stage)
-                if progress:
-                    progress(stage, "running")
-                t0 = time.perf_counter()
-                state["stages"][stage] = {"hash": h, "state": "running"}
-                _mark_later_stale(state, stage)
+        # read again under the lock: another run may have ended meanwhile
+        return _run_stages(
+            config, out, run_state(out, out_option), start_from, progress, run_progress
+        )
+
+
+def _run_stages(
+    config: PipelineConfig,
+    out: Path,
+    state: dict,
+    start_from: str | None,
+    progress: Callable[[str, str], None] | None,
+    run_progress: Callable[[int, int], None] | None,
+) -> dict:
+    """:func:`run_pipeline`'s stages in order on the run directory ``out`` whose
+    ``pipeline.json`` is ``state`` (its lock held), the up-to-date ones skipped."""
+    state_path = out / "pipeline.json"
+    state["config"] = config.model_dump(mode="json")
+    # the verdicts' tolerances as the run read them: open_run judges with these, not with
+    # whatever wagon file a relative path names from its own working folder
+    state["tolerances"] = read_tolerances(config.wagon).to_dict()
+    forced = STAGES.index(start_from) if start_from else len(STAGES)
+    upstream: dict[str, str] = {}
+    runners = _stage_runners(config, out, run_progress)
+    for i, stage in enumerate(STAGES):
+        section = _section(config, stage)
+        h = content_hash({"section": section, "upstream": upstream, "stage": stage})
+        prev = state["stages"].get(stage, {})
+        up_to_date = (
+            prev.get("hash") == h
+            and prev.get("state") == "done"
+            and i < forced
+            and outputs_exist(config, out, stage, prev.get("files"))
+        )
+        if up_to_date:
+            log.debug("stage %s: up to date", stage)
+            if progress:
+                progress(stage, "up to date")
+        else:
+            log.debug("stage %s: running", stage)
+            if progress:
+                progress(stage, "running")
+            t0 = time.perf_counter()
+            state["stages"][stage] = {"hash": h, "state": "running"}
+            _mark_later_stale(state, stage)
+            write_json(state_path, state)
+            try:
+                info = runners[stage]() or {}
+            except Exception as exc:
+                log.info("stage %s: failed after %.1f s", stage, time.perf_counter() - t0)
+                state["stages"][stage] = {"hash": h, "state": "failed", "error": str(exc)}
                 write_json(state_path, state)
-                try:
-                    info = runners[stage]() or {}
-                except Exception as exc:
-                    log.info("stage %s: failed after %.1f s", stage, time.perf_counter() - t0)
-                    state["stages"][stage] = {"hash": h, "state": "failed", "error": str(exc)}
-                    write_json(state_path, state)
-                    raise StageError(
-                        f"stage {stage!r} failed: {exc}. Earlier stages are kept; fix the cause "
-                        f"and run the same command again (or --from {stage})"
-                        + blame(config, out, stage, str(exc))
-                    ) from exc
-                state["stages"][stage] = {
-                    "hash": h,
-                    "state": "done",
-                    "info": info,
-                    "seconds": time.perf_counter() - t0,
-                    "finished": provenance()["utc"],
-                    "files": file_sizes(stage_files(config, out, stage), out),
-                }
-                write_json(state_path, state)
-                log.info("stage %s: done in %.1f s", stage, state["stages"][stage]["seconds"])
-                forced = min(forced, i + 1)  # everything downstream reruns
-            upstream[stage] = h
-        state["provenance"] = provenance()
-        write_json(state_path, state)
-        return state
+                raise StageError(
+                    f"stage {stage!r} failed: {exc}. Earlier stages are kept; fix the cause "
+                    f"and run the same command again (or --from {stage})"
+                    + blame(config, out, stage, str(exc))
+                ) from exc
+            state["stages"][stage] = {
+                "hash": h,
+                "state": "done",
+                "info": info,
+                "seconds": time.perf_counter() - t0,
+                "finished": provenance()["utc"],
+                "files": file_sizes(stage_files(config, out, stage), out),
+            }
+            write_json(state_path, state)
+            log.info("stage %s: done in %.1f s", stage, state["stages"][stage]["seconds"])
+            forced = min(forced, i + 1)  # everything downstream reruns
+        upstream[stage] = h
+    state["provenance"] = provenance()
+    write_json(state_path, state)
+    return state
 
 
 def _mark_later_stale(state: dict, stage: str) -> None:
