@@ -25,6 +25,7 @@ from railsusp.measured.line import (  # noqa: F401  (the sources of a cut, with 
     read_section_table,
 )
 from railsusp.measured.run import MeasuredRun
+from railsusp.vehicle.simulate import WHEEL_NAMES, outer_wheel_index
 
 #: the smallest curve radius of a working condition (its ``curve_radius_m`` bound), m
 MIN_RADIUS_M: float = next(
@@ -231,12 +232,6 @@ def _describe(pieces: tuple[tuple[str, str, float, float], ...]) -> str:
     return "; ".join(out)
 
 
-def _outer_wheel(direction: str) -> str:
-    """The leading wheelset's outer wheel in a curve of ``direction``: the wheel the model
-    compares there (:func:`~railsusp.vehicle.simulate.measured_wheel_index`)."""
-    return "w1R" if direction == "left" else "w1L"
-
-
 def _pieces(
     run: MeasuredRun, geo: dict, a: int, b: int, rules: SectionRules, name: str | None
 ) -> list[Section]:
@@ -316,8 +311,10 @@ def _section(
     elif length < rules.min_length_m:
         why = " (speed varies beyond the tolerance)" if split else ""
         piece = ("short", f"{sec.kind}|{rules.min_length_m:g}|{why}")
-    elif radius is not None and _outer_wheel(sec.direction) not in run.wheels:
-        outer = _outer_wheel(sec.direction)  # what the model compares in a curve
+    elif (
+        radius is not None
+        and (outer := WHEEL_NAMES[outer_wheel_index(sec.direction)]) not in run.wheels
+    ):
         piece = ("wheel", f"{sec.direction}-hand curve: its outer wheel {outer}, the one "
                  "compared, is not recorded")  # fmt: skip
     else:

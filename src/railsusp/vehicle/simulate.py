@@ -68,6 +68,12 @@ _STATISTIC = {
 }
 
 
+def outer_wheel_index(curve_direction: str) -> int:
+    """Index of the leading wheelset's outer wheel in a curve of ``curve_direction`` (left
+    or right): the wheel 'auto' measures there (w1R in a left-hand curve)."""
+    return 1 if curve_direction == "left" else 0
+
+
 def measured_wheel_index(condition: WorkingCondition, which: str | int = "auto") -> int:
     """Index 0..7 of the measured wheel: 'auto' = leading wheelset, outer wheel in a curve
     (left wheel on tangent); or a name like 'w1R' or an index."""
@@ -84,7 +90,7 @@ def measured_wheel_index(condition: WorkingCondition, which: str | int = "auto")
     if which == "auto":
         if condition.curve_radius_m is None:
             return 0
-        return 1 if condition.curve_direction == "left" else 0
+        return outer_wheel_index(condition.curve_direction)
     if which not in WHEEL_NAMES:
         raise RailsuspInputError(
             f"measured wheel {which!r} unknown; accepted 'auto' or {', '.join(WHEEL_NAMES)}"
