@@ -11,7 +11,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -71,17 +71,10 @@ class SolverSettings:
     run_in_m: float = 60.0
 
     def __post_init__(self):
-        for name in (
-            "max_step",
-            "flange_margin",
-            "flange_split_speed",
-            "anti_alias",
-            "penetration_max",
-            "lift_max",
-            "track_step",
-            "run_in_m",
-        ):  # text or None would fail the range checks below with a TypeError
-            value = getattr(self, name)
+        for f in fields(self):  # text or None would fail the range checks below (TypeError)
+            if f.type != "float":  # annotations are text (from __future__ import annotations)
+                continue
+            name, value = f.name, getattr(self, f.name)
             if not is_real(value) or not math.isfinite(value):
                 raise RailsuspInputError(f"{name} = {value!r}: accepted a finite number (SI)")
         for name in ("flange_substeps", "filter_order"):  # counts stored as floats in configs
