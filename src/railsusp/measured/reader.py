@@ -168,9 +168,10 @@ def read_recording(
             problems += check_forces(si["Y"], si["Q"], (chans["Y"], chans["Q"]), units, wl, 2)
             Y[w], Q[w] = si["Y"] / 1e3, si["Q"] / 1e3
     problems = [p.replace("channel '", "column '") for p in problems]
-    if meta and not time_problems and t.size > 1:
+    # the table's rate, where its time base is sound: the sidecar's rate and record against it
+    rate = 1.0 / float(np.median(np.diff(t))) if not time_problems and t.size > 1 else None
+    if meta and rate is not None:
         stated = meta.get("sampling_rate_hz")
-        rate = 1.0 / float(np.median(np.diff(t)))
         if isinstance(stated, bool) or not isinstance(stated, (int, float, type(None))):
             problems.append(f"sidecar sampling_rate_hz: {stated!r} is not a number")
         elif stated is not None and not (math.isfinite(stated) and stated > 0):
@@ -188,9 +189,9 @@ def read_recording(
                 f"sidecar wheels {side_wheels}, the table's force columns {list(cmap.wheels)}"
             )
     condition = _condition(meta, table_path, problems, axle_spread(wagon)) if meta else None
-    if condition is not None and not time_problems and t.size > 1:
+    if condition is not None and rate is not None:
         condition = _on_the_table(
-            condition, meta, t, table_path.with_suffix(".json").name, problems
+            condition, meta, t.size, rate, table_path.with_suffix(".json").name, problems
         )
     if problems:
         raise RecordingError(table_path, problems)
@@ -201,15 +202,20 @@ def read_recording(
 
 
 def _on_the_table(
-    condition: WorkingCondition, meta: dict, t: np.ndarray, side: str, problems: list[str]
+    condition: WorkingCondition,
+    meta: dict,
+    rows: int,
+    rate: float,
+    side: str,
+    problems: list[str],
 ) -> WorkingCondition | None:
-    """The sidecar's condition against the table it describes: its ``duration_s`` must be
-    the table's (its ``n_steps`` may sample it at another rate), since the estimate simulates
-    the condition's record and compares it with the table (a 4 s condition on a 1 s table
-    compared 4 s of simulation with 1 s of measurement, silently). A condition that states
-    neither (the documented sidecar's), or a standard one named by ``condition_name``,
-    takes the table's record (before, the default 20 s of 1000 steps, whatever the table)."""
-    rows, rate = t.size, 1.0 / float(np.median(np.diff(t)))
+    """The sidecar's condition against the table it describes (``rows`` at ``rate`` Hz):
+    its ``duration_s`` must be the table's (its ``n_steps`` may sample it at another rate),
+    since the estimate simulates the condition's record and compares it with the table (a
+    4 s condition on a 1 s table compared 4 s of simulation with 1 s of measurement,
+    silently). A condition that states neither (the documented sidecar's), or a standard
+    one named by ``condition_name``, takes the table's record (before, the default 20 s of
+    1000 steps, whatever the table)."""
     duration = rows / rate
     doc = meta.get("condition")
     if not (isinstance(doc, dict) and ("duration_s" in doc or "n_steps" in doc)):
