@@ -397,6 +397,28 @@ def test_a_truncated_mdf_file_is_one_error_and_nothing_on_stderr(tmp_path):
     assert "Exception ignored" not in done.stderr and "Traceback" not in done.stderr
 
 
+def test_a_damaged_mdf_file_names_where_it_breaks_and_what_to_do(tmp_path):
+    """Bytes overwritten inside an MDF4 file: asammdf fails on a block it cannot find
+    (``KeyError: (2, 1)``, which the error used to show alone: "cannot read its channels
+    ((2, 1))"); the one line now says the file is damaged, after which channel, and what to
+    do. A truncated file says it may be truncated."""
+    from railsusp.measured.raw import read_raw
+
+    whole = (resources.files("railsusp") / "data" / "example_run.mf4").read_bytes()
+    for at, where in ((1000, "its first channel"), (570000, "the channel after 'track_grade'")):
+        bad = bytearray(whole)
+        bad[at : at + 64] = b"\xff" * 64  # a block's links overwritten
+        (tmp_path / "bad.mf4").write_bytes(bytes(bad))
+        with pytest.raises(RailsuspInputError) as err:
+            read_raw(tmp_path / "bad.mf4")
+        text = str(err.value)
+        assert f"damaged MDF file: cannot read {where}" in text and "KeyError" in text
+        assert text.endswith("export it again from the logger") and "\n" not in text
+    (tmp_path / "cut.mf4").write_bytes(whole[: len(whole) // 2])
+    with pytest.raises(RailsuspInputError, match="truncated or damaged; copy it again"):
+        read_raw(tmp_path / "cut.mf4")
+
+
 def test_a_run_against_the_km_posts_gives_positive_lengths_and_a_radius_below_50_m_is_left_out():
     """Stop 53's fuzzing: a decreasing distance gave a section of -2000 m in the table, and a
     curvature of 1000 1/km (R1, a unit slip) was cut as a kept 'curve R1'."""

@@ -158,6 +158,11 @@ def test_statistics_beyond_the_en14363_summary_are_read_through_their_projection
     assert five.likelihood.projection.shape == (5, 68) and check.read_bytes() != before
     back = synthetic.load(tmp_path)
     assert back.settings.projection_rank == 5 and back.likelihood.projection.shape == (5, 68)
+    # a rank above the number of statistics is said, and all of them are kept
+    with pytest.warns(UserWarning, match=r"projection_rank \(--projection-rank\) 100 is more "
+                      r"than the 68 statistics"):  # fmt: skip
+        every = synthetic.train(replace(s, projection_rank=100), tmp_path)
+    assert every.likelihood.projection.shape == (68, 68)
     # a projection that is not the checked one (an interrupted training) is refused
     path = tmp_path / "posterior" / "synthetic" / "projection.npz"
     with np.load(path) as z:

@@ -107,6 +107,14 @@ def fit_projection(settings: PosteriorSettings, emulator: StatisticsEmulator, ru
                         settings.n_train)  # fmt: skip
     base = likelihood(settings, emulator)
     rank = settings.projection_rank
+    if rank > emulator.dim:
+        warnings.warn(
+            f"posterior: projection_rank (--projection-rank) {rank} is more than the "
+            f"{emulator.dim} statistics there are; {emulator.dim} combinations are used "
+            f"(accepted: 1 to {emulator.dim} for these statistics)",
+            stacklevel=2,
+        )
+        rank = emulator.dim
     matrix, kept = informative_projection(base, u[:PROJECTION_CASES], k, rank)
     buf = io.BytesIO()
     np.savez(buf, matrix=matrix, kept=np.array(kept), stamp=np.array(stamp))

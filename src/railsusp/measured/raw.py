@@ -65,8 +65,10 @@ def _read_mdf(path: Path) -> dict[str, RawChannel]:
     """Channels of an MDF file, each on its own group's time base (as the file states it)."""
     mdf = _open_mdf(path)
     out: dict[str, RawChannel] = {}
+    last = None  # the last channel read whole, to say where a damaged file breaks
     try:
         for sig in mdf.iter_channels(skip_master=True):
+            last = sig
             if sig.samples.dtype.kind not in "fiub" or sig.samples.ndim != 1:
                 continue  # text, byte-array and composed channels carry no measured value
             if sig.name in out:  # refused where the channel map uses it (read_run)
@@ -89,12 +91,34 @@ def _read_mdf(path: Path) -> dict[str, RawChannel]:
     except RailsuspInputError:
         raise
     except Exception as exc:
-        raise RailsuspInputError(f"recording {path}: cannot read its channels ({exc})") from None
+        where = (
+            "its first channel"
+            if last is None
+            else f"the channel after {last.name!r} (data group {last.group_index})"
+        )
+        raise RailsuspInputError(
+            f"recording {path}: damaged MDF file: cannot read {where} ({_reason(exc)}); "
+            f"{DAMAGED_REMEDY}"
+        ) from None
     finally:
         mdf.close()
     if not out:
         raise RailsuspInputError(f"recording {path}: no numeric channel in the file")
     return out
+
+
+#: what to do with an MDF file whose blocks do not hold together (a truncated copy, an
+#: interrupted logger write, a transfer that changed bytes): the one-line errors end with it
+DAMAGED_REMEDY = "copy it again, or export it again from the logger"
+
+
+def _reason(exc: Exception) -> str:
+    """asammdf's exception as a reader can place it: its type where the text alone is a
+    bare key such as ``(0, 1)`` (a block index asammdf did not find)."""
+    text = str(exc)
+    if isinstance(exc, OSError | ValueError) and text:
+        return text
+    return f"{type(exc).__name__}: {text}"
 
 
 #: MDF4 master channels' sync types (ASAM MDF 4.x, cn_sync_type): the samples are on time
@@ -140,7 +164,10 @@ def _open_mdf(path: Path) -> Any:
         try:
             return MDF(str(path))
         except Exception as exc:  # asammdf raises many types on a damaged file
-            message = f"recording {path}: not a readable MDF file ({exc})"
+            message = (
+                f"recording {path}: not a readable MDF file ({_reason(exc)}): not MDF, "
+                f"or truncated or damaged; {DAMAGED_REMEDY}"
+            )
         with warnings.catch_warnings():  # its file, left open by asammdf: not the user's
             warnings.simplefilter("ignore", ResourceWarning)
             gc.collect()  # the half-built object's __del__ runs now, under the hook
