@@ -4,6 +4,8 @@ minutes or microseconds read as seconds, a 2 Hz run upsampled into 50 Hz section
 going backwards, a saturated amplifier, a field table whose columns start with the wheel
 the model does not compare; and a section too short for the EN 14363 filter."""
 
+import re
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -253,6 +255,29 @@ def test_a_table_on_distance_at_varying_speed_is_put_on_time(tmp_path):
     assert np.ptp(np.diff(back.time)) < 1e-9  # uniform
     assert back.sampling_rate == pytest.approx(rate, rel=0.02)
     assert np.abs(back.Y["w1L"] - force(back.time)).max() < 0.05
+
+
+def test_a_distance_tables_problems_name_the_files_lines_not_resampled_samples(tmp_path):
+    """A table on ``distance_m`` is put on time before its checks; their messages counted
+    the resampled samples (rows 1250-1251 for a fault at file lines 951-952: 150 km/h, then
+    60 km/h, sampled for 60 km/h), now the file's lines nearest to them."""
+    t = np.arange(0.0, 20.0, 1 / 50)
+    v = np.where(t < 6.0, 41.7, 16.7)  # 150 km/h, then 60 km/h, sampled every 0.334 m
+    s = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+    grid = np.arange(0.0, s[-1], 16.7 / 50)
+    tg = np.interp(grid, s, t)
+    y = 5.0 + np.sin(tg)
+    fault = np.flatnonzero(tg > 10.0)[0]  # 12.5 m/s after the change: about 300 lines in
+    y[fault : fault + 2] = np.inf
+    make_recording().write(tmp_path / "d.csv")
+    frame = {"distance_m": grid, "speed_kmh": 3.6 * np.interp(tg, t, v), "Y_w1L_kN": y}
+    pd.DataFrame({**frame, "Q_w1L_kN": 120.0 + 0 * tg}).to_csv(tmp_path / "d.csv", index=False)
+    with pytest.raises(RecordingError) as info:
+        read_recording(tmp_path / "d.csv")
+    found = re.search(r"column 'Y_w1L_kN', rows? (\d+)(?:-(\d+))?: infinite", str(info.value))
+    assert found, str(info.value)
+    first, last = int(found[1]), int(found[2] or found[1])
+    assert first - 1 <= fault + 2 and last + 1 >= fault + 3  # file line = index + 2
 
 
 def test_a_channel_name_in_two_groups_is_refused_only_where_it_is_used(tmp_path):

@@ -30,11 +30,16 @@ MAX_LATERAL_N = 300e3
 MAX_VERTICAL_N = 600e3
 
 
-def rows(i: int, j: int, first_row: int) -> str:
+def rows(i: int, j: int, first_row: int | np.ndarray) -> str:
     """Row range text of samples i..j (inclusive): file lines when ``first_row`` > 0
-    (tables: the header is line 1), sample indices for MDF."""
-    word = "rows" if first_row else "samples"
-    a, b = i + first_row, j + first_row
+    (tables: the header is line 1), sample indices for MDF. ``first_row`` may also be the
+    file line of each sample (a table resampled onto another base: ``distance_m`` tables
+    put on time), so that a message still names the lines to look at."""
+    if isinstance(first_row, np.ndarray):
+        word, a, b = "rows", int(first_row[i]), int(first_row[j])
+    else:
+        word = "rows" if first_row else "samples"
+        a, b = i + first_row, j + first_row
     return f"{word} {a}-{b}" if b > a else f"{word[:-1]} {a}"
 
 
@@ -45,7 +50,7 @@ def runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def check_finite(
-    x: np.ndarray, channel: str, first_row: int, gap_limit: int = MAX_GAP_SAMPLES
+    x: np.ndarray, channel: str, first_row: int | np.ndarray, gap_limit: int = MAX_GAP_SAMPLES
 ) -> tuple[np.ndarray, list[str], list[str]]:
     """(values with short NaN gaps interpolated, problems, notes)."""
     problems: list[str] = []
@@ -120,7 +125,9 @@ def check_clipped(x: np.ndarray, channel: str, unit: str = "") -> list[str]:
     return out
 
 
-def check_time(t: np.ndarray, channel: str, first_row: int, min_samples: int = 10) -> list[str]:
+def check_time(
+    t: np.ndarray, channel: str, first_row: int | np.ndarray, min_samples: int = 10
+) -> list[str]:
     """Time base of a channel: enough samples, finite, strictly increasing, one rate."""
     if t.size < min_samples:
         return [f"channel {channel!r}: {t.size} sample(s); at least {min_samples} are needed"]
@@ -172,7 +179,7 @@ def check_forces(
     names: tuple[str, str],
     units: tuple[str, str],
     static_wheel_load_N: float,
-    first_row: int,
+    first_row: int | np.ndarray,
 ) -> list[str]:
     """Magnitudes of one wheel's Y and Q (N): the median Q against the static wheel load of
     the wagon data (a unit the magnitude contradicts), and the physical bounds."""

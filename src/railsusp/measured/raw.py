@@ -31,7 +31,9 @@ class RawChannel:
     unit: str | None
     time: np.ndarray
     values: np.ndarray
-    first_row: int = 2  # the file line (tables) of the first sample, for messages
+    #: the file line (tables) of the first sample, for messages; or of each sample, where
+    #: the table was resampled (:func:`railsusp.measured.checks.rows`)
+    first_row: int | np.ndarray = 2
     groups: int = 1  # MDF: how many groups hold a channel of this name (used: refused)
     master: str | None = None  # MDF: what its group's master is where not time in s
 

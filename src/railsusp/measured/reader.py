@@ -132,7 +132,8 @@ def read_recording(
         else:
             notes.append(f"column {c!r} not used")
     t = next(iter(raw.values())).time if raw else np.zeros(0)
-    time_problems = check_time(t, "time_s", 2)
+    lines = next(iter(raw.values())).first_row if raw else 2  # file lines, for messages
+    time_problems = check_time(t, "time_s", lines)
     problems += time_problems
     if not time_problems and 1.0 / np.median(np.diff(t)) < min_rate_hz * (1.0 - 1e-6):
         problems.append(
@@ -158,14 +159,14 @@ def read_recording(
             except RailsuspInputError as exc:
                 problems.append(str(exc).replace("channel", "column", 1))
                 continue
-            x, p, n = check_finite(ch.values, col, 2)
+            x, p, n = check_finite(ch.values, col, lines)
             problems += p
             notes += n
             problems += check_flat(x, col) + check_clipped(x, col, ch.unit or "")
             si[f] = x * factor
         if len(si) == 2:
             units = (raw[chans["Y"]].unit or "", raw[chans["Q"]].unit or "")
-            problems += check_forces(si["Y"], si["Q"], (chans["Y"], chans["Q"]), units, wl, 2)
+            problems += check_forces(si["Y"], si["Q"], (chans["Y"], chans["Q"]), units, wl, lines)
             Y[w], Q[w] = si["Y"] / 1e3, si["Q"] / 1e3
     problems = [p.replace("channel '", "column '") for p in problems]
     # the table's rate, where its time base is sound: the sidecar's rate and record against it
@@ -280,9 +281,11 @@ def _on_time(raw: dict, distance: np.ndarray, speed: np.ndarray) -> dict:
     dt = float(np.median(np.diff(t)))
     uniform = np.arange(0.0, t[-1] + 0.5 * dt, dt)
     uniform = uniform[uniform <= t[-1]]
+    sample = np.rint(np.interp(uniform, t, np.arange(t.size))).astype(int)
     for ch in raw.values():
         ch.values = np.interp(uniform, t, ch.values)
         ch.time = uniform
+        ch.first_row = ch.first_row + sample  # messages name the file's lines
     return raw
 
 
