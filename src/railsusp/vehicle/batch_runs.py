@@ -28,6 +28,7 @@ from railsusp.errors import RailsuspInputError
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.settle import StartPlan, lead_in_plan, settled_states, start_plan
 from railsusp.vehicle.setup import ContactArrays, SolverSettings, constants, track_arrays
+from railsusp.vehicle.step_bound import batch_step
 from railsusp.vehicle.wagon import WagonData
 
 
@@ -118,7 +119,8 @@ def _parts(
     )
     track_seeds, track_index = _track_seeds(condition, seeds, n)
     dt_out = condition.sample_interval
-    n_sub = max(1, int(np.ceil(dt_out / settings.max_step - 1e-9)))
+    step = batch_step(wagon, condition.speed_kmh, P, settings.max_step)
+    n_sub = max(1, int(np.ceil(dt_out / step - 1e-9)))
     dt = dt_out / n_sub
     sos = np.ascontiguousarray(
         butter(settings.filter_order, settings.anti_alias * 0.5 / dt_out, fs=1.0 / dt, output="sos")

@@ -11,7 +11,7 @@ from typing import Literal
 
 import numpy as np
 
-from railsusp.conditions import make_condition
+from railsusp.conditions import WorkingCondition, make_condition
 from railsusp.params import ParameterSet
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.model import rhs as model_rhs
@@ -83,7 +83,15 @@ def linearisation_point(
 
         raise RailsuspInputError(f"friction = {friction!r}: accepted {', '.join(FRICTION_MODES)}")
     wagon = load_wagon() if wagon is None else wagon
-    cond = make_condition(
+    cond = ideal_track(speed_kmh, track_length_m)
+    P = (params or ParameterSet.nominal()).to_array()
+    return point_of(P, wagon, cond, friction)
+
+
+def ideal_track(speed_kmh: float, track_length_m: float = 200.0) -> WorkingCondition:
+    """The working condition of a linearisation: ideal straight, level track at
+    ``speed_kmh`` (validated: 1-200 km/h), no lead-in, ``track_length_m`` of record."""
+    return make_condition(
         {
             "name": "modal",
             "speed_kmh": speed_kmh,
@@ -92,8 +100,15 @@ def linearisation_point(
             "duration_s": min(600.0, max(1.0, track_length_m / (speed_kmh / 3.6))),
         }
     )
+
+
+def point_of(
+    P: np.ndarray, wagon: WagonData, cond: WorkingCondition, friction: Friction = "stuck"
+) -> LinearisationPoint:
+    """:func:`linearisation_point` of a parameter vector ``P`` (SI, catalogue order) as the
+    simulator has it, unchecked, on the ideal straight track of condition ``cond``."""
     settings = SolverSettings()
-    P = np.ascontiguousarray((params or ParameterSet.nominal()).to_array(), dtype=float)
+    P = np.ascontiguousarray(P, dtype=float)
     ca = contact_arrays(wagon)
     K = constants(wagon, cond, P, ca, settings)
     if friction == "sliding":

@@ -31,12 +31,27 @@ from railsusp.vehicle.wagon import WagonData
 START_MODES = ("settled", "lead-in")
 
 
+#: accepted ranges of the solver's real-valued settings (low, high, unit in messages): a
+#: zero step or grid divided by zero, a negative step ran one unstable step per sample and
+#: reported it as wheel-rail penetration, an ``anti_alias`` above 1 (of the output Nyquist
+#: rate) is no anti-alias filter at all (the physics audit of stop 59)
+SOLVER_RANGES: dict[str, tuple[float, float, str]] = {
+    "max_step": (1e-6, 0.01, " s"),
+    "track_step": (0.005, 1.0, " m"),
+    "anti_alias": (0.05, 1.0, ""),
+    "penetration_max": (1e-5, 0.01, " m"),
+    "lift_max": (1e-3, 0.1, " m"),
+}
+
+
 @dataclass(frozen=True)
 class SolverSettings:
     """Numerical settings of the simulator.
 
     ``max_step``: largest internal RK4 step (s); the step is the output interval divided by
-    an integer. Steps that start with a wheel within ``flange_margin`` (m) of flange contact
+    an integer, and no longer than RK4's stability bound at the condition's speed
+    (:func:`railsusp.vehicle.step_bound.stable_step`: shorter than 1 ms below about 58 km/h).
+    Steps that start with a wheel within ``flange_margin`` (m) of flange contact
     and closing on it faster than ``flange_split_speed`` (m/s) are split into
     ``flange_substeps`` (1: no split, the default). The split is for the single-point contact
     model, whose jump to the 70 deg flank is its stiffest event: with the plain 1 ms step two
@@ -81,6 +96,16 @@ class SolverSettings:
             value = getattr(self, name)
             if isinstance(value, float) and value.is_integer():
                 object.__setattr__(self, name, int(value))
+        for name, (low, high, unit) in SOLVER_RANGES.items():  # 0 divided, < 0 ran unstable
+            value = getattr(self, name)
+            if not low <= value <= high:
+                raise RailsuspInputError(
+                    f"{name} = {value!r}{unit}: accepted {low:g} to {high:g}{unit}"
+                )
+        if not (isinstance(self.filter_order, int) and 1 <= self.filter_order <= 12):
+            raise RailsuspInputError(
+                f"filter_order = {self.filter_order!r}: accepted an integer 1 to 12"
+            )
         if not (isinstance(self.flange_substeps, int) and 1 <= self.flange_substeps <= 16):
             raise RailsuspInputError(
                 f"flange_substeps = {self.flange_substeps!r}: accepted an integer 1 to 16"

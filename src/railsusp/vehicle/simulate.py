@@ -40,8 +40,10 @@ STATISTIC_SEGMENT_S = 20.0
 
 
 def statistic_segments(n_samples: int, dt_s: float) -> int:
-    """Number of segments of about :data:`STATISTIC_SEGMENT_S` in a record (at least 1)."""
-    return max(1, round(n_samples * dt_s / STATISTIC_SEGMENT_S))
+    """Number of segments of about :data:`STATISTIC_SEGMENT_S` in a record (at least 1, at
+    most one a sample: 20 samples over 600 s made 30 segments, ten of them empty, and NaN
+    statistics)."""
+    return max(1, min(n_samples, round(n_samples * dt_s / STATISTIC_SEGMENT_S)))
 
 
 def record_statistic(x: np.ndarray, statistic: str, lateral: bool, segments: int = 1) -> np.ndarray:
@@ -121,7 +123,8 @@ class SimulationResult:
     car_acc_z: np.ndarray
     status: np.ndarray
     fail_time: np.ndarray
-    static_wheel_load: float
+    #: N; per set (n_sets,) where the sets' masses differ and so their static loads
+    static_wheel_load: float | np.ndarray
     wall_time: float = 0.0
     settings: SolverSettings = field(default_factory=SolverSettings)
     wagon_name: str = ""
@@ -158,7 +161,9 @@ class SimulationResult:
     @property
     def unloading_ratio(self) -> np.ndarray:
         """Wheel-unloading ratio dQ/Q per wheel (n_sets, 8, n_t): (Q_static - Q)/Q_static."""
-        return (self.static_wheel_load - self.Q) / self.static_wheel_load
+        q0 = np.asarray(self.static_wheel_load, dtype=float)
+        q0 = q0[:, None, None] if q0.ndim else q0  # each set's own static load
+        return (q0 - self.Q) / q0
 
     def measured_wheel(self, which: str | int = "auto") -> int:
         """Index of the measured wheel (see :func:`measured_wheel_index`)."""
@@ -461,6 +466,7 @@ def _simulate_full(
     wagon = load_wagon(wagon) if wagon is None or isinstance(wagon, str | Path) else wagon
     if not isinstance(wagon, WagonData):
         raise RailsuspInputError(f"wagon = {wagon!r}: accepted a WagonData, a wagon file or None")
+    _warn_unmodelled([P for P, _, _ in prepared])
     settings = SolverSettings() if settings is None else settings
     if not isinstance(settings, SolverSettings):
         raise RailsuspInputError(
@@ -485,7 +491,7 @@ def _simulate_full(
             car_acc_z=r.out[:, L.OUT_ACC_Z],
             status=r.status,
             fail_time=r.fail_time,
-            static_wheel_load=float(r.K[0, L.K["Q0"]]),
+            static_wheel_load=_static_load(r.K[:, L.K["Q0"]]),
             wall_time=r.wall_time,
             settings=settings,
             wagon_name=wagon.name,
@@ -493,6 +499,34 @@ def _simulate_full(
         )
         for r, (P, _, _) in zip(runs, prepared, strict=True)
     ]
+
+
+#: catalogue parameters the model does not read: the bearing adapter's mass and inertias
+#: (the study's Table 1 lists them; the model has no adapter body, its seat is the
+#: stiffness X20 between pad and side frame, docs/parameters.md)
+UNMODELLED = ("X5", "X6", "X7", "X8")
+
+
+def _warn_unmodelled(matrices: Sequence[np.ndarray]) -> None:
+    """Warn where a set gives an unmodelled parameter (:data:`UNMODELLED`) another value
+    than its nominal: it changes nothing, which an engineer setting X5 would not expect."""
+    cols = [SYMBOLS.index(s) for s in UNMODELLED]
+    nominal = ParameterSet.nominal().to_array()[cols]
+    changed = sorted(
+        {UNMODELLED[j] for P in matrices for j in np.flatnonzero((P[:, cols] != nominal).any(0))}
+    )
+    if changed:
+        warnings.warn(
+            f"{', '.join(changed)} changed from nominal: the model has no bearing-adapter "
+            "body, so X5-X8 change no force (docs/parameters.md)",
+            stacklevel=4,
+        )
+
+
+def _static_load(q0: np.ndarray) -> float | np.ndarray:
+    """The sets' static wheel load (N): one number where they share it, else per set (a
+    batch varying the wheelset mass X1: dQ/Q of every set was taken against the first's)."""
+    return float(q0[0]) if np.all(q0 == q0[0]) else np.array(q0, dtype=float)
 
 
 def simulate(
