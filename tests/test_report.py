@@ -2,6 +2,7 @@
 run as pasted, the summary card comes first and says what it should, tables are readable,
 and (marker ``browser``) the page renders in headless Chromium."""
 
+import json
 import os
 import re
 import shutil
@@ -15,6 +16,7 @@ import railsusp
 from railsusp import summary
 from railsusp.estimate.intervals import PARETO, describe
 from railsusp.params import MAIN_SUSPENSION
+from railsusp.pipeline_state import STAGES
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -209,3 +211,17 @@ def test_report_shows_the_recordings_en14363_percentiles(run_dir):
     w = rec.wheels[0]
     st = section_statistics(rec.Q[w], rec.sampling_rate, rec.condition.speed)
     assert summary.sig3(round(st.p99_85, 2)) in page
+
+
+def test_provenance_is_this_runs_and_the_stages_are_in_pipeline_order(run_dir):
+    """The provenance was written after every stage, the report's included: a first run's
+    report showed an empty table, a rerun's the invocation before; the stage rows came in
+    pipeline.json's alphabetical order."""
+    state = json.loads((run_dir / "pipeline.json").read_text("utf-8"))
+    md = (run_dir / "report.md").read_text("utf-8")
+    prov = md[md.index("## Provenance") :]
+    assert f"| utc | {state['provenance']['utc']} |" in prov
+    assert state["provenance"]["finished"] >= state["provenance"]["utc"]
+    rows = [s for s in STAGES if f"| {s} |" in prov]
+    assert rows == list(STAGES)
+    assert sorted(STAGES, key=lambda s: prov.index(f"| {s} |")) == list(STAGES)

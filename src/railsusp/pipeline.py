@@ -118,6 +118,9 @@ def _run_stages(
     ``pipeline.json`` is ``state`` (its lock held), the up-to-date ones skipped."""
     state_path = out / "pipeline.json"
     state["config"] = config.model_dump(mode="json")
+    # who and what runs these stages, before any of them: the report stage shows it (set
+    # after the stages, the report showed the invocation before, or nothing on a first run)
+    state["provenance"] = provenance()
     # the verdicts' tolerances as the run read them: open_run judges with these, not with
     # whatever wagon file a relative path names from its own working folder
     state["tolerances"] = read_tolerances(config.wagon).to_dict()
@@ -169,7 +172,7 @@ def _run_stages(
             log.info("stage %s: done in %.1f s", stage, state["stages"][stage]["seconds"])
             forced = min(forced, i + 1)  # everything downstream reruns
         upstream[stage] = h
-    state["provenance"] = provenance()
+    state["provenance"]["finished"] = provenance()["utc"]
     write_json(state_path, state)
     return state
 

@@ -15,6 +15,7 @@ from pathlib import Path
 import pandas as pd
 
 import railsusp.summary as summary
+from railsusp.pipeline_state import STAGES
 from railsusp.report_doc import Doc, table_html
 from railsusp.report_en14363 import en14363_section
 from railsusp.report_estimate import estimate_section, validation_section
@@ -277,7 +278,8 @@ def _provenance(doc: Doc, run: Path, state: dict, meta: dict) -> None:
     prov = state.get("provenance", {})
     doc.table(pd.DataFrame([{"item": k, "value": str(v)} for k, v in prov.items()]))
     rows = []
-    for s, v in state.get("stages", {}).items():  # in the pipeline's order
+    stages = state.get("stages", {})  # pipeline.json keeps them by name: put in order
+    for s, v in ((s, stages[s]) for s in STAGES if s in stages):
         writing = s == "report" and v.get("state") == "running"
         rows.append(
             {
