@@ -225,3 +225,19 @@ def test_provenance_is_this_runs_and_the_stages_are_in_pipeline_order(run_dir):
     rows = [s for s in STAGES if f"| {s} |" in prov]
     assert rows == list(STAGES)
     assert sorted(STAGES, key=lambda s: prov.index(f"| {s} |")) == list(STAGES)
+
+
+def test_the_apis_largest_st_is_the_rules_as_the_report_shows_it(run_dir):
+    """``plot_sensitivity`` and docs/api.md took the largest ST over every feature, the
+    flat ones the key-parameter rule ignores among them (the tiny run: X17 0.17 against
+    the report's 0.033); ``largest_st`` is the rule's, which the report prints."""
+    result = railsusp.open_run(run_dir)
+    rule = json.loads((run_dir / "campaign/sensitivity/key_parameters.json").read_text())
+    st = result.largest_st
+    assert st.to_dict() == pytest.approx(rule["key_parameters"]["max_st"])
+    assert list(st) == sorted(st, reverse=True)
+    md = (run_dir / "report.md").read_text("utf-8")
+    top = st.index[0]
+    assert re.search(rf"\| {top} \|[^\n]*\| {re.escape(summary.sig3(st[top]))} \|", md)
+    bars = result.plot_sensitivity()
+    assert [round(p.get_height(), 12) for p in bars.patches] == [round(v, 12) for v in st]

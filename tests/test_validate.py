@@ -200,3 +200,25 @@ def test_on_expected_forces_the_validation_compares_the_mean_over_the_estimates_
     doc = Doc(tmp_path)
     validation_section(doc, out)  # the report says how the simulations were made
     assert "each simulation is the mean over 8 draws of the true geometry" in "\n".join(doc.md)
+
+
+def test_max_st_of_an_indices_table_leaves_out_the_flat_features_as_the_rule_does(tmp_path):
+    """``railsusp validate --sensitivity indices.parquet`` took each parameter's largest ST
+    over every feature, the flat ones (the tangent's mean Q: the static load, CV 0.1 %)
+    among them, and could give another Sobol verdict than the pipeline's."""
+    import pandas as pd
+
+    from railsusp.validate import max_st
+
+    rows = [
+        # the flat feature: a large ST of a negligible variance
+        ("straight", "Q", "mean", "X17", 0.9, 0.001),
+        ("straight", "Y", "mean", "X17", 0.02, 0.2),
+        ("straight", "Y", "mean", "X13", 0.4, 0.2),
+        ("straight", "Y", "p99", "X13", 0.3, 0.2),
+    ]
+    frame = pd.DataFrame(rows, columns=["condition", "quantity", "statistic", "parameter",
+                                        "ST", "cv"])  # fmt: skip
+    frame.to_parquet(tmp_path / "indices.parquet")
+    got = max_st(tmp_path / "indices.parquet")
+    assert got == pytest.approx({"X13": 0.4, "X17": 0.02})

@@ -309,12 +309,15 @@ def _recovery(
 
 
 def max_st(path: str | Path) -> dict[str, float]:
-    """Largest total Sobol index of each parameter over the campaign's features, from its
-    sensitivity folder, ``key_parameters.json`` or ``indices.parquet``."""
+    """Largest total Sobol index of each parameter as the key-parameter rule ranks them, from
+    a sensitivity folder or its ``key_parameters.json`` (as that run's rule read them), or
+    from ``indices.parquet`` with the rule's defaults (its statistics, flat features left
+    out: the largest over every feature gave another verdict than the pipeline's)."""
+    from railsusp.sensitivity import select_key_parameters
+
     path = Path(path)
     if path.is_dir():
         path = path / "key_parameters.json"
     if path.suffix == ".json":
         return read_json(path)["key_parameters"]["max_st"]
-    idx = pd.read_parquet(path)
-    return idx.groupby("parameter")["ST"].max().to_dict()
+    return select_key_parameters(pd.read_parquet(path)).max_st
