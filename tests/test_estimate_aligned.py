@@ -146,6 +146,36 @@ def test_refinement_after_aligned_objectives_is_a_polish_beside_the_estimate(tmp
     assert stats.refined and "then refined" in stats.route
 
 
+def test_a_refinement_from_another_start_than_nsga_iis_choice_says_so(tmp_path):
+    """The starts are screened (NSGA-II's choice, the Pareto set, the nominal set, Latin
+    hypercube points): when another wins, the route, the report and the figure said
+    "NSGA-II's choice was refined" all the same (the demo's refinement started from the
+    nominal set). And the chosen point, also on the Pareto set, was refined twice as two
+    of the starts."""
+    from railsusp.report_doc import Doc
+    from railsusp.report_estimate import estimate_section
+
+    nominal = np.array([ParameterSet.nominal()[p] for p in PARAMS])
+    rec = wave_recording(nominal)  # the truth is the nominal set
+    res = estimate(Waves(), [rec], PARAMS, NSGAConfig(pop_size=8, n_gen=2))
+    lo, hi = bounds(PARAMS)
+    res.pareto_x[res.chosen] = lo + 0.02 * (hi - lo)  # a choice far off, in a corner
+    refine_estimate(res, [rec], Waves(), gains=False, screen=0, starts=3, geometry_draws=0)
+    ref = res.refinement
+    assert ref.start_origin == "the nominal parameters" and not ref.from_choice
+    starts = [tuple(st["start_display"].values()) for st in ref.starts]
+    assert len(set(starts)) == len(starts) == 3  # each distinct point once
+    assert "refined by output-error least squares with the simulator from the nominal" in (
+        res.route
+    )
+    res.save(tmp_path / "estimate")
+    doc = Doc(tmp_path)
+    estimate_section(doc, tmp_path / "estimate")
+    text = "\n".join(doc.md)
+    assert "from the nominal parameters, not NSGA-II's choice" in text
+    assert "NSGA-II's choice was refined" not in text
+
+
 def test_batched_filter_equals_filtering_set_by_set():
     """Sets defined from different steps, and one that breaks off, give what filtering each
     set on its own gives (the reference: bandwidth_filter of the defined part)."""

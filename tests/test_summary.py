@@ -19,6 +19,7 @@ from railsusp.estimate.intervals import (
     STANDARD_ERROR,
     describe,
     from_samples,
+    intervals_of,
 )
 from railsusp.params import spec
 from railsusp.vehicle.wagon import load_wagon
@@ -104,6 +105,24 @@ def test_unrefined_estimate_interval_is_the_pareto_range_and_never_identifies(tm
     for p in ("X13", "X17"):  # X17's Pareto set 1.0-1.2 is 4 % of its range wide
         assert t.loc[p].verdict == summary.NOT_IDENTIFIABLE
         assert t.loc[p].note.startswith("no confidence interval")
+
+
+def test_a_polish_beside_nsga_iis_estimate_lends_it_no_standard_error(tmp_path):
+    """NSGA-II's estimate (simulator-corrected) with the refinement as a polish beside it:
+    its interval is the Pareto range and it has no standard error; the polish's belonged to
+    another point (X19 943 kN/m on the audit's pretrained run)."""
+    ref = {"standard_error_pct_range": {"X13": 2.0, "X17": 1.0}}
+    for source in ("nsga-ii", "nsga-ii, simulator-corrected"):
+        run = make_run(tmp_path / source, {"X13": 16.0, "X17": 1.1}, ref)
+        path = run / "estimate" / "estimate.json"
+        doc = json.loads(path.read_text())
+        doc.update(estimate_source=source, polished_display={"X13": 15.0, "X17": 1.2})
+        if source == "nsga-ii":  # as saved: the Pareto range stored as its intervals
+            doc["intervals"] = intervals_of({**doc, "refinement": None}).to_dict()
+        path.write_text(json.dumps(doc))
+        t = summary.estimate_table(run)
+        assert math.isnan(t.loc["X13"].standard_error), source
+        assert t.loc["X13"].interval == describe(PARETO, None)
 
 
 def test_stored_posterior_intervals_give_the_verdicts(tmp_path):

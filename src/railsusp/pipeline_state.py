@@ -16,11 +16,10 @@ from pathlib import Path
 from railsusp.errors import RailsuspInputError
 from railsusp.integrity import changed_files, files_under, unreadable_files
 from railsusp.pipeline_config import PipelineConfig
+from railsusp.stages import STAGES
 from railsusp.store import read_json
 
 log = logging.getLogger("railsusp.pipeline")
-
-STAGES = ("campaign", "sensitivity", "surrogate", "field", "estimate", "validate", "report")
 
 
 #: what the stages write at the top of a run directory (a run whose pipeline.json was lost

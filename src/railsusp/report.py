@@ -211,7 +211,9 @@ def plot_pareto(result, path: str | Path):
     ax.scatter(100 * f[:, 0], 100 * f[:, 1], s=18, label="Pareto front")
     c = result.chosen
     star = (
-        "NSGA-II's choice (then refined)"
+        f"NSGA-II's choice (the refinement started from {result.refinement.start_origin})"
+        if refined and not result.refinement.from_choice
+        else "NSGA-II's choice (then refined)"
         if refined
         else "NSGA-II's choice (then corrected by the simulator)"
         if result.corrections

@@ -48,6 +48,7 @@ HEADERS = {
     "pareto_spread_pct_range": "Pareto spread (% of range)",
     "seed_spread_pct_range": "spread over seeds (% of range)",
     "standard_error_pct_range": "standard error (% of range)",
+    "refinement_standard_error_pct_range": "of it noise and geometry (% of range)",
     "geometry_error_pct_range": "of which track geometry (% of range)",
     "nsga_choice": "NSGA-II's choice, before the geometry bias or expected-forces polish",
     "geometry_bias_pct_range": "track geometry error's bias (% of range)",

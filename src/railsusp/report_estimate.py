@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from railsusp.estimate.refine import CHOICE
 from railsusp.report_doc import Doc, fraction_errors_to_pct
 from railsusp.store import read_json
 
@@ -42,6 +43,44 @@ def validation_section(doc: Doc, val: Path) -> None:
         doc.table(pd.read_csv(val / "recovery.csv"))
 
 
+#: the intervals of an estimate.json written before they were stored with it: the
+#: refinement's 90 % confidence intervals, ± 1.645 standard errors
+OLD_INTERVALS = "the refinement's 90 % confidence intervals (± 1.645 standard errors)"
+
+
+def _start(ref: dict) -> str:
+    """Where the refinement started, in words, where it was not NSGA-II's choice (the
+    starts are screened: the nominal set or a screening point can win)."""
+    origin = ref.get("start_origin") or CHOICE
+    if origin == CHOICE:
+        return " from NSGA-II's choice"
+    return (
+        f" from {origin}, not NSGA-II's choice: of the {len(ref.get('starts', []))} starts "
+        f"refined (the best of {ref.get('screened_starts', 0)} screened by time-aligned "
+        "cost) it ended lowest"
+    )
+
+
+def _against_spread(info: dict, ref: dict) -> str:
+    """How the refinement's standard errors compare with the Pareto spread, parameter by
+    parameter, as the numbers say (it used to claim them far below the spread always)."""
+    spread = info.get("pareto_spread_pct_range") or {}
+    se = ref.get("standard_error_pct_range") or {}
+    common = [p for p in se if p in spread]
+    above = [p for p in common if se[p] >= spread[p]]
+    if not common:
+        return ""
+    if not above:
+        return ", which tell them apart: every standard error is below the spread"
+    return (
+        ", which tell them apart for "
+        + (", ".join(p for p in common if p not in above) or "none of them")
+        + "; for "
+        + ", ".join(above)
+        + " the standard error is as large as the spread or larger"
+    )
+
+
 def estimate_section(doc: Doc, est: Path) -> None:
     """NSGA-II's estimate: its log, how it was made (choice, SIMEX step or expected-forces
     polish, the simulator refinement beside it or making it), the table and figures."""
@@ -67,16 +106,16 @@ def estimate_section(doc: Doc, est: Path) -> None:
     if ref and info.get("polished_display"):
         doc.p(
             made + " Beside it, as a polish, "
-            f"the simulator's output-error refinement on the same track{on_drawn}: "
-            "time-aligned cost "
+            f"the simulator's output-error refinement on the same track{on_drawn}"
+            f"{_start(ref)}: time-aligned cost "
             f"{ref['cost_start']:.3g} -> {ref['cost']:.3g} in {ref['n_evaluations']} "
             "evaluations (the 'polished' column of the tables). Its interval is the Pareto "
             "set's range, not a confidence interval."
         )
     elif ref:
         doc.p(
-            "NSGA-II's choice was refined by output-error least squares with the simulator on "
-            f"the recordings' measured track{on_drawn}: time-aligned cost "
+            "The estimate was refined by output-error least squares with the simulator on "
+            f"the recordings' measured track{on_drawn}{_start(ref)}: time-aligned cost "
             f"{ref['cost_start']:.3g} -> {ref['cost']:.3g} in {ref['n_evaluations']} "
             "evaluations. The estimate is the refined point"
             + (
@@ -86,15 +125,15 @@ def estimate_section(doc: Doc, est: Path) -> None:
                 else ""
             )
             + ". Its intervals are "
-            + (info.get("intervals") or {}).get("description", "± 2 standard errors")
+            + (info.get("intervals") or {}).get("description", OLD_INTERVALS)
             + (
                 f" (geometry error from {ref['geometry_draws']} draws)."
                 if ref.get("geometry_draws")
                 else "."
             )
             + " The Pareto spread is the range of parameter sets whose force statistics the "
-            "surrogate objectives cannot tell apart; the refinement's time-aligned series "
-            "can, hence a standard error far below that spread."
+            "surrogate objectives cannot tell apart; the refinement's standard errors come "
+            "from its time-aligned series" + _against_spread(info, ref) + "."
         )
     elif corrected or info.get("expected_polish") or info.get("choice") == "least-squares":
         doc.p(

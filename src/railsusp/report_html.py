@@ -15,10 +15,10 @@ from pathlib import Path
 import pandas as pd
 
 import railsusp.summary as summary
-from railsusp.pipeline_state import STAGES
 from railsusp.report_doc import Doc, table_html
 from railsusp.report_en14363 import en14363_section
 from railsusp.report_estimate import estimate_section, validation_section
+from railsusp.stages import STAGES
 from railsusp.store import atomic_write_bytes, file_hash, read_json
 
 #: CSS class of each verdict in the summary card

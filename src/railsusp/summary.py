@@ -163,8 +163,14 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
     why_not = identification_issues(est, st)
     params = list(est["parameters"])
     intervals = intervals_of(est)
+    # the standard errors the intervals were formed from; else the refinement's, where it
+    # made the estimate (a polish beside NSGA-II's estimate is another point: its errors
+    # are not the estimate's)
+    made_by_refinement = est.get("estimate_source", "refinement") == "refinement"
     se_pct = intervals.details.get("total_standard_error_pct_range") or (
         (est.get("refinement") or {}).get("standard_error_pct_range", {})
+        if made_by_refinement
+        else {}
     )
     camp = read_json(run / "campaign" / "campaign.json")["config"] if st or sens.exists() else {}
     sampled = set(camp.get("parameters", MAIN_SUSPENSION))

@@ -297,7 +297,7 @@ def intervals_of(doc: Mapping[str, Any], level: float = LEVEL) -> Intervals:
     x_si = np.array([x[p] for p in params])
     refined = doc.get("refinement") or {}
     se_pct = refined.get("standard_error_pct_range")
-    if se_pct:
+    if se_pct and doc.get("estimate_source", "refinement") == "refinement":  # not a polish
         lo, hi = bounds(params)
         se = np.array([float(se_pct.get(p, np.inf)) for p in params]) / 100.0 * (hi - lo)
         geometry = refined.get("geometry_error_pct_range") or {}

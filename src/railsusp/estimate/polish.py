@@ -22,7 +22,7 @@ from railsusp.estimate.forces import ForceModel, SimulatorForces, series_in_cond
 from railsusp.estimate.geometry_bias import GEOMETRY_DRAWS, stated_accuracy
 from railsusp.estimate.output_error import OutputError
 from railsusp.estimate.problem import CalibrationProblem, check_aligned, display_values
-from railsusp.estimate.refine import refine_starts
+from railsusp.estimate.refine import CHOICE, refine_starts
 from railsusp.estimate.result import CalibrationResult
 from railsusp.estimate.statistics import ALIGNED, parse_statistics
 from railsusp.measured import Recording
@@ -131,22 +131,26 @@ def refine_estimate(
     lo, hi = bounds(params)
     nominal = np.array([ParameterSet.nominal()[p] for p in params])
     lhs = qmc.LatinHypercube(d=len(params), seed=seed).random(screen) if screen else None
-    candidates = np.vstack(
-        [result.pareto_x[result.chosen][None]]
-        + (
-            [result.nsga_x[None]]
-            if result.geometry_bias_removed or result.expected_polish is not None
-            else []
-        )
-        + ([result.corrected_x[None]] if result.corrections else [])
-        + [result.pareto_x, nominal[None]]
-        + ([lo + lhs * (hi - lo)] if lhs is not None else [])
-    )
-    # each distinct candidate once (the chosen point is also on the Pareto set), and the
-    # series kept, so that a refinement starting from a candidate need not simulate it again
+    groups = [(result.pareto_x[result.chosen][None], CHOICE)]
+    if result.geometry_bias_removed or result.expected_polish is not None:
+        groups.append((result.nsga_x[None], "NSGA-II's choice before its geometry correction"))
+    if result.corrections:
+        groups.append((result.corrected_x[None], "the simulator-corrected estimate"))
+    groups += [
+        (result.pareto_x, "a point of the Pareto set"),
+        (nominal[None], "the nominal parameters"),
+    ]
+    if lhs is not None:
+        groups.append((lo + lhs * (hi - lo), "a Latin-hypercube screening point"))
+    candidates = np.vstack([x for x, _ in groups])
+    origins = [name for x, name in groups for _ in range(len(x))]
+    # each distinct candidate once (the chosen point is also on the Pareto set: it was
+    # refined twice as two of the starts), named by its first appearance, and the series
+    # kept, so that a refinement starting from a candidate need not simulate it again
     distinct, inverse = _distinct_rows(candidates)
+    first = [int(np.flatnonzero(inverse == j)[0]) for j in range(len(distinct))]
     kept = _Kept(model)
-    costs = aligned_cost(kept, recordings, params, distinct)[inverse]
+    costs = aligned_cost(kept, recordings, params, distinct)
     expected = expected_draws if stated_accuracy(recordings) else 0
     if expected:  # compared as the mean over drawn true tracks: the screen's series differ
         drawn = ExpectedForces(model, expected, seed=result.config.seed)
@@ -156,13 +160,16 @@ def refine_estimate(
         problem = OutputError(model, recordings, params, gains=gains)
         problem.remember(distinct, kept.returned)
     best = np.argsort(costs, kind="stable")[:starts]
-    runs = refine_starts(problem, [candidates[i] for i in best], max_evaluations)
-    winner = min(runs, key=lambda r: r.cost)
+    runs = refine_starts(problem, [distinct[i] for i in best], max_evaluations)
+    won = min(range(len(runs)), key=lambda k: runs[k].cost)
+    winner = runs[won]
     assert winner.solution is not None
     winner.geometry_shifts_si = problem.geometry_shifts(winner.solution, geometry_draws, seed)
     winner.geometry_bias_removed = remove_geometry_bias and winner.geometry_shifts_si.size > 0
+    winner.start_origin = origins[first[best[won]]]
     winner.starts = [
         {
+            "origin": origins[first[i]],
             "start_display": display_values(params, r.start_si),
             "screened_cost": float(costs[i]),
             "cost": r.cost,

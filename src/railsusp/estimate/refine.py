@@ -42,6 +42,10 @@ from railsusp.params import bounds
 log = logging.getLogger("railsusp.estimate")
 
 
+#: the origin of a refinement's start that is NSGA-II's choice (:attr:`Refinement.start_origin`)
+CHOICE = "NSGA-II's choice"
+
+
 @dataclass
 class Refinement:
     """Result of the output-error refinement of an estimate (see :func:`refine`)."""
@@ -63,6 +67,9 @@ class Refinement:
     channel_gains: dict[str, float] = field(default_factory=dict)  # estimated, if any
     starts: list[dict] = field(default_factory=list)  # every start refined, when screened
     screened: int = 0  # candidate starts scored
+    #: where the winning start came from (:data:`CHOICE`, "the nominal parameters", ...;
+    #: "" where no starts were screened)
+    start_origin: str = ""
     #: (draws, k) first-order shift of the estimate, SI, that each draw of geometry error of
     #: the stated accuracy causes (:func:`~railsusp.estimate.output_error.gauss_newton_step`);
     #: empty on exact geometry
@@ -106,6 +113,11 @@ class Refinement:
     def total_error_si(self) -> np.ndarray:
         """(k,) standard error from sensor noise and geometry error together, SI."""
         return np.hypot(self.standard_error_si, self.geometry_error_si)
+
+    @property
+    def from_choice(self) -> bool:
+        """Whether the refinement started from NSGA-II's choice (or was not screened)."""
+        return self.start_origin in ("", CHOICE)
 
     def to_dict(self) -> dict:
         lo, hi = bounds(self.parameters)
@@ -151,6 +163,7 @@ class Refinement:
             "geometry_draws": int(self.geometry_shifts_si.shape[0]),
             "channel_gains": self.channel_gains,
             "screened_starts": self.screened,
+            "start_origin": self.start_origin,
             "starts": self.starts,
             "history_si": self.history_si,
         }

@@ -212,7 +212,9 @@ class CalibrationResult:
         on = f" on its mean over {drawn} draws of the true track geometry" if drawn else ""
         if self.refinement_is_polish:
             return text + f"; the simulator's output-error refinement{on} is a polish beside it"
-        return text + f", then refined by output-error least squares with the simulator{on}"
+        ref = self.refinement
+        start = "" if ref.from_choice else f" from {ref.start_origin}"
+        return text + f", then refined by output-error least squares with the simulator{on}{start}"
 
     @property
     def estimate(self) -> dict[str, float]:
@@ -276,7 +278,14 @@ class CalibrationResult:
                 row["polish_standard_error_pct_range"] = refined["standard_error_pct_range"][p]
             elif self.refinement:
                 row["nsga_estimate"] = nsga[p]
-                row["standard_error_pct_range"] = refined["standard_error_pct_range"][p]
+                # the interval's standard error (with the held parameters' part, where the
+                # intervals take one), as the API's ``standard_error``; the refinement's own
+                # (noise and geometry) beside it
+                total = iv.details.get("total_standard_error_pct_range", {})
+                own = refined["standard_error_pct_range"][p]
+                row["standard_error_pct_range"] = total.get(p, own)
+                if p in total:
+                    row["refinement_standard_error_pct_range"] = own
                 if refined["geometry_draws"]:
                     row["geometry_error_pct_range"] = refined["geometry_error_pct_range"][p]
             if self.corrections and not self.refined:
