@@ -37,6 +37,8 @@ def refined_result() -> CalibrationResult:
         problem=None,
         solution=None,
         residuals=None,  # not kept: white residuals, normal quantile
+        from_choice=True,  # started from NSGA-II's choice
+        start_origin="NSGA-II's choice",
     )
     return res
 

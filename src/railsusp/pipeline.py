@@ -118,15 +118,13 @@ def _run_stages(
     ``pipeline.json`` is ``state`` (its lock held), the up-to-date ones skipped."""
     state_path = out / "pipeline.json"
     state["config"] = config.model_dump(mode="json")
-    # who and what runs these stages, before any of them: the report stage shows it (set
-    # after the stages, the report showed the invocation before, or nothing on a first run)
-    state["provenance"] = provenance()
     # the verdicts' tolerances as the run read them: open_run judges with these, not with
     # whatever wagon file a relative path names from its own working folder
     state["tolerances"] = read_tolerances(config.wagon).to_dict()
     forced = STAGES.index(start_from) if start_from else len(STAGES)
     upstream: dict[str, str] = {}
     runners = _stage_runners(config, out, run_progress)
+    ran = False
     for i, stage in enumerate(STAGES):
         section = _section(config, stage)
         h = content_hash({"section": section, "upstream": upstream, "stage": stage})
@@ -142,6 +140,12 @@ def _run_stages(
             if progress:
                 progress(stage, "up to date")
         else:
+            if not ran:  # who and what runs the stages, before the first of them: the
+                # report stage shows it (set after the stages, the report showed the
+                # invocation before, or nothing on a first run); a run of up-to-date
+                # stages alone leaves the provenance of the one that made them
+                state["provenance"] = provenance()
+            ran = True
             log.debug("stage %s: running", stage)
             if progress:
                 progress(stage, "running")
@@ -172,7 +176,8 @@ def _run_stages(
             log.info("stage %s: done in %.1f s", stage, state["stages"][stage]["seconds"])
             forced = min(forced, i + 1)  # everything downstream reruns
         upstream[stage] = h
-    state["provenance"]["finished"] = provenance()["utc"]
+    if ran:
+        state["provenance"]["finished"] = provenance()["utc"]
     write_json(state_path, state)
     return state
 
