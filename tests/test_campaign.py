@@ -215,6 +215,77 @@ def test_with_campaign_json_damaged_force_discards_only_other_configurations_bat
     )
 
 
+def test_a_folder_of_another_campaigns_results_without_batches_is_not_emptied(full_run, tmp_path):
+    """The campaign audit of stop 59: results copied without their batches or campaign.json
+    (features, sensitivity) were deleted without --force and the design overwritten."""
+    _cfg, out = full_run
+    arch = tmp_path / "arch"
+    arch.mkdir()
+    for name in ("features.parquet", "design.parquet"):
+        shutil.copy2(out / name, arch / name)
+    (arch / "sensitivity").mkdir()
+    (arch / "sensitivity" / "indices.csv").write_text("kept")
+    other = make_config(TINY, 10, batch_size=4, seed=5)
+    with pytest.raises(CampaignError, match=r"features.parquet, sensitivity but no batch of"):
+        run_campaign(other, arch, max_batches=0)
+    assert (arch / "sensitivity" / "indices.csv").read_text() == "kept"
+    assert (arch / "design.parquet").read_bytes() == (out / "design.parquet").read_bytes()
+    run_campaign(other, arch, max_batches=0, force=True)
+    assert not (arch / "sensitivity").exists()
+
+
+def test_a_batch_of_another_configuration_copied_in_is_simulated_again(full_run, tmp_path):
+    """With campaign.json intact a batch stamped with another configuration was taken as
+    done: seed-5 forces paired with seed-3 parameters, 2 kN off in the series."""
+    cfg, out = full_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    other = make_config(TINY, 10, batch_size=4, seed=5)
+    foreign = tmp_path / "foreign"
+    run_campaign(other, foreign, max_batches=1)  # the first batch of the straight
+    for src, dst in zip(batch_paths(foreign, "straight", 0), batch_paths(copy, "straight", 0),
+                        strict=True):  # fmt: skip
+        shutil.copy2(src, dst)
+    calls = []
+    run_campaign(cfg, copy, progress=lambda d, t: calls.append(d))
+    assert calls[0] == 16  # the foreign batch is not counted as done
+    np.testing.assert_array_equal(
+        load_campaign(copy).series("straight")[1], load_campaign(out).series("straight")[1]
+    )
+
+
+def test_an_edited_design_or_configuration_is_not_taken_as_the_campaigns(full_run, tmp_path):
+    """A design.parquet edited by hand was kept (sensitivity then paired it with the forces
+    of the original design); a campaign.json whose configuration was edited under its hash
+    lent its batches another configuration (other tracks)."""
+    cfg, out = full_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    design = pd.read_parquet(copy / "design.parquet")
+    design.loc[0, "X13"] = 20.9e6
+    design.to_parquet(copy / "design.parquet", compression="gzip")
+    run_campaign(cfg, copy)
+    pd.testing.assert_frame_equal(load_campaign(copy).design(), load_campaign(out).design())
+    meta = json.loads((copy / "campaign.json").read_text())
+    meta["config"]["seed"] = 11
+    (copy / "campaign.json").write_text(json.dumps(meta))
+    with pytest.raises(CampaignError, match="not the one its batches were simulated with"):
+        load_campaign(copy)
+    calls = []
+    run_campaign(cfg, copy, progress=lambda d, t: calls.append(d))  # its stamps say whose
+    assert calls[0] == 20 and load_campaign(copy).config.hash() == cfg.hash()
+
+
+def test_force_discards_the_surrogates_trained_on_the_old_batches(full_run, tmp_path):
+    _cfg, out = full_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    (copy / "surrogates" / "bp").mkdir(parents=True)
+    other = make_config(TINY, 10, batch_size=4, seed=5)
+    run_campaign(other, copy, force=True, max_batches=0)
+    assert not (copy / "surrogates").exists()
+
+
 @pytest.mark.parametrize("which", [0, 1])  # the series file, the features file
 def test_a_batch_file_cut_short_is_simulated_again(full_run, tmp_path, which):
     """Before: a truncated series file counted as done (found only by training); a truncated

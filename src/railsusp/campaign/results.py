@@ -52,6 +52,12 @@ class Campaign:
             raise CampaignError(
                 f"{meta_path} is corrupt: its configuration does not validate ({first})"
             ) from None
+        if self.config.hash() != self.meta.get("config_hash"):  # its batches are stamped
+            raise CampaignError(
+                f"{meta_path}: its configuration is not the one its batches were simulated "
+                f"with (hash {self.config.hash()}, stamped {self.meta.get('config_hash')}): "
+                "edited by hand? Run the campaign again into a new --out"
+            )
 
     @property
     def complete(self) -> bool:

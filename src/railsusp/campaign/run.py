@@ -158,10 +158,18 @@ def write_batch(
     write_parquet(series_path, df, metadata={**status, **stamp})  # last: marks the batch done
 
 
-def _batch_done(out: Path, condition: str, b: int) -> bool:
-    """Both files of a batch present, each with an intact Parquet footer: a file cut short
-    is simulated again rather than taken as finished work."""
-    return all(parquet_readable(p) for p in batch_paths(out, condition, b))
+def _batch_done(out: Path, condition: str, b: int, config_hash: str) -> bool:
+    """Both files of a batch present, each with an intact Parquet footer and this
+    configuration's stamp (or none: written before batches were stamped): a file cut short
+    is simulated again rather than taken as finished work, and so is a batch of another
+    configuration copied in (its forces were taken with this design's parameters)."""
+    for path in batch_paths(out, condition, b):
+        meta = _batch_metadata(path)
+        if meta is None or meta.get(STAMP_KEY.encode(), config_hash.encode()) != (
+            config_hash.encode()
+        ):
+            return False
+    return True
 
 
 def _batch_metadata(path: Path) -> dict[bytes, bytes] | None:
@@ -217,6 +225,12 @@ def _keep_own_batches(out: Path, config: CampaignConfig, problem: str, force: bo
             "were stamped); use a new --out, or --force to discard them"
             + (f" ({_batches(own)} of this configuration would be kept)" if own else "")
         )
+    made = [n for n in ("features.parquet", *_FROM_BATCHES) if (out / n).exists()]
+    if not own and made and not force:  # made from batches no longer there: whose?
+        raise CampaignError(
+            f"{problem}, and it holds {', '.join(made)} but no batch of this configuration "
+            "(another campaign's results); use a new --out, or --force to discard them"
+        )
     for files in foreign:
         for f in files:
             f.unlink()
@@ -235,6 +249,7 @@ _FROM_BATCHES = (
     "splits",
     "nominal",  # the nominal twins (railsusp.campaign.twins) of the old design
     "perturbed",  # and its perturbed twins (railsusp.campaign.perturbed)
+    "surrogates",  # the networks trained on its batches (railsusp train)
 )
 
 
@@ -253,6 +268,21 @@ def _discard(out: Path) -> None:
     _remove(out, ("batches", *_FROM_DESIGN, *_FROM_BATCHES))
 
 
+def _check_own_hash(meta: dict, meta_path: Path) -> None:
+    """Refuse a ``campaign.json`` whose configuration is not the one its hash (and so its
+    batches' stamps) names: edited by hand, it would lend its batches another design."""
+    try:
+        stored = CampaignConfig.model_validate(meta["config"]).hash()
+    except (KeyError, TypeError, ValueError):
+        raise RailsuspInputError(
+            f"{meta_path} is corrupt: its configuration does not validate"
+        ) from None
+    if stored != meta.get("config_hash"):
+        raise RailsuspInputError(
+            f"{meta_path}: its configuration does not match its hash (edited by hand?)"
+        )
+
+
 def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
     """Create or re-open a run directory; refuse a different configuration unless forced."""
     check_output_folder(out)
@@ -260,6 +290,7 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
     if meta_path.exists():
         try:
             meta = read_meta(meta_path)
+            _check_own_hash(meta, meta_path)
         except RailsuspInputError as exc:  # damaged: the batches' stamps say whose they are
             _keep_own_batches(out, config, str(exc), force)
         else:
@@ -272,7 +303,17 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
                     )
                 _discard(out)
             elif parquet_readable(out / "design.parquet"):
-                return pd.read_parquet(out / "design.parquet")
+                stored = pd.read_parquet(out / "design.parquet")
+                design = make_design(config)  # the design follows from the configuration
+                if stored.equals(design):
+                    return stored
+                log.warning(
+                    "%s is not this configuration's design (edited?): written again from "
+                    "the configuration",
+                    out / "design.parquet",
+                )
+                write_parquet(out / "design.parquet", design)
+                return design
             # (a design that is gone or does not read is made again below: it follows from
             # the configuration, as the batches that campaign.json vouches for do)
     elif any((out / sub).exists() for sub in ("batches", "features.parquet")):
@@ -336,7 +377,7 @@ def run_campaign(
     done_runs = 0
     for ci, cond in enumerate(config.conditions):
         for b in range(config.n_batches):
-            if _batch_done(out, cond.name, b):
+            if _batch_done(out, cond.name, b, config.hash()):
                 done_runs += len(ids_all[b * config.batch_size : (b + 1) * config.batch_size])
             else:
                 todo.append((ci, b))
@@ -365,7 +406,12 @@ def run_campaign(
             finish(b, simulate_task(*args(ci, b)))
     else:
         _run_dask(todo, args, finish, scheduler, workers)
-    if all(_batch_done(out, c.name, b) for c in config.conditions for b in range(config.n_batches)):
+    stamp = config.hash()
+    if all(
+        _batch_done(out, c.name, b, stamp)
+        for c in config.conditions
+        for b in range(config.n_batches)
+    ):
         feats = pd.concat(
             [
                 pd.read_parquet(batch_paths(out, c.name, b)[1])
