@@ -41,7 +41,9 @@ class _Cfg(BaseModel):
 
 
 class CampaignSection(_Cfg):
-    samples: int = Field(64, ge=4, le=1_000_000, description="LHS samples")
+    #: at least the sensitivity metamodel's sensitivity.MIN_METAMODEL_RUNS (5): 4 were
+    #: accepted, and the sensitivity stage then failed on every run
+    samples: int = Field(64, ge=5, le=1_000_000, description="LHS samples")
     design: Literal["lhs", "lhs-optimised"] = "lhs"
     seed: int = Field(0, ge=0)
     batch_size: int = Field(32, ge=1, le=10_000)

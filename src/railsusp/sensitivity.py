@@ -44,6 +44,11 @@ INDEX_COLUMNS = (
 )
 
 
+#: base samples N of a Saltelli design analysed directly at the least: below it SALib's
+#: estimators are noise (ST = 19.8 +- 54 at N = 2, 1.46 at N = 8: the campaign audit of
+#: stop 59); the power of two above the 8 where the estimates still exceeded 1
+MIN_DIRECT_BASE = 16
+
 #: successful runs a condition's Gaussian-process metamodel needs at the least (a fifth held
 #: out to score it, the rest to fit it)
 MIN_METAMODEL_RUNS = 5
@@ -113,6 +118,12 @@ def sobol_direct(
     cfg = campaign.config
     if cfg.design != "sobol":
         raise ValueError(f"{campaign.path}: design {cfg.design!r} is not a Saltelli design")
+    if cfg.samples < MIN_DIRECT_BASE:
+        raise ValueError(
+            f"{campaign.path}: a Saltelli design of N = {cfg.samples} base samples; its Sobol "
+            f"indices need N >= {MIN_DIRECT_BASE} (at N = 2 total indices of 10 to 20 came "
+            f"out, and were taken as key): a campaign with --samples {MIN_DIRECT_BASE} or more"
+        )
     problem = salib_problem(cfg.parameters)
     frames = []
     for cond, q, st, y in _features(campaign, statistics, quantities):
@@ -200,11 +211,17 @@ def sobol_metamodel(
         yv = y.to_numpy()
         ok = np.isfinite(yv)
         if ok.sum() < MIN_METAMODEL_RUNS:  # a Gaussian process on nothing: sklearn's error
+            failed = len(yv) - int(ok.sum())
+            remedy = (
+                "check the condition (speed against curve radius and cant) or the parameter "
+                "ranges"
+                if failed
+                else f"a campaign of {MIN_METAMODEL_RUNS} samples or more"
+            )
             raise ValueError(
                 f"{campaign.path}: condition {cond!r}: {int(ok.sum())} of {len(yv)} simulations "
-                f"ran through ({len(yv) - int(ok.sum())} failed, e.g. derailed); the "
-                f"metamodel needs at least {MIN_METAMODEL_RUNS}: check the condition (speed "
-                "against curve radius and cant) or the parameter ranges"
+                f"ran through ({failed} failed, e.g. derailed); the metamodel needs at least "
+                f"{MIN_METAMODEL_RUNS}: {remedy}"
             )
         xu, yv = unit_all[ids[ok]], yv[ok]
         if len(yv) > max_train:
@@ -418,10 +435,10 @@ def analyse(
     :func:`select_key_parameters` over ``key_statistics``. ``compare``: a second run
     directory analysed the same way, whose indices are set against these.
     """
-    from railsusp.campaign import load_campaign
+    from railsusp.campaign import load_campaign, require_complete
 
     check_settings(statistics, threshold, key_statistics, max_keys, min_cv, base_samples, seed)
-    camp = load_campaign(run)
+    camp = require_complete(load_campaign(run))  # part of it: a condition left out silently
     out = camp.path / "sensitivity"
     fits: list[MetamodelFit] = []
 
@@ -439,15 +456,20 @@ def analyse(
         "key_parameters": selection.to_dict(),
         "metamodel_r2": [f.__dict__ for f in fits],
     }
+    # the comparison before anything is written: a failed one left the folder half new
+    agree = None if compare is None else agreement(idx, indices_of(load_campaign(compare))[0])
     write_parquet(out / "indices.parquet", idx)
     write_csv(out / "indices.csv", idx)
     write_json(out / "indices.json", idx.to_dict(orient="records"))
     write_csv(out / "study_comparison.csv", comparison)
-    if compare is not None:
-        other, _ = indices_of(load_campaign(compare))
-        agree = agreement(idx, other)
+    if agree is not None:
         write_csv(out / "agreement.csv", agree)
         summary["agreement"] = agree.to_dict(orient="records")
+    else:  # an earlier analysis's comparison is not this one's
+        (out / "agreement.csv").unlink(missing_ok=True)
+    for old in out.glob("sobol-*.png"):  # nor its figures of other statistics
+        if old.stem.removeprefix("sobol-") not in statistics:
+            old.unlink()
     # the key parameters last: the pipeline reads this file as the stage's completion mark
     write_json(out / "key_parameters.json", summary)
     from railsusp.report import plot_sobol

@@ -330,8 +330,9 @@ def sensitivity(
             )
     except RailsuspInputError as exc:
         fail(str(exc))
-    except ValueError as exc:
-        fail(f"{run}: {exc}")
+    except ValueError as exc:  # most name the run already
+        text = str(exc)
+        fail(text if text.startswith(str(Path(run))) else f"{run}: {text}")
     idx = s["indices"]
     keys = s["key_parameters"]["keys"]
     ignored = set(s["key_parameters"]["ignored_features"])
