@@ -316,3 +316,11 @@ def test_condition_names_equal_but_for_case_are_refused():
     conds = [straight.with_changes(name="A"), straight.with_changes(name="a", seed=4)]
     with pytest.raises(CampaignError, match=r"condition names repeat \(A, a, case ignored\)"):
         make_config(conds, 4, parameters=("X13",))
+
+
+def test_workers_and_a_scheduler_together_are_refused(tmp_path):
+    """--workers was silently ignored when --scheduler was given too."""
+    cfg = make_config(TINY, 4, batch_size=4, seed=3)
+    with pytest.raises(CampaignError, match="--workers 2 with --scheduler tcp://h:8786"):
+        run_campaign(cfg, tmp_path / "x", scheduler="tcp://h:8786", workers=2)
+    assert not (tmp_path / "x").exists()

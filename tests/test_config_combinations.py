@@ -356,7 +356,7 @@ def test_a_condition_file_named_in_the_list_is_pointed_to_a_table(tmp_path):
 @pytest.mark.parametrize(
     ("section", "line", "needle"),
     [
-        ("campaign", "samples = 2", "campaign.samples = 2: accepted [4, 1000000] (Input should"),
+        ("campaign", "samples = 2", "campaign.samples = 2: accepted [5, 1000000] (Input should"),
         ("campaign", "sample = 10", "campaign.sample: accepted keys: samples, design, seed,"),
         ("field", "rate_hz = 9000", "field.rate_hz = 9000: accepted [10, 5000] (Input should"),
     ],

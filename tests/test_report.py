@@ -241,3 +241,26 @@ def test_the_apis_largest_st_is_the_rules_as_the_report_shows_it(run_dir):
     assert re.search(rf"\| {top} \|[^\n]*\| {re.escape(summary.sig3(st[top]))} \|", md)
     bars = result.plot_sensitivity()
     assert [round(p.get_height(), 12) for p in bars.patches] == [round(v, 12) for v in st]
+
+
+def test_the_record_correction_is_explained_only_where_a_network_has_one(run_dir):
+    """The paragraph on the record correction and its 'network alone' column came in every
+    report, also where the column was empty (the tiny run's BP network has none)."""
+    md = (run_dir / "report.md").read_text("utf-8")
+    table = pd.read_csv(run_dir / "surrogate-campaign" / "surrogates" / "compare.csv")
+    alone = table.filter(like="network_alone")
+    assert alone.isna().all().all()  # this run: no record correction
+    assert "scaled by a record correction" not in md
+
+
+def test_a_recordings_duration_is_its_samples_times_their_interval(run_dir):
+    """The tiny run's 1 s record of 50 samples read 0.980 s (first to last sample)."""
+    rec = summary.recordings(run_dir).iloc[0]
+    assert rec.duration_s == pytest.approx(1.0)
+
+
+def test_the_api_says_which_parameters_were_estimated(run_dir):
+    result = railsusp.open_run(run_dir)
+    est = json.loads((run_dir / "estimate" / "estimate.json").read_text())
+    assert result.estimated_parameters == est["parameters"]
+    assert set(result.estimated_parameters) == set(result.estimate.dropna(subset="low").index)

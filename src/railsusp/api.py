@@ -136,9 +136,18 @@ class RunResult:
 
     @property
     def key_parameters(self) -> list[str]:
-        """The parameters the sensitivity step kept for the estimation."""
+        """The key parameters of the sensitivity step. The estimate estimates these, except
+        where the surrogates fix their own inputs (a shipped network set): then
+        :attr:`estimated_parameters` says which it estimated."""
         p = self._need("campaign/sensitivity/key_parameters.json", "sensitivity")
         return list(read_json(p)["key_parameters"]["keys"])
+
+    @property
+    def estimated_parameters(self) -> list[str]:
+        """The parameters the estimate stage estimated (the others held or varied: see
+        :attr:`estimate`'s verdicts)."""
+        p = self._need("estimate/estimate.json", "estimate")
+        return list(read_json(p)["parameters"])
 
     @property
     def surrogate_accuracy(self) -> pd.DataFrame:

@@ -285,13 +285,15 @@ def plot_convergence(result, path: str | Path):
     ref = result.refinement
     steps = np.zeros((0, k)) if ref is None else np.atleast_2d(ref.history_si).reshape(-1, k)
     final = _final(result)[0]
+    # a polish beside NSGA-II's estimate is not what the final estimate came from
+    steps_label = "polish (beside the estimate)" if result.polished_x is not None else "refinement"
     for i, p in enumerate(result.parameters):
         s = spec(p)
         ax = axes[i, 0]
         ax.plot(gens, result.history[:, i] / s.scale, lw=1.2, label="NSGA-II")
         if len(steps):
             xs = n_gen + np.arange(1, len(steps) + 1)
-            ax.plot(xs, steps[:, i] / s.scale, "o-", ms=3, lw=1.0, color="C2", label="refinement")
+            ax.plot(xs, steps[:, i] / s.scale, "o-", ms=3, lw=1.0, color="C2", label=steps_label)
             ax.axvline(n_gen + 0.5, color="0.7", lw=0.8)
         ax.axhline(s.nominal_display, color="0.5", ls="--", lw=0.8, label="nominal")
         ax.axhline(final[i] / s.scale, color="C3", lw=1.4, ls=":", zorder=1, label="final estimate")
@@ -300,7 +302,9 @@ def plot_convergence(result, path: str | Path):
         ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=7, ncol=4, loc="upper right")
     axes[-1, 0].set_xlabel(
-        "NSGA-II generation, then refinement iteration" if len(steps) else "NSGA-II generation"
+        f"NSGA-II generation, then {steps_label.split(' ')[0]} iteration"
+        if len(steps)
+        else "NSGA-II generation"
     )
     fig.suptitle("Convergence of the estimate (dashed: nominal; red dotted: final estimate)")
     return save_figure(fig, path)

@@ -258,12 +258,15 @@ def _method_sections(doc: Doc, run: Path, state: dict) -> None:
                 "Trained on the sensitivity campaign: the parameters that are not inputs "
                 "vary there unseen and limit the surrogates' accuracy."
             )
-        doc.p(
-            "The window networks' series are scaled by a record correction, a Gaussian "
-            "process of the record mean's error fitted on the training runs; the column "
-            "'network alone' gives the lateral error without it."
-        )
-        doc.table(table7(pd.read_csv(sur / "compare.csv")))
+        table = table7(pd.read_csv(sur / "compare.csv"))
+        alone = [c for c in table.columns if "network alone" in str(c)]
+        if alone and table[alone].notna().to_numpy().any():  # only where a network has one
+            doc.p(
+                "The window networks' series are scaled by a record correction, a Gaussian "
+                "process of the record mean's error fitted on the training runs; the column "
+                "'network alone' gives the lateral error without it."
+            )
+        doc.table(table)
         for png in sorted(sur.glob("overlay-*.png")):
             doc.figure(png, png.stem.replace("overlay-", "Held-out run, "))
 

@@ -213,8 +213,7 @@ def sobol_metamodel(
         if ok.sum() < MIN_METAMODEL_RUNS:  # a Gaussian process on nothing: sklearn's error
             failed = len(yv) - int(ok.sum())
             remedy = (
-                "check the condition (speed against curve radius and cant) or the parameter "
-                "ranges"
+                "check the condition (speed against curve radius and cant) or the parameter ranges"
                 if failed
                 else f"a campaign of {MIN_METAMODEL_RUNS} samples or more"
             )

@@ -320,7 +320,9 @@ def recordings(run: str | Path) -> pd.DataFrame:
                 "recording": str(name),
                 "condition": rec.condition.name,
                 "wheel": ", ".join(rec.wheels),
-                "duration_s": float(rec.time[-1] - rec.time[0]) if rec.time.size else 0.0,
+                # n samples of one interval each, as a condition's duration_s counts them
+                # (the span from first to last sample read 0.98 s for a 1 s record)
+                "duration_s": rec.time.size / rec.sampling_rate if rec.time.size > 1 else 0.0,
                 "measured_track": rec.condition.track_geometry is not None,
             }
         )

@@ -367,6 +367,11 @@ def run_campaign(
         raise CampaignError(f"--workers = {workers}: accepted an integer >= 1")
     if max_batches is not None and max_batches < 0:
         raise CampaignError(f"--max-batches = {max_batches}: accepted an integer >= 0")
+    if scheduler is not None and workers is not None:  # the workers were ignored
+        raise CampaignError(
+            f"--workers {workers} with --scheduler {scheduler}: accepted one of them (the "
+            "scheduler's cluster has its own workers; --workers starts a local one)"
+        )
     if scheduler is not None and not re.fullmatch(r"(tcp|tls)://[^\s:/]+:\d{1,5}/?", scheduler):
         raise CampaignError(f"--scheduler {scheduler!r}: accepted tcp://host:port (or tls://)")
     design = _prepare(config, out, force)
