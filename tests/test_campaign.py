@@ -324,3 +324,23 @@ def test_workers_and_a_scheduler_together_are_refused(tmp_path):
     with pytest.raises(CampaignError, match="--workers 2 with --scheduler tcp://h:8786"):
         run_campaign(cfg, tmp_path / "x", scheduler="tcp://h:8786", workers=2)
     assert not (tmp_path / "x").exists()
+
+
+def test_a_campaign_of_other_force_laws_is_not_resumed_into(full_run, tmp_path):
+    """The campaign's hash held its configuration only: resumed after the force laws
+    changed, its batches would have mixed two models (the pipeline's stage hashes hold the
+    revision; a standalone campaign did not)."""
+    from railsusp.vehicle import MODEL_REVISION
+
+    cfg, out = full_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    meta = json.loads((copy / "campaign.json").read_text())
+    assert meta["model_revision"] == MODEL_REVISION
+    meta["model_revision"] = "2020-01-01"
+    (copy / "campaign.json").write_text(json.dumps(meta))
+    with pytest.raises(CampaignError, match="force-law revision 2020-01-01; railsusp now"):
+        run_campaign(cfg, copy)
+    run_campaign(cfg, copy, force=True, max_batches=0)
+    assert json.loads((copy / "campaign.json").read_text())["model_revision"] == MODEL_REVISION
+    assert not (copy / "batches").exists() or not any((copy / "batches").rglob("*.parquet"))

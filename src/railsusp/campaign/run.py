@@ -37,6 +37,7 @@ from railsusp.store import (
 from railsusp.variation import (
     layout_groups,
 )
+from railsusp.vehicle import MODEL_REVISION
 from railsusp.vehicle.simulate import WHEEL_NAMES, simulate_requests
 
 log = logging.getLogger("railsusp.campaign")
@@ -294,7 +295,14 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
         except RailsuspInputError as exc:  # damaged: the batches' stamps say whose they are
             _keep_own_batches(out, config, str(exc), force)
         else:
-            if meta.get("config_hash") != config.hash():
+            revision = meta.get("model_revision", MODEL_REVISION)  # unstated: older files
+            if revision != MODEL_REVISION and not force:  # its batches: other force laws
+                raise CampaignError(
+                    f"{out} holds a campaign simulated with force-law revision {revision}; "
+                    f"railsusp now simulates {MODEL_REVISION}: use a new --out, or --force to "
+                    "discard the old results (resumed, its batches would mix the two)"
+                )
+            if meta.get("config_hash") != config.hash() or revision != MODEL_REVISION:
                 if not force:
                     raise CampaignError(
                         f"{out} holds a campaign with another configuration (hash "
@@ -335,6 +343,7 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
         {
             "kind": "railsusp campaign",
             "config_hash": config.hash(),
+            "model_revision": MODEL_REVISION,
             "config": config.model_dump(mode="json"),
             "n_runs": config.n_runs,
             "n_batches": config.n_batches,
