@@ -437,6 +437,23 @@ def section_irregularities(
     return irregularities_for(condition, list(seeds), behind=spread + 25.0, axle_spread_m=spread)
 
 
+#: the irregularities' fade-in from the section start, m: at most this long, at least
+#: :data:`MIN_FADE_IN_M`
+FADE_IN_M = 30.0
+MIN_FADE_IN_M = 5.0
+
+
+def fade_in_length(lead_in_m: float, spread_m: float) -> float:
+    """Length (m) over which the irregularities fade in from the section start: 30 m, or
+    the lead-in less the axle spread where that is shorter, so that the fade ends before
+    the record's track reaches the trailing wheelset (the fixed 30 m took a measured 10 mm
+    kink 5 m into a record without lead-in down to 2.8 mm, and a 3 mm cross-level bump
+    under a 20 m lead-in to 2.8 mm: the physics audit of stop 59); never under
+    :data:`MIN_FADE_IN_M` (a measured track needs that lead-in,
+    :func:`~railsusp.vehicle.track_geometry.check_coverage`)."""
+    return min(FADE_IN_M, max(MIN_FADE_IN_M, lead_in_m - spread_m))
+
+
 def track_arrays(
     condition: WorkingCondition,
     seeds: Sequence[int],
@@ -449,8 +466,9 @@ def track_arrays(
     """Track channels (layout.TR_*) on a uniform grid for each seed: (n_seeds, N_TR, n_s).
 
     Geometry (curvature, cant angle, heading θ = ∫κ ds, lateral position Y = ∫θ ds) is
-    shared; irregularities ramp in smoothly over the first 30 m (zero behind s = 0), so that
-    the run starts from static equilibrium.
+    shared; irregularities ramp in smoothly from s = 0 (zero behind it), so that the run
+    starts from static equilibrium, over :func:`fade_in_length` (30 m, shorter where the
+    lead-in is: the ramp ends before the record's track reaches the trailing wheelset).
 
     For a settled start (:mod:`railsusp.vehicle.settle`): ``uniform_before`` (m) continues
     the curvature and cant of that point backwards, so that the design track behind it is
@@ -475,7 +493,8 @@ def track_arrays(
     irr = section_irregularities(condition, seeds, wagon)
     if irr is not None:
         rails = irr.at(s)  # (n_seeds, n_s); one measured track broadcasts over the seeds
-        window = smoothstep(s / 30.0)  # zero under every wheel at the start
+        # zero under every wheel at the start, whole under every wheel of the record
+        window = smoothstep(s / fade_in_length(condition.lead_in_m, axle_spread(wagon)))
         if fade_in is not None:
             window = window * smoothstep((s - fade_in[0]) / (fade_in[1] - fade_in[0]))
         out[:, L.TR_ZL] = rails["zL"] * window

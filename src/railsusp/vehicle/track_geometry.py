@@ -43,6 +43,9 @@ MAX_IRREGULARITY_MM = 100.0
 MAX_TRACK_SPACING_M = 0.5
 #: measured geometry is faded in over this length where it starts inside the simulated span, m
 TRACK_TAPER_M = 10.0
+#: a condition on measured geometry needs a lead-in of the axle spread plus this, m: the
+#: simulator's fade-in from rest (vehicle.setup.MIN_FADE_IN_M) ends before the record
+MIN_LEAD_IN_BEYOND_SPREAD_M = 5.0
 
 
 def write_track_geometry(path: str | Path, irr: Irregularities, origin_m: float = 0.0) -> Path:
@@ -178,6 +181,15 @@ def check_coverage(irr: Irregularities, condition: WorkingCondition, axle_spread
     ``track_geometry`` that do not cover the recorded stretch under every axle: from
     ``axle_spread_m`` plus the fade-in length behind the recording start (the file's
     distances shifted by ``track_offset_m``) to the end of the record."""
+    least = axle_spread_m + MIN_LEAD_IN_BEYOND_SPREAD_M
+    if condition.lead_in_m < least - 1e-9:
+        raise RailsuspInputError(
+            f"condition {condition.name!r}: lead_in_m = {condition.lead_in_m:g} m with measured "
+            f"track geometry; accepted at least {least:.4g} m (the wagon's axle spread "
+            f"{axle_spread_m:.4g} m plus the {MIN_LEAD_IN_BEYOND_SPREAD_M:g} m over which the "
+            "simulator fades the track in from rest: with less, the record's first metres "
+            "run on faded geometry)"
+        )
     shift = condition.track_offset_m
     first, last = float(irr.s[0]) + shift, float(irr.s[-1]) + shift
     need_from = -(axle_spread_m + TRACK_TAPER_M)
