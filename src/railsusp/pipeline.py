@@ -121,6 +121,8 @@ def _run_stages(
     # the verdicts' tolerances as the run read them: open_run judges with these, not with
     # whatever wagon file a relative path names from its own working folder
     state["tolerances"] = read_tolerances(config.wagon).to_dict()
+    # and the static wheel load its recordings are checked against, for the same reason
+    state["static_wheel_load_N"] = _static_wheel_load(config)
     forced = STAGES.index(start_from) if start_from else len(STAGES)
     upstream: dict[str, str] = {}
     runners = _stage_runners(config, out, run_progress)
@@ -180,6 +182,14 @@ def _run_stages(
         state["provenance"]["finished"] = provenance()["utc"]
     write_json(state_path, state)
     return state
+
+
+def _static_wheel_load(config: PipelineConfig) -> float:
+    """The static wheel load (N) of the run's wagon."""
+    from railsusp.vehicle.setup import static_wheel_load
+    from railsusp.vehicle.wagon import load_wagon
+
+    return static_wheel_load(load_wagon(config.wagon))
 
 
 def _mark_later_stale(state: dict, stage: str) -> None:
@@ -384,11 +394,13 @@ def _stage_runners(
         return field_stage(config, out)
 
     def estimate() -> dict:
-        from railsusp.estimate import NSGAConfig, open_force_model
+        from railsusp.estimate import NSGAConfig, SimulatorForces, open_force_model
         from railsusp.estimate.config import HeldPrior
         from railsusp.estimate.route import EstimateRoute
         from railsusp.measured import read_field
         from railsusp.surrogate import key_parameters, not_estimated
+        from railsusp.vehicle.setup import static_wheel_load
+        from railsusp.vehicle.wagon import load_wagon
 
         e = config.estimate
         # a network set's inputs are its own key parameters, whatever the sensitivity found
@@ -423,7 +435,11 @@ def _stage_runners(
             refine_setting="estimate.refine",
             corrections_setting="estimate.simulator_corrections",
         )
-        res = route.run(model, read_field(out / "field"), params)
+        wagon = load_wagon(config.wagon)
+        recs = read_field(out / "field", wheel_load_N=static_wheel_load(wagon))
+        # the simulator of the run's wagon for the corrections and the refinement (they
+        # simulated the packaged C80 whatever the configuration's wagon)
+        res = route.run(model, recs, params, simulator=SimulatorForces(params, wagon=wagon))
         res.save(
             out / "estimate",
             extra={
@@ -444,6 +460,7 @@ def _stage_runners(
             out / "estimate",
             truth=truth if truth.exists() else None,
             sensitivity=camp_dir / "sensitivity",
+            wagon=config.wagon,
         )
         res.save(out / "estimate" / "validation")
         return {"scored": res.recovery is not None}

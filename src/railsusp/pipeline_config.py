@@ -262,7 +262,7 @@ class PipelineConfig(_Cfg):
         (:class:`~railsusp.measured.cut.RunSource`), or None."""
         from railsusp.pipeline_field import run_source
 
-        return run_source(self.field)
+        return run_source(self.field, self.wagon)
 
     def working_conditions(self) -> list[WorkingCondition]:
         """The conditions of the run: those given, or with ``[field] recording`` the kept

@@ -15,13 +15,16 @@ from typing import Any
 from railsusp.params import ParameterSet
 
 
-def run_source(field: Any) -> Any:
+def run_source(field: Any, wagon: str | None = None) -> Any:
     """The :class:`~railsusp.measured.cut.RunSource` of a ``[field]`` section with a
-    ``recording`` (its files, the cut's rules, the rate), or None without one."""
+    ``recording`` (its files, the cut's rules, the rate, the static wheel load of the run's
+    ``wagon`` file, None: the packaged C80), or None without one."""
     if field.recording is None:
         return None
     from railsusp.measured.cut import RunSource
     from railsusp.measured.sections import SectionRules
+    from railsusp.vehicle.setup import static_wheel_load
+    from railsusp.vehicle.wagon import load_wagon
 
     def path(p: str | None) -> Path | None:
         return Path(p) if p is not None else None
@@ -38,6 +41,7 @@ def run_source(field: Any) -> Any:
         path(field.sections),
         rules,
         field.rate_hz,
+        static_wheel_load(load_wagon(wagon)),
     )
 
 
@@ -46,21 +50,25 @@ def field_stage(config: Any, out: str | Path) -> dict:
     run's kept sections (``[field] recording``), a copy of a measured folder, or synthetic
     recordings of the hidden truth. Returns the stage's record for ``pipeline.json``."""
     from railsusp.measured import read_field, synthesise_field
+    from railsusp.vehicle.setup import static_wheel_load
+    from railsusp.vehicle.wagon import load_wagon
 
     out = Path(out)
     f = config.field
     dest = out / "field"
-    source = config.run_source()
+    wagon = load_wagon(config.wagon)  # the run's wagon: its recordings' wheel loads, its model
+    load = static_wheel_load(wagon)
+    source = config.run_source()  # its wheel loads checked against the run's wagon
     if source is not None:
         from railsusp.measured.cut import write_run_field
         from railsusp.store import atomic_folder
 
         with atomic_folder(dest, keep=False) as tmp:  # the old folder stays until replaced
             write_run_field(source, tmp, dest)
-        recs = read_field(dest)  # the estimation's inputs, read back and checked
+        recs = read_field(dest, wheel_load_N=load)  # the estimation's inputs, checked
         return {"recordings": len(recs), "synthetic": False, "recording": f.recording}
     if f.measured:
-        recs = read_field(f.measured)
+        recs = read_field(f.measured, wheel_load_N=load)
         import shutil
 
         from railsusp.store import atomic_folder
@@ -77,5 +85,6 @@ def field_stage(config: Any, out: str | Path) -> dict:
         noise=f.noise,
         with_track=f.with_track,
         track_noise_mm=f.track_noise_mm,
+        wagon=wagon,  # the run's wagon (was always the packaged C80)
     )
     return {"recordings": len(config.conditions), "synthetic": True}

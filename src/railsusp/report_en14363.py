@@ -23,7 +23,7 @@ EN14363_CSV = "en14363.csv"
 def en14363_table(run: str | Path) -> tuple[pd.DataFrame, str]:
     """The EN 14363 percentiles (kN) of the run's recordings, and where they come from:
     ``RUN/field/en14363.csv`` if present, else computed from the field recordings."""
-    from railsusp.measured import read_field
+    from railsusp.summary import field_recordings
 
     field = Path(run) / "field"
     if (field / EN14363_CSV).exists():
@@ -31,7 +31,7 @@ def en14363_table(run: str | Path) -> tuple[pd.DataFrame, str]:
             field / EN14363_CSV
         ), f"the long run, at its sampling rate ({EN14363_CSV})"
     rows = []
-    for rec in read_field(field):
+    for rec in field_recordings(run):  # checked against the run's wagon
         for w in rec.wheels:
             for force, x in (("Y", rec.Y[w]), ("Q", rec.Q[w])):
                 st = section_statistics(x, rec.sampling_rate, rec.condition.speed)

@@ -306,15 +306,24 @@ def agreement_lines(table: pd.DataFrame) -> list[str]:
     return lines
 
 
+def field_recordings(run: str | Path) -> list:
+    """The run's recordings (``RUN/field``), their wheel loads checked against the static
+    wheel load of the run's wagon as ``pipeline.json`` recorded it (None: the packaged
+    C80's; a tare wagon's recordings were refused by the report)."""
+    from railsusp.measured import read_field
+
+    load = _state(Path(run)).get("static_wheel_load_N")
+    return read_field(Path(run) / "field", wheel_load_N=load)
+
+
 def recordings(run: str | Path) -> pd.DataFrame:
     """The recordings the run used: name, condition, measured wheel, duration, whether they
     carry their track geometry."""
-    from railsusp.measured import read_field
 
     folder = Path(run) / "field"
     names = read_json(folder / "index.json").get("recordings", [])
     rows = []
-    for name, rec in zip(names, read_field(folder), strict=True):
+    for name, rec in zip(names, field_recordings(run), strict=True):
         rows.append(
             {
                 "recording": str(name),

@@ -20,6 +20,7 @@ import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -89,6 +90,7 @@ def _simulate(
     recs: Sequence[Recording],
     conditions: Sequence[Sequence[WorkingCondition]],
     failures: list[str],
+    wagon: Any = None,
 ) -> dict[str, list[np.ndarray]]:
     """Per label of ``sets``, per recording, (draws, T, 2) series in kN of its first wheel in
     each of that recording's ``conditions`` (its own, or its drawn true tracks), the sets and
@@ -99,7 +101,7 @@ def _simulate(
     out: dict[str, list[np.ndarray]] = {label: [] for label in sets}
     labels = list(sets)
     for rec, conds in zip(recs, conditions, strict=True):
-        runs = simulate_conditions([sets[label] for label in labels], conds)
+        runs = simulate_conditions([sets[label] for label in labels], conds, wagon=wagon)
         for k, label in enumerate(labels):
             series, stopped = [], []
             for run in runs:
@@ -123,6 +125,7 @@ def validate(
     sensitivity: str | Path | None = None,
     statistic: str | None = None,
     expected_draws: int | None = None,
+    wagon: Any = None,
 ) -> ValidationResult:
     """Validate the estimate in ``estimate_dir`` against its recordings.
 
@@ -134,8 +137,13 @@ def validate(
     where the estimate did (its ``channel_gains``). ``expected_draws`` defaults to the
     estimate's: on recordings whose geometry states its accuracy the simulations are then
     compared by their mean over that many draws of the true geometry (seeded as the
-    estimate's), its statistics by their mean over the draws.
+    estimate's), its statistics by their mean over the draws. ``wagon``: the wagon data
+    simulated (a WagonData or a wagon file; None: the packaged C80), and whose static wheel
+    load the recordings are checked against.
     """
+    from railsusp.vehicle.setup import static_wheel_load
+    from railsusp.vehicle.wagon import load_wagon
+
     est_path = Path(estimate_dir) / "estimate.json"
     est = read_json(est_path)
     lacking = [k for k in ESTIMATE_KEYS if not isinstance(est, dict) or k not in est]
@@ -146,7 +154,8 @@ def validate(
         )
     params = tuple(est["parameters"])
     stats = parse_statistics(statistic or est["config"]["statistic"])
-    recs = read_field(measured or est["measured"])
+    wagon = load_wagon(wagon) if wagon is None or isinstance(wagon, str | Path) else wagon
+    recs = read_field(measured or est["measured"], wheel_load_N=static_wheel_load(wagon))
     if statistic is None and ALIGNED not in stats:
         if all(r.condition.track_geometry is not None for r in recs):
             stats = (*stats, ALIGNED)  # on measured track, also compare sample by sample
@@ -171,7 +180,9 @@ def validate(
             else [r.condition]
             for i, r in enumerate(recs)
         ]  # fmt: skip
-        named = _simulate({labels[k]: v for k, v in sets.items()}, recs, conditions, failures)
+        named = _simulate(
+            {labels[k]: v for k, v in sets.items()}, recs, conditions, failures, wagon
+        )
     sims = {key: named[labels[key]] for key in sets}
     aligned = ALIGNED in stats
     gains = bool(config.get("channel_gains", False))

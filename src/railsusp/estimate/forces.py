@@ -357,14 +357,20 @@ def force_statistics(
 class SimulatorForces:
     """The batched simulator on the track of each condition (its measured geometry where it
     carries one, else the design track; slow reference). The parameters not in
-    ``parameters`` are held at ``base`` (nominal by default)."""
+    ``parameters`` are held at ``base`` (nominal by default); ``wagon``: the wagon data
+    simulated (a WagonData, a wagon file; None: the packaged C80)."""
 
     def __init__(
-        self, parameters: Sequence[str], wheel: str = "auto", base: ParameterSet | None = None
+        self,
+        parameters: Sequence[str],
+        wheel: str = "auto",
+        base: ParameterSet | None = None,
+        wagon: Any = None,
     ):
         self.parameters = tuple(parameters)
         self.wheel = wheel
         self.base = base
+        self.wagon = wagon
 
     def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
         return self.series_conditions(x_si, [condition])[0]
@@ -378,10 +384,10 @@ class SimulatorForces:
 
         x = np.atleast_2d(np.asarray(x_si, dtype=float))
         if self.base is None:
-            runs = simulate_conditions(x, conditions, symbols=self.parameters)
+            runs = simulate_conditions(x, conditions, symbols=self.parameters, wagon=self.wagon)
         else:
             sets = [self.base.replace(dict(zip(self.parameters, row, strict=True))) for row in x]
-            runs = simulate_conditions(sets, conditions)
+            runs = simulate_conditions(sets, conditions, wagon=self.wagon)
         out = []
         for r in runs:
             j = r.measured_wheel(self.wheel)

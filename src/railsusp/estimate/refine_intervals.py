@@ -96,7 +96,7 @@ def held_response(refinement: Refinement) -> tuple[tuple[str, ...], np.ndarray] 
         return None
     k, h = prob.k, len(held)
     every = (*prob.parameters, *held)
-    model: ForceModel = SimulatorForces(every, sim.wheel, base=sim.base)
+    model: ForceModel = SimulatorForces(every, sim.wheel, base=sim.base, wagon=sim.wagon)
     if isinstance(prob.model, ExpectedForces):
         expected = prob.model
         model = ExpectedForces(model, expected.draws, expected.seed, expected.antithetic)

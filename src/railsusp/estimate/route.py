@@ -85,8 +85,9 @@ class EstimateRoute:
     ) -> CalibrationResult:
         """The estimate of ``parameters`` from ``recordings`` with ``model``: the checks
         (:meth:`check`), then each step in order, each shown by ``progress`` while it runs.
-        ``simulator``: the corrections' reference model (default the simulator,
-        :func:`~railsusp.estimate.level_correction.correct_by_simulator`)."""
+        ``simulator``: the corrections' and the refinement's reference model (default the
+        simulator of the packaged wagon, :class:`~railsusp.estimate.forces.SimulatorForces`;
+        give one with ``wagon=`` for another wagon's data)."""
         self.check(recordings, model)
         cfg = self.nsga
         with progress(f"NSGA-II {cfg.pop_size} x {cfg.n_gen} on {len(recordings)} recording(s)"):
@@ -132,6 +133,7 @@ class EstimateRoute:
                     geometry_draws=self.geometry_draws,
                     remove_geometry_bias=self.remove_geometry_bias,
                     expected_draws=cfg.expected_draws,
+                    model=simulator,
                 )
             res.held_prior = self.held_prior
         return res

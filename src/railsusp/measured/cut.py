@@ -34,7 +34,8 @@ from railsusp.measured.sections_out import section_recording, write_sections
 class RunSource:
     """A long run and how to cut it: the recording, its channel map (None: the documented
     column names), a line description or a section table (neither: the run's own geometry
-    channels), the rules, and the sampling rate of the written sections."""
+    channels), the rules, the sampling rate of the written sections, and the static wheel
+    load its wheel loads are checked against (None: the packaged C80's)."""
 
     recording: Path
     channel_map: Path | None = None
@@ -42,6 +43,7 @@ class RunSource:
     table: Path | None = None
     rules: SectionRules = field(default_factory=SectionRules)
     rate_hz: float = 50.0
+    wheel_load_N: float | None = None
 
     def __post_init__(self) -> None:
         if self.line is not None and self.table is not None:
@@ -59,7 +61,7 @@ class RunSource:
         for p in self.files():
             st = Path(p).stat()
             stats.append((str(Path(p).resolve()), st.st_size, st.st_mtime_ns))
-        return (tuple(stats), self.rules, self.rate_hz)
+        return (tuple(stats), self.rules, self.rate_hz, self.wheel_load_N)
 
 
 def cut_run(source: RunSource) -> tuple[MeasuredRun, list[Section]]:
@@ -71,7 +73,9 @@ def cut_run(source: RunSource) -> tuple[MeasuredRun, list[Section]]:
 @lru_cache(maxsize=4)
 def _cut(source: RunSource, _state: tuple) -> tuple[MeasuredRun, list[Section]]:
     cmap = read_channel_map(source.channel_map) if source.channel_map else None
-    run = read_run(source.recording, cmap, min_rate_hz=source.rate_hz)
+    run = read_run(
+        source.recording, cmap, min_rate_hz=source.rate_hz, wheel_load_N=source.wheel_load_N
+    )
     secs = cut_sections(
         run,
         source.rules,

@@ -397,9 +397,11 @@ def read_index(folder: str | Path) -> list[Path]:
     return [inside(folder, n, f"{index} recordings") for n in names]
 
 
-def read_field(folder: str | Path) -> list[Recording]:
-    """All recordings listed in a field folder's ``index.json`` (never ``truth.json``)."""
-    return [read_recording(p) for p in read_index(folder)]
+def read_field(folder: str | Path, *, wheel_load_N: float | None = None) -> list[Recording]:
+    """All recordings listed in a field folder's ``index.json`` (never ``truth.json``);
+    ``wheel_load_N``: the static wheel load their wheel loads are checked against (default:
+    the packaged C80's; another wagon's, e.g. a tare C80's 24.5 kN, was refused)."""
+    return [read_recording(p, wheel_load_N=wheel_load_N) for p in read_index(folder)]
 
 
 def conditions_from(spec: str) -> list[WorkingCondition]:

@@ -8,6 +8,7 @@ from __future__ import annotations
 from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
@@ -107,6 +108,7 @@ def synthesise_field(
     track_noise_mm: float = 0.0,
     stated_accuracy_mm: float | None = None,
     wheelset: bool = False,
+    wagon: Any = None,
 ) -> Path:
     """Synthetic field recordings of the ``truth`` ParameterSet with hidden truth.
 
@@ -131,9 +133,13 @@ def synthesise_field(
     ``wheelset``: both wheels of the instrumented wheelset are recorded (the measured wheel
     first, then its partner), as an instrumented wheelset measures them; the posterior's
     wheelset, coherence and cross-spectra statistics need the partner. Default: the
-    measured wheel only.
+    measured wheel only. ``wagon``: the wagon data simulated (a WagonData or a wagon file;
+    None: the packaged C80).
     """
     from railsusp.vehicle.simulate import simulate
+    from railsusp.vehicle.wagon import load_wagon
+
+    wagon = load_wagon(wagon) if wagon is None or isinstance(wagon, str | Path) else wagon
 
     if not 0.0 <= track_noise_mm <= 10.0:
         raise RailsuspInputError(f"track_noise_mm = {track_noise_mm:g}: accepted 0 to 10 mm")
@@ -165,7 +171,7 @@ def synthesise_field(
             if duration_s is not None:
                 cond = cond.with_duration(duration_s)
             field_cond = cond.with_changes(seed=cond.seed + track_seed_offset)
-            result = simulate(truth, field_cond)
+            result = simulate(truth, field_cond, wagon=wagon)
             j = result.measured_wheel()
             both = (WHEEL_NAMES[j], WHEEL_NAMES[j ^ 1]) if wheelset else None
             rec = recording_from_simulation(result, both)
@@ -175,7 +181,7 @@ def synthesise_field(
                 # a condition's own track_geometry file is the track it names: the recording
                 # carries it whatever with_track says (a copy beside it, unfaded, its offset
                 # applied), as a measured recording on known track would
-                irr = _track_of(field_cond)
+                irr = _track_of(field_cond, wagon)
                 if track_noise_mm:
                     rng = np.random.default_rng([seed, i, 1])
                     irr = with_measurement_error(
@@ -190,7 +196,7 @@ def synthesise_field(
                     if stated_accuracy_mm is None
                     else stated_accuracy_mm,
                 )
-            rec.meta["wagon"] = rec.meta.get("wagon", "")
+            rec.meta["wagon"] = wagon.name
             rec.write(folder / cond.name, fmt)
             names.append(cond.name + (".csv" if fmt == "csv" else ".parquet"))
         write_json(
@@ -208,18 +214,17 @@ def synthesise_field(
     return out
 
 
-def _track_of(cond: WorkingCondition) -> Irregularities:
+def _track_of(cond: WorkingCondition, wagon: Any) -> Irregularities:
     """The irregularities a synthetic recording of ``cond`` was simulated on, in section
     coordinates: its ``track_geometry`` file as read (the file's distances moved by
     ``track_offset_m``; not faded in, as the simulation's copy is), else the condition's
     synthesised realisation."""
     from railsusp.vehicle.setup import section_irregularities
-    from railsusp.vehicle.wagon import load_wagon
 
     if cond.track_geometry is not None:
         irr = read_track_geometry(cond.track_geometry)
         return replace(irr, s=irr.s + cond.track_offset_m + cond.lead_in_m)
-    irr = section_irregularities(cond, [cond.seed], load_wagon())
+    irr = section_irregularities(cond, [cond.seed], wagon)
     if irr is None:
         raise RailsuspInputError(
             f"condition {cond.name!r}: perfect track (no irregularity_class) has no track "

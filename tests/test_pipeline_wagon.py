@@ -1,0 +1,34 @@
+"""A pipeline on another wagon's data simulates that wagon in every stage (the user-journey
+audit of stop 59: the synthetic recordings, the validation's and the refinement's
+simulations took the packaged C80 whatever ``wagon =`` said, and recordings of a tare
+wagon were refused for their wheel loads)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+import railsusp
+from railsusp.vehicle.setup import static_wheel_load
+from railsusp.vehicle.wagon import load_wagon
+
+TINY = Path(__file__).resolve().parents[1] / "examples" / "tiny.toml"
+
+
+def test_every_stage_simulates_the_configurations_wagon(tmp_path):
+    tare = load_wagon("tare")
+    config = tmp_path / "tare.toml"
+    config.write_text('wagon = "tare"\n' + TINY.read_text())
+    result = railsusp.run(config, out=tmp_path / "run")
+    q = static_wheel_load(tare) / 1e3  # 24.5 kN
+    field = pd.read_csv(tmp_path / "run" / "field" / "short.csv")
+    assert field.filter(like="Q_").mean().iloc[0] == pytest.approx(q, rel=0.05)
+    meta = json.loads((tmp_path / "run" / "field" / "short.json").read_text())
+    assert meta["wagon"] == tare.name
+    val = result.validation
+    before = val[(val.force == "Q") & (val.statistic == "mean")].iloc[0]
+    assert before.measured_kN == pytest.approx(q, rel=0.05)
+    assert before.before_kN == pytest.approx(q, rel=0.05)  # the tare wagon, not 122 kN
