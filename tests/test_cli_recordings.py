@@ -149,3 +149,19 @@ def test_neither_writer_replaces_a_field_folder_it_did_not_write(tmp_path):
     result = runner.invoke(app, [*synth, str(tmp_path / "notes")])
     assert result.exit_code == 2 and "files of another kind" in result.output
     assert (tmp_path / "notes" / "a.txt").read_text() == "mine"
+
+
+def test_check_recording_takes_the_wagon_whose_wheel_loads_it_checks(tmp_path):
+    """A tare C80's recording (24.5 kN static wheel load) was refused against the loaded
+    C80's 121.9 kN whatever the wagon: check-recording and sections had no --wagon."""
+    from test_measured import make_recording
+
+    rec = make_recording(100, 50.0)
+    rec.Q = {"w1L": 24.5 + 2 * np.cos(rec.time)}
+    rec.write(tmp_path / "tare.csv")
+    loaded = runner.invoke(app, ["check-recording", str(tmp_path / "tare.csv")])
+    assert loaded.exit_code == 2 and "static wheel load 121.9 kN" in loaded.output
+    tare = runner.invoke(app, ["check-recording", str(tmp_path / "tare.csv"), "--wagon", "tare"])
+    assert tare.exit_code == 0, tare.output
+    bad = runner.invoke(app, ["check-recording", str(tmp_path / "tare.csv"), "--wagon", "nope"])
+    assert bad.exit_code == 2 and "--wagon" in bad.output and "Traceback" not in bad.output

@@ -32,3 +32,36 @@ def test_every_stage_simulates_the_configurations_wagon(tmp_path):
     before = val[(val.force == "Q") & (val.statistic == "mean")].iloc[0]
     assert before.measured_kN == pytest.approx(q, rel=0.05)
     assert before.before_kN == pytest.approx(q, rel=0.05)  # the tare wagon, not 122 kN
+
+
+def test_the_commands_take_the_wagon_and_validate_follows_the_estimates(tmp_path):
+    """synth-field, estimate and validate simulated the packaged C80 whatever the wagon:
+    they take --wagon now, and validate takes the estimate's by default."""
+    from typer.testing import CliRunner
+
+    from railsusp.cli import app
+
+    runner = CliRunner()
+    cond = tmp_path / "short.toml"
+    cond.write_text(
+        '[[condition]]\nbase = "straight"\nname = "short"\nduration_s = 1.0\nn_steps = 50\n'
+        "lead_in_m = 20.0\n"
+    )
+    field, est = tmp_path / "field", tmp_path / "est"
+    done = runner.invoke(app, ["synth-field", "--out", str(field), "--conditions", str(cond),
+                               "--truth", "X13=16.1", "--wagon", "tare"])  # fmt: skip
+    assert done.exit_code == 0, done.output
+    q = static_wheel_load(load_wagon("tare")) / 1e3
+    assert pd.read_csv(field / "short.csv").filter(like="Q_").mean().iloc[0] == pytest.approx(
+        q, rel=0.05
+    )
+    done = runner.invoke(app, ["estimate", "--measured", str(field), "--out", str(est),
+                               "--simulator", "--parameters", "X13", "--pop-size", "4",
+                               "--n-gen", "1", "--wagon", "tare"])  # fmt: skip
+    assert done.exit_code == 0, done.output
+    assert json.loads((est / "estimate.json").read_text())["wagon"] == "tare"
+    done = runner.invoke(app, ["validate", str(est)])
+    assert done.exit_code == 0, done.output
+    val = pd.read_csv(est / "validation" / "validation.csv")
+    row = val[(val.force == "Q") & (val.statistic == "mean")].iloc[0]
+    assert row.before_kN == pytest.approx(q, rel=0.05)

@@ -400,7 +400,7 @@ def _stage_runners(
         from railsusp.measured import read_field
         from railsusp.surrogate import key_parameters, not_estimated
         from railsusp.vehicle.setup import static_wheel_load
-        from railsusp.vehicle.wagon import load_wagon
+        from railsusp.vehicle.wagon import load_wagon, wagon_reference
 
         e = config.estimate
         # a network set's inputs are its own key parameters, whatever the sensitivity found
@@ -445,6 +445,7 @@ def _stage_runners(
             extra={
                 "measured": str((out / "field").resolve()),
                 "model": config.surrogate.model,
+                "wagon": wagon_reference(config.wagon),  # validate's default
                 "not_estimated": not_estimated(
                     sur_dir / "surrogates" / config.surrogate.model, params
                 ),

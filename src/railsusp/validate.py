@@ -154,6 +154,8 @@ def validate(
         )
     params = tuple(est["parameters"])
     stats = parse_statistics(statistic or est["config"]["statistic"])
+    if wagon is None:  # the wagon the estimate simulated (None there: the packaged C80)
+        wagon = est.get("wagon")
     wagon = load_wagon(wagon) if wagon is None or isinstance(wagon, str | Path) else wagon
     recs = read_field(measured or est["measured"], wheel_load_N=static_wheel_load(wagon))
     if statistic is None and ALIGNED not in stats:

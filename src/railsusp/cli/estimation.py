@@ -140,6 +140,14 @@ def estimate(
             "instead of Table 2's ranges; docs/intervals.md)"
         ),
     ] = None,
+    wagon: Annotated[
+        str | None,
+        typer.Option(
+            help="wagon data TOML, or a packaged name: loaded (default), tare: the wagon the "
+            "simulator runs (--simulator, the corrections, the refinement) and whose static "
+            "wheel load the recordings' wheel loads are checked against"
+        ),
+    ] = None,
 ) -> None:
     """NSGA-II estimate of the key parameters from measured recordings (Tables 3-5, Figs 8-9)."""
     from railsusp.estimate import (
@@ -221,15 +229,19 @@ def estimate(
             corrections_setting="--simulator-corrections",
         )
         from railsusp.params import STUDY_KEY_PARAMETERS, parse_sampled
+        from railsusp.vehicle.setup import static_wheel_load
+        from railsusp.vehicle.wagon import load_wagon, wagon_reference
 
         chosen = parse_sampled(parameters) if parameters is not None else None
-        recs = read_field(measured)
+        wagon_data = load_wagon(wagon)  # a packaged name or a file, one-line errors
+        recs = read_field(measured, wheel_load_N=static_wheel_load(wagon_data))
         if surrogate is not None:
             model, params = open_force_model(surrogate, chosen)
         else:
             params = chosen or STUDY_KEY_PARAMETERS
-            model = SimulatorForces(params)
-        res = route.run(model, recs, params, progress=console.status)
+            model = SimulatorForces(params, wagon=wagon_data)
+        sim = SimulatorForces(params, wagon=wagon_data)  # the corrections' and refinement's
+        res = route.run(model, recs, params, progress=console.status, simulator=sim)
         # the folder as one artefact: a full disk or a kill while the figures are drawn
         # leaves the folder as it was, not an estimate.json without its figures
         with atomic_folder(out) as tmp:
@@ -239,6 +251,7 @@ def estimate(
                     "measured": str(measured.resolve()),
                     "model": str(surrogate.resolve()) if surrogate else "simulator",
                     "not_estimated": not_estimated(surrogate, params),
+                    "wagon": wagon_reference(wagon),  # validate's default
                 },
             )
     except (RailsuspInputError, ValueError, FileNotFoundError) as exc:

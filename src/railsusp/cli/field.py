@@ -48,6 +48,10 @@ def synth_field(
             "its partner), for the posterior's wheelset, coherence and cross-spectra statistics"
         ),
     ] = False,
+    wagon: Annotated[
+        str | None,
+        typer.Option(help="wagon data TOML, or a packaged name: loaded (default), tare"),
+    ] = None,
 ) -> None:
     """Synthetic instrumented-wheelset recordings of hidden true parameters (truth.json)."""
     from railsusp.measured import synthesise_field
@@ -68,6 +72,9 @@ def synth_field(
         check_field_output(out, "synthetic", "--out")  # never replaces measured recordings
         pset = ParameterSet(parse_overrides(truth) if truth else {}, units="display")
         conds = resolve_conditions(conditions)
+        from railsusp.vehicle.wagon import load_wagon
+
+        wagon_data = load_wagon(wagon)  # a packaged name or a file, one-line errors
         with console.status("simulating the hidden truth"):
             synthesise_field(
                 pset,
@@ -80,6 +87,7 @@ def synth_field(
                 with_track=with_track,
                 track_noise_mm=track_noise,
                 wheelset=wheelset,
+                wagon=wagon_data,
             )
     except RailsuspInputError as exc:
         fail(str(exc))

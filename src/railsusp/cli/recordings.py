@@ -14,6 +14,24 @@ from railsusp.cli.common import app, console, fail, frame_table
 from railsusp.errors import RailsuspInputError
 from railsusp.store import check_figure_file
 
+#: the wagon whose static wheel load the recordings' wheel loads are checked against
+WagonOption = Annotated[
+    str | None,
+    typer.Option(
+        "--wagon",
+        help="wagon data TOML, or a packaged name (loaded: default, tare), whose static wheel "
+        "load the wheel loads are checked against",
+    ),
+]
+
+
+def wheel_load_of(wagon: str | None) -> float:
+    """The static wheel load (N) of ``--wagon`` (one-line errors for a bad file)."""
+    from railsusp.vehicle.setup import static_wheel_load
+    from railsusp.vehicle.wagon import load_wagon
+
+    return static_wheel_load(load_wagon(wagon))
+
 
 def print_problems(exc) -> None:
     """Every problem of a refused recording, one line each, then the one-line error."""
@@ -36,6 +54,7 @@ def check_recording(
         Path | None,
         typer.Option("--map", help="channel map TOML: read PATH as a long run through it"),
     ] = None,
+    wagon: WagonOption = None,
 ) -> None:
     """Validate a recording and summarise it (every problem is listed at once, one line
     each naming file, channel and rows; exit status 2)."""
@@ -46,11 +65,15 @@ def check_recording(
     lo, hi = MIN_RATE_RANGE_HZ
     if not lo <= min_rate <= hi:  # NaN fails too (checked here too: a run file is not read)
         fail(f"--min-rate {min_rate:g} Hz: accepted {lo:g} to {hi:g} Hz")
+    try:
+        load = wheel_load_of(wagon)
+    except RailsuspInputError as exc:
+        fail(f"--wagon: {exc}")
     if channel_map is not None or path.suffix.lower() in MDF_SUFFIXES:
-        _check_run(path, channel_map, min_rate)
+        _check_run(path, channel_map, min_rate, load)
         return
     try:
-        rec = read_recording(path, min_rate_hz=min_rate)
+        rec = read_recording(path, min_rate_hz=min_rate, wheel_load_N=load)
     except RecordingError as exc:
         print_problems(exc)
     except RailsuspInputError as exc:
@@ -82,16 +105,19 @@ def check_recording(
         )
 
 
-def _check_run(path: Path, channel_map: Path | None, min_rate: float) -> None:
+def _check_run(path: Path, channel_map: Path | None, min_rate: float, load: float) -> None:
     """check-recording of a long run read through a channel map: its channels as used, the
-    forces at ``min_rate`` Hz or more."""
+    forces at ``min_rate`` Hz or more, the wheel loads against ``load`` (N)."""
     from railsusp.measured import RecordingError
     from railsusp.measured.channels import read_channel_map
     from railsusp.measured.run import read_run
 
     try:
         run = read_run(
-            path, read_channel_map(channel_map) if channel_map else None, min_rate_hz=min_rate
+            path,
+            read_channel_map(channel_map) if channel_map else None,
+            min_rate_hz=min_rate,
+            wheel_load_N=load,
         )
     except RecordingError as exc:
         print_problems(exc)
@@ -146,6 +172,7 @@ def sections_command(
         Path | None,
         typer.Option(help="write the kept sections as a field folder (index.json) here"),
     ] = None,
+    wagon: WagonOption = None,
 ) -> None:
     """Cut a long run into sections of one working condition each and show the cut."""
     from railsusp.measured import RecordingError
@@ -174,7 +201,8 @@ def sections_command(
             speed_tolerance=speed_tolerance, min_length_m=min_length, max_duration_s=max_duration
         )
         cmap = read_channel_map(channel_map) if channel_map else None
-        run = read_run(recording, cmap, min_rate_hz=rate)  # the sections' rate at the least
+        load = wheel_load_of(wagon)
+        run = read_run(recording, cmap, min_rate_hz=rate, wheel_load_N=load)  # rate: the least
         secs = cut_sections(
             run,
             rules,

@@ -29,6 +29,10 @@ def validate(
         typer.Option(help="RUN/sensitivity of the campaign, to flag parameters with low Sobol ST"),
     ] = None,
     out: Annotated[Path | None, typer.Option(help="default: ESTIMATE_DIR/validation")] = None,
+    wagon: Annotated[
+        str | None,
+        typer.Option(help="wagon data TOML, or a packaged name: loaded (default), tare"),
+    ] = None,
 ) -> None:
     """Re-simulate with nominal and estimated parameters; Tables 8/9 and recovery scores."""
     from railsusp.validate import validate as run_validate
@@ -50,7 +54,7 @@ def validate(
             )
         with console.status("re-simulating the measured conditions"):
             res = run_validate(
-                estimate_dir, measured=measured, truth=truth, sensitivity=sensitivity
+                estimate_dir, measured=measured, truth=truth, sensitivity=sensitivity, wagon=wagon
             )
         res.save(out or estimate_dir / "validation")
     except (RailsuspInputError, ValueError, FileNotFoundError, KeyError) as exc:

@@ -330,3 +330,12 @@ def load_wagon(source: str | Path | None = None) -> WagonData:
         raise RailsuspInputError(f"{where}: not valid TOML ({exc})") from None
     except ValidationError as exc:
         raise RailsuspInputError(f"{where}: {wagon_error_text(exc)}") from None
+
+
+def wagon_reference(wagon: str | Path | None) -> str | None:
+    """How a result records the wagon it simulated, for a later step to load it again: a
+    packaged name or None as given, a file by its absolute path (a relative one would be
+    read from another working folder)."""
+    if wagon is None or not Path(wagon).is_file():
+        return None if wagon is None else str(wagon)
+    return str(Path(wagon).resolve())
