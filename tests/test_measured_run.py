@@ -2,6 +2,7 @@
 what the file states, channels of different rates put on one time base, sections cut by
 track and speed and written as a field folder; the shipped example run."""
 
+import itertools
 from importlib import resources
 
 import numpy as np
@@ -367,6 +368,21 @@ def test_the_shipped_example_reads_and_cuts_into_its_five_sections(tmp_path):
     recs = read_field(tmp_path / "field")
     # the measured wheel of each condition first: the outer wheel in a curve
     assert [r.wheels[0] for r in recs] == ["w1L", "w1R", "w1L", "w1L", "w1L"]
+
+
+def test_every_stretch_of_the_run_has_a_row_also_where_the_line_description_ends():
+    """Cut against a line description, the stretches it does not cover (about 720 m of the
+    example, between its km posts) got no row and no reason; the rows now cover the run."""
+    from railsusp.measured.sections import OUTSIDE_LINE
+
+    data = resources.files("railsusp") / "data"
+    run = read_run(data / "example_run.mf4", read_channel_map(data / "example_run.map.toml"))
+    secs = cut_sections(run, line=read_line(data / "example_line.csv"))
+    assert secs[0].start == 0 and secs[-1].end == run.time.size
+    assert all(a.end == b.start for a, b in itertools.pairwise(secs))
+    outside = [s for s in secs if OUTSIDE_LINE in s.reason]
+    assert outside and not any(s.kept for s in outside)
+    assert sum(s.end_m - s.start_m for s in outside) > 300.0
 
 
 def test_a_truncated_mdf_file_is_one_error_and_nothing_on_stderr(tmp_path):

@@ -109,7 +109,7 @@ def on_measured_track(tmp_path_factory):
         folder / "g.csv", synthesise(100.0, 5, 3, start=-40.0, dx=0.125)
     )
     cond = get_condition(
-        "straight", duration_s=1.0, n_steps=50, lead_in_m=5.0, track_geometry=str(geometry)
+        "straight", duration_s=1.0, n_steps=50, lead_in_m=20.0, track_geometry=str(geometry)
     )
     return recording_from_simulation(simulate_batch([ParameterSet.nominal()], cond))
 

@@ -130,8 +130,15 @@ def cut_sections(
     out: list[Section] = []
     for k, (a, b) in enumerate(spans):
         label = names[k] if names else None
-        for sec in _pieces(run, geo, a, b, rules, label):
-            if out and not out[-1].kept and not sec.kept and out[-1].end == sec.start:
+        outside = table is None and b > a and bool(np.isnan(geo["curvature"][a]))
+        for sec in [_outside(run, a, b)] if outside else _pieces(run, geo, a, b, rules, label):
+            if (
+                out
+                and not out[-1].kept
+                and not sec.kept
+                and out[-1].end == sec.start
+                and OUTSIDE_LINE not in (out[-1].reason, sec.reason)  # a row of its own
+            ):
                 out[-1] = _merged(run, out[-1], sec)  # one row per left-out stretch
             else:
                 out.append(sec)
@@ -193,10 +200,29 @@ def _label_runs(geo: dict, rules: SectionRules) -> list[tuple[int, int]]:
         + np.where(curv < 0, 1, 0)
         + 1000 * np.round(geo["grade"] * 1e3 / rules.grade_band_permille),
     )
+    label = np.where(band == -2, -2, label)  # NaN outside the line: one label, one run
     edges = np.flatnonzero(np.diff(label)) + 1
     starts = np.concatenate([[0], edges])
     ends = np.concatenate([edges, [label.size]])
-    return [(int(a), int(b)) for a, b in zip(starts, ends, strict=True) if band[a] != -2]
+    return [(int(a), int(b)) for a, b in zip(starts, ends, strict=True)]
+
+
+def _outside(run: MeasuredRun, a: int, b: int) -> Section:
+    """Stretch a..b, which the line description does not cover, as a left-out row (it was
+    dropped without a row: a quarter of the example run went unmentioned)."""
+    v = run.speed[a:b]
+    seconds = float(run.time[b - 1] - run.time[a])
+    metres = float(abs(run.position[b - 1] - run.position[a]))
+    piece = ("outside", OUTSIDE_LINE, seconds, metres)
+    return Section(
+        "", a, b, float(run.position[a]), float(run.position[b - 1]), None, "left", 0.0, 0.0,
+        float(v.mean()) * 3.6, float((v.max() - v.min()) / max(v.mean(), 1e-9)), False,
+        OUTSIDE_LINE, (piece,),
+    )  # fmt: skip
+
+
+#: the reason of a stretch that the line description does not cover
+OUTSIDE_LINE = "not covered by the line description (no km posts there)"
 
 
 #: a left-out piece too short for a condition, of less than this (s), beside another
