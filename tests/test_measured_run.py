@@ -448,3 +448,21 @@ def test_a_run_against_the_km_posts_gives_positive_lengths_and_a_radius_below_50
     absurd = synthetic_run(np.full(n, 60.0), np.full(n, 1000.0), np.zeros(n))
     (sec,) = cut_sections(absurd)
     assert not sec.kept and f"below the {MIN_RADIUS_M:g} m a working condition takes" in sec.reason
+
+
+def test_routine_resampling_is_a_note_not_a_warning_in_the_field_stage(tmp_path):
+    """The pipeline warned five times ("warning: ... channel 'v_train' (10 Hz) interpolated
+    onto 200 Hz") where check-recording and sections print a note; a fault of the data
+    (NaN gaps interpolated) still warns."""
+    import warnings
+
+    from railsusp.measured.cut import RunSource, _routine, write_run_field
+
+    data = resources.files("railsusp") / "data"
+    source = RunSource(data / "example_run.mf4", data / "example_run.map.toml")
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        write_run_field(source, tmp_path / "field")
+    assert not [w for w in seen if "interpolated onto" in str(w.message)]
+    assert _routine("channel 'v' (10 Hz) interpolated onto 200 Hz")
+    assert not _routine("channel 'Q_R': 3 missing sample(s) interpolated")

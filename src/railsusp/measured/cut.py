@@ -11,6 +11,7 @@ stages all ask for it.
 
 from __future__ import annotations
 
+import logging
 import warnings
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -28,6 +29,8 @@ from railsusp.measured.sections import (
     read_section_table,
 )
 from railsusp.measured.sections_out import section_recording, write_sections
+
+log = logging.getLogger("railsusp.measured")
 
 
 @dataclass(frozen=True)
@@ -103,5 +106,15 @@ def write_run_field(source: RunSource, out: str | Path, final: str | Path | None
     ``railsusp check-recording`` prints them: the pipeline's field stage said nothing."""
     run, secs = cut_run(source)
     for note in run.notes:
-        warnings.warn(f"{Path(source.recording).name}: {note}", stacklevel=2)
+        text = f"{Path(source.recording).name}: {note}"
+        if _routine(note):  # how the channels were read: a note, as check-recording says it
+            log.info("note: %s", text)
+        else:  # what the data lacked (gaps interpolated): a warning
+            warnings.warn(text, stacklevel=2)
     return write_sections(run, secs, out, source.rate_hz, final)
+
+
+def _routine(note: str) -> bool:
+    """A run's note on how its channels were read (slower channels interpolated onto the
+    forces' rate, channels not used), not on a fault of its data."""
+    return note.startswith("channel(s) not used") or "interpolated onto" in note
