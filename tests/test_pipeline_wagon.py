@@ -65,3 +65,18 @@ def test_the_commands_take_the_wagon_and_validate_follows_the_estimates(tmp_path
     val = pd.read_csv(est / "validation" / "validation.csv")
     row = val[(val.force == "Q") & (val.statistic == "mean")].iloc[0]
     assert row.before_kN == pytest.approx(q, rel=0.05)
+
+
+def test_simulate_shows_the_studys_figures_only_beside_the_studys_wagon():
+    """`simulate --wagon tare` printed the study's loaded-C80 Y and Q as the reference."""
+    from railsusp.cli.simulation import _force_table
+    from railsusp.conditions import get_condition
+    from railsusp.vehicle.simulate import simulate
+
+    res = simulate(None, get_condition("straight", duration_s=1.0, n_steps=50))
+
+    def study_column(study: bool) -> list:
+        table = _force_table([res], "t", study=study)
+        return list(next(c for c in table.columns if c.header == "study Y")._cells)
+
+    assert study_column(True) != ["-"] and study_column(False) == ["-"]

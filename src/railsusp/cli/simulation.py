@@ -18,9 +18,10 @@ from railsusp.store import check_figure_file, check_output_file
 from railsusp.study import TABLE8_BEFORE
 
 
-def _force_table(results: list, title: str, wheel: str = "auto") -> Table:
+def _force_table(results: list, title: str, wheel: str = "auto", study: bool = True) -> Table:
     """Force statistics of the measured ``wheel`` (auto: the leading wheelset's, outer in
-    curves) per condition beside the study's Table 8."""
+    curves) per condition beside the study's Table 8 where ``study`` (the study's wagon:
+    its loaded C80's figures are no reference for another wagon)."""
     table = Table(title=title, title_justify="left")
     for col in (
         "condition",
@@ -48,7 +49,7 @@ def _force_table(results: list, title: str, wheel: str = "auto") -> Table:
             warnings.simplefilter("ignore", RuntimeWarning)
             s = r.statistics(wheel)
         study_wheel = r.measured_wheel(wheel) == r.measured_wheel()  # Table 8's wheel
-        ref = TABLE8_BEFORE.get(r.condition.name) if study_wheel else None
+        ref = TABLE8_BEFORE.get(r.condition.name) if study_wheel and study else None
         status = "ok" if r.ok[0] else r.failures()[0][1]
         table.add_row(
             r.condition.name,
@@ -139,7 +140,10 @@ def simulate(
                 bar.advance(task)
     except RailsuspInputError as exc:
         fail(str(exc))
-    console.print(_force_table(results, f"Wheel-rail forces (kN), {wagon_data.name}", wheel))
+    study = wagon_data == load_wagon()  # the study's figures are of the loaded C80
+    console.print(
+        _force_table(results, f"Wheel-rail forces (kN), {wagon_data.name}", wheel, study)
+    )
     for r in results:
         if not r.ok[0]:  # a run that stopped: no file of NaN series (said below)
             continue
