@@ -141,9 +141,7 @@ def simulate(
     except RailsuspInputError as exc:
         fail(str(exc))
     study = wagon_data == load_wagon()  # the study's figures are of the loaded C80
-    console.print(
-        _force_table(results, f"Wheel-rail forces (kN), {wagon_data.name}", wheel, study)
-    )
+    console.print(_force_table(results, f"Wheel-rail forces (kN), {wagon_data.name}", wheel, study))
     for r in results:
         if not r.ok[0]:  # a run that stopped: no file of NaN series (said below)
             continue

@@ -28,7 +28,7 @@ from railsusp.errors import RailsuspInputError
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.settle import StartPlan, lead_in_plan, settled_states, start_plan
 from railsusp.vehicle.setup import ContactArrays, SolverSettings, constants, track_arrays
-from railsusp.vehicle.step_bound import batch_step
+from railsusp.vehicle.step_bound import set_steps
 from railsusp.vehicle.wagon import WagonData
 
 
@@ -119,12 +119,6 @@ def _parts(
     )
     track_seeds, track_index = _track_seeds(condition, seeds, n)
     dt_out = condition.sample_interval
-    step = batch_step(wagon, condition.speed_kmh, P, settings.max_step)
-    n_sub = max(1, int(np.ceil(dt_out / step - 1e-9)))
-    dt = dt_out / n_sub
-    sos = np.ascontiguousarray(
-        butter(settings.filter_order, settings.anti_alias * 0.5 / dt_out, fs=1.0 / dt, output="sos")
-    )
     runs = ConditionRuns(
         condition=condition,
         P=P,
@@ -134,20 +128,40 @@ def _parts(
         fail_time=np.zeros(n),
         settled=np.zeros(n, dtype=bool),
     )
+    # each set at its own stable step (its masses'), the sets of one step in their parts:
+    # a set's forces are those it gets alone, whatever else its batch holds
+    steps = set_steps(wagon, condition.speed_kmh, P, settings.max_step)
+    n_subs = np.maximum(1, np.ceil(dt_out / steps - 1e-9)).astype(np.int64)
     parts = []
-    plan = start_plan(condition, wagon, settings, dt)
-    if plan.settled:
-        tracks, s0, ds = track_arrays(condition, track_seeds, wagon, settings, **plan.track_options)
-        X0, runs.settled = settled_states(P, K, tracks[0], s0, ds, ca, plan.s_start)
-        idx = np.flatnonzero(runs.settled)
-        part = _Part(runs, idx, X0[idx], tracks, track_index[idx], s0, ds, plan, dt, n_sub, sos)
-        parts.append(part)
-    if not runs.settled.all():  # the lead-in for every set, or for those whose solve failed
-        tracks, s0, ds = track_arrays(condition, track_seeds, wagon, settings)
-        idx = np.flatnonzero(~runs.settled)
-        X0 = np.zeros((idx.size, L.N_STATE))  # static equilibrium on straight track
-        lead = lead_in_plan(condition, dt)
-        parts.append(_Part(runs, idx, X0, tracks, track_index[idx], s0, ds, lead, dt, n_sub, sos))
+    for n_sub in np.unique(n_subs):
+        group = np.flatnonzero(n_subs == n_sub)
+        dt = dt_out / int(n_sub)
+        sos = np.ascontiguousarray(
+            butter(
+                settings.filter_order, settings.anti_alias * 0.5 / dt_out, fs=1.0 / dt, output="sos"
+            )
+        )
+        plan = start_plan(condition, wagon, settings, dt)
+        if plan.settled:
+            tracks, s0, ds = track_arrays(
+                condition, track_seeds, wagon, settings, **plan.track_options
+            )
+            X0, ok = settled_states(P[group], K[group], tracks[0], s0, ds, ca, plan.s_start)
+            runs.settled[group] = ok
+            idx = group[ok]
+            parts.append(
+                _Part(
+                    runs, idx, X0[ok], tracks, track_index[idx], s0, ds, plan, dt, int(n_sub), sos
+                )
+            )
+        rest = group[~runs.settled[group]]  # the lead-in, or where the solve failed
+        if rest.size:
+            tracks, s0, ds = track_arrays(condition, track_seeds, wagon, settings)
+            X0 = np.zeros((rest.size, L.N_STATE))  # static equilibrium on straight track
+            lead = lead_in_plan(condition, dt)
+            parts.append(
+                _Part(runs, rest, X0, tracks, track_index[rest], s0, ds, lead, dt, int(n_sub), sos)
+            )
     runs.wall_time = time.perf_counter() - t0
     return runs, [p for p in parts if p.sets.size]
 

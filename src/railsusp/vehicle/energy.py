@@ -24,7 +24,8 @@ import numpy as np
 from railsusp.params import ParameterSet
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.operating_point import LinearisationPoint, linearisation_point
-from railsusp.vehicle.wagon import WagonData
+from railsusp.vehicle.step_bound import stable_step
+from railsusp.vehicle.wagon import WagonData, load_wagon
 
 NQ = L.N_DOF
 #: Gauss-Legendre points per sub-interval and sub-intervals of the potential's path integral
@@ -99,8 +100,12 @@ def energy_audit(
 ) -> EnergyAudit:
     """Run from state ``x0`` (layout.N_STATE; friction states usually 0) on ideal straight,
     level track and compare the work of the non-conservative forces with the change of
-    mechanical energy (module docstring). ``creep=False`` switches the creep forces off."""
-    audit = _Audit(linearisation_point(params, wagon, speed_kmh), creep)
+    mechanical energy (module docstring). ``creep=False`` switches the creep forces off.
+    ``dt`` is shortened to RK4's stability bound where the speed needs it
+    (:func:`~railsusp.vehicle.step_bound.stable_step`: below about 29 km/h for 0.5 ms)."""
+    point = linearisation_point(params, wagon, speed_kmh)
+    dt = min(dt, stable_step(load_wagon() if wagon is None else wagon, speed_kmh, point.P))
+    audit = _Audit(point, creep)
     y = np.append(np.asarray(x0, dtype=float), 0.0)
     e0 = audit.energy(y[:-1])
     for _ in range(round(duration_s / dt)):  # ideal straight track: the same everywhere
