@@ -296,6 +296,13 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
             _keep_own_batches(out, config, str(exc), force)
         else:
             revision = meta.get("model_revision", MODEL_REVISION)  # unstated: older files
+            if "model_revision" not in meta:
+                log.warning(
+                    "%s states no force-law revision (made before 2026-11-30): its batches "
+                    "may be of other force laws; where its conditions run below 58 km/h or "
+                    "with lead-ins under 40 m, start it again in a new --out",
+                    meta_path,
+                )
             if revision != MODEL_REVISION and not force:  # its batches: other force laws
                 raise CampaignError(
                     f"{out} holds a campaign simulated with force-law revision {revision}; "

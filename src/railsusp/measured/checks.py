@@ -195,6 +195,8 @@ def check_forces(
             for unit, f in (("N", 1.0), ("kN", 1e3), ("MN", 1e6)):
                 if low <= ratio * f / _factor(units[1]) <= high and f != _factor(units[1]):
                     hint = f"; the values look like {unit}, not {units[1]}"
+            if not hint:  # right unit, another wagon (a tare C80's 24.5 kN)
+                hint = "; another wagon? give its data (--wagon, or wagon = in a pipeline)"
             problems.append(
                 f"channel {qname!r}: median wheel load {med / 1e3:.4g} kN (read as "
                 f"{units[1]}) against the static wheel load {static_wheel_load_N / 1e3:.4g} kN "
