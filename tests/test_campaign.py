@@ -256,15 +256,18 @@ def test_a_batch_of_another_configuration_copied_in_is_simulated_again(full_run,
 
 def test_an_edited_design_or_configuration_is_not_taken_as_the_campaigns(full_run, tmp_path):
     """A design.parquet edited by hand was kept (sensitivity then paired it with the forces
-    of the original design); a campaign.json whose configuration was edited under its hash
-    lent its batches another configuration (other tracks)."""
+    of the original design): refused now, --force starts again; a campaign.json whose
+    configuration was edited under its hash lent its batches another configuration (other
+    tracks): its batches are kept by their stamps and its configuration written again."""
     cfg, out = full_run
     copy = tmp_path / "copy"
     shutil.copytree(out, copy)
     design = pd.read_parquet(copy / "design.parquet")
     design.loc[0, "X13"] = 20.9e6
     design.to_parquet(copy / "design.parquet", compression="gzip")
-    run_campaign(cfg, copy)
+    with pytest.raises(CampaignError, match="is not this configuration's design"):
+        run_campaign(cfg, copy)
+    run_campaign(cfg, copy, force=True)  # started again
     pd.testing.assert_frame_equal(load_campaign(copy).design(), load_campaign(out).design())
     meta = json.loads((copy / "campaign.json").read_text())
     meta["config"]["seed"] = 11
@@ -274,6 +277,9 @@ def test_an_edited_design_or_configuration_is_not_taken_as_the_campaigns(full_ru
     calls = []
     run_campaign(cfg, copy, progress=lambda d, t: calls.append(d))  # its stamps say whose
     assert calls[0] == 20 and load_campaign(copy).config.hash() == cfg.hash()
+    pd.testing.assert_frame_equal(
+        _sorted(load_campaign(copy).features()), _sorted(load_campaign(out).features())
+    )
 
 
 def test_force_discards_the_surrogates_trained_on_the_old_batches(full_run, tmp_path):

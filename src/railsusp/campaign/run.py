@@ -319,16 +319,16 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
                 _discard(out)
             elif parquet_readable(out / "design.parquet"):
                 stored = pd.read_parquet(out / "design.parquet")
-                design = make_design(config)  # the design follows from the configuration
-                if stored.equals(design):
+                if stored.equals(make_design(config)):  # it follows from the configuration
                     return stored
-                log.warning(
-                    "%s is not this configuration's design (edited?): written again from "
-                    "the configuration",
-                    out / "design.parquet",
-                )
-                write_parquet(out / "design.parquet", design)
-                return design
+                if not force:  # its batches were simulated on one of the two: which?
+                    raise CampaignError(
+                        f"{out / 'design.parquet'} is not this configuration's design "
+                        "(edited by hand, or made by another SciPy or SALib), so its batches "
+                        "cannot be paired with their parameters; use a new --out, or --force "
+                        "to start the campaign again"
+                    )
+                _discard(out)
             # (a design that is gone or does not read is made again below: it follows from
             # the configuration, as the batches that campaign.json vouches for do)
     elif any((out / sub).exists() for sub in ("batches", "features.parquet")):

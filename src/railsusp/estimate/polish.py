@@ -177,7 +177,7 @@ def refine_estimate(
         }
         for i, r in zip(best, runs, strict=True)
     ]
-    winner.screened = len(candidates)
+    winner.screened = len(distinct)  # each distinct candidate scored once
     winner.expected_draws = expected
     result.refinement = winner
     if polish is None:
