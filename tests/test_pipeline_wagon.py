@@ -80,3 +80,25 @@ def test_simulate_shows_the_studys_figures_only_beside_the_studys_wagon():
         return list(next(c for c in table.columns if c.header == "study Y")._cells)
 
     assert study_column(True) != ["-"] and study_column(False) == ["-"]
+
+
+def test_estimate_takes_the_surrogates_wagon_and_refuses_another(tmp_path, monkeypatch):
+    """`estimate --surrogate` simulated (corrections, refinement) and checked the wheel
+    loads with the packaged C80 whatever wagon the networks were trained on; it now takes
+    theirs, and refuses a --wagon of another."""
+    from types import SimpleNamespace
+
+    from typer.testing import CliRunner
+
+    import railsusp.estimate as estimate_package
+    from railsusp.cli import app
+
+    tare = load_wagon("tare")
+    fake = SimpleNamespace(wagon=tare, parameters=("X13",))
+    monkeypatch.setattr(estimate_package, "open_force_model", lambda folder, p: (fake, ("X13",)))
+    (tmp_path / "sur").mkdir()
+    result = CliRunner().invoke(app, ["estimate", "--measured", str(tmp_path / "none"),
+                                      "--out", str(tmp_path / "est"), "--surrogate",
+                                      str(tmp_path / "sur"), "--wagon", "loaded"])  # fmt: skip
+    assert result.exit_code == 2
+    assert "trained on another wagon (C80 / K6 tare)" in result.output

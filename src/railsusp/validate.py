@@ -155,7 +155,14 @@ def validate(
     params = tuple(est["parameters"])
     stats = parse_statistics(statistic or est["config"]["statistic"])
     if wagon is None:  # the wagon the estimate simulated (None there: the packaged C80)
+        from railsusp.vehicle.wagon import WagonData
+
         wagon = est.get("wagon")
+        if est.get("wagon_data"):
+            try:
+                wagon = WagonData.model_validate(est["wagon_data"])
+            except ValueError:  # another railsusp's wagon fields: its reference, if any
+                pass
     wagon = load_wagon(wagon) if wagon is None or isinstance(wagon, str | Path) else wagon
     recs = read_field(measured or est["measured"], wheel_load_N=static_wheel_load(wagon))
     if statistic is None and ALIGNED not in stats:

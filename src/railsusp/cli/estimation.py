@@ -229,15 +229,25 @@ def estimate(
             corrections_setting="--simulator-corrections",
         )
         from railsusp.params import STUDY_KEY_PARAMETERS, parse_sampled
+        from railsusp.surrogate.pretrained import wagon_hash
         from railsusp.vehicle.setup import static_wheel_load
         from railsusp.vehicle.wagon import load_wagon, wagon_reference
 
         chosen = parse_sampled(parameters) if parameters is not None else None
         wagon_data = load_wagon(wagon)  # a packaged name or a file, one-line errors
-        recs = read_field(measured, wheel_load_N=static_wheel_load(wagon_data))
         if surrogate is not None:
             model, params = open_force_model(surrogate, chosen)
-        else:
+            trained = getattr(model, "wagon", None)  # window networks know their wagon
+            if trained is not None and wagon is None:
+                wagon_data = trained  # the surrogates' wagon, unless --wagon says another
+            elif trained is not None and wagon_hash(trained) != wagon_hash(wagon_data):
+                raise RailsuspInputError(
+                    f"--wagon {wagon}: the surrogates in {surrogate} were trained on another "
+                    f"wagon ({trained.name}); accepted that wagon, or surrogates trained on "
+                    f"{wagon_data.name}"
+                )
+        recs = read_field(measured, wheel_load_N=static_wheel_load(wagon_data))
+        if surrogate is None:
             params = chosen or STUDY_KEY_PARAMETERS
             model = SimulatorForces(params, wagon=wagon_data)
         sim = SimulatorForces(params, wagon=wagon_data)  # the corrections' and refinement's
@@ -251,7 +261,10 @@ def estimate(
                     "measured": str(measured.resolve()),
                     "model": str(surrogate.resolve()) if surrogate else "simulator",
                     "not_estimated": not_estimated(surrogate, params),
-                    "wagon": wagon_reference(wagon),  # validate's default
+                    # validate's default: the wagon the estimate simulated (the option's,
+                    # else the surrogates'), as data (a custom file's name loads nothing)
+                    "wagon": wagon_reference(wagon),
+                    "wagon_data": wagon_data.model_dump(mode="json"),
                 },
             )
     except (RailsuspInputError, ValueError, FileNotFoundError) as exc:

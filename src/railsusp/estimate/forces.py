@@ -59,6 +59,11 @@ class SurrogateForces:
     def conditions(self) -> list[str]:
         return list(self._models)
 
+    @property
+    def wagon(self) -> Any:
+        """The wagon data the networks were trained on (their first bundle's)."""
+        return next(iter(self._models.values())).wagon
+
     def surrogate(self, name: str) -> Any:
         """The :class:`~railsusp.surrogate.bundle.Surrogate` of condition ``name``."""
         return self._models[name]
