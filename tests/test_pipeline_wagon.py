@@ -102,3 +102,25 @@ def test_estimate_takes_the_surrogates_wagon_and_refuses_another(tmp_path, monke
                                       str(tmp_path / "sur"), "--wagon", "loaded"])  # fmt: skip
     assert result.exit_code == 2
     assert "trained on another wagon (C80 / K6 tare)" in result.output
+
+
+def test_align_track_takes_the_wagon(tmp_path):
+    """align-track read a tare wagon's recordings against the loaded C80's wheel load and
+    simulated the C80; it takes --wagon, and the refusal says so."""
+    from typer.testing import CliRunner
+
+    from railsusp.cli import app
+
+    runner = CliRunner()
+    cond = tmp_path / "short.toml"
+    cond.write_text(
+        '[[condition]]\nbase = "straight"\nname = "short"\nduration_s = 4.0\nn_steps = 200\n'
+    )
+    field = tmp_path / "field"
+    done = runner.invoke(app, ["synth-field", "--out", str(field), "--conditions", str(cond),
+                               "--with-track", "--wagon", "tare"])  # fmt: skip
+    assert done.exit_code == 0, done.output
+    refused = runner.invoke(app, ["align-track", str(field)])
+    assert refused.exit_code == 2 and "another wagon? give its data (--wagon" in refused.output
+    done = runner.invoke(app, ["align-track", str(field), "--wagon", "tare"])
+    assert done.exit_code == 0, done.output

@@ -104,19 +104,31 @@ def align_track_command(
     write: Annotated[
         bool, typer.Option(help="write the offsets into the recordings' sidecars")
     ] = False,
+    wagon: Annotated[
+        str | None,
+        typer.Option(help="wagon data TOML, or a packaged name: loaded (default), tare"),
+    ] = None,
 ) -> None:
     """Align each recording's measured track geometry with its forces (cross-correlation
     with a nominal simulation) and report, or with --write store, the distance offset."""
     from railsusp.estimate import align_track
     from railsusp.measured import read_field
     from railsusp.store import read_json, write_json
+    from railsusp.vehicle.setup import static_wheel_load
+    from railsusp.vehicle.wagon import load_wagon
 
     try:
-        recs = [r for r in read_field(measured) if r.condition.track_geometry is not None]
+        wagon_data = load_wagon(wagon)  # a packaged name or a file, one-line errors
+        load = static_wheel_load(wagon_data)
+        recs = [
+            r
+            for r in read_field(measured, wheel_load_N=load)
+            if r.condition.track_geometry is not None
+        ]
         if not recs:
             raise RailsuspInputError(f"{measured}: no recording carries measured track geometry")
         with console.status("simulating on the measured tracks"):
-            found = [align_track(r, max_shift_m=max_shift) for r in recs]
+            found = [align_track(r, max_shift_m=max_shift, wagon=wagon_data) for r in recs]
     except (RailsuspInputError, ValueError) as exc:
         fail(str(exc))
     table = Table(title="Track geometry alignment", title_justify="left")

@@ -7,6 +7,7 @@ forces; :func:`align_track` finds the distance offset that does it.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -27,19 +28,23 @@ class TrackAlignment:
 
 
 def align_track(
-    rec: Recording, parameters: ParameterSet | None = None, max_shift_m: float = 10.0
+    rec: Recording,
+    parameters: ParameterSet | None = None,
+    max_shift_m: float = 10.0,
+    wagon: Any = None,
 ) -> TrackAlignment:
     """Find the distance offset between a recording's forces and its measured track geometry
     by cross-correlation: the simulator runs once on the geometry (nominal parameters unless
     given), and the lag at which its filtered lateral and vertical forces best match the
     recording's (mean normalised correlation of both, parabolic sub-sample peak) gives the
     offset. All axles see the same geometry, so a misregistration of the geometry by d metres
-    delays the forces by d / V."""
+    delays the forces by d / V. ``wagon``: the wagon data simulated (None: the packaged
+    C80)."""
     if rec.condition.track_geometry is None:
         raise ValueError(f"recording {rec.condition.name!r} carries no measured track geometry")
     if not 0.0 < max_shift_m <= 200.0:
         raise ValueError(f"max_shift_m = {max_shift_m:g}: accepted (0, 200] m")
-    sim = simulated_forces(parameters or ParameterSet.nominal(), rec)
+    sim = simulated_forces(parameters or ParameterSet.nominal(), rec, wagon)
     sim = measurement_filter(sim[None], rec)[0]
     meas = rec.forces()
     if sim.shape != meas.shape or not np.isfinite(sim).all():

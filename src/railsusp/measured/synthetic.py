@@ -44,12 +44,14 @@ def recording_from_simulation(
     return Recording(result.time.copy(), Y, Q, result.condition, {"wagon": result.wagon_name})
 
 
-def simulated_forces(pset, rec: Recording) -> np.ndarray:
+def simulated_forces(pset, rec: Recording, wagon: Any = None) -> np.ndarray:
     """(T, 2) forces (kN) the simulator gives for ``pset`` in a recording's condition at its
-    first measured wheel, the counterpart of :meth:`Recording.forces`."""
+    first measured wheel, the counterpart of :meth:`Recording.forces`; ``wagon``: its data
+    (None: the packaged C80)."""
     from railsusp.vehicle.simulate import simulate
 
-    return recording_from_simulation(simulate(pset, rec.condition), rec.wheels[:1]).forces()
+    result = simulate(pset, rec.condition, wagon=wagon)
+    return recording_from_simulation(result, rec.wheels[:1]).forces()
 
 
 @lru_cache(maxsize=64)
