@@ -64,6 +64,7 @@ import platform
 import sys
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -241,6 +242,22 @@ def rescore_set(
     return {**row, **scored(model, recs, params, true_keys, err)}
 
 
+def excerpt(rec, seconds: float):
+    """The first ``seconds`` of a recording, its condition recording as long (its measured
+    track and stated accuracy kept): NSGA-II's preview generations compare these."""
+    from railsusp.measured import Recording
+
+    cond = rec.condition.with_duration(min(seconds, rec.condition.duration_s))
+    n = cond.n_steps
+    return Recording(
+        rec.time[:n].copy(),
+        {w: v[:n].copy() for w, v in rec.Y.items()},
+        {w: v[:n].copy() for w, v in rec.Q.items()},
+        cond,
+        dict(rec.meta),
+    )
+
+
 def run_set(
     index: int,
     truth_si: np.ndarray,
@@ -264,7 +281,13 @@ def run_set(
     )
     timed = _Timed(model)
     t0, c0, load0 = time.perf_counter(), time.process_time(), os.getloadavg()[0]
-    res = estimate(timed, recs, params, cfg)
+    if args.preview_generations:  # the first generations on the records' first seconds
+        short = [excerpt(r, args.preview_s) for r in recs]
+        first = estimate(timed, short, params, replace(cfg, n_gen=args.preview_generations))
+        rest = replace(cfg, n_gen=args.n_gen - args.preview_generations)
+        res = estimate(timed, recs, params, rest, initial_si=first.pareto_x)
+    else:
+        res = estimate(timed, recs, params, cfg)
     t_nsga = time.perf_counter() - t0
     account_for_geometry(res, recs, model, args.geometry_draws, index)
     t_geometry = time.perf_counter() - t0
@@ -482,6 +505,12 @@ def settings_of(args: argparse.Namespace, folder: Path) -> dict:
         **({"slope_update": args.slope_update} if args.correction_slopes else {}),
         # Broyden's update skips steps under this (stop 53; none before it)
         **({"broyden_min_step": args.broyden_min_step} if args.slope_update == BROYDEN else {}),
+        # the first generations on the records' first seconds (stop 59)
+        **(
+            {"preview": [args.preview_generations, args.preview_s]}
+            if args.preview_generations
+            else {}
+        ),
     }
 
 
@@ -585,6 +614,14 @@ def main(argv: Sequence[str] | None = None) -> dict:
         action="store_true",
         help="with --expected-draws: NSGA-II's generations compare the expected forces too",
     )
+    ap.add_argument(
+        "--preview-generations",
+        type=int,
+        default=0,
+        help="the first N generations compare only each record's first --preview-s seconds, "
+        "the rest the whole record from their Pareto set (0: every generation whole)",
+    )
+    ap.add_argument("--preview-s", type=float, default=20.0, help="the preview's seconds")
     ap.add_argument("--work", type=Path, default=Path("runs/estimate_tracks"))
     ap.add_argument("--out", type=Path, default=Path("bench/results/estimate_tracks.json"))
     ap.add_argument(
@@ -604,6 +641,8 @@ def main(argv: Sequence[str] | None = None) -> dict:
         ap.error(f"--slope-update {args.slope_update}: only with --correction-slopes")
     if not 0.0 <= args.broyden_min_step < 1.0:
         ap.error(f"--broyden-min-step {args.broyden_min_step}: accepted 0 to under 1")
+    if not 0 <= args.preview_generations < args.n_gen:
+        ap.error(f"--preview-generations {args.preview_generations}: accepted 0 to n_gen - 1")
     if args.expected_generations and not args.expected_draws:
         ap.error("--expected-generations needs --expected-draws 1 or more")
     torch.set_num_threads(args.threads)

@@ -234,3 +234,30 @@ def test_the_efficient_expectation_sums_each_identifiable_keys_chance(bench):
     var = 0.6827 * 0.3173 + 0.9876 * 0.0124
     assert got["sd"] == pytest.approx(var**0.5, abs=1e-3)
     assert got["mean_squared_z"] == pytest.approx({"X18": 4.0, "X14": (1.0 + 9.0) / 2})
+
+
+def test_the_preview_generations_compare_the_records_first_seconds(bench, tmp_path):
+    """--preview-generations N: the first N generations on each record's first
+    --preview-s seconds (their predictions over as many steps), the rest on the whole
+    record; a setting of its own; N must leave at least one whole generation."""
+    run = tmp_path / "run"
+    tiny_surrogate(run / "surrogates" / "cnn-gru")
+    out = tmp_path / "out.json"
+    argv = [str(run), "--sets", "1", "--duration", "4", "--pop-size", "4", "--n-gen", "3"]
+    argv += ["--threads", "1", "--work", str(tmp_path / "w"), "--out", str(out)]
+    doc = bench.main([*argv, "--preview-generations", "2", "--preview-s", "2"])
+    assert doc["settings"]["preview"] == [2, 2.0]
+    assert doc["per_set"][0]["predict_calls"] == 3  # two preview generations, one whole
+    with pytest.raises(SystemExit):
+        bench.main([*argv, "--preview-generations", "3"])
+
+
+def test_an_excerpt_is_the_records_first_seconds_with_its_track(bench):
+    from test_measured import make_recording
+
+    rec = make_recording(200, 50.0)
+    short = bench.excerpt(rec, 1.0)
+    assert short.time.size == short.condition.n_steps == 50
+    assert short.condition.duration_s == 1.0
+    np.testing.assert_array_equal(short.Y["w1L"], rec.Y["w1L"][:50])
+    assert short.condition.track_geometry == rec.condition.track_geometry
