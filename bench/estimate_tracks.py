@@ -508,7 +508,7 @@ def settings_of(args: argparse.Namespace, folder: Path) -> dict:
         # the first generations on the records' first seconds (stop 59)
         **(
             {"preview": [args.preview_generations, args.preview_s]}
-            if args.preview_generations
+            if getattr(args, "preview_generations", 0)  # (scorers' namespaces lack it)
             else {}
         ),
     }
