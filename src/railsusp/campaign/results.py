@@ -34,6 +34,28 @@ def _config_error(meta_path: Path, exc: ValidationError) -> str:
     return f"{meta_path} is corrupt: its configuration does not validate ({first})"
 
 
+def stored_config(meta: dict, meta_path: Path) -> CampaignConfig:
+    """The configuration a ``campaign.json`` holds, validated and checked against the hash
+    its batches are stamped with (an edited configuration would lend them another design);
+    one-line :class:`CampaignError` otherwise."""
+    try:
+        config = CampaignConfig.model_validate(meta["config"])
+    except ValidationError as exc:
+        raise CampaignError(_config_error(meta_path, exc)) from None
+    except (KeyError, TypeError, ValueError) as exc:
+        first = str(exc).strip().splitlines()[0]
+        raise CampaignError(
+            f"{meta_path} is corrupt: its configuration does not validate ({first})"
+        ) from None
+    if config.hash() != meta.get("config_hash"):  # its batches are stamped with the hash
+        raise CampaignError(
+            f"{meta_path}: its configuration is not the one its batches were simulated "
+            f"with (hash {config.hash()}, stamped {meta.get('config_hash')}): "
+            "edited by hand? Run the campaign again into a new --out"
+        )
+    return config
+
+
 class Campaign:
     """A campaign run directory opened for reading."""
 
@@ -43,21 +65,7 @@ class Campaign:
         if not meta_path.exists():
             raise CampaignError(f"{self.path} is not a campaign run directory (no campaign.json)")
         self.meta = read_meta(meta_path)
-        try:
-            self.config = CampaignConfig.model_validate(self.meta["config"])
-        except ValidationError as exc:
-            raise CampaignError(_config_error(meta_path, exc)) from None
-        except (KeyError, TypeError, ValueError) as exc:
-            first = str(exc).strip().splitlines()[0]
-            raise CampaignError(
-                f"{meta_path} is corrupt: its configuration does not validate ({first})"
-            ) from None
-        if self.config.hash() != self.meta.get("config_hash"):  # its batches are stamped
-            raise CampaignError(
-                f"{meta_path}: its configuration is not the one its batches were simulated "
-                f"with (hash {self.config.hash()}, stamped {self.meta.get('config_hash')}): "
-                "edited by hand? Run the campaign again into a new --out"
-            )
+        self.config = stored_config(self.meta, meta_path)
 
     @property
     def complete(self) -> bool:

@@ -25,6 +25,7 @@ from railsusp.campaign.design import (
     track_seeds,
     track_table,
 )
+from railsusp.campaign.results import stored_config
 from railsusp.errors import RailsuspInputError
 from railsusp.store import (
     check_output_folder,
@@ -269,21 +270,6 @@ def _discard(out: Path) -> None:
     _remove(out, ("batches", *_FROM_DESIGN, *_FROM_BATCHES))
 
 
-def _check_own_hash(meta: dict, meta_path: Path) -> None:
-    """Refuse a ``campaign.json`` whose configuration is not the one its hash (and so its
-    batches' stamps) names: edited by hand, it would lend its batches another design."""
-    try:
-        stored = CampaignConfig.model_validate(meta["config"]).hash()
-    except (KeyError, TypeError, ValueError):
-        raise RailsuspInputError(
-            f"{meta_path} is corrupt: its configuration does not validate"
-        ) from None
-    if stored != meta.get("config_hash"):
-        raise RailsuspInputError(
-            f"{meta_path}: its configuration does not match its hash (edited by hand?)"
-        )
-
-
 def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
     """Create or re-open a run directory; refuse a different configuration unless forced."""
     check_output_folder(out)
@@ -291,7 +277,7 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
     if meta_path.exists():
         try:
             meta = read_meta(meta_path)
-            _check_own_hash(meta, meta_path)
+            stored_config(meta, meta_path)  # valid, and the one its batches are stamped with
         except RailsuspInputError as exc:  # damaged: the batches' stamps say whose they are
             _keep_own_batches(out, config, str(exc), force)
         else:
