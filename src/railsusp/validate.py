@@ -163,7 +163,7 @@ def validate(
                 wagon = WagonData.model_validate(est["wagon_data"])
             except ValueError:  # another railsusp's wagon fields: its reference, if any
                 pass
-    wagon = load_wagon(wagon) if wagon is None or isinstance(wagon, str | Path) else wagon
+    wagon = load_wagon(wagon)
     recs = read_field(measured or est["measured"], wheel_load_N=static_wheel_load(wagon))
     if statistic is None and ALIGNED not in stats:
         if all(r.condition.track_geometry is not None for r in recs):

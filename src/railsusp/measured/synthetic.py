@@ -141,7 +141,7 @@ def synthesise_field(
     from railsusp.vehicle.simulate import simulate
     from railsusp.vehicle.wagon import load_wagon
 
-    wagon = load_wagon(wagon) if wagon is None or isinstance(wagon, str | Path) else wagon
+    wagon = load_wagon(wagon)
 
     if not 0.0 <= track_noise_mm <= 10.0:
         raise RailsuspInputError(f"track_noise_mm = {track_noise_mm:g}: accepted 0 to 10 mm")

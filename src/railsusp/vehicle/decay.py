@@ -320,7 +320,7 @@ def free_decay(
     passed. ``friction``: the simulator's friction ("stuck" = as modelled; "sliding" zeroes
     the friction limits, for comparison); ``modal``: the linearisation whose left
     eigenvectors read the modal coordinates (default: the same friction variant's)."""
-    wagon = load_wagon() if wagon is None else wagon
+    wagon = load_wagon(wagon)
     if not 1.0 <= window_s <= 60.0:
         raise RailsuspInputError(f"window_s = {window_s:g}: accepted 1 to 60 s")
     point = linearisation_point(params, wagon, speed_kmh, friction)

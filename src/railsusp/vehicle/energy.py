@@ -103,8 +103,9 @@ def energy_audit(
     mechanical energy (module docstring). ``creep=False`` switches the creep forces off.
     ``dt`` is shortened to RK4's stability bound where the speed needs it
     (:func:`~railsusp.vehicle.step_bound.stable_step`: below about 29 km/h for 0.5 ms)."""
+    wagon = load_wagon(wagon)
     point = linearisation_point(params, wagon, speed_kmh)
-    dt = min(dt, stable_step(load_wagon() if wagon is None else wagon, speed_kmh, point.P))
+    dt = min(dt, stable_step(wagon, speed_kmh, point.P))
     audit = _Audit(point, creep)
     y = np.append(np.asarray(x0, dtype=float), 0.0)
     e0 = audit.energy(y[:-1])

@@ -82,7 +82,7 @@ def linearisation_point(
         from railsusp.errors import RailsuspInputError
 
         raise RailsuspInputError(f"friction = {friction!r}: accepted {', '.join(FRICTION_MODES)}")
-    wagon = load_wagon() if wagon is None else wagon
+    wagon = load_wagon(wagon)
     cond = ideal_track(speed_kmh, track_length_m)
     P = (params or ParameterSet.nominal()).to_array()
     return point_of(P, wagon, cond, friction)

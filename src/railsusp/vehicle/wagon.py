@@ -292,10 +292,14 @@ def wagon_error_text(exc: ValidationError) -> str:
     return "; ".join(msgs)
 
 
-def load_wagon(source: str | Path | None = None) -> WagonData:
+def load_wagon(source: str | Path | WagonData | None = None) -> WagonData:
     """Read and validate a wagon file; None gives the embedded C80/K6 data (loaded), a
-    name of :data:`PACKAGED_WAGONS` (``"tare"``) another embedded file."""
+    name of :data:`PACKAGED_WAGONS` (``"tare"``) another embedded file, and a WagonData
+    itself (so that a function taking any of them reads it with one call)."""
     from railsusp.store import read_toml, validate_document
+
+    if isinstance(source, WagonData):
+        return source
 
     text = packaged_wagon_text(source)
     if text is not None:

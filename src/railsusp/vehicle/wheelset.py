@@ -87,7 +87,7 @@ def free_wheelset_sway(
     """
     from railsusp.vehicle.setup import SolverSettings, constants, contact_arrays
 
-    wagon = load_wagon() if wagon is None else wagon
+    wagon = load_wagon(wagon)
     cond = WorkingCondition(speed_kmh=speed_kmh, irregularity_class=None)
     p = ParameterSet.nominal().to_array()
     ca = contact_arrays(wagon)
