@@ -24,6 +24,12 @@ app = typer.Typer(
 console = Console(width=None if sys.stdout.isatty() else 150)
 err_console = Console(stderr=True, width=None if sys.stderr.isatty() else 150)
 
+#: ``--wagon`` of the commands that simulate a wagon: a wagon file or a packaged name
+WagonOption = Annotated[
+    str | None,
+    typer.Option(help="wagon data TOML, or a packaged name: loaded (default), tare"),
+]
+
 
 #: "quiet", "normal" or "verbose": set by the global options, read by the commands
 verbosity = "normal"

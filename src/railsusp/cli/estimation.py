@@ -250,7 +250,8 @@ def estimate(
         if surrogate is None:
             params = chosen or STUDY_KEY_PARAMETERS
             model = SimulatorForces(params, wagon=wagon_data)
-        sim = SimulatorForces(params, wagon=wagon_data)  # the corrections' and refinement's
+        # the corrections' and the refinement's simulator: the model itself without surrogates
+        sim = model if surrogate is None else SimulatorForces(params, wagon=wagon_data)
         res = route.run(model, recs, params, progress=console.status, simulator=sim)
         # the folder as one artefact: a full disk or a kill while the figures are drawn
         # leaves the folder as it was, not an estimate.json without its figures

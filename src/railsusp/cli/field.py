@@ -9,7 +9,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from railsusp.cli.common import app, console, fail
+from railsusp.cli.common import WagonOption, app, console, fail
 from railsusp.conditions import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet, parse_overrides
@@ -48,10 +48,7 @@ def synth_field(
             "its partner), for the posterior's wheelset, coherence and cross-spectra statistics"
         ),
     ] = False,
-    wagon: Annotated[
-        str | None,
-        typer.Option(help="wagon data TOML, or a packaged name: loaded (default), tare"),
-    ] = None,
+    wagon: WagonOption = None,
 ) -> None:
     """Synthetic instrumented-wheelset recordings of hidden true parameters (truth.json)."""
     from railsusp.measured import synthesise_field
@@ -104,10 +101,7 @@ def align_track_command(
     write: Annotated[
         bool, typer.Option(help="write the offsets into the recordings' sidecars")
     ] = False,
-    wagon: Annotated[
-        str | None,
-        typer.Option(help="wagon data TOML, or a packaged name: loaded (default), tare"),
-    ] = None,
+    wagon: WagonOption = None,
 ) -> None:
     """Align each recording's measured track geometry with its forces (cross-correlation
     with a nominal simulation) and report, or with --write store, the distance offset."""

@@ -10,7 +10,7 @@ import typer
 from rich.table import Table
 
 from railsusp._version import __version__
-from railsusp.cli.common import app, console, err_console, fail, show_progress
+from railsusp.cli.common import WagonOption, app, console, err_console, fail, show_progress
 from railsusp.conditions import resolve_conditions
 from railsusp.errors import RailsuspInputError, repeated_names
 from railsusp.params import ParameterSet, parse_overrides
@@ -96,10 +96,7 @@ def simulate(
         str,
         typer.Option(help="measured wheel: auto (leading wheelset, outer in curves) or w1L..w4R"),
     ] = "auto",
-    wagon: Annotated[
-        Path | None,
-        typer.Option(help="wagon data TOML, or a packaged name: loaded (default), tare"),
-    ] = None,
+    wagon: WagonOption = None,
     out: Annotated[Path | None, typer.Option(help="write the force series to Parquet")] = None,
     plot: Annotated[Path | None, typer.Option(help="write a PNG of the force series")] = None,
 ) -> None:

@@ -9,7 +9,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from railsusp.cli.common import app, console, fail
+from railsusp.cli.common import WagonOption, app, console, fail
 from railsusp.errors import RailsuspInputError
 from railsusp.store import check_output_folder
 
@@ -29,10 +29,7 @@ def validate(
         typer.Option(help="RUN/sensitivity of the campaign, to flag parameters with low Sobol ST"),
     ] = None,
     out: Annotated[Path | None, typer.Option(help="default: ESTIMATE_DIR/validation")] = None,
-    wagon: Annotated[
-        str | None,
-        typer.Option(help="wagon data TOML, or a packaged name: loaded (default), tare"),
-    ] = None,
+    wagon: WagonOption = None,
 ) -> None:
     """Re-simulate with nominal and estimated parameters; Tables 8/9 and recovery scores."""
     from railsusp.validate import validate as run_validate
