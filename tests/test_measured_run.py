@@ -456,7 +456,7 @@ def test_routine_resampling_is_a_note_not_a_warning_in_the_field_stage(tmp_path)
     (NaN gaps interpolated) still warns."""
     import warnings
 
-    from railsusp.measured.cut import RunSource, _routine, write_run_field
+    from railsusp.measured.cut import RunSource, write_run_field
 
     data = resources.files("railsusp") / "data"
     source = RunSource(data / "example_run.mf4", data / "example_run.map.toml")
@@ -464,5 +464,14 @@ def test_routine_resampling_is_a_note_not_a_warning_in_the_field_stage(tmp_path)
         warnings.simplefilter("always")
         write_run_field(source, tmp_path / "field")
     assert not [w for w in seen if "interpolated onto" in str(w.message)]
-    assert _routine("channel 'v' (10 Hz) interpolated onto 200 Hz")
-    assert not _routine("channel 'Q_R': 3 missing sample(s) interpolated")
+    run = read_run(data / "example_run.mf4", read_channel_map(data / "example_run.map.toml"))
+    assert any("interpolated onto" in n for n in run.notes) and not run.data_notes
+    # a gap of the data is a data note (warned of), beside the routine ones
+    t = np.arange(0.0, 20.0, 1 / 200)
+    q = 120.0 + np.cos(t)
+    q[500:503] = np.nan
+    frame = {"time_s": t, "Y_w1R_kN": 5.0 + np.sin(t), "Q_w1R_kN": q, "speed_kmh": 54.0 + 0 * t}
+    pd.DataFrame(frame).to_csv(tmp_path / "gap.csv", index=False)
+    gap = read_run(tmp_path / "gap.csv")
+    assert [n for n in gap.data_notes if "3 missing sample(s) interpolated" in n]
+    assert set(gap.data_notes) <= set(gap.notes)

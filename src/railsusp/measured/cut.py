@@ -107,14 +107,8 @@ def write_run_field(source: RunSource, out: str | Path, final: str | Path | None
     run, secs = cut_run(source)
     for note in run.notes:
         text = f"{Path(source.recording).name}: {note}"
-        if _routine(note):  # how the channels were read: a note, as check-recording says it
-            log.info("note: %s", text)
-        else:  # what the data lacked (gaps interpolated): a warning
+        if note in run.data_notes:  # what the data lacked (gaps interpolated): a warning
             warnings.warn(text, stacklevel=2)
+        else:  # how the channels were read: a note, as check-recording says it
+            log.info("note: %s", text)
     return write_sections(run, secs, out, source.rate_hz, final)
-
-
-def _routine(note: str) -> bool:
-    """A run's note on how its channels were read (slower channels interpolated onto the
-    forces' rate, channels not used), not on a fault of its data."""
-    return note.startswith("channel(s) not used") or "interpolated onto" in note

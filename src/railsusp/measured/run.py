@@ -44,6 +44,9 @@ class MeasuredRun:
     grade: np.ndarray | None = None  # 1 (m/m), + up-grade
     rates_hz: dict[str, float] = field(default_factory=dict)  # as the file states them
     notes: list[str] = field(default_factory=list)
+    #: those of the notes that say what the data lacked (NaN gaps interpolated), not how
+    #: its channels were read (a slower channel interpolated onto the forces' rate)
+    data_notes: list[str] = field(default_factory=list)
 
     @property
     def rate_hz(self) -> float:
@@ -80,6 +83,7 @@ def read_run(
     cmap = channel_map or default_map(list(raw))
     problems: list[str] = []
     notes: list[str] = []
+    data_notes: list[str] = []
     for c in cmap.used():
         if c in raw and raw[c].master is not None:
             problems.append(
@@ -127,6 +131,7 @@ def read_run(
         )
         problems += finite_problems
         notes += finite_notes
+        data_notes += finite_notes
         if q == "force":
             problems += check_flat(values, name) + check_clipped(values, name, unit or "")
         if not time_problems and not finite_problems:
@@ -233,6 +238,7 @@ def read_run(
         sig.get("grade"),
         rates,
         notes,
+        data_notes,
     )
 
 
