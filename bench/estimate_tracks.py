@@ -64,7 +64,6 @@ import platform
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -242,22 +241,6 @@ def rescore_set(
     return {**row, **scored(model, recs, params, true_keys, err)}
 
 
-def excerpt(rec, seconds: float):
-    """The first ``seconds`` of a recording, its condition recording as long (its measured
-    track and stated accuracy kept): NSGA-II's preview generations compare these."""
-    from railsusp.measured import Recording
-
-    cond = rec.condition.with_duration(min(seconds, rec.condition.duration_s))
-    n = cond.n_steps
-    return Recording(
-        rec.time[:n].copy(),
-        {w: v[:n].copy() for w, v in rec.Y.items()},
-        {w: v[:n].copy() for w, v in rec.Q.items()},
-        cond,
-        dict(rec.meta),
-    )
-
-
 def run_set(
     index: int,
     truth_si: np.ndarray,
@@ -278,16 +261,12 @@ def run_set(
         channel_gains=args.gains,
         expected_draws=args.expected_draws,  # a polish then, not the SIMEX step
         expected_generations=args.expected_generations,
+        preview_generations=args.preview_generations,
+        preview_s=args.preview_s,
     )
     timed = _Timed(model)
     t0, c0, load0 = time.perf_counter(), time.process_time(), os.getloadavg()[0]
-    if args.preview_generations:  # the first generations on the records' first seconds
-        short = [excerpt(r, args.preview_s) for r in recs]
-        first = estimate(timed, short, params, replace(cfg, n_gen=args.preview_generations))
-        rest = replace(cfg, n_gen=args.n_gen - args.preview_generations)
-        res = estimate(timed, recs, params, rest, initial_si=first.pareto_x)
-    else:
-        res = estimate(timed, recs, params, cfg)
+    res = estimate(timed, recs, params, cfg)
     t_nsga = time.perf_counter() - t0
     account_for_geometry(res, recs, model, args.geometry_draws, index)
     t_geometry = time.perf_counter() - t0

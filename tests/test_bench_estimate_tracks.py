@@ -250,14 +250,3 @@ def test_the_preview_generations_compare_the_records_first_seconds(bench, tmp_pa
     assert doc["per_set"][0]["predict_calls"] == 3  # two preview generations, one whole
     with pytest.raises(SystemExit):
         bench.main([*argv, "--preview-generations", "3"])
-
-
-def test_an_excerpt_is_the_records_first_seconds_with_its_track(bench):
-    from test_measured import make_recording
-
-    rec = make_recording(200, 50.0)
-    short = bench.excerpt(rec, 1.0)
-    assert short.time.size == short.condition.n_steps == 50
-    assert short.condition.duration_s == 1.0
-    np.testing.assert_array_equal(short.Y["w1L"], rec.Y["w1L"][:50])
-    assert short.condition.track_geometry == rec.condition.track_geometry

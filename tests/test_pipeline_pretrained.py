@@ -202,6 +202,8 @@ def test_a_time_aligned_run_estimates_again_for_the_geometry_bias(tmp_path):
             "simulator_corrections",
             "correction_slopes",
             "slope_update",
+            "preview_generations",
+            "preview_s",
         }
     )
 

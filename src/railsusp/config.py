@@ -254,6 +254,12 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
             "corrections; estimate.correction_slopes = false asks for none: set "
             'correction_slopes = true or slope_update = "simulated"'
         )
+    if e.preview_generations >= e.n_gen:
+        raise bad(
+            f"estimate.preview_generations = {e.preview_generations}: accepted 0 to "
+            f"estimate.n_gen - 1 = {e.n_gen - 1} (the generations after the preview compare "
+            "the whole records)"
+        )
     if e.expected_generations and not e.expected_draws:
         raise bad(
             "estimate.expected_generations = true compares expected forces in NSGA-II's "

@@ -281,6 +281,8 @@ def _estimate_section(config: PipelineConfig) -> dict:
         unset.add("slope_update")
     if not e.expected_draws:
         unset.add("expected_generations")
+    if not e.preview_generations:  # as before the setting existed
+        unset |= {"preview_generations", "preview_s"}
     section = e.model_dump(exclude=unset or None)
     if e.statistic == "aligned":
         section["nsga_geometry"] = (
@@ -418,6 +420,8 @@ def _stage_runners(
             channel_gains=e.channel_gains,
             expected_draws=e.expected_draws,
             expected_generations=e.expected_generations,
+            preview_generations=e.preview_generations,
+            preview_s=e.preview_s,
         )
         route = EstimateRoute(
             nsga=cfg,

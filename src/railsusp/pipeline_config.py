@@ -185,6 +185,20 @@ class EstimateSection(_Cfg):
         description="NSGA-II's generations compare the expected forces too (expected_draws "
         "times the predictions; with 'aligned' alone or with 'mean')",
     )
+    preview_generations: int = Field(
+        0,
+        ge=_NSGA["preview_generations"][0],
+        le=_NSGA["preview_generations"][1],
+        description="the first this many generations (below n_gen) compare each recording's "
+        "first preview_s seconds only; the rest start from their Pareto set on the whole "
+        "records (0: none)",
+    )
+    preview_s: float = Field(
+        20.0,
+        ge=_NSGA["preview_s"][0],
+        le=_NSGA["preview_s"][1],
+        description="seconds of each recording the preview generations compare",
+    )
     weighting: Literal["relative", "noise"] = Field(
         "relative", description="relative errors, or in units of the gp-stats predictive SD"
     )

@@ -86,6 +86,17 @@ def estimate(
             "times the predictions; --statistic aligned, alone or with mean)"
         ),
     ] = False,
+    preview_generations: Annotated[
+        int,
+        typer.Option(
+            help="the first this many generations (below --n-gen) compare each recording's "
+            "first --preview-s seconds only, the rest start from their Pareto set on the "
+            "whole records (0: none)"
+        ),
+    ] = 0,
+    preview_s: Annotated[
+        float, typer.Option(help="seconds of each recording the preview generations compare")
+    ] = 20.0,
     weighting: Annotated[
         str,
         typer.Option(
@@ -183,6 +194,8 @@ def estimate(
             ("--geometry-draws", geometry_draws, REFINE_RANGES["geometry_draws"]),
             ("--expected-draws", expected_draws, NSGA_RANGES["expected_draws"]),
             ("--simulator-corrections", simulator_corrections, CORRECTIONS_RANGE),
+            ("--preview-generations", preview_generations, (0, n_gen - 1)),
+            ("--preview-s", preview_s, NSGA_RANGES["preview_s"]),
         ):
             check_range(name, value, low, high)
         parse_statistics(statistic)
@@ -211,6 +224,8 @@ def estimate(
             channel_gains=channel_gains,
             expected_draws=expected_draws,
             expected_generations=expected_generations,
+            preview_generations=preview_generations,
+            preview_s=preview_s,
         )
         route = EstimateRoute(
             nsga=cfg,

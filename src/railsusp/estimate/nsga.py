@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -109,10 +110,47 @@ def estimate(
     :func:`~railsusp.estimate.nsga_geometry.polish_on_expected_forces`)."""
     cfg = NSGAConfig() if config is None else config
     check_drawable(model, recordings, cfg.expected_draws)  # before the generations
+    if cfg.preview_generations:
+        return _previewed(model, recordings, parameters, cfg, initial_si)
     if cfg.expected_generations:  # on stated-accuracy geometry: the mean over drawn tracks
         with ExpectedForces(model, cfg.expected_draws, seed=cfg.seed) as expected:
             return _estimate(expected, recordings, parameters, cfg, initial_si)
     return _estimate(model, recordings, parameters, cfg, initial_si)
+
+
+def _previewed(
+    model: ForceModel,
+    recordings: Sequence[Recording],
+    parameters: Sequence[str],
+    cfg: NSGAConfig,
+    initial_si: np.ndarray | None,
+) -> CalibrationResult:
+    """:func:`estimate` with preview generations: the first ``cfg.preview_generations`` on
+    each recording's first ``cfg.preview_s`` seconds, the rest on the whole records from
+    the preview's Pareto set (same seed, operators and population). One result: the log
+    and the choice's history run over all ``cfg.n_gen`` generations (the log's ``record``
+    column says which records each compared: their objectives are not comparable across
+    the switch), the front, choice and Cramér-Rao bounds are the whole records'."""
+    n_preview = cfg.preview_generations
+    plain = replace(cfg, preview_generations=0)
+    heads = [r.head(cfg.preview_s) for r in recordings]
+    log.info(
+        "NSGA-II preview: %d of %d generations on the records' first %g s",
+        n_preview, cfg.n_gen, cfg.preview_s,
+    )  # fmt: skip
+    first = estimate(model, heads, parameters, replace(plain, n_gen=n_preview), initial_si)
+    rest = estimate(
+        model, recordings, parameters, replace(plain, n_gen=cfg.n_gen - n_preview), first.pareto_x
+    )
+    head_log = first.log.assign(record=f"first {cfg.preview_s:g} s")
+    rest_log = rest.log.assign(record="whole")
+    for column in ("n_gen", "n_eval"):  # counted on from the preview's
+        if column in rest_log and column in head_log and len(head_log):
+            rest_log[column] = rest_log[column] + head_log[column].iloc[-1]
+    rest.log = pd.concat([head_log, rest_log], ignore_index=True)
+    rest.history = np.vstack([first.history, rest.history])
+    rest.config = cfg
+    return rest
 
 
 def _estimate(

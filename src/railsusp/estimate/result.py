@@ -170,6 +170,11 @@ class CalibrationResult:
         text = f"NSGA-II against {on} ({self.config.statistic})"
         if self.config.channel_gains:
             text += ", each force channel's gain profiled out"
+        if self.config.preview_generations:
+            text += (
+                f", its first {self.config.preview_generations} of {self.config.n_gen} "
+                f"generations on each record's first {self.config.preview_s:g} s"
+            )
         if self.config.expected_generations:
             text += (
                 f", predicted as the mean over {self.config.expected_draws} draws of the true "

@@ -90,6 +90,23 @@ class Recording:
         write_json(stem.with_suffix(".json"), meta)
         return table_path
 
+    def head(self, seconds: float) -> Recording:
+        """The recording's first ``seconds`` (the whole of it if shorter), its condition
+        recording as long on the same track (measured geometry and its stated accuracy
+        kept): what NSGA-II's preview generations compare
+        (:attr:`~railsusp.estimate.config.NSGAConfig.preview_generations`)."""
+        n = round(seconds * self.sampling_rate)  # the table's rate may not be the condition's
+        if seconds >= self.condition.duration_s or n >= self.time.size:
+            return self
+        cond = self.condition.with_duration(round(n / self.sampling_rate, 6))
+        return Recording(
+            self.time[:n].copy(),
+            {w: v[:n].copy() for w, v in self.Y.items()},
+            {w: v[:n].copy() for w, v in self.Q.items()},
+            cond,
+            dict(self.meta),
+        )
+
     def resampled(self, rate_hz: float) -> Recording:
         """The recording at another rate: zero-phase anti-alias filter, polyphase resampling
         (scipy ``resample_poly``) on a uniform time base."""
