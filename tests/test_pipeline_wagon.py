@@ -124,3 +124,35 @@ def test_align_track_takes_the_wagon(tmp_path):
     assert refused.exit_code == 2 and "another wagon? give its data (--wagon" in refused.output
     done = runner.invoke(app, ["align-track", str(field), "--wagon", "tare"])
     assert done.exit_code == 0, done.output
+
+
+def test_the_standalone_campaign_simulates_the_wagon_on_its_recordings_track(tmp_path):
+    """``railsusp campaign`` simulated the packaged C80 and read a field folder's recordings
+    against its wheel load, so a tare wagon's recordings were refused (stop 59's "Left")."""
+    from typer.testing import CliRunner
+
+    from railsusp.campaign import load_campaign
+    from railsusp.cli import app
+
+    runner = CliRunner()
+    cond = tmp_path / "short.toml"
+    cond.write_text(
+        '[[condition]]\nbase = "straight"\nname = "short"\nduration_s = 1.0\nn_steps = 50\n'
+        "lead_in_m = 20.0\n"
+    )
+    field, run = tmp_path / "field", tmp_path / "run"
+    done = runner.invoke(app, ["synth-field", "--out", str(field), "--conditions", str(cond),
+                               "--wagon", "tare", "--with-track"])  # fmt: skip
+    assert done.exit_code == 0, done.output
+    args = ["campaign", "--out", str(run), "--samples", "2", "--conditions", str(field),
+            "--parameters", "X14", "--batch-size", "2"]  # fmt: skip
+    refused = runner.invoke(app, [*args, "--wagon", "nowhere.toml"])
+    assert refused.exit_code == 2 and "nowhere.toml" in refused.output
+    done = runner.invoke(app, [*args, "--wagon", "tare"])
+    assert done.exit_code == 0, done.output
+    camp = load_campaign(run)
+    assert camp.config.wagon == load_wagon("tare")
+    q = static_wheel_load(load_wagon("tare")) / 1e3
+    f = camp.features()
+    mean_q = f[(f.quantity == "Q") & (f.statistic == "mean")].value.to_numpy()  # kN
+    assert mean_q.size == 2 and mean_q == pytest.approx(q, rel=0.05)

@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from railsusp.cli.common import app, console, err_console, fail, show_progress
+from railsusp.cli.common import WagonOption, app, console, err_console, fail, show_progress
 from railsusp.errors import RailsuspInputError
 
 
@@ -80,6 +80,7 @@ def campaign(
         ),
     ] = None,
     wheel: Annotated[str, typer.Option(help="measured wheel: auto or w1L..w4R")] = "auto",
+    wagon: WagonOption = None,
     workers: Annotated[int | None, typer.Option(help="run on a local Dask cluster")] = None,
     scheduler: Annotated[str | None, typer.Option(help="Dask scheduler tcp://host:port")] = None,
     force: Annotated[bool, typer.Option(help="discard results of another configuration")] = False,
@@ -96,6 +97,8 @@ def campaign(
     from railsusp.campaign import make_config, run_campaign
     from railsusp.measured import conditions_from
     from railsusp.store import check_output_folder
+    from railsusp.vehicle.setup import static_wheel_load
+    from railsusp.vehicle.wagon import load_wagon
 
     try:
         if workers is not None and workers < 1:
@@ -107,7 +110,8 @@ def campaign(
         if keys_from is not None:
             sampled = _sensitivity_keys(keys_from, parameters)
             console.print(f"sampling the key parameters of {keys_from}: {', '.join(sampled)}")
-        conds = conditions_from(conditions)
+        wagon_data = load_wagon(wagon)  # simulated, and the recordings' wheel load
+        conds = conditions_from(conditions, wheel_load_N=static_wheel_load(wagon_data))
         if duration is not None:
             conds = [c.with_duration(duration) for c in conds]
         family, others = _variation(irregularity_classes, radius, cant, vary_others, prior, sampled)
@@ -126,6 +130,7 @@ def campaign(
             wheel=wheel,
             track_family=family,
             other_parameters=others,
+            wagon=wagon_data,
         )
     except RailsuspInputError as exc:
         fail(str(exc))

@@ -10,7 +10,15 @@ from typing import Annotated
 
 import typer
 
-from railsusp.cli.common import app, console, err_console, fail, frame_table, is_quiet
+from railsusp.cli.common import (
+    WagonOption,
+    app,
+    console,
+    err_console,
+    fail,
+    frame_table,
+    is_quiet,
+)
 from railsusp.errors import RailsuspInputError
 
 posterior_app = typer.Typer(
@@ -179,6 +187,7 @@ def train_command(
         ),
     ] = 0,
     seed: Annotated[int, typer.Option(help="seed of every draw")] = 0,
+    wagon: WagonOption = None,
     samples: Annotated[
         int,
         typer.Option(
@@ -232,6 +241,7 @@ def train_command(
             condition_offset=condition_offset,
             seed=seed,
             samples=samples,
+            wagon=wagon,
         )
         if is_quiet():
             est = posterior.train(settings, out)
@@ -297,8 +307,10 @@ def estimate_command(
     """Posterior median and 90 % interval of each parameter for a field folder."""
     from railsusp.estimate import posterior
     from railsusp.estimate.posterior_settings import MAX_SEED
-    from railsusp.measured import read_field
+    from railsusp.measured import read_index, read_recording
     from railsusp.store import check_output_file
+    from railsusp.vehicle.setup import static_wheel_load
+    from railsusp.vehicle.wagon import load_wagon
 
     try:
         if out is not None:
@@ -307,7 +319,7 @@ def estimate_command(
         if not 0 <= seed <= MAX_SEED:  # numpy's generators take no negative seed
             raise RailsuspInputError(f"--seed {seed}: accepted 0 to {MAX_SEED}")
         _long_record(long_record)
-        recordings = read_field(measured)
+        listed = read_index(measured)  # the folder and its index before the estimator
         joined = (estimator / "posterior" / "joint.json").exists()
         if joined and long_record != "synthetic-likelihood":
             raise RailsuspInputError(
@@ -315,18 +327,16 @@ def estimate_command(
                 "--long-record synthetic-likelihood; accepted that method"
             )
         if joined:
-            from railsusp.estimate import posterior_joint
-
-            est = posterior_joint.load(estimator)
-            result = posterior_joint.estimate(est, recordings, seed=seed)
+            from railsusp.estimate import posterior_joint as method
         elif long_record == "synthetic-likelihood":
-            from railsusp.estimate import posterior_synthetic_run
-
-            est = posterior_synthetic_run.load(estimator)
-            result = posterior_synthetic_run.estimate(est, recordings, seed=seed)
+            from railsusp.estimate import posterior_synthetic_run as method
         else:
-            est = posterior.load(estimator)
-            result = posterior.estimate(est, recordings, seed=seed)
+            method = posterior
+        est = method.load(estimator)
+        # the recordings' wheel loads are checked against the wagon the estimator simulated
+        load_n = static_wheel_load(load_wagon(est.settings.wagon))
+        recordings = [read_recording(p, wheel_load_N=load_n) for p in listed]
+        result = method.estimate(est, recordings, seed=seed)
     except RailsuspInputError as exc:
         fail(str(exc))
     console.print(frame_table(result.to_dataframe(), "posterior: median and 90 % interval"))

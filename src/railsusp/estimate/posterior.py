@@ -46,13 +46,19 @@ import numpy as np
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.calibration import ParameterCalibration, SpreadCorrection
 from railsusp.estimate.posterior_check import ProductCalibration, calibrate, widen
-from railsusp.estimate.posterior_data import cached_cases, recording_summaries, to_si
+from railsusp.estimate.posterior_data import (
+    cached_cases,
+    check_model_revision,
+    recording_summaries,
+    to_si,
+)
 from railsusp.estimate.posterior_fusion import from_logit, fused_samples, logistic_prior, to_logit
 from railsusp.estimate.posterior_result import PosteriorResult
 from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.integrity import TorchFileCutShort, read_torch_file
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import atomic_write_bytes, content_hash, read_json, write_json
+from railsusp.vehicle import MODEL_REVISION
 
 log = logging.getLogger(__name__)
 
@@ -222,7 +228,11 @@ def train(
             raise RailsuspInputError(
                 f"{folder} holds an estimator trained with other settings; give another --out"
             )
-    write_json(folder / "settings.json", {"hash": key, "settings": settings.to_dict()})
+        check_model_revision(old, folder / "settings.json")
+    write_json(
+        folder / "settings.json",
+        {"hash": key, "model_revision": MODEL_REVISION, "settings": settings.to_dict()},
+    )
     u, x = cached_cases(
         settings, folder / "simulations", "train", settings.n_train, simulate=simulate
     )

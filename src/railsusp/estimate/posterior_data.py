@@ -52,6 +52,23 @@ SEED_BASE = {"train": 10_000_000, "check": 20_000_000, "calibration": 30_000_000
 OFFSET_SEED_BASE = 100_000_000
 
 
+def check_model_revision(stamp: dict, path: Path) -> None:
+    """Refuse, in one line, an estimator folder whose ``settings.json`` (``stamp``) was
+    simulated with other force laws than :data:`railsusp.vehicle.MODEL_REVISION` (or before
+    the revision was recorded there, stop 60): its cached simulations and what was trained
+    on them describe another model, and mixing them with new ones would pass unseen."""
+    from railsusp.vehicle import MODEL_REVISION
+
+    got = stamp.get("model_revision")
+    if got != MODEL_REVISION:
+        was = f"revision {got}" if got else "a revision before 2026-11-30.1 (none recorded)"
+        raise RailsuspInputError(
+            f"{path}: its simulations are of the force laws of {was}, this railsusp simulates "
+            f"revision {MODEL_REVISION}: train again with another --out (or delete "
+            f"{path.parent})"
+        )
+
+
 def prior_draws(settings: PosteriorSettings, kind: str, n: int) -> np.ndarray:
     """(n, 10) draws of X11-X20 in [0, 1] (fraction of each range), reproducible from the
     settings' seed. Training cases are independent uniform draws; the held-out sets are a
@@ -122,7 +139,9 @@ def simulate_long_cases(
         idx = np.arange(first, first + n)
         seeds = track_seeds(settings, kind, idx, c)
         run = cond if sections == 1 else cond.with_duration(sections * settings.section_s)
-        res = simulate_batch(theta, run, symbols=MAIN_SUSPENSION, seeds=list(seeds))
+        res = simulate_batch(
+            theta, run, symbols=MAIN_SUSPENSION, seeds=list(seeds), wagon=settings.wagon
+        )
         j = res.measured_wheel()
         fs = 1.0 / cond.sample_interval
         out = np.full((n, sections, width), np.nan)

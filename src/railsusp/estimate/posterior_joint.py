@@ -170,6 +170,15 @@ def check_parts(parts) -> None:
                     f"joint posterior: estimator {i}'s {name} = {other.get(name)} differs from "
                     f"the first's ({first.get(name)}); accepted the same in every estimator"
                 )
+        if first.get("wagon") != other.get("wagon"):  # one wagon's conditions only
+            names = [
+                "the packaged loaded C80/K6" if w is None else repr(w["wagon"]["name"])
+                for w in (first.get("wagon"), other.get("wagon"))
+            ]
+            raise RailsuspInputError(
+                f"joint posterior: estimator {i} simulated another wagon ({names[1]}) than the "
+                f"first ({names[0]}); accepted estimators of the same wagon"
+            )
     seen: dict[str, int] = {}
     slots: dict[int, int] = {}
     for i, p in enumerate(parts, start=1):

@@ -72,8 +72,18 @@ class PosteriorSettings:
     projection_rank: int = 15
     statistics_emulator_cases: int = 0
     condition_offset: int = 0
+    #: the wagon simulated (a WagonData, a packaged name such as "tare", or a wagon file);
+    #: None, or the packaged loaded C80/K6 given by name, is stored as None (the settings
+    #: and hash of estimators trained before the field existed)
+    wagon: Any = None
 
     def __post_init__(self) -> None:
+        if self.wagon is not None:
+            from railsusp.vehicle.wagon import load_wagon
+
+            wagon = load_wagon(self.wagon)
+            own = wagon.model_dump(mode="json") != load_wagon().model_dump(mode="json")
+            object.__setattr__(self, "wagon", wagon if own else None)
         dupes = repeated_names([c.name for c in self.conditions])
         if dupes:  # recordings are matched by name: one would fill every slot of its name
             raise RailsuspInputError(
@@ -139,7 +149,7 @@ class PosteriorSettings:
         conds = tuple(c.with_duration(self.section_s) for c in self.conditions)
         object.__setattr__(self, "conditions", conds)
         for c in conds:
-            _check_uniform_record(c, self.section_s * max(ks, default=1))
+            _check_uniform_record(c, self.section_s * max(ks, default=1), self.wagon)
 
     def to_dict(self) -> dict[str, Any]:
         d = {k: getattr(self, k) for k in self.__dataclass_fields__}
@@ -156,6 +166,10 @@ class PosteriorSettings:
             del d["statistics_emulator_cases"]
         if not self.condition_offset:  # likewise: the conditions alone
             del d["condition_offset"]
+        if self.wagon is None:  # likewise: the packaged loaded C80/K6
+            del d["wagon"]
+        else:
+            d["wagon"] = self.wagon.model_dump(mode="json")
         return d
 
     @classmethod
@@ -166,6 +180,10 @@ class PosteriorSettings:
         d["product_sections"] = tuple(d.get("product_sections", ()))
         d["product_cases"] = tuple(d.get("product_cases", ()))
         d["statistics"] = tuple(d.get("statistics", ("en14363",)))
+        if d.get("wagon") is not None:
+            from railsusp.vehicle.wagon import WagonData
+
+            d["wagon"] = WagonData.model_validate(d["wagon"])
         return cls(**d)
 
     def product_sets(self) -> list[tuple[int, int, tuple[int, ...]]]:
@@ -213,21 +231,21 @@ def _check_statistics_emulator(cases: int, n_train: int, families: tuple[str, ..
         )
 
 
-def _check_uniform_record(cond: WorkingCondition, record_s: float) -> None:
+def _check_uniform_record(cond: WorkingCondition, record_s: float, wagon: Any = None) -> None:
     """Refuse a condition whose design track (curvature, cant) changes under the wagon
     while it records ``record_s`` seconds: the sections of a long recording must be drawn
     like the training section, and a training section that holds the entry to a curve is
     not like the steady curving of the sections after it (measured: the curve's median
     Y/Q 0.281 in the first section against 0.303 in the next five, 2 standard deviations
     of its scatter over the prior; the fused posterior of 6 sections then held X13's truth
-    in 12 % of the cases)."""
+    in 12 % of the cases). ``wagon``: whose axle spread (None: the packaged C80)."""
     if cond.curve_radius_m is None:
         return
     from railsusp.vehicle.settle import design_is_uniform
     from railsusp.vehicle.setup import axle_spread
     from railsusp.vehicle.wagon import load_wagon
 
-    spread = axle_spread(load_wagon())
+    spread = axle_spread(load_wagon(wagon))
     start = cond.lead_in_m - spread  # the trailing wheelset when the record starts
     entry = cond.curve_start_m + cond.entry_spiral_m
     if start < entry:

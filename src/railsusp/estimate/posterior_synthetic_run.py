@@ -31,7 +31,12 @@ import numpy as np
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.calibration import ParameterCalibration, check
 from railsusp.estimate.posterior_check import median_width
-from railsusp.estimate.posterior_data import cached_cases, recording_summaries, to_si
+from railsusp.estimate.posterior_data import (
+    cached_cases,
+    check_model_revision,
+    recording_summaries,
+    to_si,
+)
 from railsusp.estimate.posterior_emulator import StatisticsEmulator
 from railsusp.estimate.posterior_result import PosteriorResult
 from railsusp.estimate.posterior_settings import PosteriorSettings
@@ -202,7 +207,9 @@ def load(run: str | Path) -> SyntheticPosterior:
                 f"{folder / name} does not exist: fit the synthetic likelihood first "
                 "(railsusp posterior train --long-record synthetic-likelihood)"
             )
-    settings = PosteriorSettings.from_dict(read_json(folder / "settings.json")["settings"])
+    stamp = read_json(folder / "settings.json")
+    check_model_revision(stamp, folder / "settings.json")
+    settings = PosteriorSettings.from_dict(stamp["settings"])
     emulator = StatisticsEmulator.load(folder / "emulator.npz")
     scales = read_json(folder / "scales.json")
     checked = read_json(folder / "check.json")

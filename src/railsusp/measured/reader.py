@@ -404,16 +404,17 @@ def read_field(folder: str | Path, *, wheel_load_N: float | None = None) -> list
     return [read_recording(p, wheel_load_N=wheel_load_N) for p in read_index(folder)]
 
 
-def conditions_from(spec: str) -> list[WorkingCondition]:
+def conditions_from(spec: str, *, wheel_load_N: float | None = None) -> list[WorkingCondition]:
     """Conditions named by ``spec``: standard names or a TOML file (as
     :func:`~railsusp.conditions.resolve_conditions`), or a field folder (``index.json``), whose
     recordings' conditions are taken with their measured track geometry, so that a campaign
-    can run on the track the recordings were made on."""
+    can run on the track the recordings were made on; their wheel loads checked against
+    ``wheel_load_N`` (:func:`read_field`; the wagon the campaign simulates)."""
     from railsusp.conditions import resolve_conditions
 
     folder = Path(spec)
     if folder.is_dir():
         if not (folder / "index.json").is_file():
             raise RailsuspInputError(f"conditions {spec!r}: a folder without index.json")
-        return [rec.condition for rec in read_field(folder)]
+        return [rec.condition for rec in read_field(folder, wheel_load_N=wheel_load_N)]
     return resolve_conditions(spec)
