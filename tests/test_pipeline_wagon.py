@@ -156,3 +156,27 @@ def test_the_standalone_campaign_simulates_the_wagon_on_its_recordings_track(tmp
     f = camp.features()
     mean_q = f[(f.quantity == "Q") & (f.statistic == "mean")].value.to_numpy()  # kN
     assert mean_q.size == 2 and mean_q == pytest.approx(q, rel=0.05)
+
+
+def test_a_recordings_measured_track_is_checked_against_its_own_wagons_axle_spread(tmp_path):
+    """The reader checked a measured track's lead-in against the packaged C80's axle spread
+    (10.03 m + 5 m) whatever the wagon: a shorter wagon's recording with a 13 m lead-in was
+    refused, although its simulation accepts it (stop 59's "Left")."""
+    from railsusp.conditions import get_condition
+    from railsusp.errors import RailsuspInputError
+    from railsusp.measured import read_field, synthesise_field
+    from railsusp.params import ParameterSet
+    from railsusp.vehicle.setup import axle_spread
+    from railsusp.vehicle.wagon import WagonData
+
+    doc = load_wagon().model_dump(mode="json")
+    doc["car_body"]["bogie_half_spacing"] -= 1.6
+    short = WagonData.model_validate(doc)
+    assert axle_spread(short) + 5.0 < 13.0 < axle_spread(load_wagon()) + 5.0
+    cond = get_condition("straight", duration_s=1.0, n_steps=50).with_changes(lead_in_m=13.0)
+    field = tmp_path / "field"
+    synthesise_field(ParameterSet.nominal(), [cond], field, with_track=True, wagon=short)
+    with pytest.raises(RailsuspInputError, match=r"lead_in_m = 13 m .* accepted at least 15.03"):
+        read_field(field)  # read as the packaged C80's
+    (rec,) = read_field(field, wagon=short)
+    assert rec.condition.lead_in_m == 13.0 and rec.condition.track_geometry is not None

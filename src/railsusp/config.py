@@ -177,13 +177,11 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
         if not (folder / "index.json").is_file():
             raise bad(f"field.measured = {f.measured!r} holds no index.json of recordings")
         from railsusp.measured import read_field
-        from railsusp.vehicle.setup import static_wheel_load
         from railsusp.vehicle.wagon import load_wagon
 
         try:  # every recording read and checked now, not in the field stage after the
             # campaign, the sensitivity and the surrogates; against the run's wagon
-            load = static_wheel_load(load_wagon(cfg.wagon))
-            recordings = read_field(folder, wheel_load_N=load)
+            recordings = read_field(folder, wagon=load_wagon(cfg.wagon))
         except RailsuspInputError as exc:
             raise bad(f"field.measured: {exc}") from None
     blind = [r.condition.name for r in recordings if r.condition.track_geometry is None]

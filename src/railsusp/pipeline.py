@@ -401,7 +401,6 @@ def _stage_runners(
         from railsusp.estimate.route import EstimateRoute
         from railsusp.measured import read_field
         from railsusp.surrogate import key_parameters, not_estimated
-        from railsusp.vehicle.setup import static_wheel_load
         from railsusp.vehicle.wagon import load_wagon, wagon_reference
 
         e = config.estimate
@@ -440,7 +439,7 @@ def _stage_runners(
             corrections_setting="estimate.simulator_corrections",
         )
         wagon = load_wagon(config.wagon)
-        recs = read_field(out / "field", wheel_load_N=static_wheel_load(wagon))
+        recs = read_field(out / "field", wagon=wagon)
         # the simulator of the run's wagon for the corrections and the refinement (they
         # simulated the packaged C80 whatever the configuration's wagon)
         res = route.run(model, recs, params, simulator=SimulatorForces(params, wagon=wagon))

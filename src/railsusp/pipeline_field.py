@@ -50,14 +50,12 @@ def field_stage(config: Any, out: str | Path) -> dict:
     run's kept sections (``[field] recording``), a copy of a measured folder, or synthetic
     recordings of the hidden truth. Returns the stage's record for ``pipeline.json``."""
     from railsusp.measured import read_field, synthesise_field
-    from railsusp.vehicle.setup import static_wheel_load
     from railsusp.vehicle.wagon import load_wagon
 
     out = Path(out)
     f = config.field
     dest = out / "field"
     wagon = load_wagon(config.wagon)  # the run's wagon: its recordings' wheel loads, its model
-    load = static_wheel_load(wagon)
     source = config.run_source()  # its wheel loads checked against the run's wagon
     if source is not None:
         from railsusp.measured.cut import write_run_field
@@ -65,10 +63,10 @@ def field_stage(config: Any, out: str | Path) -> dict:
 
         with atomic_folder(dest, keep=False) as tmp:  # the old folder stays until replaced
             write_run_field(source, tmp, dest)
-        recs = read_field(dest, wheel_load_N=load)  # the estimation's inputs, checked
+        recs = read_field(dest, wagon=wagon)  # the estimation's inputs, checked
         return {"recordings": len(recs), "synthetic": False, "recording": f.recording}
     if f.measured:
-        recs = read_field(f.measured, wheel_load_N=load)
+        recs = read_field(f.measured, wagon=wagon)
         import shutil
 
         from railsusp.store import atomic_folder

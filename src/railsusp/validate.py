@@ -141,7 +141,6 @@ def validate(
     simulated (a WagonData or a wagon file; None: the packaged C80), and whose static wheel
     load the recordings are checked against.
     """
-    from railsusp.vehicle.setup import static_wheel_load
     from railsusp.vehicle.wagon import load_wagon
 
     est_path = Path(estimate_dir) / "estimate.json"
@@ -164,7 +163,7 @@ def validate(
             except ValueError:  # another railsusp's wagon fields: its reference, if any
                 pass
     wagon = load_wagon(wagon)
-    recs = read_field(measured or est["measured"], wheel_load_N=static_wheel_load(wagon))
+    recs = read_field(measured or est["measured"], wagon=wagon)
     if statistic is None and ALIGNED not in stats:
         if all(r.condition.track_geometry is not None for r in recs):
             stats = (*stats, ALIGNED)  # on measured track, also compare sample by sample

@@ -97,7 +97,6 @@ def campaign(
     from railsusp.campaign import make_config, run_campaign
     from railsusp.measured import conditions_from
     from railsusp.store import check_output_folder
-    from railsusp.vehicle.setup import static_wheel_load
     from railsusp.vehicle.wagon import load_wagon
 
     try:
@@ -111,7 +110,7 @@ def campaign(
             sampled = _sensitivity_keys(keys_from, parameters)
             console.print(f"sampling the key parameters of {keys_from}: {', '.join(sampled)}")
         wagon_data = load_wagon(wagon)  # simulated, and the recordings' wheel load
-        conds = conditions_from(conditions, wheel_load_N=static_wheel_load(wagon_data))
+        conds = conditions_from(conditions, wagon=wagon_data)
         if duration is not None:
             conds = [c.with_duration(duration) for c in conds]
         family, others = _variation(irregularity_classes, radius, cant, vary_others, prior, sampled)

@@ -245,7 +245,6 @@ def estimate(
         )
         from railsusp.params import STUDY_KEY_PARAMETERS, parse_sampled
         from railsusp.surrogate.pretrained import wagon_hash
-        from railsusp.vehicle.setup import static_wheel_load
         from railsusp.vehicle.wagon import load_wagon, wagon_reference
 
         chosen = parse_sampled(parameters) if parameters is not None else None
@@ -261,7 +260,7 @@ def estimate(
                     f"wagon ({trained.name}); accepted that wagon, or surrogates trained on "
                     f"{wagon_data.name}"
                 )
-        recs = read_field(measured, wheel_load_N=static_wheel_load(wagon_data))
+        recs = read_field(measured, wagon=wagon_data)
         if surrogate is None:
             params = chosen or STUDY_KEY_PARAMETERS
             model = SimulatorForces(params, wagon=wagon_data)

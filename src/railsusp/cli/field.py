@@ -108,15 +108,13 @@ def align_track_command(
     from railsusp.estimate import align_track
     from railsusp.measured import read_field
     from railsusp.store import read_json, write_json
-    from railsusp.vehicle.setup import static_wheel_load
     from railsusp.vehicle.wagon import load_wagon
 
     try:
         wagon_data = load_wagon(wagon)  # a packaged name or a file, one-line errors
-        load = static_wheel_load(wagon_data)
         recs = [
             r
-            for r in read_field(measured, wheel_load_N=load)
+            for r in read_field(measured, wagon=wagon_data)
             if r.condition.track_geometry is not None
         ]
         if not recs:

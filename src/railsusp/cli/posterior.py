@@ -309,8 +309,6 @@ def estimate_command(
     from railsusp.estimate.posterior_settings import MAX_SEED
     from railsusp.measured import read_index, read_recording
     from railsusp.store import check_output_file
-    from railsusp.vehicle.setup import static_wheel_load
-    from railsusp.vehicle.wagon import load_wagon
 
     try:
         if out is not None:
@@ -333,9 +331,8 @@ def estimate_command(
         else:
             method = posterior
         est = method.load(estimator)
-        # the recordings' wheel loads are checked against the wagon the estimator simulated
-        load_n = static_wheel_load(load_wagon(est.settings.wagon))
-        recordings = [read_recording(p, wheel_load_N=load_n) for p in listed]
+        # the recordings are read as the wagon's the estimator simulated (its wheel load)
+        recordings = [read_recording(p, wagon=est.settings.wagon) for p in listed]
         result = method.estimate(est, recordings, seed=seed)
     except RailsuspInputError as exc:
         fail(str(exc))

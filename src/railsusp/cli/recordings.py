@@ -73,7 +73,7 @@ def check_recording(
         _check_run(path, channel_map, min_rate, load)
         return
     try:
-        rec = read_recording(path, min_rate_hz=min_rate, wheel_load_N=load)
+        rec = read_recording(path, min_rate_hz=min_rate, wheel_load_N=load, wagon=wagon)
     except RecordingError as exc:
         print_problems(exc)
     except RailsuspInputError as exc:

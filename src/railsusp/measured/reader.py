@@ -33,7 +33,7 @@ from railsusp.store import json_numbers
 from railsusp.vehicle.layout import WHEEL_NAMES
 from railsusp.vehicle.setup import axle_spread, static_wheel_load
 from railsusp.vehicle.track_geometry import check_coverage, read_track_geometry
-from railsusp.vehicle.wagon import load_wagon
+from railsusp.vehicle.wagon import WagonData, load_wagon
 
 #: the accepted lowest usable sampling rate (read_recording's ``min_rate_hz``), Hz
 MIN_RATE_RANGE_HZ = (1.0, 100_000.0)
@@ -66,7 +66,11 @@ def inside(folder: Path, name: Any, what: str) -> Path:
 
 
 def read_recording(
-    path: str | Path, *, min_rate_hz: float = 50.0, wheel_load_N: float | None = None
+    path: str | Path,
+    *,
+    min_rate_hz: float = 50.0,
+    wheel_load_N: float | None = None,
+    wagon: str | Path | WagonData | None = None,
 ) -> Recording:
     """Read and check a recording of the field-folder format; raise
     :class:`RecordingError` listing every problem (file, column, rows).
@@ -148,7 +152,7 @@ def read_recording(
         problems.append("no force columns (Y_<wheel>_kN, Q_<wheel>_kN, wheel w1L..w4R)")
     Y: dict[str, np.ndarray] = {}
     Q: dict[str, np.ndarray] = {}
-    wagon = load_wagon()  # the default wagon: its static wheel load and axle spread
+    wagon = load_wagon(wagon)  # the recorded wagon: its static wheel load and axle spread
     wl = static_wheel_load(wagon) if wheel_load_N is None else wheel_load_N
     for w, chans in cmap.wheels.items():
         si = {}
@@ -342,7 +346,7 @@ def _condition(
 ) -> WorkingCondition | None:
     """The sidecar's working condition (numbers must be JSON numbers), its track geometry
     resolved inside the recording's folder, read and checked to cover the record under
-    every axle, ``axle_spread_m`` (the default wagon's;
+    every axle, ``axle_spread_m`` (the recorded wagon's;
     :func:`~railsusp.vehicle.track_geometry.check_coverage`; the simulation checks again
     with the run's wagon)."""
     side = table_path.with_suffix(".json").name
@@ -397,24 +401,33 @@ def read_index(folder: str | Path) -> list[Path]:
     return [inside(folder, n, f"{index} recordings") for n in names]
 
 
-def read_field(folder: str | Path, *, wheel_load_N: float | None = None) -> list[Recording]:
-    """All recordings listed in a field folder's ``index.json`` (never ``truth.json``);
-    ``wheel_load_N``: the static wheel load their wheel loads are checked against (default:
-    the packaged C80's; another wagon's, e.g. a tare C80's 24.5 kN, was refused)."""
-    return [read_recording(p, wheel_load_N=wheel_load_N) for p in read_index(folder)]
+def read_field(
+    folder: str | Path,
+    *,
+    wheel_load_N: float | None = None,
+    wagon: str | Path | WagonData | None = None,
+) -> list[Recording]:
+    """All recordings listed in a field folder's ``index.json`` (never ``truth.json``),
+    read as recordings of ``wagon`` (default: the packaged loaded C80): their wheel loads
+    checked against its static wheel load (or ``wheel_load_N``; a tare C80's 24.5 kN was
+    refused against the loaded one's) and their measured track's lead-in against its axle
+    spread (:func:`read_recording`)."""
+    return [read_recording(p, wheel_load_N=wheel_load_N, wagon=wagon) for p in read_index(folder)]
 
 
-def conditions_from(spec: str, *, wheel_load_N: float | None = None) -> list[WorkingCondition]:
+def conditions_from(
+    spec: str, *, wagon: str | Path | WagonData | None = None
+) -> list[WorkingCondition]:
     """Conditions named by ``spec``: standard names or a TOML file (as
     :func:`~railsusp.conditions.resolve_conditions`), or a field folder (``index.json``), whose
     recordings' conditions are taken with their measured track geometry, so that a campaign
-    can run on the track the recordings were made on; their wheel loads checked against
-    ``wheel_load_N`` (:func:`read_field`; the wagon the campaign simulates)."""
+    can run on the track the recordings were made on; read as recordings of ``wagon``
+    (:func:`read_field`; the wagon the campaign simulates)."""
     from railsusp.conditions import resolve_conditions
 
     folder = Path(spec)
     if folder.is_dir():
         if not (folder / "index.json").is_file():
             raise RailsuspInputError(f"conditions {spec!r}: a folder without index.json")
-        return [rec.condition for rec in read_field(folder, wheel_load_N=wheel_load_N)]
+        return [rec.condition for rec in read_field(folder, wagon=wagon)]
     return resolve_conditions(spec)
