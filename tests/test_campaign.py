@@ -350,3 +350,27 @@ def test_a_campaign_of_other_force_laws_is_not_resumed_into(full_run, tmp_path):
     run_campaign(cfg, copy, force=True, max_batches=0)
     assert json.loads((copy / "campaign.json").read_text())["model_revision"] == MODEL_REVISION
     assert not (copy / "batches").exists() or not any((copy / "batches").rglob("*.parquet"))
+
+
+def test_a_second_campaign_in_a_folder_is_refused_while_one_works(full_run, tmp_path):
+    """Two processes on one campaign folder simulated the same batches twice, and one with
+    --force (or another configuration) deleted what the other was writing: the second is
+    refused in one line, nothing touched, and the folder is free again afterwards."""
+    import os
+
+    from railsusp.errors import RailsuspInputError
+    from railsusp.run_lock import run_lock
+
+    cfg, out = full_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    before = sorted(p.relative_to(copy) for p in copy.rglob("*") if p.name != ".railsusp.lock")
+    other = make_config(TINY, 10, batch_size=4, seed=99)
+    with run_lock(copy, "--out"):  # as another process holds it while it runs
+        with pytest.raises(RailsuspInputError) as info:
+            run_campaign(other, copy, force=True)
+    assert "another railsusp run is working in this folder" in str(info.value)
+    assert f"(process {os.getpid()})" in str(info.value)
+    after = sorted(p.relative_to(copy) for p in copy.rglob("*") if p.name != ".railsusp.lock")
+    assert after == before  # nothing discarded
+    assert run_campaign(cfg, copy) == copy  # released: the next one goes on

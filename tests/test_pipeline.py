@@ -495,7 +495,7 @@ def test_a_second_run_in_a_folder_is_refused_while_one_works(tiny, tmp_path):
     stages, one failing on a file the other had replaced."""
     import os
 
-    from railsusp.pipeline_state import run_lock
+    from railsusp.run_lock import run_lock
 
     cfg_path, _, _, _ = tiny
     _, _, copy = _up_to_date_copy(tiny, tmp_path)

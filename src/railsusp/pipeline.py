@@ -30,11 +30,11 @@ from railsusp.pipeline_state import STAGES as STAGES  # re-export
 from railsusp.pipeline_state import (
     blame,
     outputs_exist,
-    run_lock,
     run_state,
     stage_files,
     surrogate_campaign_dir,
 )
+from railsusp.run_lock import run_lock
 from railsusp.store import content_hash, provenance, write_json
 from railsusp.summary import read_tolerances
 

@@ -27,6 +27,7 @@ from railsusp.campaign.design import (
 )
 from railsusp.campaign.results import stored_config
 from railsusp.errors import RailsuspInputError
+from railsusp.run_lock import run_lock
 from railsusp.store import (
     check_output_folder,
     parquet_readable,
@@ -376,6 +377,24 @@ def run_campaign(
         )
     if scheduler is not None and not re.fullmatch(r"(tcp|tls)://[^\s:/]+:\d{1,5}/?", scheduler):
         raise CampaignError(f"--scheduler {scheduler!r}: accepted tcp://host:port (or tls://)")
+    check_output_folder(out)
+    out.mkdir(parents=True, exist_ok=True)
+    # one process at a time: two on one folder simulated the same batches twice, and one
+    # with --force or another configuration deleted what the other was writing
+    with run_lock(out, "--out"):
+        return _run_locked(config, out, force, scheduler, workers, progress, max_batches)
+
+
+def _run_locked(
+    config: CampaignConfig,
+    out: Path,
+    force: bool,
+    scheduler: str | None,
+    workers: int | None,
+    progress: Callable[[int, int], None] | None,
+    max_batches: int | None,
+) -> Path:
+    """:func:`run_campaign` in its folder, holding the folder's lock."""
     design = _prepare(config, out, force)
     x_all = design[list(config.simulated_parameters)].to_numpy()
     ids_all = design["sample_id"].to_numpy()
