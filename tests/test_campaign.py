@@ -374,3 +374,101 @@ def test_a_second_campaign_in_a_folder_is_refused_while_one_works(full_run, tmp_
     after = sorted(p.relative_to(copy) for p in copy.rglob("*") if p.name != ".railsusp.lock")
     assert after == before  # nothing discarded
     assert run_campaign(cfg, copy) == copy  # released: the next one goes on
+
+
+def test_a_track_geometry_file_edited_in_place_is_not_resumed_into(tmp_path):
+    """A campaign on measured track geometry kept its results when the file was edited in
+    place (its configuration names the file, not its contents: interrupt/resume audit of
+    stop 60): it is refused now, and --force simulates the edited track."""
+    import pandas as pd
+
+    from railsusp.vehicle.setup import section_irregularities
+    from railsusp.vehicle.track_geometry import write_track_geometry
+    from railsusp.vehicle.wagon import load_wagon
+
+    base = TINY[0]
+    irr = section_irregularities(base, [base.seed], load_wagon())
+    geo = write_track_geometry(tmp_path / "track.csv", irr, origin_m=base.lead_in_m)
+    cond = base.with_changes(track_geometry=str(geo))
+    cfg = make_config([cond], 4, batch_size=4, parameters=("X14",))
+    out = tmp_path / "camp"
+    run_campaign(cfg, out)
+    meta = json.loads((out / "campaign.json").read_text())
+    assert list(meta["track_geometry_files"]) == [str(geo)]
+    first = pd.read_parquet(out / "features.parquet")
+    run_campaign(cfg, out)  # unchanged: resumed, nothing simulated again
+    table = pd.read_csv(geo)
+    table[[c for c in table.columns if c != "distance_m"]] *= 3.0
+    table.to_csv(geo, index=False)
+    with pytest.raises(CampaignError, match=r"other contents of its track geometry file\(s\)"):
+        run_campaign(cfg, out)
+    run_campaign(cfg, out, force=True)
+    again = pd.read_parquet(out / "features.parquet")
+    assert not np.allclose(first.value.to_numpy(), again.value.to_numpy())
+    # without measured geometry the record and the hash are as before
+    plain = tmp_path / "plain"
+    run_campaign(make_config([base], 4, batch_size=4, parameters=("X14",)), plain, max_batches=0)
+    assert "track_geometry_files" not in json.loads((plain / "campaign.json").read_text())
+
+
+def _restamp(path, revision: str) -> None:
+    """A batch file as another force-law revision would have written it."""
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(path)
+    meta = dict(table.schema.metadata or {})
+    meta[b"railsusp.model_revision"] = revision.encode()
+    pq.write_table(table.replace_schema_metadata(meta), path)
+
+
+def test_batches_of_other_force_laws_are_never_taken_as_this_campaigns(full_run, tmp_path):
+    """With campaign.json lost, batches were kept by their configuration's stamp alone,
+    which does not change with the force laws: a new revision relabelled old batches as its
+    own (interrupt/resume audit of stop 60). Each batch now records its revision."""
+    from railsusp.campaign.run import REVISION_KEY
+    from railsusp.vehicle import MODEL_REVISION
+
+    cfg, out = full_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    for p in (copy / "batches").rglob("*.parquet"):
+        assert pq_meta(p)[REVISION_KEY.encode()] == MODEL_REVISION.encode()
+    for p in batch_paths(copy, "curve", 1):
+        _restamp(p, "2000-01-01.1")
+    (copy / "campaign.json").unlink()
+    said = "1 of its batches is not stamped as this configuration.s .another campaign.s or other"
+    with pytest.raises(CampaignError, match=said):
+        run_campaign(cfg, copy)
+    calls = []
+    run_campaign(cfg, copy, force=True, progress=lambda d, t: calls.append(d))
+    assert calls[0] == 16  # the old revision's batch of 4 simulated again
+    assert all(
+        pq_meta(p)[REVISION_KEY.encode()] == MODEL_REVISION.encode()
+        for p in (copy / "batches").rglob("*.parquet")
+    )
+
+
+def pq_meta(path) -> dict:
+    import pyarrow.parquet as pq
+
+    return dict(pq.ParquetFile(path).schema_arrow.metadata or {})
+
+
+def test_results_of_other_force_laws_are_not_trained_or_analysed(full_run, tmp_path, caplog):
+    """`railsusp train` and the sensitivity read a finished campaign of an older revision
+    without a word (interrupt/resume audit of stop 60): refused now; a campaign that states
+    none (before 2026-11-30) is warned of."""
+    from railsusp.campaign import require_complete
+
+    _, out = full_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    meta = json.loads((copy / "campaign.json").read_text())
+    (copy / "campaign.json").write_text(json.dumps({**meta, "model_revision": "2000-01-01.1"}))
+    with pytest.raises(CampaignError, match=r"simulated with force-law revision 2000-01-01.1"):
+        require_complete(load_campaign(copy))
+    del meta["model_revision"]
+    (copy / "campaign.json").write_text(json.dumps(meta))
+    with caplog.at_level("WARNING", logger="railsusp.campaign"):
+        assert require_complete(load_campaign(copy)).model_revision is None
+    assert "states no force-law revision" in caplog.text

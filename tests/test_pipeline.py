@@ -546,3 +546,39 @@ def test_the_surrogate_comparison_json_is_strict_json(tiny):
     for path in out.rglob("compare.json"):
         rows = json.loads(path.read_text(), parse_constant=refuse)
         assert rows and any(v is None for r in rows for v in r.values())
+
+
+def test_the_stage_hashes_follow_the_conditions_as_simulated(tmp_path, monkeypatch):
+    """The campaign and field stages hashed the conditions as written: a packaged condition
+    changed by an upgrade, or a track-geometry file edited in place, left every stage up to
+    date on the old results (interrupt/resume audit of stop 60)."""
+    import pandas as pd
+
+    from railsusp import conditions as conditions_module
+    from railsusp.conditions import get_condition
+    from railsusp.pipeline import _section
+    from railsusp.vehicle.setup import section_irregularities
+    from railsusp.vehicle.track_geometry import write_track_geometry
+    from railsusp.vehicle.wagon import load_wagon
+
+    base = get_condition("straight", duration_s=1.0, n_steps=50, lead_in_m=20.0)
+    irr = section_irregularities(base, [base.seed], load_wagon())
+    geo = write_track_geometry(tmp_path / "track.csv", irr, origin_m=base.lead_in_m)
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(
+        f'conditions = ["curve", {{base = "straight", name = "short", duration_s = 1.0, '
+        f'n_steps = 50, lead_in_m = 20.0, track_geometry = "{geo}"}}]\n'
+    )
+    config = load_config(cfg)
+    before = {s: _section(config, s) for s in ("campaign", "field")}
+    assert before["campaign"]["conditions"][0]["curve_radius_m"] == 300.0  # resolved
+    table = pd.read_csv(geo)
+    table[[c for c in table.columns if c != "distance_m"]] *= 3.0
+    table.to_csv(geo, index=False)
+    edited = {s: _section(config, s) for s in ("campaign", "field")}
+    for s in ("campaign", "field"):
+        assert edited[s] != before[s] and edited[s]["conditions"] == before[s]["conditions"]
+    upgraded = dict(conditions_module.STANDARD_CONDITIONS)
+    upgraded["curve"] = upgraded["curve"].with_changes(speed_kmh=70.0)
+    monkeypatch.setattr(conditions_module, "STANDARD_CONDITIONS", upgraded)
+    assert _section(load_config(cfg), "campaign")["conditions"] != edited["campaign"]["conditions"]

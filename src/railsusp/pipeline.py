@@ -235,14 +235,24 @@ def _measured_state(config: PipelineConfig) -> dict:
 
 
 def _section(config: PipelineConfig, stage: str) -> Any:
+    """The inputs of ``stage`` whose hash decides whether it runs again. The conditions are
+    those the run simulates, resolved (a packaged condition's values, a ``base``'s, the
+    recording's cut), with the contents of their measured track-geometry files: before
+    stop 60 they were hashed as written, so a packaged condition changed by an upgrade, or
+    a geometry file edited in place, left every stage up to date on the old results."""
+    from railsusp.vehicle.track_geometry import geometry_digests
+
+    conditions = config.working_conditions()
     base = {
         "wagon": config.wagon,
-        "conditions": list(config.conditions),
+        "conditions": [c.model_dump(mode="json") for c in conditions],
         "model": model_identity(config),
     }
+    files = geometry_digests(conditions)
+    if files:
+        base["track_geometry_files"] = files
     source = config.run_source()
     if source is not None:  # the conditions, and the field, come from the recording's cut
-        base["conditions"] = [c.model_dump(mode="json") for c in config.working_conditions()]
         base["recording"] = repr(source.state())
     sections = {
         "campaign": {**base, **config.campaign.model_dump()},

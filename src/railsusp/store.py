@@ -11,6 +11,7 @@ which turn every OS, decoding and syntax error into a one-line :class:`RailsuspI
 from __future__ import annotations
 
 import datetime as _dt
+import fnmatch
 import hashlib
 import io
 import json
@@ -138,19 +139,26 @@ def read_csv(path: str | Path) -> pd.DataFrame:
 
 
 @contextmanager
-def atomic_folder(path: str | Path, keep: bool = True) -> Iterator[Path]:
+def atomic_folder(path: str | Path, keep: bool = True, drop: Sequence[str] = ()) -> Iterator[Path]:
     """Write a multi-file artefact as one: yields a temporary sibling folder to write into;
     on success it replaces ``path``, on an error it is removed and ``path`` is untouched.
 
     ``keep``: other entries of an existing ``path`` (a training checkpoint, figures) are
-    carried into the new folder (hard links where possible). The swap is two renames (the
-    old folder aside, the new one in); a crash between them leaves the old folder beside
-    ``path`` as ``.NAME.old-*``, and a process killed while writing leaves ``.NAME.new-*``:
-    the next save removes both. The folder gets the mode a plainly made one gets (0777 less
-    the umask), not the temporary folder's 0700.
+    carried into the new folder (hard links where possible), except those whose names match
+    a glob pattern of ``drop`` (what the old artefact wrote and this one replaces or no
+    longer has: an old estimate's validation, a removed condition's recording). The swap is
+    two renames (the old folder aside, the new one in); a crash between them leaves the old
+    folder beside ``path`` as ``.NAME.old-*`` and no ``path``: the next save puts it back
+    first (it held finished work: a trained network and its checkpoint), then carries on. A
+    process killed while writing leaves ``.NAME.new-*``: the next save removes it. The
+    folder gets the mode a plainly made one gets (0777 less the umask), not the temporary
+    folder's 0700.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    aside = sorted(path.parent.glob(f".{path.name}.old-*"), key=lambda p: p.stat().st_mtime)
+    if aside and not path.exists():  # a crash between the two renames: the old one back
+        os.rename(aside.pop(), path)
     for pattern in (f".{path.name}.old-*", f".{path.name}.new-*"):
         for stale in path.parent.glob(pattern):
             shutil.rmtree(stale, ignore_errors=True)
@@ -164,7 +172,7 @@ def atomic_folder(path: str | Path, keep: bool = True) -> Iterator[Path]:
         if keep and path.is_dir():
             for entry in path.iterdir():
                 target = tmp / entry.name
-                if target.exists():
+                if target.exists() or any(fnmatch.fnmatchcase(entry.name, d) for d in drop):
                     continue
                 if entry.is_dir():
                     shutil.copytree(entry, target, copy_function=_link_or_copy)

@@ -51,6 +51,11 @@ SOBOL_ST_LIMIT = 0.1
 ESTIMATE_KEYS = ("parameters", "estimate_display", "config")
 
 
+#: the files :meth:`ValidationResult.save` writes (glob patterns): an earlier
+#: validation's that a new one does not write are removed (the folder may be the user's)
+VALIDATION_FILES = ("validation.csv", "validation.json", "recovery.csv", "validation-*.png")
+
+
 @dataclass
 class ValidationResult:
     """Tables 8/9 (``forces``) and, with a known truth, the recovery table."""
@@ -69,7 +74,8 @@ class ValidationResult:
 
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
-        atomic_write_bytes(out / "validation.csv", self.forces.to_csv(index=False).encode())
+        written = [out / "validation.csv", out / "validation.json"]
+        atomic_write_bytes(written[0], self.forces.to_csv(index=False).encode())
         payload = {
             "forces": self.forces.to_dict(orient="records"),
             "failures": self.failures,
@@ -77,11 +83,17 @@ class ValidationResult:
         }
         if self.recovery is not None:
             csv = self.recovery.to_csv(index=False).encode()
-            atomic_write_bytes(out / "recovery.csv", csv)
+            written.append(atomic_write_bytes(out / "recovery.csv", csv))
             payload["recovery"] = self.recovery.to_dict(orient="records")
-        write_json(out / "validation.json", payload)
+        write_json(written[1], payload)
         for cond, s in self.series.items():
-            plot_validation_overlay(s, out / f"validation-{cond}.png", title=cond)
+            written.append(out / f"validation-{cond}.png")
+            plot_validation_overlay(s, written[-1], title=cond)
+        # an earlier validation's files that this one does not write (a recovery table of
+        # another field's truth, a removed condition's figure) went on being shown as its
+        stale = {p for pattern in VALIDATION_FILES for p in out.glob(pattern)} - set(written)
+        for path in stale:
+            path.unlink(missing_ok=True)
         return out
 
 

@@ -147,6 +147,9 @@ def test_many_track_training_is_scored_on_unseen_tracks(many_tracks):
     sur = load(many_tracks / "surrogates" / "cnn-gru" / "curve")
     assert sur.meta["test_ids"] == split.test.tolist()
     assert sur.meta["split"]["held_out_tracks"] and sur.meta["track_realisations"] == 20
+    from railsusp.vehicle import MODEL_REVISION
+
+    assert sur.meta["model_revision"] == MODEL_REVISION  # the force laws it learnt
     assert "cant" in sur.spec.track_channels  # the cant varies, so the windows carry it
     assumed = {r["symbol"]: r["assumed"] for r in sur.meta["assumed_parameters"]}
     assert assumed["X19"] == "varied" and assumed["X20"] == "nominal"

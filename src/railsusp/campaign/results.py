@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,8 @@ from railsusp.campaign.design import (
     read_meta,
     track_table,
 )
+
+log = logging.getLogger("railsusp.campaign")
 
 
 def _config_error(meta_path: Path, exc: ValidationError) -> str:
@@ -71,6 +74,13 @@ class Campaign:
     def complete(self) -> bool:
         return "completed" in self.meta
 
+    @property
+    def model_revision(self) -> str | None:
+        """The force laws' revision the campaign was simulated with (None: not recorded,
+        made before 2026-11-30)."""
+        got = self.meta.get("model_revision")
+        return None if got is None else str(got)
+
     def design(self) -> pd.DataFrame:
         return pd.read_parquet(self.path / "design.parquet")
 
@@ -124,11 +134,31 @@ def read_series(root: Path, condition: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def require_complete(campaign: Campaign) -> Campaign:
-    """``campaign`` if every batch of it is stored; a one-line error saying how to finish it
-    otherwise (a surrogate trained on part of a campaign would silently see fewer runs)."""
+    """``campaign`` if every batch of it is stored and it was simulated with this railsusp's
+    force laws; a one-line error saying how to finish it, or to simulate it again, otherwise
+    (a surrogate trained on part of a campaign would silently see fewer runs; one trained on
+    a campaign of other force laws learnt another model: the interrupt/resume audit of stop
+    60 trained on one silently). A campaign that states no revision (made before
+    2026-11-30) is warned of, as when it is resumed."""
     missing = incomplete(campaign)
     if missing:
         raise CampaignError(missing)
+    from railsusp.vehicle import MODEL_REVISION
+
+    revision = campaign.model_revision
+    if revision is None:
+        log.warning(
+            "%s states no force-law revision (made before 2026-11-30): its results may be of "
+            "other force laws than this railsusp's %s",
+            campaign.path,
+            MODEL_REVISION,
+        )
+    elif revision != MODEL_REVISION:
+        raise CampaignError(
+            f"{campaign.path} was simulated with force-law revision {revision}; railsusp now "
+            f"simulates {MODEL_REVISION}: run the campaign again into a new --out (or with "
+            "--force) before using its results"
+        )
     return campaign
 
 

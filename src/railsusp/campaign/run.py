@@ -41,6 +41,7 @@ from railsusp.variation import (
 )
 from railsusp.vehicle import MODEL_REVISION
 from railsusp.vehicle.simulate import WHEEL_NAMES, simulate_requests
+from railsusp.vehicle.track_geometry import geometry_digests
 
 log = logging.getLogger("railsusp.campaign")
 
@@ -135,6 +136,9 @@ def features_table(
 #: the Parquet metadata key of a batch file that names the campaign configuration (its
 #: :meth:`~railsusp.campaign.design.CampaignConfig.hash`) that simulated it
 STAMP_KEY = "railsusp.config_hash"
+#: and with the force laws' revision that simulated them (:data:`railsusp.vehicle.
+#: MODEL_REVISION`; since stop 60): a batch of other force laws is never this campaign's
+REVISION_KEY = "railsusp.model_revision"
 
 
 def write_batch(
@@ -145,7 +149,9 @@ def write_batch(
     stamps both files with the configuration that simulated them, so that a campaign whose
     ``campaign.json`` was lost or damaged keeps the batches that are its own."""
     series_path, feat_path = batch_paths(out, res["condition"], b)
-    stamp = {} if config_hash is None else {STAMP_KEY: config_hash}
+    stamp = {REVISION_KEY: MODEL_REVISION}
+    if config_hash is not None:
+        stamp[STAMP_KEY] = config_hash
     write_parquet(feat_path, res["features"], metadata=stamp)
     s = res["series"]  # (n, channels, n_t)
     n = s.shape[0]
@@ -172,7 +178,16 @@ def _batch_done(out: Path, condition: str, b: int, config_hash: str) -> bool:
             config_hash.encode()
         ):
             return False
+        if _other_force_laws(meta):
+            return False
     return True
+
+
+def _other_force_laws(meta: dict[bytes, bytes]) -> bool:
+    """Whether a batch file's metadata says it was simulated with another force-law revision
+    (a batch written before batches were stamped with it says nothing: False)."""
+    revision = meta.get(REVISION_KEY.encode())
+    return revision is not None and revision != MODEL_REVISION.encode()
 
 
 def _batch_metadata(path: Path) -> dict[bytes, bytes] | None:
@@ -201,7 +216,9 @@ def _foreign_batches(out: Path, config_hash: str) -> tuple[list[list[Path]], int
     foreign, own = [], 0
     for files in batches.values():
         metas = [m for m in map(_batch_metadata, files) if m is not None]
-        if any(m.get(STAMP_KEY.encode()) != config_hash.encode() for m in metas):
+        if any(
+            m.get(STAMP_KEY.encode()) != config_hash.encode() or _other_force_laws(m) for m in metas
+        ):
             foreign.append(files)
         elif len(metas) == 2:
             own += 1
@@ -224,8 +241,8 @@ def _keep_own_batches(out: Path, config: CampaignConfig, problem: str, force: bo
         n = len(foreign)
         raise CampaignError(
             f"{problem}, and {n} of its batches {'is' if n == 1 else 'are'} not "
-            "stamped as this configuration's (another campaign's, or written before batches "
-            "were stamped); use a new --out, or --force to discard them"
+            "stamped as this configuration's (another campaign's or other force laws', or "
+            "written before batches were stamped); use a new --out, or --force to discard them"
             + (f" ({_batches(own)} of this configuration would be kept)" if own else "")
         )
     made = [n for n in ("features.parquet", *_FROM_BATCHES) if (out / n).exists()]
@@ -271,6 +288,12 @@ def _discard(out: Path) -> None:
     _remove(out, ("batches", *_FROM_DESIGN, *_FROM_BATCHES))
 
 
+def _geometry_files(config: CampaignConfig) -> dict:
+    """``campaign.json``'s record of the measured track files' contents (none without)."""
+    files = geometry_digests(config.conditions)
+    return {"track_geometry_files": files} if files else {}
+
+
 def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
     """Create or re-open a run directory; refuse a different configuration unless forced."""
     check_output_folder(out)
@@ -296,7 +319,17 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
                     f"railsusp now simulates {MODEL_REVISION}: use a new --out, or --force to "
                     "discard the old results (resumed, its batches would mix the two)"
                 )
-            if meta.get("config_hash") != config.hash() or revision != MODEL_REVISION:
+            # the measured track files' contents (none recorded before stop 60: taken as now)
+            files = geometry_digests(config.conditions)
+            was = meta.get("track_geometry_files", files)
+            edited = sorted(k for k in files if was.get(k) != files[k])
+            if edited and meta.get("config_hash") == config.hash() and not force:
+                raise CampaignError(
+                    f"{out} holds a campaign simulated on other contents of its track geometry "
+                    f"file(s) {', '.join(edited)} (edited since); use a new --out, or --force "
+                    "to discard the old results"
+                )
+            if meta.get("config_hash") != config.hash() or revision != MODEL_REVISION or edited:
                 if not force:
                     raise CampaignError(
                         f"{out} holds a campaign with another configuration (hash "
@@ -339,6 +372,7 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
             "config_hash": config.hash(),
             "model_revision": MODEL_REVISION,
             "config": config.model_dump(mode="json"),
+            **_geometry_files(config),
             "n_runs": config.n_runs,
             "n_batches": config.n_batches,
             "channels": list(CHANNELS),

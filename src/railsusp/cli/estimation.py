@@ -269,7 +269,8 @@ def estimate(
         res = route.run(model, recs, params, progress=console.status, simulator=sim)
         # the folder as one artefact: a full disk or a kill while the figures are drawn
         # leaves the folder as it was, not an estimate.json without its figures
-        with atomic_folder(out) as tmp:
+        # (an earlier estimate's validation is not carried into it: it validated that one)
+        with atomic_folder(out, drop=("validation",)) as tmp:
             res.save(
                 tmp,
                 extra={

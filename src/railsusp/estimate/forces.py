@@ -17,6 +17,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from railsusp.conditions import TRACK_INPUT_FIELDS, WorkingCondition
+from railsusp.errors import RailsuspInputError
 from railsusp.estimate.statistics import recording_segments, series_statistics
 from railsusp.measured import Recording
 from railsusp.params import ParameterSet
@@ -29,6 +30,23 @@ class ForceModel(Protocol):
     def series(self, x_si: np.ndarray, condition: WorkingCondition) -> np.ndarray:
         """(n, T, 2) lateral and vertical force (kN), NaN where undefined."""
         ...
+
+
+def check_force_laws(folder: Path, metas: dict[str, dict]) -> None:
+    """Refuse, in one line, surrogates trained on a campaign of other force laws than this
+    railsusp simulates (their bundle's ``model_revision``, recorded since stop 60; bundles
+    without it, and the shipped sets, whose manifest is checked instead, pass): the
+    simulator corrections and the refinement would mix two models."""
+    from railsusp.vehicle import MODEL_REVISION
+
+    for name, meta in metas.items():
+        revision = (meta or {}).get("model_revision")
+        if revision is not None and revision != MODEL_REVISION:
+            raise RailsuspInputError(
+                f"{folder / name}: trained on a campaign of force-law revision {revision}, "
+                f"this railsusp simulates revision {MODEL_REVISION}: run the campaign again "
+                "and train the surrogates on it"
+            )
 
 
 class SurrogateForces:
@@ -47,6 +65,7 @@ class SurrogateForces:
                 self._models[sub.name] = load(sub)
         if not self._models:
             raise FileNotFoundError(f"{self.folder}: no surrogate bundles (<condition>/)")
+        check_force_laws(self.folder, {n: m.meta for n, m in self._models.items()})
         first = next(iter(self._models.values()))
         self.parameters = tuple(parameters) if parameters else tuple(first.spec.parameters)
         for name, m in self._models.items():
@@ -273,6 +292,7 @@ class StatisticsForces:
         self._models = {p.name: load_statistics(p) for p in subs if is_statistics_bundle(p)}
         if not self._models:
             raise FileNotFoundError(f"{self.folder}: no statistics surrogates (<condition>/)")
+        check_force_laws(self.folder, {n: m.meta for n, m in self._models.items()})
         first = next(iter(self._models.values()))
         self.parameters = tuple(parameters) if parameters else first.parameters
         for name, m in self._models.items():

@@ -5,6 +5,7 @@ folder whose truth the estimator never reads.
 
 from __future__ import annotations
 
+import glob
 from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
@@ -96,6 +97,20 @@ def add_sensor_noise(
     )
 
 
+def _earlier_field(out: Path) -> list[str]:
+    """What an earlier field in ``out`` wrote (its index, truth, and each recording it lists
+    with its sidecar and track file), as patterns of names not carried into the new one:
+    a condition no longer synthesised left its recording beside the new ones, and the
+    report listed it among the run's files (interrupt/resume audit of stop 60)."""
+    from railsusp.measured.reader import read_index
+
+    try:
+        listed = read_index(out)
+    except (RailsuspInputError, OSError):
+        listed = []
+    return ["index.json", "truth.json", *(f"{glob.escape(p.stem)}.*" for p in listed)]
+
+
 def synthesise_field(
     truth,
     conditions: list[WorkingCondition],
@@ -167,7 +182,7 @@ def synthesise_field(
         )
     # the folder as one artefact: a crash leaves the old folder as it was, never a table
     # without its sidecar or an index that lists recordings not written
-    with atomic_folder(out) as folder:
+    with atomic_folder(out, drop=_earlier_field(out)) as folder:
         names = []
         for i, cond in enumerate(conditions):
             if duration_s is not None:

@@ -332,6 +332,7 @@ def train_surrogate(
         meta={
             "campaign": str(camp.path),
             "campaign_hash": camp.config.hash(),
+            "model_revision": camp.model_revision,  # the force laws it learnt
             "wheel": camp.config.wheel,  # the wheel whose forces it predicts (load_series)
             "solver": dict(camp.config.solver),  # the nominal response is simulated with it
             **split_meta(split, data),

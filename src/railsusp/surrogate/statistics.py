@@ -142,6 +142,7 @@ def train_statistics_surrogate(
         data.condition,
         {
             "campaign": str(camp.path.resolve()),
+            "model_revision": camp.model_revision,  # the force laws it learnt
             "n_train": int(data.n_samples),
             "independent_seeds": bool(len(np.unique(data.seeds)) > 1),
             "assumed_parameters": assumed_parameters(

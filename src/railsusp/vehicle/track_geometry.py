@@ -83,6 +83,37 @@ def read_track_geometry(path: str | Path) -> Irregularities:
     return _read_track_geometry(str(p.resolve()), stat.st_mtime_ns, stat.st_size)
 
 
+def geometry_digests(conditions: Sequence[WorkingCondition]) -> dict[str, str]:
+    """The content hash (SHA-256) of each measured track-geometry file the ``conditions``
+    name, by path as named ("missing" for a file not there): what a campaign's and a run's
+    stage hashes hold beside the path, so that a file edited in place is simulated again
+    instead of its old results being reused (the interrupt/resume audit of stop 60). Empty
+    without measured geometry (the hashes of such campaigns and runs are as before)."""
+    out = {}
+    for c in conditions:
+        if c.track_geometry is None or c.track_geometry in out:
+            continue
+        p = Path(c.track_geometry)
+        if p.is_file():
+            st = p.stat()
+            out[c.track_geometry] = _file_digest(str(p.resolve()), st.st_mtime_ns, st.st_size)
+        else:
+            out[c.track_geometry] = "missing"
+    return out
+
+
+@lru_cache(maxsize=64)
+def _file_digest(path: str, _mtime_ns: int, _size: int) -> str:
+    """SHA-256 of a file's bytes (cached while its time stamp and size stay)."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
 @lru_cache(maxsize=16)
 def _read_track_geometry(path: str, _mtime_ns: int, _size: int) -> Irregularities:
     problems: list[str] = []
