@@ -439,3 +439,18 @@ def test_a_condition_outside_the_family_is_refused_before_any_prediction(on_trac
     other.condition = other.condition.with_changes(name="curve")
     with pytest.raises(RailsuspInputError, match="'curve': no surrogate of that condition"):
         check_aligned(model, [other])
+
+
+def test_a_network_of_another_condition_is_refused_on_record_statistics_too(tmp_path):
+    """Only the time-aligned comparison checked the recordings' conditions against the
+    networks': on record statistics a 60 km/h network stood in for a 100 km/h recording
+    without a word (the command-line audit of stop 60)."""
+    folder = tiny_surrogate(tmp_path / "s")
+    fast = get_condition("straight", speed_kmh=100.0, duration_s=2.0, n_steps=100)
+    t = np.arange(fast.n_steps) * fast.sample_interval
+    rec = Recording(t, {"w1L": np.sin(t) + 2.0}, {"w1L": 120.0 + np.cos(t)}, fast, {})
+    for statistic in ("mean", "rms+p99"):
+        with pytest.raises(RailsuspInputError, match=r"speed_kmh = 100.0 is outside what"):
+            CalibrationProblem(SurrogateForces(folder), [rec], KEYS, statistic)
+    same = fast.with_changes(speed_kmh=60.0)
+    CalibrationProblem(SurrogateForces(folder), [Recording(t, rec.Y, rec.Q, same, {})], KEYS)

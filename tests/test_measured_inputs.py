@@ -410,3 +410,17 @@ def test_a_sidecar_condition_of_another_duration_is_refused_and_an_unstated_one_
     doc["condition_name"] = "uphill"
     side.write_text(json.dumps(doc))
     assert read_recording(tmp_path / "r.csv").condition.duration_s == 2.0
+
+
+def test_a_boolean_force_column_is_refused_as_in_csv(tmp_path):
+    """A Parquet force column of booleans was read as 0 and 1 kN with exit 0, where CSV's
+    True/False was refused (the command-line audit of stop 60)."""
+    path = make_recording().write(tmp_path / "r.parquet", fmt="parquet")
+    df = pd.read_parquet(path)
+    df["Y_w1L_kN"] = df["Y_w1L_kN"] > 5.0
+    df.to_parquet(path)
+    with pytest.raises(RailsuspInputError, match="column 'Y_w1L_kN' holds booleans"):
+        read_recording(path)
+    df.assign(Y_w1L_kN=df["Y_w1L_kN"].astype(str)).to_csv(tmp_path / "r.csv", index=False)
+    with pytest.raises(RecordingError, match="'(True|False)' is not a number"):
+        read_recording(tmp_path / "r.csv")

@@ -74,7 +74,13 @@ class CalibrationProblem(Problem):
         self.stats = tuple(st for st in combination if st != ALIGNED)
         if self.aligned:
             check_aligned(model, self.recordings)
-        elif gains:
+        elif isinstance(averaged_model(model), SurrogateForces):
+            # on record statistics too: a network of the same name trained at another speed
+            # (or grade, radius, ...) stood in for the recording's condition without a word
+            # (the command-line audit of stop 60)
+            for r in self.recordings:
+                averaged_model(model).check_condition(r.condition)
+        if gains and not self.aligned:
             raise RailsuspInputError(
                 f"channel gains with the statistic {statistic!r}: accepted only with the "
                 "time-aligned comparison (statistic 'aligned'), whose samples a gain scales"

@@ -14,6 +14,9 @@ from railsusp.errors import RailsuspInputError
 
 #: a section name, which becomes a file name: no path separators, no leading dot
 SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,59}")
+#: names a section cannot take: its recording (NAME.csv, NAME.json) would be written over by
+#: the field folder's own files (index.json, sections.csv, en14363.csv), or write over them
+RESERVED_NAMES = ("index", "sections", "en14363")
 
 
 def geometry_from_line(position_m: np.ndarray, line: pd.DataFrame) -> dict[str, np.ndarray]:
@@ -73,6 +76,25 @@ def read_line(path: str | Path) -> pd.DataFrame:
     if (df.km_end <= df.km_start).any():
         i = int(np.flatnonzero((df.km_end <= df.km_start).to_numpy())[0])
         raise RailsuspInputError(f"line description {path}, row {i + 2}: km_end <= km_start")
+    tangent = ~(df.radius_m.to_numpy(dtype=float) > 0.0)
+    canted = tangent & (np.nan_to_num(df.cant_mm.to_numpy(dtype=float)) != 0.0)
+    if canted.any():  # written as 0 into the section's condition, shown as given
+        i = int(np.flatnonzero(canted)[0])
+        raise RailsuspInputError(
+            f"{what}, row {i + 2}: cant_mm = {df.cant_mm.iloc[i]:g} on a tangent row (radius 0 "
+            "or empty): accepted 0 or empty there (a working condition has cant in a curve "
+            "only)"
+        )
+    order = np.argsort(df.km_start.to_numpy(), kind="stable")
+    starts, ends = df.km_start.to_numpy()[order], df.km_end.to_numpy()[order]
+    overlap = np.flatnonzero(starts[1:] < ends[:-1])
+    if overlap.size:  # the later row won where they overlapped, silently
+        a, b = sorted((int(order[overlap[0]]) + 2, int(order[overlap[0] + 1]) + 2))
+        raise RailsuspInputError(
+            f"{what}, rows {a} and {b} overlap (km {starts[overlap[0] + 1]:g} to "
+            f"{min(ends[overlap[0]], ends[overlap[0] + 1]):g}): accepted rows that do not "
+            "overlap (a gap is a stretch the line does not describe)"
+        )
     return df
 
 
@@ -82,12 +104,24 @@ def read_section_table(path: str | Path) -> pd.DataFrame:
     df = _read_csv(path, ["start_m", "end_m"])
     _need_values(df, ["start_m", "end_m"], f"section table {path}")
     if "name" in df:
+        seen: dict[str, int] = {}
         for i, name in enumerate(df["name"].astype(str)):
             if not SAFE_NAME.fullmatch(name):
                 raise RailsuspInputError(
                     f"section table {path}, row {i + 2}: name {name!r}: accepted 1-60 "
                     "letters, digits, '.', '_', '-', starting with a letter or digit"
                 )
+            if name.casefold() in RESERVED_NAMES:
+                raise RailsuspInputError(
+                    f"section table {path}, row {i + 2}: name {name!r} is the field folder's "
+                    f"own file ({', '.join(RESERVED_NAMES)}); accepted another name"
+                )
+            if name.casefold() in seen:  # the second recording would replace the first
+                raise RailsuspInputError(
+                    f"section table {path}, row {i + 2}: name {name!r} is row "
+                    f"{seen[name.casefold()]}'s too; accepted a name per section"
+                )
+            seen[name.casefold()] = i + 2
     if (df.end_m <= df.start_m).any():
         i = int(np.flatnonzero((df.end_m <= df.start_m).to_numpy())[0])
         raise RailsuspInputError(f"section table {path}, row {i + 2}: end_m <= start_m")
@@ -95,8 +129,8 @@ def read_section_table(path: str | Path) -> pd.DataFrame:
 
 
 def _read_csv(path: str | Path, need: list[str]) -> pd.DataFrame:
-    try:
-        df = pd.read_csv(path, skipinitialspace=True)
+    try:  # only an empty cell is missing: "nan" or "inf" is a value, refused below
+        df = pd.read_csv(path, skipinitialspace=True, keep_default_na=False, na_values=[""])
     except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         raise RailsuspInputError(f"{path}: cannot read the table ({exc})") from None
     missing = [c for c in need if c not in df.columns]
@@ -108,7 +142,14 @@ def _read_csv(path: str | Path, need: list[str]) -> pd.DataFrame:
         if bad.any():
             i = int(np.flatnonzero(bad.to_numpy())[0])
             raise RailsuspInputError(f"{path}, row {i + 2}: {c} = {df[c].iloc[i]!r} not a number")
-        df[c] = vals
+        infinite = df[c].notna() & ~np.isfinite(vals.astype(float))
+        if infinite.any():  # "nan", "inf": read as an empty cell (a tangent, level track)
+            i = int(np.flatnonzero(infinite.to_numpy())[0])
+            raise RailsuspInputError(
+                f"{path}, row {i + 2}: {c} = {df[c].iloc[i]}: accepted a finite number, or "
+                "an empty cell"
+            )
+        df[c] = vals.astype(float)
     return df
 
 

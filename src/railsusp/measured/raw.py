@@ -221,8 +221,14 @@ def _read_table(path: Path, time_column: str | None) -> dict[str, RawChannel]:
 
 def _numeric(raw: pd.Series, path: Path, col: str) -> np.ndarray:
     """A column as floats; empty or ``nan`` cells are NaN, other text is an error naming
-    the row (file line)."""
-    if raw.dtype.kind in "fiub":
+    the row (file line). A boolean column (Parquet) is refused as CSV's ``True`` is: its
+    values were read as 0 and 1 kN (the command-line audit of stop 60)."""
+    if raw.dtype.kind == "b" or (raw.dtype == object and raw.map(type).eq(bool).any()):
+        raise RailsuspInputError(
+            f"recording {path}: column {col!r} holds booleans (true/false), not numbers; "
+            "accepted numeric values"
+        )
+    if raw.dtype.kind in "fiu":
         return raw.to_numpy(dtype=float)
     text = raw.astype(str).str.strip()
     vals = pd.to_numeric(text.replace("", "nan"), errors="coerce")

@@ -1,0 +1,56 @@
+"""A long run's line description and section table, checked where the command-line audit of
+stop 60 found them taken silently: a radius of nan or inf read as a tangent, rows that
+overlap (the later one won), cant on a tangent row (shown, then written as 0), and section
+names that are the field folder's own files or repeat (one recording written over
+another)."""
+
+from pathlib import Path
+
+import pytest
+
+from railsusp.errors import RailsuspInputError
+from railsusp.measured.line import read_line, read_section_table
+
+EXAMPLE_PATH = Path(__file__).resolve().parents[1] / "src/railsusp/data/example_line.csv"
+EXAMPLE = EXAMPLE_PATH.read_text()
+
+
+def _write(tmp_path, text: str, name: str = "t.csv") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_the_example_line_reads():
+    assert len(read_line(EXAMPLE_PATH)) >= 4
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "said"),
+    [
+        ("0.7417,1.2000,600.0,", "0.7417,1.2000,nan,", "row 3: radius_m = 'nan' not a number"),
+        ("0.7417,1.2000,600.0,", "0.7417,1.2000,inf,", "row 3: radius_m = inf: accepted a finite"),
+        ("0.7417,1.2000,600.0,", "0.5000,1.2000,600.0,", "rows 2 and 3 overlap (km 0.5 to 0.5417)"),
+        ("0.0000,0.5417,,left,0,0", "0.0000,0.5417,,left,50,0", "cant_mm = 50 on a tangent row"),
+    ],
+)
+def test_a_bad_line_description_is_refused_in_one_line(tmp_path, old, new, said):
+    assert old in EXAMPLE
+    with pytest.raises(RailsuspInputError) as err:
+        read_line(_write(tmp_path, EXAMPLE.replace(old, new, 1)))
+    assert said in str(err.value) and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize(
+    ("rows", "said"),
+    [
+        ("0,500,index\n800,1150,b\n", "row 2: name 'index' is the field folder's own file"),
+        ("0,500,a\n800,1150,Sections\n", "row 3: name 'Sections' is the field folder's own"),
+        ("0,500,a\n800,1150,A\n", "row 3: name 'A' is row 2's too"),
+    ],
+)
+def test_a_section_table_whose_names_collide_is_refused(tmp_path, rows, said):
+    with pytest.raises(RailsuspInputError, match=said):
+        read_section_table(_write(tmp_path, "start_m,end_m,name\n" + rows))
+    ok = read_section_table(_write(tmp_path, "start_m,end_m,name\n0,500,a\n800,1150,b\n"))
+    assert list(ok.name) == ["a", "b"]
