@@ -165,3 +165,16 @@ def test_check_recording_takes_the_wagon_whose_wheel_loads_it_checks(tmp_path):
     assert tare.exit_code == 0, tare.output
     bad = runner.invoke(app, ["check-recording", str(tmp_path / "tare.csv"), "--wagon", "nope"])
     assert bad.exit_code == 2 and "--wagon" in bad.output and "Traceback" not in bad.output
+
+
+def test_example_recording_does_not_write_over_an_edited_file(tmp_path):
+    """The tutorial has the user edit the example's configuration: copying the example
+    again replaced it silently (command-line audit of stop 60). Unchanged copies are fine."""
+    example(tmp_path)
+    example(tmp_path)  # the same files again: nothing lost, nothing refused
+    config = tmp_path / "example_run.pipeline.toml"
+    config.write_text(config.read_text() + "# my edit\n")
+    result = runner.invoke(app, ["example-recording", "--out", str(tmp_path)])
+    assert result.exit_code == 2
+    assert "example_run.pipeline.toml already there and not the shipped file" in result.output
+    assert config.read_text().endswith("# my edit\n")

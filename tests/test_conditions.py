@@ -132,5 +132,9 @@ def test_track_accuracy_needs_a_track_file_and_keeps_old_dumps():
     assert "±0.5 mm RMS" in on_track.describe()
     with pytest.raises(ValueError, match="track_accuracy_mm = 0.5 needs a track_geometry"):
         c.with_changes(track_accuracy_mm=0.5)
+    # and the offset, which was taken and ignored (command-line audit of stop 60)
+    with pytest.raises(ValueError, match="track_offset_m = 12 needs a track_geometry file"):
+        c.with_changes(track_offset_m=12.0)
+    assert on_track.with_changes(track_offset_m=12.0).track_offset_m == 12.0
     with pytest.raises(ValueError, match="track_accuracy_mm"):
         on_track.with_changes(track_accuracy_mm=20.0)

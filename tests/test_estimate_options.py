@@ -61,6 +61,11 @@ def field(tmp_path_factory):
         (["--refine", "--refine-starts", "0"], "--refine-starts 0: accepted 1 to 20"),
         (["--refine-screen", "-1"], "--refine-screen -1: accepted 0 to 10000"),
         (["--refine-evaluations", "0"], "--refine-evaluations 0: accepted 1 to 500"),
+        (  # accepted on the command line, refused in a configuration (audit of stop 60)
+            ["--refine", "--refine-screen", "1", "--refine-starts", "2"],
+            "--refine-screen 1 screens fewer points than --refine-starts 2 starts; accepted "
+            "--refine-screen 0 (no screening) or at least --refine-starts",
+        ),
         (["--geometry-draws", "101"], "--geometry-draws 101: accepted 0 to 100"),
         (
             ["--held-prior", "X15=100:200"],

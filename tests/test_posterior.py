@@ -506,6 +506,10 @@ def test_cli_estimate_prints_the_table(trained, tmp_path):
         (["train", "--statistics", "wheelset", "--sum-y"], "--sum-y true conflicts with the st"),
         (["train", "--lead-in", "-5"], "--lead-in -5"),
         (["train", "--conditions", "curve", "--lead-in", "30"], "accepted at least 90.03 m"),
+        (
+            ["train", "--section", "1", "--statistics", "coherence"],
+            "--section 1: the statistics family 'coherence' correlates over lags up to 1 s",
+        ),
         (["estimate", "--measured", "MISSING", "--estimator", "RUN"], "MISSING"),
     ],
 )

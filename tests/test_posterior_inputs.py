@@ -86,3 +86,26 @@ def test_join_names_a_missing_estimator_folder(tmp_path):
     (tmp_path / "a").mkdir()
     with pytest.raises(RailsuspInputError, match="nosuch: no such folder"):
         posterior_joint.train([tmp_path / "a", tmp_path / "nosuch"], tmp_path / "joint")
+
+
+def test_training_cases_whose_statistics_are_undefined_are_one_line_not_sbis_traceback():
+    """Statistics undefined in most training cases (a lag as long as the section) reached
+    sbi, which failed with a 50-line traceback (the command-line audit of stop 60)."""
+    import numpy as np
+
+    from railsusp.conditions import get_condition
+    from railsusp.estimate import posterior
+    from railsusp.estimate.posterior_settings import PosteriorSettings
+
+    s = PosteriorSettings(
+        (get_condition("straight"),), parameters=("X13",), n_train=20, n_check=10,
+        n_calibration=0,
+    )  # fmt: skip
+    u = np.random.default_rng(0).random((20, 10))
+    x = np.ones((20, len(s.summary_names)))
+    x[:15, 3] = np.nan
+    with pytest.raises(RailsuspInputError) as err:
+        posterior._build(s, u, x)
+    assert "15 of 20 training cases have undefined statistics (straight:Q_p0.15)" in str(err.value)
+    x[:15, 3] = 1.0
+    assert len(posterior._build(s, u, x)[3]) == 20

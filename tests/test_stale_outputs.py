@@ -88,3 +88,39 @@ def test_an_estimate_again_in_its_folder_drops_the_earlier_ones_validation(tmp_p
     done = runner.invoke(app, [*args, "--seed", "1"])
     assert done.exit_code == 0, done.output
     assert not (est / "validation").exists() and (est / "notes.txt").exists()
+
+
+def test_results_are_not_written_over_recordings(tmp_path):
+    """`estimate --out` into its recordings' folder replaced a recording named ``estimate``
+    with the results, `validate --out` wrote among them and `simulate --out` wrote over a
+    recording's table (the command-line audit of stop 60)."""
+    runner = CliRunner()
+    field = tmp_path / "field"
+    synthesise_field(ParameterSet.nominal(), [SHORT], field, fmt="parquet")
+    before = {p.name: p.read_bytes() for p in field.iterdir()}
+    cases = [
+        (["estimate", "--measured", str(field), "--out", str(field), "--simulator"],
+         "is a field folder of recordings"),
+        (["validate", str(tmp_path / "est"), "--out", str(field)],
+         "is a field folder of recordings"),
+        (["simulate", "straight", "--out", str(field / "straight.parquet")],
+         "is a recording (its sidecar straight.json says so)"),
+    ]  # fmt: skip
+    for args, said in cases:
+        result = runner.invoke(app, args)
+        assert result.exit_code == 2, result.output
+        assert said in result.output
+    assert {p.name: p.read_bytes() for p in field.iterdir()} == before
+
+
+def test_train_on_a_missing_device_says_so_before_anything_else(tmp_path):
+    """`train --device cuda` without a GPU printed that it was replacing the saved network,
+    then failed: the note was false (command-line audit of stop 60)."""
+    import torch
+
+    if torch.cuda.is_available():
+        return  # the device is there: nothing to refuse
+    result = CliRunner().invoke(app, ["train", str(tmp_path / "camp"), "--device", "cuda"])
+    assert result.exit_code == 2
+    assert "--device cuda: device 'cuda' asked for but no CUDA device" in result.output
+    assert "replacing" not in result.output

@@ -193,6 +193,11 @@ class WorkingCondition(BaseModel):
             raise ValueError(
                 f"track_accuracy_mm = {self.track_accuracy_mm:g} needs a track_geometry file"
             )
+        if self.track_offset_m and self.track_geometry is None:  # was taken and ignored
+            raise ValueError(
+                f"track_offset_m = {self.track_offset_m:g} needs a track_geometry file (it "
+                "places the record on it)"
+            )
         if self.curve_radius_m is not None and self.arc_length_m is not None:
             if self.arc_length_m <= 0 and not (self.entry_spiral_m or self.exit_spiral_m):
                 raise ValueError("arc_length_m = 0 with no spirals leaves no curve")

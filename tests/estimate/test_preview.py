@@ -159,3 +159,23 @@ def test_the_command_line_refuses_a_bad_preview_before_reading_anything(tmp_path
     assert result.exit_code == 2
     assert message in result.output
     assert not (tmp_path / "out").exists()
+
+
+def test_expected_draws_without_a_stated_accuracy_say_they_do_nothing():
+    """``expected_draws`` on recordings whose geometry states no accuracy drew nothing and
+    polished nothing, without a word (the command-line audit of stop 60): warned once, also
+    with preview generations (each search used to check again)."""
+    import warnings
+
+    rec = long_recording()
+    assert rec.condition.track_accuracy_mm == 0.0
+    cfg = NSGAConfig(pop_size=8, n_gen=3, statistic="aligned", expected_draws=2)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        estimate(WaveForces(), [rec], PARAMS, replace(cfg, preview_generations=1, preview_s=1))
+    said = [w for w in seen if "no recording states its track geometry's accuracy" in str(w)]
+    assert len(said) == 1
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        estimate(WaveForces(), [rec], PARAMS, replace(cfg, expected_draws=0))
+    assert not [w for w in seen if "accuracy" in str(w.message)]

@@ -120,3 +120,19 @@ def test_with_values_changes_named_fields_and_validates_them():
         base.with_values({"car_body.mass": 91.6})  # typed in tonnes
     with pytest.raises(RailsuspInputError, match=r"^contact.model = 'one-point': accepted two"):
         base.with_contact_model("one-point")
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "said"),
+    [
+        ("car_body.bogie_half_spacing", 0.5, "the two bogies' inner wheelsets would overlap"),
+        ("car_body.coupler_half_spacing", 1.0, "inside the bogie centres (bogie_half_spacing"),
+    ],
+)
+def test_a_wagon_whose_bogies_do_not_fit_the_car_is_refused(field, value, said):
+    """Overlapping bogies and couplers inside the bogie centres were simulated without a
+    word (the command-line audit of stop 60): refused in one line naming the fields."""
+    with pytest.raises(RailsuspInputError) as err:
+        load_wagon().with_values({field: value})
+    text = str(err.value)
+    assert text.startswith(f"wagon: {field} = ") and said in text and "\n" not in text

@@ -188,3 +188,20 @@ def test_accurate_wavelength_follows_the_fra_spectrum():
     assert all(fine[c] >= 1.0 for c in COMPONENTS)
     with pytest.raises(ValueError, match="accuracy_m = 0"):
         accurate_wavelength_m(irr, 0.0, 1.0)
+
+
+def test_a_track_sampled_at_exactly_half_a_metre_is_accepted(tmp_path):
+    """Distances every 0.5 m, written rounded to millimetres, have differences a rounding
+    above 0.5 m: refused as "spacing 0.5 m exceeds 0.5 m" (command-line audit, stop 60)."""
+    import pandas as pd
+
+    d = np.round(np.arange(-60.3, 30.0, 0.5), 3)
+    assert np.diff(d).max() > 0.5  # the float rounding the check must tolerate
+    wave = 2.0 * np.sin(d / 7.0)  # mm
+    table = {"distance_m": d, **{f"{c}_mm": wave for c in COMPONENTS}}
+    pd.DataFrame(table).to_csv(tmp_path / "half.csv", index=False)
+    assert read_track_geometry(tmp_path / "half.csv").s.size == d.size
+    table["distance_m"] = np.concatenate([d[:10], d[10:] + 0.01])  # one 0.51 m step
+    pd.DataFrame(table).to_csv(tmp_path / "wide.csv", index=False)
+    with pytest.raises(RailsuspInputError, match="spacing 0.51 m at row 12 exceeds 0.5 m"):
+        read_track_geometry(tmp_path / "wide.csv")

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from railsusp.cli.common import app, console, fail, frame_table
+from railsusp.cli.common import app, check_not_recordings, console, fail, frame_table
 from railsusp.errors import RailsuspInputError
 from railsusp.store import atomic_folder, check_output_folder
 
@@ -199,6 +199,12 @@ def estimate(
         ):
             check_range(name, value, low, high)
         parse_statistics(statistic)
+        if refine and refine_screen and refine_screen < refine_starts:  # as a configuration
+            raise RailsuspInputError(
+                f"--refine-screen {refine_screen} screens fewer points than --refine-starts "
+                f"{refine_starts} starts; accepted --refine-screen 0 (no screening) or at "
+                "least --refine-starts"
+            )
         prior = parse_held_prior(held_prior, refine, statistic)
         if correction_slopes and not simulator_corrections:
             raise RailsuspInputError(
@@ -212,6 +218,7 @@ def estimate(
         if (surrogate is None) == (not simulator):
             raise RailsuspInputError("give --surrogate FOLDER or --simulator (one of them)")
         check_output_folder(out)  # an existing file or an unwritable folder, before any work
+        check_not_recordings(out)
         cfg = NSGAConfig(
             pop_size=pop_size,
             n_gen=n_gen,

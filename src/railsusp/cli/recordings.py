@@ -264,6 +264,18 @@ def example_recording(
         if out.exists() and not out.is_dir():
             raise RailsuspInputError(f"--out {out}: exists and is not a folder")
         data = resources.files("railsusp") / "data"
+        # a file there that is not the shipped one (the tutorial has the user edit the
+        # configuration) is not written over: it was, silently (command-line audit, stop 60)
+        edited = [
+            n for n in EXAMPLE_FILES
+            if (out / n).exists() and (out / n).read_bytes() != (data / n).read_bytes()
+        ]  # fmt: skip
+        if edited:
+            raise RailsuspInputError(
+                f"--out {out}: {', '.join(edited)} already there and not the shipped "
+                f"file{'s' if len(edited) > 1 else ''} (edited?); accepted a new folder, or "
+                "move them first"
+            )
         for name in EXAMPLE_FILES:
             atomic_write_bytes(out / name, (data / name).read_bytes())
     except OSError as exc:

@@ -10,7 +10,15 @@ import typer
 from rich.table import Table
 
 from railsusp._version import __version__
-from railsusp.cli.common import WagonOption, app, console, err_console, fail, show_progress
+from railsusp.cli.common import (
+    WagonOption,
+    app,
+    check_not_recordings,
+    console,
+    err_console,
+    fail,
+    show_progress,
+)
 from railsusp.conditions import resolve_conditions
 from railsusp.errors import RailsuspInputError, repeated_names
 from railsusp.params import ParameterSet, parse_overrides
@@ -114,6 +122,7 @@ def simulate(
             conds = [c.with_changes(seed=seed) for c in conds]
         if out is not None:
             check_output_file(out, "--out")
+            check_not_recordings(out)
             if out.suffix.lower() != ".parquet":  # the series are written as Parquet
                 raise RailsuspInputError(f"--out {out}: accepted a .parquet file")
         if plot is not None:

@@ -117,6 +117,13 @@ def train(
         if model not in (*KINDS, "gp-stats"):
             raise RailsuspInputError(f"--model {model!r}: accepted {', '.join(KINDS)}, gp-stats")
         tcfg = _train_config(epochs, batches_per_epoch, batch_size, device, seed, fine_tune_epochs)
+        if model != "gp-stats":  # before any note that a network is being replaced
+            from railsusp.surrogate.train import resolve_device
+
+            try:
+                resolve_device(device)
+            except RailsuspInputError as exc:
+                raise RailsuspInputError(f"--device {device}: {exc}") from None
         if window is not None and not 2 <= window <= 10_000:
             raise RailsuspInputError(f"--window = {window}: accepted 2 .. 10000 steps")
         camp = require_complete(load_campaign(run))

@@ -9,7 +9,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from railsusp.cli.common import WagonOption, app, console, fail
+from railsusp.cli.common import WagonOption, app, check_not_recordings, console, fail
 from railsusp.errors import RailsuspInputError
 from railsusp.store import check_output_folder
 
@@ -37,6 +37,7 @@ def validate(
     try:
         if out is not None:  # before the simulations, not after them
             check_output_folder(out, "--out")
+            check_not_recordings(out)
         if truth is not None:  # before the simulations, not after them
             from railsusp.measured import read_truth
 

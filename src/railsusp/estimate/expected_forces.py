@@ -141,6 +141,17 @@ def check_drawable(model: ForceModel, recordings: Sequence, draws: int) -> None:
     states its geometry's accuracy (elsewhere nothing is drawn). The same one-line input
     error as on first use (:meth:`ExpectedForces.drawn_conditions`), but before NSGA-II's
     generations rather than after them."""
+    if draws and not any(
+        r.condition.track_geometry is not None and r.condition.track_accuracy_mm for r in recordings
+    ):  # it did nothing, silently (the command-line audit of stop 60)
+        import warnings
+
+        warnings.warn(
+            f"expected_draws {draws}: no recording states its track geometry's accuracy "
+            "(track_accuracy_mm), so no true track is drawn and the estimate is not polished "
+            "on expected forces",
+            stacklevel=2,
+        )
     reads = getattr(model, "reads_any_track", None)
     if not draws or reads is None:
         return

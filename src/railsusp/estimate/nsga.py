@@ -112,6 +112,17 @@ def estimate(
     check_drawable(model, recordings, cfg.expected_draws)  # before the generations
     if cfg.preview_generations:
         return _previewed(model, recordings, parameters, cfg, initial_si)
+    return _search(model, recordings, parameters, cfg, initial_si)
+
+
+def _search(
+    model: ForceModel,
+    recordings: Sequence[Recording],
+    parameters: Sequence[str],
+    cfg: NSGAConfig,
+    initial_si: np.ndarray | None,
+) -> CalibrationResult:
+    """One NSGA-II search of ``cfg.n_gen`` generations on ``recordings``."""
     if cfg.expected_generations:  # on stated-accuracy geometry: the mean over drawn tracks
         with ExpectedForces(model, cfg.expected_draws, seed=cfg.seed) as expected:
             return _estimate(expected, recordings, parameters, cfg, initial_si)
@@ -138,8 +149,8 @@ def _previewed(
         "NSGA-II preview: %d of %d generations on the records' first %g s",
         n_preview, cfg.n_gen, cfg.preview_s,
     )  # fmt: skip
-    first = estimate(model, heads, parameters, replace(plain, n_gen=n_preview), initial_si)
-    rest = estimate(
+    first = _search(model, heads, parameters, replace(plain, n_gen=n_preview), initial_si)
+    rest = _search(
         model, recordings, parameters, replace(plain, n_gen=cfg.n_gen - n_preview), first.pareto_x
     )
     head_log = first.log.assign(record=f"first {cfg.preview_s:g} s")

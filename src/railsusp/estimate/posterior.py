@@ -204,6 +204,16 @@ def _build(settings: PosteriorSettings, u: np.ndarray, x: np.ndarray):
     )
     cols = [MAIN_SUSPENSION.index(p) for p in settings.parameters]
     ok = np.all(np.isfinite(x), axis=1)
+    if ok.sum() < max(2, len(x) // 2):  # sbi's own error was a 50-line traceback
+        undefined = np.mean(~np.isfinite(x), axis=0) > 0.5
+        names = [n for n, bad in zip(settings.summary_names, undefined, strict=True) if bad]
+        raise RailsuspInputError(
+            f"posterior: {len(x) - int(ok.sum())} of {len(x)} training cases have undefined "
+            f"statistics ({', '.join(names[:4]) or 'failed simulations'}"
+            f"{', ...' if len(names) > 4 else ''}): with section_s = {settings.section_s:g} s "
+            "and these statistics families the estimator cannot learn; accepted longer "
+            "sections or other families"
+        )
     theta_t = torch.as_tensor(to_logit(u[ok][:, cols]), dtype=torch.float32)
     x_t = torch.as_tensor(x[ok], dtype=torch.float32)
     return prior, builder, theta_t, x_t

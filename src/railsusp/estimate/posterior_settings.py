@@ -105,6 +105,7 @@ class PosteriorSettings:
             )
         object.__setattr__(self, "parameters", params)
         _check_statistics_emulator(self.statistics_emulator_cases, self.n_train, families)
+        _check_lags(families, self.section_s)
         checks = [
             ("section_s", self.section_s, 1.0, 600.0),
             ("n_train", self.n_train, 20, 1_000_000),
@@ -213,6 +214,24 @@ class PosteriorSettings:
     def partner_q(self) -> bool:
         """Whether they read the partner wheel's Q too."""
         return needs_partner_q(self.statistics)
+
+
+def _check_lags(families: tuple[str, ...], section_s: float) -> None:
+    """A one-line error where a section is too short for the lagged correlations of the
+    ``coherence`` family: at a lag of L seconds a section of S seconds correlates S - L of
+    them, none at S = L (the correlation was NaN in every case and sbi failed with a
+    traceback: the command-line audit of stop 60); at least half the section is asked."""
+    from railsusp.estimate.statistic_families import AUTO_LAGS_S, CROSS_LAGS_S
+
+    if "coherence" not in families:
+        return
+    least = 2.0 * max(abs(lag) for lag in (*AUTO_LAGS_S, *CROSS_LAGS_S))
+    if section_s < least:
+        raise RailsuspInputError(
+            f"section_s = {section_s:g}: the statistics family 'coherence' correlates over "
+            f"lags up to {least / 2:g} s, which needs sections of at least {least:g} s; "
+            f"accepted {least:g} to 600"
+        )
 
 
 def _check_statistics_emulator(cases: int, n_train: int, families: tuple[str, ...]) -> None:

@@ -143,7 +143,8 @@ def _read_track_geometry(path: str, _mtime_ns: int, _size: int) -> Irregularitie
     if np.any(~(step > 0)):
         row = int(np.flatnonzero(~(step > 0))[0]) + 3
         problems.append(f"column 'distance_m' is not strictly increasing (row {row})")
-    elif step.max() > MAX_TRACK_SPACING_M:
+    elif step.max() > MAX_TRACK_SPACING_M * (1.0 + 1e-9) + 1e-9 * np.max(np.abs(dist)):
+        # (the rounding of distances written to a few decimals: 0.5 m as 0.50000000001)
         row = int(np.argmax(step)) + 3
         problems.append(
             f"column 'distance_m': spacing {step.max():.3g} m at row {row} exceeds "

@@ -206,6 +206,26 @@ class WagonData(_Section):
     contact: ContactData
     profiles: Profiles = Profiles()
 
+    @model_validator(mode="after")
+    def _bogies_fit_the_car(self) -> WagonData:
+        """Bogies that overlap (their centres closer than a wheelbase: the inner wheelsets
+        would run past each other) or couplers inside the bogie centres were simulated
+        without a word (the command-line audit of stop 60); refused when the file is read."""
+        spacing, wheelbase = self.car_body.bogie_half_spacing, self.bogie.half_wheelbase
+        if spacing <= wheelbase:
+            raise ValueError(
+                f"car_body.bogie_half_spacing = {spacing:g} m with bogie.half_wheelbase = "
+                f"{wheelbase:g} m: the two bogies' inner wheelsets would overlap; accepted a "
+                f"bogie_half_spacing above the half wheelbase"
+            )
+        if self.car_body.coupler_half_spacing <= spacing:
+            raise ValueError(
+                f"car_body.coupler_half_spacing = {self.car_body.coupler_half_spacing:g} m "
+                f"inside the bogie centres (bogie_half_spacing = {spacing:g} m); accepted a "
+                "coupler pivot beyond the bogie centre"
+            )
+        return self
+
     @property
     def name(self) -> str:
         return self.wagon.name
@@ -288,7 +308,7 @@ def wagon_error_text(exc: ValidationError) -> str:
         detail = error_detail(WagonData, err)  # the accepted range of a value out of it
         if detail and err["type"] in BOUND_ERRORS:
             text = f"{detail} ({text})"
-        msgs.append(f"{where_value}: {text}")
+        msgs.append(f"{where_value}: {text}" if loc else text)  # a check across sections
     return "; ".join(msgs)
 
 
