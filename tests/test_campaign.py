@@ -397,6 +397,13 @@ def test_a_track_geometry_file_edited_in_place_is_not_resumed_into(tmp_path):
     assert list(meta["track_geometry_files"]) == [str(geo)]
     first = pd.read_parquet(out / "features.parquet")
     run_campaign(cfg, out)  # unchanged: resumed, nothing simulated again
+    # a campaign made before the record: the digests are written on its next resume
+    stripped = {k: v for k, v in meta.items() if k != "track_geometry_files"}
+    (out / "campaign.json").write_text(json.dumps(stripped))
+    run_campaign(cfg, out)
+    assert json.loads((out / "campaign.json").read_text())["track_geometry_files"] == {
+        str(geo): meta["track_geometry_files"][str(geo)]
+    }
     table = pd.read_csv(geo)
     table[[c for c in table.columns if c != "distance_m"]] *= 3.0
     table.to_csv(geo, index=False)

@@ -138,3 +138,16 @@ def test_track_accuracy_needs_a_track_file_and_keeps_old_dumps():
     assert on_track.with_changes(track_offset_m=12.0).track_offset_m == 12.0
     with pytest.raises(ValueError, match="track_accuracy_mm"):
         on_track.with_changes(track_accuracy_mm=20.0)
+
+
+def test_a_named_condition_table_with_another_name_is_refused(tmp_path):
+    """``[condition.fast]`` holding ``name = "slow"`` became "slow" without a word (the
+    command-line audit of stop 60)."""
+    from railsusp.conditions import load_conditions
+
+    path = tmp_path / "c.toml"
+    path.write_text('[condition.fast]\nbase = "straight"\nname = "slow"\n')
+    with pytest.raises(ValueError, match=r"\[condition.fast\] with name = 'slow': accepted"):
+        load_conditions(path)
+    path.write_text('[condition.fast]\nbase = "straight"\nname = "fast"\nspeed_kmh = 80\n')
+    assert [c.name for c in load_conditions(path)] == ["fast"]

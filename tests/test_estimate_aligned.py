@@ -454,3 +454,11 @@ def test_a_network_of_another_condition_is_refused_on_record_statistics_too(tmp_
             CalibrationProblem(SurrogateForces(folder), [rec], KEYS, statistic)
     same = fast.with_changes(speed_kmh=60.0)
     CalibrationProblem(SurrogateForces(folder), [Recording(t, rec.Y, rec.Q, same, {})], KEYS)
+    # its own time base: the network predicts its training series on record statistics
+    # (refused by the first version of this check: the review of stop 60)
+    fine = same.with_changes(n_steps=400)  # 200 Hz for the 50 Hz the network was trained at
+    t2 = np.arange(fine.n_steps) * fine.sample_interval
+    sampled = Recording(t2, {"w1L": np.sin(t2) + 2.0}, {"w1L": 120.0 + np.cos(t2)}, fine, {})
+    CalibrationProblem(SurrogateForces(folder), [sampled], KEYS, "mean")
+    with pytest.raises(RailsuspInputError, match="sample_interval"):  # sample by sample: no
+        check_aligned(SurrogateForces(folder), [sampled])

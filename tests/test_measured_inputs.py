@@ -424,3 +424,18 @@ def test_a_boolean_force_column_is_refused_as_in_csv(tmp_path):
     df.assign(Y_w1L_kN=df["Y_w1L_kN"].astype(str)).to_csv(tmp_path / "r.csv", index=False)
     with pytest.raises(RecordingError, match="'(True|False)' is not a number"):
         read_recording(tmp_path / "r.csv")
+
+
+def test_a_sidecar_naming_two_conditions_is_refused(tmp_path):
+    """A sidecar with a 'condition' table and another condition_name was read as the
+    table's, the name ignored (the command-line audit of stop 60)."""
+    import json
+
+    make_recording().write(tmp_path / "r.csv")
+    side = tmp_path / "r.json"
+    doc = json.loads(side.read_text())
+    side.write_text(json.dumps({**doc, "condition_name": doc["condition"]["name"]}))
+    read_recording(tmp_path / "r.csv")  # the same name in both: one condition
+    side.write_text(json.dumps({**doc, "condition_name": "curve"}))
+    with pytest.raises(RecordingError, match="a 'condition' table .* and condition_name 'curve'"):
+        read_recording(tmp_path / "r.csv")

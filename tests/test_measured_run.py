@@ -251,7 +251,8 @@ def test_a_line_description_gives_the_same_track_as_the_channels(tmp_path):
         ("0,0.5,400,up,90,0", "direction = 'up': accepted left, right or empty (left)"),
         ("0,0.5,400,left,900,0", "cant_mm = 900: accepted 0 to 200"),
         ("0,0.5,,left,0,120", "grade_permille = 120: accepted -40 to 40"),
-        ("0,nan,,left,0,0", "km_end = nan (or empty): a number is needed"),
+        ("0,nan,,left,0,0", "km_end = 'nan' not a number"),  # nan: read, refused
+        ("0,,,left,0,0", "km_end = nan (or empty): a number is needed"),
     ],
 )
 def test_a_line_description_outside_what_a_condition_takes_is_refused(tmp_path, row, needle):
@@ -270,6 +271,9 @@ def test_a_section_table_needs_both_ends_in_every_row(tmp_path):
 
     table = tmp_path / "t.csv"
     table.write_text("start_m,end_m\n50,nan\n")
+    with pytest.raises(RailsuspInputError, match=r"row 2: end_m = 'nan' not a number"):
+        read_section_table(table)
+    table.write_text("start_m,end_m\n50,\n")
     with pytest.raises(RailsuspInputError, match=r"row 2: end_m = nan \(or empty\): a number"):
         read_section_table(table)
     table.write_text("start_m,end_m\n,500\n")
@@ -475,3 +479,16 @@ def test_routine_resampling_is_a_note_not_a_warning_in_the_field_stage(tmp_path)
     gap = read_run(tmp_path / "gap.csv")
     assert [n for n in gap.data_notes if "3 missing sample(s) interpolated" in n]
     assert set(gap.data_notes) <= set(gap.notes)
+
+
+def test_a_channel_map_whose_units_or_ignore_name_the_wrong_channels_is_refused(tmp_path):
+    """[units] naming a channel the file lacks (a misspelling leaves the real one without
+    its unit) and ``ignore`` naming a mapped channel were accepted silently (the
+    command-line audit of stop 60)."""
+    path = write_mdf(tmp_path / "run.mf4")
+    with pytest.raises(RecordingError, match=r"\[units\] channel 'Q_RR' of the channel map"):
+        read_run(path, channel_map_from({**MAP, "units": {"Q_RR": "kN"}}))
+    with pytest.raises(RailsuspInputError, match="ignore: channel 'Y_R' is mapped too"):
+        channel_map_from({**MAP, "ignore": ["Y_R"]})
+    run = read_run(path, channel_map_from({**MAP, "ignore": ["acc_bogie_y_g", "gone"]}))
+    assert any("ignore: channel(s) not in the file: gone" in n for n in run.notes)

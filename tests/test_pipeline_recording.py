@@ -155,6 +155,11 @@ def _bad(example: Path, name: str, text: str) -> str:
         ("[field]\n", '[field]\nline = "a.csv"\nsections = "b.csv"\n', "give line or sections"),
         ("[field]\n", '[field]\nline = "a.csv"\n', "field.line = '"),
         ("[field]\n", "[field]\nwith_track = true\n", "apply to synthetic recordings only"),
+        (  # were ignored (the command-line audit of stop 60)
+            "[field]\n",
+            "[field]\nnoise = 0.1\nseed = 3\n",
+            "field.noise and field.seed set the synthetic recordings' instrument noise",
+        ),
         ("speed_tolerance = 0.10", "speed_tolerance = 2.0", "field.speed_tolerance"),
         ("[field]\n", "[field]\nrate_hz = 5.0\n", "field.rate_hz"),
         ("[field]\n", 'conditions = ["straight"]\n[field]\n', "conditions: with field.recording"),

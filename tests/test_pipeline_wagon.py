@@ -180,3 +180,31 @@ def test_a_recordings_measured_track_is_checked_against_its_own_wagons_axle_spre
         read_field(field)  # read as the packaged C80's
     (rec,) = read_field(field, wagon=short)
     assert rec.condition.lead_in_m == 13.0 and rec.condition.track_geometry is not None
+
+
+def test_the_report_reads_the_field_as_the_runs_wagon(tmp_path):
+    """The report (summary.field_recordings) read a run's field against the packaged C80's
+    axle spread: a shorter wagon's recordings on a 13 m lead-in passed every stage and
+    failed the report (the review of stop 60). pipeline.json now records the wagon."""
+    from railsusp import summary
+    from railsusp.conditions import get_condition
+    from railsusp.measured import synthesise_field
+    from railsusp.params import ParameterSet
+    from railsusp.store import write_json
+    from railsusp.vehicle.wagon import WagonData
+
+    doc = load_wagon().model_dump(mode="json")
+    doc["car_body"]["bogie_half_spacing"] -= 1.6
+    short = WagonData.model_validate(doc)
+    cond = get_condition("straight", duration_s=1.0, n_steps=50).with_changes(lead_in_m=13.0)
+    run = tmp_path / "run"
+    synthesise_field(ParameterSet.nominal(), [cond], run / "field", with_track=True, wagon=short)
+    write_json(run / "pipeline.json", {"static_wheel_load_N": static_wheel_load(short)})
+    with pytest.raises(Exception, match="accepted at least 15.03"):  # as before: the C80's
+        summary.field_recordings(run)
+    write_json(
+        run / "pipeline.json",
+        {"static_wheel_load_N": static_wheel_load(short), "wagon_data": doc},
+    )
+    (rec,) = summary.field_recordings(run)
+    assert rec.condition.lead_in_m == 13.0

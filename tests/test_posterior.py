@@ -508,7 +508,8 @@ def test_cli_estimate_prints_the_table(trained, tmp_path):
         (["train", "--conditions", "curve", "--lead-in", "30"], "accepted at least 90.03 m"),
         (
             ["train", "--section", "1", "--statistics", "coherence"],
-            "--section 1: the statistics family 'coherence' correlates over lags up to 1 s",
+            "--section 1: the statistics family 'coherence' correlates over lags up to 1 s, "
+            "which needs sections of at least 1.5 s",
         ),
         (["estimate", "--measured", "MISSING", "--estimator", "RUN"], "MISSING"),
     ],

@@ -68,9 +68,11 @@ def test_a_field_synthesised_again_holds_only_its_own_recordings(tmp_path):
     synthesise_field(ParameterSet.nominal(), [SHORT, other], field)
     assert (field / "other.csv").exists()
     (field / "README.txt").write_text("the user's")
+    (field / "straight.notes.txt").write_text("the user's too (a kept condition's name)")
     synthesise_field(ParameterSet.nominal(), [SHORT], field)
     assert sorted(p.name for p in field.iterdir()) == [
-        "README.txt", "index.json", "straight.csv", "straight.json", "truth.json"
+        "README.txt", "index.json", "straight.csv", "straight.json", "straight.notes.txt",
+        "truth.json",
     ]  # fmt: skip
     assert [r.condition.name for r in read_field(field)] == ["straight"]
 

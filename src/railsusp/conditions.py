@@ -474,6 +474,13 @@ def load_conditions(source: str | Path) -> list[WorkingCondition]:
     if other:  # a misspelt table ([conditon]) or a key meant for one would be lost
         raise ConditionError(f"{path}: {', '.join(other)} unknown; {expected} only")
     if isinstance(raw, dict) and all(isinstance(v, dict) for v in raw.values()):
+        renamed = [k for k, v in raw.items() if "name" in v and v["name"] != k]
+        if renamed:  # the table's name was dropped for the key's, silently (audit, stop 60)
+            k = renamed[0]
+            raise ConditionError(
+                f"{path}: [condition.{k}] with name = {raw[k]['name']!r}: accepted the "
+                "table's own name (leave name out, or give the same)"
+            )
         tables = [{"name": k, **v} for k, v in raw.items()]
     elif isinstance(raw, list) and all(isinstance(v, dict) for v in raw):
         tables = raw

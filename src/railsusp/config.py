@@ -189,6 +189,13 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
     _check_measured_track(cfg, bad, blind, own_tracks)
     if (f.with_track or f.track_noise_mm) and (f.measured or f.recording) is not None:
         raise bad("field.with_track and field.track_noise_mm apply to synthetic recordings only")
+    given = sorted({"noise", "seed"} & f.model_fields_set)
+    if given and (f.measured or f.recording) is not None:  # ignored, silently (audit, stop 60)
+        source = "field.measured" if f.measured is not None else "field.recording"
+        raise bad(
+            f"field.{' and field.'.join(given)} set the synthetic recordings' instrument noise "
+            f"and draw; {source} gives measured ones: leave {' and '.join(given)} out"
+        )
     if f.track_noise_mm and not f.with_track:
         raise bad("field.track_noise_mm needs field.with_track = true")
     if f.with_track and f.recording is None and f.measured is None:

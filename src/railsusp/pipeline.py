@@ -123,6 +123,8 @@ def _run_stages(
     state["tolerances"] = read_tolerances(config.wagon).to_dict()
     # and the static wheel load its recordings are checked against, for the same reason
     state["static_wheel_load_N"] = _static_wheel_load(config)
+    # and the wagon's data, so that its recordings are read as its own (axle spread too)
+    state["wagon_data"] = _wagon_data(config)
     forced = STAGES.index(start_from) if start_from else len(STAGES)
     upstream: dict[str, str] = {}
     runners = _stage_runners(config, out, run_progress)
@@ -182,6 +184,13 @@ def _run_stages(
         state["provenance"]["finished"] = provenance()["utc"]
     write_json(state_path, state)
     return state
+
+
+def _wagon_data(config: PipelineConfig) -> dict:
+    """The run's wagon's data as read (``pipeline.json``'s ``wagon_data``)."""
+    from railsusp.vehicle.wagon import load_wagon
+
+    return load_wagon(config.wagon).model_dump(mode="json")
 
 
 def _static_wheel_load(config: PipelineConfig) -> float:

@@ -307,13 +307,23 @@ def agreement_lines(table: pd.DataFrame) -> list[str]:
 
 
 def field_recordings(run: str | Path) -> list:
-    """The run's recordings (``RUN/field``), their wheel loads checked against the static
-    wheel load of the run's wagon as ``pipeline.json`` recorded it (None: the packaged
-    C80's; a tare wagon's recordings were refused by the report)."""
+    """The run's recordings (``RUN/field``), read as the run's wagon's as ``pipeline.json``
+    recorded it: its static wheel load (a tare wagon's recordings were refused by the report)
+    and its data (a shorter wagon's measured track was checked against the packaged C80's
+    axle spread: the review of stop 60); None where a run recorded neither (the packaged
+    C80's)."""
     from railsusp.measured import read_field
+    from railsusp.vehicle.wagon import WagonData
 
-    load = _state(Path(run)).get("static_wheel_load_N")
-    return read_field(Path(run) / "field", wheel_load_N=load)
+    state = _state(Path(run))
+    wagon = None
+    if isinstance(state.get("wagon_data"), dict):
+        try:
+            wagon = WagonData.model_validate(state["wagon_data"])
+        except ValueError:  # another railsusp's wagon fields: the wheel load alone
+            wagon = None
+    load = state.get("static_wheel_load_N")
+    return read_field(Path(run) / "field", wheel_load_N=load, wagon=wagon)
 
 
 def recordings(run: str | Path) -> pd.DataFrame:

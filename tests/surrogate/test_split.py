@@ -13,6 +13,7 @@ from railsusp.surrogate import TrainConfig, load, train_surrogate
 from railsusp.surrogate.compare import compare, table7
 from railsusp.surrogate.split import (
     PARTS,
+    Split,
     campaign_split,
     load_split,
     save_split,
@@ -223,3 +224,28 @@ def test_the_sequence_network_is_compared_on_the_same_steps_as_the_others(many_t
     assert np.isfinite(table.relative_error_of_mean).all()
     sur = load(many_tracks / "surrogates" / "cnn-gru-seq" / "curve")
     assert sur.kind == "cnn-gru-seq" and sur.spec.window == 40
+
+
+def test_a_saltelli_base_samples_rows_are_never_split_between_parts(tmp_path):
+    """A Saltelli row AB_ij whose changed parameter is not a network input has A_j's inputs
+    exactly, on A_j's track: the split grouped by every sampled parameter and put 13 of 29
+    test samples' inputs in training too (the split audit of stop 60). Each base sample's
+    block now goes to one part; a stored split that straddles blocks is drawn again."""
+    from railsusp.surrogate.split import _splits_blocks, saltelli_blocks
+
+    cond = get_condition("straight", duration_s=1.0, n_steps=50, lead_in_m=20.0)
+    cfg = make_config([cond], 16, design="sobol", parameters=("X13", "X14"), batch_size=64)
+    run_campaign(cfg, tmp_path / "camp", max_batches=0)  # the design alone is enough
+    camp = load_campaign(tmp_path / "camp")
+    blocks = saltelli_blocks(camp)
+    assert blocks.size == 16 * 4 and np.array_equal(blocks[:5], [0, 0, 0, 0, 1])
+    split = campaign_split(camp)
+    assert _splits_blocks(split, camp)
+    for name in ("train", "val", "test"):
+        assert len(split.part(name)) % 4 == 0  # whole blocks
+    # a split of one row per group (as drawn before) is drawn again
+    rows = np.arange(64)
+    leaky = Split(rows[:44], rows[44:54], rows[54:], 0, (0.7, 0.15, 0.15), False, cfg.hash())
+    assert not _splits_blocks(leaky, camp)
+    save_split(split_path(camp.path, 0), leaky)
+    assert _splits_blocks(campaign_split(camp), camp)

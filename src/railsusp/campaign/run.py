@@ -340,6 +340,9 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
             elif parquet_readable(out / "design.parquet"):
                 stored = pd.read_parquet(out / "design.parquet")
                 if stored.equals(make_design(config)):  # it follows from the configuration
+                    if files and "track_geometry_files" not in meta:  # made before stop 60:
+                        # recorded now, so that a later edit is seen (the review of stop 60)
+                        write_json(meta_path, {**meta, "track_geometry_files": files})
                     return stored
                 if not force:  # its batches were simulated on one of the two: which?
                     raise CampaignError(

@@ -154,13 +154,15 @@ class SurrogateForces:
             out.update(zip(members, series, strict=True))
         return [out[i] if i in out else self.series(x_si, c) for i, c in enumerate(conditions)]
 
-    def check_condition(self, condition: WorkingCondition) -> None:
+    def check_condition(self, condition: WorkingCondition, series: bool = True) -> None:
         """Refuse, in one line naming the field, its value and what the network was trained
         on, a condition its surrogate cannot serve: no surrogate of that name, or a field
         the surrogate was not trained on
         (:meth:`~railsusp.surrogate.bundle.Surrogate.untrained_fields`: one that differs from
         its condition outside the track family, or a family field outside the family's
-        range). Checked before any optimisation, not in its first generation."""
+        range). Checked before any optimisation, not in its first generation. ``series``
+        False (record statistics: the network predicts its own training series, whatever
+        the recording's time base) leaves the sampling interval out."""
         from railsusp.errors import RailsuspInputError
 
         model = self._models.get(condition.name)
@@ -170,6 +172,8 @@ class SurrogateForces:
                 f"{self.folder} (has {', '.join(self._models)})"
             )
         outside = model.untrained_fields(condition)
+        if not series:
+            outside = [o for o in outside if o[0] != "sample_interval"]
         if outside:
             name, value, trained = outside[0]
             raise RailsuspInputError(

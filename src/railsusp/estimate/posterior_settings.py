@@ -220,16 +220,18 @@ def _check_lags(families: tuple[str, ...], section_s: float) -> None:
     """A one-line error where a section is too short for the lagged correlations of the
     ``coherence`` family: at a lag of L seconds a section of S seconds correlates S - L of
     them, none at S = L (the correlation was NaN in every case and sbi failed with a
-    traceback: the command-line audit of stop 60); at least half the section is asked."""
+    traceback: the command-line audit of stop 60). Asked: half a second of overlap at the
+    longest lag (25 samples at 50 Hz)."""
     from railsusp.estimate.statistic_families import AUTO_LAGS_S, CROSS_LAGS_S
 
     if "coherence" not in families:
         return
-    least = 2.0 * max(abs(lag) for lag in (*AUTO_LAGS_S, *CROSS_LAGS_S))
+    longest = max(abs(lag) for lag in (*AUTO_LAGS_S, *CROSS_LAGS_S))
+    least = longest + 0.5
     if section_s < least:
         raise RailsuspInputError(
             f"section_s = {section_s:g}: the statistics family 'coherence' correlates over "
-            f"lags up to {least / 2:g} s, which needs sections of at least {least:g} s; "
+            f"lags up to {longest:g} s, which needs sections of at least {least:g} s; "
             f"accepted {least:g} to 600"
         )
 

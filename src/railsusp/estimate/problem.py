@@ -79,7 +79,7 @@ class CalibrationProblem(Problem):
             # (or grade, radius, ...) stood in for the recording's condition without a word
             # (the command-line audit of stop 60)
             for r in self.recordings:
-                averaged_model(model).check_condition(r.condition)
+                averaged_model(model).check_condition(r.condition, series=False)
         if gains and not self.aligned:
             raise RailsuspInputError(
                 f"channel gains with the statistic {statistic!r}: accepted only with the "

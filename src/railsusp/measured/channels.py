@@ -116,6 +116,9 @@ def channel_map_from(doc: dict, source: str = "channel map") -> ChannelMap:
     twice = repeated(used)
     if twice:
         raise bad(f"channel {twice[0]!r} mapped to two quantities")
+    both = [c for c in ignore if c in used]
+    if both:  # accepted silently (the command-line audit of stop 60)
+        raise bad(f"ignore: channel {both[0]!r} is mapped too; accepted one of the two")
     return ChannelMap(
         wheels, signals, doc.get("time"), tuple(ignore), dict(units), doc.get("recording"), source
     )

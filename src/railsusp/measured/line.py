@@ -46,8 +46,8 @@ def geometry_from_line(position_m: np.ndarray, line: pd.DataFrame) -> dict[str, 
 def read_line(path: str | Path) -> pd.DataFrame:
     """A line description CSV (see :func:`geometry_from_line`), checked."""
     need = ["km_start", "km_end", "radius_m", "cant_mm", "grade_permille"]
-    df = _read_csv(path, need)
     what = f"line description {path}"
+    df = _read_csv(path, need, what)
     _need_values(df, ["km_start", "km_end"], what)
     # the ranges of a working condition; empty radius, cant, grade: tangent, level; radius 0:
     # tangent (a negative radius was taken for tangent, a direction "up" for left)
@@ -101,7 +101,7 @@ def read_line(path: str | Path) -> pd.DataFrame:
 def read_section_table(path: str | Path) -> pd.DataFrame:
     """A user section table CSV: ``start_m, end_m`` and optional ``name``, checked. Names
     become file names, so they must be plain: letters, digits, ``.``, ``_``, ``-``."""
-    df = _read_csv(path, ["start_m", "end_m"])
+    df = _read_csv(path, ["start_m", "end_m"], f"section table {path}")
     _need_values(df, ["start_m", "end_m"], f"section table {path}")
     if "name" in df:
         seen: dict[str, int] = {}
@@ -128,7 +128,10 @@ def read_section_table(path: str | Path) -> pd.DataFrame:
     return df
 
 
-def _read_csv(path: str | Path, need: list[str]) -> pd.DataFrame:
+def _read_csv(path: str | Path, need: list[str], what: str = "") -> pd.DataFrame:
+    """The table's columns ``need`` as numbers (an empty cell is NaN); ``what`` names the
+    table in the messages (default: its path)."""
+    what = what or str(path)
     try:  # only an empty cell is missing: "nan" or "inf" is a value, refused below
         df = pd.read_csv(path, skipinitialspace=True, keep_default_na=False, na_values=[""])
     except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
@@ -141,12 +144,12 @@ def _read_csv(path: str | Path, need: list[str]) -> pd.DataFrame:
         bad = vals.isna() & df[c].notna()
         if bad.any():
             i = int(np.flatnonzero(bad.to_numpy())[0])
-            raise RailsuspInputError(f"{path}, row {i + 2}: {c} = {df[c].iloc[i]!r} not a number")
+            raise RailsuspInputError(f"{what}, row {i + 2}: {c} = {df[c].iloc[i]!r} not a number")
         infinite = df[c].notna() & ~np.isfinite(vals.astype(float))
         if infinite.any():  # "nan", "inf": read as an empty cell (a tangent, level track)
             i = int(np.flatnonzero(infinite.to_numpy())[0])
             raise RailsuspInputError(
-                f"{path}, row {i + 2}: {c} = {df[c].iloc[i]}: accepted a finite number, or "
+                f"{what}, row {i + 2}: {c} = {df[c].iloc[i]}: accepted a finite number, or "
                 "an empty cell"
             )
         df[c] = vals.astype(float)

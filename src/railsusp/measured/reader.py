@@ -351,6 +351,13 @@ def _condition(
     with the run's wagon)."""
     side = table_path.with_suffix(".json").name
     cdoc = meta.get("condition")
+    named = meta.get("condition_name")
+    if isinstance(cdoc, dict) and named is not None and named != cdoc.get("name"):
+        problems.append(  # the name was ignored, silently (command-line audit of stop 60)
+            f"{side}: a 'condition' table (name {cdoc.get('name')!r}) and condition_name "
+            f"{named!r}: accepted one of them (or the same name in both)"
+        )
+        return None
     try:
         if isinstance(cdoc, dict):
             condition = make_condition(json_numbers(cdoc))

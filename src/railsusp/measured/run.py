@@ -107,6 +107,15 @@ def read_run(
         )
     if "speed" not in cmap.signals and "position" not in cmap.signals:
         problems.append("neither a speed nor a position channel (speed_kmh, distance_m)")
+    for c in cmap.units:  # a misspelt name left its channel without the unit it was given
+        if c not in raw:
+            problems.append(
+                f"[units] channel {c!r} of the {cmap.source} not in the file"
+                f"{did_you_mean(c, list(raw))}"
+            )
+    absent = [c for c in cmap.ignore if c not in raw]
+    if absent:
+        notes.append(f"ignore: channel(s) not in the file: {', '.join(absent)}")
     unused = [c for c in raw if c not in cmap.used() and c not in cmap.ignore]
     if unused:
         notes.append(f"channel(s) not used: {', '.join(unused)}")

@@ -99,7 +99,7 @@ def add_sensor_noise(
 
 def _earlier_field(out: Path) -> list[str]:
     """What an earlier field in ``out`` wrote (its index, truth, and each recording it lists
-    with its sidecar and track file), as patterns of names not carried into the new one:
+    with its sidecar and track file, by exact name), as names not carried into the new one:
     a condition no longer synthesised left its recording beside the new ones, and the
     report listed it among the run's files (interrupt/resume audit of stop 60)."""
     from railsusp.measured.reader import read_index
@@ -108,7 +108,10 @@ def _earlier_field(out: Path) -> list[str]:
         listed = read_index(out)
     except (RailsuspInputError, OSError):
         listed = []
-    return ["index.json", "truth.json", *(f"{glob.escape(p.stem)}.*" for p in listed)]
+    names = ["index.json", "truth.json"]
+    for p in listed:  # the table, its sidecar and the track file this function writes
+        names += [p.name, f"{p.stem}.json", f"{p.stem}.track.csv"]
+    return [glob.escape(n) for n in names]
 
 
 def synthesise_field(

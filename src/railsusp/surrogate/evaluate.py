@@ -7,7 +7,7 @@ tangent track) and the relative error of the mean, |predicted - simulated| / sim
 reading, railsusp's headline figure), and of the mean over all samples (the pooled reading:
 one simulated and one predicted value per condition, the form of the study's Table 7); plus
 the time-series NRMSE (RMSE / standard deviation of the simulated series) and the
-coefficient of determination R².
+coefficient of determination R², both pooled over the held-out runs' samples.
 """
 
 from __future__ import annotations
