@@ -145,6 +145,12 @@ def test_many_track_training_is_scored_on_unseen_tracks(many_tracks):
     assert np.isfinite(table.relative_error_of_mean).all() and np.isfinite(table.nrmse).all()
     t7 = table7(table)
     assert set(t7["held out"]) == {"tracks and parameters"} and len(t7) == 2
+    assert (t7["test runs failed"] == 0).all()  # counted (none here), not dropped unsaid
+    sur_seen = load(many_tracks / "surrogates" / "cnn-gru" / "curve").meta["seen_track_seeds"]
+    test_seeds = (
+        load_campaign(many_tracks).tracks("curve").set_index("sample_id").loc[split.test, "seed"]
+    )
+    assert sur_seen and not set(sur_seen) & set(test_seeds.tolist())
     sur = load(many_tracks / "surrogates" / "cnn-gru" / "curve")
     assert sur.meta["test_ids"] == split.test.tolist()
     assert sur.meta["split"]["held_out_tracks"] and sur.meta["track_realisations"] == 20
@@ -249,3 +255,22 @@ def test_a_saltelli_base_samples_rows_are_never_split_between_parts(tmp_path):
     assert not _splits_blocks(leaky, camp)
     save_split(split_path(camp.path, 0), leaky)
     assert _splits_blocks(campaign_split(camp), camp)
+
+
+def test_a_network_continued_on_a_campaign_is_not_scored_on_tracks_it_learnt(caplog):
+    """Campaigns of one design seed share their first track seeds: a network continued on
+    another campaign could be scored on tracks it trained on (the split audit of stop 60).
+    Refused where the network records the seeds it saw; warned of where it does not."""
+    from types import SimpleNamespace
+
+    from railsusp.surrogate import check_unseen_tracks
+
+    cond = get_condition("curve")
+    start = SimpleNamespace(meta={"seen_track_seeds": [1, 2, 3]}, condition=cond)
+    test = SimpleNamespace(n_samples=2, seeds=np.array([3, 9]), condition=cond)
+    with pytest.raises(RailsuspInputError, match=r"1 of this campaign's test tracks \(seeds 3\)"):
+        check_unseen_tracks(start, "net", test)
+    check_unseen_tracks(start, "net", SimpleNamespace(**{**vars(test), "seeds": np.array([8])}))
+    with caplog.at_level("WARNING", logger="railsusp.surrogate"):
+        check_unseen_tracks(SimpleNamespace(meta={}, condition=cond), "old-net", test)
+    assert "old-net records no track seeds" in caplog.text

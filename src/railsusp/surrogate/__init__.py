@@ -7,6 +7,7 @@ under ``RUN/surrogates/<kind>/<condition>/``; ``load(path)`` gives back a
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -39,6 +40,8 @@ from railsusp.surrogate.refit import fit_record_correction
 from railsusp.surrogate.split import Split, campaign_split
 from railsusp.surrogate.train import TrainConfig, sampler_for, train_network
 from railsusp.variation import assumed_parameters
+
+log = logging.getLogger("railsusp.surrogate")
 
 __all__ = [
     "KINDS",
@@ -139,9 +142,42 @@ def feature_spec(
     )
 
 
+def check_unseen_tracks(start: Surrogate, path: Any, test: Any) -> None:
+    """Refuse, in one line, continuing ``start`` (saved at ``path``) on a campaign whose test
+    runs lie on tracks it learnt from: campaigns of the same design seed share their first
+    track seeds, so about 15 % of a new campaign's "held-out" runs could be tracks the
+    starting network trained on (the split audit of stop 60). A network saved before the
+    seeds were recorded cannot be checked: warned of."""
+    seen = start.meta.get("seen_track_seeds")
+    if not test.n_samples or start.condition.name != test.condition.name:
+        return
+    if seen is None:
+        log.warning(
+            "%s records no track seeds (saved before stop 60): whether this campaign's test "
+            "runs lie on tracks it learnt from cannot be checked; give the campaign another "
+            "design seed than the one it was trained on",
+            path,
+        )
+        return
+    shared = sorted(set(np.unique(test.seeds).tolist()) & set(seen))
+    if shared:
+        raise RailsuspInputError(
+            f"init_from {path}: {len(shared)} of this campaign's test tracks (seeds "
+            f"{', '.join(map(str, shared[:3]))}{', ...' if len(shared) > 3 else ''}) are "
+            "tracks that network learnt from: its held-out scores would be optimistic; run "
+            "the campaign with another design seed"
+        )
+
+
 def split_meta(split: Split, data) -> dict:
-    """What a surrogate records of its split: the ids per part, and what the test holds out."""
+    """What a surrogate records of its split: the ids per part, what the test holds out, and
+    the track seeds it learnt from (train and validation), so that a network continued on
+    another campaign can be kept from scoring on tracks it saw (:func:`check_unseen_tracks`)."""
+    seen = np.concatenate(
+        [data.seeds[split.positions(data.sample_ids, p)] for p in ("train", "val")]
+    )
     return {
+        "seen_track_seeds": sorted({int(s) for s in seen}),
         "train_ids": data.sample_ids[split.positions(data.sample_ids, "train")].tolist(),
         "val_ids": data.sample_ids[split.positions(data.sample_ids, "val")].tolist(),
         "test_ids": data.sample_ids[split.positions(data.sample_ids, "test")].tolist(),
@@ -295,6 +331,8 @@ def train_surrogate(
             "validation samples that ran (too few samples, or too many failed)"
         )
     train_data, val_data = data.subset(tr_i), data.subset(va_i)
+    if start is not None and split.held_out_tracks:  # (one common track holds none out)
+        check_unseen_tracks(start, init_from, data.subset(split.positions(data.sample_ids, "test")))
     norm = start.normaliser if init_inputs else Normaliser.fit(train_data)
     cfg = (
         replace(

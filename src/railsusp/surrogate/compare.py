@@ -72,7 +72,14 @@ def compare(
                 "test samples that ran"
             )
         train_data, test = data.subset(tr_i), data.subset(te_i)
-        held = {"held_out": split.held_out, "test_tracks": len(np.unique(test.seeds))}
+        # test runs that failed (derailed, diverged) are left out of every figure: counted,
+        # since they gather at extreme parameters (the split audit of stop 60)
+        failed = int(np.setdiff1d(split.test, data.sample_ids).size)
+        held = {
+            "held_out": split.held_out,
+            "test_tracks": len(np.unique(test.seeds)),
+            "test_failed": failed,
+        }
         norm = Normaliser.fit(train_data)
         overlays, alone = {}, {}
         for kind in models:
@@ -176,6 +183,7 @@ def table7(table: pd.DataFrame) -> pd.DataFrame:
                 "Y R2": y.r2,
                 "held out": q.get("held_out", ""),
                 "test tracks": q.get("test_tracks", float("nan")),
+                "test runs failed": q.get("test_failed", float("nan")),
             }
         )
     return pd.DataFrame(rows)
