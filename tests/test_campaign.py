@@ -479,3 +479,16 @@ def test_results_of_other_force_laws_are_not_trained_or_analysed(full_run, tmp_p
     with caplog.at_level("WARNING", logger="railsusp.campaign"):
         assert require_complete(load_campaign(copy)).model_revision is None
     assert "states no force-law revision" in caplog.text
+
+
+def test_a_batch_left_half_written_by_a_kill_leaves_no_temporary_behind(full_run, tmp_path):
+    """A kill during a batch's write left ``.batch-*.parquet.*.tmp`` for good (the
+    interrupt/resume audit of stop 60): the next run, holding the folder's lock, removes
+    them; the lock file itself and the results stay."""
+    cfg, out = full_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    stale = copy / "batches" / "straight" / ".batch-00001.parquet.abc123.tmp"
+    stale.write_bytes(b"half a batch")
+    run_campaign(cfg, copy)
+    assert not stale.exists() and (copy / "features.parquet").exists()

@@ -94,6 +94,19 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
     return path
 
 
+def remove_stale_temporaries(folder: str | Path) -> int:
+    """Remove the temporaries (``.NAME.*.tmp``) that a process killed while writing left
+    under ``folder``; the number removed. Only for a folder whose lock the caller holds
+    (:func:`railsusp.run_lock.run_lock`): another writer's temporary would be live. A kill
+    during a write left them for good (the interrupt/resume audit of stop 60)."""
+    removed = 0
+    for tmp in Path(folder).rglob(".*.tmp"):
+        if tmp.is_file():
+            tmp.unlink(missing_ok=True)
+            removed += 1
+    return removed
+
+
 def atomic_write_figure(fig: Any, path: str | Path, **savefig: Any) -> Path:
     """Write a matplotlib figure to ``path`` atomically, in the format of its suffix
     (``savefig``'s keywords passed on); the figure is left open."""

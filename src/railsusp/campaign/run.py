@@ -33,6 +33,7 @@ from railsusp.store import (
     parquet_readable,
     provenance,
     read_json,
+    remove_stale_temporaries,
     write_json,
     write_parquet,
 )
@@ -419,6 +420,7 @@ def run_campaign(
     # one process at a time: two on one folder simulated the same batches twice, and one
     # with --force or another configuration deleted what the other was writing
     with run_lock(out, "--out"):
+        remove_stale_temporaries(out)  # of a process killed while writing a batch
         return _run_locked(config, out, force, scheduler, workers, progress, max_batches)
 
 
