@@ -107,6 +107,8 @@ def test_results_are_not_written_over_recordings(tmp_path):
          "is a field folder of recordings"),
         (["simulate", "straight", "--out", str(field / "straight.parquet")],
          "is a recording (its sidecar straight.json says so)"),
+        (["simulate", "straight", "--out", str(field / "straight.csv")],  # beside it
+         "is a recording (its sidecar straight.json says so)"),
     ]  # fmt: skip
     for args, said in cases:
         result = runner.invoke(app, args)

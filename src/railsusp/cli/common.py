@@ -42,7 +42,7 @@ def check_not_recordings(path: Path, option: str = "--out") -> None:
             "written among them; accepted another folder"
         )
     sidecar = path.with_suffix(".json")
-    if path.is_file() and sidecar.is_file() and path.suffix.lower() in (".parquet", ".csv"):
+    if sidecar.is_file() and path.suffix.lower() in (".parquet", ".csv"):  # or beside one
         try:
             doc = json.loads(sidecar.read_text("utf-8-sig"))
         except (OSError, UnicodeDecodeError, json.JSONDecodeError):
