@@ -219,14 +219,16 @@ def test_estimate_lists_the_parameters_it_did_not_estimate(many_tracks, tmp_path
 
 
 def test_the_sequence_network_is_compared_on_the_same_steps_as_the_others(many_tracks):
-    """compare() trains the sequence CNN-GRU beside a baseline and scores every model from
-    the longest washout, so both rows cover the same samples."""
+    """compare() trains the sequence CNN-GRU beside the baselines and scores every model
+    from the longest washout, so all rows cover the same samples (the statistics GPs took
+    their own window's first step until the split audit of stop 60)."""
     tcfg = TrainConfig(epochs=1, batches_per_epoch=2, chunk_steps=60, chunks_per_batch=4)
     table = compare(
-        many_tracks, models=("cnn-gru-seq", "rbf"), conditions=["curve"], train=tcfg,
-        washout=40,
+        many_tracks, models=("cnn-gru-seq", "rbf", "gp-stats"), conditions=["curve"],
+        train=tcfg, washout=40,
     )  # fmt: skip
-    assert set(table.model) == {"cnn-gru-seq", "rbf"} and (table.first_step == 40).all()
+    assert set(table.model) == {"cnn-gru-seq", "rbf", "gp-stats"}
+    assert (table.first_step == 40).all()
     assert np.isfinite(table.relative_error_of_mean).all()
     sur = load(many_tracks / "surrogates" / "cnn-gru-seq" / "curve")
     assert sur.kind == "cnn-gru-seq" and sur.spec.window == 40

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -102,9 +103,12 @@ def compare(
                 sur = RBFWindowModel(spec, norm).fit(train_data)
                 pred = predict_series(sur, test)
             elif kind == "gp-stats":
-                gp = StatisticsGP(spec).fit(train_data)
+                # its statistics from the same first step as the others' (it took its own
+                # window's: the split audit of stop 60)
+                gp_spec = replace(spec, window=first)
+                gp = StatisticsGP(gp_spec).fit(train_data)
                 m, _ = gp.predict_statistics(test.params_unit)
-                sim = StatisticsGP.statistics(test, spec)
+                sim = StatisticsGP.statistics(test, gp_spec)
                 for j, name in enumerate(spec.targets):
                     rel = np.abs(m[:, j] - sim[:, j]) / np.abs(sim[:, j])
                     ss = np.sum((sim[:, j] - sim[:, j].mean()) ** 2)
@@ -125,6 +129,7 @@ def compare(
                             else float("nan"),
                             "n_samples": int(test.n_samples),
                             **held,
+                            "first_step": first,
                         }
                     )
                 continue
