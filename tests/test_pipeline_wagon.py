@@ -16,6 +16,40 @@ from railsusp.vehicle.setup import static_wheel_load
 from railsusp.vehicle.wagon import load_wagon
 
 TINY = Path(__file__).resolve().parents[1] / "examples" / "tiny.toml"
+#: a 1 s straight condition on a 20 m lead-in, as a condition file
+SHORT = (
+    '[[condition]]\nbase = "straight"\nname = "short"\nduration_s = 1.0\nn_steps = 50\n'
+    "lead_in_m = 20.0\n"
+)
+
+
+def tare_field(runner, tmp_path: Path, *options: str) -> Path:
+    """``synth-field --wagon tare`` of the :data:`SHORT` condition into tmp_path/field."""
+    from railsusp.cli import app
+
+    cond, field = tmp_path / "short.toml", tmp_path / "field"
+    cond.write_text(SHORT)
+    done = runner.invoke(app, ["synth-field", "--out", str(field), "--conditions", str(cond),
+                               "--wagon", "tare", *options])  # fmt: skip
+    assert done.exit_code == 0, done.output
+    return field
+
+
+def short_wagon_field(folder: Path):
+    """A wagon 3.2 m shorter between bogie centres than the C80 (its data as a document and
+    as WagonData), and its synthetic recording of a 1 s straight on a 13 m lead-in with its
+    track geometry, in ``folder``: a lead-in its axles cover and the C80's do not."""
+    from railsusp.conditions import get_condition
+    from railsusp.measured import synthesise_field
+    from railsusp.params import ParameterSet
+    from railsusp.vehicle.wagon import WagonData
+
+    doc = load_wagon().model_dump(mode="json")
+    doc["car_body"]["bogie_half_spacing"] -= 1.6
+    short = WagonData.model_validate(doc)
+    cond = get_condition("straight", duration_s=1.0, n_steps=50).with_changes(lead_in_m=13.0)
+    synthesise_field(ParameterSet.nominal(), [cond], folder, with_track=True, wagon=short)
+    return doc, short
 
 
 def test_every_stage_simulates_the_configurations_wagon(tmp_path):
@@ -42,15 +76,7 @@ def test_the_commands_take_the_wagon_and_validate_follows_the_estimates(tmp_path
     from railsusp.cli import app
 
     runner = CliRunner()
-    cond = tmp_path / "short.toml"
-    cond.write_text(
-        '[[condition]]\nbase = "straight"\nname = "short"\nduration_s = 1.0\nn_steps = 50\n'
-        "lead_in_m = 20.0\n"
-    )
-    field, est = tmp_path / "field", tmp_path / "est"
-    done = runner.invoke(app, ["synth-field", "--out", str(field), "--conditions", str(cond),
-                               "--truth", "X13=16.1", "--wagon", "tare"])  # fmt: skip
-    assert done.exit_code == 0, done.output
+    field, est = tare_field(runner, tmp_path, "--truth", "X13=16.1"), tmp_path / "est"
     q = static_wheel_load(load_wagon("tare")) / 1e3
     assert pd.read_csv(field / "short.csv").filter(like="Q_").mean().iloc[0] == pytest.approx(
         q, rel=0.05
@@ -135,15 +161,7 @@ def test_the_standalone_campaign_simulates_the_wagon_on_its_recordings_track(tmp
     from railsusp.cli import app
 
     runner = CliRunner()
-    cond = tmp_path / "short.toml"
-    cond.write_text(
-        '[[condition]]\nbase = "straight"\nname = "short"\nduration_s = 1.0\nn_steps = 50\n'
-        "lead_in_m = 20.0\n"
-    )
-    field, run = tmp_path / "field", tmp_path / "run"
-    done = runner.invoke(app, ["synth-field", "--out", str(field), "--conditions", str(cond),
-                               "--wagon", "tare", "--with-track"])  # fmt: skip
-    assert done.exit_code == 0, done.output
+    field, run = tare_field(runner, tmp_path, "--with-track"), tmp_path / "run"
     args = ["campaign", "--out", str(run), "--samples", "2", "--conditions", str(field),
             "--parameters", "X14", "--batch-size", "2"]  # fmt: skip
     refused = runner.invoke(app, [*args, "--wagon", "nowhere.toml"])
@@ -162,20 +180,13 @@ def test_a_recordings_measured_track_is_checked_against_its_own_wagons_axle_spre
     """The reader checked a measured track's lead-in against the packaged C80's axle spread
     (10.03 m + 5 m) whatever the wagon: a shorter wagon's recording with a 13 m lead-in was
     refused, although its simulation accepts it (stop 59's "Left")."""
-    from railsusp.conditions import get_condition
     from railsusp.errors import RailsuspInputError
-    from railsusp.measured import read_field, synthesise_field
-    from railsusp.params import ParameterSet
+    from railsusp.measured import read_field
     from railsusp.vehicle.setup import axle_spread
-    from railsusp.vehicle.wagon import WagonData
 
-    doc = load_wagon().model_dump(mode="json")
-    doc["car_body"]["bogie_half_spacing"] -= 1.6
-    short = WagonData.model_validate(doc)
-    assert axle_spread(short) + 5.0 < 13.0 < axle_spread(load_wagon()) + 5.0
-    cond = get_condition("straight", duration_s=1.0, n_steps=50).with_changes(lead_in_m=13.0)
     field = tmp_path / "field"
-    synthesise_field(ParameterSet.nominal(), [cond], field, with_track=True, wagon=short)
+    _, short = short_wagon_field(field)
+    assert axle_spread(short) + 5.0 < 13.0 < axle_spread(load_wagon()) + 5.0
     with pytest.raises(RailsuspInputError, match=r"lead_in_m = 13 m .* accepted at least 15.03"):
         read_field(field)  # read as the packaged C80's
     (rec,) = read_field(field, wagon=short)
@@ -187,18 +198,10 @@ def test_the_report_reads_the_field_as_the_runs_wagon(tmp_path):
     axle spread: a shorter wagon's recordings on a 13 m lead-in passed every stage and
     failed the report (the review of stop 60). pipeline.json now records the wagon."""
     from railsusp import summary
-    from railsusp.conditions import get_condition
-    from railsusp.measured import synthesise_field
-    from railsusp.params import ParameterSet
     from railsusp.store import write_json
-    from railsusp.vehicle.wagon import WagonData
 
-    doc = load_wagon().model_dump(mode="json")
-    doc["car_body"]["bogie_half_spacing"] -= 1.6
-    short = WagonData.model_validate(doc)
-    cond = get_condition("straight", duration_s=1.0, n_steps=50).with_changes(lead_in_m=13.0)
     run = tmp_path / "run"
-    synthesise_field(ParameterSet.nominal(), [cond], run / "field", with_track=True, wagon=short)
+    doc, short = short_wagon_field(run / "field")
     write_json(run / "pipeline.json", {"static_wheel_load_N": static_wheel_load(short)})
     with pytest.raises(Exception, match="accepted at least 15.03"):  # as before: the C80's
         summary.field_recordings(run)

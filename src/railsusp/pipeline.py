@@ -121,10 +121,9 @@ def _run_stages(
     # the verdicts' tolerances as the run read them: open_run judges with these, not with
     # whatever wagon file a relative path names from its own working folder
     state["tolerances"] = read_tolerances(config.wagon).to_dict()
-    # and the static wheel load its recordings are checked against, for the same reason
-    state["static_wheel_load_N"] = _static_wheel_load(config)
-    # and the wagon's data, so that its recordings are read as its own (axle spread too)
-    state["wagon_data"] = _wagon_data(config)
+    # and the wagon its recordings are read as, for the same reason: its data (axle spread)
+    # and its static wheel load (runs of stop 59 recorded this alone; summary reads both)
+    state.update(_wagon_record(config))
     forced = STAGES.index(start_from) if start_from else len(STAGES)
     upstream: dict[str, str] = {}
     runners = _stage_runners(config, out, run_progress)
@@ -186,19 +185,17 @@ def _run_stages(
     return state
 
 
-def _wagon_data(config: PipelineConfig) -> dict:
-    """The run's wagon's data as read (``pipeline.json``'s ``wagon_data``)."""
-    from railsusp.vehicle.wagon import load_wagon
-
-    return load_wagon(config.wagon).model_dump(mode="json")
-
-
-def _static_wheel_load(config: PipelineConfig) -> float:
-    """The static wheel load (N) of the run's wagon."""
+def _wagon_record(config: PipelineConfig) -> dict:
+    """``pipeline.json``'s record of the run's wagon: its data as read (``wagon_data``) and
+    its static wheel load (``static_wheel_load_N``, N)."""
     from railsusp.vehicle.setup import static_wheel_load
     from railsusp.vehicle.wagon import load_wagon
 
-    return static_wheel_load(load_wagon(config.wagon))
+    wagon = load_wagon(config.wagon)
+    return {
+        "static_wheel_load_N": static_wheel_load(wagon),
+        "wagon_data": wagon.model_dump(mode="json"),
+    }
 
 
 def _mark_later_stale(state: dict, stage: str) -> None:

@@ -25,6 +25,7 @@ import tempfile
 import tomllib
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
+from functools import lru_cache
 from pathlib import Path, PurePath
 from typing import Any
 
@@ -460,6 +461,20 @@ def file_hash(path: str | Path) -> str:
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
+
+
+def file_hash_cached(path: str | Path) -> str:
+    """:func:`file_hash`, read once per version of the file (kept by absolute path,
+    modification time and size): for hashes asked for again and again, a surrogate's
+    track inputs every generation, a campaign's geometry files every batch."""
+    p = os.path.abspath(path)
+    st = os.stat(p)
+    return _file_hash_of(p, st.st_mtime_ns, st.st_size)
+
+
+@lru_cache(maxsize=1024)
+def _file_hash_of(path: str, _mtime_ns: int, _size: int) -> str:
+    return file_hash(path)
 
 
 def write_json(path: str | Path, obj: Any) -> Path:

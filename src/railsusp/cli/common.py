@@ -4,11 +4,9 @@ that the command modules import this module, not the package that imports them."
 
 from __future__ import annotations
 
-import json
 import logging
 import sys
 import warnings
-from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -25,33 +23,6 @@ app = typer.Typer(
 # Wide tables when piped (CI logs, files); the terminal's width otherwise.
 console = Console(width=None if sys.stdout.isatty() else 150)
 err_console = Console(stderr=True, width=None if sys.stderr.isatty() else 150)
-
-
-def check_not_recordings(path: Path, option: str = "--out") -> None:
-    """Refuse, in one line, an output that would write over measured data: a field folder
-    (``index.json`` listing recordings) as an output folder, or a recording's table (a
-    ``.parquet``/``.csv`` with a railsusp recording sidecar) as an output file. An estimate
-    written into its recordings' folder replaced a recording named ``estimate`` with the
-    results (the command-line audit of stop 60)."""
-    from railsusp.errors import RailsuspInputError
-    from railsusp.measured.recording import FORMAT
-
-    if path.is_dir() and (path / "index.json").is_file():
-        raise RailsuspInputError(
-            f"{option} {path} is a field folder of recordings (index.json): results are not "
-            "written among them; accepted another folder"
-        )
-    sidecar = path.with_suffix(".json")
-    if sidecar.is_file() and path.suffix.lower() in (".parquet", ".csv"):  # or beside one
-        try:
-            doc = json.loads(sidecar.read_text("utf-8-sig"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-            return
-        if isinstance(doc, dict) and doc.get("format") == FORMAT:
-            raise RailsuspInputError(
-                f"{option} {path} is a recording (its sidecar {sidecar.name} says so): not "
-                "written over; accepted another file"
-            )
 
 
 #: ``--wagon`` of the commands that simulate a wagon: a wagon file or a packaged name

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from railsusp.cli.common import app, check_not_recordings, console, fail, frame_table
+from railsusp.cli.common import app, console, fail, frame_table
 from railsusp.errors import RailsuspInputError
 from railsusp.store import atomic_folder, check_output_folder
 
@@ -177,6 +177,7 @@ def estimate(
     )
     from railsusp.estimate.route import EstimateRoute
     from railsusp.measured import read_field
+    from railsusp.measured.field_folder import check_not_recordings
     from railsusp.surrogate import not_estimated
 
     try:

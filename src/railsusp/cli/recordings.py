@@ -10,27 +10,9 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from railsusp.cli.common import app, console, fail, frame_table
+from railsusp.cli.common import WagonOption, app, console, fail, frame_table
 from railsusp.errors import RailsuspInputError
 from railsusp.store import check_figure_file
-
-#: the wagon whose static wheel load the recordings' wheel loads are checked against
-WagonOption = Annotated[
-    str | None,
-    typer.Option(
-        "--wagon",
-        help="wagon data TOML, or a packaged name (loaded: default, tare), whose static wheel "
-        "load the wheel loads are checked against",
-    ),
-]
-
-
-def wheel_load_of(wagon: str | None) -> float:
-    """The static wheel load (N) of ``--wagon`` (one-line errors for a bad file)."""
-    from railsusp.vehicle.setup import static_wheel_load
-    from railsusp.vehicle.wagon import load_wagon
-
-    return static_wheel_load(load_wagon(wagon))
 
 
 def print_problems(exc) -> None:
@@ -61,19 +43,21 @@ def check_recording(
     from railsusp.measured import RecordingError, read_recording
     from railsusp.measured.raw import MDF_SUFFIXES
     from railsusp.measured.reader import MIN_RATE_RANGE_HZ
+    from railsusp.vehicle.setup import static_wheel_load
+    from railsusp.vehicle.wagon import load_wagon
 
     lo, hi = MIN_RATE_RANGE_HZ
     if not lo <= min_rate <= hi:  # NaN fails too (checked here too: a run file is not read)
         fail(f"--min-rate {min_rate:g} Hz: accepted {lo:g} to {hi:g} Hz")
-    try:
-        load = wheel_load_of(wagon)
+    try:  # the recordings are read as its: its static wheel load, its axles
+        wagon_data = load_wagon(wagon)
     except RailsuspInputError as exc:
         fail(f"--wagon: {exc}")
     if channel_map is not None or path.suffix.lower() in MDF_SUFFIXES:
-        _check_run(path, channel_map, min_rate, load)
+        _check_run(path, channel_map, min_rate, static_wheel_load(wagon_data))
         return
     try:
-        rec = read_recording(path, min_rate_hz=min_rate, wheel_load_N=load, wagon=wagon)
+        rec = read_recording(path, min_rate_hz=min_rate, wagon=wagon_data)
     except RecordingError as exc:
         print_problems(exc)
     except RailsuspInputError as exc:
@@ -186,6 +170,8 @@ def sections_command(
         sections_table,
     )
     from railsusp.measured.sections_out import en14363_table, plot_sections, write_sections
+    from railsusp.vehicle.setup import static_wheel_load
+    from railsusp.vehicle.wagon import load_wagon
 
     try:
         if line is not None and table is not None:
@@ -201,7 +187,7 @@ def sections_command(
             speed_tolerance=speed_tolerance, min_length_m=min_length, max_duration_s=max_duration
         )
         cmap = read_channel_map(channel_map) if channel_map else None
-        load = wheel_load_of(wagon)
+        load = static_wheel_load(load_wagon(wagon))
         run = read_run(recording, cmap, min_rate_hz=rate, wheel_load_N=load)  # rate: the least
         secs = cut_sections(
             run,

@@ -13,7 +13,6 @@ from railsusp._version import __version__
 from railsusp.cli.common import (
     WagonOption,
     app,
-    check_not_recordings,
     console,
     err_console,
     fail,
@@ -109,6 +108,7 @@ def simulate(
     plot: Annotated[Path | None, typer.Option(help="write a PNG of the force series")] = None,
 ) -> None:
     """Simulate one parameter set in one or more working conditions; print force statistics."""
+    from railsusp.measured.field_folder import check_not_recordings
     from railsusp.vehicle.simulate import WHEEL_NAMES
     from railsusp.vehicle.simulate import simulate as run_one
     from railsusp.vehicle.wagon import load_wagon

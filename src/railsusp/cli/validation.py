@@ -9,7 +9,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from railsusp.cli.common import WagonOption, app, check_not_recordings, console, fail
+from railsusp.cli.common import WagonOption, app, console, fail
 from railsusp.errors import RailsuspInputError
 from railsusp.store import check_output_folder
 
@@ -32,6 +32,7 @@ def validate(
     wagon: WagonOption = None,
 ) -> None:
     """Re-simulate with nominal and estimated parameters; Tables 8/9 and recovery scores."""
+    from railsusp.measured.field_folder import check_not_recordings
     from railsusp.validate import validate as run_validate
 
     try:

@@ -8,7 +8,6 @@ reference). :func:`open_force_model` picks the surrogate kind from a folder's co
 
 from __future__ import annotations
 
-import os
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -21,7 +20,7 @@ from railsusp.errors import RailsuspInputError
 from railsusp.estimate.statistics import recording_segments, series_statistics
 from railsusp.measured import Recording
 from railsusp.params import ParameterSet
-from railsusp.store import canonical_json, file_hash
+from railsusp.store import canonical_json, file_hash_cached
 
 
 class ForceModel(Protocol):
@@ -59,7 +58,6 @@ class SurrogateForces:
         self._models: dict[str, Any] = {}
         self._warned: set[str] = set()
         self._tracks: dict[str, np.ndarray] = {}
-        self._digests: dict[tuple[str, int, int], str] = {}
         for sub in sorted(self.folder.iterdir()) if self.folder.is_dir() else []:
             if (sub / "surrogate.json").exists():
                 self._models[sub.name] = load(sub)
@@ -163,8 +161,6 @@ class SurrogateForces:
         range). Checked before any optimisation, not in its first generation. ``series``
         False (record statistics: the network predicts its own training series, whatever
         the recording's time base) leaves the sampling interval out."""
-        from railsusp.errors import RailsuspInputError
-
         model = self._models.get(condition.name)
         if model is None:
             raise RailsuspInputError(
@@ -204,14 +200,8 @@ class SurrogateForces:
         path, modification time and size), not every generation."""
         if condition.track_geometry is None:
             return condition.model_dump_json()
-        path = os.path.abspath(condition.track_geometry)
-        stat = os.stat(path)
-        seen = (path, stat.st_mtime_ns, stat.st_size)
-        digest = self._digests.get(seen)
-        if digest is None:
-            digest = self._digests[seen] = file_hash(path)
         fields = condition.model_dump(mode="json")
-        fields["track_geometry"] = f"sha256:{digest}"
+        fields["track_geometry"] = f"sha256:{file_hash_cached(condition.track_geometry)}"
         return canonical_json(fields)
 
     def prime_tracks(self, conditions: Sequence[WorkingCondition]) -> None:

@@ -82,8 +82,7 @@ class PosteriorSettings:
             from railsusp.vehicle.wagon import load_wagon
 
             wagon = load_wagon(self.wagon)
-            own = wagon.model_dump(mode="json") != load_wagon().model_dump(mode="json")
-            object.__setattr__(self, "wagon", wagon if own else None)
+            object.__setattr__(self, "wagon", None if wagon == load_wagon() else wagon)
         dupes = repeated_names([c.name for c in self.conditions])
         if dupes:  # recordings are matched by name: one would fill every slot of its name
             raise RailsuspInputError(

@@ -9,7 +9,9 @@ beside the cut's ``sections.csv``, and only a cut of the same run: a user's inde
 a ``source`` of its own, docs/data-format.md).
 Anything else, a folder of measured recordings above all, is refused before any work: the
 project's rule that bad input loses no data (before stop 57, ``synth-field`` replaced a
-folder of section recordings with synthetic ones and exited 0).
+folder of section recordings with synthetic ones and exited 0). The commands that write
+results (``estimate``, ``validate``, ``simulate``) never write into a field folder or over a
+recording's table (:func:`check_not_recordings`).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from pathlib import Path
 from typing import Literal
 
 from railsusp.errors import RailsuspInputError
+from railsusp.measured.recording import FORMAT
 from railsusp.store import check_output_folder
 
 #: what wrote a field folder, by the marks it leaves (:func:`folder_kind`)
@@ -89,3 +92,28 @@ def check_field_output(
         f"{option} {path} holds {held}; {_WRITERS[writer]} would replace them: accepted a "
         f"new or empty folder, or one {_WRITERS[writer]} wrote"
     )
+
+
+def check_not_recordings(path: str | Path, option: str = "--out") -> None:
+    """Refuse, in one line, an output that would write over measured data: a field folder
+    (``index.json`` listing recordings) as an output folder, or a recording's table (a
+    ``.parquet``/``.csv`` with a railsusp recording sidecar) as an output file. An estimate
+    written into its recordings' folder replaced a recording named ``estimate`` with the
+    results (the command-line audit of stop 60)."""
+    path = Path(path)
+    if path.is_dir() and (path / "index.json").is_file():
+        raise RailsuspInputError(
+            f"{option} {path} is a field folder of recordings (index.json): results are not "
+            "written among them; accepted another folder"
+        )
+    sidecar = path.with_suffix(".json")
+    if sidecar.is_file() and path.suffix.lower() in (".parquet", ".csv"):  # or beside one
+        try:
+            doc = json.loads(sidecar.read_text("utf-8-sig"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+            return
+        if isinstance(doc, dict) and doc.get("format") == FORMAT:
+            raise RailsuspInputError(
+                f"{option} {path} is a recording (its sidecar {sidecar.name} says so): not "
+                "written over; accepted another file"
+            )

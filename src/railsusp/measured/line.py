@@ -75,7 +75,7 @@ def read_line(path: str | Path) -> pd.DataFrame:
             )
     if (df.km_end <= df.km_start).any():
         i = int(np.flatnonzero((df.km_end <= df.km_start).to_numpy())[0])
-        raise RailsuspInputError(f"line description {path}, row {i + 2}: km_end <= km_start")
+        raise RailsuspInputError(f"{what}, row {i + 2}: km_end <= km_start")
     tangent = ~(df.radius_m.to_numpy(dtype=float) > 0.0)
     canted = tangent & (np.nan_to_num(df.cant_mm.to_numpy(dtype=float)) != 0.0)
     if canted.any():  # written as 0 into the section's condition, shown as given
@@ -101,30 +101,31 @@ def read_line(path: str | Path) -> pd.DataFrame:
 def read_section_table(path: str | Path) -> pd.DataFrame:
     """A user section table CSV: ``start_m, end_m`` and optional ``name``, checked. Names
     become file names, so they must be plain: letters, digits, ``.``, ``_``, ``-``."""
-    df = _read_csv(path, ["start_m", "end_m"], f"section table {path}")
-    _need_values(df, ["start_m", "end_m"], f"section table {path}")
+    what = f"section table {path}"
+    df = _read_csv(path, ["start_m", "end_m"], what)
+    _need_values(df, ["start_m", "end_m"], what)
     if "name" in df:
         seen: dict[str, int] = {}
         for i, name in enumerate(df["name"].astype(str)):
             if not SAFE_NAME.fullmatch(name):
                 raise RailsuspInputError(
-                    f"section table {path}, row {i + 2}: name {name!r}: accepted 1-60 "
+                    f"{what}, row {i + 2}: name {name!r}: accepted 1-60 "
                     "letters, digits, '.', '_', '-', starting with a letter or digit"
                 )
             if name.casefold() in RESERVED_NAMES:
                 raise RailsuspInputError(
-                    f"section table {path}, row {i + 2}: name {name!r} is the field folder's "
+                    f"{what}, row {i + 2}: name {name!r} is the field folder's "
                     f"own file ({', '.join(RESERVED_NAMES)}); accepted another name"
                 )
             if name.casefold() in seen:  # the second recording would replace the first
                 raise RailsuspInputError(
-                    f"section table {path}, row {i + 2}: name {name!r} is row "
+                    f"{what}, row {i + 2}: name {name!r} is row "
                     f"{seen[name.casefold()]}'s too; accepted a name per section"
                 )
             seen[name.casefold()] = i + 2
     if (df.end_m <= df.start_m).any():
         i = int(np.flatnonzero((df.end_m <= df.start_m).to_numpy())[0])
-        raise RailsuspInputError(f"section table {path}, row {i + 2}: end_m <= start_m")
+        raise RailsuspInputError(f"{what}, row {i + 2}: end_m <= start_m")
     return df
 
 

@@ -173,14 +173,13 @@ def split_meta(split: Split, data) -> dict:
     """What a surrogate records of its split: the ids per part, what the test holds out, and
     the track seeds it learnt from (train and validation), so that a network continued on
     another campaign can be kept from scoring on tracks it saw (:func:`check_unseen_tracks`)."""
-    seen = np.concatenate(
-        [data.seeds[split.positions(data.sample_ids, p)] for p in ("train", "val")]
-    )
+    pos = {p: split.positions(data.sample_ids, p) for p in ("train", "val", "test")}
+    seen = data.seeds[np.concatenate([pos["train"], pos["val"]])]
     return {
         "seen_track_seeds": sorted({int(s) for s in seen}),
-        "train_ids": data.sample_ids[split.positions(data.sample_ids, "train")].tolist(),
-        "val_ids": data.sample_ids[split.positions(data.sample_ids, "val")].tolist(),
-        "test_ids": data.sample_ids[split.positions(data.sample_ids, "test")].tolist(),
+        "train_ids": data.sample_ids[pos["train"]].tolist(),
+        "val_ids": data.sample_ids[pos["val"]].tolist(),
+        "test_ids": data.sample_ids[pos["test"]].tolist(),
         "split": {
             "seed": split.seed,
             "fractions": list(split.fractions),

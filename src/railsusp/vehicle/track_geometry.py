@@ -26,6 +26,7 @@ import pandas as pd
 
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError, did_you_mean
+from railsusp.store import file_hash_cached
 from railsusp.vehicle.track import COMPONENTS, Irregularities, smoothstep, synthesise
 
 #: Columns of a track-geometry file (docs/data-format.md): distance from the leading
@@ -94,24 +95,8 @@ def geometry_digests(conditions: Sequence[WorkingCondition]) -> dict[str, str]:
         if c.track_geometry is None or c.track_geometry in out:
             continue
         p = Path(c.track_geometry)
-        if p.is_file():
-            st = p.stat()
-            out[c.track_geometry] = _file_digest(str(p.resolve()), st.st_mtime_ns, st.st_size)
-        else:
-            out[c.track_geometry] = "missing"
+        out[c.track_geometry] = file_hash_cached(p) if p.is_file() else "missing"
     return out
-
-
-@lru_cache(maxsize=64)
-def _file_digest(path: str, _mtime_ns: int, _size: int) -> str:
-    """SHA-256 of a file's bytes (cached while its time stamp and size stay)."""
-    import hashlib
-
-    digest = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 @lru_cache(maxsize=16)
