@@ -81,6 +81,11 @@ def decay_stuck(stuck):
     return free_decay(speed_kmh=60.0, modal=stuck)
 
 
+@pytest.fixture(scope="module")
+def decay_30mm_dip(stuck):
+    return free_decay(amplitude_m=0.03, excitations=("dip",), modal=stuck)
+
+
 def kind_frequency(result, kind: str) -> float:
     kinds = result.car_body_kinds()
     assert kind in kinds, f"no car-body {kind} mode below 20 Hz: {list(kinds)}"
@@ -187,12 +192,37 @@ def test_eigen_modal_table_names_every_car_body_mode(stuck):
         "mode",
         "frequency_Hz",
         "damping_ratio",
+        "time_constant_s",
         "group",
         "car_body_energy",
     ]
     kinds = {"bounce", "pitch", "yaw", "lower sway", "upper sway"}
     assert set(stuck.car_body_kinds()) == kinds
-    assert (df["frequency_Hz"].diff().dropna() >= 0).all()
+    assert (df["frequency_Hz"].dropna().diff().dropna() >= 0).all()
+
+
+def test_eigen_overdamped_modes_have_a_time_constant_not_a_frequency():
+    """A real eigenvalue λ = -σ does not oscillate: the table gives its time constant 1 / σ
+    and leaves frequency and damping ratio blank (stop 59's audit: the tare wagon's
+    side-frame and warp modes, real roots, were listed at 24.7-29 Hz with ζ = 1). Every
+    oscillating root keeps its natural frequency |λ| / 2π and ζ = -Re λ / |λ|; no mode is
+    both; the overdamped ones never enter the car-body modes the free decay fits."""
+    tare = modal_analysis(wagon=load_wagon("tare"))
+    lam = tare.eigenvalues
+    real = tare.overdamped
+    assert real.sum() >= 5 and (~real).sum() >= 10, (real.sum(), lam.size)
+    assert np.all(np.abs(lam[real].imag) <= 1e-8 * np.abs(lam[real]))
+    assert np.all(lam[~real].imag > 1e-8 * np.abs(lam[~real]))
+    np.testing.assert_allclose(tare.time_constant_s[real], -1.0 / lam[real].real, rtol=1e-12)
+    assert np.all(tare.time_constant_s[real] > 0) and np.isnan(tare.time_constant_s[~real]).all()
+    df = tare.to_dataframe()
+    assert df["frequency_Hz"].isna().to_numpy().tolist() == real.tolist()
+    assert df["damping_ratio"].isna().to_numpy().tolist() == real.tolist()
+    assert df["time_constant_s"].notna().to_numpy().tolist() == real.tolist()
+    np.testing.assert_allclose(
+        df["frequency_Hz"][~real], np.abs(lam[~real]) / (2 * np.pi), rtol=1e-12
+    )
+    assert not np.any(real[tare.car_body_modes(f_max=1000.0, min_share=0.0)])
 
 
 # ---------------------------------------------------------------- modal
@@ -338,12 +368,12 @@ def test_decay_fits_are_the_modes_they_name(decay_stuck):
     assert not decay_stuck.unreliable
 
 
-def test_decay_fit_check_flags_the_wedges_sliding(stuck, sliding):
+def test_decay_fit_check_flags_the_wedges_sliding(stuck, sliding, decay_30mm_dip):
     """A 30 mm dip makes the wedges slide: the bounce rings between its stuck and its
     sliding frequency (2026-11-24: 3.59 Hz between 4.82 and 2.48, R² 0.87), and Coulomb
     friction takes more per cycle than the pre-sliding loss (ζ_eq 0.235 against 0.073).
     The fit check must flag that decay as not the stuck mode's."""
-    result = free_decay(amplitude_m=0.03, excitations=("dip",), modal=stuck)
+    result = decay_30mm_dip
     row = result.row("car body bounce")
     assert not row["fit_ok"] and row in result.unreliable
     f_sliding = kind_frequency(sliding, "bounce")
@@ -369,6 +399,20 @@ def test_decay_every_car_body_mode_is_damped_with_friction_on(decay_stuck):
 
 
 # ---------------------------------------------------------------- command
+def test_decay_reading_says_whether_the_friction_held(decay_stuck, decay_30mm_dip):
+    """The command's sentence under the free-decay table: at 5 mm every decay is its stuck
+    mode's, so the friction held and the damping is the pre-sliding loss; a decay whose fit
+    misses (here the bounce of a 30 mm dip, whose wedges slide: the test above) is named."""
+    from railsusp.cli.modes import decay_reading
+
+    held = decay_reading(decay_stuck, 5.0)
+    assert "friction (wedges, centre bowls) held" in held and "5 mm" in held
+    slid = decay_30mm_dip
+    text = decay_reading(slid, 30.0)
+    assert "car body bounce" in text and "30 mm" in text and "held" not in text
+    assert text.startswith(f"{len(slid.unreliable)} of {len(slid.rows)} decays")
+
+
 def test_modes_command_prints_the_modal_table():
     result = CliRunner().invoke(app, ["modes", "--fmax", "10", "--speed", "40"])
     assert result.exit_code == 0, result.output
@@ -381,6 +425,8 @@ def test_modes_command_prints_the_modal_table():
         (["modes", "--speed", "0"], "--speed = 0 km/h: accepted 1 to 200 km/h"),
         (["modes", "--friction", "wet"], "--friction 'wet': accepted stuck, sliding"),
         (["modes", "--set", "X13=99"], "X13"),
+        (["modes", "--decay", "--amplitude", "0"], "--amplitude = 0 mm: accepted 0.5 to 50 mm"),
+        (["modes", "--amplitude", "51"], "--amplitude = 51 mm: accepted 0.5 to 50 mm"),
     ],
 )
 def test_modes_command_bad_input_is_one_line_with_status_2(args, needle):

@@ -10,7 +10,10 @@ The Jacobian A = d(rhs)/dx at x = 0 is taken by central finite differences over 
 first-order state (every column checked against a ten times smaller step), its eigenvalues
 λ = -ζ ω_n ± i ω_n sqrt(1 - ζ²) give the natural frequency f_n = |λ| / 2π and the damping
 ratio ζ = -Re λ / |λ|, and each mode is named from where its kinetic energy sits
-(m_i |v_i|² per degree of freedom, v the velocity part of the eigenvector).
+(m_i |v_i|² per degree of freedom, v the velocity part of the eigenvector). A real
+eigenvalue λ = -σ is an overdamped mode: it does not oscillate, so it has no natural
+frequency; it decays as exp(-t / τ) with the time constant τ = 1 / σ
+(:attr:`ModalResult.overdamped`, :attr:`ModalResult.time_constant_s`).
 
 Friction. A Coulomb slider linearised at zero state is **stuck**: inside its limit the
 friction force follows its stick stiffness, so the wedges act as springs in parallel with
@@ -64,6 +67,9 @@ __all__ = [
 
 #: relative agreement asked of a Jacobian column between step h and h/10
 _FD_TOL = 1e-3
+#: an eigenvalue whose imaginary part is below this share of its magnitude is real (the
+#: finite-difference Jacobian leaves 1e-16 relative on roots that are real)
+_REAL_TOL = 1e-8
 
 
 # ---------------------------------------------------------------- linearisation
@@ -110,10 +116,13 @@ def default_steps(step: float = 1e-6, aux_step: float = 1.0) -> np.ndarray:
 class ModalResult:
     """Eigen-analysis of the linearised wagon.
 
-    Per mode (one per complex-conjugate pair; overdamped real modes with ζ = 1): eigenvalue
-    (1/s), natural frequency (Hz), damping ratio, name, the body group carrying most kinetic
-    energy, the car body's share of kinetic energy, the share per degree of freedom
-    (``energy``, rows sum to 1) and the displacement part of the eigenvector (``shapes``).
+    Per mode (one per complex-conjugate pair, or one real root): eigenvalue (1/s), |λ| / 2π
+    (Hz: the natural frequency of an oscillating mode; for an overdamped real root λ = -σ
+    the corner frequency σ / 2π of its first-order decay, not a frequency it moves at, see
+    :attr:`overdamped` and :attr:`time_constant_s`), damping ratio (1 for a real root),
+    name, the body group carrying most kinetic energy, the car body's share of kinetic
+    energy, the share per degree of freedom (``energy``, rows sum to 1) and the
+    displacement part of the eigenvector (``shapes``).
     ``equilibrium_residual``: max |rhs(0)| over the accelerations (m/s², rad/s²): the
     linearisation point is an equilibrium to that accuracy.
     """
@@ -134,27 +143,49 @@ class ModalResult:
     def __len__(self) -> int:
         return self.eigenvalues.size
 
+    @property
+    def overdamped(self) -> np.ndarray:
+        """Per mode, whether its eigenvalue is real: an overdamped mode, which decays without
+        oscillating (a stuck slider's stiffness against a damper, or a light body on stiff
+        pads and much damping)."""
+        lam = self.eigenvalues
+        return np.abs(lam.imag) <= _REAL_TOL * np.abs(lam)
+
+    @property
+    def time_constant_s(self) -> np.ndarray:
+        """Per mode, the time constant τ = 1 / σ (s) of an overdamped mode's decay
+        exp(-t / τ) (λ = -σ); NaN for an oscillating mode."""
+        return np.where(self.overdamped, -1.0 / self.eigenvalues.real, np.nan)
+
     def to_dataframe(self, f_max: float | None = None):
-        """Modes as a pandas DataFrame, by frequency (optionally up to ``f_max`` Hz)."""
+        """Modes as a pandas DataFrame in the order of |λ| (optionally up to ``f_max`` Hz of
+        |λ| / 2π). An oscillating mode has its natural frequency and damping ratio; an
+        overdamped one its time constant, its frequency and damping ratio blank (NaN): it
+        has no frequency, and one real root does not define a damping ratio."""
         import pandas as pd
 
+        real = self.overdamped
         df = pd.DataFrame(
             {
                 "mode": self.names,
-                "frequency_Hz": self.frequency_hz,
-                "damping_ratio": self.damping_ratio,
+                "frequency_Hz": np.where(real, np.nan, self.frequency_hz),
+                "damping_ratio": np.where(real, np.nan, self.damping_ratio),
+                "time_constant_s": self.time_constant_s,
                 "group": self.groups,
                 "car_body_energy": self.car_body_share,
             }
         )
         if f_max is not None:
-            df = df[df["frequency_Hz"] <= f_max]
+            df = df[self.frequency_hz <= f_max]
         return df.reset_index(drop=True)
 
     def car_body_modes(self, f_max: float = 20.0, min_share: float = 0.5) -> np.ndarray:
-        """Indices of the modes below ``f_max`` Hz whose kinetic energy is mostly (at least
-        ``min_share``) in the car body."""
-        sel = (self.frequency_hz <= f_max) & (self.car_body_share >= min_share)
+        """Indices of the oscillating modes below ``f_max`` Hz whose kinetic energy is mostly
+        (at least ``min_share``) in the car body (an overdamped mode has no frequency to
+        compare, nor a decay to fit a damped sinusoid to)."""
+        sel = (
+            (self.frequency_hz <= f_max) & (self.car_body_share >= min_share) & ~self.overdamped
+        )
         return np.flatnonzero(sel)
 
     def car_body_kinds(self, f_max: float = 20.0) -> dict[str, int]:
