@@ -277,6 +277,35 @@ def test_cramer_rao_bound_of_a_linear_model_is_exact():
     }
 
 
+def test_cramer_rao_bound_does_not_apply_on_a_range_bound():
+    """An estimate on its range bound is where the search stopped, not an unbiased estimate
+    inside the range: its bound is NaN ("does not apply"), not the small number of the
+    one-sided difference there (stop 59's audit: X11 on its bound with a 4.7 % bound read as
+    precision). The other parameter keeps its bound; the verdict says why."""
+    from railsusp.estimate.intervals import from_pareto
+    from railsusp.validate import identification_issues
+
+    gain = np.array([[10.0, 2.0], [0.0, 5.0], [3.0, -1.0], [1.0, 1.0]])
+    model = LinearStatistics(gain, np.array([0.5, 1.0, 2.0, 0.3]))
+    lo, hi = bounds(PARAMS)
+    inside = lo + 0.5 * (hi - lo)
+    for edge in (lo[0], hi[0], lo[0] + 0.004 * (hi[0] - lo[0])):
+        x = inside.copy()
+        x[0] = edge
+        bound = cramer_rao_pct_range(model, [recording(10.0, 120.0)], PARAMS, x, ("mean",))
+        assert np.isnan(bound[PARAMS[0]]) and 0 < bound[PARAMS[1]] < np.inf, bound
+    x = inside.copy()
+    x[0] = lo[0] + 0.01 * (hi[0] - lo[0])  # 1 % of range inside: a bound again
+    bound = cramer_rao_pct_range(model, [recording(10.0, 120.0)], PARAMS, x, ("mean",))
+    assert np.isfinite(bound[PARAMS[0]])
+    x[0] = hi[0]
+    bound = cramer_rao_pct_range(model, [recording(10.0, 120.0)], PARAMS, x, ("mean",))
+    pareto = from_pareto(PARAMS, np.vstack([x, x]), x).to_dict()
+    est = {"parameters": list(PARAMS), "cramer_rao_pct_range": bound, "intervals": pareto}
+    why = identification_issues(est)
+    assert "on its range bound" in why[PARAMS[0]] and "range bound" not in why[PARAMS[1]]
+
+
 def test_noise_weighting_needs_a_statistics_surrogate():
     rec = recording(10.0, 120.0)
     with pytest.raises(ValueError, match="needs the predictive standard deviation"):

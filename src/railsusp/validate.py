@@ -278,7 +278,8 @@ def identification_issues(est: dict, max_st: dict[str, float] | None = None) -> 
     NSGA-II Pareto range is not one, so an estimate from NSGA-II alone is never called
     identified. Further reasons: a posterior whose estimator failed its coverage check, a
     largest total Sobol index (``max_st``) below :data:`SOBOL_ST_LIMIT`, a Cramér-Rao bound
-    of the statistics above its limit."""
+    of the statistics above its limit, or none because the estimate lies on its range bound
+    (:func:`~railsusp.estimate.identifiability.cramer_rao_pct_range`)."""
     max_st = max_st or {}
     intervals = intervals_of(est)
     details = intervals.details
@@ -305,6 +306,8 @@ def identification_issues(est: dict, max_st: dict[str, float] | None = None) -> 
         )
         if bound > BOUND_LIMIT_PCT:
             reasons.append(f"Cramér-Rao bound {bound:.1f} % of range")
+        elif bound != bound:  # NaN: the estimate lies on its range bound
+            reasons.append("on its range bound, where no Cramér-Rao bound applies")
         out[p] = "; ".join(reasons)
     return out
 

@@ -13,7 +13,11 @@ Processing: Estimation Theory*, 1993, ch. 3). A parameter whose bound exceeds
 optimiser: more or longer recordings, or measured track geometry, are needed.
 
 The bound is local (evaluated at one parameter set) and assumes independent statistics, so
-it is a guide, not a guarantee; sensor noise is not in Σ.
+it is a guide, not a guarantee; sensor noise is not in Σ. It is a bound on unbiased
+estimates inside the range: an estimate on a range bound (within :data:`AT_BOUND_PCT`) is
+where the search stopped, not where the data put it, and the differences there see the
+model on one side only, so no bound is given for it (NaN: "does not apply"), rather than
+a small number that reads as precision the estimate lacks.
 """
 
 from __future__ import annotations
@@ -31,6 +35,16 @@ if TYPE_CHECKING:
 
 #: a parameter whose Cramér-Rao bound exceeds this share of its range is flagged
 BOUND_LIMIT_PCT = 5.0
+#: an estimate this close to a range bound (% of range) is on it: its bound does not apply
+AT_BOUND_PCT = 0.5
+
+
+def on_range_bound(parameters: Sequence[str], x_si: np.ndarray) -> list[bool]:
+    """Per parameter, whether ``x_si`` lies within :data:`AT_BOUND_PCT` of its range's
+    lower or upper bound."""
+    lo, hi = bounds(parameters)
+    u = 100.0 * (np.asarray(x_si, dtype=float) - lo) / (hi - lo)
+    return [bool(v <= AT_BOUND_PCT or v >= 100.0 - AT_BOUND_PCT) for v in u]
 
 
 def fisher_information(
@@ -69,7 +83,8 @@ def cramer_rao_pct_range(
     statistics: Sequence[str],
 ) -> dict[str, float]:
     """Cramér-Rao bound of each key parameter at ``x_si`` (SI), in % of its range; infinite
-    for a parameter (combination) that the statistics do not inform at all."""
+    for a parameter (combination) that the statistics do not inform at all; NaN (does not
+    apply) for one whose value lies on its range bound (module docstring)."""
     info = fisher_information(model, recordings, parameters, x_si, statistics)
     try:
         cov = np.linalg.inv(info)
@@ -78,4 +93,5 @@ def cramer_rao_pct_range(
             raise np.linalg.LinAlgError
     except np.linalg.LinAlgError:
         bound = np.full(len(parameters), np.inf)
+    bound[on_range_bound(parameters, x_si)] = np.nan
     return {p: float(b) for p, b in zip(parameters, bound, strict=True)}

@@ -183,9 +183,7 @@ class ModalResult:
         """Indices of the oscillating modes below ``f_max`` Hz whose kinetic energy is mostly
         (at least ``min_share``) in the car body (an overdamped mode has no frequency to
         compare, nor a decay to fit a damped sinusoid to)."""
-        sel = (
-            (self.frequency_hz <= f_max) & (self.car_body_share >= min_share) & ~self.overdamped
-        )
+        sel = (self.frequency_hz <= f_max) & (self.car_body_share >= min_share) & ~self.overdamped
         return np.flatnonzero(sel)
 
     def car_body_kinds(self, f_max: float = 20.0) -> dict[str, int]:
