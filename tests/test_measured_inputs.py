@@ -16,6 +16,7 @@ from railsusp.en14363 import lowpass
 from railsusp.errors import RailsuspInputError
 from railsusp.measured import RecordingError, read_recording
 from railsusp.measured.channels import channel_map_from
+from railsusp.measured.checks import check_time
 from railsusp.measured.raw import read_raw
 from railsusp.measured.run import read_run
 from test_measured import make_recording
@@ -294,11 +295,25 @@ def test_a_dropout_is_named_a_dropout_not_mixed_rates(tmp_path):
     t = np.concatenate([t[:2000], t[2200:]])  # a second lost at 10 s
     table = {"time_s": t, "Y_w1R_kN": 5.0 + np.sin(t), "Q_w1R_kN": 120.0 + np.cos(t)}
     pd.DataFrame({**table, "speed_kmh": 54.0 + 0 * t}).to_csv(tmp_path / "r.csv", index=False)
-    with pytest.raises(RecordingError) as info:
-        read_run(tmp_path / "r.csv")
-    text = str(info.value)
+    # a recording to estimate from is one stretch: refused, naming the dropout
+    text = " ".join(check_time(t, "time_s", 2))
     assert "200 sample(s) missing (1 such gap(s)): a dropout cannot be interpolated" in text
+    assert "railsusp sections cuts a long run at its dropouts" in text
     assert "mixed sampling rates" not in text
+    # a long run is cut there (stop 61: one dropout made a whole run unusable)
+    run = read_run(tmp_path / "r.csv")
+    assert run.breaks.tolist() == [2000]
+    assert any("1 dropout(s)" in n for n in run.data_notes)
+    # many single lost samples are dropouts too, not two rates (the 1 % limit is gone)
+    keep = np.ones(t.size, bool)
+    keep[5::40] = False  # 2.5 % of the samples lost, one at a time
+    lossy = {k: v[keep] for k, v in table.items()}
+    pd.DataFrame({**lossy, "speed_kmh": 54.0 + 0 * lossy["time_s"]}).to_csv(
+        tmp_path / "many.csv", index=False
+    )
+    text = " ".join(check_time(lossy["time_s"], "time_s", 2))
+    assert "1 sample(s) missing" in text and "mixed" not in text
+    assert read_run(tmp_path / "many.csv").breaks.size == (~keep).sum() + 1  # and the second
 
 
 def test_an_odometer_reset_is_no_unit_error_and_a_capital_kn_gets_its_hint(tmp_path):

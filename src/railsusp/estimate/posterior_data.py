@@ -247,7 +247,14 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
     into sections of the training length; a section of the whole is one section of every
     condition, so the shortest condition's count of sections is used. Returns the matrix
     and, per condition, the sections used and the seconds left out."""
-    by_name = {r.condition.name: r for r in recordings}
+    by_name = {}
+    for r in recordings:
+        if r.condition.name in by_name:  # the later one was taken, the other dropped unsaid
+            raise RailsuspInputError(
+                f"two recordings of condition {r.condition.name!r}; accepted one per "
+                "condition (a long run is one recording: its sections are cut here)"
+            )
+        by_name[r.condition.name] = r
     ignore = ("seed", "duration_s", "n_steps", "lead_in_m", "track_geometry",
               "track_offset_m", "track_accuracy_mm")  # fmt: skip
     per_condition, info = [], {}

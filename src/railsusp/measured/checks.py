@@ -125,10 +125,31 @@ def check_clipped(x: np.ndarray, channel: str, unit: str = "") -> list[str]:
     return out
 
 
+def dropout_steps(t: np.ndarray) -> np.ndarray | None:
+    """Indices i of the intervals t[i] -> t[i + 1] that lost samples (a logger's dropout):
+    whole multiples (two or more) of the median interval within the jitter tolerance, on a
+    time base whose other intervals are the median one. None where the time base is not
+    one rate with dropouts (another interval, or a shorter one: two rates, or jitter)."""
+    d = np.diff(t)
+    med = float(np.median(d))
+    ratio = d / med
+    steps = np.rint(ratio)
+    whole = np.abs(ratio - steps) <= JITTER_TOLERANCE * steps
+    if not np.all(whole):
+        return None
+    return np.flatnonzero(steps >= 2)
+
+
 def check_time(
-    t: np.ndarray, channel: str, first_row: int | np.ndarray, min_samples: int = 10
+    t: np.ndarray,
+    channel: str,
+    first_row: int | np.ndarray,
+    min_samples: int = 10,
+    dropouts: bool = False,
 ) -> list[str]:
-    """Time base of a channel: enough samples, finite, strictly increasing, one rate."""
+    """Time base of a channel: enough samples, finite, strictly increasing, one rate. With
+    ``dropouts``, intervals that lost whole samples are accepted (a long run is cut at
+    them: :func:`dropout_steps`); otherwise they are refused, however many."""
     if t.size < min_samples:
         return [f"channel {channel!r}: {t.size} sample(s); at least {min_samples} are needed"]
     bad_t = ~np.isfinite(t)
@@ -148,16 +169,18 @@ def check_time(
     if not off.any():
         return []
     s, e = runs(off)[0]
-    long = d > 1.5 * med
-    if long.any() and not (d < med / 1.5).any() and long.sum() <= 0.01 * d.size:
-        # a few long intervals at one rate: samples lost (a logger's dropout), not two rates
-        i = int(np.flatnonzero(long)[0])
-        lost = round(float(d[i] / med)) - 1
+    lost = dropout_steps(t)
+    if lost is not None and lost.size:
+        if dropouts:
+            return []
+        # intervals of whole samples lost at one rate (a logger's dropout), not two rates
+        i = int(lost[0])
+        n = round(float(d[i] / med)) - 1
         return [
             f"channel {channel!r}, {rows(i, i + 1, first_row)}: {d[i]:.4g} s between two "
-            f"samples at {1.0 / med:.4g} Hz, {lost} sample(s) missing ({int(long.sum())} such "
-            "gap(s)): a dropout cannot be interpolated; cut the recording at it (railsusp "
-            "sections --table) or record without it"
+            f"samples at {1.0 / med:.4g} Hz, {n} sample(s) missing ({lost.size} such "
+            "gap(s)): a dropout cannot be interpolated; railsusp sections cuts a long run "
+            "at its dropouts, or record without them"
         ]
     if d.max() / d.min() > 1.5:
         fast, slow = 1.0 / d.min(), 1.0 / d.max()

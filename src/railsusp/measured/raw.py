@@ -73,16 +73,13 @@ def _read_mdf(path: Path) -> dict[str, RawChannel]:
             last = sig
             if sig.samples.dtype.kind not in "fiub" or sig.samples.ndim != 1:
                 continue  # text, byte-array and composed channels carry no measured value
-            if sig.name in out:  # refused where the channel map uses it (read_run)
-                out[sig.name].groups += 1
-                continue
             master, scale = _master(mdf, sig)
             values = np.asarray(sig.samples, dtype=float)
             if sig.invalidation_bits is not None:  # samples the logger marked invalid
                 invalid = np.asarray(sig.invalidation_bits, dtype=bool)
                 if invalid.any():
                     values = np.where(invalid, np.nan, values)  # then checked as gaps are
-            out[sig.name] = RawChannel(
+            part = RawChannel(
                 sig.name,
                 sig.unit or None,
                 np.asarray(sig.timestamps, dtype=float) * scale,
@@ -90,6 +87,10 @@ def _read_mdf(path: Path) -> dict[str, RawChannel]:
                 first_row=0,
                 master=master,
             )
+            if sig.name in out:
+                out[sig.name] = _continued(out[sig.name], part)
+                continue
+            out[sig.name] = part
     except RailsuspInputError:
         raise
     except Exception as exc:
@@ -107,6 +108,33 @@ def _read_mdf(path: Path) -> dict[str, RawChannel]:
     if not out:
         raise RailsuspInputError(f"recording {path}: no numeric channel in the file")
     return out
+
+
+def _continued(before: RawChannel, part: RawChannel) -> RawChannel:
+    """A channel name met again in another data group: a logger that went on recording in
+    a new group (the part starts after the other ends, or ends before it starts, with the
+    same unit and master) is one channel, joined in time (the join checked later like any
+    dropout); otherwise the two cannot be told apart, and the count of groups makes
+    :func:`~railsusp.measured.run.read_run` refuse the channel where the map uses it."""
+    same = part.unit == before.unit and part.master == before.master and part.time.size
+    if same and before.time.size and before.groups == 1:
+        if part.time[0] > before.time[-1]:
+            first, second = before, part
+        elif part.time[-1] < before.time[0]:
+            first, second = part, before
+        else:
+            first = second = None
+        if first is not None and second is not None:
+            return RawChannel(
+                before.name,
+                before.unit,
+                np.concatenate([first.time, second.time]),
+                np.concatenate([first.values, second.values]),
+                first_row=0,
+                master=before.master,
+            )
+    before.groups += 1
+    return before
 
 
 #: what to do with an MDF file whose blocks do not hold together (a truncated copy, an

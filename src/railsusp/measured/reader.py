@@ -130,6 +130,13 @@ def read_recording(
             continue
         if base[2:] in half and base[:2] in ("Y_", "Q_"):
             continue
+        same = [o for o in cols if o != c and split_header(o)[0] == base]
+        if same and base[:2] in ("Y_", "Q_") and base[2:] in WHEEL_NAMES:
+            problems.append(
+                f"column {c!r}: the force {base} is given twice (also as {same[0]!r}); "
+                "accepted one column per force"
+            )
+            continue
         hint = did_you_mean(c, _DOCUMENTED)
         if hint or base.startswith(("Y_", "Q_")):
             problems.append(f"column {c!r} not recognised{hint}")
@@ -261,7 +268,19 @@ def _raw(table_path: Path):
         raise RailsuspInputError(
             f"recording {table_path}: distance_m without a speed_kmh column; give time_s"
         )
-    return _on_time(raw, speed.time, speed.values / 3.6)
+    v = speed.values
+    still = ~(v > 0)  # NaN too
+    if still.any():
+        i = int(np.flatnonzero(still)[0])
+        from railsusp.measured.checks import rows, runs
+
+        a, b = runs(still)[0]
+        raise RailsuspInputError(
+            f"recording {table_path}: column 'speed_kmh', {rows(a, b - 1, speed.first_row)}: "
+            f"speed {v[i]:g} km/h; a table along distance_m needs the speed positive in "
+            "every row (a stop has no distance to sample it by: give time_s)"
+        )
+    return _on_time(raw, speed.time, v / 3.6)
 
 
 def _on_time(raw: dict, distance: np.ndarray, speed: np.ndarray) -> dict:
@@ -418,8 +437,22 @@ def read_field(
     read as recordings of ``wagon`` (default: the packaged loaded C80): their wheel loads
     checked against its static wheel load (or ``wheel_load_N``; a tare C80's 24.5 kN was
     refused against the loaded one's) and their measured track's lead-in against its axle
-    spread (:func:`read_recording`)."""
-    return [read_recording(p, wheel_load_N=wheel_load_N, wagon=wagon) for p in read_index(folder)]
+    spread (:func:`read_recording`). Two recordings of one condition name are refused: the
+    estimate, the validation and ``align-track`` tell recordings apart by it (two
+    ``straight`` files got each other's track offset and one validation figure)."""
+    paths = read_index(folder)
+    recordings = [read_recording(p, wheel_load_N=wheel_load_N, wagon=wagon) for p in paths]
+    seen: dict[str, Path] = {}
+    for path, rec in zip(paths, recordings, strict=True):
+        name = rec.condition.name
+        if name in seen:
+            raise RailsuspInputError(
+                f"{Path(folder) / 'index.json'}: {seen[name].name} and {path.name} are both "
+                f"recordings of condition {name!r}; accepted one condition name per recording "
+                "(give each its own: condition_name in the sidecar, or the condition's name)"
+            )
+        seen[name] = path
+    return recordings
 
 
 def conditions_from(

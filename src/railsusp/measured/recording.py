@@ -82,9 +82,11 @@ class Recording:
             table_path = stem.with_suffix(".csv")
             from railsusp.store import atomic_write_bytes
 
-            atomic_write_bytes(
-                table_path, self.to_dataframe().to_csv(index=False, float_format="%.6g").encode()
-            )
+            table = self.to_dataframe()
+            # the forces to 6 significant digits; the time in full (at 6, a 2400 Hz
+            # section's 100.0004 s read back as 100, the same time twice)
+            table["time_s"] = np.char.mod("%.12g", table["time_s"].to_numpy())
+            atomic_write_bytes(table_path, table.to_csv(index=False, float_format="%.6g").encode())
         else:
             raise ValueError(f"format {fmt!r}: accepted csv or parquet")
         write_json(stem.with_suffix(".json"), meta)

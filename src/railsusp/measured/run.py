@@ -20,6 +20,7 @@ from railsusp.measured.checks import (
     check_flat,
     check_forces,
     check_time,
+    dropout_steps,
 )
 from railsusp.measured.raw import RawChannel, read_raw
 from railsusp.measured.recording import RecordingError
@@ -47,6 +48,17 @@ class MeasuredRun:
     #: those of the notes that say what the data lacked (NaN gaps interpolated), not how
     #: its channels were read (a slower channel interpolated onto the forces' rate)
     data_notes: list[str] = field(default_factory=list)
+    #: per sample, True where the wagon runs against the run's sense of travel (wheelset 1
+    #: trailing, left and right swapped against the model's); None: never
+    backwards: np.ndarray | None = None
+    #: sample indices i where the run breaks between samples i - 1 and i: a dropout (samples
+    #: lost) or a jump of the position channel (a chainage jump, an odometer's reset); no
+    #: section spans one
+    breaks: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    #: per sample, True inside a jump of the distance channel (between its samples before
+    #: and after the jump: a distance interpolated across it, no place on the line); None:
+    #: no jump
+    jumping: np.ndarray | None = None
 
     @property
     def rate_hz(self) -> float:
@@ -92,8 +104,10 @@ def read_run(
             )
         if c in raw and raw[c].groups > 1:
             problems.append(
-                f"channel {c!r} appears in {raw[c].groups} groups of the file: which one is "
-                "meant cannot be told; export the run with distinct channel names"
+                f"channel {c!r} appears in {raw[c].groups} groups of the file at the same "
+                "time (or in other units): which one is meant cannot be told; export the run "
+                "with distinct channel names (groups that follow each other in time are "
+                "joined)"
             )
     missing = [c for c in cmap.used() if c not in raw]
     for c in missing:
@@ -133,7 +147,7 @@ def read_run(
         except RailsuspInputError as exc:
             problems.append(str(exc))
             continue
-        time_problems = check_time(ch.time, name, ch.first_row)
+        time_problems = check_time(ch.time, name, ch.first_row, dropouts=True)
         problems += time_problems
         values, finite_problems, finite_notes = check_finite(
             ch.values, name, ch.first_row, gap_limit
@@ -154,7 +168,7 @@ def read_run(
     base = max(force_names, key=lambda c: si[c].rate_hz)
     t = si[base].time
     rates = {c: si[c].rate_hz for c in quantity}
-    if rates[base] < min_rate_hz:
+    if rates[base] < min_rate_hz * (1.0 - 1e-6):  # 1000 Hz stated as 999.9999...
         problems.append(
             f"channel {base!r}: forces sampled at {rates[base]:.4g} Hz; accepted at least "
             f"{min_rate_hz:g} Hz, the rate the sections are resampled to (sections --rate, "
@@ -173,6 +187,7 @@ def read_run(
                 f"channel {c!r}: covers {ch.time[0]:.3f}-{ch.time[-1]:.3f} s, not the "
                 f"{t[0]:.3f}-{t[-1]:.3f} s of the forces"
             )
+    breaks = _dropout_breaks(si, base, quantity, problems, notes, data_notes)
     if problems:
         raise RecordingError(path, problems)
 
@@ -186,6 +201,30 @@ def read_run(
     Y = {w: on_base(c["Y"]) for w, c in cmap.wheels.items()}
     Q = {w: on_base(c["Q"]) for w, c in cmap.wheels.items()}
     sig = {k: on_base(c) for k, c in cmap.signals.items()}
+    speed_channel = si.get(cmap.signals.get("speed", ""))
+    jumps = np.zeros(0, dtype=np.int64)
+    jumping = np.zeros(0, dtype=bool)
+    if "position" in cmap.signals:
+        pos = si[cmap.signals["position"]]
+        raw_speed = (
+            np.interp(pos.time, speed_channel.time, speed_channel.values)
+            if speed_channel is not None
+            else None
+        )
+        jump = _jump_steps(pos.values, pos.time, raw_speed)
+        jumping = np.zeros(t.size, dtype=bool)
+        if jump.size:
+            # the base samples between the distance's samples before and after a jump have
+            # no place on the line: cut on either side of them
+            first = np.searchsorted(t, pos.time[jump], "right")
+            last = np.searchsorted(t, pos.time[jump + 1], "left")
+            for a, b in zip(first, last, strict=True):
+                jumping[a:b] = True
+            jumps = np.unique(np.concatenate([first, last]))
+            notes.append(
+                f"channel {pos.name!r}: {jump.size} jump(s) of the distance (a chainage jump "
+                "or an odometer's reset); sections are cut there"
+            )
     if "speed" in sig:
         speed = sig["speed"]
         position = sig.get("position")
@@ -195,11 +234,18 @@ def read_run(
             )
     else:
         position = sig["position"]
-        speed = _smoothed_gradient(position, t)
+        steps = np.diff(pos.values)
+        # the path without its jumps: a jump's step taken as its neighbours'
+        steps[jump] = 0.5 * (
+            steps[np.maximum(jump - 1, 0)] + steps[np.minimum(jump + 1, steps.size - 1)]
+        )
+        travelled = np.concatenate([[pos.values[0]], pos.values[0] + np.cumsum(steps)])
+        speed = _smoothed_gradient(np.interp(t, pos.time, travelled), t)
+    speed_name = cmap.signals.get("speed", cmap.signals.get("position"))
     running = np.abs(speed) >= 0.5  # standing stretches are cut out as "standing" later
     if np.mean(running) < MIN_RUNNING_SHARE:
         problems.append(
-            f"channel {cmap.signals.get('speed', cmap.signals.get('position'))!r}: the speed "
+            f"channel {speed_name!r}: the speed "
             f"is above 1.8 km/h in {100.0 * np.mean(running):.3g} % of the samples; the wagon "
             "does not run"
         )
@@ -212,11 +258,22 @@ def read_run(
             "wheelset 1 leading (speed positive)"
         )
     elif np.max(np.abs(speed)) > MAX_SPEED_KMH / 3.6:
+        derived = "" if "speed" in sig else f", derived from the distance in {pos.unit}"
         problems.append(
-            f"channel {cmap.signals.get('speed')!r}: speed up to "
-            f"{np.max(np.abs(speed)) * 3.6:.4g} km/h "
-            f"(read as {si.get(cmap.signals.get('speed', ''), si[base]).unit}), beyond a "
+            f"channel {speed_name!r}: speed up to "
+            f"{np.max(np.abs(speed)) * 3.6:.4g} km/h (read as "
+            f"{si[speed_name].unit}{derived}), beyond a "
             f"working condition's {MAX_SPEED_KMH:g} km/h: a unit error?"
+        )
+    # the run's sense of travel: forward for a speed channel (a run mostly backwards is
+    # refused above), the distance's usual sense for a distance alone (km posts may count
+    # down); the stretches against it are left out when the run is cut
+    sense = 1.0 if "speed" in sig or np.nanmedian(speed[running]) >= 0.0 else -1.0
+    backwards = running & (sense * speed < 0.0)
+    if backwards.any():
+        notes.append(
+            f"channel {speed_name!r}: {100.0 * backwards.mean():.3g} % of the samples run "
+            "backwards (wheelset 1 trailing); those stretches are left out"
         )
     problems += _plausible_track(sig, cmap.signals, speed, t)
     if wheel_load_N is None:
@@ -248,6 +305,9 @@ def read_run(
         rates,
         notes,
         data_notes,
+        backwards if backwards.any() else None,
+        _inner(np.union1d(breaks, jumps), t.size),
+        jumping if jumping.any() else None,
     )
 
 
@@ -321,6 +381,62 @@ def _unit(ch: RawChannel, cmap: ChannelMap, problems: list[str], quantity: str) 
             f"channel {ch.name!r}: the file states unit {ch.unit!r}, the channel map {mapped!r}"
         )
     return ch.unit or mapped
+
+
+def _dropout_breaks(
+    si: dict[str, RawChannel],
+    base: str,
+    quantity: dict[str, str],
+    problems: list[str],
+    notes: list[str],
+    data_notes: list[str],
+) -> np.ndarray:
+    """The base samples after which the run lost samples (a logger's dropout): where the run
+    is cut. Another channel's dropout must fall in one of the base's (one logger), else its
+    values there would be interpolated across the dropout: a problem naming it."""
+    t = si[base].time
+    lost = dropout_steps(t)
+    breaks = (lost + 1) if lost is not None else np.zeros(0, dtype=np.int64)
+    for c in quantity:
+        ch = si[c]
+        gaps = dropout_steps(ch.time)
+        if c == base or gaps is None or not gaps.size:
+            continue
+        step = 1.0 / ch.rate_hz
+        for i in gaps:
+            inside = np.count_nonzero((t > ch.time[i] + step) & (t < ch.time[i + 1] - step))
+            if inside:
+                problems.append(
+                    f"channel {c!r}: samples lost between {ch.time[i]:.3f} and "
+                    f"{ch.time[i + 1]:.3f} s where the forces of {base!r} have {inside}; "
+                    "accepted dropouts of all channels together (one logger)"
+                )
+                break
+    if breaks.size:
+        note = f"channel {base!r}: {breaks.size} dropout(s) (samples lost); sections are cut there"
+        notes.append(note)
+        data_notes.append(note)
+    return breaks.astype(np.int64)
+
+
+def _inner(idx: np.ndarray, n: int) -> np.ndarray:
+    """The break indices that split a run of ``n`` samples (1 to n - 1), as int64."""
+    idx = np.asarray(idx, dtype=np.int64)
+    return idx[(idx > 0) & (idx < n)]
+
+
+def _jump_steps(x: np.ndarray, t: np.ndarray, speed: np.ndarray | None) -> np.ndarray:
+    """Indices i of the distance channel's steps x[i] -> x[i + 1] that are no travel: a
+    chainage jump at a km post, an odometer's reset. With the speed, a step more than
+    :data:`JUMP_FACTOR` times what the speed covers in it (1 m at the least); without it,
+    more than that times the median step or what the fastest working condition covers."""
+    steps = np.abs(np.diff(x))
+    dt = np.diff(t)
+    if speed is not None:
+        reach = np.abs(0.5 * (speed[1:] + speed[:-1])) * dt
+    else:
+        reach = np.maximum(np.median(steps), 1.2 * MAX_SPEED_KMH / 3.6 * dt / JUMP_FACTOR)
+    return np.flatnonzero(steps > JUMP_FACTOR * reach + 1.0)
 
 
 def _smoothed_gradient(x: np.ndarray, t: np.ndarray, window_s: float = 1.0) -> np.ndarray:

@@ -19,6 +19,7 @@ import pandas as pd
 
 from railsusp.conditions import WorkingCondition, make_condition
 from railsusp.errors import RailsuspInputError
+from railsusp.measured.checks import runs
 from railsusp.measured.line import (  # noqa: F401  (the sources of a cut, with it)
     geometry_from_line,
     read_line,
@@ -120,13 +121,17 @@ def cut_sections(
     rules = rules or SectionRules()
     geo = _geometry(run, line, rules)
     if table is not None:
-        spans = []
+        spans, names = [], []
         for r in table.itertuples(index=False):
-            idx = np.flatnonzero((run.position >= r.start_m) & (run.position < r.end_m))
-            spans.append((int(idx[0]), int(idx[-1]) + 1) if idx.size else (0, 0))
-        names = [str(n) for n in table["name"]] if "name" in table else None
+            inside = (run.position >= r.start_m) & (run.position < r.end_m)
+            found = runs(inside) or [(0, 0)]  # a run that passes the range twice: twice
+            spans += found
+            names += [str(getattr(r, "name", ""))] * len(found)
+        if "name" not in table:
+            names = None
     else:
         spans, names = _label_runs(geo, rules), None
+    spans, names = _split_at(spans, names, _breaks(run))
     out: list[Section] = []
     for k, (a, b) in enumerate(spans):
         label = names[k] if names else None
@@ -158,6 +163,29 @@ def cut_sections(
     return out
 
 
+def _breaks(run: MeasuredRun) -> np.ndarray:
+    """Where no section may go on: the run's dropouts and distance jumps, and the changes
+    between running forward and backwards."""
+    out = [run.breaks]
+    if run.backwards is not None:
+        out.append(np.flatnonzero(np.diff(run.backwards.astype(np.int8))) + 1)
+    return np.unique(np.concatenate(out)).astype(np.int64)
+
+
+def _split_at(
+    spans: list[tuple[int, int]], names: list[str] | None, breaks: np.ndarray
+) -> tuple[list[tuple[int, int]], list[str] | None]:
+    """Each span cut at the break indices inside it (the names repeated)."""
+    out, out_names = [], [] if names is not None else None
+    for k, (a, b) in enumerate(spans):
+        cuts = breaks[(breaks > a) & (breaks < b)].tolist()
+        for lo, hi in zip([a, *cuts], [*cuts, b], strict=True):
+            out.append((lo, hi))
+            if out_names is not None:
+                out_names.append(names[k])  # type: ignore[index]
+    return out, out_names
+
+
 def _geometry(run: MeasuredRun, line: pd.DataFrame | None, rules: SectionRules) -> dict:
     """Smoothed curvature (1/m), cant (m), grade (1) per sample."""
     if line is not None:
@@ -176,29 +204,77 @@ def _geometry(run: MeasuredRun, line: pd.DataFrame | None, rules: SectionRules) 
         key: np.convolve(np.pad(v, (k // 2, k - 1 - k // 2), mode="edge"), kernel, "valid")
         for key, v in geo.items()
     }
-    ds = np.maximum(np.abs(np.gradient(run.position)), 1e-9)
+    # the rate of change between the means three smoothing lengths apart: the gradient of
+    # one mean takes two raw samples' difference and reads their noise as a spiral
+    # (curvature noise of 1 % made a steady R600 one long transition); a transition is
+    # widened by up to that length's half on either side
+    idx = np.arange(run.position.size)
+    ahead = np.minimum(idx + 3 * k // 2 + 1, idx.size - 1)
+    behind = np.maximum(idx - 3 * k // 2 - 1, 0)
+    span = np.maximum(np.abs(run.position[ahead] - run.position[behind]), 1e-9)
     with np.errstate(invalid="ignore"):
-        out["transition"] = (np.abs(np.gradient(out["curvature"])) / ds > rules.spiral_rate) | (
-            np.abs(np.gradient(out["grade"])) / ds > rules.grade_rate
-        )
+        out["transition"] = (
+            np.abs(out["curvature"][ahead] - out["curvature"][behind]) / span > rules.spiral_rate
+        ) | (np.abs(out["grade"][ahead] - out["grade"][behind]) / span > rules.grade_rate)
+    return out
+
+
+#: a curve's radius within this share of a band's edge (a grade within this share of its
+#: band's width of the band's edge) keeps the band of the stretch before or after it
+#: rather than flip with the channel's noise (the edges sit at common design radii)
+BAND_HYSTERESIS = 0.05
+
+
+def _radius_band(curv: np.ndarray, rules: SectionRules, scale: float = 1.0) -> np.ndarray:
+    """Per sample, the radius band of curvature ``curv`` x ``scale`` (-1: tangent)."""
+    c = np.abs(curv) * scale
+    with np.errstate(divide="ignore", invalid="ignore"):
+        radius = np.where(c > 1.0 / rules.tangent_radius_m, 1.0 / c, np.inf)
+    return np.where(np.isfinite(radius), np.digitize(radius, rules.radius_edges_m), -1)
+
+
+def _steady(low: np.ndarray, high: np.ndarray, middle: np.ndarray) -> np.ndarray:
+    """Bands with hysteresis: a sample whose band is the same for its value moved either
+    way (``low``, ``high``) has it; a stretch of samples near an edge takes the band of the
+    stretch before it where that band is one of theirs, else the band after it, else, as
+    one, the most common band of its own ``middle`` values."""
+    out = np.where(low == high, low, -9).astype(np.int64)
+    n = out.size
+    for a, b in runs(low != high):
+        candidates = set(low[a:b].tolist()) | set(high[a:b].tolist())
+        if a > 0 and int(out[a - 1]) in candidates:
+            out[a:b] = out[a - 1]
+        elif b < n and low[b] == high[b] and int(low[b]) in candidates:
+            out[a:b] = low[b]
+        else:
+            values, counts = np.unique(middle[a:b], return_counts=True)
+            out[a:b] = values[np.argmax(counts)]
     return out
 
 
 def _label_runs(geo: dict, rules: SectionRules) -> list[tuple[int, int]]:
-    """Runs of samples on one kind of track (radius band, direction, grade band)."""
+    """Runs of samples on one kind of track (radius band, direction of a curve, grade band),
+    each band with hysteresis (:func:`_steady`): noise on a steady curve or grade near a
+    band's edge does not cut it into pieces too short to keep."""
     curv = geo["curvature"]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        radius = np.where(np.abs(curv) > 1.0 / rules.tangent_radius_m, 1 / np.abs(curv), np.inf)
-    band = np.digitize(radius, rules.radius_edges_m)
-    band = np.where(np.isfinite(radius), band, -1)
+    h = BAND_HYSTERESIS
+    band = _steady(
+        _radius_band(curv, rules, 1.0 + h),
+        _radius_band(curv, rules, 1.0 - h),
+        _radius_band(curv, rules),
+    )
+    g = geo["grade"] * 1e3 / rules.grade_band_permille
+    with np.errstate(invalid="ignore"):
+        grade_band = _steady(
+            np.nan_to_num(np.round(g - h)), np.nan_to_num(np.round(g + h)),
+            np.nan_to_num(np.round(g)),
+        )  # fmt: skip
     band = np.where(np.isnan(curv), -2, band)  # outside the line description
     band = np.where(geo["transition"] & (band != -2), -3, band)  # a transition: own label
     label = np.where(
         band == -3,
         -3,
-        band * 4
-        + np.where(curv < 0, 1, 0)
-        + 1000 * np.round(geo["grade"] * 1e3 / rules.grade_band_permille),
+        band * 4 + np.where((band >= 0) & (curv < 0), 1, 0) + 1000 * grade_band,
     )
     label = np.where(band == -2, -2, label)  # NaN outside the line: one label, one run
     edges = np.flatnonzero(np.diff(label)) + 1
@@ -327,7 +403,13 @@ def _section(
         spread,
     )
     seconds = float(run.time[j - 1] - run.time[i])
-    if np.mean(geo["transition"][sl]) > 0.5:
+    if run.jumping is not None and np.mean(run.jumping[sl]) > 0.5:
+        piece = ("jump", "a jump of the distance channel (a chainage jump or an odometer's "
+                 "reset): no place on the line")  # fmt: skip
+    elif run.backwards is not None and np.mean(run.backwards[sl]) > 0.5:
+        piece = ("backwards", "running backwards (wheelset 1 trailing, left and right "
+                 "swapped against the model's)")  # fmt: skip
+    elif np.mean(geo["transition"][sl]) > 0.5:
         piece = ("transition", "transition (curvature or grade changing)")
     elif radius is not None and radius < MIN_RADIUS_M:
         piece = ("radius", f"radius {radius:.3g} m, below the {MIN_RADIUS_M:g} m a working "
