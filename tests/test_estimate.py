@@ -122,7 +122,11 @@ def test_same_seed_same_estimate_and_seed_spread():
     np.testing.assert_array_equal(a.pareto_x, b.pareto_x)
     c = estimate_with_seeds(AnalyticForces(), [rec], PARAMS, cfg, n_seeds=2)
     assert set(c.seeds_spread) == set(PARAMS)
+    assert "seed_spread_pct_range" in c.table()
     np.testing.assert_array_equal(c.pareto_x, a.pareto_x)
+    # one seed has no spread: no column of zeros that reads as a reproducible search
+    one = estimate_with_seeds(AnalyticForces(), [rec], PARAMS, cfg, n_seeds=1)
+    assert one.seeds_spread == {} and "seed_spread_pct_range" not in one.table()
 
 
 def test_choice_rule_and_saved_outputs(tmp_path):

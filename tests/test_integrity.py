@@ -174,3 +174,22 @@ def test_json_nested_deeper_than_python_can_parse_is_unreadable_not_an_error(tmp
     path = tmp_path / "deep.json"
     path.write_text("[" * 100_000 + "]" * 100_000)
     assert not file_readable(path)
+
+
+def test_a_modified_source_tree_is_recorded_and_the_report_says_which_code_made_each_stage(
+    monkeypatch,
+):
+    """Stop 61's report audit: provenance held ``git rev-parse HEAD`` alone, so a run from
+    modified code showed the commit's SHA, and a run whose stages two commits made showed
+    one."""
+    from railsusp import store
+    from railsusp.report_html import _made_by
+
+    monkeypatch.setattr(store, "_git", lambda *a: " M src/railsusp/x.py\n")
+    assert store.git_dirty() is True
+    monkeypatch.setattr(store, "_git", lambda *a: "")
+    assert store.git_dirty() is False
+    monkeypatch.setattr(store, "_git", lambda *a: None)
+    assert store.git_dirty() is None and store.git_sha() is None
+    made = {"railsusp": "1.0", "git_sha": "0123456789abcdef", "git_dirty": True}
+    assert _made_by(made) == "1.0 0123456+modified" and _made_by(None) == ""

@@ -68,6 +68,12 @@ def test_every_stage_runs_and_writes_its_outputs(tiny):
         "report.md",
     ):
         assert (out / rel).exists(), rel
+    # each stage records the code that made it (stop 61's audit: one SHA for stages two
+    # commits made, no sign of a modified tree, torch and pymoo unlisted)
+    from railsusp.store import code_identity
+
+    assert all(state["stages"][s]["made_by"] == code_identity() for s in STAGES if s != "report")
+    assert {"torch", "pymoo", "SALib", "git_dirty"} <= set(state["provenance"])
 
 
 def test_surrogates_train_on_their_own_campaign_of_the_key_parameters(tiny, tmp_path):
@@ -113,6 +119,7 @@ def test_report_is_self_contained(tiny):
     for heading in ("Sobol", "Surrogates", "NSGA-II", "Validation", "recovery", "Provenance"):
         assert heading in page
     assert "figure missing" not in page
+    assert "made by" in page and "were made by different railsusp code" not in page
 
 
 def test_unchanged_stages_are_skipped_and_from_restarts(tiny):

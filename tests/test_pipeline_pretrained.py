@@ -181,7 +181,8 @@ def test_the_answer_says_why_the_set_s_other_parameters_are_not_estimated(pretra
     table = summary.estimate_table(out)
     note = "not an input of the force model (varied in its training)"
     assert table.loc["X17"].note == note and table.loc["X15"].note == note
-    assert table.loc["X17"].verdict.startswith(summary.NOT_ESTIMATED + ": varied over")
+    assert table.loc["X17"].verdict.startswith(summary.NOT_ESTIMATED + ": held at")
+    assert "(varied over" in table.loc["X17"].verdict
 
 
 def test_a_time_aligned_run_estimates_again_for_the_geometry_bias(tmp_path):

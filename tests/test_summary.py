@@ -103,7 +103,9 @@ def test_unrefined_estimate_interval_is_the_pareto_range_and_never_identifies(tm
     assert "not a confidence interval" in t.loc["X13"].interval
     assert math.isnan(t.loc["X13"].standard_error)
     for p in ("X13", "X17"):  # X17's Pareto set 1.0-1.2 is 4 % of its range wide
-        assert t.loc[p].verdict == summary.NOT_IDENTIFIABLE
+        # not identified by this route, not "not identifiable from these recordings":
+        # refined, the same recordings identify them (stop 61's report audit)
+        assert t.loc[p].verdict == summary.NOT_IDENTIFIED
         assert t.loc[p].note.startswith("no confidence interval")
 
 
@@ -225,3 +227,12 @@ def test_held_parameters_are_listed_with_the_range_the_intervals_assumed(tmp_pat
         "not estimated: held at 10.0 MN/m, in the intervals anywhere in 5.00-15.0 MN/m "
         "(Table 2 range)"
     )
+
+
+def test_an_estimate_on_the_search_range_bound_says_so(tmp_path):
+    """Stop 61's report audit: X14 = 15.0 (+49.9 %) and X19 at -50.0 %, the Table 2
+    limits, read as measured changes. On the bound the note says the search stopped there."""
+    run = make_run(tmp_path, {"X13": 21.0, "X17": 1.1}, None)  # X13's range is 7-21 MN/m
+    t = summary.estimate_table(run)
+    assert "on the bound of the search range (Table 2)" in t.loc["X13"].note
+    assert "search range" not in t.loc["X17"].note

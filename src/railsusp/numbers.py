@@ -28,4 +28,8 @@ def sig3(v: float) -> str:
     if not 1e-4 <= abs(v) < 1e6:
         return f"{v:.2e}"
     digits = max(0, 2 - math.floor(math.log10(abs(v))))
-    return f"{round(v, digits):.{digits}f}"
+    rounded = round(v, digits)
+    if rounded != 0 and math.floor(math.log10(abs(rounded))) > math.floor(math.log10(abs(v))):
+        digits = max(0, digits - 1)  # 9.9994 rounds to 10.0, not "10.00"
+        rounded = round(v, digits)
+    return f"{rounded:.{digits}f}"

@@ -35,7 +35,7 @@ from railsusp.pipeline_state import (
     surrogate_campaign_dir,
 )
 from railsusp.run_lock import run_lock
-from railsusp.store import content_hash, provenance, write_json
+from railsusp.store import code_identity, content_hash, provenance, write_json
 from railsusp.summary import read_tolerances
 
 #: stage finishes with their elapsed time (info) and starts (debug), for the command line
@@ -173,6 +173,7 @@ def _run_stages(
                 "info": info,
                 "seconds": time.perf_counter() - t0,
                 "finished": provenance()["utc"],
+                "made_by": code_identity(),  # stages of one run may come from two commits
                 "files": file_sizes(stage_files(config, out, stage), out),
             }
             write_json(state_path, state)

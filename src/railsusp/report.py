@@ -208,7 +208,11 @@ def plot_pareto(result, path: str | Path):
     fig, (ax, bx) = plt.subplots(
         1, 2, figsize=(12, 5), constrained_layout=True, gridspec_kw={"width_ratios": [1, 1.2]}
     )
-    ax.scatter(100 * f[:, 0], 100 * f[:, 1], s=18, label="Pareto front")
+    # "relative": errors as fractions, shown in %; "noise": in predictive standard
+    # deviations of the statistics GPs, shown as they are
+    noise = getattr(result.config, "weighting", "relative") == "noise"
+    scale, unit = (1.0, "predictive s.d.") if noise else (100.0, "%")
+    ax.scatter(scale * f[:, 0], scale * f[:, 1], s=18, label="Pareto front")
     c = result.chosen
     star = (
         f"NSGA-II's choice (the refinement started from {result.refinement.start_origin})"
@@ -223,9 +227,9 @@ def plot_pareto(result, path: str | Path):
         if result.expected_polish is not None
         else "NSGA-II's choice = estimate"
     )
-    ax.scatter(100 * f[c, 0], 100 * f[c, 1], s=80, marker="*", color="C3", label=star)
-    ax.set_xlabel("objective 1: lateral force error (%)")
-    ax.set_ylabel("objective 2: vertical force error (%)")
+    ax.scatter(scale * f[c, 0], scale * f[c, 1], s=80, marker="*", color="C3", label=star)
+    ax.set_xlabel(f"objective 1: lateral force error ({unit})")
+    ax.set_ylabel(f"objective 2: vertical force error ({unit})")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     ax.set_title(

@@ -8,7 +8,7 @@ from pathlib import Path
 import pandas as pd
 
 from railsusp.estimate.refine import CHOICE
-from railsusp.report_doc import Doc, fraction_errors_to_pct
+from railsusp.report_doc import Doc, fraction_errors_to_pct, header
 from railsusp.store import read_json
 
 
@@ -18,10 +18,18 @@ def validation_section(doc: Doc, val: Path) -> None:
         return
     doc.h("Validation before and after calibration (study Tables 8/9, Figures 12/13)")
     doc.p(
-        "Errors in % of the measured value; for the statistic 'aligned', the RMS of the "
-        "sample-by-sample difference in % of the measured series' standard deviation."
+        "Errors in % of the measured value. The kN columns hold the statistic itself, of "
+        "|Y| for the lateral force and of Q for the vertical (a record statistic of the "
+        "lateral force is of its magnitude); for the statistic 'aligned' they hold the "
+        "measured series' standard deviation and the RMS of the sample-by-sample "
+        "difference from it, the error being that RMS in % of the standard deviation."
     )
-    doc.table(fraction_errors_to_pct(pd.read_csv(val / "validation.csv")))
+    table = pd.read_csv(val / "validation.csv")
+    table["statistic"] = [
+        _statistic_label(str(st), str(force))
+        for st, force in zip(table["statistic"], table["force"], strict=True)
+    ]
+    doc.table(fraction_errors_to_pct(table))
     checked = read_json(val / "validation.json")
     if checked.get("expected_draws"):
         doc.p(
@@ -41,6 +49,13 @@ def validation_section(doc: Doc, val: Path) -> None:
     if (val / "recovery.csv").exists():
         doc.h("Parameter recovery against the hidden truth", 3)
         doc.table(pd.read_csv(val / "recovery.csv"))
+
+
+def _statistic_label(statistic: str, force: str) -> str:
+    """A validation row's statistic as the report shows it: what its kN columns hold."""
+    if statistic == "aligned":
+        return "aligned (kN: measured s.d.; simulated: RMS difference)"
+    return f"{statistic} of |Y|" if force == "Y" else f"{statistic} of Q"
 
 
 #: the intervals of an estimate.json written before they were stored with it: the
@@ -109,8 +124,8 @@ def estimate_section(doc: Doc, est: Path) -> None:
             f"the simulator's output-error refinement on the same track{on_drawn}"
             f"{_start(ref)}: time-aligned cost "
             f"{ref['cost_start']:.3g} -> {ref['cost']:.3g} in {ref['n_evaluations']} "
-            "evaluations (the 'polished' column of the tables). Its interval is the Pareto "
-            "set's range, not a confidence interval."
+            f"evaluations (the '{header('polished')}' column of the tables). Its interval "
+            "is the Pareto set's range, not a confidence interval."
         )
     elif ref:
         doc.p(
@@ -175,8 +190,8 @@ def estimate_section(doc: Doc, est: Path) -> None:
         doc.p(
             "The recordings' track geometry states its accuracy, and the measured geometry "
             "carries its error as extra roughness, which biases a comparison on it. NSGA-II's "
-            "choice (column nsga_choice) was therefore polished by the force model's own "
-            "time-aligned least squares on its expected forces, the mean over "
+            f"choice (column '{header('nsga_choice')}') was therefore polished by the force "
+            "model's own time-aligned least squares on its expected forces, the mean over "
             f"{polish['draws']} draws of the true geometry given the measured one: cost "
             f"{polish['cost_start']:.3g} -> {polish['cost']:.3g} in {polish['n_evaluations']} "
             "evaluations. That is NSGA-II's estimate, and its Pareto range moved with it."
@@ -249,9 +264,12 @@ def _corrections_paragraphs(doc: Doc, info: dict) -> None:
         + (f" (the mean over the same {drawn} drawn true tracks)" if drawn else "")
         + ": the simulator's forces less the surrogate's, sample by sample"
         + added
-        + f"cost {last['cost_start']:.3g} -> {last['cost']:.3g}. The estimate is that point"
+        + f"least-squares cost {corrections[0]['cost_start']:.5g} at the first start -> "
+        f"{last['cost']:.5g} after the last ({n} step(s); the corrected surrogate's cost, "
+        "not on the polish's scale). The estimate is that point"
         + (", less the same geometry bias" if last.get("geometry_bias_removed") else "")
-        + "; NSGA-II's own is the column nsga_estimate, and the Pareto range moved with it."
+        + f"; NSGA-II's own is the column '{header('nsga_estimate')}', and the Pareto range "
+        "moved with it."
     )
     if not checked:
         return

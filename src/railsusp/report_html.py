@@ -26,9 +26,15 @@ _VERDICT_CLASS = {
     summary.DEGRADED: "v-degraded",
     summary.WITHIN: "v-within",
     summary.NOT_IDENTIFIABLE: "v-unknown",
+    summary.NOT_IDENTIFIED: "v-unknown",
 }
 #: the card lists what is wrong first
-_ORDER = {summary.DEGRADED: 0, summary.NOT_IDENTIFIABLE: 1, summary.WITHIN: 2}
+_ORDER = {
+    summary.DEGRADED: 0,
+    summary.NOT_IDENTIFIABLE: 1,
+    summary.NOT_IDENTIFIED: 1,
+    summary.WITHIN: 2,
+}
 
 
 def summary_card(doc: Doc, run: Path) -> None:
@@ -79,7 +85,7 @@ def summary_card(doc: Doc, run: Path) -> None:
     why = [
         f"{p}: {n}"
         for p, v, n in zip(est.index, est.verdict, est.note, strict=True)
-        if v == summary.NOT_IDENTIFIABLE
+        if v in (summary.NOT_IDENTIFIABLE, summary.NOT_IDENTIFIED)
     ]
     tol_text = (
         f"Within tolerance: change from nominal at most ±{summary.sig3(tol.default_pct)} %"
@@ -88,8 +94,12 @@ def summary_card(doc: Doc, run: Path) -> None:
             if tol.parameters
             else ""
         )
-        + ", from the wagon data's [tolerances] (default "
-        f"{summary.sig3(summary.DEFAULT_TOLERANCE_PCT)} %, docs/wagon-data.md)"
+        + (
+            ", railsusp's default (the wagon data give no [tolerances], docs/wagon-data.md)"
+            if tol == summary.Tolerances()
+            else ", from the wagon data's [tolerances] (default "
+            f"{summary.sig3(summary.DEFAULT_TOLERANCE_PCT)} %, docs/wagon-data.md)"
+        )
     )
     held: dict[str, list[str]] = {}
     for p, v, n in zip(est.index, est.verdict, est.note, strict=True):
@@ -105,7 +115,7 @@ def summary_card(doc: Doc, run: Path) -> None:
         f"({html.escape(rec_kind)}): {html.escape(rec_text)}.</p>",
         table_html(shown, headers=False, row_class=classes),
         f"<p class='note'>Interval: {html.escape(basis)}. {html.escape(tol_text)}."
-        + (f" Not identifiable: {html.escape('; '.join(why))}." if why else "")
+        + (f" Not identified: {html.escape('; '.join(why))}." if why else "")
         + (f" Not estimated ({html.escape(held_text)})." if held else "")
         + "</p>",
         "<p><b>Force error, nominal → estimated parameters</b></p><ul>",
@@ -123,7 +133,7 @@ def summary_card(doc: Doc, run: Path) -> None:
         ),
         "",
         f"Interval: {basis}. {tol_text}."
-        + (f" Not identifiable: {'; '.join(why)}." if why else "")
+        + (f" Not identified: {'; '.join(why)}." if why else "")
         + (f" Not estimated ({held_text})." if held else ""),
         "",
         "Force error, nominal → estimated parameters:\n",
@@ -290,9 +300,17 @@ def _provenance(doc: Doc, run: Path, state: dict, meta: dict) -> None:
                 "state": "writing this report" if writing else v.get("state"),
                 "seconds": v.get("seconds", float("nan")),
                 "input hash": v.get("hash"),
+                "made by": _made_by(v.get("made_by")),
             }
         )
     doc.table(pd.DataFrame(rows))
+    makers = {r["made by"] for r in rows if r["made by"]}
+    if len(makers) > 1:
+        doc.p(
+            "The stages were made by different railsusp code ("
+            + ", ".join(sorted(makers))
+            + "): a stage that was up to date was kept from the run that made it."
+        )
     doc.p(f"Campaign configuration hash {meta['config_hash']}.")
     camp = run / "campaign"
     files = [
@@ -300,6 +318,7 @@ def _provenance(doc: Doc, run: Path, state: dict, meta: dict) -> None:
         camp / "features.parquet",
         *sorted((run / "field").glob("*.csv")),
         *sorted((run / "field").glob("*.parquet")),
+        *sorted(run.glob("surrogate*/**/model.pt")),  # the networks the estimate ran on
     ]
     doc.table(
         pd.DataFrame(
@@ -310,6 +329,30 @@ def _provenance(doc: Doc, run: Path, state: dict, meta: dict) -> None:
             ]
         )
     )
+
+
+def _made_by(made: dict | None) -> str:
+    """A stage's code, short: version, commit (7 hex digits) and "+modified" where its
+    tree had uncommitted changes; '' for a stage recorded before this was."""
+    if not made:
+        return ""
+    sha = (made.get("git_sha") or "")[:7]
+    return (
+        f"{made.get('railsusp', '?')}"
+        + (f" {sha}" if sha else "")
+        + ("+modified" if made.get("git_dirty") else "")
+    )
+
+
+def _measured_track(run: Path):
+    """The condition of the run's first recording that carries its track geometry, or
+    None (no field folder, or no recording with its track)."""
+    if not (run / "field" / "index.json").exists():
+        return None
+    for rec in summary.field_recordings(run):
+        if rec.condition.track_geometry is not None:
+            return rec.condition
+    return None
 
 
 def build_report(run: str | Path) -> list[Path]:
@@ -336,10 +379,24 @@ def build_report(run: str | Path) -> list[Path]:
     _wagon_section(doc, run, cfg)
     doc.h("Track input")
     first = WorkingCondition(**cfg["conditions"][0])
+    caption = (
+        f"The campaign's design track of '{first.name}' (seed {first.seed}): irregularities "
+        "and their PSD vs the FRA spectrum"
+    )
+    measured = _measured_track(run)
+    if measured is not None:  # the track the estimate compared on, not the design track
+        first = measured
+        caption = (
+            f"The measured track geometry of the recording of '{first.name}' (the track the "
+            "estimate and the validation simulated): irregularities and their PSD vs the FRA "
+            "spectrum"
+        )
+    elif (run / "field" / "index.json").exists():
+        caption += "; the recordings ran on their own track, which they do not carry"
     irr = irregularities_for(first)
     if irr is not None:
         png = plot_track_irregularities(irr, run / "report_assets" / "track.png")
-        doc.figure(png, f"Irregularities of '{first.name}' and their PSD vs the FRA spectrum")
+        doc.figure(png, caption)
     _method_sections(doc, run, state)
     en14363_section(doc, run)
     _provenance(doc, run, state, meta)

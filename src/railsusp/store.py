@@ -529,33 +529,64 @@ def write_parquet(
     return path
 
 
-def git_sha() -> str | None:
-    """The git commit of the railsusp source tree, if it is a checkout."""
+def _git(*args: str) -> str | None:
+    """A git command's output in the railsusp source tree; None where it is no checkout."""
     here = Path(__file__).resolve().parent
     try:
-        out = subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, timeout=5
-        )
+        out = subprocess.run(["git", *args], cwd=here, capture_output=True, text=True, timeout=5)
     except (OSError, subprocess.SubprocessError):
         return None
-    return out.stdout.strip() or None if out.returncode == 0 else None
+    return out.stdout if out.returncode == 0 else None
+
+
+def git_sha() -> str | None:
+    """The git commit of the railsusp source tree, if it is a checkout."""
+    out = _git("rev-parse", "HEAD")
+    return (out or "").strip() or None
+
+
+def git_dirty() -> bool | None:
+    """Whether the railsusp source tree has uncommitted changes to tracked files (its
+    results then come from code no commit holds); None where it is no checkout."""
+    out = _git("status", "--porcelain", "--untracked-files=no", "--", ".")
+    return None if out is None else bool(out.strip())
+
+
+#: the libraries whose versions a result records (read from their metadata: importing
+#: torch to ask its version would cost a second)
+RECORDED_LIBRARIES = (
+    "numpy", "scipy", "numba", "pandas", "torch", "pymoo", "SALib", "asammdf", "sbi",
+)  # fmt: skip
+
+
+def library_versions() -> dict[str, str]:
+    """Installed versions of :data:`RECORDED_LIBRARIES` (those installed)."""
+    from importlib import metadata
+
+    out = {}
+    for name in RECORDED_LIBRARIES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            continue
+    return out
+
+
+def code_identity() -> dict[str, Any]:
+    """Which railsusp made a result: its version, git commit and whether the tree was
+    modified (each pipeline stage records it: stages of one run may come from two)."""
+    from railsusp._version import __version__
+
+    return {"railsusp": __version__, "git_sha": git_sha(), "git_dirty": git_dirty()}
 
 
 def provenance() -> dict[str, Any]:
-    """Who and what produced a file: versions, git SHA, host, UTC time."""
-    import numba
-    import scipy
-
-    from railsusp._version import __version__
-
+    """Who and what produced a file: railsusp's version, git commit and whether its tree was
+    modified, the libraries' versions, host, UTC time."""
     return {
-        "railsusp": __version__,
-        "git_sha": git_sha(),
+        **code_identity(),
         "python": platform.python_version(),
-        "numpy": np.__version__,
-        "scipy": scipy.__version__,
-        "numba": numba.__version__,
-        "pandas": pd.__version__,
+        **library_versions(),
         "host": socket.gethostname(),
         "platform": platform.platform(),
         "utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),

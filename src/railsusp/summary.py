@@ -29,6 +29,10 @@ DEFAULT_TOLERANCE_PCT = 15.0
 WITHIN = "within tolerance"
 DEGRADED = "degraded"
 NOT_IDENTIFIABLE = "not identifiable from these recordings"
+#: an estimate whose route gives no confidence interval (NSGA-II alone): the recordings
+#: may well fix the parameter (a refinement or the posterior says how well), this
+#: estimate does not say
+NOT_IDENTIFIED = "not identified: no confidence interval from this estimate"
 NOT_ESTIMATED = "not estimated"
 
 
@@ -152,7 +156,8 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
     """One row per main suspension parameter (display units): element, unit, nominal,
     estimate, standard error, interval (low, high, and how it was formed), change from
     nominal (%), tolerance (%), verdict and a note saying why."""
-    from railsusp.estimate.intervals import intervals_of
+    from railsusp.estimate.identifiability import on_range_bound
+    from railsusp.estimate.intervals import identification, intervals_of
     from railsusp.validate import identification_issues, max_st
 
     run = Path(run)
@@ -214,8 +219,10 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
             varied = assumed.get(p, {})  # the force model's training varied it (a range)
             if varied.get("assumed") == "varied" and not held:
                 row["verdict"] = (
-                    f"{NOT_ESTIMATED}: varied over {sig3(varied['low'])}-{sig3(varied['high'])} "
-                    f"{s.display_unit} in the surrogate's training"
+                    f"{NOT_ESTIMATED}: held at {sig3(s.nominal_display)} {s.display_unit} in "
+                    f"the estimate's simulations and the validation (varied over "
+                    f"{sig3(varied['low'])}-{sig3(varied['high'])} {s.display_unit} in the "
+                    "surrogate's training)"
                 )
             if varied.get("assumed") == "varied":  # a network set's, whatever the sensitivity
                 row["note"] = "not an input of the force model (varied in its training)"
@@ -238,7 +245,14 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
         limit = tol.of(p)
         single = p in intervals and not intervals[p].statistical and row["low"] == row["high"]
         if why_not.get(p):
-            row["verdict"] = NOT_IDENTIFIABLE
+            # the route alone (NSGA-II's Pareto range is no confidence interval) is not the
+            # recordings' fault: the same recordings refined identify it
+            route_only = (
+                p in intervals
+                and not intervals[p].statistical
+                and why_not[p] == identification(intervals[p])
+            )
+            row["verdict"] = NOT_IDENTIFIED if route_only else NOT_IDENTIFIABLE
             row["note"] = why_not[p]
         else:
             inside = abs(row["change_pct"]) <= limit
@@ -253,6 +267,11 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
                     row["note"] = "the interval reaches beyond the tolerance"
                 elif not inside and reaches_in:
                     row["note"] = "the interval reaches back within the tolerance"
+        if on_range_bound([p], [v * s.scale])[0]:
+            row["note"] = "; ".join(
+                n for n in (row["note"], "on the bound of the search range (Table 2): the "
+                            "search stopped there, the change is the range's") if n
+            )  # fmt: skip
         rows.append(row)
     return pd.DataFrame(rows).set_index("parameter")
 

@@ -213,7 +213,8 @@ def test_estimate_lists_the_parameters_it_did_not_estimate(many_tracks, tmp_path
     )
     t = summary.estimate_table(run)
     assert t.loc["X19", "verdict"] == (
-        "not estimated: varied over 20000-40000 kN/m in the surrogate's training"
+        "not estimated: held at 30000 kN/m in the estimate's simulations and the validation "
+        "(varied over 20000-40000 kN/m in the surrogate's training)"
     )
     assert t.loc["X20", "verdict"].startswith("not estimated: held at 1000 MN/m")
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import logging
 import sys
 import warnings
+from collections.abc import Callable
 from typing import Annotated
 
 import typer
@@ -108,9 +109,12 @@ def _global(
     logger.propagate = False
 
 
-def frame_table(df, title: str, fmt: str = "{:.4g}") -> Table:
+def frame_table(df, title: str, fmt: str | Callable[[float], str] = "{:.4g}") -> Table:
     """A pandas DataFrame as a rich table: numbers right-aligned, NaN/None blank; text
-    columns (names of conditions, models) keep their width when the terminal is narrow."""
+    columns (names of conditions, models) keep their width when the terminal is narrow.
+    ``fmt``: a format string for the floats, or a function (the report's ``sig3``)."""
+    if isinstance(fmt, str):
+        fmt = fmt.format
     table = Table(title=title, title_justify="left")
     for col in df.columns:
         text = df[col].dtype == object
@@ -121,7 +125,7 @@ def frame_table(df, title: str, fmt: str = "{:.4g}") -> Table:
             *(
                 ""
                 if v is None or (isinstance(v, float) and v != v)
-                else fmt.format(v)
+                else fmt(v)
                 if isinstance(v, float)
                 else str(v)
                 for v in row

@@ -81,8 +81,10 @@ def _summary(out: Path) -> None:
 
         est = summary.estimate_table(out).reset_index()
         cols = ["parameter", "unit", "nominal", "estimate", "low", "high", "change_pct"]
-        answer = est[[*cols, "verdict"]].rename(columns=header)
-        console.print(frame_table(answer, "Answer (report.html, docs/api.md)", fmt="{:.3g}"))
+        answer = est[[*cols, "verdict", "note"]].rename(columns=header)
+        console.print(  # the report's number format: 29954 kN/m as 29954, not 3e+04
+            frame_table(answer, "Answer (report.html, docs/api.md)", fmt=summary.sig3)
+        )
         for line in summary.agreement_lines(summary.force_agreement(out)):
             console.print(line, markup=False, highlight=False)
     show(out / "estimate" / "estimate.csv", "Estimate (study Table 5 layout)")

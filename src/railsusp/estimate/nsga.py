@@ -249,5 +249,6 @@ def estimate_with_seeds(
     chosen = np.array([r.pareto_x[r.chosen] for r in runs])
     spread = (chosen.max(axis=0) - chosen.min(axis=0)) / (hi - lo) * 100
     first = runs[0]
-    first.seeds_spread = {p: float(s) for p, s in zip(parameters, spread, strict=True)}
+    if n_seeds > 1:  # one seed's "spread" of 0 would read as a reproducible search
+        first.seeds_spread = {p: float(s) for p, s in zip(parameters, spread, strict=True)}
     return first

@@ -276,8 +276,9 @@ class CalibrationResult:
                 "estimated": v,
                 f"estimate [{shown}]": iv[p].text(),
                 "pareto_spread_pct_range": ps[p],
-                "seed_spread_pct_range": self.seeds_spread.get(p, float("nan")),
             }
+            if self.seeds_spread:  # one seed has no spread to show (it read 0)
+                row["seed_spread_pct_range"] = self.seeds_spread[p]
             if self.refinement and self.refinement_is_polish:
                 row["polished"] = spec(p).to_display(self.refinement.estimate_si[k])
                 row["polish_standard_error_pct_range"] = refined["standard_error_pct_range"][p]
