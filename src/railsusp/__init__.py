@@ -40,3 +40,8 @@ def __getattr__(name: str):
 
         return getattr(api, name)
     raise AttributeError(f"module 'railsusp' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    """The lazily imported API too (tab completion in a notebook)."""
+    return sorted({*globals(), *__all__})

@@ -42,6 +42,7 @@ class RunResult:
         checks that the folder is a run directory)."""
         if not isinstance(self.path, str | os.PathLike):
             raise RailsuspInputError(f"path = {self.path!r}: a run directory (str or Path)")
+        _check_tolerances(self.tolerances)
         object.__setattr__(self, "path", Path(self.path))
 
     def _need(self, rel: str, stage: str) -> Path:
@@ -269,20 +270,49 @@ def _check_axes(ax: Any) -> None:
         )
 
 
-def open_run(path: str | Path, *, tolerances: summary.Tolerances | None = None) -> RunResult:
-    """A finished (or partly finished) run directory, read."""
-    if not isinstance(path, str | os.PathLike):
-        raise RailsuspInputError(f"path = {path!r}: a run directory (str or Path) is needed")
+def _check_tolerances(tolerances: Any) -> None:
+    """``tolerances``: None or a :class:`railsusp.Tolerances` (a dict failed later, deep in
+    the summary, with an AttributeError)."""
     if tolerances is not None and not isinstance(tolerances, summary.Tolerances):
         raise RailsuspInputError(
             f"tolerances = {tolerances!r}: a railsusp.Tolerances(default_pct, per_parameter) "
             "is needed"
         )
+
+
+def open_run(path: str | Path, *, tolerances: summary.Tolerances | None = None) -> RunResult:
+    """A finished (or partly finished) run directory, read."""
+    if not isinstance(path, str | os.PathLike):
+        raise RailsuspInputError(f"path = {path!r}: a run directory (str or Path) is needed")
+    _check_tolerances(tolerances)
     path = Path(path).resolve()
     if not (path / "pipeline.json").is_file():
         raise RailsuspInputError(f"{path}: not a run directory (no pipeline.json)")
     read_run_state(path, str(path))
     return RunResult(path, tolerances)
+
+
+def _rechecked(config: Any) -> Any:
+    """A :class:`~railsusp.pipeline_config.PipelineConfig` checked again as its constructor
+    and the configuration checks would: ``model_copy(update=...)``, the way to change one
+    setting of a frozen model, checks nothing (``pop_size = 2`` failed the estimate stage
+    after four stages had run; a plain dict for a section failed with an AttributeError)."""
+    import warnings
+
+    from pydantic import ValidationError
+
+    from railsusp.config import check_config, validation_message
+    from railsusp.pipeline_config import PipelineConfig
+
+    with warnings.catch_warnings():  # a section given as a dict: serialised as it is
+        warnings.simplefilter("ignore", UserWarning)
+        doc = config.model_dump(exclude_unset=True)
+    try:
+        cfg = PipelineConfig.model_validate(doc)
+    except ValidationError as exc:
+        raise RailsuspInputError(validation_message("configuration", exc, PipelineConfig)) from None
+    check_config(cfg, "configuration")
+    return cfg
 
 
 def run(
@@ -305,13 +335,18 @@ def run(
     if progress is not None and not callable(progress):
         raise RailsuspInputError(f"progress = {progress!r}: a function (stage, message) or None")
     if isinstance(config, PipelineConfig):
-        cfg = config
+        cfg = _rechecked(config)
     elif isinstance(config, Mapping):  # the sections of a TOML file: checked as strictly
         from pydantic import ValidationError
 
         from railsusp.config import check_config, validation_message
         from railsusp.store import validate_document
 
+        if not config:  # an empty file is refused; so is an empty dict (the whole default)
+            raise RailsuspInputError(
+                "configuration: an empty dict; accepted at least one setting or section "
+                "(examples/quick.toml; `railsusp demo` runs the default without one)"
+            )
         try:
             cfg = validate_document(PipelineConfig, dict(config))
         except ValidationError as exc:

@@ -189,7 +189,13 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
     _check_measured_track(cfg, bad, blind, own_tracks)
     if (f.with_track or f.track_noise_mm) and (f.measured or f.recording) is not None:
         raise bad("field.with_track and field.track_noise_mm apply to synthetic recordings only")
-    given = sorted({"noise", "seed"} & f.model_fields_set)
+    # set and not the default: a run's recorded configuration (pipeline.json, every field
+    # written out) runs again
+    given = sorted(
+        k
+        for k in ("noise", "seed")
+        if k in f.model_fields_set and getattr(f, k) != type(f).model_fields[k].default
+    )
     if given and (f.measured or f.recording) is not None:  # ignored, silently (audit, stop 60)
         source = "field.measured" if f.measured is not None else "field.recording"
         raise bad(
@@ -468,7 +474,8 @@ def _check_recording_keys(cfg: Any, bad: Any) -> None:
     """``[field] recording``: the files exist, the keys that exclude it are absent; the
     recording itself is read (and checked) when the conditions are built from its cut."""
     f = cfg.field
-    if "conditions" in cfg.model_fields_set:
+    default = type(cfg).model_fields["conditions"].get_default(call_default_factory=True)
+    if "conditions" in cfg.model_fields_set and cfg.conditions != default:
         raise bad(
             "conditions: with field.recording the conditions are the recording's sections; "
             "leave conditions out"

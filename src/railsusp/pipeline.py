@@ -102,7 +102,13 @@ def run_pipeline(
     with run_lock(out, out_option):  # one run at a time in a folder
         # read again under the lock: another run may have ended meanwhile
         return _run_stages(
-            config, out, run_state(out, out_option), start_from, progress, run_progress
+            config,
+            out,
+            run_state(out, out_option),
+            start_from,
+            progress,
+            run_progress,
+            from_option,
         )
 
 
@@ -113,6 +119,7 @@ def _run_stages(
     start_from: str | None,
     progress: Callable[[str, str], None] | None,
     run_progress: Callable[[int, int], None] | None,
+    from_option: str = "--from",
 ) -> dict:
     """:func:`run_pipeline`'s stages in order on the run directory ``out`` whose
     ``pipeline.json`` is ``state`` (its lock held), the up-to-date ones skipped."""
@@ -164,7 +171,7 @@ def _run_stages(
                 write_json(state_path, state)
                 raise StageError(
                     f"stage {stage!r} failed: {exc}. Earlier stages are kept; fix the cause "
-                    f"and run the same command again (or --from {stage})"
+                    f"and run the same command again (or {_resume(from_option, stage)})"
                     + blame(config, out, stage, str(exc))
                 ) from exc
             state["stages"][stage] = {
@@ -184,6 +191,12 @@ def _run_stages(
         state["provenance"]["finished"] = provenance()["utc"]
     write_json(state_path, state)
     return state
+
+
+def _resume(from_option: str, stage: str) -> str:
+    """How to start again from ``stage``: ``--from estimate`` on the command line,
+    ``start_from='estimate'`` from Python."""
+    return f"{from_option}={stage!r}" if from_option.isidentifier() else f"{from_option} {stage}"
 
 
 def _wagon_record(config: PipelineConfig) -> dict:

@@ -11,6 +11,7 @@ loading the stages.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any, Literal
 
@@ -270,6 +271,27 @@ class PipelineConfig(_Cfg):
     field: FieldSection = FieldSection()
     estimate: EstimateSection = EstimateSection()
     scheduler: str | None = Field(None, description="Dask scheduler tcp://host:port")
+
+    @field_validator("wagon", mode="before")
+    @classmethod
+    def _wagon_path(cls, v: Any) -> Any:
+        """A ``Path`` stands for the file's string (as in ``railsusp.run``'s dicts)."""
+        return os.fspath(v) if isinstance(v, os.PathLike) else v
+
+    @field_validator("conditions", mode="before")
+    @classmethod
+    def _condition_objects(cls, v: Any) -> Any:
+        """A :class:`~railsusp.conditions.WorkingCondition` stands for its fields (what
+        ``railsusp.get_condition`` returns, accepted by ``railsusp.run``'s dicts; the
+        constructor refused it with pydantic's seven-line error)."""
+        if isinstance(v, list | tuple):
+            return tuple(
+                c.model_dump(mode="json", exclude_none=True)
+                if isinstance(c, WorkingCondition)
+                else c
+                for c in v
+            )
+        return v
 
     def run_source(self) -> Any:
         """The long run of ``[field] recording`` and how to cut it

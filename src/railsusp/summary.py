@@ -51,6 +51,9 @@ class Tolerances:
         object.__setattr__(self, "default_pct", default)
         object.__setattr__(self, "parameters", per)
 
+    def __hash__(self) -> int:  # the dataclass's hash of its fields fails on the dict
+        return hash((self.default_pct, tuple(sorted(self.parameters.items()))))
+
     def of(self, parameter: str) -> float:
         """The tolerance of one main suspension parameter (symbol or name), % of its nominal
         value; anything else is refused, as in the table."""

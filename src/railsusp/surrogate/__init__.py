@@ -66,9 +66,19 @@ def key_parameters(run: str | Path) -> tuple[str, ...]:
     over chosen parameters, e.g. on a recording's measured track)."""
     p = Path(run) / "sensitivity" / "key_parameters.json"
     if p.exists():
-        keys = read_json(p)["key_parameters"]["keys"]
-        if keys:
-            return tuple(keys)
+        kp = read_json(p)["key_parameters"]
+        if kp["keys"]:
+            return tuple(kp["keys"])
+        # none kept: the study's six (or the sampled ones) were estimated and called key
+        # parameters (stop 61's API audit); say so and how to get keys instead
+        st = kp.get("max_st") or {}
+        top = max(st, key=lambda k: st[k]) if st else None
+        raise RailsuspInputError(
+            f"{p}: the sensitivity analysis kept no key parameter: no total Sobol index "
+            f"reached sensitivity.threshold = {kp.get('threshold', '?')}"
+            + (f" (the largest: {top} {st[top]:.3g})" if top else "")
+            + "; lower the threshold, or vary the parameters more (campaign.samples)"
+        )
     camp = Path(run) / "campaign.json"
     if camp.exists():
         sampled = tuple(read_json(camp)["config"]["parameters"])

@@ -17,7 +17,7 @@ import numpy as np
 
 from railsusp.conditions import GRAVITY, WorkingCondition
 from railsusp.errors import RailsuspInputError
-from railsusp.numbers import is_real
+from railsusp.numbers import is_real, is_whole
 from railsusp.params import spec
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.contact import ContactTable, contact_table, flange_split
@@ -102,11 +102,11 @@ class SolverSettings:
                 raise RailsuspInputError(
                     f"{name} = {value!r}{unit}: accepted {low:g} to {high:g}{unit}"
                 )
-        if not (isinstance(self.filter_order, int) and 1 <= self.filter_order <= 12):
+        if not (is_whole(self.filter_order) and 1 <= self.filter_order <= 12):
             raise RailsuspInputError(
                 f"filter_order = {self.filter_order!r}: accepted an integer 1 to 12"
             )
-        if not (isinstance(self.flange_substeps, int) and 1 <= self.flange_substeps <= 16):
+        if not (is_whole(self.flange_substeps) and 1 <= self.flange_substeps <= 16):
             raise RailsuspInputError(
                 f"flange_substeps = {self.flange_substeps!r}: accepted an integer 1 to 16"
             )

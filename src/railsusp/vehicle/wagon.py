@@ -9,6 +9,7 @@ catalogue (:mod:`railsusp.params`), so that a campaign can vary them.
 from __future__ import annotations
 
 import math
+import os
 import tomllib
 from collections.abc import Mapping
 from importlib import resources
@@ -320,6 +321,11 @@ def load_wagon(source: str | Path | WagonData | None = None) -> WagonData:
 
     if isinstance(source, WagonData):
         return source
+    if source is not None and not isinstance(source, str | os.PathLike):
+        raise RailsuspInputError(
+            f"wagon = {source!r}: a wagon file (str or Path), a packaged wagon's name "
+            f"({', '.join(PACKAGED_WAGONS)}), WagonData or None is needed"
+        )
 
     text = packaged_wagon_text(source)
     if text is not None:
