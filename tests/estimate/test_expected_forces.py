@@ -208,7 +208,10 @@ def test_the_expected_polish_of_nsgas_choice_finds_b_where_the_measured_geometry
     estimate_section(doc, tmp_path)  # the report says what made the estimate
     text = "\n".join(doc.md)
     assert "polished by the force model's own time-aligned least squares" in text
-    assert "the mean over 8 draws of the true geometry" in text and "nsga_choice" in text
+    assert (
+        "the mean over 8 draws of the true geometry" in text
+        and "column 'NSGA-II's choice, before" in text
+    )
 
 
 def test_nsga_on_expected_forces_in_its_generations_finds_b(track):
