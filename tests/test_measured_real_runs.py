@@ -258,3 +258,77 @@ def test_a_force_given_twice_is_named_as_such(tmp_path):
     (tmp_path / "two.json").write_text(json.dumps({"condition": "straight"}))
     with pytest.raises(RecordingError, match="the force Y_w1R is given twice"):
         read_recording(tmp_path / "two.csv")
+
+
+def test_a_distance_held_between_its_updates_is_travel_not_jumps(tmp_path):
+    """A 5 Hz odometer in a 50 Hz table steps 3 m every tenth row: the first version took
+    every step for a jump (the median step is 0) and read a wagon that does not run."""
+    v = np.full(5000, 54.0)
+    s = travelled(v)
+    s = s[(np.arange(s.size) // 10) * 10]
+    path = write_run(tmp_path / "held.csv", v, distance=s)
+    pd.read_csv(path).drop(columns="speed_kmh").to_csv(path, index=False)
+    run = read_run(path)
+    assert run.breaks.size == 0 and np.median(run.speed) * 3.6 == pytest.approx(54.0, rel=0.01)
+    # with the speed too, the held steps are travel
+    write_run(path, v, distance=s)
+    assert read_run(path).breaks.size == 0
+
+
+@pytest.mark.parametrize("where", ["first", "last", "glitch"])
+def test_a_jump_at_either_end_or_one_wrong_sample_reads(tmp_path, where):
+    v = np.full(5000, 54.0)
+    s = travelled(v)
+    if where == "first":
+        s[1:] += 5000.0
+    elif where == "last":
+        s[-1] += 5000.0
+    else:
+        s[2500] += 5000.0
+    path = write_run(tmp_path / "j.csv", v, distance=s)
+    pd.read_csv(path).drop(columns="speed_kmh").to_csv(path, index=False)
+    run = read_run(path)  # was "speed up to 1.8e4 km/h ... a unit error?"
+    assert np.abs(run.speed * 3.6 - 54.0).max() < 1.0
+
+
+def test_a_change_of_rate_is_not_a_dropout_and_a_lost_sample_of_another_channel_is_refused(
+    tmp_path,
+):
+    from railsusp.measured.checks import check_time
+
+    t = np.concatenate([np.arange(6000) * 0.01, 59.99 + np.arange(1, 4001) * 0.02])
+    assert "mixed sampling rates" in " ".join(check_time(t, "x", 0))
+    # Q in its own group loses one sample the forces' Y keeps: it would be interpolated
+    # across the loss, silently
+    t = np.arange(20000) / 1000.0
+    keep = np.ones(t.size, bool)
+    keep[10000] = False
+    mdf = MDF(version="4.10")
+    mdf.append([Signal(5.0 + np.sin(t), t, name="Y", unit="kN"),
+                Signal(np.full(t.size, 54.0), t, name="v", unit="km/h")])  # fmt: skip
+    mdf.append([Signal(120.0 + np.cos(t[keep]), t[keep], name="Q", unit="kN")])
+    mdf.save(tmp_path / "q.mf4", overwrite=True)
+    mdf.close()
+    cmap = channel_map_from({"speed": "v", "wheels": {"w1R": {"Y": "Y", "Q": "Q"}}})
+    with pytest.raises(RecordingError, match="channel 'Q': samples lost between 9.999 and"):
+        read_run(tmp_path / "q.mf4", cmap)
+
+
+def test_a_slow_distance_channels_jump_is_no_unit_error(tmp_path):
+    """The distance at 1 Hz with a +300 m chainage jump: on the forces' 500 Hz the jump is a
+    ramp of small steps, counted as travel: "a unit error in one?"."""
+    t = np.arange(30000) / 500.0
+    ts = np.arange(61) * 1.0
+    s = 15.0 * ts + np.where(ts >= 30.0, 300.0, 0.0)
+    mdf = MDF(version="4.10")
+    mdf.append([Signal(5.0 + np.sin(t), t, name="Y", unit="kN"),
+                Signal(120.0 + np.cos(t), t, name="Q", unit="kN"),
+                Signal(np.full(t.size, 54.0), t, name="v", unit="km/h")])  # fmt: skip
+    mdf.append([Signal(s, ts, name="s", unit="m")])
+    mdf.save(tmp_path / "s.mf4", overwrite=True)
+    mdf.close()
+    cmap = channel_map_from(
+        {"speed": "v", "position": "s", "wheels": {"w1R": {"Y": "Y", "Q": "Q"}}}
+    )
+    run = read_run(tmp_path / "s.mf4", cmap)
+    assert run.breaks.size == 2 and run.jumping is not None

@@ -102,7 +102,7 @@ def test_a_speed_in_the_wrong_unit_is_caught_by_the_distance_it_covers(tmp_path)
     with pytest.raises(RecordingError) as info:
         read_run(path, channel_map_from(MAP))
     assert (
-        "channels 's' and 'v': the distance runs over 299.9 m while the speed integrates to 1080 m"
+        "channels 's' and 'v': the distance runs over 300 m while the speed integrates to 1080 m"
         in (str(info.value))
     )
     assert "a unit error in one?" in str(info.value)

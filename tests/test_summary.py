@@ -236,3 +236,21 @@ def test_an_estimate_on_the_search_range_bound_says_so(tmp_path):
     t = summary.estimate_table(run)
     assert "on the bound of the search range (Table 2)" in t.loc["X13"].note
     assert "search range" not in t.loc["X17"].note
+
+
+def test_the_tolerances_know_whether_the_wagon_data_gave_them(tmp_path):
+    """The report said "from the wagon data's [tolerances]" for the packaged C80, which has
+    none; and compared values with the defaults, so a wagon file stating 15 % was called
+    railsusp's default."""
+    from importlib import resources
+
+    assert summary.read_tolerances(None).from_wagon is False
+    text = (resources.files("railsusp") / "data" / "c80_k6.toml").read_text("utf-8")
+    wagon = tmp_path / "w.toml"
+    wagon.write_text(text + "\n[tolerances]\ndefault_pct = 15.0\n")
+    tol = summary.read_tolerances(wagon)
+    assert tol.from_wagon and tol == summary.Tolerances()  # the source is not compared
+    assert summary.Tolerances.from_dict(tol.to_dict()).from_wagon
+    # a run recorded before the source was: other than the defaults, the wagon's
+    assert summary.Tolerances.from_dict({"default_pct": 20.0, "parameters": {}}).from_wagon
+    assert not summary.Tolerances.from_dict({"default_pct": 15.0, "parameters": {}}).from_wagon

@@ -96,7 +96,7 @@ def summary_card(doc: Doc, run: Path) -> None:
         )
         + (
             ", railsusp's default (the wagon data give no [tolerances], docs/wagon-data.md)"
-            if tol == summary.Tolerances()
+            if not tol.from_wagon
             else ", from the wagon data's [tolerances] (default "
             f"{summary.sig3(summary.DEFAULT_TOLERANCE_PCT)} %, docs/wagon-data.md)"
         )

@@ -42,6 +42,9 @@ class Tolerances:
 
     default_pct: float = DEFAULT_TOLERANCE_PCT
     parameters: Mapping[str, float] = field(default_factory=dict)
+    #: whether a wagon data file's ``[tolerances]`` table gave them (what the report names
+    #: as their source; not part of the comparison)
+    from_wagon: bool = field(default=False, compare=False)
 
     def __post_init__(self) -> None:
         """Each tolerance in (0, 100] % and keyed by a main suspension parameter (symbol or
@@ -63,16 +66,25 @@ class Tolerances:
     def to_dict(self) -> dict:
         """``{"default_pct": ..., "parameters": {symbol: %}}``, as a run's pipeline.json
         records them (:meth:`from_dict` reads it back)."""
-        return {"default_pct": self.default_pct, "parameters": dict(self.parameters)}
+        return {
+            "default_pct": self.default_pct,
+            "parameters": dict(self.parameters),
+            "from_wagon": self.from_wagon,
+        }
 
     @classmethod
     def from_dict(cls, doc: object, where: str = "tolerances") -> Tolerances:
         """The tolerances :meth:`to_dict` wrote, checked as the constructor checks them."""
-        if not isinstance(doc, Mapping) or set(doc) != {"default_pct", "parameters"}:
+        keys = {"default_pct", "parameters"}
+        if not isinstance(doc, Mapping) or not keys <= set(doc) <= keys | {"from_wagon"}:
             raise RailsuspInputError(
                 f"{where}: accepted a table of default_pct and parameters, not {doc!r}"
             )
-        return cls(*_checked(where, doc["default_pct"], doc["parameters"]))
+        # a run recorded before the source was: tolerances other than the defaults were
+        # the wagon data's
+        default, per = _checked(where, doc["default_pct"], doc["parameters"])
+        wagon = doc.get("from_wagon", (default, per) != (DEFAULT_TOLERANCE_PCT, {}))
+        return cls(default, per, bool(wagon))
 
 
 def _check_pct(where: str, key: str, value: object) -> float:
@@ -110,7 +122,7 @@ def read_tolerances(wagon: str | Path | None = None) -> Tolerances:
         raise RailsuspInputError(f"{where}: tolerances must be a table ([tolerances])")
     per = {k: v for k, v in doc.items() if k != "default_pct"}
     default = doc.get("default_pct", DEFAULT_TOLERANCE_PCT)
-    return Tolerances(*_checked(where, default, per, "default_pct or "))
+    return Tolerances(*_checked(where, default, per, "default_pct or "), from_wagon=bool(doc))
 
 
 def _checked(

@@ -129,7 +129,8 @@ def dropout_steps(t: np.ndarray) -> np.ndarray | None:
     """Indices i of the intervals t[i] -> t[i + 1] that lost samples (a logger's dropout):
     whole multiples (two or more) of the median interval within the jitter tolerance, on a
     time base whose other intervals are the median one. None where the time base is not
-    one rate with dropouts (another interval, or a shorter one: two rates, or jitter)."""
+    one rate with dropouts (another interval, or a shorter one: two rates, or jitter; two
+    long intervals in a row: the rate changed, 100 Hz then 50 Hz)."""
     d = np.diff(t)
     med = float(np.median(d))
     ratio = d / med
@@ -137,7 +138,10 @@ def dropout_steps(t: np.ndarray) -> np.ndarray | None:
     whole = np.abs(ratio - steps) <= JITTER_TOLERANCE * steps
     if not np.all(whole):
         return None
-    return np.flatnonzero(steps >= 2)
+    lost = np.flatnonzero(steps >= 2)
+    if np.any(np.diff(lost) == 1):
+        return None
+    return lost
 
 
 def check_time(

@@ -234,12 +234,7 @@ def read_run(
             )
     else:
         position = sig["position"]
-        steps = np.diff(pos.values)
-        # the path without its jumps: a jump's step taken as its neighbours'
-        steps[jump] = 0.5 * (
-            steps[np.maximum(jump - 1, 0)] + steps[np.minimum(jump + 1, steps.size - 1)]
-        )
-        travelled = np.concatenate([[pos.values[0]], pos.values[0] + np.cumsum(steps)])
+        travelled = _without_jumps(pos.values, jump)
         speed = _smoothed_gradient(np.interp(t, pos.time, travelled), t)
     speed_name = cmap.signals.get("speed", cmap.signals.get("position"))
     running = np.abs(speed) >= 0.5  # standing stretches are cut out as "standing" later
@@ -268,14 +263,21 @@ def read_run(
     # the run's sense of travel: forward for a speed channel (a run mostly backwards is
     # refused above), the distance's usual sense for a distance alone (km posts may count
     # down); the stretches against it are left out when the run is cut
-    sense = 1.0 if "speed" in sig or np.nanmedian(speed[running]) >= 0.0 else -1.0
+    sense = (
+        1.0 if "speed" in sig or not running.any() or np.nanmedian(speed[running]) >= 0.0 else -1.0
+    )
     backwards = running & (sense * speed < 0.0)
     if backwards.any():
         notes.append(
             f"channel {speed_name!r}: {100.0 * backwards.mean():.3g} % of the samples run "
             "backwards (wheelset 1 trailing); those stretches are left out"
         )
-    problems += _plausible_track(sig, cmap.signals, speed, t)
+    span = None
+    if "position" in cmap.signals:  # its path, jumps left out, on its own samples
+        moved = np.abs(np.diff(pos.values))
+        moved[jump] = 0.0
+        span = float(np.nansum(moved))
+    problems += _plausible_track(sig, cmap.signals, speed, t, span)
     if wheel_load_N is None:
         from railsusp.vehicle.setup import static_wheel_load
         from railsusp.vehicle.wagon import load_wagon
@@ -328,12 +330,18 @@ DISTANCE_SPEED_RATIO = (0.8, 1.25)
 
 
 def _plausible_track(
-    sig: dict[str, np.ndarray], names: dict[str, str], speed: np.ndarray, t: np.ndarray
+    sig: dict[str, np.ndarray],
+    names: dict[str, str],
+    speed: np.ndarray,
+    t: np.ndarray,
+    span: float | None = None,
 ) -> list[str]:
     """Problems of a run's track channels whose values no line has, each naming the
     channel: a cant or grade beyond a working condition's range, and a distance channel
     whose span disagrees with the integrated speed (one of the two in the wrong unit: a
-    speed headed ``[m/s]`` holding km/h cut sections at 234 km/h)."""
+    speed headed ``[m/s]`` holding km/h cut sections at 234 km/h). ``span``: the distance
+    channel's path, its jumps left out, as read on its own samples (on the forces' a slow
+    channel's jump is spread over many steps, each too small to tell)."""
     problems = []
     for key, limit, scale, unit in (
         ("cant", MAX_CANT_M, 1e3, "mm"),
@@ -350,9 +358,10 @@ def _plausible_track(
         # a unit error; nor is a chainage jump at a km post or an odometer's reset: a step
         # more than JUMP_FACTOR times what the speed covers in it (1 m at the least) is
         # left out (a unit error of 3.6 or 1000 moves every step, not a few)
-        steps = np.abs(np.diff(sig["position"]))
-        reach = np.abs(0.5 * (speed[1:] + speed[:-1])) * np.diff(t)
-        span = float(np.nansum(np.where(steps > JUMP_FACTOR * reach + 1.0, 0.0, steps)))
+        if span is None:  # the distance on the forces' samples (its jumps found there)
+            steps = np.abs(np.diff(sig["position"]))
+            reach = np.abs(0.5 * (speed[1:] + speed[:-1])) * np.diff(t)
+            span = float(np.nansum(np.where(steps > JUMP_FACTOR * reach + 1.0, 0.0, steps)))
         lo, hi = DISTANCE_SPEED_RATIO
         if travelled > 10.0 and not lo <= span / travelled <= hi:
             problems.append(
@@ -402,9 +411,9 @@ def _dropout_breaks(
         gaps = dropout_steps(ch.time)
         if c == base or gaps is None or not gaps.size:
             continue
-        step = 1.0 / ch.rate_hz
+        half = 0.5 / si[base].rate_hz  # a base sample inside the gap is interpolated over it
         for i in gaps:
-            inside = np.count_nonzero((t > ch.time[i] + step) & (t < ch.time[i + 1] - step))
+            inside = np.count_nonzero((t > ch.time[i] + half) & (t < ch.time[i + 1] - half))
             if inside:
                 problems.append(
                     f"channel {c!r}: samples lost between {ch.time[i]:.3f} and "
@@ -427,16 +436,38 @@ def _inner(idx: np.ndarray, n: int) -> np.ndarray:
 
 def _jump_steps(x: np.ndarray, t: np.ndarray, speed: np.ndarray | None) -> np.ndarray:
     """Indices i of the distance channel's steps x[i] -> x[i + 1] that are no travel: a
-    chainage jump at a km post, an odometer's reset. With the speed, a step more than
-    :data:`JUMP_FACTOR` times what the speed covers in it (1 m at the least); without it,
-    more than that times the median step or what the fastest working condition covers."""
-    steps = np.abs(np.diff(x))
-    dt = np.diff(t)
+    chainage jump at a km post, an odometer's reset. Each change of the value is judged
+    over the time since the value last changed (a channel held between its updates steps
+    once per update: travel): with the speed, a change more than :data:`JUMP_FACTOR` times
+    what the speed covers in that time (1 m at the least); without it, more than that
+    times the median rate of change or what the fastest working condition covers."""
+    steps = np.diff(x)
+    moved = np.flatnonzero(steps != 0)
+    if moved.size == 0:
+        return moved
+    since = t[np.concatenate([[0], moved[:-1] + 1])]  # when the value took its last level
+    elapsed = t[moved + 1] - since
+    change = np.abs(steps[moved])
     if speed is not None:
-        reach = np.abs(0.5 * (speed[1:] + speed[:-1])) * dt
+        fastest = np.maximum(np.abs(speed[moved + 1]), np.abs(speed[moved]))
+        reach = fastest * elapsed
     else:
-        reach = np.maximum(np.median(steps), 1.2 * MAX_SPEED_KMH / 3.6 * dt / JUMP_FACTOR)
-    return np.flatnonzero(steps > JUMP_FACTOR * reach + 1.0)
+        rate = float(np.median(change / np.maximum(elapsed, 1e-12)))
+        reach = np.maximum(rate, 1.2 * MAX_SPEED_KMH / 3.6 / JUMP_FACTOR) * elapsed
+    return moved[change > JUMP_FACTOR * reach + 1.0]
+
+
+def _without_jumps(x: np.ndarray, jump: np.ndarray) -> np.ndarray:
+    """The distance along the path: each jump's step replaced by the steps around it
+    (interpolated over the steps that are travel; a jump at either end or two in a row,
+    a single wrong sample, included)."""
+    steps = np.diff(x)
+    if jump.size:
+        ok = np.ones(steps.size, dtype=bool)
+        ok[jump] = False
+        idx = np.arange(steps.size)
+        steps[jump] = np.interp(jump, idx[ok], steps[ok]) if ok.any() else 0.0
+    return np.concatenate([[x[0]], x[0] + np.cumsum(steps)])
 
 
 def _smoothed_gradient(x: np.ndarray, t: np.ndarray, window_s: float = 1.0) -> np.ndarray:
