@@ -279,6 +279,28 @@ def test_the_jacobian_compares_only_where_the_model_is_defined():
     assert all(0 < b < 5 for b in bound.values())
 
 
+def test_the_least_squares_cost_leaves_a_washout_out_as_the_aligned_error_does():
+    """The refinement's and the simulator corrections' least squares (OutputError) compared
+    a network's undefined washout as zero force with the recording's 120 kN: a constant
+    that made a network's cost 11 where the simulator's was 0.1 at the same point (stop 61's
+    report audit: "cost 11 -> 11" beside the polish's "0.108 -> 0.1"), and inflated the
+    residuals the standard errors are formed from. The cost is half the sum of squared
+    aligned errors, as refine's docstring says, with or without a washout."""
+    from railsusp.estimate.comparison import aligned_error
+    from railsusp.estimate.output_error import OutputError
+
+    truth = np.array([16.1e6, 8.3e6])
+    rec = wave_recording(truth, noise=0.02)
+    lo, hi = bounds(PARAMS)
+    at = np.array([15.0e6, 9.0e6])
+    u = (at - lo) / (hi - lo)
+    for model in (Waves(), Washout(60)):
+        cost = OutputError(model, [rec], PARAMS, 0.01, False).profiled_cost(u)
+        err = aligned_error(model.series(at[None], rec.condition), rec)[0]
+        assert cost == pytest.approx(0.5 * float(err @ err), rel=0.05), (type(model), cost, err)
+    assert cost < 0.5  # zeros against 120 kN gave more than 10
+
+
 def test_simulator_forces_hold_the_other_parameters_at_their_base():
     """The simulator reference holds the parameters it does not vary at ``base``: a base
     with a stiffer primary lateral spring (X14, not varied) moves the forces; the nominal

@@ -101,12 +101,17 @@ def aligned_jacobian(
     preds = problem.predictions(problem.steps(unit))
     jac = problem.jacobian_of(preds, unit)
     r = problem.residuals(preds, np.ones(0))[0]
+    # the problem itself leaves out the samples no set defines, scaled for the rest
+    # (:meth:`OutputError.compared_rows`); rescale for those ``defined_from`` leaves out too
+    _, own = problem.compared_rows()
     keep, scale = [], []
+    counts = iter(own)
     for u, start in zip(problem.samples, first, strict=True):
         for c in range(2):
             used = u[c] >= start
             keep.append(used)
-            scale.append(np.full(int(used.sum()), np.sqrt(used.size / max(int(used.sum()), 1))))
+            n = max(int(used.sum()), 1)
+            scale.append(np.full(int(used.sum()), np.sqrt(next(counts) / n)))
     rows = np.concatenate(keep)
     factor = np.concatenate(scale)
     blocks = [int(k.sum()) for k in keep]

@@ -72,10 +72,14 @@ class OutputError:
             self.scales.append([meas[:, c].std() * np.sqrt(used[c].size) for c in range(2)])
             self.targets += [meas[used[c], c] / self.scales[-1][c] for c in range(2)]
         self._cache: dict[bytes, list[np.ndarray]] = {}
+        #: per (recording, channel), the compared samples left out at the start (undefined
+        #: leading steps of the model's predictions)
+        self._leading: dict[tuple[int, int], int] = {}
         self.lockstep: Lockstep[np.ndarray] = Lockstep(self._simulate)
 
     def predictions(self, unit: np.ndarray) -> list[np.ndarray]:
-        """Compared series (n, T, 2) per recording; undefined leading steps count zero.
+        """Compared series (n, T, 2) per recording; undefined leading steps count zero (and
+        are left out of the targets, :meth:`_keep`).
         Parameter sets already simulated (the start, the base point of each Jacobian) are
         taken from a cache, the others simulated in one batch per recording, together with
         those of the other solvers running in step (:attr:`lockstep`)."""
@@ -103,13 +107,55 @@ class OutputError:
         self._keep(unit, series)
 
     def _keep(self, unit: np.ndarray, series: list[np.ndarray]) -> None:
-        """Cache the compared series of the unit rows from their raw series per recording."""
-        compared = [
-            np.nan_to_num(comparison_filter(s, rec))
-            for s, rec in zip(series, self.recordings, strict=True)
+        """Cache the compared series of the unit rows from their raw series per recording.
+        A prediction's undefined leading steps (a network's washout, the same for every set)
+        are left out of the comparison, as :func:`~railsusp.estimate.comparison.aligned_error`
+        leaves them out: their target is set to zero with the prediction (before, the
+        recording's 120 kN wheel load was compared with zero there, a constant that made a
+        network's cost 11 where the simulator's was 0.1 at the same point)."""
+        filtered = [
+            comparison_filter(s, rec) for s, rec in zip(series, self.recordings, strict=True)
         ]
+        for r, f in enumerate(filtered):
+            self._leave_out_leading(r, f)
+        compared = [np.nan_to_num(f) for f in filtered]
         for j, u in enumerate(unit):
             self._cache[u.tobytes()] = [c[j] for c in compared]
+
+    def compared_rows(self) -> tuple[np.ndarray, tuple[int, ...]]:
+        """(mask over the residual rows, the rows kept per recording's channel): the rows
+        of the samples compared, without the left-out leading ones (:meth:`_keep`); what
+        the noise's standard errors are formed from."""
+        masks, blocks = [], []
+        for r, used in enumerate(self.samples):
+            for c in range(2):
+                first = self._leading.get((r, c), 0)
+                m = np.ones(used[c].size, dtype=bool)
+                m[:first] = False
+                masks.append(m)
+                blocks.append(int(m.sum()))
+        return np.concatenate(masks), tuple(blocks)
+
+    def _leave_out_leading(self, r: int, filtered: np.ndarray) -> None:
+        """Zero recording ``r``'s targets at the compared samples before the first one that
+        some set of ``filtered`` (n, T, 2) defines, in each channel (once; a batch whose sets
+        all failed says nothing about the model's leading steps)."""
+        for c, used in enumerate(self.samples[r]):
+            key = (r, c)
+            defined = np.isfinite(filtered[:, used, c]).any(axis=0)
+            if key in self._leading or not defined.any():
+                continue
+            first = int(np.argmax(defined))
+            self._leading[key] = first
+            if first == 0:
+                continue
+            # the cost stays half the sum of squared aligned errors: each channel over the
+            # square root of the samples it compares
+            old = self.scales[r][c]
+            self.scales[r][c] = old * np.sqrt((used.size - first) / used.size)
+            target = self.targets[2 * r + c]
+            target *= old / self.scales[r][c]
+            target[:first] = 0.0
 
     def remember(self, x_si: np.ndarray, series: list[np.ndarray]) -> int:
         """Cache series already simulated elsewhere: ``series`` (n, T, 2) per recording of the

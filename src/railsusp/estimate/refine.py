@@ -282,8 +282,8 @@ def least_squares_from(
         max_nfev=max_evaluations,
         method="trf",
     )
-    blocks = tuple(u[c].size for u in problem.samples for c in range(2))
-    se = noise_standard_errors(sol.jac, sol.fun, blocks, k + n_gain)  # sol.jac: at sol.x
+    keep, blocks = problem.compared_rows()  # a washout's rows are no residuals
+    se = noise_standard_errors(sol.jac[keep], sol.fun[keep], blocks, k + n_gain)  # at sol.x
     return Refinement(
         problem.parameters,
         lo + u0 * (hi - lo),
