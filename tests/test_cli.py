@@ -301,9 +301,9 @@ def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
     assert result.exit_code == 2 and "mean, rms, p99, std" in result.output
     result = runner.invoke(app, [*common, "--simulator", "--out", str(est), "--channel-gains"])
     assert result.exit_code == 2
-    assert "channel_gains with statistic 'mean': accepted only with" in result.output
+    assert "--channel-gains with statistic 'mean': accepted only with" in result.output
     for bad, needle in [
-        (["--expected-draws", "4"], "expected_draws 4 with statistic 'mean': accepted only"),
+        (["--expected-draws", "4"], "--expected-draws 4 with statistic 'mean': accepted only"),
         (["--statistic", "aligned", "--expected-draws", "65"], "--expected-draws 65: accepted 0"),
         (["--statistic", "aligned+std", "--expected-draws", "8"], "accepted only with 'aligned'"),
         (["--statistic", "aligned+mean", "--expected-draws", "8"], "'aligned' alone"),
@@ -487,7 +487,7 @@ def test_align_track_finds_and_writes_a_misregistration(tmp_path):
     assert abs(after.shift_m) < 0.1 and after.correlation > 0.9
     assert "(offset -" in rec.condition.describe()
     bad = runner.invoke(app, ["align-track", str(field), "--max-shift", "0"])
-    assert bad.exit_code == 2 and "max_shift_m = 0: accepted (0, 200] m" in bad.output
+    assert bad.exit_code == 2 and "--max-shift 0: accepted (0, 200] m" in bad.output
 
 
 def test_campaign_duration_keeps_the_sampling_interval(tmp_path):

@@ -94,14 +94,14 @@ def test_a_plot_into_a_folder_is_refused(tmp_path):
 @pytest.mark.parametrize(
     ("option", "value", "needle"),
     [
-        ("--threshold", "-1", "threshold -1: accepted above 0 and below 1"),
-        ("--threshold", "nan", "threshold nan: accepted above 0 and below 1"),
-        ("--max-keys", "0", "max_keys 0: accepted 1 to 10"),
-        ("--min-cv", "-1", "min_cv -1: accepted 0 to below 1"),
-        ("--base-samples", "0", "base_samples 0: accepted 64 to 65536"),
-        ("--base-samples", "1000000", "base_samples 1000000: accepted 64 to 65536"),
-        ("--seed", "-5", "seed -5: accepted 0 or more"),
-        ("--statistics", "bogus", "statistics bogus: accepted one or more of mean, rms"),
+        ("--threshold", "-1", "--threshold -1: accepted above 0 and below 1"),
+        ("--threshold", "nan", "--threshold nan: accepted above 0 and below 1"),
+        ("--max-keys", "0", "--max-keys 0: accepted 1 to 10"),
+        ("--min-cv", "-1", "--min-cv -1: accepted 0 to below 1"),
+        ("--base-samples", "0", "--base-samples 0: accepted 64 to 65536"),
+        ("--base-samples", "1000000", "--base-samples 1000000: accepted 64 to 65536"),
+        ("--seed", "-5", "--seed -5: accepted 0 or more"),
+        ("--statistics", "bogus", "--statistics bogus: accepted one or more of mean, rms"),
     ],
 )
 def test_sensitivity_settings_are_refused_before_any_file_is_written(
@@ -316,3 +316,27 @@ def test_a_folder_named_like_a_table_is_called_a_folder(tmp_path):
     folder.mkdir()
     refused(["check-recording", str(folder)], "a folder, not a recording table")
     refused(["sections", str(folder)], "a folder, not a recording file")
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["train", "{tmp}/none", "--epochs", "0"], "--epochs 0: accepted an integer from 1"),
+        (["posterior", "train", "--seed", "-1", "--out", "{tmp}/p"], "--seed -1: accepted 0 to"),
+        (["sections", "{tmp}/none.csv", "--speed-tolerance", "1.5"], "--speed-tolerance 1.5"),
+    ],
+)
+def test_errors_name_the_option_typed_not_the_setting_behind_it(tmp_path, args, needle):
+    """Stop 61's documentation audit: "speed_tolerance = 1.5", "training epochs = 0",
+    "seed = -1" named the library's settings, not the options the user typed."""
+    from railsusp.cli.common import option_names
+
+    if args[0] == "sections":  # the rules are checked before the run is read
+        (tmp_path / "none.csv").write_text("time_s\n0\n")
+    refused([a.replace("{tmp}", str(tmp_path)) for a in args], needle)
+    assert option_names("max_shift_m = 0: accepted", {"max_shift_m": "--max-shift"}) == (
+        "--max-shift 0: accepted"
+    )
+    # a setting's name in prose further on is left alone
+    assert option_names("seed 3 of the seeds", {"seed": "--seed"}) == "--seed 3 of the seeds"
+    assert option_names("the seed of it", {"seed": "--seed"}) == "the seed of it"

@@ -141,7 +141,9 @@ class EstimateSection(_Cfg):
     crossover_prob: float = Field(0.9, ge=0.0, le=1.0)
     mutation_prob: float = Field(0.05, ge=0.0, le=1.0)
     statistic: str = Field(
-        "mean", description="mean, rms, p99, std, p99.85 (EN 14363) or a '+' combination"
+        "mean",
+        description="mean, rms, p99, std, p99.85 (EN 14363) or a '+' combination; aligned: "
+        "the time-aligned forces on the recordings' measured track",
     )
     per_condition: bool = Field(False, description="two objectives per condition")
     channel_gains: bool = Field(

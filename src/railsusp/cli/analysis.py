@@ -291,6 +291,17 @@ def _sensitivity_keys(run: Path, parameters: str) -> tuple[str, ...]:
     return keys
 
 
+#: the analysis's settings -> the options of ``sensitivity``, for its error messages
+_SENSITIVITY_OPTIONS = {
+    "threshold": "--threshold",
+    "max_keys": "--max-keys",
+    "min_cv": "--min-cv",
+    "base_samples": "--base-samples",
+    "seed": "--seed",
+    "statistics": "--statistics",
+}
+
+
 @app.command()
 def sensitivity(
     run: Annotated[Path, typer.Argument(help="campaign run directory")],
@@ -333,7 +344,7 @@ def sensitivity(
                 compare=compare,
             )
     except RailsuspInputError as exc:
-        fail(str(exc))
+        fail(str(exc), options=_SENSITIVITY_OPTIONS)
     except ValueError as exc:  # most name the run already
         text = str(exc)
         fail(text if text.startswith(str(Path(run))) else f"{run}: {text}")

@@ -5,9 +5,10 @@ that the command modules import this module, not the package that imports them."
 from __future__ import annotations
 
 import logging
+import re
 import sys
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Annotated
 
 import typer
@@ -134,10 +135,25 @@ def frame_table(df, title: str, fmt: str | Callable[[float], str] = "{:.4g}") ->
     return table
 
 
-def fail(message: str, code: int = 2) -> None:
-    """Print a one-line error and exit with status ``code`` (2: bad input)."""
+def fail(message: str, code: int = 2, options: Mapping[str, str] | None = None) -> None:
+    """Print a one-line error and exit with status ``code`` (2: bad input); ``options``
+    (setting -> option) names the options the user typed in place of the settings the
+    library's checks name (:func:`option_names`)."""
+    if options:
+        message = option_names(message, options)
     err_console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
     raise typer.Exit(code)
+
+
+def option_names(message: str, options: Mapping[str, str]) -> str:
+    """``message`` with each setting of ``options`` that it names as ``setting = value``
+    (anywhere) or ``setting value`` (at its start) given as the command-line option
+    (``speed_tolerance = 1.5: accepted 0 to 1`` -> ``--speed-tolerance 1.5: ...``)."""
+    for setting, option in options.items():
+        name = re.escape(setting)
+        message = re.sub(rf"(?<![\w-]){name} = ", f"{option} ", message)
+        message = re.sub(rf"^{name} ", f"{option} ", message)
+    return message
 
 
 def exit_code(exc: BaseException) -> int:

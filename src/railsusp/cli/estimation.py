@@ -12,6 +12,14 @@ from railsusp.cli.common import app, console, fail, frame_table
 from railsusp.errors import RailsuspInputError
 from railsusp.store import atomic_folder, check_output_folder
 
+#: the estimator's settings -> the options of ``estimate``, for its error messages
+_ESTIMATE_OPTIONS = {
+    "weighting": "--weighting",
+    "channel_gains": "--channel-gains",
+    "expected_draws": "--expected-draws",
+    "expected_generations": "--expected-generations",
+}
+
 
 @app.command()
 def estimate(
@@ -52,15 +60,15 @@ def estimate(
             help="with --statistic aligned, on recordings whose geometry states its "
             "accuracy: polish NSGA-II's choice by the model's least squares on its mean over "
             "this many draws of the true track geometry given the measured one (instead of "
-            "the SIMEX step); --refine compares such means too (0: neither)"
+            "the SIMEX step); --refine compares such means too (0 to 64; 0: neither)"
         ),
     ] = 0,
     simulator_corrections: Annotated[
         int,
         typer.Option(
-            help="with --statistic aligned: correct the surrogate's level error at NSGA-II's "
-            "estimate by this many simulations of it, repeating the surrogate's least squares "
-            "with each (output space mapping; 0: the surrogate alone)"
+            help="with --statistic aligned alone: correct the surrogate's level error at "
+            "NSGA-II's estimate by this many simulations of it, repeating the surrogate's "
+            "least squares with each (output space mapping; 0 to 5; 0: the surrogate alone)"
         ),
     ] = 0,
     correction_slopes: Annotated[
@@ -292,7 +300,7 @@ def estimate(
                 },
             )
     except (RailsuspInputError, ValueError, FileNotFoundError) as exc:
-        fail(str(exc))
+        fail(str(exc), options=_ESTIMATE_OPTIONS)
     console.print(
         frame_table(
             res.log.tail(8), "NSGA-II log (last generations; the study's Table 4)", fmt="{:.6g}"

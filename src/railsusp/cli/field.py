@@ -122,7 +122,7 @@ def align_track_command(
         with console.status("simulating on the measured tracks"):
             found = [align_track(r, max_shift_m=max_shift, wagon=wagon_data) for r in recs]
     except (RailsuspInputError, ValueError) as exc:
-        fail(str(exc))
+        fail(str(exc), options={"max_shift_m": "--max-shift"})
     table = Table(title="Track geometry alignment", title_justify="left")
     for col in ("recording", "offset m", "shift m", "correlation before", "after"):
         table.add_column(col, justify="left" if col == "recording" else "right")

@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Annotated
 
 import typer
 
-from railsusp.cli.common import app, console, err_console, fail, frame_table
+from railsusp.cli.common import WagonOption, app, console, err_console, fail, frame_table
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet, parse_overrides
 
@@ -18,7 +17,7 @@ def modes(
         list[str] | None,
         typer.Option("--set", help="parameter overrides, e.g. --set X13=16.1 (display units)"),
     ] = None,
-    wagon: Annotated[Path | None, typer.Option(help="wagon data TOML (default C80/K6)")] = None,
+    wagon: WagonOption = None,
     speed: Annotated[float, typer.Option(help="running speed, km/h (1-200)")] = 60.0,
     friction: Annotated[
         str,

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import json
-import re
 from pathlib import Path
 from typing import Annotated
 
@@ -36,7 +35,7 @@ _OPTIONS = {"section_s": "--section", "n_train": "--simulations", "n_check": "--
             "projection_rank": "--projection-rank",
             "statistics_emulator_cases": "--statistics-emulator-cases",
             "condition_offset": "--condition-offset", "sum_y": "--sum-y",
-            "samples": "--samples"}  # fmt: skip
+            "samples": "--samples", "seed": "--seed"}  # fmt: skip
 
 
 def _print_checks(checks, label: str = "", widened=lambda sections: False) -> None:
@@ -253,10 +252,7 @@ def train_command(
 
             synthetic = posterior_synthetic_run.train(settings, out)
     except RailsuspInputError as exc:
-        message = str(exc)
-        for field, option in _OPTIONS.items():  # the options the user typed, not the fields
-            message = re.sub(rf"(?<![\w-]){field} = ", f"{option} ", message)
-        fail(message)
+        fail(str(exc), options=_OPTIONS)  # the options the user typed, not the fields
     if not is_quiet():
         _calibration_table(est)
     if long_record == "synthetic-likelihood":

@@ -223,7 +223,15 @@ def sections_command(
     except RecordingError as exc:
         print_problems(exc)
     except RailsuspInputError as exc:
-        fail(str(exc))
+        fail(str(exc), options=_SECTION_OPTIONS)
+
+
+#: the section rules' settings -> the options of ``sections``, for its error messages
+_SECTION_OPTIONS = {
+    "speed_tolerance": "--speed-tolerance",
+    "min_length_m": "--min-length",
+    "max_duration_s": "--max-duration",
+}
 
 
 EXAMPLE_FILES = (

@@ -85,7 +85,12 @@ def number(value: float, decimals: int) -> str:
 
 @app.command()
 def simulate(
-    condition: Annotated[str, typer.Argument(help="standard condition name or a TOML file")],
+    condition: Annotated[
+        str,
+        typer.Argument(
+            help="standard condition names, comma-separated (straight,curve), or a TOML file"
+        ),
+    ],
     set_: Annotated[
         list[str] | None,
         typer.Option(
@@ -189,5 +194,5 @@ def _progress():
 
 @app.command()
 def version() -> None:
-    """Print the railsusp version."""
-    console.print(__version__)
+    """Print the railsusp version (as ``railsusp --version`` does)."""
+    console.print(f"railsusp {__version__}")

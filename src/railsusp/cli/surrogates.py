@@ -13,6 +13,15 @@ from rich.table import Table
 from railsusp.cli.common import app, console, err_console, fail, frame_table, show_progress
 from railsusp.errors import RailsuspInputError
 
+#: the training settings -> the options of ``train`` and ``compare``, for error messages
+TRAIN_OPTIONS = {
+    "training epochs": "--epochs",
+    "training batches_per_epoch": "--batches-per-epoch",
+    "training batch_size": "--batch-size",
+    "training fine_tune_epochs": "--fine-tune-epochs",
+    "training seed": "--seed",
+}
+
 
 def _epoch_reporter(bar, task):
     """A training progress callback bound to one progress-bar task."""
@@ -152,7 +161,7 @@ def train(
                 )
             return
     except (RailsuspInputError, ValueError) as exc:
-        fail(str(exc))
+        fail(str(exc), options=TRAIN_OPTIONS)
     table = Table(title=f"{model}: accuracy on held-out simulations", title_justify="left")
     for col in (
         "condition",
@@ -233,9 +242,13 @@ def train(
 @app.command()
 def compare(
     run: Annotated[Path, typer.Argument(help="campaign run directory")],
-    models: Annotated[str, typer.Option(help="models to compare")] = (
-        "cnn-gru,cnn-lstm,cnn-bilstm,bp,rbf,gp-stats"
-    ),
+    models: Annotated[
+        str,
+        typer.Option(
+            help="models to compare, comma-separated (also cnn-gru-seq, the sequence "
+            "network, left out by default: its training is long)"
+        ),
+    ] = ("cnn-gru,cnn-lstm,cnn-bilstm,bp,rbf,gp-stats"),
     conditions: Annotated[str | None, typer.Option(help="default: all of the campaign")] = None,
     epochs: Annotated[int, typer.Option(help="maximum epochs (early stopping)")] = 40,
     fine_tune_epochs: FineTuneEpochs = 0,
@@ -246,7 +259,8 @@ def compare(
     device: Annotated[str, typer.Option(help="cpu, cuda or auto")] = "cpu",
     seed: Annotated[int, typer.Option(help="training seed")] = 0,
 ) -> None:
-    """Train all surrogates on the same split and print the study's Table 7 layout."""
+    """Train the surrogates (--models) on the same split and print the study's Table 7
+    layout."""
     from railsusp.campaign import load_campaign, require_complete
     from railsusp.surrogate.compare import ALL_MODELS, table7
     from railsusp.surrogate.compare import compare as run_compare
@@ -270,7 +284,7 @@ def compare(
                 progress=lambda msg: status.update(f"training {msg}"),
             )
     except (RailsuspInputError, ValueError) as exc:
-        fail(str(exc))
+        fail(str(exc), options=TRAIN_OPTIONS)
     t7 = table7(tab)
     fit_cols = ["Q NRMSE", "Y NRMSE", "Q R2", "Y R2"]
     console.print(
