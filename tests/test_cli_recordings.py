@@ -63,7 +63,7 @@ def test_bad_runs_and_maps_are_one_line_errors(tmp_path):
     result = runner.invoke(
         app, ["sections", str(run), "--map", str(cmap), "--speed-tolerance", "-1"]
     )
-    assert result.exit_code == 2 and "speed_tolerance = -1: accepted 0 to 1" in result.output
+    assert result.exit_code == 2 and "--speed-tolerance -1: accepted 0 to 1" in result.output
     assert "Traceback" not in result.output
 
 

@@ -223,12 +223,12 @@ def test_simulate_writes_no_file_for_a_run_that_stopped(short, monkeypatch, tmp_
 def test_train_refuses_settings_that_train_nothing(tmp_path):
     for args, needle in (
         (["--device", "tpu"], "device 'tpu': accepted cpu, cuda, auto"),
-        (["--epochs", "0"], "epochs = 0: accepted an integer from 1 to 10000"),
-        (["--batch-size", "0"], "batch_size = 0"),
+        (["--epochs", "0"], "--epochs 0: accepted an integer from 1 to 10000"),
+        (["--batch-size", "0"], "--batch-size 0"),
         (["--window", "0"], "--window = 0: accepted 2 .. 10000 steps"),
     ):
         one_line_error(["train", tmp_path, *args], needle)
-    one_line_error(["compare", tmp_path, "--epochs", "0"], "epochs = 0")
+    one_line_error(["compare", tmp_path, "--epochs", "0"], "--epochs 0")
 
 
 def test_a_window_longer_than_the_series_and_an_early_stop_are_said(short, tmp_path):

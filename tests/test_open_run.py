@@ -108,7 +108,7 @@ def test_open_run_judges_with_the_tolerances_the_run_recorded(tmp_path, monkeypa
     monkeypatch.chdir(tmp_path)
     assert set(railsusp.open_run(run).estimate["tolerance_pct"]) == {50.0}
     recorded = json.loads((run / "pipeline.json").read_text())["tolerances"]
-    assert recorded == {"default_pct": 50.0, "parameters": {}}
+    assert recorded == {"default_pct": 50.0, "parameters": {}, "from_wagon": True}
 
 
 def test_tolerances_of_takes_a_name_and_refuses_what_is_not_a_parameter():

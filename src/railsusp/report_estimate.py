@@ -265,8 +265,9 @@ def _corrections_paragraphs(doc: Doc, info: dict) -> None:
         + ": the simulator's forces less the surrogate's, sample by sample"
         + added
         + f"least-squares cost {corrections[0]['cost_start']:.5g} at the first start -> "
-        f"{last['cost']:.5g} after the last ({n} step(s); the corrected surrogate's cost, "
-        "not on the polish's scale). The estimate is that point"
+        f"{last['cost']:.5g} after the last ({n} step(s); the corrected surrogate's "
+        "time-aligned cost, half the sum of squared aligned errors as the polish's). The "
+        "estimate is that point"
         + (", less the same geometry bias" if last.get("geometry_bias_removed") else "")
         + f"; NSGA-II's own is the column '{header('nsga_estimate')}', and the Pareto range "
         "moved with it."
