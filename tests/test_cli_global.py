@@ -13,6 +13,8 @@ from railsusp.cli import app
 def test_version_option():
     result = CliRunner().invoke(app, ["--version"])
     assert result.exit_code == 0 and result.output.strip() == f"railsusp {__version__}"
+    # the command says the same (it printed the bare number)
+    assert CliRunner().invoke(app, ["version"]).output.strip() == f"railsusp {__version__}"
 
 
 def test_quiet_and_verbose_together_is_an_error():
