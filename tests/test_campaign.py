@@ -492,3 +492,79 @@ def test_a_batch_left_half_written_by_a_kill_leaves_no_temporary_behind(full_run
     stale.write_bytes(b"half a batch")
     run_campaign(cfg, copy)
     assert not stale.exists() and (copy / "features.parquet").exists()
+
+
+@pytest.mark.parametrize(
+    ("address", "ok"),
+    [
+        ("tcp://h:8786", True),
+        ("tcp://10.0.0.5:8786", True),
+        ("tcp://[::1]:8786", True),
+        ("tcp://h:8786/", False),  # failed in distributed: int('8786/')
+        ("tcp://h:99999", False),  # waited 10 s for a port that cannot exist
+        ("tls://h:8786", False),  # needs security settings railsusp does not take
+        ("h:8786", False),
+        ("tcp://h", False),
+    ],
+)
+def test_scheduler_addresses_are_checked_before_any_connection(address, ok):
+    from railsusp.campaign.run import check_scheduler_address
+
+    if ok:
+        check_scheduler_address(address, "--scheduler")
+    else:
+        with pytest.raises(CampaignError, match=r"accepted tcp://host:port \(host a name"):
+            check_scheduler_address(address, "--scheduler")
+
+
+@pytest.mark.parametrize("peer", ["silent", "ssh"])
+def test_a_port_that_is_no_dask_scheduler_is_one_line_within_the_timeout(monkeypatch, peer):
+    """Stop 61's Dask audit: a port held by a server that never speaks Dask hung for good
+    (distributed's timeout does not bound its handshake); one that answers an SSH banner
+    raised a 2.8 EiB allocation error with a traceback."""
+    import socket
+    import threading
+    import time
+
+    import railsusp.campaign.run as run_mod
+
+    server = socket.create_server(("127.0.0.1", 0))
+    port = server.getsockname()[1]
+    held = []
+
+    def serve():
+        while True:
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                return
+            held.append(conn)
+            if peer == "ssh":
+                conn.sendall(b"SSH-2.0-OpenSSH_9.2p1 Debian-2\r\n" * 4)
+
+    threading.Thread(target=serve, daemon=True).start()
+    monkeypatch.setattr(run_mod, "CONNECT_TIMEOUT_S", 3.0)
+    t0 = time.monotonic()
+    try:
+        with pytest.raises(CampaignError, match="no Dask scheduler answered"):
+            run_mod._connect(f"tcp://127.0.0.1:{port}")
+    finally:
+        server.close()
+        for c in held:
+            c.close()
+    assert time.monotonic() - t0 < 15.0
+
+
+def test_a_batch_of_other_force_laws_is_refused_not_stamped_ours(monkeypatch, tmp_path):
+    """Stop 61's Dask audit: a worker with another railsusp simulated a batch that was
+    stored with this client's force-law revision (features 10 apart, no warning)."""
+    import railsusp.campaign.run as run_mod
+
+    own = run_mod.simulate_task
+    monkeypatch.setattr(
+        run_mod, "simulate_task", lambda *a: {**own(*a), "model_revision": "another"}
+    )
+    cfg = make_config(TINY[:1], 4, batch_size=2, seed=3)
+    with pytest.raises(CampaignError, match="force laws of revision another where this"):
+        run_campaign(cfg, tmp_path / "r")
+    assert not list((tmp_path / "r").glob("**/batch-*.parquet"))  # no batch stored

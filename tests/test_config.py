@@ -61,7 +61,7 @@ def _write(tmp_path, text: str):
         (BASE.replace("X13", "campaign.parameters") + "", "field.truth"),
         (BASE + 'wagon = "nowhere.toml"\n', "field.wagon"),  # after a table: nested
         ('wagon = "nowhere.toml"\n' + BASE, "wagon: wagon file nowhere.toml does not exist"),
-        ('scheduler = "localhost:8786"\n' + BASE, "expected tcp://host:port"),
+        ('scheduler = "localhost:8786"\n' + BASE, "accepted tcp://host:port"),
         (
             BASE.replace("truth = { X13 = 16.1 }", 'measured = "nowhere"'),
             "field.measured = 'nowhere' is not a folder",

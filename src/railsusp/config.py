@@ -305,8 +305,13 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
             raise bad(f"wagon: {exc}") from None
     if cfg.surrogate.pretrained is not None:
         _check_network_set(cfg, conds, bad)
-    if cfg.scheduler is not None and not cfg.scheduler.startswith(("tcp://", "tls://")):
-        raise bad(f"scheduler = {cfg.scheduler!r}: expected tcp://host:port or tls://host:port")
+    if cfg.scheduler is not None:
+        from railsusp.campaign.run import check_scheduler_address
+
+        try:
+            check_scheduler_address(cfg.scheduler, "scheduler =")
+        except RailsuspInputError as exc:
+            raise bad(str(exc)) from None
 
 
 def _check_network_set(cfg: Any, conds: list, bad: Any) -> None:

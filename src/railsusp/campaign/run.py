@@ -96,6 +96,7 @@ def simulate_task(
         )
     return {
         "condition": cond.name,
+        "model_revision": MODEL_REVISION,  # the force laws the worker simulated with
         "sample_ids": sample_ids,
         "series": series,
         "status": status,
@@ -413,8 +414,8 @@ def run_campaign(
             f"--workers {workers} with --scheduler {scheduler}: accepted one of them (the "
             "scheduler's cluster has its own workers; --workers starts a local one)"
         )
-    if scheduler is not None and not re.fullmatch(r"(tcp|tls)://[^\s:/]+:\d{1,5}/?", scheduler):
-        raise CampaignError(f"--scheduler {scheduler!r}: accepted tcp://host:port (or tls://)")
+    if scheduler is not None:
+        check_scheduler_address(scheduler, "--scheduler")
     check_output_folder(out)
     out.mkdir(parents=True, exist_ok=True)
     # one process at a time: two on one folder simulated the same batches twice, and one
@@ -461,6 +462,13 @@ def _run_locked(
 
     def finish(b: int, res: dict[str, Any]) -> None:
         nonlocal done_runs
+        worker = res.get("model_revision")
+        if worker != MODEL_REVISION:  # a cluster node of another railsusp: never stamped ours
+            raise CampaignError(
+                f"batch {b} of {res['condition']!r} was simulated with force laws of revision "
+                f"{worker} where this railsusp has {MODEL_REVISION}: install the same railsusp "
+                "on every worker of the cluster (the batches stored so far are kept)"
+            )
         write_batch(out, b, res, n_t[res["condition"]], config.hash())
         done_runs += len(res["sample_ids"])
         if progress:
@@ -492,6 +500,59 @@ def _run_locked(
     return out
 
 
+def check_scheduler_address(address: str, setting: str) -> None:
+    """Refuse (one line naming ``setting``) a Dask scheduler address other than
+    ``tcp://host:port``: host a name, an IPv4 address or ``[IPv6]``, port 1-65535. A
+    trailing slash, a port out of range or ``tls://`` (which needs security settings that
+    railsusp does not take) failed inside distributed with a traceback, or waited for a
+    scheduler that could not answer."""
+    m = re.fullmatch(r"tcp://(\[[0-9A-Fa-f:.]+\]|[^\s:/\[\]]+):(\d{1,5})", address)
+    if m is None or not 1 <= int(m.group(2)) <= 65535:
+        raise CampaignError(
+            f"{setting} {address!r}: accepted tcp://host:port (host a name, an IPv4 address "
+            "or [IPv6], port 1-65535; tls:// is not taken: it needs security settings)"
+        )
+
+
+#: the longest wait for a Dask scheduler to answer, s: distributed's own timeout does not
+#: bound its handshake (a port held by a server that never speaks Dask hung for good)
+CONNECT_TIMEOUT_S = 20.0
+
+
+def _connect(scheduler: str):
+    """A Dask client of ``scheduler``, or a one-line :class:`CampaignError` within
+    :data:`CONNECT_TIMEOUT_S`: no answer, a refused port, or a peer that is no Dask
+    scheduler (an SSH banner read as a message gave an allocation error of 2.8 EiB)."""
+    import threading
+
+    from dask.distributed import Client
+
+    made: dict[str, Any] = {}
+
+    def connect() -> None:
+        try:
+            made["client"] = Client(scheduler, timeout="10s")
+        except BaseException as exc:  # whatever distributed raises on a wrong peer
+            made["error"] = exc
+
+    thread = threading.Thread(target=connect, daemon=True)  # a hung one does not block exit
+    thread.start()
+    thread.join(CONNECT_TIMEOUT_S)
+    why = (
+        f"no answer within {CONNECT_TIMEOUT_S:g} s"
+        if thread.is_alive()
+        else f"{type(made['error']).__name__}: {made['error']}"
+        if "error" in made
+        else ""
+    )
+    if why:
+        raise CampaignError(
+            f"--scheduler {scheduler}: no Dask scheduler answered ({why}); accepted the "
+            "address of a running one (the campaign resumes from what is stored)"
+        )
+    return made["client"]
+
+
 def _run_dask(todo, args, finish, scheduler: str | None, workers: int | None) -> None:
     """Submit batches to a Dask cluster and store them as they complete."""
     from dask.distributed import Client, LocalCluster, as_completed
@@ -502,14 +563,8 @@ def _run_dask(todo, args, finish, scheduler: str | None, workers: int | None) ->
             n_workers=workers or 1, threads_per_worker=1, processes=True, dashboard_address=None
         )
         client = Client(cluster)
-    else:
-        try:  # the run directory is written and resumes once a scheduler answers
-            client = Client(scheduler, timeout="10s")
-        except (OSError, TimeoutError) as exc:
-            raise CampaignError(
-                f"--scheduler {scheduler}: no Dask scheduler answered ({exc}); accepted the "
-                "address of a running one (the campaign resumes from what is stored)"
-            ) from None
+    else:  # the run directory is written and resumes once a scheduler answers
+        client = _connect(scheduler)
     try:
         futures = {}
         for ci, b in todo:
