@@ -35,7 +35,7 @@ from railsusp.pipeline_state import (
     surrogate_campaign_dir,
 )
 from railsusp.run_lock import run_lock
-from railsusp.store import code_identity, content_hash, provenance, write_json
+from railsusp.store import code_identity, content_hash, provenance, utc_now, write_json
 from railsusp.summary import read_tolerances
 
 #: stage finishes with their elapsed time (info) and starts (debug), for the command line
@@ -154,7 +154,8 @@ def _run_stages(
                 # report stage shows it (set after the stages, the report showed the
                 # invocation before, or nothing on a first run); a run of up-to-date
                 # stages alone leaves the provenance of the one that made them
-                state["provenance"] = provenance()
+                made_by = code_identity()  # the code of this run's stages, asked git once
+                state["provenance"] = provenance(made_by)
             ran = True
             log.debug("stage %s: running", stage)
             if progress:
@@ -179,8 +180,8 @@ def _run_stages(
                 "state": "done",
                 "info": info,
                 "seconds": time.perf_counter() - t0,
-                "finished": provenance()["utc"],
-                "made_by": code_identity(),  # stages of one run may come from two commits
+                "finished": utc_now(),
+                "made_by": made_by,  # stages of one run may come from two commits
                 "files": file_sizes(stage_files(config, out, stage), out),
             }
             write_json(state_path, state)
@@ -188,7 +189,7 @@ def _run_stages(
             forced = min(forced, i + 1)  # everything downstream reruns
         upstream[stage] = h
     if ran:
-        state["provenance"]["finished"] = provenance()["utc"]
+        state["provenance"]["finished"] = utc_now()
     write_json(state_path, state)
     return state
 

@@ -20,9 +20,11 @@ from railsusp.report_doc import Doc
 EN14363_CSV = "en14363.csv"
 
 
-def en14363_table(run: str | Path) -> tuple[pd.DataFrame, str]:
+def en14363_table(run: str | Path, read: list | None = None) -> tuple[pd.DataFrame, str]:
     """The EN 14363 percentiles (kN) of the run's recordings, and where they come from:
-    ``RUN/field/en14363.csv`` if present, else computed from the field recordings."""
+    ``RUN/field/en14363.csv`` if present, else computed from the field recordings
+    (``read``: the run's :func:`~railsusp.summary.field_recordings`, where the caller has
+    them already)."""
     from railsusp.summary import field_recordings
 
     field = Path(run) / "field"
@@ -31,7 +33,7 @@ def en14363_table(run: str | Path) -> tuple[pd.DataFrame, str]:
             field / EN14363_CSV
         ), f"the long run, at its sampling rate ({EN14363_CSV})"
     rows = []
-    for rec in field_recordings(run):  # checked against the run's wagon
+    for rec in field_recordings(run) if read is None else read:  # as the run's wagon's
         for w in rec.wheels:
             for force, x in (("Y", rec.Y[w]), ("Q", rec.Q[w])):
                 st = section_statistics(x, rec.sampling_rate, rec.condition.speed)
@@ -42,11 +44,12 @@ def en14363_table(run: str | Path) -> tuple[pd.DataFrame, str]:
     return pd.DataFrame(rows), "the field recordings"
 
 
-def en14363_section(doc: Doc, run: str | Path) -> None:
-    """Add the section to ``doc`` (nothing when the run has no field recordings)."""
+def en14363_section(doc: Doc, run: str | Path, read: list | None = None) -> None:
+    """Add the section to ``doc`` (nothing when the run has no field recordings; ``read``:
+    as :func:`en14363_table`)."""
     if not (Path(run) / "field" / "index.json").exists():
         return
-    table, source = en14363_table(run)
+    table, source = en14363_table(run, read)
     if table.empty:
         return
     doc.h("Measured forces, EN 14363 processing")

@@ -37,11 +37,12 @@ _ORDER = {
 }
 
 
-def summary_card(doc: Doc, run: Path) -> None:
-    """The answer in the first screen: wagon, recordings, per-element verdicts, forces."""
+def summary_card(doc: Doc, run: Path, read: list | None = None) -> None:
+    """The answer in the first screen: wagon, recordings, per-element verdicts, forces
+    (``read``: the run's field recordings, where the caller has them already)."""
     est = summary.estimate_table(run)
     tol = summary.run_tolerances(run)
-    recs = summary.recordings(run)
+    recs = summary.recordings(run, read)
     synthetic = summary.is_synthetic(run)
     with_track = bool(len(recs)) and bool(recs.measured_track.all())
     rec_text = "; ".join(
@@ -344,12 +345,10 @@ def _made_by(made: dict | None) -> str:
     )
 
 
-def _measured_track(run: Path):
-    """The condition of the run's first recording that carries its track geometry, or
-    None (no field folder, or no recording with its track)."""
-    if not (run / "field" / "index.json").exists():
-        return None
-    for rec in summary.field_recordings(run):
+def _measured_track(read: list):
+    """The condition of the first of the run's recordings ``read`` that carries its track
+    geometry, or None."""
+    for rec in read:
         if rec.condition.track_geometry is not None:
             return rec.condition
     return None
@@ -367,8 +366,10 @@ def build_report(run: str | Path) -> list[Path]:
     doc = Doc(run)
     title = state.get("config", {}).get("name", "railsusp run")
     doc.h(f"railsusp report: {title}", 1)
+    has_field = (run / "field" / "index.json").exists()
+    read = summary.field_recordings(run) if has_field else []  # once, for every section
     if (run / "estimate" / "validation" / "validation.csv").exists():
-        summary_card(doc, run)
+        summary_card(doc, run, read)
     doc.p(
         "How it was found: a simulation campaign of the wagon, Sobol sensitivity (which "
         "parameters the forces reveal), surrogate force models, NSGA-II estimation (refined "
@@ -383,7 +384,7 @@ def build_report(run: str | Path) -> list[Path]:
         f"The campaign's design track of '{first.name}' (seed {first.seed}): irregularities "
         "and their PSD vs the FRA spectrum"
     )
-    measured = _measured_track(run)
+    measured = _measured_track(read)
     if measured is not None:  # the track the estimate compared on, not the design track
         first = measured
         caption = (
@@ -391,14 +392,14 @@ def build_report(run: str | Path) -> list[Path]:
             "estimate and the validation simulated): irregularities and their PSD vs the FRA "
             "spectrum"
         )
-    elif (run / "field" / "index.json").exists():
+    elif has_field:
         caption += "; the recordings ran on their own track, which they do not carry"
     irr = irregularities_for(first)
     if irr is not None:
         png = plot_track_irregularities(irr, run / "report_assets" / "track.png")
         doc.figure(png, caption)
     _method_sections(doc, run, state)
-    en14363_section(doc, run)
+    en14363_section(doc, run, read)
     _provenance(doc, run, state, meta)
     html_path = atomic_write_bytes(run / "report.html", doc.page(title).encode())
     md_path = atomic_write_bytes(run / "report.md", "\n".join(doc.md).encode())

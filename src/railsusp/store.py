@@ -580,14 +580,20 @@ def code_identity() -> dict[str, Any]:
     return {"railsusp": __version__, "git_sha": git_sha(), "git_dirty": git_dirty()}
 
 
-def provenance() -> dict[str, Any]:
+def utc_now() -> str:
+    """The UTC time to the second, ISO 8601: when a file or a stage was made."""
+    return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+
+
+def provenance(identity: dict[str, Any] | None = None) -> dict[str, Any]:
     """Who and what produced a file: railsusp's version, git commit and whether its tree was
-    modified, the libraries' versions, host, UTC time."""
+    modified (``identity``, default :func:`code_identity`), the libraries' versions, host,
+    UTC time."""
     return {
-        **code_identity(),
+        **(code_identity() if identity is None else identity),
         "python": platform.python_version(),
         **library_versions(),
         "host": socket.gethostname(),
         "platform": platform.platform(),
-        "utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "utc": utc_now(),
     }

@@ -360,14 +360,16 @@ def field_recordings(run: str | Path) -> list:
     return read_field(Path(run) / "field", wheel_load_N=load, wagon=wagon)
 
 
-def recordings(run: str | Path) -> pd.DataFrame:
+def recordings(run: str | Path, read: list | None = None) -> pd.DataFrame:
     """The recordings the run used: name, condition, measured wheel, duration, whether they
-    carry their track geometry."""
+    carry their track geometry (``read``: :func:`field_recordings` of the run, where the
+    caller has them already)."""
 
     folder = Path(run) / "field"
     names = read_json(folder / "index.json").get("recordings", [])
     rows = []
-    for name, rec in zip(names, field_recordings(run), strict=True):
+    read = field_recordings(run) if read is None else read
+    for name, rec in zip(names, read, strict=True):
         rows.append(
             {
                 "recording": str(name),

@@ -116,20 +116,21 @@ def _continued(before: RawChannel, part: RawChannel) -> RawChannel:
     same unit and master) is one channel, joined in time (the join checked later like any
     dropout); otherwise the two cannot be told apart, and the count of groups makes
     :func:`~railsusp.measured.run.read_run` refuse the channel where the map uses it."""
-    same = part.unit == before.unit and part.master == before.master and part.time.size
-    if same and before.time.size and before.groups == 1:
-        if part.time[0] > before.time[-1]:
-            first, second = before, part
-        elif part.time[-1] < before.time[0]:
-            first, second = part, before
-        else:
-            first = second = None
-        if first is not None and second is not None:
+    same = part.unit == before.unit and part.master == before.master
+    if same and part.time.size and before.time.size and before.groups == 1:
+        order = (
+            (before, part)
+            if part.time[0] > before.time[-1]
+            else (part, before)
+            if part.time[-1] < before.time[0]
+            else None
+        )
+        if order is not None:
             return RawChannel(
                 before.name,
                 before.unit,
-                np.concatenate([first.time, second.time]),
-                np.concatenate([first.values, second.values]),
+                np.concatenate([c.time for c in order]),
+                np.concatenate([c.values for c in order]),
                 first_row=0,
                 master=before.master,
             )

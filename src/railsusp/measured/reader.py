@@ -24,7 +24,9 @@ from railsusp.measured.checks import (
     check_flat,
     check_forces,
     check_time,
+    runs,
 )
+from railsusp.measured.checks import rows as row_range  # (``rows`` names a count below)
 from railsusp.measured.raw import read_raw
 from railsusp.measured.recording import FORMAT, Recording, RecordingError
 from railsusp.measured.units import si_factor, split_header
@@ -271,13 +273,10 @@ def _raw(table_path: Path):
     v = speed.values
     still = ~(v > 0)  # NaN too
     if still.any():
-        i = int(np.flatnonzero(still)[0])
-        from railsusp.measured.checks import rows, runs
-
         a, b = runs(still)[0]
         raise RailsuspInputError(
-            f"recording {table_path}: column 'speed_kmh', {rows(a, b - 1, speed.first_row)}: "
-            f"speed {v[i]:g} km/h; a table along distance_m needs the speed positive in "
+            f"recording {table_path}: column 'speed_kmh', {row_range(a, b - 1, speed.first_row)}: "
+            f"speed {v[a]:g} km/h; a table along distance_m needs the speed positive in "
             "every row (a stop has no distance to sample it by: give time_s)"
         )
     return _on_time(raw, speed.time, v / 3.6)

@@ -272,11 +272,7 @@ def read_run(
             f"channel {speed_name!r}: {100.0 * backwards.mean():.3g} % of the samples run "
             "backwards (wheelset 1 trailing); those stretches are left out"
         )
-    span = None
-    if "position" in cmap.signals:  # its path, jumps left out, on its own samples
-        moved = np.abs(np.diff(pos.values))
-        moved[jump] = 0.0
-        span = float(np.nansum(moved))
+    span = distance_path(pos.values, jump) if "position" in cmap.signals else None
     problems += _plausible_track(sig, cmap.signals, speed, t, span)
     if wheel_load_N is None:
         from railsusp.vehicle.setup import static_wheel_load
@@ -334,14 +330,17 @@ def _plausible_track(
     names: dict[str, str],
     speed: np.ndarray,
     t: np.ndarray,
-    span: float | None = None,
+    span: float | None,
 ) -> list[str]:
     """Problems of a run's track channels whose values no line has, each naming the
     channel: a cant or grade beyond a working condition's range, and a distance channel
     whose span disagrees with the integrated speed (one of the two in the wrong unit: a
     speed headed ``[m/s]`` holding km/h cut sections at 234 km/h). ``span``: the distance
-    channel's path, its jumps left out, as read on its own samples (on the forces' a slow
-    channel's jump is spread over many steps, each too small to tell)."""
+    channel's path, its jumps left out, as read on its own samples (None: no distance
+    channel). The path, not the channel's span: a run that backs up is no unit error, nor
+    is a chainage jump or an odometer's reset (a unit error of 3.6 or 1000 moves every
+    step, not a few); on the forces' samples a slow channel's jump is spread over many
+    steps, each too small to tell."""
     problems = []
     for key, limit, scale, unit in (
         ("cant", MAX_CANT_M, 1e3, "mm"),
@@ -352,16 +351,8 @@ def _plausible_track(
                 f"channel {names[key]!r}: {key} up to {np.nanmax(np.abs(sig[key])) * scale:.4g} "
                 f"{unit}, beyond a working condition's {limit * scale:g} {unit}: a unit error?"
             )
-    if "speed" in sig and "position" in sig:
+    if "speed" in sig and span is not None:
         travelled = float(np.trapezoid(np.abs(speed), t))
-        # the path the distance channel runs over, not its span: a run that backs up is not
-        # a unit error; nor is a chainage jump at a km post or an odometer's reset: a step
-        # more than JUMP_FACTOR times what the speed covers in it (1 m at the least) is
-        # left out (a unit error of 3.6 or 1000 moves every step, not a few)
-        if span is None:  # the distance on the forces' samples (its jumps found there)
-            steps = np.abs(np.diff(sig["position"]))
-            reach = np.abs(0.5 * (speed[1:] + speed[:-1])) * np.diff(t)
-            span = float(np.nansum(np.where(steps > JUMP_FACTOR * reach + 1.0, 0.0, steps)))
         lo, hi = DISTANCE_SPEED_RATIO
         if travelled > 10.0 and not lo <= span / travelled <= hi:
             problems.append(
@@ -455,6 +446,14 @@ def _jump_steps(x: np.ndarray, t: np.ndarray, speed: np.ndarray | None) -> np.nd
         rate = float(np.median(change / np.maximum(elapsed, 1e-12)))
         reach = np.maximum(rate, 1.2 * MAX_SPEED_KMH / 3.6 / JUMP_FACTOR) * elapsed
     return moved[change > JUMP_FACTOR * reach + 1.0]
+
+
+def distance_path(x: np.ndarray, jump: np.ndarray) -> float:
+    """The path a distance channel runs over, m: the sum of its steps, the ``jump`` steps
+    left out (a run that backs up covers its stretch twice; a reset covers nothing)."""
+    moved = np.abs(np.diff(x))
+    moved[jump] = 0.0
+    return float(np.nansum(moved))
 
 
 def _without_jumps(x: np.ndarray, jump: np.ndarray) -> np.ndarray:
