@@ -10,7 +10,9 @@ model's physics rewrites the file (``--write``) in the same commit, saying why, 
 forces under the stored revision, since run directories are re-simulated only when it
 changes). The file it replaces can stay beside it as the reference of a switch that restores
 the old model (tests/data/force_reference_zero_yaw.npz: ``[contact] yaw_geometry = false``;
-force_reference_wedge_pair.npz: ``[secondary] wedge_half_spacing = 0``).
+force_reference_wedge_pair.npz: ``[secondary] wedge_half_spacing = 0``;
+force_reference_2026-11-30.1.npz: the wagon fields of
+``railsusp.vehicle.wagon.FORCE_LAWS_BEFORE_2026_11_30_2``).
 """
 
 from __future__ import annotations

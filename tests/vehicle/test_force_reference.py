@@ -13,6 +13,11 @@ from conftest import bench_script
 WEDGE_PAIR_REFERENCE = (
     Path(__file__).resolve().parents[1] / "data" / "force_reference_wedge_pair.npz"
 )
+#: the reference forces of revision 2026-11-30.1, before the side frames' roll couple, the
+#: car body's gravity roll moment and the coupler line halfway between cars
+ROLL_MOMENTS_REFERENCE = (
+    Path(__file__).resolve().parents[1] / "data" / "force_reference_2026-11-30.1.npz"
+)
 
 
 def _bench():
@@ -67,11 +72,31 @@ def test_wedges_at_the_nest_centre_reproduce_the_forces_before_the_warp_friction
     were split (one wedge pair at the nest centre, no warp friction): its forces equal those
     stored with that model to 1e-9 of the largest force (measured: bit for bit against a
     fresh run of that model, 3e-14 against the stored file, the machine's round-off)."""
-    from railsusp.vehicle.wagon import load_wagon
+    from railsusp.vehicle.wagon import FORCE_LAWS_BEFORE_2026_11_30_2, load_wagon
 
     fr = _bench()
-    wagon = load_wagon().with_values({"secondary.wedge_half_spacing": 0.0})
+    wagon = load_wagon().with_values(
+        {**FORCE_LAWS_BEFORE_2026_11_30_2, "secondary.wedge_half_spacing": 0.0}
+    )
     y, q = fr.reference_forces(condition, wagon)
     ref = np.load(WEDGE_PAIR_REFERENCE)
     assert fr.relative_difference(y, ref[f"{condition}_Y"]) < 1e-9
     assert fr.relative_difference(q, ref[f"{condition}_Q"]) < 1e-9
+
+
+@pytest.mark.parametrize("condition", ["straight", "curve"])
+def test_the_switches_of_revision_2026_11_30_1_reproduce_its_forces(condition):
+    """``FORCE_LAWS_BEFORE_2026_11_30_2`` (side frames not rolling with their wheelsets, no
+    gravity roll moment, the coupler angle at its pivot) is the model of revision
+    2026-11-30.1: its forces equal that revision's stored reference to 1e-9 of the largest
+    (and the model of today differs from it: the check is not blind)."""
+    from railsusp.vehicle.wagon import FORCE_LAWS_BEFORE_2026_11_30_2, load_wagon
+
+    fr = _bench()
+    ref = np.load(ROLL_MOMENTS_REFERENCE)
+    assert str(ref["model_revision"]) == "2026-11-30.1"
+    y, q = fr.reference_forces(condition, load_wagon().with_values(FORCE_LAWS_BEFORE_2026_11_30_2))
+    assert fr.relative_difference(y, ref[f"{condition}_Y"]) < 1e-9
+    assert fr.relative_difference(q, ref[f"{condition}_Q"]) < 1e-9
+    _, q_now = fr.reference_forces(condition)
+    assert fr.relative_difference(q_now, ref[f"{condition}_Q"]) > 1e-3

@@ -153,3 +153,32 @@ def test_synthesised_gauge_stays_within_the_class_safety_limits():
     irr = synthesise(3400.0, 5, [1, 2, 3, 4])
     assert irr.gauge.min() > tight and irr.gauge.max() < wide
     assert 3.8e-3 < irr.gauge.std() < 4.8e-3  # the spectrum's RMS is barely touched
+
+
+def test_short_wavelengths_are_not_folded_onto_the_track_grid():
+    """With wavelengths down to 0.2 m the grid takes their synthesis spacing (an eighth of
+    the shortest): on the solver's 0.125 m grid the power at 0.25-0.33 m came out 39 % high
+    (the wavelengths below 0.25 m folded onto it). The default 1 m keeps the 0.125 m grid."""
+    from railsusp.conditions import WorkingCondition
+    from railsusp.vehicle import layout as L
+    from railsusp.vehicle.setup import SolverSettings, section_irregularities, track_arrays
+    from railsusp.vehicle.wagon import load_wagon
+
+    wagon, settings = load_wagon(), SolverSettings()
+    fine = WorkingCondition(speed_kmh=60.0, irregularity_class=5, wavelength_min_m=0.2, seed=1)
+    assert track_arrays(WorkingCondition(speed_kmh=60.0), [1], wagon, settings)[2] == 0.125
+    trk, s0, ds = track_arrays(fine, [1], wagon, settings)
+    assert ds == pytest.approx(0.025)
+    irr = section_irregularities(fine, [1], wagon)
+    dx = irr.s[1] - irr.s[0]
+    s = s0 + ds * np.arange(trk.shape[-1])
+    on_grid = trk[0, L.TR_ZL][s > 40.0]
+    synth = irr.left_vertical[0][(irr.s > 40.0) & (irr.s < s[-1] - 30.0)]
+
+    def band_power(z, spacing, nperseg):
+        f, p = welch(z, fs=1.0 / spacing, nperseg=nperseg)
+        band = (f >= 1 / 0.33) & (f < 1 / 0.25)
+        return np.trapezoid(p[band], f[band])
+
+    ratio = band_power(on_grid, ds, 4096) / band_power(synth, dx, 4096)
+    assert 0.85 < ratio < 1.15

@@ -352,7 +352,9 @@ def write_network_set(
     and wagon), with its accuracy table and the commands that trained them; the manifest
     records today's force-law revision and the references. ``source`` is a folder holding
     ``<condition>/`` bundles, or a mapping from each condition to its bundle folder where
-    the conditions' networks come from different campaigns."""
+    the conditions' networks come from different campaigns. A bundle that records another
+    force-law revision than today's is refused (audit of stop 62: the manifest stamped
+    today's whatever the networks had learnt)."""
     from railsusp.surrogate.bundle import load
     from railsusp.vehicle import MODEL_REVISION
 
@@ -376,6 +378,14 @@ def write_network_set(
             )
         if wagon_hash(s.wagon) != wagon_hash(first.wagon):
             raise RailsuspInputError(f"{bundles[c]}: trained on another wagon than the set's")
+        trained = s.meta.get("model_revision")
+        if trained is not None and trained != MODEL_REVISION:
+            # the manifest would claim today's force laws for a network of others
+            raise RailsuspInputError(
+                f"{bundles[c]}: trained on force-law revision {trained}, this railsusp "
+                f"simulates {MODEL_REVISION}; train it again, or score it on today's "
+                "simulator and carry the set over (railsusp.surrogate.restamp)"
+            )
     dest = Path(dest)
     with atomic_folder(dest, keep=False) as tmp:
         for c in conditions:

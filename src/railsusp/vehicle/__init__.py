@@ -12,5 +12,10 @@ a folder keyed by their sources (:mod:`railsusp.vehicle.kernel_cache`).
 #: 2026-11-24.2: the friction wedges resist warp (front and rear wedge); 2026-11-30.1: the
 #: RK4 step within its stability bound below about 58 km/h and the irregularities' fade-in
 #: ending before the record with lead-ins under 40 m (forces at 60 km/h with the 100 m
-#: lead-in unchanged, bit for bit)
-MODEL_REVISION = "2026-11-30.1"
+#: lead-in unchanged, bit for bit); 2026-11-30.2: the side frames roll with their wheelsets
+#: (the couple of their lateral forces reaches the wheel loads), the car body's gravity roll
+#: moment, the coupler line's angle halfway between like cars (docs/model.md; wagon fields
+#: that restore those three: railsusp.vehicle.wagon.FORCE_LAWS_BEFORE_2026_11_30_2), the
+#: rail damping's push capped at the Hertz force (no step at a touch-down) and a track grid
+#: as fine as the synthesis where wavelengths go below 1 m
+MODEL_REVISION = "2026-11-30.2"

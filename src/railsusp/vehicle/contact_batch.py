@@ -45,7 +45,7 @@ from railsusp.vehicle.wheel_rail import (
 
 _K = L.K
 I_R0, I_MU, I_CREEP = _K["r0"], _K["mu"], _K["creep_factor"]
-I_CRZ, I_CRY = _K["c_rz"], _K["c_ry"]
+I_CRZ, I_CRY, I_DCAP = _K["c_rz"], _K["c_ry"], _K["rail_damping_cap"]
 I_NREF, I_PENMAX, I_LIFTMAX = _K["N_ref"], _K["pen_max"], _K["lift_max"]
 I_NPTS, I_YAWGEO = _K["contact_points"], _K["yaw_geometry"]
 I_INVV, I_INVR0, I_INVKRY, I_INVKRZ = _K["inv_V"], _K["inv_r0"], _K["inv_k_ry"], _K["inv_k_rz"]
@@ -226,13 +226,16 @@ def _hertz_steps(wk):
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always", error_model="numpy")
 def _damped_load(N, rate, cd, sd, g, K):
-    """(N less the rail support's damping along the normal, whether that leaves a load,
+    """(N less the rail support's damping along the normal, the damping's push capped at N,
+    whether that leaves a load,
     1.0 where the Hertz approach is beyond the penetration bound) of one point with Hertz
     force N (:func:`railsusp.vehicle.wheel_rail.creep_contact_forces`). An unloaded point
     gets N = 1 (a harmless value for the cube root; its forces are selected away)."""
     pen = K[I_PENMAX]
     deep = 1.0 if N * N * (g * g * g) > pen * pen * pen else 0.0
-    n = N - (cd * cd * K[I_CRZ] + sd * sd * K[I_CRY]) * rate * cd
+    damping = -(cd * cd * K[I_CRZ] + sd * sd * K[I_CRY]) * rate * cd
+    # at most the Hertz force (no step at a touch-down; K rail_damping_cap)
+    n = N + (min(damping, N) if K[I_DCAP] != 0.0 else damping)
     loaded = n > 0.0 if N > 0.0 else False
     return n if loaded else 1.0, loaded, deep
 

@@ -86,6 +86,10 @@ def mode_dissipation(result: ModalResult, point: LinearisationPoint, mode: int) 
     b1, b2 = K[k["b1"]], K[k["b2"]]
     c_wedge, l_w = K[k["c_wedge"]], K[k["l_wedge"]]
     sb_half = 0.5 * P[10]
+    # the side frames roll with their wheelsets (model.side_frame_roll; arms 0 without)
+    arm_n, arm_a = K[k["sf_arm_nest"]], K[k["sf_arm_axle"]]
+    sf_rate = [0.5 * (v[L.WS0 + 8 * b + 2] + v[L.WS0 + 8 * b + 6]) for b in range(2)]
+    sf_roll = [0.5 * (q[L.WS0 + 8 * b + 2] + q[L.WS0 + 8 * b + 6]) for b in range(2)]
     for b in range(2):
         d = lc if b == 0 else -lc
         ib = L.BOL0 + 4 * b
@@ -107,7 +111,7 @@ def mode_dissipation(result: ModalResult, point: LinearisationPoint, mode: int) 
                 stick * c_wedge,
                 v[jf + 2] - (v[ib + 1] + side * b2 * v[ib + 2]),
             )
-            add(ELEMENTS[5], stick * c_wedge, v[jf + 1] - v[ib])
+            add(ELEMENTS[5], stick * c_wedge, v[jf + 1] - arm_n * sf_rate[b] - v[ib])
             add(ELEMENTS[6], stick * c_wedge, l_w * (v[jf + 4] - v[ib + 3]))
             add(ELEMENTS[7], stick * c_wedge, vxn)
             add(ELEMENTS[8], K[k["c_sx"]], vxn)
@@ -118,6 +122,27 @@ def mode_dissipation(result: ModalResult, point: LinearisationPoint, mode: int) 
     c_px, c_py, c_pz = K[k["c_px"]], K[k["c_py"]], K[k["c_pz"]]
     n = L.N_DOF
     acc = (result.jacobian @ _full_vector(result, mode))[n : 2 * n]
+    # the side frames' roll couple on their wheelsets' roll (model.rhs: g_sf, half to each):
+    # the arms times the nests' lateral forces on the bolster (its lateral equation less the
+    # centre plate's force) and the axle boxes' on the wheelsets
+    h_cp, h_b = K[k["h_cg_c"]] - K[k["h_cp"]], K[k["h_cp"]] - K[k["h_cg_b"]]
+    g_sf = []
+    for b in range(2):
+        d = lc if b == 0 else -lc
+        ib = L.BOL0 + 4 * b
+        y_car = q[L.CB_Y] + d * q[L.CB_YAW] + h_cp * q[L.CB_ROLL]
+        f_cpy = K[k["k_cpy"]] * (y_car - (q[ib] - h_b * q[ib + 2]))
+        f_nests = m[ib] * acc[ib] - f_cpy
+        f_boxes = 0.0
+        for wi in range(2):
+            e = a if wi == 0 else -a
+            iw = L.WS0 + 4 * (2 * b + wi)
+            for sidx in range(2):
+                jf = L.SF0 + 5 * (2 * b + sidx)
+                dvy = v[jf + 1] + e * v[jf + 4] - arm_a * sf_rate[b] - v[iw]
+                f_boxes += k_py * (q[jf + 1] + e * q[jf + 4] - arm_a * sf_roll[b] - q[iw])
+                f_boxes += c_py * dvy
+        g_sf.append(arm_n * f_nests + arm_a * f_boxes)
     contact_power = 0.0
     for ws in range(4):
         b, wi = divmod(ws, 2)
@@ -127,19 +152,20 @@ def mode_dissipation(result: ModalResult, point: LinearisationPoint, mode: int) 
         for sidx, side in enumerate((1.0, -1.0)):
             jf = L.SF0 + 5 * (2 * b + sidx)
             dvx = v[jf] + side * b1 * v[iw + 3]
-            dvy = v[jf + 1] + e * v[jf + 4] - v[iw]
+            dvy = v[jf + 1] + e * v[jf + 4] - arm_a * sf_rate[b] - v[iw]
             dvz = (v[iw + 1] + side * b1 * v[iw + 2]) - (v[jf + 2] - e * v[jf + 3])
             add(ELEMENTS[9], c_px, dvx)
             add(ELEMENTS[10], c_py, dvy)
             add(ELEMENTS[11], c_pz, dvz)
             fx = k_px * (q[jf] + side * b1 * q[iw + 3]) + c_px * dvx
-            fy = k_py * (q[jf + 1] + e * q[jf + 4] - q[iw]) + c_py * dvy
+            fy = k_py * (q[jf + 1] + e * q[jf + 4] - arm_a * sf_roll[b] - q[iw]) + c_py * dvy
             dz = (q[iw + 1] + side * b1 * q[iw + 2]) - (q[jf + 2] - e * q[jf + 3])
             fz = k_pz * dz + c_pz * dvz
             f[0] -= fy
             f[1] += fz
             f[2] += side * b1 * fz
             f[3] += side * b1 * fx
+        f[2] -= 0.5 * g_sf[b]
         h_spin = P[2] * K[k["V"]] / K[k["r0"]]  # gyroscopic moments: no work, taken out
         f[2] -= h_spin * v[iw + 3]
         f[3] += h_spin * v[iw + 2]

@@ -49,6 +49,14 @@ _K_NAMES = (
     "m_w", "Ix_w", "Iy_w", "Iz_w",
     # geometry
     "l_c", "a", "b1", "b2", "r0", "h_cg_c", "h_cp", "h_cg_b", "h_k", "x_k", "R_cp",
+    # the side frame's roll with its wheelsets (wagon [side_frame] roll_held_by_axle_boxes;
+    # both 0 without): the heights of the bolster's and the axles' lateral forces above the
+    # side frame's centre of gravity, m
+    "sf_arm_nest", "sf_arm_axle",
+    # the car body's gravity (P-delta) roll moment per radian of roll, W h (N m/rad; W its
+    # static support load, h its CG's height above the centre plate; 0 without, wagon
+    # [car_body] gravity_roll_moment); the coupler line's angle per unit curvature, m
+    "k_roll_gravity", "x_coupler_line",
     # fixed elements
     "c_px", "c_py", "c_pz", "k_sz", "c_sx", "k_gib",
     # friction wedges, per nest: tan(wedge angle), cos, column and slope friction, control
@@ -62,6 +70,9 @@ _K_NAMES = (
     "k_cpz", "k_cpb", "k_cpp", "k_cpy", "mu_cp", "k_yaw", "c_yaw", "k_roll", "c_roll",
     "k_sb", "c_sb", "P_sb", "mu_sb", "sb_travel", "k_sb_stop",
     "k_rz", "k_ry", "c_rz", "c_ry",
+    # 1.0: the rail damping's push capped at the Hertz force (wagon [track]
+    # rail_damping_capped); 0.0: the damper in parallel (before revision 2026-11-30.2)
+    "rail_damping_cap",
     # static preloads, N
     "F0_cp", "F0_nest", "F0_prim", "Q0", "Z0_L", "Z0_R", "N_ref",
     # condition

@@ -34,7 +34,12 @@ Force elements (the ten sampled parameters in brackets):
   Lift-off gives zero force. Two-point contact: tread and flange have their own tables and
   act together (single-point option: the table's contact jumps from tread to flange).
 * couplers: pitch moment of the grade force at coupler height; lateral component of the
-  coupler force in curves (chord angle κ x_k at each end).
+  coupler force in curves (the coupler line's angle κ L/2 at each end, L the length over
+  couplers: the line between like cars is parallel to the tangent halfway between them).
+* roll moments (docs/model.md): the side frames roll with their bogie's wheelsets (the mean
+  of their roll; the couple of the lateral forces entering a side frame at the bolster's
+  height and leaving at the axles' reaches the wheel loads), and the car body's gravity
+  (P-delta) roll moment W h theta of its support loads h below its CG.
 """
 
 from __future__ import annotations
@@ -82,6 +87,12 @@ I_Z0L, I_Z0R = _K["Z0_L"], _K["Z0_R"]
 I_V, I_GN = _K["V"], _K["g_n"]
 I_FCPL, I_MGRADE = _K["F_coupler"], _K["M_pitch_grade"]
 I_Q0 = _K["Q0"]
+I_SFN, I_SFA, I_KRG, I_XCL = (
+    _K["sf_arm_nest"],
+    _K["sf_arm_axle"],
+    _K["k_roll_gravity"],
+    _K["x_coupler_line"],
+)
 I_WATCH = _K["flange_watch"]
 
 BOL0, SF0, WS0 = L.BOL0, L.SF0, L.WS0
@@ -97,6 +108,15 @@ def add_frame_forces(acc, i_lat, i_vert, m, kappa, c, s, V, gn):
     angle φ (each evaluated once per track position, for all bodies there)."""
     acc[i_lat] += -m * (V * V * kappa * c + gn * s)
     acc[i_vert] += -m * (gn * c - V * V * kappa * s) + m * gn
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def side_frame_roll(x, k):
+    """Roll of bogie k's side frames (rad, or its rate from the velocities ``x``): the mean
+    of its two wheelsets' roll, on whose axle boxes they sit (wagon [side_frame]
+    roll_held_by_axle_boxes; with it off the kernel's arms are zero and this is unused)."""
+    iw = WS0 + 8 * k
+    return 0.5 * (x[iw + 2] + x[iw + 6])
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
@@ -164,7 +184,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         side = 1.0 if (n & 1) == 0 else -1.0
         jf = SF0 + 5 * n
         ia = AUXW + L.WEDGE_STATES * n
-        v_lat = v[jf + 1] - v[ib]
+        v_lat = v[jf + 1] - K[I_SFN] * side_frame_roll(v, n >> 1) - v[ib]
         v_warp = l_w * (v[jf + 4] - v[ib + 3])  # front wedge's lateral slip from warp
         for r in range(2):
             c = WB.BASE + n + WB.NN * r
@@ -204,7 +224,11 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
     hk = K[I_HCG] - K[I_HK]
     hcp = K[I_HCG] - K[I_HCP]
     acc[L.CB_PITCH] += K[I_MGRADE]
-    f_lat_coupler = K[I_FCPL] * kap_c * K[I_XK]
+    # gravity roll moment: the support loads, h below the CG, are h theta off its centreline
+    acc[L.CB_ROLL] += K[I_KRG] * q[L.CB_ROLL]
+    # the coupler line between like cars is parallel to the tangent halfway between their
+    # centres (x_coupler_line: half the length over couplers; the pivot's distance without it)
+    f_lat_coupler = K[I_FCPL] * kap_c * K[I_XCL]
     acc[L.CB_Y] += 2.0 * f_lat_coupler
     acc[L.CB_ROLL] += 2.0 * hk * f_lat_coupler
 
@@ -215,6 +239,14 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         kap_b, cant_b, head_b, off_b = track_frame(trk, i_b, f_b)
         ib = BOL0 + 4 * k
         m_b = K[I_MB]
+        # the side frames roll with the bogie's wheelsets: their nests' lateral forces act
+        # arm_n above their CG and their axle boxes' arm_a (< 0: below); g_sf, the generalised
+        # force on that roll, goes to the two wheelsets' roll (half each) after the primary
+        arm_n = K[I_SFN]
+        arm_a = K[I_SFA]
+        th_sf = side_frame_roll(q, k)
+        om_sf = side_frame_roll(v, k)
+        g_sf = 0.0
         cos_b, sin_b = cant_cos_sin(cant_b, cant_c, cos_c, sin_c)
         add_frame_forces(acc, ib, ib + 1, m_b, kap_b, cos_b, sin_b, V, gn)
 
@@ -283,7 +315,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             # friction (longitudinal)
             comp = q[jf + 2] - (q[ib + 1] + side * b2 * q[ib + 2])
             f_spring = K[I_F0N] + K[I_KSZ] * comp
-            dyn = q[jf + 1] - q[ib]
+            dyn = q[jf + 1] - arm_n * th_sf - q[ib]
             dxn = q[jf] + side * b2 * q[ib + 3]
             vxn = v[jf] + side * b2 * v[ib + 3]
             c = WB.BASE + 2 * k + sidx  # the nest's front wedge, from wedge_forces above
@@ -301,6 +333,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             f_lat = k_sy * dyn + f_wy + gap_spring(dyn, gib, K[I_KGIB])
             acc[ib] += f_lat
             acc[jf + 1] -= f_lat
+            g_sf += arm_n * f_lat  # -f_lat on the frame, arm_n above its CG
             # warp: the front and rear wedges' column friction, l_w (F_front - F_rear), on
             # the bolster's yaw against the side frame's
             m_warp = l_w * df_wy
@@ -352,12 +385,13 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
                 acc[iw + 3] += -side * b1 * f_x
                 acc[jf] -= f_x
                 # lateral [X14 in series with X20]
-                dy_p = q[jf + 1] + e * (q[jf + 4]) - dev_w - q[iw]
-                dvy = v[jf + 1] + e * v[jf + 4] - v[iw]
+                dy_p = q[jf + 1] + e * (q[jf + 4]) - arm_a * th_sf - dev_w - q[iw]
+                dvy = v[jf + 1] + e * v[jf + 4] - arm_a * om_sf - v[iw]
                 f_y = k_py * dy_p + K[I_CPY] * dvy  # on wheelset
                 acc[iw] += f_y
                 acc[jf + 1] -= f_y
                 acc[jf + 4] -= e * f_y
+                g_sf += arm_a * f_y
                 # vertical [X15]
                 dz_p = (q[iw + 1] + side * b1 * q[iw + 2]) - (q[jf + 2] - e * q[jf + 3])
                 dvz = (v[iw + 1] + side * b1 * v[iw + 2]) - (v[jf + 2] - e * v[jf + 3])
@@ -381,6 +415,10 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
                 wk[CB.W_RVZ * CB.NW + c] = track_rate(
                     trk, L.TR_ZL if left else L.TR_ZR, i_w, in_w, ds, V
                 )
+        # the side frames' roll couple on the wheelsets they sit on
+        iw0 = WS0 + 8 * k
+        acc[iw0 + 2] += 0.5 * g_sf
+        acc[iw0 + 6] += 0.5 * g_sf
 
     # ---- wheel-rail contact forces (the eight wheels together) ----
     contact_forces_8(x, ctab, y0, dy, H0L, H0R, K, wk)

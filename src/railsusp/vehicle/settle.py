@@ -36,7 +36,7 @@ from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.kernel_cache import FASTMATH  # (sets the kernel cache before any compiles)
-from railsusp.vehicle.model import rhs
+from railsusp.vehicle.model import rhs, side_frame_roll
 from railsusp.vehicle.operating_point import dof_inertia
 from railsusp.vehicle.setup import ContactArrays, SolverSettings, axle_spread
 from railsusp.vehicle.suspension import SLIDER_RELAXATION
@@ -65,7 +65,7 @@ STAGE_TOLERANCE = 1.0
 CLAMP_PASSES = 1
 
 I_KW, I_KYAW, I_KROLL = L.K["k_wedge"], L.K["k_yaw"], L.K["k_roll"]
-I_LC, I_B2, I_LW = L.K["l_c"], L.K["b2"], L.K["l_wedge"]
+I_LC, I_B2, I_LW, I_SFN = L.K["l_c"], L.K["b2"], L.K["l_wedge"], L.K["sf_arm_nest"]
 #: solved states kept in memory
 CACHE_SIZE = 4096
 
@@ -148,7 +148,8 @@ def _slip(x, kappa, K, out):
     equations of motion, per friction state (order of the states from AUX_WEDGE): per nest
     its front and its rear wedge's vertical and lateral slip on the column (the lateral one
     with the warp, +- l_w times the side frame's yaw less the bolster's) and the slope's
-    longitudinal slip, per bogie the body-bolster yaw (with the chord angle -κ d at the
+    longitudinal slip (the lateral ones at the nest's height on a side frame that rolls with
+    its wheelsets), per bogie the body-bolster yaw (with the chord angle -κ d at the
     bolster's track position d) and the bowl roll; of the displacements of x on uniform
     track of curvature ``kappa``."""
     b2 = K[I_B2]
@@ -162,7 +163,7 @@ def _slip(x, kappa, K, out):
             jf = L.SF0 + 5 * n
             i0 = L.WEDGE_STATES * n
             dz = x[jf + 2] - (x[ib + 1] + side * b2 * x[ib + 2])
-            dy = x[jf + 1] - x[ib]
+            dy = x[jf + 1] - K[I_SFN] * side_frame_roll(x, k) - x[ib]
             warp = l_w * (x[jf + 4] - x[ib + 3])
             out[i0 + L.W_FRONT_Z] = dz
             out[i0 + L.W_FRONT_Y] = dy + warp

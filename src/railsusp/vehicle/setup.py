@@ -308,6 +308,17 @@ def constants(
         "b2": bg.spring_nest_half_span, "r0": wagon.wheelset.rolling_radius,
         "h_cg_c": cb.cg_height, "h_cp": bg.centre_plate_height, "h_cg_b": bo.cg_height,
         "h_k": cb.coupler_height, "x_k": cb.coupler_half_spacing, "R_cp": bg.centre_plate_radius,
+        # the side frame rolls with its wheelsets: its nest's lateral force acts this far
+        # above its CG, its axle boxes' this far (negative: below)
+        "sf_arm_nest": (bo.cg_height - sf.cg_height) if sf.roll_held_by_axle_boxes else 0.0,
+        "sf_arm_axle": (
+            (wagon.wheelset.rolling_radius - sf.cg_height) if sf.roll_held_by_axle_boxes else 0.0
+        ),
+        "x_coupler_line": (
+            cb.coupler_half_spacing
+            if cb.length_over_couplers is None
+            else 0.5 * cb.length_over_couplers
+        ),
         "c_px": wagon.primary.longitudinal_damping, "c_py": wagon.primary.lateral_damping,
         "c_pz": wagon.primary.vertical_damping, "k_sz": wagon.secondary.vertical_stiffness,
         "c_sx": wagon.secondary.longitudinal_damping, "k_gib": wagon.secondary.gib_stiffness,
@@ -323,6 +334,7 @@ def constants(
         "sb_travel": wagon.side_bearer.travel, "k_sb_stop": wagon.side_bearer.stop_stiffness,
         "k_rz": wagon.track.rail_vertical_stiffness, "k_ry": wagon.track.rail_lateral_stiffness,
         "c_rz": wagon.track.rail_vertical_damping, "c_ry": wagon.track.rail_lateral_damping,
+        "rail_damping_cap": 1.0 if wagon.track.rail_damping_capped else 0.0,
         "V": condition.speed, "g_n": gn, "mu": condition.wheel_rail_friction,
         "F_coupler": condition.coupler_force, "creep_factor": wagon.contact.creep_factor,
         "pen_max": settings.penetration_max, "lift_max": settings.lift_max,
@@ -348,6 +360,11 @@ def constants(
     vals.update(_bowl_constants(wagon))
     q0 = f_prim + m_w * gn / 2.0
     vals.update(F0_cp=f_cp, F0_nest=f_nest, F0_prim=f_prim, Q0=q0)
+    # the support loads W act at the centre plates, h below the car body's CG: rolled by
+    # theta, the body has them h theta off its centreline, a roll moment W h theta that
+    # lowers its roll stiffness (docs/model.md, "Gravity roll moment")
+    h_cg_cp = cb.cg_height - bg.centre_plate_height
+    vals["k_roll_gravity"] = w_body * h_cg_cp if cb.gravity_roll_moment else 0.0
     # static approach: Q0 = N0 cos(delta0) + f23(N0) sin(delta0)^2 / r0 (normal force plus the
     # vertical part of the spin creep force of a coned tread, f23 ~ N); approach along the
     # normal = G N^(2/3) + N / k_rn
@@ -454,6 +471,19 @@ def fade_in_length(lead_in_m: float, spread_m: float) -> float:
     return min(FADE_IN_M, max(MIN_FADE_IN_M, lead_in_m - spread_m))
 
 
+def track_step(condition: WorkingCondition, settings: SolverSettings) -> float:
+    """The track grid's spacing (m): the solver's ``track_step``, or an eighth of the
+    shortest synthesised wavelength where that is finer, the spacing the irregularities
+    are synthesised at. A coarser grid would fold the wavelengths below two steps onto
+    longer ones (Class 5 with 0.2 m wavelengths on the 0.125 m grid: +39 % of power at
+    0.25-0.33 m; audit of stop 62) and its linear interpolation would thin them (sinc², 19 %
+    at four steps a wavelength). At the default shortest wavelength of 1 m both are 0.125 m."""
+    ds = settings.track_step
+    if condition.irregularity_class is not None and condition.track_geometry is None:
+        ds = min(ds, condition.wavelength_min_m / 8.0)
+    return ds
+
+
 def track_arrays(
     condition: WorkingCondition,
     seeds: Sequence[int],
@@ -478,7 +508,7 @@ def track_arrays(
     track, which the equations do not see).
     """
     behind = axle_spread(wagon) + 20.0
-    ds = settings.track_step
+    ds = track_step(condition, settings)
     s = np.arange(-behind, condition.section_length_m + 20.0 + ds, ds)
     lay = TrackLayout.from_condition(condition)
     at = s if uniform_before is None else np.maximum(s, uniform_before)

@@ -49,6 +49,29 @@ class CarBody(_Section):
     bogie_half_spacing: float = _within(15.0, description="half bogie centre distance, m")
     coupler_height: float = _within(2.0, description="coupler height above rail top, m")
     coupler_half_spacing: float = _within(20.0, description="car centre to coupler pivot, m")
+    #: the car centre distance of two like cars coupled (= their length over coupler faces):
+    #: the coupler line between them is parallel to the track's tangent halfway, so its
+    #: angle to the car is kappa times half this length. Left out: kappa times the pivot's
+    #: distance ``coupler_half_spacing`` (the model before 2026-11-30.2, 8 % small for the
+    #: C80's 12 m over couplers; docs/model.md)
+    length_over_couplers: float | None = _within(
+        60.0, description="car centre distance of two like cars coupled, m", default=None
+    )
+    #: the car body's support loads act below its centre of gravity, so a rolled body has
+    #: them off its centreline: the gravity (P-delta) roll moment W h theta (false: the
+    #: model before 2026-11-30.2, which left it out)
+    gravity_roll_moment: bool = True
+
+    @model_validator(mode="after")
+    def _couplers_beyond_their_pivots(self) -> CarBody:
+        length = self.length_over_couplers
+        if length is not None and length <= 2.0 * self.coupler_half_spacing:
+            raise ValueError(
+                f"car_body.length_over_couplers = {length:g} m: accepted above twice "
+                f"coupler_half_spacing ({2.0 * self.coupler_half_spacing:g} m; the coupler "
+                "faces lie beyond the pivots)"
+            )
+        return self
 
 
 class Bolster(_Section):
@@ -59,10 +82,18 @@ class Bolster(_Section):
 
 
 class SideFrame(_Section):
+    """A side frame has no roll freedom of its own: it sits on its two axle boxes' adapters,
+    which hold it in roll. ``roll_held_by_axle_boxes`` (default true) makes it roll with
+    its wheelsets (the mean of their roll), so that the couple of the lateral forces that
+    enter it at the bolster's height and leave it at the axles' reaches the wheelsets as a
+    moment (their wheel loads); false leaves that couple out (the model before
+    2026-11-30.2, whose outer-inner load transfer in a curve was 8-12 % small)."""
+
     mass: float = _within(5000.0, 10.0, "kg")
     pitch_inertia: float = Field(**_POS)
     yaw_inertia: float = Field(**_POS)
     cg_height: float = _within(2.0, description="m above rail top")
+    roll_held_by_axle_boxes: bool = True
 
 
 class Bogie(_Section):
@@ -157,12 +188,18 @@ class SideBearer(_Section):
 
 
 class TrackData(_Section):
+    """The rail support under one wheel. ``rail_damping_capped`` (default true): the support's
+    damping, in series with the Hertz contact, pushes at most as hard as the contact's
+    spring (no step in the normal force when a wheel or flange touches); false keeps the
+    damper in parallel with it, the model before revision 2026-11-30.2."""
+
     rail_vertical_stiffness: float = Field(**_POS)
     rail_lateral_stiffness: float = Field(**_POS)
     rail_vertical_damping: float = Field(ge=0.0)
     rail_lateral_damping: float = Field(ge=0.0)
     gauge: float = Field(gt=1.0, lt=2.0)
     rail_inclination: float = Field(ge=0.0, lt=0.1)
+    rail_damping_capped: bool = True
 
 
 class ContactData(_Section):
@@ -256,7 +293,8 @@ class WagonData(_Section):
 
     def with_physics_before_2026_11_24(self) -> WagonData:
         """The same wagon with the force laws of the model before 2026-11-24's fidelity
-        changes: the zero-yaw contact (``yaw_geometry = false``), a centre bowl whose ring
+        changes (and of revision 2026-11-30.1's: :data:`FORCE_LAWS_BEFORE_2026_11_30_2`):
+        the zero-yaw contact (``yaw_geometry = false``), a centre bowl whose ring
         has the bowl's vertical stiffness on a bolster rigid in bending and pitch (no
         rocking stiffness of its own) and the wedge pair at the nest centre (no warp
         friction). It reproduces that model's forces (commit 328b8dd: to 3e-14 of the
@@ -265,6 +303,7 @@ class WagonData(_Section):
         radius = self.bogie.centre_plate_radius
         return self.with_values(
             {
+                **FORCE_LAWS_BEFORE_2026_11_30_2,
                 "contact.yaw_geometry": False,
                 "centre_plate.rocking_stiffness": (
                     self.centre_plate.vertical_stiffness * radius * radius / 2.0
@@ -274,6 +313,17 @@ class WagonData(_Section):
             }
         )
 
+
+#: the wagon fields that give the force laws of revision 2026-11-30.1 and before: the side
+#: frames' roll couple and the car body's gravity roll moment left out, the coupler angle
+#: taken at the pivot (docs/model.md, "Physical invariants checked by hand"), the rail
+#: damping's push not capped at the Hertz force
+FORCE_LAWS_BEFORE_2026_11_30_2 = {
+    "side_frame.roll_held_by_axle_boxes": False,
+    "car_body.gravity_roll_moment": False,
+    "car_body.length_over_couplers": None,
+    "track.rail_damping_capped": False,
+}
 
 #: wagon files shipped with the package, by name (``--wagon tare``); a file path wins
 PACKAGED_WAGONS = {

@@ -54,7 +54,7 @@ from railsusp.vehicle.kernel_cache import FASTMATH  # (sets the kernel cache bef
 
 _K = L.K
 I_R0, I_MU, I_CREEP = _K["r0"], _K["mu"], _K["creep_factor"]
-I_CRZ, I_CRY = _K["c_rz"], _K["c_ry"]
+I_CRZ, I_CRY, I_DCAP = _K["c_rz"], _K["c_ry"], _K["rail_damping_cap"]
 I_NREF, I_PENMAX, I_LIFTMAX = _K["N_ref"], _K["pen_max"], _K["lift_max"]
 I_NPTS, I_YAWGEO = _K["contact_points"], _K["yaw_geometry"]
 I_INVV, I_INVR0, I_INVKRY, I_INVKRZ = _K["inv_V"], _K["inv_r0"], _K["inv_k_ry"], _K["inv_k_rz"]
@@ -293,8 +293,11 @@ def creep_contact_forces(
     pen = K[I_PENMAX]
     if N * N * (hertz * hertz * hertz) > pen * pen * pen:
         return L.FAIL_PENETRATION, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    # rail support damping along the normal (pads and ballast), never pulling the wheel
-    N -= (cd * cd * K[I_CRZ] + sd * sd * K[I_CRY]) * rate * cd
+    # rail support damping along the normal (pads and ballast), never pulling the wheel,
+    # and pushing at most as hard as the Hertz spring it acts through (a damper in series
+    # with the contact passes no force before the contact does: no step at a touch-down)
+    damping = -(cd * cd * K[I_CRZ] + sd * sd * K[I_CRY]) * rate * cd
+    N += min(damping, N) if K[I_DCAP] != 0.0 else damping  # (K rail_damping_cap)
     if N <= 0.0:
         return L.OK, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     n_ref = K[I_NREF]

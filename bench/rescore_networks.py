@@ -1,0 +1,176 @@
+"""A network set scored again on the simulator of today: Table 7 on a fresh many-track campaign.
+
+A network set (``src/railsusp/data/networks/NAME``) is scored on the campaign it was trained
+on. When the force laws change (a new ``railsusp.vehicle.MODEL_REVISION``), its networks no
+longer describe the simulator they serve; before they are stamped with the new revision, they
+are scored here on a campaign of the new model: the set's own track family and parameters
+(the keys by Latin hypercube, every other main-suspension parameter varied over its range),
+each run on its own track, a design seed no training campaign used, so that every run is
+held out (all of them are scored, not a test split). The rows say how the networks do, and
+``nominal wagon`` how much the nominal wagon's response alone explains.
+
+``--wagon-fields before-2026-11-30.2`` makes the campaign with the wagon fields that restore
+the force laws of revision 2026-11-30.1 (``FORCE_LAWS_BEFORE_2026_11_30_2``): the same
+tracks and parameter sets on the model the set was trained on, the A/B of the change.
+
+    python bench/rescore_networks.py --set src/railsusp/data/networks/c80_k6 \\
+        --run runs/rescore-c80_k6 --samples 384 --seed 7
+
+``--restamp NOTE`` then carries the set over to today's revision
+(:func:`railsusp.surrogate.restamp.restamp_network_set`): its networks' rows join the set's
+``compare.csv``, NOTE (why they serve today's simulator: the figures of this table beside
+those of the model they were trained on) goes into the manifest, and the bundles take
+today's wagon, whose fields may differ from the one they were trained on in those of
+``FORCE_LAWS_BEFORE_2026_11_30_2`` only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from railsusp.campaign import load_campaign, run_campaign
+from railsusp.campaign.twins import run_nominal_twins
+from railsusp.store import write_json
+from railsusp.surrogate import load
+from railsusp.surrogate.data import load_series
+from railsusp.surrogate.evaluate import accuracy, predict_with_alone
+from railsusp.surrogate.pretrained import read_network_set
+from railsusp.vehicle import MODEL_REVISION
+from railsusp.vehicle.wagon import FORCE_LAWS_BEFORE_2026_11_30_2, load_wagon
+
+WAGON_FIELDS = {"today": {}, "before-2026-11-30.2": FORCE_LAWS_BEFORE_2026_11_30_2}
+
+
+def _tracks_bench():
+    path = Path(__file__).with_name("surrogate_tracks.py")
+    spec = importlib.util.spec_from_file_location("_bench_surrogate_tracks", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def score_all_runs(run: str | Path, condition: str, bundle: Path, label: str) -> list[dict]:
+    """Rows of :func:`railsusp.surrogate.evaluate.accuracy` for the network ``bundle`` on
+    every run of ``condition`` in the campaign ``run`` (all held out from its training),
+    from the end of its washout, and for the nominal wagon's response alone."""
+    sur = load(bundle)
+    camp = load_campaign(run)
+    data = load_series(camp, condition, sur.spec)
+    pred, raw = predict_with_alone(sur, data)
+    sim = data.targets.astype(float)
+    first = sur.spec.window
+    alone = accuracy(sim, raw, sur.spec.targets, first) if raw is not None else None
+    rows = []
+    for j, r in enumerate(accuracy(sim, pred, sur.spec.targets, first)):
+        r["relative_error_of_mean_network_alone"] = (
+            alone[j]["relative_error_of_mean"] if alone else float("nan")
+        )
+        rows.append({"condition": condition, "model": label, **r})
+    if sur.spec.nominal_response:
+        base = data.track[..., -sur.spec.n_baseline :].astype(float)
+        for r in accuracy(sim, base, sur.spec.targets, first):
+            rows.append(
+                {
+                    "condition": condition,
+                    "model": "nominal wagon",
+                    **r,
+                    "relative_error_of_mean_network_alone": float("nan"),
+                }
+            )
+    for r in rows:
+        r["test_tracks"] = len(np.unique(data.seeds))
+        r["held_out"] = "every run: tracks and parameter sets of another design seed"
+    return rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--set", required=True, help="network set folder")
+    ap.add_argument("--run", required=True, help="campaign run directory (made or resumed)")
+    ap.add_argument("--samples", type=int, default=384)
+    ap.add_argument("--seed", type=int, default=7, help="design seed (not a training one)")
+    ap.add_argument("--duration", type=float, default=20.0, help="record length, s")
+    ap.add_argument("--wagon-fields", choices=sorted(WAGON_FIELDS), default="today")
+    ap.add_argument("--out", default="bench/results/rescore_networks.json")
+    ap.add_argument("--restamp", metavar="NOTE", help="carry the set over (docstring)")
+    args = ap.parse_args()
+    ns = read_network_set(args.set)
+    bench = _tracks_bench()
+    first = load(ns.bundle(ns.conditions[0]))
+    family = first.meta.get("track_family") or {}
+    cfg = bench.tracks_config(
+        args.samples,
+        conditions=ns.conditions,
+        duration_s=args.duration,
+        keys=ns.parameters,
+        classes=tuple(family.get("irregularity_classes", (4, 6))),
+        radius_m=tuple(family["curve_radius_m"]) if "curve_radius_m" in family else None,
+        cant_mm=tuple(family["cant_mm"]) if "cant_mm" in family else None,
+        seed=args.seed,
+    )
+    wagon = load_wagon().with_values(WAGON_FIELDS[args.wagon_fields])
+    cfg = cfg.model_copy(update={"wagon": wagon}) if WAGON_FIELDS[args.wagon_fields] else cfg
+    t0 = time.perf_counter()
+    print(f"campaign: {cfg.n_runs} samples x {len(cfg.conditions)} conditions into {args.run}")
+    run_campaign(cfg, args.run)
+    run_nominal_twins(args.run, conditions=list(ns.conditions))
+    simulate_s = time.perf_counter() - t0
+    print(f"  campaign and nominal twins: {simulate_s:.0f} s", flush=True)
+    rows = []
+    for cond in ns.conditions:
+        rows += score_all_runs(args.run, cond, ns.bundle(cond), f"set {ns.name}")
+    t7 = bench.table7_per_run(pd.DataFrame(rows))
+    bench.print_table(t7, {})
+    out = write_json(
+        args.out,
+        {
+            "date": time.strftime("%Y-%m-%d"),
+            "machine": platform.platform(),
+            "set": str(args.set),
+            "set_revision": ns.model_revision,
+            "model_revision": MODEL_REVISION,
+            "wagon_fields": args.wagon_fields,
+            "run": str(args.run),
+            "samples": args.samples,
+            "seed": args.seed,
+            "simulate_s": simulate_s,
+            "table7": t7.to_dict(orient="records"),
+        },
+    )
+    print(f"wrote {out}")
+    if args.restamp:
+        if args.wagon_fields != "today":
+            ap.error("--restamp: accepted with the campaign of today's wagon only")
+        restamp(args, ns, pd.DataFrame(rows))
+
+
+def restamp(args: argparse.Namespace, ns, rows: pd.DataFrame) -> None:
+    """Carry the set over with its networks' rows on this campaign (docstring)."""
+    from railsusp.surrogate.restamp import restamp_network_set
+
+    nets = rows[rows.model != "nominal wagon"].copy()
+    nets["model"] = ns.kind
+    nets["held_out"] = "tracks and parameters"
+    nets["scored_on"] = (
+        f"{args.run}: revision {MODEL_REVISION}, every run of design seed {args.seed}"
+    )
+    nets["first_step"] = [load(ns.bundle(c)).spec.window for c in nets.condition]
+    out = restamp_network_set(
+        args.set,
+        wagon=load_wagon(),
+        fields=tuple(FORCE_LAWS_BEFORE_2026_11_30_2),
+        accuracy=nets,
+        note=args.restamp,
+    )
+    print(f"{out.folder}: network set {out.name!r} stamped with revision {out.model_revision}")
+
+
+if __name__ == "__main__":
+    main()

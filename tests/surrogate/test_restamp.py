@@ -1,0 +1,121 @@
+"""A network set carried over to a new force-law revision (railsusp.surrogate.restamp): the
+manifest, the bundles' wagon and the references follow today's simulator, the weights do
+not change, and a set trained on a wagon that differs beyond the revision's fields, or not
+scored on every condition, is refused."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pandas as pd
+import pytest
+
+from railsusp.errors import RailsuspInputError
+from railsusp.store import file_hash
+from railsusp.surrogate.pretrained import (
+    ACCURACY,
+    MANIFEST,
+    check_references,
+    read_network_set,
+    resolve_network_set,
+    wagon_hash,
+    write_network_set,
+)
+from railsusp.surrogate.restamp import changed_wagon_fields, restamp_network_set
+from railsusp.vehicle import MODEL_REVISION
+from railsusp.vehicle.wagon import FORCE_LAWS_BEFORE_2026_11_30_2, load_wagon
+
+FIELDS = tuple(FORCE_LAWS_BEFORE_2026_11_30_2)
+
+
+def _old_curve_set(tmp_path):
+    """The shipped set's curve network as a set of an older revision, trained on the wagon
+    of the fields before 2026-11-30.2."""
+    ns = read_network_set(resolve_network_set("c80_k6"))
+    folder = tmp_path / "old"
+    shutil.copytree(ns.folder, folder)
+    for cond in ("straight", "uphill"):
+        shutil.rmtree(folder / cond)
+    before = load_wagon().with_values(FORCE_LAWS_BEFORE_2026_11_30_2)
+    doc = json.loads((folder / "curve" / "surrogate.json").read_text())
+    doc["wagon"] = before.model_dump(mode="json")
+    (folder / "curve" / "surrogate.json").write_text(json.dumps(doc))
+    manifest = json.loads((folder / MANIFEST).read_text())
+    manifest.update(
+        conditions=["curve"],
+        model_revision="2026-11-30.1",
+        wagon_hash=wagon_hash(before),
+        references={"curve": manifest["references"]["curve"]},
+    )
+    (folder / MANIFEST).write_text(json.dumps(manifest))
+    return folder
+
+
+def _scored(condition="curve"):
+    """Rows of the accuracy table's layout, as bench/rescore_networks.py writes them."""
+    return pd.DataFrame(
+        [
+            {"condition": condition, "model": "cnn-gru-seq", "target": t, "nrmse": 0.1}
+            for t in ("Y", "Q")
+        ]
+    )
+
+
+def test_a_carried_over_set_is_of_today_s_revision_and_wagon(tmp_path):
+    folder = _old_curve_set(tmp_path)
+    weights = file_hash(folder / "curve" / "model.pt")
+    rows_before = len(pd.read_csv(folder / ACCURACY))
+    ns = restamp_network_set(
+        folder, wagon=load_wagon(), fields=FIELDS, accuracy=_scored(), note="scored: 0.6 %"
+    )
+    assert ns.model_revision == MODEL_REVISION
+    assert ns.wagon_hash == wagon_hash(load_wagon())
+    assert file_hash(folder / "curve" / "model.pt") == weights  # the weights are the same
+    check_references(ns)  # the new references are the networks' on today's simulator
+    doc = json.loads((folder / "curve" / "surrogate.json").read_text())
+    assert changed_wagon_fields(doc["wagon"], load_wagon()) == []
+    stamp = doc["meta"]["restamped"][-1]  # (the shipped set carries its own before it)
+    assert stamp["from"] == "2026-11-30.1" and stamp["to"] == MODEL_REVISION
+    manifest = json.loads((folder / MANIFEST).read_text())
+    assert manifest["model_revision_note"] == "scored: 0.6 %"
+    table = pd.read_csv(folder / ACCURACY)
+    assert len(table) == rows_before + 2
+    assert set(table.model[rows_before:]) == {f"cnn-gru-seq (revision {MODEL_REVISION})"}
+    with pytest.raises(RailsuspInputError, match="already"):
+        restamp_network_set(folder, wagon=load_wagon(), fields=FIELDS, accuracy=_scored(), note="x")
+
+
+def test_a_set_of_another_wagon_or_not_scored_is_not_carried_over(tmp_path):
+    folder = _old_curve_set(tmp_path)
+    with pytest.raises(RailsuspInputError, match=r"differs in car_body.gravity_roll_moment"):
+        restamp_network_set(
+            folder, wagon=load_wagon(), fields=FIELDS[:1], accuracy=_scored(), note="x"
+        )
+    with pytest.raises(RailsuspInputError, match=r"no rows of condition\(s\) curve"):
+        restamp_network_set(
+            folder, wagon=load_wagon(), fields=FIELDS, accuracy=_scored("straight"), note="x"
+        )
+    heavier = load_wagon().with_values({"car_body.mass": 95_000.0})
+    with pytest.raises(RailsuspInputError, match=r"car_body.mass"):
+        restamp_network_set(folder, wagon=heavier, fields=FIELDS, accuracy=_scored(), note="x")
+    assert json.loads((folder / MANIFEST).read_text())["model_revision"] == "2026-11-30.1"
+
+
+def test_a_network_of_other_force_laws_is_not_written_into_a_set_of_today_s(tmp_path):
+    """write_network_set stamped today's revision whatever its bundles had learnt."""
+    ns = read_network_set(resolve_network_set("c80_k6"))
+    folder = tmp_path / "bundles"
+    shutil.copytree(ns.folder, folder)
+    doc = json.loads((folder / "curve" / "surrogate.json").read_text())
+    doc["meta"]["model_revision"] = "2020-01-01.1"
+    (folder / "curve" / "surrogate.json").write_text(json.dumps(doc))
+    with pytest.raises(RailsuspInputError, match="trained on force-law revision 2020-01-01.1"):
+        write_network_set(
+            folder,
+            tmp_path / "set",
+            name="set",
+            conditions=["curve"],
+            accuracy=_scored(),
+            reproduce=[],
+        )
