@@ -300,3 +300,17 @@ def test_a_warm_start_from_another_campaign_trains_on_its_inputs(run, tmp_path):
         RailsuspInputError, match=r"its parameters \('X13', 'X14'\); accepted with init_inputs"
     ):
         onto_other("d", parameters=("X14", "X13"))
+
+
+def test_the_validation_pairs_are_normalised_by_the_training_pairs(run):
+    """The pair term of the early-stopping criterion divides by the training pairs' mean
+    square difference, as the training loss does (it used the validation pairs' own)."""
+    from railsusp.surrogate.train import share_pair_scale
+
+    train, data, twins, norm, _spec = _sampler(run, chunk_steps=100)
+    half = np.arange(data.n_samples // 2)
+    cfg = TrainConfig(pair_weight=1.0, chunk_steps=100)
+    val = sampler_for("cnn-gru-seq", data.subset(half), norm, 20, cfg, twins.subset(half))
+    assert not torch.equal(val.diff_scale, train.diff_scale)
+    share_pair_scale(train, val)
+    assert torch.equal(val.diff_scale, train.diff_scale)

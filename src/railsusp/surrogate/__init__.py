@@ -19,7 +19,7 @@ import torch
 from railsusp.errors import RailsuspInputError
 from railsusp.params import STUDY_KEY_PARAMETERS
 from railsusp.store import read_json
-from railsusp.surrogate.bundle import Surrogate, load
+from railsusp.surrogate.bundle import Surrogate, family_of, load
 from railsusp.surrogate.correction import MIN_RUNS
 from railsusp.surrogate.data import (
     DEFAULT_TRACK_CHANNELS,
@@ -385,7 +385,7 @@ def train_surrogate(
             **split_meta(split, data),
             "train_config": tcfg.to_dict(),
             "track_realisations": len(np.unique(data.seeds)),
-            "track_family": None if fam is None else fam.ranges(),
+            "track_family": None if fam is None else family_of(fam.ranges(), data.condition),
             "assumed_parameters": assumed_parameters(
                 spec.parameters, camp.config.other_parameters, camp.config.parameters
             ),

@@ -52,6 +52,18 @@ _FAMILY_FIELDS = {
 }
 
 
+def family_of(ranges: dict[str, Any], condition: WorkingCondition) -> dict[str, list]:
+    """A track family's ranges as one condition's runs drew them: a family campaign varies
+    the curve radius and cant in its curves only, so a tangent condition's runs have
+    neither (:func:`railsusp.variation.sample_tracks` draws them only where the condition
+    has a ``curve_radius_m``)."""
+    fam = {k: list(v) for k, v in ranges.items()}
+    if condition.curve_radius_m is None:
+        fam.pop("curve_radius_m", None)
+        fam.pop("cant_mm", None)
+    return fam
+
+
 #: relative difference of sample intervals a network accepts (whole-step and whole-ms cuts)
 SAMPLING_TOLERANCE = 1e-3
 
@@ -131,11 +143,18 @@ class Surrogate:
             seed = self.track_seed if condition is None else condition.seed
         return seed == self.track_seed
 
+    def track_family(self) -> dict[str, list]:
+        """The ranges of the track family this network's own runs were drawn from: the
+        campaign's family (``meta.track_family``), less the curve's radius and cant where
+        the network's condition is tangent track (a family campaign varies them in its
+        curves only, so a tangent network never saw a curve: until stop 62 its bundle
+        claimed the campaign's radius and cant and accepted a curve, 40 % low on |Y|)."""
+        return family_of(self.meta.get("track_family") or {}, self.condition)
+
     def in_track_family(self, field_name: str, value: Any) -> bool:
         """Whether a condition field's value lies in the track family the surrogate was
         trained on (its FRA class, curve radius or cant varied per sample, inclusive)."""
-        fam = self.meta.get("track_family") or {}
-        rng = fam.get(_FAMILY_FIELDS.get(field_name, ""))
+        rng = self.track_family().get(_FAMILY_FIELDS.get(field_name, ""))
         return rng is not None and value is not None and rng[0] <= value <= rng[1]
 
     def untrained_fields(self, condition: WorkingCondition) -> list[tuple[str, Any, str]]:
@@ -149,7 +168,7 @@ class Surrogate:
         family campaign draws those per sample, so the condition's nominal value (the
         study's 110 mm cant, say) need not lie in the family (0-100 mm) and would be an
         extrapolation."""
-        fam = self.meta.get("track_family") or {}
+        fam = self.track_family()
         ignore = (*TRACK_INPUT_FIELDS, "duration_s", "n_steps")
         names = list(self.condition.differences(condition, ignore))
         for name, key in _FAMILY_FIELDS.items():

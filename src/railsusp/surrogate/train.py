@@ -265,6 +265,15 @@ def _train_epoch(
     return total / n, (total_pair / n if isinstance(train, PairSampler) else None)
 
 
+def share_pair_scale(train: Sampler, val: Sampler) -> None:
+    """Give the validation pairs the training pairs' normalisation of the pair term (the
+    mean square of the simulated differences over the **training** pairs, as docs/
+    surrogates.md says), so that the early-stopping criterion weighs the two terms as the
+    training loss does; each sampler normalised by its own pairs until stop 62 (audit)."""
+    if isinstance(train, PairSampler) and isinstance(val, PairSampler):
+        val.diff_scale = train.diff_scale
+
+
 def validation_loss(
     net: nn.Module, val: Sampler, xv: torch.Tensor, yv: torch.Tensor
 ) -> tuple[float, float | None, float]:
@@ -312,6 +321,7 @@ def train_network(
         net.load_state_dict(initial)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.learning_rate)
     rng = np.random.default_rng(cfg.seed)
+    share_pair_scale(train, val)
     val_rows = val.pick(np.random.default_rng(cfg.seed + 1), val.validation_rows(cfg.val_windows))
     xv, yv = val.batch(val_rows)
     xv, yv = xv.to(device), yv.to(device)
