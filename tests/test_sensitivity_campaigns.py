@@ -51,8 +51,15 @@ def test_a_failed_comparison_leaves_the_earlier_analysis_whole(lhs_run):
 
 
 def test_a_saltelli_design_too_small_for_its_indices_is_refused(tmp_path):
-    """N = 2 base samples gave total indices of 19.8 +- 54 and 9.7, both taken as key."""
-    cfg = make_config(SHORT, 2, design="sobol", batch_size=16, seed=1, parameters=("X13", "X14"))
+    """N = 2 base samples gave total indices of 19.8 +- 54 and 9.7, both taken as key. Such
+    a campaign is refused when made; one stored before that is refused by the analysis."""
+    from railsusp.campaign import CampaignConfig
+    from railsusp.vehicle.wagon import load_wagon
+
+    kw = {"design": "sobol", "batch_size": 16, "seed": 1, "parameters": ("X13", "X14")}
+    with pytest.raises(CampaignError, match=f"needs N >= {MIN_DIRECT_BASE}"):
+        make_config(SHORT, 2, **kw)
+    cfg = CampaignConfig(conditions=tuple(SHORT), samples=2, wagon=load_wagon(), **kw)
     run_campaign(cfg, tmp_path / "sob")
     with pytest.raises(ValueError, match=f"need N >= {MIN_DIRECT_BASE}"):
         analyse(tmp_path / "sob")

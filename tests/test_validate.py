@@ -135,6 +135,31 @@ def test_a_derailing_resimulation_is_reported_not_raised(case, monkeypatch):
     assert json.loads((out / "validation.json").read_text())["failures"] == v.failures
 
 
+def test_a_measured_statistic_of_zero_gives_no_relative_error(case, monkeypatch):
+    """The relative error divided by |measured| unguarded: a measured statistic of 0 kN
+    (a validation with another statistic or recordings than the estimate's, which refuses
+    one) gave inf with a runtime warning, shown as 'inf %'."""
+    import railsusp.validate as val
+
+    _field, est, _res = case
+    real = val.measured_statistics
+
+    def lateral_zero(rec, stats):
+        m = np.array(real(rec, stats), dtype=float)
+        m[0, :] = 0.0  # Y
+        return m
+
+    monkeypatch.setattr(val, "measured_statistics", lateral_zero)
+    with pytest.warns(UserWarning, match="Y mean: measured 0 kN, no relative error"):
+        v = validate(est)
+    y, q = v.forces.iloc[0], v.forces.iloc[1]
+    assert y.measured_kN == 0.0 and np.isnan(y.before_error) and np.isnan(y.after_error)
+    assert np.isfinite(q.before_error) and np.isfinite(q.after_error)
+    assert len(v.notes) == 1 and "straight" in v.notes[0]
+    assert val.relative_error(1.0, 0.0) != val.relative_error(1.0, 0.0)  # NaN
+    assert val.relative_error(90.0, 100.0) == pytest.approx(0.1)
+
+
 def test_time_aligned_validation_profiles_the_gains_where_the_estimate_did(tmp_path):
     """Noise-free recordings on exactly known track, read through the synthetic wheelset's
     1 % gain errors: the true parameters' time-aligned error is those gains' misfit, unless

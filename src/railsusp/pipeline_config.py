@@ -86,7 +86,7 @@ class SurrogateSection(_Cfg):
         description="then epochs at a tenth of the learning rate, from the best state",
     )
     batches_per_epoch: int = Field(60, ge=1, le=100_000)
-    batch_size: int = Field(512, ge=8, le=65_536)
+    batch_size: int = Field(512, ge=1, le=65_536)  # as TrainConfig and `train --batch-size`
     device: str = "cpu"
     pretrained: str | None = Field(
         None,

@@ -54,8 +54,10 @@ def en14363_section(doc: Doc, run: str | Path, read: list | None = None) -> None
         return
     doc.h("Measured forces, EN 14363 processing")
     doc.p(
-        "Each recording's wheel forces low-passed at 20 Hz (4th-order Butterworth, zero "
-        "phase), averaged over 2 m of track, and described by the percentiles 0.15 %, 50 % "
+        "Each recording's wheel forces low-passed at 20 Hz (a 4th-order Butterworth run "
+        "forwards and backwards, zero phase: its amplitude response squared, "
+        "1/(1 + (f/20 Hz)^8), an 8th-order roll-off, -6 dB (half amplitude) at 20 Hz), "
+        "averaged over 2 m of track, and described by the percentiles 0.15 %, 50 % "
         "and 99.85 % of the samples whose 2 m window lies inside the record (EN 14363: the "
         "99.85 % value is the estimated maximum, the estimation statistic 'p99.85'). "
         f"Processed from {source}."

@@ -8,7 +8,9 @@ Two routes, both through SALib (Saltelli/Jansen estimators, bootstrap confidence
   process (scikit-learn, Matern 5/2 with automatic relevance determination plus noise), and
   the Sobol indices are computed on the process mean with a large Saltelli design. The
   confidence intervals then cover the Sobol estimator only, not the metamodel error; the
-  held-out R^2 of each process is reported so that a poor fit is visible.
+  held-out R^2 of each process is reported, and a feature whose process does not fit
+  (R^2 below :data:`MIN_METAMODEL_R2`) is left out of the key rule: its indices split the
+  variance of a mean that explains little of the feature (pure noise gave ST summing to 1).
 
 Key parameters are chosen by a documented rule (:func:`select_key_parameters`) and set beside
 the study's choice.
@@ -25,6 +27,7 @@ import numpy as np
 import pandas as pd
 
 from railsusp.campaign import STATISTICS, Campaign, CampaignError, salib_problem
+from railsusp.campaign.design import MIN_SALTELLI_BASE, saltelli_issue
 from railsusp.errors import RailsuspInputError
 from railsusp.params import bounds
 from railsusp.store import write_csv, write_json, write_parquet
@@ -41,17 +44,33 @@ INDEX_COLUMNS = (
     "ST_conf",
     "method",
     "cv",
+    "r2_holdout",
 )
 
 
 #: base samples N of a Saltelli design analysed directly at the least: below it SALib's
 #: estimators are noise (ST = 19.8 +- 54 at N = 2, 1.46 at N = 8: the campaign audit of
-#: stop 59); the power of two above the 8 where the estimates still exceeded 1
-MIN_DIRECT_BASE = 16
+#: stop 59); the power of two above the 8 where the estimates still exceeded 1. A campaign
+#: is refused fewer when it is made (railsusp.campaign.design.saltelli_issue)
+MIN_DIRECT_BASE = MIN_SALTELLI_BASE
 
-#: successful runs a condition's Gaussian-process metamodel needs at the least (a fifth held
-#: out to score it, the rest to fit it)
+#: successful runs a condition's Gaussian-process metamodel needs at the least (one per fold
+#: of the cross-validation that scores it)
 MIN_METAMODEL_RUNS = 5
+
+#: held-out R^2 a feature's Gaussian process needs for its Sobol indices to count in the key
+#: rule: the indices split the variance of the process mean, so a process that explains
+#: little of the feature still gives ST summing to about 1 (pure noise made every parameter
+#: key). Pure noise scores 0.03 or less; common-random-numbers campaigns fit means above 0.8
+#: and p99 features at 0.54-0.75; a new track per run gave -0.3 to 0.4; an 8-run toy campaign
+#: of the pipeline's tests 0.48. A quarter of the held-out variance explained is the least
+#: that counts: below it the indices are mostly the process's noise
+MIN_METAMODEL_R2 = 0.25
+
+#: below this many points a single held-out fifth scores a process on one to nine points
+#: (R^2 undefined on one; -83 on the two of a 12-run campaign's feature that a 5-fold
+#: cross-validation scores at 0.98): the R^2 is then of a 5-fold cross-validation
+MIN_SINGLE_HOLDOUT = 50
 
 
 def sobol_from_samples(
@@ -124,6 +143,9 @@ def sobol_direct(
             f"indices need N >= {MIN_DIRECT_BASE} (at N = 2 total indices of 10 to 20 came "
             f"out, and were taken as key): a campaign with --samples {MIN_DIRECT_BASE} or more"
         )
+    issue = saltelli_issue(cfg)  # made before make_config refused it: per-row variation
+    if issue:
+        raise ValueError(f"{campaign.path}: {issue}")
     problem = salib_problem(cfg.parameters)
     frames = []
     for cond, q, st, y in _features(campaign, statistics, quantities):
@@ -138,7 +160,12 @@ def sobol_direct(
         )
         frames.append(
             df.assign(
-                condition=cond, quantity=q, statistic=st, method="direct", cv=_cv(y.to_numpy())
+                condition=cond,
+                quantity=q,
+                statistic=st,
+                method="direct",
+                cv=_cv(y.to_numpy()),
+                r2_holdout=np.nan,  # no metamodel
             )
         )
     return pd.concat(frames, ignore_index=True)[list(INDEX_COLUMNS)]
@@ -146,7 +173,9 @@ def sobol_direct(
 
 @dataclass
 class MetamodelFit:
-    """Held-out quality of one Gaussian-process metamodel."""
+    """Held-out quality of one Gaussian-process metamodel (R^2 on a held-out fifth, or of a
+    5-fold cross-validation below :data:`MIN_SINGLE_HOLDOUT` points; NaN: the feature is
+    constant, nothing to score)."""
 
     condition: str
     quantity: str
@@ -226,23 +255,43 @@ def sobol_metamodel(
         if len(yv) > max_train:
             keep = rng.choice(len(yv), max_train, replace=False)
             xu, yv = xu[keep], yv[keep]
-        n_hold = max(1, len(yv) // 5)
-        perm = rng.permutation(len(yv))
-        hold, train = perm[:n_hold], perm[n_hold:]
-        gp = fit_gp(xu[train], yv[train], seed)
-        pred = gp.predict(xu[hold])
-        ss = np.sum((yv[hold] - yv[hold].mean()) ** 2)
-        r2 = float(1.0 - np.sum((yv[hold] - pred) ** 2) / ss) if ss > 0 else float("nan")
+        r2 = _holdout_r2(xu, yv, rng.permutation(len(yv)), seed)
         gp = fit_gp(xu, yv, seed)  # final fit on all points
         ym = gp.predict(xs)
         df = sobol_from_samples(problem_unit, ym, num_resamples=num_resamples, seed=seed)
         frames.append(
             df.assign(
-                condition=cond, quantity=q, statistic=st, method="metamodel", cv=_cv(y.to_numpy())
+                condition=cond,
+                quantity=q,
+                statistic=st,
+                method="metamodel",
+                cv=_cv(y.to_numpy()),
+                r2_holdout=r2,
             )
         )
         fits.append(MetamodelFit(cond, q, st, r2, len(yv)))
     return pd.concat(frames, ignore_index=True)[list(INDEX_COLUMNS)], fits
+
+
+def _holdout_r2(xu: np.ndarray, yv: np.ndarray, perm: np.ndarray, seed: int) -> float:
+    """R^2 of Gaussian processes on points they were not fitted to, the points taken in the
+    order ``perm``: from :data:`MIN_SINGLE_HOLDOUT` points up, the first fifth held out;
+    below, each of five folds predicted by a process fitted to the other four, pooled over
+    every point (a fifth of 5-49 points is 1-9 points: R^2 undefined, or noise). NaN where
+    the scored values are constant."""
+    n = len(yv)
+    if n >= MIN_SINGLE_HOLDOUT:
+        folds = [perm[: n // 5]]
+    else:
+        folds = np.array_split(perm, 5)
+    scored = np.concatenate(folds)
+    pred = np.empty(n)
+    for hold in folds:
+        train = perm[~np.isin(perm, hold)]  # in perm's order, as fitted before
+        pred[hold] = fit_gp(xu[train], yv[train], seed).predict(xu[hold])
+    ys = yv[scored]
+    ss = np.sum((ys - ys.mean()) ** 2)
+    return float(1.0 - np.sum((ys - pred[scored]) ** 2) / ss) if ss > 0 else float("nan")
 
 
 @dataclass
@@ -257,6 +306,11 @@ class KeySelection:
     max_st: dict[str, float] = field(default_factory=dict)
     where: dict[str, str] = field(default_factory=dict)
     ignored: list[str] = field(default_factory=list)
+    #: held-out R^2 a metamodel's feature needed to count (None: no metamodel R^2 in the
+    #: table, i.e. the direct route, or indices written before it was recorded)
+    min_r2: float | None = None
+    #: metamodel features left out for their fit ("condition quantity statistic")
+    unfitted: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         return {
@@ -265,15 +319,18 @@ class KeySelection:
             "statistics": list(self.statistics),
             "max_keys": self.max_keys,
             "min_cv": self.min_cv,
+            "min_r2": self.min_r2,
             "max_st": self.max_st,
             "where": self.where,
             "ignored_features": self.ignored,
+            "unfitted_features": self.unfitted,
             "rule": self.rule(),
         }
 
     def rule(self) -> str:
+        fit = "" if self.min_r2 is None else FIT_TEXT.format(r2=self.min_r2)
         return RULE_TEXT.format(
-            t=self.threshold, s="/".join(self.statistics), k=self.max_keys, cv=self.min_cv
+            t=self.threshold, s="/".join(self.statistics), k=self.max_keys, cv=self.min_cv, fit=fit
         )
 
 
@@ -281,7 +338,12 @@ RULE_TEXT = (
     "a parameter is key when its total Sobol index ST >= {t} for the lateral (Y) or "
     "vertical (Q) force {s} of the measured wheel in any condition; features varying "
     "by less than {cv:.1%} (coefficient of variation) over the campaign are ignored, "
-    "whatever their Sobol split; at most {k} are kept, ranked by their largest ST"
+    "whatever their Sobol split;{fit} at most {k} are kept, ranked by their largest ST"
+)
+#: the rule's clause on metamodel fits (metamodel route only)
+FIT_TEXT = (
+    " so are features whose Gaussian-process metamodel scores a held-out R^2 below {r2:g}, "
+    "or none (its indices split the variance of a fit that does not explain the feature);"
 )
 
 
@@ -292,15 +354,24 @@ def select_key_parameters(
     max_keys: int = 6,
     quantities: Sequence[str] = ("Y", "Q"),
     min_cv: float = 0.005,
+    min_r2: float = MIN_METAMODEL_R2,
 ) -> KeySelection:
     """Apply the key-parameter rule (see RULE_TEXT) to a table of Sobol indices.
 
     The coefficient-of-variation guard matters: the mean vertical force on tangent track is
     the static wheel load whatever the suspension (CV 0.1 %), so its Sobol indices split a
-    negligible variance and say nothing a calibration could use.
+    negligible variance and say nothing a calibration could use. So does the fit guard on
+    the metamodel route (rows of method ``metamodel`` with an ``r2_holdout`` column): Sobol
+    indices of a Gaussian-process mean are normalised by that mean's variance, so a feature
+    the process cannot explain (held-out R^2 below ``min_r2``, or NaN: not scored) gives
+    total indices summing to about 1 all the same; such features are left out with a
+    warning, and where none is left the selection is refused rather than made from noise.
     """
     stats = (statistics,) if isinstance(statistics, str) else tuple(statistics)
+    # one row per label: idxmax's labels are read back with .loc, which on a repeated index
+    # (tables concatenated without ignore_index) returned every row of the label
     sel = indices[indices.statistic.isin(stats) & indices.quantity.isin(quantities)]
+    sel = sel.reset_index(drop=True)
     if sel.empty:
         raise ValueError(f"no indices for statistics {stats} and quantities {tuple(quantities)}")
     cv = sel["cv"] if "cv" in sel else pd.Series(np.inf, index=sel.index)
@@ -314,6 +385,36 @@ def select_key_parameters(
     sel = sel[cv >= min_cv]
     if sel.empty:
         raise ValueError(f"every feature varies by less than {min_cv:.1%}: nothing to rank")
+    scored = "r2_holdout" in sel and "method" in sel and (sel["method"] == "metamodel").any()
+    unfitted: list[str] = []
+    if scored:
+        r2 = sel["r2_holdout"].astype(float)
+        poor = (sel["method"] == "metamodel") & ~(r2 >= min_r2)  # NaN: not scored
+        bad = sel[poor].drop_duplicates(["condition", "quantity", "statistic"])
+        unfitted = sorted(
+            f"{c} {q} {s}"
+            for c, q, s in zip(bad.condition, bad.quantity, bad.statistic, strict=True)
+        )
+        told = ", ".join(
+            f"{c} {q} {s} ({'not scored' if np.isnan(v) else f'{v:.2f}'})"
+            for c, q, s, v in zip(
+                bad.condition, bad.quantity, bad.statistic, bad.r2_holdout, strict=True
+            )
+        )
+        sel = sel[~poor]
+        if sel.empty:
+            raise ValueError(
+                f"no feature's Gaussian-process metamodel fits (held-out R^2 >= {min_r2:g}; "
+                f"got {told}): their Sobol indices would pick key parameters from noise; a "
+                "campaign of more samples, or on one track realisation (common random "
+                "numbers), fits them"
+            )
+        if unfitted:
+            warnings.warn(
+                f"left out of the key rule, their metamodel's held-out R^2 below {min_r2:g}: "
+                f"{told}",
+                stacklevel=2,
+            )
     best = sel.loc[sel.groupby("parameter")["ST"].idxmax()]
     best = best.sort_values("ST", ascending=False)
     keys = [p for p, st in zip(best.parameter, best.ST, strict=True) if st >= threshold]
@@ -334,6 +435,8 @@ def select_key_parameters(
             )
         },
         ignored=ignored,
+        min_r2=min_r2 if scored else None,
+        unfitted=unfitted,
     )
 
 
@@ -394,7 +497,9 @@ def check_settings(
 ) -> None:
     """Refuse, in one line naming the setting and its accepted range, an analysis setting
     that would write a meaningless ``key_parameters.json`` (before any file is touched).
-    The statistics are the campaign's features' (:data:`railsusp.campaign.STATISTICS`)."""
+    The statistics are the campaign's features' (:data:`railsusp.campaign.STATISTICS`);
+    the key rule's are among those analysed (one that is not had no indices: the keys
+    rested on the others while the rule text named it)."""
     for name, chosen in (("statistics", statistics), ("key_statistics", key_statistics)):
         unknown = [st for st in chosen if st not in STATISTICS]
         if not chosen or unknown:
@@ -402,6 +507,12 @@ def check_settings(
                 f"{name} {','.join(unknown) or '(none)'}: accepted one or more of "
                 f"{', '.join(STATISTICS)}"
             )
+    unanalysed = [st for st in key_statistics if st not in statistics]
+    if unanalysed:
+        raise RailsuspInputError(
+            f"key_statistics {','.join(unanalysed)}: accepted only statistics analysed "
+            f"(statistics {','.join(statistics)})"
+        )
     if not 0.0 < threshold < 1.0:  # NaN fails too
         raise RailsuspInputError(f"threshold {threshold:g}: accepted above 0 and below 1")
     if not 1 <= max_keys <= 10:
@@ -455,8 +566,12 @@ def analyse(
         "key_parameters": selection.to_dict(),
         "metamodel_r2": [f.__dict__ for f in fits],
     }
-    # the comparison before anything is written: a failed one left the folder half new
-    agree = None if compare is None else agreement(idx, indices_of(load_campaign(compare))[0])
+    # the comparison before anything is written: a failed one left the folder half new;
+    # checked as this campaign is (an unfinished one was compared on the batches it had,
+    # conditions without any dropped; one of other force laws compared another model)
+    agree = None
+    if compare is not None:
+        agree = agreement(idx, indices_of(require_complete(load_campaign(compare)))[0])
     write_parquet(out / "indices.parquet", idx)
     write_csv(out / "indices.csv", idx)
     write_json(out / "indices.json", idx.to_dict(orient="records"))

@@ -17,6 +17,7 @@ true parameters itself makes against the same recording.
 from __future__ import annotations
 
 import tempfile
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -68,6 +69,9 @@ class ValidationResult:
     #: draws of the true track geometry each simulation on geometry of stated accuracy is
     #: averaged over (the estimate's ``expected_draws``; 0: on the measured geometry)
     expected_draws: int = 0
+    #: rows whose relative error is NaN for another reason than a stopped simulation (a
+    #: measured statistic of 0 kN: nothing to be relative to), one line each
+    notes: list[str] = field(default_factory=list)
 
     def save(self, out: str | Path) -> Path:
         from railsusp.report import plot_validation_overlay
@@ -80,6 +84,7 @@ class ValidationResult:
             "forces": self.forces.to_dict(orient="records"),
             "failures": self.failures,
             "expected_draws": self.expected_draws,
+            "notes": self.notes,
         }
         if self.recovery is not None:
             csv = self.recovery.to_csv(index=False).encode()
@@ -127,6 +132,16 @@ def _simulate(
                 failures.append(f"{label}: {stopped[0]}{many}")
             out[label].append(np.stack(series))
     return out
+
+
+def relative_error(simulated: float, measured: float) -> float:
+    """|simulated - measured| / |measured|, the error of a record statistic as the estimate
+    weighs it; NaN where the measured statistic is 0 kN (or not finite): no relative error
+    exists (it divided by zero: inf, or NaN with a runtime warning). The estimate refuses
+    such a recording; a validation with another statistic or recordings may meet one."""
+    if not np.isfinite(measured) or measured == 0.0:
+        return float("nan")
+    return float(abs(simulated - measured) / abs(measured))
 
 
 def validate(
@@ -185,6 +200,7 @@ def validate(
     if truth is not None:
         truth_set = read_truth(truth, "--truth")
     failures: list[str] = []
+    notes: list[str] = []
     labels = {"before": "nominal parameters", "after": "estimate", "truth": "true parameters"}
     sets = {"before": nominal, "after": chosen}
     if truth_set is not None:
@@ -228,6 +244,11 @@ def validate(
                     row[f"{key}_kN"], row[f"{key}_error"] = e * sd, e
                 rows.append(row)
             for k, st in enumerate(stats):
+                if meas[j, k] == 0.0 or not np.isfinite(meas[j, k]):
+                    notes.append(
+                        f"{rec.condition.name} {w} {force} {st}: measured {meas[j, k]:g} kN, "
+                        "no relative error (its *_error is NaN)"
+                    )
                 row = {
                     "condition": rec.condition.name,
                     "wheel": w,
@@ -252,7 +273,7 @@ def validate(
                         )
                     )
                     row[f"{key}_kN"] = v
-                    row[f"{key}_error"] = abs(v - meas[j, k]) / abs(meas[j, k])
+                    row[f"{key}_error"] = relative_error(v, float(meas[j, k]))
                 rows.append(row)
         series[rec.condition.name] = {
             "time": rec.time,
@@ -265,7 +286,9 @@ def validate(
     recovery = None
     if truth_set is not None:
         recovery = _recovery(params, chosen, truth_set, est, sensitivity)
-    return ValidationResult(forces, recovery, series, failures, draws)
+    for line in notes:
+        warnings.warn(line, stacklevel=2)
+    return ValidationResult(forces, recovery, series, failures, draws, notes)
 
 
 def identification_issues(est: dict, max_st: dict[str, float] | None = None) -> dict[str, str]:

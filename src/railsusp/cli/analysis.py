@@ -350,12 +350,14 @@ def sensitivity(
         fail(text if text.startswith(str(Path(run))) else f"{run}: {text}")
     idx = s["indices"]
     keys = s["key_parameters"]["keys"]
-    ignored = set(s["key_parameters"]["ignored_features"])
+    kp = s["key_parameters"]
+    ignored = set(kp["ignored_features"]) | set(kp.get("unfitted_features", ()))
+    unfit = "" if kp.get("min_r2") is None else f" or metamodel R2 < {kp['min_r2']:g}"
     for st in key_stats:
         sel = idx[idx.statistic == st]
         table = Table(
             title=f"Total Sobol indices ST ± 95 % ({s['method']}, statistic '{st}'; "
-            f"dim: feature ignored, CV < {min_cv:.1%})",
+            f"dim: feature ignored, CV < {min_cv:.1%}{unfit})",
             title_justify="left",
         )
         table.add_column("parameter")
@@ -386,12 +388,12 @@ def sensitivity(
             f"({r.where})  ours key: {'yes' if r.ours_key else 'no '}  study: {study}",
             highlight=False,
         )
+    unfitted = set(kp.get("unfitted_features", ()))
     for f in s["metamodel_r2"]:
-        if f["r2_holdout"] < 0.8:
-            console.print(
-                f"[yellow]metamodel {f['condition']} {f['quantity']} "
-                f"{f['statistic']}: held-out R2 {f['r2_holdout']:.2f}[/]"
-            )
+        if not f["r2_holdout"] >= 0.8:  # NaN (a constant feature, not scored) too
+            name = f"{f['condition']} {f['quantity']} {f['statistic']}"
+            left = " (left out of the key rule)" if name in unfitted else ""
+            console.print(f"[yellow]metamodel {name}: held-out R2 {f['r2_holdout']:.2f}{left}[/]")
     if "agreement" in s:
         console.print("agreement with the compared run (max |dST|, Spearman of ST):")
         for a in s["agreement"]:
