@@ -165,7 +165,7 @@ def test_a_refinement_from_another_start_than_nsga_iis_choice_says_so(tmp_path):
     assert ref.start_origin == "the nominal parameters" and not ref.from_choice
     starts = [tuple(st["start_display"].values()) for st in ref.starts]
     assert len(set(starts)) == len(starts) == 3  # each distinct point once
-    assert "refined by output-error least squares with the simulator from the nominal" in (
+    assert "refined by output-error least squares with the force model Waves from the " in (
         res.route
     )
     res.save(tmp_path / "estimate")

@@ -108,6 +108,8 @@ def estimate_section(doc: Doc, est: Path) -> None:
     drawn = (ref or {}).get("expected_draws")
     on_drawn = f" (the mean over {drawn} draws of the true track geometry)" if drawn else ""
     corrected = bool(info.get("simulator_corrections"))
+    # the model the refinement compared (older estimate.json files: the simulator's)
+    compared = (ref or {}).get("compared_model") or "the simulator"
     made = (
         "The estimate starts from NSGA-II's on the surrogate against the recordings' "
         "time-aligned forces on their measured track ("
@@ -121,7 +123,7 @@ def estimate_section(doc: Doc, est: Path) -> None:
     if ref and info.get("polished_display"):
         doc.p(
             made + " Beside it, as a polish, "
-            f"the simulator's output-error refinement on the same track{on_drawn}"
+            f"the output-error refinement with {compared} on the same track{on_drawn}"
             f"{_start(ref)}: time-aligned cost "
             f"{ref['cost_start']:.3g} -> {ref['cost']:.3g} in {ref['n_evaluations']} "
             f"evaluations (the '{header('polished')}' column of the tables). Its interval "
@@ -129,7 +131,7 @@ def estimate_section(doc: Doc, est: Path) -> None:
         )
     elif ref:
         doc.p(
-            "The estimate was refined by output-error least squares with the simulator on "
+            f"The estimate was refined by output-error least squares with {compared} on "
             f"the recordings' measured track{on_drawn}{_start(ref)}: time-aligned cost "
             f"{ref['cost_start']:.3g} -> {ref['cost']:.3g} in {ref['n_evaluations']} "
             "evaluations. The estimate is the refined point"

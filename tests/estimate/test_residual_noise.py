@@ -61,7 +61,8 @@ def test_unequally_noisy_channels_match_the_monte_carlo_spread_of_the_estimate()
 def test_channel_variances_are_each_blocks_mean_square_times_its_autocorrelation_time():
     """Two blocks, one white-like (alternating, τ = 1) and one correlated: each residual
     gets its own block's Σ r² / n_b · n / (n − n_fit) · τ_b; an empty block adds nothing;
-    blocks that do not add up to the series make it one block."""
+    no blocks make the series one block, and blocks that do not add up to it are refused
+    (they were taken as one block, silently)."""
     rng = np.random.default_rng(3)
     quiet = 0.1 * np.tile([1.0, -1.0], 100)
     loud = rng.standard_normal(300)
@@ -74,5 +75,7 @@ def test_channel_variances_are_each_blocks_mean_square_times_its_autocorrelation
     assert w[:200] == pytest.approx(np.full(200, 0.01 * scale), rel=1e-12)
     expected = scale * (loud @ loud) / 300 * autocorrelation_time(loud)
     assert w[200:] == pytest.approx(np.full(300, expected), rel=1e-12)
-    whole = channel_variances(r, (200, 200), 0)
+    whole = channel_variances(r, (), 0)
     assert whole == pytest.approx(np.full(500, (r @ r) / 500 * autocorrelation_time(r)))
+    with pytest.raises(ValueError, match=r"blocks \(200, 200\) add up to 400, not to the 500"):
+        channel_variances(r, (200, 200), 0)

@@ -8,6 +8,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+import numpy as np
+
 from railsusp.errors import ParameterError, RailsuspInputError
 from railsusp.estimate.statistics import ALIGNED, check_weighting, parse_statistics
 from railsusp.params import MAIN_SUSPENSION, spec
@@ -25,6 +27,16 @@ NSGA_RANGES: dict[str, tuple[float, float]] = {
     "preview_generations": (0, 100_000),
     "preview_s": (1.0, 600.0),
 }
+#: the :data:`NSGA_RANGES` settings that count (a population, generations, draws) or seed a
+#: generator: integers only. A fraction passed the range check and then failed deep inside
+#: pymoo (``pop_size`` 10.5, ``seed`` 1.5) or was silently rounded up (``n_gen`` 3.5 ran 4)
+NSGA_INTEGERS: tuple[str, ...] = (
+    "pop_size",
+    "n_gen",
+    "seed",
+    "expected_draws",
+    "preview_generations",
+)
 #: independent NSGA-II runs for the seed spread
 SEEDS_RANGE: tuple[int, int] = (1, 10)
 #: simulator corrections of the surrogate's level error at NSGA-II's estimate
@@ -86,16 +98,21 @@ def expected_statistics_ok(statistic: str, generations: bool = False) -> bool:
 
 #: how the estimate is picked from the Pareto front, by name: the point closest to the ideal
 #: point of the front normalised to [0, 1] (record statistics: relative errors of different
-#: quantities, whose trade-off has no common scale), or the point of least summed squared
-#: objectives (time-aligned errors: every objective is already in units of the measured
-#: force's standard deviation, so their squares add up to the time-aligned cost, and
-#: normalising a narrow front would weigh a trade-off of 0.001 as much as one of 0.1)
+#: quantities, whose trade-off has no common scale), or the point of least time-aligned
+#: cost, the sum over recordings and force channels of the squared time-aligned errors
+#: (every error is in units of the measured force's standard deviation, so their squares
+#: add up to the refinement's cost, and normalising a narrow front would weigh a trade-off
+#: of 0.001 as much as one of 0.1). The cost is summed from each point's errors per
+#: recording, not from its objectives: with ``per_condition`` off each objective is the mean
+#: over recordings of a channel's error, and squared means do not add up to the cost
+#: (:func:`~railsusp.estimate.nsga.choose`)
 IDEAL_POINT = "ideal-point"
 LEAST_SQUARES = "least-squares"
 CHOICE_RULES: dict[str, str] = {
     IDEAL_POINT: "closest to the ideal point of the front normalised to [0, 1]",
-    LEAST_SQUARES: "least sum of squared objectives (time-aligned errors in units of the "
-    "measured force's standard deviation): the least time-aligned cost on the front",
+    LEAST_SQUARES: "least sum of squared time-aligned errors over the recordings and force "
+    "channels (in units of the measured force's standard deviation): the least "
+    "time-aligned cost on the front",
 }
 
 
@@ -118,6 +135,14 @@ def check_range(name: str, value: float, low: float, high: float) -> None:
         raise RailsuspInputError(
             f"{name} {_number(value)}: accepted {_number(low)} to {_number(high)}"
         )
+
+
+def check_count(name: str, value: int, low: int, high: int) -> None:
+    """:func:`check_range` for a setting that counts or seeds: also refuses, in the same one
+    line, a value that is not an integer (a float such as 10.5 or 10.0, a boolean)."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise RailsuspInputError(f"{name} {value!r}: accepted an integer {low} to {high}")
+    check_range(name, value, low, high)
 
 
 def check_slope_update(update: str, slopes: bool, setting: str, slopes_setting: str) -> None:
@@ -175,7 +200,12 @@ class NSGAConfig:
 
     def __post_init__(self):
         for name, (low, high) in NSGA_RANGES.items():
-            check_range(name, getattr(self, name), low, high)
+            if name in NSGA_INTEGERS:
+                check_count(name, getattr(self, name), int(low), int(high))
+                # a numpy integer kept as Python's: seed + k and the saved config stay exact
+                object.__setattr__(self, name, int(getattr(self, name)))
+            else:
+                check_range(name, getattr(self, name), low, high)
         if self.preview_generations >= self.n_gen:
             raise RailsuspInputError(
                 f"preview_generations {self.preview_generations}: accepted 0 to n_gen - 1 "

@@ -24,19 +24,21 @@ from pymoo.operators.sampling.rnd import FloatRandomSampling
 from pymoo.optimize import minimize
 from pymoo.util.display.multi import MultiObjectiveOutput
 
+from railsusp.errors import RailsuspInputError
 from railsusp.estimate.config import (
     CHOICE_RULES,
     IDEAL_POINT,
     LEAST_SQUARES,
+    NSGA_RANGES,
     SEEDS_RANGE,
     NSGAConfig,
-    check_range,
+    check_count,
     choice_rule,
 )
 from railsusp.estimate.expected_forces import ExpectedForces, check_drawable
 from railsusp.estimate.forces import ForceModel, StatisticsForces
 from railsusp.estimate.identifiability import cramer_rao_pct_range
-from railsusp.estimate.problem import CalibrationProblem
+from railsusp.estimate.problem import ERRORS, CalibrationProblem
 from railsusp.estimate.result import CalibrationResult
 from railsusp.measured import Recording
 from railsusp.params import bounds
@@ -56,6 +58,7 @@ class _Log(Callback):
         self.rows: list[dict] = []
         self.front_x: list[np.ndarray] = []
         self.front_f: list[np.ndarray] = []
+        self.front_e: list[np.ndarray] = []  # the front's errors per recording and force
         self._out = MultiObjectiveOutput()
         self._ready = False
 
@@ -69,6 +72,7 @@ class _Log(Callback):
         self.rows.append(row)
         self.front_x.append(algorithm.opt.get("X").copy())
         self.front_f.append(algorithm.opt.get("F").copy())
+        self.front_e.append(np.asarray(algorithm.opt.get(ERRORS), dtype=float).copy())
         n = len(self.rows)
         if self.n_gen and (n % max(1, self.n_gen // 10) == 0 or n == self.n_gen):
             log.info(
@@ -77,13 +81,22 @@ class _Log(Callback):
             )  # fmt: skip
 
 
-def choose(front: np.ndarray, rule: str = IDEAL_POINT) -> int:
+def choose(front: np.ndarray, rule: str = IDEAL_POINT, errors: np.ndarray | None = None) -> int:
     """Index of the estimate on a Pareto front (n, n_obj) by a choice rule
     (:data:`~railsusp.estimate.config.CHOICE_RULES`): ``ideal-point``, the point closest to
     the ideal point after normalising each objective to [0, 1] over the front;
-    ``least-squares``, the point of least summed squared objectives (ties: the first)."""
+    ``least-squares``, the point of least time-aligned cost (ties: the first), the sum of
+    each point's squared ``errors`` (n, ...: its time-aligned error per recording and force,
+    :meth:`~railsusp.estimate.problem.CalibrationProblem.errors`). Without ``errors`` the
+    cost is the sum of the squared objectives, which is it only where the objectives are
+    those errors themselves (one recording, or ``per_condition``): objectives averaged over
+    recordings are the mean of each force's errors, and the sum of squared means can rank
+    the front otherwise: errors (0, 0.3) and (0.6, 0.3) in two recordings average to
+    objectives (0.3, 0.3), squared 0.18, against 0.19 for errors (0.25, 0.36) in both, yet
+    their sums of squared errors are 0.54 against 0.38."""
     if rule == LEAST_SQUARES:
-        return int(np.argmin((np.asarray(front) ** 2).sum(axis=1)))
+        terms = np.asarray(front if errors is None else errors, dtype=float)
+        return int(np.argmin((terms.reshape(len(terms), -1) ** 2).sum(axis=1)))
     if rule != IDEAL_POINT:
         raise ValueError(f"choice rule {rule!r}: accepted {', '.join(CHOICE_RULES)}")
     lo, hi = front.min(axis=0), front.max(axis=0)
@@ -200,20 +213,21 @@ def _estimate(
     )
     x = np.atleast_2d(res.X)
     f = np.atleast_2d(res.F)
+    e = np.asarray(res.opt.get(ERRORS), dtype=float).reshape(len(x), -1)
     order = np.argsort(f[:, 0])
-    x, f = x[order], f[order]
+    x, f, e = x[order], f[order], e[order]
     rule = choice_rule(cfg.statistic)
     history = np.array(
         [
-            problem.to_si(fx[choose(ff, rule)])
-            for fx, ff in zip(progress.front_x, progress.front_f, strict=True)
+            problem.to_si(fx[choose(ff, rule, fe)])
+            for fx, ff, fe in zip(progress.front_x, progress.front_f, progress.front_e, strict=True)
         ]
     )
     result = CalibrationResult(
         tuple(parameters),
         problem.to_si(x),
         f,
-        choose(f, rule),
+        choose(f, rule, e),
         pd.DataFrame(progress.rows),
         history,
         cfg,
@@ -236,9 +250,17 @@ def estimate_with_seeds(
     n_seeds: int = 3,
 ) -> CalibrationResult:
     """The estimate of the first seed, with the spread of the chosen estimate over
-    ``n_seeds`` independent runs (in % of each parameter's range)."""
-    check_range("n_seeds", n_seeds, *SEEDS_RANGE)
+    ``n_seeds`` independent runs (in % of each parameter's range): run k has seed
+    ``config.seed + k``, so the last seed is checked against pymoo's 32-bit range before
+    the first run (not after it, as a seed one past the range failed)."""
+    check_count("n_seeds", n_seeds, *SEEDS_RANGE)
     cfg = NSGAConfig() if config is None else config
+    top = int(NSGA_RANGES["seed"][1])
+    if cfg.seed + n_seeds - 1 > top:
+        raise RailsuspInputError(
+            f"seed {cfg.seed} with seeds {n_seeds}: accepted seed + seeds - 1 at most {top} "
+            "(run k of the seed spread has seed + k)"
+        )
     runs = [
         estimate(
             model, recordings, parameters, NSGAConfig(**{**cfg.to_dict(), "seed": cfg.seed + k})

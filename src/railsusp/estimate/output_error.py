@@ -27,7 +27,7 @@ from railsusp.estimate.comparison import (
 )
 from railsusp.estimate.forces import ForceModel, series_in_conditions
 from railsusp.estimate.lockstep import Lockstep
-from railsusp.estimate.problem import check_aligned
+from railsusp.estimate.problem import check_aligned, check_recordings
 from railsusp.measured import Recording
 from railsusp.params import bounds
 from railsusp.vehicle import track_geometry
@@ -56,6 +56,9 @@ class OutputError:
         self.parameters = tuple(parameters)
         self.recordings = list(recordings)
         check_aligned(model, self.recordings)
+        # a constant or zero channel has no spread to scale by: refused in one line here,
+        # not as scipy's "Residuals are not finite in the initial point"
+        check_recordings(self.recordings, aligned=True)
         self.lo, self.hi = bounds(self.parameters)
         self.k = len(self.parameters)
         self.step = step

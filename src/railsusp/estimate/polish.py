@@ -16,13 +16,13 @@ import numpy as np
 
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate.config import NSGA_RANGES, REFINE_RANGES, check_range
+from railsusp.estimate.config import NSGA_RANGES, REFINE_RANGES, check_count
 from railsusp.estimate.expected_forces import ExpectedForces
 from railsusp.estimate.forces import ForceModel, SimulatorForces, series_in_conditions
 from railsusp.estimate.geometry_bias import GEOMETRY_DRAWS, stated_accuracy
 from railsusp.estimate.output_error import OutputError
 from railsusp.estimate.problem import CalibrationProblem, check_aligned, display_values
-from railsusp.estimate.refine import CHOICE, refine_starts
+from railsusp.estimate.refine import CHOICE, GEOMETRY_CORRECTED, refine_starts
 from railsusp.estimate.result import CalibrationResult
 from railsusp.estimate.statistics import ALIGNED, parse_statistics
 from railsusp.measured import Recording
@@ -120,10 +120,12 @@ def refine_estimate(
         "geometry_draws": geometry_draws,
     }
     for name, value in settings.items():
-        check_range(name, value, *REFINE_RANGES[name])
+        check_count(name, value, *REFINE_RANGES[name])
     if expected_draws is None:
         expected_draws = result.config.expected_draws
-    check_range("expected_draws", expected_draws, *NSGA_RANGES["expected_draws"])
+    for name, value in (("seed", seed), ("expected_draws", expected_draws)):
+        low, high = NSGA_RANGES[name]
+        check_count(name, value, int(low), int(high))
     check_refinable(recordings)
     params = result.parameters
     model = SimulatorForces(params) if model is None else model
@@ -133,7 +135,7 @@ def refine_estimate(
     lhs = qmc.LatinHypercube(d=len(params), seed=seed).random(screen) if screen else None
     groups = [(result.pareto_x[result.chosen][None], CHOICE)]
     if result.geometry_bias_removed or result.expected_polish is not None:
-        groups.append((result.nsga_x[None], "NSGA-II's choice before its geometry correction"))
+        groups.append((result.nsga_x[None], GEOMETRY_CORRECTED))
     if result.corrections:
         groups.append((result.corrected_x[None], "the simulator-corrected estimate"))
     groups += [

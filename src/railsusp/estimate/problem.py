@@ -38,6 +38,10 @@ from railsusp.measured import Recording
 from railsusp.params import bounds, spec
 from railsusp.vehicle.simulate import RECORD_STATISTICS
 
+#: the key of each set's errors per recording and force on pymoo's individuals
+#: (:meth:`CalibrationProblem._evaluate`)
+ERRORS = "errors"
+
 
 class CalibrationProblem(Problem):
     """Two objectives over the key parameters (decision variables scaled to [0, 1]):
@@ -145,8 +149,14 @@ class CalibrationProblem(Problem):
         }
 
     def _evaluate(self, x, out, *args, **kwargs):
+        """The objectives ``F``, and each set's errors per recording and force ``ERRORS``
+        (n, 2 n_conditions), which pymoo keeps on every individual: the choice rule
+        ``least-squares`` ranks a front by the time-aligned cost summed from them
+        (:func:`~railsusp.estimate.nsga.choose`), as the objectives averaged over the
+        recordings do not give it, and without evaluating the front again."""
         e = self.errors(self.to_si(x))
         out["F"] = e.reshape(len(x), -1) if self.per_condition else e.mean(axis=1)
+        out[ERRORS] = e.reshape(len(x), -1)
 
 
 def check_recordings(

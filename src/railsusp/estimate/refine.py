@@ -23,7 +23,8 @@ from functools import partial
 import numpy as np
 
 from railsusp.estimate.comparison import GAIN_LIMIT
-from railsusp.estimate.forces import ForceModel
+from railsusp.estimate.expected_forces import averaged_model
+from railsusp.estimate.forces import ForceModel, SimulatorForces, SurrogateForces
 from railsusp.estimate.geometry_bias import (
     GEOMETRY_DRAWS,
     less_bias,
@@ -44,6 +45,10 @@ log = logging.getLogger("railsusp.estimate")
 
 #: the origin of a refinement's start that is NSGA-II's choice (:attr:`Refinement.start_origin`)
 CHOICE = "NSGA-II's choice"
+#: the origin of a start that is NSGA-II's estimate: its choice after the geometry
+#: correction (less the geometry error's bias, or polished on expected forces;
+#: :attr:`~railsusp.estimate.result.CalibrationResult.nsga_x`)
+GEOMETRY_CORRECTED = "NSGA-II's estimate (its choice after its geometry correction)"
 
 
 @dataclass
@@ -84,9 +89,14 @@ class Refinement:
     problem: OutputError | None = field(default=None, repr=False, compare=False)
     solution: np.ndarray | None = field(default=None, repr=False, compare=False)
     #: residuals at the solution and their lengths per recording and channel, for the
-    #: intervals' autocorrelation inflation (:mod:`railsusp.estimate.intervals`; not saved)
+    #: intervals' autocorrelation inflation (:mod:`railsusp.estimate.intervals`; not saved):
+    #: the compared rows only, as the blocks count them (a washout's left-out leading rows
+    #: are no residuals; kept, they pooled the channels into one block)
     residuals: np.ndarray | None = field(default=None, repr=False, compare=False)
     residual_blocks: tuple[int, ...] = field(default=(), repr=False, compare=False)
+    #: the force model compared, in words (:func:`model_text`: "the simulator", a folder's
+    #: surrogates, ...), for the route; "" where not known
+    compared_model: str = ""
 
     @property
     def estimate_si(self) -> np.ndarray:
@@ -138,6 +148,7 @@ class Refinement:
                 else ""
             ),
             "expected_draws": self.expected_draws,
+            "compared_model": self.compared_model,  # the force model it compared (route)
             "start_display": display_values(self.parameters, self.start_si),
             "refined_display": display_values(self.parameters, self.x_si),
             "geometry_bias_removed": self.geometry_bias_removed,
@@ -304,6 +315,23 @@ def least_squares_from(
         else {},
         problem=problem,
         solution=sol.x,
-        residuals=sol.fun,
+        residuals=sol.fun[keep],
         residual_blocks=blocks,
+        compared_model=model_text(problem.model),
     )
+
+
+#: :func:`model_text` of the simulator
+SIMULATOR_TEXT = "the simulator"
+
+
+def model_text(model: ForceModel) -> str:
+    """The force model a refinement compares, in words for the route: "the simulator", the
+    window surrogates of a folder, else the model's class. A model averaged over drawn
+    tracks (expected forces) is named as the model it averages; the route says the draws."""
+    inner = averaged_model(model)
+    if isinstance(inner, SimulatorForces):
+        return SIMULATOR_TEXT
+    if isinstance(inner, SurrogateForces):
+        return f"the window surrogates in {inner.folder}"
+    return f"the force model {type(inner).__name__}"

@@ -47,9 +47,20 @@ def autocorrelation_time(r: np.ndarray) -> float:
 
 def _block_sizes(r: np.ndarray, blocks: Sequence[int]) -> list[int]:
     """The lengths of ``r``'s consecutive blocks; the whole series as one block where none
-    are given or they do not add up to its length."""
-    sizes = [int(b) for b in blocks] if blocks else [r.size]
-    return sizes if sum(sizes) == r.size else [r.size]
+    are given. Blocks that do not add up to its length are a caller's error (residuals of
+    every row with the blocks of the compared rows only, as a refinement with a washout
+    stored them): a ValueError, not one block, which pooled the channels silently and gave
+    the intervals a wrong effective sample size, autocorrelation time and degrees of
+    freedom."""
+    if len(blocks) == 0:
+        return [r.size]
+    sizes = [int(b) for b in blocks]
+    if sum(sizes) != r.size:
+        raise ValueError(
+            f"internal error: residual blocks {tuple(sizes)} add up to {sum(sizes)}, not to "
+            f"the {r.size} residuals they divide"
+        )
+    return sizes
 
 
 def effective_sample_size(residuals: np.ndarray, blocks: Sequence[int]) -> tuple[float, float]:
@@ -69,7 +80,8 @@ def channel_variances(residuals: np.ndarray, blocks: Sequence[int], n_fit: int) 
     n / (n − n_fit), the block's mean square with the fit's degrees of freedom shared out
     over all n residuals, τ_b its integrated autocorrelation time
     (:func:`autocorrelation_time`). Blocks are consecutive, one per recording's force
-    channel (the whole series as one where ``blocks`` do not add up to it). The diagonal of
+    channel (the whole series as one where no ``blocks`` are given; blocks that do not add
+    up to it are refused, :func:`_block_sizes`). The diagonal of
     Σ in :func:`noise_standard_errors` and the inverse weights of the time-aligned
     Cramér-Rao bound."""
     r = np.asarray(residuals, dtype=float).ravel()

@@ -30,7 +30,7 @@ from railsusp.estimate.config import (
 from railsusp.estimate.geometry_bias import less_bias, removable, simex_bias, simex_spread
 from railsusp.estimate.intervals import LEVEL, PARETO, Intervals, from_pareto
 from railsusp.estimate.problem import display_values
-from railsusp.estimate.refine import Refinement
+from railsusp.estimate.refine import SIMULATOR_TEXT, Refinement
 from railsusp.estimate.refine_intervals import refinement_intervals
 from railsusp.estimate.statistics import ALIGNED, parse_statistics
 from railsusp.estimate.trust_region import StepCheck
@@ -213,13 +213,19 @@ class CalibrationResult:
                 )
         if self.refinement is None:
             return text
-        drawn = self.refinement.expected_draws
-        on = f" on its mean over {drawn} draws of the true track geometry" if drawn else ""
-        if self.refinement_is_polish:
-            return text + f"; the simulator's output-error refinement{on} is a polish beside it"
         ref = self.refinement
+        drawn = ref.expected_draws
+        on = f" on its mean over {drawn} draws of the true track geometry" if drawn else ""
+        model = ref.compared_model or "an unnamed force model"  # the model it compared
+        if self.refinement_is_polish:
+            what = (
+                "the simulator's output-error refinement"
+                if model == SIMULATOR_TEXT
+                else f"the output-error refinement with {model}"
+            )
+            return text + f"; {what}{on} is a polish beside it"
         start = "" if ref.from_choice else f" from {ref.start_origin}"
-        return text + f", then refined by output-error least squares with the simulator{on}{start}"
+        return text + f", then refined by output-error least squares with {model}{on}{start}"
 
     @property
     def estimate(self) -> dict[str, float]:
