@@ -6,7 +6,8 @@ them:
 
 - ``today``: the EN 14363 summary of the measured wheel (family ``en14363``);
 - ``third_octave``: log10 RMS of Y and Q in 18 third-octave bands (``third-octave``);
-- ``both_wheels``: the partner wheel's own 17, and the sum of Y and difference of Q
+- ``both_wheels``: the partner wheel's own 17, and the wheelset's track-shifting force
+  (Y less the partner's, stop 62; the sum Y + Y_partner before) and difference of Q
   (``wheelset``);
 - ``cross``: coherencies and lagged correlations (``coherence``);
 - ``spectra``: the four channels' cross-spectral matrix in 1 Hz bands (``cross-spectra``).

@@ -155,15 +155,17 @@ def _gain_derivatives(chans, channel_index: int):
 
 def _swaying(seed: int, n: int = 1000) -> tuple[np.ndarray, ...]:
     """Y, Q, Yp, Qp (kN) of wheels whose Y sway about zero (straight track, no flange
-    contact) and whose Q differ by a few kN: the fluctuation dominates the sum and the
-    difference, not the wheels' levels."""
+    contact) and whose Q differ by a few kN: the fluctuation dominates the wheelset's
+    differences (sumY = Y - Yp, dQ = Q - Qp), not the wheels' levels. Each wheel's Y is +
+    towards its own field side, so the wheelset's lateral sway has opposite signs in the
+    two."""
     rng = np.random.default_rng(seed)
     t = np.arange(n) / FS
     sway = 3.0 * np.sin(2 * np.pi * 0.9 * t + seed)
     return (
         sway + 2 * rng.standard_normal(n),
         100 + 4 * sway + 5 * rng.standard_normal(n),
-        0.5 * sway + 2 * rng.standard_normal(n),
+        -(0.5 * sway + 2 * rng.standard_normal(n)),
         97 - 4 * sway + 5 * rng.standard_normal(n),
     )
 
@@ -172,15 +174,14 @@ def _swaying(seed: int, n: int = 1000) -> tuple[np.ndarray, ...]:
 def test_the_gain_model_matches_finite_differences(wheels):
     """Each channel's gain moved by 1e-4: every statistic's change against gain_dependence.
     Exact, section by section, for one channel's percentiles and band RMS, Y/Q, the
-    coherencies and correlations (zero); for the percentiles of the sum of Y and the
-    difference of Q the two wheels' terms add up to the percentile itself (both gains
-    moved together scale it). One wheel's term is the mean of its force where the
-    percentile falls: over 40 sections the model within 30 % of the derivatives' scale
-    (the wheel's level plus the sum's excursion; the model's share 1/2 of the excursion
-    assumes equal wheels, and the swaying wheels here differ by 2 in sway), both on wheels of
-    opposite-sign levels where the sum is far smaller than either (half the sum per wheel,
-    the model before: 0.5 kN against 5) and on wheels that sway about zero, where the
-    wheels' medians alone (this model's first form) gave -0.03 against 4.7."""
+    coherencies and correlations (zero); for the percentiles of the wheelset's differences
+    (sumY = Y - Yp, dQ = Q - Qp) the two wheels' terms add up to the percentile itself
+    (both gains moved together scale it). One wheel's term is its mean force where the
+    percentile falls (the partner's with a minus): over 40 sections the model within 30 %
+    of the derivatives' scale (the wheel's level plus the difference's excursion; the
+    model's share 1/2 of the excursion assumes equal wheels, and the swaying wheels here
+    differ by 2 in sway), both on wheels of opposite-sign levels and on wheels that sway
+    about zero, where the wheels' medians alone (this model's first form) fall far short."""
     size = len(sf.statistic_names(sf.FAMILIES))
     got, want = np.zeros((4, size)), np.zeros((4, size))
     for seed in range(40):

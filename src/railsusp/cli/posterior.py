@@ -151,7 +151,11 @@ def train_command(
         float | None, typer.Option(help="lead-in before each section, m (default: the condition's)")
     ] = None,
     sum_y: Annotated[
-        bool, typer.Option(help="also the wheelset sum of Y (both wheels recorded)")
+        bool,
+        typer.Option(
+            help="also the wheelset's track-shifting force Y - Y_partner (both wheels "
+            "recorded; EN 14363 sum Y)"
+        ),
     ] = False,
     statistics: Annotated[
         str,

@@ -287,7 +287,8 @@ def train(
     for net in nets:
         net.eval()
     est = PosteriorEstimator(settings, nets, [], None, Path(run))
-    est.correction, est.calibration, est.products = calibrate(est, folder)
+    # read back only if made on these weights (a remade estimator.pt is checked afresh)
+    est.correction, est.calibration, est.products = calibrate(est, folder, remake=simulate)
     return est
 
 

@@ -24,7 +24,12 @@ adds each section's small spurious information, so its factors grow with k; a re
 of n sections uses the correction of the smallest checked k >= n (wider than n needs, if
 the factors grow with k), and one longer than k_max is not calibrated.
 
-Everything goes into ``posterior/calibration.json``, which a re-run reads back.
+Everything goes into ``posterior/calibration.json`` with the stamp of what the check was
+made on (:func:`check_stamp`: the hash of the flows' saved weights, the settings' hash, the
+force laws' revision), which a re-run reads back only while the stamp is the folder's: an
+``estimator.pt`` deleted and trained again (the remedy our refusals give), or copied in
+from another training, is checked afresh, not given the verdict and widening of the flows
+it replaced.
 """
 
 from __future__ import annotations
@@ -36,11 +41,12 @@ from typing import Protocol
 
 import numpy as np
 
+from railsusp.errors import RailsuspInputError
 from railsusp.estimate.calibration import LEVEL, ParameterCalibration, SpreadCorrection, check
 from railsusp.estimate.posterior_data import cached_cases
 from railsusp.estimate.posterior_fusion import SectionSampler, from_logit, fused_samples, to_logit
 from railsusp.params import MAIN_SUSPENSION
-from railsusp.store import read_json, write_json
+from railsusp.store import file_hash, read_json, write_json
 
 log = logging.getLogger(__name__)
 
@@ -146,34 +152,67 @@ def _read_products(data: dict) -> list[ProductCalibration]:
     ]
 
 
+def check_stamp(folder: Path) -> dict:
+    """What a check in ``folder`` was made on, stored in ``calibration.json``: the SHA-256
+    of the flows' saved weights (``estimator.pt``; None where there is none), and the hash
+    of the settings and the force laws' revision that ``settings.json`` holds, which fix
+    the held-out cases (their draws, tracks, noise and simulated forces, cached in
+    ``simulations/``) and how many draws each is checked with."""
+    weights = folder / "estimator.pt"
+    stored = read_json(folder / "settings.json") if (folder / "settings.json").exists() else {}
+    stored = stored if isinstance(stored, dict) else {}
+    return {
+        "estimator": file_hash(weights) if weights.is_file() else None,
+        "settings": stored.get("hash"),
+        "model_revision": stored.get("model_revision"),
+    }
+
+
+def _read_record(path: Path):
+    """(stamp, (correction, checks, products)) of a calibration record, or None for valid
+    JSON of another content (another tool's file, a result written over it: a traceback on
+    every later run before), said in a warning: the check is made again instead."""
+    data = read_json(path)
+    try:
+        corr = data.get("correction")
+        return data.get("stamp"), (
+            None if corr is None else SpreadCorrection.from_dict(corr),
+            [ParameterCalibration(**c) for c in data["parameters"]],
+            _read_products(data),
+        )
+    except (AttributeError, KeyError, TypeError, ValueError) as exc:
+        log.warning(
+            "%s is not a calibration record (%s: %s); the check runs again",
+            path,
+            type(exc).__name__,
+            exc,
+        )
+        return None
+
+
 def calibrate(
-    est: Estimator, folder: Path
+    est: Estimator, folder: Path, remake: bool = True
 ) -> tuple[SpreadCorrection | None, list[ParameterCalibration], list[ProductCalibration]]:
     """The correction (None with ``n_calibration = 0``), the check of the corrected
     estimator on the untouched test cases, and the same for the checked numbers of
-    sections; read from ``calibration.json`` when there."""
+    sections; read from ``calibration.json`` when there and made on these flows
+    (:func:`check_stamp`), else made again. ``remake`` False (:func:`railsusp.estimate.
+    posterior.load`, which only reads): a record of other flows is refused in one line."""
     path = folder / "calibration.json"
-    if path.exists():
-        data = read_json(path)
-        try:
-            corr = data.get("correction")
-            return (
-                None if corr is None else SpreadCorrection.from_dict(corr),
-                [ParameterCalibration(**c) for c in data["parameters"]],
-                _read_products(data),
+    stamp = check_stamp(folder)
+    stored = _read_record(path) if path.exists() else None
+    if stored is not None:
+        if stored[0] == stamp:
+            return stored[1]
+        if not remake:
+            raise RailsuspInputError(
+                f"{path} is the check of other flows than {folder / 'estimator.pt'} (trained "
+                "or copied in since): run railsusp posterior train on this folder to check them"
             )
-        except (AttributeError, KeyError, TypeError, ValueError) as exc:
-            # valid JSON of another content (another tool's file, a result written over
-            # it): a traceback on every later run before; the check is made again instead
-            log.warning(
-                "%s is not a calibration record (%s: %s); the check runs again",
-                path,
-                type(exc).__name__,
-                exc,
-            )
+        log.warning("%s is the check of other flows than estimator.pt; the check runs again", path)
     s = est.settings
     names = list(s.parameters)
-    record: dict = {"level": LEVEL}
+    record: dict = {"level": LEVEL, "stamp": stamp}
     correction = None
     if s.n_calibration:
         draws, truth, failed = raw_draws(est, folder, "calibration", s.n_calibration)

@@ -52,6 +52,16 @@ SEED_BASE = {"train": 10_000_000, "check": 20_000_000, "calibration": 30_000_000
 OFFSET_SEED_BASE = 100_000_000
 
 
+class TrainingWheel:
+    """The force model of the training simulations, as
+    :func:`railsusp.estimate.problem.check_measured_wheel` asks of one: it records the
+    automatically chosen wheel (:func:`railsusp.vehicle.simulate.measured_wheel_index`: the
+    leading wheelset's outer wheel in a curve, its left wheel on tangent), so a recording
+    is compared only where its first wheel is that one."""
+
+    wheel = "auto"
+
+
 def check_model_revision(stamp: dict, path: Path) -> None:
     """Refuse, in one line, an estimator folder whose ``settings.json`` (``stamp``) was
     simulated with other force laws than :data:`railsusp.vehicle.MODEL_REVISION` (or before
@@ -142,7 +152,7 @@ def simulate_long_cases(
         res = simulate_batch(
             theta, run, symbols=MAIN_SUSPENSION, seeds=list(seeds), wagon=settings.wagon
         )
-        j = res.measured_wheel()
+        j = res.measured_wheel(TrainingWheel.wheel)
         fs = 1.0 / cond.sample_interval
         out = np.full((n, sections, width), np.nan)
         for i in range(n):
@@ -246,7 +256,15 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
     (matched by name, the condition otherwise equal but for duration and track), each cut
     into sections of the training length; a section of the whole is one section of every
     condition, so the shortest condition's count of sections is used. Returns the matrix
-    and, per condition, the sections used and the seconds left out."""
+    and, per condition, the sections used and the seconds left out.
+
+    A recording's first wheel is the one compared: one that is not the wheel the training
+    simulations record (:class:`TrainingWheel`) is refused in one line, as the optimisation
+    route refuses it (:func:`railsusp.estimate.problem.check_measured_wheel`: in a curve
+    the outer and the inner wheel carry other forces; a recording of a left curve listing
+    w1L before w1R was compared as the outer wheel, silently)."""
+    from railsusp.estimate.problem import check_measured_wheel
+
     by_name = {}
     for r in recordings:
         if r.condition.name in by_name:  # the later one was taken, the other dropped unsaid
@@ -271,6 +289,7 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
                 f"recording {cond.name!r} differs from the trained condition in "
                 f"{', '.join(diff)}; train an estimator for this condition"
             )
+        check_measured_wheel(TrainingWheel(), [rec], aligned=False)
         fs = 1.0 / cond.sample_interval
         if abs(rec.sampling_rate - fs) > 0.01 * fs:
             rec = rec.resampled(fs)
@@ -281,7 +300,7 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
 
             other = WHEEL_NAMES[WHEEL_NAMES.index(w) ^ 1]
             if other not in rec.Y or (settings.partner_q and other not in rec.Q):
-                what = ("the wheelset sum of Y" if settings.statistics == ("en14363",)
+                what = ("the wheelset force sumY" if settings.statistics == ("en14363",)
                         else f"statistics {','.join(settings.statistics)}")  # fmt: skip
                 raise RailsuspInputError(
                     f"recording {cond.name!r}: the estimator uses {what} and needs wheel "
@@ -307,6 +326,15 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
             )
             for s in sections
         ]
+        undefined = np.argwhere(~np.isfinite(rows))
+        if undefined.size:  # the training leaves such cases out; a recording's is refused
+            k, i = undefined[0]
+            name = statistic_names(settings.statistics, settings.sum_y)[i]
+            why = " (a wheel unloaded, Q <= 1 kN, in all of it)" if name.startswith("YQ") else ""
+            raise RailsuspInputError(
+                f"recording {cond.name!r}: statistic {name} undefined in section {k + 1}"
+                f"{why}; accepted sections whose every statistic is defined"
+            )
         per_condition.append(np.array(rows))
         info[cond.name] = (len(rows), rec.time.size / fs)
     n = min(len(r) for r in per_condition)

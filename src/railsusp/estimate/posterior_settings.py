@@ -32,8 +32,9 @@ class PosteriorSettings:
     the working ``conditions`` (each recorded in sections of ``section_s`` seconds),
     ``n_train`` training cases, ``n_calibration`` held-out cases that fit the spread
     correction (0: no correction) and ``n_check`` other held-out cases that test it, the
-    instrument ``noise`` (fraction of channel RMS), ``sum_y`` (also the wheelset sum of Y:
-    both wheels of the leading wheelset recorded), ``statistics``: the families of
+    instrument ``noise`` (fraction of channel RMS), ``sum_y`` (also the wheelset's lateral force
+    ``sumY``, :func:`~railsusp.estimate.summaries.wheelset_force`: both wheels of the
+    leading wheelset recorded), ``statistics``: the families of
     statistics (:mod:`railsusp.estimate.statistic_families`; the default, the EN 14363
     summary alone, is the estimator's before the families existed), ``projection_rank``: the
     number of their combinations the synthetic likelihood reads beyond that summary

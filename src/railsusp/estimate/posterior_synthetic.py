@@ -77,7 +77,8 @@ def gain_covariance(names: list[str], gain_error: float) -> SharedCovariance:
     statistic_families.statistic_names`), each statistic's dependence on the gains as
     :func:`~railsusp.estimate.statistic_families.gain_dependence` gives it: percentiles of
     Y and Q scale with their channel's gain, those of Y/Q with the difference of the two,
-    those of the wheelset sum of Y with each wheel's level times its gain; a log10 band
+    those of the wheelset's force sumY = Y - Yp with each wheel's level (the partner's
+    with its sign) times its gain; a log10 band
     RMS shifts by its channel's gain / ln 10; coherencies and correlations do not move."""
     sources: dict[str, int] = {}
     index = {name: i for i, name in enumerate(names)}

@@ -14,7 +14,9 @@ wagon at ``speed_ms``):
   from 0.3 to 19.2 Hz (a finer spectrum: where the suspension's modes let the track's
   excitation through);
 - ``wheelset``: the partner wheel's own 17, and the percentiles and four band RMS of the
-  wheelset sum of Y (the track-shifting force) and of the left-right difference of Q;
+  wheelset's lateral force on the track ``sumY`` (the track-shifting force, EN 14363's sum
+  of Y: Y - Yp, + towards the measured wheel's field side, :func:`~railsusp.estimate.
+  summaries.wheelset_force`) and of the difference of Q, ``dQ`` = Q - Qp;
 - ``coherence``: band coherency (real and imaginary parts of the band-integrated cross
   spectrum over the geometric mean of the two band powers: magnitude and phase without a
   wrap) of Y with Q on the measured wheel, of the two wheels' Y and of their Q, in six
@@ -50,6 +52,7 @@ from railsusp.estimate.summaries import (
     en14363_percentiles,
     section_summary,
     summary_names,
+    wheelset_force,
 )
 
 #: the families, in the order their statistics follow one another
@@ -270,7 +273,10 @@ def family_statistics(
     Qp = np.maximum(np.asarray(Qp, float), 0.0)
     if family == "wheelset":
         parts = [section_summary(Yp, Qp, fs, speed_ms)]
-        parts += [_level_and_bands(Y + Yp, fs, speed_ms), _level_and_bands(Q - Qp, fs, speed_ms)]
+        parts += [
+            _level_and_bands(wheelset_force(Y, Yp), fs, speed_ms),
+            _level_and_bands(Q - Qp, fs, speed_ms),
+        ]
         return np.concatenate(parts)
     if family == "coherence":
         parts = [band_coherency(Y, Q, fs), band_coherency(Y, Yp, fs), band_coherency(Q, Qp, fs)]
@@ -308,11 +314,13 @@ _GAIN_SOURCES: dict[str, tuple[tuple[str, float], ...]] = {
     "Qp": (("Qp", 1.0),),
     "YQp": (("Yp", 1.0), ("Qp", -1.0)),
 }
-#: a channel's level, as a combination of medians of the same condition's statistics
+#: a channel's level, as a combination of medians of the same condition's statistics (the
+#: partner's: the measured wheel's less the median of the wheelset's difference, sumY =
+#: Y - Yp and dQ = Q - Qp; the EN 14363 summary with ``sum_y`` has no Yp_p50 of its own)
 _LEVEL = {
     "Y": (("Y_p50", 1.0),),
     "Q": (("Q_p50", 1.0),),
-    "Yp": (("sumY_p50", 1.0), ("Y_p50", -1.0)),
+    "Yp": (("Y_p50", 1.0), ("sumY_p50", -1.0)),
     "Qp": (("Q_p50", 1.0), ("dQ_p50", -1.0)),
 }
 
@@ -327,15 +335,18 @@ def gain_dependence(name: str) -> list[GainTerm]:
 
     - a percentile scales with its channel's gain (scale: itself); Y/Q with the
       difference of the two gains;
-    - a percentile s_p of the wheelset sum of Y moves with a wheel's gain by that wheel's
-      force where the sum is at s_p, E[Y | S = s_p] = level + share (s_p - median of S)
-      (regression on the sum, Gaussian forces), with the level the wheel's median (the
-      partner's: the sum's median less the measured wheel's) and the share 1/2 (equal
-      wheels). The two wheels' terms add up to s_p, exact for equal gains. The difference
-      of Q alike, the partner's term with its sign: E[Qp | D = d_p] = level - (d_p -
-      median of D) / 2. Why not half the sum per wheel (the model before): on straight
-      track the two wheels' Y are of opposite sign and the sum is far smaller than either;
-    - a log10 band RMS shifts by its channel's gain / ln 10; of the sum or difference,
+    - a percentile d_p of the wheelset's lateral force sumY = Y - Yp (each wheel's Y is
+      + towards its own field side, so the wheelset's force is their difference) moves
+      with the measured wheel's gain by that wheel's force where the difference is at
+      d_p, E[Y | D = d_p] = level + share (d_p - median of D) (regression on the
+      difference, Gaussian forces), and with the partner's gain by minus the partner's,
+      E[Yp | D = d_p] = level - share (d_p - median of D); the level is the wheel's
+      median (the partner's: the measured wheel's less the difference's median) and the
+      share 1/2 (equal wheels). The two wheels' terms add up to d_p, exact for equal
+      gains. The difference of Q, dQ = Q - Qp, alike. Why not half the percentile per
+      wheel (the model before the levels): the wheels' levels can be far larger than their
+      difference;
+    - a log10 band RMS shifts by its channel's gain / ln 10; of a wheelset difference,
       by half of each wheel's gain / ln 10 (exact for uncorrelated wheels of equal
       fluctuation; otherwise the calibration records' model error takes the rest);
     - coherencies and correlations do not depend on the gains.
@@ -344,13 +355,13 @@ def gain_dependence(name: str) -> list[GainTerm]:
     if channel.startswith(("coh", "xcoh", "acorr", "xcorr")):
         return []
     log_kind = kind.startswith(("band", "3oct", "xs_"))
-    if channel in ("sumY", "dQ"):
-        own, partner, sign = ("Y", "Yp", 1.0) if channel == "sumY" else ("Q", "Qp", -1.0)
+    if channel in ("sumY", "dQ"):  # Y - Yp and Q - Qp
+        own, partner = ("Y", "Yp") if channel == "sumY" else ("Q", "Qp")
         if log_kind:
             return [(own, 0.5 / np.log(10.0), ()), (partner, 0.5 / np.log(10.0), ())]
-        spread = ((name, 0.5), (f"{channel}_p50", -0.5))  # (s_p - median) / 2
-        partner_spread = tuple((n, sign * w) for n, w in spread)
-        return [(own, 1.0, _LEVEL[own] + spread), (partner, sign, _LEVEL[partner] + partner_spread)]
+        spread = ((name, 0.5), (f"{channel}_p50", -0.5))  # (d_p - median) / 2
+        partner_spread = tuple((n, -w) for n, w in spread)
+        return [(own, 1.0, _LEVEL[own] + spread), (partner, -1.0, _LEVEL[partner] + partner_spread)]
     if channel not in _GAIN_SOURCES:
         raise ValueError(f"statistic {name!r}: no gain model for channel {channel!r}")
     if log_kind:

@@ -4,9 +4,12 @@ simulation-based posterior (:mod:`railsusp.estimate.posterior`).
 Per section of one working condition, for the measured wheel:
 
 - EN 14363 quantities (:mod:`railsusp.en14363`): Y, Q and Y/Q low-passed (20 Hz), averaged
-  over 2 m of track, described by their 0.15 %, 50 % and 99.85 % percentiles; optionally
-  the same for the wheelset sum of Y (the track-shifting force, both wheels of the
-  wheelset recorded);
+  over 2 m of track, described by their 0.15 %, 50 % and 99.85 % percentiles of the
+  samples whose 2 m window lies wholly inside the section (as
+  :func:`railsusp.en14363.section_statistics`); Y/Q only where the wheel is loaded
+  (:func:`section_summary`); optionally the same for the wheelset's lateral force on the
+  track, ``sumY`` (the track-shifting force, EN 14363's sum of Y: both wheels of the
+  wheelset recorded), + towards the measured wheel's field side (:func:`wheelset_force`);
 - the RMS of Y and of Q in frequency bands (:data:`BANDS_HZ`, log10 of kN), from a Welch
   spectrum of the de-meaned section: the suspension sets the frequencies at which the
   track's excitation comes through, the percentiles set its levels.
@@ -24,13 +27,25 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import welch
 
-from railsusp.en14363 import FORCE_CUTOFF_HZ, lowpass, percentiles, sliding_mean
+from railsusp.en14363 import (
+    FORCE_CUTOFF_HZ,
+    full_window,
+    lowpass,
+    percentiles,
+    section_statistics,
+    sliding_mean,
+)
 
 #: frequency bands of the band RMS, Hz (upper edges capped at 0.45 of the sampling rate)
 BANDS_HZ: tuple[tuple[float, float], ...] = ((0.3, 1.5), (1.5, 4.0), (4.0, 8.0), (8.0, 15.0))
 #: floor under a band RMS before its logarithm, kN
 BAND_FLOOR_KN = 1e-4
 PERCENTILE_NAMES = ("p0.15", "p50", "p99.85")
+#: vertical force below which a wheel counts as unloaded, kN: its Y/Q is not defined
+UNLOADED_KN = 1.0
+#: share of a 2 m window that must be loaded wheel for its mean of Y/Q to count
+#: (a window of unloaded samples only has no quotient; the floor keeps rounding out)
+MIN_LOADED_SHARE = 1e-6
 
 
 def summary_names(sum_y: bool = False) -> list[str]:
@@ -41,13 +56,50 @@ def summary_names(sum_y: bool = False) -> list[str]:
     return names
 
 
-def en14363_percentiles(x: np.ndarray, fs: float, speed_ms: float) -> np.ndarray:
+def en14363_percentiles(
+    x: np.ndarray, fs: float, speed_ms: float, defined: np.ndarray | None = None
+) -> np.ndarray:
     """0.15/50/99.85 % percentiles of ``x`` low-passed (20 Hz, capped at 0.45 fs) and
-    averaged over 2 m of track at constant speed ``speed_ms``."""
+    averaged over 2 m of track at constant speed ``speed_ms``, of the samples whose window
+    lies wholly inside the section (:func:`railsusp.en14363.full_window`, as
+    :func:`railsusp.en14363.section_statistics`): near either end the window is cut short,
+    averages less and would put the ends among the extremes (a section shorter than 2 m of
+    track keeps all its samples).
+
+    ``defined`` (boolean, as ``x``): where ``x`` is defined (Y/Q: where the wheel is
+    loaded). The filter needs a whole series, so the gaps are bridged by linear
+    interpolation for it; the 2 m mean is then the mean over the window's defined samples
+    only (trapezoidal weights, as :func:`~railsusp.en14363.sliding_mean`), and a sample
+    whose window holds none is left out. No defined sample at all: NaN (the statistic does
+    not exist; a training case with it is left out as a failed run is)."""
     x = np.asarray(x, dtype=float)
+    if defined is None or np.all(defined):
+        p = section_statistics(x, fs, speed_ms)
+        return np.array([p.p0_15, p.p50, p.p99_85])
+    defined = np.asarray(defined, dtype=bool)
+    if not defined.any():
+        return np.full(len(PERCENTILE_NAMES), np.nan)
     position = np.arange(x.size) * speed_ms / fs
-    filtered = lowpass(x, fs, min(FORCE_CUTOFF_HZ, 0.45 * fs))
-    return percentiles(sliding_mean(filtered, position))
+    bridged = np.interp(position, position[defined], x[defined])
+    weight = defined.astype(float)
+    share = sliding_mean(weight, position)
+    covered = share > MIN_LOADED_SHARE
+    filtered = lowpass(bridged, fs, min(FORCE_CUTOFF_HZ, 0.45 * fs))
+    smooth = sliding_mean(filtered * weight, position) / np.where(covered, share, 1.0)
+    keep = full_window(position) & covered
+    return percentiles(smooth[keep] if keep.any() else smooth[covered])
+
+
+def wheelset_force(Y: np.ndarray, Y_partner: np.ndarray) -> np.ndarray:
+    """The wheelset's lateral force on the track (kN), + towards the measured wheel's field
+    side: ``Y - Y_partner``. Each wheel's Y is + towards its own field side (docs/data-
+    format.md), so the wheelset's force on the track is the difference of the two, not
+    their sum (:attr:`railsusp.vehicle.simulate.SimulationResult.H`, + to the left, is
+    Y_L - Y_R). Towards the measured wheel's field side: outward in a curve, where the
+    measured wheel is the outer one, and + to the left on tangent, where the simulations
+    measure the leading wheelset's left wheel (H itself; a recording of the right wheel
+    there, which the statistics of tangent track take alike, gives -H, its mirror image)."""
+    return np.asarray(Y, dtype=float) - np.asarray(Y_partner, dtype=float)
 
 
 def band_rms(x: np.ndarray, fs: float, bands=BANDS_HZ) -> np.ndarray:
@@ -76,14 +128,23 @@ def section_summary(
 ) -> np.ndarray:
     """Summary vector (:func:`summary_names`) of one section of the measured wheel's lateral
     force ``Y`` and vertical force ``Q`` (kN) sampled at ``fs`` Hz at ``speed_ms``.
-    ``Y_partner``: the other wheel of the same wheelset, for the sum of Y; None leaves it
-    out. Y/Q is taken where Q exceeds 1 kN (an unloaded wheel gives no quotient)."""
+    ``Y_partner``: the other wheel of the same wheelset, for the wheelset's lateral force
+    ``sumY`` (:func:`wheelset_force`); None leaves it out.
+
+    Y/Q is the quotient of the instantaneous forces, low-passed and averaged over 2 m as
+    the forces are (EN 14363's (Y/Q)2m), but only where Q exceeds :data:`UNLOADED_KN`: an
+    unloaded wheel has no quotient (as :attr:`railsusp.vehicle.simulate.SimulationResult.
+    derailment_quotient`), and Y over a floor of 1 kN there gave tens of units that set
+    the 99.85 % value of any section in which a wheel lifted. Its unloaded samples are
+    left out of the 2 m means (:func:`en14363_percentiles`)."""
     Y = np.asarray(Y, dtype=float)
     Q = np.asarray(Q, dtype=float)
-    yq = Y / np.maximum(Q, 1.0)
-    parts = [en14363_percentiles(c, fs, speed_ms) for c in (Y, Q, yq)]
+    loaded = Q > UNLOADED_KN
+    yq = np.where(loaded, Y / np.where(loaded, Q, 1.0), np.nan)
+    parts = [en14363_percentiles(c, fs, speed_ms) for c in (Y, Q)]
+    parts.append(en14363_percentiles(yq, fs, speed_ms, defined=loaded))
     if Y_partner is not None:
-        parts.append(en14363_percentiles(Y + np.asarray(Y_partner, float), fs, speed_ms))
+        parts.append(en14363_percentiles(wheelset_force(Y, Y_partner), fs, speed_ms))
     bands = [np.log10(np.maximum(band_rms(c, fs), BAND_FLOOR_KN)) for c in (Y, Q)]
     return np.concatenate(parts + bands)
 
