@@ -153,7 +153,9 @@ def test_the_run_estimates_with_the_shipped_networks(pretrained_run):
     assert set(held.values()) == {"varied"}
     report = (out / "report.html").read_text("utf-8")
     assert "Network set &#x27;c80_k6&#x27;" in report or "Network set 'c80_k6'" in report
-    assert "Reproduced by" in report
+    # a set carried over to today's force laws says so, and what its commands train on
+    assert "carried over without training" in report
+    assert "Trained by (on the force laws of its training)" in report
 
 
 def test_an_unchanged_run_keeps_its_copied_networks(pretrained_run, tmp_path):

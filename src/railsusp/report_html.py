@@ -220,15 +220,27 @@ def _network_set_text(doc: Doc, manifest: dict, assumed: list[dict]) -> None:
         )
     if held:
         others.append(f"{', '.join(held)} held in its training")
+    note = manifest.get("model_revision_note")
+    laws = (
+        f"It serves the force laws of revision {manifest['model_revision']}, to which it was "
+        f"carried over without training: {note}. The table below gives its accuracy on "
+        "held-out tracks and parameter sets, each row labelled with the force-law revision "
+        "it was scored on."
+        if note
+        else f"Force laws of revision {manifest['model_revision']}. The table below is its "
+        "accuracy on its campaign's held-out tracks and parameter sets."
+    )
     doc.p(
         f"Network set '{manifest['name']}' ({manifest['kind']}, inputs "
         f"{', '.join(manifest['parameters'])}), trained once on many track realisations and "
         f"shipped with railsusp, not trained in this run: {manifest.get('description', '')} "
-        f"Force laws of revision {manifest['model_revision']}. The table below is its "
-        "accuracy on its campaign's held-out tracks and parameter sets."
+        + laws
         + (f" Not its inputs: {'; '.join(others)}." if others else "")
     )
-    doc.p("Reproduced by: " + " ; ".join(manifest.get("reproduce", [])))
+    doc.p(
+        ("Trained by (on the force laws of its training): " if note else "Reproduced by: ")
+        + " ; ".join(manifest.get("reproduce", []))
+    )
 
 
 def _method_sections(doc: Doc, run: Path, state: dict) -> None:

@@ -40,6 +40,7 @@ def _old_curve_set(tmp_path):
     before = load_wagon().with_values(FORCE_LAWS_BEFORE_2026_11_30_2)
     doc = json.loads((folder / "curve" / "surrogate.json").read_text())
     doc["wagon"] = before.model_dump(mode="json")
+    doc["meta"]["model_revision"] = "2026-11-30.1"  # as train_surrogate records it
     (folder / "curve" / "surrogate.json").write_text(json.dumps(doc))
     manifest = json.loads((folder / MANIFEST).read_text())
     manifest.update(
@@ -77,11 +78,17 @@ def test_a_carried_over_set_is_of_today_s_revision_and_wagon(tmp_path):
     assert changed_wagon_fields(doc["wagon"], load_wagon()) == []
     stamp = doc["meta"]["restamped"][-1]  # (the shipped set carries its own before it)
     assert stamp["from"] == "2026-11-30.1" and stamp["to"] == MODEL_REVISION
+    assert stamp["trained"] == "2026-11-30.1" and doc["meta"]["model_revision"] == MODEL_REVISION
+    # the estimation's own check of the bundles' force laws takes the carried-over set
+    from railsusp.estimate import SurrogateForces
+
+    SurrogateForces(folder)  # (refused a bundle trained on another revision before)
     manifest = json.loads((folder / MANIFEST).read_text())
     assert manifest["model_revision_note"] == "scored: 0.6 %"
     table = pd.read_csv(folder / ACCURACY)
     assert len(table) == rows_before + 2
     assert set(table.model[rows_before:]) == {f"cnn-gru-seq (revision {MODEL_REVISION})"}
+    assert "cnn-gru-seq" not in set(table.model)  # each row says its force laws
     with pytest.raises(RailsuspInputError, match="already"):
         restamp_network_set(folder, wagon=load_wagon(), fields=FIELDS, accuracy=_scored(), note="x")
 
@@ -92,7 +99,7 @@ def test_a_set_of_another_wagon_or_not_scored_is_not_carried_over(tmp_path):
         restamp_network_set(
             folder, wagon=load_wagon(), fields=FIELDS[:1], accuracy=_scored(), note="x"
         )
-    with pytest.raises(RailsuspInputError, match=r"no rows of condition\(s\) curve"):
+    with pytest.raises(RailsuspInputError, match=r"no Y and Q rows of condition\(s\) curve"):
         restamp_network_set(
             folder, wagon=load_wagon(), fields=FIELDS, accuracy=_scored("straight"), note="x"
         )

@@ -12,8 +12,10 @@ revision they were scored on, and the manifest says why the set was carried over
 What changes: the manifest's revision, wagon hash and reference predictions (the networks
 read the nominal wagon's response, which the new simulator gives), each bundle's stored
 wagon (the wagon fields the revision added or switched, named by the caller; every other
-field must be the one the network was trained on) and a ``meta.restamped`` record. The
-weights do not change.
+field must be the one the network was trained on), its ``meta.model_revision`` (the
+revision it serves; the one it was trained on stays in its ``meta.restamped`` record) and
+the accuracy table's labels. The weights do not change; the manifest's ``reproduce``
+commands, run today, would train on today's force laws.
 """
 
 from __future__ import annotations
@@ -67,8 +69,9 @@ def restamp_network_set(
     ``fields``: the wagon fields the new revision added or switched; a bundle trained on a
     wagon that differs from ``wagon`` in any other field is refused (one line).
     ``accuracy``: the set's networks scored on a campaign of today's simulator (rows of
-    the accuracy table's layout), appended to ``compare.csv`` with their ``model`` labelled
-    by the revision. ``note``: why the set serves the new revision, kept in the manifest
+    the accuracy table's layout, Y and Q of every condition), appended to ``compare.csv``
+    with their ``model`` labelled by today's revision, the rows already there by the set's
+    former one. ``note``: why the set serves the new revision, kept in the manifest
     (``model_revision_note``, the earlier notes in ``model_revision_history``) and in each
     bundle's ``meta.restamped``."""
     from railsusp.vehicle import MODEL_REVISION
@@ -81,11 +84,14 @@ def restamp_network_set(
         )
     if not note.strip():
         raise RailsuspInputError("note: say why the set serves the new revision")
-    missing = sorted(set(ns.conditions) - set(accuracy.get("condition", pd.Series()).unique()))
+    scored = {
+        (c, t) for c, t in zip(accuracy.get("condition", ()), accuracy.get("target", ()), strict=True)
+    }
+    missing = sorted(c for c in ns.conditions if not {(c, "Y"), (c, "Q")} <= scored)
     if missing:
         raise RailsuspInputError(
-            f"accuracy: no rows of condition(s) {', '.join(missing)} scored on revision "
-            f"{MODEL_REVISION}; score every condition of the set first"
+            f"accuracy: no Y and Q rows of condition(s) {', '.join(missing)} scored on "
+            f"revision {MODEL_REVISION}; score every condition of the set first"
         )
     docs = {}
     for cond in ns.conditions:
@@ -107,13 +113,22 @@ def restamp_network_set(
     }
     rows = accuracy.copy()
     rows["model"] = [f"{m} (revision {MODEL_REVISION})" for m in rows["model"]]
-    table = pd.concat([pd.read_csv(folder / ACCURACY), rows], ignore_index=True)
+    before = pd.read_csv(folder / ACCURACY)
+    # the rows of the training campaign say the force laws they were scored on
+    before["model"] = [
+        f"{m} (revision {ns.model_revision})" if m == ns.kind else m for m in before["model"]
+    ]
+    table = pd.concat([before, rows], ignore_index=True)
     with atomic_folder(folder, keep=False) as tmp:
         shutil.copytree(folder, tmp, dirs_exist_ok=True)
         for cond, doc in docs.items():
             doc["wagon"] = wagon.model_dump(mode="json")
             meta = doc.setdefault("meta", {})
-            meta["restamped"] = [*meta.get("restamped", []), stamp]
+            # the bundle now serves today's force laws (estimate.forces.check_force_laws and
+            # write_network_set read this); the revision it was trained on stays in the stamp
+            trained = meta.get("model_revision")
+            meta["restamped"] = [*meta.get("restamped", []), {**stamp, "trained": trained}]
+            meta["model_revision"] = MODEL_REVISION
             write_json(tmp / cond / "surrogate.json", doc)
         write_csv(tmp / ACCURACY, table)
         history = list(manifest.get("model_revision_history", []))
