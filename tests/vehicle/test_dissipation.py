@@ -34,7 +34,8 @@ def _modes(point, **scale):
 def test_element_shares_add_up_to_the_eigenvalue_damping(stuck):
     """Every car-body mode: the shares sum to the eigenvalue's damping ratio within 10 %
     (measured 1-9.7 %, the lower sway's 9.7 % since revision 2026-11-30.2 (9.0 % before): the
-    wheel-rail share is the contact's mean power, not an exact element split), and none of the suspension's dissipative elements gives energy."""
+    wheel-rail share is the contact's mean power, not an exact element split), and none of
+    the suspension's dissipative elements gives energy."""
     result, point = stuck
     for kind, i in result.car_body_kinds().items():
         d = mode_dissipation(result, point, i)

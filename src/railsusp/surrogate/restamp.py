@@ -85,7 +85,8 @@ def restamp_network_set(
     if not note.strip():
         raise RailsuspInputError("note: say why the set serves the new revision")
     scored = {
-        (c, t) for c, t in zip(accuracy.get("condition", ()), accuracy.get("target", ()), strict=True)
+        (c, t)
+        for c, t in zip(accuracy.get("condition", ()), accuracy.get("target", ()), strict=True)
     }
     missing = sorted(c for c in ns.conditions if not {(c, "Y"), (c, "Q")} <= scored)
     if missing:
