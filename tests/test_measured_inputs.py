@@ -167,6 +167,10 @@ def test_the_estimate_refuses_a_recording_of_another_wheel_where_it_matters():
     check_measured_wheel(plain, [rec_of(curve, ["w1R", "w1L"])], aligned=False)
     tangent = get_condition("straight", duration_s=2.0, n_steps=100)
     check_measured_wheel(plain, [rec_of(tangent, ["w1R"])], aligned=False)  # either wheel
+    # ... of the same wheelset: another wheelset steers otherwise (accepted until stop 62)
+    for other in ("w2L", "w3L", "w4R"):
+        with pytest.raises(RailsuspInputError, match=r"wheels\) is w1L or w1R"):
+            check_measured_wheel(plain, [rec_of(tangent, [other])], aligned=False)
     with pytest.raises(RailsuspInputError, match="its first wheel is w1R"):
         check_measured_wheel(plain, [rec_of(tangent, ["w1R"])], aligned=True)
     simulator = SimpleNamespace(wheel="w1R")  # SimulatorForces(wheel="w1R")

@@ -224,16 +224,20 @@ def check_measured_wheel(model: Any, recordings: Sequence[Recording], aligned: b
     forces) and in the time-aligned comparison (each rail has its own irregularities). A
     two-wheel recording whose columns began with the other wheel was compared with the
     wrong one, silently (the recordings audit of stop 58). On tangent the statistics of
-    the left and the right wheel are alike, and a recording of either is compared."""
+    the left and the right wheel of one wheelset are alike, and a recording of either is
+    compared; another wheelset's are not (a trailing wheelset, or the rear bogie's, steers
+    otherwise), and one of those was accepted until stop 62 (posterior audit)."""
     for r in recordings:
         wanted = model_wheel(model, r.condition)
-        if r.wheels[0] == wanted or not (aligned or r.condition.curve_radius_m is not None):
+        mirror = not (aligned or r.condition.curve_radius_m is not None)
+        if r.wheels[0] == wanted or (mirror and r.wheels[0][:-1] == wanted[:-1]):
             continue
         held = f" (it holds {wanted}: list it first)" if wanted in r.wheels else ""
+        either = f" or {wanted[:-1]}{'R' if wanted.endswith('L') else 'L'}" if mirror else ""
         raise RailsuspInputError(
             f"recording {r.condition.name!r}: its first wheel is {r.wheels[0]}, the force "
             f"model gives {wanted} in this condition{held}; accepted a recording whose first "
-            f"wheel (in the sidecar's wheels) is {wanted}"
+            f"wheel (in the sidecar's wheels) is {wanted}{either}"
         )
 
 
