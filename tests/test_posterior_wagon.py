@@ -81,6 +81,33 @@ def test_an_estimator_of_other_force_laws_is_refused(tmp_path, monkeypatch, stam
         assert message in str(err.value) and "\n" not in str(err.value)
 
 
+@pytest.mark.parametrize(
+    ("version", "said"),
+    [(None, "a version before 2026-11-30.2 (none recorded)"),
+     ("2026-01-01.1", "version 2026-01-01.1")],
+)  # fmt: skip
+def test_an_estimator_of_other_statistics_is_refused(tmp_path, monkeypatch, version, said):
+    """Statistics cached under other definitions (stop 62 changed sumY's sign, Y/Q and the
+    percentiles' ends) were matched by their draws alone and mixed with new ones."""
+    from railsusp.estimate.summaries import STATISTICS_VERSION
+
+    def no_simulation(*a, **k):
+        raise AssertionError("simulated")
+
+    monkeypatch.setattr(posterior_data, "simulate_long_cases", no_simulation)
+    s = settings()
+    stamp = {"model_revision": MODEL_REVISION}
+    if version is not None:
+        stamp["statistics_version"] = version
+    stamped(tmp_path, s, **stamp)
+    message = f"its summary statistics are of the definitions of {said}, this railsusp "
+    message += f"computes version {STATISTICS_VERSION}"
+    for attempt in (lambda: posterior.train(s, tmp_path), lambda: posterior.load(tmp_path)):
+        with pytest.raises(RailsuspInputError) as err:
+            attempt()
+        assert message in str(err.value) and "\n" not in str(err.value)
+
+
 def test_a_fresh_estimator_folder_records_its_force_laws(tmp_path, monkeypatch):
     """train() stamps settings.json with the revision before it simulates anything."""
 
@@ -92,7 +119,11 @@ def test_a_fresh_estimator_folder_records_its_force_laws(tmp_path, monkeypatch):
         posterior.train(settings(), tmp_path)
     from railsusp.store import read_json
 
-    assert read_json(tmp_path / "posterior" / "settings.json")["model_revision"] == MODEL_REVISION
+    stamp = read_json(tmp_path / "posterior" / "settings.json")
+    assert stamp["model_revision"] == MODEL_REVISION
+    from railsusp.estimate.summaries import STATISTICS_VERSION
+
+    assert stamp["statistics_version"] == STATISTICS_VERSION
 
 
 def test_a_synthetic_likelihood_of_other_force_laws_is_refused(tmp_path):

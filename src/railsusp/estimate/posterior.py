@@ -49,6 +49,7 @@ from railsusp.estimate.posterior_check import ProductCalibration, calibrate, wid
 from railsusp.estimate.posterior_data import (
     cached_cases,
     check_model_revision,
+    estimator_stamp,
     recording_summaries,
     to_si,
 )
@@ -58,7 +59,6 @@ from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.integrity import TorchFileCutShort, read_torch_file
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import atomic_write_bytes, content_hash, read_json, write_json
-from railsusp.vehicle import MODEL_REVISION
 
 log = logging.getLogger(__name__)
 
@@ -241,7 +241,7 @@ def train(
         check_model_revision(old, folder / "settings.json")
     write_json(
         folder / "settings.json",
-        {"hash": key, "model_revision": MODEL_REVISION, "settings": settings.to_dict()},
+        {"hash": key, **estimator_stamp(), "settings": settings.to_dict()},
     )
     u, x = cached_cases(
         settings, folder / "simulations", "train", settings.n_train, simulate=simulate

@@ -155,7 +155,8 @@ def _read_products(data: dict) -> list[ProductCalibration]:
 def check_stamp(folder: Path) -> dict:
     """What a check in ``folder`` was made on, stored in ``calibration.json``: the SHA-256
     of the flows' saved weights (``estimator.pt``; None where there is none), and the hash
-    of the settings and the force laws' revision that ``settings.json`` holds, which fix
+    of the settings, the force laws' revision and the statistics' version that
+    ``settings.json`` holds, which fix
     the held-out cases (their draws, tracks, noise and simulated forces, cached in
     ``simulations/``) and how many draws each is checked with."""
     weights = folder / "estimator.pt"
@@ -165,6 +166,7 @@ def check_stamp(folder: Path) -> dict:
         "estimator": file_hash(weights) if weights.is_file() else None,
         "settings": stored.get("hash"),
         "model_revision": stored.get("model_revision"),
+        "statistics_version": stored.get("statistics_version"),
     }
 
 

@@ -65,8 +65,11 @@ class TrainingWheel:
 def check_model_revision(stamp: dict, path: Path) -> None:
     """Refuse, in one line, an estimator folder whose ``settings.json`` (``stamp``) was
     simulated with other force laws than :data:`railsusp.vehicle.MODEL_REVISION` (or before
-    the revision was recorded there, stop 60): its cached simulations and what was trained
-    on them describe another model, and mixing them with new ones would pass unseen."""
+    the revision was recorded there, stop 60), or summarised with other statistics'
+    definitions than :data:`railsusp.estimate.summaries.STATISTICS_VERSION` (recorded since
+    stop 62): its cached simulations and what was trained on them describe another model,
+    and mixing them with new ones would pass unseen."""
+    from railsusp.estimate.summaries import STATISTICS_VERSION
     from railsusp.vehicle import MODEL_REVISION
 
     got = stamp.get("model_revision")
@@ -77,6 +80,23 @@ def check_model_revision(stamp: dict, path: Path) -> None:
             f"revision {MODEL_REVISION}: train again with another --out (or delete "
             f"{path.parent})"
         )
+    stats = stamp.get("statistics_version")
+    if stats != STATISTICS_VERSION:
+        was = f"version {stats}" if stats else "a version before 2026-11-30.2 (none recorded)"
+        raise RailsuspInputError(
+            f"{path}: its summary statistics are of the definitions of {was}, this railsusp "
+            f"computes version {STATISTICS_VERSION}: train again with another --out (or "
+            f"delete {path.parent})"
+        )
+
+
+def estimator_stamp() -> dict[str, str]:
+    """What an estimator folder's ``settings.json`` records of the code that made its cached
+    simulations and statistics (:func:`check_model_revision` checks it)."""
+    from railsusp.estimate.summaries import STATISTICS_VERSION
+    from railsusp.vehicle import MODEL_REVISION
+
+    return {"model_revision": MODEL_REVISION, "statistics_version": STATISTICS_VERSION}
 
 
 def prior_draws(settings: PosteriorSettings, kind: str, n: int) -> np.ndarray:

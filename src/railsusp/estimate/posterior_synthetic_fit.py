@@ -15,7 +15,12 @@ from pathlib import Path
 import numpy as np
 
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate.posterior_data import GAIN_ERROR, cached_cases, check_model_revision
+from railsusp.estimate.posterior_data import (
+    GAIN_ERROR,
+    cached_cases,
+    check_model_revision,
+    estimator_stamp,
+)
 from railsusp.estimate.posterior_emulator import StatisticsEmulator, fit
 from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.estimate.posterior_synthetic import (
@@ -27,7 +32,6 @@ from railsusp.estimate.posterior_synthetic import (
 )
 from railsusp.integrity import read_npz
 from railsusp.store import atomic_write_bytes, content_hash, read_json, write_json
-from railsusp.vehicle import MODEL_REVISION
 
 log = logging.getLogger(__name__)
 
@@ -237,7 +241,7 @@ def fit_emulator(settings: PosteriorSettings, run: str | Path) -> StatisticsEmul
     emu = fit(u, x, members=MEMBERS, hidden=HIDDEN, seed=settings.seed, log=log, **TRAINING)
     log.info("synthetic likelihood: emulator fitted in %.0f s", time.perf_counter() - t0)
     emu.save(path)
-    write_json(stamp, {"hash": key, "model_revision": MODEL_REVISION, "members": MEMBERS,
+    write_json(stamp, {"hash": key, **estimator_stamp(), "members": MEMBERS,
                        "hidden": HIDDEN, "training": TRAINING,
                        "settings": settings.to_dict()})  # fmt: skip
     return emu

@@ -36,6 +36,12 @@ from railsusp.en14363 import (
     sliding_mean,
 )
 
+#: version of the summary statistics' definitions, stamped with every posterior estimator's
+#: cached simulations and checked with the force-law revision: a change of a definition
+#: here makes a new version, so that statistics cached under the old ones are not mixed
+#: with new ones (2026-11-30.2: sumY the track-shifting force Y - Y_partner, Y/Q without
+#: unloaded samples, percentiles without the windows cut short at a section's ends)
+STATISTICS_VERSION = "2026-11-30.2"
 #: frequency bands of the band RMS, Hz (upper edges capped at 0.45 of the sampling rate)
 BANDS_HZ: tuple[tuple[float, float], ...] = ((0.3, 1.5), (1.5, 4.0), (4.0, 8.0), (8.0, 15.0))
 #: floor under a band RMS before its logarithm, kN
