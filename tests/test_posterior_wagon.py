@@ -67,14 +67,20 @@ def stamped(run, s: PosteriorSettings, **stamp) -> None:
      ({"model_revision": "2026-01-01.1"}, "revision 2026-01-01.1")],
 )  # fmt: skip
 def test_an_estimator_of_other_force_laws_is_refused(tmp_path, monkeypatch, stamp, said):
+    message = f"its simulations are of the force laws of {said}, this railsusp simulates "
+    _refused_by_train_and_load(tmp_path, monkeypatch, stamp, message + f"revision {MODEL_REVISION}")
+
+
+def _refused_by_train_and_load(tmp_path, monkeypatch, stamp: dict, message: str) -> None:
+    """train() and load() of a folder stamped ``stamp`` refuse it in one line holding
+    ``message``, before any simulation."""
+
     def no_simulation(*a, **k):
         raise AssertionError("simulated")
 
     monkeypatch.setattr(posterior_data, "simulate_long_cases", no_simulation)
     s = settings()
     stamped(tmp_path, s, **stamp)
-    message = f"its simulations are of the force laws of {said}, this railsusp simulates "
-    message += f"revision {MODEL_REVISION}"
     for attempt in (lambda: posterior.train(s, tmp_path), lambda: posterior.load(tmp_path)):
         with pytest.raises(RailsuspInputError) as err:
             attempt()
@@ -91,21 +97,13 @@ def test_an_estimator_of_other_statistics_is_refused(tmp_path, monkeypatch, vers
     percentiles' ends) were matched by their draws alone and mixed with new ones."""
     from railsusp.estimate.summaries import STATISTICS_VERSION
 
-    def no_simulation(*a, **k):
-        raise AssertionError("simulated")
-
-    monkeypatch.setattr(posterior_data, "simulate_long_cases", no_simulation)
-    s = settings()
     stamp = {"model_revision": MODEL_REVISION}
     if version is not None:
         stamp["statistics_version"] = version
-    stamped(tmp_path, s, **stamp)
     message = f"its summary statistics are of the definitions of {said}, this railsusp "
-    message += f"computes version {STATISTICS_VERSION}"
-    for attempt in (lambda: posterior.train(s, tmp_path), lambda: posterior.load(tmp_path)):
-        with pytest.raises(RailsuspInputError) as err:
-            attempt()
-        assert message in str(err.value) and "\n" not in str(err.value)
+    _refused_by_train_and_load(
+        tmp_path, monkeypatch, stamp, message + f"computes version {STATISTICS_VERSION}"
+    )
 
 
 def test_a_fresh_estimator_folder_records_its_force_laws(tmp_path, monkeypatch):

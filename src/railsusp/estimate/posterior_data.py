@@ -69,25 +69,20 @@ def check_model_revision(stamp: dict, path: Path) -> None:
     definitions than :data:`railsusp.estimate.summaries.STATISTICS_VERSION` (recorded since
     stop 62): its cached simulations and what was trained on them describe another model,
     and mixing them with new ones would pass unseen."""
-    from railsusp.estimate.summaries import STATISTICS_VERSION
-    from railsusp.vehicle import MODEL_REVISION
-
-    got = stamp.get("model_revision")
-    if got != MODEL_REVISION:
-        was = f"revision {got}" if got else "a revision before 2026-11-30.1 (none recorded)"
-        raise RailsuspInputError(
-            f"{path}: its simulations are of the force laws of {was}, this railsusp simulates "
-            f"revision {MODEL_REVISION}: train again with another --out (or delete "
-            f"{path.parent})"
-        )
-    stats = stamp.get("statistics_version")
-    if stats != STATISTICS_VERSION:
-        was = f"version {stats}" if stats else "a version before 2026-11-30.2 (none recorded)"
-        raise RailsuspInputError(
-            f"{path}: its summary statistics are of the definitions of {was}, this railsusp "
-            f"computes version {STATISTICS_VERSION}: train again with another --out (or "
-            f"delete {path.parent})"
-        )
+    now = estimator_stamp()
+    for key, what, kind, since, does in (
+        ("model_revision", "simulations are of the force laws of", "revision", "2026-11-30.1",
+         "simulates"),
+        ("statistics_version", "summary statistics are of the definitions of", "version",
+         "2026-11-30.2", "computes"),
+    ):  # fmt: skip
+        got = stamp.get(key)
+        if got != now[key]:
+            was = f"{kind} {got}" if got else f"a {kind} before {since} (none recorded)"
+            raise RailsuspInputError(
+                f"{path}: its {what} {was}, this railsusp {does} {kind} {now[key]}: train "
+                f"again with another --out (or delete {path.parent})"
+            )
 
 
 def estimator_stamp() -> dict[str, str]:
