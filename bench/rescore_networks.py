@@ -32,15 +32,12 @@ import platform
 import time
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from railsusp.campaign import load_campaign, run_campaign
 from railsusp.campaign.twins import run_nominal_twins
 from railsusp.store import write_json
 from railsusp.surrogate import load
-from railsusp.surrogate.data import load_series
-from railsusp.surrogate.evaluate import accuracy, predict_with_alone
 from railsusp.surrogate.pretrained import read_network_set
 from railsusp.vehicle import MODEL_REVISION
 from railsusp.vehicle.wagon import FORCE_LAWS_BEFORE_2026_11_30_2, load_wagon
@@ -54,40 +51,6 @@ def _tracks_bench():
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
-
-
-def score_all_runs(run: str | Path, condition: str, bundle: Path, label: str) -> list[dict]:
-    """Rows of :func:`railsusp.surrogate.evaluate.accuracy` for the network ``bundle`` on
-    every run of ``condition`` in the campaign ``run`` (all held out from its training),
-    from the end of its washout, and for the nominal wagon's response alone."""
-    sur = load(bundle)
-    camp = load_campaign(run)
-    data = load_series(camp, condition, sur.spec)
-    pred, raw = predict_with_alone(sur, data)
-    sim = data.targets.astype(float)
-    first = sur.spec.window
-    alone = accuracy(sim, raw, sur.spec.targets, first) if raw is not None else None
-    rows = []
-    for j, r in enumerate(accuracy(sim, pred, sur.spec.targets, first)):
-        r["relative_error_of_mean_network_alone"] = (
-            alone[j]["relative_error_of_mean"] if alone else float("nan")
-        )
-        rows.append({"condition": condition, "model": label, **r})
-    if sur.spec.nominal_response:
-        base = data.track[..., -sur.spec.n_baseline :].astype(float)
-        for r in accuracy(sim, base, sur.spec.targets, first):
-            rows.append(
-                {
-                    "condition": condition,
-                    "model": "nominal wagon",
-                    **r,
-                    "relative_error_of_mean_network_alone": float("nan"),
-                }
-            )
-    for r in rows:
-        r["test_tracks"] = len(np.unique(data.seeds))
-        r["held_out"] = "every run: tracks and parameter sets of another design seed"
-    return rows
 
 
 def main() -> None:
@@ -124,8 +87,10 @@ def main() -> None:
     simulate_s = time.perf_counter() - t0
     print(f"  campaign and nominal twins: {simulate_s:.0f} s", flush=True)
     rows = []
+    camp = load_campaign(args.run)
     for cond in ns.conditions:
-        rows += score_all_runs(args.run, cond, ns.bundle(cond), f"set {ns.name}")
+        sur = load(ns.bundle(cond))
+        rows += bench.score_rows(camp, cond, sur, f"set {ns.name}", every_run=True)
     t7 = bench.table7_per_run(pd.DataFrame(rows))
     bench.print_table(t7, {})
     out = write_json(

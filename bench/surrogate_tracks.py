@@ -156,18 +156,31 @@ def network_rows(
     return score_rows(camp, condition, sur, label, split_seed)
 
 
-def score_rows(camp, condition: str, sur, label: str, split_seed: int = 0) -> list[dict]:
+#: what every run of a campaign holds out from a network trained on another campaign
+#: (``score_rows(..., every_run=True)``)
+EVERY_RUN = "every run: tracks and parameter sets of another design seed"
+
+
+def score_rows(
+    camp, condition: str, sur, label: str, split_seed: int = 0, every_run: bool = False
+) -> list[dict]:
     """Score the surrogate ``sur`` (trained here, or elsewhere: e.g. a shipped network
     set's) on the campaign ``camp``'s held-out test runs of ``condition`` from the end of
-    its own window or washout: the rows of :func:`network_rows`."""
+    its own window or washout: the rows of :func:`network_rows`. ``every_run``: on all the
+    campaign's runs, for a network none of them trained (a campaign of another design
+    seed: bench/rescore_networks.py)."""
     first = sur.spec.window
     data = load_series(camp, condition, sur.spec)
-    split = campaign_split(camp, split_seed)
-    test = data.subset(split.positions(data.sample_ids, "test"))
+    if every_run:
+        test, held_out = data, EVERY_RUN
+    else:
+        split = campaign_split(camp, split_seed)
+        test = data.subset(split.positions(data.sample_ids, "test"))
+        held_out = split.held_out
     pred, raw = predict_with_alone(sur, test)
     sim = test.targets.astype(float)
     alone = accuracy(sim, raw, sur.spec.targets, first) if raw is not None else None
-    held = {"held_out": split.held_out, "test_tracks": len(np.unique(test.seeds))}
+    held = {"held_out": held_out, "test_tracks": len(np.unique(test.seeds))}
     rows = []
     for j, r in enumerate(accuracy(sim, pred, sur.spec.targets, first)):
         r["relative_error_of_mean_network_alone"] = (

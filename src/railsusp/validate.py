@@ -139,9 +139,14 @@ def relative_error(simulated: float, measured: float) -> float:
     weighs it; NaN where the measured statistic is 0 kN (or not finite): no relative error
     exists (it divided by zero: inf, or NaN with a runtime warning). The estimate refuses
     such a recording; a validation with another statistic or recordings may meet one."""
-    if not np.isfinite(measured) or measured == 0.0:
+    if not relatable(measured):
         return float("nan")
     return float(abs(simulated - measured) / abs(measured))
+
+
+def relatable(measured: float) -> bool:
+    """Whether a measured statistic has errors relative to it: finite and not 0 kN."""
+    return bool(np.isfinite(measured)) and measured != 0.0
 
 
 def validate(
@@ -244,7 +249,7 @@ def validate(
                     row[f"{key}_kN"], row[f"{key}_error"] = e * sd, e
                 rows.append(row)
             for k, st in enumerate(stats):
-                if meas[j, k] == 0.0 or not np.isfinite(meas[j, k]):
+                if not relatable(meas[j, k]):
                     notes.append(
                         f"{rec.condition.name} {w} {force} {st}: measured {meas[j, k]:g} kN, "
                         "no relative error (its *_error is NaN)"

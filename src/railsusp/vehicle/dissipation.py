@@ -122,6 +122,18 @@ def mode_dissipation(result: ModalResult, point: LinearisationPoint, mode: int) 
     c_px, c_py, c_pz = K[k["c_px"]], K[k["c_py"]], K[k["c_pz"]]
     n = L.N_DOF
     acc = (result.jacobian @ _full_vector(result, mode))[n : 2 * n]
+    # each axle box's lateral slip rate and force on its wheelset (the side frame's point at
+    # the axle's height: model.rhs's dy_p, dvy), for the damping share and the contact's power
+    lateral: dict[tuple[int, int], tuple[complex, complex]] = {}
+    for ws in range(4):
+        b, wi = divmod(ws, 2)
+        e = a if wi == 0 else -a
+        iw = L.WS0 + 4 * ws
+        for sidx in range(2):
+            jf = L.SF0 + 5 * (2 * b + sidx)
+            dvy = v[jf + 1] + e * v[jf + 4] - arm_a * sf_rate[b] - v[iw]
+            dy = q[jf + 1] + e * q[jf + 4] - arm_a * sf_roll[b] - q[iw]
+            lateral[ws, sidx] = dvy, k_py * dy + c_py * dvy
     # the side frames' roll couple on their wheelsets' roll (model.rhs: g_sf, half to each):
     # the arms times the nests' lateral forces on the bolster (its lateral equation less the
     # centre plate's force) and the axle boxes' on the wheelsets
@@ -133,15 +145,7 @@ def mode_dissipation(result: ModalResult, point: LinearisationPoint, mode: int) 
         y_car = q[L.CB_Y] + d * q[L.CB_YAW] + h_cp * q[L.CB_ROLL]
         f_cpy = K[k["k_cpy"]] * (y_car - (q[ib] - h_b * q[ib + 2]))
         f_nests = m[ib] * acc[ib] - f_cpy
-        f_boxes = 0.0
-        for wi in range(2):
-            e = a if wi == 0 else -a
-            iw = L.WS0 + 4 * (2 * b + wi)
-            for sidx in range(2):
-                jf = L.SF0 + 5 * (2 * b + sidx)
-                dvy = v[jf + 1] + e * v[jf + 4] - arm_a * sf_rate[b] - v[iw]
-                f_boxes += k_py * (q[jf + 1] + e * q[jf + 4] - arm_a * sf_roll[b] - q[iw])
-                f_boxes += c_py * dvy
+        f_boxes = sum(lateral[2 * b + wi, sidx][1] for wi in range(2) for sidx in range(2))
         g_sf.append(arm_n * f_nests + arm_a * f_boxes)
     contact_power = 0.0
     for ws in range(4):
@@ -152,13 +156,12 @@ def mode_dissipation(result: ModalResult, point: LinearisationPoint, mode: int) 
         for sidx, side in enumerate((1.0, -1.0)):
             jf = L.SF0 + 5 * (2 * b + sidx)
             dvx = v[jf] + side * b1 * v[iw + 3]
-            dvy = v[jf + 1] + e * v[jf + 4] - arm_a * sf_rate[b] - v[iw]
+            dvy, fy = lateral[ws, sidx]
             dvz = (v[iw + 1] + side * b1 * v[iw + 2]) - (v[jf + 2] - e * v[jf + 3])
             add(ELEMENTS[9], c_px, dvx)
             add(ELEMENTS[10], c_py, dvy)
             add(ELEMENTS[11], c_pz, dvz)
             fx = k_px * (q[jf] + side * b1 * q[iw + 3]) + c_px * dvx
-            fy = k_py * (q[jf + 1] + e * q[jf + 4] - arm_a * sf_roll[b] - q[iw]) + c_py * dvy
             dz = (q[iw + 1] + side * b1 * q[iw + 2]) - (q[jf + 2] - e * q[jf + 3])
             fz = k_pz * dz + c_pz * dvz
             f[0] -= fy

@@ -362,7 +362,7 @@ def constants(
     vals.update(F0_cp=f_cp, F0_nest=f_nest, F0_prim=f_prim, Q0=q0)
     # the support loads W act at the centre plates, h below the car body's CG: rolled by
     # theta, the body has them h theta off its centreline, a roll moment W h theta that
-    # lowers its roll stiffness (docs/model.md, "Gravity roll moment")
+    # lowers its roll stiffness (docs/model.md, "Roll moments")
     h_cg_cp = cb.cg_height - bg.centre_plate_height
     vals["k_roll_gravity"] = w_body * h_cg_cp if cb.gravity_roll_moment else 0.0
     # static approach: Q0 = N0 cos(delta0) + f23(N0) sin(delta0)^2 / r0 (normal force plus the
