@@ -39,7 +39,7 @@ def test_a_runs_recorded_configuration_runs_again(tmp_path):
     """pipeline.json writes every field, defaults included; the checks took a present
     field.noise/seed (or conditions) for the user's and refused the record."""
     from railsusp.config import check_config
-    from railsusp.store import validate_document
+    from railsusp.input_checks import validate_document
 
     field = tmp_path / "field"
     t = np.arange(400) / 50.0

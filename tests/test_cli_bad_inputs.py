@@ -85,7 +85,7 @@ def test_a_plot_of_an_unknown_format_is_refused_before_the_work(tmp_path, name):
 
 def test_a_plot_into_a_folder_is_refused(tmp_path):
     """Before: `sections --plot /tmp` wrote /tmp.png and said it wrote /tmp."""
-    from railsusp.store import check_figure_file
+    from railsusp.input_checks import check_figure_file
 
     with pytest.raises(Exception, match="is a folder, not a file"):
         check_figure_file(tmp_path, "--plot")

@@ -118,11 +118,11 @@ def test_out_that_is_a_file_is_refused(tmp_path, field):
 
 def test_out_in_an_unwritable_folder_is_refused_before_any_work(tmp_path, field, monkeypatch):
     """A read-only folder (faked: the tests run as root, who writes anywhere)."""
-    import railsusp.store as store
+    import railsusp.input_checks as input_checks
 
-    real = store.os.access
+    real = input_checks.os.access
     monkeypatch.setattr(
-        store.os, "access", lambda p, m: False if str(p) == str(tmp_path) else real(p, m)
+        input_checks.os, "access", lambda p, m: False if str(p) == str(tmp_path) else real(p, m)
     )
     out = tmp_path / "est"
     result = runner.invoke(

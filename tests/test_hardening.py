@@ -108,7 +108,7 @@ def test_out_in_a_read_only_folder_is_refused(short, tmp_path):
 
 def test_read_only_check_refuses_an_unwritable_folder(tmp_path, monkeypatch):
     """The same check as root (who may write anywhere): os.access says no."""
-    from railsusp.store import check_output_folder
+    from railsusp.input_checks import check_output_folder
 
     monkeypatch.setattr(os, "access", lambda *a, **k: False)
     with pytest.raises(RailsuspInputError, match="is not writable"):

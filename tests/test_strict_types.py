@@ -1,7 +1,7 @@
 """Values of the wrong type in a file are refused, not converted (stop 53's fuzzing found
 pydantic's lax mode turning ``samples = "10"`` into 10 and ``with_track = 1`` into true):
 configuration, conditions, wagon and recording sidecar files are validated in strict mode
-(:func:`railsusp.store.validate_document`). An integer still stands for a float."""
+(:func:`railsusp.input_checks.validate_document`). An integer still stands for a float."""
 
 from __future__ import annotations
 
@@ -101,8 +101,8 @@ def test_a_dict_of_numpy_numbers_and_paths_is_still_accepted(tmp_path):
 
     import numpy as np
 
+    from railsusp.input_checks import validate_document
     from railsusp.pipeline_config import PipelineConfig
-    from railsusp.store import validate_document
 
     doc = tomllib.loads(BASE)
     doc["campaign"]["samples"] = np.int64(10)
@@ -126,8 +126,8 @@ def test_a_dict_of_arrays_mappings_and_sections_reads_as_the_file_would(tmp_path
     import numpy as np
 
     import railsusp
+    from railsusp.input_checks import validate_document
     from railsusp.pipeline_config import CampaignSection, PipelineConfig
-    from railsusp.store import validate_document
 
     doc = tomllib.loads(BASE)
     doc["campaign"] = CampaignSection(samples=10)

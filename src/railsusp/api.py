@@ -340,7 +340,7 @@ def run(
         from pydantic import ValidationError
 
         from railsusp.config import check_config, validation_message
-        from railsusp.store import validate_document
+        from railsusp.input_checks import validate_document
 
         if not config:  # an empty file is refused; so is an empty dict (the whole default)
             raise RailsuspInputError(

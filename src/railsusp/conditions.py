@@ -338,11 +338,12 @@ TRACK_INPUT_FIELDS: tuple[str, ...] = (
 def make_condition(fields: Mapping[str, Any]) -> WorkingCondition:
     """Build a condition from a dict, turning validation failures into one-line errors.
 
-    Values are validated strictly, as a file's are (:func:`railsusp.store.validate_document`):
-    a value of the wrong type (``speed_kmh="80"``, ``n_steps=500.5``) is refused, not
-    converted, whether the dict was read from a TOML or JSON file or built in Python (an
-    integer still stands for a real number, NumPy's scalars for Python's)."""
-    from railsusp.store import validate_document
+    Values are validated strictly, as a file's are
+    (:func:`railsusp.input_checks.validate_document`): a value of the wrong type
+    (``speed_kmh="80"``, ``n_steps=500.5``) is refused, not converted, whether the dict was
+    read from a TOML or JSON file or built in Python (an integer still stands for a real
+    number, NumPy's scalars for Python's)."""
+    from railsusp.input_checks import validate_document
 
     if not isinstance(fields, Mapping):
         raise ConditionError(
@@ -371,7 +372,7 @@ def field_range(field: str) -> tuple[float | None, float | None]:
 
 def _format_errors(name: str, exc: ValidationError) -> str:
     """One line per pydantic error, naming field, value and accepted range with unit."""
-    from railsusp.store import bound_text, type_error_text
+    from railsusp.input_checks import bound_text, type_error_text
 
     msgs = []
     for err in exc.errors():

@@ -6,7 +6,7 @@ that would fail in its fifth stage fails at once, with a one-line error naming t
 
 * the file itself: unreadable, a folder, not UTF-8, not TOML, not a table of tables;
   (values of the wrong type, ``samples = true`` or ``samples = "10"``, are refused by
-  the models' strict validation, :func:`railsusp.store.validate_document`);
+  the models' strict validation, :func:`railsusp.input_checks.validate_document`);
 * every working condition built (names, ranges, ``base``), names distinct;
 * parameters: campaign parameters sampled and distinct, ``[field] truth`` symbols known
   and inside their ranges (``truth = {X99 = 1.0}`` used to fail after three stages),
@@ -68,7 +68,7 @@ def validation_message(where: str | Path, exc: Any, model: Any = None) -> str:
     of the wrong type shown as the file wrote it (``campaign.samples = "10": a whole number
     is needed, not a string``). With the ``model`` validated, a value out of bounds gets the
     field's accepted range and an unknown key the section's keys."""
-    from railsusp.store import error_detail, type_error_text
+    from railsusp.input_checks import error_detail, type_error_text
 
     def part(p: Any) -> str:
         s = str(p)

@@ -83,7 +83,7 @@ def run_pipeline(
     measured folder's recordings are read in full by that check.
     """
     from railsusp.config import check_config, check_cuda
-    from railsusp.store import check_output_folder
+    from railsusp.input_checks import check_output_folder
 
     out_option, from_option = options
     out = check_output_folder(out, out_option)

@@ -37,6 +37,14 @@ from railsusp.params import MAIN_SUSPENSION
 _NSGA, _REF, _CORRECTIONS = NSGA_RANGES, REFINE_RANGES, CORRECTIONS_RANGE
 
 
+def _within(default: Any, bounds: tuple[float, float], **field: Any) -> Any:
+    """A field accepting ``bounds`` (low, high), both included: the range of the estimate's
+    own setting (one source: :mod:`railsusp.estimate.config`). ``field``: pydantic
+    :func:`~pydantic.Field`'s other keywords (a description)."""
+    low, high = bounds
+    return Field(default, ge=low, le=high, **field)
+
+
 class _Cfg(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -136,8 +144,8 @@ class FieldSection(_Cfg):
 
 class EstimateSection(_Cfg):
     # the ranges of the estimate's own settings (one source: railsusp.estimate.config)
-    pop_size: int = Field(50, ge=_NSGA["pop_size"][0], le=_NSGA["pop_size"][1])
-    n_gen: int = Field(100, ge=_NSGA["n_gen"][0], le=_NSGA["n_gen"][1])
+    pop_size: int = _within(50, _NSGA["pop_size"])
+    n_gen: int = _within(100, _NSGA["n_gen"])
     crossover_prob: float = Field(0.9, ge=0.0, le=1.0)
     mutation_prob: float = Field(0.05, ge=0.0, le=1.0)
     statistic: str = Field(
@@ -151,19 +159,17 @@ class EstimateSection(_Cfg):
         description="the time-aligned comparison profiles each force channel's gain "
         "(calibration factor, within 1 ± 0.1) out of the misfit",
     )
-    expected_draws: int = Field(
+    expected_draws: int = _within(
         0,
-        ge=_NSGA["expected_draws"][0],
-        le=_NSGA["expected_draws"][1],
+        _NSGA["expected_draws"],
         description="with 'aligned', on recordings whose geometry states its accuracy: "
         "polish NSGA-II's choice by the surrogate's least squares on its mean over this many "
         "draws of the true track geometry given the measured one, instead of the first SIMEX "
         "step; the simulator refinement compares such means too (0: neither)",
     )
-    simulator_corrections: int = Field(
+    simulator_corrections: int = _within(
         0,
-        ge=_CORRECTIONS[0],
-        le=_CORRECTIONS[1],
+        _CORRECTIONS,
         description="with 'aligned' alone: correct the surrogate's level error at NSGA-II's "
         "estimate by this many simulations of it, repeating the surrogate's least squares "
         "with each (output space mapping; 0: the surrogate alone)",
@@ -188,43 +194,34 @@ class EstimateSection(_Cfg):
         description="NSGA-II's generations compare the expected forces too (expected_draws "
         "times the predictions; with 'aligned' alone or with 'mean')",
     )
-    preview_generations: int = Field(
+    preview_generations: int = _within(
         0,
-        ge=_NSGA["preview_generations"][0],
-        le=_NSGA["preview_generations"][1],
+        _NSGA["preview_generations"],
         description="the first this many generations (below n_gen) compare each recording's "
         "first preview_s seconds only; the rest start from their Pareto set on the whole "
         "records (0: none)",
     )
-    preview_s: float = Field(
+    preview_s: float = _within(
         20.0,
-        ge=_NSGA["preview_s"][0],
-        le=_NSGA["preview_s"][1],
+        _NSGA["preview_s"],
         description="seconds of each recording the preview generations compare",
     )
     weighting: Literal["relative", "noise"] = Field(
         "relative", description="relative errors, or in units of the gp-stats predictive SD"
     )
-    seeds: int = Field(1, ge=SEEDS_RANGE[0], le=SEEDS_RANGE[1])
-    seed: int = Field(0, ge=_NSGA["seed"][0], le=_NSGA["seed"][1])
+    seeds: int = _within(1, SEEDS_RANGE)
+    seed: int = _within(0, _NSGA["seed"])
     refine: bool = Field(
         False,
         description="refine by output-error least squares with the simulator on the "
         "recordings' measured track (needs recordings with track geometry)",
     )
-    refine_evaluations: int = Field(
-        40, ge=_REF["max_evaluations"][0], le=_REF["max_evaluations"][1]
-    )
-    refine_screen: int = Field(
-        64, ge=_REF["screen"][0], le=_REF["screen"][1], description="LHS points screened for starts"
-    )
-    refine_starts: int = Field(
-        2, ge=_REF["starts"][0], le=_REF["starts"][1], description="best screened starts refined"
-    )
-    geometry_draws: int = Field(
+    refine_evaluations: int = _within(40, _REF["max_evaluations"])
+    refine_screen: int = _within(64, _REF["screen"], description="LHS points screened for starts")
+    refine_starts: int = _within(2, _REF["starts"], description="best screened starts refined")
+    geometry_draws: int = _within(
         8,
-        ge=_REF["geometry_draws"][0],
-        le=_REF["geometry_draws"][1],
+        _REF["geometry_draws"],
         description="draws of the recordings' stated track-geometry error propagated into "
         "NSGA-II's time-aligned estimate and the refined estimate's standard errors (not "
         "used with expected_draws)",
@@ -332,7 +329,7 @@ class PipelineConfig(_Cfg):
 def load_config(path: str | Path) -> PipelineConfig:
     """Read and validate a pipeline TOML; errors name the field (one line)."""
     from railsusp.config import check_config, read_config, validation_message
-    from railsusp.store import validate_document
+    from railsusp.input_checks import validate_document
 
     path = Path(path)
     try:

@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from railsusp.campaign import STATISTICS, Campaign, CampaignError, salib_problem
-from railsusp.campaign.design import MIN_SALTELLI_BASE, saltelli_issue
+from railsusp.campaign.design import MIN_SALTELLI_BASE, saltelli_base_too_small, saltelli_issue
 from railsusp.errors import RailsuspInputError
 from railsusp.params import bounds
 from railsusp.store import write_csv, write_json, write_parquet
@@ -51,7 +51,8 @@ INDEX_COLUMNS = (
 #: base samples N of a Saltelli design analysed directly at the least: below it SALib's
 #: estimators are noise (ST = 19.8 +- 54 at N = 2, 1.46 at N = 8: the campaign audit of
 #: stop 59); the power of two above the 8 where the estimates still exceeded 1. A campaign
-#: is refused fewer when it is made (railsusp.campaign.design.saltelli_issue)
+#: is refused fewer when it is made (railsusp.campaign.design.saltelli_issue); both apply
+#: the one rule of railsusp.campaign.design.saltelli_base_too_small
 MIN_DIRECT_BASE = MIN_SALTELLI_BASE
 
 #: successful runs a condition's Gaussian-process metamodel needs at the least (one per fold
@@ -114,6 +115,24 @@ def _cv(y: np.ndarray) -> float:
     return float(np.std(y) / m) if m > 0 else float("inf")
 
 
+def _indexed(
+    df: pd.DataFrame, cond: str, q: str, st: str, y: pd.Series, method: str, r2: float
+) -> pd.DataFrame:
+    """One feature's Sobol indices (:func:`sobol_from_samples`) with the other columns of
+    :data:`INDEX_COLUMNS`: the feature (condition, quantity, statistic), the route
+    (``method``), its coefficient of variation over the campaign (of ``y``, every run) and
+    the metamodel's held-out R^2 (NaN on the direct route); both routes' tables are made
+    here so that they keep the same columns."""
+    return df.assign(
+        condition=cond,
+        quantity=q,
+        statistic=st,
+        method=method,
+        cv=_cv(y.to_numpy()),
+        r2_holdout=r2,
+    )
+
+
 def _features(campaign: Campaign, statistics: Sequence[str], quantities: Sequence[str]):
     feats = campaign.features()  # read once for every feature
     for cond in campaign.config.conditions:
@@ -137,7 +156,7 @@ def sobol_direct(
     cfg = campaign.config
     if cfg.design != "sobol":
         raise ValueError(f"{campaign.path}: design {cfg.design!r} is not a Saltelli design")
-    if cfg.samples < MIN_DIRECT_BASE:
+    if saltelli_base_too_small(cfg.samples):  # N < MIN_DIRECT_BASE, as make_config refuses
         raise ValueError(
             f"{campaign.path}: a Saltelli design of N = {cfg.samples} base samples; its Sobol "
             f"indices need N >= {MIN_DIRECT_BASE} (at N = 2 total indices of 10 to 20 came "
@@ -158,16 +177,7 @@ def sobol_direct(
             num_resamples=num_resamples,
             seed=seed,
         )
-        frames.append(
-            df.assign(
-                condition=cond,
-                quantity=q,
-                statistic=st,
-                method="direct",
-                cv=_cv(y.to_numpy()),
-                r2_holdout=np.nan,  # no metamodel
-            )
-        )
+        frames.append(_indexed(df, cond, q, st, y, "direct", np.nan))  # no metamodel R^2
     return pd.concat(frames, ignore_index=True)[list(INDEX_COLUMNS)]
 
 
@@ -259,16 +269,7 @@ def sobol_metamodel(
         gp = fit_gp(xu, yv, seed)  # final fit on all points
         ym = gp.predict(xs)
         df = sobol_from_samples(problem_unit, ym, num_resamples=num_resamples, seed=seed)
-        frames.append(
-            df.assign(
-                condition=cond,
-                quantity=q,
-                statistic=st,
-                method="metamodel",
-                cv=_cv(y.to_numpy()),
-                r2_holdout=r2,
-            )
-        )
+        frames.append(_indexed(df, cond, q, st, y, "metamodel", r2))
         fits.append(MetamodelFit(cond, q, st, r2, len(yv)))
     return pd.concat(frames, ignore_index=True)[list(INDEX_COLUMNS)], fits
 

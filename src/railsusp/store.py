@@ -4,8 +4,14 @@ Every file railsusp writes goes through a temporary file in the same folder, is 
 disk (fsync) and renamed over its target, and the folder is fsynced after the rename: an
 interrupted run, or a power loss, leaves either the old file or the new one, never half of
 one. Artefacts made of several files are written into a temporary folder and renamed as one
-(:func:`atomic_folder`). Input files are read by :func:`read_toml` and :func:`read_json`,
-which turn every OS, decoding and syntax error into a one-line :class:`RailsuspInputError`.
+(:func:`atomic_folder`). Input files are read by :func:`read_toml`, :func:`read_json` and
+:func:`read_csv`, which turn every OS, decoding and syntax error into a one-line
+:class:`RailsuspInputError`. Each result records where it came from (:func:`provenance`,
+:func:`content_hash`, :func:`file_hash`).
+
+Whether what a file says is acceptable (strict validation against its model, an output path
+that can be written) is :mod:`railsusp.input_checks`'s job, not this module's: the store
+reads and writes bytes and records provenance; it judges no content.
 """
 
 from __future__ import annotations
@@ -17,16 +23,15 @@ import io
 import json
 import os
 import platform
-import re
 import shutil
 import socket
 import subprocess
 import tempfile
 import tomllib
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from functools import lru_cache
-from pathlib import Path, PurePath
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -75,23 +80,33 @@ def plain_mode(path: str | Path) -> None:
     os.chmod(path, 0o666 & ~_UMASK)
 
 
-def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically (temporary file + rename), with the mode a
-    plainly written file gets (0666 less the umask), not the temporary file's 0600."""
-    path = Path(path)
+@contextmanager
+def _replacing(path: Path) -> Iterator[str]:
+    """The one way a file is written: yields a temporary file beside ``path`` (``.NAME.*.tmp``)
+    to write and close; then its content is flushed to disk, it gets the mode a plainly
+    written file gets (0666 less the umask, not the temporary file's 0600), is renamed over
+    ``path`` and the rename is flushed too. On an error the temporary file is removed and
+    ``path`` is untouched."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
     try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
+        yield tmp
+        fsync_file(tmp)
         plain_mode(tmp)
         os.replace(tmp, path)
         fsync_dir(path.parent)
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
+
+
+def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (temporary file + rename), with the mode a
+    plainly written file gets (0666 less the umask), not the temporary file's 0600."""
+    path = Path(path)
+    with _replacing(path) as tmp, open(tmp, "wb") as fh:
+        fh.write(data)
     return path
 
 
@@ -238,202 +253,6 @@ def read_toml(path: str | Path, what: str = "file") -> dict[str, Any]:
         raise RailsuspInputError(f"{what} {path}: not valid TOML ({exc})") from None
 
 
-#: pydantic's strict-mode type errors, as what the field needs
-_NEEDED = {
-    "int_type": "a whole number",
-    "float_type": "a number",
-    "bool_type": "true or false",
-    "string_type": "a string",
-    "tuple_type": "a list",
-    "list_type": "a list",
-    "dict_type": "a table",
-    "model_type": "a table",
-}
-
-
-#: a TOML date or time, as :func:`validate_document` writes it (``1979-05-27``, ``07:32:00``)
-_ISO_DATE = re.compile(r"^(\d{4}-\d{2}-\d{2}|\d{2}:\d{2}:\d{2})")
-
-
-def validate_document(model: Any, doc: Any) -> Any:
-    """``doc``, read from a TOML or JSON file, validated by the pydantic ``model`` in strict
-    mode, so that a value of the wrong type is refused rather than converted: a number
-    written as a string (``speed_kmh = "80"``), a boolean given as a number
-    (``with_track = 1``) or as a string (``refine = "false"``), a float where a count is
-    meant (``n_gen = 2.0``). An integer still stands for a float (``mass = 91600``).
-
-    The document goes through JSON because strict validation of JSON input takes a file's
-    arrays for tuples and its strings for paths, as a file can only write them; TOML dates
-    become strings (refused wherever a number is needed)."""
-    return model.model_validate_json(json.dumps(doc, default=_plain), strict=True)
-
-
-def _plain(value: Any) -> Any:
-    """A value JSON cannot write, as a file would hold it: a NumPy scalar or array as its
-    Python number(s), any mapping as a table, a pydantic model as its fields, a path, date
-    or time (TOML's) as its text. Anything else is refused (TypeError naming its type)
-    rather than validated as its printed text: a Decimal read as the string "16.1" would be
-    refused with advice about quotes that a script cannot follow."""
-    from pydantic import BaseModel
-
-    if isinstance(value, np.generic | np.ndarray):
-        return value.tolist()
-    if isinstance(value, Mapping):
-        return dict(value)
-    if isinstance(value, BaseModel):
-        return value.model_dump(mode="json")
-    if isinstance(value, PurePath | _dt.date | _dt.time):  # a datetime is a date
-        return str(value)
-    raise TypeError(
-        f"a {type(value).__name__} ({value!r:.40}) where a number, a string, a boolean, a list "
-        "or a table goes"
-    )
-
-
-def json_numbers(doc: Any) -> Any:
-    """``doc`` (read from JSON) with its whole-number floats as integers: JSON has one number
-    type, so ``"n_steps": 1000.0`` (as MATLAB or pandas write it) is the whole number 1000 for
-    :func:`validate_document`; floats stay floats where a real number is meant."""
-    if isinstance(doc, dict):
-        return {k: json_numbers(v) for k, v in doc.items()}
-    if isinstance(doc, list):
-        return [json_numbers(v) for v in doc]
-    if isinstance(doc, float) and doc.is_integer():
-        return int(doc)
-    return doc
-
-
-def type_error_text(err: Any) -> str | None:
-    """For a strict-mode type error of :func:`validate_document` (one of pydantic's
-    ``ValidationError.errors()``), what the field needs and what it was given, e.g.
-    ``a whole number is needed, not a string (write it without quotes)``; else None."""
-    needed = _NEEDED.get(err.get("type", ""))
-    if needed is None:
-        return None
-    value = err.get("input")
-    if isinstance(value, str) and _ISO_DATE.match(value):
-        return f"{needed} is needed, not a date or time"
-    if isinstance(value, str):
-        quotes = "" if needed in ("a string", "a list", "a table") else " (write it without quotes)"
-        return f"{needed} is needed, not a string{quotes}"
-    got = {
-        bool: "a boolean",
-        int: "an integer",
-        float: "a float",
-        list: "a list",
-        dict: "a table",
-        type(None): "null",
-    }
-    return f"{needed} is needed, not {got.get(type(value), type(value).__name__)}"
-
-
-#: pydantic's error types of a value outside a field's bounds
-BOUND_ERRORS = ("greater_than", "greater_than_equal", "less_than", "less_than_equal")
-
-
-def field_at(model: Any, loc: Sequence[Any]) -> tuple[Any, Any]:
-    """(the model class holding the last key of ``loc``, its pydantic ``FieldInfo`` or None
-    where the key is not a field) for a location of ``model``'s nested sections (an error's
-    ``loc``); (None, None) where the path leaves the models."""
-    holder = model
-    for i, key in enumerate(loc):
-        fields = getattr(holder, "model_fields", None)
-        if not isinstance(fields, dict):
-            return None, None
-        info = fields.get(str(key))
-        if i == len(loc) - 1 or info is None:
-            return (holder, info) if i == len(loc) - 1 else (None, None)
-        holder = info.annotation
-    return None, None
-
-
-def bound_text(x: float) -> str:
-    """A range bound as written: a whole number in full (a seed's 9223372036854775807, not
-    9.22337e+18), others as %g."""
-    return str(x) if isinstance(x, int) else f"{x:g}"
-
-
-def bounds_text(info: Any) -> str:
-    """A field's bounds as an interval, "[4, 1e+06]" or "(0, 5] m" (its ``unit`` from
-    ``json_schema_extra``); "" without bounds."""
-    lo = hi = None
-    left, right = "[", "]"
-    for m in getattr(info, "metadata", ()):
-        for name, bracket in (("gt", "("), ("ge", "[")):
-            if getattr(m, name, None) is not None:
-                lo, left = getattr(m, name), bracket
-        for name, bracket in (("lt", ")"), ("le", "]")):
-            if getattr(m, name, None) is not None:
-                hi, right = getattr(m, name), bracket
-    if lo is None and hi is None:
-        return ""
-    extra = getattr(info, "json_schema_extra", None)
-    unit = extra.get("unit", "") if isinstance(extra, dict) else ""
-    low = "-inf" if lo is None else bound_text(lo)
-    high = "inf" if hi is None else bound_text(hi)
-    return f"{left}{low}, {high}{right} {unit}".rstrip()
-
-
-def error_detail(model: Any, err: Any) -> str | None:
-    """What a pydantic error of ``model`` misses in its own message: the accepted range of a
-    value outside a field's bounds ("accepted [4, 1000000]"), or the keys a section accepts
-    for an unknown one; None otherwise."""
-    holder, info = field_at(model, err.get("loc", ()))
-    if err.get("type") in BOUND_ERRORS and info is not None:
-        text = bounds_text(info)
-        return f"accepted {text}" if text else None
-    if err.get("type") == "extra_forbidden" and holder is not None and info is None:
-        return f"accepted keys: {', '.join(holder.model_fields)}"
-    return None
-
-
-def check_output_folder(path: str | Path, option: str = "--out") -> Path:
-    """Refuse an output folder that is an existing file or cannot be created or written,
-    before any work is done (one-line error). Creates nothing."""
-    path = Path(path)
-    if path.exists() and not path.is_dir():
-        raise RailsuspInputError(f"{option} {path} is an existing file, not a folder")
-    if path.is_symlink() and not path.exists():
-        raise RailsuspInputError(
-            f"{option} {path} is a link to {os.readlink(path)}, which does not exist"
-        )
-    probe = path.absolute()
-    while not probe.exists():
-        probe = probe.parent
-    if not probe.is_dir():
-        raise RailsuspInputError(f"{option} {path}: {probe} is a file, not a folder")
-    if not os.access(probe, os.W_OK | os.X_OK):
-        raise RailsuspInputError(f"{option} {path}: the folder {probe} is not writable")
-    return path
-
-
-def check_output_file(path: str | Path, option: str = "--out") -> Path:
-    """Refuse an output file that is a folder or lies in a folder that cannot be written."""
-    path = Path(path)
-    if path.is_dir():
-        raise RailsuspInputError(f"{option} {path} is a folder, not a file")
-    if path.parent.exists() and not path.parent.is_dir():
-        raise RailsuspInputError(f"{option} {path}: {path.parent} is a file, not a folder")
-    check_output_folder(path.parent, option)
-    return path
-
-
-#: the figure formats the command line's ``--plot`` writes (matplotlib's, by suffix)
-FIGURE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
-
-
-def check_figure_file(path: str | Path, option: str = "--plot") -> Path:
-    """Refuse a figure file as :func:`check_output_file` does, and one whose suffix names no
-    format in :data:`FIGURE_SUFFIXES`, before any work is done."""
-    path = check_output_file(path, option)
-    if path.suffix.lower() not in FIGURE_SUFFIXES:
-        raise RailsuspInputError(
-            f"{option} {path}: format {path.suffix or '(no suffix)'} unknown; accepted "
-            f"{', '.join(FIGURE_SUFFIXES)}"
-        )
-    return path
-
-
 def _default(obj: Any) -> Any:
     if isinstance(obj, np.generic):
         return obj.item()
@@ -509,23 +328,13 @@ def write_parquet(
 ) -> Path:
     """Write a DataFrame to Parquet atomically, with optional key/value metadata."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     table = pa.Table.from_pandas(df, preserve_index=False)
     if metadata:
         meta = dict(table.schema.metadata or {})
         meta.update({k.encode(): v.encode() for k, v in metadata.items()})
         table = table.replace_schema_metadata(meta)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
+    with _replacing(path) as tmp:
         pq.write_table(table, tmp, row_group_size=row_group_size or max(1, table.num_rows))
-        fsync_file(tmp)
-        plain_mode(tmp)
-        os.replace(tmp, path)
-        fsync_dir(path.parent)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
     return path
 
 

@@ -152,6 +152,15 @@ class CampaignConfig(BaseModel):
         return SolverSettings(**self.solver)
 
 
+def saltelli_base_too_small(samples: int) -> bool:
+    """Whether ``samples`` base samples N are too few for a Saltelli design's Sobol indices
+    (N < :data:`MIN_SALTELLI_BASE`). The one rule behind both refusals, each in its own
+    words: of a campaign when it is made (:func:`saltelli_issue`, through
+    :func:`make_config`) and of a stored one by its direct analysis
+    (``railsusp.sensitivity.sobol_direct``, which imports this module)."""
+    return samples < MIN_SALTELLI_BASE
+
+
 def saltelli_issue(config: CampaignConfig) -> str | None:
     """Why a Saltelli (``sobol``) design cannot give Sobol indices (one line naming the
     settings), or None (also for any other design).
@@ -180,7 +189,7 @@ def saltelli_issue(config: CampaignConfig) -> str | None:
             "in the swapped column, and add their variance to every total index), or design "
             "lhs / lhs-optimised with them"
         )
-    if config.samples < MIN_SALTELLI_BASE:
+    if saltelli_base_too_small(config.samples):
         return (
             f"samples {config.samples}: a Saltelli design (design sobol) needs N >= "
             f"{MIN_SALTELLI_BASE} base samples, a power of two, for its Sobol indices (at "

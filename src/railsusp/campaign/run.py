@@ -27,9 +27,9 @@ from railsusp.campaign.design import (
 )
 from railsusp.campaign.results import stored_config
 from railsusp.errors import RailsuspInputError
+from railsusp.input_checks import check_output_folder
 from railsusp.run_lock import run_lock
 from railsusp.store import (
-    check_output_folder,
     parquet_readable,
     provenance,
     read_json,

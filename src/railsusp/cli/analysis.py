@@ -95,8 +95,8 @@ def campaign(
     (``--irregularity-classes``, ``--radius``, ``--cant``), and ``--vary-others`` /
     ``--prior`` so that the parameters not estimated vary instead of sitting at nominal."""
     from railsusp.campaign import make_config, run_campaign
+    from railsusp.input_checks import check_output_folder
     from railsusp.measured import conditions_from
-    from railsusp.store import check_output_folder
     from railsusp.vehicle.wagon import load_wagon
 
     try:

@@ -10,7 +10,8 @@ import typer
 
 from railsusp.cli.common import app, console, fail, frame_table
 from railsusp.errors import RailsuspInputError
-from railsusp.store import atomic_folder, check_output_folder
+from railsusp.input_checks import check_output_folder
+from railsusp.store import atomic_folder
 
 #: the estimator's settings -> the options of ``estimate``, for its error messages
 _ESTIMATE_OPTIONS = {

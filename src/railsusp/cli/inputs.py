@@ -17,8 +17,8 @@ from railsusp.conditions import (
     resolve_conditions,
 )
 from railsusp.errors import RailsuspInputError
+from railsusp.input_checks import check_figure_file
 from railsusp.params import CATALOGUE, ParameterSet, parse_overrides
-from railsusp.store import check_figure_file
 from railsusp.vehicle.track import COMPONENTS, band_rms, synthesise
 from railsusp.vehicle.track_geometry import irregularities_for
 

@@ -19,7 +19,7 @@ from railsusp.cli.common import (
     show_progress,
 )
 from railsusp.errors import RailsuspInputError
-from railsusp.store import check_output_folder
+from railsusp.input_checks import check_output_folder
 
 
 def _run(config, out: Path, start_from: str | None, *, checked: bool = False) -> dict:

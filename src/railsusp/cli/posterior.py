@@ -211,7 +211,7 @@ def train_command(
     from railsusp.conditions import resolve_conditions
     from railsusp.estimate import posterior
     from railsusp.estimate.posterior_settings import PosteriorSettings
-    from railsusp.store import check_output_folder
+    from railsusp.input_checks import check_output_folder
 
     try:
         check_output_folder(out)
@@ -307,8 +307,8 @@ def estimate_command(
     """Posterior median and 90 % interval of each parameter for a field folder."""
     from railsusp.estimate import posterior
     from railsusp.estimate.posterior_settings import MAX_SEED
+    from railsusp.input_checks import check_output_file
     from railsusp.measured import read_index, read_recording
-    from railsusp.store import check_output_file
 
     try:
         if out is not None:
@@ -390,7 +390,7 @@ def join_command(
     where its calibration records say so and checked on their held-out records; then
     railsusp posterior estimate --estimator OUT --long-record synthetic-likelihood."""
     from railsusp.estimate import posterior_joint
-    from railsusp.store import check_output_folder
+    from railsusp.input_checks import check_output_folder
 
     runs = [Path(r.strip()) for r in estimators.split(",") if r.strip()]
     try:

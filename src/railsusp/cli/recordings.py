@@ -12,7 +12,7 @@ from rich.table import Table
 
 from railsusp.cli.common import WagonOption, app, console, fail, frame_table
 from railsusp.errors import RailsuspInputError
-from railsusp.store import check_figure_file
+from railsusp.input_checks import check_figure_file
 
 
 def print_problems(exc) -> None:

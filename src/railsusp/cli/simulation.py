@@ -20,8 +20,8 @@ from railsusp.cli.common import (
 )
 from railsusp.conditions import resolve_conditions
 from railsusp.errors import RailsuspInputError, repeated_names
+from railsusp.input_checks import check_figure_file, check_output_file
 from railsusp.params import ParameterSet, parse_overrides
-from railsusp.store import check_figure_file, check_output_file
 from railsusp.study import TABLE8_BEFORE
 
 

@@ -32,7 +32,15 @@ def _epoch_reporter(bar, task):
     return report
 
 
-#: the ``--fine-tune-epochs`` option of ``train`` and ``compare``
+# The argument and options ``train`` and ``compare`` share (both train networks on one
+# campaign with the same settings), declared once so their help and types stay alike.
+#: the campaign run directory both train on
+RunDir = Annotated[Path, typer.Argument(help="campaign run directory")]
+#: ``--conditions``: a comma-separated list of the campaign's conditions
+ConditionsOption = Annotated[str | None, typer.Option(help="default: all of the campaign")]
+#: ``--epochs``
+Epochs = Annotated[int, typer.Option(help="maximum epochs (early stopping)")]
+#: ``--fine-tune-epochs``
 FineTuneEpochs = Annotated[
     int,
     typer.Option(
@@ -40,6 +48,16 @@ FineTuneEpochs = Annotated[
         "state (resumes a finished training)"
     ),
 ]
+#: ``--batches-per-epoch``
+BatchesPerEpoch = Annotated[int, typer.Option(help="mini-batches per epoch")]
+#: ``--batch-size``
+BatchSize = Annotated[
+    int, typer.Option(help="windows per mini-batch (cnn-gru-seq: 32 chunks of 400 steps)")
+]
+#: ``--device``
+TrainDevice = Annotated[str, typer.Option(help="cpu, cuda or auto")]
+#: ``--seed``
+TrainSeed = Annotated[int, typer.Option(help="training seed")]
 
 
 def _train_config(epochs, batches_per_epoch, batch_size, device, seed, fine_tune_epochs=0):
@@ -79,7 +97,7 @@ def _note_replaced(folder: Path, settings: dict, window: int | None) -> None:
 
 @app.command()
 def train(
-    run: Annotated[Path, typer.Argument(help="campaign run directory")],
+    run: RunDir,
     model: Annotated[
         str,
         typer.Option(
@@ -87,19 +105,17 @@ def train(
             "gp-stats (statistics GPs)"
         ),
     ] = "cnn-gru",
-    conditions: Annotated[str | None, typer.Option(help="default: all of the campaign")] = None,
-    epochs: Annotated[int, typer.Option(help="maximum epochs (early stopping)")] = 40,
+    conditions: ConditionsOption = None,
+    epochs: Epochs = 40,
     fine_tune_epochs: FineTuneEpochs = 0,
-    batches_per_epoch: Annotated[int, typer.Option(help="mini-batches per epoch")] = 200,
-    batch_size: Annotated[
-        int, typer.Option(help="windows per mini-batch (cnn-gru-seq: 32 chunks of 400 steps)")
-    ] = 512,
+    batches_per_epoch: BatchesPerEpoch = 200,
+    batch_size: BatchSize = 512,
     window: Annotated[
         int | None,
         typer.Option(help="window length, steps (20); cnn-gru-seq: its washout (100)"),
     ] = None,
-    device: Annotated[str, typer.Option(help="cpu, cuda or auto")] = "cpu",
-    seed: Annotated[int, typer.Option(help="training seed")] = 0,
+    device: TrainDevice = "cpu",
+    seed: TrainSeed = 0,
     record_correction: Annotated[
         bool,
         typer.Option(
@@ -241,7 +257,7 @@ def train(
 
 @app.command()
 def compare(
-    run: Annotated[Path, typer.Argument(help="campaign run directory")],
+    run: RunDir,
     models: Annotated[
         str,
         typer.Option(
@@ -249,15 +265,13 @@ def compare(
             "network, left out by default: its training is long)"
         ),
     ] = ("cnn-gru,cnn-lstm,cnn-bilstm,bp,rbf,gp-stats"),
-    conditions: Annotated[str | None, typer.Option(help="default: all of the campaign")] = None,
-    epochs: Annotated[int, typer.Option(help="maximum epochs (early stopping)")] = 40,
+    conditions: ConditionsOption = None,
+    epochs: Epochs = 40,
     fine_tune_epochs: FineTuneEpochs = 0,
-    batches_per_epoch: Annotated[int, typer.Option(help="mini-batches per epoch")] = 200,
-    batch_size: Annotated[
-        int, typer.Option(help="windows per mini-batch (cnn-gru-seq: 32 chunks of 400 steps)")
-    ] = 512,
-    device: Annotated[str, typer.Option(help="cpu, cuda or auto")] = "cpu",
-    seed: Annotated[int, typer.Option(help="training seed")] = 0,
+    batches_per_epoch: BatchesPerEpoch = 200,
+    batch_size: BatchSize = 512,
+    device: TrainDevice = "cpu",
+    seed: TrainSeed = 0,
 ) -> None:
     """Train the surrogates (--models) on the same split and print the study's Table 7
     layout."""

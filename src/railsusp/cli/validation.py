@@ -11,7 +11,7 @@ from rich.table import Table
 
 from railsusp.cli.common import WagonOption, app, console, fail
 from railsusp.errors import RailsuspInputError
-from railsusp.store import check_output_folder
+from railsusp.input_checks import check_output_folder
 
 
 @app.command()

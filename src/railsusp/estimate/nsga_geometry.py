@@ -27,6 +27,14 @@ from railsusp.measured import Recording
 POLISH_EVALUATIONS = 40
 
 
+def _geometry_error_applies(config: NSGAConfig, recordings: Sequence[Recording]) -> bool:
+    """What both ways of giving NSGA-II's estimate the geometry's error need
+    (:func:`takes_geometry_bias`, :func:`takes_expected_polish`): it compared time-aligned
+    forces alone (statistic ``aligned``: each acts on the time-aligned least squares) and a
+    recording states its geometry's accuracy (else nothing is known of the error)."""
+    return parse_statistics(config.statistic) == (ALIGNED,) and stated_accuracy(recordings)
+
+
 def takes_geometry_bias(config: NSGAConfig, draws: int, recordings: Sequence[Recording]) -> bool:
     """Whether NSGA-II's estimate (run with ``config``) gets the geometry's error: it
     compared time-aligned forces alone (statistic ``aligned``: its choice is then the
@@ -35,12 +43,7 @@ def takes_geometry_bias(config: NSGAConfig, draws: int, recordings: Sequence[Rec
     forces (``config.expected_draws``: their polish, or NSGA-II's generations on them, take
     the error in instead, :func:`takes_expected_polish`), ``draws`` > 0, and a recording
     states its accuracy."""
-    return (
-        parse_statistics(config.statistic) == (ALIGNED,)
-        and not config.expected_draws
-        and draws > 0
-        and stated_accuracy(recordings)
-    )
+    return _geometry_error_applies(config, recordings) and not config.expected_draws and draws > 0
 
 
 def remove_nsga_geometry_bias(
@@ -90,11 +93,7 @@ def takes_expected_polish(config: NSGAConfig, recordings: Sequence[Recording]) -
     ``config.expected_draws`` > 0, statistic ``aligned`` alone (the polish is the
     time-aligned least squares), and a recording states its geometry's accuracy (elsewhere
     the expected forces are the model's own)."""
-    return (
-        bool(config.expected_draws)
-        and parse_statistics(config.statistic) == (ALIGNED,)
-        and stated_accuracy(recordings)
-    )
+    return bool(config.expected_draws) and _geometry_error_applies(config, recordings)
 
 
 def local_least_squares(

@@ -21,8 +21,8 @@ from pathlib import Path
 from typing import Literal
 
 from railsusp.errors import RailsuspInputError
+from railsusp.input_checks import check_output_folder
 from railsusp.measured.recording import FORMAT
-from railsusp.store import check_output_folder
 
 #: what wrote a field folder, by the marks it leaves (:func:`folder_kind`)
 Kind = Literal["new", "empty", "synthetic", "sections", "other"]
@@ -69,7 +69,7 @@ def check_field_output(
     """Refuse (one line, before any work) an output folder that ``writer`` would replace
     but did not write: see the module's docstring; for ``sections``, ``source`` is the file
     name of the long run being cut. Also refuses what
-    :func:`~railsusp.store.check_output_folder` does (a file, an unwritable folder)."""
+    :func:`~railsusp.input_checks.check_output_folder` does (a file, an unwritable folder)."""
     path = check_output_folder(path, option)
     kind = folder_kind(path)
     if kind in ("new", "empty") or (kind == writer == "synthetic"):

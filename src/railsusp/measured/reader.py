@@ -17,6 +17,7 @@ import numpy as np
 
 from railsusp.conditions import WorkingCondition, get_condition, make_condition
 from railsusp.errors import RailsuspInputError, did_you_mean, repeated
+from railsusp.input_checks import json_numbers
 from railsusp.measured.channels import default_map
 from railsusp.measured.checks import (
     check_clipped,
@@ -31,7 +32,6 @@ from railsusp.measured.raw import read_raw
 from railsusp.measured.recording import FORMAT, Recording, RecordingError
 from railsusp.measured.units import si_factor, split_header
 from railsusp.numbers import is_real
-from railsusp.store import json_numbers
 from railsusp.vehicle.layout import WHEEL_NAMES
 from railsusp.vehicle.setup import axle_spread, static_wheel_load
 from railsusp.vehicle.track_geometry import check_coverage, read_track_geometry

@@ -150,6 +150,14 @@ _KN = 1.0e3
 #: a fixed parameter is accepted from its nominal value / FIXED_FACTOR to times FIXED_FACTOR
 FIXED_FACTOR = 10.0
 
+
+def _stiffness_mn(symbol, name, description, nominal, bounds):
+    """A sampled stiffness as the study gives it, in MN/m (held in N/m): the unit, SI unit
+    and scale of Table 2's six entries in that unit written once, so they cannot
+    disagree."""
+    return _spec(symbol, name, description, "MN/m", "N/m", _MN, nominal, bounds)
+
+
 #: Table 1 and Table 2 of the study, in study order.
 CATALOGUE: tuple[ParameterSpec, ...] = (
     _spec("X1", "wheelset_mass", "wheelset mass", "kg", "kg", 1.0, 1200.0),
@@ -242,53 +250,38 @@ CATALOGUE: tuple[ParameterSpec, ...] = (
         12.0,
         (6.0, 18.0),
     ),
-    _spec(
+    _stiffness_mn(
         "X13",
         "primary_longitudinal_stiffness",
         "primary longitudinal stiffness per axle box",
-        "MN/m",
-        "N/m",
-        _MN,
         14.0,
         (7.0, 21.0),
     ),
-    _spec(
+    _stiffness_mn(
         "X14",
         "primary_lateral_stiffness",
         "primary lateral stiffness per axle box",
-        "MN/m",
-        "N/m",
-        _MN,
         10.0,
         (5.0, 15.0),
     ),
-    _spec(
+    _stiffness_mn(
         "X15",
         "primary_vertical_stiffness",
         "primary vertical stiffness per axle box",
-        "MN/m",
-        "N/m",
-        _MN,
         170.0,
         (85.0, 255.0),
     ),
-    _spec(
+    _stiffness_mn(
         "X16",
         "secondary_longitudinal_stiffness",
         "secondary longitudinal stiffness per spring nest",
-        "MN/m",
-        "N/m",
-        _MN,
         1.8,
         (0.9, 2.7),
     ),
-    _spec(
+    _stiffness_mn(
         "X17",
         "secondary_lateral_stiffness",
         "secondary lateral stiffness per spring nest",
-        "MN/m",
-        "N/m",
-        _MN,
         1.8,
         (0.9, 2.7),
     ),
@@ -316,13 +309,10 @@ CATALOGUE: tuple[ParameterSpec, ...] = (
         table_unit="MN/m",
         note="study prints MN/m ('swing arm node'); read as kN/m (see module docstring)",
     ),
-    _spec(
+    _stiffness_mn(
         "X20",
         "adapter_seat_stiffness",
         "primary spring long./lat. stiffness (adapter seat, series with X13/X14)",
-        "MN/m",
-        "N/m",
-        _MN,
         1000.0,
         (500.0, 1500.0),
     ),

@@ -268,7 +268,8 @@ class SimulationResult:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-        from railsusp.store import atomic_write_bytes, check_output_file
+        from railsusp.input_checks import check_output_file
+        from railsusp.store import atomic_write_bytes
 
         if not isinstance(path, str | os.PathLike):
             raise RailsuspInputError(f"path = {path!r}: a file path (str or Path) is needed")

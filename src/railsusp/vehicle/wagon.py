@@ -348,7 +348,7 @@ def packaged_wagon_text(source: str | Path | None) -> str | None:
 def wagon_error_text(exc: ValidationError) -> str:
     """A wagon's validation errors on one line: each as ``section.field = value: why``
     (the range the field accepts, or the type it needs), joined by "; "."""
-    from railsusp.store import BOUND_ERRORS, error_detail, type_error_text
+    from railsusp.input_checks import BOUND_ERRORS, error_detail, type_error_text
 
     msgs = []
     for err in exc.errors():
@@ -367,7 +367,8 @@ def load_wagon(source: str | Path | WagonData | None = None) -> WagonData:
     """Read and validate a wagon file; None gives the embedded C80/K6 data (loaded), a
     name of :data:`PACKAGED_WAGONS` (``"tare"``) another embedded file, and a WagonData
     itself (so that a function taking any of them reads it with one call)."""
-    from railsusp.store import read_toml, validate_document
+    from railsusp.input_checks import validate_document
+    from railsusp.store import read_toml
 
     if isinstance(source, WagonData):
         return source
