@@ -49,11 +49,11 @@ from estimate_tracks import (
     TARGET_SHARE,
     WITHIN_PCT,
     add_set_arguments,
-    draw_sets,
     family_conditions,
     run_new_sets,
     scored,
     set_recordings,
+    set_truths,
 )
 from railsusp.estimate import SurrogateForces
 from railsusp.estimate.aligned_identifiability import aligned_cramer_rao_pct_range, identifiable
@@ -177,20 +177,24 @@ def print_table(sets: list[dict], parameters: Sequence[str], summary: dict) -> N
 
 def settings_of(args: argparse.Namespace) -> dict:
     """What makes a stored set comparable with a new one (resuming needs them equal)."""
-    return {
-        "networks": str(Path(args.networks).resolve()),
-        "seed": args.seed,
-        "duration_s": args.duration,
-        "track_noise_mm": args.track_noise,
-        "noise": args.noise,
-        "held": args.held,
-        "gains": args.gains,
-        "geometry_draws": args.geometry_draws,
-        "conditions": args.conditions,
-    } | (
-        {"expected_draws": args.expected_draws, "antithetic": not args.independent_draws}
-        if args.expected_draws
-        else {}
+    return (
+        {
+            "networks": str(Path(args.networks).resolve()),
+            "seed": args.seed,
+            "duration_s": args.duration,
+            "track_noise_mm": args.track_noise,
+            "noise": args.noise,
+            "held": args.held,
+            "gains": args.gains,
+            "geometry_draws": args.geometry_draws,
+            "conditions": args.conditions,
+        }
+        | ({"nominal": args.nominal} if getattr(args, "nominal", "") else {})
+        | (
+            {"expected_draws": args.expected_draws, "antithetic": not args.independent_draws}
+            if args.expected_draws
+            else {}
+        )
     )
 
 
@@ -272,7 +276,7 @@ def main(argv: Sequence[str] | None = None) -> dict:
         f"{'estimated' if args.gains else 'not estimated'}; {len(sets)} set(s) already done"
     )
     sets = run_new_sets(
-        draw_sets(args.sets, args.seed),
+        set_truths(args),
         sets,
         args.limit,
         lambda i, truth: run_set(i, truth, net, conditions, args),

@@ -107,6 +107,25 @@ def draw_sets(
     return lo + ((1.0 - middle) / 2.0 + middle * u) * (hi - lo)
 
 
+def set_truths(args: argparse.Namespace) -> np.ndarray:
+    """The sets of :func:`draw_sets` (``args.sets``, ``args.seed``), with the parameters of
+    ``args.nominal`` (comma-separated symbols; empty: none) held at their nominal values in
+    every set: a diagnostic of what the parameters a network set marginalises cost its
+    estimates (the same key truths, the others no longer varying)."""
+    truths = draw_sets(args.sets, args.seed)
+    held = [c.strip() for c in (getattr(args, "nominal", "") or "").split(",") if c.strip()]
+    unknown = sorted(set(held) - set(MAIN_SUSPENSION))
+    if unknown:
+        raise RailsuspInputError(
+            f"--nominal {args.nominal}: {', '.join(unknown)} unknown; accepted symbols of "
+            f"{', '.join(MAIN_SUSPENSION)}"
+        )
+    nominal = ParameterSet.nominal()
+    for symbol in held:
+        truths[:, MAIN_SUSPENSION.index(symbol)] = nominal[symbol]
+    return truths
+
+
 def family_conditions(
     model: SurrogateForces, duration_s: float, names: Sequence[str] | None = None
 ) -> tuple[list[WorkingCondition], dict[str, dict[str, list[float]]]]:
@@ -484,6 +503,8 @@ def settings_of(args: argparse.Namespace, folder: Path) -> dict:
         **({"slope_update": args.slope_update} if args.correction_slopes else {}),
         # Broyden's update skips steps under this (stop 53; none before it)
         **({"broyden_min_step": args.broyden_min_step} if args.slope_update == BROYDEN else {}),
+        # parameters held at nominal in the truths (stop 63; none before it)
+        **({"nominal": args.nominal} if getattr(args, "nominal", "") else {}),
         # the first generations on the records' first seconds (stop 59)
         **(
             {"preview": [args.preview_generations, args.preview_s]}
@@ -529,6 +550,12 @@ def add_set_arguments(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--duration", type=float, default=60.0, help="recorded s per condition")
     ap.add_argument("--track-noise", type=float, default=0.5, help="geometry error, mm RMS")
     ap.add_argument("--noise", type=float, default=0.03, help="instrument noise, share of RMS")
+    ap.add_argument(
+        "--nominal",
+        default="",
+        help="parameters held at nominal in every drawn set, comma-separated (a diagnostic: "
+        "what the marginalised parameters cost; default none)",
+    )
 
 
 def main(argv: Sequence[str] | None = None) -> dict:
@@ -638,7 +665,7 @@ def main(argv: Sequence[str] | None = None) -> dict:
         old = read_json(args.out)
         if old.get("settings") == settings:
             sets = old.get("per_set", [])
-    truths = draw_sets(args.sets, args.seed)
+    truths = set_truths(args)
     print(
         f"NSGA-II {args.pop_size} x {args.n_gen} on {args.kind} surrogates ({folder}), "
         f"{len(conditions)} condition(s) x {args.duration:g} s, geometry error "

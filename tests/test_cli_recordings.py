@@ -137,13 +137,16 @@ def test_neither_writer_replaces_a_field_folder_it_did_not_write(tmp_path):
     result = runner.invoke(app, [*args, str(mine)])
     assert result.exit_code == 2 and "files of another kind" in result.output
     assert json.loads((mine / "index.json").read_text())["source"] == "logger B"
-    # the sections of another run are not replaced by this one's
+    # the sections of another run are not replaced by this one's (told by the contents,
+    # stop 63: a byte copy under another name is the same run)
     other = tmp_path / "other.mf4"
-    other.write_bytes(run.read_bytes())
+    other.write_bytes(run.read_bytes() + b"\0")
     again = ["sections", str(other), "--map", str(cmap), "--table", str(table), "--write"]
     result = runner.invoke(app, [*again, str(cut)])
     assert result.exit_code == 2, result.output
     assert f"holds the sections of another run ({run.name})" in result.output
+    other.write_bytes(run.read_bytes())
+    assert runner.invoke(app, [*again, str(cut)]).exit_code == 0
     (tmp_path / "notes").mkdir()
     (tmp_path / "notes" / "a.txt").write_text("mine")
     result = runner.invoke(app, [*synth, str(tmp_path / "notes")])
@@ -178,3 +181,103 @@ def test_example_recording_does_not_write_over_an_edited_file(tmp_path):
     assert result.exit_code == 2
     assert "example_run.pipeline.toml already there and not the shipped file" in result.output
     assert config.read_text().endswith("# my edit\n")
+
+
+def synthetic_run(path, seed):
+    """A 120 s run at 54 km/h on tangent (1800 m, 50 Hz), the documented column names;
+    ``seed`` makes another run of the same length."""
+    import pandas as pd
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(6000) / 50.0
+    cols = {"time_s": t, "speed_kmh": np.full(t.size, 54.0)}
+    for w in ("w1R", "w1L"):
+        cols[f"Y_{w}_kN"] = 5.0 + rng.standard_normal(t.size)
+        cols[f"Q_{w}_kN"] = 120.0 + rng.standard_normal(t.size)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    pd.DataFrame(cols).to_csv(path, index=False)
+    return path
+
+
+def test_sections_write_leaves_no_recording_of_the_earlier_cut(tmp_path):
+    """A cut into four sections, then the same run cut into two: the earlier cut's third
+    and fourth recordings (and sidecars) stayed beside the new index, which no longer
+    listed them (the audit of stop 63). A file of the user's is still carried over."""
+    run = synthetic_run(tmp_path / "run.csv", 0)
+    out = tmp_path / "field"
+    args = ["sections", str(run), "--write", str(out), "--max-duration"]
+    assert runner.invoke(app, [*args, "30"]).exit_code == 0
+    assert len(json.loads((out / "index.json").read_text())["recordings"]) == 4
+    (out / "notes.txt").write_text("mine")
+    result = runner.invoke(app, [*args, "60"])
+    assert result.exit_code == 0, result.output
+    listed = json.loads((out / "index.json").read_text())["recordings"]
+    assert len(listed) == 2
+    tables = sorted(p.name for p in out.glob("*.csv") if p.stem not in ("sections", "en14363"))
+    assert tables == sorted(listed)
+    sidecars = sorted(p.stem for p in out.glob("*.json") if p.name != "index.json")
+    assert sidecars == sorted(n.removesuffix(".csv") for n in listed)
+    assert (out / "notes.txt").read_text() == "mine"
+
+
+def test_sections_write_tells_another_run_of_the_same_name_by_its_contents(tmp_path):
+    """day1/run.csv cut into a folder, then day2/run.csv, another run of the same file
+    name: the folder's source was compared by name only, and the second day's sections
+    silently replaced the first's (the audit of stop 63). A run moved or renamed is the
+    same run; an index written before the fingerprint is compared by name."""
+    day1 = synthetic_run(tmp_path / "day1" / "run.csv", 0)
+    day2 = synthetic_run(tmp_path / "day2" / "run.csv", 1)
+    out = tmp_path / "field"
+    assert runner.invoke(app, ["sections", str(day1), "--write", str(out)]).exit_code == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    result = runner.invoke(app, ["sections", str(day2), "--write", str(out)])
+    assert result.exit_code == 2, result.output
+    (line,) = result.output.strip().splitlines()
+    assert line.startswith(f"error: --write {out} holds the sections of another run (run.csv, ")
+    assert "would replace them with those of run.csv, " in line and "SHA-256" in line
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before  # nothing lost
+    moved = tmp_path / "archive" / "renamed.csv"
+    moved.parent.mkdir()
+    moved.write_bytes(day1.read_bytes())
+    result = runner.invoke(app, ["sections", str(moved), "--write", str(out)])
+    assert result.exit_code == 0, result.output  # the same run, elsewhere, by another name
+    index = json.loads((out / "index.json").read_text())
+    assert index["source"] == "renamed.csv" and index["source_bytes"] == moved.stat().st_size
+    # an index of before stop 63, without the fingerprint: compared by name
+    old = {k: v for k, v in index.items() if k not in ("source_bytes", "source_sha256")}
+    (out / "index.json").write_text(json.dumps({**old, "source": "run.csv"}))
+    assert runner.invoke(app, ["sections", str(day2), "--write", str(out)]).exit_code == 0
+    assert "source_sha256" in json.loads((out / "index.json").read_text())
+    result = runner.invoke(app, ["sections", str(moved), "--write", str(out)])
+    assert result.exit_code == 2 and "holds the sections of another run (run.csv" in result.output
+
+
+def test_sections_of_a_table_are_one_recording_each_whatever_their_names(tmp_path):
+    """The audit of stop 63 (defect 3): a row "a" split in two by the 120 s maximum was
+    numbered a-1, a-2 beside a row named "a-1" (which of them kept the name hung on Python's
+    hash seed), and "km0.5" and "km0.7" were both written as km0.csv: one recording over
+    another, exit 0. A split row's numbers skip those taken, in table order; a dot stays."""
+    import pandas as pd
+
+    t = np.arange(12000) / 50.0  # 240 s at 54 km/h: 3600 m of tangent
+    rng = np.random.default_rng(0)
+    cols = {"time_s": t, "speed_kmh": np.full(t.size, 54.0), "curvature_1_per_km": 0.0 * t}
+    for w in ("w1R", "w1L"):
+        cols[f"Y_{w}_kN"] = 5.0 + rng.standard_normal(t.size)
+        cols[f"Q_{w}_kN"] = 120.0 + rng.standard_normal(t.size)
+    pd.DataFrame(cols).to_csv(tmp_path / "run.csv", index=False)
+    table = tmp_path / "table.csv"
+    table.write_text(
+        "start_m,end_m,name\n0,2400,a\n2500,2900,a-1\n3000,3250,km0.5\n3300,3550,km0.7\n"
+    )
+    out = tmp_path / "field"
+    args = ["sections", str(tmp_path / "run.csv"), "--table", str(table), "--write", str(out)]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    listed = json.loads((out / "index.json").read_text())["recordings"]
+    assert listed == ["a-2.csv", "a-3.csv", "a-1.csv", "km0.5.csv", "km0.7.csv"]
+    for name in listed:
+        assert (out / name).is_file() and (out / name).with_suffix(".json").is_file()
+    from railsusp.measured import read_field
+
+    assert [r.condition.name for r in read_field(out)] == [n[:-4] for n in listed]

@@ -54,3 +54,24 @@ def test_a_section_table_whose_names_collide_is_refused(tmp_path, rows, said):
         read_section_table(_write(tmp_path, "start_m,end_m,name\n" + rows))
     ok = read_section_table(_write(tmp_path, "start_m,end_m,name\n0,500,a\n800,1150,b\n"))
     assert list(ok.name) == ["a", "b"]
+
+
+@pytest.mark.parametrize(
+    ("columns", "row", "said"),
+    [
+        ("radius_m,direction", "30,left", "row 2: radius_m = 30: accepted 50 to 100000, or empty"),
+        ("radius_m,direction", "600,up", "row 2: direction = 'up': accepted left, right or empty"),
+        ("radius_m,cant_mm", ",50", "row 2: cant_mm = 50 on a tangent row"),
+        ("grade_permille", "120", "row 2: grade_permille = 120: accepted -40 to 40"),
+        ("direction", "left", "a direction column without radius_m; accepted radius_m"),
+    ],
+)
+def test_a_section_tables_track_columns_are_checked_as_a_line_descriptions(
+    tmp_path, columns, row, said
+):
+    """The audit of stop 63: a section table's rows take their track from its optional
+    columns (radius_m, direction, cant_mm, grade_permille), where a run has no geometry
+    channels; they are refused row by row outside a working condition's ranges as a line
+    description's are (they were read as nothing at all)."""
+    with pytest.raises(RailsuspInputError, match=said):
+        read_section_table(_write(tmp_path, f"start_m,end_m,{columns}\n0,500,{row}\n"))

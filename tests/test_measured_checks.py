@@ -236,3 +236,41 @@ def test_a_csv_cut_inside_its_last_line_is_refused_and_one_without_a_line_end_is
     last = whole.rstrip(b"\n").rsplit(b"\n", 1)[-1]
     p.write_bytes(whole.rstrip(b"\n")[: -(len(last) - last.index(b",") - 2)])
     assert "the last line is cut short" in problems(p)
+
+
+def test_dropouts_one_sample_apart_are_dropouts_and_a_rate_change_is_not(tmp_path):
+    """Samples 10-19 lost but sample 15 kept (a logger's burst of losses): two long
+    intervals in a row, of 6 and 5 intervals. Before stop 63 any two long intervals in a
+    row were read as a change of rate, and a whole long run was refused as "mixed sampling
+    rates"; a rate change is a run of long intervals of one multiple."""
+    import pandas as pd
+
+    from railsusp.measured import checks
+    from railsusp.measured.checks import check_time, dropout_steps
+    from railsusp.measured.run import read_run
+
+    t = np.arange(20000) / 200.0
+    keep = np.ones(t.size, bool)
+    keep[10000:10010] = keep[10011:10020] = False  # sample 10010 kept between the two
+    assert dropout_steps(t[keep]).tolist() == [9999, 10000]
+    text = " ".join(check_time(t[keep], "Y", 0))  # a recording to estimate from: refused
+    assert "10 sample(s) missing (2 such gap(s))" in text and "mixed" not in text
+    # two samples lost in every three, five times over: dropouts too
+    bursty = np.ones(t.size, bool)
+    bursty[5000:5015:3] = bursty[5001:5015:3] = False
+    assert dropout_steps(t[bursty]).size == 5
+    # a run of one multiple is a rate change (200 Hz then 100 Hz)
+    halved = np.concatenate([t[:10000], t[10000::2]])
+    assert dropout_steps(halved) is None
+    assert "mixed sampling rates" in " ".join(check_time(halved, "Y", 0))
+    for n, changed in ((checks.RATE_CHANGE_INTERVALS, True), (3, False)):  # n at 100 Hz
+        brief = np.concatenate([t[:10000], t[10001 : 10001 + 2 * n : 2], t[10001 + 2 * n :]])
+        assert (dropout_steps(brief) is None) == changed
+    # a long run is cut at both dropouts, not refused
+    tk = t[keep]
+    cols = {"time_s": tk, "Y_w1R_kN": 5.0 + np.sin(tk), "Q_w1R_kN": 120.0 + np.cos(tk)}
+    pd.DataFrame({**cols, "speed_kmh": np.full(tk.size, 54.0)}).to_csv(
+        tmp_path / "run.csv", index=False
+    )
+    run = read_run(tmp_path / "run.csv")
+    assert run.breaks.tolist() == [10000, 10001]

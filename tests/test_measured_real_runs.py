@@ -81,7 +81,7 @@ def test_a_section_table_range_passed_twice_gives_two_sections_never_the_samples
     s = np.mod(travelled(v), 1500.0)
     run = read_run(write_run(tmp_path / "reset.csv", v, distance=s))
     assert run.breaks.size == 1  # the reset
-    table = pd.DataFrame({"start_m": [200.0], "end_m": [500.0], "name": ["a"]})
+    table = pd.DataFrame({"start_m": [200.0], "end_m": [500.0], "name": ["a"], "radius_m": [0.0]})
     secs = kept(cut_sections(run, table=table))
     assert [x.name for x in secs] == ["a-1", "a-2"]
     for x in secs:
@@ -118,7 +118,7 @@ def test_a_dropout_cuts_the_run_and_no_section_straddles_it(tmp_path):
     secs = kept(cut_sections(run))
     assert len(secs) == 2 and secs[0].end == 2500 and secs[1].start == 2500
     # a section table over the dropout gets two pieces, as the remedy says
-    table = pd.DataFrame({"start_m": [100.0], "end_m": [1200.0], "name": ["x"]})
+    table = pd.DataFrame({"start_m": [100.0], "end_m": [1200.0], "name": ["x"], "radius_m": [0.0]})
     assert [x.name for x in kept(cut_sections(run, table=table))] == ["x-1", "x-2"]
 
 

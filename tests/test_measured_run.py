@@ -16,6 +16,7 @@ from railsusp.measured import RecordingError, read_field
 from railsusp.measured.channels import channel_map_from, read_channel_map
 from railsusp.measured.run import MeasuredRun, read_run
 from railsusp.measured.sections import (
+    NO_TRACK_NOTE,
     SectionRules,
     cut_sections,
     geometry_from_line,
@@ -84,6 +85,25 @@ def test_mdf4_through_a_channel_map_in_si_on_the_force_time_base(tmp_path):
     assert not any("acc_bogie_y_g" in n for n in run.notes)  # ignored by the map
     run = read_run(path, channel_map_from({**MAP, "ignore": []}))
     assert any("not used: acc_bogie_y_g" in n for n in run.notes)  # allowed, noted
+
+
+def test_y_sign_minus_one_reads_a_vehicle_fixed_lateral_channel_as_railsusps_sign(tmp_path):
+    """A wheel recorded + towards the track centre (vehicle-fixed) is read negated through
+    ``Y_sign = -1`` and noted; anything but 1 or -1 names the key and the accepted values."""
+    path = write_mdf(tmp_path / "run.mf4")
+    plain = read_run(path, channel_map_from(MAP))
+    flipped_map = {**MAP, "wheels": {"w1R": {"Y": "Y_R", "Q": "Q_R", "Y_sign": -1}}}
+    flipped = read_run(path, channel_map_from(flipped_map))
+    np.testing.assert_array_equal(flipped.Y["w1R"], -plain.Y["w1R"])
+    np.testing.assert_array_equal(flipped.Q["w1R"], plain.Q["w1R"])
+    assert "Y of w1R ('Y_R') negated: Y_sign = -1 in the map" in flipped.notes
+    assert not any("negated" in n for n in plain.notes)
+    for bad in (0, 2, True, "-1", -1.5):
+        doc = {**MAP, "wheels": {"w1R": {"Y": "Y_R", "Q": "Q_R", "Y_sign": bad}}}
+        with pytest.raises(RailsuspInputError, match=r"wheels.w1R.Y_sign = .*: accepted 1 .* -1"):
+            channel_map_from(doc)
+    with pytest.raises(RailsuspInputError, match="optionally Y_sign"):
+        channel_map_from({**MAP, "wheels": {"w1R": {"Y": "Y_R", "Q": "Q_R", "sign": -1}}})
 
 
 def test_meganewtons_are_converted_when_stated_and_refused_when_not(tmp_path):
@@ -186,6 +206,18 @@ def synthetic_run(speed_kmh, curvature_per_km, grade_permille, rate=50.0) -> Mea
         np.zeros(t.size),
         np.asarray(grade_permille, float) * 1e-3,
     )
+
+
+def test_a_run_without_any_track_geometry_is_cut_as_tangent_with_a_warning():
+    """Without curvature, a line or a table every section is tangent: said once among the
+    run's notes (and data notes: the pipeline warns of those), however often it is cut."""
+    run = synthetic_run(np.full(3000, 60.0), np.zeros(3000), np.zeros(3000))
+    cut_sections(run)
+    assert NO_TRACK_NOTE not in run.notes  # a curvature channel of zeros is geometry
+    run.curvature = None
+    assert [s.kind for s in cut_sections(run)] == ["tangent"]
+    cut_sections(run)
+    assert run.notes.count(NO_TRACK_NOTE) == 1 and NO_TRACK_NOTE in run.data_notes
 
 
 def test_sections_by_track_and_speed():
@@ -343,8 +375,9 @@ def test_a_stop_is_named_with_its_duration_not_folded_away():
     run = MeasuredRun("stop", t, {"w1R": z}, {"w1R": z + 1e5}, v, x)
     secs = cut_sections(run)
     assert [s.kept for s in secs] == [True, False, True]
-    assert secs[1].reason.endswith("; standing (180 s)")
-    assert secs[1].reason.startswith("tangent: 20 pieces of 5-35 m, each shorter than the 150 m")
+    # below 1.8 km/h for 182 s: the 180 s at rest, and a second of braking and of starting
+    assert secs[1].reason.endswith("; standing (182 s)")
+    assert secs[1].reason.startswith("tangent: 20 pieces of 5-33 m, each shorter than the 150 m")
 
 
 def test_the_shipped_example_reads_and_cuts_into_its_five_sections(tmp_path):
@@ -497,3 +530,181 @@ def test_a_channel_map_whose_units_or_ignore_name_the_wrong_channels_is_refused(
         channel_map_from({**MAP, "ignore": ["Y_R"]})
     run = read_run(path, channel_map_from({**MAP, "ignore": ["acc_bogie_y_g", "gone"]}))
     assert any("ignore: channel(s) not in the file: gone" in n for n in run.notes)
+
+
+def test_every_force_channel_must_reach_the_sections_rate_not_only_the_fastest(tmp_path):
+    """Y at 200 Hz, Q at 25 Hz, sections at 50 Hz: only the fastest force channel was held
+    to the sections' rate, and Q was interpolated onto 200 Hz with a note, its dynamics
+    above 12.5 Hz gone (the audit of stop 63)."""
+    path = write_mdf(tmp_path / "run.mf4", force_rate=200.0, q_rate=25.0)
+    with pytest.raises(RecordingError) as info:
+        read_run(path, channel_map_from(MAP))
+    assert "channel 'Q_R': 25 Hz against 200 Hz of 'Y_R'" in str(info.value)
+    assert "accepted at least 50 Hz, the rate the sections are resampled to" in str(info.value)
+    read_run(path, channel_map_from(MAP), min_rate_hz=25.0)  # sections at 25 Hz: read
+    path = write_mdf(tmp_path / "fast.mf4", force_rate=200.0, q_rate=100.0)
+    run = read_run(path, channel_map_from(MAP))  # slower than Y but above 50 Hz: read
+    assert any("'Q_R' (100 Hz) interpolated onto 200 Hz" in n for n in run.notes)
+
+
+# ---- the audit of stop 63: a long run cut into sections ----
+
+
+def track_run(stand_s=0.0, *, rate=200.0, hold_m=None, stand_noise_kmh=0.0, curvature=True):
+    """60 km/h after ``stand_s`` standing: tangent 600 m, a 60 m spiral, a left-hand R600 of
+    900 m, a spiral, tangent 600 m (2100 m), the curvature channel with 1 % noise;
+    ``hold_m``: the distance channel in steps of that many metres (an odometer's
+    resolution); ``stand_noise_kmh``: noise on the standing wagon's speed."""
+    rng = np.random.default_rng(3)
+    t = np.arange(round((stand_s + 2100.0 / (60 / 3.6)) * rate)) / rate
+    v = np.where(t < stand_s, 0.0, 60 / 3.6)
+    if stand_noise_kmh:
+        v = np.where(t < stand_s, np.abs(stand_noise_kmh / 3.6 * rng.standard_normal(t.size)), v)
+    s = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) / rate)])
+    curv = np.interp(s, [630, 690, 1410, 1470], [0, 1 / 600, 1 / 600, 0])
+    curv = curv * (1.0 + 0.01 * rng.standard_normal(t.size)) + 1e-5 * rng.standard_normal(t.size)
+    position = s if hold_m is None else np.floor(s / hold_m) * hold_m
+    forces = {w: 5e3 + 1e3 * rng.standard_normal(t.size) for w in ("w1R", "w1L")}
+    loads = {w: 120e3 + 5e3 * rng.standard_normal(t.size) for w in ("w1R", "w1L")}
+    zero = np.zeros(t.size)
+    return MeasuredRun(
+        "track.csv", t, forces, loads, v, position, curv if curvature else None, zero, zero
+    )
+
+
+def test_a_section_table_without_the_runs_track_is_refused_or_states_it(tmp_path):
+    """Defect 1: a run without a curvature channel cut by a section table made every row a
+    level tangent, a curve's too, without a word. Refused now, naming the remedies; or the
+    table states its rows' track (optional columns as a line description's), which over a
+    run's channels is the rows' track too."""
+    from railsusp.measured.line import read_section_table
+
+    run = track_run(rate=50.0, curvature=False)
+    table = tmp_path / "t.csv"
+    table.write_text("start_m,end_m,name\n50,500,straight\n800,1300,curve\n")
+    with pytest.raises(RailsuspInputError) as info:
+        cut_sections(run, table=read_section_table(table))
+    assert str(info.value) == (
+        f"section table {table}: the run has no curvature channel and the table no radius_m "
+        "column: every section would be a level tangent; accepted a curvature channel in the "
+        "map, a line description (--line, [field] line), or the table's columns radius_m, "
+        "direction, cant_mm, grade_permille (radius empty or 0: tangent)"
+    )
+    table.write_text(
+        "start_m,end_m,name,radius_m,direction,cant_mm,grade_permille\n"
+        "50,500,straight,,,,\n800,1300,curve,600,left,60,4\n"
+    )
+    for r in (run, track_run(rate=50.0)):  # without and over the curvature channel
+        secs = cut_sections(r, table=read_section_table(table))
+        got = [
+            (s.name, s.kind, s.direction, round(s.cant_mm), round(s.grade_permille)) for s in secs
+        ]
+        assert got == [
+            ("straight", "tangent", "left", 0, 0),
+            ("curve", "curve R600", "left", 60, 4),
+        ]
+
+
+def test_a_section_table_row_the_run_never_reaches_or_overlapping_another_is_refused(tmp_path):
+    """Defect 2: a row beyond the run vanished from the cut without a line, and rows that
+    overlap put the same samples into two sections."""
+    from railsusp.measured.line import read_section_table
+
+    run = track_run(rate=50.0)
+    table = tmp_path / "t.csv"
+    table.write_text("start_m,end_m,name\n50,500,straight\n800,1300,curve\n5000,5400,beyond\n")
+    with pytest.raises(RailsuspInputError) as info:
+        cut_sections(run, table=read_section_table(table))
+    assert str(info.value) == (
+        f"section table {table}, row 4: 5000-5400 m is not on the run (positions 0 to 2100 m); "
+        "accepted rows the run passes"
+    )
+    table.write_text("start_m,end_m,name\n50,500,straight\n800,1300,curve\n200,450,again\n")
+    with pytest.raises(RailsuspInputError) as info:
+        read_section_table(table)
+    assert str(info.value) == (
+        f"section table {table}, rows 2 and 4 overlap (200 to 450 m): accepted rows that do "
+        "not overlap (a gap is a stretch in no section)"
+    )
+
+
+def test_a_section_table_row_over_more_than_one_kind_of_track_is_left_out_with_the_shares():
+    """Defect 4: a row over tangent, spiral and curve was kept as a steady curve of the
+    median radius. A piece of which more than 10 % is another kind (or a transition) is
+    left out, the shares in the reason; a row with a few per cent of spiral is kept."""
+    run = track_run(rate=50.0)
+    table = pd.DataFrame(
+        {"start_m": [350.0, 700.0, 1000.0], "end_m": [1000.0, 1000.0, 1390.0],
+         "name": ["mixed", "nearly", "arc"]}
+    )  # fmt: skip
+    secs = cut_sections(run, table=table)
+    assert [(s.name, s.kept) for s in secs] == [("mixed", False), ("nearly", True), ("arc", True)]
+    import re
+
+    shares = re.fullmatch(
+        r"more than one kind of track \(tangent (\d+) %, transition (\d+) %, curve R600 left "
+        r"(\d+) %\): a section is one, with at most 10 % of others",
+        secs[0].reason,
+    )
+    assert shares, secs[0].reason
+    tangent, transition, curve = map(int, shares.groups())  # 350-615, 615-705, 705-1000 m
+    assert 35 <= tangent <= 45 and 10 <= transition <= 20 and 40 <= curve <= 50
+    from railsusp.measured.sections import sections_table
+
+    assert sections_table(secs).kind.tolist() == ["mixed", "curve R600", "curve R600"]
+
+
+def test_a_run_standing_half_its_time_or_with_an_odometer_in_metres_keeps_its_sections():
+    """Defect 5: the 10 m average was taken over 10 m / the median distance step, 0 where
+    the run stood for more than half its samples or the distance held between 1 m steps:
+    10 samples, whose 1 % curvature noise read as a spiral, and nothing was kept."""
+    from railsusp.measured.sections import sections_table
+
+    expected = ["tangent", "curve R600", "tangent"]
+    for run in (track_run(140.0), track_run(hold_m=1.0)):
+        secs = cut_sections(run)
+        assert [s.kind for s in secs if s.kept] == expected, sections_table(secs)
+
+
+def test_a_noisy_stop_is_one_piece_of_its_whole_duration():
+    """Defect 6: noise on a standing wagon's speed cut the stop into pieces of one or two
+    samples, each merged into the row one at a time (the cut quadratic in time: 27 s for an
+    80 s stop), and a one-sample piece counted 0 s: a 30 s stop read "standing (2 s)"."""
+    secs = cut_sections(track_run(30.0, stand_noise_kmh=0.3))
+    assert secs[0].reason == "standing (30 s)" and len(secs[0].pieces) == 1
+    assert [s.kind for s in secs if s.kept] == ["tangent", "curve R600", "tangent"]
+
+
+def test_a_steady_stretch_longer_than_the_maximum_duration_is_split_into_equal_parts():
+    """Defect 11: 2100 m at a steady 60 km/h (126 s) was cut into 120 s and a 100 m rest,
+    left out "(speed varies beyond the tolerance)" at 0 % spread. A piece too short after a
+    split by duration alone now says so."""
+    secs = cut_sections(synthetic_run(np.full(6300, 60.0), np.zeros(6300), np.zeros(6300)))
+    assert [(s.kept, s.end - s.start) for s in secs] == [(True, 3150), (True, 3150)]
+    # 300 s at 5 km/h: three equal parts of 139 m would all be too short; 120 s parts are not
+    slow = cut_sections(synthetic_run(np.full(15000, 5.0), np.zeros(15000), np.zeros(15000)))
+    assert [(s.kept, s.end - s.start) for s in slow] == [(True, 6000), (True, 6000), (False, 3000)]
+    assert slow[2].reason == (
+        "tangent of 83 m, shorter than the 150 m minimum (split at the 120 s maximum duration)"
+    )
+
+
+def test_a_wheel_whose_lateral_force_has_the_other_sign_is_refused():
+    """Defect 12: a wheel's Y + to the right (vehicle-fixed, where the documented sign is +
+    towards the field side) was cut and written without a word: the outer wheel of an R350
+    read p50 -31 kN. Its median below 0 in a curve of 600 m or less where it guides refuses
+    the run, naming the wheel; the inner wheel's sign is not judged."""
+    n = 3000  # 60 s at 45 km/h on a right-hand R350: 750 m
+    run = synthetic_run(np.full(n, 45.0), np.full(n, -1000 / 350), np.zeros(n))
+    assert [s.kept for s in cut_sections(run)] == [True]
+    run.Y["w1R"] = -run.Y["w1R"]  # the inner wheel
+    assert [s.kept for s in cut_sections(run)] == [True]
+    run.Y["w1L"] = -run.Y["w1L"]  # the outer wheel
+    with pytest.raises(RecordingError) as info:
+        cut_sections(run)
+    (problem,) = info.value.problems
+    assert problem.startswith(
+        "wheel w1L: Y median -5.0 kN in s1-curve-R350 (right-hand R350, 0-750 m), where it is "
+        "the leading outer wheel and guides: accepted Y + towards the field side"
+    )
+    assert "Y_sign = -1 in the map's [wheels.w1L]" in problem

@@ -124,7 +124,11 @@ class FieldSection(_Cfg):
     )
     channel_map: str | None = Field(None, description="channel map TOML of the recording")
     line: str | None = Field(None, description="line description CSV to cut the recording by")
-    sections: str | None = Field(None, description="section table CSV (start_m, end_m[, name])")
+    sections: str | None = Field(
+        None,
+        description="section table CSV (start_m, end_m[, name]; optionally each row's track: "
+        "radius_m, direction, cant_mm, grade_permille)",
+    )
     speed_tolerance: float = Field(
         0.10, ge=0.0, le=1.0, description="largest (max - min) / mean speed in a section"
     )

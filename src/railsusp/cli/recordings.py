@@ -141,7 +141,11 @@ def sections_command(
         typer.Option(help="line description CSV: km_start,km_end,radius_m,cant_mm,grade_permille"),
     ] = None,
     table: Annotated[
-        Path | None, typer.Option(help="section table CSV: start_m,end_m[,name]")
+        Path | None,
+        typer.Option(
+            help="section table CSV: start_m,end_m[,name] and optionally the track of each "
+            "row: radius_m, direction, cant_mm, grade_permille"
+        ),
     ] = None,
     speed_tolerance: Annotated[
         float, typer.Option(help="largest (max - min) / mean speed within a section")
@@ -188,6 +192,12 @@ def sections_command(
         )
         cmap = read_channel_map(channel_map) if channel_map else None
         load = static_wheel_load(load_wagon(wagon))
+        if write is not None and Path(recording).is_file():  # (a missing run: read_run says)
+            from railsusp.measured.field_folder import check_field_output
+
+            # never other data, nor another run's sections (by the file's contents), and
+            # before the run is read and cut: a long run takes a while
+            check_field_output(write, "sections", "--write", recording)
         run = read_run(recording, cmap, min_rate_hz=rate, wheel_load_N=load)  # rate: the least
         secs = cut_sections(
             run,
@@ -210,14 +220,13 @@ def sections_command(
         if plot is not None:
             console.print(f"wrote {plot_sections(run, secs, plot)}")
         if write is not None:
-            from railsusp.measured.field_folder import check_field_output
+            from railsusp.measured.field_folder import earlier_sections
             from railsusp.store import atomic_folder
 
-            source = Path(run.source).name  # the index names it so (sections_out)
-            check_field_output(write, "sections", "--write", source)  # never other data
             # the whole folder at once: a kill mid-write left new recordings beside an old
-            # index and sidecars (other files of the folder are carried over)
-            with atomic_folder(write) as tmp:
+            # index and sidecars. Other files of the folder are carried over, not the
+            # earlier cut's recordings: a cut with fewer sections left them beside the index
+            with atomic_folder(write, drop=earlier_sections(write)) as tmp:
                 write_sections(run, secs, tmp, rate, final=write)
             console.print(f"wrote {sum(s.kept for s in secs)} section recording(s) to {write}")
     except RecordingError as exc:

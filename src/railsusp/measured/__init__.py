@@ -7,7 +7,9 @@
   :mod:`~railsusp.measured.channels`, :mod:`~railsusp.measured.run`: long runs as the
   measurement system wrote them (ASAM MDF4, CSV, Parquet) read through a channel map;
 - :mod:`~railsusp.measured.checks`: the checks every recording passes;
-- :mod:`~railsusp.measured.sections`: a run cut into sections of one condition each;
+- :mod:`~railsusp.measured.track_kinds`, :mod:`~railsusp.measured.pieces`,
+  :mod:`~railsusp.measured.sections`: a run's track per sample, a stretch cut into pieces
+  kept or left out with their reasons, and the run cut into sections of one condition each;
 - :mod:`~railsusp.measured.synthetic`: synthetic recordings of hidden true parameters.
 """
 

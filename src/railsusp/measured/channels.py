@@ -13,6 +13,7 @@ ignore = ["acc_bogie_y_g"]    # channels recorded but not used
 [wheels.w1R]
 Y = "WS1_Y_R"
 Q = "WS1_Q_R"
+Y_sign = -1                   # optional: this Y channel is + towards the track centre
 
 [units]                       # only for channels whose file states no unit
 s_line = "m"
@@ -20,6 +21,11 @@ s_line = "m"
 
 A file without a map is read through the documented column names (``Y_w1R_kN``,
 ``speed_kmh``, ...), which :func:`default_map` turns into a map.
+
+railsusp takes each wheel's lateral force Y + towards the field side (the flange force of
+a guiding outer wheel is +; docs/data-format.md). Measuring systems often record it
+vehicle-fixed, + to the right for both wheels: ``Y_sign = -1`` on a wheel negates its Y
+channel as it is read, rather than the user rewriting the file.
 """
 
 from __future__ import annotations
@@ -54,6 +60,8 @@ class ChannelMap:
     units: dict[str, str] = field(default_factory=dict)
     recording: str | None = None  # the recording the map was written for, if it names one
     source: str = "channel map"
+    #: wheel -> -1 where its Y channel is + towards the track centre (``Y_sign = -1``)
+    y_signs: dict[str, int] = field(default_factory=dict)
 
     def used(self) -> list[str]:
         """Every channel the map takes, in a fixed order."""
@@ -86,14 +94,26 @@ def channel_map_from(doc: dict, source: str = "channel map") -> ChannelMap:
     if not isinstance(wheels_doc, dict) or not wheels_doc:
         raise bad("no [wheels.<wheel>] table with Y and Q channels (wheels w1L .. w4R)")
     wheels: dict[str, dict[str, str]] = {}
+    y_signs: dict[str, int] = {}
     for w, chans in wheels_doc.items():
         if w not in WHEEL_NAMES:
             raise bad(f"wheel {w!r} not known{did_you_mean(w, list(WHEEL_NAMES))}; w1L .. w4R")
-        if not isinstance(chans, dict) or set(chans) != {"Y", "Q"}:
-            raise bad(f"wheels.{w}: needs exactly the keys Y and Q (channel names)")
-        for f, name in chans.items():
-            if not isinstance(name, str) or not name:
+        if not isinstance(chans, dict) or not {"Y", "Q"} <= set(chans) <= {"Y", "Q", "Y_sign"}:
+            raise bad(
+                f"wheels.{w}: needs exactly the keys Y and Q (channel names), and optionally "
+                "Y_sign (1 or -1)"
+            )
+        for f in ("Y", "Q"):
+            if not isinstance(chans[f], str) or not chans[f]:
                 raise bad(f"wheels.{w}.{f}: a channel name (text) is needed")
+        sign = chans.get("Y_sign", 1)
+        if isinstance(sign, bool) or sign not in (1, -1):
+            raise bad(
+                f"wheels.{w}.Y_sign = {sign!r}: accepted 1 (Y + towards the field side, as "
+                "railsusp takes it) or -1 (the channel + towards the track centre)"
+            )
+        if sign == -1:
+            y_signs[w] = -1
         wheels[w] = {"Y": chans["Y"], "Q": chans["Q"]}
     signals = {}
     for key in SIGNALS:
@@ -120,7 +140,14 @@ def channel_map_from(doc: dict, source: str = "channel map") -> ChannelMap:
     if both:  # accepted silently (the command-line audit of stop 60)
         raise bad(f"ignore: channel {both[0]!r} is mapped too; accepted one of the two")
     return ChannelMap(
-        wheels, signals, doc.get("time"), tuple(ignore), dict(units), doc.get("recording"), source
+        wheels,
+        signals,
+        doc.get("time"),
+        tuple(ignore),
+        dict(units),
+        doc.get("recording"),
+        source,
+        y_signs,
     )
 
 

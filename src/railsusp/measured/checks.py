@@ -125,12 +125,23 @@ def check_clipped(x: np.ndarray, channel: str, unit: str = "") -> list[str]:
     return out
 
 
+#: a change of sampling rate shows as at least this many intervals in a row of one whole
+#: multiple of the median interval (100 Hz then 50 Hz: 2, 2, 2, ...); fewer long intervals in
+#: a row are dropouts with a sample or a few kept between them (a logger's burst of losses)
+RATE_CHANGE_INTERVALS = 10
+
+
 def dropout_steps(t: np.ndarray) -> np.ndarray | None:
     """Indices i of the intervals t[i] -> t[i + 1] that lost samples (a logger's dropout):
     whole multiples (two or more) of the median interval within the jitter tolerance, on a
     time base whose other intervals are the median one. None where the time base is not
-    one rate with dropouts (another interval, or a shorter one: two rates, or jitter; two
-    long intervals in a row: the rate changed, 100 Hz then 50 Hz)."""
+    one rate with dropouts: another interval, or a shorter one (two rates, or jitter), or
+    :data:`RATE_CHANGE_INTERVALS` long intervals in a row of one multiple (the rate
+    changed, 100 Hz then 50 Hz). Long intervals in a row of other multiples, or fewer of
+    them, are dropouts close together (samples 10-19 lost but sample 15 kept: 6 then 5
+    intervals): the run is cut at each, the samples between them a piece too short to
+    keep. Before stop 63 any two long intervals in a row were a rate change, and two
+    dropouts one sample apart refused a whole run as mixed sampling rates."""
     d = np.diff(t)
     med = float(np.median(d))
     ratio = d / med
@@ -139,8 +150,12 @@ def dropout_steps(t: np.ndarray) -> np.ndarray | None:
     if not np.all(whole):
         return None
     lost = np.flatnonzero(steps >= 2)
-    if np.any(np.diff(lost) == 1):
-        return None
+    if lost.size >= RATE_CHANGE_INTERVALS:  # runs of equal intervals: a rate change?
+        edges = np.flatnonzero(np.diff(steps)) + 1
+        starts = np.concatenate([[0], edges])
+        ends = np.concatenate([edges, [steps.size]])
+        if np.any((steps[starts] >= 2) & (ends - starts >= RATE_CHANGE_INTERVALS)):
+            return None
     return lost
 
 

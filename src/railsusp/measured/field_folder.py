@@ -6,7 +6,12 @@ holds, so each writer accepts only a folder it could write again itself: a new o
 one, or one it wrote before (``synth-field``: an index with its ``seed`` beside
 ``truth.json``; ``sections``: an index naming the long run it was cut from, ``source``,
 beside the cut's ``sections.csv``, and only a cut of the same run: a user's index may hold
-a ``source`` of its own, docs/data-format.md).
+a ``source`` of its own, docs/data-format.md). The same run is told by the file's
+contents, its size and SHA-256 in the index (``source_bytes``, ``source_sha256``), not its
+name: a run moved or renamed is the same run, another run of the same file name
+(``day1/run.mf4``, ``day2/run.mf4``) is not (before stop 63 the name alone was compared,
+and the second day's sections silently replaced the first's). An index written before
+holds only the name, and is compared by it.
 Anything else, a folder of measured recordings above all, is refused before any work: the
 project's rule that bad input loses no data (before stop 57, ``synth-field`` replaced a
 folder of section recordings with synthetic ones and exited 0). The commands that write
@@ -16,6 +21,7 @@ recording's table (:func:`check_not_recordings`).
 
 from __future__ import annotations
 
+import glob
 import json
 from pathlib import Path
 from typing import Literal
@@ -23,6 +29,7 @@ from typing import Literal
 from railsusp.errors import RailsuspInputError
 from railsusp.input_checks import check_output_folder
 from railsusp.measured.recording import FORMAT
+from railsusp.store import file_hash_cached
 
 #: what wrote a field folder, by the marks it leaves (:func:`folder_kind`)
 Kind = Literal["new", "empty", "synthetic", "sections", "other"]
@@ -60,28 +67,72 @@ def _index(path: Path) -> dict | None:
     return index if isinstance(index, dict) else None
 
 
+def source_fingerprint(path: str | Path) -> dict[str, int | str]:
+    """The long run's file as a sections folder's ``index.json`` records it: its name
+    (``source``, for the reader), size in bytes and SHA-256 (``source_bytes``,
+    ``source_sha256``: what tells the same run from another, wherever the file lies). A run
+    that is no file (made in memory) has its name only, and is compared by it."""
+    path = Path(path)
+    if not path.is_file():
+        return {"source": path.name}
+    return {
+        "source": path.name,
+        "source_bytes": path.stat().st_size,
+        "source_sha256": file_hash_cached(path),
+    }
+
+
+def _same_source(index: dict, fingerprint: dict[str, int | str]) -> bool:
+    """Whether a sections folder's ``index`` was cut from the run of ``fingerprint``: its
+    size and SHA-256 where the index holds them, else (an index written before stop 63)
+    its file name."""
+    if "source_sha256" in index or "source_bytes" in index:
+        return (
+            index.get("source_bytes") == fingerprint["source_bytes"]
+            and str(index.get("source_sha256", "")).lower() == fingerprint["source_sha256"]
+        )
+    return str(index["source"]) == fingerprint["source"]
+
+
+def _fingerprint_text(fingerprint: dict) -> str:
+    """A run's size and the start of its SHA-256, to tell two files of one name apart."""
+    sha = str(fingerprint.get("source_sha256", ""))[:12]
+    return f"{fingerprint.get('source_bytes')} bytes, SHA-256 {sha}..."
+
+
 def check_field_output(
     path: str | Path,
     writer: Literal["synthetic", "sections"],
     option: str,
-    source: str | None = None,
+    source: str | Path | None = None,
 ) -> Path:
     """Refuse (one line, before any work) an output folder that ``writer`` would replace
-    but did not write: see the module's docstring; for ``sections``, ``source`` is the file
-    name of the long run being cut. Also refuses what
+    but did not write: see the module's docstring; for ``sections``, ``source`` is the long
+    run being cut (its file: compared by contents with the run the folder was cut from, or
+    by name where the folder's index holds no fingerprint). Also refuses what
     :func:`~railsusp.input_checks.check_output_folder` does (a file, an unwritable folder)."""
     path = check_output_folder(path, option)
     kind = folder_kind(path)
     if kind in ("new", "empty") or (kind == writer == "synthetic"):
         return path
     if kind == writer == "sections":  # the long run it was cut from: its index's source
-        before = str(_index(path)["source"])  # type: ignore[index]
-        if source is None or before == source:
+        index: dict = _index(path)  # type: ignore[assignment]
+        if source is None:
             return path
+        try:
+            now = source_fingerprint(source)
+        except OSError as exc:
+            raise RailsuspInputError(f"{source}: cannot be read ({exc.strerror})") from None
+        if _same_source(index, now):
+            return path
+        before, name = str(index["source"]), str(now["source"])
+        if before == name and "source_sha256" in index:  # same name, other contents
+            before += f", {_fingerprint_text(index)}"
+            name += f", {_fingerprint_text(now)}"
         raise RailsuspInputError(
             f"{option} {path} holds the sections of another run ({before}); sections --write "
-            f"would replace them with those of {source}: accepted a new or empty folder, or "
-            "one holding this run's sections"
+            f"would replace them with those of {name}: accepted a new or empty folder, or "
+            "one holding this run's sections (the same file contents, wherever it lies)"
         )
     held = (
         f"a field folder written by {_WRITERS[kind]}"
@@ -92,6 +143,25 @@ def check_field_output(
         f"{option} {path} holds {held}; {_WRITERS[writer]} would replace them: accepted a "
         f"new or empty folder, or one {_WRITERS[writer]} wrote"
     )
+
+
+def earlier_sections(path: str | Path) -> list[str]:
+    """What an earlier ``sections --write`` wrote into ``path`` and a new cut replaces or
+    no longer has: each recording its index lists and the recording's sidecar, as glob
+    patterns of exact names for :func:`~railsusp.store.atomic_folder`'s ``drop``. A
+    cut with fewer or other sections (another ``--min-length``) left the earlier cut's
+    recordings beside the new index (the audit of stop 63); a file of the user's in the
+    folder (notes, a track file) is still carried over. Nothing for a folder that is not a
+    sections folder (new, empty)."""
+    path = Path(path)
+    if folder_kind(path) != "sections":
+        return []
+    listed = (_index(path) or {}).get("recordings")
+    names: list[str] = []
+    for n in listed if isinstance(listed, list) else []:
+        if isinstance(n, str) and n and Path(n).name == n:  # a file of the folder itself
+            names += [n, f"{Path(n).stem}.json"]
+    return [glob.escape(n) for n in names]
 
 
 def check_not_recordings(path: str | Path, option: str = "--out") -> None:

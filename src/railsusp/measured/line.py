@@ -27,20 +27,41 @@ def geometry_from_line(position_m: np.ndarray, line: pd.DataFrame) -> dict[str, 
     towards increasing km posts; a run towards decreasing ones (its position falling) sees
     a left-hand curve as right-hand and an up-grade as down-grade, so both are mirrored
     for it (the cant, on the curve's outer rail, is the same either way)."""
+    return _geometry_of_rows(position_m, line.km_start * 1e3, line.km_end * 1e3, line)
+
+
+def geometry_from_table(position_m: np.ndarray, table: pd.DataFrame) -> dict[str, np.ndarray]:
+    """The track a section table states for its rows (``start_m, end_m`` in metres along
+    the run), as :func:`geometry_from_line` reads a line description's, of only the
+    quantities whose columns the table has: ``curvature`` from ``radius_m`` (with
+    ``direction``), ``cant`` from ``cant_mm``, ``grade`` from ``grade_permille``; NaN
+    outside the rows. None of them: an empty dict (the run's channels give the track)."""
+    return _geometry_of_rows(position_m, table.start_m, table.end_m, table)
+
+
+def _geometry_of_rows(
+    position_m: np.ndarray, start_m: pd.Series, end_m: pd.Series, rows: pd.DataFrame
+) -> dict[str, np.ndarray]:
+    """Per position, the curvature, cant and grade of the row ``start_m <= position <
+    end_m`` it lies in (NaN in none), for each of them whose column ``rows`` has."""
     steps = np.diff(position_m)
     steps = steps[np.isfinite(steps)]
     sense = -1.0 if steps.size and np.sum(steps) < 0.0 else 1.0
-    curv = np.full(position_m.shape, np.nan)
-    cant = np.full(position_m.shape, np.nan)
-    grade = np.full(position_m.shape, np.nan)
-    for r in line.itertuples(index=False):
-        inside = (position_m >= r.km_start * 1e3) & (position_m < r.km_end * 1e3)
-        radius = float(r.radius_m) if np.isfinite(r.radius_m) else 0.0
-        sign = -1.0 if str(getattr(r, "direction", "left")).strip().lower() == "right" else 1.0
-        curv[inside] = sense * sign / radius if radius > 0 else 0.0
-        cant[inside] = (r.cant_mm if np.isfinite(r.cant_mm) else 0.0) * 1e-3
-        grade[inside] = sense * (r.grade_permille if np.isfinite(r.grade_permille) else 0.0) * 1e-3
-    return {"curvature": curv, "cant": cant, "grade": grade}
+    columns = {"curvature": "radius_m", "cant": "cant_mm", "grade": "grade_permille"}
+    out = {key: np.full(position_m.shape, np.nan) for key, c in columns.items() if c in rows}
+    for k, r in enumerate(rows.itertuples(index=False) if out else ()):
+        inside = (position_m >= start_m.iloc[k]) & (position_m < end_m.iloc[k])
+        if "curvature" in out:
+            radius = float(r.radius_m) if np.isfinite(r.radius_m) else 0.0
+            side = str(getattr(r, "direction", "left")).strip().lower()
+            sign = -1.0 if side == "right" else 1.0
+            out["curvature"][inside] = sense * sign / radius if radius > 0 else 0.0
+        if "cant" in out:
+            out["cant"][inside] = (r.cant_mm if np.isfinite(r.cant_mm) else 0.0) * 1e-3
+        if "grade" in out:
+            grade = r.grade_permille if np.isfinite(r.grade_permille) else 0.0
+            out["grade"][inside] = sense * grade * 1e-3
+    return out
 
 
 def read_line(path: str | Path) -> pd.DataFrame:
@@ -49,60 +70,29 @@ def read_line(path: str | Path) -> pd.DataFrame:
     what = f"line description {path}"
     df = _read_csv(path, need, what)
     _need_values(df, ["km_start", "km_end"], what)
-    # the ranges of a working condition; empty radius, cant, grade: tangent, level; radius 0:
-    # tangent (a negative radius was taken for tangent, a direction "up" for left)
-    for column, field in (("radius_m", "curve_radius_m"), ("cant_mm", "cant_mm"),
-                          ("grade_permille", "grade_permille")):  # fmt: skip
-        lo, hi = field_range(field)
-        vals = df[column].to_numpy(dtype=float)
-        out = np.isfinite(vals) & ((vals < lo) | (vals > hi))
-        if column == "radius_m":
-            out &= vals != 0.0
-        if out.any():
-            i = int(np.flatnonzero(out)[0])
-            raise RailsuspInputError(
-                f"{what}, row {i + 2}: {column} = {vals[i]:g}: accepted {lo:g} to {hi:g}, or "
-                "empty" + (" (0 or empty: tangent)" if column == "radius_m" else "")
-            )
-    if "direction" in df:
-        given = df["direction"].fillna("").astype(str).str.strip().str.lower()
-        wrong = ~given.isin(["", "left", "right"])
-        if wrong.any():
-            i = int(np.flatnonzero(wrong.to_numpy())[0])
-            raise RailsuspInputError(
-                f"{what}, row {i + 2}: direction = {df['direction'].iloc[i]!r}: accepted left, "
-                "right or empty (left)"
-            )
-    if (df.km_end <= df.km_start).any():
-        i = int(np.flatnonzero((df.km_end <= df.km_start).to_numpy())[0])
-        raise RailsuspInputError(f"{what}, row {i + 2}: km_end <= km_start")
-    tangent = ~(df.radius_m.to_numpy(dtype=float) > 0.0)
-    canted = tangent & (np.nan_to_num(df.cant_mm.to_numpy(dtype=float)) != 0.0)
-    if canted.any():  # written as 0 into the section's condition, shown as given
-        i = int(np.flatnonzero(canted)[0])
-        raise RailsuspInputError(
-            f"{what}, row {i + 2}: cant_mm = {df.cant_mm.iloc[i]:g} on a tangent row (radius 0 "
-            "or empty): accepted 0 or empty there (a working condition has cant in a curve "
-            "only)"
-        )
-    order = np.argsort(df.km_start.to_numpy(), kind="stable")
-    starts, ends = df.km_start.to_numpy()[order], df.km_end.to_numpy()[order]
-    overlap = np.flatnonzero(starts[1:] < ends[:-1])
-    if overlap.size:  # the later row won where they overlapped, silently
-        a, b = sorted((int(order[overlap[0]]) + 2, int(order[overlap[0] + 1]) + 2))
-        raise RailsuspInputError(
-            f"{what}, rows {a} and {b} overlap (km {starts[overlap[0] + 1]:g} to "
-            f"{min(ends[overlap[0]], ends[overlap[0] + 1]):g}): accepted rows that do not "
-            "overlap (a gap is a stretch the line does not describe)"
-        )
+    _check_track(df, what)
+    _check_ranges(
+        df, ("km_start", "km_end"), what, "km {:g} to {:g}", "a stretch the line does not describe"
+    )
     return df
+
+
+#: the optional columns of a section table that state its rows' track as a line
+#: description's columns do (radius_m with direction, cant_mm, grade_permille)
+TABLE_TRACK = ("radius_m", "direction", "cant_mm", "grade_permille")
 
 
 def read_section_table(path: str | Path) -> pd.DataFrame:
     """A user section table CSV: ``start_m, end_m`` and optional ``name``, checked. Names
-    become file names, so they must be plain: letters, digits, ``.``, ``_``, ``-``."""
+    become file names, so they must be plain: letters, digits, ``.``, ``_``, ``-``. The
+    optional columns :data:`TABLE_TRACK` state the rows' track, checked as a line
+    description's (:func:`geometry_from_table`): a run without geometry channels has no
+    other source of it. Rows may not overlap (a sample would be in two sections). The
+    table's name for messages is kept in ``attrs["what"]``."""
     what = f"section table {path}"
-    df = _read_csv(path, ["start_m", "end_m"], what)
+    df = _read_csv(
+        path, ["start_m", "end_m"], what, optional=["radius_m", "cant_mm", "grade_permille"]
+    )
     _need_values(df, ["start_m", "end_m"], what)
     if "name" in df:
         seen: dict[str, int] = {}
@@ -123,15 +113,91 @@ def read_section_table(path: str | Path) -> pd.DataFrame:
                     f"{seen[name.casefold()]}'s too; accepted a name per section"
                 )
             seen[name.casefold()] = i + 2
-    if (df.end_m <= df.start_m).any():
-        i = int(np.flatnonzero((df.end_m <= df.start_m).to_numpy())[0])
-        raise RailsuspInputError(f"{what}, row {i + 2}: end_m <= start_m")
+    if "direction" in df and "radius_m" not in df:
+        raise RailsuspInputError(
+            f"{what}: a direction column without radius_m; accepted radius_m (empty or 0: "
+            "tangent) with direction, or neither"
+        )
+    _check_track(df, what)
+    _check_ranges(df, ("start_m", "end_m"), what, "{:g} to {:g} m", "a stretch in no section")
+    df.attrs["what"] = what
     return df
 
 
-def _read_csv(path: str | Path, need: list[str], what: str = "") -> pd.DataFrame:
-    """The table's columns ``need`` as numbers (an empty cell is NaN); ``what`` names the
-    table in the messages (default: its path)."""
+def _check_track(df: pd.DataFrame, what: str) -> None:
+    """Refuse, row by row, track columns outside what a working condition takes (those of
+    ``radius_m, cant_mm, grade_permille, direction`` that ``df`` has): a negative radius
+    was taken for tangent, a direction "up" for left, a grade in per cent written into a
+    condition; and cant on a tangent row (shown, then written as 0)."""
+    # empty radius, cant, grade: tangent, level; radius 0: tangent
+    for column, field in (("radius_m", "curve_radius_m"), ("cant_mm", "cant_mm"),
+                          ("grade_permille", "grade_permille")):  # fmt: skip
+        if column not in df:
+            continue
+        lo, hi = field_range(field)
+        vals = df[column].to_numpy(dtype=float)
+        out = np.isfinite(vals) & ((vals < lo) | (vals > hi))
+        if column == "radius_m":
+            out &= vals != 0.0
+        if out.any():
+            i = int(np.flatnonzero(out)[0])
+            raise RailsuspInputError(
+                f"{what}, row {i + 2}: {column} = {vals[i]:g}: accepted {lo:g} to {hi:g}, or "
+                "empty" + (" (0 or empty: tangent)" if column == "radius_m" else "")
+            )
+    if "direction" in df:
+        given = df["direction"].fillna("").astype(str).str.strip().str.lower()
+        wrong = ~given.isin(["", "left", "right"])
+        if wrong.any():
+            i = int(np.flatnonzero(wrong.to_numpy())[0])
+            raise RailsuspInputError(
+                f"{what}, row {i + 2}: direction = {df['direction'].iloc[i]!r}: accepted left, "
+                "right or empty (left)"
+            )
+    if "radius_m" in df and "cant_mm" in df:
+        tangent = ~(df.radius_m.to_numpy(dtype=float) > 0.0)
+        canted = tangent & (np.nan_to_num(df.cant_mm.to_numpy(dtype=float)) != 0.0)
+        if canted.any():  # written as 0 into the section's condition, shown as given
+            i = int(np.flatnonzero(canted)[0])
+            raise RailsuspInputError(
+                f"{what}, row {i + 2}: cant_mm = {df.cant_mm.iloc[i]:g} on a tangent row "
+                "(radius 0 or empty): accepted 0 or empty there (a working condition has "
+                "cant in a curve only)"
+            )
+
+
+def _check_ranges(df: pd.DataFrame, ends: tuple[str, str], what: str, shown: str, gap: str) -> None:
+    """Refuse a row that ends where or before it starts, and rows that overlap (a line
+    description's later row won where two overlapped; a section table's samples were in
+    two sections); ``shown`` formats a stretch of the overlap, ``gap`` says what a gap
+    between rows is."""
+    first, last = ends
+    starts_all, ends_all = df[first].to_numpy(), df[last].to_numpy()
+    if (ends_all <= starts_all).any():
+        i = int(np.flatnonzero(ends_all <= starts_all)[0])
+        raise RailsuspInputError(
+            f"{what}, row {i + 2}: {last} <= {first} ({ends_all[i]:g} <= {starts_all[i]:g}); "
+            f"accepted {last} above {first}"
+        )
+    order = np.argsort(starts_all, kind="stable")
+    starts, stops = starts_all[order], ends_all[order]
+    overlap = np.flatnonzero(starts[1:] < np.maximum.accumulate(stops)[:-1])
+    if overlap.size:
+        k = int(overlap[0]) + 1  # row order[k] starts inside the row before it that ends last
+        prev = int(np.argmax(stops[:k]))
+        a, b = sorted((int(order[prev]) + 2, int(order[k]) + 2))
+        span = shown.format(starts[k], min(stops[prev], stops[k]))
+        raise RailsuspInputError(
+            f"{what}, rows {a} and {b} overlap ({span}): accepted rows that do not overlap "
+            f"(a gap is {gap})"
+        )
+
+
+def _read_csv(
+    path: str | Path, need: list[str], what: str = "", optional: list[str] | None = None
+) -> pd.DataFrame:
+    """The table's columns ``need`` (and those of ``optional`` it has) as numbers (an empty
+    cell is NaN); ``what`` names the table in the messages (default: its path)."""
     what = what or str(path)
     try:  # only an empty cell is missing: "nan" or "inf" is a value, refused below
         df = pd.read_csv(path, skipinitialspace=True, keep_default_na=False, na_values=[""])
@@ -140,7 +206,7 @@ def _read_csv(path: str | Path, need: list[str], what: str = "") -> pd.DataFrame
     missing = [c for c in need if c not in df.columns]
     if missing or df.empty:
         raise RailsuspInputError(f"{path}: columns {need} with at least one row needed")
-    for c in need:
+    for c in [*need, *(c for c in optional or [] if c in df.columns)]:
         vals = pd.to_numeric(df[c], errors="coerce")
         bad = vals.isna() & df[c].notna()
         if bad.any():

@@ -66,9 +66,12 @@ class Recording:
         return pd.DataFrame(cols)
 
     def write(self, path: str | Path, fmt: str = "csv") -> Path:
-        """Write ``NAME.csv`` (or ``.parquet``) and the ``NAME.json`` sidecar atomically."""
+        """Write ``NAME.csv`` (or ``.parquet``) and the ``NAME.json`` sidecar atomically.
+        ``path`` is ``NAME`` or ``NAME.csv`` / ``.parquet`` / ``.json``; any other dot is
+        part of the name (``km0.5`` and ``km0.7`` were both written as ``km0.csv``)."""
         path = Path(path)
-        stem = path.with_suffix("")
+        known = path.suffix.lower() in (".csv", ".parquet", ".json")
+        stem = path.with_suffix("") if known else path
         meta = {
             "format": FORMAT,
             "wheels": list(self.wheels),
@@ -77,9 +80,9 @@ class Recording:
             **self.meta,
         }
         if fmt == "parquet":
-            table_path = write_parquet(stem.with_suffix(".parquet"), self.to_dataframe())
+            table_path = write_parquet(_named(stem, ".parquet"), self.to_dataframe())
         elif fmt == "csv":
-            table_path = stem.with_suffix(".csv")
+            table_path = _named(stem, ".csv")
             from railsusp.store import atomic_write_bytes
 
             table = self.to_dataframe()
@@ -89,7 +92,7 @@ class Recording:
             atomic_write_bytes(table_path, table.to_csv(index=False, float_format="%.6g").encode())
         else:
             raise ValueError(f"format {fmt!r}: accepted csv or parquet")
-        write_json(stem.with_suffix(".json"), meta)
+        write_json(_named(stem, ".json"), meta)
         return table_path
 
     def head(self, seconds: float) -> Recording:
@@ -136,3 +139,9 @@ class Recording:
             self.condition,
             {**self.meta, "resampled_from_hz": src},
         )
+
+
+def _named(stem: Path, suffix: str) -> Path:
+    """``stem`` with ``suffix`` appended (``Path.with_suffix`` would replace a dotted
+    name's last part: ``km0.5`` -> ``km0.csv``)."""
+    return stem.with_name(stem.name + suffix)

@@ -5,6 +5,7 @@ configuration, and a plot of the cut along the line."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pandas as pd
@@ -12,6 +13,8 @@ import pandas as pd
 from railsusp.conditions import WorkingCondition
 from railsusp.en14363 import section_statistics
 from railsusp.errors import RailsuspInputError
+from railsusp.measured.field_folder import source_fingerprint
+from railsusp.measured.line import RESERVED_NAMES
 from railsusp.measured.recording import FORMAT, Recording
 from railsusp.measured.run import MeasuredRun
 from railsusp.measured.sections import Section, sections_table
@@ -80,11 +83,12 @@ def write_sections(
     kept = [s for s in sections if s.kept]
     if not kept:
         raise RailsuspInputError(f"{run.source}: no section kept; nothing to write")
+    _check_names(kept)
     names = []
     conds = []
     for s in kept:
         rec = section_recording(run, s, rate_hz)
-        rec.write(out / s.name)
+        rec.write(out / f"{s.name}.csv")  # a dot in the name stays (km0.5 was km0.csv)
         names.append(f"{s.name}.csv")
         conds.append(rec.condition)
     table = sections_table(sections).to_csv(index=False).encode()
@@ -96,9 +100,32 @@ def write_sections(
     atomic_write_bytes(out / "pipeline.toml", pipeline_toml(conds, folder).encode())
     write_json(
         out / "index.json",
-        {"format": FORMAT, "recordings": names, "source": Path(run.source).name},
+        {"format": FORMAT, "recordings": names, **source_fingerprint(run.source)},
     )
     return out
+
+
+#: a section's name as a file name: no path separators, no leading dot (a table's names
+#: are held to 60 characters; a split row's number may add to them)
+FILE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
+
+
+def _check_names(kept: list[Section]) -> None:
+    """Refuse kept sections whose names are no plain file names or repeat (case aside, as
+    a file system may): one recording was written over another, the index listing both."""
+    seen: dict[str, str] = {}
+    for s in kept:
+        if not FILE_NAME.fullmatch(s.name) or s.name.casefold() in RESERVED_NAMES:
+            raise RailsuspInputError(
+                f"section name {s.name!r}: accepted letters, digits, '.', '_', '-', starting "
+                f"with a letter or digit, and not {', '.join(RESERVED_NAMES)}"
+            )
+        if s.name.casefold() in seen:
+            raise RailsuspInputError(
+                f"sections {seen[s.name.casefold()]!r} and {s.name!r} would be one recording "
+                f"({s.name}.csv); accepted a name per section"
+            )
+        seen[s.name.casefold()] = s.name
 
 
 def conditions_toml(conditions: list[WorkingCondition]) -> str:
