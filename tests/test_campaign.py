@@ -508,7 +508,7 @@ def test_a_batch_left_half_written_by_a_kill_leaves_no_temporary_behind(full_run
     ],
 )
 def test_scheduler_addresses_are_checked_before_any_connection(address, ok):
-    from railsusp.campaign.run import check_scheduler_address
+    from railsusp.campaign.dask_cluster import check_scheduler_address
 
     if ok:
         check_scheduler_address(address, "--scheduler")
@@ -526,7 +526,7 @@ def test_a_port_that_is_no_dask_scheduler_is_one_line_within_the_timeout(monkeyp
     import threading
     import time
 
-    import railsusp.campaign.run as run_mod
+    import railsusp.campaign.dask_cluster as cluster_mod
 
     server = socket.create_server(("127.0.0.1", 0))
     port = server.getsockname()[1]
@@ -543,11 +543,11 @@ def test_a_port_that_is_no_dask_scheduler_is_one_line_within_the_timeout(monkeyp
                 conn.sendall(b"SSH-2.0-OpenSSH_9.2p1 Debian-2\r\n" * 4)
 
     threading.Thread(target=serve, daemon=True).start()
-    monkeypatch.setattr(run_mod, "CONNECT_TIMEOUT_S", 3.0)
+    monkeypatch.setattr(cluster_mod, "CONNECT_TIMEOUT_S", 3.0)
     t0 = time.monotonic()
     try:
         with pytest.raises(CampaignError, match="no Dask scheduler answered"):
-            run_mod._connect(f"tcp://127.0.0.1:{port}")
+            cluster_mod._connect(f"tcp://127.0.0.1:{port}")
     finally:
         server.close()
         for c in held:

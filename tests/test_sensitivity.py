@@ -8,13 +8,8 @@ import pytest
 from SALib.sample import sobol as sobol_sample
 from SALib.test_functions import Ishigami
 
-from railsusp.sensitivity import (
-    agreement,
-    fit_gp,
-    select_key_parameters,
-    sobol_from_samples,
-    study_comparison,
-)
+from railsusp.key_parameters import select_key_parameters, study_comparison
+from railsusp.sensitivity import agreement, fit_gp, sobol_from_samples
 
 PI = math.pi
 ISHIGAMI = {"num_vars": 3, "names": ["x1", "x2", "x3"], "bounds": [[-PI, PI]] * 3}

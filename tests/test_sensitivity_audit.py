@@ -23,12 +23,11 @@ from railsusp.campaign import (
 )
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
+from railsusp.key_parameters import MIN_METAMODEL_R2, select_key_parameters
 from railsusp.sensitivity import (
     MIN_DIRECT_BASE,
-    MIN_METAMODEL_R2,
     analyse,
     check_settings,
-    select_key_parameters,
     sobol_metamodel,
 )
 from railsusp.store import write_parquet

@@ -306,7 +306,7 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
     if cfg.surrogate.pretrained is not None:
         _check_network_set(cfg, conds, bad)
     if cfg.scheduler is not None:
-        from railsusp.campaign.run import check_scheduler_address
+        from railsusp.campaign.dask_cluster import check_scheduler_address
 
         try:
             check_scheduler_address(cfg.scheduler, "scheduler =")

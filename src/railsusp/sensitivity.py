@@ -9,18 +9,19 @@ Two routes, both through SALib (Saltelli/Jansen estimators, bootstrap confidence
   the Sobol indices are computed on the process mean with a large Saltelli design. The
   confidence intervals then cover the Sobol estimator only, not the metamodel error; the
   held-out R^2 of each process is reported, and a feature whose process does not fit
-  (R^2 below :data:`MIN_METAMODEL_R2`) is left out of the key rule: its indices split the
-  variance of a mean that explains little of the feature (pure noise gave ST summing to 1).
+  (R^2 below :data:`~railsusp.key_parameters.MIN_METAMODEL_R2`) is left out of the key
+  rule: its indices split the variance of a mean that explains little of the feature (pure
+  noise gave ST summing to 1).
 
-Key parameters are chosen by a documented rule (:func:`select_key_parameters`) and set beside
-the study's choice.
+Key parameters are chosen from the indices by a documented rule and set beside the study's
+choice (:mod:`railsusp.key_parameters`).
 """
 
 from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -29,9 +30,9 @@ import pandas as pd
 from railsusp.campaign import STATISTICS, Campaign, CampaignError, salib_problem
 from railsusp.campaign.design import MIN_SALTELLI_BASE, saltelli_base_too_small, saltelli_issue
 from railsusp.errors import RailsuspInputError
+from railsusp.key_parameters import select_key_parameters, study_comparison
 from railsusp.params import bounds
 from railsusp.store import write_csv, write_json, write_parquet
-from railsusp.study import KEY_LATERAL, KEY_VERTICAL
 
 INDEX_COLUMNS = (
     "condition",
@@ -58,15 +59,6 @@ MIN_DIRECT_BASE = MIN_SALTELLI_BASE
 #: successful runs a condition's Gaussian-process metamodel needs at the least (one per fold
 #: of the cross-validation that scores it)
 MIN_METAMODEL_RUNS = 5
-
-#: held-out R^2 a feature's Gaussian process needs for its Sobol indices to count in the key
-#: rule: the indices split the variance of the process mean, so a process that explains
-#: little of the feature still gives ST summing to about 1 (pure noise made every parameter
-#: key). Pure noise scores 0.03 or less; common-random-numbers campaigns fit means above 0.8
-#: and p99 features at 0.54-0.75; a new track per run gave -0.3 to 0.4; an 8-run toy campaign
-#: of the pipeline's tests 0.48. A quarter of the held-out variance explained is the least
-#: that counts: below it the indices are mostly the process's noise
-MIN_METAMODEL_R2 = 0.25
 
 #: below this many points a single held-out fifth scores a process on one to nine points
 #: (R^2 undefined on one; -83 on the two of a 12-run campaign's feature that a 5-fold
@@ -293,172 +285,6 @@ def _holdout_r2(xu: np.ndarray, yv: np.ndarray, perm: np.ndarray, seed: int) -> 
     ys = yv[scored]
     ss = np.sum((ys - ys.mean()) ** 2)
     return float(1.0 - np.sum((ys - pred[scored]) ** 2) / ss) if ss > 0 else float("nan")
-
-
-@dataclass
-class KeySelection:
-    """Key parameters chosen by the rule, with each parameter's largest ST and its source."""
-
-    keys: list[str]
-    threshold: float
-    statistics: tuple[str, ...]
-    max_keys: int
-    min_cv: float
-    max_st: dict[str, float] = field(default_factory=dict)
-    where: dict[str, str] = field(default_factory=dict)
-    ignored: list[str] = field(default_factory=list)
-    #: held-out R^2 a metamodel's feature needed to count (None: no metamodel R^2 in the
-    #: table, i.e. the direct route, or indices written before it was recorded)
-    min_r2: float | None = None
-    #: metamodel features left out for their fit ("condition quantity statistic")
-    unfitted: list[str] = field(default_factory=list)
-
-    def to_dict(self) -> dict:
-        return {
-            "keys": self.keys,
-            "threshold": self.threshold,
-            "statistics": list(self.statistics),
-            "max_keys": self.max_keys,
-            "min_cv": self.min_cv,
-            "min_r2": self.min_r2,
-            "max_st": self.max_st,
-            "where": self.where,
-            "ignored_features": self.ignored,
-            "unfitted_features": self.unfitted,
-            "rule": self.rule(),
-        }
-
-    def rule(self) -> str:
-        fit = "" if self.min_r2 is None else FIT_TEXT.format(r2=self.min_r2)
-        return RULE_TEXT.format(
-            t=self.threshold, s="/".join(self.statistics), k=self.max_keys, cv=self.min_cv, fit=fit
-        )
-
-
-RULE_TEXT = (
-    "a parameter is key when its total Sobol index ST >= {t} for the lateral (Y) or "
-    "vertical (Q) force {s} of the measured wheel in any condition; features varying "
-    "by less than {cv:.1%} (coefficient of variation) over the campaign are ignored, "
-    "whatever their Sobol split;{fit} at most {k} are kept, ranked by their largest ST"
-)
-#: the rule's clause on metamodel fits (metamodel route only)
-FIT_TEXT = (
-    " so are features whose Gaussian-process metamodel scores a held-out R^2 below {r2:g}, "
-    "or none (its indices split the variance of a fit that does not explain the feature);"
-)
-
-
-def select_key_parameters(
-    indices: pd.DataFrame,
-    threshold: float = 0.05,
-    statistics: str | Sequence[str] = ("mean", "p99"),
-    max_keys: int = 6,
-    quantities: Sequence[str] = ("Y", "Q"),
-    min_cv: float = 0.005,
-    min_r2: float = MIN_METAMODEL_R2,
-) -> KeySelection:
-    """Apply the key-parameter rule (see RULE_TEXT) to a table of Sobol indices.
-
-    The coefficient-of-variation guard matters: the mean vertical force on tangent track is
-    the static wheel load whatever the suspension (CV 0.1 %), so its Sobol indices split a
-    negligible variance and say nothing a calibration could use. So does the fit guard on
-    the metamodel route (rows of method ``metamodel`` with an ``r2_holdout`` column): Sobol
-    indices of a Gaussian-process mean are normalised by that mean's variance, so a feature
-    the process cannot explain (held-out R^2 below ``min_r2``, or NaN: not scored) gives
-    total indices summing to about 1 all the same; such features are left out with a
-    warning, and where none is left the selection is refused rather than made from noise.
-    """
-    stats = (statistics,) if isinstance(statistics, str) else tuple(statistics)
-    # one row per label: idxmax's labels are read back with .loc, which on a repeated index
-    # (tables concatenated without ignore_index) returned every row of the label
-    sel = indices[indices.statistic.isin(stats) & indices.quantity.isin(quantities)]
-    sel = sel.reset_index(drop=True)
-    if sel.empty:
-        raise ValueError(f"no indices for statistics {stats} and quantities {tuple(quantities)}")
-    cv = sel["cv"] if "cv" in sel else pd.Series(np.inf, index=sel.index)
-    flat = sel[cv < min_cv]
-    ignored = sorted(
-        {
-            f"{c} {q} {s}"
-            for c, q, s in zip(flat.condition, flat.quantity, flat.statistic, strict=True)
-        }
-    )
-    sel = sel[cv >= min_cv]
-    if sel.empty:
-        raise ValueError(f"every feature varies by less than {min_cv:.1%}: nothing to rank")
-    scored = "r2_holdout" in sel and "method" in sel and (sel["method"] == "metamodel").any()
-    unfitted: list[str] = []
-    if scored:
-        r2 = sel["r2_holdout"].astype(float)
-        poor = (sel["method"] == "metamodel") & ~(r2 >= min_r2)  # NaN: not scored
-        bad = sel[poor].drop_duplicates(["condition", "quantity", "statistic"])
-        unfitted = sorted(
-            f"{c} {q} {s}"
-            for c, q, s in zip(bad.condition, bad.quantity, bad.statistic, strict=True)
-        )
-        told = ", ".join(
-            f"{c} {q} {s} ({'not scored' if np.isnan(v) else f'{v:.2f}'})"
-            for c, q, s, v in zip(
-                bad.condition, bad.quantity, bad.statistic, bad.r2_holdout, strict=True
-            )
-        )
-        sel = sel[~poor]
-        if sel.empty:
-            raise ValueError(
-                f"no feature's Gaussian-process metamodel fits (held-out R^2 >= {min_r2:g}; "
-                f"got {told}): their Sobol indices would pick key parameters from noise; a "
-                "campaign of more samples, or on one track realisation (common random "
-                "numbers), fits them"
-            )
-        if unfitted:
-            warnings.warn(
-                f"left out of the key rule, their metamodel's held-out R^2 below {min_r2:g}: "
-                f"{told}",
-                stacklevel=2,
-            )
-    best = sel.loc[sel.groupby("parameter")["ST"].idxmax()]
-    best = best.sort_values("ST", ascending=False)
-    keys = [p for p, st in zip(best.parameter, best.ST, strict=True) if st >= threshold]
-    keys = keys[:max_keys]
-    order = {p: i for i, p in enumerate(indices.parameter.unique())}
-    keys.sort(key=lambda p: order[p])
-    return KeySelection(
-        keys=keys,
-        threshold=threshold,
-        statistics=stats,
-        max_keys=max_keys,
-        min_cv=min_cv,
-        max_st={p: float(s) for p, s in zip(best.parameter, best.ST, strict=True)},
-        where={
-            p: f"{c} {q} {s}"
-            for p, c, q, s in zip(
-                best.parameter, best.condition, best.quantity, best.statistic, strict=True
-            )
-        },
-        ignored=ignored,
-        min_r2=min_r2 if scored else None,
-        unfitted=unfitted,
-    )
-
-
-def study_comparison(selection: KeySelection) -> pd.DataFrame:
-    """Our ranking beside the study's key parameters (lateral X14 X15 X16 X18; vertical X13
-    X15 X17)."""
-    rows = []
-    ranked = sorted(selection.max_st, key=lambda p: -selection.max_st[p])
-    for rank, p in enumerate(ranked, start=1):
-        rows.append(
-            {
-                "parameter": p,
-                "our_rank": rank,
-                "our_max_ST": selection.max_st[p],
-                "where": selection.where[p],
-                "ours_key": p in selection.keys,
-                "study_lateral": p in KEY_LATERAL,
-                "study_vertical": p in KEY_VERTICAL,
-            }
-        )
-    return pd.DataFrame(rows)
 
 
 def agreement(a: pd.DataFrame, b: pd.DataFrame) -> pd.DataFrame:

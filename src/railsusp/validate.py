@@ -375,7 +375,7 @@ def max_st(path: str | Path) -> dict[str, float]:
     a sensitivity folder or its ``key_parameters.json`` (as that run's rule read them), or
     from ``indices.parquet`` with the rule's defaults (its statistics, flat features left
     out: the largest over every feature gave another verdict than the pipeline's)."""
-    from railsusp.sensitivity import select_key_parameters
+    from railsusp.key_parameters import select_key_parameters
 
     path = Path(path)
     if path.is_dir():
