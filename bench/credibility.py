@@ -38,10 +38,10 @@ from railsusp.conditions import STANDARD_CONDITIONS
 from railsusp.params import ParameterSet
 from railsusp.store import write_json
 from railsusp.study import TABLE8_BEFORE
-from railsusp.vehicle.setup import section_irregularities
 from railsusp.vehicle.simulate import WHEEL_NAMES, simulate_batch
 from railsusp.vehicle.track import COMPONENTS
 from railsusp.vehicle.track_geometry import write_track_geometry
+from railsusp.vehicle.track_grid import section_irregularities
 from railsusp.vehicle.wagon import WagonData, load_wagon
 
 #: the study's statistic (docs/model.md, "Which statistic Table 8 gives")

@@ -6,9 +6,9 @@ import pytest
 
 from conftest import bench_script
 from railsusp.conditions import STANDARD_CONDITIONS
-from railsusp.vehicle.setup import section_irregularities
 from railsusp.vehicle.track import COMPONENTS
 from railsusp.vehicle.track_geometry import read_track_geometry
+from railsusp.vehicle.track_grid import section_irregularities
 from railsusp.vehicle.wagon import load_wagon
 
 

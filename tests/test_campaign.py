@@ -382,8 +382,8 @@ def test_a_track_geometry_file_edited_in_place_is_not_resumed_into(tmp_path):
     stop 60): it is refused now, and --force simulates the edited track."""
     import pandas as pd
 
-    from railsusp.vehicle.setup import section_irregularities
     from railsusp.vehicle.track_geometry import write_track_geometry
+    from railsusp.vehicle.track_grid import section_irregularities
     from railsusp.vehicle.wagon import load_wagon
 
     base = TINY[0]

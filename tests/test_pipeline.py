@@ -564,8 +564,8 @@ def test_the_stage_hashes_follow_the_conditions_as_simulated(tmp_path, monkeypat
     from railsusp import conditions as conditions_module
     from railsusp.conditions import get_condition
     from railsusp.pipeline import _section
-    from railsusp.vehicle.setup import section_irregularities
     from railsusp.vehicle.track_geometry import write_track_geometry
+    from railsusp.vehicle.track_grid import section_irregularities
     from railsusp.vehicle.wagon import load_wagon
 
     base = get_condition("straight", duration_s=1.0, n_steps=50, lead_in_m=20.0)

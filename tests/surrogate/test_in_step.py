@@ -29,8 +29,8 @@ from railsusp.surrogate.bundle import Surrogate
 from railsusp.surrogate.data import FeatureSpec, Normaliser
 from railsusp.surrogate.in_step import in_step_key, predict_in_step
 from railsusp.surrogate.models import NetConfig, build_network
-from railsusp.vehicle.setup import section_irregularities
 from railsusp.vehicle.track_geometry import write_track_geometry
+from railsusp.vehicle.track_grid import section_irregularities
 from railsusp.vehicle.wagon import load_wagon
 
 KEYS = ("X13", "X14", "X15", "X16", "X17", "X18")

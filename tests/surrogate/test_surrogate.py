@@ -247,8 +247,8 @@ def test_predict_on_a_measured_track_and_another_record_length(trained, tmp_path
     it predicts what it predicts there; on another seed's geometry, something else; and a
     longer record gives a longer series."""
     from railsusp.params import bounds
-    from railsusp.vehicle.setup import section_irregularities
     from railsusp.vehicle.track_geometry import write_track_geometry
+    from railsusp.vehicle.track_grid import section_irregularities
 
     _, path = trained
     sur = load(path)

@@ -94,8 +94,9 @@ def test_the_kink_reaches_the_wheels_at_its_full_size(tmp_path):
     from rest: the wheels met 2.8 mm of the 10 mm. The kink run's lead-in now holds the
     fade."""
     from railsusp.vehicle import layout as L
-    from railsusp.vehicle.setup import SolverSettings, axle_spread, track_arrays
+    from railsusp.vehicle.setup import SolverSettings, axle_spread
     from railsusp.vehicle.stability import kink_condition
+    from railsusp.vehicle.track_grid import track_arrays
 
     wagon = load_wagon()
     geo = write_kink_geometry(tmp_path / "k.csv", 300.0, axle_spread(wagon), 0.010)

@@ -161,7 +161,8 @@ def test_short_wavelengths_are_not_folded_onto_the_track_grid():
     (the wavelengths below 0.25 m folded onto it). The default 1 m keeps the 0.125 m grid."""
     from railsusp.conditions import WorkingCondition
     from railsusp.vehicle import layout as L
-    from railsusp.vehicle.setup import SolverSettings, section_irregularities, track_arrays
+    from railsusp.vehicle.setup import SolverSettings
+    from railsusp.vehicle.track_grid import section_irregularities, track_arrays
     from railsusp.vehicle.wagon import load_wagon
 
     wagon, settings = load_wagon(), SolverSettings()

@@ -7,7 +7,7 @@ import pytest
 from railsusp.conditions import get_condition
 from railsusp.errors import ConditionError, RailsuspInputError
 from railsusp.params import ParameterSet
-from railsusp.vehicle.setup import axle_spread, section_irregularities
+from railsusp.vehicle.setup import axle_spread
 from railsusp.vehicle.simulate import simulate
 from railsusp.vehicle.track import COMPONENTS, synthesise
 from railsusp.vehicle.track_geometry import (
@@ -16,6 +16,7 @@ from railsusp.vehicle.track_geometry import (
     same_measured_track,
     write_track_geometry,
 )
+from railsusp.vehicle.track_grid import section_irregularities
 from railsusp.vehicle.wagon import load_wagon
 
 COND = get_condition("straight", duration_s=2.0, n_steps=100, lead_in_m=20.0)

@@ -239,7 +239,7 @@ def _track_of(cond: WorkingCondition, wagon: Any) -> Irregularities:
     coordinates: its ``track_geometry`` file as read (the file's distances moved by
     ``track_offset_m``; not faded in, as the simulation's copy is), else the condition's
     synthesised realisation."""
-    from railsusp.vehicle.setup import section_irregularities
+    from railsusp.vehicle.track_grid import section_irregularities
 
     if cond.track_geometry is not None:
         irr = read_track_geometry(cond.track_geometry)

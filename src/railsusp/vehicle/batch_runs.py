@@ -27,8 +27,9 @@ from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.settle import StartPlan, lead_in_plan, settled_states, start_plan
-from railsusp.vehicle.setup import ContactArrays, SolverSettings, constants, track_arrays
+from railsusp.vehicle.setup import ContactArrays, SolverSettings, constants
 from railsusp.vehicle.step_bound import set_steps
+from railsusp.vehicle.track_grid import track_arrays
 from railsusp.vehicle.wagon import WagonData
 
 

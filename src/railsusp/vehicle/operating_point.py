@@ -15,7 +15,8 @@ from railsusp.conditions import WorkingCondition, make_condition
 from railsusp.params import ParameterSet
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.model import rhs as model_rhs
-from railsusp.vehicle.setup import SolverSettings, constants, contact_arrays, track_arrays
+from railsusp.vehicle.setup import SolverSettings, constants, contact_arrays
+from railsusp.vehicle.track_grid import track_arrays
 from railsusp.vehicle.wagon import WagonData, load_wagon
 
 Friction = Literal["stuck", "sliding"]

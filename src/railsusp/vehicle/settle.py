@@ -77,7 +77,7 @@ class StartPlan:
     ``s_start``: leading wheelset's track position at the start, m; ``n_pre``: internal
     steps before the record; ``settled``: start from the settled state (else at rest at
     s = 0, the lead-in); ``uniform_before`` and ``fade_in``: the track changes of a settled
-    start (:func:`railsusp.vehicle.setup.track_arrays`).
+    start (:func:`railsusp.vehicle.track_grid.track_arrays`).
     """
 
     s_start: float
@@ -88,7 +88,7 @@ class StartPlan:
 
     @property
     def track_options(self) -> dict:
-        """Keyword arguments of :func:`railsusp.vehicle.setup.track_arrays`."""
+        """Keyword arguments of :func:`railsusp.vehicle.track_grid.track_arrays`."""
         return {"uniform_before": self.uniform_before, "fade_in": self.fade_in}
 
 

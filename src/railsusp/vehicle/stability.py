@@ -25,8 +25,9 @@ import pandas as pd
 
 from railsusp.conditions import WorkingCondition
 from railsusp.params import ParameterSet
-from railsusp.vehicle.setup import FADE_IN_M, SolverSettings, axle_spread
+from railsusp.vehicle.setup import SolverSettings, axle_spread
 from railsusp.vehicle.simulate import simulate
+from railsusp.vehicle.track_grid import FADE_IN_M
 from railsusp.vehicle.wagon import WagonData
 
 #: the kink: a one-wave (1 - cos) lateral alignment bump, both rails, m

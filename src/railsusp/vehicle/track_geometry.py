@@ -45,7 +45,7 @@ MAX_TRACK_SPACING_M = 0.5
 #: measured geometry is faded in over this length where it starts inside the simulated span, m
 TRACK_TAPER_M = 10.0
 #: a condition on measured geometry needs a lead-in of the axle spread plus this, m: the
-#: simulator's fade-in from rest (vehicle.setup.MIN_FADE_IN_M) ends before the record
+#: simulator's fade-in from rest (vehicle.track_grid.MIN_FADE_IN_M) ends before the record
 MIN_LEAD_IN_BEYOND_SPREAD_M = 5.0
 
 

@@ -1,6 +1,6 @@
 """Compiled look-up of the track arrays at a body's distance along the track.
 
-The simulator's track arrays (:func:`railsusp.vehicle.setup.track_arrays`) hold, per channel
+The simulator's track arrays (:func:`railsusp.vehicle.track_grid.track_arrays`) hold, per channel
 (layout ``TR_*``: curvature, cant, heading, lateral position, rail irregularities), samples
 on a uniform grid s0 + i ds. A body reads several channels at one distance, so the grid cell
 is found once (:func:`track_point`) and every channel interpolated in it. Outside the grid
