@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from railsusp.conditions import resolve_conditions
+from railsusp.condition_files import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate import posterior
 from railsusp.estimate.calibration import LEVEL

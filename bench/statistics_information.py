@@ -56,7 +56,7 @@ from information_estimate import (
     widths_alone_pct,
     widths_pct,
 )
-from railsusp.conditions import resolve_conditions
+from railsusp.condition_files import resolve_conditions
 from railsusp.estimate.posterior_data import BANDWIDTH_HZ, GAIN_ERROR, to_si
 from railsusp.measured.synthetic import bandwidth_filter
 from railsusp.params import MAIN_SUSPENSION

@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from conftest import bench_script
-from railsusp.conditions import resolve_conditions
+from railsusp.condition_files import resolve_conditions
 from railsusp.estimate.posterior_fusion import logistic_prior
 from railsusp.estimate.posterior_settings import PosteriorSettings
 

@@ -2,14 +2,8 @@
 
 import pytest
 
-from railsusp.conditions import (
-    STANDARD_CONDITIONS,
-    WorkingCondition,
-    get_condition,
-    load_conditions,
-    make_condition,
-    resolve_conditions,
-)
+from railsusp.condition_files import load_conditions, resolve_conditions
+from railsusp.conditions import STANDARD_CONDITIONS, WorkingCondition, get_condition, make_condition
 from railsusp.errors import ConditionError
 
 
@@ -143,7 +137,7 @@ def test_track_accuracy_needs_a_track_file_and_keeps_old_dumps():
 def test_a_named_condition_table_with_another_name_is_refused(tmp_path):
     """``[condition.fast]`` holding ``name = "slow"`` became "slow" without a word (the
     command-line audit of stop 60)."""
-    from railsusp.conditions import load_conditions
+    from railsusp.condition_files import load_conditions
 
     path = tmp_path / "c.toml"
     path.write_text('[condition.fast]\nbase = "straight"\nname = "slow"\n')

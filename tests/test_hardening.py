@@ -15,7 +15,8 @@ import pytest
 from typer.testing import CliRunner
 
 from railsusp.cli import app
-from railsusp.conditions import load_conditions, make_condition
+from railsusp.condition_files import load_conditions
+from railsusp.conditions import make_condition
 from railsusp.errors import ConditionError, ParameterError, RailsuspInputError
 from railsusp.params import ParameterSet, parse_overrides
 

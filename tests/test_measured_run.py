@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 from asammdf import MDF, Signal
 
-from railsusp.conditions import load_conditions
+from railsusp.condition_files import load_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.measured import RecordingError, read_field
 from railsusp.measured.channels import channel_map_from, read_channel_map

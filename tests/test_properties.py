@@ -13,7 +13,8 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from railsusp.conditions import WorkingCondition, load_conditions
+from railsusp.condition_files import load_conditions
+from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.pipeline import PipelineConfig, load_config
 

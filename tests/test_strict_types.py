@@ -11,7 +11,8 @@ import pytest
 from typer.testing import CliRunner
 
 from railsusp.cli import app
-from railsusp.conditions import ConditionError, WorkingCondition, load_conditions
+from railsusp.condition_files import load_conditions
+from railsusp.conditions import ConditionError, WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.pipeline import load_config
 from railsusp.vehicle.wagon import load_wagon

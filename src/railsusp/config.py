@@ -102,7 +102,7 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
     """Check a validated :class:`~railsusp.pipeline_config.PipelineConfig` as a whole; raise
     :class:`ConfigError` (one line, naming the field) at the first thing that would make a
     stage fail."""
-    from railsusp.conditions import check_track_file
+    from railsusp.condition_files import check_track_file
     from railsusp.params import ParameterSet, spec
     from railsusp.vehicle.wagon import load_wagon
 

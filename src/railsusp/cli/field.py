@@ -10,7 +10,7 @@ import typer
 from rich.table import Table
 
 from railsusp.cli.common import WagonOption, app, console, fail
-from railsusp.conditions import resolve_conditions
+from railsusp.condition_files import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet, parse_overrides
 

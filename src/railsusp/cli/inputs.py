@@ -10,12 +10,8 @@ import typer
 from rich.table import Table
 
 from railsusp.cli.common import app, console, fail
-from railsusp.conditions import (
-    STANDARD_CONDITIONS,
-    WorkingCondition,
-    make_condition,
-    resolve_conditions,
-)
+from railsusp.condition_files import resolve_conditions
+from railsusp.conditions import STANDARD_CONDITIONS, WorkingCondition, make_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.input_checks import check_figure_file
 from railsusp.params import CATALOGUE, ParameterSet, parse_overrides

@@ -208,7 +208,7 @@ def train_command(
 ) -> None:
     """Train the posterior estimator on simulations from the prior (cached: a re-run
     resumes) and check its calibration on held-out simulations."""
-    from railsusp.conditions import resolve_conditions
+    from railsusp.condition_files import resolve_conditions
     from railsusp.estimate import posterior
     from railsusp.estimate.posterior_settings import PosteriorSettings
     from railsusp.input_checks import check_output_folder

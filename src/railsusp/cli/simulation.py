@@ -18,7 +18,7 @@ from railsusp.cli.common import (
     fail,
     show_progress,
 )
-from railsusp.conditions import resolve_conditions
+from railsusp.condition_files import resolve_conditions
 from railsusp.errors import RailsuspInputError, repeated_names
 from railsusp.input_checks import check_figure_file, check_output_file
 from railsusp.params import ParameterSet, parse_overrides

@@ -458,11 +458,11 @@ def conditions_from(
     spec: str, *, wagon: str | Path | WagonData | None = None
 ) -> list[WorkingCondition]:
     """Conditions named by ``spec``: standard names or a TOML file (as
-    :func:`~railsusp.conditions.resolve_conditions`), or a field folder (``index.json``), whose
+    :func:`~railsusp.condition_files.resolve_conditions`), or a field folder (``index.json``), whose
     recordings' conditions are taken with their measured track geometry, so that a campaign
     can run on the track the recordings were made on; read as recordings of ``wagon``
     (:func:`read_field`; the wagon the campaign simulates)."""
-    from railsusp.conditions import resolve_conditions
+    from railsusp.condition_files import resolve_conditions
 
     folder = Path(spec)
     if folder.is_dir():
