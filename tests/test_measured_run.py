@@ -276,7 +276,10 @@ def test_a_line_description_gives_the_same_track_as_the_channels(tmp_path):
     assert [s.kind for s in secs][:3] == ["tangent", "curve R400", "tangent"]
     assert secs[1].direction == "right" and secs[1].cant_mm == pytest.approx(90.0)
     line.write_text("km_start,km_end,radius_m,cant_mm,grade_permille\n1,0.5,,0,0\n")
-    with pytest.raises(RailsuspInputError, match="row 2: km_end <= km_start"):
+    with pytest.raises(
+        RailsuspInputError,
+        match="row 2: km_end = 0.5 is not above km_start = 1: accepted km_end > km_start",
+    ):
         read_line(line)
 
 
@@ -289,7 +292,7 @@ def test_a_line_description_gives_the_same_track_as_the_channels(tmp_path):
         ("0,0.5,400,left,900,0", "cant_mm = 900: accepted 0 to 200"),
         ("0,0.5,,left,0,120", "grade_permille = 120: accepted -40 to 40"),
         ("0,nan,,left,0,0", "km_end = 'nan' not a number"),  # nan: read, refused
-        ("0,,,left,0,0", "km_end = nan (or empty): a number is needed"),
+        ("0,,,left,0,0", "km_end = nan (or empty): accepted a finite number in every row"),
     ],
 )
 def test_a_line_description_outside_what_a_condition_takes_is_refused(tmp_path, row, needle):
@@ -311,7 +314,9 @@ def test_a_section_table_needs_both_ends_in_every_row(tmp_path):
     with pytest.raises(RailsuspInputError, match=r"row 2: end_m = 'nan' not a number"):
         read_section_table(table)
     table.write_text("start_m,end_m\n50,\n")
-    with pytest.raises(RailsuspInputError, match=r"row 2: end_m = nan \(or empty\): a number"):
+    with pytest.raises(
+        RailsuspInputError, match=r"row 2: end_m = nan \(or empty\): accepted a finite"
+    ):
         read_section_table(table)
     table.write_text("start_m,end_m\n,500\n")
     with pytest.raises(RailsuspInputError, match="row 2: start_m = nan"):

@@ -265,7 +265,9 @@ def example_recording(
 
     try:
         if out.exists() and not out.is_dir():
-            raise RailsuspInputError(f"--out {out}: exists and is not a folder")
+            raise RailsuspInputError(
+                f"--out {out}: a file, not a folder; accepted a new folder or an existing one"
+            )
         data = resources.files("railsusp") / "data"
         # a file there that is not the shipped one (the tutorial has the user edit the
         # configuration) is not written over: it was, silently (command-line audit, stop 60)

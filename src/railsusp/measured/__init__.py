@@ -7,6 +7,8 @@
   :mod:`~railsusp.measured.channels`, :mod:`~railsusp.measured.run`: long runs as the
   measurement system wrote them (ASAM MDF4, CSV, Parquet) read through a channel map;
 - :mod:`~railsusp.measured.checks`: the checks every recording passes;
+- :mod:`~railsusp.measured.breaks`: where a long run breaks (dropouts, NaN gaps longer than
+  those interpolated, jumps of the distance channel), no section spanning one;
 - :mod:`~railsusp.measured.track_kinds`, :mod:`~railsusp.measured.pieces`,
   :mod:`~railsusp.measured.sections`: a run's track per sample, a stretch cut into pieces
   kept or left out with their reasons, and the run cut into sections of one condition each;

@@ -9,6 +9,7 @@ cant = "cant_track"           # optional
 grade = "grade_track"         # optional: + up-grade
 time = "t"                    # tables only: the time column (MDF4: the file's time base)
 ignore = ["acc_bogie_y_g"]    # channels recorded but not used
+recording = "run_0503.mf4"    # optional: the run the map is for (another file is refused)
 
 [wheels.w1R]
 Y = "WS1_Y_R"
@@ -18,6 +19,12 @@ Y_sign = -1                   # optional: this Y channel is + towards the track 
 [units]                       # only for channels whose file states no unit
 s_line = "m"
 ```
+
+A map that names its ``recording`` is for that file only: a run of another name read
+through it is refused, naming both (:func:`check_recording_name`): a map written for one
+run, its channels renamed after a logger's reconfiguration, read another day's run
+unnoticed where the names still matched. A map for every run of a measuring system names
+none.
 
 A file without a map is read through the documented column names (``Y_w1R_kN``,
 ``speed_kmh``, ...), which :func:`default_map` turns into a map.
@@ -30,6 +37,7 @@ channel as it is read, rather than the user rewriting the file.
 
 from __future__ import annotations
 
+import os
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -132,6 +140,8 @@ def channel_map_from(doc: dict, source: str = "channel map") -> ChannelMap:
     for key in ("time", "recording"):
         if key in doc and not isinstance(doc[key], str):
             raise bad(f"{key}: text is needed")
+    if doc.get("recording") == "":
+        raise bad("recording = '': accepted the run's file name, or no recording key (any run)")
     used = [c for w in wheels.values() for c in w.values()] + list(signals.values())
     twice = repeated(used)
     if twice:
@@ -148,6 +158,26 @@ def channel_map_from(doc: dict, source: str = "channel map") -> ChannelMap:
         doc.get("recording"),
         source,
         y_signs,
+    )
+
+
+def check_recording_name(cmap: ChannelMap, path: str | Path) -> None:
+    """Refuse reading ``path`` through a map whose ``recording`` names another file: the
+    file's path must end with the map's name of it (a name alone matches the file's name
+    in any folder; ``day1/run.mf4`` the file ``run.mf4`` in a folder ``day1``), case
+    aside (a file system may ignore it). A map without ``recording`` takes any file."""
+    if cmap.recording is None:
+        return
+    named = [p.casefold() for p in cmap.recording.replace("\\", "/").split("/")]
+    named = [p for p in named if p not in ("", ".")]
+    # the path as given (a link's own name) or the file it leads to, either matches
+    for candidate in (Path(os.path.abspath(path)), Path(path).resolve()):
+        if named and [p.casefold() for p in candidate.parts[-len(named) :]] == named:
+            return
+    raise RailsuspInputError(
+        f"{cmap.source}: recording = {cmap.recording!r}, but the file read through it is "
+        f"{Path(path).name!r} ({path}); accepted the recording the map names, or a map "
+        "without recording (one map for every run of a measuring system)"
     )
 
 

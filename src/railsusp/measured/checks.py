@@ -3,7 +3,8 @@ channel and the row range (file lines for tables, sample indices for MDF), so th
 recording is refused with every reason at once, never silently repaired.
 
 - non-finite values: ±inf (a sensor overflow) is refused; NaN gaps up to ``gap_limit``
-  samples are interpolated with a note, longer ones refused;
+  samples are interpolated with a note, longer ones refused in a recording to estimate
+  from (one stretch) and left for the caller in a long run, which is cut at them;
 - constant and all-zero channels (a dead bridge, an unplugged amplifier);
 - the time base: not strictly increasing, jitter of the sampling interval, mixed rates;
 - magnitudes: the median wheel load Q against the static wheel load of the wagon data (a
@@ -50,9 +51,18 @@ def runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def check_finite(
-    x: np.ndarray, channel: str, first_row: int | np.ndarray, gap_limit: int = MAX_GAP_SAMPLES
+    x: np.ndarray,
+    channel: str,
+    first_row: int | np.ndarray,
+    gap_limit: int = MAX_GAP_SAMPLES,
+    *,
+    keep_long: bool = False,
 ) -> tuple[np.ndarray, list[str], list[str]]:
-    """(values with short NaN gaps interpolated, problems, notes)."""
+    """(values with short NaN gaps interpolated, problems, notes). A gap longer than
+    ``gap_limit`` samples is refused (a recording to estimate from is one stretch); with
+    ``keep_long`` it stays NaN in the values, neither refused nor noted: a long run is cut
+    there (:func:`railsusp.measured.breaks.nan_gap_breaks`) instead of being refused
+    whole for one stretch an amplifier saturated or a logger marked invalid."""
     problems: list[str] = []
     inf = np.isinf(x)
     for s, e in runs(inf)[:3]:
@@ -61,16 +71,22 @@ def check_finite(
     if nan.all():
         return x, [f"channel {channel!r}: no finite value"], []
     long = [(s, e) for s, e in runs(nan) if e - s > gap_limit]
-    for s, e in long[:3]:
+    for s, e in [] if keep_long else long[:3]:
         problems.append(
             f"channel {channel!r}, {rows(s, e - 1, first_row)}: gap of {e - s} missing "
-            f"samples, more than the {gap_limit} that are interpolated"
+            f"samples, more than the {gap_limit} that are interpolated (a recording is one "
+            "stretch; railsusp sections cuts a long run at such a gap)"
         )
-    if problems or not nan.any():
+    short = nan.copy()
+    for s, e in long:
+        short[s:e] = False
+    if problems or not short.any():
         return x, problems, []
     idx = np.arange(x.size)
-    note = f"channel {channel!r}: {int(nan.sum())} missing sample(s) interpolated"
-    return np.interp(idx, idx[~nan], x[~nan]), [], [note]
+    out = np.interp(idx, idx[~nan], x[~nan])
+    out[nan & ~short] = np.nan  # the long gaps (keep_long): the caller cuts the run there
+    note = f"channel {channel!r}: {int(short.sum())} missing sample(s) interpolated"
+    return out, [], [note]
 
 
 def check_flat(x: np.ndarray, channel: str) -> list[str]:

@@ -6,7 +6,9 @@ kept sections' working conditions, and the field folder written from them.
 recording = ...`` does them here, so that the campaign knows the sections' conditions
 before the field stage writes their recordings. The cut is cached per file state (path,
 size, modification time) and rules: the configuration check, the stage hashes and the
-stages all ask for it.
+field stage ask for it. One cut is kept (a 2 h run at 1 kHz is about 0.5 GB), and none
+once the field stage has written it: the sections' conditions, which the later stages
+ask for, are cached on their own (a few kB).
 """
 
 from __future__ import annotations
@@ -73,8 +75,10 @@ def cut_run(source: RunSource) -> tuple[MeasuredRun, list[Section]]:
     return _cut(source, source.state())
 
 
-@lru_cache(maxsize=4)
+@lru_cache(maxsize=1)
 def _cut(source: RunSource, _state: tuple) -> tuple[MeasuredRun, list[Section]]:
+    """The cut of ``source`` at file state ``_state`` (the cache's key). One is kept: four
+    kept a pipeline's 2 h runs alive, 0.5 GB each, for the pipeline's life."""
     cmap = read_channel_map(source.channel_map) if source.channel_map else None
     run = read_run(
         source.recording, cmap, min_rate_hz=source.rate_hz, wheel_load_N=source.wheel_load_N
@@ -94,8 +98,16 @@ def _cut(source: RunSource, _state: tuple) -> tuple[MeasuredRun, list[Section]]:
 def section_conditions(source: RunSource) -> list[WorkingCondition]:
     """The working conditions of the kept sections, as the field folder will state them
     (duration of the section resampled to the source's rate)."""
+    return list(_conditions(source, source.state()))
+
+
+@lru_cache(maxsize=8)
+def _conditions(source: RunSource, _state: tuple) -> tuple[WorkingCondition, ...]:
+    """The kept sections' conditions of ``source`` at file state ``_state``: cached apart
+    from the cut, so that the stages after the field stage, which ask for them again, do not
+    read the run again once its cut is let go (:func:`write_run_field`)."""
     run, secs = cut_run(source)
-    return [section_recording(run, s, source.rate_hz).condition for s in secs if s.kept]
+    return tuple(section_recording(run, s, source.rate_hz).condition for s in secs if s.kept)
 
 
 def write_run_field(source: RunSource, out: str | Path, final: str | Path | None = None) -> Path:
@@ -103,7 +115,9 @@ def write_run_field(source: RunSource, out: str | Path, final: str | Path | None
     --write``: recordings, ``index.json``, ``sections.csv``, ``en14363.csv``, ...);
     ``final``: where the folder will live when ``out`` is a temporary one. The run's notes
     (NaN gaps interpolated, channels interpolated onto the forces' rate) are warned of, as
-    ``railsusp check-recording`` prints them: the pipeline's field stage said nothing."""
+    ``railsusp check-recording`` prints them: the pipeline's field stage said nothing.
+    The cut is let go afterwards (the pipeline needs only its conditions from here on,
+    cached apart: :func:`section_conditions`), not kept alive for the pipeline's life."""
     run, secs = cut_run(source)
     for note in run.notes:
         text = f"{Path(source.recording).name}: {note}"
@@ -111,4 +125,9 @@ def write_run_field(source: RunSource, out: str | Path, final: str | Path | None
             warnings.warn(text, stacklevel=2)
         else:  # how the channels were read: a note, as check-recording says it
             log.info("note: %s", text)
-    return write_sections(run, secs, out, source.rate_hz, final)
+    try:
+        folder = write_sections(run, secs, out, source.rate_hz, final)
+        section_conditions(source)  # cached now (already, where the pipeline asked before)
+        return folder
+    finally:
+        _cut.cache_clear()

@@ -176,8 +176,9 @@ def _check_ranges(df: pd.DataFrame, ends: tuple[str, str], what: str, shown: str
     if (ends_all <= starts_all).any():
         i = int(np.flatnonzero(ends_all <= starts_all)[0])
         raise RailsuspInputError(
-            f"{what}, row {i + 2}: {last} <= {first} ({ends_all[i]:g} <= {starts_all[i]:g}); "
-            f"accepted {last} above {first}"
+            f"{what}, row {i + 2}: {last} = {ends_all[i]:g} is not above {first} = "
+            f"{starts_all[i]:g}: accepted {last} > {first} (a row from its lower position to "
+            "its higher one, also for a run towards falling ones)"
         )
     order = np.argsort(starts_all, kind="stable")
     starts, stops = starts_all[order], ends_all[order]
@@ -205,22 +206,32 @@ def _read_csv(
         raise RailsuspInputError(f"{path}: cannot read the table ({exc})") from None
     missing = [c for c in need if c not in df.columns]
     if missing or df.empty:
-        raise RailsuspInputError(f"{path}: columns {need} with at least one row needed")
+        lack = f"no column {', '.join(missing)}" if missing else "no rows"
+        raise RailsuspInputError(
+            f"{what}: {lack}; accepted a table with the columns {', '.join(need)} and at "
+            "least one row"
+        )
     for c in [*need, *(c for c in optional or [] if c in df.columns)]:
         vals = pd.to_numeric(df[c], errors="coerce")
+        accepted = "a finite number" + ("" if c in ENDS else ", or an empty cell")
         bad = vals.isna() & df[c].notna()
         if bad.any():
             i = int(np.flatnonzero(bad.to_numpy())[0])
-            raise RailsuspInputError(f"{what}, row {i + 2}: {c} = {df[c].iloc[i]!r} not a number")
+            raise RailsuspInputError(
+                f"{what}, row {i + 2}: {c} = {df[c].iloc[i]!r} not a number: accepted {accepted}"
+            )
         infinite = df[c].notna() & ~np.isfinite(vals.astype(float))
         if infinite.any():  # "nan", "inf": read as an empty cell (a tangent, level track)
             i = int(np.flatnonzero(infinite.to_numpy())[0])
             raise RailsuspInputError(
-                f"{what}, row {i + 2}: {c} = {df[c].iloc[i]}: accepted a finite number, or "
-                "an empty cell"
+                f"{what}, row {i + 2}: {c} = {df[c].iloc[i]}: accepted {accepted}"
             )
         df[c] = vals.astype(float)
     return df
+
+
+#: the columns of a row's ends, which every row must give (an empty cell is refused)
+ENDS = ("km_start", "km_end", "start_m", "end_m")
 
 
 def _need_values(df: pd.DataFrame, columns: list[str], what: str) -> None:
@@ -233,4 +244,7 @@ def _need_values(df: pd.DataFrame, columns: list[str], what: str) -> None:
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
             shown = "nan (or empty)" if np.isnan(vals[i]) else f"{vals[i]:g}"
-            raise RailsuspInputError(f"{what}, row {i + 2}: {c} = {shown}: a number is needed")
+            raise RailsuspInputError(
+                f"{what}, row {i + 2}: {c} = {shown}: accepted a finite number in every row "
+                "(a row's two ends)"
+            )

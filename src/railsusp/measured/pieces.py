@@ -249,6 +249,20 @@ def _tolerance_end(v: np.ndarray, i: int, b: int, tolerance: float) -> int:
     return b
 
 
+def _in_gaps(run: MeasuredRun, i: int, j: int) -> str:
+    """The channels (quoted, comma-separated) of the run's NaN gaps that cover most of
+    samples i..j, or "" (a break at either end of each gap: a piece is in one or out)."""
+    if j <= i or not run.gaps:
+        return ""
+    covered = np.zeros(j - i, dtype=bool)
+    names: dict[str, None] = {}
+    for a, b, channel in run.gaps:
+        if a < j and b > i:
+            covered[max(a, i) - i : min(b, j) - i] = True
+            names[channel] = None
+    return ", ".join(map(repr, names)) if covered.mean() > 0.5 else ""
+
+
 def merged_row(run: MeasuredRun, group: list[Section]) -> Section:
     """Adjacent left-out stretches as one row, with all their reasons (one row of a table's
     name keeps it)."""
@@ -310,7 +324,11 @@ def _section(
         spread,
     )
     shares = kind_shares(geo, labels, i, j) if labels is not None else [("", 1.0)]
-    if run.jumping is not None and np.mean(run.jumping[sl]) > 0.5:
+    gap = _in_gaps(run, i, j)
+    if gap:
+        piece = ("gap", f"no values: a gap of missing values (NaN) in channel(s) {gap}, "
+                 "longer than those interpolated")  # fmt: skip
+    elif run.jumping is not None and np.mean(run.jumping[sl]) > 0.5:
         piece = ("jump", "a jump of the distance channel (a chainage jump or an odometer's "
                  "reset): no place on the line")  # fmt: skip
     elif run.backwards is not None and np.mean(run.backwards[sl]) > 0.5:

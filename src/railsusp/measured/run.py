@@ -12,7 +12,17 @@ import numpy as np
 
 from railsusp.conditions import field_range
 from railsusp.errors import RailsuspInputError, did_you_mean
-from railsusp.measured.channels import SIGNALS, ChannelMap, default_map
+from railsusp.measured.breaks import (
+    channel_nan_gaps,
+    distance_path,
+    dropout_breaks,
+    filled,
+    inner,
+    jump_steps,
+    nan_gap_breaks,
+    without_jumps,
+)
+from railsusp.measured.channels import SIGNALS, ChannelMap, check_recording_name, default_map
 from railsusp.measured.checks import (
     MAX_GAP_SAMPLES,
     check_clipped,
@@ -20,7 +30,6 @@ from railsusp.measured.checks import (
     check_flat,
     check_forces,
     check_time,
-    dropout_steps,
 )
 from railsusp.measured.raw import RawChannel, read_raw
 from railsusp.measured.recording import RecordingError
@@ -52,13 +61,20 @@ class MeasuredRun:
     #: trailing, left and right swapped against the model's); None: never
     backwards: np.ndarray | None = None
     #: sample indices i where the run breaks between samples i - 1 and i: a dropout (samples
-    #: lost) or a jump of the position channel (a chainage jump, an odometer's reset); no
-    #: section spans one
+    #: lost), either end of a NaN gap of a used channel, or a jump of the position channel
+    #: (a chainage jump, an odometer's reset); no section spans one
     breaks: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     #: per sample, True inside a jump of the distance channel (between its samples before
     #: and after the jump: a distance interpolated across it, no place on the line); None:
     #: no jump
     jumping: np.ndarray | None = None
+    #: the NaN gaps of used channels longer than the samples interpolated, on this time
+    #: base: (start, end exclusive, channel). Their values are interpolated so that the
+    #: run's position and track go on through them; they are left out of every section
+    gaps: tuple[tuple[int, int, str], ...] = ()
+    #: True where the position is the speed integrated from 0 at the first sample (no
+    #: position channel): km 0 of a line description is then where the run starts
+    position_from_speed: bool = False
 
     @property
     def rate_hz(self) -> float:
@@ -86,8 +102,12 @@ def read_run(
     :class:`RecordingError` listing every problem (file, channel, rows). The force channels
     must be sampled at ``min_rate_hz`` or more (the rate the sections are resampled to: a
     2 Hz run upsampled to 50 Hz would pass every later check), the speed channel forward;
-    a used MDF channel must lie on a time master."""
+    a used MDF channel must lie on a time master. A NaN gap of a used channel longer than
+    ``gap_limit`` samples cuts the run as a dropout does, its samples left out of the
+    sections (:mod:`railsusp.measured.breaks`); shorter ones are interpolated."""
     path = Path(path)
+    if channel_map is not None:  # before the file is read: a long run takes a while
+        check_recording_name(channel_map, path)
     try:
         raw = read_raw(path, channel_map.time if channel_map else None)
     except RailsuspInputError as exc:
@@ -139,6 +159,7 @@ def read_run(
     quantity = {c: "force" for w in cmap.wheels.values() for c in w.values()}
     quantity.update({c: SIGNALS[k] for k, c in cmap.signals.items()})
     si: dict[str, RawChannel] = {}
+    nan_gaps: dict[str, list[tuple[int, int]]] = {}
     for name, q in quantity.items():
         ch = raw[name]
         unit = _unit(ch, cmap, problems, q)
@@ -150,17 +171,21 @@ def read_run(
         time_problems = check_time(ch.time, name, ch.first_row, dropouts=True)
         problems += time_problems
         values, finite_problems, finite_notes = check_finite(
-            ch.values, name, ch.first_row, gap_limit
+            ch.values, name, ch.first_row, gap_limit, keep_long=True
         )
         problems += finite_problems
         notes += finite_notes
         data_notes += finite_notes
-        if q == "force":
+        if q == "force":  # (on the values with their long gaps NaN: not judged)
             problems += check_flat(values, name) + check_clipped(values, name, unit or "")
         if not time_problems and not finite_problems:
-            si[name] = RawChannel(
-                name, normalise_unit(unit), ch.time, values * factor, ch.first_row
-            )
+            kept = RawChannel(name, normalise_unit(unit), ch.time, values * factor, ch.first_row)
+            gap_notes: list[str] = []
+            nan_gaps[name] = channel_nan_gaps(kept, gap_limit, problems, gap_notes)
+            notes += gap_notes
+            data_notes += gap_notes
+            kept.values = filled(kept.values)
+            si[name] = kept
     if problems:
         raise RecordingError(path, problems)
 
@@ -177,7 +202,8 @@ def read_run(
                 f"channel {c!r}: covers {ch.time[0]:.3f}-{ch.time[-1]:.3f} s, not the "
                 f"{t[0]:.3f}-{t[-1]:.3f} s of the forces"
             )
-    breaks = _dropout_breaks(si, base, quantity, problems, notes, data_notes)
+    breaks = dropout_breaks(si, base, quantity, problems, notes, data_notes)
+    gap_breaks, gaps = nan_gap_breaks(si, {c: g for c, g in nan_gaps.items() if g}, t, problems)
     if problems:
         raise RecordingError(path, problems)
 
@@ -203,7 +229,7 @@ def read_run(
             if speed_channel is not None
             else None
         )
-        jump = _jump_steps(pos.values, pos.time, raw_speed)
+        jump = jump_steps(pos.values, pos.time, raw_speed)
         jumping = np.zeros(t.size, dtype=bool)
         if jump.size:
             # the base samples between the distance's samples before and after a jump have
@@ -226,7 +252,7 @@ def read_run(
             )
     else:
         position = sig["position"]
-        travelled = _without_jumps(pos.values, jump)
+        travelled = without_jumps(pos.values, jump)
         speed = _smoothed_gradient(np.interp(t, pos.time, travelled), t)
     speed_name = cmap.signals.get("speed", cmap.signals.get("position"))
     running = np.abs(speed) >= 0.5  # standing stretches are cut out as "standing" later
@@ -296,8 +322,10 @@ def read_run(
         notes,
         data_notes,
         backwards if backwards.any() else None,
-        _inner(np.union1d(breaks, jumps), t.size),
+        inner(np.union1d(np.union1d(breaks, jumps), gap_breaks), t.size),
         jumping if jumping.any() else None,
+        gaps,
+        "position" not in cmap.signals,
     )
 
 
@@ -309,9 +337,6 @@ MIN_RUNNING_SHARE = 0.05
 MAX_SPEED_KMH = field_range("speed_kmh")[1]
 MAX_CANT_M = field_range("cant_mm")[1] * 1e-3
 MAX_GRADE = field_range("grade_permille")[1] * 1e-3
-#: a distance channel's step this many times what the speed covers in it is a chainage
-#: jump or an odometer's reset, not travel
-JUMP_FACTOR = 5.0
 #: how far the distance channel's span may differ from the integrated speed (a wheel
 #: diameter's wear and slip are a few per cent; a unit slip is a factor 3.6 or 1000)
 DISTANCE_SPEED_RATIO = (0.8, 1.25)
@@ -409,92 +434,6 @@ def _unit(ch: RawChannel, cmap: ChannelMap, problems: list[str], quantity: str) 
             f"channel {ch.name!r}: the file states unit {ch.unit!r}, the channel map {mapped!r}"
         )
     return ch.unit or mapped
-
-
-def _dropout_breaks(
-    si: dict[str, RawChannel],
-    base: str,
-    quantity: dict[str, str],
-    problems: list[str],
-    notes: list[str],
-    data_notes: list[str],
-) -> np.ndarray:
-    """The base samples after which the run lost samples (a logger's dropout): where the run
-    is cut. Another channel's dropout must fall in one of the base's (one logger), else its
-    values there would be interpolated across the dropout: a problem naming it."""
-    t = si[base].time
-    lost = dropout_steps(t)
-    breaks = (lost + 1) if lost is not None else np.zeros(0, dtype=np.int64)
-    for c in quantity:
-        ch = si[c]
-        gaps = dropout_steps(ch.time)
-        if c == base or gaps is None or not gaps.size:
-            continue
-        half = 0.5 / si[base].rate_hz  # a base sample inside the gap is interpolated over it
-        for i in gaps:
-            inside = np.count_nonzero((t > ch.time[i] + half) & (t < ch.time[i + 1] - half))
-            if inside:
-                problems.append(
-                    f"channel {c!r}: samples lost between {ch.time[i]:.3f} and "
-                    f"{ch.time[i + 1]:.3f} s where the forces of {base!r} have {inside}; "
-                    "accepted dropouts of all channels together (one logger)"
-                )
-                break
-    if breaks.size:
-        note = f"channel {base!r}: {breaks.size} dropout(s) (samples lost); sections are cut there"
-        notes.append(note)
-        data_notes.append(note)
-    return breaks.astype(np.int64)
-
-
-def _inner(idx: np.ndarray, n: int) -> np.ndarray:
-    """The break indices that split a run of ``n`` samples (1 to n - 1), as int64."""
-    idx = np.asarray(idx, dtype=np.int64)
-    return idx[(idx > 0) & (idx < n)]
-
-
-def _jump_steps(x: np.ndarray, t: np.ndarray, speed: np.ndarray | None) -> np.ndarray:
-    """Indices i of the distance channel's steps x[i] -> x[i + 1] that are no travel: a
-    chainage jump at a km post, an odometer's reset. Each change of the value is judged
-    over the time since the value last changed (a channel held between its updates steps
-    once per update: travel): with the speed, a change more than :data:`JUMP_FACTOR` times
-    what the speed covers in that time (1 m at the least); without it, more than that
-    times the median rate of change or what the fastest working condition covers."""
-    steps = np.diff(x)
-    moved = np.flatnonzero(steps != 0)
-    if moved.size == 0:
-        return moved
-    since = t[np.concatenate([[0], moved[:-1] + 1])]  # when the value took its last level
-    elapsed = t[moved + 1] - since
-    change = np.abs(steps[moved])
-    if speed is not None:
-        fastest = np.maximum(np.abs(speed[moved + 1]), np.abs(speed[moved]))
-        reach = fastest * elapsed
-    else:
-        rate = float(np.median(change / np.maximum(elapsed, 1e-12)))
-        reach = np.maximum(rate, 1.2 * MAX_SPEED_KMH / 3.6 / JUMP_FACTOR) * elapsed
-    return moved[change > JUMP_FACTOR * reach + 1.0]
-
-
-def distance_path(x: np.ndarray, jump: np.ndarray) -> float:
-    """The path a distance channel runs over, m: the sum of its steps, the ``jump`` steps
-    left out (a run that backs up covers its stretch twice; a reset covers nothing)."""
-    moved = np.abs(np.diff(x))
-    moved[jump] = 0.0
-    return float(np.nansum(moved))
-
-
-def _without_jumps(x: np.ndarray, jump: np.ndarray) -> np.ndarray:
-    """The distance along the path: each jump's step replaced by the steps around it
-    (interpolated over the steps that are travel; a jump at either end or two in a row,
-    a single wrong sample, included)."""
-    steps = np.diff(x)
-    if jump.size:
-        ok = np.ones(steps.size, dtype=bool)
-        ok[jump] = False
-        idx = np.arange(steps.size)
-        steps[jump] = np.interp(jump, idx[ok], steps[ok]) if ok.any() else 0.0
-    return np.concatenate([[x[0]], x[0] + np.cumsum(steps)])
 
 
 def _smoothed_gradient(x: np.ndarray, t: np.ndarray, window_s: float = 1.0) -> np.ndarray:

@@ -62,19 +62,23 @@ def cut_sections(
             "the map, a line description (--line, [field] line), or the table's columns "
             f"{', '.join(TABLE_TRACK)} (radius empty or 0: tangent)"
         )
-    if line is None and table is None and run.curvature is None and NO_TRACK_NOTE not in run.notes:
-        run.notes.append(NO_TRACK_NOTE)  # a warning where notes are printed: data it lacks
-        run.data_notes.append(NO_TRACK_NOTE)
+    if line is None and table is None and run.curvature is None:
+        _warn(run, NO_TRACK_NOTE)
+    if line is not None and run.position_from_speed:
+        _warn(run, LINE_FROM_ZERO_NOTE)
     geo = track_geometry(run, rules, line, table)
     labels = track_labels(geo, rules)
-    names, rows = None, None
+    names, rows, partial = None, None, {}
     if table is not None:
-        spans, rows = _table_spans(run, table)
+        spans, rows, partial = _table_spans(run, table)
         names = table["name"].astype(str).tolist() if "name" in table else None
     else:
         spans = label_runs(labels)
     spans, rows = _split_at(spans, rows, _breaks(run))
     out = _collect(run, geo, spans, rows, names, rules, labels if table is not None else None)
+    for sec, row in zip(out, _rows_of(out, spans, rows), strict=True):
+        if sec.kept and row in partial:
+            sec.reason = partial[row]
     if names:
         _number_split_rows(out, names)
     kept = [s for s in out if s.kept]
@@ -93,27 +97,77 @@ NO_TRACK_NOTE = (
 )
 
 
+#: what a run whose position is its integrated speed reads a line description as
+LINE_FROM_ZERO_NOTE = (
+    "no position channel: the position is the speed integrated from 0 at the run's first "
+    "sample, so the line description's km 0 is taken as where the run starts; a run that "
+    "starts elsewhere has its curves cut at the wrong places (give a position channel in "
+    "the map, position = ...)"
+)
+
+
+def _warn(run: MeasuredRun, note: str) -> None:
+    """Add ``note`` to the run's notes once, as a data note (a warning where notes are
+    printed: what the cut lacks, not how a channel was read)."""
+    if note not in run.notes:
+        run.notes.append(note)
+        run.data_notes.append(note)
+
+
 def _what(table: pd.DataFrame) -> str:
     """The section table as the messages name it (its file: read_section_table's)."""
     return str(table.attrs.get("what", "section table"))
 
 
-def _table_spans(run: MeasuredRun, table: pd.DataFrame) -> tuple[list[tuple[int, int]], list]:
+#: a section table's row reaching more than this (m) beyond the run's first or last
+#: position is only partly on the run (its kept sections say so)
+PARTIAL_ROW_M = 1.0
+
+
+def _table_spans(
+    run: MeasuredRun, table: pd.DataFrame
+) -> tuple[list[tuple[int, int]], list, dict[int, str]]:
     """The sample spans of each row of a section table (a range the run passes twice: two
-    spans) and each span's row. A row the run never reaches is refused: it vanished
-    without a line in the cut."""
-    spans, rows = [], []
+    spans), each span's row, and the reason of the kept sections of each row only partly
+    on the run (it begins before the run's positions or ends after them): such a row is
+    kept over what the run passes, saying so ("kept, 300-450 m of 300-600 m on the run"),
+    not silently under the row's name as if whole. A row the run never reaches is
+    refused: it vanished without a line in the cut."""
+    spans, rows, partial = [], [], {}
+    lo, hi = float(np.nanmin(run.position)), float(np.nanmax(run.position))
     for k, r in enumerate(table.itertuples(index=False)):
         found = _true_runs((run.position >= r.start_m) & (run.position < r.end_m))
         if not found:
-            lo, hi = np.nanmin(run.position), np.nanmax(run.position)
             raise RailsuspInputError(
                 f"{_what(table)}, row {k + 2}: {r.start_m:g}-{r.end_m:g} m is not on the run "
                 f"(positions {lo:.0f} to {hi:.0f} m); accepted rows the run passes"
             )
+        if r.start_m < lo - PARTIAL_ROW_M or r.end_m > hi + PARTIAL_ROW_M:
+            on = _range(f"{max(r.start_m, lo):.0f}", f"{min(r.end_m, hi):.0f}")
+            row = _range(f"{r.start_m:g}", f"{r.end_m:g}")
+            partial[k] = f"kept, {on} m of {row} m on the run (row {k + 2} of the table)"
         spans += found
         rows += [k] * len(found)
-    return spans, rows
+    return spans, rows, partial
+
+
+def _range(a: str, b: str) -> str:
+    """``a-b``, or ``a to b`` where either is negative (-100-300 reads as a subtraction)."""
+    return f"{a} to {b}" if a.startswith("-") or b.startswith("-") else f"{a}-{b}"
+
+
+def _rows_of(out: list[Section], spans: list[tuple[int, int]], rows: list | None) -> list:
+    """The table row of each section of the cut (None: no table, or a stretch between
+    rows): the row of the span that holds its first sample."""
+    if rows is None:
+        return [None] * len(out)
+    starts = np.array([a for a, _ in spans])
+    ends = np.array([b for _, b in spans])
+    found = []
+    for sec in out:
+        k = np.flatnonzero((starts <= sec.start) & (sec.start < ends))
+        found.append(rows[int(k[0])] if k.size else None)
+    return found
 
 
 def _true_runs(mask: np.ndarray) -> list[tuple[int, int]]:

@@ -79,7 +79,10 @@ def write_sections(
     ``pipeline.toml`` names; default ``out``)."""
     out = Path(out)
     if out.exists() and not out.is_dir():
-        raise RailsuspInputError(f"--write {out}: exists and is not a folder")
+        raise RailsuspInputError(
+            f"--write {out}: a file, not a folder; accepted a new folder or a field folder "
+            "of sections written before (replaced whole)"
+        )
     kept = [s for s in sections if s.kept]
     if not kept:
         raise RailsuspInputError(f"{run.source}: no section kept; nothing to write")

@@ -1,0 +1,215 @@
+"""Where a long run breaks: no section spans a break, so that a section's samples are one
+stretch of the line recorded without a hole.
+
+- a **dropout**: samples lost in time, every channel together (a logger's); the run is cut
+  between the samples before and after it (:func:`dropout_breaks`);
+- a **NaN gap** longer than the samples interpolated (:data:`~railsusp.measured.checks.
+  MAX_GAP_SAMPLES`) in a used channel: an amplifier's overload, samples a logger marked
+  invalid. The samples exist but a channel has no value there; the run is cut on either
+  side and the gap's samples are left out of the sections, named in the cut
+  (:func:`nan_gap_breaks`). Before stop 63 one such gap refused a whole 2 h run, where a
+  dropout cut it;
+- a **jump of the distance channel**: a chainage jump at a km post, an odometer's reset
+  (:func:`jump_steps`).
+
+A channel whose gaps leave no stretch of values as long as the shortest working condition
+(:data:`MIN_STRETCH_S`) is refused: no section could be cut from it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from railsusp.conditions import field_range
+from railsusp.measured.checks import dropout_steps, rows, runs
+from railsusp.measured.raw import RawChannel
+
+#: the least stretch of values (s) a channel must keep between its NaN gaps, and the run
+#: with every channel's gaps together: a working condition's shortest duration (no section
+#: can be cut from less)
+MIN_STRETCH_S: float = field_range("duration_s")[0]
+#: the gaps a channel's note lists (the others counted)
+GAPS_LISTED = 3
+#: a distance channel's step this many times what the speed covers in it is a chainage
+#: jump or an odometer's reset, not travel
+JUMP_FACTOR = 5.0
+#: the largest speed of a working condition, m/s: without a speed channel, a step of the
+#: distance beyond what it covers (times JUMP_FACTOR) is a jump
+MAX_SPEED_MS: float = field_range("speed_kmh")[1] / 3.6
+
+
+def dropout_breaks(
+    si: dict[str, RawChannel],
+    base: str,
+    quantity: dict[str, str],
+    problems: list[str],
+    notes: list[str],
+    data_notes: list[str],
+) -> np.ndarray:
+    """The base samples after which the run lost samples (a logger's dropout): where the run
+    is cut. Another channel's dropout must fall in one of the base's (one logger), else its
+    values there would be interpolated across the dropout: a problem naming it."""
+    t = si[base].time
+    lost = dropout_steps(t)
+    breaks = (lost + 1) if lost is not None else np.zeros(0, dtype=np.int64)
+    for c in quantity:
+        ch = si[c]
+        gaps = dropout_steps(ch.time)
+        if c == base or gaps is None or not gaps.size:
+            continue
+        half = 0.5 / si[base].rate_hz  # a base sample inside the gap is interpolated over it
+        for i in gaps:
+            inside = np.count_nonzero((t > ch.time[i] + half) & (t < ch.time[i + 1] - half))
+            if inside:
+                problems.append(
+                    f"channel {c!r}: samples lost between {ch.time[i]:.3f} and "
+                    f"{ch.time[i + 1]:.3f} s where the forces of {base!r} have {inside}; "
+                    "accepted dropouts of all channels together (one logger)"
+                )
+                break
+    if breaks.size:
+        note = f"channel {base!r}: {breaks.size} dropout(s) (samples lost); sections are cut there"
+        notes.append(note)
+        data_notes.append(note)
+    return breaks.astype(np.int64)
+
+
+def _longest_stretch(t: np.ndarray, missing: np.ndarray) -> float:
+    """The longest time (s) between the first and last sample of a run of samples not
+    ``missing`` (0 where every sample is)."""
+    spans = runs(~missing)
+    return max((float(t[e - 1] - t[s]) for s, e in spans), default=0.0)
+
+
+def channel_nan_gaps(
+    ch: RawChannel, gap_limit: int, problems: list[str], notes: list[str]
+) -> list[tuple[int, int]]:
+    """The NaN gaps (start, end exclusive, the channel's own samples) left in ``ch``'s
+    values after :func:`~railsusp.measured.checks.check_finite` with ``keep_long``: each
+    longer than ``gap_limit`` samples. A note names the channel, the gaps' rows and times
+    and their lengths; a channel whose gaps leave no stretch of :data:`MIN_STRETCH_S` is a
+    problem (the run is mostly missing there)."""
+    missing = np.isnan(ch.values)
+    gaps = runs(missing)
+    if not gaps:
+        return []
+    t = ch.time
+    share = 100.0 * float(missing.mean())
+    longest = _longest_stretch(t, missing)
+    if longest < MIN_STRETCH_S:
+        problems.append(
+            f"channel {ch.name!r}: {share:.3g} % of its samples missing (NaN) in {len(gaps)} "
+            f"gap(s) of more than {gap_limit} samples, its longest stretch of values "
+            f"{longest:.3g} s; accepted a channel with a stretch of at least {MIN_STRETCH_S:g} s "
+            "(a working condition's shortest duration: no section can be cut from less)"
+        )
+        return gaps
+    listed = "; ".join(
+        f"{rows(s, e - 1, ch.first_row)} ({t[s]:.3f}-{t[e - 1]:.3f} s, {e - s} samples)"
+        for s, e in gaps[:GAPS_LISTED]
+    )
+    more = f"; and {len(gaps) - GAPS_LISTED} more" if len(gaps) > GAPS_LISTED else ""
+    notes.append(
+        f"channel {ch.name!r}: {len(gaps)} gap(s) of missing values (NaN) longer than the "
+        f"{gap_limit} samples interpolated, {share:.3g} % of its samples: {listed}{more}; the "
+        "run is cut there, the gaps' samples left out of the sections"
+    )
+    return gaps
+
+
+def filled(x: np.ndarray) -> np.ndarray:
+    """``x`` with its NaN samples interpolated linearly (held at the ends): a channel's
+    long gaps, so that it can be put on the run's time base and the run's position and
+    track computed through them. Their samples are never in a section (:func:`nan_gap_breaks`
+    marks them)."""
+    nan = np.isnan(x)
+    if not nan.any():
+        return x
+    idx = np.arange(x.size)
+    return np.interp(idx, idx[~nan], x[~nan])
+
+
+def nan_gap_breaks(
+    si: dict[str, RawChannel],
+    gaps: dict[str, list[tuple[int, int]]],
+    t: np.ndarray,
+    problems: list[str],
+) -> tuple[np.ndarray, tuple[tuple[int, int, str], ...]]:
+    """Each channel's NaN gaps on the run's time base ``t``: the base samples whose values
+    came from a gap (on a slower channel's time base, those between its last value before
+    the gap and its first after), as (start, end exclusive, channel), and the breaks at
+    their ends. Where the channels' gaps together leave no stretch of :data:`MIN_STRETCH_S`
+    with every channel's values (each alone has one, at other times), a problem."""
+    spans: list[tuple[int, int, str]] = []
+    for c, own in gaps.items():
+        ct = si[c].time
+        for s, e in own:
+            first = int(np.searchsorted(t, ct[s - 1], "right")) if s > 0 else 0
+            last = int(np.searchsorted(t, ct[e], "left")) if e < ct.size else t.size
+            if last > first:
+                spans.append((first, last, c))
+    if not spans:
+        return np.zeros(0, dtype=np.int64), ()
+    missing = np.zeros(t.size, dtype=bool)
+    for a, b, _ in spans:
+        missing[a:b] = True
+    longest = _longest_stretch(t, missing)
+    if longest < MIN_STRETCH_S:
+        names = ", ".join(repr(c) for c in dict.fromkeys(c for _, _, c in spans))
+        problems.append(
+            f"channels {names}: their gaps of missing values (NaN) together leave "
+            f"{longest:.3g} s at the longest with every channel's values; accepted a stretch "
+            f"of at least {MIN_STRETCH_S:g} s (a working condition's shortest duration)"
+        )
+    edges = np.array([x for a, b, _ in spans for x in (a, b)], dtype=np.int64)
+    return np.unique(edges), tuple(sorted(spans))
+
+
+def inner(idx: np.ndarray, n: int) -> np.ndarray:
+    """The break indices that split a run of ``n`` samples (1 to n - 1), as int64."""
+    idx = np.asarray(idx, dtype=np.int64)
+    return idx[(idx > 0) & (idx < n)]
+
+
+def jump_steps(x: np.ndarray, t: np.ndarray, speed: np.ndarray | None) -> np.ndarray:
+    """Indices i of the distance channel's steps x[i] -> x[i + 1] that are no travel: a
+    chainage jump at a km post, an odometer's reset. Each change of the value is judged
+    over the time since the value last changed (a channel held between its updates steps
+    once per update: travel): with the speed, a change more than :data:`JUMP_FACTOR` times
+    what the speed covers in that time (1 m at the least); without it, more than that
+    times the median rate of change or what the fastest working condition covers."""
+    steps = np.diff(x)
+    moved = np.flatnonzero(steps != 0)
+    if moved.size == 0:
+        return moved
+    since = t[np.concatenate([[0], moved[:-1] + 1])]  # when the value took its last level
+    elapsed = t[moved + 1] - since
+    change = np.abs(steps[moved])
+    if speed is not None:
+        fastest = np.maximum(np.abs(speed[moved + 1]), np.abs(speed[moved]))
+        reach = fastest * elapsed
+    else:
+        rate = float(np.median(change / np.maximum(elapsed, 1e-12)))
+        reach = np.maximum(rate, 1.2 * MAX_SPEED_MS / JUMP_FACTOR) * elapsed
+    return moved[change > JUMP_FACTOR * reach + 1.0]
+
+
+def distance_path(x: np.ndarray, jump: np.ndarray) -> float:
+    """The path a distance channel runs over, m: the sum of its steps, the ``jump`` steps
+    left out (a run that backs up covers its stretch twice; a reset covers nothing)."""
+    moved = np.abs(np.diff(x))
+    moved[jump] = 0.0
+    return float(np.nansum(moved))
+
+
+def without_jumps(x: np.ndarray, jump: np.ndarray) -> np.ndarray:
+    """The distance along the path: each jump's step replaced by the steps around it
+    (interpolated over the steps that are travel; a jump at either end or two in a row,
+    a single wrong sample, included)."""
+    steps = np.diff(x)
+    if jump.size:
+        ok = np.ones(steps.size, dtype=bool)
+        ok[jump] = False
+        idx = np.arange(steps.size)
+        steps[jump] = np.interp(jump, idx[ok], steps[ok]) if ok.any() else 0.0
+    return np.concatenate([[x[0]], x[0] + np.cumsum(steps)])
