@@ -87,9 +87,9 @@ def _same_source(index: dict, fingerprint: dict[str, int | str]) -> bool:
     size and SHA-256 where the index holds them, else (an index written before stop 63)
     its file name."""
     if "source_sha256" in index or "source_bytes" in index:
-        return (
-            index.get("source_bytes") == fingerprint["source_bytes"]
-            and str(index.get("source_sha256", "")).lower() == fingerprint["source_sha256"]
+        return (  # a run that is no file has no size or hash: not the same
+            index.get("source_bytes") == fingerprint.get("source_bytes")
+            and str(index.get("source_sha256", "")).lower() == fingerprint.get("source_sha256")
         )
     return str(index["source"]) == fingerprint["source"]
 

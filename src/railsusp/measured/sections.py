@@ -53,7 +53,7 @@ def cut_sections(
     """The run cut into sections (left-out ones included, ``kept`` False with the reason).
     A section table's rows must each lie on the run, and its track must come from somewhere
     (its columns, the run's curvature channel or ``line``); a leading wheelset's outer wheel
-    whose lateral force is negative in a tight curve is refused (:func:`_check_y_sign`)."""
+    whose lateral force is clearly negative where it flanges is refused (:func:`_check_y_sign`)."""
     rules = rules or SectionRules()
     if table is not None and line is None and run.curvature is None and "radius_m" not in table:
         raise RailsuspInputError(
@@ -254,33 +254,62 @@ def _number_split_rows(out: list[Section], names: list[str]) -> None:
             taken.add(sec.name.casefold())
 
 
-#: curves of this radius or tighter (m): the leading wheelset's outer wheel guides there,
-#: its lateral force towards the field side (the documented sign: flange force +)
-SIGN_RADIUS_M = 600.0
+#: curves of this radius or tighter (m): the leading wheelset's outer wheel flanges there,
+#: loaded or empty, at any speed (the model: the tare wagon +3.4 kN at R500, +7.4 at R350;
+#: the loaded one +30 kN and more), its lateral force towards the field side (flange force +)
+SIGN_RADIUS_M = 450.0
+#: how far below zero its median must lie for the run to be refused: the larger of these,
+#: kN, and this share of its median wheel load, so that a transducer's zero offset of a kN
+#: or two on an empty wagon is not read as a sign (a flipped loaded channel reads -30 kN)
+SIGN_MARGIN_KN, SIGN_MARGIN_SHARE = 5.0, 0.1
+#: curves of this radius or tighter where a negative median is noted, not refused: at
+#: R600 with cant excess the model's tare wagon has it at +0.1 to +1.6 kN, and -0.2 kN on
+#: a slow up-grade under 1000 kN of coupler tension
+SIGN_NOTE_RADIUS_M = 600.0
 
 
 def _check_y_sign(run: MeasuredRun, kept: list[Section]) -> None:
-    """Refuse a wheel whose lateral force Y has a negative median in a kept curve of
-    :data:`SIGN_RADIUS_M` or less where it is the leading wheelset's outer wheel: its Y is
-    of the other sign (vehicle-fixed, + right for both wheels, is common), or the curve's
-    direction is (the curvature channel + right-hand, a line or table direction swapped).
-    Mean and RMS of |Y| hide it; the signed percentiles, p99.85 and the estimate do not."""
+    """Refuse a wheel whose lateral force Y is clearly negative (median below
+    -max(:data:`SIGN_MARGIN_KN`, :data:`SIGN_MARGIN_SHARE` x its median Q)) in a kept curve
+    of :data:`SIGN_RADIUS_M` or less where it is the leading wheelset's outer wheel, which
+    flanges there: its channel is + towards the track centre (a vehicle-fixed channel, + to
+    the right for both wheels, reads so on the left wheels), or the curve's direction is
+    the other (the curvature channel + right-hand). Mean and RMS of |Y| hide it; the signed
+    percentiles, p99.85 and the estimate do not. A negative median short of that, or in a
+    curve up to :data:`SIGN_NOTE_RADIUS_M`, is noted: it can be the wagon's (cant excess,
+    an empty wagon, coupler tension) or a zero offset."""
     problems: dict[str, str] = {}
     for s in kept:
-        if s.radius_m is None or s.radius_m > SIGN_RADIUS_M:
+        if s.radius_m is None or s.radius_m > SIGN_NOTE_RADIUS_M:
             continue
         outer = WHEEL_NAMES[outer_wheel_index(s.direction)]
         if outer not in run.Y or outer in problems:
             continue
-        median = float(np.median(run.Y[outer][s.start : s.end])) / 1e3
-        if median < 0.0:
+        median = float(np.nanmedian(run.Y[outer][s.start : s.end])) / 1e3
+        if not median < 0.0:
+            continue
+        load = float(np.nanmedian(run.Q[outer][s.start : s.end])) / 1e3
+        margin = max(SIGN_MARGIN_KN, SIGN_MARGIN_SHARE * load)
+        where = (
+            f"wheel {outer}: Y median {median:.1f} kN in {s.name} ({s.direction}-hand "
+            f"R{s.radius_m:.0f}, {s.start_m:.0f}-{s.end_m:.0f} m), where it is the leading "
+            "outer wheel"
+        )
+        if s.radius_m <= SIGN_RADIUS_M and median < -margin:
             problems[outer] = (
-                f"wheel {outer}: Y median {median:.1f} kN in {s.name} ({s.direction}-hand "
-                f"R{s.radius_m:.0f}, {s.start_m:.0f}-{s.end_m:.0f} m), where it is the leading "
-                "outer wheel and guides: accepted Y + towards the field side (flange force +; "
-                f"a channel + right for both wheels: Y_sign = -1 in the map's [wheels.{outer}]) "
-                "and curvature + left-hand (a line's or table's direction as run)"
+                f"{where} and flanges: accepted Y + towards the field side (flange force +; "
+                f"a channel + towards the track centre: Y_sign = -1 in the map's "
+                f"[wheels.{outer}]) and curvature + left-hand (a line's or table's direction "
+                "as run)"
             )
+        else:
+            note = (
+                f"{where}: negative, which a slow or empty wagon with cant excess can give; "
+                "if its forces look wrong, check its sign (+ towards the field side; "
+                f"Y_sign = -1 in the map's [wheels.{outer}] negates it)"
+            )
+            if note not in run.notes:
+                run.notes.append(note)
     if problems:
         raise RecordingError(run.source, list(problems.values()))
 
