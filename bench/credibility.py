@@ -38,7 +38,8 @@ from railsusp.conditions import STANDARD_CONDITIONS
 from railsusp.params import ParameterSet
 from railsusp.store import write_json
 from railsusp.study import TABLE8_BEFORE
-from railsusp.vehicle.simulate import WHEEL_NAMES, simulate_batch
+from railsusp.vehicle.simulate import simulate_batch
+from railsusp.vehicle.simulation_result import WHEEL_NAMES
 from railsusp.vehicle.track import COMPONENTS
 from railsusp.vehicle.track_geometry import write_track_geometry
 from railsusp.vehicle.track_grid import section_irregularities

@@ -26,7 +26,7 @@ from railsusp.params import bounds
 from railsusp.surrogate.baselines import StatisticsGP
 from railsusp.surrogate.data import FeatureSpec, SeriesData
 from railsusp.surrogate.statistics import StatisticsSurrogate
-from railsusp.vehicle.simulate import record_statistic, statistic_segments
+from railsusp.vehicle.simulation_result import record_statistic, statistic_segments
 
 COND = get_condition("straight", duration_s=2.0, n_steps=100)
 PARAMS = ("X13", "X14")

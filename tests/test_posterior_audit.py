@@ -32,7 +32,8 @@ from railsusp.measured.recording import Recording
 from railsusp.measured.synthetic import bandwidth_filter
 from railsusp.params import ParameterSet
 from railsusp.store import read_json
-from railsusp.vehicle.simulate import WHEEL_NAMES, measured_wheel_index, simulate
+from railsusp.vehicle.simulate import simulate
+from railsusp.vehicle.simulation_result import WHEEL_NAMES, measured_wheel_index
 
 FS = 50.0
 SPEED = 60 / 3.6

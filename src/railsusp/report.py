@@ -83,7 +83,7 @@ def plot_track_irregularities(irr: Irregularities, path: str | Path, seed_index:
 def plot_forces(result, path: str | Path, set_index: int = 0, wheel: str | int = "auto"):
     """Lateral and vertical wheel-rail forces of one run: the measured wheel highlighted,
     the other wheels faint; a third panel with the derailment quotient Y/Q."""
-    from railsusp.vehicle.simulate import WHEEL_NAMES
+    from railsusp.vehicle.simulation_result import WHEEL_NAMES
 
     j = result.measured_wheel(wheel)
     t = result.time
@@ -325,7 +325,7 @@ def plot_validation_overlay(series: dict, path: str | Path, title: str = ""):
     """Measured vs simulated forces before and after calibration (the study's Figs 12/13):
     a readable excerpt of the series (the whole record when short) and, beside it, the
     record's statistics (mean, RMS, 99th percentile of |Y| and of Q) of the three."""
-    from railsusp.vehicle.simulate import record_statistic
+    from railsusp.vehicle.simulation_result import record_statistic
 
     fig, axes = plt.subplots(
         2,

@@ -271,7 +271,7 @@ def test_series_conditions_of_conditions_that_cannot_pair_are_series_one_by_one(
 def _recording(cond, seed: int) -> Recording:
     """A recording of random forces (lateral about 5 kN, vertical about 115 kN) of the
     wheel the models compare in ``cond`` (a curve's outer wheel)."""
-    from railsusp.vehicle.simulate import WHEEL_NAMES, measured_wheel_index
+    from railsusp.vehicle.simulation_result import WHEEL_NAMES, measured_wheel_index
 
     rng = np.random.default_rng(seed)
     t = np.arange(cond.n_steps) * cond.sample_interval

@@ -15,7 +15,8 @@ from railsusp.surrogate import TrainConfig, feature_spec, train_surrogate
 from railsusp.surrogate.data import FeatureSpec, Normaliser, load_series, track_features
 from railsusp.surrogate.nominal import nominal_forces
 from railsusp.variation import sample_condition
-from railsusp.vehicle.simulate import measured_wheel_index, simulate_batch
+from railsusp.vehicle.simulate import simulate_batch
+from railsusp.vehicle.simulation_result import measured_wheel_index
 
 KEYS = ("X13", "X14")
 CURVE = get_condition("curve", duration_s=2.0, n_steps=100)

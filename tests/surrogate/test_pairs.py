@@ -26,7 +26,8 @@ from railsusp.surrogate.models import NetConfig, build_network
 from railsusp.surrogate.pairs import PairSampler, load_twins
 from railsusp.surrogate.train import sampler_for
 from railsusp.variation import sample_condition
-from railsusp.vehicle.simulate import measured_wheel_index, simulate_batch
+from railsusp.vehicle.simulate import simulate_batch
+from railsusp.vehicle.simulation_result import measured_wheel_index
 
 KEYS = ("X13", "X14")
 CURVE = get_condition("curve", duration_s=2.0, n_steps=100)

@@ -25,7 +25,8 @@ from railsusp.vehicle import settle
 from railsusp.vehicle.model import rhs
 from railsusp.vehicle.operating_point import dof_inertia
 from railsusp.vehicle.setup import SolverSettings, axle_spread, constants, contact_arrays
-from railsusp.vehicle.simulate import record_statistic, simulate, simulate_batch
+from railsusp.vehicle.simulate import simulate, simulate_batch
+from railsusp.vehicle.simulation_result import record_statistic
 from railsusp.vehicle.track_grid import track_arrays
 from railsusp.vehicle.wagon import load_wagon
 

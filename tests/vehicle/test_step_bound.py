@@ -74,7 +74,7 @@ def test_a_batch_of_two_wheelset_masses_reads_dq_q_against_each_sets_static_load
 def test_statistics_of_a_record_with_fewer_samples_than_segments_are_numbers():
     """600 s in 20 samples: 30 statistic segments of 20 s for 20 samples left ten empty and
     every mean, RMS and p99 NaN, status ok; the segments are now at most the samples."""
-    from railsusp.vehicle.simulate import statistic_segments
+    from railsusp.vehicle.simulation_result import statistic_segments
 
     assert statistic_segments(20, 30.0) == 20
     cond = get_condition("straight", duration_s=600.0, n_steps=20, name="sparse")

@@ -34,7 +34,8 @@ from railsusp.variation import (
     sample_others,
     sample_tracks,
 )
-from railsusp.vehicle.simulate import WHEEL_NAMES, SolverSettings
+from railsusp.vehicle.simulate import SolverSettings
+from railsusp.vehicle.simulation_result import WHEEL_NAMES
 from railsusp.vehicle.wagon import WagonData, load_wagon
 
 CHANNELS = (

@@ -41,7 +41,8 @@ from railsusp.variation import (
     layout_groups,
 )
 from railsusp.vehicle import MODEL_REVISION
-from railsusp.vehicle.simulate import WHEEL_NAMES, simulate_requests
+from railsusp.vehicle.simulate import simulate_requests
+from railsusp.vehicle.simulation_result import WHEEL_NAMES
 from railsusp.vehicle.track_geometry import geometry_digests
 
 log = logging.getLogger("railsusp.campaign")

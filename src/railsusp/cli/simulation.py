@@ -49,7 +49,7 @@ def _force_table(results: list, title: str, wheel: str = "auto", study: bool = T
         table.add_column(
             col, justify="left" if col in ("condition", "wheel", "status") else "right"
         )
-    from railsusp.vehicle.simulate import WHEEL_NAMES
+    from railsusp.vehicle.simulation_result import WHEEL_NAMES
 
     for r in results:
         with warnings.catch_warnings():  # a failed set: its status column says so
@@ -114,8 +114,8 @@ def simulate(
 ) -> None:
     """Simulate one parameter set in one or more working conditions; print force statistics."""
     from railsusp.measured.field_folder import check_not_recordings
-    from railsusp.vehicle.simulate import WHEEL_NAMES
     from railsusp.vehicle.simulate import simulate as run_one
+    from railsusp.vehicle.simulation_result import WHEEL_NAMES
     from railsusp.vehicle.wagon import load_wagon
 
     try:

@@ -55,7 +55,7 @@ OFFSET_SEED_BASE = 100_000_000
 class TrainingWheel:
     """The force model of the training simulations, as
     :func:`railsusp.estimate.problem.check_measured_wheel` asks of one: it records the
-    automatically chosen wheel (:func:`railsusp.vehicle.simulate.measured_wheel_index`: the
+    automatically chosen wheel (:func:`railsusp.vehicle.simulation_result.measured_wheel_index`: the
     leading wheelset's outer wheel in a curve, its left wheel on tangent), so a recording
     is compared only where its first wheel is that one."""
 

@@ -36,7 +36,7 @@ from railsusp.estimate.statistics import (
 )
 from railsusp.measured import Recording
 from railsusp.params import bounds, spec
-from railsusp.vehicle.simulate import RECORD_STATISTICS
+from railsusp.vehicle.simulation_result import RECORD_STATISTICS
 
 #: the key of each set's errors per recording and force on pymoo's individuals
 #: (:meth:`CalibrationProblem._evaluate`)
@@ -208,7 +208,7 @@ def model_wheel(model: Any, condition: Any) -> str:
     """The wheel whose forces ``model`` gives in ``condition``: the simulator's ``wheel``, a
     surrogate's campaign's (``meta["wheel"]``, saved since stop 58), else the automatically
     chosen one (the leading wheelset's left wheel on tangent, its outer wheel in a curve)."""
-    from railsusp.vehicle.simulate import WHEEL_NAMES, measured_wheel_index
+    from railsusp.vehicle.simulation_result import WHEEL_NAMES, measured_wheel_index
 
     model = averaged_model(model)
     which = getattr(model, "wheel", "auto")
@@ -264,7 +264,7 @@ def check_aligned(model: Any, recordings: Sequence[Recording]) -> None:
             "not a statistics surrogate"
         )
     if isinstance(model, SimulatorForces):
-        from railsusp.vehicle.simulate import WHEEL_NAMES, measured_wheel_index
+        from railsusp.vehicle.simulation_result import WHEEL_NAMES, measured_wheel_index
 
         for r in recordings:
             sim_wheel = WHEEL_NAMES[measured_wheel_index(r.condition, model.wheel)]

@@ -17,7 +17,11 @@ import numpy as np
 from railsusp.conditions import WorkingCondition
 from railsusp.en14363 import FORCE_CUTOFF_HZ, WINDOW_M, full_window, lowpass, sliding_mean
 from railsusp.measured import Recording
-from railsusp.vehicle.simulate import RECORD_STATISTICS, record_statistic, statistic_segments
+from railsusp.vehicle.simulation_result import (
+    RECORD_STATISTICS,
+    record_statistic,
+    statistic_segments,
+)
 
 #: time-aligned comparison of the series (recordings with measured track geometry only)
 ALIGNED = "aligned"

@@ -100,7 +100,7 @@ def wheelset_force(Y: np.ndarray, Y_partner: np.ndarray) -> np.ndarray:
     """The wheelset's lateral force on the track (kN), + towards the measured wheel's field
     side: ``Y - Y_partner``. Each wheel's Y is + towards its own field side (docs/data-
     format.md), so the wheelset's force on the track is the difference of the two, not
-    their sum (:attr:`railsusp.vehicle.simulate.SimulationResult.H`, + to the left, is
+    their sum (:attr:`railsusp.vehicle.simulation_result.SimulationResult.H`, + to the left, is
     Y_L - Y_R). Towards the measured wheel's field side: outward in a curve, where the
     measured wheel is the outer one, and + to the left on tangent, where the simulations
     measure the leading wheelset's left wheel (H itself; a recording of the right wheel
@@ -139,7 +139,7 @@ def section_summary(
 
     Y/Q is the quotient of the instantaneous forces, low-passed and averaged over 2 m as
     the forces are (EN 14363's (Y/Q)2m), but only where Q exceeds :data:`UNLOADED_KN`: an
-    unloaded wheel has no quotient (as :attr:`railsusp.vehicle.simulate.SimulationResult.
+    unloaded wheel has no quotient (as :attr:`railsusp.vehicle.simulation_result.SimulationResult.
     derailment_quotient`), and Y over a floor of 1 kN there gave tens of units that set
     the 99.85 % value of any section in which a wheel lifted. Its unloaded samples are
     left out of the 2 m means (:func:`en14363_percentiles`)."""

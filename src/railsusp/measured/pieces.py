@@ -22,7 +22,7 @@ from railsusp.conditions import WorkingCondition, make_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.measured.run import MeasuredRun
 from railsusp.measured.track_kinds import MOVING_MS, kind_shares, label_runs
-from railsusp.vehicle.simulate import WHEEL_NAMES, outer_wheel_index
+from railsusp.vehicle.simulation_result import WHEEL_NAMES, outer_wheel_index
 
 #: the smallest curve radius of a working condition (its ``curve_radius_m`` bound), m
 MIN_RADIUS_M: float = next(

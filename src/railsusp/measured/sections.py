@@ -40,7 +40,7 @@ from railsusp.measured.pieces import (  # noqa: F401  (what a section is, with t
 from railsusp.measured.recording import RecordingError
 from railsusp.measured.run import MeasuredRun
 from railsusp.measured.track_kinds import label_runs, track_geometry, track_labels
-from railsusp.vehicle.simulate import WHEEL_NAMES, outer_wheel_index
+from railsusp.vehicle.simulation_result import WHEEL_NAMES, outer_wheel_index
 
 
 def cut_sections(

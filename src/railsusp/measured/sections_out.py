@@ -20,7 +20,7 @@ from railsusp.measured.run import MeasuredRun
 from railsusp.measured.sections import Section, sections_table
 from railsusp.store import atomic_write_bytes, atomic_write_figure, write_json
 from railsusp.vehicle.layout import WHEEL_NAMES
-from railsusp.vehicle.simulate import measured_wheel_index
+from railsusp.vehicle.simulation_result import measured_wheel_index
 
 
 def section_recording(run: MeasuredRun, sec: Section, rate_hz: float) -> Recording:

@@ -20,7 +20,11 @@ from scipy.interpolate import RBFInterpolator
 
 from railsusp.params import bounds
 from railsusp.surrogate.data import FeatureSpec, Normaliser, SeriesData, window_index
-from railsusp.vehicle.simulate import RECORD_STATISTICS, record_statistic, statistic_segments
+from railsusp.vehicle.simulation_result import (
+    RECORD_STATISTICS,
+    record_statistic,
+    statistic_segments,
+)
 
 
 class RBFWindowModel:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from railsusp.vehicle.simulate import record_statistic
+from railsusp.vehicle.simulation_result import record_statistic
 
 #: fewer training runs than this leave a network uncorrected (a GP of six inputs needs more)
 MIN_RUNS = 8

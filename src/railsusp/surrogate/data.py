@@ -40,7 +40,8 @@ from railsusp.params import bounds
 from railsusp.surrogate.nominal import check_context, nominal_forces
 from railsusp.variation import layout_key, sample_condition
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.simulate import WHEEL_NAMES, SolverSettings, measured_wheel_index
+from railsusp.vehicle.simulate import SolverSettings
+from railsusp.vehicle.simulation_result import WHEEL_NAMES, measured_wheel_index
 from railsusp.vehicle.track_grid import track_arrays
 from railsusp.vehicle.wagon import WagonData
 

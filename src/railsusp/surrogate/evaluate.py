@@ -19,7 +19,7 @@ import numpy as np
 from railsusp.surrogate.bundle import Surrogate
 from railsusp.surrogate.data import SeriesData
 from railsusp.surrogate.models import SEQUENCE_KINDS
-from railsusp.vehicle.simulate import record_statistic
+from railsusp.vehicle.simulation_result import record_statistic
 
 #: runs per call when the sequence CNN-GRU predicts a campaign's runs, each on its own track
 RUNS_PER_CALL = 64

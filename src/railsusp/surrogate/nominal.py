@@ -29,12 +29,8 @@ import numpy as np
 from railsusp.campaign.design import CHANNELS
 from railsusp.conditions import WorkingCondition
 from railsusp.params import ParameterSet
-from railsusp.vehicle.simulate import (
-    WHEEL_NAMES,
-    SolverSettings,
-    measured_wheel_index,
-    simulate_requests,
-)
+from railsusp.vehicle.simulate import SolverSettings, simulate_requests
+from railsusp.vehicle.simulation_result import WHEEL_NAMES, measured_wheel_index
 from railsusp.vehicle.wagon import WagonData
 
 #: the nominal wagon's channels a network may read as context: every channel a campaign

@@ -34,7 +34,7 @@ from railsusp.surrogate.data import (
     params_to_unit,
     twin_channels,
 )
-from railsusp.vehicle.simulate import WHEEL_NAMES, measured_wheel_index
+from railsusp.vehicle.simulation_result import WHEEL_NAMES, measured_wheel_index
 
 
 @dataclass

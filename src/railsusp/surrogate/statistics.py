@@ -21,7 +21,7 @@ from railsusp.params import bounds
 from railsusp.store import provenance, read_json, write_json
 from railsusp.surrogate.baselines import StatisticsGP
 from railsusp.surrogate.data import FeatureSpec, load_series
-from railsusp.vehicle.simulate import RECORD_STATISTICS, statistic_segments
+from railsusp.vehicle.simulation_result import RECORD_STATISTICS, statistic_segments
 
 FORMAT = "railsusp-statistics-surrogate-1"
 FILE = "statistics.json"
