@@ -149,21 +149,34 @@ def test_writing_sections_onto_a_file_says_what_is_accepted(tmp_path):
 
 def test_a_channel_map_naming_another_recording_is_refused(tmp_path):
     """``recording`` in a map was read and never compared with the file: a map written
-    for one run read another. Refused in one line naming both, before the file is read;
-    the map's name matches the file's name in any folder (case aside), a path in it the
-    folders too."""
+    for one run read another. Refused in one line naming the key, the map and both file
+    names, before the file is read; the file names alone are compared (case aside), the
+    link's own or its target's. The folders were compared too, and a map beside the data
+    (``../data/run.mf4``) or written on the logger's PC (``C:\\meas\\run.mf4``) was
+    refused with 'run.mf4' on both sides."""
     (tmp_path / "day1").mkdir()
     path = write_mdf(tmp_path / "day1" / "run.mf4")
-    for named in ("run.mf4", "RUN.MF4", "day1/run.mf4", str(path)):
+    link = tmp_path / "link.mf4"
+    link.symlink_to(path)
+    for named in ("run.mf4", "RUN.MF4", "day1/run.mf4", str(path), "../day1/run.mf4",
+                  "C:\\meas\\day1\\run.mf4", "day2/run.mf4", "./run.mf4"):  # fmt: skip
         read_run(path, channel_map_from({**MAP, "recording": named}))
-    for named in ("other.mf4", "day2/run.mf4"):
+    for named in ("link.mf4", "run.mf4", "D:\\x\\Link.MF4"):
+        read_run(link, channel_map_from({**MAP, "recording": named}))
+    for named, file in (("other.mf4", ""), ("C:\\meas\\other.mf4", " names the file 'other.mf4'"),
+                        ("../data/run", " names the file 'run'")):  # fmt: skip
         with pytest.raises(RailsuspInputError) as info:
             read_run(path, channel_map_from({**MAP, "recording": named}, "channel map m.toml"))
         assert str(info.value) == (
-            f"channel map m.toml: recording = {named!r}, but the file read through it is "
-            f"'run.mf4' ({path}); accepted the recording the map names, or a map without "
-            "recording (one map for every run of a measuring system)"
+            f"channel map m.toml: recording = {named!r}{file}, but the file read through the "
+            f"map is 'run.mf4' ({path}); accepted a recording of the file's name (folders and "
+            "case aside), or a map without recording (one map for every run of a measuring "
+            "system)"
         )
+    with pytest.raises(
+        RailsuspInputError, match=r"is 'link.mf4' \(.*link.mf4, a link to 'run.mf4'\)"
+    ):
+        read_run(link, channel_map_from({**MAP, "recording": "other.mf4"}))
     with pytest.raises(RailsuspInputError, match="recording = '': accepted the run's file name"):
         channel_map_from({**MAP, "recording": ""})
     mapping = tmp_path / "map.toml"
@@ -174,7 +187,7 @@ def test_a_channel_map_naming_another_recording_is_refused(tmp_path):
     assert read_channel_map(mapping).recording == "other.mf4"
     result = CliRunner().invoke(app, ["check-recording", str(path), "--map", str(mapping)])
     assert result.exit_code == 2
-    assert "recording = 'other.mf4', but the file read through it is 'run.mf4'" in " ".join(
+    assert "recording = 'other.mf4', but the file read through the map is 'run.mf4'" in " ".join(
         result.output.split()
     )
 

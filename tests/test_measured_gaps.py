@@ -28,9 +28,9 @@ MAP = {
 }  # fmt: skip
 
 
-def long_run(path, *, seconds=60.0, nan=None, slow_speed=False):
-    """A tangent run at 54 km/h, forces at 200 Hz; ``nan``: {channel: index or mask} set to
-    NaN; ``slow_speed``: the speed a 10 Hz channel (NaN between its samples in the table)."""
+def long_run(path, *, seconds=60.0, nan=None, speed_kmh=54.0):
+    """A tangent run at ``speed_kmh`` (its channel; the distance at 54 km/h), forces at 200
+    Hz; ``nan``: {channel: index or mask} set to NaN."""
     rng = np.random.default_rng(5)
     t = np.arange(round(seconds * RATE)) / RATE
     frame = {
@@ -39,7 +39,7 @@ def long_run(path, *, seconds=60.0, nan=None, slow_speed=False):
         "Q_R": 120.0 + rng.standard_normal(t.size),
         "Y_L": 5.0 + rng.standard_normal(t.size),
         "Q_L": 120.0 + rng.standard_normal(t.size),
-        "v": np.full(t.size, 54.0),
+        "v": np.full(t.size, speed_kmh),
         "s": 15.0 * t,
         "curv": np.zeros(t.size),
     }
@@ -113,6 +113,59 @@ def test_a_gap_of_a_slower_channel_leaves_out_the_samples_interpolated_across_it
     assert "samples 100-109 (10.000-10.900 s, 10 samples)" in note
 
 
+@pytest.mark.parametrize(("where", "left_out"), [("first", (0, 4000)), ("last", (8000, 12000))])
+def test_a_position_missing_at_either_end_is_cut_not_taken_for_a_unit_error(
+    tmp_path, where, left_out
+):
+    """The distance channel NaN for the run's first or last 20 s: its filled values are held
+    flat there, so its path (600 m) fell short of the integrated speed (900 m) and the run
+    was refused as a unit error (ratio 0.667). Compared outside the gaps, the run is cut,
+    the gap a left-out row; a speed in the wrong unit is still caught, the message saying
+    what was compared."""
+    nan = {"s": slice(*left_out)}
+    run = read_run(long_run(tmp_path / "run.csv", nan=nan), channel_map_from(MAP))
+    assert run.gaps == ((*left_out, "s"),)
+    secs = cut_sections(run)
+    (gap,) = [s for s in secs if s.reason.startswith("no values")]
+    assert (gap.start, gap.end, gap.kept) == (*left_out, False)
+    assert sum(s.end - s.start for s in secs if s.kept) == 8000
+    wrong = long_run(tmp_path / "wrong.csv", nan=nan, speed_kmh=54.0 * 3.6)  # m/s as km/h
+    with pytest.raises(RecordingError) as info:
+        read_run(wrong, channel_map_from(MAP))
+    assert (
+        "channels 's' and 'v': the distance runs over 599.9 m while the speed integrates to "
+        "2160 m outside their gaps of missing values (NaN) (ratio 0.278, accepted 0.8 to 1.25)"
+    ) in str(info.value)
+
+
+def test_many_gaps_are_looked_up_once_per_cut_not_once_per_piece(tmp_path):
+    """240 gaps of Q_R, every fifth overlapped by one of Y_L: each piece's gap channels
+    were found by walking every gap of the run (the cut of a 2 h run with 6857 gaps took
+    9 s, quadratic in the gaps); the gaps are walked a few times per cut now, and a piece
+    in two channels' gaps still names both."""
+
+    class Walked(tuple):
+        walks = 0
+
+        def __iter__(self):
+            Walked.walks += 1
+            return super().__iter__()
+
+    n = round(300.0 * RATE)
+    q = (np.arange(n) % 250) >= 230  # 20 samples of every 250 (1.25 s)
+    y = q & ((np.arange(n) // 250) % 5 == 0) & ((np.arange(n) % 250) >= 240)  # inside Q_R's
+    run = read_run(long_run(tmp_path / "run.csv", seconds=300.0, nan={"Q_R": q, "Y_L": y}),
+                   channel_map_from(MAP))  # fmt: skip
+    assert len(run.gaps) == 240 + 48
+    run.gaps = Walked(run.gaps)
+    secs = cut_sections(run)
+    assert Walked.walks <= 4  # 600 or so before: once per piece
+    gaps = [p for s in secs if not s.kept for p in s.pieces if p[0] == "gap"]
+    assert sum("channel(s) 'Q_R', 'Y_L', longer" in p[1] for p in gaps) == 48
+    assert sum("channel(s) 'Q_R', longer" in p[1] for p in gaps) == 240
+    assert sum(p[2] for p in gaps) * RATE == pytest.approx(q.sum())
+
+
 @pytest.mark.parametrize(
     ("nan", "said"),
     [
@@ -127,9 +180,9 @@ def test_a_gap_of_a_slower_channel_leaves_out_the_samples_interpolated_across_it
         # each force channel half missing, the other half: no stretch with both
         (
             {"Y_R": slice(0, 6000), "Q_R": slice(6000, None)},
-            "channels 'Y_R', 'Q_R': their gaps of missing values (NaN) together leave 0 s at "
-            "the longest with every channel's values; accepted a stretch of at least 1 s (a "
-            "working condition's shortest duration)",
+            "channels 'Y_R', 'Q_R': 100 % of the samples missing (NaN) in one of them or more, "
+            "their longest stretch with every channel's values 0 s; accepted a stretch of at "
+            "least 1 s (a working condition's shortest duration)",
         ),
     ],
 )

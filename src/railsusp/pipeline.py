@@ -122,7 +122,11 @@ def _run_stages(
     from_option: str = "--from",
 ) -> dict:
     """:func:`run_pipeline`'s stages in order on the run directory ``out`` whose
-    ``pipeline.json`` is ``state`` (its lock held), the up-to-date ones skipped."""
+    ``pipeline.json`` is ``state`` (its lock held), the up-to-date ones skipped. A long
+    run's cut, read by the configuration check, is let go once the field stage is passed
+    (run or skipped): a resumed run kept it (0.5 GB for 2 h at 1 kHz) to its end."""
+    from railsusp.measured.cut import release_cut
+
     state_path = out / "pipeline.json"
     state["config"] = config.model_dump(mode="json")
     # the verdicts' tolerances as the run read them: open_run judges with these, not with
@@ -188,6 +192,8 @@ def _run_stages(
             log.info("stage %s: done in %.1f s", stage, state["stages"][stage]["seconds"])
             forced = min(forced, i + 1)  # everything downstream reruns
         upstream[stage] = h
+        if stage == "field":  # written or up to date: later stages need only its conditions
+            release_cut()
     if ran:
         state["provenance"]["finished"] = utc_now()
     write_json(state_path, state)

@@ -121,7 +121,8 @@ def filled(x: np.ndarray) -> np.ndarray:
     """``x`` with its NaN samples interpolated linearly (held at the ends): a channel's
     long gaps, so that it can be put on the run's time base and the run's position and
     track computed through them. Their samples are never in a section (:func:`nan_gap_breaks`
-    marks them)."""
+    marks them), nor in the comparison of the distance with the speed
+    (:func:`compared_paths`): a gap held flat at an end covers no distance."""
     nan = np.isnan(x)
     if not nan.any():
         return x
@@ -139,7 +140,8 @@ def nan_gap_breaks(
     came from a gap (on a slower channel's time base, those between its last value before
     the gap and its first after), as (start, end exclusive, channel), and the breaks at
     their ends. Where the channels' gaps together leave no stretch of :data:`MIN_STRETCH_S`
-    with every channel's values (each alone has one, at other times), a problem."""
+    with every channel's values (each alone has one, at other times), a problem naming
+    them, with the share of samples missing in any and the longest stretch."""
     spans: list[tuple[int, int, str]] = []
     for c, own in gaps.items():
         ct = si[c].time
@@ -157,9 +159,10 @@ def nan_gap_breaks(
     if longest < MIN_STRETCH_S:
         names = ", ".join(repr(c) for c in dict.fromkeys(c for _, _, c in spans))
         problems.append(
-            f"channels {names}: their gaps of missing values (NaN) together leave "
-            f"{longest:.3g} s at the longest with every channel's values; accepted a stretch "
-            f"of at least {MIN_STRETCH_S:g} s (a working condition's shortest duration)"
+            f"channels {names}: {100.0 * float(missing.mean()):.3g} % of the samples missing "
+            f"(NaN) in one of them or more, their longest stretch with every channel's values "
+            f"{longest:.3g} s; accepted a stretch of at least {MIN_STRETCH_S:g} s (a working "
+            "condition's shortest duration)"
         )
     edges = np.array([x for a, b, _ in spans for x in (a, b)], dtype=np.int64)
     return np.unique(edges), tuple(sorted(spans))
@@ -194,12 +197,68 @@ def jump_steps(x: np.ndarray, t: np.ndarray, speed: np.ndarray | None) -> np.nda
     return moved[change > JUMP_FACTOR * reach + 1.0]
 
 
-def distance_path(x: np.ndarray, jump: np.ndarray) -> float:
-    """The path a distance channel runs over, m: the sum of its steps, the ``jump`` steps
-    left out (a run that backs up covers its stretch twice; a reset covers nothing)."""
-    moved = np.abs(np.diff(x))
-    moved[jump] = 0.0
-    return float(np.nansum(moved))
+def compared_steps(
+    own_time: np.ndarray,
+    own_gaps: list[tuple[int, int]],
+    jump: np.ndarray,
+    t: np.ndarray,
+    spans: list[tuple[int, int]],
+) -> np.ndarray:
+    """The steps of a distance channel (its samples i -> i + 1, on its own time base
+    ``own_time``) over which its path is compared with the integrated speed: True where
+    the step is no ``jump``, touches none of the channel's own NaN gaps (``own_gaps``) and
+    spans no sample of the run's time base ``t`` inside ``spans`` (the gaps of the distance
+    and speed channels on it). A gap's values are filled, held flat at the run's ends
+    (:func:`filled`): compared there, a run whose position was missing for its first 20 s
+    read as a unit error (600 m against 900 m, a ratio of 0.67) instead of being cut."""
+    ok = np.ones(max(own_time.size - 1, 0), dtype=bool)
+    ok[jump] = False
+    for s, e in own_gaps:  # steps s - 1 -> s up to e - 1 -> e touch a missing sample
+        ok[max(s - 1, 0) : e] = False
+    if spans:
+        missing = np.zeros(t.size, dtype=bool)
+        for a, b in spans:
+            missing[a:b] = True
+        count = np.concatenate([[0], np.cumsum(missing)])  # missing samples before each
+        lo = np.searchsorted(t, own_time[:-1], "left")
+        hi = np.searchsorted(t, own_time[1:], "right")
+        ok &= count[hi] == count[lo]
+    return ok
+
+
+def distance_path(x: np.ndarray, steps: np.ndarray) -> float:
+    """The path a distance channel runs over, m: the sum of its ``steps`` (a mask of its
+    steps, :func:`compared_steps`: its jumps and gaps left out; a run that backs up covers
+    its stretch twice; a reset covers nothing)."""
+    return float(np.sum(np.abs(np.diff(x))[steps]))
+
+
+def speed_path(speed: np.ndarray, t: np.ndarray, own_time: np.ndarray, steps: np.ndarray) -> float:
+    """What the speed (m/s on the run's time base ``t``) integrates to, m, over the same
+    ``steps`` of the distance channel (on its time base ``own_time``): the two are compared
+    over one stretch of time."""
+    v = np.abs(speed)
+    covered = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+    return float(np.sum(np.diff(np.interp(own_time, t, covered))[steps]))
+
+
+def compared_paths(
+    pos: RawChannel,
+    own_gaps: list[tuple[int, int]],
+    jump: np.ndarray,
+    speed: np.ndarray,
+    t: np.ndarray,
+    spans: list[tuple[int, int]],
+) -> tuple[float, float, bool]:
+    """The distance channel ``pos``'s path, what the ``speed`` (on the run's time base
+    ``t``) integrates to over the same steps, m, and whether gaps were left out: its
+    jumps, its own NaN gaps and the samples of ``spans`` (the distance and speed channels'
+    gaps on ``t``) left out of both (:func:`compared_steps`). On the distance's own
+    samples: on the forces', a slow channel's jump is spread over many steps, each too
+    small to tell."""
+    steps = compared_steps(pos.time, own_gaps, jump, t, spans)
+    path = distance_path(pos.values, steps)
+    return path, speed_path(speed, t, pos.time, steps), bool(spans or own_gaps)
 
 
 def without_jumps(x: np.ndarray, jump: np.ndarray) -> np.ndarray:

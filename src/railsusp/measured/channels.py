@@ -37,7 +37,6 @@ channel as it is read, rather than the user rewriting the file.
 
 from __future__ import annotations
 
-import os
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -163,21 +162,25 @@ def channel_map_from(doc: dict, source: str = "channel map") -> ChannelMap:
 
 def check_recording_name(cmap: ChannelMap, path: str | Path) -> None:
     """Refuse reading ``path`` through a map whose ``recording`` names another file: the
-    file's path must end with the map's name of it (a name alone matches the file's name
-    in any folder; ``day1/run.mf4`` the file ``run.mf4`` in a folder ``day1``), case
-    aside (a file system may ignore it). A map without ``recording`` takes any file."""
+    file names are compared, the last component of the map's (split at ``/`` and ``\\``,
+    folders left aside: a map written on the logger's PC names ``C:\\meas\\run.mf4``,
+    one beside the data ``../data/run.mf4``) against the file's own name or, for a link,
+    its target's, case aside (a file system may ignore it). Where the folders were
+    compared too, such a map was refused with the same name shown on both sides. A map
+    without ``recording`` takes any file."""
     if cmap.recording is None:
         return
-    named = [p.casefold() for p in cmap.recording.replace("\\", "/").split("/")]
-    named = [p for p in named if p not in ("", ".")]
-    # the path as given (a link's own name) or the file it leads to, either matches
-    for candidate in (Path(os.path.abspath(path)), Path(path).resolve()):
-        if named and [p.casefold() for p in candidate.parts[-len(named) :]] == named:
-            return
+    named = cmap.recording.replace("\\", "/").rsplit("/", 1)[-1]
+    own, target = Path(path).name, Path(path).resolve().name
+    if named.casefold() in (own.casefold(), target.casefold()):
+        return
+    link = f", a link to {target!r}" if target != own else ""
+    file = f" names the file {named!r}" if named != cmap.recording else ""
     raise RailsuspInputError(
-        f"{cmap.source}: recording = {cmap.recording!r}, but the file read through it is "
-        f"{Path(path).name!r} ({path}); accepted the recording the map names, or a map "
-        "without recording (one map for every run of a measuring system)"
+        f"{cmap.source}: recording = {cmap.recording!r}{file}, but the file read through "
+        f"the map is {own!r} ({path}{link}); accepted a recording of the "
+        "file's name (folders and case aside), or a map without recording (one map for "
+        "every run of a measuring system)"
     )
 
 

@@ -18,7 +18,9 @@ import numpy as np
 from railsusp.errors import RailsuspInputError
 from railsusp.measured.units import si_factor
 
-#: NaN gaps up to this many samples are interpolated (with a note); longer are refused
+#: NaN gaps up to this many samples are interpolated (with a note); a longer one refuses a
+#: recording to estimate from (one stretch) and cuts a long run, its samples left out
+#: (:func:`railsusp.measured.breaks.nan_gap_breaks`)
 MAX_GAP_SAMPLES = 5
 #: relative deviation of a sampling interval from the median that counts as jitter
 JITTER_TOLERANCE = 0.01

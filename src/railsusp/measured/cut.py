@@ -7,8 +7,8 @@ recording = ...`` does them here, so that the campaign knows the sections' condi
 before the field stage writes their recordings. The cut is cached per file state (path,
 size, modification time) and rules: the configuration check, the stage hashes and the
 field stage ask for it. One cut is kept (a 2 h run at 1 kHz is about 0.5 GB), and none
-once the field stage has written it: the sections' conditions, which the later stages
-ask for, are cached on their own (a few kB).
+once the pipeline's field stage is passed, written or skipped (:func:`release_cut`): the
+sections' conditions, which the later stages ask for, are cached on their own (a few kB).
 """
 
 from __future__ import annotations
@@ -130,4 +130,13 @@ def write_run_field(source: RunSource, out: str | Path, final: str | Path | None
         section_conditions(source)  # cached now (already, where the pipeline asked before)
         return folder
     finally:
-        _cut.cache_clear()
+        release_cut()
+
+
+def release_cut() -> None:
+    """Let the cached cut go (the whole run: 0.5 GB for 2 h at 1 kHz); the kept sections'
+    conditions stay cached apart (:func:`section_conditions`). The pipeline calls it once
+    its field stage is passed, written or up to date and skipped: the configuration check
+    filled the cache, and a resumed run, whose field stage is skipped, never came to
+    :func:`write_run_field`, which let it go, and kept the run for the pipeline's life."""
+    _cut.cache_clear()

@@ -175,24 +175,26 @@ def stretch_pieces(
     name: str | None,
     labels: np.ndarray | None,
     dt: float,
+    gaps: GapCover,
 ) -> list[Section]:
     """Stretch a..b as sections: each stop (speed below :data:`MOVING_MS`) one piece, the
     run between split where the speed leaves the tolerance, and a stretch that holds it
     longer than the maximum duration into equal parts within it; pieces shorter than the
     minimum are left out. ``labels``: a section table's per-sample kinds of track (None:
     the stretch is one kind already, and a mostly transition one is one row); ``dt``: the
-    run's sampling interval, s (``run.rate_hz`` takes the median of the whole run's)."""
+    run's sampling interval, s (``run.rate_hz`` takes the median of the whole run's);
+    ``gaps``: the run's NaN gaps (:class:`GapCover`, built once per cut)."""
     if labels is None and geo["transition"][a:b].mean() > 0.5:
-        return [_section(run, geo, a, b, rules, name, None, "", dt)]
+        return [_section(run, geo, a, b, rules, name, None, "", dt, gaps)]
     moving = run.speed[a:b] >= MOVING_MS
     out = []
     for lo, hi in label_runs(moving.astype(np.int8)):
         lo, hi = lo + a, hi + a
         if not moving[lo - a]:
-            out.append(_section(run, geo, lo, hi, rules, name, labels, "stop", dt))
+            out.append(_section(run, geo, lo, hi, rules, name, labels, "stop", dt, gaps))
             continue
         for i, j, cause in _steady_parts(run, lo, hi, rules, (lo > a, hi < b), dt):
-            out.append(_section(run, geo, i, j, rules, name, labels, cause, dt))
+            out.append(_section(run, geo, i, j, rules, name, labels, cause, dt, gaps))
     return out
 
 
@@ -249,18 +251,43 @@ def _tolerance_end(v: np.ndarray, i: int, b: int, tolerance: float) -> int:
     return b
 
 
-def _in_gaps(run: MeasuredRun, i: int, j: int) -> str:
-    """The channels (quoted, comma-separated) of the run's NaN gaps that cover most of
-    samples i..j, or "" (a break at either end of each gap: a piece is in one or out)."""
-    if j <= i or not run.gaps:
-        return ""
-    covered = np.zeros(j - i, dtype=bool)
-    names: dict[str, None] = {}
-    for a, b, channel in run.gaps:
-        if a < j and b > i:
-            covered[max(a, i) - i : min(b, j) - i] = True
-            names[channel] = None
-    return ", ".join(map(repr, names)) if covered.mean() > 0.5 else ""
+@dataclass(frozen=True)
+class GapCover:
+    """A run's NaN gaps (:attr:`~railsusp.measured.run.MeasuredRun.gaps`) as the stretches
+    between their edges, each with the channels whose gaps cover it (none: empty): built once
+    per cut, so that finding a piece's is a binary search. A piece lies wholly inside or
+    outside each gap (a break sits at every gap's edge); looked up through every gap for
+    every piece, the cut of a 2 h run with 6857 gaps took 9 s."""
+
+    edges: np.ndarray  # the gaps' starts and ends, sorted, unique
+    channels: tuple[tuple[str, ...], ...]  # per stretch edges[k]..edges[k + 1]
+
+    @classmethod
+    def of(cls, gaps: tuple[tuple[int, int, str], ...]) -> GapCover:
+        """The cover of ``gaps`` (start, end exclusive, channel), in their order: a
+        channel's own gaps are apart, so a stretch has at most one per channel and the
+        cover is built in the gaps times the channels."""
+        edges = np.unique(np.array([x for a, b, _ in gaps for x in (a, b)], dtype=np.int64))
+        cover: list[list[str]] = [[] for _ in range(max(edges.size - 1, 0))]
+        for a, b, channel in gaps:
+            for k in range(int(np.searchsorted(edges, a)), int(np.searchsorted(edges, b))):
+                cover[k].append(channel)
+        return cls(edges, tuple(tuple(dict.fromkeys(c)) for c in cover))
+
+    def names(self, i: int, j: int) -> str:
+        """The channels (quoted, comma-separated) of the gaps that cover most of samples
+        i..j, or "": the stretches i..j overlaps (one where it lies inside a gap or between
+        two, as the breaks make every piece)."""
+        if j <= i or not self.channels:
+            return ""
+        lo = max(int(np.searchsorted(self.edges, i, "right")) - 1, 0)
+        hi = min(int(np.searchsorted(self.edges, j, "left")), len(self.channels))
+        covered, names = 0, {}
+        for k in range(lo, hi):
+            if self.channels[k]:
+                covered += max(0, min(int(self.edges[k + 1]), j) - max(int(self.edges[k]), i))
+                names.update(dict.fromkeys(self.channels[k]))
+        return ", ".join(map(repr, names)) if covered > 0.5 * (j - i) else ""
 
 
 def merged_row(run: MeasuredRun, group: list[Section]) -> Section:
@@ -301,9 +328,11 @@ def _section(
     labels: np.ndarray | None,
     cause: str,
     dt: float,
+    gaps: GapCover,
 ) -> Section:
     """Samples i..j as a section, or left out with the reason. ``cause``: what cut it off
-    ("speed", "duration", "stop": the piece is a stop, "": the stretch's ends)."""
+    ("speed", "duration", "stop": the piece is a stop, "": the stretch's ends); ``gaps``:
+    the run's NaN gaps."""
     sl = slice(i, j)
     curv = float(np.median(geo["curvature"][sl]))
     radius = 1.0 / abs(curv) if abs(curv) > 1.0 / rules.tangent_radius_m else None
@@ -324,7 +353,7 @@ def _section(
         spread,
     )
     shares = kind_shares(geo, labels, i, j) if labels is not None else [("", 1.0)]
-    gap = _in_gaps(run, i, j)
+    gap = gaps.names(i, j)
     if gap:
         piece = ("gap", f"no values: a gap of missing values (NaN) in channel(s) {gap}, "
                  "longer than those interpolated")  # fmt: skip

@@ -14,7 +14,7 @@ from railsusp.conditions import field_range
 from railsusp.errors import RailsuspInputError, did_you_mean
 from railsusp.measured.breaks import (
     channel_nan_gaps,
-    distance_path,
+    compared_paths,
     dropout_breaks,
     filled,
     inner,
@@ -290,8 +290,12 @@ def read_run(
             f"channel {speed_name!r}: {100.0 * backwards.mean():.3g} % of the samples run "
             "backwards (wheelset 1 trailing); those stretches are left out"
         )
-    span = distance_path(pos.values, jump) if "position" in cmap.signals else None
-    problems += _plausible_track(sig, cmap.signals, speed, t, span)
+    paths = None
+    if "position" in cmap.signals and "speed" in sig:  # outside the gaps of either
+        pair = (pos.name, cmap.signals["speed"])
+        spans = [(a, b) for a, b, c in gaps if c in pair]
+        paths = compared_paths(pos, nan_gaps.get(pos.name, []), jump, speed, t, spans)
+    problems += _plausible_track(sig, cmap.signals, paths)
     if wheel_load_N is None:
         from railsusp.vehicle.setup import static_wheel_load
         from railsusp.vehicle.wagon import load_wagon
@@ -345,19 +349,16 @@ DISTANCE_SPEED_RATIO = (0.8, 1.25)
 def _plausible_track(
     sig: dict[str, np.ndarray],
     names: dict[str, str],
-    speed: np.ndarray,
-    t: np.ndarray,
-    span: float | None,
+    paths: tuple[float, float, bool] | None,
 ) -> list[str]:
     """Problems of a run's track channels whose values no line has, each naming the
     channel: a cant or grade beyond a working condition's range, and a distance channel
-    whose span disagrees with the integrated speed (one of the two in the wrong unit: a
-    speed headed ``[m/s]`` holding km/h cut sections at 234 km/h). ``span``: the distance
-    channel's path, its jumps left out, as read on its own samples (None: no distance
-    channel). The path, not the channel's span: a run that backs up is no unit error, nor
-    is a chainage jump or an odometer's reset (a unit error of 3.6 or 1000 moves every
-    step, not a few); on the forces' samples a slow channel's jump is spread over many
-    steps, each too small to tell."""
+    whose path disagrees with the integrated speed (one of the two in the wrong unit: a
+    speed headed ``[m/s]`` holding km/h cut sections at 234 km/h). ``paths``: the distance
+    channel's path, what the speed integrates to over the same steps, and whether gaps were
+    left out (:func:`~railsusp.measured.breaks.compared_paths`); None: not both channels.
+    The path, not the channel's span: a run that backs up is no unit error, nor is a
+    chainage jump or an odometer's reset (a unit error of 3.6 or 1000 moves every step)."""
     problems = []
     for key, limit, scale, unit in (
         ("cant", MAX_CANT_M, 1e3, "mm"),
@@ -368,13 +369,14 @@ def _plausible_track(
                 f"channel {names[key]!r}: {key} up to {np.nanmax(np.abs(sig[key])) * scale:.4g} "
                 f"{unit}, beyond a working condition's {limit * scale:g} {unit}: a unit error?"
             )
-    if "speed" in sig and span is not None:
-        travelled = float(np.trapezoid(np.abs(speed), t))
+    if paths is not None:
+        span, travelled, gapped = paths
         lo, hi = DISTANCE_SPEED_RATIO
+        where = " outside their gaps of missing values (NaN)" if gapped else ""
         if travelled > 10.0 and not lo <= span / travelled <= hi:
             problems.append(
                 f"channels {names['position']!r} and {names['speed']!r}: the distance runs over "
-                f"{span:.4g} m while the speed integrates to {travelled:.4g} m (ratio "
+                f"{span:.4g} m while the speed integrates to {travelled:.4g} m{where} (ratio "
                 f"{span / travelled:.3g}, accepted {lo:g} to {hi:g}): a unit error in one?"
             )
     return problems

@@ -31,6 +31,7 @@ from railsusp.measured.line import (  # noqa: F401  (the sources of a cut, with 
 from railsusp.measured.pieces import (  # noqa: F401  (what a section is, with the cut)
     MIN_RADIUS_M,
     OUTSIDE_LINE,
+    GapCover,
     Section,
     SectionRules,
     merged_row,
@@ -210,6 +211,7 @@ def _collect(
     into one row, built once per stretch: merged piece by piece, a noisy stop's thousands
     of pieces made the cut quadratic in time (27 s for an 80 s stop)."""
     dt = 1.0 / run.rate_hz  # once: the property takes the median of the whole run's steps
+    gaps = GapCover.of(run.gaps)  # once: looked up per piece
     out: list[Section] = []
     pending: list[Section] = []
     pending_row = None
@@ -219,7 +221,7 @@ def _collect(
         for sec in (
             [outside_row(run, a, b, dt)]
             if outside
-            else stretch_pieces(run, geo, a, b, rules, name, labels, dt)
+            else stretch_pieces(run, geo, a, b, rules, name, labels, dt, gaps)
         ):
             alone = sec.kept or sec.reason == OUTSIDE_LINE  # (an uncovered stretch: own row)
             if pending and (alone or pending[-1].end != sec.start or row != pending_row):
