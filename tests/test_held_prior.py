@@ -19,7 +19,8 @@ from railsusp.estimate.refine_intervals import (
     held_values,
 )
 from railsusp.params import MAIN_SUSPENSION, ParameterSet, bounds, spec
-from railsusp.pipeline import PipelineConfig, _section, load_config
+from railsusp.pipeline import PipelineConfig, load_config
+from railsusp.pipeline_stages import stage_section
 
 X19_NOMINAL = 30000.0  # kN/m, Table 2 range 15000-45000
 
@@ -109,9 +110,9 @@ def test_the_configuration_takes_a_prior_and_refuses_a_bad_one_before_any_stage(
 def test_no_prior_leaves_the_estimate_stage_hash_as_before():
     """Runs made before ``held_prior`` existed stay up to date; a prior re-runs the stage."""
     plain = PipelineConfig()
-    assert "held_prior" not in _section(plain, "estimate")
+    assert "held_prior" not in stage_section(plain, "estimate")
     with_prior = PipelineConfig(estimate={"refine": True, "held_prior": {"X19": [2e4, 4e4]}})
-    assert _section(with_prior, "estimate")["held_prior"] == {"X19": [2e4, 4e4]}
+    assert stage_section(with_prior, "estimate")["held_prior"] == {"X19": [2e4, 4e4]}
 
 
 def test_every_nominal_is_the_centre_of_its_table_2_range_so_the_default_has_no_offset():

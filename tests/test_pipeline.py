@@ -275,13 +275,15 @@ def test_stage_hashes_follow_the_model_not_only_the_configuration(monkeypatch, t
     from importlib import resources
 
     import railsusp.vehicle
-    from railsusp import pipeline
+    from railsusp import pipeline_stages
     from railsusp.store import content_hash
 
     cfg = demo_config()
 
     def hashes(config):
-        return {s: content_hash(pipeline._section(config, s)) for s in ("campaign", "field")}
+        return {
+            s: content_hash(pipeline_stages.stage_section(config, s)) for s in ("campaign", "field")
+        }
 
     before = hashes(cfg)
     monkeypatch.setattr(railsusp.vehicle, "MODEL_REVISION", "another")
@@ -563,7 +565,7 @@ def test_the_stage_hashes_follow_the_conditions_as_simulated(tmp_path, monkeypat
 
     from railsusp import conditions as conditions_module
     from railsusp.conditions import get_condition
-    from railsusp.pipeline import _section
+    from railsusp.pipeline_stages import stage_section
     from railsusp.vehicle.track_geometry import write_track_geometry
     from railsusp.vehicle.track_grid import section_irregularities
     from railsusp.vehicle.wagon import load_wagon
@@ -577,15 +579,18 @@ def test_the_stage_hashes_follow_the_conditions_as_simulated(tmp_path, monkeypat
         f'n_steps = 50, lead_in_m = 20.0, track_geometry = "{geo}"}}]\n'
     )
     config = load_config(cfg)
-    before = {s: _section(config, s) for s in ("campaign", "field")}
+    before = {s: stage_section(config, s) for s in ("campaign", "field")}
     assert before["campaign"]["conditions"][0]["curve_radius_m"] == 300.0  # resolved
     table = pd.read_csv(geo)
     table[[c for c in table.columns if c != "distance_m"]] *= 3.0
     table.to_csv(geo, index=False)
-    edited = {s: _section(config, s) for s in ("campaign", "field")}
+    edited = {s: stage_section(config, s) for s in ("campaign", "field")}
     for s in ("campaign", "field"):
         assert edited[s] != before[s] and edited[s]["conditions"] == before[s]["conditions"]
     upgraded = dict(conditions_module.STANDARD_CONDITIONS)
     upgraded["curve"] = upgraded["curve"].with_changes(speed_kmh=70.0)
     monkeypatch.setattr(conditions_module, "STANDARD_CONDITIONS", upgraded)
-    assert _section(load_config(cfg), "campaign")["conditions"] != edited["campaign"]["conditions"]
+    assert (
+        stage_section(load_config(cfg), "campaign")["conditions"]
+        != edited["campaign"]["conditions"]
+    )

@@ -10,7 +10,8 @@ import json
 import pytest
 
 from railsusp.config import ConfigError
-from railsusp.pipeline import STAGES, _section, load_config, run_pipeline
+from railsusp.pipeline import STAGES, load_config, run_pipeline
+from railsusp.pipeline_stages import stage_section
 from railsusp.surrogate.pretrained import PRETRAINED_RUN, read_network_set, resolve_network_set
 
 RUN = """
@@ -98,30 +99,30 @@ def test_without_a_network_set_the_surrogate_stage_hashes_as_before(tmp_path):
         "device": "cpu",
     }
     own = PipelineConfig.model_validate({"surrogate": before})
-    assert _section(own, "surrogate") == before
+    assert stage_section(own, "surrogate") == before
 
 
 def test_a_set_is_hashed_by_its_content_and_not_by_unused_training_settings(tmp_path):
     import shutil
 
     cfg = load_config(config(tmp_path))
-    first = _section(cfg, "surrogate")
+    first = stage_section(cfg, "surrogate")
     assert set(first) == {"model", "pretrained", "network_set"}
     more = cfg.model_copy(update={"surrogate": cfg.surrogate.model_copy(update={"epochs": 99})})
-    assert _section(more, "surrogate") == first  # not used with a set: nothing reruns
+    assert stage_section(more, "surrogate") == first  # not used with a set: nothing reruns
     # the same set under its folder with one network's weights replaced: another set
     copy = tmp_path / "set"
     shutil.copytree(resolve_network_set("c80_k6"), copy)
     mine = cfg.model_copy(
         update={"surrogate": cfg.surrogate.model_copy(update={"pretrained": str(copy)})}
     )
-    same = _section(mine, "surrogate")["network_set"]
+    same = stage_section(mine, "surrogate")["network_set"]
     assert same == first["network_set"]
     weights = copy / "curve" / "model.pt"
     data = bytearray(weights.read_bytes())
     data[len(data) // 2] ^= 0xFF  # one byte of the weights changed
     weights.write_bytes(bytes(data))
-    assert _section(mine, "surrogate")["network_set"] != same
+    assert stage_section(mine, "surrogate")["network_set"] != same
 
 
 @pytest.fixture(scope="module")
@@ -192,9 +193,9 @@ def test_a_time_aligned_run_estimates_again_for_the_geometry_bias(tmp_path):
     (since the choice gets the geometry error's bias taken off, such a run estimates again);
     runs on record statistics hash as before."""
     aligned = load_config(config(tmp_path))
-    assert _section(aligned, "estimate")["nsga_geometry"] == "first SIMEX step"
+    assert stage_section(aligned, "estimate")["nsga_geometry"] == "first SIMEX step"
     means = load_config(config(tmp_path, stat="mean"))
-    section = _section(means, "estimate")
+    section = stage_section(means, "estimate")
     assert "nsga_geometry" not in section
     assert section == means.estimate.model_dump(
         exclude={
@@ -221,13 +222,13 @@ def test_first_order_corrections_hash_the_simulators_check_of_their_steps(tmp_pa
     from railsusp.pipeline_config import PipelineConfig
 
     text = tomllib.loads(config(tmp_path).read_text())
-    assert "correction_steps" not in _section(PipelineConfig.model_validate(text), "estimate")
+    assert "correction_steps" not in stage_section(PipelineConfig.model_validate(text), "estimate")
     text["estimate"].update(simulator_corrections=2, correction_slopes=True)
-    section = _section(PipelineConfig.model_validate(text), "estimate")
+    section = stage_section(PipelineConfig.model_validate(text), "estimate")
     assert section["correction_steps"] == "checked by the simulator's cost (trust region)"
     assert "slope_update" not in section
     text["estimate"]["slope_update"] = "broyden"
-    broyden = _section(PipelineConfig.model_validate(text), "estimate")
+    broyden = stage_section(PipelineConfig.model_validate(text), "estimate")
     assert broyden["slope_update"] == "broyden"
     assert broyden["broyden_min_step"] == 0.01  # the floor of the update, since it came
     assert "broyden_min_step" not in section
@@ -243,14 +244,14 @@ def test_expected_draws_hash_their_route_and_whether_the_generations_use_them(tm
     from railsusp.pipeline_config import PipelineConfig
 
     text = tomllib.loads(config(tmp_path).read_text())
-    plain = _section(PipelineConfig.model_validate(text), "estimate")
+    plain = stage_section(PipelineConfig.model_validate(text), "estimate")
     assert "expected_generations" not in plain and "expected_draws" not in plain
     text["estimate"]["expected_draws"] = 8
-    polished = _section(PipelineConfig.model_validate(text), "estimate")
+    polished = stage_section(PipelineConfig.model_validate(text), "estimate")
     assert polished["nsga_geometry"] == "expected-forces polish"
     assert polished["expected_draws"] == 8 and polished["expected_generations"] is False
     text["estimate"]["expected_generations"] = True
-    assert _section(PipelineConfig.model_validate(text), "estimate") != polished
+    assert stage_section(PipelineConfig.model_validate(text), "estimate") != polished
 
 
 def test_a_run_with_expected_draws_polishes_and_validates_on_them(pretrained_run, tmp_path):

@@ -113,15 +113,15 @@ def test_cut_by_the_line_description_gives_the_same_conditions(example, tmp_path
 
 def test_stage_hash_follows_the_recording_file(example, tmp_path):
     """A changed recording file reruns the campaign: its state is in the stage input."""
-    from railsusp.pipeline import _section
+    from railsusp.pipeline_stages import stage_section
 
     cfg = load_config(example / CONFIG)
-    before = _section(cfg, "campaign")
+    before = stage_section(cfg, "campaign")
     copy = tmp_path / "example_run.mf4"
     shutil.copy(example / "example_run.mf4", copy)
     moved = cfg.model_copy(update={"field": cfg.field.model_copy(update={"recording": str(copy)})})
-    assert _section(moved, "campaign")["recording"] != before["recording"]
-    assert _section(moved, "campaign")["conditions"] == before["conditions"]
+    assert stage_section(moved, "campaign")["recording"] != before["recording"]
+    assert stage_section(moved, "campaign")["conditions"] == before["conditions"]
 
 
 def test_a_cut_that_keeps_nothing_fails_before_any_stage(example):
@@ -257,7 +257,7 @@ def test_a_resumed_run_lets_the_cut_go_when_its_field_stage_is_skipped(
     import railsusp.measured.cut as cut
     import railsusp.pipeline as pipeline
 
-    monkeypatch.setattr(pipeline, "_stage_runners", lambda *a: {s: dict for s in STAGES})
+    monkeypatch.setattr(pipeline, "stage_runners", lambda *a: {s: dict for s in STAGES})
     monkeypatch.setattr(pipeline, "stage_files", lambda *a: [])
     monkeypatch.setattr(pipeline, "outputs_exist", lambda *a: True)
     cfg = load_config(example / CONFIG)

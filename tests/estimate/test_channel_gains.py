@@ -154,8 +154,8 @@ def test_the_geometry_draws_and_the_run_hash_follow_the_setting(monkeypatch):
     them; a pipeline run with the setting off hashes its estimate stage as before the
     setting existed (old runs stay up to date), on re-estimates."""
     from railsusp.estimate import estimate, nsga_geometry
-    from railsusp.pipeline import _section
     from railsusp.pipeline_config import PipelineConfig
+    from railsusp.pipeline_stages import stage_section
 
     asked = []
 
@@ -171,9 +171,9 @@ def test_the_geometry_draws_and_the_run_hash_follow_the_setting(monkeypatch):
         res = estimate(WaveForces(), [rec], PARAMS, cfg)
         nsga_geometry.remove_nsga_geometry_bias(res, [rec], WaveForces(), draws=2)
     assert asked == [False, True]
-    assert "channel_gains" not in _section(PipelineConfig(), "estimate")
+    assert "channel_gains" not in stage_section(PipelineConfig(), "estimate")
     on = PipelineConfig(estimate={"statistic": "aligned", "channel_gains": True})
-    assert _section(on, "estimate")["channel_gains"] is True
+    assert stage_section(on, "estimate")["channel_gains"] is True
 
 
 def test_statistics_beside_the_comparison_see_the_same_gains():

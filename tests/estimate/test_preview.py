@@ -14,8 +14,8 @@ from railsusp.errors import RailsuspInputError
 from railsusp.estimate import NSGAConfig, estimate
 from railsusp.measured import Recording
 from railsusp.params import bounds
-from railsusp.pipeline import _section
 from railsusp.pipeline_config import load_config
+from railsusp.pipeline_stages import stage_section
 from test_estimate import ON_TRACK, PARAMS, WaveForces
 
 LONG = ON_TRACK.with_duration(4.0)  # 200 steps at 50 Hz
@@ -130,10 +130,10 @@ def test_a_run_without_a_preview_hashes_its_estimate_stage_as_before(tmp_path):
     option stay up to date); with one, the stage's inputs change and it estimates again."""
     path = tmp_path / "c.toml"
     path.write_text("[estimate]\nn_gen = 10\n")
-    plain = _section(load_config(path), "estimate")
+    plain = stage_section(load_config(path), "estimate")
     assert not {"preview_generations", "preview_s"} & set(plain)
     path.write_text("[estimate]\nn_gen = 10\npreview_generations = 6\npreview_s = 15\n")
-    previewed = _section(load_config(path), "estimate")
+    previewed = stage_section(load_config(path), "estimate")
     assert previewed["preview_generations"] == 6 and previewed["preview_s"] == 15.0
 
 

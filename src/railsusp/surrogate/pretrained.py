@@ -199,7 +199,7 @@ def set_hash(ns: NetworkSet) -> str:
 
 def wagon_hash(wagon: Any) -> str:
     """The content hash of a wagon's data as the pipeline's stage hashes take it
-    (:func:`railsusp.pipeline.model_identity`)."""
+    (:func:`railsusp.pipeline_stages.model_identity`)."""
     return content_hash(wagon.model_dump(mode="json"))
 
 
