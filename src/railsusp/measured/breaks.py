@@ -130,6 +130,14 @@ def filled(x: np.ndarray) -> np.ndarray:
     return np.interp(idx, idx[~nan], x[~nan])
 
 
+def span_mask(n: int, spans: list[tuple[int, int]]) -> np.ndarray:
+    """Per sample of ``n``, True inside one of ``spans`` (start, end exclusive)."""
+    mask = np.zeros(n, dtype=bool)
+    for a, b in spans:
+        mask[a:b] = True
+    return mask
+
+
 def nan_gap_breaks(
     si: dict[str, RawChannel],
     gaps: dict[str, list[tuple[int, int]]],
@@ -152,9 +160,7 @@ def nan_gap_breaks(
                 spans.append((first, last, c))
     if not spans:
         return np.zeros(0, dtype=np.int64), ()
-    missing = np.zeros(t.size, dtype=bool)
-    for a, b, _ in spans:
-        missing[a:b] = True
+    missing = span_mask(t.size, [(a, b) for a, b, _ in spans])
     longest = _longest_stretch(t, missing)
     if longest < MIN_STRETCH_S:
         names = ", ".join(repr(c) for c in dict.fromkeys(c for _, _, c in spans))
@@ -216,10 +222,8 @@ def compared_steps(
     for s, e in own_gaps:  # steps s - 1 -> s up to e - 1 -> e touch a missing sample
         ok[max(s - 1, 0) : e] = False
     if spans:
-        missing = np.zeros(t.size, dtype=bool)
-        for a, b in spans:
-            missing[a:b] = True
-        count = np.concatenate([[0], np.cumsum(missing)])  # missing samples before each
+        # the missing samples before each
+        count = np.concatenate([[0], np.cumsum(span_mask(t.size, spans))])
         lo = np.searchsorted(t, own_time[:-1], "left")
         hi = np.searchsorted(t, own_time[1:], "right")
         ok &= count[hi] == count[lo]

@@ -52,6 +52,14 @@ def runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[0::2].tolist(), edges[1::2].tolist(), strict=True))
 
 
+def label_runs(label: np.ndarray) -> list[tuple[int, int]]:
+    """(start, end exclusive) of every run of equal values in ``label``."""
+    edges = np.flatnonzero(np.diff(label)) + 1
+    starts = np.concatenate([[0], edges])
+    ends = np.concatenate([edges, [label.size]])
+    return [(int(a), int(b)) for a, b in zip(starts, ends, strict=True)]
+
+
 def check_finite(
     x: np.ndarray,
     channel: str,
@@ -168,12 +176,10 @@ def dropout_steps(t: np.ndarray) -> np.ndarray | None:
     if not np.all(whole):
         return None
     lost = np.flatnonzero(steps >= 2)
-    if lost.size >= RATE_CHANGE_INTERVALS:  # runs of equal intervals: a rate change?
-        edges = np.flatnonzero(np.diff(steps)) + 1
-        starts = np.concatenate([[0], edges])
-        ends = np.concatenate([edges, [steps.size]])
-        if np.any((steps[starts] >= 2) & (ends - starts >= RATE_CHANGE_INTERVALS)):
-            return None
+    if lost.size >= RATE_CHANGE_INTERVALS and any(  # runs of equal intervals: a rate change?
+        steps[a] >= 2 and b - a >= RATE_CHANGE_INTERVALS for a, b in label_runs(steps)
+    ):
+        return None
     return lost
 
 

@@ -13,7 +13,11 @@ from railsusp.conditions import field_range
 from railsusp.errors import RailsuspInputError
 
 #: a section name, which becomes a file name: no path separators, no leading dot
-SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,59}")
+_NAME = r"[A-Za-z0-9][A-Za-z0-9._-]"
+#: a name a table may give (at most 60 characters)
+SAFE_NAME = re.compile(_NAME + "{0,59}")
+#: a section's name as written: a split row's number may add to a table's name
+FILE_NAME = re.compile(_NAME + "*")
 #: names a section cannot take: its recording (NAME.csv, NAME.json) would be written over by
 #: the field folder's own files (index.json, sections.csv, en14363.csv), or write over them
 RESERVED_NAMES = ("index", "sections", "en14363")

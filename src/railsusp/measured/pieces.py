@@ -20,8 +20,9 @@ import numpy as np
 
 from railsusp.conditions import WorkingCondition, make_condition
 from railsusp.errors import RailsuspInputError
+from railsusp.measured.checks import label_runs
 from railsusp.measured.run import MeasuredRun
-from railsusp.measured.track_kinds import MOVING_MS, kind_shares, label_runs
+from railsusp.measured.track_kinds import MOVING_MS, kind_shares
 from railsusp.vehicle.simulation_result import WHEEL_NAMES, outer_wheel_index
 
 #: the smallest curve radius of a working condition (its ``curve_radius_m`` bound), m
@@ -111,8 +112,7 @@ def outside_row(run: MeasuredRun, a: int, b: int, dt: float) -> Section:
     dropped without a row: a quarter of the example run went unmentioned); ``dt``: the
     run's sampling interval, s."""
     v = run.speed[a:b]
-    metres = float(abs(run.position[b - 1] - run.position[a]))
-    piece = ("outside", OUTSIDE_LINE, (b - a) * dt, metres)
+    piece = ("outside", OUTSIDE_LINE, (b - a) * dt, _length(run, a, b))
     return Section(
         "", a, b, float(run.position[a]), float(run.position[b - 1]), None, "left", 0.0, 0.0,
         float(v.mean()) * 3.6, float((v.max() - v.min()) / max(v.mean(), 1e-9)), False,
@@ -214,12 +214,12 @@ def _steady_parts(
     the maximum duration and a shorter rest. Each piece with what cut it: "speed",
     "duration" or ""."""
     out = []
+    whole = max(1, math.floor(rules.max_duration_s / dt + 1e-9))  # samples
     i = lo
     while i < hi:
         j = _tolerance_end(run.speed, i, hi, rules.speed_tolerance)
         m = max(1, math.ceil((j - i) * dt / rules.max_duration_s - 1e-9))
         bounds = [i + round(q * (j - i) / m) for q in range(m + 1)]
-        whole = max(1, math.floor(rules.max_duration_s / dt + 1e-9))  # samples
         if m > 1 and _length(run, i, bounds[1]) < rules.min_length_m <= _length(run, i, i + whole):
             bounds = [*range(i, j, whole), j]
         for p, q in itertools.pairwise(bounds):

@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 from railsusp.errors import RailsuspInputError
+from railsusp.measured.checks import label_runs, runs
 from railsusp.measured.line import (  # noqa: F401  (the sources of a cut, with it)
     TABLE_TRACK,
     geometry_from_line,
@@ -40,7 +41,7 @@ from railsusp.measured.pieces import (  # noqa: F401  (what a section is, with t
 )
 from railsusp.measured.recording import RecordingError
 from railsusp.measured.run import MeasuredRun
-from railsusp.measured.track_kinds import label_runs, track_geometry, track_labels
+from railsusp.measured.track_kinds import track_geometry, track_labels
 from railsusp.vehicle.simulation_result import WHEEL_NAMES, outer_wheel_index
 
 
@@ -76,10 +77,9 @@ def cut_sections(
     else:
         spans = label_runs(labels)
     spans, rows = _split_at(spans, rows, _breaks(run))
-    out = _collect(run, geo, spans, rows, names, rules, labels if table is not None else None)
-    for sec, row in zip(out, _rows_of(out, spans, rows), strict=True):
-        if sec.kept and row in partial:
-            sec.reason = partial[row]
+    out = _collect(
+        run, geo, spans, rows, names, rules, labels if table is not None else None, partial
+    )
     if names:
         _number_split_rows(out, names)
     kept = [s for s in out if s.kept]
@@ -137,7 +137,7 @@ def _table_spans(
     spans, rows, partial = [], [], {}
     lo, hi = float(np.nanmin(run.position)), float(np.nanmax(run.position))
     for k, r in enumerate(table.itertuples(index=False)):
-        found = _true_runs((run.position >= r.start_m) & (run.position < r.end_m))
+        found = runs((run.position >= r.start_m) & (run.position < r.end_m))
         if not found:
             raise RailsuspInputError(
                 f"{_what(table)}, row {k + 2}: {r.start_m:g}-{r.end_m:g} m is not on the run "
@@ -155,25 +155,6 @@ def _table_spans(
 def _range(a: str, b: str) -> str:
     """``a-b``, or ``a to b`` where either is negative (-100-300 reads as a subtraction)."""
     return f"{a} to {b}" if a.startswith("-") or b.startswith("-") else f"{a}-{b}"
-
-
-def _rows_of(out: list[Section], spans: list[tuple[int, int]], rows: list | None) -> list:
-    """The table row of each section of the cut (None: no table, or a stretch between
-    rows): the row of the span that holds its first sample."""
-    if rows is None:
-        return [None] * len(out)
-    starts = np.array([a for a, _ in spans])
-    ends = np.array([b for _, b in spans])
-    found = []
-    for sec in out:
-        k = np.flatnonzero((starts <= sec.start) & (sec.start < ends))
-        found.append(rows[int(k[0])] if k.size else None)
-    return found
-
-
-def _true_runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """The runs of True samples of ``mask`` (start, end exclusive)."""
-    return [(a, b) for a, b in label_runs(mask.astype(np.int8)) if mask[a]]
 
 
 def _breaks(run: MeasuredRun) -> np.ndarray:
@@ -206,10 +187,12 @@ def _collect(
     names: list[str] | None,
     rules: SectionRules,
     labels: np.ndarray | None,
+    partial: dict[int, str],
 ) -> list[Section]:
     """Every span's pieces in order, consecutive left-out pieces (of one table row) merged
     into one row, built once per stretch: merged piece by piece, a noisy stop's thousands
-    of pieces made the cut quadratic in time (27 s for an 80 s stop)."""
+    of pieces made the cut quadratic in time (27 s for an 80 s stop). ``partial``: the
+    reason of the kept sections of each table row only partly on the run."""
     dt = 1.0 / run.rate_hz  # once: the property takes the median of the whole run's steps
     gaps = GapCover.of(run.gaps)  # once: looked up per piece
     out: list[Section] = []
@@ -228,6 +211,8 @@ def _collect(
                 out.append(merged_row(run, pending))
                 pending = []
             if alone:
+                if sec.kept and row in partial:
+                    sec.reason = partial[row]
                 out.append(sec)
             else:
                 pending.append(sec)

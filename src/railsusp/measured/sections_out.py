@@ -5,7 +5,6 @@ configuration, and a plot of the cut along the line."""
 from __future__ import annotations
 
 import json
-import re
 from pathlib import Path
 
 import pandas as pd
@@ -14,7 +13,7 @@ from railsusp.conditions import WorkingCondition
 from railsusp.en14363 import section_statistics
 from railsusp.errors import RailsuspInputError
 from railsusp.measured.field_folder import source_fingerprint
-from railsusp.measured.line import RESERVED_NAMES
+from railsusp.measured.line import FILE_NAME, RESERVED_NAMES
 from railsusp.measured.recording import FORMAT, Recording
 from railsusp.measured.run import MeasuredRun
 from railsusp.measured.sections import Section, sections_table
@@ -106,11 +105,6 @@ def write_sections(
         {"format": FORMAT, "recordings": names, **source_fingerprint(run.source)},
     )
     return out
-
-
-#: a section's name as a file name: no path separators, no leading dot (a table's names
-#: are held to 60 characters; a split row's number may add to them)
-FILE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
 
 
 def _check_names(kept: list[Section]) -> None:

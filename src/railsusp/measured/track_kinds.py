@@ -156,14 +156,6 @@ def track_labels(geo: dict[str, np.ndarray], rules: TrackRules) -> np.ndarray:
     return np.where(band == OUTSIDE, OUTSIDE, label)  # NaN outside the line: one label
 
 
-def label_runs(label: np.ndarray) -> list[tuple[int, int]]:
-    """The runs of samples of one label (start, end exclusive)."""
-    edges = np.flatnonzero(np.diff(label)) + 1
-    starts = np.concatenate([[0], edges])
-    ends = np.concatenate([edges, [label.size]])
-    return [(int(a), int(b)) for a, b in zip(starts, ends, strict=True)]
-
-
 def kind_shares(
     geo: dict[str, np.ndarray], label: np.ndarray, i: int, j: int
 ) -> list[tuple[str, float]]:
