@@ -332,3 +332,24 @@ def test_a_slow_distance_channels_jump_is_no_unit_error(tmp_path):
     )
     run = read_run(tmp_path / "s.mf4", cmap)
     assert run.breaks.size == 2 and run.jumping is not None
+
+
+def test_a_table_row_the_distance_jumps_over_in_part_says_which_part_was_kept(tmp_path):
+    """A row wholly inside the run's positions, over which the distance jumps by 300 m (a
+    chainage jump): its two stretches were kept under the row's name as if it were whole,
+    without a note (only a row beyond the run's first or last position said so)."""
+    from railsusp.measured.line import read_section_table
+
+    v = np.full(6000, 54.0)  # 120 s, 1800 m travelled
+    s = travelled(v)
+    s = np.where(s >= 750.0, s + 300.0, s)  # positions 0-750, 1050-2100
+    run = read_run(write_run(tmp_path / "jump.csv", v, distance=s, curvature=np.zeros(v.size)))
+    table = tmp_path / "t.csv"
+    table.write_text("start_m,end_m,name\n300,1400,across\n1500,2000,after\n")
+    secs = cut_sections(run, table=read_section_table(table))
+    got = [(s.name, s.reason) for s in kept(secs)]
+    assert got == [
+        ("across-1", "kept, 300-750, 1050-1400 m of 300-1400 m on the run (row 2 of the table)"),
+        ("across-2", "kept, 300-750, 1050-1400 m of 300-1400 m on the run (row 2 of the table)"),
+        ("after", ""),
+    ]

@@ -729,3 +729,27 @@ def test_a_wheel_whose_lateral_force_has_the_other_sign_is_refused():
     wide.Y["w1L"] = -wide.Y["w1L"] - 25e3
     assert [s.kept for s in cut_sections(wide)] == [True]
     assert any(x.startswith("wheel w1L: Y median -30.0 kN") for x in wide.notes)
+
+
+def test_a_speed_from_an_odometer_counting_metres_is_steady_at_30_kmh(tmp_path):
+    """A run with a distance channel only, the odometer counting whole metres: its speed was
+    the staircase differenced over 1 s, 8 or 9 m a second at 30 km/h (a 27 % spread), and
+    every section was broken by speed into pieces of a metre. Drawn through the times the
+    odometer steps, the speed holds 30 km/h within the sampling."""
+    from railsusp.measured.sections import sections_table
+
+    rng = np.random.default_rng(1)
+    t, ts = np.arange(0, 120, 1 / 200), np.arange(0, 120, 1 / 50)
+    mdf = MDF(version="4.10")
+    mdf.append([Signal(5 + rng.standard_normal(t.size), t, name="Y_R", unit="kN")])
+    mdf.append([Signal(120 + rng.standard_normal(t.size), t, name="Q_R", unit="kN")])
+    mdf.append([Signal(np.floor(30 / 3.6 * ts), ts, name="s", unit="m")])
+    mdf.save(tmp_path / "odometer.mf4", overwrite=True)
+    mdf.close()
+    cmap = channel_map_from({"position": "s", "wheels": {"w1R": {"Y": "Y_R", "Q": "Q_R"}}})
+    run = read_run(tmp_path / "odometer.mf4", cmap)
+    inner = run.speed[200:-200] * 3.6  # a second in from either end
+    assert np.abs(inner - 30.0).max() < 0.5
+    secs = cut_sections(run)
+    assert [s.kind for s in secs if s.kept] == ["tangent"], sections_table(secs)
+    assert secs[0].end - secs[0].start > 0.95 * t.size

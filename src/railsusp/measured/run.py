@@ -253,7 +253,7 @@ def read_run(
     else:
         position = sig["position"]
         travelled = without_jumps(pos.values, jump)
-        speed = _smoothed_gradient(np.interp(t, pos.time, travelled), t)
+        speed = _smoothed_gradient(_through_steps(pos.time, travelled, t), t)
     speed_name = cmap.signals.get("speed", cmap.signals.get("position"))
     running = np.abs(speed) >= 0.5  # standing stretches are cut out as "standing" later
     if np.mean(running) < MIN_RUNNING_SHARE:
@@ -436,6 +436,18 @@ def _unit(ch: RawChannel, cmap: ChannelMap, problems: list[str], quantity: str) 
             f"channel {ch.name!r}: the file states unit {ch.unit!r}, the channel map {mapped!r}"
         )
     return ch.unit or mapped
+
+
+def _through_steps(time: np.ndarray, x: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The distance ``x`` (sampled at ``time``) on the times ``t``, drawn through the
+    samples at which it changes: an odometer that counts whole metres holds its value
+    between steps, and the times of its steps are where the wagon passed each metre. A
+    staircase differenced over 1 s read 8 or 9 m a second at 30 km/h, a 12 % spread that
+    broke every section by speed; through its steps the spread is the sampling's, 0.02 s in
+    a second at 50 Hz. A distance that changes at every sample is unchanged."""
+    keep = np.ones(x.size, dtype=bool)
+    keep[1:-1] = x[1:-1] != x[:-2]
+    return np.interp(t, time[keep], x[keep])
 
 
 def _smoothed_gradient(x: np.ndarray, t: np.ndarray, window_s: float = 1.0) -> np.ndarray:

@@ -120,8 +120,8 @@ def _what(table: pd.DataFrame) -> str:
     return str(table.attrs.get("what", "section table"))
 
 
-#: a section table's row reaching more than this (m) beyond the run's first or last
-#: position is only partly on the run (its kept sections say so)
+#: a section table's row whose positions the run misses over more than this (m), beyond
+#: its largest distance step, is only partly on the run (its kept sections say so)
 PARTIAL_ROW_M = 1.0
 
 
@@ -130,10 +130,11 @@ def _table_spans(
 ) -> tuple[list[tuple[int, int]], list, dict[int, str]]:
     """The sample spans of each row of a section table (a range the run passes twice: two
     spans), each span's row, and the reason of the kept sections of each row only partly
-    on the run (it begins before the run's positions or ends after them): such a row is
-    kept over what the run passes, saying so ("kept, 300-450 m of 300-600 m on the run"),
-    not silently under the row's name as if whole. A row the run never reaches is
-    refused: it vanished without a line in the cut."""
+    on the run: it begins before the run's positions, ends after them, or the distance
+    jumps over part of it (a chainage jump, an odometer's reset). Such a row is kept over
+    what the run passes, saying so ("kept, 300-450 m of 300-600 m on the run"), not
+    silently under the row's name as if whole. A row the run never reaches is refused: it
+    vanished without a line in the cut."""
     spans, rows, partial = [], [], {}
     lo, hi = float(np.nanmin(run.position)), float(np.nanmax(run.position))
     for k, r in enumerate(table.itertuples(index=False)):
@@ -143,13 +144,44 @@ def _table_spans(
                 f"{_what(table)}, row {k + 2}: {r.start_m:g}-{r.end_m:g} m is not on the run "
                 f"(positions {lo:.0f} to {hi:.0f} m); accepted rows the run passes"
             )
-        if r.start_m < lo - PARTIAL_ROW_M or r.end_m > hi + PARTIAL_ROW_M:
-            on = _range(f"{max(r.start_m, lo):.0f}", f"{min(r.end_m, hi):.0f}")
+        covered = _covered(run, found, r.start_m, r.end_m)
+        if len(covered) > 1 or (covered[0][0], covered[0][1]) != (r.start_m, r.end_m):
+            on = ", ".join(_range(f"{a:.0f}", f"{b:.0f}") for a, b in covered)
             row = _range(f"{r.start_m:g}", f"{r.end_m:g}")
             partial[k] = f"kept, {on} m of {row} m on the run (row {k + 2} of the table)"
         spans += found
         rows += [k] * len(found)
     return spans, rows, partial
+
+
+def _covered(
+    run: MeasuredRun, found: list[tuple[int, int]], start: float, end: float
+) -> list[tuple[float, float]]:
+    """The stretches of the row ``start``-``end`` (m) that the spans ``found`` pass: the
+    union of their position ranges between the run's breaks (a jump inside a span is no
+    travel; the samples of a slow distance channel's ramp across a jump have no place),
+    each end moved to the row's where it misses less than :data:`PARTIAL_ROW_M` plus the
+    largest distance step (the channel's resolution and sampling)."""
+    position = run.position
+    if run.jumping is not None:
+        position = np.where(run.jumping, np.nan, position)
+    pieces = [(a, b) for a, b in _split_at(found, None, run.breaks)[0] if b - a > 1]
+    pieces = [(a, b) for a, b in pieces if np.isfinite(position[a:b]).sum() > 1]
+    if not pieces:
+        return [(start, end)]  # nothing on the row but a ramp: not judged here
+    tol = PARTIAL_ROW_M + max(float(np.nanmax(np.abs(np.diff(position[a:b])))) for a, b in pieces)
+    parts = sorted(
+        (float(np.nanmin(position[a:b])), float(np.nanmax(position[a:b]))) for a, b in pieces
+    )
+    union = [list(parts[0])]
+    for a, b in parts[1:]:
+        if a <= union[-1][1] + tol:
+            union[-1][1] = max(union[-1][1], b)
+        else:
+            union.append([a, b])
+    union[0][0] = start if union[0][0] <= start + tol else union[0][0]
+    union[-1][1] = end if union[-1][1] >= end - tol else union[-1][1]
+    return [(a, b) for a, b in union]
 
 
 def _range(a: str, b: str) -> str:
