@@ -167,7 +167,7 @@ def test_a_lost_or_damaged_campaign_json_keeps_the_batches_stamped_as_this_confi
     discarded every intact batch, and one that was gone refused the run. Each batch file now
     carries its configuration's hash; the batches of this configuration are kept, the rest is
     made again, and the result equals the uninterrupted campaign's."""
-    from railsusp.campaign.run import batch_stamp
+    from railsusp.campaign.batch_files import batch_stamp
 
     cfg, out = full_run
     copy = tmp_path / "copy"
@@ -432,7 +432,7 @@ def test_batches_of_other_force_laws_are_never_taken_as_this_campaigns(full_run,
     """With campaign.json lost, batches were kept by their configuration's stamp alone,
     which does not change with the force laws: a new revision relabelled old batches as its
     own (interrupt/resume audit of stop 60). Each batch now records its revision."""
-    from railsusp.campaign.run import REVISION_KEY
+    from railsusp.campaign.batch_files import REVISION_KEY
     from railsusp.vehicle import MODEL_REVISION
 
     cfg, out = full_run

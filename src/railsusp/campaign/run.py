@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import pyarrow.parquet as pq
 
+from railsusp.campaign.batch_files import batch_count, batch_done, foreign_batches, write_batch
 from railsusp.campaign.dask_cluster import check_scheduler_address, run_on_dask
 from railsusp.campaign.design import (
     CHANNELS,
@@ -135,103 +135,6 @@ def features_table(
     return pd.concat(frames, ignore_index=True)
 
 
-# ------------------------------------------------------------------------------- store
-#: the Parquet metadata key of a batch file that names the campaign configuration (its
-#: :meth:`~railsusp.campaign.design.CampaignConfig.hash`) that simulated it
-STAMP_KEY = "railsusp.config_hash"
-#: and with the force laws' revision that simulated them (:data:`railsusp.vehicle.
-#: MODEL_REVISION`; since stop 60): a batch of other force laws is never this campaign's
-REVISION_KEY = "railsusp.model_revision"
-
-
-def write_batch(
-    out: Path, b: int, res: dict[str, Any], n_t: int, config_hash: str | None = None
-) -> None:
-    """Store batch ``b`` of a :func:`simulate_task` result under ``out/batches``: features,
-    then the series (atomically, last: its file marks the batch done). ``config_hash``
-    stamps both files with the configuration that simulated them, so that a campaign whose
-    ``campaign.json`` was lost or damaged keeps the batches that are its own."""
-    series_path, feat_path = batch_paths(out, res["condition"], b)
-    stamp = {REVISION_KEY: MODEL_REVISION}
-    if config_hash is not None:
-        stamp[STAMP_KEY] = config_hash
-    write_parquet(feat_path, res["features"], metadata=stamp)
-    s = res["series"]  # (n, channels, n_t)
-    n = s.shape[0]
-    df = pd.DataFrame(
-        {
-            "sample_id": np.repeat(res["sample_ids"], n_t),
-            "step": np.tile(np.arange(n_t, dtype=np.int32), n),
-        }
-    )
-    for c, name in enumerate(CHANNELS):
-        df[name] = s[:, c, :].reshape(-1)
-    status = {"railsusp.status": ",".join(str(int(v)) for v in res["status"])}
-    write_parquet(series_path, df, metadata={**status, **stamp})  # last: marks the batch done
-
-
-def _batch_done(out: Path, condition: str, b: int, config_hash: str) -> bool:
-    """Both files of a batch present, each with an intact Parquet footer and this
-    configuration's stamp (or none: written before batches were stamped): a file cut short
-    is simulated again rather than taken as finished work, and so is a batch of another
-    configuration copied in (its forces were taken with this design's parameters)."""
-    for path in batch_paths(out, condition, b):
-        meta = _batch_metadata(path)
-        if meta is None or meta.get(STAMP_KEY.encode(), config_hash.encode()) != (
-            config_hash.encode()
-        ):
-            return False
-        if _other_force_laws(meta):
-            return False
-    return True
-
-
-def _other_force_laws(meta: dict[bytes, bytes]) -> bool:
-    """Whether a batch file's metadata says it was simulated with another force-law revision
-    (a batch written before batches were stamped with it says nothing: False)."""
-    revision = meta.get(REVISION_KEY.encode())
-    return revision is not None and revision != MODEL_REVISION.encode()
-
-
-def _batch_metadata(path: Path) -> dict[bytes, bytes] | None:
-    """A batch file's Parquet key/value metadata, or None where its footer does not read."""
-    try:
-        return pq.ParquetFile(path).schema_arrow.metadata or {}
-    except (OSError, ValueError):
-        return None
-
-
-def batch_stamp(path: Path) -> str | None:
-    """The configuration hash a batch file was stamped with; None for a file that does not
-    read or that carries none (written before batches were stamped)."""
-    stamp = (_batch_metadata(path) or {}).get(STAMP_KEY.encode())
-    return None if stamp is None else stamp.decode()
-
-
-def _foreign_batches(out: Path, config_hash: str) -> tuple[list[list[Path]], int]:
-    """The batches under ``out`` not stamped with ``config_hash`` (another configuration's,
-    or unstamped: a file of theirs that reads carries another stamp or none), as their
-    files, and the number of this configuration's that are whole (both files read); a file
-    that does not read decides nothing (its batch is simulated again, :func:`_batch_done`)."""
-    batches: dict[Path, list[Path]] = {}  # by the series file's path
-    for f in sorted((out / "batches").glob("*/batch-*.parquet")):
-        batches.setdefault(f.with_name(f.name.replace(".features", "")), []).append(f)
-    foreign, own = [], 0
-    for files in batches.values():
-        metas = [m for m in map(_batch_metadata, files) if m is not None]
-        if any(
-            m.get(STAMP_KEY.encode()) != config_hash.encode() or _other_force_laws(m) for m in metas
-        ):
-            foreign.append(files)
-        elif len(metas) == 2:
-            own += 1
-    return foreign, own
-
-
-def _batches(n: int) -> str:
-    return f"{n} batch" if n == 1 else f"{n} batches"
-
-
 def _keep_own_batches(out: Path, config: CampaignConfig, problem: str, force: bool) -> None:
     """A campaign folder whose ``campaign.json`` is gone or damaged (``problem``): its
     batches stamped with this configuration are kept and the files made from the design
@@ -239,14 +142,14 @@ def _keep_own_batches(out: Path, config: CampaignConfig, problem: str, force: bo
     sensitivity, splits and twins) stays where every batch is this configuration's.
     Other batches are another configuration's, or unknown, and are discarded with
     ``force`` only."""
-    foreign, own = _foreign_batches(out, config.hash())
+    foreign, own = foreign_batches(out, config.hash())
     if foreign and not force:
         n = len(foreign)
         raise CampaignError(
             f"{problem}, and {n} of its batches {'is' if n == 1 else 'are'} not "
             "stamped as this configuration's (another campaign's or other force laws', or "
             "written before batches were stamped); use a new --out, or --force to discard them"
-            + (f" ({_batches(own)} of this configuration would be kept)" if own else "")
+            + (f" ({batch_count(own)} of this configuration would be kept)" if own else "")
         )
     made = [n for n in ("features.parquet", *_FROM_BATCHES) if (out / n).exists()]
     if not own and made and not force:  # made from batches no longer there: whose?
@@ -261,7 +164,7 @@ def _keep_own_batches(out: Path, config: CampaignConfig, problem: str, force: bo
         _remove(out, _FROM_BATCHES)
     _remove(out, _FROM_DESIGN)
     if own:
-        log.warning("%s: kept %s stamped as this configuration's", problem, _batches(own))
+        log.warning("%s: kept %s stamped as this configuration's", problem, batch_count(own))
 
 
 #: what a campaign folder holds that follows from its design alone (written again from it)
@@ -444,7 +347,7 @@ def _run_locked(
     done_runs = 0
     for ci, cond in enumerate(config.conditions):
         for b in range(config.n_batches):
-            if _batch_done(out, cond.name, b, config.hash()):
+            if batch_done(out, cond.name, b, config.hash()):
                 done_runs += len(ids_all[b * config.batch_size : (b + 1) * config.batch_size])
             else:
                 todo.append((ci, b))
@@ -482,7 +385,7 @@ def _run_locked(
         run_on_dask(simulate_task, todo, args, finish, scheduler, workers)
     stamp = config.hash()
     if all(
-        _batch_done(out, c.name, b, stamp)
+        batch_done(out, c.name, b, stamp)
         for c in config.conditions
         for b in range(config.n_batches)
     ):

@@ -115,9 +115,14 @@ def outside_row(run: MeasuredRun, a: int, b: int, dt: float) -> Section:
     piece = ("outside", OUTSIDE_LINE, (b - a) * dt, _length(run, a, b))
     return Section(
         "", a, b, float(run.position[a]), float(run.position[b - 1]), None, "left", 0.0, 0.0,
-        float(v.mean()) * 3.6, float((v.max() - v.min()) / max(v.mean(), 1e-9)), False,
+        float(v.mean()) * 3.6, _spread(v), False,
         OUTSIDE_LINE, (piece,),
     )  # fmt: skip
+
+
+def _spread(v: np.ndarray) -> float:
+    """The speed's spread over a piece, (max - min) / mean (:attr:`Section.speed_spread`)."""
+    return float((v.max() - v.min()) / max(v.mean(), 1e-9))
 
 
 #: the reason of a stretch that the line description does not cover
@@ -311,7 +316,7 @@ def merged_row(run: MeasuredRun, group: list[Section]) -> Section:
         0.0,
         float(np.dot(n, [s.grade_permille for s in group]) / n.sum()),
         float(v.mean()) * 3.6,
-        float((v.max() - v.min()) / max(v.mean(), 1e-9)),
+        _spread(v),
         False,
         _describe(pieces),
         pieces,
@@ -338,7 +343,7 @@ def _section(
     radius = 1.0 / abs(curv) if abs(curv) > 1.0 / rules.tangent_radius_m else None
     v = run.speed[sl]
     length = _length(run, i, j)
-    spread = float((v.max() - v.min()) / max(v.mean(), 1e-9))
+    spread = _spread(v)
     sec = Section(
         name or "",
         i,
