@@ -12,11 +12,22 @@ from __future__ import annotations
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from railsusp.errors import RailsuspInputError
+from railsusp.store import read_json
 from railsusp.study import KEY_LATERAL, KEY_VERTICAL
+
+#: ``key_parameters.json``'s stamp of the campaign its indices were computed from: that
+#: campaign's configuration hash (its ``campaign.json``'s ``config_hash``). A campaign
+#: replaced after its analysis (``railsusp campaign --force`` of another configuration)
+#: left an analysis of the old one beside it, read as the new one's
+CAMPAIGN_STAMP = "campaign_hash"
+#: the same stamp in ``indices.parquet``'s key/value metadata
+INDICES_STAMP = "railsusp.campaign_hash"
 
 #: held-out R^2 a feature's Gaussian process needs for its Sobol indices to count in the key
 #: rule: the indices split the variance of the process mean, so a process that explains
@@ -192,3 +203,64 @@ def study_comparison(selection: KeySelection) -> pd.DataFrame:
             }
         )
     return pd.DataFrame(rows)
+
+
+def check_made_from(path: str | Path, stamp: str | None, campaign: str | Path) -> None:
+    """Refuse, in one line naming ``path`` and the remedy, a sensitivity output stamped with
+    another campaign's configuration hash than that of ``campaign`` (the campaign folder
+    beside it). Unstamped outputs (made before the stamp) and a folder without a readable
+    campaign (nothing to compare with; its readers refuse it themselves) pass."""
+    if stamp is None:
+        return
+    try:
+        meta = read_json(Path(campaign) / "campaign.json")
+    except RailsuspInputError:
+        return
+    now = meta.get("config_hash") if isinstance(meta, dict) else None
+    if now is not None and now != stamp:
+        raise RailsuspInputError(
+            f"{path} was computed from another campaign than the one in {campaign} "
+            f"(configuration hash {stamp}, the campaign's {now}): run `railsusp sensitivity "
+            f"{campaign}` again"
+        )
+
+
+def read_key_parameters(run: str | Path) -> dict:
+    """``RUN/sensitivity/key_parameters.json``, checked to be of the campaign in ``run``
+    (:func:`check_made_from`); :func:`~railsusp.store.read_json`'s one-line errors."""
+    path = Path(run) / "sensitivity" / "key_parameters.json"
+    doc = read_json(path)
+    if not isinstance(doc, dict) or not isinstance(doc.get("key_parameters"), dict):
+        raise RailsuspInputError(
+            f"{path} is not a railsusp sensitivity analysis (no key_parameters): run "
+            f"`railsusp sensitivity {run}` again"
+        )
+    check_made_from(path, doc.get(CAMPAIGN_STAMP), run)
+    return doc
+
+
+def check_sensitivity_output(path: str | Path) -> None:
+    """Refuse (:func:`check_made_from`) a sensitivity folder ``RUN/sensitivity``, its
+    ``key_parameters.json`` or its ``indices.parquet`` made from another campaign than the
+    one in ``RUN``; anything else passes (its reader says what is wrong with it)."""
+    path = Path(path)
+    if path.is_dir():
+        kp = path / "key_parameters.json"
+        path = kp if kp.is_file() else path / "indices.parquet"
+    run = path.parent.parent
+    if path.suffix == ".json" and path.is_file():
+        try:
+            doc = read_json(path)
+        except RailsuspInputError:
+            return
+        if isinstance(doc, dict):
+            check_made_from(path, doc.get(CAMPAIGN_STAMP), run)
+    elif path.suffix == ".parquet" and path.is_file():
+        import pyarrow.parquet as pq
+
+        try:
+            meta = pq.read_schema(path).metadata or {}
+        except (OSError, ValueError):
+            return
+        stamp = meta.get(INDICES_STAMP.encode())
+        check_made_from(path, stamp.decode() if stamp is not None else None, run)

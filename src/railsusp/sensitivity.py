@@ -30,7 +30,12 @@ import pandas as pd
 from railsusp.campaign import STATISTICS, Campaign, CampaignError, salib_problem
 from railsusp.campaign.design import MIN_SALTELLI_BASE, saltelli_base_too_small, saltelli_issue
 from railsusp.errors import RailsuspInputError
-from railsusp.key_parameters import select_key_parameters, study_comparison
+from railsusp.key_parameters import (
+    CAMPAIGN_STAMP,
+    INDICES_STAMP,
+    select_key_parameters,
+    study_comparison,
+)
 from railsusp.params import bounds
 from railsusp.store import write_csv, write_json, write_parquet
 
@@ -389,6 +394,8 @@ def analyse(
     comparison = study_comparison(selection)
     summary = {
         "run": str(camp.path),
+        # the campaign analysed: its readers refuse the file beside another campaign
+        CAMPAIGN_STAMP: camp.config.hash(),
         "method": idx.method.iloc[0],
         "key_parameters": selection.to_dict(),
         "metamodel_r2": [f.__dict__ for f in fits],
@@ -399,7 +406,7 @@ def analyse(
     agree = None
     if compare is not None:
         agree = agreement(idx, indices_of(require_complete(load_campaign(compare)))[0])
-    write_parquet(out / "indices.parquet", idx)
+    write_parquet(out / "indices.parquet", idx, metadata={INDICES_STAMP: camp.config.hash()})
     write_csv(out / "indices.csv", idx)
     write_json(out / "indices.json", idx.to_dict(orient="records"))
     write_csv(out / "study_comparison.csv", comparison)

@@ -8,7 +8,15 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from railsusp.cli.common import WagonOption, app, console, err_console, fail, show_progress
+from railsusp.cli.common import (
+    WagonOption,
+    app,
+    console,
+    err_console,
+    fail,
+    hold_folders,
+    show_progress,
+)
 from railsusp.errors import RailsuspInputError
 
 
@@ -105,6 +113,12 @@ def campaign(
         if max_batches is not None and max_batches < 0:
             raise RailsuspInputError(f"--max-batches = {max_batches}: accepted an integer >= 0")
         check_output_folder(out)
+        # the folder for the command's duration (run_campaign's own lock is lent to it),
+        # and the run whose key parameters are read, as no process rewrites them meanwhile
+        hold_folders(
+            creates=[("--out", out)],
+            reads=[("--keys-from", keys_from)] if keys_from is not None else [],
+        )
         sampled = tuple(p.strip() for p in parameters.split(",") if p.strip())
         if keys_from is not None:
             sampled = _sensitivity_keys(keys_from, parameters)
@@ -273,9 +287,10 @@ def _report_failures(out: Path, total: int) -> None:
 
 
 def _sensitivity_keys(run: Path, parameters: str) -> tuple[str, ...]:
-    """The key parameters chosen by ``railsusp sensitivity`` in ``run`` (for --keys-from)."""
+    """The key parameters chosen by ``railsusp sensitivity`` in ``run`` (for --keys-from);
+    an analysis made from another campaign than the one in ``run`` is refused."""
+    from railsusp.key_parameters import read_key_parameters
     from railsusp.params import MAIN_SUSPENSION
-    from railsusp.store import read_json
 
     if parameters != ",".join(MAIN_SUSPENSION):
         raise RailsuspInputError("--keys-from and --parameters: give one of them, not both")
@@ -285,7 +300,7 @@ def _sensitivity_keys(run: Path, parameters: str) -> tuple[str, ...]:
             f"--keys-from {run}: no sensitivity analysis there ({path} is missing); "
             f"run `railsusp sensitivity {run}` first"
         )
-    keys = tuple(read_json(path)["key_parameters"]["keys"])
+    keys = tuple(read_key_parameters(run)["key_parameters"]["keys"])
     if not keys:
         raise RailsuspInputError(f"--keys-from {run}: its sensitivity analysis found no key")
     return keys
@@ -331,6 +346,11 @@ def sensitivity(
     key_stats = tuple(s.strip() for s in key_statistics.split(",") if s.strip())
     stats = (*stats, *(k for k in key_stats if k not in stats))
     try:
+        # the campaign for the analysis's duration: a campaign --force replaced it under
+        # the analysis, which then wrote the old campaign's indices beside the new one
+        hold_folders(
+            writes=[("", run)], reads=[("--compare", compare)] if compare is not None else []
+        )
         with err_console.status("Sobol analysis"):
             s = analyse(
                 run,

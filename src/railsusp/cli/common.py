@@ -4,11 +4,14 @@ that the command modules import this module, not the package that imports them."
 
 from __future__ import annotations
 
+import errno
 import logging
 import re
 import sys
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
+from contextlib import ExitStack
+from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -160,11 +163,116 @@ def exit_code(exc: BaseException) -> int:
     """2 for bad input; 1 where what failed underneath was the machine (a full disk, a
     quota, an I/O error: a stage's error wraps it), as for an OSError the command meets
     itself (:func:`railsusp.cli.main`)."""
-    import errno
-
     seen = exc
     while seen is not None:
         if isinstance(seen, OSError) and seen.errno in (errno.ENOSPC, errno.EDQUOT, errno.EIO):
             return 1
         seen = seen.__cause__ or seen.__context__
     return 2
+
+
+def _command_context():
+    """The click context of the command running: typer's own click since typer 0.20
+    (``typer._click``), click itself before (as ``railsusp.cli._click_exceptions``)."""
+    try:
+        from typer._click.globals import get_current_context
+    except ImportError:  # pragma: no cover - older typer
+        from click import get_current_context
+    return get_current_context()
+
+
+def _pipeline_run(folder: Path) -> Path | None:
+    """The ``railsusp run`` directory ``folder`` lies in (its ``pipeline.json`` one to three
+    levels up: ``RUN/campaign``, ``RUN/estimate/validation``,
+    ``RUN/campaign/surrogates/cnn-gru``), or None."""
+    for up in list(folder.absolute().parents)[:3]:
+        if (up / "pipeline.json").is_file():
+            return up
+    return None
+
+
+def _remove_if_bare(folder: Path, made: list[Path]) -> None:
+    """Remove the folders a refused or failed command made for its lock alone (``made``,
+    deepest first), where nothing but the lock file is in ``folder``: a refusal leaves no
+    empty output folder behind. Called while the lock is still held."""
+    from railsusp.run_lock import LOCK_NAME
+
+    try:
+        if [p.name for p in folder.iterdir()] != [LOCK_NAME]:
+            return
+        (folder / LOCK_NAME).unlink()
+        for d in made:
+            d.rmdir()
+    except OSError:
+        return
+
+
+def hold_folders(
+    *,
+    creates: Sequence[tuple[str, Path]] = (),
+    writes: Sequence[tuple[str, Path]] = (),
+    reads: Sequence[tuple[str, Path]] = (),
+    near: Sequence[tuple[str, Path]] = (),
+) -> None:
+    """Lock, until the command ends, the folders it works in (:func:`railsusp.run_lock
+    .run_lock`), each given as (option, folder) for the refusal's wording:
+
+    * ``creates``: output folders it writes, made where missing (and removed again when the
+      command leaves nothing in them but the lock: a refused command leaves no folder);
+    * ``writes``: existing folders it writes into (one that does not exist is not locked:
+      the command refuses it itself);
+    * ``reads``: folders whose results it reads, locked shared (readers run together, not
+      beside a writer); skipped where missing or not writable (nothing writes there);
+    * and the ``railsusp run`` directory any of these, or of ``near``, lies in, shared:
+      ``railsusp run`` holds it exclusively while its stages work in its folders.
+
+    Writers' locks are exclusive and lent to the library code the command runs (a campaign
+    locks its own folder). A folder named twice is locked once, exclusively if written.
+    Refused: :class:`~railsusp.errors.RailsuspInputError`, one line naming the holder. The
+    locks go when the command's click context closes (its end, whatever the exit)."""
+    from railsusp.run_lock import run_lock
+
+    plan: dict[Path, dict] = {}
+
+    def add(option: str, folder: Path, mode: str, named: Path | None = None) -> None:
+        key = folder.absolute()
+        have = plan.get(key)
+        if have is None:
+            plan[key] = {"option": option, "folder": folder, "mode": mode, "named": named}
+        elif mode != "read" and have["mode"] == "read":
+            have.update(option=option, folder=folder, mode=mode, named=None)
+        elif mode == "create":
+            have["mode"] = "create"
+
+    for option, folder in creates:
+        add(option, Path(folder), "create")
+    for option, folder in writes:
+        add(option, Path(folder), "write")
+    for option, folder in reads:
+        add(option, Path(folder), "read")
+    for option, folder in [*creates, *writes, *reads, *near]:
+        run = _pipeline_run(Path(folder))
+        if run is not None:
+            add(option, run, "read", named=Path(folder))
+    stack = _command_context().with_resource(ExitStack())
+    for item in plan.values():
+        folder, option = item["folder"], item["option"]
+        if item["mode"] == "create":
+            made = []
+            probe = folder.absolute()
+            while not probe.exists():
+                made.append(probe)
+                probe = probe.parent
+            folder.mkdir(parents=True, exist_ok=True)
+            stack.enter_context(run_lock(folder, option, lend=True))
+            if made:
+                stack.callback(_remove_if_bare, folder, made)
+        elif item["mode"] == "write":
+            if folder.is_dir():
+                stack.enter_context(run_lock(folder, option, lend=True))
+        elif folder.is_dir():
+            try:
+                stack.enter_context(run_lock(folder, option, shared=True, named=item["named"]))
+            except OSError as exc:  # read-only: nothing writes there either
+                if exc.errno not in (errno.EACCES, errno.EPERM, errno.EROFS):
+                    raise

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from railsusp.cli.common import app, console, fail, frame_table
+from railsusp.cli.common import app, console, fail, frame_table, hold_folders
 from railsusp.errors import RailsuspInputError
 from railsusp.input_checks import check_output_folder
 from railsusp.store import atomic_folder
@@ -229,6 +229,13 @@ def estimate(
             raise RailsuspInputError("give --surrogate FOLDER or --simulator (one of them)")
         check_output_folder(out)  # an existing file or an unwritable folder, before any work
         check_not_recordings(out)
+        # the output for the command's duration, and the campaign whose surrogates are read
+        hold_folders(
+            creates=[("--out", out)],
+            reads=[("--surrogate", c) for c in [_campaign_of(surrogate)] if c is not None],
+            near=[("--measured", measured)]
+            + ([("--surrogate", surrogate)] if surrogate is not None else []),
+        )
         cfg = NSGAConfig(
             pop_size=pop_size,
             n_gen=n_gen,
@@ -309,6 +316,15 @@ def estimate(
     )
     console.print(frame_table(res.table(), "Estimate (the study's Table 5 layout)"))
     console.print(f"wrote {out}")
+
+
+def _campaign_of(surrogate: Path | None) -> Path | None:
+    """The campaign whose ``surrogates/<model>`` folder ``surrogate`` is (trained there by
+    ``railsusp train``), or None (a shipped network set, a folder elsewhere)."""
+    if surrogate is None or surrogate.absolute().parent.name != "surrogates":
+        return None
+    campaign = surrogate.absolute().parent.parent
+    return campaign if (campaign / "campaign.json").is_file() else None
 
 
 def parse_held_prior(text: str | None, refine: bool, statistic: str):

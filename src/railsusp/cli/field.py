@@ -9,7 +9,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from railsusp.cli.common import WagonOption, app, console, fail
+from railsusp.cli.common import WagonOption, app, console, fail, hold_folders
 from railsusp.condition_files import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet, parse_overrides
@@ -52,7 +52,6 @@ def synth_field(
 ) -> None:
     """Synthetic instrumented-wheelset recordings of hidden true parameters (truth.json)."""
     from railsusp.measured import synthesise_field
-    from railsusp.measured.field_folder import check_field_output
 
     try:
         if not 0.0 <= noise <= 0.5:
@@ -66,12 +65,16 @@ def synth_field(
                 f"--track-noise {track_noise:g} needs --with-track (the error is that of the "
                 "track geometry written beside the recordings)"
             )
-        check_field_output(out, "synthetic", "--out")  # never replaces measured recordings
+        _check_field_out(out)  # never replaces measured recordings
         pset = ParameterSet(parse_overrides(truth) if truth else {}, units="display")
         conds = resolve_conditions(conditions)
         from railsusp.vehicle.wagon import load_wagon
 
         wagon_data = load_wagon(wagon)  # a packaged name or a file, one-line errors
+        # the folder for the command's duration (a second synth-field, or an estimate reading
+        # it as RUN/field, is refused), then what it holds checked again under the lock
+        hold_folders(creates=[("--out", out)])
+        _check_field_out(out)
         with console.status("simulating the hidden truth"):
             synthesise_field(
                 pset,
@@ -94,6 +97,18 @@ def synth_field(
     )
 
 
+def _check_field_out(out: Path) -> None:
+    """``synth-field``'s refusal of an output folder it did not write
+    (:func:`~railsusp.measured.field_folder.check_field_output`); a folder holding nothing
+    but the lock file is the new folder a ``synth-field`` made for its lock."""
+    from railsusp.measured.field_folder import check_field_output
+    from railsusp.run_lock import LOCK_NAME
+
+    if out.is_dir() and [p.name for p in out.iterdir()] == [LOCK_NAME]:
+        return
+    check_field_output(out, "synthetic", "--out")
+
+
 @app.command("align-track")
 def align_track_command(
     measured: Annotated[Path, typer.Argument(help="field folder (index.json) of recordings")],
@@ -112,6 +127,8 @@ def align_track_command(
 
     try:
         wagon_data = load_wagon(wagon)  # a packaged name or a file, one-line errors
+        if write:  # the sidecars it rewrites: one writer at a time in the folder
+            hold_folders(writes=[("", measured)])
         recs = [
             r
             for r in read_field(measured, wagon=wagon_data)

@@ -16,6 +16,7 @@ from railsusp.cli.common import (
     err_console,
     fail,
     frame_table,
+    hold_folders,
     is_quiet,
 )
 from railsusp.errors import RailsuspInputError
@@ -246,6 +247,7 @@ def train_command(
             samples=samples,
             wagon=wagon,
         )
+        hold_folders(creates=[("--out", out)])  # the run directory for the training's duration
         if is_quiet():
             est = posterior.train(settings, out)
         else:
@@ -317,6 +319,8 @@ def estimate_command(
         if not 0 <= seed <= MAX_SEED:  # numpy's generators take no negative seed
             raise RailsuspInputError(f"--seed {seed}: accepted 0 to {MAX_SEED}")
         _long_record(long_record)
+        # the estimator is read as a whole: no posterior train rewrites it meanwhile
+        hold_folders(reads=[("--estimator", estimator)], near=[("--measured", measured)])
         listed = read_index(measured)  # the folder and its index before the estimator
         joined = (estimator / "posterior" / "joint.json").exists()
         if joined and long_record != "synthetic-likelihood":
@@ -399,6 +403,9 @@ def join_command(
                 f"--estimators {estimators}: accepted two or more run folders, comma-separated"
             )
         check_output_folder(out)
+        hold_folders(  # the joint posterior's folder, and the estimators it reads
+            creates=[("--out", out)], reads=[("--estimators", r) for r in runs]
+        )
         if is_quiet():
             joint = posterior_joint.train(runs, out)
         else:

@@ -10,7 +10,15 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from railsusp.cli.common import app, console, err_console, fail, frame_table, show_progress
+from railsusp.cli.common import (
+    app,
+    console,
+    err_console,
+    fail,
+    frame_table,
+    hold_folders,
+    show_progress,
+)
 from railsusp.errors import RailsuspInputError
 
 #: the training settings -> the options of ``train`` and ``compare``, for error messages
@@ -151,6 +159,9 @@ def train(
                 raise RailsuspInputError(f"--device {device}: {exc}") from None
         if window is not None and not 2 <= window <= 10_000:
             raise RailsuspInputError(f"--window = {window}: accepted 2 .. 10000 steps")
+        # the campaign for the training's duration: no campaign --force or analysis
+        # replaces what the networks are trained on (or their key parameters) meanwhile
+        hold_folders(writes=[("", run)])
         camp = require_complete(load_campaign(run))
         conds = (
             [c.strip() for c in conditions.split(",")]
@@ -288,6 +299,7 @@ def compare(
         )
     try:
         tcfg = _train_config(epochs, batches_per_epoch, batch_size, device, seed, fine_tune_epochs)
+        hold_folders(writes=[("", run)])  # as train: the campaign for the command's duration
         require_complete(load_campaign(run))
         with err_console.status("training surrogates") as status:
             tab = run_compare(

@@ -9,7 +9,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from railsusp.cli.common import WagonOption, app, console, fail
+from railsusp.cli.common import WagonOption, app, console, fail, hold_folders
 from railsusp.errors import RailsuspInputError
 from railsusp.input_checks import check_output_folder
 
@@ -32,6 +32,7 @@ def validate(
     wagon: WagonOption = None,
 ) -> None:
     """Re-simulate with nominal and estimated parameters; Tables 8/9 and recovery scores."""
+    from railsusp.key_parameters import check_sensitivity_output
     from railsusp.measured.field_folder import check_not_recordings
     from railsusp.validate import validate as run_validate
 
@@ -51,6 +52,23 @@ def validate(
                 f"--sensitivity {sensitivity}: no Sobol indices there; accepted a campaign's "
                 "RUN/sensitivity folder, its key_parameters.json or indices.parquet"
             )
+    except (RailsuspInputError, ValueError, FileNotFoundError, KeyError) as exc:
+        fail(f"{estimate_dir}: {exc}")
+    try:
+        # the estimate (or --out) for the command's duration, and the campaign whose
+        # sensitivity is read; then that analysis checked to be of that campaign
+        hold_folders(
+            creates=[("--out", out)] if out is not None else [],
+            writes=[("", estimate_dir)] if out is None else [],
+            reads=([("", estimate_dir)] if out is not None else [])
+            + [("--sensitivity", c) for c in [_campaign_of(sensitivity)] if c is not None],
+            near=[("--measured", measured)] if measured is not None else [],
+        )
+        if sensitivity is not None:
+            check_sensitivity_output(sensitivity)
+    except RailsuspInputError as exc:
+        fail(str(exc))
+    try:
         with console.status("re-simulating the measured conditions"):
             res = run_validate(
                 estimate_dir, measured=measured, truth=truth, sensitivity=sensitivity, wagon=wagon
@@ -112,3 +130,13 @@ def validate(
             )
         console.print(rec)
     console.print(f"wrote {out or estimate_dir / 'validation'}")
+
+
+def _campaign_of(sensitivity: Path | None) -> Path | None:
+    """The campaign folder of ``--sensitivity`` (``RUN/sensitivity``, or a file in it), or
+    None where it is not beside a campaign's ``campaign.json``."""
+    if sensitivity is None:
+        return None
+    folder = sensitivity if sensitivity.is_dir() else sensitivity.parent
+    campaign = folder.absolute().parent
+    return campaign if (campaign / "campaign.json").is_file() else None

@@ -63,10 +63,13 @@ __all__ = [
 def key_parameters(run: str | Path) -> tuple[str, ...]:
     """The run's key parameters from its sensitivity analysis; without one, the study's six
     when the campaign sampled them all, else the campaign's sampled parameters (a campaign
-    over chosen parameters, e.g. on a recording's measured track)."""
+    over chosen parameters, e.g. on a recording's measured track). An analysis made from
+    another campaign than the one in ``run`` is refused (its keys are the other's)."""
+    from railsusp.key_parameters import read_key_parameters
+
     p = Path(run) / "sensitivity" / "key_parameters.json"
     if p.exists():
-        kp = read_json(p)["key_parameters"]
+        kp = read_key_parameters(run)["key_parameters"]
         if kp["keys"]:
             return tuple(kp["keys"])
         # none kept: the study's six (or the sampled ones) were estimated and called key
