@@ -488,7 +488,8 @@ def test_a_batch_left_half_written_by_a_kill_leaves_no_temporary_behind(full_run
     cfg, out = full_run
     copy = tmp_path / "copy"
     shutil.copytree(out, copy)
-    stale = copy / "batches" / "straight" / ".batch-00001.parquet.abc123.tmp"
+    # named as railsusp's atomic writes name their temporaries (mkstemp's eight characters)
+    stale = copy / "batches" / "straight" / ".batch-00001.parquet.k2x_9q0z.tmp"
     stale.write_bytes(b"half a batch")
     run_campaign(cfg, copy)
     assert not stale.exists() and (copy / "features.parquet").exists()
@@ -568,3 +569,118 @@ def test_a_batch_of_other_force_laws_is_refused_not_stamped_ours(monkeypatch, tm
     with pytest.raises(CampaignError, match="force laws of revision another where this"):
         run_campaign(cfg, tmp_path / "r")
     assert not list((tmp_path / "r").glob("**/batch-*.parquet"))  # no batch stored
+
+
+def _flip_a_bit_in_a_page(path) -> None:
+    """One bit flipped in the middle of the last column's pages of a Parquet file: its size
+    and footer stay as they were (what a failing disk or a bad copy can do)."""
+    import pyarrow.parquet as pq
+
+    size = path.stat().st_size
+    meta = pq.ParquetFile(path).metadata
+    column = meta.row_group(0).column(meta.num_columns - 1)
+    start = column.dictionary_page_offset or column.data_page_offset
+    data = bytearray(path.read_bytes())
+    data[start + column.total_compressed_size // 2] ^= 0x01
+    path.write_bytes(bytes(data))
+    assert path.stat().st_size == size
+    assert pq.ParquetFile(path).metadata.num_rows > 0  # the footer still reads
+
+
+def test_a_batch_with_a_bit_flipped_in_a_page_is_simulated_again(full_run, tmp_path):
+    """The run-directory store audit: a batch whose data page had one bit flipped (footer and
+    stamp intact, size kept) was taken as done on resume and its changed forces used. The
+    batches are written with page checksums now: read, such a file is a one-line error
+    naming it and the remedy, and resumed, the batch is simulated again."""
+    from railsusp.campaign.batch_files import batch_done
+
+    cfg, out = full_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    _flip_a_bit_in_a_page(batch_paths(copy, "curve", 1)[0])
+    assert not batch_done(copy, "curve", 1, cfg.hash())  # not taken as finished work
+    assert batch_done(copy, "curve", 1, cfg.hash(), pages=False)  # footers and stamps: as were
+    with pytest.raises(CampaignError) as info:
+        load_campaign(copy).series("curve")
+    text = str(info.value)
+    assert "batch-00001.parquet is damaged (" in text and "\n" not in text
+    assert text.endswith("run the same `railsusp campaign` command again (it simulates such a "
+                         "batch again)")  # fmt: skip
+    calls = []
+    run_campaign(cfg, copy, progress=lambda d, t: calls.append(d))
+    assert calls[0] == 16  # all but the damaged batch of 4
+    np.testing.assert_array_equal(
+        load_campaign(copy).series("curve")[1], load_campaign(out).series("curve")[1]
+    )
+
+
+def test_a_batch_written_without_page_checksums_is_still_taken_as_done(full_run, tmp_path):
+    """Batches written before page checksums were (no checksum in their pages) are read and
+    resumed as before: nothing in them to verify, nothing simulated again."""
+    import pyarrow.parquet as pq
+
+    from railsusp.campaign.batch_files import batch_done
+
+    cfg, out = full_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    for path in batch_paths(copy, "straight", 0):
+        pq.write_table(pq.read_table(path), path)  # as the writer before did: no checksums
+    assert batch_done(copy, "straight", 0, cfg.hash())
+    calls = []
+    run_campaign(cfg, copy, progress=lambda d, t: calls.append(d))
+    assert calls == [20]
+    np.testing.assert_array_equal(
+        load_campaign(copy).series("straight")[1], load_campaign(out).series("straight")[1]
+    )
+
+
+def test_a_lost_batch_makes_a_finished_campaign_incomplete(full_run, tmp_path):
+    """The run-directory store audit: with a batch file gone, a campaign whose campaign.json
+    says "completed" was still complete, and a surrogate trained on the series that were
+    left without a word. Now every batch of the design is checked (footers and stamps), the
+    missing ones are named with the remedy, and resumed, the campaign is whole again."""
+    from railsusp.campaign import incomplete, require_complete
+
+    cfg, out = full_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    batch_paths(copy, "straight", 2)[0].unlink()
+    camp = load_campaign(copy)
+    assert camp.complete  # campaign.json still says so
+    with pytest.raises(CampaignError) as info:
+        require_complete(camp)
+    assert str(info.value) == (
+        f"{copy}: the campaign is incomplete: 1 of its 6 batches is missing or damaged "
+        "(batches/straight/batch-00002.parquet); run the same `railsusp campaign` command "
+        "again to simulate it again"
+    )
+    run_campaign(cfg, copy)
+    assert incomplete(load_campaign(copy)) is None
+    ids, _ = require_complete(load_campaign(copy)).series("straight")
+    assert list(ids) == list(range(10))
+
+
+def test_a_campaign_removes_only_its_own_temporaries(full_run, tmp_path):
+    """The run-directory store audit: a campaign resumed removed every ``.*.tmp`` under its
+    folder, among them the temporary of a checkpoint that a training on the campaign was
+    saving, and a user's file of that pattern. It removes railsusp's temporaries of its own
+    files now: its batches' and its top-level files', nothing else."""
+    cfg, out = full_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    stale = [
+        copy / "batches" / "curve" / ".batch-00002.features.parquet.a1b2c3d4.tmp",
+        copy / ".campaign.json.zz_9y8x7.tmp",
+    ]
+    kept = [
+        copy / "surrogates" / "bp" / "curve" / ".checkpoint.pt.q1w2e3r4.tmp",  # being saved
+        copy / "batches" / "curve" / ".notes.tmp",  # a user's
+        copy / ".my-analysis.csv.k9j8h7g6.tmp",  # not a file of the campaign's
+    ]
+    for path in stale + kept:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(b"half written")
+    run_campaign(cfg, copy)
+    assert [p.exists() for p in stale] == [False, False]
+    assert [p.exists() for p in kept] == [True, True, True]

@@ -8,6 +8,7 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -107,13 +108,32 @@ def test_out_in_a_read_only_folder_is_refused(short, tmp_path):
         ro.chmod(0o755)
 
 
-def test_read_only_check_refuses_an_unwritable_folder(tmp_path, monkeypatch):
-    """The same check as root (who may write anywhere): os.access says no."""
+def test_read_only_check_asks_the_nearest_existing_folder(tmp_path, monkeypatch):
+    """The check above where it cannot run (as root, who may write anywhere): what the
+    check does around os.access, which answers as a read-only folder would. The folder to
+    be made does not exist yet, so the question goes to its nearest existing ancestor, for
+    writing and entering; the refusal names that folder and creates nothing; a folder that
+    is not the one asked about is not refused (the answer, not the call, decides)."""
     from railsusp.input_checks import check_output_folder
 
-    monkeypatch.setattr(os, "access", lambda *a, **k: False)
-    with pytest.raises(RailsuspInputError, match="is not writable"):
-        check_output_folder(tmp_path / "new" / "run")
+    asked = []
+    read_only = tmp_path / "ro"
+    read_only.mkdir()
+
+    def access(path, mode, **kw):
+        asked.append((Path(path), mode))
+        return Path(path) != read_only  # only "ro" is read-only
+
+    monkeypatch.setattr(os, "access", access)
+    with pytest.raises(RailsuspInputError) as info:
+        check_output_folder(read_only / "new" / "run")
+    assert asked == [(read_only, os.W_OK | os.X_OK)]
+    assert str(info.value) == (
+        f"--out {read_only / 'new' / 'run'}: the folder {read_only} is not writable"
+    )
+    assert list(read_only.iterdir()) == []  # nothing made
+    assert check_output_folder(tmp_path / "new" / "run") == tmp_path / "new" / "run"
+    assert asked[-1] == (tmp_path, os.W_OK | os.X_OK)
 
 
 # ---------------------------------------------------------------- campaign

@@ -82,6 +82,23 @@ def test_a_csv_cut_inside_its_last_number_passes_the_format_check_but_not_its_si
     assert changed_files(sizes, path.parent) == [path]
 
 
+def test_an_edit_that_keeps_the_size_is_found_by_the_recorded_hash(files):
+    """The run-directory store audit: the sizes alone passed a same-size edit (15.917 made
+    25.917 in an estimate.json). The SHA-256 recorded beside them finds it; a record without
+    hashes (a run made before they were) is compared by size, as it was."""
+    from railsusp.integrity import file_hashes
+
+    path = files["json"]
+    sizes, hashes = file_sizes([path], path.parent), file_hashes([path], path.parent)
+    assert changed_files(sizes, path.parent, hashes) == []
+    data = path.read_bytes()
+    digit = next(i for i, c in enumerate(data) if chr(c).isdigit())
+    path.write_bytes(data[:digit] + (b"7" if data[digit] != ord("7") else b"8") + data[digit + 1 :])
+    assert file_readable(path) and path.stat().st_size == len(data)
+    assert changed_files(sizes, path.parent, hashes) == [path]
+    assert changed_files(sizes, path.parent) == []  # by size alone: unseen
+
+
 def test_csv_last_line_rules(tmp_path):
     path = tmp_path / "r.csv"
     path.write_bytes(b"t,y,q\n0,1,2\n1,2")
@@ -152,11 +169,20 @@ def test_a_csv_that_the_csv_module_cannot_parse_is_judged_not_raised(tmp_path, c
     assert file_readable(path) is reads
 
 
-def test_random_bytes_named_as_a_table_are_unreadable_not_an_error(tmp_path):
-    data = np.random.default_rng(1).integers(0, 256, 5000, dtype=np.uint8).tobytes()
+@pytest.mark.parametrize("nul", [True, False])
+def test_random_bytes_named_as_a_table_are_unreadable_not_an_error(tmp_path, nul):
+    """Bytes of no format are judged, never raised. As CSV, bytes without a NUL (one line of
+    text to the format check, its size the recorded size's to judge) read, and with one do
+    not; 5000 random bytes hold a NUL almost surely, so each case is made deterministic (the
+    second had never run)."""
+    data = np.random.default_rng(1).integers(1, 256, 5000, dtype=np.uint8).tobytes()
+    data = data.replace(b"\r", b"").replace(b"\n", b"")  # one line: a header, no last line
+    if nul:
+        data = data[:2500] + b"\x00" + data[2500:]
+    assert (b"\x00" in data) is nul
     for name in ("t.csv", "t.json", "t.parquet", "t.pt"):
         (tmp_path / name).write_bytes(data)
-        assert file_readable(tmp_path / name) is (name == "t.csv" and b"\x00" not in data)
+        assert file_readable(tmp_path / name) is (name == "t.csv" and not nul), name
 
 
 def test_json_with_a_byte_order_mark_reads_where_railsusp_reads_it(tmp_path):

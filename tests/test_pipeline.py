@@ -594,3 +594,120 @@ def test_the_stage_hashes_follow_the_conditions_as_simulated(tmp_path, monkeypat
         stage_section(load_config(cfg), "campaign")["conditions"]
         != edited["campaign"]["conditions"]
     )
+
+
+def _edit_in_place(path: Path, old: str, new: str) -> None:
+    """Replace ``old`` (once, inside the ``estimate_display`` table) by ``new`` of the same
+    length: the file keeps its size."""
+    text = path.read_text()
+    at = text.index(old, text.index('"estimate_display"'))
+    assert len(old) == len(new)
+    path.write_text(text[:at] + new + text[at + len(old) :])
+
+
+def test_a_same_size_edit_of_a_stages_output_is_found_by_its_hash(tiny, tmp_path):
+    """The run-directory store audit: the stages recorded their files' sizes alone, so an
+    estimate.json edited in place (15.917 made 25.917) was shown by the summary and
+    open_run().estimate as the run's answer while report.html showed the number written.
+    Now each stage records its files' SHA-256 too: open_run refuses the edited file, and the
+    next run remakes it and the stages after it."""
+    from railsusp import open_run
+    from railsusp.pipeline_state import outputs_exist
+
+    cfg, _, copy = _up_to_date_copy(tiny, tmp_path)
+    path = copy / "estimate/estimate.json"
+    written = path.read_bytes()
+    shown = str(json.loads(written)["estimate_display"]["X13"])
+    _edit_in_place(path, shown, str(int(shown[0]) % 9 + 1) + shown[1:])  # 15.9 -> 25.9
+    assert path.stat().st_size == len(written)
+    with pytest.raises(RailsuspInputError, match="estimate/estimate.json changed or is gone"):
+        open_run(copy).estimate  # noqa: B018
+    entry = json.loads((copy / "pipeline.json").read_text())["stages"]["estimate"]
+    assert set(entry.get("sha256", ())) == set(entry["files"])
+    assert not outputs_exist(cfg, copy, "estimate", entry["files"], entry["sha256"])
+    seen = []
+    run_pipeline(cfg, copy, progress=lambda s, m: seen.append((s, m)))
+    assert [s for s, m in seen if m == "running"] == ["estimate", "validate", "report"], seen
+    remade = json.loads(path.read_text())["estimate_display"]
+    assert remade == json.loads(written)["estimate_display"]  # as the stage wrote it
+    assert open_run(copy).estimate.loc["X13", "estimate"] == remade["X13"]
+
+
+def test_a_run_recorded_before_hashes_is_compared_by_size_and_a_bad_estimate_is_one_line(
+    tiny, tmp_path
+):
+    """A run directory written before hashes were recorded (sizes alone) stays up to date
+    (its files are compared by size, as they were). An estimate.json edited in it so that
+    a key is gone is then no longer a KeyError's traceback (``railsusp run`` ended so, exit
+    1): the summary says, in one line, which field of which file and how to remake it."""
+    from railsusp import open_run
+    from railsusp.summary import estimate_table
+
+    cfg, _, copy = _up_to_date_copy(tiny, tmp_path)
+    state = json.loads((copy / "pipeline.json").read_text())
+    for entry in state["stages"].values():
+        entry.pop("sha256", None)
+    state.pop("format", None)
+    (copy / "pipeline.json").write_text(json.dumps(state))
+    _edit_in_place(copy / "estimate/estimate.json", '"X13"', '"X93"')
+    seen = []
+    run_pipeline(cfg, copy, progress=lambda s, m: seen.append(m))
+    assert seen == ["up to date"] * len(STAGES)
+    for read in (lambda: open_run(copy).estimate, lambda: estimate_table(copy)):
+        with pytest.raises(RailsuspInputError) as info:
+            read()
+        text = str(info.value)
+        assert text.startswith(f"{copy / 'estimate/estimate.json'}: estimate_display.X13 = ")
+        assert "missing: accepted a finite number" in text and "--from estimate" in text
+        assert "\n" not in text
+
+
+def test_a_run_directory_of_a_newer_railsusp_is_refused_not_run_again(tiny, tmp_path):
+    """The run-directory store audit: a run directory made by a newer railsusp (its campaign of
+    newer force laws) was run again from the start, its campaign discarded, where the
+    standalone `railsusp campaign` refused the folder. pipeline.json states its format now,
+    and a run directory of a newer format, or holding a campaign of a newer revision, is
+    refused in one line and left as it is. Older ones run again, as before."""
+    import shutil
+
+    cfg_path, out, _, _ = tiny
+    copy = tmp_path / "run"
+    shutil.copytree(out, copy)
+    state = json.loads((copy / "pipeline.json").read_text())
+    meta_path = copy / "campaign" / "campaign.json"
+    meta = json.loads(meta_path.read_text())
+    before = {p: p.read_bytes() for p in copy.rglob("*") if p.is_file()}
+    cases = [
+        ({**state, "format": state.get("format", 0) + 1}, meta, "written by a newer railsusp"),
+        (  # the audit's: made by railsusp 9.0.0, before pipeline.json stated a format
+            {**{k: v for k, v in state.items() if k != "format"}, "made_by": "9.0.0"},
+            {**meta, "model_revision": "2099-01-01.1"},
+            "simulated with force-law revision 2099-01-01.1, newer than this railsusp's",
+        ),
+    ]
+    for doc, campaign, said in cases:
+        (copy / "pipeline.json").write_text(json.dumps(doc))
+        meta_path.write_text(json.dumps(campaign))
+        before[copy / "pipeline.json"] = (copy / "pipeline.json").read_bytes()
+        before[meta_path] = meta_path.read_bytes()
+        with pytest.raises(RailsuspInputError) as info:
+            run_pipeline(load_config(cfg_path), copy)
+        assert said in str(info.value) and "\n" not in str(info.value)
+        assert str(info.value).startswith(f"out {copy}: ") or f"--out {copy}" in str(info.value)
+        assert {p: p.read_bytes() for p in copy.rglob("*") if p.is_file()} == before
+    from railsusp.pipeline_state import PIPELINE_FORMAT, run_state
+
+    assert state["format"] == PIPELINE_FORMAT  # what this railsusp writes
+    meta_path.write_text(json.dumps({**meta, "model_revision": "2000-01-01.1"}))
+    assert run_state(copy, "--out")["stages"]  # an older campaign: run again, as before
+
+
+def test_force_law_revisions_compare_as_day_and_number():
+    from railsusp.campaign.results import revision_newer
+
+    assert revision_newer("2026-11-30.10", "2026-11-30.9")  # as strings: older
+    assert revision_newer("2026-12-01", "2026-11-30.2")
+    assert not revision_newer("2026-11-30.2", "2026-11-30.2")
+    assert not revision_newer("2000-01-01.1")
+    assert revision_newer("2099-01-01.1")
+    assert not revision_newer("edited by hand")

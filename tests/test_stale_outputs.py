@@ -5,6 +5,7 @@ recording; and a crash between atomic_folder's two renames loses nothing."""
 
 import numpy as np
 import pandas as pd
+import pytest
 from typer.testing import CliRunner
 
 from railsusp.cli import app
@@ -60,6 +61,30 @@ def test_a_crash_between_the_two_renames_loses_nothing(tmp_path):
     assert (art / "checkpoint.pt").read_text() == "epoch 40"  # put back, then carried
     assert (art / "model.pt").read_text() == "retrained"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["net"]
+
+
+def test_glob_characters_in_a_folders_name_are_its_name_not_a_pattern(tmp_path):
+    """The run-directory store audit: atomic_folder looked for its leftovers with the folder's
+    name as a glob pattern. ``est[1]``'s pattern matched ``.est1.old-*``, not its own
+    ``.est[1].old-*``, so a crash between the two renames lost the old folder's work (neither
+    put back nor removed); ``run*``'s matched every sibling's, and a save removed another
+    save's folder in the making (``.run2.new-*``)."""
+    art = tmp_path / "est[1]"
+    art.mkdir()
+    (art / "checkpoint.pt").write_text("epoch 40")
+    art.rename(tmp_path / ".est[1].old-abc123")  # the state such a crash leaves
+    with atomic_folder(art) as tmp:
+        (tmp / "model.pt").write_text("retrained")
+    assert (art / "checkpoint.pt").read_text() == "epoch 40"  # put back, then carried
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["est[1]"]
+
+    other = tmp_path / ".run2.new-xyz"  # another save of a sibling, under way
+    other.mkdir()
+    (other / "model.pt").write_text("being written")
+    with atomic_folder(tmp_path / "run*") as tmp:
+        (tmp / "model.pt").write_text("saved")
+    assert (other / "model.pt").read_text() == "being written"
+    assert (tmp_path / "run*" / "model.pt").read_text() == "saved"
 
 
 def test_a_field_synthesised_again_holds_only_its_own_recordings(tmp_path):
@@ -123,7 +148,7 @@ def test_train_on_a_missing_device_says_so_before_anything_else(tmp_path):
     import torch
 
     if torch.cuda.is_available():
-        return  # the device is there: nothing to refuse
+        pytest.skip("a CUDA device is present: nothing to refuse")
     result = CliRunner().invoke(app, ["train", str(tmp_path / "camp"), "--device", "cuda"])
     assert result.exit_code == 2
     assert "--device cuda: device 'cuda' asked for but no CUDA device" in result.output

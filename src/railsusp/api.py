@@ -20,7 +20,7 @@ import railsusp.summary as summary
 from railsusp.errors import RailsuspInputError
 from railsusp.integrity import changed_files
 from railsusp.pipeline_state import STAGES, read_run_state
-from railsusp.store import read_csv, read_json
+from railsusp.store import read_csv, read_json, read_parquet
 from railsusp.summary import Tolerances
 
 __all__ = ["RunResult", "Tolerances", "open_run", "run"]
@@ -47,9 +47,11 @@ class RunResult:
 
     def _need(self, rel: str, stage: str) -> Path:
         """``rel``, an output of ``stage``, where pipeline.json says that stage is done and
-        the files it recorded then are there with their sizes: a stage that failed, was
-        interrupted or is stale (an earlier stage ran again after it) left the outputs of
-        an older run, which are not this run's answer."""
+        the files it recorded then are there with their sizes and SHA-256 (by size alone in a
+        run made before hashes were recorded): a stage that failed, was interrupted or is
+        stale (an earlier stage ran again after it) left the outputs of an older run, and a
+        file edited since (a number changed in place, its size kept) is no longer what the
+        run wrote; neither is this run's answer."""
         p = self.path / rel
         resume = f"railsusp run CONFIG --out {self.path}"
         if not p.exists():
@@ -69,7 +71,7 @@ class RunResult:
             raise RailsuspInputError(
                 f"{self.path}: the {stage} stage {why}; its files are an older run's ({resume})"
             )
-        changed = changed_files(entry.get("files") or {}, self.path)
+        changed = changed_files(entry.get("files") or {}, self.path, entry.get("sha256"))
         if changed:
             raise RailsuspInputError(
                 f"{self.path}: {changed[0].relative_to(self.path)} changed or is gone since the "
@@ -123,7 +125,8 @@ class RunResult:
     def sensitivity(self) -> pd.DataFrame:
         """Sobol indices (S1, ST with confidence) per condition, force, statistic and
         parameter."""
-        return pd.read_parquet(self._need("campaign/sensitivity/indices.parquet", "sensitivity"))
+        p = self._need("campaign/sensitivity/indices.parquet", "sensitivity")
+        return read_parquet(p, f"railsusp run CONFIG --out {self.path} --from sensitivity")
 
     @property
     def largest_st(self) -> pd.Series:

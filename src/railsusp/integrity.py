@@ -7,6 +7,9 @@ are about what happens to a run directory afterwards. Each kind of file has a ch
 little more than opening it: a Parquet footer, a JSON document, a CSV whose last line is whole,
 a zip archive's directory and checksums (PyTorch's ``.pt`` and NumPy's ``.npz`` are zips).
 Other files (figures, HTML, Markdown) are not checked: nothing in railsusp reads them back.
+What a finished stage wrote is also recorded by size and SHA-256 (:func:`file_sizes`,
+:func:`file_hashes`) and compared later (:func:`changed_files`): an edit that keeps a file
+readable, and its size, is found by its hash alone.
 """
 
 from __future__ import annotations
@@ -14,12 +17,12 @@ from __future__ import annotations
 import csv
 import re
 import zipfile
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any, BinaryIO
 
 from railsusp.errors import RailsuspInputError
-from railsusp.store import parquet_readable, read_json
+from railsusp.store import file_hash, file_hash_cached, parquet_readable, read_json
 
 #: suffixes whose files are zip archives: PyTorch's ``torch.save`` and NumPy's ``savez``
 ZIP_SUFFIXES = (".pt", ".npz")
@@ -209,14 +212,32 @@ def file_sizes(paths: Iterable[Path], base: str | Path) -> dict[str, int]:
     return {p.relative_to(base).as_posix(): p.stat().st_size for p in paths}
 
 
-def changed_files(sizes: dict[str, int], base: str | Path) -> list[Path]:
-    """The files of a :func:`file_sizes` record that are gone or have another size now."""
+def file_hashes(paths: Iterable[Path], base: str | Path) -> dict[str, str]:
+    """Each file's SHA-256 (hex), keyed as :func:`file_sizes` keys it: recorded beside the
+    sizes, so that an edit that keeps a file's size (``15.917`` made ``25.917`` in an
+    estimate.json, a bit flipped in a Parquet page) is found too; the summary and the API
+    showed such an edit as the run's answer while its report showed the number it wrote.
+    Hashing costs a read of each file, little beside what the stages cost to make them."""
+    return {p.relative_to(base).as_posix(): file_hash(p) for p in paths}
+
+
+def changed_files(
+    sizes: Mapping[str, int], base: str | Path, hashes: Mapping[str, str] | None = None
+) -> list[Path]:
+    """The files of a :func:`file_sizes` record that are gone or have another size now, or,
+    where ``hashes`` (a :func:`file_hashes` record) holds theirs, another SHA-256. A file
+    the hashes do not name (a run made before they were recorded: ``hashes`` None) is
+    compared by its size alone, as such runs were: they stay up to date, and an edit that
+    keeps a size goes unseen in them until a stage runs again and records its hashes."""
     base = Path(base)
+    hashes = hashes if isinstance(hashes, Mapping) else {}
     changed = []
-    for rel, size in sizes.items():
+    for rel, size in (sizes if isinstance(sizes, Mapping) else {}).items():
         path = base / rel
         try:
             if path.stat().st_size != size:
+                changed.append(path)
+            elif rel in hashes and file_hash_cached(path) != hashes[rel]:
                 changed.append(path)
         except OSError:
             changed.append(path)

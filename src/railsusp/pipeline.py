@@ -4,7 +4,8 @@ recordings -> estimation -> validation -> report.
 Each stage is skipped when its outputs exist and its inputs (its part of the configuration
 and the hashes of the stages it reads) are unchanged; ``start_from`` forces a restart from a
 stage. A failing stage leaves the previous stages' outputs intact; ``pipeline.json`` records
-each stage's input hash, timing and state, and the error says how to resume.
+each stage's input hash, timing and state, and its files' sizes and SHA-256 (a file changed
+since makes the stage run again), and the error says how to resume.
 
 The configuration, its models and its reading, is :mod:`railsusp.pipeline_config`; what
 each stage hashes and does is :mod:`railsusp.pipeline_stages`; this module runs the stages
@@ -19,20 +20,21 @@ from collections.abc import Callable
 from pathlib import Path
 
 from railsusp.errors import RailsuspInputError
-from railsusp.integrity import file_sizes
+from railsusp.integrity import file_hashes, file_sizes
 
 # the configuration's public names, imported from here by users, tests, benches and docs
 from railsusp.pipeline_config import PipelineConfig as PipelineConfig  # re-export
 from railsusp.pipeline_config import demo_config as demo_config  # re-export
 from railsusp.pipeline_config import load_config as load_config  # re-export
 from railsusp.pipeline_stages import stage_runners, stage_section
-from railsusp.pipeline_state import STAGES as STAGES  # re-export
 from railsusp.pipeline_state import (
+    PIPELINE_FORMAT,
     blame,
     outputs_exist,
     run_state,
     stage_files,
 )
+from railsusp.pipeline_state import STAGES as STAGES  # re-export
 from railsusp.run_lock import run_lock
 from railsusp.store import code_identity, content_hash, provenance, utc_now, write_json
 from railsusp.summary import read_tolerances
@@ -111,6 +113,7 @@ def _run_stages(
     from railsusp.measured.cut import release_cut
 
     state_path = out / "pipeline.json"
+    state["format"] = PIPELINE_FORMAT  # what this railsusp writes (run_state refuses newer)
     state["config"] = config.model_dump(mode="json")
     # the verdicts' tolerances as the run read them: open_run judges with these, not with
     # whatever wagon file a relative path names from its own working folder
@@ -130,7 +133,7 @@ def _run_stages(
             prev.get("hash") == h
             and prev.get("state") == "done"
             and i < forced
-            and outputs_exist(config, out, stage, prev.get("files"))
+            and outputs_exist(config, out, stage, prev.get("files"), prev.get("sha256"))
         )
         if up_to_date:
             log.debug("stage %s: up to date", stage)
@@ -162,6 +165,7 @@ def _run_stages(
                     f"and run the same command again (or {_resume(from_option, stage)})"
                     + blame(config, out, stage, str(exc))
                 ) from exc
+            files = stage_files(config, out, stage)
             state["stages"][stage] = {
                 "hash": h,
                 "state": "done",
@@ -169,7 +173,9 @@ def _run_stages(
                 "seconds": time.perf_counter() - t0,
                 "finished": utc_now(),
                 "made_by": made_by,  # stages of one run may come from two commits
-                "files": file_sizes(stage_files(config, out, stage), out),
+                "files": file_sizes(files, out),
+                # and their contents: an edit that keeps a file's size is found too
+                "sha256": file_hashes(files, out),
             }
             write_json(state_path, state)
             log.info("stage %s: done in %.1f s", stage, state["stages"][stage]["seconds"])

@@ -10,13 +10,23 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
+from railsusp._version import __version__
 from railsusp.errors import RailsuspInputError
 from railsusp.integrity import changed_files, files_under, unreadable_files
+from railsusp.numbers import is_whole
 from railsusp.pipeline_config import PipelineConfig
 from railsusp.stages import STAGES
 from railsusp.store import read_json
 
 log = logging.getLogger("railsusp.pipeline")
+
+#: the layout of ``pipeline.json`` and of the run directory this railsusp writes (its
+#: ``format``; a run made before it was recorded states none: format 0). Raised when a
+#: change would make an older railsusp misread a run directory; a run directory of a
+#: higher format, made by a newer railsusp, is refused rather than rerun and written over
+#: (:func:`run_state`). 1: the field ``format`` itself, and each finished stage's files'
+#: ``sha256`` beside their sizes (an older railsusp reading it compares the sizes alone)
+PIPELINE_FORMAT = 1
 
 
 #: what the stages write at the top of a run directory (a run whose pipeline.json was lost
@@ -62,14 +72,57 @@ def run_state(out: Path, option: str) -> dict:
                 f"{option} {out}: a folder holding other files and no pipeline.json; give a "
                 "new or empty folder, or a railsusp run directory to resume"
             )
+        _refuse_newer_campaigns(out, option)
         return {"stages": {}}
-    return read_run_state(
+    state = read_run_state(
         out,
         f"{option} {out}",
         "; give a new or empty folder",
         damaged="; delete it to resume: a run directory without pipeline.json resumes from "
         "its stages' outputs",
     )
+    made = state.get("format", 0)
+    if not is_whole(made) or made < 0:
+        raise RailsuspInputError(
+            f"{option} {out}: its pipeline.json format = {made!r}: accepted a whole number "
+            f"0-{PIPELINE_FORMAT} (the file is damaged); delete it to resume: a run directory "
+            "without pipeline.json resumes from its stages' outputs"
+        )
+    if made > PIPELINE_FORMAT:
+        raise RailsuspInputError(
+            f"{option} {out}: its pipeline.json is of format {made!r}, written by a newer "
+            f"railsusp than this one (format {PIPELINE_FORMAT}, railsusp {__version__}), "
+            "whose stages this one would run again and write over; run it with that "
+            f"railsusp, or give a new {option}"
+        )
+    _refuse_newer_campaigns(out, option)
+    return state
+
+
+def _refuse_newer_campaigns(out: Path, option: str) -> None:
+    """Refuse a run directory holding a campaign simulated with force laws newer than this
+    railsusp's (a newer railsusp's run): the pipeline runs its campaigns with ``force``,
+    which discards a campaign of other force laws as outdated, and so discarded hours of a
+    newer railsusp's simulations (the standalone ``railsusp campaign`` refused the same
+    folder). Campaigns of older force laws are simulated again, as before."""
+    from railsusp.campaign.results import revision_newer
+    from railsusp.vehicle import MODEL_REVISION
+
+    for entry in RUN_ENTRIES:
+        meta_path = out / entry / "campaign.json"
+        if not meta_path.is_file():
+            continue
+        try:
+            revision = read_json(meta_path).get("model_revision")
+        except (RailsuspInputError, AttributeError):  # damaged: the campaign decides
+            continue
+        if revision_newer(revision):
+            raise RailsuspInputError(
+                f"{option} {out}: its campaign {meta_path.parent.name} was simulated with "
+                f"force-law revision {revision}, newer than this railsusp's {MODEL_REVISION} "
+                f"(a newer railsusp's run, which this one would discard); run it with that "
+                f"railsusp, or give a new {option}"
+            )
 
 
 def read_run_state(out: Path, where: str, hint: str = "", damaged: str = "") -> dict:
@@ -167,19 +220,25 @@ def stage_files(config: PipelineConfig, out: Path, stage: str) -> list[Path]:
 
 
 def outputs_exist(
-    config: PipelineConfig, out: Path, stage: str, recorded: dict[str, int] | None = None
+    config: PipelineConfig,
+    out: Path,
+    stage: str,
+    recorded: dict[str, int] | None = None,
+    hashes: dict[str, str] | None = None,
 ) -> bool:
     """The stage's output file is present, the files the run recorded when the stage finished
-    (``recorded``, sizes by path) are there with their sizes, and they read
-    (:mod:`railsusp.integrity`: Parquet footers, JSON, whole CSV lines, the zips of
-    networks): a file damaged after the run (a copy cut short) makes the stage run again
-    rather than fail a later one. A run made before sizes were recorded has every file in the
-    stage's folders checked by its format alone."""
+    (``recorded``, sizes by path; ``hashes``, their SHA-256 by path) are there with those
+    sizes and contents, and they read (:mod:`railsusp.integrity`: Parquet footers, JSON,
+    whole CSV lines, the zips of networks): a file damaged or edited after the run (a copy
+    cut short, a number changed in place) makes the stage run again rather than fail a
+    later one, or be shown as its answer. A run made before hashes were recorded has its
+    files compared by size alone (and stays up to date); one made before sizes were has
+    every file in the stage's folders checked by its format alone."""
     path = _marked_output(config, out, stage)
     if not path.is_file():
         return False
     if isinstance(recorded, dict) and recorded:
-        bad = changed_files(recorded, out)
+        bad = changed_files(recorded, out, hashes)
         to_read = [path, *(out / rel for rel in recorded)]
     else:
         bad, to_read = [], stage_files(config, out, stage)
@@ -189,7 +248,7 @@ def outputs_exist(
     if bad:
         more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
         names = ", ".join(str(p) for p in bad[:3]) + more
-        log.warning("stage %s: %s is damaged or gone; the stage runs again", stage, names)
+        log.warning("stage %s: %s is damaged, changed or gone; the stage runs again", stage, names)
     return not bad
 
 

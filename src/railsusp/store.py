@@ -18,11 +18,13 @@ from __future__ import annotations
 
 import datetime as _dt
 import fnmatch
+import glob
 import hashlib
 import io
 import json
 import os
 import platform
+import re
 import shutil
 import socket
 import subprocess
@@ -110,14 +112,30 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
     return path
 
 
-def remove_stale_temporaries(folder: str | Path) -> int:
-    """Remove the temporaries (``.NAME.*.tmp``) that a process killed while writing left
-    under ``folder``; the number removed. Only for a folder whose lock the caller holds
-    (:func:`railsusp.run_lock.run_lock`): another writer's temporary would be live. A kill
-    during a write left them for good (the interrupt/resume audit of stop 60)."""
+#: the name of a temporary file :func:`_replacing` makes: ``.NAME.`` + mkstemp's eight
+#: random characters + ``.tmp`` (a user's ``.notes.tmp`` is no railsusp temporary)
+_TEMPORARY = re.compile(r"^\.(?P<target>.+)\.[a-z0-9_]{8}\.tmp$")
+
+
+def remove_stale_temporaries(folder: str | Path, targets: Sequence[str] | None = None) -> int:
+    """Remove the temporaries of :func:`_replacing` (``.NAME.XXXXXXXX.tmp``) that a process
+    killed while writing left directly in ``folder``; the number removed. ``targets``: only
+    those of files of these names (default: of any name). Subfolders are not entered, and
+    other hidden files are left alone: only for a folder whose lock the caller holds
+    (:func:`railsusp.run_lock.run_lock`) and whose files no other process writes, since
+    another writer's temporary would be live (a training checkpoint being saved under a
+    campaign's ``surrogates/``, which the campaign's whole-tree sweep deleted: the
+    run-directory store audit). A kill during a write left them for good (the
+    interrupt/resume audit of stop 60)."""
     removed = 0
-    for tmp in Path(folder).rglob(".*.tmp"):
-        if tmp.is_file():
+    folder = Path(folder)
+    if not folder.is_dir():
+        return 0
+    for tmp in folder.iterdir():
+        found = _TEMPORARY.match(tmp.name)
+        if found is None or (targets is not None and found["target"] not in targets):
+            continue
+        if tmp.is_file() and not tmp.is_symlink():
             tmp.unlink(missing_ok=True)
             removed += 1
     return removed
@@ -143,15 +161,42 @@ def write_csv(path: str | Path, df: pd.DataFrame, **kw: Any) -> Path:
     return atomic_write_text(path, df.to_csv(**kw))
 
 
-def parquet_readable(path: str | Path) -> bool:
+def parquet_readable(path: str | Path, pages: bool = False) -> bool:
     """Whether ``path`` is a Parquet file whose footer reads: a file cut short (a copy
     interrupted, a full disk) or missing is not (our writes are atomic, so a kill never
-    leaves one)."""
+    leaves one). ``pages``: also read every page and check the checksums railsusp writes
+    (:func:`write_parquet`), so that a bit flipped inside a data page, which leaves the
+    footer intact, is found too; this reads the whole file (a file written without
+    checksums, before they were written, is read whole and has nothing more to check)."""
     try:
-        pq.ParquetFile(path).metadata  # noqa: B018  (reads and checks the footer)
-    except (OSError, ValueError):  # missing; ArrowInvalid (not Parquet, cut short)
-        return False
+        pf = pq.ParquetFile(path, page_checksum_verification=True)  # reads the footer
+        for group in range(pf.num_row_groups if pages else 0):  # one at a time in memory
+            pf.read_row_group(group)
+    except (OSError, ValueError, pa.ArrowException):  # missing; not Parquet, cut short, a
+        return False  # page whose checksum does not match or that does not decode
     return True
+
+
+def read_parquet(
+    path: str | Path,
+    remedy: str = "",
+    error: type[RailsuspInputError] = RailsuspInputError,
+    **kw: Any,
+) -> pd.DataFrame:
+    """A Parquet table of a run directory, its pages' checksums verified (where it has them:
+    :func:`write_parquet` writes them; older files read as before). A file that is missing,
+    cut short or damaged (a flipped bit in a data page) is a one-line input error naming it,
+    ``remedy`` appended (how to make it again), never pyarrow's traceback nor, silently,
+    changed numbers; ``error``: the error's class (a subclass of the input error). ``kw``
+    go to :func:`pandas.read_parquet` (``columns``)."""
+    path = Path(path)
+    try:
+        return pd.read_parquet(path, page_checksum_verification=True, **kw)
+    except FileNotFoundError:
+        raise error(f"{path} does not exist{remedy and '; ' + remedy}") from None
+    except (OSError, ValueError, pa.ArrowException) as exc:  # not Parquet, a bad checksum
+        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise error(f"{path} is damaged ({first}){remedy and '; ' + remedy}") from None
 
 
 def read_csv(path: str | Path) -> pd.DataFrame:
@@ -185,10 +230,11 @@ def atomic_folder(path: str | Path, keep: bool = True, drop: Sequence[str] = ())
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    aside = sorted(path.parent.glob(f".{path.name}.old-*"), key=lambda p: p.stat().st_mtime)
+    name = glob.escape(path.name)  # ``est[1]``, ``run*``: a pattern only of this name's
+    aside = sorted(path.parent.glob(f".{name}.old-*"), key=lambda p: p.stat().st_mtime)
     if aside and not path.exists():  # a crash between the two renames: the old one back
         os.rename(aside.pop(), path)
-    for pattern in (f".{path.name}.old-*", f".{path.name}.new-*"):
+    for pattern in (f".{name}.old-*", f".{name}.new-*"):
         for stale in path.parent.glob(pattern):
             shutil.rmtree(stale, ignore_errors=True)
     tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.new-"))
@@ -283,16 +329,18 @@ def file_hash(path: str | Path) -> str:
 
 
 def file_hash_cached(path: str | Path) -> str:
-    """:func:`file_hash`, read once per version of the file (kept by absolute path,
-    modification time and size): for hashes asked for again and again, a surrogate's
-    track inputs every generation, a campaign's geometry files every batch."""
+    """:func:`file_hash`, read once per version of the file (kept by absolute path, inode,
+    modification time and size: a file replaced by an atomic write is a new inode, whatever
+    its time and size): for hashes asked for again and again, a surrogate's track inputs
+    every generation, a campaign's geometry files every batch, a run's recorded outputs
+    every time the API reads one."""
     p = os.path.abspath(path)
     st = os.stat(p)
-    return _file_hash_of(p, st.st_mtime_ns, st.st_size)
+    return _file_hash_of(p, st.st_ino, st.st_mtime_ns, st.st_size)
 
 
 @lru_cache(maxsize=1024)
-def _file_hash_of(path: str, _mtime_ns: int, _size: int) -> str:
+def _file_hash_of(path: str, _inode: int, _mtime_ns: int, _size: int) -> str:
     return file_hash(path)
 
 
@@ -326,7 +374,10 @@ def write_parquet(
     metadata: dict[str, str] | None = None,
     row_group_size: int | None = None,
 ) -> Path:
-    """Write a DataFrame to Parquet atomically, with optional key/value metadata."""
+    """Write a DataFrame to Parquet atomically, with optional key/value metadata and a CRC
+    checksum in every page header: a bit flipped in a data page leaves the footer intact and
+    the file its size, and only the checksums (verified by :func:`read_parquet` and
+    ``parquet_readable(pages=True)``) tell it from the numbers written."""
     path = Path(path)
     table = pa.Table.from_pandas(df, preserve_index=False)
     if metadata:
@@ -334,7 +385,12 @@ def write_parquet(
         meta.update({k.encode(): v.encode() for k, v in metadata.items()})
         table = table.replace_schema_metadata(meta)
     with _replacing(path) as tmp:
-        pq.write_table(table, tmp, row_group_size=row_group_size or max(1, table.num_rows))
+        pq.write_table(
+            table,
+            tmp,
+            row_group_size=row_group_size or max(1, table.num_rows),
+            write_page_checksum=True,
+        )
     return path
 
 

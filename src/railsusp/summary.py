@@ -167,6 +167,45 @@ def run_tolerances(run: str | Path) -> Tolerances:
     return read_tolerances((state.get("config") or {}).get("wagon"))
 
 
+def _damaged(path: Path, what: str) -> RailsuspInputError:
+    """The one-line error of an estimate.json edited or damaged (a same-size edit is not
+    seen by a run made before its stages recorded hashes), with how to write it again."""
+    run = path.parent.parent
+    first = what.strip().splitlines()[0] if what.strip() else what
+    return RailsuspInputError(
+        f"{path}: {first}; the file is damaged or was edited "
+        f"(railsusp run CONFIG --out {run} --from estimate writes it again)"
+    )
+
+
+def read_estimate(path: str | Path) -> dict:
+    """An ``estimate.json`` with the fields the summary reads checked: ``parameters`` a list
+    of parameter symbols and ``estimate_display`` a real number for each of them. An edited
+    or damaged file (a key renamed, a number made text) is a one-line input error naming the
+    file and the field, not a KeyError's traceback from deep in the table (``railsusp run``
+    ended so, exit 1, on a run whose key had been edited: the run-directory store audit)."""
+    path = Path(path)
+    est = read_json(path)
+    if not isinstance(est, dict):
+        raise _damaged(path, f"a JSON object is needed, not {type(est).__name__}")
+    params = est.get("parameters")
+    if not isinstance(params, list) or not all(isinstance(p, str) for p in params):
+        raise _damaged(path, f"parameters = {params!r:.60}: accepted a list of parameter symbols")
+    shown = est.get("estimate_display")
+    if not isinstance(shown, dict):
+        raise _damaged(
+            path, f"estimate_display = {shown!r:.60}: accepted a table {{symbol: value}}"
+        )
+    for p in params:
+        if not is_real(shown.get(p)) or not math.isfinite(float(shown[p])):
+            raise _damaged(
+                path,
+                f"estimate_display.{p} = {repr(shown[p])[:40] if p in shown else 'missing'}: "
+                f"accepted a finite number (the estimate of each of {', '.join(params)})",
+            )
+    return est
+
+
 def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.DataFrame:
     """One row per main suspension parameter (display units): element, unit, nominal,
     estimate, standard error, interval (low, high, and how it was formed), change from
@@ -177,12 +216,18 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
 
     run = Path(run)
     tol = tolerances or run_tolerances(run)
-    est = read_json(run / "estimate" / "estimate.json")
+    path = run / "estimate" / "estimate.json"
+    est = read_estimate(path)
     sens = run / "campaign" / "sensitivity"
     st = max_st(sens) if (sens / "key_parameters.json").exists() else {}
-    why_not = identification_issues(est, st)
+    try:  # the intervals and their verdicts, as the estimate stored them
+        why_not = identification_issues(est, st)
+        intervals = intervals_of(est)
+    except RailsuspInputError:
+        raise
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+        raise _damaged(path, f"its intervals do not read ({type(exc).__name__}: {exc})") from None
     params = list(est["parameters"])
-    intervals = intervals_of(est)
     # the standard errors the intervals were formed from; else the refinement's, where it
     # made the estimate (a polish beside NSGA-II's estimate is another point: its errors
     # are not the estimate's)

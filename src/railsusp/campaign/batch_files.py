@@ -12,7 +12,7 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from railsusp.campaign.design import CHANNELS, batch_paths
-from railsusp.store import write_parquet
+from railsusp.store import parquet_readable, write_parquet
 from railsusp.vehicle import MODEL_REVISION
 
 #: the Parquet metadata key of a batch file that names the campaign configuration (its
@@ -49,11 +49,18 @@ def write_batch(
     write_parquet(series_path, df, metadata={**status, **stamp})  # last: marks the batch done
 
 
-def batch_done(out: Path, condition: str, b: int, config_hash: str) -> bool:
+def batch_done(out: Path, condition: str, b: int, config_hash: str, pages: bool = True) -> bool:
     """Both files of a batch present, each with an intact Parquet footer and this
     configuration's stamp (or none: written before batches were stamped): a file cut short
     is simulated again rather than taken as finished work, and so is a batch of another
-    configuration copied in (its forces were taken with this design's parameters)."""
+    configuration copied in (its forces were taken with this design's parameters).
+
+    ``pages``: each file is also read whole, its pages' checksums verified
+    (:func:`~railsusp.store.parquet_readable`): a bit flipped inside a data page leaves the
+    footer and the stamp as they were, and such a batch was taken in on resume with its
+    numbers changed (the run-directory store audit). Without, the footers and stamps
+    alone: the cheap check of whether every batch is stored (:func:`~railsusp.campaign.
+    results.incomplete`); the readers verify the checksums of what they read."""
     for path in batch_paths(out, condition, b):
         meta = _batch_metadata(path)
         if meta is None or meta.get(STAMP_KEY.encode(), config_hash.encode()) != (
@@ -61,6 +68,8 @@ def batch_done(out: Path, condition: str, b: int, config_hash: str) -> bool:
         ):
             return False
         if _other_force_laws(meta):
+            return False
+        if pages and not parquet_readable(path, pages=True):
             return False
     return True
 

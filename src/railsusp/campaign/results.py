@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import logging
+import re
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 from pydantic import ValidationError
 
+from railsusp.campaign.batch_files import batch_done
 from railsusp.campaign.design import (
     CHANNELS,
     CampaignConfig,
@@ -17,8 +19,42 @@ from railsusp.campaign.design import (
     read_meta,
     track_table,
 )
+from railsusp.store import read_parquet
 
 log = logging.getLogger("railsusp.campaign")
+
+#: what to do about a campaign file that is missing or damaged: resumed, the campaign
+#: simulates every batch that is not stored whole again
+RESUME = "run the same `railsusp campaign` command again (it simulates such a batch again)"
+
+
+def _read(path: Path) -> pd.DataFrame:
+    """A table of a campaign folder, its pages' checksums verified: a damaged one is a
+    one-line :class:`CampaignError` naming it and how to make it again."""
+    return read_parquet(path, RESUME, error=CampaignError)
+
+
+#: a force-law revision (:data:`railsusp.vehicle.MODEL_REVISION`): a date and a number
+_REVISION = re.compile(r"^(\d{4}-\d{2}-\d{2})(?:\.(\d+))?$")
+
+
+def revision_newer(revision: object, than: str | None = None) -> bool:
+    """Whether the force-law revision ``revision`` (``"2026-11-30.2"``: the day and that
+    day's number) is later than ``than`` (default: this railsusp's): a campaign simulated by
+    a newer railsusp, which this one must not discard as outdated. Compared as (day, number):
+    as strings ``2026-11-30.10`` would sort before ``2026-11-30.9``. A revision of another
+    form (a hand edit) is not newer: it is treated as any other revision."""
+    if than is None:
+        from railsusp.vehicle import MODEL_REVISION
+
+        than = MODEL_REVISION
+
+    def key(text: object) -> tuple[str, int] | None:
+        found = _REVISION.match(str(text)) if isinstance(text, str) else None
+        return None if found is None else (found[1], int(found[2] or 0))
+
+    got, ours = key(revision), key(than)
+    return got is not None and ours is not None and got > ours
 
 
 def _config_error(meta_path: Path, exc: ValidationError) -> str:
@@ -82,7 +118,7 @@ class Campaign:
         return None if got is None else str(got)
 
     def design(self) -> pd.DataFrame:
-        return pd.read_parquet(self.path / "design.parquet")
+        return _read(self.path / "design.parquet")
 
     def tracks(self, condition: str) -> pd.DataFrame:
         """The track of every sample of one condition (seed, FRA class, radius, cant),
@@ -96,12 +132,12 @@ class Campaign:
         """All tidy features (complete or not: read from the finished batches)."""
         p = self.path / "features.parquet"
         if p.exists():
-            return pd.read_parquet(p)
+            return _read(p)
         files = sorted((self.path / "batches").glob("*/batch-*.features.parquet"))
         done = [f for f in files if f.with_name(f.name.replace(".features", "")).exists()]
         if not done:
             raise CampaignError(f"{self.path}: no finished batch yet")
-        return pd.concat([pd.read_parquet(f) for f in done], ignore_index=True)
+        return pd.concat([_read(f) for f in done], ignore_index=True)
 
     def feature_matrix(
         self, condition: str, quantity: str, statistic: str, features: pd.DataFrame | None = None
@@ -121,12 +157,14 @@ class Campaign:
 
 def read_series(root: Path, condition: str) -> tuple[np.ndarray, np.ndarray]:
     """(sample_ids, series (n, channels, n_t)) of one condition from the finished batches
-    under ``root/batches`` (a run directory, or its nominal twins)."""
+    under ``root/batches`` (a run directory, or its nominal twins), each file's pages'
+    checksums verified (a damaged batch is a one-line error, not changed numbers). Whether
+    every batch of the design is there is :func:`incomplete`'s question."""
     folder = root / "batches" / condition
     files = sorted(f for f in folder.glob("batch-*.parquet") if ".features" not in f.name)
     if not files:
         raise CampaignError(f"{root}: no series for condition {condition!r}")
-    df = pd.concat([pd.read_parquet(f) for f in files], ignore_index=True)
+    df = pd.concat([_read(f) for f in files], ignore_index=True)
     ids = np.unique(df["sample_id"].to_numpy())
     n_t = int(df["step"].max()) + 1
     arr = df[list(CHANNELS)].to_numpy().reshape(len(ids), n_t, len(CHANNELS))
@@ -165,19 +203,35 @@ def require_complete(campaign: Campaign) -> Campaign:
 def incomplete(
     campaign: Campaign, finish: str = "run the same `railsusp campaign` command again"
 ) -> str | None:
-    """None where every batch of ``campaign`` is stored, else one line saying how many are
-    and how to ``finish`` it."""
-    if campaign.complete:
-        return None
+    """None where every batch of ``campaign``'s design is stored (both files, footers that
+    read, this configuration's stamp: :func:`~railsusp.campaign.batch_files.batch_done`
+    without reading the pages, which the readers verify) and the campaign finished, else
+    one line saying how many are and how to ``finish`` it. ``completed`` in campaign.json
+    alone is not trusted: a batch lost or damaged since (a copy of part of the folder) left
+    it "complete", and a surrogate trained on 38 of its 40 series without a word (the
+    run-directory store audit); such batches are named."""
     cfg = campaign.config
-    done = sum(
-        batch_paths(campaign.path, c.name, b)[0].exists()
+    stamp = cfg.hash()
+    missing = [
+        batch_paths(campaign.path, c.name, b)[0]
         for c in cfg.conditions
         for b in range(cfg.n_batches)
-    )
+        if not batch_done(campaign.path, c.name, b, stamp, pages=False)
+    ]
+    if campaign.complete and not missing:
+        return None
+    total = cfg.n_batches * len(cfg.conditions)
+    if not campaign.complete:
+        return (
+            f"{campaign.path}: the campaign is incomplete ({total - len(missing)} of "
+            f"{total} batches); {finish} to finish it"
+        )
+    names = ", ".join(p.relative_to(campaign.path).as_posix() for p in missing[:3])
+    more = f" and {len(missing) - 3} more" if len(missing) > 3 else ""
     return (
-        f"{campaign.path}: the campaign is incomplete ({done} of "
-        f"{cfg.n_batches * len(cfg.conditions)} batches); {finish} to finish it"
+        f"{campaign.path}: the campaign is incomplete: {len(missing)} of its {total} batches "
+        f"{'is' if len(missing) == 1 else 'are'} missing or damaged ({names}{more}); "
+        f"{finish} to simulate {'it' if len(missing) == 1 else 'them'} again"
     )
 
 

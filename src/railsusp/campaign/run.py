@@ -25,7 +25,7 @@ from railsusp.campaign.design import (
     track_seeds,
     track_table,
 )
-from railsusp.campaign.results import stored_config
+from railsusp.campaign.results import RESUME, stored_config
 from railsusp.errors import RailsuspInputError
 from railsusp.input_checks import check_output_folder
 from railsusp.run_lock import run_lock
@@ -33,6 +33,7 @@ from railsusp.store import (
     parquet_readable,
     provenance,
     read_json,
+    read_parquet,
     remove_stale_temporaries,
     write_json,
     write_parquet,
@@ -243,8 +244,8 @@ def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
                         f"or --force to discard the old results"
                     )
                 _discard(out)
-            elif parquet_readable(out / "design.parquet"):
-                stored = pd.read_parquet(out / "design.parquet")
+            elif parquet_readable(out / "design.parquet", pages=True):
+                stored = read_parquet(out / "design.parquet")
                 if stored.equals(make_design(config)):  # it follows from the configuration
                     if files and "track_geometry_files" not in meta:  # made before stop 60:
                         # recorded now, so that a later edit is seen (the review of stop 60)
@@ -325,8 +326,21 @@ def run_campaign(
     # one process at a time: two on one folder simulated the same batches twice, and one
     # with --force or another configuration deleted what the other was writing
     with run_lock(out, "--out"):
-        remove_stale_temporaries(out)  # of a process killed while writing a batch
+        _remove_stale_temporaries(out)
         return _run_locked(config, out, force, scheduler, workers, progress, max_batches)
+
+
+def _remove_stale_temporaries(out: Path) -> None:
+    """The temporaries a campaign killed while writing left (:func:`~railsusp.store.
+    remove_stale_temporaries`): of its own files at the top of ``out`` and of its batches in
+    ``out/batches/<condition>/``, the folders the campaign's lock keeps to it. The rest of
+    the folder is other work's (a network training under ``surrogates/`` saves its
+    checkpoint through a temporary of its own), and is not entered."""
+    remove_stale_temporaries(out, targets=("campaign.json", *_FROM_DESIGN))
+    batches = out / "batches"
+    for folder in sorted(batches.iterdir()) if batches.is_dir() else []:
+        if folder.is_dir() and not folder.is_symlink():
+            remove_stale_temporaries(folder)
 
 
 def _run_locked(
@@ -344,11 +358,16 @@ def _run_locked(
     ids_all = design["sample_id"].to_numpy()
     n_t = {c.name: c.n_steps for c in config.conditions}
     todo: list[tuple[int, int]] = []
+    # the batches stored whole (every page's checksum verified: read once per run) and those
+    # written by this run, by condition name and batch: the campaign is complete when it
+    # holds all (the folder's lock keeps them as they are meanwhile)
+    stored: set[tuple[str, int]] = set()
     done_runs = 0
     for ci, cond in enumerate(config.conditions):
         for b in range(config.n_batches):
             if batch_done(out, cond.name, b, config.hash()):
                 done_runs += len(ids_all[b * config.batch_size : (b + 1) * config.batch_size])
+                stored.add((cond.name, b))
             else:
                 todo.append((ci, b))
     total = config.n_runs * len(config.conditions)
@@ -374,6 +393,7 @@ def _run_locked(
                 "on every worker of the cluster (the batches stored so far are kept)"
             )
         write_batch(out, b, res, n_t[res["condition"]], config.hash())
+        stored.add((res["condition"], b))
         done_runs += len(res["sample_ids"])
         if progress:
             progress(done_runs, total)
@@ -383,15 +403,10 @@ def _run_locked(
             finish(b, simulate_task(*args(ci, b)))
     else:
         run_on_dask(simulate_task, todo, args, finish, scheduler, workers)
-    stamp = config.hash()
-    if all(
-        batch_done(out, c.name, b, stamp)
-        for c in config.conditions
-        for b in range(config.n_batches)
-    ):
+    if all((c.name, b) in stored for c in config.conditions for b in range(config.n_batches)):
         feats = pd.concat(
             [
-                pd.read_parquet(batch_paths(out, c.name, b)[1])
+                read_parquet(batch_paths(out, c.name, b)[1], RESUME)
                 for c in config.conditions
                 for b in range(config.n_batches)
             ],
