@@ -27,7 +27,7 @@ SHORT = '[{base="straight", name="short", duration_s=1.0, n_steps=50, lead_in_m=
 def blind_field(tmp_path_factory):
     """A measured-recordings folder whose recording carries no track geometry."""
     root = tmp_path_factory.mktemp("blind")
-    cond = get_condition("straight", duration_s=1.0, n_steps=50, lead_in_m=20.0)
+    cond = get_condition("straight", name="short", duration_s=1.0, n_steps=50, lead_in_m=20.0)
     return synthesise_field(ParameterSet({"X13": 16.1}, units="display"), [cond], root / "f")
 
 
@@ -240,9 +240,9 @@ def test_refine_or_aligned_on_a_measured_folder_without_track_geometry(tmp_path,
         ('statistic = "aligned"', 'estimate.statistic "aligned"'),
     ):
         line = run_refused(tmp_path, toml(f'measured = "{blind_field}"', estimate))
-        assert f"{what} with field.measured = '{blind_field}': straight carry no track" in line
+        assert f"{what} with field.measured = '{blind_field}': short carry no track" in line
         out = tmp_path / "run"
-        with pytest.raises(ConfigError, match="straight carry no track geometry"):
+        with pytest.raises(ConfigError, match="short carry no track geometry"):
             railsusp.run(
                 as_dict({"measured": str(blind_field)}, {"refine": "refine" in estimate}
                         | ({"statistic": "aligned"} if "aligned" in estimate else {})),
@@ -334,8 +334,8 @@ def test_a_damaged_measured_folder_is_refused_before_any_stage(tmp_path, blind_f
         (folder / "index.json").write_text("{garbage")
         needle = "index.json: not valid JSON"
     else:
-        (folder / "straight.csv").unlink()
-        needle = "straight"
+        (folder / "short.csv").unlink()
+        needle = "short"
     line = run_refused(tmp_path, toml(f'measured = "{folder}"'))
     assert "field.measured: " in line and needle in line, line
 
@@ -358,7 +358,7 @@ def test_a_condition_file_named_in_the_list_is_pointed_to_a_table(tmp_path):
     [
         ("campaign", "samples = 2", "campaign.samples = 2: accepted [5, 1000000] (Input should"),
         ("campaign", "sample = 10", "campaign.sample: accepted keys: samples, design, seed,"),
-        ("field", "rate_hz = 9000", "field.rate_hz = 9000: accepted [10, 5000] (Input should"),
+        ("field", "rate_hz = 9000", "field.rate_hz = 9000: accepted [50, 5000] (Input should"),
     ],
 )
 def test_a_value_out_of_range_or_an_unknown_key_says_what_is_accepted(
@@ -385,3 +385,134 @@ def test_an_empty_configuration_is_refused(tmp_path, text):
     line = run_refused(tmp_path, text, "empty.toml")
     cfg = tmp_path / "empty.toml"
     assert f"configuration {cfg} is empty: accepted a file with at least one setting" in line
+
+
+# ---- the configuration audit of stop 64: settings that passed and failed a later stage ----
+
+
+def _field_of(root, cond, **kw):
+    return synthesise_field(ParameterSet({"X13": 16.1}, units="display"), [cond], root, **kw)
+
+
+def test_measured_recordings_the_runs_surrogates_cannot_serve_are_refused(tmp_path):
+    """A measured folder's recording of a condition the run does not train, or of its
+    condition at another speed, failed at the estimate stage after four stages ("no
+    surrogate of that condition ... --from surrogate remakes it")."""
+    other = _field_of(
+        tmp_path / "other",
+        get_condition("straight", name="other", duration_s=1.0, n_steps=50, lead_in_m=20.0),
+    )
+    line = run_refused(tmp_path, toml(f'measured = "{other}"'))
+    assert line.endswith(
+        f"field.measured = '{other}': recording 'other' is of none of the run's conditions "
+        "(short), whose surrogates it trains; accepted recordings named as a condition of the "
+        "run (set conditions to the recordings' conditions)"
+    )
+    fast = _field_of(
+        tmp_path / "fast",
+        get_condition(
+            "straight", name="short", duration_s=1.0, n_steps=50, lead_in_m=20.0, speed_kmh=40.0
+        ),
+    )
+    line = run_refused(tmp_path, toml(f'measured = "{fast}"'))
+    assert "recording 'short' has speed_kmh = 40.0, the run's condition 'short' 60.0" in line
+    # another record length and another track are what a recording may differ in
+    longer = _field_of(
+        tmp_path / "longer",
+        get_condition("straight", name="short", duration_s=2.0, n_steps=100, lead_in_m=20.0),
+        seed=11,
+    )
+    (tmp_path / "ok.toml").write_text(toml(f'measured = "{longer}"'))
+    assert load_config(tmp_path / "ok.toml").field.measured == str(longer)
+
+
+def test_measured_recordings_outside_a_network_sets_training_are_refused(tmp_path):
+    """The same with ``surrogate.pretrained``: the set was checked on the configured
+    conditions only, not on the recordings the estimate compares."""
+    cond = get_condition("straight", duration_s=2.0, n_steps=100, speed_kmh=40.0)
+    folder = _field_of(tmp_path / "m40", cond, with_track=True)
+    text = (
+        'name = "t"\nconditions = [{base = "straight", duration_s = 2.0, n_steps = 100}]\n'
+        '[surrogate]\nmodel = "cnn-gru-seq"\npretrained = "c80_k6"\n'
+        f'[field]\nmeasured = "{folder}"\n[estimate]\nstatistic = "aligned"\n'
+    )
+    line = run_refused(tmp_path, text)
+    assert "field.measured: surrogate.pretrained = 'c80_k6': condition 'straight' has " in line
+    assert "speed_kmh = 40.0, outside what its network was trained on" in line
+
+
+PRETRAINED = 'model = "cnn-gru-seq"\npretrained = "c80_k6"'
+TWO_SECONDS = 'conditions = [{base = "straight", duration_s = 2.0, n_steps = 100}]'
+
+
+@pytest.mark.parametrize(
+    ("field", "estimate", "surrogate", "said"),
+    [
+        (  # nsga's seed spread refused it at the estimate stage
+            "truth = {X13 = 16.1}",
+            "seed = 4294967295\nseeds = 3",
+            "",
+            "estimate.seed = 4294967295 with estimate.seeds = 3: accepted seed + seeds - 1 at "
+            "most 4294967295",
+        ),
+        (  # the estimate warned and went on unpolished
+            "truth = {X13 = 16.1}\nwith_track = true",
+            'statistic = "aligned"\nexpected_draws = 2',
+            PRETRAINED,
+            "estimate.expected_draws = 2 draws true tracks about the recordings' measured one "
+            "by its stated accuracy; field.track_noise_mm = 0 gives the synthetic recordings "
+            "exact geometry, so none would be drawn: set field.track_noise_mm > 0",
+        ),
+    ],
+)
+def test_estimate_settings_that_failed_or_were_ignored_at_the_estimate_stage(
+    tmp_path, field, estimate, surrogate, said
+):
+    text = toml(field, estimate, surrogate).replace(f"conditions = {SHORT}", TWO_SECONDS)
+    assert said in run_refused(tmp_path, text)
+
+
+def test_a_measured_folder_without_a_stated_accuracy_refuses_expected_draws(tmp_path):
+    cond = get_condition("straight", duration_s=2.0, n_steps=100)
+    folder = _field_of(tmp_path / "exact", cond, with_track=True)  # track_accuracy_mm 0
+    text = (
+        'name = "t"\nconditions = [{base = "straight", duration_s = 2.0, n_steps = 100}]\n'
+        '[surrogate]\nmodel = "cnn-gru-seq"\npretrained = "c80_k6"\n'
+        f'[field]\nmeasured = "{folder}"\n[estimate]\nstatistic = "aligned"\nexpected_draws = 2\n'
+    )
+    assert (
+        f"no recording of field.measured = '{folder}' states its geometry's track_accuracy_mm"
+        in run_refused(tmp_path, text)
+    )
+
+
+@pytest.mark.parametrize(
+    ("field", "sensitivity", "said"),
+    [
+        ("", 'statistics = ["mean", "mean"]', "sensitivity.statistics: 'mean' is given twice"),
+        (
+            "",
+            "base_samples = 100",
+            "sensitivity.base_samples: 100 is not a power of 2; accepted a power of 2 from 64 to "
+            "65536 (near it: 64 or 128)",
+        ),
+        ("rate_hz = 10", "", "field.rate_hz = 10: accepted [50, 5000]"),
+    ],
+)
+def test_settings_that_a_later_stage_refused_or_warned_of(tmp_path, field, sensitivity, said):
+    """Repeated statistics made duplicate rows of indices; a base sample that is not a
+    power of 2 unbalanced the Sobol' points with a scipy warning naming no setting; a long
+    run's sections at 10-49 Hz were written and then refused by the field stage."""
+    text = toml(f"truth = {{X13 = 16.1}}\n{field}") + f"[sensitivity]\n{sensitivity}\n"
+    assert said in run_refused(tmp_path, text)
+
+
+def test_synthetic_recordings_below_the_rate_the_estimate_reads_are_refused(tmp_path):
+    """50 steps over 1.2 s: the campaign, the sensitivity, the surrogates and the field ran,
+    and the estimate refused the generated file at 41.67 Hz (the audit of stop 64)."""
+    text = toml("truth = {X13 = 16.1}").replace("duration_s=1.0", "duration_s=1.2")
+    assert run_refused(tmp_path, text).endswith(
+        "conditions[0] ('short'): n_steps = 50 over duration_s = 1.2 s gives synthetic "
+        "recordings of 41.67 Hz, below the 50 Hz the estimate reads; accepted n_steps at "
+        "least 60 (or a shorter duration_s)"
+    )

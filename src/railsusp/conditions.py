@@ -50,6 +50,10 @@ GRAVITY = 9.81  # m/s^2
 #: A condition name becomes a folder of run directories: a safe slug (no '/', no '..' alone,
 #: no absolute path), so that no condition can make a campaign write outside its run.
 NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$"
+#: The lowest sampling rate at which the pipeline reads a recording (Hz): its statistics and
+#: time-aligned comparisons need the forces to 25 Hz (read_field's ``min_rate_hz``; a
+#: long run's sections, ``[field] rate_hz``; a synthetic recording's n_steps / duration_s).
+RECORDING_MIN_RATE_HZ = 50.0
 #: Lateral distance over which cant is measured (rail-head centres, Chinese practice), m.
 CANT_BASE_M = 1.5
 

@@ -23,7 +23,12 @@ from pydantic import (
     field_validator,
 )
 
-from railsusp.conditions import WorkingCondition, get_condition, make_condition
+from railsusp.conditions import (
+    RECORDING_MIN_RATE_HZ,
+    WorkingCondition,
+    get_condition,
+    make_condition,
+)
 from railsusp.errors import ConditionError, RailsuspInputError
 from railsusp.estimate.config import (
     CORRECTIONS_RANGE,
@@ -64,6 +69,19 @@ class SensitivitySection(_Cfg):
     max_keys: int = Field(6, ge=1, le=10)
     statistics: tuple[str, ...] = ("mean", "p99")
     base_samples: int = Field(512, ge=64, le=65_536)  # railsusp.sensitivity.BASE_SAMPLES
+
+    @field_validator("base_samples")
+    @classmethod
+    def _power_of_two(cls, v: int) -> int:
+        """Saltelli's N on Sobol' points: a power of 2, or the points lose their balance
+        (scipy warned at the sensitivity stage without naming the setting)."""
+        if v & (v - 1):
+            low = 1 << (v.bit_length() - 1)
+            raise ValueError(
+                f"{v} is not a power of 2; accepted a power of 2 from 64 to 65536 (near it: "
+                f"{low} or {2 * low})"
+            )
+        return v
 
 
 class SurrogateSection(_Cfg):
@@ -134,7 +152,12 @@ class FieldSection(_Cfg):
     )
     min_length_m: float = Field(150.0, ge=1.0, le=100_000.0, description="shortest section")
     max_duration_s: float = Field(120.0, ge=1.0, le=600.0, description="longer ones are split")
-    rate_hz: float = Field(50.0, ge=10.0, le=5000.0, description="rate of the section records")
+    rate_hz: float = Field(
+        RECORDING_MIN_RATE_HZ,
+        ge=RECORDING_MIN_RATE_HZ,  # the field stage reads the sections at this rate or more
+        le=5000.0,
+        description="rate of the section records",
+    )
     truth: dict[str, float] = Field(
         default_factory=dict, description="hidden true parameters, display units"
     )

@@ -15,7 +15,12 @@ from typing import Any
 
 import numpy as np
 
-from railsusp.conditions import WorkingCondition, get_condition, make_condition
+from railsusp.conditions import (
+    RECORDING_MIN_RATE_HZ,
+    WorkingCondition,
+    get_condition,
+    make_condition,
+)
 from railsusp.errors import RailsuspInputError, did_you_mean, repeated
 from railsusp.input_checks import json_numbers
 from railsusp.measured.channels import default_map
@@ -70,7 +75,7 @@ def inside(folder: Path, name: Any, what: str) -> Path:
 def read_recording(
     path: str | Path,
     *,
-    min_rate_hz: float = 50.0,
+    min_rate_hz: float = RECORDING_MIN_RATE_HZ,
     wheel_load_N: float | None = None,
     wagon: str | Path | WagonData | None = None,
 ) -> Recording:
