@@ -39,10 +39,8 @@ def test_element_shares_add_up_to_the_eigenvalue_damping(stuck):
     result, point = stuck
     for kind, i in result.car_body_kinds().items():
         d = mode_dissipation(result, point, i)
-        assert list(d.shares) == list(ELEMENTS)
         assert abs(d.residual) < 0.1 * d.zeta, (kind, d.zeta, d.total)
         assert all(v >= 0.0 for k, v in d.shares.items() if not k.startswith("wheel-rail"))
-        assert d.shares[ELEMENTS[0]] == 0.0  # the bowl's ring is elastic
 
 
 @pytest.mark.parametrize(
@@ -68,11 +66,54 @@ def test_a_share_predicts_its_dampers_effect_on_the_eigenvalue(stuck, kind, cons
     assert change == pytest.approx(0.2 * share, rel=0.1)
 
 
-def test_sliding_friction_has_no_stick_damping():
-    """With the friction limits at zero the sliders pass no force: their stick damping
-    takes no share."""
+#: the model's damping constants (layout.K): dampers, stick damping, elastomer loss, rail
+#: support damping
+DAMPERS = ("c_px", "c_py", "c_pz", "c_sx", "c_wedge", "c_yaw", "c_roll", "c_sb", "c_rz", "c_ry")
+
+
+@pytest.mark.parametrize(
+    ("keep", "element"),
+    [
+        ("c_wedge", "wedges, vertical (stick damping)"),
+        ("c_pz", "primary pads, vertical"),
+        ("c_sb", "side bearers (elastomer loss)"),
+    ],
+)
+def test_a_single_damper_takes_the_whole_damping_ratio(stuck, keep, element):
+    """The analytic case: with every damping constant zero but one, creep off, the car body's
+    bounce and pitch lose energy in that one element only, so first-order perturbation
+    theory (the split's formula, exact to O(ζ²)) gives its share = the eigenvalue's ζ. The
+    element's share is ζ within 0.1 % (measured 1e-4 at ζ 0.072 for the wedges, 9e-5 and
+    1e-4 for the pads and side bearers); the other elements of the suspension take none
+    (the lateral ones by the modes' symmetry). What is left to the wheel-rail share is the
+    contact's normal force, conservative but not quite a gradient (docs/model.md, energy
+    audit): -3.9 % of ζ, within 5 %."""
+    _, point = stuck
+    K = point.K.copy()
+    for name in DAMPERS:
+        if name != keep:
+            K[L.K[name]] = 0.0
+    K[L.K["creep_factor"]] = 0.0
+    single = dataclasses.replace(point, K=K)
+    result = modes_of(jacobian(single.rhs, np.zeros(L.N_STATE), default_steps()), single, 60.0)
+    for kind in ("bounce", "pitch"):
+        d = mode_dissipation(result, single, result.car_body_kinds()[kind])
+        assert d.zeta > 5e-5, (kind, d.zeta)
+        assert d.shares[element] == pytest.approx(d.zeta, rel=1e-3), (kind, d.shares)
+        others = {k: v for k, v in d.shares.items() if k not in (element, ELEMENTS[-1])}
+        assert max(abs(v) for v in others.values()) < 1e-9 * d.zeta, (kind, others)
+        assert abs(d.shares[ELEMENTS[-1]]) < 0.05 * d.zeta, (kind, d.shares[ELEMENTS[-1]])
+
+
+def test_the_sliding_linearisation_has_no_stick_damping_left():
+    """With the friction limits at zero the sliders pass no force, so the split leaves out
+    their stick damping; the eigenvalue, from the sliding Jacobian, must agree: bounce and
+    pitch keep ζ 1.4e-4 and 1.5e-4 (pads, side bearers, creep), which the split reproduces
+    within 5 % (measured 1 %). A stick damper still acting in the sliding model would add
+    the stuck bounce's wedge share, 0.07, 500 times the split."""
     result = modal_analysis(speed_kmh=60.0, friction="sliding")
     point = linearisation_point(speed_kmh=60.0, friction="sliding")
-    d = mode_dissipation(result, point, result.car_body_kinds()["bounce"])
-    for name in ELEMENTS[1:3] + ELEMENTS[4:8]:
-        assert d.shares[name] == 0.0
+    for kind in ("bounce", "pitch"):
+        d = mode_dissipation(result, point, result.car_body_kinds()[kind])
+        assert 0.0 < d.zeta < 1e-3, (kind, d.zeta)
+        assert abs(d.residual) < 0.05 * d.zeta, (kind, d.zeta, d.total)

@@ -38,6 +38,7 @@ Sources of the frequency ranges (what each says, and how it is used):
      frequencies within 8 % (bounce 2.48, pitch 2.62, yaw 1.37, sways 1.00 / 2.77 Hz).
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -52,13 +53,17 @@ from railsusp.vehicle.decay import (
     CAR_BODY_SHARE,
     FIT_R2_MIN,
     FREQUENCY_BAND,
+    decay_run,
     fit_damped_sinusoid,
     free_decay,
 )
 from railsusp.vehicle.modes import (
     FRICTION_LIMIT_KEYS,
+    default_steps,
+    jacobian,
     linearisation_point,
     modal_analysis,
+    modes_of,
     stiffness_and_damping,
 )
 from railsusp.vehicle.wagon import load_wagon
@@ -138,12 +143,12 @@ def hand_calculation(stick_stiffness: float | None = None) -> dict[str, float]:
 # ---------------------------------------------------------------- eigen
 def test_eigen_static_equilibrium_is_the_zero_state(stuck):
     """rhs(0) = 0 on ideal straight track: the preloads in K balance gravity (the residual,
-    a few mm/s² on the wheelsets, is a few ten newtons of a 122 kN wheel load)."""
+    a few mm/s² on the wheelsets, is a few ten newtons of a 122 kN wheel load), and the
+    nonlinear model left at the zero state stays there: a 2 s run moves no body by more
+    than a micrometre (measured 0.16 µm, the residual settling)."""
     assert stuck.equilibrium_residual < 0.05
-    point = linearisation_point()
-    d = point.rhs(np.zeros(L.N_STATE))
-    assert np.abs(d[2 * N :]).max() == 0.0  # friction states at rest
-    assert np.abs(d[:N]).max() == 0.0  # nothing moves
+    run = decay_run(linearisation_point(), "none", duration_s=2.0)
+    assert np.abs(run.state[:, :N]).max() < 1e-6
 
 
 def test_eigen_jacobian_kinematic_rows(stuck):
@@ -198,23 +203,20 @@ def test_eigen_modal_table_names_every_car_body_mode(stuck):
     ]
     kinds = {"bounce", "pitch", "yaw", "lower sway", "upper sway"}
     assert set(stuck.car_body_kinds()) == kinds
-    assert (df["frequency_Hz"].dropna().diff().dropna() >= 0).all()
 
 
 def test_eigen_overdamped_modes_have_a_time_constant_not_a_frequency():
     """A real eigenvalue λ = -σ does not oscillate: the table gives its time constant 1 / σ
     and leaves frequency and damping ratio blank (stop 59's audit: the tare wagon's
     side-frame and warp modes, real roots, were listed at 24.7-29 Hz with ζ = 1). Every
-    oscillating root keeps its natural frequency |λ| / 2π and ζ = -Re λ / |λ|; no mode is
-    both; the overdamped ones never enter the car-body modes the free decay fits."""
+    oscillating root keeps its natural frequency |λ| / 2π; every real root decays (τ > 0).
+    (That ``overdamped`` is a real root and τ = -1 / Re λ is their definition; the next test
+    checks them on a wagon made overdamped on purpose.)"""
     tare = modal_analysis(wagon=load_wagon("tare"))
     lam = tare.eigenvalues
     real = tare.overdamped
     assert real.sum() >= 5 and (~real).sum() >= 10, (real.sum(), lam.size)
-    assert np.all(np.abs(lam[real].imag) <= 1e-8 * np.abs(lam[real]))
-    assert np.all(lam[~real].imag > 1e-8 * np.abs(lam[~real]))
-    np.testing.assert_allclose(tare.time_constant_s[real], -1.0 / lam[real].real, rtol=1e-12)
-    assert np.all(tare.time_constant_s[real] > 0) and np.isnan(tare.time_constant_s[~real]).all()
+    assert np.all(tare.time_constant_s[real] > 0)
     df = tare.to_dataframe()
     assert df["frequency_Hz"].isna().to_numpy().tolist() == real.tolist()
     assert df["damping_ratio"].isna().to_numpy().tolist() == real.tolist()
@@ -222,7 +224,38 @@ def test_eigen_overdamped_modes_have_a_time_constant_not_a_frequency():
     np.testing.assert_allclose(
         df["frequency_Hz"][~real], np.abs(lam[~real]) / (2 * np.pi), rtol=1e-12
     )
-    assert not np.any(real[tare.car_body_modes(f_max=1000.0, min_share=0.0)])
+
+
+def _scaled_modes(point, **scale):
+    K = point.K.copy()
+    for name, factor in scale.items():
+        K[L.K[name]] *= factor
+    scaled = dataclasses.replace(point, K=K)
+    return modes_of(jacobian(scaled.rhs, np.zeros(L.N_STATE), default_steps()), scaled, 60.0)
+
+
+def test_eigen_a_stiff_damper_makes_the_bounce_relax_without_oscillating(stuck):
+    """A known overdamped change: made 40 or 80 times the nominal, the wedges' stick damping
+    c all but locks the wedges (the oscillating bounce moves to 11 Hz) and the car body
+    settles on their stick stiffness k as a spring behind a damper does, exp(-t k / c): a
+    real root whose time constant is proportional to c. At the nominal c no car-body
+    bounce root is real; at 40 and 80 times c one is, its time constant doubling with c
+    (measured 0.228 s and 0.456 s), and the free decay, which fits damped sinusoids, leaves
+    it out although 99 % of its energy is the car body's."""
+    bounce = [i for i, n in enumerate(stuck.names) if n == "car body bounce"]
+    assert bounce and not stuck.overdamped[bounce].any()
+    point = linearisation_point()
+    tau = []
+    for factor in (40.0, 80.0):
+        scaled = _scaled_modes(point, c_wedge=factor)
+        relax = [i for i, n in enumerate(scaled.names)
+                 if n == "car body bounce" and scaled.overdamped[i]]  # fmt: skip
+        assert len(relax) == 1, [(scaled.names[i], scaled.eigenvalues[i]) for i in relax]
+        i = relax[0]
+        assert scaled.car_body_share[i] > 0.9
+        assert i not in scaled.car_body_modes(f_max=1000.0, min_share=0.0)
+        tau.append(float(scaled.time_constant_s[i]))
+    assert tau[1] / tau[0] == pytest.approx(2.0, rel=0.03), tau
 
 
 # ---------------------------------------------------------------- modal
@@ -319,17 +352,31 @@ def test_decay_estimator_recovers_a_damped_sinusoid():
         assert amp == pytest.approx(3e-3, rel=1e-2) and r2 > 0.999
 
 
-def test_decay_of_the_frictionless_model_matches_its_eigenvalues():
-    """With the friction limits at zero the model is linear for small motions: the
-    free-decay estimate of bounce and pitch equals the eigenvalues of the sliding
-    linearisation (frequency within 1 %, damping ratio within 0.005)."""
-    sliding = modal_analysis(friction="sliding")
-    result = free_decay(friction="sliding", excitations=("dip",), modal=sliding)
-    for kind in ("bounce", "pitch"):
+#: relative agreement of the frictionless free decay with the sliding eigenvalues, per mode
+#: (frequency, damping ratio); measured 2026-12 (5 mm dip and cross-level dip): bounce
+#: 4e-7 / 1e-6, pitch 4e-7 / 1.2e-4, upper sway 2e-6 / 5e-4, lower sway 4e-5 / 4.2e-3
+FRICTIONLESS_AGREEMENT = {
+    "bounce": (1e-4, 1e-4),
+    "pitch": (1e-4, 1e-3),
+    "upper sway": (1e-4, 3e-3),
+    "lower sway": (1e-3, 1.5e-2),
+}
+
+
+def test_decay_of_the_frictionless_model_matches_its_eigenvalues(sliding):
+    """With the friction limits at zero the model is linear for small vertical and roll
+    motions: the free-decay estimate of every mode the dip and the cross-level dip excite
+    most (bounce, pitch; the sways) equals the sliding linearisation's eigenvalue, damping
+    ratio relative (bounce's ζ is 1.4e-4: an absolute 0.005 accepted 35 times the value).
+    The lateral modes, which the kink excites, are left out: at 5 mm the creep and the
+    wheel profile make them amplitude dependent (yaw 6 % low), with the friction off or on."""
+    result = free_decay(friction="sliding", excitations=("dip", "cross-level"), modal=sliding)
+    for kind, (rel_f, rel_zeta) in FRICTIONLESS_AGREEMENT.items():
         i = sliding.car_body_kinds()[kind]
-        row = result.row(f"car body {kind}")
-        assert row["frequency_Hz"] == pytest.approx(sliding.frequency_hz[i], rel=0.01)
-        assert row["damping_ratio"] == pytest.approx(sliding.damping_ratio[i], abs=0.005)
+        row = result.row(sliding.names[i])
+        assert row["frequency_Hz"] == pytest.approx(sliding.frequency_hz[i], rel=rel_f), kind
+        zeta = sliding.damping_ratio[i]
+        assert row["damping_ratio"] == pytest.approx(zeta, rel=rel_zeta), (kind, zeta)
 
 
 def test_decay_covers_every_mode_with_a_significant_car_body_share(stuck, decay_stuck):

@@ -23,9 +23,22 @@ and the fitted natural frequency within :data:`FREQUENCY_BAND` of the linearised
 decay that misses either is not that mode's (mixed with another, or the friction changes
 state: wedges that slide move a mode from its stuck towards its sliding frequency).
 
+A record that does not oscillate (an overdamped mode, a drift) has no frequency or damping
+ratio: the fit gives NaN where the record neither crosses its offset three times nor is
+fitted by one damped sinusoid markedly better than by the best non-oscillating decay with as many
+parameters (:data:`OSCILLATION_EVIDENCE`), and its row is not ``fit_ok``.
+
 The runs use the simulator's equations (``model.rhs``) and its integrator (fixed-step
 classical RK4, the simulator's 1 ms step), here in a loop that records the state, so that
 the whole state is available and any initial state can be given.
+
+Inputs are checked before anything runs (one-line :class:`RailsuspInputError` naming the
+argument and its accepted range): :data:`AMPLITUDE_RANGE_M` (the command's ``--amplitude``
+in mm), :data:`LENGTH_RANGE_M`, :data:`WINDOW_RANGE_S`, ``f_max`` up to
+:data:`~railsusp.vehicle.modes.F_MAX_LIMIT_HZ`, the speed a working condition's, and a
+``modal`` result must be the linearisation of the runs' own parameters, wagon, speed and
+friction variant. A run the model stops (a flange climb of a large kink) raises
+:class:`DecayRunError`, which names the amplitude.
 """
 
 from __future__ import annotations
@@ -36,23 +49,26 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 from scipy.linalg import eig
-from scipy.optimize import least_squares
 
-from railsusp.errors import RailsuspInputError
+from railsusp.errors import RailsuspInputError, repeated
+from railsusp.numbers import is_real
 from railsusp.params import ParameterSet
 from railsusp.vehicle import layout as L
+from railsusp.vehicle.decay_fit import FIT_MIN_SAMPLES, OSCILLATION_EVIDENCE, fit_damped_sinusoid
 from railsusp.vehicle.kernel_cache import FASTMATH  # (sets the kernel cache before any compiles)
 from railsusp.vehicle.model import rhs
 from railsusp.vehicle.modes import (
     DOF_NAMES,
+    F_MAX_LIMIT_HZ,
+    FRICTION_MODES,
     Friction,
     LinearisationPoint,
     ModalResult,
     linearisation_point,
     modal_analysis,
 )
-from railsusp.vehicle.setup import axle_spread
-from railsusp.vehicle.step_bound import stable_step
+from railsusp.vehicle.operating_point import check_real, check_speed
+from railsusp.vehicle.step_bound import STEP_FLOOR, stable_step
 from railsusp.vehicle.wagon import WagonData, load_wagon
 
 #: the track inputs: a cosine dip of both rails (bounce, pitch), of the left rail only
@@ -76,6 +92,36 @@ CAR_BODY_SHARE = 0.2
 FIT_R2_MIN = 0.99
 #: largest relative difference of the fitted natural frequency from the linearised mode's
 FREQUENCY_BAND = 0.05
+
+#: accepted depth of the dips and offset of the kink, m (the command's --amplitude, 0.5-50
+#: mm): below 0.5 mm the decay is lost in the settling of the contact, and from 15 mm the
+#: loaded wagon's wedges slide (docs/model.md)
+AMPLITUDE_RANGE_M: tuple[float, float] = (0.5e-3, 50e-3)
+#: accepted length of the cosine input, m: at least eight steps of the track grid (0.125 m),
+#: a short input next to the wagon's 10 m from first to last wheelset
+LENGTH_RANGE_M: tuple[float, float] = (1.0, 20.0)
+#: accepted free-decay window after the input has passed, s: a second holds a cycle of the
+#: slowest car-body mode (about 1 Hz); a minute is 10 km of track at 60 km/h
+WINDOW_RANGE_S: tuple[float, float] = (1.0, 60.0)
+#: largest integration step of a decay run, s: the simulator's 1 ms (RK4's stability bound
+#: is shorter below about 42 km/h: :func:`free_decay` takes it)
+MAX_STEP_S = 1.0e-3
+
+
+class DecayRunError(RuntimeError):
+    """A free-decay run that the model stopped (a failure code: a flange climb, a wheel
+    lift beyond the flange), as too large an input makes it; names the excitation, the
+    amplitude and the reason."""
+
+    def __init__(self, excitation: str, amplitude_m: float, reason: str):
+        self.excitation = excitation
+        self.amplitude_m = amplitude_m
+        self.reason = reason
+        super().__init__(
+            f"amplitude_m = {amplitude_m:g} m: the free-decay run over the {excitation} "
+            f"stopped ({reason}); accepted a smaller amplitude_m for this wagon and speed "
+            f"(from {AMPLITUDE_RANGE_M[0]:g} m)"
+        )
 
 
 # ---------------------------------------------------------------- integration
@@ -121,9 +167,12 @@ def track_with_input(
     point: LinearisationPoint, excitation: str, amplitude_m: float, length_m: float
 ) -> np.ndarray:
     """The point's ideal track with one cosine-shaped input of depth/offset
-    ``amplitude_m`` over ``length_m`` starting :data:`INPUT_START_M` ahead."""
+    ``amplitude_m`` (:data:`AMPLITUDE_RANGE_M`) over ``length_m`` (:data:`LENGTH_RANGE_M`)
+    starting :data:`INPUT_START_M` ahead."""
     if excitation not in EXCITATIONS:
         raise RailsuspInputError(f"excitation {excitation!r}: accepted {', '.join(EXCITATIONS)}")
+    amplitude_m = check_real("amplitude_m", amplitude_m, *AMPLITUDE_RANGE_M, "m")
+    length_m = check_real("length_m", length_m, *LENGTH_RANGE_M, "m")
     trk = point.track.copy()
     s = point.s0 + point.ds * np.arange(trk.shape[1])
     u = (s - INPUT_START_M) / length_m
@@ -159,6 +208,14 @@ class DecayRun:
 SAMPLE_DT = 0.01
 
 
+def input_passed_s(point: LinearisationPoint, length_m: float) -> float:
+    """Time (s) from which a run over an input of ``length_m`` decays freely: the last
+    wheelset has left the input (it starts :data:`INPUT_START_M` ahead of the leading
+    wheelset, which the trailing one follows at the wagon's axle spread), and 0.2 s more."""
+    spread = point.K[L.K["l_c"]] * 2 + point.K[L.K["a"]] * 2
+    return (INPUT_START_M + length_m + spread) / point.speed + 0.2
+
+
 def decay_run(
     point: LinearisationPoint,
     excitation: str = "dip",
@@ -171,22 +228,40 @@ def decay_run(
     x0: np.ndarray | None = None,
 ) -> DecayRun:
     """Run the nonlinear model over one track input (or, with ``x0``, from that initial
-    state on ideal track: ``excitation="none"``) and record the state."""
+    state on ideal track: ``excitation="none"``) and record the state.
+
+    ``duration_s``: over an input, from the moment the input has passed
+    (:func:`input_passed_s`) plus :data:`WINDOW_RANGE_S` (a free decay of 1 to 60 s); with
+    ``excitation="none"`` the decay is free from the start, so (0, 60] s. ``dt``: RK4's
+    step, :data:`~railsusp.vehicle.step_bound.STEP_FLOOR` to :data:`MAX_STEP_S`;
+    ``sample_dt``: the recording interval, from ``dt`` to 1 s."""
+    lo_w, hi_w = WINDOW_RANGE_S
+    dt = check_real("dt", dt, STEP_FLOOR, MAX_STEP_S, "s")
+    sample_dt = check_real("sample_dt", sample_dt, dt, 1.0, "s")
     if excitation == "none":
         trk = point.track
         free_from = 0.0
+        duration_s = check_real("duration_s", duration_s, 0.0, hi_w, "s", lo_open=True)
     else:
         trk = track_with_input(point, excitation, amplitude_m, length_m)
-        spread = point.K[L.K["l_c"]] * 2 + point.K[L.K["a"]] * 2
-        free_from = (INPUT_START_M + length_m + spread) / point.speed + 0.2
-    if not 0 < free_from < duration_s - 1.0:
-        raise RailsuspInputError(
-            f"duration_s = {duration_s:g}: the input has passed only at {free_from:.1f} s; "
-            "accepted a duration at least 1 s longer"
-        )
+        free_from = input_passed_s(point, length_m)
+        # the window check with a margin of round-off: free_decay asks free_from + window_s
+        lo, hi = free_from + lo_w - 1e-9, free_from + hi_w + 1e-9
+        if not (_is_number(duration_s) and lo <= float(duration_s) <= hi):
+            shown = f"{float(duration_s):g} s" if is_real(duration_s) else repr(duration_s)
+            raise RailsuspInputError(
+                f"duration_s = {shown}: the {excitation} has passed at {free_from:.2f} s; "
+                f"accepted {free_from + lo_w:.2f} to {free_from + hi_w:.2f} s (a free decay "
+                f"of {lo_w:g} to {hi_w:g} s after it)"
+            )
+        duration_s = float(duration_s)
     x = np.zeros(L.N_STATE) if x0 is None else np.array(x0, dtype=float)
     if x.shape != (L.N_STATE,):
         raise RailsuspInputError(f"x0: {x.size} values given, the state has {L.N_STATE}")
+    if not np.isfinite(x).all():
+        raise RailsuspInputError(
+            f"x0: {int((~np.isfinite(x)).sum())} values not finite; accepted a finite state"
+        )
     every = max(1, round(sample_dt / dt))
     n_steps = round(duration_s / dt)
     out = np.zeros((n_steps // every + 1, L.N_STATE))
@@ -200,53 +275,12 @@ def decay_run(
     return DecayRun(excitation, np.arange(rows) * every * dt, out[:rows], free_from)
 
 
+def _is_number(value: object) -> bool:
+    """A finite real number (not a boolean, not text)."""
+    return is_real(value) and math.isfinite(float(value))  # type: ignore[arg-type]
+
+
 # ---------------------------------------------------------------- estimation
-def fit_damped_sinusoid(t: np.ndarray, y: np.ndarray) -> tuple[float, float, float, float]:
-    """Fit A exp(-σ t) cos(ω_d t + φ) + c to y(t). Returns (natural frequency Hz, damping
-    ratio, amplitude at the window start, R² of the fit); NaNs when y does not oscillate."""
-    t = t - t[0]
-    yc = y - y.mean()
-    if not np.any(yc):
-        return math.nan, math.nan, 0.0, math.nan
-    dt = t[1] - t[0]
-    starts = []  # (ω_d, σ) first guesses
-    # linear prediction of a damped sinusoid with offset: x[n+2] = a1 x[n+1] + a2 x[n] + b
-    # (exact for one mode); its poles z = exp(λ dt)
-    M = np.column_stack([y[1:-1], y[:-2], np.ones(y.size - 2)])
-    a1, a2, _ = np.linalg.lstsq(M, y[2:], rcond=None)[0]
-    z = np.roots([1.0, -a1, -a2]).astype(complex)
-    lam = np.log(z[np.argmax(z.imag)]) / dt
-    if lam.imag > 0:
-        starts.append((lam.imag, max(-lam.real, 0.0)))
-    # and the spectrum's peak (more robust with several modes present)
-    n = 8 * t.size
-    spec = np.abs(np.fft.rfft(yc * np.hanning(t.size), n))
-    freqs = np.fft.rfftfreq(n, dt)
-    spec[freqs < 1.0 / t[-1]] = 0.0  # less than one cycle in the window: not a mode
-    f0 = freqs[int(np.argmax(spec))]
-    if f0 > 0:
-        starts += [(2 * np.pi * f0, z0 * 2 * np.pi * f0) for z0 in (0.002, 0.02, 0.1, 0.3)]
-    if not starts:
-        return math.nan, math.nan, 0.0, math.nan
-    best = None
-    for w0, s0 in starts:
-        for phase in (0.0, np.pi / 2, np.pi, -np.pi / 2):
-            res = least_squares(
-                lambda p: p[0] * np.exp(-p[1] * t) * np.cos(p[2] * t + p[3]) + p[4] - y,
-                [np.abs(yc).max(), s0, w0, phase, y.mean()],
-                bounds=(
-                    [0, -5.0, 0.5 * w0, -10, -np.inf],
-                    [np.inf, 50.0 * w0, 2.0 * w0, 10, np.inf],
-                ),
-            )
-            if best is None or res.cost < best.cost:
-                best = res
-    amp, sigma, wd, _, _ = best.x
-    wn = math.hypot(sigma, wd)
-    r2 = 1.0 - 2.0 * best.cost / float(np.sum(yc * yc))
-    return wn / (2 * np.pi), sigma / wn, amp, r2
-
-
 @dataclass
 class DecayResult:
     """Equivalent damping of the car-body modes from free-decay runs (module docstring).
@@ -255,12 +289,16 @@ class DecayResult:
     and damping ratio, the run that excites it most, the fitted natural frequency (Hz),
     equivalent damping ratio, modal amplitude (sqrt(2 T) of the mode's part of the motion at
     its largest in the window, sqrt(J)), R² of the fit, the fitted over the linear frequency,
-    and whether the fit meets :data:`FIT_R2_MIN` and :data:`FREQUENCY_BAND` (``fit_ok``)."""
+    and whether the fit meets :data:`FIT_R2_MIN` and :data:`FREQUENCY_BAND` (``fit_ok``).
+    The linear figures are those of the linearisation with the runs' friction variant
+    (``friction``: "stuck" for the modelled friction, whose sliders stick at small
+    amplitude)."""
 
     speed_kmh: float
     rows: list[dict]
     runs: list[DecayRun]
     window_s: float
+    friction: str = "stuck"
 
     def to_dataframe(self):
         """One row per mode, by linear frequency."""
@@ -319,34 +357,68 @@ def free_decay(
     docstring): one run per excitation, each ``window_s`` of free decay after the input has
     passed. ``friction``: the simulator's friction ("stuck" = as modelled; "sliding" zeroes
     the friction limits, for comparison); ``modal``: the linearisation whose left
-    eigenvectors read the modal coordinates (default: the same friction variant's)."""
+    eigenvectors read the modal coordinates (default: the same friction variant's; one
+    given must be of the same parameters, wagon, speed and friction).
+
+    Accepted (checked before anything runs): ``excitations`` a non-empty tuple of
+    :data:`EXCITATIONS`, each once; ``amplitude_m`` :data:`AMPLITUDE_RANGE_M`; ``length_m``
+    :data:`LENGTH_RANGE_M`; ``window_s`` :data:`WINDOW_RANGE_S`; ``f_max`` (0,
+    :data:`~railsusp.vehicle.modes.F_MAX_LIMIT_HZ`] Hz with a mode to analyse below it;
+    ``speed_kmh`` a working condition's 1-200 km/h. A run the model stops raises
+    :class:`DecayRunError` (naming the amplitude)."""
+    excitations = _check_excitations(excitations)
+    amplitude_m = check_real("amplitude_m", amplitude_m, *AMPLITUDE_RANGE_M, "m")
+    length_m = check_real("length_m", length_m, *LENGTH_RANGE_M, "m")
+    window_s = check_real("window_s", window_s, *WINDOW_RANGE_S, "s")
+    f_max = check_real("f_max", f_max, 0.0, F_MAX_LIMIT_HZ, "Hz", lo_open=True)
+    speed_kmh = check_speed(speed_kmh)
+    if friction not in FRICTION_MODES:
+        raise RailsuspInputError(f"friction = {friction!r}: accepted {', '.join(FRICTION_MODES)}")
     wagon = load_wagon(wagon)
-    if not 1.0 <= window_s <= 60.0:
-        raise RailsuspInputError(f"window_s = {window_s:g}: accepted 1 to 60 s")
     point = linearisation_point(params, wagon, speed_kmh, friction)
-    modal = modal_analysis(params, wagon, speed_kmh, friction) if modal is None else modal
+    if modal is None:
+        modal = modal_analysis(params, wagon, speed_kmh, friction)
+    else:
+        _check_modal(modal, point, speed_kmh)
     chosen = [int(i) for i in modal.car_body_modes(f_max, CAR_BODY_SHARE)]
+    if not chosen:
+        every = modal.car_body_modes(math.inf, CAR_BODY_SHARE)
+        lowest = f"{modal.frequency_hz[every].min():.3g} Hz" if every.size else "none"
+        raise RailsuspInputError(
+            f"f_max = {f_max:g} Hz: no oscillating mode below it has {CAR_BODY_SHARE:.0%} of "
+            f"its kinetic energy in the car body (the lowest: {lowest}); accepted f_max "
+            f"above that, up to {F_MAX_LIMIT_HZ:g} Hz"
+        )
     filters, vectors = modal_filters(modal, chosen)
     # the mode's part of the motion, 2 Re(eta v): its kinetic energy at |eta| = 1
     inertia = point.dof_inertia()
     vel = vectors[L.N_DOF : 2 * L.N_DOF]
     unit_energy = np.sqrt((inertia[:, None] * np.abs(2.0 * vel) ** 2).sum(axis=0))
     runs, coords = [], []
-    free = (INPUT_START_M + length_m + axle_spread(wagon)) / point.speed + 0.2
+    free = input_passed_s(point, length_m)
     # 1 ms, or RK4's stability bound where the speed makes it shorter (the fixed 1 ms went
     # unstable below about 42 km/h: damping ratios 0.445 against 0.404 at 30 km/h)
-    stable = min(1.0e-3, stable_step(wagon, speed_kmh, point.P))
+    stable = min(MAX_STEP_S, stable_step(wagon, speed_kmh, point.P))
+    if stable < STEP_FLOOR:
+        raise RailsuspInputError(
+            f"speed_kmh = {speed_kmh:g} km/h: this wagon needs RK4 steps of {stable:.2g} s "
+            f"here, below the {STEP_FLOOR:g} s floor; accepted a higher speed"
+        )
     dt = SAMPLE_DT / math.ceil(SAMPLE_DT / stable - 1e-9)
     for ex in excitations:
-        run = decay_run(
-            point,
-            ex,
-            amplitude_m=amplitude_m,
-            length_m=length_m,
-            duration_s=free + window_s,
-            dt=dt,
-            sample_dt=SAMPLE_DT,
-        )
+        try:
+            run = decay_run(
+                point,
+                ex,
+                amplitude_m=amplitude_m,
+                length_m=length_m,
+                duration_s=free + window_s,
+                dt=dt,
+                sample_dt=SAMPLE_DT,
+            )
+        except RuntimeError as exc:  # the model stopped: too large an input
+            reason = str(exc).removeprefix(f"free-decay run ({ex}): ")
+            raise DecayRunError(ex, amplitude_m, reason) from None
         runs.append(run)
         sel = run.time >= run.free_from
         coords.append((run.time[sel], run.state[sel] @ np.conj(filters)))
@@ -373,20 +445,74 @@ def free_decay(
                 "fit_ok": bool(r2 >= FIT_R2_MIN and abs(ratio - 1.0) <= FREQUENCY_BAND),
             }
         )
-    return DecayResult(speed_kmh=speed_kmh, rows=rows, runs=runs, window_s=window_s)
+    return DecayResult(
+        speed_kmh=speed_kmh, rows=rows, runs=runs, window_s=window_s, friction=friction
+    )
+
+
+def _check_excitations(excitations: object) -> tuple[str, ...]:
+    """The excitations of :func:`free_decay` as a tuple: a non-empty tuple or list of
+    :data:`EXCITATIONS`, each once (a bare string is refused: iterated, "dip" was read as
+    the excitations 'd', 'i', 'p')."""
+    accepted = f"accepted a non-empty tuple of {', '.join(EXCITATIONS)}, each once"
+    if not isinstance(excitations, tuple | list) or not excitations:
+        raise RailsuspInputError(f"excitations = {excitations!r}: {accepted} (e.g. ('dip',))")
+    for ex in excitations:
+        if ex not in EXCITATIONS:
+            raise RailsuspInputError(f"excitations: {ex!r} unknown; {accepted}")
+    twice = repeated(list(excitations))
+    if twice:
+        raise RailsuspInputError(f"excitations: {', '.join(twice)} given twice; {accepted}")
+    return tuple(excitations)
+
+
+def _check_modal(modal: ModalResult, point: LinearisationPoint, speed_kmh: float) -> None:
+    """Refuse a ``modal`` result that is not the linearisation of the runs at ``point``:
+    its left eigenvectors would read the state of another wagon (another speed, friction
+    variant, parameter set or wagon data) and its modes would be compared with decays they
+    are not (measured: every row's fit failed, R² down to -675, silently)."""
+    if not isinstance(modal, ModalResult):
+        raise RailsuspInputError(
+            f"modal: a {type(modal).__name__}; accepted a ModalResult of modal_analysis"
+        )
+    runs = f"the runs are at {speed_kmh:g} km/h, friction {point.friction}"
+    if modal.speed_kmh != speed_kmh or modal.friction != point.friction:
+        raise RailsuspInputError(
+            f"modal: linearised at {modal.speed_kmh:g} km/h, friction {modal.friction}; "
+            f"{runs}: accepted the modal result of the same speed and friction (or none)"
+        )
+    if (
+        modal.constants is not None
+        and modal.parameters is not None
+        and not (
+            np.array_equal(modal.constants, point.K) and np.array_equal(modal.parameters, point.P)
+        )
+    ):
+        raise RailsuspInputError(
+            "modal: linearised with other parameters or wagon data than the runs'; accepted "
+            "the modal result of the same parameter set and wagon (or none)"
+        )
 
 
 __all__ = [
+    "AMPLITUDE_RANGE_M",
     "CAR_BODY_SHARE",
     "DOF_NAMES",
     "EXCITATIONS",
+    "FIT_MIN_SAMPLES",
     "FIT_R2_MIN",
     "FREQUENCY_BAND",
+    "LENGTH_RANGE_M",
+    "MAX_STEP_S",
+    "OSCILLATION_EVIDENCE",
+    "WINDOW_RANGE_S",
     "DecayResult",
     "DecayRun",
+    "DecayRunError",
     "decay_run",
     "fit_damped_sinusoid",
     "free_decay",
+    "input_passed_s",
     "modal_filters",
     "track_with_input",
 ]

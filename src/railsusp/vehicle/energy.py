@@ -13,6 +13,12 @@ The identity holds only if F_c really is a gradient field: a lever arm applied t
 and not its reaction, or a stiffness that is not symmetric, breaks it. The audit integrates
 the state and the non-conservative work W_nc together (RK4) on ideal straight track from a
 perturbed state and compares W_nc with the change of T + V. Gyroscopic moments do no work.
+
+The discrepancy is relative to the larger of |W_nc| and |change of T + V|
+(:attr:`EnergyAudit.relative_error`), which in a damped run is the dissipated work: a drift
+of the conservative part (the contact's normal force is not quite a gradient, docs/model.md)
+is a fraction of that work, which heavy damping makes small enough to hide; a lightly damped
+run shows it more plainly.
 """
 
 from __future__ import annotations
@@ -21,16 +27,21 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.operating_point import LinearisationPoint, linearisation_point
-from railsusp.vehicle.step_bound import stable_step
+from railsusp.vehicle.operating_point import LinearisationPoint, check_real, linearisation_point
+from railsusp.vehicle.step_bound import STEP_FLOOR, stable_step
 from railsusp.vehicle.wagon import WagonData, load_wagon
 
 NQ = L.N_DOF
 #: Gauss-Legendre points per sub-interval and sub-intervals of the potential's path integral
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(6)
 _PATH_PARTS = 8
+#: accepted run length of an audit, s (a Python RK4 loop: a minute is 120000 steps)
+DURATION_RANGE_S: tuple[float, float] = (0.0, 60.0)
+#: accepted integration step, s (shortened further to RK4's stability bound where needed)
+DT_RANGE_S: tuple[float, float] = (STEP_FLOOR, 1.0e-3)
 
 
 @dataclass(frozen=True)
@@ -49,7 +60,8 @@ class EnergyAudit:
 
     @property
     def relative_error(self) -> float:
-        """|change of T + V - W_nc| relative to the larger of |W_nc| and |change|."""
+        """|change of T + V - W_nc| relative to the larger of |W_nc| and |change| (module
+        docstring: under heavy damping that is the dissipated work)."""
         scale = max(abs(self.work_nonconservative), abs(self.change), 1e-12)
         return abs(self.change - self.work_nonconservative) / scale
 
@@ -102,12 +114,26 @@ def energy_audit(
     level track and compare the work of the non-conservative forces with the change of
     mechanical energy (module docstring). ``creep=False`` switches the creep forces off.
     ``dt`` is shortened to RK4's stability bound where the speed needs it
-    (:func:`~railsusp.vehicle.step_bound.stable_step`: below about 29 km/h for 0.5 ms)."""
+    (:func:`~railsusp.vehicle.step_bound.stable_step`: below about 29 km/h for 0.5 ms).
+    Accepted: ``x0`` a finite state of layout.N_STATE values, ``duration_s`` in
+    :data:`DURATION_RANGE_S` (above 0), ``dt`` in :data:`DT_RANGE_S`, ``speed_kmh`` a
+    working condition's 1-200 km/h (one-line :class:`RailsuspInputError` otherwise: a
+    negative duration or step returned a passing audit of nothing, a zero step divided by
+    zero)."""
+    x0 = np.asarray(x0, dtype=float)
+    if x0.shape != (L.N_STATE,):
+        raise RailsuspInputError(f"x0: {x0.size} values given, the state has {L.N_STATE}")
+    if not np.isfinite(x0).all():
+        raise RailsuspInputError(
+            f"x0: {int((~np.isfinite(x0)).sum())} values not finite; accepted a finite state"
+        )
+    duration_s = check_real("duration_s", duration_s, *DURATION_RANGE_S, "s", lo_open=True)
+    dt = check_real("dt", dt, *DT_RANGE_S, "s")
     wagon = load_wagon(wagon)
     point = linearisation_point(params, wagon, speed_kmh)
     dt = min(dt, stable_step(wagon, speed_kmh, point.P))
     audit = _Audit(point, creep)
-    y = np.append(np.asarray(x0, dtype=float), 0.0)
+    y = np.append(x0, 0.0)
     e0 = audit.energy(y[:-1])
     for _ in range(round(duration_s / dt)):  # ideal straight track: the same everywhere
         k1 = audit.augmented(y)

@@ -1,5 +1,10 @@
 """Names of the wagon's modes, as a vehicle-dynamics engineer gives them, from where their
-kinetic energy sits and how the bodies move (used by :mod:`railsusp.vehicle.modes`)."""
+kinetic energy sits and how the bodies move (used by :mod:`railsusp.vehicle.modes`).
+
+A mode with no kinetic energy at all (no body moves: only auxiliary friction states relax,
+as the sliding linearisation's zero-limit sliders do, λ = -1 / their relaxation time) is
+named :data:`NO_MOTION_NAME` in the group :data:`NO_MOTION_GROUP`: the largest share of an
+all-zero energy vector says nothing, and such a root is no body's mode."""
 
 from __future__ import annotations
 
@@ -30,6 +35,9 @@ GROUPS: dict[str, slice] = {
     "side frame": slice(L.SF0, L.WS0),
     "wheelset": slice(L.WS0, L.N_DOF),
 }
+#: group and name of a mode in which no body moves (zero kinetic energy: module docstring)
+NO_MOTION_GROUP = "friction states"
+NO_MOTION_NAME = "friction-state relaxation (no motion)"
 
 
 def name_mode(
@@ -37,7 +45,10 @@ def name_mode(
 ) -> tuple[str, str]:
     """(body group, engineering name) of a mode from its kinetic-energy shares per degree
     of freedom and its displacement shape q (complex); heights above rail: h_cg of the car
-    body's CG, h_cp of the centre plate; l_c: half the bogie spacing (m)."""
+    body's CG, h_cp of the centre plate; l_c: half the bogie spacing (m). A mode without
+    kinetic energy is :data:`NO_MOTION_NAME` (module docstring)."""
+    if not energy.sum() > 0.0:
+        return NO_MOTION_GROUP, NO_MOTION_NAME
     shares = {g: energy[s].sum() for g, s in GROUPS.items()}
     group = max(shares, key=shares.get)
     if group == "car body":
@@ -46,20 +57,17 @@ def name_mode(
         dirs = ("lateral", "bounce", "roll", "yaw")
         e = energy[GROUPS["bolster"]].reshape(2, 4)
         d = int(np.argmax(e.sum(axis=0)))
-        return group, f"bolster {dirs[d]} ({_which(e[:, d], q, [L.BOL0 + d, L.BOL0 + 4 + d])})"
+        which = _which(e[:, d], q[L.BOL0 + d], q[L.BOL0 + 4 + d])
+        return group, f"bolster {dirs[d]} ({which})"
     if group == "side frame":
         e = energy[GROUPS["side frame"]].reshape(4, 5)
         d = int(np.argmax(e.sum(axis=0)))
-        if d == 0:  # longitudinal: left/right of a bogie against each other is warp
-            k = int(np.argmax(e[:, 0].reshape(2, 2).sum(axis=1)))
-            left, right = q[L.SF0 + 10 * k], q[L.SF0 + 10 * k + 5]
-            anti = (left * np.conj(right)).real < 0
-            kind = "warp (parallelogram)" if anti else "side frames longitudinal"
-            return group, f"bogie {k + 1} {kind}"
-        dirs = ("longitudinal", "lateral", "bounce", "pitch", "yaw")
         per_bogie = e[:, d].reshape(2, 2).sum(axis=1)
-        idx = [L.SF0 + d, L.SF0 + 10 + d]
-        return group, f"side frame {dirs[d]} ({_which(per_bogie, q, idx)})"
+        if d == 0:
+            return group, _longitudinal_side_frames(per_bogie, q)
+        dirs = ("longitudinal", "lateral", "bounce", "pitch", "yaw")
+        which = _which(per_bogie, q[L.SF0 + d], q[L.SF0 + 10 + d])
+        return group, f"side frame {dirs[d]} ({which})"
     e = energy[GROUPS["wheelset"]].reshape(4, 4)
     by_dir = e.sum(axis=0)  # y, z, roll, yaw
     per_bogie = e.sum(axis=1).reshape(2, 2).sum(axis=1)
@@ -73,16 +81,36 @@ def name_mode(
             if by_dir[0] >= by_dir[3]
             else "yaw"
         )
-        idx = [L.WS0 + 4 * (w % 2), L.WS0 + 8 + 4 * (w % 2)]
-        return group, f"wheelset {kind} ({_which(per_bogie, q, idx)})"
+        i = L.WS0 + 4 * (w % 2)
+        return group, f"wheelset {kind} ({_which(per_bogie, q[i], q[i + 8])})"
     d = 1 if by_dir[1] >= by_dir[2] else 2
-    idx = [L.WS0 + d, L.WS0 + 8 + d]
-    return group, f"wheelset {'bounce' if d == 1 else 'roll'} ({_which(per_bogie, q, idx)})"
+    which = _which(per_bogie, q[L.WS0 + d], q[L.WS0 + 8 + d])
+    return group, f"wheelset {'bounce' if d == 1 else 'roll'} ({which})"
 
 
-def _which(per_bogie: np.ndarray, q: np.ndarray, idx: list[int]) -> str:
-    """'front bogie', 'rear bogie', or both bogies in phase / anti-phase (from the
-    displacements q[idx[0]] of the front and q[idx[1]] of the rear bogie's body)."""
+def _longitudinal_side_frames(per_bogie: np.ndarray, q: np.ndarray) -> str:
+    """Name of a mode whose energy is mostly the side frames' longitudinal motion: bogie warp
+    (the parallelogram mode) where each bogie's left and right side frames move against each other,
+    side frames longitudinal where they move together, and whose bogie (front, rear, or both
+    in phase / anti-phase) as the other bogie modes are told apart.
+
+    The kind comes from both bogies together: the warp part |x_L - x_R|² of the two against
+    the in-phase part |x_L + x_R|² (their difference is -4 Re(x_L conj(x_R)), so for one
+    bogie this is the sign test of the two side frames' phase). The phase of the two bogies
+    is that of their warp coordinates x_L - x_R in a warp mode and of x_L + x_R otherwise:
+    the front bogie's side frames are L.SF0 (left) and L.SF0 + 5 (right), the rear's 10 on."""
+    left = q[[L.SF0, L.SF0 + 10]]
+    right = q[[L.SF0 + 5, L.SF0 + 15]]
+    warp = float(np.sum((left * np.conj(right)).real)) < 0.0
+    coord = left - right if warp else left + right
+    which = _which(per_bogie, coord[0], coord[1])
+    return f"{'bogie warp' if warp else 'side frames longitudinal'} ({which})"
+
+
+def _which(per_bogie: np.ndarray, front: complex, rear: complex) -> str:
+    """'front bogie', 'rear bogie' (80 % or more of the energy in one), or both bogies in
+    phase / anti-phase, from the complex amplitudes of one coordinate of the front and of
+    the rear bogie (the bogie's body's displacement, or a combination such as warp)."""
     total = per_bogie.sum()
     if total <= 0:
         return "-"
@@ -90,7 +118,7 @@ def _which(per_bogie: np.ndarray, q: np.ndarray, idx: list[int]) -> str:
         return "front bogie"
     if per_bogie[1] > 0.8 * total:
         return "rear bogie"
-    same = (q[idx[0]] * np.conj(q[idx[1]])).real >= 0
+    same = (front * np.conj(rear)).real >= 0
     return "bogies in phase" if same else "bogies anti-phase"
 
 

@@ -36,12 +36,19 @@ import numpy as np
 
 from railsusp.params import ParameterSet
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.mode_names import DOF_NAMES, GROUPS, name_mode
+from railsusp.vehicle.mode_names import (
+    DOF_NAMES,
+    GROUPS,
+    NO_MOTION_GROUP,
+    NO_MOTION_NAME,
+    name_mode,
+)
 from railsusp.vehicle.operating_point import (
     FRICTION_LIMIT_KEYS,
     FRICTION_MODES,
     Friction,
     LinearisationPoint,
+    check_real,
     dof_inertia,
     linearisation_point,
 )
@@ -51,7 +58,11 @@ __all__ = [
     "DOF_NAMES",
     "FRICTION_LIMIT_KEYS",
     "FRICTION_MODES",
+    "F_MAX_LIMIT_HZ",
     "GROUPS",
+    "NO_MOTION_GROUP",
+    "NO_MOTION_NAME",
+    "STEP_RANGE",
     "Friction",
     "LinearisationPoint",
     "ModalResult",
@@ -65,6 +76,13 @@ __all__ = [
     "stiffness_and_damping",
 ]
 
+#: the highest frequency a mode table or a free-decay analysis may be asked to list up to,
+#: Hz (``--fmax``, ``f_max``): the wagon's modes end near 1 kHz (wheelset on the rail)
+F_MAX_LIMIT_HZ = 1000.0
+#: accepted finite-difference steps of the displacements and velocities (m, rad, m/s): the
+#: Jacobian's columns are refined down to a millionth of the step, so below 1e-9 they reach
+#: round-off, and above 1e-4 the contact's nonlinearity shows
+STEP_RANGE: tuple[float, float] = (1e-9, 1e-4)
 #: relative agreement asked of a Jacobian column between step h and h/10
 _FD_TOL = 1e-3
 #: an eigenvalue whose imaginary part is below this share of its magnitude is real (the
@@ -124,7 +142,10 @@ class ModalResult:
     energy, the share per degree of freedom (``energy``, rows sum to 1) and the
     displacement part of the eigenvector (``shapes``).
     ``equilibrium_residual``: max |rhs(0)| over the accelerations (m/s², rad/s²): the
-    linearisation point is an equilibrium to that accuracy.
+    linearisation point is an equilibrium to that accuracy. ``parameters`` and
+    ``constants``: the point's P and K (the parameter set, wagon, speed and friction variant
+    it was linearised with), so that a user of the result (the free decay's modal filters)
+    can tell whether it is the linearisation of its own runs; None where not recorded.
     """
 
     speed_kmh: float
@@ -139,6 +160,8 @@ class ModalResult:
     shapes: np.ndarray
     equilibrium_residual: float
     jacobian: np.ndarray = field(repr=False)
+    parameters: np.ndarray | None = field(default=None, repr=False)
+    constants: np.ndarray | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return self.eigenvalues.size
@@ -219,7 +242,10 @@ def modal_analysis(
     step: float = 1e-6,
 ) -> ModalResult:
     """Linearise the wagon about its static equilibrium on ideal straight, level track at
-    ``speed_kmh`` and return its modes (module docstring: method, friction variants)."""
+    ``speed_kmh`` (1-200 km/h, a working condition's range) and return its modes (module
+    docstring: method, friction variants); ``step``: the finite-difference step
+    (:data:`STEP_RANGE`)."""
+    step = check_real("step", step, *STEP_RANGE, "m")
     point = linearisation_point(params, wagon, speed_kmh, friction)
     x0 = np.zeros(L.N_STATE)
     residual = float(np.abs(point.rhs(x0)[L.N_DOF : 2 * L.N_DOF]).max())
@@ -230,7 +256,10 @@ def modal_analysis(
 def modes_of(
     A: np.ndarray, point: LinearisationPoint, speed_kmh: float, residual: float = 0.0
 ) -> ModalResult:
-    """Modes of the state matrix A at a linearisation point, sorted by frequency."""
+    """Modes of the state matrix A at a linearisation point, sorted by frequency. A root in
+    which no body moves (the sliding variant's zero-limit friction states relaxing) is
+    named :data:`NO_MOTION_NAME` in the group :data:`NO_MOTION_GROUP`, with no car-body
+    share."""
     lam, vec = np.linalg.eig(A)
     mag = np.abs(lam)
     # zero eigenvalues: the stuck sliders' conserved combinations and neutral motions
@@ -266,6 +295,8 @@ def modes_of(
         shapes=q.T,
         equilibrium_residual=residual,
         jacobian=A,
+        parameters=point.P.copy(),
+        constants=point.K.copy(),
     )
 
 

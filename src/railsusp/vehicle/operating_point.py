@@ -6,12 +6,15 @@ The modal analysis linearises about it; the free-decay and energy-audit runs sta
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
-from railsusp.conditions import WorkingCondition, make_condition
+from railsusp.conditions import WorkingCondition, field_range, make_condition
+from railsusp.errors import RailsuspInputError
+from railsusp.numbers import is_real
 from railsusp.params import ParameterSet
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.model import rhs as model_rhs
@@ -25,6 +28,40 @@ FRICTION_MODES: tuple[str, ...] = ("stuck", "sliding")
 #: constants set to zero for the sliding linearisation: every friction limit of the
 #: suspension (names starting "mu_"), never the wheel-rail friction coefficient "mu"
 FRICTION_LIMIT_KEYS: tuple[str, ...] = tuple(n for n in L.K if n.startswith("mu_"))
+
+
+def _speed_range() -> tuple[float, float]:
+    lo, hi = field_range("speed_kmh")
+    assert lo is not None and hi is not None  # a working condition bounds its speed
+    return float(lo), float(hi)
+
+
+#: the running speeds a linearisation accepts, km/h: a working condition's (one source)
+SPEED_RANGE_KMH: tuple[float, float] = _speed_range()
+
+
+def check_real(
+    name: str, value: object, lo: float, hi: float, unit: str, *, lo_open: bool = False
+) -> float:
+    """``value`` as a float if it is a real number from ``lo`` to ``hi`` (``lo`` itself
+    excluded where ``lo_open``); otherwise a one-line :class:`RailsuspInputError` naming
+    ``name``, the value and the accepted range (``unit`` after the numbers). The API checks
+    of the modal, free-decay and energy-audit functions, so that a bad number is refused
+    before it reaches a division or the integrator."""
+    low = f"({lo:g}, {hi:g}] {unit}" if lo_open else f"{lo:g} to {hi:g} {unit}"
+    if not is_real(value):
+        raise RailsuspInputError(f"{name} = {value!r}: a number is needed; accepted {low}")
+    x = float(value)  # type: ignore[arg-type]
+    inside = lo < x <= hi if lo_open else lo <= x <= hi
+    if not (math.isfinite(x) and inside):
+        raise RailsuspInputError(f"{name} = {x:g} {unit}: accepted {low}")
+    return x
+
+
+def check_speed(speed_kmh: object, name: str = "speed_kmh") -> float:
+    """The running speed, checked against :data:`SPEED_RANGE_KMH` (a working condition's
+    range) before anything divides by it."""
+    return check_real(name, speed_kmh, *SPEED_RANGE_KMH, "km/h")
 
 
 class OperatingPointError(RuntimeError):
@@ -80,9 +117,8 @@ def linearisation_point(
     condition: 1-200 km/h), built the way :func:`railsusp.vehicle.simulate.simulate_batch`
     builds them. ``friction="sliding"`` zeros the friction limits (module docstring)."""
     if friction not in FRICTION_MODES:
-        from railsusp.errors import RailsuspInputError
-
         raise RailsuspInputError(f"friction = {friction!r}: accepted {', '.join(FRICTION_MODES)}")
+    speed_kmh = check_speed(speed_kmh)
     wagon = load_wagon(wagon)
     cond = ideal_track(speed_kmh, track_length_m)
     P = (params or ParameterSet.nominal()).to_array()
@@ -92,6 +128,7 @@ def linearisation_point(
 def ideal_track(speed_kmh: float, track_length_m: float = 200.0) -> WorkingCondition:
     """The working condition of a linearisation: ideal straight, level track at
     ``speed_kmh`` (validated: 1-200 km/h), no lead-in, ``track_length_m`` of record."""
+    speed_kmh = check_speed(speed_kmh)
     return make_condition(
         {
             "name": "modal",
