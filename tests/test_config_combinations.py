@@ -516,3 +516,23 @@ def test_synthetic_recordings_below_the_rate_the_estimate_reads_are_refused(tmp_
         "recordings of 41.67 Hz, below the 50 Hz the estimate reads; accepted n_steps at "
         "least 60 (or a shorter duration_s)"
     )
+
+
+@pytest.mark.parametrize(
+    ("value", "said"),
+    [
+        ("[1]", "conditions.0 = 1: a string or a table is needed, not an integer"),
+        (
+            '[["straight"]]',
+            "conditions.0 = ['straight']: a string or a table is needed, not a list",
+        ),
+    ],
+)
+def test_a_condition_of_neither_kind_is_one_error_without_pydantics_member_names(
+    tmp_path, value, said
+):
+    """A condition is a name or a table: a value of neither kind was told once per union
+    member, under pydantic's internal names (``conditions.0.str``,
+    ``conditions.0.'dict[str,any]'``)."""
+    line = run_refused(tmp_path, f"conditions = {value}\n")
+    assert line.endswith(said) and "dict[" not in line

@@ -131,9 +131,40 @@ def test_a_cut_that_keeps_nothing_fails_before_any_stage(example):
     strict = cfg.model_copy(
         update={"field": cfg.field.model_copy(update={"min_length_m": 100_000.0})}
     )
-    with pytest.raises(ConfigError, match="no section kept .*shorter than"):
+    with pytest.raises(ConfigError, match="no section kept: .*shorter than"):
         run_pipeline(strict, example / "never")
     assert not (example / "never").exists()
+
+
+@pytest.mark.parametrize(
+    ("setting", "said"),
+    [
+        (
+            "max_duration_s = 1.0",
+            "m shorter than field.min_length_m = 150 m once split at field.max_duration_s = 1 s; ",
+        ),
+        ("min_length_m = 5000.0", "m shorter than field.min_length_m = 5000 m; "),
+    ],
+)
+def test_a_cut_that_keeps_nothing_says_what_of_the_whole_run_and_which_setting(
+    example, setting, said
+):
+    """A cut that kept nothing listed the first three rows' reasons, "(tangent: transition
+    ...)", where the run's 2 km of steady track had been split into pieces of a second by
+    ``max_duration_s = 1``: it named neither the setting nor most of the run."""
+    text = (example / CONFIG).read_text().replace("min_length_m = 150.0\n", setting + "\n")
+    if not setting.startswith("min_length_m"):
+        text = text.replace(setting, f"min_length_m = 150.0\n{setting}")
+    cfg = example / "nothing.toml"
+    cfg.write_text(text)
+    with pytest.raises(ConfigError) as info:
+        load_config(cfg)
+    line = str(info.value)
+    assert "no section kept: " in line and said in line, line
+    assert "m transition (curvature or grade changing)" in line
+    assert line.endswith("accepted settings under which a stretch is long enough: " + (
+        "a longer field.max_duration_s" if "duration" in setting else "a smaller "
+        "field.min_length_m"))  # fmt: skip
 
 
 def _bad(example: Path, name: str, text: str) -> str:

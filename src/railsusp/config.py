@@ -84,7 +84,42 @@ def validation_message(where: str | Path, exc: Any, model: Any = None) -> str:
         value = "" if e.get("type") == "extra_forbidden" else f" = {_as_toml(e.get('input'))}"
         return f"{loc}{value}: {detail} ({text})"
 
-    return f"{where}: " + "; ".join(one(e) for e in exc.errors())
+    def union(group: list[Any]) -> str:
+        loc = ".".join(part(p) for p in group[0]["loc"][:-1])
+        texts = [type_error_text(e) or "" for e in group]
+        needed = " or ".join(t.split(" is needed")[0] for t in texts)
+        given = texts[0].split(" is needed", 1)[1]  # ", not an integer"
+        return f"{loc} = {_as_toml(group[0].get('input'))}: {needed} is needed{given}"
+
+    return f"{where}: " + "; ".join(
+        union(g) if len(g) > 1 else one(g[0]) for g in _union_groups(exc.errors())
+    )
+
+
+def _union_groups(errors: list[Any]) -> list[list[Any]]:
+    """pydantic's errors grouped so that the type errors of one value against each member of
+    a union (``conditions = [1]``: one error at ``conditions.0.str``, one at
+    ``conditions.0.'dict[str,any]'``, the members' internal names) become one group, told
+    as one error of the value's own location ("a string or a table is needed"); every other
+    error a group of its own."""
+    from railsusp.input_checks import type_error_text
+
+    out: list[list[Any]] = []
+    for e in errors:
+        prev = out[-1][-1] if out else None
+        if (
+            prev is not None
+            and len(e["loc"]) > 1
+            and tuple(e["loc"][:-1]) == tuple(prev["loc"][:-1])
+            and e["loc"][-1] != prev["loc"][-1]
+            and e.get("input") is prev.get("input")
+            and type_error_text(e) is not None
+            and type_error_text(prev) is not None
+        ):
+            out[-1].append(e)
+        else:
+            out.append([e])
+    return out
 
 
 def _as_toml(value: Any) -> str:

@@ -90,9 +90,65 @@ def _cut(source: RunSource, _state: tuple) -> tuple[MeasuredRun, list[Section]]:
         table=read_section_table(source.table) if source.table else None,
     )
     if not any(s.kept for s in secs):
-        reasons = "; ".join(f"{s.name or s.kind}: {s.reason}" for s in secs[:3])
-        raise RailsuspInputError(f"{source.recording}: no section kept ({reasons})")
+        raise RailsuspInputError(f"{source.recording}: {none_kept(secs, source.rules)}")
     return run, secs
+
+
+#: what each kind of left-out piece (:attr:`Section.pieces`) says of the run
+_LEFT_OUT = {
+    "standing": "standing",
+    "transition": "transition (curvature or grade changing)",
+    "mixed": "more than one kind of track in a table row",
+    "gap": "gaps of missing values",
+    "radius": "curves tighter than a working condition",
+    "wheel": "curves whose outer wheel is not recorded",
+    "outside": "not covered by the line description",
+}
+
+
+def none_kept(secs: list[Section], rules: SectionRules) -> str:
+    """Why a cut kept no section, over the whole run: the metres (and a stop's seconds)
+    each kind of left-out piece took, and for pieces too short for a condition what cut
+    them (``[field] min_length_m``, ``max_duration_s``, ``speed_tolerance``, named with their
+    values). The first three rows' reasons said a transition where the run's hour of
+    tangent had been split into one-second pieces by ``max_duration_s = 1``."""
+    metres: dict[str, float] = {}
+    seconds: dict[str, float] = {}
+    for s in secs:
+        for kind, label, t, m in s.pieces:
+            if kind == "short":
+                why = label.split("|")[2]
+                kind = "duration" if "duration" in why else "speed" if "speed" in why else kind
+            metres[kind] = metres.get(kind, 0.0) + m
+            seconds[kind] = seconds.get(kind, 0.0) + t
+    short = {
+        "short": f"shorter than field.min_length_m = {rules.min_length_m:g} m",
+        "duration": (
+            f"shorter than field.min_length_m = {rules.min_length_m:g} m once split at "
+            f"field.max_duration_s = {rules.max_duration_s:g} s"
+        ),
+        "speed": (
+            f"shorter than field.min_length_m = {rules.min_length_m:g} m once split where the "
+            f"speed left field.speed_tolerance = {rules.speed_tolerance:g}"
+        ),
+    }
+    parts = []
+    for kind in sorted(metres, key=lambda k: -max(metres[k], seconds[k])):
+        what = short.get(kind) or _LEFT_OUT.get(kind, kind)
+        amount = f"{seconds[kind]:.0f} s" if kind == "standing" else f"{metres[kind]:.0f} m"
+        parts.append(f"{amount} {what}")
+    settings = [k for k in ("short", "duration", "speed") if k in metres]
+    hint = ""
+    if settings:
+        hint = "; accepted settings under which a stretch is long enough: " + ", ".join(
+            {
+                "short": "a smaller field.min_length_m",
+                "duration": "a longer field.max_duration_s",
+                "speed": "a wider field.speed_tolerance",
+            }[k]
+            for k in settings
+        )
+    return f"no section kept: {'; '.join(parts)}{hint}"
 
 
 def section_conditions(source: RunSource) -> list[WorkingCondition]:
