@@ -115,6 +115,7 @@ def check_estimate_options(cfg: Any, bad: Any) -> None:
         CORRECTIONS_RANGE,
         EXPECTED_STATISTICS_TEXT,
         NSGA_RANGES,
+        PREVIEW_NEEDS_ALIGNED,
         expected_statistics_ok,
     )
 
@@ -142,6 +143,11 @@ def check_estimate_options(cfg: Any, bad: Any) -> None:
             f"estimate.preview_generations = {e.preview_generations}: accepted 0 to "
             f"estimate.n_gen - 1 = {e.n_gen - 1} (the generations after the preview compare "
             "the whole records)"
+        )
+    if e.preview_generations and ALIGNED not in e.statistic.split("+"):
+        raise bad(
+            f"estimate.preview_generations = {e.preview_generations} with estimate.statistic "
+            f'"{e.statistic}", {PREVIEW_NEEDS_ALIGNED}; or set preview_generations = 0'
         )
     if e.expected_generations and not e.expected_draws:
         raise bad(

@@ -125,15 +125,32 @@ def test_the_configuration_file_refuses_a_preview_as_long_as_the_search(tmp_path
         load_config(path)
 
 
+def test_a_preview_on_record_statistics_alone_is_refused(tmp_path):
+    """A record's statistics are predicted at the training length whatever the record's:
+    a preview saved nothing there and compared a 20 s record's statistics with the whole
+    record's (the configuration audit of stop 64)."""
+    with pytest.raises(RailsuspInputError, match="^preview_generations with record statistics"):
+        NSGAConfig(n_gen=5, statistic="mean+p99", preview_generations=2)
+    path = tmp_path / "c.toml"
+    path.write_text("[estimate]\nn_gen = 10\npreview_generations = 6\n")
+    with pytest.raises(RailsuspInputError) as err:
+        load_config(path)
+    assert 'estimate.preview_generations = 6 with estimate.statistic "mean", record ' in str(
+        err.value
+    )
+    assert str(err.value).endswith("; or set preview_generations = 0")
+
+
 def test_a_run_without_a_preview_hashes_its_estimate_stage_as_before(tmp_path):
     """Without a preview the estimate section has no preview settings (runs made before the
     option stay up to date); with one, the stage's inputs change and it estimates again."""
-    path = tmp_path / "c.toml"
-    path.write_text("[estimate]\nn_gen = 10\n")
-    plain = stage_section(load_config(path), "estimate")
+    from railsusp.pipeline_config import PipelineConfig
+
+    estimate = {"n_gen": 10, "statistic": "aligned"}
+    plain = stage_section(PipelineConfig.model_validate({"estimate": estimate}), "estimate")
     assert not {"preview_generations", "preview_s"} & set(plain)
-    path.write_text("[estimate]\nn_gen = 10\npreview_generations = 6\npreview_s = 15\n")
-    previewed = stage_section(load_config(path), "estimate")
+    estimate |= {"preview_generations": 6, "preview_s": 15}
+    previewed = stage_section(PipelineConfig.model_validate({"estimate": estimate}), "estimate")
     assert previewed["preview_generations"] == 6 and previewed["preview_s"] == 15.0
 
 

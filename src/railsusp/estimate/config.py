@@ -160,6 +160,16 @@ def check_slope_update(update: str, slopes: bool, setting: str, slopes_setting: 
         )
 
 
+#: why a preview needs the time-aligned comparison (its refusal, here and in the pipeline's
+#: configuration check)
+PREVIEW_NEEDS_ALIGNED = (
+    "record statistics alone: accepted only with the time-aligned comparison (a statistic "
+    "with 'aligned'); a record's statistics are predicted at the training length whatever the "
+    "record's, so the preview saves nothing and compares a short record's statistics with "
+    "the whole record's"
+)
+
+
 @dataclass(frozen=True)
 class NSGAConfig:
     """NSGA-II settings (the study's defaults) and the objective definition.
@@ -214,6 +224,8 @@ class NSGAConfig:
             )
         parse_statistics(self.statistic)  # fail early with the accepted values
         check_weighting(self.weighting)
+        if self.preview_generations and ALIGNED not in parse_statistics(self.statistic):
+            raise RailsuspInputError(f"preview_generations with {PREVIEW_NEEDS_ALIGNED}")
         if self.channel_gains and ALIGNED not in parse_statistics(self.statistic):
             raise RailsuspInputError(
                 f"channel_gains with statistic {self.statistic!r}: accepted only with the "
