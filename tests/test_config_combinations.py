@@ -536,3 +536,11 @@ def test_a_condition_of_neither_kind_is_one_error_without_pydantics_member_names
     ``conditions.0.'dict[str,any]'``)."""
     line = run_refused(tmp_path, f"conditions = {value}\n")
     assert line.endswith(said) and "dict[" not in line
+
+
+@pytest.mark.parametrize(("value", "shown"), [('""', "''"), ('"a\\nb"', "'a\\nb'")])
+def test_a_run_name_is_one_line_of_text(tmp_path, value, shown):
+    """The name titles the report: an empty one was accepted, and one with a newline split
+    every line that names the run (the configuration audit of stop 64)."""
+    line = run_refused(tmp_path, f"name = {value}\n")
+    assert line.endswith(f"name: {shown}: accepted one line of printable text, 1 to 200 characters")

@@ -298,6 +298,15 @@ class PipelineConfig(_Cfg):
     estimate: EstimateSection = EstimateSection()
     scheduler: str | None = Field(None, description="Dask scheduler tcp://host:port")
 
+    @field_validator("name")
+    @classmethod
+    def _one_line_name(cls, v: str) -> str:
+        """The report's title: one line of printable text (an empty name titled the report
+        with nothing, a newline split every line that names the run)."""
+        if not v.strip() or not v.isprintable() or len(v) > 200:
+            raise ValueError(f"{v!r}: accepted one line of printable text, 1 to 200 characters")
+        return v
+
     @field_validator("wagon", mode="before")
     @classmethod
     def _wagon_path(cls, v: Any) -> Any:
