@@ -17,6 +17,7 @@ from railsusp.campaign import (
 from railsusp.campaign.design import batch_paths
 from railsusp.conditions import get_condition
 from railsusp.params import MAIN_SUSPENSION, bounds
+from test_store_checksums import flip_a_bit_in_a_page
 
 TINY = [
     get_condition("straight", duration_s=1.0, n_steps=50, lead_in_m=20.0),
@@ -571,22 +572,6 @@ def test_a_batch_of_other_force_laws_is_refused_not_stamped_ours(monkeypatch, tm
     assert not list((tmp_path / "r").glob("**/batch-*.parquet"))  # no batch stored
 
 
-def _flip_a_bit_in_a_page(path) -> None:
-    """One bit flipped in the middle of the last column's pages of a Parquet file: its size
-    and footer stay as they were (what a failing disk or a bad copy can do)."""
-    import pyarrow.parquet as pq
-
-    size = path.stat().st_size
-    meta = pq.ParquetFile(path).metadata
-    column = meta.row_group(0).column(meta.num_columns - 1)
-    start = column.dictionary_page_offset or column.data_page_offset
-    data = bytearray(path.read_bytes())
-    data[start + column.total_compressed_size // 2] ^= 0x01
-    path.write_bytes(bytes(data))
-    assert path.stat().st_size == size
-    assert pq.ParquetFile(path).metadata.num_rows > 0  # the footer still reads
-
-
 def test_a_batch_with_a_bit_flipped_in_a_page_is_simulated_again(full_run, tmp_path):
     """The run-directory store audit: a batch whose data page had one bit flipped (footer and
     stamp intact, size kept) was taken as done on resume and its changed forces used. The
@@ -597,7 +582,7 @@ def test_a_batch_with_a_bit_flipped_in_a_page_is_simulated_again(full_run, tmp_p
     cfg, out = full_run
     copy = tmp_path / "copy"
     shutil.copytree(out, copy)
-    _flip_a_bit_in_a_page(batch_paths(copy, "curve", 1)[0])
+    flip_a_bit_in_a_page(batch_paths(copy, "curve", 1)[0])
     assert not batch_done(copy, "curve", 1, cfg.hash())  # not taken as finished work
     assert batch_done(copy, "curve", 1, cfg.hash(), pages=False)  # footers and stamps: as were
     with pytest.raises(CampaignError) as info:

@@ -16,20 +16,25 @@ def _table() -> pd.DataFrame:
     return pd.DataFrame({"sample_id": np.arange(500), "Q": rng.normal(120.0, 5.0, 500)})
 
 
-def _flip_a_bit(path) -> None:
-    """One bit in the middle of the last column's pages; the size and the footer kept."""
+def flip_a_bit_in_a_page(path) -> None:
+    """One bit flipped in the middle of the last column's pages of a Parquet file: its size
+    and footer stay as they were (what a failing disk or a bad copy can do). Used by the
+    tests of every reader that verifies the checksums."""
+    size = path.stat().st_size
     meta = pq.ParquetFile(path).metadata
     column = meta.row_group(0).column(meta.num_columns - 1)
     start = column.dictionary_page_offset or column.data_page_offset
     data = bytearray(path.read_bytes())
     data[start + column.total_compressed_size // 2] ^= 0x01
     path.write_bytes(bytes(data))
+    assert path.stat().st_size == size
+    assert pq.ParquetFile(path).metadata.num_rows > 0  # the footer still reads
 
 
 def test_a_bit_flipped_in_a_page_is_found_by_its_checksum(tmp_path):
     path = write_parquet(tmp_path / "t.parquet", _table())
     size = path.stat().st_size
-    _flip_a_bit(path)
+    flip_a_bit_in_a_page(path)
     assert path.stat().st_size == size and parquet_readable(path)  # the footer reads
     with pytest.raises(OSError, match="CRC checksum verification failed"):
         pq.read_table(path, page_checksum_verification=True)  # written with checksums

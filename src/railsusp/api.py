@@ -124,8 +124,12 @@ class RunResult:
     @property
     def sensitivity(self) -> pd.DataFrame:
         """Sobol indices (S1, ST with confidence) per condition, force, statistic and
-        parameter."""
+        parameter. Indices stamped with another campaign than the run's (its campaign
+        replaced by hand since) are refused in one line."""
+        from railsusp.key_parameters import check_sensitivity_output
+
         p = self._need("campaign/sensitivity/indices.parquet", "sensitivity")
+        check_sensitivity_output(p)
         return read_parquet(p, f"railsusp run CONFIG --out {self.path} --from sensitivity")
 
     @property
@@ -134,8 +138,8 @@ class RunResult:
         (over the rule's statistics, features that hardly vary left out: the report's "our
         largest total index ST"), largest first. The largest ST of :attr:`sensitivity` as a
         whole can differ: it also holds the flat features the rule ignores."""
-        p = self._need("campaign/sensitivity/key_parameters.json", "sensitivity")
-        st = pd.Series(read_json(p)["key_parameters"]["max_st"], name="ST", dtype=float)
+        kp = self._key_parameters()
+        st = pd.Series(kp["max_st"], name="ST", dtype=float)
         return st.rename_axis("parameter").sort_values(ascending=False)
 
     @property
@@ -143,8 +147,17 @@ class RunResult:
         """The key parameters of the sensitivity step. The estimate estimates these, except
         where the surrogates fix their own inputs (a shipped network set): then
         :attr:`estimated_parameters` says which it estimated."""
-        p = self._need("campaign/sensitivity/key_parameters.json", "sensitivity")
-        return list(read_json(p)["key_parameters"]["keys"])
+        return list(self._key_parameters()["keys"])
+
+    def _key_parameters(self) -> dict:
+        """``key_parameters.json``'s selection, where the sensitivity stage is done and the
+        analysis is of the run's campaign (:func:`railsusp.key_parameters
+        .read_key_parameters`: one that a campaign replaced by hand left beside it is refused
+        in one line; one made before the stamp is read as before)."""
+        from railsusp.key_parameters import read_key_parameters
+
+        self._need("campaign/sensitivity/key_parameters.json", "sensitivity")
+        return read_key_parameters(self.path / "campaign")["key_parameters"]
 
     @property
     def estimated_parameters(self) -> list[str]:

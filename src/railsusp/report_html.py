@@ -244,11 +244,13 @@ def _network_set_text(doc: Doc, manifest: dict, assumed: list[dict]) -> None:
 
 
 def _method_sections(doc: Doc, run: Path, state: dict) -> None:
+    from railsusp.key_parameters import read_key_parameters
+
     camp = run / "campaign"
     sens = camp / "sensitivity"
     if (sens / "key_parameters.json").exists():
         doc.h("Sobol sensitivity and key parameters (study Figure 2)")
-        kp = read_json(sens / "key_parameters.json")["key_parameters"]
+        kp = read_key_parameters(camp)["key_parameters"]  # of this campaign, or refused
         doc.p(f"Key parameters: {', '.join(kp['keys'])}. Rule: {kp['rule']}.")
         doc.table(pd.read_csv(sens / "study_comparison.csv"))
         for png in sorted(sens.glob("sobol-*.png")):

@@ -43,7 +43,7 @@ from railsusp.estimate.statistics import force_statistic
 from railsusp.measured import Recording, SimulationFailedError, read_field
 from railsusp.measured.synthetic import read_truth, recording_from_simulation
 from railsusp.params import ParameterSet, bounds, spec
-from railsusp.store import atomic_write_bytes, read_json, write_json
+from railsusp.store import atomic_write_bytes, read_json, read_parquet, write_json
 
 #: a parameter whose largest total Sobol index on the used features is below this is not
 #: identified (nor one whose interval is wider than IDENTIFIED_WIDTH_PCT of its range)
@@ -374,12 +374,18 @@ def max_st(path: str | Path) -> dict[str, float]:
     """Largest total Sobol index of each parameter as the key-parameter rule ranks them, from
     a sensitivity folder or its ``key_parameters.json`` (as that run's rule read them), or
     from ``indices.parquet`` with the rule's defaults (its statistics, flat features left
-    out: the largest over every feature gave another verdict than the pipeline's)."""
-    from railsusp.key_parameters import select_key_parameters
+    out: the largest over every feature gave another verdict than the pipeline's). An
+    analysis stamped with another campaign than the one beside it (``RUN/sensitivity`` of a
+    campaign replaced since) is refused in one line
+    (:func:`~railsusp.key_parameters.check_sensitivity_output`; unstamped: read as before),
+    as is a damaged ``indices.parquet`` (its pages' checksums)."""
+    from railsusp.key_parameters import check_sensitivity_output, select_key_parameters
 
     path = Path(path)
     if path.is_dir():
         path = path / "key_parameters.json"
+    check_sensitivity_output(path)
     if path.suffix == ".json":
         return read_json(path)["key_parameters"]["max_st"]
-    return select_key_parameters(pd.read_parquet(path)).max_st
+    remedy = f"run `railsusp sensitivity {path.parent.parent}` again"
+    return select_key_parameters(read_parquet(path, remedy)).max_st

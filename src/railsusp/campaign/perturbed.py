@@ -29,7 +29,7 @@ from railsusp.campaign.design import CampaignConfig, CampaignError, batch_paths
 from railsusp.campaign.results import load_campaign
 from railsusp.campaign.twins import check_twins_possible, simulate_twin_batches
 from railsusp.params import bounds
-from railsusp.store import read_json, write_json, write_parquet
+from railsusp.store import read_json, read_parquet, write_json, write_parquet
 
 #: sub-directory of a run directory holding its perturbed twins
 PERTURBED_DIR = "perturbed"
@@ -99,11 +99,14 @@ def perturbed_parameters(
 
 
 def read_perturbations(run: str | Path) -> pd.DataFrame:
-    """The stored table of :func:`perturbation_table` of a run's perturbed twins."""
+    """The stored table of :func:`perturbation_table` of a run's perturbed twins, its pages'
+    checksums verified: a damaged table (a bit flipped in a page, which pandas read as other
+    moves) is a one-line :class:`CampaignError` naming it and the remedy."""
     path = perturbed_folder(run) / "perturbations.parquet"
     if not path.exists():
         raise CampaignError(f"{run}: no perturbed twins (make them with run_perturbed_twins)")
-    return pd.read_parquet(path)
+    remedy = "run run_perturbed_twins again (it writes the table anew from the campaign's seed)"
+    return read_parquet(path, remedy, error=CampaignError)
 
 
 def perturbed_complete(run: str | Path, condition: str | None = None) -> bool:

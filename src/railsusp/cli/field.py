@@ -52,6 +52,7 @@ def synth_field(
 ) -> None:
     """Synthetic instrumented-wheelset recordings of hidden true parameters (truth.json)."""
     from railsusp.measured import synthesise_field
+    from railsusp.measured.field_folder import check_field_output
 
     try:
         if not 0.0 <= noise <= 0.5:
@@ -65,7 +66,7 @@ def synth_field(
                 f"--track-noise {track_noise:g} needs --with-track (the error is that of the "
                 "track geometry written beside the recordings)"
             )
-        _check_field_out(out)  # never replaces measured recordings
+        check_field_output(out, "synthetic", "--out")  # never replaces measured recordings
         pset = ParameterSet(parse_overrides(truth) if truth else {}, units="display")
         conds = resolve_conditions(conditions)
         from railsusp.vehicle.wagon import load_wagon
@@ -74,7 +75,7 @@ def synth_field(
         # the folder for the command's duration (a second synth-field, or an estimate reading
         # it as RUN/field, is refused), then what it holds checked again under the lock
         hold_folders(creates=[("--out", out)])
-        _check_field_out(out)
+        check_field_output(out, "synthetic", "--out")
         with console.status("simulating the hidden truth"):
             synthesise_field(
                 pset,
@@ -95,18 +96,6 @@ def synth_field(
         f"wrote {len(conds)} recording(s) to {out} (index.json); the truth is in "
         f"{out / 'truth.json'}, which the estimator never reads"
     )
-
-
-def _check_field_out(out: Path) -> None:
-    """``synth-field``'s refusal of an output folder it did not write
-    (:func:`~railsusp.measured.field_folder.check_field_output`); a folder holding nothing
-    but the lock file is the new folder a ``synth-field`` made for its lock."""
-    from railsusp.measured.field_folder import check_field_output
-    from railsusp.run_lock import LOCK_NAME
-
-    if out.is_dir() and [p.name for p in out.iterdir()] == [LOCK_NAME]:
-        return
-    check_field_output(out, "synthetic", "--out")
 
 
 @app.command("align-track")

@@ -10,7 +10,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from railsusp.cli.common import WagonOption, app, console, fail, frame_table
+from railsusp.cli.common import WagonOption, app, console, fail, frame_table, hold_folders
 from railsusp.errors import RailsuspInputError
 from railsusp.input_checks import check_figure_file
 
@@ -198,6 +198,10 @@ def sections_command(
             # never other data, nor another run's sections (by the file's contents), and
             # before the run is read and cut: a long run takes a while
             check_field_output(write, "sections", "--write", recording)
+            # the folder for the command's duration (a second cut into it, or an estimate
+            # reading it, is refused), then what it holds checked again under the lock
+            hold_folders(creates=[("--write", write)])
+            check_field_output(write, "sections", "--write", recording)
         run = read_run(recording, cmap, min_rate_hz=rate, wheel_load_N=load)  # rate: the least
         secs = cut_sections(
             run,
@@ -268,6 +272,9 @@ def example_recording(
             raise RailsuspInputError(
                 f"--out {out}: a file, not a folder; accepted a new folder or an existing one"
             )
+        # one writer at a time in the folder (two copies at once checked each other's
+        # half-written files as edited)
+        hold_folders(creates=[("--out", out)])
         data = resources.files("railsusp") / "data"
         # a file there that is not the shipped one (the tutorial has the user edit the
         # configuration) is not written over: it was, silently (command-line audit, stop 60)

@@ -29,6 +29,7 @@ from typing import Literal
 from railsusp.errors import RailsuspInputError
 from railsusp.input_checks import check_output_folder
 from railsusp.measured.recording import FORMAT
+from railsusp.run_lock import LOCK_NAME
 from railsusp.store import file_hash_cached
 
 #: what wrote a field folder, by the marks it leaves (:func:`folder_kind`)
@@ -40,12 +41,15 @@ _WRITERS = {"synthetic": "synth-field", "sections": "sections --write"}
 def folder_kind(path: str | Path) -> Kind:
     """What ``path`` holds: nothing yet, an empty folder, a synthetic field (``synth-field``),
     the sections of a long run (``sections --write``), or anything else (measured
-    recordings, other files, an index that cannot be read)."""
+    recordings, other files, an index that cannot be read). railsusp's lock file
+    (:data:`~railsusp.run_lock.LOCK_NAME`, left in every folder a command locked) is not
+    counted: a folder holding only it is empty (it was "other", so a folder made for the
+    writer's lock refused the writer)."""
     path = Path(path)
     if not path.exists():
         return "new"
-    if path.is_dir() and not any(path.iterdir()):
-        return "empty"
+    if path.is_dir() and all(p.name == LOCK_NAME for p in path.iterdir()):
+        return "empty"  # railsusp's lock file alone: the folder a writer made for its lock
     index = _index(path)
     if index is None:
         return "other"
