@@ -109,3 +109,67 @@ def test_training_cases_whose_statistics_are_undefined_are_one_line_not_sbis_tra
     assert "15 of 20 training cases have undefined statistics (straight:Q_p0.15)" in str(err.value)
     x[:15, 3] = 1.0
     assert len(posterior._build(s, u, x)[3]) == 20
+
+
+@pytest.fixture
+def no_training(monkeypatch):
+    """Whatever reaches the training is reported, not run: the refusals must come first."""
+    from railsusp.estimate import posterior
+
+    def reached(*args, **kwargs):
+        raise RailsuspInputError("reached the training")
+
+    monkeypatch.setattr(posterior, "train", reached)
+
+
+AUDIT = ["--statistics", "all", "--simulations", "40", "--check", "10", "--calibration", "0"]
+AUDIT += ["--conditions", "straight"]
+
+
+@pytest.mark.parametrize(
+    ("option", "value"), [("--projection-rank", "5"), ("--statistics-emulator-cases", "30")]
+)
+def test_synthetic_likelihood_options_without_it_are_refused(option, value, tmp_path, no_training):
+    """They were ignored silently (the configuration audit of stop 64: no synthetic folder,
+    exit 0) and their values went into the flows' hash, so that a second run with another
+    value was refused as "other settings"."""
+    args = ["posterior", "train", "--out", str(tmp_path / "r"), *AUDIT, option, value]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2, result.output
+    assert f"{option} {value}: read by the synthetic likelihood only" in result.output
+    assert "accepted with --long-record synthetic-likelihood" in result.output
+    assert len(result.output.strip().splitlines()) == 1
+    assert not (tmp_path / "r").exists()
+    result = runner.invoke(app, [*args, "--long-record", "synthetic-likelihood"])
+    assert "reached the training" in result.output  # taken with the synthetic likelihood
+    result = runner.invoke(app, [*args[:-2], "--long-record", "fusion"])
+    assert "reached the training" in result.output  # the defaults pass without it
+
+
+def test_a_projection_rank_beside_the_summary_alone_is_one_line(tmp_path, no_training):
+    args = ["posterior", "train", "--out", str(tmp_path / "r"), "--projection-rank", "5"]
+    result = runner.invoke(app, [*args, "--long-record", "synthetic-likelihood"])
+    assert result.exit_code == 2, result.output
+    assert "--projection-rank 5 conflicts with --statistics en14363" in result.output
+
+
+def test_a_folder_of_other_settings_names_the_settings_that_differ(tmp_path):
+    """It said "holds an estimator trained with other settings" and no more."""
+    from railsusp.store import write_json
+
+    straight = get_condition("straight")
+    kept = PosteriorSettings((straight,), n_train=40, n_check=10, n_calibration=0,
+                             statistics=("all",), projection_rank=5)  # fmt: skip
+    write_json(tmp_path / "r" / "posterior" / "settings.json",
+               {"hash": "0", "settings": kept.to_dict()})  # fmt: skip
+    args = ["posterior", "train", "--out", str(tmp_path / "r"), *AUDIT]
+    args[args.index("40")] = "50"
+    args += ["--projection-rank", "6", "--long-record", "synthetic-likelihood"]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2, result.output
+    assert "holds an estimator trained with other settings (--simulations 40, not 50; " in (
+        result.output
+    )
+    assert "--projection-rank 5, not 6); give another --out" in result.output
+    assert len(result.output.strip().splitlines()) == 1
+    assert not (tmp_path / "r" / "posterior" / "simulations").exists()

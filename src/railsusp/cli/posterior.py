@@ -95,7 +95,18 @@ def _long_record(method: str) -> str:
         raise RailsuspInputError(str(exc).replace("long_record = ", "--long-record ")) from None
 
 
-def _counts(text: str, option: str = "--product-sections", accepted: str = "2 to 1000"):
+def _span(field: str) -> str:
+    """The accepted range of a count of the settings, as the options' help and errors say
+    it (:data:`~railsusp.estimate.posterior_settings.POSTERIOR_COUNTS`: one source; read
+    when a command runs, as importing the estimation package costs a second at start)."""
+    from railsusp.estimate.posterior_settings import POSTERIOR_COUNTS
+
+    low, high = POSTERIOR_COUNTS[field]
+    return f"{low} to {high}"
+
+
+def _counts(text: str, option: str = "--product-sections", accepted: str = ""):
+    accepted = accepted or _span("product_sections")
     try:
         return tuple(int(v) for v in text.split(",") if v.strip())
     except ValueError:
@@ -108,10 +119,27 @@ def _product_cases(text: str) -> dict:
     """``--product-cases``: one count for every number of sections (``n_product``), or one
     per entry of ``--product-sections`` (``product_cases``), so the longest records, the
     costliest to simulate, can be checked on fewer cases."""
-    counts = _counts(text, "--product-cases", "20 to 100000")
+    counts = _counts(text, "--product-cases", _span("product_cases"))
     if len(counts) == 1:
         return {"n_product": counts[0]}
     return {"product_cases": counts}
+
+
+def _synthetic_only(projection_rank: int, statistics_emulator_cases: int) -> None:
+    """Refuse, in one line, the options that only the synthetic likelihood reads when it is
+    not fitted (they were ignored silently, and their values still went into the flows'
+    hash: a second run with another value was refused as "other settings")."""
+    from railsusp.estimate.posterior_settings import DEFAULT_PROJECTION_RANK
+
+    for option, value, default in (
+        ("--projection-rank", projection_rank, DEFAULT_PROJECTION_RANK),
+        ("--statistics-emulator-cases", statistics_emulator_cases, 0),
+    ):
+        if value != default:
+            raise RailsuspInputError(
+                f"{option} {value}: read by the synthetic likelihood only, which is not "
+                "fitted here; accepted with --long-record synthetic-likelihood"
+            )
 
 
 @posterior_app.command(
@@ -170,16 +198,16 @@ def train_command(
         int,
         typer.Option(
             help="combinations of the statistics the synthetic likelihood reads beyond the "
-            "EN 14363 summary"
+            "EN 14363 summary (with --long-record synthetic-likelihood)"
         ),
-    ] = 15,
+    ] = 15,  # DEFAULT_PROJECTION_RANK (a test holds them equal)
     statistics_emulator_cases: Annotated[
         int,
         typer.Option(
             help="0: the synthetic likelihood's emulator of all statistics learns from every "
             "simulation; N: from the first N only (it chooses the combinations), and an "
             "emulator of the combinations alone from all of them (tens of thousands of "
-            "simulations: docs/posterior.md)"
+            "simulations: docs/posterior.md; with --long-record synthetic-likelihood)"
         ),
     ] = 0,
     condition_offset: Annotated[
@@ -196,7 +224,7 @@ def train_command(
         int,
         typer.Option(
             help="posterior draws per recording and per held-out case of the checks (100 to "
-            "100000; more draws, steadier interval ends, a longer check)"
+            "100000; more draws, steadier interval ends, a longer check)"  # POSTERIOR_COUNTS
         ),
     ] = 1000,
     long_record: Annotated[
@@ -247,6 +275,8 @@ def train_command(
             samples=samples,
             wagon=wagon,
         )
+        if long_record != "synthetic-likelihood":
+            _synthetic_only(projection_rank, statistics_emulator_cases)
         hold_folders(creates=[("--out", out)])  # the run directory for the training's duration
         if is_quiet():
             est = posterior.train(settings, out)

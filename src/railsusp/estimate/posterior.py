@@ -55,7 +55,7 @@ from railsusp.estimate.posterior_data import (
 )
 from railsusp.estimate.posterior_fusion import from_logit, fused_samples, logistic_prior, to_logit
 from railsusp.estimate.posterior_result import PosteriorResult
-from railsusp.estimate.posterior_settings import PosteriorSettings
+from railsusp.estimate.posterior_settings import PosteriorSettings, settings_differences
 from railsusp.integrity import TorchFileCutShort, read_torch_file
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import atomic_write_bytes, content_hash, read_json, write_json
@@ -235,8 +235,10 @@ def train(
     if (folder / "settings.json").exists():
         old = read_json(folder / "settings.json")
         if old.get("hash") != key:
+            differ = settings_differences(old.get("settings"), settings.to_dict())
             raise RailsuspInputError(
-                f"{folder} holds an estimator trained with other settings; give another --out"
+                f"{folder} holds an estimator trained with other settings"
+                f"{' (' + '; '.join(differ) + ')' if differ else ''}; give another --out"
             )
         check_model_revision(old, folder / "settings.json")
     write_json(

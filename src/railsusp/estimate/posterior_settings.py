@@ -8,8 +8,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from railsusp.conditions import WorkingCondition, make_condition
 from railsusp.errors import RailsuspInputError, repeated_names
+from railsusp.estimate.config import check_count, check_range
 from railsusp.estimate.statistic_families import (
     needs_partner,
     needs_partner_q,
@@ -24,6 +27,30 @@ from railsusp.params import MAIN_SUSPENSION, spec
 MAX_CONDITION_OFFSET = 9
 #: the largest seed of the training and of the draws (numpy's and torch's generators)
 MAX_SEED = 2**32 - 1
+#: the combinations of statistics the synthetic likelihood reads by default
+DEFAULT_PROJECTION_RANK = 15
+#: accepted range (inclusive) of each count of :class:`PosteriorSettings`, whole numbers
+#: only (one source with ``railsusp posterior train``'s options): a fraction passed the range
+#: check and failed deep in the training (``ensemble`` 1.5: a TypeError after the
+#: simulations) or was silently cut (``product_sections`` 2.7 checked 2).
+#: ``n_calibration`` also takes 0 (no correction); ``n_product`` and ``product_cases`` are
+#: per held-out set of several sections; ``statistics_emulator_cases`` (0, or 20 to
+#: ``n_train``) is checked against ``n_train``
+POSTERIOR_COUNTS: dict[str, tuple[int, int]] = {
+    "n_train": (20, 1_000_000),
+    "n_check": (10, 100_000),
+    "n_calibration": (20, 100_000),
+    "samples": (100, 100_000),
+    "hidden_features": (1, 1000),
+    "num_transforms": (1, 50),
+    "seed": (0, MAX_SEED),  # numpy's generators take no negative seed
+    "ensemble": (1, 20),
+    "product_sections": (2, 1000),
+    "n_product": (20, 100_000),
+    "product_cases": (20, 100_000),
+    "projection_rank": (1, 1000),
+    "condition_offset": (0, MAX_CONDITION_OFFSET),
+}
 
 
 @dataclass(frozen=True)
@@ -70,7 +97,7 @@ class PosteriorSettings:
     n_product: int = 100
     product_cases: tuple[int, ...] = ()
     statistics: tuple[str, ...] = ("en14363",)
-    projection_rank: int = 15
+    projection_rank: int = DEFAULT_PROJECTION_RANK
     statistics_emulator_cases: int = 0
     condition_offset: int = 0
     #: the wagon simulated (a WagonData, a packaged name such as "tare", or a wagon file);
@@ -104,53 +131,69 @@ class PosteriorSettings:
                 f"{','.join(MAIN_SUSPENSION)} without repeats"
             )
         object.__setattr__(self, "parameters", params)
+        self._check_counts()
         _check_statistics_emulator(self.statistics_emulator_cases, self.n_train, families)
+        _check_projection_rank(self.projection_rank, families)
         _check_lags(families, self.section_s)
-        checks = [
-            ("section_s", self.section_s, 1.0, 600.0),
-            ("n_train", self.n_train, 20, 1_000_000),
-            ("n_check", self.n_check, 10, 100_000),
-            ("noise", self.noise, 0.0, 0.5),
-            ("samples", self.samples, 100, 100_000),
-            ("ensemble", self.ensemble, 1, 20),
-            ("projection_rank", self.projection_rank, 1, 1000),
-            ("condition_offset", self.condition_offset, 0, MAX_CONDITION_OFFSET),
-        ]
-        for name, value, lo, hi in checks:
-            if not lo <= value <= hi:
-                raise RailsuspInputError(f"{name} = {value:g}: accepted {lo:g} to {hi:g}")
-        if not 0 <= self.seed <= MAX_SEED:  # numpy's generators take no negative seed
-            raise RailsuspInputError(f"seed = {self.seed}: accepted 0 to {MAX_SEED}")
-        if self.n_calibration and not 20 <= self.n_calibration <= 100_000:
-            raise RailsuspInputError(
-                f"n_calibration = {self.n_calibration:g}: accepted 0 (no correction) or 20 to "
-                "100000"
-            )
-        ks = tuple(sorted({int(k) for k in self.product_sections}))
-        if any(not 2 <= k <= 1000 for k in ks) or len(ks) != len(self.product_sections):
-            raise RailsuspInputError(
-                f"product_sections = {','.join(map(str, self.product_sections))}: accepted "
-                "distinct section counts from 2 to 1000"
-            )
-        counts = tuple(int(n) for n in self.product_cases)
-        if counts:
-            if len(counts) != len(ks) or any(not 20 <= n <= 100_000 for n in counts):
-                raise RailsuspInputError(
-                    f"product_cases = {','.join(map(str, counts))}: accepted one count from "
-                    f"20 to 100000 per entry of product_sections ({len(ks)})"
-                )
-            order = sorted(range(len(ks)), key=lambda i: int(self.product_sections[i]))
-            counts = tuple(counts[i] for i in order)
+        check_range("section_s =", self.section_s, 1.0, 600.0)
+        check_range("noise =", self.noise, 0.0, 0.5)
+        ks = tuple(sorted(int(k) for k in self.product_sections))
+        order = sorted(range(len(ks)), key=lambda i: self.product_sections[i])
+        counts = tuple(int(self.product_cases[i]) for i in order) if self.product_cases else ()
         object.__setattr__(self, "product_sections", ks)
         object.__setattr__(self, "product_cases", counts)
-        if ks and not counts and not 20 <= self.n_product <= 100_000:
-            raise RailsuspInputError(f"n_product = {self.n_product:g}: accepted 20 to 100000")
         if not self.conditions:
             raise RailsuspInputError("conditions: at least one working condition is needed")
         conds = tuple(c.with_duration(self.section_s) for c in self.conditions)
         object.__setattr__(self, "conditions", conds)
         for c in conds:
             _check_uniform_record(c, self.section_s * max(ks, default=1), self.wagon)
+
+    def _check_counts(self) -> None:
+        """A one-line error naming the field and its range (:data:`POSTERIOR_COUNTS`) unless
+        every count is a whole number in it; each is then stored as a Python int."""
+        for name in ("n_train", "n_check", "samples", "hidden_features", "num_transforms",
+                     "seed", "ensemble", "projection_rank", "condition_offset"):  # fmt: skip
+            check_count(f"{name} =", getattr(self, name), *POSTERIOR_COUNTS[name])
+            object.__setattr__(self, name, int(getattr(self, name)))
+        low, high = POSTERIOR_COUNTS["n_calibration"]
+        n = self.n_calibration
+        if not _is_count(n) or (n and not low <= n <= high):
+            whole = "" if _is_count(n) else "an integer, "
+            raise RailsuspInputError(
+                f"n_calibration = {n}: accepted {whole}0 (no correction) or {low} to {high}"
+            )
+        low, high = POSTERIOR_COUNTS["product_sections"]
+        ks = self.product_sections
+        if any(not _is_count(k) or not low <= k <= high for k in ks) or len(set(ks)) != len(ks):
+            raise RailsuspInputError(
+                f"product_sections = {','.join(map(str, ks))}: accepted distinct section "
+                f"counts from {low} to {high}, whole numbers"
+            )
+        low, high = POSTERIOR_COUNTS["product_cases"]
+        counts = self.product_cases
+        if counts and (
+            len(counts) != len(ks) or any(not _is_count(c) or not low <= c <= high for c in counts)
+        ):
+            raise RailsuspInputError(
+                f"product_cases = {','.join(map(str, counts))}: accepted one count from {low} "
+                f"to {high} per entry of product_sections ({len(ks)}), whole numbers"
+            )
+        low, high = POSTERIOR_COUNTS["n_product"]
+        if not _is_count(self.n_product) or (
+            ks and not counts and not low <= self.n_product <= high
+        ):  # the count of the held-out sets of several sections, where there are such
+            whole = "" if _is_count(self.n_product) else "an integer "
+            raise RailsuspInputError(
+                f"n_product = {self.n_product}: accepted {whole}{low} to {high}"
+            )
+        if not _is_count(self.statistics_emulator_cases):
+            raise RailsuspInputError(
+                f"statistics_emulator_cases = {self.statistics_emulator_cases}: accepted an "
+                f"integer, 0 or 20 to the training cases, n_train = {self.n_train}"
+            )
+        for name in ("n_calibration", "n_product", "statistics_emulator_cases"):
+            object.__setattr__(self, name, int(getattr(self, name)))
 
     def to_dict(self) -> dict[str, Any]:
         d = {k: getattr(self, k) for k in self.__dataclass_fields__}
@@ -233,6 +276,54 @@ def _check_lags(families: tuple[str, ...], section_s: float) -> None:
             f"section_s = {section_s:g}: the statistics family 'coherence' correlates over "
             f"lags up to {longest:g} s, which needs sections of at least {least:g} s; "
             f"accepted {least:g} to 600"
+        )
+
+
+def settings_differences(old: Any, new: dict[str, Any]) -> list[str]:
+    """The settings in which a stored :meth:`PosteriorSettings.to_dict` (``old``, as read
+    from a file: anything) differs from ``new``, each as ``name = old, not new`` (or the
+    name alone where a value is long: conditions, a wagon), for the one-line refusal of a
+    run folder trained with other settings. A field that one of them leaves out is its
+    default (:meth:`~PosteriorSettings.to_dict` leaves defaults out for the hashes of
+    before)."""
+    if not isinstance(old, dict):
+        return []
+    fields = PosteriorSettings.__dataclass_fields__
+    defaults = {k: f.default for k, f in fields.items()}
+    defaults["statistics"] = list(defaults["statistics"])
+    defaults["product_cases"] = []
+    out = []
+    for name in [k for k in fields if k in old or k in new]:
+        was, now = old.get(name, defaults.get(name)), new.get(name, defaults.get(name))
+        if was == now:
+            continue
+        if name in ("conditions", "wagon"):
+            out.append(f"{name} differ" if name == "conditions" else "wagon differs")
+        else:
+            out.append(f"{name} = {_shown(was)}, not {_shown(now)}")
+    return out
+
+
+def _shown(value: Any) -> str:
+    if isinstance(value, list | tuple):
+        return ",".join(map(str, value)) or "(none)"
+    return str(value)
+
+
+def _is_count(value: Any) -> bool:
+    """Whether ``value`` is a whole number as a count is given: an int (numpy's too), not a
+    float such as 2.0 nor a boolean (as :func:`~railsusp.estimate.config.check_count`)."""
+    return isinstance(value, int | np.integer) and not isinstance(value, bool)
+
+
+def _check_projection_rank(rank: int, families: tuple[str, ...]) -> None:
+    """A one-line error unless ``projection_rank`` is its default with the EN 14363 summary
+    alone, which is read as it is (the rank was ignored, and left out of the hash)."""
+    if rank != DEFAULT_PROJECTION_RANK and families == ("en14363",):
+        raise RailsuspInputError(
+            f"projection_rank = {rank} conflicts with statistics = en14363: the summary alone "
+            f"is read as it is, without a projection; accepted {DEFAULT_PROJECTION_RANK} (the "
+            "default), or statistics families beyond it"
         )
 
 
