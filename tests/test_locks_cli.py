@@ -335,3 +335,25 @@ def test_a_lent_lock_lets_the_code_it_runs_take_the_folder(tmp_path):
         with pytest.raises(RailsuspInputError, match="another railsusp run"):
             with run_lock(tmp_path, "--out"):
                 pass
+
+
+def test_a_reader_of_a_folder_it_cannot_write_without_a_lock_file_is_told_so(tmp_path, monkeypatch):
+    """A folder shared read-only and holding no lock file (an estimator trained before every
+    command locked): opening the lock file to write was refused, the read-only open then
+    found none and raised FileNotFoundError, which the readers' skip of unwritable folders
+    did not take: the command failed with a traceback (the review of stop 64). The refusal
+    to write is what comes out now, and the reader goes on without the lock."""
+    import builtins
+    import errno
+
+    import railsusp.run_lock as rl
+
+    def no_write(path, mode="r", *args, **kwargs):
+        if "a" in mode or "w" in mode:
+            raise PermissionError(errno.EACCES, "Permission denied", str(path))
+        return builtins.open(path, mode, *args, **kwargs)
+
+    monkeypatch.setattr(rl, "open", no_write, raising=False)
+    with pytest.raises(PermissionError) as info, rl.run_lock(tmp_path, "--estimator", shared=True):
+        pass
+    assert info.value.errno == errno.EACCES

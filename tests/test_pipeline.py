@@ -711,3 +711,26 @@ def test_force_law_revisions_compare_as_day_and_number():
     assert not revision_newer("2000-01-01.1")
     assert revision_newer("2099-01-01.1")
     assert not revision_newer("edited by hand")
+
+
+def test_an_up_to_date_run_hashes_only_the_files_whose_time_moved(tiny, tmp_path, monkeypatch):
+    """Resuming hashed every recorded file (a campaign's gigabytes at the study's scale) on
+    each run: a file whose size and modification time are as recorded is now taken as
+    unchanged (as make does), and only a file written since is hashed, so a same-size edit
+    is still found (the review of stop 64)."""
+    import railsusp.integrity as integrity
+
+    cfg, _, copy = _up_to_date_copy(tiny, tmp_path)
+    hashed = []
+    own = integrity.file_hash_cached
+    monkeypatch.setattr(integrity, "file_hash_cached", lambda p: hashed.append(p) or own(p))
+    seen = []
+    run_pipeline(cfg, copy, progress=lambda s, m: seen.append((s, m)))
+    assert {m for _, m in seen} == {"up to date"} and hashed == []
+    path = copy / "estimate/estimate.json"
+    shown = str(json.loads(path.read_bytes())["estimate_display"]["X13"])
+    _edit_in_place(path, shown, str(int(shown[0]) % 9 + 1) + shown[1:])
+    seen.clear()
+    run_pipeline(cfg, copy, progress=lambda s, m: seen.append((s, m)))
+    assert path in hashed and len(set(hashed)) == 1  # the edited file alone
+    assert [s for s, m in seen if m == "running"] == ["estimate", "validate", "report"], seen

@@ -71,7 +71,9 @@ class RunResult:
             raise RailsuspInputError(
                 f"{self.path}: the {stage} stage {why}; its files are an older run's ({resume})"
             )
-        changed = changed_files(entry.get("files") or {}, self.path, entry.get("sha256"))
+        changed = changed_files(
+            entry.get("files") or {}, self.path, entry.get("sha256"), entry.get("mtime_ns")
+        )
         if changed:
             raise RailsuspInputError(
                 f"{self.path}: {changed[0].relative_to(self.path)} changed or is gone since the "

@@ -20,7 +20,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from railsusp.errors import RailsuspInputError
-from railsusp.integrity import file_hashes, file_sizes
+from railsusp.integrity import file_hashes, file_mtimes, file_sizes
 
 # the configuration's public names, imported from here by users, tests, benches and docs
 from railsusp.pipeline_config import PipelineConfig as PipelineConfig  # re-export
@@ -133,7 +133,9 @@ def _run_stages(
             prev.get("hash") == h
             and prev.get("state") == "done"
             and i < forced
-            and outputs_exist(config, out, stage, prev.get("files"), prev.get("sha256"))
+            and outputs_exist(
+                config, out, stage, prev.get("files"), prev.get("sha256"), prev.get("mtime_ns")
+            )
         )
         if up_to_date:
             log.debug("stage %s: up to date", stage)
@@ -176,6 +178,7 @@ def _run_stages(
                 "files": file_sizes(files, out),
                 # and their contents: an edit that keeps a file's size is found too
                 "sha256": file_hashes(files, out),
+                "mtime_ns": file_mtimes(files, out),  # unchanged by stat: not hashed again
             }
             write_json(state_path, state)
             log.info("stage %s: done in %.1f s", stage, state["stages"][stage]["seconds"])

@@ -225,11 +225,13 @@ def outputs_exist(
     stage: str,
     recorded: dict[str, int] | None = None,
     hashes: dict[str, str] | None = None,
+    mtimes: dict[str, int] | None = None,
 ) -> bool:
     """The stage's output file is present, the files the run recorded when the stage finished
-    (``recorded``, sizes by path; ``hashes``, their SHA-256 by path) are there with those
-    sizes and contents, and they read (:mod:`railsusp.integrity`: Parquet footers, JSON,
-    whole CSV lines, the zips of networks): a file damaged or edited after the run (a copy
+    (``recorded``, sizes by path; ``hashes``, their SHA-256 by path, each hashed where its
+    modification time differs from ``mtimes``') are there with those sizes and contents,
+    and they read (:mod:`railsusp.integrity`: Parquet footers, JSON, whole CSV lines, the
+    zips of networks): a file damaged or edited after the run (a copy
     cut short, a number changed in place) makes the stage run again rather than fail a
     later one, or be shown as its answer. A run made before hashes were recorded has its
     files compared by size alone (and stays up to date); one made before sizes were has
@@ -238,7 +240,7 @@ def outputs_exist(
     if not path.is_file():
         return False
     if isinstance(recorded, dict) and recorded:
-        bad = changed_files(recorded, out, hashes)
+        bad = changed_files(recorded, out, hashes, mtimes)
         to_read = [path, *(out / rel for rel in recorded)]
     else:
         bad, to_read = [], stage_files(config, out, stage)

@@ -132,8 +132,11 @@ def run_lock(
     for _ in range(20):  # the file replaced under us (a folder made and removed): again
         try:
             fh = open(path, "a+", encoding="utf-8")
-        except PermissionError:  # another user's lock file: flock needs no write access
-            fh = open(path, encoding="utf-8")
+        except PermissionError as denied:  # another user's lock file: flock needs no write
+            try:  # access; none there and the folder not ours to write: the refusal itself
+                fh = open(path, encoding="utf-8")
+            except FileNotFoundError:
+                raise denied from None
         try:
             fcntl.flock(fh, (fcntl.LOCK_SH if shared else fcntl.LOCK_EX) | fcntl.LOCK_NB)
         except BlockingIOError:

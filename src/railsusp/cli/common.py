@@ -255,7 +255,9 @@ def hold_folders(
         if run is not None:
             add(option, run, "read", named=Path(folder))
     stack = _command_context().with_resource(ExitStack())
-    for item in plan.values():
+    # the run directories first: a command refused beside a working `railsusp run` makes
+    # no folder inside it on the way
+    for item in sorted(plan.values(), key=lambda item: item["named"] is None):
         folder, option = item["folder"], item["option"]
         if item["mode"] == "create":
             made = []
