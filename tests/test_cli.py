@@ -310,7 +310,7 @@ def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
         (["--statistic", "aligned", "--expected-draws", "65"], "--expected-draws 65: accepted 0"),
         (["--statistic", "aligned+std", "--expected-draws", "8"], "accepted only with 'aligned'"),
         (["--statistic", "aligned+mean", "--expected-draws", "8"], "'aligned' alone"),
-        (["--statistic", "aligned", "--expected-generations"], "needs expected_draws 1 or more"),
+        (["--statistic", "aligned", "--expected-generations"], "needs --expected-draws 1 or more"),
     ]:
         result = runner.invoke(app, [*common, "--simulator", "--out", str(est), *bad])
         assert result.exit_code == 2 and needle in result.output, result.output

@@ -54,7 +54,7 @@ def test_synth_field_never_replaces_a_file_and_refuses_empty_or_repeated_conditi
     )
     refused(
         ["synth-field", "--conditions", "straight", "--out", str(tmp_path / "s"), "--seed", "-1"],
-        "seed = -1: accepted 0 or more",
+        "--seed -1: accepted 0 or more",
     )
     # a geometry error without the geometry was ignored (exit 0, no geometry written)
     refused(

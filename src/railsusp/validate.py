@@ -34,8 +34,8 @@ from railsusp.estimate import (
     aligned_error,
     measured_statistics,
     parse_statistics,
-    recording_segments,
 )
+from railsusp.estimate.comparison import check_time_base
 from railsusp.estimate.config import NSGA_RANGES, check_range
 from railsusp.estimate.expected_forces import draw_true_tracks
 from railsusp.estimate.intervals import identification, intervals_of
@@ -43,7 +43,8 @@ from railsusp.estimate.statistics import force_statistic
 from railsusp.measured import Recording, SimulationFailedError, read_field
 from railsusp.measured.synthetic import read_truth, recording_from_simulation
 from railsusp.params import ParameterSet, bounds, spec
-from railsusp.store import atomic_write_bytes, read_json, read_parquet, write_json
+from railsusp.store import atomic_folder, atomic_write_bytes, read_json, read_parquet, write_json
+from railsusp.vehicle.simulation_result import statistic_segments
 
 #: a parameter whose largest total Sobol index on the used features is below this is not
 #: identified (nor one whose interval is wider than IDENTIFIED_WIDTH_PCT of its range)
@@ -74,31 +75,30 @@ class ValidationResult:
     notes: list[str] = field(default_factory=list)
 
     def save(self, out: str | Path) -> Path:
+        """Write the tables and figures into ``out`` as one artefact
+        (:func:`~railsusp.store.atomic_folder`): a kill or a full disk while the figures are
+        drawn leaves the earlier validation as it was, not a new table beside old figures.
+        Other files in ``out`` are kept; an earlier validation's that this one does not
+        write (a recovery table of another field's truth, a removed condition's figure),
+        which went on being shown as its, are not carried over."""
         from railsusp.report import plot_validation_overlay
 
         out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        written = [out / "validation.csv", out / "validation.json"]
-        atomic_write_bytes(written[0], self.forces.to_csv(index=False).encode())
-        payload = {
-            "forces": self.forces.to_dict(orient="records"),
-            "failures": self.failures,
-            "expected_draws": self.expected_draws,
-            "notes": self.notes,
-        }
-        if self.recovery is not None:
-            csv = self.recovery.to_csv(index=False).encode()
-            written.append(atomic_write_bytes(out / "recovery.csv", csv))
-            payload["recovery"] = self.recovery.to_dict(orient="records")
-        write_json(written[1], payload)
-        for cond, s in self.series.items():
-            written.append(out / f"validation-{cond}.png")
-            plot_validation_overlay(s, written[-1], title=cond)
-        # an earlier validation's files that this one does not write (a recovery table of
-        # another field's truth, a removed condition's figure) went on being shown as its
-        stale = {p for pattern in VALIDATION_FILES for p in out.glob(pattern)} - set(written)
-        for path in stale:
-            path.unlink(missing_ok=True)
+        with atomic_folder(out, drop=VALIDATION_FILES) as tmp:
+            atomic_write_bytes(tmp / "validation.csv", self.forces.to_csv(index=False).encode())
+            payload = {
+                "forces": self.forces.to_dict(orient="records"),
+                "failures": self.failures,
+                "expected_draws": self.expected_draws,
+                "notes": self.notes,
+            }
+            if self.recovery is not None:
+                csv = self.recovery.to_csv(index=False).encode()
+                atomic_write_bytes(tmp / "recovery.csv", csv)
+                payload["recovery"] = self.recovery.to_dict(orient="records")
+            write_json(tmp / "validation.json", payload)
+            for cond, s in self.series.items():
+                plot_validation_overlay(s, tmp / f"validation-{cond}.png", title=cond)
         return out
 
 
@@ -125,8 +125,8 @@ def _simulate(
                 try:
                     series.append(recording_from_simulation(run, rec.wheels[:1], k).forces())
                 except SimulationFailedError as exc:
-                    stopped.append(str(exc))
-                    series.append(np.full((rec.time.size, 2), np.nan))
+                    stopped.append(str(exc))  # the condition's record, as the others
+                    series.append(np.full((run.time.size, 2), np.nan))
             if stopped:  # one line per recording: the first reason, and how many draws
                 many = f" ({len(stopped)} of {len(runs)} drawn tracks)" if len(runs) > 1 else ""
                 failures.append(f"{label}: {stopped[0]}{many}")
@@ -183,6 +183,7 @@ def validate(
             f"{est_path}: no {', '.join(map(repr, lacking))}; accepted the estimate.json of a "
             "folder written by railsusp estimate"
         )
+    check_estimate_fields(est, est_path, need_measured=measured is None)
     params = tuple(est["parameters"])
     stats = parse_statistics(statistic or est["config"]["statistic"])
     if wagon is None:  # the wagon the estimate simulated (None there: the packaged C80)
@@ -198,7 +199,19 @@ def validate(
     recs = read_field(measured or est["measured"], wagon=wagon)
     if statistic is None and ALIGNED not in stats:
         if all(r.condition.track_geometry is not None for r in recs):
-            stats = (*stats, ALIGNED)  # on measured track, also compare sample by sample
+            unaligned = [r.condition.name for r in recs if r.condition.n_steps != r.time.size]
+            if unaligned:  # a default, not asked for: said in one line, not refused
+                warnings.warn(
+                    f"no time-aligned errors: the condition.n_steps of recording(s) "
+                    f"{', '.join(unaligned)} samples another rate than its table's rows, and "
+                    "the time-aligned comparison needs one time base (the record statistics "
+                    "are compared)",
+                    stacklevel=2,
+                )
+            else:
+                stats = (*stats, ALIGNED)  # on measured track, also compare sample by sample
+    if ALIGNED in stats:  # asked for: before the simulations, not after them
+        check_time_base(recs, "validate's time-aligned errors (statistic 'aligned')")
     chosen = ParameterSet(est["estimate_display"], units="display")
     nominal = ParameterSet.nominal()
     truth_set = None
@@ -232,7 +245,9 @@ def validate(
     for i, rec in enumerate(recs):
         w = rec.wheels[0]
         meas = measured_statistics(rec, stats)
-        segments = recording_segments(rec)
+        # the simulations' statistics at their own rate, the condition's (as the estimate's
+        # objective takes them), which a sidecar may set apart from its table's
+        interval = rec.condition.sample_interval
         for j, force in enumerate(("Y", "Q")):
             if aligned:
                 # time-aligned: *_kN is the RMS difference, *_error that over the measured SD
@@ -269,8 +284,8 @@ def validate(
                                     drawn[:, j],
                                     st,
                                     force == "Y",
-                                    segments,
-                                    rate_hz=rec.sampling_rate,
+                                    statistic_segments(drawn.shape[0], interval),
+                                    rate_hz=1.0 / interval,
                                     speed_ms=rec.condition.speed,
                                 )
                                 for drawn in s[i]
@@ -283,8 +298,8 @@ def validate(
         series[rec.condition.name] = {
             "time": rec.time,
             "measured": rec.forces(),
-            "before": sims["before"][i].mean(axis=0),
-            "after": sims["after"][i].mean(axis=0),
+            "before": _on_time(sims["before"][i].mean(axis=0), rec),
+            "after": _on_time(sims["after"][i].mean(axis=0), rec),
             "measured_track": rec.condition.track_geometry is not None,
         }
     forces = pd.DataFrame(rows)
@@ -294,6 +309,62 @@ def validate(
     for line in notes:
         warnings.warn(line, stacklevel=2)
     return ValidationResult(forces, recovery, series, failures, draws, notes)
+
+
+def _on_time(simulated: np.ndarray, rec: Recording) -> np.ndarray:
+    """A simulation's (T, 2) series of a recording's condition on the recording's time base
+    for the overlay figure: itself where the condition samples the table's rows, else
+    interpolated from its own time step (a sidecar's n_steps at another rate than its
+    table's)."""
+    if simulated.shape[0] == rec.time.size:
+        return simulated
+    t = rec.time[0] + np.arange(simulated.shape[0]) * rec.condition.sample_interval
+    return np.stack(
+        [np.interp(rec.time, t, simulated[:, c]) for c in range(simulated.shape[1])], axis=1
+    )
+
+
+def check_estimate_fields(est: dict, path: Path, need_measured: bool = True) -> None:
+    """Refuse, in one line naming ``path`` and the field, an ``estimate.json`` whose fields
+    validate reads are not of their kind (a hand-edited ``"measured": 123`` or ``"config":
+    "x"`` gave a TypeError's traceback)."""
+    kinds: list[tuple[str, Any, str]] = [
+        ("parameters", list, "a list of parameter symbols"),
+        ("estimate_display", dict, "an object of values by symbol"),
+        ("config", dict, "an object of the estimate's settings"),
+    ]
+    if need_measured:
+        kinds.append(("measured", str, "the recordings' folder as a string"))
+    for key, kind, accepted in kinds:
+        value = est.get(key)
+        if not isinstance(value, kind) or (key == "measured" and not value):
+            raise RailsuspInputError(
+                f"{path}: field {key!r} is {value!r}; accepted {accepted} (the estimate.json "
+                "of a folder written by railsusp estimate)"
+            )
+    if not all(isinstance(p, str) for p in est["parameters"]):
+        raise RailsuspInputError(
+            f"{path}: field 'parameters' is {est['parameters']!r}; accepted a list of parameter "
+            "symbols"
+        )
+    config = est["config"]
+    if not isinstance(config.get("statistic"), str):
+        raise RailsuspInputError(
+            f"{path}: field 'config.statistic' is {config.get('statistic')!r}; accepted a "
+            "statistic such as 'mean' or 'aligned'"
+        )
+    for key in ("expected_draws", "seed"):
+        value = config.get(key, 0)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise RailsuspInputError(
+                f"{path}: field 'config.{key}' is {value!r}; accepted an integer"
+            )
+    for key, kinds_ in (("wagon", (str, type(None))), ("wagon_data", (dict, type(None)))):
+        if not isinstance(est.get(key), kinds_):
+            raise RailsuspInputError(
+                f"{path}: field {key!r} is {est.get(key)!r}; accepted "
+                + ("a wagon name or file" if key == "wagon" else "an object of wagon data")
+            )
 
 
 def identification_issues(est: dict, max_st: dict[str, float] | None = None) -> dict[str, str]:

@@ -110,3 +110,36 @@ def test_broyden_without_first_order_corrections_is_refused_before_nsga_ii(recor
     with pytest.raises(RailsuspInputError, match="slope_update 'broyden' updates the slopes"):
         _route(slope_update="broyden").run(Counted(), [recording], PARAMS, simulator=Linear())
     assert Counted.calls == 0
+
+
+def test_a_recording_sampled_otherwise_than_its_table_is_refused_before_any_prediction(
+    recording,  # noqa: F811
+):
+    """A sidecar's n_steps at another rate than its table's rows: the time-aligned
+    comparison failed in NSGA-II's first generation, a refinement after the whole of
+    NSGA-II ("has 1000 samples, the model predicts 2000"); refused first, naming
+    condition.n_steps and the table's rate."""
+    Counted.calls = 0
+    other = Recording(recording.time, recording.Y, recording.Q,
+                      recording.condition.with_changes(n_steps=2000))  # fmt: skip
+    needle = r"condition.n_steps 2000 samples its 20 s at 100 Hz, its table has 1000 rows at 50 Hz"
+    with pytest.raises(RailsuspInputError, match=needle):
+        _route(simulator_corrections=0).run(Counted(), [other], PARAMS)
+    mean = NSGAConfig(pop_size=4, n_gen=1, seed=3, statistic="mean")
+    with pytest.raises(RailsuspInputError, match="--refine \\(the output-error refinement\\)"):
+        _route(nsga=mean, simulator_corrections=0, refine=True, refine_setting="--refine").run(
+            Counted(), [other], PARAMS
+        )
+    assert Counted.calls == 0
+
+
+def test_a_held_prior_on_an_estimated_parameter_is_said(recording):  # noqa: F811
+    """A pipeline's key parameters are found after its configuration is read: a held prior
+    on one of them is said in a warning (it was only ``held_prior_unused`` in the JSON)."""
+    from railsusp.estimate.config import HeldPrior
+
+    prior = HeldPrior.from_display({"X15": [150, 190], "X13": [12, 16]})
+    route = _route(nsga=NSGAConfig(pop_size=4, n_gen=1, statistic="aligned"),
+                   simulator_corrections=0, held_prior=prior)  # fmt: skip
+    with pytest.warns(UserWarning, match="held_prior: X13 estimated, so its range is not used"):
+        route.run(Linear(), [recording], PARAMS)

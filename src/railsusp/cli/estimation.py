@@ -3,23 +3,82 @@ recordings, the optional refinement and its intervals (Tables 3-5, Figs 8-9 of t
 
 from __future__ import annotations
 
+import re
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
-from railsusp.cli.common import app, console, fail, frame_table, hold_folders
+from railsusp.cli.common import app, console, fail, frame_table, hold_folders, option_names
 from railsusp.errors import RailsuspInputError
 from railsusp.input_checks import check_output_folder
 from railsusp.store import atomic_folder
 
-#: the estimator's settings -> the options of ``estimate``, for its error messages
+#: the estimator's settings -> the options of ``estimate``, for its error messages and
+#: warnings (:func:`_option_text`)
 _ESTIMATE_OPTIONS = {
     "weighting": "--weighting",
+    "statistic": "--statistic",
+    "parameters": "--parameters",
     "channel_gains": "--channel-gains",
     "expected_draws": "--expected-draws",
     "expected_generations": "--expected-generations",
+    "preview_generations": "--preview-generations",
+    "preview_s": "--preview-s",
+    "n_gen": "--n-gen",
+    "held_prior": "--held-prior",
+    "geometry_draws": "--geometry-draws",
+    "simulator_corrections": "--simulator-corrections",
+    "correction_slopes": "--correction-slopes",
 }
+
+#: the defaults of the options that only some routes use: a value other than its default is
+#: an option given, refused (or said in a warning) where the route does not use it
+REFINE_EVALUATIONS, REFINE_SCREEN, REFINE_STARTS = 40, 64, 2
+PREVIEW_S = 20.0
+GEOMETRY_DRAWS = 8
+
+
+def _option_text(message: str) -> str:
+    """``message`` with the estimator's settings named as the options of ``estimate``:
+    ``setting = value`` anywhere and ``setting`` at its start
+    (:func:`~railsusp.cli.common.option_names`), and a setting spelt with an underscore
+    (``expected_draws``, which is no English word) anywhere else too, where ``--expected-draws``
+    is what the user typed."""
+    message = option_names(message, _ESTIMATE_OPTIONS)
+    for setting, option in _ESTIMATE_OPTIONS.items():
+        if "_" in setting:
+            message = re.sub(rf"(?<![\w./-]){setting}(?![\w/])", option, message)
+    return message
+
+
+@contextmanager
+def _warnings_as_options() -> Iterator[None]:
+    """The library's warnings while the command runs said with the options' names
+    (``--expected-draws 3: ...``, not ``expected_draws 3: ...``)."""
+    shown = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        shown(_option_text(str(message)), category, filename, lineno, file, line)
+
+    warnings.showwarning = show
+    try:
+        yield
+    finally:
+        warnings.showwarning = shown
+
+
+def _naming(option: str, value: object, message: str) -> str:
+    """``message`` (an error about ``value``) starting with the option that gave it:
+    ``nope: no index.json`` -> ``--measured nope: no index.json``."""
+    if message.startswith(option):
+        return message
+    if message.startswith(f"{value}:") or message.startswith(f"{value} "):
+        return f"{option} {message}"
+    return f"{option} {value}: {message}"
 
 
 @app.command()
@@ -105,7 +164,7 @@ def estimate(
     ] = 0,
     preview_s: Annotated[
         float, typer.Option(help="seconds of each recording the preview generations compare")
-    ] = 20.0,
+    ] = PREVIEW_S,
     weighting: Annotated[
         str,
         typer.Option(
@@ -129,11 +188,13 @@ def estimate(
     ] = False,
     refine_evaluations: Annotated[
         int, typer.Option(help="most residual evaluations of the refinement")
-    ] = 40,
+    ] = REFINE_EVALUATIONS,
     refine_screen: Annotated[
         int, typer.Option(help="Latin hypercube points screened for refinement starts")
-    ] = 64,
-    refine_starts: Annotated[int, typer.Option(help="best screened starts refined")] = 2,
+    ] = REFINE_SCREEN,
+    refine_starts: Annotated[
+        int, typer.Option(help="best screened starts refined")
+    ] = REFINE_STARTS,
     geometry_draws: Annotated[
         int,
         typer.Option(
@@ -142,7 +203,7 @@ def estimate(
             "sensor noise only; not used with --expected-draws, which compares the mean over "
             "drawn true tracks instead)"
         ),
-    ] = 8,
+    ] = GEOMETRY_DRAWS,
     remove_geometry_bias: Annotated[
         bool,
         typer.Option(
@@ -209,6 +270,24 @@ def estimate(
         ):
             check_range(name, value, low, high)
         parse_statistics(statistic)
+        # options of a step that does not run: refused, not ignored (a typer default is
+        # not told from a value typed, so a value other than it counts as given)
+        for name, value, default in (
+            ("--refine-evaluations", refine_evaluations, REFINE_EVALUATIONS),
+            ("--refine-screen", refine_screen, REFINE_SCREEN),
+            ("--refine-starts", refine_starts, REFINE_STARTS),
+        ):
+            if not refine and value != default:
+                raise RailsuspInputError(
+                    f"{name} {value} sets the refinement, which runs only with --refine: "
+                    f"accepted --refine with it, or no {name}"
+                )
+        if not preview_generations and preview_s != PREVIEW_S:
+            raise RailsuspInputError(
+                f"--preview-s {preview_s:g} sets the preview generations' record, and "
+                "--preview-generations 0 asks for none: accepted --preview-generations 1 or "
+                "more (below --n-gen) with it, or no --preview-s"
+            )
         if refine and refine_screen and refine_screen < refine_starts:  # as a configuration
             raise RailsuspInputError(
                 f"--refine-screen {refine_screen} screens fewer points than --refine-starts "
@@ -266,16 +345,24 @@ def estimate(
             held_prior=prior,
             refine_setting="--refine",
             corrections_setting="--simulator-corrections",
+            held_prior_setting="--held-prior",
         )
+        from railsusp.estimate.nsga_geometry import geometry_draws_unused
         from railsusp.params import STUDY_KEY_PARAMETERS, parse_sampled
         from railsusp.surrogate.pretrained import wagon_hash
         from railsusp.vehicle.wagon import load_wagon, wagon_reference
 
         chosen = parse_sampled(parameters) if parameters is not None else None
-        wagon_data = load_wagon(wagon)  # a packaged name or a file, one-line errors
+        try:
+            wagon_data = load_wagon(wagon)  # a packaged name or a file, one-line errors
+        except (RailsuspInputError, ValueError, FileNotFoundError) as exc:
+            raise RailsuspInputError(_naming("--wagon", wagon, str(exc))) from None
         if surrogate is not None:
-            model, params = open_force_model(surrogate, chosen)
-            trained = getattr(model, "wagon", None)  # window networks know their wagon
+            try:
+                model, params = open_force_model(surrogate, chosen)
+            except FileNotFoundError as exc:
+                raise RailsuspInputError(_naming("--surrogate", surrogate, str(exc))) from None
+            trained = getattr(model, "wagon", None)  # surrogates that know their wagon
             if trained is not None and wagon is None:
                 wagon_data = trained  # the surrogates' wagon, unless --wagon says another
             elif trained is not None and wagon_hash(trained) != wagon_hash(wagon_data):
@@ -284,13 +371,27 @@ def estimate(
                     f"wagon ({trained.name}); accepted that wagon, or surrogates trained on "
                     f"{wagon_data.name}"
                 )
-        recs = read_field(measured, wagon=wagon_data)
-        if surrogate is None:
+        else:
             params = chosen or STUDY_KEY_PARAMETERS
+        check_held_prior_unused(prior, params, parameters, surrogate is not None)
+        try:
+            recs = read_field(measured, wagon=wagon_data)
+        except (RailsuspInputError, FileNotFoundError) as exc:
+            raise RailsuspInputError(_naming("--measured", measured, str(exc))) from None
+        if surrogate is None:
             model = SimulatorForces(params, wagon=wagon_data)
         # the corrections' and the refinement's simulator: the model itself without surrogates
         sim = model if surrogate is None else SimulatorForces(params, wagon=wagon_data)
-        res = route.run(model, recs, params, progress=console.status, simulator=sim)
+        given = []  # 0 draws asks for none: nothing ignored where none are drawn
+        if geometry_draws not in (GEOMETRY_DRAWS, 0):
+            given.append(f"--geometry-draws {geometry_draws}")
+        if not remove_geometry_bias:
+            given.append("--keep-geometry-bias")
+        why = geometry_draws_unused(cfg, recs, refine) if given else ""
+        if why:  # as expected_draws without an accuracy: the recordings decide, so a warning
+            warnings.warn(f"{' '.join(given)}: not used: {_option_text(why)}", stacklevel=1)
+        with _warnings_as_options():
+            res = route.run(model, recs, params, progress=console.status, simulator=sim)
         # the folder as one artefact: a full disk or a kill while the figures are drawn
         # leaves the folder as it was, not an estimate.json without its figures
         # (an earlier estimate's validation is not carried into it: it validated that one)
@@ -308,7 +409,7 @@ def estimate(
                 },
             )
     except (RailsuspInputError, ValueError, FileNotFoundError) as exc:
-        fail(str(exc), options=_ESTIMATE_OPTIONS)
+        fail(_option_text(str(exc)))
     console.print(
         frame_table(
             res.log.tail(8), "NSGA-II log (last generations; the study's Table 4)", fmt="{:.6g}"
@@ -325,6 +426,25 @@ def _campaign_of(surrogate: Path | None) -> Path | None:
         return None
     campaign = surrogate.absolute().parent.parent
     return campaign if (campaign / "campaign.json").is_file() else None
+
+
+def check_held_prior_unused(prior, params, given: str | None, surrogates: bool) -> None:
+    """Refuse, in one line naming ``--held-prior`` and where the estimated parameters come
+    from, a prior on a parameter the estimate estimates: the refined intervals take priors
+    of the held parameters only, and the estimated ones are known before NSGA-II runs (it
+    was recorded as ``held_prior_unused`` after the whole estimate)."""
+    unused = prior.unused(params) if prior is not None else []
+    if not unused:
+        return
+    source = (
+        f"--parameters {given}"
+        if given
+        else ("the surrogates' key parameters" if surrogates else "the study's key parameters")
+    )
+    raise RailsuspInputError(
+        f"--held-prior {', '.join(unused)}: estimated ({source}: {', '.join(params)}), not "
+        "held; accepted ranges of the held parameters only (the refined intervals take them)"
+    )
 
 
 def parse_held_prior(text: str | None, refine: bool, statistic: str):

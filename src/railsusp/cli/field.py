@@ -3,6 +3,7 @@ geometry with the forces."""
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Annotated
 
@@ -13,6 +14,15 @@ from railsusp.cli.common import WagonOption, app, console, fail, hold_folders
 from railsusp.condition_files import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet, parse_overrides
+
+#: synthesise_field's settings -> the options of ``synth-field``, for its error messages
+_SYNTH_OPTIONS = {
+    "seed": "--seed",
+    "noise": "--noise",
+    "track_noise_mm": "--track-noise",
+    "duration_s": "--duration",
+    "fmt": "--format",
+}
 
 
 @app.command("synth-field")
@@ -91,7 +101,7 @@ def synth_field(
                 wagon=wagon_data,
             )
     except RailsuspInputError as exc:
-        fail(str(exc))
+        fail(str(exc), options=_SYNTH_OPTIONS)
     console.print(
         f"wrote {len(conds)} recording(s) to {out} (index.json); the truth is in "
         f"{out / 'truth.json'}, which the estimator never reads"
@@ -110,11 +120,14 @@ def align_track_command(
     """Align each recording's measured track geometry with its forces (cross-correlation
     with a nominal simulation) and report, or with --write store, the distance offset."""
     from railsusp.estimate import align_track
+    from railsusp.estimate.comparison import check_time_base
     from railsusp.measured import read_field
     from railsusp.store import read_json, write_json
     from railsusp.vehicle.wagon import load_wagon
 
     try:
+        if not 0.0 < max_shift <= 200.0:  # before the recordings are read
+            raise RailsuspInputError(f"--max-shift {max_shift:g}: accepted (0, 200] m")
         wagon_data = load_wagon(wagon)  # a packaged name or a file, one-line errors
         if write:  # the sidecars it rewrites: one writer at a time in the folder
             hold_folders(writes=[("", measured)])
@@ -125,10 +138,35 @@ def align_track_command(
         ]
         if not recs:
             raise RailsuspInputError(f"{measured}: no recording carries measured track geometry")
+        check_time_base(recs, "align-track")  # every recording, before the first simulation
         with console.status("simulating on the measured tracks"):
             found = [align_track(r, max_shift_m=max_shift, wagon=wagon_data) for r in recs]
+        for rec, a in zip(recs, found, strict=True):
+            if a.searched_m < max_shift - 1e-9:  # a third of the record: said, not hidden
+                warnings.warn(
+                    f"--max-shift {max_shift:g} m: recording {a.recording!r} is "
+                    f"{rec.condition.record_length_m:.4g} m long, so its search stops at a "
+                    f"third of it, ±{a.searched_m:.3g} m",
+                    stacklevel=1,
+                )
+        edge = [a for a in found if a.on_edge]
+        if edge and write:  # an edge is no peak: a stored offset would move every estimate
+            a = edge[0]
+            raise RailsuspInputError(
+                f"--write: recording {a.recording!r}: its best shift {a.shift_m:+.2f} m lies on "
+                f"the edge of the ±{a.searched_m:.3g} m searched, so the correlation may peak "
+                "beyond it; nothing written: accepted a larger --max-shift (at most a third "
+                "of the record is searched), or no --write"
+            )
     except (RailsuspInputError, ValueError) as exc:
         fail(str(exc), options={"max_shift_m": "--max-shift"})
+    for a in edge:
+        warnings.warn(
+            f"recording {a.recording!r}: the best shift {a.shift_m:+.2f} m lies on the edge of "
+            f"the ±{a.searched_m:.3g} m searched (--max-shift {max_shift:g}), so the "
+            "correlation may peak beyond it",
+            stacklevel=1,
+        )
     table = Table(title="Track geometry alignment", title_justify="left")
     for col in ("recording", "offset m", "shift m", "correlation before", "after"):
         table.add_column(col, justify="left" if col == "recording" else "right")

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from railsusp.estimate.comparison import measurement_filter
+from railsusp.estimate.comparison import check_time_base, measurement_filter
 from railsusp.measured import Recording, simulated_forces
 from railsusp.params import ParameterSet
 
@@ -25,6 +25,10 @@ class TrackAlignment:
     correlation: float  # normalised cross-correlation of simulated and measured forces there
     correlation_before: float  # ... at the recording's current offset
     shift_m: float  # offset_m minus the current offset
+    #: the largest shift searched, m: ``max_shift_m``, or a third of the record if less
+    searched_m: float = float("nan")
+    #: the best lag is the search's first or last: the correlation may peak beyond it
+    on_edge: bool = False
 
 
 def align_track(
@@ -44,11 +48,23 @@ def align_track(
         raise ValueError(f"recording {rec.condition.name!r} carries no measured track geometry")
     if not 0.0 < max_shift_m <= 200.0:
         raise ValueError(f"max_shift_m = {max_shift_m:g}: accepted (0, 200] m")
+    # the simulation is compared with the table sample by sample: refused before it runs
+    check_time_base([rec], "the alignment")
     sim = simulated_forces(parameters or ParameterSet.nominal(), rec, wagon)
     sim = measurement_filter(sim[None], rec)[0]
     meas = rec.forces()
-    if sim.shape != meas.shape or not np.isfinite(sim).all():
-        raise ValueError(f"recording {rec.condition.name!r}: the simulation does not match it")
+    if sim.shape != meas.shape:
+        raise ValueError(
+            f"recording {rec.condition.name!r}: the simulation of its condition has "
+            f"{sim.shape[0]} samples, its table {meas.shape[0]} rows; accepted "
+            "condition.n_steps equal to the table's rows"
+        )
+    if not np.isfinite(sim).all():
+        raise ValueError(
+            f"recording {rec.condition.name!r}: the nominal simulation on its measured track "
+            "stopped or gave non-finite forces (condition.track_geometry, track_offset_m): "
+            "accepted geometry on which the wagon runs through"
+        )
     step_m = rec.condition.speed / rec.sampling_rate
     max_lag = min(int(np.ceil(max_shift_m / step_m)), len(meas) // 3)
     lags = np.arange(-max_lag, max_lag + 1)
@@ -74,4 +90,6 @@ def align_track(
         float(scores[k]),
         float(scores[max_lag]),
         float(shift),
+        searched_m=float(max_lag * step_m),
+        on_edge=bool(max_lag > 0 and k in (0, len(lags) - 1)),
     )

@@ -10,11 +10,13 @@ nuisance parameters profiled out of the comparison, not misfit the parameters mu
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
+from railsusp.errors import RailsuspInputError
 from railsusp.measured import Recording, bandwidth_filter
 from railsusp.vehicle.track_geometry import (
     CHANNEL_COMPONENTS,
@@ -138,6 +140,29 @@ def comparison_samples(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
     return (y, q)
 
 
+def check_time_base(recordings: Sequence[Recording], use: str) -> None:
+    """Refuse, in one line naming the recording, its ``condition.n_steps`` and its table's
+    rows and rate, a recording whose condition samples its record otherwise than its table
+    does, where ``use`` (the time-aligned comparison, the refinement, validate's time-aligned
+    errors, align-track) compares a simulation of the condition with the table sample by
+    sample. The reader accepts such a recording (a condition may simulate a 2400 Hz table's
+    record at 50 Hz: record statistics are each taken at their own rate), so the refusal is
+    here, where the same time base is needed, and before any simulation, not after NSGA-II
+    (or all of validate's simulations) as the comparison's own check came."""
+    for rec in recordings:
+        cond = rec.condition
+        rows = int(rec.time.size)
+        if cond.n_steps == rows:
+            continue
+        raise RailsuspInputError(
+            f"recording {cond.name!r}: condition.n_steps {cond.n_steps} samples its "
+            f"{cond.duration_s:g} s at {1.0 / cond.sample_interval:.6g} Hz, its table has {rows} "
+            f"rows at {rec.sampling_rate:.6g} Hz; {use} compares the simulated series with the "
+            f"table sample by sample: accepted condition.n_steps {rows} in its sidecar (the "
+            "table's rows), or the table resampled to the condition's rate"
+        )
+
+
 #: time-aligned error given to a prediction that is undefined (a failed simulation)
 FAILED_ALIGNED_ERROR = 1e3
 
@@ -211,7 +236,8 @@ class AlignedComparison:
             raise ValueError(
                 f"recording {self.recording.condition.name!r} has {self.n_samples} samples, "
                 f"the model predicts {pred.shape[-2]}: time-aligned comparison needs the same "
-                "time base"
+                "time base (the recording's condition.n_steps its table's rows; "
+                "check_time_base refuses it before any work)"
             )
 
     def error(self, pred: np.ndarray, gains: bool = False) -> np.ndarray:

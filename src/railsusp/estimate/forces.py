@@ -31,6 +31,29 @@ class ForceModel(Protocol):
         ...
 
 
+def check_parameters(
+    folder: Path, trained: dict[str, tuple[str, ...]], parameters: tuple[str, ...], given: bool
+) -> None:
+    """Refuse, in one line, key ``parameters`` that a surrogate of ``folder`` (``trained``:
+    condition -> its inputs) does not take: named as the setting ``parameters`` where the
+    caller ``given`` them (``--parameters`` on the command line), else as surrogates of one
+    folder trained on different inputs."""
+    for name, inputs in trained.items():
+        if inputs == parameters:
+            continue
+        if given:
+            raise RailsuspInputError(
+                f"parameters {','.join(parameters)}: the surrogate of condition {name!r} in "
+                f"{folder} takes {','.join(inputs)}; accepted those (or leave the parameters "
+                "out: the surrogates' own)"
+            )
+        raise RailsuspInputError(
+            f"{folder}: the surrogate of condition {name!r} takes {','.join(inputs)}, another "
+            f"{','.join(parameters)}; accepted a folder of surrogates trained on one set of "
+            "key parameters"
+        )
+
+
 def check_force_laws(folder: Path, metas: dict[str, dict]) -> None:
     """Refuse, in one line, surrogates trained on a campaign of other force laws than this
     railsusp simulates (their bundle's ``model_revision``, recorded since stop 60; bundles
@@ -66,11 +89,12 @@ class SurrogateForces:
         check_force_laws(self.folder, {n: m.meta for n, m in self._models.items()})
         first = next(iter(self._models.values()))
         self.parameters = tuple(parameters) if parameters else tuple(first.spec.parameters)
-        for name, m in self._models.items():
-            if tuple(m.spec.parameters) != self.parameters:
-                raise ValueError(
-                    f"surrogate {name} uses {m.spec.parameters}, the calibration {self.parameters}"
-                )
+        check_parameters(
+            self.folder,
+            {n: tuple(m.spec.parameters) for n, m in self._models.items()},
+            self.parameters,
+            given=bool(parameters),
+        )
 
     @property
     def conditions(self) -> list[str]:
@@ -151,6 +175,17 @@ class SurrogateForces:
             )
             out.update(zip(members, series, strict=True))
         return [out[i] if i in out else self.series(x_si, c) for i, c in enumerate(conditions)]
+
+    def series_condition(self, condition: WorkingCondition) -> WorkingCondition:
+        """The condition whose record :meth:`series` samples in ``condition``: that condition
+        where the network reads its measured track (and predicts on its time base), else the
+        network's own training condition, whose series it predicts whatever the
+        recording's record length and time step. Statistics of the series are taken at its
+        rate (a 50 Hz network's series read at a 100 Hz recording's interval put EN 14363's
+        2 m window and 20 Hz filter at twice their length and half their frequency)."""
+        if self.reads_track(condition):
+            return condition
+        return self._model_of(condition).condition
 
     def check_condition(self, condition: WorkingCondition, series: bool = True) -> None:
         """Refuse, in one line naming the field, its value and what the network was trained
@@ -289,16 +324,69 @@ class StatisticsForces:
         check_force_laws(self.folder, {n: m.meta for n, m in self._models.items()})
         first = next(iter(self._models.values()))
         self.parameters = tuple(parameters) if parameters else first.parameters
-        for name, m in self._models.items():
-            if m.parameters != self.parameters:
-                raise ValueError(
-                    f"statistics surrogate {name} uses {m.parameters}, the calibration "
-                    f"{self.parameters}"
-                )
+        check_parameters(
+            self.folder,
+            {n: m.parameters for n, m in self._models.items()},
+            self.parameters,
+            given=bool(parameters),
+        )
 
     @property
     def conditions(self) -> list[str]:
         return list(self._models)
+
+    def surrogate(self, name: str) -> Any:
+        """The :class:`~railsusp.surrogate.statistics.StatisticsSurrogate` of condition
+        ``name`` (its ``meta["wheel"]``: the wheel whose forces it predicts,
+        :func:`~railsusp.estimate.problem.model_wheel`)."""
+        return self._models[name]
+
+    @property
+    def wagon(self) -> Any:
+        """The wagon data the GPs' campaign simulated (their first bundle's), or None for
+        bundles saved before they recorded it (then no wagon is checked, as before)."""
+        return next(iter(self._models.values())).wagon
+
+    def check_condition(self, condition: WorkingCondition, statistics: Sequence[str] = ()) -> None:
+        """Refuse, in one line naming the recording and the field, a condition the GPs of
+        its name were not trained for (any field but the track's and the record length
+        where they were trained on synthesised track; the seed and stated accuracy alone on
+        a measured one), and, for the ``statistics`` that depend on the band the forces
+        are sampled in (:func:`~railsusp.estimate.statistics.rate_dependent`), another
+        sampling rate than the training's: a 100 Hz recording compared with the p99 of
+        50 Hz records, whose content stops at 20 Hz. Called before any optimisation."""
+        from railsusp.estimate.statistics import rate_dependent
+
+        model = self._models.get(condition.name)
+        if model is None:
+            raise RailsuspInputError(
+                f"recording {condition.name!r}: no statistics surrogate of that condition in "
+                f"{self.folder} (has {', '.join(self._models)})"
+            )
+        # Trained on synthesised track, the GPs predict the average over track realisations,
+        # whatever the recording's seed, length or measured track. Trained on a measured
+        # track, they hold for that stretch of track only.
+        ignore = (
+            ("seed", "track_accuracy_mm")  # the accuracy changes the comparison only
+            if model.condition.track_geometry is not None
+            else (*TRACK_INPUT_FIELDS, "duration_s", "n_steps")
+        )
+        diff = model.condition.differences(condition, ignore)
+        if diff:
+            raise RailsuspInputError(
+                f"the statistics surrogate for {condition.name!r} was trained for another "
+                f"condition: it differs in {', '.join(diff)}"
+            )
+        mine, theirs = 1.0 / model.condition.sample_interval, 1.0 / condition.sample_interval
+        bad = rate_dependent(statistics, mine, theirs)
+        if bad:
+            raise RailsuspInputError(
+                f"recording {condition.name!r}: statistic {'+'.join(bad)!r} depends on the "
+                f"sampling rate; its condition samples at {theirs:.6g} Hz (n_steps "
+                f"{condition.n_steps} over {condition.duration_s:g} s), the statistics "
+                f"surrogate in {self.folder} was trained at {mine:.6g} Hz: accepted the mean, "
+                "a recording at the training's rate, or surrogates trained at the recording's"
+            )
 
     def predict_statistics(
         self,
@@ -310,27 +398,8 @@ class StatisticsForces:
         """(n, 2, n_statistics) lateral and vertical statistics, kN; with ``with_std`` also
         their predictive standard deviation (GP uncertainty and the scatter between track
         realisations of a record of the training length)."""
-        if condition.name not in self._models:
-            raise ValueError(
-                f"no statistics surrogate for condition {condition.name!r} in {self.folder} "
-                f"(has {', '.join(self._models)})"
-            )
-        model = self._models[condition.name]
-        # Trained on synthesised track, the GPs predict the average over track realisations,
-        # whatever the recording's seed, length or measured track. Trained on a measured
-        # track, they hold for that stretch of track only.
-        ignore = (
-            ("seed", "track_accuracy_mm")  # the accuracy changes the comparison only
-            if model.condition.track_geometry is not None
-            else (*TRACK_INPUT_FIELDS, "duration_s", "n_steps")
-        )
-        diff = model.condition.differences(condition, ignore)
-        if diff:
-            raise ValueError(
-                f"the statistics surrogate for {condition.name!r} was trained for another "
-                f"condition: it differs in {', '.join(diff)}"
-            )
-        mean, std = model.predict(x_si, statistics)
+        self.check_condition(condition)
+        mean, std = self._models[condition.name].predict(x_si, statistics)
         return (mean, std) if with_std else mean
 
     def measurement_std(

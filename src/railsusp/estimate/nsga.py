@@ -10,6 +10,7 @@ mutation 0.05, 100 generations), and :func:`estimate` returns a
 from __future__ import annotations
 
 import logging
+import warnings
 from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
@@ -25,6 +26,7 @@ from pymoo.optimize import minimize
 from pymoo.util.display.multi import MultiObjectiveOutput
 
 from railsusp.errors import RailsuspInputError
+from railsusp.estimate.comparison import check_time_base
 from railsusp.estimate.config import (
     CHOICE_RULES,
     IDEAL_POINT,
@@ -40,6 +42,7 @@ from railsusp.estimate.forces import ForceModel, StatisticsForces
 from railsusp.estimate.identifiability import cramer_rao_pct_range
 from railsusp.estimate.problem import ERRORS, CalibrationProblem
 from railsusp.estimate.result import CalibrationResult
+from railsusp.estimate.statistics import ALIGNED, parse_statistics
 from railsusp.measured import Recording
 from railsusp.params import bounds
 
@@ -123,6 +126,8 @@ def estimate(
     :func:`~railsusp.estimate.nsga_geometry.polish_on_expected_forces`)."""
     cfg = NSGAConfig() if config is None else config
     check_drawable(model, recordings, cfg.expected_draws)  # before the generations
+    if ALIGNED in parse_statistics(cfg.statistic):  # the whole records', before a preview's
+        check_time_base(recordings, "the time-aligned comparison (statistic 'aligned')")
     if cfg.preview_generations:
         return _previewed(model, recordings, parameters, cfg, initial_si)
     return _search(model, recordings, parameters, cfg, initial_si)
@@ -158,6 +163,15 @@ def _previewed(
     n_preview = cfg.preview_generations
     plain = replace(cfg, preview_generations=0)
     heads = [r.head(cfg.preview_s) for r in recordings]
+    whole = [r for r, h in zip(recordings, heads, strict=True) if h is r]
+    if whole:  # said, not left to be found: the preview then saves nothing on them
+        warnings.warn(
+            f"preview_s {cfg.preview_s:g}: recording(s) "
+            + ", ".join(f"{r.condition.name!r} ({r.condition.duration_s:g} s)" for r in whole)
+            + f" are no longer, so the {n_preview} preview generation(s) compare the whole "
+            "record there",
+            stacklevel=3,
+        )
     log.info(
         "NSGA-II preview: %d of %d generations on the records' first %g s",
         n_preview, cfg.n_gen, cfg.preview_s,

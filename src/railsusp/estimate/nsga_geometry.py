@@ -35,6 +35,29 @@ def _geometry_error_applies(config: NSGAConfig, recordings: Sequence[Recording])
     return parse_statistics(config.statistic) == (ALIGNED,) and stated_accuracy(recordings)
 
 
+def geometry_draws_unused(config: NSGAConfig, recordings: Sequence[Recording], refine: bool) -> str:
+    """Why no step of an estimate draws the recordings' track-geometry error (neither
+    NSGA-II's SIMEX step, :func:`takes_geometry_bias`, nor the refinement's standard
+    errors, :func:`~railsusp.estimate.polish.refine_estimate`), so that its number of draws
+    and whether their bias is removed change nothing; '' where a step draws it."""
+    if not stated_accuracy(recordings):
+        return (
+            "no recording states its track geometry's accuracy (condition.track_accuracy_mm), "
+            "so no error is drawn"
+        )
+    if config.expected_draws:
+        return (
+            f"with expected_draws {config.expected_draws} the geometry's error is in the "
+            "comparison (the mean over drawn true tracks) instead"
+        )
+    if refine or parse_statistics(config.statistic) == (ALIGNED,):
+        return ""
+    return (
+        f"NSGA-II on statistic {config.statistic!r} draws none (only 'aligned' alone does) "
+        "and there is no refinement"
+    )
+
+
 def takes_geometry_bias(config: NSGAConfig, draws: int, recordings: Sequence[Recording]) -> bool:
     """Whether NSGA-II's estimate (run with ``config``) gets the geometry's error: it
     compared time-aligned forces alone (statistic ``aligned``: its choice is then the

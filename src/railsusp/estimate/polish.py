@@ -16,6 +16,7 @@ import numpy as np
 
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
+from railsusp.estimate.comparison import check_time_base
 from railsusp.estimate.config import NSGA_RANGES, REFINE_RANGES, check_count
 from railsusp.estimate.expected_forces import ExpectedForces
 from railsusp.estimate.forces import ForceModel, SimulatorForces, series_in_conditions
@@ -46,6 +47,7 @@ def check_refinable(recordings: Sequence[Recording], setting: str = "refine") ->
             "docs/data-format.md; synthetic recordings: synth-field --with-track or "
             "field.with_track = true); drop the refinement or give recordings on measured track"
         )
+    check_time_base(recordings, f"{setting} (the output-error refinement)")
 
 
 def aligned_cost(

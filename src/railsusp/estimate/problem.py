@@ -17,7 +17,7 @@ import numpy as np
 from pymoo.core.problem import Problem
 
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate.comparison import AlignedComparison
+from railsusp.estimate.comparison import AlignedComparison, check_time_base
 from railsusp.estimate.expected_forces import averaged_model
 from railsusp.estimate.forces import (
     ForceModel,
@@ -82,8 +82,7 @@ class CalibrationProblem(Problem):
             # on record statistics too: a network of the same name trained at another speed
             # (or grade, radius, ...) stood in for the recording's condition without a word
             # (the command-line audit of stop 60)
-            for r in self.recordings:
-                averaged_model(model).check_condition(r.condition, series=False)
+            check_sampling(averaged_model(model), self.recordings, self.stats)
         if gains and not self.aligned:
             raise RailsuspInputError(
                 f"channel gains with the statistic {statistic!r}: accepted only with the "
@@ -91,9 +90,14 @@ class CalibrationProblem(Problem):
             )
         if isinstance(model, StatisticsForces):
             check_statistics_model(self.stats)
+            for r in self.recordings:  # before any prediction, not in the first generation
+                model.check_condition(r.condition, self.stats)
         check_recordings(self.recordings, self.stats, self.aligned, weighting == "relative")
         check_measured_wheel(model, self.recordings, self.aligned)
         self.measured = [measured_statistics(rec, self.stats) for rec in self.recordings]
+        # the condition each prediction's series samples (a network's own training record,
+        # where it does not read the recording's track): its statistics are taken at its rate
+        self.sampled = [prediction_condition(model, r.condition) for r in self.recordings]
         # the measurement side of the time-aligned comparison, once, not every generation
         self.comparisons = [AlignedComparison(r) for r in self.recordings] if self.aligned else []
         n_obj = 2 * len(self.recordings) if per_condition else 2
@@ -116,7 +120,7 @@ class CalibrationProblem(Problem):
                 series = every[k]
                 err, g = self.comparisons[k].profiled(series, self.gains)
                 parts.append(err[:, :, None])
-                if self.stats:
+                if self.stats:  # on the recording's measured track: its time base
                     series = series * g[:, None, :] if self.gains else series
                     pred = series_statistics(series, rec.condition, self.stats)
                     parts.append(np.abs(pred - meas) / np.abs(meas))
@@ -129,7 +133,7 @@ class CalibrationProblem(Problem):
                 pred = (
                     force_statistics(self.model, x_si, rec.condition, self.stats)
                     if every is None
-                    else series_statistics(every[k], rec.condition, self.stats)
+                    else series_statistics(every[k], self.sampled[k], self.stats)
                 )
                 parts.append(np.abs(pred - meas) / np.abs(meas))
             errs.append(np.concatenate(parts, axis=2).mean(axis=2))
@@ -202,6 +206,46 @@ def check_recordings(
                     f"{'YQ'[c]} of wheel {wheel} is 0 kN; relative errors need a non-zero "
                     "measured statistic (use another statistic, or weighting 'noise')"
                 )
+
+
+def prediction_condition(model: ForceModel, condition: Any) -> Any:
+    """The condition whose record ``model``'s series in ``condition`` sample: a window
+    surrogate's own training condition where it predicts its training series
+    (:meth:`~railsusp.estimate.forces.SurrogateForces.series_condition`), else ``condition``
+    (the simulator, a network on the recording's measured track)."""
+    own = getattr(averaged_model(model), "series_condition", None)
+    return condition if own is None else own(condition)
+
+
+def check_sampling(
+    model: SurrogateForces, recordings: Sequence[Recording], statistics: Sequence[str]
+) -> None:
+    """Refuse, before any optimisation and in one line, a recording whose record statistics
+    a window surrogate cannot predict: a condition it was not trained on
+    (:meth:`~railsusp.estimate.forces.SurrogateForces.check_condition`; its time step too
+    where it reads the recording's measured track and predicts on its time base), and a
+    statistic that depends on the sampling rate
+    (:func:`~railsusp.estimate.statistics.rate_dependent`) where its series, its own
+    training record's, are sampled at another rate than the recording's condition: the
+    spread of 50 Hz series (content to 20 Hz) is not that of 100 Hz ones."""
+    from railsusp.estimate.statistics import rate_dependent
+
+    for r in recordings:
+        cond = r.condition
+        model.check_condition(cond, series=False)  # no surrogate of its name: refused here
+        if model.reads_track(cond):  # predicted on the recording's time base: the network's
+            model.check_condition(cond)
+        own = model.series_condition(cond)
+        mine, theirs = 1.0 / own.sample_interval, 1.0 / cond.sample_interval
+        bad = rate_dependent(statistics, mine, theirs)
+        if bad:
+            raise RailsuspInputError(
+                f"recording {cond.name!r}: statistic {'+'.join(bad)!r} depends on the sampling "
+                f"rate; its condition samples at {theirs:.6g} Hz (n_steps {cond.n_steps} over "
+                f"{cond.duration_s:g} s), the surrogate in {model.folder} predicts its "
+                f"training record at {mine:.6g} Hz: accepted the mean or p99.85, a recording "
+                "at the training's rate, or a surrogate trained at the recording's"
+            )
 
 
 def model_wheel(model: Any, condition: Any) -> str:
@@ -295,6 +339,7 @@ def check_aligned(model: Any, recordings: Sequence[Recording]) -> None:
             f"carry measured track geometry; {', '.join(blind)} do not (the field recordings "
             "need condition.track_geometry, docs/data-format.md)"
         )
+    check_time_base(recordings, "the time-aligned comparison (statistic 'aligned')")
 
 
 def display_values(parameters: Sequence[str], x_si: np.ndarray) -> dict[str, float]:

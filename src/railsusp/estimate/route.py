@@ -16,6 +16,7 @@ spells it (``--refine`` or ``estimate.refine``), what a later step cannot take.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
@@ -62,6 +63,7 @@ class EstimateRoute:
     slope_update: str = SIMULATED
     refine_setting: str = "refine"
     corrections_setting: str = "simulator_corrections"
+    held_prior_setting: str = "held_prior"
 
     def check(self, recordings: Sequence[Recording], model: ForceModel) -> None:
         """Refuse, in one line naming the setting, a refinement the recordings cannot take
@@ -89,6 +91,13 @@ class EstimateRoute:
         simulator of the packaged wagon, :class:`~railsusp.estimate.forces.SimulatorForces`;
         give one with ``wagon=`` for another wagon's data)."""
         self.check(recordings, model)
+        unused = self.held_prior.unused(parameters) if self.held_prior is not None else []
+        if unused:  # a pipeline's key parameters are found after its configuration is read
+            warnings.warn(
+                f"{self.held_prior_setting}: {', '.join(unused)} estimated, so its range is not "
+                "used (the refined intervals take a prior for held parameters only)",
+                stacklevel=2,
+            )
         cfg = self.nsga
         with progress(f"NSGA-II {cfg.pop_size} x {cfg.n_gen} on {len(recordings)} recording(s)"):
             res = estimate_with_seeds(model, recordings, parameters, cfg, n_seeds=self.seeds)

@@ -36,6 +36,30 @@ EN14363_MAX = "p99.85"
 STATISTICS = (*RECORD_STATISTICS, EN14363_MAX, ALIGNED)
 
 
+#: the record statistics whose value depends on the band a series is sampled in: the spread
+#: of the forces (a simulation sampled at 100 Hz keeps content to 40 Hz, one at 50 Hz to
+#: 20 Hz). The mean does not; EN 14363's maximum low-passes at 20 Hz first, so it does only
+#: where a rate puts that filter lower (below 44.4 Hz: :func:`rate_dependent`)
+SPREAD_STATISTICS = ("rms", "p99", "std")
+
+#: sampling rates closer than this (relative) are one rate (a record cut to whole steps)
+RATE_TOLERANCE = 1e-3
+
+
+def rate_dependent(statistics: Sequence[str], rate_hz: float, other_hz: float) -> list[str]:
+    """The statistics of ``statistics`` that differ between the same forces sampled at
+    ``rate_hz`` and at ``other_hz`` (none where the rates agree to :data:`RATE_TOLERANCE`):
+    the spread statistics (:data:`SPREAD_STATISTICS`), and :data:`EN14363_MAX` where its
+    low-pass is not the same 20 Hz at both rates (at most 0.45 of a rate)."""
+    if abs(rate_hz / other_hz - 1.0) <= RATE_TOLERANCE:
+        return []
+    out = [st for st in statistics if st in SPREAD_STATISTICS]
+    cut_a, cut_b = (min(FORCE_CUTOFF_HZ, 0.45 * r) for r in (rate_hz, other_hz))
+    if EN14363_MAX in statistics and abs(cut_a / cut_b - 1.0) > RATE_TOLERANCE:
+        out.append(EN14363_MAX)
+    return out
+
+
 #: how a statistic's mismatch enters an objective: relative error (the study's), or the
 #: mismatch in units of the statistics surrogate's predictive standard deviation (GP
 #: uncertainty plus track-realisation scatter), which weights precise features more

@@ -229,8 +229,11 @@ def _on_the_table(
     problems: list[str],
 ) -> WorkingCondition | None:
     """The sidecar's condition against the table it describes (``rows`` at ``rate`` Hz):
-    its ``duration_s`` must be the table's (its ``n_steps`` may sample it at another rate),
-    since the estimate simulates the condition's record and compares it with the table (a
+    its ``duration_s`` must be the table's (its ``n_steps`` may sample it at another rate:
+    record statistics are each taken at their own rate; what compares the simulation with
+    the table sample by sample refuses it before any work,
+    :func:`~railsusp.estimate.comparison.check_time_base`), since the estimate simulates the
+    condition's record and compares it with the table (a
     4 s condition on a 1 s table compared 4 s of simulation with 1 s of measurement,
     silently). A condition that states neither (the documented sidecar's), or a standard
     one named by ``condition_name``, takes the table's record (before, the default 20 s of

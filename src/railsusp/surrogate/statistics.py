@@ -73,6 +73,24 @@ class StatisticsSurrogate:
         return sd[:, [self.statistics.index(s) for s in stats]]
 
     @property
+    def wagon(self):
+        """The wagon data its campaign simulated (``meta["wagon"]``, saved since the
+        estimate's audit of stop 63), or None for a bundle saved before (no wagon is checked
+        against it, as before); one that this railsusp cannot read is refused in one line."""
+        from railsusp.vehicle.wagon import WagonData
+
+        fields = (self.meta or {}).get("wagon")
+        if fields is None:
+            return None
+        try:
+            return WagonData.model_validate(fields)
+        except ValueError:
+            raise ValueError(
+                f"statistics surrogate of {self.condition.name!r}: its wagon description is "
+                "not one this railsusp reads: train it again on its campaign"
+            ) from None
+
+    @property
     def training_segments(self) -> int:
         """Statistic segments in one training record (after the first window)."""
         n = self.condition.n_steps - self.gp.spec.window
@@ -142,7 +160,12 @@ def train_statistics_surrogate(
         data.condition,
         {
             "campaign": str(camp.path.resolve()),
+            "campaign_hash": camp.config.hash(),
             "model_revision": camp.model_revision,  # the force laws it learnt
+            # the wheel whose forces it predicts and the wagon simulated, checked against
+            # the recordings and the estimate's wagon as a window surrogate's are
+            "wheel": camp.config.wheel,
+            "wagon": camp.config.wagon.model_dump(mode="json"),
             "n_train": int(data.n_samples),
             "independent_seeds": bool(len(np.unique(data.seeds)) > 1),
             "assumed_parameters": assumed_parameters(
