@@ -64,6 +64,14 @@ def main() -> None:
     ap.add_argument("--out", default="bench/results/rescore_networks.json")
     ap.add_argument("--restamp", metavar="NOTE", help="carry the set over (docstring)")
     args = ap.parse_args()
+    # before the campaign, the twins and the scoring (minutes to hours): it was checked after
+    if args.restamp is not None and args.wagon_fields != "today":
+        ap.error(
+            f"--restamp with --wagon-fields {args.wagon_fields}: accepted with the campaign "
+            "of today's wagon only (--wagon-fields today)"
+        )
+    if args.restamp is not None and not args.restamp.strip():
+        ap.error("--restamp NOTE: accepted a note that is not empty (why the set serves today)")
     ns = read_network_set(args.set)
     bench = _tracks_bench()
     first = load(ns.bundle(ns.conditions[0]))
@@ -110,9 +118,7 @@ def main() -> None:
         },
     )
     print(f"wrote {out}")
-    if args.restamp:
-        if args.wagon_fields != "today":
-            ap.error("--restamp: accepted with the campaign of today's wagon only")
+    if args.restamp is not None:
         restamp(args, ns, pd.DataFrame(rows))
 
 

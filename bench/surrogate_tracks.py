@@ -594,8 +594,8 @@ def main() -> None:
     )
     ap.add_argument(
         "--nominal-kinds",
-        default="cnn-gru",
-        help="with --nominal: the kinds trained on the nominal response (cnn-gru, cnn-gru-seq)",
+        help="with --nominal: the kinds trained on the nominal response (cnn-gru, cnn-gru-seq; "
+        "default cnn-gru)",
     )
     ap.add_argument(
         "--dropout", type=float, help="with --nominal: dropout of those networks (study: 0.2)"
@@ -608,10 +608,9 @@ def main() -> None:
     )
     ap.add_argument(
         "--nominal-context",
-        default="none",
         help="with --nominal: more channels of the nominal wagon's response as inputs of "
-        "those networks: none, all (every wheel's Y and Q, the car body's accelerations) or "
-        "a comma list",
+        "those networks: none (the default), all (every wheel's Y and Q, the car body's "
+        "accelerations) or a comma list",
     )
     ap.add_argument(
         "--pair-weight",
@@ -620,9 +619,13 @@ def main() -> None:
         help="with --nominal --nominal-kinds cnn-gru-seq --models '': gradient-enhanced "
         "training, weight of the pair term on the campaign's perturbed twins (made first)",
     )
-    ap.add_argument("--pair-twins", type=int, default=1, help="perturbed twins per sample")
     ap.add_argument(
-        "--pair-step", type=float, default=DEFAULT_STEP, help="their step, fraction of range"
+        "--pair-twins", type=int, help="with --pair-weight: perturbed twins per sample (1)"
+    )
+    ap.add_argument(
+        "--pair-step",
+        type=float,
+        help=f"with --pair-weight: their step, fraction of range ({DEFAULT_STEP})",
     )
     ap.add_argument(
         "--init-from",
@@ -644,9 +647,8 @@ def main() -> None:
     )
     ap.add_argument(
         "--tag",
-        default="",
-        help="with --dropout/--rnn-hidden/--dense/--nominal-context/--pair-weight/--init-from: "
-        "suffix of their folder names",
+        help="with --nominal (and --dropout/--rnn-hidden/--dense/--nominal-context/"
+        "--pair-weight/--init-from): suffix of their folder names",
     )
     ap.add_argument("--train-conditions", help="conditions whose models are trained (default: all)")
     ap.add_argument("--threads", type=int, default=2, help="torch threads for throughput")
@@ -659,6 +661,32 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3, help="timed predict calls, best kept")
     ap.add_argument("--out", default="bench/results/surrogate_tracks.json")
     args = ap.parse_args()
+    # the options of the networks reading the nominal response, None where not given (a
+    # default typed out is given as well): without --nominal they were all ignored
+    nominal_only = [
+        option
+        for option, value in (
+            ("--nominal-kinds", args.nominal_kinds),
+            ("--dropout", args.dropout),
+            ("--rnn-hidden", args.rnn_hidden),
+            ("--dense", args.dense),
+            ("--nominal-context", args.nominal_context),
+            ("--init-from", args.init_from),
+            ("--init-inputs", args.init_inputs or None),
+            ("--tag", args.tag),
+        )
+        if value is not None
+    ]
+    args.nominal_kinds = "cnn-gru" if args.nominal_kinds is None else args.nominal_kinds
+    args.nominal_context = "none" if args.nominal_context is None else args.nominal_context
+    args.tag = "" if args.tag is None else args.tag
+    pair_only = [
+        option
+        for option, value in (("--pair-twins", args.pair_twins), ("--pair-step", args.pair_step))
+        if value is not None
+    ]
+    args.pair_twins = 1 if args.pair_twins is None else args.pair_twins
+    args.pair_step = DEFAULT_STEP if args.pair_step is None else args.pair_step
     lo, hi = parse_range(args.classes, "--classes")
     cfg = tracks_config(
         args.samples,
@@ -687,6 +715,10 @@ def main() -> None:
         )
     except RailsuspInputError as exc:
         ap.error(str(exc).replace("training max_seconds", "--max-minutes (in s)"))
+    try:
+        check_perturbation(args.pair_step, args.pair_twins)
+    except CampaignError as exc:
+        ap.error(f"--pair-step/--pair-twins: {exc}")
     seconds: dict[str, float] = {}
     state: dict = {"t": None, "m": None}
 
@@ -738,11 +770,31 @@ def main() -> None:
         )
     if args.init_inputs and not args.init_from:
         ap.error("--init-inputs: accepted only with --init-from")
+    if nominal_only and not args.nominal:
+        ap.error(
+            f"{', '.join(nominal_only)}: accepted only with --nominal (they set the networks "
+            "that read the nominal response)"
+        )
+    if pair_only and not args.pair_weight:
+        ap.error(f"{', '.join(pair_only)}: accepted only with --pair-weight above 0")
     trained = (
         args.train_conditions.split(",")
         if args.train_conditions
         else [c.name for c in cfg.conditions]
     )
+    if args.init_from and not args.prepare_only:  # read after the campaign's minutes
+        missing = [
+            c
+            for c in trained
+            if not (Path(args.run) / "surrogates" / args.init_from / c / "surrogate.json").is_file()
+        ]
+        if missing:
+            ap.error(
+                f"--init-from {args.init_from}: no network saved under "
+                f"{Path(args.run) / 'surrogates' / args.init_from}/<condition>/ for "
+                f"{', '.join(missing)}; accepted a folder of RUN/surrogates/ holding one per "
+                "condition trained"
+            )
     why = check_scored(args.score, trained, cfg.simulated_parameters, args.nominal)
     if why:
         ap.error(why)
@@ -750,10 +802,6 @@ def main() -> None:
         if args.train_threads < 1:
             ap.error(f"--train-threads {args.train_threads}: accepted an integer >= 1")
         torch.set_num_threads(args.train_threads)
-    try:
-        check_perturbation(args.pair_step, args.pair_twins)
-    except CampaignError as exc:
-        ap.error(f"--pair-step/--pair-twins: {exc}")
     # options are checked above, before the campaign's minutes are spent
     t0 = time.perf_counter()
     print(f"campaign: {cfg.n_runs} samples x {len(cfg.conditions)} conditions into {args.run}")

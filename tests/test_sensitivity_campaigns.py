@@ -74,3 +74,50 @@ def test_the_pipeline_refuses_a_campaign_too_small_for_the_metamodel():
     with pytest.raises((RailsuspInputError, ValueError), match="samples"):
         CampaignSection(samples=MIN_METAMODEL_RUNS - 1)
     CampaignSection(samples=MIN_METAMODEL_RUNS)
+
+
+# ---------------------------------------------------------------- the options audit
+def _cli_error(args: list) -> str:
+    """The one error line of a refused ``railsusp`` command (exit status 2)."""
+    from typer.testing import CliRunner
+
+    from railsusp.cli import app
+
+    result = CliRunner().invoke(app, [str(a) for a in args])
+    assert result.exit_code == 2, result.output
+    lines = [line for line in result.output.splitlines() if line.strip()]
+    assert len(lines) == 1, result.output
+    return lines[0]
+
+
+def test_base_samples_on_a_saltelli_campaign_is_refused_not_ignored(tmp_path, lhs_run):
+    """A Saltelli campaign is analysed directly: --base-samples (the metamodel's N) was
+    accepted and not used. With an LHS campaign to compare against, it is used there."""
+    from railsusp.campaign import CampaignConfig
+    from railsusp.errors import RailsuspInputError
+    from railsusp.vehicle.wagon import load_wagon
+
+    kw = {"design": "sobol", "batch_size": 8, "seed": 1, "parameters": ("X13", "X14")}
+    cfg = CampaignConfig(conditions=tuple(SHORT), samples=2, wagon=load_wagon(), **kw)
+    run_campaign(cfg, tmp_path / "sob", max_batches=0)  # its configuration is enough
+    line = _cli_error(["sensitivity", tmp_path / "sob", "--base-samples", "64"])
+    assert line.startswith("error: --base-samples 64: accepted only where a campaign is analysed")
+    assert "Saltelli (sobol design) campaign" in line
+    with pytest.raises(RailsuspInputError, match="^base_samples 2048: accepted only where"):
+        analyse(tmp_path / "sob", base_samples=2048)
+    # not given: the campaign's own state is what stops it (here: no batch ran)
+    assert "--base-samples" not in _cli_error(["sensitivity", tmp_path / "sob"])
+    with pytest.raises(CampaignError, match="incomplete"):  # used on the compared LHS one
+        analyse(tmp_path / "sob", base_samples=64, compare=lhs_run)
+
+
+def test_the_compared_run_and_the_key_statistics_are_named_as_typed(lhs_run, tmp_path):
+    """--compare /nonexistent failed after the analysis without naming --compare;
+    --key-statistics foo was reported as --statistics foo."""
+    line = _cli_error(["sensitivity", lhs_run, "--compare", tmp_path / "none"])
+    assert line.startswith(f"error: --compare {tmp_path / 'none'}: ")
+    assert "is not a campaign run directory" in line
+    line = _cli_error(["sensitivity", lhs_run, "--key-statistics", "foo"])
+    assert line.startswith("error: --key-statistics foo: accepted one or more of mean")
+    line = _cli_error(["sensitivity", lhs_run, "--statistics", "foo"])
+    assert line.startswith("error: --statistics foo: accepted one or more of mean")

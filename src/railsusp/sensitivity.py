@@ -316,6 +316,8 @@ def agreement(a: pd.DataFrame, b: pd.DataFrame) -> pd.DataFrame:
 #: evaluations: 65 536 with ten parameters is 1.4 million); the configuration's
 #: ``[sensitivity] base_samples`` has the same bounds
 BASE_SAMPLES = (64, 65_536)
+#: the Saltelli N on the metamodels when none is given
+DEFAULT_BASE_SAMPLES = 2048
 
 
 def check_settings(
@@ -332,7 +334,9 @@ def check_settings(
     The statistics are the campaign's features' (:data:`railsusp.campaign.STATISTICS`);
     the key rule's are among those analysed (one that is not had no indices: the keys
     rested on the others while the rule text named it)."""
-    for name, chosen in (("statistics", statistics), ("key_statistics", key_statistics)):
+    # the key rule's first: the command line adds them to the statistics analysed, so that
+    # an unknown one was named as the ``--statistics`` the user did not type
+    for name, chosen in (("key_statistics", key_statistics), ("statistics", statistics)):
         unknown = [st for st in chosen if st not in STATISTICS]
         if not chosen or unknown:
             raise RailsuspInputError(
@@ -359,6 +363,14 @@ def check_settings(
         raise RailsuspInputError(f"seed {seed}: accepted 0 or more")
 
 
+def _compared(compare: str | Path, check):
+    """``check(compare)``, its campaign error naming the setting ``compare``."""
+    try:
+        return check(compare)
+    except CampaignError as exc:
+        raise CampaignError(f"compare {compare}: {exc}") from None
+
+
 def analyse(
     run: str | Path,
     *,
@@ -367,7 +379,7 @@ def analyse(
     key_statistics: Sequence[str] = ("mean", "p99"),
     max_keys: int = 6,
     min_cv: float = 0.005,
-    base_samples: int = 2048,
+    base_samples: int | None = None,
     seed: int = 0,
     compare: str | Path | None = None,
 ) -> dict:
@@ -376,11 +388,30 @@ def analyse(
     A Saltelli campaign is analysed directly, any other through metamodels. Key parameters by
     :func:`select_key_parameters` over ``key_statistics``. ``compare``: a second run
     directory analysed the same way, whose indices are set against these.
+    ``base_samples``: the Saltelli N on the metamodels (default
+    :data:`DEFAULT_BASE_SAMPLES`); refused where no campaign analysed has one (Saltelli
+    campaigns alone are read directly, so a value given would go unused).
     """
     from railsusp.campaign import load_campaign, require_complete
 
-    check_settings(statistics, threshold, key_statistics, max_keys, min_cv, base_samples, seed)
-    camp = require_complete(load_campaign(run))  # part of it: a condition left out silently
+    n_base = DEFAULT_BASE_SAMPLES if base_samples is None else base_samples
+    check_settings(statistics, threshold, key_statistics, max_keys, min_cv, n_base, seed)
+    camp = load_campaign(run)
+    # the comparison campaign checked before any analysis: a --compare naming no campaign,
+    # or an unfinished one, was found after this campaign's analysis, without its option
+    other = None if compare is None else _compared(compare, load_campaign)
+    if base_samples is not None and all(
+        c.config.design == "sobol" for c in (camp, other) if c is not None
+    ):
+        raise RailsuspInputError(
+            f"base_samples {base_samples}: accepted only where a campaign is analysed "
+            f"through metamodels (an LHS design); {camp.path} is a Saltelli (sobol design) "
+            "campaign, analysed directly"
+        )
+    base_samples = n_base
+    require_complete(camp)  # part of it: a condition left out silently
+    if other is not None:
+        _compared(compare, lambda _: require_complete(other))
     out = camp.path / "sensitivity"
     fits: list[MetamodelFit] = []
 
@@ -405,7 +436,7 @@ def analyse(
     # conditions without any dropped; one of other force laws compared another model)
     agree = None
     if compare is not None:
-        agree = agreement(idx, indices_of(require_complete(load_campaign(compare)))[0])
+        agree = agreement(idx, indices_of(other)[0])
     write_parquet(out / "indices.parquet", idx, metadata={INDICES_STAMP: camp.config.hash()})
     write_csv(out / "indices.csv", idx)
     write_json(out / "indices.json", idx.to_dict(orient="records"))

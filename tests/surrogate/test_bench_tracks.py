@@ -144,6 +144,24 @@ def test_targets_are_judged_per_run_in_every_condition(bench):
             r"fine_tune_lr_factor = 2.0: accepted",
         ),
         (["--init-inputs", "--tag", "x"], "--init-inputs: accepted only with --init-from"),
+        # the nominal networks' options without --nominal were ignored (exit 0 after training
+        # the others), and an --init-from naming nothing was found after the campaign ran
+        (
+            ["--dropout", "0.1", "--tag", "x"],
+            r"--dropout, --tag: accepted only with --nominal \(they set the networks",
+        ),
+        (["--nominal-kinds", "cnn-gru"], "error: --nominal-kinds: accepted only with --nominal"),
+        (
+            ["--init-from", "nothing_here", "--init-inputs", "--tag", "x"],
+            "--init-from, --init-inputs, --tag: accepted only with --nominal",
+        ),
+        (["--nominal-context", "none"], "--nominal-context: accepted only with --nominal"),
+        (["--pair-twins", "2"], "--pair-twins: accepted only with --pair-weight above 0"),
+        (
+            ["--nominal", "--init-from", "nothing_here", "--tag", "x"],
+            r"--init-from nothing_here: no network saved under .*nothing_here/<condition>/ for "
+            "straight, curve, uphill",
+        ),
         (["--score", "/nowhere/set"], "--score /nowhere/set: accepted a folder of saved networks"),
         (["--score", SHIPPED], "its straight network reads the nominal response; accepted with"),
         (
@@ -161,6 +179,11 @@ def test_bad_options_are_refused_before_the_campaign_runs(
 
     run = tmp_path / "never"
     monkeypatch.setattr(sys, "argv", ["surrogate_tracks.py", "--run", str(run), *options])
+
+    def ran(*args, **kw):
+        raise AssertionError("the campaign ran")
+
+    monkeypatch.setattr(bench, "run_campaign", ran)
     with pytest.raises(SystemExit) as exc:
         bench.main()
     assert exc.value.code == 2

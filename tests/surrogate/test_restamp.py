@@ -126,3 +126,40 @@ def test_a_network_of_other_force_laws_is_not_written_into_a_set_of_today_s(tmp_
             accuracy=_scored(),
             reproduce=[],
         )
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (
+            ["--restamp", "NOTE", "--wagon-fields", "before-2026-11-30.2"],
+            "--restamp with --wagon-fields before-2026-11-30.2: accepted with the campaign of "
+            "today's wagon only",
+        ),
+        (["--restamp", " "], "--restamp NOTE: accepted a note that is not empty"),
+    ],
+)
+def test_the_rescore_bench_refuses_a_restamp_before_its_campaign(
+    tmp_path, monkeypatch, capsys, options, message
+):
+    """bench/rescore_networks.py refused --restamp with the wagon of before only after the
+    campaign, the nominal twins and the scoring had run (minutes to hours); an empty NOTE
+    restamped nothing, silently."""
+    import sys
+
+    from conftest import bench_script
+
+    bench = bench_script("rescore_networks")
+
+    def ran(*args, **kw):
+        raise AssertionError("the campaign ran")
+
+    monkeypatch.setattr(bench, "run_campaign", ran)
+    run = tmp_path / "never"
+    argv = ["rescore_networks.py", "--set", resolve_network_set("c80_k6"), "--run", run]
+    monkeypatch.setattr(sys, "argv", [str(a) for a in [*argv, *options]])
+    with pytest.raises(SystemExit) as exc:
+        bench.main()
+    assert exc.value.code == 2
+    assert message in capsys.readouterr().err
+    assert not run.exists()

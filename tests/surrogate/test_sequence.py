@@ -145,18 +145,24 @@ def test_the_sampler_follows_the_kind():
 
 
 def _train(
-    epochs: int, checkpoint=None, seed: int = 3, batches: int = 4, net_cfg: NetConfig | None = None
+    epochs: int,
+    checkpoint=None,
+    seed: int = 3,
+    batches: int = 4,
+    net_cfg: NetConfig | None = None,
+    batch_size: int = 512,
 ) -> tuple[dict, list]:
     train, val = _data(8, 0), _data(4, 1)
     norm = Normaliser.fit(train)
     tcfg = TrainConfig(
         epochs=epochs,
+        batch_size=batch_size,
         batches_per_epoch=batches,
         chunk_steps=25,
         chunks_per_batch=8,
         val_windows=200,
         learning_rate=1e-2,
-        patience=epochs,
+        patience=10,  # not the epochs: a resume under raised epochs keeps its key
         seed=seed,
     )
     torch.manual_seed(np.random.default_rng().integers(1000))  # the global state must not count
@@ -175,15 +181,54 @@ def _same(a: dict, b: dict) -> bool:
     return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
 
 
-def test_training_is_seeded_and_a_resumed_training_equals_an_uninterrupted_one(tmp_path):
+@pytest.fixture
+def trained_epochs(monkeypatch):
+    """The epochs each training actually runs (a resumed one: those after its checkpoint):
+    a fresh training gives a resumed one's numbers, so only this tells that it resumed."""
+    import railsusp.surrogate.train as train_mod
+
+    count = [0]
+    real = train_mod._train_epoch
+
+    def epoch(*args):
+        count[0] += 1
+        return real(*args)
+
+    monkeypatch.setattr(train_mod, "_train_epoch", epoch)
+
+    def take() -> int:
+        n, count[0] = count[0], 0
+        return n
+
+    return take
+
+
+def test_training_is_seeded_and_a_resumed_training_equals_an_uninterrupted_one(
+    tmp_path, trained_epochs
+):
     whole, h_whole = _train(4)
     ck = tmp_path / "checkpoint.pt"
     half, _ = _train(2, ck)
+    before = torch.load(ck, weights_only=True)["history"]
+    trained_epochs()
     resumed, h_res = _train(4, ck)
+    # it resumed: two epochs trained, the first two the checkpoint's (their own seconds)
+    assert trained_epochs() == 2 and h_res[:2] == before
     assert [h["val_loss"] for h in h_res] == [h["val_loss"] for h in h_whole]
     assert _same(resumed, whole) and not _same(half, whole)
     other, _ = _train(2, seed=4)
     assert not _same(other, half)
+
+
+def test_the_window_count_batch_size_does_not_restart_a_chunk_training(tmp_path, trained_epochs):
+    """cnn-gru-seq draws ``chunks_per_batch`` chunks per mini-batch and never reads
+    ``batch_size``: another ``--batch-size`` retrained its checkpoint from epoch 1 (it was
+    in the key; the surrogate options audit)."""
+    ck = tmp_path / "checkpoint.pt"
+    _train(2, ck)
+    trained_epochs()
+    _, h = _train(3, ck, batch_size=7)
+    assert trained_epochs() == 1 and len(h) == 3
 
 
 def test_a_short_training_learns_the_lagged_response():
@@ -302,7 +347,10 @@ def test_the_cli_trains_the_kind_and_refuses_a_washout_as_long_as_the_records(tr
     result = CliRunner().invoke(app, ["train", str(run), "--model", "cnn-gru-seq"])
     assert result.exit_code == 2, result.output
     errors = [line for line in result.output.splitlines() if line.startswith("error:")]
-    assert errors == ["error: washout (window) = 100 steps: accepted fewer than the series' 100"]
+    assert errors == [
+        "error: --window 100 steps (the default of cnn-gru-seq): accepted 2 to 99, fewer than "
+        "the 100 steps of the series of condition 'straight'"
+    ]
 
 
 def _test_data(sur, run):

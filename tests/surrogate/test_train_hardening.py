@@ -3,12 +3,14 @@ without running code, settings that would train nothing refused."""
 
 from __future__ import annotations
 
+import logging
 import pickle
 
 import numpy as np
 import pytest
 import torch
 
+import railsusp.surrogate.train as train_mod
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.surrogate.data import FeatureSpec, Normaliser, SeriesData
@@ -44,7 +46,14 @@ def _train(epochs: int, checkpoint=None, kind: str = "cnn-gru", **settings) -> t
     torch.manual_seed(np.random.default_rng().integers(1000))  # the global state must not count
     net = build_network(cfg)
     tcfg = TrainConfig(
-        epochs=epochs, batches_per_epoch=3, batch_size=16, val_windows=50, seed=3, **settings
+        **{
+            "epochs": epochs,
+            "batches_per_epoch": 3,
+            "batch_size": 16,
+            "val_windows": 50,
+            "seed": 3,
+            **settings,
+        }
     )
     hist = train_network(
         net,
@@ -60,6 +69,31 @@ def _same(a: dict, b: dict) -> bool:
     return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
 
 
+@pytest.fixture
+def trained_epochs(monkeypatch):
+    """The epochs each training actually runs (a resumed one: those after its checkpoint),
+    counted: a fresh training gives the same numbers as a resumed one, so only this tells
+    that a resume resumed."""
+    count = [0]
+    real = train_mod._train_epoch
+
+    def epoch(*args):
+        count[0] += 1
+        return real(*args)
+
+    monkeypatch.setattr(train_mod, "_train_epoch", epoch)
+
+    def take() -> int:
+        n, count[0] = count[0], 0
+        return n
+
+    return take
+
+
+def _checkpoint_history(ck) -> list[dict]:
+    return torch.load(ck, weights_only=True)["history"]
+
+
 def test_two_cpu_trainings_with_one_seed_give_identical_weights():
     w1, h1 = _train(3)
     w2, h2 = _train(3)
@@ -67,10 +101,15 @@ def test_two_cpu_trainings_with_one_seed_give_identical_weights():
     assert [h["val_loss"] for h in h1] == [h["val_loss"] for h in h2]
 
 
-def test_interrupted_and_resumed_training_equals_an_uninterrupted_one(tmp_path):
+def test_interrupted_and_resumed_training_equals_an_uninterrupted_one(tmp_path, trained_epochs):
     ck = tmp_path / "checkpoint.pt"
     _train(2, ck)  # "killed" after two epochs: the checkpoint holds epoch 2
+    before = _checkpoint_history(ck)
+    trained_epochs()
     resumed, h_res = _train(4, ck)
+    # it resumed: two epochs trained, the first two the checkpoint's (their own seconds)
+    assert trained_epochs() == 2
+    assert h_res[:2] == before
     whole, h_whole = _train(4)
     assert len(h_res) == len(h_whole) == 4
     assert [h["val_loss"] for h in h_res] == [h["val_loss"] for h in h_whole]
@@ -184,8 +223,43 @@ def test_a_checkpoint_past_its_main_phase_under_other_epochs_trains_afresh(tmp_p
     assert _same(resumed, whole)
 
 
-def test_a_main_phase_still_running_trains_on_under_raised_epochs(tmp_path):
+def test_a_main_phase_still_running_trains_on_under_raised_epochs(tmp_path, trained_epochs):
     ck = tmp_path / "checkpoint.pt"
     _train(2, ck)  # main phase only, interrupted or finished at 2
+    before = _checkpoint_history(ck)
+    trained_epochs()
     _, h_res = _train(5, ck)
     assert [e["epoch"] for e in h_res] == [1, 2, 3, 4, 5]
+    assert trained_epochs() == 3 and h_res[:2] == before  # trained on, not afresh
+
+
+def test_a_resume_under_other_settings_says_what_differs(tmp_path, caplog, trained_epochs):
+    """The surrogate options audit: a resume with another batch size started from epoch 1 without a
+    word (the checkpoint's key differed; no saved network yet to note as replaced)."""
+    ck = tmp_path / "checkpoint.pt"
+    _train(2, ck)
+    trained_epochs()
+    with caplog.at_level(logging.WARNING, logger="railsusp.surrogate.train"):
+        _train(2, ck, batch_size=8)
+    assert trained_epochs() == 2
+    lines = [r.getMessage() for r in caplog.records]
+    assert len(lines) == 1
+    assert "of other settings (batch_size 16 -> 8); training starts afresh" in lines[0]
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="railsusp.surrogate.train"):
+        _train(2, ck, batch_size=8, seed=4)
+    assert "(seed 3 -> 4)" in caplog.records[0].getMessage()
+
+
+def test_device_auto_on_a_machine_without_cuda_resumes_a_cpu_checkpoint(
+    tmp_path, monkeypatch, trained_epochs
+):
+    """The key held the device as typed: ``--device auto`` without CUDA trains on the CPU
+    as ``cpu`` does, yet retrained a ``cpu`` checkpoint from epoch 1 (the surrogate options
+    audit)."""
+    monkeypatch.setattr(train_mod.torch.cuda, "is_available", lambda: False)
+    ck = tmp_path / "checkpoint.pt"
+    _train(2, ck)
+    trained_epochs()
+    _, h = _train(3, ck, device="auto")
+    assert trained_epochs() == 1 and len(h) == 3

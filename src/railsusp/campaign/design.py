@@ -202,7 +202,9 @@ def saltelli_issue(config: CampaignConfig) -> str | None:
 def make_config(conditions: Sequence[WorkingCondition], samples: int, **kw: Any) -> CampaignConfig:
     """A validated campaign configuration; errors name the field (one line). A Saltelli
     design that its Sobol analysis would refuse (:func:`saltelli_issue`) is refused here,
-    before its runs are spent (a stored campaign still loads: the analysis refuses it)."""
+    before its runs are spent (a stored campaign still loads: the analysis refuses it), and
+    so is ``second_order`` with a design other than ``sobol`` (nothing would use it, yet it
+    changes the configuration's hash; a stored one still loads)."""
     from pydantic import ValidationError
 
     wagon = kw.pop("wagon", None) or load_wagon()
@@ -218,6 +220,11 @@ def make_config(conditions: Sequence[WorkingCondition], samples: int, **kw: Any)
     issue = saltelli_issue(config)
     if issue:
         raise CampaignError(f"campaign configuration: {issue}")
+    if config.second_order and config.design != "sobol":  # stored, unused, in the hash
+        raise CampaignError(
+            f"campaign configuration: second_order: accepted only with design sobol (a "
+            f"Saltelli design), not {config.design}"
+        )
     return config
 
 

@@ -41,9 +41,10 @@ def campaign(
     seed: Annotated[int, typer.Option(help="design seed")] = 0,
     design: Annotated[str, typer.Option(help="lhs, lhs-optimised or sobol (Saltelli)")] = "lhs",
     second_order: Annotated[bool, typer.Option(help="Saltelli with second order")] = False,
-    parameters: Annotated[str, typer.Option(help="sampled subset, others nominal")] = (
-        "X11,X12,X13,X14,X15,X16,X17,X18,X19,X20"
-    ),
+    parameters: Annotated[
+        str | None,
+        typer.Option(help="sampled subset, others nominal (default: X11..X20, all ten)"),
+    ] = None,
     keys_from: Annotated[
         Path | None,
         typer.Option(
@@ -112,6 +113,11 @@ def campaign(
             raise RailsuspInputError(f"--workers = {workers}: accepted an integer >= 1")
         if max_batches is not None and max_batches < 0:
             raise RailsuspInputError(f"--max-batches = {max_batches}: accepted an integer >= 0")
+        if second_order and design != "sobol":  # stored, unused, yet in the run's hash
+            raise RailsuspInputError(
+                f"--second-order: accepted only with --design sobol (a Saltelli design), "
+                f"not {design}"
+            )
         check_output_folder(out)
         # the folder for the command's duration (run_campaign's own lock is lent to it),
         # and the run whose key parameters are read, as no process rewrites them meanwhile
@@ -119,7 +125,13 @@ def campaign(
             creates=[("--out", out)],
             reads=[("--keys-from", keys_from)] if keys_from is not None else [],
         )
-        sampled = tuple(p.strip() for p in parameters.split(",") if p.strip())
+        from railsusp.params import MAIN_SUSPENSION
+
+        sampled = (
+            tuple(p.strip() for p in parameters.split(",") if p.strip())
+            if parameters is not None
+            else tuple(MAIN_SUSPENSION)
+        )
         if keys_from is not None:
             sampled = _sensitivity_keys(keys_from, parameters)
             console.print(f"sampling the key parameters of {keys_from}: {', '.join(sampled)}")
@@ -286,13 +298,14 @@ def _report_failures(out: Path, total: int) -> None:
     raise typer.Exit(1)
 
 
-def _sensitivity_keys(run: Path, parameters: str) -> tuple[str, ...]:
+def _sensitivity_keys(run: Path, parameters: str | None) -> tuple[str, ...]:
     """The key parameters chosen by ``railsusp sensitivity`` in ``run`` (for --keys-from);
-    an analysis made from another campaign than the one in ``run`` is refused."""
+    an analysis made from another campaign than the one in ``run`` is refused, and so is a
+    ``--parameters`` given too (``parameters`` None where it was not: its default typed out
+    is given as well)."""
     from railsusp.key_parameters import read_key_parameters
-    from railsusp.params import MAIN_SUSPENSION
 
-    if parameters != ",".join(MAIN_SUSPENSION):
+    if parameters is not None:
         raise RailsuspInputError("--keys-from and --parameters: give one of them, not both")
     path = run / "sensitivity" / "key_parameters.json"
     if not path.exists():
@@ -314,6 +327,8 @@ _SENSITIVITY_OPTIONS = {
     "base_samples": "--base-samples",
     "seed": "--seed",
     "statistics": "--statistics",
+    "key_statistics": "--key-statistics",
+    "compare": "--compare",
 }
 
 
@@ -330,7 +345,13 @@ def sensitivity(
         float,
         typer.Option(help="ignore features varying less than this (coefficient of variation)"),
     ] = 0.005,
-    base_samples: Annotated[int, typer.Option(help="Saltelli N on the metamodel")] = 2048,
+    base_samples: Annotated[
+        int | None,
+        typer.Option(
+            help="Saltelli N on the metamodel (default 2048; an LHS campaign's: a Saltelli "
+            "campaign is analysed directly)"
+        ),
+    ] = None,
     compare: Annotated[
         Path | None,
         typer.Option(

@@ -11,6 +11,7 @@ import typer
 from rich.table import Table
 
 from railsusp.cli.common import (
+    _command_context,
     app,
     console,
     err_console,
@@ -28,6 +29,8 @@ TRAIN_OPTIONS = {
     "training batch_size": "--batch-size",
     "training fine_tune_epochs": "--fine-tune-epochs",
     "training seed": "--seed",
+    "device": "--device",
+    "conditions": "--conditions",
 }
 
 
@@ -60,12 +63,18 @@ FineTuneEpochs = Annotated[
 BatchesPerEpoch = Annotated[int, typer.Option(help="mini-batches per epoch")]
 #: ``--batch-size``
 BatchSize = Annotated[
-    int, typer.Option(help="windows per mini-batch (cnn-gru-seq: 32 chunks of 400 steps)")
+    int,
+    typer.Option(
+        help="windows per mini-batch, for the window networks (cnn-gru-seq trains on 32 "
+        "chunks of 400 steps)"
+    ),
 ]
 #: ``--device``
 TrainDevice = Annotated[str, typer.Option(help="cpu, cuda or auto")]
 #: ``--seed``
-TrainSeed = Annotated[int, typer.Option(help="training seed")]
+TrainSeed = Annotated[
+    int, typer.Option(help="training seed (compare: also the RBF centres' and the GPs')")
+]
 
 
 def _train_config(epochs, batches_per_epoch, batch_size, device, seed, fine_tune_epochs=0):
@@ -81,25 +90,63 @@ def _train_config(epochs, batches_per_epoch, batch_size, device, seed, fine_tune
     )
 
 
-def _note_replaced(folder: Path, settings: dict, window: int | None) -> None:
+def _given(*names: str) -> list[str]:
+    """The options among ``names`` (parameter names) typed on the command line, as typed
+    (``--epochs``, ``--no-record-correction``): typer gives a default and a typed value
+    alike, so a value equal to the default was not told from one left out."""
+    ctx = _command_context()
+    given = []
+    for name in names:
+        source = ctx.get_parameter_source(name)
+        if source is None or source.name in ("DEFAULT", "DEFAULT_MAP"):
+            continue
+        option = "--" + name.replace("_", "-")
+        if ctx.params.get(name) is False:  # a flag typed as its --no- form
+            option = "--no-" + name.replace("_", "-")
+        given.append(option)
+    return given
+
+
+#: the training options of ``train`` and ``compare`` the networks alone take
+NETWORK_OPTIONS = ("epochs", "fine_tune_epochs", "batches_per_epoch", "batch_size", "device")
+
+
+def _check_device(device: str) -> None:
+    """Refuse, before any note or training, a device that is not there (as ``train`` does)."""
+    from railsusp.surrogate.train import resolve_device
+
+    try:
+        resolve_device(device)
+    except RailsuspInputError as exc:
+        raise RailsuspInputError(f"--device {device}: {exc}") from None
+
+
+def _conditions(camp, conditions: str | None) -> list[str]:
+    """``--conditions`` (all of the campaign's when not given), each checked before any
+    training."""
+    from railsusp.surrogate import check_conditions
+
+    names = None if conditions is None else [c.strip() for c in conditions.split(",")]
+    return check_conditions(camp, names if names is None else [c for c in names if c])
+
+
+def _note_replaced(folder: Path, settings: dict, window: int, record_correction: bool) -> None:
     """Say so where the training replaces a saved network of other settings (a rerun with
     the same settings resumes, and says nothing): nothing but the printed line tells the
     user that the network read before is gone."""
-    from railsusp.store import read_json
+    from railsusp.surrogate import replaced_settings
 
-    try:
-        doc = read_json(folder / "surrogate.json")
-        before = dict(doc["meta"].get("train_config") or {})
-        before["window"] = doc["net"].get("window")
-    except (OSError, RailsuspInputError, AttributeError, KeyError, TypeError):
-        return  # none saved, or one that does not read: training writes it anew
-    settings = {**settings, "window": window} if window is not None else settings
-    changed = sorted(k for k in settings if k in before and before[k] != settings[k])
+    _say_replaced(folder, replaced_settings(folder, settings, window, record_correction))
+
+
+def _say_replaced(folder: Path, changed: list[str]) -> None:
+    """The line of :func:`_note_replaced` (``compare`` is told ``changed`` by the library)."""
     if changed:
         console.print(
             f"note: replacing the network in {folder}, trained with other settings "
-            f"({', '.join(f'{k} {before[k]} -> {settings[k]}' for k in changed)})",
+            f"({', '.join(changed)})",
             highlight=False,
+            soft_wrap=True,  # one line, whatever the terminal's width
         )
 
 
@@ -139,35 +186,50 @@ def train(
     from railsusp.campaign import load_campaign, require_complete
     from railsusp.surrogate import (
         KINDS,
+        check_window,
         key_parameters,
         train_surrogate,
         unexplained_parameters,
     )
     from railsusp.surrogate.data import load_series
     from railsusp.surrogate.evaluate import accuracy, predict_with_alone
+    from railsusp.surrogate.models import SEQUENCE_KINDS, default_window
 
     try:
         if model not in (*KINDS, "gp-stats"):
             raise RailsuspInputError(f"--model {model!r}: accepted {', '.join(KINDS)}, gp-stats")
+        if model == "gp-stats":  # it fits GPs on every sample: no training setting is used
+            unused = _given(*NETWORK_OPTIONS, "seed", "window", "record_correction")
+            if unused:
+                raise RailsuspInputError(
+                    f"{', '.join(unused)}: accepted only with the network models "
+                    f"({', '.join(KINDS)}); --model gp-stats fits the statistics GPs, which "
+                    "take no training settings"
+                )
+        elif model in SEQUENCE_KINDS and _given("batch_size"):
+            raise RailsuspInputError(
+                f"--batch-size: accepted only with the window networks; --model {model} "
+                "trains on mini-batches of 32 chunks of 400 steps"
+            )
         tcfg = _train_config(epochs, batches_per_epoch, batch_size, device, seed, fine_tune_epochs)
         if model != "gp-stats":  # before any note that a network is being replaced
-            from railsusp.surrogate.train import resolve_device
-
-            try:
-                resolve_device(device)
-            except RailsuspInputError as exc:
-                raise RailsuspInputError(f"--device {device}: {exc}") from None
+            _check_device(device)
         if window is not None and not 2 <= window <= 10_000:
             raise RailsuspInputError(f"--window = {window}: accepted 2 .. 10000 steps")
         # the campaign for the training's duration: no campaign --force or analysis
         # replaces what the networks are trained on (or their key parameters) meanwhile
         hold_folders(writes=[("", run)])
         camp = require_complete(load_campaign(run))
-        conds = (
-            [c.strip() for c in conditions.split(",")]
-            if conditions
-            else [c.name for c in camp.config.conditions]
-        )
+        conds = _conditions(camp, conditions)
+        steps = window if window is not None else default_window(model)
+        if model != "gp-stats":  # every condition's records before the first is trained
+            try:
+                check_window(camp, conds, model, steps, tcfg)
+            except RailsuspInputError as exc:
+                typed = "" if window is not None else f" (the default of {model})"
+                raise RailsuspInputError(
+                    re.sub(r"^window = (\d+) steps", rf"--window \1 steps{typed}", str(exc))
+                ) from None
         left_out = unexplained_parameters(run)
         if left_out:
             err_console.print(
@@ -206,7 +268,7 @@ def train(
     for cond in conds:
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
-        _note_replaced(run / "surrogates" / model / cond, tcfg.to_dict(), window)
+        _note_replaced(run / "surrogates" / model / cond, tcfg.to_dict(), steps, record_correction)
 
         with Progress(
             TextColumn(f"{cond} {model}"),
@@ -285,10 +347,13 @@ def compare(
     seed: TrainSeed = 0,
 ) -> None:
     """Train the surrogates (--models) on the same split and print the study's Table 7
-    layout."""
+    layout. The networks train with the window (washout) and record correction that
+    ``train`` gives by default; a network that ``train`` saved with other settings is
+    replaced, and a line says so."""
     from railsusp.campaign import load_campaign, require_complete
     from railsusp.surrogate.compare import ALL_MODELS, table7
     from railsusp.surrogate.compare import compare as run_compare
+    from railsusp.surrogate.models import KINDS, SEQUENCE_KINDS
 
     names = [m.strip() for m in models.split(",") if m.strip()]
     bad = [m for m in names if m not in ALL_MODELS]
@@ -298,19 +363,37 @@ def compare(
             f"{', '.join(ALL_MODELS)}"
         )
     try:
+        # options none of the models chosen reads (rbf and gp-stats train no network; the
+        # sequence network draws chunks, not --batch-size windows)
+        networks = [m for m in names if m in KINDS]
+        unused = _given(*NETWORK_OPTIONS) if not networks else []
+        if unused:
+            raise RailsuspInputError(
+                f"{', '.join(unused)}: accepted only with a network among --models "
+                f"({', '.join(names)} train none)"
+            )
+        if networks and all(m in SEQUENCE_KINDS for m in networks) and _given("batch_size"):
+            raise RailsuspInputError(
+                f"--batch-size: accepted only with a window network among --models "
+                f"({', '.join(networks)} trains on mini-batches of 32 chunks of 400 steps)"
+            )
         tcfg = _train_config(epochs, batches_per_epoch, batch_size, device, seed, fine_tune_epochs)
+        if networks:  # as train does: before any training (rbf was fitted first)
+            _check_device(device)
         hold_folders(writes=[("", run)])  # as train: the campaign for the command's duration
-        require_complete(load_campaign(run))
+        conds = _conditions(require_complete(load_campaign(run)), conditions)
+
         with err_console.status("training surrogates") as status:
             tab = run_compare(
                 run,
                 models=names,
-                conditions=([c.strip() for c in conditions.split(",")] if conditions else None),
+                conditions=conds,
                 train=tcfg,
                 progress=lambda msg: status.update(f"training {msg}"),
+                note_replaced=_say_replaced,
             )
     except (RailsuspInputError, ValueError) as exc:
-        fail(str(exc), options=TRAIN_OPTIONS)
+        fail(str(exc), options={**TRAIN_OPTIONS, "models": "--models"})
     t7 = table7(tab)
     fit_cols = ["Q NRMSE", "Y NRMSE", "Q R2", "Y R2"]
     console.print(

@@ -50,6 +50,8 @@ __all__ = [
     "TrainConfig",
     "assumed_parameters",
     "campaign_split",
+    "check_conditions",
+    "check_window",
     "evaluate",
     "feature_spec",
     "key_parameters",
@@ -129,6 +131,83 @@ def not_estimated(folder: str | Path | None, estimated: Sequence[str]) -> list[d
     if rows is None:
         rows = assumed_parameters(tuple(est), {}, ())
     return [r for r in rows if r["symbol"] not in est]
+
+
+def check_conditions(campaign, conditions: Sequence[str] | None) -> list[str]:
+    """The campaign's conditions to train on (``None``: all of them), each checked before any
+    training: a condition not in the campaign was found by the loop over them, after the
+    conditions before it had been trained (and, by ``compare``, their figures drawn)."""
+    names = [c.name for c in campaign.config.conditions]
+    if conditions is None:
+        return names
+    chosen = list(conditions)
+    bad = [c for c in chosen if c not in names]
+    if bad or not chosen:
+        raise RailsuspInputError(
+            f"conditions {', '.join(repr(c) for c in bad) or '(none)'}: accepted one or more "
+            f"of the campaign's {', '.join(names)}"
+        )
+    twice = sorted({c for c in chosen if chosen.count(c) > 1})
+    if twice:
+        raise RailsuspInputError(f"conditions {', '.join(twice)}: given twice")
+    return chosen
+
+
+def longest_window(kind: str, n_steps: int, train: TrainConfig | None = None) -> int:
+    """The longest window (the washout of a sequence network) a kind trains with on series of
+    ``n_steps`` steps: fewer steps than the series, and for a sequence network fewer than its
+    training chunks (``train.chunk_steps``), whose first ``washout`` steps leave the loss."""
+    if kind in SEQUENCE_KINDS:
+        return min(n_steps, (train or TrainConfig()).chunk_steps) - 1
+    return n_steps - 1
+
+
+def check_window(
+    campaign, conditions: Sequence[str], kind: str, window: int, train: TrainConfig | None = None
+) -> None:
+    """Refuse, before any training, a window (washout) that the series of one of the
+    ``conditions`` are too short for (one line naming ``window``, the accepted range and the
+    condition)."""
+    steps = {c.name: c.n_steps for c in campaign.config.conditions}
+    for cond in conditions:
+        n = steps[cond]
+        most = longest_window(kind, n, train)
+        if window > most:
+            fewer = (
+                f"the {n} steps of the series of condition {cond!r}"
+                if most == n - 1
+                else f"the training chunks' {most + 1} steps (chunk_steps)"
+            )
+            raise RailsuspInputError(
+                f"window = {window} steps: accepted 2 to {most}, fewer than {fewer}"
+            )
+
+
+def replaced_settings(
+    folder: str | Path, settings: Mapping[str, Any], window: int, record_correction: bool
+) -> list[str]:
+    """How the network saved in ``folder`` was trained otherwise than a training with these
+    ``settings`` (:meth:`TrainConfig.to_dict`), ``window`` and ``record_correction`` would
+    train it (``["window 20 -> 100", ...]``), for the line that says it is replaced; empty
+    where none is saved (or one that does not read, which training writes anew), or where
+    the same settings resume it. A network saved before the asked record correction was
+    recorded counts as asking for one where it has one (else: unknown, not compared)."""
+    try:
+        doc = read_json(Path(folder) / "surrogate.json")
+        before = dict(doc["meta"].get("train_config") or {})
+        before["window"] = doc["net"].get("window")
+        asked = doc["meta"].get("record_correction_asked")
+        if asked is None and doc.get("record_correction") is not None:
+            asked = True
+    except (OSError, RailsuspInputError, AttributeError, KeyError, TypeError):
+        return []
+    if asked is not None:
+        before["record_correction"] = asked
+    now = {**settings, "window": window, "record_correction": record_correction}
+    if doc["net"].get("kind") in SEQUENCE_KINDS:  # trained on chunks: no window count
+        now.pop("batch_size", None)
+    changed = [k for k in sorted(now) if k in before and before[k] != now[k]]
+    return [f"{k} {before[k]} -> {now[k]}" for k in changed]
 
 
 def feature_spec(
@@ -328,13 +407,16 @@ def train_surrogate(
     if init_inputs:
         check_source_inputs(start, init_from, spec, condition, camp.config.wagon)
         spec = start.spec
-    data = load_series(camp, condition, spec)
-    n_steps = data.targets.shape[1]
-    if kind not in SEQUENCE_KINDS and window >= n_steps:  # no window would fit a series
+    tcfg = TrainConfig() if train is None else train
+    # no window would fit a series, no washout leave a chunk's step in the loss: refused
+    # before the series are read (their tracks' features take minutes)
+    names = [c.name for c in camp.config.conditions]
+    if condition not in names:
         raise RailsuspInputError(
-            f"window = {window} steps: accepted 2 to {n_steps - 1}, fewer than the "
-            f"{n_steps} steps of the series of condition {condition!r}"
+            f"condition {condition!r}: accepted one of the campaign's {', '.join(names)}"
         )
+    check_window(camp, [condition], kind, window, tcfg)
+    data = load_series(camp, condition, spec)
     split = campaign_split(camp, split_seed)
     tr_i, va_i = split.positions(data.sample_ids, "train"), split.positions(data.sample_ids, "val")
     if len(tr_i) == 0 or len(va_i) == 0:
@@ -357,7 +439,6 @@ def train_surrogate(
         else net
     )
     network = build_network(cfg)
-    tcfg = TrainConfig() if train is None else train
     out = Path(out) if out else camp.path / "surrogates" / kind / condition
     twins = load_twins(camp, data, spec) if tcfg.pair_weight > 0 else None
     history = train_network(
@@ -387,6 +468,8 @@ def train_surrogate(
             "solver": dict(camp.config.solver),  # the nominal response is simulated with it
             **split_meta(split, data),
             "train_config": tcfg.to_dict(),
+            # asked for, fitted or not (too few training runs): what a rerun compares
+            "record_correction_asked": bool(record_correction),
             "track_realisations": len(np.unique(data.seeds)),
             "track_family": None if fam is None else family_of(fam.ranges(), data.condition),
             "assumed_parameters": assumed_parameters(

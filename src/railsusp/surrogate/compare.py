@@ -11,8 +11,16 @@ import numpy as np
 import pandas as pd
 
 from railsusp.campaign import load_campaign, require_complete
+from railsusp.errors import RailsuspInputError
 from railsusp.store import write_csv, write_json
-from railsusp.surrogate import feature_spec, key_parameters, train_surrogate
+from railsusp.surrogate import (
+    check_conditions,
+    feature_spec,
+    key_parameters,
+    longest_window,
+    replaced_settings,
+    train_surrogate,
+)
 from railsusp.surrogate.baselines import RBFWindowModel, StatisticsGP
 from railsusp.surrogate.data import Normaliser, load_series
 from railsusp.surrogate.evaluate import (
@@ -38,6 +46,7 @@ def compare(
     washout: int | None = None,
     split_seed: int = 0,
     progress: Callable[[str], None] | None = None,
+    note_replaced: Callable[[Path, list[str]], None] | None = None,
 ) -> pd.DataFrame:
     """Train ``models`` per condition and return the accuracy table (also written to
     ``RUN/surrogates/compare.csv`` / ``.json`` with overlay figures).
@@ -49,18 +58,32 @@ def compare(
     ``window`` is the window networks' window; the sequence CNN-GRU (``cnn-gru-seq``) keeps
     ``washout`` (default :data:`~railsusp.surrogate.models.DEFAULT_WASHOUT`, 2 s). All
     models are scored from the same first step (column ``first_step``), the longest window
-    or washout among them, so that their errors cover the same samples."""
+    or washout among them, so that their errors cover the same samples; the records of
+    every condition must be longer than that, which is checked, with the conditions, before
+    any training. The random models (``rbf``'s centres, the GPs' restarts) take
+    ``train.seed`` as the networks do. ``note_replaced(folder, changes)`` is told of each
+    saved network of other settings that is about to be trained afresh (by ``railsusp
+    train``, say; :func:`~railsusp.surrogate.replaced_settings`)."""
     from railsusp.report import plot_surrogate_overlay
 
     camp = require_complete(load_campaign(run))  # never train on part of a campaign
-    conds = list(conditions) if conditions else [c.name for c in camp.config.conditions]
+    conds = check_conditions(camp, list(conditions) if conditions else None)
+    tcfg = TrainConfig() if train is None else train
+    unknown = [k for k in models if k not in ALL_MODELS]
+    if unknown or not models:
+        raise RailsuspInputError(
+            f"models {', '.join(unknown) or '(none)'}: accepted one or more of "
+            f"{', '.join(ALL_MODELS)}"
+        )
+    seq_washout = DEFAULT_WASHOUT if washout is None else washout
+    first = max([window] + [seq_washout for k in models if k in SEQUENCE_KINDS])
+    _check_records(camp, conds, models, window, seq_washout, first, tcfg)
     params = key_parameters(run)
     spec = feature_spec(camp, params, window)
     split = campaign_split(camp, split_seed)
-    seq_washout = DEFAULT_WASHOUT if washout is None else washout
-    first = max([window] + [seq_washout for k in models if k in SEQUENCE_KINDS])
     rows = []
     out_dir = camp.path / "surrogates"
+    figures = []  # drawn once every condition is done: none beside an older compare.csv
     for cond in conds:
         data = load_series(camp, cond, spec)
         tr_i, te_i = (
@@ -87,26 +110,30 @@ def compare(
             if progress:
                 progress(f"{cond}: {kind}")
             if kind in KINDS:  # the networks, trained through train_surrogate
+                steps = seq_washout if kind in SEQUENCE_KINDS else window
+                changed = replaced_settings(out_dir / kind / cond, tcfg.to_dict(), steps, True)
+                if changed and note_replaced is not None:
+                    note_replaced(out_dir / kind / cond, changed)
                 sur = train_surrogate(
                     run,
                     cond,
                     kind=kind,
                     parameters=params,
-                    window=seq_washout if kind in SEQUENCE_KINDS else window,
-                    train=train,
+                    window=steps,
+                    train=tcfg,
                     split_seed=split_seed,
                 )
                 pred, raw = predict_with_alone(sur, test)
                 if raw is not None:
                     alone[kind] = accuracy(test.targets.astype(float), raw, spec.targets, first)
             elif kind == "rbf":
-                sur = RBFWindowModel(spec, norm).fit(train_data)
+                sur = RBFWindowModel(spec, norm, seed=tcfg.seed).fit(train_data)
                 pred = predict_series(sur, test)
             elif kind == "gp-stats":
                 # its statistics from the same first step as the others' (it took its own
                 # window's: the split audit of stop 60)
                 gp_spec = replace(spec, window=first)
-                gp = StatisticsGP(gp_spec).fit(train_data)
+                gp = StatisticsGP(gp_spec, seed=tcfg.seed).fit(train_data)
                 m, _ = gp.predict_statistics(test.params_unit)
                 sim = StatisticsGP.statistics(test, gp_spec)
                 for j, name in enumerate(spec.targets):
@@ -144,21 +171,51 @@ def compare(
                 )
                 rows.append({"condition": cond, "model": kind, **r, **held, "first_step": first})
         if overlays:
-            plot_surrogate_overlay(
-                test.targets[0],
-                overlays,
-                spec.targets,
-                test.condition.sample_interval,
-                out_dir / f"overlay-{cond}.png",
-                title=f"{cond}: held-out sample {int(test.sample_ids[0])}",
-            )
+            title = f"{cond}: held-out sample {int(test.sample_ids[0])}"
+            figures.append((test.targets[0], overlays, test.condition, cond, title))
     table = pd.DataFrame(rows)
     out_dir.mkdir(parents=True, exist_ok=True)
+    for simulated, overlays, condition, cond, title in figures:
+        path = out_dir / f"overlay-{cond}.png"
+        dt = condition.sample_interval
+        plot_surrogate_overlay(simulated, overlays, spec.targets, dt, path, title=title)
     # NaN (a statistic a kind does not give) as null: JSON has no NaN, strict parsers refuse it
     records = table.astype(object).where(table.notna(), None).to_dict(orient="records")
     write_json(out_dir / "compare.json", records)
     write_csv(out_dir / "compare.csv", table)  # last: the pipeline's mark of a finished stage
     return table
+
+
+def _check_records(camp, conds, models, window, washout, first, train: TrainConfig) -> None:
+    """Refuse, before any training, models whose window or washout the records of a
+    condition are too short for, and records too short to score from the common first
+    step (an empty slice: NumPy's "Degrees of freedom <= 0" and NaN errors), in one line
+    naming the models."""
+    steps = {c.name: c.n_steps for c in camp.config.conditions}
+    for cond in conds:
+        n = steps[cond]
+        for kind in models:
+            if kind not in KINDS:
+                continue
+            w = washout if kind in SEQUENCE_KINDS else window
+            most = longest_window(kind, n, train)
+            if w > most:
+                what = "washout" if kind in SEQUENCE_KINDS else "window"
+                longer = (
+                    f"condition {cond!r} has {n}"
+                    if most == n - 1
+                    else f"its training chunks have chunk_steps = {train.chunk_steps}"
+                )
+                raise RailsuspInputError(
+                    f"models {kind}: its {what} of {w} steps needs records longer than {w} "
+                    f"steps; {longer}"
+                )
+        if first >= n:
+            raise RailsuspInputError(
+                f"models {', '.join(models)}: scored from step {first} (the longest window "
+                f"or washout among them), which needs records longer than {first} steps; "
+                f"condition {cond!r} has {n}"
+            )
 
 
 def table7(table: pd.DataFrame) -> pd.DataFrame:

@@ -331,21 +331,25 @@ def train_network(
     # may be raised to train on), architecture and data (windows, features, samples,
     # normalisation), so another window length or campaign starts afresh; settings added
     # later count only when changed, so checkpoints from before they existed still resume,
-    # and the chunk settings only for the network that trains on chunks
-    unused = ("epochs", "fine_tune_epochs", "max_seconds")
-    if not isinstance(train, ChunkSampler):
-        unused += ("chunk_steps", "chunks_per_batch")
-    settings = {
-        k: v
-        for k, v in cfg.to_dict().items()
-        if k not in unused and _LATER_SETTINGS.get(k, object()) != v
-    }
-    ident = {"cfg": settings, "arch": repr(net), "data": _fingerprint(train, val)}
-    if initial is not None:
-        ident["initial"] = _state_hash(initial)
+    # and the chunk settings only for the network that trains on chunks, the window count
+    # ``batch_size`` only for the networks that train on windows; the device as resolved
+    # (``auto`` on a machine without CUDA trains as ``cpu`` does)
+    ident = _identity(cfg, device, net, train, val, initial)
     key = content_hash(ident)
+    # the key of before (the device as typed; batch_size for the chunk networks as
+    # well): a checkpoint of then resumes where these settings match it
+    legacy = content_hash(_identity(cfg, device, net, train, val, initial, legacy=True))
     if checkpoint is not None and checkpoint.exists():
         state = _read_checkpoint(checkpoint)  # on the CPU: the RNG state must stay there
+        if state is not None and state.get("key") == legacy != key:
+            state["key"] = key
+        if state is not None and state.get("key") != key:
+            log.warning(
+                "checkpoint %s of other settings (%s); training starts afresh",
+                checkpoint,
+                _what_differs(state.get("ident"), ident),
+            )
+            state = None
         if state is not None and state.get("key") == key and not _resumable(state, cfg):
             log.warning(
                 "checkpoint %s: trained with other epoch limits past where these resume "
@@ -404,6 +408,7 @@ def train_network(
             if checkpoint is not None:
                 state = {
                     "key": key,
+                    "ident": ident,  # what a resume under other settings names as changed
                     "epochs": cfg.epochs,
                     "fine_tune_epochs": cfg.fine_tune_epochs,
                     "model": net.state_dict(),
@@ -433,6 +438,57 @@ def train_network(
         net.load_state_dict(best_state)
     net.to("cpu").eval()
     return history
+
+
+def _identity(
+    cfg: TrainConfig,
+    device: torch.device,
+    net: nn.Module,
+    train: Sampler,
+    val: Sampler,
+    initial: dict[str, torch.Tensor] | None,
+    legacy: bool = False,
+) -> dict:
+    """What a checkpoint's key is the hash of: the settings the training depends on, the
+    architecture and the data (``legacy``: as keyed before, the device as typed
+    and ``batch_size`` for the chunk networks too)."""
+    unused = ("epochs", "fine_tune_epochs", "max_seconds")
+    if not isinstance(train, ChunkSampler):
+        unused += ("chunk_steps", "chunks_per_batch")
+    elif not legacy:  # chunks per mini-batch: ``chunks_per_batch``, not ``batch_size``
+        unused += ("batch_size",)
+    values = cfg.to_dict()
+    if not legacy:
+        values["device"] = device.type
+    settings = {
+        k: v for k, v in values.items() if k not in unused and _LATER_SETTINGS.get(k, object()) != v
+    }
+    ident = {"cfg": settings, "arch": repr(net), "data": _fingerprint(train, val)}
+    if initial is not None:
+        ident["initial"] = _state_hash(initial)
+    return ident
+
+
+def _what_differs(before: object, now: dict) -> str:
+    """The settings (``batch_size 512 -> 256``), architecture, data or initial weights in
+    which a checkpoint's identity ``before`` differs from ``now``, for one line; a checkpoint
+    from before identities were kept says only that something does."""
+    if not isinstance(before, dict):
+        return "settings, architecture or data"
+    parts = []
+    old_cfg, new_cfg = before.get("cfg") or {}, now["cfg"]
+    for k in sorted(set(old_cfg) | set(new_cfg)):
+        a = old_cfg.get(k, _LATER_SETTINGS.get(k, "-"))
+        b = new_cfg.get(k, _LATER_SETTINGS.get(k, "-"))
+        if a != b:
+            parts.append(f"{k} {a} -> {b}")
+    if before.get("arch") != now["arch"]:
+        parts.append("architecture")
+    if before.get("data") != now["data"]:
+        parts.append("data: window, features, samples or normalisation")
+    if before.get("initial") != now.get("initial"):
+        parts.append("initial weights")
+    return ", ".join(parts) or "settings, architecture or data"
 
 
 def _resumable(state: dict, cfg: TrainConfig) -> bool:
