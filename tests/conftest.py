@@ -105,3 +105,26 @@ def family_campaign(
     )
     run_campaign(cfg, out)
     return out
+
+
+@pytest.fixture
+def trained_epochs(monkeypatch):
+    """The epochs each training actually runs (a resumed one: those after its checkpoint),
+    counted: a fresh training gives the same numbers as a resumed one (training is bitwise
+    deterministic), so only this tells that a resume resumed."""
+    import railsusp.surrogate.train as train_mod
+
+    count = [0]
+    real = train_mod._train_epoch
+
+    def epoch(*args):
+        count[0] += 1
+        return real(*args)
+
+    monkeypatch.setattr(train_mod, "_train_epoch", epoch)
+
+    def take() -> int:
+        n, count[0] = count[0], 0
+        return n
+
+    return take

@@ -181,28 +181,6 @@ def _same(a: dict, b: dict) -> bool:
     return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
 
 
-@pytest.fixture
-def trained_epochs(monkeypatch):
-    """The epochs each training actually runs (a resumed one: those after its checkpoint):
-    a fresh training gives a resumed one's numbers, so only this tells that it resumed."""
-    import railsusp.surrogate.train as train_mod
-
-    count = [0]
-    real = train_mod._train_epoch
-
-    def epoch(*args):
-        count[0] += 1
-        return real(*args)
-
-    monkeypatch.setattr(train_mod, "_train_epoch", epoch)
-
-    def take() -> int:
-        n, count[0] = count[0], 0
-        return n
-
-    return take
-
-
 def test_training_is_seeded_and_a_resumed_training_equals_an_uninterrupted_one(
     tmp_path, trained_epochs
 ):

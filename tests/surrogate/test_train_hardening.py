@@ -69,27 +69,6 @@ def _same(a: dict, b: dict) -> bool:
     return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
 
 
-@pytest.fixture
-def trained_epochs(monkeypatch):
-    """The epochs each training actually runs (a resumed one: those after its checkpoint),
-    counted: a fresh training gives the same numbers as a resumed one, so only this tells
-    that a resume resumed."""
-    count = [0]
-    real = train_mod._train_epoch
-
-    def epoch(*args):
-        count[0] += 1
-        return real(*args)
-
-    monkeypatch.setattr(train_mod, "_train_epoch", epoch)
-
-    def take() -> int:
-        n, count[0] = count[0], 0
-        return n
-
-    return take
-
-
 def _checkpoint_history(ck) -> list[dict]:
     return torch.load(ck, weights_only=True)["history"]
 
