@@ -70,6 +70,13 @@ def test_long_record_statistics_are_averages_over_20_s_segments():
     x = np.where(t < 20.0, 1.0, 3.0) * np.sin(2 * np.pi * 2.0 * t)
     assert statistic_segments(x.size, dt) == 2
     assert statistic_segments(1000, dt) == 1 and statistic_segments(10, dt) == 1
+    # a half segment rounds up whichever way its interval was got: from a condition's
+    # 0.02 s or a time column's median step (the review of stop 64: 30 s read 2 and 1)
+    for seconds, segments in ((30, 2), (50, 3), (70, 4)):
+        n = round(seconds / dt)
+        column = np.arange(n) * (seconds / n)  # a time column, its step 0.0199999...
+        assert statistic_segments(n, dt) == segments
+        assert statistic_segments(n, 1.0 / (1.0 / float(np.median(np.diff(column))))) == segments
     halves = [record_statistic(h, "std", False) for h in (x[:1000], x[1000:])]
     assert record_statistic(x, "std", False, 2) == pytest.approx(np.mean(halves))
     assert record_statistic(x, "std", False) == pytest.approx(np.sqrt(5 / 2), rel=1e-2)

@@ -415,7 +415,7 @@ def train_surrogate(
         raise RailsuspInputError(
             f"condition {condition!r}: accepted one of the campaign's {', '.join(names)}"
         )
-    check_window(camp, [condition], kind, window, tcfg)
+    check_window(camp, [condition], kind, spec.window, tcfg)  # (init_inputs: the source's)
     data = load_series(camp, condition, spec)
     split = campaign_split(camp, split_seed)
     tr_i, va_i = split.positions(data.sample_ids, "train"), split.positions(data.sample_ids, "val")

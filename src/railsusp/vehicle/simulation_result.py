@@ -7,6 +7,7 @@ study's 20 s segments averaged over a longer record).
 
 from __future__ import annotations
 
+import math
 import os
 import warnings
 from dataclasses import dataclass, field
@@ -35,8 +36,12 @@ STATISTIC_SEGMENT_S = 20.0
 def statistic_segments(n_samples: int, dt_s: float) -> int:
     """Number of segments of about :data:`STATISTIC_SEGMENT_S` in a record (at least 1, at
     most one a sample: 20 samples over 600 s made 30 segments, ten of them empty, and NaN
-    statistics)."""
-    return max(1, min(n_samples, round(n_samples * dt_s / STATISTIC_SEGMENT_S)))
+    statistics). The record's duration is taken to the microsecond and a half segment
+    rounds up: a 30 s record's 1.5 segments read 1 when its interval came from a
+    recording's time column (1500 x 0.0199999...) and 2 from its condition's 0.02 s, so a
+    validation compared two halves of a simulation with one whole recording."""
+    duration = round(n_samples * dt_s, 6)
+    return max(1, min(n_samples, math.floor(duration / STATISTIC_SEGMENT_S + 0.5)))
 
 
 def record_statistic(x: np.ndarray, statistic: str, lateral: bool, segments: int = 1) -> np.ndarray:
