@@ -410,3 +410,34 @@ def test_a_hand_edited_estimate_json_is_refused_in_one_line(tmp_path, field, val
     (est / "estimate.json").write_text(json.dumps(doc))
     text = one_line_error(runner.invoke(app, ["validate", str(est)]))
     assert f"{est / 'estimate.json'}: {message}" in text
+
+
+def test_validate_refuses_a_recordings_folder_written_again_since_the_estimate(
+    fields, tmp_path, monkeypatch
+):
+    """validate read the estimate's recordings again by their folder's path alone: a
+    folder written again since (another synth-field, another cut) was validated as the
+    estimate's without a word (the estimation-commands audit of stop 64). The estimate
+    stores its recordings' digest; another folder given with --measured is validated."""
+    from railsusp.measured import read_field
+    from railsusp.measured.recording import recordings_digest
+    from railsusp.validate import validate
+
+    folder = tmp_path / "field"
+    shutil.copytree(fields["good"], folder)
+    est = fake_estimate(tmp_path / "est", folder)
+    doc = json.loads((est / "estimate.json").read_text())
+    doc["measured_digest"] = recordings_digest(read_field(folder))
+    (est / "estimate.json").write_text(json.dumps(doc))
+    assert "mean" in set(validate(est).forces.statistic)  # its own recordings: validated
+    table = folder / "short.csv"
+    lines = table.read_text().splitlines()
+    cells = lines[5].split(",")
+    cells[-1] = f"{float(cells[-1]) + 1.0:.6g}"  # one sample of Q, 1 kN more
+    lines[5] = ",".join(cells)
+    table.write_text("\n".join(lines) + "\n")
+    monkeypatch.setattr("railsusp.vehicle.simulate.simulate_conditions", _never)
+    with pytest.raises(RailsuspInputError, match="its recordings are not those the estimate"):
+        validate(est)
+    monkeypatch.undo()
+    assert "mean" in set(validate(est, measured=folder).forces.statistic)  # asked for

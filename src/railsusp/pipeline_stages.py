@@ -242,6 +242,7 @@ def stage_runners(
         from railsusp.estimate.config import HeldPrior
         from railsusp.estimate.route import EstimateRoute
         from railsusp.measured import read_field
+        from railsusp.measured.recording import recordings_digest
         from railsusp.surrogate import key_parameters, not_estimated
         from railsusp.vehicle.wagon import load_wagon, wagon_reference
 
@@ -289,6 +290,7 @@ def stage_runners(
             out / "estimate",
             extra={
                 "measured": str((out / "field").resolve()),
+                "measured_digest": recordings_digest(recs),  # validate's check
                 "model": config.surrogate.model,
                 "wagon": wagon_reference(config.wagon),  # validate's default
                 "not_estimated": not_estimated(

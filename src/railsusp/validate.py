@@ -41,6 +41,7 @@ from railsusp.estimate.expected_forces import draw_true_tracks
 from railsusp.estimate.intervals import identification, intervals_of
 from railsusp.estimate.statistics import force_statistic
 from railsusp.measured import Recording, SimulationFailedError, read_field
+from railsusp.measured.recording import recordings_digest
 from railsusp.measured.synthetic import read_truth, recording_from_simulation
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import atomic_folder, atomic_write_bytes, read_json, read_parquet, write_json
@@ -197,6 +198,13 @@ def validate(
                 pass
     wagon = load_wagon(wagon)
     recs = read_field(measured or est["measured"], wagon=wagon)
+    stored = est.get("measured_digest")
+    if measured is None and isinstance(stored, str) and recordings_digest(recs) != stored:
+        raise RailsuspInputError(
+            f"{est['measured']}: its recordings are not those the estimate in {est_path} "
+            "read (the folder was written again since); accepted the estimate's own "
+            "recordings: estimate again, or validate on these with --measured"
+        )
     if statistic is None and ALIGNED not in stats:
         if all(r.condition.track_geometry is not None for r in recs):
             unaligned = [r.condition.name for r in recs if r.condition.n_steps != r.time.size]

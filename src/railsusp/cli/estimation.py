@@ -248,6 +248,7 @@ def estimate(
     from railsusp.estimate.route import EstimateRoute
     from railsusp.measured import read_field
     from railsusp.measured.field_folder import check_not_recordings
+    from railsusp.measured.recording import recordings_digest
     from railsusp.surrogate import not_estimated
 
     try:
@@ -400,6 +401,7 @@ def estimate(
                 tmp,
                 extra={
                     "measured": str(measured.resolve()),
+                    "measured_digest": recordings_digest(recs),  # validate's check
                     "model": str(surrogate.resolve()) if surrogate else "simulator",
                     "not_estimated": not_estimated(surrogate, params),
                     # validate's default: the wagon the estimate simulated (the option's,

@@ -35,6 +35,34 @@ class SimulationFailedError(RailsuspInputError):
     """A simulation that a recording was to be made of stopped (see its reason)."""
 
 
+def recordings_digest(recordings: list[Recording]) -> str:
+    """SHA-256 of what an estimate read of its recordings: each one's condition, time and
+    forces of every wheel, and its track geometry file's contents, in name order. Stored
+    with an estimate, so that validating it later against its recordings' folder tells a
+    folder written again since (other recordings under the same path were validated as the
+    estimate's without a word)."""
+    import hashlib
+
+    from railsusp.store import file_hash
+
+    h = hashlib.sha256()
+    for rec in sorted(recordings, key=lambda r: r.condition.name):
+        # the geometry by its contents, not its path (read from a relative folder at the
+        # estimate and from the resolved one at the validation)
+        h.update(rec.condition.model_dump_json(exclude={"track_geometry"}).encode())
+        if rec.condition.track_geometry is not None:
+            try:
+                h.update(file_hash(rec.condition.track_geometry).encode())
+            except OSError:
+                h.update(b"geometry unreadable")
+        h.update(np.ascontiguousarray(rec.time, dtype=float).tobytes())
+        for w in rec.wheels:
+            h.update(w.encode())
+            h.update(np.ascontiguousarray(rec.Y[w], dtype=float).tobytes())
+            h.update(np.ascontiguousarray(rec.Q[w], dtype=float).tobytes())
+    return h.hexdigest()
+
+
 @dataclass
 class Recording:
     """One instrumented-wheelset recording in one working condition (SI time, kN forces)."""
