@@ -337,6 +337,10 @@ TRACK_INPUT_FIELDS: tuple[str, ...] = (
     "track_offset_m",
     "track_accuracy_mm",
 )
+#: the track input and the record's length: what a recording may differ in from the
+#: condition its surrogate was trained on (the sampling interval is checked apart: the
+#: network's steps are the training's)
+TRACK_AND_LENGTH_FIELDS: tuple[str, ...] = (*TRACK_INPUT_FIELDS, "duration_s", "n_steps")
 
 
 def make_condition(fields: Mapping[str, Any]) -> WorkingCondition:

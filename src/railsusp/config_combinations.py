@@ -355,7 +355,7 @@ def check_recordings_served(cfg: Any, conds: list, recordings: list, bad: Any) -
     if cfg.surrogate.pretrained is not None:
         check_network_set(cfg, [r.condition for r in recordings], bad, "field.measured: ")
         return
-    from railsusp.conditions import TRACK_INPUT_FIELDS
+    from railsusp.conditions import TRACK_AND_LENGTH_FIELDS
 
     by_name = {c.name: c for c in conds}
     for r in recordings:
@@ -370,7 +370,7 @@ def check_recordings_served(cfg: Any, conds: list, recordings: list, bad: Any) -
             )
         if cfg.surrogate.model == "gp-stats":
             continue  # the statistics GPs are looked up by name; their fields not checked
-        differ = c.differences(rc, (*TRACK_INPUT_FIELDS, "duration_s", "n_steps"))
+        differ = c.differences(rc, TRACK_AND_LENGTH_FIELDS)
         if differ:
             name = differ[0]
             raise bad(

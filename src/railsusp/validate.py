@@ -43,6 +43,7 @@ from railsusp.estimate.statistics import force_statistic
 from railsusp.measured import Recording, SimulationFailedError, read_field
 from railsusp.measured.recording import recordings_digest
 from railsusp.measured.synthetic import read_truth, recording_from_simulation
+from railsusp.numbers import is_whole
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import atomic_folder, atomic_write_bytes, read_json, read_parquet, write_json
 from railsusp.vehicle.simulation_result import statistic_segments
@@ -363,7 +364,7 @@ def check_estimate_fields(est: dict, path: Path, need_measured: bool = True) -> 
         )
     for key in ("expected_draws", "seed"):
         value = config.get(key, 0)
-        if isinstance(value, bool) or not isinstance(value, int):
+        if not is_whole(value):
             raise RailsuspInputError(
                 f"{path}: field 'config.{key}' is {value!r}; accepted an integer"
             )

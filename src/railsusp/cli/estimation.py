@@ -271,8 +271,9 @@ def estimate(
         ):
             check_range(name, value, low, high)
         parse_statistics(statistic)
-        # options of a step that does not run: refused, not ignored (a typer default is
-        # not told from a value typed, so a value other than it counts as given)
+        # options of a step that does not run: refused, not ignored; a value other than
+        # the default counts as given (a default typed again changes nothing and passes;
+        # train's _given reads click's parameter source, which tells them apart)
         for name, value, default in (
             ("--refine-evaluations", refine_evaluations, REFINE_EVALUATIONS),
             ("--refine-screen", refine_screen, REFINE_SCREEN),

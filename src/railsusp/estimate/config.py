@@ -8,10 +8,9 @@ from collections.abc import Iterable, Mapping
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-import numpy as np
-
 from railsusp.errors import ParameterError, RailsuspInputError
 from railsusp.estimate.statistics import ALIGNED, check_weighting, parse_statistics
+from railsusp.numbers import is_whole
 from railsusp.params import MAIN_SUSPENSION, spec
 
 #: accepted range (inclusive) of each numeric NSGA-II setting, by :class:`NSGAConfig` field.
@@ -140,7 +139,7 @@ def check_range(name: str, value: float, low: float, high: float) -> None:
 def check_count(name: str, value: int, low: int, high: int) -> None:
     """:func:`check_range` for a setting that counts or seeds: also refuses, in the same one
     line, a value that is not an integer (a float such as 10.5 or 10.0, a boolean)."""
-    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+    if not is_whole(value):
         raise RailsuspInputError(f"{name} {value!r}: accepted an integer {low} to {high}")
     check_range(name, value, low, high)
 

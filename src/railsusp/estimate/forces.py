@@ -15,7 +15,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from railsusp.conditions import TRACK_INPUT_FIELDS, WorkingCondition
+from railsusp.conditions import TRACK_AND_LENGTH_FIELDS, WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.statistics import recording_segments, series_statistics
 from railsusp.measured import Recording
@@ -369,7 +369,7 @@ class StatisticsForces:
         ignore = (
             ("seed", "track_accuracy_mm")  # the accuracy changes the comparison only
             if model.condition.track_geometry is not None
-            else (*TRACK_INPUT_FIELDS, "duration_s", "n_steps")
+            else TRACK_AND_LENGTH_FIELDS
         )
         diff = model.condition.differences(condition, ignore)
         if diff:

@@ -8,8 +8,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from railsusp.conditions import WorkingCondition, make_condition
 from railsusp.errors import RailsuspInputError, repeated_names
 from railsusp.estimate.config import check_count, check_range
@@ -19,6 +17,7 @@ from railsusp.estimate.statistic_families import (
     parse_families,
     statistic_names,
 )
+from railsusp.numbers import is_whole
 from railsusp.params import MAIN_SUSPENSION, spec
 
 #: the largest ``condition_offset``: ten condition slots, and every seed below 2^31
@@ -158,14 +157,14 @@ class PosteriorSettings:
             object.__setattr__(self, name, int(getattr(self, name)))
         low, high = POSTERIOR_COUNTS["n_calibration"]
         n = self.n_calibration
-        if not _is_count(n) or (n and not low <= n <= high):
-            whole = "" if _is_count(n) else "an integer, "
+        if not is_whole(n) or (n and not low <= n <= high):
+            whole = "" if is_whole(n) else "an integer, "
             raise RailsuspInputError(
                 f"n_calibration = {n}: accepted {whole}0 (no correction) or {low} to {high}"
             )
         low, high = POSTERIOR_COUNTS["product_sections"]
         ks = self.product_sections
-        if any(not _is_count(k) or not low <= k <= high for k in ks) or len(set(ks)) != len(ks):
+        if any(not is_whole(k) or not low <= k <= high for k in ks) or len(set(ks)) != len(ks):
             raise RailsuspInputError(
                 f"product_sections = {','.join(map(str, ks))}: accepted distinct section "
                 f"counts from {low} to {high}, whole numbers"
@@ -173,21 +172,21 @@ class PosteriorSettings:
         low, high = POSTERIOR_COUNTS["product_cases"]
         counts = self.product_cases
         if counts and (
-            len(counts) != len(ks) or any(not _is_count(c) or not low <= c <= high for c in counts)
+            len(counts) != len(ks) or any(not is_whole(c) or not low <= c <= high for c in counts)
         ):
             raise RailsuspInputError(
                 f"product_cases = {','.join(map(str, counts))}: accepted one count from {low} "
                 f"to {high} per entry of product_sections ({len(ks)}), whole numbers"
             )
         low, high = POSTERIOR_COUNTS["n_product"]
-        if not _is_count(self.n_product) or (
+        if not is_whole(self.n_product) or (
             ks and not counts and not low <= self.n_product <= high
         ):  # the count of the held-out sets of several sections, where there are such
-            whole = "" if _is_count(self.n_product) else "an integer "
+            whole = "" if is_whole(self.n_product) else "an integer "
             raise RailsuspInputError(
                 f"n_product = {self.n_product}: accepted {whole}{low} to {high}"
             )
-        if not _is_count(self.statistics_emulator_cases):
+        if not is_whole(self.statistics_emulator_cases):
             raise RailsuspInputError(
                 f"statistics_emulator_cases = {self.statistics_emulator_cases}: accepted an "
                 f"integer, 0 or 20 to the training cases, n_train = {self.n_train}"
@@ -308,12 +307,6 @@ def _shown(value: Any) -> str:
     if isinstance(value, list | tuple):
         return ",".join(map(str, value)) or "(none)"
     return str(value)
-
-
-def _is_count(value: Any) -> bool:
-    """Whether ``value`` is a whole number as a count is given: an int (numpy's too), not a
-    float such as 2.0 nor a boolean (as :func:`~railsusp.estimate.config.check_count`)."""
-    return isinstance(value, int | np.integer) and not isinstance(value, bool)
 
 
 def _check_projection_rank(rank: int, families: tuple[str, ...]) -> None:

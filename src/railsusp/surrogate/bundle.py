@@ -21,7 +21,7 @@ import numpy as np
 import torch
 from pydantic import ValidationError
 
-from railsusp.conditions import TRACK_INPUT_FIELDS, WorkingCondition
+from railsusp.conditions import TRACK_AND_LENGTH_FIELDS, WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.integrity import read_torch_file
 from railsusp.params import ParameterSet, spec
@@ -169,7 +169,7 @@ class Surrogate:
         study's 110 mm cant, say) need not lie in the family (0-100 mm) and would be an
         extrapolation."""
         fam = self.track_family()
-        ignore = (*TRACK_INPUT_FIELDS, "duration_s", "n_steps")
+        ignore = TRACK_AND_LENGTH_FIELDS
         names = list(self.condition.differences(condition, ignore))
         for name, key in _FAMILY_FIELDS.items():
             if key in fam and name not in names and getattr(condition, name) is not None:

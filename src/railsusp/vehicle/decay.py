@@ -270,8 +270,10 @@ def decay_run(
         x, point.P, point.K, trk, point.s0, point.ds, ca.table, ca.y0, ca.dy, ca.H0L, ca.H0R,
         dt, n_steps, every, np.arange(L.N_STATE, dtype=np.int64), out,
     )  # fmt: skip
-    if code != L.OK:
-        raise RuntimeError(f"free-decay run ({excitation}): {L.FAILURE_REASONS[code]}")
+    if code != L.OK:  # over an input: too large an input for the wagon, named
+        if excitation == "none":
+            raise RuntimeError(f"free-decay run ({excitation}): {L.FAILURE_REASONS[code]}")
+        raise DecayRunError(excitation, float(amplitude_m), L.FAILURE_REASONS[code])
     return DecayRun(excitation, np.arange(rows) * every * dt, out[:rows], free_from)
 
 
@@ -406,19 +408,15 @@ def free_decay(
         )
     dt = SAMPLE_DT / math.ceil(SAMPLE_DT / stable - 1e-9)
     for ex in excitations:
-        try:
-            run = decay_run(
-                point,
-                ex,
-                amplitude_m=amplitude_m,
-                length_m=length_m,
-                duration_s=free + window_s,
-                dt=dt,
-                sample_dt=SAMPLE_DT,
-            )
-        except RuntimeError as exc:  # the model stopped: too large an input
-            reason = str(exc).removeprefix(f"free-decay run ({ex}): ")
-            raise DecayRunError(ex, amplitude_m, reason) from None
+        run = decay_run(  # a run the model stops raises DecayRunError
+            point,
+            ex,
+            amplitude_m=amplitude_m,
+            length_m=length_m,
+            duration_s=free + window_s,
+            dt=dt,
+            sample_dt=SAMPLE_DT,
+        )
         runs.append(run)
         sel = run.time >= run.free_from
         coords.append((run.time[sel], run.state[sel] @ np.conj(filters)))
