@@ -262,6 +262,10 @@ def test_statistics_gps_are_held_to_their_wheel_wagon_and_rate(gp_stats, tmp_pat
         (["--refine-starts", "3"], "--refine-starts 3 sets the refinement"),
         (["--preview-s", "5"], "--preview-s 5 sets the preview generations' record, and "
          "--preview-generations 0 asks for none"),
+        # a default typed again is an option given (compared with the default before)
+        (["--refine-evaluations", "40"], "--refine-evaluations 40 sets the refinement"),
+        (["--refine-starts", "2"], "--refine-starts 2 sets the refinement"),
+        (["--preview-s", "20"], "--preview-s 20 sets the preview generations' record"),
         (["--statistic", "foo"], "--statistic 'foo': give one of"),
         (["--statistic", "aligned", "--expected-generations"],
          "--expected-generations needs --expected-draws 1 or more"),
@@ -316,18 +320,18 @@ def test_synth_field_errors_name_the_option(tmp_path, args, message):
 def test_unused_geometry_draws_and_a_whole_record_preview_are_said(fields, tmp_path):
     """--geometry-draws and --keep-geometry-bias on recordings of exact geometry, and a
     20 s preview of a 1 s record, ran without a word; --expected-draws's warning named
-    expected_draws."""
+    expected_draws. --geometry-draws 8 is the default typed again: said too."""
     result = runner.invoke(
         app,
         ["estimate", "--measured", str(fields["good"]), "--simulator", "--parameters", "X13",
          "--statistic", "aligned", "--pop-size", "4", "--n-gen", "2", "--preview-generations",
-         "1", "--geometry-draws", "3", "--keep-geometry-bias", "--expected-draws", "2",
+         "1", "--geometry-draws", "8", "--keep-geometry-bias", "--expected-draws", "2",
          "--out", str(tmp_path / "e")],
     )  # fmt: skip
     assert result.exit_code == 0, result.output
     said = warnings_of(result)
     assert (
-        "warning: --geometry-draws 3 --keep-geometry-bias: not used: no recording states its "
+        "warning: --geometry-draws 8 --keep-geometry-bias: not used: no recording states its "
         "track geometry's accuracy (condition.track_accuracy_mm), so no error is drawn"
     ) in said
     assert any(w.startswith("warning: --expected-draws 2: no recording states") for w in said)

@@ -181,6 +181,24 @@ def _command_context():
     return get_current_context()
 
 
+def given_options(*names: str) -> list[str]:
+    """The options among ``names`` (parameter names) typed on the command line, as typed
+    (``--epochs``, ``--no-record-correction``), read from click's parameter source: typer
+    passes a default and a typed value alike, so comparing a value with its default would
+    not tell a default typed again from an option left out."""
+    ctx = _command_context()
+    given = []
+    for name in names:
+        source = ctx.get_parameter_source(name)
+        if source is None or source.name in ("DEFAULT", "DEFAULT_MAP"):
+            continue
+        option = "--" + name.replace("_", "-")
+        if ctx.params.get(name) is False:  # a flag typed as its --no- form
+            option = "--no-" + name.replace("_", "-")
+        given.append(option)
+    return given
+
+
 def _pipeline_run(folder: Path) -> Path | None:
     """The ``railsusp run`` directory ``folder`` lies in (its ``pipeline.json`` one to three
     levels up: ``RUN/campaign``, ``RUN/estimate/validation``,

@@ -12,7 +12,15 @@ from typing import Annotated
 
 import typer
 
-from railsusp.cli.common import app, console, fail, frame_table, hold_folders, option_names
+from railsusp.cli.common import (
+    app,
+    console,
+    fail,
+    frame_table,
+    given_options,
+    hold_folders,
+    option_names,
+)
 from railsusp.errors import RailsuspInputError
 from railsusp.input_checks import check_output_folder
 from railsusp.store import atomic_folder
@@ -35,8 +43,8 @@ _ESTIMATE_OPTIONS = {
     "correction_slopes": "--correction-slopes",
 }
 
-#: the defaults of the options that only some routes use: a value other than its default is
-#: an option given, refused (or said in a warning) where the route does not use it
+#: the defaults of the options that only some routes use (one typed is refused, or said in a
+#: warning, where the route does not use it: :func:`~railsusp.cli.common.given_options`)
 REFINE_EVALUATIONS, REFINE_SCREEN, REFINE_STARTS = 40, 64, 2
 PREVIEW_S = 20.0
 GEOMETRY_DRAWS = 8
@@ -271,20 +279,20 @@ def estimate(
         ):
             check_range(name, value, low, high)
         parse_statistics(statistic)
-        # options of a step that does not run: refused, not ignored; a value other than
-        # the default counts as given (a default typed again changes nothing and passes;
-        # train's _given reads click's parameter source, which tells them apart)
-        for name, value, default in (
-            ("--refine-evaluations", refine_evaluations, REFINE_EVALUATIONS),
-            ("--refine-screen", refine_screen, REFINE_SCREEN),
-            ("--refine-starts", refine_starts, REFINE_STARTS),
+        # options of a step that does not run: refused, not ignored (typed, even as the
+        # default: click's parameter source tells a typed value from one left out)
+        typed = given_options("refine_evaluations", "refine_screen", "refine_starts")
+        for name, value in (
+            ("--refine-evaluations", refine_evaluations),
+            ("--refine-screen", refine_screen),
+            ("--refine-starts", refine_starts),
         ):
-            if not refine and value != default:
+            if not refine and name in typed:
                 raise RailsuspInputError(
                     f"{name} {value} sets the refinement, which runs only with --refine: "
                     f"accepted --refine with it, or no {name}"
                 )
-        if not preview_generations and preview_s != PREVIEW_S:
+        if not preview_generations and given_options("preview_s"):
             raise RailsuspInputError(
                 f"--preview-s {preview_s:g} sets the preview generations' record, and "
                 "--preview-generations 0 asks for none: accepted --preview-generations 1 or "
@@ -385,9 +393,9 @@ def estimate(
         # the corrections' and the refinement's simulator: the model itself without surrogates
         sim = model if surrogate is None else SimulatorForces(params, wagon=wagon_data)
         given = []  # 0 draws asks for none: nothing ignored where none are drawn
-        if geometry_draws not in (GEOMETRY_DRAWS, 0):
+        if geometry_draws and given_options("geometry_draws"):
             given.append(f"--geometry-draws {geometry_draws}")
-        if not remove_geometry_bias:
+        if given_options("remove_geometry_bias") and not remove_geometry_bias:
             given.append("--keep-geometry-bias")
         why = geometry_draws_unused(cfg, recs, refine) if given else ""
         if why:  # as expected_draws without an accuracy: the recordings decide, so a warning

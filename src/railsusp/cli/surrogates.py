@@ -11,12 +11,12 @@ import typer
 from rich.table import Table
 
 from railsusp.cli.common import (
-    _command_context,
     app,
     console,
     err_console,
     fail,
     frame_table,
+    given_options,
     hold_folders,
     show_progress,
 )
@@ -88,23 +88,6 @@ def _train_config(epochs, batches_per_epoch, batch_size, device, seed, fine_tune
         device=device,
         seed=seed,
     )
-
-
-def _given(*names: str) -> list[str]:
-    """The options among ``names`` (parameter names) typed on the command line, as typed
-    (``--epochs``, ``--no-record-correction``): typer gives a default and a typed value
-    alike, so a value equal to the default was not told from one left out."""
-    ctx = _command_context()
-    given = []
-    for name in names:
-        source = ctx.get_parameter_source(name)
-        if source is None or source.name in ("DEFAULT", "DEFAULT_MAP"):
-            continue
-        option = "--" + name.replace("_", "-")
-        if ctx.params.get(name) is False:  # a flag typed as its --no- form
-            option = "--no-" + name.replace("_", "-")
-        given.append(option)
-    return given
 
 
 #: the training options of ``train`` and ``compare`` the networks alone take
@@ -199,14 +182,14 @@ def train(
         if model not in (*KINDS, "gp-stats"):
             raise RailsuspInputError(f"--model {model!r}: accepted {', '.join(KINDS)}, gp-stats")
         if model == "gp-stats":  # it fits GPs on every sample: no training setting is used
-            unused = _given(*NETWORK_OPTIONS, "seed", "window", "record_correction")
+            unused = given_options(*NETWORK_OPTIONS, "seed", "window", "record_correction")
             if unused:
                 raise RailsuspInputError(
                     f"{', '.join(unused)}: accepted only with the network models "
                     f"({', '.join(KINDS)}); --model gp-stats fits the statistics GPs, which "
                     "take no training settings"
                 )
-        elif model in SEQUENCE_KINDS and _given("batch_size"):
+        elif model in SEQUENCE_KINDS and given_options("batch_size"):
             raise RailsuspInputError(
                 f"--batch-size: accepted only with the window networks; --model {model} "
                 "trains on mini-batches of 32 chunks of 400 steps"
@@ -366,13 +349,13 @@ def compare(
         # options none of the models chosen reads (rbf and gp-stats train no network; the
         # sequence network draws chunks, not --batch-size windows)
         networks = [m for m in names if m in KINDS]
-        unused = _given(*NETWORK_OPTIONS) if not networks else []
+        unused = given_options(*NETWORK_OPTIONS) if not networks else []
         if unused:
             raise RailsuspInputError(
                 f"{', '.join(unused)}: accepted only with a network among --models "
                 f"({', '.join(names)} train none)"
             )
-        if networks and all(m in SEQUENCE_KINDS for m in networks) and _given("batch_size"):
+        if networks and all(m in SEQUENCE_KINDS for m in networks) and given_options("batch_size"):
             raise RailsuspInputError(
                 f"--batch-size: accepted only with a window network among --models "
                 f"({', '.join(networks)} trains on mini-batches of 32 chunks of 400 steps)"
