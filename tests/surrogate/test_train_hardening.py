@@ -95,6 +95,20 @@ def test_interrupted_and_resumed_training_equals_an_uninterrupted_one(tmp_path, 
     assert _same(resumed, whole)
 
 
+def test_a_checkpoint_save_killed_midway_leaves_no_temporary_after_the_resume(tmp_path):
+    """A kill while the checkpoint was written left ``.checkpoint.pt.XXXXXXXX.tmp`` (a
+    network's size) in the surrogate's folder for good; the resume removes it, and only it."""
+    ck = tmp_path / "checkpoint.pt"
+    _train(1, ck)
+    stale = tmp_path / ".checkpoint.pt.ab12cd34.tmp"
+    stale.write_bytes(ck.read_bytes()[:100])  # cut short, as a kill mid-write leaves it
+    other = tmp_path / ".model.pt.ab12cd34.tmp"  # another file's: not the training's to remove
+    other.write_bytes(b"x")
+    _train(2, ck)
+    assert not stale.exists() and other.exists()
+    assert len(_checkpoint_history(ck)) == 2
+
+
 def test_a_crafted_pickle_checkpoint_is_refused_and_runs_no_code(tmp_path):
     marker = tmp_path / "pwned"
     code = f"open({str(marker)!r}, 'w').write('ran')"

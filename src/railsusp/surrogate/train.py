@@ -31,7 +31,7 @@ from torch import nn
 
 from railsusp.errors import RailsuspInputError
 from railsusp.integrity import TorchFileCutShort, read_torch_file
-from railsusp.store import atomic_write_bytes, content_hash
+from railsusp.store import atomic_write_bytes, content_hash, remove_stale_temporaries
 from railsusp.surrogate.chunks import ChunkSampler
 from railsusp.surrogate.data import Normaliser, SeriesData, gather_windows, window_index
 from railsusp.surrogate.models import SEQUENCE_KINDS
@@ -339,6 +339,10 @@ def train_network(
     # the key of before (the device as typed; batch_size for the chunk networks as
     # well): a checkpoint of then resumes where these settings match it
     legacy = content_hash(_identity(cfg, device, net, train, val, initial, legacy=True))
+    if checkpoint is not None:
+        # a training killed while saving its checkpoint left the temporary (a network's
+        # size, hidden) for good: the audit of stop 64
+        remove_stale_temporaries(checkpoint.parent, targets=(checkpoint.name,))
     if checkpoint is not None and checkpoint.exists():
         state = _read_checkpoint(checkpoint)  # on the CPU: the RNG state must stay there
         if state is not None and state.get("key") == legacy != key:
