@@ -178,6 +178,23 @@ def test_a_small_campaigns_metamodels_are_scored(tmp_path):
     assert set(idx.r2_holdout) == {f.r2_holdout for f in fits}
 
 
+def test_an_analysis_killed_while_writing_leaves_no_temporary_after_the_next(lhs_runs, tmp_path):
+    """A kill while an output was written left ``.indices.csv.XXXXXXXX.tmp`` in
+    ``sensitivity/`` for good; the next analysis removes it (other hidden files stay)."""
+    run = tmp_path / "run"
+    shutil.copytree(lhs_runs[0], run)
+    (run / "sensitivity").mkdir(exist_ok=True)
+    stale = run / "sensitivity" / ".indices.csv.k3j9x0qa.tmp"
+    stale.write_text("parameter,")
+    kept = run / "sensitivity" / ".notes"
+    kept.write_text("mine")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        analyse(run, statistics=("mean",), key_statistics=("mean",), base_samples=64)
+    assert not stale.exists() and kept.exists()
+    assert (run / "sensitivity" / "key_parameters.json").exists()
+
+
 # ---------------------------------------------------------------- 3. --compare campaigns
 def test_an_unfinished_comparison_campaign_is_refused(lhs_runs):
     """analyse(run, compare=PART) compared an unfinished campaign on the batches it had,

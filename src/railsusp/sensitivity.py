@@ -37,7 +37,7 @@ from railsusp.key_parameters import (
     study_comparison,
 )
 from railsusp.params import bounds
-from railsusp.store import write_csv, write_json, write_parquet
+from railsusp.store import remove_stale_temporaries, write_csv, write_json, write_parquet
 
 INDEX_COLUMNS = (
     "condition",
@@ -437,6 +437,9 @@ def analyse(
     agree = None
     if compare is not None:
         agree = agreement(idx, indices_of(other)[0])
+    # an analysis killed while it wrote left its temporaries here for good (the CLI
+    # and the pipeline hold the campaign's lock: no other analysis writes this folder)
+    remove_stale_temporaries(out)
     write_parquet(out / "indices.parquet", idx, metadata={INDICES_STAMP: camp.config.hash()})
     write_csv(out / "indices.csv", idx)
     write_json(out / "indices.json", idx.to_dict(orient="records"))
