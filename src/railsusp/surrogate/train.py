@@ -10,14 +10,13 @@ every epoch and a killed training resumes from the last checkpoint with the same
 On the CPU a training is bitwise reproducible for a given seed: the initial weights are drawn
 from the seed (whatever the global random state was when the network was built), mini-batches
 and dropout come from seeded generators whose states the checkpoint carries, and PyTorch runs
-its deterministic algorithms. Checkpoints are read with ``weights_only=True``: a crafted
-checkpoint cannot run code.
+its deterministic algorithms. What a checkpoint is keyed by, when it resumes, and how it is
+read (``weights_only=True``: a crafted checkpoint cannot run code) and written:
+:mod:`railsusp.surrogate.checkpoint`.
 """
 
 from __future__ import annotations
 
-import hashlib
-import io
 import logging
 import math
 import time
@@ -30,8 +29,7 @@ import torch
 from torch import nn
 
 from railsusp.errors import RailsuspInputError
-from railsusp.integrity import TorchFileCutShort, read_torch_file
-from railsusp.store import atomic_write_bytes, content_hash, remove_stale_temporaries
+from railsusp.surrogate.checkpoint import identity_keys, resume_state, save_checkpoint
 from railsusp.surrogate.chunks import ChunkSampler
 from railsusp.surrogate.data import Normaliser, SeriesData, gather_windows, window_index
 from railsusp.surrogate.models import SEQUENCE_KINDS
@@ -141,17 +139,6 @@ def seed_weights(net: nn.Module, seed: int) -> None:
     torch.set_rng_state(gen_state)
 
 
-#: settings added after checkpoints existed: they count in a checkpoint's key only when
-#: changed from these defaults, so older checkpoints still resume
-_LATER_SETTINGS = {
-    "fine_tune_lr_factor": 0.1,
-    "chunk_steps": 400,
-    "chunks_per_batch": 32,
-    "pair_weight": 0.0,
-    "max_seconds": None,
-}
-
-
 class WindowSampler:
     """Windows of one data set, normalised, as tensors."""
 
@@ -221,22 +208,6 @@ def batch_loss(
     if isinstance(sampler, PairSampler):
         return sampler.loss(net(xb, pairs=True), yb)
     return nn.functional.mse_loss(net(xb), yb), None
-
-
-def _fingerprint(*samplers: Sampler) -> str:
-    """SHA-256 of the samplers' windows or chunks, inputs and targets."""
-    h = hashlib.sha256()
-    for smp in samplers:
-        h.update(str(smp.window).encode())
-        if isinstance(smp, ChunkSampler):
-            h.update(f"chunk {smp.chunk}".encode())
-        arrays = [smp.params, smp.track, smp.targets, smp.index]
-        if isinstance(smp, PairSampler):
-            arrays += [smp.twin_params, smp.twin_targets]
-        for arr in arrays:
-            h.update(str(arr.shape).encode())
-            h.update(np.ascontiguousarray(arr).tobytes())
-    return h.hexdigest()
 
 
 def _train_epoch(
@@ -327,43 +298,14 @@ def train_network(
     xv, yv = xv.to(device), yv.to(device)
     history: list[dict] = []
     best, best_state, stale = float("inf"), None, 0
-    # a checkpoint resumes only the same training: settings (but for the epoch limits, which
-    # may be raised to train on), architecture and data (windows, features, samples,
-    # normalisation), so another window length or campaign starts afresh; settings added
-    # later count only when changed, so checkpoints from before they existed still resume,
-    # and the chunk settings only for the network that trains on chunks, the window count
-    # ``batch_size`` only for the networks that train on windows; the device as resolved
-    # (``auto`` on a machine without CUDA trains as ``cpu`` does)
-    ident = _identity(cfg, device, net, train, val, initial)
-    key = content_hash(ident)
-    # the key of before (the device as typed; batch_size for the chunk networks as
-    # well): a checkpoint of then resumes where these settings match it
-    legacy = content_hash(_identity(cfg, device, net, train, val, initial, legacy=True))
+    # a checkpoint resumes only the same training (railsusp.surrogate.checkpoint); the
+    # device as resolved (``auto`` on a machine without CUDA trains as ``cpu`` does)
+    ident, key, legacy = identity_keys(cfg.to_dict(), device, net, train, val, initial)
     if checkpoint is not None:
-        # a training killed while saving its checkpoint left the temporary (a network's
-        # size, hidden) for good: the audit of stop 64
-        remove_stale_temporaries(checkpoint.parent, targets=(checkpoint.name,))
-    if checkpoint is not None and checkpoint.exists():
-        state = _read_checkpoint(checkpoint)  # on the CPU: the RNG state must stay there
-        if state is not None and state.get("key") == legacy != key:
-            state["key"] = key
-        if state is not None and state.get("key") != key:
-            log.warning(
-                "checkpoint %s of other settings (%s); training starts afresh",
-                checkpoint,
-                _what_differs(state.get("ident"), ident),
-            )
-            state = None
-        if state is not None and state.get("key") == key and not _resumable(state, cfg):
-            log.warning(
-                "checkpoint %s: trained with other epoch limits past where these resume "
-                "(epochs %s, fine-tune %s); training starts afresh",
-                checkpoint,
-                state.get("epochs", "?"),
-                state.get("fine_tune_epochs", "?"),
-            )
-            state = None
-        if state is not None and state.get("key") == key:
+        state, why = resume_state(checkpoint, key, legacy, ident, cfg.epochs, cfg.fine_tune_epochs)
+        if why:
+            log.warning("%s", why)
+        if state is not None:
             net.load_state_dict(state["model"])
             opt.load_state_dict(state["optim"])
             history, best, stale = state["history"], state["best"], state["stale"]
@@ -424,9 +366,7 @@ def train_network(
                     "rng": rng.bit_generator.state,
                     "torch_rng": torch.get_rng_state(),
                 }
-                buf = io.BytesIO()
-                torch.save(state, buf)
-                atomic_write_bytes(checkpoint, buf.getvalue())
+                save_checkpoint(checkpoint, state)
             log.debug(
                 "training %s (%s): epoch %d/%d, train loss %.3g, validation loss %.3g",
                 type(net).__name__,
@@ -444,75 +384,6 @@ def train_network(
     return history
 
 
-def _identity(
-    cfg: TrainConfig,
-    device: torch.device,
-    net: nn.Module,
-    train: Sampler,
-    val: Sampler,
-    initial: dict[str, torch.Tensor] | None,
-    legacy: bool = False,
-) -> dict:
-    """What a checkpoint's key is the hash of: the settings the training depends on, the
-    architecture and the data (``legacy``: as keyed before, the device as typed
-    and ``batch_size`` for the chunk networks too)."""
-    unused = ("epochs", "fine_tune_epochs", "max_seconds")
-    if not isinstance(train, ChunkSampler):
-        unused += ("chunk_steps", "chunks_per_batch")
-    elif not legacy:  # chunks per mini-batch: ``chunks_per_batch``, not ``batch_size``
-        unused += ("batch_size",)
-    values = cfg.to_dict()
-    if not legacy:
-        values["device"] = device.type
-    settings = {
-        k: v for k, v in values.items() if k not in unused and _LATER_SETTINGS.get(k, object()) != v
-    }
-    ident = {"cfg": settings, "arch": repr(net), "data": _fingerprint(train, val)}
-    if initial is not None:
-        ident["initial"] = _state_hash(initial)
-    return ident
-
-
-def _what_differs(before: object, now: dict) -> str:
-    """The settings (``batch_size 512 -> 256``), architecture, data or initial weights in
-    which a checkpoint's identity ``before`` differs from ``now``, for one line; a checkpoint
-    from before identities were kept says only that something does."""
-    if not isinstance(before, dict):
-        return "settings, architecture or data"
-    parts = []
-    old_cfg, new_cfg = before.get("cfg") or {}, now["cfg"]
-    for k in sorted(set(old_cfg) | set(new_cfg)):
-        a = old_cfg.get(k, _LATER_SETTINGS.get(k, "-"))
-        b = new_cfg.get(k, _LATER_SETTINGS.get(k, "-"))
-        if a != b:
-            parts.append(f"{k} {a} -> {b}")
-    if before.get("arch") != now["arch"]:
-        parts.append("architecture")
-    if before.get("data") != now["data"]:
-        parts.append("data: window, features, samples or normalisation")
-    if before.get("initial") != now.get("initial"):
-        parts.append("initial weights")
-    return ", ".join(parts) or "settings, architecture or data"
-
-
-def _resumable(state: dict, cfg: TrainConfig) -> bool:
-    """Whether training on from checkpoint ``state`` reaches what a fresh training with
-    ``cfg``'s epoch limits reaches (the limits are not in the checkpoint's key, so that a
-    main phase may be trained on with a raised ``epochs``). Still in the main phase: when
-    it has not run past ``cfg.epochs``. Past it: when the main phase ended where ``cfg``'s
-    would, at ``cfg.epochs`` or stopped early below both limits (by patience), and the
-    fine-tune phase has not run past ``cfg.fine_tune_epochs``. Before this check a
-    pipeline whose ``[surrogate] epochs`` changed kept the network of the old limits."""
-    history = state.get("history") or []
-    main = sum(h.get("phase", "main") == "main" for h in history)
-    fine = len(history) - main
-    if fine == 0:
-        return main <= cfg.epochs
-    old = state.get("epochs")  # None: a checkpoint from before the limits were kept
-    stopped_early = old is not None and main < min(old, cfg.epochs)
-    return (main == cfg.epochs or stopped_early) and 0 < fine <= cfg.fine_tune_epochs
-
-
 def _phase_deadlines(cfg: TrainConfig, started: float) -> list[float]:
     """The clock reading after which each phase (main, fine-tune) starts no new epoch: its
     share of ``cfg.max_seconds`` by epochs, the fine-tune phase's deadline the whole
@@ -521,29 +392,3 @@ def _phase_deadlines(cfg: TrainConfig, started: float) -> list[float]:
         return [float("inf"), float("inf")]
     main_share = cfg.epochs / (cfg.epochs + cfg.fine_tune_epochs)
     return [started + main_share * cfg.max_seconds, started + cfg.max_seconds]
-
-
-def _state_hash(state: dict[str, torch.Tensor]) -> str:
-    """SHA-256 of a state dict's names and values."""
-    h = hashlib.sha256()
-    for name in sorted(state):
-        h.update(name.encode())
-        h.update(state[name].detach().cpu().contiguous().numpy().tobytes())
-    return h.hexdigest()
-
-
-def _read_checkpoint(path: Path) -> dict | None:
-    """A checkpoint's state, read with ``weights_only=True`` (tensors, numbers, strings and
-    containers only: no code runs). One that holds anything else, or is not a checkpoint,
-    is refused with a one-line error rather than trusted or silently overwritten; one cut
-    short (its zip does not read: a copy interrupted, a full disk) holds nothing to trust
-    and is trained past, from the start."""
-    # read onto the CPU whatever device trains: load_state_dict moves the network's and the
-    # optimiser's tensors to their parameters' device, and torch.set_rng_state takes a CPU
-    # tensor only (a checkpoint of a GPU training read onto the GPU could not resume)
-    try:
-        state = read_torch_file(path, "checkpoint", "delete it to train afresh")
-    except TorchFileCutShort:
-        log.warning("checkpoint %s is cut short or damaged; training starts afresh", path)
-        return None
-    return state if isinstance(state, dict) else None
