@@ -4,7 +4,9 @@ One module per job, imports running one way (top to bottom depends only on those
 
 - :mod:`~railsusp.estimate.statistics`: record statistics of recordings and predictions
 - :mod:`~railsusp.estimate.comparison`: the time-aligned comparison on measured track
-- :mod:`~railsusp.estimate.forces`: force models (window or statistics surrogates, simulator)
+- :mod:`~railsusp.estimate.forces`: force models (window surrogates, the simulator)
+- :mod:`~railsusp.estimate.statistics_forces`: statistics surrogates as a force model, and the
+  surrogate kind of a folder
 - :mod:`~railsusp.estimate.expected_forces`: a model's mean over draws of the true track
   geometry given a measured one
 - :mod:`~railsusp.estimate.problem`: the calibration problem (objectives), input checks
@@ -48,14 +50,7 @@ from railsusp.estimate.comparison import (
     measurement_filter,
 )
 from railsusp.estimate.config import NSGAConfig
-from railsusp.estimate.forces import (
-    ForceModel,
-    SimulatorForces,
-    StatisticsForces,
-    SurrogateForces,
-    force_statistics,
-    open_force_model,
-)
+from railsusp.estimate.forces import ForceModel, SimulatorForces, SurrogateForces
 from railsusp.estimate.identifiability import BOUND_LIMIT_PCT, cramer_rao_pct_range
 from railsusp.estimate.nsga import choose, estimate, estimate_with_seeds
 from railsusp.estimate.polish import aligned_cost, check_refinable, refine_estimate
@@ -77,6 +72,11 @@ from railsusp.estimate.statistics import (
     recording_segments,
     series_statistics,
     yq_statistics,
+)
+from railsusp.estimate.statistics_forces import (
+    StatisticsForces,
+    force_statistics,
+    open_force_model,
 )
 
 __all__ = [

@@ -5,10 +5,10 @@ Fisher information of the measured statistics about the key parameters is F = J�
 with J the gradient of the GP means (central differences) and Σ the variance of each
 measured statistic about its expectation: the GP's own uncertainty plus the scatter between
 track realisations, scaled to the recording's length
-(:meth:`railsusp.estimate.forces.StatisticsForces.measurement_std`). The square roots of the
-diagonal of F⁻¹ are the smallest standard deviations that any unbiased estimator can reach
-from these statistics (Cramér-Rao; e.g. Kay, *Fundamentals of Statistical Signal
-Processing: Estimation Theory*, 1993, ch. 3). A parameter whose bound exceeds
+(:meth:`railsusp.estimate.statistics_forces.StatisticsForces.measurement_std`). The square
+roots of the diagonal of F⁻¹ are the smallest standard deviations that any unbiased
+estimator can reach from these statistics (Cramér-Rao; e.g. Kay, *Fundamentals of
+Statistical Signal Processing: Estimation Theory*, 1993, ch. 3). A parameter whose bound exceeds
 :data:`BOUND_LIMIT_PCT` of its range cannot be recovered to that precision by any
 optimiser: more or longer recordings, or measured track geometry, are needed.
 
@@ -30,7 +30,7 @@ import numpy as np
 from railsusp.params import bounds
 
 if TYPE_CHECKING:
-    from railsusp.estimate.forces import StatisticsForces
+    from railsusp.estimate.statistics_forces import StatisticsForces
     from railsusp.measured import Recording
 
 #: a parameter whose Cramér-Rao bound exceeds this share of its range is flagged

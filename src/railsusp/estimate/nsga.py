@@ -38,11 +38,12 @@ from railsusp.estimate.config import (
     choice_rule,
 )
 from railsusp.estimate.expected_forces import ExpectedForces, check_drawable
-from railsusp.estimate.forces import ForceModel, StatisticsForces
+from railsusp.estimate.forces import ForceModel
 from railsusp.estimate.identifiability import cramer_rao_pct_range
 from railsusp.estimate.problem import ERRORS, CalibrationProblem
 from railsusp.estimate.result import CalibrationResult
 from railsusp.estimate.statistics import ALIGNED, parse_statistics
+from railsusp.estimate.statistics_forces import StatisticsForces
 from railsusp.measured import Recording
 from railsusp.params import bounds
 

@@ -22,9 +22,7 @@ from railsusp.estimate.expected_forces import averaged_model
 from railsusp.estimate.forces import (
     ForceModel,
     SimulatorForces,
-    StatisticsForces,
     SurrogateForces,
-    force_statistics,
     series_in_conditions,
 )
 from railsusp.estimate.statistics import (
@@ -34,6 +32,7 @@ from railsusp.estimate.statistics import (
     parse_statistics,
     series_statistics,
 )
+from railsusp.estimate.statistics_forces import StatisticsForces, force_statistics
 from railsusp.measured import Recording
 from railsusp.params import bounds, spec
 from railsusp.vehicle.simulation_result import RECORD_STATISTICS
