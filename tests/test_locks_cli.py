@@ -222,6 +222,53 @@ def test_a_stage_folder_of_a_run_is_refused_while_the_run_works(tmp_path, args):
     assert f"another railsusp run is working in its run directory {run} (process {pid})" in line
 
 
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["sensitivity", "{link}"],
+        ["campaign", "--out", "{link}", "--conditions", "straight", "--samples", "4", "--force"],
+    ],
+    ids=["sensitivity", "campaign --force"],
+)  # fmt: skip
+def test_a_stage_folder_named_through_a_link_is_refused_while_the_run_works(tmp_path, args):
+    """A symbolic link to RUN/campaign was not seen to lie in RUN (pipeline.json was looked
+    for above the link's own name): sensitivity rewrote the run's analysis and campaign
+    --force replaced its campaign beside ``railsusp run`` (the Dask and locks audit)."""
+    run = tmp_path / "run"
+    (run / "campaign").mkdir(parents=True)
+    (run / "pipeline.json").write_text('{"stages": {}}')
+    link = tmp_path / "elsewhere" / "camp_link"
+    link.parent.mkdir()
+    link.symlink_to(run / "campaign", target_is_directory=True)
+    args = [a.format(link=link) for a in args]
+    with held("exclusive", run) as pid:
+        line = refused_line(args)
+    assert f"another railsusp run is working in its run directory {run} (process {pid})" in line
+
+
+def test_a_folder_and_a_link_to_it_named_together_are_one_folder(tmp_path):
+    """Named once as itself and once through a link, a folder is one folder: the command is
+    not refused by its own lock (a guard for the plan keyed by where folders resolve to,
+    which the link test above needed; it passed before too)."""
+    folder = tmp_path / "camp"
+    folder.mkdir()
+    link = tmp_path / "link"
+    link.symlink_to(folder, target_is_directory=True)
+    import typer
+
+    from railsusp.cli.common import hold_folders
+
+    tiny = typer.Typer()
+
+    @tiny.command()
+    def work() -> None:
+        hold_folders(writes=[("--out", link)], reads=[("--keys-from", folder)])
+        print("held")
+
+    result = runner.invoke(tiny, [])
+    assert result.exit_code == 0 and "held" in result.output, result.output
+
+
 def test_a_run_is_refused_while_a_command_works_in_one_of_its_stage_folders(tmp_path, monkeypatch):
     """The other way round: ``sensitivity RUN/campaign`` holds RUN shared while it works, so
     ``railsusp run RUN`` (which takes RUN exclusively, railsusp.pipeline) is refused

@@ -199,14 +199,19 @@ def given_options(*names: str) -> list[str]:
     return given
 
 
-def _pipeline_run(folder: Path) -> Path | None:
-    """The ``railsusp run`` directory ``folder`` lies in (its ``pipeline.json`` one to three
-    levels up: ``RUN/campaign``, ``RUN/estimate/validation``,
-    ``RUN/campaign/surrogates/cnn-gru``), or None."""
-    for up in list(folder.absolute().parents)[:3]:
-        if (up / "pipeline.json").is_file():
-            return up
-    return None
+def _pipeline_runs(folder: Path) -> list[Path]:
+    """The ``railsusp run`` directories ``folder`` lies in (their ``pipeline.json`` one to
+    three levels up: ``RUN/campaign``, ``RUN/estimate/validation``,
+    ``RUN/campaign/surrogates/cnn-gru``), above the folder as named and above where it
+    resolves to: a symbolic link to ``RUN/campaign`` lies in ``RUN`` too (looked for as named
+    only, a command on the link ran beside ``railsusp run``: the Dask and locks audit)."""
+    found: dict[Path, Path] = {}
+    for base in (folder.absolute(), folder.resolve()):
+        for up in list(base.parents)[:3]:
+            if (up / "pipeline.json").is_file():
+                found.setdefault(up.resolve(), up)
+                break
+    return list(found.values())
 
 
 def _remove_if_bare(folder: Path, made: list[Path]) -> None:
@@ -253,7 +258,7 @@ def hold_folders(
     plan: dict[Path, dict] = {}
 
     def add(option: str, folder: Path, mode: str, named: Path | None = None) -> None:
-        key = folder.absolute()
+        key = folder.resolve()  # a folder and a link to it are one folder, locked once
         have = plan.get(key)
         if have is None:
             plan[key] = {"option": option, "folder": folder, "mode": mode, "named": named}
@@ -269,8 +274,7 @@ def hold_folders(
     for option, folder in reads:
         add(option, Path(folder), "read")
     for option, folder in [*creates, *writes, *reads, *near]:
-        run = _pipeline_run(Path(folder))
-        if run is not None:
+        for run in _pipeline_runs(Path(folder)):
             add(option, run, "read", named=Path(folder))
     stack = _command_context().with_resource(ExitStack())
     # the run directories first: a command refused beside a working `railsusp run` makes
