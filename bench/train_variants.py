@@ -40,7 +40,7 @@ import numpy as np
 import torch
 from torch import nn
 
-import railsusp.surrogate as surrogate
+import railsusp.surrogate.fit as surrogate_fit
 import railsusp.surrogate.in_step as in_step
 import railsusp.surrogate.sequence as sequence
 import railsusp.surrogate.train as train
@@ -204,7 +204,7 @@ def widen() -> None:
     """Warm starts from a narrower network of the same kind (:func:`widened`), after the
     warm start's own checks of everything but the widths (features, normalisation, the rest
     of the network's configuration)."""
-    checked = surrogate.warm_start
+    checked = surrogate_fit.warm_start
 
     def warm_start(src, path, cfg, spec, norm):
         narrow = replace(cfg, rnn_hidden=src.net_config.rnn_hidden, dense=src.net_config.dense)
@@ -214,7 +214,7 @@ def widen() -> None:
         except ValueError as exc:
             raise SystemExit(f"--variant widen: {path}: {exc}") from None
 
-    surrogate.warm_start = warm_start
+    surrogate_fit.warm_start = warm_start
 
 
 def main() -> None:

@@ -13,14 +13,6 @@ import pandas as pd
 from railsusp.campaign import load_campaign, require_complete
 from railsusp.errors import RailsuspInputError
 from railsusp.store import write_csv, write_json
-from railsusp.surrogate import (
-    check_conditions,
-    feature_spec,
-    key_parameters,
-    longest_window,
-    replaced_settings,
-    train_surrogate,
-)
 from railsusp.surrogate.baselines import RBFWindowModel, StatisticsGP
 from railsusp.surrogate.data import Normaliser, load_series
 from railsusp.surrogate.evaluate import (
@@ -29,6 +21,14 @@ from railsusp.surrogate.evaluate import (
     predict_series,
     predict_with_alone,
 )
+from railsusp.surrogate.fit import (
+    check_conditions,
+    feature_spec,
+    longest_window,
+    replaced_settings,
+    train_surrogate,
+)
+from railsusp.surrogate.keys import key_parameters
 from railsusp.surrogate.models import DEFAULT_WASHOUT, KINDS, SEQUENCE_KINDS
 from railsusp.surrogate.split import campaign_split
 from railsusp.surrogate.train import TrainConfig

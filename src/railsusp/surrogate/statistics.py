@@ -144,7 +144,7 @@ def train_statistics_surrogate(
     ``max_train``, chosen at random; an unfinished campaign is refused) and save them under
     ``RUN/surrogates/gp-stats/<cond>/``."""
     from railsusp.campaign import load_campaign, require_complete
-    from railsusp.surrogate import key_parameters
+    from railsusp.surrogate.keys import key_parameters
     from railsusp.variation import assumed_parameters
 
     camp = require_complete(load_campaign(run))  # never train on part of a campaign
