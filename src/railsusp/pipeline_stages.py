@@ -172,7 +172,14 @@ def stage_runners(
             parameters=parameters,
             wagon=load_wagon(config.wagon),
         )
-        run_campaign(cfg, dest, force=True, scheduler=config.scheduler, progress=run_progress)
+        run_campaign(
+            cfg,
+            dest,
+            force=True,
+            scheduler=config.scheduler,
+            scheduler_setting="scheduler =",  # the configuration's, as the user wrote it
+            progress=run_progress,
+        )
         return cfg.n_runs * len(cfg.conditions)
 
     def campaign() -> dict:

@@ -1,15 +1,86 @@
 """Running a campaign's batches on a Dask cluster: the scheduler's address checked before
 any connection, the connection bounded in time, the batches submitted and stored as they
 complete (:func:`run_on_dask`; :func:`railsusp.campaign.run.run_campaign` chooses it with
-``--scheduler`` or ``--workers``). Dask is imported only here, and only when used."""
+``--scheduler`` or ``--workers``), the cluster's own failures one line
+(:class:`ClusterError`), and how a campaign ran recorded (:func:`executor_record`). Dask is
+imported only here, and only when used."""
 
 from __future__ import annotations
 
+import errno
 import re
 from collections.abc import Callable, Iterable
 from typing import Any
 
 from railsusp.campaign.design import CampaignError
+
+#: how a failed cluster's error ends: what is kept and what to do
+RESUME_HINT = "the batches stored are kept; run the same command again"
+
+
+class ClusterError(OSError):
+    """The Dask cluster failed while a campaign ran on it: its scheduler lost, the workers
+    of a batch killed, a batch cancelled. Not bad input but the machines' failure, as a full
+    disk is: an OSError of ``errno.EIO``, which the command line reports in one line with
+    exit status 1 (:func:`railsusp.cli.main`, and ``railsusp run`` through
+    :func:`railsusp.cli.common.exit_code`); distributed's own errors were a traceback."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(errno.EIO, message)
+
+    def __str__(self) -> str:  # the message alone, not "[Errno 5] ..."
+        return str(self.strerror)
+
+
+def _cluster_failures() -> tuple[type[BaseException], ...]:
+    """The errors by which distributed reports its cluster failing (not a task's own):
+    a cancelled future (``FutureCancelledError``, e.g. the scheduler's connection lost),
+    a batch whose workers all died (``KilledWorker``), a connection closed or timed out."""
+    import asyncio
+    import concurrent.futures
+
+    from distributed.comm.core import CommClosedError
+    from distributed.scheduler import KilledWorker
+
+    return (
+        concurrent.futures.CancelledError,
+        asyncio.CancelledError,
+        KilledWorker,
+        CommClosedError,
+        TimeoutError,
+    )
+
+
+def cluster_error(exc: BaseException) -> ClusterError:
+    """``exc``, one of :func:`_cluster_failures`, as a one-line :class:`ClusterError` naming
+    it and ending with :data:`RESUME_HINT`."""
+    try:
+        text = " ".join(str(exc).split())  # KilledWorker's message runs over several lines
+    except Exception:  # a message that cannot be made: the type says enough
+        text = ""
+    if len(text) > 300:
+        text = text[:297] + "..."
+    cause = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+    return ClusterError(f"the Dask cluster failed during the campaign ({cause}); {RESUME_HINT}")
+
+
+def executor_record(scheduler: str | None, workers: int | None) -> dict[str, Any]:
+    """How a campaign's batches run, for ``campaign.json``: ``serial`` (here, one batch
+    after another), ``local processes`` (a LocalCluster of ``workers``) or ``scheduler`` (its
+    address), with the dask and distributed versions where Dask runs them."""
+    if scheduler is None and workers is None:
+        return {"executor": "serial"}
+    from importlib import metadata
+
+    where = (
+        {"executor": "local processes", "workers": workers or 1}
+        if scheduler is None
+        else {"executor": "scheduler", "scheduler": scheduler}
+    )
+    return {
+        **where,
+        **{name: metadata.version(name) for name in ("dask", "distributed")},
+    }
 
 
 def check_scheduler_address(address: str, setting: str) -> None:
@@ -31,9 +102,10 @@ def check_scheduler_address(address: str, setting: str) -> None:
 CONNECT_TIMEOUT_S = 20.0
 
 
-def _connect(scheduler: str):
-    """A Dask client of ``scheduler``, or a one-line :class:`CampaignError` within
-    :data:`CONNECT_TIMEOUT_S`: no answer, a refused port, or a peer that is no Dask
+def _connect(scheduler: str, setting: str = "--scheduler"):
+    """A Dask client of ``scheduler``, or a one-line :class:`CampaignError` naming the
+    ``setting`` the user gave it in (``--scheduler``, or a configuration's ``scheduler =``)
+    within :data:`CONNECT_TIMEOUT_S`: no answer, a refused port, or a peer that is no Dask
     scheduler (an SSH banner read as a message gave an allocation error of 2.8 EiB)."""
     import threading
 
@@ -59,7 +131,7 @@ def _connect(scheduler: str):
     )
     if why:
         raise CampaignError(
-            f"--scheduler {scheduler}: no Dask scheduler answered ({why}); accepted the "
+            f"{setting} {scheduler}: no Dask scheduler answered ({why}); accepted the "
             "address of a running one (the campaign resumes from what is stored)"
         )
     return made["client"]
@@ -72,12 +144,18 @@ def run_on_dask(
     finish: Callable[[int, Any], None],
     scheduler: str | None,
     workers: int | None,
+    setting: str = "--scheduler",
 ) -> None:
     """Submit ``task(*args(ci, b))`` for each batch ``(ci, b)`` of ``todo`` to a Dask
     cluster (``scheduler``'s, or a local one of ``workers`` single-threaded processes) and
     hand each result to ``finish(b, result)`` as it completes, so that a batch is stored the
-    moment it is done and an interrupted campaign resumes from them."""
+    moment it is done and an interrupted campaign resumes from them. ``setting``: where the
+    user gave the scheduler (named when none answers). The cluster failing on the way is a
+    :class:`ClusterError` (the batches finished so far are stored); a task's own error and
+    one of ``finish`` come through as they are."""
     from dask.distributed import Client, LocalCluster, as_completed
+
+    failures = _cluster_failures()
 
     cluster = None
     if scheduler is None:
@@ -86,15 +164,29 @@ def run_on_dask(
         )
         client = Client(cluster)
     else:  # the run directory is written and resumes once a scheduler answers
-        client = _connect(scheduler)
+        client = _connect(scheduler, setting)
     try:
-        futures = {}
-        for ci, b in todo:
-            fut = client.submit(task, *args(ci, b), pure=False)
-            futures[fut] = b
-        for fut in as_completed(futures):
-            finish(futures[fut], fut.result())
+        try:
+            futures = {}
+            for ci, b in todo:
+                fut = client.submit(task, *args(ci, b), pure=False)
+                futures[fut] = b
+            done = as_completed(futures)
+        except failures as exc:
+            raise cluster_error(exc) from exc
+        while True:
+            try:
+                fut = next(done, None)
+                if fut is None:
+                    break
+                result = fut.result()
+            except failures as exc:
+                raise cluster_error(exc) from exc
+            finish(futures[fut], result)  # (its own errors as they are: not the cluster's)
     finally:
-        client.close()
+        try:
+            client.close()
+        except failures:  # a lost scheduler: nothing left to close, the error is above
+            pass
         if cluster is not None:
             cluster.close()

@@ -1,11 +1,16 @@
 """Running a campaign: simulate batches of samples (locally or on Dask), reduce them to
-features, write each finished batch atomically, resume from what is stored."""
+features, write each finished batch atomically, resume from what is stored. A measured
+track file is read here, once, and its contents go with each batch (:func:`simulate_task`),
+so that a cluster's workers simulate the track whose hash ``campaign.json`` records."""
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import shutil
-from collections.abc import Callable
+import tempfile
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -13,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from railsusp.campaign.batch_files import batch_count, batch_done, foreign_batches, write_batch
-from railsusp.campaign.dask_cluster import check_scheduler_address, run_on_dask
+from railsusp.campaign.dask_cluster import check_scheduler_address, executor_record, run_on_dask
 from railsusp.campaign.design import (
     CHANNELS,
     STATISTICS,
@@ -26,8 +31,10 @@ from railsusp.campaign.design import (
     track_table,
 )
 from railsusp.campaign.results import RESUME, stored_config
+from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.input_checks import check_output_folder
+from railsusp.numbers import is_whole
 from railsusp.run_lock import run_lock
 from railsusp.store import (
     parquet_readable,
@@ -35,6 +42,7 @@ from railsusp.store import (
     read_json,
     read_parquet,
     remove_stale_temporaries,
+    utc_now,
     write_json,
     write_parquet,
 )
@@ -55,19 +63,66 @@ def simulate_task(
     sample_ids: np.ndarray,
     x: np.ndarray,
     seeds: np.ndarray | None,
+    track_files: Mapping[str, bytes] | None = None,
 ) -> dict[str, Any]:
     """Simulate one batch (runs on a Dask worker or locally); returns series and features.
+
+    ``track_files``: the contents of the condition's measured track file, by the name the
+    condition gives it (:func:`run_campaign` reads it on the client): the batch simulates
+    those bytes and never opens the user's file, which a worker would look for on its own
+    disk and relative to its own working folder (another track, or none: the Dask audit).
+    Without them a named file is read here.
 
     With a track family, each layout (FRA class, radius and cant) is a request of its own
     and every sample runs on its own seed; the requests share the integrator's parallel calls
     (:func:`~railsusp.vehicle.simulate.simulate_requests`), so a curve batch whose samples
     each have their own radius and cant keeps every core busy."""
     config = CampaignConfig.model_validate_json(config_json)
-    cond = config.conditions[condition_index]
+    named = config.conditions[condition_index]
+    with _local_track(named, track_files) as (cond, local_names):
+        try:
+            return _simulate_batch(config, named, cond, sample_ids, x, seeds)
+        except RailsuspInputError as exc:  # a bad file: named as the user named it
+            text = str(exc)
+            for local in sorted(local_names, key=len, reverse=True):
+                text = text.replace(local, local_names[local])
+            exc.args = (text, *exc.args[1:])
+            raise
+
+
+@contextmanager
+def _local_track(
+    cond: WorkingCondition, track_files: Mapping[str, bytes] | None
+) -> Iterator[tuple[WorkingCondition, dict[str, str]]]:
+    """``cond`` as this machine simulates it: with its measured track file's contents in
+    ``track_files``, a copy of them in a temporary folder (removed after) is the file it
+    reads, parsed by the same reader as the original (so the results are bitwise the
+    same); also the copy's paths -> the name the user gave, for messages."""
+    name = cond.track_geometry
+    if name is None or track_files is None or name not in track_files:
+        yield cond, {}
+        return
+    with tempfile.TemporaryDirectory(prefix="railsusp-track-") as tmp:
+        local = Path(tmp) / Path(name).name  # the same suffix, which chooses the reader
+        local.write_bytes(track_files[name])
+        names = {str(local): name, str(local.resolve()): name}
+        yield cond.with_changes(track_geometry=str(local)), names
+
+
+def _simulate_batch(
+    config: CampaignConfig,
+    named: WorkingCondition,
+    cond: WorkingCondition,
+    sample_ids: np.ndarray,
+    x: np.ndarray,
+    seeds: np.ndarray | None,
+) -> dict[str, Any]:
+    """:func:`simulate_task` of condition ``named`` (the configuration's), simulated as
+    ``cond`` (the same, its track file where this machine holds it)."""
     if config.track_family is None:
         groups = [(cond, np.arange(len(sample_ids)))]
     else:
-        tracks = track_table(config, cond).set_index("sample_id").loc[sample_ids]
+        tracks = track_table(config, named).set_index("sample_id").loc[sample_ids]
         groups = layout_groups(cond, tracks.reset_index())
     series = np.zeros((len(sample_ids), len(CHANNELS), cond.n_steps), dtype=np.float32)
     status = np.zeros(len(sample_ids), dtype=np.int64)
@@ -201,6 +256,52 @@ def _geometry_files(config: CampaignConfig) -> dict:
     return {"track_geometry_files": files} if files else {}
 
 
+def _track_contents(config: CampaignConfig, out: Path) -> dict[str, bytes]:
+    """The contents of the measured track files the conditions name (by name as given),
+    read here once for every batch of this run, wherever it is simulated; refused (one
+    line) where they are not the contents whose hash ``campaign.json`` records (the file
+    edited or gone since the campaign was prepared): the hash stays that of the track
+    simulated."""
+    recorded = read_json(out / "campaign.json").get("track_geometry_files", {})
+    contents: dict[str, bytes] = {}
+    for cond in config.conditions:
+        name = cond.track_geometry
+        if name is None or name in contents:
+            continue
+        try:
+            data = Path(name).read_bytes()
+        except OSError as exc:
+            raise CampaignError(
+                f"condition {cond.name!r}: track_geometry {name} cannot be read "
+                f"({exc.strerror or exc}); accepted a track geometry file (relative to the "
+                "working folder, docs/data-format.md)"
+            ) from None
+        if hashlib.sha256(data).hexdigest() != recorded.get(name):
+            raise CampaignError(
+                f"condition {cond.name!r}: track_geometry {name} changed while the campaign "
+                f"started (its contents are not those {out / 'campaign.json'} records); run "
+                "the same command again"
+            )
+        contents[name] = data
+    return contents
+
+
+def _record_run(out: Path, scheduler: str | None, workers: int | None, batches: int) -> None:
+    """Add to ``campaign.json``'s ``runs`` how this run (or resume) simulates: serially, on
+    local processes (how many) or a scheduler (its address), with the Dask versions where
+    used, when its first batch was stored and how many it was to run (``batches``): its
+    ``created`` and ``completed`` said nothing of it (the Dask audit)."""
+    meta_path = out / "campaign.json"
+    meta = read_json(meta_path)
+    runs = meta.get("runs")
+    entry = {
+        "utc": utc_now(),
+        **executor_record(scheduler, workers),
+        "batches_to_run": batches,
+    }
+    write_json(meta_path, {**meta, "runs": [*(runs if isinstance(runs, list) else []), entry]})
+
+
 def _prepare(config: CampaignConfig, out: Path, force: bool) -> pd.DataFrame:
     """Create or re-open a run directory; refuse a different configuration unless forced."""
     check_output_folder(out)
@@ -301,6 +402,7 @@ def run_campaign(
     workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
     max_batches: int | None = None,
+    scheduler_setting: str = "--scheduler",
 ) -> Path:
     """Run (or resume) a campaign into ``out``; returns the run directory.
 
@@ -308,26 +410,48 @@ def run_campaign(
     processes) send batches to Dask; otherwise batches run here, one after another, each on
     all cores. ``progress(done_runs, total_runs)`` reports finished simulations (samples x
     conditions). ``max_batches`` stops after that many new batches (partial runs, tests).
+    ``scheduler_setting``: where the user gave ``scheduler`` (``--scheduler``, or
+    ``scheduler =`` in a pipeline configuration), named when it is refused or does not
+    answer. Measured track files are read here and their contents sent with each batch: a
+    cluster's workers need no access to them. How each run went (serial, local processes,
+    a scheduler) is listed under ``runs`` in ``campaign.json``. The cluster failing on the
+    way is a :class:`~railsusp.campaign.dask_cluster.ClusterError` (an OSError: the
+    machines', not bad input; the batches stored are kept).
     """
     out = Path(out)
-    if workers is not None and workers < 1:
-        raise CampaignError(f"--workers = {workers}: accepted an integer >= 1")
-    if max_batches is not None and max_batches < 0:
-        raise CampaignError(f"--max-batches = {max_batches}: accepted an integer >= 0")
+    # (type slips were TypeErrors from deep in Dask or a slice, after the folder was made;
+    # max_batches = True ran one batch)
+    if workers is not None and not (is_whole(workers) and workers >= 1):
+        raise CampaignError(
+            f"--workers = {workers!r}: accepted an integer >= 1 (the processes of a local Dask "
+            "cluster), or None (no Dask)"
+        )
+    if max_batches is not None and not (is_whole(max_batches) and max_batches >= 0):
+        raise CampaignError(
+            f"--max-batches = {max_batches!r}: accepted an integer >= 0 (new batches to run), "
+            "or None (all)"
+        )
+    if scheduler is not None and not isinstance(scheduler, str):
+        raise CampaignError(
+            f"{scheduler_setting} {scheduler!r}: accepted an address tcp://host:port (a string), "
+            "or None (no scheduler)"
+        )
     if scheduler is not None and workers is not None:  # the workers were ignored
         raise CampaignError(
-            f"--workers {workers} with --scheduler {scheduler}: accepted one of them (the "
-            "scheduler's cluster has its own workers; --workers starts a local one)"
+            f"--workers {workers} with {scheduler_setting} {scheduler}: accepted one of them "
+            "(the scheduler's cluster has its own workers; --workers starts a local one)"
         )
     if scheduler is not None:
-        check_scheduler_address(scheduler, "--scheduler")
+        check_scheduler_address(scheduler, scheduler_setting)
     check_output_folder(out)
     out.mkdir(parents=True, exist_ok=True)
     # one process at a time: two on one folder simulated the same batches twice, and one
     # with --force or another configuration deleted what the other was writing
     with run_lock(out, "--out"):
         _remove_stale_temporaries(out)
-        return _run_locked(config, out, force, scheduler, workers, progress, max_batches)
+        return _run_locked(
+            config, out, force, scheduler, workers, progress, max_batches, scheduler_setting
+        )
 
 
 def _remove_stale_temporaries(out: Path) -> None:
@@ -351,6 +475,7 @@ def _run_locked(
     workers: int | None,
     progress: Callable[[int, int], None] | None,
     max_batches: int | None,
+    scheduler_setting: str = "--scheduler",
 ) -> Path:
     """:func:`run_campaign` in its folder, holding the folder's lock."""
     design = _prepare(config, out, force)
@@ -377,14 +502,18 @@ def _run_locked(
         todo = todo[:max_batches]
     cfg_json = config.model_dump_json()
     seeds = {ci: track_seeds(config, c) for ci, c in enumerate(config.conditions)}
+    tracks = _track_contents(config, out) if todo else {}
+    recorded = False  # how this run simulates: with its first batch stored
 
     def args(ci: int, b: int):
         sl = slice(b * config.batch_size, (b + 1) * config.batch_size)
         s = seeds[ci]
-        return cfg_json, ci, ids_all[sl], x_all[sl], None if s is None else s[sl]
+        name = config.conditions[ci].track_geometry
+        own = {name: tracks[name]} if name in tracks else None  # the batch's file alone
+        return cfg_json, ci, ids_all[sl], x_all[sl], None if s is None else s[sl], own
 
     def finish(b: int, res: dict[str, Any]) -> None:
-        nonlocal done_runs
+        nonlocal done_runs, recorded
         worker = res.get("model_revision")
         if worker != MODEL_REVISION:  # a cluster node of another railsusp: never stamped ours
             raise CampaignError(
@@ -392,6 +521,9 @@ def _run_locked(
                 f"{worker} where this railsusp has {MODEL_REVISION}: install the same railsusp "
                 "on every worker of the cluster (the batches stored so far are kept)"
             )
+        if not recorded:  # (a resume may run otherwise than the start did)
+            _record_run(out, scheduler, workers, len(todo))
+            recorded = True
         write_batch(out, b, res, n_t[res["condition"]], config.hash())
         stored.add((res["condition"], b))
         done_runs += len(res["sample_ids"])
@@ -402,7 +534,7 @@ def _run_locked(
         for ci, b in todo:
             finish(b, simulate_task(*args(ci, b)))
     else:
-        run_on_dask(simulate_task, todo, args, finish, scheduler, workers)
+        run_on_dask(simulate_task, todo, args, finish, scheduler, workers, scheduler_setting)
     if all((c.name, b) in stored for c in config.conditions for b in range(config.n_batches)):
         feats = pd.concat(
             [
