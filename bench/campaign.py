@@ -15,6 +15,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from _cli import positive_int, run_main
 from railsusp.campaign import load_campaign, make_config, run_campaign
 from railsusp.conditions import STANDARD_CONDITIONS
 from railsusp.store import write_json
@@ -22,8 +23,8 @@ from railsusp.store import write_json
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--samples", type=int, default=64)
-    ap.add_argument("--batch-size", type=int, default=16)
+    ap.add_argument("--samples", type=positive_int, default=64)
+    ap.add_argument("--batch-size", type=positive_int, default=16)
     ap.add_argument("--out", default="bench/results/campaign.json")
     args = ap.parse_args()
     cfg = make_config(
@@ -79,4 +80,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

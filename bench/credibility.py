@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from _cli import positive_int, run_main
 from railsusp.conditions import STANDARD_CONDITIONS
 from railsusp.params import ParameterSet
 from railsusp.store import write_json
@@ -173,7 +174,7 @@ def summarise(paths: list[str]) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--seeds", type=int, default=32, help="track seeds per condition")
+    ap.add_argument("--seeds", type=positive_int, default=32, help="track seeds per condition")
     ap.add_argument("--wagon", default=None, help="wagon file or packaged name (loaded)")
     ap.add_argument("--contact", default="two-point", help="two-point or single-point")
     ap.add_argument(
@@ -297,4 +298,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

@@ -19,6 +19,8 @@ import time
 
 import numpy as np
 
+from _cli import number_list, positive_float, run_main
+from railsusp.errors import RailsuspInputError
 from railsusp.store import write_json
 from railsusp.vehicle.stability import KinkResponse, kink_response
 from railsusp.vehicle.wagon import load_wagon
@@ -30,7 +32,10 @@ def critical_speed(
     wagon_name: str, speeds: np.ndarray, duration: float, kink_m: float
 ) -> tuple[float | None, list[KinkResponse]]:
     """Lowest speed (km/h, to 1 km/h) at which the kink response does not decay; None if it
-    decays at every speed of the sweep. Returns it with every response computed."""
+    decays at every speed of the sweep. Returns it with every response computed. An empty
+    sweep is refused: it would read as "not found" with nothing simulated."""
+    if len(speeds) == 0:
+        raise RailsuspInputError("the speed sweep is empty: accepted one speed or more")
     wagon = load_wagon(wagon_name)
     runs = []
     first_bad = None
@@ -57,17 +62,29 @@ def critical_speed(
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--wagons", default="loaded,tare", help="packaged names or wagon files")
-    ap.add_argument("--kink-mm", default="10,3", help="kink amplitudes, mm (comma-separated)")
-    ap.add_argument("--from", dest="start", type=float, default=40.0, help="first speed, km/h")
-    ap.add_argument("--step", type=float, default=10.0, help="sweep step, km/h")
-    ap.add_argument("--duration", type=float, default=30.0, help="record per speed, s")
+    ap.add_argument(
+        "--kink-mm",
+        type=number_list(positive_float),
+        default="10,3",
+        help="kink amplitudes, mm (comma-separated)",
+    )
+    ap.add_argument(
+        "--from", dest="start", type=positive_float, default=40.0, help="first speed, km/h"
+    )
+    ap.add_argument("--step", type=positive_float, default=10.0, help="sweep step, km/h")
+    ap.add_argument("--duration", type=positive_float, default=30.0, help="record per speed, s")
     ap.add_argument("--out", default="bench/results/critical_speed.json")
     args = ap.parse_args()
+    if args.start > TOP_SPEED_KMH:
+        ap.error(
+            f"--from {args.start:g}: accepted up to {TOP_SPEED_KMH:g} km/h (the sweep's end, "
+            "the highest speed a working condition accepts)"
+        )
     speeds = np.arange(args.start, TOP_SPEED_KMH + 1e-9, args.step)
     results = []
     t0 = time.perf_counter()
     for name in args.wagons.split(","):
-        for kink_mm in (float(k) for k in args.kink_mm.split(",")):
+        for kink_mm in args.kink_mm:
             vc, runs = critical_speed(name, speeds, args.duration, kink_mm * 1e-3)
             shown = "not found up to 200" if vc is None else f"{vc:.0f}"
             print(f"\n{name}, kink {kink_mm:g} mm: critical speed {shown} km/h")
@@ -101,4 +118,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

@@ -27,7 +27,8 @@ replaces the surrogate by the simulator:
 (what an estimate on the five keys must assume; a network trained with them varied predicts
 their average effect instead) or ``truth`` (an oracle: what is left is the noise and the
 geometry). ``--track-noise 0`` makes recordings on exactly known track (their own work
-folder) to take the geometry out too. Resumable per set.
+folder) to take the geometry out too. Resumable per set; an ``--out`` written with other
+settings is refused (exit 2, naming them) unless ``--replace``.
 
     python bench/estimate_ceiling.py                      # held at nominal, 0.5 mm
     python bench/estimate_ceiling.py --held truth --out bench/results/estimate_ceiling-truth.json
@@ -38,18 +39,19 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
+from _cli import fail, run_main
 from estimate_tracks import (
     TARGET_SHARE,
     WITHIN_PCT,
     add_set_arguments,
     family_conditions,
+    resumed_sets,
     run_new_sets,
     scored,
     set_recordings,
@@ -62,7 +64,7 @@ from railsusp.estimate.forces import SimulatorForces
 from railsusp.estimate.geometry_bias import GEOMETRY_DRAWS
 from railsusp.estimate.refine import refine
 from railsusp.params import MAIN_SUSPENSION, bounds
-from railsusp.store import read_json, write_json
+from railsusp.store import write_json
 from railsusp.surrogate.pretrained import packaged_root
 
 #: what the simulator assumes for the parameters not estimated
@@ -259,16 +261,14 @@ def main(argv: Sequence[str] | None = None) -> dict:
     try:
         net = SurrogateForces(args.networks)
     except (FileNotFoundError, ValueError) as exc:
-        sys.exit(f"error: {exc}")
+        fail(exc)
     if args.work is None:
         name = Path(args.networks).name + ("" if args.track_noise else "-exact")
         args.work = Path("runs/estimate_tracks") / name
     names = [c.strip() for c in args.conditions.split(",") if c.strip()] or None
     conditions, _ = family_conditions(net, args.duration, names)
     settings = settings_of(args)
-    sets: list[dict] = []
-    if args.out.exists() and read_json(args.out).get("settings") == settings:
-        sets = read_json(args.out).get("per_set", [])
+    sets = resumed_sets(args.out, settings, args.replace)
     print(
         f"the simulator's estimate from the truth, {len(conditions)} condition(s) x "
         f"{args.duration:g} s, geometry error {args.track_noise:g} mm, noise {args.noise:g}, "
@@ -305,4 +305,4 @@ def write_out(args, settings, sets, net) -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

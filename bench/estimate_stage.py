@@ -19,6 +19,7 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
+from _cli import fail, run_main
 from railsusp.pipeline import demo_config, load_config, run_pipeline
 from railsusp.store import write_json
 
@@ -43,6 +44,8 @@ def main() -> None:
     ap.add_argument("--config", help="its pipeline TOML (default: the embedded demo)")
     ap.add_argument("--out", default="bench/results/estimate_stage.json")
     args = ap.parse_args()
+    if not (Path(args.run) / "pipeline.json").is_file():
+        fail(f"--run {args.run}: no pipeline.json in it; accepted a finished run directory")
     config = load_config(args.config) if args.config else demo_config()
 
     import railsusp.estimate.polish as polish
@@ -121,4 +124,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

@@ -51,8 +51,11 @@ average effect: they are marginalised by its training, not estimated.
 Per set it prints and stores the errors, the identifiable parameters, the seconds per
 estimate (wall and CPU, with the machine's load average) and the surrogate's prediction time
 per generation. Resumable per set: a rerun with the same settings skips the sets already in
-the JSON (``--limit`` runs at most that many new sets per call). Field folders go to
-``--work`` (default ``runs/estimate_tracks/``).
+the JSON (``--limit`` runs at most that many new sets per call); an ``--out`` written with
+other settings is refused (exit 2, naming the settings that differ) unless ``--replace``
+is given, so that forgetting ``--out`` never overwrites an earlier result. Field folders go
+to ``--work`` (default ``runs/estimate_tracks/``); the recordings there are reused only when
+made with the same conditions, seed, noise, wagon data and force-law revision.
 """
 
 from __future__ import annotations
@@ -61,7 +64,6 @@ import argparse
 import math
 import os
 import platform
-import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -69,6 +71,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from _cli import (
+    fail,
+    non_negative_float,
+    non_negative_int,
+    positive_float,
+    positive_int,
+    run_main,
+)
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate import NSGAConfig, SurrogateForces, estimate
@@ -81,6 +91,9 @@ from railsusp.estimate.nsga_geometry import account_for_geometry
 from railsusp.measured import read_field, synthesise_field
 from railsusp.params import MAIN_SUSPENSION, ParameterSet, bounds
 from railsusp.store import read_json, write_json
+from railsusp.surrogate.pretrained import wagon_hash
+from railsusp.vehicle import MODEL_REVISION
+from railsusp.vehicle.wagon import load_wagon
 
 #: share of each range the truths are drawn from (its middle)
 MIDDLE = 0.8
@@ -193,7 +206,9 @@ def set_recordings(
     """Set ``index``'s truth (all ten parameters ``truth_si``, the rest nominal) and its
     recordings on their measured track (``args``: seed, noise, duration, track_noise),
     synthesised into ``work/set-NN`` unless already written there for this truth and these
-    conditions."""
+    conditions by the same model (the wagon's data and the force laws' revision,
+    :data:`railsusp.vehicle.MODEL_REVISION`: recordings of other force laws are made
+    again)."""
     truth = ParameterSet.nominal().replace(dict(zip(MAIN_SUSPENSION, truth_si, strict=True)))
     folder = work / f"set-{index:02d}"
     done = folder / "truth.json"
@@ -204,6 +219,8 @@ def set_recordings(
         "noise": args.noise,
         "duration_s": args.duration,
         "track_noise_mm": args.track_noise,
+        "model_revision": MODEL_REVISION,
+        "wagon_data": wagon_hash(load_wagon()),  # synthesise_field's wagon: the embedded one
     }
     if (
         not done.exists()
@@ -514,6 +531,32 @@ def settings_of(args: argparse.Namespace, folder: Path) -> dict:
     }
 
 
+def resumed_sets(out: Path, settings: dict, replace: bool = False) -> list[dict]:
+    """The sets stored in ``out`` when it was written with ``settings`` (a rerun resumes
+    them). A file of other settings is refused (exit 2) naming the settings that differ,
+    unless ``replace``: the new sets would otherwise overwrite it after the first one, and
+    an hour's result went with a forgotten ``--out``. With ``replace`` (or a file holding
+    no set) none are resumed and the file is overwritten."""
+    if not out.exists():
+        return []
+    old = read_json(out)
+    stored = old.get("settings") or {}
+    if stored == settings:
+        return old.get("per_set", [])
+    if replace or not old.get("per_set"):
+        return []
+    keys = sorted(set(stored) | set(settings))
+    differ = [
+        f"{k} {stored.get(k, 'unset')!r} (now {settings.get(k, 'unset')!r})"
+        for k in keys
+        if stored.get(k, "unset") != settings.get(k, "unset")
+    ]
+    fail(
+        f"{out} holds {len(old['per_set'])} set(s) of other settings: {', '.join(differ)}; "
+        "give another --out, the same settings to resume it, or --replace to overwrite it"
+    )
+
+
 def run_new_sets(
     truths: np.ndarray,
     sets: list[dict],
@@ -544,17 +587,34 @@ def run_new_sets(
 def add_set_arguments(ap: argparse.ArgumentParser) -> None:
     """The options that fix the sets and their recordings (shared with
     bench/estimate_ceiling.py, which scores other estimates on the same ones)."""
-    ap.add_argument("--sets", type=int, default=12, help="parameter sets drawn")
-    ap.add_argument("--limit", type=int, default=0, help="most new sets this call (0: all)")
+    ap.add_argument("--sets", type=positive_int, default=12, help="parameter sets drawn")
+    ap.add_argument(
+        "--limit", type=non_negative_int, default=0, help="most new sets this call (0: all)"
+    )
     ap.add_argument("--seed", type=int, default=0, help="seed of the drawn sets and the noise")
-    ap.add_argument("--duration", type=float, default=60.0, help="recorded s per condition")
-    ap.add_argument("--track-noise", type=float, default=0.5, help="geometry error, mm RMS")
-    ap.add_argument("--noise", type=float, default=0.03, help="instrument noise, share of RMS")
+    ap.add_argument(
+        "--duration", type=positive_float, default=60.0, help="recorded s per condition"
+    )
+    ap.add_argument(
+        "--track-noise", type=non_negative_float, default=0.5, help="geometry error, mm RMS"
+    )
+    ap.add_argument(
+        "--noise",
+        type=non_negative_float,
+        default=0.03,
+        help="instrument noise, share of RMS (0 or more)",
+    )
     ap.add_argument(
         "--nominal",
         default="",
         help="parameters held at nominal in every drawn set, comma-separated (a diagnostic: "
         "what the marginalised parameters cost; default none)",
+    )
+    ap.add_argument(
+        "--replace",
+        action="store_true",
+        help="overwrite an --out written with other settings (without it such a file is "
+        "refused, naming the settings that differ)",
     )
 
 
@@ -563,10 +623,10 @@ def main(argv: Sequence[str] | None = None) -> dict:
     ap.add_argument("run", type=Path, help="run directory with surrogates/KIND/<condition>/")
     ap.add_argument("--kind", default="cnn-gru", help="surrogate kind (folder under surrogates/)")
     add_set_arguments(ap)
-    ap.add_argument("--pop-size", type=int, default=50)
-    ap.add_argument("--n-gen", type=int, default=100)
+    ap.add_argument("--pop-size", type=positive_int, default=50)
+    ap.add_argument("--n-gen", type=positive_int, default=100)
     ap.add_argument("--conditions", default="", help="conditions (default: the surrogates')")
-    ap.add_argument("--threads", type=int, default=2, help="torch threads")
+    ap.add_argument("--threads", type=positive_int, default=2, help="torch threads")
     ap.add_argument(
         "--geometry-draws",
         type=int,
@@ -656,15 +716,11 @@ def main(argv: Sequence[str] | None = None) -> dict:
     try:
         model = SurrogateForces(folder)
     except (FileNotFoundError, ValueError) as exc:
-        sys.exit(f"error: {exc}")
+        fail(exc)
     names = [c.strip() for c in args.conditions.split(",") if c.strip()] or None
     conditions, moved = family_conditions(model, args.duration, names)
     settings = settings_of(args, folder)
-    sets: list[dict] = []
-    if args.out.exists():
-        old = read_json(args.out)
-        if old.get("settings") == settings:
-            sets = old.get("per_set", [])
+    sets = resumed_sets(args.out, settings, args.replace)
     truths = set_truths(args)
     print(
         f"NSGA-II {args.pop_size} x {args.n_gen} on {args.kind} surrogates ({folder}), "
@@ -720,4 +776,4 @@ def write_out(args, settings, sets, model, moved) -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

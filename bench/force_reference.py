@@ -18,14 +18,16 @@ force_reference_2026-11-30.1.npz: the wagon fields of
 from __future__ import annotations
 
 import argparse
+import io
 import time
 from pathlib import Path
 
 import numpy as np
 
+from _cli import run_main
 from railsusp.conditions import get_condition
 from railsusp.params import MAIN_SUSPENSION, bounds
-from railsusp.store import write_json
+from railsusp.store import atomic_write_bytes, write_json
 from railsusp.vehicle import MODEL_REVISION
 from railsusp.vehicle.simulate import simulate_batch
 from railsusp.vehicle.wagon import WagonData
@@ -65,8 +67,9 @@ def stored_revision() -> str | None:
 
 
 def write_reference(forces: dict[str, np.ndarray]) -> Path:
-    """Store ``forces`` with :data:`MODEL_REVISION`; refused when they differ from forces
-    stored under that same revision."""
+    """Store ``forces`` with :data:`MODEL_REVISION` (atomically: the tests' reference is
+    never left half written); refused when they differ from forces stored under that same
+    revision."""
     if stored_revision() == MODEL_REVISION:
         ref = np.load(REFERENCE)
         moved = max(relative_difference(forces[k], ref[k]) for k in forces)
@@ -75,9 +78,9 @@ def write_reference(forces: dict[str, np.ndarray]) -> Path:
                 f"the forces moved by {moved:.2e} of the largest under the stored model revision "
                 f"{MODEL_REVISION!r}: give railsusp.vehicle.MODEL_REVISION a new value first"
             )
-    REFERENCE.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(REFERENCE, model_revision=np.array(MODEL_REVISION), **forces)
-    return REFERENCE
+    buf = io.BytesIO()
+    np.savez_compressed(buf, model_revision=np.array(MODEL_REVISION), **forces)
+    return atomic_write_bytes(REFERENCE, buf.getvalue())
 
 
 def main() -> None:
@@ -103,4 +106,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

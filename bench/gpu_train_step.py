@@ -21,6 +21,7 @@ from pathlib import Path
 
 import torch
 
+from _cli import run_main
 from railsusp.store import write_json
 from railsusp.surrogate.models import NetConfig, build_network
 
@@ -112,4 +113,4 @@ def main(argv: Sequence[str] | None = None) -> list[dict]:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from _cli import positive_int, run_main
 from estimate_tracks import draw_sets, family_conditions, set_recordings
 from railsusp.estimate import SurrogateForces
 from railsusp.estimate.aligned_identifiability import (
@@ -179,13 +180,13 @@ def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("run", type=Path, help="run directory with surrogates/KIND/<condition>/")
     ap.add_argument("--kind", default="cnn-gru")
-    ap.add_argument("--sets", type=int, default=4)
+    ap.add_argument("--sets", type=positive_int, default=4)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--duration", type=float, default=60.0)
     ap.add_argument("--track-noise", type=float, default=0.5)
     ap.add_argument("--noise", type=float, default=0.03)
     ap.add_argument("--conditions", default="")
-    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--threads", type=positive_int, default=1)
     ap.add_argument(
         "--segment",
         default="auto",
@@ -261,4 +262,4 @@ def main(argv=None) -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

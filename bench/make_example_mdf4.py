@@ -26,14 +26,18 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
 from asammdf import MDF, Signal
 
+from _cli import run_main
 from railsusp.measured import add_sensor_noise, recording_from_simulation
 from railsusp.measured.sections import Section
 from railsusp.params import ParameterSet
+from railsusp.store import atomic_write_text
 from railsusp.vehicle.simulate import simulate
 
 TRUTH = {"X13": 16.1, "X14": 8.3, "X15": 164.0}
@@ -137,7 +141,10 @@ def main() -> None:
     mdf.append([Signal(acc, ta, name="acc_bogie_y_g", unit="g")], comment="bogie, 100 Hz")
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / "example_run.mf4"
-    mdf.save(path, overwrite=True, compression=2)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=path.parent, prefix=".example_run.") as tmp:
+        saved = mdf.save(Path(tmp) / path.name, overwrite=True, compression=2)
+        os.replace(saved, path)  # packaged data: never left half written
     mdf.close()
     # the line description: km posts of every piece (transitions as the spirals they are)
     rows = ["km_start,km_end,radius_m,direction,cant_mm,grade_permille"]
@@ -151,8 +158,9 @@ def main() -> None:
                 f"{cant:g},{grade:g}"
             )
         s += length
-    (args.out / "example_line.csv").write_text("\n".join(rows) + "\n")
-    (args.out / "example_run.truth.json").write_text(
+    atomic_write_text(args.out / "example_line.csv", "\n".join(rows) + "\n")
+    atomic_write_text(
+        args.out / "example_run.truth.json",
         json.dumps(
             {
                 "parameters_display": TRUTH,
@@ -160,10 +168,10 @@ def main() -> None:
             },
             indent=1,
         )
-        + "\n"
+        + "\n",
     )
     print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB), {t[-1]:.0f} s, {pos[-1]:.0f} m")
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from _cli import run_main
 from railsusp.campaign import load_campaign
 from railsusp.store import write_json
 from railsusp.surrogate import load
@@ -172,4 +173,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

@@ -10,6 +10,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from _cli import run_main
 from railsusp.pipeline import STAGES, demo_config, load_config, run_pipeline
 from railsusp.store import write_json
 
@@ -52,4 +53,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

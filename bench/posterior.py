@@ -35,12 +35,13 @@ the identification of parameter sets in the middle of the ranges against record 
 from __future__ import annotations
 
 import argparse
-import json
+import math
 import time
 from pathlib import Path
 
 import numpy as np
 
+from _cli import non_negative_float, non_negative_int, positive_float, positive_int, run_main
 from railsusp.condition_files import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate import posterior
@@ -48,7 +49,7 @@ from railsusp.estimate.calibration import LEVEL
 from railsusp.estimate.posterior_data import cached_cases, prior_draws
 from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.params import MAIN_SUSPENSION
-from railsusp.store import read_json
+from railsusp.store import read_json, write_json
 
 #: the key parameters of the current model (Sobol re-run of the sensitivity, 2026-11-24)
 KEYS = "X18,X13,X11,X14,X19"
@@ -57,16 +58,18 @@ KEYS = "X18,X13,X11,X14,X19"
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_common_arguments(ap, "bench/results/posterior.json")
-    ap.add_argument("--calibration", type=int, default=200, help="cases fitting the correction")
-    ap.add_argument("--ensemble", type=int, default=1, help="flows in the ensemble")
+    ap.add_argument(
+        "--calibration", type=positive_int, default=200, help="cases fitting the correction"
+    )
+    ap.add_argument("--ensemble", type=positive_int, default=1, help="flows in the ensemble")
     ap.add_argument(
         "--long", default="200", help="cases per set of several sections: one, or one per length"
     )
-    ap.add_argument("--hidden", type=int, default=50, help="flow: hidden features")
-    ap.add_argument("--transforms", type=int, default=5, help="flow: number of transforms")
+    ap.add_argument("--hidden", type=positive_int, default=50, help="flow: hidden features")
+    ap.add_argument("--transforms", type=positive_int, default=5, help="flow: number of transforms")
     a = ap.parse_args()
 
-    sections = sorted({max(1, round(float(v) / a.section)) for v in a.lengths.split(",")})
+    sections = sorted({max(1, round(v / a.section)) for v in lengths_s(a.lengths)})
     many = [k for k in sections if k > 1]
     counts = long_counts(a.long, len(many))
     settings = PosteriorSettings(
@@ -122,8 +125,7 @@ def main() -> None:
         "identification": ident,
         "identification_verdicts": verdicts,
     }
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.out).write_text(json.dumps(out, indent=2) + "\n")
+    write_json(a.out, out)
     print(f"wrote {a.out}")
 
 
@@ -135,13 +137,24 @@ def add_common_arguments(ap: argparse.ArgumentParser, out: str) -> None:
     ap.add_argument("--out", default=out)
     ap.add_argument("--conditions", default="straight")
     ap.add_argument("--parameters", default=",".join(MAIN_SUSPENSION))
-    ap.add_argument("--section", type=float, default=5.0)
-    ap.add_argument("--lead-in", type=float, default=30.0, help="m; a curve keeps at least its own")
-    ap.add_argument("--train", type=int, default=600)
-    ap.add_argument("--check", type=int, default=200, help="untouched one-section test cases")
+    ap.add_argument("--section", type=positive_float, default=5.0, help="section length, s")
+    ap.add_argument(
+        "--lead-in",
+        type=non_negative_float,
+        default=30.0,
+        help="m; a curve keeps at least its own",
+    )
+    ap.add_argument("--train", type=positive_int, default=600)
+    ap.add_argument(
+        "--check", type=positive_int, default=200, help="untouched one-section test cases"
+    )
     ap.add_argument("--lengths", default="5,10,20,40", help="record lengths checked, s")
-    ap.add_argument("--sets", type=int, default=0, help="middle-80 %% sets identified (0: none)")
-    ap.add_argument("--set-length", type=float, default=600.0, help="their record length, s")
+    ap.add_argument(
+        "--sets", type=non_negative_int, default=0, help="middle-80 %% sets identified (0: none)"
+    )
+    ap.add_argument(
+        "--set-length", type=positive_float, default=600.0, help="their record length, s"
+    )
     ap.add_argument(
         "--set-lengths", default=None, help="lengths they are scored at, s (default --lengths)"
     )
@@ -164,7 +177,8 @@ def identify_sets(est, a: argparse.Namespace, names: list[str], cases=None):
     t1 = time.perf_counter()
     _, x, ident = identification(
         est, None if cases else a.run, a.sets, a.set_length,
-        lengths_s(a.set_lengths or a.lengths), cases,
+        lengths_s(a.set_lengths or a.lengths, "--set-lengths" if a.set_lengths else "--lengths"),
+        cases,
     )  # fmt: skip
     print(f"\nidentification of {a.sets} sets: {time.perf_counter() - t1:.0f} s")
     keys = a.keys.split(",")
@@ -172,8 +186,17 @@ def identify_sets(est, a: argparse.Namespace, names: list[str], cases=None):
     return x, ident, [verdict(r, keys) for r in ident]
 
 
-def lengths_s(text: str) -> list[float]:
-    return [float(v) for v in text.split(",") if v.strip()]
+def lengths_s(text: str, option: str = "--lengths") -> list[float]:
+    """Record lengths, s, of a comma-separated ``option`` (each a finite number above 0)."""
+    try:
+        lengths = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        lengths = []
+    if not lengths or not all(0.0 < v < math.inf for v in lengths):
+        raise RailsuspInputError(
+            f"{option} {text}: accepted record lengths in s above 0, comma-separated"
+        )
+    return lengths
 
 
 def long_counts(text: str, lengths: int) -> tuple[int, ...]:
@@ -182,10 +205,10 @@ def long_counts(text: str, lengths: int) -> tuple[int, ...]:
         counts = tuple(int(v) for v in text.split(",") if v.strip())
     except ValueError:
         counts = ()
-    if not counts or (len(counts) != 1 and len(counts) != lengths):
+    if not counts or min(counts) < 1 or (len(counts) != 1 and len(counts) != lengths):
         raise RailsuspInputError(
-            f"--long {text}: accepted one whole number, or one per length above one section "
-            f"({lengths})"
+            f"--long {text}: accepted one whole number 1 or more, or one per length above one "
+            f"section ({lengths})"
         )
     return counts * lengths if len(counts) == 1 else counts
 
@@ -398,4 +421,4 @@ def print_tables(rows: list[dict], names: list[str], keys: list[str]) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

@@ -48,12 +48,12 @@ width (% of range); plus training time and seconds per record.
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
 import numpy as np
 
+from _cli import positive_float, positive_int, run_main
 from posterior import add_common_arguments, bench_conditions
 from railsusp.estimate.calibration import check
 from railsusp.estimate.posterior import PosteriorEstimator, TrainingLog, one_thread
@@ -68,6 +68,7 @@ from railsusp.estimate.posterior_fusion import (
 )
 from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.params import MAIN_SUSPENSION
+from railsusp.store import write_json
 
 METHODS = ("npe", "nle", "nre")
 
@@ -210,15 +211,17 @@ def score(draws: np.ndarray, truth: np.ndarray, names: list[str]) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_common_arguments(ap, "bench/results/posterior_estimators.json")
-    ap.add_argument("--long", type=int, default=200, help="held-out records of several sections")
-    ap.add_argument("--long-length", type=float, default=120.0, help="their length, s")
+    ap.add_argument(
+        "--long", type=positive_int, default=200, help="held-out records of several sections"
+    )
+    ap.add_argument("--long-length", type=positive_float, default=120.0, help="their length, s")
     ap.add_argument("--statistics", default="en14363", help="the families the run's files hold")
     ap.add_argument("--read", default="en14363", help="the families the estimators read")
     ap.add_argument("--methods", default=",".join(METHODS))
-    ap.add_argument("--samples", type=int, default=1000, help="draws per record")
+    ap.add_argument("--samples", type=positive_int, default=1000, help="draws per record")
     ap.add_argument(
         "--proposal",
-        type=int,
+        type=positive_int,
         default=20_000,
         help="NLE/NRE: importance draws per record and round",
     )
@@ -229,8 +232,8 @@ def main() -> None:
         "adaptive rounds started from the NPE fusion's Gaussian, with a share of prior)",
     )
     ap.add_argument("--min-ess", type=float, default=200.0, help="records scored as well sampled")
-    ap.add_argument("--hidden", type=int, default=50)
-    ap.add_argument("--transforms", type=int, default=5)
+    ap.add_argument("--hidden", type=positive_int, default=50)
+    ap.add_argument("--transforms", type=positive_int, default=5)
     a = ap.parse_args()
     if a.guide not in ("prior", "npe"):
         raise SystemExit(f"--guide {a.guide}: accepted prior or npe")
@@ -330,8 +333,7 @@ def main() -> None:
         "samples": a.samples,
         "results": results,
     }
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.out).write_text(json.dumps(out, indent=2) + "\n")
+    write_json(a.out, out)
     print(f"wrote {a.out}")
 
 
@@ -348,4 +350,4 @@ def _tables(results: list[dict], names: list[str]) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

@@ -28,14 +28,14 @@ Prints the tables and writes JSON.
 from __future__ import annotations
 
 import argparse
-import json
 import time
-from pathlib import Path
 
+from _cli import run_main
 from posterior import KEYS, identify_sets, middle_draws
 from posterior_synthetic import checked_sets, coverage_table, cramer_rao_table, posterior_seconds
 from railsusp.estimate import posterior_joint as joint
 from railsusp.estimate import posterior_synthetic_run as synthetic
+from railsusp.store import write_json
 
 
 def main() -> None:
@@ -108,10 +108,9 @@ def main() -> None:
         "cramer_rao_width_pct": bound,
         "seconds": time.perf_counter() - t0,
     }
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.out).write_text(json.dumps(out, indent=2) + "\n")
+    write_json(a.out, out)
     print(f"wrote {a.out}")
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

@@ -34,25 +34,28 @@ training cases, held-out records, the middle-80 % sets) and its scoring.
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
 import numpy as np
 
+from _cli import positive_float, positive_int, run_main
 from posterior import add_common_arguments, bench_conditions, identify_sets, lengths_s, middle_draws
 from railsusp.estimate import posterior_synthetic_fit as synthetic_fit
 from railsusp.estimate import posterior_synthetic_run as synthetic
 from railsusp.estimate.posterior_data import cached_cases
 from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.estimate.posterior_synthetic import cramer_rao_width, fisher_information
+from railsusp.store import write_json
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_common_arguments(ap, "bench/results/posterior_synthetic.json")
-    ap.add_argument("--long", type=int, default=200, help="held-out records of several sections")
-    ap.add_argument("--long-length", type=float, default=40.0, help="their length, s")
+    ap.add_argument(
+        "--long", type=positive_int, default=200, help="held-out records of several sections"
+    )
+    ap.add_argument("--long-length", type=positive_float, default=40.0, help="their length, s")
     ap.add_argument(
         "--scale-records",
         type=int,
@@ -148,8 +151,7 @@ def main() -> None:
         "estimate_s_median": float(np.median(t_est)) if a.sets else None,
         "cramer_rao_width_pct": bound,
     }
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.out).write_text(json.dumps(out, indent=2) + "\n")
+    write_json(a.out, out)
     print(f"wrote {a.out}")
 
 
@@ -265,4 +267,4 @@ def coverage_table(rows: list[dict], names: list[str], section_s: float) -> None
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 from scipy.linalg import block_diag
 
+from _cli import run_main
 from information_estimate import (
     information_unbiased,
     inverse_wishart_factor,
@@ -236,4 +237,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

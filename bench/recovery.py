@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from _cli import run_main
 from railsusp.campaign import load_campaign, make_config, run_campaign
 from railsusp.estimate import NSGAConfig, estimate, open_force_model, refine_estimate
 from railsusp.measured import SimulationFailedError, read_field, synthesise_field
@@ -297,4 +298,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

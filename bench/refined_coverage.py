@@ -9,7 +9,9 @@ three-condition field recordings with 3 % noise and the track's geometry written
 ``--track-noise`` mm of error (0: exact), estimates (NSGA-II, refinement with the simulator
 on the written geometry, intervals) and validates. Each set runs in its own copy of the run
 directory under ``--work`` and is kept: a re-run resumes with the sets not yet scored
-(``--limit`` caps how many new sets one call runs).
+(``--limit`` caps how many new sets one call runs). The JSON records what its sets depend
+on (the work folder, ``--seed``, ``--run`` and the configuration's hash): a call with other
+ones refuses to add to it or report it (exit 2) instead of passing its sets off as theirs.
 
 Scored per set and pooled: for every estimated parameter the validator calls identifiable,
 whether its reported 90 % interval holds the truth, the interval's width, the error (% of
@@ -49,10 +51,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from _cli import fail, non_negative_float, non_negative_int, positive_int, run_main
 from estimate_tracks import MIDDLE, draw_sets
 from railsusp.params import MAIN_SUSPENSION, spec
 from railsusp.pipeline import demo_config, load_config, run_pipeline
-from railsusp.store import read_json, write_json
+from railsusp.store import content_hash, read_json, write_json
 
 #: what a set's copy of the run directory takes from the finished run: every stage before
 #: the field's (the field, estimate, validate and report stages run again)
@@ -133,6 +136,28 @@ def score(recovery: pd.DataFrame) -> pd.DataFrame:
             "truth_in_interval",
         ]
     ]
+
+
+def config_hash(config) -> str:
+    """The content hash of a pipeline configuration (before a set's truth, seed and prior
+    go in): stored sets were estimated with the configuration of this hash."""
+    return content_hash(config.model_dump(mode="json"))
+
+
+def stored_sets(doc: dict, identity: dict, out: Path) -> dict[int, dict]:
+    """The sets of a stored JSON ``doc`` by index, when it was made with ``identity`` (its
+    work folder, seed, run and configuration hash); one of another identity is refused
+    (exit 2), naming what differs: its sets are not this call's, and adding to them would
+    mix the two under this call's stamp."""
+    if not doc.get("per_set"):
+        return {}
+    differ = [f"{k} {doc.get(k)!r} (now {v!r})" for k, v in identity.items() if doc.get(k) != v]
+    if differ:
+        fail(
+            f"{out} holds sets made with other settings: {', '.join(differ)}; give another "
+            "--out, or the settings it was made with to resume it"
+        )
+    return {r["set"]: r for r in doc["per_set"]}
 
 
 def run_set(run: Path, work: Path, config, k: int) -> dict:
@@ -239,10 +264,14 @@ def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--run", type=Path, default=Path("runs/demo"), help="finished run")
     ap.add_argument("--config", help="its pipeline TOML (default: the embedded demo)")
-    ap.add_argument("--sets", type=int, default=12)
-    ap.add_argument("--limit", type=int, default=0, help="most new sets this call (0: all)")
+    ap.add_argument("--sets", type=positive_int, default=12)
+    ap.add_argument(
+        "--limit", type=non_negative_int, default=0, help="most new sets this call (0: all)"
+    )
     ap.add_argument("--seed", type=int, default=0, help="seed of the drawn sets")
-    ap.add_argument("--track-noise", type=float, default=0.0, help="geometry error, mm RMS")
+    ap.add_argument(
+        "--track-noise", type=non_negative_float, default=0.0, help="geometry error, mm RMS"
+    )
     ap.add_argument("--work", type=Path, default=Path("runs/refined_coverage"))
     ap.add_argument(
         "--held-prior",
@@ -268,7 +297,10 @@ def main(argv: list[str] | None = None) -> dict:
         args.out = Path(f"bench/results/refined_coverage{tag}.json")
     prior = held_prior(args.held_prior)
     doc = read_json(args.out) if args.out.exists() else {}
-    done = {r["set"]: r for r in doc.get("per_set", []) if doc.get("work") == str(work)}
+    identity = {"work": str(work), "seed": args.seed, "config_hash": config_hash(base)}
+    if args.rescore is None:  # (a rescore reads the sets under its folder, not a run)
+        identity["run"] = str(args.run)
+    done = stored_sets(doc, identity, args.out)
     sets = draw_sets(args.sets, args.seed)
     new = 0
     for k in range(args.sets):
@@ -290,9 +322,8 @@ def main(argv: list[str] | None = None) -> dict:
             "date": time.strftime("%Y-%m-%d"),
             "machine": platform.platform(),
             "run": str(args.run),
-            "work": str(work),
             "sets_drawn": args.sets,
-            "seed": args.seed,
+            **identity,
             "track_noise_mm": args.track_noise,
             "held_prior": args.held_prior,
             "held_prior_display": prior,
@@ -341,4 +372,4 @@ def main(argv: list[str] | None = None) -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from _cli import run_main
 from railsusp.estimate.comparison import comparison_samples
 from railsusp.estimate.forces import SimulatorForces
 from railsusp.estimate.interval_distribution import error_quantiles
@@ -229,4 +230,4 @@ def main(argv: list[str] | None = None) -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import torch
 
+from _cli import positive_int, run_main
 from railsusp.errors import RailsuspInputError
 from railsusp.surrogate import load
 from railsusp.surrogate.refit import refit_record_correction
@@ -23,7 +24,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("bundles", type=Path, nargs="+", help="saved networks (RUN/surrogates/K/C)")
     ap.add_argument("--run", type=Path, required=True, help="the campaign they were trained on")
-    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--threads", type=positive_int, default=1)
     args = ap.parse_args(argv)
     torch.set_num_threads(args.threads)
     for bundle in args.bundles:
@@ -44,4 +45,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main(main)

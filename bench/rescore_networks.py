@@ -34,6 +34,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from _cli import run_main
 from railsusp.campaign import load_campaign, run_campaign
 from railsusp.campaign.twins import run_nominal_twins
 from railsusp.store import write_json
@@ -144,4 +145,4 @@ def restamp(args: argparse.Namespace, ns, rows: pd.DataFrame) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import inspect
+import io
 import os
 import time
 from pathlib import Path
@@ -26,9 +27,10 @@ import numba as nb
 import numpy as np
 from scipy.signal import butter
 
+from _cli import positive_int, run_main
 from railsusp.conditions import get_condition
 from railsusp.params import ParameterSet
-from railsusp.store import write_json
+from railsusp.store import atomic_write_bytes, write_json
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.integrate import _run_one
 from railsusp.vehicle.model import rhs
@@ -91,8 +93,9 @@ def _states(condition: str, states_dir: str | None = None):
         s_front.append(K[L.K["V"]] * (n + 1) * DT)
     args = (np.array(states), P, K, trk, s0, ds, ca.table, ca.y0, ca.dy, ca.H0L, ca.H0R)
     if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez(path, states=args[0], s_front=np.array(s_front))
+        buf = io.BytesIO()
+        np.savez(buf, states=args[0], s_front=np.array(s_front))
+        atomic_write_bytes(path, buf.getvalue())
     return args, np.array(s_front)
 
 
@@ -113,8 +116,8 @@ def time_rhs(condition: str, reps: int, repeats: int, states_dir: str | None = N
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--reps", type=int, default=10000)
-    ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--reps", type=positive_int, default=10000, help="passes per timed loop")
+    ap.add_argument("--repeats", type=positive_int, default=7, help="timed loops, fastest kept")
     ap.add_argument("--reference-src", default=None, help="another checkout's src, for A/B")
     ap.add_argument("--contact", action="store_true", help="also time the contact alone")
     ap.add_argument(
@@ -161,4 +164,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

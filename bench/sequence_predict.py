@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from _cli import non_negative_int, number_list, positive_float, positive_int, run_main
 from estimate_tracks import draw_sets, family_conditions, set_recordings
 from railsusp.estimate import SurrogateForces
 from railsusp.estimate.problem import CalibrationProblem
@@ -87,11 +88,20 @@ def main(argv=None) -> dict:
     ap.add_argument(
         "--networks", type=Path, help="a folder of <condition>/ bundles instead of RUN and KIND"
     )
-    ap.add_argument("--set", type=int, default=0, help="estimate_tracks.py's set (recordings)")
-    ap.add_argument("--duration", type=float, default=60.0, help="recorded s per condition")
-    ap.add_argument("--pop", type=int, default=50, help="parameter sets per generation")
-    ap.add_argument("--repeats", type=int, default=5)
-    ap.add_argument("--threads", default="1,2", help="torch thread counts, comma-separated")
+    ap.add_argument(
+        "--set", type=non_negative_int, default=0, help="estimate_tracks.py's set (recordings)"
+    )
+    ap.add_argument(
+        "--duration", type=positive_float, default=60.0, help="recorded s per condition"
+    )
+    ap.add_argument("--pop", type=positive_int, default=50, help="parameter sets per generation")
+    ap.add_argument("--repeats", type=positive_int, default=5)
+    ap.add_argument(
+        "--threads",
+        type=number_list(positive_int),
+        default="1,2",
+        help="torch thread counts, comma-separated",
+    )
     ap.add_argument("--work", type=Path, default=Path("runs/estimate_tracks"))
     ap.add_argument("--out", type=Path, default=Path("bench/results/sequence_predict.json"))
     args = ap.parse_args(argv)
@@ -172,7 +182,7 @@ def main(argv=None) -> dict:
     runs |= {"series 1by1": one_by_one, "series step": stepped}
     runs |= {"objective": lambda: problem.errors(x_si), "recurrence": floor}
     rows = []
-    for n_threads in [int(t) for t in args.threads.split(",")]:
+    for n_threads in args.threads:
         torch.set_num_threads(n_threads)
         times: dict[str, list[tuple[float, float]]] = {k: [] for k in runs}
         for fn in runs.values():  # first calls: filter design, allocations
@@ -228,4 +238,4 @@ def main(argv=None) -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

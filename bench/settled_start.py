@@ -18,6 +18,7 @@ import time
 
 import numpy as np
 
+from _cli import positive_int, run_main
 from railsusp.conditions import get_condition
 from railsusp.params import MAIN_SUSPENSION, spec
 from railsusp.store import write_json
@@ -56,10 +57,12 @@ def timed(sets, cond, seeds, settings, wagon):
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--sets", type=int, default=8)
+    ap.add_argument("--sets", type=positive_int, default=8)
     ap.add_argument("--run-in", type=float, default=SolverSettings().run_in_m)
     ap.add_argument("--wagon", default="loaded", help="packaged wagon: loaded or tare")
-    ap.add_argument("--repeat", type=int, default=3, help="timed runs of each start (min kept)")
+    ap.add_argument(
+        "--repeat", type=positive_int, default=3, help="timed runs of each start (min kept)"
+    )
     ap.add_argument("--out", default="bench/results/settled_start.json")
     args = ap.parse_args()
     rng = np.random.default_rng(0)
@@ -107,8 +110,8 @@ def main() -> None:
             whole, late = row["max_rel_diff_from_0s"][k], row["max_rel_diff_from_5s"][k]
             print(f"{k:>10} {whole:>12.2%} {late:>10.2%}")
     summary = {"sets": args.sets, "wagon": args.wagon, "run_in_m": args.run_in}
-    write_json(args.out, {**summary, "conditions": results})
+    print(f"wrote {write_json(args.out, {**summary, 'conditions': results})}")
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

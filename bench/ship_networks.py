@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 import torch
 
+from _cli import run_main
 from railsusp.campaign import load_campaign
 from railsusp.errors import RailsuspInputError
 from railsusp.store import write_json
@@ -206,4 +207,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main(main)

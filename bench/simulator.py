@@ -26,6 +26,7 @@ import time
 import numba
 import numpy as np
 
+from _cli import number_list, positive_int, run_main
 from railsusp.conditions import get_condition
 from railsusp.params import MAIN_SUSPENSION, ParameterSet, bounds
 from railsusp.store import write_json
@@ -37,10 +38,12 @@ from reference_run import reference_rows
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--sizes", default="1,16,256")
+    ap.add_argument(
+        "--sizes", type=number_list(positive_int), default="1,16,256", help="batch sizes"
+    )
     ap.add_argument("--condition", default="straight")
     ap.add_argument("--contact", default="two-point", help="two-point or single-point")
-    ap.add_argument("--flange-substeps", type=int, default=None, help="solver step split")
+    ap.add_argument("--flange-substeps", type=positive_int, default=None, help="solver step split")
     ap.add_argument("--out", default="bench/results/simulator.json")
     ap.add_argument("--reference-src", default=None, help="another checkout's src, for A/B")
     ap.add_argument("--kernel", default=None, help="path of throughput_kernel.py")
@@ -69,7 +72,7 @@ def main() -> None:
     rng = np.random.default_rng(0)
     lo, hi = bounds(MAIN_SUSPENSION)
     rows = []
-    for n in (int(s) for s in args.sizes.split(",")):
+    for n in args.sizes:
         x = lo + (hi - lo) * rng.random((n, len(MAIN_SUSPENSION)))
         t0 = time.perf_counter()
         r = simulate_batch(x, cond, symbols=MAIN_SUSPENSION, wagon=wagon, settings=settings)
@@ -85,7 +88,8 @@ def main() -> None:
             }
         )
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-    kernel = _kernel_rates(args.kernel, args.sizes) if args.kernel else None
+    sizes = ",".join(str(n) for n in args.sizes)
+    kernel = _kernel_rates(args.kernel, sizes) if args.kernel else None
     for row in rows:
         if reference is not None:
             row["reference_wagon_s_per_wall_s"] = reference[row["sets"]]
@@ -135,7 +139,8 @@ def main() -> None:
 
 def _reference_rates(args: argparse.Namespace) -> dict[int, float]:
     """Wagon-s per wall-s of this script run on ``args.reference_src``, per batch size."""
-    argv = ["--sizes", args.sizes, "--condition", args.condition, "--contact", args.contact]
+    sizes = ",".join(str(n) for n in args.sizes)
+    argv = ["--sizes", sizes, "--condition", args.condition, "--contact", args.contact]
     if args.flange_substeps is not None:
         argv += ["--flange-substeps", str(args.flange_substeps)]
     rows = reference_rows(__file__, argv, args.reference_src)
@@ -159,4 +164,4 @@ def _kernel_rates(kernel: str, sizes: str) -> dict[int, float]:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

@@ -55,6 +55,7 @@ from pathlib import Path
 
 import numpy as np
 
+from _cli import run_main
 from information_estimate import (
     information_split,
     information_unbiased,
@@ -438,4 +439,4 @@ def print_tables(rows: list[dict], seconds: float) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

@@ -48,6 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
+from _cli import run_main
 from information_estimate import (
     information_naive,
     information_split,
@@ -412,4 +413,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

@@ -23,7 +23,9 @@ import time
 import numpy as np
 import torch
 
+from _cli import positive_int, run_main
 from railsusp.conditions import get_condition
+from railsusp.errors import RailsuspInputError
 from railsusp.params import bounds
 from railsusp.store import write_json
 from railsusp.surrogate import TrainConfig, load
@@ -117,10 +119,30 @@ def print_rates(rates: dict[str, float], threads: int) -> None:
         print(f"  cnn-gru fast / per-window: {rates['cnn-gru'] / rates['cnn-gru per-window']:.1f}")
 
 
-def throughput_only(args: argparse.Namespace) -> None:
+def parse_models(text: str, throughput_only: bool = False) -> list[str]:
+    """The model kinds of ``--models`` (comma-separated). A name that is no model is
+    refused, listing the accepted ones (it was dropped, and its table came out empty);
+    ``throughput_only`` times the networks among them (rbf and gp-stats predict no
+    windows), so at least one must be a network."""
+    models = [m.strip() for m in text.split(",") if m.strip()]
+    unknown = [m for m in models if m not in ALL_MODELS]
+    if unknown or not models:
+        raise RailsuspInputError(
+            f"--models {text!r}: {', '.join(unknown) or 'none'} unknown; accepted a "
+            f"comma-separated list of {', '.join(ALL_MODELS)}"
+        )
+    if throughput_only and not any(m in NETWORKS for m in models):
+        raise RailsuspInputError(
+            f"--models {text!r} with --throughput-only: accepted one or more of "
+            f"{', '.join(NETWORKS)} (the others predict no windows)"
+        )
+    return models
+
+
+def throughput_only(args: argparse.Namespace, models: list[str]) -> None:
     """Throughput of randomly initialised networks, 64 series x 980 windows, no campaign."""
     torch.set_num_threads(args.threads)
-    kinds = [k for k in args.models.split(",") if k in NETWORKS]
+    kinds = [k for k in models if k in NETWORKS]
     track = np.random.default_rng(1).normal(size=(1000, 15))
     rates = rates_of(random_surrogate, kinds, args.repeats, track)
     print_rates(rates, args.threads)
@@ -146,20 +168,22 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--run")
     ap.add_argument("--models", default=",".join(ALL_MODELS))
-    ap.add_argument("--epochs", type=int, default=10)
-    ap.add_argument("--batches-per-epoch", type=int, default=100)
-    ap.add_argument("--batch-size", type=int, default=512)
-    ap.add_argument("--threads", type=int, default=2, help="torch threads for throughput")
-    ap.add_argument("--repeats", type=int, default=3, help="timed predict calls, best kept")
+    ap.add_argument("--epochs", type=positive_int, default=10)
+    ap.add_argument("--batches-per-epoch", type=positive_int, default=100)
+    ap.add_argument("--batch-size", type=positive_int, default=512)
+    ap.add_argument("--threads", type=positive_int, default=2, help="torch threads for throughput")
+    ap.add_argument(
+        "--repeats", type=positive_int, default=3, help="timed predict calls, best kept"
+    )
     ap.add_argument("--throughput-only", action="store_true")
     ap.add_argument("--out", help="JSON written (bench/results/surrogate[_throughput].json)")
     args = ap.parse_args()
+    models = parse_models(args.models, args.throughput_only)
     if args.throughput_only:
-        throughput_only(args)
+        throughput_only(args, models)
         return
     if args.run is None:
         ap.error("--run is required unless --throughput-only")
-    models = args.models.split(",")
     cfg = TrainConfig(
         epochs=args.epochs, batches_per_epoch=args.batches_per_epoch, batch_size=args.batch_size
     )
@@ -214,4 +238,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

@@ -47,6 +47,7 @@ import numpy as np
 import pandas as pd
 import torch
 
+from _cli import run_main
 from railsusp.campaign import (
     CampaignConfig,
     CampaignError,
@@ -881,4 +882,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

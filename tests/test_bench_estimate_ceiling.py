@@ -87,7 +87,7 @@ def test_bad_settings_are_refused_naming_the_flag(bench, capsys):
     with pytest.raises(SystemExit) as exc:
         bench.main(["--track-noise", "-1"])
     assert exc.value.code == 2
-    assert "--track-noise -1" in capsys.readouterr().err
+    assert "--track-noise: -1: accepted a finite number 0 or more" in capsys.readouterr().err
 
 
 def test_expected_draws_are_a_setting_and_refused_below_zero(bench, capsys):
@@ -116,3 +116,20 @@ def test_expected_draws_are_a_setting_and_refused_below_zero(bench, capsys):
         bench.main(["--expected-draws", "-1"])
     assert exc.value.code == 2
     assert "--expected-draws -1" in capsys.readouterr().err
+
+
+def test_an_out_of_other_settings_is_refused_not_overwritten(bench, tmp_path, capsys):
+    """An --out written with other settings (here another seed) is refused, naming the
+    settings that differ, and left as it was: before, the first new set overwrote it."""
+    nets = tiny_surrogate(tmp_path / "nets")
+    out = tmp_path / "ceiling.json"
+    stored = {"settings": {"seed": 7}, "per_set": [{"set": 0}]}
+    out.write_text(json.dumps(stored))
+    argv = ["--networks", str(nets), "--sets", "1", "--duration", "2", "--seed", "0"]
+    with pytest.raises(SystemExit) as exc:
+        bench.main([*argv, "--work", str(tmp_path / "w"), "--out", str(out)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "holds 1 set(s) of other settings: " in err
+    assert "seed 7 (now 0)" in err and "held 'unset' (now 'nominal')" in err
+    assert json.loads(out.read_text()) == stored

@@ -47,7 +47,7 @@ def test_conditions_are_moved_into_the_track_family(bench, tmp_path):
         bench.family_conditions(model, 60.0, ["uphill"])
 
 
-def test_tiny_run_writes_its_json_and_resumes_per_set(bench, tmp_path):
+def test_tiny_run_writes_its_json_and_resumes_per_set(bench, tmp_path, capsys):
     run = tmp_path / "run"
     tiny_surrogate(run / "surrogates" / "cnn-gru")
     out = tmp_path / "out.json"
@@ -81,10 +81,19 @@ def test_tiny_run_writes_its_json_and_resumes_per_set(bench, tmp_path):
     assert [s["set"] for s in second["per_set"]] == [0, 1]
     assert second["per_set"][0] == s0
     assert second["overall"]["sets"] == 2
-    # other settings: the stored sets are not mixed in
-    third = bench.main([*argv[:-2], "--out", str(out), "--seed", "1"])
+    # other settings: the stored sets are neither mixed in nor overwritten unasked
+    kept = out.read_text()
+    with pytest.raises(SystemExit) as exc:
+        bench.main([*argv, "--seed", "1"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("error: ")
+    assert "holds 2 set(s) of other settings: seed 0 (now 1)" in err and "--replace" in err
+    assert out.read_text() == kept
+    third = bench.main([*argv, "--seed", "1", "--replace"])
     assert [s["set"] for s in third["per_set"]] == [0]
     assert third["per_set"][0]["truth_display"] != s0["truth_display"]
+    assert json.loads(out.read_text())["settings"]["seed"] == 1
 
 
 def test_recordings_are_made_again_for_other_conditions(bench, tmp_path):
@@ -103,6 +112,33 @@ def test_recordings_are_made_again_for_other_conditions(bench, tmp_path):
     stamp = (tmp_path / "set-00" / "synthesis.json").stat().st_mtime_ns
     bench.set_recordings(0, truth, [straight, curve], tmp_path, args)  # reused
     assert (tmp_path / "set-00" / "synthesis.json").stat().st_mtime_ns == stamp
+
+
+def test_recordings_of_another_model_are_made_again(bench, tmp_path, monkeypatch):
+    """The recordings' cache (shared by jacobian_check, estimate_ceiling and
+    sequence_predict) is keyed on the force laws' revision and the wagon's data too: a
+    folder simulated by other force laws, or another wagon, is simulated again, not
+    reused."""
+    import argparse
+
+    from railsusp.vehicle import MODEL_REVISION
+
+    args = argparse.Namespace(seed=0, noise=0.03, duration=2.0, track_noise=0.5)
+    straight = [get_condition("straight").with_duration(2.0)]
+    truth = bench.draw_sets(1, seed=0)[0]
+    made = tmp_path / "set-00" / "synthesis.json"
+    bench.set_recordings(0, truth, straight, tmp_path, args)
+    stamp = json.loads(made.read_text())
+    assert stamp["model_revision"] == MODEL_REVISION and stamp["wagon_data"]
+    monkeypatch.setattr(bench, "MODEL_REVISION", "1999-01-01.1")
+    bench.set_recordings(0, truth, straight, tmp_path, args)
+    assert json.loads(made.read_text())["model_revision"] == "1999-01-01.1"  # made again
+    monkeypatch.setattr(bench, "wagon_hash", lambda wagon: "another wagon")
+    bench.set_recordings(0, truth, straight, tmp_path, args)
+    assert json.loads(made.read_text())["wagon_data"] == "another wagon"
+    before = made.stat().st_mtime_ns
+    bench.set_recordings(0, truth, straight, tmp_path, args)  # the same model: reused
+    assert made.stat().st_mtime_ns == before
 
 
 def test_rescore_keeps_the_estimates_and_scores_them_again(bench, tmp_path):

@@ -136,3 +136,47 @@ def test_rescore_rebuilds_a_stored_refinement_and_gives_its_intervals(bench, tmp
     assert rows[0]["interval_low"] == pytest.approx(want["X13"].low, rel=1e-6)
     assert rows[0]["stored_interval_low"] == 6.0
     assert rows[0]["truth_in_interval"] == (want["X13"].low <= 16.1 <= want["X13"].high)
+
+
+def test_stored_sets_are_reused_only_with_their_seed_run_and_config(bench, tmp_path, capsys):
+    """A JSON's sets are those of its work folder, seed, run and configuration: a call with
+    another seed (or run, or configuration) is refused naming what differs and leaves the
+    file as it was, instead of reporting the stored sets as its own; the same settings
+    resume them (nothing run again)."""
+    import json
+
+    work, run, out = tmp_path / "w", tmp_path / "run", tmp_path / "cov.json"
+    row = {
+        "parameter": "X13", "truth": 16.0, "estimate": 16.5, "interval_low": 15.0,
+        "interval_high": 18.0, "interval_width_pct_range": 10.0, "error_pct_of_range": 1.0,
+        "truth_in_interval": True,
+    }  # fmt: skip
+    doc = {
+        "work": str(work / "noise-0"),
+        "run": str(run),
+        "seed": 0,
+        "config_hash": bench.config_hash(demo_config()),
+        "per_set": [{"set": k, "truth": {}, "rows": [row]} for k in (0, 1)],
+    }
+    out.write_text(json.dumps(doc))
+    argv = ["--run", str(run), "--work", str(work), "--sets", "2", "--out", str(out)]
+    for more, named in [
+        (["--seed", "5"], "seed 0 (now 5)"),
+        (["--run", str(tmp_path / "other")], f"run '{run}' (now '{tmp_path / 'other'}')"),
+    ]:
+        with pytest.raises(SystemExit) as exc:
+            bench.main([*argv, *more])
+        assert exc.value.code == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith(f"error: {out} holds sets made with")
+        assert named in err and "give another --out" in err
+        assert json.loads(out.read_text()) == doc  # untouched
+    stale = {**doc, "config_hash": "0123456789abcdef"}  # another [campaign] or estimate
+    out.write_text(json.dumps(stale))
+    with pytest.raises(SystemExit):
+        bench.main(argv)
+    assert "config_hash '0123456789abcdef'" in capsys.readouterr().err
+    out.write_text(json.dumps(doc))
+    got = bench.main(argv)  # the same: resumed, reported, nothing run (no run folder exists)
+    assert [s["set"] for s in got["per_set"]] == [0, 1] and got["cases"] == 2
+    assert got["seed"] == 0 and got["config_hash"] == doc["config_hash"]
