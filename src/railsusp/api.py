@@ -263,17 +263,32 @@ class RunResult:
 
     def plot_sensitivity(self, ax=None):
         """Largest total Sobol index ST of each parameter as the key-parameter rule ranks
-        them (:attr:`largest_st`), the key parameters highlighted; returns the Axes."""
+        them (:attr:`largest_st`), the parameters the estimate estimated in red, key
+        parameters it did not estimate (a shipped network set fixes its own inputs) in
+        orange; before the estimate stage is done, the key parameters in red. Returns the
+        Axes."""
         import matplotlib.pyplot as plt
 
         st = self.largest_st
         keys = set(self.key_parameters)
+        try:
+            estimated = set(self.estimated_parameters)
+        except RailsuspInputError:  # no estimate of this run (yet): the key parameters
+            estimated = None
         _check_axes(ax)
         if ax is None:
             _, ax = plt.subplots(figsize=(7, 3), constrained_layout=True)
-        ax.bar(st.index, st.to_numpy(), color=["C3" if p in keys else "C0" for p in st.index])
+        if estimated is None:
+            colours = ["C3" if p in keys else "C0" for p in st.index]
+            title = "red: key parameters; no estimate yet"
+        else:  # it said "key parameters, estimated" of a key parameter it had not estimated
+            colours = ["C3" if p in estimated else "C1" if p in keys else "C0" for p in st.index]
+            title = "red: estimated" + (
+                "; orange: key parameters not estimated" if keys - estimated else ""
+            )
+        ax.bar(st.index, st.to_numpy(), color=colours)
         ax.set_ylabel("largest total Sobol index ST (-)")
-        ax.set_title("Sensitivity (red: key parameters, estimated)", fontsize=10)
+        ax.set_title(f"Sensitivity ({title})", fontsize=10)
         ax.grid(axis="y", alpha=0.3)
         return ax
 

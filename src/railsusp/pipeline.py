@@ -111,6 +111,7 @@ def _run_stages(
     run's cut, read by the configuration check, is let go once the field stage is passed
     (run or skipped): a resumed run kept it (0.5 GB for 2 h at 1 kHz) to its end."""
     from railsusp.measured.cut import release_cut
+    from railsusp.report_html import mark_report_stale
 
     state_path = out / "pipeline.json"
     state["format"] = PIPELINE_FORMAT  # what this railsusp writes (run_state refuses newer)
@@ -155,6 +156,9 @@ def _run_stages(
             t0 = time.perf_counter()
             state["stages"][stage] = {"hash": h, "state": "running"}
             _mark_later_stale(state, stage)
+            # the report, rebuilt last, must not stand as this run's answer meanwhile (a
+            # failed or interrupted run left it so): a stale banner until it is remade
+            mark_report_stale(out, stage)
             write_json(state_path, state)
             try:
                 info = runners[stage]() or {}

@@ -114,6 +114,18 @@ def cell(v: object) -> str:
     return str(v)
 
 
+def md_cell(text: str) -> str:
+    """One cell of a Markdown table row: a ``|`` inside it escaped (``\\|``) and a line break
+    made a space, so that neither ends the cell or the row (the validation's "mean of |Y|"
+    shifted every later column of its row under the wrong header)."""
+    return re.sub(r"\s*[\r\n]+\s*", " ", text).replace("|", "\\|")
+
+
+def md_row(cells: list[str]) -> str:
+    """A Markdown table row of the texts ``cells`` (:func:`md_cell`)."""
+    return "| " + " | ".join(md_cell(c) for c in cells) + " |"
+
+
 class Doc:
     """Collects sections; renders HTML (embedded images) and Markdown (linked images)."""
 
@@ -139,11 +151,10 @@ class Doc:
     def table(self, df: pd.DataFrame, headers: bool = True) -> None:
         """A table with readable headers (:func:`header`), scrolling inside its wrapper."""
         self.html.append(table_html(df, headers))
-        cols = [header(c) if headers else str(c) for c in df.columns]
-        self.md.append("| " + " | ".join(cols) + " |")
+        self.md.append(md_row([header(c) if headers else str(c) for c in df.columns]))
         self.md.append("|" + "---|" * len(df.columns))
         for r in df.itertuples(index=False):
-            self.md.append("| " + " | ".join(cell(v) for v in r) + " |")
+            self.md.append(md_row([cell(v) for v in r]))
         self.md.append("")
 
     def figure(self, path: Path, caption: str) -> None:

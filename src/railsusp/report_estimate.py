@@ -77,22 +77,30 @@ def _start(ref: dict) -> str:
 
 
 def _against_spread(info: dict, ref: dict) -> str:
-    """How the refinement's standard errors compare with the Pareto spread, parameter by
-    parameter, as the numbers say (it used to claim them far below the spread always)."""
+    """How the standard errors compare with the Pareto spread, parameter by parameter, as
+    the numbers say (it used to claim them far below the spread always). The standard error
+    compared is the one the estimate table shows: the intervals' total, with the held
+    parameters' part, where estimate.json stores it, else the refinement's own (the noise
+    and geometry part alone was compared once, under the table's total)."""
     spread = info.get("pareto_spread_pct_range") or {}
-    se = ref.get("standard_error_pct_range") or {}
+    own = ref.get("standard_error_pct_range") or {}
+    total = ((info.get("intervals") or {}).get("details") or {}).get(
+        "total_standard_error_pct_range"
+    ) or {}
+    se = {p: total.get(p, v) for p, v in own.items()}
     common = [p for p in se if p in spread]
     above = [p for p in common if se[p] >= spread[p]]
     if not common:
         return ""
+    which = " (the table's total)" if total else ""
     if not above:
-        return ", which tell them apart: every standard error is below the spread"
+        return f", which tell them apart: every standard error{which} is below the spread"
     return (
         ", which tell them apart for "
         + (", ".join(p for p in common if p not in above) or "none of them")
         + "; for "
         + ", ".join(above)
-        + " the standard error is as large as the spread or larger"
+        + f" the standard error{which} is as large as the spread or larger"
     )
 
 

@@ -10,16 +10,21 @@ the pipeline (the pipeline calls it).
 from __future__ import annotations
 
 import html
+import re
 from pathlib import Path
 
 import pandas as pd
 
 import railsusp.summary as summary
-from railsusp.report_doc import Doc, table_html
+from railsusp.report_doc import Doc, md_row, table_html
 from railsusp.report_en14363 import en14363_section
 from railsusp.report_estimate import estimate_section, validation_section
 from railsusp.stages import STAGES
-from railsusp.store import atomic_write_bytes, file_hash, read_json
+from railsusp.store import atomic_write_bytes, atomic_write_text, file_hash, read_json
+
+#: bracket the stale banner of :func:`mark_report_stale` (in HTML and Markdown alike), so
+#: that a later marking replaces it instead of adding a second
+STALE_START, STALE_END = "<!-- railsusp:stale -->", "<!-- /railsusp:stale -->"
 
 #: CSS class of each verdict in the summary card
 _VERDICT_CLASS = {
@@ -88,20 +93,7 @@ def summary_card(doc: Doc, run: Path, read: list | None = None) -> None:
         for p, v, n in zip(est.index, est.verdict, est.note, strict=True)
         if v in (summary.NOT_IDENTIFIABLE, summary.NOT_IDENTIFIED)
     ]
-    tol_text = (
-        f"Within tolerance: change from nominal at most ±{summary.sig3(tol.default_pct)} %"
-        + (
-            " (" + ", ".join(f"{p} ±{summary.sig3(v)} %" for p, v in tol.parameters.items()) + ")"
-            if tol.parameters
-            else ""
-        )
-        + (
-            ", railsusp's default (the wagon data give no [tolerances], docs/wagon-data.md)"
-            if not tol.from_wagon
-            else ", from the wagon data's [tolerances] (default "
-            f"{summary.sig3(summary.DEFAULT_TOLERANCE_PCT)} %, docs/wagon-data.md)"
-        )
-    )
+    tol_text = tolerance_text(tol)
     held: dict[str, list[str]] = {}
     for p, v, n in zip(est.index, est.verdict, est.note, strict=True):
         if str(v).startswith(summary.NOT_ESTIMATED):
@@ -126,10 +118,10 @@ def summary_card(doc: Doc, run: Path, read: list | None = None) -> None:
     md = [
         "\n## Answer: the suspension of this wagon, from these recordings\n",
         f"Wagon: {summary.wagon_name(run)}. Recordings ({rec_kind}): {rec_text}.\n",
-        "| " + " | ".join(shown.columns) + " |",
+        md_row(list(shown.columns)),
         "|" + "---|" * len(shown.columns),
         *(
-            "| " + " | ".join(summary.sig3(v) if isinstance(v, float) else str(v) for v in r) + " |"
+            md_row([summary.sig3(v) if isinstance(v, float) else str(v) for v in r])
             for r in shown.itertuples(index=False)
         ),
         "",
@@ -142,6 +134,35 @@ def summary_card(doc: Doc, run: Path, read: list | None = None) -> None:
         "",
     ]
     doc.raw("\n".join(parts), "\n".join(md))
+
+
+def tolerance_text(tol: summary.Tolerances) -> str:
+    """The summary card's sentence on the verdicts' tolerances, each number with its source:
+    the wagon data's ``[tolerances]`` table, or railsusp's default
+    (:data:`~railsusp.summary.DEFAULT_TOLERANCE_PCT`) where the table is absent or gives no
+    ``default_pct`` (the default was once named beside the wagon's, as if it were the
+    wagon's own)."""
+    default = summary.sig3(tol.default_pct)
+    listed = ", ".join(f"{p} ±{summary.sig3(v)} %" for p, v in tol.parameters.items())
+    text = f"Within tolerance: change from nominal at most ±{default} %"
+    if not tol.from_wagon:
+        return (
+            text
+            + (f" ({listed})" if listed else "")
+            + ", railsusp's default (the wagon data give no [tolerances], docs/wagon-data.md)"
+        )
+    if tol.default_pct != summary.DEFAULT_TOLERANCE_PCT:  # the table's own default_pct
+        return (
+            text
+            + (f" ({listed})" if listed else "")
+            + ", all from the wagon data's [tolerances] (docs/wagon-data.md)"
+        )
+    return (  # railsusp's default, unless the table's default_pct happens to repeat it
+        text
+        + (f" ({listed}, from the wagon data's [tolerances])" if listed else "")
+        + f"; ±{default} % is railsusp's default, which the wagon data's [tolerances] "
+        "keep (docs/wagon-data.md)"
+    )
 
 
 def _wagon_section(doc: Doc, run: Path, cfg: dict) -> None:
@@ -333,7 +354,7 @@ def _provenance(doc: Doc, run: Path, state: dict, meta: dict) -> None:
         camp / "features.parquet",
         *sorted((run / "field").glob("*.csv")),
         *sorted((run / "field").glob("*.parquet")),
-        *sorted(run.glob("surrogate*/**/model.pt")),  # the networks the estimate ran on
+        *_estimate_networks(run, state),
     ]
     doc.table(
         pd.DataFrame(
@@ -344,6 +365,23 @@ def _provenance(doc: Doc, run: Path, state: dict, meta: dict) -> None:
             ]
         )
     )
+
+
+def _estimate_networks(run: Path, state: dict) -> list[Path]:
+    """The surrogate files the estimate ran on: its configured model's folder in the run's
+    surrogates folder (:func:`~railsusp.surrogate.pretrained.surrogates_run`), its networks
+    (``model.pt``) or statistics surrogates (``statistics.json``). A glob over every
+    ``surrogate*`` folder listed another configuration's leftovers and missed the
+    sensitivity campaign's networks that a configuration of ``samples = 0`` ran on."""
+    from railsusp.surrogate.pretrained import surrogates_run
+
+    scfg = state.get("config", {}).get("surrogate", {})
+    model = scfg.get("model")
+    if not model:  # a pipeline.json without its configuration: nothing to name
+        return []
+    folder = run / surrogates_run(scfg.get("pretrained"), scfg.get("samples", 0))
+    folder = folder / "surrogates" / model
+    return sorted([*folder.glob("**/model.pt"), *folder.glob("**/statistics.json")])
 
 
 def _made_by(made: dict | None) -> str:
@@ -418,3 +456,49 @@ def build_report(run: str | Path) -> list[Path]:
     html_path = atomic_write_bytes(run / "report.html", doc.page(title).encode())
     md_path = atomic_write_bytes(run / "report.md", "\n".join(doc.md).encode())
     return [html_path, md_path]
+
+
+def stale_text(stage: str) -> str:
+    """The stale banner's words: why the report no longer answers for the run directory
+    and what to do."""
+    return (
+        "STALE: this report was made by an earlier run of this run directory, before its "
+        f"stage '{stage}' was started again (a changed configuration, changed files or "
+        "--from). That run has not finished (it is running, failed or was interrupted), so "
+        "the answer below is the earlier run's and may not match the run directory's "
+        "configuration. Run the same command again to remake the report (pipeline.json "
+        "says which stages are stale)."
+    )
+
+
+def mark_report_stale(run: str | Path, stage: str) -> list[Path]:
+    """Put a stale banner at the top of ``RUN/report.html`` and ``RUN/report.md``, where
+    they exist, when ``stage`` starts to run again: the pipeline marks the report stage
+    stale then (every later stage runs again), and the files, which the command line points
+    to, must not present the run before's estimate as the answer if the run fails or is
+    interrupted. A banner already there is replaced; :func:`build_report` writes the files
+    anew, without it. Returns the files marked."""
+    run = Path(run)
+    text = stale_text(stage)
+    marked = []
+    banners = {
+        "report.html": (
+            "<div role='alert' style='border:3px solid #a40000;background:#fff0f0;"
+            "color:#a40000;font-weight:bold;padding:.5em .8em;margin:.5em 0'>"
+            f"{html.escape(text)}</div>"
+        ),
+        "report.md": f"> **{text}**\n",  # a blank line after it ends the quote
+    }
+    for name, banner in banners.items():
+        path = run / name
+        if not path.is_file():
+            continue
+        old = path.read_text("utf-8", errors="replace")
+        old = re.sub(
+            re.escape(STALE_START) + r".*?" + re.escape(STALE_END) + r"\n?", "", old, flags=re.S
+        )
+        block = f"{STALE_START}\n{banner}\n{STALE_END}\n"  # markers on lines of their own
+        body = re.search(r"<body[^>]*>", old) if name.endswith(".html") else None
+        new = old[: body.end()] + block + old[body.end() :] if body else block + old
+        marked.append(atomic_write_text(path, new))
+    return marked

@@ -367,6 +367,17 @@ def force_agreement(run: str | Path) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+#: a force error that is not a number: the validation's simulation stopped (its rows are
+#: empty) or the measured statistic is 0 kN (no relative error)
+NO_ERROR = "n/a (simulation stopped, or measured 0 kN)"
+
+
+def _pct(value: float) -> str:
+    """A force error (%) of the agreement lines; :data:`NO_ERROR` for NaN (it read
+    "85.0 % →  %")."""
+    return f"{sig3(value)} %" if math.isfinite(value) else NO_ERROR
+
+
 def agreement_lines(table: pd.DataFrame) -> list[str]:
     """The force agreement as one readable line per condition."""
     lines = []
@@ -376,10 +387,10 @@ def agreement_lines(table: pd.DataFrame) -> list[str]:
             b, a = r.get(f"{name}_before_pct"), r.get(f"{name}_after_pct")
             if b is None or a is None:
                 continue
-            text = f"{label} {sig3(b)} % → {sig3(a)} %"
+            text = f"{label} {_pct(b)} → {_pct(a)}"
             t = r.get(f"{name}_truth_pct")
             if t is not None and math.isfinite(t):
-                text += f" (true parameters: {sig3(t)} %)"
+                text += f" (true parameters: {_pct(t)})"
             parts.append(text)
         lines.append(f"{r['condition']}: " + ", ".join(parts) + f" — {r['meaning']}")
     return lines

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
+import numpy as np
 import pandas as pd
 import typer
 from rich.table import Table
@@ -66,19 +67,21 @@ def _run(config, out: Path, start_from: str | None, *, checked: bool = False) ->
 
 
 def _summary(out: Path) -> None:
+    import railsusp.summary as summary
     from railsusp.report_doc import fraction_errors_to_pct, header
 
     def show(csv: Path, title: str, cols: list[str] | None = None) -> None:
-        """A run-directory table as the report shows it: readable headers, errors in %."""
+        """A run-directory table as the report shows it: readable headers, errors in %,
+        numbers in the report's format (NSGA-II's 15031 kN/m on its bound read "1.5e+04"
+        in {:.3g}) and yes/no for the booleans (they read True/False)."""
         if not csv.exists():
             return
         df = fraction_errors_to_pct(pd.read_csv(csv))
         df = df[cols] if cols else df
-        console.print(frame_table(df.rename(columns=header), title, fmt="{:.3g}"))
+        df = df.apply(lambda col: col.map(_yes_no) if _has_bools(col) else col)
+        console.print(frame_table(df.rename(columns=header), title, fmt=summary.sig3))
 
     if (out / "estimate" / "validation" / "validation.csv").exists():  # the answer first
-        import railsusp.summary as summary
-
         est = summary.estimate_table(out).reset_index()
         cols = ["parameter", "unit", "nominal", "estimate", "low", "high", "change_pct"]
         answer = est[[*cols, "verdict", "note"]].rename(columns=header)
@@ -107,6 +110,16 @@ def _summary(out: Path) -> None:
         timings.add_row(s, f"{v.get('seconds', 0.0):.1f}", v.get("state", ""))
     console.print(timings)
     console.print(f"report: {out / 'report.html'} (Markdown twin: {out / 'report.md'})")
+
+
+def _has_bools(col: pd.Series) -> bool:
+    """Whether a table's column holds booleans (a bool column, or one with blanks)."""
+    return col.dtype == bool or any(isinstance(v, bool | np.bool_) for v in col)
+
+
+def _yes_no(v: object) -> object:
+    """A boolean as the report's table cell words, yes or no; anything else as it is."""
+    return ("yes" if v else "no") if isinstance(v, bool | np.bool_) else v
 
 
 @app.command()
