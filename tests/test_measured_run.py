@@ -189,6 +189,30 @@ def test_channel_map_errors_name_the_key(tmp_path):
         read_run(path, channel_map_from({**MAP, "wheels": {"w1R": {"Y": "Y_R", "Q": "Q_r"}}}))
 
 
+def test_a_map_naming_a_tables_channels_without_their_units_suggests_the_headers(tmp_path):
+    """A table's channels are its headers whole (``t [s]``); a map written with the bare
+    names (``time = "t"``, as docs/data-format.md's example had it) was refused with no hint
+    for the time and speed channels (the docs audit of stop 65)."""
+    t = np.arange(0, 4, 0.02)
+    table = tmp_path / "run.csv"
+    rng = np.random.default_rng(0)
+    pd.DataFrame(
+        {
+            "t [s]": t,
+            "v (km/h)": np.full(t.size, 54.0),
+            "Y_R [kN]": 5.0 + rng.standard_normal(t.size),
+            "Q_R [kN]": 120.0 + rng.standard_normal(t.size),
+        }
+    ).to_csv(table, index=False)
+    bare = {"time": "t", "speed": "v", "wheels": {"w1R": {"Y": "Y_R [kN]", "Q": "Q_R [kN]"}}}
+    with pytest.raises(RecordingError, match=r"no time column \(t\) \(did you mean 't \[s\]'\?\)"):
+        read_run(table, channel_map_from(bare))
+    with pytest.raises(RecordingError, match=r"channel 'v' .*did you mean 'v \(km/h\)'"):
+        read_run(table, channel_map_from({**bare, "time": "t [s]"}))
+    run = read_run(table, channel_map_from({**bare, "time": "t [s]", "speed": "v (km/h)"}))
+    np.testing.assert_allclose(run.speed, 15.0)
+
+
 def synthetic_run(speed_kmh, curvature_per_km, grade_permille, rate=50.0) -> MeasuredRun:
     """A run of given per-sample speed, curvature and grade, with plausible forces of both
     leading wheels (a curve either way has its outer wheel, the compared one, recorded)."""

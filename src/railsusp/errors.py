@@ -7,6 +7,7 @@ command line can print it as one line (exit status 2) without a traceback.
 from __future__ import annotations
 
 import difflib
+import re
 from collections.abc import Sequence
 
 
@@ -23,9 +24,15 @@ class ConditionError(RailsuspInputError):
 
 
 def did_you_mean(name: str, options: list[str]) -> str:
-    """' (did you mean 'X'?)' for the closest of ``options`` to a misspelt ``name``, or ''."""
+    """' (did you mean 'X'?)' for the closest of ``options`` to a misspelt ``name``, or ''.
+    An option that is ``name`` with a unit after it (``t [s]``, ``v (km/h)``: a table's
+    header, which names its channel whole) is the closest: the bare name suggested nothing
+    (the docs audit of stop 65)."""
     same_case = [o for o in options if o.lower() == name.lower()]
-    m = same_case or difflib.get_close_matches(name, options, n=1, cutoff=0.6)
+    with_unit = [
+        o for o in options if re.sub(r"\s*[\[(][^\])]*[\])]\s*$", "", o).lower() == name.lower()
+    ]
+    m = same_case or with_unit or difflib.get_close_matches(name, options, n=1, cutoff=0.6)
     return f" (did you mean {m[0]!r}?)" if m else ""
 
 

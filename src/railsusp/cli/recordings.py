@@ -11,6 +11,7 @@ import typer
 from rich.table import Table
 
 from railsusp.cli.common import WagonOption, app, console, fail, frame_table, hold_folders
+from railsusp.conditions import RECORDING_MIN_RATE_HZ
 from railsusp.errors import RailsuspInputError
 from railsusp.input_checks import check_figure_file
 
@@ -180,8 +181,13 @@ def sections_command(
     try:
         if line is not None and table is not None:
             raise RailsuspInputError("give --line or --table, not both")
-        if not 10.0 <= rate <= 5000.0:
-            raise RailsuspInputError(f"--rate {rate:g}: accepted 10 to 5000 Hz")
+        # the rate every estimation command reads at least (RECORDING_MIN_RATE_HZ): 10-49 Hz
+        # wrote a field folder each of them refused (the docs audit of stop 65)
+        if not RECORDING_MIN_RATE_HZ <= rate <= 5000.0:
+            raise RailsuspInputError(
+                f"--rate {rate:g}: accepted {RECORDING_MIN_RATE_HZ:g} to 5000 Hz (the estimation "
+                f"commands read recordings of {RECORDING_MIN_RATE_HZ:g} Hz or more)"
+            )
         if plot is not None:
             check_figure_file(plot, "--plot")
         for option, given in (("--line", line), ("--table", table), ("--map", channel_map)):
@@ -288,8 +294,11 @@ def example_recording(
                 f"file{'s' if len(edited) > 1 else ''} (edited?); accepted a new folder, or "
                 "move them first"
             )
+        # a file already there as shipped is left alone: rewritten, its new modification
+        # time made the next `railsusp run` redo its stages (the docs audit of stop 65)
         for name in EXAMPLE_FILES:
-            atomic_write_bytes(out / name, (data / name).read_bytes())
+            if not (out / name).exists():
+                atomic_write_bytes(out / name, (data / name).read_bytes())
     except OSError as exc:
         fail(f"--out {out}: cannot write there ({exc.strerror})")
     except RailsuspInputError as exc:

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from railsusp.errors import RailsuspInputError
+from railsusp.errors import RailsuspInputError, did_you_mean
 from railsusp.integrity import csv_last_line_cut
 from railsusp.measured.units import si_factor, split_header
 
@@ -232,8 +232,9 @@ def _read_table(path: Path, time_column: str | None) -> dict[str, RawChannel]:
     if tcol is None:
         tcol = next((c for c in cols if split_header(c)[0] in ("time", "t")), None)
     if tcol is None or tcol not in cols:
+        hint = did_you_mean(tcol, cols) if tcol else ""
         raise RailsuspInputError(
-            f"recording {path}: no time column ({tcol or 'time_s, time [s]'}); columns {cols}"
+            f"recording {path}: no time column ({tcol or 'time_s, time [s]'}){hint}; columns {cols}"
         )
     tname, tunit = split_header(tcol)
     # a unit other than s and ms was read as seconds (a "time [msec]" column of 200 Hz); a
