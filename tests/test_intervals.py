@@ -230,6 +230,13 @@ def test_posterior_result_carries_the_same_interval_type(tmp_path):
     PosteriorResult(PARAMS, draws, failed, {}).save(tmp_path / "bad.json")
     why = identification_issues(read_json(tmp_path / "bad.json"))
     assert "the posterior estimator failed its coverage check" in why["X13"]
+    # passed its check, but the recording lies outside what it learnt from: said so (every
+    # uncalibrated result was said to have failed its check)
+    outside = PosteriorResult(PARAMS, draws, checks, {}, outside_training=["Q_band_8-15Hz"])
+    outside.save(tmp_path / "outside.json")
+    why = identification_issues(read_json(tmp_path / "outside.json"))
+    assert "outside the estimator's training (Q_band_8-15Hz)" in why["X13"]
+    assert "failed its coverage check" not in why["X13"]
 
 
 def interval(parameter: str, value_u: float, low_u: float, high_u: float, method: str):

@@ -405,7 +405,7 @@ def identification_issues(est: dict, max_st: dict[str, float] | None = None) -> 
             ]
             reasons.append(why + (f" (standard error from {', '.join(parts)})" if parts else ""))
         if est.get("calibrated") is False:
-            reasons.append("the posterior estimator failed its coverage check")
+            reasons.extend(_not_calibrated(est))
         if p in max_st and max_st[p] < SOBOL_ST_LIMIT:
             reasons.append(f"largest Sobol ST {max_st[p]:.3g} < {SOBOL_ST_LIMIT:g}")
         # the bound is that of the statistics; a refined estimate used the series instead
@@ -418,6 +418,25 @@ def identification_issues(est: dict, max_st: dict[str, float] | None = None) -> 
             reasons.append("on its range bound, where no Cramér-Rao bound applies")
         out[p] = "; ".join(reasons)
     return out
+
+
+def _not_calibrated(est: dict) -> list[str]:
+    """Why a posterior result is not calibrated, as its JSON says: statistics of the
+    recording outside the training cases' range (``outside_training``), more sections than
+    any check covered (``checked_as_sections`` null), else its estimator's failed coverage
+    check. Every uncalibrated result was said to have failed its check, a recording outside
+    what the estimator learnt from too (the posterior fixes of stop 65)."""
+    reasons = []
+    outside = est.get("outside_training") or []
+    if outside:
+        more = f" and {len(outside) - 4} more" if len(outside) > 4 else ""
+        reasons.append(
+            f"the recording's statistics outside the estimator's training "
+            f"({', '.join(outside[:4])}{more})"
+        )
+    if "checked_as_sections" in est and est["checked_as_sections"] is None:
+        reasons.append("no coverage check covers this number of sections")
+    return reasons or ["the posterior estimator failed its coverage check"]
 
 
 def _recovery(

@@ -414,3 +414,35 @@ def test_the_widening_is_fitted_on_calibration_records_stored_and_applied(runs):
     ]
     # one section takes the widening of the smallest corrected number above it, here 4's
     assert not flagged[0].checks[x18].passed
+
+
+def test_a_joint_check_edited_since_it_was_written_is_refused_and_made_again(
+    runs, tmp_path, caplog
+):
+    """joint.json was trusted as it stood (a coverage or a widening edited by hand). Now it
+    is sealed: load refuses an edited one in one line, a join run again makes it anew."""
+    import json
+    import logging
+    import shutil
+
+    root, a, b = runs
+    joint.train([a, b], root / "joint")
+    copy = tmp_path / "joint"
+    shutil.copytree(root / "joint", copy)
+    path = copy / "posterior" / "joint.json"
+    good = path.read_text()
+    record = json.loads(good)
+    record["checks"][0]["parameters"][0]["passed"] = not record["checks"][0]["parameters"][0][
+        "passed"
+    ]
+    path.write_text(json.dumps(record))
+    with pytest.raises(RailsuspInputError) as info:
+        joint.load(copy)
+    assert str(info.value) == (
+        f"{path} was changed after the joint posterior's check was written (its content does "
+        "not match its seal): run railsusp posterior join again to make it again"
+    )
+    with caplog.at_level(logging.WARNING):
+        joint.train([a, b], copy)
+    assert "the joint check runs again" in caplog.text
+    assert json.loads(path.read_text()) == json.loads(good)

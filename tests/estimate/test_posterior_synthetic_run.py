@@ -293,3 +293,58 @@ def test_a_degenerate_scatter_scale_is_said(run, tmp_path, monkeypatch):
         if warned:
             assert "1e+06 times as much as the emulator expects" in str(said[0].message)
             assert "longer than the 5 s section" in str(said[0].message)
+
+
+def test_an_emulator_or_a_check_that_is_not_the_trained_one_is_refused(
+    run, tmp_path, monkeypatch, caplog
+):
+    """The second posterior audit: another estimator's emulator.npz of the same settings
+    (its stamp is the settings' hash) was accepted with the check of the folder's own, and
+    a check.json edited by hand was trusted as it stood. Now the check's stamp holds the
+    emulators' SHA-256 and the record is sealed: load refuses either in one line."""
+    import logging
+    import shutil
+
+    from railsusp.store import read_json
+
+    s = _settings()
+    synthetic.train(s, run)
+    copy = tmp_path / "run"
+    shutil.copytree(run, copy)
+    folder = copy / "posterior" / "synthetic"
+    emulator = folder / "emulator.npz"
+    kept = emulator.read_bytes()
+    other = synthetic.StatisticsEmulator.load(emulator)
+    other.x_mean = other.x_mean + 0.5  # another training's emulator, the same stamp
+    other.save(emulator)
+    with pytest.raises(RailsuspInputError, match=r"emulator.npz does not belong to the check"):
+        synthetic.load(copy)
+    emulator.write_bytes(kept)
+    check = folder / "check.json"
+    good = check.read_text()
+    record = json.loads(good)
+    record["checks"][0]["parameters"][0]["coverage"] = 0.95
+    check.write_text(json.dumps(record))
+    with pytest.raises(RailsuspInputError) as info:
+        synthetic.load(copy)
+    assert str(info.value).startswith(f"{check} was changed after the synthetic likelihood")
+    assert "train --long-record synthetic-likelihood again on this folder" in str(info.value)
+    # a check written before records were sealed and the files stamped: read as it stands
+    # (a warning), sealed by a re-run of the training without checking again
+    from railsusp.estimate.posterior_check import SEAL
+
+    old = json.loads(good)
+    del old[SEAL]
+    del old["emulator"][5]
+    check.write_text(json.dumps(old))
+    with caplog.at_level(logging.WARNING):
+        back = synthetic.load(copy)
+    assert "written before check records were sealed" in caplog.text
+    assert [c.to_dict() for c in back.checks] == [c.to_dict() for c in synthetic.load(run).checks]
+
+    def no_check(*a, **k):
+        raise AssertionError("checked again")
+
+    monkeypatch.setattr(synthetic, "run_checks", no_check)
+    synthetic.train(s, copy)
+    assert read_json(check) == json.loads(good)

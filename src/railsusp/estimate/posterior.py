@@ -34,6 +34,7 @@ is reported not calibrated.
 from __future__ import annotations
 
 import io
+import json
 import logging
 import time
 from contextlib import contextmanager, redirect_stdout
@@ -47,18 +48,21 @@ from railsusp.errors import RailsuspInputError
 from railsusp.estimate.calibration import ParameterCalibration, SpreadCorrection
 from railsusp.estimate.posterior_check import ProductCalibration, calibrate, widen
 from railsusp.estimate.posterior_data import (
+    TrainingSupport,
     cached_cases,
     check_model_revision,
     estimator_stamp,
     recording_summaries,
+    support_notes,
     to_si,
+    unused_recordings,
 )
 from railsusp.estimate.posterior_fusion import from_logit, fused_samples, logistic_prior, to_logit
 from railsusp.estimate.posterior_result import PosteriorResult
 from railsusp.estimate.posterior_settings import PosteriorSettings, settings_differences
 from railsusp.integrity import TorchFileCutShort, read_torch_file
 from railsusp.params import MAIN_SUSPENSION
-from railsusp.store import atomic_write_bytes, content_hash, read_json, write_json
+from railsusp.store import atomic_write_bytes, canonical_json, content_hash, read_json, write_json
 
 log = logging.getLogger(__name__)
 
@@ -90,6 +94,8 @@ class PosteriorEstimator:
     correction: SpreadCorrection | None = None
     run: Path | None = None
     products: list[ProductCalibration] = field(default_factory=list)
+    #: the range of the training cases' statistics, which a recording's are compared with
+    support: TrainingSupport | None = None
 
     @property
     def calibrated(self) -> bool:
@@ -226,14 +232,25 @@ def train(
     correction on the calibration cases and check the corrected estimator on the untouched
     test cases, all into ``run`` (``posterior/``); every step found finished on disk is
     read back, not repeated. ``simulate`` False (:func:`load`): a training chunk that is not
-    on disk whole is an error, not simulated again."""
+    on disk whole is an error, not simulated again, and nothing is written into ``run``
+    (an estimator folder may be read-only: shared, or another user's). ``settings.json``
+    is written only where it is missing or its content is not this training's."""
     import torch
     from sbi.inference import NPE
 
     folder = Path(run) / "posterior"
     key = content_hash(settings.to_dict())
+    # as it reads back (tuples as lists, paths as text): compared with the file's
+    stored = json.loads(
+        canonical_json({"hash": key, **estimator_stamp(), "settings": settings.to_dict()})
+    )
+    old = None
     if (folder / "settings.json").exists():
         old = read_json(folder / "settings.json")
+        if not isinstance(old, dict):
+            raise RailsuspInputError(
+                f"{folder / 'settings.json'} holds no estimator settings; give another --out"
+            )
         if old.get("hash") != key:
             differ = settings_differences(old.get("settings"), settings.to_dict())
             raise RailsuspInputError(
@@ -241,16 +258,18 @@ def train(
                 f"{' (' + '; '.join(differ) + ')' if differ else ''}; give another --out"
             )
         check_model_revision(old, folder / "settings.json")
-    write_json(
-        folder / "settings.json",
-        {"hash": key, **estimator_stamp(), "settings": settings.to_dict()},
-    )
+    if simulate and old != stored:  # rewritten on every estimate before (M2 of the audit)
+        write_json(folder / "settings.json", stored)
     u, x = cached_cases(
         settings, folder / "simulations", "train", settings.n_train, simulate=simulate
     )
     prior, builder, theta_t, x_t = _build(settings, u, x)
     weights = folder / "estimator.pt"
     states = _saved_states(weights, settings.ensemble, remake=simulate)
+    if states is None and not simulate:
+        raise RailsuspInputError(
+            f"{weights} does not exist: train first (railsusp posterior train)"
+        )
     if states is not None:
         nets = []
         for state in states:
@@ -289,6 +308,7 @@ def train(
     for net in nets:
         net.eval()
     est = PosteriorEstimator(settings, nets, [], None, Path(run))
+    est.support = TrainingSupport.of(settings.summary_names, x)
     # read back only if made on these weights (a remade estimator.pt is checked afresh)
     est.correction, est.calibration, est.products = calibrate(est, folder, remake=simulate)
     return est
@@ -351,7 +371,8 @@ def estimate(est: PosteriorEstimator, recordings, seed: int = 0) -> PosteriorRes
     x, used = recording_summaries(est.settings, recordings)
     s = est.settings
     n = len(x)
-    notes = []
+    outside, notes = support_notes(est.support, x)
+    notes += unused_recordings(recordings, [c.name for c in s.conditions])
     correction, checks, checked_as = est.correction, est.calibration, 1
     u = est.sample(x, s.samples, seed)
     if n > 1:
@@ -390,5 +411,6 @@ def estimate(est: PosteriorEstimator, recordings, seed: int = 0) -> PosteriorRes
     for note in notes:
         log.warning("posterior: %s", note)
     return PosteriorResult(
-        s.parameters, to_si(u, s.parameters), checks, used, n, notes, correction, checked_as
-    )
+        s.parameters, to_si(u, s.parameters), checks, used, n, notes, correction, checked_as,
+        outside_training=outside,
+    )  # fmt: skip

@@ -29,7 +29,10 @@ made on (:func:`check_stamp`: the hash of the flows' saved weights, the settings
 force laws' revision), which a re-run reads back only while the stamp is the folder's: an
 ``estimator.pt`` deleted and trained again (the remedy our refusals give), or copied in
 from another training, is checked afresh, not given the verdict and widening of the flows
-it replaced.
+it replaced. The record is sealed (:func:`seal`: the content hash of the rest of it, as
+``synthetic/check.json`` and ``joint.json`` are): one edited since its check wrote it (a
+verdict set to passed, factors set to 1) is refused by ``load`` and checked again by a
+re-run, as a record cut short or of another content is.
 """
 
 from __future__ import annotations
@@ -46,7 +49,7 @@ from railsusp.estimate.calibration import LEVEL, ParameterCalibration, SpreadCor
 from railsusp.estimate.posterior_data import cached_cases
 from railsusp.estimate.posterior_fusion import SectionSampler, from_logit, fused_samples, to_logit
 from railsusp.params import MAIN_SUSPENSION
-from railsusp.store import file_hash, read_json, write_json
+from railsusp.store import content_hash, file_hash, read_json, write_json
 
 log = logging.getLogger(__name__)
 
@@ -170,26 +173,98 @@ def check_stamp(folder: Path) -> dict:
     }
 
 
-def _read_record(path: Path):
-    """(stamp, (correction, checks, products)) of a calibration record, or None for valid
-    JSON of another content (another tool's file, a result written over it: a traceback on
-    every later run before), said in a warning: the check is made again instead."""
+#: the key of a check record's seal (:func:`seal`)
+SEAL = "sealed"
+
+
+def seal(record: dict) -> dict:
+    """The check ``record`` with its seal: the content hash of the rest of it (what was
+    made, as made), under :data:`SEAL`. A record edited afterwards no longer matches its
+    seal (:func:`seal_state`), as the flows' weights no longer match their SHA-256."""
+    body = {k: v for k, v in record.items() if k != SEAL}
+    return {**body, SEAL: content_hash(body)}
+
+
+def seal_state(record) -> str:
+    """``"sealed"`` (the content is the one sealed), ``"unsealed"`` (no seal: a record
+    written before records were sealed) or ``"broken"`` (changed since it was sealed)."""
+    if not isinstance(record, dict) or SEAL not in record:
+        return "unsealed"
+    body = {k: v for k, v in record.items() if k != SEAL}
+    return "sealed" if record[SEAL] == content_hash(body) else "broken"
+
+
+def read_sealed(path: Path, what: str) -> tuple[dict, bool]:
+    """A sealed check record ``path`` (``what``: which, for the messages) and whether it
+    is sealed; a one-line error, naming the file and the remedy, where it is not readable
+    JSON (cut short), not a JSON object, or was changed since it was sealed. A record
+    without a seal (written before records were sealed) is read as it stands, and said
+    in a warning: a training on the folder seals it."""
     data = read_json(path)
+    if not isinstance(data, dict):
+        raise RailsuspInputError(f"{path} is not {what}: {_again(path)}")
+    state = seal_state(data)
+    if state == "broken":
+        raise RailsuspInputError(
+            f"{path} was changed after {what} was written (its content does not match its "
+            f"seal): {_again(path)}"
+        )
+    if state == "unsealed":
+        warn_unsealed(path)
+    return data, state == "sealed"
+
+
+def warn_unsealed(path: Path) -> None:
+    """Say that a check record written before records were sealed is read as it stands."""
+    log.warning(
+        "%s was written before check records were sealed: read as it stands (its content "
+        "cannot be verified); a re-run of the training that made it seals it",
+        path,
+    )
+
+
+def _again(path: Path) -> str:
+    """The remedy of a check record that cannot be read: the training that makes it."""
+    if path.name == "joint.json":
+        return "run railsusp posterior join again to make it again"
+    if path.parent.name == "synthetic":
+        return (
+            "run railsusp posterior train --long-record synthetic-likelihood again on this "
+            "folder to make it again"
+        )
+    return "run railsusp posterior train again on this folder to make it again"
+
+
+def _read_record(path: Path):
+    """(stamp, (correction, checks, products), the record, whether sealed) of a
+    calibration record, or the reason (a sentence naming the file) it is not one: cut
+    short or not JSON (it stopped ``train`` before, though docs/posterior.md says such a
+    record is made again), valid JSON of another content (another tool's file, a result
+    written over it: a traceback on every later run before), or a record changed since its
+    check sealed it (:func:`seal`)."""
+    try:
+        data = read_json(path)
+    except RailsuspInputError as exc:
+        return str(exc)
+    state = seal_state(data)
+    if state == "broken":
+        return (
+            f"{path} was changed after its check was written (its content does not match its seal)"
+        )
     try:
         corr = data.get("correction")
-        return data.get("stamp"), (
-            None if corr is None else SpreadCorrection.from_dict(corr),
-            [ParameterCalibration(**c) for c in data["parameters"]],
-            _read_products(data),
+        return (
+            data.get("stamp"),
+            (
+                None if corr is None else SpreadCorrection.from_dict(corr),
+                [ParameterCalibration(**c) for c in data["parameters"]],
+                _read_products(data),
+            ),
+            data,
+            state == "sealed",
         )
     except (AttributeError, KeyError, TypeError, ValueError) as exc:
-        log.warning(
-            "%s is not a calibration record (%s: %s); the check runs again",
-            path,
-            type(exc).__name__,
-            exc,
-        )
-        return None
+        return f"{path} is not a calibration record ({type(exc).__name__}: {exc})"
 
 
 def calibrate(
@@ -197,15 +272,29 @@ def calibrate(
 ) -> tuple[SpreadCorrection | None, list[ParameterCalibration], list[ProductCalibration]]:
     """The correction (None with ``n_calibration = 0``), the check of the corrected
     estimator on the untouched test cases, and the same for the checked numbers of
-    sections; read from ``calibration.json`` when there and made on these flows
-    (:func:`check_stamp`), else made again. ``remake`` False (:func:`railsusp.estimate.
-    posterior.load`, which only reads): a record of other flows is refused in one line."""
+    sections; read from ``calibration.json`` when there, sealed (:func:`seal`) and made on
+    these flows (:func:`check_stamp`), else made again (said in a warning where there was
+    a record). ``remake`` False (:func:`railsusp.estimate.posterior.load`, which only
+    reads and writes nothing): a record of other flows, cut short, of another content or
+    changed since it was sealed is refused in one line; one written before records were
+    sealed is read as it stands, with a warning (a re-run of the training seals it)."""
     path = folder / "calibration.json"
     stamp = check_stamp(folder)
     stored = _read_record(path) if path.exists() else None
+    if isinstance(stored, str):  # not a record of this check at all
+        if not remake:
+            raise RailsuspInputError(f"{stored}: {_again(path)}")
+        log.warning("%s; the check runs again", stored)
+        stored = None
     if stored is not None:
-        if stored[0] == stamp:
-            return stored[1]
+        got, values, data, sealed = stored
+        if got == stamp:
+            if not sealed and remake:  # written before records were sealed: taken as it is
+                write_json(path, seal(data))
+                log.info("%s sealed", path)
+            elif not sealed:
+                warn_unsealed(path)
+            return values
         if not remake:
             raise RailsuspInputError(
                 f"{path} is the check of other flows than {folder / 'estimator.pt'} (trained "
@@ -243,5 +332,5 @@ def calibrate(
             "products": product_record,
         }
     )
-    write_json(path, record)
+    write_json(path, seal(record))
     return correction, after, products

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import io
 import logging
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -277,7 +278,16 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
     simulations record (:class:`TrainingWheel`) is refused in one line, as the optimisation
     route refuses it (:func:`railsusp.estimate.problem.check_measured_wheel`: in a curve
     the outer and the inner wheel carry other forces; a recording of a left curve listing
-    w1L before w1R was compared as the outer wheel, silently)."""
+    w1L before w1R was compared as the outer wheel, silently).
+
+    A recording's own condition (its ``lead_in_m``, which may differ from the trained one)
+    must put its sections in the steady arc of a curve, as the training conditions' are
+    (:func:`~railsusp.estimate.posterior_settings._check_uniform_record`: a record from
+    the entry spiral was accepted and reported calibrated, its statistics far from any
+    training case), and its stated instrument bandwidth (``filter_bandwidth_hz``) must be
+    at least the training's :data:`BANDWIDTH_HZ` (a narrower filter removes the higher
+    bands' content, which the flows then extrapolate from): each refused in one line."""
+    from railsusp.estimate.posterior_settings import _check_uniform_record
     from railsusp.estimate.problem import check_measured_wheel
 
     by_name = {}
@@ -305,6 +315,7 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
                 f"{', '.join(diff)}; train an estimator for this condition"
             )
         check_measured_wheel(TrainingWheel(), [rec], aligned=False)
+        _check_bandwidth(rec, cond.name)
         fs = 1.0 / cond.sample_interval
         if abs(rec.sampling_rate - fs) > 0.01 * fs:
             rec = rec.resampled(fs)
@@ -328,6 +339,9 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
                 f"recording {cond.name!r} is {rec.time.size / fs:.1f} s long; the estimator "
                 f"needs at least one section of {settings.section_s:g} s"
             )
+        _check_uniform_record(
+            rec.condition, len(sections) * settings.section_s, settings.wagon, recording=True
+        )
         rows = [
             section_statistics(
                 settings.statistics,
@@ -356,3 +370,116 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
     used = {name: {"sections": n, "seconds_left_out": round(t - n * settings.section_s, 3)}
             for name, (_, t) in info.items()}  # fmt: skip
     return np.concatenate([r[:n] for r in per_condition], axis=1), used
+
+
+def _check_bandwidth(rec, name: str) -> None:
+    """Refuse, in one line, a recording whose sidecar states an instrument bandwidth
+    (``filter_bandwidth_hz``) below the training simulations' :data:`BANDWIDTH_HZ`: its
+    statistics of the higher bands lie outside anything the estimator learnt from
+    (measured: a recording low-passed at 4 Hz put Q_band_8-15Hz at -1.33 against the
+    training cases' 0.33 to 0.71, and was reported calibrated). None stated: not checked."""
+    bw = (rec.meta or {}).get("filter_bandwidth_hz")
+    if isinstance(bw, int | float) and not isinstance(bw, bool) and bw < BANDWIDTH_HZ:
+        raise RailsuspInputError(
+            f"recording {name!r}: filter_bandwidth_hz = {bw:g} Hz is below the "
+            f"{BANDWIDTH_HZ:g} Hz instrument bandwidth the estimator was trained with (its "
+            f"higher bands are cut); accepted {BANDWIDTH_HZ:g} Hz or more (or none stated)"
+        )
+
+
+#: a recording's statistic is outside what the estimator learnt from where a section's value
+#: lies beyond the range of the training cases by more than this many of their standard
+#: deviations (docs/posterior.md, "The result"). Measured: the statistics of recordings of
+#: the trained conditions lay within 0.2 standard deviations beyond that range (inside it
+#: for most); a recording low-passed at 4 Hz 24 beyond, a curve recorded from its entry
+#: spiral 9 beyond
+OUTSIDE_MARGIN_SD = 1.0
+
+
+@dataclass(frozen=True)
+class TrainingSupport:
+    """The range (``low``, ``high``) and standard deviation ``sd`` of each statistic
+    (``names``) over an estimator's training cases (those with every statistic defined),
+    against which a recording's sections are compared (:meth:`outside`)."""
+
+    names: tuple[str, ...]
+    low: np.ndarray
+    high: np.ndarray
+    sd: np.ndarray
+
+    @classmethod
+    def of(cls, names, x: np.ndarray) -> TrainingSupport | None:
+        """The support of the training cases ``x`` (n, D); None without two usable cases."""
+        x = np.asarray(x, float)
+        x = x[np.all(np.isfinite(x), axis=1)]
+        if len(x) < 2 or x.shape[1] != len(names):
+            return None
+        return cls(tuple(names), x.min(axis=0), x.max(axis=0), x.std(axis=0))
+
+    @classmethod
+    def joined(cls, parts) -> TrainingSupport | None:
+        """The supports of estimators whose statistics stand one after the other (a joint
+        posterior's parts); None where any part has none."""
+        if any(p is None for p in parts):
+            return None
+        return cls(
+            tuple(n for p in parts for n in p.names),
+            *(np.concatenate([getattr(p, k) for p in parts]) for k in ("low", "high", "sd")),
+        )
+
+    def outside(self, x: np.ndarray) -> list[str]:
+        """The statistics for which a section of ``x`` (k, D) lies beyond the training
+        range by more than :data:`OUTSIDE_MARGIN_SD` of their standard deviation."""
+        x = np.atleast_2d(np.asarray(x, float))
+        margin = OUTSIDE_MARGIN_SD * self.sd
+        beyond = (x < self.low - margin) | (x > self.high + margin)
+        return [n for n, b in zip(self.names, beyond.any(axis=0), strict=True) if b]
+
+
+def training_support(settings: PosteriorSettings, run: str | Path) -> TrainingSupport | None:
+    """The :class:`TrainingSupport` of the training cases cached in ``run``'s
+    ``posterior/simulations`` (read only) that the synthetic likelihood's emulator of all
+    the statistics learnt from (the first ``statistics_emulator_cases`` where set: tens of
+    thousands of cases of hundreds of statistics are not read on every load); None where
+    they are not all there."""
+    cases = settings.statistics_emulator_cases or settings.n_train
+    try:
+        _, x = cached_cases(
+            settings, Path(run) / "posterior" / "simulations", "train", cases, simulate=False
+        )
+    except RailsuspInputError:
+        return None
+    return TrainingSupport.of(settings.summary_names, x)
+
+
+def support_notes(support: TrainingSupport | None, x: np.ndarray) -> tuple[list[str], list[str]]:
+    """(the statistics of the sections ``x`` outside the training cases' ``support``, the
+    warning that says so); a warning that nothing was compared where there is no support."""
+    if support is None:
+        return [], [
+            "the recording's statistics were not compared with the range of the "
+            "estimator's training cases (not at hand: its folder holds no cached training "
+            "cases): whether they lie inside what it learnt from is unknown"
+        ]
+    outside = support.outside(x)
+    if not outside:
+        return [], []
+    shown = ", ".join(outside[:4]) + (f" and {len(outside) - 4} more" if len(outside) > 4 else "")
+    return outside, [
+        f"the recording's statistics {shown} lie outside the range of the estimator's "
+        f"training cases (by more than {OUTSIDE_MARGIN_SD:g} of their standard deviation): "
+        "the posterior extrapolates beyond what it learnt and is NOT calibrated; check the "
+        "recording's condition and instrument against the trained ones"
+    ]
+
+
+def unused_recordings(recordings, trained: list[str]) -> list[str]:
+    """The warning naming the recordings of conditions none of the ``trained`` conditions
+    is (they were left out unsaid); none where every recording is used."""
+    unused = [r.condition.name for r in recordings if r.condition.name not in trained]
+    if not unused:
+        return []
+    return [
+        f"recordings of conditions the estimator was not trained on are not used: "
+        f"{', '.join(unused)} (trained on {', '.join(trained)})"
+    ]

@@ -18,8 +18,10 @@ checks, so the joint posterior is checked again (:func:`train`) on the parts' he
 records (the same parameter draws in every part: the shared seed and counts), read from
 the parts' caches only (nothing is simulated: a missing record is a one-line error), and
 stored in ``posterior/joint.json`` of its own folder with the parts' folders and the stamps
-of their checks: a part trained again afterwards makes the joint's check stale, and
-:func:`load` refuses it in one line.
+of their checks (which hold the SHA-256 of the parts' emulators' files): a part trained
+again afterwards makes the joint's check stale, and :func:`load` refuses it in one line, as
+it refuses a ``joint.json`` edited since it was written (its seal,
+:func:`~railsusp.estimate.posterior_check.seal`).
 
 The sampler is the parts' own (:meth:`~railsusp.estimate.posterior_synthetic.
 SyntheticLikelihood.sample`): a first tempered SMC run on the sum of the parts' first
@@ -48,8 +50,13 @@ import numpy as np
 
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.calibration import SpreadCorrection
-from railsusp.estimate.posterior_check import widen
-from railsusp.estimate.posterior_data import cached_cases, recording_summaries
+from railsusp.estimate.posterior_check import read_sealed, seal, seal_state, widen
+from railsusp.estimate.posterior_data import (
+    TrainingSupport,
+    cached_cases,
+    recording_summaries,
+    unused_recordings,
+)
 from railsusp.estimate.posterior_fusion import to_logit
 from railsusp.estimate.posterior_result import PosteriorResult
 from railsusp.estimate.posterior_smc import smc_sample
@@ -94,6 +101,11 @@ class JointPosterior(Checked):
         """The first part's settings: the shared ones (:data:`SHARED`) are every part's, but
         its ``conditions`` and ``summary_names`` are the first part's only."""
         return self.parts[0].settings
+
+    @property
+    def support(self) -> TrainingSupport | None:
+        """The parts' training ranges, their statistics one after the other."""
+        return TrainingSupport.joined([p.support for p in self.parts])
 
     @property
     def widths(self) -> list[int]:
@@ -265,21 +277,42 @@ def train(runs, out: str | Path, sets=None, calibration="default") -> JointPoste
     where = None if calibration is None else list(calibration)
     path = Path(out) / "posterior" / "joint.json"
     stamps = part_stamps(runs)
-    if path.exists():
-        old = read_json(path)
+    old = _stored_joint(path)
+    if old is not None:
         same = old.get("runs") == runs and old.get("stamps") == stamps
         if same and old.get("sets") == plain_sets(sets) and old.get("calibration") == where:
+            if seal_state(old) == "unsealed":  # written before records were sealed
+                write_json(path, seal(old))
             return _from_record(joint, old)
     cases = lambda kind, n, k: joint_cases(parts, runs, kind, n, k)  # noqa: E731
     if calibration is not None:
         ks = sorted({k for *_, checked in sets for k in checked})
         joint.corrections = fit_corrections(joint, cases, calibration, ks)
     joint.checks = flag_excessive(joint, check_sets(joint, cases, sets))
-    write_json(path, {"method": "joint-synthetic-likelihood", "runs": runs, "stamps": stamps,
-                      "sets": plain_sets(sets), "calibration": where,
-                      "corrections": {str(k): c.to_dict() for k, c in joint.corrections.items()},
-                      "checks": [c.to_dict() for c in joint.checks]})  # fmt: skip
+    write_json(path, seal({
+        "method": "joint-synthetic-likelihood", "runs": runs, "stamps": stamps,
+        "sets": plain_sets(sets), "calibration": where,
+        "corrections": {str(k): c.to_dict() for k, c in joint.corrections.items()},
+        "checks": [c.to_dict() for c in joint.checks],
+    }))  # fmt: skip
     return joint
+
+
+def _stored_joint(path: Path) -> dict | None:
+    """A stored ``joint.json`` as it reads, or None where there is none or it is cut
+    short, not a JSON object, or changed since it was sealed (said in a warning: the joint
+    check runs again)."""
+    if not path.exists():
+        return None
+    try:
+        old = read_json(path)
+    except RailsuspInputError as exc:
+        log.warning("%s; the joint check runs again", exc)
+        return None
+    if not isinstance(old, dict) or seal_state(old) == "broken":
+        log.warning("%s is not the joint check written there; the joint check runs again", path)
+        return None
+    return old
 
 
 def fit_corrections(joint: JointPosterior, cases, where, ks) -> dict[int, SpreadCorrection]:
@@ -330,7 +363,7 @@ def load(out: str | Path) -> JointPosterior:
     path = Path(out) / "posterior" / "joint.json"
     if not path.exists():
         raise RailsuspInputError(f"{path} does not exist: check the joint posterior first")
-    record = read_json(path)
+    record, _ = read_sealed(path, "the joint posterior's check")
     if not all(key in record for key in ("runs", "stamps", "checks")):
         raise RailsuspInputError(
             f"{path}: not a joint posterior's check (runs, stamps, checks); run railsusp "
@@ -374,4 +407,5 @@ def estimate(joint: JointPosterior, recordings, seed: int = 0) -> PosteriorResul
     """The joint posterior of recordings of every part's conditions (one per condition),
     with the joint check of its number of sections."""
     x, used = recording_sections(joint, recordings)
-    return result_of(joint, x, used, seed)
+    trained = [c.name for p in joint.parts for c in p.settings.conditions]
+    return result_of(joint, x, used, seed, unused_recordings(recordings, trained))

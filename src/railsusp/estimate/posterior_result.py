@@ -1,11 +1,15 @@
 """The posterior of a recording (:func:`railsusp.estimate.posterior.estimate`): draws of
 the estimated parameters, the verdict of the estimator's calibration and its correction,
-how the recording was used; the table in display units and the result JSON."""
+how the recording was used; the table in display units and the result JSON (strict JSON:
+a number that is not defined, such as the coverage of a length no check covers, is
+``null``, never a bare ``NaN``, which JSON parsers other than Python's refuse)."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -32,14 +36,18 @@ class PosteriorResult:
     long_record: str = (
         "fusion"  # how the sections combine (posterior_synthetic.LONG_RECORD_METHODS)
     )
+    #: the statistics of the recording that lie outside the training cases' range
+    #: (:class:`~railsusp.estimate.posterior_data.TrainingSupport`): not calibrated
+    outside_training: list[str] = field(default_factory=list)
 
     @property
     def calibrated(self) -> bool:
-        """A check covers this number of sections, and the estimator passed it after a
-        correction within bounds."""
+        """A check covers this number of sections, the estimator passed it after a
+        correction within bounds, and the recording's statistics lie inside what the
+        estimator learnt from (:attr:`outside_training` empty)."""
         excessive = self.correction.excessive if self.correction else []
         passed = all(c.passed for c in self.calibration) and not excessive
-        return passed and self.checked_as is not None
+        return passed and self.checked_as is not None and not self.outside_training
 
     def intervals(self, level: float = LEVEL) -> Intervals:
         """Median and central ``level`` credible interval of each parameter (the one
@@ -72,17 +80,19 @@ class PosteriorResult:
                     "widening": self.correction.factors[j] if self.correction else 1.0,
                     "calibrated": self.calibration[j].passed
                     and p not in (self.correction.excessive if self.correction else [])
-                    and self.checked_as is not None,
+                    and self.checked_as is not None
+                    and not self.outside_training,
                     "median [90 % interval]": iv[p].text(),
                 }
             )
         return pd.DataFrame(rows)
 
     def save(self, path: str | Path) -> Path:
-        """The table and the verdict as JSON (atomic)."""
+        """The table and the verdict as JSON (atomic; numbers that are not defined as
+        ``null``)."""
         return write_json(
             path,
-            {
+            _defined({
                 "route": "posterior",
                 "parameters": list(self.parameters),
                 "estimate_display": {i.parameter: i.value for i in self.intervals().items},
@@ -94,6 +104,20 @@ class PosteriorResult:
                 "sections_combined": self.n_sections,
                 "checked_as_sections": self.checked_as,
                 "long_record": self.long_record,
+                "outside_training": self.outside_training,
                 "warnings": self.warnings,
-            },
-        )
+            }),
+        )  # fmt: skip
+
+
+def _defined(value: Any) -> Any:
+    """``value`` with every float that is not finite (NaN, inf) replaced by None, through
+    dicts and lists: ``write_json`` writes them as the bare ``NaN`` that strict JSON
+    parsers refuse (``coverage_heldout`` of a record longer than any check)."""
+    if isinstance(value, dict):
+        return {k: _defined(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_defined(v) for v in value]
+    if isinstance(value, float | np.floating) and not math.isfinite(value):
+        return None
+    return value

@@ -336,14 +336,18 @@ def _check_statistics_emulator(cases: int, n_train: int, families: tuple[str, ..
         )
 
 
-def _check_uniform_record(cond: WorkingCondition, record_s: float, wagon: Any = None) -> None:
+def _check_uniform_record(
+    cond: WorkingCondition, record_s: float, wagon: Any = None, recording: bool = False
+) -> None:
     """Refuse a condition whose design track (curvature, cant) changes under the wagon
     while it records ``record_s`` seconds: the sections of a long recording must be drawn
     like the training section, and a training section that holds the entry to a curve is
     not like the steady curving of the sections after it (measured: the curve's median
     Y/Q 0.281 in the first section against 0.303 in the next five, 2 standard deviations
     of its scatter over the prior; the fused posterior of 6 sections then held X13's truth
-    in 12 % of the cases). ``wagon``: whose axle spread (None: the packaged C80)."""
+    in 12 % of the cases). ``wagon``: whose axle spread (None: the packaged C80).
+    ``recording``: the condition is a recording's own (its ``lead_in_m`` may differ from
+    the trained one) and ``record_s`` its sections' length: the same rule, said of it."""
     if cond.curve_radius_m is None:
         return
     from railsusp.vehicle.settle import design_is_uniform
@@ -353,14 +357,27 @@ def _check_uniform_record(cond: WorkingCondition, record_s: float, wagon: Any = 
     spread = axle_spread(load_wagon(wagon))
     start = cond.lead_in_m - spread  # the trailing wheelset when the record starts
     entry = cond.curve_start_m + cond.entry_spiral_m
+    who = f"recording {cond.name!r}: " if recording else ""
     if start < entry:
+        unlike = (
+            "unlike the steady curving the estimator was trained on"
+            if recording
+            else "unlike the steady curving of a long recording's later sections"
+        )
         raise RailsuspInputError(
-            f"lead_in_m = {cond.lead_in_m:g} m (condition {cond.name!r}): the recorded "
+            f"{who}lead_in_m = {cond.lead_in_m:g} m (condition {cond.name!r}): the recorded "
             f"sections would hold the entry to the curve (until {entry:g} m, the wagon "
-            f"{spread:.3g} m long), unlike the steady curving of a long recording's later "
-            f"sections; accepted at least {entry + spread:.4g} m"
+            f"{spread:.3g} m long), {unlike}; accepted at least {entry + spread:.4g} m"
         )
     if not design_is_uniform(cond, start, cond.lead_in_m + cond.speed * record_s):
+        if recording:
+            last = max(0.0, (entry + (cond.arc_length_m or 0.0) - cond.lead_in_m) / cond.speed)
+            raise RailsuspInputError(
+                f"{who}arc_length_m = {cond.arc_length_m:g} m (condition {cond.name!r}): the "
+                f"curve ends within its {record_s:g} s of sections; accepted a recording "
+                f"whose sections lie in the arc (at most {last:.4g} s from lead_in_m = "
+                f"{cond.lead_in_m:g} m)"
+            )
         raise RailsuspInputError(
             f"arc_length_m = {cond.arc_length_m:g} m (condition {cond.name!r}): the curve "
             f"ends within the {record_s:g} s of the longest checked record; accepted an arc "

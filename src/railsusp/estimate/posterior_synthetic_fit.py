@@ -31,7 +31,7 @@ from railsusp.estimate.posterior_synthetic import (
     informative_projection,
 )
 from railsusp.integrity import read_npz
-from railsusp.store import atomic_write_bytes, content_hash, read_json, write_json
+from railsusp.store import atomic_write_bytes, content_hash, file_hash, read_json, write_json
 
 log = logging.getLogger(__name__)
 
@@ -152,7 +152,8 @@ def fit_covariance_scales(
 ) -> dict:
     """Fit (or read) the covariance's scales of the likelihood ``sl`` on the held-out
     records ``where`` ((kind, records, sections), or None: scales 1), into
-    ``posterior/synthetic/scales.json``, stamped with the emulators and the projection."""
+    ``posterior/synthetic/scales.json``, stamped with the emulators (their settings' hash
+    and their files' SHA-256, :func:`emulator_files`) and the projection."""
     path = Path(run) / "posterior" / "synthetic" / "scales.json"
     record = {"records": None, "within_scale": 1.0, "model_error": 0.0}
     if where is not None:
@@ -163,13 +164,16 @@ def fit_covariance_scales(
             record["projection"] = content_hash({"p": sl.projection.tolist()})
         if sl.projected is not None:
             record["projected"] = sl.projected.stamp
+        record["files"] = emulator_files(run, sl)
         if path.exists():
             old = read_json(path)
             if (
-                old.get("records") == record["records"]
+                isinstance(old, dict)
+                and old.get("records") == record["records"]
                 and old.get("emulator") == record["emulator"]
                 and old.get("projection") == record.get("projection")
                 and old.get("projected") == record.get("projected")
+                and old.get("files") == record["files"]
                 and "model_error_matrix" in old
             ):
                 return old
@@ -284,16 +288,34 @@ def fit_projected_emulator(
     return emu
 
 
+def emulator_files(run: str | Path, sl: SyntheticLikelihood) -> dict[str, str]:
+    """The SHA-256 of the emulators' files the likelihood ``sl`` reads (``emulator.npz``,
+    and ``projected_emulator.npz`` where it has one), by name: their stamps are hashes of
+    the settings they were fitted with, which another training's file of the same
+    settings (or one edited) shares; the files' contents are the emulators'."""
+    folder = Path(run) / "posterior" / "synthetic"
+    names = ["emulator.npz"] + (["projected_emulator.npz"] if sl.projected is not None else [])
+    return {n: file_hash(folder / n) for n in names if (folder / n).is_file()}
+
+
 def check_stamp(
-    run: str | Path, scales: dict, sl: SyntheticLikelihood, projection: str | None
+    run: str | Path,
+    scales: dict,
+    sl: SyntheticLikelihood,
+    projection: str | None,
+    files: bool = True,
 ) -> list:
     """What a coverage check of the likelihood ``sl`` was made with, stored in
     ``check.json`` and required by ``load``: the emulator's hash, the covariance's scales
-    (c, m, A's hash), whether the covariance is plugged in, the projected emulator's stamp
-    and the projection's (``projection``, from ``projection.npz``), when there are these."""
+    (c, m, A's hash), whether the covariance is plugged in, the SHA-256 of the emulators'
+    files (:func:`emulator_files`; ``files`` False: the stamp of a check written before
+    they were stamped, without them), the projected emulator's stamp and the projection's
+    (``projection``, from ``projection.npz``), when there are these."""
     matrix = content_hash({"model_error_matrix": scales.get("model_error_matrix")})
     stamp = [emulator_stamp(run), scales["within_scale"], scales["model_error"], matrix,
              sl.plug_in_covariance]  # fmt: skip
+    if files:  # before the optional stamps: load reads the projection's as the last
+        stamp.append(emulator_files(run, sl))
     if sl.projected is not None:  # the projected combinations' own emulator
         stamp.append(sl.projected.stamp)
     if projection is not None:  # the projection's own stamp: emulator, rank, sections

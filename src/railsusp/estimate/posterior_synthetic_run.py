@@ -17,6 +17,9 @@ uses the held-out sets that the fusion's check uses (``check`` for one section; 
 product_sets`), so both methods are measured on the same records; nothing is fitted on
 them: no widening, the verdict is the check. A recording of n sections takes the check of
 the smallest checked number >= n; longer than any, it is reported not calibrated.
+``check.json`` is sealed (:func:`~railsusp.estimate.posterior_check.seal`) and its stamp
+holds the SHA-256 of the emulators' files: ``load`` refuses one edited since, or checked
+with another emulator than the folder's.
 """
 
 from __future__ import annotations
@@ -30,12 +33,16 @@ import numpy as np
 
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.calibration import ParameterCalibration, check
-from railsusp.estimate.posterior_check import median_width
+from railsusp.estimate.posterior_check import median_width, read_sealed, seal, seal_state
 from railsusp.estimate.posterior_data import (
+    TrainingSupport,
     cached_cases,
     check_model_revision,
     recording_summaries,
+    support_notes,
     to_si,
+    training_support,
+    unused_recordings,
 )
 from railsusp.estimate.posterior_emulator import StatisticsEmulator
 from railsusp.estimate.posterior_result import PosteriorResult
@@ -45,6 +52,7 @@ from railsusp.estimate.posterior_synthetic import (
 )
 from railsusp.estimate.posterior_synthetic_fit import (
     check_stamp,
+    emulator_files,
     fit_covariance_scales,
     fit_emulator,
     fit_projected_emulator,
@@ -113,6 +121,8 @@ class SyntheticPosterior(Checked):
     settings: PosteriorSettings
     likelihood: SyntheticLikelihood
     checks: list[SectionsCheck] = field(default_factory=list)
+    #: the range of the training cases' statistics, which a recording's are compared with
+    support: TrainingSupport | None = None
 
     def sample(self, x: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
         """(n, d) draws (unit box) of the estimated parameters for the sections ``x``
@@ -175,18 +185,43 @@ def train(
     where = scale_set(settings) if scales_on == "default" else scales_on
     scales = fit_covariance_scales(settings, post.likelihood, run, where)
     post.likelihood = likelihood(settings, emulator, scales, projection, projected)
+    post.support = training_support(settings, run)
     path = Path(run) / "posterior" / "synthetic" / "check.json"
     sets = plain_sets(sets or held_out_sets(settings))
     stamp = check_stamp(run, scales, post.likelihood, fitted.get("stamp"))
-    if path.exists():
-        old = read_json(path)
-        if old.get("sets") == sets and old.get("emulator") == stamp:
+    old = _stored_check(path)
+    if old is not None and old.get("sets") == sets:
+        if seal_state(old) == "sealed" and old.get("emulator") == stamp:
             post.checks = [SectionsCheck.from_dict(c) for c in old["checks"]]
             return post
+        before = check_stamp(run, scales, post.likelihood, fitted.get("stamp"), files=False)
+        if seal_state(old) == "unsealed" and old.get("emulator") == before:
+            # written before records were sealed and the emulators' files stamped: taken as
+            # it stands (as it was read before), sealed with the files it was made with
+            post.checks = [SectionsCheck.from_dict(c) for c in old["checks"]]
+            write_json(path, seal({**old, "emulator": stamp}))
+            return post
     post.checks = run_checks(post, run, sets)
-    write_json(path, {"method": "synthetic-likelihood", "sets": sets, "emulator": stamp,
-                      "checks": [c.to_dict() for c in post.checks]})  # fmt: skip
+    write_json(path, seal({"method": "synthetic-likelihood", "sets": sets, "emulator": stamp,
+                           "checks": [c.to_dict() for c in post.checks]}))  # fmt: skip
     return post
+
+
+def _stored_check(path: Path) -> dict | None:
+    """A stored ``check.json`` as it reads, or None where there is none or it is cut
+    short, not a JSON object, or changed since it was sealed (said in a warning: the
+    check runs again)."""
+    if not path.exists():
+        return None
+    try:
+        old = read_json(path)
+    except RailsuspInputError as exc:
+        log.warning("%s; the check runs again", exc)
+        return None
+    if not isinstance(old, dict) or seal_state(old) == "broken":
+        log.warning("%s is not the check that was written there; the check runs again", path)
+        return None
+    return old
 
 
 def _plain(v):
@@ -212,7 +247,7 @@ def load(run: str | Path) -> SyntheticPosterior:
     settings = PosteriorSettings.from_dict(stamp["settings"])
     emulator = StatisticsEmulator.load(folder / "emulator.npz")
     scales = read_json(folder / "scales.json")
-    checked = read_json(folder / "check.json")
+    checked, sealed = read_sealed(folder / "check.json", "the synthetic likelihood's check")
     projection, projection_stamp = None, None
     if settings.statistics != ("en14363",):
         path = folder / "projection.npz"
@@ -230,10 +265,19 @@ def load(run: str | Path) -> SyntheticPosterior:
     post = SyntheticPosterior(
         settings, likelihood(settings, emulator, scales, projection, projected)
     )
-    made_with = check_stamp(run, scales, post.likelihood, projection_stamp)
-    if checked.get("emulator") != made_with:  # emulator, scales or settings of another training
+    stamp = checked.get("emulator")
+    if sealed:  # the emulators' files are those the check was made with (another
+        # training's emulator.npz of the same settings was accepted before)
+        files = emulator_files(run, post.likelihood)
+        made = stamp[5] if isinstance(stamp, list) and len(stamp) > 5 else {}
+        for name, sha in files.items():
+            if not isinstance(made, dict) or made.get(name) != sha:
+                raise _not_checked(folder / name, folder)
+    made_with = check_stamp(run, scales, post.likelihood, projection_stamp, files=sealed)
+    if stamp != made_with:  # emulator, scales or settings of another training
         raise _not_checked(folder / "scales.json", folder)
     post.checks = [SectionsCheck.from_dict(c) for c in checked["checks"]]
+    post.support = training_support(settings, run)
     return post
 
 
@@ -249,18 +293,25 @@ def estimate(post: SyntheticPosterior, recordings, seed: int = 0) -> PosteriorRe
     """Posterior of the recordings (one per trained condition) from the mean of their
     sections' statistics, with the check of its number of sections."""
     x, used = recording_summaries(post.settings, recordings)
-    return result_of(post, x, used, seed)
+    notes = unused_recordings(recordings, [c.name for c in post.settings.conditions])
+    return result_of(post, x, used, seed, notes)
 
 
-def result_of(post, x: np.ndarray, used: dict, seed: int = 0) -> PosteriorResult:
+def result_of(
+    post, x: np.ndarray, used: dict, seed: int = 0, notes: list[str] | None = None
+) -> PosteriorResult:
     """The posterior result of the sections ``x`` (k, D) of a posterior ``post`` (its
-    ``settings``, ``sample``, ``product_for``: one estimator or a joint one), ``used``
-    the recordings' use per condition, with the check of its number of sections."""
+    ``settings``, ``sample``, ``product_for``, ``support``: one estimator or a joint one),
+    ``used`` the recordings' use per condition, with the check of its number of sections;
+    ``notes``: warnings of the recordings' reading, said first. Sections outside the
+    training cases' range flag the result not calibrated
+    (:func:`~railsusp.estimate.posterior_data.support_notes`)."""
     s = post.settings
     n = len(x)
+    outside, said = support_notes(getattr(post, "support", None), x)
+    notes = [*(notes or []), *said]
     u = post.sample(x, s.samples, seed)
     chk = post.product_for(n)
-    notes = []
     if chk is None:
         longest = max((c.sections for c in post.checks), default=0)
         notes.append(
@@ -284,4 +335,4 @@ def result_of(post, x: np.ndarray, used: dict, seed: int = 0) -> PosteriorResult
     correction = None if widening is None or chk is None else widening(n)
     return PosteriorResult(s.parameters, to_si(u, s.parameters), checks, used, n, notes,
                            correction, None if chk is None else chk.sections,
-                           "synthetic-likelihood")  # fmt: skip
+                           "synthetic-likelihood", outside)  # fmt: skip
