@@ -219,3 +219,35 @@ def test_a_modified_source_tree_is_recorded_and_the_report_says_which_code_made_
     assert store.git_dirty() is None and store.git_sha() is None
     made = {"railsusp": "1.0", "git_sha": "0123456789abcdef", "git_dirty": True}
     assert _made_by(made) == "1.0 0123456+modified" and _made_by(None) == ""
+
+
+def _user_repository(root):
+    """A git repository of a user's, with one commit; its HEAD."""
+    import subprocess
+
+    root.mkdir(parents=True, exist_ok=True)
+    git = ["git", "-c", "user.email=u@example.org", "-c", "user.name=u", "-C", str(root)]
+    subprocess.run([*git, "init", "-q"], check=True)
+    (root / "notes.txt").write_text("mine")
+    subprocess.run([*git, "add", "notes.txt"], check=True)
+    subprocess.run([*git, "commit", "-q", "-m", "mine"], check=True)
+    out = subprocess.run([*git, "rev-parse", "HEAD"], capture_output=True, text=True, check=True)
+    return out.stdout.strip()
+
+
+def test_an_installed_package_inside_a_users_repository_records_no_commit(tmp_path, monkeypatch):
+    """railsusp installed in a project's .venv: git found the project's repository around
+    site-packages and its commit was recorded as railsusp's, clean (the packaging audit of
+    stop 65). A checkout of railsusp (the package at src/railsusp) still records its own."""
+    from railsusp import store
+
+    head = _user_repository(tmp_path / "project")
+    installed = tmp_path / "project" / ".venv" / "lib" / "site-packages" / "railsusp"
+    installed.mkdir(parents=True)
+    monkeypatch.setattr(store, "__file__", str(installed / "store.py"))
+    assert store.git_sha() is None and store.git_dirty() is None
+    checkout = tmp_path / "checkout"
+    head = _user_repository(checkout)
+    (checkout / "src" / "railsusp").mkdir(parents=True)
+    monkeypatch.setattr(store, "__file__", str(checkout / "src" / "railsusp" / "store.py"))
+    assert store.git_sha() == head and store.git_dirty() is False

@@ -362,12 +362,34 @@ class PipelineConfig(_Cfg):
         return out
 
 
+#: the configurations shipped in the package (``data/examples/``, the repository's
+#: ``examples/``), which :func:`load_config` takes by name (``railsusp run quick``): an
+#: installed railsusp had none of the files its help and docs name
+EXAMPLE_CONFIGS = ("quick", "pretrained", "study", "tiny")
+
+
+def config_path(path: str | Path) -> Path:
+    """The configuration file ``path`` names: itself, or the packaged example of that name
+    (:data:`EXAMPLE_CONFIGS`) where it is one and no file of the name is there."""
+    from importlib import resources
+
+    if str(path) in EXAMPLE_CONFIGS and not Path(path).exists():
+        return Path(str(resources.files("railsusp").joinpath(f"data/examples/{path}.toml")))
+    return Path(path)
+
+
 def load_config(path: str | Path) -> PipelineConfig:
-    """Read and validate a pipeline TOML; errors name the field (one line)."""
+    """Read and validate a pipeline TOML, or the packaged example ``path`` names
+    (:func:`config_path`); errors name the field (one line)."""
     from railsusp.config import check_config, read_config, validation_message
     from railsusp.input_checks import validate_document
 
-    path = Path(path)
+    path = config_path(path)
+    if not path.exists():
+        raise RailsuspInputError(
+            f"configuration {path} does not exist; accepted a pipeline TOML file or a "
+            f"packaged example's name ({', '.join(EXAMPLE_CONFIGS)}: `railsusp run quick`)"
+        )
     try:
         cfg = validate_document(PipelineConfig, read_config(path))
     except ValidationError as exc:

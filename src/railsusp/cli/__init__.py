@@ -52,7 +52,7 @@ EXAMPLES = {
     "check-recording": "railsusp check-recording field/curve.csv",
     "sections": "railsusp sections run.mf4 --map map.toml --write field/",
     "example-recording": "railsusp example-recording --out example/",
-    "run": "railsusp run examples/quick.toml --out runs/quick",
+    "run": "railsusp run quick --out runs/quick",
     "demo": "railsusp demo",
 }
 

@@ -124,7 +124,13 @@ def _yes_no(v: object) -> object:
 
 @app.command()
 def run(
-    config: Annotated[Path, typer.Argument(help="pipeline TOML (see examples/)")],
+    config: Annotated[
+        Path,
+        typer.Argument(
+            help="pipeline TOML, or a packaged example's name: quick, pretrained, study, tiny "
+            "(the repository's examples/)"
+        ),
+    ],
     out: Annotated[Path | None, typer.Option(help="run directory (default: runs/<stem>)")] = None,
     start_from: Annotated[
         str | None, typer.Option("--from", help="force a restart from this stage")
