@@ -1,8 +1,8 @@
 """The bench scripts' command line: bad input as one line on stderr, exit status 2.
 
 A script ends with ``run_main(main)`` instead of ``main()``. The library's input errors
-(:class:`railsusp.errors.RailsuspInputError`, a ValueError), other ValueErrors and missing
-files then print ``error: MESSAGE`` (one line) and exit 2, as the railsusp command line
+(:class:`railsusp.errors.RailsuspInputError`) and missing files then print
+``error: MESSAGE`` (one line) and exit 2, as the railsusp command line
 does, instead of a traceback with exit 1; a script's own ``sys.exit("error: ...")`` exits 2
 too (Python exits 1 on a message). The argparse types below refuse a bad count or list while
 the arguments are parsed, naming the option (argparse's own exit 2), so that nothing runs
@@ -33,9 +33,19 @@ def fail(message: object) -> NoReturn:
     sys.exit(2)
 
 
+def _bad_input(exc: BaseException) -> bool:
+    """Whether ``exc`` says the input is bad: railsusp's input error (told by its class's
+    name, not imported: module docstring) or a missing file. Any other error, a ValueError
+    of NumPy's or pandas' among them, is a fault that keeps its traceback (the review of
+    stop 65: they read as bad input, exit 2, their place lost)."""
+    names = {cls.__name__ for cls in type(exc).__mro__}
+    return "RailsuspInputError" in names or isinstance(exc, FileNotFoundError)
+
+
 def run_main(main: Callable[[], object]) -> None:
-    """Run a script's ``main()``; bad input (ValueError, FileNotFoundError, a message given to
-    ``sys.exit``) ends it with :func:`fail`, and an int it returns is its exit status."""
+    """Run a script's ``main()``; bad input (railsusp's input errors, a missing file, a
+    message given to ``sys.exit``) ends it with :func:`fail`, and an int it returns is its
+    exit status."""
     try:
         result = main()
     except SystemExit as exc:
@@ -43,6 +53,8 @@ def run_main(main: Callable[[], object]) -> None:
             fail(exc.code)
         raise
     except (ValueError, FileNotFoundError) as exc:
+        if not _bad_input(exc):
+            raise
         fail(exc)
     if isinstance(result, int) and not isinstance(result, bool):
         sys.exit(result)

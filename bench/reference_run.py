@@ -59,16 +59,17 @@ def reference_rows(script: str, args: list[str], src: str) -> list[dict]:
         out = Path(tmp) / "reference.json"
         env = dict(os.environ, PYTHONPATH=str(path))
         cmd = [sys.executable, "-c", _CHILD, script, str(path), *args, "--out", str(out)]
-        done = subprocess.run(
+        # its stderr passed on as it comes (its progress, as before), the last line kept
+        # for the refusal where it fails
+        last = "no message"
+        with subprocess.Popen(
             cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
-        )
-        lines = done.stderr.strip().splitlines()
-        if done.returncode != 0:
-            last = lines[-1] if lines else "no message"
+        ) as child:
+            for line in child.stderr:
+                print(line, end="", file=sys.stderr)
+                last = line.strip() or last
+        if child.returncode != 0:
             raise RailsuspInputError(
-                f"--reference-src {src}: the reference run failed (exit {done.returncode}): {last}"
+                f"--reference-src {src}: the reference run failed (exit {child.returncode}): {last}"
             )
-        for line in lines:
-            if line.startswith("reference railsusp:"):
-                print(line, file=sys.stderr)
         return json.loads(out.read_text())["rows"]

@@ -38,7 +38,6 @@ def test_the_wrapper_turns_bad_input_into_one_line_and_exit_2(monkeypatch, capsy
 
     for exc, line in [
         (RailsuspInputError("--x 3: accepted\n  1 to 2"), "--x 3: accepted 1 to 2"),
-        (ValueError("v"), "v"),
         (FileNotFoundError(2, "No such file or directory", "/nonexistent"), "'/nonexistent'"),
         (SystemExit("error: --y 0: accepted 1 or more"), "--y 0: accepted 1 or more"),
         (SystemExit("--z: no line"), "--z: no line"),  # a message without the prefix gets it
@@ -55,6 +54,8 @@ def test_the_wrapper_turns_bad_input_into_one_line_and_exit_2(monkeypatch, capsy
     cli.run_main(lambda: {"rows": []})  # anything else: a normal end
     with pytest.raises(RuntimeError):  # not bad input: the traceback stays
         cli.run_main(bad(RuntimeError("bug")))
+    with pytest.raises(ValueError, match="operands could not be broadcast"):  # NumPy's, a fault
+        cli.run_main(bad(ValueError("operands could not be broadcast together")))
 
 
 def test_count_and_list_types_name_what_is_accepted():

@@ -83,11 +83,12 @@ def test_tiny_run_writes_its_json_and_resumes_per_set(bench, tmp_path, capsys):
     assert second["overall"]["sets"] == 2
     # other settings: the stored sets are neither mixed in nor overwritten unasked
     kept = out.read_text()
+    capsys.readouterr()  # the runs' own output before (NSGA-II's log lines where shown)
     with pytest.raises(SystemExit) as exc:
         bench.main([*argv, "--seed", "1"])
     assert exc.value.code == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and err.startswith("error: ")
+    assert len(err.splitlines()) == 1 and err.startswith("error: "), err
     assert "holds 2 set(s) of other settings: seed 0 (now 1)" in err and "--replace" in err
     assert out.read_text() == kept
     third = bench.main([*argv, "--seed", "1", "--replace"])

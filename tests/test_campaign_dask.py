@@ -206,6 +206,38 @@ def test_a_tasks_own_error_is_not_taken_for_the_clusters(fake_cluster, tmp_path)
         )
 
 
+def _older_worker(monkeypatch, revision: str = "1999-01-01.1"):
+    """Workers of an older railsusp: a simulate_task of five arguments (no track files),
+    whose batches carry that model revision."""
+
+    def simulate_task(config_json, condition_index, sample_ids, x, seeds):
+        return {**run_mod.simulate_task(config_json, condition_index, sample_ids, x, seeds),
+                "model_revision": revision}  # fmt: skip
+
+    class Older(_Client):
+        def submit(self, fn, *args, pure: bool = True):
+            return super().submit(simulate_task, *args, pure=pure)
+
+    return Older()
+
+
+def test_a_worker_of_an_older_railsusp_is_told_to_be_the_same(fake_cluster, tmp_path, monkeypatch):
+    """Every batch carried a sixth argument (its track files, None without one): a worker
+    of the railsusp before failed with a TypeError traceback before the model-revision
+    refusal could say what is wrong (the review of stop 65). Without a track file the
+    batch's arguments are the old five, and the refusal says it; with one, a worker whose
+    task takes five is told to install the same railsusp too."""
+    fake_cluster.client = _older_worker(monkeypatch)
+    with pytest.raises(CampaignError, match="revision 1999-01-01.1 where this railsusp has"):
+        run_campaign(make_config([BASE], 2, parameters=("X14",)), tmp_path / "a",
+                     scheduler=SCHEDULER)  # fmt: skip
+    _track(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    fake_cluster.client = _older_worker(monkeypatch)
+    with pytest.raises(CampaignError, match="runs another railsusp .*install the same railsusp"):
+        run_campaign(_measured_config(), tmp_path / "b", scheduler=SCHEDULER)
+
+
 def test_the_command_line_reports_a_lost_cluster_in_one_line_exit_1(
     fake_cluster, tmp_path, monkeypatch, capsys
 ):

@@ -237,6 +237,10 @@ def test_posterior_result_carries_the_same_interval_type(tmp_path):
     why = identification_issues(read_json(tmp_path / "outside.json"))
     assert "outside the estimator's training (Q_band_8-15Hz)" in why["X13"]
     assert "failed its coverage check" not in why["X13"]
+    # both: each said (the check's verdict was not said beside another cause)
+    PosteriorResult(PARAMS, draws, failed, {}, outside_training=["Q_p50"]).save(tmp_path / "b.json")
+    why = identification_issues(read_json(tmp_path / "b.json"))
+    assert "training (Q_p50)" in why["X13"] and "failed its coverage check" in why["X13"]
 
 
 def interval(parameter: str, value_u: float, low_u: float, high_u: float, method: str):

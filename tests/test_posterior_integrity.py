@@ -99,17 +99,40 @@ def test_a_recording_filtered_below_the_training_bandwidth_is_refused():
         )
 
 
-def test_the_training_support_flags_sections_beyond_its_range_by_more_than_the_margin():
+def test_the_training_support_flags_the_sections_mean_beyond_its_range_by_the_margin():
     x = np.array([[0.0, 10.0], [1.0, 12.0], [2.0, 14.0]])
     sup = TrainingSupport.of(["a", "b"], x)
     sd = x.std(axis=0)
-    assert sup.outside([[1.0, 11.0]]) == []
+    assert sup.n == 3 and sup.outside([[1.0, 11.0]]) == []
     inside = [2.0 + 0.99 * OUTSIDE_MARGIN_SD * sd[0], 10.0 - 0.99 * OUTSIDE_MARGIN_SD * sd[1]]
-    assert sup.outside([[1.0, 11.0], inside]) == []  # beyond the range, within the margin
-    assert sup.outside([[1.0, 11.0], [1.0, 14.0 + 1.01 * OUTSIDE_MARGIN_SD * sd[1]]]) == ["b"]
+    assert sup.outside([inside]) == []  # beyond the range, within the margin
+    assert sup.outside([[1.0, 14.0 + 1.01 * OUTSIDE_MARGIN_SD * sd[1]]]) == ["b"]
+    # the sections' mean is compared: one section of many a little past the margin is not
+    # out (each section compared flagged a long recording's in-distribution sections)
+    far = 14.0 + 1.5 * OUTSIDE_MARGIN_SD * sd[1]
+    assert sup.outside([[1.0, 12.0], [1.0, 12.0], [1.0, far]]) == []
+    assert sup.outside([[1.0, far], [1.0, far]]) == ["b"]
     both = TrainingSupport.joined([sup, sup])
     assert both.names == ("a", "b", "a", "b") and both.outside([[9.0, 11, 1, 11]]) == ["a"]
     assert TrainingSupport.joined([sup, None]) is None
+
+
+def test_too_few_training_cases_compare_nothing_and_say_so():
+    """With 20 training cases their extremes flagged 30 % of held-out simulations of one
+    section as outside (the review of stop 65): below MIN_SUPPORT_CASES nothing is flagged."""
+    from railsusp.estimate.posterior_data import MIN_SUPPORT_CASES, support_notes
+
+    rng = np.random.default_rng(0)
+    few = TrainingSupport.of(["a"], rng.standard_normal((MIN_SUPPORT_CASES - 1, 1)))
+    outside, said = support_notes(few, np.array([[50.0]]))
+    assert (
+        outside == []
+        and "not compared" in said[0]
+        and f"{MIN_SUPPORT_CASES - 1} training" in said[0]
+    )
+    enough = TrainingSupport.of(["a"], rng.standard_normal((MIN_SUPPORT_CASES, 1)))
+    outside, said = support_notes(enough, np.array([[50.0]]))
+    assert outside == ["a"] and "NOT calibrated" in said[0]
 
 
 # ---------------------------------------------------------------- a small trained estimator

@@ -423,9 +423,10 @@ def identification_issues(est: dict, max_st: dict[str, float] | None = None) -> 
 def _not_calibrated(est: dict) -> list[str]:
     """Why a posterior result is not calibrated, as its JSON says: statistics of the
     recording outside the training cases' range (``outside_training``), more sections than
-    any check covered (``checked_as_sections`` null), else its estimator's failed coverage
-    check. Every uncalibrated result was said to have failed its check, a recording outside
-    what the estimator learnt from too (the posterior fixes of stop 65)."""
+    any check covered (``checked_as_sections`` null), its estimator's failed coverage check
+    (``check_passed``; in results without it, when neither of the others is the cause).
+    Every uncalibrated result was said to have failed its check, a recording outside what
+    the estimator learnt from too (the posterior fixes of stop 65)."""
     reasons = []
     outside = est.get("outside_training") or []
     if outside:
@@ -436,7 +437,10 @@ def _not_calibrated(est: dict) -> list[str]:
         )
     if "checked_as_sections" in est and est["checked_as_sections"] is None:
         reasons.append("no coverage check covers this number of sections")
-    return reasons or ["the posterior estimator failed its coverage check"]
+    # the check's own verdict (results of before carry none: then the remaining cause)
+    if est.get("check_passed") is False or ("check_passed" not in est and not reasons):
+        reasons.append("the posterior estimator failed its coverage check")
+    return reasons
 
 
 def _recovery(

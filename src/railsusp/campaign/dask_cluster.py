@@ -35,7 +35,9 @@ class ClusterError(OSError):
 def _cluster_failures() -> tuple[type[BaseException], ...]:
     """The errors by which distributed reports its cluster failing (not a task's own):
     a cancelled future (``FutureCancelledError``, e.g. the scheduler's connection lost),
-    a batch whose workers all died (``KilledWorker``), a connection closed or timed out."""
+    a batch whose workers all died (``KilledWorker``), a connection closed. (Not the
+    built-in TimeoutError, which a task may raise itself: its own error, not the
+    cluster's.)"""
     import asyncio
     import concurrent.futures
 
@@ -47,7 +49,6 @@ def _cluster_failures() -> tuple[type[BaseException], ...]:
         asyncio.CancelledError,
         KilledWorker,
         CommClosedError,
-        TimeoutError,
     )
 
 
@@ -182,6 +183,14 @@ def run_on_dask(
                 result = fut.result()
             except failures as exc:
                 raise cluster_error(exc) from exc
+            except TypeError as exc:  # a worker of a railsusp whose task takes other arguments
+                if "positional argument" not in str(exc):
+                    raise
+                raise CampaignError(
+                    f"a worker of the Dask cluster runs another railsusp ({exc}): install the "
+                    "same railsusp on every worker of the cluster (the batches stored so far "
+                    "are kept)"
+                ) from exc
             finish(futures[fut], result)  # (its own errors as they are: not the cluster's)
     finally:
         try:

@@ -509,8 +509,10 @@ def _run_locked(
         sl = slice(b * config.batch_size, (b + 1) * config.batch_size)
         s = seeds[ci]
         name = config.conditions[ci].track_geometry
-        own = {name: tracks[name]} if name in tracks else None  # the batch's file alone
-        return cfg_json, ci, ids_all[sl], x_all[sl], None if s is None else s[sl], own
+        batch = (cfg_json, ci, ids_all[sl], x_all[sl], None if s is None else s[sl])
+        # the batch's track file alone, where it has one: without, the arguments are those
+        # a worker of an older railsusp takes, which then says its model revision differs
+        return (*batch, {name: tracks[name]}) if name in tracks else batch
 
     def finish(b: int, res: dict[str, Any]) -> None:
         nonlocal done_runs, recorded

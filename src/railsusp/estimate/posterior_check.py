@@ -194,6 +194,23 @@ def seal_state(record) -> str:
     return "sealed" if record[SEAL] == content_hash(body) else "broken"
 
 
+def stored_record(path: Path, what: str) -> dict | None:
+    """A stored check record ``path`` as it reads, for a training to keep, or None where
+    there is none or it is cut short, not a JSON object, or changed since it was sealed
+    (said in a warning: ``what``, the check, runs again)."""
+    if not path.exists():
+        return None
+    try:
+        old = read_json(path)
+    except RailsuspInputError as exc:
+        log.warning("%s; %s runs again", exc, what)
+        return None
+    if not isinstance(old, dict) or seal_state(old) == "broken":
+        log.warning("%s is not %s that was written there; %s runs again", path, what, what)
+        return None
+    return old
+
+
 def read_sealed(path: Path, what: str) -> tuple[dict, bool]:
     """A sealed check record ``path`` (``what``: which, for the messages) and whether it
     is sealed; a one-line error, naming the file and the remedy, where it is not readable
@@ -218,7 +235,8 @@ def warn_unsealed(path: Path) -> None:
     """Say that a check record written before records were sealed is read as it stands."""
     log.warning(
         "%s was written before check records were sealed: read as it stands (its content "
-        "cannot be verified); a re-run of the training that made it seals it",
+        "cannot be verified); a re-run of the training that made it seals it (a joint "
+        "posterior of that estimator is then joined again)",
         path,
     )
 

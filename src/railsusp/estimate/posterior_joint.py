@@ -50,7 +50,7 @@ import numpy as np
 
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.calibration import SpreadCorrection
-from railsusp.estimate.posterior_check import read_sealed, seal, seal_state, widen
+from railsusp.estimate.posterior_check import read_sealed, seal, seal_state, stored_record, widen
 from railsusp.estimate.posterior_data import (
     TrainingSupport,
     cached_cases,
@@ -299,20 +299,9 @@ def train(runs, out: str | Path, sets=None, calibration="default") -> JointPoste
 
 
 def _stored_joint(path: Path) -> dict | None:
-    """A stored ``joint.json`` as it reads, or None where there is none or it is cut
-    short, not a JSON object, or changed since it was sealed (said in a warning: the joint
-    check runs again)."""
-    if not path.exists():
-        return None
-    try:
-        old = read_json(path)
-    except RailsuspInputError as exc:
-        log.warning("%s; the joint check runs again", exc)
-        return None
-    if not isinstance(old, dict) or seal_state(old) == "broken":
-        log.warning("%s is not the joint check written there; the joint check runs again", path)
-        return None
-    return old
+    """A stored record at ``path`` to keep, or None (:func:`~railsusp.estimate.
+    posterior_check.stored_record`)."""
+    return stored_record(path, "the joint check")
 
 
 def fit_corrections(joint: JointPosterior, cases, where, ks) -> dict[int, SpreadCorrection]:
@@ -379,7 +368,8 @@ def load(out: str | Path) -> JointPosterior:
     if part_stamps(runs) != record["stamps"]:
         raise RailsuspInputError(
             f"{path}: an estimator of {', '.join(runs)} was trained again after the joint "
-            "check; check the joint posterior again"
+            "check (or its check record sealed since: a train on a folder of before); run "
+            "railsusp posterior join again"
         )
     return _from_record(JointPosterior(tuple(load_part(r) for r in runs)), record)
 

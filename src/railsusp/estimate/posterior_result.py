@@ -41,6 +41,14 @@ class PosteriorResult:
     outside_training: list[str] = field(default_factory=list)
 
     @property
+    def check_passed(self) -> bool:
+        """The estimator passed its coverage check after a correction within bounds (what
+        :attr:`calibrated` asks besides a check for the number of sections and statistics
+        inside the training cases' range)."""
+        excessive = self.correction.excessive if self.correction else []
+        return all(c.passed for c in self.calibration) and not excessive
+
+    @property
     def calibrated(self) -> bool:
         """A check covers this number of sections, the estimator passed it after a
         correction within bounds, and the recording's statistics lie inside what the
@@ -99,6 +107,7 @@ class PosteriorResult:
                 "intervals": self.intervals().to_dict(),
                 "estimates": self.to_dataframe().to_dict(orient="records"),
                 "calibrated": self.calibrated,
+                "check_passed": self.check_passed,
                 "correction": None if self.correction is None else self.correction.to_dict(),
                 "sections": self.sections,
                 "sections_combined": self.n_sections,

@@ -33,7 +33,13 @@ import numpy as np
 
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.calibration import ParameterCalibration, check
-from railsusp.estimate.posterior_check import median_width, read_sealed, seal, seal_state
+from railsusp.estimate.posterior_check import (
+    median_width,
+    read_sealed,
+    seal,
+    seal_state,
+    stored_record,
+)
 from railsusp.estimate.posterior_data import (
     TrainingSupport,
     cached_cases,
@@ -208,20 +214,9 @@ def train(
 
 
 def _stored_check(path: Path) -> dict | None:
-    """A stored ``check.json`` as it reads, or None where there is none or it is cut
-    short, not a JSON object, or changed since it was sealed (said in a warning: the
-    check runs again)."""
-    if not path.exists():
-        return None
-    try:
-        old = read_json(path)
-    except RailsuspInputError as exc:
-        log.warning("%s; the check runs again", exc)
-        return None
-    if not isinstance(old, dict) or seal_state(old) == "broken":
-        log.warning("%s is not the check that was written there; the check runs again", path)
-        return None
-    return old
+    """A stored record at ``path`` to keep, or None (:func:`~railsusp.estimate.
+    posterior_check.stored_record`)."""
+    return stored_record(path, "the check")
 
 
 def _plain(v):
