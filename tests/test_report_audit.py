@@ -2,7 +2,6 @@
 pipeline run): the Markdown twin's table columns, the provenance's networks, the estimation
 text against its table, the tolerance sentence and a force error that is not a number."""
 
-import json
 import math
 import re
 from pathlib import Path
@@ -11,15 +10,11 @@ import numpy as np
 import pandas as pd
 
 from railsusp import summary
-from railsusp.params import spec
 from railsusp.report_doc import Doc
 from railsusp.report_estimate import estimate_section, validation_section
 from railsusp.report_html import _provenance, summary_card
-
-
-def write(path: Path, doc: dict) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(doc))
+from test_summary import make_run as summary_run
+from test_summary import write
 
 
 def md_tables(lines: list[str]) -> list[list[list[str]]]:
@@ -154,31 +149,13 @@ def test_the_estimation_text_compares_the_standard_error_the_table_shows(tmp_pat
 
 def make_run(root: Path, tolerances: dict, validation: list[dict]) -> Path:
     """A run directory with the files the summary card reads: X13 and X17 estimated (the
-    Pareto set as the interval), one recording list, ``validation`` as validation.csv."""
+    Pareto set as the interval, test_summary's run), one recording list, ``validation`` as
+    validation.csv, the wagon data's ``tolerances``."""
+    summary_run(root, {"X13": 16.0, "X17": 1.9}, None)
     params = ["X13", "X17"]
-    estimate = {"X13": 16.0, "X17": 1.9}
-    pareto = [
-        [spec(p).scale * v for p, v in zip(params, row, strict=True)]
-        for row in ([12.0, 1.0], [20.0, 1.2], [estimate["X13"], estimate["X17"]])
-    ]
     write(
         root / "pipeline.json",
         {"config": {"wagon": None}, "stages": {}, "tolerances": tolerances},
-    )
-    write(
-        root / "estimate" / "estimate.json",
-        {
-            "parameters": params,
-            "estimate_display": estimate,
-            "pareto_x_si": pareto,
-            "pareto_spread_pct_range": {"X13": 10.0, "X17": 3.0},
-            "refinement": None,
-            "cramer_rao_pct_range": {},
-        },
-    )
-    write(
-        root / "campaign" / "sensitivity" / "key_parameters.json",
-        {"key_parameters": {"keys": params, "max_st": {"X13": 0.5, "X17": 0.4}}},
     )
     write(
         root / "campaign" / "campaign.json",
