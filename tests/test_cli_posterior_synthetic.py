@@ -40,7 +40,7 @@ def test_train_and_estimate_with_the_synthetic_likelihood(tmp_path, monkeypatch)
     saved = read_json(out)
     assert saved["long_record"] == "synthetic-likelihood" and saved["sections_combined"] == 3
     assert saved["calibrated"] is False  # checked at one section only
-    assert "NOT calibrated" in saved["warnings"][0]
+    assert any("NOT calibrated" in w for w in saved["warnings"]), saved["warnings"]
 
 
 @pytest.mark.parametrize("command", ["train", "estimate"])
