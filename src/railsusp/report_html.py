@@ -463,11 +463,11 @@ def stale_text(stage: str) -> str:
     and what to do."""
     return (
         "STALE: this report was made by an earlier run of this run directory, before its "
-        f"stage '{stage}' was started again (a changed configuration, changed files or "
-        "--from). That run has not finished (it is running, failed or was interrupted), so "
-        "the answer below is the earlier run's and may not match the run directory's "
-        "configuration. Run the same command again to remake the report (pipeline.json "
-        "says which stages are stale)."
+        f"stage '{stage}' was started again (a changed configuration, changed files or a "
+        "restart from a stage). That run has not finished (it is running, failed or was "
+        "interrupted), so the answer below is the earlier run's and may not match the run "
+        "directory's configuration. Run the same command again to remake the report "
+        "(pipeline.json says which stages are stale)."
     )
 
 
