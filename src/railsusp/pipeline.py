@@ -77,12 +77,7 @@ def run_pipeline(
     state = run_state(out, out_option)
     if not checked:
         check_config(config)  # every combination, before any stage runs
-    done = state["stages"].get("surrogate", {}).get("state") == "done" and start_from not in (
-        "campaign",
-        "sensitivity",
-        "surrogate",
-    )
-    check_cuda(config, "configuration", surrogate_done=done)
+    check_cuda(config, "configuration", surrogate_done=_surrogate_kept(config, state, start_from))
     out.mkdir(parents=True, exist_ok=True)
     with run_lock(out, out_option):  # one run at a time in a folder
         # read again under the lock: another run may have ended meanwhile
@@ -95,6 +90,25 @@ def run_pipeline(
             run_progress,
             from_option,
         )
+
+
+def _surrogate_kept(config: PipelineConfig, state: dict, start_from: str | None) -> bool:
+    """Whether the surrogate stage will be skipped as up to date: done, and neither it nor a
+    stage before it changed, nor a restart from one of them. Done alone passed a run whose
+    changed campaign then simulated again before its training failed on a missing CUDA
+    device (the rerun audit of stop 65). The stages' hashes as :func:`_run_stages` makes
+    them."""
+    forced = STAGES.index(start_from) if start_from else len(STAGES)
+    upstream: dict[str, str] = {}
+    for i, stage in enumerate(STAGES[: STAGES.index("surrogate") + 1]):
+        h = content_hash(
+            {"section": stage_section(config, stage), "upstream": upstream, "stage": stage}
+        )
+        prev = state["stages"].get(stage, {})
+        if not (prev.get("hash") == h and prev.get("state") == "done" and i < forced):
+            return False
+        upstream[stage] = h
+    return True
 
 
 def _run_stages(

@@ -66,6 +66,19 @@ def _measured_state(config: PipelineConfig) -> dict:
     return {"measured_files": files}
 
 
+def _tolerances_state(config: PipelineConfig) -> dict:
+    """The wagon data's ``[tolerances]`` the report judges the estimate by, where they are
+    not the defaults: the wagon's hash leaves them out (they are no model input), so an
+    edited table left the report of the old ones up to date (the rerun audit of stop 65).
+    Empty for the defaults, so the report stage hashes as before."""
+    from railsusp.summary import Tolerances, read_tolerances
+
+    tol = read_tolerances(config.wagon)
+    if tol == Tolerances():
+        return {}
+    return {"tolerances": {"default_pct": tol.default_pct, **dict(tol.parameters)}}
+
+
 def stage_section(config: PipelineConfig, stage: str) -> Any:
     """The inputs of ``stage`` whose hash decides whether it runs again. The conditions are
     those the run simulates, resolved (a packaged condition's values, a ``base``'s, the
@@ -93,7 +106,7 @@ def stage_section(config: PipelineConfig, stage: str) -> Any:
         "field": {**base, **config.field.model_dump(), **_measured_state(config)},
         "estimate": _estimate_section(config),
         "validate": {},
-        "report": {"name": config.name},
+        "report": {"name": config.name, **_tolerances_state(config)},
     }
     return sections[stage]
 
