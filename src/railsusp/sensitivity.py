@@ -37,7 +37,13 @@ from railsusp.key_parameters import (
     study_comparison,
 )
 from railsusp.params import bounds
-from railsusp.store import remove_stale_temporaries, write_csv, write_json, write_parquet
+from railsusp.store import (
+    atomic_folder,
+    remove_stale_temporaries,
+    write_csv,
+    write_json,
+    write_parquet,
+)
 
 INDEX_COLUMNS = (
     "condition",
@@ -437,27 +443,28 @@ def analyse(
     agree = None
     if compare is not None:
         agree = agreement(idx, indices_of(other)[0])
-    # an analysis killed while it wrote left its temporaries here for good (the CLI
-    # and the pipeline hold the campaign's lock: no other analysis writes this folder)
-    remove_stale_temporaries(out)
-    write_parquet(out / "indices.parquet", idx, metadata={INDICES_STAMP: camp.config.hash()})
-    write_csv(out / "indices.csv", idx)
-    write_json(out / "indices.json", idx.to_dict(orient="records"))
-    write_csv(out / "study_comparison.csv", comparison)
-    if agree is not None:
-        write_csv(out / "agreement.csv", agree)
-        summary["agreement"] = agree.to_dict(orient="records")
-    else:  # an earlier analysis's comparison is not this one's
-        (out / "agreement.csv").unlink(missing_ok=True)
-    for old in out.glob("sobol-*.png"):  # nor its figures of other statistics
-        if old.stem.removeprefix("sobol-") not in statistics:
-            old.unlink()
-    # the key parameters last: the pipeline reads this file as the stage's completion mark
-    write_json(out / "key_parameters.json", summary)
     from railsusp.report import plot_sobol
 
-    for st in statistics:
-        plot_sobol(idx, out / f"sobol-{st}.png", statistic=st)
+    # the folder written as one artefact: a failure part-way (a full disk) left new indices
+    # beside the old key parameters, or the old figures beside the new ones, and the folder
+    # read as one finished analysis (the disk audit); now the old analysis stays whole. An
+    # earlier analysis's comparison and its figures (of statistics analysed then) are not
+    # this one's: not carried. Temporaries an analysis killed while it wrote left here are
+    # removed first, not carried (the CLI and the pipeline hold the campaign's lock)
+    remove_stale_temporaries(out)
+    with atomic_folder(out, drop=("sobol-*.png", "agreement.csv")) as tmp:
+        meta = {INDICES_STAMP: camp.config.hash()}
+        write_parquet(tmp / "indices.parquet", idx, metadata=meta)
+        write_csv(tmp / "indices.csv", idx)
+        write_json(tmp / "indices.json", idx.to_dict(orient="records"))
+        write_csv(tmp / "study_comparison.csv", comparison)
+        if agree is not None:
+            write_csv(tmp / "agreement.csv", agree)
+            summary["agreement"] = agree.to_dict(orient="records")
+        # the key parameters: the pipeline reads this file as the stage's completion mark
+        write_json(tmp / "key_parameters.json", summary)
+        for st in statistics:
+            plot_sobol(idx, tmp / f"sobol-{st}.png", statistic=st)
     summary["indices"] = idx
     summary["comparison"] = comparison
     return summary

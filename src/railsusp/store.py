@@ -17,6 +17,7 @@ reads and writes bytes and records provenance; it judges no content.
 from __future__ import annotations
 
 import datetime as _dt
+import errno
 import fnmatch
 import glob
 import hashlib
@@ -43,17 +44,30 @@ import pyarrow.parquet as pq
 
 from railsusp.errors import RailsuspInputError
 
+#: what ``os.fsync`` of a folder (or ``os.open`` of one) raises where the file system or the
+#: platform does not support it: ignored; anything else (EIO: the rename may not be on disk)
+#: is an error, not a success reported (the disk audit)
+_FSYNC_DIR_UNSUPPORTED = frozenset(
+    {errno.EINVAL, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EBADF, errno.EISDIR}
+)
+
 
 def fsync_dir(path: str | Path) -> None:
-    """Flush a folder's entries (a rename into it) to disk; a no-op where unsupported."""
+    """Flush a folder's entries (a rename into it) to disk; a no-op where unsupported (a
+    folder that cannot be opened for it, a file system whose folders take no fsync). Any
+    other error (EIO, ENOSPC) is raised: it was swallowed, and a rename perhaps never on
+    disk was reported as written (the disk audit)."""
     try:
         fd = os.open(path, os.O_RDONLY)
-    except OSError:
-        return
+    except OSError as exc:
+        if exc.errno in _FSYNC_DIR_UNSUPPORTED | {errno.EACCES, errno.EPERM}:
+            return
+        raise
     try:
         os.fsync(fd)
-    except OSError:
-        pass
+    except OSError as exc:
+        if exc.errno not in _FSYNC_DIR_UNSUPPORTED:
+            raise
     finally:
         os.close(fd)
 
@@ -82,25 +96,67 @@ def plain_mode(path: str | Path) -> None:
     os.chmod(path, 0o666 & ~_UMASK)
 
 
+def _naming(exc: OSError, target: Path, folder: Path | None = None) -> OSError:
+    """``exc`` as it is to be shown, its errno kept (the exit status depends on it): the user
+    was told "No space left on device" and not where, or was shown a hidden temporary (the
+    disk audit). For a file ``target`` (``folder`` None): an error naming no file
+    (pyarrow's "[errno 28] No space left on device", a bare write error) or naming one of
+    its temporaries (``.NAME.XXXXXXXX.tmp``) names ``target``. For a folder ``target``
+    written in the temporary ``folder`` (:func:`atomic_folder`): an error naming a file
+    inside ``folder``, or ``folder``, names the same file inside ``target``. Any other error
+    is returned as it is."""
+    named = exc.filename
+    if isinstance(named, (str, bytes, os.PathLike)):
+        named = os.path.abspath(os.fsdecode(named))
+    else:  # none, or a file descriptor
+        named = None
+    where: Path | None = None
+    if folder is None:
+        found = None if named is None else _TEMPORARY.match(os.path.basename(named))
+        if named is None or (
+            found is not None
+            and found["target"] == target.name
+            and os.path.dirname(named) == os.path.abspath(target.parent)
+        ):
+            where = target
+    elif named is not None:
+        hidden = os.path.abspath(folder)
+        if named == hidden:
+            where = target
+        elif named.startswith(hidden + os.sep):
+            where = target / os.path.relpath(named, hidden)
+    if where is None:
+        return exc
+    reason = exc.strerror or (os.strerror(exc.errno) if exc.errno else str(exc))
+    return OSError(exc.errno, reason, str(where))
+
+
 @contextmanager
 def _replacing(path: Path) -> Iterator[str]:
     """The one way a file is written: yields a temporary file beside ``path`` (``.NAME.*.tmp``)
     to write and close; then its content is flushed to disk, it gets the mode a plainly
     written file gets (0666 less the umask, not the temporary file's 0600), is renamed over
     ``path`` and the rename is flushed too. On an error the temporary file is removed and
-    ``path`` is untouched."""
+    ``path`` is untouched; an OSError naming no file or the temporary names ``path``
+    (:func:`_naming`)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
     try:
-        yield tmp
-        fsync_file(tmp)
-        plain_mode(tmp)
-        os.replace(tmp, path)
-        fsync_dir(path.parent)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        os.close(fd)
+        try:
+            yield tmp
+            fsync_file(tmp)
+            plain_mode(tmp)
+            os.replace(tmp, path)
+            fsync_dir(path.parent)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+    except OSError as exc:
+        shown = _naming(exc, path)
+        if shown is exc:
+            raise
+        raise shown from exc
 
 
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
@@ -263,6 +319,11 @@ def atomic_folder(path: str | Path, keep: bool = True, drop: Sequence[str] = ())
         else:
             os.rename(tmp, path)
         fsync_dir(path.parent)
+    except OSError as exc:  # a file of the hidden folder named as the one it was to become
+        shown = _naming(exc, path, folder=tmp)
+        if shown is exc:
+            raise
+        raise shown from exc
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)

@@ -10,7 +10,15 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from railsusp.cli.common import WagonOption, app, console, fail, frame_table, hold_folders
+from railsusp.cli.common import (
+    WagonOption,
+    app,
+    console,
+    exit_code,
+    fail,
+    frame_table,
+    hold_folders,
+)
 from railsusp.conditions import RECORDING_MIN_RATE_HZ
 from railsusp.errors import RailsuspInputError
 from railsusp.input_checks import check_figure_file
@@ -299,8 +307,10 @@ def example_recording(
         for name in EXAMPLE_FILES:
             if not (out / name).exists():
                 atomic_write_bytes(out / name, (data / name).read_bytes())
-    except OSError as exc:
-        fail(f"--out {out}: cannot write there ({exc.strerror})")
+    except OSError as exc:  # a full disk, a quota, an I/O error exit 1 (the machine, as
+        # every other command): it exited 2, bad input (the disk audit); the file it names
+        name = f"{exc.filename}: " if exc.filename else ""
+        fail(f"--out {out}: cannot write there ({name}{exc.strerror or exc})", exit_code(exc))
     except RailsuspInputError as exc:
         fail(str(exc))
     console.print(f"wrote {', '.join(EXAMPLE_FILES)} to {out}")
