@@ -512,6 +512,9 @@ def test_an_operating_system_error_is_one_line_not_a_traceback(
     assert info.value.code == status
     err = capsys.readouterr().err
     assert err.startswith(line) and len(err.strip().splitlines()) == 1
+    # a full disk says what to do (a refused folder is the user's to change: no such advice)
+    remedy = "free space and run the same command again"
+    assert (remedy in err) == (error.errno == 28)
 
 
 def test_a_command_exiting_itself_exits_as_python_would(monkeypatch):

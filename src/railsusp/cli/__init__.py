@@ -125,7 +125,16 @@ def main() -> None:
         sys.exit(2)
     except OSError as exc:  # what the machine refused: one line, not a traceback
         where = f"{exc.filename}: " if exc.filename else ""
-        err_console.print(f"error: {escape(where + (exc.strerror or str(exc)))}", highlight=False)
+        # a full disk or quota: the remedy too (what is written is written atomically, what
+        # is stored is kept, so the same command resumes: the disk audit of stop 65)
+        remedy = (
+            "; free space and run the same command again"
+            if exc.errno in (errno.ENOSPC, errno.EDQUOT)
+            else ""
+        )
+        err_console.print(
+            f"error: {escape(where + (exc.strerror or str(exc)) + remedy)}", highlight=False
+        )
         sys.exit(1 if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EIO) else 2)
     except SystemExit as exc:  # a command that exits itself: as Python would
         if exc.code == 130:
