@@ -40,7 +40,7 @@ def test_a_cuda_run_whose_changed_campaign_must_train_again_is_refused_before_an
 
     import railsusp.pipeline as pipeline
     from railsusp.errors import RailsuspInputError
-    from railsusp.store import content_hash, write_json
+    from railsusp.store import write_json
 
     if torch.cuda.is_available():
         pytest.skip("a CUDA device is here: nothing to refuse")
@@ -51,12 +51,8 @@ def test_a_cuda_run_whose_changed_campaign_must_train_again_is_refused_before_an
         "field": {"truth": {"X13": 16.1}},
     }  # fmt: skip
     before = PipelineConfig.model_validate({**base, "campaign": {"samples": 10}})
-    upstream, stages = {}, {}
-    for stage in pipeline.STAGES:  # a finished run of `before`
-        h = content_hash({"section": stage_section(before, stage), "upstream": upstream,
-                          "stage": stage})  # fmt: skip
-        stages[stage] = {"hash": h, "state": "done"}
-        upstream[stage] = h
+    # a finished run of `before`
+    stages = {s: {"hash": h, "state": "done"} for s, h in pipeline.stage_hashes(before).items()}
     out = tmp_path / "run"
     out.mkdir()
     write_json(out / "pipeline.json", {"format": pipeline.PIPELINE_FORMAT, "stages": stages})

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from railsusp.errors import RailsuspInputError
@@ -92,23 +92,31 @@ def run_pipeline(
         )
 
 
+def stage_hashes(config: PipelineConfig, stages: Sequence[str] = STAGES) -> dict[str, str]:
+    """The hash that decides whether each of ``stages`` (the first ones of :data:`STAGES`,
+    in order) runs again: its section's (:func:`~railsusp.pipeline_stages.stage_section`)
+    with the hashes of every stage before it, so that a changed stage reruns all after it."""
+    upstream: dict[str, str] = {}
+    for stage in stages:
+        upstream[stage] = content_hash(
+            {"section": stage_section(config, stage), "upstream": dict(upstream), "stage": stage}
+        )
+    return upstream
+
+
 def _surrogate_kept(config: PipelineConfig, state: dict, start_from: str | None) -> bool:
     """Whether the surrogate stage will be skipped as up to date: done, and neither it nor a
     stage before it changed, nor a restart from one of them. Done alone passed a run whose
     changed campaign then simulated again before its training failed on a missing CUDA
-    device (the rerun audit of stop 65). The stages' hashes as :func:`_run_stages` makes
-    them."""
+    device (the rerun audit of stop 65)."""
     forced = STAGES.index(start_from) if start_from else len(STAGES)
-    upstream: dict[str, str] = {}
-    for i, stage in enumerate(STAGES[: STAGES.index("surrogate") + 1]):
-        h = content_hash(
-            {"section": stage_section(config, stage), "upstream": upstream, "stage": stage}
-        )
-        prev = state["stages"].get(stage, {})
-        if not (prev.get("hash") == h and prev.get("state") == "done" and i < forced):
-            return False
-        upstream[stage] = h
-    return True
+    upto = STAGES[: STAGES.index("surrogate") + 1]
+    return all(
+        state["stages"].get(stage, {}).get("hash") == h
+        and state["stages"][stage].get("state") == "done"
+        and i < forced
+        for i, (stage, h) in enumerate(stage_hashes(config, upto).items())
+    )
 
 
 def _run_stages(
@@ -137,12 +145,11 @@ def _run_stages(
     # and its static wheel load (runs of stop 59 recorded this alone; summary reads both)
     state.update(_wagon_record(config))
     forced = STAGES.index(start_from) if start_from else len(STAGES)
-    upstream: dict[str, str] = {}
+    hashes = stage_hashes(config)
     runners = stage_runners(config, out, run_progress)
     ran = False
     for i, stage in enumerate(STAGES):
-        section = stage_section(config, stage)
-        h = content_hash({"section": section, "upstream": upstream, "stage": stage})
+        h = hashes[stage]
         prev = state["stages"].get(stage, {})
         up_to_date = (
             prev.get("hash") == h
@@ -201,7 +208,6 @@ def _run_stages(
             write_json(state_path, state)
             log.info("stage %s: done in %.1f s", stage, state["stages"][stage]["seconds"])
             forced = min(forced, i + 1)  # everything downstream reruns
-        upstream[stage] = h
         if stage == "field":  # written or up to date: later stages need only its conditions
             release_cut()
     if ran:
