@@ -69,14 +69,13 @@ def _measured_state(config: PipelineConfig) -> dict:
 def _tolerances_state(config: PipelineConfig) -> dict:
     """The wagon data's ``[tolerances]`` the report judges the estimate by, where they are
     not the defaults: the wagon's hash leaves them out (they are no model input), so an
-    edited table left the report of the old ones up to date (the rerun audit of stop 65).
-    Empty for the defaults, so the report stage hashes as before."""
+    edited table left the report of the old ones up to date (the rerun audit of stop 65);
+    with where they come from, which the report's sentence names. Empty for railsusp's
+    defaults, so the report stage hashes as before."""
     from railsusp.summary import Tolerances, read_tolerances
 
-    tol = read_tolerances(config.wagon)
-    if tol == Tolerances():
-        return {}
-    return {"tolerances": {"default_pct": tol.default_pct, **dict(tol.parameters)}}
+    tol = read_tolerances(config.wagon).to_dict()  # as pipeline.json records them
+    return {} if tol == Tolerances().to_dict() else {"tolerances": tol}
 
 
 def stage_section(config: PipelineConfig, stage: str) -> Any:

@@ -145,18 +145,14 @@ def tolerance_text(tol: summary.Tolerances) -> str:
     default = summary.sig3(tol.default_pct)
     listed = ", ".join(f"{p} ±{summary.sig3(v)} %" for p, v in tol.parameters.items())
     text = f"Within tolerance: change from nominal at most ±{default} %"
+    in_brackets = f" ({listed})" if listed else ""
     if not tol.from_wagon:
         return (
-            text
-            + (f" ({listed})" if listed else "")
-            + ", railsusp's default (the wagon data give no [tolerances], docs/wagon-data.md)"
+            text + in_brackets + ", railsusp's default (the wagon data give no [tolerances], "
+            "docs/wagon-data.md)"
         )
     if tol.default_pct != summary.DEFAULT_TOLERANCE_PCT:  # the table's own default_pct
-        return (
-            text
-            + (f" ({listed})" if listed else "")
-            + ", all from the wagon data's [tolerances] (docs/wagon-data.md)"
-        )
+        return text + in_brackets + ", all from the wagon data's [tolerances] (docs/wagon-data.md)"
     return (  # railsusp's default, unless the table's default_pct happens to repeat it
         text
         + (f" ({listed}, from the wagon data's [tolerances])" if listed else "")
