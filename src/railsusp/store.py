@@ -455,22 +455,32 @@ def write_parquet(
     return path
 
 
-def _git(*args: str) -> str | None:
-    """A git command's output in the railsusp source tree; None where it is no checkout of
-    railsusp: an installed package inside a repository of the user's (a project's
-    ``.venv``) is no checkout, though git finds the repository around it (its commit was
-    recorded as railsusp's, "clean": the packaging audit of stop 65). A checkout holds this
-    package at ``src/railsusp`` of its top level."""
-    here = Path(__file__).resolve().parent
+@lru_cache(maxsize=4)
+def _is_checkout(here: str) -> bool:
+    """Whether the package folder ``here`` is ``src/railsusp`` of a git checkout's top level
+    (asked git once per folder: :func:`_git` runs for every provenance record)."""
     try:
         top = subprocess.run(
             ["git", "rev-parse", "--show-toplevel"],
             cwd=here, capture_output=True, text=True, timeout=5,
         )  # fmt: skip
-        if top.returncode != 0 or (Path(top.stdout.strip()) / "src" / "railsusp").resolve() != (
-            here
-        ):
-            return None
+    except (OSError, subprocess.SubprocessError):
+        return False
+    return top.returncode == 0 and (
+        (Path(top.stdout.strip()) / "src" / "railsusp").resolve() == Path(here)
+    )
+
+
+def _git(*args: str) -> str | None:
+    """A git command's output in the railsusp source tree; None where it is no checkout of
+    railsusp: an installed package inside a repository of the user's (a project's
+    ``.venv``) is no checkout, though git finds the repository around it (its commit was
+    recorded as railsusp's, "clean": the packaging audit of stop 65). A checkout holds this
+    package at ``src/railsusp`` of its top level (:func:`_is_checkout`)."""
+    here = Path(__file__).resolve().parent
+    if not _is_checkout(str(here)):
+        return None
+    try:
         out = subprocess.run(["git", *args], cwd=here, capture_output=True, text=True, timeout=5)
     except (OSError, subprocess.SubprocessError):
         return None
