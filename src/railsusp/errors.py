@@ -36,6 +36,13 @@ def did_you_mean(name: str, options: list[str]) -> str:
     return f" (did you mean {m[0]!r}?)" if m else ""
 
 
+def first_listed(items: Sequence[object], shown: int) -> str:
+    """The first ``shown`` of ``items`` for a message, comma-separated, and how many more
+    (``"a, b, c and 4 more"``): a long list in one line."""
+    more = f" and {len(items) - shown} more" if len(items) > shown else ""
+    return ", ".join(str(i) for i in items[:shown]) + more
+
+
 def repeated(items: Sequence[object]) -> list[str]:
     """The items that ``items`` holds more than once, as sorted text for a message
     (``"X13, X14"``): a name given twice would overwrite or weigh double."""

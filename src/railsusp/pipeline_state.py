@@ -11,7 +11,7 @@ import logging
 from pathlib import Path
 
 from railsusp._version import __version__
-from railsusp.errors import RailsuspInputError
+from railsusp.errors import RailsuspInputError, first_listed
 from railsusp.integrity import changed_files, files_under, unreadable_files
 from railsusp.numbers import is_whole
 from railsusp.pipeline_config import PipelineConfig
@@ -248,8 +248,7 @@ def outputs_exist(
         to_read = _field_files_read(out / "field", to_read)
     bad += [p for p in unreadable_files(dict.fromkeys(to_read)) if p not in bad]
     if bad:
-        more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
-        names = ", ".join(str(p) for p in bad[:3]) + more
+        names = first_listed(bad, 3)
         log.warning("stage %s: %s is damaged, changed or gone; the stage runs again", stage, names)
     return not bad
 

@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from railsusp.conditions import WorkingCondition
-from railsusp.errors import RailsuspInputError
+from railsusp.errors import RailsuspInputError, first_listed
 from railsusp.estimate import (
     ALIGNED,
     BOUND_LIMIT_PCT,
@@ -430,10 +430,9 @@ def _not_calibrated(est: dict) -> list[str]:
     reasons = []
     outside = est.get("outside_training") or []
     if outside:
-        more = f" and {len(outside) - 4} more" if len(outside) > 4 else ""
         reasons.append(
             f"the recording's statistics outside the estimator's training "
-            f"({', '.join(outside[:4])}{more})"
+            f"({first_listed(outside, 4)})"
         )
     if "checked_as_sections" in est and est["checked_as_sections"] is None:
         reasons.append("no coverage check covers this number of sections")

@@ -19,6 +19,7 @@ from railsusp.campaign.design import (
     read_meta,
     track_table,
 )
+from railsusp.errors import first_listed
 from railsusp.store import read_parquet
 
 log = logging.getLogger("railsusp.campaign")
@@ -226,11 +227,10 @@ def incomplete(
             f"{campaign.path}: the campaign is incomplete ({total - len(missing)} of "
             f"{total} batches); {finish} to finish it"
         )
-    names = ", ".join(p.relative_to(campaign.path).as_posix() for p in missing[:3])
-    more = f" and {len(missing) - 3} more" if len(missing) > 3 else ""
+    names = first_listed([p.relative_to(campaign.path).as_posix() for p in missing], 3)
     return (
         f"{campaign.path}: the campaign is incomplete: {len(missing)} of its {total} batches "
-        f"{'is' if len(missing) == 1 else 'are'} missing or damaged ({names}{more}); "
+        f"{'is' if len(missing) == 1 else 'are'} missing or damaged ({names}); "
         f"{finish} to simulate {'it' if len(missing) == 1 else 'them'} again"
     )
 

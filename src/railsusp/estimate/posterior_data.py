@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from railsusp.errors import RailsuspInputError
+from railsusp.errors import RailsuspInputError, first_listed
 from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.estimate.statistic_families import (
     section_statistics,
@@ -482,7 +482,7 @@ def support_notes(support: TrainingSupport | None, x: np.ndarray) -> tuple[list[
     outside = support.outside(x)
     if not outside:
         return [], []
-    shown = ", ".join(outside[:4]) + (f" and {len(outside) - 4} more" if len(outside) > 4 else "")
+    shown = first_listed(outside, 4)
     return outside, [
         f"the recording's statistics {shown} lie outside the range of the estimator's "
         f"training cases (their mean over the sections, by more than {OUTSIDE_MARGIN_SD:g} "
