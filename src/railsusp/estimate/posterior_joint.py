@@ -277,7 +277,7 @@ def train(runs, out: str | Path, sets=None, calibration="default") -> JointPoste
     where = None if calibration is None else list(calibration)
     path = Path(out) / "posterior" / "joint.json"
     stamps = part_stamps(runs)
-    old = _stored_joint(path)
+    old = stored_record(path, "the joint check")
     if old is not None:
         same = old.get("runs") == runs and old.get("stamps") == stamps
         if same and old.get("sets") == plain_sets(sets) and old.get("calibration") == where:
@@ -296,12 +296,6 @@ def train(runs, out: str | Path, sets=None, calibration="default") -> JointPoste
         "checks": [c.to_dict() for c in joint.checks],
     }))  # fmt: skip
     return joint
-
-
-def _stored_joint(path: Path) -> dict | None:
-    """A stored record at ``path`` to keep, or None (:func:`~railsusp.estimate.
-    posterior_check.stored_record`)."""
-    return stored_record(path, "the joint check")
 
 
 def fit_corrections(joint: JointPosterior, cases, where, ks) -> dict[int, SpreadCorrection]:

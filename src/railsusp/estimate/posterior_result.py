@@ -53,9 +53,7 @@ class PosteriorResult:
         """A check covers this number of sections, the estimator passed it after a
         correction within bounds, and the recording's statistics lie inside what the
         estimator learnt from (:attr:`outside_training` empty)."""
-        excessive = self.correction.excessive if self.correction else []
-        passed = all(c.passed for c in self.calibration) and not excessive
-        return passed and self.checked_as is not None and not self.outside_training
+        return self.check_passed and self.checked_as is not None and not self.outside_training
 
     def intervals(self, level: float = LEVEL) -> Intervals:
         """Median and central ``level`` credible interval of each parameter (the one

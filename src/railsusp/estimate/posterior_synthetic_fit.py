@@ -31,7 +31,13 @@ from railsusp.estimate.posterior_synthetic import (
     informative_projection,
 )
 from railsusp.integrity import read_npz
-from railsusp.store import atomic_write_bytes, content_hash, file_hash, read_json, write_json
+from railsusp.store import (
+    atomic_write_bytes,
+    content_hash,
+    file_hash_cached,
+    read_json,
+    write_json,
+)
 
 log = logging.getLogger(__name__)
 
@@ -295,7 +301,8 @@ def emulator_files(run: str | Path, sl: SyntheticLikelihood) -> dict[str, str]:
     settings (or one edited) shares; the files' contents are the emulators'."""
     folder = Path(run) / "posterior" / "synthetic"
     names = ["emulator.npz"] + (["projected_emulator.npz"] if sl.projected is not None else [])
-    return {n: file_hash(folder / n) for n in names if (folder / n).is_file()}
+    # (read once per version of a file: the scales' record and the check's stamp ask both)
+    return {n: file_hash_cached(folder / n) for n in names if (folder / n).is_file()}
 
 
 def check_stamp(

@@ -195,7 +195,7 @@ def train(
     path = Path(run) / "posterior" / "synthetic" / "check.json"
     sets = plain_sets(sets or held_out_sets(settings))
     stamp = check_stamp(run, scales, post.likelihood, fitted.get("stamp"))
-    old = _stored_check(path)
+    old = stored_record(path, "the check")
     if old is not None and old.get("sets") == sets:
         if seal_state(old) == "sealed" and old.get("emulator") == stamp:
             post.checks = [SectionsCheck.from_dict(c) for c in old["checks"]]
@@ -211,12 +211,6 @@ def train(
     write_json(path, seal({"method": "synthetic-likelihood", "sets": sets, "emulator": stamp,
                            "checks": [c.to_dict() for c in post.checks]}))  # fmt: skip
     return post
-
-
-def _stored_check(path: Path) -> dict | None:
-    """A stored record at ``path`` to keep, or None (:func:`~railsusp.estimate.
-    posterior_check.stored_record`)."""
-    return stored_record(path, "the check")
 
 
 def _plain(v):
