@@ -282,12 +282,12 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
 
     A recording's own condition (its ``lead_in_m``, which may differ from the trained one)
     must put its sections in the steady arc of a curve, as the training conditions' are
-    (:func:`~railsusp.estimate.posterior_settings._check_uniform_record`: a record from
+    (:func:`~railsusp.estimate.posterior_settings.check_uniform_record`: a record from
     the entry spiral was accepted and reported calibrated, its statistics far from any
     training case), and its stated instrument bandwidth (``filter_bandwidth_hz``) must be
     at least the training's :data:`BANDWIDTH_HZ` (a narrower filter removes the higher
     bands' content, which the flows then extrapolate from): each refused in one line."""
-    from railsusp.estimate.posterior_settings import _check_uniform_record
+    from railsusp.estimate.posterior_settings import check_uniform_record
     from railsusp.estimate.problem import check_measured_wheel
 
     by_name = {}
@@ -339,7 +339,7 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
                 f"recording {cond.name!r} is {rec.time.size / fs:.1f} s long; the estimator "
                 f"needs at least one section of {settings.section_s:g} s"
             )
-        _check_uniform_record(
+        check_uniform_record(
             rec.condition, len(sections) * settings.section_s, settings.wagon, recording=True
         )
         rows = [

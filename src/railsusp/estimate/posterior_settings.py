@@ -146,7 +146,7 @@ class PosteriorSettings:
         conds = tuple(c.with_duration(self.section_s) for c in self.conditions)
         object.__setattr__(self, "conditions", conds)
         for c in conds:
-            _check_uniform_record(c, self.section_s * max(ks, default=1), self.wagon)
+            check_uniform_record(c, self.section_s * max(ks, default=1), self.wagon)
 
     def _check_counts(self) -> None:
         """A one-line error naming the field and its range (:data:`POSTERIOR_COUNTS`) unless
@@ -336,7 +336,7 @@ def _check_statistics_emulator(cases: int, n_train: int, families: tuple[str, ..
         )
 
 
-def _check_uniform_record(
+def check_uniform_record(
     cond: WorkingCondition, record_s: float, wagon: Any = None, recording: bool = False
 ) -> None:
     """Refuse a condition whose design track (curvature, cant) changes under the wagon
