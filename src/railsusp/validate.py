@@ -45,7 +45,7 @@ from railsusp.measured.recording import recordings_digest
 from railsusp.measured.synthetic import read_truth, recording_from_simulation
 from railsusp.numbers import is_whole
 from railsusp.params import ParameterSet, bounds, spec
-from railsusp.store import atomic_folder, atomic_write_bytes, read_json, read_parquet, write_json
+from railsusp.store import atomic_folder, read_json, read_parquet, write_csv, write_json
 from railsusp.vehicle.simulation_result import statistic_segments
 
 #: a parameter whose largest total Sobol index on the used features is below this is not
@@ -87,7 +87,7 @@ class ValidationResult:
 
         out = Path(out)
         with atomic_folder(out, drop=VALIDATION_FILES) as tmp:
-            atomic_write_bytes(tmp / "validation.csv", self.forces.to_csv(index=False).encode())
+            write_csv(tmp / "validation.csv", self.forces)
             payload = {
                 "forces": self.forces.to_dict(orient="records"),
                 "failures": self.failures,
@@ -95,8 +95,7 @@ class ValidationResult:
                 "notes": self.notes,
             }
             if self.recovery is not None:
-                csv = self.recovery.to_csv(index=False).encode()
-                atomic_write_bytes(tmp / "recovery.csv", csv)
+                write_csv(tmp / "recovery.csv", self.recovery)
                 payload["recovery"] = self.recovery.to_dict(orient="records")
             write_json(tmp / "validation.json", payload)
             for cond, s in self.series.items():
