@@ -13,6 +13,7 @@ from railsusp.surrogate import recurrence
 from railsusp.surrogate.bundle import Surrogate
 from railsusp.surrogate.data import FeatureSpec, Normaliser
 from railsusp.surrogate.models import NetConfig, build_network
+from railsusp.vehicle import MODEL_REVISION
 from railsusp.vehicle.wagon import load_wagon
 from test_estimate_aligned import KEYS
 
@@ -41,6 +42,7 @@ def tiny_sequence_surrogate(folder, conditions=("straight",)):
         "track_realisations": 24,
         "track_family": {"irregularity_classes": (4, 6)},
         "segment_steps": 40,
+        "model_revision": MODEL_REVISION,
     }
     for name in conditions:
         sur = Surrogate(

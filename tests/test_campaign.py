@@ -462,10 +462,11 @@ def pq_meta(path) -> dict:
     return dict(pq.ParquetFile(path).schema_arrow.metadata or {})
 
 
-def test_results_of_other_force_laws_are_not_trained_or_analysed(full_run, tmp_path, caplog):
+def test_results_of_other_force_laws_are_not_trained_or_analysed(full_run, tmp_path):
     """`railsusp train` and the sensitivity read a finished campaign of an older revision
-    without a word (interrupt/resume audit of stop 60): refused now; a campaign that states
-    none (before 2026-11-30) is warned of."""
+    without a word (interrupt/resume audit of stop 60): refused now; so is a campaign that
+    states none (before 2026-11-30: older force laws; it was warned of, the upgrade audit's
+    M3)."""
     from railsusp.campaign import require_complete
 
     _, out = full_run
@@ -477,9 +478,8 @@ def test_results_of_other_force_laws_are_not_trained_or_analysed(full_run, tmp_p
         require_complete(load_campaign(copy))
     del meta["model_revision"]
     (copy / "campaign.json").write_text(json.dumps(meta))
-    with caplog.at_level("WARNING", logger="railsusp.campaign"):
-        assert require_complete(load_campaign(copy)).model_revision is None
-    assert "states no force-law revision" in caplog.text
+    with pytest.raises(CampaignError, match=r"records no force-law revision"):
+        require_complete(load_campaign(copy))
 
 
 def test_a_batch_left_half_written_by_a_kill_leaves_no_temporary_behind(full_run, tmp_path):

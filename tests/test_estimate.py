@@ -26,6 +26,7 @@ from railsusp.params import bounds
 from railsusp.surrogate.baselines import StatisticsGP
 from railsusp.surrogate.data import FeatureSpec, SeriesData
 from railsusp.surrogate.statistics import StatisticsSurrogate
+from railsusp.vehicle import MODEL_REVISION
 from railsusp.vehicle.simulation_result import record_statistic, statistic_segments
 
 COND = get_condition("straight", duration_s=2.0, n_steps=100)
@@ -198,7 +199,8 @@ def test_statistics_surrogate_round_trip_and_calibration(tmp_path):
     spec = FeatureSpec(parameters=PARAMS)
     data = SeriesData(np.arange(40), unit, np.zeros((1, 100, 15)), targets, COND, np.zeros(40))
     gp = StatisticsGP(spec, statistics=("mean", "std")).fit(data)
-    StatisticsSurrogate(gp, COND, {"note": "analytic"}).save(tmp_path / "gp" / COND.name)
+    meta = {"note": "analytic", "model_revision": MODEL_REVISION}
+    StatisticsSurrogate(gp, COND, meta).save(tmp_path / "gp" / COND.name)
     forces, params = open_force_model(tmp_path / "gp")
     assert isinstance(forces, StatisticsForces) and params == PARAMS
     probe = np.array([[10e6, 7e6], [18e6, 13e6]])

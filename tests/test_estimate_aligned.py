@@ -38,6 +38,7 @@ from railsusp.params import ParameterSet, bounds, spec
 from railsusp.surrogate.bundle import Surrogate
 from railsusp.surrogate.data import FeatureSpec, Normaliser
 from railsusp.surrogate.models import NetConfig, build_network
+from railsusp.vehicle import MODEL_REVISION
 from railsusp.vehicle.wagon import load_wagon
 
 runner = CliRunner()
@@ -323,7 +324,11 @@ def tiny_surrogate(folder, realisations=24, family=(4, 6), irregularity_class=5)
     torch.manual_seed(0)
     spec = FeatureSpec(parameters=KEYS)
     n_track = len(spec.axles) * len(spec.track_channels)
-    meta = {"track_realisations": realisations, "track_family": {"irregularity_classes": family}}
+    meta = {
+        "track_realisations": realisations,
+        "track_family": {"irregularity_classes": family},
+        "model_revision": MODEL_REVISION,  # as trained on a campaign of this railsusp
+    }
     sur = Surrogate(
         build_network(cfg),
         cfg,

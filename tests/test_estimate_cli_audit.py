@@ -22,6 +22,7 @@ from railsusp.measured import Recording
 from railsusp.surrogate.bundle import Surrogate
 from railsusp.surrogate.data import FeatureSpec, Normaliser
 from railsusp.surrogate.models import NetConfig, build_network
+from railsusp.vehicle import MODEL_REVISION
 from railsusp.vehicle.wagon import load_wagon
 
 runner = CliRunner()
@@ -170,7 +171,7 @@ def tiny_surrogate(folder, meta=None):
         get_condition("straight", duration_s=4.0, n_steps=200),
         load_wagon(),
         0,
-        {"track_realisations": 1, **(meta or {})},
+        {"track_realisations": 1, "model_revision": MODEL_REVISION, **(meta or {})},
     )
     sur.save(folder / "straight")
     return folder

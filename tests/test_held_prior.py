@@ -20,7 +20,7 @@ from railsusp.estimate.refine_intervals import (
 )
 from railsusp.params import MAIN_SUSPENSION, ParameterSet, bounds, spec
 from railsusp.pipeline import PipelineConfig, load_config
-from railsusp.pipeline_stages import stage_section
+from railsusp.pipeline_inputs import stage_section
 
 X19_NOMINAL = 30000.0  # kN/m, Table 2 range 15000-45000
 

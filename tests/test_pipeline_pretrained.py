@@ -11,7 +11,7 @@ import pytest
 
 from railsusp.config import ConfigError
 from railsusp.pipeline import STAGES, load_config, run_pipeline
-from railsusp.pipeline_stages import stage_section
+from railsusp.pipeline_inputs import METHOD_REVISIONS, stage_section
 from railsusp.surrogate.pretrained import PRETRAINED_RUN, read_network_set, resolve_network_set
 
 RUN = """
@@ -107,7 +107,8 @@ def test_a_set_is_hashed_by_its_content_and_not_by_unused_training_settings(tmp_
 
     cfg = load_config(config(tmp_path))
     first = stage_section(cfg, "surrogate")
-    assert set(first) == {"model", "pretrained", "network_set"}
+    # what it is checked against: the conditions' names and the wagon (since stop 66)
+    assert set(first) == {"model", "pretrained", "network_set", "conditions", "model_identity"}
     more = cfg.model_copy(update={"surrogate": cfg.surrogate.model_copy(update={"epochs": 99})})
     assert stage_section(more, "surrogate") == first  # not used with a set: nothing reruns
     # the same set under its folder with one network's weights replaced: another set
@@ -195,21 +196,28 @@ def test_a_time_aligned_run_estimates_again_for_the_geometry_bias(tmp_path):
     aligned = load_config(config(tmp_path))
     assert stage_section(aligned, "estimate")["nsga_geometry"] == "first SIMEX step"
     means = load_config(config(tmp_path, stat="mean"))
-    section = stage_section(means, "estimate")
+    section = stage_section(means, "estimate", legacy=True)  # as hashed before stop 66
     assert "nsga_geometry" not in section
-    assert section == means.estimate.model_dump(
-        exclude={
-            "held_prior",
-            "channel_gains",
-            "expected_draws",
-            "expected_generations",
-            "simulator_corrections",
-            "correction_slopes",
-            "slope_update",
-            "preview_generations",
-            "preview_s",
-        }
-    )
+    unset = {
+        "held_prior",
+        "channel_gains",
+        "expected_draws",
+        "expected_generations",
+        "simulator_corrections",
+        "correction_slopes",
+        "slope_update",
+        "preview_generations",
+        "preview_s",
+    }
+    assert section == means.estimate.model_dump(exclude=unset)
+    # since: without the refinement its settings are not read, the wagon's name is
+    refine = {"refine_evaluations", "refine_screen", "refine_starts"}
+    assert not means.estimate.refine
+    assert stage_section(means, "estimate") == {
+        **means.estimate.model_dump(exclude=unset | refine),
+        "wagon": None,
+        "method_revision": METHOD_REVISIONS["estimate"],
+    }
 
 
 def test_first_order_corrections_hash_the_simulators_check_of_their_steps(tmp_path):
@@ -287,3 +295,38 @@ def test_a_run_with_expected_draws_polishes_and_validates_on_them(pretrained_run
     report = (run / "report.html").read_text("utf-8")
     assert "polished by the force model" in report and "mean over 2 draws" in report
     assert "level error at NSGA-II&#x27;s estimate" in report
+
+
+def test_a_changed_campaign_leaves_the_estimate_on_a_network_set_standing(pretrained_run, tmp_path):
+    """The rerun audit of stop 65: every stage's hash held every earlier one's, so a
+    changed ``[campaign]`` estimated again on a network set that never reads the campaign
+    (the estimate came out byte-identical). Now the stages reading the campaign run again,
+    directly or through the sensitivity (the validation reads its indices), and the
+    estimate stands, done, while the campaign runs."""
+    import shutil
+
+    out, _, _ = pretrained_run
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    estimate = (run / "estimate/estimate.json").read_bytes()
+    path = config(tmp_path)
+    path.write_text(path.read_text().replace("samples = 8\n", "samples = 9\n", 1))
+    seen: list = []
+    during: list = []
+
+    def progress(stage, message):
+        seen.append((stage, message))
+        if (stage, message) == ("sensitivity", "running"):  # the campaign has run
+            during.append(json.loads((run / "pipeline.json").read_text())["stages"])
+
+    state = run_pipeline(load_config(path), run, progress=progress)
+    ran = [s for s, m in seen if m == "running"]
+    assert ran == ["campaign", "sensitivity", "validate", "report"], seen
+    assert (run / "estimate/estimate.json").read_bytes() == estimate
+    assert state["stages"]["estimate"]["state"] == "done"
+    (stages,) = during
+    assert {s: stages[s]["state"] for s in ("surrogate", "field", "estimate")} == dict.fromkeys(
+        ("surrogate", "field", "estimate"), "done"
+    )
+    assert stages["validate"]["state"] == stages["report"]["state"] == "stale"
+    assert json.loads((run / "campaign/campaign.json").read_text())["config"]["samples"] == 9

@@ -113,7 +113,7 @@ def test_cut_by_the_line_description_gives_the_same_conditions(example, tmp_path
 
 def test_stage_hash_follows_the_recording_file(example, tmp_path):
     """A changed recording file reruns the campaign: its state is in the stage input."""
-    from railsusp.pipeline_stages import stage_section
+    from railsusp.pipeline_inputs import stage_section
 
     cfg = load_config(example / CONFIG)
     before = stage_section(cfg, "campaign")

@@ -11,6 +11,7 @@ import pytest
 
 import railsusp.pipeline as pipeline
 from railsusp.pipeline import STAGES, StageError, demo_config
+from railsusp.pipeline_inputs import stage_dependents
 
 OLD_HTML = (
     "<!doctype html><html><head><title>r</title></head><body><h1>railsusp report: old</h1>"
@@ -33,9 +34,10 @@ def done_run(out: Path) -> dict:
 
 @pytest.mark.parametrize("stop", [RuntimeError("out of memory"), KeyboardInterrupt()])
 def test_a_failed_or_interrupted_rerun_marks_the_old_report_stale(tmp_path, monkeypatch, stop):
-    """As pipeline.py runs the stages: the first stage that runs marks every later one stale
-    in pipeline.json; its failure (or Ctrl-C) left report.html and report.md presenting the
-    run before's estimate as "Answer: the suspension of this wagon", with no notice."""
+    """As pipeline.py runs the stages: the first stage that runs marks every later one that
+    reads it stale in pipeline.json; its failure (or Ctrl-C) left report.html and report.md
+    presenting the run before's estimate as "Answer: the suspension of this wagon", with no
+    notice."""
     out = tmp_path / "run"
     state = done_run(out)
 
@@ -51,7 +53,11 @@ def test_a_failed_or_interrupted_rerun_marks_the_old_report_stale(tmp_path, monk
         pipeline._run_stages(demo_config(), out, state, None, None, None)
     stages = json.loads((out / "pipeline.json").read_text())["stages"]
     assert stages["campaign"]["state"] in ("failed", "running")
-    assert {stages[s]["state"] for s in STAGES[1:]} == {"stale"}
+    # the stages reading the campaign, directly or not, are stale; the others stand
+    readers = stage_dependents(demo_config(), "campaign")
+    assert {"sensitivity", "validate", "report"} <= set(readers)
+    assert {stages[s]["state"] for s in readers} == {"stale"}
+    assert {stages[s]["state"] for s in STAGES[1:] if s not in readers} == {"done"}
     html = (out / "report.html").read_text()
     md = (out / "report.md").read_text()
     for text in (unescape(html), md):

@@ -5,7 +5,7 @@ while pipeline.json and open_run used the new (the rerun audit of stop 65)."""
 from __future__ import annotations
 
 from railsusp.pipeline_config import PipelineConfig
-from railsusp.pipeline_stages import stage_section
+from railsusp.pipeline_inputs import stage_section
 from railsusp.vehicle.wagon import packaged_wagon_text
 
 
@@ -26,7 +26,8 @@ def test_the_report_stage_reruns_when_only_the_tolerances_change(tmp_path):
     model = [stage_section(c, "campaign")["model"] for c in (plain, strict, other)]
     assert model[0] == model[1] == model[2]
     # without a table the report hashes as it did before the tolerances counted
-    assert stage_section(plain, "report") == {"name": plain.name}
+    assert stage_section(plain, "report", legacy=True) == {"name": plain.name}
+    assert stage_section(plain, "report") == {"name": plain.name, "method_revision": "2026-11-30"}
 
 
 def test_a_cuda_run_whose_changed_campaign_must_train_again_is_refused_before_any_stage(

@@ -9,6 +9,7 @@ whose tables and figures read the run directory (the same tables the report show
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,7 +24,24 @@ from railsusp.pipeline_state import STAGES, read_run_state
 from railsusp.store import read_csv, read_json, read_parquet
 from railsusp.summary import Tolerances
 
-__all__ = ["RunResult", "Tolerances", "open_run", "run"]
+__all__ = ["OutdatedModelWarning", "RunResult", "Tolerances", "open_run", "run"]
+
+#: the files of a run directory that record the force-law revision
+#: (:data:`railsusp.vehicle.MODEL_REVISION`) their stage simulated or was made with, in the
+#: order :attr:`RunResult.model_revision` reads them: the sensitivity campaign, the
+#: surrogates' own campaign, a shipped network set's manifest, the estimate
+REVISION_RECORDS = (
+    "campaign/campaign.json",
+    "surrogate-campaign/campaign.json",
+    "surrogate-pretrained/surrogates/networks.json",
+    "estimate/estimate.json",
+)
+
+
+class OutdatedModelWarning(UserWarning):
+    """:func:`open_run` of a run directory made with other force laws than this railsusp
+    simulates: its tables are read as they are (a record of that model), but ``railsusp
+    run`` on the folder would simulate every stage again."""
 
 
 @dataclass(frozen=True)
@@ -49,24 +67,34 @@ class RunResult:
         """``rel``, an output of ``stage``, where pipeline.json says that stage is done and
         the files it recorded then are there with their sizes and SHA-256 (by size alone in a
         run made before hashes were recorded): a stage that failed, was interrupted or is
-        stale (an earlier stage ran again after it) left the outputs of an older run, and a
+        stale (a stage it reads ran again after it) left the outputs of an older run, and a
         file edited since (a number changed in place, its size kept) is no longer what the
         run wrote; neither is this run's answer."""
         p = self.path / rel
-        resume = f"railsusp run CONFIG --out {self.path}"
         if not p.exists():
             raise RailsuspInputError(
-                f"{self.path}: no {rel}; the {stage} stage has not run ({resume})"
+                f"{self.path}: no {rel}; the {stage} stage has not run ({self._resume()})"
             )
+        self._check_stage(stage)
+        return p
+
+    def _resume(self) -> str:
+        """The command that makes the run directory's stages again."""
+        return f"railsusp run CONFIG --out {self.path}"
+
+    def _check_stage(self, stage: str) -> None:
+        """:meth:`_need`'s check of ``stage`` in pipeline.json: done, its recorded files
+        unchanged (a stage without a record passes: a run that lost it)."""
+        resume = self._resume()
         entry = self._stage_entries().get(stage)
         if entry is None:  # a run that lost its pipeline.json's record of it
-            return p
+            return
         state = entry.get("state")
         if state != "done":
             why = {
                 "failed": f"failed ({entry.get('error', 'no message')})",
                 "running": "was interrupted (or is running now)",
-                "stale": "is stale: an earlier stage ran again after it",
+                "stale": "is stale: a stage whose outputs it reads ran again after it",
             }.get(state, f"is {state!r}")
             raise RailsuspInputError(
                 f"{self.path}: the {stage} stage {why}; its files are an older run's ({resume})"
@@ -79,7 +107,6 @@ class RunResult:
                 f"{self.path}: {changed[0].relative_to(self.path)} changed or is gone since the "
                 f"{stage} stage wrote it ({resume} writes it again)"
             )
-        return p
 
     def _stage_entries(self) -> dict[str, dict]:
         """pipeline.json's table of stages, each entry checked to be a table."""
@@ -198,9 +225,82 @@ class RunResult:
         )
 
     @property
+    def model_revision(self) -> str | None:
+        """The force-law revision the run was made with, as its records state it (the first
+        of :data:`REVISION_RECORDS` that states one: its campaign's, where it has run); None
+        where none states one (a run made before they were recorded, 2026-11-30, with older
+        force laws than any railsusp that records them). Another than
+        :data:`railsusp.vehicle.MODEL_REVISION` means that the tables are of another model
+        than this railsusp simulates (:func:`open_run` warns)."""
+        records = self._revision_records()
+        return next((r for r in records.values() if r is not None), None)
+
+    def _revision_records(self) -> dict[str, str | None]:
+        """Each file of :data:`REVISION_RECORDS` in the run directory, by its path in it,
+        with the force-law revision it records (None: none). A file that does not read is
+        left out: the table that needs it refuses it (:meth:`_need`)."""
+        out: dict[str, str | None] = {}
+        for rel in REVISION_RECORDS:
+            p = self.path / rel
+            if not p.is_file():
+                continue
+            try:
+                doc = read_json(p)
+            except RailsuspInputError:
+                continue
+            if isinstance(doc, dict):
+                got = doc.get("model_revision")
+                out[rel] = None if got is None else str(got)
+        return out
+
+    def _outdated_model(self) -> str:
+        """Why the run's tables are of other force laws than this railsusp simulates, in one
+        line naming both revisions and what ``railsusp run`` does with the folder; '' where
+        they are of these (or no stage has recorded any yet). A record of another revision
+        decides; records that all state none are of a run made before revisions were recorded
+        (an ``estimate.json`` stating none beside a campaign of this revision was written
+        before estimates recorded it: no sign of another model)."""
+        from railsusp.campaign.results import revision_newer
+        from railsusp.vehicle import MODEL_REVISION
+
+        records = self._revision_records()
+        other = [(rel, r) for rel, r in records.items() if r is not None and r != MODEL_REVISION]
+        if other:
+            rel, revision = other[0]
+            made = f"force-law revision {revision} ({rel})"
+        elif records and all(r is None for r in records.values()):
+            revision = None
+            made = (
+                f"a force-law revision before 2026-11-30.1 (none recorded in {', '.join(records)})"
+            )
+        else:
+            return ""
+        if revision_newer(revision):
+            what = "open it with the newer railsusp that made it (railsusp run refuses it)"
+        else:
+            what = f"railsusp run CONFIG --out {self.path} would simulate every stage again"
+        return (
+            f"{self.path}: made with {made}, this railsusp simulates revision "
+            f"{MODEL_REVISION}: its tables are read as that run wrote them, of that model; {what}"
+        )
+
+    @property
     def report_path(self) -> Path:
-        """The self-contained HTML report."""
-        return self._need("report.html", "report")
+        """The self-contained HTML report, where it still answers for the run directory: the
+        report stage done and its files unchanged, and so each stage it summarises (every
+        earlier one, :meth:`_need`'s check): a standalone ``railsusp estimate --out
+        RUN/estimate`` left the report presenting the estimate it replaced, which
+        :attr:`estimate` refused (the concurrency audit)."""
+        p = self._need("report.html", "report")
+        for stage in STAGES[: STAGES.index("report")]:
+            try:
+                self._check_stage(stage)
+            except RailsuspInputError as exc:
+                raise RailsuspInputError(
+                    f"{exc}; report.html summarises that stage, so it is not this run's "
+                    "answer either"
+                ) from None
+        return p
 
     def _config(self) -> dict:
         p = self.path / "pipeline.json"
@@ -314,7 +414,10 @@ def _check_tolerances(tolerances: Any) -> None:
 
 
 def open_run(path: str | Path, *, tolerances: summary.Tolerances | None = None) -> RunResult:
-    """A finished (or partly finished) run directory, read."""
+    """A finished (or partly finished) run directory, read. One made with other force laws
+    than this railsusp simulates (:attr:`RunResult.model_revision`) is read all the same,
+    with an :class:`OutdatedModelWarning` naming both revisions: ``railsusp run`` on it
+    would simulate every stage again."""
     if not isinstance(path, str | os.PathLike):
         raise RailsuspInputError(f"path = {path!r}: a run directory (str or Path) is needed")
     _check_tolerances(tolerances)
@@ -322,7 +425,11 @@ def open_run(path: str | Path, *, tolerances: summary.Tolerances | None = None) 
     if not (path / "pipeline.json").is_file():
         raise RailsuspInputError(f"{path}: not a run directory (no pipeline.json)")
     read_run_state(path, str(path))
-    return RunResult(path, tolerances)
+    result = RunResult(path, tolerances)
+    outdated = result._outdated_model()
+    if outdated:  # read all the same: old runs are kept as records of what they found
+        warnings.warn(outdated, OutdatedModelWarning, stacklevel=2)
+    return result
 
 
 def _rechecked(config: Any) -> Any:
@@ -330,8 +437,6 @@ def _rechecked(config: Any) -> Any:
     and the configuration checks would: ``model_copy(update=...)``, the way to change one
     setting of a frozen model, checks nothing (``pop_size = 2`` failed the estimate stage
     after four stages had run; a plain dict for a section failed with an AttributeError)."""
-    import warnings
-
     from pydantic import ValidationError
 
     from railsusp.config import check_config, validation_message

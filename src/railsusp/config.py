@@ -215,7 +215,32 @@ def _conditions(cfg: Any, bad: Any) -> list:
             check_track_file(c)
         except RailsuspInputError as exc:
             raise bad(f"conditions: {exc}") from None
+    _check_track_coverage(cfg, conds, bad)
     return conds
+
+
+def _check_track_coverage(cfg: Any, conds: list, bad: Any) -> None:
+    """Each measured track-geometry file read and checked to cover its condition's record
+    under every axle of the run's wagon (:func:`~railsusp.vehicle.track_geometry.
+    check_coverage`): the campaign stage found a short file, or a lead-in shorter than the
+    axle spread, after the configuration check had passed (the rerun audit of stop 65). A
+    wagon that does not load is left to the wagon's own check, which names it."""
+    measured = [c for c in conds if c.track_geometry is not None]
+    if not measured:
+        return
+    from railsusp.vehicle.setup import axle_spread
+    from railsusp.vehicle.track_geometry import check_coverage, read_track_geometry
+    from railsusp.vehicle.wagon import load_wagon
+
+    try:
+        spread = axle_spread(load_wagon(cfg.wagon))
+    except RailsuspInputError:
+        return
+    for c in measured:
+        try:
+            check_coverage(read_track_geometry(c.track_geometry), c, spread)
+        except RailsuspInputError as exc:
+            raise bad(f"conditions: {exc}") from None
 
 
 def _check_parameters(cfg: Any, bad: Any) -> None:

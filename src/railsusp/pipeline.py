@@ -8,8 +8,9 @@ each stage's input hash, timing and state, and its files' sizes and SHA-256 (a f
 since makes the stage run again), and the error says how to resume.
 
 The configuration, its models and its reading, is :mod:`railsusp.pipeline_config`; what
-each stage hashes and does is :mod:`railsusp.pipeline_stages`; this module runs the stages
-in order and keeps ``pipeline.json``.
+each stage hashes and reads is :mod:`railsusp.pipeline_inputs`, what it does
+:mod:`railsusp.pipeline_stages`; this module runs the stages in order and keeps
+``pipeline.json``.
 """
 
 from __future__ import annotations
@@ -26,7 +27,13 @@ from railsusp.integrity import file_hashes, file_mtimes, file_sizes
 from railsusp.pipeline_config import PipelineConfig as PipelineConfig  # re-export
 from railsusp.pipeline_config import demo_config as demo_config  # re-export
 from railsusp.pipeline_config import load_config as load_config  # re-export
-from railsusp.pipeline_stages import stage_runners, stage_section
+from railsusp.pipeline_inputs import (
+    METHOD_REVISIONS,
+    stage_dependents,
+    stage_inputs,
+    stage_section,
+)
+from railsusp.pipeline_stages import stage_runners
 from railsusp.pipeline_state import (
     PIPELINE_FORMAT,
     blame,
@@ -38,6 +45,7 @@ from railsusp.pipeline_state import STAGES as STAGES  # re-export
 from railsusp.run_lock import run_lock
 from railsusp.store import code_identity, content_hash, provenance, utc_now, write_json
 from railsusp.summary import read_tolerances
+from railsusp.vehicle import MODEL_REVISION
 
 #: stage finishes with their elapsed time (info) and starts (debug), for the command line
 log = logging.getLogger("railsusp.pipeline")
@@ -56,6 +64,7 @@ def run_pipeline(
     run_progress: Callable[[int, int], None] | None = None,
     options: tuple[str, str] = ("--out", "--from"),
     checked: bool = False,
+    finished: Callable[[dict], None] | None = None,
 ) -> dict:
     """Run the stages in order, skipping the up-to-date ones; returns ``pipeline.json``.
 
@@ -65,7 +74,10 @@ def run_pipeline(
     name ``out`` and ``start_from`` in the errors (the command line's, or the API's).
     ``checked``: ``config`` has been through :func:`~railsusp.config.check_config` already
     (:func:`~railsusp.pipeline_config.load_config` does it), so it is not checked again: a
-    measured folder's recordings are read in full by that check.
+    measured folder's recordings are read in full by that check. ``finished(state)`` is
+    called once the stages are done, before the run directory's lock is let go: what it
+    reads there is this run's (``railsusp run``'s summary, read after, could print a second
+    run's tables beside this one's).
     """
     from railsusp.config import check_config, check_cuda
     from railsusp.input_checks import check_output_folder
@@ -81,7 +93,7 @@ def run_pipeline(
     out.mkdir(parents=True, exist_ok=True)
     with run_lock(out, out_option):  # one run at a time in a folder
         # read again under the lock: another run may have ended meanwhile
-        return _run_stages(
+        state = _run_stages(
             config,
             out,
             run_state(out, out_option),
@@ -90,33 +102,60 @@ def run_pipeline(
             run_progress,
             from_option,
         )
+        if finished is not None:
+            finished(state)
+        return state
 
 
-def stage_hashes(config: PipelineConfig, stages: Sequence[str] = STAGES) -> dict[str, str]:
+def stage_hashes(
+    config: PipelineConfig, stages: Sequence[str] = STAGES, legacy: bool = False
+) -> dict[str, str]:
     """The hash that decides whether each of ``stages`` (the first ones of :data:`STAGES`,
-    in order) runs again: its section's (:func:`~railsusp.pipeline_stages.stage_section`)
-    with the hashes of every stage before it, so that a changed stage reruns all after it."""
-    upstream: dict[str, str] = {}
-    for stage in stages:
-        upstream[stage] = content_hash(
-            {"section": stage_section(config, stage), "upstream": dict(upstream), "stage": stage}
-        )
-    return upstream
+    in order) runs again: its section's (:func:`~railsusp.pipeline_inputs.stage_section`)
+    with the hashes of the stages it reads (:func:`~railsusp.pipeline_inputs.stage_inputs`),
+    so that a changed stage reruns those that read it, and only them. ``legacy``: the
+    hashes as made before stop 66 (each with every earlier stage's), which a run directory
+    of before holds; :func:`_run_stages` takes them as up to date, so that such a run
+    directory is not made again from its campaign on."""
+    hashes: dict[str, str] = {}
+    for i, stage in enumerate(stages):
+        section = stage_section(config, stage, legacy)
+        if legacy:
+            record = {"section": section, "upstream": {s: hashes[s] for s in stages[:i]}}
+        else:
+            record = {
+                "section": section,
+                "reads": {s: hashes[s] for s in stage_inputs(config, stage)},
+            }
+        hashes[stage] = content_hash({**record, "stage": stage})
+    return hashes
+
+
+def _recorded_current(entry: dict, h: str, legacy: str | None) -> bool:
+    """Whether a stage's record in ``pipeline.json`` is done with the inputs of now: its
+    hash, or the hash of before stop 66 for the same inputs (re-recorded as the new one
+    once the stage is found up to date; None for a stage computed otherwise since)."""
+    return entry.get("state") == "done" and entry.get("hash") in {h, legacy} - {None}
 
 
 def _surrogate_kept(config: PipelineConfig, state: dict, start_from: str | None) -> bool:
     """Whether the surrogate stage will be skipped as up to date: done, and neither it nor a
-    stage before it changed, nor a restart from one of them. Done alone passed a run whose
+    stage it reads changed, nor a restart from one of them. Done alone passed a run whose
     changed campaign then simulated again before its training failed on a missing CUDA
     device (the rerun audit of stop 65)."""
-    forced = STAGES.index(start_from) if start_from else len(STAGES)
+    forced = set(STAGES[STAGES.index(start_from) :]) if start_from else set()
     upto = STAGES[: STAGES.index("surrogate") + 1]
-    return all(
-        state["stages"].get(stage, {}).get("hash") == h
-        and state["stages"][stage].get("state") == "done"
-        and i < forced
-        for i, (stage, h) in enumerate(stage_hashes(config, upto).items())
-    )
+    hashes, legacy = stage_hashes(config, upto), stage_hashes(config, upto, legacy=True)
+
+    def kept(stage: str) -> bool:
+        entry = state["stages"].get(stage, {})
+        return (
+            stage not in forced
+            and _recorded_current(entry, hashes[stage], legacy[stage])
+            and all(kept(s) for s in stage_inputs(config, stage))
+        )
+
+    return kept("surrogate")
 
 
 def _run_stages(
@@ -144,22 +183,31 @@ def _run_stages(
     # and the wagon its recordings are read as, for the same reason: its data (axle spread)
     # and its static wheel load (runs of stop 59 recorded this alone; summary reads both)
     state.update(_wagon_record(config))
-    forced = STAGES.index(start_from) if start_from else len(STAGES)
-    hashes = stage_hashes(config)
+    revisions = (_recorded_revision(state, out), MODEL_REVISION)  # the run before's, now
+    state["model_revision"] = MODEL_REVISION  # the force laws of its simulated stages
+    forced = set(STAGES[STAGES.index(start_from) :]) if start_from else set()
+    hashes, legacy = stage_hashes(config), stage_hashes(config, legacy=True)
+    for stage in METHOD_REVISIONS:  # computed otherwise since: made again, not taken
+        legacy[stage] = None
     runners = stage_runners(config, out, run_progress)
     ran = False
-    for i, stage in enumerate(STAGES):
+    ran_stages: set[str] = set()  # those run now: the stages reading them run again
+    for stage in STAGES:
         h = hashes[stage]
         prev = state["stages"].get(stage, {})
         up_to_date = (
-            prev.get("hash") == h
-            and prev.get("state") == "done"
-            and i < forced
+            _recorded_current(prev, h, legacy[stage])
+            and stage not in forced
+            and not ran_stages.intersection(stage_inputs(config, stage))
             and outputs_exist(
                 config, out, stage, prev.get("files"), prev.get("sha256"), prev.get("mtime_ns")
             )
         )
         if up_to_date:
+            prev["hash"] = h  # a record of before stop 66, for the same inputs, re-hashed
+            if "sha256" not in prev:  # a record of before the hashes (format 0): read as
+                # its sizes say, and recorded as format 1 holds it from now on
+                _record_files(prev, stage_files(config, out, stage), out)
             log.debug("stage %s: up to date", stage)
             if progress:
                 progress(stage, "up to date")
@@ -171,12 +219,15 @@ def _run_stages(
                 made_by = code_identity()  # the code of this run's stages, asked git once
                 state["provenance"] = provenance(made_by)
             ran = True
+            why = _why_again(config, stage, prev, h, ran_stages, forced, revisions)
+            if why:  # a rerun of hours of simulation says why (the upgrade audit of stop 66)
+                log.info("stage %s: runs again: %s", stage, why)
             log.debug("stage %s: running", stage)
             if progress:
                 progress(stage, "running")
             t0 = time.perf_counter()
             state["stages"][stage] = {"hash": h, "state": "running"}
-            _mark_later_stale(state, stage)
+            _mark_later_stale(state, stage_dependents(config, stage))
             # the report, rebuilt last, must not stand as this run's answer meanwhile (a
             # failed or interrupted run left it so): a stale banner until it is remade
             mark_report_stale(out, stage)
@@ -192,7 +243,6 @@ def _run_stages(
                     f"and run the same command again (or {_resume(from_option, stage)})"
                     + blame(config, out, stage, str(exc))
                 ) from exc
-            files = stage_files(config, out, stage)
             state["stages"][stage] = {
                 "hash": h,
                 "state": "done",
@@ -200,20 +250,81 @@ def _run_stages(
                 "seconds": time.perf_counter() - t0,
                 "finished": utc_now(),
                 "made_by": made_by,  # stages of one run may come from two commits
-                "files": file_sizes(files, out),
-                # and their contents: an edit that keeps a file's size is found too
-                "sha256": file_hashes(files, out),
-                "mtime_ns": file_mtimes(files, out),  # unchanged by stat: not hashed again
             }
+            if stage in METHOD_REVISIONS:  # how railsusp computed it (its hash holds it too)
+                state["stages"][stage]["method_revision"] = METHOD_REVISIONS[stage]
+            _record_files(state["stages"][stage], stage_files(config, out, stage), out)
             write_json(state_path, state)
             log.info("stage %s: done in %.1f s", stage, state["stages"][stage]["seconds"])
-            forced = min(forced, i + 1)  # everything downstream reruns
+            ran_stages.add(stage)  # the stages reading its outputs run again
         if stage == "field":  # written or up to date: later stages need only its conditions
             release_cut()
     if ran:
         state["provenance"]["finished"] = utc_now()
     write_json(state_path, state)
     return state
+
+
+def _record_files(entry: dict, files: list[Path], out: Path) -> None:
+    """A finished stage's record of its files in ``pipeline.json``: their sizes, their
+    contents' SHA-256 (an edit that keeps a file's size is found too) and modification
+    times (a file unchanged by stat is not hashed again)."""
+    entry["files"] = file_sizes(files, out)
+    entry["sha256"] = file_hashes(files, out)
+    entry["mtime_ns"] = file_mtimes(files, out)
+
+
+def _recorded_revision(state: dict, out: Path) -> str | None:
+    """The force laws' revision the run directory's simulated stages were made with:
+    ``pipeline.json``'s (since stop 66), else its campaign's; None where neither says."""
+    from railsusp.store import read_json
+
+    if isinstance(state.get("model_revision"), str):
+        return state["model_revision"]
+    try:
+        got = read_json(out / "campaign" / "campaign.json").get("model_revision")
+    except (RailsuspInputError, AttributeError):
+        return None
+    return got if isinstance(got, str) else None
+
+
+#: the stages that simulate with the force laws (a network set is checked against them)
+_SIMULATED = ("campaign", "surrogate", "field")
+
+
+def _why_again(
+    config: PipelineConfig,
+    stage: str,
+    prev: dict,
+    h: str,
+    ran_stages: set[str],
+    forced: set[str],
+    revisions: tuple[str | None, str],
+) -> str | None:
+    """Why a stage with a record in ``pipeline.json`` runs again, in words, or None where
+    the user knows (a first run, a restart they asked for) or a warning said it (a file of
+    its gone or changed). The force laws' change is named (``revisions``: the run before's
+    and this railsusp's): an upgrade simulated a campaign of hours again with no word."""
+    if not prev or stage in forced:
+        return None
+    read = [s for s in stage_inputs(config, stage) if s in ran_stages]
+    if read:  # (and those marked it stale meanwhile)
+        return f"it reads the outputs of {', '.join(read)}, made again now"
+    state = prev.get("state")
+    if state != "done":
+        told = {"failed": "it failed", "running": "it was interrupted", "stale": "it was stale"}
+        return f"{told.get(state, f'its state was {state!r}')} in the run before"
+    if prev.get("hash") == h:
+        return None  # its files: outputs_exist has warned
+    before, now = revisions
+    if stage in _SIMULATED and before is not None and before != now:
+        return f"the force laws' revision changed ({before} -> {now})"
+    if stage in METHOD_REVISIONS and prev.get("method_revision") != METHOD_REVISIONS[stage]:
+        return (
+            f"its settings changed, or railsusp computes it otherwise since (method revision "
+            f"{METHOD_REVISIONS[stage]})"
+        )
+    return "its settings or the inputs it hashes changed"
 
 
 def _resume(from_option: str, stage: str) -> str:
@@ -235,12 +346,13 @@ def _wagon_record(config: PipelineConfig) -> dict:
     }
 
 
-def _mark_later_stale(state: dict, stage: str) -> None:
-    """The stages after ``stage`` that pipeline.json says are done, marked ``stale`` when
-    ``stage`` starts to run: their outputs are of the run before (every later stage runs
-    again after it), so :func:`railsusp.open_run` must not read them as this run's answer if
-    ``stage`` fails or is interrupted."""
-    for later in STAGES[STAGES.index(stage) + 1 :]:
+def _mark_later_stale(state: dict, dependents: Sequence[str]) -> None:
+    """The ``dependents`` of a stage (:func:`~railsusp.pipeline_inputs.stage_dependents`)
+    that pipeline.json says are done, marked ``stale`` when that stage starts to run: their
+    outputs are of the run before (they run again after it), so :func:`railsusp.open_run`
+    must not read them as this run's answer if the stage fails or is interrupted. Other
+    stages' outputs stand (an estimate on a network set, while the campaign runs again)."""
+    for later in dependents:
         entry = state["stages"].get(later)
         if isinstance(entry, dict) and entry.get("state") == "done":
             entry["state"] = "stale"

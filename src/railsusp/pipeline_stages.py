@@ -1,8 +1,7 @@
-"""What each stage of the pipeline depends on and what it does: the part of the
-configuration a stage hashes (:func:`stage_section`, with :func:`model_identity`, the wagon
-data and force laws every simulated stage depends on) and the stage runners themselves
-(:func:`stage_runners`: campaign, sensitivity, surrogate, field, estimate, validate,
-report). :mod:`railsusp.pipeline` runs them in order, skipping the up-to-date ones.
+"""What each stage of the pipeline does: the stage runners (:func:`stage_runners`:
+campaign, sensitivity, surrogate, field, estimate, validate, report). What each depends on
+is :mod:`railsusp.pipeline_inputs`; :mod:`railsusp.pipeline` runs them in order, skipping
+the up-to-date ones.
 """
 
 from __future__ import annotations
@@ -10,9 +9,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
-from railsusp.estimate.config import BROYDEN_MIN_STEP
 from railsusp.pipeline_config import PipelineConfig
 from railsusp.pipeline_state import surrogate_campaign_dir
 
@@ -33,134 +30,6 @@ def _drop_other_conditions(surrogates: Path, conditions: list) -> None:
             if sub.is_dir() and sub.name not in names and not sub.name.startswith("."):
                 log.info("surrogates: %s of a condition no longer configured, removed", sub)
                 shutil.rmtree(sub)
-
-
-def model_identity(config: PipelineConfig) -> dict[str, str]:
-    """What the simulated stages' results depend on beyond the configuration: the wagon's
-    data as read (a wagon file edited in place, or the embedded data of another railsusp)
-    and the force laws' revision (:data:`railsusp.vehicle.MODEL_REVISION`). In the stage
-    hashes, so that a run directory made with another model is simulated again instead of
-    being reused (the demo's did, and its estimate stage then failed reading surrogates
-    saved with an older wagon description)."""
-    from railsusp.surrogate.pretrained import wagon_hash
-    from railsusp.vehicle import MODEL_REVISION
-    from railsusp.vehicle.wagon import load_wagon
-
-    return {"wagon_data": wagon_hash(load_wagon(config.wagon)), "model_revision": MODEL_REVISION}
-
-
-def _measured_state(config: PipelineConfig) -> dict:
-    """What the field stage's copy of a ``[field] measured`` folder depends on beyond its
-    path: every file's path in it, size and modification time (as a long run's
-    ``[field] recording`` counts its files). Without them a folder whose recordings were
-    replaced kept the old copy, and the estimate on it, up to date. Empty (so the stage
-    hashes as before) without a measured folder."""
-    if config.field.measured is None:
-        return {}
-    folder = Path(config.field.measured)
-    files = []
-    for p in sorted(folder.rglob("*")) if folder.is_dir() else []:
-        if p.is_file() and not any(part.startswith(".") for part in p.relative_to(folder).parts):
-            st = p.stat()
-            files.append((p.relative_to(folder).as_posix(), st.st_size, st.st_mtime_ns))
-    return {"measured_files": files}
-
-
-def _tolerances_state(config: PipelineConfig) -> dict:
-    """The wagon data's ``[tolerances]`` the report judges the estimate by, where they are
-    not the defaults: the wagon's hash leaves them out (they are no model input), so an
-    edited table left the report of the old ones up to date (the rerun audit of stop 65);
-    with where they come from, which the report's sentence names. Empty for railsusp's
-    defaults, so the report stage hashes as before."""
-    from railsusp.summary import Tolerances, read_tolerances
-
-    tol = read_tolerances(config.wagon).to_dict()  # as pipeline.json records them
-    return {} if tol == Tolerances().to_dict() else {"tolerances": tol}
-
-
-def stage_section(config: PipelineConfig, stage: str) -> Any:
-    """The inputs of ``stage`` whose hash decides whether it runs again. The conditions are
-    those the run simulates, resolved (a packaged condition's values, a ``base``'s, the
-    recording's cut), with the contents of their measured track-geometry files: before
-    stop 60 they were hashed as written, so a packaged condition changed by an upgrade, or
-    a geometry file edited in place, left every stage up to date on the old results."""
-    from railsusp.vehicle.track_geometry import geometry_digests
-
-    conditions = config.working_conditions()
-    base = {
-        "wagon": config.wagon,
-        "conditions": [c.model_dump(mode="json") for c in conditions],
-        "model": model_identity(config),
-    }
-    files = geometry_digests(conditions)
-    if files:
-        base["track_geometry_files"] = files
-    source = config.run_source()
-    if source is not None:  # the conditions, and the field, come from the recording's cut
-        base["recording"] = repr(source.state())
-    sections = {
-        "campaign": {**base, **config.campaign.model_dump()},
-        "sensitivity": config.sensitivity.model_dump(),
-        "surrogate": _surrogate_section(config),
-        "field": {**base, **config.field.model_dump(), **_measured_state(config)},
-        "estimate": _estimate_section(config),
-        "validate": {},
-        "report": {"name": config.name, **_tolerances_state(config)},
-    }
-    return sections[stage]
-
-
-def _estimate_section(config: PipelineConfig) -> dict:
-    """The estimate stage's inputs: its settings (without a held_prior, and with
-    channel_gains and expected_draws off, the section hashes as before those existed, so
-    runs stay up to date; ``expected_generations`` counts only with expected draws, and
-    then always: before 2026-11-29 expected draws meant NSGA-II's generations, now a polish
-    after them, so such a run estimates again);
-    on time-aligned forces also the route of NSGA-II's estimate, which since 2026-11-28
-    takes the geometry error's bias off its choice where the recordings state their
-    accuracy, so that such a run estimates again; with ``correction_slopes`` the trust
-    region's check (since 2026-11-29 the simulator checks each first-order step's point, and
-    the box resizes), so that such a run estimates again; with Broyden's update also its
-    step floor (since stop 53 no update across a step under it), for the same reason."""
-    e = config.estimate
-    optional = (
-        "held_prior",
-        "channel_gains",
-        "expected_draws",
-        "simulator_corrections",
-        "correction_slopes",
-    )
-    unset = {k for k in optional if not getattr(e, k)}
-    if e.slope_update == "simulated":  # as before the setting existed
-        unset.add("slope_update")
-    if not e.expected_draws:
-        unset.add("expected_generations")
-    if not e.preview_generations:  # as before the setting existed
-        unset |= {"preview_generations", "preview_s"}
-    section = e.model_dump(exclude=unset or None)
-    if e.statistic == "aligned":
-        section["nsga_geometry"] = (
-            "expected-forces polish" if e.expected_draws else "first SIMEX step"
-        )
-    if e.correction_slopes:
-        section["correction_steps"] = "checked by the simulator's cost (trust region)"
-        if e.slope_update == "broyden":  # the floor came after Broyden's update: estimate again
-            section["broyden_min_step"] = BROYDEN_MIN_STEP
-    return section
-
-
-def _surrogate_section(config: PipelineConfig) -> dict:
-    """The surrogate stage's inputs: its settings (without ``pretrained`` when unset, so a
-    run made before the option existed stays up to date); with a network set only what
-    is used, the model and the set (its manifest and the bytes of its networks), so that
-    another set under the same name copies again and training settings change nothing."""
-    s = config.surrogate
-    if s.pretrained is None:
-        return s.model_dump(exclude={"pretrained"})
-    from railsusp.surrogate.pretrained import read_network_set, resolve_network_set, set_hash
-
-    ns = read_network_set(resolve_network_set(s.pretrained))
-    return {"model": s.model, "pretrained": s.pretrained, "network_set": set_hash(ns)}
 
 
 def stage_runners(

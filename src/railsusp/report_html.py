@@ -454,9 +454,19 @@ def build_report(run: str | Path) -> list[Path]:
     return [html_path, md_path]
 
 
-def stale_text(stage: str) -> str:
+def stale_text(stage: str, by: str | None = None) -> str:
     """The stale banner's words: why the report no longer answers for the run directory
-    and what to do."""
+    and what to do. ``by``: the standalone command (``railsusp estimate``) started on the
+    folder of ``stage`` outside ``railsusp run``; running that command again would not
+    remake the report, ``railsusp run`` does."""
+    if by is not None:
+        return (
+            f"STALE: `{by}` was started on the outputs of this run directory's stage "
+            f"'{stage}' after this report was made, outside `railsusp run`, so the answer "
+            "below may no longer be what the run directory holds. `railsusp run` with the "
+            "run directory's configuration on this folder makes the changed stages and this "
+            "report again (it replaces that command's outputs with the configuration's)."
+        )
     return (
         "STALE: this report was made by an earlier run of this run directory, before its "
         f"stage '{stage}' was started again (a changed configuration, changed files or a "
@@ -467,15 +477,17 @@ def stale_text(stage: str) -> str:
     )
 
 
-def mark_report_stale(run: str | Path, stage: str) -> list[Path]:
+def mark_report_stale(run: str | Path, stage: str, by: str | None = None) -> list[Path]:
     """Put a stale banner at the top of ``RUN/report.html`` and ``RUN/report.md``, where
     they exist, when ``stage`` starts to run again: the pipeline marks the report stage
     stale then (every later stage runs again), and the files, which the command line points
     to, must not present the run before's estimate as the answer if the run fails or is
-    interrupted. A banner already there is replaced; :func:`build_report` writes the files
-    anew, without it. Returns the files marked."""
+    interrupted. ``by``: a standalone command (``railsusp estimate --out RUN/estimate``)
+    about to write the stage's outputs instead (:func:`stale_text`). A banner already there
+    is replaced; :func:`build_report` writes the files anew, without it. Returns the files
+    marked."""
     run = Path(run)
-    text = stale_text(stage)
+    text = stale_text(stage, by)
     marked = []
     banners = {
         "report.html": (

@@ -391,17 +391,19 @@ def file_hash(path: str | Path) -> str:
 
 def file_hash_cached(path: str | Path) -> str:
     """:func:`file_hash`, read once per version of the file (kept by absolute path, inode,
-    modification time and size: a file replaced by an atomic write is a new inode, whatever
-    its time and size): for hashes asked for again and again, a surrogate's track inputs
-    every generation, a campaign's geometry files every batch, a run's recorded outputs
-    every time the API reads one."""
+    modification and change times and size: a file replaced by an atomic write is a new
+    inode, whatever its time and size, and one rewritten in place with its modification
+    time set back, as ``cp -p`` does, has a new change time, which no user tool sets): for
+    hashes asked for again and again, a surrogate's track inputs every generation, a
+    campaign's geometry files every batch, a run's recorded outputs every time the API
+    reads one."""
     p = os.path.abspath(path)
     st = os.stat(p)
-    return _file_hash_of(p, st.st_ino, st.st_mtime_ns, st.st_size)
+    return _file_hash_of(p, st.st_ino, st.st_mtime_ns, st.st_ctime_ns, st.st_size)
 
 
 @lru_cache(maxsize=1024)
-def _file_hash_of(path: str, _inode: int, _mtime_ns: int, _size: int) -> str:
+def _file_hash_of(path: str, _inode: int, _mtime_ns: int, _ctime_ns: int, _size: int) -> str:
     return file_hash(path)
 
 

@@ -172,7 +172,9 @@ def validate(
     compared by their mean over that many draws of the true geometry (seeded as the
     estimate's), its statistics by their mean over the draws. ``wagon``: the wagon data
     simulated (a WagonData or a wagon file; None: the packaged C80), and whose static wheel
-    load the recordings are checked against.
+    load the recordings are checked against. An estimate made with other force laws than
+    this railsusp simulates is refused before any simulation, one that records none is
+    warned of (:func:`check_estimate_revision`).
     """
     from railsusp.vehicle.wagon import load_wagon
 
@@ -185,6 +187,7 @@ def validate(
             "folder written by railsusp estimate"
         )
     check_estimate_fields(est, est_path, need_measured=measured is None)
+    check_estimate_revision(est, est_path)
     params = tuple(est["parameters"])
     stats = parse_statistics(statistic or est["config"]["statistic"])
     if wagon is None:  # the wagon the estimate simulated (None there: the packaged C80)
@@ -373,6 +376,32 @@ def check_estimate_fields(est: dict, path: Path, need_measured: bool = True) -> 
                 f"{path}: field {key!r} is {est.get(key)!r}; accepted "
                 + ("a wagon name or file" if key == "wagon" else "an object of wagon data")
             )
+
+
+def check_estimate_revision(est: dict, path: Path) -> None:
+    """Refuse, in one line naming ``path``, both revisions and the remedy, an estimate made
+    with other force laws than this railsusp simulates (its ``model_revision``, recorded
+    since the upgrade audit): validate re-simulates it with this railsusp's, so its "before"
+    and "after" would move with the model alone (a run of 2026-11-24.2: the nominal lateral
+    mean 4.90 -> 6.18 kN) and be read as the estimate's doing. An estimate that records no
+    revision (written before) cannot be told: warned of, and validated as before."""
+    from railsusp.vehicle import MODEL_REVISION
+
+    revision = est.get("model_revision")
+    if revision is None:
+        warnings.warn(
+            f"{path} records no force-law revision (written before estimates recorded it): "
+            f"validate cannot tell whether it was made with the force laws it re-simulates "
+            f"(revision {MODEL_REVISION}); estimate again to be sure",
+            stacklevel=3,
+        )
+    elif revision != MODEL_REVISION:
+        raise RailsuspInputError(
+            f"{path}: made with force-law revision {revision}, this railsusp simulates "
+            f"revision {MODEL_REVISION}, so the validation would compare another model; "
+            "accepted an estimate of this revision: estimate again (`railsusp run` on its run "
+            "directory, or `railsusp estimate`) and validate that"
+        )
 
 
 def identification_issues(est: dict, max_st: dict[str, float] | None = None) -> dict[str, str]:

@@ -155,7 +155,7 @@ def test_the_geometry_draws_and_the_run_hash_follow_the_setting(monkeypatch):
     setting existed (old runs stay up to date), on re-estimates."""
     from railsusp.estimate import estimate, nsga_geometry
     from railsusp.pipeline_config import PipelineConfig
-    from railsusp.pipeline_stages import stage_section
+    from railsusp.pipeline_inputs import stage_section
 
     asked = []
 

@@ -15,7 +15,7 @@ from railsusp.estimate import NSGAConfig, estimate
 from railsusp.measured import Recording
 from railsusp.params import bounds
 from railsusp.pipeline_config import load_config
-from railsusp.pipeline_stages import stage_section
+from railsusp.pipeline_inputs import stage_section
 from test_estimate import ON_TRACK, PARAMS, WaveForces
 
 LONG = ON_TRACK.with_duration(4.0)  # 200 steps at 50 Hz

@@ -1,8 +1,8 @@
 """Surrogates remember the force laws they learnt: a bundle trained on a campaign of another
 force-law revision is refused where it is opened as the estimate's force model (the
 interrupt/resume audit of stop 60 trained on such a campaign and estimated with the result
-beside today's simulator), in one line; bundles saved before the revision was recorded,
-such as the shipped sets' (checked by their manifest), are opened as before."""
+beside today's simulator), in one line; so is a bundle that records no revision (trained
+before revisions were recorded, so on older force laws: the upgrade audit's H2)."""
 
 import json
 
@@ -29,7 +29,8 @@ def test_surrogates_of_other_force_laws_are_refused(tmp_path):
     _stamp(folder, MODEL_REVISION)
     assert SurrogateForces(folder).conditions == ["straight"]
     _stamp(folder, None)  # saved before the revision was recorded
-    assert SurrogateForces(folder).conditions == ["straight"]
+    with pytest.raises(RailsuspInputError, match="straight: records no force-law revision"):
+        SurrogateForces(folder)
     _stamp(folder, "2000-01-01.1")
     with pytest.raises(RailsuspInputError) as err:
         SurrogateForces(folder)

@@ -29,6 +29,7 @@ from railsusp.surrogate.bundle import Surrogate
 from railsusp.surrogate.data import FeatureSpec, Normaliser
 from railsusp.surrogate.in_step import in_step_key, predict_in_step
 from railsusp.surrogate.models import NetConfig, build_network
+from railsusp.vehicle import MODEL_REVISION
 from railsusp.vehicle.track_geometry import write_track_geometry
 from railsusp.vehicle.track_grid import section_irregularities
 from railsusp.vehicle.wagon import load_wagon
@@ -74,7 +75,7 @@ def _surrogate(
         [3.0 + seed, 15.0 + seed],
     )
     cond = get_condition(name, duration_s=2.0, n_steps=T_STEPS)
-    meta = {"segment_steps": segment, "track_realisations": 24}
+    meta = {"segment_steps": segment, "track_realisations": 24, "model_revision": MODEL_REVISION}
     return Surrogate(net, cfg, spec, norm, cond, load_wagon(), 0, meta)
 
 

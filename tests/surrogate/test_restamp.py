@@ -115,17 +115,25 @@ def test_a_network_of_other_force_laws_is_not_written_into_a_set_of_today_s(tmp_
     folder = tmp_path / "bundles"
     shutil.copytree(ns.folder, folder)
     doc = json.loads((folder / "curve" / "surrogate.json").read_text())
-    doc["meta"]["model_revision"] = "2020-01-01.1"
-    (folder / "curve" / "surrogate.json").write_text(json.dumps(doc))
-    with pytest.raises(RailsuspInputError, match="trained on force-law revision 2020-01-01.1"):
-        write_network_set(
-            folder,
-            tmp_path / "set",
-            name="set",
-            conditions=["curve"],
-            accuracy=_scored(),
-            reproduce=[],
-        )
+    # one that records none (older than any railsusp that records them: estimate refuses
+    # it) was stamped today's too (stop 66)
+    for revision, told in (
+        ("2020-01-01.1", "trained on force-law revision 2020-01-01.1"),
+        (None, "records no force-law revision"),
+    ):
+        doc["meta"]["model_revision"] = revision
+        if revision is None:
+            del doc["meta"]["model_revision"]
+        (folder / "curve" / "surrogate.json").write_text(json.dumps(doc))
+        with pytest.raises(RailsuspInputError, match=told):
+            write_network_set(
+                folder,
+                tmp_path / "set",
+                name="set",
+                conditions=["curve"],
+                accuracy=_scored(),
+                reproduce=[],
+            )
 
 
 @pytest.mark.parametrize(

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import logging
 import re
 from pathlib import Path
 
@@ -21,8 +20,6 @@ from railsusp.campaign.design import (
 )
 from railsusp.errors import first_listed
 from railsusp.store import read_parquet
-
-log = logging.getLogger("railsusp.campaign")
 
 #: what to do about a campaign file that is missing or damaged: resumed, the campaign
 #: simulates every batch that is not stored whole again
@@ -74,10 +71,42 @@ def _config_error(meta_path: Path, exc: ValidationError) -> str:
     return f"{meta_path} is corrupt: its configuration does not validate ({first})"
 
 
+def revision_problem(revision: object, where: Path) -> str | None:
+    """One line saying that the campaign at ``where`` was simulated with other force laws
+    than this railsusp's (its recorded ``revision``, or none: made before 2026-11-30, when
+    revisions began to be recorded, so older), naming both revisions and what to do; None
+    where ``revision`` is this railsusp's. A newer revision is a newer railsusp's campaign,
+    which is not to be simulated again as outdated."""
+    from railsusp.vehicle import MODEL_REVISION
+
+    again = "run the campaign again into a new --out (or with --force) before using its results"
+    if revision is None:
+        return (
+            f"{where} records no force-law revision: it was simulated before 2026-11-30, with "
+            f"older force laws than this railsusp's revision {MODEL_REVISION}; {again}"
+        )
+    if str(revision) == MODEL_REVISION:
+        return None
+    if revision_newer(revision):
+        return (
+            f"{where} was simulated with force-law revision {revision}, newer than this "
+            f"railsusp's {MODEL_REVISION}: use it with the railsusp that simulated it"
+        )
+    return (
+        f"{where} was simulated with force-law revision {revision}; railsusp now simulates "
+        f"{MODEL_REVISION}: {again}"
+    )
+
+
 def stored_config(meta: dict, meta_path: Path) -> CampaignConfig:
     """The configuration a ``campaign.json`` holds, validated and checked against the hash
     its batches are stamped with (an edited configuration would lend them another design);
-    one-line :class:`CampaignError` otherwise."""
+    one-line :class:`CampaignError` otherwise. A hash that differs where the campaign
+    records other force laws than this railsusp's (or none) is said as that, not as a
+    hand edit: a revision that added wagon-data fields with defaults (2026-11-30.2) changed
+    the hash of every older campaign, and ``train``, ``sensitivity`` and a resumed
+    ``campaign`` asked "edited by hand?" of folders nobody edited (the upgrade audit's M3),
+    never reaching :func:`require_complete`'s revision check."""
     try:
         config = CampaignConfig.model_validate(meta["config"])
     except ValidationError as exc:
@@ -88,6 +117,9 @@ def stored_config(meta: dict, meta_path: Path) -> CampaignConfig:
             f"{meta_path} is corrupt: its configuration does not validate ({first})"
         ) from None
     if config.hash() != meta.get("config_hash"):  # its batches are stamped with the hash
+        problem = revision_problem(meta.get("model_revision"), meta_path)
+        if problem is not None:  # the force laws changed, and the configuration with them
+            raise CampaignError(problem)
         raise CampaignError(
             f"{meta_path}: its configuration is not the one its batches were simulated "
             f"with (hash {config.hash()}, stamped {meta.get('config_hash')}): "
@@ -178,26 +210,15 @@ def require_complete(campaign: Campaign) -> Campaign:
     (a surrogate trained on part of a campaign would silently see fewer runs; one trained on
     a campaign of other force laws learnt another model: the interrupt/resume audit of stop
     60 trained on one silently). A campaign that states no revision (made before
-    2026-11-30) is warned of, as when it is resumed."""
+    2026-11-30) is of older force laws than any revision, and refused too: it was only
+    warned of, and the surrogates trained on it were then refused by ``estimate
+    --surrogate`` (:func:`railsusp.estimate.forces.check_force_laws`) after the training."""
+    problem = revision_problem(campaign.model_revision, campaign.path)
+    if problem is not None:  # first: finishing it would be refused (railsusp campaign)
+        raise CampaignError(problem)
     missing = incomplete(campaign)
     if missing:
         raise CampaignError(missing)
-    from railsusp.vehicle import MODEL_REVISION
-
-    revision = campaign.model_revision
-    if revision is None:
-        log.warning(
-            "%s states no force-law revision (made before 2026-11-30): its results may be of "
-            "other force laws than this railsusp's %s",
-            campaign.path,
-            MODEL_REVISION,
-        )
-    elif revision != MODEL_REVISION:
-        raise CampaignError(
-            f"{campaign.path} was simulated with force-law revision {revision}; railsusp now "
-            f"simulates {MODEL_REVISION}: run the campaign again into a new --out (or with "
-            "--force) before using its results"
-        )
     return campaign
 
 

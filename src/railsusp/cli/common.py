@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import errno
 import logging
+import os
 import re
 import sys
 import warnings
@@ -214,6 +215,89 @@ def _pipeline_runs(folder: Path) -> list[Path]:
     return list(found.values())
 
 
+#: the pipeline stage whose outputs each standalone command makes, where it names a
+#: folder above them (``validate RUN/estimate`` writes ``RUN/estimate/validation``,
+#: ``sensitivity RUN/campaign`` ``RUN/campaign/sensitivity``): the stage its stale banner
+#: names (:func:`_mark_run_reports`)
+_COMMAND_STAGES = {
+    "campaign": "campaign",
+    "sensitivity": "sensitivity",
+    "train": "surrogate",
+    "compare": "surrogate",
+    "synth-field": "field",
+    "sections": "field",
+    "align-track": "field",
+    "estimate": "estimate",
+    "validate": "validate",
+}
+
+
+def _command_words() -> str:
+    """The command running as typed, ``railsusp posterior train`` (the program's own name
+    left out: a test runner calls it otherwise)."""
+    ctx, words = _command_context(), []
+    while ctx is not None and ctx.parent is not None:
+        words.append(ctx.info_name or "")
+        ctx = ctx.parent
+    return " ".join(["railsusp", *reversed(words)])
+
+
+def _written_stages(run: Path, folder: Path) -> list[str]:
+    """The stages of the run directory ``run`` with a file recorded in its
+    ``pipeline.json`` (what the stage wrote when it finished) at or under ``folder``, in the
+    pipeline's order: those a command writing ``folder`` may change. None where the folder
+    holds none of them (``RUN/posterior``, a new ``RUN/field/extra``: the report reads
+    nothing there) or ``pipeline.json`` does not read (:func:`railsusp.open_run` refuses
+    the run directory then)."""
+    from railsusp.errors import RailsuspInputError
+    from railsusp.pipeline_state import STAGES
+    from railsusp.store import read_json
+
+    rel = None
+    for inner, outer in ((folder.absolute(), run.absolute()), (folder.resolve(), run.resolve())):
+        try:
+            rel = Path(os.path.normpath(inner)).relative_to(os.path.normpath(outer))
+            break
+        except ValueError:
+            continue
+    if rel is None:
+        return []
+    try:
+        stages = read_json(run / "pipeline.json").get("stages")
+    except (RailsuspInputError, AttributeError):
+        return []
+    if not isinstance(stages, dict):
+        return []
+    order = [s for s in STAGES if s in stages] + [s for s in stages if s not in STAGES]
+    found = []
+    for stage in order:
+        entry = stages[stage]
+        files = entry.get("files") if isinstance(entry, dict) else None
+        if isinstance(files, dict) and any(Path(f).is_relative_to(rel) for f in files):
+            found.append(stage)
+    return found
+
+
+def _mark_run_reports(folders: Sequence[Path]) -> None:
+    """A stale banner on the report of each ``railsusp run`` directory that ``folders``,
+    which the command is about to write, lie in, where they hold a stage's recorded
+    outputs (:func:`railsusp.report_html.mark_report_stale`): ``railsusp estimate --out
+    RUN/estimate`` left ``RUN/report.html`` presenting the estimate it replaced as the
+    answer (the concurrency audit). Marked before the command writes, so that one that
+    fails or is killed halfway leaves the banner too; ``railsusp run`` remakes the report.
+    The stage named: the command's own (:data:`_COMMAND_STAGES`) where it records files in
+    the folder, else the first of those that do."""
+    from railsusp.report_html import mark_report_stale
+
+    command = _command_words()
+    own = _COMMAND_STAGES.get(command.removeprefix("railsusp "))
+    for folder in folders:
+        for run in _pipeline_runs(folder):
+            stages = _written_stages(run, folder)
+            if stages:
+                mark_report_stale(run, own if own in stages else stages[0], by=command)
+
+
 def _remove_if_bare(folder: Path, made: list[Path]) -> None:
     """Remove the folders a refused or failed command made for its lock alone (``made``,
     deepest first), where nothing but the lock file is in ``folder``: a refusal leaves no
@@ -300,3 +384,8 @@ def hold_folders(
             except OSError as exc:  # read-only: nothing writes there either
                 if exc.errno not in (errno.EACCES, errno.EPERM, errno.EROFS):
                     raise
+    # every lock held (a refused command marks nothing): the reports of the run directories
+    # whose stages' outputs the command is about to write no longer stand as their answer
+    _mark_run_reports(
+        [item["folder"] for item in plan.values() if item["mode"] in ("create", "write")]
+    )

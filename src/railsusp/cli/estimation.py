@@ -318,12 +318,15 @@ def estimate(
             raise RailsuspInputError("give --surrogate FOLDER or --simulator (one of them)")
         check_output_folder(out)  # an existing file or an unwritable folder, before any work
         check_not_recordings(out)
-        # the output for the command's duration, and the campaign whose surrogates are read
+        # the output for the command's duration, and what it reads shared: the recordings'
+        # folder (a synth-field or sections --write rewrote it under a running estimate,
+        # and a read of it in the swap got recordings of two truths under one index.json:
+        # the concurrency audit) and the campaign whose surrogates are read
         hold_folders(
             creates=[("--out", out)],
-            reads=[("--surrogate", c) for c in [_campaign_of(surrogate)] if c is not None],
-            near=[("--measured", measured)]
-            + ([("--surrogate", surrogate)] if surrogate is not None else []),
+            reads=[("--measured", measured)]
+            + [("--surrogate", c) for c in [_campaign_of(surrogate)] if c is not None],
+            near=[("--surrogate", surrogate)] if surrogate is not None else [],
         )
         cfg = NSGAConfig(
             pop_size=pop_size,

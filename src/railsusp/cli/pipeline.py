@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 import typer
 from rich.table import Table
+from rich.text import Text
 
 from railsusp.cli.common import (
     app,
@@ -23,7 +24,10 @@ from railsusp.errors import RailsuspInputError
 from railsusp.input_checks import check_output_folder
 
 
-def _run(config, out: Path, start_from: str | None, *, checked: bool = False) -> dict:
+def _run(config, out: Path, start_from: str | None, *, checked: bool = False) -> list:
+    """Run the pipeline with progress bars; returns its summary (:func:`_summary_parts`), read
+    while the run directory's lock is still held: read after it, a second run finishing
+    in between made one command's printout mix two runs' tables (the concurrency audit)."""
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -54,21 +58,27 @@ def _run(config, out: Path, start_from: str | None, *, checked: bool = False) ->
         def on_runs(done: int, total: int) -> None:
             bar.update(runs, completed=done, total=total, visible=True)
 
-        state = run_pipeline(
+        parts: list = []
+        run_pipeline(
             config,
             out,
             start_from=start_from,
             progress=on_stage,
             run_progress=on_runs,
             checked=checked,
+            finished=lambda _state: parts.extend(_summary_parts(out)),
         )
         bar.update(stages, completed=len(STAGES), description="stages: done")
-    return state
+    return parts
 
 
-def _summary(out: Path) -> None:
+def _summary_parts(out: Path) -> list:
+    """The tables and lines ``railsusp run`` prints of the run directory ``out``, read from
+    it (under its lock: :func:`_run`), printed by :func:`_summary`."""
     import railsusp.summary as summary
     from railsusp.report_doc import fraction_errors_to_pct, header
+
+    parts: list = []
 
     def show(csv: Path, title: str, cols: list[str] | None = None) -> None:
         """A run-directory table as the report shows it: readable headers, errors in %,
@@ -79,17 +89,16 @@ def _summary(out: Path) -> None:
         df = fraction_errors_to_pct(pd.read_csv(csv))
         df = df[cols] if cols else df
         df = df.apply(lambda col: col.map(_yes_no) if _has_bools(col) else col)
-        console.print(frame_table(df.rename(columns=header), title, fmt=summary.sig3))
+        parts.append(frame_table(df.rename(columns=header), title, fmt=summary.sig3))
 
     if (out / "estimate" / "validation" / "validation.csv").exists():  # the answer first
         est = summary.estimate_table(out).reset_index()
         cols = ["parameter", "unit", "nominal", "estimate", "low", "high", "change_pct"]
         answer = est[[*cols, "verdict", "note"]].rename(columns=header)
-        console.print(  # the report's number format: 29954 kN/m as 29954, not 3e+04
+        parts.append(  # the report's number format: 29954 kN/m as 29954, not 3e+04
             frame_table(answer, "Answer (report.html, docs/api.md)", fmt=summary.sig3)
         )
-        for line in summary.agreement_lines(summary.force_agreement(out)):
-            console.print(line, markup=False, highlight=False)
+        parts += [Text(line) for line in summary.agreement_lines(summary.force_agreement(out))]
     show(out / "estimate" / "estimate.csv", "Estimate (study Table 5 layout)")
     show(
         out / "estimate" / "validation" / "validation.csv",
@@ -108,8 +117,16 @@ def _summary(out: Path) -> None:
     for s in STAGES:
         v = state["stages"].get(s, {})
         timings.add_row(s, f"{v.get('seconds', 0.0):.1f}", v.get("state", ""))
-    console.print(timings)
-    console.print(f"report: {out / 'report.html'} (Markdown twin: {out / 'report.md'})")
+    parts.append(timings)
+    parts.append(Text(f"report: {out / 'report.html'} (Markdown twin: {out / 'report.md'})"))
+    return parts
+
+
+def _summary(out: Path, parts: list | None = None) -> None:
+    """The run directory's summary on stdout (text as it is: no markup read): ``parts``,
+    read by :func:`_summary_parts` under the run's lock, or read now where None."""
+    for part in _summary_parts(out) if parts is None else parts:
+        console.print(part)
 
 
 def _has_bools(col: pd.Series) -> bool:
@@ -143,10 +160,10 @@ def run(
     try:
         cfg = load_config(config)
         target = check_output_folder(out or Path("runs") / config.stem)
-        _run(cfg, target, start_from, checked=True)
+        parts = _run(cfg, target, start_from, checked=True)
     except RailsuspInputError as exc:
         fail(str(exc), exit_code(exc))
-    _summary(target)
+    _summary(target, parts)
 
 
 @app.command()
@@ -159,7 +176,7 @@ def demo(
 
     console.rule("railsusp demo: C80 wagon on K6 bogies, hidden degraded parameters")
     try:
-        _run(demo_config(), check_output_folder(out), None)
+        parts = _run(demo_config(), check_output_folder(out), None)
     except RailsuspInputError as exc:
         fail(str(exc), exit_code(exc))
-    _summary(out)
+    _summary(out, parts)

@@ -349,8 +349,11 @@ def estimate_command(
         if not 0 <= seed <= MAX_SEED:  # numpy's generators take no negative seed
             raise RailsuspInputError(f"--seed {seed}: accepted 0 to {MAX_SEED}")
         _long_record(long_record)
-        # the estimator is read as a whole: no posterior train rewrites it meanwhile
-        hold_folders(reads=[("--estimator", estimator)], near=[("--measured", measured)])
+        # the estimator and the recordings are read as wholes: no posterior train rewrites
+        # the one, no synth-field, sections --write or align-track --write the other
+        # meanwhile (a read in a field's swap mixed two truths' recordings: the concurrency
+        # audit)
+        hold_folders(reads=[("--estimator", estimator), ("--measured", measured)])
         listed = read_index(measured)  # the folder and its index before the estimator
         joined = (estimator / "posterior" / "joint.json").exists()
         if joined and long_record != "synthetic-likelihood":

@@ -3,6 +3,7 @@ parameters beside the recordings (Tables 8/9 of the study) and, with a truth, th
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Annotated
 
@@ -55,15 +56,19 @@ def validate(
     except (RailsuspInputError, ValueError, FileNotFoundError, KeyError) as exc:
         fail(f"{estimate_dir}: {exc}")
     try:
-        # the estimate (or --out) for the command's duration, and the campaign whose
-        # sensitivity is read; then that analysis checked to be of that campaign
+        # the estimate (or --out) for the command's duration, and what it reads shared: the
+        # recordings' folder (a synth-field rewrote it under a running validation: the
+        # concurrency audit) and the campaign whose sensitivity is read; then that analysis
+        # checked to be of that campaign
         hold_folders(
             creates=[("--out", out)] if out is not None else [],
             writes=[("", estimate_dir)] if out is None else [],
             reads=([("", estimate_dir)] if out is not None else [])
+            + ([("--measured", measured)] if measured is not None else [])
             + [("--sensitivity", c) for c in [_campaign_of(sensitivity)] if c is not None],
-            near=[("--measured", measured)] if measured is not None else [],
         )
+        if measured is None:  # the estimate's own, read under its lock: the one validated
+            hold_folders(reads=[("", f) for f in [_measured_of(estimate_dir)] if f is not None])
         if sensitivity is not None:
             check_sensitivity_output(sensitivity)
     except RailsuspInputError as exc:
@@ -130,6 +135,20 @@ def validate(
             )
         console.print(rec)
     console.print(f"wrote {out or estimate_dir / 'validation'}")
+
+
+def _measured_of(estimate_dir: Path) -> Path | None:
+    """The recordings' folder ``estimate_dir/estimate.json`` records (``measured``), which
+    ``validate`` reads without ``--measured``; None where the file or the field does not
+    read (the validation itself then says why, in one line)."""
+    try:
+        doc = json.loads((estimate_dir / "estimate.json").read_text("utf-8-sig"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return None
+    folder = doc.get("measured") if isinstance(doc, dict) else None
+    if not isinstance(folder, str) or not folder or "\0" in folder:  # no path the OS takes
+        return None
+    return Path(folder)
 
 
 def _campaign_of(sensitivity: Path | None) -> Path | None:

@@ -53,18 +53,31 @@ def check_parameters(
 
 def check_force_laws(folder: Path, metas: dict[str, dict]) -> None:
     """Refuse, in one line, surrogates trained on a campaign of other force laws than this
-    railsusp simulates (their bundle's ``model_revision``, recorded since stop 60; bundles
-    without it, and the shipped sets, whose manifest is checked instead, pass): the
-    simulator corrections and the refinement would mix two models."""
+    railsusp simulates (their bundle's ``model_revision``, recorded since stop 60): the
+    simulator corrections and the refinement would mix two models. A bundle that records
+    no revision was trained on a campaign from before revisions were recorded (the
+    trainers copy the campaign's: :func:`railsusp.surrogate.fit.train_surrogate`,
+    :func:`railsusp.surrogate.statistics.train_statistics_surrogate`; the shipped sets'
+    bundles record theirs), so on older force laws than any revision: refused too (it was
+    opened silently, the upgrade audit's H2, where the posterior refused the same case)."""
     from railsusp.vehicle import MODEL_REVISION
 
+    retrain = (
+        "run the campaign again and train the surrogates on it (`railsusp campaign` and "
+        "`railsusp train`; in a run directory `railsusp run` does both)"
+    )
     for name, meta in metas.items():
         revision = (meta or {}).get("model_revision")
-        if revision is not None and revision != MODEL_REVISION:
+        if revision is None:
+            raise RailsuspInputError(
+                f"{folder / name}: records no force-law revision (trained on a campaign "
+                "from before revisions were recorded, so of older force laws than this "
+                f"railsusp's revision {MODEL_REVISION}): {retrain}"
+            )
+        if revision != MODEL_REVISION:
             raise RailsuspInputError(
                 f"{folder / name}: trained on a campaign of force-law revision {revision}, "
-                f"this railsusp simulates revision {MODEL_REVISION}: run the campaign again "
-                "and train the surrogates on it"
+                f"this railsusp simulates revision {MODEL_REVISION}: {retrain}"
             )
 
 

@@ -36,6 +36,7 @@ from railsusp.estimate.statistics import ALIGNED, parse_statistics
 from railsusp.estimate.trust_region import StepCheck
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import atomic_write_bytes, write_json, write_parquet
+from railsusp.vehicle import MODEL_REVISION
 
 
 @dataclass
@@ -98,6 +99,12 @@ class CalibrationResult:
     #: "<condition>:<Y|Q>_<wheel>",
     #: where the time-aligned comparison profiled them out (``config.channel_gains``)
     channel_gains: dict[str, float] = field(default_factory=dict)
+    #: the force laws' revision (:data:`railsusp.vehicle.MODEL_REVISION`) the estimate was
+    #: made with, recorded in ``estimate.json`` for validate, which re-simulates it with its
+    #: own force laws and refuses an estimate of others. This railsusp's: every force model
+    #: an estimate runs on is refused when it records another (the surrogates' bundles, a
+    #: network set's manifest), and the simulator corrections and refinement are its own
+    model_revision: str = MODEL_REVISION
     #: intervals computed, by level and refinement (a refinement attached later recomputes)
     _intervals: dict = field(default_factory=dict, repr=False, compare=False)
 
@@ -397,6 +404,7 @@ class CalibrationResult:
                 "refinement": self.refinement.to_dict() if self.refinement else None,
                 "cramer_rao_pct_range": self.cramer_rao,
                 "intervals": self.intervals().to_dict(),
+                "model_revision": self.model_revision,
                 **(extra or {}),
             },
         )

@@ -199,7 +199,7 @@ def set_hash(ns: NetworkSet) -> str:
 
 def wagon_hash(wagon: Any) -> str:
     """The content hash of a wagon's data as the pipeline's stage hashes take it
-    (:func:`railsusp.pipeline_stages.model_identity`)."""
+    (:func:`railsusp.pipeline_inputs.model_identity`)."""
     return content_hash(wagon.model_dump(mode="json"))
 
 
@@ -379,12 +379,18 @@ def write_network_set(
         if wagon_hash(s.wagon) != wagon_hash(first.wagon):
             raise RailsuspInputError(f"{bundles[c]}: trained on another wagon than the set's")
         trained = s.meta.get("model_revision")
-        if trained is not None and trained != MODEL_REVISION:
-            # the manifest would claim today's force laws for a network of others
+        if trained != MODEL_REVISION:
+            # the manifest would claim today's force laws for a network of others (one that
+            # records none is older than any railsusp that records them: estimate refuses it)
+            told = (
+                "records no force-law revision"
+                if trained is None
+                else (f"trained on force-law revision {trained}")
+            )
             raise RailsuspInputError(
-                f"{bundles[c]}: trained on force-law revision {trained}, this railsusp "
-                f"simulates {MODEL_REVISION}; train it again, or score it on today's "
-                "simulator and carry the set over (railsusp.surrogate.restamp)"
+                f"{bundles[c]}: {told}, this railsusp simulates {MODEL_REVISION}; train it "
+                "again, or score it on today's simulator and carry the set over "
+                "(railsusp.surrogate.restamp)"
             )
     dest = Path(dest)
     with atomic_folder(dest, keep=False) as tmp:

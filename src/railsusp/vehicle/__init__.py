@@ -7,7 +7,7 @@ a folder keyed by their sources (:mod:`railsusp.vehicle.kernel_cache`).
 #: Revision of the force laws and equations of motion: changed with every change of the model
 #: that moves forces without a change of the wagon data (a new element, a corrected sign), so
 #: that run directories made with another model are simulated again
-#: (:func:`railsusp.pipeline_stages.model_identity`). The stored force reference
+#: (:func:`railsusp.pipeline_inputs.model_identity`). The stored force reference
 #: (tests/data/force_reference.npz) pins the forces of this revision.
 #: 2026-11-24.2: the friction wedges resist warp (front and rear wedge); 2026-11-30.1: the
 #: RK4 step within its stability bound below about 58 km/h and the irregularities' fade-in

@@ -1,0 +1,223 @@
+"""What makes a pipeline stage run again (stop 66, after the rerun audit of stop 65): the
+settings it reads on the route it takes, and the stages whose outputs it reads
+(:func:`railsusp.pipeline_inputs.stage_inputs`), not every earlier stage; a run directory
+hashed before stays up to date once, re-hashed."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from importlib import resources
+
+import pytest
+
+from railsusp.pipeline import STAGES, PipelineConfig, load_config, run_pipeline, stage_hashes
+from railsusp.pipeline_inputs import (
+    METHOD_REVISIONS,
+    stage_dependents,
+    stage_inputs,
+    stage_section,
+)
+from railsusp.vehicle import MODEL_REVISION
+from test_pipeline import TINY, _up_to_date_copy, tiny  # noqa: F401  (the module's run)
+
+
+def _config(**sections) -> PipelineConfig:
+    return PipelineConfig.model_validate({"field": {"truth": {"X13": 16.1}}, **sections})
+
+
+def test_each_stage_reads_the_stages_it_names():
+    """The dependency table, on the two surrogate routes: a network set reads no campaign,
+    so neither does an estimate on it; the report reads everything."""
+    trained, pretrained = _config(), _config(surrogate={"pretrained": "c80_k6"})
+    assert stage_inputs(trained, "surrogate") == ("campaign", "sensitivity")
+    assert stage_inputs(pretrained, "surrogate") == ()
+    assert stage_inputs(trained, "estimate") == ("sensitivity", "surrogate", "field")
+    assert stage_inputs(pretrained, "estimate") == ("surrogate", "field")
+    assert stage_inputs(trained, "report") == STAGES[:-1]
+    assert stage_dependents(trained, "campaign") == STAGES[1:3] + STAGES[4:]
+    assert stage_dependents(pretrained, "campaign") == ("sensitivity", "validate", "report")
+    assert stage_dependents(trained, "field") == ("estimate", "validate", "report")
+    for cfg in (trained, pretrained):  # every stage reads only earlier ones
+        for i, stage in enumerate(STAGES):
+            assert set(stage_inputs(cfg, stage)) <= set(STAGES[:i])
+
+
+def test_a_change_reruns_the_stages_that_read_it_and_only_them():
+    """A changed field (another noise) changes the field's hash and those of the stages
+    reading it, not the campaign's, sensitivity's or surrogate's (before: the chain held
+    every earlier stage, so the field's change reached them all the same, but a campaign's
+    change reached the field)."""
+    base = stage_hashes(_config())
+    noisier = stage_hashes(_config(field={"truth": {"X13": 16.1}, "noise": 0.05}))
+    changed = {s for s in STAGES if base[s] != noisier[s]}
+    assert changed == {"field", "estimate", "validate", "report"}
+    seeded = stage_hashes(_config(campaign={"seed": 3}))
+    assert {s for s in STAGES if base[s] != seeded[s]} == set(STAGES) - {"field"}
+
+
+def test_settings_a_route_never_reads_run_nothing_again():
+    """``[field] rate_hz`` (read by a long run's cut alone) with a synthetic truth, and the
+    refinement's settings without the refinement, ran the field or estimate stage and every
+    stage after it again (the estimate came out byte-identical). They count where read."""
+    base = _config()
+    rate = _config(field={"truth": {"X13": 16.1}, "rate_hz": 1000.0})
+    assert stage_section(rate, "field") == stage_section(base, "field")
+    assert stage_section(rate, "field", legacy=True) != stage_section(base, "field", legacy=True)
+    more = _config(estimate={"refine_evaluations": 80, "refine_starts": 3})
+    assert stage_section(more, "estimate") == stage_section(base, "estimate")
+    refined = _config(estimate={"refine": True})
+    more_refined = _config(estimate={"refine": True, "refine_evaluations": 80})
+    assert stage_section(refined, "estimate") != stage_section(more_refined, "estimate")
+    assert stage_section(base, "field")["route"] == "truth"
+    seeded = _config(field={"truth": {"X13": 16.1}, "seed": 8})
+    assert stage_section(seeded, "field") != stage_section(base, "field")
+
+
+def test_the_wagon_counts_by_its_data_not_by_its_name(tmp_path):
+    """The packaged wagon and a path to a copy of its file simulated the campaign again;
+    now the simulated stages hash the wagon's data. The estimate, which records the wagon
+    by name for a later validation, runs again; an edited copy simulates again."""
+    text = resources.files("railsusp").joinpath("data/c80_k6.toml").read_text("utf-8")
+    copy = tmp_path / "wagon.toml"
+    copy.write_text(text)
+    packaged, mine = _config(), _config(wagon=str(copy))
+    same = ("campaign", "sensitivity", "surrogate", "field")
+    for stage in same:
+        assert stage_section(mine, stage) == stage_section(packaged, stage), stage
+        assert stage_section(mine, stage, legacy=True) != stage_section(
+            packaged, stage, legacy=True
+        ) or stage in ("sensitivity", "surrogate")
+    assert stage_section(mine, "estimate")["wagon"] == str(copy.resolve())
+    assert stage_section(mine, "estimate") != stage_section(packaged, "estimate")
+    copy.write_text(text.replace("gib_stiffness = 50.0e6", "gib_stiffness = 40.0e6"))
+    assert stage_section(mine, "campaign") != stage_section(packaged, "campaign")
+
+
+def test_a_measured_folder_counts_by_its_files_contents(tmp_path):
+    """A measured folder counted its files by size and modification time: a ``touch``
+    copied it and estimated again, and recordings replaced by others of the same size
+    with their times kept (``cp -p``) were not seen. Now by their contents."""
+    folder = tmp_path / "measured"
+    folder.mkdir()
+    rec = folder / "straight.csv"
+    rec.write_text("t [s],Y [kN]\n0.0,1.0\n")
+    cfg = _config(field={"measured": str(folder)})
+    first = stage_section(cfg, "field")
+    legacy = stage_section(cfg, "field", legacy=True)
+    st = rec.stat()
+    os.utime(rec, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))  # touched
+    assert stage_section(cfg, "field") == first
+    assert stage_section(cfg, "field", legacy=True) != legacy
+    stamped = rec.stat().st_mtime_ns
+    rec.write_text("t [s],Y [kN]\n0.0,2.0\n")  # other contents, the same size and time
+    os.utime(rec, ns=(st.st_atime_ns, stamped))
+    replaced = stage_section(cfg, "field")
+    assert replaced != first
+    (folder / ".hidden").write_text("x")  # a hidden file is not the user's recording
+    assert stage_section(cfg, "field") == replaced
+    (folder / "notes.txt").write_text("x")  # the user's own file is copied: it counts
+    assert stage_section(cfg, "field") != replaced
+
+
+def test_a_run_directory_hashed_before_keeps_its_simulations_and_estimates_again(
+    tiny,  # noqa: F811
+    tmp_path,
+    caplog,
+):
+    """A run directory of before stop 66 holds each stage's hash with every earlier stage's
+    (``stage_hashes(..., legacy=True)``): its campaign, sensitivity, surrogates and field are
+    taken as up to date for the same configuration and re-hashed, so that an upgrade does
+    not simulate a campaign again; the stages railsusp computes otherwise since
+    (``METHOD_REVISIONS``: a run of before 9f0bf17 kept estimates on record statistics
+    counted otherwise, the upgrade audit) run again, saying why. A legacy hash of another
+    configuration is not taken."""
+    cfg_path, out, _, _ = tiny
+    cfg = load_config(cfg_path)
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    run_pipeline(cfg, run)  # up to date for this configuration (other tests change it)
+    state_path = run / "pipeline.json"
+    state = json.loads(state_path.read_text())
+    old = stage_hashes(cfg, legacy=True)
+    new = stage_hashes(cfg)
+    assert all(old[s] != new[s] for s in STAGES)
+    for s in STAGES:
+        state["stages"][s]["hash"] = old[s]
+        state["stages"][s].pop("method_revision", None)
+    state_path.write_text(json.dumps(state))
+    seen: list = []
+    with caplog.at_level("INFO", logger="railsusp.pipeline"):
+        run_pipeline(cfg, run, progress=lambda s, m: seen.append((s, m)))
+    kept = [s for s in STAGES if s not in METHOD_REVISIONS]
+    assert seen == [(s, "up to date") for s in kept] + [(s, "running") for s in METHOD_REVISIONS]
+    assert "stage estimate: runs again: its settings changed, or railsusp computes it " in (
+        caplog.text
+    )
+    assert "stage validate: runs again: it reads the outputs of estimate" in caplog.text
+    stages = json.loads(state_path.read_text())["stages"]
+    assert {s: stages[s]["hash"] for s in STAGES} == new
+    assert stages["estimate"]["method_revision"] == METHOD_REVISIONS["estimate"]
+    # an old hash of another configuration is not taken
+    for s in STAGES:
+        stages[s]["hash"] = old[s]
+    state_path.write_text(json.dumps({**state, "stages": stages}))
+    changed = tmp_path / "changed.toml"
+    changed.write_text(TINY.replace("truth = { X13 = 16.1 }", "truth = { X13 = 16.2 }"))
+    seen = []
+    run_pipeline(load_config(changed), run, progress=lambda s, m: seen.append((s, m)))
+    assert [s for s, m in seen if m == "running"] == ["field", "estimate", "validate", "report"]
+
+
+def test_a_changed_force_law_revision_is_named_as_the_reason(tiny, tmp_path, caplog):  # noqa: F811
+    """An upgrade of the force laws simulated the campaign again (hours, for a real one)
+    with no word of why: the first stage that runs again names both revisions."""
+    cfg, _, run = _up_to_date_copy(tiny, tmp_path)
+    state_path = run / "pipeline.json"
+    state = json.loads(state_path.read_text())
+    assert state["model_revision"] == MODEL_REVISION
+    state["model_revision"] = "2000-01-01.1"
+    state["stages"]["campaign"]["hash"] = "of the force laws before"
+    state_path.write_text(json.dumps(state))
+    with caplog.at_level("INFO", logger="railsusp.pipeline"):
+        run_pipeline(cfg, run)
+    assert (
+        f"stage campaign: runs again: the force laws' revision changed (2000-01-01.1 -> "
+        f"{MODEL_REVISION})" in caplog.text
+    )
+    assert "stage sensitivity: runs again: it reads the outputs of campaign" in caplog.text
+
+
+def test_a_format_0_record_kept_up_to_date_gets_its_hashes(tiny, tmp_path):  # noqa: F811
+    """A run recorded before the files' SHA-256 were (format 0) kept up to date was
+    relabelled format 1 without them, so an edit keeping a file's size went unseen from
+    then on (the upgrade audit). Its stages now get their files' hashes recorded."""
+    cfg, _, run = _up_to_date_copy(tiny, tmp_path)
+    state_path = run / "pipeline.json"
+    state = json.loads(state_path.read_text())
+    recorded = {s: state["stages"][s]["sha256"] for s in STAGES}
+    for s in STAGES:
+        del state["stages"][s]["sha256"], state["stages"][s]["mtime_ns"]
+    del state["format"]
+    state_path.write_text(json.dumps(state))
+    seen: list = []
+    run_pipeline(cfg, run, progress=lambda s, m: seen.append((s, m)))
+    assert {m for _, m in seen} == {"up to date"}
+    again = json.loads(state_path.read_text())
+    assert again["format"] == 1
+    assert {s: again["stages"][s]["sha256"] for s in STAGES} == recorded
+
+
+@pytest.mark.parametrize("start", ["campaign", "field"])
+def test_a_restart_from_a_stage_runs_every_later_stage(tiny, tmp_path, start):  # noqa: F811
+    """``--from`` is the user's word: it runs that stage and every one after it, read or
+    not (the dependency table decides only what a changed input runs again)."""
+    cfg_path, out, _, _ = tiny
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    cfg = load_config(cfg_path)
+    run_pipeline(cfg, run)
+    seen: list = []
+    run_pipeline(cfg, run, start_from=start, progress=lambda s, m: seen.append((s, m)))
+    assert [s for s, m in seen if m == "running"] == list(STAGES[STAGES.index(start) :])
