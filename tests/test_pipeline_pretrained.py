@@ -330,3 +330,14 @@ def test_a_changed_campaign_leaves_the_estimate_on_a_network_set_standing(pretra
     )
     assert stages["validate"]["state"] == stages["report"]["state"] == "stale"
     assert json.loads((run / "campaign/campaign.json").read_text())["config"]["samples"] == 9
+
+
+@pytest.mark.parametrize("stage", ["surrogate", "estimate", "validate"])
+def test_with_a_network_set_each_stage_runs_on_the_stages_it_names(pretrained_run, tmp_path, stage):
+    """The dependency table on the network set's route, checked against what each stage
+    opens (test_pipeline_reads.runs_on_its_inputs_alone): the surrogate reads no campaign,
+    the estimate neither campaign nor sensitivity."""
+    from test_pipeline_reads import runs_on_its_inputs_alone
+
+    out, _, _ = pretrained_run
+    assert runs_on_its_inputs_alone(load_config(config(tmp_path)), out, tmp_path, stage)

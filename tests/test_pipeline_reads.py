@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import sys
 from importlib import resources
 
 import pytest
@@ -28,13 +29,13 @@ def _config(**sections) -> PipelineConfig:
 
 
 def test_each_stage_reads_the_stages_it_names():
-    """The dependency table, on the two surrogate routes: a network set reads no campaign,
-    so neither does an estimate on it; the report reads everything."""
+    """The dependency table's shape on the two surrogate routes (what each stage opens is
+    checked by the tests below): a network set reads no campaign, so neither does an
+    estimate on it; the report reads everything; stale marking follows the table."""
     trained, pretrained = _config(), _config(surrogate={"pretrained": "c80_k6"})
-    assert stage_inputs(trained, "surrogate") == ("campaign", "sensitivity")
     assert stage_inputs(pretrained, "surrogate") == ()
-    assert stage_inputs(trained, "estimate") == ("sensitivity", "surrogate", "field")
     assert stage_inputs(pretrained, "estimate") == ("surrogate", "field")
+    assert set(stage_inputs(trained, "estimate")) > set(stage_inputs(pretrained, "estimate"))
     assert stage_inputs(trained, "report") == STAGES[:-1]
     assert stage_dependents(trained, "campaign") == STAGES[1:3] + STAGES[4:]
     assert stage_dependents(pretrained, "campaign") == ("sensitivity", "validate", "report")
@@ -176,8 +177,9 @@ def test_a_changed_force_law_revision_is_named_as_the_reason(tiny, tmp_path, cap
     cfg, _, run = _up_to_date_copy(tiny, tmp_path)
     state_path = run / "pipeline.json"
     state = json.loads(state_path.read_text())
-    assert state["model_revision"] == MODEL_REVISION
-    state["model_revision"] = "2000-01-01.1"
+    assert state["stages"]["campaign"]["model_revision"] == MODEL_REVISION
+    assert "model_revision" not in state["stages"]["sensitivity"]  # it simulates nothing
+    state["stages"]["campaign"]["model_revision"] = "2000-01-01.1"
     state["stages"]["campaign"]["hash"] = "of the force laws before"
     state_path.write_text(json.dumps(state))
     with caplog.at_level("INFO", logger="railsusp.pipeline"):
@@ -221,3 +223,148 @@ def test_a_restart_from_a_stage_runs_every_later_stage(tiny, tmp_path, start):  
     seen: list = []
     run_pipeline(cfg, run, start_from=start, progress=lambda s, m: seen.append((s, m)))
     assert [s for s, m in seen if m == "running"] == list(STAGES[STAGES.index(start) :])
+
+
+def _measured_run(tiny, tmp_path):  # noqa: F811
+    """A copy of the tiny run brought up to date on a measured folder (a copy of its field)."""
+    _, out, _, _ = tiny
+    measured = tmp_path / "measured"
+    shutil.copytree(out / "field", measured)
+    head, _ = TINY.split("[field]")
+    estimate = TINY[TINY.index("[estimate]") :]
+    path = tmp_path / "measured.toml"
+    path.write_text(f"{head}[field]\nmeasured = {str(measured)!r}\n{estimate}")
+    cfg = load_config(path)
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    run_pipeline(cfg, run)
+    return cfg, run, measured
+
+
+def _as_hashed_before(cfg, run) -> None:
+    """pipeline.json's hashes made as before stop 66 (``legacy``)."""
+    path = run / "pipeline.json"
+    state = json.loads(path.read_text())
+    for s, h in stage_hashes(cfg, legacy=True).items():
+        state["stages"][s]["hash"] = h
+    path.write_text(json.dumps(state))
+
+
+def test_a_measured_copy_of_before_is_taken_only_if_its_contents_are_the_folders(
+    tiny,  # noqa: F811
+    tmp_path,
+):
+    """The review of stop 66: a field hash of before took a measured folder's files by size
+    and modification time, so recordings replaced by others of the same size with their
+    times kept were taken as up to date by it, and then locked in by the new hash (of the new
+    contents) while RUN/field held the old copy. It is taken only where each file's SHA-256
+    is its copy's as recorded."""
+    cfg, run, measured = _measured_run(tiny, tmp_path)
+    _as_hashed_before(cfg, run)
+    seen: list = []
+    run_pipeline(cfg, run, progress=lambda s, m: seen.append((s, m)))
+    assert ("field", "up to date") in seen  # the same contents: kept
+    _as_hashed_before(cfg, run)
+    rec = measured / "truth.json"
+    st = rec.stat()
+    text = rec.read_text()
+    swapped = text.replace("1", "2", 1)
+    assert len(swapped) == len(text) and swapped != text
+    rec.write_text(swapped)  # other contents, the same size, the time kept (cp -p)
+    os.utime(rec, ns=(st.st_atime_ns, st.st_mtime_ns))
+    seen = []
+    run_pipeline(cfg, run, progress=lambda s, m: seen.append((s, m)))
+    assert ("field", "running") in seen
+    assert (run / "field/truth.json").read_text() == swapped
+
+
+def test_a_failed_rerun_leaves_no_stage_of_other_inputs_standing(tiny, tmp_path, monkeypatch):  # noqa: F811
+    """The review of stop 66: a rerun marked stale only the stages reading the first stage
+    that ran, so after that stage failed a later stage whose own settings had changed stayed
+    `done` and open_run served it as this configuration's. Now it is stale too (a stage
+    whose inputs did not change stands: the network-set test of test_pipeline_pretrained)."""
+    import railsusp.pipeline as pipeline
+
+    cfg_path, out, _, _ = tiny
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    run_pipeline(load_config(cfg_path), run)
+    changed = tmp_path / "changed.toml"  # the campaign and the field changed
+    changed.write_text(
+        TINY.replace("samples = 10\n", "samples = 11\n").replace("X13 = 16.1", "X13 = 16.2")
+    )
+    cfg = load_config(changed)
+    assert "field" not in stage_dependents(cfg, "campaign")
+
+    def runners(config, out, run_progress):
+        def fail() -> dict:
+            raise RuntimeError("out of memory")
+
+        return dict.fromkeys(STAGES, fail)
+
+    monkeypatch.setattr(pipeline, "stage_runners", runners)
+    with pytest.raises(pipeline.StageError, match="out of memory"):
+        run_pipeline(cfg, run)
+    stages = json.loads((run / "pipeline.json").read_text())["stages"]
+    assert stages["campaign"]["state"] == "failed"
+    # the field reads no campaign, but its truth changed: not this configuration's either
+    assert {stages[s]["state"] for s in STAGES[1:]} == {"stale"}
+
+
+#: the files opened while a hook below is listening (sys.addaudithook cannot be removed)
+_OPENED: list[str] | None = None
+
+
+def _listen(event: str, args: tuple) -> None:
+    if _OPENED is not None and event == "open" and isinstance(args[0], str | os.PathLike):
+        _OPENED.append(os.path.realpath(args[0]))
+
+
+def runs_on_its_inputs_alone(cfg, out, tmp_path, stage):
+    """Run ``stage`` twice on copies of the finished run directory ``out``, listening to the
+    files it opens: once with every file there, once with those of the stages it does not
+    read (:func:`stage_inputs`) removed. A stage that opens an undeclared stage's outputs
+    (in the copy, or in ``out``: a result records the field folder by its absolute path)
+    fails the first, one that reads them otherwise (Parquet through Arrow) the second; a
+    stage that looks for one and falls back without it fails the first (it would be left
+    up to date on stale ones)."""
+    global _OPENED
+    from railsusp.pipeline_stages import stage_runners
+    from railsusp.pipeline_state import stage_files
+
+    keep = {stage, *stage_inputs(cfg, stage)}
+    if _listen not in _HOOKED:
+        sys.addaudithook(_listen)
+        _HOOKED.append(_listen)
+    result = None
+    for removed in (False, True):
+        run = tmp_path / f"only-{stage}-{removed}"
+        shutil.copytree(out, run)
+        forbidden = set()
+        for other in STAGES:
+            if other not in keep:
+                for f in stage_files(cfg, run, other):
+                    forbidden.add(os.path.realpath(f))
+                    if removed:
+                        f.unlink(missing_ok=True)
+                forbidden |= {os.path.realpath(f) for f in stage_files(cfg, out, other)}
+        _OPENED = []
+        try:
+            result = stage_runners(cfg, run)[stage]()
+            read = sorted(forbidden.intersection(_OPENED))
+        finally:
+            _OPENED = None
+        assert not read, f"{stage} read outputs of stages it does not name: {read}"
+    return result
+
+
+_HOOKED: list = []
+
+
+@pytest.mark.parametrize("stage", ["sensitivity", "surrogate", "estimate", "validate"])
+def test_a_stage_runs_on_the_outputs_of_the_stages_it_names(tiny, tmp_path, stage):  # noqa: F811
+    """The dependency table checked against what the stages read (trained surrogates):
+    each runs with the outputs of its inputs alone."""
+    cfg_path, out, _, _ = tiny
+    cfg = load_config(cfg_path)
+    assert runs_on_its_inputs_alone(cfg, out, tmp_path, stage) is not None

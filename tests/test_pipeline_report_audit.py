@@ -53,11 +53,12 @@ def test_a_failed_or_interrupted_rerun_marks_the_old_report_stale(tmp_path, monk
         pipeline._run_stages(demo_config(), out, state, None, None, None)
     stages = json.loads((out / "pipeline.json").read_text())["stages"]
     assert stages["campaign"]["state"] in ("failed", "running")
-    # the stages reading the campaign, directly or not, are stale; the others stand
+    # the stages reading the campaign are stale, and so are those whose own inputs changed
+    # (all here: the hashes are another configuration's), though they read no campaign: the
+    # review of stop 66 found open_run serving those as current after a failed rerun
     readers = stage_dependents(demo_config(), "campaign")
-    assert {"sensitivity", "validate", "report"} <= set(readers)
-    assert {stages[s]["state"] for s in readers} == {"stale"}
-    assert {stages[s]["state"] for s in STAGES[1:] if s not in readers} == {"done"}
+    assert {"sensitivity", "validate", "report"} <= set(readers) < set(STAGES[1:])
+    assert {stages[s]["state"] for s in STAGES[1:]} == {"stale"}
     html = (out / "report.html").read_text()
     md = (out / "report.md").read_text()
     for text in (unescape(html), md):

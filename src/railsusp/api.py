@@ -29,7 +29,8 @@ __all__ = ["OutdatedModelWarning", "RunResult", "Tolerances", "open_run", "run"]
 #: the files of a run directory that record the force-law revision
 #: (:data:`railsusp.vehicle.MODEL_REVISION`) their stage simulated or was made with, in the
 #: order :attr:`RunResult.model_revision` reads them: the sensitivity campaign, the
-#: surrogates' own campaign, a shipped network set's manifest, the estimate
+#: surrogates' own campaign, a shipped network set's manifest, the estimate; each read only
+#: where a stage of the run records it among its files (:meth:`RunResult._own_records`)
 REVISION_RECORDS = (
     "campaign/campaign.json",
     "surrogate-campaign/campaign.json",
@@ -236,11 +237,12 @@ class RunResult:
         return next((r for r in records.values() if r is not None), None)
 
     def _revision_records(self) -> dict[str, str | None]:
-        """Each file of :data:`REVISION_RECORDS` in the run directory, by its path in it,
-        with the force-law revision it records (None: none). A file that does not read is
-        left out: the table that needs it refuses it (:meth:`_need`)."""
+        """Each file of :data:`REVISION_RECORDS` that is the run's (:meth:`_own_records`) and
+        in the run directory, by its path in it, with the force-law revision it records
+        (None: none). A file that does not read is left out: the table that needs it
+        refuses it (:meth:`_need`)."""
         out: dict[str, str | None] = {}
-        for rel in REVISION_RECORDS:
+        for rel in self._own_records():
             p = self.path / rel
             if not p.is_file():
                 continue
@@ -252,6 +254,48 @@ class RunResult:
                 got = doc.get("model_revision")
                 out[rel] = None if got is None else str(got)
         return out
+
+    def _own_records(self) -> list[str]:
+        """The files of :data:`REVISION_RECORDS` that are the run's own, in that order: its
+        campaign's and its estimate's, and of the surrogate folders
+        (``surrogate-campaign``, ``surrogate-pretrained``) those that a stage's record in
+        ``pipeline.json`` lists among its files, or, while the surrogate stage records none
+        (not finished, or made before files were recorded), the one its recorded
+        configuration takes (every one, where none is recorded). A surrogate route the
+        configuration no longer takes leaves its folder behind (a ``surrogate-campaign/``
+        of older force laws, kept after a switch to a network set or to ``samples = 0``),
+        and its record warned of a run whose stages are all current (the review of stop
+        66)."""
+        from railsusp.surrogate.pretrained import surrogates_run
+
+        try:
+            state = read_json(self.path / "pipeline.json")
+        except RailsuspInputError:
+            state = {}
+        state = state if isinstance(state, dict) else {}
+        stages = state.get("stages") if isinstance(state.get("stages"), dict) else {}
+        listed = [
+            e["files"]
+            for e in stages.values()
+            if isinstance(e, dict) and isinstance(e.get("files"), dict)
+        ]
+        surrogate = stages.get("surrogate")
+        route: tuple[str, ...] = ()
+        if not (isinstance(surrogate, dict) and isinstance(surrogate.get("files"), dict)):
+            config = state.get("config")
+            s = config.get("surrogate") if isinstance(config, dict) else None
+            if isinstance(s, dict):
+                base = surrogates_run(s.get("pretrained"), s.get("samples", 0))
+                route = (f"{base}/campaign.json", f"{base}/surrogates/networks.json")
+            else:  # no configuration recorded: every route's
+                route = REVISION_RECORDS
+        return [
+            rel
+            for rel in REVISION_RECORDS
+            if not rel.startswith("surrogate-")  # the run's own folders, whatever its route
+            or rel in route
+            or any(rel in files for files in listed)
+        ]
 
     def _outdated_model(self) -> str:
         """Why the run's tables are of other force laws than this railsusp simulates, in one

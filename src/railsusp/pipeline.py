@@ -29,6 +29,7 @@ from railsusp.pipeline_config import demo_config as demo_config  # re-export
 from railsusp.pipeline_config import load_config as load_config  # re-export
 from railsusp.pipeline_inputs import (
     METHOD_REVISIONS,
+    measured_copy_matches,
     stage_dependents,
     stage_inputs,
     stage_section,
@@ -183,12 +184,15 @@ def _run_stages(
     # and the wagon its recordings are read as, for the same reason: its data (axle spread)
     # and its static wheel load (runs of stop 59 recorded this alone; summary reads both)
     state.update(_wagon_record(config))
-    revisions = (_recorded_revision(state, out), MODEL_REVISION)  # the run before's, now
-    state["model_revision"] = MODEL_REVISION  # the force laws of its simulated stages
+    revisions = (_recorded_revision(out), MODEL_REVISION)  # the campaign's, this railsusp's
     forced = set(STAGES[STAGES.index(start_from) :]) if start_from else set()
     hashes, legacy = stage_hashes(config), stage_hashes(config, legacy=True)
     for stage in METHOD_REVISIONS:  # computed otherwise since: made again, not taken
         legacy[stage] = None
+    if not measured_copy_matches(config, out, state["stages"].get("field", {})):
+        # the legacy hash took a measured folder's files by size and time: a copy of other
+        # contents would be taken as up to date, and then locked in by the new hash
+        legacy["field"] = None
     runners = stage_runners(config, out, run_progress)
     ran = False
     ran_stages: set[str] = set()  # those run now: the stages reading them run again
@@ -219,7 +223,7 @@ def _run_stages(
                 made_by = code_identity()  # the code of this run's stages, asked git once
                 state["provenance"] = provenance(made_by)
             ran = True
-            why = _why_again(config, stage, prev, h, ran_stages, forced, revisions)
+            why = _why_again(config, stage, prev, (h, legacy[stage]), ran_stages, forced, revisions)
             if why:  # a rerun of hours of simulation says why (the upgrade audit of stop 66)
                 log.info("stage %s: runs again: %s", stage, why)
             log.debug("stage %s: running", stage)
@@ -227,7 +231,14 @@ def _run_stages(
                 progress(stage, "running")
             t0 = time.perf_counter()
             state["stages"][stage] = {"hash": h, "state": "running"}
-            _mark_later_stale(state, stage_dependents(config, stage))
+            # the stages reading it run again after it, and so do those whose own inputs
+            # changed: neither's outputs stand as this run's meanwhile (the review of stop 66)
+            changed = [
+                s
+                for s in STAGES[STAGES.index(stage) + 1 :]
+                if not _recorded_current(state["stages"].get(s, {}), hashes[s], legacy[s])
+            ]
+            _mark_later_stale(state, (*stage_dependents(config, stage), *changed))
             # the report, rebuilt last, must not stand as this run's answer meanwhile (a
             # failed or interrupted run left it so): a stale banner until it is remade
             mark_report_stale(out, stage)
@@ -253,6 +264,8 @@ def _run_stages(
             }
             if stage in METHOD_REVISIONS:  # how railsusp computed it (its hash holds it too)
                 state["stages"][stage]["method_revision"] = METHOD_REVISIONS[stage]
+            if stage in _SIMULATED:  # the force laws it simulated with (or was checked on)
+                state["stages"][stage]["model_revision"] = MODEL_REVISION
             _record_files(state["stages"][stage], stage_files(config, out, stage), out)
             write_json(state_path, state)
             log.info("stage %s: done in %.1f s", stage, state["stages"][stage]["seconds"])
@@ -274,13 +287,11 @@ def _record_files(entry: dict, files: list[Path], out: Path) -> None:
     entry["mtime_ns"] = file_mtimes(files, out)
 
 
-def _recorded_revision(state: dict, out: Path) -> str | None:
-    """The force laws' revision the run directory's simulated stages were made with:
-    ``pipeline.json``'s (since stop 66), else its campaign's; None where neither says."""
+def _recorded_revision(out: Path) -> str | None:
+    """The force laws' revision of the run directory's campaign (its ``campaign.json``), for
+    the stages recorded before they recorded their own; None where it says none."""
     from railsusp.store import read_json
 
-    if isinstance(state.get("model_revision"), str):
-        return state["model_revision"]
     try:
         got = read_json(out / "campaign" / "campaign.json").get("model_revision")
     except (RailsuspInputError, AttributeError):
@@ -296,15 +307,17 @@ def _why_again(
     config: PipelineConfig,
     stage: str,
     prev: dict,
-    h: str,
+    taken: tuple[str, str | None],
     ran_stages: set[str],
     forced: set[str],
     revisions: tuple[str | None, str],
 ) -> str | None:
     """Why a stage with a record in ``pipeline.json`` runs again, in words, or None where
     the user knows (a first run, a restart they asked for) or a warning said it (a file of
-    its gone or changed). The force laws' change is named (``revisions``: the run before's
-    and this railsusp's): an upgrade simulated a campaign of hours again with no word."""
+    its gone or changed). ``taken``: the hashes its record is current with (this one's,
+    the legacy one or None). The force laws' change is named (``revisions``: the run
+    directory's campaign's, for a record that states none, and this railsusp's): an upgrade
+    simulated a campaign of hours again with no word."""
     if not prev or stage in forced:
         return None
     read = [s for s in stage_inputs(config, stage) if s in ran_stages]
@@ -314,9 +327,9 @@ def _why_again(
     if state != "done":
         told = {"failed": "it failed", "running": "it was interrupted", "stale": "it was stale"}
         return f"{told.get(state, f'its state was {state!r}')} in the run before"
-    if prev.get("hash") == h:
+    if prev.get("hash") in set(taken) - {None}:
         return None  # its files: outputs_exist has warned
-    before, now = revisions
+    before, now = prev.get("model_revision") or revisions[0], revisions[1]
     if stage in _SIMULATED and before is not None and before != now:
         return f"the force laws' revision changed ({before} -> {now})"
     if stage in METHOD_REVISIONS and prev.get("method_revision") != METHOD_REVISIONS[stage]:

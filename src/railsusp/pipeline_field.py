@@ -9,6 +9,8 @@ this module imports neither the pipeline nor its configuration, so imports flow 
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -45,6 +47,48 @@ def run_source(field: Any, wagon: str | None = None) -> Any:
     )
 
 
+def _runs_holding(folder: Path, out: Path) -> list[Path]:
+    """The ``railsusp run`` directories other than ``out`` that ``folder`` lies in (their
+    ``pipeline.json`` one to three levels up, above the folder as named and above where it
+    resolves to): ``railsusp run`` on one rewrites its ``field/`` holding that run
+    directory's lock alone. As the command line's readers find them
+    (``railsusp.cli.common``)."""
+    here = out.resolve()
+    found: dict[Path, Path] = {}
+    for base in (folder.absolute(), folder.resolve()):
+        for up in list(base.parents)[:3]:
+            if (up / "pipeline.json").is_file():
+                if up.resolve() != here:  # this run's: the pipeline holds it itself
+                    found.setdefault(up.resolve(), up)
+                break
+    return list(found.values())
+
+
+@contextmanager
+def measured_held(folder: Path, out: Path) -> Iterator[None]:
+    """The ``[field] measured`` folder's shared lock (:func:`railsusp.run_lock.run_lock`)
+    while the field stage reads and copies it, and that of a run directory it lies in:
+    a ``railsusp synth-field --out F`` (or ``sections --write``, ``align-track --write``,
+    ``railsusp run`` on the run whose ``field/`` it is) rewriting it under the copy could
+    give recordings of two truths under one ``index.json``, as the standalone readers
+    (``estimate``, ``validate``, ``posterior estimate``), which hold it, no longer can
+    (the review of stop 66). Refused at once in one line naming the holder; a folder not
+    ours to write that holds no lock file is read unlocked (nothing writes there), as they
+    read it."""
+    import errno
+
+    from railsusp.run_lock import run_lock
+
+    with ExitStack() as stack:
+        for where, named in [(r, folder) for r in _runs_holding(folder, out)] + [(folder, None)]:
+            try:
+                stack.enter_context(run_lock(where, "field.measured", shared=True, named=named))
+            except OSError as exc:  # read-only: nothing writes there either
+                if exc.errno not in (errno.EACCES, errno.EPERM, errno.EROFS):
+                    raise
+        yield
+
+
 def field_stage(config: Any, out: str | Path) -> dict:
     """The field stage alone: the recordings the estimation reads, in ``OUT/field``: a long
     run's kept sections (``[field] recording``), a copy of a measured folder, or synthetic
@@ -66,13 +110,17 @@ def field_stage(config: Any, out: str | Path) -> dict:
         recs = read_field(dest, wagon=wagon)  # the estimation's inputs, checked
         return {"recordings": len(recs), "synthetic": False, "recording": f.recording}
     if f.measured:
-        recs = read_field(f.measured, wagon=wagon)
         import shutil
 
+        from railsusp.run_lock import LOCK_NAME
         from railsusp.store import atomic_folder
 
-        with atomic_folder(dest, keep=False) as tmp:  # the old copy stays until replaced
-            shutil.copytree(f.measured, tmp, dirs_exist_ok=True)
+        with measured_held(Path(f.measured), out):  # the recordings read and copied as one
+            recs = read_field(f.measured, wagon=wagon)
+            with atomic_folder(dest, keep=False) as tmp:  # the old copy stays until replaced
+                shutil.copytree(
+                    f.measured, tmp, dirs_exist_ok=True, ignore=shutil.ignore_patterns(LOCK_NAME)
+                )
         return {"recordings": len(recs), "synthetic": False}
     truth = ParameterSet(f.truth, units="display")
     synthesise_field(

@@ -54,6 +54,33 @@ def _measured_state(config: PipelineConfig, legacy: bool = False) -> dict:
     return {"measured_files": files}
 
 
+def measured_copy_matches(config: PipelineConfig, out: Path, entry: dict) -> bool:
+    """Whether the field stage's record ``entry`` in ``pipeline.json`` holds a copy of the
+    ``[field] measured`` folder as it is now: each of its files' SHA-256 as recorded for its
+    copy under ``field/``, and no other. A legacy field hash (before stop 66) took the
+    files by size and modification time, so it is taken only where this holds. True
+    without a measured folder (nothing to check)."""
+    from railsusp.store import file_hash_cached
+
+    if config.field.measured is None:
+        return True
+    recorded = entry.get("sha256")
+    if not isinstance(recorded, dict):
+        return False
+    folder = Path(config.field.measured)
+    now = {}
+    for p in sorted(folder.rglob("*")) if folder.is_dir() else []:
+        rel = p.relative_to(folder)
+        if p.is_file() and not any(part.startswith(".") for part in rel.parts):
+            now[f"field/{rel.as_posix()}"] = file_hash_cached(p)
+    copies = {
+        k: v
+        for k, v in recorded.items()
+        if k.startswith("field/") and not any(part.startswith(".") for part in k.split("/"))
+    }
+    return now == copies
+
+
 def _tolerances_state(config: PipelineConfig) -> dict:
     """The wagon data's ``[tolerances]`` the report judges the estimate by, where they are
     not the defaults: the wagon's hash leaves them out (they are no model input), so an
@@ -72,17 +99,19 @@ def stage_inputs(config: PipelineConfig, stage: str) -> tuple[str, ...]:
     changed ``[campaign]`` estimated again with a network set that never reads the
     campaign). The sensitivity reads the campaign; a trained surrogate the campaign and
     its key parameters (a network set neither); the field nothing; the estimate the
-    surrogates, the recordings and, without a network set, the key parameters; the
-    validation the estimate, the recordings (and their truth) and the sensitivity's
-    indices; the report every stage."""
+    surrogates, the recordings and, without a network set, the key parameters (checked
+    against the campaign they were found on); the validation the estimate, the recordings
+    (and their truth) and the sensitivity's indices (checked against the campaign); the
+    report every stage. Checked against what each stage opens by
+    tests/test_pipeline_reads.py."""
     trained = config.surrogate.pretrained is None
     inputs = {
         "campaign": (),
         "sensitivity": ("campaign",),
         "surrogate": ("campaign", "sensitivity") if trained else (),
         "field": (),
-        "estimate": (("sensitivity",) if trained else ()) + ("surrogate", "field"),
-        "validate": ("sensitivity", "field", "estimate"),
+        "estimate": (("campaign", "sensitivity") if trained else ()) + ("surrogate", "field"),
+        "validate": ("campaign", "sensitivity", "field", "estimate"),
         "report": STAGES[:-1],
     }
     return inputs[stage]
