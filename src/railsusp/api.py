@@ -21,22 +21,11 @@ import railsusp.summary as summary
 from railsusp.errors import RailsuspInputError
 from railsusp.integrity import changed_files
 from railsusp.pipeline_state import STAGES, read_run_state
+from railsusp.run_revision import outdated_model, revision_records
 from railsusp.store import read_csv, read_json, read_parquet
 from railsusp.summary import Tolerances
 
 __all__ = ["OutdatedModelWarning", "RunResult", "Tolerances", "open_run", "run"]
-
-#: the files of a run directory that record the force-law revision
-#: (:data:`railsusp.vehicle.MODEL_REVISION`) their stage simulated or was made with, in the
-#: order :attr:`RunResult.model_revision` reads them: the sensitivity campaign, the
-#: surrogates' own campaign, a shipped network set's manifest, the estimate; each read only
-#: where a stage of the run records it among its files (:meth:`RunResult._own_records`)
-REVISION_RECORDS = (
-    "campaign/campaign.json",
-    "surrogate-campaign/campaign.json",
-    "surrogate-pretrained/surrogates/networks.json",
-    "estimate/estimate.json",
-)
 
 
 class OutdatedModelWarning(UserWarning):
@@ -228,105 +217,13 @@ class RunResult:
     @property
     def model_revision(self) -> str | None:
         """The force-law revision the run was made with, as its records state it (the first
-        of :data:`REVISION_RECORDS` that states one: its campaign's, where it has run); None
-        where none states one (a run made before they were recorded, 2026-11-30, with older
-        force laws than any railsusp that records them). Another than
-        :data:`railsusp.vehicle.MODEL_REVISION` means that the tables are of another model
-        than this railsusp simulates (:func:`open_run` warns)."""
-        records = self._revision_records()
+        of :data:`railsusp.run_revision.REVISION_RECORDS` that states one: its campaign's,
+        where it has run); None where none states one (a run made before they were
+        recorded, 2026-11-30, with older force laws than any railsusp that records them).
+        Another than :data:`railsusp.vehicle.MODEL_REVISION` means that the tables are of
+        another model than this railsusp simulates (:func:`open_run` warns)."""
+        records = revision_records(self.path)
         return next((r for r in records.values() if r is not None), None)
-
-    def _revision_records(self) -> dict[str, str | None]:
-        """Each file of :data:`REVISION_RECORDS` that is the run's (:meth:`_own_records`) and
-        in the run directory, by its path in it, with the force-law revision it records
-        (None: none). A file that does not read is left out: the table that needs it
-        refuses it (:meth:`_need`)."""
-        out: dict[str, str | None] = {}
-        for rel in self._own_records():
-            p = self.path / rel
-            if not p.is_file():
-                continue
-            try:
-                doc = read_json(p)
-            except RailsuspInputError:
-                continue
-            if isinstance(doc, dict):
-                got = doc.get("model_revision")
-                out[rel] = None if got is None else str(got)
-        return out
-
-    def _own_records(self) -> list[str]:
-        """The files of :data:`REVISION_RECORDS` that are the run's own, in that order: its
-        campaign's and its estimate's, and of the surrogate folders
-        (``surrogate-campaign``, ``surrogate-pretrained``) those that a stage's record in
-        ``pipeline.json`` lists among its files, or, while the surrogate stage records none
-        (not finished, or made before files were recorded), the one its recorded
-        configuration takes (every one, where none is recorded). A surrogate route the
-        configuration no longer takes leaves its folder behind (a ``surrogate-campaign/``
-        of older force laws, kept after a switch to a network set or to ``samples = 0``),
-        and its record warned of a run whose stages are all current (the review of stop
-        66)."""
-        from railsusp.surrogate.pretrained import surrogates_run
-
-        try:
-            state = read_json(self.path / "pipeline.json")
-        except RailsuspInputError:
-            state = {}
-        state = state if isinstance(state, dict) else {}
-        stages = state.get("stages") if isinstance(state.get("stages"), dict) else {}
-        listed = [
-            e["files"]
-            for e in stages.values()
-            if isinstance(e, dict) and isinstance(e.get("files"), dict)
-        ]
-        surrogate = stages.get("surrogate")
-        route: tuple[str, ...] = ()
-        if not (isinstance(surrogate, dict) and isinstance(surrogate.get("files"), dict)):
-            config = state.get("config")
-            s = config.get("surrogate") if isinstance(config, dict) else None
-            if isinstance(s, dict):
-                base = surrogates_run(s.get("pretrained"), s.get("samples", 0))
-                route = (f"{base}/campaign.json", f"{base}/surrogates/networks.json")
-            else:  # no configuration recorded: every route's
-                route = REVISION_RECORDS
-        return [
-            rel
-            for rel in REVISION_RECORDS
-            if not rel.startswith("surrogate-")  # the run's own folders, whatever its route
-            or rel in route
-            or any(rel in files for files in listed)
-        ]
-
-    def _outdated_model(self) -> str:
-        """Why the run's tables are of other force laws than this railsusp simulates, in one
-        line naming both revisions and what ``railsusp run`` does with the folder; '' where
-        they are of these (or no stage has recorded any yet). A record of another revision
-        decides; records that all state none are of a run made before revisions were recorded
-        (an ``estimate.json`` stating none beside a campaign of this revision was written
-        before estimates recorded it: no sign of another model)."""
-        from railsusp.campaign.results import revision_newer
-        from railsusp.vehicle import MODEL_REVISION
-
-        records = self._revision_records()
-        other = [(rel, r) for rel, r in records.items() if r is not None and r != MODEL_REVISION]
-        if other:
-            rel, revision = other[0]
-            made = f"force-law revision {revision} ({rel})"
-        elif records and all(r is None for r in records.values()):
-            revision = None
-            made = (
-                f"a force-law revision before 2026-11-30.1 (none recorded in {', '.join(records)})"
-            )
-        else:
-            return ""
-        if revision_newer(revision):
-            what = "open it with the newer railsusp that made it (railsusp run refuses it)"
-        else:
-            what = f"railsusp run CONFIG --out {self.path} would simulate every stage again"
-        return (
-            f"{self.path}: made with {made}, this railsusp simulates revision "
-            f"{MODEL_REVISION}: its tables are read as that run wrote them, of that model; {what}"
-        )
 
     @property
     def report_path(self) -> Path:
@@ -470,7 +367,7 @@ def open_run(path: str | Path, *, tolerances: summary.Tolerances | None = None) 
         raise RailsuspInputError(f"{path}: not a run directory (no pipeline.json)")
     read_run_state(path, str(path))
     result = RunResult(path, tolerances)
-    outdated = result._outdated_model()
+    outdated = outdated_model(path)
     if outdated:  # read all the same: old runs are kept as records of what they found
         warnings.warn(outdated, OutdatedModelWarning, stacklevel=2)
     return result
