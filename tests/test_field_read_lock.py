@@ -231,3 +231,21 @@ def test_a_read_only_field_folder_without_a_lock_file_is_still_read(
     assert result.exit_code == 2 and "stopped here" in result.output, result.output
     assert "Traceback" not in result.output and reading["calls"] == 1
     assert not (field / LOCK_NAME).exists()
+
+
+@pytest.mark.parametrize("command", ["align-track", "campaign --conditions"])
+def test_the_other_readers_of_a_field_folder_are_refused_beside_a_writer(tmp_path, command):
+    """Left by the first fix (stop 66): ``align-track F`` without ``--write`` and ``campaign
+    --conditions F`` read a field folder, and its recordings' track files, unlocked."""
+    field = tmp_path / "field"
+    args = {
+        "align-track": ["align-track", field],
+        "campaign --conditions": ["campaign", "--conditions", field, "--out", tmp_path / "c"],
+    }[command]
+    (field).mkdir()
+    (field / "index.json").write_text("{}")
+    with held("exclusive", field) as pid:
+        line = refused_line(args)
+    option = "--conditions " if "--conditions" in args else ""
+    assert line.startswith(f"error: {option}{field}: another railsusp run is working in this "
+                           f"folder (process {pid})"), line  # fmt: skip

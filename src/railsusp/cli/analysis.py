@@ -125,6 +125,9 @@ def campaign(
             creates=[("--out", out)],
             reads=[("--keys-from", keys_from)] if keys_from is not None else [],
         )
+        if Path(conditions).is_dir():  # a field folder's conditions and their track files:
+            # read shared, not beside a writer of the folder (a mixed read, the audit)
+            hold_folders(reads=[("--conditions", Path(conditions))])
         from railsusp.params import MAIN_SUSPENSION
 
         sampled = (

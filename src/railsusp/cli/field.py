@@ -131,6 +131,8 @@ def align_track_command(
         wagon_data = load_wagon(wagon)  # a packaged name or a file, one-line errors
         if write:  # the sidecars it rewrites: one writer at a time in the folder
             hold_folders(writes=[("", measured)])
+        else:  # read only: not beside a writer of the folder (a mixed read, the audit)
+            hold_folders(reads=[("", measured)])
         recs = [
             r
             for r in read_field(measured, wagon=wagon_data)
