@@ -434,6 +434,20 @@ def read_index(folder: str | Path) -> list[Path]:
     return [inside(folder, n, f"{index} recordings") for n in names]
 
 
+#: how many times :func:`read_field` reads a folder replaced while it read it
+SWAP_RETRIES = 3
+
+
+def _folder_identity(folder: str | Path) -> tuple[int, int] | None:
+    """The folder's device and inode (a folder swapped in by an atomic rename is another
+    inode); None while it is missing (between the swap's two renames)."""
+    try:
+        st = os.stat(folder)
+    except OSError:
+        return None
+    return (st.st_dev, st.st_ino)
+
+
 def read_field(
     folder: str | Path,
     *,
@@ -446,9 +460,29 @@ def read_field(
     refused against the loaded one's) and their measured track's lead-in against its axle
     spread (:func:`read_recording`). Two recordings of one condition name are refused: the
     estimate, the validation and ``align-track`` tell recordings apart by it (two
-    ``straight`` files got each other's track offset and one validation figure)."""
-    paths = read_index(folder)
-    recordings = [read_recording(p, wheel_load_N=wheel_load_N, wagon=wagon) for p in paths]
+    ``straight`` files got each other's track offset and one validation figure).
+
+    A folder replaced while it is read (a writer's atomic swap: ``synth-field``, ``sections
+    --write``) is read again, up to :data:`SWAP_RETRIES` times: a read across the swap
+    returned recordings of two generations under one ``index.json``, with no error (the
+    concurrency audit of stop 66; the command-line readers hold the folder's lock, a
+    library call does not)."""
+    for _ in range(SWAP_RETRIES):
+        before = _folder_identity(folder)
+        try:
+            paths = read_index(folder)
+            recordings = [read_recording(p, wheel_load_N=wheel_load_N, wagon=wagon) for p in paths]
+        except (OSError, RailsuspInputError):
+            if _folder_identity(folder) == before:
+                raise  # the folder as it is (or missing throughout): said as always
+            continue
+        if _folder_identity(folder) == before:
+            break
+    else:
+        raise RailsuspInputError(
+            f"{folder}: replaced {SWAP_RETRIES} times while it was read (a writer such as "
+            "synth-field or sections --write works in it); read it again once it is done"
+        )
     seen: dict[str, Path] = {}
     for path, rec in zip(paths, recordings, strict=True):
         name = rec.condition.name
