@@ -47,23 +47,6 @@ def run_source(field: Any, wagon: str | None = None) -> Any:
     )
 
 
-def _runs_holding(folder: Path, out: Path) -> list[Path]:
-    """The ``railsusp run`` directories other than ``out`` that ``folder`` lies in (their
-    ``pipeline.json`` one to three levels up, above the folder as named and above where it
-    resolves to): ``railsusp run`` on one rewrites its ``field/`` holding that run
-    directory's lock alone. As the command line's readers find them
-    (``railsusp.cli.common``)."""
-    here = out.resolve()
-    found: dict[Path, Path] = {}
-    for base in (folder.absolute(), folder.resolve()):
-        for up in list(base.parents)[:3]:
-            if (up / "pipeline.json").is_file():
-                if up.resolve() != here:  # this run's: the pipeline holds it itself
-                    found.setdefault(up.resolve(), up)
-                break
-    return list(found.values())
-
-
 @contextmanager
 def measured_held(folder: Path, out: Path) -> Iterator[None]:
     """The ``[field] measured`` folder's shared lock (:func:`railsusp.run_lock.run_lock`)
@@ -75,17 +58,14 @@ def measured_held(folder: Path, out: Path) -> Iterator[None]:
     (the review of stop 66). Refused at once in one line naming the holder; a folder not
     ours to write that holds no lock file is read unlocked (nothing writes there), as they
     read it."""
-    import errno
+    from railsusp.run_lock import enclosing_runs, hold_shared
 
-    from railsusp.run_lock import run_lock
-
+    here = Path(out).resolve()  # this run's own: the pipeline holds it itself
     with ExitStack() as stack:
-        for where, named in [(r, folder) for r in _runs_holding(folder, out)] + [(folder, None)]:
-            try:
-                stack.enter_context(run_lock(where, "field.measured", shared=True, named=named))
-            except OSError as exc:  # read-only: nothing writes there either
-                if exc.errno not in (errno.EACCES, errno.EPERM, errno.EROFS):
-                    raise
+        for run in enclosing_runs(folder):
+            if run.resolve() != here:  # `railsusp run` on it rewrites its field/
+                hold_shared(stack, run, "field.measured", named=folder)
+        hold_shared(stack, folder, "field.measured")
         yield
 
 

@@ -41,17 +41,29 @@ def _measured_state(config: PipelineConfig, legacy: bool = False) -> dict:
 
     if config.field.measured is None:
         return {}
-    folder = Path(config.field.measured)
     files = []
-    for p in sorted(folder.rglob("*")) if folder.is_dir() else []:
-        if p.is_file() and not any(part.startswith(".") for part in p.relative_to(folder).parts):
-            name = p.relative_to(folder).as_posix()
-            if legacy:
-                st = p.stat()
-                files.append((name, st.st_size, st.st_mtime_ns))
-            else:
-                files.append((name, file_hash_cached(p)))
+    for name, p in _measured_files(config):
+        if legacy:
+            st = p.stat()
+            files.append((name, st.st_size, st.st_mtime_ns))
+        else:
+            files.append((name, file_hash_cached(p)))
     return {"measured_files": files}
+
+
+def _measured_files(config: PipelineConfig) -> list[tuple[str, Path]]:
+    """The files of the ``[field] measured`` folder the field stage's hash counts, each by
+    its path in the folder (POSIX form), in path order: hidden ones (a lock file,
+    ``.DS_Store``) left out; none without a measured folder or where it is missing."""
+    if config.field.measured is None:
+        return []
+    folder = Path(config.field.measured)
+    found = []
+    for p in sorted(folder.rglob("*")) if folder.is_dir() else []:
+        rel = p.relative_to(folder)
+        if p.is_file() and not any(part.startswith(".") for part in rel.parts):
+            found.append((rel.as_posix(), p))
+    return found
 
 
 def measured_copy_matches(config: PipelineConfig, out: Path, entry: dict) -> bool:
@@ -67,12 +79,7 @@ def measured_copy_matches(config: PipelineConfig, out: Path, entry: dict) -> boo
     recorded = entry.get("sha256")
     if not isinstance(recorded, dict):
         return False
-    folder = Path(config.field.measured)
-    now = {}
-    for p in sorted(folder.rglob("*")) if folder.is_dir() else []:
-        rel = p.relative_to(folder)
-        if p.is_file() and not any(part.startswith(".") for part in rel.parts):
-            now[f"field/{rel.as_posix()}"] = file_hash_cached(p)
+    now = {f"field/{name}": file_hash_cached(p) for name, p in _measured_files(config)}
     copies = {
         k: v
         for k, v in recorded.items()

@@ -13,9 +13,10 @@ folder and calls library code that locks the same folder itself)."""
 
 from __future__ import annotations
 
+import errno
 import os
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from contextvars import ContextVar
 from pathlib import Path
 
@@ -176,3 +177,30 @@ def run_lock(
     finally:
         fcntl.flock(fh, fcntl.LOCK_UN)
         fh.close()
+
+
+def enclosing_runs(folder: Path) -> list[Path]:
+    """The ``railsusp run`` directories ``folder`` lies in (their ``pipeline.json`` one to
+    three levels up: ``RUN/campaign``, ``RUN/estimate/validation``,
+    ``RUN/campaign/surrogates/cnn-gru``), above the folder as named and above where it
+    resolves to: a symbolic link to ``RUN/campaign`` lies in ``RUN`` too (looked for as named
+    only, a command on the link ran beside ``railsusp run``: the Dask and locks audit). The
+    command line's readers and writers and the pipeline's field stage take their locks."""
+    found: dict[Path, Path] = {}
+    for base in (folder.absolute(), folder.resolve()):
+        for up in list(base.parents)[:3]:
+            if (up / "pipeline.json").is_file():
+                found.setdefault(up.resolve(), up)
+                break
+    return list(found.values())
+
+
+def hold_shared(stack: ExitStack, folder: Path, option: str, named: Path | None = None) -> None:
+    """``folder``'s shared lock (:func:`run_lock`, ``option`` and ``named`` for the
+    refusal) entered on ``stack``; a folder where no lock file can be made (read-only, not
+    ours to write) is read without it: nothing writes there either."""
+    try:
+        stack.enter_context(run_lock(folder, option, shared=True, named=named))
+    except OSError as exc:
+        if exc.errno not in (errno.EACCES, errno.EPERM, errno.EROFS):
+            raise

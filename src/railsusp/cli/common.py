@@ -199,21 +199,6 @@ def given_options(*names: str) -> list[str]:
     return given
 
 
-def _pipeline_runs(folder: Path) -> list[Path]:
-    """The ``railsusp run`` directories ``folder`` lies in (their ``pipeline.json`` one to
-    three levels up: ``RUN/campaign``, ``RUN/estimate/validation``,
-    ``RUN/campaign/surrogates/cnn-gru``), above the folder as named and above where it
-    resolves to: a symbolic link to ``RUN/campaign`` lies in ``RUN`` too (looked for as named
-    only, a command on the link ran beside ``railsusp run``: the Dask and locks audit)."""
-    found: dict[Path, Path] = {}
-    for base in (folder.absolute(), folder.resolve()):
-        for up in list(base.parents)[:3]:
-            if (up / "pipeline.json").is_file():
-                found.setdefault(up.resolve(), up)
-                break
-    return list(found.values())
-
-
 def _command_words() -> str:
     """The command running as typed, ``railsusp posterior train`` (the program's own name
     left out: a test runner calls it otherwise)."""
@@ -268,7 +253,7 @@ def hold_folders(
     mark_run_reports`), taken off again at that close where the command changed none of
     them."""
     from railsusp.cli.report_marks import mark_run_reports, unmark_unwritten
-    from railsusp.run_lock import run_lock
+    from railsusp.run_lock import enclosing_runs, hold_shared, run_lock
 
     plan: dict[Path, dict] = {}
 
@@ -289,7 +274,7 @@ def hold_folders(
     for option, folder in reads:
         add(option, Path(folder), "read")
     for option, folder in [*creates, *writes, *reads, *near]:
-        for run in _pipeline_runs(Path(folder)):
+        for run in enclosing_runs(Path(folder)):
             add(option, run, "read", named=Path(folder))
     stack = _command_context().with_resource(ExitStack())
     # the run directories first: a command refused beside a working `railsusp run` makes
@@ -309,12 +294,8 @@ def hold_folders(
         elif item["mode"] == "write":
             if folder.is_dir():
                 stack.enter_context(run_lock(folder, option, lend=True))
-        elif folder.is_dir():
-            try:
-                stack.enter_context(run_lock(folder, option, shared=True, named=item["named"]))
-            except OSError as exc:  # read-only: nothing writes there either
-                if exc.errno not in (errno.EACCES, errno.EPERM, errno.EROFS):
-                    raise
+        elif folder.is_dir():  # (a read-only one read without it: nothing writes there)
+            hold_shared(stack, folder, option, item["named"])
     # every lock held (a refused command marks nothing): the reports of the run directories
     # whose stages' outputs the command is about to write no longer stand as their answer;
     # put back when it ends having changed none of them (refused by its own checks)
@@ -325,7 +306,7 @@ def hold_folders(
             if item["mode"] in ("create", "write")
         ],
         _command_words(),
-        _pipeline_runs,
+        enclosing_runs,
     )
     if marked:  # entered last, so called first: while the locks are still held
         stack.callback(unmark_unwritten, marked)

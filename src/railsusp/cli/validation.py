@@ -3,7 +3,6 @@ parameters beside the recordings (Tables 8/9 of the study) and, with a truth, th
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
@@ -141,9 +140,11 @@ def _measured_of(estimate_dir: Path) -> Path | None:
     """The recordings' folder ``estimate_dir/estimate.json`` records (``measured``), which
     ``validate`` reads without ``--measured``; None where the file or the field does not
     read (the validation itself then says why, in one line)."""
+    from railsusp.store import read_json
+
     try:
-        doc = json.loads((estimate_dir / "estimate.json").read_text("utf-8-sig"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        doc = read_json(estimate_dir / "estimate.json")
+    except RailsuspInputError:
         return None
     folder = doc.get("measured") if isinstance(doc, dict) else None
     if not isinstance(folder, str) or not folder or "\0" in folder:  # no path the OS takes
