@@ -94,14 +94,14 @@ def test_a_track_file_edited_before_its_batches_ran_is_refused(tmp_path, monkeyp
     track. Refused in one line, nothing simulated."""
     _track(tmp_path)
     monkeypatch.chdir(tmp_path)
-    prepare = run_mod._prepare
+    prepare = run_mod.prepare_run_directory
 
     def prepare_then_edit(*args):
         design = prepare(*args)
         (tmp_path / "geo.csv").write_text((tmp_path / "geo.csv").read_text() + "\n")
         return design
 
-    monkeypatch.setattr(run_mod, "_prepare", prepare_then_edit)
+    monkeypatch.setattr(run_mod, "prepare_run_directory", prepare_then_edit)
     with pytest.raises(CampaignError, match="track_geometry geo.csv changed while the campaign"):
         run_campaign(_measured_config(), tmp_path / "r")
     assert not list((tmp_path / "r").glob("batches/*/batch-*.parquet"))
@@ -367,3 +367,29 @@ def test_a_pipelines_unreachable_scheduler_is_named_as_its_configuration_setting
         run_pipeline(load_config(cfg), tmp_path / "run")
     assert f"scheduler = {SCHEDULER}: no Dask scheduler answered" in str(info.value)
     assert "--scheduler" not in str(info.value)
+
+
+def test_a_worker_without_the_tasks_module_is_told_to_be_the_same(fake_cluster, tmp_path):
+    """The batch task lives in railsusp.campaign.batch_simulation since stop 67: a worker of
+    the railsusp before unpickles it by that name and fails with ModuleNotFoundError, which
+    passed up as a traceback. Now the one-line refusal; an ImportError of another package
+    (a worker's broken install of a library) stays as it is."""
+
+    def missing(name):
+        def simulate_task(*args):
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+
+        class Older(_Client):
+            def submit(self, fn, *args, pure: bool = True):
+                return super().submit(simulate_task, *args, pure=pure)
+
+        return Older()
+
+    fake_cluster.client = missing("railsusp.campaign.batch_simulation")
+    with pytest.raises(CampaignError, match="runs another railsusp .*install the same railsusp"):
+        run_campaign(make_config([BASE], 2, parameters=("X14",)), tmp_path / "a",
+                     scheduler=SCHEDULER)  # fmt: skip
+    fake_cluster.client = missing("scipy.special")
+    with pytest.raises(ModuleNotFoundError, match="scipy.special"):
+        run_campaign(make_config([BASE], 2, parameters=("X14",)), tmp_path / "b",
+                     scheduler=SCHEDULER)  # fmt: skip

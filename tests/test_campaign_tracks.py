@@ -152,7 +152,8 @@ def test_a_batch_of_curve_layouts_is_one_parallel_call(family_run, integrator_ca
     """Every sample of a curve batch has its own radius and cant (a layout each): the batch
     is one integrator call of 3 sets (one call per layout would run them one at a time, on
     one core), and its series are the stored ones."""
-    from railsusp.campaign.run import simulate_task, track_seeds
+    from railsusp.campaign.batch_simulation import simulate_task
+    from railsusp.campaign.design import track_seeds
 
     camp = load_campaign(family_run)
     cfg = camp.config

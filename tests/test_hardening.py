@@ -191,10 +191,10 @@ def _fail_first(real):
 
 def test_campaign_counts_failed_simulations_and_exits_1(short, tmp_path, monkeypatch):
     import railsusp.campaign as campaign
-    import railsusp.campaign.run as campaign_run
+    import railsusp.campaign.batch_simulation as batch_simulation
 
     monkeypatch.setattr(
-        campaign_run, "simulate_requests", _fail_first(campaign_run.simulate_requests)
+        batch_simulation, "simulate_requests", _fail_first(batch_simulation.simulate_requests)
     )
     run = tmp_path / "r"
     args = ["campaign", "--out", run, "--conditions", short, "--samples", "3"]

@@ -208,15 +208,15 @@ def test_a_modified_source_tree_is_recorded_and_the_report_says_which_code_made_
     """Stop 61's report audit: provenance held ``git rev-parse HEAD`` alone, so a run from
     modified code showed the commit's SHA, and a run whose stages two commits made showed
     one."""
-    from railsusp import store
+    from railsusp import provenance
     from railsusp.report_html import _made_by
 
-    monkeypatch.setattr(store, "_git", lambda *a: " M src/railsusp/x.py\n")
-    assert store.git_dirty() is True
-    monkeypatch.setattr(store, "_git", lambda *a: "")
-    assert store.git_dirty() is False
-    monkeypatch.setattr(store, "_git", lambda *a: None)
-    assert store.git_dirty() is None and store.git_sha() is None
+    monkeypatch.setattr(provenance, "_git", lambda *a: " M src/railsusp/x.py\n")
+    assert provenance.git_dirty() is True
+    monkeypatch.setattr(provenance, "_git", lambda *a: "")
+    assert provenance.git_dirty() is False
+    monkeypatch.setattr(provenance, "_git", lambda *a: None)
+    assert provenance.git_dirty() is None and provenance.git_sha() is None
     made = {"railsusp": "1.0", "git_sha": "0123456789abcdef", "git_dirty": True}
     assert _made_by(made) == "1.0 0123456+modified" and _made_by(None) == ""
 
@@ -239,15 +239,17 @@ def test_an_installed_package_inside_a_users_repository_records_no_commit(tmp_pa
     """railsusp installed in a project's .venv: git found the project's repository around
     site-packages and its commit was recorded as railsusp's, clean (the packaging audit of
     stop 65). A checkout of railsusp (the package at src/railsusp) still records its own."""
-    from railsusp import store
+    from railsusp import provenance
 
     head = _user_repository(tmp_path / "project")
     installed = tmp_path / "project" / ".venv" / "lib" / "site-packages" / "railsusp"
     installed.mkdir(parents=True)
-    monkeypatch.setattr(store, "__file__", str(installed / "store.py"))
-    assert store.git_sha() is None and store.git_dirty() is None
+    monkeypatch.setattr(provenance, "__file__", str(installed / "provenance.py"))
+    assert provenance.git_sha() is None and provenance.git_dirty() is None
     checkout = tmp_path / "checkout"
     head = _user_repository(checkout)
     (checkout / "src" / "railsusp").mkdir(parents=True)
-    monkeypatch.setattr(store, "__file__", str(checkout / "src" / "railsusp" / "store.py"))
-    assert store.git_sha() == head and store.git_dirty() is False
+    monkeypatch.setattr(
+        provenance, "__file__", str(checkout / "src" / "railsusp" / "provenance.py")
+    )
+    assert provenance.git_sha() == head and provenance.git_dirty() is False

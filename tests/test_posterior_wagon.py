@@ -63,12 +63,15 @@ def stamped(run, s: PosteriorSettings, **stamp) -> None:
 
 @pytest.mark.parametrize(
     ("stamp", "said"),
-    [({}, "a revision before 2026-11-30.1 (none recorded)"),
-     ({"model_revision": "2026-01-01.1"}, "revision 2026-01-01.1")],
+    [({}, "force laws older than any recorded force-law revision (it records none"),
+     ({"model_revision": "2026-01-01.1"}, "force-law revision 2026-01-01.1, older than this "
+      f"railsusp's {MODEL_REVISION}"),
+     ({"model_revision": "2099-01-01.1"}, "force-law revision 2099-01-01.1, newer than this "
+      f"railsusp's {MODEL_REVISION}: use it with the railsusp that made it")],
 )  # fmt: skip
 def test_an_estimator_of_other_force_laws_is_refused(tmp_path, monkeypatch, stamp, said):
-    message = f"its simulations are of the force laws of {said}, this railsusp simulates "
-    _refused_by_train_and_load(tmp_path, monkeypatch, stamp, message + f"revision {MODEL_REVISION}")
+    message = f"its simulations were made with {said}"
+    _refused_by_train_and_load(tmp_path, monkeypatch, stamp, message)
 
 
 def _refused_by_train_and_load(tmp_path, monkeypatch, stamp: dict, message: str) -> None:
@@ -130,7 +133,7 @@ def test_a_synthetic_likelihood_of_other_force_laws_is_refused(tmp_path):
     write_json(folder / "settings.json", {"hash": "x", "settings": settings().to_dict()})
     for name in ("emulator.npz", "scales.json", "check.json"):
         (folder / name).write_bytes(b"")
-    with pytest.raises(RailsuspInputError, match="none recorded"):
+    with pytest.raises(RailsuspInputError, match=r"\(it records none"):
         posterior_synthetic_run.load(tmp_path)
 
 

@@ -99,15 +99,18 @@ def test_estimate_refuses_a_window_surrogate_that_records_no_force_law_revision(
     with pytest.raises(RailsuspInputError) as err:
         SurrogateForces(folder)
     text = str(err.value)
-    assert text.startswith(f"{folder / 'straight'}: records no force-law revision")
-    assert f"this railsusp's revision {MODEL_REVISION}" in text and "\n" not in text
+    assert text.startswith(
+        f"{folder / 'straight'}: trained on a campaign simulated with force laws older than "
+        "any recorded force-law revision (it records none"
+    )
+    assert f"this railsusp's is {MODEL_REVISION}" in text and "\n" not in text
     assert "`railsusp train`" in text and "`railsusp run`" in text
     out = tmp_path / "e"
     line = one_line_error(["estimate", "--measured", field, "--surrogate", folder, "--out", out])
     assert line == text and not out.exists()
     _stamp_bundle(described, OLD)  # a recorded older revision: as before, same remedy
     line = one_line_error(["estimate", "--measured", field, "--surrogate", folder, "--out", out])
-    assert f"force-law revision {OLD}, this railsusp simulates revision {MODEL_REVISION}" in line
+    assert f"force-law revision {OLD}, older than this railsusp's {MODEL_REVISION}" in line
     assert "`railsusp train`" in line
 
 
@@ -130,7 +133,7 @@ def test_estimate_refuses_statistics_surrogates_that_record_no_force_law_revisio
     )
     assert StatisticsForces(tmp_path / "gp").parameters == params
     StatisticsSurrogate(gp, cond, {"n_train": 12}).save(tmp_path / "old" / "straight")
-    with pytest.raises(RailsuspInputError, match=r"straight: records no force-law revision"):
+    with pytest.raises(RailsuspInputError, match=r"straight: .*\(it records none"):
         StatisticsForces(tmp_path / "old")
 
 
@@ -191,14 +194,14 @@ def test_train_and_sensitivity_name_an_older_campaigns_revision(campaign, tmp_pa
     old = _copy(campaign, tmp_path)
     _as_older_railsusp(old, OLD)
     said = (
-        f"{old / 'campaign.json'} was simulated with force-law revision {OLD}; railsusp now "
-        f"simulates {MODEL_REVISION}: run the campaign again into a new --out (or with --force)"
+        f"{old / 'campaign.json'} was simulated with force-law revision {OLD}, older than this "
+        f"railsusp's {MODEL_REVISION}: run the campaign again into a new --out (or with --force)"
     )
     for args in (["train", old, "--model", "gp-stats"], ["sensitivity", old]):
         line = one_line_error(args)
         assert line.startswith(said) and "edited by hand" not in line, line
     assert not (old / "surrogates").exists() and not (old / "sensitivity").exists()
-    with pytest.raises(CampaignError, match="force-law revision 2026-11-30.1; railsusp now"):
+    with pytest.raises(CampaignError, match="force-law revision 2026-11-30.1, older than"):
         require_complete(load_campaign(old))
 
 
@@ -212,7 +215,7 @@ def test_resuming_an_older_campaign_names_its_revision_and_keeps_its_batches(cam
     with pytest.raises(CampaignError) as err:
         run_campaign(cfg, old)
     text = str(err.value)
-    assert f"force-law revision {OLD}; railsusp now simulates {MODEL_REVISION}" in text
+    assert f"force-law revision {OLD}, older than this railsusp's {MODEL_REVISION}" in text
     assert "edited by hand" not in text and "\n" not in text
     assert sorted(p.name for p in (old / "batches").rglob("*.parquet")) == batches
     run_campaign(cfg, old, force=True, max_batches=0)
@@ -227,12 +230,17 @@ def test_a_campaign_that_records_no_revision_is_refused(campaign, tmp_path):
     old = _copy(campaign, tmp_path)
     _as_older_railsusp(old, None)
     line = one_line_error(["sensitivity", old])
-    assert line.startswith(f"{old / 'campaign.json'} records no force-law revision")
-    assert f"older force laws than this railsusp's revision {MODEL_REVISION}" in line
+    assert line.startswith(
+        f"{old / 'campaign.json'} was simulated with force laws older than any recorded "
+        "force-law revision (it records none"
+    )
+    assert f"this railsusp's is {MODEL_REVISION}" in line
     assert "run the campaign again into a new --out" in line
     unrecorded = _copy(campaign, tmp_path, "unrecorded")
     _edit_meta(unrecorded, lambda meta: meta.pop("model_revision"))
-    with pytest.raises(CampaignError, match=r"records no force-law revision: it was simulated"):
+    with pytest.raises(
+        CampaignError, match=r"it records none: made before revisions were recorded"
+    ):
         require_complete(load_campaign(unrecorded))
 
 
@@ -243,7 +251,7 @@ def test_the_revision_is_checked_before_completeness(campaign, tmp_path):
     part = tmp_path / "part"
     run_campaign(cfg, part, max_batches=1)
     _edit_meta(part, lambda meta: meta.update(model_revision=OLD))
-    with pytest.raises(CampaignError, match=f"force-law revision {OLD}; railsusp now"):
+    with pytest.raises(CampaignError, match=f"force-law revision {OLD}, older than"):
         require_complete(load_campaign(part))
 
 
@@ -261,3 +269,21 @@ def test_newer_and_hand_edited_campaigns_are_told_apart(campaign, tmp_path):
     _edit_meta(edited, lambda meta: meta["config"].update(seed=4))
     with pytest.raises(CampaignError, match="edited by hand"):
         load_campaign(edited)
+
+
+def test_a_newer_railsusps_campaign_is_not_discarded_even_with_force(campaign, tmp_path):
+    """``railsusp campaign --force`` into a newer railsusp's campaign discarded its batches
+    (the pipeline refused the same folder since stop 65): refused with or without
+    ``--force``, its batches left as they were, and the remedy is that railsusp."""
+    cfg, _ = campaign
+    newer = _copy(campaign, tmp_path, "newer")
+    _edit_meta(newer, lambda meta: meta.update(model_revision="2099-01-01.1"))
+    batches = sorted(p.name for p in (newer / "batches").rglob("*.parquet"))
+    for force in (False, True):
+        with pytest.raises(CampaignError) as err:
+            run_campaign(cfg, newer, force=force, max_batches=0)
+        text = str(err.value)
+        assert f"2099-01-01.1, newer than this railsusp's {MODEL_REVISION}: use it with" in text
+        assert "--force to discard" not in text and "\n" not in text
+    assert sorted(p.name for p in (newer / "batches").rglob("*.parquet")) == batches
+    assert json.loads((newer / "campaign.json").read_text())["model_revision"] == "2099-01-01.1"

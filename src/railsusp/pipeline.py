@@ -43,8 +43,9 @@ from railsusp.pipeline_state import (
     stage_files,
 )
 from railsusp.pipeline_state import STAGES as STAGES  # re-export
+from railsusp.provenance import code_identity, provenance, utc_now
 from railsusp.run_lock import run_lock
-from railsusp.store import code_identity, content_hash, provenance, utc_now, write_json
+from railsusp.store import content_hash, write_json
 from railsusp.summary import read_tolerances
 from railsusp.vehicle import MODEL_REVISION
 

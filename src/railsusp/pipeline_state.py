@@ -105,8 +105,7 @@ def _refuse_newer_campaigns(out: Path, option: str) -> None:
     which discards a campaign of other force laws as outdated, and so discarded hours of a
     newer railsusp's simulations (the standalone ``railsusp campaign`` refused the same
     folder). Campaigns of older force laws are simulated again, as before."""
-    from railsusp.campaign.results import revision_newer
-    from railsusp.vehicle import MODEL_REVISION
+    from railsusp.vehicle.revision import made_with, revision_newer
 
     for entry in RUN_ENTRIES:
         meta_path = out / entry / "campaign.json"
@@ -119,9 +118,8 @@ def _refuse_newer_campaigns(out: Path, option: str) -> None:
         if revision_newer(revision):
             raise RailsuspInputError(
                 f"{option} {out}: its campaign {meta_path.parent.name} was simulated with "
-                f"force-law revision {revision}, newer than this railsusp's {MODEL_REVISION} "
-                f"(a newer railsusp's run, which this one would discard); run it with that "
-                f"railsusp, or give a new {option}"
+                f"{made_with(revision)} (a newer railsusp's run, which this one would "
+                f"discard); run it with that railsusp, or give a new {option}"
             )
 
 

@@ -89,29 +89,31 @@ def own_records(path: Path) -> list[str]:
 
 def outdated_model(path: Path) -> str:
     """Why the run's tables are of other force laws than this railsusp simulates, in one
-    line naming both revisions and what ``railsusp run`` does with the folder; '' where
-    they are of these (or no stage has recorded any yet). A record of another revision
-    decides; records that all state none are of a run made before revisions were recorded
-    (an ``estimate.json`` stating none beside a campaign of this revision was written
-    before estimates recorded it: no sign of another model)."""
-    from railsusp.campaign.results import revision_newer
-    from railsusp.vehicle import MODEL_REVISION
+    line naming both revisions (:func:`railsusp.vehicle.revision.made_with`) and what
+    ``railsusp run`` does with the folder; '' where they are of these (or no stage has
+    recorded any yet). A record of another revision decides; records that all state none
+    are of a run made before revisions were recorded (an ``estimate.json`` stating none
+    beside a campaign of this revision was written before estimates recorded it: no sign
+    of another model)."""
+    from railsusp.vehicle.revision import Standing, made_with, standing
 
     records = revision_records(path)
-    other = [(rel, r) for rel, r in records.items() if r is not None and r != MODEL_REVISION]
+    other = [
+        (rel, r) for rel, r in records.items() if standing(r) not in (Standing.THIS, Standing.NONE)
+    ]
     if other:
         rel, revision = other[0]
-        made = f"force-law revision {revision} ({rel})"
+        made = f"{made_with(revision)} ({rel})"
     elif records and all(r is None for r in records.values()):
         revision = None
-        made = f"a force-law revision before 2026-11-30.1 (none recorded in {', '.join(records)})"
+        made = f"{made_with(None)}, none recorded in {', '.join(records)}"
     else:
         return ""
-    if revision_newer(revision):
+    if standing(revision) is Standing.NEWER:
         what = "open it with the newer railsusp that made it (railsusp run refuses it)"
     else:
         what = f"railsusp run CONFIG --out {path} would simulate every stage again"
     return (
-        f"{path}: made with {made}, this railsusp simulates revision "
-        f"{MODEL_REVISION}: its tables are read as that run wrote them, of that model; {what}"
+        f"{path}: made with {made}: its tables are read as that run wrote them, of that "
+        f"model; {what}"
     )

@@ -1,4 +1,4 @@
-"""The run directory: atomic writes of JSON and Parquet, content hashes, provenance.
+"""The run directory: atomic writes of JSON and Parquet, reading input files, content hashes.
 
 Every file railsusp writes goes through a temporary file in the same folder, is flushed to
 disk (fsync) and renamed over its target, and the folder is fsynced after the rename: an
@@ -6,17 +6,16 @@ interrupted run, or a power loss, leaves either the old file or the new one, nev
 one. Artefacts made of several files are written into a temporary folder and renamed as one
 (:func:`atomic_folder`). Input files are read by :func:`read_toml`, :func:`read_json` and
 :func:`read_csv`, which turn every OS, decoding and syntax error into a one-line
-:class:`RailsuspInputError`. Each result records where it came from (:func:`provenance`,
-:func:`content_hash`, :func:`file_hash`).
+:class:`RailsuspInputError`. Each result records what it was made from (:func:`content_hash`,
+:func:`file_hash`); which code made it is :mod:`railsusp.provenance`'s record.
 
 Whether what a file says is acceptable (strict validation against its model, an output path
 that can be written) is :mod:`railsusp.input_checks`'s job, not this module's: the store
-reads and writes bytes and records provenance; it judges no content.
+reads and writes bytes and hashes them; it judges no content.
 """
 
 from __future__ import annotations
 
-import datetime as _dt
 import errno
 import fnmatch
 import glob
@@ -24,11 +23,8 @@ import hashlib
 import io
 import json
 import os
-import platform
 import re
 import shutil
-import socket
-import subprocess
 import tempfile
 import tomllib
 from collections.abc import Iterator, Sequence
@@ -455,95 +451,3 @@ def write_parquet(
             write_page_checksum=True,
         )
     return path
-
-
-@lru_cache(maxsize=4)
-def _is_checkout(here: str) -> bool:
-    """Whether the package folder ``here`` is ``src/railsusp`` of a git checkout's top level
-    (asked git once per folder: :func:`_git` runs for every provenance record)."""
-    try:
-        top = subprocess.run(
-            ["git", "rev-parse", "--show-toplevel"],
-            cwd=here, capture_output=True, text=True, timeout=5,
-        )  # fmt: skip
-    except (OSError, subprocess.SubprocessError):
-        return False
-    return top.returncode == 0 and (
-        (Path(top.stdout.strip()) / "src" / "railsusp").resolve() == Path(here)
-    )
-
-
-def _git(*args: str) -> str | None:
-    """A git command's output in the railsusp source tree; None where it is no checkout of
-    railsusp: an installed package inside a repository of the user's (a project's
-    ``.venv``) is no checkout, though git finds the repository around it (its commit was
-    recorded as railsusp's, "clean": the packaging audit of stop 65). A checkout holds this
-    package at ``src/railsusp`` of its top level (:func:`_is_checkout`)."""
-    here = Path(__file__).resolve().parent
-    if not _is_checkout(str(here)):
-        return None
-    try:
-        out = subprocess.run(["git", *args], cwd=here, capture_output=True, text=True, timeout=5)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return out.stdout if out.returncode == 0 else None
-
-
-def git_sha() -> str | None:
-    """The git commit of the railsusp source tree, if it is a checkout."""
-    out = _git("rev-parse", "HEAD")
-    return (out or "").strip() or None
-
-
-def git_dirty() -> bool | None:
-    """Whether the railsusp source tree has uncommitted changes to tracked files (its
-    results then come from code no commit holds); None where it is no checkout."""
-    out = _git("status", "--porcelain", "--untracked-files=no", "--", ".")
-    return None if out is None else bool(out.strip())
-
-
-#: the libraries whose versions a result records (read from their metadata: importing
-#: torch to ask its version would cost a second)
-RECORDED_LIBRARIES = (
-    "numpy", "scipy", "numba", "pandas", "torch", "pymoo", "SALib", "asammdf", "sbi",
-)  # fmt: skip
-
-
-def library_versions() -> dict[str, str]:
-    """Installed versions of :data:`RECORDED_LIBRARIES` (those installed)."""
-    from importlib import metadata
-
-    out = {}
-    for name in RECORDED_LIBRARIES:
-        try:
-            out[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            continue
-    return out
-
-
-def code_identity() -> dict[str, Any]:
-    """Which railsusp made a result: its version, git commit and whether the tree was
-    modified (each pipeline stage records it: stages of one run may come from two)."""
-    from railsusp._version import __version__
-
-    return {"railsusp": __version__, "git_sha": git_sha(), "git_dirty": git_dirty()}
-
-
-def utc_now() -> str:
-    """The UTC time to the second, ISO 8601: when a file or a stage was made."""
-    return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
-
-
-def provenance(identity: dict[str, Any] | None = None) -> dict[str, Any]:
-    """Who and what produced a file: railsusp's version, git commit and whether its tree was
-    modified (``identity``, default :func:`code_identity`), the libraries' versions, host,
-    UTC time."""
-    return {
-        **(code_identity() if identity is None else identity),
-        "python": platform.python_version(),
-        **library_versions(),
-        "host": socket.gethostname(),
-        "platform": platform.platform(),
-        "utc": utc_now(),
-    }

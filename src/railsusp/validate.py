@@ -386,21 +386,27 @@ def check_estimate_revision(est: dict, path: Path) -> None:
     mean 4.90 -> 6.18 kN) and be read as the estimate's doing. An estimate that records no
     revision (written before) cannot be told: warned of, and validated as before."""
     from railsusp.vehicle import MODEL_REVISION
+    from railsusp.vehicle.revision import Standing, made_with, newer_remedy, standing
 
     revision = est.get("model_revision")
-    if revision is None:
+    s = standing(revision)
+    if s is Standing.NONE:  # not older force laws: estimates record it since 2026-11-30.2
         warnings.warn(
             f"{path} records no force-law revision (written before estimates recorded it): "
             f"validate cannot tell whether it was made with the force laws it re-simulates "
             f"(revision {MODEL_REVISION}); estimate again to be sure",
             stacklevel=3,
         )
-    elif revision != MODEL_REVISION:
+    elif s is not Standing.THIS:
+        remedy = (
+            newer_remedy(revision)
+            if s is Standing.NEWER
+            else "estimate again (`railsusp run` on its run directory, or `railsusp "
+            "estimate`) and validate that"
+        )
         raise RailsuspInputError(
-            f"{path}: made with force-law revision {revision}, this railsusp simulates "
-            f"revision {MODEL_REVISION}, so the validation would compare another model; "
-            "accepted an estimate of this revision: estimate again (`railsusp run` on its run "
-            "directory, or `railsusp estimate`) and validate that"
+            f"{path}: made with {made_with(revision)}, so the validation would compare "
+            f"another model: {remedy}"
         )
 
 

@@ -29,11 +29,16 @@ def test_surrogates_of_other_force_laws_are_refused(tmp_path):
     _stamp(folder, MODEL_REVISION)
     assert SurrogateForces(folder).conditions == ["straight"]
     _stamp(folder, None)  # saved before the revision was recorded
-    with pytest.raises(RailsuspInputError, match="straight: records no force-law revision"):
+    with pytest.raises(RailsuspInputError, match="straight: .* older than any recorded"):
         SurrogateForces(folder)
     _stamp(folder, "2000-01-01.1")
     with pytest.raises(RailsuspInputError) as err:
         SurrogateForces(folder)
     text = str(err.value)
-    assert "trained on a campaign of force-law revision 2000-01-01.1" in text
-    assert f"this railsusp simulates revision {MODEL_REVISION}" in text and "\n" not in text
+    assert (
+        "trained on a campaign simulated with force-law revision 2000-01-01.1, older than "
+        f"this railsusp's {MODEL_REVISION}: run the campaign again"
+    ) in text and "\n" not in text
+    _stamp(folder, "2099-01-01.1")  # a newer railsusp's: used there, not trained again here
+    with pytest.raises(RailsuspInputError, match=r"newer than .*: use it with the railsusp"):
+        SurrogateForces(folder)

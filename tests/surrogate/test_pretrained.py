@@ -96,11 +96,22 @@ def test_a_set_that_cannot_serve_the_run_is_refused_in_one_line(shipped, change,
 
 
 def test_a_set_of_other_force_laws_is_refused(shipped, monkeypatch):
-    monkeypatch.setattr(railsusp.vehicle, "MODEL_REVISION", "2099-01-01.1")
-    with pytest.raises(RailsuspInputError, match="revision .* this railsusp simulates revision"):
-        check_network_set(
-            shipped, wagon=load_wagon(None), kind="cnn-gru-seq", conditions=standard()
-        )
+    """Older: retrained or trained here; newer (a newer railsusp's set): used there."""
+    made = shipped.model_revision
+    for ours, said in (
+        ("2099-01-01.1", f"{made}, older than this railsusp's 2099-01-01.1: retrain it"),
+        ("2000-01-01.1", f"{made}, newer than this railsusp's 2000-01-01.1: use it with the "
+         "railsusp that made it"),
+    ):  # fmt: skip
+        monkeypatch.setattr(railsusp.vehicle, "MODEL_REVISION", ours)
+        with pytest.raises(RailsuspInputError) as err:
+            check_network_set(
+                shipped, wagon=load_wagon(None), kind="cnn-gru-seq", conditions=standard()
+            )
+        assert f"was trained with force-law revision {said}" in str(err.value)
+        assert "'c80_k6'" in str(err.value) and "\n" not in str(err.value)
+    # the newer set's message names its manifest (the older one's remedy does)
+    assert str(shipped.folder / MANIFEST) in str(err.value)
 
 
 def test_damaged_weights_are_caught_by_the_references(shipped, tmp_path):

@@ -93,6 +93,21 @@ def test_a_carried_over_set_is_of_today_s_revision_and_wagon(tmp_path):
         restamp_network_set(folder, wagon=load_wagon(), fields=FIELDS, accuracy=_scored(), note="x")
 
 
+def test_a_newer_railsusps_set_is_not_carried_back(tmp_path):
+    """Only equality was checked: a newer railsusp's set was stamped with this older
+    revision, each bundle's ``meta.model_revision`` overwritten. Refused, the set as it
+    was."""
+    folder = _old_curve_set(tmp_path)
+    manifest = json.loads((folder / MANIFEST).read_text())
+    (folder / MANIFEST).write_text(json.dumps({**manifest, "model_revision": "2099-01-01.1"}))
+    before = {p.name: file_hash(p) for p in folder.rglob("*.json")}
+    with pytest.raises(RailsuspInputError) as err:
+        restamp_network_set(folder, wagon=load_wagon(), fields=FIELDS, accuracy=_scored(), note="x")
+    assert "was trained with force-law revision 2099-01-01.1, newer than" in str(err.value)
+    assert "use it with the railsusp that made it" in str(err.value)
+    assert {p.name: file_hash(p) for p in folder.rglob("*.json")} == before
+
+
 def test_a_set_of_another_wagon_or_not_scored_is_not_carried_over(tmp_path):
     folder = _old_curve_set(tmp_path)
     with pytest.raises(RailsuspInputError, match=r"differs in car_body.gravity_roll_moment"):
@@ -118,8 +133,9 @@ def test_a_network_of_other_force_laws_is_not_written_into_a_set_of_today_s(tmp_
     # one that records none (older than any railsusp that records them: estimate refuses
     # it) was stamped today's too (stop 66)
     for revision, told in (
-        ("2020-01-01.1", "trained on force-law revision 2020-01-01.1"),
-        (None, "records no force-law revision"),
+        ("2020-01-01.1", "simulated with force-law revision 2020-01-01.1, older than"),
+        (None, "simulated with force laws older than any recorded force-law revision"),
+        ("2099-01-01.1", "2099-01-01.1, newer than this railsusp's .*: use it with the railsusp"),
     ):
         doc["meta"]["model_revision"] = revision
         if revision is None:

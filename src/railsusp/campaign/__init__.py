@@ -28,6 +28,7 @@ integrated on its own. Samples whose simulation failed (derailment, divergence) 
 rows with a non-zero ``status`` and NaN features; :func:`failed_runs` counts them.
 """
 
+from railsusp.campaign.batch_simulation import features_table, simulate_task
 from railsusp.campaign.design import (
     CHANNELS,
     STATISTICS,
@@ -47,7 +48,7 @@ from railsusp.campaign.results import (
     load_campaign,
     require_complete,
 )
-from railsusp.campaign.run import features_table, run_campaign, simulate_task
+from railsusp.campaign.run import run_campaign
 
 __all__ = [
     "CHANNELS",

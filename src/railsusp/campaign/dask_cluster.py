@@ -183,8 +183,15 @@ def run_on_dask(
                 result = fut.result()
             except failures as exc:
                 raise cluster_error(exc) from exc
-            except TypeError as exc:  # a worker of a railsusp whose task takes other arguments
-                if "positional argument" not in str(exc):
+            except (TypeError, ImportError) as exc:
+                # a worker of a railsusp whose task takes other arguments, or that has no
+                # module of that name (the task moved to campaign.batch_simulation in stop 67)
+                other = (
+                    "positional argument" in str(exc)
+                    if isinstance(exc, TypeError)
+                    else (exc.name or "").startswith("railsusp")
+                )
+                if not other:
                     raise
                 raise CampaignError(
                     f"a worker of the Dask cluster runs another railsusp ({exc}): install the "

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +19,7 @@ from railsusp.campaign.design import (
 )
 from railsusp.errors import first_listed
 from railsusp.store import read_parquet
+from railsusp.vehicle.revision import Standing, made_with, newer_remedy, standing
 
 #: what to do about a campaign file that is missing or damaged: resumed, the campaign
 #: simulates every batch that is not stored whole again
@@ -30,29 +30,6 @@ def _read(path: Path) -> pd.DataFrame:
     """A table of a campaign folder, its pages' checksums verified: a damaged one is a
     one-line :class:`CampaignError` naming it and how to make it again."""
     return read_parquet(path, RESUME, error=CampaignError)
-
-
-#: a force-law revision (:data:`railsusp.vehicle.MODEL_REVISION`): a date and a number
-_REVISION = re.compile(r"^(\d{4}-\d{2}-\d{2})(?:\.(\d+))?$")
-
-
-def revision_newer(revision: object, than: str | None = None) -> bool:
-    """Whether the force-law revision ``revision`` (``"2026-11-30.2"``: the day and that
-    day's number) is later than ``than`` (default: this railsusp's): a campaign simulated by
-    a newer railsusp, which this one must not discard as outdated. Compared as (day, number):
-    as strings ``2026-11-30.10`` would sort before ``2026-11-30.9``. A revision of another
-    form (a hand edit) is not newer: it is treated as any other revision."""
-    if than is None:
-        from railsusp.vehicle import MODEL_REVISION
-
-        than = MODEL_REVISION
-
-    def key(text: object) -> tuple[str, int] | None:
-        found = _REVISION.match(str(text)) if isinstance(text, str) else None
-        return None if found is None else (found[1], int(found[2] or 0))
-
-    got, ours = key(revision), key(than)
-    return got is not None and ours is not None and got > ours
 
 
 def _config_error(meta_path: Path, exc: ValidationError) -> str:
@@ -73,29 +50,19 @@ def _config_error(meta_path: Path, exc: ValidationError) -> str:
 
 def revision_problem(revision: object, where: Path) -> str | None:
     """One line saying that the campaign at ``where`` was simulated with other force laws
-    than this railsusp's (its recorded ``revision``, or none: made before 2026-11-30, when
-    revisions began to be recorded, so older), naming both revisions and what to do; None
-    where ``revision`` is this railsusp's. A newer revision is a newer railsusp's campaign,
-    which is not to be simulated again as outdated."""
-    from railsusp.vehicle import MODEL_REVISION
-
-    again = "run the campaign again into a new --out (or with --force) before using its results"
-    if revision is None:
-        return (
-            f"{where} records no force-law revision: it was simulated before 2026-11-30, with "
-            f"older force laws than this railsusp's revision {MODEL_REVISION}; {again}"
-        )
-    if str(revision) == MODEL_REVISION:
+    than this railsusp's (its recorded ``revision``; none recorded: made before revisions
+    were, so older), in the words of :func:`railsusp.vehicle.revision.made_with`, and what
+    to do; None where ``revision`` is this railsusp's. A newer revision is a newer
+    railsusp's campaign, which is not to be simulated again as outdated."""
+    s = standing(revision)
+    if s is Standing.THIS:
         return None
-    if revision_newer(revision):
-        return (
-            f"{where} was simulated with force-law revision {revision}, newer than this "
-            f"railsusp's {MODEL_REVISION}: use it with the railsusp that simulated it"
-        )
-    return (
-        f"{where} was simulated with force-law revision {revision}; railsusp now simulates "
-        f"{MODEL_REVISION}: {again}"
+    remedy = (
+        newer_remedy(revision)
+        if s is Standing.NEWER
+        else "run the campaign again into a new --out (or with --force) before using its results"
     )
+    return f"{where} was simulated with {made_with(revision)}: {remedy}"
 
 
 def stored_config(meta: dict, meta_path: Path) -> CampaignConfig:

@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from railsusp.campaign.batch_files import write_batch
+from railsusp.campaign.batch_simulation import simulate_task
 from railsusp.campaign.design import CampaignConfig, CampaignError, batch_paths, track_seeds
 from railsusp.campaign.results import load_campaign
-from railsusp.campaign.run import simulate_task
 from railsusp.params import ParameterSet
 from railsusp.store import read_json, write_json
 

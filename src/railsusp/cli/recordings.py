@@ -51,7 +51,7 @@ def check_recording(
     each naming file, channel and rows; exit status 2)."""
     from railsusp.measured import RecordingError, read_recording
     from railsusp.measured.raw import MDF_SUFFIXES
-    from railsusp.measured.reader import MIN_RATE_RANGE_HZ
+    from railsusp.measured.recording_reader import MIN_RATE_RANGE_HZ
     from railsusp.vehicle.setup import static_wheel_load
     from railsusp.vehicle.wagon import load_wagon
 

@@ -60,7 +60,7 @@ def check_force_laws(folder: Path, metas: dict[str, dict]) -> None:
     :func:`railsusp.surrogate.statistics.train_statistics_surrogate`; the shipped sets'
     bundles record theirs), so on older force laws than any revision: refused too (it was
     opened silently, the upgrade audit's H2, where the posterior refused the same case)."""
-    from railsusp.vehicle import MODEL_REVISION
+    from railsusp.vehicle.revision import Standing, made_with, newer_remedy, standing
 
     retrain = (
         "run the campaign again and train the surrogates on it (`railsusp campaign` and "
@@ -68,16 +68,12 @@ def check_force_laws(folder: Path, metas: dict[str, dict]) -> None:
     )
     for name, meta in metas.items():
         revision = (meta or {}).get("model_revision")
-        if revision is None:
+        s = standing(revision)
+        if s is not Standing.THIS:
+            remedy = newer_remedy(revision) if s is Standing.NEWER else retrain
             raise RailsuspInputError(
-                f"{folder / name}: records no force-law revision (trained on a campaign "
-                "from before revisions were recorded, so of older force laws than this "
-                f"railsusp's revision {MODEL_REVISION}): {retrain}"
-            )
-        if revision != MODEL_REVISION:
-            raise RailsuspInputError(
-                f"{folder / name}: trained on a campaign of force-law revision {revision}, "
-                f"this railsusp simulates revision {MODEL_REVISION}: {retrain}"
+                f"{folder / name}: trained on a campaign simulated with {made_with(revision)}: "
+                f"{remedy}"
             )
 
 

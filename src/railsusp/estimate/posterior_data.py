@@ -70,20 +70,23 @@ def check_model_revision(stamp: dict, path: Path) -> None:
     definitions than :data:`railsusp.estimate.summaries.STATISTICS_VERSION` (recorded since
     stop 62): its cached simulations and what was trained on them describe another model,
     and mixing them with new ones would pass unseen."""
-    now = estimator_stamp()
-    for key, what, kind, since, does in (
-        ("model_revision", "simulations are of the force laws of", "revision", "2026-11-30.1",
-         "simulates"),
-        ("statistics_version", "summary statistics are of the definitions of", "version",
-         "2026-11-30.2", "computes"),
-    ):  # fmt: skip
-        got = stamp.get(key)
-        if got != now[key]:
-            was = f"{kind} {got}" if got else f"a {kind} before {since} (none recorded)"
-            raise RailsuspInputError(
-                f"{path}: its {what} {was}, this railsusp {does} {kind} {now[key]}: train "
-                f"again with another --out (or delete {path.parent})"
-            )
+    from railsusp.vehicle.revision import Standing, made_with, newer_remedy, standing
+
+    again = f"train again with another --out (or delete {path.parent})"
+    revision = stamp.get("model_revision")
+    s = standing(revision)
+    if s is not Standing.THIS:
+        remedy = newer_remedy(revision) if s is Standing.NEWER else again
+        raise RailsuspInputError(
+            f"{path}: its simulations were made with {made_with(revision)}: {remedy}"
+        )
+    got, now = stamp.get("statistics_version"), estimator_stamp()["statistics_version"]
+    if got != now:
+        was = f"version {got}" if got else "a version before 2026-11-30.2 (none recorded)"
+        raise RailsuspInputError(
+            f"{path}: its summary statistics are of the definitions of {was}, this railsusp "
+            f"computes version {now}: {again}"
+        )
 
 
 def estimator_stamp() -> dict[str, str]:

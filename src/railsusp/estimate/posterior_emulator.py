@@ -76,7 +76,9 @@ def _ridge(features: np.ndarray, y: np.ndarray, penalty: float = 1e-3) -> np.nda
 class StatisticsEmulator:
     """Fitted emulator (module docstring). Inputs are fractions of range u (N, d); the
     outputs are in the statistics' own units. ``weights``: per member, the layers' (W, b)
-    acting on 2u - 1 and returning standardised statistics (x - x_mean) / x_scale."""
+    acting on 2u - 1 and returning standardised statistics (x - x_mean) / x_scale; arrays
+    are replaced, not edited in place (they are read through a stack made once per set of
+    arrays: :meth:`member_means`)."""
 
     weights: list[list[tuple[np.ndarray, np.ndarray]]]
     x_mean: np.ndarray  # (D,)

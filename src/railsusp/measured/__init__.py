@@ -2,7 +2,9 @@
 
 - :mod:`~railsusp.measured.recording`: one recording of one working condition (the field
   format) and its writer;
-- :mod:`~railsusp.measured.reader`: the field folder (``index.json``) and its strict reader;
+- :mod:`~railsusp.measured.recording_reader`, :mod:`~railsusp.measured.sidecar`: one
+  recording's table and its JSON sidecar, read and checked strictly;
+- :mod:`~railsusp.measured.reader`: the field folder (``index.json``) read as a whole;
 - :mod:`~railsusp.measured.raw`, :mod:`~railsusp.measured.units`,
   :mod:`~railsusp.measured.channels`, :mod:`~railsusp.measured.run`: long runs as the
   measurement system wrote them (ASAM MDF4, CSV, Parquet) read through a channel map;
@@ -16,19 +18,15 @@
 """
 
 from railsusp.measured.checks import MAX_GAP_SAMPLES
-from railsusp.measured.reader import (
-    conditions_from,
-    inside,
-    read_field,
-    read_index,
-    read_recording,
-)
+from railsusp.measured.reader import conditions_from, read_field, read_index
 from railsusp.measured.recording import (
     FORMAT,
     Recording,
     RecordingError,
     SimulationFailedError,
 )
+from railsusp.measured.recording_reader import read_recording
+from railsusp.measured.sidecar import inside
 from railsusp.measured.synthetic import (
     add_sensor_noise,
     bandwidth_filter,

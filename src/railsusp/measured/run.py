@@ -86,7 +86,7 @@ class MeasuredRun:
 
 
 #: the lowest rate of a long run's force channels: the field folders' default minimum
-#: (:func:`railsusp.measured.reader.read_recording`'s ``min_rate_hz``)
+#: (:func:`railsusp.measured.recording_reader.read_recording`'s ``min_rate_hz``)
 MIN_RUN_RATE_HZ = 50.0
 
 

@@ -25,7 +25,8 @@ from railsusp.conditions import TRACK_AND_LENGTH_FIELDS, WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.integrity import read_torch_file
 from railsusp.params import ParameterSet, spec
-from railsusp.store import atomic_folder, atomic_write_bytes, provenance, read_json, write_json
+from railsusp.provenance import provenance
+from railsusp.store import atomic_folder, atomic_write_bytes, read_json, write_json
 from railsusp.surrogate.correction import RecordCorrection
 from railsusp.surrogate.data import (
     FeatureSpec,

@@ -216,14 +216,20 @@ def check_network_set(
     than ``kind``, without a network for one of ``conditions``, or with one whose training
     does not cover that condition (:meth:`~railsusp.surrogate.bundle.Surrogate.untrained_fields`:
     speed, grade, coupler force, or FRA class, radius or cant outside the track family)."""
-    from railsusp.vehicle import MODEL_REVISION
+    from railsusp.vehicle.revision import Standing, made_with, newer_remedy, standing
 
     where = f"{field} = {ns.name!r}"
-    if ns.model_revision != MODEL_REVISION:
+    s = standing(ns.model_revision)
+    if s is Standing.NEWER:
+        where += f" ({ns.folder / MANIFEST})"
+    if s is not Standing.THIS:
+        remedy = (
+            newer_remedy(ns.model_revision)
+            if s is Standing.NEWER
+            else f"retrain it ({ns.folder / MANIFEST}, 'reproduce') or train the surrogates here"
+        )
         raise RailsuspInputError(
-            f"{where} was trained on the force laws of revision {ns.model_revision}, this "
-            f"railsusp simulates revision {MODEL_REVISION}: retrain it "
-            f"({ns.folder / MANIFEST}, 'reproduce') or train the surrogates here"
+            f"{where} was trained with {made_with(ns.model_revision)}: {remedy}"
         )
     if ns.wagon_hash != wagon_hash(wagon):
         raise RailsuspInputError(
@@ -357,6 +363,7 @@ def write_network_set(
     today's whatever the networks had learnt)."""
     from railsusp.surrogate.bundle import load
     from railsusp.vehicle import MODEL_REVISION
+    from railsusp.vehicle.revision import Standing, made_with, newer_remedy, standing
 
     if isinstance(source, Mapping):
         missing = [c for c in conditions if c not in source]
@@ -379,18 +386,17 @@ def write_network_set(
         if wagon_hash(s.wagon) != wagon_hash(first.wagon):
             raise RailsuspInputError(f"{bundles[c]}: trained on another wagon than the set's")
         trained = s.meta.get("model_revision")
-        if trained != MODEL_REVISION:
+        if standing(trained) is not Standing.THIS:
             # the manifest would claim today's force laws for a network of others (one that
             # records none is older than any railsusp that records them: estimate refuses it)
-            told = (
-                "records no force-law revision"
-                if trained is None
-                else (f"trained on force-law revision {trained}")
+            remedy = (
+                newer_remedy(trained)
+                if standing(trained) is Standing.NEWER
+                else "train it again, or score it on today's simulator and carry the set over "
+                "(railsusp.surrogate.restamp)"
             )
             raise RailsuspInputError(
-                f"{bundles[c]}: {told}, this railsusp simulates {MODEL_REVISION}; train it "
-                "again, or score it on today's simulator and carry the set over "
-                "(railsusp.surrogate.restamp)"
+                f"{bundles[c]}: trained on a campaign simulated with {made_with(trained)}: {remedy}"
             )
     dest = Path(dest)
     with atomic_folder(dest, keep=False) as tmp:

@@ -28,7 +28,8 @@ from typing import Any
 import pandas as pd
 
 from railsusp.errors import RailsuspInputError
-from railsusp.store import atomic_folder, read_json, utc_now, write_csv, write_json
+from railsusp.provenance import utc_now
+from railsusp.store import atomic_folder, read_json, write_csv, write_json
 from railsusp.surrogate.pretrained import (
     ACCURACY,
     MANIFEST,
@@ -75,9 +76,15 @@ def restamp_network_set(
     (``model_revision_note``, the earlier notes in ``model_revision_history``) and in each
     bundle's ``meta.restamped``."""
     from railsusp.vehicle import MODEL_REVISION
+    from railsusp.vehicle.revision import Standing, made_with, newer_remedy, standing
 
     folder = Path(folder)
     ns = read_network_set(folder)
+    if standing(ns.model_revision) is Standing.NEWER:  # not carried back to older force laws
+        raise RailsuspInputError(
+            f"network set {ns.name!r} ({folder / MANIFEST}) was trained with "
+            f"{made_with(ns.model_revision)}: {newer_remedy(ns.model_revision)}"
+        )
     if ns.model_revision == MODEL_REVISION:
         raise RailsuspInputError(
             f"network set {ns.name!r} is of revision {MODEL_REVISION} already: nothing to stamp"

@@ -18,7 +18,8 @@ import numpy as np
 
 from railsusp.conditions import WorkingCondition
 from railsusp.params import bounds
-from railsusp.store import provenance, read_json, write_json
+from railsusp.provenance import provenance
+from railsusp.store import read_json, write_json
 from railsusp.surrogate.baselines import StatisticsGP
 from railsusp.surrogate.data import FeatureSpec, load_series
 from railsusp.vehicle.simulation_result import RECORD_STATISTICS, statistic_segments
