@@ -3,7 +3,8 @@ planning a training on a lent GPU (issue 19; bench/README.md, "Trained on a GPU"
 
 Synthetic inputs of the shipped tangent network's sizes (its ``surrogate.json``: features,
 washout, outputs), chunks of 400 steps as the training draws them, for the study's GRU sizes
-and two wider variants; the mean of ``--steps`` timed steps after three untimed ones. No
+and two wider variants; the mean of ``--steps`` timed steps after ``--warmup`` untimed ones
+(three: the first steps allocate and, on a GPU, pick kernels). No
 campaign and no simulation: it runs in seconds, so a lease's first minutes can say how far a
 budget goes. Prints a table and writes JSON (bench/results/gpu_train_step.json)::
 
@@ -41,15 +42,16 @@ def shipped_config() -> NetConfig:
     return NetConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in doc.items()})
 
 
-def time_step(cfg: NetConfig, chunks: int, steps: int, device: str) -> float:
-    """Mean seconds of one training step on ``chunks`` random chunks."""
+def time_step(cfg: NetConfig, chunks: int, steps: int, device: str, warmup: int = 3) -> float:
+    """Mean seconds of one training step on ``chunks`` random chunks, after ``warmup``
+    untimed ones."""
     net = build_network(cfg).to(device).train()
     opt = torch.optim.Adam(net.parameters(), lr=1e-3)
     x = torch.randn(chunks, CHUNK_STEPS, cfg.n_features, device=device)
     y = torch.randn(chunks, CHUNK_STEPS - cfg.window, cfg.n_outputs, device=device)
     t0 = 0.0
-    for k in range(steps + 3):
-        if k == 3:
+    for k in range(steps + warmup):
+        if k == warmup:
             if device == "cuda":
                 torch.cuda.synchronize()
             t0 = time.perf_counter()
@@ -66,6 +68,7 @@ def main(argv: Sequence[str] | None = None) -> list[dict]:
     ap.add_argument("--device", default="cuda", help="cuda or cpu")
     ap.add_argument("--chunks", default="32,256,1024", help="chunks per step, comma list")
     ap.add_argument("--steps", type=int, default=20, help="timed steps")
+    ap.add_argument("--warmup", type=int, default=3, help="untimed steps before them")
     ap.add_argument("--variants", default=",".join(VARIANTS), help="of " + ", ".join(VARIANTS))
     ap.add_argument("--out", default="bench/results/gpu_train_step.json")
     args = ap.parse_args(argv)
@@ -83,13 +86,15 @@ def main(argv: Sequence[str] | None = None) -> list[dict]:
         sizes = []
     if not sizes or min(sizes) < 1 or args.steps < 1:
         ap.error(f"--chunks {args.chunks} --steps {args.steps}: accepted integers >= 1")
+    if args.warmup < 0:
+        ap.error(f"--warmup {args.warmup}: accepted an integer >= 0")
     base = shipped_config()
     rows = []
     print(f"{'network':8s} {'GRU':>12s} {'chunks':>7s} {'ms/step':>9s} {'chunks/s':>10s}")
     for name in names:
         cfg = NetConfig(**{**base.to_dict(), **VARIANTS[name]})
         for chunks in sizes:
-            s = time_step(cfg, chunks, args.steps, args.device)
+            s = time_step(cfg, chunks, args.steps, args.device, args.warmup)
             rows.append(
                 {"network": name, "rnn_hidden": list(cfg.rnn_hidden), "dense": list(cfg.dense),
                  "chunks": chunks, "ms_per_step": 1e3 * s, "chunks_per_s": chunks / s}
@@ -105,6 +110,7 @@ def main(argv: Sequence[str] | None = None) -> list[dict]:
             "torch": torch.__version__,
             "chunk_steps": CHUNK_STEPS,
             "steps": args.steps,
+            "warmup": args.warmup,
             "rows": rows,
         },
     )

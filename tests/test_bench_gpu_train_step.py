@@ -20,14 +20,15 @@ def test_the_shipped_architecture_is_read_and_variants_only_widen_it():
 
 def test_rows_on_the_cpu(tmp_path):
     out = tmp_path / "r.json"
-    rows = gts.main(["--device", "cpu", "--chunks", "2,3", "--steps", "1",
+    rows = gts.main(["--device", "cpu", "--chunks", "2,3", "--steps", "1", "--warmup", "0",
                      "--variants", "study,wide", "--out", str(out)])  # fmt: skip
     assert [(r["network"], r["chunks"]) for r in rows] == [
         ("study", 2), ("study", 3), ("wide", 2), ("wide", 3)
     ]  # fmt: skip
     assert rows[2]["rnn_hidden"] == [128, 64, 32]
     assert all(r["ms_per_step"] > 0 and r["chunks_per_s"] > 0 for r in rows)
-    assert json.loads(out.read_text())["rows"] == rows
+    doc = json.loads(out.read_text())
+    assert doc["rows"] == rows and doc["warmup"] == 0
 
 
 @pytest.mark.parametrize(
@@ -37,6 +38,7 @@ def test_rows_on_the_cpu(tmp_path):
         (["--chunks", "0"], "--chunks 0"),
         (["--chunks", "a"], "--chunks a"),
         (["--device", "tpu"], "--device tpu"),
+        (["--warmup", "-1"], "--warmup -1: accepted an integer >= 0"),
     ],
 )
 def test_bad_options_exit_2_naming_them(args, message, capsys):

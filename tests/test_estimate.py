@@ -296,7 +296,7 @@ def test_cramer_rao_bound_does_not_apply_on_a_range_bound():
     one-sided difference there (stop 59's audit: X11 on its bound with a 4.7 % bound read as
     precision). The other parameter keeps its bound; the verdict says why."""
     from railsusp.estimate.intervals import from_pareto
-    from railsusp.validate import identification_issues
+    from railsusp.identification_verdict import identification_issues
 
     gain = np.array([[10.0, 2.0], [0.0, 5.0], [3.0, -1.0], [1.0, 1.0]])
     model = LinearStatistics(gain, np.array([0.5, 1.0, 2.0, 0.3]))

@@ -15,6 +15,10 @@ REPORT_MODULES = (
     "report_html.py",
     "report_doc.py",
     "report_estimate.py",
+    "report_method.py",
+    "report_provenance.py",
+    "report_stale.py",
+    "report_summary_card.py",
     "summary.py",
 )
 

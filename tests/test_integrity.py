@@ -209,7 +209,7 @@ def test_a_modified_source_tree_is_recorded_and_the_report_says_which_code_made_
     modified code showed the commit's SHA, and a run whose stages two commits made showed
     one."""
     from railsusp import provenance
-    from railsusp.report_html import _made_by
+    from railsusp.report_provenance import _made_by
 
     monkeypatch.setattr(provenance, "_git", lambda *a: " M src/railsusp/x.py\n")
     assert provenance.git_dirty() is True

@@ -37,10 +37,10 @@ from railsusp.estimate.residual_noise import (
     effective_sample_size,
     standard_errors,
 )
+from railsusp.identification_verdict import identification_issues
 from railsusp.measured import Recording
 from railsusp.params import MAIN_SUSPENSION, bounds, spec
 from railsusp.store import read_json, write_json
-from railsusp.validate import identification_issues
 from test_estimate import COND, WaveForces  # the series model with a known answer
 
 PARAMS = ("X13", "X14")

@@ -216,7 +216,7 @@ def test_a_field_folder_naming_one_condition_twice_is_refused(tmp_path):
     ):
         read_field(tmp_path)
     # the posterior took the later of the two, dropping the other unsaid
-    from railsusp.estimate.posterior_data import recording_summaries
+    from railsusp.estimate.posterior_recordings import recording_summaries
 
     rec = read_recording(tmp_path / "a.csv")
     with pytest.raises(RailsuspInputError, match="two recordings of condition 'straight'"):

@@ -75,7 +75,7 @@ def test_a_failed_or_interrupted_rerun_marks_the_old_report_stale(tmp_path, monk
     # a second stop replaces the banner, it does not add one; a later stage's names it
     with pytest.raises(raised):
         pipeline._run_stages(demo_config(), out, state, None, None, None)
-    from railsusp.report_html import mark_report_stale
+    from railsusp.report_stale import mark_report_stale
 
     mark_report_stale(out, "estimate")
     for name in ("report.html", "report.md"):

@@ -22,6 +22,7 @@ from railsusp.estimate import (
     posterior_data,
     posterior_fusion,
     posterior_joint,
+    posterior_recordings,
     posterior_synthetic_run,
 )
 from railsusp.estimate import statistic_families as sf
@@ -84,8 +85,8 @@ def test_a_curve_recording_listing_the_inner_wheel_first_is_refused(options):
         match=r"recording 'curve': its first wheel is w1L, the force model gives w1R in this "
         r"condition \(it holds w1R: list it first\)",
     ):
-        posterior_data.recording_summaries(s, [good, _curve_recording(s, ("w1L", "w1R"))])
-    x, _ = posterior_data.recording_summaries(s, [good, _curve_recording(s, ("w1R", "w1L"))])
+        posterior_recordings.recording_summaries(s, [good, _curve_recording(s, ("w1L", "w1R"))])
+    x, _ = posterior_recordings.recording_summaries(s, [good, _curve_recording(s, ("w1R", "w1L"))])
     names = s.summary_names
     assert x[0, names.index("curve:Y_p50")] == pytest.approx(30.0, abs=1.0)
 
@@ -244,7 +245,7 @@ def test_a_recording_section_without_a_quotient_is_refused():
         match=r"recording 'straight': statistic YQ_p0.15 undefined in section 1 \(a wheel "
         r"unloaded, Q <= 1 kN, in all of it\)",
     ):
-        posterior_data.recording_summaries(s, [rec])
+        posterior_recordings.recording_summaries(s, [rec])
 
 
 def test_the_quotient_of_a_loaded_wheel_is_en14363s_of_y_over_q():

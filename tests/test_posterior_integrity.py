@@ -21,11 +21,17 @@ import pytest
 
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate import posterior, posterior_check, posterior_data, posterior_fusion
+from railsusp.estimate import (
+    posterior,
+    posterior_check,
+    posterior_data,
+    posterior_fusion,
+    posterior_recordings,
+)
 from railsusp.estimate.calibration import ParameterCalibration
-from railsusp.estimate.posterior_data import OUTSIDE_MARGIN_SD, TrainingSupport
 from railsusp.estimate.posterior_result import PosteriorResult
 from railsusp.estimate.posterior_settings import PosteriorSettings
+from railsusp.estimate.posterior_support import OUTSIDE_MARGIN_SD, TrainingSupport
 from railsusp.measured.recording import Recording
 from railsusp.store import read_json
 
@@ -54,15 +60,15 @@ def test_a_recording_from_the_entry_spiral_is_refused_naming_lead_in_m():
     calibrated: its Y_p50 was 6 kN where every training case's was about 39. Now its own
     condition is held to the training conditions' steady-arc rule."""
     s = PosteriorSettings((CURVE,), section_s=3.0)
-    posterior_data.recording_summaries(s, [_recording(CURVE, 3.0, "w1R")])  # read
+    posterior_recordings.recording_summaries(s, [_recording(CURVE, 3.0, "w1R")])  # read
     late = CURVE.with_changes(lead_in_m=150.0)  # later in the same arc: read too
-    posterior_data.recording_summaries(s, [_recording(late, 3.0, "w1R")])
+    posterior_recordings.recording_summaries(s, [_recording(late, 3.0, "w1R")])
     with pytest.raises(
         RailsuspInputError,
         match=r"^recording 'curve': lead_in_m = 30 m \(condition 'curve'\): the recorded "
         r"sections would hold the entry to the curve .* accepted at least 9\d",
     ):
-        posterior_data.recording_summaries(
+        posterior_recordings.recording_summaries(
             s, [_recording(CURVE.with_changes(lead_in_m=30.0), 3.0, "w1R")]
         )
 
@@ -70,14 +76,14 @@ def test_a_recording_from_the_entry_spiral_is_refused_naming_lead_in_m():
 def test_a_recording_whose_sections_outrun_the_arc_is_refused_naming_arc_length_m():
     short = CURVE.with_changes(arc_length_m=500.0)  # 30 s at 60 km/h from the arc's start
     s = PosteriorSettings((short,), section_s=10.0)
-    x, _ = posterior_data.recording_summaries(s, [_recording(short, 20.0, "w1R")])
+    x, _ = posterior_recordings.recording_summaries(s, [_recording(short, 20.0, "w1R")])
     assert len(x) == 2
     with pytest.raises(
         RailsuspInputError,
         match=r"^recording 'curve': arc_length_m = 500 m \(condition 'curve'\): the curve "
         r"ends within its 40 s of sections; accepted a recording whose sections lie in the arc",
     ):
-        posterior_data.recording_summaries(s, [_recording(short, 40.0, "w1R")])
+        posterior_recordings.recording_summaries(s, [_recording(short, 40.0, "w1R")])
 
 
 # ---------------------------------------------------------------- M1. the instrument
@@ -88,13 +94,13 @@ def test_a_recording_filtered_below_the_training_bandwidth_is_refused():
     s = PosteriorSettings((STRAIGHT,), section_s=3.0)
     for meta in ({}, {"filter_bandwidth_hz": None}, {"filter_bandwidth_hz": 15.0},
                  {"filter_bandwidth_hz": 40}):  # fmt: skip
-        posterior_data.recording_summaries(s, [_recording(STRAIGHT, 3.0, meta=meta)])
+        posterior_recordings.recording_summaries(s, [_recording(STRAIGHT, 3.0, meta=meta)])
     with pytest.raises(
         RailsuspInputError,
         match=r"^recording 'straight': filter_bandwidth_hz = 4 Hz is below the 15 Hz .* "
         r"accepted 15 Hz or more \(or none stated\)$",
     ):
-        posterior_data.recording_summaries(
+        posterior_recordings.recording_summaries(
             s, [_recording(STRAIGHT, 3.0, meta={"filter_bandwidth_hz": 4})]
         )
 
@@ -120,7 +126,7 @@ def test_the_training_support_flags_the_sections_mean_beyond_its_range_by_the_ma
 def test_too_few_training_cases_compare_nothing_and_say_so():
     """With 20 training cases their extremes flagged 30 % of held-out simulations of one
     section as outside (the review of stop 65): below MIN_SUPPORT_CASES nothing is flagged."""
-    from railsusp.estimate.posterior_data import MIN_SUPPORT_CASES, support_notes
+    from railsusp.estimate.posterior_support import MIN_SUPPORT_CASES, support_notes
 
     rng = np.random.default_rng(0)
     few = TrainingSupport.of(["a"], rng.standard_normal((MIN_SUPPORT_CASES - 1, 1)))

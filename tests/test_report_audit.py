@@ -12,7 +12,8 @@ import pandas as pd
 from railsusp import summary
 from railsusp.report_doc import Doc
 from railsusp.report_estimate import estimate_section, validation_section
-from railsusp.report_html import _provenance, summary_card
+from railsusp.report_provenance import provenance_section
+from railsusp.report_summary_card import summary_card
 from test_summary import make_run as summary_run
 from test_summary import write
 
@@ -86,7 +87,7 @@ def test_provenance_names_the_networks_the_estimate_ran_on(tmp_path):
 
     def listed() -> list[str]:
         doc = Doc(run)
-        _provenance(
+        provenance_section(
             doc, run, {"config": {"surrogate": surrogate}, "stages": {}}, {"config_hash": "abc"}
         )
         (table,) = [t for t in md_tables(doc.md) if t[0] == ["data file", "sha256"]]

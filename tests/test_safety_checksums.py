@@ -11,8 +11,8 @@ import pytest
 
 from railsusp.campaign.design import CampaignError
 from railsusp.errors import RailsuspInputError
+from railsusp.identification_verdict import max_st
 from railsusp.store import write_parquet
-from railsusp.validate import max_st
 from test_safety_stamp import make_run
 from test_store_checksums import flip_a_bit_in_a_page
 

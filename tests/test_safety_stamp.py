@@ -1,6 +1,6 @@
 """Every reader of a run's sensitivity outputs checks their campaign stamp: the Python API
 (``key_parameters``, ``largest_st``, ``sensitivity``), the summary's estimate table, the
-report and ``validate.max_st``. A run whose campaign was replaced by hand (``railsusp
+report and ``identification_verdict.max_st``. A run whose campaign was replaced by hand (``railsusp
 campaign --out RUN/campaign --force`` of another configuration) kept the old campaign's
 analysis, and these read it as the new one's without a word. Each test failed on the code
 before (only train, compare, campaign --keys-from and validate --sensitivity checked);
@@ -19,12 +19,12 @@ import pytest
 import railsusp
 from railsusp import summary
 from railsusp.errors import RailsuspInputError
+from railsusp.identification_verdict import max_st
 from railsusp.key_parameters import CAMPAIGN_STAMP, INDICES_STAMP
 from railsusp.params import spec
 from railsusp.report_doc import Doc
-from railsusp.report_html import _method_sections
+from railsusp.report_method import method_sections
 from railsusp.store import write_parquet
-from railsusp.validate import max_st
 
 PARAMS = ["X13", "X17"]
 MAX_ST = {"X13": 0.5, "X17": 0.4, "X14": 0.2}
@@ -116,7 +116,7 @@ def test_the_estimate_table_refuses_an_analysis_of_another_campaign(stale):
 
 def test_the_report_refuses_an_analysis_of_another_campaign(stale):
     _refused(
-        lambda: _method_sections(Doc(stale), stale, {}),
+        lambda: method_sections(Doc(stale), stale, {}),
         stale / "campaign" / "sensitivity" / "key_parameters.json",
     )
 
@@ -137,7 +137,7 @@ def test_an_analysis_of_its_campaign_or_made_before_the_stamp_is_read(tmp_path, 
     assert len(result.sensitivity) == len(_indices())
     assert not summary.estimate_table(run).empty
     doc = Doc(run)
-    _method_sections(doc, run, {})
+    method_sections(doc, run, {})
     assert any("Key parameters: X13, X17" in line for line in doc.md)
     sens = run / "campaign" / "sensitivity"
     assert max_st(sens) == MAX_ST

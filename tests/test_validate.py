@@ -239,7 +239,7 @@ def test_max_st_of_an_indices_table_leaves_out_the_flat_features_as_the_rule_doe
     among them, and could give another Sobol verdict than the pipeline's."""
     import pandas as pd
 
-    from railsusp.validate import max_st
+    from railsusp.identification_verdict import max_st
 
     rows = [
         # the flat feature: a large ST of a negligible variance

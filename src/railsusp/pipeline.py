@@ -174,7 +174,7 @@ def _run_stages(
     run's cut, read by the configuration check, is let go once the field stage is passed
     (run or skipped): a resumed run kept it (0.5 GB for 2 h at 1 kHz) to its end."""
     from railsusp.measured.cut import release_cut
-    from railsusp.report_html import mark_report_stale
+    from railsusp.report_stale import mark_report_stale
 
     state_path = out / "pipeline.json"
     state["format"] = PIPELINE_FORMAT  # what this railsusp writes (run_state refuses newer)

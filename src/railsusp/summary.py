@@ -212,7 +212,7 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
     nominal (%), tolerance (%), verdict and a note saying why."""
     from railsusp.estimate.identifiability import on_range_bound
     from railsusp.estimate.intervals import identification, intervals_of
-    from railsusp.validate import identification_issues, max_st
+    from railsusp.identification_verdict import identification_issues, max_st
 
     run = Path(run)
     tol = tolerances or run_tolerances(run)

@@ -27,10 +27,9 @@ import numpy as np
 import pandas as pd
 
 from railsusp.conditions import WorkingCondition
-from railsusp.errors import RailsuspInputError, first_listed
+from railsusp.errors import RailsuspInputError
 from railsusp.estimate import (
     ALIGNED,
-    BOUND_LIMIT_PCT,
     aligned_error,
     measured_statistics,
     parse_statistics,
@@ -38,19 +37,17 @@ from railsusp.estimate import (
 from railsusp.estimate.comparison import check_time_base
 from railsusp.estimate.config import NSGA_RANGES, check_range
 from railsusp.estimate.expected_forces import draw_true_tracks
-from railsusp.estimate.intervals import identification, intervals_of
+from railsusp.estimate.intervals import intervals_of
 from railsusp.estimate.statistics import force_statistic
+from railsusp.identification_verdict import identification_issues, max_st
 from railsusp.measured import Recording, SimulationFailedError, read_field
 from railsusp.measured.recording import recordings_digest
 from railsusp.measured.synthetic import read_truth, recording_from_simulation
 from railsusp.numbers import is_whole
 from railsusp.params import ParameterSet, bounds, spec
-from railsusp.store import atomic_folder, read_json, read_parquet, write_csv, write_json
+from railsusp.store import atomic_folder, read_json, write_csv, write_json
 from railsusp.vehicle.simulation_result import statistic_segments
 
-#: a parameter whose largest total Sobol index on the used features is below this is not
-#: identified (nor one whose interval is wider than IDENTIFIED_WIDTH_PCT of its range)
-SOBOL_ST_LIMIT = 0.1
 #: what validate reads of an estimate.json
 ESTIMATE_KEYS = ("parameters", "estimate_display", "config")
 
@@ -410,72 +407,6 @@ def check_estimate_revision(est: dict, path: Path) -> None:
         )
 
 
-def identification_issues(est: dict, max_st: dict[str, float] | None = None) -> dict[str, str]:
-    """Why each estimated parameter is not identified from the recordings ('' when it is),
-    from a result JSON alone (``estimate.json`` or a posterior result; no truth needed).
-
-    The verdict follows the estimate's interval (:func:`~railsusp.estimate.intervals.
-    identification`): identified only by a statistical interval (posterior, refinement) at
-    most :data:`~railsusp.estimate.intervals.IDENTIFIED_WIDTH_PCT` % of the range wide; the
-    NSGA-II Pareto range is not one, so an estimate from NSGA-II alone is never called
-    identified. Further reasons: a posterior whose estimator failed its coverage check, a
-    largest total Sobol index (``max_st``) below :data:`SOBOL_ST_LIMIT`, a Cramér-Rao bound
-    of the statistics above its limit, or none because the estimate lies on its range bound
-    (:func:`~railsusp.estimate.identifiability.cramer_rao_pct_range`)."""
-    max_st = max_st or {}
-    intervals = intervals_of(est)
-    details = intervals.details
-    geometry = details.get("geometry_error_pct_range") or {}
-    held = details.get("held_parameters_error_pct_range") or {}
-    out = {}
-    for p in est["parameters"]:
-        reasons = []
-        why = identification(intervals[p])
-        if why:
-            parts = [
-                f"{name} {d[p]:.1f} % of range"
-                for name, d in (("track-geometry error", geometry), ("held parameters", held))
-                if d.get(p, 0.0) >= 0.05
-            ]
-            reasons.append(why + (f" (standard error from {', '.join(parts)})" if parts else ""))
-        if est.get("calibrated") is False:
-            reasons.extend(_not_calibrated(est))
-        if p in max_st and max_st[p] < SOBOL_ST_LIMIT:
-            reasons.append(f"largest Sobol ST {max_st[p]:.3g} < {SOBOL_ST_LIMIT:g}")
-        # the bound is that of the statistics; a refined estimate used the series instead
-        bound = (
-            0.0 if est.get("refinement") else (est.get("cramer_rao_pct_range") or {}).get(p, 0.0)
-        )
-        if bound > BOUND_LIMIT_PCT:
-            reasons.append(f"Cramér-Rao bound {bound:.1f} % of range")
-        elif bound != bound:  # NaN: the estimate lies on its range bound
-            reasons.append("on its range bound, where no Cramér-Rao bound applies")
-        out[p] = "; ".join(reasons)
-    return out
-
-
-def _not_calibrated(est: dict) -> list[str]:
-    """Why a posterior result is not calibrated, as its JSON says: statistics of the
-    recording outside the training cases' range (``outside_training``), more sections than
-    any check covered (``checked_as_sections`` null), its estimator's failed coverage check
-    (``check_passed``; in results without it, when neither of the others is the cause).
-    Every uncalibrated result was said to have failed its check, a recording outside what
-    the estimator learnt from too (the posterior fixes of stop 65)."""
-    reasons = []
-    outside = est.get("outside_training") or []
-    if outside:
-        reasons.append(
-            f"the recording's statistics outside the estimator's training "
-            f"({first_listed(outside, 4)})"
-        )
-    if "checked_as_sections" in est and est["checked_as_sections"] is None:
-        reasons.append("no coverage check covers this number of sections")
-    # the check's own verdict (results of before carry none: then the remaining cause)
-    if est.get("check_passed") is False or ("check_passed" not in est and not reasons):
-        reasons.append("the posterior estimator failed its coverage check")
-    return reasons
-
-
 def _recovery(
     params, chosen: ParameterSet, truth: ParameterSet, est: dict, sensitivity: str | Path | None
 ) -> pd.DataFrame:
@@ -504,24 +435,3 @@ def _recovery(
             }
         )
     return pd.DataFrame(rows)
-
-
-def max_st(path: str | Path) -> dict[str, float]:
-    """Largest total Sobol index of each parameter as the key-parameter rule ranks them, from
-    a sensitivity folder or its ``key_parameters.json`` (as that run's rule read them), or
-    from ``indices.parquet`` with the rule's defaults (its statistics, flat features left
-    out: the largest over every feature gave another verdict than the pipeline's). An
-    analysis stamped with another campaign than the one beside it (``RUN/sensitivity`` of a
-    campaign replaced since) is refused in one line
-    (:func:`~railsusp.key_parameters.check_sensitivity_output`; unstamped: read as before),
-    as is a damaged ``indices.parquet`` (its pages' checksums)."""
-    from railsusp.key_parameters import check_sensitivity_output, select_key_parameters
-
-    path = Path(path)
-    if path.is_dir():
-        path = path / "key_parameters.json"
-    check_sensitivity_output(path)
-    if path.suffix == ".json":
-        return read_json(path)["key_parameters"]["max_st"]
-    remedy = f"run `railsusp sensitivity {path.parent.parent}` again"
-    return select_key_parameters(read_parquet(path, remedy)).max_st

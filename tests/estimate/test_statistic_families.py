@@ -11,7 +11,8 @@ import pytest
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate import statistic_families as sf
-from railsusp.estimate.posterior_data import recording_summaries, simulate_long_cases
+from railsusp.estimate.posterior_data import simulate_long_cases
+from railsusp.estimate.posterior_recordings import recording_summaries
 from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.estimate.posterior_synthetic import gain_covariance
 from railsusp.estimate.summaries import section_summary

@@ -53,10 +53,10 @@ from railsusp.vehicle.decay import (
     CAR_BODY_SHARE,
     FIT_R2_MIN,
     FREQUENCY_BAND,
-    decay_run,
     fit_damped_sinusoid,
     free_decay,
 )
+from railsusp.vehicle.decay_runs import decay_run
 from railsusp.vehicle.modes import (
     FRICTION_LIMIT_KEYS,
     default_steps,

@@ -16,14 +16,12 @@ from railsusp.cli import app
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.decay import (
+from railsusp.vehicle.decay import fit_damped_sinusoid, free_decay, modal_filters
+from railsusp.vehicle.decay_runs import (
     AMPLITUDE_RANGE_M,
     DecayRunError,
     decay_run,
-    fit_damped_sinusoid,
-    free_decay,
     input_passed_s,
-    modal_filters,
 )
 from railsusp.vehicle.energy import energy_audit
 from railsusp.vehicle.modes import linearisation_point, modal_analysis

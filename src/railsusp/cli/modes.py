@@ -51,7 +51,8 @@ def modes(
 
     Roots in which no body moves (the sliding variant's friction states relaxing) are
     left out of the modes table and counted under it."""
-    from railsusp.vehicle.decay import AMPLITUDE_RANGE_M, DecayRunError, free_decay
+    from railsusp.vehicle.decay import free_decay
+    from railsusp.vehicle.decay_runs import AMPLITUDE_RANGE_M, DecayRunError
     from railsusp.vehicle.modes import (
         F_MAX_LIMIT_HZ,
         FRICTION_MODES,

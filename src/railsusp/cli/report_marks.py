@@ -140,7 +140,7 @@ def mark_run_reports(
     """A stale banner on the report of each ``railsusp run`` directory (``runs_of`` a
     folder: those it lies in) that ``folders``, which ``command`` (as typed) is about to
     write, lie in, where what it writes there holds a stage's
-    recorded outputs (:func:`railsusp.report_html.mark_report_stale`): ``railsusp estimate
+    recorded outputs (:func:`railsusp.report_stale.mark_report_stale`): ``railsusp estimate
     --out RUN/estimate`` left ``RUN/report.html`` presenting the estimate it replaced as
     the answer (the concurrency audit). Each folder comes with whether the command writes
     it whole (one it makes); else it writes the subfolders :data:`_COMMAND_WRITES` names
@@ -149,7 +149,7 @@ def mark_run_reports(
     of those files); ``railsusp run`` remakes the report. The stage named: the command's
     own (:data:`_COMMAND_STAGES`) where it records files there, else the first of those
     that do. Returns the reports marked, for :func:`unmark_unwritten`."""
-    from railsusp.report_html import mark_report_stale
+    from railsusp.report_stale import mark_report_stale
 
     name = command.removeprefix("railsusp ")
     own, within = _COMMAND_STAGES.get(name), _COMMAND_WRITES.get(name)

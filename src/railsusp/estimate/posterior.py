@@ -47,19 +47,13 @@ import numpy as np
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.calibration import ParameterCalibration, SpreadCorrection
 from railsusp.estimate.posterior_check import ProductCalibration, calibrate, widen
-from railsusp.estimate.posterior_data import (
-    TrainingSupport,
-    cached_cases,
-    check_model_revision,
-    estimator_stamp,
-    recording_summaries,
-    support_notes,
-    to_si,
-    unused_recordings,
-)
+from railsusp.estimate.posterior_data import cached_cases, to_si
 from railsusp.estimate.posterior_fusion import from_logit, fused_samples, logistic_prior, to_logit
+from railsusp.estimate.posterior_recordings import recording_summaries, unused_recordings
 from railsusp.estimate.posterior_result import PosteriorResult
 from railsusp.estimate.posterior_settings import PosteriorSettings, settings_differences
+from railsusp.estimate.posterior_stamp import check_model_revision, estimator_stamp
+from railsusp.estimate.posterior_support import TrainingSupport, support_notes
 from railsusp.integrity import TorchFileCutShort, read_torch_file
 from railsusp.params import MAIN_SUSPENSION
 from railsusp.store import atomic_write_bytes, canonical_json, content_hash, read_json, write_json

@@ -51,15 +51,12 @@ import numpy as np
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.calibration import SpreadCorrection
 from railsusp.estimate.posterior_check import read_sealed, seal, seal_state, stored_record, widen
-from railsusp.estimate.posterior_data import (
-    TrainingSupport,
-    cached_cases,
-    recording_summaries,
-    unused_recordings,
-)
+from railsusp.estimate.posterior_data import cached_cases
 from railsusp.estimate.posterior_fusion import to_logit
+from railsusp.estimate.posterior_recordings import recording_summaries, unused_recordings
 from railsusp.estimate.posterior_result import PosteriorResult
 from railsusp.estimate.posterior_smc import smc_sample
+from railsusp.estimate.posterior_support import TrainingSupport
 from railsusp.estimate.posterior_synthetic_fit import scale_set
 from railsusp.estimate.posterior_synthetic_run import (
     Checked,
@@ -370,7 +367,7 @@ def load(out: str | Path) -> JointPosterior:
 
 def recording_sections(joint: JointPosterior, recordings) -> tuple[np.ndarray, dict]:
     """(k, sum D_i) summary vectors of recordings of every part's conditions, each part's
-    sections (:func:`~railsusp.estimate.posterior_data.recording_summaries`) with the part
+    sections (:func:`~railsusp.estimate.posterior_recordings.recording_summaries`) with the part
     of the fewest setting their number, and the recordings' use per condition."""
     xs, used = [], {}
     for p in joint.parts:

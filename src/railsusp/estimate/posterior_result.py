@@ -37,7 +37,7 @@ class PosteriorResult:
         "fusion"  # how the sections combine (posterior_synthetic.LONG_RECORD_METHODS)
     )
     #: the statistics of the recording that lie outside the training cases' range
-    #: (:class:`~railsusp.estimate.posterior_data.TrainingSupport`): not calibrated
+    #: (:class:`~railsusp.estimate.posterior_support.TrainingSupport`): not calibrated
     outside_training: list[str] = field(default_factory=list)
 
     @property

@@ -15,14 +15,10 @@ from pathlib import Path
 import numpy as np
 
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate.posterior_data import (
-    GAIN_ERROR,
-    cached_cases,
-    check_model_revision,
-    estimator_stamp,
-)
+from railsusp.estimate.posterior_data import GAIN_ERROR, cached_cases
 from railsusp.estimate.posterior_emulator import StatisticsEmulator, fit
 from railsusp.estimate.posterior_settings import PosteriorSettings
+from railsusp.estimate.posterior_stamp import check_model_revision, estimator_stamp
 from railsusp.estimate.posterior_synthetic import (
     SyntheticLikelihood,
     fit_model_error,

@@ -40,19 +40,13 @@ from railsusp.estimate.posterior_check import (
     seal_state,
     stored_record,
 )
-from railsusp.estimate.posterior_data import (
-    TrainingSupport,
-    cached_cases,
-    check_model_revision,
-    recording_summaries,
-    support_notes,
-    to_si,
-    training_support,
-    unused_recordings,
-)
+from railsusp.estimate.posterior_data import cached_cases, to_si, training_support
 from railsusp.estimate.posterior_emulator import StatisticsEmulator
+from railsusp.estimate.posterior_recordings import recording_summaries, unused_recordings
 from railsusp.estimate.posterior_result import PosteriorResult
 from railsusp.estimate.posterior_settings import PosteriorSettings
+from railsusp.estimate.posterior_stamp import check_model_revision
+from railsusp.estimate.posterior_support import TrainingSupport, support_notes
 from railsusp.estimate.posterior_synthetic import (
     SyntheticLikelihood,
 )
@@ -294,7 +288,7 @@ def result_of(
     ``used`` the recordings' use per condition, with the check of its number of sections;
     ``notes``: warnings of the recordings' reading, said first. Sections outside the
     training cases' range flag the result not calibrated
-    (:func:`~railsusp.estimate.posterior_data.support_notes`)."""
+    (:func:`~railsusp.estimate.posterior_support.support_notes`)."""
     s = post.settings
     n = len(x)
     outside, said = support_notes(getattr(post, "support", None), x)

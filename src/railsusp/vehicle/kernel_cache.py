@@ -29,8 +29,8 @@ FASTMATH = {"contract", "arcp", "nsz"}
 #: the modules with compiled kernels, the layout they read, and this one (the flags above)
 KERNEL_SOURCES = (
     "kernel_cache.py", "layout.py", "suspension.py", "track_lookup.py", "wheel_rail.py", "model.py",
-    "integrate.py", "decay.py", "wheelset.py", "settle.py", "vector_math.py", "contact_batch.py",
-    "wedge_batch.py",
+    "integrate.py", "decay_runs.py", "wheelset.py", "settle.py", "vector_math.py",
+    "contact_batch.py", "wedge_batch.py",
 )  # fmt: skip
 
 
