@@ -4,8 +4,8 @@ planning a training on a lent GPU (issue 19; bench/README.md, "Trained on a GPU"
 Synthetic inputs of the shipped tangent network's sizes (its ``surrogate.json``: features,
 washout, outputs), chunks of 400 steps as the training draws them, for the study's GRU sizes
 and two wider variants; the mean of ``--steps`` timed steps after ``--warmup`` untimed ones
-(three: the first steps allocate and, on a GPU, pick kernels). No
-campaign and no simulation: it runs in seconds, so a lease's first minutes can say how far a
+(default 3: the first steps allocate and, on a GPU, pick kernels). No campaign and no
+simulation: it runs in seconds, so a lease's first minutes can say how far a
 budget goes. Prints a table and writes JSON (bench/results/gpu_train_step.json)::
 
     python bench/gpu_train_step.py --device cuda

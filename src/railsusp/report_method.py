@@ -18,6 +18,8 @@ from railsusp.store import read_json
 
 
 def wagon_section(doc: Doc, run: Path, cfg: dict) -> None:
+    """The wagon's data, the sampled parameters' catalogue and the working conditions, from
+    the run's configuration ``cfg``: what the method was applied to, before its stages."""
     from railsusp.params import CATALOGUE
 
     doc.h("Wagon and working conditions")
@@ -117,6 +119,8 @@ def _network_set_text(doc: Doc, manifest: dict, assumed: list[dict]) -> None:
 
 
 def method_sections(doc: Doc, run: Path, state: dict) -> None:
+    """The method's stages as the run made them, in the study's order: Sobol sensitivity
+    and the key parameters, the surrogates, the estimate and its validation."""
     from railsusp.key_parameters import read_key_parameters
 
     camp = run / "campaign"

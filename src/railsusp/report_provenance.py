@@ -17,6 +17,9 @@ from railsusp.store import file_hash
 
 
 def provenance_section(doc: Doc, run: Path, state: dict, meta: dict) -> None:
+    """Who and what made the run: its provenance record, each stage's state, hash and the
+    code that made it, and the SHA-256 of the data files it read, so that a reader can tell
+    whether two reports describe the same run."""
     doc.h("Provenance")
     prov = state.get("provenance", {})
     doc.table(pd.DataFrame([{"item": k, "value": str(v)} for k, v in prov.items()]))

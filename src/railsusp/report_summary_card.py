@@ -2,8 +2,9 @@
 each suspension element's estimate with its interval, change from nominal and verdict
 against the wagon's tolerances (what is wrong listed first), and the force agreement before
 and after the estimate. A module of its own because it is the one part of the page a reader
-must not have to scroll for, and the only one that speaks in verdicts; it reads the run
-directory through :mod:`railsusp.summary`, which the Markdown twin and ``open_run`` share.
+must not have to scroll for, and the one with the verdicts against the wagon's tolerances;
+it reads the run directory through :mod:`railsusp.summary`, as
+:class:`railsusp.api.RunResult` does.
 """
 
 from __future__ import annotations

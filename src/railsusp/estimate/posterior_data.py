@@ -15,7 +15,7 @@ interrupted training resumes without simulating again.
 The summary statistics of recordings in the same form are
 :mod:`railsusp.estimate.posterior_recordings`; the range of the training cases a recording
 is compared with, :mod:`railsusp.estimate.posterior_support` (its two thresholds stay
-importable from here, where docs/posterior.md names them); the code stamp of an estimator
+importable from here too, where docs/posterior.md named them before); the code stamp of an estimator
 folder, :mod:`railsusp.estimate.posterior_stamp`.
 """
 
@@ -29,6 +29,8 @@ import numpy as np
 
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate.posterior_settings import PosteriorSettings
+from railsusp.estimate.posterior_support import MIN_SUPPORT_CASES as MIN_SUPPORT_CASES
+from railsusp.estimate.posterior_support import OUTSIDE_MARGIN_SD as OUTSIDE_MARGIN_SD
 from railsusp.estimate.posterior_support import TrainingSupport
 from railsusp.estimate.statistic_families import (
     section_statistics,

@@ -1,7 +1,7 @@
 """The vehicle-track dynamics model: track input, contact, equations, simulation.
 
-The compiled kernels (model, suspension, integrate, decay_runs, wheelset) are cached by Numba in
-a folder keyed by their sources (:mod:`railsusp.vehicle.kernel_cache`).
+The compiled kernels (the modules of :data:`railsusp.vehicle.kernel_cache.KERNEL_SOURCES`) are
+cached by Numba in a folder keyed by their sources (:mod:`railsusp.vehicle.kernel_cache`).
 """
 
 #: Revision of the force laws and equations of motion: changed with every change of the model
