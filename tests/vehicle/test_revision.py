@@ -5,7 +5,14 @@ words they all use."""
 import pytest
 
 import railsusp.vehicle
-from railsusp.vehicle.revision import Standing, made_with, newer_remedy, revision_newer, standing
+from railsusp.vehicle.revision import (
+    Standing,
+    made_with,
+    mismatch,
+    newer_remedy,
+    revision_newer,
+    standing,
+)
 
 
 def test_force_law_revisions_compare_as_day_and_number():
@@ -60,4 +67,16 @@ def test_every_standing_is_said_in_its_own_words(monkeypatch):
     )
     assert newer_remedy("2099-01-01.1") == (
         "use it with the railsusp that made it (force-law revision 2099-01-01.1 or later)"
+    )
+
+
+def test_a_mismatch_is_said_with_the_remedy_its_standing_takes(monkeypatch):
+    monkeypatch.setattr(railsusp.vehicle, "MODEL_REVISION", "2026-11-30.2")
+    assert mismatch("2026-11-30.2", "train again") is None
+    assert mismatch("2026-11-24.2", "train again") == (
+        "force-law revision 2026-11-24.2, older than this railsusp's 2026-11-30.2: train again"
+    )
+    assert mismatch(None, "train again").endswith("this railsusp's is 2026-11-30.2): train again")
+    assert mismatch("2099-01-01.1", "train again") == (
+        f"{made_with('2099-01-01.1')}: {newer_remedy('2099-01-01.1')}"
     )

@@ -19,7 +19,7 @@ from railsusp.campaign.design import (
 )
 from railsusp.errors import first_listed
 from railsusp.store import read_parquet
-from railsusp.vehicle.revision import Standing, made_with, newer_remedy, standing
+from railsusp.vehicle.revision import mismatch
 
 #: what to do about a campaign file that is missing or damaged: resumed, the campaign
 #: simulates every batch that is not stored whole again
@@ -54,15 +54,9 @@ def revision_problem(revision: object, where: Path) -> str | None:
     were, so older), in the words of :func:`railsusp.vehicle.revision.made_with`, and what
     to do; None where ``revision`` is this railsusp's. A newer revision is a newer
     railsusp's campaign, which is not to be simulated again as outdated."""
-    s = standing(revision)
-    if s is Standing.THIS:
-        return None
-    remedy = (
-        newer_remedy(revision)
-        if s is Standing.NEWER
-        else "run the campaign again into a new --out (or with --force) before using its results"
-    )
-    return f"{where} was simulated with {made_with(revision)}: {remedy}"
+    again = "run the campaign again into a new --out (or with --force) before using its results"
+    said = mismatch(revision, again)
+    return None if said is None else f"{where} was simulated with {said}"
 
 
 def stored_config(meta: dict, meta_path: Path) -> CampaignConfig:

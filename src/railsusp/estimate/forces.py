@@ -60,7 +60,7 @@ def check_force_laws(folder: Path, metas: dict[str, dict]) -> None:
     :func:`railsusp.surrogate.statistics.train_statistics_surrogate`; the shipped sets'
     bundles record theirs), so on older force laws than any revision: refused too (it was
     opened silently, the upgrade audit's H2, where the posterior refused the same case)."""
-    from railsusp.vehicle.revision import Standing, made_with, newer_remedy, standing
+    from railsusp.vehicle.revision import mismatch
 
     retrain = (
         "run the campaign again and train the surrogates on it (`railsusp campaign` and "
@@ -68,12 +68,10 @@ def check_force_laws(folder: Path, metas: dict[str, dict]) -> None:
     )
     for name, meta in metas.items():
         revision = (meta or {}).get("model_revision")
-        s = standing(revision)
-        if s is not Standing.THIS:
-            remedy = newer_remedy(revision) if s is Standing.NEWER else retrain
+        said = mismatch(revision, retrain)
+        if said is not None:
             raise RailsuspInputError(
-                f"{folder / name}: trained on a campaign simulated with {made_with(revision)}: "
-                f"{remedy}"
+                f"{folder / name}: trained on a campaign simulated with {said}"
             )
 
 

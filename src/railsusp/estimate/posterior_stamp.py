@@ -22,16 +22,13 @@ def check_model_revision(stamp: dict, path: Path) -> None:
     definitions than :data:`railsusp.estimate.summaries.STATISTICS_VERSION` (recorded since
     stop 62): its cached simulations and what was trained on them describe another model,
     and mixing them with new ones would pass unseen."""
-    from railsusp.vehicle.revision import Standing, made_with, newer_remedy, standing
+    from railsusp.vehicle.revision import mismatch
 
     again = f"train again with another --out (or delete {path.parent})"
     revision = stamp.get("model_revision")
-    s = standing(revision)
-    if s is not Standing.THIS:
-        remedy = newer_remedy(revision) if s is Standing.NEWER else again
-        raise RailsuspInputError(
-            f"{path}: its simulations were made with {made_with(revision)}: {remedy}"
-        )
+    said = mismatch(revision, again)
+    if said is not None:
+        raise RailsuspInputError(f"{path}: its simulations were made with {said}")
     got, now = stamp.get("statistics_version"), estimator_stamp()["statistics_version"]
     if got != now:
         was = f"version {got}" if got else "a version before 2026-11-30.2 (none recorded)"

@@ -363,7 +363,7 @@ def write_network_set(
     today's whatever the networks had learnt)."""
     from railsusp.surrogate.bundle import load
     from railsusp.vehicle import MODEL_REVISION
-    from railsusp.vehicle.revision import Standing, made_with, newer_remedy, standing
+    from railsusp.vehicle.revision import mismatch
 
     if isinstance(source, Mapping):
         missing = [c for c in conditions if c not in source]
@@ -385,19 +385,15 @@ def write_network_set(
             )
         if wagon_hash(s.wagon) != wagon_hash(first.wagon):
             raise RailsuspInputError(f"{bundles[c]}: trained on another wagon than the set's")
-        trained = s.meta.get("model_revision")
-        if standing(trained) is not Standing.THIS:
-            # the manifest would claim today's force laws for a network of others (one that
-            # records none is older than any railsusp that records them: estimate refuses it)
-            remedy = (
-                newer_remedy(trained)
-                if standing(trained) is Standing.NEWER
-                else "train it again, or score it on today's simulator and carry the set over "
-                "(railsusp.surrogate.restamp)"
-            )
-            raise RailsuspInputError(
-                f"{bundles[c]}: trained on a campaign simulated with {made_with(trained)}: {remedy}"
-            )
+        # the manifest would claim today's force laws for a network of others (one that
+        # records none is older than any railsusp that records them: estimate refuses it)
+        said = mismatch(
+            s.meta.get("model_revision"),
+            "train it again, or score it on today's simulator and carry the set over "
+            "(railsusp.surrogate.restamp)",
+        )
+        if said is not None:
+            raise RailsuspInputError(f"{bundles[c]}: trained on a campaign simulated with {said}")
     dest = Path(dest)
     with atomic_folder(dest, keep=False) as tmp:
         for c in conditions:

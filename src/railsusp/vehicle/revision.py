@@ -87,3 +87,13 @@ def made_with(recorded: object) -> str:
 def newer_remedy(recorded: object) -> str:
     """What to do with a newer railsusp's result: use it there."""
     return f"use it with the railsusp that made it (force-law revision {recorded} or later)"
+
+
+def mismatch(recorded: object, remedy: str) -> str | None:
+    """None where ``recorded`` is this railsusp's revision; otherwise its standing in the
+    words of :func:`made_with` and what to do: :func:`newer_remedy` for a newer railsusp's
+    result (never made again here as outdated), ``remedy`` for any other."""
+    s = standing(recorded)
+    if s is Standing.THIS:
+        return None
+    return f"{made_with(recorded)}: {newer_remedy(recorded) if s is Standing.NEWER else remedy}"
