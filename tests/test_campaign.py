@@ -118,6 +118,40 @@ def test_resume_after_interruption_gives_identical_store(full_run, tmp_path):
         )
 
 
+def test_another_batch_size_resumes_in_the_stored_batches(full_run, tmp_path, caplog):
+    """The batch size only groups the design's rows into files: asked for again with another
+    one, a campaign keeps its batches (before, it was refused as another configuration,
+    and simulated again with --force) and a part-run one is finished in its own grouping,
+    with the same results; changed with anything else, it is still another campaign."""
+    cfg, out = full_run
+    part = tmp_path / "part"
+    run_campaign(cfg, part, max_batches=2)
+    meta = (part / "campaign.json").read_text()
+    regrouped = make_config(TINY, 10, batch_size=3, seed=3)
+    calls = []
+    with caplog.at_level("WARNING", logger="railsusp.campaign"):
+        run_campaign(regrouped, part, force=True, progress=lambda d, t: calls.append(d))
+    assert calls[0] == 8  # the two stored batches of 4 are kept, with --force too
+    assert "in batches of 4: resumed in them (batch_size 3" in caplog.text
+    assert json.loads((part / "campaign.json").read_text())["config_hash"] == cfg.hash()
+    assert json.loads(meta)["config"] == json.loads((part / "campaign.json").read_text())["config"]
+    assert sorted(p.name for p in (part / "batches" / "curve").glob("batch-?????.parquet")) == [
+        "batch-00000.parquet",
+        "batch-00001.parquet",
+        "batch-00002.parquet",
+    ]
+    pd.testing.assert_frame_equal(
+        _sorted(load_campaign(part).features()), _sorted(load_campaign(out).features())
+    )
+    calls.clear()
+    run_campaign(
+        make_config(TINY, 10, batch_size=7, seed=3), part, progress=lambda d, t: calls.append(d)
+    )
+    assert calls == [20]  # complete: nothing simulated
+    with pytest.raises(CampaignError, match="another configuration"):
+        run_campaign(make_config(TINY, 10, batch_size=3, seed=4), part)
+
+
 def test_changed_configuration_refuses_to_mix(full_run, tmp_path):
     cfg, out = full_run
     other = make_config(TINY, 10, batch_size=4, seed=99)

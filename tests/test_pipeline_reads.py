@@ -368,3 +368,29 @@ def test_a_stage_runs_on_the_outputs_of_the_stages_it_names(tiny, tmp_path, stag
     cfg_path, out, _, _ = tiny
     cfg = load_config(cfg_path)
     assert runs_on_its_inputs_alone(cfg, out, tmp_path, stage) is not None
+
+
+def test_another_campaign_batch_size_runs_nothing_again(tiny, tmp_path, caplog):  # noqa: F811
+    """``[campaign] batch_size`` only groups the same simulations into files: changed on a
+    finished run it simulated the campaign again and ran every stage after it (the stop 67
+    note). The stored batches are kept, said, and the run stays up to date; the campaign
+    changed otherwise still runs again, in the batch size asked for."""
+    cfg, _, run = _up_to_date_copy(tiny, tmp_path)
+    regrouped = cfg.model_copy(
+        update={"campaign": cfg.campaign.model_copy(update={"batch_size": 4})}
+    )
+    seen: list = []
+    with caplog.at_level("WARNING", logger="railsusp.pipeline"):
+        run_pipeline(regrouped, run, progress=lambda s, m: seen.append((s, m)))
+    assert {m for _, m in seen} == {"up to date"}
+    assert "holds the campaign in batches of 10: kept (batch_size = 4" in caplog.text
+    state = json.loads((run / "pipeline.json").read_text())
+    assert state["config"]["campaign"]["batch_size"] == 10  # what the stages ran with
+    reseeded = regrouped.model_copy(
+        update={"campaign": regrouped.campaign.model_copy(update={"seed": 5})}
+    )
+    seen.clear()
+    run_pipeline(reseeded, run, progress=lambda s, m: seen.append((s, m)))
+    assert ("campaign", "running") in seen
+    batches = sorted(p.name for p in (run / "campaign" / "batches" / "short").iterdir())
+    assert len(batches) == 2 * 3  # 10 samples in batches of 4: series and features files

@@ -29,6 +29,7 @@ from railsusp.pipeline_config import demo_config as demo_config  # re-export
 from railsusp.pipeline_config import load_config as load_config  # re-export
 from railsusp.pipeline_inputs import (
     METHOD_REVISIONS,
+    in_stored_batches,
     measured_copy_matches,
     stage_dependents,
     stage_inputs,
@@ -91,6 +92,7 @@ def run_pipeline(
     state = run_state(out, out_option)
     if not checked:
         check_config(config)  # every combination, before any stage runs
+    config = in_stored_batches(config, out)  # the campaign's stored batch size, hashed as such
     check_cuda(config, "configuration", surrogate_done=_surrogate_kept(config, state, start_from))
     out.mkdir(parents=True, exist_ok=True)
     with run_lock(out, out_option):  # one run at a time in a folder

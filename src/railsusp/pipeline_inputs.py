@@ -7,12 +7,19 @@ record that decides whether a stage runs again; :mod:`railsusp.pipeline_stages` 
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from railsusp.errors import RailsuspInputError
 from railsusp.estimate.config import BROYDEN_MIN_STEP
 from railsusp.pipeline_config import PipelineConfig
 from railsusp.stages import STAGES
+
+if TYPE_CHECKING:
+    from railsusp.campaign import CampaignConfig
+
+log = logging.getLogger("railsusp.pipeline")
 
 
 def model_identity(config: PipelineConfig) -> dict[str, str]:
@@ -98,6 +105,57 @@ def _tolerances_state(config: PipelineConfig) -> dict:
 
     tol = read_tolerances(config.wagon).to_dict()  # as pipeline.json records them
     return {} if tol == Tolerances().to_dict() else {"tolerances": tol}
+
+
+def lhs_campaign(
+    config: PipelineConfig, samples: int, seed: int, parameters: tuple[str, ...]
+) -> CampaignConfig:
+    """The campaign configuration of an LHS campaign of ``parameters`` (the others nominal)
+    in every condition the run simulates, on its wagon, in ``[campaign]``'s design and
+    batch size: the campaign stage's, and a trained surrogate's own samples."""
+    from railsusp.campaign import make_config
+    from railsusp.vehicle.wagon import load_wagon
+
+    c = config.campaign
+    return make_config(
+        config.working_conditions(),
+        samples,
+        design=c.design,
+        seed=seed,
+        batch_size=c.batch_size,
+        parameters=parameters,
+        wagon=load_wagon(config.wagon),
+    )
+
+
+def in_stored_batches(config: PipelineConfig, out: Path) -> PipelineConfig:
+    """``config``, with ``[campaign] batch_size`` that of the run directory's campaign where
+    that campaign is the configured one in everything else
+    (:func:`railsusp.campaign.run_directory.stored_batch_size`), said in a warning. The
+    batch size only groups the same simulations into files, yet it is in the campaign
+    stage's hash: changed on a finished run, it simulated the campaign again and ran every
+    stage after it (the stop 67 note). Hashed as stored, the stages stay up to date, and a
+    campaign stopped part way resumes in its own batches."""
+    from railsusp.campaign.run_directory import stored_batch_size
+
+    folder = out / "campaign"
+    if not (folder / "campaign.json").is_file():
+        return config
+    c = config.campaign
+    try:
+        kept = stored_batch_size(lhs_campaign(config, c.samples, c.seed, c.parameters), folder)
+    except RailsuspInputError:  # the campaign stage says it, when it runs
+        return config
+    if kept is None:
+        return config
+    log.warning(
+        "%s holds the campaign in batches of %d: kept (batch_size = %d under [campaign] "
+        "groups the same simulations otherwise; it applies to a new run directory)",
+        folder,
+        kept,
+        c.batch_size,
+    )
+    return config.model_copy(update={"campaign": c.model_copy(update={"batch_size": kept})})
 
 
 def stage_inputs(config: PipelineConfig, stage: str) -> tuple[str, ...]:

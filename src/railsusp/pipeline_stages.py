@@ -11,6 +11,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from railsusp.pipeline_config import PipelineConfig
+from railsusp.pipeline_inputs import lhs_campaign
 from railsusp.pipeline_state import surrogate_campaign_dir
 
 log = logging.getLogger("railsusp.pipeline")
@@ -40,19 +41,9 @@ def stage_runners(
 
     def run_lhs(dest: Path, samples: int, seed: int, parameters: tuple[str, ...]) -> int:
         """An LHS campaign of ``parameters`` (others nominal) in every condition; its runs."""
-        from railsusp.campaign import make_config, run_campaign
-        from railsusp.vehicle.wagon import load_wagon
+        from railsusp.campaign import run_campaign
 
-        c = config.campaign
-        cfg = make_config(
-            config.working_conditions(),
-            samples,
-            design=c.design,
-            seed=seed,
-            batch_size=c.batch_size,
-            parameters=parameters,
-            wagon=load_wagon(config.wagon),
-        )
+        cfg = lhs_campaign(config, samples, seed, parameters)
         run_campaign(
             cfg,
             dest,

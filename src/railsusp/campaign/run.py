@@ -22,7 +22,11 @@ from railsusp.campaign.batch_simulation import simulate_task
 from railsusp.campaign.dask_cluster import check_scheduler_address, executor_record, run_on_dask
 from railsusp.campaign.design import CampaignConfig, CampaignError, batch_paths, track_seeds
 from railsusp.campaign.results import RESUME
-from railsusp.campaign.run_directory import prepare_run_directory, remove_campaign_temporaries
+from railsusp.campaign.run_directory import (
+    in_stored_batches,
+    prepare_run_directory,
+    remove_campaign_temporaries,
+)
 from railsusp.input_checks import check_output_folder
 from railsusp.numbers import is_whole
 from railsusp.provenance import provenance, utc_now
@@ -148,7 +152,11 @@ def _run_locked(
     max_batches: int | None,
     scheduler_setting: str = "--scheduler",
 ) -> Path:
-    """:func:`run_campaign` in its folder, holding the folder's lock."""
+    """:func:`run_campaign` in its folder, holding the folder's lock. A campaign stored in
+    other batches than ``config.batch_size`` says, and otherwise the same, is resumed in
+    them (:func:`~railsusp.campaign.run_directory.in_stored_batches`), with or without
+    ``force``: the batch size groups the same simulations."""
+    config = in_stored_batches(config, out)
     design = prepare_run_directory(config, out, force)
     x_all = design[list(config.simulated_parameters)].to_numpy()
     ids_all = design["sample_id"].to_numpy()

@@ -203,6 +203,52 @@ def prepare_run_directory(config: CampaignConfig, out: Path, force: bool) -> pd.
     return design
 
 
+def stored_batch_size(config: CampaignConfig, out: Path) -> int | None:
+    """The batch size of the campaign stored in ``out`` where it is ``config`` in everything
+    but ``batch_size`` (and was simulated with this railsusp's force laws); None where it
+    is the same, or another campaign, or none, or one that does not read
+    (:func:`prepare_run_directory` then says what it does with it).
+
+    The batch size groups the design's rows into stored files and nothing else: the same
+    rows are simulated on the same tracks whatever it is. It is in the configuration's
+    hash, which stamps every batch, so a campaign asked for again with another batch size
+    was refused (or, with ``--force`` and in the pipeline, simulated again: hours for a
+    fleet's campaign, to regroup the same results). Such a campaign is resumed in its
+    stored batches instead (:func:`in_stored_batches`)."""
+    meta_path = out / "campaign.json"
+    if not meta_path.is_file():
+        return None
+    try:
+        meta = read_meta(meta_path)
+        stored = stored_config(meta, meta_path)
+    except RailsuspInputError:
+        return None
+    if stored.batch_size == config.batch_size:
+        return None
+    if meta.get("model_revision", MODEL_REVISION) != MODEL_REVISION:  # its own refusal
+        return None
+    if stored.model_copy(update={"batch_size": config.batch_size}).hash() != config.hash():
+        return None
+    return stored.batch_size
+
+
+def in_stored_batches(config: CampaignConfig, out: Path) -> CampaignConfig:
+    """``config``, with the batch size of the campaign stored in ``out`` where that
+    campaign is ``config`` in everything else (:func:`stored_batch_size`), said in a
+    warning: its batches are kept and the rest run in the same grouping."""
+    kept = stored_batch_size(config, out)
+    if kept is None:
+        return config
+    log.warning(
+        "%s holds this campaign in batches of %d: resumed in them (batch_size %d groups the "
+        "same simulations otherwise; it applies to a new --out)",
+        out,
+        kept,
+        config.batch_size,
+    )
+    return config.model_copy(update={"batch_size": kept})
+
+
 def remove_campaign_temporaries(out: Path) -> None:
     """The temporaries a campaign killed while writing left (:func:`~railsusp.store.
     remove_stale_temporaries`): of its own files at the top of ``out`` and of its batches in
