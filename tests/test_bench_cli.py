@@ -88,6 +88,8 @@ ARGPARSE_REFUSED = [
     ("simulator", ["--sizes", "abc"], "--sizes"),
     ("simulator", ["--flange-substeps", "0"], "--flange-substeps"),
     ("campaign", ["--samples", "0"], "--samples"),
+    ("emulator_reading", ["--points", "0"], "--points"),
+    ("emulator_reading", ["--threads", "0"], "--threads"),
     ("credibility", ["--seeds", "0"], "--seeds"),
     ("settled_start", ["--sets", "0"], "--sets"),
     ("settled_start", ["--repeat", "0"], "--repeat"),
