@@ -16,7 +16,7 @@ from railsusp.conditions import get_condition
 from railsusp.errors import ParameterError, RailsuspInputError
 from railsusp.measured import read_recording
 from railsusp.params import ParameterSet
-from railsusp.summary import Tolerances
+from railsusp.suspension_tolerances import Tolerances
 from railsusp.vehicle.simulate import simulate, simulate_batch, simulate_conditions
 from test_measured import make_recording
 

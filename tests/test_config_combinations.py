@@ -290,7 +290,7 @@ def test_a_packaged_wagon_named_in_the_configuration_has_the_default_tolerances(
     """``wagon = "tare"`` (a packaged wagon, as load_wagon takes it) failed the report stage
     with "wagon file tare does not exist", after every other stage: the tolerances were read
     from a file of that name. They are now read from the packaged file, before any stage."""
-    from railsusp.summary import DEFAULT_TOLERANCE_PCT, read_tolerances
+    from railsusp.suspension_tolerances import DEFAULT_TOLERANCE_PCT, read_tolerances
 
     for name in ("tare", "loaded", "c80_k6_tare"):
         assert read_tolerances(name).default_pct == DEFAULT_TOLERANCE_PCT

@@ -249,7 +249,7 @@ def test_the_help_example_of_held_prior_is_accepted():
     in kN/m, 15000-45000 (stop 57's audit)."""
     import re
 
-    from railsusp.cli.estimation import parse_held_prior
+    from railsusp.cli.estimation_options import parse_held_prior
 
     result = CliRunner().invoke(app, ["estimate", "--help"], env={"COLUMNS": "300"})
     example = re.search(r"e\.g\. (X15=\S+?) \(", result.output).group(1)

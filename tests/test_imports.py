@@ -11,8 +11,12 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "railsusp"
 #: every report module (report*.py, found: a new one is covered as it is added) and the
-#: summary they read
-REPORT_MODULES = (*sorted(p.name for p in SRC.glob("report*.py")), "summary.py")
+#: summary they read, with the wagon's tolerances it judges against
+REPORT_MODULES = (
+    *sorted(p.name for p in SRC.glob("report*.py")),
+    "summary.py",
+    "suspension_tolerances.py",
+)
 
 
 def imported_modules(path: Path) -> set[str]:

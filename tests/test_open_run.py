@@ -12,7 +12,7 @@ import railsusp
 import test_pipeline
 from railsusp.errors import RailsuspInputError
 from railsusp.pipeline import STAGES, StageError, load_config, run_pipeline
-from railsusp.summary import Tolerances
+from railsusp.suspension_tolerances import Tolerances
 
 TINY, _up_to_date_copy = test_pipeline.TINY, test_pipeline._up_to_date_copy
 tiny = test_pipeline.tiny  # the tiny pipeline run, this module's own (module scope)

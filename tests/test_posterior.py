@@ -547,13 +547,13 @@ def test_cli_train_writes_the_estimator_and_its_check(tmp_path, monkeypatch):
 
 
 def test_cli_product_cases_one_count_or_one_per_number_of_sections():
-    from railsusp.cli.posterior import _product_cases
+    from railsusp.cli.posterior_options import parse_product_cases
     from railsusp.estimate.posterior_settings import PosteriorSettings
 
-    assert _product_cases("80") == {"n_product": 80}
-    per = _product_cases("100, 40")
+    assert parse_product_cases("80") == {"n_product": 80}
+    per = parse_product_cases("100, 40")
     assert per == {"product_cases": (100, 40)}
-    s = PosteriorSettings((CONDITION,), product_sections=(8, 2), **_product_cases("40,100"))
+    s = PosteriorSettings((CONDITION,), product_sections=(8, 2), **parse_product_cases("40,100"))
     assert s.product_sections == (2, 8) and s.product_cases == (100, 40)
 
 

@@ -22,6 +22,7 @@ from railsusp.estimate.intervals import (
     intervals_of,
 )
 from railsusp.params import spec
+from railsusp.suspension_tolerances import Tolerances, read_tolerances
 from railsusp.vehicle.wagon import load_wagon
 
 
@@ -79,7 +80,7 @@ def test_refined_estimate_gives_90_percent_intervals_and_verdicts(tmp_path):
     assert t.loc["X14"].note == "not a key parameter of the sensitivity analysis"
     assert t.loc["X11"].note == "not varied in the campaign"
     # a looser tolerance turns X13 into "within", and the interval reaching out is said
-    loose = summary.estimate_table(run, summary.Tolerances(25.5))
+    loose = summary.estimate_table(run, Tolerances(25.5))
     assert loose.loc["X13"].verdict == summary.WITHIN
     assert loose.loc["X13"].note == "the interval reaches beyond the tolerance"
     via_api = railsusp.open_run(run, tolerances=railsusp.Tolerances(25.5)).estimate
@@ -183,12 +184,12 @@ def test_wagon_tolerances_are_read_and_checked(tmp_path):
     wagon = tmp_path / "wagon.toml"
     base = (Path(summary.__file__).parent / "data" / "c80_k6.toml").read_text("utf-8")
     wagon.write_text(base + "\n[tolerances]\ndefault_pct = 10.0\nX13 = 30\n")
-    tol = summary.read_tolerances(wagon)
+    tol = read_tolerances(wagon)
     assert (tol.of("X13"), tol.of("X17")) == (30.0, 10.0)
     assert load_wagon(wagon).name == load_wagon().name  # the model ignores the table
     run = make_run(tmp_path / "run", {"X13": 10.5, "X17": 1.9}, None, wagon=str(wagon))
     assert summary.estimate_table(run).loc["X13"].tolerance_pct == 30.0
-    assert summary.read_tolerances(None) == summary.Tolerances()
+    assert read_tolerances(None) == Tolerances()
     for bad, msg in (
         ("X13 = 0", r"tolerances\.X13 = 0: accepted a number in \(0, 100\]"),
         ("X99 = 5.0", r"tolerances\.X99: accepted default_pct or a main suspension"),
@@ -196,7 +197,7 @@ def test_wagon_tolerances_are_read_and_checked(tmp_path):
     ):
         wagon.write_text(base + f"\n[tolerances]\n{bad}\n")
         with pytest.raises(RailsuspInputError, match=msg):
-            summary.read_tolerances(wagon)
+            read_tolerances(wagon)
 
 
 def test_held_parameters_are_listed_with_the_range_the_intervals_assumed(tmp_path):
@@ -244,13 +245,13 @@ def test_the_tolerances_know_whether_the_wagon_data_gave_them(tmp_path):
     railsusp's default."""
     from importlib import resources
 
-    assert summary.read_tolerances(None).from_wagon is False
+    assert read_tolerances(None).from_wagon is False
     text = (resources.files("railsusp") / "data" / "c80_k6.toml").read_text("utf-8")
     wagon = tmp_path / "w.toml"
     wagon.write_text(text + "\n[tolerances]\ndefault_pct = 15.0\n")
-    tol = summary.read_tolerances(wagon)
-    assert tol.from_wagon and tol == summary.Tolerances()  # the source is not compared
-    assert summary.Tolerances.from_dict(tol.to_dict()).from_wagon
+    tol = read_tolerances(wagon)
+    assert tol.from_wagon and tol == Tolerances()  # the source is not compared
+    assert Tolerances.from_dict(tol.to_dict()).from_wagon
     # a run recorded before the source was: other than the defaults, the wagon's
-    assert summary.Tolerances.from_dict({"default_pct": 20.0, "parameters": {}}).from_wagon
-    assert not summary.Tolerances.from_dict({"default_pct": 15.0, "parameters": {}}).from_wagon
+    assert Tolerances.from_dict({"default_pct": 20.0, "parameters": {}}).from_wagon
+    assert not Tolerances.from_dict({"default_pct": 15.0, "parameters": {}}).from_wagon

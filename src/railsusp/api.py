@@ -23,7 +23,7 @@ from railsusp.integrity import changed_files
 from railsusp.pipeline_state import STAGES, read_run_state
 from railsusp.run_revision import outdated_model, revision_records
 from railsusp.store import read_csv, read_json, read_parquet
-from railsusp.summary import Tolerances
+from railsusp.suspension_tolerances import Tolerances
 
 __all__ = ["OutdatedModelWarning", "RunResult", "Tolerances", "open_run", "run"]
 
@@ -39,11 +39,12 @@ class RunResult:
     """A run directory, read: the estimate with intervals and verdicts, the validation, the
     sensitivity, the surrogates' accuracy, the report; ``plot_*`` draw them.
 
-    ``tolerances`` overrides the wagon data's (:func:`railsusp.summary.read_tolerances`).
+    ``tolerances`` overrides the wagon data's
+    (:func:`railsusp.suspension_tolerances.read_tolerances`).
     """
 
     path: Path
-    tolerances: summary.Tolerances | None = None
+    tolerances: Tolerances | None = None
 
     def __post_init__(self) -> None:
         """``RunResult(path)`` built directly takes a str as open_run does (open_run also
@@ -347,14 +348,14 @@ def _check_axes(ax: Any) -> None:
 def _check_tolerances(tolerances: Any) -> None:
     """``tolerances``: None or a :class:`railsusp.Tolerances` (a dict failed later, deep in
     the summary, with an AttributeError)."""
-    if tolerances is not None and not isinstance(tolerances, summary.Tolerances):
+    if tolerances is not None and not isinstance(tolerances, Tolerances):
         raise RailsuspInputError(
             f"tolerances = {tolerances!r}: a railsusp.Tolerances(default_pct, per_parameter) "
             "is needed"
         )
 
 
-def open_run(path: str | Path, *, tolerances: summary.Tolerances | None = None) -> RunResult:
+def open_run(path: str | Path, *, tolerances: Tolerances | None = None) -> RunResult:
     """A finished (or partly finished) run directory, read. One made with other force laws
     than this railsusp simulates (:attr:`RunResult.model_revision`) is read all the same,
     with an :class:`OutdatedModelWarning` naming both revisions: ``railsusp run`` on it

@@ -175,7 +175,7 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
     if cfg.surrogate.pretrained is None:
         check_surrogate_training(cfg, conds, bad)
     if cfg.wagon is not None:
-        from railsusp.summary import read_tolerances
+        from railsusp.suspension_tolerances import read_tolerances
         from railsusp.vehicle.wagon import load_wagon
 
         try:

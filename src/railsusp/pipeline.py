@@ -47,7 +47,7 @@ from railsusp.pipeline_state import STAGES as STAGES  # re-export
 from railsusp.provenance import code_identity, provenance, utc_now
 from railsusp.run_lock import run_lock
 from railsusp.store import content_hash, write_json
-from railsusp.summary import read_tolerances
+from railsusp.suspension_tolerances import read_tolerances
 from railsusp.vehicle import MODEL_REVISION
 
 #: stage finishes with their elapsed time (info) and starts (debug), for the command line

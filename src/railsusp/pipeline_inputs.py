@@ -101,7 +101,7 @@ def _tolerances_state(config: PipelineConfig) -> dict:
     edited table left the report of the old ones up to date (the rerun audit of stop 65);
     with where they come from, which the report's sentence names. Empty for railsusp's
     defaults, so the report stage hashes as before."""
-    from railsusp.summary import Tolerances, read_tolerances
+    from railsusp.suspension_tolerances import Tolerances, read_tolerances
 
     tol = read_tolerances(config.wagon).to_dict()  # as pipeline.json records them
     return {} if tol == Tolerances().to_dict() else {"tolerances": tol}

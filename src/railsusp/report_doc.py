@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from railsusp.summary import sig3
+from railsusp.numbers import sig3
 
 CSS = """body{font-family:system-ui,sans-serif;max-width:1100px;margin:0 auto;padding:.5em 1em;
 color:#222}table{border-collapse:collapse;margin:.4em 0;font-size:.9em}

@@ -16,6 +16,7 @@ import pandas as pd
 
 import railsusp.summary as summary
 from railsusp.report_doc import Doc, md_row, table_html
+from railsusp.suspension_tolerances import DEFAULT_TOLERANCE_PCT, Tolerances
 
 #: CSS class of each verdict in the summary card
 _VERDICT_CLASS = {
@@ -127,12 +128,12 @@ def summary_card(doc: Doc, run: Path, read: list | None = None) -> None:
     doc.raw("\n".join(parts), "\n".join(md))
 
 
-def tolerance_text(tol: summary.Tolerances) -> str:
+def tolerance_text(tol: Tolerances) -> str:
     """The summary card's sentence on the verdicts' tolerances, each number with its source:
     the wagon data's ``[tolerances]`` table, or railsusp's default
-    (:data:`~railsusp.summary.DEFAULT_TOLERANCE_PCT`) where the table is absent or gives no
-    ``default_pct`` (the default was once named beside the wagon's, as if it were the
-    wagon's own)."""
+    (:data:`~railsusp.suspension_tolerances.DEFAULT_TOLERANCE_PCT`) where the table is absent
+    or gives no ``default_pct`` (the default was once named beside the wagon's, as if it were
+    the wagon's own)."""
     default = summary.sig3(tol.default_pct)
     listed = ", ".join(f"{p} ±{summary.sig3(v)} %" for p, v in tol.parameters.items())
     text = f"Within tolerance: change from nominal at most ±{default} %"
@@ -142,7 +143,7 @@ def tolerance_text(tol: summary.Tolerances) -> str:
             text + in_brackets + ", railsusp's default (the wagon data give no [tolerances], "
             "docs/wagon-data.md)"
         )
-    if tol.default_pct != summary.DEFAULT_TOLERANCE_PCT:  # the table's own default_pct
+    if tol.default_pct != DEFAULT_TOLERANCE_PCT:  # the table's own default_pct
         return text + in_brackets + ", all from the wagon data's [tolerances] (docs/wagon-data.md)"
     return (  # railsusp's default, unless the table's default_pct happens to repeat it
         text

@@ -1,92 +1,36 @@
 """The ``estimate`` command: NSGA-II on a surrogate (or the simulator) against measured
-recordings, the optional refinement and its intervals (Tables 3-5, Figs 8-9 of the study)."""
+recordings, the optional refinement and its intervals (Tables 3-5, Figs 8-9 of the study).
+
+The command's options and the run of the route are here; how its messages name the options,
+``--held-prior`` and the other checks that need more than a range are in
+:mod:`railsusp.cli.estimation_options`."""
 
 from __future__ import annotations
 
-import re
 import warnings
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
-from railsusp.cli.common import (
-    app,
-    console,
-    fail,
-    frame_table,
-    given_options,
-    hold_folders,
-    option_names,
+from railsusp.cli.common import app, console, fail, frame_table, given_options, hold_folders
+from railsusp.cli.estimation_options import (
+    campaign_of_surrogate,
+    check_held_prior_unused,
+    option_naming,
+    option_text,
+    parse_held_prior,
+    warnings_as_options,
 )
 from railsusp.errors import RailsuspInputError
 from railsusp.input_checks import check_output_folder
 from railsusp.store import atomic_folder
-
-#: the estimator's settings -> the options of ``estimate``, for its error messages and
-#: warnings (:func:`_option_text`)
-_ESTIMATE_OPTIONS = {
-    "weighting": "--weighting",
-    "statistic": "--statistic",
-    "parameters": "--parameters",
-    "channel_gains": "--channel-gains",
-    "expected_draws": "--expected-draws",
-    "expected_generations": "--expected-generations",
-    "preview_generations": "--preview-generations",
-    "preview_s": "--preview-s",
-    "n_gen": "--n-gen",
-    "held_prior": "--held-prior",
-    "geometry_draws": "--geometry-draws",
-    "simulator_corrections": "--simulator-corrections",
-    "correction_slopes": "--correction-slopes",
-}
 
 #: the defaults of the options that only some routes use (one typed is refused, or said in a
 #: warning, where the route does not use it: :func:`~railsusp.cli.common.given_options`)
 REFINE_EVALUATIONS, REFINE_SCREEN, REFINE_STARTS = 40, 64, 2
 PREVIEW_S = 20.0
 GEOMETRY_DRAWS = 8
-
-
-def _option_text(message: str) -> str:
-    """``message`` with the estimator's settings named as the options of ``estimate``:
-    ``setting = value`` anywhere and ``setting`` at its start
-    (:func:`~railsusp.cli.common.option_names`), and a setting spelt with an underscore
-    (``expected_draws``, which is no English word) anywhere else too, where ``--expected-draws``
-    is what the user typed."""
-    message = option_names(message, _ESTIMATE_OPTIONS)
-    for setting, option in _ESTIMATE_OPTIONS.items():
-        if "_" in setting:
-            message = re.sub(rf"(?<![\w./-]){setting}(?![\w/])", option, message)
-    return message
-
-
-@contextmanager
-def _warnings_as_options() -> Iterator[None]:
-    """The library's warnings while the command runs said with the options' names
-    (``--expected-draws 3: ...``, not ``expected_draws 3: ...``)."""
-    shown = warnings.showwarning
-
-    def show(message, category, filename, lineno, file=None, line=None):
-        shown(_option_text(str(message)), category, filename, lineno, file, line)
-
-    warnings.showwarning = show
-    try:
-        yield
-    finally:
-        warnings.showwarning = shown
-
-
-def _naming(option: str, value: object, message: str) -> str:
-    """``message`` (an error about ``value``) starting with the option that gave it:
-    ``nope: no index.json`` -> ``--measured nope: no index.json``."""
-    if message.startswith(option):
-        return message
-    if message.startswith(f"{value}:") or message.startswith(f"{value} "):
-        return f"{option} {message}"
-    return f"{option} {value}: {message}"
 
 
 @app.command()
@@ -325,7 +269,7 @@ def estimate(
         hold_folders(
             creates=[("--out", out)],
             reads=[("--measured", measured)]
-            + [("--surrogate", c) for c in [_campaign_of(surrogate)] if c is not None],
+            + [("--surrogate", c) for c in [campaign_of_surrogate(surrogate)] if c is not None],
             near=[("--surrogate", surrogate)] if surrogate is not None else [],
         )
         cfg = NSGAConfig(
@@ -369,12 +313,14 @@ def estimate(
         try:
             wagon_data = load_wagon(wagon)  # a packaged name or a file, one-line errors
         except (RailsuspInputError, ValueError, FileNotFoundError) as exc:
-            raise RailsuspInputError(_naming("--wagon", wagon, str(exc))) from None
+            raise RailsuspInputError(option_naming("--wagon", wagon, str(exc))) from None
         if surrogate is not None:
             try:
                 model, params = open_force_model(surrogate, chosen)
             except FileNotFoundError as exc:
-                raise RailsuspInputError(_naming("--surrogate", surrogate, str(exc))) from None
+                raise RailsuspInputError(
+                    option_naming("--surrogate", surrogate, str(exc))
+                ) from None
             trained = getattr(model, "wagon", None)  # surrogates that know their wagon
             if trained is not None and wagon is None:
                 wagon_data = trained  # the surrogates' wagon, unless --wagon says another
@@ -390,7 +336,7 @@ def estimate(
         try:
             recs = read_field(measured, wagon=wagon_data)
         except (RailsuspInputError, FileNotFoundError) as exc:
-            raise RailsuspInputError(_naming("--measured", measured, str(exc))) from None
+            raise RailsuspInputError(option_naming("--measured", measured, str(exc))) from None
         if surrogate is None:
             model = SimulatorForces(params, wagon=wagon_data)
         # the corrections' and the refinement's simulator: the model itself without surrogates
@@ -402,8 +348,8 @@ def estimate(
             given.append("--keep-geometry-bias")
         why = geometry_draws_unused(cfg, recs, refine) if given else ""
         if why:  # as expected_draws without an accuracy: the recordings decide, so a warning
-            warnings.warn(f"{' '.join(given)}: not used: {_option_text(why)}", stacklevel=1)
-        with _warnings_as_options():
+            warnings.warn(f"{' '.join(given)}: not used: {option_text(why)}", stacklevel=1)
+        with warnings_as_options():
             res = route.run(model, recs, params, progress=console.status, simulator=sim)
         # the folder as one artefact: a full disk or a kill while the figures are drawn
         # leaves the folder as it was, not an estimate.json without its figures
@@ -423,7 +369,7 @@ def estimate(
                 },
             )
     except (RailsuspInputError, ValueError, FileNotFoundError) as exc:
-        fail(_option_text(str(exc)))
+        fail(option_text(str(exc)))
     console.print(
         frame_table(
             res.log.tail(8), "NSGA-II log (last generations; the study's Table 4)", fmt="{:.6g}"
@@ -431,57 +377,3 @@ def estimate(
     )
     console.print(frame_table(res.table(), "Estimate (the study's Table 5 layout)"))
     console.print(f"wrote {out}")
-
-
-def _campaign_of(surrogate: Path | None) -> Path | None:
-    """The campaign whose ``surrogates/<model>`` folder ``surrogate`` is (trained there by
-    ``railsusp train``), or None (a shipped network set, a folder elsewhere)."""
-    if surrogate is None or surrogate.absolute().parent.name != "surrogates":
-        return None
-    campaign = surrogate.absolute().parent.parent
-    return campaign if (campaign / "campaign.json").is_file() else None
-
-
-def check_held_prior_unused(prior, params, given: str | None, surrogates: bool) -> None:
-    """Refuse, in one line naming ``--held-prior`` and where the estimated parameters come
-    from, a prior on a parameter the estimate estimates: the refined intervals take priors
-    of the held parameters only, and the estimated ones are known before NSGA-II runs (it
-    was recorded as ``held_prior_unused`` after the whole estimate)."""
-    unused = prior.unused(params) if prior is not None else []
-    if not unused:
-        return
-    source = (
-        f"--parameters {given}"
-        if given
-        else ("the surrogates' key parameters" if surrogates else "the study's key parameters")
-    )
-    raise RailsuspInputError(
-        f"--held-prior {', '.join(unused)}: estimated ({source}: {', '.join(params)}), not "
-        "held; accepted ranges of the held parameters only (the refined intervals take them)"
-    )
-
-
-def parse_held_prior(text: str | None, refine: bool, statistic: str):
-    """``--held-prior X15=100:200,X19=20000:40000`` as a checked
-    :class:`~railsusp.estimate.config.HeldPrior` (None without the option); refused without
-    ``--refine`` and with ``--statistic aligned``, where no refined interval takes it."""
-    from railsusp.estimate.config import HeldPrior
-
-    if not text:
-        return None
-    if not refine or "aligned" in statistic.split("+"):
-        raise RailsuspInputError(
-            "--held-prior: only with --refine and a statistic other than aligned (the "
-            "refined intervals take it)"
-        )
-    ranges: dict[str, list[str]] = {}
-    for item in text.split(","):
-        key, eq, pair = item.partition("=")
-        low, colon, high = pair.partition(":")
-        if not (eq and colon and key.strip()):
-            raise RailsuspInputError(
-                f"--held-prior: {item.strip()!r}: accepted SYMBOL=LOW:HIGH in display units, "
-                "comma-separated (e.g. X15=100:200,X19=20000:40000)"
-            )
-        ranges[key.strip()] = [low.strip(), high.strip()]
-    return HeldPrior.from_display(ranges, where="--held-prior")

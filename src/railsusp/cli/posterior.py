@@ -1,9 +1,12 @@
 """Commands of the simulation-based posterior: ``railsusp posterior train`` and
-``railsusp posterior estimate`` (docs/posterior.md)."""
+``railsusp posterior estimate`` (docs/posterior.md).
+
+The commands and the options they take are here; the checks of options that need more than
+a type are in :mod:`railsusp.cli.posterior_options`, and what train and join print of the
+estimator's coverage checks in :mod:`railsusp.cli.posterior_tables`."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
@@ -19,6 +22,14 @@ from railsusp.cli.common import (
     hold_folders,
     is_quiet,
 )
+from railsusp.cli.posterior_options import (
+    check_long_record_option,
+    check_result_file,
+    parse_counts,
+    parse_product_cases,
+    refuse_synthetic_only,
+)
+from railsusp.cli.posterior_tables import print_calibration_table, print_checks
 from railsusp.errors import RailsuspInputError
 
 posterior_app = typer.Typer(
@@ -37,109 +48,6 @@ _OPTIONS = {"section_s": "--section", "n_train": "--simulations", "n_check": "--
             "statistics_emulator_cases": "--statistics-emulator-cases",
             "condition_offset": "--condition-offset", "sum_y": "--sum-y",
             "samples": "--samples", "seed": "--seed"}  # fmt: skip
-
-
-def _print_checks(checks, label: str = "", widened=lambda sections: False) -> None:
-    """One line per checked number of sections: the coverage range, whether the draws
-    checked were widened (``widened(sections)``) and the verdict."""
-    for c in checks:
-        cov = [p.coverage for p in c.checks]
-        how = "widened" if widened(c.sections) else "no widening"
-        console.print(
-            f"{label}{c.sections} section(s): coverage {min(cov):.2f}-{max(cov):.2f} on "
-            f"{c.checks[0].n} cases, {how}: " + ("passed" if c.passed else "FAILED")
-        )
-
-
-def _calibration_table(est) -> None:
-    """Per parameter: the widening fitted on the calibration cases and the coverage on the
-    untouched test cases before and after it."""
-    import pandas as pd
-
-    from railsusp.store import read_json
-
-    record = read_json(est.run / "posterior" / "calibration.json")
-    before = {c["parameter"]: c["coverage"] for c in record["before"]}
-    factors = (record.get("correction") or {}).get("factors", {})
-    rows = [
-        {
-            "parameter": c.parameter,
-            "widening": factors.get(c.parameter, 1.0),
-            "coverage_before": before[c.parameter],
-            "coverage_after": c.coverage,
-            "coverage_p": c.coverage_p,
-            "sbc_p": c.sbc_p,
-            "passed": c.passed and c.parameter not in record.get("excessive_correction", []),
-        }
-        for c in est.calibration
-    ]
-    title = f"90 % intervals on {record['cases']} untouched held-out simulations"
-    console.print(frame_table(pd.DataFrame(rows), title))
-    for p in record.get("products", []):
-        cov = [c["coverage"] for c in p["parameters"]]
-        console.print(
-            f"{p['sections']} sections fused: widening up to "
-            f"{max(p['correction']['factors'].values()):.2f}, coverage after "
-            f"{min(cov):.2f}-{max(cov):.2f} on {p['cases']} cases: "
-            + ("passed" if p["passed"] else "FAILED")
-        )
-
-
-def _long_record(method: str) -> str:
-    """``--long-record``: a known method, or a one-line error naming the accepted ones."""
-    from railsusp.estimate.posterior_synthetic import check_long_record
-
-    try:
-        return check_long_record(method)
-    except RailsuspInputError as exc:
-        raise RailsuspInputError(str(exc).replace("long_record = ", "--long-record ")) from None
-
-
-def _span(field: str) -> str:
-    """The accepted range of a count of the settings, as the options' help and errors say
-    it (:data:`~railsusp.estimate.posterior_settings.POSTERIOR_COUNTS`: one source; read
-    when a command runs, as importing the estimation package costs a second at start)."""
-    from railsusp.estimate.posterior_settings import POSTERIOR_COUNTS
-
-    low, high = POSTERIOR_COUNTS[field]
-    return f"{low} to {high}"
-
-
-def _counts(text: str, option: str = "--product-sections", accepted: str = ""):
-    accepted = accepted or _span("product_sections")
-    try:
-        return tuple(int(v) for v in text.split(",") if v.strip())
-    except ValueError:
-        raise RailsuspInputError(
-            f"{option} {text}: accepted whole numbers from {accepted}, comma-separated"
-        ) from None
-
-
-def _product_cases(text: str) -> dict:
-    """``--product-cases``: one count for every number of sections (``n_product``), or one
-    per entry of ``--product-sections`` (``product_cases``), so the longest records, the
-    costliest to simulate, can be checked on fewer cases."""
-    counts = _counts(text, "--product-cases", _span("product_cases"))
-    if len(counts) == 1:
-        return {"n_product": counts[0]}
-    return {"product_cases": counts}
-
-
-def _synthetic_only(projection_rank: int, statistics_emulator_cases: int) -> None:
-    """Refuse, in one line, the options that only the synthetic likelihood reads when it is
-    not fitted (they were ignored silently, and their values still went into the flows'
-    hash: a second run with another value was refused as "other settings")."""
-    from railsusp.estimate.posterior_settings import DEFAULT_PROJECTION_RANK
-
-    for option, value, default in (
-        ("--projection-rank", projection_rank, DEFAULT_PROJECTION_RANK),
-        ("--statistics-emulator-cases", statistics_emulator_cases, 0),
-    ):
-        if value != default:
-            raise RailsuspInputError(
-                f"{option} {value}: read by the synthetic likelihood only, which is not "
-                "fitted here; accepted with --long-record synthetic-likelihood"
-            )
 
 
 @posterior_app.command(
@@ -244,8 +152,11 @@ def train_command(
 
     try:
         check_output_folder(out)
-        _long_record(long_record)
-        if _product_cases(product_cases) != {"n_product": 100} and not product_sections.strip():
+        check_long_record_option(long_record)
+        if (
+            parse_product_cases(product_cases) != {"n_product": 100}
+            and not product_sections.strip()
+        ):
             raise RailsuspInputError(  # ignored before, silently
                 f"--product-cases {product_cases}: counts the cases of --product-sections, "
                 "which is not given; accepted with --product-sections"
@@ -263,8 +174,8 @@ def train_command(
             n_check=check,
             n_calibration=calibration,
             ensemble=ensemble,
-            product_sections=_counts(product_sections),
-            **_product_cases(product_cases),
+            product_sections=parse_counts(product_sections),
+            **parse_product_cases(product_cases),
             noise=noise,
             sum_y=sum_y,
             statistics=tuple(statistics.split(",")),
@@ -276,7 +187,7 @@ def train_command(
             wagon=wagon,
         )
         if long_record != "synthetic-likelihood":
-            _synthetic_only(projection_rank, statistics_emulator_cases)
+            refuse_synthetic_only(projection_rank, statistics_emulator_cases)
         hold_folders(creates=[("--out", out)])  # the run directory for the training's duration
         if is_quiet():
             est = posterior.train(settings, out)
@@ -290,9 +201,9 @@ def train_command(
     except RailsuspInputError as exc:
         fail(str(exc), options=_OPTIONS)  # the options the user typed, not the fields
     if not is_quiet():
-        _calibration_table(est)
+        print_calibration_table(est)
     if long_record == "synthetic-likelihood":
-        _print_checks(synthetic.checks, "synthetic likelihood, ")
+        print_checks(synthetic.checks, "synthetic likelihood, ")
     excessive = est.correction.excessive if est.correction else []
     failed = [str(p.sections) for p in est.products if not p.passed]
     if long_record == "synthetic-likelihood":
@@ -345,10 +256,10 @@ def estimate_command(
     try:
         if out is not None:
             check_output_file(out)
-            _result_file(out, {"--measured": measured, "--estimator": estimator})
+            check_result_file(out, {"--measured": measured, "--estimator": estimator})
         if not 0 <= seed <= MAX_SEED:  # numpy's generators take no negative seed
             raise RailsuspInputError(f"--seed {seed}: accepted 0 to {MAX_SEED}")
-        _long_record(long_record)
+        check_long_record_option(long_record)
         # the estimator and the recordings are read as wholes: no posterior train rewrites
         # the one, no synth-field, sections --write or align-track --write the other
         # meanwhile (a read in a field's swap mixed two truths' recordings: the concurrency
@@ -382,29 +293,6 @@ def estimate_command(
     if out is not None:
         result.save(out)
         console.print(f"wrote {out}")
-
-
-def _result_file(out: Path, inputs: dict[str, Path]) -> None:
-    """Refuse an ``--out`` for a result that lies inside an input folder (it replaced a
-    field folder's index.json, a recording, or the estimator's calibration record, and
-    every later run then failed) or is an existing file other than a posterior result."""
-    target = out.resolve()
-    for option, folder in inputs.items():
-        if folder.resolve() in target.parents:
-            raise RailsuspInputError(
-                f"--out {out}: inside {option} {folder}, whose files it would replace; "
-                "accepted a file elsewhere"
-            )
-    if out.is_file():
-        try:
-            doc = json.loads(out.read_text("utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-            doc = None
-        if not (isinstance(doc, dict) and doc.get("route") == "posterior"):
-            raise RailsuspInputError(
-                f"--out {out}: an existing file that is not a posterior result; accepted a "
-                "new file or an earlier result to replace"
-            )
 
 
 @posterior_app.command(
@@ -454,7 +342,7 @@ def join_command(
             f"{k} section(s): widened by up to {c.factors[most]:.2f} ({c.parameters[most]}), "
             f"fitted on {c.n} calibration records"
         )
-    _print_checks(joint.checks, widened=lambda k: joint.correction_for(k) is not None)
+    print_checks(joint.checks, widened=lambda k: joint.correction_for(k) is not None)
     if not all(c.passed for c in joint.checks):
         err_console.print(
             "warning: the joint posterior FAILED its coverage check (intervals too narrow); "

@@ -22,7 +22,9 @@ One module per job, imports running one way (top to bottom depends only on those
 - :mod:`~railsusp.estimate.refine_intervals`: the refinement's confidence intervals
 - :mod:`~railsusp.estimate.aligned_identifiability`: Cramér-Rao bounds of the time-aligned
   comparison
-- :mod:`~railsusp.estimate.result`: the estimate result (save, table)
+- :mod:`~railsusp.estimate.estimate_point`: which point is the estimate, its intervals and
+  spreads (the Pareto set and what the steps after NSGA-II left)
+- :mod:`~railsusp.estimate.result`: the estimate result (route, save, table)
 - :mod:`~railsusp.estimate.nsga`: the NSGA-II run (pymoo), log, choice rule, seed spread
 - :mod:`~railsusp.estimate.nsga_geometry`: the geometry error in NSGA-II's estimate: its
   bias off the choice (first SIMEX step) or the choice polished on expected forces
