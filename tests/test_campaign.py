@@ -387,6 +387,28 @@ def test_a_campaign_of_other_force_laws_is_not_resumed_into(full_run, tmp_path):
     assert not (copy / "batches").exists() or not any((copy / "batches").rglob("*.parquet"))
 
 
+def test_the_force_laws_revision_is_read_when_the_campaign_runs(full_run, tmp_path, monkeypatch):
+    """The campaign's checks and stamps read this railsusp's revision when they run, as the
+    wording of its refusals does: they compared with the revision of their import, so a
+    railsusp whose revision is set later (a test's, or a reload) resumed into a campaign of
+    other force laws while its own error line named two revisions that were equal."""
+    import railsusp.vehicle
+    from railsusp.campaign.batch_files import REVISION_KEY
+
+    cfg, out = full_run
+    made = railsusp.vehicle.MODEL_REVISION
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    monkeypatch.setattr(railsusp.vehicle, "MODEL_REVISION", "2099-01-01.1")
+    said = f"force-law revision {made}, older than this railsusp's 2099-01-01.1"
+    with pytest.raises(CampaignError, match=said):
+        run_campaign(cfg, copy)
+    run_campaign(cfg, copy, force=True, max_batches=1)
+    assert json.loads((copy / "campaign.json").read_text())["model_revision"] == "2099-01-01.1"
+    (stamped,) = [p for p in (copy / "batches").rglob("*.parquet") if "features" not in p.name]
+    assert pq_meta(stamped)[REVISION_KEY.encode()] == b"2099-01-01.1"
+
+
 def test_a_second_campaign_in_a_folder_is_refused_while_one_works(full_run, tmp_path):
     """Two processes on one campaign folder simulated the same batches twice, and one with
     --force (or another configuration) deleted what the other was writing: the second is

@@ -48,7 +48,7 @@ from railsusp.provenance import code_identity, provenance, utc_now
 from railsusp.run_lock import run_lock
 from railsusp.store import content_hash, write_json
 from railsusp.suspension_tolerances import read_tolerances
-from railsusp.vehicle import MODEL_REVISION
+from railsusp.vehicle.revision import this_revision
 
 #: stage finishes with their elapsed time (info) and starts (debug), for the command line
 log = logging.getLogger("railsusp.pipeline")
@@ -187,7 +187,7 @@ def _run_stages(
     # and the wagon its recordings are read as, for the same reason: its data (axle spread)
     # and its static wheel load (runs of stop 59 recorded this alone; summary reads both)
     state.update(_wagon_record(config))
-    revisions = (_recorded_revision(out), MODEL_REVISION)  # the campaign's, this railsusp's
+    revisions = (_recorded_revision(out), this_revision())  # the campaign's, this railsusp's
     forced = set(STAGES[STAGES.index(start_from) :]) if start_from else set()
     hashes, legacy = stage_hashes(config), stage_hashes(config, legacy=True)
     for stage in METHOD_REVISIONS:  # computed otherwise since: made again, not taken
@@ -268,7 +268,7 @@ def _run_stages(
             if stage in METHOD_REVISIONS:  # how railsusp computed it (its hash holds it too)
                 state["stages"][stage]["method_revision"] = METHOD_REVISIONS[stage]
             if stage in _SIMULATED:  # the force laws it simulated with (or was checked on)
-                state["stages"][stage]["model_revision"] = MODEL_REVISION
+                state["stages"][stage]["model_revision"] = this_revision()
             _record_files(state["stages"][stage], stage_files(config, out, stage), out)
             write_json(state_path, state)
             log.info("stage %s: done in %.1f s", stage, state["stages"][stage]["seconds"])

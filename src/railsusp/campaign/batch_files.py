@@ -13,7 +13,7 @@ import pyarrow.parquet as pq
 
 from railsusp.campaign.design import CHANNELS, batch_paths
 from railsusp.store import parquet_readable, write_parquet
-from railsusp.vehicle import MODEL_REVISION
+from railsusp.vehicle.revision import this_revision
 
 #: the Parquet metadata key of a batch file that names the campaign configuration (its
 #: :meth:`~railsusp.campaign.design.CampaignConfig.hash`) that simulated it
@@ -31,7 +31,7 @@ def write_batch(
     stamps both files with the configuration that simulated them, so that a campaign whose
     ``campaign.json`` was lost or damaged keeps the batches that are its own."""
     series_path, feat_path = batch_paths(out, res["condition"], b)
-    stamp = {REVISION_KEY: MODEL_REVISION}
+    stamp = {REVISION_KEY: this_revision()}
     if config_hash is not None:
         stamp[STAMP_KEY] = config_hash
     write_parquet(feat_path, res["features"], metadata=stamp)
@@ -78,7 +78,7 @@ def _other_force_laws(meta: dict[bytes, bytes]) -> bool:
     """Whether a batch file's metadata says it was simulated with another force-law revision
     (a batch written before batches were stamped with it says nothing: False)."""
     revision = meta.get(REVISION_KEY.encode())
-    return revision is not None and revision != MODEL_REVISION.encode()
+    return revision is not None and revision != this_revision().encode()
 
 
 def _batch_metadata(path: Path) -> dict[bytes, bytes] | None:

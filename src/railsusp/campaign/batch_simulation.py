@@ -20,7 +20,7 @@ from railsusp.campaign.design import CHANNELS, STATISTICS, CampaignConfig, track
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.variation import layout_groups
-from railsusp.vehicle import MODEL_REVISION
+from railsusp.vehicle.revision import this_revision
 from railsusp.vehicle.simulate import simulate_requests
 from railsusp.vehicle.simulation_result import WHEEL_NAMES
 
@@ -122,7 +122,7 @@ def _simulate_batch(
         )
     return {
         "condition": cond.name,
-        "model_revision": MODEL_REVISION,  # the force laws the worker simulated with
+        "model_revision": this_revision(),  # the force laws the worker simulated with
         "sample_ids": sample_ids,
         "series": series,
         "status": status,

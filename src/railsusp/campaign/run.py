@@ -32,7 +32,7 @@ from railsusp.numbers import is_whole
 from railsusp.provenance import provenance, utc_now
 from railsusp.run_lock import run_lock
 from railsusp.store import read_json, read_parquet, write_json, write_parquet
-from railsusp.vehicle import MODEL_REVISION
+from railsusp.vehicle.revision import this_revision
 
 
 def _track_contents(config: CampaignConfig, out: Path) -> dict[str, bytes]:
@@ -196,10 +196,10 @@ def _run_locked(
     def finish(b: int, res: dict[str, Any]) -> None:
         nonlocal done_runs, recorded
         worker = res.get("model_revision")
-        if worker != MODEL_REVISION:  # a cluster node of another railsusp: never stamped ours
+        if worker != this_revision():  # a cluster node of another railsusp: never stamped ours
             raise CampaignError(
                 f"batch {b} of {res['condition']!r} was simulated with force laws of revision "
-                f"{worker} where this railsusp has {MODEL_REVISION}: install the same railsusp "
+                f"{worker} where this railsusp has {this_revision()}: install the same railsusp "
                 "on every worker of the cluster (the batches stored so far are kept)"
             )
         if not recorded:  # (a resume may run otherwise than the start did)

@@ -34,8 +34,7 @@ from railsusp.store import (
     write_json,
     write_parquet,
 )
-from railsusp.vehicle import MODEL_REVISION
-from railsusp.vehicle.revision import Standing, made_with, newer_remedy, standing
+from railsusp.vehicle.revision import Standing, made_with, newer_remedy, standing, this_revision
 from railsusp.vehicle.track_geometry import geometry_digests
 
 log = logging.getLogger("railsusp.campaign")
@@ -117,7 +116,7 @@ def prepare_run_directory(config: CampaignConfig, out: Path, force: bool) -> pd.
         except RailsuspInputError as exc:  # damaged: the batches' stamps say whose they are
             _keep_own_batches(out, config, str(exc), force)
         else:
-            revision = meta.get("model_revision", MODEL_REVISION)  # unstated: older files
+            revision = meta.get("model_revision", this_revision())  # unstated: older files
             if "model_revision" not in meta:
                 log.warning(
                     "%s states no force-law revision (made before 2026-11-30): its batches "
@@ -131,7 +130,7 @@ def prepare_run_directory(config: CampaignConfig, out: Path, force: bool) -> pd.
                     f"{newer_remedy(revision)}, or use a new --out (--force does not discard "
                     "a newer railsusp's results)"
                 )
-            if revision != MODEL_REVISION and not force:  # its batches: other force laws
+            if revision != this_revision() and not force:  # its batches: other force laws
                 raise CampaignError(
                     f"{out} holds a campaign simulated with {made_with(revision)}: use a new "
                     "--out, or --force to discard the old results (resumed, its batches would "
@@ -147,7 +146,7 @@ def prepare_run_directory(config: CampaignConfig, out: Path, force: bool) -> pd.
                     f"file(s) {', '.join(edited)} (edited since); use a new --out, or --force "
                     "to discard the old results"
                 )
-            if meta.get("config_hash") != config.hash() or revision != MODEL_REVISION or edited:
+            if meta.get("config_hash") != config.hash() or revision != this_revision() or edited:
                 if not force:
                     raise CampaignError(
                         f"{out} holds a campaign with another configuration (hash "
@@ -191,7 +190,7 @@ def prepare_run_directory(config: CampaignConfig, out: Path, force: bool) -> pd.
         {
             "kind": "railsusp campaign",
             "config_hash": config.hash(),
-            "model_revision": MODEL_REVISION,
+            "model_revision": this_revision(),
             "config": config.model_dump(mode="json"),
             **_geometry_files(config),
             "n_runs": config.n_runs,
@@ -225,7 +224,7 @@ def stored_batch_size(config: CampaignConfig, out: Path) -> int | None:
         return None
     if stored.batch_size == config.batch_size:
         return None
-    if meta.get("model_revision", MODEL_REVISION) != MODEL_REVISION:  # its own refusal
+    if meta.get("model_revision", this_revision()) != this_revision():  # its own refusal
         return None
     if stored.model_copy(update={"batch_size": config.batch_size}).hash() != config.hash():
         return None

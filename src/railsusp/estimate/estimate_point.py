@@ -28,7 +28,7 @@ from railsusp.estimate.refine import Refinement
 from railsusp.estimate.refine_intervals import refinement_intervals
 from railsusp.estimate.trust_region import StepCheck
 from railsusp.params import ParameterSet, bounds
-from railsusp.vehicle import MODEL_REVISION
+from railsusp.vehicle.revision import this_revision
 
 
 @dataclass
@@ -96,7 +96,7 @@ class EstimatePoint:
     #: own force laws and refuses an estimate of others. This railsusp's: every force model
     #: an estimate runs on is refused when it records another (the surrogates' bundles, a
     #: network set's manifest), and the simulator corrections and refinement are its own
-    model_revision: str = MODEL_REVISION
+    model_revision: str = field(default_factory=this_revision)
     #: intervals computed, by level and refinement (a refinement attached later recomputes)
     _intervals: dict = field(default_factory=dict, repr=False, compare=False)
 

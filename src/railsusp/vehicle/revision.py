@@ -44,10 +44,18 @@ def _key(text: object) -> tuple[str, int] | None:
     return None if found is None else (found[1], int(found[2] or 0))
 
 
+def this_revision() -> str:
+    """This railsusp's force-law revision (:data:`railsusp.vehicle.MODEL_REVISION`), read
+    when called: what a result made now is stamped with and compared against, so that
+    the stamp and the comparison never disagree (a name imported once kept the revision
+    of the import, the wording of :func:`made_with` the one of the call)."""
+    return railsusp.vehicle.MODEL_REVISION
+
+
 def standing(recorded: object, ours: str | None = None) -> Standing:
     """How the revision ``recorded`` (None: none recorded) stands to ``ours`` (default:
     this railsusp's, read when called)."""
-    ours = railsusp.vehicle.MODEL_REVISION if ours is None else ours
+    ours = this_revision() if ours is None else ours
     if recorded is None:
         return Standing.NONE
     if str(recorded) == ours:
