@@ -152,6 +152,36 @@ def test_another_batch_size_resumes_in_the_stored_batches(full_run, tmp_path, ca
         run_campaign(make_config(TINY, 10, batch_size=3, seed=4), part)
 
 
+def _batch_size(out) -> int:
+    return json.loads((out / "campaign.json").read_text())["config"]["batch_size"]
+
+
+def test_a_campaign_with_nothing_to_keep_takes_the_batch_size_asked(full_run, tmp_path, caplog):
+    """The stored batch size is kept only for batches that are kept: a campaign simulated
+    again (another seed, other force laws, with --force) or with no batch stored yet (the
+    first one ran out of memory: the batch size is what the user changes) is simulated in
+    the batch size asked for, without a word of resuming (the review of stop 68: the old
+    one was kept, after a warning that said "resumed")."""
+    cfg, out = full_run
+    reseeded = tmp_path / "reseeded"
+    shutil.copytree(out, reseeded)
+    run_campaign(make_config(TINY, 10, batch_size=3, seed=4), reseeded, force=True, max_batches=0)
+    assert _batch_size(reseeded) == 3
+    older = tmp_path / "older"
+    shutil.copytree(out, older)
+    meta = json.loads((older / "campaign.json").read_text())
+    (older / "campaign.json").write_text(json.dumps({**meta, "model_revision": "2020-01-01.1"}))
+    run_campaign(make_config(TINY, 10, batch_size=3, seed=3), older, force=True, max_batches=0)
+    assert _batch_size(older) == 3
+    empty = tmp_path / "empty"
+    run_campaign(cfg, empty, max_batches=0)
+    with caplog.at_level("WARNING", logger="railsusp.campaign"):
+        run_campaign(make_config(TINY, 10, batch_size=3, seed=3), empty, force=True, max_batches=1)
+    assert _batch_size(empty) == 3
+    assert "resumed in them" not in caplog.text
+    assert len(list((empty / "batches").rglob("batch-?????.parquet"))) == 1
+
+
 def test_changed_configuration_refuses_to_mix(full_run, tmp_path):
     cfg, out = full_run
     other = make_config(TINY, 10, batch_size=4, seed=99)

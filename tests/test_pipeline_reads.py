@@ -383,7 +383,7 @@ def test_another_campaign_batch_size_runs_nothing_again(tiny, tmp_path, caplog):
     with caplog.at_level("WARNING", logger="railsusp.pipeline"):
         run_pipeline(regrouped, run, progress=lambda s, m: seen.append((s, m)))
     assert {m for _, m in seen} == {"up to date"}
-    assert "holds the campaign in batches of 10: kept (batch_size = 4" in caplog.text
+    assert caplog.text.count("holds the campaign in batches of 10: kept (batch_size = 4") == 1
     state = json.loads((run / "pipeline.json").read_text())
     assert state["config"]["campaign"]["batch_size"] == 10  # what the stages ran with
     reseeded = regrouped.model_copy(

@@ -92,13 +92,14 @@ def run_pipeline(
     state = run_state(out, out_option)
     if not checked:
         check_config(config)  # every combination, before any stage runs
-    config = in_stored_batches(config, out)  # the campaign's stored batch size, hashed as such
-    check_cuda(config, "configuration", surrogate_done=_surrogate_kept(config, state, start_from))
+    # the campaign's stored batch size, hashed as such (decided again under the lock)
+    kept = _surrogate_kept(in_stored_batches(config, out, say=False), state, start_from)
+    check_cuda(config, "configuration", surrogate_done=kept)
     out.mkdir(parents=True, exist_ok=True)
     with run_lock(out, out_option):  # one run at a time in a folder
         # read again under the lock: another run may have ended meanwhile
         state = _run_stages(
-            config,
+            in_stored_batches(config, out),
             out,
             run_state(out, out_option),
             start_from,

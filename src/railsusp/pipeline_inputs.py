@@ -128,14 +128,15 @@ def lhs_campaign(
     )
 
 
-def in_stored_batches(config: PipelineConfig, out: Path) -> PipelineConfig:
+def in_stored_batches(config: PipelineConfig, out: Path, say: bool = True) -> PipelineConfig:
     """``config``, with ``[campaign] batch_size`` that of the run directory's campaign where
     that campaign is the configured one in everything else
     (:func:`railsusp.campaign.run_directory.stored_batch_size`), said in a warning. The
     batch size only groups the same simulations into files, yet it is in the campaign
     stage's hash: changed on a finished run, it simulated the campaign again and ran every
     stage after it (the stop 67 note). Hashed as stored, the stages stay up to date, and a
-    campaign stopped part way resumes in its own batches."""
+    campaign stopped part way resumes in its own batches. ``say``: warn (once per run: the
+    run's look before its lock is taken does not)."""
     from railsusp.campaign.run_directory import stored_batch_size
 
     folder = out / "campaign"
@@ -148,13 +149,14 @@ def in_stored_batches(config: PipelineConfig, out: Path) -> PipelineConfig:
         return config
     if kept is None:
         return config
-    log.warning(
-        "%s holds the campaign in batches of %d: kept (batch_size = %d under [campaign] "
-        "groups the same simulations otherwise; it applies to a new run directory)",
-        folder,
-        kept,
-        c.batch_size,
-    )
+    if say:
+        log.warning(
+            "%s holds the campaign in batches of %d: kept (batch_size = %d under [campaign] "
+            "groups the same simulations otherwise; it applies to a new run directory)",
+            folder,
+            kept,
+            c.batch_size,
+        )
     return config.model_copy(update={"campaign": c.model_copy(update={"batch_size": kept})})
 
 

@@ -155,8 +155,8 @@ def prepare_run_directory(config: CampaignConfig, out: Path, force: bool) -> pd.
                     )
                 _discard(out)
             elif parquet_readable(out / "design.parquet", pages=True):
-                stored = read_parquet(out / "design.parquet")
-                if stored.equals(make_design(config)):  # it follows from the configuration
+                stored = _stored_design(out, config)
+                if stored is not None:  # it follows from the configuration
                     if files and "track_geometry_files" not in meta:  # made before stop 60:
                         # recorded now, so that a later edit is seen (the review of stop 60)
                         write_json(meta_path, {**meta, "track_geometry_files": files})
@@ -202,11 +202,20 @@ def prepare_run_directory(config: CampaignConfig, out: Path, force: bool) -> pd.
     return design
 
 
+def _stored_design(out: Path, config: CampaignConfig) -> pd.DataFrame | None:
+    """``out``'s design where it is the one ``config`` makes (its batches are then paired
+    with their parameters), else None (edited by hand, made by another SciPy or SALib)."""
+    stored = read_parquet(out / "design.parquet")
+    return stored if stored.equals(make_design(config)) else None
+
+
 def stored_batch_size(config: CampaignConfig, out: Path) -> int | None:
     """The batch size of the campaign stored in ``out`` where it is ``config`` in everything
-    but ``batch_size`` (and was simulated with this railsusp's force laws); None where it
-    is the same, or another campaign, or none, or one that does not read
-    (:func:`prepare_run_directory` then says what it does with it).
+    but ``batch_size`` and its batches are kept as they are (simulated with this railsusp's
+    force laws on the track files' present contents, from the design ``config`` makes, at
+    least one of them whole); None where it is the same, or another campaign, or none, or
+    one that does not read, or one with nothing to keep (:func:`prepare_run_directory` then
+    says what it does with it, and a campaign simulated again takes the batch size asked).
 
     The batch size groups the design's rows into stored files and nothing else: the same
     rows are simulated on the same tracks whatever it is. It is in the configuration's
@@ -228,6 +237,15 @@ def stored_batch_size(config: CampaignConfig, out: Path) -> int | None:
         return None
     if stored.model_copy(update={"batch_size": config.batch_size}).hash() != config.hash():
         return None
+    files = geometry_digests(config.conditions)  # (none recorded before stop 60: as now)
+    was = meta.get("track_geometry_files", files)
+    if any(was.get(k) != files[k] for k in files):  # edited since: discarded
+        return None
+    if foreign_batches(out, stored.hash())[1] == 0:  # nothing stored whole: nothing to keep
+        return None
+    design = out / "design.parquet"
+    if parquet_readable(design, pages=True) and _stored_design(out, stored) is None:
+        return None  # paired with another design's parameters: discarded
     return stored.batch_size
 
 

@@ -405,7 +405,9 @@ def load_wagon(source: str | Path | WagonData | None = None) -> WagonData:
                             f"({', '.join(builtin)}) nor an existing file"
                         )
                     prof[key] = str(path)
-        doc.pop("tolerances", None)  # the report's verdicts (railsusp.summary), not the model
+        doc.pop(
+            "tolerances", None
+        )  # the report's verdicts (railsusp.suspension_tolerances), not the model
         return validate_document(WagonData, doc)  # strict: mass = "91600" is refused
     except tomllib.TOMLDecodeError as exc:
         raise RailsuspInputError(f"{where}: not valid TOML ({exc})") from None
