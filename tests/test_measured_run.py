@@ -131,15 +131,17 @@ def test_a_speed_in_the_wrong_unit_is_caught_by_the_distance_it_covers(tmp_path)
 
 def test_a_cant_or_grade_no_line_has_is_refused_with_the_channel(tmp_path):
     from railsusp.measured.breaks import compared_steps, distance_path, speed_path
-    from railsusp.measured.run import _plausible_track
+    from railsusp.measured.run_checks import check_track_channels
 
     t = np.arange(100) / 10.0
     names = {"cant": "cant_x", "grade": "grade_x"}
     assert (
-        _plausible_track({"cant": np.full(100, 0.11), "grade": np.full(100, 0.012)}, names, None)
+        check_track_channels(
+            {"cant": np.full(100, 0.11), "grade": np.full(100, 0.012)}, names, None
+        )
         == []
     )
-    (one,) = _plausible_track({"cant": np.full(100, 110.0)}, names, None)  # mm as m
+    (one,) = check_track_channels({"cant": np.full(100, 110.0)}, names, None)  # mm as m
     assert one.startswith("channel 'cant_x': cant up to 1.1e+05 mm, beyond a working")
     # a run that backs up: the distance's path, not its span, is what the speed covers
     t = np.linspace(0.0, 30.0, 301)
@@ -151,8 +153,8 @@ def test_a_cant_or_grade_no_line_has_is_refused_with_the_channel(tmp_path):
     assert path == pytest.approx(400.0)  # 300 m out, 100 m back: not the 200 m span
     paths = (path, speed_path(speed, t, t, steps), False)
     assert paths[1] == pytest.approx(400.0, abs=1.0)
-    assert _plausible_track(both, {"speed": "v", "position": "s"}, paths) == []
-    (one,) = _plausible_track({"grade": np.full(100, 0.12)}, names, None)
+    assert check_track_channels(both, {"speed": "v", "position": "s"}, paths) == []
+    (one,) = check_track_channels({"grade": np.full(100, 0.12)}, names, None)
     assert one.startswith("channel 'grade_x': grade up to 120 ‰, beyond a working condition's 40")
 
 

@@ -9,7 +9,9 @@ from SALib.sample import sobol as sobol_sample
 from SALib.test_functions import Ishigami
 
 from railsusp.key_parameters import select_key_parameters, study_comparison
-from railsusp.sensitivity import agreement, fit_gp, sobol_from_samples
+from railsusp.sensitivity import agreement
+from railsusp.sensitivity_indices import sobol_from_samples
+from railsusp.sensitivity_metamodel import fit_gp
 
 PI = math.pi
 ISHIGAMI = {"num_vars": 3, "names": ["x1", "x2", "x3"], "bounds": [[-PI, PI]] * 3}

@@ -24,12 +24,9 @@ from railsusp.campaign import (
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.key_parameters import MIN_METAMODEL_R2, select_key_parameters
-from railsusp.sensitivity import (
-    MIN_DIRECT_BASE,
-    analyse,
-    check_settings,
-    sobol_metamodel,
-)
+from railsusp.sensitivity import analyse, check_settings
+from railsusp.sensitivity_indices import MIN_DIRECT_BASE
+from railsusp.sensitivity_metamodel import sobol_metamodel
 from railsusp.store import write_parquet
 from railsusp.variation import TrackFamily
 from railsusp.vehicle.wagon import load_wagon

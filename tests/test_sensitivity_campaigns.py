@@ -9,7 +9,8 @@ import pytest
 
 from railsusp.campaign import CampaignError, make_config, run_campaign
 from railsusp.conditions import get_condition
-from railsusp.sensitivity import MIN_DIRECT_BASE, analyse
+from railsusp.sensitivity import analyse
+from railsusp.sensitivity_indices import MIN_DIRECT_BASE
 
 SHORT = [get_condition("straight", duration_s=1.0, n_steps=50, lead_in_m=20.0, name="short")]
 
@@ -69,7 +70,7 @@ def test_the_pipeline_refuses_a_campaign_too_small_for_the_metamodel():
     """samples = 4 was accepted and the sensitivity stage then failed on every run."""
     from railsusp.errors import RailsuspInputError
     from railsusp.pipeline_config import CampaignSection
-    from railsusp.sensitivity import MIN_METAMODEL_RUNS
+    from railsusp.sensitivity_metamodel import MIN_METAMODEL_RUNS
 
     with pytest.raises((RailsuspInputError, ValueError), match="samples"):
         CampaignSection(samples=MIN_METAMODEL_RUNS - 1)

@@ -55,7 +55,7 @@ class _Cfg(BaseModel):
 
 
 class CampaignSection(_Cfg):
-    #: at least the sensitivity metamodel's sensitivity.MIN_METAMODEL_RUNS (5): 4 were
+    #: at least the sensitivity metamodel's sensitivity_metamodel.MIN_METAMODEL_RUNS (5): 4 were
     #: accepted, and the sensitivity stage then failed on every run
     samples: int = Field(64, ge=5, le=1_000_000, description="LHS samples")
     design: Literal["lhs", "lhs-optimised"] = "lhs"

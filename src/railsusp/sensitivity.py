@@ -15,20 +15,22 @@ Two routes, both through SALib (Saltelli/Jansen estimators, bootstrap confidence
 
 Key parameters are chosen from the indices by a documented rule and set beside the study's
 choice (:mod:`railsusp.key_parameters`).
+
+This module is the analysis of a run directory: its settings checked, the route chosen, two
+campaigns' indices compared, ``RUN/sensitivity/`` written. The estimator, the index table and
+the direct route are :mod:`railsusp.sensitivity_indices`; the Gaussian-process metamodel route
+is :mod:`railsusp.sensitivity_metamodel`.
 """
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from railsusp.campaign import STATISTICS, Campaign, CampaignError, salib_problem
-from railsusp.campaign.design import MIN_SALTELLI_BASE, saltelli_base_too_small, saltelli_issue
+from railsusp.campaign import STATISTICS, Campaign, CampaignError
 from railsusp.errors import RailsuspInputError
 from railsusp.key_parameters import (
     CAMPAIGN_STAMP,
@@ -36,7 +38,8 @@ from railsusp.key_parameters import (
     select_key_parameters,
     study_comparison,
 )
-from railsusp.params import bounds
+from railsusp.sensitivity_indices import sobol_direct
+from railsusp.sensitivity_metamodel import MetamodelFit, sobol_metamodel
 from railsusp.store import (
     atomic_folder,
     remove_stale_temporaries,
@@ -44,258 +47,6 @@ from railsusp.store import (
     write_json,
     write_parquet,
 )
-
-INDEX_COLUMNS = (
-    "condition",
-    "quantity",
-    "statistic",
-    "parameter",
-    "S1",
-    "S1_conf",
-    "ST",
-    "ST_conf",
-    "method",
-    "cv",
-    "r2_holdout",
-)
-
-
-#: base samples N of a Saltelli design analysed directly at the least: below it SALib's
-#: estimators are noise (ST = 19.8 +- 54 at N = 2, 1.46 at N = 8: the campaign audit of
-#: stop 59); the power of two above the 8 where the estimates still exceeded 1. A campaign
-#: is refused fewer when it is made (railsusp.campaign.design.saltelli_issue); both apply
-#: the one rule of railsusp.campaign.design.saltelli_base_too_small
-MIN_DIRECT_BASE = MIN_SALTELLI_BASE
-
-#: successful runs a condition's Gaussian-process metamodel needs at the least (one per fold
-#: of the cross-validation that scores it)
-MIN_METAMODEL_RUNS = 5
-
-#: below this many points a single held-out fifth scores a process on one to nine points
-#: (R^2 undefined on one; -83 on the two of a 12-run campaign's feature that a 5-fold
-#: cross-validation scores at 0.98): the R^2 is then of a 5-fold cross-validation
-MIN_SINGLE_HOLDOUT = 50
-
-
-def sobol_from_samples(
-    problem: dict,
-    y: np.ndarray,
-    *,
-    second_order: bool = False,
-    num_resamples: int = 200,
-    seed: int = 0,
-) -> pd.DataFrame:
-    """SALib Sobol analysis of outputs ``y`` of a Saltelli design (in design order)."""
-    from SALib.analyze import sobol
-
-    y = np.asarray(y, dtype=float)
-    bad = ~np.isfinite(y)
-    if bad.all():
-        raise ValueError("no finite output to analyse")
-    if bad.any():  # failed simulations: replace by the mean so the design stays whole
-        warnings.warn(f"{int(bad.sum())} failed runs replaced by the mean output", stacklevel=2)
-        y = np.where(bad, np.nanmean(y), y)
-    # SALib seeds its bootstrap only for a truthy seed (``if seed:``): seed 0 drew unseeded
-    # confidence intervals, different on every run; seed + 1 makes every seed reproducible
-    res = sobol.analyze(
-        problem, y, calc_second_order=second_order, num_resamples=num_resamples, seed=seed + 1
-    )
-    return pd.DataFrame(
-        {
-            "parameter": problem["names"],
-            "S1": res["S1"],
-            "S1_conf": res["S1_conf"],
-            "ST": res["ST"],
-            "ST_conf": res["ST_conf"],
-        }
-    )
-
-
-def _cv(y: np.ndarray) -> float:
-    """Coefficient of variation of a feature over the campaign (std / |mean|)."""
-    y = y[np.isfinite(y)]
-    m = abs(float(np.mean(y))) if y.size else 0.0
-    return float(np.std(y) / m) if m > 0 else float("inf")
-
-
-def _indexed(
-    df: pd.DataFrame, cond: str, q: str, st: str, y: pd.Series, method: str, r2: float
-) -> pd.DataFrame:
-    """One feature's Sobol indices (:func:`sobol_from_samples`) with the other columns of
-    :data:`INDEX_COLUMNS`: the feature (condition, quantity, statistic), the route
-    (``method``), its coefficient of variation over the campaign (of ``y``, every run) and
-    the metamodel's held-out R^2 (NaN on the direct route); both routes' tables are made
-    here so that they keep the same columns."""
-    return df.assign(
-        condition=cond,
-        quantity=q,
-        statistic=st,
-        method=method,
-        cv=_cv(y.to_numpy()),
-        r2_holdout=r2,
-    )
-
-
-def _features(campaign: Campaign, statistics: Sequence[str], quantities: Sequence[str]):
-    feats = campaign.features()  # read once for every feature
-    for cond in campaign.config.conditions:
-        for q in quantities:
-            for st in statistics:
-                try:
-                    y = campaign.feature_matrix(cond.name, q, st, feats)
-                except CampaignError:
-                    continue
-                yield cond.name, q, st, y
-
-
-def sobol_direct(
-    campaign: Campaign,
-    statistics: Sequence[str] = ("mean", "p99"),
-    quantities: Sequence[str] = ("Y", "Q"),
-    num_resamples: int = 200,
-    seed: int = 0,
-) -> pd.DataFrame:
-    """Sobol indices straight from a Saltelli-design campaign."""
-    cfg = campaign.config
-    if cfg.design != "sobol":
-        raise ValueError(f"{campaign.path}: design {cfg.design!r} is not a Saltelli design")
-    if saltelli_base_too_small(cfg.samples):  # N < MIN_DIRECT_BASE, as make_config refuses
-        raise ValueError(
-            f"{campaign.path}: a Saltelli design of N = {cfg.samples} base samples; its Sobol "
-            f"indices need N >= {MIN_DIRECT_BASE} (at N = 2 total indices of 10 to 20 came "
-            f"out, and were taken as key): a campaign with --samples {MIN_DIRECT_BASE} or more"
-        )
-    issue = saltelli_issue(cfg)  # made before make_config refused it: per-row variation
-    if issue:
-        raise ValueError(f"{campaign.path}: {issue}")
-    problem = salib_problem(cfg.parameters)
-    frames = []
-    for cond, q, st, y in _features(campaign, statistics, quantities):
-        if len(y) != cfg.n_runs:
-            raise ValueError(f"{campaign.path}: campaign incomplete for {cond}")
-        df = sobol_from_samples(
-            problem,
-            y.to_numpy(),
-            second_order=cfg.second_order,
-            num_resamples=num_resamples,
-            seed=seed,
-        )
-        frames.append(_indexed(df, cond, q, st, y, "direct", np.nan))  # no metamodel R^2
-    return pd.concat(frames, ignore_index=True)[list(INDEX_COLUMNS)]
-
-
-@dataclass
-class MetamodelFit:
-    """Held-out quality of one Gaussian-process metamodel (R^2 on a held-out fifth, or of a
-    5-fold cross-validation below :data:`MIN_SINGLE_HOLDOUT` points; NaN: the feature is
-    constant, nothing to score)."""
-
-    condition: str
-    quantity: str
-    statistic: str
-    r2_holdout: float
-    n_train: int
-
-
-def fit_gp(x_unit: np.ndarray, y: np.ndarray, seed: int = 0, theta: np.ndarray | None = None):
-    """Gaussian process on unit-cube inputs: Matern 5/2 ARD + white noise, normalised y.
-
-    Length scales are bounded below by 0.1 of the range and the noise starts at 10 % of the
-    variance: on noisy statistics (independent track seeds) a free optimiser otherwise
-    collapses the length scales onto the samples (held-out R² about 0 instead of 0.4-0.8).
-    ``theta``: fixed kernel hyperparameters (log scale, as ``gp.kernel_.theta``) instead of
-    maximising the likelihood: rebuilds a saved GP exactly."""
-    from sklearn.gaussian_process import GaussianProcessRegressor
-    from sklearn.gaussian_process.kernels import ConstantKernel, Matern, WhiteKernel
-
-    d = x_unit.shape[1]
-    kernel = ConstantKernel(1.0, (1e-3, 1e3)) * Matern(
-        length_scale=np.ones(d), length_scale_bounds=(0.1, 1e3), nu=2.5
-    ) + WhiteKernel(0.1, (1e-8, 1.0))
-    if theta is not None:
-        kernel = kernel.clone_with_theta(np.asarray(theta, dtype=float))
-    gp = GaussianProcessRegressor(
-        kernel=kernel,
-        normalize_y=True,
-        n_restarts_optimizer=0,
-        random_state=seed,
-        optimizer=None if theta is not None else "fmin_l_bfgs_b",
-    )
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        gp.fit(x_unit, y)
-    return gp
-
-
-def sobol_metamodel(
-    campaign: Campaign,
-    statistics: Sequence[str] = ("mean", "p99"),
-    quantities: Sequence[str] = ("Y", "Q"),
-    base_samples: int = 2048,
-    num_resamples: int = 200,
-    seed: int = 0,
-    max_train: int = 500,
-) -> tuple[pd.DataFrame, list[MetamodelFit]]:
-    """Sobol indices of Gaussian-process metamodels fitted to an LHS (or any) campaign."""
-    from SALib.sample import sobol as sobol_sample
-
-    cfg = campaign.config
-    params = list(cfg.parameters)
-    lo, hi = bounds(params)
-    design = campaign.design().set_index("sample_id").sort_index()
-    unit_all = (design[params].to_numpy() - lo) / (hi - lo)
-    problem_unit = {"num_vars": len(params), "names": params, "bounds": [[0.0, 1.0]] * len(params)}
-    xs = sobol_sample.sample(problem_unit, base_samples, calc_second_order=False, seed=seed)
-    rng = np.random.default_rng(seed)
-    frames, fits = [], []
-    for cond, q, st, y in _features(campaign, statistics, quantities):
-        ids = y.index.to_numpy()
-        yv = y.to_numpy()
-        ok = np.isfinite(yv)
-        if ok.sum() < MIN_METAMODEL_RUNS:  # a Gaussian process on nothing: sklearn's error
-            failed = len(yv) - int(ok.sum())
-            remedy = (
-                "check the condition (speed against curve radius and cant) or the parameter ranges"
-                if failed
-                else f"a campaign of {MIN_METAMODEL_RUNS} samples or more"
-            )
-            raise ValueError(
-                f"{campaign.path}: condition {cond!r}: {int(ok.sum())} of {len(yv)} simulations "
-                f"ran through ({failed} failed, e.g. derailed); the metamodel needs at least "
-                f"{MIN_METAMODEL_RUNS}: {remedy}"
-            )
-        xu, yv = unit_all[ids[ok]], yv[ok]
-        if len(yv) > max_train:
-            keep = rng.choice(len(yv), max_train, replace=False)
-            xu, yv = xu[keep], yv[keep]
-        r2 = _holdout_r2(xu, yv, rng.permutation(len(yv)), seed)
-        gp = fit_gp(xu, yv, seed)  # final fit on all points
-        ym = gp.predict(xs)
-        df = sobol_from_samples(problem_unit, ym, num_resamples=num_resamples, seed=seed)
-        frames.append(_indexed(df, cond, q, st, y, "metamodel", r2))
-        fits.append(MetamodelFit(cond, q, st, r2, len(yv)))
-    return pd.concat(frames, ignore_index=True)[list(INDEX_COLUMNS)], fits
-
-
-def _holdout_r2(xu: np.ndarray, yv: np.ndarray, perm: np.ndarray, seed: int) -> float:
-    """R^2 of Gaussian processes on points they were not fitted to, the points taken in the
-    order ``perm``: from :data:`MIN_SINGLE_HOLDOUT` points up, the first fifth held out;
-    below, each of five folds predicted by a process fitted to the other four, pooled over
-    every point (a fifth of 5-49 points is 1-9 points: R^2 undefined, or noise). NaN where
-    the scored values are constant."""
-    n = len(yv)
-    if n >= MIN_SINGLE_HOLDOUT:
-        folds = [perm[: n // 5]]
-    else:
-        folds = np.array_split(perm, 5)
-    scored = np.concatenate(folds)
-    pred = np.empty(n)
-    for hold in folds:
-        train = perm[~np.isin(perm, hold)]  # in perm's order, as fitted before
-        pred[hold] = fit_gp(xu[train], yv[train], seed).predict(xu[hold])
-    ys = yv[scored]
-    ss = np.sum((ys - ys.mean()) ** 2)
-    return float(1.0 - np.sum((ys - pred[scored]) ** 2) / ss) if ss > 0 else float("nan")
 
 
 def agreement(a: pd.DataFrame, b: pd.DataFrame) -> pd.DataFrame:

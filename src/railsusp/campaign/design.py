@@ -47,8 +47,8 @@ STATISTICS = ("mean", "rms", "p99", "max")
 
 #: base samples N of a Saltelli (``sobol``) design at the least, a power of two: below it
 #: SALib's estimators are noise (ST = 19.8 +- 54 at N = 2, 1.46 at N = 8: the campaign audit
-#: of stop 59); the direct Sobol analysis refuses fewer (railsusp.sensitivity), so a campaign
-#: is refused them before its runs are spent
+#: of stop 59); the direct Sobol analysis refuses fewer (railsusp.sensitivity_indices), so a
+#: campaign is refused them before its runs are spent
 MIN_SALTELLI_BASE = 16
 
 
@@ -158,7 +158,7 @@ def saltelli_base_too_small(samples: int) -> bool:
     (N < :data:`MIN_SALTELLI_BASE`). The one rule behind both refusals, each in its own
     words: of a campaign when it is made (:func:`saltelli_issue`, through
     :func:`make_config`) and of a stored one by its direct analysis
-    (``railsusp.sensitivity.sobol_direct``, which imports this module)."""
+    (``railsusp.sensitivity_indices.sobol_direct``, which imports this module)."""
     return samples < MIN_SALTELLI_BASE
 
 

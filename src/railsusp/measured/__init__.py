@@ -7,7 +7,9 @@
 - :mod:`~railsusp.measured.reader`: the field folder (``index.json``) read as a whole;
 - :mod:`~railsusp.measured.raw`, :mod:`~railsusp.measured.units`,
   :mod:`~railsusp.measured.channels`, :mod:`~railsusp.measured.run`: long runs as the
-  measurement system wrote them (ASAM MDF4, CSV, Parquet) read through a channel map;
+  measurement system wrote them (ASAM MDF4, CSV, Parquet) read through a channel map,
+  checked as a whole by :mod:`~railsusp.measured.run_checks`, their speed taken from the
+  distance channel where they have none (:mod:`~railsusp.measured.speed_from_distance`);
 - :mod:`~railsusp.measured.checks`: the checks every recording passes;
 - :mod:`~railsusp.measured.breaks`: where a long run breaks (dropouts, NaN gaps longer than
   those interpolated, jumps of the distance channel), no section spanning one;

@@ -1,6 +1,11 @@
 """A measured run: a long recording read through its channel map into SI channels on one
 time base, every check passed. The sections (:mod:`railsusp.measured.sections`) are cut
 from it.
+
+This module is the reader and the run it returns; the checks of the run as a whole (force
+channels' rates, units, speed, cant, grade and distance within their limits) are
+:mod:`railsusp.measured.run_checks`, and the speed derived from a distance channel alone is
+:mod:`railsusp.measured.speed_from_distance`.
 """
 
 from __future__ import annotations
@@ -10,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 
-from railsusp.conditions import field_range
 from railsusp.errors import RailsuspInputError, did_you_mean
 from railsusp.measured.breaks import (
     channel_nan_gaps,
@@ -33,10 +37,15 @@ from railsusp.measured.checks import (
 )
 from railsusp.measured.raw import RawChannel, read_raw
 from railsusp.measured.recording import RecordingError
+from railsusp.measured.run_checks import (
+    MAX_SPEED_KMH,
+    MIN_RUNNING_SHARE,
+    channel_unit,
+    check_force_rates,
+    check_track_channels,
+)
+from railsusp.measured.speed_from_distance import distance_through_steps, smoothed_gradient
 from railsusp.measured.units import normalise_unit, si_factor
-
-#: a force channel slower than this fraction of the fastest is refused, not interpolated
-MIN_FORCE_RATE_FRACTION = 0.1
 
 
 @dataclass
@@ -162,7 +171,7 @@ def read_run(
     nan_gaps: dict[str, list[tuple[int, int]]] = {}
     for name, q in quantity.items():
         ch = raw[name]
-        unit = _unit(ch, cmap, problems, q)
+        unit = channel_unit(ch, cmap, problems, q)
         try:
             factor = si_factor(q, unit, name)
         except RailsuspInputError as exc:
@@ -193,7 +202,7 @@ def read_run(
     base = max(force_names, key=lambda c: si[c].rate_hz)
     t = si[base].time
     rates = {c: si[c].rate_hz for c in quantity}
-    problems += _force_rates(force_names, base, rates, min_rate_hz)
+    problems += check_force_rates(force_names, base, rates, min_rate_hz)
     for c in quantity:
         ch = si[c]
         tol = 1.0 / ch.rate_hz
@@ -253,7 +262,7 @@ def read_run(
     else:
         position = sig["position"]
         travelled = without_jumps(pos.values, jump)
-        speed = _smoothed_gradient(_through_steps(pos.time, travelled, t), t)
+        speed = smoothed_gradient(distance_through_steps(pos.time, travelled, t), t)
     speed_name = cmap.signals.get("speed", cmap.signals.get("position"))
     running = np.abs(speed) >= 0.5  # standing stretches are cut out as "standing" later
     if np.mean(running) < MIN_RUNNING_SHARE:
@@ -295,7 +304,7 @@ def read_run(
         pair = (pos.name, cmap.signals["speed"])
         spans = [(a, b) for a, b, c in gaps if c in pair]
         paths = compared_paths(pos, nan_gaps.get(pos.name, []), jump, speed, t, spans)
-    problems += _plausible_track(sig, cmap.signals, paths)
+    problems += check_track_channels(sig, cmap.signals, paths)
     if wheel_load_N is None:
         from railsusp.vehicle.setup import static_wheel_load
         from railsusp.vehicle.wagon import load_wagon
@@ -331,129 +340,3 @@ def read_run(
         gaps,
         "position" not in cmap.signals,
     )
-
-
-#: the least share of a run's samples at a running speed (1.8 km/h or more): a run that
-#: stood for most of its time is read, its standing stretches left out when it is cut
-MIN_RUNNING_SHARE = 0.05
-#: the largest speed, cant and grade a run may show: a working condition's bounds
-#: (conditions.py), beyond which a channel's unit is more likely wrong than the line
-MAX_SPEED_KMH = field_range("speed_kmh")[1]
-MAX_CANT_M = field_range("cant_mm")[1] * 1e-3
-MAX_GRADE = field_range("grade_permille")[1] * 1e-3
-#: how far the distance channel's span may differ from the integrated speed (a wheel
-#: diameter's wear and slip are a few per cent; a unit slip is a factor 3.6 or 1000)
-DISTANCE_SPEED_RATIO = (0.8, 1.25)
-
-
-def _plausible_track(
-    sig: dict[str, np.ndarray],
-    names: dict[str, str],
-    paths: tuple[float, float, bool] | None,
-) -> list[str]:
-    """Problems of a run's track channels whose values no line has, each naming the
-    channel: a cant or grade beyond a working condition's range, and a distance channel
-    whose path disagrees with the integrated speed (one of the two in the wrong unit: a
-    speed headed ``[m/s]`` holding km/h cut sections at 234 km/h). ``paths``: the distance
-    channel's path, what the speed integrates to over the same steps, and whether gaps were
-    left out (:func:`~railsusp.measured.breaks.compared_paths`); None: not both channels.
-    The path, not the channel's span: a run that backs up is no unit error, nor is a
-    chainage jump or an odometer's reset (a unit error of 3.6 or 1000 moves every step)."""
-    problems = []
-    for key, limit, scale, unit in (
-        ("cant", MAX_CANT_M, 1e3, "mm"),
-        ("grade", MAX_GRADE, 1e3, "‰"),
-    ):
-        if key in sig and np.nanmax(np.abs(sig[key])) > limit * (1.0 + 1e-9):
-            problems.append(
-                f"channel {names[key]!r}: {key} up to {np.nanmax(np.abs(sig[key])) * scale:.4g} "
-                f"{unit}, beyond a working condition's {limit * scale:g} {unit}: a unit error?"
-            )
-    if paths is not None:
-        span, travelled, gapped = paths
-        lo, hi = DISTANCE_SPEED_RATIO
-        where = " outside their gaps of missing values (NaN)" if gapped else ""
-        if travelled > 10.0 and not lo <= span / travelled <= hi:
-            problems.append(
-                f"channels {names['position']!r} and {names['speed']!r}: the distance runs over "
-                f"{span:.4g} m while the speed integrates to {travelled:.4g} m{where} (ratio "
-                f"{span / travelled:.3g}, accepted {lo:g} to {hi:g}): a unit error in one?"
-            )
-    return problems
-
-
-def _force_rates(
-    force_names: list[str], base: str, rates: dict[str, float], min_rate_hz: float
-) -> list[str]:
-    """Problems of force channels sampled too slowly, one per channel: every force channel,
-    not only the fastest (``base``, whose time base the run takes), must reach
-    ``min_rate_hz``, the rate the sections are resampled to, and a tenth of the fastest.
-    A slower force channel would be interpolated onto the fastest one's time base: a 25 Hz
-    Q under a 200 Hz Y was accepted with a note, its dynamics above 12.5 Hz gone (its
-    standard deviation 4.7 kN for 7.2; the audit of stop 63), where the docs promise forces
-    sampled at least at the sections' rate. A rate equal to the least one is accepted (1000
-    Hz stated as 999.9999 Hz)."""
-    problems = []
-    fastest = rates[base]
-    for c in force_names:
-        least = max(min_rate_hz, MIN_FORCE_RATE_FRACTION * fastest)
-        if rates[c] >= least * (1.0 - 1e-6):
-            continue
-        why = (
-            "the rate the sections are resampled to (sections --rate, [field] rate_hz; "
-            "check-recording --min-rate)"
-            if least == min_rate_hz
-            else "a tenth of the fastest force channel's: interpolation cannot restore more"
-        )
-        if c == base:
-            problems.append(
-                f"channel {c!r}: forces sampled at {rates[c]:.4g} Hz; accepted at least "
-                f"{least:.6g} Hz, {why}"
-            )
-        else:
-            problems.append(
-                f"channel {c!r}: {rates[c]:.4g} Hz against {fastest:.4g} Hz of {base!r}: too "
-                f"slow to interpolate onto its time base; accepted at least {least:.6g} Hz, {why}"
-            )
-    return problems
-
-
-def _same_unit(quantity: str, a: str, b: str, channel: str) -> bool:
-    """``a`` and ``b`` name one unit of ``quantity``: the same factor to SI (``kmh`` and
-    ``km/h``, ``KN`` and ``kN``), or, where either is no unit of it, the same spelling."""
-    try:
-        return si_factor(quantity, a, channel) == si_factor(quantity, b, channel)
-    except RailsuspInputError:
-        return normalise_unit(a) == normalise_unit(b)
-
-
-def _unit(ch: RawChannel, cmap: ChannelMap, problems: list[str], quantity: str) -> str | None:
-    """The channel's unit: the file's; the map's where the file states none; a map unit
-    that contradicts the file's is a problem (another spelling of it is not)."""
-    mapped = cmap.units.get(ch.name)
-    if mapped and ch.unit and not _same_unit(quantity, mapped, ch.unit, ch.name):
-        problems.append(
-            f"channel {ch.name!r}: the file states unit {ch.unit!r}, the channel map {mapped!r}"
-        )
-    return ch.unit or mapped
-
-
-def _through_steps(time: np.ndarray, x: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """The distance ``x`` (sampled at ``time``) on the times ``t``, drawn through the
-    samples at which it changes: an odometer that counts whole metres holds its value
-    between steps, and the times of its steps are where the wagon passed each metre. A
-    staircase differenced over 1 s read 8 or 9 m a second at 30 km/h, a 12 % spread that
-    broke every section by speed; through its steps the spread is the sampling's, 0.02 s in
-    a second at 50 Hz. A distance that changes at every sample is unchanged."""
-    keep = np.ones(x.size, dtype=bool)
-    keep[1:-1] = x[1:-1] != x[:-2]
-    return np.interp(t, time[keep], x[keep])
-
-
-def _smoothed_gradient(x: np.ndarray, t: np.ndarray, window_s: float = 1.0) -> np.ndarray:
-    """dx/dt over a centred window of about ``window_s`` (position channels step)."""
-    dt = float(np.median(np.diff(t)))
-    k = max(1, round(window_s / dt / 2))
-    idx = np.arange(x.size)
-    lo, hi = np.clip(idx - k, 0, x.size - 1), np.clip(idx + k, 0, x.size - 1)
-    return (x[hi] - x[lo]) / (t[hi] - t[lo])

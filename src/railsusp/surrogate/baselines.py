@@ -122,7 +122,7 @@ class StatisticsGP:
         return np.stack(cols, axis=1)
 
     def fit(self, train: SeriesData) -> StatisticsGP:
-        from railsusp.sensitivity import fit_gp
+        from railsusp.sensitivity_metamodel import fit_gp
 
         stats = self.statistics(train, self.spec, self.stats)
         ok = np.isfinite(stats).all(axis=1)
@@ -173,7 +173,7 @@ class StatisticsGP:
     @classmethod
     def from_dict(cls, doc: dict) -> StatisticsGP:
         """Rebuild from :meth:`to_dict` (refits with the stored hyperparameters, no search)."""
-        from railsusp.sensitivity import fit_gp
+        from railsusp.sensitivity_metamodel import fit_gp
 
         model = cls(FeatureSpec.from_dict(doc["features"]), doc["seed"], doc["statistics"])
         for g in doc["gps"]:

@@ -67,7 +67,7 @@ class RecordCorrection:
         """Fit on runs' simulated and network-predicted series (n, T, n_targets), kN: on
         all runs with finite record means, or on ``max_runs`` (default :data:`MAX_RUNS`) of
         them drawn with ``seed``."""
-        from railsusp.sensitivity import fit_gp
+        from railsusp.sensitivity_metamodel import fit_gp
 
         sim = record_means(simulated, targets, window)
         pred = record_means(predicted, targets, window)
@@ -97,7 +97,7 @@ class RecordCorrection:
         if not self._gps:
             from threadpoolctl import threadpool_limits
 
-            from railsusp.sensitivity import fit_gp
+            from railsusp.sensitivity_metamodel import fit_gp
 
             with threadpool_limits(1, user_api="blas"):
                 self._gps = [
