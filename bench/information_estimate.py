@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from railsusp.estimate.posterior_synthetic import Z90, cramer_rao_width
+from railsusp.estimate.posterior_synthetic_information import Z90, cramer_rao_width
 
 #: a Gaussian prior's information with the uniform prior's variance (1/12 of the range^2)
 PRIOR_INFORMATION = 12.0

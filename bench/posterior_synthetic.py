@@ -45,7 +45,7 @@ from railsusp.estimate import posterior_synthetic_fit as synthetic_fit
 from railsusp.estimate import posterior_synthetic_run as synthetic
 from railsusp.estimate.posterior_data import cached_cases
 from railsusp.estimate.posterior_settings import PosteriorSettings
-from railsusp.estimate.posterior_synthetic import cramer_rao_width, fisher_information
+from railsusp.estimate.posterior_synthetic_information import cramer_rao_width, fisher_information
 from railsusp.store import write_json
 
 

@@ -51,8 +51,8 @@ from information_estimate import (
     widths_pct,
 )
 from railsusp.estimate.posterior_data import GAIN_ERROR
-from railsusp.estimate.posterior_synthetic import (
-    SyntheticLikelihood,
+from railsusp.estimate.posterior_synthetic import SyntheticLikelihood
+from railsusp.estimate.posterior_synthetic_information import (
     fisher_information,
     mean_jacobian,
     top_directions,

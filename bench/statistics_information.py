@@ -29,8 +29,8 @@ for J^T W J whatever the noise; a split-half version and the plug-in are printed
 and a null test (the same pairs with random signs: no consistent effect, so zero
 information) shows the estimator invents none. Conditions add their informations; the
 Cramer-Rao 90 % width 2 x 1.645 x sqrt((I^-1)_jj), all ten parameters unknown
-(:func:`railsusp.estimate.posterior_synthetic.cramer_rao_width`), per candidate statistic
-set (:data:`SETS`) in % of range: with a Gaussian prior of the uniform prior's variance
+(:func:`railsusp.estimate.posterior_synthetic_information.cramer_rao_width`), per candidate
+statistic set (:data:`SETS`) in % of range: with a Gaussian prior of the uniform prior's variance
 (``information_estimate.py``), without any prior, and each parameter alone
 (the nine others known, :func:`widths_alone_pct`). Simulations (the four force channels of
 the measured wheelset) are cached in ``--work``, and so are their statistics; ``--seed

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from conftest import bench_script
-from railsusp.estimate.posterior_synthetic import top_directions, whitening
+from railsusp.estimate.posterior_synthetic_information import top_directions, whitening
 
 
 @pytest.fixture(scope="module")
@@ -68,7 +68,7 @@ def test_projection_spanning_the_score_keeps_all_the_information(bench):
 
 
 def test_top_directions_are_the_score_directions(bench):
-    """(:mod:`railsusp.estimate.posterior_synthetic`'s, which the informative projection
+    """(:mod:`railsusp.estimate.posterior_synthetic_information`'s, which the informative projection
     uses.) Whitened by C^-1/2, the top q combinations of a rank-q Jacobian span C^-1 J: they
     keep all of its information, which fewer cannot."""
     rng = np.random.default_rng(4)

@@ -2,8 +2,8 @@
 
 from railsusp.conditions import get_condition
 from railsusp.surrogate import load
-from railsusp.surrogate.bundle import family_of
 from railsusp.surrogate.pretrained import read_network_set, resolve_network_set
+from railsusp.surrogate.training_scope import family_of
 
 
 def _shipped(condition: str):

@@ -325,7 +325,10 @@ def test_the_bench_checks_scores_the_sets_and_adds_the_parts_information(runs, m
     bound = got["cramer_rao_width_pct"]["statistics_alone"]
     parts = [synthetic.load(r) for r in (a, b)]
     u = 0.1 + 0.8 * prior_draws(parts[0].settings, "identification", SETS)
-    from railsusp.estimate.posterior_synthetic import cramer_rao_width, fisher_information
+    from railsusp.estimate.posterior_synthetic_information import (
+        cramer_rao_width,
+        fisher_information,
+    )
 
     info = [fisher_information(p.likelihood, u, 4, emulator_error=False) for p in parts]
     both = 100 * cramer_rao_width(info[0] + info[1])

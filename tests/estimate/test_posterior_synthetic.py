@@ -17,14 +17,18 @@ from railsusp.errors import RailsuspInputError
 from railsusp.estimate.posterior_emulator import StatisticsEmulator, fit
 from railsusp.estimate.posterior_smc import smc_sample
 from railsusp.estimate.posterior_synthetic import (
-    Z90,
     SyntheticLikelihood,
     check_long_record,
+    gain_covariance,
+)
+from railsusp.estimate.posterior_synthetic_information import (
+    Z90,
     cramer_rao_width,
     fisher_information,
+)
+from railsusp.estimate.posterior_synthetic_model_error import (
     fit_model_error,
     fit_scales,
-    gain_covariance,
     shrunk_excess_covariance,
 )
 
@@ -358,7 +362,7 @@ def test_a_projection_on_the_jacobian_keeps_the_information_and_the_posterior():
     that informative_projection keeps carry all the information (kept = 1, the same
     Cramer-Rao widths) and the likelihood of them differs from the full one by a constant,
     so the posterior's draws are the same; one combination keeps less."""
-    from railsusp.estimate.posterior_synthetic import informative_projection
+    from railsusp.estimate.posterior_synthetic_information import informative_projection
 
     emu = _Linear()
     emu.weights = [[(np.zeros((2, 1)), np.zeros(1))]]

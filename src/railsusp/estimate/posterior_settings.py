@@ -64,7 +64,7 @@ class PosteriorSettings:
     statistics (:mod:`railsusp.estimate.statistic_families`; the default, the EN 14363
     summary alone, is the estimator's before the families existed), ``projection_rank``: the
     number of their combinations the synthetic likelihood reads beyond that summary
-    (:func:`~railsusp.estimate.posterior_synthetic.informative_projection`),
+    (:func:`~railsusp.estimate.posterior_synthetic_information.informative_projection`),
     ``statistics_emulator_cases``: 0, the synthetic likelihood's emulator of all the
     statistics is fitted on every training case and read through the projection; N > 0, it
     is fitted on the first N cases only (it chooses the projection and gives the gain

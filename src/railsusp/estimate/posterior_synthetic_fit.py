@@ -19,13 +19,9 @@ from railsusp.estimate.posterior_data import GAIN_ERROR, cached_cases
 from railsusp.estimate.posterior_emulator import StatisticsEmulator, fit
 from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.estimate.posterior_stamp import check_model_revision, estimator_stamp
-from railsusp.estimate.posterior_synthetic import (
-    SyntheticLikelihood,
-    fit_model_error,
-    fit_scales,
-    gain_covariance,
-    informative_projection,
-)
+from railsusp.estimate.posterior_synthetic import SyntheticLikelihood, gain_covariance
+from railsusp.estimate.posterior_synthetic_information import informative_projection
+from railsusp.estimate.posterior_synthetic_model_error import fit_model_error, fit_scales
 from railsusp.integrity import read_npz
 from railsusp.store import (
     atomic_write_bytes,
@@ -53,7 +49,8 @@ TRAINING = {"batch": 256, "trend": True}
 #: the hidden width of the emulator of the projected combinations
 PROJECTED_HIDDEN = HIDDEN
 #: the training cases the informative projection of statistics beyond the EN 14363 summary
-#: is averaged over (:func:`~railsusp.estimate.posterior_synthetic.informative_projection`)
+#: is averaged over (:func:`~railsusp.estimate.posterior_synthetic_information.
+#: informative_projection`)
 PROJECTION_CASES = 200
 #: the settings the emulator depends on (the training cases and their statistics; the
 #: condition offset, their tracks, only where it is set: the hashes of before stay)

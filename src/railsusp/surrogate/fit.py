@@ -16,7 +16,7 @@ import torch
 
 from railsusp.errors import RailsuspInputError
 from railsusp.store import read_json
-from railsusp.surrogate.bundle import Surrogate, family_of, load
+from railsusp.surrogate.bundle import Surrogate, load
 from railsusp.surrogate.correction import MIN_RUNS
 from railsusp.surrogate.data import (
     DEFAULT_TRACK_CHANNELS,
@@ -35,6 +35,7 @@ from railsusp.surrogate.pairs import TwinRuns, load_twins
 from railsusp.surrogate.refit import fit_record_correction
 from railsusp.surrogate.split import Split, campaign_split
 from railsusp.surrogate.train import TrainConfig, sampler_for, train_network
+from railsusp.surrogate.training_scope import family_of
 from railsusp.variation import assumed_parameters
 
 log = logging.getLogger("railsusp.surrogate")
