@@ -9,12 +9,12 @@ from railsusp.vehicle.contact import (
     LEFT,
     RIGHT,
     ContactTable,
-    contact_table,
     equivalent_conicity,
     equivalent_conicity_curve,
     flange_split,
 )
-from railsusp.vehicle.profiles import chn60_rail, conical_wheel, lm_worn_wheel
+from railsusp.vehicle.profile_shapes import chn60_rail, conical_wheel, lm_worn_wheel
+from railsusp.vehicle.rigid_profile_contact import contact_table
 
 
 @pytest.fixture(scope="module")

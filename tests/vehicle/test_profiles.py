@@ -6,16 +6,14 @@ import numpy as np
 import pytest
 
 from railsusp.errors import RailsuspInputError
-from railsusp.vehicle.profiles import (
-    Profile,
+from railsusp.vehicle.profile_shapes import (
     chn60_rail,
     conical_wheel,
     incline,
     lm_worn_wheel,
-    read_profile,
     round_rail,
-    write_profile,
 )
+from railsusp.vehicle.profiles import Profile, read_profile, write_profile
 
 
 @pytest.fixture(scope="module")

@@ -10,8 +10,9 @@ from railsusp.conditions import CANT_BASE_M, GRAVITY, get_condition
 from railsusp.errors import ParameterError, RailsuspInputError
 from railsusp.params import MAIN_SUSPENSION, ParameterSet, spec
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.contact import contact_table, equivalent_conicity
-from railsusp.vehicle.profiles import chn60_rail, lm_worn_wheel
+from railsusp.vehicle.contact import equivalent_conicity
+from railsusp.vehicle.profile_shapes import chn60_rail, lm_worn_wheel
+from railsusp.vehicle.rigid_profile_contact import contact_table
 from railsusp.vehicle.simulate import (
     SolverSettings,
     contact_arrays,

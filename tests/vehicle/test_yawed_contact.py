@@ -13,8 +13,8 @@ import pytest
 from railsusp.conditions import get_condition
 from railsusp.params import ParameterSet
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.contact import _place_rails
-from railsusp.vehicle.profiles import chn60_rail, lm_worn_wheel
+from railsusp.vehicle.profile_shapes import chn60_rail, lm_worn_wheel
+from railsusp.vehicle.rigid_profile_contact import rails_in_track_frame
 from railsusp.vehicle.setup import SolverSettings, constants, contact_arrays
 from railsusp.vehicle.wagon import WagonData, load_wagon
 from railsusp.vehicle.wheel_rail import (
@@ -59,7 +59,7 @@ def _brute_force(y: float, yaw: float, split: float) -> tuple[float, float]:
     ``yaw``: the lowest vertical gap over the wheel surface of revolution (profile point u,
     angle theta from the bottom) placed in the track frame, against the inclined rail."""
     wheel, rail = lm_worn_wheel(), chn60_rail()
-    left, _ = _place_rails(rail, 1.435, 0.016, 1.0 / 40.0, 1e-5)
+    left, _ = rails_in_track_frame(rail, 1.435, 0.016, 1.0 / 40.0, 1e-5)
     u = np.arange(wheel.y[0], split, 1e-5)
     radius = R0 + wheel.evaluate(u)[0]
     w = 0.5 * BACK_TO_BACK + BACK_FACE_OFFSET + u  # lateral place of the profile point

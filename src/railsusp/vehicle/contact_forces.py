@@ -1,7 +1,8 @@
 """Wheel-rail contact force laws: Hertz normal contact, Kalker linear creep, SHE saturation.
 
 Pure, vectorised NumPy functions (SI units). The contact geometry that feeds them (contact
-points, curvatures) is in :mod:`railsusp.vehicle.contact`; the simulator re-writes the force
+points, curvatures) is in :mod:`railsusp.vehicle.contact` (its tables made by
+:mod:`railsusp.vehicle.rigid_profile_contact`); the simulator re-writes the force
 laws in its Numba kernel (:mod:`railsusp.vehicle.model`) and uses these for its tables.
 Creep forces are those of the rail on the wheel, in the contact plane.
 """

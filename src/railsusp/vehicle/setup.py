@@ -20,9 +20,11 @@ from railsusp.errors import RailsuspInputError
 from railsusp.numbers import is_real, is_whole
 from railsusp.params import spec
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.contact import ContactTable, contact_table, flange_split
+from railsusp.vehicle.contact import ContactTable, flange_split
 from railsusp.vehicle.contact_forces import hertz_contact, kalker_creep_coefficients
-from railsusp.vehicle.profiles import chn60_rail, lm_worn_wheel, read_profile
+from railsusp.vehicle.profile_shapes import chn60_rail, lm_worn_wheel
+from railsusp.vehicle.profiles import read_profile
+from railsusp.vehicle.rigid_profile_contact import contact_table
 from railsusp.vehicle.wagon import WagonData
 
 #: how a run starts (:class:`SolverSettings` ``start``)
