@@ -241,7 +241,7 @@ def test_run_result_paths_plot_axes_and_a_dangling_link(tmp_path):
         railsusp.RunResult(5)
     for ax in ("x", [1]):
         with pytest.raises(RailsuspInputError, match="accepted one matplotlib Axes"):
-            railsusp.api._check_axes(ax)
+            railsusp.run_result._check_axes(ax)
     link = tmp_path / "gone"
     link.symlink_to(tmp_path / "nowhere")
     with pytest.raises(RailsuspInputError) as info:

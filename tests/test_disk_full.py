@@ -14,6 +14,7 @@ import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
+import railsusp.atomic_files as atomic_files
 import railsusp.report
 import railsusp.sensitivity
 import railsusp.store as store
@@ -109,7 +110,7 @@ def test_example_recording_on_a_full_disk_exits_1_naming_the_file(tmp_path, monk
     """A full disk exited 2 (bad input) where every other command exits 1 (the machine),
     and the line named only the folder."""
     out = tmp_path / "ex"
-    monkeypatch.setattr(store, "fsync_file", enospc)  # the content's flush refused
+    monkeypatch.setattr(atomic_files, "fsync_file", enospc)  # the content's flush refused
     result = runner.invoke(app, ["example-recording", "--out", str(out)])
     assert result.exit_code == 1, result.output
     lines = result.output.strip().splitlines()
@@ -137,19 +138,19 @@ def test_an_io_error_flushing_a_folder_is_raised(tmp_path, monkeypatch):
     reported as written. Only "not supported" errors are ignored now."""
     monkeypatch.setattr(os, "fsync", lambda fd: (_ for _ in ()).throw(OSError(errno.EIO, "I/O")))
     with pytest.raises(OSError) as caught:
-        store.fsync_dir(tmp_path)
+        atomic_files.fsync_dir(tmp_path)
     assert caught.value.errno == errno.EIO
     for unsupported in (errno.EINVAL, errno.ENOTSUP, errno.EBADF):
         monkeypatch.setattr(
             os, "fsync", lambda fd, e=unsupported: (_ for _ in ()).throw(OSError(e, "no"))
         )
-        store.fsync_dir(tmp_path)  # ignored
+        atomic_files.fsync_dir(tmp_path)  # ignored
 
 
 def test_an_io_error_flushing_the_folder_fails_the_write(tmp_path, monkeypatch):
     """Through a write: the content flushed, the folder's flush EIO: the write fails with
     EIO, naming the file."""
-    monkeypatch.setattr(store, "fsync_file", lambda path: None)
+    monkeypatch.setattr(atomic_files, "fsync_file", lambda path: None)
     monkeypatch.setattr(os, "fsync", lambda fd: (_ for _ in ()).throw(OSError(errno.EIO, "I/O")))
     with pytest.raises(OSError) as caught:
         store.atomic_write_text(tmp_path / "a.txt", "x")
@@ -161,7 +162,7 @@ def test_an_io_error_flushing_the_folder_fails_the_write(tmp_path, monkeypatch):
 def test_a_write_error_naming_no_file_names_the_target(tmp_path, monkeypatch):
     """A bare write error (no filename) was shown as "No space left on device", naming
     nothing; pyarrow's errno-28 error likewise. Both name the target now, errno kept."""
-    monkeypatch.setattr(store, "fsync_file", enospc)
+    monkeypatch.setattr(atomic_files, "fsync_file", enospc)
     with pytest.raises(OSError) as caught:
         store.atomic_write_bytes(tmp_path / "a.bin", b"x")
     assert (caught.value.errno, caught.value.filename) == (errno.ENOSPC, str(tmp_path / "a.bin"))
@@ -207,7 +208,7 @@ def test_a_write_error_naming_the_temporary_names_the_target(tmp_path, monkeypat
 def test_a_file_of_an_atomic_folder_is_named_inside_its_target(tmp_path, monkeypatch):
     """A file written inside atomic_folder's hidden ``.NAME.new-*`` folder is named as the
     file it was to become."""
-    monkeypatch.setattr(store, "fsync_file", enospc)
+    monkeypatch.setattr(atomic_files, "fsync_file", enospc)
     with pytest.raises(OSError) as caught, store.atomic_folder(tmp_path / "est") as tmp:
         store.write_json(tmp / "estimate.json", {})
     assert caught.value.filename == str(tmp_path / "est" / "estimate.json")

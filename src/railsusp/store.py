@@ -1,13 +1,14 @@
-"""The run directory: atomic writes of JSON and Parquet, reading input files, content hashes.
+"""The run directory's files: JSON, Parquet, CSV and TOML written atomically and read back,
+and content hashes.
 
-Every file railsusp writes goes through a temporary file in the same folder, is flushed to
-disk (fsync) and renamed over its target, and the folder is fsynced after the rename: an
-interrupted run, or a power loss, leaves either the old file or the new one, never half of
-one. Artefacts made of several files are written into a temporary folder and renamed as one
-(:func:`atomic_folder`). Input files are read by :func:`read_toml`, :func:`read_json` and
-:func:`read_csv`, which turn every OS, decoding and syntax error into a one-line
-:class:`RailsuspInputError`. Each result records what it was made from (:func:`content_hash`,
-:func:`file_hash`); which code made it is :mod:`railsusp.provenance`'s record.
+Every file railsusp writes goes through :mod:`railsusp.atomic_files` (a temporary file in the
+same folder, flushed to disk and renamed over its target; a folder of several files renamed
+as one): an interrupted run, or a power loss, leaves either the old file or the new one,
+never half of one. That module holds the writes to disk, this one the formats: input files
+are read by :func:`read_toml`, :func:`read_json` and :func:`read_csv`, which turn every OS,
+decoding and syntax error into a one-line :class:`RailsuspInputError`. Each result records
+what it was made from (:func:`content_hash`, :func:`file_hash`); which code made it is
+:mod:`railsusp.provenance`'s record.
 
 Whether what a file says is acceptable (strict validation against its model, an output path
 that can be written) is :mod:`railsusp.input_checks`'s job, not this module's: the store
@@ -16,19 +17,11 @@ reads and writes bytes and hashes them; it judges no content.
 
 from __future__ import annotations
 
-import errno
-import fnmatch
-import glob
 import hashlib
 import io
 import json
 import os
-import re
-import shutil
-import tempfile
 import tomllib
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -38,159 +31,13 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+# the atomic writes are railsusp.atomic_files'; these names are imported from here too
+from railsusp.atomic_files import atomic_folder as atomic_folder
+from railsusp.atomic_files import atomic_write_bytes as atomic_write_bytes
+from railsusp.atomic_files import atomic_write_text as atomic_write_text
+from railsusp.atomic_files import remove_stale_temporaries as remove_stale_temporaries
+from railsusp.atomic_files import replacing_file
 from railsusp.errors import RailsuspInputError
-
-#: what ``os.fsync`` of a folder (or ``os.open`` of one) raises where the file system or the
-#: platform does not support it: ignored; anything else (EIO: the rename may not be on disk)
-#: is an error, not a success reported (the disk audit)
-_FSYNC_DIR_UNSUPPORTED = frozenset(
-    {errno.EINVAL, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EBADF, errno.EISDIR}
-)
-
-
-def fsync_dir(path: str | Path) -> None:
-    """Flush a folder's entries (a rename into it) to disk; a no-op where unsupported (a
-    folder that cannot be opened for it, a file system whose folders take no fsync). Any
-    other error (EIO, ENOSPC) is raised: it was swallowed, and a rename perhaps never on
-    disk was reported as written (the disk audit)."""
-    try:
-        fd = os.open(path, os.O_RDONLY)
-    except OSError as exc:
-        if exc.errno in _FSYNC_DIR_UNSUPPORTED | {errno.EACCES, errno.EPERM}:
-            return
-        raise
-    try:
-        os.fsync(fd)
-    except OSError as exc:
-        if exc.errno not in _FSYNC_DIR_UNSUPPORTED:
-            raise
-    finally:
-        os.close(fd)
-
-
-def fsync_file(path: str | Path) -> None:
-    """Flush a written file's content to disk (before a rename makes it the file)."""
-    with open(path, "rb+") as fh:
-        os.fsync(fh.fileno())
-
-
-def _process_umask() -> int:
-    """The process's umask (read by setting it and back; done once, at import)."""
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-#: the umask the outputs' modes follow: a temporary file is created 0600 (a folder 0700),
-#: and renamed into place it would stay so; a file written in place would be 0666 & ~umask
-_UMASK = _process_umask()
-
-
-def plain_mode(path: str | Path) -> None:
-    """Give a temporary file (created 0600) the mode a plainly written one gets, before it
-    is renamed into place."""
-    os.chmod(path, 0o666 & ~_UMASK)
-
-
-def _naming(exc: OSError, target: Path, folder: Path | None = None) -> OSError:
-    """``exc`` as it is to be shown, its errno kept (the exit status depends on it): the user
-    was told "No space left on device" and not where, or was shown a hidden temporary (the
-    disk audit). For a file ``target`` (``folder`` None): an error naming no file
-    (pyarrow's "[errno 28] No space left on device", a bare write error) or naming one of
-    its temporaries (``.NAME.XXXXXXXX.tmp``) names ``target``. For a folder ``target``
-    written in the temporary ``folder`` (:func:`atomic_folder`): an error naming a file
-    inside ``folder``, or ``folder``, names the same file inside ``target``. Any other error
-    is returned as it is."""
-    named = exc.filename
-    if isinstance(named, (str, bytes, os.PathLike)):
-        named = os.path.abspath(os.fsdecode(named))
-    else:  # none, or a file descriptor
-        named = None
-    where: Path | None = None
-    if folder is None:
-        found = None if named is None else _TEMPORARY.match(os.path.basename(named))
-        if named is None or (
-            found is not None
-            and found["target"] == target.name
-            and os.path.dirname(named) == os.path.abspath(target.parent)
-        ):
-            where = target
-    elif named is not None:
-        hidden = os.path.abspath(folder)
-        if named == hidden:
-            where = target
-        elif named.startswith(hidden + os.sep):
-            where = target / os.path.relpath(named, hidden)
-    if where is None:
-        return exc
-    reason = exc.strerror or (os.strerror(exc.errno) if exc.errno else str(exc))
-    return OSError(exc.errno, reason, str(where))
-
-
-@contextmanager
-def _replacing(path: Path) -> Iterator[str]:
-    """The one way a file is written: yields a temporary file beside ``path`` (``.NAME.*.tmp``)
-    to write and close; then its content is flushed to disk, it gets the mode a plainly
-    written file gets (0666 less the umask, not the temporary file's 0600), is renamed over
-    ``path`` and the rename is flushed too. On an error the temporary file is removed and
-    ``path`` is untouched; an OSError naming no file or the temporary names ``path``
-    (:func:`_naming`)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        os.close(fd)
-        try:
-            yield tmp
-            fsync_file(tmp)
-            plain_mode(tmp)
-            os.replace(tmp, path)
-            fsync_dir(path.parent)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-    except OSError as exc:
-        shown = _naming(exc, path)
-        if shown is exc:
-            raise
-        raise shown from exc
-
-
-def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically (temporary file + rename), with the mode a
-    plainly written file gets (0666 less the umask), not the temporary file's 0600."""
-    path = Path(path)
-    with _replacing(path) as tmp, open(tmp, "wb") as fh:
-        fh.write(data)
-    return path
-
-
-#: the name of a temporary file :func:`_replacing` makes: ``.NAME.`` + mkstemp's eight
-#: random characters + ``.tmp`` (a user's ``.notes.tmp`` is no railsusp temporary)
-_TEMPORARY = re.compile(r"^\.(?P<target>.+)\.[a-z0-9_]{8}\.tmp$")
-
-
-def remove_stale_temporaries(folder: str | Path, targets: Sequence[str] | None = None) -> int:
-    """Remove the temporaries of :func:`_replacing` (``.NAME.XXXXXXXX.tmp``) that a process
-    killed while writing left directly in ``folder``; the number removed. ``targets``: only
-    those of files of these names (default: of any name). Subfolders are not entered, and
-    other hidden files are left alone: only for a folder whose lock the caller holds
-    (:func:`railsusp.run_lock.run_lock`) and whose files no other process writes, since
-    another writer's temporary would be live (a training checkpoint being saved under a
-    campaign's ``surrogates/``, which the campaign's whole-tree sweep deleted: the
-    run-directory store audit). A kill during a write left them for good (the
-    interrupt/resume audit of stop 60)."""
-    removed = 0
-    folder = Path(folder)
-    if not folder.is_dir():
-        return 0
-    for tmp in folder.iterdir():
-        found = _TEMPORARY.match(tmp.name)
-        if found is None or (targets is not None and found["target"] not in targets):
-            continue
-        if tmp.is_file() and not tmp.is_symlink():
-            tmp.unlink(missing_ok=True)
-            removed += 1
-    return removed
 
 
 def atomic_write_figure(fig: Any, path: str | Path, **savefig: Any) -> Path:
@@ -200,11 +47,6 @@ def atomic_write_figure(fig: Any, path: str | Path, **savefig: Any) -> Path:
     buffer = io.BytesIO()
     fig.savefig(buffer, format=path.suffix.lstrip(".").lower() or "png", **savefig)
     return atomic_write_bytes(path, buffer.getvalue())
-
-
-def atomic_write_text(path: str | Path, text: str) -> Path:
-    """Write ``text`` (UTF-8) to ``path`` atomically."""
-    return atomic_write_bytes(path, text.encode("utf-8"))
 
 
 def write_csv(path: str | Path, df: pd.DataFrame, **kw: Any) -> Path:
@@ -262,74 +104,6 @@ def read_csv(path: str | Path) -> pd.DataFrame:
     except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError) as exc:
         first = (str(exc).splitlines() or [type(exc).__name__])[0]
         raise RailsuspInputError(f"{path}: not a readable table ({first})") from None
-
-
-@contextmanager
-def atomic_folder(path: str | Path, keep: bool = True, drop: Sequence[str] = ()) -> Iterator[Path]:
-    """Write a multi-file artefact as one: yields a temporary sibling folder to write into;
-    on success it replaces ``path``, on an error it is removed and ``path`` is untouched.
-
-    ``keep``: other entries of an existing ``path`` (a training checkpoint, figures) are
-    carried into the new folder (hard links where possible), except those whose names match
-    a glob pattern of ``drop`` (what the old artefact wrote and this one replaces or no
-    longer has: an old estimate's validation, a removed condition's recording). The swap is
-    two renames (the old folder aside, the new one in); a crash between them leaves the old
-    folder beside ``path`` as ``.NAME.old-*`` and no ``path``: the next save puts it back
-    first (it held finished work: a trained network and its checkpoint), then carries on. A
-    process killed while writing leaves ``.NAME.new-*``: the next save removes it. The
-    folder gets the mode a plainly made one gets (0777 less the umask), not the temporary
-    folder's 0700.
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    name = glob.escape(path.name)  # ``est[1]``, ``run*``: a pattern only of this name's
-    aside = sorted(path.parent.glob(f".{name}.old-*"), key=lambda p: p.stat().st_mtime)
-    if aside and not path.exists():  # a crash between the two renames: the old one back
-        os.rename(aside.pop(), path)
-    for pattern in (f".{name}.old-*", f".{name}.new-*"):
-        for stale in path.parent.glob(pattern):
-            shutil.rmtree(stale, ignore_errors=True)
-    tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.new-"))
-    try:
-        yield tmp
-        os.chmod(tmp, 0o777 & ~_UMASK)
-        for f in tmp.rglob("*"):
-            if f.is_file():
-                fsync_file(f)
-        if keep and path.is_dir():
-            for entry in path.iterdir():
-                target = tmp / entry.name
-                if target.exists() or any(fnmatch.fnmatchcase(entry.name, d) for d in drop):
-                    continue
-                if entry.is_dir():
-                    shutil.copytree(entry, target, copy_function=_link_or_copy)
-                else:
-                    _link_or_copy(entry, target)
-        fsync_dir(tmp)
-        if path.exists():
-            old = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.old-"))
-            os.rmdir(old)
-            os.rename(path, old)
-            os.rename(tmp, path)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.rename(tmp, path)
-        fsync_dir(path.parent)
-    except OSError as exc:  # a file of the hidden folder named as the one it was to become
-        shown = _naming(exc, path, folder=tmp)
-        if shown is exc:
-            raise
-        raise shown from exc
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
-
-
-def _link_or_copy(src: str | Path, dst: str | Path) -> None:
-    try:
-        os.link(src, dst)
-    except OSError:
-        shutil.copy2(src, dst)
 
 
 def read_toml(path: str | Path, what: str = "file") -> dict[str, Any]:
@@ -443,7 +217,7 @@ def write_parquet(
         meta = dict(table.schema.metadata or {})
         meta.update({k.encode(): v.encode() for k, v in metadata.items()})
         table = table.replace_schema_metadata(meta)
-    with _replacing(path) as tmp:
+    with replacing_file(path) as tmp:
         pq.write_table(
             table,
             tmp,
