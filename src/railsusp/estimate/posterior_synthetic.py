@@ -106,7 +106,7 @@ def gain_covariance(names: list[str], gain_error: float) -> SharedCovariance:
             for s, factor, scale in terms:
                 level = sum(w * mean[:, j] for j, w in scale) if scale else 1.0
                 jac[:, i, s] += factor * level
-        return gain_error**2 * np.einsum("nis,njs->nij", jac, jac)
+        return gain_error**2 * np.matmul(jac, jac.transpose(0, 2, 1))  # J J^T per point
 
     return shared
 
