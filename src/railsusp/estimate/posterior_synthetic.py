@@ -98,14 +98,30 @@ def gain_covariance(names: list[str], gain_error: float) -> SharedCovariance:
             terms.append((s, factor, [(index[prefix + n], w) for n, w in scale]))
         rows.append(terms)
     n_src = len(sources)
+    # J (N, D, sources) = fixed + the levels' terms: each term factor * w * mean_j adds to
+    # one entry (i, s) of J, summed per entry (np.add.reduceat over the terms sorted by
+    # entry); a Python loop over the statistics was a tenth of a posterior's time
+    fixed = np.zeros((len(names), n_src))
+    entry, column, coef = [], [], []
+    for i, terms in enumerate(rows):
+        for s, factor, scale in terms:
+            if not scale:
+                fixed[i, s] += factor
+            for j, w in scale:
+                entry.append(i * n_src + s)
+                column.append(j)
+                coef.append(factor * w)
+    order = np.argsort(np.asarray(entry, dtype=np.int64), kind="stable")
+    entry_sorted = np.asarray(entry, dtype=np.int64)[order]
+    columns, coefs = np.asarray(column, dtype=np.int64)[order], np.asarray(coef, float)[order]
+    entries, starts = np.unique(entry_sorted, return_index=True)
 
     def shared(mean: np.ndarray) -> np.ndarray:
         mean = np.atleast_2d(mean)
-        jac = np.zeros((mean.shape[0], len(names), n_src))
-        for i, terms in enumerate(rows):
-            for s, factor, scale in terms:
-                level = sum(w * mean[:, j] for j, w in scale) if scale else 1.0
-                jac[:, i, s] += factor * level
+        jac = np.repeat(fixed[None], mean.shape[0], axis=0)
+        if len(columns):
+            levels = np.add.reduceat(mean[:, columns] * coefs, starts, axis=1)
+            jac.reshape(mean.shape[0], -1)[:, entries] += levels
         return gain_error**2 * np.matmul(jac, jac.transpose(0, 2, 1))  # J J^T per point
 
     return shared
