@@ -65,7 +65,7 @@ from railsusp.estimate.geometry_bias import GEOMETRY_DRAWS
 from railsusp.estimate.refine import refine
 from railsusp.params import MAIN_SUSPENSION, bounds
 from railsusp.store import write_json
-from railsusp.surrogate.pretrained import packaged_root
+from railsusp.surrogate.network_set import packaged_root
 
 #: what the simulator assumes for the parameters not estimated
 HELD = ("nominal", "truth")

@@ -56,9 +56,10 @@ import numpy as np
 from _cli import positive_float, positive_int, run_main
 from posterior import add_common_arguments, bench_conditions
 from railsusp.estimate.calibration import check
-from railsusp.estimate.posterior import PosteriorEstimator, TrainingLog, one_thread
+from railsusp.estimate.posterior import TrainingLog
 from railsusp.estimate.posterior_check import median_width
 from railsusp.estimate.posterior_data import cached_cases
+from railsusp.estimate.posterior_estimator import PosteriorEstimator, one_thread
 from railsusp.estimate.posterior_fusion import (
     from_logit,
     fused_gaussian,

@@ -39,7 +39,7 @@ from railsusp.campaign import load_campaign, run_campaign
 from railsusp.campaign.twins import run_nominal_twins
 from railsusp.store import write_json
 from railsusp.surrogate import load
-from railsusp.surrogate.pretrained import read_network_set
+from railsusp.surrogate.network_set import read_network_set
 from railsusp.vehicle import MODEL_REVISION
 from railsusp.vehicle.wagon import FORCE_LAWS_BEFORE_2026_11_30_2, load_wagon
 

@@ -35,12 +35,8 @@ from railsusp.store import write_json
 from railsusp.surrogate import load
 from railsusp.surrogate.data import load_series
 from railsusp.surrogate.evaluate import evaluate
-from railsusp.surrogate.pretrained import (
-    ACCURACY,
-    MANIFEST,
-    read_network_set,
-    write_network_set,
-)
+from railsusp.surrogate.network_set import ACCURACY, MANIFEST, read_network_set
+from railsusp.surrogate.pretrained import write_network_set
 from railsusp.surrogate.split import own_split
 from railsusp.vehicle import MODEL_REVISION
 

@@ -31,7 +31,8 @@ from railsusp.store import write_json
 from railsusp.surrogate import TrainConfig, load
 from railsusp.surrogate.bundle import Surrogate
 from railsusp.surrogate.compare import ALL_MODELS, compare, table7
-from railsusp.surrogate.data import FeatureSpec, Normaliser
+from railsusp.surrogate.data import Normaliser
+from railsusp.surrogate.features import FeatureSpec
 from railsusp.surrogate.models import NetConfig, build_network, default_window
 from railsusp.vehicle.wagon import load_wagon
 

@@ -62,8 +62,9 @@ from railsusp.errors import RailsuspInputError
 from railsusp.store import write_json
 from railsusp.surrogate import TrainConfig, load, train_surrogate
 from railsusp.surrogate.compare import compare
-from railsusp.surrogate.data import FeatureSpec, SeriesData, load_series
+from railsusp.surrogate.data import SeriesData, load_series
 from railsusp.surrogate.evaluate import accuracy, predict_with_alone
+from railsusp.surrogate.features import FeatureSpec
 from railsusp.surrogate.nominal import CONTEXT_CHANNELS
 from railsusp.surrogate.split import campaign_split
 from railsusp.variation import full_ranges, parse_range

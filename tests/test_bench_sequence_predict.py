@@ -11,7 +11,8 @@ from conftest import bench_script
 from railsusp.conditions import get_condition
 from railsusp.surrogate import recurrence
 from railsusp.surrogate.bundle import Surrogate
-from railsusp.surrogate.data import FeatureSpec, Normaliser
+from railsusp.surrogate.data import Normaliser
+from railsusp.surrogate.features import FeatureSpec
 from railsusp.surrogate.models import NetConfig, build_network
 from railsusp.vehicle import MODEL_REVISION
 from railsusp.vehicle.wagon import load_wagon

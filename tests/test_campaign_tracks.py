@@ -10,7 +10,8 @@ from railsusp.cli import app
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.params import spec
-from railsusp.surrogate.data import FeatureSpec, load_series
+from railsusp.surrogate.data import load_series
+from railsusp.surrogate.features import FeatureSpec
 from railsusp.variation import (
     assumed_parameters,
     full_ranges,

@@ -24,7 +24,8 @@ from railsusp.estimate.identifiability import cramer_rao_pct_range, fisher_infor
 from railsusp.measured import Recording
 from railsusp.params import bounds
 from railsusp.surrogate.baselines import StatisticsGP
-from railsusp.surrogate.data import FeatureSpec, SeriesData
+from railsusp.surrogate.data import SeriesData
+from railsusp.surrogate.features import FeatureSpec
 from railsusp.surrogate.statistics import StatisticsSurrogate
 from railsusp.vehicle import MODEL_REVISION
 from railsusp.vehicle.simulation_result import record_statistic, statistic_segments

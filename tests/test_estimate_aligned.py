@@ -36,7 +36,8 @@ from railsusp.estimate.config import IDEAL_POINT, LEAST_SQUARES, choice_rule
 from railsusp.measured import Recording, bandwidth_filter, read_field, synthesise_field
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.surrogate.bundle import Surrogate
-from railsusp.surrogate.data import FeatureSpec, Normaliser
+from railsusp.surrogate.data import Normaliser
+from railsusp.surrogate.features import FeatureSpec
 from railsusp.surrogate.models import NetConfig, build_network
 from railsusp.vehicle import MODEL_REVISION
 from railsusp.vehicle.wagon import load_wagon

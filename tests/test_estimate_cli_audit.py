@@ -20,7 +20,8 @@ from railsusp.estimate import CalibrationProblem, SurrogateForces
 from railsusp.estimate.statistics import series_statistics
 from railsusp.measured import Recording
 from railsusp.surrogate.bundle import Surrogate
-from railsusp.surrogate.data import FeatureSpec, Normaliser
+from railsusp.surrogate.data import Normaliser
+from railsusp.surrogate.features import FeatureSpec
 from railsusp.surrogate.models import NetConfig, build_network
 from railsusp.vehicle import MODEL_REVISION
 from railsusp.vehicle.wagon import load_wagon

@@ -47,8 +47,9 @@ def test_importing_the_report_loads_neither_pipeline_nor_api():
     assert out.stdout.strip() == "[]"
 
 
-def test_the_configuration_does_not_import_the_stages():
-    mods = imported_modules(SRC / "pipeline_config.py")
+@pytest.mark.parametrize("module", ["pipeline_config.py", "config_sections.py"])
+def test_the_configuration_does_not_import_the_stages(module):
+    mods = imported_modules(SRC / module)
     assert not {m for m in mods if m == "railsusp.pipeline" or m.startswith("railsusp.pipeline.")}
     assert not {m for m in mods if m.startswith(("railsusp.api", "railsusp.cli"))}, mods
 

@@ -12,7 +12,8 @@ import pytest
 from railsusp.config import ConfigError
 from railsusp.pipeline import STAGES, load_config, run_pipeline
 from railsusp.pipeline_inputs import METHOD_REVISIONS, stage_section
-from railsusp.surrogate.pretrained import PRETRAINED_RUN, read_network_set, resolve_network_set
+from railsusp.surrogate.network_set import read_network_set, resolve_network_set
+from railsusp.surrogate.pretrained import PRETRAINED_RUN
 
 RUN = """
 name = "pretrained"

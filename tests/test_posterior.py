@@ -21,6 +21,7 @@ from railsusp.estimate import (
     posterior_data,
     posterior_fusion,
 )
+from railsusp.estimate.posterior_estimator import PosteriorEstimator
 from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.estimate.summaries import (
     band_rms,
@@ -398,7 +399,7 @@ def test_draws_stay_in_the_prior_box_and_the_correction_widens_them(trained):
     u = np.array([[0.5, 0.5], [1.2, 0.5], [0.5, -0.1]])
     lq = est.log_q(u, x[:1])
     assert np.isfinite(lq[0]) and np.all(np.isneginf(lq[1:]))
-    wider = posterior.PosteriorEstimator(
+    wider = PosteriorEstimator(
         est.settings, est.members, est.calibration,
         calibration.SpreadCorrection(("X13", "X14"), (1.5, 1.0), 40),
     )  # fmt: skip
@@ -411,7 +412,7 @@ def test_draws_stay_in_the_prior_box_and_the_correction_widens_them(trained):
 
 def test_an_excessive_correction_flags_the_estimator_and_its_estimates(trained, tmp_path):
     est, _ = trained
-    wide = posterior.PosteriorEstimator(
+    wide = PosteriorEstimator(
         est.settings, est.members, est.calibration,
         calibration.SpreadCorrection(("X13", "X14"), (1.0, 2.6), 40),
     )  # fmt: skip

@@ -39,7 +39,8 @@ from railsusp.estimate.statistics_forces import StatisticsForces
 from railsusp.params import bounds
 from railsusp.store import content_hash
 from railsusp.surrogate.baselines import StatisticsGP
-from railsusp.surrogate.data import FeatureSpec, SeriesData
+from railsusp.surrogate.data import SeriesData
+from railsusp.surrogate.features import FeatureSpec
 from railsusp.surrogate.statistics import StatisticsSurrogate
 from railsusp.vehicle import MODEL_REVISION
 from railsusp.vehicle.wagon import FORCE_LAWS_BEFORE_2026_11_30_2

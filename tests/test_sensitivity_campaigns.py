@@ -68,8 +68,8 @@ def test_a_saltelli_design_too_small_for_its_indices_is_refused(tmp_path):
 
 def test_the_pipeline_refuses_a_campaign_too_small_for_the_metamodel():
     """samples = 4 was accepted and the sensitivity stage then failed on every run."""
+    from railsusp.config_sections import CampaignSection
     from railsusp.errors import RailsuspInputError
-    from railsusp.pipeline_config import CampaignSection
     from railsusp.sensitivity_metamodel import MIN_METAMODEL_RUNS
 
     with pytest.raises((RailsuspInputError, ValueError), match="samples"):

@@ -127,8 +127,9 @@ def test_a_dict_of_arrays_mappings_and_sections_reads_as_the_file_would(tmp_path
     import numpy as np
 
     import railsusp
+    from railsusp.config_sections import CampaignSection
     from railsusp.input_checks import validate_document
-    from railsusp.pipeline_config import CampaignSection, PipelineConfig
+    from railsusp.pipeline_config import PipelineConfig
 
     doc = tomllib.loads(BASE)
     doc["campaign"] = CampaignSection(samples=10)
@@ -230,7 +231,7 @@ def test_a_condition_file_naming_a_missing_track_geometry_is_refused(tmp_path, m
 
 
 def test_the_configurations_base_samples_bounds_are_the_analysis_own():
-    from railsusp.pipeline_config import SensitivitySection
+    from railsusp.config_sections import SensitivitySection
     from railsusp.sensitivity import BASE_SAMPLES
 
     info = SensitivitySection.model_fields["base_samples"]

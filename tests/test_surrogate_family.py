@@ -2,7 +2,7 @@
 
 from railsusp.conditions import get_condition
 from railsusp.surrogate import load
-from railsusp.surrogate.pretrained import read_network_set, resolve_network_set
+from railsusp.surrogate.network_set import read_network_set, resolve_network_set
 from railsusp.surrogate.training_scope import family_of
 
 

@@ -15,7 +15,7 @@ import torch
 from railsusp.errors import RailsuspInputError
 from railsusp.integrity import read_torch_file, torch_file_cut_short
 from railsusp.surrogate.bundle import load
-from railsusp.surrogate.pretrained import resolve_network_set
+from railsusp.surrogate.network_set import resolve_network_set
 
 SHIPPED_STRAIGHT = resolve_network_set("c80_k6") / "straight"
 

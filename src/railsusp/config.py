@@ -1,6 +1,6 @@
 """Validation of a pipeline configuration, all of it before any stage runs.
 
-The section models of :mod:`railsusp.pipeline_config` type and range-check every field and
+The section models of :mod:`railsusp.config_sections` type and range-check every field and
 refuse unknown keys; this module adds what a field-by-field check cannot see, so that a run
 that would fail in its fifth stage fails at once, with a one-line error naming the field:
 
@@ -135,18 +135,20 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
     """Check a validated :class:`~railsusp.pipeline_config.PipelineConfig` as a whole; raise
     :class:`ConfigError` (one line, naming the field) at the first thing that would make a
     stage fail: the sources of the recordings, the conditions, the parameters, then the
-    settings that must agree (:mod:`railsusp.config_combinations`), the wagon, the network
-    set and the scheduler."""
+    settings that must agree (:mod:`railsusp.config_recordings`,
+    :mod:`railsusp.config_combinations`), the wagon, the network set and the scheduler."""
     from railsusp.config_combinations import (
         check_estimate_options,
-        check_expected_draws,
-        check_field_options,
         check_held_prior,
         check_network_set,
-        check_one_track_surrogate,
-        check_recording_keys,
         check_recordings_served,
         check_surrogate_training,
+    )
+    from railsusp.config_recordings import (
+        check_expected_draws,
+        check_field_options,
+        check_one_track_surrogate,
+        check_recording_keys,
         check_synthetic_rate,
         measured_recordings,
     )

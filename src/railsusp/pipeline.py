@@ -7,10 +7,10 @@ stage. A failing stage leaves the previous stages' outputs intact; ``pipeline.js
 each stage's input hash, timing and state, and its files' sizes and SHA-256 (a file changed
 since makes the stage run again), and the error says how to resume.
 
-The configuration, its models and its reading, is :mod:`railsusp.pipeline_config`; what
-each stage hashes and reads is :mod:`railsusp.pipeline_inputs`, what it does
-:mod:`railsusp.pipeline_stages`; this module runs the stages in order and keeps
-``pipeline.json``.
+The configuration, its model and its reading, is :mod:`railsusp.pipeline_config`, its
+sections' models :mod:`railsusp.config_sections`; what each stage hashes and reads is
+:mod:`railsusp.pipeline_inputs`, what it does :mod:`railsusp.pipeline_stages`; this module
+runs the stages in order and keeps ``pipeline.json``.
 """
 
 from __future__ import annotations

@@ -133,7 +133,8 @@ def method_sections(doc: Doc, run: Path, state: dict) -> None:
         for png in sorted(sens.glob("sobol-*.png")):
             doc.figure(png, f"Sobol indices, statistic '{png.stem.removeprefix('sobol-')}'")
 
-    from railsusp.surrogate.pretrained import MANIFEST, surrogates_run
+    from railsusp.surrogate.network_set import MANIFEST
+    from railsusp.surrogate.pretrained import surrogates_run
 
     scfg = state.get("config", {}).get("surrogate", {})
     pretrained, own = scfg.get("pretrained"), scfg.get("samples", 0)

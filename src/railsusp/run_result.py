@@ -214,7 +214,7 @@ class RunResult:
         where it has run); None where none states one (a run made before they were
         recorded, 2026-11-30, with older force laws than any railsusp that records them).
         Another than :data:`railsusp.vehicle.MODEL_REVISION` means that the tables are of
-        another model than this railsusp simulates (:func:`open_run` warns)."""
+        another model than this railsusp simulates (:func:`~railsusp.api.open_run` warns)."""
         records = revision_records(self.path)
         return next((r for r in records.values() if r is not None), None)
 

@@ -31,7 +31,9 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-# the atomic writes are railsusp.atomic_files'; these names are imported from here too
+# the atomic writes are railsusp.atomic_files'; these names are imported from here too (a
+# test that replaces one, e.g. to fill the disk, patches railsusp.atomic_files: the writers
+# there call each other, and a name replaced here reaches only this module's callers)
 from railsusp.atomic_files import atomic_folder as atomic_folder
 from railsusp.atomic_files import atomic_write_bytes as atomic_write_bytes
 from railsusp.atomic_files import atomic_write_text as atomic_write_text

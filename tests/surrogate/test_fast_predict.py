@@ -7,7 +7,8 @@ import torch
 from railsusp.conditions import get_condition
 from railsusp.surrogate import recurrence
 from railsusp.surrogate.bundle import Surrogate, series_features
-from railsusp.surrogate.data import FeatureSpec, Normaliser, gather_windows, window_index
+from railsusp.surrogate.data import Normaliser, gather_windows, window_index
+from railsusp.surrogate.features import FeatureSpec
 from railsusp.surrogate.models import NetConfig, build_network
 from railsusp.vehicle.wagon import load_wagon
 

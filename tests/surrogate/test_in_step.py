@@ -26,7 +26,8 @@ from railsusp.measured import Recording
 from railsusp.params import bounds
 from railsusp.surrogate import in_step
 from railsusp.surrogate.bundle import Surrogate
-from railsusp.surrogate.data import FeatureSpec, Normaliser
+from railsusp.surrogate.data import Normaliser
+from railsusp.surrogate.features import FeatureSpec
 from railsusp.surrogate.in_step import in_step_key, predict_in_step
 from railsusp.surrogate.models import NetConfig, build_network
 from railsusp.vehicle import MODEL_REVISION

@@ -12,7 +12,8 @@ from railsusp.campaign.twins import nominal_folder, run_nominal_twins, twins_com
 from railsusp.conditions import get_condition
 from railsusp.params import ParameterSet
 from railsusp.surrogate import TrainConfig, feature_spec, train_surrogate
-from railsusp.surrogate.data import FeatureSpec, Normaliser, load_series, track_features
+from railsusp.surrogate.data import Normaliser, load_series
+from railsusp.surrogate.features import FeatureSpec, track_features
 from railsusp.surrogate.nominal import nominal_forces
 from railsusp.variation import sample_condition
 from railsusp.vehicle.simulate import simulate_batch

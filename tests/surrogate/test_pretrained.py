@@ -14,18 +14,20 @@ import railsusp.vehicle
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate import SurrogateForces
-from railsusp.surrogate.pretrained import (
+from railsusp.surrogate.network_set import (
     ACCURACY,
     MANIFEST,
+    packaged_sets,
+    read_network_set,
+    resolve_network_set,
+)
+from railsusp.surrogate.pretrained import (
     OWN_CAMPAIGN_RUN,
     PRETRAINED_RUN,
     SENSITIVITY_RUN,
     check_network_set,
     check_references,
     install_network_set,
-    packaged_sets,
-    read_network_set,
-    resolve_network_set,
     surrogates_run,
     write_network_set,
 )

@@ -13,15 +13,13 @@ import pytest
 
 from railsusp.errors import RailsuspInputError
 from railsusp.store import file_hash
-from railsusp.surrogate.pretrained import (
+from railsusp.surrogate.network_set import (
     ACCURACY,
     MANIFEST,
-    check_references,
     read_network_set,
     resolve_network_set,
-    wagon_hash,
-    write_network_set,
 )
+from railsusp.surrogate.pretrained import check_references, wagon_hash, write_network_set
 from railsusp.surrogate.restamp import changed_wagon_fields, restamp_network_set
 from railsusp.vehicle import MODEL_REVISION
 from railsusp.vehicle.wagon import FORCE_LAWS_BEFORE_2026_11_30_2, load_wagon

@@ -12,8 +12,9 @@ from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.surrogate import TrainConfig, load, train_surrogate
 from railsusp.surrogate.chunks import ChunkSampler
-from railsusp.surrogate.data import FeatureSpec, Normaliser, SeriesData
+from railsusp.surrogate.data import Normaliser, SeriesData
 from railsusp.surrogate.evaluate import evaluate
+from railsusp.surrogate.features import FeatureSpec
 from railsusp.surrogate.models import (
     DEFAULT_WASHOUT,
     NetConfig,

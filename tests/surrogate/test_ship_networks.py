@@ -14,7 +14,7 @@ from conftest import bench_script, family_campaign
 from railsusp.campaign import load_campaign
 from railsusp.conditions import get_condition
 from railsusp.surrogate import TrainConfig, load, train_surrogate
-from railsusp.surrogate.pretrained import ACCURACY, MANIFEST, read_network_set
+from railsusp.surrogate.network_set import ACCURACY, MANIFEST, read_network_set
 from railsusp.surrogate.split import campaign_split
 
 SHIPPED = Path(__file__).parents[2] / "src" / "railsusp" / "data" / "networks" / "c80_k6"

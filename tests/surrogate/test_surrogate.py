@@ -12,7 +12,6 @@ from railsusp.conditions import get_condition
 from railsusp.surrogate import TrainConfig, load, train_surrogate
 from railsusp.surrogate.bundle import OneTrackWarning
 from railsusp.surrogate.data import (
-    FeatureSpec,
     Normaliser,
     gather_windows,
     load_series,
@@ -20,6 +19,7 @@ from railsusp.surrogate.data import (
     window_index,
 )
 from railsusp.surrogate.evaluate import accuracy, evaluate
+from railsusp.surrogate.features import FeatureSpec
 from railsusp.surrogate.models import NetConfig, build_network
 from railsusp.surrogate.train import WindowSampler, train_network
 

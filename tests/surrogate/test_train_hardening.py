@@ -13,7 +13,8 @@ import torch
 import railsusp.surrogate.train as train_mod
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
-from railsusp.surrogate.data import FeatureSpec, Normaliser, SeriesData
+from railsusp.surrogate.data import Normaliser, SeriesData
+from railsusp.surrogate.features import FeatureSpec
 from railsusp.surrogate.models import NetConfig, build_network
 from railsusp.surrogate.train import TrainConfig, WindowSampler, train_network
 

@@ -2,8 +2,9 @@
 parameter at its nominal value.
 
 A surrogate that reads the nominal wagon's forces on the same track as an input
-(:attr:`railsusp.surrogate.data.FeatureSpec.nominal_response`, :mod:`railsusp.surrogate.nominal`)
-only has to learn what the parameters change, not the whole response to the track.
+(:attr:`railsusp.surrogate.features.FeatureSpec.nominal_response`,
+:mod:`railsusp.surrogate.nominal`) only has to learn what the parameters change, not the
+whole response to the track.
 The twins are stored beside the campaign (``<run>/nominal/batches/...``,
 the campaign's batch layout), batch by batch and atomically, so that a run resumes.
 """

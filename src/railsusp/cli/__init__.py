@@ -19,6 +19,7 @@ from railsusp.errors import RailsuspInputError
 from railsusp.cli import inputs
 from railsusp.cli import simulation
 from railsusp.cli import modes
+from railsusp.cli import campaigns
 from railsusp.cli import analysis
 from railsusp.cli import surrogates
 from railsusp.cli import field
@@ -71,6 +72,7 @@ for _info in app.registered_commands:
 __all__ = [
     "analysis",
     "app",
+    "campaigns",
     "console",
     "err_console",
     "estimation",

@@ -265,7 +265,7 @@ class SurrogateForces:
         wagon's simulations of those whose networks read it in as few parallel calls as
         their settings allow (:func:`~railsusp.surrogate.nominal.nominal_forces_many`; one
         call per wagon, solver settings, targets and context)."""
-        from railsusp.surrogate.data import track_features
+        from railsusp.surrogate.features import track_features
         from railsusp.surrogate.nominal import nominal_forces_many
 
         groups: list[tuple[tuple, list[str]]] = []  # (what one call shares, keys)

@@ -55,7 +55,7 @@ log = logging.getLogger(__name__)
 
 
 class Estimator(SectionSampler, Protocol):
-    """What the check needs of an estimator (:class:`railsusp.estimate.posterior.
+    """What the check needs of an estimator (:class:`railsusp.estimate.posterior_estimator.
     PosteriorEstimator`): its settings and uncorrected draws (the corrections are fitted
     here, before the estimator has any)."""
 

@@ -331,7 +331,7 @@ def fit(
     set still takes 16 steps an epoch (None: full batch); ``trend``: each member's
     network learns what its resample's least-squares linear trend leaves (module
     docstring)."""
-    from railsusp.estimate.posterior import one_thread
+    from railsusp.estimate.posterior_estimator import one_thread
 
     u = np.asarray(u, float)
     x = np.asarray(x, float)

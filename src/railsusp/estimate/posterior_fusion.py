@@ -24,7 +24,7 @@ import numpy as np
 
 
 class SectionSampler(Protocol):
-    """What the fusion needs of an estimator (:class:`railsusp.estimate.posterior.
+    """What the fusion needs of an estimator (:class:`railsusp.estimate.posterior_estimator.
     PosteriorEstimator`): its settings and uncorrected draws per section."""
 
     settings: Any

@@ -49,8 +49,8 @@ TRAINING = {"batch": 256, "trend": True}
 #: the hidden width of the emulator of the projected combinations
 PROJECTED_HIDDEN = HIDDEN
 #: the training cases the informative projection of statistics beyond the EN 14363 summary
-#: is averaged over (:func:`~railsusp.estimate.posterior_synthetic_information.
-#: informative_projection`)
+#: is averaged over (``informative_projection`` of
+#: :mod:`railsusp.estimate.posterior_synthetic_information`)
 PROJECTION_CASES = 200
 #: the settings the emulator depends on (the training cases and their statistics; the
 #: condition offset, their tracks, only where it is set: the hashes of before stay)

@@ -19,7 +19,8 @@ import numpy as np
 from scipy.interpolate import RBFInterpolator
 
 from railsusp.params import bounds
-from railsusp.surrogate.data import FeatureSpec, Normaliser, SeriesData, window_index
+from railsusp.surrogate.data import Normaliser, SeriesData, window_index
+from railsusp.surrogate.features import FeatureSpec
 from railsusp.vehicle.simulation_result import (
     RECORD_STATISTICS,
     record_statistic,

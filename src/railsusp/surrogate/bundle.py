@@ -32,14 +32,8 @@ from railsusp.params import ParameterSet, spec
 from railsusp.provenance import provenance
 from railsusp.store import atomic_folder, atomic_write_bytes, read_json, write_json
 from railsusp.surrogate.correction import RecordCorrection
-from railsusp.surrogate.data import (
-    FeatureSpec,
-    Normaliser,
-    gather_windows,
-    params_to_unit,
-    track_features,
-    window_index,
-)
+from railsusp.surrogate.data import Normaliser, gather_windows, params_to_unit, window_index
+from railsusp.surrogate.features import FeatureSpec, track_features
 from railsusp.surrogate.models import CNNRecurrent, NetConfig, WindowMLP, build_network
 from railsusp.surrogate.sequence import CNNSequence
 from railsusp.surrogate.training_scope import TrainedNetwork

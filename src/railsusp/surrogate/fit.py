@@ -18,12 +18,8 @@ from railsusp.errors import RailsuspInputError
 from railsusp.store import read_json
 from railsusp.surrogate.bundle import Surrogate, load
 from railsusp.surrogate.correction import MIN_RUNS
-from railsusp.surrogate.data import (
-    DEFAULT_TRACK_CHANNELS,
-    FeatureSpec,
-    Normaliser,
-    load_series,
-)
+from railsusp.surrogate.data import Normaliser, load_series
+from railsusp.surrogate.features import DEFAULT_TRACK_CHANNELS, FeatureSpec
 from railsusp.surrogate.keys import key_parameters
 from railsusp.surrogate.models import (
     SEQUENCE_KINDS,

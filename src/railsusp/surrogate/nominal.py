@@ -6,13 +6,13 @@ CNN-GRU trained on 2048 tracks explains R² 0.54-0.56 of the tangent and grade l
 of held-out runs. The same wagon with every parameter at its nominal value, simulated on the
 same track, explains 0.88-0.89 there (0.96 in the curve) with no network at all
 (bench/README.md, Table 7 of the current model, row "nominal wagon alone"). A surrogate with
-:attr:`~railsusp.surrogate.data.FeatureSpec.nominal_response` reads that nominal response as
+:attr:`~railsusp.surrogate.features.FeatureSpec.nominal_response` reads that nominal response as
 one more input and learns only what the parameters change: its target is the force minus
 the nominal force, added back when it predicts (measured: lateral R² 0.91 on tangent and
 grade, 0.98 in the curve). The price is one simulation of the nominal wagon per track (per
 recording and condition, seconds), not per parameter set.
 
-:attr:`~railsusp.surrogate.data.FeatureSpec.nominal_context` adds more of the nominal
+:attr:`~railsusp.surrogate.features.FeatureSpec.nominal_context` adds more of the nominal
 wagon's response as inputs (the forces at all eight wheels and the car body's
 accelerations, :data:`CONTEXT_CHANNELS`): what a parameter changes depends on the bogie's
 motion (a yaw resistance acts on the bogie's yaw, a primary stiffness on the wheelset's

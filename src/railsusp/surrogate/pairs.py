@@ -27,13 +27,8 @@ import torch
 
 from railsusp.campaign import Campaign
 from railsusp.surrogate.chunks import ChunkSampler
-from railsusp.surrogate.data import (
-    FeatureSpec,
-    Normaliser,
-    SeriesData,
-    params_to_unit,
-    twin_channels,
-)
+from railsusp.surrogate.data import Normaliser, SeriesData, params_to_unit, twin_channels
+from railsusp.surrogate.features import FeatureSpec
 from railsusp.vehicle.simulation_result import WHEEL_NAMES, measured_wheel_index
 
 

@@ -19,14 +19,17 @@ another force-law revision, another wagon, another network kind or a working con
 outside the set's training (one line each, before any stage runs), and
 :func:`check_references` predicts the stored references again, so that weights damaged or
 read by an incompatible torch are caught rather than used.
+
+What a set is on disk (its file names, the manifest read as a
+:class:`~railsusp.surrogate.network_set.NetworkSet`, the shipped sets found by name) is
+:mod:`railsusp.surrogate.network_set`; this module checks a set against a run, predicts its
+references, installs it into a run and writes new sets.
 """
 
 from __future__ import annotations
 
 import shutil
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -35,15 +38,14 @@ import pandas as pd
 
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
-from railsusp.store import atomic_folder, content_hash, read_json, write_csv, write_json
+from railsusp.store import atomic_folder, content_hash, write_csv, write_json
+from railsusp.surrogate.network_set import ACCURACY, BUNDLE_FILES, MANIFEST, NetworkSet
 
-#: the manifest of a network set
-MANIFEST = "networks.json"
-FORMAT = "railsusp-networks/1"
-#: the set's accuracy table (Table 7 layout) on its campaign's held-out runs
-ACCURACY = "compare.csv"
-#: the files of one condition's bundle that a set carries (no training checkpoint)
-BUNDLE_FILES = ("surrogate.json", "model.pt")
+# imported from this module by railsusp.pipeline_inputs, railsusp.pipeline_stages and
+# railsusp.config_combinations
+from railsusp.surrogate.network_set import read_network_set as read_network_set
+from railsusp.surrogate.network_set import resolve_network_set as resolve_network_set
+
 #: reference predictions agree to this relative tolerance (float32 networks; numbers of the
 #: same weights on another CPU or torch build differ in the last bits only)
 REFERENCE_RTOL = 1e-4
@@ -62,107 +64,6 @@ def surrogates_run(pretrained: str | None, samples: int) -> str:
     if pretrained is not None:
         return PRETRAINED_RUN
     return OWN_CAMPAIGN_RUN if samples else SENSITIVITY_RUN
-
-
-def packaged_root() -> Path:
-    """The folder of the network sets shipped inside the package."""
-    return Path(str(resources.files("railsusp") / "data" / "networks"))
-
-
-def packaged_sets() -> list[str]:
-    """Names of the network sets shipped with railsusp."""
-    root = packaged_root()
-    if not root.is_dir():
-        return []
-    return sorted(p.name for p in root.iterdir() if (p / MANIFEST).is_file())
-
-
-def resolve_network_set(source: str | Path, field: str = "surrogate.pretrained") -> Path:
-    """The folder of a network set: a name of :func:`packaged_sets` or a folder holding a
-    :data:`MANIFEST`. ``field`` names the setting in the one-line error."""
-    names = packaged_sets()
-    if str(source) in names:
-        return packaged_root() / str(source)
-    folder = Path(source)
-    if (folder / MANIFEST).is_file():
-        return folder
-    shipped = ", ".join(names) or "none"
-    raise RailsuspInputError(
-        f"{field} = {str(source)!r}: neither a network set shipped with railsusp ({shipped}) "
-        f"nor a folder holding {MANIFEST}"
-    )
-
-
-@dataclass(frozen=True)
-class NetworkSet:
-    """A network set's manifest (:data:`MANIFEST`) and where it lies."""
-
-    folder: Path
-    name: str
-    kind: str
-    model_revision: str
-    wagon_hash: str
-    parameters: tuple[str, ...]
-    conditions: tuple[str, ...]
-    #: the commands that trained the set, in order (campaign, twins, training, copy here)
-    reproduce: tuple[str, ...]
-    #: per condition: the seed, the parameter sets (SI) and the statistics of their predicted
-    #: series that :func:`check_references` recomputes
-    references: dict[str, dict[str, Any]]
-    description: str = ""
-
-    def bundle(self, condition: str) -> Path:
-        return self.folder / condition
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "format": FORMAT,
-            "name": self.name,
-            "description": self.description,
-            "kind": self.kind,
-            "model_revision": self.model_revision,
-            "wagon_hash": self.wagon_hash,
-            "parameters": list(self.parameters),
-            "conditions": list(self.conditions),
-            "reproduce": list(self.reproduce),
-            "references": self.references,
-        }
-
-
-def read_network_set(folder: str | Path) -> NetworkSet:
-    """The manifest of the network set in ``folder``; a one-line error if it is missing,
-    of another format, or names a condition whose bundle is not there."""
-    folder = Path(folder)
-    path = folder / MANIFEST
-    try:
-        doc = read_json(path)
-    except (OSError, ValueError) as exc:
-        raise RailsuspInputError(f"{path}: not a readable network manifest ({exc})") from None
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        got = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
-        raise RailsuspInputError(f"{path}: format {got!r}, accepted {FORMAT!r}")
-    try:
-        ns = NetworkSet(
-            folder=folder,
-            name=str(doc["name"]),
-            description=str(doc.get("description", "")),
-            kind=str(doc["kind"]),
-            model_revision=str(doc["model_revision"]),
-            wagon_hash=str(doc["wagon_hash"]),
-            parameters=tuple(doc["parameters"]),
-            conditions=tuple(doc["conditions"]),
-            reproduce=tuple(doc["reproduce"]),
-            references=dict(doc["references"]),
-        )
-    except (KeyError, TypeError) as exc:
-        raise RailsuspInputError(f"{path}: manifest field {exc} missing or malformed") from None
-    for cond in ns.conditions:
-        missing = [f for f in BUNDLE_FILES if not (ns.bundle(cond) / f).is_file()]
-        if missing:
-            raise RailsuspInputError(
-                f"{path}: condition {cond!r} lacks {', '.join(missing)} in {ns.bundle(cond)}"
-            )
-    return ns
 
 
 #: what to do about a network set whose files do not read

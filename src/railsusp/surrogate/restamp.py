@@ -30,14 +30,8 @@ import pandas as pd
 from railsusp.errors import RailsuspInputError
 from railsusp.provenance import utc_now
 from railsusp.store import atomic_folder, read_json, write_csv, write_json
-from railsusp.surrogate.pretrained import (
-    ACCURACY,
-    MANIFEST,
-    NetworkSet,
-    make_references,
-    read_network_set,
-    wagon_hash,
-)
+from railsusp.surrogate.network_set import ACCURACY, MANIFEST, NetworkSet, read_network_set
+from railsusp.surrogate.pretrained import make_references, wagon_hash
 
 
 def _flat(wagon_fields: dict[str, Any]) -> dict[str, Any]:

@@ -21,7 +21,8 @@ from railsusp.params import bounds
 from railsusp.provenance import provenance
 from railsusp.store import read_json, write_json
 from railsusp.surrogate.baselines import StatisticsGP
-from railsusp.surrogate.data import FeatureSpec, load_series
+from railsusp.surrogate.data import load_series
+from railsusp.surrogate.features import FeatureSpec
 from railsusp.vehicle.simulation_result import RECORD_STATISTICS, statistic_segments
 
 FORMAT = "railsusp-statistics-surrogate-1"

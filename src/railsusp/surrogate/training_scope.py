@@ -18,7 +18,8 @@ import torch
 
 from railsusp.conditions import TRACK_AND_LENGTH_FIELDS, WorkingCondition
 from railsusp.surrogate.correction import RecordCorrection
-from railsusp.surrogate.data import FeatureSpec, Normaliser
+from railsusp.surrogate.data import Normaliser
+from railsusp.surrogate.features import FeatureSpec
 from railsusp.surrogate.models import NetConfig
 from railsusp.surrogate.sequence import CNNSequence
 from railsusp.vehicle.simulate import SolverSettings
