@@ -6,8 +6,8 @@ the training cases' range of statistics; it draws the posterior of one section's
 statistics, or of several sections fused, and evaluates its density. It is apart from
 :mod:`railsusp.estimate.posterior`, which trains an estimator (simulating or reading its
 cases), saves and reads it back, and estimates recordings with it, because using a trained
-estimator needs none of that: the comparison estimators of the bench and the statistics
-emulator (which trains its networks on one thread, :func:`one_thread`) use this part alone.
+estimator needs none of that (the statistics emulator, which trains its networks on one
+thread, :func:`one_thread`, uses this part alone).
 """
 
 from __future__ import annotations

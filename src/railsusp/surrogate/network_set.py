@@ -6,8 +6,7 @@ condition (:data:`BUNDLE_FILES`), its accuracy table (:data:`ACCURACY`) and a ma
 :class:`NetworkSet`, and the finding of a set by name (one shipped with railsusp) or by
 folder. It is apart from :mod:`railsusp.surrogate.pretrained`, which checks a set against a
 run, predicts its references, installs it into a run and writes new ones, because reading a
-manifest loads no network: the configuration's checks, the pipeline's stage hashes and the
-carrying over of a set (:mod:`railsusp.surrogate.restamp`) need this part alone.
+manifest or finding a set loads no network.
 """
 
 from __future__ import annotations
