@@ -182,6 +182,37 @@ def test_a_campaign_with_nothing_to_keep_takes_the_batch_size_asked(full_run, tm
     assert len(list((empty / "batches").rglob("batch-?????.parquet"))) == 1
 
 
+@pytest.mark.parametrize("lost", ["gone", "damaged"])
+def test_batches_of_another_batch_size_are_kept_when_campaign_json_is_lost(
+    full_run, tmp_path, caplog, lost
+):
+    """With campaign.json gone or damaged the batches' stamps say whose they are; asked for
+    in another batch size they counted as another configuration's, and --force (or the
+    pipeline, which forces) discarded every one. The first batch's samples give the batch
+    size its stamp is checked with: they are kept, and nothing is simulated again."""
+    _, out = full_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    if lost == "gone":
+        (copy / "campaign.json").unlink()
+    else:
+        (copy / "campaign.json").write_text("{")
+    calls = []
+    with caplog.at_level("WARNING", logger="railsusp.campaign"):
+        run_campaign(
+            make_config(TINY, 10, batch_size=3, seed=3),
+            copy,
+            force=True,
+            progress=lambda d, t: calls.append(d),
+        )
+    assert calls == [20]  # every batch kept
+    assert "in batches of 4: resumed in them (batch_size 3" in caplog.text
+    assert _batch_size(copy) == 4
+    pd.testing.assert_frame_equal(
+        _sorted(load_campaign(copy).features()), _sorted(load_campaign(out).features())
+    )
+
+
 def test_changed_configuration_refuses_to_mix(full_run, tmp_path):
     cfg, out = full_run
     other = make_config(TINY, 10, batch_size=4, seed=99)

@@ -140,7 +140,7 @@ def in_stored_batches(config: PipelineConfig, out: Path, say: bool = True) -> Pi
     from railsusp.campaign.run_directory import stored_batch_size
 
     folder = out / "campaign"
-    if not (folder / "campaign.json").is_file():
+    if not folder.is_dir():
         return config
     c = config.campaign
     try:

@@ -14,11 +14,12 @@ from pathlib import Path
 
 import pandas as pd
 
-from railsusp.campaign.batch_files import batch_count, foreign_batches
+from railsusp.campaign.batch_files import batch_count, batch_stamp, foreign_batches
 from railsusp.campaign.design import (
     CHANNELS,
     CampaignConfig,
     CampaignError,
+    batch_paths,
     make_design,
     read_meta,
     track_table,
@@ -214,8 +215,9 @@ def stored_batch_size(config: CampaignConfig, out: Path) -> int | None:
     but ``batch_size`` and its batches are kept as they are (simulated with this railsusp's
     force laws on the track files' present contents, from the design ``config`` makes, at
     least one of them whole); None where it is the same, or another campaign, or none, or
-    one that does not read, or one with nothing to keep (:func:`prepare_run_directory` then
-    says what it does with it, and a campaign simulated again takes the batch size asked).
+    one with nothing to keep (:func:`prepare_run_directory` then says what it does with
+    it, and a campaign simulated again takes the batch size asked). Where ``campaign.json``
+    is gone or does not read, the batches' own stamps decide (:func:`_stamped_batch_size`).
 
     The batch size groups the design's rows into stored files and nothing else: the same
     rows are simulated on the same tracks whatever it is. It is in the configuration's
@@ -224,13 +226,13 @@ def stored_batch_size(config: CampaignConfig, out: Path) -> int | None:
     fleet's campaign, to regroup the same results). Such a campaign is resumed in its
     stored batches instead (:func:`in_stored_batches`)."""
     meta_path = out / "campaign.json"
-    if not meta_path.is_file():
-        return None
+    if not meta_path.is_file():  # gone: its batches' stamps say whose they are
+        return _stamped_batch_size(config, out)
     try:
         meta = read_meta(meta_path)
         stored = stored_config(meta, meta_path)
-    except RailsuspInputError:
-        return None
+    except RailsuspInputError:  # damaged: likewise
+        return _stamped_batch_size(config, out)
     if stored.batch_size == config.batch_size:
         return None
     if meta.get("model_revision", this_revision()) != this_revision():  # its own refusal
@@ -247,6 +249,33 @@ def stored_batch_size(config: CampaignConfig, out: Path) -> int | None:
     if parquet_readable(design, pages=True) and _stored_design(out, stored) is None:
         return None  # paired with another design's parameters: discarded
     return stored.batch_size
+
+
+def _stamped_batch_size(config: CampaignConfig, out: Path) -> int | None:
+    """Where ``campaign.json`` is gone or damaged: the batch size of the batches stored, if
+    they are ``config``'s in another batch size (None otherwise). The first batch of a
+    condition holds a whole batch's samples where the condition has a second one; its
+    stamp (the configuration's hash) says whether ``config`` in that batch size made it.
+    A campaign of one batch per condition keeps its batch size unread (any size above its
+    samples makes the same batch): its batches count as another configuration's, as they
+    did before."""
+    for cond in config.conditions:
+        first = batch_paths(out, cond.name, 0)[1]  # the features file: a row per statistic
+        if not batch_paths(out, cond.name, 1)[1].is_file():
+            continue
+        stamp = batch_stamp(first)
+        if stamp is None:
+            continue
+        try:
+            rows = read_parquet(first, columns=["sample_id"])["sample_id"].nunique()
+        except RailsuspInputError:
+            continue
+        if rows == config.batch_size:
+            return None
+        if config.model_copy(update={"batch_size": int(rows)}).hash() == stamp:
+            return int(rows)
+        return None
+    return None
 
 
 def in_stored_batches(config: CampaignConfig, out: Path) -> CampaignConfig:
