@@ -211,6 +211,12 @@ def test_batches_of_another_batch_size_are_kept_when_campaign_json_is_lost(
     pd.testing.assert_frame_equal(
         _sorted(load_campaign(copy).features()), _sorted(load_campaign(out).features())
     )
+    # with nothing to keep (no batch whole), the batch size asked is taken
+    (copy / "campaign.json").unlink()
+    for series in (copy / "batches").glob("*/batch-?????.parquet"):
+        series.unlink()
+    run_campaign(make_config(TINY, 10, batch_size=3, seed=3), copy, force=True, max_batches=0)
+    assert _batch_size(copy) == 3
 
 
 def test_changed_configuration_refuses_to_mix(full_run, tmp_path):

@@ -272,9 +272,11 @@ def _stamped_batch_size(config: CampaignConfig, out: Path) -> int | None:
             continue
         if rows == config.batch_size:
             return None
-        if config.model_copy(update={"batch_size": int(rows)}).hash() == stamp:
-            return int(rows)
-        return None
+        if config.model_copy(update={"batch_size": int(rows)}).hash() != stamp:
+            return None
+        # kept only where a batch is kept: whole, of this railsusp's force laws (which the
+        # stamp does not hold), as where campaign.json reads (the review of stop 68)
+        return int(rows) if foreign_batches(out, stamp)[1] > 0 else None
     return None
 
 

@@ -121,7 +121,7 @@ def gain_covariance(names: list[str], gain_error: float) -> SharedCovariance:
         jac = np.repeat(fixed[None], mean.shape[0], axis=0)
         if len(columns):
             levels = np.add.reduceat(mean[:, columns] * coefs, starts, axis=1)
-            jac.reshape(mean.shape[0], -1)[:, entries] += levels
+            jac.reshape(mean.shape[0], len(names) * n_src)[:, entries] += levels
         return gain_error**2 * np.matmul(jac, jac.transpose(0, 2, 1))  # J J^T per point
 
     return shared
