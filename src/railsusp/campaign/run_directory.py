@@ -100,6 +100,14 @@ def _discard(out: Path) -> None:
     _remove(out, ("batches", *_FROM_DESIGN, *_FROM_BATCHES))
 
 
+def _edited_track_files(meta: dict, files: dict[str, str]) -> list[str]:
+    """The measured track files (``files``: their contents' digests now) whose contents are
+    not those ``campaign.json`` (``meta``) records; none recorded (before stop 60): taken
+    as now."""
+    was = meta.get("track_geometry_files", files)
+    return sorted(k for k in files if was.get(k) != files[k])
+
+
 def _geometry_files(config: CampaignConfig) -> dict:
     """``campaign.json``'s record of the measured track files' contents (none without)."""
     files = geometry_digests(config.conditions)
@@ -137,10 +145,8 @@ def prepare_run_directory(config: CampaignConfig, out: Path, force: bool) -> pd.
                     "--out, or --force to discard the old results (resumed, its batches would "
                     "mix the two)"
                 )
-            # the measured track files' contents (none recorded before stop 60: taken as now)
             files = geometry_digests(config.conditions)
-            was = meta.get("track_geometry_files", files)
-            edited = sorted(k for k in files if was.get(k) != files[k])
+            edited = _edited_track_files(meta, files)
             if edited and meta.get("config_hash") == config.hash() and not force:
                 raise CampaignError(
                     f"{out} holds a campaign simulated on other contents of its track geometry "
@@ -239,9 +245,7 @@ def stored_batch_size(config: CampaignConfig, out: Path) -> int | None:
         return None
     if stored.model_copy(update={"batch_size": config.batch_size}).hash() != config.hash():
         return None
-    files = geometry_digests(config.conditions)  # (none recorded before stop 60: as now)
-    was = meta.get("track_geometry_files", files)
-    if any(was.get(k) != files[k] for k in files):  # edited since: discarded
+    if _edited_track_files(meta, geometry_digests(config.conditions)):  # discarded
         return None
     if foreign_batches(out, stored.hash())[1] == 0:  # nothing stored whole: nothing to keep
         return None

@@ -112,9 +112,8 @@ def gain_covariance(names: list[str], gain_error: float) -> SharedCovariance:
                 column.append(j)
                 coef.append(factor * w)
     order = np.argsort(np.asarray(entry, dtype=np.int64), kind="stable")
-    entry_sorted = np.asarray(entry, dtype=np.int64)[order]
+    entries, starts = np.unique(np.asarray(entry, dtype=np.int64)[order], return_index=True)
     columns, coefs = np.asarray(column, dtype=np.int64)[order], np.asarray(coef, float)[order]
-    entries, starts = np.unique(entry_sorted, return_index=True)
 
     def shared(mean: np.ndarray) -> np.ndarray:
         mean = np.atleast_2d(mean)
