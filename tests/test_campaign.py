@@ -5,6 +5,7 @@ import shutil
 
 import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 import pytest
 
 from railsusp.campaign import (
@@ -14,6 +15,7 @@ from railsusp.campaign import (
     make_design,
     run_campaign,
 )
+from railsusp.campaign.batch_files import BATCH_SIZE_KEY
 from railsusp.campaign.design import batch_paths
 from railsusp.conditions import get_condition
 from railsusp.params import MAIN_SUSPENSION, bounds
@@ -217,6 +219,61 @@ def test_batches_of_another_batch_size_are_kept_when_campaign_json_is_lost(
         series.unlink()
     run_campaign(make_config(TINY, 10, batch_size=3, seed=3), copy, force=True, max_batches=0)
     assert _batch_size(copy) == 3
+
+
+def _without_batch_size_stamps(out) -> None:
+    """``out``'s batch files as a railsusp before stop 69 wrote them: no batch-size stamp."""
+    for path in (out / "batches").rglob("batch-*.parquet"):
+        table = pq.read_table(path)
+        stamps = dict(table.schema.metadata or {})
+        assert stamps.pop(BATCH_SIZE_KEY.encode()) is not None
+        pq.write_table(table.replace_schema_metadata(stamps), path)
+
+
+def test_a_one_batch_campaign_keeps_its_batches_when_campaign_json_is_lost(tmp_path, caplog):
+    """Stop 68 left this open: with campaign.json gone, a campaign of one batch per
+    condition said its batch size nowhere (its samples fit any larger one), so asked for in
+    another batch size its batches counted as another configuration's and --force (or the
+    pipeline) simulated them all again. Each batch is stamped with its batch size now (the
+    stamp's hash vouches for it): they are kept. Written without that stamp (before stop
+    69), they are simulated again, as before."""
+    cfg = make_config(TINY, 4, batch_size=8, seed=5)
+    out = tmp_path / "one"
+    run_campaign(cfg, out)
+    (out / "campaign.json").unlink()
+    older = tmp_path / "older"
+    shutil.copytree(out, older)
+    asked = make_config(TINY, 4, batch_size=3, seed=5)
+    calls = []
+    with caplog.at_level("WARNING", logger="railsusp.campaign"):
+        run_campaign(asked, out, force=True, progress=lambda d, t: calls.append(d))
+    assert calls == [8]  # every batch kept: nothing simulated
+    assert "in batches of 8: resumed in them (batch_size 3" in caplog.text
+    assert _batch_size(out) == 8
+    _without_batch_size_stamps(older)
+    calls.clear()
+    run_campaign(asked, older, force=True, progress=lambda d, t: calls.append(d))
+    assert calls[-1] == 8 and len(calls) > 1  # simulated again, in batches of 3
+    assert _batch_size(older) == 3
+
+
+def test_batches_without_a_batch_size_stamp_give_it_by_their_samples(full_run, tmp_path):
+    """Batches written before the batch-size stamp (stop 69): with campaign.json gone, the
+    first batch's samples give the batch size where a condition has a second batch."""
+    _, out = full_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    (copy / "campaign.json").unlink()
+    _without_batch_size_stamps(copy)
+    calls = []
+    run_campaign(
+        make_config(TINY, 10, batch_size=3, seed=3),
+        copy,
+        force=True,
+        progress=lambda d, t: calls.append(d),
+    )
+    assert calls == [20]
+    assert _batch_size(copy) == 4
 
 
 def test_changed_configuration_refuses_to_mix(full_run, tmp_path):

@@ -21,19 +21,31 @@ STAMP_KEY = "railsusp.config_hash"
 #: and with the force laws' revision that simulated them (:data:`railsusp.vehicle.
 #: MODEL_REVISION`; since stop 60): a batch of other force laws is never this campaign's
 REVISION_KEY = "railsusp.model_revision"
+#: and with the configuration's batch size (since stop 69): with ``campaign.json`` lost, a
+#: campaign of one batch per condition says its batch size only here (its samples fit any
+#: larger one); the stamp's hash, which holds the batch size, vouches for it
+BATCH_SIZE_KEY = "railsusp.batch_size"
 
 
 def write_batch(
-    out: Path, b: int, res: dict[str, Any], n_t: int, config_hash: str | None = None
+    out: Path,
+    b: int,
+    res: dict[str, Any],
+    n_t: int,
+    config_hash: str | None = None,
+    batch_size: int | None = None,
 ) -> None:
     """Store batch ``b`` of a :func:`simulate_task` result under ``out/batches``: features,
     then the series (atomically, last: its file marks the batch done). ``config_hash``
     stamps both files with the configuration that simulated them, so that a campaign whose
-    ``campaign.json`` was lost or damaged keeps the batches that are its own."""
+    ``campaign.json`` was lost or damaged keeps the batches that are its own;
+    ``batch_size``, with the batch size that configuration grouped its samples by."""
     series_path, feat_path = batch_paths(out, res["condition"], b)
     stamp = {REVISION_KEY: this_revision()}
     if config_hash is not None:
         stamp[STAMP_KEY] = config_hash
+    if batch_size is not None:
+        stamp[BATCH_SIZE_KEY] = str(int(batch_size))
     write_parquet(feat_path, res["features"], metadata=stamp)
     s = res["series"]  # (n, channels, n_t)
     n = s.shape[0]
@@ -94,6 +106,17 @@ def batch_stamp(path: Path) -> str | None:
     read or that carries none (written before batches were stamped)."""
     stamp = (_batch_metadata(path) or {}).get(STAMP_KEY.encode())
     return None if stamp is None else stamp.decode()
+
+
+def stamped_batch_size(path: Path) -> int | None:
+    """The batch size a batch file was stamped with; None for a file that does not read or
+    that carries none (written before stop 69) or not a positive whole number."""
+    size = (_batch_metadata(path) or {}).get(BATCH_SIZE_KEY.encode())
+    try:
+        value = int(size.decode()) if size is not None else None
+    except (UnicodeDecodeError, ValueError):
+        return None
+    return value if value is not None and value > 0 else None
 
 
 def foreign_batches(out: Path, config_hash: str) -> tuple[list[list[Path]], int]:

@@ -205,7 +205,7 @@ def _run_locked(
         if not recorded:  # (a resume may run otherwise than the start did)
             _record_run(out, scheduler, workers, len(todo))
             recorded = True
-        write_batch(out, b, res, n_t[res["condition"]], config.hash())
+        write_batch(out, b, res, n_t[res["condition"]], config.hash(), config.batch_size)
         stored.add((res["condition"], b))
         done_runs += len(res["sample_ids"])
         if progress:

@@ -14,7 +14,12 @@ from pathlib import Path
 
 import pandas as pd
 
-from railsusp.campaign.batch_files import batch_count, batch_stamp, foreign_batches
+from railsusp.campaign.batch_files import (
+    batch_count,
+    batch_stamp,
+    foreign_batches,
+    stamped_batch_size,
+)
 from railsusp.campaign.design import (
     CHANNELS,
     CampaignConfig,
@@ -257,30 +262,33 @@ def stored_batch_size(config: CampaignConfig, out: Path) -> int | None:
 
 def _stamped_batch_size(config: CampaignConfig, out: Path) -> int | None:
     """Where ``campaign.json`` is gone or damaged: the batch size of the batches stored, if
-    they are ``config``'s in another batch size (None otherwise). The first batch of a
-    condition holds a whole batch's samples where the condition has a second one; its
-    stamp (the configuration's hash) says whether ``config`` in that batch size made it.
-    A campaign of one batch per condition keeps its batch size unread (any size above its
-    samples makes the same batch): its batches count as another configuration's, as they
-    did before."""
+    they are ``config``'s in another batch size (None otherwise). A condition's first batch
+    says it: its batch-size stamp (since stop 69), or else, where the condition has a second
+    batch, its samples (the first batch holds a whole batch's). Its configuration stamp (the
+    hash, which holds the batch size) says whether ``config`` in that batch size made it.
+    A campaign of one batch per condition written before the batch-size stamp keeps its
+    batch size unread (any size above its samples makes the same batch): its batches count
+    as another configuration's, as they did before."""
     for cond in config.conditions:
         first = batch_paths(out, cond.name, 0)[1]  # the features file: a row per statistic
-        if not batch_paths(out, cond.name, 1)[1].is_file():
-            continue
         stamp = batch_stamp(first)
         if stamp is None:
             continue
-        try:
-            rows = read_parquet(first, columns=["sample_id"])["sample_id"].nunique()
-        except RailsuspInputError:
-            continue
-        if rows == config.batch_size:
+        size = stamped_batch_size(first)
+        if size is None:
+            if not batch_paths(out, cond.name, 1)[1].is_file():
+                continue
+            try:
+                size = int(read_parquet(first, columns=["sample_id"])["sample_id"].nunique())
+            except RailsuspInputError:
+                continue
+        if size == config.batch_size:
             return None
-        if config.model_copy(update={"batch_size": int(rows)}).hash() != stamp:
+        if config.model_copy(update={"batch_size": size}).hash() != stamp:
             return None
         # kept only where a batch is kept: whole, of this railsusp's force laws (which the
         # stamp does not hold), as where campaign.json reads (the review of stop 68)
-        return int(rows) if foreign_batches(out, stamp)[1] > 0 else None
+        return size if foreign_batches(out, stamp)[1] > 0 else None
     return None
 
 
