@@ -289,6 +289,11 @@ def test_a_field_index_of_another_format_or_listing_a_recording_twice_is_refused
     assert read_index(tmp_path) == [tmp_path / "a.csv"]
 
 
+def test_sections_names_the_wagon_option(tmp_path):
+    """QA: "wagon file nosuch does not exist", naming no option (check-recording names it)."""
+    refused(["sections", str(tmp_path / "run.csv"), "--wagon", "nosuch"], "--wagon: ")
+
+
 @pytest.mark.parametrize("option", ["--line", "--table", "--map"])
 def test_sections_names_a_missing_side_file(tmp_path, option):
     """Before: a bare [Errno 2] naming no option."""

@@ -354,7 +354,12 @@ def test_align_track_says_its_cap_and_refuses_to_write_an_edge(fields, tmp_path)
     side.write_text(json.dumps(doc))
     result = runner.invoke(app, ["align-track", str(folder), "--max-shift", "0.5"])
     assert result.exit_code == 0, result.output
-    assert any("lies on the edge of the ±0.667 m searched" in w for w in warnings_of(result))
+    # whole samples of 0.333 m, rounded down: ±0.333 m (±0.667 before: beyond the 0.5 asked)
+    assert any("lies on the edge of the ±0.333 m searched" in w for w in warnings_of(result))
+    assert (  # the effective limit said (it said "a third of it" for any narrower search)
+        "warning: --max-shift 0.5 m: recording 'short' is searched to whole samples of 0.333 "
+        "m, rounded down: ±0.333 m of the ±0.5 m asked"
+    ) in warnings_of(result)
     before = side.read_text()
     message = one_line_error(
         runner.invoke(app, ["align-track", str(folder), "--max-shift", "0.5", "--write"])
@@ -364,9 +369,26 @@ def test_align_track_says_its_cap_and_refuses_to_write_an_edge(fields, tmp_path)
     result = runner.invoke(app, ["align-track", str(fields["good"]), "--max-shift", "10"])
     assert result.exit_code == 0, result.output
     assert (
-        "warning: --max-shift 10 m: recording 'short' is 16.67 m long, so its search stops at "
-        "a third of it, ±5.33 m"
+        "warning: --max-shift 10 m: recording 'short' is searched to a third of the record "
+        "(16.67 m): ±5.33 m"
     ) in warnings_of(result)
+
+
+def test_align_track_never_searches_beyond_the_maximum_asked(fields):
+    """QA: --max-shift 0.5 in steps of 0.333 m searched ±0.667 m (whole samples, rounded
+    up) and reported a -0.67 m shift. Rounded down now, the effective limit said; less
+    than one step is refused, naming it."""
+    from railsusp.estimate import align_track
+    from railsusp.measured import read_field
+
+    (rec,) = read_field(fields["good"])
+    a = align_track(rec, max_shift_m=0.5)
+    assert a.searched_m == pytest.approx(1 / 3) and abs(a.shift_m) <= 0.5
+    assert a.limited_by == "whole samples of 0.333 m, rounded down: ±0.333 m of the ±0.5 m asked"
+    assert align_track(rec, max_shift_m=2 / 3).limited_by == ""  # two whole samples
+    assert align_track(rec, max_shift_m=10.0).limited_by.startswith("a third of the record")
+    with pytest.raises(ValueError, match=r"max_shift_m = 0.1: less than one sample step of "):
+        align_track(rec, max_shift_m=0.1)
 
 
 def test_validation_is_written_as_one_folder(tmp_path, monkeypatch):

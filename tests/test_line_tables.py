@@ -75,3 +75,27 @@ def test_a_section_tables_track_columns_are_checked_as_a_line_descriptions(
     description's are (they were read as nothing at all)."""
     with pytest.raises(RailsuspInputError, match=said):
         read_section_table(_write(tmp_path, f"start_m,end_m,{columns}\n0,500,{row}\n"))
+
+
+@pytest.mark.parametrize(
+    ("rows", "said"),
+    [
+        ("0,500,\n", "section table .*t.csv, row 2: name is empty: accepted 1-60 letters"),
+        ("0,500,a\n800,1150,\n", "row 3: name is empty"),
+    ],
+)
+def test_an_empty_section_name_is_refused_in_one_line(tmp_path, rows, said):
+    """QA: an empty name cell stayed NaN through ``astype(str)`` under pandas 3 (a
+    TypeError's traceback; under pandas 2 a section named "nan")."""
+    with pytest.raises(RailsuspInputError, match=said) as err:
+        read_section_table(_write(tmp_path, "start_m,end_m,name\n" + rows))
+    assert "\n" not in str(err.value)
+
+
+def test_section_names_and_an_empty_direction_are_read_as_written(tmp_path):
+    """Names that look like numbers stay as written ("01" was 1), and an empty direction
+    cell is left (the default), without pandas' warning on filling a float column."""
+    table = read_section_table(
+        _write(tmp_path, "start_m,end_m,name,radius_m,direction\n0,500,01,,\n500,900,2,600,\n")
+    )
+    assert list(table.name) == ["01", "2"]

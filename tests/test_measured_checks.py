@@ -274,3 +274,21 @@ def test_dropouts_one_sample_apart_are_dropouts_and_a_rate_change_is_not(tmp_pat
     )
     run = read_run(tmp_path / "run.csv")
     assert run.breaks.tolist() == [10000, 10001]
+
+
+def test_force_bounds_name_the_count_and_the_extreme_of_every_stretch(tmp_path):
+    """Y x 20: only the first stretch was named, "row 108: |force| up to 301.1 kN", while
+    14 rows were beyond and the largest was 678.8 kN; the negative-Q check was the same."""
+    y = Y.copy()
+    y[[10, 11, 50]] = [320.0, 310.0, 650.0]
+    q = Q.copy()
+    q[[30, 90, 91]] = [-5.0, -40.0, -8.0]
+    msg = problems(write_table(tmp_path, ["time_s", "Y_w1L_kN", "Q_w1L_kN"], [T, y, q]))
+    assert (
+        "column 'Y_w1L_kN', rows 12-13: |force| up to 650 kN (at row 52; 3 such sample(s) in 2 "
+        "stretch(es), the first named) beyond the physical bound 300 kN"
+    ) in msg
+    assert (
+        "column 'Q_w1L_kN', row 32: negative wheel load down to -40 kN (at row 92; 3 such "
+        "sample(s) in 2 stretch(es), the first named); accepted down to -2.44 kN"
+    ) in msg

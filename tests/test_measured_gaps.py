@@ -239,3 +239,22 @@ def test_check_recording_and_sections_report_a_long_gap(tmp_path):
     gap = table[table.reason.fillna("").str.startswith("no values")]
     assert len(gap) == 1 and gap.kept.tolist() == ["no"]
     assert (table.kept == "yes").sum() >= 2  # before and after the gap
+
+
+def test_a_force_column_with_a_value_every_sixth_row_is_refused_as_a_slow_channel(tmp_path):
+    """QA: a 200 Hz table whose Q_L has a value in every sixth row (the others empty, each
+    gap of 5 short enough to be interpolated) was read as 200 Hz, where a 33 Hz channel in
+    an MDF4 file is refused: it is refused as one, named with its finite samples' rate."""
+    sparse = np.arange(12000) % 6 != 0
+    path = long_run(tmp_path / "run.csv", nan={"Q_L": sparse})
+    with pytest.raises(RecordingError) as err:
+        read_run(path, channel_map_from(MAP))
+    assert (
+        "channel 'Q_L': forces sampled at 33.33 Hz (a finite value about every 6 samples of "
+        "its 200 Hz, the others empty); accepted at least 50 Hz, the rate the sections"
+    ) in str(err.value)
+    assert read_run(path, channel_map_from(MAP), min_rate_hz=25.0).rate_hz == pytest.approx(200.0)
+    # every second row: 100 Hz, as an MDF4 file's 100 Hz channel is read, with a note
+    run = read_run(long_run(tmp_path / "two.csv", nan={"Q_L": np.arange(12000) % 2 == 1}),
+                   channel_map_from(MAP))  # fmt: skip
+    assert any("'Q_L': a finite value about every 2 samples" in n for n in run.data_notes)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import warnings
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.table import Table
@@ -14,6 +14,9 @@ from railsusp.cli.common import WagonOption, app, console, fail, hold_folders
 from railsusp.condition_files import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet, parse_overrides
+
+if TYPE_CHECKING:
+    from railsusp.vehicle.wagon import WagonData
 
 #: synthesise_field's settings -> the options of ``synth-field``, for its error messages
 _SYNTH_OPTIONS = {
@@ -79,9 +82,7 @@ def synth_field(
         check_field_output(out, "synthetic", "--out")  # never replaces measured recordings
         pset = ParameterSet(parse_overrides(truth) if truth else {}, units="display")
         conds = resolve_conditions(conditions)
-        from railsusp.vehicle.wagon import load_wagon
-
-        wagon_data = load_wagon(wagon)  # a packaged name or a file, one-line errors
+        wagon_data = _wagon(wagon)
         # the folder for the command's duration (a second synth-field, or an estimate reading
         # it as RUN/field, is refused), then what it holds checked again under the lock
         hold_folders(creates=[("--out", out)])
@@ -108,6 +109,17 @@ def synth_field(
     )
 
 
+def _wagon(wagon: str | None) -> WagonData:
+    """The wagon ``--wagon`` names (a packaged name or a file); its one-line error names
+    the option, as check-recording's does ("wagon file nosuch does not exist" did not)."""
+    from railsusp.vehicle.wagon import load_wagon
+
+    try:
+        return load_wagon(wagon)
+    except RailsuspInputError as exc:
+        raise RailsuspInputError(f"--wagon: {exc}") from None
+
+
 @app.command("align-track")
 def align_track_command(
     measured: Annotated[Path, typer.Argument(help="field folder (index.json) of recordings")],
@@ -123,12 +135,11 @@ def align_track_command(
     from railsusp.estimate.comparison import check_time_base
     from railsusp.measured import read_field
     from railsusp.store import read_json, write_json
-    from railsusp.vehicle.wagon import load_wagon
 
     try:
         if not 0.0 < max_shift <= 200.0:  # before the recordings are read
             raise RailsuspInputError(f"--max-shift {max_shift:g}: accepted (0, 200] m")
-        wagon_data = load_wagon(wagon)  # a packaged name or a file, one-line errors
+        wagon_data = _wagon(wagon)
         if write:  # the sidecars it rewrites: one writer at a time in the folder
             hold_folders(writes=[("", measured)])
         else:  # read only: not beside a writer of the folder (a mixed read, the audit)
@@ -143,12 +154,11 @@ def align_track_command(
         check_time_base(recs, "align-track")  # every recording, before the first simulation
         with console.status("simulating on the measured tracks"):
             found = [align_track(r, max_shift_m=max_shift, wagon=wagon_data) for r in recs]
-        for rec, a in zip(recs, found, strict=True):
-            if a.searched_m < max_shift - 1e-9:  # a third of the record: said, not hidden
+        for a in found:
+            if a.limited_by:  # a third of the record, or whole samples: said, not hidden
                 warnings.warn(
-                    f"--max-shift {max_shift:g} m: recording {a.recording!r} is "
-                    f"{rec.condition.record_length_m:.4g} m long, so its search stops at a "
-                    f"third of it, ±{a.searched_m:.3g} m",
+                    f"--max-shift {max_shift:g} m: recording {a.recording!r} is searched to "
+                    f"{a.limited_by}",
                     stacklevel=1,
                 )
         edge = [a for a in found if a.on_edge]

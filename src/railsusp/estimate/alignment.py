@@ -29,6 +29,10 @@ class TrackAlignment:
     searched_m: float = float("nan")
     #: the best lag is the search's first or last: the correlation may peak beyond it
     on_edge: bool = False
+    #: why ``searched_m`` is less than the ``max_shift_m`` asked ("": it is not): the
+    #: search is in whole samples, rounded down (never beyond the maximum asked), and at
+    #: most a third of the record
+    limited_by: str = ""
 
 
 def align_track(
@@ -66,8 +70,26 @@ def align_track(
             "accepted geometry on which the wagon runs through"
         )
     step_m = rec.condition.speed / rec.sampling_rate
-    max_lag = min(int(np.ceil(max_shift_m / step_m)), len(meas) // 3)
+    # whole samples, rounded down: 0.5 m in steps of 0.333 m searched +-0.667 m (the QA of
+    # stop 68), a shift beyond the maximum asked reported
+    whole = int(np.floor(max_shift_m / step_m + 1e-9))
+    if whole < 1:
+        raise ValueError(
+            f"max_shift_m = {max_shift_m:g}: less than one sample step of recording "
+            f"{rec.condition.name!r} ({step_m:.3g} m at {rec.condition.speed_kmh:g} km/h and "
+            f"{rec.sampling_rate:g} Hz); accepted at least {step_m:.3g} m"
+        )
+    max_lag = min(whole, len(meas) // 3)
     lags = np.arange(-max_lag, max_lag + 1)
+    searched = max_lag * step_m
+    limited_by = ""
+    if max_lag < whole:
+        limited_by = f"a third of the record ({len(meas) * step_m:.4g} m): ±{searched:.3g} m"
+    elif searched < max_shift_m - 1e-9:
+        limited_by = (
+            f"whole samples of {step_m:.3g} m, rounded down: ±{searched:.3g} m of the "
+            f"±{max_shift_m:g} m asked"
+        )
 
     def score(lag: int) -> float:
         a = meas[max(0, -lag) : len(meas) - max(0, lag)]
@@ -90,6 +112,7 @@ def align_track(
         float(scores[k]),
         float(scores[max_lag]),
         float(shift),
-        searched_m=float(max_lag * step_m),
+        searched_m=float(searched),
         on_edge=bool(max_lag > 0 and k in (0, len(lags) - 1)),
+        limited_by=limited_by,
     )

@@ -106,9 +106,25 @@ def channel_map_from(doc: dict, source: str = "channel map") -> ChannelMap:
         if w not in WHEEL_NAMES:
             raise bad(f"wheel {w!r} not known{did_you_mean(w, list(WHEEL_NAMES))}; w1L .. w4R")
         if not isinstance(chans, dict) or not {"Y", "Q"} <= set(chans) <= {"Y", "Q", "Y_sign"}:
+            extra = sorted(set(chans) - {"Y", "Q", "Y_sign"}) if isinstance(chans, dict) else []
+            lacks = [k for k in ("Y", "Q") if not isinstance(chans, dict) or k not in chans]
+            said = "; ".join(
+                filter(None, [
+                    f"no key {' or '.join(lacks)}" if lacks else "",
+                    f"unexpected key(s) {', '.join(map(repr, extra))}" if extra else "",
+                ])
+            )  # fmt: skip
+            # a top-level key written after the tables lands in the last one (TOML)
+            top = [k for k in extra if k in _KEYS]
+            hint = (
+                f" ({', '.join(map(repr, top))} belongs at the top level: write top-level "
+                "keys before the first [table])"
+                if top
+                else ""
+            )
             raise bad(
-                f"wheels.{w}: needs exactly the keys Y and Q (channel names), and optionally "
-                "Y_sign (1 or -1)"
+                f"wheels.{w}: {said}{hint}; accepted exactly the keys Y and Q (channel "
+                "names), and optionally Y_sign (1 or -1)"
             )
         for f in ("Y", "Q"):
             if not isinstance(chans[f], str) or not chans[f]:

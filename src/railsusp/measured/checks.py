@@ -99,16 +99,54 @@ def check_finite(
     return out, [], [note]
 
 
-def check_flat(x: np.ndarray, channel: str) -> list[str]:
-    """A channel that never changes: all zero, or constant."""
+def check_flat(x: np.ndarray, channel: str, unit: str = "") -> list[str]:
+    """A channel that never changes: all zero, or constant (at its value in ``unit``, the
+    file's, where given: "constant at 107029" said nothing of N or kN)."""
     finite = x[np.isfinite(x)]
     if finite.size == 0:
         return []
     if np.all(finite == 0.0):
         return [f"channel {channel!r}: all {finite.size} samples are zero (a dead channel)"]
     if np.ptp(finite) == 0.0:
-        return [f"channel {channel!r}: constant at {finite[0]:.6g} over all samples"]
+        value = f"{finite[0]:.6g}{' ' + unit if unit else ''}"
+        return [f"channel {channel!r}: constant at {value} over all samples"]
     return []
+
+
+#: the largest share of a force channel's samples that its short NaN gaps (each within
+#: MAX_GAP_SAMPLES) may hold: interpolated values are not measured forces, and a channel
+#: with a value in every sixth row only is a channel of a sixth of the written rate
+MAX_INTERPOLATED_SHARE = 0.05
+
+
+def check_sparse(
+    x: np.ndarray, channel: str, rate_hz: float, max_share: float = MAX_INTERPOLATED_SHARE
+) -> list[str]:
+    """A force channel whose short NaN gaps (those :func:`check_finite` interpolates) hold
+    more than ``max_share`` of its samples, or whose finite samples lie regularly wider
+    apart than one sample (effectively a lower rate than the ``rate_hz`` written): each gap
+    passed the 5-sample rule, but together they are most of the record (a value in every
+    sixth row read as full-rate data, 416 of 500 samples interpolated). Shared by the
+    field-format reader; a long run's reader may call it on each channel too."""
+    nan = np.isnan(x)
+    finite = np.flatnonzero(~nan)
+    if finite.size < 2 or not nan.any():
+        return []
+    share = float(nan.mean())
+    step = float(np.median(np.diff(finite)))  # samples between finite values
+    if step <= 1.0 and share <= max_share:
+        return []
+    said = f"{int(nan.sum())} of its {x.size} samples ({100.0 * share:.3g} %) missing (NaN)"
+    if step > 1.0:
+        said += (
+            f", a finite value about every {step:.3g} samples: effectively "
+            f"{rate_hz / step:.4g} Hz, not the written {rate_hz:.4g} Hz"
+        )
+    return [
+        f"channel {channel!r}: {said}; accepted the written rate with at most "
+        f"{100.0 * max_share:g} % of the samples missing (each gap of up to "
+        f"{MAX_GAP_SAMPLES} interpolated): interpolated values are not measured forces"
+    ]
 
 
 #: a force channel is taken for saturated where at least this share of its samples sits at
@@ -269,23 +307,52 @@ def check_forces(
                 f"of the wagon data: outside {low:g}-{high:g} times it{hint}"
             )
             return problems  # bounds on a wrongly scaled channel say nothing more
-        neg = Q < -NEGATIVE_Q_FRACTION * static_wheel_load_N
+        floor = -NEGATIVE_Q_FRACTION * static_wheel_load_N
+        neg = Q < floor
         if neg.any():
-            s, e = runs(neg)[0]
             problems.append(
-                f"channel {qname!r}, {rows(s, e - 1, first_row)}: negative wheel load "
-                f"{np.min(Q[s:e]) / 1e3:.4g} kN"
-            )
+                _beyond(
+                    neg, Q, qname, first_row, "negative wheel load", "down to", lowest=True,
+                    after=f"; accepted down to {floor / 1e3:.3g} kN "
+                    f"({100 * NEGATIVE_Q_FRACTION:g} % of the static wheel load)",
+                )
+            )  # fmt: skip
     for x, name, bound in ((Y, yname, MAX_LATERAL_N), (Q, qname, MAX_VERTICAL_N)):
         over = np.abs(x) > bound
         if over.any():
-            s, e = runs(over)[0]
             problems.append(
-                f"channel {name!r}, {rows(s, e - 1, first_row)}: |force| up to "
-                f"{np.nanmax(np.abs(x[s:e])) / 1e3:.4g} kN beyond the physical bound "
-                f"{bound / 1e3:g} kN"
-            )
+                _beyond(
+                    over, np.abs(x), name, first_row, "|force|", "up to",
+                    after=f" beyond the physical bound {bound / 1e3:g} kN",
+                )
+            )  # fmt: skip
     return problems
+
+
+def _beyond(
+    bad: np.ndarray,
+    x: np.ndarray,
+    name: str,
+    first_row: int | np.ndarray,
+    what: str,
+    word: str,
+    *,
+    after: str,
+    lowest: bool = False,
+) -> str:
+    """A message on the samples ``bad`` of channel ``name`` (values ``x``, N): the first
+    stretch's rows, the extreme of all of them (the lowest or the highest) and, where there
+    are more than one, its row and how many samples in how many stretches, as the gap and
+    jitter messages count theirs (the first stretch alone hid a 678.8 kN behind 301.1 kN)."""
+    stretches = runs(bad)
+    s, e = stretches[0]
+    masked = np.where(bad, x, np.nan)
+    i = int(np.nanargmin(masked) if lowest else np.nanargmax(masked))
+    head = f"channel {name!r}, {rows(s, e - 1, first_row)}: {what}"
+    if bad.sum() == 1:
+        return f"{head} {x[i] / 1e3:.4g} kN{after}"
+    count = f"{int(bad.sum())} such sample(s) in {len(stretches)} stretch(es), the first named"
+    return f"{head} {word} {x[i] / 1e3:.4g} kN (at {rows(i, i, first_row)}; {count}){after}"
 
 
 def _factor(unit: str) -> float:

@@ -103,6 +103,11 @@ _LEFT_OUT = {
     "radius": "curves tighter than a working condition",
     "wheel": "curves whose outer wheel is not recorded",
     "outside": "not covered by the line description",
+    "jump": "jumps of the distance channel",
+    "backwards": "running backwards",
+    "reversal": "reversing (the speed through 0)",
+    "cant": "cant without a curvature (a curve cut as tangent)",
+    "dropout": "dropouts (samples lost)",
 }
 
 
@@ -135,7 +140,8 @@ def none_kept(secs: list[Section], rules: SectionRules) -> str:
     parts = []
     for kind in sorted(metres, key=lambda k: -max(metres[k], seconds[k])):
         what = short.get(kind) or _LEFT_OUT.get(kind, kind)
-        amount = f"{seconds[kind]:.0f} s" if kind == "standing" else f"{metres[kind]:.0f} m"
+        timed = kind in ("standing", "reversal")  # (no length)
+        amount = f"{seconds[kind]:.0f} s" if timed else f"{metres[kind]:.0f} m"
         parts.append(f"{amount} {what}")
     settings = [k for k in ("short", "duration", "speed") if k in metres]
     hint = ""

@@ -100,7 +100,13 @@ def read_section_table(path: str | Path) -> pd.DataFrame:
     _need_values(df, ["start_m", "end_m"], what)
     if "name" in df:
         seen: dict[str, int] = {}
-        for i, name in enumerate(df["name"].astype(str)):
+        for i, name in enumerate(text_cells(df["name"])):
+            if not name:  # pandas 3 kept NaN through astype(str): a TypeError's traceback
+                raise RailsuspInputError(
+                    f"{what}, row {i + 2}: name is empty: accepted 1-60 letters, digits, '.', "
+                    "'_', '-', starting with a letter or digit (or no name column: numbered "
+                    "names)"
+                )
             if not SAFE_NAME.fullmatch(name):
                 raise RailsuspInputError(
                     f"{what}, row {i + 2}: name {name!r}: accepted 1-60 "
@@ -128,6 +134,12 @@ def read_section_table(path: str | Path) -> pd.DataFrame:
     return df
 
 
+def text_cells(column: pd.Series) -> list[str]:
+    """A user column's cells as text, an empty cell as ``""``: ``astype(str)`` made it
+    "nan" under pandas 2 (a section named "nan") and kept it NaN under pandas 3."""
+    return ["" if pd.isna(v) else str(v) for v in column]
+
+
 def _check_track(df: pd.DataFrame, what: str) -> None:
     """Refuse, row by row, track columns outside what a working condition takes (those of
     ``radius_m, cant_mm, grade_permille, direction`` that ``df`` has): a negative radius
@@ -150,7 +162,7 @@ def _check_track(df: pd.DataFrame, what: str) -> None:
                 "empty" + (" (0 or empty: tangent)" if column == "radius_m" else "")
             )
     if "direction" in df:
-        given = df["direction"].fillna("").astype(str).str.strip().str.lower()
+        given = pd.Series(text_cells(df["direction"])).str.strip().str.lower()
         wrong = ~given.isin(["", "left", "right"])
         if wrong.any():
             i = int(np.flatnonzero(wrong.to_numpy())[0])
@@ -205,7 +217,13 @@ def _read_csv(
     cell is NaN); ``what`` names the table in the messages (default: its path)."""
     what = what or str(path)
     try:  # only an empty cell is missing: "nan" or "inf" is a value, refused below
-        df = pd.read_csv(path, skipinitialspace=True, keep_default_na=False, na_values=[""])
+        df = pd.read_csv(  # names as written: "01" is no number 1
+            path,
+            skipinitialspace=True,
+            keep_default_na=False,
+            na_values=[""],
+            dtype={"name": str, "direction": str},
+        )
     except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         raise RailsuspInputError(f"{path}: cannot read the table ({exc})") from None
     missing = [c for c in need if c not in df.columns]

@@ -1,8 +1,9 @@
 """One stretch of a long run as sections: what a section is (:class:`Section`, cut by
 :class:`SectionRules`) and how a stretch of one kind of track is split into pieces, each
 kept or left out with its reason (:func:`stretch_pieces`), and adjacent left-out pieces
-made one row (:func:`merged_row`). :func:`railsusp.measured.sections.cut_sections` finds
-the stretches and puts the pieces together.
+made one row (:func:`merged_row`), its reason in the words of
+:mod:`railsusp.measured.reasons`. :func:`railsusp.measured.sections.cut_sections` finds the
+stretches and puts the pieces together.
 
 A stop (the speed below :data:`~railsusp.measured.track_kinds.MOVING_MS`) is one piece
 whatever the noise on its speed, the moving run between stops is split where its speed
@@ -21,8 +22,17 @@ import numpy as np
 from railsusp.conditions import WorkingCondition, make_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.measured.checks import label_runs
+from railsusp.measured.reasons import (
+    EDGE_PIECE_S,  # noqa: F401  (where a section's reasons were)
+    OUTSIDE_LINE,
+    VARIES,
+    describe,
+    percent,
+    speed_ranges,
+    speed_spread,
+)
 from railsusp.measured.run import MeasuredRun
-from railsusp.measured.track_kinds import MOVING_MS, kind_shares
+from railsusp.measured.track_kinds import CANT_ON_TANGENT_MM, MOVING_MS, kind_shares
 from railsusp.vehicle.simulation_result import WHEEL_NAMES, outer_wheel_index
 
 #: the smallest curve radius of a working condition (its ``curve_radius_m`` bound), m
@@ -115,60 +125,29 @@ def outside_row(run: MeasuredRun, a: int, b: int, dt: float) -> Section:
     piece = ("outside", OUTSIDE_LINE, (b - a) * dt, _length(run, a, b))
     return Section(
         "", a, b, float(run.position[a]), float(run.position[b - 1]), None, "left", 0.0, 0.0,
-        float(v.mean()) * 3.6, _spread(v), False,
+        float(v.mean()) * 3.6, speed_spread(v), False,
         OUTSIDE_LINE, (piece,),
     )  # fmt: skip
 
 
-def _spread(v: np.ndarray) -> float:
-    """The speed's spread over a piece, (max - min) / mean (:attr:`Section.speed_spread`)."""
-    return float((v.max() - v.min()) / max(v.mean(), 1e-9))
+def dropout_row(run: MeasuredRun, k: int, dt: float) -> Section:
+    """The samples lost between samples k - 1 and k (a logger's dropout) as a left-out row
+    of no samples (start = end = k), from the one's position to the other's: the cut broke
+    there without a row, where a NaN gap has one ("every stretch with its reason")."""
+    seconds = float(run.time[k] - run.time[k - 1]) - dt
+    metres = float(abs(run.position[k] - run.position[k - 1]))
+    reason = f"no samples: a dropout of the logger ({seconds:.3g} s of samples lost)"
+    v = run.speed[k - 1 : k + 1]
+    piece = ("dropout", reason, seconds, metres)
+    return Section(
+        "", k, k, float(run.position[k - 1]), float(run.position[k]), None, "left", 0.0, 0.0,
+        float(v.mean()) * 3.6, speed_spread(v), False, reason, (piece,),
+    )  # fmt: skip
 
-
-#: the reason of a stretch that the line description does not cover
-OUTSIDE_LINE = "not covered by the line description (no km posts there)"
-
-
-#: a left-out piece too short for a condition, of less than this (s), beside another
-#: left-out stretch is where a band's edge fell (a few samples between a transition and the
-#: next stretch), not a reason of its own: its row names the neighbour's reason alone.
-#: Judged by time, not length, so that a stop (no length at all) is never folded away.
-EDGE_PIECE_S = 1.0
 
 #: a section table's piece of which more than this share is another kind of track than
 #: its main one (or a transition) is left out: its condition would be the main kind's
 MIXED_SHARE = 0.10
-
-
-def _describe(pieces: tuple[tuple[str, str, float, float], ...]) -> str:
-    """A left-out row's reason from its pieces, one phrase per kind in their order: a
-    stop's seconds summed, pieces too short for a condition counted with their lengths
-    (edge pieces left out where there is more), a transition or a radius by its words."""
-    real = [p for p in pieces if not (p[0] == "short" and p[2] < EDGE_PIECE_S)] or pieces
-    groups: dict[tuple[str, str], list[tuple[float, float]]] = {}
-    for kind, label, seconds, metres in real:
-        groups.setdefault((kind, label), []).append((seconds, metres))
-    out = []
-    for (kind, label), items in groups.items():
-        if kind == "standing":
-            out.append(f"standing ({sum(t for t, _ in items):.0f} s)")
-        elif kind == "short":
-            what, minimum, why = label.split("|")
-            ms = [m for _, m in items]
-            out.append(
-                f"{what} of {ms[0]:.0f} m, shorter than the {minimum} m minimum{why}"
-                if len(ms) == 1
-                else f"{what}: {len(ms)} pieces of {_span(min(ms), max(ms))} m, each shorter "
-                f"than the {minimum} m minimum{why}"
-            )
-        else:
-            out.append(label)
-    return "; ".join(out)
-
-
-def _span(low: float, high: float) -> str:
-    """``low-high`` to the metre, or one number where they round alike."""
-    return f"{low:.0f}" if f"{low:.0f}" == f"{high:.0f}" else f"{low:.0f}-{high:.0f}"
 
 
 def stretch_pieces(
@@ -232,6 +211,14 @@ def _steady_parts(
             out.append((p, q, "speed" if by_speed else "duration" if m > 1 else ""))
         i = j
     return out
+
+
+def _reverses(run: MeasuredRun, i: int, j: int) -> bool:
+    """Whether the wagon runs one way before samples i..j (a stop) and the other after
+    them: the speed passing through 0 (the run's speed is its magnitude), which showed as
+    "standing (0 s)" beside a backwards stretch (the QA of stop 68)."""
+    back = run.backwards
+    return back is not None and 0 < i and j < back.size and bool(back[i - 1] != back[j])
 
 
 def _length(run: MeasuredRun, i: int, j: int) -> float:
@@ -316,9 +303,9 @@ def merged_row(run: MeasuredRun, group: list[Section]) -> Section:
         0.0,
         float(np.dot(n, [s.grade_permille for s in group]) / n.sum()),
         float(v.mean()) * 3.6,
-        _spread(v),
+        speed_spread(v),
         False,
-        _describe(pieces),
+        describe(pieces, speed_ranges(run.speed, group)),
         pieces,
     )
 
@@ -343,7 +330,7 @@ def _section(
     radius = 1.0 / abs(curv) if abs(curv) > 1.0 / rules.tangent_radius_m else None
     v = run.speed[sl]
     length = _length(run, i, j)
-    spread = _spread(v)
+    spread = speed_spread(v)
     sec = Section(
         name or "",
         i,
@@ -358,6 +345,7 @@ def _section(
         spread,
     )
     shares = kind_shares(geo, labels, i, j) if labels is not None else [("", 1.0)]
+    known = "curvature_known" not in geo or bool(np.mean(geo["curvature_known"][sl]) > 0.5)
     gap = gaps.names(i, j)
     if gap:
         piece = ("gap", f"no values: a gap of missing values (NaN) in channel(s) {gap}, "
@@ -374,14 +362,16 @@ def _section(
         piece = ("radius", f"radius {radius:.3g} m, below the {MIN_RADIUS_M:g} m a working "
                  "condition takes (a curvature channel in another unit?)")  # fmt: skip
     elif cause == "stop" or float(v.mean()) * 3.6 < 1.0:  # before the length: a stop has none
-        piece = ("standing", "")
+        piece = ("reversal" if _reverses(run, i, j) else "standing", "")
+    elif radius is None and abs(sec.cant_mm) >= CANT_ON_TANGENT_MM and not known:
+        piece = ("cant", f"{sec.cant_mm:.0f}")
     elif 1.0 - max(share for _, share in shares) > MIXED_SHARE:  # a table's row only
         parts = ", ".join(f"{kind} {100 * share:.0f} %" for kind, share in shares)
         piece = ("mixed", f"more than one kind of track ({parts}): a section is one, with at "
                  f"most {100 * MIXED_SHARE:.0f} % of others")  # fmt: skip
     elif length < rules.min_length_m:
         why = {
-            "speed": " (speed varies beyond the tolerance)",
+            "speed": f" ({VARIES} the {percent(rules.speed_tolerance)} % tolerance)",
             "duration": f" (split at the {rules.max_duration_s:g} s maximum duration)",
         }.get(cause, "")
         piece = ("short", f"{sec.kind}|{rules.min_length_m:g}|{why}")
@@ -392,8 +382,15 @@ def _section(
         piece = ("wheel", f"{sec.direction}-hand curve: its outer wheel {outer}, the one "
                  "compared, is not recorded")  # fmt: skip
     else:
+        if radius is None:  # a tangent's condition has no cant: shown as written
+            if abs(sec.cant_mm) >= CANT_ON_TANGENT_MM:
+                sec.reason = (
+                    f"kept as tangent (radius over {rules.tangent_radius_m:g} m), its cant "
+                    f"of {sec.cant_mm:.0f} mm written as 0: a condition has cant in a curve only"
+                )
+            sec.cant_mm = 0.0
         return sec
     sec.kept = False
     sec.pieces = ((*piece, (j - i) * dt, length),)
-    sec.reason = _describe(sec.pieces)
+    sec.reason = describe(sec.pieces)
     return sec

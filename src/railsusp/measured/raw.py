@@ -260,7 +260,7 @@ def _numeric(raw: pd.Series, path: Path, col: str) -> np.ndarray:
         )
     if raw.dtype.kind in "fiu":
         return raw.to_numpy(dtype=float)
-    text = raw.astype(str).str.strip()
+    text = raw.where(raw.notna(), "").astype(str).str.strip()  # a Parquet null: empty
     vals = pd.to_numeric(text.replace("", "nan"), errors="coerce")
     bad = vals.isna() & ~text.str.lower().isin(["", "nan"])
     if bad.any():

@@ -24,13 +24,13 @@ from railsusp.measured.checks import (
     check_finite,
     check_flat,
     check_forces,
+    check_sparse,
     check_time,
-    runs,
 )
-from railsusp.measured.checks import rows as row_range  # (``rows`` names a count below)
-from railsusp.measured.raw import read_raw
+from railsusp.measured.field_table import read_field_table
 from railsusp.measured.recording import Recording, RecordingError
 from railsusp.measured.sidecar import condition_on_the_table, read_sidecar, sidecar_condition
+from railsusp.measured.track_columns import check_track_columns
 from railsusp.measured.units import si_factor, split_header
 from railsusp.numbers import is_real
 from railsusp.vehicle.layout import WHEEL_NAMES
@@ -69,8 +69,12 @@ def read_recording(
     are noted and left unused); time strictly increasing without jitter or mixed rates, at
     least ``min_rate_hz``; forces in the unit their header states (``Y_w1R_kN``,
     ``Y_w1R [N]``); non-finite values (±inf refused, NaN gaps over 5 samples refused,
-    shorter ones interpolated with a warning); all-zero or constant force channels; median
-    wheel load against the wagon's static wheel load; physical bounds."""
+    shorter ones interpolated with a warning unless together over 5 % of the samples or a
+    lower effective rate); all-zero or constant force channels; median wheel load against
+    the wagon's static wheel load; physical bounds; the speed and track columns against the
+    condition (:mod:`railsusp.measured.track_columns`). The table itself is read by
+    :mod:`railsusp.measured.field_table` (a distance axis put on time, its jumps refused;
+    text and booleans in an unused column noted, not refused)."""
     lo, hi = MIN_RATE_RANGE_HZ
     if not (is_real(min_rate_hz) and lo <= min_rate_hz <= hi):
         raise RailsuspInputError(f"min_rate_hz = {min_rate_hz!r}: accepted {lo:g} to {hi:g} Hz")
@@ -81,42 +85,36 @@ def read_recording(
         )
     if not isinstance(path, str | os.PathLike):
         raise RailsuspInputError(f"path = {path!r}: a recording's path (str or Path) is needed")
-    path = Path(path)
-    table_path = next(
-        (
-            p
-            for p in (path, path.with_suffix(".csv"), path.with_suffix(".parquet"))
-            if p.is_file() and p.suffix.lower() in (".csv", ".parquet")  # up.CSV as up.csv
-        ),
-        None,
-    )
-    if table_path is None:
-        what = (
-            "a folder, not a recording table"
-            if path.is_dir()
-            else "no .csv or .parquet table found"
-        )
-        raise RecordingError(path, [what])
+    table_path = _table_of(Path(path))
     problems: list[str] = []
     notes: list[str] = []
     meta = read_sidecar(table_path.with_suffix(".json"), problems)
     try:
-        raw = _raw(table_path)
-    except RailsuspInputError as exc:
-        raise RecordingError(
-            table_path, [*problems, str(exc).removeprefix(f"recording {table_path}: ")]
-        ) from None
-    cols = list(raw)
+        table = read_field_table(table_path)
+    except RecordingError as exc:
+        raise RecordingError(table_path, [*problems, *exc.problems]) from None
+    problems += table.problems
+    notes += table.notes
+    cols = table.names
     cmap = default_map([*cols, "time_s"])
     half = sorted(
         {split_header(h)[0][2:] for h in cols if h[:2] in ("Y_", "Q_")} - set(cmap.wheels)
     )
     half = [w for w in half if w in WHEEL_NAMES]  # a wheel with Y or Q only: reported below
+    missing = [
+        f"{f}_{w}_kN"
+        for w in half
+        for f in sorted({"Y", "Q"} - {split_header(h)[0][0] for h in cols if h[2:5] == w})
+    ]
     for c in cols:
         base = split_header(c)[0]
         if c in cmap.used() or base in ("distance", "speed", "curvature", "cant", "grade"):
+            if c in table.not_numbers:
+                problems.append(table.not_numbers[c][0])
             continue
         if base[2:] in half and base[:2] in ("Y_", "Q_"):
+            if c in table.not_numbers:
+                problems.append(table.not_numbers[c][0])
             continue
         same = [o for o in cols if o != c and split_header(o)[0] == base]
         if same and base[:2] in ("Y_", "Q_") and base[2:] in WHEEL_NAMES:
@@ -125,19 +123,25 @@ def read_recording(
                 "accepted one column per force"
             )
             continue
-        hint = did_you_mean(c, _DOCUMENTED)
+        # the column a wheel lacks first: Q_wlL_kN beside Y_w1L_kN means Q_w1L_kN
+        hint = did_you_mean(c, missing) or did_you_mean(c, _DOCUMENTED)
         if hint or base.startswith(("Y_", "Q_")):
             problems.append(f"column {c!r} not recognised{hint}")
+        elif c in table.not_numbers:
+            notes.append(f"column {c!r} not used ({table.not_numbers[c][1]}, not numbers)")
         else:
             notes.append(f"column {c!r} not used")
-    t = next(iter(raw.values())).time if raw else np.zeros(0)
+    if table.time is None:  # the axis does not read: the columns' problems, then stop
+        raise RecordingError(table_path, [*problems])
+    raw = table.channels
+    t = table.time
     lines = next(iter(raw.values())).first_row if raw else 2  # file lines, for messages
-    time_problems = check_time(t, "time_s", lines)
+    time_problems = check_time(t, table.axis or "time_s", lines)
     problems += time_problems
-    if not time_problems and 1.0 / np.median(np.diff(t)) < min_rate_hz * (1.0 - 1e-6):
+    rate = 1.0 / float(np.median(np.diff(t))) if not time_problems and t.size > 1 else None
+    if rate is not None and rate < min_rate_hz * (1.0 - 1e-6):
         problems.append(
-            f"sampling rate {1.0 / np.median(np.diff(t)):.4g} Hz below the "
-            f"{min_rate_hz:g} Hz the pipeline needs"
+            f"sampling rate {rate:.4g} Hz below the {min_rate_hz:g} Hz the pipeline needs"
         )
     for w in half:
         have = {split_header(h)[0][0] for h in cols if split_header(h)[0][2:] == w}
@@ -152,6 +156,8 @@ def read_recording(
     for w, chans in cmap.wheels.items():
         si = {}
         for f, col in chans.items():
+            if col not in raw:  # not numbers: said above
+                continue
             ch = raw[col]
             try:
                 factor = si_factor("force", ch.unit, col)
@@ -160,16 +166,18 @@ def read_recording(
                 continue
             x, p, n = check_finite(ch.values, col, lines)
             problems += p
+            if not p and rate is not None:  # short gaps together most of the record?
+                sparse = check_sparse(ch.values, col, rate)
+                problems += sparse
+                n = [] if sparse else n
             notes += n
-            problems += check_flat(x, col) + check_clipped(x, col, ch.unit or "")
+            problems += check_flat(x, col, ch.unit or "") + check_clipped(x, col, ch.unit or "")
             si[f] = x * factor
         if len(si) == 2:
             units = (raw[chans["Y"]].unit or "", raw[chans["Q"]].unit or "")
             problems += check_forces(si["Y"], si["Q"], (chans["Y"], chans["Q"]), units, wl, lines)
             Y[w], Q[w] = si["Y"] / 1e3, si["Q"] / 1e3
     problems = [p.replace("channel '", "column '") for p in problems]
-    # the table's rate, where its time base is sound: the sidecar's rate and record against it
-    rate = 1.0 / float(np.median(np.diff(t))) if not time_problems and t.size > 1 else None
     if meta and rate is not None:
         stated = meta.get("sampling_rate_hz")
         if isinstance(stated, bool) or not isinstance(stated, (int, float, type(None))):
@@ -193,6 +201,8 @@ def read_recording(
         condition = condition_on_the_table(
             condition, meta, t.size, rate, table_path.with_suffix(".json").name, problems
         )
+    if t.size:  # speed and track columns against the condition's (or a condition's range)
+        problems += check_track_columns(raw, t, condition)
     if problems:
         raise RecordingError(table_path, problems)
     for note in notes:
@@ -201,64 +211,26 @@ def read_recording(
     return Recording(np.asarray(t), Y, Q, condition, extra)  # type: ignore[arg-type]
 
 
-def _raw(table_path: Path):
-    """The table's channels on its ``time_s`` column, or on ``distance_m`` over the speed."""
-    import pandas as pd
-
-    try:
-        if table_path.suffix.lower() == ".csv":
-            cols = [str(c) for c in pd.read_csv(table_path, nrows=0, encoding="utf-8").columns]
-        else:
-            cols = [str(c) for c in pd.read_parquet(table_path).columns]
-    except Exception as exc:  # pandas and pyarrow raise many types on a damaged file
-        raise RailsuspInputError(
-            f"recording {table_path}: cannot read the table "
-            f"({(str(exc).splitlines() or [type(exc).__name__])[0]})"
-        ) from None
-    if "time_s" in cols or "distance_m" not in cols:
-        return read_raw(table_path, "time_s" if "time_s" in cols else None)
-    raw = read_raw(table_path, "distance_m")
-    speed = raw.get("speed_kmh")
-    if speed is None:
-        raise RailsuspInputError(
-            f"recording {table_path}: distance_m without a speed_kmh column; give time_s"
+def _table_of(path: Path) -> Path:
+    """The table a recording's path names: the file itself (``.csv`` or ``.parquet``, any
+    case), or the one table of its stem (``NAME``, ``NAME.json``). A stem with both a CSV
+    and a Parquet table is refused, naming both (the CSV was read, silently, whatever the
+    other held)."""
+    if path.is_file() and path.suffix.lower() in (".csv", ".parquet"):  # up.CSV as up.csv
+        return path
+    stem = path.with_suffix("") if path.suffix.lower() in (".json", ".csv", ".parquet") else path
+    found = [
+        p for p in (stem.with_name(stem.name + s) for s in (".csv", ".parquet")) if p.is_file()
+    ]
+    if len(found) == 2:
+        raise RecordingError(
+            path,
+            [
+                f"both {found[0].name} and {found[1].name} exist: which is the recording? "
+                "Name the table (its .csv or .parquet file), or remove the other"
+            ],
         )
-    v = speed.values
-    still = ~(v > 0)  # NaN too
-    if still.any():
-        a, b = runs(still)[0]
-        raise RailsuspInputError(
-            f"recording {table_path}: column 'speed_kmh', {row_range(a, b - 1, speed.first_row)}: "
-            f"speed {v[a]:g} km/h; a table along distance_m needs the speed positive in "
-            "every row (a stop has no distance to sample it by: give time_s)"
-        )
-    return _on_time(raw, speed.time, v / 3.6)
-
-
-def _on_time(raw: dict, distance: np.ndarray, speed: np.ndarray) -> dict:
-    """Channels sampled along the track (``distance`` m, at ``speed`` m/s) put on a uniform
-    time base: each sample's time is the integral of ds / v from the first (trapezoidal
-    mean speed per step), and the channels are interpolated onto the median interval of
-    those times. Samples that are uniform in distance are not uniform in time where the
-    speed varies (time = distance / speed held only at constant speed). A stretch
-    standing or backing up (speed not positive, distance not increasing) is left to the
-    time checks, unconverted."""
-    step_speed = 0.5 * (speed[1:] + speed[:-1])
-    ds = np.diff(distance)
-    if ds.size < 2 or not (
-        np.all(np.isfinite(step_speed)) and np.all(step_speed > 0) and np.all(ds > 0)
-    ):
-        t = distance / speed  # as before; the time checks name what is wrong
-        for ch in raw.values():
-            ch.time = t
-        return raw
-    t = np.concatenate([[0.0], np.cumsum(ds / step_speed)])
-    dt = float(np.median(np.diff(t)))
-    uniform = np.arange(0.0, t[-1] + 0.5 * dt, dt)
-    uniform = uniform[uniform <= t[-1]]
-    sample = np.rint(np.interp(uniform, t, np.arange(t.size))).astype(int)
-    for ch in raw.values():
-        ch.values = np.interp(uniform, t, ch.values)
-        ch.time = uniform
-        ch.first_row = ch.first_row + sample  # messages name the file's lines
-    return raw
+    if found:
+        return found[0]
+    what = "a folder, not a recording table" if path.is_dir() else "no .csv or .parquet table found"
+    raise RecordingError(path, [what])

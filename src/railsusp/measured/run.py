@@ -43,6 +43,8 @@ from railsusp.measured.run_checks import (
     channel_unit,
     check_force_rates,
     check_track_channels,
+    finite_rate_hz,
+    finite_rate_note,
 )
 from railsusp.measured.speed_from_distance import distance_through_steps, smoothed_gradient
 from railsusp.measured.units import normalise_unit, si_factor
@@ -168,6 +170,7 @@ def read_run(
     quantity = {c: "force" for w in cmap.wheels.values() for c in w.values()}
     quantity.update({c: SIGNALS[k] for k, c in cmap.signals.items()})
     si: dict[str, RawChannel] = {}
+    finite_hz: dict[str, float] = {}  # a force channel's rate of its finite samples
     nan_gaps: dict[str, list[tuple[int, int]]] = {}
     for name, q in quantity.items():
         ch = raw[name]
@@ -186,7 +189,9 @@ def read_run(
         notes += finite_notes
         data_notes += finite_notes
         if q == "force":  # (on the values with their long gaps NaN: not judged)
-            problems += check_flat(values, name) + check_clipped(values, name, unit or "")
+            finite_hz[name] = finite_rate_hz(ch)  # before its short gaps are interpolated
+            problems += check_flat(values, name, unit or "")  # a value in the file's unit
+            problems += check_clipped(values, name, unit or "")
         if not time_problems and not finite_problems:
             kept = RawChannel(name, normalise_unit(unit), ch.time, values * factor, ch.first_row)
             gap_notes: list[str] = []
@@ -199,10 +204,15 @@ def read_run(
         raise RecordingError(path, problems)
 
     force_names = [c for w in cmap.wheels.values() for c in w.values()]
-    base = max(force_names, key=lambda c: si[c].rate_hz)
+    base = max(force_names, key=lambda c: (finite_hz[c], si[c].rate_hz))
     t = si[base].time
     rates = {c: si[c].rate_hz for c in quantity}
-    problems += check_force_rates(force_names, base, rates, min_rate_hz)
+    problems += check_force_rates(force_names, base, finite_hz, min_rate_hz, stated=rates)
+    for c in force_names:
+        note = finite_rate_note(c, finite_hz[c], rates[c])
+        if note:
+            notes.append(note)
+            data_notes.append(note)
     for c in quantity:
         ch = si[c]
         tol = 1.0 / ch.rate_hz

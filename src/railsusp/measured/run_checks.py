@@ -70,8 +70,35 @@ def check_track_channels(
     return problems
 
 
+def finite_rate_hz(ch: RawChannel) -> float:
+    """The rate of a channel's finite samples, Hz: its rate, or less where its finite
+    samples lie regularly wider apart (the median step between them). A table column with a
+    value in every sixth row of 200 (the others empty, each gap short enough to be
+    interpolated) holds a 33 Hz channel, which an MDF4 file's 33 Hz channel is refused as."""
+    stated = ch.rate_hz
+    d = np.diff(ch.time[np.isfinite(ch.values)])
+    d = d[np.isfinite(d) & (d > 0.0)]
+    return min(stated, float(1.0 / np.median(d))) if d.size else stated
+
+
+def finite_rate_note(channel: str, finite_hz: float, stated_hz: float) -> str | None:
+    """What a channel whose finite samples are sparser than its rate is read as (None: as
+    its rate): its finite values' rate, interpolated between them."""
+    if not finite_hz < stated_hz * (1.0 - 1e-6):
+        return None
+    return (
+        f"channel {channel!r}: a finite value about every {stated_hz / finite_hz:.3g} "
+        f"samples of its {stated_hz:.4g} Hz (the others empty): sampled at {finite_hz:.4g} "
+        "Hz, interpolated between them"
+    )
+
+
 def check_force_rates(
-    force_names: list[str], base: str, rates: dict[str, float], min_rate_hz: float
+    force_names: list[str],
+    base: str,
+    rates: dict[str, float],
+    min_rate_hz: float,
+    stated: dict[str, float] | None = None,
 ) -> list[str]:
     """Problems of force channels sampled too slowly, one per channel: every force channel,
     not only the fastest (``base``, whose time base the run takes), must reach
@@ -80,29 +107,38 @@ def check_force_rates(
     Q under a 200 Hz Y was accepted with a note, its dynamics above 12.5 Hz gone (its
     standard deviation 4.7 kN for 7.2; the audit of stop 63), where the docs promise forces
     sampled at least at the sections' rate. A rate equal to the least one is accepted (1000
-    Hz stated as 999.9999 Hz)."""
+    Hz stated as 999.9999 Hz). ``rates``: each channel's rate of its finite samples
+    (:func:`finite_rate_hz`); ``stated``: the rate its time column states, where it may
+    differ (a channel whose finite samples are sparser is named as such)."""
     problems = []
     fastest = rates[base]
     for c in force_names:
         least = max(min_rate_hz, MIN_FORCE_RATE_FRACTION * fastest)
         if rates[c] >= least * (1.0 - 1e-6):
             continue
+        by_rate = least == min_rate_hz  # the sections' rate is the limit missed, not a tenth
         why = (
             "the rate the sections are resampled to (sections --rate, [field] rate_hz; "
             "check-recording --min-rate)"
-            if least == min_rate_hz
+            if by_rate
             else "a tenth of the fastest force channel's: interpolation cannot restore more"
         )
-        if c == base:
-            problems.append(
-                f"channel {c!r}: forces sampled at {rates[c]:.4g} Hz; accepted at least "
-                f"{least:.6g} Hz, {why}"
+        written = (stated or {}).get(c, rates[c])
+        if rates[c] < written * (1.0 - 1e-6):  # its finite samples are the sparser
+            said = (
+                f"forces sampled at {rates[c]:.4g} Hz (a finite value about every "
+                f"{written / rates[c]:.3g} samples of its {written:.4g} Hz, the others empty)"
             )
+        elif c == base or rates[c] >= fastest * (1.0 - 1e-6):  # as fast as the base
+            said = f"forces sampled at {rates[c]:.4g} Hz"
+        elif by_rate:
+            said = f"{rates[c]:.4g} Hz against {fastest:.4g} Hz of {base!r}"
         else:
-            problems.append(
-                f"channel {c!r}: {rates[c]:.4g} Hz against {fastest:.4g} Hz of {base!r}: too "
-                f"slow to interpolate onto its time base; accepted at least {least:.6g} Hz, {why}"
+            said = (
+                f"{rates[c]:.4g} Hz against {fastest:.4g} Hz of {base!r}: too slow to "
+                "interpolate onto its time base"
             )
+        problems.append(f"channel {c!r}: {said}; accepted at least {least:.6g} Hz, {why}")
     return problems
 
 

@@ -28,13 +28,16 @@ from railsusp.measured.line import (  # noqa: F401  (the sources of a cut, with 
     geometry_from_line,
     read_line,
     read_section_table,
+    text_cells,
 )
 from railsusp.measured.pieces import (  # noqa: F401  (what a section is, with the cut)
     MIN_RADIUS_M,
+    MIXED_SHARE,
     OUTSIDE_LINE,
     GapCover,
     Section,
     SectionRules,
+    dropout_row,
     merged_row,
     outside_row,
     stretch_pieces,
@@ -73,7 +76,7 @@ def cut_sections(
     names, rows, partial = None, None, {}
     if table is not None:
         spans, rows, partial = _table_spans(run, table)
-        names = table["name"].astype(str).tolist() if "name" in table else None
+        names = text_cells(table["name"]) if "name" in table else None
     else:
         spans = label_runs(labels)
     spans, rows = _split_at(spans, rows, _breaks(run))
@@ -224,14 +227,22 @@ def _collect(
     """Every span's pieces in order, consecutive left-out pieces (of one table row) merged
     into one row, built once per stretch: merged piece by piece, a noisy stop's thousands
     of pieces made the cut quadratic in time (27 s for an 80 s stop). ``partial``: the
-    reason of the kept sections of each table row only partly on the run."""
+    reason of the kept sections of each table row only partly on the run. A dropout before
+    a span (samples lost) is a row of its own (:func:`dropout_row`)."""
     dt = 1.0 / run.rate_hz  # once: the property takes the median of the whole run's steps
     gaps = GapCover.of(run.gaps)  # once: looked up per piece
+    lost = _dropouts(run, dt)
     out: list[Section] = []
     pending: list[Section] = []
     pending_row = None
     for (a, b), row in zip(spans, rows, strict=True):
         name = names[row] if names and row is not None else None
+        if a in lost:  # the samples lost before this span: a row of its own
+            if pending:
+                out.append(merged_row(run, pending))
+                pending = []
+            out.append(dropout_row(run, a, dt))
+            lost.discard(a)
         outside = labels is None and b > a and bool(np.isnan(geo["curvature"][a]))
         for sec in (
             [outside_row(run, a, b, dt)]
@@ -244,7 +255,7 @@ def _collect(
                 pending = []
             if alone:
                 if sec.kept and row in partial:
-                    sec.reason = partial[row]
+                    sec.reason = "; ".join(filter(None, [partial[row], sec.reason]))
                 out.append(sec)
             else:
                 pending.append(sec)
@@ -252,6 +263,13 @@ def _collect(
     if pending:
         out.append(merged_row(run, pending))
     return out
+
+
+def _dropouts(run: MeasuredRun, dt: float) -> set[int]:
+    """The run's breaks where it lost samples (a logger's dropout: a time step of more
+    than 1.5 sampling intervals), each the first sample after the loss."""
+    k = run.breaks[(run.breaks > 0) & (run.breaks < run.time.size)]
+    return set(k[np.diff(run.time)[k - 1] > 1.5 * dt].tolist())
 
 
 def _number_split_rows(out: list[Section], names: list[str]) -> None:
@@ -334,11 +352,26 @@ def _check_y_sign(run: MeasuredRun, kept: list[Section]) -> None:
 
 
 def _shown_kind(s: Section) -> str:
-    """A row's kind in the table: a left-out row's transition or mixed track as such."""
-    kinds = {p[0] for p in s.pieces}
-    if s.kept or not kinds & {"transition", "mixed"}:
+    """A left-out row's kind in the table: that of most of its track (by length: a
+    transition's, a table row's mixed track, or a kind whose pieces were too short), or
+    "mixed" where no kind holds all but :data:`MIXED_SHARE` of it. A row of a tangent and a
+    curve cut into short pieces by a noisy speed, with a transition between, was shown as
+    a "transition" (the QA of stop 68). A row of no samples: what it is ("dropout")."""
+    if s.kept or len(s.pieces) < 1:
         return s.kind
-    return "transition" if "transition" in kinds else "mixed"
+    if s.start == s.end:  # no samples: no track (a dropout_row)
+        return s.pieces[0][0]
+    metres: dict[str, float] = {}
+    for kind, label, _, length in s.pieces:
+        if kind in ("transition", "mixed"):
+            metres[kind] = metres.get(kind, 0.0) + length
+        elif kind == "short":
+            what = label.split("|")[0]
+            metres[what] = metres.get(what, 0.0) + length
+    if not {"transition", "mixed"} & set(metres):
+        return s.kind  # (a merged row's own kind is a tangent's: its pieces' is shown)
+    main = max(metres, key=metres.__getitem__)
+    return main if metres[main] >= (1.0 - MIXED_SHARE) * sum(metres.values()) else "mixed"
 
 
 def sections_table(sections: list[Section]) -> pd.DataFrame:

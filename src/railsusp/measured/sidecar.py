@@ -108,8 +108,15 @@ def sidecar_condition(
     try:
         if isinstance(cdoc, dict):
             condition = make_condition(json_numbers(cdoc))
-        elif isinstance(meta.get("condition_name"), str):
-            condition = get_condition(meta["condition_name"])
+        elif cdoc is not None:  # a list or a number: "no 'condition' table" was said
+            problems.append(
+                f"{side}: condition = {json.dumps(cdoc)}: accepted a table (a JSON object "
+                '{"name": ..., "speed_kmh": ...}) of working-condition fields, or '
+                "condition_name naming a standard condition"
+            )
+            return None
+        elif isinstance(named, str):
+            condition = get_condition(named)
         else:
             problems.append(f"{side}: no 'condition' table or 'condition_name'")
             return None

@@ -30,6 +30,13 @@ MOVING_MS = 0.5
 #: rather than flip with the channel's noise (the edges sit at common design radii)
 BAND_HYSTERESIS = 0.05
 
+#: a tangent's cant (mm) from which it is a curve's whose radius no source gives (its
+#: stretch a kind of its own, left out by :func:`railsusp.measured.pieces.stretch_pieces`),
+#: or, where the curvature is known, a wide curve's taken as tangent (kept, its cant written
+#: as 0, said): below it, a cant channel's offset. The table and sections.csv showed the
+#: measured cant, the condition had none (the QA of stop 68)
+CANT_ON_TANGENT_MM = 5.0
+
 #: the label of a transition's samples, and of those a line description does not cover
 TRANSITION, OUTSIDE = -3, -2
 
@@ -53,10 +60,11 @@ def track_geometry(
 ) -> dict[str, np.ndarray]:
     """Per sample: curvature (1/m), cant (m), grade (1), averaged over ``smoothing_m`` of
     track, and ``transition`` (True where the curvature or grade changes faster than a
-    steady condition's). The track is the line description's, else the run's channels (a
-    missing one: 0); a section table's track columns (:func:`geometry_from_table`) replace
-    the quantities they give over its rows, as stated: no average, no transition (the user
-    says the row is steady)."""
+    steady condition's), and ``curvature_known`` (False where no source gives the
+    curvature, which is then 0). The track is the line description's, else the run's
+    channels (a missing one: 0); a section table's track columns
+    (:func:`geometry_from_table`) replace the quantities they give over its rows, as
+    stated: no average, no transition (the user says the row is steady)."""
     if line is not None:
         geo = geometry_from_line(run.position, line)
     else:
@@ -98,6 +106,13 @@ def track_geometry(
         if key in change:
             change[key] &= ~inside
     out["transition"] = (change["curvature"] | change["grade"]) & moving  # a stop: none
+    # where the curvature comes from somewhere (a tangent there is one): a channel, the
+    # line description, or the table's radius over its rows; elsewhere a cant is a curve's
+    # whose radius the run does not give (:data:`CANT_ON_TANGENT_MM`)
+    known = np.full(run.time.shape, line is not None or run.curvature is not None)
+    if "curvature" in stated:
+        known |= ~np.isnan(stated["curvature"])
+    out["curvature_known"] = known
     return out
 
 
@@ -130,7 +145,8 @@ def _steady(low: np.ndarray, high: np.ndarray, middle: np.ndarray) -> np.ndarray
 
 def track_labels(geo: dict[str, np.ndarray], rules: TrackRules) -> np.ndarray:
     """Per sample, a label of one kind of track (radius band, direction of a curve, grade
-    band; :data:`TRANSITION`, :data:`OUTSIDE` a line description), each band with
+    band; :data:`TRANSITION`, :data:`OUTSIDE` a line description; a tangent with cant of
+    :data:`CANT_ON_TANGENT_MM` or more where no source gives the curvature), each band with
     hysteresis (:func:`_steady`): noise on a steady curve or grade near a band's edge does
     not cut it into pieces too short to keep."""
     curv = geo["curvature"]
@@ -153,6 +169,11 @@ def track_labels(geo: dict[str, np.ndarray], rules: TrackRules) -> np.ndarray:
         TRANSITION,
         band * 4 + np.where((band >= 0) & (curv < 0), 1, 0) + 1000 * grade_band,
     )
+    if "curvature_known" in geo:  # a canted stretch without curvature: a kind of its own
+        c = np.abs(np.nan_to_num(geo["cant"])) * 1e3 / CANT_ON_TANGENT_MM
+        canted = _steady(*((c >= 1.0 + x).astype(np.int64) for x in (h, -h, 0.0))) == 1
+        canted &= ~geo["curvature_known"] & (band == -1)
+        label = np.where(canted, label + 3, label)  # (tangent -4 + 3: no other label's)
     return np.where(band == OUTSIDE, OUTSIDE, label)  # NaN outside the line: one label
 
 
