@@ -41,7 +41,7 @@ def test_track_writes_plot(tmp_path):
         (["params", "--set", "X99=1"], "unknown parameter 'X99'"),
         (["params", "--set", "X13=30"], "outside the accepted range [7, 21] MN/m"),
         (["conditions", "bogus"], "unknown condition 'bogus'"),
-        (["track", "--class", "9"], "irregularity_class = 9"),
+        (["track", "--class", "9"], "--class 9: accepted range [1, 6]"),
         (["track", "--length", "-1"], "--length"),
     ],
 )
@@ -501,4 +501,5 @@ def test_campaign_duration_keeps_the_sampling_interval(tmp_path):
     (cond,) = json.loads((run / "campaign.json").read_text())["config"]["conditions"]
     assert cond["duration_s"] == 2.0 and cond["n_steps"] == 100
     bad = runner.invoke(app, [*base, "--duration", "700", "--out", str(tmp_path / "x")])
-    assert bad.exit_code == 2 and "duration_s" in bad.output and "600" in bad.output
+    # named as the option typed, not as the condition's field (duration_s)
+    assert bad.exit_code == 2 and "--duration 700" in bad.output and "600" in bad.output

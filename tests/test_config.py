@@ -69,6 +69,30 @@ def _write(tmp_path, text: str):
         (BASE.replace("samples = 10", "parameters = ['X1']"), "X1 is fixed"),
         (BASE.replace("samples = 10", "parameters = ['X13', 'X13']"), "X13 is given twice"),
         (BASE + "[sensitivity]\nstatistics = ['median']\n", "'median' unknown"),
+        (  # only X11..X20 are sampled: "accepted: X1..X20" named the fixed ones too
+            BASE.replace("samples = 10", "parameters = ['X13', 'X99']"),
+            "campaign.parameters: unknown parameter 'X99'; accepted the sampled ones, "
+            "X11..X20, or their names",
+        ),
+        # an empty path was the working folder ("wagon file . is a folder")
+        (
+            'wagon = ""\n' + BASE,
+            "c.toml: wagon: empty: give a wagon data TOML or a packaged name (loaded, tare), "
+            "or leave the key out",
+        ),
+        (
+            BASE.replace("truth = { X13 = 16.1 }", 'measured = ""'),
+            "c.toml: field.measured: empty: give a path, or leave the key out",
+        ),
+        (
+            BASE.replace("truth = { X13 = 16.1 }", 'recording = " "'),
+            "c.toml: field.recording: empty: give a path, or leave the key out",
+        ),
+        (
+            BASE + '[surrogate]\npretrained = ""\n',
+            "c.toml: surrogate.pretrained: empty: give a shipped network set's name or a "
+            "folder with networks.json, or leave the key out",
+        ),
     ],
 )
 def test_bad_configurations_fail_at_load_time_naming_the_field(tmp_path, text, needle):
@@ -97,3 +121,32 @@ def test_good_configurations_load(tmp_path):
     assert cfg.field.truth == {"X13": 16.1}
     both = BASE + "with_track = true\n[estimate]\nrefine = true\n"
     assert load_config(_write(tmp_path, both)).estimate.refine
+
+
+def test_an_empty_path_in_a_dict_configuration_is_refused_too(tmp_path):
+    """railsusp.run's dicts go through the same models."""
+    import railsusp
+
+    with pytest.raises(RailsuspInputError, match="configuration: wagon: empty: give a wagon"):
+        railsusp.run({"wagon": ""}, out=tmp_path / "run")
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_cuda_refusal_names_the_configuration_file(tmp_path):
+    """It began "configuration:" where every other check names the TOML file."""
+    import torch
+
+    if torch.cuda.is_available():
+        pytest.skip("this machine has a CUDA device")
+    cfg = _write(tmp_path, BASE + '[surrogate]\ndevice = "cuda"\n')
+    out = tmp_path / "run"
+    result = CliRunner().invoke(app, ["run", str(cfg), "--out", str(out)])
+    assert result.exit_code == 2
+    assert f'error: {cfg}: surrogate.device = "cuda": no CUDA device' in " ".join(
+        result.output.split()
+    )
+    import railsusp
+
+    with pytest.raises(ConfigError, match=f'^{cfg}: surrogate.device = "cuda"'):
+        railsusp.run(cfg, out=out)
+    assert not out.exists()

@@ -105,6 +105,24 @@ def test_parse_overrides_cli_style():
         parse_overrides("Y1=2")
 
 
+@pytest.mark.parametrize("raw", ["1_6", "\uff10", "\u22125", "\u0661\u0666", "nan", "inf", "1e"])
+def test_parse_overrides_takes_plain_ascii_decimals_only(raw):
+    """Python's float() read ``X13=1_6`` as 16 and a full-width zero as 0, while a Unicode
+    minus was refused: an override is now a plain ASCII decimal number or refused in one
+    line naming the override and the accepted form."""
+    with pytest.raises(ParameterError) as info:
+        parse_overrides(f"X13={raw}")
+    text = str(info.value)
+    assert f"override 'X13={raw}': '{raw}' is not a number" in text
+    assert "accepted a plain decimal number: digits, an optional sign, point and exponent" in text
+    assert "[7, 21] MN/m" in text and "\n" not in text
+
+
+def test_parse_overrides_keeps_every_plain_decimal_form():
+    got = parse_overrides("X13=16.1,X14=+8,X15=.5e3,X16= 1.,X17=1.9E0")
+    assert got == {"X13": 16.1, "X14": 8.0, "X15": 500.0, "X16": 1.0, "X17": 1.9}
+
+
 def test_toml_by_symbol_and_by_name(tmp_path):
     f = tmp_path / "wagon.toml"
     f.write_text("[parameters]\nX13 = 16.1\nprimary_lateral_stiffness = 8.3\n")

@@ -684,7 +684,9 @@ def test_a_run_directory_of_a_newer_railsusp_is_refused_not_run_again(tiny, tmp_
         (  # the audit's: made by railsusp 9.0.0, before pipeline.json stated a format
             {**{k: v for k, v in state.items() if k != "format"}, "made_by": "9.0.0"},
             {**meta, "model_revision": "2099-01-01.1"},
-            "simulated with force-law revision 2099-01-01.1, newer than this railsusp's",
+            # (it read "its campaign campaign was simulated with ...")
+            "the campaign in its campaign/ was simulated with force-law revision "
+            "2099-01-01.1, newer than this railsusp's",
         ),
     ]
     for doc, campaign, said in cases:
@@ -725,3 +727,31 @@ def test_an_up_to_date_run_hashes_only_the_files_whose_time_moved(tiny, tmp_path
     run_pipeline(cfg, copy, progress=lambda s, m: seen.append((s, m)))
     assert path in hashed and len(set(hashed)) == 1  # the edited file alone
     assert [s for s, m in seen if m == "running"] == ["estimate", "validate", "report"], seen
+
+
+def test_a_swallowed_ctrl_c_stops_the_run_at_the_next_stage(tiny, tmp_path):
+    """A Ctrl-C raised inside a garbage-collector callback is printed by Python ("Exception
+    ignored in: ... KeyboardInterrupt") and lost: the run went on to its end. The command
+    line's handler records each Ctrl-C (railsusp.interrupts), and the pipeline stops at the
+    next stage boundary where one was recorded, the stages before it kept."""
+    from railsusp.interrupts import catch_interrupts, record_interrupt
+
+    cfg, _, copy = _up_to_date_copy(tiny, tmp_path)
+    seen = []
+
+    def swallowed(stage: str, message: str) -> None:
+        seen.append(stage)
+        if stage == "campaign":
+            record_interrupt()  # as the handler does, its KeyboardInterrupt then lost
+
+    restore = catch_interrupts()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_pipeline(cfg, copy, progress=swallowed)
+    finally:
+        restore()
+    assert seen == ["campaign"]
+    state = json.loads((copy / "pipeline.json").read_text())
+    assert {e["state"] for e in state["stages"].values()} == {"done"}  # nothing half-made
+    run_pipeline(cfg, copy, progress=lambda s, m: seen.append(m))  # forgotten after
+    assert seen[1:] == ["up to date"] * len(STAGES)

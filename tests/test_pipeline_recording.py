@@ -359,3 +359,19 @@ def test_the_tutorial_shows_the_shipped_configuration():
     assert len(blocks) == 1
     shipped = (resources.files("railsusp") / "data" / CONFIG).read_text("utf-8")
     assert tomllib.loads(blocks[0]) == tomllib.loads(shipped)
+
+
+def test_a_damaged_recording_is_named_as_field_recording_not_conditions(example, tmp_path):
+    """With a long run the conditions are its cut, so reading the recording is what fails:
+    the error began "conditions: ...", sending the user to a key they had not written."""
+    (tmp_path / "g.mf4").write_bytes(b"garbage")
+    text = (example / CONFIG).read_text().replace('recording = "example_run.mf4"', "")
+    text = text.replace("example_run.", str(example) + "/example_run.")
+    text = text.replace("[field]\n", '[field]\nrecording = "g.mf4"\n')
+    p = tmp_path / "c.toml"
+    p.write_text(text)
+    with pytest.raises(ConfigError) as info:
+        load_config(p)
+    said = str(info.value)
+    assert said.startswith(f"{p}: field.recording: {tmp_path / 'g.mf4'}: "), said
+    assert "not a readable MDF file" in said and ": conditions: " not in said

@@ -86,12 +86,13 @@ def run(
     dict of the same sections; ``out``: the run directory (default ``runs/<TOML stem>``).
     """
     from railsusp.pipeline import run_pipeline
-    from railsusp.pipeline_config import PipelineConfig, load_config
+    from railsusp.pipeline_config import PipelineConfig, config_path, load_config
 
     if out is not None and not isinstance(out, str | os.PathLike):
         raise RailsuspInputError(f"out = {out!r}: a folder path (str or Path) is needed")
     if progress is not None and not callable(progress):
         raise RailsuspInputError(f"progress = {progress!r}: a function (stage, message) or None")
+    source = "configuration"
     if isinstance(config, PipelineConfig):
         cfg = _rechecked(config)
     elif isinstance(config, Mapping):  # the sections of a TOML file: checked as strictly
@@ -116,6 +117,7 @@ def run(
         check_config(cfg, "configuration")
     elif isinstance(config, str | Path):
         cfg = load_config(config)
+        source = str(config_path(config))  # its errors name the file, as load_config's do
         out = out if out is not None else Path("runs") / Path(config).stem
     else:
         raise RailsuspInputError(
@@ -130,5 +132,6 @@ def run(
         progress=progress,
         options=("out", "start_from"),
         checked=cfg is not config,  # a file or a dict: load_config or the lines above checked it
+        source=source,
     )
     return open_run(out)

@@ -205,7 +205,10 @@ def _conditions(cfg: Any, bad: Any) -> list:
     try:
         conds = cfg.working_conditions()
     except RailsuspInputError as exc:
-        raise bad(f"conditions: {exc}") from None
+        # with a long run the conditions are its cut: what failed is reading field.recording
+        # (or the channel map, line or sections it is cut with, which the error names)
+        key = "conditions" if cfg.field.recording is None else "field.recording"
+        raise bad(f"{key}: {exc}") from None
     if not conds:
         raise bad("conditions: at least one condition is needed")
     names = [c.name for c in conds]
@@ -254,8 +257,11 @@ def _check_parameters(cfg: Any, bad: Any) -> None:
     for p in cfg.campaign.parameters:
         try:
             s = spec(p)
-        except RailsuspInputError as exc:
-            raise bad(f"campaign.parameters: {exc}") from None
+        except RailsuspInputError:  # spec's own accepts X1..X20; only X11..X20 are sampled
+            raise bad(
+                f"campaign.parameters: unknown parameter {p!r}; accepted the sampled ones, "
+                "X11..X20, or their names (e.g. X13 or primary_longitudinal_stiffness)"
+            ) from None
         if not s.is_sampled:
             raise bad(f"campaign.parameters: {s.symbol} is fixed; sampled ones are X11..X20")
         if s.symbol in sampled:

@@ -42,6 +42,15 @@ class StrictConfigModel(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
+def not_empty(value: str | None, what: str = "a path") -> str | None:
+    """A key naming a file, folder or network set given as an empty string (``wagon =
+    ""``): refused, where it was read as the working folder (``measured = ""``) or failed
+    far from the key ("wagon file . is a folder")."""
+    if isinstance(value, str) and not value.strip():
+        raise ValueError(f"empty: give {what}, or leave the key out")
+    return value
+
+
 class CampaignSection(StrictConfigModel):
     #: at least the sensitivity metamodel's sensitivity_metamodel.MIN_METAMODEL_RUNS (5): 4 were
     #: accepted, and the sensitivity stage then failed on every run
@@ -109,6 +118,11 @@ class SurrogateSection(StrictConfigModel):
         "training settings above are then not used",
     )
 
+    @field_validator("pretrained")
+    @classmethod
+    def _pretrained(cls, v: str | None) -> str | None:
+        return not_empty(v, "a shipped network set's name or a folder with networks.json")
+
     @field_validator("samples")
     @classmethod
     def _samples(cls, v: int) -> int:
@@ -155,6 +169,11 @@ class FieldSection(StrictConfigModel):
         False, description="synthetic recordings also carry their measured track geometry"
     )
     track_noise_mm: float = Field(0.0, ge=0.0, le=10.0, description="RMS error of that track")
+
+    @field_validator("measured", "recording", "channel_map", "line", "sections")
+    @classmethod
+    def _paths(cls, v: str | None) -> str | None:
+        return not_empty(v)
 
 
 class EstimateSection(StrictConfigModel):

@@ -22,6 +22,7 @@ from pathlib import Path
 
 from railsusp.errors import RailsuspInputError
 from railsusp.integrity import file_hashes, file_mtimes, file_sizes
+from railsusp.interrupts import stop_if_interrupted
 
 # the configuration's public names, imported from here by users, tests, benches and docs
 from railsusp.pipeline_config import PipelineConfig as PipelineConfig  # re-export
@@ -68,6 +69,7 @@ def run_pipeline(
     options: tuple[str, str] = ("--out", "--from"),
     checked: bool = False,
     finished: Callable[[dict], None] | None = None,
+    source: str = "configuration",
 ) -> dict:
     """Run the stages in order, skipping the up-to-date ones; returns ``pipeline.json``.
 
@@ -80,7 +82,9 @@ def run_pipeline(
     measured folder's recordings are read in full by that check. ``finished(state)`` is
     called once the stages are done, before the run directory's lock is let go: what it
     reads there is this run's (``railsusp run``'s summary, read after, could print a second
-    run's tables beside this one's).
+    run's tables beside this one's). ``source`` names the configuration in its errors: the
+    TOML file it was read from, as :func:`~railsusp.pipeline_config.load_config`'s checks
+    name it.
     """
     from railsusp.config import check_config, check_cuda
     from railsusp.input_checks import check_output_folder
@@ -91,10 +95,10 @@ def run_pipeline(
         raise RailsuspInputError(f"{from_option} {start_from!r}: accepted {', '.join(STAGES)}")
     state = run_state(out, out_option)
     if not checked:
-        check_config(config)  # every combination, before any stage runs
+        check_config(config, source)  # every combination, before any stage runs
     # the campaign's stored batch size, hashed as such (decided again under the lock)
     kept = _surrogate_kept(in_stored_batches(config, out, say=False), state, start_from)
-    check_cuda(config, "configuration", surrogate_done=kept)
+    check_cuda(config, source, surrogate_done=kept)
     out.mkdir(parents=True, exist_ok=True)
     with run_lock(out, out_option):  # one run at a time in a folder
         # read again under the lock: another run may have ended meanwhile
@@ -201,6 +205,9 @@ def _run_stages(
     ran = False
     ran_stages: set[str] = set()  # those run now: the stages reading them run again
     for stage in STAGES:
+        # a Ctrl-C swallowed meanwhile (raised inside a garbage-collector callback, Python
+        # prints it and goes on) stops the run here, its finished stages recorded
+        stop_if_interrupted()
         h = hashes[stage]
         prev = state["stages"].get(stage, {})
         up_to_date = (

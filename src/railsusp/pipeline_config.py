@@ -27,6 +27,7 @@ from railsusp.config_sections import (
     SensitivitySection,
     StrictConfigModel,
     SurrogateSection,
+    not_empty,
 )
 from railsusp.errors import ConditionError, RailsuspInputError
 
@@ -56,8 +57,12 @@ class PipelineConfig(StrictConfigModel):
     @field_validator("wagon", mode="before")
     @classmethod
     def _wagon_path(cls, v: Any) -> Any:
-        """A ``Path`` stands for the file's string (as in ``railsusp.run``'s dicts)."""
-        return os.fspath(v) if isinstance(v, os.PathLike) else v
+        """A ``Path`` stands for the file's string (as in ``railsusp.run``'s dicts); an empty
+        string is refused (it was read as the working folder)."""
+        return not_empty(
+            os.fspath(v) if isinstance(v, os.PathLike) else v,
+            "a wagon data TOML or a packaged name (loaded, tare)",
+        )
 
     @field_validator("conditions", mode="before")
     @classmethod

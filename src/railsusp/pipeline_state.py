@@ -7,13 +7,16 @@ folder, so that the API (:func:`railsusp.api.open_run`) can read a run without r
 
 from __future__ import annotations
 
+import json
 import logging
-from pathlib import Path
+import math
+from collections.abc import Callable
+from pathlib import Path, PurePosixPath, PureWindowsPath
 
 from railsusp._version import __version__
 from railsusp.errors import RailsuspInputError, first_listed
 from railsusp.integrity import changed_files, files_under, unreadable_files
-from railsusp.numbers import is_whole
+from railsusp.numbers import is_real, is_whole
 from railsusp.pipeline_config import PipelineConfig
 from railsusp.stages import STAGES
 from railsusp.store import read_json
@@ -81,13 +84,7 @@ def run_state(out: Path, option: str) -> dict:
         damaged="; delete it to resume: a run directory without pipeline.json resumes from "
         "its stages' outputs",
     )
-    made = state.get("format", 0)
-    if not is_whole(made) or made < 0:
-        raise RailsuspInputError(
-            f"{option} {out}: its pipeline.json format = {made!r}: accepted a whole number "
-            f"0-{PIPELINE_FORMAT} (the file is damaged); delete it to resume: a run directory "
-            "without pipeline.json resumes from its stages' outputs"
-        )
+    made = state.get("format", 0)  # a whole number from 0: read_run_state checked it
     if made > PIPELINE_FORMAT:
         raise RailsuspInputError(
             f"{option} {out}: its pipeline.json is of format {made!r}, written by a newer "
@@ -117,7 +114,7 @@ def _refuse_newer_campaigns(out: Path, option: str) -> None:
             continue
         if revision_newer(revision):
             raise RailsuspInputError(
-                f"{option} {out}: its campaign {meta_path.parent.name} was simulated with "
+                f"{option} {out}: the campaign in its {entry}/ was simulated with "
                 f"{made_with(revision)} (a newer railsusp's run, which this one would "
                 f"discard); run it with that railsusp, or give a new {option}"
             )
@@ -138,7 +135,90 @@ def read_run_state(out: Path, where: str, hint: str = "", damaged: str = "") -> 
         raise RailsuspInputError(
             f"{where}: its pipeline.json is not a railsusp run's (no stages table){hint}"
         )
+    check_run_state(state, where, damaged)
     return state
+
+
+#: the keys of a stage's record in ``pipeline.json`` that the pipeline and
+#: :class:`~railsusp.run_result.RunResult` read, with what each must be
+_ENTRY_TEXT = ("state", "hash", "error", "finished", "model_revision", "method_revision")
+_ENTRY_TABLES = ("info", "made_by")
+#: the stage record's tables of its files (relative path -> size, SHA-256, time in ns)
+_FILE_TABLES = {
+    "files": "a whole number of bytes",
+    "sha256": "a hash",
+    "mtime_ns": "a whole number of ns",
+}
+_TOP_TABLES = ("config", "provenance", "tolerances", "wagon_data")
+
+
+def check_run_state(state: dict, where: str, remedy: str = "") -> None:
+    """``pipeline.json``'s structure, as the pipeline and :class:`~railsusp.run_result.
+    RunResult` read it, checked in one place: its ``format`` a whole number, ``config`` and
+    the other records tables, each stage's record a table of text, numbers and tables of
+    files whose paths lie inside the run directory. A damaged one (edited by hand, written
+    by another tool) failed deep in a stage or the summary with an AttributeError or a
+    ValueError, or had a file outside the run folder checked as the run's; now it is one
+    line naming ``where`` and the key, ``remedy`` appended. Keys it does not know are left
+    alone."""
+
+    def damaged(key: str, value: object, needed: str, told: str = " =") -> RailsuspInputError:
+        return RailsuspInputError(
+            f"{where}: its pipeline.json is damaged: {key}{told} {value!r:.80}: {needed} is "
+            f"needed{remedy}"
+        )
+
+    made = state.get("format", 0)
+    if not is_whole(made) or made < 0:
+        raise damaged("format", made, "a whole number (0 or more)")
+    for key in _TOP_TABLES:
+        if key in state and not isinstance(state[key], dict):
+            raise damaged(key, state[key], "a table")
+    load = state.get("static_wheel_load_N")
+    if load is not None and not (is_real(load) and math.isfinite(load) and load > 0):
+        raise damaged("static_wheel_load_N", load, "a positive number of newtons")
+    surrogate = state.get("config", {}).get("surrogate", {})
+    if not isinstance(surrogate, dict):
+        raise damaged("config.surrogate", surrogate, "a table")
+    for name, entry in state["stages"].items():
+        _check_stage_entry(f"stages.{name}", entry, damaged)
+
+
+def _check_stage_entry(at: str, entry: object, damaged: Callable) -> None:
+    """One stage's record in ``pipeline.json`` (:func:`check_run_state`), ``at`` its key
+    path; ``damaged(key, value, needed)`` makes the error."""
+    if not isinstance(entry, dict):
+        raise damaged(at, entry, "a table of the stage's state")
+    for key in _ENTRY_TEXT:
+        if key in entry and not isinstance(entry[key], str):
+            raise damaged(f"{at}.{key}", entry[key], "text")
+    for key in _ENTRY_TABLES:
+        if key in entry and not isinstance(entry[key], dict):
+            raise damaged(f"{at}.{key}", entry[key], "a table")
+    seconds = entry.get("seconds", 0.0)
+    if not (is_real(seconds) and math.isfinite(seconds) and seconds >= 0):
+        raise damaged(f"{at}.seconds", seconds, "a number of seconds (0 or more)")
+    for key, what in _FILE_TABLES.items():
+        table = entry.get(key, {})
+        if not isinstance(table, dict):
+            raise damaged(f"{at}.{key}", table, "a table of the stage's files")
+        for rel, value in table.items():
+            if not _inside(rel):
+                raise damaged(
+                    f"{at}.{key}", rel, "a path inside the run directory", " names the file"
+                )
+            good = isinstance(value, str) if key == "sha256" else is_whole(value) and value >= 0
+            if not good:
+                raise damaged(f"{at}.{key}.{json.dumps(rel)}", value, what)
+
+
+def _inside(rel: object) -> bool:
+    """A file's path as a stage records it: relative to the run directory, and in it (an
+    absolute path, or one climbing out with ``..``, named a file of elsewhere)."""
+    if not isinstance(rel, str) or not rel.strip():
+        return False
+    path = PurePosixPath(rel.replace("\\", "/"))
+    return not (path.is_absolute() or PureWindowsPath(rel).drive or ".." in path.parts)
 
 
 _OUTPUTS = {

@@ -15,6 +15,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy.signal import welch
 
+from railsusp.errors import RailsuspInputError
 from railsusp.store import atomic_write_figure
 from railsusp.vehicle.track import COMPONENTS, Irregularities, fra_psd
 
@@ -43,7 +44,13 @@ def welch_psd(x: np.ndarray, dx: float, segment_m: float = 400.0) -> tuple[np.nd
 
 def plot_track_irregularities(irr: Irregularities, path: str | Path, seed_index: int = 0):
     """Irregularity traces (mm vs distance) and their Welch PSD against the FRA spectrum of
-    their class (none drawn for a measured geometry file without a class)."""
+    their class (none drawn for a measured geometry file without a class). A track of fewer
+    than two samples has no grid step, trace or PSD: refused in one line."""
+    if irr.s.size < 2:  # was an IndexError (`railsusp track --length 0.1 --plot`)
+        raise RailsuspInputError(
+            f"track of {irr.s.size} sample(s), {irr.s[-1] - irr.s[0] if irr.s.size else 0:g} m: "
+            "accepted at least two to plot (a section of at least its shortest wavelength)"
+        )
     fig, axes = plt.subplots(len(COMPONENTS), 2, figsize=(12, 10), constrained_layout=True)
     dx = float(irr.s[1] - irr.s[0])
     omega_a = np.geomspace(2 * np.pi / irr.wavelength_max, 2 * np.pi / irr.wavelength_min, 200)

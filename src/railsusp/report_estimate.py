@@ -26,7 +26,7 @@ def validation_section(doc: Doc, val: Path) -> None:
     )
     table = pd.read_csv(val / "validation.csv")
     table["statistic"] = [
-        _statistic_label(str(st), str(force))
+        statistic_label(str(st), str(force))
         for st, force in zip(table["statistic"], table["force"], strict=True)
     ]
     doc.table(fraction_errors_to_pct(table))
@@ -51,7 +51,7 @@ def validation_section(doc: Doc, val: Path) -> None:
         doc.table(pd.read_csv(val / "recovery.csv"))
 
 
-def _statistic_label(statistic: str, force: str) -> str:
+def statistic_label(statistic: str, force: str) -> str:
     """A validation row's statistic as the report shows it: what its kN columns hold."""
     if statistic == "aligned":
         return "aligned (kN: measured s.d.; simulated: RMS difference)"

@@ -92,15 +92,10 @@ class RunResult:
             )
 
     def _stage_entries(self) -> dict[str, dict]:
-        """pipeline.json's table of stages, each entry checked to be a table."""
-        stages = read_run_state(self.path, str(self.path))["stages"]
-        for name, entry in stages.items():
-            if not isinstance(entry, dict):
-                raise RailsuspInputError(
-                    f"{self.path}: pipeline.json stages.{name} = {entry!r}: a table of the "
-                    "stage's state is needed (the file is damaged)"
-                )
-        return stages
+        """pipeline.json's table of stages, its structure checked
+        (:func:`~railsusp.pipeline_state.check_run_state`: each entry a table, its files'
+        tables of paths inside the run directory)."""
+        return read_run_state(self.path, str(self.path))["stages"]
 
     @property
     def estimate(self) -> pd.DataFrame:
@@ -113,10 +108,23 @@ class RunResult:
     @property
     def validation(self) -> pd.DataFrame:
         """Force statistics before (nominal) and after (estimate) calibration per condition,
-        force and statistic, kN; errors in % of the measured value (``*_error_pct``)."""
+        force and statistic, kN; errors in % of the measured value (``*_error_pct``).
+        ``statistic_label`` says what the ``*_kN`` columns of each row hold, as the report
+        labels them: the statistic of ``|Y|`` or of ``Q``, or for ``aligned`` rows the
+        measured series' standard deviation (``measured_kN``) and the RMS of each
+        simulation's sample-by-sample difference from it (the others), their errors that
+        RMS over the standard deviation."""
+        from railsusp.report_estimate import statistic_label
+
         df = read_csv(self._need("estimate/validation/validation.csv", "validate"))
         for c in [c for c in df.columns if c.endswith("_error")]:
             df[f"{c}_pct"] = 100.0 * df.pop(c)
+        if {"statistic", "force"} <= set(df.columns):
+            labels = [
+                statistic_label(str(st), str(f))
+                for st, f in zip(df.statistic, df.force, strict=True)
+            ]
+            df.insert(df.columns.get_loc("statistic") + 1, "statistic_label", labels)
         return df
 
     @property
@@ -128,8 +136,11 @@ class RunResult:
     @property
     def recovery(self) -> pd.DataFrame | None:
         """For synthetic recordings (a hidden truth in ``field/truth.json``), the error of
-        each estimate against it; None for measured ones."""
+        each estimate against it; None for measured ones. Before the field stage is done
+        it is not known which they are: refused as the other tables are (a synthetic run
+        stopped in its sensitivity stage answered None, "measured recordings")."""
         if not (self.path / "field" / "truth.json").exists():
+            self._need("field/index.json", "field")  # done, its files (no truth) unchanged
             return None
         return read_csv(self._need("estimate/validation/recovery.csv", "validate"))
 
@@ -237,8 +248,9 @@ class RunResult:
         return p
 
     def _config(self) -> dict:
+        """The configuration pipeline.json recorded (checked to be a table); {} without one."""
         p = self.path / "pipeline.json"
-        return read_json(p).get("config", {}) if p.exists() else {}
+        return read_run_state(self.path, str(self.path)).get("config", {}) if p.exists() else {}
 
     def plot_estimate(self, ax=None):
         """Change from nominal (%) of each estimated element with its interval, against the

@@ -62,6 +62,11 @@ def _side_frame_x(result, i: int) -> tuple[np.ndarray, np.ndarray]:
     return e.reshape(2, 2).sum(axis=1), warp
 
 
+def _mark(result, i: int) -> str:
+    """The mark a real root's name ends in (docs/model.md, modal analysis)."""
+    return ", overdamped" if result.overdamped[i] else ""
+
+
 def test_bogie_warp_modes_name_both_bogies_and_their_phase(stuck):
     """Four warp modes of the loaded wagon (two pairs, 24.7 and 92.7 Hz) carry 29-36 % of
     their energy in each bogie's side frames; all four were named "bogie 2 warp". Each pair
@@ -73,12 +78,13 @@ def test_bogie_warp_modes_name_both_bogies_and_their_phase(stuck):
         per_bogie, warp = _side_frame_x(stuck, i)
         assert per_bogie.min() > 0.2, (stuck.names[i], per_bogie)
         phase = "in phase" if (warp[0] * np.conj(warp[1])).real > 0 else "anti-phase"
-        assert stuck.names[i] == f"bogie warp (bogies {phase})", (stuck.names[i], warp)
+        want = f"bogie warp (bogies {phase}){_mark(stuck, i)}"
+        assert stuck.names[i] == want, (stuck.names[i], warp)
     pairs = sorted(warps, key=lambda i: stuck.frequency_hz[i])
     for a, b in (pairs[:2], pairs[2:]):
         assert {stuck.names[a], stuck.names[b]} == {
-            "bogie warp (bogies in phase)",
-            "bogie warp (bogies anti-phase)",
+            f"bogie warp (bogies in phase){_mark(stuck, a)}",
+            f"bogie warp (bogies anti-phase){_mark(stuck, a)}",
         }
 
 
@@ -92,7 +98,8 @@ def test_one_bogies_longitudinal_modes_name_that_bogie(stuck):
         share = per_bogie / per_bogie.sum()
         if share.max() > 0.8:
             which = "front bogie" if share[0] > 0.8 else "rear bogie"
-            assert stuck.names[i] == f"side frames longitudinal ({which})", share
+            want = f"side frames longitudinal ({which}){_mark(stuck, i)}"
+            assert stuck.names[i].removesuffix(", second") == want, share
 
 
 def test_the_decay_table_under_a_sliding_table_says_it_is_against_the_stuck_one(monkeypatch):
@@ -125,3 +132,66 @@ def test_the_decay_table_under_a_sliding_table_says_it_is_against_the_stuck_one(
     assert stuck_run.exit_code == 0, stuck_run.output
     assert calls[1]["modal"] is not None and calls[1]["modal"].friction == "stuck"
     assert "not the sliding table's above" not in " ".join(stuck_run.output.split())
+
+
+def _plates(result, i: int) -> tuple[complex, complex]:
+    """The car body's lateral motion at its front and rear centre plates in mode i (read
+    from the shape here, apart from the naming code)."""
+    from railsusp.vehicle.operating_point import linearisation_point
+
+    K = linearisation_point().K
+    q = result.shapes[i]
+    base = q[L.CB_Y] - (K[L.K["h_cp"]] - K[L.K["h_cg_c"]]) * q[L.CB_ROLL]
+    arm = K[L.K["l_c"]] * q[L.CB_YAW]
+    return base + arm, base - arm
+
+
+def test_every_mode_of_a_table_has_a_name_of_its_own(stuck):
+    """QA: in the loaded wagon's stuck table two rows, 1.67 Hz ζ 0.31 and 1.70 Hz
+    ζ 0.50, were both "car body kinematic (hunting-like) lateral". Both are mostly lateral;
+    what tells them apart is which end's centre plate leads: the front in the first, the
+    rear in the second (the phases read from the shapes here). Every moving mode's name is
+    now its own."""
+    body = [i for i, n in enumerate(stuck.names) if n.startswith("car body kinematic")]
+    assert len(body) == 2, [stuck.names[i] for i in body]
+    for i in body:
+        front, rear = _plates(stuck, i)
+        lead = "front" if np.angle(front * np.conj(rear)) > 0 else "rear"
+        assert stuck.names[i] == f"car body kinematic (hunting-like) lateral ({lead} end leading)"
+    assert {stuck.names[i] for i in body} == {
+        "car body kinematic (hunting-like) lateral (front end leading)",
+        "car body kinematic (hunting-like) lateral (rear end leading)",
+    }
+    moving = [n for n in stuck.names if n != NO_MOTION_NAME]
+    assert len(set(moving)) == len(moving)
+
+
+def test_an_overdamped_root_is_named_so_and_not_hunting_like():
+    """QA: `modes --wagon tare --fmax 12` named an oscillating 5.01 Hz mode and a
+    22.2 ms real root both "wheelset kinematic (hunting-like) lateral-yaw (bogies in
+    phase)". A real root does not oscillate: its name ends in ", overdamped" and does not
+    say hunting-like; the oscillating modes' names say neither."""
+    from railsusp.vehicle.wagon import load_wagon
+
+    tare = modal_analysis(wagon=load_wagon("tare"))
+    for i, name in enumerate(tare.names):
+        if name == NO_MOTION_NAME:
+            continue
+        assert ("overdamped" in name) == bool(tare.overdamped[i]), name
+        assert not (tare.overdamped[i] and "hunting-like" in name), name
+    oscillating = tare.find("wheelset kinematic (hunting-like) lateral-yaw (bogies in phase)")
+    assert tare.frequency_hz[oscillating] == pytest.approx(5.01, abs=0.01)
+    assert "wheelset kinematic lateral-yaw (bogies in phase), overdamped" in tare.names
+    moving = [n for n in tare.names if n != NO_MOTION_NAME]
+    assert len(set(moving)) == len(moving)
+
+
+def test_an_empty_modes_table_says_which_mode_is_the_lowest():
+    """QA: `modes --fmax 0.5` printed an empty table and nothing else; now a line
+    says that no mode lies at or below 0.5 Hz and which is the lowest (1.67 Hz)."""
+    result = CliRunner().invoke(app, ["modes", "--fmax", "0.5"], terminal_width=240)
+    assert result.exit_code == 0, result.output
+    text = " ".join(result.output.split())
+    assert "no mode at or below 0.5 Hz (--fmax): the lowest is car body kinematic" in text
+    assert "(front end leading), 1.67 Hz" in text
+    assert "┏" not in result.output  # no empty table

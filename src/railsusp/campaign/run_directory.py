@@ -20,6 +20,7 @@ from railsusp.campaign.batch_files import (
     foreign_batches,
     stamped_batch_size,
 )
+from railsusp.campaign.config_changes import config_changes
 from railsusp.campaign.design import (
     CHANNELS,
     CampaignConfig,
@@ -160,10 +161,12 @@ def prepare_run_directory(config: CampaignConfig, out: Path, force: bool) -> pd.
                 )
             if meta.get("config_hash") != config.hash() or revision != this_revision() or edited:
                 if not force:
+                    changes = config_changes(meta.get("config"), config)
                     raise CampaignError(
-                        f"{out} holds a campaign with another configuration (hash "
-                        f"{meta.get('config_hash')}, now {config.hash()}); use a new --out, "
-                        f"or --force to discard the old results"
+                        f"{out} holds a campaign with another configuration ("
+                        + (f"{changes}; " if changes else "")
+                        + f"hash {meta.get('config_hash')}, now {config.hash()}); use a new "
+                        "--out, or --force to discard the old results"
                     )
                 _discard(out)
             elif parquet_readable(out / "design.parquet", pages=True):

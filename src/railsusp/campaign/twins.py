@@ -18,6 +18,7 @@ import numpy as np
 
 from railsusp.campaign.batch_files import write_batch
 from railsusp.campaign.batch_simulation import simulate_task
+from railsusp.campaign.config_changes import config_changes
 from railsusp.campaign.design import CampaignConfig, CampaignError, batch_paths, track_seeds
 from railsusp.campaign.results import load_campaign
 from railsusp.params import ParameterSet
@@ -81,13 +82,24 @@ def run_nominal_twins(
     check_twins_possible(cfg, run)
     out = nominal_folder(run)
     stamp = _stamp(run)
-    if stamp.exists() and read_json(stamp).get("config_hash") != cfg.hash():
+    held = read_json(stamp) if stamp.exists() else {}
+    if stamp.exists() and held.get("config_hash") != cfg.hash():
+        # (a stamp written before it held the configuration names no difference)
+        changes = config_changes(held.get("config"), cfg)
         raise CampaignError(
-            f"{out} holds the nominal twins of another configuration (hash "
-            f"{read_json(stamp).get('config_hash')}, the campaign's {cfg.hash()}); delete that "
+            f"{out} holds the nominal twins of another configuration ("
+            + (f"{changes}; " if changes else "")
+            + f"hash {held.get('config_hash')}, the campaign's {cfg.hash()}); delete that "
             "folder to make them again"
         )
-    write_json(stamp, {"kind": "railsusp nominal twins", "config_hash": cfg.hash()})
+    write_json(
+        stamp,
+        {
+            "kind": "railsusp nominal twins",
+            "config_hash": cfg.hash(),
+            "config": cfg.model_dump(mode="json"),  # what a refusal says differs
+        },
+    )
     x0 = ParameterSet.nominal().to_array(cfg.simulated_parameters)
     x_all = np.tile(x0, (len(camp.design()), 1))
     simulate_twin_batches(

@@ -11,7 +11,14 @@ from __future__ import annotations
 
 import sys
 
-from railsusp.cli.common import app, console, err_console, fail, frame_table
+from railsusp.cli.common import (
+    OutputStreamError,
+    app,
+    console,
+    err_console,
+    fail,
+    frame_table,
+)
 from railsusp.errors import RailsuspInputError
 
 # the command modules register themselves on ``app``, in this order in the help
@@ -125,6 +132,8 @@ def main() -> None:
     except RailsuspInputError as exc:  # pragma: no cover - commands catch their own
         err_console.print(f"error: {escape(str(exc))}", highlight=False)
         sys.exit(2)
+    except OutputStreamError as exc:  # the printout refused (> /dev/full), not the files
+        _stream_failed(exc)
     except OSError as exc:  # what the machine refused: one line, not a traceback
         where = f"{exc.filename}: " if exc.filename else ""
         # a full disk or quota: the remedy too (what is written is written atomically, what
@@ -139,12 +148,37 @@ def main() -> None:
         )
         sys.exit(1 if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EIO) else 2)
     except SystemExit as exc:  # a command that exits itself: as Python would
-        if exc.code == 130:
+        if exc.code == 130 and not getattr(exc, "said", False):  # (estimate says its own)
             err_console.print(INTERRUPTED)
         raise
     if code == 130:  # typer turns a Ctrl-C into a silent exit 130
         err_console.print(INTERRUPTED)
     sys.exit(code if isinstance(code, int) else 0)
+
+
+def _stream_failed(exc: OutputStreamError) -> None:
+    """Exit 1 on a write to stdout or stderr that the system refused: one line saying that
+    the stream, not the disk of the run's files, failed (a full ``> /dev/full`` said "free
+    space and run the same command again"), on stderr where that is not the one failing.
+    The stream is pointed at the null device so that Python's last flush at exit does not
+    fail again with a traceback-like "Exception ignored" message."""
+    import os
+
+    stream = getattr(sys, exc.stream, None)
+    try:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), stream.fileno())
+    except (AttributeError, OSError, ValueError):  # no descriptor (a test runner's buffer)
+        pass
+    try:
+        err_console.print(
+            f"error: {exc.stream}: {exc.strerror or exc}: the printed output could not be "
+            "written (the files the command wrote are whole and kept)",
+            markup=False,
+            highlight=False,
+        )
+    except OSError:  # stderr refused too: the exit status alone says it
+        pass
+    sys.exit(1)
 
 
 def _click_exceptions():

@@ -30,7 +30,12 @@ _SENSITIVITY_OPTIONS = {
 @app.command()
 def sensitivity(
     run: Annotated[Path, typer.Argument(help="campaign run directory")],
-    statistics: Annotated[str, typer.Option(help="feature statistics to analyse")] = "mean,p99",
+    statistics: Annotated[
+        str,
+        typer.Option(
+            help="feature statistics to analyse, each printed (the key statistics are analysed too)"
+        ),
+    ] = "mean,p99",
     threshold: Annotated[float, typer.Option(help="ST threshold of the key rule")] = 0.05,
     key_statistics: Annotated[str, typer.Option(help="statistics the key rule uses")] = (
         "mean,p99"
@@ -56,10 +61,13 @@ def sensitivity(
     seed: Annotated[int, typer.Option(help="bootstrap / metamodel seed")] = 0,
 ) -> None:
     """Sobol indices (S1, ST with bootstrap intervals) and the key parameters of a campaign."""
+    from railsusp.campaign import STATISTICS
     from railsusp.sensitivity import analyse
 
     stats = tuple(s.strip() for s in statistics.split(",") if s.strip())
     key_stats = tuple(s.strip() for s in key_statistics.split(",") if s.strip())
+    if not stats:  # refused as an empty --key-statistics is (not analysed as the key ones)
+        fail(f"--statistics (none): accepted one or more of {', '.join(STATISTICS)}")
     stats = (*stats, *(k for k in key_stats if k not in stats))
     try:
         # the campaign for the analysis's duration: a campaign --force replaced it under
@@ -89,10 +97,11 @@ def sensitivity(
     kp = s["key_parameters"]
     ignored = set(kp["ignored_features"]) | set(kp.get("unfitted_features", ()))
     unfit = "" if kp.get("min_r2") is None else f" or metamodel R2 < {kp['min_r2']:g}"
-    for st in key_stats:
+    for st in stats:  # every statistic analysed; the key rule's said in the title
         sel = idx[idx.statistic == st]
+        role = "a key statistic" if st in key_stats else "not in the key rule"
         table = Table(
-            title=f"Total Sobol indices ST ± 95 % ({s['method']}, statistic '{st}'; "
+            title=f"Total Sobol indices ST ± 95 % ({s['method']}, statistic '{st}', {role}; "
             f"dim: feature ignored, CV < {min_cv:.1%}{unfit})",
             title_justify="left",
         )

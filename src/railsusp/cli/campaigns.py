@@ -9,6 +9,7 @@ analysis's ``key_parameters.json``)."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated
 
@@ -21,8 +22,10 @@ from railsusp.cli.common import (
     err_console,
     fail,
     hold_folders,
+    option_names,
     show_progress,
 )
+from railsusp.cli.inputs import check_seed
 from railsusp.errors import RailsuspInputError
 
 
@@ -44,7 +47,7 @@ def campaign(
             "runs give statistics averaged over 20 s segments, for long recordings"
         ),
     ] = None,
-    seed: Annotated[int, typer.Option(help="design seed")] = 0,
+    seed: Annotated[int, typer.Option(help="design seed, 0 or more")] = 0,
     design: Annotated[str, typer.Option(help="lhs, lhs-optimised or sobol (Saltelli)")] = "lhs",
     second_order: Annotated[bool, typer.Option(help="Saltelli with second order")] = False,
     parameters: Annotated[
@@ -109,7 +112,7 @@ def campaign(
     (each sample its own irregularity realisation), optionally a track family
     (``--irregularity-classes``, ``--radius``, ``--cant``), and ``--vary-others`` /
     ``--prior`` so that the parameters not estimated vary instead of sitting at nominal."""
-    from railsusp.campaign import make_config, run_campaign
+    from railsusp.campaign import run_campaign
     from railsusp.input_checks import check_output_folder
     from railsusp.measured import conditions_from
     from railsusp.vehicle.wagon import load_wagon
@@ -124,6 +127,7 @@ def campaign(
                 f"--second-order: accepted only with --design sobol (a Saltelli design), "
                 f"not {design}"
             )
+        check_seed(seed)
         check_output_folder(out)
         # the folder for the command's duration (run_campaign's own lock is lent to it),
         # and the run whose key parameters are read, as no process rewrites them meanwhile
@@ -147,19 +151,21 @@ def campaign(
         wagon_data = load_wagon(wagon)  # simulated, and the recordings' wheel load
         conds = conditions_from(conditions, wagon=wagon_data)
         if duration is not None:
-            conds = [c.with_duration(duration) for c in conds]
+            try:
+                conds = [c.with_duration(duration) for c in conds]
+            except RailsuspInputError as exc:  # the option typed, not the condition's field
+                text = option_names(str(exc), {"duration_s": "--duration"})
+                raise RailsuspInputError(re.sub(r"^condition '[^']*': ", "", text)) from None
         family, others = _variation(irregularity_classes, radius, cant, vary_others, prior, sampled)
         if family is not None and not independent_seeds:
             independent_seeds = True
             console.print("a track family: each sample on its own track (--independent-seeds)")
-        cfg = make_config(
+        cfg = _config(
             conds,
-            samples,
+            {"samples": samples, "batch_size": batch_size, "design": design},
             parameters=sampled,
-            design=design,
             second_order=second_order,
             seed=seed,
-            batch_size=batch_size,
             independent_seeds=independent_seeds,
             wheel=wheel,
             track_family=family,
@@ -234,6 +240,28 @@ def campaign(
         fail(error)
     _say_stored(out, max_batches)
     _report_failures(out, total)
+
+
+#: campaign settings -> the options that set them, for make_config's refusals
+_CONFIG_OPTIONS = {"samples": "--samples", "batch_size": "--batch-size", "design": "--design"}
+
+
+def _config(conds: list, typed: dict, **kwargs):
+    """:func:`railsusp.campaign.make_config` of ``conds``, the settings in ``typed`` (setting
+    -> value as typed: samples, batch_size, design) and ``kwargs``, its refusals of those
+    settings naming the options (``campaign configuration: samples: Input should be greater
+    than or equal to 2`` -> ``--samples 0: Input should be ...``)."""
+    from railsusp.campaign import make_config
+
+    try:
+        return make_config(conds, **typed, **kwargs)
+    except RailsuspInputError as exc:
+        text = str(exc)
+        for setting, option in _CONFIG_OPTIONS.items():
+            text = text.replace(
+                f"campaign configuration: {setting}: ", f"{option} {typed[setting]}: "
+            ).replace(f"; {setting}: ", f"; {option} {typed[setting]}: ")
+        raise RailsuspInputError(text) from None
 
 
 def _say_stored(out: Path, max_batches: int | None) -> None:

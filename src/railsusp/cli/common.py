@@ -19,15 +19,53 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from railsusp.interrupts import catch_interrupts
+
 app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     help="railsusp: suspension parameter estimation for heavy-haul freight wagons.",
 )
+
+
+class OutputStreamError(OSError):
+    """A write to the command's standard output or error that the system refused (``>
+    /dev/full``, a full disk under a redirected stream): the stream named, so that the
+    one-line error says that the printout was lost, not the run's files
+    (:func:`railsusp.cli.main`)."""
+
+    def __init__(self, stream: str, cause: OSError) -> None:
+        super().__init__(cause.errno, cause.strerror or str(cause))
+        self.stream = stream
+
+
+class _StreamConsole(Console):
+    """A rich Console whose failed writes raise :class:`OutputStreamError` naming its
+    stream (a broken pipe is still rich's: the reader went away, a quiet exit 1)."""
+
+    def _check_buffer(self) -> None:
+        try:
+            super()._check_buffer()
+        except OutputStreamError:
+            raise
+        except OSError as exc:
+            raise OutputStreamError("stderr" if self.stderr else "stdout", exc) from exc
+
+
+def _is_terminal(stream: object) -> bool:
+    """Whether ``stream`` is a terminal; a closed one (``>&-``: Python's ``sys.stdout`` is
+    None) is not, and what it prints is dropped, as Python's ``print`` drops it."""
+    isatty = getattr(stream, "isatty", None)
+    try:
+        return bool(isatty()) if isatty is not None else False
+    except (OSError, ValueError):  # a stream closed under it
+        return False
+
+
 # Wide tables when piped (CI logs, files); the terminal's width otherwise.
-console = Console(width=None if sys.stdout.isatty() else 150)
-err_console = Console(stderr=True, width=None if sys.stderr.isatty() else 150)
+console = _StreamConsole(width=None if _is_terminal(sys.stdout) else 150)
+err_console = _StreamConsole(stderr=True, width=None if _is_terminal(sys.stderr) else 150)
 
 
 #: ``--wagon`` of the commands that simulate a wagon: a wagon file or a packaged name
@@ -104,6 +142,9 @@ def _global(
     if quiet and verbose:
         fail("--quiet and --verbose: accepted one of them, not both")
     verbosity = "quiet" if quiet else "verbose" if verbose else "normal"
+    # each Ctrl-C recorded, so that one Python swallowed still stops a run at its next
+    # stage; the previous handler back when the command ends (a test runner's process)
+    _command_context().call_on_close(catch_interrupts())
     warnings.showwarning = _say_warning
     warnings.simplefilter("default")
     logger = logging.getLogger("railsusp")

@@ -17,6 +17,7 @@ from railsusp.cli.common import app, console, fail, frame_table, given_options, 
 from railsusp.cli.estimation_options import (
     campaign_of_surrogate,
     check_held_prior_unused,
+    interrupted,
     option_naming,
     option_text,
     parse_held_prior,
@@ -370,6 +371,8 @@ def estimate(
             )
     except (RailsuspInputError, ValueError, FileNotFoundError) as exc:
         fail(option_text(str(exc)))
+    except KeyboardInterrupt:  # nothing kept to resume from: said so, not the common line
+        raise interrupted() from None
     console.print(
         frame_table(
             res.log.tail(8), "NSGA-II log (last generations; the study's Table 4)", fmt="{:.6g}"

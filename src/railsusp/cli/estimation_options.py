@@ -1,7 +1,8 @@
 """The ``estimate`` command's options beyond their ranges: the estimator's settings named as
 the options in its errors and warnings, ``--held-prior`` read and checked against the
 estimated parameters, an input's error led by the option that gave it, and the campaign a
-``--surrogate`` folder belongs to (held while the estimate reads it).
+``--surrogate`` folder belongs to (held while the estimate reads it), and the line an
+interrupted estimate ends with.
 
 Apart from :mod:`railsusp.cli.estimation`, which holds the ``estimate`` command itself (its
 options, their defaults and the run of the route), so that the command module is the
@@ -15,7 +16,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from railsusp.cli.common import option_names
+from railsusp.cli.common import err_console, option_names
 from railsusp.errors import RailsuspInputError
 
 #: the estimator's settings -> the options of ``estimate``, for its error messages and
@@ -128,3 +129,22 @@ def parse_held_prior(text: str | None, refine: bool, statistic: str):
             )
         ranges[key.strip()] = [low.strip(), high.strip()]
     return HeldPrior.from_display(ranges, where="--held-prior")
+
+
+#: the line an interrupted estimate ends with, in place of the common one ("what was
+#: finished is kept ...; run the same command again to resume"): an estimate writes its
+#: folder whole when it finishes and keeps nothing on the way, so there is nothing to resume
+INTERRUPTED = (
+    "interrupted: an estimate is written whole when it finishes, so nothing of this run was "
+    "kept (an estimate already in --out is left as it was); the same command starts it "
+    "again from the beginning"
+)
+
+
+def interrupted() -> SystemExit:
+    """Say :data:`INTERRUPTED` and return the exit (status 130, as a Ctrl-C's) that
+    :func:`railsusp.cli.main` lets through without its own line (``said``)."""
+    err_console.print(INTERRUPTED, markup=False, highlight=False)
+    stop = SystemExit(130)
+    stop.said = True  # type: ignore[attr-defined]
+    return stop

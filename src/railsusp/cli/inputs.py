@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated
 
@@ -9,13 +10,13 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from railsusp.cli.common import app, console, fail
+from railsusp.cli.common import app, console, fail, option_names
 from railsusp.condition_files import resolve_conditions
 from railsusp.conditions import STANDARD_CONDITIONS, WorkingCondition, make_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.input_checks import check_figure_file
 from railsusp.params import CATALOGUE, ParameterSet, parse_overrides
-from railsusp.vehicle.track import COMPONENTS, band_rms, synthesise
+from railsusp.vehicle.track import COMPONENTS, GRID_STEPS_PER_WAVE, band_rms, synthesise
 from railsusp.vehicle.track_geometry import irregularities_for
 
 
@@ -130,11 +131,46 @@ def conditions(
         console.print(f"  [bold]{c.name}[/]: {c.describe()}", highlight=False)
 
 
+#: the ``track`` command's options for the fields of the condition it checks its input as
+_TRACK_OPTIONS = {
+    "irregularity_class": "--class",
+    "wavelength_min_m": "--wavelength-min",
+    "wavelength_max_m": "--wavelength-max",
+    "seed": "--seed",
+}
+
+
+def condition_options(message: str, options: Mapping[str, str], name: str | None = None) -> str:
+    """A working condition's one-line error as the options typed: each field of ``options``
+    that it names given as its option (``duration_s = 0.0: ...`` -> ``--duration 0.0:
+    ...``), and, where ``name`` is the condition the command made up for the check (``track``
+    has none of its own), its ``condition 'NAME': `` prefix and the "none" that only a
+    conditions file can give taken off."""
+    text = option_names(message, options)
+    if name is not None:
+        text = text.removeprefix(f"condition {name!r}: ").replace(' or "none" (perfect track)', "")
+    return text
+
+
+def check_seed(seed: int | None) -> None:
+    """Refuse a negative ``--seed`` in the words of the other commands' (synth-field's)."""
+    if seed is not None and seed < 0:
+        raise RailsuspInputError(f"--seed {seed}: accepted 0 or more")
+
+
 @app.command()
 def track(
     track_class: Annotated[int, typer.Option("--class", help="FRA track class 1..6")] = 5,
-    length: Annotated[float, typer.Option(help="section length, m")] = 2000.0,
-    seed: Annotated[int, typer.Option(help="random seed")] = 0,
+    length: Annotated[
+        float,
+        typer.Option(
+            help="section length, m: at least the shortest wavelength (8 grid steps). "
+            "'expected' is the RMS of the whole wavelength band; a section shorter than the "
+            "longest wavelength holds only part of its longer waves, so its RMS is mostly "
+            "below it (a note says so)"
+        ),
+    ] = 2000.0,
+    seed: Annotated[int, typer.Option(help="random seed, 0 or more")] = 0,
     wavelength_min: Annotated[float, typer.Option(help="shortest wavelength, m")] = 1.0,
     wavelength_max: Annotated[float, typer.Option(help="longest wavelength, m")] = 120.0,
     plot: Annotated[Path | None, typer.Option(help="write a PNG of traces and PSDs")] = None,
@@ -148,15 +184,25 @@ def track(
         for name, v in (("--wavelength-min", wavelength_min), ("--wavelength-max", wavelength_max)):
             if v != v or v in (float("inf"), float("-inf")):
                 raise RailsuspInputError(f"{name} = {v:g} m is not finite")
-        make_condition(
-            {
-                "name": "track",
-                "irregularity_class": track_class,
-                "wavelength_min_m": wavelength_min,
-                "wavelength_max_m": wavelength_max,
-                "seed": seed,
-            }
-        )
+        check_seed(seed)
+        try:
+            make_condition(
+                {
+                    "name": "track",
+                    "irregularity_class": track_class,
+                    "wavelength_min_m": wavelength_min,
+                    "wavelength_max_m": wavelength_max,
+                    "seed": seed,
+                }
+            )
+        except RailsuspInputError as exc:
+            raise RailsuspInputError(condition_options(str(exc), _TRACK_OPTIONS, "track")) from None
+        if length < wavelength_min:  # one sample or a few: no RMS, no PSD, no plot
+            raise RailsuspInputError(
+                f"--length {length:g} m: accepted at least the shortest wavelength, "
+                f"{wavelength_min:g} m (--wavelength-min: {GRID_STEPS_PER_WAVE} grid steps "
+                f"of {wavelength_min / GRID_STEPS_PER_WAVE:g} m), up to 1e6 m"
+            )
         irr = synthesise(
             length, track_class, seed, wavelength_min=wavelength_min, wavelength_max=wavelength_max
         )
@@ -172,8 +218,22 @@ def track(
             comp, f"{np.std(x) * 1e3:.2f}", f"{ref * 1e3:.2f}", f"{np.abs(x).max() * 1e3:.2f}"
         )
     console.print(table)
+    if length < wavelength_max:
+        console.print(short_section_note(length, wavelength_min, wavelength_max), highlight=False)
     if plot is not None:
         from railsusp.report import plot_track_irregularities
 
         out = plot_track_irregularities(irr, plot)
         console.print(f"wrote {out}")
+
+
+def short_section_note(length: float, wavelength_min: float, wavelength_max: float) -> str:
+    """What the RMS of a section shorter than the longest wavelength is compared with: the
+    whole band's expected RMS, of which such a section holds only part."""
+    return (
+        f"note: the {length:g} m section is shorter than the longest wavelength "
+        f"({wavelength_max:g} m): 'expected' is the RMS of the whole {wavelength_min:g}-"
+        f"{wavelength_max:g} m band, and a section this short holds only part of its longer "
+        "waves, so its RMS is mostly below it and varies with the seed (a section of several "
+        "longest wavelengths compares with it)"
+    )

@@ -124,7 +124,11 @@ def modes(
         f"Modes of {wagon_data.name}, {speed:g} km/h, ideal straight track, "
         f"friction {friction} (equilibrium residual {result.equilibrium_residual:.2g} m/s²)"
     )
-    console.print(frame_table(df, title, fmt="{:.3g}"))
+    if df.empty:  # an empty table alone said nothing of why
+        console.print(title, highlight=False)
+        console.print(lowest_mode_line(result, fmax, NO_MOTION_GROUP), highlight=False)
+    else:
+        console.print(frame_table(df, title, fmt="{:.3g}"))
     if still.any():
         console.print(
             f"{int(still.sum())} roots below {fmax:g} Hz left out: {NO_MOTION_NAME}, the "
@@ -163,6 +167,25 @@ def modes(
                 highlight=False,
             )
         console.print(decay_reading(decayed, amplitude), highlight=False)
+
+
+def lowest_mode_line(result, fmax: float, no_motion_group: str) -> str:
+    """The line in place of an empty modes table: no mode lies at or below ``fmax`` Hz, and
+    the lowest there is (its frequency, or an overdamped root's time constant, whose |λ| / 2π
+    is what ``--fmax`` compares)."""
+    moving = [i for i, g in enumerate(result.groups) if g != no_motion_group]
+    if not moving:
+        return f"no mode at or below {fmax:g} Hz"
+    i = min(moving, key=lambda k: result.frequency_hz[k])
+    f = float(result.frequency_hz[i])
+    if result.overdamped[i]:
+        what = f"an overdamped root, τ {1e3 * result.time_constant_s[i]:.3g} ms (|λ|/2π {f:.3g} Hz)"
+    else:
+        what = f"{f:.3g} Hz"
+    return (
+        f"no mode at or below {fmax:g} Hz (--fmax): the lowest is {result.names[i]}, {what}; "
+        f"a larger --fmax lists it"
+    )
 
 
 def decay_reading(decayed, amplitude_mm: float) -> str:

@@ -24,10 +24,18 @@ from railsusp.errors import RailsuspInputError
 from railsusp.input_checks import check_output_folder
 
 
-def _run(config, out: Path, start_from: str | None, *, checked: bool = False) -> list:
+def _run(
+    config,
+    out: Path,
+    start_from: str | None,
+    *,
+    checked: bool = False,
+    source: str = "configuration",
+) -> list:
     """Run the pipeline with progress bars; returns its summary (:func:`_summary_parts`), read
     while the run directory's lock is still held: read after it, a second run finishing
-    in between made one command's printout mix two runs' tables (the concurrency audit)."""
+    in between made one command's printout mix two runs' tables (the concurrency audit).
+    ``source``: the configuration's file, named in its errors."""
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -67,6 +75,7 @@ def _run(config, out: Path, start_from: str | None, *, checked: bool = False) ->
             run_progress=on_runs,
             checked=checked,
             finished=lambda _state: parts.extend(_summary_parts(out)),
+            source=source,
         )
         bar.update(stages, completed=len(STAGES), description="stages: done")
     return parts
@@ -83,10 +92,11 @@ def _summary_parts(out: Path) -> list:
     def show(csv: Path, title: str, cols: list[str] | None = None) -> None:
         """A run-directory table as the report shows it: readable headers, errors in %,
         numbers in the report's format (NSGA-II's 15031 kN/m on its bound read "1.5e+04"
-        in {:.3g}) and yes/no for the booleans (they read True/False)."""
+        in {:.3g}), yes/no for the booleans (they read True/False) and each validation
+        row's statistic labelled with what its kN columns hold (:func:`_labelled`)."""
         if not csv.exists():
             return
-        df = fraction_errors_to_pct(pd.read_csv(csv))
+        df = _labelled(fraction_errors_to_pct(pd.read_csv(csv)))
         df = df[cols] if cols else df
         df = df.apply(lambda col: col.map(_yes_no) if _has_bools(col) else col)
         parts.append(frame_table(df.rename(columns=header), title, fmt=summary.sig3))
@@ -105,11 +115,13 @@ def _summary_parts(out: Path) -> list:
         "Validation: force statistic before / after calibration (study Tables 8 and 9)",
         None,
     )
+    if _has_aligned(out / "estimate" / "validation" / "validation.csv"):
+        parts.append(Text(ALIGNED_NOTE))
     show(out / "estimate" / "validation" / "recovery.csv", "Recovery of the hidden truth")
     timings = Table(title="Stage timings", title_justify="left")
-    from railsusp.store import read_json
+    from railsusp.pipeline_state import read_run_state
 
-    state = read_json(out / "pipeline.json")
+    state = read_run_state(out, str(out))  # its structure checked: one line if damaged
     for c in ("stage", "seconds", "state"):
         timings.add_column(c)
     from railsusp.pipeline import STAGES
@@ -120,6 +132,40 @@ def _summary_parts(out: Path) -> list:
     parts.append(timings)
     parts.append(Text(f"report: {out / 'report.html'} (Markdown twin: {out / 'report.md'})"))
     return parts
+
+
+#: what the kN columns of the validation table's time-aligned rows hold (the report says it
+#: in its text: its numbers are not force statistics), marked ``aligned*`` in the table
+ALIGNED_NOTE = (
+    "* aligned: measured (kN) is the measured series' standard deviation, the other kN "
+    "columns the RMS of each simulation's sample-by-sample difference from it, and their "
+    "errors that RMS in % of the standard deviation."
+)
+
+
+def _labelled(df: pd.DataFrame) -> pd.DataFrame:
+    """A validation table's ``statistic`` saying what the row's kN columns hold, as the
+    report labels it (``mean of |Y|``, ``mean of Q``); a time-aligned row's ``aligned*``,
+    told by :data:`ALIGNED_NOTE` under the table (the report's label, a sentence, wrapped
+    over six lines in the terminal's column). Other tables as they are."""
+    if not {"statistic", "force"} <= set(df.columns):
+        return df
+    from railsusp.report_estimate import statistic_label
+
+    df = df.copy()
+    df["statistic"] = [
+        "aligned*" if s == "aligned" else statistic_label(str(s), str(f))
+        for s, f in zip(df.statistic, df.force, strict=True)
+    ]
+    return df
+
+
+def _has_aligned(csv: Path) -> bool:
+    """Whether the validation table ``csv`` has time-aligned rows."""
+    if not csv.exists():
+        return False
+    df = pd.read_csv(csv)
+    return "statistic" in df.columns and bool((df.statistic == "aligned").any())
 
 
 def _summary(out: Path, parts: list | None = None) -> None:
@@ -155,12 +201,12 @@ def run(
 ) -> None:
     """The whole method: campaign, sensitivity, surrogates, field data, estimation,
     validation, report; up-to-date stages are skipped."""
-    from railsusp.pipeline_config import load_config
+    from railsusp.pipeline_config import config_path, load_config
 
     try:
         cfg = load_config(config)
         target = check_output_folder(out or Path("runs") / config.stem)
-        parts = _run(cfg, target, start_from, checked=True)
+        parts = _run(cfg, target, start_from, checked=True, source=str(config_path(config)))
     except RailsuspInputError as exc:
         fail(str(exc), exit_code(exc))
     _summary(target, parts)

@@ -16,8 +16,10 @@ from railsusp.cli.common import (
     console,
     err_console,
     fail,
+    option_names,
     show_progress,
 )
+from railsusp.cli.inputs import check_seed
 from railsusp.condition_files import resolve_conditions
 from railsusp.errors import RailsuspInputError, repeated_names
 from railsusp.input_checks import check_figure_file, check_output_file
@@ -102,7 +104,7 @@ def simulate(
         typer.Option("--file", help="TOML file with a \\[parameters] table (display units)"),
     ] = None,
     seed: Annotated[
-        int | None, typer.Option(help="irregularity seed (default: condition's)")
+        int | None, typer.Option(help="irregularity seed, 0 or more (default: condition's)")
     ] = None,
     wheel: Annotated[
         str,
@@ -124,7 +126,11 @@ def simulate(
             pset = pset.replace(parse_overrides(set_), units="display")
         conds = resolve_conditions(condition)
         if seed is not None:
-            conds = [c.with_changes(seed=seed) for c in conds]
+            check_seed(seed)
+            try:
+                conds = [c.with_changes(seed=seed) for c in conds]
+            except RailsuspInputError as exc:  # too large: named as the option typed
+                raise RailsuspInputError(option_names(str(exc), {"seed": "--seed"})) from None
         if out is not None:
             check_output_file(out, "--out")
             check_not_recordings(out)

@@ -4,6 +4,7 @@ naming the option, the parameter and its accepted range."""
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable
 
 import numpy as np
@@ -32,11 +33,21 @@ def parse_sampled(text: str, option: str = "--parameters") -> tuple[str, ...]:
     return tuple(out)
 
 
+#: a number as an override may give it: plain ASCII decimal, one optional sign, a point
+#: and an exponent (16.1, -5, .5, 1.5e3), nothing that Python's float() takes besides
+#: (underscores "1_6", other scripts' digits "０", "nan", "inf")
+_DECIMAL = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")
+#: the accepted form, as the refusal says it
+DECIMAL_FORM = "a plain decimal number: digits, an optional sign, point and exponent (e.g. 16.1)"
+
+
 def parse_overrides(items: str | Iterable[str]) -> dict[str, float]:
     """Parse ``"X13=16.1,X14=8.3"`` (or a list of ``"X13=16.1"``) into display-unit values.
 
-    Keys are validated against the catalogue; values must be numbers. Range checks happen
-    when the values are put into a :class:`ParameterSet`.
+    Keys are validated against the catalogue; values must be plain ASCII decimal numbers
+    (:data:`DECIMAL_FORM`): Python's ``float()`` also reads ``1_6`` as 16 and a full-width
+    ``０`` as 0, which a mistyped override should not become. Range checks happen when the
+    values are put into a :class:`ParameterSet`.
     """
     given = [items] if isinstance(items, str) else items
     given = list(given) if isinstance(given, Iterable) else None
@@ -58,14 +69,13 @@ def parse_overrides(items: str | Iterable[str]) -> dict[str, float]:
             raise ParameterError(
                 f"override {part.strip()!r}: {s.symbol} is given twice; give each parameter once"
             )
-        try:
-            value = float(raw)
-        except ValueError:
+        text = raw.strip(" \t")
+        if _DECIMAL.fullmatch(text) is None:
             raise ParameterError(
-                f"override {part.strip()!r}: {raw.strip()!r} is not a number; "
-                f"accepted range for {s.symbol} {s.range_text()}"
-            ) from None
-        out[s.symbol] = value
+                f"override {part.strip()!r}: {raw.strip()!r} is not a number; accepted "
+                f"{DECIMAL_FORM}, for {s.symbol} in the range {s.range_text()}"
+            )
+        out[s.symbol] = float(text)
     return out
 
 

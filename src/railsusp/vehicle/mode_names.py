@@ -41,14 +41,34 @@ NO_MOTION_NAME = "friction-state relaxation (no motion)"
 
 
 def name_mode(
-    energy: np.ndarray, q: np.ndarray, h_cg: float, l_c: float, speed: float, h_cp: float
+    energy: np.ndarray,
+    q: np.ndarray,
+    h_cg: float,
+    l_c: float,
+    speed: float,
+    h_cp: float,
+    overdamped: bool = False,
 ) -> tuple[str, str]:
     """(body group, engineering name) of a mode from its kinetic-energy shares per degree
     of freedom and its displacement shape q (complex); heights above rail: h_cg of the car
     body's CG, h_cp of the centre plate; l_c: half the bogie spacing (m). A mode without
-    kinetic energy is :data:`NO_MOTION_NAME` (module docstring)."""
+    kinetic energy is :data:`NO_MOTION_NAME` (module docstring). An ``overdamped`` root (a
+    real eigenvalue) does not oscillate: its name ends in ", overdamped" and never says
+    "hunting-like", so that it is not read as the oscillating mode of the same shape (the
+    tare wagon's 5.01 Hz wheelset mode and a 22 ms root had one name)."""
     if not energy.sum() > 0.0:
         return NO_MOTION_GROUP, NO_MOTION_NAME
+    group, name = _name(energy, q, h_cg, l_c, speed, h_cp)
+    if overdamped:
+        name = name.replace("kinematic (hunting-like)", "kinematic") + ", overdamped"
+    return group, name
+
+
+def _name(
+    energy: np.ndarray, q: np.ndarray, h_cg: float, l_c: float, speed: float, h_cp: float
+) -> tuple[str, str]:
+    """(body group, name) of a mode with kinetic energy, as :func:`name_mode` gives it but
+    for an overdamped root's mark."""
     shares = {g: energy[s].sum() for g, s in GROUPS.items()}
     group = max(shares, key=shares.get)
     if group == "car body":
@@ -88,6 +108,25 @@ def name_mode(
     return group, f"wheelset {'bounce' if d == 1 else 'roll'} ({which})"
 
 
+def distinct_names(names: list[str]) -> list[str]:
+    """``names`` (in the order of |λ|), each mode whose name an earlier one already has
+    marked by its rank among them (", second", ", third", ", 4th", ...), so that every row
+    of a mode table, and every mode a decay or dissipation table names, is one mode; the
+    friction-state roots, which no body's motion tells apart, keep their one name."""
+    seen: dict[str, int] = {}
+    out = []
+    for name in names:
+        k = seen[name] = seen.get(name, 0) + 1
+        if k == 1 or name == NO_MOTION_NAME:
+            out.append(name)
+        else:
+            out.append(f"{name}, {_ORDINALS.get(k, f'{k}th')}")
+    return out
+
+
+_ORDINALS = {2: "second", 3: "third"}
+
+
 def _longitudinal_side_frames(per_bogie: np.ndarray, q: np.ndarray) -> str:
     """Name of a mode whose energy is mostly the side frames' longitudinal motion: bogie warp
     (the parallelogram mode) where each bogie's left and right side frames move against each other,
@@ -124,7 +163,9 @@ def _which(per_bogie: np.ndarray, front: complex, rear: complex) -> str:
 
 def _car_body_name(energy: np.ndarray, q: np.ndarray, h_cg: float, l_c: float, h_cp: float) -> str:
     """Bounce, pitch, yaw, lateral, lower sway (roll) or upper sway of the car body, or a
-    kinematic (hunting-like) lateral or yaw mode when the wheelsets move with the body.
+    kinematic (hunting-like) lateral or yaw mode when the wheelsets move with the body,
+    with its leading end where its two ends do not move in phase or anti-phase
+    (:func:`_leading_end`).
 
     Lateral and roll of the body couple: the point of the body that does not move sideways
     (roll centre) lies at z_rc = y / φ above the CG (a point at height z above the CG moves
@@ -139,7 +180,9 @@ def _car_body_name(energy: np.ndarray, q: np.ndarray, h_cg: float, l_c: float, h
     }
     kind = max(parts, key=parts.get)
     if kind in ("sway", "yaw") and _kinematic(q, l_c, h_cp - h_cg):
-        return f"car body kinematic (hunting-like) {'yaw' if kind == 'yaw' else 'lateral'}"
+        name = f"car body kinematic (hunting-like) {'yaw' if kind == 'yaw' else 'lateral'}"
+        leading = _leading_end(q, l_c, h_cp - h_cg)
+        return f"{name} ({leading} end leading)" if leading else name
     if kind != "sway":
         return f"car body {kind}"
     y, roll = q[L.CB_Y], q[L.CB_ROLL]
@@ -150,6 +193,32 @@ def _car_body_name(energy: np.ndarray, q: np.ndarray, h_cg: float, l_c: float, h
         return "car body lateral"
     height = h_cg + z_rc
     return f"car body {'lower' if z_rc < 0 else 'upper'} sway (roll centre {height:+.1f} m)"
+
+
+#: the least phase (rad) by which one centre plate's lateral motion leads the other's for a
+#: kinematic body mode to be named by its leading end (10°: a plain lateral mode has 0, a
+#: plain yaw mode 180°, the loaded wagon's two mixed stuck modes 54° and 45°)
+_LEAD_MIN_RAD = np.deg2rad(10.0)
+
+
+def _leading_end(q: np.ndarray, l_c: float, dz_cp: float) -> str:
+    """'front' or 'rear': the end of the car body whose centre plate's lateral motion leads
+    the other's by more than :data:`_LEAD_MIN_RAD` (and less than 180° less it); '' where
+    the two move in phase or in anti-phase (a plain lateral or yaw mode).
+
+    With the centre-bowl friction stuck, the body's kinematic lateral and yaw couple into
+    two modes of nearly one frequency, both mostly lateral (the loaded wagon's 1.67 and
+    1.70 Hz): which way the motion runs along the body tells them apart. The front plate
+    (bogie 1, l_c ahead of the CG, ``dz_cp`` above it) moves y - dz roll + l_c yaw, the rear
+    one y - dz roll - l_c yaw; a shape q e^(iωt) leads where its phase is larger."""
+    base = q[L.CB_Y] - dz_cp * q[L.CB_ROLL]
+    front, rear = base + l_c * q[L.CB_YAW], base - l_c * q[L.CB_YAW]
+    if abs(front) == 0.0 or abs(rear) == 0.0:
+        return ""
+    lead = float(np.angle(front * np.conj(rear)))
+    if _LEAD_MIN_RAD < abs(lead) < np.pi - _LEAD_MIN_RAD:
+        return "front" if lead > 0.0 else "rear"
+    return ""
 
 
 def _kinematic(q: np.ndarray, l_c: float, dz_cp: float) -> bool:

@@ -41,6 +41,7 @@ from railsusp.vehicle.mode_names import (
     GROUPS,
     NO_MOTION_GROUP,
     NO_MOTION_NAME,
+    distinct_names,
     name_mode,
 )
 from railsusp.vehicle.operating_point import (
@@ -67,6 +68,7 @@ __all__ = [
     "LinearisationPoint",
     "ModalResult",
     "default_steps",
+    "distinct_names",
     "dof_inertia",
     "jacobian",
     "linearisation_point",
@@ -220,7 +222,7 @@ class ModalResult:
         for i in self.car_body_modes(f_max):
             if "kinematic" in self.names[i]:
                 continue
-            kind = self.names[i].split(" (")[0].removeprefix("car body ")
+            kind = self.names[i].split(" (")[0].split(",")[0].removeprefix("car body ")
             if kind not in best or self.car_body_share[i] > self.car_body_share[best[kind]]:
                 best[kind] = i
         top = sorted(best.items(), key=lambda kv: -self.car_body_share[kv[1]])[:5]
@@ -277,10 +279,12 @@ def modes_of(
     l_c = point.K[L.K["l_c"]]
     h_cp = point.K[L.K["h_cp"]]
     names, groups = [], []
+    real = np.abs(lam.imag) <= _REAL_TOL * np.abs(lam)  # as ModalResult.overdamped
     for i in range(lam.size):
-        group, name = name_mode(energy[i], q[:, i], h_cg, l_c, point.speed, h_cp)
+        group, name = name_mode(energy[i], q[:, i], h_cg, l_c, point.speed, h_cp, bool(real[i]))
         groups.append(group)
         names.append(name)
+    names = distinct_names(names)
     mag = np.abs(lam)
     return ModalResult(
         speed_kmh=speed_kmh,

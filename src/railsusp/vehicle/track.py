@@ -47,6 +47,8 @@ FRA_CLASSES: dict[int, tuple[float, float, float]] = {
 }
 
 COMPONENTS: tuple[str, ...] = ("vertical", "alignment", "crosslevel", "gauge")
+#: grid steps per shortest wavelength of a synthesised track (its default step)
+GRID_STEPS_PER_WAVE = 8
 
 #: class -> (tightest, widest) gauge deviation allowed, m: 49 CFR 213.53(b) (4'8" to
 #: 4'10" / 4'9-3/4" / 4'9-1/2") and 213.323 (class 6: 4'9-1/4") against 4'8-1/2" nominal.
@@ -202,8 +204,8 @@ def synthesise(
     repeat within the section. Components are independent; the four phase streams of a seed
     are spawned from ``numpy.random.SeedSequence(seed)``, so a seed gives the same track
     whatever else is asked for in the call. Output grid spacing ``dx`` defaults to
-    wavelength_min / 8. The gauge is then kept within the class's safety limits
-    (:func:`limit_gauge`).
+    wavelength_min / :data:`GRID_STEPS_PER_WAVE` (8). The gauge is then kept within the
+    class's safety limits (:func:`limit_gauge`).
     """
     _check_class(track_class)
     if not (0 < wavelength_min < wavelength_max):
@@ -215,7 +217,7 @@ def synthesise(
     seed_list = [int(seeds)] if np.isscalar(seeds) else [int(s) for s in seeds]  # type: ignore[arg-type]
     if any(s < 0 for s in seed_list):
         raise ValueError(f"seeds must be non-negative integers, got {seed_list}")
-    dx = wavelength_min / 8.0 if dx is None else float(dx)
+    dx = wavelength_min / GRID_STEPS_PER_WAVE if dx is None else float(dx)
     period = max(4.0 * length, 4.0 * wavelength_max)
     n = 1 << int(np.ceil(np.log2(period / dx)))
     d_omega = 2.0 * np.pi / (n * dx)
