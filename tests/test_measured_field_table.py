@@ -87,17 +87,56 @@ def test_a_repeated_distance_names_distance_m_not_time_s(tmp_path):
 
 def test_forces_in_every_sixth_row_only_are_refused_with_their_rate(tmp_path):
     """Each gap of 5 passed the 5-sample rule: 83 % of the samples were interpolated and
-    the 8.3 Hz channel read as 50 Hz data."""
+    the 8.3 Hz channel read as 50 Hz data. It is refused by its rate of finite values, below
+    the lowest usable rate, as a long run's column is."""
     frame = {"time_s": T, **forces()}
     thin = np.arange(N) % 6 != 0
     for c in ("Y_w1L_kN", "Q_w1L_kN"):
         frame[c] = np.where(thin, np.nan, frame[c])
     msg = problems(table(tmp_path, frame))
-    assert "column 'Y_w1L_kN': 166 of its 200 samples (83 %) missing (NaN)" in msg
-    assert "a finite value about every 6 samples: effectively 8.333 Hz, not the written 50 Hz" in (
-        msg
-    )
-    assert "at most 5 % of the samples missing" in msg and "column 'Q_w1L_kN'" in msg
+    assert (
+        "column 'Y_w1L_kN': forces sampled at 8.333 Hz (a finite value about every 6 samples "
+        "of its 50 Hz, the others empty); accepted at least 50 Hz, the lowest usable rate "
+        "(check-recording --min-rate"
+    ) in msg
+    assert "column 'Q_w1L_kN': forces sampled at 8.333 Hz" in msg
+
+
+def test_one_rule_for_sparse_forces_in_a_recording_and_a_long_run(tmp_path):
+    """A 100 Hz table with Q in every other row (50 Hz data, meeting the 50 Hz least rate)
+    was refused as 50 % missing, where a long run's table of the same pattern was read with
+    a note: both read it now at 50 Hz, interpolated between its values, with the note; at
+    --min-rate 60 both refuse it by its rate."""
+    from railsusp.measured.run import read_run
+
+    t = np.arange(400) / 100.0
+    frame = {"time_s": t, "speed_kmh": np.full(t.size, 60.0), **forces(t)}
+    frame["Q_w1L_kN"] = np.where(np.arange(t.size) % 2 == 1, np.nan, frame["Q_w1L_kN"])
+    path = table(tmp_path, frame)
+    with pytest.warns(UserWarning) as caught:
+        rec = read_recording(path)
+    said = [str(w.message) for w in caught]
+    assert any("a finite value about every 2 samples of its 100 Hz" in w for w in said)
+    q = 122 + 10 * np.cos(2 * np.pi * 2.0 * t)
+    assert np.abs(rec.Q["w1L"] - q)[:-1].max() < 0.1  # between its 50 Hz values (the last held)
+    with pytest.raises(RecordingError) as err:
+        read_recording(path, min_rate_hz=60.0)
+    assert "'Q_w1L_kN': forces sampled at 50 Hz" in str(err.value)
+    run = read_run(path)  # the same table read as a long run
+    assert any("a finite value about every 2 samples" in n for n in run.data_notes)
+    with pytest.raises(RecordingError) as err:
+        read_run(path, min_rate_hz=60.0)
+    assert "'Q_w1L_kN': forces sampled at 50 Hz" in str(err.value)
+    # scattered single samples missing, 20 % of them: refused by both (a long run's were
+    # interpolated and written as measured sections by sections --write)
+    frame["Q_w1L_kN"] = forces(t)["Q_w1L_kN"]
+    frame["Q_w1L_kN"][np.arange(2, t.size - 2, 5)] = np.nan
+    path = table(tmp_path, frame)
+    said = "column 'Q_w1L_kN': 80 of its 400 samples (20 %) missing (NaN), in gaps of up to 5"
+    assert said in problems(path)
+    with pytest.raises(RecordingError) as err:
+        read_run(path)
+    assert said.replace("column", "channel") in str(err.value)
 
 
 def test_scattered_short_gaps_within_the_share_are_interpolated(tmp_path):
@@ -109,8 +148,66 @@ def test_scattered_short_gaps_within_the_share_are_interpolated(tmp_path):
     assert np.isfinite(rec.Q["w1L"]).all()
     frame["Q_w1L_kN"][np.arange(3, N, 12)] = np.nan  # 17 single samples more: 10.5 %
     msg = problems(table(tmp_path, frame))
-    assert "column 'Q_w1L_kN': 21 of its 200 samples (10.5 %) missing (NaN); accepted" in msg
-    assert "effectively" not in msg
+    assert "column 'Q_w1L_kN': 21 of its 200 samples (10.5 %) missing (NaN), in gaps" in msg
+    assert "accepted at most 5 % of a force channel's samples in such gaps" in msg
+    assert "forces sampled at" not in msg
+
+
+def test_empty_cells_of_a_table_along_distance_are_counted_as_in_the_file(tmp_path):
+    """A table along distance_m was put on time before its cells were checked: each empty
+    cell spread to the samples around it, 30 empty Q cells of 1000 (3 %) refused as "61 of
+    its 1000 samples (6.1 %) missing". They are counted on the file's rows, named by line."""
+    n = 1000
+    d = np.arange(n) / 3.0
+    v = np.linspace(57.0, 63.0, n)  # the times uneven, as measured
+    t = np.concatenate([[0.0], np.cumsum(np.diff(d) / (0.5 * (v[1:] + v[:-1]) / 3.6))])
+    frame = {"distance_m": d, "speed_kmh": v, **forces(t)}
+    q = frame["Q_w1L_kN"]
+    q[np.arange(10, 990, 33)[:30]] = np.nan  # 30 single empty cells, 3 %
+    path = table(tmp_path, frame)
+    with pytest.warns(UserWarning, match="column 'Q_w1L_kN': 30 missing sample"):
+        rec = read_recording(path)
+    assert np.isfinite(rec.Q["w1L"]).all()
+    q[:] = forces(t)["Q_w1L_kN"]
+    q[np.arange(10, 990, 16)[:60]] = np.nan  # 60 of 1000 (more than 5 %): refused, counted
+    msg = problems(table(tmp_path, frame))
+    assert "column 'Q_w1L_kN': 60 of its 1000 samples (6 %) missing (NaN)" in msg
+    q[500:508] = np.nan  # a gap of 8 rows: named by its file lines (the header is line 1)
+    assert "column 'Q_w1L_kN', rows 502-509: gap of 8 missing samples" in problems(
+        table(tmp_path, frame)
+    )
+
+
+def test_a_column_along_distance_goes_on_time_missing_only_where_its_nearest_row_is():
+    """np.interp spread each empty cell to the samples on either side of it."""
+    from railsusp.measured.field_table import FieldTable, row_times, uniform_time
+
+    d = np.arange(12) * 1.0
+    v = np.linspace(15.0, 17.0, d.size)
+    table = FieldTable(None, [], "distance_m", None, distance=d, row_time=row_times(d, v))
+    table.time, table.lines = uniform_time(table.row_time)
+    x = 3.0 * table.row_time  # linear in time: interpolated exactly, across the empty row too
+    x[5] = np.nan
+    out = table.on_time(x)
+    nearest = table.lines - 2
+    assert np.array_equal(np.isnan(out), nearest == 5)
+    assert np.allclose(out[nearest != 5], 3.0 * table.time[nearest != 5])
+
+
+def test_the_messages_of_a_distance_axis_give_what_is_accepted(tmp_path):
+    frame = along_distance()
+    frame["speed_kmh"] = frame["speed_kmh"].copy()
+    frame["speed_kmh"][[40, 41, 90]] = np.nan
+    msg = problems(table(tmp_path, frame))
+    assert "column 'speed_kmh', rows 42-43: speed empty (3 row(s) in all); a table along" in msg
+    assert "nan" not in msg
+    frame = along_distance()
+    frame["distance_m"][7] = np.nan
+    msg = problems(table(tmp_path, frame))
+    assert (
+        "column 'distance_m', row 9: distance empty or not finite (1 row(s) in all); "
+        "accepted a finite distance, m, in every row, strictly increasing"
+    ) in msg
 
 
 def test_an_unused_text_or_boolean_column_is_noted_not_refused(tmp_path):

@@ -52,7 +52,7 @@ def test_a_speed_column_that_contradicts_the_condition_is_refused(tmp_path):
     msg = problems(write(tmp_path, STRAIGHT, {"speed_kmh": 30.0}))
     assert (
         "column 'speed_kmh', rows 2-101: speed 30 km/h (100 row(s)); accepted 54 to 66 km/h "
-        "(the condition's 60 km/h within 10 %, the speed tolerance of railsusp sections)"
+        "(the condition's 60 km/h within 10 %, the default speed tolerance of railsusp sections)"
     ) in msg
     assert "column 'speed_kmh', rows 2-101: speed -60 km/h" in problems(
         write(tmp_path, STRAIGHT, {"speed_kmh": -60.0})
@@ -91,7 +91,8 @@ def test_a_curves_measured_track_reads_and_the_other_hand_is_refused(tmp_path):
     read_recording(write(tmp_path, CURVE, good))
     good["curvature_1_per_km"] = lambda t: -layout.curvature_at(place(t)) * 1e3
     msg = problems(write(tmp_path, CURVE, good))
-    assert "column 'curvature_1_per_km', rows " in msg and "1/km there (the condition's" in msg
+    assert "column 'curvature_1_per_km', rows " in msg
+    assert "1/km at the first such row (the condition's" in msg
     assert "+ left-hand" in msg
 
 
@@ -104,3 +105,45 @@ def test_without_a_condition_the_ranges_of_a_condition_hold(tmp_path):
         "200 km/h"
     ) in msg
     assert "column 'cant_mm', rows 2-101: cant 250 mm (100 row(s)); accepted -200 to 200 mm" in msg
+
+
+#: a curve whose spirals lie inside the 20 s record: lead-in 10 m, the curve from 100 m
+SPIRALS = get_condition(
+    "curve",
+    duration_s=20.0,
+    n_steps=1000,
+    lead_in_m=10.0,
+    curve_start_m=100.0,
+    entry_spiral_m=60.0,
+    arc_length_m=100.0,
+    exit_spiral_m=60.0,
+)
+
+
+@pytest.mark.parametrize("axis", ["time_s", "distance_m"])
+def test_a_run_slower_than_its_condition_is_placed_by_its_own_speed(tmp_path, axis):
+    """The reviewer of the QA pass: each row was placed at the condition's speed, so a run
+    at 56 km/h filed as the 60 km/h condition (within the speed tolerance) drifted 1.1 m
+    each second from its spirals and was refused with exactly the design track. Placed by
+    its distance_m, or by its speed_kmh integrated over time, it reads."""
+    layout = TrackLayout.from_condition(SPIRALS)
+    v = 0.93 * SPIRALS.speed  # m/s, 55.8 km/h
+    t = np.arange(SPIRALS.n_steps) / RATE
+    d = v * t  # from the first row
+    track = {
+        "speed_kmh": np.full(t.size, v * 3.6),
+        "curvature_1_per_km": layout.curvature_at(SPIRALS.lead_in_m + d) * 1e3,
+        "cant_mm": np.abs(layout.cant_at(SPIRALS.lead_in_m + d)) * 1e3,
+    }
+    path = write(tmp_path, SPIRALS, track)
+    if axis == "distance_m":  # the same rows along distance
+        frame = pd.read_csv(path)
+        frame.insert(0, "distance_m", d)
+        frame.drop(columns="time_s").to_csv(path, index=False)
+    rec = read_recording(path)
+    assert rec.time.size == SPIRALS.n_steps
+    # without its speed column the rows are placed at the condition's speed, as all were
+    # before: the same track is then refused (the spirals 15-20 m off by their end)
+    del track["speed_kmh"]
+    msg = problems(write(tmp_path, SPIRALS, track))
+    assert "column 'cant_mm', rows " in msg and "at the first such row" in msg

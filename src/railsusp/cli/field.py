@@ -5,18 +5,16 @@ from __future__ import annotations
 
 import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import Annotated
 
 import typer
 from rich.table import Table
 
 from railsusp.cli.common import WagonOption, app, console, fail, hold_folders
+from railsusp.cli.recordings import wagon_option
 from railsusp.condition_files import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet, parse_overrides
-
-if TYPE_CHECKING:
-    from railsusp.vehicle.wagon import WagonData
 
 #: synthesise_field's settings -> the options of ``synth-field``, for its error messages
 _SYNTH_OPTIONS = {
@@ -82,7 +80,7 @@ def synth_field(
         check_field_output(out, "synthetic", "--out")  # never replaces measured recordings
         pset = ParameterSet(parse_overrides(truth) if truth else {}, units="display")
         conds = resolve_conditions(conditions)
-        wagon_data = _wagon(wagon)
+        wagon_data = wagon_option(wagon)
         # the folder for the command's duration (a second synth-field, or an estimate reading
         # it as RUN/field, is refused), then what it holds checked again under the lock
         hold_folders(creates=[("--out", out)])
@@ -109,17 +107,6 @@ def synth_field(
     )
 
 
-def _wagon(wagon: str | None) -> WagonData:
-    """The wagon ``--wagon`` names (a packaged name or a file); its one-line error names
-    the option, as check-recording's does ("wagon file nosuch does not exist" did not)."""
-    from railsusp.vehicle.wagon import load_wagon
-
-    try:
-        return load_wagon(wagon)
-    except RailsuspInputError as exc:
-        raise RailsuspInputError(f"--wagon: {exc}") from None
-
-
 @app.command("align-track")
 def align_track_command(
     measured: Annotated[Path, typer.Argument(help="field folder (index.json) of recordings")],
@@ -139,7 +126,7 @@ def align_track_command(
     try:
         if not 0.0 < max_shift <= 200.0:  # before the recordings are read
             raise RailsuspInputError(f"--max-shift {max_shift:g}: accepted (0, 200] m")
-        wagon_data = _wagon(wagon)
+        wagon_data = wagon_option(wagon)
         if write:  # the sidecars it rewrites: one writer at a time in the folder
             hold_folders(writes=[("", measured)])
         else:  # read only: not beside a writer of the folder (a mixed read, the audit)

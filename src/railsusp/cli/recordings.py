@@ -26,6 +26,18 @@ from railsusp.input_checks import check_figure_file
 if TYPE_CHECKING:
     from railsusp.measured.channels import ChannelMap
     from railsusp.measured.run import MeasuredRun
+    from railsusp.vehicle.wagon import WagonData
+
+
+def wagon_option(wagon: str | Path | None) -> WagonData:
+    """The wagon ``--wagon`` names (a packaged name or a file); its one-line error names
+    the option ("wagon file nosuch does not exist" did not), in every command taking it."""
+    from railsusp.vehicle.wagon import load_wagon
+
+    try:
+        return load_wagon(wagon)
+    except RailsuspInputError as exc:
+        raise RailsuspInputError(f"--wagon: {exc}") from None
 
 
 def print_problems(exc) -> None:
@@ -57,15 +69,14 @@ def check_recording(
     from railsusp.measured.raw import MDF_SUFFIXES
     from railsusp.measured.recording_reader import MIN_RATE_RANGE_HZ
     from railsusp.vehicle.setup import static_wheel_load
-    from railsusp.vehicle.wagon import load_wagon
 
     lo, hi = MIN_RATE_RANGE_HZ
     if not lo <= min_rate <= hi:  # NaN fails too (checked here too: a run file is not read)
         fail(f"--min-rate {min_rate:g} Hz: accepted {lo:g} to {hi:g} Hz")
     try:  # the recordings are read as its: its static wheel load, its axles
-        wagon_data = load_wagon(wagon)
+        wagon_data = wagon_option(wagon)
     except RailsuspInputError as exc:
-        fail(f"--wagon: {exc}")
+        fail(str(exc))
     if channel_map is not None or path.suffix.lower() in MDF_SUFFIXES:
         _check_run(path, channel_map, min_rate, static_wheel_load(wagon_data))
         return
@@ -121,7 +132,8 @@ def _check_run(path: Path, channel_map: Path | None, min_rate: float, load: floa
         f"{path}: {run.time[-1] - run.time[0]:.1f} s at {run.rate_hz:.4g} Hz, "
         f"{run.position[-1] - run.position[0]:.0f} m, speed {_speed_range(run)}",
         forces,
-        f"; measured samples only (left out, filled across NaN gaps: {', '.join(left_out)})"
+        f"; measured samples only (left out, interpolated across missing values: "
+        f"{', '.join(left_out)})"
         if left_out
         else "",
     )
@@ -167,21 +179,22 @@ def _speed_range(run: MeasuredRun) -> str:
 
 
 def _in_gaps(run: MeasuredRun, cmap: ChannelMap | None, wheel: str, force: str) -> np.ndarray:
-    """Per sample, True inside a NaN gap of the wheel's Y or Q channel that the run filled
-    (so that its position and track go on): its values there are interpolated, not
-    measured (the mean of a Q with 11000 samples missing read 126.94 kN, the measured
-    120.31). The channel is the map's, or, read by the documented column names, the header
-    naming the force (``Q_w1R_kN``, ``Q_w1R [N]``)."""
+    """Per sample, True where the run interpolated the wheel's Y or Q channel across
+    missing values (its NaN: the short gaps filled and the long ones, across which its
+    position and track go on): its values there are not measured (the mean of a Q with
+    11000 samples missing read 126.94 kN, the measured 120.31). The channel is the map's,
+    or, read by the documented column names, the header naming the force (``Q_w1R_kN``,
+    ``Q_w1R [N]``)."""
     from railsusp.measured.units import split_header
 
     mask = np.zeros(run.time.size, dtype=bool)
-    for s, e, name in run.gaps:
+    for name, filled in run.interpolated.items():
         if cmap is not None:
             ours = name == cmap.wheels.get(wheel, {}).get(force)
         else:
             ours = split_header(name)[0] == f"{force}_{wheel}"
         if ours:
-            mask[s:e] = True
+            mask |= filled
     return mask
 
 
@@ -231,7 +244,6 @@ def sections_command(
     )
     from railsusp.measured.sections_out import en14363_table, plot_sections, write_sections
     from railsusp.vehicle.setup import static_wheel_load
-    from railsusp.vehicle.wagon import load_wagon
 
     try:
         if line is not None and table is not None:
@@ -252,10 +264,7 @@ def sections_command(
             speed_tolerance=speed_tolerance, min_length_m=min_length, max_duration_s=max_duration
         )
         cmap = read_channel_map(channel_map) if channel_map else None
-        try:
-            load = static_wheel_load(load_wagon(wagon))
-        except RailsuspInputError as exc:
-            raise RailsuspInputError(f"--wagon: {exc}") from exc
+        load = static_wheel_load(wagon_option(wagon))
         if write is not None and Path(recording).is_file():  # (a missing run: read_run says)
             from railsusp.measured.field_folder import check_field_output
 

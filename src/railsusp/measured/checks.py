@@ -4,7 +4,9 @@ recording is refused with every reason at once, never silently repaired.
 
 - non-finite values: ±inf (a sensor overflow) is refused; NaN gaps up to ``gap_limit``
   samples are interpolated with a note, longer ones refused in a recording to estimate
-  from (one stretch) and left for the caller in a long run, which is cut at them;
+  from (one stretch) and left for the caller in a long run, which is cut at them (how
+  much of a force channel its short gaps may hold, and its effective rate:
+  :mod:`railsusp.measured.sampling`);
 - constant and all-zero channels (a dead bridge, an unplugged amplifier);
 - the time base: not strictly increasing, jitter of the sampling interval, mixed rates;
 - magnitudes: the median wheel load Q against the static wheel load of the wagon data (a
@@ -111,42 +113,6 @@ def check_flat(x: np.ndarray, channel: str, unit: str = "") -> list[str]:
         value = f"{finite[0]:.6g}{' ' + unit if unit else ''}"
         return [f"channel {channel!r}: constant at {value} over all samples"]
     return []
-
-
-#: the largest share of a force channel's samples that its short NaN gaps (each within
-#: MAX_GAP_SAMPLES) may hold: interpolated values are not measured forces, and a channel
-#: with a value in every sixth row only is a channel of a sixth of the written rate
-MAX_INTERPOLATED_SHARE = 0.05
-
-
-def check_sparse(
-    x: np.ndarray, channel: str, rate_hz: float, max_share: float = MAX_INTERPOLATED_SHARE
-) -> list[str]:
-    """A force channel whose short NaN gaps (those :func:`check_finite` interpolates) hold
-    more than ``max_share`` of its samples, or whose finite samples lie regularly wider
-    apart than one sample (effectively a lower rate than the ``rate_hz`` written): each gap
-    passed the 5-sample rule, but together they are most of the record (a value in every
-    sixth row read as full-rate data, 416 of 500 samples interpolated). Shared by the
-    field-format reader; a long run's reader may call it on each channel too."""
-    nan = np.isnan(x)
-    finite = np.flatnonzero(~nan)
-    if finite.size < 2 or not nan.any():
-        return []
-    share = float(nan.mean())
-    step = float(np.median(np.diff(finite)))  # samples between finite values
-    if step <= 1.0 and share <= max_share:
-        return []
-    said = f"{int(nan.sum())} of its {x.size} samples ({100.0 * share:.3g} %) missing (NaN)"
-    if step > 1.0:
-        said += (
-            f", a finite value about every {step:.3g} samples: effectively "
-            f"{rate_hz / step:.4g} Hz, not the written {rate_hz:.4g} Hz"
-        )
-    return [
-        f"channel {channel!r}: {said}; accepted the written rate with at most "
-        f"{100.0 * max_share:g} % of the samples missing (each gap of up to "
-        f"{MAX_GAP_SAMPLES} interpolated): interpolated values are not measured forces"
-    ]
 
 
 #: a force channel is taken for saturated where at least this share of its samples sits at

@@ -13,10 +13,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
 from railsusp.errors import RailsuspInputError, did_you_mean
-from railsusp.integrity import csv_last_line_cut
+from railsusp.measured.recording import RecordingError
+from railsusp.measured.table_file import column_numbers, read_frame
 from railsusp.measured.units import si_factor, split_header
 
 MDF_SUFFIXES = (".mf4", ".mdf", ".dat")
@@ -208,34 +208,21 @@ def _open_mdf(path: Path) -> Any:
 
 
 def _read_table(path: Path, time_column: str | None) -> dict[str, RawChannel]:
-    """Channels of a CSV/Parquet table sharing its time column (``time_s``, ``t [s]``, ...)."""
-    try:
-        if path.suffix.lower() == ".parquet":
-            df = pd.read_parquet(path)
-        else:
-            df = pd.read_csv(path, dtype=str, keep_default_na=False, encoding="utf-8")
-    except UnicodeDecodeError:
-        raise RailsuspInputError(f"recording {path}: not UTF-8 text") from None
-    except Exception as exc:
-        raise RailsuspInputError(
-            f"recording {path}: cannot read the table "
-            f"({(str(exc).splitlines() or [type(exc).__name__])[0]})"
-        ) from None
+    """Channels of a CSV/Parquet table sharing its time column (``time_s``, ``t [s]``, ...).
+    The file is read as a field table's is (:func:`~railsusp.measured.table_file.read_frame`:
+    its lines that are not UTF-8 named, a ``;`` separator said, a column named twice and
+    lines with more cells than the header refused, cells that are not numbers named column
+    by column), raising :class:`~railsusp.measured.recording.RecordingError` with every
+    problem of the file."""
+    df, problems, _ = read_frame(path)  # (a column without a name: never a used channel)
     cols = [str(c) for c in df.columns]
-    if path.suffix.lower() != ".parquet" and csv_last_line_cut(path, len(cols)):
-        raise RailsuspInputError(
-            f"recording {path}: the last line is cut short (fewer cells than the header's "
-            f"{len(cols)}, no line end): a file truncated in copying? Its last value would "
-            "be read wrong; remove the line or copy the file again"
-        )
     tcol = time_column
     if tcol is None:
         tcol = next((c for c in cols if split_header(c)[0] in ("time", "t")), None)
     if tcol is None or tcol not in cols:
         hint = did_you_mean(tcol, cols) if tcol else ""
-        raise RailsuspInputError(
-            f"recording {path}: no time column ({tcol or 'time_s, time [s]'}){hint}; columns {cols}"
-        )
+        problems.append(f"no time column ({tcol or 'time_s, time [s]'}){hint}; columns {cols}")
+        raise RecordingError(path, problems)
     tname, tunit = split_header(tcol)
     # a unit other than s and ms was read as seconds (a "time [msec]" column of 200 Hz); a
     # field table's distance_m is its axis too (put on time by the reader, over the speed)
@@ -243,30 +230,14 @@ def _read_table(path: Path, time_column: str | None) -> dict[str, RawChannel]:
     try:
         factor = 1.0 if tunit is None else si_factor(quantity, tunit, tcol)
     except RailsuspInputError as exc:
-        raise RailsuspInputError(f"recording {path}: {exc}") from None
-    values = {c: _numeric(df[c], path, c) for c in cols}
+        raise RecordingError(path, [*problems, str(exc)]) from None
+    values = {}
+    for c in cols:
+        x, why, _ = column_numbers(df[c])
+        if why is not None:
+            problems.append(f"column {c!r}{why}")
+        values[c] = x
+    if problems:
+        raise RecordingError(path, problems)
     t = values[tcol] * factor
     return {c: RawChannel(c, split_header(c)[1], t, v) for c, v in values.items() if c != tcol}
-
-
-def _numeric(raw: pd.Series, path: Path, col: str) -> np.ndarray:
-    """A column as floats; empty or ``nan`` cells are NaN, other text is an error naming
-    the row (file line). A boolean column (Parquet) is refused as CSV's ``True`` is: its
-    values were read as 0 and 1 kN (the command-line audit of stop 60)."""
-    if raw.dtype.kind == "b" or (raw.dtype == object and raw.map(type).eq(bool).any()):
-        raise RailsuspInputError(
-            f"recording {path}: column {col!r} holds booleans (true/false), not numbers; "
-            "accepted numeric values"
-        )
-    if raw.dtype.kind in "fiu":
-        return raw.to_numpy(dtype=float)
-    text = raw.where(raw.notna(), "").astype(str).str.strip()  # a Parquet null: empty
-    vals = pd.to_numeric(text.replace("", "nan"), errors="coerce")
-    bad = vals.isna() & ~text.str.lower().isin(["", "nan"])
-    if bad.any():
-        i = int(np.flatnonzero(bad.to_numpy())[0])
-        raise RailsuspInputError(
-            f"recording {path}: column {col!r}, row {i + 2}: {raw.iloc[i]!r} is not a number"
-            f" ({int(bad.sum())} such cell(s))"
-        )
-    return vals.to_numpy(dtype=float)

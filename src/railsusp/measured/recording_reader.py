@@ -24,11 +24,17 @@ from railsusp.measured.checks import (
     check_finite,
     check_flat,
     check_forces,
-    check_sparse,
     check_time,
 )
 from railsusp.measured.field_table import read_field_table
 from railsusp.measured.recording import Recording, RecordingError
+from railsusp.measured.run_checks import check_force_rates
+from railsusp.measured.sampling import (
+    FiniteSampling,
+    check_sparse,
+    finite_rate_note,
+    finite_sampling,
+)
 from railsusp.measured.sidecar import condition_on_the_table, read_sidecar, sidecar_condition
 from railsusp.measured.track_columns import check_track_columns
 from railsusp.measured.units import si_factor, split_header
@@ -69,12 +75,15 @@ def read_recording(
     are noted and left unused); time strictly increasing without jitter or mixed rates, at
     least ``min_rate_hz``; forces in the unit their header states (``Y_w1R_kN``,
     ``Y_w1R [N]``); non-finite values (±inf refused, NaN gaps over 5 samples refused,
-    shorter ones interpolated with a warning unless together over 5 % of the samples or a
-    lower effective rate); all-zero or constant force channels; median wheel load against
-    the wagon's static wheel load; physical bounds; the speed and track columns against the
-    condition (:mod:`railsusp.measured.track_columns`). The table itself is read by
-    :mod:`railsusp.measured.field_table` (a distance axis put on time, its jumps refused;
-    text and booleans in an unused column noted, not refused)."""
+    shorter ones interpolated with a warning unless together over 5 % of the samples, and
+    a force column's rate of its finite values at least ``min_rate_hz``: the rule of
+    :mod:`railsusp.measured.sampling`, a long run's too); all-zero or constant force
+    channels; median wheel load against the wagon's static wheel load; physical bounds; the
+    speed and track columns against the condition (:mod:`railsusp.measured.track_columns`).
+    The table itself is read by :mod:`railsusp.measured.field_table` (a distance axis put on
+    time, its jumps refused; text and booleans in an unused column noted, not refused); the
+    checks of values run on the file's rows, so that what they count and name is what the
+    file shows, and the forces are put on time after."""
     lo, hi = MIN_RATE_RANGE_HZ
     if not (is_real(min_rate_hz) and lo <= min_rate_hz <= hi):
         raise RailsuspInputError(f"min_rate_hz = {min_rate_hz!r}: accepted {lo:g} to {hi:g} Hz")
@@ -133,9 +142,9 @@ def read_recording(
             notes.append(f"column {c!r} not used")
     if table.time is None:  # the axis does not read: the columns' problems, then stop
         raise RecordingError(table_path, [*problems])
-    raw = table.channels
+    raw = table.channels  # the file's rows
     t = table.time
-    lines = next(iter(raw.values())).first_row if raw else 2  # file lines, for messages
+    lines = table.lines  # the file line of each sample of t, for messages
     time_problems = check_time(t, table.axis or "time_s", lines)
     problems += time_problems
     rate = 1.0 / float(np.median(np.diff(t))) if not time_problems and t.size > 1 else None
@@ -153,6 +162,7 @@ def read_recording(
     Q: dict[str, np.ndarray] = {}
     wagon = load_wagon(wagon)  # the recorded wagon: its static wheel load and axle spread
     wl = static_wheel_load(wagon) if wheel_load_N is None else wheel_load_N
+    sampling: dict[str, FiniteSampling] = {}  # a force column's finite rows
     for w, chans in cmap.wheels.items():
         si = {}
         for f, col in chans.items():
@@ -164,19 +174,21 @@ def read_recording(
             except RailsuspInputError as exc:
                 problems.append(str(exc).replace("channel", "column", 1))
                 continue
-            x, p, n = check_finite(ch.values, col, lines)
+            x, p, n = check_finite(ch.values, col, ch.first_row)  # the file's rows
             problems += p
-            if not p and rate is not None:  # short gaps together most of the record?
-                sparse = check_sparse(ch.values, col, rate)
+            if not p and rate is not None:  # short gaps together much of the record?
+                sampling[col] = finite_sampling(ch.values, rate)
+                sparse = check_sparse(sampling[col], col)
                 problems += sparse
                 n = [] if sparse else n
             notes += n
             problems += check_flat(x, col, ch.unit or "") + check_clipped(x, col, ch.unit or "")
-            si[f] = x * factor
+            si[f] = table.on_time(x) * factor
         if len(si) == 2:
             units = (raw[chans["Y"]].unit or "", raw[chans["Q"]].unit or "")
             problems += check_forces(si["Y"], si["Q"], (chans["Y"], chans["Q"]), units, wl, lines)
             Y[w], Q[w] = si["Y"] / 1e3, si["Q"] / 1e3
+    problems += _sparse_rates(sampling, rate, min_rate_hz, notes)
     problems = [p.replace("channel '", "column '") for p in problems]
     if meta and rate is not None:
         stated = meta.get("sampling_rate_hz")
@@ -202,13 +214,40 @@ def read_recording(
             condition, meta, t.size, rate, table_path.with_suffix(".json").name, problems
         )
     if t.size:  # speed and track columns against the condition's (or a condition's range)
-        problems += check_track_columns(raw, t, condition)
+        problems += check_track_columns(raw, table.row_time, condition, table.distance)
     if problems:
         raise RecordingError(table_path, problems)
-    for note in notes:
+    for note in notes:  # (a field table's channels are its columns)
+        if note.startswith("channel '"):
+            note = "column" + note.removeprefix("channel")
         warnings.warn(f"{table_path.name}: {note}", stacklevel=2)
     extra = {k: v for k, v in meta.items() if k not in ("format", "condition", "wheels")}
     return Recording(np.asarray(t), Y, Q, condition, extra)  # type: ignore[arg-type]
+
+
+def _sparse_rates(
+    sampling: dict[str, FiniteSampling], rate: float | None, min_rate_hz: float, notes: list[str]
+) -> list[str]:
+    """Problems of the force columns whose finite values are sparser than the table's rows
+    and, so, slower than ``min_rate_hz`` (or than a tenth of the fastest column), as a long
+    run's force channels are held (:func:`~railsusp.measured.run_checks.check_force_rates`);
+    the others are noted as read at their rate, interpolated between their values."""
+    if rate is None or not sampling:
+        return []
+    sparser = [c for c, s in sampling.items() if s.rate_hz < rate * (1.0 - 1e-6)]
+    if not sparser:
+        return []
+    rates = {c: s.rate_hz for c, s in sampling.items()}
+    fastest = max(rates, key=rates.__getitem__)
+    limit = "the lowest usable rate (check-recording --min-rate, read_recording's min_rate_hz)"
+    problems = check_force_rates(
+        sparser, fastest, rates, min_rate_hz, {c: rate for c in rates}, limit
+    )
+    for c in sparser:
+        note = finite_rate_note(c, sampling[c], rate)
+        if note and not any(p.startswith(f"channel {c!r}") for p in problems):
+            notes.append(note)
+    return problems
 
 
 def _table_of(path: Path) -> Path:

@@ -43,8 +43,12 @@ from railsusp.measured.run_checks import (
     channel_unit,
     check_force_rates,
     check_track_channels,
-    finite_rate_hz,
+)
+from railsusp.measured.sampling import (
+    FiniteSampling,
+    check_sparse,
     finite_rate_note,
+    finite_sampling,
 )
 from railsusp.measured.speed_from_distance import distance_through_steps, smoothed_gradient
 from railsusp.measured.units import normalise_unit, si_factor
@@ -86,6 +90,10 @@ class MeasuredRun:
     #: True where the position is the speed integrated from 0 at the first sample (no
     #: position channel): km 0 of a line description is then where the run starts
     position_from_speed: bool = False
+    #: force channel -> per sample of ``time``, True where its value is interpolated
+    #: across missing values (NaN: short gaps filled, and the long ones of ``gaps``), not
+    #: measured; only channels with such samples
+    interpolated: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def rate_hz(self) -> float:
@@ -115,12 +123,16 @@ def read_run(
     2 Hz run upsampled to 50 Hz would pass every later check), the speed channel forward;
     a used MDF channel must lie on a time master. A NaN gap of a used channel longer than
     ``gap_limit`` samples cuts the run as a dropout does, its samples left out of the
-    sections (:mod:`railsusp.measured.breaks`); shorter ones are interpolated."""
+    sections (:mod:`railsusp.measured.breaks`); shorter ones are interpolated, at most 5 %
+    of a force channel's samples (at its rate of finite samples, which must reach
+    ``min_rate_hz``: :mod:`railsusp.measured.sampling`, the field reader's rule too)."""
     path = Path(path)
     if channel_map is not None:  # before the file is read: a long run takes a while
         check_recording_name(channel_map, path)
     try:
         raw = read_raw(path, channel_map.time if channel_map else None)
+    except RecordingError:  # the table file's problems, listed
+        raise
     except RailsuspInputError as exc:
         raise RecordingError(path, [str(exc).removeprefix(f"recording {path}: ")]) from None
     cmap = channel_map or default_map(list(raw))
@@ -170,7 +182,8 @@ def read_run(
     quantity = {c: "force" for w in cmap.wheels.values() for c in w.values()}
     quantity.update({c: SIGNALS[k] for k, c in cmap.signals.items()})
     si: dict[str, RawChannel] = {}
-    finite_hz: dict[str, float] = {}  # a force channel's rate of its finite samples
+    sampling: dict[str, FiniteSampling] = {}  # a force channel's finite samples
+    missing: dict[str, np.ndarray] = {}  # a force channel's NaN samples, on its own time
     nan_gaps: dict[str, list[tuple[int, int]]] = {}
     for name, q in quantity.items():
         ch = raw[name]
@@ -189,7 +202,10 @@ def read_run(
         notes += finite_notes
         data_notes += finite_notes
         if q == "force":  # (on the values with their long gaps NaN: not judged)
-            finite_hz[name] = finite_rate_hz(ch)  # before its short gaps are interpolated
+            sampling[name] = finite_sampling(ch.values, ch.rate_hz, gap_limit)  # the file's
+            if not finite_problems:
+                problems += check_sparse(sampling[name], name, gap_limit)
+            missing[name] = np.isnan(ch.values)
             problems += check_flat(values, name, unit or "")  # a value in the file's unit
             problems += check_clipped(values, name, unit or "")
         if not time_problems and not finite_problems:
@@ -204,12 +220,13 @@ def read_run(
         raise RecordingError(path, problems)
 
     force_names = [c for w in cmap.wheels.values() for c in w.values()]
+    finite_hz = {c: sampling[c].rate_hz for c in force_names}
     base = max(force_names, key=lambda c: (finite_hz[c], si[c].rate_hz))
     t = si[base].time
     rates = {c: si[c].rate_hz for c in quantity}
     problems += check_force_rates(force_names, base, finite_hz, min_rate_hz, stated=rates)
     for c in force_names:
-        note = finite_rate_note(c, finite_hz[c], rates[c])
+        note = finite_rate_note(c, sampling[c], rates[c])
         if note:
             notes.append(note)
             data_notes.append(note)
@@ -226,9 +243,13 @@ def read_run(
     if problems:
         raise RecordingError(path, problems)
 
+    def shared(c: str) -> bool:  # the channel's time base is the run's
+        ch = si[c]
+        return ch.time.size == t.size and np.allclose(ch.time, t, rtol=0, atol=1e-9)
+
     def on_base(c: str) -> np.ndarray:
         ch = si[c]
-        if ch.time.size == t.size and np.allclose(ch.time, t, rtol=0, atol=1e-9):
+        if shared(c):
             return ch.values
         notes.append(f"channel {c!r} ({ch.rate_hz:.4g} Hz) interpolated onto {rates[base]:.4g} Hz")
         return np.interp(t, ch.time, ch.values)
@@ -237,6 +258,11 @@ def read_run(
     for w in sorted(cmap.y_signs):
         notes.append(f"Y of {w} ({cmap.wheels[w]['Y']!r}) negated: Y_sign = -1 in the map")
     Q = {w: on_base(c["Q"]) for w, c in cmap.wheels.items()}
+    interpolated = {
+        c: m if shared(c) else np.interp(t, si[c].time, 1.0 * m) > 0
+        for c, m in missing.items()
+        if m.any()
+    }
     sig = {k: on_base(c) for k, c in cmap.signals.items()}
     speed_channel = si.get(cmap.signals.get("speed", ""))
     jumps = np.zeros(0, dtype=np.int64)
@@ -349,4 +375,5 @@ def read_run(
         jumping if jumping.any() else None,
         gaps,
         "position" not in cmap.signals,
+        interpolated,
     )

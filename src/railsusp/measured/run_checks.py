@@ -20,6 +20,11 @@ from railsusp.measured.units import normalise_unit, si_factor
 
 #: a force channel slower than this fraction of the fastest is refused, not interpolated
 MIN_FORCE_RATE_FRACTION = 0.1
+#: what a long run's least force rate is (:func:`check_force_rates`' ``limit``)
+SECTIONS_RATE = (
+    "the rate the sections are resampled to (sections --rate, [field] rate_hz; "
+    "check-recording --min-rate)"
+)
 
 #: the least share of a run's samples at a running speed (1.8 km/h or more): a run that
 #: stood for most of its time is read, its standing stretches left out when it is cut
@@ -70,35 +75,13 @@ def check_track_channels(
     return problems
 
 
-def finite_rate_hz(ch: RawChannel) -> float:
-    """The rate of a channel's finite samples, Hz: its rate, or less where its finite
-    samples lie regularly wider apart (the median step between them). A table column with a
-    value in every sixth row of 200 (the others empty, each gap short enough to be
-    interpolated) holds a 33 Hz channel, which an MDF4 file's 33 Hz channel is refused as."""
-    stated = ch.rate_hz
-    d = np.diff(ch.time[np.isfinite(ch.values)])
-    d = d[np.isfinite(d) & (d > 0.0)]
-    return min(stated, float(1.0 / np.median(d))) if d.size else stated
-
-
-def finite_rate_note(channel: str, finite_hz: float, stated_hz: float) -> str | None:
-    """What a channel whose finite samples are sparser than its rate is read as (None: as
-    its rate): its finite values' rate, interpolated between them."""
-    if not finite_hz < stated_hz * (1.0 - 1e-6):
-        return None
-    return (
-        f"channel {channel!r}: a finite value about every {stated_hz / finite_hz:.3g} "
-        f"samples of its {stated_hz:.4g} Hz (the others empty): sampled at {finite_hz:.4g} "
-        "Hz, interpolated between them"
-    )
-
-
 def check_force_rates(
     force_names: list[str],
     base: str,
     rates: dict[str, float],
     min_rate_hz: float,
     stated: dict[str, float] | None = None,
+    limit: str = SECTIONS_RATE,
 ) -> list[str]:
     """Problems of force channels sampled too slowly, one per channel: every force channel,
     not only the fastest (``base``, whose time base the run takes), must reach
@@ -108,8 +91,10 @@ def check_force_rates(
     standard deviation 4.7 kN for 7.2; the audit of stop 63), where the docs promise forces
     sampled at least at the sections' rate. A rate equal to the least one is accepted (1000
     Hz stated as 999.9999 Hz). ``rates``: each channel's rate of its finite samples
-    (:func:`finite_rate_hz`); ``stated``: the rate its time column states, where it may
-    differ (a channel whose finite samples are sparser is named as such)."""
+    (:func:`railsusp.measured.sampling.finite_sampling`); ``stated``: the rate its time
+    column states, where it may differ (a channel whose finite samples are sparser is named
+    as such); ``limit``: what ``min_rate_hz`` is, in the reader's words (a field recording's
+    is its --min-rate). The field reader holds its force columns to it too."""
     problems = []
     fastest = rates[base]
     for c in force_names:
@@ -118,8 +103,7 @@ def check_force_rates(
             continue
         by_rate = least == min_rate_hz  # the sections' rate is the limit missed, not a tenth
         why = (
-            "the rate the sections are resampled to (sections --rate, [field] rate_hz; "
-            "check-recording --min-rate)"
+            limit
             if by_rate
             else "a tenth of the fastest force channel's: interpolation cannot restore more"
         )

@@ -49,19 +49,23 @@ _COLUMNS = {
 
 
 def check_track_columns(
-    channels: dict[str, RawChannel], time: np.ndarray, condition: WorkingCondition | None
+    channels: dict[str, RawChannel],
+    time: np.ndarray,
+    condition: WorkingCondition | None,
+    distance: np.ndarray | None = None,
 ) -> list[str]:
     """Problems of the table's speed and track columns (values in the units their headers
-    state, on ``time``): each value within a working condition's range (speed above 0 and
-    at most its highest, |cant| and |grade| within theirs, the curvature of a radius no
-    tighter than its smallest), and, with the ``condition``, within the tolerances above of
-    its speed and of its design track at each sample's place along the record. NaN cells
-    are not judged (the column is not used). Each problem names the column, its first
-    rows, their value, how many rows and the accepted range."""
+    state, one per file row at ``time``, s; ``distance``: each row's, m, for a table along
+    distance): each value within a working condition's range (speed above 0 and at most its
+    highest, |cant| and |grade| within theirs, the curvature of a radius no tighter than its
+    smallest), and, with the ``condition``, within the tolerances above of its speed and of
+    its design track at each row's place along the record (:func:`places`). NaN cells are
+    not judged (the column is not used). Each problem names the column, its first rows,
+    their value, how many rows and the accepted range."""
     problems: list[str] = []
     place = None
-    if condition is not None:  # the leading wheelset's distance from the section start
-        place = condition.lead_in_m + condition.speed * (time - time[0])
+    if condition is not None:
+        place = places(channels, time, condition, distance)
     for col, ch in channels.items():
         base = split_header(col)[0]
         if base not in _COLUMNS:
@@ -77,6 +81,37 @@ def check_track_columns(
     return problems
 
 
+def places(
+    channels: dict[str, RawChannel],
+    time: np.ndarray,
+    condition: WorkingCondition,
+    distance: np.ndarray | None = None,
+) -> np.ndarray:
+    """Each row's place along the condition's track, m: the leading wheelset's distance
+    from the section start, the condition's lead-in at the first row. The distance from
+    the first row is the table's ``distance`` where it is the axis; else its speed column
+    integrated over time (trapezoidal, its empty cells interpolated), where every value of
+    it lies within the condition's speed tolerance (a speed refused is no place to judge
+    the track by); else the condition's speed times the time. Placed at the condition's
+    speed, a run at 56 km/h filed as 60 km/h drifted 1.1 m/s, a spiral 20 m away from its
+    design after 20 s, and was refused where its curvature was exactly the design's."""
+    if distance is not None:
+        return condition.lead_in_m + (distance - distance[0])
+    speed = next((ch for c, ch in channels.items() if split_header(c)[0] == "speed"), None)
+    if speed is not None and time.size >= 2:
+        try:
+            v = speed.values * si_factor("speed", speed.unit, speed.name)
+        except RailsuspInputError:
+            v = np.full(time.size, np.nan)
+        finite = np.isfinite(v)
+        tol = SPEED_TOLERANCE * condition.speed
+        if finite.sum() >= 2 and np.all(np.abs(v[finite] - condition.speed) <= tol * 1.000001):
+            v = np.interp(time, time[finite], v[finite])
+            steps = 0.5 * (v[1:] + v[:-1]) * np.diff(time)
+            return condition.lead_in_m + np.concatenate([[0.0], np.cumsum(steps)])
+    return condition.lead_in_m + condition.speed * (time - time[0])
+
+
 def _accepted(
     base: str, n: int, condition: WorkingCondition | None, place: np.ndarray | None
 ) -> tuple[np.ndarray, np.ndarray, str]:
@@ -90,7 +125,7 @@ def _accepted(
         return (
             np.full(n, v * (1 - SPEED_TOLERANCE)),
             np.full(n, v * (1 + SPEED_TOLERANCE)),
-            f"the condition's {v:g} km/h within {100 * SPEED_TOLERANCE:g} %, the speed "
+            f"the condition's {v:g} km/h within {100 * SPEED_TOLERANCE:g} %, the default speed "
             "tolerance of railsusp sections",
         )
     if base == "curvature":
@@ -153,7 +188,7 @@ def _outside(
     count = f"{values.size} row(s)"
     if values.min() != values.max() or values.size > e - s:
         count += f" outside, {values.min():.4g} to {values.max():.4g} {unit}"
-    there = "" if np.ptp(lo) == 0.0 and np.ptp(hi) == 0.0 else " there"
+    there = "" if np.ptp(lo) == 0.0 and np.ptp(hi) == 0.0 else " at the first such row"
     return [
         f"column {col!r}, {rows(s, e - 1, first_row)}: {what} {x[s]:.4g} {unit} ({count}); "
         f"accepted {_low(lo[s])} to {hi[s]:.4g} {unit}{there} ({why})"

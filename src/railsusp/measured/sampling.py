@@ -1,0 +1,104 @@
+"""How a force channel's finite samples lie, and the one rule both readers hold them to
+(a recording of the field format, :mod:`railsusp.measured.recording_reader`, and a long
+run, :mod:`railsusp.measured.run`):
+
+- the channel's **effective rate** is its rate over the median step between its finite
+  samples (a value in every second row of a 100 Hz table is 50 Hz data, as a 50 Hz channel
+  of an MDF4 file is), and must reach the rate limit that applies (the field reader's
+  ``min_rate_hz``, ``check-recording --min-rate``; a long run's, the rate its sections are
+  resampled to: :func:`railsusp.measured.run_checks.check_force_rates`);
+- at that rate, the samples missing in short NaN gaps (each within ``gap_limit`` samples:
+  interpolated) or lying off its step may fill at most :data:`MAX_INTERPOLATED_SHARE` of
+  them: interpolated values are not measured forces. Longer gaps are no share of this: a
+  recording to estimate from is refused at one, a long run cut there.
+
+Before, the field reader refused a 100 Hz table with a value in every other row (50 %
+"missing") where the long run's accepted one with a note, and the long run's accepted 20 %
+of its samples missing one by one, which ``sections --write`` then wrote as measured.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from railsusp.measured.checks import MAX_GAP_SAMPLES
+
+#: the largest share of a force channel's samples (at its effective rate) that its short
+#: NaN gaps, or samples off its step, may hold
+MAX_INTERPOLATED_SHARE = 0.05
+
+
+@dataclass(frozen=True)
+class FiniteSampling:
+    """Where a channel's finite samples lie among its rows."""
+
+    step: float  # rows between finite samples, the median (1: every row)
+    rate_hz: float  # its effective rate: the written rate over ``step``
+    missing: int  # samples of that rate missing in short gaps, or lying off its step
+    samples: int  # its samples at that rate (finite and missing; long gaps aside)
+
+    @property
+    def share(self) -> float:
+        """The share of its samples missing (or off its step)."""
+        return self.missing / self.samples if self.samples else 0.0
+
+
+def finite_sampling(
+    x: np.ndarray, rate_hz: float, gap_limit: int = MAX_GAP_SAMPLES
+) -> FiniteSampling:
+    """How the finite samples of ``x`` (one per row at ``rate_hz``) lie: their median step,
+    the effective rate, and the samples of that rate missing in the short NaN gaps (of up
+    to ``gap_limit`` rows, ends included). At a step of 1 these are the NaN samples; at a
+    regular step k a gap of k·m rows is m - 1 missing, and a step shorter than k (values
+    not on a regular step: NaN scattered over half the rows) counts too."""
+    at = np.flatnonzero(~np.isnan(x))
+    if at.size < 2:  # (no finite value, or one: the reader refuses it)
+        return FiniteSampling(1.0, rate_hz, 0, x.size)
+    d = np.diff(at)
+    d = d[d <= gap_limit + 1]  # a longer gap is refused or cut at, never interpolated
+    step = float(np.median(d)) if d.size else 1.0
+    ends = np.array([at[0], x.size - 1 - at[-1]])
+    ends = ends[ends <= gap_limit]
+    missing = int(np.abs(np.rint(d / step) - 1.0).sum() + np.rint(ends / step).sum())
+    return FiniteSampling(step, rate_hz / step, missing, at.size + missing)
+
+
+def check_sparse(
+    s: FiniteSampling,
+    channel: str,
+    gap_limit: int = MAX_GAP_SAMPLES,
+    max_share: float = MAX_INTERPOLATED_SHARE,
+) -> list[str]:
+    """The problem of a force channel (its :func:`finite_sampling`) whose short gaps
+    together hold more than ``max_share`` of its samples: each gap passed the
+    ``gap_limit`` rule, but together they are much of the record."""
+    if s.share <= max_share:
+        return []
+    pct = f"{100.0 * s.share:.3g} %"
+    if s.step > 1.0:
+        said = (
+            f"a finite value about every {s.step:.3g} samples ({s.rate_hz:.4g} Hz), "
+            f"{s.missing} of its {s.samples} samples at that rate ({pct}) missing (NaN) or "
+            "off that step"
+        )
+    else:
+        said = f"{s.missing} of its {s.samples} samples ({pct}) missing (NaN)"
+    return [
+        f"channel {channel!r}: {said}, in gaps of up to {gap_limit} samples; accepted at "
+        f"most {100.0 * max_share:g} % of a force channel's samples in such gaps (each "
+        "interpolated): interpolated values are not measured forces"
+    ]
+
+
+def finite_rate_note(channel: str, s: FiniteSampling, stated_hz: float) -> str | None:
+    """What a channel whose finite samples are sparser than its rate is read as (None: as
+    its rate): its finite values' rate, interpolated between them."""
+    if not s.rate_hz < stated_hz * (1.0 - 1e-6):
+        return None
+    return (
+        f"channel {channel!r}: a finite value about every {s.step:.3g} samples of its "
+        f"{stated_hz:.4g} Hz (the others empty): sampled at {s.rate_hz:.4g} Hz, "
+        "interpolated between them"
+    )
