@@ -121,6 +121,19 @@ def test_railsusp_run_on_a_damaged_pipeline_json_exits_2_with_one_line(tmp_path)
     assert lines[0].startswith("error: --out ") and "stages.campaign = 'done'" in result.output
 
 
+def test_a_newer_railsusps_pipeline_json_is_refused_as_newer_not_as_damaged(tmp_path):
+    """The review of stop 69: the structure check ran before the format's, so a newer
+    railsusp's record (a key of another type) was called damaged, with "delete it to
+    resume", and this railsusp would then write over the newer run."""
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(TOML)
+    newer = {"format": 99, "stages": {"campaign": {"state": "done", "files": {"a": {"b": 1}}}}}
+    run = _run_dir(tmp_path, newer)
+    result = CliRunner().invoke(app, ["-q", "run", str(cfg), "--out", str(run)])
+    assert result.exit_code == 2, result.output
+    assert "written by a newer railsusp" in result.output and "damaged" not in result.output
+
+
 def test_the_stages_own_records_pass_the_check(tmp_path):
     """What the pipeline writes (and what runs of before wrote: no format, no hashes, a
     stage running or failed) is not taken for damage."""

@@ -15,18 +15,25 @@ import threading
 from collections.abc import Callable
 from types import FrameType
 
-_recorded = threading.Event()
+#: a plain flag, not a threading.Event: the signal handler runs between bytecodes of the
+#: main thread, and an Event's set() would wait on the lock a clear() there holds
+_recorded = [False]
 
 
 def record_interrupt() -> None:
     """Remember a Ctrl-C (the handler's first step; tests call it to swallow one)."""
-    _recorded.set()
+    _recorded[0] = True
+
+
+def forget_interrupt() -> None:
+    """Forget a recorded Ctrl-C (a command's start and end)."""
+    _recorded[0] = False
 
 
 def stop_if_interrupted() -> None:
     """Raise KeyboardInterrupt where a Ctrl-C was recorded and not yet forgotten: the one
     raised may have been swallowed."""
-    if _recorded.is_set():
+    if _recorded[0]:
         raise KeyboardInterrupt
 
 
@@ -42,14 +49,14 @@ def catch_interrupts() -> Callable[[], None]:
     runner, leaves the process as it found it). Installed only in the main thread and over
     Python's own handler: a process that ignores SIGINT (started in the background by a
     shell) or handles it otherwise keeps that."""
-    _recorded.clear()
+    forget_interrupt()
     in_main = threading.current_thread() is threading.main_thread()
     if not in_main or signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
-        return _recorded.clear
+        return forget_interrupt
     previous = signal.signal(signal.SIGINT, _on_sigint)
 
     def restore() -> None:
         signal.signal(signal.SIGINT, previous)
-        _recorded.clear()
+        forget_interrupt()
 
     return restore

@@ -171,6 +171,8 @@ def check_run_state(state: dict, where: str, remedy: str = "") -> None:
     made = state.get("format", 0)
     if not is_whole(made) or made < 0:
         raise damaged("format", made, "a whole number (0 or more)")
+    if made > PIPELINE_FORMAT:  # a newer railsusp's layout: its readers refuse it as such
+        return  # (called damaged, it was deleted on that advice and written over)
     for key in _TOP_TABLES:
         if key in state and not isinstance(state[key], dict):
             raise damaged(key, state[key], "a table")

@@ -162,17 +162,29 @@ def _stream_failed(exc: OutputStreamError) -> None:
     space and run the same command again"), on stderr where that is not the one failing.
     The stream is pointed at the null device so that Python's last flush at exit does not
     fail again with a traceback-like "Exception ignored" message."""
+    import errno
     import os
+    import stat
 
     stream = getattr(sys, exc.stream, None)
+    try:  # a file on a disk, which may be the run's (not a device such as /dev/full)
+        on_disk = stat.S_ISREG(os.fstat(stream.fileno()).st_mode)
+    except (AttributeError, OSError, ValueError):
+        on_disk = False
     try:
         os.dup2(os.open(os.devnull, os.O_WRONLY), stream.fileno())
     except (AttributeError, OSError, ValueError):  # no descriptor (a test runner's buffer)
         pass
     try:
+        full = on_disk and exc.errno in (errno.ENOSPC, errno.EDQUOT)
         err_console.print(
             f"error: {exc.stream}: {exc.strerror or exc}: the printed output could not be "
-            "written (the files the command wrote are whole and kept)",
+            "written (the files the command wrote are whole and kept"
+            + (
+                "; if they share that disk, free space and run the same command again)"
+                if full
+                else ")"
+            ),
             markup=False,
             highlight=False,
         )
