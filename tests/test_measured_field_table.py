@@ -298,3 +298,49 @@ class warnings_as_errors:
 
     def __exit__(self, *exc):
         return self._cm.__exit__(*exc)
+
+
+def test_a_column_named_twice_is_refused_only_where_the_format_reads_it(tmp_path):
+    """A logger's ``status`` repeated across its groups: an unknown column of the format,
+    noted (its first copy unused, as a long run's); a column of the format named twice is
+    refused, which copy meant unknown. Both were refused, the unknown one since the reader
+    shared the long run's (and refused a whole long run with it)."""
+    frame = {"time_s": T, **forces(), "status": np.ones(N), "GPS_fix": np.ones(N)}
+    path = table(tmp_path, frame)
+    text = path.read_text().replace("status,GPS_fix", "status,status", 1)
+    path.write_text(text)
+    with pytest.warns(UserWarning) as caught:
+        rec = read_recording(path)
+    said = [str(w.message) for w in caught]
+    assert rec.wheels == ("w1L",)
+    assert any(
+        "column 'status' appears 2 times in the header (columns 4, 5): the later ones left out" in w
+        for w in said
+    ), said
+    assert any("column 'status' not used" in w for w in said), said
+    path.write_text(text.replace("status,status", "speed_kmh,speed_kmh", 1))
+    msg = problems(path)
+    assert (
+        "column 'speed_kmh' appears 2 times in the header (columns 4, 5); accepted each "
+        "column once (which copy is meant cannot be told)"
+    ) in msg
+
+
+@pytest.mark.parametrize("n", [3000, 3001])
+def test_every_third_sample_missing_is_a_third_missing_at_any_length(n):
+    """The step between finite samples was their median: with every third row empty the
+    steps 1 and 2 are as many, and one row more (3001) made it 1.5, read as 133 Hz data
+    with nothing missing and accepted, where 3000 rows were a third missing, refused."""
+    from railsusp.measured.sampling import check_sparse, finite_sampling
+
+    x = np.ones(n)
+    x[2::3] = np.nan
+    s = finite_sampling(x, 200.0)
+    assert (s.step, s.rate_hz, s.missing) == (1.0, 200.0, n // 3)
+    assert check_sparse(s, "Q") != []
+    # a whole step of most rows stays the channel's rate, its other steps counted missing
+    y = np.full(n, np.nan)
+    y[::2] = 1.0
+    y[[10, 500, 1000]] = np.nan  # 3 samples of 100 Hz missing
+    s = finite_sampling(y, 200.0)
+    assert (s.step, s.rate_hz, s.missing) == (2.0, 100.0, 3)

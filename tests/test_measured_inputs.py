@@ -462,3 +462,55 @@ def test_a_sidecar_naming_two_conditions_is_refused(tmp_path):
     side.write_text(json.dumps({**doc, "condition_name": "curve"}))
     with pytest.raises(RecordingError, match="a 'condition' table .* and condition_name 'curve'"):
         read_recording(tmp_path / "r.csv")
+
+
+RUN_MAP = {
+    "speed": "v [km/h]",
+    "position": "s [m]",
+    "wheels": {"w1R": {"Y": "Y_R [kN]", "Q": "Q_R [kN]"}},
+}
+
+
+def _table_run(path, header_end, cells):
+    """A 20 s long run as a CSV table (forces at 200 Hz), the columns ``header_end`` with
+    the same ``cells`` in every row appended."""
+    rng = np.random.default_rng(0)
+    t = np.arange(0, 20, 1 / 200)
+    y, q = 5 + rng.standard_normal(t.size), 120 + rng.standard_normal(t.size)
+    lines = ["time [s],Y_R [kN],Q_R [kN],v [km/h],s [m]," + header_end]
+    lines += [
+        f"{a:.4f},{b:.4f},{c:.4f},54,{15 * a:.3f},{cells}" for a, b, c in zip(t, y, q, strict=True)
+    ]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_an_unused_long_run_column_named_twice_or_of_text_is_noted_not_refused(tmp_path):
+    """A logger's ``status`` repeated across its groups, or a ``state`` of text, refused a
+    whole long run (the table reader shared with the field format's refused any); now only
+    where the channel map, or the time axis, uses the column, and noted where not."""
+    path = _table_run(tmp_path / "r.csv", "status,GPS_fix,status,state", "1,3,1,OK")
+    run = read_run(path, channel_map_from(RUN_MAP))
+    assert run.wheels == ("w1R",)
+    assert (
+        "channel(s) not used: status (in columns 6, 8), GPS_fix, state (text, 'OK' in row 2, "
+        "not numbers)"
+    ) in run.notes
+    for used, said in [
+        ("status", "column 'status' appears 2 times in the header (columns 6, 8); accepted "
+                   "each column once"),
+        ("state", "column 'state', row 2: 'OK' is not a number (4000 such cell(s))"),
+    ]:  # fmt: skip
+        with pytest.raises(RecordingError) as err:
+            read_run(path, channel_map_from({**RUN_MAP, "grade": used}))
+        assert said in str(err.value)
+    twice = _table_run(tmp_path / "t.csv", "time [s]", "0")
+    with pytest.raises(RecordingError, match=r"column 'time \[s\]' appears 2 times"):
+        read_run(twice, channel_map_from(RUN_MAP))
+    # a Parquet column of booleans, unused: noted as well
+    frame = pd.read_csv(path).iloc[:, :5].assign(flag=True)
+    frame.to_parquet(tmp_path / "r.parquet")
+    run = read_run(tmp_path / "r.parquet", channel_map_from(RUN_MAP))
+    assert "channel(s) not used: flag (booleans, not numbers)" in run.notes
+    with pytest.raises(RecordingError, match="column 'flag' holds booleans"):
+        read_run(tmp_path / "r.parquet", channel_map_from({**RUN_MAP, "grade": "flag"}))

@@ -4,7 +4,10 @@ line that is not UTF-8, a separator other than a comma, a column named twice or 
 all, cells that are not numbers). A column that is not numbers is left to the reader
 (:mod:`railsusp.measured.recording_reader`): refused where the recording uses it, noted
 and left unused where it does not (a ``note`` column of text, a Parquet ``flag`` of
-booleans refused the whole recording before).
+booleans refused the whole recording before). A column named twice is refused where its
+name is one the format gives a meaning (:data:`FORMAT_NAMES`, ``Y_...``, ``Q_...``: which
+copy is meant cannot be told), noted where not (its first copy then noted unused), as a
+long run's unused channel named twice is.
 
 Every column is kept as the file's rows, so that the reader's checks count and name what
 the user sees in the file. A table along ``distance_m`` gives each row its time over its
@@ -24,7 +27,7 @@ import numpy as np
 from railsusp.errors import RailsuspInputError, did_you_mean
 from railsusp.measured.checks import rows, runs
 from railsusp.measured.raw import RawChannel
-from railsusp.measured.table_file import column_numbers, read_frame
+from railsusp.measured.table_file import TWICE_REFUSED, column_numbers, read_frame, twice_said
 from railsusp.measured.units import si_factor, split_header
 
 #: a distance step longer than this many times the median step, taking longer than this
@@ -32,6 +35,10 @@ from railsusp.measured.units import si_factor, split_header
 #: a sound table is uniform in one of the two (sampled by distance, or by time), and the
 #: speed is held within 10 % of its condition's
 JUMP_FACTOR = 1.5
+
+#: the names (less their units) of the format's columns other than the forces (``Y_...``,
+#: ``Q_...``): the axis, the speed and the track
+FORMAT_NAMES = ("time", "t", "distance", "speed", "curvature", "cant", "grade")
 
 
 @dataclass
@@ -79,12 +86,19 @@ class FieldTable:
 def read_field_table(path: Path) -> FieldTable:
     """The table's columns; a file that does not read as a table at all raises
     :class:`~railsusp.measured.recording.RecordingError` with its problems."""
-    df, problems, notes = read_frame(path)
+    df, notes, twice = read_frame(path)
     cols = [str(c) for c in df.columns]
     axis = next((c for c in ("time_s", "distance_m") if c in cols), None)
     if axis is None:
         axis = next((c for c in cols if split_header(c)[0] in ("time", "t")), None)
     names = [c for c in cols if c != axis]
+    problems: list[str] = []
+    for c, at in twice.items():
+        base = split_header(c)[0]
+        if c == axis or base in FORMAT_NAMES or base.startswith(("Y_", "Q_")):
+            problems.append(f"column {c!r}{twice_said(at)}{TWICE_REFUSED}")
+        else:
+            notes.append(f"column {c!r}{twice_said(at)}: the later ones left out")
     table = FieldTable(path, names, axis, None, problems=problems, notes=notes)
     for c in cols:
         values, why, short = column_numbers(df[c])

@@ -16,7 +16,12 @@ import numpy as np
 
 from railsusp.errors import RailsuspInputError, did_you_mean
 from railsusp.measured.recording import RecordingError
-from railsusp.measured.table_file import column_numbers, read_frame
+from railsusp.measured.table_file import (
+    TWICE_REFUSED,
+    column_numbers,
+    read_frame,
+    twice_said,
+)
 from railsusp.measured.units import si_factor, split_header
 
 MDF_SUFFIXES = (".mf4", ".mdf", ".dat")
@@ -36,6 +41,9 @@ class RawChannel:
     first_row: int | np.ndarray = 2
     groups: int = 1  # MDF: how many groups hold a channel of this name (used: refused)
     master: str | None = None  # MDF: what its group's master is where not time in s
+    #: tables: why the column is no channel (named twice, cells not numbers), as a problem
+    #: to follow ``column 'X'`` and in short; refused where the map uses it, noted where not
+    unreadable: tuple[str, str] | None = None
 
     @property
     def rate_hz(self) -> float:
@@ -210,19 +218,23 @@ def _open_mdf(path: Path) -> Any:
 def _read_table(path: Path, time_column: str | None) -> dict[str, RawChannel]:
     """Channels of a CSV/Parquet table sharing its time column (``time_s``, ``t [s]``, ...).
     The file is read as a field table's is (:func:`~railsusp.measured.table_file.read_frame`:
-    its lines that are not UTF-8 named, a ``;`` separator said, a column named twice and
-    lines with more cells than the header refused, cells that are not numbers named column
-    by column), raising :class:`~railsusp.measured.recording.RecordingError` with every
-    problem of the file."""
-    df, problems, _ = read_frame(path)  # (a column without a name: never a used channel)
+    its lines that are not UTF-8 named, a ``;`` separator said, lines with more cells than
+    the header refused), raising :class:`~railsusp.measured.recording.RecordingError` with
+    every problem of the file. A column named twice, or of cells that are not numbers, is a
+    problem where it is the time column; another is kept as :attr:`RawChannel.unreadable`
+    (its first copy), for :func:`~railsusp.measured.run.read_run` to refuse where the map
+    uses it and note where not: a logger's second ``status`` column, or a text ``state``,
+    refused a whole long run."""
+    df, _, twice = read_frame(path)  # (a column without a name: never a used channel)
     cols = [str(c) for c in df.columns]
     tcol = time_column
     if tcol is None:
         tcol = next((c for c in cols if split_header(c)[0] in ("time", "t")), None)
     if tcol is None or tcol not in cols:
         hint = did_you_mean(tcol, cols) if tcol else ""
-        problems.append(f"no time column ({tcol or 'time_s, time [s]'}){hint}; columns {cols}")
-        raise RecordingError(path, problems)
+        raise RecordingError(
+            path, [f"no time column ({tcol or 'time_s, time [s]'}){hint}; columns {cols}"]
+        )
     tname, tunit = split_header(tcol)
     # a unit other than s and ms was read as seconds (a "time [msec]" column of 200 Hz); a
     # field table's distance_m is its axis too (put on time by the reader, over the speed)
@@ -230,14 +242,27 @@ def _read_table(path: Path, time_column: str | None) -> dict[str, RawChannel]:
     try:
         factor = 1.0 if tunit is None else si_factor(quantity, tunit, tcol)
     except RailsuspInputError as exc:
-        raise RecordingError(path, [*problems, str(exc)]) from None
-    values = {}
-    for c in cols:
-        x, why, _ = column_numbers(df[c])
-        if why is not None:
-            problems.append(f"column {c!r}{why}")
-        values[c] = x
+        raise RecordingError(path, [str(exc)]) from None
+    t, why, _ = column_numbers(df[tcol])
+    problems = []
+    if tcol in twice:
+        problems.append(f"column {tcol!r}{twice_said(twice[tcol])}{TWICE_REFUSED}")
+    if why is not None:
+        problems.append(f"column {tcol!r}{why}")
     if problems:
         raise RecordingError(path, problems)
-    t = values[tcol] * factor
-    return {c: RawChannel(c, split_header(c)[1], t, v) for c, v in values.items() if c != tcol}
+    t = t * factor
+    out = {}
+    for c in cols:
+        if c == tcol:
+            continue
+        x, why, short = column_numbers(df[c])
+        x = np.full(t.size, np.nan) if why is not None else x  # (never read as values)
+        ch = RawChannel(c, split_header(c)[1], t, x)
+        if c in twice:
+            at = ", ".join(str(i) for i in twice[c])
+            ch.unreadable = (f"{twice_said(twice[c])}{TWICE_REFUSED}", f"in columns {at}")
+        elif why is not None:
+            ch.unreadable = (why, f"{short}, not numbers")
+        out[c] = ch
+    return out

@@ -145,6 +145,8 @@ def read_run(
                 f"channel {c!r} is sampled on the master channel {raw[c].master}, not time; "
                 "accepted channels on a time master (export the run on its time base)"
             )
+        if c in raw and raw[c].unreadable is not None:  # a table's column
+            problems.append(f"column {c!r}{raw[c].unreadable[0]}")
         if c in raw and raw[c].groups > 1:
             problems.append(
                 f"channel {c!r} appears in {raw[c].groups} groups of the file at the same "
@@ -173,7 +175,11 @@ def read_run(
     absent = [c for c in cmap.ignore if c not in raw]
     if absent:
         notes.append(f"ignore: channel(s) not in the file: {', '.join(absent)}")
-    unused = [c for c in raw if c not in cmap.used() and c not in cmap.ignore]
+    unused = [
+        c if raw[c].unreadable is None else f"{c} ({raw[c].unreadable[1]})"
+        for c in raw
+        if c not in cmap.used() and c not in cmap.ignore
+    ]
     if unused:
         notes.append(f"channel(s) not used: {', '.join(unused)}")
     if problems:

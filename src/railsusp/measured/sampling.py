@@ -2,11 +2,13 @@
 (a recording of the field format, :mod:`railsusp.measured.recording_reader`, and a long
 run, :mod:`railsusp.measured.run`):
 
-- the channel's **effective rate** is its rate over the median step between its finite
-  samples (a value in every second row of a 100 Hz table is 50 Hz data, as a 50 Hz channel
-  of an MDF4 file is), and must reach the rate limit that applies (the field reader's
-  ``min_rate_hz``, ``check-recording --min-rate``; a long run's, the rate its sections are
-  resampled to: :func:`railsusp.measured.run_checks.check_force_rates`);
+- the channel's **effective rate** is its rate over its step between finite samples: the
+  most common one, where it is a whole number of rows k >= 2 between more than half of
+  them (a value in every second row of a 100 Hz table is 50 Hz data, as a 50 Hz channel
+  of an MDF4 file is), else 1 (every row, its empty cells missing); it must reach the
+  rate limit that applies (the field reader's ``min_rate_hz``, ``check-recording
+  --min-rate``; a long run's, the rate its sections are resampled to:
+  :func:`railsusp.measured.run_checks.check_force_rates`);
 - at that rate, the samples missing in short NaN gaps (each within ``gap_limit`` samples:
   interpolated) or lying off its step may fill at most :data:`MAX_INTERPOLATED_SHARE` of
   them: interpolated values are not measured forces. Longer gaps are no share of this: a
@@ -14,7 +16,10 @@ run, :mod:`railsusp.measured.run`):
 
 Before, the field reader refused a 100 Hz table with a value in every other row (50 %
 "missing") where the long run's accepted one with a note, and the long run's accepted 20 %
-of its samples missing one by one, which ``sections --write`` then wrote as measured.
+of its samples missing one by one, which ``sections --write`` then wrote as measured. The
+step was the median: with every third row empty (steps of 1 and 2 as often) it was 1.5,
+133 Hz of a 200 Hz table and nothing missing, where one row less made it 1 and a third
+of the samples missing, refused.
 """
 
 from __future__ import annotations
@@ -34,7 +39,7 @@ MAX_INTERPOLATED_SHARE = 0.05
 class FiniteSampling:
     """Where a channel's finite samples lie among its rows."""
 
-    step: float  # rows between finite samples, the median (1: every row)
+    step: float  # rows between finite samples: a whole k >= 2 where most are, else 1
     rate_hz: float  # its effective rate: the written rate over ``step``
     missing: int  # samples of that rate missing in short gaps, or lying off its step
     samples: int  # its samples at that rate (finite and missing; long gaps aside)
@@ -48,17 +53,24 @@ class FiniteSampling:
 def finite_sampling(
     x: np.ndarray, rate_hz: float, gap_limit: int = MAX_GAP_SAMPLES
 ) -> FiniteSampling:
-    """How the finite samples of ``x`` (one per row at ``rate_hz``) lie: their median step,
-    the effective rate, and the samples of that rate missing in the short NaN gaps (of up
-    to ``gap_limit`` rows, ends included). At a step of 1 these are the NaN samples; at a
-    regular step k a gap of k·m rows is m - 1 missing, and a step shorter than k (values
-    not on a regular step: NaN scattered over half the rows) counts too."""
+    """How the finite samples of ``x`` (one per row at ``rate_hz``) lie: their step (the
+    most common one between them, where it is k >= 2 rows between more than half of them;
+    else 1), the effective rate, and the samples of that rate missing in the short NaN gaps
+    (of up to ``gap_limit`` rows, ends included). At a step of 1 these are the NaN samples;
+    at a step k a gap of k·m rows is m - 1 missing, and a step shorter than k (values not on
+    a regular step: NaN scattered over half the rows) counts too. A median or fractional
+    step hid them: a third of the rows empty read as a step of 1.5, nothing missing."""
     at = np.flatnonzero(~np.isnan(x))
     if at.size < 2:  # (no finite value, or one: the reader refuses it)
         return FiniteSampling(1.0, rate_hz, 0, x.size)
     d = np.diff(at)
     d = d[d <= gap_limit + 1]  # a longer gap is refused or cut at, never interpolated
-    step = float(np.median(d)) if d.size else 1.0
+    step = 1.0
+    if d.size:
+        counts = np.bincount(d)
+        k = int(np.argmax(counts))  # (a tie: the shorter step)
+        if k >= 2 and 2 * counts[k] > d.size:
+            step = float(k)
     ends = np.array([at[0], x.size - 1 - at[-1]])
     ends = ends[ends <= gap_limit]
     missing = int(np.abs(np.rint(d / step) - 1.0).sum() + np.rint(ends / step).sum())

@@ -1,11 +1,12 @@
 """The cells of a recording's table file (CSV or Parquet), with the problems of the file
 itself said in the project's words: a line that is not UTF-8 (its line number), a
 separator other than a comma, a line with more cells than the header, a last line cut
-short, a column named twice, and cells that are not numbers (each column with its first
-row). Shared by the field-format reader (:mod:`railsusp.measured.field_table`) and the long
-run's (:mod:`railsusp.measured.raw`), so that a table reads alike whichever command reads
-it: a long run's CSV separated by ``;`` said "no time column" before, and its non-UTF-8
-lines no line number.
+short; and, for the reader to refuse where it uses the column and note where it does not,
+a column named twice and cells that are not numbers (each column with its first row).
+Shared by the field-format reader (:mod:`railsusp.measured.field_table`) and the long run's
+(:mod:`railsusp.measured.raw`), so that a table reads alike whichever command reads it: a
+long run's CSV separated by ``;`` said "no time column" before, and its non-UTF-8 lines no
+line number.
 """
 
 from __future__ import annotations
@@ -26,15 +27,18 @@ from railsusp.measured.recording import RecordingError
 LINES_NAMED = 3
 
 
-def read_frame(path: Path) -> tuple[pd.DataFrame, list[str], list[str]]:
-    """The table's cells (text for CSV), with the problems and notes of its header: a
-    column named twice (its later copies left out; pandas renamed them ``X.1``), one with
-    no name (a trailing comma on each line: left out without a word where all its cells are
-    empty, with a note where not). A file that does not read as a table at all raises
-    :class:`RecordingError` with its problem."""
+def read_frame(path: Path) -> tuple[pd.DataFrame, list[str], dict[str, list[int]]]:
+    """The table's cells (text for CSV), the notes of its header, and its columns named
+    more than once: name -> their column numbers (from 1; :func:`twice_said`), the first
+    copy kept, the later ones left out (pandas renamed them ``X.1``). Whether that is a
+    problem is the reader's to say: a logger repeats an unused name across its groups (a
+    second ``status``), which refused a whole long run.
+    A column with no name (a trailing comma on each line) is left out, without a word where
+    all its cells are empty, with a note where not. A file that does not read as a table
+    at all raises :class:`RecordingError` with its problem."""
     if path.suffix.lower() == ".parquet":
         try:
-            return pd.read_parquet(path), [], []
+            return pd.read_parquet(path), [], {}
         except Exception as exc:  # pyarrow raises many types on a damaged file
             raise RecordingError(path, [f"cannot read the table ({_first_line(exc)})"]) from None
     data = path.read_bytes()
@@ -73,7 +77,7 @@ def read_frame(path: Path) -> tuple[pd.DataFrame, list[str], list[str]]:
                 "wrong; remove the line or copy the file again"
             ],
         )
-    problems: list[str] = []
+    twice: dict[str, list[int]] = {}
     notes: list[str] = []
     drop = []
     for name, n in Counter(header).items():
@@ -88,12 +92,21 @@ def read_frame(path: Path) -> tuple[pd.DataFrame, list[str], list[str]]:
                         "empty): not used"
                     )
         elif n > 1:
-            problems.append(
-                f"column {name!r} appears {n} times in the header (columns "
-                f"{', '.join(str(i + 1) for i in at)}); accepted each column once"
-            )
+            twice[name] = [i + 1 for i in at]
             drop += [df.columns[i] for i in at[1:]]
-    return df.drop(columns=drop), problems, notes
+    return df.drop(columns=drop), notes, twice
+
+
+def twice_said(columns: list[int]) -> str:
+    """A column named more than once, at ``columns`` (from 1), to follow ``column 'X'``."""
+    return (
+        f" appears {len(columns)} times in the header (columns "
+        f"{', '.join(str(i) for i in columns)})"
+    )
+
+
+#: what follows :func:`twice_said` where the reader uses the column
+TWICE_REFUSED = "; accepted each column once (which copy is meant cannot be told)"
 
 
 def column_numbers(raw: pd.Series) -> tuple[np.ndarray, str | None, str]:
