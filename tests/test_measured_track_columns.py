@@ -9,8 +9,9 @@ import pandas as pd
 import pytest
 
 from railsusp.conditions import get_condition
-from railsusp.measured import Recording, RecordingError, read_recording
+from railsusp.measured import Recording, read_recording
 from railsusp.vehicle.track import TrackLayout
+from test_measured_checks import problems
 
 RATE = 50.0
 
@@ -36,12 +37,6 @@ def write(tmp_path, condition, extra: dict, name="rec", keep_condition=True):
         meta["condition"]["speed_kmh"] = "sixty"  # no valid condition: the ranges alone
         side.write_text(json.dumps(meta))
     return path
-
-
-def problems(path) -> str:
-    with pytest.raises(RecordingError) as info:
-        read_recording(path)
-    return str(info.value)
 
 
 STRAIGHT = get_condition("straight", duration_s=2.0, n_steps=100)
