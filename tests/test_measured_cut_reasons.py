@@ -119,3 +119,22 @@ def test_check_recording_shows_a_backwards_stretch_as_negative_speeds():
         "-18 to 54 km/h (negative: backwards)"
     )
     assert _speed_range(_run_of(np.arange(200) / 50.0, np.full(200, 15.0))) == "54-54 km/h"
+
+
+def test_a_section_crowded_with_interpolated_samples_is_left_out():
+    """The run passes the missing-sample rule over its whole length (at most 5 %), but its
+    short gaps may crowd into one section, which `sections --write` wrote as if measured
+    (the field reader cannot tell them, the cells being full): such a section is left out,
+    saying so; one under the limit is kept."""
+    v = np.full(6000, 15.0)
+    crowded = np.zeros(v.size, dtype=bool)
+    crowded[100:1000:10] = True  # 90 interpolated samples
+    (kept,) = cut_sections(_run_of(np.arange(v.size) / 50.0, v, interpolated={"WS1_Q_R": crowded}))
+    assert kept.kept  # 90 of 6000: 1.5 %
+    crowded[100:1000:2] = True  # 450 of 6000: 7.5 %
+    (out,) = cut_sections(_run_of(np.arange(v.size) / 50.0, v, interpolated={"WS1_Q_R": crowded}))
+    assert not out.kept
+    assert out.reason == (
+        "7.5 % of the samples of channel 'WS1_Q_R' here interpolated across empty values; "
+        "accepted at most 5 % in a section (written, they would read as measured forces)"
+    )

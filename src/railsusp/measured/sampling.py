@@ -114,3 +114,38 @@ def finite_rate_note(channel: str, s: FiniteSampling, stated_hz: float) -> str |
         f"{stated_hz:.4g} Hz (the others empty): sampled at {s.rate_hz:.4g} Hz, "
         "interpolated between them"
     )
+
+
+def section_interpolated(
+    interpolated: dict[str, np.ndarray],
+    start: int,
+    end: int,
+    max_share: float = MAX_INTERPOLATED_SHARE,
+) -> str | None:
+    """Why a section of a long run (samples ``start`` to ``end``, end exclusive) is left out
+    where a force channel's values interpolated across empty ones (``MeasuredRun.
+    interpolated``) fill more than ``max_share`` of it; None where none does. The run as a
+    whole passed the rule, but its gaps may crowd into one section, and ``sections --write``
+    writes them as if measured: the field reader could no longer tell them."""
+    worst, share = None, 0.0
+    for channel, mask in sorted(interpolated.items()):
+        here = float(np.mean(mask[start:end])) if end > start else 0.0
+        if here > share:
+            worst, share = channel, here
+    if worst is None or share <= max_share:
+        return None
+    return (
+        f"{100.0 * share:.3g} % of the samples of channel {worst!r} here interpolated across "
+        f"empty values; accepted at most {100.0 * max_share:g} % in a section (written, they "
+        "would read as measured forces)"
+    )
+
+
+def leave_out_crowded(interpolated: dict[str, np.ndarray], sections: list) -> None:
+    """Leave out, in place, each kept section (``start``, ``end``, ``kept``, ``reason``: a
+    :class:`~railsusp.measured.pieces.Section`) that :func:`section_interpolated` refuses,
+    with its reason."""
+    for s in sections:
+        crowded = section_interpolated(interpolated, s.start, s.end) if s.kept else None
+        if crowded:
+            s.kept, s.reason = False, crowded

@@ -44,6 +44,7 @@ from railsusp.measured.pieces import (  # noqa: F401  (what a section is, with t
 )
 from railsusp.measured.recording import RecordingError
 from railsusp.measured.run import MeasuredRun
+from railsusp.measured.sampling import leave_out_crowded
 from railsusp.measured.track_kinds import track_geometry, track_labels
 from railsusp.vehicle.simulation_result import WHEEL_NAMES, outer_wheel_index
 
@@ -83,6 +84,7 @@ def cut_sections(
     out = _collect(
         run, geo, spans, rows, names, rules, labels if table is not None else None, partial
     )
+    leave_out_crowded(run.interpolated, out)  # the run passed the rule; a section must too
     if names:
         _number_split_rows(out, names)
     kept = [s for s in out if s.kept]
