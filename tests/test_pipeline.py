@@ -755,3 +755,35 @@ def test_a_swallowed_ctrl_c_stops_the_run_at_the_next_stage(tiny, tmp_path):
     assert {e["state"] for e in state["stages"].values()} == {"done"}  # nothing half-made
     run_pipeline(cfg, copy, progress=lambda s, m: seen.append(m))  # forgotten after
     assert seen[1:] == ["up to date"] * len(STAGES)
+
+
+def test_a_refused_printout_in_a_stage_is_said_as_the_streams_not_the_stages(
+    tiny, tmp_path, monkeypatch
+):
+    """The review of stop 69: a write to a full or closed stdout inside a stage (its
+    progress) was wrapped as "stage ... failed: [Errno 28]", so the command said the stage
+    failed, not the printout. It reaches the command line as itself now (which says the
+    stream), the stage recorded as failed so that the next run makes it again."""
+    import errno
+
+    import railsusp.pipeline as pipeline
+    from railsusp.errors import OutputStreamError
+
+    cfg, _, copy = _up_to_date_copy(tiny, tmp_path)
+    (copy / "report.md").unlink()  # the report stage runs again
+    real = pipeline.stage_runners
+
+    def runners(*args, **kwargs):
+        made = real(*args, **kwargs)
+
+        def refused():
+            raise OutputStreamError("stdout", OSError(errno.ENOSPC, "No space left on device"))
+
+        return {**made, "report": refused}
+
+    monkeypatch.setattr(pipeline, "stage_runners", runners)
+    with pytest.raises(OutputStreamError):
+        run_pipeline(cfg, copy)
+    entry = json.loads((copy / "pipeline.json").read_text())["stages"]["report"]
+    assert entry["state"] == "failed"
+    assert entry["error"] == "its printout to stdout failed: No space left on device"

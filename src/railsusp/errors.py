@@ -15,6 +15,17 @@ class RailsuspInputError(ValueError):
     """Bad user input: a parameter, condition or file that cannot be accepted."""
 
 
+class OutputStreamError(OSError):
+    """A write to the command's standard output or error that the system refused (``>
+    /dev/full``, a full disk under a redirected stream): the stream named, so that the
+    one-line error says that the printout was lost, not the run's files
+    (:func:`railsusp.cli.main`)."""
+
+    def __init__(self, stream: str, cause: OSError) -> None:
+        super().__init__(cause.errno, cause.strerror or str(cause))
+        self.stream = stream
+
+
 class ParameterError(RailsuspInputError):
     """A suspension or vehicle parameter is unknown, non-finite or out of its range."""
 

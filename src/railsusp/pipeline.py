@@ -20,7 +20,7 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from railsusp.errors import RailsuspInputError
+from railsusp.errors import OutputStreamError, RailsuspInputError
 from railsusp.integrity import file_hashes, file_mtimes, file_sizes
 from railsusp.interrupts import stop_if_interrupted
 
@@ -256,6 +256,11 @@ def _run_stages(
             write_json(state_path, state)
             try:
                 info = runners[stage]() or {}
+            except OutputStreamError as exc:  # the printout refused, not the stage: said so
+                said = f"its printout to {exc.stream} failed: {exc.strerror}"
+                state["stages"][stage] = {"hash": h, "state": "failed", "error": said}
+                write_json(state_path, state)
+                raise
             except Exception as exc:
                 log.info("stage %s: failed after %.1f s", stage, time.perf_counter() - t0)
                 state["stages"][stage] = {"hash": h, "state": "failed", "error": str(exc)}

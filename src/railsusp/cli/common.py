@@ -19,6 +19,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from railsusp.errors import OutputStreamError
 from railsusp.interrupts import catch_interrupts
 
 app = typer.Typer(
@@ -27,17 +28,6 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     help="railsusp: suspension parameter estimation for heavy-haul freight wagons.",
 )
-
-
-class OutputStreamError(OSError):
-    """A write to the command's standard output or error that the system refused (``>
-    /dev/full``, a full disk under a redirected stream): the stream named, so that the
-    one-line error says that the printout was lost, not the run's files
-    (:func:`railsusp.cli.main`)."""
-
-    def __init__(self, stream: str, cause: OSError) -> None:
-        super().__init__(cause.errno, cause.strerror or str(cause))
-        self.stream = stream
 
 
 class _StreamConsole(Console):
