@@ -9,7 +9,6 @@ analysis's ``key_parameters.json``)."""
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 from typing import Annotated
 
@@ -22,10 +21,9 @@ from railsusp.cli.common import (
     err_console,
     fail,
     hold_folders,
-    option_names,
     show_progress,
 )
-from railsusp.cli.inputs import check_seed
+from railsusp.cli.inputs import check_seed, condition_options
 from railsusp.errors import RailsuspInputError
 
 
@@ -151,11 +149,7 @@ def campaign(
         wagon_data = load_wagon(wagon)  # simulated, and the recordings' wheel load
         conds = conditions_from(conditions, wagon=wagon_data)
         if duration is not None:
-            try:
-                conds = [c.with_duration(duration) for c in conds]
-            except RailsuspInputError as exc:  # the option typed, not the condition's field
-                text = option_names(str(exc), {"duration_s": "--duration"})
-                raise RailsuspInputError(re.sub(r"^condition '[^']*': ", "", text)) from None
+            conds = [_with_duration(c, duration) for c in conds]
         family, others = _variation(irregularity_classes, radius, cant, vary_others, prior, sampled)
         if family is not None and not independent_seeds:
             independent_seeds = True
@@ -240,6 +234,16 @@ def campaign(
         fail(error)
     _say_stored(out, max_batches)
     _report_failures(out, total)
+
+
+def _with_duration(condition, duration: float):
+    """``condition`` recording ``duration`` s, its refusal naming ``--duration`` (the option
+    typed), not the condition's field."""
+    try:
+        return condition.with_duration(duration)
+    except RailsuspInputError as exc:
+        message = condition_options(str(exc), {"duration_s": "--duration"}, condition.name)
+        raise RailsuspInputError(message) from None
 
 
 #: campaign settings -> the options that set them, for make_config's refusals

@@ -24,7 +24,6 @@ from railsusp.errors import RailsuspInputError
 from railsusp.input_checks import check_figure_file
 
 if TYPE_CHECKING:
-    from railsusp.measured.channels import ChannelMap
     from railsusp.measured.run import MeasuredRun
     from railsusp.vehicle.wagon import WagonData
 
@@ -111,8 +110,12 @@ def _check_run(path: Path, channel_map: Path | None, min_rate: float, load: floa
     from railsusp.measured.run import read_run
 
     try:
-        cmap = read_channel_map(channel_map) if channel_map else None
-        run = read_run(path, cmap, min_rate_hz=min_rate, wheel_load_N=load)
+        run = read_run(
+            path,
+            read_channel_map(channel_map) if channel_map else None,
+            min_rate_hz=min_rate,
+            wheel_load_N=load,
+        )
     except RecordingError as exc:
         print_problems(exc)
     except RailsuspInputError as exc:
@@ -123,7 +126,7 @@ def _check_run(path: Path, channel_map: Path | None, min_rate: float, load: floa
     for w in run.wheels:
         kept = {}
         for f, x in (("Y", run.Y[w]), ("Q", run.Q[w])):
-            gap = _in_gaps(run, cmap, w, f)
+            gap = run.interpolated_at(w, f)
             kept[f] = x[~gap] / 1e3
             if gap.any():
                 left_out.append(f"{int(gap.sum())} of {f} {w}")
@@ -176,26 +179,6 @@ def _speed_range(run: MeasuredRun) -> str:
         v = np.where(run.backwards, -v, v)
         return f"{v.min():.0f} to {v.max():.0f} km/h (negative: backwards)"
     return f"{v.min():.0f}-{v.max():.0f} km/h"
-
-
-def _in_gaps(run: MeasuredRun, cmap: ChannelMap | None, wheel: str, force: str) -> np.ndarray:
-    """Per sample, True where the run interpolated the wheel's Y or Q channel across
-    missing values (its NaN: the short gaps filled and the long ones, across which its
-    position and track go on): its values there are not measured (the mean of a Q with
-    11000 samples missing read 126.94 kN, the measured 120.31). The channel is the map's,
-    or, read by the documented column names, the header naming the force (``Q_w1R_kN``,
-    ``Q_w1R [N]``)."""
-    from railsusp.measured.units import split_header
-
-    mask = np.zeros(run.time.size, dtype=bool)
-    for name, filled in run.interpolated.items():
-        if cmap is not None:
-            ours = name == cmap.wheels.get(wheel, {}).get(force)
-        else:
-            ours = split_header(name)[0] == f"{force}_{wheel}"
-        if ours:
-            mask |= filled
-    return mask
 
 
 @app.command("sections")

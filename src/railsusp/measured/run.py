@@ -94,6 +94,15 @@ class MeasuredRun:
     #: across missing values (NaN: short gaps filled, and the long ones of ``gaps``), not
     #: measured; only channels with such samples
     interpolated: dict[str, np.ndarray] = field(default_factory=dict)
+    #: wheel -> {"Y": channel, "Q": channel}: the channels its forces were read from (the
+    #: map's, or the documented column names'), the keys of ``interpolated``
+    force_channels: dict[str, dict[str, str]] = field(default_factory=dict)
+
+    def interpolated_at(self, wheel: str, force: str) -> np.ndarray:
+        """Per sample, True where ``wheel``'s ``force`` ("Y" or "Q") is interpolated across
+        missing values, not measured."""
+        channel = self.force_channels.get(wheel, {}).get(force)
+        return self.interpolated.get(channel, np.zeros(self.time.size, dtype=bool))
 
     @property
     def rate_hz(self) -> float:
@@ -382,4 +391,5 @@ def read_run(
         gaps,
         "position" not in cmap.signals,
         interpolated,
+        {w: dict(c) for w, c in cmap.wheels.items()},
     )
