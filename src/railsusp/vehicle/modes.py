@@ -92,6 +92,12 @@ _FD_TOL = 1e-3
 _REAL_TOL = 1e-8
 
 
+def real_roots(lam: np.ndarray) -> np.ndarray:
+    """Per eigenvalue, whether it is real (an overdamped mode): its imaginary part below
+    :data:`_REAL_TOL` of its magnitude."""
+    return np.abs(lam.imag) <= _REAL_TOL * np.abs(lam)
+
+
 # ---------------------------------------------------------------- linearisation
 def jacobian(
     f: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, steps: np.ndarray
@@ -173,8 +179,7 @@ class ModalResult:
         """Per mode, whether its eigenvalue is real: an overdamped mode, which decays without
         oscillating (a stuck slider's stiffness against a damper, or a light body on stiff
         pads and much damping)."""
-        lam = self.eigenvalues
-        return np.abs(lam.imag) <= _REAL_TOL * np.abs(lam)
+        return real_roots(self.eigenvalues)
 
     @property
     def time_constant_s(self) -> np.ndarray:
@@ -279,7 +284,7 @@ def modes_of(
     l_c = point.K[L.K["l_c"]]
     h_cp = point.K[L.K["h_cp"]]
     names, groups = [], []
-    real = np.abs(lam.imag) <= _REAL_TOL * np.abs(lam)  # as ModalResult.overdamped
+    real = real_roots(lam)  # overdamped modes are named so
     for i in range(lam.size):
         group, name = name_mode(energy[i], q[:, i], h_cg, l_c, point.speed, h_cp, bool(real[i]))
         groups.append(group)
