@@ -120,6 +120,36 @@ def test_resume_after_interruption_gives_identical_store(full_run, tmp_path):
         )
 
 
+def test_a_swallowed_ctrl_c_stops_the_campaign_after_the_batch_it_stored(full_run, tmp_path):
+    """A Ctrl-C that Python swallowed (recorded by the command line's handler,
+    railsusp.interrupts) stopped a campaign only at the pipeline's next stage boundary: every
+    remaining batch was simulated first. It stops after the batch being stored, which the
+    resume keeps."""
+    from railsusp.interrupts import catch_interrupts, record_interrupt
+
+    cfg, out = full_run
+    part = tmp_path / "part"
+    seen = []
+
+    def swallowed(done: int, total: int) -> None:
+        seen.append(done)
+        if done:  # during the first batch, its KeyboardInterrupt then lost
+            record_interrupt()
+
+    restore = catch_interrupts()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_campaign(cfg, part, progress=swallowed)
+    finally:
+        restore()
+    assert seen == [0, 4]  # stopped with the first batch stored, none simulated after it
+    assert len(list((part / "batches").glob("*/batch-?????.parquet"))) == 1
+    run_campaign(cfg, part)  # the handler restored: the record forgotten, the resume ends
+    pd.testing.assert_frame_equal(
+        _sorted(load_campaign(part).features()), _sorted(load_campaign(out).features())
+    )
+
+
 def test_another_batch_size_resumes_in_the_stored_batches(full_run, tmp_path, caplog):
     """The batch size only groups the design's rows into files: asked for again with another
     one, a campaign keeps its batches (before, it was refused as another configuration,

@@ -138,6 +138,30 @@ def test_same_seed_same_estimate_and_seed_spread():
     assert one.seeds_spread == {} and "seed_spread_pct_range" not in one.table()
 
 
+def test_a_swallowed_ctrl_c_stops_nsga_after_the_generation():
+    """A Ctrl-C that Python swallowed (recorded by the command line's handler,
+    railsusp.interrupts) let NSGA-II run all its generations, though nothing of an
+    interrupted estimate is kept: it stops after the generation it came in."""
+    from railsusp.interrupts import catch_interrupts, record_interrupt
+
+    calls = []
+
+    class Counted(AnalyticForces):
+        def series(self, x_si, condition):
+            calls.append(len(x_si))
+            record_interrupt()  # as the handler does, its KeyboardInterrupt then lost
+            return super().series(x_si, condition)
+
+    rec = recording(10.0, 120.0)
+    restore = catch_interrupts()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            estimate(Counted(), [rec], PARAMS, NSGAConfig(pop_size=10, n_gen=20))
+    finally:
+        restore()
+    assert sum(calls) == 10  # the first generation's population, none after it
+
+
 def test_choice_rule_and_saved_outputs(tmp_path):
     front = np.array([[0.0, 1.0], [0.2, 0.2], [1.0, 0.0]])
     assert choose(front) == 1

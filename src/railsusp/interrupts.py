@@ -1,11 +1,14 @@
-"""A Ctrl-C that Python swallowed, remembered until the next stage boundary.
+"""A Ctrl-C that Python swallowed, remembered until the next checkpoint.
 
 Python raises a Ctrl-C's KeyboardInterrupt wherever the main thread is; raised inside a
 garbage-collector or weakref callback it is printed ("Exception ignored in: ...") and lost,
 and ``railsusp run`` went on to finish every stage. The command line's SIGINT handler
 (:func:`catch_interrupts`) records each Ctrl-C here before raising it as Python's own
-handler does, and the pipeline calls :func:`stop_if_interrupted` between stages: a
-swallowed Ctrl-C stops the run there, with the usual "interrupted" line and exit 130.
+handler does, and :func:`stop_if_interrupted` is called where stopping loses nothing: the
+pipeline's stage boundaries, and inside the long stages each stored campaign or twin batch,
+cached posterior chunk and training epoch (its checkpoint written), and each NSGA-II
+generation (an estimate is not resumed, so nothing is kept of it either way). A swallowed
+Ctrl-C stops the command there, with the usual "interrupted" line and exit 130.
 """
 
 from __future__ import annotations

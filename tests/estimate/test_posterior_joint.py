@@ -128,6 +128,35 @@ def test_an_offset_estimator_does_not_read_the_cache_of_offset_zero(tmp_path, mo
     assert calls == [0, 2] and np.array_equal(again, b)
 
 
+def test_a_swallowed_ctrl_c_stops_the_simulations_after_the_chunk_they_cached(
+    tmp_path, monkeypatch
+):
+    """A Ctrl-C that Python swallowed (recorded by the command line's handler,
+    railsusp.interrupts) let the posterior's simulations run to their end: they stop after
+    the chunk being cached, which the next call reads back."""
+    from railsusp.interrupts import catch_interrupts, record_interrupt
+
+    calls = []
+
+    def fake(settings, u, first, kind, sections):
+        calls.append(first)
+        if len(calls) == 1:
+            record_interrupt()  # as the handler does, its KeyboardInterrupt then lost
+        return np.zeros((len(u), sections, len(settings.summary_names)))
+
+    monkeypatch.setattr(posterior_data, "simulate_long_cases", fake)
+    n = 2 * posterior_data.CHUNK
+    restore = catch_interrupts()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            cached_cases(_settings(), tmp_path, "check", n)
+    finally:
+        restore()
+    assert calls == [0] and len(list(tmp_path.iterdir())) == 1
+    cached_cases(_settings(), tmp_path, "check", n)
+    assert calls == [0, posterior_data.CHUNK]  # the first chunk read back
+
+
 # -- the product of likelihoods -------------------------------------------------------------
 
 A = np.array([[2.0, 0.5], [0.3, 1.5], [1.0, -1.0]])  # three statistics of two parameters

@@ -119,6 +119,34 @@ def test_twins_resume_and_refuse_another_step(run, tmp_path):
         load_twins(camp, load_series(camp, "curve", spec), spec)
 
 
+def test_a_swallowed_ctrl_c_stops_the_twins_after_the_batch_they_stored(run, tmp_path):
+    """A Ctrl-C that Python swallowed (recorded by the command line's handler,
+    railsusp.interrupts) stopped the twins only at the pipeline's next stage boundary: it
+    stops after the batch being stored, which the resume keeps."""
+    from railsusp.interrupts import catch_interrupts, record_interrupt
+
+    copy = tmp_path / "copy"
+    shutil.copytree(run, copy)
+    shutil.rmtree(perturbed_folder(copy, 1))  # the second twin's two batches to make again
+    seen = []
+
+    def swallowed(done: int, total: int) -> None:
+        seen.append(done)
+        if len(seen) > 2:  # during the second twin's first batch, then lost
+            record_interrupt()
+
+    restore = catch_interrupts()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_perturbed_twins(copy, step=STEP, per_sample=2, progress=swallowed)
+    finally:
+        restore()
+    assert seen == [2, 0, 1]  # the first twin stored; of the second, one batch and no more
+    assert len(list(perturbed_folder(copy, 1).rglob("batch-?????.parquet"))) == 1
+    run_perturbed_twins(copy, step=STEP, per_sample=2)
+    assert perturbed_complete(copy)
+
+
 def _sampler(run, chunk_steps=100, weight=1.0):
     camp = load_campaign(run)
     spec = feature_spec(camp, KEYS, window=20)

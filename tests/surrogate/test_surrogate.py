@@ -132,6 +132,40 @@ def test_tiny_training_lowers_the_loss_and_resumes(run, tmp_path):
     assert [h["val_loss"] for h in afresh] != [h["val_loss"] for h in part]
 
 
+def test_a_swallowed_ctrl_c_stops_training_after_the_epochs_checkpoint(run, tmp_path):
+    """A Ctrl-C that Python swallowed (recorded by the command line's handler,
+    railsusp.interrupts) stopped a training only at the pipeline's next stage boundary, after
+    every epoch. It stops after the epoch's checkpoint, from which the resume goes on."""
+    from railsusp.interrupts import catch_interrupts, record_interrupt
+
+    camp = load_campaign(run)
+    data = load_series(camp, "straight", FeatureSpec(parameters=KEYS))
+    tr, va, _ = split_samples(data.sample_ids)
+    norm = Normaliser.fit(data.subset(tr))
+    cfg = TrainConfig(epochs=3, batches_per_epoch=5, batch_size=64, val_windows=200)
+    samplers = (WindowSampler(data.subset(tr), norm, 20), WindowSampler(data.subset(va), norm, 20))
+    torch.manual_seed(0)
+    net = build_network(NetConfig(kind="bp", mlp_hidden=(16,)))
+    epochs = []
+
+    def swallowed(epoch: int, train_loss: float, val_loss: float) -> None:
+        epochs.append(epoch)
+        record_interrupt()  # as the handler does, its KeyboardInterrupt then lost
+
+    ck = tmp_path / "ck.pt"
+    restore = catch_interrupts()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            train_network(net, *samplers, cfg, checkpoint=ck, progress=swallowed)
+    finally:
+        restore()
+    assert epochs == [1]
+    resumed = train_network(
+        net, *samplers, cfg, checkpoint=ck, progress=lambda e, *losses: epochs.append(e)
+    )
+    assert len(resumed) == 3 and epochs == [1, 2, 3]  # the first epoch not run again
+
+
 def test_fine_tuning_restarts_from_the_best_state_at_a_tenth_of_the_rate(run, tmp_path):
     """The second phase runs at learning_rate x 0.1; a finished main phase, and a phase
     interrupted half way, resume into the same history as one go."""

@@ -28,6 +28,7 @@ from railsusp.campaign.run_directory import (
     remove_campaign_temporaries,
 )
 from railsusp.input_checks import check_output_folder
+from railsusp.interrupts import stop_if_interrupted
 from railsusp.numbers import is_whole
 from railsusp.provenance import provenance, utc_now
 from railsusp.run_lock import run_lock
@@ -210,6 +211,7 @@ def _run_locked(
         done_runs += len(res["sample_ids"])
         if progress:
             progress(done_runs, total)
+        stop_if_interrupted()  # a swallowed Ctrl-C: stop here, with this batch stored
 
     if scheduler is None and workers is None:
         for ci, b in todo:

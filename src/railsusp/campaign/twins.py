@@ -21,6 +21,7 @@ from railsusp.campaign.batch_simulation import simulate_task
 from railsusp.campaign.config_changes import config_changes
 from railsusp.campaign.design import CampaignConfig, CampaignError, batch_paths, track_seeds
 from railsusp.campaign.results import load_campaign
+from railsusp.interrupts import stop_if_interrupted
 from railsusp.params import ParameterSet
 from railsusp.store import read_json, write_json
 
@@ -148,3 +149,4 @@ def simulate_twin_batches(
         done += 1
         if progress:
             progress(done, total)
+        stop_if_interrupted()  # a swallowed Ctrl-C: stop here, with this batch stored

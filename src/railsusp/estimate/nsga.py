@@ -44,6 +44,7 @@ from railsusp.estimate.problem import ERRORS, CalibrationProblem
 from railsusp.estimate.result import CalibrationResult
 from railsusp.estimate.statistics import ALIGNED, parse_statistics
 from railsusp.estimate.statistics_forces import StatisticsForces
+from railsusp.interrupts import stop_if_interrupted
 from railsusp.measured import Recording
 from railsusp.params import bounds
 
@@ -83,6 +84,7 @@ class _Log(Callback):
                 "NSGA-II generation %d of %d: %d evaluations, %d on the front",
                 n, self.n_gen, row.get("n_eval", 0), len(self.front_f[-1]),
             )  # fmt: skip
+        stop_if_interrupted()  # a swallowed Ctrl-C: no use finishing the run (none resumes)
 
 
 def choose(front: np.ndarray, rule: str = IDEAL_POINT, errors: np.ndarray | None = None) -> int:

@@ -38,6 +38,7 @@ from railsusp.estimate.statistic_families import (
 )
 from railsusp.estimate.summaries import cut_sections
 from railsusp.integrity import read_npz
+from railsusp.interrupts import stop_if_interrupted
 from railsusp.measured.synthetic import bandwidth_filter
 from railsusp.params import MAIN_SUSPENSION, bounds
 from railsusp.store import atomic_write_bytes
@@ -240,6 +241,7 @@ def cached_cases(
         buf = io.BytesIO()
         np.savez(buf, u=u_all[lo:hi], x=x)
         atomic_write_bytes(path, buf.getvalue())
+        stop_if_interrupted()  # a swallowed Ctrl-C: stop here, with this chunk cached
         xs.append(x)
     return u_all, np.concatenate(xs)
 

@@ -29,6 +29,7 @@ import torch
 from torch import nn
 
 from railsusp.errors import RailsuspInputError
+from railsusp.interrupts import stop_if_interrupted
 from railsusp.surrogate.checkpoint import identity_keys, resume_state, save_checkpoint
 from railsusp.surrogate.chunks import ChunkSampler
 from railsusp.surrogate.data import Normaliser, SeriesData, gather_windows, window_index
@@ -378,6 +379,7 @@ def train_network(
             )
             if progress is not None:
                 progress(len(history), train_loss, vloss)
+            stop_if_interrupted()  # a swallowed Ctrl-C: stop after the epoch's checkpoint
     if best_state is not None:
         net.load_state_dict(best_state)
     net.to("cpu").eval()
