@@ -344,3 +344,22 @@ def test_every_third_sample_missing_is_a_third_missing_at_any_length(n):
     y[[10, 500, 1000]] = np.nan  # 3 samples of 100 Hz missing
     s = finite_sampling(y, 200.0)
     assert (s.step, s.rate_hz, s.missing) == (2.0, 100.0, 3)
+
+
+@pytest.mark.parametrize("column", ["speed_mps", "speed [m/s]", "speed_kph"])
+def test_a_table_along_distance_takes_its_speed_in_any_stated_unit(tmp_path, column):
+    """The track-column check read `speed_mps` or `speed [m/s]` as the speed, but a table
+    along distance wanted `speed_kmh` by name ("without a speed_kmh column") and `speed_kph`
+    was no column at all, though kph is an accepted speed unit."""
+    v = 60.0 if column == "speed_kph" else 60.0 / 3.6
+    frame = {"distance_m": T * 60.0 / 3.6, column: np.full(N, v), **forces()}
+    rec = read_recording(table(tmp_path, frame))
+    assert rec.time.size == N and rec.sampling_rate == pytest.approx(RATE)
+    frame[column] = np.where(np.arange(N) == 7, 0.0, v)  # a stop named by its own column
+    msg = problems(table(tmp_path, frame, name="stop"))
+    assert f"column {column!r}, row 9: speed 0 km/h" in msg
+    frame[column] = np.full(N, 60.0)
+    frame["speed"] = frame.pop(column)  # no unit: which speed is it?
+    assert "column 'speed': no unit stated; a speed channel needs one of m/s, km/h" in problems(
+        table(tmp_path, frame, name="bare")
+    )

@@ -67,6 +67,8 @@ def test_split_header_reads_the_usual_unit_spellings():
     assert split_header("Y_w1L_kN") == ("Y_w1L", "kN")
     assert split_header("curvature_1_per_km") == ("curvature", "1/km")
     assert split_header("speed_kmh") == ("speed", "kmh")
+    assert split_header("speed_kph") == ("speed", "kph")  # an accepted unit, as a suffix too
+    assert split_header("speed_kmph") == ("speed", "kmph")
     assert split_header("acc_bogie_y_g") == ("acc_bogie_y", "g")
     assert si_factor("force", "kN", "x") == 1e3 and si_factor("speed", "km/h", "v") == 1 / 3.6
     with pytest.raises(RailsuspInputError, match="channel 'x': no unit stated"):

@@ -128,16 +128,22 @@ def read_field_table(path: Path) -> FieldTable:
             ch.time = t
         table.time = table.row_time = t
         return table
-    speed = table.channels.get("speed_kmh")
+    # the speed column in any unit the track columns take (speed_kmh, speed_mps, speed [m/s])
+    speed = next((ch for c, ch in table.channels.items() if split_header(c)[0] == "speed"), None)
     if speed is None:
         table.problems.append(f"column {axis!r} without a speed_kmh column; give time_s")
         return table
-    bad = distance_problems(t, speed.values / 3.6, axis, speed.first_row)
+    try:
+        v = speed.values * si_factor("speed", speed.unit, speed.name)
+    except RailsuspInputError as exc:
+        table.problems.append(str(exc).replace("channel", "column", 1))
+        return table
+    bad = distance_problems(t, v, axis, speed.first_row, speed.name)
     if bad:
         table.problems += bad
         return table
     table.distance = t
-    table.row_time = row_times(t, speed.values / 3.6)
+    table.row_time = row_times(t, v)
     for ch in table.channels.values():
         ch.time = table.row_time
     table.time, table.lines = uniform_time(table.row_time)
@@ -145,9 +151,14 @@ def read_field_table(path: Path) -> FieldTable:
 
 
 def distance_problems(
-    distance: np.ndarray, speed: np.ndarray, axis: str, first_row: int | np.ndarray
+    distance: np.ndarray,
+    speed: np.ndarray,
+    axis: str,
+    first_row: int | np.ndarray,
+    speed_column: str = "speed_kmh",
 ) -> list[str]:
-    """Problems of a table's distance axis (m) at its ``speed`` (m/s): every speed positive
+    """Problems of a table's distance axis (m) at its ``speed`` (m/s, from the column
+    ``speed_column``): every speed positive
     (a stop has no distance to sample it by), distances finite and strictly increasing,
     and no jump: a step longer than :data:`JUMP_FACTOR` times the median both in distance
     and in its time at the speed (a chainage jump, or samples lost; resampled onto time, a
@@ -158,7 +169,7 @@ def distance_problems(
         a, b = runs(still)[0]
         value = "empty" if np.isnan(speed[a]) else f"{speed[a] * 3.6:g} km/h"
         return [
-            f"column 'speed_kmh', {rows(a, b - 1, first_row)}: speed {value} "
+            f"column {speed_column!r}, {rows(a, b - 1, first_row)}: speed {value} "
             f"({int(still.sum())} row(s) in all); a table along {axis} needs the speed "
             "positive in every row (a stop has no distance to sample it by: give time_s)"
         ]

@@ -87,6 +87,8 @@ _SUFFIXES = (
     "daN",
     "N",
     "kmh",
+    "kmph",
+    "kph",
     "km_h",
     "mps",
     "m_s",
