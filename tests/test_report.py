@@ -226,7 +226,8 @@ def test_provenance_is_this_runs_and_the_stages_are_in_pipeline_order(run_dir):
     state = json.loads((run_dir / "pipeline.json").read_text("utf-8"))
     md = (run_dir / "report.md").read_text("utf-8")
     prov = md[md.index("## Provenance") :]
-    assert f"| utc | {state['provenance']['utc']} |" in prov
+    assert f"| started (UTC) | {state['provenance']['utc']} |" in prov
+    assert "| finished (UTC) | not recorded yet: the run finishes with this report" in prov
     assert state["provenance"]["finished"] >= state["provenance"]["utc"]
     rows = [s for s in STAGES if f"| {s} |" in prov]
     assert rows == list(STAGES)
@@ -270,3 +271,38 @@ def test_the_api_says_which_parameters_were_estimated(run_dir):
     est = json.loads((run_dir / "estimate" / "estimate.json").read_text())
     assert result.estimated_parameters == est["parameters"]
     assert set(result.estimated_parameters) == set(result.estimate.dropna(subset="low").index)
+
+
+def test_the_tiny_runs_report_after_the_report_qa_pass(run_dir, tmp_path):
+    """The report QA pass on the tiny run: which surrogate the estimate ran on, the
+    recovery's verdict (not "identifiable = no"), the flat vertical force the key rule left
+    out (its Sobol panel marked), and a run name of raw HTML made HTML in report.md."""
+    from railsusp.report_html import build_report
+
+    copy = tmp_path / "run"
+    shutil.copytree(run_dir, copy)
+    state = json.loads((copy / "pipeline.json").read_text("utf-8"))
+    state["config"]["name"] = "<img src=x onerror=alert(1)> Wagon 4711 | line"
+    (copy / "pipeline.json").write_text(json.dumps(state))
+    build_report(copy)
+    md = (copy / "report.md").read_text("utf-8")
+    assert "<img" not in md
+    assert md.lstrip().startswith(
+        r"# railsusp report: &lt;img src=x onerror=alert(1)&gt; Wagon 4711 \| line"
+    )
+    page = (copy / "report.html").read_text("utf-8")
+    assert "<img src=x" not in page and "&amp;lt;img" not in page
+    model = json.loads((copy / "estimate" / "estimate.json").read_text())["model"]
+    assert re.search(rf"\| short \| {model} \| the estimate's force model \|", md)
+    assert "| short | rbf | comparison only |" in md
+    assert f"NSGA-II ran on the surrogate {model} (surrogate.model)" in md
+    assert "why not identifiable" not in md and "| verdict | why not identified |" in md
+    recovery = md[md.index("### Parameter recovery") : md.index("## Measured forces")]
+    rows = [line for line in recovery.splitlines() if line.startswith("| X")]
+    assert rows and all(f"| no | {summary.NOT_IDENTIFIED} |" in r for r in rows)  # pareto
+    kp = json.loads((copy / "campaign/sensitivity/key_parameters.json").read_text())
+    ignored = kp["key_parameters"]["ignored_features"]
+    assert ignored  # the tiny run: the mean vertical force on tangent track is flat
+    assert "Left out of the key rule, whatever their indices" in md and ignored[0] in md
+    assert "(<report_assets/sobol-mean.png>)" in md
+    assert (copy / "report_assets" / "sobol-mean.png").stat().st_size > 10_000

@@ -90,7 +90,8 @@ def test_provenance_names_the_networks_the_estimate_ran_on(tmp_path):
         provenance_section(
             doc, run, {"config": {"surrogate": surrogate}, "stages": {}}, {"config_hash": "abc"}
         )
-        (table,) = [t for t in md_tables(doc.md) if t[0] == ["data file", "sha256"]]
+        head = ["data file", "sha256 (first 16 hex digits)"]
+        (table,) = [t for t in md_tables(doc.md) if t[0] == head]
         return [r[0] for r in table[1:]]
 
     assert listed() == ["campaign/surrogates/bp/short/model.pt"]

@@ -122,3 +122,30 @@ def test_the_compared_run_and_the_key_statistics_are_named_as_typed(lhs_run, tmp
     assert line.startswith("error: --key-statistics foo: accepted one or more of mean")
     line = _cli_error(["sensitivity", lhs_run, "--statistics", "foo"])
     assert line.startswith("error: --statistics foo: accepted one or more of mean")
+
+
+def test_the_stages_own_sobol_figures_mark_the_features_the_key_rule_left_out(lhs_run, monkeypatch):
+    """The key rule leaves out features that hardly vary (``ignored_features``), whatever
+    their indices; the stage's own campaign/sensitivity/sobol-*.png showed their panels
+    unmarked (only the report's redrawn copies were marked)."""
+    import railsusp.report as report
+
+    drawn = {}
+    real = report.plot_sobol
+
+    def spy(indices, path, statistic="mean", left_out=None):
+        drawn[statistic] = dict(left_out or {})
+        return real(indices, path, statistic=statistic, left_out=left_out)
+
+    monkeypatch.setattr(report, "plot_sobol", spy)
+    kw = {"statistics": ("mean",), "key_statistics": ("mean",), "base_samples": 64}
+    out = analyse(lhs_run, **kw)  # the short run's vertical force varies by 0.1 %
+    ignored = out["key_parameters"]["ignored_features"]
+    assert ignored == ["short Q mean"] and set(drawn["mean"]) == set(ignored)
+    assert "coefficient of variation 0.10% < 0.5%" in drawn["mean"]["short Q mean"]
+    # kept by a smaller limit, its metamodel explains it too poorly: left out for that
+    out = analyse(lhs_run, **kw, min_cv=1e-5)
+    assert out["key_parameters"]["unfitted_features"] == ["short Q mean"]
+    assert drawn["mean"]["short Q mean"].startswith("metamodel held-out R² 0.")
+    assert "< 0.25 (its indices split a fit" in drawn["mean"]["short Q mean"]
+    analyse(lhs_run, **kw)

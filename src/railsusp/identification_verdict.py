@@ -64,6 +64,46 @@ def identification_issues(est: dict, max_st: dict[str, float] | None = None) -> 
     return out
 
 
+#: the three verdicts of :func:`identification_verdicts`, as the kinds the summary card
+#: names (:data:`railsusp.summary.NOT_IDENTIFIED`, ``NOT_IDENTIFIABLE``; the summary reads
+#: this module, so the words are looked up there by its readers, not imported here)
+IDENTIFIED = "identified"
+ROUTE = "route"
+RECORDINGS = "recordings"
+
+
+def identification_verdicts(
+    est: dict, max_st: dict[str, float] | None = None
+) -> dict[str, tuple[str, str]]:
+    """Each estimated parameter's verdict and its reason ('' when identified), the summary
+    card's three: :data:`IDENTIFIED`; :data:`ROUTE` where this route alone is the reason
+    (NSGA-II's Pareto range is no confidence interval: the same recordings, refined or
+    through the posterior, may fix the parameter; the card's "not identified"); else
+    :data:`RECORDINGS` (the recordings are the reason: a wide statistical interval, a small
+    Sobol index, a Cramér-Rao bound, a failed check; the card's "not identifiable from these
+    recordings"). The validator's recovery table called every one of them "not
+    identifiable"."""
+    why_not = identification_issues(est, max_st)
+    intervals = intervals_of(est)
+    out = {}
+    for p, why in why_not.items():
+        if not why:
+            out[p] = (IDENTIFIED, "")
+        elif route_only(intervals, p, why):
+            out[p] = (ROUTE, why)
+        else:
+            out[p] = (RECORDINGS, why)
+    return out
+
+
+def route_only(intervals, p: str, why: str) -> bool:
+    """Whether the estimate's route alone is why ``p`` is not identified: its interval (of
+    ``intervals``, :func:`~railsusp.estimate.intervals.intervals_of`) is no statistical one
+    and ``why`` says nothing else (the rule :func:`railsusp.summary.estimate_table`
+    applies)."""
+    return p in intervals and not intervals[p].statistical and why == identification(intervals[p])
+
+
 def _not_calibrated(est: dict) -> list[str]:
     """Why a posterior result is not calibrated, as its JSON says: statistics of the
     recording outside the training cases' range (``outside_training``), more sections than

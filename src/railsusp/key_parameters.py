@@ -264,3 +264,37 @@ def check_sensitivity_output(path: str | Path) -> None:
             return
         stamp = meta.get(INDICES_STAMP.encode())
         check_made_from(path, stamp.decode() if stamp is not None else None, run)
+
+
+def left_out_features(analysis: dict, indices: pd.DataFrame | None) -> dict[str, str]:
+    """The features ("condition quantity statistic") the key-parameter rule left out, from
+    ``key_parameters.json`` (``analysis``), each with its reason: ``ignored_features`` vary
+    by less than the rule's coefficient of variation (their CV from ``indices``), and
+    ``unfitted_features`` have a Gaussian-process metamodel whose held-out R^2 is below the
+    rule's (from ``metamodel_r2``). The figures plotted their indices unmarked: the tiny
+    run's flat vertical force showed X17 at ST 0.32, and X17 "not key"."""
+    kp = analysis["key_parameters"]
+    cv: dict[str, float] = {}
+    if indices is not None and "cv" in indices:
+        for r in indices.drop_duplicates(["condition", "quantity", "statistic"]).itertuples():
+            cv[f"{r.condition} {r.quantity} {r.statistic}"] = float(r.cv)
+    r2 = {
+        f"{f['condition']} {f['quantity']} {f['statistic']}": f.get("r2_holdout")
+        for f in analysis.get("metamodel_r2") or []
+        if isinstance(f, dict) and {"condition", "quantity", "statistic"} <= set(f)
+    }
+    out = {}
+    min_cv = kp.get("min_cv")
+    for f in kp.get("ignored_features") or []:
+        limit = f" < {min_cv:.1%}" if isinstance(min_cv, (int, float)) else ""
+        got = f"coefficient of variation {cv[f]:.2%}" if f in cv else "coefficient of variation"
+        out[f] = f"{got}{limit} over the campaign (a flat feature: its indices split a "
+        out[f] += "negligible variance)"
+    min_r2 = kp.get("min_r2")
+    for f in kp.get("unfitted_features") or []:
+        v = r2.get(f)
+        got = "not scored" if not isinstance(v, (int, float)) or v != v else f"{v:.2f}"
+        limit = f" < {min_r2:g}" if isinstance(min_r2, (int, float)) else ""
+        out[f] = f"metamodel held-out R² {got}{limit} (its indices split a fit that does not "
+        out[f] += "explain the feature)"
+    return out

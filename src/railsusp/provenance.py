@@ -64,9 +64,11 @@ def git_dirty() -> bool | None:
 
 
 #: the libraries whose versions a result records (read from their metadata: importing
-#: torch to ask its version would cost a second)
+#: torch to ask its version would cost a second): scikit-learn's Gaussian-process metamodel
+#: computes the Sobol indices of an LHS campaign, matplotlib draws every figure
 RECORDED_LIBRARIES = (
-    "numpy", "scipy", "numba", "pandas", "torch", "pymoo", "SALib", "asammdf", "sbi",
+    "numpy", "scipy", "numba", "pandas", "torch", "pymoo", "SALib", "scikit-learn",
+    "matplotlib", "asammdf", "sbi",
 )  # fmt: skip
 
 

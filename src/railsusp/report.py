@@ -113,9 +113,18 @@ def plot_forces(result, path: str | Path, set_index: int = 0, wheel: str | int =
     return save_figure(fig, path)
 
 
-def plot_sobol(indices, path: str | Path, statistic: str = "mean"):
+def plot_sobol(
+    indices, path: str | Path, statistic: str = "mean", left_out: dict[str, str] | None = None
+):
     """Bar chart of first-order S1 and total ST Sobol indices with confidence intervals, one
-    panel per condition and force (the study's Figure 2, per condition and with errors)."""
+    panel per condition and force (the study's Figure 2, per condition and with errors).
+
+    ``left_out``: the features the key-parameter rule left out ("condition quantity
+    statistic", as ``key_parameters.json``'s ``ignored_features`` and
+    ``unfitted_features`` name them) with the reason; their panels are greyed and titled so
+    (a panel of the tangent track's flat vertical force showed X17 at ST 0.32, above the
+    rule's threshold, beside "X17 not key" and no word why)."""
+    left_out = left_out or {}
     sel = indices[indices.statistic == statistic]
     panels = sel[["condition", "quantity"]].drop_duplicates().to_numpy().tolist()
     ncols = 2
@@ -126,12 +135,18 @@ def plot_sobol(indices, path: str | Path, statistic: str = "mean"):
     names = {"Y": "lateral force Y", "Q": "vertical force Q"}
     for ax, (cond, q) in zip(axes.flat, panels, strict=False):
         g = sel[(sel.condition == cond) & (sel.quantity == q)]
+        why = left_out.get(f"{cond} {q} {statistic}")
+        alpha = 0.35 if why else 1.0
         x = np.arange(len(g))
-        ax.bar(x - 0.2, g.S1, 0.4, yerr=g.S1_conf, capsize=2, label="S1 (first order)")
-        ax.bar(x + 0.2, g.ST, 0.4, yerr=g.ST_conf, capsize=2, label="ST (total)")
+        ax.bar(x - 0.2, g.S1, 0.4, yerr=g.S1_conf, capsize=2, label="S1 (first order)", alpha=alpha)
+        ax.bar(x + 0.2, g.ST, 0.4, yerr=g.ST_conf, capsize=2, label="ST (total)", alpha=alpha)
         ax.set_xticks(x, g.parameter)
         cv = f", CV {g.cv.iloc[0]:.1%}" if "cv" in g else ""
-        ax.set_title(f"{cond}: {names.get(q, q)} ({statistic}{cv})", fontsize=10)
+        title = f"{cond}: {names.get(q, q)} ({statistic}{cv})"
+        if why:
+            ax.set_facecolor("0.94")
+            title += f"\nLEFT OUT of the key rule: {why}"
+        ax.set_title(title, fontsize=10 if not why else 8.5, color="0.35" if why else "k")
         ax.set_ylim(bottom=min(0.0, float(np.nanmin(g.S1 - g.S1_conf))))
         ax.set_ylabel("Sobol index (-)")
         ax.grid(axis="y", alpha=0.3)
@@ -139,7 +154,9 @@ def plot_sobol(indices, path: str | Path, statistic: str = "mean"):
         ax.set_visible(False)
     axes.flat[0].legend(fontsize=8)
     method = sel.method.iloc[0] if len(sel) else ""
-    fig.suptitle(f"Sobol sensitivity indices ({method}), 95 % bootstrap intervals")
+    shown = {f"{c} {q} {statistic}" for c, q in panels}
+    marked = "; grey: features the key rule left out" if shown & set(left_out) else ""
+    fig.suptitle(f"Sobol sensitivity indices ({method}), 95 % bootstrap intervals{marked}")
     return save_figure(fig, path)
 
 

@@ -63,7 +63,12 @@ HEADERS = {
     "truth_error": "error, true parameters (%)",
     "error_pct_of_value": "error (% of value)",
     "error_pct_of_range": "error (% of range)",
-    "why_not": "why not identifiable",
+    "why_not": "why not identified",
+    "identified": "identified",
+    # recovery.csv's older name of 'identified' (the name said more than it held)
+    "identifiable": "identified (older column 'identifiable')",
+    "role": "role in this run",
+    "verdict": "verdict",
     "interval_low": "interval low",
     "interval_high": "interval high",
     "interval_width_pct_range": "interval width (% of range)",
@@ -114,11 +119,58 @@ def cell(v: object) -> str:
     return str(v)
 
 
+#: characters that start Markdown inline syntax (emphasis, code, links, images, HTML, raw
+#: HTML entities, strikethrough, headings' closing marks), each escaped by a backslash
+#: except ``<``, ``>`` and ``&``, which become HTML entities (a backslash does not stop a
+#: renderer from reading ``<img ...>`` as HTML in every Markdown dialect); a ``]`` only
+#: where a link, an image or a link's definition would follow (``](``, ``][``, ``]:``):
+#: "[tolerances]" alone is text
+_MD_ENTITIES = {"&": "&amp;", "<": "&lt;", ">": "&gt;"}
+_MD_SPECIAL = re.compile(r"[\\`*#~&<>_]|\](?=[(\[:])")
+
+
+def md_text(text: str) -> str:
+    """``text`` as literal Markdown inline text: ``<``, ``>`` and ``&`` as HTML entities,
+    the characters of emphasis, code and headings (``\\ ` * _ # ~``) escaped by a
+    backslash, ``_`` only where it could start or end emphasis (not inside a word:
+    ``remove_geometry_bias`` stays as it is), and a ``]`` that would close a link or an
+    image (``[x](javascript:...)``). The report's texts hold no Markdown of their
+    own; a run's name, a wagon's, a recording's or a condition's (the user's) was written
+    through unescaped, so ``name = "<img src=x onerror=alert(1)>"`` made raw HTML in
+    report.md (report.html escapes it with :func:`html.escape`, from the unescaped text:
+    neither is escaped twice)."""
+
+    def escape(m: re.Match) -> str:
+        ch = m.group()
+        if ch in _MD_ENTITIES:
+            return _MD_ENTITIES[ch]
+        if ch == "_":
+            before = text[m.start() - 1] if m.start() > 0 else ""
+            after = text[m.end()] if m.end() < len(text) else ""
+            if before.isalnum() and after.isalnum():  # intraword: no emphasis there
+                return ch
+        return "\\" + ch
+
+    return _MD_SPECIAL.sub(escape, text)
+
+
+def md_paragraph(text: str) -> str:
+    """``text`` as one literal Markdown paragraph (:func:`md_text`): its line breaks made
+    spaces (as the HTML page shows them; a blank line ended the paragraph), and a start that
+    would make it a list item (``- ``, ``+ ``, ``1. ``) escaped."""
+    out = re.sub(r"\s*[\r\n]+\s*", " ", md_text(text))
+    m = re.match(r"\s*(?:[-+]|\d{1,9}[.)])(?=\s|$)", out)
+    if m:  # the backslash before the marker's last character: "\-", "1\."
+        return out[: m.end() - 1] + "\\" + out[m.end() - 1 :]
+    return out
+
+
 def md_cell(text: str) -> str:
-    """One cell of a Markdown table row: a ``|`` inside it escaped (``\\|``) and a line break
-    made a space, so that neither ends the cell or the row (the validation's "mean of |Y|"
-    shifted every later column of its row under the wrong header)."""
-    return re.sub(r"\s*[\r\n]+\s*", " ", text).replace("|", "\\|")
+    """One cell of a Markdown table row as literal text (:func:`md_text`): a ``|`` inside it
+    escaped (``\\|``) and a line break made a space, so that neither ends the cell or the row
+    (the validation's "mean of |Y|" shifted every later column of its row under the wrong
+    header)."""
+    return re.sub(r"\s*[\r\n]+\s*", " ", md_text(text)).replace("|", "\\|")
 
 
 def md_row(cells: list[str]) -> str:
@@ -137,14 +189,15 @@ class Doc:
 
     def h(self, text: str, level: int = 2) -> None:
         self.html.append(f"<h{level}>{html.escape(text)}</h{level}>")
-        self.md.append(f"\n{'#' * level} {text}\n")
+        self.md.append(f"\n{'#' * level} {md_cell(text)}\n")  # one line, literal
 
     def p(self, text: str) -> None:
         self.html.append(f"<p class='note'>{html.escape(text)}</p>")
-        self.md.append(f"{text}\n")
+        self.md.append(f"{md_paragraph(text)}\n")
 
     def raw(self, html_text: str, md_text: str) -> None:
-        """Pre-rendered HTML (escaped by the caller) and its Markdown."""
+        """Pre-rendered HTML and its Markdown, each escaped by the caller (:func:`html.escape`;
+        :func:`md_text`, :func:`md_row`)."""
         self.html.append(html_text)
         self.md.append(md_text)
 
@@ -167,7 +220,8 @@ class Doc:
             f"src='data:image/png;base64,{data}'><figcaption>"
             f"{html.escape(caption)}</figcaption></figure>"
         )
-        self.md.append(f"![{caption}]({path.relative_to(self.root)})\n")
+        target = path.relative_to(self.root).as_posix()
+        self.md.append(f"![{md_cell(caption)}](<{target}>)\n")
         self.figures.append(path)
 
     def page(self, title: str) -> str:

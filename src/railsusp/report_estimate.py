@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from railsusp.estimate.intervals import IDENTIFIED_WIDTH_PCT
 from railsusp.estimate.refine import CHOICE
 from railsusp.report_doc import Doc, fraction_errors_to_pct, header
 from railsusp.store import read_json
@@ -48,7 +49,24 @@ def validation_section(doc: Doc, val: Path) -> None:
         )
     if (val / "recovery.csv").exists():
         doc.h("Parameter recovery against the hidden truth", 3)
-        doc.table(pd.read_csv(val / "recovery.csv"))
+        recovery = pd.read_csv(val / "recovery.csv")
+        if "verdict" in recovery:  # the older name of 'identified' is not shown beside it
+            doc.p(RECOVERY_VERDICTS)
+            recovery = recovery.drop(columns=["identifiable"], errors="ignore")
+        doc.table(recovery)
+
+
+#: what the recovery table's verdicts mean (the summary card's, docs/api.md)
+RECOVERY_VERDICTS = (
+    "Verdict, as in the summary card: identified where the estimate's interval is a "
+    f"statistical one at most {IDENTIFIED_WIDTH_PCT:g} % of the range wide and nothing "
+    "speaks against it; not identified (no confidence interval from this estimate) where "
+    "this route alone is the reason: NSGA-II's Pareto range is no confidence interval, and "
+    "the same recordings, refined or through the posterior, may fix the parameter; not "
+    "identifiable from these recordings where the recordings are the reason (a wide "
+    "interval, a small Sobol index, a Cramér-Rao bound). The truth's error is scored "
+    "whatever the verdict."
+)
 
 
 def statistic_label(statistic: str, force: str) -> str:
@@ -104,14 +122,47 @@ def _against_spread(info: dict, ref: dict) -> str:
     )
 
 
+#: the Surrogates table's ``role`` of the row of the model NSGA-II ran on, and of the others
+ROLE_USED = "the estimate's force model"
+ROLE_COMPARED = "comparison only"
+
+
+def force_model_name(model: object) -> str | None:
+    """The force model an ``estimate.json`` records (``model``): the pipeline's model name,
+    ``railsusp estimate``'s surrogate folder (named as its model) or "simulator"; None
+    where it records none (written before it did)."""
+    if not isinstance(model, str) or not model:
+        return None
+    return model if model == "simulator" else Path(model).name
+
+
+def force_model_text(model: str | None) -> str:
+    """The NSGA-II section's sentence on the force model it ran on (``model``:
+    :func:`force_model_name`): the section never said which of the Surrogates table's rows
+    it was."""
+    if model is None:
+        return (
+            "This estimate does not record the force model NSGA-II ran on (an estimate.json "
+            "written before it was recorded)."
+        )
+    if model == "simulator":
+        return "NSGA-II ran on the simulator itself, not on a surrogate."
+    return (
+        f"NSGA-II ran on the surrogate {model} (surrogate.model): its accuracy on held-out "
+        f"simulations is in the rows marked '{ROLE_USED}' in the Surrogates section; any "
+        "other rows there are comparison only."
+    )
+
+
 def estimate_section(doc: Doc, est: Path) -> None:
     """NSGA-II's estimate: its log, how it was made (choice, SIMEX step or expected-forces
     polish, the simulator refinement beside it or making it), the table and figures."""
     doc.h("NSGA-II estimation (study Tables 3-5, Figures 8/9)")
+    info = read_json(est / "estimate.json")
+    doc.p(force_model_text(force_model_name(info.get("model"))))
     log = pd.read_csv(est / "nsga_log.csv")
     doc.p("First and last generations of the NSGA-II log:")
     doc.table(pd.concat([log.head(4), log.tail(4)]).drop_duplicates())
-    info = read_json(est / "estimate.json")
     ref = info.get("refinement")
     drawn = (ref or {}).get("expected_draws")
     on_drawn = f" (the mean over {drawn} draws of the true track geometry)" if drawn else ""

@@ -1,9 +1,10 @@
 """The report's sections on how the answer was found, in the method's order: the wagon and
 the working conditions its campaign simulated, Sobol sensitivity and the key parameters
-(study Figure 2), the surrogate force models on held-out simulations (study Table 7, trained
-here or a shipped network set), then the estimate and its validation
-(:mod:`railsusp.report_estimate`). Each section is written only where its stage left its
-outputs in the run directory, which is all it reads.
+(study Figure 2; the features the key rule left out named and their panels marked), the
+surrogate force models on held-out simulations (study Table 7, trained here or a shipped
+network set; the row of the model the estimate ran on marked), then the estimate and its
+validation (:mod:`railsusp.report_estimate`). Each section is written only where its stage
+left its outputs in the run directory, which is all it reads.
 """
 
 from __future__ import annotations
@@ -13,7 +14,13 @@ from pathlib import Path
 import pandas as pd
 
 from railsusp.report_doc import Doc
-from railsusp.report_estimate import estimate_section, validation_section
+from railsusp.report_estimate import (
+    ROLE_COMPARED,
+    ROLE_USED,
+    estimate_section,
+    force_model_name,
+    validation_section,
+)
 from railsusp.store import read_json
 
 
@@ -118,20 +125,128 @@ def _network_set_text(doc: Doc, manifest: dict, assumed: list[dict]) -> None:
     )
 
 
+#: the models of the study's comparison that ``surrogate.model`` does not accept
+BASELINES = {"rbf": "a radial-basis-function baseline of the study's Table 7"}
+
+
+def estimate_model(run: Path, state: dict) -> str | None:
+    """The force model the run's estimate ran on: ``estimate.json``'s ``model`` (a model's
+    name; ``railsusp estimate`` records its surrogate's folder, whose name is the model's,
+    or "simulator"), else the configuration's ``surrogate.model`` where no estimate was
+    made yet; None where neither says."""
+    path = run / "estimate" / "estimate.json"
+    model = None
+    if path.exists():
+        info = read_json(path)
+        model = info.get("model") if isinstance(info, dict) else None
+    if model is None:
+        model = state.get("config", {}).get("surrogate", {}).get("model")
+    return force_model_name(model)
+
+
+def model_name(label: object) -> str:
+    """A Table 7 row's model without the force-law revision a network set's rows are
+    labelled with ("cnn-gru-seq (revision 2026-11-30.1)": scored on those laws)."""
+    return str(label).split(" (revision ")[0]
+
+
+def surrogate_roles_text(used: str | None, models: list[str]) -> str:
+    """Which of the Surrogates table's ``models`` the estimate ran on (``used``,
+    :func:`estimate_model`) and that the others are compared only: the table listed bp,
+    rbf and gp-stats without a word, and rbf, the most accurate there, is a baseline that
+    ``surrogate.model`` refuses."""
+    others = [m for m in models if m != used]
+    baselines = [
+        f"{m} is {BASELINES[m]}, not a model surrogate.model accepts"
+        for m in others
+        if m in BASELINES
+    ]
+    if used == "simulator":
+        head = (
+            "The estimate ran on the simulator itself, not on a surrogate: every row is "
+            "comparison only."
+        )
+    elif used is None:
+        head = "Which of these models the estimate ran on is not recorded."
+    elif used in models:
+        compared = f"; {', '.join(others)}: comparison only" if others else ""
+        head = (
+            f"The estimate (NSGA-II) ran on {used} (surrogate.model), the rows marked "
+            f"'{ROLE_USED}'{compared}."
+        )
+    else:
+        head = f"The estimate ran on {used} (surrogate.model), which has no row here."
+    return head + (f" Of these, {'; '.join(baselines)}." if baselines else "")
+
+
+def _indices(sens: Path) -> pd.DataFrame | None:
+    """The Sobol indices of ``sens`` (``indices.parquet``, checked to be of its campaign),
+    or None where the file is absent."""
+    from railsusp.key_parameters import check_sensitivity_output
+    from railsusp.store import read_parquet
+
+    path = sens / "indices.parquet"
+    if not path.exists():
+        return None
+    check_sensitivity_output(path)
+    return read_parquet(path, f"railsusp sensitivity {sens.parent} again")
+
+
+def _sobol_figures(
+    doc: Doc,
+    run: Path,
+    sens: Path,
+    kp: dict,
+    indices: pd.DataFrame | None,
+    left_out: dict[str, str],
+) -> None:
+    """The Sobol figures of the sensitivity stage, drawn again into ``RUN/report_assets``
+    with the features the key rule left out marked (``left_out``) where any are and the
+    indices read; a statistic the rule does not read is said so in its caption."""
+    from railsusp.report import plot_sobol
+
+    rule_stats = list(kp.get("statistics") or [])
+    assets = run / "report_assets"
+    drawn = set()
+    for png in sorted(sens.glob("sobol-*.png")):
+        st = png.stem.removeprefix("sobol-")
+        caption = f"Sobol indices, statistic '{st}'"
+        if rule_stats and st not in rule_stats:
+            caption += f" (not one the key rule reads: {', '.join(rule_stats)})"
+        marked = [f for f in left_out if f.endswith(f" {st}")]
+        if marked and indices is not None and (indices.statistic == st).any():
+            png = plot_sobol(indices, assets / png.name, statistic=st, left_out=left_out)
+            drawn.add(png.name)
+            caption += "; grey panels: left out of the key rule (" + ", ".join(marked) + ")"
+        doc.figure(png, caption)
+    for old in assets.glob("sobol-*.png"):  # an earlier report's, of what is not marked now
+        if old.name not in drawn:
+            old.unlink()
+
+
 def method_sections(doc: Doc, run: Path, state: dict) -> None:
     """The method's stages as the run made them, in the study's order: Sobol sensitivity
     and the key parameters, the surrogates, the estimate and its validation."""
-    from railsusp.key_parameters import read_key_parameters
+    from railsusp.key_parameters import left_out_features, read_key_parameters
 
     camp = run / "campaign"
     sens = camp / "sensitivity"
     if (sens / "key_parameters.json").exists():
         doc.h("Sobol sensitivity and key parameters (study Figure 2)")
-        kp = read_key_parameters(camp)["key_parameters"]  # of this campaign, or refused
+        analysis = read_key_parameters(camp)  # of this campaign, or refused
+        kp = analysis["key_parameters"]
         doc.p(f"Key parameters: {', '.join(kp['keys'])}. Rule: {kp['rule']}.")
         doc.table(pd.read_csv(sens / "study_comparison.csv"))
-        for png in sorted(sens.glob("sobol-*.png")):
-            doc.figure(png, f"Sobol indices, statistic '{png.stem.removeprefix('sobol-')}'")
+        indices = _indices(sens)
+        left_out = left_out_features(analysis, indices)
+        if left_out:
+            grey = " (their panels are grey in the figure)" if indices is not None else ""
+            doc.p(
+                f"Left out of the key rule, whatever their indices{grey}: "
+                + "; ".join(f"{f}: {why}" for f, why in left_out.items())
+                + "."
+            )
+        _sobol_figures(doc, run, sens, kp, indices, left_out)
 
     from railsusp.surrogate.network_set import MANIFEST
     from railsusp.surrogate.pretrained import surrogates_run
@@ -162,6 +277,10 @@ def method_sections(doc: Doc, run: Path, state: dict) -> None:
                 "vary there unseen and limit the surrogates' accuracy."
             )
         table = table7(pd.read_csv(sur / "compare.csv"))
+        used = estimate_model(run, state)
+        models = [model_name(m) for m in table.model]
+        table.insert(2, "role", [ROLE_USED if m == used else ROLE_COMPARED for m in models])
+        doc.p(surrogate_roles_text(used, list(dict.fromkeys(models))))
         alone = [c for c in table.columns if "network alone" in str(c)]
         if alone and table[alone].notna().to_numpy().any():  # only where a network has one
             doc.p(

@@ -15,7 +15,7 @@ from pathlib import Path
 import pandas as pd
 
 import railsusp.summary as summary
-from railsusp.report_doc import Doc, md_row, table_html
+from railsusp.report_doc import Doc, md_paragraph, md_row, md_text, table_html
 from railsusp.suspension_tolerances import DEFAULT_TOLERANCE_PCT, Tolerances
 
 #: CSS class of each verdict in the summary card
@@ -80,11 +80,7 @@ def summary_card(doc: Doc, run: Path, read: list | None = None) -> None:
     if "polished" in est:  # NSGA-II's estimate stays the estimate; the polish beside it
         shown.insert(4, "simulator polish", est.polished.to_numpy())
     classes = [_VERDICT_CLASS.get(v, "v-held") for v in est.verdict]
-    why = [
-        f"{p}: {n}"
-        for p, v, n in zip(est.index, est.verdict, est.note, strict=True)
-        if v in (summary.NOT_IDENTIFIABLE, summary.NOT_IDENTIFIED)
-    ]
+    why = verdict_notes(est)
     tol_text = tolerance_text(tol)
     held: dict[str, list[str]] = {}
     for p, v, n in zip(est.index, est.verdict, est.note, strict=True):
@@ -100,7 +96,7 @@ def summary_card(doc: Doc, run: Path, read: list | None = None) -> None:
         f"({html.escape(rec_kind)}): {html.escape(rec_text)}.</p>",
         table_html(shown, headers=False, row_class=classes),
         f"<p class='note'>Interval: {html.escape(basis)}. {html.escape(tol_text)}."
-        + (f" Not identified: {html.escape('; '.join(why))}." if why else "")
+        + "".join(f" {html.escape(line)}" for line in why)
         + (f" Not estimated ({html.escape(held_text)})." if held else "")
         + "</p>",
         "<p><b>Force error, nominal → estimated parameters</b></p><ul>",
@@ -109,7 +105,8 @@ def summary_card(doc: Doc, run: Path, read: list | None = None) -> None:
     ]
     md = [
         "\n## Answer: the suspension of this wagon, from these recordings\n",
-        f"Wagon: {summary.wagon_name(run)}. Recordings ({rec_kind}): {rec_text}.\n",
+        md_paragraph(f"Wagon: {summary.wagon_name(run)}. Recordings ({rec_kind}): {rec_text}.")
+        + "\n",
         md_row(list(shown.columns)),
         "|" + "---|" * len(shown.columns),
         *(
@@ -117,15 +114,42 @@ def summary_card(doc: Doc, run: Path, read: list | None = None) -> None:
             for r in shown.itertuples(index=False)
         ),
         "",
-        f"Interval: {basis}. {tol_text}."
-        + (f" Not identified: {'; '.join(why)}." if why else "")
-        + (f" Not estimated ({held_text})." if held else ""),
+        md_paragraph(
+            f"Interval: {basis}. {tol_text}."
+            + "".join(f" {line}" for line in why)
+            + (f" Not estimated ({held_text})." if held else "")
+        ),
         "",
         "Force error, nominal → estimated parameters:\n",
-        *(f"- {line}" for line in lines),
+        *(f"- {md_text(line)}" for line in lines),
         "",
     ]
     doc.raw("\n".join(parts), "\n".join(md))
+
+
+def verdict_notes(est: pd.DataFrame) -> list[str]:
+    """The card's sentences on the parameters that are not identified, one per verdict and
+    named by it (:data:`~railsusp.summary.NOT_IDENTIFIED`: this route gave no interval that
+    identifies them; :data:`~railsusp.summary.NOT_IDENTIFIABLE`: the recordings do not fix
+    them), each parameter with its reason; both were listed under "Not identified"."""
+    out = []
+    for verdict, label in _VERDICT_SENTENCE.items():
+        why = [
+            f"{p}: {n}"
+            for p, v, n in zip(est.index, est.verdict, est.note, strict=True)
+            if v == verdict
+        ]
+        if why:
+            out.append(f"{label}: {'; '.join(why)}.")
+    return out
+
+
+#: how :func:`verdict_notes` opens each verdict's sentence
+_VERDICT_SENTENCE = {
+    summary.NOT_IDENTIFIED: "Not identified by this route (it gives no confidence interval; "
+    "the recordings may still fix them)",
+    summary.NOT_IDENTIFIABLE: "Not identifiable from these recordings",
+}
 
 
 def tolerance_text(tol: Tolerances) -> str:

@@ -35,6 +35,7 @@ from railsusp.errors import RailsuspInputError
 from railsusp.key_parameters import (
     CAMPAIGN_STAMP,
     INDICES_STAMP,
+    left_out_features,
     select_key_parameters,
     study_comparison,
 )
@@ -214,8 +215,9 @@ def analyse(
             summary["agreement"] = agree.to_dict(orient="records")
         # the key parameters: the pipeline reads this file as the stage's completion mark
         write_json(tmp / "key_parameters.json", summary)
+        left_out = left_out_features(summary, idx)  # their panels grey, with the reason
         for st in statistics:
-            plot_sobol(idx, tmp / f"sobol-{st}.png", statistic=st)
+            plot_sobol(idx, tmp / f"sobol-{st}.png", statistic=st, left_out=left_out)
     summary["indices"] = idx
     summary["comparison"] = comparison
     return summary

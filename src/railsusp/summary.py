@@ -92,8 +92,8 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
     estimate, standard error, interval (low, high, and how it was formed), change from
     nominal (%), tolerance (%), verdict and a note saying why."""
     from railsusp.estimate.identifiability import on_range_bound
-    from railsusp.estimate.intervals import identification, intervals_of
-    from railsusp.identification_verdict import identification_issues, max_st
+    from railsusp.estimate.intervals import intervals_of
+    from railsusp.identification_verdict import identification_issues, max_st, route_only
 
     run = Path(run)
     tol = tolerances or run_tolerances(run)
@@ -188,12 +188,8 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
         if why_not.get(p):
             # the route alone (NSGA-II's Pareto range is no confidence interval) is not the
             # recordings' fault: the same recordings refined identify it
-            route_only = (
-                p in intervals
-                and not intervals[p].statistical
-                and why_not[p] == identification(intervals[p])
-            )
-            row["verdict"] = NOT_IDENTIFIED if route_only else NOT_IDENTIFIABLE
+            only_route = route_only(intervals, p, why_not[p])
+            row["verdict"] = NOT_IDENTIFIED if only_route else NOT_IDENTIFIABLE
             row["note"] = why_not[p]
         else:
             inside = abs(row["change_pct"]) <= limit

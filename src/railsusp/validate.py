@@ -39,7 +39,13 @@ from railsusp.estimate.config import NSGA_RANGES, check_range
 from railsusp.estimate.expected_forces import draw_true_tracks
 from railsusp.estimate.intervals import intervals_of
 from railsusp.estimate.statistics import force_statistic
-from railsusp.identification_verdict import identification_issues, max_st
+from railsusp.identification_verdict import (
+    IDENTIFIED,
+    RECORDINGS,
+    ROUTE,
+    identification_verdicts,
+    max_st,
+)
 from railsusp.measured import Recording, SimulationFailedError, read_field
 from railsusp.measured.recording import recordings_digest
 from railsusp.measured.synthetic import read_truth, recording_from_simulation
@@ -335,8 +341,19 @@ def _on_time(simulated: np.ndarray, rec: Recording) -> np.ndarray:
 def _recovery(
     params, chosen: ParameterSet, truth: ParameterSet, est: dict, sensitivity: str | Path | None
 ) -> pd.DataFrame:
+    """The recovery table: per parameter the truth, the estimate, their error, the interval
+    and whether it holds the truth, and the summary card's verdict
+    (:func:`~railsusp.identification_verdict.identification_verdicts`): ``verdict``
+    "identified", the card's :data:`~railsusp.summary.NOT_IDENTIFIED` (this route gives no
+    confidence interval) or :data:`~railsusp.summary.NOT_IDENTIFIABLE` (the recordings are
+    the reason), ``why_not`` its reason. ``identified`` is True where identified;
+    ``identifiable``, the same, is kept for readers of the older table (the table called
+    every parameter not identified "not identifiable", the route's fault too)."""
+    from railsusp.summary import NOT_IDENTIFIABLE, NOT_IDENTIFIED
+
+    words = {IDENTIFIED: IDENTIFIED, ROUTE: NOT_IDENTIFIED, RECORDINGS: NOT_IDENTIFIABLE}
     lo, hi = bounds(params)
-    why_not = identification_issues(est, max_st(sensitivity) if sensitivity else {})
+    verdicts = identification_verdicts(est, max_st(sensitivity) if sensitivity else {})
     intervals = intervals_of(est)
     rows = []
     for p, low, high in zip(params, lo, hi, strict=True):
@@ -355,8 +372,10 @@ def _recovery(
                 "interval_width_pct_range": iv.width_pct_range,
                 "interval_method": iv.method,
                 "truth_in_interval": iv.contains(t),
-                "identifiable": not why_not[p],
-                "why_not": why_not[p],
+                "identified": verdicts[p][0] == IDENTIFIED,
+                "verdict": words[verdicts[p][0]],
+                "why_not": verdicts[p][1],
+                "identifiable": verdicts[p][0] == IDENTIFIED,  # the older table's name
             }
         )
     return pd.DataFrame(rows)

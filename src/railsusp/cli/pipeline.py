@@ -98,6 +98,8 @@ def _summary_parts(out: Path) -> list:
             return
         df = _labelled(fraction_errors_to_pct(pd.read_csv(csv)))
         df = df[cols] if cols else df
+        if "verdict" in df and "identifiable" in df:  # the recovery table's older column
+            df = df.drop(columns="identifiable")
         df = df.apply(lambda col: col.map(_yes_no) if _has_bools(col) else col)
         parts.append(frame_table(df.rename(columns=header), title, fmt=summary.sig3))
 

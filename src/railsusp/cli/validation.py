@@ -117,8 +117,8 @@ def validate(
             "estimate",
             "error % value",
             "error % range",
-            "identified",
-            "why not",
+            "verdict",
+            "why not identified",
         ):
             rec.add_column(c)
         for r in res.recovery.itertuples(index=False):
@@ -129,7 +129,7 @@ def validate(
                 f"{r.estimate:.4g}",
                 f"{r.error_pct_of_value:.1f}",
                 f"{r.error_pct_of_range:.1f}",
-                "yes" if r.identifiable else "no",
+                r.verdict,  # the summary card's three (it said "identified: no" for each)
                 r.why_not,
             )
         console.print(rec)
