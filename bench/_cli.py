@@ -5,8 +5,14 @@ A script ends with ``run_main(main)`` instead of ``main()``. The library's input
 ``error: MESSAGE`` (one line) and exit 2, as the railsusp command line
 does, instead of a traceback with exit 1; a script's own ``sys.exit("error: ...")`` exits 2
 too (Python exits 1 on a message). The argparse types below refuse a bad count or list while
-the arguments are parsed, naming the option (argparse's own exit 2), so that nothing runs
-before the input is known to be good.
+the arguments are parsed, naming the option, so that nothing runs before the input is known
+to be good.
+
+Every script builds its parser with :func:`parser`: its refusals (a bad option, a type's
+refusal, the script's own ``ap.error``) are the same one line ``error: ...`` with exit 2,
+not argparse's usage lines and ``prog: error: ...`` (bench/README.md promises one line), and
+its ``--help`` description is the docstring's whole first paragraph (its first line alone
+stopped mid-sentence).
 
 It imports nothing of railsusp: reference_run.py runs today's scripts on another
 checkout's ``src``, whose package may differ.
@@ -31,6 +37,26 @@ def fail(message: object) -> NoReturn:
     text = one_line(message).removeprefix("error:").strip()
     print(f"error: {text}", file=sys.stderr)
     sys.exit(2)
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse's parser whose refusals are one line, ``error: MESSAGE``, and exit 2."""
+
+    def error(self, message: str) -> NoReturn:
+        """Refuse the command line as :func:`fail` does (no usage lines, no prog prefix)."""
+        fail(message)
+
+
+def first_paragraph(doc: str | None) -> str:
+    """The first paragraph of a docstring (up to its first blank line), as one line."""
+    return one_line((doc or "").strip().split("\n\n")[0])
+
+
+def parser(doc: str | None, whole: bool = False, **kwargs: object) -> ArgumentParser:
+    """A script's parser (:class:`ArgumentParser`), described by its docstring ``doc``: the
+    first paragraph, or with ``whole`` all of it (argparse wraps it as one paragraph)."""
+    description = doc if whole else first_paragraph(doc)
+    return ArgumentParser(description=description, **kwargs)
 
 
 def _bad_input(exc: BaseException) -> bool:

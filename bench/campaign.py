@@ -8,21 +8,20 @@ features. Prints a table and writes JSON (bench/results/campaign.json).
 
 from __future__ import annotations
 
-import argparse
 import platform
 import shutil
 import tempfile
 import time
 from pathlib import Path
 
-from _cli import positive_int, run_main
+from _cli import parser, positive_int, run_main
 from railsusp.campaign import load_campaign, make_config, run_campaign
 from railsusp.conditions import STANDARD_CONDITIONS
 from railsusp.store import write_json
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = parser(__doc__, whole=True)
     ap.add_argument("--samples", type=positive_int, default=64)
     ap.add_argument("--batch-size", type=positive_int, default=16)
     ap.add_argument("--out", default="bench/results/campaign.json")

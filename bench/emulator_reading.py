@@ -27,7 +27,6 @@ readings over a statistic's spread over the prior (``x_scale``).
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform
 import time
@@ -36,7 +35,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from _cli import number_list, positive_int, run_main
+from _cli import number_list, parser, positive_int, run_main
 from railsusp.estimate.posterior_emulator import StatisticsEmulator, _forward, linear_features
 from railsusp.store import write_json
 
@@ -88,7 +87,7 @@ def per_call(fn, calls: int) -> float:
 
 
 def main(argv=None) -> dict:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__)
     ap.add_argument(
         "--points",
         type=number_list(positive_int),

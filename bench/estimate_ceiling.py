@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from _cli import fail, run_main
+from _cli import fail, parser, run_main
 from estimate_tracks import (
     TARGET_SHARE,
     WITHIN_PCT,
@@ -201,7 +201,7 @@ def settings_of(args: argparse.Namespace) -> dict:
 
 
 def main(argv: Sequence[str] | None = None) -> dict:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__)
     ap.add_argument(
         "--networks",
         type=Path,

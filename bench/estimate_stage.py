@@ -11,7 +11,6 @@ wall time). Prints a table and writes JSON (bench/results/estimate_stage.json).
 
 from __future__ import annotations
 
-import argparse
 import platform
 import shutil
 import tempfile
@@ -19,7 +18,7 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-from _cli import fail, run_main
+from _cli import fail, parser, run_main
 from railsusp.pipeline import demo_config, load_config, run_pipeline
 from railsusp.store import write_json
 
@@ -39,7 +38,7 @@ def _timed(calls: list[dict], owner, name: str, phase: str):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = parser(__doc__, whole=True)
     ap.add_argument("--run", default="runs/demo", help="finished run directory (left untouched)")
     ap.add_argument("--config", help="its pipeline TOML (default: the embedded demo)")
     ap.add_argument("--out", default="bench/results/estimate_stage.json")

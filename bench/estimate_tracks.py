@@ -75,6 +75,7 @@ from _cli import (
     fail,
     non_negative_float,
     non_negative_int,
+    parser,
     positive_float,
     positive_int,
     run_main,
@@ -100,6 +101,25 @@ MIDDLE = 0.8
 #: the issue's target: this share of the identifiable key parameters within WITHIN_PCT of
 #: their range, in under TARGET_SECONDS per estimate on 2 cores
 WITHIN_PCT, TARGET_SHARE, TARGET_SECONDS = 5.0, 0.9, 60.0
+#: the settings the time target is the issue's at (NSGA-II 50 x 100 on 60 s records): at
+#: others the seconds per estimate are no measure of it and are not judged
+TARGET_SETTINGS = {"pop_size": 50, "n_gen": 100, "duration_s": 60.0}
+
+
+def seconds_target(seconds: float, settings: dict) -> tuple[bool | None, str | None]:
+    """(met, reason): whether ``seconds`` per estimate meet the issue's time target, or
+    None with the reason where ``settings`` are not the issue's (:data:`TARGET_SETTINGS`):
+    NSGA-II 4 x 2 on 2 s records is fast at any code and said nothing about it."""
+    if all(settings.get(k) == v for k, v in TARGET_SETTINGS.items()):
+        return seconds < TARGET_SECONDS, None
+    t, now = TARGET_SETTINGS, {k: settings.get(k) for k in TARGET_SETTINGS}
+    return None, (
+        f"not applicable: the < {TARGET_SECONDS:g} s target is the issue's at NSGA-II "
+        f"{t['pop_size']} x {t['n_gen']} on {t['duration_s']:g} s records; run at "
+        f"{now['pop_size']} x {now['n_gen']} on {now['duration_s']} s records"
+    )
+
+
 #: condition fields a track-family campaign varies, by their name in the family
 FAMILY_FIELDS = {
     "irregularity_class": "irregularity_classes",
@@ -395,10 +415,11 @@ def efficient_expectation(sets: list[dict]) -> dict:
     }
 
 
-def overall(sets: list[dict], parameters: Sequence[str]) -> dict:
+def overall(sets: list[dict], parameters: Sequence[str], settings: dict) -> dict:
     """Per key parameter the mean and largest |error| (% of range) and how often it was
     identifiable; pooled, the share of identifiable key parameters within WITHIN_PCT, and
-    the seconds per estimate; whether the issue's targets are met."""
+    the seconds per estimate; whether the issue's targets are met (the time target only at
+    its ``settings``, :func:`seconds_target`: else null with the reason)."""
     per = {}
     for p in parameters:
         e = np.abs([s["error_pct_range"][p] for s in sets])
@@ -413,6 +434,7 @@ def overall(sets: list[dict], parameters: Sequence[str]) -> dict:
     # NSGA-II's choice itself, before the geometry bias is taken off
     n_choice = sum(len([p for p in s["identifiable"] if p in s["choice_within"]]) for s in sets)
     seconds = float(np.mean([s["seconds"] for s in sets]))
+    seconds_ok, seconds_reason = seconds_target(seconds, settings)
     polished = [s["polish_seconds"] for s in sets if "polish_seconds" in s]
     polish = {"polish_seconds": float(np.mean(polished))} if polished else {}
     corrected = [s for s in sets if "correction_seconds" in s]
@@ -439,7 +461,8 @@ def overall(sets: list[dict], parameters: Sequence[str]) -> dict:
         ),
         "targets": {
             "share_ok": share is not None and share >= TARGET_SHARE,
-            "seconds_ok": seconds < TARGET_SECONDS,
+            "seconds_ok": seconds_ok,
+            "seconds_reason": seconds_reason,
         },
     }
 
@@ -470,7 +493,13 @@ def print_table(sets: list[dict], parameters: Sequence[str], summary: dict) -> N
         + f" (target {100 * TARGET_SHARE:g} %; NSGA-II's choice before the geometry's error is "
         f"accounted for: {summary['identifiable_choice_within']}); all key parameters: "
         f"{100 * summary['share_all_within']:.0f} %; "
-        f"{summary['seconds_per_estimate']:.1f} s per estimate (target < {TARGET_SECONDS:g} s)"
+        f"{summary['seconds_per_estimate']:.1f} s per estimate ("
+        + (
+            f"target < {TARGET_SECONDS:g} s"
+            if summary["targets"]["seconds_ok"] is not None
+            else summary["targets"]["seconds_reason"]
+        )
+        + ")"
     )
     ideal = summary["efficient_expected_within"]
     print(
@@ -619,7 +648,7 @@ def add_set_arguments(ap: argparse.ArgumentParser) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> dict:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__)
     ap.add_argument("run", type=Path, help="run directory with surrogates/KIND/<condition>/")
     ap.add_argument("--kind", default="cnn-gru", help="surrogate kind (folder under surrogates/)")
     add_set_arguments(ap)
@@ -765,7 +794,7 @@ def write_out(args, settings, sets, model, moved) -> dict:
         "identifiable_rule": f"time-aligned Cramér-Rao bound at the truth <= {BOUND_LIMIT_PCT:g} "
         "% of range, with the surrogate on the recordings",
         "per_set": sets,
-        "overall": overall(sets, model.parameters),
+        "overall": overall(sets, model.parameters, settings),
     }
     if args.rescore and args.out.exists():  # the timings are the original run's: keep its
         old = read_json(args.out)  # provenance, and say when it was scored again

@@ -17,14 +17,13 @@ force_reference_2026-11-30.1.npz: the wagon fields of
 
 from __future__ import annotations
 
-import argparse
 import io
 import time
 from pathlib import Path
 
 import numpy as np
 
-from _cli import run_main
+from _cli import parser, run_main
 from railsusp.conditions import get_condition
 from railsusp.params import MAIN_SUSPENSION, bounds
 from railsusp.store import atomic_write_bytes, write_json
@@ -84,7 +83,7 @@ def write_reference(forces: dict[str, np.ndarray]) -> Path:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = parser(__doc__, whole=True)
     ap.add_argument("--write", action="store_true", help="store the reference forces")
     ap.add_argument("--out", default="bench/results/force_reference.json")
     args = ap.parse_args()

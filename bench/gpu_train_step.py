@@ -13,7 +13,6 @@ budget goes. Prints a table and writes JSON (bench/results/gpu_train_step.json):
 
 from __future__ import annotations
 
-import argparse
 import json
 import platform
 import time
@@ -22,7 +21,7 @@ from pathlib import Path
 
 import torch
 
-from _cli import run_main
+from _cli import parser, run_main
 from railsusp.store import write_json
 from railsusp.surrogate.models import NetConfig, build_network
 
@@ -64,7 +63,7 @@ def time_step(cfg: NetConfig, chunks: int, steps: int, device: str, warmup: int 
 
 
 def main(argv: Sequence[str] | None = None) -> list[dict]:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = parser(__doc__)
     ap.add_argument("--device", default="cuda", help="cuda or cpu")
     ap.add_argument("--chunks", default="32,256,1024", help="chunks per step, comma list")
     ap.add_argument("--steps", type=int, default=20, help="timed steps")

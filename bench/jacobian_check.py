@@ -36,7 +36,6 @@ surrogate's gain and cosine could reach (stop 36: they agree, bench/README.md).
 
 from __future__ import annotations
 
-import argparse
 import platform
 import time
 from pathlib import Path
@@ -44,7 +43,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from _cli import positive_int, run_main
+from _cli import parser, positive_int, run_main
 from estimate_tracks import draw_sets, family_conditions, set_recordings
 from railsusp.estimate import SurrogateForces
 from railsusp.estimate.aligned_identifiability import (
@@ -177,7 +176,7 @@ def print_set(row: dict, params) -> None:
 
 
 def main(argv=None) -> dict:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__)
     ap.add_argument("run", type=Path, help="run directory with surrogates/KIND/<condition>/")
     ap.add_argument("--kind", default="cnn-gru")
     ap.add_argument("--sets", type=positive_int, default=4)

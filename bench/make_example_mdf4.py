@@ -18,13 +18,16 @@ Channels as a measurement system writes them, at their own rates: wheel forces o
 speed (km/h), odometer position (m), track curvature (1/km), cant (mm) and grade
 (permille) from the train's line database at 10 Hz; a bogie lateral acceleration
 (``acc_bogie_y_g``, g) at 100 Hz that the estimation does not use. Also writes the
-channel map (``example_run.map.toml``) and the line description (``example_line.csv``).
-The hidden truth is in ``example_run.truth.json`` beside them (the estimator never reads it).
+channel map (``example_run.map.toml``, from the same channel names) and the line
+description (``example_line.csv``). The hidden truth is in ``example_run.truth.json``
+beside them (the estimator never reads it). The ``railsusp run`` configuration shipped
+beside them (``example_run.pipeline.toml``) is written by hand, not by this script.
+The output is deterministic (seeded tracks, noise and bogie channel): run again on the
+same model it gives the same channels.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import tempfile
@@ -33,7 +36,7 @@ from pathlib import Path
 import numpy as np
 from asammdf import MDF, Signal
 
-from _cli import run_main
+from _cli import parser, run_main
 from railsusp.measured import add_sensor_noise, recording_from_simulation
 from railsusp.measured.sections import Section
 from railsusp.params import ParameterSet
@@ -54,6 +57,31 @@ SECTIONS = [
     (None, "left", 0.0, 0.0, 70.0),
 ]
 TRACK_SEED_OFFSET = 1000
+#: the channels written, by the quantity each is (the channel map's keys)
+LINE_CHANNELS = {
+    "speed": "v_train",
+    "position": "s_odo",
+    "curvature": "track_curvature",
+    "cant": "track_cant",
+    "grade": "track_grade",
+}
+WHEEL_CHANNELS = {"w1R": {"Y": "WS1_Y_R", "Q": "WS1_Q_R"}, "w1L": {"Y": "WS1_Y_L", "Q": "WS1_Q_L"}}
+IGNORED_CHANNEL = "acc_bogie_y_g"
+
+
+def channel_map_text() -> str:
+    """The channel map of the recording (``example_run.map.toml``, docs/data-format.md):
+    which channel is which quantity, built from the names the channels are written under,
+    so that the two cannot disagree."""
+    lines = [
+        "# Channel map of example_run.mf4: which recorded channel is which quantity.",
+        "# Units come from the file (kN, N, km/h, m, 1/km, mm, permille).",
+        *(f'{key} = "{name}"' for key, name in LINE_CHANNELS.items()),
+        f'ignore = ["{IGNORED_CHANNEL}"]',
+    ]
+    for wheel, forces in WHEEL_CHANNELS.items():
+        lines += ["", f"[wheels.{wheel}]", *(f'{k} = "{v}"' for k, v in forces.items())]
+    return "\n".join(lines) + "\n"
 
 
 def _condition(radius, direction, cant, grade, speed, duration, name):
@@ -62,7 +90,7 @@ def _condition(radius, direction, cant, grade, speed, duration, name):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = parser(__doc__)
     ap.add_argument("--out", type=Path, default=Path("src/railsusp/data"))
     args = ap.parse_args()
     truth = ParameterSet(TRUTH, units="display")
@@ -122,23 +150,24 @@ def main() -> None:
     ta = np.arange(0.0, t[-1] + 0.01, 0.01)
     acc = (0.03 * rng.standard_normal(ta.size)).astype(np.float32)
     f32 = np.float32
+    right, left, name = WHEEL_CHANNELS["w1R"], WHEEL_CHANNELS["w1L"], LINE_CHANNELS
     signals = [
-        Signal(data["YR"].astype(f32), t, name="WS1_Y_R", unit="kN"),
-        Signal(data["QR"].astype(f32), t, name="WS1_Q_R", unit="N"),
-        Signal(data["YL"].astype(f32), t, name="WS1_Y_L", unit="kN"),
-        Signal(data["QL"].astype(f32), t, name="WS1_Q_L", unit="N"),
+        Signal(data["YR"].astype(f32), t, name=right["Y"], unit="kN"),
+        Signal(data["QR"].astype(f32), t, name=right["Q"], unit="N"),
+        Signal(data["YL"].astype(f32), t, name=left["Y"], unit="kN"),
+        Signal(data["QL"].astype(f32), t, name=left["Q"], unit="N"),
     ]
     line = [
-        Signal(slow(data["v"]), ts, name="v_train", unit="km/h"),
-        Signal(slow(pos), ts, name="s_odo", unit="m"),
-        Signal(slow(data["curv"]), ts, name="track_curvature", unit="1/km"),
-        Signal(slow(data["cant"]), ts, name="track_cant", unit="mm"),
-        Signal(slow(data["grade"]), ts, name="track_grade", unit="permille"),
+        Signal(slow(data["v"]), ts, name=name["speed"], unit="km/h"),
+        Signal(slow(pos), ts, name=name["position"], unit="m"),
+        Signal(slow(data["curv"]), ts, name=name["curvature"], unit="1/km"),
+        Signal(slow(data["cant"]), ts, name=name["cant"], unit="mm"),
+        Signal(slow(data["grade"]), ts, name=name["grade"], unit="permille"),
     ]
     mdf = MDF(version="4.10")
     mdf.append(signals, comment="wheelset 1 forces, 200 Hz")
     mdf.append(line, comment="train speed, odometer and line data, 10 Hz")
-    mdf.append([Signal(acc, ta, name="acc_bogie_y_g", unit="g")], comment="bogie, 100 Hz")
+    mdf.append([Signal(acc, ta, name=IGNORED_CHANNEL, unit="g")], comment="bogie, 100 Hz")
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / "example_run.mf4"
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -159,6 +188,7 @@ def main() -> None:
             )
         s += length
     atomic_write_text(args.out / "example_line.csv", "\n".join(rows) + "\n")
+    atomic_write_text(args.out / "example_run.map.toml", channel_map_text())
     atomic_write_text(
         args.out / "example_run.truth.json",
         json.dumps(

@@ -24,7 +24,6 @@ recordings with noise and geometry error, minutes per set)::
 
 from __future__ import annotations
 
-import argparse
 import platform
 import time
 from pathlib import Path
@@ -32,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from _cli import run_main
+from _cli import parser, run_main
 from railsusp.campaign import load_campaign
 from railsusp.store import write_json
 from railsusp.surrogate import load
@@ -139,7 +138,7 @@ def print_scores(kind: str, scores: dict) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__)
     ap.add_argument("run", type=Path, help="campaign with surrogates and perturbed twins")
     ap.add_argument("--kinds", required=True, help="comma list of folders under surrogates/")
     ap.add_argument("--condition", default="straight")

@@ -3,20 +3,19 @@ run directory. Prints a table and writes JSON (bench/results/pipeline.json)."""
 
 from __future__ import annotations
 
-import argparse
 import platform
 import shutil
 import tempfile
 import time
 from pathlib import Path
 
-from _cli import run_main
+from _cli import parser, run_main
 from railsusp.pipeline import STAGES, demo_config, load_config, run_pipeline
 from railsusp.store import write_json
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = parser(__doc__, whole=True)
     ap.add_argument(
         "--config",
         action="append",

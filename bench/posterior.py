@@ -41,7 +41,14 @@ from pathlib import Path
 
 import numpy as np
 
-from _cli import non_negative_float, non_negative_int, positive_float, positive_int, run_main
+from _cli import (
+    non_negative_float,
+    non_negative_int,
+    parser,
+    positive_float,
+    positive_int,
+    run_main,
+)
 from railsusp.condition_files import resolve_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.estimate import posterior
@@ -56,7 +63,7 @@ KEYS = "X18,X13,X11,X14,X19"
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = parser(__doc__)
     add_common_arguments(ap, "bench/results/posterior.json")
     ap.add_argument(
         "--calibration", type=positive_int, default=200, help="cases fitting the correction"

@@ -47,13 +47,12 @@ width (% of range); plus training time and seconds per record.
 
 from __future__ import annotations
 
-import argparse
 import time
 from pathlib import Path
 
 import numpy as np
 
-from _cli import positive_float, positive_int, run_main
+from _cli import parser, positive_float, positive_int, run_main
 from posterior import add_common_arguments, bench_conditions
 from railsusp.estimate.calibration import check
 from railsusp.estimate.posterior import TrainingLog
@@ -210,7 +209,7 @@ def score(draws: np.ndarray, truth: np.ndarray, names: list[str]) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = parser(__doc__)
     add_common_arguments(ap, "bench/results/posterior_estimators.json")
     ap.add_argument(
         "--long", type=positive_int, default=200, help="held-out records of several sections"

@@ -27,10 +27,9 @@ Prints the tables and writes JSON.
 
 from __future__ import annotations
 
-import argparse
 import time
 
-from _cli import run_main
+from _cli import parser, run_main
 from posterior import KEYS, identify_sets, middle_draws
 from posterior_synthetic import checked_sets, coverage_table, cramer_rao_table, posterior_seconds
 from railsusp.estimate import posterior_joint as joint
@@ -39,7 +38,7 @@ from railsusp.store import write_json
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = parser(__doc__)
     ap.add_argument("--runs", required=True, help="the estimators' run folders, comma-separated")
     ap.add_argument("--joint", required=True, help="folder of the joint check (joint.json)")
     ap.add_argument("--out", default="bench/results/posterior_joint.json")

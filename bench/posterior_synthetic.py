@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from _cli import positive_float, positive_int, run_main
+from _cli import parser, positive_float, positive_int, run_main
 from posterior import add_common_arguments, bench_conditions, identify_sets, lengths_s, middle_draws
 from railsusp.estimate import posterior_synthetic_fit as synthetic_fit
 from railsusp.estimate import posterior_synthetic_run as synthetic
@@ -50,7 +50,7 @@ from railsusp.store import write_json
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = parser(__doc__)
     add_common_arguments(ap, "bench/results/posterior_synthetic.json")
     ap.add_argument(
         "--long", type=positive_int, default=200, help="held-out records of several sections"

@@ -34,7 +34,6 @@ Jacobian (norms in whitened units and their cosine). Writes JSON.
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 from pathlib import Path
@@ -42,7 +41,7 @@ from pathlib import Path
 import numpy as np
 from scipy.linalg import block_diag
 
-from _cli import run_main
+from _cli import parser, run_main
 from information_estimate import (
     information_unbiased,
     inverse_wishart_factor,
@@ -173,7 +172,7 @@ def point_readings(data: dict, cols, post, u0: np.ndarray, k: int, rng) -> dict:
 def main() -> None:
     from railsusp.estimate.posterior_synthetic_run import load
 
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = parser(__doc__)
     add_design_arguments(ap, "bench/results/projection_information.json")
     ap.add_argument("--run", required=True, help="run folder of a trained synthetic likelihood")
     ap.add_argument("--gain-sections", type=int, default=40, help="sections for G (as cached)")

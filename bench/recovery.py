@@ -18,7 +18,6 @@ output-error least squares with the simulator on the measured track (time-aligne
 
 from __future__ import annotations
 
-import argparse
 import platform
 import tempfile
 import time
@@ -27,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from _cli import run_main
+from _cli import parser, run_main
 from railsusp.campaign import load_campaign, make_config, run_campaign
 from railsusp.estimate import NSGAConfig, estimate, open_force_model, refine_estimate
 from railsusp.measured import SimulationFailedError, read_field, synthesise_field
@@ -49,7 +48,7 @@ def track_matched_model(field: Path, params: tuple[str, ...], samples: int, out:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = parser(__doc__, whole=True)
     ap.add_argument("--run", required=True, help="campaign with trained surrogates")
     ap.add_argument(
         "--model",

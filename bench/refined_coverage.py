@@ -41,7 +41,6 @@ bench/results/refined_coverage[-middle80]-rescored.json.
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform
 import shutil
@@ -51,7 +50,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from _cli import fail, non_negative_float, non_negative_int, positive_int, run_main
+from _cli import fail, non_negative_float, non_negative_int, parser, positive_int, run_main
 from estimate_tracks import MIDDLE, draw_sets
 from railsusp.params import MAIN_SUSPENSION, spec
 from railsusp.pipeline import demo_config, load_config, run_pipeline
@@ -261,7 +260,7 @@ def rescore_set(set_dir: Path, prior: dict) -> list[dict]:
 
 
 def main(argv: list[str] | None = None) -> dict:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = parser(__doc__, whole=True)
     ap.add_argument("--run", type=Path, default=Path("runs/demo"), help="finished run")
     ap.add_argument("--config", help="its pipeline TOML (default: the embedded demo)")
     ap.add_argument("--sets", type=positive_int, default=12)

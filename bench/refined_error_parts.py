@@ -32,14 +32,13 @@ each prior (:data:`PRIORS`); writes JSON
 
 from __future__ import annotations
 
-import argparse
 import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from _cli import run_main
+from _cli import parser, run_main
 from railsusp.estimate.comparison import comparison_samples
 from railsusp.estimate.forces import SimulatorForces
 from railsusp.estimate.interval_distribution import error_quantiles
@@ -197,7 +196,7 @@ def summary(rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def main(argv: list[str] | None = None) -> dict:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = parser(__doc__, whole=True)
     ap.add_argument("--work", type=Path, default=Path("runs/refined_coverage/noise-0"))
     ap.add_argument("--out", type=Path, default=Path("bench/results/refined_error_parts.json"))
     args = ap.parse_args(argv)

@@ -8,20 +8,19 @@ campaign they were trained on; prints each network's validation error before and
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 import torch
 
-from _cli import positive_int, run_main
+from _cli import parser, positive_int, run_main
 from railsusp.errors import RailsuspInputError
 from railsusp.surrogate import load
 from railsusp.surrogate.refit import refit_record_correction
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__)
     ap.add_argument("bundles", type=Path, nargs="+", help="saved networks (RUN/surrogates/K/C)")
     ap.add_argument("--run", type=Path, required=True, help="the campaign they were trained on")
     ap.add_argument("--threads", type=positive_int, default=1)

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from _cli import run_main
+from _cli import parser, run_main
 from railsusp.campaign import load_campaign, run_campaign
 from railsusp.campaign.twins import run_nominal_twins
 from railsusp.store import write_json
@@ -55,7 +55,7 @@ def _tracks_bench():
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = parser(__doc__, whole=True)
     ap.add_argument("--set", required=True, help="network set folder")
     ap.add_argument("--run", required=True, help="campaign run directory (made or resumed)")
     ap.add_argument("--samples", type=int, default=384)

@@ -16,7 +16,6 @@ own, different motion. Prints a table and writes JSON (bench/results/rhs_profile
 
 from __future__ import annotations
 
-import argparse
 import inspect
 import io
 import os
@@ -27,7 +26,7 @@ import numba as nb
 import numpy as np
 from scipy.signal import butter
 
-from _cli import positive_int, run_main
+from _cli import parser, positive_int, run_main
 from railsusp.conditions import get_condition
 from railsusp.params import ParameterSet
 from railsusp.store import atomic_write_bytes, write_json
@@ -41,7 +40,7 @@ try:
 except ImportError:  # a --reference-src checkout before stop 63 kept it in setup
     from railsusp.vehicle.setup import track_arrays
 from railsusp.vehicle.wagon import load_wagon
-from reference_run import reference_rows
+from reference_run import reference_rows, reference_src
 
 TIMES_S = (7.0, 9.0, 11.0, 13.0, 15.0, 17.0, 19.0, 21.0)
 DT = 1e-3
@@ -115,7 +114,7 @@ def time_rhs(condition: str, reps: int, repeats: int, states_dir: str | None = N
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = parser(__doc__, whole=True)
     ap.add_argument("--reps", type=positive_int, default=10000, help="passes per timed loop")
     ap.add_argument("--repeats", type=positive_int, default=7, help="timed loops, fastest kept")
     ap.add_argument("--reference-src", default=None, help="another checkout's src, for A/B")
@@ -127,6 +126,8 @@ def main() -> None:
     )
     ap.add_argument("--out", default="bench/results/rhs_profile.json")
     args = ap.parse_args()
+    if args.reference_src:
+        reference_src(args.reference_src)  # refused before any timing, as simulator.py does
     os.environ.setdefault("NUMBA_NUM_THREADS", "1")
     rows = [{"condition": c, "us_per_eval": time_rhs(c, args.reps, args.repeats, args.states)}
             for c in ("straight", "curve")]  # fmt: skip

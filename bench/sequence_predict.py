@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from _cli import non_negative_int, number_list, positive_float, positive_int, run_main
+from _cli import non_negative_int, number_list, parser, positive_float, positive_int, run_main
 from estimate_tracks import draw_sets, family_conditions, set_recordings
 from railsusp.estimate import SurrogateForces
 from railsusp.estimate.problem import CalibrationProblem
@@ -80,7 +80,7 @@ def timed(fn) -> tuple[float, float]:
 
 
 def main(argv=None) -> dict:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__)
     ap.add_argument(
         "run", type=Path, nargs="?", help="run directory with surrogates/KIND/<condition>/"
     )

@@ -13,12 +13,11 @@ percentile); also over the record after its first 5 s. Writes JSON
 
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
 
-from _cli import positive_int, run_main
+from _cli import parser, positive_int, run_main
 from railsusp.conditions import get_condition
 from railsusp.params import MAIN_SUSPENSION, spec
 from railsusp.store import write_json
@@ -56,7 +55,7 @@ def timed(sets, cond, seeds, settings, wagon):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = parser(__doc__, whole=True)
     ap.add_argument("--sets", type=positive_int, default=8)
     ap.add_argument("--run-in", type=float, default=SolverSettings().run_in_m)
     ap.add_argument("--wagon", default="loaded", help="packaged wagon: loaded or tare")

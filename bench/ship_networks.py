@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 import torch
 
-from _cli import run_main
+from _cli import parser, run_main
 from railsusp.campaign import load_campaign
 from railsusp.errors import RailsuspInputError
 from railsusp.store import write_json
@@ -155,7 +155,7 @@ def accuracy_table(sources: dict[str, Source]) -> pd.DataFrame:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__)
     ap.add_argument("--run", type=Path, help="the many-track campaign of every other condition")
     ap.add_argument("--kind", help="folder under RUN/surrogates")
     ap.add_argument(

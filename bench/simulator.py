@@ -9,7 +9,10 @@ In the same sitting, for ratios (these machines are noisy, so only ratios from o
 quoted): ``--reference-src DIR`` runs this script on another checkout's ``src`` (e.g. a git
 worktree of an older commit) and ``--kernel FILE`` runs the synthetic wagon-sized RK4 kernel
 (shared/bench/throughput_kernel.py) at railsusp's 1 ms step (10 s per set);
-the table then gains their rates and this model's ratio to each.
+the table then gains their rates and this model's ratio to each. Both run before this
+model's benchmark, after their paths are checked (a missing ``--kernel`` or a
+``--reference-src`` without railsusp is refused before any work), so that a failing one
+loses no measurement.
 """
 
 from __future__ import annotations
@@ -22,22 +25,23 @@ import resource
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numba
 import numpy as np
 
-from _cli import number_list, positive_int, run_main
+from _cli import fail, number_list, parser, positive_int, run_main
 from railsusp.conditions import get_condition
 from railsusp.params import MAIN_SUSPENSION, ParameterSet, bounds
 from railsusp.store import write_json
 from railsusp.vehicle.setup import SolverSettings
 from railsusp.vehicle.simulate import simulate_batch
 from railsusp.vehicle.wagon import load_wagon
-from reference_run import reference_rows
+from reference_run import reference_rows, reference_src
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = parser(__doc__, whole=True)
     ap.add_argument(
         "--sizes", type=number_list(positive_int), default="1,16,256", help="batch sizes"
     )
@@ -54,7 +58,13 @@ def main() -> None:
         "as commit 328b8dd, for a same-model A/B with --reference-src)",
     )
     args = ap.parse_args()
-    reference = _reference_rates(args) if args.reference_src else None
+    if args.kernel is not None and not Path(args.kernel).is_file():
+        fail(
+            f"--kernel {args.kernel}: no such file; accepted the path of the synthetic kernel "
+            "(shared/bench/throughput_kernel.py)"
+        )
+    if args.reference_src:
+        reference_src(args.reference_src)  # checked before any run
     cond = get_condition(args.condition)
     wagon = load_wagon().with_contact_model(args.contact)
     if args.physics_before_2026_11_24:
@@ -62,6 +72,10 @@ def main() -> None:
     settings = SolverSettings()
     if args.flange_substeps is not None:
         settings = SolverSettings(flange_substeps=args.flange_substeps)
+    # the comparisons first: one that fails loses no measurement of this model
+    sizes = ",".join(str(n) for n in args.sizes)
+    reference = _reference_rates(args) if args.reference_src else None
+    kernel = _kernel_rates(args.kernel, sizes) if args.kernel else None
     simulated = cond.lead_in_m / cond.speed + cond.duration_s
     simulate_batch(
         [ParameterSet.nominal()],
@@ -88,8 +102,6 @@ def main() -> None:
             }
         )
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-    sizes = ",".join(str(n) for n in args.sizes)
-    kernel = _kernel_rates(args.kernel, sizes) if args.kernel else None
     for row in rows:
         if reference is not None:
             row["reference_wagon_s_per_wall_s"] = reference[row["sets"]]
@@ -156,7 +168,11 @@ KERNEL_SECONDS = 10.0
 def _kernel_rates(kernel: str, sizes: str) -> dict[int, float]:
     """Wagon-s per wall-s of the synthetic kernel at a 1 ms step, per batch size."""
     cmd = [sys.executable, kernel, "1e-3", sizes, f"{KERNEL_SECONDS:g}"]
-    text = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    if done.returncode != 0:
+        last = (done.stderr.strip().splitlines() or ["no message"])[-1]
+        raise SystemExit(f"--kernel {kernel}: the kernel failed (exit {done.returncode}): {last}")
+    text = done.stdout
     found = re.findall(r"B=(\d+) dt=[^:]*: ([0-9.]+) wagon-s per wall-s", text)
     if not found:
         raise SystemExit(f"--kernel {kernel}: no 'B=... wagon-s per wall-s' line in its output")

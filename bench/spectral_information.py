@@ -48,14 +48,13 @@ the spectra's part grows with T, the means' covariance is the sections' over T /
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 from pathlib import Path
 
 import numpy as np
 
-from _cli import run_main
+from _cli import parser, run_main
 from information_estimate import (
     information_split,
     information_unbiased,
@@ -329,7 +328,7 @@ def point_rows(data, edges, bw, p, lengths, seconds_main, section_s, seed, covar
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = parser(__doc__)
     add_design_arguments(ap, "bench/results/spectral_information.json")
     ap.add_argument("--bandwidths", default="1,0.5,0.25", help="band widths, Hz")
     ap.add_argument("--segment", type=float, default=5.0, help="Welch segment, s")

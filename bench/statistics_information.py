@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from _cli import run_main
+from _cli import parser, run_main
 from information_estimate import (
     information_naive,
     information_split,
@@ -377,7 +377,7 @@ def parse_design(ap: argparse.ArgumentParser, a, checks=()) -> tuple[list[int], 
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = parser(__doc__)
     add_design_arguments(ap, "bench/results/statistics_information.json")
     ap.add_argument("--gain-sections", type=int, default=40, help="sections for G")
     a = ap.parse_args()

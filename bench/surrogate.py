@@ -23,7 +23,7 @@ import time
 import numpy as np
 import torch
 
-from _cli import positive_int, run_main
+from _cli import parser, positive_int, run_main
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.params import bounds
@@ -166,7 +166,7 @@ def throughput_only(args: argparse.Namespace, models: list[str]) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = parser(__doc__, whole=True)
     ap.add_argument("--run")
     ap.add_argument("--models", default=",".join(ALL_MODELS))
     ap.add_argument("--epochs", type=positive_int, default=10)

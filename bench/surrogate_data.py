@@ -10,7 +10,6 @@ prints the relative error per held-out run. Writes bench/results/surrogate_data.
 
 from __future__ import annotations
 
-import argparse
 import warnings
 
 import numpy as np
@@ -20,7 +19,7 @@ from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, WhiteKernel
 from sklearn.gaussian_process.kernels import ConstantKernel as C
 
-from _cli import run_main
+from _cli import parser, run_main
 from railsusp.campaign import load_campaign
 from railsusp.params import bounds
 from railsusp.store import write_json
@@ -53,7 +52,7 @@ def gp_error(x: np.ndarray, y: np.ndarray, train: np.ndarray, test: np.ndarray) 
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = parser(__doc__)
     ap.add_argument("--runs", nargs="+", required=True, help="campaign run directories")
     ap.add_argument("--conditions", default="straight,uphill")
     ap.add_argument("--sizes", default="200,400,800", help="training runs")

@@ -35,7 +35,6 @@ measured tables and the commands.
 
 from __future__ import annotations
 
-import argparse
 import importlib.util
 import platform
 import time
@@ -47,7 +46,7 @@ import numpy as np
 import pandas as pd
 import torch
 
-from _cli import run_main
+from _cli import parser, run_main
 from railsusp.campaign import (
     CampaignConfig,
     CampaignError,
@@ -535,7 +534,7 @@ def _sizes(text: str) -> tuple[int, ...] | None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = parser(__doc__, whole=True)
     ap.add_argument("--run", default="runs/bench-tracks", help="campaign run directory")
     ap.add_argument("--samples", type=int, default=256)
     ap.add_argument("--duration", type=float, default=20.0, help="record length, s")

@@ -10,12 +10,12 @@ keeps it within the class's safety limits (since commit 4aab351): where the limi
 many samples (the rough classes 1-3) its RMS and spectrum fall below the unlimited FRA
 spectrum's by design. The share of gauge samples the limit reshaped is printed beside it.
 ``--length`` must hold one Welch segment (WELCH_SEGMENT samples, 1024 m): a shorter section
-has 1/3-octave bands without a spectral line and an RMS its longest wavelengths dominate.
+has 1/3-octave bands without a spectral line and an RMS its longest wavelengths dominate;
+it is at most 1e6 m (MAX_LENGTH_M; 40 km by default).
 """
 
 from __future__ import annotations
 
-import argparse
 import itertools
 import platform
 import time
@@ -23,7 +23,7 @@ import time
 import numpy as np
 from scipy.signal import welch
 
-from _cli import positive_float, run_main
+from _cli import parser, positive_float, run_main
 from railsusp.conditions import get_condition
 from railsusp.store import write_json
 from railsusp.vehicle.track import (
@@ -39,6 +39,9 @@ from railsusp.vehicle.track import (
 WELCH_SEGMENT = 8192
 #: the synthesis's default sampling interval (shortest wavelength 1 m / 8), m
 DX = 1.0 / 8.0
+#: the longest accuracy section, m: 8e6 samples of each component, about 2.5 GB while it is
+#: synthesised (the default is 40 km; 1e12 m ended in NumPy's memory error)
+MAX_LENGTH_M = 1e6
 
 
 def third_octave_edges() -> np.ndarray:
@@ -77,19 +80,24 @@ def limited_share(gauge: np.ndarray, track_class: int) -> float:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = parser(__doc__, whole=True)
     ap.add_argument("--out", default="bench/results/track.json")
     ap.add_argument(
         "--length",
         type=positive_float,
         default=40_000.0,
-        help=f"accuracy section, m (at least {WELCH_SEGMENT * DX:g})",
+        help=f"accuracy section, m ({WELCH_SEGMENT * DX:g} to {MAX_LENGTH_M:g})",
     )
     args = ap.parse_args()
     if args.length < WELCH_SEGMENT * DX:
         ap.error(
             f"--length {args.length:g}: accepted {WELCH_SEGMENT * DX:g} m or more (one Welch "
             f"segment of {WELCH_SEGMENT} samples, which every 1/3-octave band needs)"
+        )
+    if args.length > MAX_LENGTH_M:
+        ap.error(
+            f"--length {args.length:g}: accepted {WELCH_SEGMENT * DX:g} to {MAX_LENGTH_M:g} m "
+            "(the synthesis of 1e6 m takes about 2.5 GB of memory; a longer one runs out of it)"
         )
     bands = len(third_octave_edges()) - 1
 

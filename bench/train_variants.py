@@ -44,6 +44,7 @@ import railsusp.surrogate.fit as surrogate_fit
 import railsusp.surrogate.in_step as in_step
 import railsusp.surrogate.sequence as sequence
 import railsusp.surrogate.train as train
+from _cli import parser
 from railsusp.surrogate.bundle import series_features
 from railsusp.surrogate.models import build_network
 from railsusp.surrogate.pairs import PairSampler
@@ -218,7 +219,7 @@ def widen() -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = parser(__doc__)
     ap.add_argument("--variant", choices=("band", "film", "widen"), required=True)
     ap.add_argument("--band-hz", type=float, default=5.0, help="band: the loss's cut-off, Hz")
     ap.add_argument("--band-taps", type=int, default=101, help="band: FIR taps (odd)")

@@ -24,6 +24,7 @@ import numpy as np
 import pandas as pd
 
 from railsusp.conditions import WorkingCondition
+from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet
 from railsusp.vehicle.setup import SolverSettings, axle_spread
 from railsusp.vehicle.simulate import simulate
@@ -41,6 +42,8 @@ WINDOW_S = 5.0
 #: before, or below FLOOR_N (friction has stopped it)
 DECAY_RATIO = 0.95
 FLOOR_N = 20.0
+#: the shortest record the measurement needs: 5 s for the kink to pass, then the two windows
+MIN_DURATION_S = 2 * WINDOW_S + 5.0
 
 
 def write_kink_geometry(
@@ -123,9 +126,13 @@ def kink_response(
     settings: SolverSettings | None = None,
 ) -> KinkResponse:
     """Run the wagon over the kink at ``speed_kmh`` and measure the leading wheelset's ΣY
-    oscillation in the last two windows of :data:`WINDOW_S`."""
-    if duration_s < 2 * WINDOW_S + 5.0:
-        raise ValueError(f"duration_s = {duration_s:g}: at least {2 * WINDOW_S + 5:g} s needed")
+    oscillation in the last two windows of :data:`WINDOW_S`. A record shorter than
+    :data:`MIN_DURATION_S` is refused (:class:`~railsusp.errors.RailsuspInputError`)."""
+    if duration_s < MIN_DURATION_S:
+        raise RailsuspInputError(
+            f"duration_s = {duration_s:g}: at least {MIN_DURATION_S:g} s needed (the kink's "
+            f"passage, then two windows of {WINDOW_S:g} s)"
+        )
     v = speed_kmh / 3.6
     with tempfile.TemporaryDirectory() as tmp:
         geo = write_kink_geometry(
