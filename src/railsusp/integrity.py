@@ -125,21 +125,36 @@ def read_torch_file(path: Path, what: str, remedy: str, map_location: str = "cpu
         ) from None
 
 
+class NpzDamaged(RailsuspInputError):
+    """A NumPy archive that does not read (:func:`read_npz`); ``reason``: what NumPy found,
+    in a few words, for a caller that says it in words of its own."""
+
+    def __init__(self, message: str, reason: str) -> None:
+        super().__init__(message)
+        self.reason = reason
+
+
 def read_npz(path: Path, what: str, remedy: str) -> dict[str, Any]:
     """Every array of the NumPy archive ``path`` (``np.savez``), read whole, pickles refused.
     A file cut short, emptied or of another kind is refused with one line naming ``what``
     and the ``remedy`` (NumPy raised ``BadZipFile``, or ``EOFError``, which the command
-    line took for an interrupted prompt and answered "Aborted.")."""
+    line took for an interrupted prompt and answered "Aborted."). The file is opened here
+    and closed whatever NumPy finds: given the path, ``np.load`` left it open where the
+    archive was damaged (a ResourceWarning "unclosed file" with the refusal)."""
     import numpy as np
 
     try:
-        with np.load(path, allow_pickle=False) as z:
-            return {name: z[name] for name in z.files}
+        with open(path, "rb") as fh:
+            z = np.load(fh, allow_pickle=False)
+            if not isinstance(z, np.lib.npyio.NpzFile):  # one array (np.save), not an archive
+                raise ValueError("one array, not an archive of np.savez")
+            with z:
+                return {name: z[name] for name in z.files}
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as exc:
         reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         if path.is_file() and path.stat().st_size == 0:
             reason = "an empty file"
-        raise RailsuspInputError(f"{what} {path} is damaged ({reason}); {remedy}") from None
+        raise NpzDamaged(f"{what} {path} is damaged ({reason}); {remedy}", reason) from None
 
 
 #: terminal colour codes, which torch puts in some of its messages

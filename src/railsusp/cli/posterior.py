@@ -27,9 +27,10 @@ from railsusp.cli.posterior_options import (
     check_result_file,
     parse_counts,
     parse_product_cases,
+    read_for_estimator,
     refuse_synthetic_only,
 )
-from railsusp.cli.posterior_tables import print_calibration_table, print_checks
+from railsusp.cli.posterior_tables import print_calibration_table, print_checks, print_verdict
 from railsusp.errors import RailsuspInputError
 
 posterior_app = typer.Typer(
@@ -47,7 +48,7 @@ _OPTIONS = {"section_s": "--section", "n_train": "--simulations", "n_check": "--
             "projection_rank": "--projection-rank",
             "statistics_emulator_cases": "--statistics-emulator-cases",
             "condition_offset": "--condition-offset", "sum_y": "--sum-y",
-            "samples": "--samples", "seed": "--seed"}  # fmt: skip
+            "samples": "--samples", "seed": "--seed", "wagon": "--wagon"}  # fmt: skip
 
 
 @posterior_app.command(
@@ -194,39 +195,20 @@ def train_command(
         else:
             with console.status("simulating and training"):
                 est = posterior.train(settings, out)
+        synthetic = None
         if long_record == "synthetic-likelihood":
             from railsusp.estimate import posterior_synthetic_run
 
             synthetic = posterior_synthetic_run.train(settings, out)
     except RailsuspInputError as exc:
-        fail(str(exc), options=_OPTIONS)  # the options the user typed, not the fields
+        # the options the user typed, not the fields (the lead-in: where --lead-in set it)
+        typed = {"lead_in_m": "--lead-in"} if lead_in is not None else {}
+        fail(str(exc), options={**_OPTIONS, **typed})
     if not is_quiet():
         print_calibration_table(est)
-    if long_record == "synthetic-likelihood":
+    if synthetic is not None:
         print_checks(synthetic.checks, "synthetic likelihood, ")
-    excessive = est.correction.excessive if est.correction else []
-    failed = [str(p.sections) for p in est.products if not p.passed]
-    if long_record == "synthetic-likelihood":
-        failed += [f"{c.sections} (synthetic likelihood)" for c in synthetic.checks if not c.passed]
-    if est.calibrated and failed:  # "passed" after FAILED lines read as a contradiction
-        err_console.print(
-            f"warning: the estimator in {out / 'posterior'} passed its one-section coverage "
-            f"check, but FAILED those of {', '.join(failed)} sections: a recording of as many "
-            "sections is flagged NOT calibrated; train on more simulations"
-        )
-    elif est.calibrated:
-        console.print(f"estimator in {out / 'posterior'}: coverage check passed")
-    elif excessive:
-        err_console.print(
-            f"warning: the estimator in {out / 'posterior'} needed its intervals widened more "
-            f"than {est.correction.max_inflation:g} times for {', '.join(excessive)}: flagged "
-            "as not calibrated; train on more simulations"
-        )
-    else:
-        err_console.print(
-            f"warning: the estimator in {out / 'posterior'} FAILED its coverage check "
-            "(intervals too narrow); train on more simulations"
-        )
+    print_verdict(est, out / "posterior", synthetic.checks if synthetic is not None else [])
 
 
 @posterior_app.command(
@@ -249,16 +231,15 @@ def estimate_command(
 ) -> None:
     """Posterior median and 90 % interval of each parameter for a field folder."""
     from railsusp.estimate import posterior
-    from railsusp.estimate.posterior_settings import MAX_SEED
+    from railsusp.estimate.posterior_settings import check_seed
     from railsusp.input_checks import check_output_file
-    from railsusp.measured import read_index, read_recording
+    from railsusp.measured import read_index
 
     try:
         if out is not None:
             check_output_file(out)
             check_result_file(out, {"--measured": measured, "--estimator": estimator})
-        if not 0 <= seed <= MAX_SEED:  # numpy's generators take no negative seed
-            raise RailsuspInputError(f"--seed {seed}: accepted 0 to {MAX_SEED}")
+        check_seed(seed, "--seed")  # numpy's generators take no negative seed
         check_long_record_option(long_record)
         # the estimator and the recordings are read as wholes: no posterior train rewrites
         # the one, no synth-field, sections --write or align-track --write the other
@@ -280,7 +261,7 @@ def estimate_command(
             method = posterior
         est = method.load(estimator)
         # the recordings are read as the wagon's the estimator simulated (its wheel load)
-        recordings = [read_recording(p, wagon=est.settings.wagon) for p in listed]
+        recordings = read_for_estimator(listed, est.settings.wagon, estimator)
         result = method.estimate(est, recordings, seed=seed)
     except RailsuspInputError as exc:
         fail(str(exc))

@@ -92,3 +92,29 @@ def check_result_file(out: Path, inputs: dict[str, Path]) -> None:
                 f"--out {out}: an existing file that is not a posterior result; accepted a "
                 "new file or an earlier result to replace"
             )
+
+
+#: the hint of a recording's wheel load against another wagon's, in the words of the
+#: commands that take --wagon (:func:`railsusp.measured.checks.check_forces`)
+WAGON_HINT = "; another wagon? give its data (--wagon, or wagon = in a pipeline)"
+
+
+def read_for_estimator(listed, wagon, estimator: Path) -> list:
+    """The recordings ``listed`` (a field folder's index), read as recordings of the wagon
+    ``wagon`` the estimator in ``estimator`` simulated (its wheel load). A wheel load that
+    says another wagon is refused in one line naming the remedy of ``posterior estimate``,
+    which has no --wagon: an estimator trained for that wagon (the reading's hint, "give its
+    data (--wagon ...)", named an option the command does not take)."""
+    from railsusp.measured import read_recording
+
+    try:
+        return [read_recording(p, wagon=wagon) for p in listed]
+    except RailsuspInputError as exc:
+        message = str(exc)
+        if WAGON_HINT not in message:
+            raise
+        hint = (
+            f"; a recording of another wagon than the one --estimator {estimator} was trained "
+            "for? train an estimator for its wagon (railsusp posterior train --wagon)"
+        )
+        raise RailsuspInputError(message.replace(WAGON_HINT, hint)) from None

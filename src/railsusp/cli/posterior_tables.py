@@ -8,7 +8,7 @@ estimator's records and print, nothing more."""
 
 from __future__ import annotations
 
-from railsusp.cli.common import console, frame_table
+from railsusp.cli.common import console, err_console, frame_table
 
 
 def print_checks(checks, label: str = "", widened=lambda sections: False) -> None:
@@ -54,4 +54,40 @@ def print_calibration_table(est) -> None:
             f"{max(p['correction']['factors'].values()):.2f}, coverage after "
             f"{min(cov):.2f}-{max(cov):.2f} on {p['cases']} cases: "
             + ("passed" if p["passed"] else "FAILED")
+        )
+
+
+def print_verdict(est, folder, synthetic_checks=()) -> None:
+    """The closing line of ``railsusp posterior train``: the estimator in ``folder`` passed,
+    or a warning naming every check it failed: its one-section check (intervals too narrow,
+    or widened beyond the bound) and each fused check of several sections (and of the
+    synthetic likelihood's ``synthetic_checks``) that failed. A failed fused check was left
+    out where the one-section check had been widened beyond the bound too."""
+    excessive = est.correction.excessive if est.correction else []
+    failed = [str(p.sections) for p in est.products if not p.passed]
+    failed += [f"{c.sections} (synthetic likelihood)" for c in synthetic_checks if not c.passed]
+    fused = (
+        f"FAILED those of {', '.join(failed)} sections: a recording of as many sections is "
+        "flagged NOT calibrated"
+        if failed
+        else ""
+    )
+    if est.calibrated and failed:  # "passed" after FAILED lines read as a contradiction
+        err_console.print(
+            f"warning: the estimator in {folder} passed its one-section coverage check, but "
+            f"{fused}; train on more simulations"
+        )
+    elif est.calibrated:
+        console.print(f"estimator in {folder}: coverage check passed")
+    else:
+        if excessive:
+            one = (
+                f"needed its intervals widened more than {est.correction.max_inflation:g} "
+                f"times for {', '.join(excessive)}: flagged as not calibrated"
+            )
+        else:
+            one = "FAILED its coverage check (intervals too narrow)"
+        also = f", and {fused}" if failed else ""
+        err_console.print(
+            f"warning: the estimator in {folder} {one}{also}; train on more simulations"
         )

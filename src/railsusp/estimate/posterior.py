@@ -55,7 +55,12 @@ from railsusp.estimate.posterior_estimator import PosteriorEstimator, one_thread
 from railsusp.estimate.posterior_fusion import logistic_prior, to_logit
 from railsusp.estimate.posterior_recordings import recording_summaries, unused_recordings
 from railsusp.estimate.posterior_result import PosteriorResult
-from railsusp.estimate.posterior_settings import PosteriorSettings, settings_differences
+from railsusp.estimate.posterior_settings import (
+    PosteriorSettings,
+    check_run_folder,
+    check_seed,
+    settings_differences,
+)
 from railsusp.estimate.posterior_stamp import check_model_revision, estimator_stamp
 from railsusp.estimate.posterior_support import TrainingSupport, support_notes
 from railsusp.integrity import TorchFileCutShort, read_torch_file
@@ -148,7 +153,12 @@ def train(
             differ = settings_differences(old.get("settings"), settings.to_dict())
             raise RailsuspInputError(
                 f"{folder} holds an estimator trained with other settings"
-                f"{' (' + '; '.join(differ) + ')' if differ else ''}; give another --out"
+                f"{' (' + '; '.join(differ) + ')' if differ else ''}; "
+                + (
+                    "give another --out"
+                    if simulate
+                    else "train it again (railsusp posterior train)"
+                )
             )
         check_model_revision(old, folder / "settings.json")
     if simulate and old != stored:  # rewritten on every estimate before (M2 of the audit)
@@ -240,8 +250,8 @@ def _saved_states(weights: Path, ensemble: int, remake: bool = True) -> list | N
 
 def load(run: str | Path) -> PosteriorEstimator:
     """The trained estimator of a run directory (nothing is simulated or trained: a run
-    without a finished estimator is an error)."""
-    folder = Path(run) / "posterior"
+    without a finished estimator is an error; ``run`` not a path is refused in one line)."""
+    folder = check_run_folder(run) / "posterior"
     for name in ("settings.json", "estimator.pt", "calibration.json"):
         if not (folder / name).exists():
             raise RailsuspInputError(
@@ -260,7 +270,11 @@ def load(run: str | Path) -> PosteriorEstimator:
 def estimate(est: PosteriorEstimator, recordings, seed: int = 0) -> PosteriorResult:
     """Posterior of the recordings (one per trained condition, any length of at least one
     section): one section's, or the sections' fused (module docstring), each with the
-    correction and the check that belong to its number of sections."""
+    correction and the check that belong to its number of sections. ``recordings``: a list
+    of :class:`~railsusp.measured.Recording`; ``seed``: of the draws, 0 to
+    :data:`~railsusp.estimate.posterior_settings.MAX_SEED`; either refused in one line
+    naming it."""
+    seed = check_seed(seed)
     x, used = recording_summaries(est.settings, recordings)
     s = est.settings
     n = len(x)

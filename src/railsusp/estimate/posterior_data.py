@@ -37,7 +37,7 @@ from railsusp.estimate.statistic_families import (
     statistic_names,
 )
 from railsusp.estimate.summaries import cut_sections
-from railsusp.integrity import read_npz
+from railsusp.integrity import NpzDamaged, read_npz
 from railsusp.interrupts import stop_if_interrupted
 from railsusp.measured.synthetic import bandwidth_filter
 from railsusp.params import MAIN_SUSPENSION, bounds
@@ -181,15 +181,31 @@ def simulate_long_cases(
     return np.concatenate(per_condition, axis=2)
 
 
-def _read_chunk(path: Path) -> tuple[np.ndarray, np.ndarray] | None:
-    """A cached chunk's draws and statistics, or None where it is missing or unreadable
-    (a file cut short by a copy or a full disk is simulated again, not a traceback)."""
+#: how to make a training's chunks again, in the refusals of a reading that simulates nothing
+TRAIN_AGAIN = (
+    "run railsusp posterior train on this folder again, with the options it was trained with "
+    "(its posterior/settings.json), to simulate them"
+)
+
+
+def _read_chunk(path: Path, simulate: bool = True) -> tuple[np.ndarray, np.ndarray] | None:
+    """A cached chunk's draws and statistics, or None where it is missing or, with
+    ``simulate``, unreadable (a file cut short by a copy or a full disk is simulated again,
+    said in a warning, not a traceback). Without ``simulate`` (an estimate, which simulates
+    nothing) an unreadable chunk is refused in one line naming it, what is wrong with it and
+    the command that makes it again (it was said to be "simulated again", then "not
+    cached")."""
     if not path.is_file():
         return None
     try:
         z = read_npz(path, "cached chunk", "simulated again")
         return np.asarray(z["u"]), np.asarray(z["x"])
-    except (RailsuspInputError, KeyError):
+    except (NpzDamaged, KeyError) as exc:
+        if not simulate:
+            reason = exc.reason if isinstance(exc, NpzDamaged) else f"no array {exc}"
+            raise RailsuspInputError(
+                f"{path} is not cached whole (damaged: {reason}): {TRAIN_AGAIN}"
+            ) from None
         log.warning("posterior: %s unreadable; simulated again", path.name)
         return None
 
@@ -224,7 +240,7 @@ def cached_cases(
     for k, lo in enumerate(range(0, n, CHUNK)):
         hi = min(n, lo + CHUNK)
         path = folder / f"{name}_{k:04d}_{hi - lo}.npz"
-        cached = _read_chunk(path)
+        cached = _read_chunk(path, simulate)
         # else missing, unreadable (cut short), another design or other settings: simulate
         if cached is not None and np.array_equal(cached[0], u_all[lo:hi]):
             if cached[1].shape[-1] == width:
@@ -233,7 +249,7 @@ def cached_cases(
         if not simulate:
             raise RailsuspInputError(
                 f"{path} is not cached (cases {lo + 1}-{hi} of {n} {name}, these draws): "
-                "simulate them with the estimator's own settings first"
+                f"{TRAIN_AGAIN}"
             )
         log.info("posterior: simulating %s cases %d-%d of %d", name, lo + 1, hi, n)
         x = simulate_long_cases(settings, u_all[lo:hi], lo, kind, sections)

@@ -53,8 +53,13 @@ from railsusp.estimate.calibration import SpreadCorrection
 from railsusp.estimate.posterior_check import read_sealed, seal, seal_state, stored_record, widen
 from railsusp.estimate.posterior_data import cached_cases
 from railsusp.estimate.posterior_fusion import to_logit
-from railsusp.estimate.posterior_recordings import recording_summaries, unused_recordings
+from railsusp.estimate.posterior_recordings import (
+    MissingRecording,
+    recording_summaries,
+    unused_recordings,
+)
 from railsusp.estimate.posterior_result import PosteriorResult
+from railsusp.estimate.posterior_settings import check_run_folder, check_seed
 from railsusp.estimate.posterior_smc import smc_sample
 from railsusp.estimate.posterior_support import TrainingSupport
 from railsusp.estimate.posterior_synthetic_fit import scale_set
@@ -340,6 +345,7 @@ def _from_record(joint: JointPosterior, record: dict) -> JointPosterior:
 def load(out: str | Path) -> JointPosterior:
     """The joint posterior stored in ``out`` (:func:`train`); a one-line error when a
     part was trained again (or moved) since its check, or the file is not a joint check."""
+    check_run_folder(out, "out")
     path = Path(out) / "posterior" / "joint.json"
     if not path.exists():
         raise RailsuspInputError(f"{path} does not exist: check the joint posterior first")
@@ -370,8 +376,12 @@ def recording_sections(joint: JointPosterior, recordings) -> tuple[np.ndarray, d
     sections (:func:`~railsusp.estimate.posterior_recordings.recording_summaries`) with the part
     of the fewest setting their number, and the recordings' use per condition."""
     xs, used = [], {}
+    trained = [c.name for p in joint.parts for c in p.settings.conditions]
     for p in joint.parts:
-        x, u = recording_summaries(p.settings, recordings)
+        try:
+            x, u = recording_summaries(p.settings, recordings)
+        except MissingRecording as exc:  # the joint's conditions, not the part's alone
+            raise exc.of_estimator(trained) from None
         xs.append(x)
         used.update(u)
     k = min(len(x) for x in xs)
@@ -386,7 +396,9 @@ def recording_sections(joint: JointPosterior, recordings) -> tuple[np.ndarray, d
 
 def estimate(joint: JointPosterior, recordings, seed: int = 0) -> PosteriorResult:
     """The joint posterior of recordings of every part's conditions (one per condition),
-    with the joint check of its number of sections."""
+    with the joint check of its number of sections; ``seed``: of the draws (0 to
+    :data:`~railsusp.estimate.posterior_settings.MAX_SEED`, refused in one line else)."""
+    check_seed(seed)
     x, used = recording_sections(joint, recordings)
     trained = [c.name for p in joint.parts for c in p.settings.conditions]
     return result_of(joint, x, used, seed, unused_recordings(recordings, trained))

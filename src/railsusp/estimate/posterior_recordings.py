@@ -47,6 +47,7 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
     from railsusp.estimate.posterior_settings import check_uniform_record
     from railsusp.estimate.problem import check_measured_wheel
 
+    recordings = check_recordings(recordings)
     by_name = {}
     for r in recordings:
         if r.condition.name in by_name:  # the later one was taken, the other dropped unsaid
@@ -61,10 +62,7 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
     for cond in settings.conditions:
         rec = by_name.get(cond.name)
         if rec is None:
-            raise RailsuspInputError(
-                f"no recording of condition {cond.name!r}; the estimator was trained on "
-                f"{', '.join(c.name for c in settings.conditions)}"
-            )
+            raise MissingRecording(cond.name, [c.name for c in settings.conditions])
         diff = rec.condition.differences(cond, ignore=ignore)
         if diff:
             raise RailsuspInputError(
@@ -127,6 +125,53 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
     used = {name: {"sections": n, "seconds_left_out": round(t - n * settings.section_s, 3)}
             for name, (_, t) in info.items()}  # fmt: skip
     return np.concatenate([r[:n] for r in per_condition], axis=1), used
+
+
+class MissingRecording(RailsuspInputError):
+    """No recording of the trained condition ``condition``; ``trained``: the conditions
+    the estimator was trained on, which the message names. A joint posterior reads each
+    part's conditions apart (:func:`railsusp.estimate.posterior_joint.recording_sections`)
+    and names all of its own (:meth:`of_estimator`): a part's alone read as if the joint
+    estimator knew only those."""
+
+    def __init__(self, condition: str, trained: list[str]) -> None:
+        self.condition, self.trained = condition, list(trained)
+        super().__init__(
+            f"no recording of condition {condition!r}; the estimator was trained on "
+            f"{', '.join(self.trained)}"
+        )
+
+    def of_estimator(self, trained: list[str]) -> MissingRecording:
+        """The same refusal, naming ``trained`` as the estimator's conditions."""
+        return MissingRecording(self.condition, trained)
+
+
+def check_recordings(recordings) -> list:
+    """``recordings`` as a list, or a one-line error naming the argument and what is
+    accepted where it is not a list (or a tuple) of
+    :class:`~railsusp.measured.Recording`: a field folder's path, or a list of file names,
+    failed with an AttributeError deep in the reading (docs/api.md promises one line naming
+    the argument)."""
+    from railsusp.measured.recording import Recording
+
+    how = "railsusp.measured.read_field(folder) reads a field folder's"
+    if not isinstance(recordings, list | tuple):  # a path, a Recording alone, ...
+        raise RailsuspInputError(
+            f"recordings = {_shown(recordings)}: accepted a list of Recording ({how})"
+        )
+    for i, r in enumerate(recordings):
+        if not isinstance(r, Recording):
+            raise RailsuspInputError(
+                f"recordings[{i}] = {_shown(r)}: accepted a list of Recording ({how}; "
+                "railsusp.measured.read_recording(path) reads one file)"
+            )
+    return list(recordings)
+
+
+def _shown(value) -> str:
+    """A value as an error message shows it: its repr, cut short."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _check_bandwidth(rec, name: str) -> None:

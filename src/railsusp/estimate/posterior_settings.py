@@ -6,6 +6,8 @@ settings are made, before any simulation (docs/posterior.md)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from os import PathLike
+from pathlib import Path
 from typing import Any
 
 from railsusp.conditions import WorkingCondition, make_condition
@@ -17,6 +19,7 @@ from railsusp.estimate.statistic_families import (
     parse_families,
     statistic_names,
 )
+from railsusp.estimate.summaries import bands_widened, check_band_resolution
 from railsusp.numbers import is_whole
 from railsusp.params import MAIN_SUSPENSION, spec
 
@@ -50,6 +53,11 @@ POSTERIOR_COUNTS: dict[str, tuple[int, int]] = {
     "projection_rank": (1, 1000),
     "condition_offset": (0, MAX_CONDITION_OFFSET),
 }
+#: the key :meth:`PosteriorSettings.to_dict` adds where a section is so short that its band
+#: RMS follows the band edges (:func:`~railsusp.estimate.summaries.band_segment`), and its
+#: value: the settings' hash then differs from that of the same settings trained before
+BAND_RESOLUTION = "band_resolution"
+BAND_RESOLUTION_RULE = "frequency step at most the narrowest band"
 
 
 @dataclass(frozen=True)
@@ -108,7 +116,13 @@ class PosteriorSettings:
         if self.wagon is not None:
             from railsusp.vehicle.wagon import load_wagon
 
-            wagon = load_wagon(self.wagon)
+            try:
+                wagon = load_wagon(self.wagon)
+            except RailsuspInputError as exc:  # naming the field (the option: --wagon)
+                said = str(exc)
+                if said.startswith("wagon = "):
+                    raise
+                raise RailsuspInputError(f"wagon = {self.wagon}: {said}") from None
             object.__setattr__(self, "wagon", None if wagon == load_wagon() else wagon)
         dupes = repeated_names([c.name for c in self.conditions])
         if dupes:  # recordings are matched by name: one would fill every slot of its name
@@ -122,7 +136,10 @@ class PosteriorSettings:
                 "the wheelset sum of Y already; accepted one of the two"
             )
         object.__setattr__(self, "statistics", families)
-        params = tuple(spec(p).symbol for p in self.parameters)
+        try:  # an unknown name: the same refusal as another parameter's, naming the field
+            params = tuple(spec(p).symbol for p in self.parameters)
+        except (RailsuspInputError, KeyError, TypeError, AttributeError):
+            params = ()
         wrong = [p for p in params if p not in MAIN_SUSPENSION]
         if wrong or not params or len(set(params)) != len(params):
             raise RailsuspInputError(
@@ -143,6 +160,8 @@ class PosteriorSettings:
         object.__setattr__(self, "product_cases", counts)
         if not self.conditions:
             raise RailsuspInputError("conditions: at least one working condition is needed")
+        for c in self.conditions:
+            check_band_resolution(c, self.section_s)
         conds = tuple(c.with_duration(self.section_s) for c in self.conditions)
         object.__setattr__(self, "conditions", conds)
         for c in conds:
@@ -213,11 +232,23 @@ class PosteriorSettings:
             del d["wagon"]
         else:
             d["wagon"] = self.wagon.model_dump(mode="json")
+        if any(bands_widened(c.n_steps, 1.0 / c.sample_interval) for c in self.conditions):
+            # sections so short that the band RMS takes a longer segment than it did (its
+            # statistics changed): a folder of such sections trained before is refused by
+            # its hash, not mixed (the estimators of other sections keep theirs)
+            d[BAND_RESOLUTION] = BAND_RESOLUTION_RULE
         return d
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> PosteriorSettings:
+        """The settings an estimator folder stored (:meth:`to_dict`); refused in one line
+        where they are of sections so short that their band statistics were computed
+        before the band RMS followed the band edges (stored without
+        :data:`BAND_RESOLUTION`): the folder's emulator or flows learnt from statistics
+        this railsusp no longer computes (a synthetic likelihood of 2 s sections read the
+        new statistics of a recording with them, and reported it calibrated)."""
         d = dict(d)
+        marked = d.pop(BAND_RESOLUTION, None) is not None  # follows from the sections
         d["conditions"] = tuple(make_condition(c) for c in d["conditions"])
         d["parameters"] = tuple(d["parameters"])
         d["product_sections"] = tuple(d.get("product_sections", ()))
@@ -227,7 +258,16 @@ class PosteriorSettings:
             from railsusp.vehicle.wagon import WagonData
 
             d["wagon"] = WagonData.model_validate(d["wagon"])
-        return cls(**d)
+        settings = cls(**d)
+        if not marked and BAND_RESOLUTION in settings.to_dict():
+            raise RailsuspInputError(
+                f"an estimator of {settings.section_s:g} s sections (section_s = "
+                f"{settings.section_s:g}) trained before the band RMS followed the band edges "
+                "(its spectrum's frequency step wider than the narrowest band): its statistics "
+                "are not this railsusp's; train it again (railsusp posterior train) into "
+                "another folder"
+            )
+        return settings
 
     def product_sets(self) -> list[tuple[int, int, tuple[int, ...]]]:
         """The held-out sets of several sections, as (cases, sections simulated, numbers
@@ -278,6 +318,25 @@ def _check_lags(families: tuple[str, ...], section_s: float) -> None:
         )
 
 
+def check_seed(seed: Any, name: str = "seed =") -> int:
+    """``seed`` as an int, or a one-line error naming it (``name``: the argument, or the
+    command line's ``--seed``) and the accepted range (:data:`POSTERIOR_COUNTS`): numpy's
+    generators take no negative seed (a ValueError of theirs), nor a fraction (a
+    TypeError)."""
+    check_count(name, seed, *POSTERIOR_COUNTS["seed"])
+    return int(seed)
+
+
+def check_run_folder(run: Any, name: str = "run") -> Path:
+    """``run`` as a Path, or a one-line error naming the argument ``name`` and what is
+    accepted where it is no path (None gave a TypeError of pathlib's)."""
+    if isinstance(run, bool) or not isinstance(run, str | PathLike) or not str(run):
+        raise RailsuspInputError(
+            f"{name} = {run!r}: accepted the run directory of a trained estimator (a str or a path)"
+        )
+    return Path(run)
+
+
 def settings_differences(old: Any, new: dict[str, Any]) -> list[str]:
     """The settings in which a stored :meth:`PosteriorSettings.to_dict` (``old``, as read
     from a file: anything) differs from ``new``, each as ``name = old, not new`` (or the
@@ -300,6 +359,11 @@ def settings_differences(old: Any, new: dict[str, Any]) -> list[str]:
             out.append(f"{name} differ" if name == "conditions" else "wagon differs")
         else:
             out.append(f"{name} = {_shown(was)}, not {_shown(now)}")
+    if BAND_RESOLUTION in new and BAND_RESOLUTION not in old:
+        out.append(
+            "its band statistics are of before they followed the band edges: the frequency "
+            "step of sections this short was wider than the narrowest band"
+        )
     return out
 
 

@@ -108,13 +108,93 @@ def wheelset_force(Y: np.ndarray, Y_partner: np.ndarray) -> np.ndarray:
     return np.asarray(Y, dtype=float) - np.asarray(Y_partner, dtype=float)
 
 
+def narrowest_band_hz(fs: float, bands=BANDS_HZ) -> float:
+    """The width (Hz) of the narrowest of ``bands`` at the sampling rate ``fs``, each band's
+    upper edge capped at 0.45 ``fs`` as :func:`band_rms` caps it (0 or less: a band lies
+    wholly above the cap and holds nothing at this rate)."""
+    return min(min(hi, 0.45 * fs) - lo for lo, hi in bands)
+
+
+def band_segment(n: int, fs: float, bands=BANDS_HZ) -> int | None:
+    """The Welch segment (samples) of :func:`band_rms` for a record of ``n`` samples at
+    ``fs``: a quarter of the record, at least 32 samples, and at least as long as makes the
+    frequency step ``fs / segment`` no wider than the narrowest band
+    (:func:`narrowest_band_hz`), so that every band holds a line of the spectrum and a
+    tone's power lies in its own band. None where the record is shorter than that segment
+    (or a band lies above the rate's cap): its bands cannot be resolved.
+
+    The quarter alone left the frequency step above the lowest band's 1.2 Hz in sections
+    under 2.8 s at 50 Hz: 0.3-1.5 Hz then held no line (log10 of the floor in every case, a
+    constant the flows cannot learn from) and a 1 Hz tone went to 1.5-4 Hz. Where the
+    quarter resolves the bands (every section of 3.36 s or more at 50 Hz, the 20 s default
+    among them) the segment is the quarter, as before."""
+    width = narrowest_band_hz(fs, bands)
+    if width <= 0:
+        return None
+    need = int(np.ceil(fs / width - 1e-9))
+    nper = max(quarter_segment(n), need)
+    return nper if nper <= n else None
+
+
+def quarter_segment(n: int) -> int:
+    """The Welch segment of :func:`band_rms` before it followed the band edges: a quarter
+    of the record, at least 32 samples (the whole record if shorter)."""
+    return int(min(n, max(32, n // 4)))
+
+
+def bands_widened(n: int, fs: float) -> bool:
+    """Whether sections of ``n`` samples at ``fs`` take a longer segment
+    (:func:`band_segment`) than the quarter of the record they took before it followed the
+    band edges: their band statistics changed."""
+    return band_segment(n, fs) not in (None, quarter_segment(n))
+
+
+def check_band_resolution(cond, section_s: float) -> None:
+    """A one-line error naming ``section_s`` and the shortest section whose band RMS
+    resolves every band of :data:`BANDS_HZ` (:func:`band_segment`) at the sampling rate of
+    the condition ``cond`` (a :class:`~railsusp.working_condition.WorkingCondition`), unless
+    its sections of ``section_s`` do; at a rate at which a band lies wholly above 0.45 of
+    it, naming the rate instead. Sections that resolved no line in the lowest band gave its
+    statistic one constant value in every case (sbi warned of constant dimensions, and the
+    synthetic likelihood's scatter factor of their sections reached 1e21, its posterior
+    the prior reported calibrated). At 50 Hz every section of 1 s or more resolves them."""
+    from railsusp.errors import RailsuspInputError
+
+    def resolved(seconds: float) -> bool:
+        c = cond.with_duration(seconds)  # its samples, at the rate they round to
+        return band_segment(c.n_steps, 1.0 / c.sample_interval) is not None
+
+    if resolved(section_s):
+        return
+    fs = 1.0 / cond.sample_interval
+    width = narrowest_band_hz(fs)
+    if width <= 0:
+        top = max(lo for lo, _ in BANDS_HZ)
+        raise RailsuspInputError(
+            f"condition {cond.name!r}: sampled at {fs:.4g} Hz, the band RMS from {top:g} Hz "
+            f"lies above 0.45 times the rate; accepted conditions sampled at more than "
+            f"{top / 0.45:.4g} Hz (n_steps / duration_s)"
+        )
+    least = max(section_s, np.ceil(fs / width - 1e-9) / fs)
+    least = float(np.ceil(least * 100 - 1e-6) / 100)  # in steps of 0.01 s
+    while least < 600.0 and not resolved(least):  # the rate moves as the samples round
+        least = round(least + 0.01, 2)
+    raise RailsuspInputError(
+        f"section_s = {section_s:g}: at the {fs:.4g} Hz of condition {cond.name!r} the "
+        f"frequency bands of the summary ({width:.3g} Hz the narrowest) are resolved by "
+        f"sections of at least {least:g} s; accepted {least:g} to 600"
+    )
+
+
 def band_rms(x: np.ndarray, fs: float, bands=BANDS_HZ) -> np.ndarray:
     """RMS (units of ``x``) of the de-meaned ``x`` in each band, from the integral of its
     one-sided Welch power spectral density over the band (Parseval: the sum over all bands
-    of the squares is the variance). Segments of a quarter of the record, at least 32
-    samples, so a short section still resolves the lowest band roughly."""
+    of the squares is the variance). Segments of :func:`band_segment`: a quarter of the
+    record, longer where the bands need it; a record too short to resolve them (whose
+    sections the posterior's settings refuse, :func:`check_band_resolution`) is read with
+    the quarter, as before."""
     x = np.asarray(x, dtype=float)
-    nper = int(min(x.size, max(32, x.size // 4)))
+    nper = band_segment(x.size, fs, bands) or quarter_segment(x.size)
     f, pxx = welch(x - x.mean(), fs=fs, nperseg=nper, detrend="constant")
     df = f[1] - f[0]
     out = []
