@@ -5,7 +5,8 @@ A configuration, condition or wagon file is validated by its pydantic model in s
 input errors: what a field needs and what it was given (:func:`type_error_text`), the range
 a value must lie in or the keys a section accepts (:func:`error_detail`). Output paths given
 on the command line or to the API are refused before any work is done when they cannot be
-written (:func:`check_output_folder`, :func:`check_output_file`, :func:`check_figure_file`).
+written (:func:`check_output_folder`, :func:`check_output_file`, :func:`check_figure_file`),
+or said to be when the system refuses to make them (:func:`unmade_folder`).
 
 Kept apart from :mod:`railsusp.store`, which persists the run directory: this module
 decides whether input is acceptable and says why not; it writes nothing, and imports no
@@ -193,6 +194,26 @@ def check_output_folder(path: str | Path, option: str = "--out") -> Path:
     if not os.access(probe, os.W_OK | os.X_OK):
         raise RailsuspInputError(f"{option} {path}: the folder {probe} is not writable")
     return path
+
+
+def unmade_folder(
+    exc: OSError, path: str | Path, option: str = "--out"
+) -> RailsuspInputError | None:
+    """``exc``, the system's refusal to make the output folder ``path`` or a folder above it
+    (a folder under ``/proc``, which :func:`check_output_folder` cannot tell from a
+    writable one: "/proc/foo: No such file or directory"), as a one-line error naming the
+    option; None where ``exc`` is about another file."""
+    if not exc.filename:
+        return None
+    failed = Path(os.fsdecode(exc.filename)).absolute()
+    wanted = Path(path).absolute()
+    if failed != wanted and failed not in wanted.parents:
+        return None
+    return RailsuspInputError(
+        f"{option} {path}: the folder {failed} cannot be made "
+        f"({exc.strerror or type(exc).__name__}); accepted a folder that can be made and "
+        "written"
+    )
 
 
 def check_output_file(path: str | Path, option: str = "--out") -> Path:

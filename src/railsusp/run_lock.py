@@ -97,6 +97,22 @@ def _refusal(out: Path, option: str, named: Path | None, fh) -> RailsuspInputErr
     )
 
 
+#: what opening the lock file for writing fails with in a folder that cannot be written
+_UNWRITABLE = (errno.EACCES, errno.EPERM, errno.EROFS)
+
+
+def _unwritable(out: Path, option: str, exc: OSError) -> RailsuspInputError:
+    """The one-line refusal of a writer's lock in a folder that cannot be written (read-only,
+    on a read-only file system, not ours), as an output folder that cannot be written is
+    refused (:func:`railsusp.input_checks.check_output_folder`): the folder named, not the
+    lock file the system refused ("rot/.railsusp.lock: Read-only file system")."""
+    why = exc.strerror or type(exc).__name__
+    where = f"{option} {out}: " if option else ""
+    return RailsuspInputError(
+        f"{where}the folder {out} is not writable ({why}); this command writes its results there"
+    )
+
+
 @contextmanager
 def run_lock(
     out: Path,
@@ -118,7 +134,9 @@ def run_lock(
     ``named`` word the refusal: ``option out`` by default; ``option named`` where ``out``
     is the run directory of the folder the user named. ``lend``: while held, a
     :func:`run_lock` of ``out`` in the same context (the code this one runs) passes
-    through instead of being refused. ``out`` must exist."""
+    through instead of being refused. ``out`` must exist; a writer's lock in a folder that
+    cannot be written is refused in one line (a reader's is an OSError, which
+    :func:`hold_shared` takes as a folder to read unlocked)."""
     try:
         import fcntl
     except ImportError:  # not POSIX
@@ -137,7 +155,14 @@ def run_lock(
             try:  # access; none there and the folder not ours to write: the refusal itself
                 fh = open(path, encoding="utf-8")
             except FileNotFoundError:
-                raise denied from None
+                raise (denied if shared else _unwritable(Path(out), option, denied)) from None
+            if not shared and not os.access(out, os.W_OK | os.X_OK):  # a writer with nowhere
+                fh.close()  # to write (the lock file another's, in a folder not ours)
+                raise _unwritable(Path(out), option, denied) from None
+        except OSError as exc:  # a read-only file system: no lock file can be made or opened
+            if shared or exc.errno not in _UNWRITABLE:  # (a reader reads it unlocked)
+                raise
+            raise _unwritable(Path(out), option, exc) from None
         try:
             fcntl.flock(fh, (fcntl.LOCK_SH if shared else fcntl.LOCK_EX) | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -202,5 +227,5 @@ def hold_shared(stack: ExitStack, folder: Path, option: str, named: Path | None 
     try:
         stack.enter_context(run_lock(folder, option, shared=True, named=named))
     except OSError as exc:
-        if exc.errno not in (errno.EACCES, errno.EPERM, errno.EROFS):
+        if exc.errno not in _UNWRITABLE:
             raise

@@ -162,7 +162,7 @@ def test_many_track_training_is_scored_on_unseen_tracks(many_tracks):
     assert assumed["X19"] == "varied" and assumed["X20"] == "nominal"
     # it serves its condition anywhere in the family, and refuses outside it
     cond = sur.condition.with_changes(curve_radius_m=300.0, cant_mm=80.0, seed=99)
-    x = np.array([[16.1e6, 8.3e6, 2.5e6]])
+    x = np.array([[16.1e6, 8.3e6, 170e6]])
     assert np.isfinite(sur.predict(x, cond)[0, 20:]).all()
     with pytest.raises(ValueError, match="differs in curve_radius_m"):
         sur.predict(x, cond.with_changes(curve_radius_m=600.0))

@@ -23,6 +23,7 @@ from scipy.stats import qmc
 
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError, repeated_names
+from railsusp.input_checks import BOUND_ERRORS, error_detail
 from railsusp.params import MAIN_SUSPENSION, bounds, spec
 from railsusp.store import (
     content_hash,
@@ -211,11 +212,7 @@ def make_config(conditions: Sequence[WorkingCondition], samples: int, **kw: Any)
     try:
         config = CampaignConfig(conditions=tuple(conditions), samples=samples, wagon=wagon, **kw)
     except ValidationError as exc:
-        msgs = [
-            f"{'.'.join(str(p) for p in e['loc']) or 'campaign'}: "
-            f"{e['msg'].removeprefix('Value error, ')}"
-            for e in exc.errors()
-        ]
+        msgs = [_setting_error(e) for e in exc.errors()]
         raise CampaignError("campaign configuration: " + "; ".join(msgs)) from None
     issue = saltelli_issue(config)
     if issue:
@@ -226,6 +223,23 @@ def make_config(conditions: Sequence[WorkingCondition], samples: int, **kw: Any)
             f"Saltelli design), not {config.design}"
         )
     return config
+
+
+def _setting_error(err: Any) -> str:
+    """One of pydantic's errors of :class:`CampaignConfig` as ``setting: what is accepted``:
+    a value outside a setting's bounds with the range (``samples = 0: accepted [2, 1000000]``,
+    not pydantic's one bound, "Input should be greater than or equal to 2"), no parameter
+    with the parameters that can be sampled (not "Tuple should have at least 1 item after
+    validation, not 0"), others as pydantic says them."""
+    where = ".".join(str(p) for p in err["loc"]) or "campaign"
+    if err["type"] in BOUND_ERRORS:
+        detail = error_detail(CampaignConfig, err)
+        if detail:
+            return f"{where} = {err.get('input')!r}: {detail}"
+    if err["type"] == "too_short" and tuple(err["loc"]) == ("parameters",):
+        sampled = f"{MAIN_SUSPENSION[0]}..{MAIN_SUSPENSION[-1]}"
+        return f"{where}: none given; accepted one or more of {sampled}"
+    return f"{where}: {err['msg'].removeprefix('Value error, ')}"
 
 
 # ------------------------------------------------------------------------------- design

@@ -9,6 +9,7 @@ analysis's ``key_parameters.json``)."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated
 
@@ -111,7 +112,7 @@ def campaign(
     (``--irregularity-classes``, ``--radius``, ``--cant``), and ``--vary-others`` /
     ``--prior`` so that the parameters not estimated vary instead of sitting at nominal."""
     from railsusp.campaign import run_campaign
-    from railsusp.input_checks import check_output_folder
+    from railsusp.input_checks import check_output_folder, unmade_folder
     from railsusp.measured import conditions_from
     from railsusp.vehicle.wagon import load_wagon
 
@@ -129,20 +130,19 @@ def campaign(
         check_output_folder(out)
         # the folder for the command's duration (run_campaign's own lock is lent to it),
         # and the run whose key parameters are read, as no process rewrites them meanwhile
-        hold_folders(
-            creates=[("--out", out)],
-            reads=[("--keys-from", keys_from)] if keys_from is not None else [],
-        )
+        try:
+            hold_folders(
+                creates=[("--out", out)],
+                reads=[("--keys-from", keys_from)] if keys_from is not None else [],
+            )
+        except OSError as exc:  # /proc/foo: the system's "No such file or directory" alone
+            raise unmade_folder(exc, out, "--out") or exc from None
         if Path(conditions).is_dir():  # a field folder's conditions and their track files:
             # read shared, not beside a writer of the folder (a mixed read, the audit)
             hold_folders(reads=[("--conditions", Path(conditions))])
         from railsusp.params import MAIN_SUSPENSION
 
-        sampled = (
-            tuple(p.strip() for p in parameters.split(",") if p.strip())
-            if parameters is not None
-            else tuple(MAIN_SUSPENSION)
-        )
+        sampled = _parameters(parameters) if parameters is not None else tuple(MAIN_SUSPENSION)
         if keys_from is not None:
             sampled = _sensitivity_keys(keys_from, parameters)
             console.print(f"sampling the key parameters of {keys_from}: {', '.join(sampled)}")
@@ -156,7 +156,8 @@ def campaign(
             console.print("a track family: each sample on its own track (--independent-seeds)")
         cfg = _config(
             conds,
-            {"samples": samples, "batch_size": batch_size, "design": design},
+            {"samples": samples, "batch_size": batch_size, "design": design}
+            | ({"parameters": parameters} if parameters is not None else {}),
             parameters=sampled,
             second_order=second_order,
             seed=seed,
@@ -166,22 +167,11 @@ def campaign(
             other_parameters=others,
             wagon=wagon_data,
         )
+        if scheduler is not None and workers is None:  # (with both: run_campaign refuses)
+            _check_scheduler(scheduler)
     except RailsuspInputError as exc:
         fail(str(exc))
-    d = len(cfg.parameters)
-    if cfg.design == "sobol":
-        k = 2 * d + 2 if cfg.second_order else d + 2
-        label = "N(2D+2)" if cfg.second_order else "N(D+2)"
-        console.print(
-            f"Saltelli design: {label} = {cfg.samples} x {k} = {cfg.n_runs} "
-            f"simulations per condition",
-            highlight=False,
-        )
     total = cfg.n_runs * len(cfg.conditions)
-    console.print(
-        f"{total} simulations ({cfg.n_runs} sets x {len(cfg.conditions)} conditions) into {out}",
-        highlight=False,
-    )
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -210,7 +200,8 @@ def campaign(
             import time as _time
 
             now = _time.perf_counter()
-            if t0[0] is None:
+            if t0[0] is None:  # the folder accepted (its first call): now said, not before
+                _announce(cfg, out)
                 t0[0], t0[1] = now, done
             elapsed = now - t0[0]
             rate = (done - t0[1]) / elapsed if elapsed > 0 else 0.0
@@ -236,6 +227,45 @@ def campaign(
     _report_failures(out, total)
 
 
+def _announce(cfg, out: Path) -> None:
+    """What the campaign simulates, and where: said once ``run_campaign`` has accepted the
+    folder (its first progress call, before any simulation), not before a refusal."""
+    if cfg.design == "sobol":
+        k = cfg.n_runs // cfg.samples
+        label = "N(2D+2)" if cfg.second_order else "N(D+2)"
+        console.print(
+            f"Saltelli design: {label} = {cfg.samples} x {k} = {cfg.n_runs} "
+            f"simulations per condition",
+            highlight=False,
+        )
+    total, sets, n = cfg.n_runs * len(cfg.conditions), cfg.n_runs, len(cfg.conditions)
+    console.print(f"{total} simulations ({sets} sets x {n} conditions) into {out}", highlight=False)
+
+
+def _check_scheduler(address: str) -> None:
+    """Refuse, before the campaign is announced or its folder prepared, a ``--scheduler``
+    that is no address or where no Dask scheduler answers (one line, as ``run_campaign``
+    says it when it connects: it connects again, to the scheduler now known to answer)."""
+    from railsusp.campaign.dask_cluster import _connect, check_scheduler_address
+
+    check_scheduler_address(address, "--scheduler")
+    _connect(address, "--scheduler").close()
+
+
+def _parameters(typed: str) -> tuple[str, ...]:
+    """``--parameters`` as the symbols typed, each a known parameter; an unknown one is
+    refused naming the option."""
+    from railsusp.params import spec
+
+    names = tuple(p.strip() for p in typed.split(",") if p.strip())
+    for name in names:
+        try:
+            spec(name)
+        except RailsuspInputError as exc:
+            raise RailsuspInputError(f"--parameters {typed}: {exc}") from None
+    return names
+
+
 def _with_duration(condition, duration: float):
     """``condition`` recording ``duration`` s, its refusal naming ``--duration`` (the option
     typed), not the condition's field."""
@@ -247,24 +277,33 @@ def _with_duration(condition, duration: float):
 
 
 #: campaign settings -> the options that set them, for make_config's refusals
-_CONFIG_OPTIONS = {"samples": "--samples", "batch_size": "--batch-size", "design": "--design"}
+_CONFIG_OPTIONS = {
+    "samples": "--samples",
+    "batch_size": "--batch-size",
+    "design": "--design",
+    "parameters": "--parameters",
+}
 
 
 def _config(conds: list, typed: dict, **kwargs):
-    """:func:`railsusp.campaign.make_config` of ``conds``, the settings in ``typed`` (setting
-    -> value as typed: samples, batch_size, design) and ``kwargs``, its refusals of those
-    settings naming the options (``campaign configuration: samples: Input should be greater
-    than or equal to 2`` -> ``--samples 0: Input should be ...``)."""
+    """:func:`railsusp.campaign.make_config` of ``conds`` and ``kwargs``, its refusals of the
+    settings in ``typed`` (setting -> the option's value as typed: samples, batch_size and
+    design, passed on; parameters where ``--parameters`` was given) naming the options
+    (``campaign configuration: samples = 0: accepted [2, 1000000]`` -> ``--samples 0:
+    accepted [2, 1000000]``)."""
     from railsusp.campaign import make_config
 
     try:
-        return make_config(conds, **typed, **kwargs)
+        return make_config(conds, **{k: v for k, v in typed.items() if k != "parameters"}, **kwargs)
     except RailsuspInputError as exc:
         text = str(exc)
-        for setting, option in _CONFIG_OPTIONS.items():
-            text = text.replace(
-                f"campaign configuration: {setting}: ", f"{option} {typed[setting]}: "
-            ).replace(f"; {setting}: ", f"; {option} {typed[setting]}: ")
+        for setting, value in typed.items():
+            named = f"{_CONFIG_OPTIONS[setting]} {value if value != '' else repr(value)}: "
+            text = re.sub(
+                rf"(?:^campaign configuration: |(?<=; )){setting}(?: = [^:;]*)?: ",
+                lambda _m, named=named: named,
+                text,
+            )
         raise RailsuspInputError(text) from None
 
 

@@ -20,7 +20,7 @@ from railsusp.cli.common import (
     hold_folders,
     show_progress,
 )
-from railsusp.errors import RailsuspInputError
+from railsusp.errors import RailsuspInputError, repeated
 
 #: the training settings -> the options of ``train`` and ``compare``, for error messages
 TRAIN_OPTIONS = {
@@ -345,6 +345,9 @@ def compare(
             f"--models {', '.join(bad) or '(none)'}: accepted one or more of "
             f"{', '.join(ALL_MODELS)}"
         )
+    twice = repeated(names)  # each trained and tabled once: a repeat was a repeated row
+    if twice:
+        fail(f"--models {models}: models repeat ({', '.join(twice)}); accepted each once")
     try:
         # options none of the models chosen reads (rbf and gp-stats train no network; the
         # sequence network draws chunks, not --batch-size windows)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import io
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -56,11 +57,52 @@ def series_features(params: np.ndarray, track: np.ndarray) -> np.ndarray:
     return np.concatenate([p, tr], axis=2)
 
 
+#: how far past a range end (share of the range) a value is still taken as at the end: the
+#: round-off of SI values converted back from fractions of the range (1e-16 of the value),
+#: and of float32 ones (6e-8 of the value, up to 2e-7 of a range); the network reads its
+#: input in float32, which resolves no finer than 6e-8 of the range at its upper end
+RANGE_TOLERANCE = 1e-6
+
+
+def check_trained_range(x_si: np.ndarray, unit: np.ndarray, parameters: Sequence[str]) -> None:
+    """Refuse, in one line naming the parameter, the row, the value (SI, with its unit)
+    and the range, a parameter value that is not finite or lies outside the range the
+    network was trained over (the sampling range its input is the fraction of; past it by
+    more than :data:`RANGE_TOLERANCE` of it). ``x_si`` (n, k): the values as given;
+    ``unit``: their fractions of the ranges. A network extrapolates without a word:
+    display units for SI (MN/m for N/m), a sign slip or ten times a value gave plausible
+    forces, and NaN an error from deep in the record correction's GPs."""
+    bad = ~np.isfinite(unit) | (unit < -RANGE_TOLERANCE) | (unit > 1.0 + RANGE_TOLERANCE)
+    if not bad.any():
+        return
+    i, j = (int(k) for k in np.argwhere(bad)[0])
+    s = spec(parameters[j])
+    lo, hi = s.bounds  # type: ignore[misc]  # (a key parameter is a sampled one)
+    value = float(x_si[i, j])
+    where = f" (row {i} of {len(x_si)})" if len(x_si) > 1 else ""
+    trained = f"[{lo:g}, {hi:g}] {s.si_unit}" + (
+        f" ({s.range_text()})" if s.display_unit != s.si_unit else ""
+    )
+    head = f"params: {s.symbol} ({s.description}) = "
+    if not np.isfinite(value):
+        raise RailsuspInputError(
+            f"{head}{value}{where} is not finite; accepted SI values in the range this "
+            f"surrogate was trained over, {trained}"
+        )
+    raise RailsuspInputError(
+        f"{head}{value:g} {s.si_unit}{where} is outside the range this surrogate was trained "
+        f"over, {trained}; accepted SI values in that range"
+    )
+
+
 @dataclass
 class Surrogate(TrainedNetwork):
     """A trained window (or sequence) network for one working condition."""
 
     def _unit(self, params: np.ndarray | list[ParameterSet]) -> np.ndarray:
+        """The parameters' fractions of their ranges (n, n_key), float32, the network's
+        input; values outside the ranges the network was trained over refused
+        (:func:`check_trained_range`)."""
         if isinstance(params, np.ndarray):
             x = np.atleast_2d(params)
             if x.shape[1] != len(self.spec.parameters):
@@ -70,7 +112,9 @@ class Surrogate(TrainedNetwork):
                 )
         else:
             x = np.array([[p[s] for s in self.spec.parameters] for p in params])
-        return params_to_unit(x, self.spec.parameters).astype(np.float32)
+        unit = params_to_unit(x, self.spec.parameters)
+        check_trained_range(np.asarray(x, dtype=float), unit, self.spec.parameters)
+        return unit.astype(np.float32)
 
     def predict(
         self,
@@ -99,7 +143,10 @@ class Surrogate(TrainedNetwork):
         the family.
         ``fast=False`` takes the per-window reference path (see :meth:`predict_windows`);
         ``corrected=False`` leaves out the record correction (:mod:`.correction`), when the
-        surrogate has one.
+        surrogate has one. A parameter value that is not finite or lies outside the range
+        the network was trained over is refused in one line
+        (:class:`~railsusp.errors.RailsuspInputError`, :func:`check_trained_range`): the
+        network would extrapolate without a word.
         """
         unit, raw = self.inputs(params, condition, seed=seed, track=track)
         tr = self.normaliser.track(raw if raw.ndim == 3 else raw[None])

@@ -100,6 +100,33 @@ def check_disjoint(split: Split) -> None:
                 )
 
 
+def check_covers(split: Split, sample_ids: np.ndarray, path: Path) -> None:
+    """Refuse, in one line as another corrupt split, a split stored at ``path`` that is not
+    a partition of the campaign's samples ``sample_ids``: a sample it names that the
+    campaign does not have, one named twice in a part, or one in no part. (A split edited
+    by hand trained and scored on what it said: an unknown sample was passed over, and one
+    left out of every part was dropped without a word, the test runs one fewer.)"""
+    named = np.concatenate([split.part(p) for p in PARTS])
+    unknown = np.setdiff1d(named, sample_ids)
+    values, counts = np.unique(named, return_counts=True)
+    twice = values[counts > 1]
+    missing = np.setdiff1d(sample_ids, named)
+    lo, hi = (int(sample_ids.min()), int(sample_ids.max())) if sample_ids.size else (0, -1)
+    why = (
+        f"samples {unknown[:5].tolist()} are not the campaign's, whose samples are {lo} to {hi}"
+        if unknown.size
+        else f"samples {twice[:5].tolist()} are named twice in one part"
+        if twice.size
+        else f"samples {missing[:5].tolist()} are in no part"
+        if missing.size
+        else ""
+    )
+    if why:
+        raise RailsuspInputError(
+            f"{path}: corrupt split ({why}); delete it to draw the split again"
+        )
+
+
 def _groups(design: pd.DataFrame, tracks: list[pd.DataFrame]) -> np.ndarray:
     """Group label per design row: rows sharing a seed (any condition's tracks table, same
     sample order; a condition whose samples all share one seed is common random numbers
@@ -260,6 +287,7 @@ def campaign_split(
                 f"{path} was drawn for another campaign configuration (hash "
                 f"{split.campaign_hash}, now {chash}); delete it to draw a new split"
             )
+        check_covers(split, campaign.design()["sample_id"].to_numpy(), path)
         if not np.allclose(split.fractions, fractions):
             raise RailsuspInputError(
                 f"{path} holds fractions {list(split.fractions)}, asked for {list(fractions)}; "
