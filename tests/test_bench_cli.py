@@ -151,11 +151,12 @@ def test_bad_input_found_later_is_one_line_with_exit_2(monkeypatch, capsys, name
 def test_an_empty_speed_sweep_is_refused(monkeypatch):
     """critical_speed() of no speeds said "not found up to 200 km/h" with nothing run."""
     from railsusp.errors import RailsuspInputError
+    from railsusp.vehicle.wagon import load_wagon
 
     bench = bench_script("critical_speed")
     monkeypatch.setattr(bench, "kink_response", None)  # never called
     with pytest.raises(RailsuspInputError, match="sweep is empty"):
-        bench.critical_speed("loaded", np.arange(250.0, 200.0, 10.0), 30.0, 0.01)
+        bench.critical_speed(load_wagon("loaded"), np.arange(250.0, 200.0, 10.0), 30.0, 0.01)
 
 
 def test_track_scores_every_band_and_says_how_many(monkeypatch, capsys):

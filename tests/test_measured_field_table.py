@@ -355,9 +355,13 @@ def test_a_table_along_distance_takes_its_speed_in_any_stated_unit(tmp_path, col
     frame = {"distance_m": T * 60.0 / 3.6, column: np.full(N, v), **forces()}
     rec = read_recording(table(tmp_path, frame))
     assert rec.time.size == N and rec.sampling_rate == pytest.approx(RATE)
-    frame[column] = np.where(np.arange(N) == 7, 0.0, v)  # a stop named by its own column
+    frame[column] = np.where(np.arange(N) == 7, -5.0, v)  # named by its own column, unit
     msg = problems(table(tmp_path, frame, name="stop"))
-    assert f"column {column!r}, row 9: speed 0 km/h" in msg
+    unit = "kph" if column == "speed_kph" else "m/s"  # as the column states it
+    assert f"column {column!r}, row 9: speed -5 {unit} (1 row(s) in all)" in msg
+    del frame[column]
+    msg = problems(table(tmp_path, frame, name="none"))
+    assert "without a speed column (speed_kmh, speed_mps or speed [m/s]); give time_s" in msg
     frame[column] = np.full(N, 60.0)
     frame["speed"] = frame.pop(column)  # no unit: which speed is it?
     assert "column 'speed': no unit stated; a speed channel needs one of m/s, km/h" in problems(

@@ -108,13 +108,14 @@ def test_the_nsga_section_names_its_force_model(tmp_path):
     estimate_section(doc, est)
     text = "\n".join(doc.md)
     assert "NSGA-II ran on the surrogate bp (surrogate.model)" in text
-    assert "the rows marked 'the estimate's force model'" in text
+    assert "its rows are marked 'the estimate's force model'" in text
     # railsusp estimate records its surrogate's folder, or the simulator
     info["model"] = "/runs/a/surrogate-campaign/surrogates/cnn-gru"
     write(est / "estimate.json", info)
     doc = Doc(tmp_path)
     estimate_section(doc, est)
-    assert "ran on the surrogate cnn-gru" in "\n".join(doc.md)
+    said = "\n".join(doc.md)
+    assert "ran on the surrogate cnn-gru:" in said and "surrogate.model" not in said
 
 
 def recovery_of(run: Path, max_st: dict) -> pd.DataFrame:
@@ -276,11 +277,23 @@ def test_the_sobol_section_names_the_features_the_key_rule_left_out(tmp_path):
         "Left out of the key rule, whatever their indices (their panels are grey in the "
         "figure): short Q mean: coefficient of variation 0.19% &lt; 0.5% over the campaign"
     ) in text
-    # the figure is drawn again with that panel marked, not the stage's unmarked one
+    # a stage run before its figures were marked: drawn again with that panel marked
     assert "(<report_assets/sobol-mean.png>)" in text
     assert "grey panels: left out of the key rule (short Q mean)" in text
     png = run / "report_assets" / "sobol-mean.png"
     assert png.read_bytes().startswith(b"\x89PNG")
+
+
+def test_a_stage_that_marked_its_sobol_figures_is_shown_as_drawn(tmp_path):
+    """The sensitivity stage greys the left-out panels itself (``figures_mark_left_out``):
+    the report shows its figure, not a second drawing of it."""
+    run = sobol_run(tmp_path)
+    kp = run / "campaign" / "sensitivity" / "key_parameters.json"
+    kp.write_text(json.dumps({**json.loads(kp.read_text()), "figures_mark_left_out": True}))
+    text, _ = sections(run)
+    assert "(<campaign/sensitivity/sobol-mean.png>)" in text
+    assert "grey panels: left out of the key rule (short Q mean)" in text
+    assert not (run / "report_assets" / "sobol-mean.png").exists()
 
 
 def test_plot_sobol_marks_the_panels_left_out(tmp_path, monkeypatch):
@@ -386,3 +399,16 @@ def test_markdown_leaves_plain_text_as_it_is(tmp_path, text):
     doc = Doc(tmp_path)
     doc.p(text)
     assert doc.md == [text + "\n"]
+
+
+def test_a_figures_caption_with_brackets_stays_the_images_text(tmp_path):
+    """The review of stop 70: the alt text escaped "]" only before "(", "[" or ":", so a
+    caption "cap ] x [y](z)" ended the image's text at its lone "]"."""
+    png = tmp_path / "f.png"
+    png.write_bytes(b"\x89PNG figure")
+    doc = Doc(tmp_path)
+    doc.figure(png, "cap ] x [y](z)")
+    assert doc.md[-1] == "![cap \\] x \\[y\\](z)](<f.png>)\n"
+    markdown_it = pytest.importorskip("markdown_it")
+    page = markdown_it.MarkdownIt("commonmark").render(doc.md[-1])
+    assert page.strip() == '<p><img src="f.png" alt="cap ] x [y](z)" /></p>'

@@ -266,6 +266,12 @@ def check_sensitivity_output(path: str | Path) -> None:
         check_made_from(path, stamp.decode() if stamp is not None else None, run)
 
 
+#: the key of ``key_parameters.json`` saying the stage's own Sobol
+#: figures mark the features the rule left out (:func:`left_out_features`; a stage run
+#: before did not, and the report draws them again)
+FIGURES_MARKED = "figures_mark_left_out"
+
+
 def left_out_features(analysis: dict, indices: pd.DataFrame | None) -> dict[str, str]:
     """The features ("condition quantity statistic") the key-parameter rule left out, from
     ``key_parameters.json`` (``analysis``), each with its reason: ``ignored_features`` vary

@@ -221,7 +221,9 @@ class Doc:
             f"{html.escape(caption)}</figcaption></figure>"
         )
         target = path.relative_to(self.root).as_posix()
-        self.md.append(f"![{md_cell(caption)}](<{target}>)\n")
+        # every bracket of the alt text escaped: a lone "]" ended the image's text early
+        alt = re.sub(r"(?<!\\)([\[\]])", r"\\\1", md_cell(caption))
+        self.md.append(f"![{alt}](<{target}>)\n")
         self.figures.append(path)
 
     def page(self, title: str) -> str:

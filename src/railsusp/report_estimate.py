@@ -136,10 +136,11 @@ def force_model_name(model: object) -> str | None:
     return model if model == "simulator" else Path(model).name
 
 
-def force_model_text(model: str | None) -> str:
+def force_model_text(model: str | None, configured: bool = True) -> str:
     """The NSGA-II section's sentence on the force model it ran on (``model``:
-    :func:`force_model_name`): the section never said which of the Surrogates table's rows
-    it was."""
+    :func:`force_model_name`; ``configured``: named by the pipeline's ``surrogate.model``,
+    not a folder given to ``railsusp estimate``): the section never said which of the
+    Surrogates table's rows it was."""
     if model is None:
         return (
             "This estimate does not record the force model NSGA-II ran on (an estimate.json "
@@ -147,10 +148,11 @@ def force_model_text(model: str | None) -> str:
         )
     if model == "simulator":
         return "NSGA-II ran on the simulator itself, not on a surrogate."
+    setting = " (surrogate.model)" if configured else ""
     return (
-        f"NSGA-II ran on the surrogate {model} (surrogate.model): its accuracy on held-out "
-        f"simulations is in the rows marked '{ROLE_USED}' in the Surrogates section; any "
-        "other rows there are comparison only."
+        f"NSGA-II ran on the surrogate {model}{setting}: where the Surrogates section scored "
+        f"it on held-out simulations, its rows are marked '{ROLE_USED}' there, and any other "
+        "rows are comparison only."
     )
 
 
@@ -159,7 +161,9 @@ def estimate_section(doc: Doc, est: Path) -> None:
     polish, the simulator refinement beside it or making it), the table and figures."""
     doc.h("NSGA-II estimation (study Tables 3-5, Figures 8/9)")
     info = read_json(est / "estimate.json")
-    doc.p(force_model_text(force_model_name(info.get("model"))))
+    model = info.get("model")
+    configured = isinstance(model, str) and Path(model).name == model  # not a folder
+    doc.p(force_model_text(force_model_name(model), configured))
     log = pd.read_csv(est / "nsga_log.csv")
     doc.p("First and last generations of the NSGA-II log:")
     doc.table(pd.concat([log.head(4), log.tail(4)]).drop_duplicates())

@@ -196,16 +196,20 @@ def _sobol_figures(
     doc: Doc,
     run: Path,
     sens: Path,
-    kp: dict,
+    analysis: dict,
     indices: pd.DataFrame | None,
     left_out: dict[str, str],
 ) -> None:
-    """The Sobol figures of the sensitivity stage, drawn again into ``RUN/report_assets``
-    with the features the key rule left out marked (``left_out``) where any are and the
-    indices read; a statistic the rule does not read is said so in its caption."""
+    """The Sobol figures of the sensitivity stage, with the features the key rule left out
+    (``left_out``) marked: the stage's own where it marked them (``figures_marked`` in
+    ``key_parameters.json``), else drawn again into ``RUN/report_assets`` (a stage run
+    before its figures were marked) where the indices are read; a statistic the rule does
+    not read is said so in its caption."""
+    from railsusp.key_parameters import FIGURES_MARKED
     from railsusp.report import plot_sobol
 
-    rule_stats = list(kp.get("statistics") or [])
+    stage_marked = bool(analysis.get(FIGURES_MARKED))
+    rule_stats = list(analysis["key_parameters"].get("statistics") or [])
     assets = run / "report_assets"
     drawn = set()
     for png in sorted(sens.glob("sobol-*.png")):
@@ -214,9 +218,11 @@ def _sobol_figures(
         if rule_stats and st not in rule_stats:
             caption += f" (not one the key rule reads: {', '.join(rule_stats)})"
         marked = [f for f in left_out if f.endswith(f" {st}")]
-        if marked and indices is not None and (indices.statistic == st).any():
+        redraw = not stage_marked and indices is not None and (indices.statistic == st).any()
+        if marked and redraw:
             png = plot_sobol(indices, assets / png.name, statistic=st, left_out=left_out)
             drawn.add(png.name)
+        if marked and (stage_marked or redraw):
             caption += "; grey panels: left out of the key rule (" + ", ".join(marked) + ")"
         doc.figure(png, caption)
     for old in assets.glob("sobol-*.png"):  # an earlier report's, of what is not marked now
@@ -246,7 +252,7 @@ def method_sections(doc: Doc, run: Path, state: dict) -> None:
                 + "; ".join(f"{f}: {why}" for f, why in left_out.items())
                 + "."
             )
-        _sobol_figures(doc, run, sens, kp, indices, left_out)
+        _sobol_figures(doc, run, sens, analysis, indices, left_out)
 
     from railsusp.surrogate.network_set import MANIFEST
     from railsusp.surrogate.pretrained import surrogates_run

@@ -34,6 +34,7 @@ from railsusp.campaign import STATISTICS, Campaign, CampaignError
 from railsusp.errors import RailsuspInputError
 from railsusp.key_parameters import (
     CAMPAIGN_STAMP,
+    FIGURES_MARKED,
     INDICES_STAMP,
     left_out_features,
     select_key_parameters,
@@ -214,6 +215,7 @@ def analyse(
             write_csv(tmp / "agreement.csv", agree)
             summary["agreement"] = agree.to_dict(orient="records")
         # the key parameters: the pipeline reads this file as the stage's completion mark
+        summary[FIGURES_MARKED] = True  # (the figures below)
         write_json(tmp / "key_parameters.json", summary)
         left_out = left_out_features(summary, idx)  # their panels grey, with the reason
         for st in statistics:

@@ -28,7 +28,7 @@ from railsusp.errors import RailsuspInputError, did_you_mean
 from railsusp.measured.checks import rows, runs
 from railsusp.measured.raw import RawChannel
 from railsusp.measured.table_file import TWICE_REFUSED, column_numbers, read_frame, twice_said
-from railsusp.measured.units import si_factor, split_header
+from railsusp.measured.units import named, normalise_unit, si_factor, split_header
 
 #: a distance step longer than this many times the median step, taking longer than this
 #: many times the median interval at the speed, is a jump (a chainage jump, lost samples):
@@ -36,6 +36,8 @@ from railsusp.measured.units import si_factor, split_header
 #: speed is held within 10 % of its condition's
 JUMP_FACTOR = 1.5
 
+#: the speed columns a table along distance takes, as its messages name them
+SPEED_NAMES = "speed_kmh, speed_mps or speed [m/s]"
 #: the names (less their units) of the format's columns other than the forces (``Y_...``,
 #: ``Q_...``): the axis, the speed and the track
 FORMAT_NAMES = ("time", "t", "distance", "speed", "curvature", "cant", "grade")
@@ -109,7 +111,7 @@ def read_field_table(path: Path) -> FieldTable:
     if axis is None:
         hint = did_you_mean("time_s", cols) or did_you_mean("distance_m", cols)
         table.problems.append(
-            f"no time column (time_s, or distance_m with speed_kmh){hint}; columns {cols}"
+            f"no time column (time_s, or distance_m with a speed column){hint}; columns {cols}"
         )
         return table
     if axis in table.not_numbers:
@@ -129,16 +131,20 @@ def read_field_table(path: Path) -> FieldTable:
         table.time = table.row_time = t
         return table
     # the speed column in any unit the track columns take (speed_kmh, speed_mps, speed [m/s])
-    speed = next((ch for c, ch in table.channels.items() if split_header(c)[0] == "speed"), None)
+    speed = table.channels.get(named(table.channels, "speed"))
     if speed is None:
-        table.problems.append(f"column {axis!r} without a speed_kmh column; give time_s")
+        table.problems.append(
+            f"column {axis!r} without a speed column ({SPEED_NAMES}); give time_s"
+        )
         return table
     try:
-        v = speed.values * si_factor("speed", speed.unit, speed.name)
+        factor = si_factor("speed", speed.unit, speed.name)
     except RailsuspInputError as exc:
         table.problems.append(str(exc).replace("channel", "column", 1))
         return table
-    bad = distance_problems(t, v, axis, speed.first_row, speed.name)
+    v = speed.values * factor
+    unit = normalise_unit(speed.unit)
+    bad = distance_problems(t, v, axis, speed.first_row, speed.name, (factor, unit))
     if bad:
         table.problems += bad
         return table
@@ -156,9 +162,11 @@ def distance_problems(
     axis: str,
     first_row: int | np.ndarray,
     speed_column: str = "speed_kmh",
+    speed_unit: tuple[float, str | None] = (1 / 3.6, "km/h"),
 ) -> list[str]:
     """Problems of a table's distance axis (m) at its ``speed`` (m/s, from the column
-    ``speed_column``): every speed positive
+    ``speed_column``, whose values are named in its own unit: ``speed_unit``, the factor
+    to m/s and the unit's name): every speed positive
     (a stop has no distance to sample it by), distances finite and strictly increasing,
     and no jump: a step longer than :data:`JUMP_FACTOR` times the median both in distance
     and in its time at the speed (a chainage jump, or samples lost; resampled onto time, a
@@ -167,7 +175,7 @@ def distance_problems(
     still = ~(speed > 0)  # NaN too
     if still.any():
         a, b = runs(still)[0]
-        value = "empty" if np.isnan(speed[a]) else f"{speed[a] * 3.6:g} km/h"
+        value = "empty" if np.isnan(speed[a]) else f"{speed[a] / speed_unit[0]:g} {speed_unit[1]}"
         return [
             f"column {speed_column!r}, {rows(a, b - 1, first_row)}: speed {value} "
             f"({int(still.sum())} row(s) in all); a table along {axis} needs the speed "

@@ -18,7 +18,7 @@ from railsusp.errors import RailsuspInputError
 from railsusp.measured.checks import rows, runs
 from railsusp.measured.pieces import SectionRules
 from railsusp.measured.raw import RawChannel
-from railsusp.measured.units import si_factor, split_header
+from railsusp.measured.units import named, si_factor, split_header
 from railsusp.vehicle.track import TrackLayout
 
 _RULES = SectionRules()
@@ -97,7 +97,7 @@ def places(
     design after 20 s, and was refused where its curvature was exactly the design's."""
     if distance is not None:
         return condition.lead_in_m + (distance - distance[0])
-    speed = next((ch for c, ch in channels.items() if split_header(c)[0] == "speed"), None)
+    speed = channels.get(named(channels, "speed"))
     if speed is not None and time.size >= 2:
         try:
             v = speed.values * si_factor("speed", speed.unit, speed.name)

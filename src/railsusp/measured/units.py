@@ -116,6 +116,12 @@ def split_header(header: str) -> tuple[str, str | None]:
     return header, None
 
 
+def named(headers, name: str):
+    """The first of ``headers`` whose name less its unit (:func:`split_header`) is ``name``
+    (``speed_kmh``, ``speed_mps`` and ``speed [m/s]`` are all ``speed``), or None."""
+    return next((h for h in headers if split_header(h)[0] == name), None)
+
+
 #: plausible median magnitude of a channel in SI, per quantity: (low, high). A wheel load
 #: (Q) of a loaded or empty freight wagon is 20-250 kN; a lateral force's median |Y| can be
 #: small, so only its maximum is bounded above.

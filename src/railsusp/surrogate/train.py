@@ -379,7 +379,8 @@ def train_network(
             )
             if progress is not None:
                 progress(len(history), train_loss, vloss)
-            stop_if_interrupted()  # a swallowed Ctrl-C: stop after the epoch's checkpoint
+            if checkpoint is not None:  # a swallowed Ctrl-C: stop after the epoch's checkpoint
+                stop_if_interrupted()
     if best_state is not None:
         net.load_state_dict(best_state)
     net.to("cpu").eval()
