@@ -1,4 +1,4 @@
-"""The cant angle's cosine and sine in the right-hand side (moving_frame.cant_cos_sin): the C
+"""The cant angle's cosine and sine in the right-hand side (model.cant_cos_sin): the C
 library's numbers bit for bit, with the calls saved on tangent and in a curve's body."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from railsusp.vehicle.moving_frame import cant_cos_sin
+from railsusp.vehicle.model import cant_cos_sin
 
 
 def _bits(x: float) -> int:

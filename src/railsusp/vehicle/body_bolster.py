@@ -38,18 +38,19 @@ AUXY, AUXR = L.AUX_YAWFR, L.AUX_ROLLFR
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def body_bolster_forces(
-    acc, dxdt, x, q, v, K, k, d, off_c, head_c, cant_c, cant_rate_c, kap_c, off_b, cant_b,
+    acc, dxdt, x, K, k, d, off_c, head_c, cant_c, cant_rate_c, kap_c, off_b, cant_b,
     cant_rate_b, kap_b, V, hcp, sb_half,
 ):  # fmt: skip
     """Add the forces between the car body and bolster k (module docstring) to ``acc``.
 
-    ``x``: the state (``q`` positions, ``v`` velocities, then the friction states); ``d``:
-    the bolster's distance ahead of the car's centre (m); the car's track frame at its centre
-    (``off_c`` lateral offset from the chord, ``head_c`` heading, ``cant_c``,
-    ``cant_rate_c``, ``kap_c`` curvature) and the bolster's (``off_b``, ``cant_b``,
-    ``cant_rate_b``, ``kap_b``); ``V`` the speed; ``hcp`` the centre plate's depth below the
-    car's CG; ``sb_half`` half the side bearers' span.
+    ``x``: the state (positions, then velocities); ``d``: the bolster's distance ahead of the
+    car's centre (m); the car's track frame at its centre (``off_c`` lateral offset from the
+    chord, ``head_c`` heading, ``cant_c``, ``cant_rate_c``, ``kap_c`` curvature) and the
+    bolster's (``off_b``, ``cant_b``, ``cant_rate_b``, ``kap_b``); ``V`` the speed; ``hcp``
+    the centre plate's depth below the car's CG; ``sb_half`` half the side bearers' span.
     """
+    q = x[: L.N_DOF]
+    v = x[L.N_DOF : 2 * L.N_DOF]
     ib = L.BOL0 + 4 * k
     dev = off_b - off_c - d * head_c  # lateral offset of the track at s_b from the chord
     roll_c_b = q[L.CB_ROLL] + cant_c - cant_b  # car roll seen in the bolster frame

@@ -59,7 +59,6 @@ from railsusp.vehicle import wedge_batch as WB
 from railsusp.vehicle.body_bolster import body_bolster_forces
 from railsusp.vehicle.contact_batch import contact_forces_8
 from railsusp.vehicle.kernel_cache import FASTMATH  # (sets the kernel cache before any compiles)
-from railsusp.vehicle.moving_frame import add_frame_forces, cant_cos_sin
 from railsusp.vehicle.spring_nests import cross_bracing_forces, spring_nest_forces
 from railsusp.vehicle.suspension import series_stiffness
 from railsusp.vehicle.track_lookup import track_frame, track_point, track_rate, track_value
@@ -94,12 +93,36 @@ AUXW = L.AUX_WEDGE
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def add_frame_forces(acc, i_lat, i_vert, m, kappa, c, s, V, gn):
+    """Add the moving frame's pseudo-forces on a body of mass m (N): lateral
+    -m (V² κ cos φ + g sin φ); vertical -m (g cos φ - V² κ sin φ) as a deviation from the
+    static weight m g already carried by the preloads. c, s: cosine and sine of the cant
+    angle φ (each evaluated once per track position, for all bodies there)."""
+    acc[i_lat] += -m * (V * V * kappa * c + gn * s)
+    acc[i_vert] += -m * (gn * c - V * V * kappa * s) + m * gn
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def side_frame_roll(x, k):
     """Roll of bogie k's side frames (rad, or its rate from the velocities ``x``): the mean
     of its two wheelsets' roll, on whose axle boxes they sit (wagon [side_frame]
     roll_held_by_axle_boxes; with it off the kernel's arms are zero and this is unused)."""
     iw = WS0 + 8 * k
     return 0.5 * (x[iw + 2] + x[iw + 6])
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def cant_cos_sin(cant, cant_near, cos_near, sin_near):
+    """Cosine and sine of the cant angle, bit for bit those of ``math.cos`` and ``math.sin``:
+    1 and the angle itself (+-0) where there is no cant (tangent track), those of a body
+    nearby (``cos_near``, ``sin_near`` of ``cant_near``) where its cant is the same number
+    (the body of a curve), else the C library's. Of the fourteen calls per evaluation, none
+    is left on tangent and two in a curve's body (issue 24)."""
+    if cant == 0.0:
+        return 1.0, cant
+    if cant == cant_near:  # (nonzero: equal numbers are the same bits)
+        return cos_near, sin_near
+    return math.cos(cant), math.sin(cant)
 
 
 @nb.njit(cache=True, fastmath=FASTMATH)
@@ -221,15 +244,15 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         # ===== car body <-> bolster k: centre bowl, side bearers, yaw friction =====
         cant_rate_b = track_rate(trk, L.TR_CANT, i_b, in_b, ds, V)
         body_bolster_forces(
-            acc, dxdt, x, q, v, K, k, d, off_c, head_c, cant_c, cant_rate_c, kap_c, off_b,
-            cant_b, cant_rate_b, kap_b, V, hcp, sb_half,
+            acc, dxdt, x, K, k, d, off_c, head_c, cant_c, cant_rate_c, kap_c, off_b, cant_b,
+            cant_rate_b, kap_b, V, hcp, sb_half,
         )  # fmt: skip
 
         # ===== bolster <-> side frames (spring nests), cross-bracing bars [X19] =====
-        g_sf = spring_nest_forces(
-            acc, q, v, K, wk, k, b2, l_w, arm_n, th_sf, k_sx, k_sy, gib, kap_b, cos_b, sin_b, V,
-            gn,
-        )  # fmt: skip
+        for sidx in range(2):
+            jf = SF0 + 5 * (2 * k + sidx)
+            add_frame_forces(acc, jf + 1, jf + 2, K[I_MF], kap_b, cos_b, sin_b, V, gn)
+        g_sf = spring_nest_forces(acc, q, v, K, wk, k, b2, l_w, arm_n, th_sf, k_sx, k_sy, gib)
         cross_bracing_forces(acc, q, k, k_bar, h9, ux, uy)
 
         # ===== side frames <-> wheelsets (primary, per axle box) =====

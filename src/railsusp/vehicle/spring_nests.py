@@ -21,20 +21,17 @@ import numba as nb
 from railsusp.vehicle import layout as L
 from railsusp.vehicle import wedge_batch as WB
 from railsusp.vehicle.kernel_cache import FASTMATH  # (sets the kernel cache before any compiles)
-from railsusp.vehicle.moving_frame import add_frame_forces
 from railsusp.vehicle.suspension import gap_spring
 
 _K = L.K
 
 # numba sees module-level ints as compile-time constants
-I_F0N, I_KSZ, I_KGIB, I_CSX, I_MF = _K["F0_nest"], _K["k_sz"], _K["k_gib"], _K["c_sx"], _K["m_f"]
+I_F0N, I_KSZ, I_KGIB, I_CSX = _K["F0_nest"], _K["k_sz"], _K["k_gib"], _K["c_sx"]
 BOL0, SF0 = L.BOL0, L.SF0
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
-def spring_nest_forces(
-    acc, q, v, K, wk, k, b2, l_w, arm_n, th_sf, k_sx, k_sy, gib, kap_b, cos_b, sin_b, V, gn
-):
+def spring_nest_forces(acc, q, v, K, wk, k, b2, l_w, arm_n, th_sf, k_sx, k_sy, gib):
     """Add the forces of bogie k's two spring nests between bolster and side frames to
     ``acc`` (module docstring); returns the generalised force their lateral forces put on
     the side frames' roll (``arm_n`` above their CG, ``th_sf`` their roll).
@@ -42,16 +39,13 @@ def spring_nest_forces(
     ``q``, ``v``: positions and velocities; ``wk``: the work vector holding the wedges'
     forces; ``b2`` half the nests' lateral span; ``l_w`` the wedges' offset ahead of and
     behind the nest centre; ``k_sx``, ``k_sy`` the nest's shear stiffnesses [X16, X17];
-    ``gib`` the gib clearance [X12]; the bolster's track frame (``kap_b`` curvature, ``cos_b``
-    and ``sin_b`` of its cant), the speed ``V`` and gravity ``gn`` for the side frames'
-    pseudo-forces (:func:`~railsusp.vehicle.moving_frame.add_frame_forces`).
+    ``gib`` the gib clearance [X12].
     """
     ib = BOL0 + 4 * k
     g_sf = 0.0
     for sidx in range(2):
         side = 1.0 if sidx == 0 else -1.0
         jf = SF0 + 5 * (2 * k + sidx)
-        add_frame_forces(acc, jf + 1, jf + 2, K[I_MF], kap_b, cos_b, sin_b, V, gn)
         # vertical nest springs + the nest's two friction wedges, ahead of and behind the
         # bolster end at +-l_w: column friction (vertical and lateral, one friction
         # circle each; their lateral forces' difference makes the warp moment) and slope
