@@ -30,7 +30,7 @@ FASTMATH = {"contract", "arcp", "nsz"}
 KERNEL_SOURCES = (
     "kernel_cache.py", "layout.py", "suspension.py", "track_lookup.py", "wheel_rail.py", "model.py",
     "integrate.py", "decay_runs.py", "wheelset.py", "settle.py", "vector_math.py",
-    "contact_batch.py", "wedge_batch.py", "body_bolster.py", "spring_nests.py",
+    "contact_batch.py", "wedge_batch.py",
 )  # fmt: skip
 
 

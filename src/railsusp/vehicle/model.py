@@ -40,11 +40,6 @@ Force elements (the ten sampled parameters in brackets):
   of their roll; the couple of the lateral forces entering a side frame at the bolster's
   height and leaving at the axles' reaches the wheel loads), and the car body's gravity
   (P-delta) roll moment W h theta of its support loads h below its CG.
-
-The car body's connections to each bolster are in :mod:`railsusp.vehicle.body_bolster`, the
-spring nests and cross-bracing in :mod:`railsusp.vehicle.spring_nests`, the wedges of all
-four nests together in :mod:`railsusp.vehicle.wedge_batch` and the eight wheels' contacts in
-:mod:`railsusp.vehicle.contact_batch`: compiled functions inlined into :func:`rhs`.
 """
 
 from __future__ import annotations
@@ -56,11 +51,15 @@ import numba as nb
 from railsusp.vehicle import contact_batch as CB
 from railsusp.vehicle import layout as L
 from railsusp.vehicle import wedge_batch as WB
-from railsusp.vehicle.body_bolster import body_bolster_forces
 from railsusp.vehicle.contact_batch import contact_forces_8
 from railsusp.vehicle.kernel_cache import FASTMATH  # (sets the kernel cache before any compiles)
-from railsusp.vehicle.spring_nests import cross_bracing_forces, spring_nest_forces
-from railsusp.vehicle.suspension import series_stiffness
+from railsusp.vehicle.suspension import (
+    bowl_ring_forces,
+    damped_slider,
+    disc_friction_moment,
+    gap_spring,
+    series_stiffness,
+)
 from railsusp.vehicle.track_lookup import track_frame, track_point, track_rate, track_value
 from railsusp.vehicle.wedge_batch import wedge_forces
 
@@ -70,13 +69,22 @@ _K = L.K
 I_MC, I_IXC, I_IYC, I_IZC = _K["m_c"], _K["Ix_c"], _K["Iy_c"], _K["Iz_c"]
 I_MB, I_IXB, I_IZB = _K["m_b"], _K["Ix_b"], _K["Iz_b"]
 I_MF, I_IYF, I_IZF = _K["m_f"], _K["Iy_f"], _K["Iz_f"]
+I_MW, I_IXW, I_IYW, I_IZW = _K["m_w"], _K["Ix_w"], _K["Iy_w"], _K["Iz_w"]
 I_LC, I_A, I_B1, I_B2, I_R0 = _K["l_c"], _K["a"], _K["b1"], _K["b2"], _K["r0"]
-I_HCG, I_HCP, I_HK = _K["h_cg_c"], _K["h_cp"], _K["h_k"]
-I_CPX, I_CPY, I_CPZ = _K["c_px"], _K["c_py"], _K["c_pz"]
-I_KW, I_CW = _K["k_wedge"], _K["c_wedge"]
+I_HCG, I_HCP, I_HB, I_HK, I_XK, I_RCP = (_K["h_cg_c"], _K["h_cp"], _K["h_cg_b"], _K["h_k"],
+                                        _K["x_k"], _K["R_cp"])  # fmt: skip
+I_CPX, I_CPY, I_CPZ, I_KSZ, I_CSX = _K["c_px"], _K["c_py"], _K["c_pz"], _K["k_sz"], _K["c_sx"]
+I_KW, I_CW, I_KGIB = _K["k_wedge"], _K["c_wedge"], _K["k_gib"]
 I_TANW, I_COSW, I_MUC, I_MUS = _K["tan_wedge"], _K["cos_wedge"], _K["mu_column"], _K["mu_slope"]
 I_KCTRL, I_F0CTRL, I_X18REF, I_LW = _K["k_ctrl"], _K["F0_ctrl"], _K["x18_ref"], _K["l_wedge"]
-I_F0P, I_V, I_GN = _K["F0_prim"], _K["V"], _K["g_n"]
+I_KCPZ, I_KCPY, I_MUCP, I_KYAW = _K["k_cpz"], _K["k_cpy"], _K["mu_cp"], _K["k_yaw"]
+I_CYAW, I_KROLL, I_CROLL = _K["c_yaw"], _K["k_roll"], _K["c_roll"]
+I_KCPB, I_KCPP = _K["k_cpb"], _K["k_cpp"]
+I_KSB, I_PSB, I_MUSB = _K["k_sb"], _K["P_sb"], _K["mu_sb"]
+I_SBTRAVEL, I_KSBSTOP, I_CSB = _K["sb_travel"], _K["k_sb_stop"], _K["c_sb"]
+I_F0CP, I_F0N, I_F0P = _K["F0_cp"], _K["F0_nest"], _K["F0_prim"]
+I_Z0L, I_Z0R = _K["Z0_L"], _K["Z0_R"]
+I_V, I_GN = _K["V"], _K["g_n"]
 I_FCPL, I_MGRADE = _K["F_coupler"], _K["M_pitch_grade"]
 I_Q0 = _K["Q0"]
 I_SFN, I_SFA, I_KRG, I_XCL = (
@@ -89,7 +97,7 @@ I_WATCH = _K["flange_watch"]
 
 BOL0, SF0, WS0 = L.BOL0, L.SF0, L.WS0
 NQ = L.N_DOF
-AUXW = L.AUX_WEDGE
+AUXW, AUXY, AUXR = L.AUX_WEDGE, L.AUX_YAWFR, L.AUX_ROLLFR
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
@@ -238,22 +246,122 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         arm_a = K[I_SFA]
         th_sf = side_frame_roll(q, k)
         om_sf = side_frame_roll(v, k)
+        g_sf = 0.0
         cos_b, sin_b = cant_cos_sin(cant_b, cant_c, cos_c, sin_c)
         add_frame_forces(acc, ib, ib + 1, m_b, kap_b, cos_b, sin_b, V, gn)
 
-        # ===== car body <-> bolster k: centre bowl, side bearers, yaw friction =====
-        cant_rate_b = track_rate(trk, L.TR_CANT, i_b, in_b, ds, V)
-        body_bolster_forces(
-            acc, dxdt, x, K, k, d, off_c, head_c, cant_c, cant_rate_c, kap_c, off_b, cant_b,
-            cant_rate_b, kap_b, V, hcp, sb_half,
+        # ===== car body <-> bolster k =====
+        dev = off_b - off_c - d * head_c  # lateral offset of the track at s_b from the chord
+        roll_c_b = q[L.CB_ROLL] + cant_c - cant_b  # car roll seen in the bolster frame
+        # centre plate, lateral (bowl): car CP point is hcp below the car CG
+        y_cp_car = q[L.CB_Y] + d * q[L.CB_YAW] - dev + hcp * q[L.CB_ROLL]
+        h_bcp = K[I_HCP] - K[I_HB]
+        y_cp_bol = q[ib] - h_bcp * q[ib + 2]
+        f_cpy = K[I_KCPY] * (y_cp_car - y_cp_bol)  # on bolster (+), on car (-)
+        acc[ib] += f_cpy
+        acc[ib + 2] += -h_bcp * f_cpy
+        acc[L.CB_Y] -= f_cpy
+        acc[L.CB_ROLL] -= hcp * f_cpy
+        acc[L.CB_YAW] -= d * f_cpy
+        # centre bowl: ring of contact points with edge lift-off (vertical, roll, pitch) on
+        # the bolster's quasi-static bending and pitch restraint, and roll friction
+        z_car = q[L.CB_Z] - d * q[L.CB_PITCH]
+        roll_rate_b_c = v[ib + 2] - v[L.CB_ROLL] - cant_rate_c
+        roll_rate_b_c += track_rate(trk, L.TR_CANT, i_b, in_b, ds, V)
+        n_cp, m_roll, m_pitch, m_rfr = bowl_ring_forces(
+            q[ib + 1] - z_car, roll_c_b - q[ib + 2], q[L.CB_PITCH], -roll_rate_b_c, K[I_RCP],
+            K[I_KCPZ], K[I_KCPB], K[I_KCPP], K[I_F0CP], K[I_MUCP], K[I_KROLL], K[I_CROLL],
+            x[AUXR + k], dxdt, AUXR + k,
         )  # fmt: skip
+        acc[L.CB_Z] += n_cp - K[I_F0CP]
+        acc[L.CB_PITCH] += -d * (n_cp - K[I_F0CP]) + m_pitch
+        acc[L.CB_ROLL] += m_roll + m_rfr
+        acc[ib + 1] -= n_cp - K[I_F0CP]
+        acc[ib + 2] -= m_roll + m_rfr
+        # side bearers at +- X11/2 (constant contact elastomer with its loss, lift-off, solid
+        # stop after the travel)
+        n_sb_sum = 0.0
+        dz_rate = v[ib + 1] - v[L.CB_Z] + d * v[L.CB_PITCH]
+        for side in (1.0, -1.0):
+            comp = (q[ib + 1] + side * sb_half * q[ib + 2]) - (z_car + side * sb_half * roll_c_b)
+            comp_rate = dz_rate + side * sb_half * roll_rate_b_c
+            f_sb = K[I_PSB] + K[I_KSB] * comp + K[I_CSB] * comp_rate
+            if comp > K[I_SBTRAVEL]:
+                f_sb += K[I_KSBSTOP] * (comp - K[I_SBTRAVEL])
+            if f_sb < 0.0:
+                f_sb = 0.0
+            n_sb_sum += f_sb
+            df = f_sb - K[I_PSB]
+            acc[L.CB_Z] += df
+            acc[L.CB_ROLL] += side * sb_half * f_sb
+            acc[L.CB_PITCH] += -d * df
+            acc[ib + 1] -= df
+            acc[ib + 2] -= side * sb_half * f_sb
+        # body-bolster yaw friction (centre bowl + side bearers): elasto-plastic slider
+        m_lim = disc_friction_moment(K[I_MUCP], n_cp, K[I_RCP]) + K[I_MUSB] * n_sb_sum * sb_half
+        rel_rate = v[L.CB_YAW] + V * (kap_c - kap_b) - v[ib + 3]
+        m_fr = damped_slider(x[AUXY + k], m_lim, K[I_KYAW], K[I_CYAW], rel_rate, dxdt, AUXY + k)
+        acc[L.CB_YAW] -= m_fr
+        acc[ib + 3] += m_fr
 
-        # ===== bolster <-> side frames (spring nests), cross-bracing bars [X19] =====
+        # ===== bolster <-> side frames (spring nests) =====
         for sidx in range(2):
+            side = 1.0 if sidx == 0 else -1.0
             jf = SF0 + 5 * (2 * k + sidx)
             add_frame_forces(acc, jf + 1, jf + 2, K[I_MF], kap_b, cos_b, sin_b, V, gn)
-        g_sf = spring_nest_forces(acc, q, v, K, wk, k, b2, l_w, arm_n, th_sf, k_sx, k_sy, gib)
-        cross_bracing_forces(acc, q, k, k_bar, h9, ux, uy)
+            # vertical nest springs + the nest's two friction wedges, ahead of and behind the
+            # bolster end at +-l_w: column friction (vertical and lateral, one friction
+            # circle each; their lateral forces' difference makes the warp moment) and slope
+            # friction (longitudinal)
+            comp = q[jf + 2] - (q[ib + 1] + side * b2 * q[ib + 2])
+            f_spring = K[I_F0N] + K[I_KSZ] * comp
+            dyn = q[jf + 1] - arm_n * th_sf - q[ib]
+            dxn = q[jf] + side * b2 * q[ib + 3]
+            vxn = v[jf] + side * b2 * v[ib + 3]
+            c = WB.BASE + 2 * k + sidx  # the nest's front wedge, from wedge_forces above
+            fy_f = wk[c + WB.R_FY * WB.NL]
+            fy_r = wk[c + WB.R_FY * WB.NL + WB.NN]
+            f_wz = wk[c + WB.R_FZ * WB.NL] + wk[c + WB.R_FZ * WB.NL + WB.NN]
+            f_wy = fy_f + fy_r
+            df_wy = fy_f - fy_r
+            f_wx = wk[c + WB.R_FX * WB.NL]
+            f_up = f_spring - K[I_F0N] + f_wz  # on bolster, deviation from static
+            acc[ib + 1] += f_up
+            acc[ib + 2] += side * b2 * (f_up + K[I_F0N])
+            acc[jf + 2] -= f_up
+            # lateral shear [X17], wedge column friction, gib stop [X12]
+            f_lat = k_sy * dyn + f_wy + gap_spring(dyn, gib, K[I_KGIB])
+            acc[ib] += f_lat
+            acc[jf + 1] -= f_lat
+            g_sf += arm_n * f_lat  # -f_lat on the frame, arm_n above its CG
+            # warp: the front and rear wedges' column friction, l_w (F_front - F_rear), on
+            # the bolster's yaw against the side frame's
+            m_warp = l_w * df_wy
+            acc[ib + 3] += m_warp
+            acc[jf + 4] -= m_warp
+            # longitudinal shear [X16] and wedge slope friction: the bolster end's
+            # longitudinal slip (bolster yaw against side-frame longitudinal motion)
+            f_lon = k_sx * dxn + K[I_CSX] * vxn + f_wx
+            acc[ib + 3] += -side * b2 * f_lon
+            acc[jf] -= f_lon
+
+        # ===== cross-bracing bars between the side frames [X19] =====
+        jl = SF0 + 5 * (2 * k)
+        jr = SF0 + 5 * (2 * k + 1)
+        for bar in range(2):
+            e_l = h9 if bar == 0 else -h9  # pin longitudinal offset on the left frame
+            e_r = -e_l
+            dirx = -ux if bar == 0 else ux  # unit vector from the left to the right pin
+            diry = -uy
+            dux = q[jr] - q[jl]
+            duy = (q[jr + 1] + e_r * q[jr + 4]) - (q[jl + 1] + e_l * q[jl + 4])
+            t_bar = k_bar * (dirx * dux + diry * duy)
+            acc[jl] += t_bar * dirx
+            acc[jl + 1] += t_bar * diry
+            acc[jl + 4] += e_l * t_bar * diry
+            acc[jr] -= t_bar * dirx
+            acc[jr + 1] -= t_bar * diry
+            acc[jr + 4] -= e_r * t_bar * diry
 
         # ===== side frames <-> wheelsets (primary, per axle box) =====
         for wi in range(2):
