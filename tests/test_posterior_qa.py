@@ -32,7 +32,13 @@ from typer.testing import CliRunner
 from railsusp.cli import app
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate import posterior, posterior_check, posterior_data, posterior_joint
+from railsusp.estimate import (
+    posterior,
+    posterior_check,
+    posterior_data,
+    posterior_joint,
+    posterior_synthetic_run,
+)
 from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.estimate.summaries import BAND_FLOOR_KN, band_rms, section_summary
 from railsusp.integrity import read_npz
@@ -203,6 +209,8 @@ def test_the_widened_coverage_holds_the_conformal_count_on_many_sets():
         (lambda est: posterior.load(None), r"run = None: accepted the run directory"),
         (lambda est: posterior_joint.load(None), r"out = None: accepted the run directory"),
         (lambda est: posterior_joint.estimate(est, [], seed=-2), r"seed = -2: accepted 0 to"),
+        (lambda est: posterior_synthetic_run.estimate(est, [], seed=-3),
+         r"seed = -3: accepted 0 to"),
     ],
 )  # fmt: skip
 def test_bad_api_arguments_are_one_line_naming_the_argument(call, needle):

@@ -346,9 +346,14 @@ def test_make_config_says_the_range_of_a_setting(tmp_path):
 
 # ------------------------------------------------ 4d. an --out the system cannot make
 @pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="Linux /proc")
-def test_an_out_under_proc_is_refused_naming_out():
-    """It said "error: /proc/foo: No such file or directory", without the option."""
-    assert _error(["campaign", "--out", "/proc/railsusp-qa", "--samples", "2"]) == (
+@pytest.mark.parametrize(
+    "command",
+    [["campaign", "--samples", "2"], ["posterior", "train", "--conditions", "straight"]],
+)
+def test_an_out_under_proc_is_refused_naming_out(command):
+    """It said "error: /proc/foo: No such file or directory", without the option: every
+    command that makes its --out (cli.common.hold_folders), not the campaign alone."""
+    assert _error([*command, "--out", "/proc/railsusp-qa"]) == (
         "error: --out /proc/railsusp-qa: the folder /proc/railsusp-qa cannot be made (No such "
         "file or directory); accepted a folder that can be made and written"
     )

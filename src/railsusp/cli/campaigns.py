@@ -112,7 +112,7 @@ def campaign(
     (``--irregularity-classes``, ``--radius``, ``--cant``), and ``--vary-others`` /
     ``--prior`` so that the parameters not estimated vary instead of sitting at nominal."""
     from railsusp.campaign import run_campaign
-    from railsusp.input_checks import check_output_folder, unmade_folder
+    from railsusp.input_checks import check_output_folder
     from railsusp.measured import conditions_from
     from railsusp.vehicle.wagon import load_wagon
 
@@ -130,13 +130,10 @@ def campaign(
         check_output_folder(out)
         # the folder for the command's duration (run_campaign's own lock is lent to it),
         # and the run whose key parameters are read, as no process rewrites them meanwhile
-        try:
-            hold_folders(
-                creates=[("--out", out)],
-                reads=[("--keys-from", keys_from)] if keys_from is not None else [],
-            )
-        except OSError as exc:  # /proc/foo: the system's "No such file or directory" alone
-            raise unmade_folder(exc, out, "--out") or exc from None
+        hold_folders(
+            creates=[("--out", out)],
+            reads=[("--keys-from", keys_from)] if keys_from is not None else [],
+        )
         if Path(conditions).is_dir():  # a field folder's conditions and their track files:
             # read shared, not beside a writer of the folder (a mixed read, the audit)
             hold_folders(reads=[("--conditions", Path(conditions))])

@@ -284,6 +284,7 @@ def hold_folders(
     mark_run_reports`), taken off again at that close where the command changed none of
     them."""
     from railsusp.cli.report_marks import mark_run_reports, unmark_unwritten
+    from railsusp.input_checks import unmade_folder
     from railsusp.run_lock import enclosing_runs, hold_shared, run_lock
 
     plan: dict[Path, dict] = {}
@@ -318,7 +319,10 @@ def hold_folders(
             while not probe.exists():
                 made.append(probe)
                 probe = probe.parent
-            folder.mkdir(parents=True, exist_ok=True)
+            try:
+                folder.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:  # /proc/foo: the system's "No such file or directory"
+                raise unmade_folder(exc, folder, option) or exc from None
             stack.enter_context(run_lock(folder, option, lend=True))
             if made:
                 stack.callback(_remove_if_bare, folder, made)

@@ -39,12 +39,12 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
 
     A recording's own condition (its ``lead_in_m``, which may differ from the trained one)
     must put its sections in the steady arc of a curve, as the training conditions' are
-    (:func:`~railsusp.estimate.posterior_settings.check_uniform_record`: a record from
+    (:func:`~railsusp.estimate.posterior_uniform_track.check_uniform_record`: a record from
     the entry spiral was accepted and reported calibrated, its statistics far from any
     training case), and its stated instrument bandwidth (``filter_bandwidth_hz``) must be
     at least the training's :data:`BANDWIDTH_HZ` (a narrower filter removes the higher
     bands' content, which the flows then extrapolate from): each refused in one line."""
-    from railsusp.estimate.posterior_settings import check_uniform_record
+    from railsusp.estimate.posterior_uniform_track import check_uniform_record
     from railsusp.estimate.problem import check_measured_wheel
 
     recordings = check_recordings(recordings)

@@ -44,7 +44,7 @@ from railsusp.estimate.posterior_data import cached_cases, to_si, training_suppo
 from railsusp.estimate.posterior_emulator import StatisticsEmulator
 from railsusp.estimate.posterior_recordings import recording_summaries, unused_recordings
 from railsusp.estimate.posterior_result import PosteriorResult
-from railsusp.estimate.posterior_settings import PosteriorSettings
+from railsusp.estimate.posterior_settings import PosteriorSettings, check_seed
 from railsusp.estimate.posterior_stamp import check_model_revision
 from railsusp.estimate.posterior_support import TrainingSupport, support_notes
 from railsusp.estimate.posterior_synthetic import (
@@ -274,7 +274,9 @@ def _not_checked(path: Path, folder: Path) -> RailsuspInputError:
 
 def estimate(post: SyntheticPosterior, recordings, seed: int = 0) -> PosteriorResult:
     """Posterior of the recordings (one per trained condition) from the mean of their
-    sections' statistics, with the check of its number of sections."""
+    sections' statistics, with the check of its number of sections; ``seed``: of the draws
+    (refused in one line outside its range: numpy's own error before)."""
+    seed = check_seed(seed)
     x, used = recording_summaries(post.settings, recordings)
     notes = unused_recordings(recordings, [c.name for c in post.settings.conditions])
     return result_of(post, x, used, seed, notes)
