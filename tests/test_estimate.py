@@ -8,6 +8,7 @@ import pytest
 from scipy.stats import qmc
 
 from railsusp.conditions import get_condition
+from railsusp.errors import RailsuspInputError
 from railsusp.estimate import (
     CalibrationProblem,
     NSGAConfig,
@@ -232,9 +233,12 @@ def test_statistics_surrogate_round_trip_and_calibration(tmp_path):
     before = StatisticsSurrogate(gp, COND).predict(probe)[0]
     after = forces.predict_statistics(probe, COND, ("mean", "std"))
     np.testing.assert_allclose(after, before, rtol=1e-6)
+    # a value outside the range the GPs were fitted over (MN/m for N/m): refused, not
+    # extrapolated (the review of stop 70: the window networks refused it, the GPs did not)
+    with pytest.raises(RailsuspInputError, match=r"params: X13 .* = 14 N/m .* outside the"):
+        forces.predict_statistics(np.array([[14.0, 7e6]]), COND, ("mean",))
     # the folder or its statistics.json, as docs/surrogates.md names it (the file was "no
     # statistics.json" before stop 56)
-    from railsusp.errors import RailsuspInputError
     from railsusp.surrogate.statistics import FILE, load_statistics
 
     for where in (tmp_path / "gp" / COND.name, tmp_path / "gp" / COND.name / FILE):

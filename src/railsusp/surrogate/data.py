@@ -26,7 +26,8 @@ import numpy as np
 
 from railsusp.campaign import CHANNELS, Campaign
 from railsusp.conditions import WorkingCondition
-from railsusp.params import bounds
+from railsusp.errors import RailsuspInputError
+from railsusp.params import bounds, spec
 from railsusp.surrogate.features import FeatureSpec as FeatureSpec  # public here too
 from railsusp.surrogate.features import track_features
 from railsusp.variation import layout_key, sample_condition
@@ -84,6 +85,44 @@ def params_to_unit(x_si: np.ndarray, parameters: Sequence[str]) -> np.ndarray:
     """SI parameter values -> [0, 1] by their Table 2 ranges."""
     lo, hi = bounds(parameters)
     return (np.asarray(x_si, float) - lo) / (hi - lo)
+
+
+#: how far past a range end (share of the range) a value is still taken as at the end: the
+#: round-off of SI values converted back from fractions of the range (1e-16 of the value),
+#: and of float32 ones (6e-8 of the value, up to 2e-7 of a range); the network reads its
+#: input in float32, which resolves no finer than 6e-8 of the range at its upper end
+RANGE_TOLERANCE = 1e-6
+
+
+def check_trained_range(x_si: np.ndarray, unit: np.ndarray, parameters: Sequence[str]) -> None:
+    """Refuse, in one line naming the parameter, the row, the value (SI, with its unit)
+    and the range, a parameter value that is not finite or lies outside the range the
+    network was trained over (the sampling range its input is the fraction of; past it by
+    more than :data:`RANGE_TOLERANCE` of it). ``x_si`` (n, k): the values as given;
+    ``unit``: their fractions of the ranges. A network extrapolates without a word:
+    display units for SI (MN/m for N/m), a sign slip or ten times a value gave plausible
+    forces, and NaN an error from deep in the record correction's GPs."""
+    bad = ~np.isfinite(unit) | (unit < -RANGE_TOLERANCE) | (unit > 1.0 + RANGE_TOLERANCE)
+    if not bad.any():
+        return
+    i, j = (int(k) for k in np.argwhere(bad)[0])
+    s = spec(parameters[j])
+    lo, hi = s.bounds  # type: ignore[misc]  # (a key parameter is a sampled one)
+    value = float(x_si[i, j])
+    where = f" (row {i} of {len(x_si)})" if len(x_si) > 1 else ""
+    trained = f"[{lo:g}, {hi:g}] {s.si_unit}" + (
+        f" ({s.range_text()})" if s.display_unit != s.si_unit else ""
+    )
+    head = f"params: {s.symbol} ({s.description}) = "
+    if not np.isfinite(value):
+        raise RailsuspInputError(
+            f"{head}{value}{where} is not finite; accepted SI values in the range this "
+            f"surrogate was trained over, {trained}"
+        )
+    raise RailsuspInputError(
+        f"{head}{value:g} {s.si_unit}{where} is outside the range this surrogate was trained "
+        f"over, {trained}; accepted SI values in that range"
+    )
 
 
 def load_series(

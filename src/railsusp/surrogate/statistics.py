@@ -21,7 +21,7 @@ from railsusp.params import bounds
 from railsusp.provenance import provenance
 from railsusp.store import read_json, write_json
 from railsusp.surrogate.baselines import StatisticsGP
-from railsusp.surrogate.data import load_series
+from railsusp.surrogate.data import check_trained_range, load_series
 from railsusp.surrogate.features import FeatureSpec
 from railsusp.vehicle.simulation_result import RECORD_STATISTICS, statistic_segments
 
@@ -50,7 +50,9 @@ class StatisticsSurrogate:
     ) -> tuple[np.ndarray, np.ndarray]:
         """(mean, std) of the statistics, each (n, n_targets, n_statistics), kN.
 
-        ``params_si``: (n, n_key) SI values of the key parameters, inside their ranges."""
+        ``params_si``: (n, n_key) SI values of the key parameters, inside their ranges (a
+        value outside them, or not finite, is refused in one line:
+        :func:`~railsusp.surrogate.data.check_trained_range`; the GPs extrapolated it)."""
         stats = tuple(statistics) if statistics else self.statistics
         missing = [s for s in stats if s not in self.statistics]
         if missing:
@@ -58,7 +60,9 @@ class StatisticsSurrogate:
                 f"statistics {missing} not in this surrogate (has {', '.join(self.statistics)})"
             )
         lo, hi = bounds(self.parameters)
-        unit = (np.atleast_2d(np.asarray(params_si, dtype=float)) - lo) / (hi - lo)
+        x = np.atleast_2d(np.asarray(params_si, dtype=float))
+        unit = (x - lo) / (hi - lo)
+        check_trained_range(x, unit, self.parameters)
         mean, std = self.gp.predict_statistics(unit)
         n_t, n_s = len(self.gp.spec.targets), len(self.statistics)
         pick = [self.statistics.index(s) for s in stats]
