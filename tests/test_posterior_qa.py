@@ -342,3 +342,102 @@ def test_the_settings_name_an_unknown_parameter_as_the_field():
         PosteriorSettings((STRAIGHT,), parameters=("X99",))
     with pytest.raises(RailsuspInputError, match=r"^wagon = bogus: wagon file bogus"):
         PosteriorSettings((STRAIGHT,), wagon="bogus")
+
+
+# ---------------------------------------------------------------- 9. third-octave resolution
+def _old_third_octave(x: np.ndarray) -> np.ndarray:
+    """The third-octave family's log band RMS as it was: Welch segments of half the record."""
+    from railsusp.estimate.statistic_families import THIRD_OCTAVE_HZ
+
+    f, pxx = welch(x - x.mean(), fs=FS, nperseg=int(min(x.size, max(32, round(0.5 * x.size)))),
+                   detrend="constant")  # fmt: skip
+    df = f[1] - f[0]
+    out = [np.sqrt(np.sum(pxx[sel]) * df) if (sel := (f >= lo) & (f < min(hi, 0.45 * FS))).any()
+           else 0.0 for lo, hi in THIRD_OCTAVE_HZ]  # fmt: skip
+    return np.log10(np.maximum(out, BAND_FLOOR_KN))
+
+
+@pytest.mark.parametrize("seconds", [8.4, 12.0, 16.0, 20.5, 21.0])
+def test_every_third_octave_band_of_a_short_section_holds_a_line(seconds):
+    """Half of a 20.5 s section (512 samples at 50 Hz, 0.098 Hz lines) put no line in
+    0.3-0.378 Hz: Y_3oct_0.3-0.378Hz read the floor (log10 = -4) in every case; at 12 s
+    several of the lowest bands did."""
+    from railsusp.estimate.statistic_families import family_statistics
+
+    rng = np.random.default_rng(5)
+    n = round(seconds * FS)
+    Y, Q = 10 + 3 * rng.standard_normal(n), 100 + 8 * rng.standard_normal(n)
+    out = family_statistics("third-octave", Y, Q, FS, 16.7)
+    assert out.shape == (36,) and np.all(out > np.log10(BAND_FLOOR_KN) + 1), out
+
+
+def test_the_third_octave_statistics_of_the_default_sections_are_as_before():
+    """Where half the section puts a line in every third-octave band (16.78-20.02 s and from
+    21.18 s on at 50 Hz, the 20 s default among them) the statistics are bit for bit the
+    ones computed with that half (a guard: it holds on the code before the fix too)."""
+    from railsusp.estimate.statistic_families import family_statistics
+
+    rng = np.random.default_rng(6)
+    for seconds in (16.8, 20.0, 21.2, 30.0, 60.0):
+        n = round(seconds * FS)
+        Y, Q = 10 + 3 * rng.standard_normal(n), 100 + 8 * rng.standard_normal(n)
+        old = np.concatenate([_old_third_octave(Y), _old_third_octave(np.maximum(Q, 0.0))])
+        assert np.array_equal(family_statistics("third-octave", Y, Q, FS, 16.7), old), seconds
+
+
+def test_a_section_or_rate_too_coarse_for_the_third_octave_bands_is_refused(tmp_path):
+    """5 s sections (a 250-sample segment at most: 0.2 Hz lines) cannot put a line in
+    0.3-0.378 Hz, and at 30 Hz the bands above 13.5 Hz lie above 0.45 of the rate: both
+    were accepted, their statistics a floor in every case."""
+    third = dict(TINY, statistics=("third-octave",))
+    with pytest.raises(RailsuspInputError, match=r"^section_s = 5: at the 50 Hz of condition "
+                       r"'straight' the statistics family 'third-octave' .* at least 8\.4 s; "
+                       r"accepted 8\.4 to 600$"):  # fmt: skip
+        PosteriorSettings((STRAIGHT,), section_s=5.0, **third)
+    PosteriorSettings((STRAIGHT,), section_s=8.4, **third)  # the shortest it names
+    PosteriorSettings((STRAIGHT,), section_s=5.0, **TINY)  # the EN 14363 summary alone
+    with pytest.raises(RailsuspInputError, match=r"sampled at 30 Hz, the statistics family "
+                       r"'third-octave' has bands from 15\.2 Hz"):  # fmt: skip
+        PosteriorSettings((STRAIGHT.with_changes(n_steps=600),), **third)
+    args = ["posterior", "train", "--out", str(tmp_path / "run"), "--section", "5"]
+    result = runner.invoke(app, [*args, "--statistics", "third-octave"])
+    assert result.exit_code == 2, result.output
+    said = _one_line(result.output)
+    assert said.startswith("error: --section 5: at the 50 Hz") and "8.4 s" in said, said
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_third_octave_folder_whose_statistics_changed_is_refused_not_mixed(tmp_path, monkeypatch):
+    """12 s sections now read the third-octave bands with a longer segment than half of
+    the section: their settings' hash changes (band_resolution), a folder trained before is
+    refused by train and by a load; settings whose statistics did not change (the 20 s
+    default, 12 s without the family) and the EN 14363 marking keep their dicts."""
+    from railsusp.estimate.posterior_stamp import estimator_stamp
+
+    third = dict(TINY, statistics=("third-octave",))
+    s = PosteriorSettings((STRAIGHT,), section_s=12.0, **third)
+    assert "third-octave" in s.to_dict()["band_resolution"]
+    assert PosteriorSettings.from_dict(s.to_dict()) == s
+    for same in (dict(section_s=20.0, **third), dict(section_s=12.0, **TINY)):
+        assert "band_resolution" not in PosteriorSettings((STRAIGHT,), **same).to_dict()
+    en = PosteriorSettings((STRAIGHT,), section_s=2.0, **TINY).to_dict()["band_resolution"]
+    assert en == "frequency step at most the narrowest band"  # folders trained since keep it
+    before = {k: v for k, v in s.to_dict().items() if k != "band_resolution"}
+    write_json(
+        tmp_path / "posterior" / "settings.json",
+        {"hash": content_hash(before), **estimator_stamp(), "settings": before},
+    )
+
+    def simulated(*args, **kw):
+        raise AssertionError("the folder of before was read as this training's")
+
+    monkeypatch.setattr(posterior, "cached_cases", simulated)
+    with pytest.raises(
+        RailsuspInputError, match="trained with other settings .*third-octave band statist"
+    ):
+        posterior.train(s, tmp_path)
+    with pytest.raises(
+        RailsuspInputError, match=r"^an estimator of 12 s sections \(section_s = 12\) .*"
+        r"third-octave band RMS"
+    ):  # fmt: skip
+        PosteriorSettings.from_dict(before)

@@ -252,7 +252,7 @@ def test_settings_choose_families_and_keep_the_hash_of_earlier_estimators():
 def test_simulated_families_keep_the_en14363_summary_of_the_same_case():
     """The partner's channels draw their instrument noise after the measured wheel's, so
     adding families leaves the EN 14363 statistics of every case as they were."""
-    kw = dict(section_s=3.0, n_train=20, n_check=10)
+    kw = dict(section_s=9.0, n_train=20, n_check=10)  # (third-octave: at least 8.4 s)
     plain = PosteriorSettings((CONDITION,), **kw)
     rich = PosteriorSettings((CONDITION,), statistics=("all",), **kw)
     u = np.full((2, 10), 0.5)
@@ -271,15 +271,15 @@ def test_a_recording_gives_the_families_and_must_hold_the_partner_wheel(tmp_path
     in one line."""
     curve = get_condition("curve")
     truth = ParameterSet.nominal()
-    synthesise_field(truth, [curve], tmp_path / "one", duration_s=6.0)
-    synthesise_field(truth, [curve], tmp_path / "f", duration_s=6.0, wheelset=True)
+    synthesise_field(truth, [curve], tmp_path / "one", duration_s=18.0)
+    synthesise_field(truth, [curve], tmp_path / "f", duration_s=18.0, wheelset=True)
     (alone,) = read_field(tmp_path / "one")
     (rec,) = read_field(tmp_path / "f")
     assert alone.wheels == ("w1R",) and rec.wheels == ("w1R", "w1L")
     assert np.array_equal(rec.Y["w1R"], alone.Y["w1R"])
     assert np.array_equal(rec.Q["w1R"], alone.Q["w1R"])
-    rich = PosteriorSettings((curve,), section_s=3.0, n_train=20, n_check=10,
-                             statistics=("all",))  # fmt: skip
+    rich = PosteriorSettings((curve,), section_s=9.0, n_train=20, n_check=10,
+                             statistics=("all",))  # fmt: skip (third-octave: >= 8.4 s)
     x, used = recording_summaries(rich, [rec])
     assert x.shape == (2, len(rich.summary_names)) and np.all(np.isfinite(x))
     assert used == {"curve": {"sections": 2, "seconds_left_out": 0.0}}
@@ -288,5 +288,5 @@ def test_a_recording_gives_the_families_and_must_hold_the_partner_wheel(tmp_path
     del rec.Q["w1L"]
     with pytest.raises(RailsuspInputError, match="needs wheel w1L as well as w1R"):
         recording_summaries(rich, [rec])
-    sum_y = PosteriorSettings((curve,), section_s=3.0, n_train=20, n_check=10, sum_y=True)
+    sum_y = PosteriorSettings((curve,), section_s=9.0, n_train=20, n_check=10, sum_y=True)
     assert recording_summaries(sum_y, [rec])[0].shape == (2, 20)  # the sum reads only Y

@@ -13,6 +13,14 @@ from typing import Any
 from railsusp.conditions import WorkingCondition, make_condition
 from railsusp.errors import RailsuspInputError, repeated_names
 from railsusp.estimate.config import check_count, check_range
+from railsusp.estimate.posterior_band_resolution import (
+    BAND_RESOLUTION,
+    BAND_RESOLUTION_RULE,  # noqa: F401 (of this module before its own)
+    band_resolution_mark,
+    check_resolution,
+    check_stored_mark,
+    mark_difference,
+)
 from railsusp.estimate.posterior_uniform_track import check_uniform_record
 from railsusp.estimate.statistic_families import (
     needs_partner,
@@ -20,7 +28,6 @@ from railsusp.estimate.statistic_families import (
     parse_families,
     statistic_names,
 )
-from railsusp.estimate.summaries import bands_widened, check_band_resolution
 from railsusp.numbers import is_whole
 from railsusp.params import MAIN_SUSPENSION, spec
 
@@ -54,11 +61,6 @@ POSTERIOR_COUNTS: dict[str, tuple[int, int]] = {
     "projection_rank": (1, 1000),
     "condition_offset": (0, MAX_CONDITION_OFFSET),
 }
-#: the key :meth:`PosteriorSettings.to_dict` adds where a section is so short that its band
-#: RMS follows the band edges (:func:`~railsusp.estimate.summaries.band_segment`), and its
-#: value: the settings' hash then differs from that of the same settings trained before
-BAND_RESOLUTION = "band_resolution"
-BAND_RESOLUTION_RULE = "frequency step at most the narrowest band"
 
 
 @dataclass(frozen=True)
@@ -162,7 +164,7 @@ class PosteriorSettings:
         if not self.conditions:
             raise RailsuspInputError("conditions: at least one working condition is needed")
         for c in self.conditions:
-            check_band_resolution(c, self.section_s)
+            check_resolution(c, self.section_s, families)
         conds = tuple(c.with_duration(self.section_s) for c in self.conditions)
         object.__setattr__(self, "conditions", conds)
         for c in conds:
@@ -233,23 +235,20 @@ class PosteriorSettings:
             del d["wagon"]
         else:
             d["wagon"] = self.wagon.model_dump(mode="json")
-        if any(bands_widened(c.n_steps, 1.0 / c.sample_interval) for c in self.conditions):
-            # sections so short that the band RMS takes a longer segment than it did (its
-            # statistics changed): a folder of such sections trained before is refused by
-            # its hash, not mixed (the estimators of other sections keep theirs)
-            d[BAND_RESOLUTION] = BAND_RESOLUTION_RULE
+        mark = band_resolution_mark(self.conditions, self.statistics)
+        if mark:  # sections whose band RMS takes a longer segment than it did (statistics
+            # changed): a folder of them trained before is refused by its hash, not mixed
+            d[BAND_RESOLUTION] = mark  # (the estimators of other sections keep theirs)
         return d
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> PosteriorSettings:
         """The settings an estimator folder stored (:meth:`to_dict`); refused in one line
-        where they are of sections so short that their band statistics were computed
-        before the band RMS followed the band edges (stored without
-        :data:`BAND_RESOLUTION`): the folder's emulator or flows learnt from statistics
-        this railsusp no longer computes (a synthetic likelihood of 2 s sections read the
-        new statistics of a recording with them, and reported it calibrated)."""
+        where their band statistics were computed before the band RMS followed the band
+        edges (stored without this railsusp's :data:`BAND_RESOLUTION`:
+        :func:`~railsusp.estimate.posterior_band_resolution.check_stored_mark`)."""
         d = dict(d)
-        marked = d.pop(BAND_RESOLUTION, None) is not None  # follows from the sections
+        stored_mark = d.pop(BAND_RESOLUTION, None)  # follows from the sections
         d["conditions"] = tuple(make_condition(c) for c in d["conditions"])
         d["parameters"] = tuple(d["parameters"])
         d["product_sections"] = tuple(d.get("product_sections", ()))
@@ -260,14 +259,7 @@ class PosteriorSettings:
 
             d["wagon"] = WagonData.model_validate(d["wagon"])
         settings = cls(**d)
-        if not marked and BAND_RESOLUTION in settings.to_dict():
-            raise RailsuspInputError(
-                f"an estimator of {settings.section_s:g} s sections (section_s = "
-                f"{settings.section_s:g}) trained before the band RMS followed the band edges "
-                "(its spectrum's frequency step wider than the narrowest band): its statistics "
-                "are not this railsusp's; train it again (railsusp posterior train) into "
-                "another folder"
-            )
+        check_stored_mark(stored_mark, settings)
         return settings
 
     def product_sets(self) -> list[tuple[int, int, tuple[int, ...]]]:
@@ -360,12 +352,8 @@ def settings_differences(old: Any, new: dict[str, Any]) -> list[str]:
             out.append(f"{name} differ" if name == "conditions" else "wagon differs")
         else:
             out.append(f"{name} = {_shown(was)}, not {_shown(now)}")
-    if BAND_RESOLUTION in new and BAND_RESOLUTION not in old:
-        out.append(
-            "its band statistics are of before they followed the band edges: the frequency "
-            "step of sections this short was wider than the narrowest band"
-        )
-    return out
+    said = mark_difference(old, new)
+    return [*out, said] if said else out
 
 
 def _shown(value: Any) -> str:

@@ -50,6 +50,8 @@ from railsusp.estimate.summaries import (
     PERCENTILE_NAMES,
     band_rms,
     en14363_percentiles,
+    half_segment,
+    line_segment,
     section_summary,
     summary_names,
     wheelset_force,
@@ -161,11 +163,16 @@ def statistic_names(families: tuple[str, ...], sum_y: bool = False) -> list[str]
 def log_band_rms(x: np.ndarray, fs: float, bands, segment_fraction: float = 0.5) -> np.ndarray:
     """log10 of the RMS (units of ``x``, floored at :data:`BAND_FLOOR_KN`) of the de-meaned
     ``x`` in each band: the integral of its one-sided Welch spectral density (Hann,
-    segments of ``segment_fraction`` of the record, half overlapping) over the band. Half
-    the record resolves 0.1 Hz in a 20 s section, so the narrowest third-octave band
-    (0.3-0.38 Hz) holds a line."""
+    half-overlapping segments of :func:`~railsusp.estimate.summaries.line_segment`:
+    ``segment_fraction`` of the record, longer where a band would otherwise hold no line)
+    over the band. A record too short to
+    resolve the bands (whose sections the posterior's settings refuse,
+    :func:`railsusp.estimate.posterior_band_resolution.check_third_octave_resolution`) is
+    read with ``segment_fraction`` of it, as before."""
     x = np.asarray(x, dtype=float)
-    nper = int(min(x.size, max(32, round(segment_fraction * x.size))))
+    bands = tuple(tuple(map(float, b)) for b in bands)
+    nper = line_segment(x.size, float(fs), bands, segment_fraction)
+    nper = nper or half_segment(x.size, segment_fraction)
     f, pxx = welch(x - x.mean(), fs=fs, nperseg=nper, detrend="constant")
     df = f[1] - f[0]
     out = np.empty(len(bands))

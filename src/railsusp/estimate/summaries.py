@@ -24,7 +24,10 @@ section gives one summary vector (:func:`cut_sections`).
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
+from scipy.fft import rfftfreq
 from scipy.signal import welch
 
 from railsusp.en14363 import (
@@ -158,32 +161,98 @@ def check_band_resolution(cond, section_s: float) -> None:
     statistic one constant value in every case (sbi warned of constant dimensions, and the
     synthetic likelihood's scatter factor of their sections reached 1e21, its posterior
     the prior reported calibrated). At 50 Hz every section of 1 s or more resolves them."""
+    check_sections_resolve(
+        cond,
+        section_s,
+        lambda n, fs: band_segment(n, fs) is not None,
+        BANDS_HZ,
+        "the band RMS from {top:g} Hz lies above 0.45 times the rate",
+        "the frequency bands of the summary ({width:.3g} Hz the narrowest) are resolved by "
+        "sections",
+    )
+
+
+def check_sections_resolve(
+    cond,
+    section_s: float,
+    resolves,
+    bands,
+    above: str,
+    needs: str,
+    other: str = "",
+    step_bound: bool = True,
+) -> None:
+    """The one-line refusal of :func:`check_band_resolution` and of the third-octave
+    family's (:mod:`railsusp.estimate.posterior_band_resolution`), for bands ``bands`` that
+    sections of ``n`` samples at ``fs`` resolve where ``resolves(n, fs)``: nothing where
+    sections of ``section_s`` of ``cond`` do; where a band lies wholly above 0.45 of the
+    rate, the rate named (``above``: its words, with ``{top}`` the band's lower edge, and
+    ``other`` what else is accepted); else ``section_s`` and the shortest section that does
+    (``needs``: the words before "of at least", with ``{width}`` the narrowest band;
+    ``step_bound``: no section shorter than one over that width resolves them, where the
+    rule is a frequency step at most the band, the search's start)."""
     from railsusp.errors import RailsuspInputError
 
     def resolved(seconds: float) -> bool:
         c = cond.with_duration(seconds)  # its samples, at the rate they round to
-        return band_segment(c.n_steps, 1.0 / c.sample_interval) is not None
+        return resolves(c.n_steps, 1.0 / c.sample_interval)
 
     if resolved(section_s):
         return
     fs = 1.0 / cond.sample_interval
-    width = narrowest_band_hz(fs)
+    width = narrowest_band_hz(fs, bands)
     if width <= 0:
-        top = max(lo for lo, _ in BANDS_HZ)
+        top = max(lo for lo, _ in bands)
         raise RailsuspInputError(
-            f"condition {cond.name!r}: sampled at {fs:.4g} Hz, the band RMS from {top:g} Hz "
-            f"lies above 0.45 times the rate; accepted conditions sampled at more than "
-            f"{top / 0.45:.4g} Hz (n_steps / duration_s)"
+            f"condition {cond.name!r}: sampled at {fs:.4g} Hz, {above.format(top=top)}; "
+            f"accepted conditions sampled at more than {top / 0.45:.4g} Hz (n_steps / "
+            f"duration_s){other}"
         )
-    least = max(section_s, np.ceil(fs / width - 1e-9) / fs)
+    least = max(section_s, np.ceil(fs / width - 1e-9) / fs) if step_bound else section_s
     least = float(np.ceil(least * 100 - 1e-6) / 100)  # in steps of 0.01 s
     while least < 600.0 and not resolved(least):  # the rate moves as the samples round
         least = round(least + 0.01, 2)
     raise RailsuspInputError(
-        f"section_s = {section_s:g}: at the {fs:.4g} Hz of condition {cond.name!r} the "
-        f"frequency bands of the summary ({width:.3g} Hz the narrowest) are resolved by "
-        f"sections of at least {least:g} s; accepted {least:g} to 600"
+        f"section_s = {section_s:g}: at the {fs:.4g} Hz of condition {cond.name!r} "
+        f"{needs.format(width=width)} of at least {least:g} s; accepted {least:g} to 600"
     )
+
+
+def half_segment(n: int, segment_fraction: float = 0.5) -> int:
+    """The Welch segment of :func:`~railsusp.estimate.statistic_families.log_band_rms`
+    before it followed the band edges: ``segment_fraction`` of the record, at least 32
+    samples (the whole record if shorter)."""
+    return int(min(n, max(32, round(segment_fraction * n))))
+
+
+def holds_a_line(nper: int, fs: float, bands) -> bool:
+    """Whether a Welch spectrum of ``nper``-sample segments at ``fs`` has a line (as
+    :func:`scipy.signal.welch` places them) in every one of ``bands``, each band's upper
+    edge capped at 0.45 ``fs`` as :func:`~railsusp.estimate.statistic_families.
+    log_band_rms` caps it."""
+    f = rfftfreq(nper, 1.0 / fs)
+    return all(np.any((f >= lo) & (f < min(hi, 0.45 * fs))) for lo, hi in bands)
+
+
+@lru_cache(maxsize=4096)
+def line_segment(n: int, fs: float, bands, segment_fraction: float = 0.5) -> int | None:
+    """The Welch segment (samples) of :func:`~railsusp.estimate.statistic_families.
+    log_band_rms` for a record of ``n`` samples at ``fs`` in ``bands`` (a tuple of (low,
+    high) pairs, Hz): ``segment_fraction`` of the record (:func:`half_segment`) where every
+    band holds a line of its spectrum (:func:`holds_a_line`), else the shortest longer
+    segment, up to the whole record, at which every band does. None where none does: the
+    record is too short (or a band lies above the rate's cap) to resolve the bands.
+
+    Half the record alone left the narrowest third-octave bands (0.3-0.38 Hz is 0.078 Hz
+    wide) without a line in many sections: at 50 Hz all 18 were resolved only from 16.78 to
+    20.02 s and from 21.18 s on (the 20 s default by luck), and a band without a line read
+    the floor in every case. Where half the record resolves them the segment is that half,
+    as before; at 50 Hz sections of 8.4 s (420 samples) or more are resolved."""
+    start = half_segment(n, segment_fraction)
+    for nper in range(start, n + 1):
+        if holds_a_line(nper, fs, bands):
+            return nper
+    return None
 
 
 def band_rms(x: np.ndarray, fs: float, bands=BANDS_HZ) -> np.ndarray:
