@@ -114,20 +114,15 @@ def test_the_training_statistics_of_2_s_sections_are_not_constant(tmp_path):
         assert np.all(column > np.log10(BAND_FLOOR_KN)) and np.std(column) > 0, name
 
 
-def test_a_short_section_folder_trained_before_is_refused_not_mixed(tmp_path, monkeypatch):
-    """Its cached statistics are of the old segments: the settings' hash now differs, so
-    train refuses the folder instead of mixing old and new statistics, and the settings it
-    stored are refused where a load reads them (the synthetic likelihood's load read such
-    a folder's emulator with a recording's new statistics and reported it calibrated)."""
+def trained_before(s, folder, monkeypatch, said: str) -> dict:
+    """``s``'s settings as a folder trained before its band-resolution mark stored them
+    (written into ``folder``): ``posterior.train`` there is refused, saying ``said``, and
+    nothing is read as this training's. Returns those stored settings."""
     from railsusp.estimate.posterior_stamp import estimator_stamp
 
-    s = PosteriorSettings((STRAIGHT,), section_s=2.0, **TINY)
-    assert s.to_dict()["band_resolution"]
-    assert "band_resolution" not in PosteriorSettings((STRAIGHT,), section_s=5.0).to_dict()
-    assert PosteriorSettings.from_dict(s.to_dict()) == s
     before = {k: v for k, v in s.to_dict().items() if k != "band_resolution"}
     write_json(
-        tmp_path / "posterior" / "settings.json",
+        folder / "posterior" / "settings.json",
         {"hash": content_hash(before), **estimator_stamp(), "settings": before},
     )
 
@@ -135,8 +130,22 @@ def test_a_short_section_folder_trained_before_is_refused_not_mixed(tmp_path, mo
         raise AssertionError("the folder of before was read as this training's")
 
     monkeypatch.setattr(posterior, "cached_cases", simulated)
-    with pytest.raises(RailsuspInputError, match="trained with other settings .*band statist"):
-        posterior.train(s, tmp_path)
+    with pytest.raises(RailsuspInputError, match=f"trained with other settings .*{said}"):
+        posterior.train(s, folder)
+    return before
+
+
+def test_a_short_section_folder_trained_before_is_refused_not_mixed(tmp_path, monkeypatch):
+    """Its cached statistics are of the old segments: the settings' hash now differs, so
+    train refuses the folder instead of mixing old and new statistics, and the settings it
+    stored are refused where a load reads them (the synthetic likelihood's load read such
+    a folder's emulator with a recording's new statistics and reported it calibrated)."""
+
+    s = PosteriorSettings((STRAIGHT,), section_s=2.0, **TINY)
+    assert s.to_dict()["band_resolution"]
+    assert "band_resolution" not in PosteriorSettings((STRAIGHT,), section_s=5.0).to_dict()
+    assert PosteriorSettings.from_dict(s.to_dict()) == s
+    before = trained_before(s, tmp_path, monkeypatch, "band statist")
     # the loads (the flows' and the synthetic likelihood's, which read no settings hash)
     with pytest.raises(RailsuspInputError, match=r"^an estimator of 2 s sections \(section_s"):
         PosteriorSettings.from_dict(before)
@@ -412,7 +421,6 @@ def test_a_third_octave_folder_whose_statistics_changed_is_refused_not_mixed(tmp
     the section: their settings' hash changes (band_resolution), a folder trained before is
     refused by train and by a load; settings whose statistics did not change (the 20 s
     default, 12 s without the family) and the EN 14363 marking keep their dicts."""
-    from railsusp.estimate.posterior_stamp import estimator_stamp
 
     third = dict(TINY, statistics=("third-octave",))
     s = PosteriorSettings((STRAIGHT,), section_s=12.0, **third)
@@ -422,20 +430,7 @@ def test_a_third_octave_folder_whose_statistics_changed_is_refused_not_mixed(tmp
         assert "band_resolution" not in PosteriorSettings((STRAIGHT,), **same).to_dict()
     en = PosteriorSettings((STRAIGHT,), section_s=2.0, **TINY).to_dict()["band_resolution"]
     assert en == "frequency step at most the narrowest band"  # folders trained since keep it
-    before = {k: v for k, v in s.to_dict().items() if k != "band_resolution"}
-    write_json(
-        tmp_path / "posterior" / "settings.json",
-        {"hash": content_hash(before), **estimator_stamp(), "settings": before},
-    )
-
-    def simulated(*args, **kw):
-        raise AssertionError("the folder of before was read as this training's")
-
-    monkeypatch.setattr(posterior, "cached_cases", simulated)
-    with pytest.raises(
-        RailsuspInputError, match="trained with other settings .*third-octave band statist"
-    ):
-        posterior.train(s, tmp_path)
+    before = trained_before(s, tmp_path, monkeypatch, "third-octave band statist")
     with pytest.raises(
         RailsuspInputError, match=r"^an estimator of 12 s sections \(section_s = 12\) .*"
         r"third-octave band RMS"
