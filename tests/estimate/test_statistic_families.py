@@ -278,8 +278,9 @@ def test_a_recording_gives_the_families_and_must_hold_the_partner_wheel(tmp_path
     assert alone.wheels == ("w1R",) and rec.wheels == ("w1R", "w1L")
     assert np.array_equal(rec.Y["w1R"], alone.Y["w1R"])
     assert np.array_equal(rec.Q["w1R"], alone.Q["w1R"])
-    rich = PosteriorSettings((curve,), section_s=9.0, n_train=20, n_check=10,
-                             statistics=("all",))  # fmt: skip (third-octave: >= 8.4 s)
+    rich = PosteriorSettings(  # (third-octave: sections of at least 8.4 s)
+        (curve,), section_s=9.0, n_train=20, n_check=10, statistics=("all",)
+    )
     x, used = recording_summaries(rich, [rec])
     assert x.shape == (2, len(rich.summary_names)) and np.all(np.isfinite(x))
     assert used == {"curve": {"sections": 2, "seconds_left_out": 0.0}}
