@@ -357,7 +357,7 @@ def test_a_table_along_distance_takes_its_speed_in_any_stated_unit(tmp_path, col
     assert rec.time.size == N and rec.sampling_rate == pytest.approx(RATE)
     frame[column] = np.where(np.arange(N) == 7, -5.0, v)  # named by its own column, unit
     msg = problems(table(tmp_path, frame, name="stop"))
-    unit = "kph" if column == "speed_kph" else "m/s"  # as the column states it
+    unit = "km/h" if column == "speed_kph" else "m/s"  # the column's unit, as spelt here
     assert f"column {column!r}, row 9: speed -5 {unit} (1 row(s) in all)" in msg
     del frame[column]
     msg = problems(table(tmp_path, frame, name="none"))

@@ -143,7 +143,7 @@ def read_field_table(path: Path) -> FieldTable:
         table.problems.append(str(exc).replace("channel", "column", 1))
         return table
     v = speed.values * factor
-    unit = normalise_unit(speed.unit)
+    unit = {1 / 3.6: "km/h", 1.0: "m/s"}.get(factor) or normalise_unit(speed.unit)  # as read
     bad = distance_problems(t, v, axis, speed.first_row, speed.name, (factor, unit))
     if bad:
         table.problems += bad
