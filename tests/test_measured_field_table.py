@@ -367,3 +367,28 @@ def test_a_table_along_distance_takes_its_speed_in_any_stated_unit(tmp_path, col
     assert "column 'speed': no unit stated; a speed channel needs one of m/s, km/h" in problems(
         table(tmp_path, frame, name="bare")
     )
+
+
+def test_a_table_with_old_mac_line_ends_reads_as_with_unix_ones(tmp_path):
+    # bare carriage returns (old Mac Excel): the header's csv reader raised "new-line
+    # character seen in unquoted field" (a traceback) where pandas reads them as line ends
+    path = make_recording().write(tmp_path / "rec")
+    unix = read_recording(path)
+    path.write_bytes(path.read_bytes().replace(b"\r\n", b"\n").replace(b"\n", b"\r"))
+    mac = read_recording(path)
+    np.testing.assert_array_equal(mac.time, unix.time)
+    np.testing.assert_array_equal(mac.Q["w1L"], unix.Q["w1L"])
+    path.write_bytes(b"\r\x00")  # the bytes the fuzz test found
+    assert problems(path)
+
+
+def test_a_giant_cell_is_refused_in_a_short_line(tmp_path):
+    path = make_recording().write(tmp_path / "rec")
+    lines = path.read_text().splitlines()
+    giant = "x" * 200_000  # beyond the csv module's field size limit (131 072)
+    path.write_text("\n".join([lines[0] + "," + giant, *lines[1:]]) + "\n")
+    msg = problems(path)
+    assert "cannot read the table (field larger than field limit" in msg and len(msg) < 400
+    path.write_text("\n".join([lines[0], giant + lines[1][lines[1].index(",") :], *lines[2:]]))
+    msg = problems(path)
+    assert "row 2: 'xxxxx" in msg and "is not a number" in msg and len(msg) < 400

@@ -47,6 +47,13 @@ def did_you_mean(name: str, options: list[str]) -> str:
     return f" (did you mean {m[0]!r}?)" if m else ""
 
 
+def cut_repr(value: object, width: int = 60) -> str:
+    """``repr(value)`` cut to ``width`` characters for a one-line message: a recording's
+    cell of 200 000 characters was quoted whole in its refusal."""
+    text = repr(value)
+    return text if len(text) <= width else text[: width - 3] + "..."
+
+
 def first_listed(items: Sequence[object], shown: int) -> str:
     """The first ``shown`` of ``items`` for a message, comma-separated, and how many more
     (``"a, b, c and 4 more"``): a long list in one line."""

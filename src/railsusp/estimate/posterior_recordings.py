@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from railsusp.errors import RailsuspInputError
+from railsusp.errors import RailsuspInputError, cut_repr
 from railsusp.estimate.posterior_data import BANDWIDTH_HZ, TrainingWheel
 from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.estimate.statistic_families import (
@@ -157,21 +157,15 @@ def check_recordings(recordings) -> list:
     how = "railsusp.measured.read_field(folder) reads a field folder's"
     if not isinstance(recordings, list | tuple):  # a path, a Recording alone, ...
         raise RailsuspInputError(
-            f"recordings = {_shown(recordings)}: accepted a list of Recording ({how})"
+            f"recordings = {cut_repr(recordings)}: accepted a list of Recording ({how})"
         )
     for i, r in enumerate(recordings):
         if not isinstance(r, Recording):
             raise RailsuspInputError(
-                f"recordings[{i}] = {_shown(r)}: accepted a list of Recording ({how}; "
+                f"recordings[{i}] = {cut_repr(r)}: accepted a list of Recording ({how}; "
                 "railsusp.measured.read_recording(path) reads one file)"
             )
     return list(recordings)
-
-
-def _shown(value) -> str:
-    """A value as an error message shows it: its repr, cut short."""
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _check_bandwidth(rec, name: str) -> None:

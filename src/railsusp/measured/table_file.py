@@ -15,11 +15,13 @@ import csv
 import io
 import warnings
 from collections import Counter
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from railsusp.errors import cut_repr
 from railsusp.integrity import csv_last_line_cut
 from railsusp.measured.recording import RecordingError
 
@@ -46,7 +48,7 @@ def read_frame(path: Path) -> tuple[pd.DataFrame, list[str], dict[str, list[int]
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError:
         raise RecordingError(path, [_not_utf8(data)]) from None
-    header = next(csv.reader(io.StringIO(text)), [])
+    header = next(_csv_rows(path, text), [])
     if len(header) == 1 and any(sep in header[0] for sep in ";\t"):
         sep = "';'" if ";" in header[0] else "a tab"
         raise RecordingError(
@@ -62,11 +64,11 @@ def read_frame(path: Path) -> tuple[pd.DataFrame, list[str], dict[str, list[int]
             warnings.simplefilter("always", pd.errors.ParserWarning)
             df = pd.read_csv(io.StringIO(text), dtype=str, keep_default_na=False, index_col=False)
     except Exception as exc:  # pandas raises many types on a damaged file
-        longer = _longer_lines(text, len(header))
+        longer = _longer_lines(path, text, len(header))
         raise RecordingError(
             path, [longer or f"cannot read the table ({_first_line(exc)})"]
         ) from None
-    if caught and (longer := _longer_lines(text, len(header))):  # cut off, were they read
+    if caught and (longer := _longer_lines(path, text, len(header))):  # cut off, were they read
         raise RecordingError(path, [longer])
     if csv_last_line_cut(path, len(df.columns)):
         raise RecordingError(
@@ -131,18 +133,29 @@ def column_numbers(raw: pd.Series) -> tuple[np.ndarray, str | None, str]:
         comma = " (',' as decimal mark? accepted '.')" if "," in str(raw.iloc[i]) else ""
         return (
             np.zeros(0),
-            f", row {i + 2}: {raw.iloc[i]!r} is not a number{comma} ({int(bad.sum())} such "
+            f", row {i + 2}: {cut_repr(raw.iloc[i])} is not a number{comma} ({int(bad.sum())} such "
             "cell(s))",
-            f"text, {raw.iloc[i]!r} in row {i + 2}",
+            f"text, {cut_repr(raw.iloc[i])} in row {i + 2}",
         )
     return vals.to_numpy(dtype=float), None, ""
 
 
-def _longer_lines(text: str, n_header: int) -> str | None:
+def _csv_rows(path: Path, text: str) -> Iterator[list[str]]:
+    """The rows of a CSV text, its lines ended as pandas ends them (``\\r\\n``, ``\\n`` or a
+    bare ``\\r``, old Mac Excel's: without ``newline=""`` the ``csv`` module raised on a bare
+    ``\\r`` inside a line); a row it cannot parse (a cell beyond its field size limit) is the
+    file's problem, said as :class:`RecordingError`, not a traceback."""
+    try:
+        yield from csv.reader(io.StringIO(text, newline=""))
+    except csv.Error as exc:
+        raise RecordingError(path, [f"cannot read the table ({_first_line(exc)})"]) from None
+
+
+def _longer_lines(path: Path, text: str, n_header: int) -> str | None:
     """The lines with values in more cells than the header's (empty cells after the last
     are a comma at a line's end, no value), as a problem; None where there are none."""
     longer = [
-        i for i, cells in enumerate(csv.reader(io.StringIO(text)), start=1)
+        i for i, cells in enumerate(_csv_rows(path, text), start=1)
         if len(cells) > n_header and any(c.strip() for c in cells[n_header:])
     ]  # fmt: skip
     if not longer:
