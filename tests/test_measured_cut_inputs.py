@@ -44,7 +44,10 @@ def test_a_line_description_on_a_run_without_a_position_channel_says_it_starts_a
     from railsusp.measured.sections import LINE_FROM_ZERO_NOTE
 
     line = tmp_path / "line.csv"
-    line.write_text("km_start,km_end,radius_m,cant_mm,grade_permille\n0,0.4,,0,0\n0.4,2,800,50,0\n")
+    line.write_text(
+        "km_start,km_end,radius_m,direction,cant_mm,grade_permille\n0,0.4,,,0,0\n"
+        "0.4,2,800,left,50,0\n"
+    )
     run = read_run(_table_run(tmp_path / "a.csv", position=False))
     assert run.position_from_speed
     cut_sections(run)  # no line: nothing to say
@@ -64,7 +67,8 @@ def test_a_section_table_row_only_partly_on_the_run_says_so(tmp_path):
     run = track_run(rate=50.0)  # 0 to 2100 m
     table = tmp_path / "t.csv"
     table.write_text(
-        "start_m,end_m,name,radius_m\n-100,300,head,\n800,1300,curve,600\n1800,2400,tail,\n"
+        "start_m,end_m,name,radius_m,direction\n-100,300,head,,\n800,1300,curve,600,left\n"
+        "1800,2400,tail,,\n"
     )
     secs = cut_sections(run, table=read_section_table(table))
     reasons = {s.name: s.reason for s in secs if s.kept}

@@ -21,6 +21,7 @@ from railsusp.measured.sections import (
     cut_sections,
     geometry_from_line,
     read_line,
+    read_section_table,
 )
 from railsusp.measured.sections_out import write_sections
 from railsusp.measured.units import si_factor, split_header
@@ -317,7 +318,8 @@ def test_a_line_description_gives_the_same_track_as_the_channels(tmp_path):
     [
         ("0,0.5,-300,left,0,0", "radius_m = -300: accepted 50 to 100000, or empty (0 or empty"),
         ("0,0.5,30,left,0,0", "radius_m = 30: accepted 50 to 100000"),
-        ("0,0.5,400,up,90,0", "direction = 'up': accepted left, right or empty (left)"),
+        ("0,0.5,400,up,90,0", "direction = 'up': accepted left or right (empty on a tangent"),
+        ("0,0.5,400,,90,0", "radius_m = 400 with no hand (direction empty): accepted direction"),
         ("0,0.5,400,left,900,0", "cant_mm = 900: accepted 0 to 200"),
         ("0,0.5,,left,0,120", "grade_permille = 120: accepted -40 to 40"),
         ("0,nan,,left,0,0", "km_end = 'nan' not a number"),  # nan: read, refused
@@ -335,8 +337,29 @@ def test_a_line_description_outside_what_a_condition_takes_is_refused(tmp_path, 
     assert f"line description {line}, row 2: {needle}" in str(info.value)
 
 
+def test_a_curve_whose_hand_is_not_stated_is_refused_not_taken_as_left(tmp_path):
+    """A line description or section table without a direction column took every curve as
+    left-hand: a right-hand curve's inner wheel was then compared as its outer one, without
+    a word (the docs audit of stop 72). A tangent row needs no direction."""
+    line = tmp_path / "line.csv"
+    line.write_text("km_start,km_end,radius_m,cant_mm,grade_permille\n0,0.5,,0,0\n0.5,1,350,60,0\n")
+    with pytest.raises(RailsuspInputError) as info:
+        read_line(line)
+    assert (
+        f"line description {line}, row 3: radius_m = 350 with no hand (it has no direction "
+        "column): accepted direction = left or right on each curve row (as seen running "
+        "towards increasing km posts; it decides which wheel is outer)"
+    ) == str(info.value)
+    line.write_text("km_start,km_end,radius_m,cant_mm,grade_permille\n0,0.5,,0,0\n")
+    assert len(read_line(line)) == 1  # tangent only: nothing to state
+    table = tmp_path / "t.csv"
+    table.write_text("start_m,end_m,radius_m,direction\n0,300,,\n300,900,600,\n")
+    with pytest.raises(RailsuspInputError, match="row 3: radius_m = 600 with no hand .direction "
+                       "empty.: accepted .* increasing positions"):  # fmt: skip
+        read_section_table(table)
+
+
 def test_a_section_table_needs_both_ends_in_every_row(tmp_path):
-    from railsusp.measured.line import read_section_table
 
     table = tmp_path / "t.csv"
     table.write_text("start_m,end_m\n50,nan\n")
@@ -616,7 +639,6 @@ def test_a_section_table_without_the_runs_track_is_refused_or_states_it(tmp_path
     level tangent, a curve's too, without a word. Refused now, naming the remedies; or the
     table states its rows' track (optional columns as a line description's), which over a
     run's channels is the rows' track too."""
-    from railsusp.measured.line import read_section_table
 
     run = track_run(rate=50.0, curvature=False)
     table = tmp_path / "t.csv"
@@ -648,7 +670,6 @@ def test_a_section_table_without_the_runs_track_is_refused_or_states_it(tmp_path
 def test_a_section_table_row_the_run_never_reaches_or_overlapping_another_is_refused(tmp_path):
     """Defect 2: a row beyond the run vanished from the cut without a line, and rows that
     overlap put the same samples into two sections."""
-    from railsusp.measured.line import read_section_table
 
     run = track_run(rate=50.0)
     table = tmp_path / "t.csv"

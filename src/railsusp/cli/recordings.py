@@ -3,6 +3,7 @@ sections of one working condition, copy the shipped example run."""
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -190,7 +191,10 @@ def sections_command(
     ] = None,
     line: Annotated[
         Path | None,
-        typer.Option(help="line description CSV: km_start,km_end,radius_m,cant_mm,grade_permille"),
+        typer.Option(
+            help="line description CSV: km_start,km_end,radius_m,direction,cant_mm,"
+            "grade_permille (direction left/right on each curve row)"
+        ),
     ] = None,
     table: Annotated[
         Path | None,
@@ -333,26 +337,30 @@ def example_recording(
         hold_folders(creates=[("--out", out)])
         data = resources.files("railsusp") / "data"
         # a file there that is not the shipped one (the tutorial has the user edit the
-        # configuration) is not written over: it was, silently (command-line audit, stop 60)
-        edited = [
-            n for n in EXAMPLE_FILES
-            if (out / n).exists() and (out / n).read_bytes() != (data / n).read_bytes()
-        ]  # fmt: skip
-        if edited:
-            raise RailsuspInputError(
-                f"--out {out}: {', '.join(edited)} already there and not the shipped "
-                f"file{'s' if len(edited) > 1 else ''} (edited?); accepted a new folder, or "
-                "move them first"
-            )
-        # a file already there as shipped is left alone: rewritten, its new modification
-        # time made the next `railsusp run` redo its stages (the docs audit of stop 65)
-        for name in EXAMPLE_FILES:
-            if not (out / name).exists():
-                atomic_write_bytes(out / name, (data / name).read_bytes())
+        # configuration) is not written over: it was, silently (command-line audit, stop 60);
+        # nor is one there as shipped: rewritten, its new modification time made the next
+        # `railsusp run` redo its stages (the docs audit of stop 65). The missing ones are
+        # written whatever else is there: beside an edited file the command wrote nothing,
+        # a deleted recording was not restored (the docs audit of stop 72)
+        there = [n for n in EXAMPLE_FILES if (out / n).exists()]
+        edited = [n for n in there if (out / n).read_bytes() != (data / n).read_bytes()]
+        written = [n for n in EXAMPLE_FILES if n not in there]
+        for name in written:
+            atomic_write_bytes(out / name, (data / name).read_bytes())
     except OSError as exc:  # a full disk, a quota, an I/O error exit 1 (the machine, as
         # every other command): it exited 2, bad input (the disk audit); the file it names
         name = f"{exc.filename}: " if exc.filename else ""
         fail(f"--out {out}: cannot write there ({name}{exc.strerror or exc})", exit_code(exc))
     except RailsuspInputError as exc:
         fail(str(exc))
-    console.print(f"wrote {', '.join(EXAMPLE_FILES)} to {out}")
+    if edited:  # a warning: shown under --quiet too
+        warnings.warn(
+            f"--out {out}: left as they are, not the shipped files (edited?): "
+            f"{', '.join(edited)}; move them away, or give a new --out, for fresh copies",
+            stacklevel=1,
+        )
+    same = [n for n in there if n not in edited]
+    console.print(
+        (f"wrote {', '.join(written)} to {out}" if written else f"nothing written to {out}")
+        + (f"; already there as shipped: {', '.join(same)}" if same else "")
+    )

@@ -26,7 +26,7 @@ RESERVED_NAMES = ("index", "sections", "en14363")
 def geometry_from_line(position_m: np.ndarray, line: pd.DataFrame) -> dict[str, np.ndarray]:
     """Curvature (1/m, + left), cant (m) and grade (1) under each position from a line
     description with columns ``km_start, km_end, radius_m, cant_mm, grade_permille`` and
-    optional ``direction`` (left/right); radius 0 or empty is tangent. Positions outside
+    ``direction`` (left/right, on each curve row); radius 0 or empty is tangent. Positions outside
     every row are NaN. A line description states direction and grade as seen running
     towards increasing km posts; a run towards decreasing ones (its position falling) sees
     a left-hand curve as right-hand and an up-grade as down-grade, so both are mirrored
@@ -144,7 +144,8 @@ def _check_track(df: pd.DataFrame, what: str) -> None:
     """Refuse, row by row, track columns outside what a working condition takes (those of
     ``radius_m, cant_mm, grade_permille, direction`` that ``df`` has): a negative radius
     was taken for tangent, a direction "up" for left, a grade in per cent written into a
-    condition; and cant on a tangent row (shown, then written as 0)."""
+    condition; a curve row whose hand is not stated (it was taken as left); and cant on a
+    tangent row (shown, then written as 0)."""
     # empty radius, cant, grade: tangent, level; radius 0: tangent
     for column, field in (("radius_m", "curve_radius_m"), ("cant_mm", "cant_mm"),
                           ("grade_permille", "grade_permille")):  # fmt: skip
@@ -161,14 +162,27 @@ def _check_track(df: pd.DataFrame, what: str) -> None:
                 f"{what}, row {i + 2}: {column} = {vals[i]:g}: accepted {lo:g} to {hi:g}, or "
                 "empty" + (" (0 or empty: tangent)" if column == "radius_m" else "")
             )
-    if "direction" in df:
-        given = pd.Series(text_cells(df["direction"])).str.strip().str.lower()
-        wrong = ~given.isin(["", "left", "right"])
-        if wrong.any():
-            i = int(np.flatnonzero(wrong.to_numpy())[0])
+    given = pd.Series(text_cells(df["direction"]) if "direction" in df else [""] * len(df))
+    given = given.str.strip().str.lower()
+    wrong = ~given.isin(["", "left", "right"])
+    if wrong.any():
+        i = int(np.flatnonzero(wrong.to_numpy())[0])
+        raise RailsuspInputError(
+            f"{what}, row {i + 2}: direction = {df['direction'].iloc[i]!r}: accepted left or "
+            "right (empty on a tangent row)"
+        )
+    if "radius_m" in df:  # an unstated hand was taken as left: a right-hand curve's inner
+        # wheel was then compared as its outer one, without a word (the docs audit, stop 72)
+        curve = np.nan_to_num(df.radius_m.to_numpy(dtype=float)) > 0.0
+        unstated = curve & (given == "").to_numpy()
+        if unstated.any():
+            i = int(np.flatnonzero(unstated)[0])
+            lack = "it has no direction column" if "direction" not in df else "direction empty"
+            towards = "km posts" if "km_start" in df else "positions"
             raise RailsuspInputError(
-                f"{what}, row {i + 2}: direction = {df['direction'].iloc[i]!r}: accepted left, "
-                "right or empty (left)"
+                f"{what}, row {i + 2}: radius_m = {df.radius_m.iloc[i]:g} with no hand "
+                f"({lack}): accepted direction = left or right on each curve row (as seen "
+                f"running towards increasing {towards}; it decides which wheel is outer)"
             )
     if "radius_m" in df and "cant_mm" in df:
         tangent = ~(df.radius_m.to_numpy(dtype=float) > 0.0)
