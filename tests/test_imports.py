@@ -61,3 +61,19 @@ def test_import_railsusp_stays_light_and_api_loads_on_first_use():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False", "True"]
+
+
+def test_the_modules_the_docs_name_are_attributes_after_a_plain_import():
+    # docs/api.md: railsusp.api.OutdatedModelWarning, railsusp.vehicle.MODEL_REVISION raised
+    # AttributeError after `import railsusp` (the docs audit of stop 72)
+    code = (
+        "import sys, railsusp; a = 'railsusp.vehicle' in sys.modules; "
+        "print(a, railsusp.api.OutdatedModelWarning is railsusp.OutdatedModelWarning, "
+        "railsusp.vehicle.MODEL_REVISION == __import__('railsusp.vehicle').vehicle.MODEL_REVISION)"
+        "\ntry:\n    railsusp.no_such_module\nexcept AttributeError as e:\n    print(e)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.splitlines() == [
+        "False True True",
+        "module 'railsusp' has no attribute 'no_such_module'",
+    ]

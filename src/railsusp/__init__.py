@@ -8,6 +8,9 @@ conditions. ``run``, ``open_run`` and ``RunResult`` load on first use, so that
 ``import railsusp`` stays light.
 """
 
+import importlib
+import importlib.util
+
 from railsusp._version import __version__
 from railsusp.conditions import STANDARD_CONDITIONS, WorkingCondition, get_condition
 from railsusp.errors import ConditionError, ParameterError, RailsuspInputError
@@ -18,6 +21,7 @@ __all__ = [
     "MAIN_SUSPENSION",
     "STANDARD_CONDITIONS",
     "ConditionError",
+    "OutdatedModelWarning",
     "ParameterError",
     "ParameterSet",
     "RailsuspInputError",
@@ -31,14 +35,19 @@ __all__ = [
     "run",
 ]
 
-_API = ("RunResult", "Tolerances", "open_run", "run")
+_API = ("OutdatedModelWarning", "RunResult", "Tolerances", "open_run", "run")
 
 
 def __getattr__(name: str):
+    """The lazily imported API, and railsusp's modules by attribute as the docs name them
+    (``railsusp.api.OutdatedModelWarning``, ``railsusp.vehicle.MODEL_REVISION``): after a
+    plain ``import railsusp`` they raised AttributeError (the docs audit of stop 72)."""
     if name in _API:
         import railsusp.api as api
 
         return getattr(api, name)
+    if not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
+        return importlib.import_module(f"{__name__}.{name}")
     raise AttributeError(f"module 'railsusp' has no attribute {name!r}")
 
 
