@@ -186,10 +186,22 @@ def test_example_recording_does_not_write_over_an_edited_file(tmp_path):
     )
     config = tmp_path / "example_run.pipeline.toml"
     config.write_text(config.read_text() + "# my edit\n")
+    (tmp_path / "example_run.mf4").unlink()  # deleted: restored beside the edited file
     result = runner.invoke(app, ["example-recording", "--out", str(tmp_path)])
-    assert result.exit_code == 2
-    assert "example_run.pipeline.toml already there and not the shipped file" in result.output
+    # beside an edited file it wrote nothing (exit 2): the deleted recording stayed lost
+    assert result.exit_code == 0, result.output
     assert config.read_text().endswith("# my edit\n")
+    assert (tmp_path / "example_run.mf4").stat().st_mtime_ns != stamps["example_run.mf4"]
+    out = " ".join(result.output.split())
+    assert f"wrote example_run.mf4 to {tmp_path}; already there as shipped: " in out
+    assert (
+        f"--out {tmp_path}: left as they are, not the shipped files (edited?): "
+        "example_run.pipeline.toml; move them away, or give a new --out, for fresh copies"
+    ) in out
+    result = runner.invoke(app, ["example-recording", "--out", str(tmp_path)])
+    assert f"nothing written to {tmp_path}; already there as shipped" in " ".join(
+        result.output.split()
+    )  # it said "wrote" every file while it wrote none
 
 
 def synthetic_run(path, seed):
