@@ -7,8 +7,15 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: demo test lint bench clean browser
 
+# PyTorch's CPU build from TORCH_INDEX where given: on Linux a plain pip install of the
+# pinned torch takes the CUDA build of several GB unless pip has the CPU wheel at hand
+# (make demo TORCH_INDEX=https://download.pytorch.org/whl/cpu; README, "Two commands")
+TORCH_INDEX ?=
+
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(if $(TORCH_INDEX),$(BIN)/python -m pip install --quiet --disable-pip-version-check \
+	  'torch==2.13.*' --index-url $(TORCH_INDEX))
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[dev]'
 	touch $(STAMP)
 
