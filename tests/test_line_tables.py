@@ -60,7 +60,11 @@ def test_a_section_table_whose_names_collide_is_refused(tmp_path, rows, said):
     ("columns", "row", "said"),
     [
         ("radius_m,direction", "30,left", "row 2: radius_m = 30: accepted 50 to 100000, or empty"),
-        ("radius_m,direction", "600,up", "row 2: direction = 'up': accepted left, right or empty"),
+        (
+            "radius_m,direction",
+            "600,up",
+            "row 2: direction = 'up': accepted left or right \\(empty on a tangent row\\)",
+        ),
         ("radius_m,cant_mm", ",50", "row 2: cant_mm = 50 on a tangent row"),
         ("grade_permille", "120", "row 2: grade_permille = 120: accepted -40 to 40"),
         ("direction", "left", "a direction column without radius_m; accepted radius_m"),
@@ -94,8 +98,13 @@ def test_an_empty_section_name_is_refused_in_one_line(tmp_path, rows, said):
 
 def test_section_names_and_an_empty_direction_are_read_as_written(tmp_path):
     """Names that look like numbers stay as written ("01" was 1), and an empty direction
-    cell is left (the default), without pandas' warning on filling a float column."""
+    cell on a tangent row is read, without pandas' warning on filling a float column; on a
+    curve row it is refused (stop 72: it was taken as left)."""
     table = read_section_table(
-        _write(tmp_path, "start_m,end_m,name,radius_m,direction\n0,500,01,,\n500,900,2,600,\n")
+        _write(tmp_path, "start_m,end_m,name,radius_m,direction\n0,500,01,,\n500,900,2,600,right\n")
     )
     assert list(table.name) == ["01", "2"]
+    with pytest.raises(RailsuspInputError, match=r"row 3: radius_m = 600 with no hand"):
+        read_section_table(
+            _write(tmp_path, "start_m,end_m,name,radius_m,direction\n0,500,a,,\n500,900,b,600,\n")
+        )
