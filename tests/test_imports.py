@@ -77,3 +77,15 @@ def test_the_modules_the_docs_name_are_attributes_after_a_plain_import():
         "False True True",
         "module 'railsusp' has no attribute 'no_such_module'",
     ]
+
+
+def test_only_a_plain_module_name_is_an_attribute():
+    """The review of stop 72: ``hasattr(railsusp, "a.b")`` raised ModuleNotFoundError, and
+    ``getattr(railsusp, "vehicle.model")`` gave the submodule; the package's own import of
+    importlib was an attribute too."""
+    code = (
+        "import railsusp; print(hasattr(railsusp, 'zzz.y'), hasattr(railsusp, 'vehicle.model'), "
+        "hasattr(railsusp, 'importlib'), hasattr(railsusp, 'vehicle'))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "False", "False", "True"]

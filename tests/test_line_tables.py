@@ -4,6 +4,7 @@ overlap (the later one won), cant on a tangent row (shown, then written as 0), a
 names that are the field folder's own files or repeat (one recording written over
 another)."""
 
+import warnings
 from pathlib import Path
 
 import pytest
@@ -100,11 +101,46 @@ def test_section_names_and_an_empty_direction_are_read_as_written(tmp_path):
     """Names that look like numbers stay as written ("01" was 1), and an empty direction
     cell on a tangent row is read, without pandas' warning on filling a float column; on a
     curve row it is refused (stop 72: it was taken as left)."""
-    table = read_section_table(
-        _write(tmp_path, "start_m,end_m,name,radius_m,direction\n0,500,01,,\n500,900,2,600,right\n")
-    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # pandas' FutureWarning on filling a float column
+        table = read_section_table(
+            _write(
+                tmp_path, "start_m,end_m,name,radius_m,direction\n0,500,01,,\n500,900,2,600,right\n"
+            )
+        )
     assert list(table.name) == ["01", "2"]
     with pytest.raises(RailsuspInputError, match=r"row 3: radius_m = 600 with no hand"):
         read_section_table(
             _write(tmp_path, "start_m,end_m,name,radius_m,direction\n0,500,a,,\n500,900,b,600,\n")
         )
+
+
+@pytest.mark.parametrize(
+    ("header", "row"),
+    [
+        ("start_m,end_m,name", "0,500," + "x" * 5000),
+        ("start_m,end_m,radius_m,direction", "0,500,600," + "y" * 5000),
+        ("start_m,end_m,radius_m", "0,500," + "z" * 5000),
+    ],
+)
+def test_a_long_cell_is_quoted_cut_in_its_refusal(tmp_path, header, row):
+    """The review of stop 72: a 5000-character name, direction or number cell was quoted
+    whole (a refusal of 5100 characters)."""
+    with pytest.raises(RailsuspInputError, match=r"row 2: .*\.\.\.") as err:
+        read_section_table(_write(tmp_path, f"{header}\n{row}\n"))
+    assert len(str(err.value)) < 400
+
+
+def test_a_curve_row_of_a_table_given_as_a_data_frame_states_its_hand():
+    """The review of stop 72: a section table passed as a DataFrame (not read by
+    read_section_table) took a curve without a direction column as left."""
+    import numpy as np
+    import pandas as pd
+
+    from railsusp.measured.line import geometry_from_table
+
+    rows = pd.DataFrame({"start_m": [0.0], "end_m": [500.0], "radius_m": [600.0]})
+    with pytest.raises(RailsuspInputError, match="track row 1: radius_m = 600 with direction"):
+        geometry_from_table(np.linspace(0.0, 400.0, 5), rows)
+    right = geometry_from_table(np.linspace(0.0, 400.0, 5), rows.assign(direction="right"))
+    assert np.allclose(right["curvature"], -1 / 600.0)

@@ -392,3 +392,19 @@ def test_a_giant_cell_is_refused_in_a_short_line(tmp_path):
     path.write_text("\n".join([lines[0], giant + lines[1][lines[1].index(",") :], *lines[2:]]))
     msg = problems(path)
     assert "row 2: 'xxxxx" in msg and "is not a number" in msg and len(msg) < 400
+
+
+def test_a_one_column_header_is_quoted_cut(tmp_path):
+    """The review of stop 72: an 800-column header separated by ';' was quoted whole in its
+    refusal (5656 characters)."""
+    from railsusp.measured import RecordingError, read_recording
+
+    path = tmp_path / "rec.csv"
+    path.write_text(";".join(f"col{i}" for i in range(800)) + "\n" + ";".join("1" * 800) + "\n")
+    path.with_suffix(".json").write_text(
+        '{"format": "railsusp-recording/1", "wheels": ["w1L"], "sampling_rate_hz": 50, '
+        '"condition_name": "straight"}'
+    )
+    with pytest.raises(RecordingError, match=r"the header 'col0;col1;.*\.\.\. is one column") as e:
+        read_recording(path)
+    assert len(str(e.value)) < 400

@@ -514,3 +514,21 @@ def test_an_unused_long_run_column_named_twice_or_of_text_is_noted_not_refused(t
     assert "channel(s) not used: flag (booleans, not numbers)" in run.notes
     with pytest.raises(RecordingError, match="column 'flag' holds booleans"):
         read_run(tmp_path / "r.parquet", channel_map_from({**RUN_MAP, "grade": "flag"}))
+
+
+def test_a_sidecar_curve_without_its_hand_is_refused(tmp_path):
+    """The review of stop 72: a sidecar condition with a curve radius and no
+    curve_direction was read as a left-hand curve without a word (a right-hand curve's
+    inner wheel then compared as its outer one)."""
+    import json
+
+    make_recording().write(tmp_path / "r.csv")
+    side = tmp_path / "r.json"
+    doc = json.loads(side.read_text())
+    curve = {**doc["condition"], "curve_radius_m": 600.0, "cant_mm": 50.0}
+    curve.pop("curve_direction")
+    side.write_text(json.dumps({**doc, "condition": curve}))
+    with pytest.raises(RecordingError, match="curve_radius_m = 600.0 with no curve_direction"):
+        read_recording(tmp_path / "r.csv")
+    side.write_text(json.dumps({**doc, "condition": {**curve, "curve_direction": "right"}}))
+    assert read_recording(tmp_path / "r.csv").condition.curve_direction == "right"

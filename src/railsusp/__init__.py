@@ -8,8 +8,8 @@ conditions. ``run``, ``open_run`` and ``RunResult`` load on first use, so that
 ``import railsusp`` stays light.
 """
 
-import importlib
-import importlib.util
+import importlib as _importlib
+import importlib.util as _importlib_util
 
 from railsusp._version import __version__
 from railsusp.conditions import STANDARD_CONDITIONS, WorkingCondition, get_condition
@@ -46,8 +46,11 @@ def __getattr__(name: str):
         import railsusp.api as api
 
         return getattr(api, name)
-    if not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
-        return importlib.import_module(f"{__name__}.{name}")
+    # a plain name only: a dotted one ("vehicle.model") gave the submodule, and one of no
+    # module (hasattr(railsusp, "a.b")) raised ModuleNotFoundError (the review of stop 72)
+    submodule = name.isidentifier() and not name.startswith("_")
+    if submodule and _importlib_util.find_spec(f"{__name__}.{name}") is not None:
+        return _importlib.import_module(f"{__name__}.{name}")
     raise AttributeError(f"module 'railsusp' has no attribute {name!r}")
 
 

@@ -200,7 +200,7 @@ def sections_command(
         Path | None,
         typer.Option(
             help="section table CSV: start_m,end_m[,name] and optionally the track of each "
-            "row: radius_m, direction, cant_mm, grade_permille"
+            "row: radius_m, direction (left/right on each curve row), cant_mm, grade_permille"
         ),
     ] = None,
     speed_tolerance: Annotated[

@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 
 from railsusp.conditions import field_range
-from railsusp.errors import RailsuspInputError
+from railsusp.errors import RailsuspInputError, cut_repr
 
 #: a section name, which becomes a file name: no path separators, no leading dot
 _NAME = r"[A-Za-z0-9][A-Za-z0-9._-]"
@@ -57,7 +57,13 @@ def _geometry_of_rows(
         inside = (position_m >= start_m.iloc[k]) & (position_m < end_m.iloc[k])
         if "curvature" in out:
             radius = float(r.radius_m) if np.isfinite(r.radius_m) else 0.0
-            side = str(getattr(r, "direction", "left")).strip().lower()
+            side = str(getattr(r, "direction", "")).strip().lower()
+            if radius > 0 and side not in ("left", "right"):  # a table given as a DataFrame,
+                # not read: a curve's unstated hand was taken as left (the review of stop 72)
+                raise RailsuspInputError(
+                    f"track row {k + 1}: radius_m = {radius:g} with direction = "
+                    f"{cut_repr(getattr(r, 'direction', None))}: accepted left or right"
+                )
             sign = -1.0 if side == "right" else 1.0
             out["curvature"][inside] = sense * sign / radius if radius > 0 else 0.0
         if "cant" in out:
@@ -109,7 +115,7 @@ def read_section_table(path: str | Path) -> pd.DataFrame:
                 )
             if not SAFE_NAME.fullmatch(name):
                 raise RailsuspInputError(
-                    f"{what}, row {i + 2}: name {name!r}: accepted 1-60 "
+                    f"{what}, row {i + 2}: name {cut_repr(name)}: accepted 1-60 "
                     "letters, digits, '.', '_', '-', starting with a letter or digit"
                 )
             if name.casefold() in RESERVED_NAMES:
@@ -168,8 +174,8 @@ def _check_track(df: pd.DataFrame, what: str) -> None:
     if wrong.any():
         i = int(np.flatnonzero(wrong.to_numpy())[0])
         raise RailsuspInputError(
-            f"{what}, row {i + 2}: direction = {df['direction'].iloc[i]!r}: accepted left or "
-            "right (empty on a tangent row)"
+            f"{what}, row {i + 2}: direction = {cut_repr(df['direction'].iloc[i])}: accepted "
+            "left or right (empty on a tangent row)"
         )
     if "radius_m" in df:  # an unstated hand was taken as left: a right-hand curve's inner
         # wheel was then compared as its outer one, without a word (the docs audit, stop 72)
@@ -254,7 +260,8 @@ def _read_csv(
         if bad.any():
             i = int(np.flatnonzero(bad.to_numpy())[0])
             raise RailsuspInputError(
-                f"{what}, row {i + 2}: {c} = {df[c].iloc[i]!r} not a number: accepted {accepted}"
+                f"{what}, row {i + 2}: {c} = {cut_repr(df[c].iloc[i])} not a number: "
+                f"accepted {accepted}"
             )
         infinite = df[c].notna() & ~np.isfinite(vals.astype(float))
         if infinite.any():  # "nan", "inf": read as an empty cell (a tangent, level track)

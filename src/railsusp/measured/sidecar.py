@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from railsusp.conditions import WorkingCondition, get_condition, make_condition
-from railsusp.errors import RailsuspInputError
+from railsusp.errors import RailsuspInputError, cut_repr
 from railsusp.input_checks import json_numbers
 from railsusp.measured.recording import FORMAT
 from railsusp.numbers import is_real
@@ -105,6 +105,15 @@ def sidecar_condition(
             f"{named!r}: accepted one of them (or the same name in both)"
         )
         return None
+    if isinstance(cdoc, dict) and cdoc.get("curve_radius_m") is not None:
+        if "curve_direction" not in cdoc:  # taken as left without a word: a right-hand
+            # curve's inner wheel compared as its outer one (the review of stop 72)
+            problems.append(
+                f"{side}: condition.curve_radius_m = {cut_repr(cdoc['curve_radius_m'])} with "
+                'no curve_direction: accepted curve_direction = "left" or "right" (seen in '
+                "the running direction; it decides which wheel is outer)"
+            )
+            return None
     try:
         if isinstance(cdoc, dict):
             condition = make_condition(json_numbers(cdoc))

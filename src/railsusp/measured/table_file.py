@@ -54,7 +54,8 @@ def read_frame(path: Path) -> tuple[pd.DataFrame, list[str], dict[str, list[int]
         raise RecordingError(
             path,
             [
-                f"the header {header[0]!r} is one column: its cells are separated by {sep}; "
+                f"the header {cut_repr(header[0], 80)} is one column: its cells are separated "
+                f"by {sep}; "
                 "accepted a comma-separated table with '.' as decimal mark"
             ],
         )
