@@ -425,7 +425,13 @@ def test_a_sidecar_condition_of_another_duration_is_refused_and_an_unstated_one_
     side.write_text(json.dumps(doc))
     with pytest.raises(RecordingError, match="condition duration_s 4 s, the table 100 rows"):
         read_recording(tmp_path / "r.csv")
-    doc["condition"] = {"name": "curve", "speed_kmh": 60, "curve_radius_m": 300, "cant_mm": 110}
+    doc["condition"] = {
+        "name": "curve",
+        "speed_kmh": 60,
+        "curve_radius_m": 300,
+        "curve_direction": "left",
+        "cant_mm": 110,
+    }
     side.write_text(json.dumps(doc))  # the documented sidecar: no duration stated
     back = read_recording(tmp_path / "r.csv")
     assert (back.condition.duration_s, back.condition.n_steps) == (2.0, 100)
