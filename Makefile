@@ -11,11 +11,13 @@ STAMP  := $(VENV)/.installed
 # pinned torch takes the CUDA build of several GB unless pip has the CPU wheel at hand
 # (make demo TORCH_INDEX=https://download.pytorch.org/whl/cpu; README, "Two commands")
 TORCH_INDEX ?=
+# the pin as pyproject.toml states it (one place to change it)
+TORCH_PIN := $(shell grep -o "torch==[^\"']*" pyproject.toml)
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(if $(TORCH_INDEX),$(BIN)/python -m pip install --quiet --disable-pip-version-check \
-	  'torch==2.13.*' --index-url $(TORCH_INDEX))
+	  '$(TORCH_PIN)' --index-url $(TORCH_INDEX))
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[dev]'
 	touch $(STAMP)
 
@@ -35,7 +37,8 @@ browser:
 
 # the suite runs in TEST_WORKERS processes (pytest-xdist), one test file per worker so that a
 # module's fixture is built once: 2 matches the CI machine's two cores (measured 2026-11-29,
-# cold Numba cache: 291 s against 419 s in one process); TEST_WORKERS=0 runs it in one process
+# cold Numba cache: 291 s against 419 s in one process); TEST_WORKERS=0 runs it in one process.
+# Each worker's BLAS, OpenMP and Numba pools take its share of the cores (tests/conftest.py)
 TEST_WORKERS ?= 2
 
 test: lint browser
