@@ -759,7 +759,7 @@ def test_a_port_that_is_no_dask_scheduler_is_one_line_within_the_timeout(monkeyp
     t0 = time.monotonic()
     try:
         with pytest.raises(CampaignError, match="no Dask scheduler answered"):
-            cluster_mod._connect(f"tcp://127.0.0.1:{port}")
+            cluster_mod.connect_scheduler(f"tcp://127.0.0.1:{port}")
     finally:
         server.close()
         for c in held:

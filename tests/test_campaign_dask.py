@@ -154,7 +154,9 @@ def fake_cluster(monkeypatch):
     import dask.distributed
 
     made = SimpleNamespace(client=_Client())
-    monkeypatch.setattr(cluster_mod, "_connect", lambda address, setting="--scheduler": made.client)
+    monkeypatch.setattr(
+        cluster_mod, "connect_scheduler", lambda address, setting="--scheduler": made.client
+    )
     monkeypatch.setattr(dask.distributed, "as_completed", lambda futures: iter(list(futures)))
     return made
 

@@ -103,7 +103,7 @@ def check_scheduler_address(address: str, setting: str) -> None:
 CONNECT_TIMEOUT_S = 20.0
 
 
-def _connect(scheduler: str, setting: str = "--scheduler"):
+def connect_scheduler(scheduler: str, setting: str = "--scheduler"):
     """A Dask client of ``scheduler``, or a one-line :class:`CampaignError` naming the
     ``setting`` the user gave it in (``--scheduler``, or a configuration's ``scheduler =``)
     within :data:`CONNECT_TIMEOUT_S`: no answer, a refused port, or a peer that is no Dask
@@ -165,7 +165,7 @@ def run_on_dask(
         )
         client = Client(cluster)
     else:  # the run directory is written and resumes once a scheduler answers
-        client = _connect(scheduler, setting)
+        client = connect_scheduler(scheduler, setting)
     try:
         try:
             futures = {}

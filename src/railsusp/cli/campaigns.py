@@ -243,10 +243,10 @@ def _check_scheduler(address: str) -> None:
     """Refuse, before the campaign is announced or its folder prepared, a ``--scheduler``
     that is no address or where no Dask scheduler answers (one line, as ``run_campaign``
     says it when it connects: it connects again, to the scheduler now known to answer)."""
-    from railsusp.campaign.dask_cluster import _connect, check_scheduler_address
+    from railsusp.campaign.dask_cluster import check_scheduler_address, connect_scheduler
 
     check_scheduler_address(address, "--scheduler")
-    _connect(address, "--scheduler").close()
+    connect_scheduler(address, "--scheduler").close()
 
 
 def _parameters(typed: str) -> tuple[str, ...]:
