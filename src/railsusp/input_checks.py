@@ -196,6 +196,40 @@ def check_output_folder(path: str | Path, option: str = "--out") -> Path:
     return path
 
 
+def check_replaced_folder(
+    path: str | Path, option: str, command: str, own: str | None = None
+) -> Path:
+    """Refuse, before any work, an output folder that ``command`` writes as one artefact
+    (:func:`~railsusp.atomic_files.atomic_folder`: the folder renamed aside and a new one
+    put in its place) where that would lose what it holds (the QA of stop 73):
+
+    - the folder the command runs in, or one above it: ``--out .`` failed after the whole
+      run ("'.' has an empty name", the result lost), and ``--out "$PWD"`` renamed the
+      shell's folder away;
+    - with ``own`` (the file the command writes, ``estimate.json``): an existing folder
+      that holds other files and no ``own``, a user's folder or a whole run directory,
+      whose files were replaced or dropped without a word.
+
+    Also refuses what :func:`check_output_folder` does."""
+    path = check_output_folder(path, option)
+    full, here = path.resolve(), Path.cwd().resolve()
+    if full == here or full in here.parents:
+        where = "the folder you are in" if full == here else "a folder above the one you are in"
+        raise RailsuspInputError(
+            f"{option} {path} is {where}: {command} replaces its output folder whole (the "
+            "old one renamed aside, the new one put in its place): accepted a folder below it"
+        )
+    if own is not None and full.is_dir() and not (full / own).exists():
+        held = sorted(e.name for e in full.iterdir() if not e.name.startswith("."))  # a lock
+        if held:
+            raise RailsuspInputError(
+                f"{option} {path} holds {', '.join(held[:3])}{' and more' if held[3:] else ''}"
+                f" and no {own}: {command} would replace the folder with its own output: "
+                f"accepted a new or empty folder, or one {command} wrote"
+            )
+    return path
+
+
 def unmade_folder(
     exc: OSError, path: str | Path, option: str = "--out"
 ) -> RailsuspInputError | None:

@@ -24,7 +24,7 @@ from railsusp.cli.estimation_options import (
     warnings_as_options,
 )
 from railsusp.errors import RailsuspInputError
-from railsusp.input_checks import check_output_folder
+from railsusp.input_checks import check_replaced_folder
 from railsusp.store import atomic_folder
 
 #: the defaults of the options that only some routes use (one typed is refused, or said in a
@@ -261,8 +261,9 @@ def estimate(
         )
         if (surrogate is None) == (not simulator):
             raise RailsuspInputError("give --surrogate FOLDER or --simulator (one of them)")
-        check_output_folder(out)  # an existing file or an unwritable folder, before any work
         check_not_recordings(out)
+        # an existing file, an unwritable folder, the folder it runs in or one of the user's
+        check_replaced_folder(out, "--out", "estimate", own="estimate.json")
         # the output for the command's duration, and what it reads shared: the recordings'
         # folder (a synth-field or sections --write rewrote it under a running estimate,
         # and a read of it in the swap got recordings of two truths under one index.json:

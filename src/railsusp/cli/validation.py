@@ -11,7 +11,7 @@ from rich.table import Table
 
 from railsusp.cli.common import WagonOption, app, console, fail, hold_folders
 from railsusp.errors import RailsuspInputError
-from railsusp.input_checks import check_output_folder
+from railsusp.input_checks import check_replaced_folder
 
 
 @app.command()
@@ -38,8 +38,8 @@ def validate(
 
     try:
         if out is not None:  # before the simulations, not after them
-            check_output_folder(out, "--out")
             check_not_recordings(out)
+            check_replaced_folder(out, "--out", "validate", own="validation.json")
         if truth is not None:  # before the simulations, not after them
             from railsusp.measured import read_truth
 

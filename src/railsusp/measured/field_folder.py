@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Literal
 
 from railsusp.errors import RailsuspInputError
-from railsusp.input_checks import check_output_folder
+from railsusp.input_checks import check_replaced_folder
 from railsusp.measured.recording import FORMAT
 from railsusp.run_lock import LOCK_NAME
 from railsusp.store import file_hash_cached
@@ -115,7 +115,7 @@ def check_field_output(
     run being cut (its file: compared by contents with the run the folder was cut from, or
     by name where the folder's index holds no fingerprint). Also refuses what
     :func:`~railsusp.input_checks.check_output_folder` does (a file, an unwritable folder)."""
-    path = check_output_folder(path, option)
+    path = check_replaced_folder(path, option, _WRITERS[writer])
     kind = folder_kind(path)
     if kind in ("new", "empty") or (kind == writer == "synthetic"):
         return path

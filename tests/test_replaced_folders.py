@@ -1,0 +1,68 @@
+"""Output folders that a command writes as one artefact (atomic_folder: the old folder
+renamed aside, the new one put in its place) are refused before any work where the swap
+would lose what they hold (the QA of stop 73): the folder the command runs in (``--out .``
+failed after the whole estimate, the result lost; ``--out "$PWD"`` renamed the shell's
+folder away), and a user's folder or a run directory given to estimate or validate, whose
+files were replaced or dropped without a word."""
+
+import pytest
+from typer.testing import CliRunner
+
+from railsusp.cli import app
+from railsusp.errors import RailsuspInputError
+from railsusp.input_checks import check_replaced_folder
+
+runner = CliRunner()
+
+
+def _one_line(result) -> str:
+    assert result.exit_code == 2, result.output
+    text = " ".join(result.output.split())
+    assert "Traceback" not in result.output
+    return text
+
+
+def test_the_folder_one_runs_in_and_those_above_it_are_refused(tmp_path, monkeypatch):
+    (tmp_path / "a" / "b").mkdir(parents=True)
+    monkeypatch.chdir(tmp_path / "a")
+    for given, said in [(".", "is the folder you are in"), ("..", "is a folder above")]:
+        with pytest.raises(RailsuspInputError, match=f"--out {given} {said}"):
+            check_replaced_folder(given, "--out", "estimate")
+    with pytest.raises(RailsuspInputError, match="is the folder you are in"):
+        check_replaced_folder(str(tmp_path / "a"), "--out", "estimate")
+    assert check_replaced_folder("b", "--out", "estimate").name == "b"  # below it: taken
+
+
+def test_a_folder_of_other_files_is_refused_its_own_and_an_empty_one_taken(tmp_path):
+    user = tmp_path / "mine"
+    (user / "validation").mkdir(parents=True)
+    (user / "notes.txt").write_text("important")
+    with pytest.raises(
+        RailsuspInputError, match="--out .*mine holds notes.txt, validation and no estimate.json"
+    ):
+        check_replaced_folder(user, "--out", "estimate", own="estimate.json")
+    (user / "estimate.json").write_text("{}")  # an earlier estimate's folder: replaced
+    check_replaced_folder(user, "--out", "estimate", own="estimate.json")
+    (tmp_path / "empty").mkdir()
+    check_replaced_folder(tmp_path / "empty", "--out", "estimate", own="estimate.json")
+    check_replaced_folder(tmp_path / "new", "--out", "estimate", own="estimate.json")
+
+
+def test_the_commands_refuse_before_any_work(tmp_path, monkeypatch):
+    user = tmp_path / "mine"
+    user.mkdir()
+    (user / "notes.txt").write_text("important")
+    out = _one_line(
+        runner.invoke(
+            app,
+            ["estimate", "--measured", str(tmp_path / "none"), "--simulator", "--out", str(user)],
+        )
+    )
+    assert "holds notes.txt and no estimate.json: estimate would replace the folder" in out
+    out = _one_line(runner.invoke(app, ["validate", str(tmp_path / "none"), "--out", str(user)]))
+    assert "holds notes.txt and no validation.json: validate would replace" in out
+    assert (user / "notes.txt").read_text() == "important"
+    monkeypatch.chdir(user)
+    out = _one_line(runner.invoke(app, ["synth-field", "--out", ".", "--duration", "5"]))
+    assert "--out . is the folder you are in: synth-field replaces its output folder" in out
+    assert sorted(p.name for p in user.iterdir()) == ["notes.txt"]
