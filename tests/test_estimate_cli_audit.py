@@ -370,7 +370,7 @@ def test_align_track_says_its_cap_and_refuses_to_write_an_edge(fields, tmp_path)
     assert result.exit_code == 0, result.output
     assert (
         "warning: --max-shift 10 m: recording 'short' is searched to a third of the record "
-        "(16.67 m): ±5.33 m"
+        "(16.67 m long): ±5.33 m"
     ) in warnings_of(result)
 
 
@@ -474,3 +474,39 @@ def test_validate_refuses_a_recordings_folder_written_again_since_the_estimate(
         validate(est)
     monkeypatch.undo()
     assert "mean" in set(validate(est, measured=folder).forces.statistic)  # asked for
+
+
+#: a misregistration beyond the search: a chance peak of 0.375 at +1.9 m, inside +-3 m
+OFFSET_M, SEARCH_M = 8.0, 3.0
+
+
+def test_align_track_refuses_to_write_a_chance_correlation(fields, tmp_path):
+    """QA of stop 73: a search too narrow for the true offset found a chance "peak" inside
+    it (correlation 0.095 after, against 0.984 at the true offset), and --write stored it:
+    the next time-aligned estimate ran on misaligned track without a word."""
+    folder = tmp_path / "f"
+    shutil.copytree(fields["good"], folder)
+    side = folder / "short.json"
+    doc = json.loads(side.read_text())
+    doc["condition"]["track_offset_m"] = OFFSET_M
+    side.write_text(json.dumps(doc))
+    before = side.read_text()
+    result = runner.invoke(app, ["align-track", str(folder), "--max-shift", str(SEARCH_M)])
+    assert result.exit_code == 0, result.output
+    from railsusp.estimate.alignment import MIN_ALIGNED_CORRELATION
+
+    assert MIN_ALIGNED_CORRELATION == 0.5  # the command's default, written there as a number
+    assert any("is below --min-correlation 0.5: no match" in w for w in warnings_of(result))
+    message = one_line_error(
+        runner.invoke(app, ["align-track", str(folder), "--max-shift", str(SEARCH_M), "--write"])
+    )
+    assert message.startswith("--write: recording 'short': the correlation after alignment")
+    assert "nothing written" in message and side.read_text() == before
+    result = runner.invoke(
+        app, ["align-track", str(folder), "--max-shift", str(SEARCH_M), "--min-correlation", "0"]
+    )
+    assert result.exit_code == 0 and not any("min-correlation" in w for w in warnings_of(result))
+    message = one_line_error(
+        runner.invoke(app, ["align-track", str(folder), "--min-correlation", "1"])
+    )
+    assert message == "--min-correlation 1: accepted [0, 1)"

@@ -114,6 +114,13 @@ def align_track_command(
     write: Annotated[
         bool, typer.Option(help="write the offsets into the recordings' sidecars")
     ] = False,
+    min_correlation: Annotated[
+        float,
+        typer.Option(
+            help="least correlation after alignment taken as a match: one below it is "
+            "warned of, and --write refused (default 0.5)"
+        ),
+    ] = 0.5,  # estimate.alignment.MIN_ALIGNED_CORRELATION (the CLI imports it lazily)
     wagon: WagonOption = None,
 ) -> None:
     """Align each recording's measured track geometry with its forces (cross-correlation
@@ -126,6 +133,8 @@ def align_track_command(
     try:
         if not 0.0 < max_shift <= 200.0:  # before the recordings are read
             raise RailsuspInputError(f"--max-shift {max_shift:g}: accepted (0, 200] m")
+        if not 0.0 <= min_correlation < 1.0:
+            raise RailsuspInputError(f"--min-correlation {min_correlation:g}: accepted [0, 1)")
         wagon_data = wagon_option(wagon)
         if write:  # the sidecars it rewrites: one writer at a time in the folder
             hold_folders(writes=[("", measured)])
@@ -157,8 +166,26 @@ def align_track_command(
                 "beyond it; nothing written: accepted a larger --max-shift (at most a third "
                 "of the record is searched), or no --write"
             )
+        weak = [a for a in found if not a.correlation >= min_correlation]
+        if weak and write:  # a chance correlation: a stored offset would misalign the track
+            a = weak[0]
+            raise RailsuspInputError(
+                f"--write: recording {a.recording!r}: the correlation after alignment, "
+                f"{a.correlation:.3f} at {a.shift_m:+.2f} m, is below --min-correlation "
+                f"{min_correlation:g}, so no match was found within ±{a.searched_m:.3g} m; "
+                "nothing written: accepted a larger --max-shift, the recording's own track "
+                "geometry, or a lower --min-correlation where its forces are known to match "
+                "the model this poorly"
+            )
     except (RailsuspInputError, ValueError) as exc:
         fail(str(exc), options={"max_shift_m": "--max-shift"})
+    for a in weak:
+        warnings.warn(
+            f"recording {a.recording!r}: the correlation after alignment, {a.correlation:.3f}, "
+            f"is below --min-correlation {min_correlation:g}: no match was found within "
+            f"±{a.searched_m:.3g} m (the offset shown is a chance peak)",
+            stacklevel=1,
+        )
     for a in edge:
         warnings.warn(
             f"recording {a.recording!r}: the best shift {a.shift_m:+.2f} m lies on the edge of "
