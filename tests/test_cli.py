@@ -260,6 +260,9 @@ def test_campaign_sensitivity_train_compare_flow(tmp_path, monkeypatch):
     result = runner.invoke(app, ["validate", str(est), "--truth", str(field / "truth.json")])
     assert result.exit_code == 0, result.output
     assert "Parameter recovery" in result.output and (est / "validation" / "recovery.csv").exists()
+    # the kN columns' statistic as the report says it: a mean of |Y| was "Y mean" (QA, stop 73)
+    assert "mean of |Y|" in result.output and "mean of Q" in result.output
+    assert "Y mean" not in result.output
     result = runner.invoke(app, ["estimate", "--measured", str(field), "--out", str(est)])
     assert result.exit_code == 2 and "--surrogate FOLDER or --simulator" in result.output
     result = runner.invoke(app, ["train", str(run), "--model", "gp-stats"])

@@ -69,6 +69,15 @@ RECOVERY_VERDICTS = (
 )
 
 
+#: what the kN columns of the validation table's time-aligned rows hold (the report says it
+#: in its text: its numbers are not force statistics), marked ``aligned*`` in the table
+ALIGNED_NOTE = (
+    "* aligned: measured (kN) is the measured series' standard deviation, the other kN "
+    "columns the RMS of each simulation's sample-by-sample difference from it, and their "
+    "errors that RMS in % of the standard deviation."
+)
+
+
 def statistic_label(statistic: str, force: str) -> str:
     """A validation row's statistic as the report shows it: what its kN columns hold."""
     if statistic == "aligned":

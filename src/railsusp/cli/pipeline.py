@@ -118,6 +118,8 @@ def _summary_parts(out: Path) -> list:
         None,
     )
     if _has_aligned(out / "estimate" / "validation" / "validation.csv"):
+        from railsusp.report_estimate import ALIGNED_NOTE
+
         parts.append(Text(ALIGNED_NOTE))
     show(out / "estimate" / "validation" / "recovery.csv", "Recovery of the hidden truth")
     timings = Table(title="Stage timings", title_justify="left")
@@ -136,20 +138,12 @@ def _summary_parts(out: Path) -> list:
     return parts
 
 
-#: what the kN columns of the validation table's time-aligned rows hold (the report says it
-#: in its text: its numbers are not force statistics), marked ``aligned*`` in the table
-ALIGNED_NOTE = (
-    "* aligned: measured (kN) is the measured series' standard deviation, the other kN "
-    "columns the RMS of each simulation's sample-by-sample difference from it, and their "
-    "errors that RMS in % of the standard deviation."
-)
-
-
 def _labelled(df: pd.DataFrame) -> pd.DataFrame:
     """A validation table's ``statistic`` saying what the row's kN columns hold, as the
     report labels it (``mean of |Y|``, ``mean of Q``); a time-aligned row's ``aligned*``,
-    told by :data:`ALIGNED_NOTE` under the table (the report's label, a sentence, wrapped
-    over six lines in the terminal's column). Other tables as they are."""
+    told by :data:`~railsusp.report_estimate.ALIGNED_NOTE` under the table (the report's
+    label, a sentence, wrapped over six lines in the terminal's column). Other tables as
+    they are."""
     if not {"statistic", "force"} <= set(df.columns):
         return df
     from railsusp.report_estimate import statistic_label
