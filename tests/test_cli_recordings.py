@@ -303,3 +303,32 @@ def test_sections_of_a_table_are_one_recording_each_whatever_their_names(tmp_pat
     from railsusp.measured import read_field
 
     assert [r.condition.name for r in read_field(out)] == [n[:-4] for n in listed]
+
+
+def test_a_tables_curve_against_the_runs_own_is_said(tmp_path):
+    """QA of stop 73: a section table's R350 right over a stretch the run's curvature channel
+    gives as R600 left was cut and written without a word (its sections carry no curvature,
+    so nothing after the cut can catch a typed hand that makes the inner wheel the compared
+    one). Said now, naming the row and both; a row that agrees is not."""
+    run, cmap = example(tmp_path)
+    table = tmp_path / "sections.csv"
+    header = "start_m,end_m,name,radius_m,direction,cant_mm,grade_permille\n"
+    for row, said in [
+        ("800,1150,c,350,right,100,0", "it states R 350 m right, the run's curvature channel "
+         "gives R 600 m left there"),
+        ("800,1150,c,600,right,100,0", "it states R 600 m right, the run's curvature channel "
+         "gives R 600 m left there"),
+        ("800,1150,c,,,,0", "it states tangent, the run's curvature channel gives R 600 m left"),
+        ("800,1150,c,600,left,100,0", None),
+        ("50,500,c,,,,0", None),
+    ]:  # fmt: skip
+        table.write_text(header + row + "\n")
+        result = runner.invoke(
+            app, ["sections", str(run), "--map", str(cmap), "--table", str(table)]
+        )
+        assert result.exit_code == 0, result.output
+        out = " ".join(result.output.split())
+        if said is None:
+            assert "averaged over the row" not in out, row
+        else:
+            assert f"row 2: {said}" in out and "check its radius_m and direction" in out, row

@@ -45,7 +45,11 @@ from railsusp.measured.pieces import (  # noqa: F401  (what a section is, with t
 from railsusp.measured.recording import RecordingError
 from railsusp.measured.run import MeasuredRun
 from railsusp.measured.sampling import leave_out_crowded
-from railsusp.measured.track_kinds import track_geometry, track_labels
+from railsusp.measured.track_kinds import (
+    stated_track_contradicted,
+    track_geometry,
+    track_labels,
+)
 from railsusp.vehicle.simulation_result import WHEEL_NAMES, outer_wheel_index
 
 
@@ -73,6 +77,8 @@ def cut_sections(
     if line is not None and run.position_from_speed:
         _warn(run, LINE_FROM_ZERO_NOTE)
     geo = track_geometry(run, rules, line, table)
+    for note in stated_track_contradicted(run, table, rules, line) if table is not None else ():
+        _warn(run, note)
     labels = track_labels(geo, rules)
     names, rows, partial = None, None, {}
     if table is not None:

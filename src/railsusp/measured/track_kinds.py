@@ -116,6 +116,61 @@ def track_geometry(
     return out
 
 
+#: a section table's radius that differs from the run's own (channel or line description,
+#: averaged over the row) by more than this factor, either way, is said to contradict it
+STATED_RADIUS_FACTOR = 1.25
+
+
+def stated_track_contradicted(
+    run: MeasuredRun, table: pd.DataFrame, rules: TrackRules, line: pd.DataFrame | None = None
+) -> list[str]:
+    """A note per row of a section table whose stated curve (``radius_m``, ``direction``)
+    contradicts the run's own curvature (its channel or ``line``, averaged as the cut
+    averages it, over the row's moving samples): another hand, a tangent against a curve
+    or the reverse, or a radius off by more than :data:`STATED_RADIUS_FACTOR`. The table's
+    track is used as stated (docs/data-format.md), but a typed hand decides which wheel is
+    outer, and nothing after the cut can catch it: the sections are written without
+    curvature (the QA of stop 73: a table's R350 right over the channel's R600 left was
+    written with the inner wheel as the compared one, without a word). None where the run
+    has no curvature of its own or the table states none."""
+    if "radius_m" not in table or (line is None and run.curvature is None):
+        return []
+    own = track_geometry(run, rules, line)["curvature"]
+    stated = geometry_from_table(run.position, table)["curvature"]
+    moving = run.speed >= MOVING_MS
+    tangent = 1.0 / rules.tangent_radius_m
+    notes = []
+    for k, r in enumerate(table.itertuples(index=False)):
+        inside = (run.position >= r.start_m) & (run.position < r.end_m) & moving
+        if not inside.any() or np.isnan(stated[inside]).all():
+            continue
+        said, found = float(np.nanmean(stated[inside])), float(np.mean(own[inside]))
+        curves = (abs(said) > tangent, abs(found) > tangent)
+        if curves == (False, False):
+            continue
+        agree = curves == (True, True) and said * found > 0.0
+        if agree and 1.0 / STATED_RADIUS_FACTOR <= found / said <= STATED_RADIUS_FACTOR:
+            continue
+        notes.append(
+            f"{table.attrs.get('what', 'section table')}, row {k + 2}: it states "
+            f"{_curve_words(said, tangent)}, the run's "
+            f"{'line description' if line is not None else 'curvature channel'} gives "
+            f"{_curve_words(found, tangent)} there (averaged over the row): the table's is "
+            "used, as stated; check its radius_m and direction (the hand decides which "
+            "wheel is outer)"
+        )
+    return notes
+
+
+def _curve_words(curvature: float, tangent: float) -> str:
+    """A curvature as an engineer says it: ``R 600 m left``, or ``tangent``. Positive
+    curvature is a left-hand curve, as :func:`~railsusp.measured.line.geometry_from_line`
+    writes it, seen in the run's direction."""
+    if abs(curvature) <= tangent:
+        return "tangent"
+    return f"R {1.0 / abs(curvature):.0f} m {'left' if curvature > 0 else 'right'}"
+
+
 def _radius_band(curv: np.ndarray, rules: TrackRules, scale: float = 1.0) -> np.ndarray:
     """Per sample, the radius band of curvature ``curv`` x ``scale`` (-1: tangent)."""
     c = np.abs(curv) * scale
