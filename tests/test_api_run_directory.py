@@ -170,7 +170,8 @@ def test_the_validation_says_what_an_aligned_rows_kn_columns_hold(tmp_path):
     """The kN columns of an ``aligned`` row hold the measured s.d. and RMS differences, not
     force statistics: ``statistic_label`` says so as the report does, and the terminal's
     table marks the row and says it under the table."""
-    from railsusp.cli.pipeline import ALIGNED_NOTE, _has_aligned, _labelled
+    from railsusp.cli.pipeline import _has_aligned, _labelled
+    from railsusp.report_estimate import ALIGNED_NOTE
 
     run = _run_dir(tmp_path, {"format": 1, "stages": {}})
     (run / "estimate" / "validation").mkdir()

@@ -89,6 +89,38 @@ def test_an_interrupted_stage_and_changed_files_are_refused(tiny, tmp_path):
         _ = railsusp.open_run(copy).stages
 
 
+def test_a_table_made_from_a_changed_input_stage_is_refused(tiny, tmp_path):
+    """QA of stop 73: with a recording of the field stage edited since, ``report_path``
+    was refused and ``railsusp run`` made field, estimate and validate again, but
+    ``estimate``, ``validation``, ``recovery`` and ``agreement`` were read as this run's.
+    And a validation removed by a command run on the folder since (a standalone estimate
+    into RUN/estimate drops it) was said never to have run."""
+    _, _, copy = _up_to_date_copy(tiny, tmp_path)
+    result = railsusp.open_run(copy)
+    _ = result.sensitivity  # reads nothing of the field stage: unaffected below
+    recording = sorted((copy / "field").glob("*.csv"))[0]
+    lines = recording.read_text().splitlines()
+    cells = lines[2].split(",")
+    cells[1] = "99.0"  # a measured force edited in place
+    recording.write_text("\n".join([*lines[:2], ",".join(cells), *lines[3:]]) + "\n")
+    for table in ("estimate", "validation", "recovery", "agreement"):
+        with pytest.raises(
+            RailsuspInputError,
+            match=rf"field/{recording.name} changed or is gone since the field stage wrote it.*"
+            r"was made from that stage's outputs, so it is not this run's answer either",
+        ):
+            getattr(railsusp.open_run(copy), table)
+    _ = railsusp.open_run(copy).sensitivity
+    _, _, again = _up_to_date_copy(tiny, tmp_path / "again")
+    (again / "estimate" / "validation" / "validation.csv").unlink()
+    with pytest.raises(
+        RailsuspInputError,
+        match="no estimate/validation/validation.csv; it is gone although pipeline.json "
+        "records the stage done",
+    ):
+        _ = railsusp.open_run(again).validation
+
+
 def test_open_run_judges_with_the_tolerances_the_run_recorded(tmp_path, monkeypatch):
     """A relative wagon path in the configuration was read again from open_run's working
     folder: another folder's wagon.toml re-judged every verdict, none failed it."""

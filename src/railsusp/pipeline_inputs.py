@@ -171,7 +171,13 @@ def stage_inputs(config: PipelineConfig, stage: str) -> tuple[str, ...]:
     (and their truth) and the sensitivity's indices (checked against the campaign); the
     report every stage. Checked against what each stage opens by
     tests/test_pipeline_reads.py."""
-    trained = config.surrogate.pretrained is None
+    return stage_inputs_trained(config.surrogate.pretrained is None, stage)
+
+
+def stage_inputs_trained(trained: bool, stage: str) -> tuple[str, ...]:
+    """:func:`stage_inputs` by whether the surrogates are trained in the run (``trained``)
+    or a network set: what a run directory's reader (:class:`~railsusp.run_result.
+    RunResult`) takes from the configuration pipeline.json recorded."""
     inputs = {
         "campaign": (),
         "sensitivity": ("campaign",),

@@ -55,11 +55,44 @@ class RunResult:
         run wrote; neither is this run's answer."""
         p = self.path / rel
         if not p.exists():
-            raise RailsuspInputError(
-                f"{self.path}: no {rel}; the {stage} stage has not run ({self._resume()})"
+            entry = (
+                self._stage_entries().get(stage) if (self.path / "pipeline.json").exists() else None
             )
+            why = (  # a standalone estimate --out RUN/estimate drops the validation (QA, stop 73)
+                "it is gone although pipeline.json records the stage done (a command run "
+                "on the folder since removed it)"
+                if entry and entry.get("state") == "done"
+                else f"the {stage} stage has not run"
+            )
+            raise RailsuspInputError(f"{self.path}: no {rel}; {why} ({self._resume()})")
         self._check_stage(stage)
+        for earlier in self._read_by(stage) if stage in STAGES else ():
+            try:
+                self._check_stage(earlier)
+            except RailsuspInputError as exc:
+                raise RailsuspInputError(
+                    f"{exc}; {rel} was made from that stage's outputs, so it is not this "
+                    "run's answer either"
+                ) from None
         return p
+
+    def _read_by(self, stage: str) -> list[str]:
+        """The stages whose outputs ``stage`` read, directly or through another
+        (:func:`~railsusp.pipeline_inputs.stage_inputs`, by the configuration pipeline.json
+        recorded): an estimate's table was read without a word after the field stage's
+        recordings changed, which ``report_path`` and ``railsusp run`` found (the QA of
+        stop 73)."""
+        from railsusp.pipeline_inputs import stage_inputs_trained
+
+        surrogate = self._config().get("surrogate")
+        trained = not (isinstance(surrogate, dict) and surrogate.get("pretrained"))
+        seen, todo = [], [stage]
+        while todo:
+            for s in stage_inputs_trained(trained, todo.pop()):
+                if s not in seen:
+                    seen.append(s)
+                    todo.append(s)
+        return sorted(seen, key=STAGES.index)
 
     def _resume(self) -> str:
         """The command that makes the run directory's stages again."""
@@ -233,19 +266,10 @@ class RunResult:
     def report_path(self) -> Path:
         """The self-contained HTML report, where it still answers for the run directory: the
         report stage done and its files unchanged, and so each stage it summarises (every
-        earlier one, :meth:`_need`'s check): a standalone ``railsusp estimate --out
-        RUN/estimate`` left the report presenting the estimate it replaced, which
-        :attr:`estimate` refused (the concurrency audit)."""
-        p = self._need("report.html", "report")
-        for stage in STAGES[: STAGES.index("report")]:
-            try:
-                self._check_stage(stage)
-            except RailsuspInputError as exc:
-                raise RailsuspInputError(
-                    f"{exc}; report.html summarises that stage, so it is not this run's "
-                    "answer either"
-                ) from None
-        return p
+        earlier one, :meth:`_need`'s check of the stages a stage reads): a standalone
+        ``railsusp estimate --out RUN/estimate`` left the report presenting the estimate it
+        replaced, which :attr:`estimate` refused (the concurrency audit)."""
+        return self._need("report.html", "report")
 
     def _config(self) -> dict:
         """The configuration pipeline.json recorded (checked to be a table); {} without one."""
