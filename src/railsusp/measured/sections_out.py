@@ -140,8 +140,10 @@ def conditions_toml(conditions: list[WorkingCondition]) -> str:
 
 def pipeline_toml(conditions: list[WorkingCondition], field: Path) -> str:
     """A ``railsusp run`` configuration that estimates from the recordings in ``field``:
-    the sections' conditions (inline tables), the quick settings of examples/quick.toml,
-    no refinement (the recordings carry no measured track geometry)."""
+    the sections' conditions (inline tables), campaign and NSGA-II sizes as
+    examples/quick.toml's, but a BP network trained on the sections' conditions (the
+    shipped networks are of the standard conditions) and no refinement (the recordings
+    carry no measured track geometry)."""
     rows = []
     for c in conditions:
         items = ", ".join(
@@ -153,8 +155,11 @@ def pipeline_toml(conditions: list[WorkingCondition], field: Path) -> str:
     measured = json_string(str(field.resolve()))
     return "\n".join(
         [
-            "# railsusp run configuration written by `railsusp sections --write`: the quick",
-            "# settings (examples/quick.toml) on the sections' conditions and recordings.",
+            "# railsusp run configuration written by `railsusp sections --write` on the",
+            "# sections' conditions and recordings: campaign and NSGA-II sizes as",
+            "# examples/quick.toml's, but a BP network trained here on these conditions",
+            "# (the shipped networks are of the standard conditions) and no refinement",
+            "# (the recordings carry no measured track geometry).",
             'name = "sections of a measured run"',
             "conditions = [",
             *rows,
