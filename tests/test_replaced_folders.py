@@ -66,3 +66,16 @@ def test_the_commands_refuse_before_any_work(tmp_path, monkeypatch):
     out = _one_line(runner.invoke(app, ["synth-field", "--out", ".", "--duration", "5"]))
     assert "--out . is the folder you are in: synth-field replaces its output folder" in out
     assert sorted(p.name for p in user.iterdir()) == ["notes.txt"]
+
+
+@pytest.mark.parametrize("command", [["posterior", "train"], ["posterior", "join"]])
+def test_a_posterior_is_not_written_among_recordings(tmp_path, command):
+    """QA of stop 73: estimate and validate refused a field folder as --out, the posterior's
+    train and join wrote into one."""
+    field = tmp_path / "field"
+    field.mkdir()
+    (field / "index.json").write_text('{"recordings": []}')
+    extra = ["--estimators", f"{tmp_path / 'a'},{tmp_path / 'b'}"] if command[1] == "join" else []
+    out = _one_line(runner.invoke(app, [*command, *extra, "--out", str(field)]))
+    assert f"--out {field} is a field folder of recordings (index.json)" in out
+    assert sorted(p.name for p in field.iterdir()) == ["index.json"]

@@ -153,6 +153,9 @@ def train_command(
 
     try:
         check_output_folder(out)
+        from railsusp.measured.field_folder import check_not_recordings
+
+        check_not_recordings(out)  # a field folder's recordings are no estimator's folder
         check_long_record_option(long_record)
         if (
             parse_product_cases(product_cases) != {"n_product": 100}
@@ -305,6 +308,9 @@ def join_command(
                 f"--estimators {estimators}: accepted two or more run folders, comma-separated"
             )
         check_output_folder(out)
+        from railsusp.measured.field_folder import check_not_recordings
+
+        check_not_recordings(out)  # written among recordings (the QA of stop 73)
         hold_folders(  # the joint posterior's folder, and the estimators it reads
             creates=[("--out", out)], reads=[("--estimators", r) for r in runs]
         )
