@@ -40,12 +40,12 @@ def test_a_folder_of_other_files_is_refused_its_own_and_an_empty_one_taken(tmp_p
     with pytest.raises(
         RailsuspInputError, match="--out .*mine holds notes.txt, validation and no estimate.json"
     ):
-        check_replaced_folder(user, "--out", "estimate", own="estimate.json")
+        check_replaced_folder(user, "--out", "estimate", own=("estimate.json",))
     (user / "estimate.json").write_text("{}")  # an earlier estimate's folder: replaced
-    check_replaced_folder(user, "--out", "estimate", own="estimate.json")
+    check_replaced_folder(user, "--out", "estimate", own=("estimate.json",))
     (tmp_path / "empty").mkdir()
-    check_replaced_folder(tmp_path / "empty", "--out", "estimate", own="estimate.json")
-    check_replaced_folder(tmp_path / "new", "--out", "estimate", own="estimate.json")
+    check_replaced_folder(tmp_path / "empty", "--out", "estimate", own=("estimate.json",))
+    check_replaced_folder(tmp_path / "new", "--out", "estimate", own=("estimate.json",))
 
 
 def test_the_commands_refuse_before_any_work(tmp_path, monkeypatch):
@@ -60,7 +60,7 @@ def test_the_commands_refuse_before_any_work(tmp_path, monkeypatch):
     )
     assert "holds notes.txt and no estimate.json: estimate would replace the folder" in out
     out = _one_line(runner.invoke(app, ["validate", str(tmp_path / "none"), "--out", str(user)]))
-    assert "holds notes.txt and no validation.json: validate would replace" in out
+    assert "holds notes.txt and no validation.json or estimate.json: validate would" in out
     assert (user / "notes.txt").read_text() == "important"
     monkeypatch.chdir(user)
     out = _one_line(runner.invoke(app, ["synth-field", "--out", ".", "--duration", "5"]))
@@ -79,3 +79,11 @@ def test_a_posterior_is_not_written_among_recordings(tmp_path, command):
     out = _one_line(runner.invoke(app, [*command, *extra, "--out", str(field)]))
     assert f"--out {field} is a field folder of recordings (index.json)" in out
     assert sorted(p.name for p in field.iterdir()) == ["index.json"]
+
+
+def test_validate_may_write_beside_its_estimate(tmp_path):
+    """The review of stop 73: ``validate EST --out EST`` adds its files beside estimate.json
+    (the rest carried over); refused as a folder without validation.json, it is taken."""
+    (tmp_path / "estimate.json").write_text("{}")
+    own = ("validation.json", "estimate.json")
+    assert check_replaced_folder(tmp_path, "--out", "validate", own=own) == tmp_path

@@ -197,7 +197,7 @@ def check_output_folder(path: str | Path, option: str = "--out") -> Path:
 
 
 def check_replaced_folder(
-    path: str | Path, option: str, command: str, own: str | None = None
+    path: str | Path, option: str, command: str, own: tuple[str, ...] = ()
 ) -> Path:
     """Refuse, before any work, an output folder that ``command`` writes as one artefact
     (:func:`~railsusp.atomic_files.atomic_folder`: the folder renamed aside and a new one
@@ -206,9 +206,11 @@ def check_replaced_folder(
     - the folder the command runs in, or one above it: ``--out .`` failed after the whole
       run ("'.' has an empty name", the result lost), and ``--out "$PWD"`` renamed the
       shell's folder away;
-    - with ``own`` (the file the command writes, ``estimate.json``): an existing folder
-      that holds other files and no ``own``, a user's folder or a whole run directory,
-      whose files were replaced or dropped without a word.
+    - with ``own`` (the files that mark a folder the command may write into, ``estimate.json``
+      for estimate; for validate also the estimate's folder): an existing folder that holds
+      other files and none of ``own``, a user's folder or a whole run directory, whose files
+      of the command's output names were replaced or dropped without a word (the others are
+      carried into the new folder).
 
     Also refuses what :func:`check_output_folder` does."""
     path = check_output_folder(path, option)
@@ -219,13 +221,13 @@ def check_replaced_folder(
             f"{option} {path} is {where}: {command} replaces its output folder whole (the "
             "old one renamed aside, the new one put in its place): accepted a folder below it"
         )
-    if own is not None and full.is_dir() and not (full / own).exists():
+    if own and full.is_dir() and not any((full / name).exists() for name in own):
         held = sorted(e.name for e in full.iterdir() if not e.name.startswith("."))  # a lock
         if held:
             raise RailsuspInputError(
                 f"{option} {path} holds {', '.join(held[:3])}{' and more' if held[3:] else ''}"
-                f" and no {own}: {command} would replace the folder with its own output: "
-                f"accepted a new or empty folder, or one {command} wrote"
+                f" and no {' or '.join(own)}: {command} would replace the folder with its own "
+                f"output: accepted a new or empty folder, or one {command} wrote"
             )
     return path
 

@@ -61,7 +61,7 @@ class RunResult:
             why = (  # a standalone estimate --out RUN/estimate drops the validation (QA, stop 73)
                 "it is gone although pipeline.json records the stage done (a command run "
                 "on the folder since removed it)"
-                if entry and entry.get("state") == "done"
+                if entry and entry.get("state") == "done" and rel in (entry.get("files") or {})
                 else f"the {stage} stage has not run"
             )
             raise RailsuspInputError(f"{self.path}: no {rel}; {why} ({self._resume()})")

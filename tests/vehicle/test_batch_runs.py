@@ -107,3 +107,34 @@ def test_bad_requests_are_refused_in_one_line():
         simulate_conditions(SETS, [])
     with pytest.raises(RailsuspInputError, match="seeds: 1 given for 2 parameter sets"):
         simulate_conditions(SETS, [get_condition("straight", **SHORT)], seeds=[1])
+
+
+def test_two_threads_give_the_forces_of_one(tmp_path):
+    """The suite's workers run Numba on one thread each (tests/conftest.py): a batch of
+    four sets integrated on two threads, in a process of its own, gives the forces of the
+    one-thread integration here bit for bit (each set is integrated on its own, whichever
+    thread takes it)."""
+    import os
+    import subprocess
+    import sys
+    import textwrap
+
+    sets = np.vstack([SETS, SETS[::-1] * 1.01])
+    np.save(tmp_path / "sets.npy", sets)
+    script = textwrap.dedent(
+        f"""
+        import numba, numpy as np
+        from railsusp.conditions import get_condition
+        from railsusp.vehicle.simulate import simulate_batch
+        sets = np.load({str(tmp_path / "sets.npy")!r})
+        res = simulate_batch(sets, get_condition("curve").with_changes(**{SHORT!r}))
+        np.savez({str(tmp_path / "two.npz")!r}, Y=res.Y, Q=res.Q, threads=numba.get_num_threads())
+        """
+    )
+    env = {**os.environ, "NUMBA_NUM_THREADS": "2"}
+    subprocess.run([sys.executable, "-c", script], env=env, check=True, capture_output=True)
+    two = np.load(tmp_path / "two.npz")
+    one = simulate_batch(sets, get_condition("curve").with_changes(**SHORT))
+    assert int(two["threads"]) == 2
+    np.testing.assert_array_equal(two["Y"], one.Y)
+    np.testing.assert_array_equal(two["Q"], one.Q)

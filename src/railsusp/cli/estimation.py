@@ -263,7 +263,7 @@ def estimate(
             raise RailsuspInputError("give --surrogate FOLDER or --simulator (one of them)")
         check_not_recordings(out)
         # an existing file, an unwritable folder, the folder it runs in or one of the user's
-        check_replaced_folder(out, "--out", "estimate", own="estimate.json")
+        check_replaced_folder(out, "--out", "estimate", own=("estimate.json",))
         # the output for the command's duration, and what it reads shared: the recordings'
         # folder (a synth-field or sections --write rewrote it under a running estimate,
         # and a read of it in the swap got recordings of two truths under one index.json:

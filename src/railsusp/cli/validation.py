@@ -39,7 +39,8 @@ def validate(
     try:
         if out is not None:  # before the simulations, not after them
             check_not_recordings(out)
-            check_replaced_folder(out, "--out", "validate", own="validation.json")
+            own = ("validation.json", "estimate.json")  # validate --out EST: beside it
+            check_replaced_folder(out, "--out", "validate", own=own)
         if truth is not None:  # before the simulations, not after them
             from railsusp.measured import read_truth
 

@@ -139,6 +139,8 @@ def stated_track_contradicted(
     stated = geometry_from_table(run.position, table)["curvature"]
     moving = run.speed >= MOVING_MS
     tangent = 1.0 / rules.tangent_radius_m
+    steps = np.diff(run.position)
+    falling = -1.0 if np.nansum(steps) < 0.0 else 1.0  # as geometry_from_table mirrors
     notes = []
     for k, r in enumerate(table.itertuples(index=False)):
         inside = (run.position >= r.start_m) & (run.position < r.end_m) & moving
@@ -146,6 +148,9 @@ def stated_track_contradicted(
             continue
         said, found = float(np.nanmean(stated[inside])), float(np.mean(own[inside]))
         curves = (abs(said) > tangent, abs(found) > tangent)
+        # both as the table writes them, seen towards increasing positions: the stated one
+        # was mirrored for a run whose position falls, and the run's is mirrored back
+        sense = falling
         if curves == (False, False):
             continue
         agree = curves == (True, True) and said * found > 0.0
@@ -153,11 +158,12 @@ def stated_track_contradicted(
             continue
         notes.append(
             f"{table.attrs.get('what', 'section table')}, row {k + 2}: it states "
-            f"{_curve_words(said, tangent)}, the run's "
+            f"{_curve_words(sense * said, tangent)}, the run's "
             f"{'line description' if line is not None else 'curvature channel'} gives "
-            f"{_curve_words(found, tangent)} there (averaged over the row): the table's is "
-            "used, as stated; check its radius_m and direction (the hand decides which "
-            "wheel is outer)"
+            f"{_curve_words(sense * found, tangent)} there (averaged over the row"
+            f"{'; both seen towards increasing positions' if sense < 0 else ''}): the "
+            "table's is used, as stated; check its radius_m and direction (the hand decides "
+            "which wheel is outer)"
         )
     return notes
 
