@@ -43,14 +43,21 @@ def geometry_from_table(position_m: np.ndarray, table: pd.DataFrame) -> dict[str
     return _geometry_of_rows(position_m, table.start_m, table.end_m, table)
 
 
+def running_sense(position_m: np.ndarray) -> float:
+    """+1 for a run towards increasing positions, -1 towards falling ones (its finite steps
+    summed): a line description's or section table's hand and grade, written as seen
+    towards increasing positions, are mirrored for a run whose position falls."""
+    steps = np.diff(position_m)
+    steps = steps[np.isfinite(steps)]
+    return -1.0 if steps.size and np.sum(steps) < 0.0 else 1.0
+
+
 def _geometry_of_rows(
     position_m: np.ndarray, start_m: pd.Series, end_m: pd.Series, rows: pd.DataFrame
 ) -> dict[str, np.ndarray]:
     """Per position, the curvature, cant and grade of the row ``start_m <= position <
     end_m`` it lies in (NaN in none), for each of them whose column ``rows`` has."""
-    steps = np.diff(position_m)
-    steps = steps[np.isfinite(steps)]
-    sense = -1.0 if steps.size and np.sum(steps) < 0.0 else 1.0
+    sense = running_sense(position_m)
     columns = {"curvature": "radius_m", "cant": "cant_mm", "grade": "grade_permille"}
     out = {key: np.full(position_m.shape, np.nan) for key, c in columns.items() if c in rows}
     for k, r in enumerate(rows.itertuples(index=False) if out else ()):

@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from railsusp.measured.checks import runs
-from railsusp.measured.line import geometry_from_line, geometry_from_table
+from railsusp.measured.line import geometry_from_line, geometry_from_table, running_sense
 from railsusp.measured.run import MeasuredRun
 
 #: a wagon slower than this (m/s, 1.8 km/h) stands: its samples cover no track; a stop
@@ -139,8 +139,9 @@ def stated_track_contradicted(
     stated = geometry_from_table(run.position, table)["curvature"]
     moving = run.speed >= MOVING_MS
     tangent = 1.0 / rules.tangent_radius_m
-    steps = np.diff(run.position)
-    falling = -1.0 if np.nansum(steps) < 0.0 else 1.0  # as geometry_from_table mirrors
+    # both quoted as the table writes them, seen towards increasing positions: the stated
+    # curvature was mirrored for a run whose position falls, and the run's is mirrored back
+    sense = running_sense(run.position)
     notes = []
     for k, r in enumerate(table.itertuples(index=False)):
         inside = (run.position >= r.start_m) & (run.position < r.end_m) & moving
@@ -148,9 +149,6 @@ def stated_track_contradicted(
             continue
         said, found = float(np.nanmean(stated[inside])), float(np.mean(own[inside]))
         curves = (abs(said) > tangent, abs(found) > tangent)
-        # both as the table writes them, seen towards increasing positions: the stated one
-        # was mirrored for a run whose position falls, and the run's is mirrored back
-        sense = falling
         if curves == (False, False):
             continue
         agree = curves == (True, True) and said * found > 0.0
