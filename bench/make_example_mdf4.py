@@ -39,6 +39,7 @@ from asammdf import MDF, Signal
 from _cli import parser, run_main
 from railsusp.measured import add_sensor_noise, recording_from_simulation
 from railsusp.measured.sections import Section
+from railsusp.measured.truth import RECORDING_FILES, recording_files
 from railsusp.params import ParameterSet
 from railsusp.store import atomic_write_text
 from railsusp.vehicle.simulate import simulate
@@ -195,6 +196,9 @@ def main() -> None:
             {
                 "parameters_display": TRUTH,
                 "note": "hidden truth of example_run.mf4; the estimator never reads it",
+                # the run it is the truth of, by content: validate --truth accepts it for
+                # the sections cut from this run (measured/truth.py)
+                RECORDING_FILES: recording_files(args.out, [path.name]),
             },
             indent=1,
         )

@@ -116,6 +116,24 @@ def test_refined_estimate_flags_by_its_interval_width(case, tmp_path):
     assert "Cramér-Rao bound 30.0 % of range" in rec.loc["X13", "why_not"]
 
 
+def test_a_truth_of_other_recordings_is_refused_before_any_simulation(case, tmp_path, monkeypatch):
+    """The QA of stop 73: validate --truth scored the recovery against the truth of another
+    synthetic field without a word. Refused now, naming the table, before simulating."""
+    import railsusp.validate as val
+    from railsusp.errors import RailsuspInputError
+
+    _field, est, _res = case
+    cond = get_condition("straight", duration_s=1.0, n_steps=50, lead_in_m=30.0)
+    other = synthesise_field(ParameterSet({"X13": 9.0}, units="display"), [cond], tmp_path / "b")
+
+    def no_simulation(*args, **kwargs):
+        raise AssertionError("simulated before the truth was checked")
+
+    monkeypatch.setattr(val, "_simulate", no_simulation)
+    with pytest.raises(RailsuspInputError, match="straight.csv is none of the tables"):
+        validate(est, truth=other / "truth.json")
+
+
 def test_a_derailing_resimulation_is_reported_not_raised(case, monkeypatch):
     import railsusp.validate as val
 

@@ -48,7 +48,8 @@ from railsusp.identification_verdict import (
 )
 from railsusp.measured import Recording, SimulationFailedError, read_field
 from railsusp.measured.recording import recordings_digest
-from railsusp.measured.synthetic import read_truth, recording_from_simulation
+from railsusp.measured.synthetic import recording_from_simulation
+from railsusp.measured.truth import check_truth_of, read_truth
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import atomic_folder, read_json, write_csv, write_json
 from railsusp.validation_inputs import check_estimate_fields, check_estimate_revision
@@ -166,8 +167,10 @@ def validate(
     """Validate the estimate in ``estimate_dir`` against its recordings.
 
     ``measured`` defaults to the folder recorded in ``estimate.json``; ``truth`` is a
-    ``truth.json`` of synthetic recordings (scored only when given); ``sensitivity`` a
-    ``key_parameters.json`` or ``indices.parquet`` of the campaign, for the Sobol flag.
+    ``truth.json`` of synthetic recordings (scored only when given; the truth of other
+    recordings than those validated is refused, :func:`~railsusp.measured.check_truth_of`);
+    ``sensitivity`` a ``key_parameters.json`` or ``indices.parquet`` of the campaign, for
+    the Sobol flag.
     ``statistic`` defaults to the estimate's, with ``aligned`` added when every recording
     carries measured track geometry; the time-aligned errors profile the channel gains out
     where the estimate did (its ``channel_gains``). ``expected_draws`` defaults to the
@@ -229,8 +232,9 @@ def validate(
     chosen = ParameterSet(est["estimate_display"], units="display")
     nominal = ParameterSet.nominal()
     truth_set = None
-    if truth is not None:
+    if truth is not None:  # before the simulations: a truth of other recordings refused
         truth_set = read_truth(truth, "--truth")
+        check_truth_of(truth, measured or est["measured"])
     failures: list[str] = []
     notes: list[str] = []
     labels = {"before": "nominal parameters", "after": "estimate", "truth": "true parameters"}

@@ -24,7 +24,8 @@
   :mod:`~railsusp.measured.sections`: a run's track per sample, a stretch cut into pieces
   kept or left out with their reasons (worded by :mod:`~railsusp.measured.reasons`), and
   the run cut into sections of one condition each;
-- :mod:`~railsusp.measured.synthetic`: synthetic recordings of hidden true parameters.
+- :mod:`~railsusp.measured.synthetic`: synthetic recordings of hidden true parameters;
+  :mod:`~railsusp.measured.truth`: their truth, read and told to belong to recordings.
 """
 
 from railsusp.measured.checks import MAX_GAP_SAMPLES
@@ -40,11 +41,11 @@ from railsusp.measured.sidecar import inside
 from railsusp.measured.synthetic import (
     add_sensor_noise,
     bandwidth_filter,
-    read_truth,
     recording_from_simulation,
     simulated_forces,
     synthesise_field,
 )
+from railsusp.measured.truth import check_truth_of, read_truth
 
 __all__ = [
     "FORMAT",
@@ -54,6 +55,7 @@ __all__ = [
     "SimulationFailedError",
     "add_sensor_noise",
     "bandwidth_filter",
+    "check_truth_of",
     "conditions_from",
     "inside",
     "read_field",

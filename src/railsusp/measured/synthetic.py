@@ -17,8 +17,8 @@ from scipy.signal import butter, sosfiltfilt
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError, repeated_names
 from railsusp.measured.recording import FORMAT, Recording, SimulationFailedError
-from railsusp.params import ParameterSet
-from railsusp.store import atomic_folder, read_json, write_json
+from railsusp.measured.truth import RECORDING_FILES, recording_files
+from railsusp.store import atomic_folder, write_json
 from railsusp.vehicle.layout import WHEEL_NAMES
 from railsusp.vehicle.track import Irregularities
 from railsusp.vehicle.track_geometry import (
@@ -229,6 +229,9 @@ def synthesise_field(
                 "parameters_display": truth.to_display(),
                 "note": "hidden truth: the estimator must not read this",
                 "track_seed_offset": track_seed_offset,
+                # which recordings it is the truth of, by their tables' contents: validate
+                # --truth refuses it for others (check_truth_of)
+                RECORDING_FILES: recording_files(folder, names),
             },
         )
     return out
@@ -251,26 +254,3 @@ def _track_of(cond: WorkingCondition, wagon: Any) -> Irregularities:
             "geometry to write; accepted with_track = false for it"
         )
     return irr
-
-
-#: what a truth file is, for the errors of :func:`read_truth`
-TRUTH_FILE = "a truth.json as railsusp synth-field writes it ({'parameters_display': {...}})"
-
-
-def read_truth(path: str | Path, where: str = "truth") -> ParameterSet:
-    """The hidden true parameters of synthetic recordings (``truth.json``, display units),
-    checked: a file that is not one (a recording's sidecar, an empty object) is a one-line
-    error naming ``where`` and the file, not a KeyError."""
-    try:
-        doc = read_json(path)
-    except RailsuspInputError as exc:
-        raise RailsuspInputError(f"{where} {exc}; accepted {TRUTH_FILE}") from None
-    values = doc.get("parameters_display") if isinstance(doc, dict) else None
-    if not isinstance(values, dict):
-        raise RailsuspInputError(
-            f"{where} {path}: no 'parameters_display' table; accepted {TRUTH_FILE}"
-        )
-    try:
-        return ParameterSet(values, units="display")
-    except RailsuspInputError as exc:
-        raise RailsuspInputError(f"{where} {path}: {exc}") from None

@@ -1,0 +1,112 @@
+"""The hidden truth of synthetic recordings (``truth.json``): read, and told to belong to the
+recordings it is scored against.
+
+``synth-field`` writes beside its recordings the parameters it simulated them with, and the
+SHA-256 of each recording's table as written (``recording_files``). ``validate --truth``
+scores the estimate's parameter recovery against such a file. Before stop 74 it took the
+truth of any folder without a word (the QA of stop 73): an estimate of one synthetic field
+scored against another field's truth gave recovery errors of a wagon it never measured. The
+truth is checked by the recordings' contents, not their place: a blind test keeps its truth
+away from its recordings on purpose, and the sections cut from a synthetic run
+(``sections --write``, whose index records the SHA-256 of the run it cut, ``source_sha256``)
+belong to the truth of that run.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from railsusp.errors import RailsuspInputError
+from railsusp.measured.reader import read_index
+from railsusp.params import ParameterSet
+from railsusp.store import file_hash, file_hash_cached, read_json
+
+#: what a truth file is, for the errors of :func:`read_truth`
+TRUTH_FILE = "a truth.json as railsusp synth-field writes it ({'parameters_display': {...}})"
+
+#: the key of ``truth.json`` holding each recording table's SHA-256, by file name
+RECORDING_FILES = "recording_files"
+
+
+def read_truth(path: str | Path, where: str = "truth") -> ParameterSet:
+    """The hidden true parameters of synthetic recordings (``truth.json``, display units),
+    checked: a file that is not one (a recording's sidecar, an empty object) is a one-line
+    error naming ``where`` and the file, not a KeyError."""
+    doc = _truth_doc(path, where)
+    try:
+        return ParameterSet(doc["parameters_display"], units="display")
+    except RailsuspInputError as exc:
+        raise RailsuspInputError(f"{where} {path}: {exc}") from None
+
+
+def _truth_doc(path: str | Path, where: str) -> dict:
+    """``truth.json`` as a JSON object holding a ``parameters_display`` table, else the
+    one-line error of :func:`read_truth`."""
+    try:
+        doc = read_json(path)
+    except RailsuspInputError as exc:
+        raise RailsuspInputError(f"{where} {exc}; accepted {TRUTH_FILE}") from None
+    values = doc.get("parameters_display") if isinstance(doc, dict) else None
+    if not isinstance(values, dict):
+        raise RailsuspInputError(
+            f"{where} {path}: no 'parameters_display' table; accepted {TRUTH_FILE}"
+        )
+    return doc
+
+
+def recording_files(folder: str | Path, names: list[str]) -> dict[str, str]:
+    """The SHA-256 of each recording table ``names`` in ``folder``, as ``synth-field``
+    records them in ``truth.json`` (:data:`RECORDING_FILES`)."""
+    return {name: file_hash(Path(folder) / name) for name in names}
+
+
+def check_truth_of(path: str | Path, folder: str | Path, where: str = "--truth") -> None:
+    """Refuse, in one line naming ``where``, a truth file written with other recordings than
+    those of the field folder ``folder``: every recording table there must be one the truth
+    lists by its SHA-256, or the folder must hold the sections of a run it lists (its index's
+    ``source_sha256``). A truth file without ``recording_files`` (written before stop 74, or
+    by hand, as the shipped example's states its run) is taken as it is: nothing to tell."""
+    doc = _truth_doc(path, where)
+    known = doc.get(RECORDING_FILES)
+    if known is None:
+        return
+    if not isinstance(known, dict) or not all(isinstance(v, str) for v in known.values()):
+        raise RailsuspInputError(
+            f"{where} {path}: '{RECORDING_FILES}' is not a table of file names to SHA-256 "
+            f"hashes; accepted {TRUTH_FILE}"
+        )
+    hashes = {v.lower() for v in known.values()}
+    source = _index_source(Path(folder))
+    if source is not None and source in hashes:
+        return  # the sections of a run the truth simulated
+    tables = read_index(folder)
+    foreign = [p.name for p in tables if _hash(p) not in hashes]
+    if not foreign:
+        return
+    raise RailsuspInputError(
+        f"{where} {path}: the truth of other recordings than {folder}'s ({', '.join(foreign)} "
+        f"{'is' if len(foreign) == 1 else 'are'} none of the tables it was written with, by "
+        "their SHA-256): its recovery would score the estimate against a wagon these "
+        "recordings never measured; accepted the truth.json that synth-field wrote with "
+        "these recordings, or with the run their sections were cut from"
+    )
+
+
+def _hash(path: Path) -> str | None:
+    """A table's SHA-256, or None where it cannot be read (the reader says why)."""
+    try:
+        return file_hash_cached(path)
+    except OSError:
+        return None
+
+
+def _index_source(folder: Path) -> str | None:
+    """The SHA-256 of the long run a sections folder was cut from (its index's
+    ``source_sha256``), or None for any other folder."""
+    try:
+        index = json.loads((folder / "index.json").read_text("utf-8-sig"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return None
+    sha = index.get("source_sha256") if isinstance(index, dict) else None
+    return sha.lower() if isinstance(sha, str) else None

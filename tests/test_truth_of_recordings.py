@@ -1,0 +1,105 @@
+"""A synthetic field's truth is told to belong to the recordings it is scored against
+(measured/truth.py): by the SHA-256 of their tables, or of the run their sections were cut
+from, wherever the truth file lies."""
+
+import json
+import shutil
+from importlib import resources
+
+import pytest
+
+from railsusp.conditions import get_condition
+from railsusp.errors import RailsuspInputError
+from railsusp.measured import check_truth_of, read_truth, synthesise_field
+from railsusp.measured.field_folder import source_fingerprint
+from railsusp.params import ParameterSet
+from railsusp.store import file_hash
+
+
+@pytest.fixture(scope="module")
+def fields(tmp_path_factory):
+    root = tmp_path_factory.mktemp("truths")
+    cond = get_condition("straight", duration_s=1.0, n_steps=50, lead_in_m=30.0)
+    a = synthesise_field(ParameterSet({"X13": 18.0}, units="display"), [cond], root / "a")
+    b = synthesise_field(ParameterSet({"X13": 9.0}, units="display"), [cond], root / "b", seed=8)
+    return a, b
+
+
+def test_synth_field_records_its_tables_by_content(fields):
+    a, _ = fields
+    doc = json.loads((a / "truth.json").read_text())
+    assert doc["recording_files"] == {"straight.csv": file_hash(a / "straight.csv")}
+    check_truth_of(a / "truth.json", a)  # its own recordings: accepted
+
+
+def test_a_truth_kept_elsewhere_is_still_the_truth_of_its_recordings(fields, tmp_path):
+    a, _ = fields
+    kept = tmp_path / "blind" / "truth.json"  # a blind test keeps the truth away
+    kept.parent.mkdir()
+    shutil.copy(a / "truth.json", kept)
+    check_truth_of(kept, a)
+
+
+def test_the_truth_of_another_field_is_refused_naming_the_table(fields):
+    a, b = fields
+    with pytest.raises(RailsuspInputError) as exc:
+        check_truth_of(b / "truth.json", a, "--truth")
+    msg = str(exc.value)
+    assert msg.startswith(f"--truth {b / 'truth.json'}: the truth of other recordings")
+    assert "straight.csv is none of the tables" in msg and "\n" not in msg
+
+
+def test_an_edited_recording_is_no_longer_the_truths(fields, tmp_path):
+    a, _ = fields
+    copy = shutil.copytree(a, tmp_path / "edited")
+    table = copy / "straight.csv"
+    table.write_text(table.read_text().replace("\n", "\r\n", 1))  # one byte more
+    with pytest.raises(RailsuspInputError, match="straight.csv is none of the tables"):
+        check_truth_of(copy / "truth.json", copy)
+
+
+def test_sections_of_a_run_belong_to_its_truth(fields, tmp_path):
+    a, b = fields
+    sections = tmp_path / "sections"
+    sections.mkdir()
+    # the index sections --write writes: the cut run's name, size and SHA-256
+    index = {"recordings": ["s1.csv"], **source_fingerprint(a / "straight.csv")}
+    (sections / "index.json").write_text(json.dumps(index))
+    (sections / "s1.csv").write_text("a section's table, not one of the field's\n")
+    check_truth_of(a / "truth.json", sections)
+    with pytest.raises(RailsuspInputError, match="s1.csv is none of the tables"):
+        check_truth_of(b / "truth.json", sections)
+
+
+def test_the_shipped_example_truth_is_that_of_the_shipped_run(tmp_path):
+    data = resources.files("railsusp") / "data"
+    truth = tmp_path / "example_run.truth.json"
+    truth.write_bytes((data / "example_run.truth.json").read_bytes())
+    run = tmp_path / "example_run.mf4"
+    run.write_bytes((data / "example_run.mf4").read_bytes())
+    sections = tmp_path / "sections"
+    sections.mkdir()
+    index = {"recordings": ["s1.csv"], **source_fingerprint(run)}
+    (sections / "index.json").write_text(json.dumps(index))
+    check_truth_of(truth, sections)
+    assert read_truth(truth)["X14"] == pytest.approx(8.3e6)  # SI inside
+
+
+def test_a_truth_without_recording_files_is_taken_as_it_is(fields, tmp_path):
+    _, b = fields
+    doc = json.loads((b / "truth.json").read_text())
+    del doc["recording_files"]  # written before stop 74
+    old = tmp_path / "truth.json"
+    old.write_text(json.dumps(doc))
+    check_truth_of(old, fields[0])
+
+
+@pytest.mark.parametrize("bad", [["straight.csv"], {"straight.csv": 3}, "abc"])
+def test_recording_files_not_a_table_of_hashes_is_refused(fields, tmp_path, bad):
+    a, _ = fields
+    doc = json.loads((a / "truth.json").read_text())
+    doc["recording_files"] = bad
+    path = tmp_path / "truth.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(RailsuspInputError, match="'recording_files' is not a table of file"):
+        check_truth_of(path, a)
