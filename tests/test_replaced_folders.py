@@ -87,3 +87,40 @@ def test_validate_may_write_beside_its_estimate(tmp_path):
     (tmp_path / "estimate.json").write_text("{}")
     own = ("validation.json", "estimate.json")
     assert check_replaced_folder(tmp_path, "--out", "validate", own=own) == tmp_path
+
+
+def test_a_linked_output_folder_is_written_where_the_link_points(tmp_path):
+    """atomic_folder renamed a symbolic link aside (``.NAME.old-*``, left for good: rmtree
+    refuses a link) and put a real folder in its place, the link's folder left stale (the
+    QA of stop 73). The folder it names is replaced now, and the link kept."""
+    from railsusp.atomic_files import atomic_folder
+
+    real = tmp_path / "disk" / "est"
+    real.mkdir(parents=True)
+    (real / "estimate.json").write_text("old")
+    (real / "notes.txt").write_text("kept")
+    link = tmp_path / "est"
+    link.symlink_to(real, target_is_directory=True)
+    with atomic_folder(link, drop=("estimate.json",)) as tmp:
+        (tmp / "estimate.json").write_text("new")
+    assert link.is_symlink() and link.resolve() == real.resolve()
+    assert (real / "estimate.json").read_text() == "new"
+    assert (real / "notes.txt").read_text() == "kept"  # other files carried, as for a folder
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["disk", "est"]  # nothing aside
+    assert sorted(p.name for p in (tmp_path / "disk").iterdir()) == ["est"]
+
+
+def test_a_link_left_aside_by_an_older_railsusp_is_removed(tmp_path):
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "kept.txt").write_text("the link's folder is not emptied")
+    out = tmp_path / "est"
+    out.mkdir()
+    stale = tmp_path / ".est.old-abc123"
+    stale.symlink_to(elsewhere, target_is_directory=True)
+    from railsusp.atomic_files import atomic_folder
+
+    with atomic_folder(out) as tmp:
+        (tmp / "estimate.json").write_text("new")
+    assert not stale.is_symlink() and not stale.exists()
+    assert (elsewhere / "kept.txt").exists()

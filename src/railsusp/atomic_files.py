@@ -198,9 +198,14 @@ def atomic_folder(path: str | Path, keep: bool = True, drop: Sequence[str] = ())
     first (it held finished work: a trained network and its checkpoint), then carries on. A
     process killed while writing leaves ``.NAME.new-*``: the next save removes it. The
     folder gets the mode a plainly made one gets (0777 less the umask), not the temporary
-    folder's 0700.
+    folder's 0700. A ``path`` that is a symbolic link has the folder it names replaced, and
+    the link is kept: the link itself was renamed aside and left as ``.NAME.old-*`` for good
+    (rmtree refuses a link), a real folder put in its place and the link's folder left as it
+    was (the QA of stop 73).
     """
     path = Path(path)
+    if path.is_symlink():  # the folder the link names, written where the link points
+        path = Path(os.path.realpath(path))
     path.parent.mkdir(parents=True, exist_ok=True)
     name = glob.escape(path.name)  # ``est[1]``, ``run*``: a pattern only of this name's
     aside = sorted(path.parent.glob(f".{name}.old-*"), key=lambda p: p.stat().st_mtime)
@@ -208,7 +213,10 @@ def atomic_folder(path: str | Path, keep: bool = True, drop: Sequence[str] = ())
         os.rename(aside.pop(), path)
     for pattern in (f".{name}.old-*", f".{name}.new-*"):
         for stale in path.parent.glob(pattern):
-            shutil.rmtree(stale, ignore_errors=True)
+            if stale.is_symlink():  # a link an older railsusp renamed aside
+                stale.unlink(missing_ok=True)
+            else:
+                shutil.rmtree(stale, ignore_errors=True)
     tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.new-"))
     try:
         yield tmp
