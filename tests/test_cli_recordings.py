@@ -332,3 +332,16 @@ def test_a_tables_curve_against_the_runs_own_is_said(tmp_path):
             assert "averaged over the row" not in out, row
         else:
             assert f"row 2: {said}" in out and "check its radius_m and direction" in out, row
+
+
+def test_example_recording_is_not_written_among_recordings(tmp_path):
+    """example-recording wrote its five files into a field folder, beside the recordings
+    (the QA of stop 73); refused now in one line, as every command writing results is."""
+    field = tmp_path / "field"
+    field.mkdir()
+    (field / "index.json").write_text('{"recordings": ["straight.csv"]}')
+    result = runner.invoke(app, ["example-recording", "--out", str(field)])
+    assert result.exit_code == 2, result.output
+    text = " ".join(result.output.split())
+    assert f"--out {field} is a field folder of recordings (index.json)" in text
+    assert sorted(p.name for p in field.iterdir()) == ["index.json"]  # nothing written

@@ -332,6 +332,11 @@ def example_recording(
             raise RailsuspInputError(
                 f"--out {out}: a file, not a folder; accepted a new folder or an existing one"
             )
+        # the example's files are not mixed into a field folder (they were, beside the
+        # recordings: the QA of stop 73), as no command writes its results among them
+        from railsusp.measured.field_folder import check_not_recordings
+
+        check_not_recordings(out)
         # one writer at a time in the folder (two copies at once checked each other's
         # half-written files as edited)
         hold_folders(creates=[("--out", out)])
