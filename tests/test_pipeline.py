@@ -10,6 +10,7 @@ import pytest
 import torch
 from typer.testing import CliRunner
 
+from railsusp.api import open_run
 from railsusp.cli import app
 from railsusp.errors import RailsuspInputError
 from railsusp.pipeline import STAGES, StageError, demo_config, load_config, run_pipeline
@@ -486,9 +487,15 @@ def test_recordings_replaced_in_a_measured_folder_make_the_field_stage_run_again
     first[1] = f"{float(first[1]) + 0.5:.6g}"  # another recording of the same length
     table.write_text("\n".join([lines[0], ",".join(first), *lines[2:]]) + "\n")
     seen = []
-    run_pipeline(load_config(cfg_path), run, progress=lambda s, m: seen.append((s, m)))
+    with pytest.warns(UserWarning, match="its truth.json is left out of the run") as said:
+        run_pipeline(load_config(cfg_path), run, progress=lambda s, m: seen.append((s, m)))
     assert [s for s, m in seen if m == "running"] == ["field", "estimate", "validate", "report"]
     assert (run / "field" / "short.csv").read_text() == table.read_text()
+    # the copied truth is no longer that of the edited recording: left out, not scored
+    # (kept, validate refused it after the whole estimate: stop 74)
+    assert "short.csv is none of the tables" in str(said[0].message)
+    assert not (run / "field" / "truth.json").exists() and (measured / "truth.json").exists()
+    assert open_run(run).recovery is None
 
 
 def test_a_deleted_markdown_report_is_written_again(tiny, tmp_path):

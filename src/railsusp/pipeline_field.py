@@ -101,7 +101,11 @@ def field_stage(config: Any, out: str | Path) -> dict:
                 shutil.copytree(
                     f.measured, tmp, dirs_exist_ok=True, ignore=shutil.ignore_patterns(LOCK_NAME)
                 )
-        return {"recordings": len(recs), "synthetic": False}
+                left_out = _foreign_truth(tmp, f.measured)
+        record: dict = {"recordings": len(recs), "synthetic": False}
+        if left_out:
+            record["truth_left_out"] = left_out
+        return record
     truth = ParameterSet(f.truth, units="display")
     synthesise_field(
         truth,
@@ -114,3 +118,33 @@ def field_stage(config: Any, out: str | Path) -> dict:
         wagon=wagon,  # the run's wagon (was always the packaged C80)
     )
     return {"recordings": len(config.conditions), "synthetic": True}
+
+
+def _foreign_truth(copy: Path, measured: str) -> str | None:
+    """Remove from the field stage's ``copy`` of a measured folder a ``truth.json`` that is
+    not the truth of its recordings (:func:`~railsusp.measured.check_truth_of`: a recording
+    edited since synth-field wrote it, a truth file put there from another field), and say
+    so in a warning; the reason, or None where the truth belongs or there is none. The run
+    scores the recovery against ``RUN/field/truth.json`` (the validation, ``open_run``'s
+    recovery, the report's hidden-truth column): kept, a foreign truth refused the
+    validation stage after the whole estimate."""
+    import warnings
+
+    from railsusp.errors import RailsuspInputError
+    from railsusp.measured import check_truth_of
+
+    truth = copy / "truth.json"
+    if not truth.is_file():
+        return None
+    try:
+        check_truth_of(truth, copy, "truth.json")
+    except RailsuspInputError as exc:
+        truth.unlink()
+        reason = str(exc).replace(str(copy), str(measured))
+        warnings.warn(
+            f"field.measured {measured}: its truth.json is left out of the run, the recovery "
+            f"not scored: {reason}",
+            stacklevel=2,
+        )
+        return reason
+    return None
