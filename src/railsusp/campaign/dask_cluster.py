@@ -8,8 +8,13 @@ imported only here, and only when used."""
 from __future__ import annotations
 
 import errno
+import logging
 import re
-from collections.abc import Callable, Iterable
+import signal
+import sys
+import threading
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 from railsusp.campaign.design import CampaignError
@@ -160,10 +165,15 @@ def run_on_dask(
 
     cluster = None
     if scheduler is None:
-        cluster = LocalCluster(
-            n_workers=workers or 1, threads_per_worker=1, processes=True, dashboard_address=None
-        )
+        with _sigint_ignored():  # the workers' processes inherit it (below)
+            cluster = LocalCluster(
+                n_workers=workers or 1,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+            )
         client = Client(cluster)
+        client.run(_quiet_worker_log)  # our own workers: their cancelled tasks unsaid
     else:  # the run directory is written and resumes once a scheduler answers
         client = connect_scheduler(scheduler, setting)
     try:
@@ -200,9 +210,53 @@ def run_on_dask(
                 ) from exc
             finish(futures[fut], result)  # (its own errors as they are: not the cluster's)
     finally:
-        try:
-            client.close()
-        except failures:  # a lost scheduler: nothing left to close, the error is above
-            pass
-        if cluster is not None:
-            cluster.close()
+        # after a Ctrl-C the local cluster's shutdown (tasks cancelled, workers busy in a
+        # simulation killed) logged some 60 warning lines before the one "interrupted" line
+        # (the QA of stop 74): not said; a cluster's failure is raised above as it was
+        with _quiet_shutdown(sys.exc_info()[0] is KeyboardInterrupt):
+            try:
+                client.close()
+            except failures:  # a lost scheduler: nothing left to close, the error is above
+                pass
+            if cluster is not None:
+                cluster.close()
+
+
+@contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored while the local cluster starts its processes, which inherit the
+    disposition (Python installs its KeyboardInterrupt handler only where SIGINT is not
+    ignored at start): a Ctrl-C at the terminal reaches the whole process group, and every
+    worker printed its own KeyboardInterrupt traceback. The command's process alone stops
+    on it, and closes the cluster. Only in the main thread (where signals are handled)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _quiet_worker_log() -> None:
+    """In a local cluster's worker process: its task bookkeeping logged at errors only (a
+    run's batches cancelled by a Ctrl-C each logged a warning "Async instruction ... ended
+    with CancelledError")."""
+    logging.getLogger("distributed.worker.state_machine").setLevel(logging.ERROR)
+
+
+@contextmanager
+def _quiet_shutdown(quiet: bool) -> Iterator[None]:
+    """Dask's loggers held to errors above CRITICAL while ``quiet`` (an interrupted run's
+    cluster closing)."""
+    if not quiet:
+        yield
+        return
+    logger = logging.getLogger("distributed")
+    level = logger.level
+    logger.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)

@@ -1,0 +1,68 @@
+"""A Ctrl-C at the terminal reaches the whole process group, the local Dask cluster's
+worker processes too: `campaign --workers 2` printed some 60 lines of worker warnings and
+KeyboardInterrupt tracebacks before its one "interrupted" line (the QA of stop 74). The
+workers now start with SIGINT ignored (the command's process alone stops on it and closes
+the cluster), their cancelled tasks and the nannies' shutdown unsaid."""
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+TASK = """
+import pathlib, time
+
+def busy(flag, seconds):
+    pathlib.Path(flag).touch()  # running: the harness may interrupt now
+    end = time.time() + seconds
+    while time.time() < end:  # a simulation's busy loop, not a sleep
+        sum(range(1000))
+    return seconds
+"""
+
+DRIVER = """
+import sys
+from railsusp.campaign.dask_cluster import run_on_dask
+from slowtask import busy
+
+if __name__ == "__main__":
+    flag = sys.argv[1]
+    try:
+        run_on_dask(busy, [(0, b) for b in range(4)], lambda ci, b: (f"{flag}{b}", 60.0),
+                    lambda b, r: None, None, 2)
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        sys.exit(130)
+"""
+
+
+def test_a_ctrl_c_to_the_process_group_stops_a_local_cluster_in_one_line(tmp_path):
+    (tmp_path / "slowtask.py").write_text(textwrap.dedent(TASK))
+    (tmp_path / "driver.py").write_text(textwrap.dedent(DRIVER))
+    flag = tmp_path / "started-"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), *sys.path])}
+    proc = subprocess.Popen(
+        [sys.executable, "driver.py", str(flag)],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # its own process group, as a terminal's foreground job
+    )
+    try:
+        deadline = time.time() + 120
+        while not list(tmp_path.glob("started-*")) and time.time() < deadline:
+            assert proc.poll() is None, proc.communicate()
+            time.sleep(0.2)
+        time.sleep(1.0)
+        os.killpg(proc.pid, signal.SIGINT)  # what the terminal does on Ctrl-C
+        _, err = proc.communicate(timeout=90)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert proc.returncode == 130
+    assert lines == ["interrupted"], err
