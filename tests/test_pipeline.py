@@ -794,3 +794,16 @@ def test_a_refused_printout_in_a_stage_is_said_as_the_streams_not_the_stages(
     entry = json.loads((copy / "pipeline.json").read_text())["stages"]["report"]
     assert entry["state"] == "failed"
     assert entry["error"] == "its printout to stdout failed: No space left on device"
+
+
+def test_a_run_sweeps_the_temporaries_a_killed_run_left_of_its_files(tiny, tmp_path):
+    """A kill while pipeline.json or a report was written left its temporary in the run
+    directory for good (the interrupt/resume QA of stop 74)."""
+    cfg, _, copy = _up_to_date_copy(tiny, tmp_path)
+    left = [copy / ".pipeline.json.abcd1234.tmp", copy / ".report.html.abcd1234.tmp"]
+    for p in left:
+        p.write_text("half")
+    mine = copy / ".notes.tmp"  # no railsusp temporary: left alone
+    mine.write_text("mine")
+    run_pipeline(cfg, copy)
+    assert not any(p.exists() for p in left) and mine.exists()

@@ -10,7 +10,9 @@ process left are removed by :func:`remove_stale_temporaries`.
 
 It is apart from :mod:`railsusp.store`, which reads and writes the run directory's formats
 (JSON, Parquet, CSV, TOML) and hashes them through these writes: this module knows bytes,
-files, folders and the disk, and no format. It imports nothing of railsusp.
+files, folders and the disk, and no format. It imports nothing of railsusp but
+:mod:`railsusp.interrupts` (the standard library's only): a Ctrl-C recorded while a folder
+was written stops the command before the folder is swapped in.
 """
 
 from __future__ import annotations
@@ -25,6 +27,8 @@ import tempfile
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
+
+from railsusp.interrupts import stop_if_interrupted
 
 #: what ``os.fsync`` of a folder (or ``os.open`` of one) raises where the file system or the
 #: platform does not support it: ignored; anything else (EIO: the rename may not be on disk)
@@ -208,9 +212,7 @@ def atomic_folder(path: str | Path, keep: bool = True, drop: Sequence[str] = ())
         path = Path(os.path.realpath(path))
     path.parent.mkdir(parents=True, exist_ok=True)
     name = glob.escape(path.name)  # ``est[1]``, ``run*``: a pattern only of this name's
-    aside = sorted(path.parent.glob(f".{name}.old-*"), key=lambda p: p.stat().st_mtime)
-    if aside and not path.exists():  # a crash between the two renames: the old one back
-        os.rename(aside.pop(), path)
+    put_back_aside(path)
     for pattern in (f".{name}.old-*", f".{name}.new-*"):
         for stale in path.parent.glob(pattern):
             if stale.is_symlink():  # a link an older railsusp renamed aside
@@ -220,6 +222,9 @@ def atomic_folder(path: str | Path, keep: bool = True, drop: Sequence[str] = ())
     tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.new-"))
     try:
         yield tmp
+        # a Ctrl-C Python swallowed while the folder was written (inside an import of
+        # asammdf: sections --write replaced the folder and exited 0, the QA of stop 74)
+        stop_if_interrupted()
         os.chmod(tmp, 0o777 & ~_UMASK)
         for f in tmp.rglob("*"):
             if f.is_file():
@@ -229,6 +234,8 @@ def atomic_folder(path: str | Path, keep: bool = True, drop: Sequence[str] = ())
                 target = tmp / entry.name
                 if target.exists() or any(fnmatch.fnmatchcase(entry.name, d) for d in drop):
                     continue
+                if _TEMPORARY.match(entry.name):  # a killed write's temporary: not carried
+                    continue  # into every later save (the QA of stop 74)
                 if entry.is_dir():
                     shutil.copytree(entry, target, copy_function=_link_or_copy)
                 else:
@@ -251,6 +258,21 @@ def atomic_folder(path: str | Path, keep: bool = True, drop: Sequence[str] = ())
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
+
+
+def put_back_aside(path: str | Path) -> bool:
+    """Put back the folder an :func:`atomic_folder` swap set aside (``.NAME.old-*``, the
+    newest) where a crash between its two renames left no ``path``; whether it did. Called
+    by every swap before it writes, and by a reader holding the folder's lock before it
+    reads what the folder holds (a training's checkpoint: ``train`` started again from epoch
+    1 and then deleted the trained network set aside, the QA of stop 74)."""
+    path = Path(path)
+    name = glob.escape(path.name)
+    aside = sorted(path.parent.glob(f".{name}.old-*"), key=lambda p: p.stat().st_mtime)
+    if aside and not path.exists() and not path.is_symlink():
+        os.rename(aside.pop(), path)
+        return True
+    return False
 
 
 def _link_or_copy(src: str | Path, dst: str | Path) -> None:

@@ -47,7 +47,7 @@ from railsusp.pipeline_state import (
 from railsusp.pipeline_state import STAGES as STAGES  # re-export
 from railsusp.provenance import code_identity, provenance, utc_now
 from railsusp.run_lock import run_lock
-from railsusp.store import content_hash, write_json
+from railsusp.store import content_hash, remove_stale_temporaries, write_json
 from railsusp.suspension_tolerances import read_tolerances
 from railsusp.vehicle.revision import this_revision
 
@@ -101,6 +101,9 @@ def run_pipeline(
     check_cuda(config, source, surrogate_done=kept)
     out.mkdir(parents=True, exist_ok=True)
     with run_lock(out, out_option):  # one run at a time in a folder
+        # temporaries a killed run left of its own files (pipeline.json, the reports),
+        # under the lock: kept for good before (the QA of stop 74)
+        remove_stale_temporaries(out)
         # read again under the lock: another run may have ended meanwhile
         state = _run_stages(
             in_stored_batches(config, out),

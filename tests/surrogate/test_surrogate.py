@@ -334,3 +334,22 @@ def test_sampled_parameters_left_out_of_the_inputs_are_named(tmp_path):
     (sens / "key_parameters.json").write_text(json.dumps({"key_parameters": {"keys": keys}}))
     assert key_parameters(tmp_path) == tuple(keys)
     assert unexplained_parameters(tmp_path) == ()
+
+
+def test_a_trained_folder_left_aside_mid_swap_is_put_back_before_training(run, tmp_path):
+    """A crash between the save's two renames leaves the trained folder aside as
+    ``.NAME.old-*``: `train` started again from epoch 1 and the swap then deleted the trained
+    network (the QA of stop 74). It is put back first, and its checkpoint resumes."""
+    cfg = TrainConfig(epochs=2, batches_per_epoch=3, batch_size=32, val_windows=100)
+    out = tmp_path / "bp" / "straight"
+    train_surrogate(run, "straight", kind="bp", parameters=KEYS, train=cfg, out=out)
+    weights = (out / "model.pt").read_bytes()
+    out.rename(out.parent / ".straight.old-abc12345")
+    epochs = []
+    train_surrogate(
+        run, "straight", kind="bp", parameters=KEYS, train=cfg, out=out,
+        progress=lambda epoch, *_: epochs.append(epoch),
+    )  # fmt: skip
+    assert epochs == []  # resumed from the finished checkpoint: no epoch trained again
+    assert (out / "model.pt").read_bytes() == weights
+    assert [p.name for p in out.parent.iterdir()] == ["straight"]

@@ -53,9 +53,14 @@ def _is_terminal(stream: object) -> bool:
         return False
 
 
-# Wide tables when piped (CI logs, files); the terminal's width otherwise.
+# Wide tables when piped (CI logs, files); the terminal's width otherwise. What goes to
+# stderr is messages, each one line however long (soft wrap: the terminal folds it, a log
+# or a grep sees one line): the interrupt line and others broke at 80 or 150 columns (the
+# QA of stop 74).
 console = _StreamConsole(width=None if _is_terminal(sys.stdout) else 150)
-err_console = _StreamConsole(stderr=True, width=None if _is_terminal(sys.stderr) else 150)
+err_console = _StreamConsole(
+    stderr=True, soft_wrap=True, width=None if _is_terminal(sys.stderr) else 150
+)
 
 
 #: ``--wagon`` of the commands that simulate a wagon: a wagon file or a packaged name

@@ -193,6 +193,12 @@ def train_command(
         if long_record != "synthetic-likelihood":
             refuse_synthetic_only(projection_rank, statistics_emulator_cases)
         hold_folders(creates=[("--out", out)])  # the run directory for the training's duration
+        # temporaries a killed training left of its files and cached chunks, under the
+        # lock: kept for good before (the QA of stop 74)
+        from railsusp.store import remove_stale_temporaries
+
+        for folder in (out / "posterior", out / "posterior" / "simulations"):
+            remove_stale_temporaries(folder)
         if is_quiet():
             est = posterior.train(settings, out)
         else:

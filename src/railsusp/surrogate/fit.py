@@ -15,7 +15,7 @@ import numpy as np
 import torch
 
 from railsusp.errors import RailsuspInputError
-from railsusp.store import read_json
+from railsusp.store import put_back_aside, read_json
 from railsusp.surrogate.bundle import Surrogate, load
 from railsusp.surrogate.correction import MIN_RUNS
 from railsusp.surrogate.data import Normaliser, load_series
@@ -344,6 +344,8 @@ def train_surrogate(
     )
     network = build_network(cfg)
     out = Path(out) if out else camp.path / "surrogates" / kind / condition
+    # a trained folder a crash left aside mid-swap, back before its checkpoint is read
+    put_back_aside(out)
     twins = load_twins(camp, data, spec) if tcfg.pair_weight > 0 else None
     history = train_network(
         network,
