@@ -807,3 +807,22 @@ def test_a_run_sweeps_the_temporaries_a_killed_run_left_of_its_files(tiny, tmp_p
     mine.write_text("mine")
     run_pipeline(cfg, copy)
     assert not any(p.exists() for p in left) and mine.exists()
+
+
+def test_a_stage_whose_output_is_gone_says_why_it_runs_again(tiny, tmp_path, caplog):
+    """A removed estimate.json ran the stage again without a word, while a changed file was
+    said ("is damaged" also for several files): the interrupt/resume QA of stop 74."""
+    cfg, _, copy = _up_to_date_copy(tiny, tmp_path)
+    gone = copy / "estimate" / "estimate.json"
+    gone.unlink()
+    with caplog.at_level("WARNING"):
+        run_pipeline(cfg, copy)
+    assert f"stage estimate: {gone} is gone; the stage runs again" in caplog.text
+    caplog.clear()
+    field = sorted((copy / "field").glob("short.*"))  # the table and its sidecar
+    assert len(field) == 2
+    for p in field:
+        p.write_text(p.read_text() + "\n")
+    with caplog.at_level("WARNING"):
+        run_pipeline(cfg, copy)
+    assert "are damaged, changed or gone; the stage runs again" in caplog.text

@@ -317,7 +317,9 @@ def outputs_exist(
     files compared by size alone (and stays up to date); one made before sizes were has
     every file in the stage's folders checked by its format alone."""
     path = _marked_output(config, out, stage)
-    if not path.is_file():
+    if not path.is_file():  # said as a changed file is (it ran again without a word: the
+        # interrupt/resume QA of stop 74, a field/ or estimate.json removed)
+        log.warning("stage %s: %s is gone; the stage runs again", stage, path)
         return False
     if isinstance(recorded, dict) and recorded:
         bad = changed_files(recorded, out, hashes, mtimes)
@@ -329,7 +331,10 @@ def outputs_exist(
     bad += [p for p in unreadable_files(dict.fromkeys(to_read)) if p not in bad]
     if bad:
         names = first_listed(bad, 3)
-        log.warning("stage %s: %s is damaged, changed or gone; the stage runs again", stage, names)
+        verb = "is" if len(bad) == 1 else "are"
+        log.warning(
+            "stage %s: %s %s damaged, changed or gone; the stage runs again", stage, names, verb
+        )
     return not bad
 
 
