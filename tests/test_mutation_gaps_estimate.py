@@ -9,10 +9,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from posterior_fakes import ConfidentEstimator, synthetic_cases
 from railsusp.cli.posterior_tables import print_verdict
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
-from railsusp.estimate import posterior_check, posterior_data, posterior_fusion
+from railsusp.estimate import posterior_check
 from railsusp.estimate.calibration import ParameterCalibration, SpreadCorrection
 from railsusp.estimate.intervals import from_pareto, from_samples, from_standard_errors
 from railsusp.estimate.posterior_check import ProductCalibration
@@ -73,38 +74,19 @@ def test_an_nsga_estimate_of_a_parameter_the_recordings_hardly_move_is_a_recordi
 
 
 # ---------------------------------------------------------------- 9. calibrate's record
-class _FarTooConfident:
-    """An estimator of X13 from x = logit(u) + N(0, 0.5^2) whose draws are N(x, 0.12^2) in
-    logit coordinates: a quarter of the likelihood's spread, so its correction widens it
-    more than MAX_INFLATION (2) times, after which its coverage passes."""
-
-    def __init__(self, settings):
-        self.settings = settings
-
-    def sample_raw(self, x, n, seed=0):
-        rng = np.random.default_rng(seed)
-        z = x[:, None, :] + 0.12 * rng.standard_normal((x.shape[0], n, 1))
-        return posterior_fusion.from_logit(z)
-
-
-def _synthetic_cases(settings, folder, kind, n, sections=1):
-    u = posterior_data.prior_draws(settings, kind, n)
-    rng = np.random.default_rng(posterior_data.SEED_BASE[kind])
-    x = posterior_fusion.to_logit(u[:, [2]]) + 0.5 * rng.standard_normal((n, 1))
-    return u, x
-
-
 def test_the_stored_check_fails_an_excessive_widening_whose_coverage_passes(tmp_path, monkeypatch):
     """calibration.json's ``passed`` is False where the corrected coverage passes but the
     widening exceeds its bound: the record says what the estimator's verdict says."""
-    monkeypatch.setattr(posterior_check, "cached_cases", _synthetic_cases)
+    monkeypatch.setattr(posterior_check, "cached_cases", synthetic_cases)
     cond = get_condition("straight").with_changes(lead_in_m=30.0)
     s = PosteriorSettings(
         (cond,), parameters=("X13",), section_s=3.0, n_train=150, n_check=300,
         n_calibration=300, samples=400, hidden_features=20, num_transforms=2,
     )  # fmt: skip
     s = PosteriorSettings.from_dict({**s.to_dict(), "product_sections": []})
-    correction, after, products = posterior_check.calibrate(_FarTooConfident(s), tmp_path)
+    correction, after, products = posterior_check.calibrate(
+        ConfidentEstimator(s, spread=0.12), tmp_path
+    )
     assert correction.excessive == ["X13"] and correction.factors[0] > 2.0
     (c,) = after
     assert c.passed and products == []

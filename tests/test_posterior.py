@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from posterior_fakes import ConfidentEstimator, synthetic_cases
 from railsusp.cli import app
 from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
@@ -168,43 +169,23 @@ def test_fusion_adds_the_sections_information_and_clips_what_is_below_the_prior(
     )
 
 
-class _OverConfident:
-    """An estimator of X13 from x = logit(u) + N(0, 0.5^2) whose draws are N(x, 0.3^2) in
-    logit coordinates: 0.6 of the likelihood's spread (the logistic prior is much wider)."""
-
-    def __init__(self, settings):
-        self.settings = settings
-
-    def sample_raw(self, x, n, seed=0):
-        rng = np.random.default_rng(seed)
-        z = x[:, None, :] + 0.3 * rng.standard_normal((x.shape[0], n, 1))
-        return posterior_fusion.from_logit(z)
-
-
-def _synthetic_cases(settings, folder, kind, n, sections=1):
-    u = posterior_data.prior_draws(settings, kind, n)
-    rng = np.random.default_rng(posterior_data.SEED_BASE[kind])
-    x = posterior_fusion.to_logit(u[:, [2]]) + 0.5 * rng.standard_normal((n, 1))
-    return u, x
-
-
 def test_the_calibration_step_fits_on_one_set_and_passes_on_the_untouched_one(
     tmp_path, monkeypatch
 ):
     """The training's calibration step end to end on an over-confident estimator: its
     check fails before the correction and passes after it, on test cases nothing was
     fitted on; the factor is stored and read back."""
-    monkeypatch.setattr(posterior_check, "cached_cases", _synthetic_cases)
+    monkeypatch.setattr(posterior_check, "cached_cases", synthetic_cases)
     s = _settings(parameters=("X13",), n_calibration=300, n_check=300, samples=400)
     s = PosteriorSettings.from_dict({**s.to_dict(), "product_sections": []})
-    correction, after, products = posterior_check.calibrate(_OverConfident(s), tmp_path)
+    correction, after, products = posterior_check.calibrate(ConfidentEstimator(s), tmp_path)
     record = read_json(tmp_path / "calibration.json")
     (before,) = record["before"]
     assert not before["passed"] and before["coverage"] < 0.8
     assert correction.factors[0] == pytest.approx(1 / 0.6, rel=0.15) and not correction.excessive
     (c,) = after
     assert c.passed and 0.85 <= c.coverage <= 0.95 and record["passed"] and products == []
-    again = posterior_check.calibrate(_OverConfident(s), tmp_path)  # read back
+    again = posterior_check.calibrate(ConfidentEstimator(s), tmp_path)  # read back
     assert again[0] == correction and again[1] == after
 
 
@@ -235,7 +216,7 @@ def test_each_number_of_sections_is_checked_on_its_own_count_of_cases(tmp_path, 
         product_sections=(4, 2, 3), product_cases=(60, 150, 150),
     )  # fmt: skip
     assert s.product_sets() == [(150, 3, (2, 3)), (60, 4, (4,))]
-    _, _, products = posterior_check.calibrate(_OverConfident(s), tmp_path)
+    _, _, products = posterior_check.calibrate(ConfidentEstimator(s), tmp_path)
     assert {c for c in calls if c[0] == "long"} == {("long", 150, 3), ("long", 60, 4)}
     record = read_json(tmp_path / "calibration.json")["products"]
     assert [(p["sections"], p["calibration_cases"], p["cases"]) for p in record] == [
