@@ -1,8 +1,8 @@
 """A Ctrl-C at the terminal reaches the whole process group, the local Dask cluster's
 worker processes too: `campaign --workers 2` printed some 60 lines of worker warnings and
-KeyboardInterrupt tracebacks before its one "interrupted" line (the QA of stop 74). The
-workers now start with SIGINT ignored (the command's process alone stops on it and closes
-the cluster), their cancelled tasks and the nannies' shutdown unsaid."""
+KeyboardInterrupt tracebacks before its one "interrupted" line (the QA of stop 74): the
+workers' cancelled tasks and the nannies' shutdown are unsaid now, and a Ctrl-C while the
+cluster starts waits until it has (the command's process stops and closes it)."""
 
 import os
 import signal
@@ -24,11 +24,13 @@ def busy(flag, seconds):
 
 DRIVER = """
 import sys
+import dask.distributed  # loaded before "starting": the interrupt meets the cluster's start
 from railsusp.campaign.dask_cluster import run_on_dask
 from slowtask import busy
 
 if __name__ == "__main__":
     flag = sys.argv[1]
+    print("starting", flush=True)
     try:
         run_on_dask(busy, [(0, b) for b in range(4)], lambda ci, b: (f"{flag}{b}", 60.0),
                     lambda b, r: None, None, 2)
@@ -38,20 +40,26 @@ if __name__ == "__main__":
 """
 
 
-def test_a_ctrl_c_to_the_process_group_stops_a_local_cluster_in_one_line(tmp_path):
+def _driver(tmp_path):
+    """The driver running four minute-long batches on a local cluster of two workers, in a
+    process group of its own as a terminal's foreground job."""
     (tmp_path / "slowtask.py").write_text(textwrap.dedent(TASK))
     (tmp_path / "driver.py").write_text(textwrap.dedent(DRIVER))
     flag = tmp_path / "started-"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), *sys.path])}
-    proc = subprocess.Popen(
+    return subprocess.Popen(
         [sys.executable, "driver.py", str(flag)],
         cwd=tmp_path,
         env=env,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-        start_new_session=True,  # its own process group, as a terminal's foreground job
+        start_new_session=True,
     )
+
+
+def test_a_ctrl_c_to_the_process_group_stops_a_local_cluster_in_one_line(tmp_path):
+    proc = _driver(tmp_path)
     try:
         deadline = time.time() + 120
         while not list(tmp_path.glob("started-*")) and time.time() < deadline:
@@ -66,3 +74,22 @@ def test_a_ctrl_c_to_the_process_group_stops_a_local_cluster_in_one_line(tmp_pat
     lines = [ln for ln in err.splitlines() if ln.strip()]
     assert proc.returncode == 130
     assert lines == ["interrupted"], err
+
+
+def test_a_ctrl_c_while_the_cluster_starts_is_not_lost(tmp_path):
+    """SIGINT ignored while the cluster started lost a Ctrl-C pressed then, and the campaign
+    went on (the review of stop 74): blocked, it waits and stops the command once the
+    cluster has started, the cluster closed."""
+    proc = _driver(tmp_path)
+    try:
+        assert proc.stdout.readline().strip() == "starting"
+        time.sleep(0.3)  # the cluster starting its processes
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=90)  # lost, it would run its batches: 2 minutes
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130
+    # the command's own line last; a worker still importing when the cluster is closed
+    # may print its traceback before it (its process is not railsusp's yet)
+    assert [ln for ln in err.splitlines() if ln.strip()][-1] == "interrupted", err

@@ -163,20 +163,20 @@ def run_on_dask(
 
     failures = _cluster_failures()
 
-    cluster = None
-    if scheduler is None:
-        with _sigint_ignored():  # the workers' processes inherit it (below)
-            cluster = LocalCluster(
-                n_workers=workers or 1,
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=None,
-            )
-        client = Client(cluster)
-        client.run(_quiet_worker_log)  # our own workers: their cancelled tasks unsaid
-    else:  # the run directory is written and resumes once a scheduler answers
-        client = connect_scheduler(scheduler, setting)
-    try:
+    cluster = client = None
+    try:  # the cluster closed whatever stops it, a Ctrl-C while it starts too
+        if scheduler is None:
+            with _sigint_blocked():  # a Ctrl-C meanwhile: raised once it has started
+                cluster = LocalCluster(
+                    n_workers=workers or 1,
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=None,
+                )
+            client = Client(cluster)
+            client.run(_quiet_worker_log)  # our own workers: their cancelled tasks unsaid
+        else:  # the run directory is written and resumes once a scheduler answers
+            client = connect_scheduler(scheduler, setting)
         try:
             futures = {}
             for ci, b in todo:
@@ -215,7 +215,8 @@ def run_on_dask(
         # (the QA of stop 74): not said; a cluster's failure is raised above as it was
         with _quiet_shutdown(sys.exc_info()[0] is KeyboardInterrupt):
             try:
-                client.close()
+                if client is not None:
+                    client.close()
             except failures:  # a lost scheduler: nothing left to close, the error is above
                 pass
             if cluster is not None:
@@ -223,20 +224,20 @@ def run_on_dask(
 
 
 @contextmanager
-def _sigint_ignored() -> Iterator[None]:
-    """SIGINT ignored while the local cluster starts its processes, which inherit the
-    disposition (Python installs its KeyboardInterrupt handler only where SIGINT is not
-    ignored at start): a Ctrl-C at the terminal reaches the whole process group, and every
-    worker printed its own KeyboardInterrupt traceback. The command's process alone stops
-    on it, and closes the cluster. Only in the main thread (where signals are handled)."""
+def _sigint_blocked() -> Iterator[None]:
+    """SIGINT blocked in this thread while the local cluster starts: a Ctrl-C pressed then
+    waits, pending, and is raised here once the cluster has started, so that the command
+    closes a whole cluster, not one half made. Ignored instead (SIG_IGN, which the worker
+    processes would inherit) it was lost and the campaign went on (the review of stop 74);
+    the worker processes do not inherit the mask (they start from a clean one)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 def _quiet_worker_log() -> None:
