@@ -216,11 +216,13 @@ def bowl_ring_forces(
     against relative roll.
 
     dz: compression at the bowl centre (bolster up minus car body down, m); droll, dpitch:
-    relative roll and pitch of the car body seen from the bolster (rad; roll + lifts the
-    left side, pitch + lifts the front). The point at (x, y) = radius (cos t, sin t) is
-    compressed by (dz - u) + x (dpitch - th) - y droll and carries preload/n + (k_ring/n) x
-    compression, never a pull (edge lift-off). The ring (``k_ring``, N/m in all: the liner
-    and the bowl's rim) sits on the bolster's bending under the bowl (``k_bend``, N/m: u)
+    relative roll and pitch of the car body seen from the bolster (rad, right-handed about
+    x forward and y left: roll + lifts the left side, pitch + lowers the front; the text
+    said "lifts" before stop 74, the formula always lowered it). The point at (x, y) =
+    radius (cos t, sin t) is compressed by (dz - u) + x (dpitch - th) - y droll and carries
+    preload/n + (k_ring/n) x compression, never a pull (edge lift-off). The ring
+    (``k_ring``, N/m in all: the liner and the bowl's rim) sits on the bolster's bending
+    under the bowl (``k_bend``, N/m: u)
     and on the bolster's pitch restraint in the side-frame windows (``k_pitch``, N m/rad:
     th; the bolster has no pitch freedom of its own). Both are massless and quasi-static: u
     and th make the ring's vertical force and pitch moment equal to the bending force
