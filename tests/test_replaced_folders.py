@@ -92,8 +92,9 @@ def test_validate_may_write_beside_its_estimate(tmp_path):
 def test_a_linked_output_folder_is_written_where_the_link_points(tmp_path):
     """atomic_folder renamed a symbolic link aside (``.NAME.old-*``, left for good: rmtree
     refuses a link) and put a real folder in its place, the link's folder left stale (the
-    QA of stop 73). The folder it names is replaced now, and the link kept."""
-    from railsusp.atomic_files import atomic_folder
+    QA of stop 73). A command's --out, checked through the link, is written where it points
+    (followed), the link kept."""
+    from railsusp.atomic_files import atomic_folder, followed
 
     real = tmp_path / "disk" / "est"
     real.mkdir(parents=True)
@@ -101,13 +102,35 @@ def test_a_linked_output_folder_is_written_where_the_link_points(tmp_path):
     (real / "notes.txt").write_text("kept")
     link = tmp_path / "est"
     link.symlink_to(real, target_is_directory=True)
-    with atomic_folder(link, drop=("estimate.json",)) as tmp:
+    with atomic_folder(followed(link), drop=("estimate.json",)) as tmp:
         (tmp / "estimate.json").write_text("new")
     assert link.is_symlink() and link.resolve() == real.resolve()
     assert (real / "estimate.json").read_text() == "new"
     assert (real / "notes.txt").read_text() == "kept"  # other files carried, as for a folder
     assert sorted(p.name for p in tmp_path.iterdir()) == ["disk", "est"]  # nothing aside
     assert sorted(p.name for p in (tmp_path / "disk").iterdir()) == ["est"]
+
+
+def test_a_link_swapped_as_an_entry_leaves_the_folder_it_names_untouched(tmp_path):
+    """The pipeline's RUN/field linked to a folder of the user's recordings: the swap wrote
+    through the link and the user's recordings were replaced (the review of stop 74). A
+    link is replaced as an entry: a real folder in its place, the linked folder as it was,
+    nothing carried from it."""
+    from railsusp.atomic_files import atomic_folder
+
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "index.json").write_text('{"recordings": ["real.csv"]}')
+    (mine / "real.csv").write_text("measured")
+    field = tmp_path / "run" / "field"
+    field.parent.mkdir()
+    field.symlink_to(mine, target_is_directory=True)
+    with atomic_folder(field) as tmp:
+        (tmp / "index.json").write_text('{"recordings": ["short.csv"]}')
+    assert not field.is_symlink() and sorted(p.name for p in field.iterdir()) == ["index.json"]
+    assert sorted(p.name for p in mine.iterdir()) == ["index.json", "real.csv"]
+    assert (mine / "real.csv").read_text() == "measured"
+    assert sorted(p.name for p in field.parent.iterdir()) == ["field"]  # no link aside
 
 
 def test_a_link_left_aside_by_an_older_railsusp_is_removed(tmp_path):
@@ -124,3 +147,52 @@ def test_a_link_left_aside_by_an_older_railsusp_is_removed(tmp_path):
         (tmp / "estimate.json").write_text("new")
     assert not stale.is_symlink() and not stale.exists()
     assert (elsewhere / "kept.txt").exists()
+
+
+def test_a_dangling_link_left_aside_neither_stops_a_save_nor_is_put_back(tmp_path):
+    """put_back_aside read a set-aside link's time through it: a dangling one stopped every
+    save with FileNotFoundError, and a live one was put back as the output (the review of
+    stop 74)."""
+    from railsusp.atomic_files import atomic_folder, put_back_aside
+
+    stale = tmp_path / ".est.old-dead1234"
+    stale.symlink_to(tmp_path / "gone", target_is_directory=True)  # dangling
+    assert put_back_aside(tmp_path / "est") is False
+    with atomic_folder(tmp_path / "est") as tmp:
+        (tmp / "estimate.json").write_text("new")
+    assert (tmp_path / "est" / "estimate.json").read_text() == "new"
+    assert not stale.is_symlink()
+
+
+def test_temporaries_in_a_carried_subfolder_are_not_carried(tmp_path):
+    from railsusp.atomic_files import atomic_folder
+
+    out = tmp_path / "est"
+    (out / "validation").mkdir(parents=True)
+    (out / "validation" / ".validation.json.abcd1234.tmp").write_text("half")
+    (out / "validation" / "validation.json").write_text("{}")
+    with atomic_folder(out) as tmp:
+        (tmp / "estimate.json").write_text("new")
+    assert sorted(p.name for p in (out / "validation").iterdir()) == ["validation.json"]
+
+
+def test_an_output_folder_in_a_folder_that_cannot_be_written_is_refused(tmp_path, monkeypatch):
+    """The swap makes the new version beside the old one: in a read-only folder (or beside
+    a link's folder there) the command failed with a PermissionError naming a hidden
+    temporary after all its work (the review of stop 74). Refused before any work."""
+    import os
+
+    out = tmp_path / "ro" / "est"
+    out.mkdir(parents=True)
+    real = os.access
+
+    def read_only(path, mode, **kw):  # the tests run as root, who writes anywhere
+        if os.path.abspath(path) == str(out.parent) and mode & os.W_OK:
+            return False
+        return real(path, mode, **kw)
+
+    monkeypatch.setattr(os, "access", read_only)
+    with pytest.raises(RailsuspInputError, match="which cannot be written"):
+        check_replaced_folder(out, "--out", "estimate")
+    (tmp_path / "rw" / "est").mkdir(parents=True)
+    assert check_replaced_folder(tmp_path / "rw" / "est", "--out", "estimate")  # writable

@@ -202,14 +202,14 @@ def atomic_folder(path: str | Path, keep: bool = True, drop: Sequence[str] = ())
     first (it held finished work: a trained network and its checkpoint), then carries on. A
     process killed while writing leaves ``.NAME.new-*``: the next save removes it. The
     folder gets the mode a plainly made one gets (0777 less the umask), not the temporary
-    folder's 0700. A ``path`` that is a symbolic link has the folder it names replaced, and
-    the link is kept: the link itself was renamed aside and left as ``.NAME.old-*`` for good
-    (rmtree refuses a link), a real folder put in its place and the link's folder left as it
-    was (the QA of stop 73).
+    folder's 0700. A ``path`` that is a symbolic link is replaced as an entry: the link
+    removed (it was left aside as ``.NAME.old-*`` for good: rmtree refuses a link, the QA of
+    stop 73), a real folder put in its place, nothing carried from the folder it names and
+    that folder never touched (the pipeline's ``RUN/field`` linked to a user's recordings
+    had them replaced: the review of stop 74). A command whose ``--out`` may be a link to a
+    folder it checked writes where the link points (:func:`followed`).
     """
     path = Path(path)
-    if path.is_symlink():  # the folder the link names, written where the link points
-        path = Path(os.path.realpath(path))
     path.parent.mkdir(parents=True, exist_ok=True)
     name = glob.escape(path.name)  # ``est[1]``, ``run*``: a pattern only of this name's
     put_back_aside(path)
@@ -229,24 +229,27 @@ def atomic_folder(path: str | Path, keep: bool = True, drop: Sequence[str] = ())
         for f in tmp.rglob("*"):
             if f.is_file():
                 fsync_file(f)
-        if keep and path.is_dir():
+        if keep and path.is_dir() and not path.is_symlink():
             for entry in path.iterdir():
                 target = tmp / entry.name
                 if target.exists() or any(fnmatch.fnmatchcase(entry.name, d) for d in drop):
                     continue
                 if _TEMPORARY.match(entry.name):  # a killed write's temporary: not carried
                     continue  # into every later save (the QA of stop 74)
-                if entry.is_dir():
-                    shutil.copytree(entry, target, copy_function=_link_or_copy)
+                if entry.is_dir():  # nor in its subfolders
+                    shutil.copytree(entry, target, copy_function=_link_or_copy, ignore=_temporaries)
                 else:
                     _link_or_copy(entry, target)
         fsync_dir(tmp)
-        if path.exists():
+        if path.exists() or path.is_symlink():
             old = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.old-"))
             os.rmdir(old)
             os.rename(path, old)
             os.rename(tmp, path)
-            shutil.rmtree(old, ignore_errors=True)
+            if old.is_symlink():  # the link alone, never the folder it names
+                old.unlink()
+            else:
+                shutil.rmtree(old, ignore_errors=True)
         else:
             os.rename(tmp, path)
         fsync_dir(path.parent)
@@ -265,14 +268,31 @@ def put_back_aside(path: str | Path) -> bool:
     newest) where a crash between its two renames left no ``path``; whether it did. Called
     by every swap before it writes, and by a reader holding the folder's lock before it
     reads what the folder holds (a training's checkpoint: ``train`` started again from epoch
-    1 and then deleted the trained network set aside, the QA of stop 74)."""
+    1 and then deleted the trained network set aside, the QA of stop 74). A link set aside
+    (by a railsusp before stop 74) is never put back: it names a folder the swap did not
+    write (a dangling one stopped every save, its time unreadable: the review of stop 74)."""
     path = Path(path)
     name = glob.escape(path.name)
-    aside = sorted(path.parent.glob(f".{name}.old-*"), key=lambda p: p.stat().st_mtime)
+    aside = [p for p in path.parent.glob(f".{name}.old-*") if not p.is_symlink()]
+    aside.sort(key=lambda p: p.lstat().st_mtime)
     if aside and not path.exists() and not path.is_symlink():
         os.rename(aside.pop(), path)
         return True
     return False
+
+
+def followed(path: str | Path) -> Path:
+    """``path``, or the folder it names where it is a symbolic link: where a command whose
+    checks read through the link (:func:`railsusp.input_checks.check_replaced_folder`)
+    writes its ``--out`` with :func:`atomic_folder`, so that the link is kept and the
+    folder it names is the output (the QA of stop 73)."""
+    path = Path(path)
+    return Path(os.path.realpath(path)) if path.is_symlink() else path
+
+
+def _temporaries(folder: str, names: list[str]) -> list[str]:
+    """Of ``names`` in ``folder``, those of killed writes' temporaries (copytree's ignore)."""
+    return [n for n in names if _TEMPORARY.match(n)]
 
 
 def _link_or_copy(src: str | Path, dst: str | Path) -> None:

@@ -221,6 +221,12 @@ def check_replaced_folder(
             f"{option} {path} is {where}: {command} replaces its output folder whole (the "
             "old one renamed aside, the new one put in its place): accepted a folder below it"
         )
+    if full.exists() and not os.access(full.parent, os.W_OK | os.X_OK):  # the swap's place
+        raise RailsuspInputError(  # (a link's folder: beside it, where the link points)
+            f"{option} {path}: {command} replaces the folder whole, its new version made "
+            f"beside it in {full.parent}, which cannot be written (the run failed there after "
+            "all its work): accepted a folder in a writable folder"
+        )
     if own and full.is_dir() and not any((full / name).exists() for name in own):
         held = sorted(e.name for e in full.iterdir() if not e.name.startswith("."))  # a lock
         if held:

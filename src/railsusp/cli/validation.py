@@ -78,7 +78,9 @@ def validate(
             res = run_validate(
                 estimate_dir, measured=measured, truth=truth, sensitivity=sensitivity, wagon=wagon
             )
-        res.save(out or estimate_dir / "validation")
+        from railsusp.store import followed
+
+        res.save(followed(out or estimate_dir / "validation"))  # a link: where it points
     except (RailsuspInputError, ValueError, FileNotFoundError, KeyError) as exc:
         fail(f"{estimate_dir}: {exc}")
     f = res.forces
