@@ -73,9 +73,11 @@ def test_posterior_train_sweeps_its_killed_writes_temporaries(tmp_path, monkeypa
 
     folder = tmp_path / "run" / "posterior"
     (folder / "simulations").mkdir(parents=True)
+    (folder / "synthetic").mkdir()
     left = [
         folder / ".calibration.json.abcd1234.tmp",
         folder / "simulations" / ".check_0000_50.npz.abcd1234.tmp",
+        folder / "synthetic" / ".check.json.abcd1234.tmp",
     ]
     for p in left:
         p.write_bytes(b"half")

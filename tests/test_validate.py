@@ -132,6 +132,10 @@ def test_a_truth_of_other_recordings_is_refused_before_any_simulation(case, tmp_
     monkeypatch.setattr(val, "_simulate", no_simulation)
     with pytest.raises(RailsuspInputError, match="straight.csv is none of the tables"):
         validate(est, truth=other / "truth.json")
+    # the pipeline's validation names the run's truth file, not an option no one typed
+    with pytest.raises(RailsuspInputError) as exc:
+        validate(est, truth=other / "truth.json", truth_option="truth file")
+    assert str(exc.value).startswith(f"truth file {other / 'truth.json'}: the truth of other")
 
 
 def test_a_derailing_resimulation_is_reported_not_raised(case, monkeypatch):

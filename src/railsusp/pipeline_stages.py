@@ -188,6 +188,7 @@ def stage_runners(
             truth=truth if truth.exists() else None,
             sensitivity=camp_dir / "sensitivity",
             wagon=config.wagon,
+            truth_option="truth file",  # (it named --truth, which no one typed)
         )
         res.save(out / "estimate" / "validation")
         return {"scored": res.recovery is not None}

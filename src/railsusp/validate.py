@@ -163,6 +163,7 @@ def validate(
     statistic: str | None = None,
     expected_draws: int | None = None,
     wagon: Any = None,
+    truth_option: str = "--truth",
 ) -> ValidationResult:
     """Validate the estimate in ``estimate_dir`` against its recordings.
 
@@ -180,7 +181,8 @@ def validate(
     simulated (a WagonData or a wagon file; None: the packaged C80), and whose static wheel
     load the recordings are checked against. An estimate made with other force laws than
     this railsusp simulates is refused before any simulation, one that records none is
-    warned of (:func:`check_estimate_revision`).
+    warned of (:func:`check_estimate_revision`). ``truth_option``: how the truth's errors
+    name it (the pipeline's is no option the user typed).
     """
     from railsusp.vehicle.wagon import load_wagon
 
@@ -233,8 +235,8 @@ def validate(
     nominal = ParameterSet.nominal()
     truth_set = None
     if truth is not None:  # before the simulations: a truth of other recordings refused
-        truth_set = read_truth(truth, "--truth")
-        check_truth_of(truth, measured or est["measured"])
+        truth_set = read_truth(truth, truth_option)
+        check_truth_of(truth, measured or est["measured"], truth_option)
     failures: list[str] = []
     notes: list[str] = []
     labels = {"before": "nominal parameters", "after": "estimate", "truth": "true parameters"}

@@ -197,8 +197,8 @@ def train_command(
         # lock: kept for good before (the QA of stop 74)
         from railsusp.store import remove_stale_temporaries
 
-        for folder in (out / "posterior", out / "posterior" / "simulations"):
-            remove_stale_temporaries(folder)
+        for part in ("", "simulations", "synthetic"):  # the synthetic likelihood's too
+            remove_stale_temporaries(out / "posterior" / part)
         if is_quiet():
             est = posterior.train(settings, out)
         else:
