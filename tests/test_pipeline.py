@@ -826,4 +826,3 @@ def test_a_stage_whose_output_is_gone_says_why_it_runs_again(tiny, tmp_path, cap
     with caplog.at_level("WARNING"):
         run_pipeline(cfg, copy)
     assert "are damaged, changed or gone; the stage runs again" in caplog.text
-
