@@ -103,3 +103,24 @@ def test_recording_files_not_a_table_of_hashes_is_refused(fields, tmp_path, bad)
     path.write_text(json.dumps(doc))
     with pytest.raises(RailsuspInputError, match="'recording_files' is not a table of file"):
         check_truth_of(path, a)
+
+
+def test_a_copy_in_other_bytes_that_reads_the_same_is_still_the_truths(fields, tmp_path):
+    """A field checked out with CRLF line endings (git's autocrlf) holds the same
+    recordings in other bytes: its truth was refused, and the pipeline dropped it (the
+    review of stop 74). The recordings as read are compared too (recordings_digest)."""
+    from railsusp.measured import read_field
+
+    a, _ = fields
+    copy = shutil.copytree(a, tmp_path / "crlf")
+    table = copy / "straight.csv"
+    table.write_bytes(table.read_bytes().replace(b"\n", b"\r\n"))
+    check_truth_of(copy / "truth.json", copy, recordings=read_field(copy))
+    with pytest.raises(RailsuspInputError, match="nor read as the same recordings"):
+        check_truth_of(copy / "truth.json", copy)  # the bytes alone: not the same
+    lines = table.read_text().splitlines()
+    cells = lines[1].split(",")
+    cells[1] = f"{float(cells[1]) + 0.5:.6g}"  # one force changed: other recordings
+    table.write_text("\n".join([lines[0], ",".join(cells), *lines[2:]]) + "\n")
+    with pytest.raises(RailsuspInputError, match="straight.csv is none of the tables"):
+        check_truth_of(copy / "truth.json", copy, recordings=read_field(copy))

@@ -101,7 +101,7 @@ def field_stage(config: Any, out: str | Path) -> dict:
                 shutil.copytree(
                     f.measured, tmp, dirs_exist_ok=True, ignore=shutil.ignore_patterns(LOCK_NAME)
                 )
-                left_out = _foreign_truth(tmp, f.measured)
+                left_out = _foreign_truth(tmp, f.measured, recs)
         record: dict = {"recordings": len(recs), "synthetic": False}
         if left_out:
             record["truth_left_out"] = left_out
@@ -120,7 +120,7 @@ def field_stage(config: Any, out: str | Path) -> dict:
     return {"recordings": len(config.conditions), "synthetic": True}
 
 
-def _foreign_truth(copy: Path, measured: str) -> str | None:
+def _foreign_truth(copy: Path, measured: str, recordings: list) -> str | None:
     """Remove from the field stage's ``copy`` of a measured folder a ``truth.json`` that is
     not the truth of its recordings (:func:`~railsusp.measured.check_truth_of`: a recording
     edited since synth-field wrote it, a truth file put there from another field), and say
@@ -137,7 +137,7 @@ def _foreign_truth(copy: Path, measured: str) -> str | None:
     if not truth.is_file():
         return None
     try:
-        check_truth_of(truth, copy, "truth.json")
+        check_truth_of(truth, copy, "truth.json", recordings)
     except RailsuspInputError as exc:
         truth.unlink()
         reason = str(exc).replace(str(copy), str(measured))

@@ -236,7 +236,7 @@ def validate(
     truth_set = None
     if truth is not None:  # before the simulations: a truth of other recordings refused
         truth_set = read_truth(truth, truth_option)
-        check_truth_of(truth, measured or est["measured"], truth_option)
+        check_truth_of(truth, measured or est["measured"], truth_option, recs)
     failures: list[str] = []
     notes: list[str] = []
     labels = {"before": "nominal parameters", "after": "estimate", "truth": "true parameters"}

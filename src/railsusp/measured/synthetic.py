@@ -16,8 +16,13 @@ from scipy.signal import butter, sosfiltfilt
 
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError, repeated_names
-from railsusp.measured.recording import FORMAT, Recording, SimulationFailedError
-from railsusp.measured.truth import RECORDING_FILES, recording_files
+from railsusp.measured.recording import (
+    FORMAT,
+    Recording,
+    SimulationFailedError,
+    recordings_digest,
+)
+from railsusp.measured.truth import RECORDING_FILES, RECORDINGS_DIGEST, recording_files
 from railsusp.store import atomic_folder, write_json
 from railsusp.vehicle.layout import WHEEL_NAMES
 from railsusp.vehicle.track import Irregularities
@@ -223,6 +228,9 @@ def synthesise_field(
             folder / "index.json",
             {"format": FORMAT, "recordings": names, "noise": noise, "seed": seed},
         )
+        from railsusp.measured.reader import read_field
+
+        written = recordings_digest(read_field(folder, wagon=wagon))  # as validate reads them
         write_json(
             folder / "truth.json",
             {
@@ -232,6 +240,7 @@ def synthesise_field(
                 # which recordings it is the truth of, by their tables' contents: validate
                 # --truth refuses it for others (check_truth_of)
                 RECORDING_FILES: recording_files(folder, names),
+                RECORDINGS_DIGEST: written,
             },
         )
     return out

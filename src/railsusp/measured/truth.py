@@ -2,7 +2,8 @@
 recordings it is scored against.
 
 ``synth-field`` writes beside its recordings the parameters it simulated them with, and the
-SHA-256 of each recording's table as written (``recording_files``). ``validate --truth``
+SHA-256 of each recording's table as written (``recording_files``) and a digest of the
+recordings as read (``recordings_digest``). ``validate --truth``
 scores the estimate's parameter recovery against such a file. Before stop 74 it took the
 truth of any folder without a word (the QA of stop 73): an estimate of one synthetic field
 scored against another field's truth gave recovery errors of a wagon it never measured. The
@@ -19,6 +20,7 @@ from pathlib import Path
 
 from railsusp.errors import RailsuspInputError
 from railsusp.measured.reader import read_index
+from railsusp.measured.recording import Recording, recordings_digest
 from railsusp.params import ParameterSet
 from railsusp.store import file_hash, file_hash_cached, read_json
 
@@ -27,6 +29,12 @@ TRUTH_FILE = "a truth.json as railsusp synth-field writes it ({'parameters_displ
 
 #: the key of ``truth.json`` holding each recording table's SHA-256, by file name
 RECORDING_FILES = "recording_files"
+
+#: the key of ``truth.json`` holding the digest of the recordings as read
+#: (:func:`~railsusp.measured.recording.recordings_digest`): a copy whose bytes differ but
+#: whose recordings read the same (line endings changed by git, a re-encoded file) is still
+#: theirs (the review of stop 74)
+RECORDINGS_DIGEST = "recordings_digest"
 
 
 def read_truth(path: str | Path, where: str = "truth") -> ParameterSet:
@@ -61,12 +69,19 @@ def recording_files(folder: str | Path, names: list[str]) -> dict[str, str]:
     return {name: file_hash(Path(folder) / name) for name in names}
 
 
-def check_truth_of(path: str | Path, folder: str | Path, where: str = "--truth") -> None:
+def check_truth_of(
+    path: str | Path,
+    folder: str | Path,
+    where: str = "--truth",
+    recordings: list[Recording] | None = None,
+) -> None:
     """Refuse, in one line naming ``where``, a truth file written with other recordings than
     those of the field folder ``folder``: every recording table there must be one the truth
     lists by its SHA-256, or the folder must hold the sections of a run it lists (its index's
-    ``source_sha256``). A truth file without ``recording_files`` (written before stop 74, or
-    by hand, as the shipped example's states its run) is taken as it is: nothing to tell."""
+    ``source_sha256``), or ``recordings`` (the folder's, as read) must read as those the
+    truth was written with (its ``recordings_digest``). A truth file without
+    ``recording_files`` (written before stop 74, or by hand, as the shipped example's states
+    its run) is taken as it is: nothing to tell."""
     doc = _truth_doc(path, where)
     known = doc.get(RECORDING_FILES)
     if known is None:
@@ -84,12 +99,17 @@ def check_truth_of(path: str | Path, folder: str | Path, where: str = "--truth")
     foreign = [p.name for p in tables if _hash(p) not in hashes]
     if not foreign:
         return
+    digest = doc.get(RECORDINGS_DIGEST)
+    if recordings is not None and isinstance(digest, str):
+        if recordings_digest(recordings) == digest:
+            return  # the same recordings in other bytes
     raise RailsuspInputError(
         f"{where} {path}: the truth of other recordings than {folder}'s ({', '.join(foreign)} "
         f"{'is' if len(foreign) == 1 else 'are'} none of the tables it was written with, by "
-        "their SHA-256): its recovery would score the estimate against a wagon these "
-        "recordings never measured; accepted the truth.json that synth-field wrote with "
-        "these recordings, or with the run their sections were cut from"
+        "their SHA-256, nor read as the same recordings): its recovery would score the "
+        "estimate against a wagon these recordings never measured; accepted the truth.json "
+        "that synth-field wrote with these recordings, or with the run their sections were "
+        "cut from"
     )
 
 
