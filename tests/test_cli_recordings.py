@@ -345,3 +345,34 @@ def test_example_recording_is_not_written_among_recordings(tmp_path):
     text = " ".join(result.output.split())
     assert f"--out {field} is a field folder of recordings (index.json)" in text
     assert sorted(p.name for p in field.iterdir()) == ["index.json"]  # nothing written
+
+
+def test_an_earlier_railsusps_example_truth_is_replaced_not_called_edited(tmp_path):
+    """The example truth gained its run's SHA-256 in stop 74: a copy an earlier railsusp
+    wrote was called edited and kept (the review of stop 74). It is replaced by this one's;
+    a user's edit is still kept."""
+    import hashlib
+
+    from railsusp.cli.recordings import EARLIER_SHIPPED
+
+    example(tmp_path)
+    older = (
+        json.dumps(
+            {
+                "parameters_display": {"X13": 16.1, "X14": 8.3, "X15": 164.0},
+                "note": "hidden truth of example_run.mf4; the estimator never reads it",
+            },
+            indent=1,
+        ).encode()
+        + b"\n"
+    )  # as railsusp shipped it until stop 73
+    assert hashlib.sha256(older).hexdigest() in EARLIER_SHIPPED["example_run.truth.json"]
+    truth = tmp_path / "example_run.truth.json"
+    shipped = truth.read_bytes()
+    truth.write_bytes(older)
+    result = runner.invoke(app, ["example-recording", "--out", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    assert "edited" not in result.output and truth.read_bytes() == shipped
+    truth.write_bytes(shipped.replace(b"16.1", b"16.2"))  # the user's own
+    result = runner.invoke(app, ["example-recording", "--out", str(tmp_path)])
+    assert "(edited?): example_run.truth.json" in " ".join(result.output.split())
