@@ -95,7 +95,10 @@ def replaced_settings(
     train it (``["window 20 -> 100", ...]``), for the line that says it is replaced; empty
     where none is saved (or one that does not read, which training writes anew), or where
     the same settings resume it. A network saved before the asked record correction was
-    recorded counts as asking for one where it has one (else: unknown, not compared)."""
+    recorded counts as asking for one where it has one (else: unknown, not compared). A
+    folder a crash left aside mid-swap is put back first (the caller holds the campaign's
+    lock, as the training that follows): read missing, the note was not said."""
+    put_back_aside(folder)
     try:
         doc = read_json(Path(folder) / "surrogate.json")
         before = dict(doc["meta"].get("train_config") or {})
