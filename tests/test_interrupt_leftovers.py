@@ -3,6 +3,8 @@ that Python swallowed (inside an import) let a command replace its output folder
 0; the temporaries a killed write left were carried into every later save of a folder or
 kept for good; a long message on stderr broke into two lines in a log."""
 
+import json
+
 import pytest
 from typer.testing import CliRunner
 
@@ -107,3 +109,18 @@ def test_a_long_message_on_stderr_is_one_line_in_a_log(tmp_path):
         [sys.executable, "-c", code], capture_output=True, text=True, check=True
     ).stderr
     assert err.count("\n") == 1 and len(err) > 300
+
+
+def test_the_replaced_network_note_reads_a_folder_left_aside_mid_swap(tmp_path):
+    """train's 'replacing the network ... trained with other settings' note read a trained
+    folder that a crash had left aside as missing, and said nothing (the review of stop
+    74): it is put back first."""
+    from railsusp.surrogate import replaced_settings
+
+    folder = tmp_path / "cnn-gru" / ".straight.old-abcd1234"
+    folder.mkdir(parents=True)
+    doc = {"meta": {"train_config": {"epochs": 5}}, "net": {"window": 20}}
+    (folder / "surrogate.json").write_text(json.dumps(doc))
+    changed = replaced_settings(tmp_path / "cnn-gru" / "straight", {"epochs": 6}, 20, False)
+    assert changed and "epochs" in changed[0]
+    assert [p.name for p in (tmp_path / "cnn-gru").iterdir()] == ["straight"]
