@@ -66,9 +66,26 @@ def test_sections_of_a_run_belong_to_its_truth(fields, tmp_path):
     index = {"recordings": ["s1.csv"], **source_fingerprint(a / "straight.csv")}
     (sections / "index.json").write_text(json.dumps(index))
     (sections / "s1.csv").write_text("a section's table, not one of the field's\n")
+    _cut_table(sections, "s1")
     check_truth_of(a / "truth.json", sections)
     with pytest.raises(RailsuspInputError, match="s1.csv is none of the tables"):
         check_truth_of(b / "truth.json", sections)
+    # a recording added to the sections' index is none of the run's sections (the review
+    # of stop 74: the run's hash let every table of the folder through)
+    shutil.copy(b / "straight.csv", sections / "other.csv")
+    index["recordings"].append("other.csv")
+    (sections / "index.json").write_text(json.dumps(index))
+    with pytest.raises(RailsuspInputError, match=r"\(other.csv is none of the tables"):
+        check_truth_of(a / "truth.json", sections)
+
+
+def _cut_table(folder, *kept):
+    """The sections.csv sections --write writes beside its index, these sections kept."""
+    head = "section,kind,from_m,to_m,length_m,speed_kmh,speed_spread_pct,cant_mm,"
+    rows = [head + "grade_permille,kept,reason"]
+    rows += [f"{name},tangent,0,500,500,60,0,0,0,yes," for name in kept]
+    rows.append("-,tangent,500,700,200,60,16.7,0,0,no,speed not steady")
+    (folder / "sections.csv").write_text("\n".join(rows) + "\n")
 
 
 def test_the_shipped_example_truth_is_that_of_the_shipped_run(tmp_path):
@@ -81,6 +98,7 @@ def test_the_shipped_example_truth_is_that_of_the_shipped_run(tmp_path):
     sections.mkdir()
     index = {"recordings": ["s1.csv"], **source_fingerprint(run)}
     (sections / "index.json").write_text(json.dumps(index))
+    _cut_table(sections, "s1")
     check_truth_of(truth, sections)
     assert read_truth(truth)["X14"] == pytest.approx(8.3e6)  # SI inside
 

@@ -78,8 +78,9 @@ def check_truth_of(
     """Refuse, in one line naming ``where``, a truth file written with other recordings than
     those of the field folder ``folder``: every recording table there must be one the truth
     lists by its SHA-256, or the folder must hold the sections of a run it lists (its index's
-    ``source_sha256``), or ``recordings`` (the folder's, as read) must read as those the
-    truth was written with (its ``recordings_digest``). A truth file without
+    ``source_sha256``, each table a section its ``sections.csv`` lists as kept), or
+    ``recordings`` (the folder's, as read) must read as those the truth was written with
+    (its ``recordings_digest``). A truth file without
     ``recording_files`` (written before stop 74, or by hand, as the shipped example's states
     its run) is taken as it is: nothing to tell."""
     doc = _truth_doc(path, where)
@@ -92,11 +93,13 @@ def check_truth_of(
             f"hashes; accepted {TRUTH_FILE}"
         )
     hashes = {v.lower() for v in known.values()}
-    source = _index_source(Path(folder))
-    if source is not None and source in hashes:
-        return  # the sections of a run the truth simulated
     tables = read_index(folder)
-    foreign = [p.name for p in tables if _hash(p) not in hashes]
+    source = _index_source(Path(folder))
+    if source is not None and source in hashes:  # the sections of a run it simulated:
+        cut = _kept_sections(Path(folder))  # each table one of them (a recording added to
+        foreign = [p.name for p in tables if p.stem not in cut]  # the index is not)
+    else:
+        foreign = [p.name for p in tables if _hash(p) not in hashes]
     if not foreign:
         return
     digest = doc.get(RECORDINGS_DIGEST)
@@ -119,6 +122,18 @@ def _hash(path: Path) -> str | None:
         return file_hash_cached(path)
     except OSError:
         return None
+
+
+def _kept_sections(folder: Path) -> set[str]:
+    """The names of the sections a sections folder's ``sections.csv`` lists as kept (those
+    ``sections --write`` wrote); empty where it does not read."""
+    import csv
+
+    try:
+        with open(folder / "sections.csv", newline="", encoding="utf-8-sig") as fh:
+            return {r["section"] for r in csv.DictReader(fh) if r.get("kept") == "yes"}
+    except (OSError, UnicodeDecodeError, KeyError, csv.Error):
+        return set()
 
 
 def _index_source(folder: Path) -> str | None:
