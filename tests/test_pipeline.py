@@ -826,3 +826,22 @@ def test_a_stage_whose_output_is_gone_says_why_it_runs_again(tiny, tmp_path, cap
     with caplog.at_level("WARNING"):
         run_pipeline(cfg, copy)
     assert "are damaged, changed or gone; the stage runs again" in caplog.text
+
+
+def test_a_linked_field_folder_is_replaced_by_the_runs_own(tiny, tmp_path):
+    """RUN/field linked to a folder of the user's recordings: the field stage wrote through
+    the link and replaced them (the review of stop 74). The link is removed with a warning,
+    the folder it named left as it was."""
+    import shutil
+
+    cfg, _, copy = _up_to_date_copy(tiny, tmp_path)
+    mine = tmp_path / "mine"
+    shutil.copytree(copy / "field", mine)
+    (mine / "notes.txt").write_text("the user's")
+    before = {p.name: p.read_bytes() for p in mine.iterdir()}
+    shutil.rmtree(copy / "field")
+    (copy / "field").symlink_to(mine, target_is_directory=True)
+    with pytest.warns(UserWarning, match="was a link to"):
+        run_pipeline(cfg, copy, start_from="field")
+    assert not (copy / "field").is_symlink() and (copy / "field" / "index.json").is_file()
+    assert {p.name: p.read_bytes() for p in mine.iterdir()} == before

@@ -111,26 +111,43 @@ def test_a_linked_output_folder_is_written_where_the_link_points(tmp_path):
     assert sorted(p.name for p in (tmp_path / "disk").iterdir()) == ["est"]
 
 
-def test_a_link_swapped_as_an_entry_leaves_the_folder_it_names_untouched(tmp_path):
-    """The pipeline's RUN/field linked to a folder of the user's recordings: the swap wrote
-    through the link and the user's recordings were replaced (the review of stop 74). A
-    link is replaced as an entry: a real folder in its place, the linked folder as it was,
-    nothing carried from it."""
+def test_a_link_replaced_whole_is_replaced_as_an_entry(tmp_path):
+    """Without keep (the copy of shipped networks, the field stage) a swap through a link
+    would drop every file of the folder it names: the link is replaced as an entry, a real
+    folder in its place, the linked folder as it was (the review of stop 74)."""
     from railsusp.atomic_files import atomic_folder
 
     mine = tmp_path / "mine"
     mine.mkdir()
     (mine / "index.json").write_text('{"recordings": ["real.csv"]}')
     (mine / "real.csv").write_text("measured")
-    field = tmp_path / "run" / "field"
-    field.parent.mkdir()
-    field.symlink_to(mine, target_is_directory=True)
-    with atomic_folder(field) as tmp:
-        (tmp / "index.json").write_text('{"recordings": ["short.csv"]}')
-    assert not field.is_symlink() and sorted(p.name for p in field.iterdir()) == ["index.json"]
+    nets = tmp_path / "run" / "networks"
+    nets.parent.mkdir()
+    nets.symlink_to(mine, target_is_directory=True)
+    with atomic_folder(nets, keep=False) as tmp:
+        (tmp / "networks.json").write_text("{}")
+    assert not nets.is_symlink() and sorted(p.name for p in nets.iterdir()) == ["networks.json"]
     assert sorted(p.name for p in mine.iterdir()) == ["index.json", "real.csv"]
     assert (mine / "real.csv").read_text() == "measured"
-    assert sorted(p.name for p in field.parent.iterdir()) == ["field"]  # no link aside
+    assert sorted(p.name for p in nets.parent.iterdir()) == ["networks"]  # no link aside
+
+
+def test_a_link_saved_with_keep_is_written_where_it_points(tmp_path):
+    """With keep (a trained network beside its checkpoint) the folder the link names is
+    written and its other files carried: de-linked, the network left its checkpoint behind
+    on the linked disk (the review of stop 74)."""
+    from railsusp.atomic_files import atomic_folder
+
+    disk = tmp_path / "disk" / "straight"
+    disk.mkdir(parents=True)
+    (disk / "checkpoint.pt").write_text("epochs")
+    link = tmp_path / "surrogates" / "straight"
+    link.parent.mkdir()
+    link.symlink_to(disk, target_is_directory=True)
+    with atomic_folder(link) as tmp:
+        (tmp / "model.pt").write_text("weights")
+    assert link.is_symlink()
+    assert sorted(p.name for p in disk.iterdir()) == ["checkpoint.pt", "model.pt"]
 
 
 def test_a_link_left_aside_by_an_older_railsusp_is_removed(tmp_path):
@@ -196,3 +213,24 @@ def test_an_output_folder_in_a_folder_that_cannot_be_written_is_refused(tmp_path
         check_replaced_folder(out, "--out", "estimate")
     (tmp_path / "rw" / "est").mkdir(parents=True)
     assert check_replaced_folder(tmp_path / "rw" / "est", "--out", "estimate")  # writable
+
+
+def test_a_nested_swaps_leftovers_are_not_carried(tmp_path):
+    """A killed swap of a folder inside the one saved (its validation) left
+    ``.validation.old-*`` / ``.new-*``: carried into every later save, the old validation
+    came back at the next one (the review of stop 74)."""
+    from railsusp.atomic_files import atomic_folder
+
+    out = tmp_path / "est"
+    (out / ".validation.old-abcd1234").mkdir(parents=True)
+    (out / ".validation.new-efgh5678").mkdir()
+    (out / "validation" / ".figures.new-ijkl9012").mkdir(parents=True)
+    with atomic_folder(out, drop=("validation",)) as tmp:
+        (tmp / "estimate.json").write_text("new")
+    assert sorted(p.name for p in out.iterdir()) == ["estimate.json"]
+    with atomic_folder(out) as tmp:
+        (tmp / "validation").mkdir()
+    (out / "validation" / ".figures.new-ijkl9012").mkdir()
+    with atomic_folder(out) as tmp:
+        (tmp / "estimate.json").write_text("newer")
+    assert list((out / "validation").iterdir()) == []

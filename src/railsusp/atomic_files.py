@@ -158,6 +158,11 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
 #: random characters + ``.tmp`` (a user's ``.notes.tmp`` is no railsusp temporary)
 _TEMPORARY = re.compile(r"^\.(?P<target>.+)\.[a-z0-9_]{8}\.tmp$")
 
+#: the folders a swap of :func:`atomic_folder` leaves where it is killed (``.NAME.new-*``,
+#: ``.NAME.old-*``, mkdtemp's eight characters): never carried into a new version of the
+#: folder holding them (a nested folder's old version came back: the review of stop 74)
+_SWAP_LEFTOVER = re.compile(r"^\..+\.(old|new)-[a-z0-9_]{8}$")
+
 
 def remove_stale_temporaries(folder: str | Path, targets: Sequence[str] | None = None) -> int:
     """Remove the temporaries of :func:`replacing_file` (``.NAME.XXXXXXXX.tmp``) that a process
@@ -202,14 +207,17 @@ def atomic_folder(path: str | Path, keep: bool = True, drop: Sequence[str] = ())
     first (it held finished work: a trained network and its checkpoint), then carries on. A
     process killed while writing leaves ``.NAME.new-*``: the next save removes it. The
     folder gets the mode a plainly made one gets (0777 less the umask), not the temporary
-    folder's 0700. A ``path`` that is a symbolic link is replaced as an entry: the link
-    removed (it was left aside as ``.NAME.old-*`` for good: rmtree refuses a link, the QA of
-    stop 73), a real folder put in its place, nothing carried from the folder it names and
-    that folder never touched (the pipeline's ``RUN/field`` linked to a user's recordings
-    had them replaced: the review of stop 74). A command whose ``--out`` may be a link to a
-    folder it checked writes where the link points (:func:`followed`).
+    folder's 0700. A ``path`` that is a symbolic link (it was renamed aside and left as
+    ``.NAME.old-*`` for good: rmtree refuses a link, the QA of stop 73): with ``keep`` the
+    folder it names is written, where it points, the link kept (its other files are carried,
+    so nothing is lost: a training's checkpoint there stays with its network); without
+    ``keep``, which would drop every other file, the link is replaced as an entry, a real
+    folder put in its place and the folder it names never touched (a copy of shipped
+    networks into a folder linked to the user's: the review of stop 74).
     """
     path = Path(path)
+    if keep and path.is_symlink():
+        path = followed(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     name = glob.escape(path.name)  # ``est[1]``, ``run*``: a pattern only of this name's
     put_back_aside(path)
@@ -234,8 +242,8 @@ def atomic_folder(path: str | Path, keep: bool = True, drop: Sequence[str] = ())
                 target = tmp / entry.name
                 if target.exists() or any(fnmatch.fnmatchcase(entry.name, d) for d in drop):
                     continue
-                if _TEMPORARY.match(entry.name):  # a killed write's temporary: not carried
-                    continue  # into every later save (the QA of stop 74)
+                if _TEMPORARY.match(entry.name) or _SWAP_LEFTOVER.match(entry.name):
+                    continue  # a killed write's leftover: not carried into every later save
                 if entry.is_dir():  # nor in its subfolders
                     shutil.copytree(entry, target, copy_function=_link_or_copy, ignore=_temporaries)
                 else:
@@ -292,7 +300,7 @@ def followed(path: str | Path) -> Path:
 
 def _temporaries(folder: str, names: list[str]) -> list[str]:
     """Of ``names`` in ``folder``, those of killed writes' temporaries (copytree's ignore)."""
-    return [n for n in names if _TEMPORARY.match(n)]
+    return [n for n in names if _TEMPORARY.match(n) or _SWAP_LEFTOVER.match(n)]
 
 
 def _link_or_copy(src: str | Path, dst: str | Path) -> None:

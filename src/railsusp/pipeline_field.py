@@ -79,6 +79,7 @@ def field_stage(config: Any, out: str | Path) -> dict:
     out = Path(out)
     f = config.field
     dest = out / "field"
+    _own_folder(dest)
     wagon = load_wagon(config.wagon)  # the run's wagon: its recordings' wheel loads, its model
     source = config.run_source()  # its wheel loads checked against the run's wagon
     if source is not None:
@@ -148,3 +149,22 @@ def _foreign_truth(copy: Path, measured: str, recordings: list) -> str | None:
         )
         return reason
     return None
+
+
+def _own_folder(dest: Path) -> None:
+    """A ``RUN/field`` that is a symbolic link, removed (the folder it names left as it is,
+    with a warning): the stage writes its recordings there whole, and through the link it
+    replaced the recordings of the folder it named, a user's field folder (the review of
+    stop 74)."""
+    if not dest.is_symlink():
+        return
+    import os
+    import warnings
+
+    named = os.readlink(dest)
+    dest.unlink()
+    warnings.warn(
+        f"{dest} was a link to {named}: the field stage writes the run's own folder there, "
+        "and left the folder the link named as it is",
+        stacklevel=3,
+    )

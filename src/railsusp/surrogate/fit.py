@@ -96,8 +96,9 @@ def replaced_settings(
     where none is saved (or one that does not read, which training writes anew), or where
     the same settings resume it. A network saved before the asked record correction was
     recorded counts as asking for one where it has one (else: unknown, not compared). A
-    folder a crash left aside mid-swap is put back first (the caller holds the campaign's
-    lock, as the training that follows): read missing, the note was not said."""
+    folder a crash left aside mid-swap is put back first (read missing, the note was not
+    said): call it only holding the campaign's write lock, as train and compare do, since
+    putting back renames a folder."""
     put_back_aside(folder)
     try:
         doc = read_json(Path(folder) / "surrogate.json")
