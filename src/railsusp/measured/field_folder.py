@@ -50,7 +50,7 @@ def folder_kind(path: str | Path) -> Kind:
         return "new"
     if path.is_dir() and all(p.name == LOCK_NAME for p in path.iterdir()):
         return "empty"  # railsusp's lock file alone: the folder a writer made for its lock
-    index = _index(path)
+    index = index_document(path)
     if index is None:
         return "other"
     if "seed" in index and (path / "truth.json").is_file():
@@ -61,7 +61,7 @@ def folder_kind(path: str | Path) -> Kind:
     return "other"
 
 
-def _index(path: Path) -> dict | None:
+def index_document(path: Path) -> dict | None:
     """The folder's ``index.json`` as a JSON object, or None where it is missing, unreadable
     or not an object."""
     try:
@@ -120,7 +120,7 @@ def check_field_output(
     if kind in ("new", "empty") or (kind == writer == "synthetic"):
         return path
     if kind == writer == "sections":  # the long run it was cut from: its index's source
-        index: dict = _index(path)  # type: ignore[assignment]
+        index: dict = index_document(path)  # type: ignore[assignment]
         if source is None:
             return path
         try:
@@ -160,7 +160,7 @@ def earlier_sections(path: str | Path) -> list[str]:
     path = Path(path)
     if folder_kind(path) != "sections":
         return []
-    listed = (_index(path) or {}).get("recordings")
+    listed = (index_document(path) or {}).get("recordings")
     names: list[str] = []
     for n in listed if isinstance(listed, list) else []:
         if isinstance(n, str) and n and Path(n).name == n:  # a file of the folder itself

@@ -15,10 +15,10 @@ belong to the truth of that run.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from railsusp.errors import RailsuspInputError
+from railsusp.measured.field_folder import index_document
 from railsusp.measured.reader import read_index
 from railsusp.measured.recording import Recording, recordings_digest
 from railsusp.params import ParameterSet
@@ -139,9 +139,5 @@ def _kept_sections(folder: Path) -> set[str]:
 def _index_source(folder: Path) -> str | None:
     """The SHA-256 of the long run a sections folder was cut from (its index's
     ``source_sha256``), or None for any other folder."""
-    try:
-        index = json.loads((folder / "index.json").read_text("utf-8-sig"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-        return None
-    sha = index.get("source_sha256") if isinstance(index, dict) else None
+    sha = (index_document(folder) or {}).get("source_sha256")
     return sha.lower() if isinstance(sha, str) else None
