@@ -92,9 +92,9 @@ def test_validate_may_write_beside_its_estimate(tmp_path):
 def test_a_linked_output_folder_is_written_where_the_link_points(tmp_path):
     """atomic_folder renamed a symbolic link aside (``.NAME.old-*``, left for good: rmtree
     refuses a link) and put a real folder in its place, the link's folder left stale (the
-    QA of stop 73). A command's --out, checked through the link, is written where it points
-    (followed), the link kept."""
-    from railsusp.atomic_files import atomic_folder, followed
+    QA of stop 73). A command's --out, checked through the link, is written where it points,
+    the link kept."""
+    from railsusp.atomic_files import atomic_folder
 
     real = tmp_path / "disk" / "est"
     real.mkdir(parents=True)
@@ -102,7 +102,7 @@ def test_a_linked_output_folder_is_written_where_the_link_points(tmp_path):
     (real / "notes.txt").write_text("kept")
     link = tmp_path / "est"
     link.symlink_to(real, target_is_directory=True)
-    with atomic_folder(followed(link), drop=("estimate.json",)) as tmp:
+    with atomic_folder(link, drop=("estimate.json",)) as tmp:
         (tmp / "estimate.json").write_text("new")
     assert link.is_symlink() and link.resolve() == real.resolve()
     assert (real / "estimate.json").read_text() == "new"

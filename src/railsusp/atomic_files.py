@@ -237,7 +237,7 @@ def atomic_folder(path: str | Path, keep: bool = True, drop: Sequence[str] = ())
         for f in tmp.rglob("*"):
             if f.is_file():
                 fsync_file(f)
-        if keep and path.is_dir() and not path.is_symlink():
+        if keep and path.is_dir():  # (a link was followed above)
             for entry in path.iterdir():
                 target = tmp / entry.name
                 if target.exists() or any(fnmatch.fnmatchcase(entry.name, d) for d in drop):
@@ -290,10 +290,10 @@ def put_back_aside(path: str | Path) -> bool:
 
 
 def followed(path: str | Path) -> Path:
-    """``path``, or the folder it names where it is a symbolic link: where a command whose
-    checks read through the link (:func:`railsusp.input_checks.check_replaced_folder`)
-    writes its ``--out`` with :func:`atomic_folder`, so that the link is kept and the
-    folder it names is the output (the QA of stop 73)."""
+    """``path``, or the folder it names where it is a symbolic link: where
+    :func:`atomic_folder` with ``keep`` writes, so that the link is kept and the folder it
+    names is the output (the QA of stop 73), as a command's checks of its ``--out`` read
+    it (:func:`railsusp.input_checks.check_replaced_folder`)."""
     path = Path(path)
     return Path(os.path.realpath(path)) if path.is_symlink() else path
 

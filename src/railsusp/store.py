@@ -37,7 +37,6 @@ import pyarrow.parquet as pq
 from railsusp.atomic_files import atomic_folder as atomic_folder
 from railsusp.atomic_files import atomic_write_bytes as atomic_write_bytes
 from railsusp.atomic_files import atomic_write_text as atomic_write_text
-from railsusp.atomic_files import followed as followed
 from railsusp.atomic_files import put_back_aside as put_back_aside
 from railsusp.atomic_files import remove_stale_temporaries as remove_stale_temporaries
 from railsusp.atomic_files import replacing_file

@@ -25,7 +25,7 @@ from railsusp.cli.estimation_options import (
 )
 from railsusp.errors import RailsuspInputError
 from railsusp.input_checks import check_replaced_folder
-from railsusp.store import atomic_folder, followed
+from railsusp.store import atomic_folder
 
 #: the defaults of the options that only some routes use (one typed is refused, or said in a
 #: warning, where the route does not use it: :func:`~railsusp.cli.common.given_options`)
@@ -356,8 +356,7 @@ def estimate(
         # the folder as one artefact: a full disk or a kill while the figures are drawn
         # leaves the folder as it was, not an estimate.json without its figures
         # (an earlier estimate's validation is not carried into it: it validated that one)
-        # a linked --out: written where the link points (its checks read through it)
-        with atomic_folder(followed(out), drop=("validation",)) as tmp:
+        with atomic_folder(out, drop=("validation",)) as tmp:  # a link: where it points
             res.save(
                 tmp,
                 extra={

@@ -85,13 +85,11 @@ def synth_field(
         # it as RUN/field, is refused), then what it holds checked again under the lock
         hold_folders(creates=[("--out", out)])
         check_field_output(out, "synthetic", "--out")
-        from railsusp.store import followed
-
         with console.status("simulating the hidden truth"):
             synthesise_field(
                 pset,
                 conds,
-                followed(out),  # a linked --out: where the link points, as checked
+                out,  # a linked --out: written where the link points, as checked
                 seed=seed,
                 noise=noise,
                 fmt=fmt,

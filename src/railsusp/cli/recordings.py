@@ -285,13 +285,13 @@ def sections_command(
             console.print(f"wrote {plot_sections(run, secs, plot)}")
         if write is not None:
             from railsusp.measured.field_folder import earlier_sections
-            from railsusp.store import atomic_folder, followed
+            from railsusp.store import atomic_folder
 
             # the whole folder at once: a kill mid-write left new recordings beside an old
             # index and sidecars. Other files of the folder are carried over, not the
             # earlier cut's recordings: a cut with fewer sections left them beside the index
-            # a linked --write: written where the link points (its checks read through it)
-            with atomic_folder(followed(write), drop=earlier_sections(write)) as tmp:
+            # (a linked --write: written where the link points, as its checks read it)
+            with atomic_folder(write, drop=earlier_sections(write)) as tmp:
                 write_sections(run, secs, tmp, rate, final=write)
             console.print(f"wrote {sum(s.kept for s in secs)} section recording(s) to {write}")
     except RecordingError as exc:

@@ -78,9 +78,7 @@ def validate(
             res = run_validate(
                 estimate_dir, measured=measured, truth=truth, sensitivity=sensitivity, wagon=wagon
             )
-        from railsusp.store import followed
-
-        res.save(followed(out or estimate_dir / "validation"))  # a link: where it points
+        res.save(out or estimate_dir / "validation")  # a link: written where it points
     except (RailsuspInputError, ValueError, FileNotFoundError, KeyError) as exc:
         fail(f"{estimate_dir}: {exc}")
     f = res.forces
