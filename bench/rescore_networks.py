@@ -9,9 +9,11 @@ each run on its own track, a design seed no training campaign used, so that ever
 held out (all of them are scored, not a test split). The rows say how the networks do, and
 ``nominal wagon`` how much the nominal wagon's response alone explains.
 
-``--wagon-fields before-2026-11-30.2`` makes the campaign with the wagon fields that restore
-the force laws of revision 2026-11-30.1 (``FORCE_LAWS_BEFORE_2026_11_30_2``): the same
-tracks and parameter sets on the model the set was trained on, the A/B of the change.
+``--wagon-fields before-2026-12-02.1`` makes the campaign with the wagon fields that restore
+the force laws of revision 2026-11-30.2 (``FORCE_LAWS_BEFORE_2026_12_02_1``),
+``before-2026-11-30.2`` those of revision 2026-11-30.1 (``FORCE_LAWS_BEFORE_2026_11_30_2``,
+which includes the later switches): the same tracks and parameter sets on an earlier model,
+the A/B of a change.
 
     python bench/rescore_networks.py --set src/railsusp/data/networks/c80_k6 \\
         --run runs/rescore-c80_k6 --samples 384 --seed 7
@@ -20,8 +22,8 @@ tracks and parameter sets on the model the set was trained on, the A/B of the ch
 (:func:`railsusp.surrogate.restamp.restamp_network_set`): its networks' rows join the set's
 ``compare.csv``, NOTE (why they serve today's simulator: the figures of this table beside
 those of the model they were trained on) goes into the manifest, and the bundles take
-today's wagon, whose fields may differ from the one they were trained on in those of
-``FORCE_LAWS_BEFORE_2026_11_30_2`` only.
+today's wagon, whose fields may differ from the one they were trained on in the revisions'
+switches only (``FORCE_LAWS_BEFORE_2026_11_30_2``, which holds every later one too).
 """
 
 from __future__ import annotations
@@ -41,9 +43,17 @@ from railsusp.store import write_json
 from railsusp.surrogate import load
 from railsusp.surrogate.network_set import read_network_set
 from railsusp.vehicle import MODEL_REVISION
-from railsusp.vehicle.wagon import FORCE_LAWS_BEFORE_2026_11_30_2, load_wagon
+from railsusp.vehicle.wagon import (
+    FORCE_LAWS_BEFORE_2026_11_30_2,
+    FORCE_LAWS_BEFORE_2026_12_02_1,
+    load_wagon,
+)
 
-WAGON_FIELDS = {"today": {}, "before-2026-11-30.2": FORCE_LAWS_BEFORE_2026_11_30_2}
+WAGON_FIELDS = {
+    "today": {},
+    "before-2026-12-02.1": FORCE_LAWS_BEFORE_2026_12_02_1,
+    "before-2026-11-30.2": FORCE_LAWS_BEFORE_2026_11_30_2,
+}
 
 
 def _tracks_bench():

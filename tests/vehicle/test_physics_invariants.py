@@ -109,9 +109,10 @@ def test_an_uphill_grade_unloads_the_leading_bogie_by_the_coupler_moment():
     F: 12.4 kN m). The car body's vertical and pitch equilibrium then moves M / (2 l_c) from
     each centre plate: the leading (front, k = 0, wheelsets w1 and w2: it leads in the
     running direction +x) bogie's four wheels carry M / l_c less than the trailing bogie's,
-    and the eight together still carry m_tot g cos a. Rigid statics neglect the share the
-    centre bowls' pitch restraint takes (0.35 %); a flipped moment gives +3025 N instead of
-    -3025 N."""
+    and the eight together still carry m_tot g cos a. The car body's statics here neglect
+    the share of M the centre bowls' pitch moments take (0.35 %; they reach the axles of
+    each bogie as a couple, which the whole wagon's moment balance below counts); a flipped
+    moment gives +3025 N instead of -3025 N."""
     c = get_condition("uphill", irregularity_class=None, duration_s=4.0, n_steps=200)
     wagon = load_wagon()
     r = simulate(None, c, wagon=wagon)
@@ -129,6 +130,47 @@ def test_an_uphill_grade_unloads_the_leading_bogie_by_the_coupler_moment():
     leading_minus_trailing = float(q[:4].sum() - q[4:].sum())
     assert leading_minus_trailing == pytest.approx(-nose_up / cb.bogie_half_spacing, rel=0.01)
     assert float(q.sum()) == pytest.approx(m_tot * G / math.sqrt(1.0 + c.grade**2), rel=1e-6)
+
+
+def test_the_wheel_loads_on_a_grade_balance_the_whole_wagons_pitch_moment():
+    """Newton for the whole wagon climbing steadily (uphill 12 per mille, perfect track): the
+    rails' vertical reactions Q_i at the axles' positions x_i (+x forward, about the wagon's
+    centre) balance the moment of the longitudinal forces, the train's net pull F = m_tot g
+    sin a at coupler height h_k against each body's grade force m_j g sin a at its centre of
+    gravity h_j (the normal components act symmetrically and cancel):
+
+        sum_i x_i Q_i = g sin a sum_j m_j (h_k - h_j)
+
+    over the car body, two bolsters, four side frames and four wheelsets (at r0). Every
+    internal force must pass on its reaction for this to hold: measured to 4e-12 relative.
+    Before revision 2026-12-02.1 it missed by 1.5 % (the centre bowls' pitch moment acted
+    on the car body against the track, with no reaction on the bogies, and each bogie's own
+    moment on the grade did not reach its axles), which this test fails. Each bogie's leading
+    axle carries more than its trailing one (the pull at the centre plate acts above the
+    bogie's parts' centres of gravity: a forward tip)."""
+    c = get_condition("uphill", irregularity_class=None, duration_s=4.0, n_steps=200)
+    wagon = load_wagon()
+    r = simulate(None, c, wagon=wagon)
+    assert r.status[0] == 0
+    q = r.Q[0][:, -50:].mean(axis=-1)  # w1L, w1R (front axle of the leading bogie), ... w4R
+    cb, bg, bo, sf = wagon.car_body, wagon.bogie, wagon.bolster, wagon.side_frame
+    m_w = ParameterSet.nominal().to_array()[0]
+    l_c, a, h_k = cb.bogie_half_spacing, bg.half_wheelbase, cb.coupler_height
+    x = np.repeat([l_c + a, l_c - a, -l_c + a, -l_c - a], 2)
+    sin_a = c.grade / math.sqrt(1.0 + c.grade**2)
+    moment = (
+        G
+        * sin_a
+        * (
+            cb.mass * (h_k - cb.cg_height)
+            + 2 * bo.mass * (h_k - bo.cg_height)
+            + 4 * sf.mass * (h_k - sf.cg_height)
+            + 4 * m_w * (h_k - wagon.wheelset.rolling_radius)
+        )
+    )
+    assert float((x * q).sum()) == pytest.approx(moment, rel=1e-8)
+    assert q[0:2].sum() > q[2:4].sum()
+    assert q[4:6].sum() > q[6:8].sum()
 
 
 # ------------------------------------------------------------------ 3. gyroscopic coupling

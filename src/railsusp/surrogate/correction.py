@@ -87,7 +87,11 @@ class RecordCorrection:
             keep = np.sort(np.random.default_rng(seed).choice(len(x), max_runs, replace=False))
             x, r = x[keep], r[keep]
         gps = [fit_gp(x, r[:, j], seed) for j in range(r.shape[1])]
-        return cls(tuple(targets), x, r, [gp.kernel_.theta for gp in gps], seed, gps)
+        # the fitted GPs are not kept: they are rebuilt from the hyperparameters as a loaded
+        # correction's are (one BLAS thread), so that the trained network and its saved
+        # bundle predict the same numbers bit for bit (the search's own Cholesky factor,
+        # with the machine's BLAS threads, differed in the last digit)
+        return cls(tuple(targets), x, r, [gp.kernel_.theta for gp in gps], seed)
 
     def _models(self) -> list:
         """The GPs rebuilt from the stored hyperparameters, once. One BLAS thread: the

@@ -17,5 +17,8 @@ cached by Numba in a folder keyed by their sources (:mod:`railsusp.vehicle.kerne
 #: moment, the coupler line's angle halfway between like cars (docs/model.md; wagon fields
 #: that restore those three: railsusp.vehicle.wagon.FORCE_LAWS_BEFORE_2026_11_30_2), the
 #: rail damping's push capped at the Hertz force (no step at a touch-down) and a track grid
-#: as fine as the synthesis where wavelengths go below 1 m
-MODEL_REVISION = "2026-11-30.2"
+#: as fine as the synthesis where wavelengths go below 1 m; 2026-12-02.1: the centre bowl's
+#: pitch moment acts between the car body and its bogie's side frames (it acted against the
+#: track, with no reaction), and a bogie's own pitch moment on a grade is shared between its
+#: axles (wagon fields that restore both: railsusp.vehicle.wagon.FORCE_LAWS_BEFORE_2026_12_02_1)
+MODEL_REVISION = "2026-12-02.1"

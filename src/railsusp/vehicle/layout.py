@@ -69,6 +69,10 @@ _K_NAMES = (
     # the bolster's pitch restraint in the side-frame windows (quasi-static, suspension.py)
     "k_cpz", "k_cpb", "k_cpp", "k_cpy", "mu_cp", "k_yaw", "c_yaw", "k_roll", "c_roll",
     "k_sb", "c_sb", "P_sb", "mu_sb", "sb_travel", "k_sb_stop",
+    # 1.0: the bowl's pitch moment is the car body's pitch against its bogie's side frames and
+    # its reaction reaches them (wagon [centre_plate] pitch_reaction_on_side_frames); 0.0:
+    # against the track, with no reaction (before revision 2026-12-02.1)
+    "bowl_pitch_on_frames",
     "k_rz", "k_ry", "c_rz", "c_ry",
     # 1.0: the rail damping's push capped at the Hertz force (wagon [track]
     # rail_damping_capped); 0.0: the damper in parallel (before revision 2026-11-30.2)
@@ -77,6 +81,10 @@ _K_NAMES = (
     "F0_cp", "F0_nest", "F0_prim", "Q0", "Z0_L", "Z0_R", "N_ref",
     # condition
     "V", "g_n", "mu", "F_coupler", "M_pitch_grade", "creep_factor",
+    # on a grade, each side frame's share of its bogie's pitch moment (the car body's pull at
+    # the centre plate, the bogie's own grade components at their centres of gravity), N m;
+    # 0 without (wagon [bogie] grade_pitch_moment)
+    "M_pitch_grade_frame",
     # limits for the non-physical state check
     "pen_max", "lift_max",
     # step control: a wheel shifted towards its flange beyond this (m) and moving towards it

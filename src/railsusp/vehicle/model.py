@@ -86,6 +86,7 @@ I_F0CP, I_F0N, I_F0P = _K["F0_cp"], _K["F0_nest"], _K["F0_prim"]
 I_Z0L, I_Z0R = _K["Z0_L"], _K["Z0_R"]
 I_V, I_GN = _K["V"], _K["g_n"]
 I_FCPL, I_MGRADE = _K["F_coupler"], _K["M_pitch_grade"]
+I_MGRADEF, I_BOWLPF = _K["M_pitch_grade_frame"], _K["bowl_pitch_on_frames"]
 I_Q0 = _K["Q0"]
 I_SFN, I_SFA, I_KRG, I_XCL = (
     _K["sf_arm_nest"],
@@ -264,12 +265,18 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         acc[L.CB_ROLL] -= hcp * f_cpy
         acc[L.CB_YAW] -= d * f_cpy
         # centre bowl: ring of contact points with edge lift-off (vertical, roll, pitch) on
-        # the bolster's quasi-static bending and pitch restraint, and roll friction
+        # the bolster's quasi-static bending and pitch restraint, and roll friction; the
+        # bolster pitches in the two side frames' windows, so the car body's pitch is taken
+        # against their mean pitch and the pitch moment's reaction goes to them, half each
         z_car = q[L.CB_Z] - d * q[L.CB_PITCH]
+        jl = SF0 + 5 * (2 * k)
+        jr = jl + 5
+        pitch_frames = K[I_BOWLPF] * 0.5 * (q[jl + 3] + q[jr + 3])
         roll_rate_b_c = v[ib + 2] - v[L.CB_ROLL] - cant_rate_c
         roll_rate_b_c += track_rate(trk, L.TR_CANT, i_b, in_b, ds, V)
         n_cp, m_roll, m_pitch, m_rfr = bowl_ring_forces(
-            q[ib + 1] - z_car, roll_c_b - q[ib + 2], q[L.CB_PITCH], -roll_rate_b_c, K[I_RCP],
+            q[ib + 1] - z_car, roll_c_b - q[ib + 2], q[L.CB_PITCH] - pitch_frames,
+            -roll_rate_b_c, K[I_RCP],
             K[I_KCPZ], K[I_KCPB], K[I_KCPP], K[I_F0CP], K[I_MUCP], K[I_KROLL], K[I_CROLL],
             x[AUXR + k], dxdt, AUXR + k,
         )  # fmt: skip
@@ -278,6 +285,13 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         acc[L.CB_ROLL] += m_roll + m_rfr
         acc[ib + 1] -= n_cp - K[I_F0CP]
         acc[ib + 2] -= m_roll + m_rfr
+        # on each side frame's pitch: half the bowl's reaction, its share of the bogie's
+        # moment on a grade, and the restraint's k_pp / 2 in its window against the
+        # bolster, which pitches with the two frames' mean (energy k_pp (th_l - th_r)^2 / 8)
+        m_frame = K[I_MGRADEF] - K[I_BOWLPF] * 0.5 * m_pitch
+        m_anti = K[I_BOWLPF] * 0.25 * K[I_KCPP] * (q[jr + 3] - q[jl + 3])
+        acc[jl + 3] += m_frame + m_anti
+        acc[jr + 3] += m_frame - m_anti
         # side bearers at +- X11/2 (constant contact elastomer with its loss, lift-off, solid
         # stop after the travel)
         n_sb_sum = 0.0
@@ -345,9 +359,8 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             acc[ib + 3] += -side * b2 * f_lon
             acc[jf] -= f_lon
 
-        # ===== cross-bracing bars between the side frames [X19] =====
-        jl = SF0 + 5 * (2 * k)
-        jr = SF0 + 5 * (2 * k + 1)
+        # ===== cross-bracing bars between the side frames [X19] (jl, jr: the bogie's left
+        # and right side frames, as at the centre bowl) =====
         for bar in range(2):
             e_l = h9 if bar == 0 else -h9  # pin longitudinal offset on the left frame
             e_r = -e_l

@@ -230,6 +230,20 @@ def constants(
         -(cb.cg_height - cb.coupler_height) * f_net
         + (cb.cg_height - bg.centre_plate_height) * f_bogies
     )
+    # the bogie's own moment on the grade (positive: the front lowered, the leading axle
+    # loaded), about any point since the forces on it balance: the car body's pull
+    # f_bogies / 2 at the centre plate and its parts' grade components at their centres of
+    # gravity; each side frame carries half of it to its two axle boxes
+    h_cp = bg.centre_plate_height
+    m_bogie_lever = (
+        bo.mass * (h_cp - bo.cg_height)
+        + 2.0 * sf.mass * (h_cp - sf.cg_height)
+        + 2.0 * m_w * (h_cp - wagon.wheelset.rolling_radius)
+    )
+    vals["M_pitch_grade_frame"] = (
+        0.5 * m_bogie_lever * GRAVITY * sin_a if bg.grade_pitch_moment else 0.0
+    )
+    vals["bowl_pitch_on_frames"] = 1.0 if wagon.centre_plate.pitch_reaction_on_side_frames else 0.0
     for name, value in vals.items():
         k[L.K[name]] = value
     return k

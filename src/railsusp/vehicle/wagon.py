@@ -130,11 +130,21 @@ class WagonData(WagonSection):
         )
 
 
-#: the wagon fields that give the force laws of revision 2026-11-30.1 and before: the side
-#: frames' roll couple and the car body's gravity roll moment left out, the coupler angle
-#: taken at the pivot (docs/model.md, "Physical invariants checked by hand"), the rail
-#: damping's push not capped at the Hertz force
+#: the wagon fields that give the force laws of revision 2026-11-30.2 and before: the centre
+#: bowl's pitch moment against the track, with no reaction on the bogie, and every wheel of
+#: a bogie loaded alike on a grade (docs/model.md, "Centre bowl and side bearers")
+FORCE_LAWS_BEFORE_2026_12_02_1 = {
+    "centre_plate.pitch_reaction_on_side_frames": False,
+    "bogie.grade_pitch_moment": False,
+}
+
+#: the wagon fields that give the force laws of revision 2026-11-30.1 and before: those of
+#: :data:`FORCE_LAWS_BEFORE_2026_12_02_1`, and the side frames' roll couple and the car
+#: body's gravity roll moment left out, the coupler angle taken at the pivot (docs/model.md,
+#: "Physical invariants checked by hand"), the rail damping's push not capped at the Hertz
+#: force
 FORCE_LAWS_BEFORE_2026_11_30_2 = {
+    **FORCE_LAWS_BEFORE_2026_12_02_1,
     "side_frame.roll_held_by_axle_boxes": False,
     "car_body.gravity_roll_moment": False,
     "car_body.length_over_couplers": None,

@@ -94,11 +94,18 @@ class SideFrame(WagonSection):
 
 
 class Bogie(WagonSection):
+    """``grade_pitch_moment`` (default true): on a grade the car body pulls each bogie up at
+    the centre plate against the grade components of its bolster, side frames and
+    wheelsets, which act lower, at their centres of gravity; the bogie's pitch moment of
+    these forces is shared between its two axles (the leading one loaded). False leaves it
+    out, every wheel of a bogie loaded alike (the model before revision 2026-12-02.1)."""
+
     half_wheelbase: float = _within(2.0)
     axle_box_half_span: float = _within(2.0)
     spring_nest_half_span: float = _within(2.0)
     centre_plate_height: float = _within(2.0, description="m above rail top")
     centre_plate_radius: float = _within(1.0)
+    grade_pitch_moment: bool = True
 
 
 class Wheelset(WagonSection):
@@ -160,6 +167,12 @@ class Secondary(WagonSection):
 
 
 class CentrePlate(WagonSection):
+    """``pitch_reaction_on_side_frames`` (default true): the bowl's pitch moment follows the
+    car body's pitch against its bogie (the mean pitch of the two side frames, in whose
+    windows the bolster pitches) and its reaction reaches the side frames, half each. False
+    gives the model before revision 2026-12-02.1: the moment followed the car body's pitch
+    against the track and had no reaction on the bogie."""
+
     vertical_stiffness: float = Field(**_POS)
     rocking_stiffness: float = Field(
         **_POS, description="relative roll of body and bolster before lift-off, N m/rad"
@@ -173,6 +186,7 @@ class CentrePlate(WagonSection):
     yaw_stick_damping: float = Field(ge=0.0)
     roll_stick_stiffness: float = Field(**_POS)
     roll_stick_damping: float = Field(ge=0.0)
+    pitch_reaction_on_side_frames: bool = True
 
 
 class SideBearer(WagonSection):
