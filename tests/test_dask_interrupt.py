@@ -93,3 +93,52 @@ def test_a_ctrl_c_while_the_cluster_starts_is_not_lost(tmp_path):
     # the command's own line last; a worker still importing when the cluster is closed
     # may print its traceback before it (its process is not railsusp's yet)
     assert [ln for ln in err.splitlines() if ln.strip()][-1] == "interrupted", err
+
+
+CRASHING = """
+import logging, os, pathlib, signal
+
+def crash_once(flag):
+    # the first attempt kills its worker process, as a crash or the kernel's OOM killer
+    # would; the nanny starts a new worker, where Dask runs the task again
+    flag = pathlib.Path(flag)
+    if not flag.exists():
+        flag.touch()
+        os._exit(1)
+    quiet = logging.getLogger("distributed").level > logging.CRITICAL
+    return signal.getsignal(signal.SIGINT) == signal.SIG_IGN, quiet
+"""
+
+
+def test_a_worker_restarted_after_a_crash_is_kept_quiet_too(tmp_path):
+    """The workers were quieted once, as the cluster started (client.run): a worker the
+    nanny restarted after a crash took Ctrl-C and logged its shutdown again. A worker plugin
+    quiets each worker as it starts (railsusp.campaign.dask_quiet); checked in the
+    restarted worker itself."""
+    (tmp_path / "crashing.py").write_text(textwrap.dedent(CRASHING))
+    driver = textwrap.dedent(
+        """
+        import json, sys
+        from railsusp.campaign.dask_cluster import run_on_dask
+        from crashing import crash_once
+
+        if __name__ == "__main__":
+            got = []
+            run_on_dask(crash_once, [(0, 0)], lambda ci, b: (sys.argv[1],),
+                        lambda b, r: got.append(r), None, 1)
+            print(json.dumps(got))
+        """
+    )
+    (tmp_path / "driver.py").write_text(driver)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), *sys.path])}
+    done = subprocess.run(
+        [sys.executable, "driver.py", str(tmp_path / "crashed")],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=180,
+    )
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "crashed").exists()  # the first worker did crash
+    assert done.stdout.strip().splitlines()[-1] == "[[true, true]]", done.stdout

@@ -174,7 +174,10 @@ def run_on_dask(
                     dashboard_address=None,
                 )
             client = Client(cluster)
-            client.run(_quiet_worker)  # our own workers: no Ctrl-C, no shutdown log
+            from railsusp.campaign.dask_quiet import QuietWorkers
+
+            # our own workers, a restarted one too: no Ctrl-C, no shutdown log
+            client.register_plugin(QuietWorkers())
         else:  # the run directory is written and resumes once a scheduler answers
             client = connect_scheduler(scheduler, setting)
         try:
@@ -238,19 +241,6 @@ def _sigint_blocked() -> Iterator[None]:
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
-
-
-def _quiet_worker() -> None:
-    """In a local cluster's worker process (``client.run`` calls it in the process's main
-    thread): SIGINT ignored, and its Dask log held to nothing. A Ctrl-C at the terminal
-    reaches the whole process group; the command's process alone stops on it and closes
-    the cluster, and each worker's shutdown (its tasks cancelled, its scheduler gone) logged
-    warnings and errors with tracebacks, some 60 lines before the one "interrupted" line
-    (the QA and CI of stop 74). A task's own error still reaches the command through its
-    result, and the nannies (in the command's process) still log a worker lost."""
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-    logging.getLogger("distributed").setLevel(logging.CRITICAL + 1)
 
 
 @contextmanager
