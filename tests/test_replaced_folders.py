@@ -62,6 +62,14 @@ def test_the_commands_refuse_before_any_work(tmp_path, monkeypatch):
     out = _one_line(runner.invoke(app, ["validate", str(tmp_path / "none"), "--out", str(user)]))
     assert "holds notes.txt and no validation.json or estimate.json: validate would" in out
     assert (user / "notes.txt").read_text() == "important"
+    # without --out, ESTIMATE_DIR/validation is checked the same way, before any work (it
+    # was not: a user's folder there was replaced, or the command failed after simulating)
+    est = tmp_path / "est"
+    (est / "validation").mkdir(parents=True)
+    (est / "validation" / "notes.txt").write_text("important")
+    out = _one_line(runner.invoke(app, ["validate", str(est)]))
+    assert f"--out (default) {est / 'validation'} holds notes.txt and no validation.json" in out
+    assert (est / "validation" / "notes.txt").read_text() == "important"
     monkeypatch.chdir(user)
     out = _one_line(runner.invoke(app, ["synth-field", "--out", ".", "--duration", "5"]))
     assert "--out . is the folder you are in: synth-field replaces its output folder" in out

@@ -37,10 +37,17 @@ def validate(
     from railsusp.validate import validate as run_validate
 
     try:
-        if out is not None:  # before the simulations, not after them
+        # the output folder, before the simulations, not after them: --out, or by default
+        # ESTIMATE_DIR/validation (unchecked, a folder there that could not be replaced or
+        # an estimate's folder that could not be written failed after the simulations)
+        if out is not None:
             check_not_recordings(out)
             own = ("validation.json", "estimate.json")  # validate --out EST: beside it
             check_replaced_folder(out, "--out", "validate", own=own)
+        else:
+            check_replaced_folder(
+                estimate_dir / "validation", "--out (default)", "validate", own=("validation.json",)
+            )
         if truth is not None:  # before the simulations, not after them
             from railsusp.measured import read_truth
 
