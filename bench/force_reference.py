@@ -12,7 +12,8 @@ changes). The file it replaces can stay beside it as the reference of a switch t
 the old model (tests/data/force_reference_zero_yaw.npz: ``[contact] yaw_geometry = false``;
 force_reference_wedge_pair.npz: ``[secondary] wedge_half_spacing = 0``;
 force_reference_2026-11-30.1.npz: the wagon fields of
-``railsusp.vehicle.wagon.FORCE_LAWS_BEFORE_2026_11_30_2``).
+``railsusp.vehicle.wagon.FORCE_LAWS_BEFORE_2026_11_30_2``; force_reference_2026-11-30.2.npz:
+those of ``FORCE_LAWS_BEFORE_2026_12_02_1``).
 """
 
 from __future__ import annotations

@@ -22,8 +22,9 @@ the A/B of a change.
 (:func:`railsusp.surrogate.restamp.restamp_network_set`): its networks' rows join the set's
 ``compare.csv``, NOTE (why they serve today's simulator: the figures of this table beside
 those of the model they were trained on) goes into the manifest, and the bundles take
-today's wagon, whose fields may differ from the one they were trained on in the revisions'
-switches only (``FORCE_LAWS_BEFORE_2026_11_30_2``, which holds every later one too).
+today's wagon, whose fields may differ from the one they were trained on in the switches
+of the revisions since the set's only (a set of 2026-11-30.2: ``FORCE_LAWS_BEFORE_2026_12_02_1``;
+an older one: ``FORCE_LAWS_BEFORE_2026_11_30_2``, which holds every later switch too).
 """
 
 from __future__ import annotations
@@ -48,6 +49,10 @@ from railsusp.vehicle.wagon import (
     FORCE_LAWS_BEFORE_2026_12_02_1,
     load_wagon,
 )
+
+#: the wagon fields a set of each revision may differ in from today's wagon when carried
+#: over: those switched since (an older set's: every switch, FORCE_LAWS_BEFORE_2026_11_30_2)
+SWITCHED_SINCE = {"2026-11-30.2": FORCE_LAWS_BEFORE_2026_12_02_1}
 
 WAGON_FIELDS = {
     "today": {},
@@ -147,7 +152,7 @@ def restamp(args: argparse.Namespace, ns, rows: pd.DataFrame) -> None:
     out = restamp_network_set(
         args.set,
         wagon=load_wagon(),
-        fields=tuple(FORCE_LAWS_BEFORE_2026_11_30_2),
+        fields=tuple(SWITCHED_SINCE.get(ns.model_revision, FORCE_LAWS_BEFORE_2026_11_30_2)),
         accuracy=nets,
         note=args.restamp,
     )

@@ -159,9 +159,9 @@ def _edit_meta(run, change) -> dict:
 
 def _as_older_railsusp(run, revision):
     """``run`` as a railsusp of force-law revision ``revision`` (None: one that recorded
-    none) wrote it: the wagon data without the fields that 2026-11-30.2 added (with
-    defaults), the hash of that configuration on campaign.json and every batch file, and
-    the revision (if any) on both."""
+    none) wrote it: the wagon data without the fields that 2026-11-30.2 and 2026-12-02.1
+    added (with defaults; FORCE_LAWS_BEFORE_2026_11_30_2 holds both), the hash of that
+    configuration on campaign.json and every batch file, and the revision (if any) on both."""
 
     def change(meta):
         for dotted in FORCE_LAWS_BEFORE_2026_11_30_2:

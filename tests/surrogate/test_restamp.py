@@ -108,6 +108,7 @@ def test_a_newer_railsusps_set_is_not_carried_back(tmp_path):
 
 def test_a_set_of_another_wagon_or_not_scored_is_not_carried_over(tmp_path):
     folder = _old_curve_set(tmp_path)
+    # the first switch only (revision 2026-12-02.1's bowl): the bundle's others refused
     other_fields = r"differs in (\S+, )*car_body.gravity_roll_moment"
     with pytest.raises(RailsuspInputError, match=other_fields):
         restamp_network_set(

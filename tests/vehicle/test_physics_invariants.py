@@ -33,7 +33,7 @@ from railsusp.vehicle.modes import modal_analysis
 from railsusp.vehicle.operating_point import LinearisationPoint, linearisation_point
 from railsusp.vehicle.setup import SolverSettings
 from railsusp.vehicle.simulate import simulate
-from railsusp.vehicle.wagon import load_wagon
+from railsusp.vehicle.wagon import FORCE_LAWS_BEFORE_2026_12_02_1, load_wagon
 from railsusp.vehicle.wheel_rail import creep_contact_forces
 
 NQ = L.N_DOF
@@ -171,6 +171,54 @@ def test_the_wheel_loads_on_a_grade_balance_the_whole_wagons_pitch_moment():
     assert float((x * q).sum()) == pytest.approx(moment, rel=1e-8)
     assert q[0:2].sum() > q[2:4].sum()
     assert q[4:6].sum() > q[6:8].sum()
+
+
+def test_the_old_force_laws_load_a_bogies_axles_alike_on_a_grade():
+    """The switches of revision 2026-12-02.1 off (FORCE_LAWS_BEFORE_2026_12_02_1) give the
+    model before it on a grade too, where its grade moment acts: each bogie's leading and
+    trailing axles carry the same load and the whole wagon's moment balance misses (by the
+    centre bowls' moment, which had no reaction, and the bogies' own moment)."""
+    c = get_condition("uphill", irregularity_class=None, duration_s=4.0, n_steps=200)
+    wagon = load_wagon().with_values(FORCE_LAWS_BEFORE_2026_12_02_1)
+    r = simulate(None, c, wagon=wagon)
+    assert r.status[0] == 0
+    q = r.Q[0][:, -50:].mean(axis=-1)
+    assert q[0:2].sum() == pytest.approx(q[2:4].sum(), rel=1e-12)
+    assert q[4:6].sum() == pytest.approx(q[6:8].sum(), rel=1e-12)
+
+
+def test_the_centre_bowl_couples_the_car_bodys_pitch_and_its_side_frames_both_ways():
+    """The bowl's ring (pitch stiffness k_r = k_ring R^2 / 2) in series with the bolster's
+    pitch restraint (k_p, k_p / 2 in each side-frame window) stores, for the car body's
+    pitch t_c and its bogie's side frames' t_l, t_r (the bolster pitches with their mean),
+
+        U = k_e / 2 (t_c - (t_l + t_r) / 2)^2 + k_p / 8 (t_l - t_r)^2,  k_e = k_r k_p / (k_r + k_p)
+
+    so a car-body pitch d pushes each of the four side frames' pitch by k_e d / 2, a side
+    frame's pitch d pushes the car body's by k_e d / 2 (the reaction), and the other frame
+    of its bogie by (k_p - k_e) d / 4 (the shared bowl pulls it along, its own window holds
+    it back), the frames of the other bogie not at all. Revision 2026-11-30.2 gave the
+    car body k_e per bowl against the track and the frames nothing; a flipped sign of the
+    frames' mean in the ring or of the windows' term, or the windows' term left out, fail
+    here (the stiffness symmetric: the bowl stays conservative)."""
+    point = linearisation_point()
+    k = L.K
+    kr = 0.5 * point.K[k["k_cpz"]] * point.K[k["R_cp"]] ** 2
+    kp = point.K[k["k_cpp"]]
+    k_e = kr * kp / (kr + kp)
+    frames = [L.SF0 + 5 * j + 3 for j in range(4)]  # pitch of w1-w2 left, right, w3-w4 ...
+    d = 1e-6
+    x = np.zeros(L.N_STATE)
+    x[L.CB_PITCH] = d
+    f = _force_change(point, x)
+    for j in frames:
+        assert f[j] == pytest.approx(k_e * d / 2, rel=1e-6)
+    x = np.zeros(L.N_STATE)
+    x[frames[0]] = d
+    f = _force_change(point, x)
+    assert f[L.CB_PITCH] == pytest.approx(k_e * d / 2, rel=1e-6)
+    assert f[frames[1]] == pytest.approx((kp - k_e) * d / 4, rel=1e-4)
+    assert f[frames[2]] == 0.0 and f[frames[3]] == 0.0
 
 
 # ------------------------------------------------------------------ 3. gyroscopic coupling
@@ -361,3 +409,24 @@ def test_every_viscous_element_dissipates_its_rayleigh_power():
         power = float(forces @ x[NQ : 2 * NQ])
         assert power < 0.0, name
         assert power == pytest.approx(per_rate2 * rate**2, rel=1e-9), name
+
+
+def test_a_bolster_rigid_in_pitch_is_refused_where_its_restraint_acts_on_the_side_frames():
+    """The 1e30 that stood for a rigid bolster before revision 2026-12-02.1 made, with the
+    restraint acting between the side frames, a mode of stable step 4e-14 s (the review of
+    stop 75): refused in one line naming the field, the switch and the accepted range; taken
+    with the switch off (the model before, as with_physics_before_2026_11_24 gives it), and
+    the stiffest accepted value still simulates."""
+    from railsusp.errors import RailsuspInputError
+
+    rigid = {"centre_plate.bolster_pitch_stiffness": 1e30}
+    with pytest.raises(RailsuspInputError) as err:
+        load_wagon().with_values(rigid)
+    msg = str(err.value)
+    assert "centre_plate.bolster_pitch_stiffness = 1e+30" in msg and "up to 1e+10" in msg
+    assert "pitch_reaction_on_side_frames" in msg and "\n" not in msg
+    load_wagon().with_values({**rigid, "centre_plate.pitch_reaction_on_side_frames": False})
+    load_wagon().with_physics_before_2026_11_24()
+    stiff = load_wagon().with_values({"centre_plate.bolster_pitch_stiffness": 1e10})
+    c = get_condition("straight", duration_s=1.0, n_steps=50, lead_in_m=5.0)
+    assert simulate(None, c, wagon=stiff).status[0] == 0

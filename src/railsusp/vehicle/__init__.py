@@ -19,6 +19,8 @@ cached by Numba in a folder keyed by their sources (:mod:`railsusp.vehicle.kerne
 #: rail damping's push capped at the Hertz force (no step at a touch-down) and a track grid
 #: as fine as the synthesis where wavelengths go below 1 m; 2026-12-02.1: the centre bowl's
 #: pitch moment acts between the car body and its bogie's side frames (it acted against the
-#: track, with no reaction), and a bogie's own pitch moment on a grade is shared between its
-#: axles (wagon fields that restore both: railsusp.vehicle.wagon.FORCE_LAWS_BEFORE_2026_12_02_1)
+#: track, with no reaction), the bolster's pitch restraint acts between the two side frames
+#: too (on level track as on a grade: the wheel loads' s.d. moved by +6 / -4 % on leading /
+#: trailing axles), and a bogie's own pitch moment on a grade is shared between its axles
+#: (wagon fields that restore them: railsusp.vehicle.wagon.FORCE_LAWS_BEFORE_2026_12_02_1)
 MODEL_REVISION = "2026-12-02.1"

@@ -131,8 +131,9 @@ class WagonData(WagonSection):
 
 
 #: the wagon fields that give the force laws of revision 2026-11-30.2 and before: the centre
-#: bowl's pitch moment against the track, with no reaction on the bogie, and every wheel of
-#: a bogie loaded alike on a grade (docs/model.md, "Centre bowl and side bearers")
+#: bowl's pitch moment against the track, with no reaction on the bogie, the side frames
+#: free to pitch against the bolster (on level track too), and every wheel of a bogie loaded
+#: alike on a grade (docs/model.md, "Centre bowl and side bearers")
 FORCE_LAWS_BEFORE_2026_12_02_1 = {
     "centre_plate.pitch_reaction_on_side_frames": False,
     "bogie.grade_pitch_moment": False,

@@ -166,6 +166,10 @@ class Secondary(WagonSection):
         return self
 
 
+#: the stiffest bolster pitch restraint accepted where it acts on the side frames, N m/rad
+MAX_BOLSTER_PITCH_STIFFNESS = 1.0e10
+
+
 class CentrePlate(WagonSection):
     """``pitch_reaction_on_side_frames`` (default true): the bowl's pitch moment follows the
     car body's pitch against its bogie (the mean pitch of the two side frames, in whose
@@ -187,6 +191,21 @@ class CentrePlate(WagonSection):
     roll_stick_stiffness: float = Field(**_POS)
     roll_stick_damping: float = Field(ge=0.0)
     pitch_reaction_on_side_frames: bool = True
+
+    @model_validator(mode="after")
+    def _pitch_restraint_the_step_can_follow(self) -> CentrePlate:
+        """With the restraint acting on the side frames, a bolster rigid in pitch (the 1e30
+        that stood for it before revision 2026-12-02.1) locks them into a mode no RK4 step
+        can follow (stable step 4e-14 s; 0.96 ms at 1e9, 1.04 at the nominal 2.8e6)."""
+        limit = MAX_BOLSTER_PITCH_STIFFNESS
+        if self.pitch_reaction_on_side_frames and self.bolster_pitch_stiffness > limit:
+            raise ValueError(
+                f"centre_plate.bolster_pitch_stiffness = {self.bolster_pitch_stiffness:g} N m/rad "
+                f"with pitch_reaction_on_side_frames = true: accepted up to {limit:g} (the "
+                "restraint acts on the side frames; a bolster rigid in pitch needs "
+                "pitch_reaction_on_side_frames = false, the model before revision 2026-12-02.1)"
+            )
+        return self
 
 
 class SideBearer(WagonSection):
