@@ -90,8 +90,12 @@ def main() -> None:
         ap.error("--restamp NOTE: accepted a note that is not empty (why the set serves today)")
     ns = read_network_set(args.set)
     bench = _tracks_bench()
-    first = load(ns.bundle(ns.conditions[0]))
-    family = first.meta.get("track_family") or {}
+    # the set's track family: each key from the first bundle that states it (a network
+    # trained on a campaign of one condition, the straight one of stop 75, states no curve)
+    family = {}
+    for cond in ns.conditions:
+        for key, value in (load(ns.bundle(cond)).meta.get("track_family") or {}).items():
+            family.setdefault(key, value)
     cfg = bench.tracks_config(
         args.samples,
         conditions=ns.conditions,

@@ -103,15 +103,29 @@ def _network_set_text(doc: Doc, manifest: dict, assumed: list[dict]) -> None:
     if held:
         others.append(f"{', '.join(held)} held in its training")
     note = manifest.get("model_revision_note")
-    laws = (
-        f"It serves the force laws of revision {manifest['model_revision']}, to which it was "
-        f"carried over without training: {note}. The table below gives its accuracy on "
-        "held-out tracks and parameter sets, each row labelled with the force-law revision "
-        "it was scored on."
-        if note
-        else f"Force laws of revision {manifest['model_revision']}. The table below is its "
-        "accuracy on its campaign's held-out tracks and parameter sets."
-    )
+    carried = manifest.get("carried_over") or []
+    some = [c for c in manifest.get("conditions", []) if c not in carried]
+    if note and carried and some:  # a set of networks trained on today's laws and others not
+        laws = (
+            f"It serves the force laws of revision {manifest['model_revision']}: its "
+            f"{', '.join(some)} network{'s were' if len(some) > 1 else ' was'} trained on "
+            f"them, its {', '.join(carried)} network{'s were' if len(carried) > 1 else ' was'} "
+            f"carried over to them without training ({note}). The table below gives its "
+            "accuracy on held-out tracks and parameter sets, each row labelled with the "
+            "force-law revision it was scored on where it was carried over."
+        )
+    elif note:
+        laws = (
+            f"It serves the force laws of revision {manifest['model_revision']}, to which it "
+            f"was carried over without training: {note}. The table below gives its accuracy "
+            "on held-out tracks and parameter sets, each row labelled with the force-law "
+            "revision it was scored on."
+        )
+    else:
+        laws = (
+            f"Force laws of revision {manifest['model_revision']}. The table below is its "
+            "accuracy on its campaign's held-out tracks and parameter sets."
+        )
     doc.p(
         f"Network set '{manifest['name']}' ({manifest['kind']}, inputs "
         f"{', '.join(manifest['parameters'])}), trained once on many track realisations and "

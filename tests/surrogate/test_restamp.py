@@ -13,6 +13,7 @@ import pytest
 
 from railsusp.errors import RailsuspInputError
 from railsusp.store import file_hash
+from railsusp.surrogate import load
 from railsusp.surrogate.network_set import (
     ACCURACY,
     MANIFEST,
@@ -187,3 +188,44 @@ def test_the_rescore_bench_refuses_a_restamp_before_its_campaign(
     assert exc.value.code == 2
     assert message in capsys.readouterr().err
     assert not run.exists()
+
+
+def test_a_set_of_trained_and_carried_over_networks_says_which_are_which(tmp_path):
+    """The shipped set since stop 75: its straight network trained on today's force laws,
+    curve and uphill carried over (meta.restamped). write_network_set wrote a manifest
+    without any note, so the report called the whole set trained on today's laws; it now
+    names the carried-over conditions and their stamps' note, and the report says which
+    networks were trained on the laws and which were carried over."""
+    from railsusp.report_doc import Doc
+    from railsusp.report_method import _network_set_text
+
+    ns = read_network_set(resolve_network_set("c80_k6"))
+    assert not load(ns.bundle("straight")).meta.get("restamped")  # trained on today's
+    made = write_network_set(
+        ns.folder,
+        tmp_path / "set",
+        name="mixed",
+        conditions=["straight", "curve"],
+        accuracy=pd.concat([_scored("straight"), _scored("curve")]),
+        reproduce=["python train.py"],
+    )
+    manifest = json.loads((made.folder / MANIFEST).read_text())
+    assert manifest["carried_over"] == ["curve"]
+    stamp = load(ns.bundle("curve")).meta["restamped"][-1]["note"]
+    assert manifest["model_revision_note"] == f"curve: {stamp}"
+    doc = Doc(tmp_path)
+    _network_set_text(doc, manifest, [])
+    text = " ".join(" ".join(doc.md).split())
+    serves = f"It serves the force laws of revision {MODEL_REVISION}: its straight network"
+    assert f"{serves} was" in text
+    assert "trained on them, its curve network was carried over to them without training" in text
+    only_trained = write_network_set(
+        ns.folder,
+        tmp_path / "trained",
+        name="trained",
+        conditions=["straight"],
+        accuracy=_scored("straight"),
+        reproduce=[],
+    )
+    plain = json.loads((only_trained.folder / MANIFEST).read_text())
+    assert "carried_over" not in plain and "model_revision_note" not in plain

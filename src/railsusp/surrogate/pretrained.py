@@ -261,7 +261,11 @@ def write_network_set(
     ``<condition>/`` bundles, or a mapping from each condition to its bundle folder where
     the conditions' networks come from different campaigns. A bundle that records another
     force-law revision than today's is refused (audit of stop 62: the manifest stamped
-    today's whatever the networks had learnt)."""
+    today's whatever the networks had learnt). A bundle carried over to today's revision
+    without training (:mod:`railsusp.surrogate.restamp`, its ``meta.restamped``) is taken;
+    the manifest then names the conditions so carried (``carried_over``) and their latest
+    stamps' notes (``model_revision_note``), so that a set of some networks trained on
+    today's force laws and others carried over says which are which (the report reads it)."""
     from railsusp.surrogate.bundle import load
     from railsusp.vehicle import MODEL_REVISION
     from railsusp.vehicle.revision import mismatch
@@ -312,5 +316,22 @@ def write_network_set(
             reproduce=tuple(reproduce),
             references=make_references(tmp, conditions, first.spec.parameters),
         )
-        write_json(tmp / MANIFEST, ns.to_json())
+        write_json(tmp / MANIFEST, {**ns.to_json(), **carried_over(surs)})
     return read_network_set(dest)
+
+
+def carried_over(surs: Mapping[str, Any]) -> dict:
+    """The manifest's keys for the networks of ``surs`` (condition -> loaded bundle) carried
+    over without training (``meta.restamped``): ``carried_over`` (their conditions) and
+    ``model_revision_note`` (each distinct latest note, after the conditions it is of);
+    empty where every network was trained on its revision."""
+    notes: dict[str, list[str]] = {}
+    for cond, sur in surs.items():
+        stamps = sur.meta.get("restamped") or []
+        if stamps:
+            notes.setdefault(str(stamps[-1].get("note", "")), []).append(cond)
+    if not notes:
+        return {}
+    conds = [c for group in notes.values() for c in group]
+    text = "; ".join(f"{', '.join(group)}: {note}" for note, group in notes.items())
+    return {"carried_over": conds, "model_revision_note": text}
