@@ -91,35 +91,30 @@ def test_wedges_at_the_nest_centre_reproduce_the_forces_before_the_warp_friction
 
 
 @pytest.mark.parametrize("condition", ["straight", "curve"])
-def test_the_switches_of_revision_2026_11_30_1_reproduce_its_forces(condition):
-    """``FORCE_LAWS_BEFORE_2026_11_30_2`` (side frames not rolling with their wheelsets, no
-    gravity roll moment, the coupler angle at its pivot) is the model of revision
-    2026-11-30.1: its forces equal that revision's stored reference to 1e-9 of the largest
-    (and the model of today differs from it: the check is not blind)."""
-    from railsusp.vehicle.wagon import FORCE_LAWS_BEFORE_2026_11_30_2, load_wagon
+@pytest.mark.parametrize(
+    ("revision", "switches", "reference"),
+    [
+        ("2026-11-30.1", "FORCE_LAWS_BEFORE_2026_11_30_2", ROLL_MOMENTS_REFERENCE),
+        ("2026-11-30.2", "FORCE_LAWS_BEFORE_2026_12_02_1", BOWL_PITCH_REFERENCE),
+    ],
+)
+def test_the_switches_of_an_earlier_revision_reproduce_its_forces(
+    condition, revision, switches, reference
+):
+    """The wagon fields that restore an earlier revision's force laws give its forces: equal
+    to that revision's stored reference to 1e-9 of the largest, and today's differ from it
+    (the check is not blind). ``FORCE_LAWS_BEFORE_2026_11_30_2``: side frames not rolling
+    with their wheelsets, no gravity roll moment, the coupler angle at its pivot (and the
+    later switches); ``FORCE_LAWS_BEFORE_2026_12_02_1``: the bowl's pitch moment against
+    the track, with no reaction, the side frames free to pitch against the bolster, a
+    bogie's wheels loaded alike on a grade (today's forces 2-7 % of the largest off)."""
+    from railsusp.vehicle import wagon as wagons
 
     fr = _bench()
-    ref = np.load(ROLL_MOMENTS_REFERENCE)
-    assert str(ref["model_revision"]) == "2026-11-30.1"
-    y, q = fr.reference_forces(condition, load_wagon().with_values(FORCE_LAWS_BEFORE_2026_11_30_2))
-    assert fr.relative_difference(y, ref[f"{condition}_Y"]) < 1e-9
-    assert fr.relative_difference(q, ref[f"{condition}_Q"]) < 1e-9
-    _, q_now = fr.reference_forces(condition)
-    assert fr.relative_difference(q_now, ref[f"{condition}_Q"]) > 1e-3
-
-
-@pytest.mark.parametrize("condition", ["straight", "curve"])
-def test_the_switches_of_revision_2026_11_30_2_reproduce_its_forces(condition):
-    """``FORCE_LAWS_BEFORE_2026_12_02_1`` (the bowl's pitch moment against the track, with no
-    reaction; a bogie's wheels loaded alike on a grade) is the model of revision
-    2026-11-30.2: its forces equal that revision's stored reference to 1e-9 of the largest,
-    and today's differ from it (by 2-7 % of the largest: the check is not blind)."""
-    from railsusp.vehicle.wagon import FORCE_LAWS_BEFORE_2026_12_02_1, load_wagon
-
-    fr = _bench()
-    ref = np.load(BOWL_PITCH_REFERENCE)
-    assert str(ref["model_revision"]) == "2026-11-30.2"
-    y, q = fr.reference_forces(condition, load_wagon().with_values(FORCE_LAWS_BEFORE_2026_12_02_1))
+    ref = np.load(reference)
+    assert str(ref["model_revision"]) == revision
+    earlier = wagons.load_wagon().with_values(getattr(wagons, switches))
+    y, q = fr.reference_forces(condition, earlier)
     assert fr.relative_difference(y, ref[f"{condition}_Y"]) < 1e-9
     assert fr.relative_difference(q, ref[f"{condition}_Q"]) < 1e-9
     _, q_now = fr.reference_forces(condition)
