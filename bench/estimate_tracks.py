@@ -518,10 +518,27 @@ def print_table(sets: list[dict], parameters: Sequence[str], summary: dict) -> N
         )
 
 
+def networks_digest(folder: Path) -> str:
+    """SHA-256 (16 hex digits) of the networks under ``folder``: each condition's weights and
+    bundle (``model.pt``, ``surrogate.json``) by relative path. A network trained again or
+    fine-tuned under the same folder is another setting: two sets estimated with the shipped
+    straight network before stop 75's fine-tune resumed into a run of the fine-tuned one."""
+    import hashlib
+
+    from railsusp.store import file_hash
+
+    h = hashlib.sha256()
+    for path in sorted(folder.rglob("*")):
+        if path.is_file() and path.name in ("model.pt", "surrogate.json"):
+            h.update(f"{path.relative_to(folder).as_posix()} {file_hash(path)}\n".encode())
+    return h.hexdigest()[:16]
+
+
 def settings_of(args: argparse.Namespace, folder: Path) -> dict:
     """What makes a stored set comparable with a new one (resuming needs them equal)."""
     return {
         "surrogates": str(folder.resolve()),
+        "networks": networks_digest(folder),
         "seed": args.seed,
         "duration_s": args.duration,
         "track_noise_mm": args.track_noise,

@@ -287,3 +287,30 @@ def test_the_preview_generations_compare_the_records_first_seconds(bench, tmp_pa
     assert doc["per_set"][0]["predict_calls"] == 3  # two preview generations, one whole
     with pytest.raises(SystemExit):
         bench.main([*argv, "--preview-generations", "3"])
+
+
+def test_networks_trained_again_under_the_same_folder_are_other_settings(bench, tmp_path):
+    """The networks' files are part of the settings: stored sets of the shipped set's
+    straight network resumed into a run of its fine-tuned successor in the same folder
+    (stop 75), their errors mixed into the new network's score."""
+    import argparse
+
+    args = argparse.Namespace(
+        seed=0, duration=60.0, track_noise=0.5, noise=0.03, pop_size=50, n_gen=100,
+        conditions="", geometry_draws=8, gains=False, expected_draws=0,
+        simulator_corrections=0, correction_slopes=False, slope_update="simulated",
+        broyden_min_step=0.01,
+    )  # fmt: skip
+    (tmp_path / "straight").mkdir()
+    (tmp_path / "straight" / "model.pt").write_bytes(b"weights")
+    (tmp_path / "straight" / "surrogate.json").write_text("{}")
+    before = bench.settings_of(args, tmp_path)
+    assert bench.settings_of(args, tmp_path) == before
+    (tmp_path / "straight" / "model.pt").write_bytes(b"fine-tuned weights")
+    after = bench.settings_of(args, tmp_path)
+    assert after["networks"] != before["networks"]
+    out = tmp_path / "et.json"
+    out.write_text(json.dumps({"settings": before, "per_set": [{"set": 0}]}))
+    with pytest.raises(SystemExit):
+        bench.resumed_sets(out, after)
+    assert bench.resumed_sets(out, before) == [{"set": 0}]
