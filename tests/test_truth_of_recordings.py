@@ -142,3 +142,49 @@ def test_a_copy_in_other_bytes_that_reads_the_same_is_still_the_truths(fields, t
     table.write_text("\n".join([lines[0], ",".join(cells), *lines[2:]]) + "\n")
     with pytest.raises(RailsuspInputError, match="straight.csv is none of the tables"):
         check_truth_of(copy / "truth.json", copy, recordings=read_field(copy))
+
+
+@pytest.fixture(scope="module")
+def tracked(tmp_path_factory):
+    """A field whose recording carries its measured track geometry (with_track)."""
+    cond = get_condition("straight", duration_s=1.0, n_steps=50, lead_in_m=30.0)
+    root = tmp_path_factory.mktemp("tracked")
+    return synthesise_field(
+        ParameterSet({"X13": 18.0}, units="display"), [cond], root / "a", with_track=True
+    )
+
+
+def test_a_geometry_in_other_bytes_that_reads_the_same_is_still_the_truths(tracked, tmp_path):
+    """The truth's digest of a field on measured track hashed the geometry file's bytes: the
+    field checked out with CRLF line endings (recordings and geometry) was refused as other
+    recordings. Digest version 2 hashes the geometry as read; a changed geometry value is
+    still other recordings."""
+    from railsusp.measured import read_field
+
+    copy = shutil.copytree(tracked, tmp_path / "crlf")
+    for name in ("straight.csv", "straight.track.csv"):
+        f = copy / name
+        f.write_bytes(f.read_bytes().replace(b"\n", b"\r\n"))
+    check_truth_of(copy / "truth.json", copy, recordings=read_field(copy))
+    geometry = copy / "straight.track.csv"
+    lines = geometry.read_text().splitlines()
+    cells = lines[5].split(",")
+    cells[1] = f"{float(cells[1]) + 0.25:.9g}"  # one vertical irregularity moved 0.25 mm
+    geometry.write_text("\n".join([*lines[:5], ",".join(cells), *lines[6:]]) + "\n")
+    with pytest.raises(RailsuspInputError, match="nor read as the same recordings"):
+        check_truth_of(copy / "truth.json", copy, recordings=read_field(copy))
+
+
+def test_a_digest_stored_before_version_2_still_matches_its_recordings(tracked):
+    """Estimates and truths written before the digest's version 2 hold a digest without a
+    prefix (the geometry file's bytes): they are compared in their own version."""
+    from railsusp.measured import read_field
+    from railsusp.measured.recording import recordings_digest, same_recordings
+
+    recs = read_field(tracked)
+    old, new = recordings_digest(recs, version=1), recordings_digest(recs)
+    assert new.startswith("v2:") and ":" not in old and old != new.removeprefix("v2:")
+    assert same_recordings(recs, old) and same_recordings(recs, new)
+    assert not same_recordings(recs, "v9:" + old) and not same_recordings(recs, "v2:" + old)
+    doc = json.loads((tracked / "truth.json").read_text())
+    assert doc["recordings_digest"] == new

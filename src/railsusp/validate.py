@@ -47,7 +47,7 @@ from railsusp.identification_verdict import (
     max_st,
 )
 from railsusp.measured import Recording, SimulationFailedError, read_field
-from railsusp.measured.recording import recordings_digest
+from railsusp.measured.recording import same_recordings
 from railsusp.measured.synthetic import recording_from_simulation
 from railsusp.measured.truth import check_truth_of, read_truth
 from railsusp.params import ParameterSet, bounds, spec
@@ -210,7 +210,7 @@ def validate(
     wagon = load_wagon(wagon)
     recs = read_field(measured or est["measured"], wagon=wagon)
     stored = est.get("measured_digest")
-    if measured is None and isinstance(stored, str) and recordings_digest(recs) != stored:
+    if measured is None and isinstance(stored, str) and not same_recordings(recs, stored):
         raise RailsuspInputError(
             f"{est['measured']}: its recordings are not those the estimate in {est_path} "
             "read (the folder was written again since); accepted the estimate's own "

@@ -35,32 +35,79 @@ class SimulationFailedError(RailsuspInputError):
     """A simulation that a recording was to be made of stopped (see its reason)."""
 
 
-def recordings_digest(recordings: list[Recording]) -> str:
+#: the version of :func:`recordings_digest` written today, as the digest's prefix ``"v2:"``;
+#: a digest without a prefix is version 1 (before stop 76), which hashed a track-geometry
+#: file's bytes, so a geometry file checked out with other line endings read as other
+#: recordings. :func:`same_recordings` compares a stored digest in its own version.
+DIGEST_VERSION = 2
+
+
+def recordings_digest(recordings: list[Recording], version: int = DIGEST_VERSION) -> str:
     """SHA-256 of what an estimate read of its recordings: each one's condition, time and
-    forces of every wheel, and its track geometry file's contents, in name order. Stored
+    forces of every wheel, and its track geometry, in name order. Stored
     with an estimate, so that validating it later against its recordings' folder tells a
     folder written again since (other recordings under the same path were validated as the
-    estimate's without a word)."""
+    estimate's without a word), and with a synthetic field's truth.
+
+    Version 2 (``"v2:"``, the default) hashes the geometry as read (its distances and four
+    components, :func:`~railsusp.vehicle.track_geometry.read_track_geometry`): the same
+    geometry in other bytes (CRLF line endings, Parquet instead of CSV) is the same
+    recording. Version 1 (no prefix) hashed the file's bytes; it is computed only to compare
+    a digest stored before (:func:`same_recordings`)."""
     import hashlib
 
     from railsusp.store import file_hash
 
+    if version not in (1, 2):
+        raise ValueError(f"recordings digest version {version}: accepted 1, 2")
     h = hashlib.sha256()
     for rec in sorted(recordings, key=lambda r: r.condition.name):
         # the geometry by its contents, not its path (read from a relative folder at the
         # estimate and from the resolved one at the validation)
         h.update(rec.condition.model_dump_json(exclude={"track_geometry"}).encode())
         if rec.condition.track_geometry is not None:
-            try:
-                h.update(file_hash(rec.condition.track_geometry).encode())
-            except OSError:
-                h.update(b"geometry unreadable")
+            if version == 1:
+                try:
+                    h.update(file_hash(rec.condition.track_geometry).encode())
+                except OSError:
+                    h.update(b"geometry unreadable")
+            else:
+                h.update(_geometry_as_read(rec.condition.track_geometry))
         h.update(np.ascontiguousarray(rec.time, dtype=float).tobytes())
         for w in rec.wheels:
             h.update(w.encode())
             h.update(np.ascontiguousarray(rec.Y[w], dtype=float).tobytes())
             h.update(np.ascontiguousarray(rec.Q[w], dtype=float).tobytes())
-    return h.hexdigest()
+    return h.hexdigest() if version == 1 else f"v{version}:{h.hexdigest()}"
+
+
+def same_recordings(recordings: list[Recording], stored: str) -> bool:
+    """Whether ``recordings`` read as those whose :func:`recordings_digest` is ``stored``,
+    computed in the stored digest's own version (an estimate or truth written before
+    version 2 keeps matching its recordings)."""
+    version = 1
+    if stored.startswith("v") and ":" in stored:
+        try:
+            version = int(stored[1 : stored.index(":")])
+        except ValueError:
+            return False
+        if version not in (1, 2):
+            return False
+    return recordings_digest(recordings, version) == stored
+
+
+def _geometry_as_read(path: str) -> bytes:
+    """A track-geometry file's distances and components as read, for the digest; a file
+    that cannot be read hashes as such (the reader of the recordings says why)."""
+    from railsusp.vehicle.track import COMPONENTS
+    from railsusp.vehicle.track_geometry import read_track_geometry
+
+    try:
+        irr = read_track_geometry(path)
+    except (OSError, RailsuspInputError):
+        return b"geometry unreadable"
+    parts = [irr.s, *(irr.component(c) for c in COMPONENTS)]
+    return b"".join(np.ascontiguousarray(x, dtype=float).tobytes() for x in parts)
 
 
 @dataclass

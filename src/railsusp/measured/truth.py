@@ -20,7 +20,7 @@ from pathlib import Path
 from railsusp.errors import RailsuspInputError
 from railsusp.measured.field_folder import index_document
 from railsusp.measured.reader import read_index
-from railsusp.measured.recording import Recording, recordings_digest
+from railsusp.measured.recording import Recording, same_recordings
 from railsusp.params import ParameterSet
 from railsusp.store import file_hash, file_hash_cached, read_json
 
@@ -33,7 +33,7 @@ RECORDING_FILES = "recording_files"
 #: the key of ``truth.json`` holding the digest of the recordings as read
 #: (:func:`~railsusp.measured.recording.recordings_digest`): a copy whose bytes differ but
 #: whose recordings read the same (line endings changed by git, a re-encoded file) is still
-#: theirs (the review of stop 74)
+#: theirs (the review of stop 74), their track-geometry files too since digest version 2
 RECORDINGS_DIGEST = "recordings_digest"
 
 
@@ -104,7 +104,7 @@ def check_truth_of(
         return
     digest = doc.get(RECORDINGS_DIGEST)
     if recordings is not None and isinstance(digest, str):
-        if recordings_digest(recordings) == digest:
+        if same_recordings(recordings, digest):
             return  # the same recordings in other bytes
     raise RailsuspInputError(
         f"{where} {path}: the truth of other recordings than {folder}'s ({', '.join(foreign)} "
