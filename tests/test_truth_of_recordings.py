@@ -188,3 +188,45 @@ def test_a_digest_stored_before_version_2_still_matches_its_recordings(tracked):
     assert not same_recordings(recs, "v9:" + old) and not same_recordings(recs, "v2:" + old)
     doc = json.loads((tracked / "truth.json").read_text())
     assert doc["recordings_digest"] == new
+
+
+@pytest.fixture(scope="module")
+def example_sections(tmp_path_factory):
+    """The shipped example run's sections as `sections --write` writes them, beside its
+    truth."""
+    from railsusp.measured.channels import read_channel_map
+    from railsusp.measured.run import read_run
+    from railsusp.measured.sections import cut_sections
+    from railsusp.measured.sections_out import write_sections
+
+    data = resources.files("railsusp") / "data"
+    root = tmp_path_factory.mktemp("example")
+    for name in ("example_run.mf4", "example_run.map.toml", "example_run.truth.json"):
+        (root / name).write_bytes((data / name).read_bytes())
+    run = read_run(root / "example_run.mf4", read_channel_map(root / "example_run.map.toml"))
+    return root / "example_run.truth.json", write_sections(run, cut_sections(run), root / "cut")
+
+
+def test_an_edited_section_is_no_longer_the_truths_of_its_run(example_sections, tmp_path):
+    """A sections folder cut from the truth's run was told by its sections' names only: a
+    section table edited after the cut (other forces) still took the run's truth. The index
+    now records each section's SHA-256 and the sections' digest as read, so the folder in
+    other bytes (CRLF) is still the run's, and an edited section is not."""
+    from railsusp.measured import read_field
+
+    truth, cut = example_sections
+    index = json.loads((cut / "index.json").read_text())
+    first = index["recordings"][0]
+    assert index["recording_files"][first] == file_hash(cut / first)
+    check_truth_of(truth, cut, recordings=read_field(cut))
+    crlf = shutil.copytree(cut, tmp_path / "crlf")
+    for name in index["recordings"]:
+        (crlf / name).write_bytes((crlf / name).read_bytes().replace(b"\n", b"\r\n"))
+    check_truth_of(truth, crlf, recordings=read_field(crlf))
+    edited = shutil.copytree(cut, tmp_path / "edited")
+    lines = (edited / first).read_text().splitlines()
+    cells = lines[3].split(",")
+    cells[1] = f"{float(cells[1]) + 1.0:.6g}"  # one lateral force 1 kN more
+    (edited / first).write_text("\n".join([*lines[:3], ",".join(cells), *lines[4:]]) + "\n")
+    with pytest.raises(RailsuspInputError, match=rf"\({first} is none of the tables"):
+        check_truth_of(truth, edited, recordings=read_field(edited))

@@ -14,10 +14,11 @@ from railsusp.en14363 import section_statistics
 from railsusp.errors import RailsuspInputError
 from railsusp.measured.field_folder import source_fingerprint
 from railsusp.measured.line import FILE_NAME, RESERVED_NAMES
-from railsusp.measured.recording import FORMAT, Recording
+from railsusp.measured.recording import FORMAT, Recording, recordings_digest
 from railsusp.measured.run import MeasuredRun
 from railsusp.measured.sections import Section, sections_table
-from railsusp.store import atomic_write_bytes, atomic_write_figure, write_json
+from railsusp.measured.truth import RECORDING_FILES, RECORDINGS_DIGEST
+from railsusp.store import atomic_write_bytes, atomic_write_figure, file_hash, write_json
 from railsusp.vehicle.layout import WHEEL_NAMES
 from railsusp.vehicle.simulation_result import measured_wheel_index
 
@@ -100,10 +101,16 @@ def write_sections(
     atomic_write_bytes(out / "conditions.toml", conditions_toml(conds).encode())
     folder = Path(final) if final is not None else out
     atomic_write_bytes(out / "pipeline.toml", pipeline_toml(conds, folder).encode())
-    write_json(
-        out / "index.json",
-        {"format": FORMAT, "recordings": names, **source_fingerprint(run.source)},
-    )
+    index = {"format": FORMAT, "recordings": names, **source_fingerprint(run.source)}
+    write_json(out / "index.json", index)
+    # each section by its table's SHA-256 and all of them as read: the truth of the run they
+    # were cut from takes these tables only, in these bytes or others that read the same
+    # (measured.truth.check_truth_of)
+    from railsusp.measured.reader import read_field
+
+    index[RECORDING_FILES] = {name: file_hash(out / name) for name in names}
+    index[RECORDINGS_DIGEST] = recordings_digest(read_field(out))
+    write_json(out / "index.json", index)
     return out
 
 

@@ -78,9 +78,10 @@ def check_truth_of(
     """Refuse, in one line naming ``where``, a truth file written with other recordings than
     those of the field folder ``folder``: every recording table there must be one the truth
     lists by its SHA-256, or the folder must hold the sections of a run it lists (its index's
-    ``source_sha256``, each table a section its ``sections.csv`` lists as kept), or
-    ``recordings`` (the folder's, as read) must read as those the truth was written with
-    (its ``recordings_digest``). A truth file without
+    ``source_sha256``, each table a section its ``sections.csv`` lists as kept and, where
+    the index records them, with the SHA-256 it was written with), or ``recordings`` (the
+    folder's, as read) must read as those the truth (or the sections' index) was written
+    with (its ``recordings_digest``). A truth file without
     ``recording_files`` (written before stop 74, or by hand, as the shipped example's states
     its run) is taken as it is: nothing to tell."""
     doc = _truth_doc(path, where)
@@ -94,15 +95,16 @@ def check_truth_of(
         )
     hashes = {v.lower() for v in known.values()}
     tables = read_index(folder)
-    source = _index_source(Path(folder))
-    if source is not None and source in hashes:  # the sections of a run it simulated:
-        cut = _kept_sections(Path(folder))  # each table one of them (a recording added to
-        foreign = [p.name for p in tables if p.stem not in cut]  # the index is not)
+    index = index_document(Path(folder)) or {}
+    source = index.get("source_sha256")
+    if isinstance(source, str) and source.lower() in hashes:  # the sections of its run:
+        foreign = _foreign_sections(Path(folder), tables, index)
+        digest = index.get(RECORDINGS_DIGEST)  # the sections' own, as sections --write read
     else:
         foreign = [p.name for p in tables if _hash(p) not in hashes]
+        digest = doc.get(RECORDINGS_DIGEST)
     if not foreign:
         return
-    digest = doc.get(RECORDINGS_DIGEST)
     if recordings is not None and isinstance(digest, str):
         if same_recordings(recordings, digest):
             return  # the same recordings in other bytes
@@ -136,8 +138,21 @@ def _kept_sections(folder: Path) -> set[str]:
         return set()
 
 
-def _index_source(folder: Path) -> str | None:
-    """The SHA-256 of the long run a sections folder was cut from (its index's
-    ``source_sha256``), or None for any other folder."""
-    sha = (index_document(folder) or {}).get("source_sha256")
-    return sha.lower() if isinstance(sha, str) else None
+def _foreign_sections(folder: Path, tables: list[Path], index: dict) -> list[str]:
+    """The tables of a sections folder cut from the truth's run that are none of its
+    sections: not a section its ``sections.csv`` lists as kept (a recording added to the
+    index), or, where the index records each section's SHA-256 as ``sections --write``
+    wrote it (``recording_files``, since stop 76), a table whose bytes are no longer those
+    (an edited section; a copy in other bytes is told by the index's digest instead)."""
+    cut = _kept_sections(folder)
+    written = index.get(RECORDING_FILES)
+    if not isinstance(written, dict):  # an index written before stop 76: by name only
+        written = None
+    foreign = []
+    for p in tables:
+        sha = written.get(p.name) if written is not None else None
+        if p.stem not in cut or (
+            written is not None and (not isinstance(sha, str) or sha.lower() != _hash(p))
+        ):
+            foreign.append(p.name)
+    return foreign
