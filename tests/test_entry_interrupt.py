@@ -66,3 +66,20 @@ def test_the_console_script_enters_through_the_light_module():
     assert project["project"]["scripts"]["railsusp"] == "railsusp.command:main"
     old = _interrupted_while_loading("railsusp.cli")
     assert old.returncode != 130 and "KeyboardInterrupt" in old.stderr
+
+
+def test_the_console_scripts_start_loads_the_standard_library_only():
+    """``import railsusp`` comes before the entry's Ctrl-C guard: it loaded NumPy and pydantic
+    (the parameter catalogue, the conditions), 0.2 s in which a Ctrl-C printed a traceback.
+    Its public names now load on first use, and still resolve."""
+    probe = (
+        "import sys, railsusp.command\n"
+        "print(sorted(m for m in ('numpy', 'pydantic', 'pandas', 'scipy', 'typer') "
+        "if m in sys.modules))\n"
+        "import railsusp\n"
+        "print(railsusp.ParameterSet.__name__, railsusp.get_condition('straight').name)"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, timeout=120, check=True
+    )
+    assert done.stdout.splitlines() == ["[]", "ParameterSet straight"]

@@ -4,17 +4,15 @@ The public API: ``railsusp.run(config, out=...)`` runs the whole method and
 ``railsusp.open_run(path)`` opens a run directory, both giving a :class:`RunResult` (the
 estimate with intervals and verdicts, validation, sensitivity, surrogate accuracy, report;
 docs/api.md); and the pieces a user combines: the parameter catalogue, the working
-conditions. ``run``, ``open_run`` and ``RunResult`` load on first use, so that
-``import railsusp`` stays light.
+conditions. Each loads on first use, so that ``import railsusp`` loads the standard
+library only (the console script's start, :mod:`railsusp.command`).
 """
 
 import importlib as _importlib
 import importlib.util as _importlib_util
 
 from railsusp._version import __version__
-from railsusp.conditions import STANDARD_CONDITIONS, WorkingCondition, get_condition
 from railsusp.errors import ConditionError, ParameterError, RailsuspInputError
-from railsusp.params import CATALOGUE, MAIN_SUSPENSION, ParameterSet, parse_overrides
 
 __all__ = [
     "CATALOGUE",
@@ -35,17 +33,24 @@ __all__ = [
     "run",
 ]
 
-_API = ("OutdatedModelWarning", "RunResult", "Tolerances", "open_run", "run")
+#: the public names loaded on first use, by the module that holds each: ``import railsusp``
+#: loads the standard library only (the console script's Ctrl-C guard, railsusp.command,
+#: comes after it; NumPy and pydantic took 0.2 s of it before stop 76)
+_LAZY = {
+    **dict.fromkeys(("OutdatedModelWarning", "RunResult", "Tolerances", "open_run", "run"), "api"),
+    **dict.fromkeys(("STANDARD_CONDITIONS", "WorkingCondition", "get_condition"), "conditions"),
+    **dict.fromkeys(("CATALOGUE", "MAIN_SUSPENSION", "ParameterSet", "parse_overrides"), "params"),
+}
 
 
 def __getattr__(name: str):
     """The lazily imported API, and railsusp's modules by attribute as the docs name them
     (``railsusp.api.OutdatedModelWarning``, ``railsusp.vehicle.MODEL_REVISION``): after a
     plain ``import railsusp`` they raised AttributeError (the docs audit of stop 72)."""
-    if name in _API:
-        import railsusp.api as api
-
-        return getattr(api, name)
+    if name in _LAZY:
+        value = getattr(_importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+        globals()[name] = value  # once loaded, an attribute like any other
+        return value
     # a plain name only: a dotted one ("vehicle.model") gave the submodule, and one of no
     # module (hasattr(railsusp, "a.b")) raised ModuleNotFoundError (the review of stop 72)
     submodule = name.isidentifier() and not name.startswith("_")
