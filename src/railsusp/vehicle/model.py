@@ -40,6 +40,12 @@ Force elements (the ten sampled parameters in brackets):
   of their roll; the couple of the lateral forces entering a side frame at the bolster's
   height and leaving at the axles' reaches the wheel loads), and the car body's gravity
   (P-delta) roll moment W h theta of its support loads h below its CG.
+
+The right-hand side is one compiled function on purpose: the car body's forces on a bolster
+(centre plate, bowl, side bearers, yaw friction) moved into a kernel of their own, inlined
+or called, gave the same forces bit for bit but made an evaluation 10-15 % slower
+(``bench/rhs_profile.py``, stop 76: 1.06-1.15 against 0.88-0.97 us on tangent; the arrays
+passed across the boundary, reference counted; the same code against itself 0.95-0.98).
 """
 
 from __future__ import annotations
