@@ -174,6 +174,35 @@ def test_check_recording_takes_the_wagon_whose_wheel_loads_it_checks(tmp_path):
     assert bad.exit_code == 2 and "--wagon" in bad.output and "Traceback" not in bad.output
 
 
+def test_sections_of_a_tare_wagons_run_are_written_and_digested_as_its(tmp_path):
+    """sections --wagon tare --write read its sections back for the index's digest as
+    recordings of the loaded C80 and refused them (24.5 kN against 121.9 kN, naming its
+    temporary folder; the review of stop 76): the run's wagon reads them now."""
+    import pandas as pd
+
+    n = 12000
+    t = np.arange(n) / 200.0
+    rng = np.random.default_rng(4)
+    forces = {"Y_R": 2.0 + rng.standard_normal(n), "Q_R": 24.5 + rng.standard_normal(n)}
+    table = {"time_s": t, **forces, "v": np.full(n, 54.0), "s": 15.0 * t}
+    pd.DataFrame(table).to_csv(tmp_path / "run.csv", index=False)
+    (tmp_path / "map.toml").write_text(
+        'speed = "v"\nposition = "s"\ntime = "time_s"\n[wheels.w1R]\nY = "Y_R"\n'
+        'Q = "Q_R"\n[units]\nv = "km/h"\ns = "m"\nY_R = "kN"\nQ_R = "kN"\n'
+    )
+    cut = tmp_path / "cut"
+    args = ["sections", str(tmp_path / "run.csv"), "--map", str(tmp_path / "map.toml")]
+    result = runner.invoke(app, [*args, "--wagon", "tare", "--write", str(cut)])
+    assert result.exit_code == 0, result.output
+    from railsusp.measured import read_field
+    from railsusp.measured.recording import same_recordings
+    from railsusp.vehicle.wagon import load_wagon
+
+    index = json.loads((cut / "index.json").read_text())
+    recs = read_field(cut, wagon=load_wagon("tare"))
+    assert same_recordings(recs, index["recordings_digest"])
+
+
 def test_example_recording_does_not_write_over_an_edited_file(tmp_path):
     """The tutorial has the user edit the example's configuration: copying the example
     again replaced it silently (command-line audit of stop 60). Unchanged copies are fine."""

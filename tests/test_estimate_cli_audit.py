@@ -445,13 +445,16 @@ def test_a_hand_edited_estimate_json_is_refused_in_one_line(tmp_path, field, val
     assert f"{est / 'estimate.json'}: {message}" in text
 
 
+@pytest.mark.parametrize("version", [1, 2])
 def test_validate_refuses_a_recordings_folder_written_again_since_the_estimate(
-    fields, tmp_path, monkeypatch
+    fields, tmp_path, monkeypatch, version
 ):
     """validate read the estimate's recordings again by their folder's path alone: a
     folder written again since (another synth-field, another cut) was validated as the
     estimate's without a word (the estimation-commands audit of stop 64). The estimate
-    stores its recordings' digest; another folder given with --measured is validated."""
+    stores its recordings' digest; another folder given with --measured is validated. An
+    estimate written before the digest's version 2 (stop 76) holds a version-1 digest, and
+    is checked in that version."""
     from railsusp.measured import read_field
     from railsusp.measured.recording import recordings_digest
     from railsusp.validate import validate
@@ -460,7 +463,7 @@ def test_validate_refuses_a_recordings_folder_written_again_since_the_estimate(
     shutil.copytree(fields["good"], folder)
     est = fake_estimate(tmp_path / "est", folder)
     doc = json.loads((est / "estimate.json").read_text())
-    doc["measured_digest"] = recordings_digest(read_field(folder))
+    doc["measured_digest"] = recordings_digest(read_field(folder), version=version)
     (est / "estimate.json").write_text(json.dumps(doc))
     assert "mean" in set(validate(est).forces.statistic)  # its own recordings: validated
     table = folder / "short.csv"

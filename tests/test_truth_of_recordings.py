@@ -183,11 +183,33 @@ def test_a_digest_stored_before_version_2_still_matches_its_recordings(tracked):
 
     recs = read_field(tracked)
     old, new = recordings_digest(recs, version=1), recordings_digest(recs)
-    assert new.startswith("v2:") and ":" not in old and old != new.removeprefix("v2:")
+    assert new.startswith("v2:") and old != new.removeprefix("v2:")
     assert same_recordings(recs, old) and same_recordings(recs, new)
     assert not same_recordings(recs, "v9:" + old) and not same_recordings(recs, "v2:" + old)
     doc = json.loads((tracked / "truth.json").read_text())
     assert doc["recordings_digest"] == new
+
+
+def test_the_same_geometry_as_parquet_is_the_same_recording(tracked, tmp_path):
+    """Version 2 hashes the geometry as read: its CSV written again as Parquet reads the
+    same; version 1 (the file's bytes) told them apart."""
+    import pandas as pd
+
+    from railsusp.measured import read_field
+    from railsusp.measured.recording import recordings_digest
+
+    (rec,) = read_field(tracked)
+    parquet = tmp_path / "straight.track.parquet"
+    pd.read_csv(rec.condition.track_geometry).to_parquet(parquet)
+    moved = shutil.copy(rec.condition.track_geometry, tmp_path / "elsewhere.csv")
+    twins = []
+    for path in (parquet, moved):
+        twin = read_field(tracked)[0]
+        twin.condition = twin.condition.with_changes(track_geometry=str(path))
+        twins.append(twin)
+    assert recordings_digest(twins[:1]) == recordings_digest([rec])  # the parquet, as read
+    assert recordings_digest(twins[1:]) == recordings_digest([rec])  # another place
+    assert recordings_digest(twins[:1], version=1) != recordings_digest([rec], version=1)
 
 
 @pytest.fixture(scope="module")

@@ -10,9 +10,15 @@ library only (the console script's start, :mod:`railsusp.command`).
 
 import importlib as _importlib
 import importlib.util as _importlib_util
+from typing import TYPE_CHECKING
 
 from railsusp._version import __version__
 from railsusp.errors import ConditionError, ParameterError, RailsuspInputError
+
+if TYPE_CHECKING:  # what type checkers and editors see; at run time, __getattr__ below
+    from railsusp.api import OutdatedModelWarning, RunResult, Tolerances, open_run, run
+    from railsusp.conditions import STANDARD_CONDITIONS, WorkingCondition, get_condition
+    from railsusp.params import CATALOGUE, MAIN_SUSPENSION, ParameterSet, parse_overrides
 
 __all__ = [
     "CATALOGUE",

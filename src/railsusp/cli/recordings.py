@@ -292,7 +292,7 @@ def sections_command(
             # earlier cut's recordings: a cut with fewer sections left them beside the index
             # (a linked --write: written where the link points, as its checks read it)
             with atomic_folder(write, drop=earlier_sections(write)) as tmp:
-                write_sections(run, secs, tmp, rate, final=write)
+                write_sections(run, secs, tmp, rate, final=write, wheel_load_N=load)
             console.print(f"wrote {sum(s.kept for s in secs)} section recording(s) to {write}")
     except RecordingError as exc:
         print_problems(exc)

@@ -188,7 +188,7 @@ def write_run_field(source: RunSource, out: str | Path, final: str | Path | None
         else:  # how the channels were read: a note, as check-recording says it
             log.info("note: %s", text)
     try:
-        folder = write_sections(run, secs, out, source.rate_hz, final)
+        folder = write_sections(run, secs, out, source.rate_hz, final, source.wheel_load_N)
         section_conditions(source)  # cached now (already, where the pipeline asked before)
         return folder
     finally:

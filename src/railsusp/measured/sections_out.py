@@ -69,6 +69,7 @@ def write_sections(
     out: str | Path,
     rate_hz: float = 50.0,
     final: str | Path | None = None,
+    wheel_load_N: float | None = None,
 ) -> Path:
     """The kept sections as a field folder: one recording per section, ``index.json``,
     ``sections.csv`` (the whole cut, with the reasons), ``en14363.csv`` (the EN 14363
@@ -76,7 +77,9 @@ def write_sections(
     sections' conditions, for a campaign: ``railsusp campaign --conditions``) and
     ``pipeline.toml`` (a quick ``railsusp run`` configuration on these recordings).
     ``final``: where the folder will live when ``out`` is a temporary one (the path that
-    ``pipeline.toml`` names; default ``out``)."""
+    ``pipeline.toml`` names; default ``out``). ``wheel_load_N``: the static wheel load of
+    the wagon the run was read as (default the packaged loaded C80's), with which the
+    sections are read back for their digest."""
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise RailsuspInputError(
@@ -109,7 +112,10 @@ def write_sections(
     from railsusp.measured.reader import read_field
 
     index[RECORDING_FILES] = {name: file_hash(out / name) for name in names}
-    index[RECORDINGS_DIGEST] = recordings_digest(read_field(out))
+    try:  # read as the run's wagon (a tare wagon's sections were refused as a loaded one's)
+        index[RECORDINGS_DIGEST] = recordings_digest(read_field(out, wheel_load_N=wheel_load_N))
+    except RailsuspInputError:  # sections a reader refuses: told by their tables' hashes only
+        pass
     write_json(out / "index.json", index)
     return out
 
