@@ -26,6 +26,22 @@ from pathlib import Path
 #: asserts 1e-9). Numba takes a ``set``: never modify this one.
 FASTMATH = {"contract", "arcp", "nsz"}
 
+#: the right-hand side's kernels (the modules of :data:`NO_RUNTIME_SOURCES`) compile without
+#: Numba's runtime (``_nrt=False``, a Numba option since 0.2x, read by numba.core.options):
+#: they allocate nothing, and with the runtime every array they passed to a kernel not
+#: inlined, or sliced, was reference counted (NRT_incref / NRT_decref, a locked add each, 31
+#: call sites in ``rhs`` alone). Without it: the same forces bit for bit, one evaluation
+#: 1.2-1.3 times as fast (bench/README.md, "Without Numba's runtime"; stop 76). A kernel
+#: here that allocated would fail to compile, not misbehave. The integrator and the other
+#: kernels, which allocate, keep the runtime.
+NRT = False
+
+#: the modules whose kernels compile with :data:`NRT` (allocating nothing)
+NO_RUNTIME_SOURCES = (
+    "model.py", "contact_batch.py", "wedge_batch.py", "suspension.py", "track_lookup.py",
+    "wheel_rail.py", "vector_math.py",
+)  # fmt: skip
+
 #: the modules with compiled kernels, the layout they read, and this one (the flags above)
 KERNEL_SOURCES = (
     "kernel_cache.py", "layout.py", "suspension.py", "track_lookup.py", "wheel_rail.py", "model.py",

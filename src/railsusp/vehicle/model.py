@@ -58,7 +58,7 @@ from railsusp.vehicle import contact_batch as CB
 from railsusp.vehicle import layout as L
 from railsusp.vehicle import wedge_batch as WB
 from railsusp.vehicle.contact_batch import contact_forces_8
-from railsusp.vehicle.kernel_cache import FASTMATH  # (sets the kernel cache before any compiles)
+from railsusp.vehicle.kernel_cache import FASTMATH, NRT  # (sets the kernel cache first)
 from railsusp.vehicle.suspension import (
     bowl_ring_forces,
     damped_slider,
@@ -107,7 +107,7 @@ NQ = L.N_DOF
 AUXW, AUXY, AUXR = L.AUX_WEDGE, L.AUX_YAWFR, L.AUX_ROLLFR
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
 def add_frame_forces(acc, i_lat, i_vert, m, kappa, c, s, V, gn):
     """Add the moving frame's pseudo-forces on a body of mass m (N): lateral
     -m (V² κ cos φ + g sin φ); vertical -m (g cos φ - V² κ sin φ) as a deviation from the
@@ -117,7 +117,7 @@ def add_frame_forces(acc, i_lat, i_vert, m, kappa, c, s, V, gn):
     acc[i_vert] += -m * (gn * c - V * V * kappa * s) + m * gn
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
 def side_frame_roll(x, k):
     """Roll of bogie k's side frames (rad, or its rate from the velocities ``x``): the mean
     of its two wheelsets' roll, on whose axle boxes they sit (wagon [side_frame]
@@ -126,7 +126,7 @@ def side_frame_roll(x, k):
     return 0.5 * (x[iw + 2] + x[iw + 6])
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
 def cant_cos_sin(cant, cant_near, cos_near, sin_near):
     """Cosine and sine of the cant angle, bit for bit those of ``math.cos`` and ``math.sin``:
     1 and the angle itself (+-0) where there is no cant (tangent track), those of a body
@@ -140,7 +140,7 @@ def cant_cos_sin(cant, cant_near, cos_near, sin_near):
     return math.cos(cant), math.sin(cant)
 
 
-@nb.njit(cache=True, fastmath=FASTMATH)
+@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT)
 def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
     """Time derivative of the state; fills ``out`` with the output channels.
 
