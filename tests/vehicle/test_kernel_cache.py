@@ -73,6 +73,10 @@ def test_the_right_hand_sides_kernels_compile_without_numbas_runtime():
         assert kernels, name
         for f in kernels:
             assert f.targetoptions.get("_nrt") is False, f"{name}: {f.py_func.__name__}"
+    from railsusp.vehicle import integrate
+
+    for f in (integrate._steps, integrate._rk4_finish):  # the integrator's steps
+        assert f.targetoptions.get("_nrt") is False, f.py_func.__name__
     from railsusp.vehicle.wedge_batch import wedge_forces
 
     # a fresh copy compiled with the kernel's options (a cached kernel shows no code); with

@@ -13,7 +13,7 @@ import numba as nb
 import numpy as np
 
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.kernel_cache import FASTMATH  # (sets the kernel cache before any compiles)
+from railsusp.vehicle.kernel_cache import FASTMATH, NRT  # (sets the kernel cache first)
 from railsusp.vehicle.model import rhs
 
 NQ = L.N_DOF
@@ -23,7 +23,7 @@ I_V = L.K["V"]
 I_SPLIT_SPEED = L.K["flange_split_speed"]
 
 
-@nb.njit(cache=True, fastmath=FASTMATH)
+@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT)
 def _rk4_finish(x, ks, xt, h, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s, V, o_dummy):
     """Stages 2-4 of one RK4 step of length h from x at track position s (stage 1 already
     in ks[0]) and the update of x. Returns a failure code (0 ok)."""
@@ -51,14 +51,28 @@ def _run_one(
     """Integrate one set from state x with the leading wheelset at track position
     ``s_init``; write filtered outputs (NOUT, n_out) from step ``n_pre`` on. Steps that start
     with a wheel near flange contact and closing on it are split into ``n_fine``. Returns
-    (code, fail_time from the start)."""
+    (code, fail_time from the start). Allocates the work arrays; the steps run in
+    :func:`_steps`, without Numba's runtime (kernel_cache.NRT: its row views of the stage
+    derivatives and its calls of the right-hand side are not reference counted)."""
     ks = np.empty((4, NS))  # RK4 stage derivatives
-    k1 = ks[0]
     xt = np.empty(NS)
     o = np.zeros(L.N_OUT_WORK)
     o_dummy = np.zeros(L.N_OUT_WORK)
+    zf = np.zeros((NOUT, sos.shape[0], 2))
+    return _steps(
+        x, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, dt, s_init, n_pre, n_sub, n_out, sos,
+        out_series, n_fine, ks, xt, o, o_dummy, zf,
+    )  # fmt: skip
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT)
+def _steps(
+    x, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, dt, s_init, n_pre, n_sub, n_out, sos,
+    out_series, n_fine, ks, xt, o, o_dummy, zf,
+):  # fmt: skip
+    """The steps of :func:`_run_one` in the work arrays it allocated."""
+    k1 = ks[0]
     n_sec = sos.shape[0]
-    zf = np.zeros((NOUT, n_sec, 2))
     V = K[I_V]
     n_total = n_pre + n_out * n_sub
     # settle the filters on the static outputs

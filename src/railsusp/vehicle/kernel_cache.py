@@ -32,8 +32,9 @@ FASTMATH = {"contract", "arcp", "nsz"}
 #: inlined, or sliced, was reference counted (NRT_incref / NRT_decref, a locked add each, 31
 #: call sites in ``rhs`` alone). Without it: the same forces bit for bit, one evaluation
 #: 1.2-1.3 times as fast (bench/README.md, "Without Numba's runtime"; stop 76). A kernel
-#: here that allocated would fail to compile, not misbehave. The integrator and the other
-#: kernels, which allocate, keep the runtime.
+#: here that allocated would fail to compile, not misbehave. The integrator's steps
+#: (``integrate._steps``, ``_rk4_finish``: row views of the stage derivatives, a call of
+#: the right-hand side per stage) compile with it too; what allocates keeps the runtime.
 NRT = False
 
 #: the modules whose kernels compile with :data:`NRT` (allocating nothing)
