@@ -1,4 +1,4 @@
-"""Side bearers of the car body on the bolsters (vehicle/model.py, side-bearer block): a
+"""Side bearers of the car body on the bolsters (vehicle/body_bolster.py): a
 constant-contact elastomer with preload and loss, a solid stop after its travel, lift-off
 (no tension).
 

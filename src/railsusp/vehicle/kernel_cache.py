@@ -39,15 +39,15 @@ NRT = False
 
 #: the modules whose kernels compile with :data:`NRT` (allocating nothing)
 NO_RUNTIME_SOURCES = (
-    "model.py", "contact_batch.py", "wedge_batch.py", "suspension.py", "track_lookup.py",
-    "wheel_rail.py", "vector_math.py",
+    "model.py", "body_bolster.py", "contact_batch.py", "wedge_batch.py", "suspension.py",
+    "track_lookup.py", "wheel_rail.py", "vector_math.py",
 )  # fmt: skip
 
 #: the modules with compiled kernels, the layout they read, and this one (the flags above)
 KERNEL_SOURCES = (
     "kernel_cache.py", "layout.py", "suspension.py", "track_lookup.py", "wheel_rail.py", "model.py",
     "integrate.py", "decay_runs.py", "wheelset.py", "settle.py", "vector_math.py",
-    "contact_batch.py", "wedge_batch.py",
+    "contact_batch.py", "wedge_batch.py", "body_bolster.py",
 )  # fmt: skip
 
 

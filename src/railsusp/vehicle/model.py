@@ -41,11 +41,7 @@ Force elements (the ten sampled parameters in brackets):
   height and leaving at the axles' reaches the wheel loads), and the car body's gravity
   (P-delta) roll moment W h theta of its support loads h below its CG.
 
-The right-hand side is one compiled function on purpose: the car body's forces on a bolster
-(centre plate, bowl, side bearers, yaw friction) moved into a kernel of their own, inlined
-or called, gave the same forces bit for bit but made an evaluation 10-15 % slower
-(``bench/rhs_profile.py``, stop 76: 1.06-1.15 against 0.88-0.97 us on tangent; the arrays
-passed across the boundary, reference counted; the same code against itself 0.95-0.98).
+The car body's forces on each bolster are :func:`railsusp.vehicle.body_bolster.body_on_bolster`.
 """
 
 from __future__ import annotations
@@ -57,12 +53,10 @@ import numba as nb
 from railsusp.vehicle import contact_batch as CB
 from railsusp.vehicle import layout as L
 from railsusp.vehicle import wedge_batch as WB
+from railsusp.vehicle.body_bolster import body_on_bolster
 from railsusp.vehicle.contact_batch import contact_forces_8
 from railsusp.vehicle.kernel_cache import FASTMATH, NRT  # (sets the kernel cache first)
 from railsusp.vehicle.suspension import (
-    bowl_ring_forces,
-    damped_slider,
-    disc_friction_moment,
     gap_spring,
     series_stiffness,
 )
@@ -75,24 +69,15 @@ _K = L.K
 I_MC, I_IXC, I_IYC, I_IZC = _K["m_c"], _K["Ix_c"], _K["Iy_c"], _K["Iz_c"]
 I_MB, I_IXB, I_IZB = _K["m_b"], _K["Ix_b"], _K["Iz_b"]
 I_MF, I_IYF, I_IZF = _K["m_f"], _K["Iy_f"], _K["Iz_f"]
-I_MW, I_IXW, I_IYW, I_IZW = _K["m_w"], _K["Ix_w"], _K["Iy_w"], _K["Iz_w"]
 I_LC, I_A, I_B1, I_B2, I_R0 = _K["l_c"], _K["a"], _K["b1"], _K["b2"], _K["r0"]
-I_HCG, I_HCP, I_HB, I_HK, I_XK, I_RCP = (_K["h_cg_c"], _K["h_cp"], _K["h_cg_b"], _K["h_k"],
-                                        _K["x_k"], _K["R_cp"])  # fmt: skip
+I_HCG, I_HK = _K["h_cg_c"], _K["h_k"]
 I_CPX, I_CPY, I_CPZ, I_KSZ, I_CSX = _K["c_px"], _K["c_py"], _K["c_pz"], _K["k_sz"], _K["c_sx"]
 I_KW, I_CW, I_KGIB = _K["k_wedge"], _K["c_wedge"], _K["k_gib"]
 I_TANW, I_COSW, I_MUC, I_MUS = _K["tan_wedge"], _K["cos_wedge"], _K["mu_column"], _K["mu_slope"]
 I_KCTRL, I_F0CTRL, I_X18REF, I_LW = _K["k_ctrl"], _K["F0_ctrl"], _K["x18_ref"], _K["l_wedge"]
-I_KCPZ, I_KCPY, I_MUCP, I_KYAW = _K["k_cpz"], _K["k_cpy"], _K["mu_cp"], _K["k_yaw"]
-I_CYAW, I_KROLL, I_CROLL = _K["c_yaw"], _K["k_roll"], _K["c_roll"]
-I_KCPB, I_KCPP = _K["k_cpb"], _K["k_cpp"]
-I_KSB, I_PSB, I_MUSB = _K["k_sb"], _K["P_sb"], _K["mu_sb"]
-I_SBTRAVEL, I_KSBSTOP, I_CSB = _K["sb_travel"], _K["k_sb_stop"], _K["c_sb"]
-I_F0CP, I_F0N, I_F0P = _K["F0_cp"], _K["F0_nest"], _K["F0_prim"]
-I_Z0L, I_Z0R = _K["Z0_L"], _K["Z0_R"]
+I_F0N, I_F0P = _K["F0_nest"], _K["F0_prim"]
 I_V, I_GN = _K["V"], _K["g_n"]
 I_FCPL, I_MGRADE = _K["F_coupler"], _K["M_pitch_grade"]
-I_MGRADEF, I_BOWLPF = _K["M_pitch_grade_frame"], _K["bowl_pitch_on_frames"]
 I_Q0 = _K["Q0"]
 I_SFN, I_SFA, I_KRG, I_XCL = (
     _K["sf_arm_nest"],
@@ -104,7 +89,7 @@ I_WATCH = _K["flange_watch"]
 
 BOL0, SF0, WS0 = L.BOL0, L.SF0, L.WS0
 NQ = L.N_DOF
-AUXW, AUXY, AUXR = L.AUX_WEDGE, L.AUX_YAWFR, L.AUX_ROLLFR
+AUXW = L.AUX_WEDGE
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
@@ -229,7 +214,6 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
     # grade: pitch moment of the net coupler force (at coupler height) and of the bogies'
     # reaction (at centre-plate height); lateral coupler components in curves (chord angle)
     hk = K[I_HCG] - K[I_HK]
-    hcp = K[I_HCG] - K[I_HCP]
     acc[L.CB_PITCH] += K[I_MGRADE]
     # gravity roll moment: the support loads, h below the CG, are h theta off its centreline
     acc[L.CB_ROLL] += K[I_KRG] * q[L.CB_ROLL]
@@ -257,72 +241,11 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         cos_b, sin_b = cant_cos_sin(cant_b, cant_c, cos_c, sin_c)
         add_frame_forces(acc, ib, ib + 1, m_b, kap_b, cos_b, sin_b, V, gn)
 
-        # ===== car body <-> bolster k =====
-        dev = off_b - off_c - d * head_c  # lateral offset of the track at s_b from the chord
-        roll_c_b = q[L.CB_ROLL] + cant_c - cant_b  # car roll seen in the bolster frame
-        # centre plate, lateral (bowl): car CP point is hcp below the car CG
-        y_cp_car = q[L.CB_Y] + d * q[L.CB_YAW] - dev + hcp * q[L.CB_ROLL]
-        h_bcp = K[I_HCP] - K[I_HB]
-        y_cp_bol = q[ib] - h_bcp * q[ib + 2]
-        f_cpy = K[I_KCPY] * (y_cp_car - y_cp_bol)  # on bolster (+), on car (-)
-        acc[ib] += f_cpy
-        acc[ib + 2] += -h_bcp * f_cpy
-        acc[L.CB_Y] -= f_cpy
-        acc[L.CB_ROLL] -= hcp * f_cpy
-        acc[L.CB_YAW] -= d * f_cpy
-        # centre bowl: ring of contact points with edge lift-off (vertical, roll, pitch) on
-        # the bolster's quasi-static bending and pitch restraint, and roll friction; the
-        # bolster pitches in the two side frames' windows, so the car body's pitch is taken
-        # against their mean pitch and the pitch moment's reaction goes to them, half each
-        z_car = q[L.CB_Z] - d * q[L.CB_PITCH]
-        jl = SF0 + 5 * (2 * k)
-        jr = jl + 5
-        pitch_frames = K[I_BOWLPF] * 0.5 * (q[jl + 3] + q[jr + 3])
-        roll_rate_b_c = v[ib + 2] - v[L.CB_ROLL] - cant_rate_c
-        roll_rate_b_c += track_rate(trk, L.TR_CANT, i_b, in_b, ds, V)
-        n_cp, m_roll, m_pitch, m_rfr = bowl_ring_forces(
-            q[ib + 1] - z_car, roll_c_b - q[ib + 2], q[L.CB_PITCH] - pitch_frames,
-            -roll_rate_b_c, K[I_RCP],
-            K[I_KCPZ], K[I_KCPB], K[I_KCPP], K[I_F0CP], K[I_MUCP], K[I_KROLL], K[I_CROLL],
-            x[AUXR + k], dxdt, AUXR + k,
+        # ===== car body <-> bolster k: centre plate, centre bowl, side bearers =====
+        body_on_bolster(
+            x, q, v, acc, dxdt, K, k, ib, d, sb_half, V, off_c, head_c, off_b, cant_c, cant_b,
+            cant_rate_c, track_rate(trk, L.TR_CANT, i_b, in_b, ds, V), kap_c, kap_b,
         )  # fmt: skip
-        acc[L.CB_Z] += n_cp - K[I_F0CP]
-        acc[L.CB_PITCH] += -d * (n_cp - K[I_F0CP]) + m_pitch
-        acc[L.CB_ROLL] += m_roll + m_rfr
-        acc[ib + 1] -= n_cp - K[I_F0CP]
-        acc[ib + 2] -= m_roll + m_rfr
-        # on each side frame's pitch: half the bowl's reaction, its share of the bogie's
-        # moment on a grade, and the restraint's k_pp / 2 in its window against the
-        # bolster, which pitches with the two frames' mean (energy k_pp (th_l - th_r)^2 / 8)
-        m_frame = K[I_MGRADEF] - K[I_BOWLPF] * 0.5 * m_pitch
-        m_anti = K[I_BOWLPF] * 0.25 * K[I_KCPP] * (q[jr + 3] - q[jl + 3])
-        acc[jl + 3] += m_frame + m_anti
-        acc[jr + 3] += m_frame - m_anti
-        # side bearers at +- X11/2 (constant contact elastomer with its loss, lift-off, solid
-        # stop after the travel)
-        n_sb_sum = 0.0
-        dz_rate = v[ib + 1] - v[L.CB_Z] + d * v[L.CB_PITCH]
-        for side in (1.0, -1.0):
-            comp = (q[ib + 1] + side * sb_half * q[ib + 2]) - (z_car + side * sb_half * roll_c_b)
-            comp_rate = dz_rate + side * sb_half * roll_rate_b_c
-            f_sb = K[I_PSB] + K[I_KSB] * comp + K[I_CSB] * comp_rate
-            if comp > K[I_SBTRAVEL]:
-                f_sb += K[I_KSBSTOP] * (comp - K[I_SBTRAVEL])
-            if f_sb < 0.0:
-                f_sb = 0.0
-            n_sb_sum += f_sb
-            df = f_sb - K[I_PSB]
-            acc[L.CB_Z] += df
-            acc[L.CB_ROLL] += side * sb_half * f_sb
-            acc[L.CB_PITCH] += -d * df
-            acc[ib + 1] -= df
-            acc[ib + 2] -= side * sb_half * f_sb
-        # body-bolster yaw friction (centre bowl + side bearers): elasto-plastic slider
-        m_lim = disc_friction_moment(K[I_MUCP], n_cp, K[I_RCP]) + K[I_MUSB] * n_sb_sum * sb_half
-        rel_rate = v[L.CB_YAW] + V * (kap_c - kap_b) - v[ib + 3]
-        m_fr = damped_slider(x[AUXY + k], m_lim, K[I_KYAW], K[I_CYAW], rel_rate, dxdt, AUXY + k)
-        acc[L.CB_YAW] -= m_fr
-        acc[ib + 3] += m_fr
 
         # ===== bolster <-> side frames (spring nests) =====
         for sidx in range(2):
@@ -365,8 +288,9 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             acc[ib + 3] += -side * b2 * f_lon
             acc[jf] -= f_lon
 
-        # ===== cross-bracing bars between the side frames [X19] (jl, jr: the bogie's left
-        # and right side frames, as at the centre bowl) =====
+        # ===== cross-bracing bars between the side frames [X19] =====
+        jl = SF0 + 5 * (2 * k)  # the bogie's left and right side frames
+        jr = jl + 5
         for bar in range(2):
             e_l = h9 if bar == 0 else -h9  # pin longitudinal offset on the left frame
             e_r = -e_l
