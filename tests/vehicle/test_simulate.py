@@ -293,3 +293,36 @@ def test_xarray_export():
     assert ds["Y"].dims == ("set", "wheel", "time") and ds["Y"].shape == (2, 8, 100)
     np.testing.assert_array_equal(ds["Q"].sel(wheel="w2R").values, r.Q[:, 3])
     assert ds["params"].sel(parameter="X13").values[0] == pytest.approx(14e6)
+
+
+def test_a_set_the_parallel_integration_did_not_finish_reads_as_failed():
+    """An error inside the compiled parallel loop (here a division by a car body of zero
+    mass) is not passed on by Numba: the set, and any after it on the same thread, kept the
+    status and outputs they had before the call, zeros, and read as successes with flat
+    series (the review of stop 76). They start as FAIL_UNFINISHED and NaN now."""
+    from scipy.signal import butter
+
+    from railsusp.vehicle.batch_runs import unfinished
+    from railsusp.vehicle.integrate import integrate_batch
+    from railsusp.vehicle.setup import SolverSettings, constants, contact_arrays
+    from railsusp.vehicle.track_grid import track_arrays
+
+    wagon, settings, cond = load_wagon(), SolverSettings(), get_condition("straight", **SHORT)
+    P = ParameterSet.nominal().to_array()
+    ca = contact_arrays(wagon)
+    K = constants(wagon, cond, P, ca, settings)
+    tracks, s0, ds = track_arrays(cond, [cond.seed], wagon, settings)
+    sos = np.ascontiguousarray(butter(2, 0.4, output="sos"))
+    n, n_out = 4, 10
+    PP, KK = np.tile(P, (n, 1)), np.tile(K, (n, 1))
+    KK[2, L.K["m_c"]] = 0.0
+    out, status = unfinished(n, n_out)
+    fail_time = np.zeros(n)
+    integrate_batch(
+        PP, KK, np.zeros((n, L.N_STATE)), tracks, np.zeros(n, np.int64), s0, ds, ca.table,
+        ca.y0, ca.dy, ca.H0L, ca.H0R, 1e-3, 0.0, 0, 10, n_out, sos, 4, out, status, fail_time,
+    )  # fmt: skip
+    assert list(status[:3]) == [L.OK, L.OK, L.FAIL_UNFINISHED]
+    assert status[3] in (L.OK, L.FAIL_UNFINISHED)  # (after it on its thread, or on another)
+    assert np.isfinite(out[:2]).all() and np.isnan(out[2]).all()
+    assert "stopped without a result" in L.FAILURE_REASONS[int(status[2])]

@@ -186,8 +186,7 @@ def _integrate(
     tracks = np.ascontiguousarray(np.concatenate([p.tracks for p in parts]))
     track_index = np.concatenate([p.track_index + o for p, o in zip(parts, offsets, strict=True)])
     n, n_out = P.shape[0], first.runs.out.shape[2]
-    out = np.zeros((n, L.N_OUT, n_out))
-    status = np.zeros(n, dtype=np.int64)
+    out, status = unfinished(n, n_out)
     fail_time = np.zeros(n)
     step = n if chunk is None else max(1, chunk)
     for lo in range(0, n, step):
@@ -226,6 +225,13 @@ def _integrate(
         # from the section start, whichever start the set had
         runs.fail_time[p.sets] = fail_time[sl] + p.start.s_start / runs.condition.speed
         lo = sl.stop
+
+
+def unfinished(n: int, n_out: int) -> tuple[np.ndarray, np.ndarray]:
+    """The outputs (NaN) and statuses (``FAIL_UNFINISHED``) of ``n`` sets before the
+    integrator's call, which writes each set's own on finishing it: a set it did not finish
+    (an error inside its parallel loop, not passed on by Numba) reads as failed."""
+    return np.full((n, L.N_OUT, n_out), np.nan), np.full(n, L.FAIL_UNFINISHED, dtype=np.int64)
 
 
 def integrate_conditions(

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numba as nb
 
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.kernel_cache import FASTMATH, NRT  # (sets the kernel cache first)
+from railsusp.vehicle.kernel_cache import FASTMATH, NO_RUNTIME  # (sets the cache first)
 from railsusp.vehicle.suspension import bowl_ring_forces, damped_slider, disc_friction_moment
 
 _K = L.K
@@ -41,7 +41,7 @@ SF0 = L.SF0
 AUXY, AUXR = L.AUX_YAWFR, L.AUX_ROLLFR
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def body_on_bolster(
     x, q, v, acc, dxdt, K, k, ib, d, sb_half, V, off_c, head_c, off_b, cant_c, cant_b,
     cant_rate_c, cant_rate_b, kap_c, kap_b,

@@ -34,7 +34,7 @@ import numba as nb
 import numpy as np
 
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.kernel_cache import FASTMATH, NRT  # (sets the kernel cache first)
+from railsusp.vehicle.kernel_cache import FASTMATH, NO_RUNTIME  # (sets the cache first)
 from railsusp.vehicle.vector_math import cbrt_positive, cbrt_rough, sin_cos
 from railsusp.vehicle.wheel_rail import (
     HERTZ_ITERATIONS,
@@ -73,20 +73,20 @@ N_WORK = N_ROWS * NW  # length of the work vector
 assert N_WORK == L.N_CONTACT_WORK
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always", error_model="numpy")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always", error_model="numpy")
 def _lanes(wk):
     """The number of wheels, NW, as a value LLVM cannot see at compile time: a loop of a known
     eight iterations is unrolled before the loop vectoriser sees it, and then not vectorised."""
     return wk.shape[0] // N_ROWS
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always", error_model="numpy")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always", error_model="numpy")
 def _cell(ctab, c, i, f):
     """Column c of the contact table interpolated at (i, f)."""
     return ctab[c, i] * (1.0 - f) + ctab[c, i + 1] * f
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def _read_tables(x, ctab, y0, inv_dy, H0L, H0R, K, wk, p):
     """Wheel by wheel: the wheelset's state into the W_* rows (tread, p = 0), and the
     contact table of point p read at the wheel's shift, for the yawed wheelset at the contact
@@ -137,7 +137,7 @@ def _read_tables(x, ctab, y0, inv_dy, H0L, H0R, K, wk, p):
             wk[b + k * NW + c] = _cell(ctab, col0 + _COLUMN[k], i, f)
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, error_model="numpy")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, error_model="numpy")
 def _geometry(K, wk, p):
     """Vectorised over the wheels: gap, contact angle, gap rate of point p from the table
     values (:func:`railsusp.vehicle.wheel_rail.contact_geometry`), the rigid approach along
@@ -195,7 +195,7 @@ def _geometry(K, wk, p):
         wk[b + P_U * NW + c] = u0 if touching else 0.0
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, error_model="numpy")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, error_model="numpy")
 def _hertz_steps(wk):
     """Newton steps of the Hertz-on-elastic-rail cubic u^3 + c u^2 = d of all sixteen points
     together (:func:`railsusp.vehicle.wheel_rail.hertz_rail_solve`; u = 0 where a point does
@@ -224,7 +224,7 @@ def _hertz_steps(wk):
             wk[b + (_P + P_N) * NW + c] = u * u * u
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always", error_model="numpy")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always", error_model="numpy")
 def _damped_load(N, rate, cd, sd, g, K):
     """(N less the rail support's damping along the normal, the damping's push capped at N,
     whether that leaves a load,
@@ -240,7 +240,7 @@ def _damped_load(N, rate, cd, sd, g, K):
     return n if loaded else 1.0, loaded, deep
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always", error_model="numpy")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always", error_model="numpy")
 def _creep(N, u, loaded, cd, sd, lat, r, f11, f22, f23, x_c, x_pos, side, vy, vroll, ws_yaw,
            vyaw, kappa, K, yawed):  # fmt: skip
     """Branch-free :func:`railsusp.vehicle.wheel_rail.creep_contact_forces` of one point
@@ -281,7 +281,7 @@ def _creep(N, u, loaded, cd, sd, lat, r, f11, f22, f23, x_c, x_pos, side, vy, vr
     )  # fmt: skip
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, error_model="numpy")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, error_model="numpy")
 def _forces(K, wk):
     """Vectorised over the wheels: creep forces of both points, summed per wheel (tread
     first) into W_FY, W_FZ, W_MX, W_MZ; a penetration beyond the bound sets W_CODE where
@@ -327,7 +327,7 @@ def _forces(K, wk):
         wk[W_MZ * NW + c] = mz + nz
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT)
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME)
 def contact_forces_8(x, ctab, y0, dy, H0L, H0R, K, wk):
     """Contact forces of the eight wheels of state x into the work vector ``wk`` (module
     docstring; exactly N_WORK long: its loops take their length from it), given its rows

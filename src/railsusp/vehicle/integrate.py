@@ -13,7 +13,7 @@ import numba as nb
 import numpy as np
 
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.kernel_cache import FASTMATH, NRT  # (sets the kernel cache first)
+from railsusp.vehicle.kernel_cache import FASTMATH, NO_RUNTIME  # (sets the cache first)
 from railsusp.vehicle.model import rhs
 
 NQ = L.N_DOF
@@ -23,7 +23,7 @@ I_V = L.K["V"]
 I_SPLIT_SPEED = L.K["flange_split_speed"]
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT)
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME)
 def _rk4_finish(x, ks, xt, h, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s, V, o_dummy):
     """Stages 2-4 of one RK4 step of length h from x at track position s (stage 1 already
     in ks[0]) and the update of x. Returns a failure code (0 ok)."""
@@ -52,7 +52,7 @@ def _run_one(
     ``s_init``; write filtered outputs (NOUT, n_out) from step ``n_pre`` on. Steps that start
     with a wheel near flange contact and closing on it are split into ``n_fine``. Returns
     (code, fail_time from the start). Allocates the work arrays; the steps run in
-    :func:`_steps`, without Numba's runtime (kernel_cache.NRT: its row views of the stage
+    :func:`_steps`, without Numba's runtime (kernel_cache.NO_RUNTIME: its row views of the stage
     derivatives and its calls of the right-hand side are not reference counted)."""
     ks = np.empty((4, NS))  # RK4 stage derivatives
     xt = np.empty(NS)
@@ -65,7 +65,7 @@ def _run_one(
     )  # fmt: skip
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT)
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME)
 def _steps(
     x, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, dt, s_init, n_pre, n_sub, n_out, sos,
     out_series, n_fine, ks, xt, o, o_dummy, zf,

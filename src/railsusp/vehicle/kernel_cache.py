@@ -14,6 +14,14 @@ import hashlib
 import os
 from pathlib import Path
 
+
+def _has_option(name: str) -> bool:
+    """Whether this Numba's ``njit`` takes the option ``name``."""
+    from numba.core.options import DefaultOptions
+
+    return hasattr(DefaultOptions, name)
+
+
 #: the fast-math flags every kernel compiles with (issue 24): floating-point contraction
 #: (a * b + c as one fused multiply-add), division as multiplication by the reciprocal
 #: (``arcp``; constant divisors fold to one multiplication) and no signed zeros (``nsz``).
@@ -27,17 +35,22 @@ from pathlib import Path
 FASTMATH = {"contract", "arcp", "nsz"}
 
 #: the right-hand side's kernels (the modules of :data:`NO_RUNTIME_SOURCES`) compile without
-#: Numba's runtime (``_nrt=False``, a Numba option since 0.2x, read by numba.core.options):
-#: they allocate nothing, and with the runtime every array they passed to a kernel not
-#: inlined, or sliced, was reference counted (NRT_incref / NRT_decref, a locked add each, 31
-#: call sites in ``rhs`` alone). Without it: the same forces bit for bit, one evaluation
-#: 1.2-1.3 times as fast (bench/README.md, "Without Numba's runtime"; stop 76). A kernel
-#: here that allocated would fail to compile, not misbehave. The integrator's steps
+#: Numba's runtime (``_nrt=False``, an option of numba.core.options that Numba's own
+#: kernels use): they allocate nothing, and with the runtime every array they passed to a
+#: kernel not inlined, or sliced, was reference counted (NRT_incref / NRT_decref, a locked
+#: add each, 31 call sites in ``rhs`` alone). Without it: the same forces bit for bit, one
+#: evaluation 1.2-1.3 times as fast (bench/README.md, "Without Numba's runtime"; stop 76).
+#: A kernel here that allocated fails to compile, not misbehave. The integrator's steps
 #: (``integrate._steps``, ``_rk4_finish``: row views of the stage derivatives, a call of
 #: the right-hand side per stage) compile with it too; what allocates keeps the runtime.
-NRT = False
+#: None of them returns an array, nor may one: without the runtime an array handed back
+#: (even in a tuple) has no reference of its own, a double free where the caller counts
+#: (read through at stop 76's review; they return codes, scalars and tuples of scalars).
+#: Splatted into the decorators, and empty on a Numba without the option (the kernels then
+#: compile with the runtime, slower but alike, instead of failing to compile).
+NO_RUNTIME: dict[str, bool] = {"_nrt": False} if _has_option("_nrt") else {}
 
-#: the modules whose kernels compile with :data:`NRT` (allocating nothing)
+#: the modules whose kernels compile with :data:`NO_RUNTIME` (allocating nothing)
 NO_RUNTIME_SOURCES = (
     "model.py", "body_bolster.py", "contact_batch.py", "wedge_batch.py", "suspension.py",
     "track_lookup.py", "wheel_rail.py", "vector_math.py",

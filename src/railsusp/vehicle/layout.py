@@ -140,12 +140,21 @@ FAIL_NAN = 1
 FAIL_PENETRATION = 2
 FAIL_LIFT = 3
 FAIL_FLANGE_CLIMB = 4
+#: what a set's status starts as before the integrator's call, so that a set whose compiled
+#: integration stopped without writing its code (an error inside the parallel loop, which
+#: Numba does not pass on: the set and those after it on the same thread) reads as failed,
+#: not as a success with empty series (the review of stop 76)
+FAIL_UNFINISHED = 5
 FAILURE_REASONS = {
     OK: "ok",
     FAIL_NAN: "state became NaN or infinite (numerical divergence)",
     FAIL_PENETRATION: "wheel-rail penetration beyond the physical bound",
     FAIL_LIFT: "wheel lift beyond the flange height (derailment)",
     FAIL_FLANGE_CLIMB: "wheelset lateral shift beyond the contact table (flange climb)",
+    FAIL_UNFINISHED: (
+        "the compiled integration stopped without a result (an error inside it, e.g. a "
+        "division by a zero mass or span, in this set or one before it on the same thread)"
+    ),
 }
 
 # catalogue indices (X1..X20 -> 0..19)

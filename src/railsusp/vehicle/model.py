@@ -55,7 +55,7 @@ from railsusp.vehicle import layout as L
 from railsusp.vehicle import wedge_batch as WB
 from railsusp.vehicle.body_bolster import body_on_bolster
 from railsusp.vehicle.contact_batch import contact_forces_8
-from railsusp.vehicle.kernel_cache import FASTMATH, NRT  # (sets the kernel cache first)
+from railsusp.vehicle.kernel_cache import FASTMATH, NO_RUNTIME  # (sets the cache first)
 from railsusp.vehicle.suspension import (
     gap_spring,
     series_stiffness,
@@ -92,7 +92,7 @@ NQ = L.N_DOF
 AUXW = L.AUX_WEDGE
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def add_frame_forces(acc, i_lat, i_vert, m, kappa, c, s, V, gn):
     """Add the moving frame's pseudo-forces on a body of mass m (N): lateral
     -m (V² κ cos φ + g sin φ); vertical -m (g cos φ - V² κ sin φ) as a deviation from the
@@ -102,7 +102,7 @@ def add_frame_forces(acc, i_lat, i_vert, m, kappa, c, s, V, gn):
     acc[i_vert] += -m * (gn * c - V * V * kappa * s) + m * gn
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def side_frame_roll(x, k):
     """Roll of bogie k's side frames (rad, or its rate from the velocities ``x``): the mean
     of its two wheelsets' roll, on whose axle boxes they sit (wagon [side_frame]
@@ -111,7 +111,7 @@ def side_frame_roll(x, k):
     return 0.5 * (x[iw + 2] + x[iw + 6])
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def cant_cos_sin(cant, cant_near, cos_near, sin_near):
     """Cosine and sine of the cant angle, bit for bit those of ``math.cos`` and ``math.sin``:
     1 and the angle itself (+-0) where there is no cant (tangent track), those of a body
@@ -125,7 +125,7 @@ def cant_cos_sin(cant, cant_near, cos_near, sin_near):
     return math.cos(cant), math.sin(cant)
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT)
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME)
 def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
     """Time derivative of the state; fills ``out`` with the output channels.
 

@@ -16,7 +16,7 @@ import math
 
 import numba as nb
 
-from railsusp.vehicle.kernel_cache import FASTMATH, NRT  # (sets the kernel cache first)
+from railsusp.vehicle.kernel_cache import FASTMATH, NO_RUNTIME  # (sets the cache first)
 from railsusp.vehicle.layout import W_FRONT_Z, W_LONG, W_REAR_Z
 
 #: relaxation time of a friction state pushed beyond its (shrinking) limit, s
@@ -34,13 +34,13 @@ BOWL_ITERATIONS = 12
 BOWL_TOLERANCE = 1.0e-10
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def series_stiffness(k1, k2):
     """Stiffness of two springs in series, N/m."""
     return k1 * k2 / (k1 + k2)
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def gap_spring(d, clearance, k):
     """Force of a symmetric stop with free play: zero inside +-clearance, k beyond (N)."""
     if d > clearance:
@@ -50,14 +50,14 @@ def gap_spring(d, clearance, k):
     return 0.0
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def disc_friction_moment(mu, normal, radius):
     """Limit of the friction moment (N m) of a flat disc of ``radius`` pressed with
     ``normal`` (N), uniform pressure: mu N (2/3) R. The centre bowl's liner in yaw and roll."""
     return mu * normal * (2.0 / 3.0) * radius
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def damped_slider(state, limit, k_stick, c_stick, v, dxdt, idx):
     """Friction force (on the element's first body, opposing v) of an elasto-plastic slider
     with stick damping: a Kelvin element (k_stick, c_stick) in series with a Coulomb slider.
@@ -85,7 +85,7 @@ def damped_slider(state, limit, k_stick, c_stick, v, dxdt, idx):
     return f
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def damped_slider_2d(sx, sy, limit, k_stick, c_stick, vx, vy, dxdt, ix, iy):
     """Two-component version of :func:`damped_slider` for friction on a plane (isotropic
     Coulomb friction circle of radius ``limit``): the state (sx, sy) is the elastic friction
@@ -120,7 +120,7 @@ def damped_slider_2d(sx, sy, limit, k_stick, c_stick, vx, vy, dxdt, ix, iy):
     return fx, fy
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def wedge_column_normal_force(spring_force, tan_alpha, mu_column, loading):
     """Normal force (N) of a massless friction wedge on its side-frame column face.
 
@@ -144,7 +144,7 @@ def wedge_column_normal_force(spring_force, tan_alpha, mu_column, loading):
     return spring_force / (tan_alpha - mu_column * lo)
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def friction_wedges(
     comp, v_vert, v_lat, v_warp, v_long, f_ctrl0, k_ctrl, tan_a, cos_a, mu_column, mu_slope,
     scale, k_stick, c_stick, x, dxdt, ia,
@@ -206,7 +206,7 @@ def friction_wedges(
     return fz_f + fz_r, fy_f + fy_r, fy_f - fy_r, fx
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def bowl_ring_forces(
     dz, droll, dpitch, droll_rate, radius, k_ring, k_bend, k_pitch, preload_total, mu,
     k_stick, c_stick, state_roll, dxdt, idx,

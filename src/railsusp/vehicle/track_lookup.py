@@ -12,10 +12,10 @@ from __future__ import annotations
 import numba as nb
 
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.kernel_cache import FASTMATH, NRT  # (sets the kernel cache first)
+from railsusp.vehicle.kernel_cache import FASTMATH, NO_RUNTIME  # (sets the cache first)
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def track_point(s, s0, ds, n):
     """Grid cell of distance s on n samples from s0 by ds: (index i, fraction f, inside).
 
@@ -30,13 +30,13 @@ def track_point(s, s0, ds, n):
     return i, u - i, True
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def track_value(trk, ch, i, f):
     """Channel ``ch`` linearly interpolated in grid cell (i, f)."""
     return trk[ch, i] * (1.0 - f) + trk[ch, i + 1] * f
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def track_rate(trk, ch, i, inside, ds, V):
     """Time rate V d(channel)/ds of channel ``ch`` in grid cell i (per second)."""
     if not inside:
@@ -44,7 +44,7 @@ def track_rate(trk, ch, i, inside, ds, V):
     return V * (trk[ch, i + 1] - trk[ch, i]) / ds
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def track_frame(trk, i, f):
     """Curvature (1/m), cant angle (rad), heading (rad) and lateral position (m) of the
     design track in grid cell (i, f): the frame a body there moves in."""

@@ -17,7 +17,7 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
-from railsusp.vehicle.kernel_cache import FASTMATH, NRT  # (sets the kernel cache first)
+from railsusp.vehicle.kernel_cache import FASTMATH, NO_RUNTIME  # (sets the cache first)
 
 #: the bits of 2^(2/3 * 1023) less a bias that balances the error of the first guess
 #: (the classic integer division of a float's bits by 3: x = 2^e m gives about 2^(e/3))
@@ -50,7 +50,7 @@ def _from_bits(typingctx, i):
     return types.float64(types.int64), codegen
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always", error_model="numpy")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always", error_model="numpy")
 def cbrt_positive(x):
     """x^(1/3) for a normal x > 0 (other x: a meaningless finite value or NaN; the caller
     selects). First guess from the bits (within 3 %), then three Halley steps
@@ -71,7 +71,7 @@ _S = tuple((-1.0) ** k / math.factorial(2 * k + 1) for k in range(13))
 _C = tuple((-1.0) ** k / math.factorial(2 * k) for k in range(13))
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always", error_model="numpy")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always", error_model="numpy")
 def sin_cos(x):
     """(sin x, cos x) for |x| <= SIN_COS_RANGE (rad) from their Taylor series in z = x^2 to
     z^12 (the first neglected terms are below 1e-17 there), within a few ulp of the C
@@ -94,7 +94,7 @@ def sin_cos(x):
     return x * s, c
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always", error_model="numpy")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always", error_model="numpy")
 def cbrt_rough(x):
     """x^(1/3) within 3e-5 relative for a normal x > 0 (a start for Newton's method): the
     first guess from the bits and one Halley step."""

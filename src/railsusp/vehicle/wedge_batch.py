@@ -25,7 +25,7 @@ import math
 import numba as nb
 
 from railsusp.vehicle import contact_batch as CB
-from railsusp.vehicle.kernel_cache import FASTMATH, NRT  # (sets the kernel cache first)
+from railsusp.vehicle.kernel_cache import FASTMATH, NO_RUNTIME  # (sets the cache first)
 from railsusp.vehicle.suspension import SLIDER_RELAXATION
 
 NL = 8  # wedge lanes: nest n (0-3) front, then the four rear wedges
@@ -42,14 +42,14 @@ BASE = CB._P * CB.NW
 assert BASE + N_ROWS * NL <= CB.N_WORK
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always", error_model="numpy")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always", error_model="numpy")
 def _lanes(wk):
     """Eight, as a value LLVM cannot see at compile time (a loop of a known eight iterations
     is unrolled before the loop vectoriser sees it): the contact work vector's lanes."""
     return CB._lanes(wk)
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, error_model="numpy")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, error_model="numpy")
 def _column_faces(wk, f_ctrl0, k_ctrl, tan_a, mu_c, scale, k_stick, c_stick):
     """Vectorised over the eight wedges: column normal force (rebound limit, loading branch)
     and the column face's friction circle (damped_slider_2d), into R_FZ, R_FY, R_DZ, R_DY
@@ -100,7 +100,7 @@ def _column_faces(wk, f_ctrl0, k_ctrl, tan_a, mu_c, scale, k_stick, c_stick):
         wk[BASE + R_N * NL + c] = n_w
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, error_model="numpy")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, error_model="numpy")
 def _slope_faces(wk, cos_a, mu_s, k_stick, c_stick):
     """Per nest (lanes 0-3): the slope faces' slider (damped_slider) with the normal force of
     both wedges, into R_FX and R_DX."""
@@ -118,7 +118,7 @@ def _slope_faces(wk, cos_a, mu_s, k_stick, c_stick):
         wk[BASE + R_DX * NL + c] = d_slide if sliding else d_stick
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT)
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME)
 def wedge_forces(wk, f_ctrl0, k_ctrl, tan_a, cos_a, mu_c, mu_s, scale, k_stick, c_stick):
     """The eight wedges' friction forces and friction-state rates from the inputs in the
     scratch (module docstring); arguments as :func:`~railsusp.vehicle.suspension.

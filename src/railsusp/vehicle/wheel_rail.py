@@ -50,7 +50,7 @@ import numba as nb
 import numpy as np
 
 from railsusp.vehicle import layout as L
-from railsusp.vehicle.kernel_cache import FASTMATH, NRT  # (sets the kernel cache first)
+from railsusp.vehicle.kernel_cache import FASTMATH, NO_RUNTIME  # (sets the cache first)
 
 _K = L.K
 I_R0, I_MU, I_CREEP = _K["r0"], _K["mu"], _K["creep_factor"]
@@ -71,7 +71,7 @@ HERTZ_ITERATIONS = 8
 HERTZ_TOLERANCE = 1.0e-8
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def hertz_rail_solve(dn, G, krn):
     """Normal force N (N) and its cube root u for normal approach dn (m) of Hertz contact in
     series with the rail support: dn = G N^(2/3) + N / krn (Hertz law P = (dz/G)^1.5 plus a
@@ -104,13 +104,13 @@ def hertz_rail_solve(dn, G, krn):
     return u * u * u, u
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def hertz_rail_normal_force(dn, G, krn):
     """Normal force N (N) of :func:`hertz_rail_solve`."""
     return hertz_rail_solve(dn, G, krn)[0]
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def she_saturation(fx, fy, mu_n):
     """Shen-Hedrick-Elkins factor scaling linear creep forces to saturation at mu N.
 
@@ -127,7 +127,7 @@ def she_saturation(fx, fy, mu_n):
     return 1.0 / beta
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def table_index(y, y0, inv_dy, n):
     """Interval index i and fraction f of shift y on a table of n uniform rows from y0 by dy
     (``inv_dy`` = 1 / dy); i = -1 when y lies outside the table (flange climb beyond the
@@ -141,13 +141,13 @@ def table_index(y, y0, inv_dy, n):
     return i, u - i
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def _cell(ctab, c, i, f):
     """Column c of the contact table interpolated at (i, f)."""
     return ctab[c, i] * (1.0 - f) + ctab[c, i + 1] * f
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def contact_geometry(
     ws_y, ws_z, ws_roll, ws_yaw, vy, vz, vroll, vyaw, side, block, rail_y, rail_z, rail_vy,
     rail_vz, ctab, y0, inv_dy, H0, Z0, r0, inv_r0, lift_max, yawed,
@@ -223,7 +223,7 @@ def contact_geometry(
     )  # fmt: skip
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT)
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME)
 def shared_rail_normal_forces(a1, g1, a2, g2, m11, m12, m22):
     """Normal forces (N) of two Hertz contacts pressing one elastically supported rail.
 
@@ -240,7 +240,7 @@ def shared_rail_normal_forces(a1, g1, a2, g2, m11, m12, m22):
     return shared_rail_newton(n1, u1, n2, u2, a1, g1, a2, g2, m11, m12, m22)
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT)
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME)
 def shared_rail_newton(n1, u1, n2, u2, a1, g1, a2, g2, m11, m12, m22):
     """:func:`shared_rail_normal_forces` from the single-contact solutions (n_i, u_i = n_i^(1/3);
     0 where a contact does not touch)."""
@@ -267,7 +267,7 @@ def shared_rail_newton(n1, u1, n2, u2, a1, g1, a2, g2, m11, m12, m22):
     return u1 * u1 * u1, u2 * u2 * u2
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
 def creep_contact_forces(
     N, rate, cd, sd, lat, r, hertz, f11, f22, f23, x_c, x_pos, side, vy, vroll, ws_yaw, vyaw,
     kappa, K, yawed,
@@ -325,7 +325,7 @@ def creep_contact_forces(
     return L.OK, f_y, f_z, fx, side * lat * f_z + r0 * f_y, x_pos * f_y - side * lat * fx, N
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, _nrt=NRT)
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME)
 def wheel_rail_forces(
     ws_y, ws_z, ws_roll, ws_yaw, vy, vz, vroll, vyaw, kappa, side,
     rail_y, rail_z, rail_vy, rail_vz, ctab, y0, dy, H0, Z0, K,
