@@ -297,9 +297,10 @@ def test_xarray_export():
 
 def test_a_set_the_parallel_integration_did_not_finish_reads_as_failed():
     """An error inside the compiled parallel loop (here a division by a car body of zero
-    mass) is not passed on by Numba: the set, and any after it on the same thread, kept the
-    status and outputs they had before the call, zeros, and read as successes with flat
-    series (the review of stop 76). They start as FAIL_UNFINISHED and NaN now."""
+    mass) is not passed on by Numba on several threads: the set, and any after it on the
+    same thread, kept the status and outputs they had before the call, zeros, and read as
+    successes with flat series (the review of stop 76). They start as FAIL_UNFINISHED and
+    NaN now, whether or not the call raised."""
     from scipy.signal import butter
 
     from railsusp.vehicle.batch_runs import unfinished
@@ -318,10 +319,14 @@ def test_a_set_the_parallel_integration_did_not_finish_reads_as_failed():
     KK[2, L.K["m_c"]] = 0.0
     out, status = unfinished(n, n_out)
     fail_time = np.zeros(n)
-    integrate_batch(
-        PP, KK, np.zeros((n, L.N_STATE)), tracks, np.zeros(n, np.int64), s0, ds, ca.table,
-        ca.y0, ca.dy, ca.H0L, ca.H0R, 1e-3, 0.0, 0, 10, n_out, sos, 4, out, status, fail_time,
-    )  # fmt: skip
+    try:  # on several threads Numba drops the error; on one it passes it on, as a
+        integrate_batch(  # SystemError over the ZeroDivisionError: neither says which set
+            PP, KK, np.zeros((n, L.N_STATE)), tracks, np.zeros(n, np.int64), s0, ds, ca.table,
+            ca.y0, ca.dy, ca.H0L, ca.H0R, 1e-3, 0.0, 0, 10, n_out, sos, 4, out, status,
+            fail_time,
+        )  # fmt: skip
+    except (SystemError, ZeroDivisionError):
+        pass
     assert list(status[:3]) == [L.OK, L.OK, L.FAIL_UNFINISHED]
     assert status[3] in (L.OK, L.FAIL_UNFINISHED)  # (after it on its thread, or on another)
     assert np.isfinite(out[:2]).all() and np.isnan(out[2]).all()
