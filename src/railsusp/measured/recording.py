@@ -40,6 +40,8 @@ class SimulationFailedError(RailsuspInputError):
 #: file's bytes, so a geometry file checked out with other line endings read as other
 #: recordings. :func:`same_recordings` compares a stored digest in its own version.
 DIGEST_VERSION = 2
+#: the versions :func:`recordings_digest` computes
+DIGEST_VERSIONS = (1, 2)
 
 
 def recordings_digest(recordings: list[Recording], version: int = DIGEST_VERSION) -> str:
@@ -58,8 +60,8 @@ def recordings_digest(recordings: list[Recording], version: int = DIGEST_VERSION
 
     from railsusp.store import file_hash
 
-    if version not in (1, 2):
-        raise ValueError(f"recordings digest version {version}: accepted 1, 2")
+    if version not in DIGEST_VERSIONS:
+        raise ValueError(f"recordings digest version {version}: accepted {DIGEST_VERSIONS}")
     h = hashlib.sha256()
     for rec in sorted(recordings, key=lambda r: r.condition.name):
         # the geometry by its contents, not its path (read from a relative folder at the
@@ -91,7 +93,7 @@ def same_recordings(recordings: list[Recording], stored: str) -> bool:
             version = int(stored[1 : stored.index(":")])
         except ValueError:
             return False
-        if version not in (1, 2):
+        if version not in DIGEST_VERSIONS:
             return False
     return recordings_digest(recordings, version) == stored
 

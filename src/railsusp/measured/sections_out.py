@@ -105,15 +105,15 @@ def write_sections(
     folder = Path(final) if final is not None else out
     atomic_write_bytes(out / "pipeline.toml", pipeline_toml(conds, folder).encode())
     index = {"format": FORMAT, "recordings": names, **source_fingerprint(run.source)}
-    write_json(out / "index.json", index)
-    # each section by its table's SHA-256 and all of them as read: the truth of the run they
-    # were cut from takes these tables only, in these bytes or others that read the same
-    # (measured.truth.check_truth_of)
-    from railsusp.measured.reader import read_field
+    # each section by its table's SHA-256 and all of them as read (as read_field reads the
+    # index's tables): the truth of the run they were cut from takes these tables only, in
+    # these bytes or others that read the same (measured.truth.check_truth_of)
+    from railsusp.measured.recording_reader import read_recording
 
     index[RECORDING_FILES] = {name: file_hash(out / name) for name in names}
     try:  # read as the run's wagon (a tare wagon's sections were refused as a loaded one's)
-        index[RECORDINGS_DIGEST] = recordings_digest(read_field(out, wheel_load_N=wheel_load_N))
+        read = [read_recording(out / name, wheel_load_N=wheel_load_N) for name in names]
+        index[RECORDINGS_DIGEST] = recordings_digest(read)
     except RailsuspInputError:  # sections a reader refuses: told by their tables' hashes only
         pass
     write_json(out / "index.json", index)

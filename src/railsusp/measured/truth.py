@@ -146,13 +146,10 @@ def _foreign_sections(folder: Path, tables: list[Path], index: dict) -> list[str
     (an edited section; a copy in other bytes is told by the index's digest instead)."""
     cut = _kept_sections(folder)
     written = index.get(RECORDING_FILES)
-    if not isinstance(written, dict):  # an index written before stop 76: by name only
-        written = None
-    foreign = []
-    for p in tables:
-        sha = written.get(p.name) if written is not None else None
-        if p.stem not in cut or (
-            written is not None and (not isinstance(sha, str) or sha.lower() != _hash(p))
-        ):
-            foreign.append(p.name)
-    return foreign
+    by_content = isinstance(written, dict)  # (an index written before stop 76: by name only)
+
+    def rewritten(p: Path) -> bool:
+        sha = written.get(p.name)
+        return not isinstance(sha, str) or sha.lower() != _hash(p)
+
+    return [p.name for p in tables if p.stem not in cut or (by_content and rewritten(p))]
