@@ -1,10 +1,13 @@
 """Cost of one right-hand-side evaluation of the wagon model, in microseconds.
 
 States are captured from a straight and a curve run (nominal parameters, at 7, 9, ..., 21 s:
-running, flanging in the curve), then ``rhs`` alone is evaluated on them many times in one
-compiled loop, single-threaded; the figure is the minimum over repeats of CPU time per
-evaluation. ``--reference-src DIR`` times another checkout's ``src`` in a subprocess in the
-same sitting (the right-hand side's signature has not changed), for an A/B ratio.
+running, flanging in the curve), each with the state one step (1 ms) before it; then ``rhs``
+alone is evaluated on them many times in one compiled loop, single-threaded, each pair in
+order with one work array, so that every evaluation starts its shared-rail solves warm from
+a state one step away, as in a run (a state evaluated after itself would start them at
+their solution); the figure is the minimum over repeats of CPU time per evaluation.
+``--reference-src DIR`` times another checkout's ``src`` in a subprocess in the same sitting
+(the right-hand side's signature has not changed), for an A/B ratio.
 ``--contact`` also times the wheel-rail contact of the eight wheels alone on the same states,
 the scalar kernel (``wheel_rail.wheel_rail_forces`` wheel by wheel) against the SIMD one
 (``contact_batch.contact_forces_8``), and checks that they give the same forces.
@@ -48,10 +51,13 @@ DT = 1e-3
 
 @nb.njit
 def _evaluate(states, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, reps, dxdt, out):
+    """``reps`` passes over the states; states 2 i and 2 i + 1 (a state one step before
+    another, then it) share work array i."""
     total = 0.0
     for _ in range(reps):
         for j in range(states.shape[0]):
-            rhs(states[j], dxdt[j], P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front[j], out[j])
+            rhs(states[j], dxdt[j], P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front[j],
+                out[j // 2])  # fmt: skip
             total += dxdt[j, 0]
     return total
 
@@ -68,21 +74,21 @@ def _arguments(condition: str):
 
 
 def _states(condition: str, states_dir: str | None = None):
-    """(rhs arguments with the captured states first, s_front). With ``states_dir``, the
-    states and positions are read from STATES_DIR/CONDITION.npz if it exists, else captured
-    and written there: an ablated copy of the source is then timed on the states of the
-    whole model (its own motion would differ)."""
+    """(rhs arguments with the captured states first, s_front): at each of TIMES_S the state
+    one step before it, then it. With ``states_dir``, the states and positions are read from
+    STATES_DIR/CONDITION-pairs.npz if it exists, else captured and written there: an ablated
+    copy of the source is then timed on the states of the whole model (its own motion would
+    differ)."""
     P, K, trk, s0, ds, ca = _arguments(condition)
-    path = Path(states_dir) / f"{condition}.npz" if states_dir else None
+    path = Path(states_dir) / f"{condition}-pairs.npz" if states_dir else None
     if path is not None and path.exists():
         with np.load(path) as f:
             args = (f["states"], P, K, trk, s0, ds, ca.table, ca.y0, ca.dy, ca.H0L, ca.H0R)
             return args, f["s_front"]
     sos = np.ascontiguousarray(butter(2, 0.4, output="sos"))
     states, s_front = [], []
-    for t in TIMES_S:
+    for n in [round(t / DT) + k for t in TIMES_S for k in (-1, 0)]:
         x = np.zeros(L.N_STATE)
-        n = round(t / DT)
         series = np.zeros((L.N_OUT, 1))
         # the integrator gained the start position (settled start) after 328b8dd
         start = (0.0,) if "s_init" in inspect.signature(_run_one.py_func).parameters else ()
@@ -103,7 +109,7 @@ def time_rhs(condition: str, reps: int, repeats: int, states_dir: str | None = N
     args, s_front = _states(condition, states_dir)
     n = args[0].shape[0]
     dxdt = np.zeros_like(args[0])
-    out = np.zeros((n, L.N_OUT_WORK))
+    out = np.zeros((n // 2, L.N_OUT_WORK))
     _evaluate(*args, s_front, 1, dxdt, out)
     best = np.inf
     for _ in range(repeats):

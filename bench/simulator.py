@@ -9,10 +9,11 @@ In the same sitting, for ratios (these machines are noisy, so only ratios from o
 quoted): ``--reference-src DIR`` runs this script on another checkout's ``src`` (e.g. a git
 worktree of an older commit) and ``--kernel FILE`` runs the synthetic wagon-sized RK4 kernel
 (shared/bench/throughput_kernel.py) at railsusp's 1 ms step (10 s per set);
-the table then gains their rates and this model's ratio to each. Both run before this
-model's benchmark, after their paths are checked (a missing ``--kernel`` or a
-``--reference-src`` without railsusp is refused before any work), so that a failing one
-loses no measurement.
+the table then gains their rates and this model's ratio to each. ``--rounds R`` measures
+the three in turn R times and gives the medians (of the per-round ratios) and each round's
+ratios. The comparisons run before this model's benchmark, after their paths are checked
+(a missing ``--kernel`` or a ``--reference-src`` without railsusp is refused before any
+work), so that a failing one loses no measurement.
 """
 
 from __future__ import annotations
@@ -52,6 +53,13 @@ def main() -> None:
     ap.add_argument("--reference-src", default=None, help="another checkout's src, for A/B")
     ap.add_argument("--kernel", default=None, help="path of throughput_kernel.py")
     ap.add_argument(
+        "--rounds",
+        type=positive_int,
+        default=1,
+        help="reference, kernel and this model measured in turn this many times; the "
+        "table gives the medians (the kernel's own rate moves by up to 15 %% between runs)",
+    )
+    ap.add_argument(
         "--physics-before-2026-11-24",
         action="store_true",
         help="this code on the model of before 2026-11-24's fidelity changes (the same model "
@@ -72,43 +80,30 @@ def main() -> None:
     settings = SolverSettings()
     if args.flange_substeps is not None:
         settings = SolverSettings(flange_substeps=args.flange_substeps)
-    # the comparisons first: one that fails loses no measurement of this model
     sizes = ",".join(str(n) for n in args.sizes)
-    reference = _reference_rates(args) if args.reference_src else None
-    kernel = _kernel_rates(args.kernel, sizes) if args.kernel else None
     simulated = cond.lead_in_m / cond.speed + cond.duration_s
-    simulate_batch(
-        [ParameterSet.nominal()],
-        get_condition(args.condition, duration_s=1.0, n_steps=50),
-        wagon=wagon,
-        settings=settings,
-    )  # compile
-    rng = np.random.default_rng(0)
-    lo, hi = bounds(MAIN_SUSPENSION)
-    rows = []
-    for n in args.sizes:
-        x = lo + (hi - lo) * rng.random((n, len(MAIN_SUSPENSION)))
-        t0 = time.perf_counter()
-        r = simulate_batch(x, cond, symbols=MAIN_SUSPENSION, wagon=wagon, settings=settings)
-        wall = time.perf_counter() - t0
-        rows.append(
-            {
-                "sets": n,
-                "wall_s": wall,
-                "simulated_s_per_set": simulated,
-                "wagon_s_per_wall_s": n * simulated / wall,
-                "record_s_per_wall_s": n * cond.duration_s / wall,
-                "failed": int((~r.ok).sum()),
-            }
-        )
+    rounds = []
+    for k in range(args.rounds):
+        # the comparisons first: one that fails loses no measurement of this model
+        reference = _reference_rates(args) if args.reference_src else None
+        kernel = _kernel_rates(args.kernel, sizes) if args.kernel else None
+        if k == 0:
+            simulate_batch(
+                [ParameterSet.nominal()],
+                get_condition(args.condition, duration_s=1.0, n_steps=50),
+                wagon=wagon,
+                settings=settings,
+            )  # compile
+        rounds.append(_model_rows(args.sizes, cond, wagon, settings, simulated))
+        for row in rounds[-1]:
+            if reference is not None:
+                row["reference_wagon_s_per_wall_s"] = reference[row["sets"]]
+                row["ratio_to_reference"] = row["wagon_s_per_wall_s"] / reference[row["sets"]]
+            if kernel is not None:
+                row["kernel_wagon_s_per_wall_s"] = kernel[row["sets"]]
+                row["ratio_to_kernel"] = row["wagon_s_per_wall_s"] / kernel[row["sets"]]
+    rows = _medians(rounds)
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-    for row in rows:
-        if reference is not None:
-            row["reference_wagon_s_per_wall_s"] = reference[row["sets"]]
-            row["ratio_to_reference"] = row["wagon_s_per_wall_s"] / reference[row["sets"]]
-        if kernel is not None:
-            row["kernel_wagon_s_per_wall_s"] = kernel[row["sets"]]
-            row["ratio_to_kernel"] = row["wagon_s_per_wall_s"] / kernel[row["sets"]]
     print(
         f"condition {cond.name}: {simulated:.1f} s simulated per set "
         f"({cond.duration_s:g} s recorded), {numba.get_num_threads()} threads, "
@@ -130,6 +125,12 @@ def main() -> None:
         if kernel is not None:
             line += f" {row['kernel_wagon_s_per_wall_s']:8.1f} {row['ratio_to_kernel']:9.2f}"
         print(line)
+    if args.rounds > 1:
+        for name in ("ratio_to_reference", "ratio_to_kernel"):
+            for row in rows:
+                if name in row:
+                    each = ", ".join(f"{r[name]:.2f}" for r in row["rounds"])
+                    print(f"{row['sets']:>6} sets, {name} per round: {each}")
     print(f"peak memory {peak_mb:.0f} MB")
     payload = {
         "date": time.strftime("%Y-%m-%d"),
@@ -140,6 +141,7 @@ def main() -> None:
         "contact": args.contact,
         "physics_before_2026_11_24": args.physics_before_2026_11_24,
         "flange_substeps": settings.flange_substeps,
+        "rounds": args.rounds,
         "rows": rows,
         "peak_rss_mb": peak_mb,
         "reference_src": args.reference_src,
@@ -147,6 +149,43 @@ def main() -> None:
     }
     out = write_json(args.out, payload)
     print(f"wrote {out}")
+
+
+def _model_rows(sizes, cond, wagon, settings, simulated: float) -> list[dict]:
+    """This model's rate per batch size: random main-suspension sets (seed 0, the same in
+    every round) in one batched call each."""
+    rng = np.random.default_rng(0)
+    lo, hi = bounds(MAIN_SUSPENSION)
+    rows = []
+    for n in sizes:
+        x = lo + (hi - lo) * rng.random((n, len(MAIN_SUSPENSION)))
+        t0 = time.perf_counter()
+        r = simulate_batch(x, cond, symbols=MAIN_SUSPENSION, wagon=wagon, settings=settings)
+        wall = time.perf_counter() - t0
+        rows.append(
+            {
+                "sets": n,
+                "wall_s": wall,
+                "simulated_s_per_set": simulated,
+                "wagon_s_per_wall_s": n * simulated / wall,
+                "record_s_per_wall_s": n * cond.duration_s / wall,
+                "failed": int((~r.ok).sum()),
+            }
+        )
+    return rows
+
+
+def _medians(rounds: list[list[dict]]) -> list[dict]:
+    """Per batch size, the median over rounds of every figure (each round's ratios are of
+    rates measured minutes apart; the median of the ratios, not a ratio of medians), with
+    the rounds themselves under ``rounds``."""
+    rows = []
+    for i, first in enumerate(rounds[0]):
+        each = [r[i] for r in rounds]
+        row = {key: float(np.median([e[key] for e in each])) for key in first if key != "sets"}
+        row["failed"] = max(e["failed"] for e in each)
+        rows.append({"sets": first["sets"], **row, "rounds": each})
+    return rows
 
 
 def _reference_rates(args: argparse.Namespace) -> dict[int, float]:

@@ -87,6 +87,7 @@ ARGPARSE_REFUSED = [
     ("simulator", ["--sizes", "0"], "--sizes"),
     ("simulator", ["--sizes", "abc"], "--sizes"),
     ("simulator", ["--flange-substeps", "0"], "--flange-substeps"),
+    ("simulator", ["--rounds", "0"], "--rounds"),
     ("campaign", ["--samples", "0"], "--samples"),
     ("emulator_reading", ["--points", "0"], "--points"),
     ("emulator_reading", ["--threads", "0"], "--threads"),

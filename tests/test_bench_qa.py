@@ -335,3 +335,19 @@ def test_the_time_target_is_judged_only_at_the_issues_settings(capsys):
     assert "target < 60 s" not in out and "not applicable" in out
     bench.print_table(sets, keys, bench.overall(sets, keys, issue))
     assert "target < 60 s" in capsys.readouterr().out
+
+
+def test_simulator_rounds_give_the_median_of_each_rounds_ratio():
+    """``--rounds``: per batch size the median over rounds of every figure, the ratios the
+    median of each round's own ratio (rates measured minutes apart), the rounds kept."""
+    sim = bench_script("simulator")
+    rounds = [
+        [{"sets": 256, "wagon_s_per_wall_s": w, "ratio_to_kernel": w / k, "failed": f}]
+        for w, k, f in ((600.0, 1500.0, 0), (700.0, 1800.0, 1), (650.0, 1600.0, 0))
+    ]
+    (row,) = sim._medians(rounds)
+    assert row["sets"] == 256
+    assert row["wagon_s_per_wall_s"] == 650.0
+    assert row["ratio_to_kernel"] == pytest.approx(np.median([0.4, 700 / 1800, 650 / 1600]))
+    assert row["failed"] == 1  # any round's failures are reported
+    assert [r["wagon_s_per_wall_s"] for r in row["rounds"]] == [600.0, 700.0, 650.0]

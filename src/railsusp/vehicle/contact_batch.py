@@ -8,8 +8,10 @@ sixteen contact points in step until the slowest has converged, Kalker creep and
 saturation; cube root, sine and cosine from :mod:`railsusp.vehicle.vector_math` (the C
 library's are not vectorised). Two parts run wheel by wheel: the contact table reads (gathers,
 which LLVM does not vectorise next to stores whose bounds it cannot check) and the flange's
-shared-rail 2 x 2 solve where a flange touches. Forces agree with the scalar kernel to
-round-off and the failure codes are the same (tests/vehicle/test_contact_batch.py).
+shared-rail 2 x 2 solve where a flange touches, started from the wheel's solution of the
+previous evaluation (rows ``W_U1``, ``W_U2``;
+:func:`railsusp.vehicle.wheel_rail.shared_rail_newton`). Forces agree with the scalar kernel
+to round-off and the failure codes are the same (tests/vehicle/test_contact_batch.py).
 
 Every value lives in the work vector ``wk`` (rows of eight wheels, ``W_*``), which the right-
 hand side keeps in its output work array (``layout.OUT_CONTACT``): nothing is allocated.
@@ -58,11 +60,13 @@ WS0 = L.WS0
 NW = 8  # wheels
 
 # rows of the work vector: per wheel, the inputs from the right-hand side, the wheelset's
-# state and the results; per contact point (tread p = 0, flange p = 1, from row _P + p _NP)
-# the table values read, the geometry and the Hertz solve
+# state, the results and the shared-rail solution (W_U1, W_U2: u of tread and flange, kept to
+# the next evaluation as its warm start; 0 where the wheel had none); per contact point
+# (tread p = 0, flange p = 1, from row _P + p _NP) the table values read, the geometry and
+# the Hertz solve
 (W_KAPPA, W_RY, W_RZ, W_RVY, W_RVZ, W_Y, W_Z, W_ROLL, W_YAW, W_VY, W_VZ, W_VROLL, W_VYAW,
- W_SIDE, W_H0, W_Z0, W_CODE, W_FY, W_FZ, W_MX, W_MZ) = range(21)  # fmt: skip
-_P = 21
+ W_SIDE, W_H0, W_Z0, W_CODE, W_FY, W_FZ, W_MX, W_MZ, W_U1, W_U2) = range(23)  # fmt: skip
+_P = 23
 (P_LEAD, P_LAT, P_H, P_R, P_DELTA, P_G, P_F11, P_F22, P_F23, P_XC, P_XPOS, P_A, P_CD, P_SD,
  P_RD, P_RATE, P_M, P_C, P_D, P_U, P_N) = range(21)  # fmt: skip
 _NP = 21
@@ -343,16 +347,20 @@ def contact_forces_8(x, ctab, y0, dy, H0L, H0R, K, wk):
     two = K[I_NPTS] > 1.5
     for c in range(NW):
         if two and wk[fl + P_A * NW + c] > 0.0:  # the flange touches: both on one rail
-            n0, n1 = shared_rail_newton(
+            n0, n1, v0, v1 = shared_rail_newton(
                 wk[t + P_N * NW + c], wk[t + P_U * NW + c], wk[fl + P_N * NW + c],
                 wk[fl + P_U * NW + c], wk[t + P_A * NW + c], wk[t + P_G * NW + c],
                 wk[fl + P_A * NW + c], wk[fl + P_G * NW + c], wk[t + P_M * NW + c],
                 wk[t + P_SD * NW + c] * wk[fl + P_SD * NW + c] * K[I_INVKRY]
                 + wk[t + P_CD * NW + c] * wk[fl + P_CD * NW + c] * K[I_INVKRZ],
-                wk[fl + P_M * NW + c],
+                wk[fl + P_M * NW + c], wk[W_U1 * NW + c], wk[W_U2 * NW + c],
             )  # fmt: skip
             wk[t + P_N * NW + c] = n0
             wk[fl + P_N * NW + c] = n1
+            wk[W_U1 * NW + c] = v0
+            wk[W_U2 * NW + c] = v1
         else:
             wk[fl + P_N * NW + c] = 0.0
+            wk[W_U1 * NW + c] = 0.0
+            wk[W_U2 * NW + c] = 0.0
     _forces(K, wk)

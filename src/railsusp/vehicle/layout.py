@@ -128,7 +128,7 @@ OUT_FLANGE_RATE = N_OUT
 #: then the eight wheels' contact work vector (railsusp.vehicle.contact_batch), so that the
 #: right-hand side allocates nothing
 OUT_CONTACT = N_OUT + 1
-N_CONTACT_WORK = 63 * 8
+N_CONTACT_WORK = 65 * 8
 N_OUT_WORK = OUT_CONTACT + N_CONTACT_WORK
 
 #: wheel names, output order: wheelset w1 (leading) .. w4, left / right in the running direction

@@ -190,7 +190,7 @@ def _residual(x, f, r, m, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, ka
     times the slip from the reference displacements, held to the friction limits as the
     equations hold them (a state beyond its limit relaxes at the rate that the limit minus
     the state over SLIDER_RELAXATION gives). Returns (code, max |r|)."""
-    o = np.empty(L.N_OUT_WORK)
+    o = np.zeros(L.N_OUT_WORK)  # (zero: no warm start of the shared-rail solve from garbage)
     u = np.empty(L.N_AUX)
     _slip(x, kappa, K, u)
     for i in range(L.N_AUX):
