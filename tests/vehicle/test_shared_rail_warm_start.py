@@ -1,11 +1,11 @@
 """The shared-rail solve of tread and flange started warm from the previous evaluation's
-solution (vehicle/wheel_rail.py, issue 24): the cold start's forces to round-off where it
+solution (vehicle/normal_contact.py, issue 24): the cold start's forces to round-off where it
 stands, the cold start's own result, bit for bit, where a contact is nearly opened."""
 
 import numpy as np
 import pytest
 
-from railsusp.vehicle.wheel_rail import (
+from railsusp.vehicle.normal_contact import (
     WARM_RATIO,
     hertz_rail_solve,
     shared_rail_newton,
@@ -77,7 +77,7 @@ def test_a_nearly_opened_flange_keeps_the_cold_start_result_bit_for_bit():
 
 def _tight(a2: float) -> tuple[float, float]:
     """u of tread and flange converged far beyond the solve's own stop (40 Newton steps)."""
-    from railsusp.vehicle.wheel_rail import shared_rail_step
+    from railsusp.vehicle.normal_contact import shared_rail_step
 
     m11, m12, m22 = _compliance()
     u1 = hertz_rail_solve(A_TREAD, G_TREAD, 1.0 / m11)[1]

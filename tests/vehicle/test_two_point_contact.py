@@ -8,13 +8,10 @@ from railsusp.conditions import get_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.params import ParameterSet
 from railsusp.vehicle import layout as L
+from railsusp.vehicle.normal_contact import hertz_rail_normal_force, shared_rail_normal_forces
 from railsusp.vehicle.setup import SolverSettings, constants, contact_arrays
 from railsusp.vehicle.wagon import load_wagon
-from railsusp.vehicle.wheel_rail import (
-    hertz_rail_normal_force,
-    shared_rail_normal_forces,
-    wheel_rail_forces,
-)
+from railsusp.vehicle.wheel_rail import wheel_rail_forces
 
 G_TREAD, G_FLANGE = 4.2e-8, 5.8e-8  # Hertz constants of the C80 tread and flank, m/N^(2/3)
 K_RY, K_RZ = 40e6, 150e6  # rail support per wheel, N/m

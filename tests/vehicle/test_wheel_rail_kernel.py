@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+from railsusp.vehicle.normal_contact import hertz_rail_solve
 from railsusp.vehicle.track_lookup import track_frame, track_point, track_rate, track_value
-from railsusp.vehicle.wheel_rail import hertz_rail_solve
 
 
 @pytest.mark.parametrize("G", [2e-8, 4.2e-8, 5.8e-8, 2e-6])

@@ -10,7 +10,7 @@ library's are not vectorised). Two parts run wheel by wheel: the contact table r
 which LLVM does not vectorise next to stores whose bounds it cannot check) and the flange's
 shared-rail 2 x 2 solve where a flange touches, started from the wheel's solution of the
 previous evaluation (rows ``W_U1``, ``W_U2``;
-:func:`railsusp.vehicle.wheel_rail.shared_rail_newton`). Forces agree with the scalar kernel
+:func:`railsusp.vehicle.normal_contact.shared_rail_newton`). Forces agree with the scalar kernel
 to round-off and the failure codes are the same (tests/vehicle/test_contact_batch.py).
 
 Every value lives in the work vector ``wk`` (rows of eight wheels, ``W_*``), which the right-
@@ -37,13 +37,9 @@ import numpy as np
 
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.kernel_cache import FASTMATH, NO_RUNTIME  # (sets the cache first)
+from railsusp.vehicle.normal_contact import HERTZ_ITERATIONS, HERTZ_TOLERANCE, shared_rail_newton
 from railsusp.vehicle.vector_math import cbrt_positive, cbrt_rough, sin_cos
-from railsusp.vehicle.wheel_rail import (
-    HERTZ_ITERATIONS,
-    HERTZ_TOLERANCE,
-    shared_rail_newton,
-    table_index,
-)
+from railsusp.vehicle.wheel_rail import table_index
 
 _K = L.K
 I_R0, I_MU, I_CREEP = _K["r0"], _K["mu"], _K["creep_factor"]
@@ -202,7 +198,7 @@ def _geometry(K, wk, p):
 @nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, error_model="numpy")
 def _hertz_steps(wk):
     """Newton steps of the Hertz-on-elastic-rail cubic u^3 + c u^2 = d of all sixteen points
-    together (:func:`railsusp.vehicle.wheel_rail.hertz_rail_solve`; u = 0 where a point does
+    together (:func:`railsusp.vehicle.normal_contact.hertz_rail_solve`; u = 0 where a point does
     not touch), until every point's step is below HERTZ_TOLERANCE of its u: a point that
     converged earlier takes steps of round-off size. Stores N = u^3."""
     u0 = (_P + P_U) * NW

@@ -53,14 +53,14 @@ NO_RUNTIME: dict[str, bool] = {"_nrt": False} if _has_option("_nrt") else {}
 #: the modules whose kernels compile with :data:`NO_RUNTIME` (allocating nothing)
 NO_RUNTIME_SOURCES = (
     "model.py", "body_bolster.py", "contact_batch.py", "wedge_batch.py", "suspension.py",
-    "track_lookup.py", "wheel_rail.py", "vector_math.py",
+    "track_lookup.py", "wheel_rail.py", "normal_contact.py", "vector_math.py",
 )  # fmt: skip
 
 #: the modules with compiled kernels, the layout they read, and this one (the flags above)
 KERNEL_SOURCES = (
     "kernel_cache.py", "layout.py", "suspension.py", "track_lookup.py", "wheel_rail.py", "model.py",
     "integrate.py", "decay_runs.py", "wheelset.py", "settle.py", "vector_math.py",
-    "contact_batch.py", "wedge_batch.py", "body_bolster.py",
+    "contact_batch.py", "wedge_batch.py", "body_bolster.py", "normal_contact.py",
 )  # fmt: skip
 
 
