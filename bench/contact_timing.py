@@ -65,9 +65,12 @@ def _scalar(states, rails, K, ctab, y0, dy, H0L, H0R, res, reps):
 
 
 @nb.njit
-def _simd(states, rails, K, ctab, y0, dy, H0L, H0R, res, reps, wk):
+def _simd(states, rails, K, ctab, y0, dy, H0L, H0R, res, reps, wks):
+    """States 2 i and 2 i + 1 (rhs_profile's pairs one step apart) share work vector i, so
+    that each shared-rail solve starts warm from a state one step away, as in a run."""
     for _ in range(reps):
         for j in range(states.shape[0]):
+            wk = wks[j // 2]
             for r in range(5):
                 for c in range(8):
                     wk[RAIL_ROWS[r] * 8 + c] = rails[j, r, c]
@@ -84,7 +87,7 @@ def time_contact(states_and_front, reps: int, repeats: int) -> dict:
     rails = rail_inputs(args, s_front)
     common = (states, rails, K, ctab, y0, dy, H0L, H0R)
     res = {"scalar": np.zeros((len(states), 2, 8)), "simd": np.zeros((len(states), 2, 8))}
-    extra = {"scalar": (), "simd": (np.zeros(CB.N_WORK),)}
+    extra = {"scalar": (), "simd": (np.zeros(((len(states) + 1) // 2, CB.N_WORK)),)}
     fns = {"scalar": _scalar, "simd": _simd}
     row = {}
     for name, fn in fns.items():

@@ -7,6 +7,7 @@ import pytest
 
 from railsusp.vehicle.normal_contact import (
     WARM_RATIO,
+    _warm_steps,
     hertz_rail_solve,
     shared_rail_newton,
 )
@@ -48,8 +49,12 @@ def test_a_warm_start_gives_the_cold_start_forces_to_round_off(a2_mm, moved):
     of the integrator away), the loads equal the cold start's to 1e-14."""
     cold = _solve(a2_mm * 1e-3)
     assert cold[0] > 0.0 and cold[1] > 0.0
-    warm = _solve(a2_mm * 1e-3, cold[2] * (1.0 + moved), cold[3] * (1.0 - moved))
+    start = (cold[2] * (1.0 + moved), cold[3] * (1.0 - moved))
+    warm = _solve(a2_mm * 1e-3, *start)
     np.testing.assert_allclose(warm[:2], cold[:2], rtol=1e-14)
+    # the result is the warm steps' (which differ from the cold steps' in the last bits in
+    # most of these cases): the warm start is taken
+    assert warm[2:4] == _warm_steps(*start, *_problem(a2_mm * 1e-3))[:2]
     # the warm start's result is kept for the next evaluation: u = N^(1/3)
     np.testing.assert_allclose(np.array(warm[2:4]) ** 3, warm[:2], rtol=1e-15)
 
@@ -88,17 +93,40 @@ def _tight(a2: float) -> tuple[float, float]:
     return u1, u2
 
 
-@pytest.mark.parametrize("w", [(0.0, 1.0), (1.0, 0.0), (np.nan, np.nan), (-1.0, -1.0)])
+@pytest.mark.parametrize(
+    "w",
+    [
+        (0.0, 1.0), (1.0, 0.0), (np.nan, np.nan), (-1.0, -1.0),
+        (1e-300, 1e-300), (1e-300, 30.0), (6.9e-310, 6.9e-310),  # uninitialised memory
+    ],
+)  # fmt: skip
 def test_no_warm_start_or_a_bad_one_gives_the_cold_start(w):
-    """A wheel with no previous solution (0), or a work vector holding garbage, is solved
-    from the single-contact start: the cold result bit for bit."""
+    """A wheel with no previous solution (0), or a work vector holding garbage (NaN,
+    negative, denormal: a start near zero would underflow the step's determinant and give
+    an infinite force or a division error), is solved from the single-contact start: the
+    cold result bit for bit."""
     cold = _solve(1.0e-3)
     assert _solve(1.0e-3, *w)[:2] == cold[:2]
 
 
-def test_a_warm_start_far_above_the_solution_is_held_below_the_single_contact_ones():
-    """A warm start above the single-contact solutions (upper bounds of the shared ones) is
-    clipped to them, so it starts no worse than the cold start."""
+def _problem(a2: float) -> tuple:
+    """(single-contact u1, u2, and the shared-rail equations' a1, g1, a2, g2, m11, m12, m22)."""
+    m11, m12, m22 = _compliance()
+    u1 = hertz_rail_solve(A_TREAD, G_TREAD, 1.0 / m11)[1]
+    u2 = hertz_rail_solve(a2, G_FLANGE, 1.0 / m22)[1]
+    return u1, u2, A_TREAD, G_TREAD, a2, G_FLANGE, m11, m12, m22
+
+
+@pytest.mark.parametrize("scale", [1.001, 0.999, 1e3, np.inf])
+def test_the_warm_start_stands_from_near_the_solution_and_from_above_the_bounds(scale):
+    """From the solution moved a little, the warm steps converge and their result is used;
+    from far above (or infinity) they start at the single-contact solutions, from which they
+    converge (without that clamp, eight steps from 1000 times the solution would not)."""
     cold = _solve(1.0e-3)
-    warm = _solve(1.0e-3, 1e3 * cold[4], 1e3 * cold[5])
-    np.testing.assert_allclose(warm[:2], cold[:2], rtol=1e-14)
+    u1, u2, *equations = _problem(1.0e-3)
+    v1, v2, stands = _warm_steps(cold[2] * scale, cold[3] * scale, u1, u2, *equations)
+    assert stands
+    np.testing.assert_allclose([v1**3, v2**3], cold[:2], rtol=1e-14)
+    # and a wrong force never stands: a start that ends outside (0, inf) does not
+    assert not _warm_steps(1e-300, 1e-300, u1, u2, *equations)[2]
+    assert not _warm_steps(1e-300, cold[3], u1, u2, *equations)[2]

@@ -99,7 +99,7 @@ WARM_TOLERANCE = 1.0e-8
 WARM_RATIO = 2.0
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always", error_model="numpy")
 def shared_rail_step(u1, u2, a1, g1, a2, g2, m11, m12, m22):
     """Newton step (d1, d2) in (u1, u2) of the shared-rail equations g_i u_i^2 + sum_j m_ij
     u_j^3 = a_i (:func:`shared_rail_normal_forces`): the new point is u - d."""
@@ -115,12 +115,16 @@ def shared_rail_step(u1, u2, a1, g1, a2, g2, m11, m12, m22):
     return (j22 * f1 - j12 * f2) * inv_det, (j11 * f2 - j21 * f1) * inv_det
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always", error_model="numpy")
 def _warm_steps(w1, w2, u1, u2, a1, g1, a2, g2, m11, m12, m22):
     """The shared-rail solve from the warm start (w1, w2) held below the single-contact
     solutions (u1, u2): (u1, u2, whether it stands). It does not where a step leaves a u at
-    or below zero (or NaN), where SHARED_RAIL_ITERATIONS steps do not converge, or where a
-    single-contact solution lies more than WARM_RATIO above the result."""
+    or below zero (or NaN), where SHARED_RAIL_ITERATIONS steps do not converge, or where the
+    result is not within WARM_RATIO of the single-contact solutions (below them by more: a
+    nearly opened contact, see WARM_RATIO; above them: an overflowed step, since the shared
+    loads lie below the single ones). Written in N, the equations' Jacobian is positive
+    definite (a diagonal plus the rail's compliance as a Gram matrix), so they have one
+    positive root: a start that converges has found it."""
     v1 = min(w1, u1)
     v2 = min(w2, u2)
     for _ in range(SHARED_RAIL_ITERATIONS):
@@ -130,14 +134,16 @@ def _warm_steps(w1, w2, u1, u2, a1, g1, a2, g2, m11, m12, m22):
         if not (v1 > 0.0 and v2 > 0.0):
             return v1, v2, False
         if abs(d1) <= WARM_TOLERANCE * v1 and abs(d2) <= WARM_TOLERANCE * v2:
-            return v1, v2, u1 <= WARM_RATIO * v1 and u2 <= WARM_RATIO * v2
+            near1 = u1 <= WARM_RATIO * v1 and v1 <= WARM_RATIO * u1
+            return v1, v2, near1 and u2 <= WARM_RATIO * v2 and v2 <= WARM_RATIO * u2
     return v1, v2, False
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME)
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, error_model="numpy")
 def shared_rail_newton(n1, u1, n2, u2, a1, g1, a2, g2, m11, m12, m22, w1, w2):
     """:func:`shared_rail_normal_forces` from the single-contact solutions (n_i, u_i = n_i^(1/3);
-    0 where a contact does not touch), started warm from (w1, w2) where both are positive.
+    0 where a contact does not touch), started warm from (w1, w2) where they lie within
+    WARM_RATIO below those.
 
     The cold start is the single-contact solutions (upper bounds, since m12 > 0), from which
     the steps fall monotonically: 1e-1, 1e-2, 1e-4, 1e-8 of u, five steps. The warm start is
@@ -145,12 +151,17 @@ def shared_rail_newton(n1, u1, n2, u2, a1, g1, a2, g2, m11, m12, m22, w1, w2):
     moves it little, and two or three steps converge. Where it does not stand
     (:func:`_warm_steps`, WARM_RATIO) the cold start is used. Returns (N1, N2, w1, w2): the
     next evaluation's warm start, 0 where both contacts did not carry load together.
+    Compiled with ``error_model="numpy"``: a division by zero gives inf or NaN, which the
+    warm steps reject, instead of raising inside the parallel integration.
     """
     if n2 == 0.0 or a2 - m12 * n1 <= 0.0:
         return n1, 0.0, 0.0, 0.0
     if n1 == 0.0 or a1 - m12 * n2 <= 0.0:
         return 0.0, n2, 0.0, 0.0
-    if w1 > 0.0 and w2 > 0.0:
+    # a start below half the single-contact solutions is not tried: the result must lie
+    # within WARM_RATIO of them to stand, and a start near zero (uninitialised memory) would
+    # underflow the Newton step's determinant (NaN and 0 fail the comparison too)
+    if u1 <= WARM_RATIO * w1 and u2 <= WARM_RATIO * w2:
         v1, v2, ok = _warm_steps(w1, w2, u1, u2, a1, g1, a2, g2, m11, m12, m22)
         if ok:
             return v1 * v1 * v1, v2 * v2 * v2, v1, v2
