@@ -416,6 +416,15 @@ def test_measured_recordings_the_runs_surrogates_cannot_serve_are_refused(tmp_pa
     )
     line = run_refused(tmp_path, toml(f'measured = "{fast}"'))
     assert "recording 'short' has speed_kmh = 40.0, the run's condition 'short' 60.0" in line
+    # the statistics GPs the same, by their own check (skipped before stop 77: the run
+    # failed at the estimate stage after four stages)
+    line = run_refused(tmp_path, toml(f'measured = "{fast}"', "", 'model = "gp-stats"'))
+    assert line.endswith(
+        f"field.measured = '{fast}': recording 'short': the statistics surrogate of its "
+        "condition is trained on another one, which differs in speed_kmh (speed_kmh 40.0 "
+        "against 60.0); accepted recordings that differ from it only in the track and the "
+        "record length"
+    )
     # another record length and another track are what a recording may differ in
     longer = _field_of(
         tmp_path / "longer",
@@ -424,6 +433,38 @@ def test_measured_recordings_the_runs_surrogates_cannot_serve_are_refused(tmp_pa
     )
     (tmp_path / "ok.toml").write_text(toml(f'measured = "{longer}"'))
     assert load_config(tmp_path / "ok.toml").field.measured == str(longer)
+
+
+def test_a_measured_recording_sampled_otherwise_than_its_condition_is_refused_for_refine(
+    tmp_path,
+):
+    """A sidecar whose condition.n_steps is not its table's rows: the refinement and the
+    statistic "aligned" compare sample by sample, so that failed at the estimate stage,
+    after the campaign, the sensitivity, the surrogates and the field (stop 77's hunt)."""
+    import json
+
+    cond = get_condition("straight", name="short", duration_s=1.0, n_steps=50, lead_in_m=20.0)
+    field = _field_of(tmp_path / "f", cond, with_track=True)
+    sidecar = field / "short.json"
+    doc = json.loads(sidecar.read_text())
+    doc["condition"]["n_steps"] = 100
+    sidecar.write_text(json.dumps(doc))
+    conditions = 'conditions = [{base="straight", name="short", duration_s=1.0, n_steps=100, '
+    conditions += "lead_in_m=20.0}]"
+    for estimate, use in (
+        ("refine = true", "estimate.refine (the output-error refinement)"),
+        ('statistic = "aligned"', "the time-aligned comparison (statistic 'aligned')"),
+    ):
+        text = toml(f'measured = "{field}"', estimate).replace(f"conditions = {SHORT}", conditions)
+        line = run_refused(tmp_path, text)
+        assert (
+            f"field.measured = '{field}': recording 'short': condition.n_steps 100 samples its "
+            "1 s at 100 Hz, its table has 50 rows at 50 Hz; " + use
+        ) in line
+    # without a sample-by-sample comparison the recording is read at its own rate
+    ok = tmp_path / "ok.toml"
+    ok.write_text(toml(f'measured = "{field}"').replace(f"conditions = {SHORT}", conditions))
+    assert load_config(ok).field.measured == str(field)
 
 
 def test_measured_recordings_outside_a_network_sets_training_are_refused(tmp_path):

@@ -276,6 +276,11 @@ def test_statistics_gps_are_held_to_their_wheel_wagon_and_rate(gp_stats, tmp_pat
         (["--wagon", "nope"], "--wagon nope: wagon file nope does not exist"),
         (["--parameters", "X13,X15", "--refine", "--held-prior", "X15=150:190"],
          "--held-prior X15: estimated (--parameters X13,X15: X13, X15), not held"),
+        # spaces around a statistic: read as aligned here too (the prior was dropped)
+        (["--statistic", " aligned", "--refine", "--held-prior", "X19=40000:45000"],
+         "--held-prior: only with --refine and a statistic other than aligned"),
+        (["--statistic", "mean+ aligned", "--refine", "--held-prior", "X19=40000:45000"],
+         "--held-prior: only with --refine and a statistic other than aligned"),
     ],
 )  # fmt: skip
 def test_options_are_named_and_those_of_a_step_not_run_refused(tmp_path, args, message):

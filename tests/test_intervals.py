@@ -274,6 +274,33 @@ def test_identified_only_by_a_narrow_statistical_interval(parameter, value, belo
             assert not iv.contains(truth)
 
 
+@settings(max_examples=300, deadline=None)
+@given(
+    parameter=st.sampled_from(MAIN_SUSPENSION),
+    value=st.floats(0.0, 1.0),
+    ends=st.tuples(st.floats(0.0, 1.0), st.floats(0.0, 1.0)).map(sorted),
+    method=st.sampled_from([POSTERIOR, REFINEMENT]),
+)
+def test_a_point_outside_its_interval_is_judged_with_it(parameter, value, ends, method):
+    """A refinement's interval lies beside its point where the held parameters' prior is off
+    nominal (found at stop 77: X14 = 10.13 MN/m with [6.06, 7.79], called identified). An
+    identified estimate still excludes every value 25 % of the range from it."""
+    iv = interval(parameter, value, ends[0], ends[1], method)
+    if not identification(iv):
+        lo, hi = spec(parameter).bounds
+        for off in (-0.25, 0.25):
+            assert not iv.contains(iv.value_si + off * (hi - lo))
+
+
+def test_the_stop_77_case_is_not_identified():
+    """X14 = 10.13 MN/m, its 90 % interval 6.06-7.79 MN/m (17 % of range, within the limit;
+    the point 26 % of range above it): not identified, and the reason says why."""
+    iv = ParameterInterval("X14", 10.13e6, 6.06e6, 7.79e6, 0.9, REFINEMENT)
+    assert iv.width_pct_range < IDENTIFIED_WIDTH_PCT
+    why = identification(iv)
+    assert why.startswith("the estimate lies outside its 90 % interval (17.3 % of range wide)")
+
+
 def test_a_point_25_percent_off_with_a_wide_interval_is_not_identified(tmp_path):
     """The case of the issue: X14 estimated 25 % of its range from the truth, called
     identified. With a 90 % interval 60 % of the range wide it is not; with a narrow one
@@ -370,3 +397,36 @@ def test_a_held_prior_scales_the_held_part_and_an_offset_adds_to_it(tmp_path):
     assert refinement_intervals(rb).details["held_parameters_assumed"]["X19"][
         "held_at_display"
     ] == pytest.approx(spec("X19").to_display(base["X19"]))
+
+
+def test_a_refined_interval_cut_by_the_range_is_judged_uncut(tmp_path):
+    """X14 estimated on its upper bound with error quantiles of -17.2 and +17.2 % of range
+    (an uncut interval 34 % wide): the range cuts it to 17 % and it read as identified (stop
+    77's hunt). The verdict now reads the quantiles; mid-range they are the width itself."""
+    from railsusp.estimate.intervals import from_error_quantiles
+
+    lo, hi = spec("X14").bounds
+    span = hi - lo
+    for x, identified in ((hi, False), (lo + 0.5 * span, False)):
+        iv = from_error_quantiles(
+            ["X14"], np.array([x]), np.array([-0.172 * span]), np.array([0.172 * span]),
+            details={"error_quantiles_pct_range": {"X14": [-17.2, 17.2]}},
+        )  # fmt: skip
+        doc = {"parameters": ["X14"], "estimate_display": {"X14": x / 1e6}}
+        doc["intervals"] = iv.to_dict()
+        write_json(tmp_path / "estimate.json", doc)
+        why = identification_issues(json.loads((tmp_path / "estimate.json").read_text()))
+        assert bool(why["X14"]) is not identified
+    assert why["X14"] == "90 % interval 34.4 % of range wide"  # mid-range: as before
+    iv = from_error_quantiles(
+        ["X14"],
+        np.array([hi]),
+        np.array([-0.172 * span]),
+        np.array([0.172 * span]),
+        details={"error_quantiles_pct_range": {"X14": [-17.2, 17.2]}},
+    )
+    assert iv["X14"].width_pct_range == pytest.approx(17.2)
+    doc = {"parameters": ["X14"], "estimate_display": {"X14": hi / 1e6}, "intervals": iv.to_dict()}
+    assert identification_issues(doc)["X14"] == (
+        "90 % interval 34.4 % of range wide, cut by the range's bound to 17.2 %"
+    )

@@ -255,3 +255,23 @@ def test_the_tolerances_know_whether_the_wagon_data_gave_them(tmp_path):
     # a run recorded before the source was: other than the defaults, the wagon's
     assert Tolerances.from_dict({"default_pct": 20.0, "parameters": {}}).from_wagon
     assert not Tolerances.from_dict({"default_pct": 15.0, "parameters": {}}).from_wagon
+
+
+def test_an_interval_beside_its_point_is_said_where_it_lies(tmp_path):
+    """A refinement's interval lies beside its point where the held parameters' prior is
+    off nominal (stop 77). X13 estimated 10.5 MN/m (within a 25.5 % tolerance of 14) with
+    its 90 % interval at 9.0-10.0, wholly below the band: identified (together 10.7 % of
+    range) and within tolerance by its point, and the note says the interval lies beyond."""
+    from railsusp.estimate.intervals import REFINEMENT, Intervals, ParameterInterval
+
+    run = make_run(tmp_path, {"X13": 10.5, "X17": 1.9}, {})
+    doc = json.loads((run / "estimate" / "estimate.json").read_text())
+    items = (
+        ParameterInterval("X13", 10.5e6, 9.0e6, 10.0e6, 0.9, REFINEMENT),
+        ParameterInterval("X17", 1.9e6, 1.85e6, 1.95e6, 0.9, REFINEMENT),
+    )
+    doc["intervals"] = Intervals(REFINEMENT, 0.9, items).to_dict()
+    write(run / "estimate" / "estimate.json", doc)
+    t = summary.estimate_table(run, Tolerances(25.5))
+    assert t.loc["X13"].verdict == summary.WITHIN
+    assert t.loc["X13"].note == "the interval lies wholly beyond the tolerance"

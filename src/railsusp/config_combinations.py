@@ -207,8 +207,15 @@ def check_recordings_served(cfg: Any, conds: list, recordings: list, bad: Any) -
                 "accepted recordings named as a condition of the run (set conditions to the "
                 "recordings' conditions)"
             )
-        if cfg.surrogate.model == "gp-stats":
-            continue  # the statistics GPs are looked up by name; their fields not checked
+        if cfg.surrogate.model == "gp-stats":  # the statistics GPs' own check, run now
+            from railsusp.estimate.statistics import parse_statistics
+            from railsusp.estimate.statistics_forces import check_served_condition
+
+            try:
+                check_served_condition(c, rc, parse_statistics(cfg.estimate.statistic))
+            except RailsuspInputError as exc:
+                raise bad(f"field.measured = {cfg.field.measured!r}: {exc}") from None
+            continue
         differ = c.differences(rc, TRACK_AND_LENGTH_FIELDS)
         if differ:
             name = differ[0]

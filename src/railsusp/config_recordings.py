@@ -59,6 +59,7 @@ def check_field_options(cfg: Any, conds: list, recordings: list, bad: Any) -> No
     blind = [r.condition.name for r in recordings if r.condition.track_geometry is None]
     own_tracks = _own_tracks(cfg, conds)
     _check_measured_track(cfg, bad, blind, own_tracks)
+    _check_measured_time_base(cfg, recordings, bad)
     if (f.with_track or f.track_noise_mm) and (f.measured or f.recording) is not None:
         raise bad("field.with_track and field.track_noise_mm apply to synthetic recordings only")
     # set and not the default: a run's recorded configuration (pipeline.json, every field
@@ -163,6 +164,27 @@ def _check_measured_track(cfg: Any, bad: Any, blind: list[str], own_tracks: bool
                 "no track geometry (condition.track_geometry, docs/data-format.md), which "
                 f"time-aligned comparison needs; set {instead}"
             )
+
+
+def _check_measured_time_base(cfg: Any, recordings: list, bad: Any) -> None:
+    """A measured folder's recordings compared sample by sample (``estimate.refine``, the
+    statistic ``aligned``) need each sidecar's ``condition.n_steps`` to be its table's rows
+    (:func:`~railsusp.estimate.comparison.check_time_base`): refused now, not at the
+    estimate stage after the campaign, the sensitivity, the surrogates and the field."""
+    if cfg.field.measured is None or not recordings:
+        return
+    from railsusp.estimate.comparison import check_time_base
+
+    uses = []
+    if cfg.estimate.refine:
+        uses.append("estimate.refine (the output-error refinement)")
+    if ALIGNED in cfg.estimate.statistic.split("+"):
+        uses.append("the time-aligned comparison (statistic 'aligned')")
+    for use in uses:
+        try:
+            check_time_base(recordings, use)
+        except RailsuspInputError as exc:
+            raise bad(f"field.measured = {cfg.field.measured!r}: {exc}") from None
 
 
 def check_recording_keys(cfg: Any, bad: Any) -> None:

@@ -200,8 +200,12 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
                 reaches_in = row["high"] >= band[0] and row["low"] <= band[1]
                 if single:
                     row["note"] = "a one-point Pareto set: no spread to judge the uncertainty"
+                elif inside and not reaches_in:
+                    row["note"] = "the interval lies wholly beyond the tolerance"
                 elif inside and reaches_out:
                     row["note"] = "the interval reaches beyond the tolerance"
+                elif not inside and not reaches_out:
+                    row["note"] = "the interval lies wholly within the tolerance"
                 elif not inside and reaches_in:
                     row["note"] = "the interval reaches back within the tolerance"
         if on_range_bound([p], [v * s.scale])[0]:

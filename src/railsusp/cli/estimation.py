@@ -223,7 +223,9 @@ def estimate(
             ("--preview-s", preview_s, NSGA_RANGES["preview_s"]),
         ):
             check_range(name, value, low, high)
-        parse_statistics(statistic)
+        # checked and in its canonical spelling (" aligned" read as a statistic other than
+        # aligned where the text was tested, and was stored so)
+        statistic = "+".join(parse_statistics(statistic))
         # options of a step that does not run: refused, not ignored (typed, even as the
         # default: click's parameter source tells a typed value from one left out)
         typed = given_options("refine_evaluations", "refine_screen", "refine_starts")

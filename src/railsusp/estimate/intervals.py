@@ -113,6 +113,15 @@ class ParameterInterval:
         return 100.0 * (self.high_si - self.low_si) / (hi - lo)
 
     @property
+    def span_pct_range(self) -> float:
+        """Width of the smallest range holding the interval and the point, % of the
+        parameter's range: the width where the point lies inside, more where it does not (a
+        refinement's interval shifted by the held parameters' prior off nominal)."""
+        lo, hi = spec(self.parameter).bounds
+        low, high = min(self.low_si, self.value_si), max(self.high_si, self.value_si)
+        return 100.0 * (high - low) / (hi - lo)
+
+    @property
     def statistical(self) -> bool:
         """Whether the interval holds the truth with a stated probability."""
         return self.method in STATISTICAL and self.level is not None
@@ -310,7 +319,10 @@ def intervals_of(doc: Mapping[str, Any], level: float = LEVEL) -> Intervals:
 
 def identification(interval: ParameterInterval, limit_pct: float = IDENTIFIED_WIDTH_PCT) -> str:
     """Why the parameter is not identified by its interval ('' when it is): identified only
-    by a statistical interval at most ``limit_pct`` % of its range wide."""
+    by a statistical interval at most ``limit_pct`` % of its range wide that, with the point
+    estimate, spans at most that (a refinement's interval lies beside its point where the
+    held parameters' prior is off nominal: a value 25 % of the range from the estimate may
+    then lie inside it)."""
     width = interval.width_pct_range
     if not interval.statistical:
         return (
@@ -322,4 +334,11 @@ def identification(interval: ParameterInterval, limit_pct: float = IDENTIFIED_WI
         return f"its {pct} interval is the whole range: the recordings do not fix it"
     if width > limit_pct:
         return f"{pct} interval {width:.1f} % of range wide"
+    span = interval.span_pct_range
+    if span > limit_pct:  # the point outside its interval: judged by both together
+        return (
+            f"the estimate lies outside its {pct} interval ({width:.1f} % of range wide), "
+            f"together {span:.1f} % of range (a value that far from the estimate is not ruled "
+            "out)"
+        )
     return ""

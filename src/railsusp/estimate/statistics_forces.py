@@ -24,6 +24,55 @@ from railsusp.estimate.statistics import recording_segments, series_statistics
 from railsusp.measured import Recording
 
 
+def check_served_condition(
+    trained: WorkingCondition,
+    condition: WorkingCondition,
+    statistics: Sequence[str] = (),
+    where: str = "",
+) -> None:
+    """Refuse, in one line, a recording's ``condition`` that statistics GPs trained on
+    ``trained`` do not serve (:meth:`StatisticsForces.check_condition`): any field but the
+    track's and the record length where they were trained on synthesised track (the seed
+    and stated accuracy alone on a measured one), and for the rate-dependent ``statistics``
+    another sampling rate. Also the configuration's check, before any stage runs."""
+    from railsusp.estimate.statistics import rate_dependent
+
+    # Trained on synthesised track, the GPs predict the average over track realisations,
+    # whatever the recording's seed, length or measured track. Trained on a measured
+    # track, they hold for that stretch of track only.
+    ignore = (
+        ("seed", "track_accuracy_mm")  # the accuracy changes the comparison only
+        if trained.track_geometry is not None
+        else TRACK_AND_LENGTH_FIELDS
+    )
+    diff = trained.differences(condition, ignore)
+    if diff:
+        ignored = (
+            "the seed and the stated accuracy (trained on a measured track)"
+            if trained.track_geometry is not None
+            else "the track and the record length"
+        )
+        pairs = ", ".join(
+            f"{f} {getattr(condition, f)!r} against {getattr(trained, f)!r}" for f in diff
+        )
+        raise RailsuspInputError(
+            f"recording {condition.name!r}: the statistics surrogate of its condition is "
+            f"trained on another one, which differs in {', '.join(diff)} ({pairs}); accepted "
+            f"recordings that differ from it only in {ignored}"
+        )
+    mine, theirs = 1.0 / trained.sample_interval, 1.0 / condition.sample_interval
+    bad = rate_dependent(statistics, mine, theirs)
+    if bad:
+        raise RailsuspInputError(
+            f"recording {condition.name!r}: statistic {'+'.join(bad)!r} depends on the "
+            f"sampling rate; its condition samples at {theirs:.6g} Hz (n_steps "
+            f"{condition.n_steps} over {condition.duration_s:g} s), the statistics "
+            f"surrogate{' in ' + where if where else ''} was trained at {mine:.6g} Hz: accepted "
+            "the mean, a recording at the training's rate, or surrogates trained at the "
+            "recording's"
+        )
+
+
 class StatisticsForces:
     """Statistics surrogates, one per condition name (a folder of ``<condition>/`` bundles
     with ``statistics.json``): predict the statistics directly, no series."""
@@ -70,38 +119,13 @@ class StatisticsForces:
         are sampled in (:func:`~railsusp.estimate.statistics.rate_dependent`), another
         sampling rate than the training's: a 100 Hz recording compared with the p99 of
         50 Hz records, whose content stops at 20 Hz. Called before any optimisation."""
-        from railsusp.estimate.statistics import rate_dependent
-
         model = self._models.get(condition.name)
         if model is None:
             raise RailsuspInputError(
                 f"recording {condition.name!r}: no statistics surrogate of that condition in "
                 f"{self.folder} (has {', '.join(self._models)})"
             )
-        # Trained on synthesised track, the GPs predict the average over track realisations,
-        # whatever the recording's seed, length or measured track. Trained on a measured
-        # track, they hold for that stretch of track only.
-        ignore = (
-            ("seed", "track_accuracy_mm")  # the accuracy changes the comparison only
-            if model.condition.track_geometry is not None
-            else TRACK_AND_LENGTH_FIELDS
-        )
-        diff = model.condition.differences(condition, ignore)
-        if diff:
-            raise RailsuspInputError(
-                f"the statistics surrogate for {condition.name!r} was trained for another "
-                f"condition: it differs in {', '.join(diff)}"
-            )
-        mine, theirs = 1.0 / model.condition.sample_interval, 1.0 / condition.sample_interval
-        bad = rate_dependent(statistics, mine, theirs)
-        if bad:
-            raise RailsuspInputError(
-                f"recording {condition.name!r}: statistic {'+'.join(bad)!r} depends on the "
-                f"sampling rate; its condition samples at {theirs:.6g} Hz (n_steps "
-                f"{condition.n_steps} over {condition.duration_s:g} s), the statistics "
-                f"surrogate in {self.folder} was trained at {mine:.6g} Hz: accepted the mean, "
-                "a recording at the training's rate, or surrogates trained at the recording's"
-            )
+        check_served_condition(model.condition, condition, statistics, str(self.folder))
 
     def predict_statistics(
         self,
