@@ -430,3 +430,18 @@ def test_a_refined_interval_cut_by_the_range_is_judged_uncut(tmp_path):
     assert identification_issues(doc)["X14"] == (
         "90 % interval 34.4 % of range wide, cut by the range's bound to 17.2 %"
     )
+
+
+def test_a_result_lacking_an_estimated_parameters_interval_says_so():
+    """An estimate.json edited so that one estimated parameter has no interval: one line
+    naming it (was a bare KeyError, 'error: e_bad: 'X14'' on the command line)."""
+    from railsusp.errors import RailsuspInputError
+
+    iv = ParameterInterval("X13", 14e6, 13e6, 15e6, 0.9, REFINEMENT)
+    doc = {
+        "parameters": ["X13", "X14"],
+        "estimate_display": {"X13": 14.0, "X14": 10.0},
+        "intervals": Intervals(REFINEMENT, 0.9, (iv,)).to_dict(),
+    }
+    with pytest.raises(RailsuspInputError, match=r"^intervals: none of X14, estimated"):
+        intervals_of(doc)

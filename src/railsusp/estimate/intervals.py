@@ -300,7 +300,17 @@ def intervals_of(doc: Mapping[str, Any], level: float = LEVEL) -> Intervals:
     which :class:`~railsusp.estimate.refine.Refinement` no longer reports) or else the
     Pareto set's range."""
     if doc.get("intervals"):
-        return Intervals.from_dict(doc["intervals"])
+        stored = Intervals.from_dict(doc["intervals"])
+        lacking = [p for p in doc.get("parameters", ()) if p not in stored]
+        if lacking:
+            from railsusp.errors import RailsuspInputError
+
+            raise RailsuspInputError(
+                f"intervals: none of {', '.join(lacking)}, estimated (parameters "
+                f"{', '.join(doc['parameters'])}): the result file was edited or damaged; "
+                "estimate again"
+            )
+        return stored
     params = list(doc["parameters"])
     x = ParameterSet(doc["estimate_display"], units="display")
     x_si = np.array([x[p] for p in params])
