@@ -47,6 +47,8 @@ def test_a_bad_line_description_is_refused_in_one_line(tmp_path, old, new, said)
     [
         ("0,500,index\n800,1150,b\n", "row 2: name 'index' is the field folder's own file"),
         ("0,500,a\n800,1150,Sections\n", "row 3: name 'Sections' is the field folder's own"),
+        # its truth.json beside the recordings read as a synthetic folder's truth sidecar
+        ("0,500,truth\n800,1150,b\n", "row 2: name 'truth' is the field folder's own file"),
         ("0,500,a\n800,1150,A\n", "row 3: name 'A' is row 2's too"),
     ],
 )

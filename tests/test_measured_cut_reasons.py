@@ -138,3 +138,20 @@ def test_a_section_crowded_with_interpolated_samples_is_left_out():
         "7.5 % of the samples of channel 'WS1_Q_R' here interpolated across empty values; "
         "accepted at most 5 % in a section (written, they would read as measured forces)"
     )
+
+
+def test_a_piece_long_enough_but_shorter_than_a_conditions_duration_is_left_out():
+    """The bug hunt: with a small --min-length, a piece of 7 m between two breaks (0.5 s at
+    54 km/h) was kept, and `sections --write` failed late on its condition ("duration_s =
+    0.5: accepted range [1, 600] s"); it is left out with its reason, the others written."""
+    from railsusp.measured.sections_out import section_recording
+
+    run = _run_of(np.arange(4000) / 50.0, np.full(4000, 15.0), breaks=np.array([2000, 2025]))
+    secs = cut_sections(run, SectionRules(min_length_m=5.0))
+    assert [s.kept for s in secs] == [True, False, True]
+    assert secs[1].reason == (
+        "tangent of 0.5 s, shorter than a working condition's 1 s minimum duration"
+    )
+    assert sections_table(secs).kind.tolist() == ["tangent"] * 3
+    for s in secs[::2]:  # what --write makes of each kept one
+        assert section_recording(run, s, 50.0).condition.duration_s >= 1.0

@@ -258,3 +258,34 @@ def test_a_force_column_with_a_value_every_sixth_row_is_refused_as_a_slow_channe
     run = read_run(long_run(tmp_path / "two.csv", nan={"Q_L": np.arange(12000) % 2 == 1}),
                    channel_map_from(MAP))  # fmt: skip
     assert any("'Q_L': a finite value about every 2 samples" in n for n in run.data_notes)
+
+
+def test_a_force_column_with_a_value_every_second_row_keeps_its_sections(tmp_path):
+    """The bug hunt: such a column is read at its rate of 100 Hz with a note, but every
+    empty row was taken as interpolated across a gap, and every section was left out as
+    "50 % of the samples ... interpolated". Only samples missing at its rate are: two
+    values lost (a gap of 6 rows between values, two 100 Hz samples) are, their rows
+    marked."""
+    sparse = np.arange(12000) % 2 == 1
+    run = read_run(long_run(tmp_path / "two.csv", nan={"Q_L": sparse}), channel_map_from(MAP))
+    assert "Q_L" not in run.interpolated
+    secs = cut_sections(run)
+    assert secs and all(s.kept for s in secs)
+    sparse[[5000, 5002]] = True  # rows 4998 and 5004 finite: 4999-5003 between them missing
+    run = read_run(long_run(tmp_path / "gap.csv", nan={"Q_L": sparse}), channel_map_from(MAP))
+    assert np.flatnonzero(run.interpolated["Q_L"]).tolist() == [4999, 5000, 5001, 5002, 5003]
+
+
+def test_missing_rows_are_the_nan_rows_of_gaps_longer_than_the_step():
+    from railsusp.measured.sampling import finite_sampling, missing_rows
+
+    x = np.arange(20.0)
+    x[1::2] = np.nan  # every second row: its step
+    x[8] = np.nan  # rows 6 and 10 finite: one sample of that rate missing
+    # (the last row, 19, is off the step at the end: no sample missing)
+    assert finite_sampling(x, 100.0).step == 2.0
+    assert np.flatnonzero(missing_rows(x, 2.0)).tolist() == [7, 8, 9]
+    assert finite_sampling(x, 100.0).missing == 1
+    y = np.arange(10.0)
+    y[[0, 4, 5]] = np.nan  # a step of 1: every NaN is missing
+    assert np.flatnonzero(missing_rows(y, 1.0)).tolist() == [0, 4, 5]

@@ -210,21 +210,60 @@ _DOCUMENTED = {
 }
 
 
+def _documented(header: str) -> tuple[str, str] | None:
+    """What a documented column name is: ("Y" or "Q", wheel), ("signal", quantity) or
+    ("time", ""); None for a name it does not recognise."""
+    name, _ = split_header(header)
+    parts = name.split("_")
+    if len(parts) == 2 and parts[0] in ("Y", "Q") and parts[1] in WHEEL_NAMES:
+        return parts[0], parts[1]
+    if name in ("time", "t"):
+        return "time", ""
+    if name in _DOCUMENTED:
+        return "signal", _DOCUMENTED[name]
+    return None
+
+
 def default_map(headers: list[str]) -> ChannelMap:
     """The map of a table with the documented column names (``Y_w1R_kN``, ``Y_w1R [N]``,
     ``speed_kmh``, ``distance_m``, ``curvature_1_per_km``, ``cant_mm``, ``grade_permille``,
-    ``time_s``); columns it does not recognise are left for the caller to report."""
+    ``time_s``); columns it does not recognise are left for the caller to report, and one
+    quantity in two columns for :func:`documented_twice` (the last one is taken here)."""
     wheels: dict[str, dict[str, str]] = {}
     signals: dict[str, str] = {}
     time = None
     for h in headers:
-        name, _ = split_header(h)
-        parts = name.split("_")
-        if len(parts) == 2 and parts[0] in ("Y", "Q") and parts[1] in WHEEL_NAMES:
-            wheels.setdefault(parts[1], {})[parts[0]] = h
-        elif name in ("time", "t"):
+        kind = _documented(h)
+        if kind is None:
+            continue
+        if kind[0] in ("Y", "Q"):
+            wheels.setdefault(kind[1], {})[kind[0]] = h
+        elif kind[0] == "time":
             time = h
-        elif name in _DOCUMENTED:
-            signals[_DOCUMENTED[name]] = h
+        else:
+            signals[kind[1]] = h
     complete = {w: c for w, c in wheels.items() if set(c) == {"Y", "Q"}}
     return ChannelMap(complete, signals, time, source="documented column names")
+
+
+def documented_twice(headers: list[str]) -> list[str]:
+    """Problems of a table read through its documented column names (no channel map) that
+    gives one quantity in two columns (``Q_w1R_kN`` and ``Q_w1R [N]``, ``speed_kmh`` and
+    ``speed [m/s]``, ``distance_m`` and ``position_km``), one per later column: which one
+    is meant cannot be told, and :func:`default_map` took the last without a word. The
+    field reader refuses a force given twice alike."""
+    first: dict[tuple[str, str], str] = {}
+    problems = []
+    for h in headers:
+        kind = _documented(h)
+        if kind is None or kind[0] == "time":  # (the time column: the table reader's)
+            continue
+        if kind in first:
+            what = f"the force {kind[0]}_{kind[1]}" if kind[0] in ("Y", "Q") else f"the {kind[1]}"
+            problems.append(
+                f"column {h!r}: {what} is given twice (also as {first[kind]!r}); accepted one "
+                "column per quantity (or a channel map naming the one to use)"
+            )
+        else:
+            first[kind] = h
+    return problems

@@ -22,6 +22,7 @@ from pathlib import Path
 from railsusp.conditions import WorkingCondition
 from railsusp.errors import RailsuspInputError
 from railsusp.measured.channels import read_channel_map
+from railsusp.measured.pieces import MIN_DURATION_S
 from railsusp.measured.run import MeasuredRun, read_run
 from railsusp.measured.sections import (
     Section,
@@ -108,6 +109,7 @@ _LEFT_OUT = {
     "reversal": "reversing (the speed through 0)",
     "cant": "cant without a curvature (a curve cut as tangent)",
     "dropout": "dropouts (samples lost)",
+    "brief": f"pieces shorter than a working condition's {MIN_DURATION_S:g} s",
 }
 
 

@@ -19,8 +19,9 @@ SAFE_NAME = re.compile(_NAME + "{0,59}")
 #: a section's name as written: a split row's number may add to a table's name
 FILE_NAME = re.compile(_NAME + "*")
 #: names a section cannot take: its recording (NAME.csv, NAME.json) would be written over by
-#: the field folder's own files (index.json, sections.csv, en14363.csv), or write over them
-RESERVED_NAMES = ("index", "sections", "en14363")
+#: the field folder's own files (index.json, sections.csv, en14363.csv), or write over them;
+#: a ``truth.json`` beside the recordings reads as a synthetic folder's truth sidecar
+RESERVED_NAMES = ("index", "sections", "en14363", "truth")
 
 
 def geometry_from_line(position_m: np.ndarray, line: pd.DataFrame) -> dict[str, np.ndarray]:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from railsusp.conditions import WorkingCondition, make_condition
+from railsusp.conditions import WorkingCondition, field_range, make_condition
 from railsusp.errors import RailsuspInputError
 from railsusp.measured.checks import label_runs
 from railsusp.measured.reasons import (
@@ -39,6 +39,10 @@ from railsusp.vehicle.simulation_result import WHEEL_NAMES, outer_wheel_index
 MIN_RADIUS_M: float = next(
     m.ge for m in WorkingCondition.model_fields["curve_radius_m"].metadata if hasattr(m, "ge")
 )
+
+#: the shortest record of a working condition (its ``duration_s`` bound), s: a kept piece
+#: shorter made ``sections --write`` fail on its condition, after the others were cut
+MIN_DURATION_S: float = field_range("duration_s")[0]
 
 
 @dataclass(frozen=True)
@@ -375,6 +379,8 @@ def _section(
             "duration": f" (split at the {rules.max_duration_s:g} s maximum duration)",
         }.get(cause, "")
         piece = ("short", f"{sec.kind}|{rules.min_length_m:g}|{why}")
+    elif (j - i) * dt < MIN_DURATION_S * (1.0 - 1e-9):  # long enough, but quickly passed
+        piece = ("brief", f"{sec.kind}|{MIN_DURATION_S:g}")
     elif (
         radius is not None
         and (outer := WHEEL_NAMES[outer_wheel_index(sec.direction)]) not in run.wheels

@@ -103,6 +103,16 @@ def describe(
                 else f"{what}: {len(ms)} pieces of {_span(min(ms), max(ms))} m, each shorter "
                 f"than the {minimum} m minimum{why}"
             )
+        elif kind == "brief":  # long enough, but shorter in time than a condition's record
+            what, minimum = label.split("|")
+            ts = [t for t, _ in items]
+            out.append(
+                f"{what} of {ts[0]:.2g} s, shorter than a working condition's {minimum} s "
+                "minimum duration"
+                if len(ts) == 1
+                else f"{what}: {len(ts)} pieces of {min(ts):.2g}-{max(ts):.2g} s, each shorter "
+                f"than a working condition's {minimum} s minimum duration"
+            )
         else:
             out.append(label)
     return "; ".join(out)

@@ -26,7 +26,13 @@ from railsusp.measured.breaks import (
     nan_gap_breaks,
     without_jumps,
 )
-from railsusp.measured.channels import SIGNALS, ChannelMap, check_recording_name, default_map
+from railsusp.measured.channels import (
+    SIGNALS,
+    ChannelMap,
+    check_recording_name,
+    default_map,
+    documented_twice,
+)
 from railsusp.measured.checks import (
     MAX_GAP_SAMPLES,
     check_clipped,
@@ -49,6 +55,7 @@ from railsusp.measured.sampling import (
     check_sparse,
     finite_rate_note,
     finite_sampling,
+    missing_rows,
 )
 from railsusp.measured.speed_from_distance import distance_through_steps, smoothed_gradient
 from railsusp.measured.units import normalise_unit, si_factor
@@ -118,6 +125,44 @@ class MeasuredRun:
 MIN_RUN_RATE_HZ = 50.0
 
 
+def time_base(
+    force_names: list[str],
+    finite_hz: dict[str, float],
+    stated: dict[str, float],
+    samples: dict[str, int],
+) -> str:
+    """The force channel whose time base the run takes: the fastest by its finite samples'
+    rate, then by its stated rate, rates compared to 6 digits (where float noise, 200.0000001
+    against 199.9999999 Hz, chose among channels as fast); of those, the one with the
+    most ``samples`` (the longest, or the one that lost none: another's lost sample is then
+    refused as a dropout, not taken for the logger's), ties broken by the first name."""
+
+    def rounded(hz: float) -> float:
+        return float(f"{hz:.6g}")
+
+    return min(
+        force_names,
+        key=lambda c: (-rounded(finite_hz[c]), -rounded(stated[c]), -samples[c], c),
+    )
+
+
+def beyond_base(ch: RawChannel, base: RawChannel) -> list[str]:
+    """The problem of a force channel ``ch`` whose samples reach beyond the span of the
+    run's time base (``base``, the fastest force channel) by more than a sample interval of
+    either: the run is that span, and its other forces' samples beyond it were dropped
+    without a word (a 180 s run whose fastest channel stopped at 60 s was cut to 60 s).
+    Speed, position and track channels longer than the forces are taken as usual."""
+    tol = max(1.0 / ch.rate_hz, 1.0 / base.rate_hz)
+    t = base.time
+    if ch.time[0] >= t[0] - tol and ch.time[-1] <= t[-1] + tol:
+        return []
+    return [
+        f"channel {ch.name!r}: covers {ch.time[0]:.3f}-{ch.time[-1]:.3f} s, beyond the "
+        f"{t[0]:.3f}-{t[-1]:.3f} s of {base.name!r} (the forces' time base, the fastest): "
+        "cut the file to the span every force channel covers"
+    ]
+
+
 def read_run(
     path: str | Path,
     channel_map: ChannelMap | None = None,
@@ -145,7 +190,7 @@ def read_run(
     except RailsuspInputError as exc:
         raise RecordingError(path, [str(exc).removeprefix(f"recording {path}: ")]) from None
     cmap = channel_map or default_map(list(raw))
-    problems: list[str] = []
+    problems: list[str] = [] if channel_map else documented_twice(list(raw))
     notes: list[str] = []
     data_notes: list[str] = []
     for c in cmap.used():
@@ -220,7 +265,7 @@ def read_run(
             sampling[name] = finite_sampling(ch.values, ch.rate_hz, gap_limit)  # the file's
             if not finite_problems:
                 problems += check_sparse(sampling[name], name, gap_limit)
-            missing[name] = np.isnan(ch.values)
+            missing[name] = missing_rows(ch.values, sampling[name].step)  # not rows off its step
             problems += check_flat(values, name, unit or "")  # a value in the file's unit
             problems += check_clipped(values, name, unit or "")
         if not time_problems and not finite_problems:
@@ -236,7 +281,12 @@ def read_run(
 
     force_names = [c for w in cmap.wheels.values() for c in w.values()]
     finite_hz = {c: sampling[c].rate_hz for c in force_names}
-    base = max(force_names, key=lambda c: (finite_hz[c], si[c].rate_hz))
+    base = time_base(
+        force_names,
+        finite_hz,
+        {c: si[c].rate_hz for c in force_names},
+        {c: si[c].time.size for c in force_names},
+    )
     t = si[base].time
     rates = {c: si[c].rate_hz for c in quantity}
     problems += check_force_rates(force_names, base, finite_hz, min_rate_hz, stated=rates)
@@ -253,6 +303,8 @@ def read_run(
                 f"channel {c!r}: covers {ch.time[0]:.3f}-{ch.time[-1]:.3f} s, not the "
                 f"{t[0]:.3f}-{t[-1]:.3f} s of the forces"
             )
+        elif c in force_names:
+            problems += beyond_base(ch, si[base])
     breaks = dropout_breaks(si, base, quantity, problems, notes, data_notes)
     gap_breaks, gaps = nan_gap_breaks(si, {c: g for c, g in nan_gaps.items() if g}, t, problems)
     if problems:

@@ -51,8 +51,17 @@ def check_track_channels(
     channel's path, what the speed integrates to over the same steps, and whether gaps were
     left out (:func:`~railsusp.measured.breaks.compared_paths`); None: not both channels.
     The path, not the channel's span: a run that backs up is no unit error, nor is a
-    chainage jump or an odometer's reset (a unit error of 3.6 or 1000 moves every step)."""
+    chainage jump or an odometer's reset (a unit error of 3.6 or 1000 moves every step).
+    A negative cant is refused too: a condition's cant is the outer rail's height, 0 to
+    200 mm; a signed channel passed here and failed only when ``sections --write`` made
+    the section's condition."""
     problems = []
+    if "cant" in sig and np.nanmin(sig["cant"]) < 0.0:
+        problems.append(
+            f"channel {names['cant']!r}: cant down to {np.nanmin(sig['cant']) * 1e3:.4g} mm, "
+            f"negative; accepted 0 to {MAX_CANT_M * 1e3:g} mm, the cant's magnitude (the "
+            "outer rail's height above the inner's): a signed cant? give its magnitude"
+        )
     for key, limit, scale, unit in (
         ("cant", MAX_CANT_M, 1e3, "mm"),
         ("grade", MAX_GRADE, 1e3, "‰"),

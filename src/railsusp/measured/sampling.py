@@ -77,6 +77,30 @@ def finite_sampling(
     return FiniteSampling(step, rate_hz / step, missing, at.size + missing)
 
 
+def missing_rows(x: np.ndarray, step: float) -> np.ndarray:
+    """Per row of ``x``, True where its NaN is missing data, not a row off the channel's
+    regular ``step`` (:func:`finite_sampling`'s): inside a NaN run between finite values d
+    rows apart where round(d / step) >= 2, or at either end where round(rows / step) >= 1,
+    as :func:`finite_sampling` counts its missing samples (long gaps included). At a step
+    of 1 every NaN is. The NaN of every second row of a 50 Hz channel in a 100 Hz table
+    are no gaps: marked, they had every section left out as half interpolated."""
+    nan = np.isnan(x)
+    at = np.flatnonzero(~nan)
+    if at.size == 0:
+        return nan
+    # missing samples at the channel's rate per stretch of NaN rows: before the first
+    # finite value, between each two, after the last
+    lost = np.concatenate(
+        [
+            [np.rint(at[0] / step)],
+            np.rint(np.diff(at) / step) - 1.0,
+            [np.rint((x.size - 1 - at[-1]) / step)],
+        ]
+    )
+    stretch = np.searchsorted(at, np.arange(x.size), side="right")  # 0: before the first
+    return nan & (lost[stretch] >= 1.0)
+
+
 def check_sparse(
     s: FiniteSampling,
     channel: str,

@@ -373,7 +373,7 @@ def _shown_kind(s: Section) -> str:
     for kind, label, _, length in s.pieces:
         if kind in ("transition", "mixed"):
             metres[kind] = metres.get(kind, 0.0) + length
-        elif kind == "short":
+        elif kind in ("short", "brief"):
             what = label.split("|")[0]
             metres[what] = metres.get(what, 0.0) + length
     if not {"transition", "mixed"} & set(metres):
