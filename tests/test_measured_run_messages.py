@@ -17,6 +17,17 @@ from railsusp.measured.run_checks import check_force_rates
 MAP = {"speed": "v", "position": "s", "wheels": {"w1R": {"Y": "Y_R", "Q": "Q_R"}}}
 
 
+def _with_speed_saved(mdf, path, ts):
+    """``mdf`` with speed (54 km/h) and distance channels at the times ``ts``, saved."""
+    mdf.append(
+        [Signal(np.full(ts.size, 54.0), ts, name="v", unit="km/h"),
+         Signal(15.0 * ts, ts, name="s", unit="m")]
+    )  # fmt: skip
+    mdf.save(path, overwrite=True)
+    mdf.close()
+    return path
+
+
 def _mdf(path, *, q=None):
     """A 20 s run, forces at 200 Hz (Q in N: ``q`` or noisy 120 kN), speed at 10 Hz."""
     rng = np.random.default_rng(0)
@@ -30,13 +41,7 @@ def _mdf(path, *, q=None):
             Signal(q_values + 0 * t, t, name="Q_R", unit="N"),
         ]
     )
-    mdf.append(
-        [Signal(np.full(ts.size, 54.0), ts, name="v", unit="km/h"),
-         Signal(15.0 * ts, ts, name="s", unit="m")]
-    )  # fmt: skip
-    mdf.save(path, overwrite=True)
-    mdf.close()
-    return path
+    return _with_speed_saved(mdf, path, ts)
 
 
 def test_forces_as_fast_as_the_base_but_below_the_sections_rate_say_so(tmp_path):
@@ -88,13 +93,7 @@ def _forces_of_spans(path, spans):
         mean = 120.0 if name.startswith("Q") else 5.0
         mdf.append([Signal(mean + rng.standard_normal(t.size), t, name=name, unit="kN")])
     ts = np.arange(0, 20.1, 0.1)
-    mdf.append(
-        [Signal(np.full(ts.size, 54.0), ts, name="v", unit="km/h"),
-         Signal(15.0 * ts, ts, name="s", unit="m")]
-    )  # fmt: skip
-    mdf.save(path, overwrite=True)
-    mdf.close()
-    return path
+    return _with_speed_saved(mdf, path, ts)
 
 
 def test_a_force_channel_beyond_the_fastest_ones_span_is_refused_not_dropped(tmp_path):

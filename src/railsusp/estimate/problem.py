@@ -227,7 +227,7 @@ def check_sampling(
     (:func:`~railsusp.estimate.statistics.rate_dependent`) where its series, its own
     training record's, are sampled at another rate than the recording's condition: the
     spread of 50 Hz series (content to 20 Hz) is not that of 100 Hz ones."""
-    from railsusp.estimate.statistics import rate_dependent
+    from railsusp.estimate.statistics import check_rate
 
     for r in recordings:
         cond = r.condition
@@ -235,16 +235,14 @@ def check_sampling(
         if model.reads_track(cond):  # predicted on the recording's time base: the network's
             model.check_condition(cond)
         own = model.series_condition(cond)
-        mine, theirs = 1.0 / own.sample_interval, 1.0 / cond.sample_interval
-        bad = rate_dependent(statistics, mine, theirs)
-        if bad:
-            raise RailsuspInputError(
-                f"recording {cond.name!r}: statistic {'+'.join(bad)!r} depends on the sampling "
-                f"rate; its condition samples at {theirs:.6g} Hz (n_steps {cond.n_steps} over "
-                f"{cond.duration_s:g} s), the surrogate in {model.folder} predicts its "
-                f"training record at {mine:.6g} Hz: accepted the mean or p99.85, a recording "
-                "at the training's rate, or a surrogate trained at the recording's"
-            )
+        check_rate(
+            statistics,
+            1.0 / own.sample_interval,
+            cond,
+            f"the surrogate in {model.folder} predicts its training record",
+            "the mean or p99.85, a recording at the training's rate, or a surrogate trained "
+            "at the recording's",
+        )
 
 
 def model_wheel(model: Any, condition: Any) -> str:

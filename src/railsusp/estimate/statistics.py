@@ -11,6 +11,7 @@ that carry their measured track geometry.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -58,6 +59,26 @@ def rate_dependent(statistics: Sequence[str], rate_hz: float, other_hz: float) -
     if EN14363_MAX in statistics and abs(cut_a / cut_b - 1.0) > RATE_TOLERANCE:
         out.append(EN14363_MAX)
     return out
+
+
+def check_rate(
+    statistics: Sequence[str], trained_hz: float, condition: Any, trained: str, accepted: str
+) -> None:
+    """Refuse, in one line, a recording's ``condition`` sampled at another rate than the
+    surrogate's ``trained_hz`` where ``statistics`` hold one that depends on it
+    (:func:`rate_dependent`); ``trained`` says what was trained at that rate, ``accepted``
+    what would do instead."""
+    from railsusp.errors import RailsuspInputError
+
+    theirs = 1.0 / condition.sample_interval
+    bad = rate_dependent(statistics, trained_hz, theirs)
+    if bad:
+        raise RailsuspInputError(
+            f"recording {condition.name!r}: statistic {'+'.join(bad)!r} depends on the "
+            f"sampling rate; its condition samples at {theirs:.6g} Hz (n_steps "
+            f"{condition.n_steps} over {condition.duration_s:g} s), {trained} at "
+            f"{trained_hz:.6g} Hz: accepted {accepted}"
+        )
 
 
 #: how a statistic's mismatch enters an objective: relative error (the study's), or the

@@ -35,7 +35,7 @@ def check_served_condition(
     track's and the record length where they were trained on synthesised track (the seed
     and stated accuracy alone on a measured one), and for the rate-dependent ``statistics``
     another sampling rate. Also the configuration's check, before any stage runs."""
-    from railsusp.estimate.statistics import rate_dependent
+    from railsusp.estimate.statistics import check_rate
 
     # Trained on synthesised track, the GPs predict the average over track realisations,
     # whatever the recording's seed, length or measured track. Trained on a measured
@@ -60,17 +60,13 @@ def check_served_condition(
             f"trained on another one, which differs in {', '.join(diff)} ({pairs}); accepted "
             f"recordings that differ from it only in {ignored}"
         )
-    mine, theirs = 1.0 / trained.sample_interval, 1.0 / condition.sample_interval
-    bad = rate_dependent(statistics, mine, theirs)
-    if bad:
-        raise RailsuspInputError(
-            f"recording {condition.name!r}: statistic {'+'.join(bad)!r} depends on the "
-            f"sampling rate; its condition samples at {theirs:.6g} Hz (n_steps "
-            f"{condition.n_steps} over {condition.duration_s:g} s), the statistics "
-            f"surrogate{' in ' + where if where else ''} was trained at {mine:.6g} Hz: accepted "
-            "the mean, a recording at the training's rate, or surrogates trained at the "
-            "recording's"
-        )
+    check_rate(
+        statistics,
+        1.0 / trained.sample_interval,
+        condition,
+        f"the statistics surrogate{' in ' + where if where else ''} was trained",
+        "the mean, a recording at the training's rate, or surrogates trained at the recording's",
+    )
 
 
 class StatisticsForces:
