@@ -84,6 +84,16 @@ def test_newtons_under_a_kn_header_are_refused(tmp_path):
     assert "the values look like N, not kN" in problems(p)
 
 
+def test_a_lateral_force_in_kn_under_an_n_header_is_refused(tmp_path):
+    """Y in kN marked N read as a few newtons and passed: only Q's magnitude was checked
+    (stop 77's hunt). Refused against the wheel load, with the unit it looks like."""
+    p = write_table(tmp_path, ["time_s", "Y_w1L [N]", "Q_w1L [N]"], [T, Y, Q * 1e3])
+    msg = problems(p)
+    assert "'Y_w1L [N]': |Y| at most 8 N (read as N) against a median wheel load of 122" in msg
+    assert "the values look like kN, not N" in msg
+    cli_refuses(p, "Y_w1L [N]")
+
+
 def test_a_force_without_a_known_unit_is_refused(tmp_path):
     p = write_table(tmp_path, ["time_s", "Y_w1L [lbf]", "Q_w1L [N]"], [T, Y, Q * 1e3])
     assert "unit 'lbf' is not a force unit; accepted N, kN, MN, daN" in problems(p)

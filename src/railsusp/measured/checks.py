@@ -30,6 +30,10 @@ JITTER_TOLERANCE = 0.01
 WHEEL_LOAD_BAND = (0.3, 3.0)
 #: a wheel load below minus this fraction of the static load is refused (noise aside, Q >= 0)
 NEGATIVE_Q_FRACTION = 0.02
+#: a lateral force never above this fraction of the median wheel load, anywhere in the
+#: recording, is refused as a unit error (Y in kN read as N: 5 kN became 5 N); running
+#: noise alone is about 1 % of the wheel load on tangent
+MIN_LATERAL_FRACTION = 1e-3
 #: physical bounds for a 25 t axle-load wagon, N
 MAX_LATERAL_N = 300e3
 MAX_VERTICAL_N = 600e3
@@ -283,6 +287,7 @@ def check_forces(
                     f"({100 * NEGATIVE_Q_FRACTION:g} % of the static wheel load)",
                 )
             )  # fmt: skip
+        problems += _check_lateral_scale(Y, yname, units[0], med)
     for x, name, bound in ((Y, yname, MAX_LATERAL_N), (Q, qname, MAX_VERTICAL_N)):
         over = np.abs(x) > bound
         if over.any():
@@ -293,6 +298,31 @@ def check_forces(
                 )
             )  # fmt: skip
     return problems
+
+
+def _check_lateral_scale(Y: np.ndarray, name: str, unit: str, wheel_load_N: float) -> list[str]:
+    """A lateral force whose largest magnitude stays below MIN_LATERAL_FRACTION of the
+    median wheel load ``wheel_load_N``: the Q channel's magnitude checks its unit, Y's had
+    no lower check (stop 77's hunt: Y in kN marked N read as a few newtons and passed)."""
+    y = np.abs(Y[np.isfinite(Y)])
+    if not y.size or wheel_load_N <= 0.0:
+        return []
+    largest = float(y.max())
+    if largest >= MIN_LATERAL_FRACTION * wheel_load_N:
+        return []
+    hint = ""
+    for other, f in (("kN", 1e3), ("MN", 1e6)):
+        if (
+            f != _factor(unit)
+            and largest * f / _factor(unit) >= MIN_LATERAL_FRACTION * wheel_load_N
+        ):
+            hint = f"; the values look like {other}, not {unit}"
+            break
+    return [
+        f"channel {name!r}: |Y| at most {largest:.4g} N (read as {unit}) against a median "
+        f"wheel load of {wheel_load_N / 1e3:.4g} kN; accepted a lateral force reaching "
+        f"{100 * MIN_LATERAL_FRACTION:g} % of the wheel load somewhere in the recording{hint}"
+    ]
 
 
 def _beyond(
