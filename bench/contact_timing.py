@@ -33,14 +33,14 @@ def rail_inputs(args, s_front: np.ndarray) -> np.ndarray:
     for j, sf in enumerate(s_front):
         for w in range(4):
             s_w = sf - 2.0 * lc * (w // 2) - 2.0 * a * (w % 2)  # front, then the bogie's rear
-            i, f, inside = track_point(s_w, s0, ds, trk.shape[1])
+            i, f, inside = track_point(s_w, s0, 1.0 / ds, trk.shape[1])
             for side in range(2):
                 c = 2 * w + side
                 ch_y, ch_z = (L.TR_YL, L.TR_ZL) if side == 0 else (L.TR_YR, L.TR_ZR)
                 rails[j, :, c] = (
                     track_value(trk, L.TR_KAPPA, i, f), track_value(trk, ch_y, i, f),
-                    track_value(trk, ch_z, i, f), track_rate(trk, ch_y, i, inside, ds, V),
-                    track_rate(trk, ch_z, i, inside, ds, V),
+                    track_value(trk, ch_z, i, f), track_rate(trk, ch_y, i, inside, V / ds),
+                    track_rate(trk, ch_z, i, inside, V / ds),
                 )  # fmt: skip
     return rails
 

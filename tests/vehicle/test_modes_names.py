@@ -6,6 +6,8 @@ table compared with the stuck linearisation without saying so."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from typer.testing import CliRunner
@@ -99,7 +101,8 @@ def test_one_bogies_longitudinal_modes_name_that_bogie(stuck):
         if share.max() > 0.8:
             which = "front bogie" if share[0] > 0.8 else "rear bogie"
             want = f"side frames longitudinal ({which}){_mark(stuck, i)}"
-            assert stuck.names[i].removesuffix(", second") == want, share
+            # (a rank among like-named roots: near-equal overdamped roots swap at round-off)
+            assert re.sub(r", (second|third|\d+th)$", "", stuck.names[i]) == want, share
 
 
 def test_the_decay_table_under_a_sliding_table_says_it_is_against_the_stuck_one(monkeypatch):

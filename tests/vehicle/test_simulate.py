@@ -296,9 +296,10 @@ def test_xarray_export():
 
 
 def test_a_set_the_parallel_integration_did_not_finish_reads_as_failed():
-    """An error inside the compiled parallel loop (here a division by a car body of zero
-    mass) is not passed on by Numba on several threads: the set, and any after it on the
-    same thread, kept the status and outputs they had before the call, zeros, and read as
+    """An error inside the compiled parallel loop (here a division by zero: the primary
+    pad's lateral stiffness X14 in series with the adapter's X20, their sum made zero) is
+    not passed on by Numba on several threads: the set, and any after it on the same
+    thread, kept the status and outputs they had before the call, zeros, and read as
     successes with flat series (the review of stop 76). They start as FAIL_UNFINISHED and
     NaN now, whether or not the call raised."""
     from scipy.signal import butter
@@ -316,7 +317,7 @@ def test_a_set_the_parallel_integration_did_not_finish_reads_as_failed():
     sos = np.ascontiguousarray(butter(2, 0.4, output="sos"))
     n, n_out = 4, 10
     PP, KK = np.tile(P, (n, 1)), np.tile(K, (n, 1))
-    KK[2, L.K["m_c"]] = 0.0
+    PP[2, 13] = -PP[2, 19]
     out, status = unfinished(n, n_out)
     fail_time = np.zeros(n)
     try:  # on several threads Numba drops the error; on one it passes it on, as a
@@ -331,3 +332,25 @@ def test_a_set_the_parallel_integration_did_not_finish_reads_as_failed():
     assert status[3] in (L.OK, L.FAIL_UNFINISHED)  # (after it on its thread, or on another)
     assert np.isfinite(out[:2]).all() and np.isnan(out[2]).all()
     assert "stopped without a result" in L.FAILURE_REASONS[int(status[2])]
+
+
+def test_the_reciprocal_inertias_are_those_of_the_inertias_the_wagon_gives():
+    """The right-hand side multiplies the generalised forces by reciprocal masses and
+    inertias kept in K (issue 24); each must be 1 / its inertia, for the tare wagon and for
+    a wheelset mass and inertias (X1, X2, X4) off nominal, which come from the parameters."""
+    from railsusp.vehicle.operating_point import dof_inertia
+    from railsusp.vehicle.setup import SolverSettings, constants, contact_arrays
+
+    for wagon in (load_wagon(), load_wagon("tare")):
+        P = ParameterSet.nominal().replace({"X1": 1300.0, "X2": 700.0, "X4": 690.0}).to_array()
+        K = constants(wagon, get_condition("straight", **SHORT), P, contact_arrays(wagon),
+                      SolverSettings())  # fmt: skip
+        names = [n for n in L.K if n.startswith("inv_") and n[4:] in L.K and n[4] in "mI"]
+        assert len(names) == 13
+        for name in names:
+            assert K[L.K[name]] == 1.0 / K[L.K[name[4:]]], name
+        # and they are the inertias the modal analysis divides by, DOF for DOF
+        inverse = {L.K[n[4:]]: K[L.K[n]] for n in names}
+        m = dof_inertia(K, P)
+        assert {float(v) for v in m} <= {float(K[i]) for i in inverse}
+        assert K[L.K["inv_m_w"]] == 1.0 / 1300.0 and K[L.K["inv_Iz_w"]] == 1.0 / 690.0

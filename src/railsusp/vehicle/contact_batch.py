@@ -287,7 +287,7 @@ def _forces(K, wk):
     first) into W_FY, W_FZ, W_MX, W_MZ; a penetration beyond the bound sets W_CODE where
     none is yet."""
     yawed = K[I_YAWGEO] > 0.5
-    n_ref = K[I_NREF]
+    inv_n_ref = 1.0 / K[I_NREF]  # once, not a division per point
     t = _P * NW
     fl = (_P + _NP) * NW
     for c in range(_lanes(wk)):
@@ -308,13 +308,13 @@ def _forces(K, wk):
             wk[fl + P_N * NW + c], wk[fl + P_RATE * NW + c], cd1, sd1, wk[fl + P_G * NW + c], K
         )
         fy, fz, mx, mz = _creep(
-            n0, cbrt_positive(n0 / n_ref), loaded0, cd0, sd0, wk[t + P_LAT * NW + c],
+            n0, cbrt_positive(n0 * inv_n_ref), loaded0, cd0, sd0, wk[t + P_LAT * NW + c],
             wk[t + P_RD * NW + c], wk[t + P_F11 * NW + c], wk[t + P_F22 * NW + c],
             wk[t + P_F23 * NW + c], wk[t + P_XC * NW + c], wk[t + P_XPOS * NW + c], side, vy,
             vroll, ws_yaw, vyaw, kappa, K, yawed,
         )  # fmt: skip
         gy, gz, nx, nz = _creep(
-            n1, cbrt_positive(n1 / n_ref), loaded1, cd1, sd1, wk[fl + P_LAT * NW + c],
+            n1, cbrt_positive(n1 * inv_n_ref), loaded1, cd1, sd1, wk[fl + P_LAT * NW + c],
             wk[fl + P_RD * NW + c], wk[fl + P_F11 * NW + c], wk[fl + P_F22 * NW + c],
             wk[fl + P_F23 * NW + c], wk[fl + P_XC * NW + c], wk[fl + P_XPOS * NW + c], side, vy,
             vroll, ws_yaw, vyaw, kappa, K, yawed,

@@ -66,9 +66,7 @@ from railsusp.vehicle.wedge_batch import wedge_forces
 _K = L.K
 
 # numba sees module-level ints as compile-time constants
-I_MC, I_IXC, I_IYC, I_IZC = _K["m_c"], _K["Ix_c"], _K["Iy_c"], _K["Iz_c"]
-I_MB, I_IXB, I_IZB = _K["m_b"], _K["Ix_b"], _K["Iz_b"]
-I_MF, I_IYF, I_IZF = _K["m_f"], _K["Iy_f"], _K["Iz_f"]
+I_MC, I_MB, I_MF = _K["m_c"], _K["m_b"], _K["m_f"]
 I_LC, I_A, I_B1, I_B2, I_R0 = _K["l_c"], _K["a"], _K["b1"], _K["b2"], _K["r0"]
 I_HCG, I_HK = _K["h_cg_c"], _K["h_k"]
 I_CPX, I_CPY, I_CPZ, I_KSZ, I_CSX = _K["c_px"], _K["c_py"], _K["c_pz"], _K["k_sz"], _K["c_sx"]
@@ -86,6 +84,12 @@ I_SFN, I_SFA, I_KRG, I_XCL = (
     _K["x_coupler_line"],
 )
 I_WATCH = _K["flange_watch"]
+I_INV_MC, I_INV_IXC, I_INV_IYC, I_INV_IZC = (
+    _K["inv_m_c"], _K["inv_Ix_c"], _K["inv_Iy_c"], _K["inv_Iz_c"]
+)  # fmt: skip
+I_INV_MB, I_INV_IXB, I_INV_IZB = _K["inv_m_b"], _K["inv_Ix_b"], _K["inv_Iz_b"]
+I_INV_MF, I_INV_IYF, I_INV_IZF = _K["inv_m_f"], _K["inv_Iy_f"], _K["inv_Iz_f"]
+I_INV_MW, I_INV_IXW, I_INV_IZW = _K["inv_m_w"], _K["inv_Ix_w"], _K["inv_Iz_w"]
 
 BOL0, SF0, WS0 = L.BOL0, L.SF0, L.WS0
 NQ = L.N_DOF
@@ -145,14 +149,14 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         acc[i] = 0.0
     # generalised forces accumulate in acc, divided by inertia at the end
     n_trk = trk.shape[1]
+    inv_ds = 1.0 / ds  # the track grid's step, once per evaluation
+    v_per_ds = V * inv_ds
     wk = out[L.OUT_CONTACT : L.OUT_CONTACT + L.N_CONTACT_WORK]  # contact work (contact_batch)
     flange_rate = -1.0e9  # fastest approach to its flange of a wheel near it (step control)
 
     # ---- catalogue parameters ----
     m_w = P[0]
-    Ix_w = P[1]
     Iy_w = P[2]
-    Iz_w = P[3]
     sb_half = 0.5 * P[10]  # X11 side-bearer span
     gib = P[11]  # X12
     k_px = series_stiffness(P[12], P[19])  # X13 + X20
@@ -203,9 +207,9 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
 
     # ---- track positions ----
     s_c = s_front - (lc + a)
-    i_c, f_c, in_c = track_point(s_c, s0, ds, n_trk)
+    i_c, f_c, in_c = track_point(s_c, s0, inv_ds, n_trk)
     kap_c, cant_c, head_c, off_c = track_frame(trk, i_c, f_c)
-    cant_rate_c = track_rate(trk, L.TR_CANT, i_c, in_c, ds, V)
+    cant_rate_c = track_rate(trk, L.TR_CANT, i_c, in_c, v_per_ds)
 
     # ---- car body pseudo-forces ----
     m_c = K[I_MC]
@@ -226,7 +230,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
     for k in range(2):
         d = lc if k == 0 else -lc
         s_b = s_c + d
-        i_b, f_b, in_b = track_point(s_b, s0, ds, n_trk)
+        i_b, f_b, in_b = track_point(s_b, s0, inv_ds, n_trk)
         kap_b, cant_b, head_b, off_b = track_frame(trk, i_b, f_b)
         ib = BOL0 + 4 * k
         m_b = K[I_MB]
@@ -244,7 +248,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         # ===== car body <-> bolster k: centre plate, centre bowl, side bearers =====
         body_on_bolster(
             x, q, v, acc, dxdt, K, k, ib, d, sb_half, V, off_c, head_c, off_b, cant_c, cant_b,
-            cant_rate_c, track_rate(trk, L.TR_CANT, i_b, in_b, ds, V), kap_c, kap_b,
+            cant_rate_c, track_rate(trk, L.TR_CANT, i_b, in_b, v_per_ds), kap_c, kap_b,
         )  # fmt: skip
 
         # ===== bolster <-> side frames (spring nests) =====
@@ -311,7 +315,7 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             w = 2 * k + wi
             e = a if wi == 0 else -a
             s_w = s_b + e
-            i_w, f_w, in_w = track_point(s_w, s0, ds, n_trk)
+            i_w, f_w, in_w = track_point(s_w, s0, inv_ds, n_trk)
             kap_w, cant_w, head_w, off_w = track_frame(trk, i_w, f_w)
             iw = WS0 + 4 * w
             cos_w, sin_w = cant_cos_sin(cant_w, cant_b, cos_b, sin_b)
@@ -353,10 +357,10 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
                 wk[CB.W_RY * CB.NW + c] = track_value(trk, L.TR_YL if left else L.TR_YR, i_w, f_w)
                 wk[CB.W_RZ * CB.NW + c] = track_value(trk, L.TR_ZL if left else L.TR_ZR, i_w, f_w)
                 wk[CB.W_RVY * CB.NW + c] = track_rate(
-                    trk, L.TR_YL if left else L.TR_YR, i_w, in_w, ds, V
+                    trk, L.TR_YL if left else L.TR_YR, i_w, in_w, v_per_ds
                 )
                 wk[CB.W_RVZ * CB.NW + c] = track_rate(
-                    trk, L.TR_ZL if left else L.TR_ZR, i_w, in_w, ds, V
+                    trk, L.TR_ZL if left else L.TR_ZR, i_w, in_w, v_per_ds
                 )
         # the side frames' roll couple on the wheelsets they sit on
         iw0 = WS0 + 8 * k
@@ -392,31 +396,31 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         acc[iw + 2] += h_spin * v[iw + 3]
         acc[iw + 3] -= h_spin * v[iw + 2]
 
-    # ---- divide by inertia ----
-    acc[L.CB_Y] /= m_c
-    acc[L.CB_Z] /= m_c
-    acc[L.CB_ROLL] /= K[I_IXC]
-    acc[L.CB_PITCH] /= K[I_IYC]
-    acc[L.CB_YAW] /= K[I_IZC]
+    # ---- divide by inertia (multiplied by the reciprocals in K) ----
+    acc[L.CB_Y] *= K[I_INV_MC]
+    acc[L.CB_Z] *= K[I_INV_MC]
+    acc[L.CB_ROLL] *= K[I_INV_IXC]
+    acc[L.CB_PITCH] *= K[I_INV_IYC]
+    acc[L.CB_YAW] *= K[I_INV_IZC]
     for k in range(2):
         ib = BOL0 + 4 * k
-        acc[ib] /= K[I_MB]
-        acc[ib + 1] /= K[I_MB]
-        acc[ib + 2] /= K[I_IXB]
-        acc[ib + 3] /= K[I_IZB]
+        acc[ib] *= K[I_INV_MB]
+        acc[ib + 1] *= K[I_INV_MB]
+        acc[ib + 2] *= K[I_INV_IXB]
+        acc[ib + 3] *= K[I_INV_IZB]
     for j in range(4):
         jf = SF0 + 5 * j
-        acc[jf] /= K[I_MF]
-        acc[jf + 1] /= K[I_MF]
-        acc[jf + 2] /= K[I_MF]
-        acc[jf + 3] /= K[I_IYF]
-        acc[jf + 4] /= K[I_IZF]
+        acc[jf] *= K[I_INV_MF]
+        acc[jf + 1] *= K[I_INV_MF]
+        acc[jf + 2] *= K[I_INV_MF]
+        acc[jf + 3] *= K[I_INV_IYF]
+        acc[jf + 4] *= K[I_INV_IZF]
     for w in range(4):
         iw = WS0 + 4 * w
-        acc[iw] /= m_w
-        acc[iw + 1] /= m_w
-        acc[iw + 2] /= Ix_w
-        acc[iw + 3] /= Iz_w
+        acc[iw] *= K[I_INV_MW]
+        acc[iw + 1] *= K[I_INV_MW]
+        acc[iw + 2] *= K[I_INV_IXW]
+        acc[iw + 3] *= K[I_INV_IZW]
     out[L.OUT_ACC_Y] = acc[L.CB_Y] + V * V * kap_c * cos_c + gn * sin_c
     out[L.OUT_ACC_Z] = acc[L.CB_Z]
     out[L.OUT_FLANGE_RATE] = flange_rate

@@ -16,12 +16,13 @@ from railsusp.vehicle.kernel_cache import FASTMATH, NO_RUNTIME  # (sets the cach
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
-def track_point(s, s0, ds, n):
+def track_point(s, s0, inv_ds, n):
     """Grid cell of distance s on n samples from s0 by ds: (index i, fraction f, inside).
 
-    Before the grid (i, f) = (0, 0) and after it (n - 2, 1), so that :func:`track_value`
-    returns the end sample; ``inside`` is False there (rates are zero)."""
-    u = (s - s0) / ds
+    ``inv_ds`` is 1 / ds (a multiplication, not a division, per body; issue 24). Before the
+    grid (i, f) = (0, 0) and after it (n - 2, 1), so that :func:`track_value` returns the end
+    sample; ``inside`` is False there (rates are zero)."""
+    u = (s - s0) * inv_ds
     if u <= 0.0:
         return 0, 0.0, False
     if u >= n - 1:
@@ -37,11 +38,12 @@ def track_value(trk, ch, i, f):
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
-def track_rate(trk, ch, i, inside, ds, V):
-    """Time rate V d(channel)/ds of channel ``ch`` in grid cell i (per second)."""
+def track_rate(trk, ch, i, inside, v_per_ds):
+    """Time rate V d(channel)/ds of channel ``ch`` in grid cell i (per second);
+    ``v_per_ds`` is V / ds, the grid cells passed per second."""
     if not inside:
         return 0.0
-    return V * (trk[ch, i + 1] - trk[ch, i]) / ds
+    return v_per_ds * (trk[ch, i + 1] - trk[ch, i])
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
