@@ -68,6 +68,24 @@ def test_the_middle80_prior_is_the_draws_own_distribution(bench):
     assert bench.set_config(base, {}, 100, 0.0).estimate == base.estimate
 
 
+def test_the_lower40_prior_is_off_nominal_and_its_sets_are_drawn_in_it(bench):
+    """``--held-prior lower40``: 10-50 % of every range, up to nominal (the range's centre),
+    centred 20 % of the range below it; the sets are the middle-80 draws' uniform numbers mapped into it, so every drawn
+    value lies in its prior, and the pipeline accepts the prior (held at its centre)."""
+    prior = bench.held_prior("lower40")
+    assert prior["X19"] == pytest.approx([18000.0, 30000.0])
+    assert prior["X14"] == pytest.approx([6.0, 10.0])
+    sets = bench.drawn_sets(12, 0, "lower40")
+    assert np.array_equal(bench.drawn_sets(12, 0, "middle80"), bench.draw_sets(12, 0))
+    for j, p in enumerate(MAIN_SUSPENSION):
+        lo, hi = (v * spec(p).scale for v in prior[p])
+        assert np.all((lo <= sets[:, j]) & (sets[:, j] <= hi)) and hi <= spec(p).nominal * (
+            1 + 1e-12
+        )
+    assert sets[:, 0].std() > 0.05 * (prior["X11"][1] - prior["X11"][0]) * spec("X11").scale
+    check_config(bench.set_config(demo_config(), bench.truth_display(sets[0]), 100, 0.0, prior))
+
+
 def test_error_over_half_width_on_the_truths_side(bench):
     rows = pd.DataFrame(
         {

@@ -5,6 +5,8 @@ analytic moments, a Monte Carlo check of the linear error's second moment."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from typer.testing import CliRunner
@@ -113,6 +115,10 @@ def test_no_prior_leaves_the_estimate_stage_hash_as_before():
     assert "held_prior" not in stage_section(plain, "estimate")
     with_prior = PipelineConfig(estimate={"refine": True, "held_prior": {"X19": [2e4, 4e4]}})
     assert stage_section(with_prior, "estimate")["held_prior"] == {"X19": [2e4, 4e4]}
+    # since stop 78 such a parameter is held at its range's centre: a run made before, which
+    # held it at nominal, estimates again; one without a prior does not
+    assert stage_section(with_prior, "estimate")["held_prior_held_at"] == "centre of the range"
+    assert "held_prior_held_at" not in stage_section(plain, "estimate")
 
 
 def test_every_nominal_is_the_centre_of_its_table_2_range_so_the_default_has_no_offset():
@@ -176,3 +182,63 @@ def test_the_assumptions_listed_for_the_report():
     assert got["X20"]["range"] == "Table 2" and got["X20"]["low_display"] == pytest.approx(lo)
     assert got["X20"]["high_display"] == pytest.approx(hi)
     assert bounds(["X20"])[0][0] == pytest.approx(500e6)
+
+
+def test_a_parameter_with_a_prior_is_held_at_its_centre_by_the_simulator():
+    """The reference simulator of the corrections and the refinement holds a parameter the
+    user gave a range for, and that is not estimated, at the range's centre (nominal for
+    the others); an estimated one, no prior, or a reference model that is not the
+    simulator leave the simulator as it was and hold nothing off nominal."""
+    from railsusp.estimate import SimulatorForces
+    from railsusp.estimate.route import held_simulator
+
+    prior = HeldPrior.from_display({"X19": [15000, 25000], "X13": [12, 16]})
+    assert prior.held_at_si(("X13", "X14")) == {"X19": pytest.approx(20e6)}
+    given = SimulatorForces(("X13", "X14"), "w1L", wagon="tare")
+    sim, held = held_simulator(given, prior, ("X13", "X14"))
+    assert held == {"X19": pytest.approx(20e6)}
+    assert (sim.parameters, sim.wheel, sim.wagon) == (("X13", "X14"), "w1L", "tare")
+    assert sim.base["X19"] == pytest.approx(20e6)
+    assert all(sim.base[p] == ParameterSet.nominal()[p] for p in MAIN_SUSPENSION if p != "X19")
+    default, held = held_simulator(None, prior, ("X13", "X14"))
+    assert isinstance(default, SimulatorForces) and default.base["X19"] == pytest.approx(20e6)
+    assert held_simulator(given, prior, ("X13", "X19")) == (given, {})
+    assert held_simulator(given, None, ("X13", "X14")) == (given, {})
+    other = object()
+    assert held_simulator(other, prior, ("X13", "X14")) == (other, {})
+
+
+def test_the_refined_point_is_held_where_its_interval_centres_the_prior(tmp_path):
+    """A refinement with a prior for X19 off nominal (15-25 MN/m, nominal 30): the route
+    holds X19 at 20 MN/m, so the interval's held part has no offset and its error
+    quantiles are about symmetric, and estimate.json says where X19 was held; the summary
+    and the validation read it. Holding it at nominal, the interval took the offset and
+    the point did not: its error quantiles were lopsided (the point could lie beside its
+    own interval, X14 = 10.13 MN/m with 6.06-7.79 at stop 77)."""
+    from railsusp.conditions import get_condition
+    from railsusp.estimate import NSGAConfig, SimulatorForces
+    from railsusp.estimate.route import EstimateRoute
+    from railsusp.measured import read_field, synthesise_field
+
+    cond = get_condition("curve", duration_s=1.0, n_steps=50, lead_in_m=20.0)
+    truth = ParameterSet({"X13": 16.1, "X14": 8.3, "X19": 20000.0}, units="display")
+    recs = read_field(synthesise_field(truth, [cond], tmp_path / "f", with_track=True))
+    params = ("X13", "X14")
+    route = EstimateRoute(
+        nsga=NSGAConfig(pop_size=4, n_gen=1, seed=1), seeds=1, geometry_draws=0,
+        remove_geometry_bias=False, simulator_corrections=0, refine=True,
+        refine_evaluations=2, refine_screen=0, refine_starts=1,
+        held_prior=HeldPrior.from_display({"X19": [15000, 25000]}),
+    )  # fmt: skip
+    res = route.run(SimulatorForces(params), recs, params)
+    assert res.held_at_si == {"X19": pytest.approx(20e6)}
+    iv = res.intervals()
+    assumed = iv.details["held_parameters_assumed"]["X19"]
+    assert assumed["held_at_display"] == pytest.approx(20000.0) and assumed["range"] == "prior"
+    for p in params:
+        a, b = iv.details["error_quantiles_pct_range"][p]
+        assert abs(a + b) < 0.1 * (b - a), (p, a, b)  # no offset: about symmetric
+        assert iv[p].contains(iv[p].value_si)
+    res.save(tmp_path / "estimate")
+    doc = json.loads((tmp_path / "estimate" / "estimate.json").read_text())
+    assert doc["held_at_display"] == {"X19": pytest.approx(20000.0)}

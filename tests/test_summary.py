@@ -230,6 +230,38 @@ def test_held_parameters_are_listed_with_the_range_the_intervals_assumed(tmp_pat
     )
 
 
+def test_a_parameter_held_at_its_priors_centre_shows_that_value(tmp_path):
+    """With a held prior the estimate holds the parameter at its range's centre
+    (estimate.json held_at_display): the summary's row shows that value, its change from
+    nominal and the verdict's held value, not nominal's (the summary showed nominal, 0 %)."""
+    from railsusp.estimate.config import HeldPrior
+    from railsusp.estimate.intervals import REFINEMENT, from_standard_errors
+    from railsusp.estimate.refine_intervals import held_assumptions
+    from railsusp.params import ParameterSet
+
+    run = make_run(tmp_path, {"X13": 10.5, "X17": 1.9}, None)
+    path = run / "estimate" / "estimate.json"
+    doc = json.loads(path.read_text())
+    prior = HeldPrior.from_display({"X19": [15000, 25000]})
+    base = ParameterSet.nominal().replace(prior.held_at_si(("X13", "X17")))
+    details = {"held_parameters_assumed": held_assumptions(("X13", "X17"), prior, base)}
+    iv = from_standard_errors(
+        ("X13", "X17"), np.array([10.5e6, 1.9e6]), np.array([0.1e6, 0.01e6]), 0.9, 50.0,
+        REFINEMENT, details,
+    )  # fmt: skip
+    doc["intervals"] = iv.to_dict()
+    doc["held_at_display"] = {"X19": 20000.0}
+    path.write_text(json.dumps(doc))
+    row = summary.estimate_table(run).loc["X19"]
+    assert row.estimate == 20000.0
+    assert row.change_pct == pytest.approx(-100.0 / 3.0)
+    assert row.verdict == (
+        "not estimated: held at 20000 kN/m, in the intervals anywhere in 15000-25000 kN/m "
+        "(estimate.held_prior)"
+    )
+    assert summary.estimate_table(run).loc["X20"].change_pct == 0.0
+
+
 def test_an_estimate_on_the_search_range_bound_says_so(tmp_path):
     """Stop 61's report audit: X14 = 15.0 (+49.9 %) and X19 at -50.0 %, the Table 2
     limits, read as measured changes. On the bound the note says the search stopped there."""

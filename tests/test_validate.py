@@ -138,6 +138,38 @@ def test_a_truth_of_other_recordings_is_refused_before_any_simulation(case, tmp_
     assert str(exc.value).startswith(f"truth file {other / 'truth.json'}: the truth of other")
 
 
+def test_the_after_set_holds_the_parameters_where_the_estimate_held_them(
+    case, tmp_path, monkeypatch
+):
+    """An estimate that held X19 at the centre of the user's prior (estimate.json
+    held_at_display) is validated with X19 there, not at nominal (the "after" forces were
+    of another wagon than the refinement's); the "before" set stays nominal."""
+    import shutil
+
+    import railsusp.validate as val
+
+    _field, est, _res = case
+    held = tmp_path / "est"
+    shutil.copytree(est, held)
+    doc = json.loads((held / "estimate.json").read_text())
+    doc["held_at_display"] = {"X19": 20000.0}
+    (held / "estimate.json").write_text(json.dumps(doc))
+    seen = {}
+
+    def capture(sets, *args, **kwargs):
+        seen.update(sets)
+        raise RuntimeError("captured")
+
+    monkeypatch.setattr(val, "_simulate", capture)
+    with pytest.raises(RuntimeError, match="captured"):
+        validate(held)
+    assert seen["estimate"]["X19"] == pytest.approx(20e6)
+    assert seen["estimate"]["X13"] == pytest.approx(
+        spec("X13").scale * doc["estimate_display"]["X13"]
+    )
+    assert seen["nominal parameters"]["X19"] == ParameterSet.nominal()["X19"]
+
+
 def test_a_derailing_resimulation_is_reported_not_raised(case, monkeypatch):
     import railsusp.validate as val
 

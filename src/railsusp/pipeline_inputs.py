@@ -306,8 +306,9 @@ def _estimate_section(config: PipelineConfig, legacy: bool = False) -> dict:
     accuracy, so that such a run estimates again; with ``correction_slopes`` the trust
     region's check (since 2026-11-29 the simulator checks each first-order step's point, and
     the box resizes), so that such a run estimates again; with Broyden's update also its
-    step floor (since stop 53 no update across a step under it), for the same reason.
-    Without the refinement, its settings (``refine_*``, ``held_prior``) are left out since
+    step floor (since stop 53 no update across a step under it), for the same reason; with
+    a refinement's ``held_prior`` where its parameters are held (since stop 78 at the
+    range's centre, not nominal), for the same reason. Without the refinement, its settings (``refine_*``, ``held_prior``) are left out since
     stop 66; ``legacy``: the section as hashed before."""
     e = config.estimate
     optional = (
@@ -331,6 +332,9 @@ def _estimate_section(config: PipelineConfig, legacy: bool = False) -> dict:
         section["nsga_geometry"] = (
             "expected-forces polish" if e.expected_draws else "first SIMEX step"
         )
+    if e.refine and e.held_prior and not legacy:  # since stop 78 held at its centre, not
+        # at nominal (HeldPrior.held_at_si): such a run estimates again
+        section["held_prior_held_at"] = "centre of the range"
     if e.correction_slopes:
         section["correction_steps"] = "checked by the simulator's cost (trust region)"
         if e.slope_update == "broyden":  # the floor came after Broyden's update: estimate again

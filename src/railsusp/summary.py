@@ -123,6 +123,7 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
     assumed = {r["symbol"]: r for r in est.get("not_estimated", [])}
     # the simulator polish beside NSGA-II's estimate (time-aligned route), when there is one
     polished = est.get("polished_display") or {}
+    held_at = est.get("held_at_display") or {}
     rows = []
     for p in MAIN_SUSPENSION:
         s = spec(p)
@@ -145,9 +146,12 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
         if polished:
             row["polished"] = float(polished.get(p, float("nan")))
         if p not in params:
-            row["estimate"] = s.nominal_display
-            row["change_pct"] = 0.0
-            row["verdict"] = f"{NOT_ESTIMATED}: held at {sig3(s.nominal_display)} {s.display_unit}"
+            # held at nominal, or at the centre of the user's held_prior range (the value
+            # the estimate's simulations and the validation took)
+            value = float(held_at.get(p, s.nominal_display))
+            row["estimate"] = value
+            row["change_pct"] = 100.0 * (value - s.nominal_display) / s.nominal_display
+            row["verdict"] = f"{NOT_ESTIMATED}: held at {sig3(value)} {s.display_unit}"
             held = (intervals.details.get("held_parameters_assumed") or {}).get(p)
             if held:  # the refinement's intervals took it uniform over a range
                 row["verdict"] = (

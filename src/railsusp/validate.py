@@ -231,7 +231,10 @@ def validate(
                 stats = (*stats, ALIGNED)  # on measured track, also compare sample by sample
     if ALIGNED in stats:  # asked for: before the simulations, not after them
         check_time_base(recs, "validate's time-aligned errors (statistic 'aligned')")
-    chosen = ParameterSet(est["estimate_display"], units="display")
+    # the parameters not estimated where the estimate held them: nominal, or the centre of
+    # the user's held_prior range (estimate.json's held_at_display)
+    held_at = est.get("held_at_display") or {}
+    chosen = ParameterSet({**held_at, **est["estimate_display"]}, units="display")
     nominal = ParameterSet.nominal()
     truth_set = None
     if truth is not None:  # before the simulations: a truth of other recordings refused

@@ -55,6 +55,9 @@ class EstimatePoint:
     #: the user's ranges of the parameters the refinement holds, for its intervals (None:
     #: each held one over its whole Table 2 range)
     held_prior: HeldPrior | None = None
+    #: the parameters not estimated that the estimate's simulations held off nominal, SI:
+    #: at the centre of the user's ``held_prior`` range (the validation holds them there too)
+    held_at_si: dict[str, float] = field(default_factory=dict)
     #: (draws, k) shift of NSGA-II's choice, SI, that each draw of the recordings' stated
     #: geometry error causes, with the model NSGA-II ran on (time-aligned forces only;
     #: :func:`~railsusp.estimate.nsga_geometry.remove_nsga_geometry_bias`); empty if none

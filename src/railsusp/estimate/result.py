@@ -201,6 +201,7 @@ class CalibrationResult(EstimatePoint):
                 "refinement": self.refinement.to_dict() if self.refinement else None,
                 "cramer_rao_pct_range": self.cramer_rao,
                 "intervals": self.intervals().to_dict(),
+                "held_at_display": {p: spec(p).to_display(v) for p, v in self.held_at_si.items()},
                 "model_revision": self.model_revision,
                 **(extra or {}),
             },

@@ -22,7 +22,7 @@ from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
 
 from railsusp.estimate.config import SIMULATED, HeldPrior, NSGAConfig, check_slope_update
-from railsusp.estimate.forces import ForceModel
+from railsusp.estimate.forces import ForceModel, SimulatorForces
 from railsusp.estimate.level_correction import check_correctable, correct_by_simulator
 from railsusp.estimate.nsga import estimate_with_seeds
 from railsusp.estimate.nsga_geometry import (
@@ -33,6 +33,7 @@ from railsusp.estimate.nsga_geometry import (
 from railsusp.estimate.polish import check_refinable, refine_estimate
 from railsusp.estimate.result import CalibrationResult
 from railsusp.measured import Recording
+from railsusp.params import ParameterSet
 
 #: what shows a step while it runs: given the step's description, a context manager
 #: (the command line's spinner, ``rich.console.Console.status``); none by default
@@ -98,6 +99,7 @@ class EstimateRoute:
                 "used (the refined intervals take a prior for held parameters only)",
                 stacklevel=2,
             )
+        simulator, held_at = held_simulator(simulator, self.held_prior, parameters)
         cfg = self.nsga
         with progress(f"NSGA-II {cfg.pop_size} x {cfg.n_gen} on {len(recordings)} recording(s)"):
             res = estimate_with_seeds(model, recordings, parameters, cfg, n_seeds=self.seeds)
@@ -145,4 +147,21 @@ class EstimateRoute:
                     model=simulator,
                 )
             res.held_prior = self.held_prior
+            res.held_at_si = held_at
         return res
+
+
+def held_simulator(
+    simulator: ForceModel | None, prior: HeldPrior | None, parameters: Sequence[str]
+) -> tuple[ForceModel | None, dict[str, float]]:
+    """(the reference simulator, the values it holds parameters at off nominal): with a
+    user's ``prior`` for parameters not estimated, the simulator (default the packaged
+    wagon's) holding each at the centre of its range (:meth:`HeldPrior.held_at_si`), and
+    those values (SI); else ``simulator`` as given and none. A reference model that is not
+    the simulator is left as it is, and holds nothing off nominal."""
+    held = prior.held_at_si(parameters) if prior is not None else {}
+    sim = SimulatorForces(parameters) if simulator is None else simulator
+    if not held or not isinstance(sim, SimulatorForces):
+        return simulator, {}
+    base = (sim.base or ParameterSet.nominal()).replace(held)
+    return SimulatorForces(sim.parameters, sim.wheel, base=base, wagon=sim.wagon), held
