@@ -173,3 +173,26 @@ def test_a_folder_of_other_settings_names_the_settings_that_differ(tmp_path):
     assert "--projection-rank 5, not 6); give another --out" in result.output
     assert len(result.output.strip().splitlines()) == 1
     assert not (tmp_path / "r" / "posterior" / "simulations").exists()
+
+
+def test_a_condition_on_measured_track_is_refused_before_any_simulation(tmp_path):
+    """The posterior is trained for unknown track, a new track realisation per case: a
+    condition naming a measured track geometry held every case on that one track, and its
+    cached simulations were keyed by the file's name, so a file edited in place was reused
+    (stop 78's hunt). Refused in one line naming the condition and the file, exit 2."""
+    geo = tmp_path / "geo.csv"
+    geo.write_text("s_m,y_left_m,z_left_m,y_right_m,z_right_m\n0,0,0,0,0\n1000,0,0,0,0\n")
+    conds = tmp_path / "conds.toml"
+    conds.write_text(f'[[condition]]\nbase = "straight"\nname = "geo"\ntrack_geometry = "{geo}"\n')
+    on_track = get_condition("straight").with_changes(track_geometry=str(geo))
+    with pytest.raises(RailsuspInputError, match="'straight' names the measured track geometry"):
+        PosteriorSettings((on_track,))
+    out = tmp_path / "p"
+    result = CliRunner().invoke(
+        app, ["posterior", "train", "--out", str(out), "--conditions", str(conds),
+              "--simulations", "20", "--check", "10", "--parameters", "X13,X14"],
+    )  # fmt: skip
+    assert result.exit_code == 2, result.output
+    lines = [ln for ln in result.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "accepted conditions without track_geometry" in lines[0]
+    assert not (out / "simulations").exists()

@@ -165,6 +165,7 @@ class PosteriorSettings:
             raise RailsuspInputError("conditions: at least one working condition is needed")
         for c in self.conditions:
             check_resolution(c, self.section_s, families)
+            check_drawn_tracks(c)
         conds = tuple(c.with_duration(self.section_s) for c in self.conditions)
         object.__setattr__(self, "conditions", conds)
         for c in conds:
@@ -308,6 +309,22 @@ def _check_lags(families: tuple[str, ...], section_s: float) -> None:
             f"section_s = {section_s:g}: the statistics family 'coherence' correlates over "
             f"lags up to {longest:g} s, which needs sections of at least {least:g} s; "
             f"accepted {least:g} to 600"
+        )
+
+
+def check_drawn_tracks(condition: WorkingCondition) -> None:
+    """Refuse a condition that names a measured track geometry, in one line: the posterior
+    is trained for unknown track, each case on a track realisation of its own (its own
+    irregularity seed), and a measured geometry would hold every case on that one track, an
+    estimator conditioned on it and applied to recordings of any track as if calibrated
+    for them (its cache was also keyed by the file's name, so a file edited in place was
+    not simulated again: stop 78's hunt)."""
+    if condition.track_geometry is not None:
+        raise RailsuspInputError(
+            f"conditions: {condition.name!r} names the measured track geometry "
+            f"{condition.track_geometry}; the posterior is trained on a new track realisation "
+            "per case (unknown track), which one measured track cannot give; accepted "
+            "conditions without track_geometry (the design track and irregularity class)"
         )
 
 
