@@ -70,8 +70,9 @@ def test_the_middle80_prior_is_the_draws_own_distribution(bench):
 
 def test_the_lower40_prior_is_off_nominal_and_its_sets_are_drawn_in_it(bench):
     """``--held-prior lower40``: 10-50 % of every range, up to nominal (the range's centre),
-    centred 20 % of the range below it; the sets are the middle-80 draws' uniform numbers mapped into it, so every drawn
-    value lies in its prior, and the pipeline accepts the prior (held at its centre)."""
+    centred 20 % of the range below it; the sets are the middle-80 draws' uniform numbers
+    mapped into it, so every drawn value lies in its prior, and the pipeline accepts the
+    prior (held at its centre)."""
     prior = bench.held_prior("lower40")
     assert prior["X19"] == pytest.approx([18000.0, 30000.0])
     assert prior["X14"] == pytest.approx([6.0, 10.0])

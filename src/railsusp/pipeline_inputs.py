@@ -308,7 +308,8 @@ def _estimate_section(config: PipelineConfig, legacy: bool = False) -> dict:
     the box resizes), so that such a run estimates again; with Broyden's update also its
     step floor (since stop 53 no update across a step under it), for the same reason; with
     a refinement's ``held_prior`` where its parameters are held (since stop 78 at the
-    range's centre, not nominal), for the same reason. Without the refinement, its settings (``refine_*``, ``held_prior``) are left out since
+    range's centre, not nominal), for the same reason. Without the refinement, its
+    settings (``refine_*``, ``held_prior``) are left out since
     stop 66; ``legacy``: the section as hashed before."""
     e = config.estimate
     optional = (

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from railsusp.conditions import field_range
-from railsusp.measured.checks import dropout_steps, rows, runs
+from railsusp.measured.checks import dropout_steps, jitter_of, rows, runs
 from railsusp.measured.raw import RawChannel
 
 #: the least stretch of values (s) a channel must keep between its NaN gaps, and the run
@@ -47,31 +47,69 @@ def dropout_breaks(
     data_notes: list[str],
 ) -> np.ndarray:
     """The base samples after which the run lost samples (a logger's dropout): where the run
-    is cut. Another channel's dropout must fall in one of the base's (one logger), else its
-    values there would be interpolated across the dropout: a problem naming it."""
+    is cut. A dropout is every channel's together (one logger), so each other channel's and
+    the base's must coincide, both ways: a base sample inside another channel's dropout
+    would take that channel's values interpolated across it, and another channel's sample
+    inside the base's is a time the base alone lost (only the first was looked for: forces
+    that lost samples a speed channel kept were cut there without a word). Either is a
+    problem naming the channel. A sample counts as inside a dropout beyond half the base's
+    interval from either end, or the channel's jitter (:func:`~railsusp.measured.checks.
+    jitter_of`, of its interval) where larger: a slow channel's stamps may move that far;
+    a base sample inside a speed, position or track channel's gap beyond one of that
+    channel's steps (and its jitter): a slower channel's gap in a dropout of all reaches
+    that far past the base's (10 Hz speed and 1000 Hz forces losing the same 0.5 s were
+    refused as the speed's own loss)."""
     t = si[base].time
     lost = dropout_steps(t)
     breaks = (lost + 1) if lost is not None else np.zeros(0, dtype=np.int64)
-    for c in quantity:
+    for c, q in quantity.items():
         ch = si[c]
-        gaps = dropout_steps(ch.time)
-        if c == base or gaps is None or not gaps.size:
+        if c == base:
             continue
-        half = 0.5 / si[base].rate_hz  # a base sample inside the gap is interpolated over it
-        for i in gaps:
-            inside = np.count_nonzero((t > ch.time[i] + half) & (t < ch.time[i + 1] - half))
-            if inside:
-                problems.append(
-                    f"channel {c!r}: samples lost between {ch.time[i]:.3f} and "
-                    f"{ch.time[i + 1]:.3f} s where the forces of {base!r} have {inside}; "
-                    "accepted dropouts of all channels together (one logger)"
-                )
-                break
+        tol = max(0.5 / si[base].rate_hz, jitter_of(q) / ch.rate_hz)
+        # a speed, position or track channel slower than the base, in a dropout of all:
+        # its last sample before and first after lie up to one of its own steps from the
+        # base's, so base samples that near its gap's ends are the shared dropout's edges
+        # (their values interpolated from its neighbouring sample, an error of that
+        # fraction of its change over the dropout), not a loss of its own
+        slower = q != "force" and ch.rate_hz < (1.0 - jitter_of(q)) * si[base].rate_hz
+        edge = (1.0 + jitter_of(q)) / ch.rate_hz if slower else tol
+        if found := _inside(ch.time, dropout_steps(ch.time, jitter_of(q)), t, max(tol, edge)):
+            a, b, n = found
+            said = (
+                f"samples lost between {a:.3f} and {b:.3f} s where the forces of {base!r} have {n}"
+            )
+        elif found := _inside(t, lost, ch.time, tol):
+            a, b, n = found
+            said = (
+                f"{n} sample(s) between {a:.3f} and {b:.3f} s, where the forces of {base!r} "
+                "lost theirs (a dropout)"
+            )
+        else:
+            continue
+        problems.append(
+            f"channel {c!r}: {said}; accepted dropouts of all channels together (one logger)"
+        )
     if breaks.size:
         note = f"channel {base!r}: {breaks.size} dropout(s) (samples lost); sections are cut there"
         notes.append(note)
         data_notes.append(note)
     return breaks.astype(np.int64)
+
+
+def _inside(
+    own: np.ndarray, gaps: np.ndarray | None, other: np.ndarray, tol: float
+) -> tuple[float, float, int] | None:
+    """The first of ``gaps`` (steps i -> i + 1 of the time base ``own`` that lost samples:
+    :func:`~railsusp.measured.checks.dropout_steps`) that holds samples of the time base
+    ``other`` more than ``tol`` s from either end: its two times and their count; None
+    where none does."""
+    for i in [] if gaps is None else gaps:
+        a, b = float(own[i]), float(own[i + 1])
+        n = int(np.count_nonzero((other > a + tol) & (other < b - tol)))
+        if n:
+            return a, b, n
+    return None
 
 
 def _longest_stretch(t: np.ndarray, missing: np.ndarray) -> float:

@@ -34,6 +34,7 @@ from railsusp.measured.sampling import (
     check_sparse,
     finite_rate_note,
     finite_sampling,
+    short_gaps_note,
 )
 from railsusp.measured.sidecar import condition_on_the_table, read_sidecar, sidecar_condition
 from railsusp.measured.track_columns import check_track_columns
@@ -180,7 +181,9 @@ def read_recording(
                 sampling[col] = finite_sampling(ch.values, rate)
                 sparse = check_sparse(sampling[col], col)
                 problems += sparse
-                n = [] if sparse else n
+                # noted: its samples missing at its rate, not its rows off its step
+                note = None if sparse else short_gaps_note(col, ch.values, sampling[col])
+                n = [note] if note and n else []
             notes += n
             problems += check_flat(x, col, ch.unit or "") + check_clipped(x, col, ch.unit or "")
             si[f] = table.on_time(x) * factor

@@ -40,6 +40,7 @@ from railsusp.measured.checks import (
     check_flat,
     check_forces,
     check_time,
+    jitter_of,
 )
 from railsusp.measured.raw import RawChannel, read_raw
 from railsusp.measured.recording import RecordingError
@@ -48,14 +49,18 @@ from railsusp.measured.run_checks import (
     MIN_RUNNING_SHARE,
     channel_unit,
     check_force_rates,
+    check_spans,
     check_track_channels,
+    time_base,
 )
 from railsusp.measured.sampling import (
     FiniteSampling,
     check_sparse,
+    every_k_rows,
     finite_rate_note,
     finite_sampling,
     missing_rows,
+    short_gaps_note,
 )
 from railsusp.measured.speed_from_distance import distance_through_steps, smoothed_gradient
 from railsusp.measured.units import normalise_unit, si_factor
@@ -125,44 +130,6 @@ class MeasuredRun:
 MIN_RUN_RATE_HZ = 50.0
 
 
-def time_base(
-    force_names: list[str],
-    finite_hz: dict[str, float],
-    stated: dict[str, float],
-    samples: dict[str, int],
-) -> str:
-    """The force channel whose time base the run takes: the fastest by its finite samples'
-    rate, then by its stated rate, rates compared to 6 digits (where float noise, 200.0000001
-    against 199.9999999 Hz, chose among channels as fast); of those, the one with the
-    most ``samples`` (the longest, or the one that lost none: another's lost sample is then
-    refused as a dropout, not taken for the logger's), ties broken by the first name."""
-
-    def rounded(hz: float) -> float:
-        return float(f"{hz:.6g}")
-
-    return min(
-        force_names,
-        key=lambda c: (-rounded(finite_hz[c]), -rounded(stated[c]), -samples[c], c),
-    )
-
-
-def beyond_base(ch: RawChannel, base: RawChannel) -> list[str]:
-    """The problem of a force channel ``ch`` whose samples reach beyond the span of the
-    run's time base (``base``, the fastest force channel) by more than a sample interval of
-    either: the run is that span, and its other forces' samples beyond it were dropped
-    without a word (a 180 s run whose fastest channel stopped at 60 s was cut to 60 s).
-    Speed, position and track channels longer than the forces are taken as usual."""
-    tol = max(1.0 / ch.rate_hz, 1.0 / base.rate_hz)
-    t = base.time
-    if ch.time[0] >= t[0] - tol and ch.time[-1] <= t[-1] + tol:
-        return []
-    return [
-        f"channel {ch.name!r}: covers {ch.time[0]:.3f}-{ch.time[-1]:.3f} s, beyond the "
-        f"{t[0]:.3f}-{t[-1]:.3f} s of {base.name!r} (the forces' time base, the fastest): "
-        "cut the file to the span every force channel covers"
-    ]
-
-
 def read_run(
     path: str | Path,
     channel_map: ChannelMap | None = None,
@@ -179,7 +146,10 @@ def read_run(
     ``gap_limit`` samples cuts the run as a dropout does, its samples left out of the
     sections (:mod:`railsusp.measured.breaks`); shorter ones are interpolated, at most 5 %
     of a force channel's samples (at its rate of finite samples, which must reach
-    ``min_rate_hz``: :mod:`railsusp.measured.sampling`, the field reader's rule too)."""
+    ``min_rate_hz``: :mod:`railsusp.measured.sampling`, the field reader's rule too). A
+    table's speed, position or track column with a value every k rows is read at its rate
+    (:func:`~railsusp.measured.sampling.every_k_rows`), and those channels' timestamps may
+    jitter by :data:`~railsusp.measured.checks.SLOW_JITTER_TOLERANCE` of their step."""
     path = Path(path)
     if channel_map is not None:  # before the file is read: a long run takes a while
         check_recording_name(channel_map, path)
@@ -253,21 +223,28 @@ def read_run(
         except RailsuspInputError as exc:
             problems.append(str(exc))
             continue
-        time_problems = check_time(ch.time, name, ch.first_row, dropouts=True)
+        if q != "force":  # a table's column with a value every k rows: at its rate
+            ch, note = every_k_rows(ch)
+            notes += [note] if note else []
+        # a slow channel is only interpolated: its timestamps may jitter (a CAN bus's)
+        time_problems = check_time(ch.time, name, ch.first_row, dropouts=True, jitter=jitter_of(q))
         problems += time_problems
         values, finite_problems, finite_notes = check_finite(
             ch.values, name, ch.first_row, gap_limit, keep_long=True
         )
         problems += finite_problems
-        notes += finite_notes
-        data_notes += finite_notes
         if q == "force":  # (on the values with their long gaps NaN: not judged)
             sampling[name] = finite_sampling(ch.values, ch.rate_hz, gap_limit)  # the file's
             if not finite_problems:
                 problems += check_sparse(sampling[name], name, gap_limit)
             missing[name] = missing_rows(ch.values, sampling[name].step)  # not rows off its step
+            # noted: its samples missing at its rate, not its rows off its step
+            note = short_gaps_note(name, ch.values, sampling[name], gap_limit)
+            finite_notes = [note] if note and finite_notes else []
             problems += check_flat(values, name, unit or "")  # a value in the file's unit
             problems += check_clipped(values, name, unit or "")
+        notes += finite_notes
+        data_notes += finite_notes
         if not time_problems and not finite_problems:
             kept = RawChannel(name, normalise_unit(unit), ch.time, values * factor, ch.first_row)
             gap_notes: list[str] = []
@@ -295,16 +272,7 @@ def read_run(
         if note:
             notes.append(note)
             data_notes.append(note)
-    for c in quantity:
-        ch = si[c]
-        tol = 1.0 / ch.rate_hz
-        if ch.time[0] > t[0] + tol or ch.time[-1] < t[-1] - tol:
-            problems.append(
-                f"channel {c!r}: covers {ch.time[0]:.3f}-{ch.time[-1]:.3f} s, not the "
-                f"{t[0]:.3f}-{t[-1]:.3f} s of the forces"
-            )
-        elif c in force_names:
-            problems += beyond_base(ch, si[base])
+    problems += check_spans(si, base, quantity)
     breaks = dropout_breaks(si, base, quantity, problems, notes, data_notes)
     gap_breaks, gaps = nan_gap_breaks(si, {c: g for c, g in nan_gaps.items() if g}, t, problems)
     if problems:

@@ -1,7 +1,8 @@
 """The checks of a long run as a whole, beyond those of each channel
 (:mod:`railsusp.measured.checks`): every force channel sampled fast enough, the file's and
 the channel map's units agreeing, and speed, cant, grade and distance within what a line
-and a working condition allow (a channel beyond them is more likely in the wrong unit).
+and a working condition allow (a channel beyond them is more likely in the wrong unit); the
+force channel whose time base the run takes, and every channel covering its span.
 
 Apart from :mod:`railsusp.measured.run` (which reads the recording and joins its channels on
 one time base) because these are the limits and the problems they raise: each returns its
@@ -15,6 +16,7 @@ import numpy as np
 from railsusp.conditions import field_range
 from railsusp.errors import RailsuspInputError
 from railsusp.measured.channels import ChannelMap
+from railsusp.measured.checks import jitter_of
 from railsusp.measured.raw import RawChannel
 from railsusp.measured.units import normalise_unit, si_factor
 
@@ -155,3 +157,61 @@ def channel_unit(
             f"channel {ch.name!r}: the file states unit {ch.unit!r}, the channel map {mapped!r}"
         )
     return ch.unit or mapped
+
+
+def time_base(
+    force_names: list[str],
+    finite_hz: dict[str, float],
+    stated: dict[str, float],
+    samples: dict[str, int],
+) -> str:
+    """The force channel whose time base the run takes: the fastest by its finite samples'
+    rate, then by its stated rate, rates compared to 6 digits (where float noise, 200.0000001
+    against 199.9999999 Hz, chose among channels as fast); of those, the one with the
+    most ``samples`` (the longest, or the one that lost none: another's lost sample is then
+    refused as a dropout, not taken for the logger's), ties broken by the first name."""
+
+    def rounded(hz: float) -> float:
+        return float(f"{hz:.6g}")
+
+    return min(
+        force_names,
+        key=lambda c: (-rounded(finite_hz[c]), -rounded(stated[c]), -samples[c], c),
+    )
+
+
+def beyond_base(ch: RawChannel, base: RawChannel) -> list[str]:
+    """The problem of a force channel ``ch`` whose samples reach beyond the span of the
+    run's time base (``base``, the fastest force channel) by more than a sample interval of
+    either: the run is that span, and its other forces' samples beyond it were dropped
+    without a word (a 180 s run whose fastest channel stopped at 60 s was cut to 60 s).
+    Speed, position and track channels longer than the forces are taken as usual."""
+    tol = max(1.0 / ch.rate_hz, 1.0 / base.rate_hz)
+    t = base.time
+    if ch.time[0] >= t[0] - tol and ch.time[-1] <= t[-1] + tol:
+        return []
+    return [
+        f"channel {ch.name!r}: covers {ch.time[0]:.3f}-{ch.time[-1]:.3f} s, beyond the "
+        f"{t[0]:.3f}-{t[-1]:.3f} s of {base.name!r} (the forces' time base, the fastest): "
+        "cut the file to the span every force channel covers"
+    ]
+
+
+def check_spans(si: dict[str, RawChannel], base: str, quantity: dict[str, str]) -> list[str]:
+    """Problems of channels (``quantity``: name -> its quantity, "force" or another) that
+    do not cover the span of the run's time base (``base``'s) to within a sample interval
+    of their own (and their jitter: :func:`~railsusp.measured.checks.jitter_of`), and of
+    force channels reaching beyond it (:func:`beyond_base`)."""
+    problems = []
+    t = si[base].time
+    for c, q in quantity.items():
+        ch = si[c]
+        tol = (1.0 + jitter_of(q)) / ch.rate_hz  # its last sample's time may jitter
+        if ch.time[0] > t[0] + tol or ch.time[-1] < t[-1] - tol:
+            problems.append(
+                f"channel {c!r}: covers {ch.time[0]:.3f}-{ch.time[-1]:.3f} s, not the "
+                f"{t[0]:.3f}-{t[-1]:.3f} s of the forces"
+            )
+        elif q == "force":
+            problems += beyond_base(ch, si[base])
+    return problems

@@ -14,6 +14,10 @@ run, :mod:`railsusp.measured.run`):
   them: interpolated values are not measured forces. Longer gaps are no share of this: a
   recording to estimate from is refused at one, a long run cut there.
 
+A long run's speed, position or track column is held to a like rule (:func:`every_k_rows`):
+with a value every k rows it is a channel at the table's rate over k, its samples missing
+only where a row of that step is empty.
+
 Before, the field reader refused a 100 Hz table with a value in every other row (50 %
 "missing") where the long run's accepted one with a note, and the long run's accepted 20 %
 of its samples missing one by one, which ``sections --write`` then wrote as measured. The
@@ -29,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from railsusp.measured.checks import MAX_GAP_SAMPLES
+from railsusp.measured.raw import RawChannel
 
 #: the largest share of a force channel's samples (at its effective rate) that its short
 #: NaN gaps, or samples off its step, may hold
@@ -99,6 +104,62 @@ def missing_rows(x: np.ndarray, step: float) -> np.ndarray:
     )
     stretch = np.searchsorted(at, np.arange(x.size), side="right")  # 0: before the first
     return nan & (lost[stretch] >= 1.0)
+
+
+def short_gaps_note(
+    channel: str, x: np.ndarray, s: FiniteSampling, gap_limit: int = MAX_GAP_SAMPLES
+) -> str | None:
+    """The note of a force channel's samples missing at its rate (``s``, its
+    :func:`finite_sampling`) in short gaps (of up to ``gap_limit`` rows: interpolated),
+    None where none is: at a step of 1 every NaN row of such a gap, as
+    :func:`~railsusp.measured.checks.check_finite` counts them; at a step k only the
+    samples of that rate missing (its rows off the step are no data missing: a column
+    filled every second row was also noted as "3000 missing sample(s) interpolated",
+    beside its note of being sampled at 50 Hz)."""
+    at = np.flatnonzero(~np.isnan(x))
+    if at.size == 0:
+        return None
+    d = np.diff(at)
+    d = d[d <= gap_limit + 1]
+    ends = np.array([at[0], x.size - 1 - at[-1]])
+    ends = ends[ends <= gap_limit]
+    lost = int(np.maximum(np.rint(d / s.step) - 1.0, 0.0).sum() + np.rint(ends / s.step).sum())
+    if not lost:
+        return None
+    rate = f" (of its {s.rate_hz:.4g} Hz)" if s.step > 1.0 else ""
+    return f"channel {channel!r}: {lost} missing sample(s){rate} interpolated"
+
+
+def every_k_rows(ch: RawChannel) -> tuple[RawChannel, str | None]:
+    """A table's speed, position or track column as the slow channel it is, where its
+    finite values fall every k >= 2 rows (k rows between more than half of them): a 5 Hz
+    speed written in every 20th row of a 100 Hz table, the other cells empty, was refused
+    as 95 % missing. Its samples are then its rows of that step: its finite rows, and
+    between two of them d rows apart round(d / k) - 1 rows missing (NaN, evenly between),
+    as are the rows of its step before its first value and after its last; it is read at
+    the table's rate over k and interpolated onto the forces' time base as a slow MDF
+    channel is, only those samples missing (short gaps interpolated, longer ones cut at).
+    A finite value off that step stays a sample of its own, its time checked as a slow
+    channel's (:data:`~railsusp.measured.checks.SLOW_JITTER_TOLERANCE`). With the note
+    that says so; the column as it is (None) where no such step holds."""
+    x = ch.values
+    at = np.flatnonzero(~np.isnan(x))
+    if at.size < 3 or isinstance(ch.first_row, np.ndarray) or not ch.first_row:  # (MDF: 0)
+        return ch, None
+    d = np.diff(at)
+    counts = np.bincount(d)
+    k = int(np.argmax(counts))  # (a tie: the shorter step)
+    if k < 2 or 2 * counts[k] <= d.size:
+        return ch, None
+    m = np.maximum(np.rint(d / k), 1.0).astype(np.int64)  # its steps between two values
+    j = np.arange(int(m.sum())) - np.repeat(np.cumsum(m) - m, m)  # 0 .. m - 1 in each
+    inside = np.repeat(at[:-1], m) + np.rint(j * np.repeat(d / m, m)).astype(np.int64)
+    head = at[0] - k * np.arange(at[0] // k, 0, -1)
+    tail = at[-1] + k * np.arange(1, (x.size - 1 - at[-1]) // k + 1)
+    idx = np.concatenate([head, inside, at[-1:], tail])
+    out = RawChannel(ch.name, ch.unit, ch.time[idx], x[idx], ch.first_row + idx)
+    note = finite_rate_note(ch.name, FiniteSampling(k, ch.rate_hz / k, 0, idx.size), ch.rate_hz)
+    return out, note
 
 
 def check_sparse(
