@@ -210,8 +210,9 @@ def stored_refinement(set_dir: Path):
     its problem, residuals and solution as :func:`~railsusp.estimate.refine.refine` leaves
     them, so that :func:`~railsusp.estimate.refine_intervals.refinement_intervals` forms
     today's intervals of that same estimate. Simulates the solution's Jacobian (k + 1
-    parameter sets; the held parameters' batch is the intervals' own). Exact track only:
-    the geometry-error draws are not repeated."""
+    parameter sets; the held parameters' batch is the intervals' own), with the parameters
+    not estimated where the estimate held them (``held_at_display``: a held prior's centre,
+    else nominal). Exact track only: the geometry-error draws are not repeated."""
     from railsusp.estimate.forces import SimulatorForces
     from railsusp.estimate.output_error import OutputError
     from railsusp.estimate.refine import Refinement
@@ -224,7 +225,11 @@ def stored_refinement(set_dir: Path):
     if doc["refinement"].get("geometry_draws"):
         raise ValueError(f"{set_dir}: --rescore rebuilds refinements on exact track only")
     recs = read_field(set_dir / "field")
-    prob = OutputError(SimulatorForces(params), recs, params)
+    # held where the estimate held them (held_at_display: a held prior's centres), so that
+    # the intervals' held part is taken about those values, as the estimate's was
+    held = doc.get("held_at_display") or {}
+    base = ParameterSet(held, units="display") if held else None
+    prob = OutputError(SimulatorForces(params, base=base), recs, params)
     lo, hi = bounds(params)
     x = ParameterSet(doc["estimate_display"], units="display").to_array(params)
     gains = doc["refinement"]["channel_gains"]

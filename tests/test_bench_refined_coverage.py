@@ -101,12 +101,17 @@ def test_error_over_half_width_on_the_truths_side(bench):
     assert got.tolist() == pytest.approx([0.1 / 0.3, 0.1 / 0.05, 0.0, np.inf])
 
 
-def test_rescore_rebuilds_a_stored_refinement_and_gives_its_intervals(bench, tmp_path):
+@pytest.mark.parametrize("held_at", [{}, {"X19": 20000.0}])
+def test_rescore_rebuilds_a_stored_refinement_and_gives_its_intervals(bench, tmp_path, held_at):
     """``--rescore``: a set's refinement rebuilt from its estimate.json (estimate, channel
-    gains) and field folder gives the intervals the refinement itself gives, and the scored
-    rows carry them beside the stored ones."""
+    gains, where it held the parameters it did not estimate) and field folder gives the
+    intervals the refinement itself gives, and the scored rows carry them beside the stored
+    ones. With X19 held at a prior's centre (20000 kN/m), the rebuilt refinement held it at
+    nominal: its intervals took the offset (X13's error quantiles -23.5/+17.3 % of range
+    against the refinement's -22.4/+22.4; the review of stop 78)."""
     from railsusp.conditions import get_condition
     from railsusp.estimate import SimulatorForces
+    from railsusp.estimate.config import HeldPrior
     from railsusp.estimate.problem import display_values
     from railsusp.estimate.refine import refine
     from railsusp.estimate.refine_intervals import refinement_intervals
@@ -118,8 +123,10 @@ def test_rescore_rebuilds_a_stored_refinement_and_gives_its_intervals(bench, tmp
     truth = ParameterSet({"X13": 16.1, "X14": 8.3}, units="display")
     field = synthesise_field(truth, [cond], tmp_path / "set-00" / "field", with_track=True)
     lo, hi = bounds(params)
-    r = refine(SimulatorForces(params), read_field(field), params, lo + 0.5 * (hi - lo),
-               max_evaluations=2, geometry_draws=0)  # fmt: skip
+    base = ParameterSet(held_at, units="display") if held_at else None
+    prior = HeldPrior.from_display({"X19": [15000, 25000]} if held_at else {})
+    r = refine(SimulatorForces(params, base=base), read_field(field), params,
+               lo + 0.5 * (hi - lo), max_evaluations=2, geometry_draws=0)  # fmt: skip
     est = tmp_path / "set-00" / "estimate"
     write_json(
         est / "estimate.json",
@@ -127,6 +134,7 @@ def test_rescore_rebuilds_a_stored_refinement_and_gives_its_intervals(bench, tmp
             "parameters": list(params),
             "estimate_display": display_values(params, r.estimate_si),
             "refinement": {"channel_gains": r.channel_gains, "geometry_draws": 0},
+            "held_at_display": held_at,
         },
     )
     (est / "validation").mkdir()
@@ -145,12 +153,12 @@ def test_rescore_rebuilds_a_stored_refinement_and_gives_its_intervals(bench, tmp
     ).to_csv(est / "validation" / "recovery.csv", index=False)
     rebuilt = bench.stored_refinement(tmp_path / "set-00")
     assert rebuilt.residuals == pytest.approx(r.residuals, rel=1e-6, abs=1e-9)
-    want = refinement_intervals(r)
-    got = refinement_intervals(rebuilt)
+    want = refinement_intervals(r, prior=prior)
+    got = refinement_intervals(rebuilt, prior=prior)
     for p in params:
         assert got[p].low_si == pytest.approx(want[p].low_si, rel=1e-6)
         assert got[p].high_si == pytest.approx(want[p].high_si, rel=1e-6)
-    rows = bench.rescore_set(tmp_path / "set-00", {})
+    rows = bench.rescore_set(tmp_path / "set-00", prior.to_display())
     assert [row["parameter"] for row in rows] == ["X13"]  # identifiable only
     assert rows[0]["interval_low"] == pytest.approx(want["X13"].low, rel=1e-6)
     assert rows[0]["stored_interval_low"] == 6.0

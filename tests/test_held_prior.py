@@ -242,3 +242,67 @@ def test_the_refined_point_is_held_where_its_interval_centres_the_prior(tmp_path
     res.save(tmp_path / "estimate")
     doc = json.loads((tmp_path / "estimate" / "estimate.json").read_text())
     assert doc["held_at_display"] == {"X19": pytest.approx(20000.0)}
+
+
+def test_nsga_ii_on_the_simulator_holds_them_at_the_centre_too(monkeypatch):
+    """``railsusp estimate --simulator --refine --held-prior``: NSGA-II's force model is the
+    simulator, and it held X19 at nominal while the refinement held it at the centre (its
+    Pareto set, choice and log fitted at 30000 kN/m; the review of stop 78). A surrogate
+    as the model is left as it is."""
+    import railsusp.estimate.route as route_module
+    from railsusp.estimate import NSGAConfig, SimulatorForces
+    from railsusp.estimate.route import EstimateRoute
+
+    seen = []
+
+    def captured(model, *args, **kwargs):
+        seen.append(model)
+        raise RuntimeError("captured")
+
+    monkeypatch.setattr(route_module, "estimate_with_seeds", captured)
+    monkeypatch.setattr(EstimateRoute, "check", lambda self, recordings, model: None)
+    route = EstimateRoute(
+        nsga=NSGAConfig(pop_size=4, n_gen=1), seeds=1, geometry_draws=0,
+        remove_geometry_bias=False, simulator_corrections=0, refine=True,
+        refine_evaluations=2, refine_screen=0, refine_starts=1,
+        held_prior=HeldPrior.from_display({"X19": [15000, 25000]}),
+    )  # fmt: skip
+    surrogate = object()
+    for model in (SimulatorForces(("X13",), wagon="tare"), surrogate):
+        with pytest.raises(RuntimeError, match="captured"):
+            route.run(model, [], ("X13",))  # type: ignore[arg-type]
+    assert seen[0].base["X19"] == pytest.approx(20e6) and seen[0].wagon == "tare"
+    assert seen[1] is surrogate
+
+
+@pytest.mark.parametrize(
+    ("held", "needle"),
+    [
+        (["X19"], "held_at_display = ['X19']: accepted an object {symbol: value}"),
+        ({"X19": "twenty"}, "held_at_display.X19 = 'twenty': accepted"),
+        ({"X13": 16.0}, "held_at_display.X13 = 16.0: accepted"),  # estimated
+        ({"X19": 90000.0}, "held_at_display.X19 = 90000.0: accepted"),  # beyond Table 2
+        ({"X9": 1.0}, "held_at_display.X9 = 1.0: accepted"),  # not main suspension
+    ],
+)
+def test_a_damaged_held_at_is_refused_in_one_line_by_the_summary_and_validate(
+    tmp_path, held, needle
+):
+    """estimate.json's held_at_display, read by the summary and the validation: a hand-edited
+    or damaged one gave an AttributeError's, ValueError's or TypeError's traceback."""
+    from railsusp import summary
+    from railsusp.estimate.config import held_at_of
+    from railsusp.validation_inputs import check_estimate_fields
+
+    doc = {
+        "parameters": ["X13"], "estimate_display": {"X13": 16.0}, "held_at_display": held,
+        "config": {"statistic": "mean"}, "measured": "field",
+    }  # fmt: skip
+    assert held_at_of({**doc, "held_at_display": {"X19": 20000}}, "f") == {"X19": 20000.0}
+    path = tmp_path / "estimate.json"
+    path.write_text(json.dumps(doc))
+    for read in (lambda: summary.read_estimate(path), lambda: check_estimate_fields(doc, path)):
+        with pytest.raises(RailsuspInputError) as err:
+            read()
+        assert needle in str(err.value) and "\n" not in str(err.value)
+        assert str(err.value).startswith(str(path))

@@ -269,7 +269,8 @@ class EstimateSection(StrictConfigModel):
     held_prior: dict[str, Any] = Field(
         default_factory=dict,
         description="{symbol: [low, high]} display units: the range each main-suspension "
-        "parameter the refinement holds at nominal is known to lie in (docs/configuration.md)",
+        "parameter the refinement holds is known to lie in; held at its centre "
+        "(docs/configuration.md)",
     )
 
     @field_validator("held_prior")

@@ -84,6 +84,9 @@ def read_estimate(path: str | Path) -> dict:
                 f"estimate_display.{p} = {repr(shown[p])[:40] if p in shown else 'missing'}: "
                 f"accepted a finite number (the estimate of each of {', '.join(params)})",
             )
+    from railsusp.estimate.config import held_at_of
+
+    held_at_of(est, str(path))  # where it held the parameters it did not estimate
     return est
 
 
@@ -91,6 +94,7 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
     """One row per main suspension parameter (display units): element, unit, nominal,
     estimate, standard error, interval (low, high, and how it was formed), change from
     nominal (%), tolerance (%), verdict and a note saying why."""
+    from railsusp.estimate.config import held_at_of
     from railsusp.estimate.identifiability import on_range_bound
     from railsusp.estimate.intervals import intervals_of
     from railsusp.identification_verdict import identification_issues, max_st, route_only
@@ -123,7 +127,7 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
     assumed = {r["symbol"]: r for r in est.get("not_estimated", [])}
     # the simulator polish beside NSGA-II's estimate (time-aligned route), when there is one
     polished = est.get("polished_display") or {}
-    held_at = est.get("held_at_display") or {}
+    held_at = held_at_of(est, str(path))
     rows = []
     for p in MAIN_SUSPENSION:
         s = spec(p)

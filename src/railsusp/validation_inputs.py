@@ -39,6 +39,9 @@ def check_estimate_fields(est: dict, path: Path, need_measured: bool = True) -> 
             f"{path}: field 'parameters' is {est['parameters']!r}; accepted a list of parameter "
             "symbols"
         )
+    from railsusp.estimate.config import held_at_of
+
+    held_at_of(est, str(path))  # the "after" set holds the parameters not estimated there
     config = est["config"]
     if not isinstance(config.get("statistic"), str):
         raise RailsuspInputError(

@@ -337,6 +337,35 @@ class HeldPrior:
         }
 
 
+def held_at_of(doc: Mapping[str, Any], where: str) -> dict[str, float]:
+    """An estimate.json's ``held_at_display`` (the parameters not estimated that the
+    estimate held off nominal, display units; absent or empty: none), checked: an object of
+    main-suspension symbols not among its ``parameters``, each a finite number inside its
+    Table 2 range; else a one-line input error naming ``where`` and the field (a hand-edited
+    file gave a TypeError's or an AttributeError's traceback)."""
+    held = doc.get("held_at_display") or {}
+    estimated = set(doc.get("parameters") or ())
+    accepted = (
+        "accepted an object {symbol: value} of main-suspension parameters not estimated, "
+        "each inside its Table 2 range in its display unit"
+    )
+    if not isinstance(held, Mapping):
+        raise RailsuspInputError(f"{where}: held_at_display = {held!r:.60}: {accepted}")
+    out = {}
+    for key, value in held.items():
+        ok = key in MAIN_SUSPENSION and key not in estimated
+        if ok and not isinstance(value, bool) and isinstance(value, int | float):
+            lo, hi = spec(key).bounds_display  # type: ignore[misc]
+            tol = 1e-9 * max(abs(lo), abs(hi))
+            ok = math.isfinite(value) and lo - tol <= value <= hi + tol
+        else:
+            ok = False
+        if not ok:
+            raise RailsuspInputError(f"{where}: held_at_display.{key} = {value!r:.40}: {accepted}")
+        out[key] = float(value)
+    return out
+
+
 def _pair(value: Any, message: str) -> tuple[float, float]:
     """``value`` as two finite numbers (not booleans), else a RailsuspInputError(message)."""
     if isinstance(value, str | bytes | Mapping) or not isinstance(value, Iterable):

@@ -33,8 +33,9 @@ the corrected surrogate predicted (or whose simulation stopped) is rejected, and
 squares is repeated from the step's start in a smaller box, without simulating its slopes;
 after a confirmed step on its edge the box grows.
 
-The simulator holds the other main-suspension parameters at nominal, as the refinement does;
-the networks average their effect over the ranges they were trained on.
+The simulator holds the other main-suspension parameters at nominal (or where the estimate
+route's held prior puts them: :func:`~railsusp.estimate.route.held_simulator`); the networks
+average their effect over the ranges they were trained on.
 """
 
 from __future__ import annotations

@@ -2,9 +2,11 @@
 
 Time-aligned force residuals are correlated over neighbouring samples (sensor bandwidth,
 model error), their channels are unequally noisy, and the refinement holds the other
-main-suspension parameters at nominal. The noise part is the refinement's own standard
-error (:attr:`~railsusp.estimate.refine.Refinement.standard_error_si`: each recording's
-channel with its own residual variance and integrated autocorrelation time, the sandwich
+main-suspension parameters at nominal (or, with a user's prior, at its range's centre:
+:meth:`~railsusp.estimate.config.HeldPrior.held_at_si`). The noise part is the
+refinement's own standard error
+(:attr:`~railsusp.estimate.refine.Refinement.standard_error_si`: each recording's channel
+with its own residual variance and integrated autocorrelation time, the sandwich
 covariance of :func:`~railsusp.estimate.residual_noise.noise_standard_errors`), a Student-t
 variable on the effective degrees of freedom; the track-geometry error's spread is normal;
 the held parameters' part is their linear response, each held parameter uniform over the
@@ -39,7 +41,8 @@ from railsusp.params import MAIN_SUSPENSION, ParameterSet, bounds, spec
 
 
 def held_parameters(parameters: Sequence[str]) -> tuple[str, ...]:
-    """The main-suspension parameters an estimate of ``parameters`` holds at nominal."""
+    """The main-suspension parameters an estimate of ``parameters`` holds (at nominal, or
+    at a held prior's centre)."""
     return tuple(p for p in MAIN_SUSPENSION if p not in set(parameters))
 
 
@@ -51,7 +54,8 @@ def held_moments(
     else its whole Table 2 range, so variance (b - a)²/12 and offset (a + b)/2 - held value.
     The default holds at nominal, the centre of every Table 2 range (nominal ± 50 %), so
     its offsets are zero; a user's range off-centre, or one that leaves nominal out, has
-    an offset, the mean of the error holding at nominal causes."""
+    an offset, the mean of the error holding at nominal causes (the estimate route holds a
+    parameter with a prior at its centre since stop 78, so its offset there is zero)."""
     prior = prior or HeldPrior()
     if not len(held):
         return np.zeros(0), np.zeros(0)

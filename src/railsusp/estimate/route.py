@@ -99,7 +99,13 @@ class EstimateRoute:
                 "used (the refined intervals take a prior for held parameters only)",
                 stacklevel=2,
             )
-        simulator, held_at = held_simulator(simulator, self.held_prior, parameters)
+        # the parameters the user gave a range for, held at its centre wherever the
+        # simulator runs: NSGA-II on it, its corrections, the refinement
+        held_at: dict[str, float] = {}
+        if self.refine or self.simulator_corrections or isinstance(model, SimulatorForces):
+            simulator, held_at = held_simulator(simulator, self.held_prior, parameters)
+        if held_at and isinstance(model, SimulatorForces):
+            model, _ = held_simulator(model, self.held_prior, parameters)
         cfg = self.nsga
         with progress(f"NSGA-II {cfg.pop_size} x {cfg.n_gen} on {len(recordings)} recording(s)"):
             res = estimate_with_seeds(model, recordings, parameters, cfg, n_seeds=self.seeds)
@@ -147,7 +153,7 @@ class EstimateRoute:
                     model=simulator,
                 )
             res.held_prior = self.held_prior
-            res.held_at_si = held_at
+        res.held_at_si = held_at  # (the validation simulates the estimate there too)
         return res
 
 
