@@ -259,3 +259,47 @@ def test_the_report_states_the_zero_phase_filters_response(tmp_path):
     text = "\n".join(doc.md)
     assert "-6 dB (half amplitude) at 20 Hz" in text and "1/(1 + (f/20 Hz)^8)" in text
     assert "8th-order roll-off" in text
+
+
+def test_failed_runs_left_out_of_the_metamodels_are_said_and_recorded(lhs_runs, monkeypatch):
+    """The metamodel route dropped failed (derailed) runs without a word: its Gaussian
+    processes were fitted on the survivors and its indices taken over the whole ranges,
+    where the wagon derails too, with a smaller n_train the only trace (stop 78's hunt).
+    Now a warning per condition, and key_parameters.json's failed_runs."""
+    import railsusp.sensitivity_metamodel as sm
+
+    real = sm.analysed_features
+
+    def two_failed(*args, **kwargs):
+        for cond, q, st, y in real(*args, **kwargs):
+            y = y.copy()
+            y.iloc[[3, 7]] = np.nan
+            yield cond, q, st, y
+
+    monkeypatch.setattr(sm, "analysed_features", two_failed)
+    with pytest.warns(UserWarning, match=r"condition 'short': 2 of 12 simulations failed"):
+        summary = analyse(lhs_runs[0], base_samples=64)
+    assert summary["failed_runs"] == {"short": 2}
+    assert {f["n_failed"] for f in summary["metamodel_r2"]} == {2}
+    stored = json.loads((lhs_runs[0] / "sensitivity" / "key_parameters.json").read_text())
+    assert stored["failed_runs"] == {"short": 2}
+
+
+def test_a_comparison_with_no_condition_in_common_is_refused(lhs_runs, tmp_path):
+    """``sensitivity --compare`` with no condition of the same name wrote an empty
+    agreement and exited 0; one of the same name defined otherwise (1 s against 2 s) was
+    compared as the same features without a note (stop 78's hunt)."""
+    other = make_config(
+        [SHORT[0].with_changes(name="other")], 12, batch_size=4, seed=1, parameters=("X13", "X14")
+    )
+    run_campaign(other, tmp_path / "other")
+    with pytest.raises(RailsuspInputError, match=r"compare .*other: no condition in common"):
+        analyse(lhs_runs[0], base_samples=64, compare=tmp_path / "other")
+    assert not (lhs_runs[0] / "sensitivity" / "agreement.csv").exists()
+    longer = make_config(
+        [SHORT[0].with_duration(2.0)], 12, batch_size=4, seed=1, parameters=("X13", "X14")
+    )
+    run_campaign(longer, tmp_path / "longer")
+    with pytest.warns(UserWarning, match=r"condition 'short' is defined otherwise there \("):
+        summary = analyse(lhs_runs[0], base_samples=64, compare=tmp_path / "longer")
+    assert summary["agreement"]

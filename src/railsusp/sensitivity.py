@@ -122,6 +122,35 @@ def check_settings(
         raise RailsuspInputError(f"seed {seed}: accepted 0 or more")
 
 
+def check_comparable(camp: Campaign, other: Campaign, compare: str | Path) -> None:
+    """Refuse, in one line, a comparison campaign with no condition of this one's name (an
+    empty agreement table was written and read as a comparison made); warn where a
+    condition of the same name is defined otherwise there (its features are others: a 1 s
+    "straight" against a 20 s one read max |dST| 0.95 as a disagreement of the methods).
+    The irregularity seed may differ (campaigns of other track realisations)."""
+    import warnings
+
+    mine = {c.name: c for c in camp.config.conditions}
+    theirs = {c.name: c for c in other.config.conditions}
+    common = [n for n in mine if n in theirs]
+    if not common:
+        raise RailsuspInputError(
+            f"compare {compare}: no condition in common with {camp.path} (its "
+            f"{', '.join(theirs)} against {', '.join(mine)}); accepted a campaign of at least "
+            "one condition of the same name"
+        )
+    for name in common:
+        a, b = mine[name].model_dump(), theirs[name].model_dump()
+        differ = [k for k in a if k != "seed" and a[k] != b.get(k)]
+        if differ:
+            said = ", ".join(f"{k} {b.get(k)!r} against {a[k]!r}" for k in differ[:3])
+            warnings.warn(
+                f"compare {compare}: condition {name!r} is defined otherwise there ({said}): "
+                "its agreement compares other features",
+                stacklevel=3,
+            )
+
+
 def _compared(compare: str | Path, check):
     """``check(compare)``, its campaign error naming the setting ``compare``."""
     try:
@@ -171,6 +200,7 @@ def analyse(
     require_complete(camp)  # part of it: a condition left out silently
     if other is not None:
         _compared(compare, lambda _: require_complete(other))
+        check_comparable(camp, other, compare)  # before any analysis
     out = camp.path / "sensitivity"
     fits: list[MetamodelFit] = []
 
@@ -189,6 +219,8 @@ def analyse(
         "method": idx.method.iloc[0],
         "key_parameters": selection.to_dict(),
         "metamodel_r2": [f.__dict__ for f in fits],
+        # simulations left out of each condition's metamodels (failed, e.g. derailed)
+        "failed_runs": {f.condition: f.n_failed for f in fits if f.n_failed},
     }
     # the comparison before anything is written: a failed one left the folder half new;
     # checked as this campaign is (an unfinished one was compared on the batches it had,
@@ -196,6 +228,11 @@ def analyse(
     agree = None
     if compare is not None:
         agree = agreement(idx, indices_of(other)[0])
+        if agree.empty:  # (conditions in common, but no parameter or statistic)
+            raise RailsuspInputError(
+                f"compare {compare}: no feature and parameter in common with {camp.path}; "
+                "accepted a campaign of the same parameters and statistics"
+            )
     from railsusp.report import plot_sobol
 
     # the folder written as one artefact: a failure part-way (a full disk) left new indices

@@ -49,6 +49,8 @@ class MetamodelFit:
     statistic: str
     r2_holdout: float
     n_train: int
+    #: the condition's simulations that failed (e.g. derailed), left out of the fit
+    n_failed: int = 0
 
 
 def fit_gp(x_unit: np.ndarray, y: np.ndarray, seed: int = 0, theta: np.ndarray | None = None):
@@ -102,10 +104,13 @@ def sobol_metamodel(
     xs = sobol_sample.sample(problem_unit, base_samples, calc_second_order=False, seed=seed)
     rng = np.random.default_rng(seed)
     frames, fits = [], []
+    left_out: dict[str, tuple[int, int]] = {}  # condition: (failed, simulated)
     for cond, q, st, y in analysed_features(campaign, statistics, quantities):
         ids = y.index.to_numpy()
         yv = y.to_numpy()
         ok = np.isfinite(yv)
+        if not ok.all():
+            left_out[cond] = max(left_out.get(cond, (0, 0)), (len(yv) - int(ok.sum()), len(yv)))
         if ok.sum() < MIN_METAMODEL_RUNS:  # a Gaussian process on nothing: sklearn's error
             failed = len(yv) - int(ok.sum())
             remedy = (
@@ -127,7 +132,14 @@ def sobol_metamodel(
         ym = gp.predict(xs)
         df = sobol_from_samples(problem_unit, ym, num_resamples=num_resamples, seed=seed)
         frames.append(with_index_columns(df, cond, q, st, y, "metamodel", r2))
-        fits.append(MetamodelFit(cond, q, st, r2, len(yv)))
+        fits.append(MetamodelFit(cond, q, st, r2, len(yv), len(ids) - int(ok.sum())))
+    for cond, (failed, n) in left_out.items():  # said, not only a smaller n_train
+        warnings.warn(
+            f"condition {cond!r}: {failed} of {n} simulations failed (e.g. derailed) and are "
+            "left out of its metamodels; its indices are over the whole parameter ranges, "
+            "where those runs failed too (key_parameters.json failed_runs)",
+            stacklevel=2,
+        )
     return pd.concat(frames, ignore_index=True)[list(INDEX_COLUMNS)], fits
 
 
