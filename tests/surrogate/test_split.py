@@ -73,6 +73,37 @@ def test_distinct_samples_split_near_the_fractions_and_common_seeds_hold_out_par
         split_by_track_and_parameters(design, indep, fractions=(0.5, 0.5, 0.5))
 
 
+def test_on_perfect_track_every_seed_is_one_track_and_layouts_count():
+    """Without irregularities (class -1) the seed shapes no track: 100 seeds on perfect
+    track were said to hold out tracks ("tracks and parameters", 12 track realisations
+    recorded; stop 78's hunt). Then only layouts differ: a family of curve radii holds
+    tracks out, samples of one layout are one track and stay in one part."""
+    from railsusp.surrogate.split import distinct_tracks
+
+    n = 100
+    design = pd.DataFrame({"sample_id": np.arange(n), "X13": np.arange(n, dtype=float)})
+    seeds = np.arange(n) + 1000
+    perfect = pd.DataFrame(
+        {"sample_id": np.arange(n), "seed": seeds, "irregularity_class": -1,
+         "curve_radius_m": np.nan, "cant_mm": 0.0}
+    )  # fmt: skip
+    s = split_by_track_and_parameters(design, [perfect], seed=1)
+    assert not s.held_out_tracks and s.held_out == "parameters (one track)"
+    assert (
+        distinct_tracks(perfect) == 1 and distinct_tracks(perfect.assign(irregularity_class=5)) == n
+    )
+    radii = perfect.assign(curve_radius_m=np.repeat([300.0, 400.0, 500.0, 600.0, 800.0], 20))
+    r = split_by_track_and_parameters(design, [radii], seed=1)
+    assert r.held_out_tracks and distinct_tracks(radii, np.arange(10)) == 1
+    for part in PARTS:  # each radius (track) in one part only
+        for other in PARTS:
+            if part != other:
+                mine = set(radii.curve_radius_m[r.part(part)])
+                assert not mine & set(radii.curve_radius_m[r.part(other)])
+    rough = split_by_track_and_parameters(design, [perfect.assign(irregularity_class=5)], seed=1)
+    assert rough.held_out_tracks
+
+
 def test_split_file_round_trip_and_refusals(tmp_path):
     rng = np.random.default_rng(3)
     design, tracks = _synthetic(30, rng)
@@ -277,3 +308,25 @@ def test_a_network_continued_on_a_campaign_is_not_scored_on_tracks_it_learnt(cap
     with caplog.at_level("WARNING", logger="railsusp.surrogate"):
         check_unseen_tracks(SimpleNamespace(meta={}, condition=cond), "old-net", test)
     assert "old-net records no track seeds" in caplog.text
+
+
+def test_the_train_commands_line_names_each_conditions_tracks_and_failed_test_runs(monkeypatch):
+    """``railsusp train`` printed one line of test tracks, of the last condition alone, and
+    its table counted the test runs that ran with no word of those that failed (derailed),
+    which ``compare`` counts (stop 78's hunt). Each condition's line says both."""
+    import railsusp.surrogate.split as split_module
+    from railsusp.cli.surrogates import _held_out_line
+
+    split = Split(np.arange(6), np.arange(6, 8), np.arange(8, 12), 0, (0.7, 0.15, 0.15), True)
+    monkeypatch.setattr(split_module, "campaign_split", lambda camp, seed: split)
+    monkeypatch.setattr(split_module, "condition_tracks", lambda camp, cond, ids: len(ids))
+
+    class Test:
+        sample_ids = np.array([8, 10, 11])
+
+    sur = type("Sur", (), {"meta": {"split": {"seed": 0}}})()
+    assert _held_out_line(None, "fast", sur, Test()) == (
+        "fast 3 on 3 distinct track(s), 1 failed (e.g. derailed) and not scored"
+    )
+    Test.sample_ids = np.arange(8, 12)
+    assert _held_out_line(None, "st", sur, Test()) == "st 4 on 4 distinct track(s)"

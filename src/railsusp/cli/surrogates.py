@@ -248,6 +248,7 @@ def train(
         "test runs",
     ):
         table.add_column(col, justify="left" if col in ("condition", "force") else "right")
+    held_out: list[str] = []  # per condition, for the closing line
     for cond in conds:
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
@@ -280,7 +281,7 @@ def train(
             fail(error)
         data = load_series(camp, cond, sur.spec)
         test = data.subset(np.flatnonzero(np.isin(data.sample_ids, sur.meta["test_ids"])))
-        tracks = len(np.unique(test.seeds))
+        held_out.append(_held_out_line(camp, cond, sur, test))
         pred, raw = predict_with_alone(sur, test)
         sim = test.targets.astype(float)
         alone = None if raw is None else accuracy(sim, raw, sur.spec.targets, sur.spec.window)
@@ -302,13 +303,27 @@ def train(
     console.print(table)
     from railsusp.surrogate.split import split_path
 
-    held = sur.meta.get("split", {})
+    held = sur.meta.get("split", {})  # (one split for the whole campaign)
     console.print(
-        f"test runs hold out {held.get('held_out', 'parameter sets')}, on {tracks} distinct "
-        f"track(s) (split {split_path(run, held.get('seed', 0))})",
+        f"test runs hold out {held.get('held_out', 'parameter sets')} (split "
+        f"{split_path(run, held.get('seed', 0))}): {'; '.join(held_out)}",
         highlight=False,
     )
     console.print(f"saved under {run / 'surrogates' / model}")
+
+
+def _held_out_line(camp, cond: str, sur, test) -> str:
+    """One condition's test runs for the train command's closing line: how many, on how many
+    distinct tracks, and how many of the split's test samples failed (e.g. derailed) and are
+    not scored (the table's count was of those that ran, with no word of the others)."""
+    from railsusp.surrogate.split import campaign_split, condition_tracks
+
+    split = campaign_split(camp, int(sur.meta.get("split", {}).get("seed", 0)))
+    tracks = condition_tracks(camp, cond, test.sample_ids)
+    failed = int(np.setdiff1d(split.test, test.sample_ids).size)  # as compare counts them
+    return f"{cond} {len(test.sample_ids)} on {tracks} distinct track(s)" + (
+        f", {failed} failed (e.g. derailed) and not scored" if failed else ""
+    )
 
 
 @app.command()

@@ -30,7 +30,7 @@ from railsusp.surrogate.fit import (
 )
 from railsusp.surrogate.keys import key_parameters
 from railsusp.surrogate.models import DEFAULT_WASHOUT, KINDS, SEQUENCE_KINDS
-from railsusp.surrogate.split import campaign_split
+from railsusp.surrogate.split import campaign_split, condition_tracks
 from railsusp.surrogate.train import TrainConfig
 
 ALL_MODELS = ("cnn-gru", "cnn-gru-seq", "cnn-lstm", "cnn-bilstm", "bp", "rbf", "gp-stats")
@@ -101,7 +101,7 @@ def compare(
         failed = int(np.setdiff1d(split.test, data.sample_ids).size)
         held = {
             "held_out": split.held_out,
-            "test_tracks": len(np.unique(test.seeds)),
+            "test_tracks": condition_tracks(camp, cond, test.sample_ids),
             "test_failed": failed,
         }
         norm = Normaliser.fit(train_data)

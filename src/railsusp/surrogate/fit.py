@@ -29,7 +29,7 @@ from railsusp.surrogate.models import (
 )
 from railsusp.surrogate.pairs import TwinRuns, load_twins
 from railsusp.surrogate.refit import fit_record_correction
-from railsusp.surrogate.split import Split, campaign_split
+from railsusp.surrogate.split import Split, campaign_split, condition_tracks
 from railsusp.surrogate.train import TrainConfig, sampler_for, train_network
 from railsusp.surrogate.training_scope import family_of
 from railsusp.variation import assumed_parameters
@@ -380,7 +380,8 @@ def train_surrogate(
             "train_config": tcfg.to_dict(),
             # asked for, fitted or not (too few training runs): what a rerun compares
             "record_correction_asked": bool(record_correction),
-            "track_realisations": len(np.unique(data.seeds)),
+            # (perfect track: one, whatever the seeds)
+            "track_realisations": condition_tracks(camp, data.condition.name, data.sample_ids),
             "track_family": None if fam is None else family_of(fam.ranges(), data.condition),
             "assumed_parameters": assumed_parameters(
                 spec.parameters, camp.config.other_parameters, camp.config.parameters

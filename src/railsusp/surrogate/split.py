@@ -18,7 +18,7 @@ same one and a later reader can check which runs a network never saw.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -127,6 +127,40 @@ def check_covers(split: Split, sample_ids: np.ndarray, path: Path) -> None:
         )
 
 
+def track_keys(t: pd.DataFrame) -> list[tuple]:
+    """What makes each sample's track of one condition (its tracks table: seed,
+    irregularity_class, curve_radius_m, cant_mm): its irregularity seed where it has
+    irregularities (class -1: perfect track), else its layout, the class, radius and cant
+    (the seed then shapes nothing: on perfect track every seed ran the same track, and the
+    split said it held 12 tracks out; stop 78's hunt)."""
+    n = len(t)
+    cls = t["irregularity_class"].to_numpy() if "irregularity_class" in t else np.zeros(n)
+    layout = [c for c in ("irregularity_class", "curve_radius_m", "cant_mm") if c in t]
+    rows = t[layout].to_numpy(dtype=float) if layout else np.zeros((n, 0))
+    seeds = t["seed"].to_numpy()
+    return [
+        ("seed", int(s)) if c != -1 else ("layout", *np.nan_to_num(r, nan=-1.0).tolist())
+        for s, c, r in zip(seeds, cls, rows, strict=True)
+    ]
+
+
+def distinct_tracks(t: pd.DataFrame, sample_ids: np.ndarray | None = None) -> int:
+    """The number of distinct tracks (:func:`track_keys`) among ``sample_ids`` (all: None)
+    of one condition's tracks table."""
+    if sample_ids is not None:
+        t = t[t["sample_id"].isin(np.asarray(sample_ids))]
+    return len(set(track_keys(t)))
+
+
+def condition_tracks(campaign: Campaign, condition: str, sample_ids: np.ndarray) -> int:
+    """The number of distinct tracks the campaign's ``sample_ids`` ran on in ``condition``
+    (:func:`distinct_tracks`; one on a measured track geometry)."""
+    cond = next(c for c in campaign.config.conditions if c.name == condition)
+    if cond.track_geometry is not None:
+        return 1
+    return distinct_tracks(campaign.tracks(condition), sample_ids)
+
+
 def _groups(design: pd.DataFrame, tracks: list[pd.DataFrame]) -> np.ndarray:
     """Group label per design row: rows sharing a seed (any condition's tracks table, same
     sample order; a condition whose samples all share one seed is common random numbers
@@ -149,12 +183,13 @@ def _groups(design: pd.DataFrame, tracks: list[pd.DataFrame]) -> np.ndarray:
 
     cols = [c for c in design.columns if c != "sample_id"]
     join_equal([tuple(r) for r in design[cols].to_numpy().tolist()])
-    seed_pos: dict[int, int] = {}
+    track_pos: dict[tuple, int] = {}
     for t in tracks:
-        if n > 1 and t["seed"].nunique() == 1:
+        keys = track_keys(t)
+        if n > 1 and len(set(keys)) == 1:
             continue  # common random numbers: the one track is in every part
-        for i, s in enumerate(t["seed"].to_numpy().tolist()):
-            j = seed_pos.setdefault(int(s), i)
+        for i, key in enumerate(keys):
+            j = track_pos.setdefault(key, i)
             if j != i:
                 parent[find(i)] = find(j)
     return np.array([find(i) for i in range(n)])
@@ -199,8 +234,7 @@ def split_by_track_and_parameters(
             k += 1
     for g in order[k:]:
         parts["train"].extend(np.flatnonzero(labels == g).tolist())
-    seeds = [t["seed"].to_numpy() for t in tracks]
-    held_out_tracks = bool(seeds) and all(len(np.unique(s)) > 1 for s in seeds)
+    held_out_tracks = bool(tracks) and all(distinct_tracks(t) > 1 for t in tracks)
     split = Split(
         *(np.sort(ids[parts[p]]) for p in PARTS),
         seed=int(seed),
@@ -299,8 +333,9 @@ def campaign_split(
                 "stop 60): drawn again, each base sample's rows in one part",
                 path,
             )
-        else:
-            return split
+        else:  # its flag as today's rule reads it (on perfect track every seed is one
+            # track: a split drawn before stop 78 said it held tracks out)
+            return replace(split, held_out_tracks=_holds_out_tracks(campaign))
     # a parameter set is what a network sees of it: the sampled (key) parameters
     design = campaign.design()[["sample_id", *campaign.config.parameters]]
     blocks = saltelli_blocks(campaign)
@@ -321,3 +356,13 @@ def campaign_split(
     )
     save_split(path, split)
     return split
+
+
+def _holds_out_tracks(campaign: Campaign) -> bool:
+    """Whether a split's test runs are on tracks its other parts do not hold, by the
+    rule of :func:`split_by_track_and_parameters` (every condition synthesised, each of
+    more than one track: :func:`distinct_tracks`)."""
+    conds = campaign.config.conditions
+    return all(c.track_geometry is None for c in conds) and all(
+        distinct_tracks(campaign.tracks(c.name)) > 1 for c in conds
+    )
