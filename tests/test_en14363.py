@@ -59,3 +59,17 @@ def test_section_statistics_of_a_steady_force_and_a_short_wave():
     assert st.p50 == pytest.approx(100.0, abs=0.05)
     assert st.p99_85 - st.p0_15 < 1.0  # of 20 kN peak to peak before
     assert set(st.to_dict()) == {"p0.15", "p50", "p99.85"}
+
+
+def test_a_section_standing_or_with_a_stop_is_refused_in_one_line():
+    """Speed 0 in a section (a stop): "positions must be strictly increasing", a bare
+    ValueError from inside the sliding mean (stop 78's hunt). One line naming the speed."""
+    from railsusp.errors import RailsuspInputError
+
+    x = np.ones(200)
+    v = np.full(200, 15.0)
+    assert section_statistics(x, 100.0, v).p50 == pytest.approx(1.0)
+    v[50:60] = 0.0
+    for speed in (v, 0.0):
+        with pytest.raises(RailsuspInputError, match=r"speed 0 m/s in the section: the 2 m "):
+            section_statistics(x, 100.0, speed)

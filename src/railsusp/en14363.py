@@ -16,6 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
+from railsusp.errors import RailsuspInputError
+
 #: low-pass cut-off for wheel-rail forces, Hz
 FORCE_CUTOFF_HZ = 20.0
 #: length of the sliding mean, m
@@ -107,6 +109,12 @@ def section_statistics(
     the samples whose window lies inside the section (:func:`full_window`)."""
     x = np.asarray(x, dtype=float)
     v = np.broadcast_to(np.asarray(speed_ms, dtype=float), x.shape)
+    if not np.all(v > 0.0):  # the window is one of distance: standing, it has no samples
+        raise RailsuspInputError(
+            f"speed {float(np.min(v)):g} m/s in the section: the 2 m sliding mean runs over "
+            "distance; accepted sections running at a positive speed throughout (cut stops "
+            "out: railsusp sections)"
+        )
     position = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) / fs)])
     filtered = lowpass(x, fs, min(cutoff_hz, 0.45 * fs))
     smooth = sliding_mean(filtered, position, window_m)

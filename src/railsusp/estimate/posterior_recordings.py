@@ -12,6 +12,8 @@ an estimate; the simulated side is :mod:`~railsusp.estimate.posterior_data`.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from railsusp.errors import RailsuspInputError, cut_repr
@@ -72,9 +74,17 @@ def recording_summaries(settings: PosteriorSettings, recordings) -> tuple[np.nda
         check_measured_wheel(TrainingWheel(), [rec], aligned=False)
         _check_bandwidth(rec, cond.name)
         fs = 1.0 / cond.sample_interval
+        if rec.sampling_rate < 0.99 * fs:  # (docs/posterior.md: at least the training's)
+            raise RailsuspInputError(
+                f"recording {cond.name!r}: sampled at {rec.sampling_rate:.4g} Hz, below the "
+                f"{fs:.4g} Hz the estimator was trained at; accepted {fs:.4g} Hz or more (a "
+                "slower recording upsampled lacks the bands the statistics take: it was read "
+                "as calibrated)"
+            )
         if abs(rec.sampling_rate - fs) > 0.01 * fs:
             rec = rec.resampled(fs)
         w = rec.wheels[0]
+        _check_magnitudes(rec, w, settings.wagon)
         Yp = Qp = None
         if settings.partner:
             from railsusp.vehicle.layout import WHEEL_NAMES
@@ -166,6 +176,23 @@ def check_recordings(recordings) -> list:
                 "railsusp.measured.read_recording(path) reads one file)"
             )
     return list(recordings)
+
+
+def _check_magnitudes(rec: Any, wheel: str, wagon: Any) -> None:
+    """Refuse, in one line, forces whose magnitude contradicts the wagon's static wheel
+    load (the field reader's check, :func:`~railsusp.measured.checks.check_forces`, here
+    for a Recording built in Python: forces in N given as kN were estimated from and read
+    as calibrated where the estimator had too few cases to compare their range; stop 78)."""
+    from railsusp.measured.checks import check_forces
+    from railsusp.vehicle.setup import static_wheel_load
+    from railsusp.vehicle.wagon import load_wagon
+
+    problems = check_forces(
+        rec.Y[wheel] * 1e3, rec.Q[wheel] * 1e3, (f"Y {wheel}", f"Q {wheel}"), ("kN", "kN"),
+        static_wheel_load(load_wagon(wagon)), 0,
+    )  # fmt: skip
+    if problems:
+        raise RailsuspInputError(f"recording {rec.condition.name!r}: {problems[0]}")
 
 
 def _check_bandwidth(rec, name: str) -> None:
