@@ -137,8 +137,13 @@ class JointPosterior(Checked):
         return widen(self.correction_for(len(np.atleast_2d(x))), self.raw_sample(x, n, seed))
 
     def correction_for(self, sections: int) -> SpreadCorrection | None:
-        """The widening of the smallest corrected number of sections >= ``sections``."""
+        """The widening of the smallest corrected number of sections >= ``sections``; for
+        more sections than any corrected, the largest's, the nearest measured (none was
+        applied, so a longer record got narrower intervals than a checked one, where the
+        fusion route keeps its one-section widening: stop 78's hunt). None without any."""
         k = min((k for k in self.corrections if k >= sections), default=None)
+        if k is None:
+            k = max(self.corrections, default=None)
         return None if k is None else self.corrections[k]
 
 

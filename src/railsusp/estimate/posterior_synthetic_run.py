@@ -317,7 +317,7 @@ def result_of(
     for note in notes:
         log.warning("posterior: %s", note)
     widening = getattr(post, "correction_for", None)  # a joint posterior's
-    correction = None if widening is None or chk is None else widening(n)
+    correction = None if widening is None else widening(n)  # (applied, checked or not)
     return PosteriorResult(s.parameters, to_si(u, s.parameters), checks, used, n, notes,
                            correction, None if chk is None else chk.sections,
                            "synthetic-likelihood", outside)  # fmt: skip
