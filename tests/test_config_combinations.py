@@ -585,3 +585,68 @@ def test_a_run_name_is_one_line_of_text(tmp_path, value, shown):
     every line that names the run (the configuration audit of stop 64)."""
     line = run_refused(tmp_path, f"name = {value}\n")
     assert line.endswith(f"name: {shown}: accepted one line of printable text, 1 to 200 characters")
+
+
+# ---- stop 78's hunt: combinations that passed the check and failed at the estimate stage ----
+
+
+def _other_wheel(field, old: str = "w1L", new: str = "w1R") -> None:
+    """The recording of ``field`` made one of wheel ``new`` (its columns and sidecar)."""
+    import json
+
+    table = field / "short.csv"
+    table.write_text(table.read_text().replace(f"_{old}_", f"_{new}_"))
+    sidecar = field / "short.json"
+    doc = json.loads(sidecar.read_text())
+    doc["wheels"] = [new if w == old else w for w in doc["wheels"]]
+    sidecar.write_text(json.dumps(doc))
+
+
+def test_a_recording_of_another_wheel_than_the_force_models_is_refused_before_any_stage(
+    tmp_path,
+):
+    """On tangent a recording of the right wheel (the model gives the left) passes NSGA-II
+    on record statistics, but the refinement compares sample by sample: it failed after
+    NSGA-II had run ("measures w1R, the simulator force model wheel 'auto' gives w1L").
+    Refused now, before any stage; the same recording without the refinement is read."""
+    cond = get_condition("straight", name="short", duration_s=1.0, n_steps=50, lead_in_m=20.0)
+    field = _field_of(tmp_path / "f", cond, with_track=True)
+    _other_wheel(field)
+    line = run_refused(tmp_path, toml(f'measured = "{field}"', "refine = true"))
+    assert (
+        f"field.measured = '{field}': recording 'short': its first wheel is w1R, the force "
+        "model gives w1L in this condition"
+    ) in line
+    ok = tmp_path / "ok.toml"
+    ok.write_text(toml(f'measured = "{field}"'))
+    assert load_config(ok).field.measured == str(field)
+
+
+def test_a_rate_dependent_statistic_of_a_recording_at_another_rate_is_refused_before_any_stage(
+    tmp_path,
+):
+    """A measured recording at 100 Hz of a condition the run trains at 50 Hz, with p99: the
+    surrogate predicts its training record at 50 Hz, and the estimate stage refused it after
+    the campaign, the sensitivity and the surrogates. Refused now; the mean is read."""
+    cond = get_condition("straight", name="short", duration_s=1.0, n_steps=100, lead_in_m=20.0)
+    field = _field_of(tmp_path / "f", cond)
+    line = run_refused(tmp_path, toml(f'measured = "{field}"', 'statistic = "p99"'))
+    assert (
+        f"field.measured = '{field}': recording 'short': statistic 'p99' depends on the "
+        "sampling rate; its condition samples at 100 Hz"
+    ) in line
+    assert "the surrogate this run trains on condition 'short' predicts its training" in line
+    ok = tmp_path / "ok.toml"
+    ok.write_text(toml(f'measured = "{field}"', 'statistic = "mean"'))
+    assert load_config(ok).field.measured == str(field)
+
+
+def test_a_held_prior_without_the_refinement_names_both_of_its_needs(tmp_path):
+    """With statistic "aligned" and no refinement, the advice "set estimate.refine = true"
+    led straight to the next refusal (held_prior with "aligned"); the first names both."""
+    text = toml("with_track = true", 'statistic = "aligned"\nheld_prior = {X19 = [20000, 40000]}')
+    line = run_refused(tmp_path, text)
+    assert (
+        'set estimate.refine = true with record statistics (not estimate.statistic "aligned")'
+        " or leave held_prior out"
+    ) in line

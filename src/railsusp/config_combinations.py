@@ -150,9 +150,14 @@ def check_held_prior(cfg: Any, bad: Any) -> None:
     except RailsuspInputError as exc:
         raise bad(str(exc)) from None
     if not e.refine:
+        aligned = (  # both needs named: the advice alone led to the refusal below
+            ' with record statistics (not estimate.statistic "aligned")'
+            if ALIGNED in e.statistic.split("+")
+            else ""
+        )
         raise bad(
             f"{HELD_PRIOR_FIELD} is used by the refinement's intervals only; set "
-            "estimate.refine = true or leave held_prior out"
+            f"estimate.refine = true{aligned} or leave held_prior out"
         )
     if ALIGNED in e.statistic.split("+"):
         raise bad(
@@ -160,6 +165,29 @@ def check_held_prior(cfg: Any, bad: Any) -> None:
             "polish beside NSGA-II's estimate, whose interval (the Pareto range) uses no "
             "prior; leave held_prior out or choose record statistics"
         )
+
+
+def _check_served_rate(cfg: Any, condition: Any, recording: Any, bad: Any) -> None:
+    """A statistic that depends on the sampling rate (p99, rms, std), on a measured
+    recording sampled at another rate than the run's condition whose surrogate it trains
+    (the surrogate predicts its training record at the condition's rate): refused now, as
+    the estimate stage's :func:`~railsusp.estimate.problem.check_sampling` refuses it after
+    four stages (the duration and n_steps are the record length the surrogates do not
+    see, so a change of rate passed the condition's comparison; stop 78's hunt)."""
+    from railsusp.estimate.statistics import check_rate, parse_statistics
+
+    try:
+        check_rate(
+            parse_statistics(cfg.estimate.statistic),
+            1.0 / condition.sample_interval,
+            recording,
+            f"the surrogate this run trains on condition {condition.name!r} predicts its "
+            "training record",
+            "the mean or p99.85, a recording at the condition's rate, or the condition's "
+            "n_steps at the recording's rate",
+        )
+    except RailsuspInputError as exc:
+        raise bad(f"field.measured = {cfg.field.measured!r}: {exc}") from None
 
 
 def check_surrogate_training(cfg: Any, conds: list, bad: Any) -> None:
@@ -216,6 +244,7 @@ def check_recordings_served(cfg: Any, conds: list, recordings: list, bad: Any) -
             except RailsuspInputError as exc:
                 raise bad(f"field.measured = {cfg.field.measured!r}: {exc}") from None
             continue
+        _check_served_rate(cfg, c, rc, bad)
         differ = c.differences(rc, TRACK_AND_LENGTH_FIELDS)
         if differ:
             name = differ[0]
