@@ -650,3 +650,28 @@ def test_a_held_prior_without_the_refinement_names_both_of_its_needs(tmp_path):
         'set estimate.refine = true with record statistics (not estimate.statistic "aligned")'
         " or leave held_prior out"
     ) in line
+
+
+@pytest.mark.parametrize(
+    ("field", "estimate", "said"),
+    [
+        ("rate_hz = 100", "", "field.rate_hz sets how field.recording (a long run) is cut"),
+        ("min_length_m = 50", "", "field.min_length_m sets how field.recording (a long run)"),
+        ("", "refine_starts = 5", "estimate.refine_starts is read only with estimate.refine = "),
+        ("", "refine_screen = 1", "estimate.refine_screen is read only with estimate.refine"),
+        ("", "preview_s = 5", "estimate.preview_s is read only with estimate.preview_generations"),
+    ],
+)
+def test_settings_the_route_reads_nowhere_are_refused(tmp_path, field, estimate, said):
+    """Stop 78's hunt: the long run's cut settings without a long run, the refinement's
+    without the refinement (refine_screen 1 against refine_starts 5 passed, unchecked) and
+    the preview's length without a preview were accepted and ignored, where their siblings
+    (channel_map, held_prior, correction_slopes) were refused. At their defaults, as a run's
+    recorded configuration writes them, they are read."""
+    line = run_refused(tmp_path, toml(f"truth = {{ X13 = 16.1 }}\n{field}", estimate))
+    assert said in line and "leave" in line
+    default = tmp_path / "default.toml"
+    default.write_text(
+        toml("truth = { X13 = 16.1 }\nrate_hz = 50.0\nmin_length_m = 150.0", "refine_starts = 2")
+    )
+    assert load_config(default).estimate.refine_starts == 2

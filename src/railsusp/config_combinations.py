@@ -39,6 +39,22 @@ def check_estimate_options(cfg: Any, bad: Any) -> None:
             f"estimate.refine_screen = {cfg.estimate.refine_screen} screens fewer points than "
             f"estimate.refine_starts = {cfg.estimate.refine_starts} starts"
         )
+    e = cfg.estimate
+    ignored = [  # set and not the default, on a route that reads them nowhere (stop 78's hunt)
+        (key, needs)
+        for key, needs, used in (
+            ("refine_evaluations", "estimate.refine = true", e.refine),
+            ("refine_screen", "estimate.refine = true", e.refine),
+            ("refine_starts", "estimate.refine = true", e.refine),
+            ("preview_s", "estimate.preview_generations above 0", e.preview_generations),
+        )
+        if not used
+        and key in e.model_fields_set
+        and getattr(e, key) != type(e).model_fields[key].default
+    ]
+    if ignored:
+        key, needs = ignored[0]
+        raise bad(f"estimate.{key} is read only with {needs}: set that, or leave {key} out")
     if cfg.surrogate.model == "gp-stats" and ALIGNED in cfg.estimate.statistic.split("+"):
         raise bad(
             'estimate.statistic "aligned" compares force series sample by sample; the '
