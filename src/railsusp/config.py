@@ -150,6 +150,7 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
         check_one_track_surrogate,
         check_recording_keys,
         check_synthetic_rate,
+        given_off_default,
         measured_recordings,
     )
 
@@ -165,9 +166,8 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
                 raise bad(f"field.{key} needs field.recording (the long run it applies to)")
         f = cfg.field
         for key in ("rate_hz", "speed_tolerance", "min_length_m", "max_duration_s"):
-            # set and not the default (a run's recorded configuration writes every field):
             # the cut's settings were ignored without a long run (stop 78's hunt)
-            if key in f.model_fields_set and getattr(f, key) != type(f).model_fields[key].default:
+            if given_off_default(f, key):
                 raise bad(
                     f"field.{key} sets how field.recording (a long run) is cut into sections; "
                     "without one it is used nowhere: leave it out"

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from railsusp.config_recordings import ALIGNED
+from railsusp.config_recordings import ALIGNED, given_off_default
 from railsusp.errors import RailsuspInputError
 
 
@@ -48,9 +48,7 @@ def check_estimate_options(cfg: Any, bad: Any) -> None:
             ("refine_starts", "estimate.refine = true", e.refine),
             ("preview_s", "estimate.preview_generations above 0", e.preview_generations),
         )
-        if not used
-        and key in e.model_fields_set
-        and getattr(e, key) != type(e).model_fields[key].default
+        if not used and given_off_default(e, key)
     ]
     if ignored:
         key, needs = ignored[0]

@@ -26,6 +26,16 @@ from railsusp.errors import RailsuspInputError
 ALIGNED = "aligned"
 
 
+def given_off_default(section: Any, key: str) -> bool:
+    """Whether the configuration section's setting ``key`` was given and is not its default:
+    a run's recorded configuration (pipeline.json, every field written out) gives each one
+    at its default, and runs again, so a setting a route reads nowhere is refused only
+    when it would change something."""
+    return key in section.model_fields_set and (
+        getattr(section, key) != type(section).model_fields[key].default
+    )
+
+
 def measured_recordings(cfg: Any, bad: Any) -> list:
     """A ``[field] measured`` folder's recordings, read whole and checked against the run's
     wagon now, not in the field stage after the campaign, the sensitivity and the
@@ -63,13 +73,7 @@ def check_field_options(cfg: Any, conds: list, recordings: list, bad: Any) -> No
     _check_measured_wheels(cfg, recordings, bad)
     if (f.with_track or f.track_noise_mm) and (f.measured or f.recording) is not None:
         raise bad("field.with_track and field.track_noise_mm apply to synthetic recordings only")
-    # set and not the default: a run's recorded configuration (pipeline.json, every field
-    # written out) runs again
-    given = sorted(
-        k
-        for k in ("noise", "seed")
-        if k in f.model_fields_set and getattr(f, k) != type(f).model_fields[k].default
-    )
+    given = sorted(k for k in ("noise", "seed") if given_off_default(f, k))
     if given and (f.measured or f.recording) is not None:  # ignored, silently (audit, stop 60)
         source = "field.measured" if f.measured is not None else "field.recording"
         raise bad(

@@ -109,10 +109,10 @@ def sobol_metamodel(
         ids = y.index.to_numpy()
         yv = y.to_numpy()
         ok = np.isfinite(yv)
-        if not ok.all():
-            left_out[cond] = max(left_out.get(cond, (0, 0)), (len(yv) - int(ok.sum()), len(yv)))
+        failed = len(yv) - int(ok.sum())
+        if failed:
+            left_out[cond] = max(left_out.get(cond, (0, 0)), (failed, len(yv)))
         if ok.sum() < MIN_METAMODEL_RUNS:  # a Gaussian process on nothing: sklearn's error
-            failed = len(yv) - int(ok.sum())
             remedy = (
                 "check the condition (speed against curve radius and cant) or the parameter ranges"
                 if failed
@@ -132,7 +132,7 @@ def sobol_metamodel(
         ym = gp.predict(xs)
         df = sobol_from_samples(problem_unit, ym, num_resamples=num_resamples, seed=seed)
         frames.append(with_index_columns(df, cond, q, st, y, "metamodel", r2))
-        fits.append(MetamodelFit(cond, q, st, r2, len(yv), len(ids) - int(ok.sum())))
+        fits.append(MetamodelFit(cond, q, st, r2, len(yv), failed))
     for cond, (failed, n) in left_out.items():  # said, not only a smaller n_train
         warnings.warn(
             f"condition {cond!r}: {failed} of {n} simulations failed (e.g. derailed) and are "

@@ -73,8 +73,8 @@ def dropout_breaks(
         # (their values interpolated from its neighbouring sample, an error of that
         # fraction of its change over the dropout), not a loss of its own
         slower = q != "force" and ch.rate_hz < (1.0 - jitter_of(q)) * si[base].rate_hz
-        edge = (1.0 + jitter_of(q)) / ch.rate_hz if slower else tol
-        if found := _inside(ch.time, dropout_steps(ch.time, jitter_of(q)), t, max(tol, edge)):
+        edge = max(tol, (1.0 + jitter_of(q)) / ch.rate_hz) if slower else tol
+        if found := _inside(ch.time, dropout_steps(ch.time, jitter_of(q)), t, edge):
             a, b, n = found
             said = (
                 f"samples lost between {a:.3f} and {b:.3f} s where the forces of {base!r} have {n}"

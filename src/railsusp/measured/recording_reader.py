@@ -182,7 +182,7 @@ def read_recording(
                 sparse = check_sparse(sampling[col], col)
                 problems += sparse
                 # noted: its samples missing at its rate, not its rows off its step
-                note = None if sparse else short_gaps_note(col, ch.values, sampling[col])
+                note = None if sparse else short_gaps_note(col, sampling[col])
                 n = [note] if note and n else []
             notes += n
             problems += check_flat(x, col, ch.unit or "") + check_clipped(x, col, ch.unit or "")

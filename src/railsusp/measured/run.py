@@ -239,7 +239,7 @@ def read_run(
                 problems += check_sparse(sampling[name], name, gap_limit)
             missing[name] = missing_rows(ch.values, sampling[name].step)  # not rows off its step
             # noted: its samples missing at its rate, not its rows off its step
-            note = short_gaps_note(name, ch.values, sampling[name], gap_limit)
+            note = short_gaps_note(name, sampling[name])
             finite_notes = [note] if note and finite_notes else []
             problems += check_flat(values, name, unit or "")  # a value in the file's unit
             problems += check_clipped(values, name, unit or "")

@@ -48,6 +48,7 @@ class FiniteSampling:
     rate_hz: float  # its effective rate: the written rate over ``step``
     missing: int  # samples of that rate missing in short gaps, or lying off its step
     samples: int  # its samples at that rate (finite and missing; long gaps aside)
+    interpolated: int = 0  # of ``missing``, those missing in short gaps (not off its step)
 
     @property
     def share(self) -> float:
@@ -70,16 +71,25 @@ def finite_sampling(
         return FiniteSampling(1.0, rate_hz, 0, x.size)
     d = np.diff(at)
     d = d[d <= gap_limit + 1]  # a longer gap is refused or cut at, never interpolated
-    step = 1.0
-    if d.size:
-        counts = np.bincount(d)
-        k = int(np.argmax(counts))  # (a tie: the shorter step)
-        if k >= 2 and 2 * counts[k] > d.size:
-            step = float(k)
+    step = float(regular_step(d))
     ends = np.array([at[0], x.size - 1 - at[-1]])
     ends = ends[ends <= gap_limit]
-    missing = int(np.abs(np.rint(d / step) - 1.0).sum() + np.rint(ends / step).sum())
-    return FiniteSampling(step, rate_hz / step, missing, at.size + missing)
+    per_gap = np.rint(d / step) - 1.0  # below 0: a value off the step
+    at_ends = np.rint(ends / step).sum()
+    missing = int(np.abs(per_gap).sum() + at_ends)
+    interpolated = int(np.maximum(per_gap, 0.0).sum() + at_ends)
+    return FiniteSampling(step, rate_hz / step, missing, at.size + missing, interpolated)
+
+
+def regular_step(d: np.ndarray) -> int:
+    """The rows between a channel's finite values (``d``, the differences of their rows):
+    the most common difference where it is k >= 2 and holds more than half of them (a tie:
+    the shorter), else 1."""
+    if not d.size:
+        return 1
+    counts = np.bincount(d)
+    k = int(np.argmax(counts))
+    return k if k >= 2 and 2 * counts[k] > d.size else 1
 
 
 def missing_rows(x: np.ndarray, step: float) -> np.ndarray:
@@ -106,28 +116,17 @@ def missing_rows(x: np.ndarray, step: float) -> np.ndarray:
     return nan & (lost[stretch] >= 1.0)
 
 
-def short_gaps_note(
-    channel: str, x: np.ndarray, s: FiniteSampling, gap_limit: int = MAX_GAP_SAMPLES
-) -> str | None:
-    """The note of a force channel's samples missing at its rate (``s``, its
-    :func:`finite_sampling`) in short gaps (of up to ``gap_limit`` rows: interpolated),
-    None where none is: at a step of 1 every NaN row of such a gap, as
-    :func:`~railsusp.measured.checks.check_finite` counts them; at a step k only the
-    samples of that rate missing (its rows off the step are no data missing: a column
-    filled every second row was also noted as "3000 missing sample(s) interpolated",
-    beside its note of being sampled at 50 Hz)."""
-    at = np.flatnonzero(~np.isnan(x))
-    if at.size == 0:
-        return None
-    d = np.diff(at)
-    d = d[d <= gap_limit + 1]
-    ends = np.array([at[0], x.size - 1 - at[-1]])
-    ends = ends[ends <= gap_limit]
-    lost = int(np.maximum(np.rint(d / s.step) - 1.0, 0.0).sum() + np.rint(ends / s.step).sum())
-    if not lost:
+def short_gaps_note(channel: str, s: FiniteSampling) -> str | None:
+    """The note of a force channel's samples missing at its rate in short gaps (``s``, its
+    :func:`finite_sampling`: ``interpolated``), None where none is: at a step of 1 every
+    NaN row of such a gap, as :func:`~railsusp.measured.checks.check_finite` counts them;
+    at a step k only the samples of that rate missing (its rows off the step are no data
+    missing: a column filled every second row was also noted as "3000 missing sample(s)
+    interpolated", beside its note of being sampled at 50 Hz)."""
+    if not s.interpolated:
         return None
     rate = f" (of its {s.rate_hz:.4g} Hz)" if s.step > 1.0 else ""
-    return f"channel {channel!r}: {lost} missing sample(s){rate} interpolated"
+    return f"channel {channel!r}: {s.interpolated} missing sample(s){rate} interpolated"
 
 
 def every_k_rows(ch: RawChannel) -> tuple[RawChannel, str | None]:
@@ -147,9 +146,8 @@ def every_k_rows(ch: RawChannel) -> tuple[RawChannel, str | None]:
     if at.size < 3 or isinstance(ch.first_row, np.ndarray) or not ch.first_row:  # (MDF: 0)
         return ch, None
     d = np.diff(at)
-    counts = np.bincount(d)
-    k = int(np.argmax(counts))  # (a tie: the shorter step)
-    if k < 2 or 2 * counts[k] <= d.size:
+    k = regular_step(d)  # (every gap counts here: a slow column's step is many rows)
+    if k < 2:
         return ch, None
     m = np.maximum(np.rint(d / k), 1.0).astype(np.int64)  # its steps between two values
     j = np.arange(int(m.sum())) - np.repeat(np.cumsum(m) - m, m)  # 0 .. m - 1 in each

@@ -344,16 +344,11 @@ def campaign_split(
     synthesised = [c for c in campaign.config.conditions if c.track_geometry is None]
     tracks = [campaign.tracks(c.name) for c in synthesised]
     split = split_by_track_and_parameters(design, tracks, seed=seed, fractions=fractions)
+    # the flag by the campaign's rule: a measured track is the same in every part
     split = Split(
-        split.train,
-        split.val,
-        split.test,
-        split.seed,
-        split.fractions,
-        # a measured track is the same in every part
-        split.held_out_tracks and len(synthesised) == len(campaign.config.conditions),
-        chash,
-    )
+        split.train, split.val, split.test, split.seed, split.fractions,
+        _holds_out_tracks(campaign), chash,
+    )  # fmt: skip
     save_split(path, split)
     return split
 

@@ -43,6 +43,10 @@ AUX_YAWFR = AUX_WEDGE + N_WEDGE_AUX  # 2 body-bolster yaw friction moments, N m
 AUX_ROLLFR = AUX_YAWFR + 2  # 2 centre-bowl roll friction moments, N m
 
 # ---- constants vector (wagon + condition), K[...] ----
+#: the masses and inertias the right-hand side divides the generalised forces by (each has
+#: its reciprocal ``inv_<name>`` in K too); the wheelset's pitch inertia Iy_w is no divisor
+INERTIAS = ("m_c", "Ix_c", "Iy_c", "Iz_c", "m_b", "Ix_b", "Iz_b", "m_f", "Iy_f", "Iz_f",
+            "m_w", "Ix_w", "Iz_w")  # fmt: skip
 _K_NAMES = (
     # masses and inertias
     "m_c", "Ix_c", "Iy_c", "Iz_c", "m_b", "Ix_b", "Iz_b", "m_f", "Iy_f", "Iz_f",
@@ -97,11 +101,10 @@ _K_NAMES = (
     # reciprocals the contact kernel multiplies by (a division costs several multiplications):
     # 1/V, 1/r0 and the rail support compliances 1/k_ry, 1/k_rz
     "inv_V", "inv_r0", "inv_k_ry", "inv_k_rz",
-    # the bodies' reciprocal masses and inertias: the generalised forces are multiplied by
-    # these rather than divided by the inertias (eighteen divisions an evaluation, 3-8 % of
-    # it; issue 24)
-    "inv_m_c", "inv_Ix_c", "inv_Iy_c", "inv_Iz_c", "inv_m_b", "inv_Ix_b", "inv_Iz_b",
-    "inv_m_f", "inv_Iy_f", "inv_Iz_f", "inv_m_w", "inv_Ix_w", "inv_Iz_w",
+    # the bodies' reciprocal masses and inertias (INERTIAS): the generalised forces are
+    # multiplied by these rather than divided by the inertias (eighteen divisions an
+    # evaluation, 0-3 % of it measured at stop 78; issue 24)
+    *(f"inv_{name}" for name in INERTIAS),
 )  # fmt: skip
 K = {name: i for i, name in enumerate(_K_NAMES)}
 N_K = len(_K_NAMES)

@@ -198,8 +198,7 @@ def constants(
         )
     f_nest = (w_body / 2.0 + bo.mass * gn) / 2.0
     f_prim = (f_nest + sf.mass * gn) / 2.0
-    for name in ("m_c", "Ix_c", "Iy_c", "Iz_c", "m_b", "Ix_b", "Iz_b", "m_f", "Iy_f", "Iz_f",
-                 "m_w", "Ix_w", "Iz_w"):  # fmt: skip
+    for name in L.INERTIAS:
         vals["inv_" + name] = 1.0 / vals[name]
     vals.update(_wedge_constants(wagon, f_nest))
     vals.update(_bowl_constants(wagon))
