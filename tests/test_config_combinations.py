@@ -675,3 +675,51 @@ def test_settings_the_route_reads_nowhere_are_refused(tmp_path, field, estimate,
         toml("truth = { X13 = 16.1 }\nrate_hz = 50.0\nmin_length_m = 150.0", "refine_starts = 2")
     )
     assert load_config(default).estimate.refine_starts == 2
+
+
+@pytest.mark.parametrize(
+    ("field", "estimate", "said"),
+    [
+        (  # record statistics, no refinement: nothing draws the error
+            "with_track = true\ntrack_noise_mm = 0.5",
+            'statistic = "mean"\ngeometry_draws = 4',
+            "estimate.geometry_draws = 4: no step draws the track geometry's error, NSGA-II on "
+            'estimate.statistic = "mean" draws none (only "aligned" alone does) and '
+            "estimate.refine = false; leave it out",
+        ),
+        (  # exact geometry: no accuracy to draw by, even with the refinement
+            "with_track = true",
+            "refine = true\nremove_geometry_bias = false",
+            "estimate.remove_geometry_bias = false: no step draws the track geometry's error, "
+            "field.track_noise_mm = 0 gives the synthetic recordings exact geometry (it would "
+            "with field.track_noise_mm > 0 (with with_track = true)); leave it out",
+        ),
+        (  # expected forces take the error in instead
+            "with_track = true\ntrack_noise_mm = 0.5",
+            'statistic = "aligned"\nexpected_draws = 2\ngeometry_draws = 3',
+            "estimate.geometry_draws = 3: no step draws the track geometry's error, with "
+            "estimate.expected_draws = 2 the geometry's error is in the comparison",
+        ),
+    ],
+)
+def test_geometry_draws_where_no_step_draws_them_are_refused(tmp_path, field, estimate, said):
+    """Stop 78's note left them accepted and ignored on a record-statistics route without
+    the refinement (``railsusp estimate`` warned of it; a run's configuration said
+    nothing). Where a step draws them, and at their defaults, they are accepted."""
+    text = toml(f"truth = {{ X13 = 16.1 }}\n{field}", estimate, PRETRAINED)
+    assert said in run_refused(tmp_path, text.replace(f"conditions = {SHORT}", TWO_SECONDS))
+    for field, estimate in (
+        ("with_track = true\ntrack_noise_mm = 0.5", 'statistic = "aligned"\ngeometry_draws = 4'),
+        ("with_track = true\ntrack_noise_mm = 0.5", "refine = true\nremove_geometry_bias = false"),
+        (
+            "with_track = true",
+            'statistic = "mean"\ngeometry_draws = 0\nremove_geometry_bias = true',
+        ),
+    ):
+        ok = tmp_path / "ok.toml"
+        ok.write_text(
+            toml(f"truth = {{ X13 = 16.1 }}\n{field}", estimate, PRETRAINED).replace(
+                f"conditions = {SHORT}", TWO_SECONDS
+            )
+        )
+        load_config(ok)

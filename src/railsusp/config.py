@@ -147,6 +147,7 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
     from railsusp.config_recordings import (
         check_expected_draws,
         check_field_options,
+        check_geometry_draws,
         check_one_track_surrogate,
         check_recording_keys,
         check_synthetic_rate,
@@ -179,6 +180,7 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
     check_synthetic_rate(cfg, conds, bad)
     check_estimate_options(cfg, bad)
     check_expected_draws(cfg, recordings, bad)
+    check_geometry_draws(cfg, recordings, bad)
     check_held_prior(cfg, bad)
     check_one_track_surrogate(cfg, conds, bad)
     if cfg.surrogate.device not in DEVICES:

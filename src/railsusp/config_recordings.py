@@ -247,37 +247,81 @@ def check_recording_keys(cfg: Any, bad: Any) -> None:
             raise bad(f"field.{key} = {value!r}: no such file")
 
 
+def _no_stated_accuracy(cfg: Any, recordings: list) -> tuple[str, str]:
+    """(why the recordings state no track-geometry accuracy to draw errors by, the setting
+    that would give one); ('', '') where one does. Synthetic recordings state
+    ``field.track_noise_mm`` (0: their geometry exact), a measured folder's their sidecars'
+    accuracy, a long run's sections no track geometry at all."""
+    f = cfg.field
+    if f.recording is not None:
+        return "the sections of field.recording carry no track geometry", ""
+    if f.measured is not None:
+        if any(r.condition.track_geometry and r.condition.track_accuracy_mm for r in recordings):
+            return "", ""
+        return (
+            f"no recording of field.measured = {f.measured!r} states its geometry's "
+            "track_accuracy_mm (docs/data-format.md)",
+            "",
+        )
+    if f.track_noise_mm:
+        return "", ""
+    return (
+        "field.track_noise_mm = 0 gives the synthetic recordings exact geometry",
+        "field.track_noise_mm > 0 (with with_track = true)",
+    )
+
+
 def check_expected_draws(cfg: Any, recordings: list, bad: Any) -> None:
     """``estimate.expected_draws`` draws true tracks about each recording's measured one by
     its stated accuracy (``track_accuracy_mm``): with recordings that state none the draws
     were skipped with a warning at the estimate stage, the run otherwise complete and the
-    estimate not polished as the configuration asked. Synthetic recordings state
-    ``field.track_noise_mm`` (0: their geometry exact), a measured folder's their sidecars'
-    accuracy, a long run's sections no track geometry at all."""
-    e, f = cfg.estimate, cfg.field
+    estimate not polished as the configuration asked."""
+    e = cfg.estimate
     if not e.expected_draws:
         return
-    if f.recording is not None:
-        why = "the sections of field.recording carry no track geometry"
-        instead = "expected_draws = 0"
-    elif f.measured is not None:
-        if any(r.condition.track_geometry and r.condition.track_accuracy_mm for r in recordings):
-            return
-        why = (
-            f"no recording of field.measured = {f.measured!r} states its geometry's "
-            "track_accuracy_mm (docs/data-format.md)"
+    why, fix = _no_stated_accuracy(cfg, recordings)
+    if why:
+        instead = f"{fix} or expected_draws = 0" if fix else "expected_draws = 0"
+        raise bad(
+            f"estimate.expected_draws = {e.expected_draws} draws true tracks about the "
+            f"recordings' measured one by its stated accuracy; {why}, so none would be drawn: "
+            f"set {instead}"
         )
-        instead = "expected_draws = 0"
-    else:
-        if f.track_noise_mm:
-            return
-        why = "field.track_noise_mm = 0 gives the synthetic recordings exact geometry"
-        instead = "field.track_noise_mm > 0 (with with_track = true) or expected_draws = 0"
-    raise bad(
-        f"estimate.expected_draws = {e.expected_draws} draws true tracks about the "
-        f"recordings' measured one by its stated accuracy; {why}, so none would be drawn: "
-        f"set {instead}"
-    )
+
+
+def check_geometry_draws(cfg: Any, recordings: list, bad: Any) -> None:
+    """``estimate.geometry_draws`` and ``remove_geometry_bias``, set and not at their
+    defaults, on a route where no step draws the recordings' geometry error: they were
+    accepted and changed nothing (stop 78's hunt; ``railsusp estimate`` warns of the same,
+    :func:`railsusp.estimate.nsga_geometry.geometry_draws_unused`, whose reasons these
+    are). The draws need a stated accuracy, are not used with ``expected_draws`` (whose
+    comparison takes the error in), and are made by NSGA-II's time-aligned estimate
+    (statistic ``aligned`` alone) or by the refinement."""
+    e = cfg.estimate
+    given = []  # 0 draws asks for none: nothing is ignored where none are drawn
+    if e.geometry_draws and given_off_default(e, "geometry_draws"):
+        given.append(f"estimate.geometry_draws = {e.geometry_draws}")
+    if given_off_default(e, "remove_geometry_bias"):
+        given.append("estimate.remove_geometry_bias = false")
+    if not given:
+        return
+    why, fix = _no_stated_accuracy(cfg, recordings)
+    if why and fix:
+        why = f"{why} (it would with {fix})"
+    if not why and e.expected_draws:
+        why = (
+            f"with estimate.expected_draws = {e.expected_draws} the geometry's error is in the "
+            "comparison (the mean over drawn true tracks) instead"
+        )
+    if not why and not e.refine and e.statistic != ALIGNED:
+        why = (
+            f'NSGA-II on estimate.statistic = "{e.statistic}" draws none (only "aligned" '
+            "alone does) and estimate.refine = false"
+        )
+    if why:
+        raise bad(
+            f"{' and '.join(given)}: no step draws the track geometry's error, {why}; leave it out"
+        )
 
 
 def check_synthetic_rate(cfg: Any, conds: list, bad: Any) -> None:
