@@ -91,6 +91,21 @@ def test_a_plot_into_a_folder_is_refused(tmp_path):
         check_figure_file(tmp_path, "--plot")
 
 
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux's /proc")
+def test_a_plot_in_a_folder_no_file_can_be_made_in_is_refused_before_the_work(tmp_path):
+    """``os.access`` tells root that /proc may be written: `sections --plot /proc/x.png`
+    read and cut the long run and then failed to save the figure (stop 78's hunt). A file
+    is now tried in the folder first, and removed: nothing is left beside the figure."""
+    from railsusp.input_checks import check_figure_file
+
+    refused(
+        ["track", "--class", "5", "--length", "200", "--plot", "/proc/x.png"],
+        "--plot /proc/x.png: no file can be written in /proc",
+    )
+    assert check_figure_file(tmp_path / "x.png") == tmp_path / "x.png"
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize(
     ("option", "value", "needle"),
     [

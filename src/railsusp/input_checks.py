@@ -9,7 +9,8 @@ written (:func:`check_output_folder`, :func:`check_output_file`, :func:`check_fi
 or said to be when the system refuses to make them (:func:`unmade_folder`).
 
 Kept apart from :mod:`railsusp.store`, which persists the run directory: this module
-decides whether input is acceptable and says why not; it writes nothing, and imports no
+decides whether input is acceptable and says why not; it writes nothing (but the file
+:func:`check_output_file` makes and removes at once to try a folder), and imports no
 railsusp module but :mod:`railsusp.errors`.
 """
 
@@ -19,6 +20,7 @@ import datetime as _dt
 import json
 import os
 import re
+import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path, PurePath
 from typing import Any
@@ -259,13 +261,26 @@ def unmade_folder(
 
 
 def check_output_file(path: str | Path, option: str = "--out") -> Path:
-    """Refuse an output file that is a folder or lies in a folder that cannot be written."""
+    """Refuse an output file that is a folder or lies in a folder that cannot be written.
+    An existing folder is tried with a file made and removed at once: under ``/proc``
+    ``os.access`` tells root it may write, and ``sections --plot /proc/x.png`` failed only
+    after the long run had been read and cut (stop 78's hunt)."""
     path = Path(path)
     if path.is_dir():
         raise RailsuspInputError(f"{option} {path} is a folder, not a file")
     if path.parent.exists() and not path.parent.is_dir():
         raise RailsuspInputError(f"{option} {path}: {path.parent} is a file, not a folder")
     check_output_folder(path.parent, option)
+    if path.parent.is_dir():
+        try:
+            fd, probe = tempfile.mkstemp(prefix=".railsusp-probe-", dir=path.parent)
+        except OSError as exc:
+            raise RailsuspInputError(
+                f"{option} {path}: no file can be written in {path.parent} "
+                f"({exc.strerror or type(exc).__name__}); accepted a file in a writable folder"
+            ) from None
+        os.close(fd)
+        os.unlink(probe)
     return path
 
 
