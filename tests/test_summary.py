@@ -19,6 +19,7 @@ from railsusp.estimate.intervals import (
     STANDARD_ERROR,
     describe,
     from_samples,
+    from_standard_errors,
     intervals_of,
 )
 from railsusp.params import spec
@@ -307,3 +308,145 @@ def test_an_interval_beside_its_point_is_said_where_it_lies(tmp_path):
     t = summary.estimate_table(run, Tolerances(25.5))
     assert t.loc["X13"].verdict == summary.WITHIN
     assert t.loc["X13"].note == "the interval lies wholly beyond the tolerance"
+
+
+# A run directory's files damaged or edited inside (a field of the right file made text, a
+# table made a list) are one line naming the file and the field, from the summary and
+# railsusp.open_run's tables: each was a TypeError's, KeyError's or ValueError's traceback
+# from the table's rows, and a damaged key_parameters.json was blamed on estimate.json (stop
+# 79's report hunt).
+def refined_run(root):
+    """A run of X13, X17 refined, its intervals stored with their details, X14 held over
+    its Table 2 range, X12 a network set's input varied in its training."""
+    run = make_run(root, {"X13": 10.5, "X17": 1.9}, {"standard_error_pct_range": {"X13": 2.0}})
+    path = run / "estimate" / "estimate.json"
+    doc = json.loads(path.read_text())
+    x = [spec(p).scale * doc["estimate_display"][p] for p in ("X13", "X17")]
+    iv = from_standard_errors(["X13", "X17"], x, [0.28e6, 0.01e6]).to_dict()
+    iv["details"] = {
+        "total_standard_error_pct_range": {"X13": 2.0, "X17": 1.1},
+        "held_parameters_assumed": {
+            "X14": {
+                "held_at_display": 10.0,
+                "low_display": 5.0,
+                "high_display": 15.0,
+                "range": "Table 2",
+                "unit": "MN/m",
+            },
+        },
+    }
+    doc["intervals"] = iv
+    doc["not_estimated"] = [
+        {"symbol": "X12", "assumed": "varied", "low": 6.0, "high": 18.0, "unit": "mm"}
+    ]
+    path.write_text(json.dumps(doc))
+    return run
+
+
+def edit(path, change):
+    doc = json.loads(path.read_text())
+    change(doc)
+    path.write_text(json.dumps(doc))
+
+
+def test_the_hand_made_refined_run_reads(tmp_path):
+    """The run the tests below damage reads whole (so that each refusal is its edit's)."""
+    t = summary.estimate_table(refined_run(tmp_path))
+    assert t.loc["X14"].verdict.startswith("not estimated: held at 10.0 MN/m, in the intervals")
+    assert t.loc["X12"].note == "not an input of the force model (varied in its training)"
+    assert t.loc["X13"].standard_error == pytest.approx(0.28)
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        (lambda d: d.__setitem__("not_estimated", [1, 2]), "not_estimated = [1, 2]"),
+        (
+            lambda d: d["not_estimated"][0].pop("low"),
+            "not_estimated.X12",
+        ),
+        (
+            lambda d: d["intervals"]["details"]["total_standard_error_pct_range"].update(X13="a"),
+            "intervals.details.total_standard_error_pct_range.X13 = 'a'",
+        ),
+        (
+            lambda d: d["intervals"]["details"]["held_parameters_assumed"].update(X14={"a": 1}),
+            "intervals.details.held_parameters_assumed.X14",
+        ),
+        (lambda d: d.__setitem__("polished_display", [1.0]), "polished_display = [1.0]"),
+        (lambda d: d.__setitem__("refinement", [1.0]), "refinement = [1.0]"),
+    ],
+)
+def test_a_damaged_estimate_field_is_one_line_naming_it(tmp_path, change, field):
+    run = refined_run(tmp_path)
+    edit(run / "estimate" / "estimate.json", change)
+    for read in (summary.estimate_table, lambda r: railsusp.open_run(r).estimate):
+        with pytest.raises(RailsuspInputError) as exc:
+            read(run)
+        said = str(exc.value)
+        assert "estimate.json" in said and field in said and "\n" not in said
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        (lambda d: d["key_parameters"]["max_st"].update(X13="a"), "max_st.X13 = 'a'"),
+        (lambda d: d["key_parameters"].__setitem__("max_st", [0.5]), "max_st = [0.5]"),
+        (lambda d: d["key_parameters"].__setitem__("keys", 5), "keys = 5"),
+    ],
+)
+def test_a_damaged_key_parameters_json_is_named_not_the_estimate(tmp_path, change, field):
+    """A number made text in key_parameters.json's max_st read "estimate.json: its intervals
+    do not read" (the file that was sound), and ``largest_st`` raised a ValueError."""
+    run = refined_run(tmp_path)
+    edit(run / "campaign" / "sensitivity" / "key_parameters.json", change)
+    result = railsusp.open_run(run)
+    reads = [lambda: result.largest_st, lambda: result.key_parameters]
+    if "max_st" in field:  # the summary's verdicts read max_st alone
+        reads.append(lambda: summary.estimate_table(run))
+    for read in reads:
+        with pytest.raises(RailsuspInputError) as exc:
+            read()
+        said = str(exc.value)
+        assert "key_parameters.json" in said and field in said
+        assert "estimate.json" not in said and "\n" not in said
+
+
+def test_a_damaged_campaign_json_config_is_one_line(tmp_path):
+    run = refined_run(tmp_path)
+    edit(run / "campaign" / "campaign.json", lambda d: d.__setitem__("config", []))
+    with pytest.raises(RailsuspInputError, match=r"campaign\.json: config: accepted a table"):
+        summary.estimate_table(run)
+
+
+def test_a_number_made_text_in_validation_csv_names_column_and_row(tmp_path):
+    rows = [
+        {"condition": "curve", "wheel": "w1R", "force": f, "statistic": "mean",
+         "measured_kN": 40.0, "before_kN": 41.0, "before_error": 0.025, "after_kN": 40.2,
+         "after_error": 0.005}
+        for f in ("Y", "Q")
+    ]  # fmt: skip
+    run = refined_run(tmp_path)
+    folder = run / "estimate" / "validation"
+    folder.mkdir(parents=True)
+    pd.DataFrame(rows).to_csv(folder / "validation.csv", index=False)
+    assert railsusp.open_run(run).validation.after_error_pct.tolist() == pytest.approx([0.5, 0.5])
+    rows[1]["after_error"] = "abc"
+    pd.DataFrame(rows).to_csv(folder / "validation.csv", index=False)
+    said = "validation.csv: column after_error = 'abc' in row 3: accepted a number"
+    with pytest.raises(RailsuspInputError, match=said):
+        summary.force_agreement(run)
+    with pytest.raises(RailsuspInputError, match=said):
+        _ = railsusp.open_run(run).validation
+
+
+@pytest.mark.parametrize("kept", [[], {}, "x"])
+def test_an_emptied_intervals_record_is_refused_not_formed_again_narrower(tmp_path, kept):
+    """An estimate.json whose ``intervals`` was emptied read as one saved before intervals
+    were stored: its interval formed again from the refinement's noise part alone (the
+    demo's X13: 0.55 % of range instead of the 2.38 % total, four times narrower), without
+    a word."""
+    run = refined_run(tmp_path)
+    edit(run / "estimate" / "estimate.json", lambda d: d.__setitem__("intervals", kept))
+    with pytest.raises(RailsuspInputError, match=r"intervals = .*edited or damaged"):
+        summary.estimate_table(run)

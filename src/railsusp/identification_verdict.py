@@ -13,7 +13,7 @@ from pathlib import Path
 from railsusp.errors import first_listed
 from railsusp.estimate import BOUND_LIMIT_PCT
 from railsusp.estimate.intervals import identification, intervals_of
-from railsusp.store import read_json, read_parquet
+from railsusp.store import read_parquet
 
 #: a parameter whose largest total Sobol index on the used features is below this is not
 #: identified (nor one whose interval is wider than IDENTIFIED_WIDTH_PCT of its range)
@@ -155,13 +155,17 @@ def max_st(path: str | Path) -> dict[str, float]:
     campaign replaced since) is refused in one line
     (:func:`~railsusp.key_parameters.check_sensitivity_output`; unstamped: read as before),
     as is a damaged ``indices.parquet`` (its pages' checksums)."""
-    from railsusp.key_parameters import check_sensitivity_output, select_key_parameters
+    from railsusp.key_parameters import (
+        check_sensitivity_output,
+        read_selection,
+        select_key_parameters,
+    )
 
     path = Path(path)
     if path.is_dir():
         path = path / "key_parameters.json"
     check_sensitivity_output(path)
-    if path.suffix == ".json":
-        return read_json(path)["key_parameters"]["max_st"]
     remedy = f"run `railsusp sensitivity {path.parent.parent}` again"
+    if path.suffix == ".json":  # its fields checked: a damaged file is named, one line
+        return read_selection(path, remedy, keys=False)["key_parameters"]["max_st"]
     return select_key_parameters(read_parquet(path, remedy)).max_st

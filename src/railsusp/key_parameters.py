@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from railsusp.errors import RailsuspInputError
+from railsusp.numbers import is_real
 from railsusp.store import read_json
 from railsusp.study import KEY_LATERAL, KEY_VERTICAL
 
@@ -229,13 +230,38 @@ def read_key_parameters(run: str | Path) -> dict:
     """``RUN/sensitivity/key_parameters.json``, checked to be of the campaign in ``run``
     (:func:`check_made_from`); :func:`~railsusp.store.read_json`'s one-line errors."""
     path = Path(run) / "sensitivity" / "key_parameters.json"
+    doc = read_selection(path, f"run `railsusp sensitivity {run}` again")
+    check_made_from(path, doc.get(CAMPAIGN_STAMP), run)
+    return doc
+
+
+def read_selection(
+    path: str | Path, remedy: str = "run `railsusp sensitivity RUN` again", keys: bool = True
+) -> dict:
+    """A ``key_parameters.json`` with the fields its readers take checked: ``keys`` a list of
+    parameter symbols (``keys``: where the reader takes them), ``max_st`` a table of
+    numbers. A damaged or edited file is one line naming the file and the field, ``remedy``
+    appended (a number made text was a traceback in ``largest_st``, and the summary blamed
+    ``estimate.json`` for it)."""
+    path = Path(path)
     doc = read_json(path)
     if not isinstance(doc, dict) or not isinstance(doc.get("key_parameters"), dict):
         raise RailsuspInputError(
-            f"{path} is not a railsusp sensitivity analysis (no key_parameters): run "
-            f"`railsusp sensitivity {run}` again"
+            f"{path} is not a railsusp sensitivity analysis (no key_parameters): {remedy}"
         )
-    check_made_from(path, doc.get(CAMPAIGN_STAMP), run)
+    listed, st = doc["key_parameters"].get("keys"), doc["key_parameters"].get("max_st")
+    if keys and (not isinstance(listed, list) or not all(isinstance(k, str) for k in listed)):
+        raise RailsuspInputError(
+            f"{path}: key_parameters.keys = {listed!r:.60}: accepted a list of parameter "
+            f"symbols; the file is damaged or was edited ({remedy})"
+        )
+    bad = [k for k, v in st.items() if not is_real(v)] if isinstance(st, dict) else None
+    if bad is None or bad:
+        field = f"max_st.{bad[0]} = {st[bad[0]]!r:.40}" if bad else f"max_st = {st!r:.60}"
+        raise RailsuspInputError(
+            f"{path}: key_parameters.{field}: accepted a table {{symbol: largest total Sobol "
+            f"index}} of numbers; the file is damaged or was edited ({remedy})"
+        )
     return doc
 
 

@@ -149,7 +149,7 @@ class RunResult:
         RMS over the standard deviation."""
         from railsusp.report_estimate import statistic_label
 
-        df = read_csv(self._need("estimate/validation/validation.csv", "validate"))
+        df = summary.read_validation(self._need("estimate/validation/validation.csv", "validate"))
         for c in [c for c in df.columns if c.endswith("_error")]:
             df[f"{c}_pct"] = 100.0 * df.pop(c)
         if {"statistic", "force"} <= set(df.columns):

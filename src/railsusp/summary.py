@@ -18,9 +18,16 @@ from pathlib import Path
 import pandas as pd
 
 from railsusp.errors import RailsuspInputError
-from railsusp.numbers import is_real, sig3
+from railsusp.numbers import sig3
 from railsusp.params import MAIN_SUSPENSION, spec
-from railsusp.store import read_csv, read_json
+from railsusp.store import read_json
+from railsusp.summary_files import (
+    campaign_config,
+    check_table_fields,
+    damaged,
+    read_estimate,
+    read_validation,
+)
 from railsusp.suspension_tolerances import Tolerances, read_tolerances
 
 WITHIN = "within tolerance"
@@ -48,48 +55,6 @@ def run_tolerances(run: str | Path) -> Tolerances:
     return read_tolerances((state.get("config") or {}).get("wagon"))
 
 
-def _damaged(path: Path, what: str) -> RailsuspInputError:
-    """The one-line error of an estimate.json edited or damaged (a same-size edit is not
-    seen by a run made before its stages recorded hashes), with how to write it again."""
-    run = path.parent.parent
-    first = what.strip().splitlines()[0] if what.strip() else what
-    return RailsuspInputError(
-        f"{path}: {first}; the file is damaged or was edited "
-        f"(railsusp run CONFIG --out {run} --from estimate writes it again)"
-    )
-
-
-def read_estimate(path: str | Path) -> dict:
-    """An ``estimate.json`` with the fields the summary reads checked: ``parameters`` a list
-    of parameter symbols and ``estimate_display`` a real number for each of them. An edited
-    or damaged file (a key renamed, a number made text) is a one-line input error naming the
-    file and the field, not a KeyError's traceback from deep in the table (``railsusp run``
-    ended so, exit 1, on a run whose key had been edited: the run-directory store audit)."""
-    path = Path(path)
-    est = read_json(path)
-    if not isinstance(est, dict):
-        raise _damaged(path, f"a JSON object is needed, not {type(est).__name__}")
-    params = est.get("parameters")
-    if not isinstance(params, list) or not all(isinstance(p, str) for p in params):
-        raise _damaged(path, f"parameters = {params!r:.60}: accepted a list of parameter symbols")
-    shown = est.get("estimate_display")
-    if not isinstance(shown, dict):
-        raise _damaged(
-            path, f"estimate_display = {shown!r:.60}: accepted a table {{symbol: value}}"
-        )
-    for p in params:
-        if not is_real(shown.get(p)) or not math.isfinite(float(shown[p])):
-            raise _damaged(
-                path,
-                f"estimate_display.{p} = {repr(shown[p])[:40] if p in shown else 'missing'}: "
-                f"accepted a finite number (the estimate of each of {', '.join(params)})",
-            )
-    from railsusp.estimate.config import held_at_of
-
-    held_at_of(est, str(path))  # where it held the parameters it did not estimate
-    return est
-
-
 def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.DataFrame:
     """One row per main suspension parameter (display units): element, unit, nominal,
     estimate, standard error, interval (low, high, and how it was formed), change from
@@ -111,7 +76,8 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
     except RailsuspInputError:
         raise
     except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
-        raise _damaged(path, f"its intervals do not read ({type(exc).__name__}: {exc})") from None
+        raise damaged(path, f"its intervals do not read ({type(exc).__name__}: {exc})") from None
+    check_table_fields(est, intervals.details, path)
     params = list(est["parameters"])
     # the standard errors the intervals were formed from; else the refinement's, where it
     # made the estimate (a polish beside NSGA-II's estimate is another point: its errors
@@ -122,7 +88,7 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
         if made_by_refinement
         else {}
     )
-    camp = read_json(run / "campaign" / "campaign.json")["config"] if st or sens.exists() else {}
+    camp = campaign_config(run) if st or sens.exists() else {}
     sampled = set(camp.get("parameters", MAIN_SUSPENSION))
     assumed = {r["symbol"]: r for r in est.get("not_estimated", [])}
     # the simulator polish beside NSGA-II's estimate (time-aligned route), when there is one
@@ -240,7 +206,7 @@ def force_agreement(run: str | Path) -> pd.DataFrame:
     and with the estimated parameters (and with the true ones, for synthetic recordings:
     the noise floor). Time-aligned where the recordings carry their track, else the first
     statistic of the estimate."""
-    val = read_csv(Path(run) / "estimate" / "validation" / "validation.csv")
+    val = read_validation(Path(run) / "estimate" / "validation" / "validation.csv")
     rows = []
     for cond, g in val.groupby("condition", sort=False):
         stats = list(dict.fromkeys(g.statistic))

@@ -299,12 +299,20 @@ def intervals_of(doc: Mapping[str, Any], level: float = LEVEL) -> Intervals:
     errors at ``level`` (normal quantile; such files hold the pooled white-residual ones,
     which :class:`~railsusp.estimate.refine.Refinement` no longer reports) or else the
     Pareto set's range."""
-    if doc.get("intervals"):
-        stored = Intervals.from_dict(doc["intervals"])
+    from railsusp.errors import RailsuspInputError
+
+    kept = doc.get("intervals")
+    if kept is not None and not (isinstance(kept, Mapping) and kept):
+        # every writer stores a whole record; an empty one read as a file saved before
+        # intervals were, its interval formed again from the noise part alone (4 x narrower)
+        raise RailsuspInputError(
+            f"intervals = {kept!r:.60}: accepted the record the estimate stored (method, "
+            "level, parameters): the result file was edited or damaged; estimate again"
+        )
+    if kept:
+        stored = Intervals.from_dict(kept)
         lacking = [p for p in doc.get("parameters", ()) if p not in stored]
         if lacking:
-            from railsusp.errors import RailsuspInputError
-
             raise RailsuspInputError(
                 f"intervals: none of {', '.join(lacking)}, estimated (parameters "
                 f"{', '.join(doc['parameters'])}): the result file was edited or damaged; "
