@@ -300,6 +300,48 @@ def test_stage_hashes_follow_the_model_not_only_the_configuration(monkeypatch, t
     assert all(first[s] != hashes(own)[s] for s in first)
 
 
+def test_a_profile_file_edited_in_place_is_simulated_again(tmp_path):
+    """A wagon's wheel profile file edited in place left every stage of ``railsusp run``
+    skipped, the old profile's results presented as up to date (the wagon hunt of stop 79):
+    the wagon's hash held the file's path alone. Its contents are now in the simulated
+    stages' hashes, in the campaign's (a forced campaign kept its batches) and in the
+    contact table's cache."""
+    from importlib import resources
+
+    import numpy as np
+
+    from railsusp import pipeline_inputs
+    from railsusp.campaign import make_config
+    from railsusp.conditions import get_condition
+    from railsusp.store import content_hash
+    from railsusp.vehicle import layout as L
+    from railsusp.vehicle.profile_shapes import lm_worn_wheel
+    from railsusp.vehicle.profiles import write_profile
+    from railsusp.vehicle.setup import contact_arrays
+    from railsusp.vehicle.wagon import load_wagon
+
+    profile = tmp_path / "wheel.txt"
+    write_profile(lm_worn_wheel(), profile)
+    wagon = tmp_path / "wagon.toml"
+    text = resources.files("railsusp").joinpath("data/c80_k6.toml").read_text("utf-8")
+    wagon.write_text(text + '\n[profiles]\nwheel = "wheel.txt"\n')
+    own = demo_config().model_copy(update={"wagon": str(wagon)})
+
+    def hashes():
+        return [content_hash(pipeline_inputs.stage_section(own, s)) for s in ("campaign", "field")]
+
+    def campaign_hash():
+        cond = get_condition("straight", duration_s=1.0, n_steps=50)
+        return make_config([cond], samples=4, wagon=load_wagon(wagon)).hash()
+
+    first, first_campaign = hashes(), campaign_hash()
+    first_radius = contact_arrays(load_wagon(wagon)).table[L.CT_R].copy()
+    write_profile(lm_worn_wheel(flange_thickness=0.026, tread_radii=(0.3, 0.15, 0.1)), profile)
+    assert all(a != b for a, b in zip(first, hashes(), strict=True))
+    assert campaign_hash() != first_campaign
+    assert not np.allclose(contact_arrays(load_wagon(wagon)).table[L.CT_R], first_radius)
+
+
 def test_a_stage_failing_on_an_earlier_stages_file_names_that_stage(tmp_path):
     """The kill/resume pass (stop 54): a truncated features.parquet failed the sensitivity
     stage, and the hint '--from sensitivity' failed the same way; it now names --from

@@ -148,7 +148,9 @@ class CampaignConfig(BaseModel):
         return -(-self.n_runs // self.batch_size)
 
     def hash(self) -> str:
-        return content_hash(self.model_dump(mode="json"))
+        """The configuration's content hash, with the wagon's profile files' contents."""
+        data, files = self.model_dump(mode="json"), self.wagon.profile_digests()
+        return content_hash({**data, "profile_files": files} if files else data)
 
     def settings(self) -> SolverSettings:
         return SolverSettings(**self.solver)

@@ -103,8 +103,15 @@ def _kernel_blocks(
     return out
 
 
-@functools.lru_cache(maxsize=8)
 def contact_arrays(wagon: WagonData) -> ContactArrays:
+    """Contact functions of the wagon's wheel/rail pair, with Hertz and Kalker coefficients
+    (:func:`_contact_arrays`), computed once per wagon and contents of its profile files (a
+    profile edited in place is read again)."""
+    return _contact_arrays(wagon, tuple(sorted(wagon.profile_digests().items())))
+
+
+@functools.lru_cache(maxsize=8)
+def _contact_arrays(wagon: WagonData, _profile_files: tuple) -> ContactArrays:
     """Contact functions of the wagon's wheel/rail pair, with Hertz and Kalker coefficients.
 
     Per shift: rolling radius, contact angle, lateral arm of the contact point from the

@@ -84,6 +84,23 @@ class WagonData(WagonSection):
     def name(self) -> str:
         return self.wagon.name
 
+    def profile_digests(self) -> dict[str, str]:
+        """The content hash (SHA-256) of each profile file the wagon reads, by path
+        ("missing" for a file not there): what the hashes of its campaigns and runs hold
+        beside the path, so that a profile edited in place is simulated again instead of its
+        old results being reused (the wagon hunt of stop 79: every stage was skipped). Empty
+        with the built-in profiles (the hashes of such wagons are as before)."""
+        from railsusp.store import file_hash_cached
+
+        out = {}
+        for name, builtin in (
+            (self.profiles.wheel, BUILTIN_WHEELS),
+            (self.profiles.rail, BUILTIN_RAILS),
+        ):
+            if name not in builtin and name not in out:
+                out[name] = file_hash_cached(name) if Path(name).is_file() else "missing"
+        return out
+
     def with_values(self, changes: Mapping[str, Any]) -> WagonData:
         """The same wagon with some fields changed, given as ``{"section.field": value}``
         (e.g. ``{"contact.creep_factor": 0.6}``), validated as a wagon file is."""

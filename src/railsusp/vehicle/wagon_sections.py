@@ -27,6 +27,36 @@ def _within(hi: float, lo: float = 0.0, unit: str = "m", **kw: Any) -> Any:
     return Field(gt=lo, le=hi, allow_inf_nan=False, json_schema_extra={"unit": unit}, **kw)
 
 
+def _stiffness(lo: float, unit: str = "N/m", **kw: Any) -> Any:
+    """A stiffness of a freight wagon's element (SI), above ``lo``: a value typed in MN/m or
+    kN/m (the catalogue's display units: 5.9 for a 5.9e6 N/m nest) is refused where the file
+    is read. The model takes its static loads as preloads, so such a spring ran without a
+    word and gave plausible forces (a 5.9 N/m nest: car-body bounce at 0.003 Hz, an
+    unstable sway, every simulation "ok")."""
+    return Field(gt=lo, allow_inf_nan=False, json_schema_extra={"unit": unit}, **kw)
+
+
+#: the radii of gyration (sqrt(I / m)) a body of a standard-gauge freight wagon can have, m
+GYRATION_RADIUS_M = (0.05, 20.0)
+
+
+def _gyration_radii(section: str, body: BaseModel, inertias: tuple[str, ...]) -> None:
+    """Refuse an inertia whose radius of gyration about the body's own mass lies outside
+    :data:`GYRATION_RADIUS_M`: typed in t m^2 (a thousand times small) it was simulated
+    without a word, the forces plausible."""
+    lo, hi = GYRATION_RADIUS_M
+    mass = body.mass  # type: ignore[attr-defined]
+    for name in inertias:
+        inertia = getattr(body, name)
+        radius = math.sqrt(inertia / mass)
+        if not lo <= radius <= hi:
+            raise ValueError(
+                f"{section}.{name} = {inertia:g} kg m^2: a radius of gyration sqrt(I / mass) "
+                f"of {radius:.3g} m about the {mass:g} kg of {section}; accepted {lo:g} to "
+                f"{hi:g} m (an inertia in t m^2 is a thousand times small)"
+            )
+
+
 #: the base of every section: unknown keys refused, frozen
 class WagonSection(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -60,6 +90,11 @@ class CarBody(WagonSection):
     gravity_roll_moment: bool = True
 
     @model_validator(mode="after")
+    def _inertias_of_its_mass(self) -> CarBody:
+        _gyration_radii("car_body", self, ("roll_inertia", "pitch_inertia", "yaw_inertia"))
+        return self
+
+    @model_validator(mode="after")
     def _couplers_beyond_their_pivots(self) -> CarBody:
         length = self.length_over_couplers
         if length is not None and length <= 2.0 * self.coupler_half_spacing:
@@ -77,6 +112,11 @@ class Bolster(WagonSection):
     yaw_inertia: float = Field(**_POS)
     cg_height: float = _within(2.0, description="m above rail top")
 
+    @model_validator(mode="after")
+    def _inertias_of_its_mass(self) -> Bolster:
+        _gyration_radii("bolster", self, ("roll_inertia", "yaw_inertia"))
+        return self
+
 
 class SideFrame(WagonSection):
     """A side frame has no roll freedom of its own: it sits on its two axle boxes' adapters,
@@ -91,6 +131,11 @@ class SideFrame(WagonSection):
     yaw_inertia: float = Field(**_POS)
     cg_height: float = _within(2.0, description="m above rail top")
     roll_held_by_axle_boxes: bool = True
+
+    @model_validator(mode="after")
+    def _inertias_of_its_mass(self) -> SideFrame:
+        _gyration_radii("side_frame", self, ("pitch_inertia", "yaw_inertia"))
+        return self
 
 
 class Bogie(WagonSection):
@@ -128,19 +173,19 @@ class Secondary(WagonSection):
     their columns in opposite directions (the wedges' warp friction moment); 0 puts them all
     at the nest centre, where they resist no warp."""
 
-    vertical_stiffness: float = Field(**_POS)
+    vertical_stiffness: float = _stiffness(1.0e5)
     longitudinal_damping: float = Field(ge=0.0)
     wedges_per_nest: int = Field(ge=1, le=4)
     wedge_angle_deg: float = Field(gt=10.0, lt=80.0, description="slope face from vertical")
-    control_spring_stiffness: float = Field(**_POS, description="per wedge, N/m")
+    control_spring_stiffness: float = _stiffness(1.0e4, description="per wedge, N/m")
     column_friction_coefficient: float = Field(ge=0.0, le=1.0)
     slope_friction_coefficient: float = Field(ge=0.0, le=1.0)
-    wedge_stick_stiffness: float = Field(**_POS)
+    wedge_stick_stiffness: float = _stiffness(1.0e5)
     wedge_stick_damping: float = Field(ge=0.0)
     wedge_half_spacing: float = Field(
         ge=0.0, le=0.5, allow_inf_nan=False, description="wedges ahead of/behind the nest, m"
     )
-    gib_stiffness: float = Field(**_POS)
+    gib_stiffness: float = _stiffness(1.0e5)
 
     @model_validator(mode="after")
     def _wedges_fit_the_nest(self) -> Secondary:
@@ -177,18 +222,18 @@ class CentrePlate(WagonSection):
     gives the model before revision 2026-12-02.1: the moment followed the car body's pitch
     against the track and had no reaction on the bogie."""
 
-    vertical_stiffness: float = Field(**_POS)
-    rocking_stiffness: float = Field(
-        **_POS, description="relative roll of body and bolster before lift-off, N m/rad"
+    vertical_stiffness: float = _stiffness(1.0e6)
+    rocking_stiffness: float = _stiffness(
+        1.0e4, "N m/rad", description="relative roll of body and bolster before lift-off"
     )
-    bolster_pitch_stiffness: float = Field(
-        **_POS, description="the bolster's pitch restraint in the side-frame windows, N m/rad"
+    bolster_pitch_stiffness: float = _stiffness(
+        1.0e3, "N m/rad", description="the bolster's pitch restraint in the side-frame windows"
     )
-    lateral_stiffness: float = Field(**_POS)
+    lateral_stiffness: float = _stiffness(1.0e5)
     friction_coefficient: float = Field(ge=0.0, le=1.0)
-    yaw_stick_stiffness: float = Field(**_POS)
+    yaw_stick_stiffness: float = _stiffness(1.0e3, "N m/rad")
     yaw_stick_damping: float = Field(ge=0.0)
-    roll_stick_stiffness: float = Field(**_POS)
+    roll_stick_stiffness: float = _stiffness(1.0e3, "N m/rad")
     roll_stick_damping: float = Field(ge=0.0)
     pitch_reaction_on_side_frames: bool = True
 
@@ -209,12 +254,12 @@ class CentrePlate(WagonSection):
 
 
 class SideBearer(WagonSection):
-    vertical_stiffness: float = Field(**_POS)
+    vertical_stiffness: float = _stiffness(1.0e4)
     damping: float = Field(ge=0.0, description="elastomer loss as a viscous damper, N s/m")
     preload: float = Field(ge=0.0)
     friction_coefficient: float = Field(ge=0.0, le=1.0)
     travel: float = Field(**_POS, description="compression from static to the solid stop, m")
-    stop_stiffness: float = Field(**_POS)
+    stop_stiffness: float = _stiffness(1.0e5)
 
 
 class TrackData(WagonSection):
@@ -223,8 +268,8 @@ class TrackData(WagonSection):
     spring (no step in the normal force when a wheel or flange touches); false keeps the
     damper in parallel with it, the model before revision 2026-11-30.2."""
 
-    rail_vertical_stiffness: float = Field(**_POS)
-    rail_lateral_stiffness: float = Field(**_POS)
+    rail_vertical_stiffness: float = _stiffness(1.0e6)
+    rail_lateral_stiffness: float = _stiffness(1.0e6)
     rail_vertical_damping: float = Field(ge=0.0)
     rail_lateral_damping: float = Field(ge=0.0)
     gauge: float = Field(gt=1.0, lt=2.0)
