@@ -52,7 +52,6 @@ from railsusp.estimate import SurrogateForces
 from railsusp.estimate.problem import CalibrationProblem
 from railsusp.store import write_json
 from railsusp.surrogate.bundle import series_features
-from railsusp.surrogate.gru_kernel import kernel_threads
 from railsusp.surrogate.recurrence import cell_params
 from railsusp.surrogate.sequence import BLOCK_STEPS, CNNSequence, segment_plan
 from railsusp.surrogate.sequence_sets import gru_steps, predict_sets_in_step
@@ -67,10 +66,9 @@ def recurrence_only(net: CNNSequence, rows: int, length: int) -> None:
     for w_ih, _, w_hh, b_h in (cell_params(layer, "gru")[0] for layer in net.rnn):
         source = torch.randn(1, BLOCK_STEPS, rows, w_ih.shape[0], generator=g)
         state = None
-        with kernel_threads(torch.get_num_threads()):
-            for lo in range(0, length, BLOCK_STEPS):
-                gates = source[:, : min(BLOCK_STEPS, length - lo)].clone()
-                _, state = gru_steps(gates, state, w_hh[None], b_h[None])
+        for lo in range(0, length, BLOCK_STEPS):
+            gates = source[:, : min(BLOCK_STEPS, length - lo)].clone()
+            _, state = gru_steps(gates, state, w_hh[None], b_h[None])
 
 
 def timed(fn) -> tuple[float, float]:

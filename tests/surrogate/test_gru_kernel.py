@@ -111,29 +111,6 @@ def test_gate_pass_propagates_a_nan_row_only():
     assert np.isfinite(np.delete(seq[0, 0], 5, axis=0)).all()
 
 
-def test_kernel_threads_sets_and_restores_numba_threads():
-    """In a process of a two-thread pool (the suite's workers run Numba on one thread each,
-    tests/conftest.py, where setting and restoring could not be told apart)."""
-    script = textwrap.dedent(
-        """
-        import numba as nb
-        from railsusp.surrogate.gru_kernel import kernel_threads
-        before = nb.get_num_threads()
-        with kernel_threads(1):
-            inside = nb.get_num_threads()
-        after = nb.get_num_threads()
-        with kernel_threads(10_000):  # bounded by Numba's pool
-            most = nb.get_num_threads()
-        print(before, inside, after, most, nb.get_num_threads())
-        """
-    )
-    env = {**os.environ, "NUMBA_NUM_THREADS": "2"}
-    done = subprocess.run(
-        [sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True
-    )
-    assert done.stdout.split() == ["2", "1", "2", "2", "2"]
-
-
 def test_a_prediction_leaves_torch_thread_count_alone():
     """The first use of Numba's thread pool in a process sets OpenMP's thread count, which
     torch shares: a process told to use one thread must keep predicting on one (a fresh

@@ -179,3 +179,59 @@ def test_networks_in_step_without_onednn_give_each_networks_own_outputs(monkeypa
         alone = net.predict_sets(params, track, segment=35)
         torch.testing.assert_close(out, alone, rtol=1e-5, atol=1e-6)
         torch.testing.assert_close(out, _reference(net, params, track, 35), rtol=1e-5, atol=1e-5)
+
+
+@pytest.mark.parametrize(
+    ("n", "most", "threads", "workers"),
+    [(50, 64, 2, 2), (6, 64, 2, 1), (16, 64, 2, 2), (384, 64, 2, 2), (50, 64, 16, 6),
+     (130, 64, 2, 2), (50, 64, 1, 1), (200, 25, 3, 3), (0, 64, 2, 1)],
+)  # fmt: skip
+def test_the_sets_are_shared_in_whole_rounds_of_chunks(n, most, threads, workers):
+    from railsusp.surrogate.sequence_sets import MIN_SETS_PER_WORKER, set_chunks
+
+    chunks, got = set_chunks(n, most, threads)
+    assert got == workers
+    edges = [0, *(hi for _, hi in chunks)]
+    assert [lo for lo, _ in chunks] == edges[:-1] and edges[-1] == n  # contiguous, 0 to n
+    sizes = [hi - lo for lo, hi in chunks]
+    assert sum(sizes) == n and all(0 < s <= most for s in sizes)
+    assert not sizes or max(sizes) - min(sizes) <= 1  # as equal as their count allows
+    assert len(chunks) % workers == 0 or len(chunks) == n  # whole rounds of the workers
+    assert workers == 1 or n // workers >= MIN_SETS_PER_WORKER  # no worker of a few sets
+
+
+def test_the_workers_each_take_their_sets_on_one_thread(monkeypatch):
+    """Each worker runs its sets with torch on one thread and the gate pass on the calling
+    thread: a parallel pass per step (thousands a generation) waited for a thread that
+    another process held, and an NSGA-II generation took 10-40 times longer on a 2-core
+    machine with one other busy process (bench/README.md, "Predictions under outside
+    load"). The outputs are those of one worker, bit for bit, and torch's thread count is
+    restored after."""
+    import threading
+
+    from railsusp.surrogate import sequence_sets
+
+    seen = []
+    gates = sequence_sets.gru_gates
+
+    def spy(*args):
+        seen.append((threading.get_ident(), torch.get_num_threads()))
+        return gates(*args)
+
+    nets = [_net(seed=g) for g in range(2)]
+    params, tracks = _params(32), [_track(90, seed=10 + g) for g in range(2)]
+    before = torch.get_num_threads()
+    try:
+        torch.set_num_threads(1)
+        one = predict_sets_in_step(nets, params, tracks, segment=30)
+        torch.set_num_threads(4)
+        monkeypatch.setattr(sequence_sets, "gru_gates", spy)
+        four = predict_sets_in_step(nets, params, tracks, segment=30)
+        assert torch.get_num_threads() == 4
+    finally:
+        torch.set_num_threads(before)
+    assert {n for _, n in seen} == {1}  # every gate pass with torch on one thread
+    assert len({ident for ident, _ in seen}) == 4  # four workers of 8 sets each
+    assert threading.get_ident() not in {ident for ident, _ in seen}
+    for a, b in zip(one, four, strict=True):
+        assert torch.equal(a, b)

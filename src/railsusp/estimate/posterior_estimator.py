@@ -12,7 +12,7 @@ thread, :func:`one_thread`, uses this part alone).
 
 from __future__ import annotations
 
-from contextlib import contextmanager
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,18 +26,12 @@ from railsusp.estimate.posterior_settings import PosteriorSettings
 from railsusp.estimate.posterior_support import TrainingSupport
 
 
-@contextmanager
-def one_thread():
+def one_thread() -> AbstractContextManager[None]:
     """Torch on one thread while the flows train or sample: their networks are small, and
     on a shared 2-core machine two threads contend (sampling measured 7 times slower)."""
-    import torch
+    from railsusp.surrogate.gru_kernel import torch_threads
 
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before)
+    return torch_threads(1)
 
 
 @dataclass

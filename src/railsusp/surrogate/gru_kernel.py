@@ -5,8 +5,10 @@ recurrences: per layer and time step one small matrix product of the hidden stat
 gate operations (:func:`railsusp.surrogate.recurrence.gru_step`). As torch operations each is
 a pass over the whole (rows, 3H) gate array through memory; on a 2-core Xeon the gates cost
 twice the product (bench/README.md, stop 47). :func:`gru_gates` runs all five in one
-compiled pass per row instead, in parallel over chunks of rows; the product stays torch's
-(oneDNN's or MKL's), which a plain compiled loop did not match (2.7 times slower).
+compiled pass per row instead, on the calling thread (the prediction's workers share the
+cores by parameter sets: a parallel pass per step, thousands a generation, waited for a
+thread that another process held); the product stays torch's (oneDNN's or MKL's), which a
+plain compiled loop did not match (2.7 times slower).
 
 The equations are torch's ``nn.GRU`` ones with the weights as :func:`cell_params
 <railsusp.surrogate.recurrence.cell_params>` prepares them (input-side biases folded in, the
@@ -28,8 +30,6 @@ import torch
 
 from railsusp.vehicle.kernel_cache import FASTMATH  # (the kernels' flags and cache folder)
 
-#: rows of one parallel task
-CHUNK_ROWS = 32
 #: beyond this |x| the logistic function is taken as e^-24 = 3.8e-11 from 1 or 0 (1 in float32
 #: on that side; on the other 3.8e-11 instead of less, far below the gates' float32 sums)
 _SIGMOID_CLAMP = 24.0
@@ -61,7 +61,7 @@ def _sigmoid(x):
     return s if x >= 0.0 else p * s  # sigma(-a) = e^-a / (1 + e^-a)
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, parallel=True, error_model="numpy")
+@nb.njit(cache=True, fastmath=FASTMATH, nogil=True, error_model="numpy")
 def gru_gates(gates, t, gh, h, seq):
     """Step ``t`` of G GRUs over ``rows`` rows each, from the two sides' products.
 
@@ -71,16 +71,15 @@ def gru_gates(gates, t, gh, h, seq):
     ``seq[:, t]`` (seq: (G, k, rows, H) float32) receives too. r = sigmoid(i_r + a_r),
     z = sigmoid(i_z + a_z), n = tanh(i_n + r a_n) (= 2 sigmoid(doubled) - 1),
     h' = n + z (h - n): torch's equations (:func:`railsusp.surrogate.recurrence.gru_step`)
-    in one pass per row, in parallel over chunks of rows. (Whole contiguous arrays and the
-    step's index, not the step's slices: Numba compiles a slice's strides as unknown, and
-    the loop over the units then is not vectorised.)"""
+    in one pass per row. On the calling thread, without the GIL: the prediction runs its
+    workers side by side, each on its own parameter sets
+    (:func:`railsusp.surrogate.sequence_sets.predict_sets_in_step`). (Whole contiguous
+    arrays and the step's index, not the step's slices: Numba compiles a slice's strides as
+    unknown, and the loop over the units then is not vectorised.)"""
     n_net, _, rows, h3 = gates.shape
     hs = h3 // 3
-    per_net = (rows + CHUNK_ROWS - 1) // CHUNK_ROWS
-    for task in nb.prange(n_net * per_net):
-        g = task // per_net
-        lo = (task % per_net) * CHUNK_ROWS
-        for r in range(lo, min(rows, lo + CHUNK_ROWS)):
+    for g in range(n_net):
+        for r in range(rows):
             for j in range(hs):
                 rg = _sigmoid(np.float64(gates[g, t, r, j]) + gh[g, r, j])
                 z = _sigmoid(np.float64(gates[g, t, r, hs + j]) + gh[g, r, hs + j])
@@ -91,27 +90,16 @@ def gru_gates(gates, t, gh, h, seq):
 
 
 @contextmanager
-def kernel_threads(n: int) -> Iterator[None]:
-    """Run :func:`gru_gates` on ``n`` threads (torch's count for the products beside it, so
-    that one setting governs the prediction), at most Numba's; the count before is restored
-    after, for the simulator's parallel kernels. torch's own count is kept: the start of
-    Numba's pool (its OpenMP layer) sets the calling thread's OpenMP count to the whole pool,
-    and torch, unless its count was set explicitly, reads that as its own: a process run with
-    OMP_NUM_THREADS=1 would otherwise predict on two threads from its first prediction on.
-    (A simulation in the same process starts the pool too, with the same effect on such a
-    process's torch.)"""
-    torch_threads = torch.get_num_threads()  # (first: asking Numba starts its pool)
-    before = nb.get_num_threads()
-    nb.set_num_threads(max(1, min(n, nb.config.NUMBA_NUM_THREADS)))
-    _keep_torch_threads(torch_threads)
+def torch_threads(n: int) -> Iterator[None]:
+    """torch's intra-op thread count (and MKL's) at ``n`` inside, the count before restored
+    after: the prediction's workers each run torch's products on one thread, so that no
+    product waits for a thread that another process holds (issue 19's estimate under load,
+    bench/README.md, "Predictions under outside load"); the posterior's small flows too."""
+    before = torch.get_num_threads()
+    if before != n:
+        torch.set_num_threads(n)
     try:
         yield
     finally:
-        nb.set_num_threads(before)
-        _keep_torch_threads(torch_threads)
-
-
-def _keep_torch_threads(n: int) -> None:
-    """torch's thread count back to ``n`` where starting Numba's pool moved it."""
-    if torch.get_num_threads() != n:
-        torch.set_num_threads(n)
+        if torch.get_num_threads() != before:
+            torch.set_num_threads(before)

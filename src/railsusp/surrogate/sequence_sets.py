@@ -28,12 +28,14 @@ most 1.6e-5 kN apart; the tests check 1e-5 relative). One network through
 from __future__ import annotations
 
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from itertools import pairwise
 
 import torch
 from torch import nn
 
-from railsusp.surrogate.gru_kernel import gru_gates, kernel_threads
+from railsusp.surrogate.gru_kernel import gru_gates, torch_threads
 from railsusp.surrogate.recurrence import cell_params, gru_step, linear
 
 #: time steps of all segments run through the layers together, so that a block's activations
@@ -42,6 +44,8 @@ from railsusp.surrogate.recurrence import cell_params, gru_step, linear
 BLOCK_STEPS = 8
 #: segments (parameter sets x segments of each) run as one batch, per network
 GROUP_ROWS = 512
+#: parameter sets a prediction's worker takes at least (:func:`set_chunks`)
+MIN_SETS_PER_WORKER = 8
 
 
 def segment_plan(t_steps: int, segment: int, washout: int) -> list[tuple[int, int]]:
@@ -217,16 +221,43 @@ def predict_sets_in_step(
     out = torch.empty(len(nets), n, t_steps, weights.n_out, dtype=w.dtype)
     starts = torch.tensor([s for s, _ in plan])
     ends = [keep for _, keep in plan[1:]] + [t_steps]
-    per_group = max(1, group_rows // len(plan))
-    with kernel_threads(torch.get_num_threads()):
-        for lo in range(0, n, per_group):
-            sets = torch.arange(lo, min(n, lo + per_group))
-            part = track_part[:, :1] if tracks[0].shape[0] == 1 else track_part[:, sets]
-            seg = _segments(weights, part, param_part[:, sets], starts, length, block_steps)
-            for j, ((start, keep), end) in enumerate(zip(plan, ends, strict=True)):
-                kept = seg[:, keep - start : end - start, j]  # (G, steps, sets, n_outputs)
-                out[:, lo : lo + len(sets), keep:end] = kept.transpose(1, 2)
+
+    @torch.inference_mode()  # (per thread: the workers' too)
+    def run(lo: int, hi: int) -> None:
+        sets = torch.arange(lo, hi)
+        part = track_part[:, :1] if tracks[0].shape[0] == 1 else track_part[:, sets]
+        seg = _segments(weights, part, param_part[:, sets], starts, length, block_steps)
+        for j, ((start, keep), end) in enumerate(zip(plan, ends, strict=True)):
+            kept = seg[:, keep - start : end - start, j]  # (G, steps, sets, n_outputs)
+            out[:, lo:hi, keep:end] = kept.transpose(1, 2)
+
+    chunks, workers = set_chunks(n, max(1, group_rows // len(plan)), torch.get_num_threads())
+    with torch_threads(1):
+        if workers == 1:
+            for lo, hi in chunks:
+                run(lo, hi)
+        else:
+            with ThreadPoolExecutor(workers) as pool:
+                for done in [pool.submit(run, lo, hi) for lo, hi in chunks]:
+                    done.result()  # (an error in a worker raised here)
     return list(out)
+
+
+def set_chunks(n: int, most: int, threads: int) -> tuple[list[tuple[int, int]], int]:
+    """How the prediction shares ``threads`` cores: (the (first, end) sets of each chunk, the
+    workers). Each worker runs whole chunks of at most ``most`` sets (one batch of segments,
+    GROUP_ROWS) on one thread, so that no product or gate pass waits for another thread:
+    thousands of parallel passes a generation, each of them waiting for a thread that
+    another process held, made an NSGA-II generation 10-40 times slower on a 2-core machine
+    with one other busy process (bench/README.md, "Predictions under outside load"). At
+    least MIN_SETS_PER_WORKER sets a worker (smaller products cost more than they share);
+    the chunks as equal as their count allows. Each set's outputs do not depend on the
+    chunks (tests/surrogate/test_sequence_sets.py)."""
+    workers = max(1, min(threads, n // MIN_SETS_PER_WORKER))
+    count = -(-max(-(-n // most), workers) // workers) * workers  # whole rounds of workers
+    count = min(count, n)
+    ends = [k * n // count for k in range(count + 1)] if n else [0]
+    return list(pairwise(ends)), workers
 
 
 def _segments(
