@@ -71,3 +71,12 @@ def test_the_examples_load_by_name_where_no_file_of_that_name_is(tmp_path, monke
     monkeypatch.chdir(tmp_path)
     cfg = load_config(name)
     assert cfg == load_config(ROOT / "examples" / f"{name}.toml")
+
+
+def test_a_folder_of_an_examples_name_does_not_hide_the_example(tmp_path, monkeypatch):
+    """`railsusp run tiny --out tiny` made a folder `tiny`; run again, the name read that
+    folder ("configuration tiny is a folder, not a TOML file") instead of the example,
+    though only a file of the name takes its place (docs/configuration.md)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "tiny").mkdir()
+    assert load_config("tiny") == load_config(ROOT / "examples" / "tiny.toml")

@@ -121,10 +121,11 @@ EXAMPLE_CONFIGS = ("quick", "pretrained", "study", "tiny")
 
 def config_path(path: str | Path) -> Path:
     """The configuration file ``path`` names: itself, or the packaged example of that name
-    (:data:`EXAMPLE_CONFIGS`) where it is one and no file of the name is there."""
+    (:data:`EXAMPLE_CONFIGS`) where it is one and no file of the name is there (a folder
+    of the name, such as the run directory of `railsusp run tiny --out tiny`, is none)."""
     from importlib import resources
 
-    if str(path) in EXAMPLE_CONFIGS and not Path(path).exists():
+    if str(path) in EXAMPLE_CONFIGS and not Path(path).is_file():
         return Path(str(resources.files("railsusp").joinpath(f"data/examples/{path}.toml")))
     return Path(path)
 
