@@ -33,6 +33,8 @@ from railsusp.vehicle.modes import modal_analysis
 from railsusp.vehicle.operating_point import LinearisationPoint, linearisation_point
 from railsusp.vehicle.setup import SolverSettings
 from railsusp.vehicle.simulate import simulate
+from railsusp.vehicle.track_geometry import write_track_geometry
+from railsusp.vehicle.track_grid import section_irregularities
 from railsusp.vehicle.wagon import FORCE_LAWS_BEFORE_2026_12_02_1, load_wagon
 from railsusp.vehicle.wheel_rail import creep_contact_forces
 
@@ -430,3 +432,53 @@ def test_a_bolster_rigid_in_pitch_is_refused_where_its_restraint_acts_on_the_sid
     stiff = load_wagon().with_values({"centre_plate.bolster_pitch_stiffness": 1e10})
     c = get_condition("straight", duration_s=1.0, n_steps=50, lead_in_m=5.0)
     assert simulate(None, c, wagon=stiff).status[0] == 0
+
+
+# ------------------------------------------------------------------ 9. mirror image, rough track
+#: wheel order w1L, w1R, ... w4R: each wheel's mirror image is the other wheel of its axle
+_MIRROR_WHEELS = [1, 0, 3, 2, 5, 4, 7, 6]
+
+
+@pytest.mark.parametrize(
+    ("name", "wagon_name", "start"),
+    [("curve", "loaded", "settled"), ("uphill", "tare", "lead-in")],
+)
+def test_the_mirror_image_of_a_rough_track_gives_the_mirror_image_of_the_forces(
+    tmp_path, name, wagon_name, start
+):
+    """The wagon, its profiles and its force laws are symmetric about the track's centre
+    plane, so a track and its mirror image (left and right rails swapped: alignment and
+    cross-level change sign, vertical profile and gauge do not; a left-hand curve becomes a
+    right-hand one, its cant on the other rail) give the same forces with each wheel and its
+    partner on the axle swapped: Y and Q wheel for wheel, H and the car body's lateral
+    acceleration with their sign changed. The track is the condition's Class 5 realisation
+    written as measured geometry, read back as it is and mirrored, so that the whole path
+    from the irregularities to the rails under each wheel is checked; the curve from its
+    settled start, the grade (650 kN of tension) from rest with the tare wagon. Measured to
+    1.5e-12 of the largest force (the fast-math kernels' round-off); the test on perfect track
+    (test_simulate.py) cannot see the rails' irregularities: taking the right rail's lateral
+    velocity from the left rail leaves it passing and moves this one by kilonewtons."""
+    wagon = load_wagon(wagon_name)
+    base = get_condition(name, duration_s=3.0, n_steps=150)
+    irr = section_irregularities(base, [base.seed], wagon)
+    mirrored = dataclasses.replace(irr, alignment=-irr.alignment, crosslevel=-irr.crosslevel)
+    origin = base.lead_in_m  # the files' distances count from the record's first sample
+    files = [tmp_path / "track.csv", tmp_path / "mirrored.csv"]
+    write_track_geometry(files[0], irr, origin_m=origin)
+    write_track_geometry(files[1], mirrored, origin_m=origin)
+    this = base.with_changes(track_geometry=str(files[0]))
+    other = base.with_changes(track_geometry=str(files[1]))
+    if base.curve_radius_m is not None:
+        assert base.curve_direction == "left"
+        other = other.with_changes(curve_direction="right")
+    settings = SolverSettings(start=start)
+    a = simulate(None, this, wagon=wagon, settings=settings)
+    b = simulate(None, other, wagon=wagon, settings=settings)
+    assert a.status[0] == 0 and b.status[0] == 0
+    assert a.settled_start[0] == b.settled_start[0] == (start == "settled")
+    scale = float(np.abs(a.Q[0]).max())
+    assert float(np.abs(a.Y[0]).max()) > 10e3  # the rough track does push the wheels
+    np.testing.assert_allclose(b.Y[0][_MIRROR_WHEELS], a.Y[0], rtol=0, atol=1e-9 * scale)
+    np.testing.assert_allclose(b.Q[0][_MIRROR_WHEELS], a.Q[0], rtol=0, atol=1e-9 * scale)
+    np.testing.assert_allclose(b.H[0], -a.H[0], rtol=0, atol=1e-9 * scale)
+    np.testing.assert_allclose(b.car_acc_y[0], -a.car_acc_y[0], rtol=0, atol=1e-9)
