@@ -211,12 +211,16 @@ def test_the_workers_each_take_their_sets_on_one_thread(monkeypatch):
 
     from railsusp.surrogate import sequence_sets
 
-    seen = []
-    gates = sequence_sets.gru_gates
+    seen, chunks = [], []
+    gates, segments = sequence_sets.gru_gates, sequence_sets._segments
 
     def spy(*args):
         seen.append((threading.get_ident(), torch.get_num_threads()))
         return gates(*args)
+
+    def spy_segments(w, track_part, param_part, *args):
+        chunks.append(param_part.shape[1])  # the sets of one worker's chunk
+        return segments(w, track_part, param_part, *args)
 
     nets = [_net(seed=g) for g in range(2)]
     params, tracks = _params(32), [_track(90, seed=10 + g) for g in range(2)]
@@ -226,12 +230,13 @@ def test_the_workers_each_take_their_sets_on_one_thread(monkeypatch):
         one = predict_sets_in_step(nets, params, tracks, segment=30)
         torch.set_num_threads(4)
         monkeypatch.setattr(sequence_sets, "gru_gates", spy)
+        monkeypatch.setattr(sequence_sets, "_segments", spy_segments)
         four = predict_sets_in_step(nets, params, tracks, segment=30)
         assert torch.get_num_threads() == 4
     finally:
         torch.set_num_threads(before)
     assert {n for _, n in seen} == {1}  # every gate pass with torch on one thread
-    assert len({ident for ident, _ in seen}) == 4  # four workers of 8 sets each
-    assert threading.get_ident() not in {ident for ident, _ in seen}
+    assert chunks == [8, 8, 8, 8]  # four workers' chunks of 8 sets each
+    assert threading.get_ident() not in {ident for ident, _ in seen}  # all in the workers
     for a, b in zip(one, four, strict=True):
         assert torch.equal(a, b)
