@@ -167,5 +167,5 @@ def max_st(path: str | Path) -> dict[str, float]:
     check_sensitivity_output(path)
     remedy = f"run `railsusp sensitivity {path.parent.parent}` again"
     if path.suffix == ".json":  # its fields checked: a damaged file is named, one line
-        return read_selection(path, remedy, keys=False)["key_parameters"]["max_st"]
+        return read_selection(path, remedy, keys=False, max_st=True)["key_parameters"]["max_st"]
     return select_key_parameters(read_parquet(path, remedy)).max_st

@@ -236,13 +236,17 @@ def read_key_parameters(run: str | Path) -> dict:
 
 
 def read_selection(
-    path: str | Path, remedy: str = "run `railsusp sensitivity RUN` again", keys: bool = True
+    path: str | Path,
+    remedy: str = "run `railsusp sensitivity RUN` again",
+    keys: bool = True,
+    max_st: bool = False,
 ) -> dict:
     """A ``key_parameters.json`` with the fields its readers take checked: ``keys`` a list of
     parameter symbols (``keys``: where the reader takes them), ``max_st`` a table of
-    numbers. A damaged or edited file is one line naming the file and the field, ``remedy``
-    appended (a number made text was a traceback in ``largest_st``, and the summary blamed
-    ``estimate.json`` for it)."""
+    numbers where given (``max_st``: also that it is given; the keys' readers take the
+    indices where there are some). A damaged or edited file is one line naming the file and
+    the field, ``remedy`` appended (a number made text was a traceback in ``largest_st``,
+    and the summary blamed ``estimate.json`` for it)."""
     path = Path(path)
     doc = read_json(path)
     if not isinstance(doc, dict) or not isinstance(doc.get("key_parameters"), dict):
@@ -255,6 +259,8 @@ def read_selection(
             f"{path}: key_parameters.keys = {listed!r:.60}: accepted a list of parameter "
             f"symbols; the file is damaged or was edited ({remedy})"
         )
+    if st is None and not max_st:
+        return doc
     bad = [k for k, v in st.items() if not is_real(v)] if isinstance(st, dict) else None
     if bad is None or bad:
         field = f"max_st.{bad[0]} = {st[bad[0]]!r:.40}" if bad else f"max_st = {st!r:.60}"
