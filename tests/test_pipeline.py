@@ -887,3 +887,25 @@ def test_a_linked_field_folder_is_replaced_by_the_runs_own(tiny, tmp_path):
         run_pipeline(cfg, copy, start_from="field")
     assert not (copy / "field").is_symlink() and (copy / "field" / "index.json").is_file()
     assert {p.name: p.read_bytes() for p in mine.iterdir()} == before
+
+
+def test_a_moved_run_directory_validates_its_own_recordings(tiny, tmp_path):
+    """A run directory moved elsewhere (paths-and-formats hunt): its estimate recorded its
+    recordings' folder as an absolute path, so `railsusp run --from validate` on the moved
+    run, and `railsusp validate RUN/estimate`, read the folder no longer there ("no
+    index.json listing the recordings") and failed, with no remedy in running again."""
+    import shutil
+
+    from railsusp.validate import validate
+
+    cfg_path, out, _, _ = tiny
+    cfg = load_config(cfg_path)
+    before = tmp_path / "before"
+    shutil.copytree(out, before)
+    run_pipeline(cfg, before, start_from="estimate")  # its estimate records this folder's
+    moved = tmp_path / "Prüf stand" / "moved run"
+    moved.parent.mkdir()
+    shutil.move(before, moved)
+    run_pipeline(cfg, moved, start_from="validate")
+    assert open_run(moved).validation is not None
+    assert validate(moved / "estimate").recovery is None  # its own recordings, read

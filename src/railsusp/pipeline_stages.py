@@ -168,7 +168,9 @@ def stage_runners(
         res.save(
             out / "estimate",
             extra={
-                "measured": str((out / "field").resolve()),
+                # relative to the estimate's folder: the run's own recordings wherever the
+                # run directory is moved (validation_inputs.measured_of)
+                "measured": "../field",
                 "measured_digest": recordings_digest(recs),  # validate's check
                 "model": config.surrogate.model,
                 "wagon": wagon_reference(config.wagon),  # validate's default

@@ -52,7 +52,11 @@ from railsusp.measured.synthetic import recording_from_simulation
 from railsusp.measured.truth import check_truth_of, read_truth
 from railsusp.params import ParameterSet, bounds, spec
 from railsusp.store import atomic_folder, read_json, write_csv, write_json
-from railsusp.validation_inputs import check_estimate_fields, check_estimate_revision
+from railsusp.validation_inputs import (
+    check_estimate_fields,
+    check_estimate_revision,
+    measured_of,
+)
 from railsusp.vehicle.simulation_result import statistic_segments
 
 #: what validate reads of an estimate.json
@@ -208,11 +212,12 @@ def validate(
             except ValueError:  # another railsusp's wagon fields: its reference, if any
                 pass
     wagon = load_wagon(wagon)
-    recs = read_field(measured or est["measured"], wagon=wagon)
+    folder = measured if measured is not None else measured_of(est, estimate_dir)
+    recs = read_field(folder, wagon=wagon)
     stored = est.get("measured_digest")
     if measured is None and isinstance(stored, str) and not same_recordings(recs, stored):
         raise RailsuspInputError(
-            f"{est['measured']}: its recordings are not those the estimate in {est_path} "
+            f"{folder}: its recordings are not those the estimate in {est_path} "
             "read (the folder was written again since); accepted the estimate's own "
             "recordings: estimate again, or validate on these with --measured"
         )
@@ -239,7 +244,7 @@ def validate(
     truth_set = None
     if truth is not None:  # before the simulations: a truth of other recordings refused
         truth_set = read_truth(truth, truth_option)
-        check_truth_of(truth, measured or est["measured"], truth_option, recs)
+        check_truth_of(truth, folder, truth_option, recs)
     failures: list[str] = []
     notes: list[str] = []
     labels = {"before": "nominal parameters", "after": "estimate", "truth": "true parameters"}

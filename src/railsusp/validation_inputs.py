@@ -8,6 +8,7 @@ simulated at all.
 
 from __future__ import annotations
 
+import os
 import warnings
 from pathlib import Path
 from typing import Any
@@ -60,6 +61,19 @@ def check_estimate_fields(est: dict, path: Path, need_measured: bool = True) -> 
                 f"{path}: field {key!r} is {est.get(key)!r}; accepted "
                 + ("a wagon name or file" if key == "wagon" else "an object of wagon data")
             )
+
+
+def measured_of(est: dict, estimate_dir: str | Path) -> Path:
+    """The recordings' folder ``estimate.json`` records (``measured``): an absolute path as
+    it is; a relative one (a run directory's ``../field``, its own recordings) against the
+    estimate's folder, by name (``RUN/estimate`` a link: the run's ``field``, not one beside
+    the link's target), so that a run directory moved or copied elsewhere validates its own
+    recordings (its estimate recorded the folder's absolute path, and a moved run's
+    validation read the folder no longer there)."""
+    folder = Path(est["measured"])
+    if folder.is_absolute():
+        return folder
+    return Path(os.path.normpath(Path(estimate_dir).absolute() / folder))
 
 
 def check_estimate_revision(est: dict, path: Path) -> None:

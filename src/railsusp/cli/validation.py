@@ -165,7 +165,9 @@ def _measured_of(estimate_dir: Path) -> Path | None:
     folder = doc.get("measured") if isinstance(doc, dict) else None
     if not isinstance(folder, str) or not folder or "\0" in folder:  # no path the OS takes
         return None
-    return Path(folder)
+    from railsusp.validation_inputs import measured_of
+
+    return measured_of(doc, estimate_dir)
 
 
 def _campaign_of(sensitivity: Path | None) -> Path | None:
