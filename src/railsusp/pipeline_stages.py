@@ -168,9 +168,10 @@ def stage_runners(
         res.save(
             out / "estimate",
             extra={
-                # relative to the estimate's folder: the run's own recordings wherever the
-                # run directory is moved (validation_inputs.measured_of)
-                "measured": "../field",
+                "measured": str((out / "field").resolve()),
+                # and relative to the estimate's folder: the run's own recordings wherever
+                # the run directory is moved (validation_inputs.measured_of)
+                "measured_in_run": "../field",
                 "measured_digest": recordings_digest(recs),  # validate's check
                 "model": config.surrogate.model,
                 "wagon": wagon_reference(config.wagon),  # validate's default

@@ -64,16 +64,22 @@ def check_estimate_fields(est: dict, path: Path, need_measured: bool = True) -> 
 
 
 def measured_of(est: dict, estimate_dir: str | Path) -> Path:
-    """The recordings' folder ``estimate.json`` records (``measured``): an absolute path as
-    it is; a relative one (a run directory's ``../field``, its own recordings) against the
-    estimate's folder, by name (``RUN/estimate`` a link: the run's ``field``, not one beside
-    the link's target), so that a run directory moved or copied elsewhere validates its own
-    recordings (its estimate recorded the folder's absolute path, and a moved run's
-    validation read the folder no longer there)."""
+    """The recordings' folder of ``estimate.json``: a run directory's own (``measured_in_run``,
+    ``../field`` against the estimate's folder, by name: ``RUN/estimate`` a link gives the
+    run's ``field``, not one beside the link's target) where it holds recordings, else the
+    folder it recorded (``measured``; a relative one against the estimate's folder). A run
+    directory moved or copied elsewhere so validates its own recordings: the absolute path
+    alone made a moved run's validation read a folder no longer there (stop 79's paths
+    hunt), while an estimate folder copied out of its run still finds the run's. The
+    recordings' digest checks either (:func:`railsusp.validate.validate`)."""
+    here = Path(estimate_dir).absolute()
+    own = est.get("measured_in_run")
+    if isinstance(own, str) and own and "\0" not in own:
+        folder = Path(os.path.normpath(here / own))
+        if (folder / "index.json").is_file():
+            return folder
     folder = Path(est["measured"])
-    if folder.is_absolute():
-        return folder
-    return Path(os.path.normpath(Path(estimate_dir).absolute() / folder))
+    return folder if folder.is_absolute() else Path(os.path.normpath(here / folder))
 
 
 def check_estimate_revision(est: dict, path: Path) -> None:
