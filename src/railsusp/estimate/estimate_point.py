@@ -43,6 +43,9 @@ class EstimatePoint:
     history: np.ndarray  # (n_gen, k) SI: per generation, the choice rule on its front
     config: NSGAConfig
     seeds_spread: dict[str, float] = field(default_factory=dict)
+    #: independent NSGA-II runs behind ``seeds_spread`` (seeds ``config.seed`` on; the
+    #: estimate is the first's: :func:`~railsusp.estimate.nsga.estimate_with_seeds`)
+    n_seeds: int = 1
     refinement: Refinement | None = None
     #: Cramér-Rao bound of each parameter at NSGA-II's choice, % of range (statistics GPs)
     cramer_rao: dict[str, float] = field(default_factory=dict)

@@ -288,6 +288,7 @@ def estimate_with_seeds(
     chosen = np.array([r.pareto_x[r.chosen] for r in runs])
     spread = (chosen.max(axis=0) - chosen.min(axis=0)) / (hi - lo) * 100
     first = runs[0]
+    first.n_seeds = n_seeds
     if n_seeds > 1:  # one seed's "spread" of 0 would read as a reproducible search
         first.seeds_spread = {p: float(s) for p, s in zip(parameters, spread, strict=True)}
     return first

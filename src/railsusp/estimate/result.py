@@ -86,15 +86,18 @@ class CalibrationResult(EstimatePoint):
         drawn = ref.expected_draws
         on = f" on its mean over {drawn} draws of the true track geometry" if drawn else ""
         model = ref.compared_model or "an unnamed force model"  # the model it compared
+        # its point less the geometry bias its draws estimate, as NSGA-II's above
+        less = ", less the track geometry error's bias (first SIMEX step)"
+        less = less if ref.geometry_bias_removed else ""
         if self.refinement_is_polish:
             what = (
                 "the simulator's output-error refinement"
                 if model == SIMULATOR_TEXT
                 else f"the output-error refinement with {model}"
             )
-            return text + f"; {what}{on} is a polish beside it"
+            return text + f"; {what}{on}{less} is a polish beside it"
         start = "" if ref.from_choice else f" from {ref.start_origin}"
-        return text + f", then refined by output-error least squares with {model}{on}{start}"
+        return text + f", then refined by output-error least squares with {model}{on}{start}{less}"
 
     def table(self) -> pd.DataFrame:
         """The study's Table 5 layout: initial (nominal) and estimated value, display units,
@@ -163,6 +166,7 @@ class CalibrationResult(EstimatePoint):
                 "config": self.config.to_dict(),
                 "pareto_spread_pct_range": self.pareto_spread(),
                 "seed_spread_pct_range": self.seeds_spread,
+                "seeds": self.n_seeds,
                 "choice_rule": CHOICE_RULES[self.choice_rule]
                 + (", then refined by output-error least squares" if self.refined else ""),
                 "choice": self.choice_rule,
