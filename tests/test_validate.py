@@ -307,3 +307,14 @@ def test_max_st_of_an_indices_table_leaves_out_the_flat_features_as_the_rule_doe
     frame.to_parquet(tmp_path / "indices.parquet")
     got = max_st(tmp_path / "indices.parquet")
     assert got == pytest.approx({"X13": 0.4, "X17": 0.02})
+
+
+def test_expected_draws_on_recordings_of_no_stated_accuracy_are_not_claimed(case):
+    """The recordings state no geometry accuracy, so no true track is drawn: validation.json
+    said "expected_draws": 2 all the same, and the report "mean over 2 draws" (stop 79's
+    estimate hunt). It now records none, and says why."""
+    _field, est, _res = case
+    v = validate(est, expected_draws=2)
+    assert v.expected_draws == 0
+    assert any("expected_draws 2: straight states no track geometry accuracy" in n for n in v.notes)
+    assert validate(est).notes == [n for n in v.notes if not n.startswith("expected_draws")]

@@ -265,6 +265,16 @@ def validate(
         named = _simulate(
             {labels[k]: v for k, v in sets.items()}, recs, conditions, failures, wagon
         )
+    # draws are made only for recordings that state their geometry's accuracy: a validation
+    # without any recorded draws it did not make (stop 79's estimate hunt)
+    undrawn = [r.condition.name for r, c in zip(recs, conditions, strict=True) if len(c) == 1]
+    if draws and undrawn:
+        notes.append(
+            f"expected_draws {draws}: {', '.join(undrawn)} states no track geometry accuracy, "
+            "so its simulations ran on its measured geometry, not on drawn true tracks"
+        )
+    if len(undrawn) == len(recs):
+        draws = 0
     sims = {key: named[labels[key]] for key in sets}
     aligned = ALIGNED in stats
     gains = bool(config.get("channel_gains", False))
