@@ -54,3 +54,14 @@ def test_the_route_says_the_refined_point_is_less_the_geometry_bias():
     assert res.route.endswith(", less the track geometry error's bias (first SIMEX step)")
     res.refinement_is_polish = True
     assert "less the track geometry error's bias (first SIMEX step) is a polish" in res.route
+
+
+def test_the_route_says_the_corrected_points_are_less_the_geometry_bias():
+    """Each simulator correction's least squares is biased as NSGA-II's was, and its point
+    has the same bias taken off (level_correction); the route said so of NSGA-II's choice
+    only, before the corrections (stop 79's estimate hunt)."""
+    res = _nsga(1)
+    res.corrections = [object(), object()]  # (the route reads their count)
+    assert "each corrected point" not in res.route
+    res.geometry_bias_removed = True
+    assert res.route.endswith("(output space mapping), each corrected point less the same bias")

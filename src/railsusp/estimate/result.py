@@ -80,6 +80,8 @@ class CalibrationResult(EstimatePoint):
                     f"{'s' if n > 1 else ''} of the estimate, its least squares repeated with "
                     "each (output space mapping)"
                 )
+            if self.geometry_bias_removed:  # (level_correction: each step's least squares)
+                text += ", each corrected point less the same bias"
         if self.refinement is None:
             return text
         ref = self.refinement
