@@ -694,6 +694,12 @@ def test_settings_the_route_reads_nowhere_are_refused(tmp_path, field, estimate,
             "field.track_noise_mm = 0 gives the synthetic recordings exact geometry (it would "
             "with field.track_noise_mm > 0 (with with_track = true)); leave it out",
         ),
+        (  # no draws: no bias estimated to keep
+            "with_track = true\ntrack_noise_mm = 0.5",
+            'statistic = "aligned"\ngeometry_draws = 0\nremove_geometry_bias = false',
+            "estimate.remove_geometry_bias = false: no step draws the track geometry's error, "
+            "estimate.geometry_draws = 0 draws none, so no bias is estimated to keep",
+        ),
         (  # expected forces take the error in instead
             "with_track = true\ntrack_noise_mm = 0.5",
             'statistic = "aligned"\nexpected_draws = 2\ngeometry_draws = 3',

@@ -518,3 +518,30 @@ def test_align_track_refuses_to_write_a_chance_correlation(fields, tmp_path):
         runner.invoke(app, ["align-track", str(folder), "--min-correlation", "1"])
     )
     assert message == "--min-correlation 1: accepted [0, 1)"
+
+
+def test_keeping_the_geometry_bias_of_no_draws_is_said(tmp_path):
+    """--keep-geometry-bias with --geometry-draws 0 on geometry of stated accuracy ran
+    without a word, although no bias is estimated to keep (stop 79's estimate hunt)."""
+    cond = tmp_path / "c.toml"
+    cond.write_text(
+        '[[condition]]\nname = "short"\nduration_s = 1.0\nn_steps = 50\nlead_in_m = 20.0\n'
+    )
+    field = tmp_path / "f"
+    made = runner.invoke(
+        app,
+        ["synth-field", "--truth", "X13=16.1", "--conditions", str(cond), "--out", str(field),
+         "--with-track", "--track-noise", "0.5"],
+    )  # fmt: skip
+    assert made.exit_code == 0, made.output
+    result = runner.invoke(
+        app,
+        ["estimate", "--measured", str(field), "--simulator", "--parameters", "X13",
+         "--statistic", "aligned", "--pop-size", "4", "--n-gen", "2", "--geometry-draws", "0",
+         "--keep-geometry-bias", "--out", str(tmp_path / "e")],
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    assert (
+        "warning: --keep-geometry-bias: not used: --geometry-draws 0 draws none, so no bias is "
+        "estimated to keep"
+    ) in warnings_of(result)

@@ -313,6 +313,8 @@ def check_geometry_draws(cfg: Any, recordings: list, bad: Any) -> None:
             f"with estimate.expected_draws = {e.expected_draws} the geometry's error is in the "
             "comparison (the mean over drawn true tracks) instead"
         )
+    if not why and not e.geometry_draws:
+        why = "estimate.geometry_draws = 0 draws none, so no bias is estimated to keep"
     if not why and not e.refine and e.statistic != ALIGNED:
         why = (
             f'NSGA-II on estimate.statistic = "{e.statistic}" draws none (only "aligned" '
