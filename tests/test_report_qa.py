@@ -412,3 +412,36 @@ def test_a_figures_caption_with_brackets_stays_the_images_text(tmp_path):
     markdown_it = pytest.importorskip("markdown_it")
     page = markdown_it.MarkdownIt("commonmark").render(doc.md[-1])
     assert page.strip() == '<p><img src="f.png" alt="cap ] x [y](z)" /></p>'
+
+
+def test_a_network_sets_rows_of_conditions_the_run_lacks_are_not_the_estimates(tmp_path):
+    """A network set is installed whole: on a run of straight and curve its uphill rows were
+    marked 'the estimate's force model', though no uphill recording or network was used."""
+    run = surrogate_run(tmp_path, "bp")
+    sur = run / "campaign" / "surrogates" / "compare.csv"
+    rows = pd.read_csv(sur)
+    pd.concat([rows, rows.assign(condition="uphill")]).to_csv(sur, index=False)
+    write(run / "campaign" / "campaign.json", {"config": {"conditions": [{"name": "short"}]}})
+    text, tables = sections(run)
+    (table,) = [t for t in tables if "model" in t[0]]
+    head, *body = table
+    role = {
+        (r[head.index("condition")], r[head.index("model")]): r[head.index("role in this run")]
+        for r in body
+    }
+    assert role[("short", "bp")] == "the estimate's force model"
+    assert role[("uphill", "bp")] == "not a condition of this run"
+    assert role[("uphill", "rbf")] == "comparison only"
+    assert "the estimate did not use them" in text
+
+
+def test_the_sensitivity_section_knows_a_network_sets_inputs(tmp_path):
+    """On a network set the estimate's parameters are the set's inputs, not the Sobol keys."""
+    from railsusp.report_method import _network_set_inputs
+
+    sur = tmp_path / "surrogate-pretrained" / "surrogates"
+    write(sur / "networks.json", {"parameters": ["X18", "X13", "X19"]})
+    state = {"config": {"surrogate": {"pretrained": "c80_k6", "samples": 0}}}
+    assert _network_set_inputs(tmp_path, state) == ["X18", "X13", "X19"]
+    state["config"]["surrogate"]["pretrained"] = None
+    assert _network_set_inputs(tmp_path, state) == []

@@ -164,6 +164,33 @@ def model_name(label: object) -> str:
     return str(label).split(" (revision ")[0]
 
 
+#: a network set's row of a condition the run does not have (the set is installed whole)
+ROLE_NOT_RUN = "not a condition of this run"
+
+
+def _run_conditions(run: Path) -> set[str]:
+    """The names of the run's working conditions (its campaign's), empty where unknown."""
+    path = run / "campaign" / "campaign.json"
+    if not path.exists():
+        return set()
+    conds = read_json(path).get("config", {}).get("conditions") or []
+    return {c["name"] for c in conds if isinstance(c, dict) and "name" in c}
+
+
+def _network_set_inputs(run: Path, state: dict) -> list[str]:
+    """The inputs of the network set the run's surrogate stage installed (the estimate's
+    parameters on that route), empty where it ran on surrogates of its own."""
+    from railsusp.surrogate.network_set import MANIFEST
+    from railsusp.surrogate.pretrained import surrogates_run
+
+    scfg = state.get("config", {}).get("surrogate", {})
+    pretrained = scfg.get("pretrained")
+    if pretrained is None:
+        return []
+    path = run / surrogates_run(pretrained, scfg.get("samples", 0)) / "surrogates" / MANIFEST
+    return list(read_json(path).get("parameters") or []) if path.exists() else []
+
+
 def surrogate_roles_text(used: str | None, models: list[str]) -> str:
     """Which of the Surrogates table's ``models`` the estimate ran on (``used``,
     :func:`estimate_model`) and that the others are compared only: the table listed bp,
@@ -256,6 +283,12 @@ def method_sections(doc: Doc, run: Path, state: dict) -> None:
         analysis = read_key_parameters(camp)  # of this campaign, or refused
         kp = analysis["key_parameters"]
         doc.p(f"Key parameters: {', '.join(kp['keys'])}. Rule: {kp['rule']}.")
+        inputs = _network_set_inputs(run, state)
+        if inputs and set(inputs) != set(kp["keys"]):
+            doc.p(
+                "The estimate's parameters are not these: a network set's are its inputs "
+                f"({', '.join(inputs)}), whatever this campaign's key parameters."
+            )
         doc.table(pd.read_csv(sens / "study_comparison.csv"))
         indices = _indices(sens)
         left_out = left_out_features(analysis, indices)
@@ -299,8 +332,18 @@ def method_sections(doc: Doc, run: Path, state: dict) -> None:
         table = table7(pd.read_csv(sur / "compare.csv"))
         used = estimate_model(run, state)
         models = [model_name(m) for m in table.model]
-        table.insert(2, "role", [ROLE_USED if m == used else ROLE_COMPARED for m in models])
+        ran = _run_conditions(run)
+        roles = [
+            ROLE_COMPARED if m != used else ROLE_USED if not ran or c in ran else ROLE_NOT_RUN
+            for m, c in zip(models, table.condition, strict=True)
+        ]
+        table.insert(2, "role", roles)
         doc.p(surrogate_roles_text(used, list(dict.fromkeys(models))))
+        if ROLE_NOT_RUN in roles:
+            doc.p(
+                "Rows marked '" + ROLE_NOT_RUN + "' are the network set's networks of "
+                "conditions this run has none of: the estimate did not use them."
+            )
         alone = [c for c in table.columns if "network alone" in str(c)]
         if alone and table[alone].notna().to_numpy().any():  # only where a network has one
             doc.p(
