@@ -445,3 +445,17 @@ def test_the_sensitivity_section_knows_a_network_sets_inputs(tmp_path):
     assert _network_set_inputs(tmp_path, state) == ["X18", "X13", "X19"]
     state["config"]["surrogate"]["pretrained"] = None
     assert _network_set_inputs(tmp_path, state) == []
+
+
+def test_a_refinement_of_one_start_is_not_said_to_end_lowest_of_them():
+    """``refine_starts = 1`` read "of the 1 starts refined (...) it ended lowest" (stop 79's
+    report hunt); two or more starts keep the comparison."""
+    from railsusp.report_estimate import _start
+
+    one = {"start_origin": "a Latin-hypercube point", "starts": [[1.0]], "screened_starts": 7}
+    assert _start(one) == (
+        " from a Latin-hypercube point, not NSGA-II's choice: the one start refined (the best "
+        "of 7 screened by time-aligned cost)"
+    )
+    two = {**one, "starts": [[1.0], [2.0]]}
+    assert "of the 2 starts refined" in _start(two) and _start(two).endswith("it ended lowest")

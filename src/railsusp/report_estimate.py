@@ -96,8 +96,14 @@ def _start(ref: dict) -> str:
     origin = ref.get("start_origin") or CHOICE
     if origin == CHOICE:
         return " from NSGA-II's choice"
+    n = len(ref.get("starts", []))
+    if n == 1:  # ("of the 1 starts refined ... it ended lowest" read as a choice among many)
+        return (
+            f" from {origin}, not NSGA-II's choice: the one start refined (the best of "
+            f"{ref.get('screened_starts', 0)} screened by time-aligned cost)"
+        )
     return (
-        f" from {origin}, not NSGA-II's choice: of the {len(ref.get('starts', []))} starts "
+        f" from {origin}, not NSGA-II's choice: of the {n} starts "
         f"refined (the best of {ref.get('screened_starts', 0)} screened by time-aligned "
         "cost) it ended lowest"
     )

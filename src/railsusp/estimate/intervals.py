@@ -57,8 +57,9 @@ DESCRIPTIONS = {
     POSTERIOR: "central {pct} credible interval: quantiles of the simulation-based posterior",
     REFINEMENT: "{pct} confidence interval of the output-error refinement: least-squares "
     "covariance with each channel's residual variance, Student-t on the effective sample size "
-    "of the correlated residuals, with track-geometry error and the parameters held (at "
-    "nominal or their held_prior's centre; quantiles of their sum)",
+    "of the correlated residuals, with the track geometry's stated error (none where the "
+    "recordings state none) and the parameters held (at nominal or their held_prior's "
+    "centre; quantiles of their sum)",
     STANDARD_ERROR: "{pct} interval from the refinement's standard errors (normal quantile; "
     "an estimate saved before intervals were stored)",
     PARETO: "range of the NSGA-II Pareto set (the trade-off between the objectives): not a "
