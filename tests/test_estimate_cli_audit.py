@@ -42,22 +42,29 @@ def warnings_of(result) -> list[str]:
     return [line for line in result.output.splitlines() if line.startswith("warning: ")]
 
 
+def short_field(root, name: str, *options: str):
+    """Synthetic recordings of one second of 'short' at 50 Hz on their measured track, in
+    ``root / name`` (``options``: more of synth-field's)."""
+    cond = root / "c.toml"
+    cond.write_text(
+        '[[condition]]\nname = "short"\nduration_s = 1.0\nn_steps = 50\nlead_in_m = 20.0\n'
+    )
+    out = root / name
+    result = runner.invoke(
+        app,
+        ["synth-field", "--truth", "X13=16.1", "--conditions", str(cond), "--out", str(out),
+         "--with-track", *options],
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    return out
+
+
 @pytest.fixture(scope="module")
 def fields(tmp_path_factory):
     """One second of 'short' at 50 Hz on its measured track (exact geometry), and a copy
     whose sidecar says n_steps 100 (100 Hz) over the table's 50 rows at 50 Hz."""
     root = tmp_path_factory.mktemp("fields")
-    cond = root / "c.toml"
-    cond.write_text(
-        '[[condition]]\nname = "short"\nduration_s = 1.0\nn_steps = 50\nlead_in_m = 20.0\n'
-    )
-    good = root / "good"
-    result = runner.invoke(
-        app,
-        ["synth-field", "--truth", "X13=16.1", "--conditions", str(cond), "--out", str(good),
-         "--with-track"],
-    )  # fmt: skip
-    assert result.exit_code == 0, result.output
+    good = short_field(root, "good")
     other = root / "other-rate"
     shutil.copytree(good, other)
     side = other / "short.json"
@@ -523,17 +530,7 @@ def test_align_track_refuses_to_write_a_chance_correlation(fields, tmp_path):
 def test_keeping_the_geometry_bias_of_no_draws_is_said(tmp_path):
     """--keep-geometry-bias with --geometry-draws 0 on geometry of stated accuracy ran
     without a word, although no bias is estimated to keep (stop 79's estimate hunt)."""
-    cond = tmp_path / "c.toml"
-    cond.write_text(
-        '[[condition]]\nname = "short"\nduration_s = 1.0\nn_steps = 50\nlead_in_m = 20.0\n'
-    )
-    field = tmp_path / "f"
-    made = runner.invoke(
-        app,
-        ["synth-field", "--truth", "X13=16.1", "--conditions", str(cond), "--out", str(field),
-         "--with-track", "--track-noise", "0.5"],
-    )  # fmt: skip
-    assert made.exit_code == 0, made.output
+    field = short_field(tmp_path, "f", "--track-noise", "0.5")
     result = runner.invoke(
         app,
         ["estimate", "--measured", str(field), "--simulator", "--parameters", "X13",
