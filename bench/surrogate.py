@@ -34,6 +34,7 @@ from railsusp.surrogate.compare import ALL_MODELS, compare, table7
 from railsusp.surrogate.data import Normaliser
 from railsusp.surrogate.features import FeatureSpec
 from railsusp.surrogate.models import NetConfig, build_network, default_window
+from railsusp.surrogate.recurrence import torch_threads
 from railsusp.vehicle.wagon import load_wagon
 
 NETWORKS = ("cnn-gru", "cnn-lstm", "cnn-bilstm", "bp", "cnn-gru-seq")
@@ -202,15 +203,13 @@ def main() -> None:
     tick("done")
     total = time.perf_counter() - t_all
     t7 = table7(tab)
-    threads = torch.get_num_threads()
-    torch.set_num_threads(args.threads)
     cond = tab.condition.iloc[0]
-    rates = rates_of(
-        lambda kind: load(f"{args.run}/surrogates/{kind}/{cond}"),
-        [k for k in models if k in NETWORKS],
-        args.repeats,
-    )
-    torch.set_num_threads(threads)
+    with torch_threads(args.threads):
+        rates = rates_of(
+            lambda kind: load(f"{args.run}/surrogates/{kind}/{cond}"),
+            [k for k in models if k in NETWORKS],
+            args.repeats,
+        )
     print(
         f"\n{'condition':<9} {'model':<10} {'Q sim':>7} {'Q pred':>7} {'Q err%':>7} "
         f"{'Y sim':>6} {'Y pred':>6} {'Y err%':>7} {'Y NRMSE':>8} {'Y R2':>6} {'train s':>8}"

@@ -65,6 +65,7 @@ from railsusp.surrogate.data import SeriesData, load_series
 from railsusp.surrogate.evaluate import accuracy, predict_with_alone
 from railsusp.surrogate.features import FeatureSpec
 from railsusp.surrogate.nominal import CONTEXT_CHANNELS
+from railsusp.surrogate.recurrence import torch_threads
 from railsusp.surrogate.split import campaign_split
 from railsusp.variation import full_ranges, parse_range
 
@@ -464,9 +465,7 @@ def inference_rates(
     camp = load_campaign(run)
     first = campaign_split(camp).positions
     rate = _surrogate_bench()._rate
-    before = torch.get_num_threads()
-    torch.set_num_threads(threads)
-    try:
+    with torch_threads(threads):
         rates, tracks = {}, {}
         for k in kinds:
             sur = load(Path(run) / "surrogates" / k / condition)
@@ -476,8 +475,6 @@ def inference_rates(
                 tracks[what] = data.subset(first(data.sample_ids, "test")[:1]).track[0]
             rates[k] = rate(sur, 64, repeats, True, tracks[what])
         return rates
-    finally:
-        torch.set_num_threads(before)
 
 
 def print_table(t7: pd.DataFrame, seconds: dict[str, float]) -> None:

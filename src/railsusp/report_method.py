@@ -170,10 +170,11 @@ ROLE_NOT_RUN = "not a condition of this run"
 
 def _run_conditions(run: Path) -> set[str]:
     """The names of the run's working conditions (its campaign's), empty where unknown."""
-    path = run / "campaign" / "campaign.json"
-    if not path.exists():
+    from railsusp.summary_files import campaign_config
+
+    if not (run / "campaign" / "campaign.json").exists():
         return set()
-    conds = read_json(path).get("config", {}).get("conditions") or []
+    conds = campaign_config(run).get("conditions") or []
     return {c["name"] for c in conds if isinstance(c, dict) and "name" in c}
 
 

@@ -149,8 +149,7 @@ class CampaignConfig(BaseModel):
 
     def hash(self) -> str:
         """The configuration's content hash, with the wagon's profile files' contents."""
-        data, files = self.model_dump(mode="json"), self.wagon.profile_digests()
-        return content_hash({**data, "profile_files": files} if files else data)
+        return content_hash(self.wagon.with_profile_digests(self.model_dump(mode="json")))
 
     def settings(self) -> SolverSettings:
         return SolverSettings(**self.solver)

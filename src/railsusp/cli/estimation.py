@@ -350,9 +350,7 @@ def estimate(
             given.append(f"--geometry-draws {geometry_draws}")
         if given_options("remove_geometry_bias") and not remove_geometry_bias:
             given.append("--keep-geometry-bias")
-        why = geometry_draws_unused(cfg, recs, refine) if given else ""
-        if not why and given and not geometry_draws:  # keeping a bias that none estimate
-            why = "--geometry-draws 0 draws none, so no bias is estimated to keep"
+        why = geometry_draws_unused(cfg, recs, refine, geometry_draws) if given else ""
         if why:  # as expected_draws without an accuracy: the recordings decide, so a warning
             warnings.warn(f"{' '.join(given)}: not used: {option_text(why)}", stacklevel=1)
         with warnings_as_options():

@@ -35,11 +35,14 @@ def _geometry_error_applies(config: NSGAConfig, recordings: Sequence[Recording])
     return parse_statistics(config.statistic) == (ALIGNED,) and stated_accuracy(recordings)
 
 
-def geometry_draws_unused(config: NSGAConfig, recordings: Sequence[Recording], refine: bool) -> str:
+def geometry_draws_unused(
+    config: NSGAConfig, recordings: Sequence[Recording], refine: bool, draws: int
+) -> str:
     """Why no step of an estimate draws the recordings' track-geometry error (neither
     NSGA-II's SIMEX step, :func:`takes_geometry_bias`, nor the refinement's standard
     errors, :func:`~railsusp.estimate.polish.refine_estimate`), so that its number of draws
-    and whether their bias is removed change nothing; '' where a step draws it."""
+    and whether their bias is removed change nothing, or why ``draws`` = 0 leaves no bias
+    to keep where a step would draw; '' where a step draws it."""
     if not stated_accuracy(recordings):
         return (
             "no recording states its track geometry's accuracy (condition.track_accuracy_mm), "
@@ -51,7 +54,7 @@ def geometry_draws_unused(config: NSGAConfig, recordings: Sequence[Recording], r
             "comparison (the mean over drawn true tracks) instead"
         )
     if refine or parse_statistics(config.statistic) == (ALIGNED,):
-        return ""
+        return "" if draws else "geometry_draws 0 draws none, so no bias is estimated to keep"
     return (
         f"NSGA-II on statistic {config.statistic!r} draws none (only 'aligned' alone does) "
         "and there is no refinement"

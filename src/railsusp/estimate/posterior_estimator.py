@@ -29,7 +29,7 @@ from railsusp.estimate.posterior_support import TrainingSupport
 def one_thread() -> AbstractContextManager[None]:
     """Torch on one thread while the flows train or sample: their networks are small, and
     on a shared 2-core machine two threads contend (sampling measured 7 times slower)."""
-    from railsusp.surrogate.gru_kernel import torch_threads
+    from railsusp.surrogate.recurrence import torch_threads
 
     return torch_threads(1)
 

@@ -25,6 +25,9 @@ from railsusp.estimate.statistics import ALIGNED, parse_statistics
 from railsusp.params import spec
 from railsusp.store import atomic_write_bytes, write_json, write_parquet
 
+#: the route's words for a point that has the geometry error's bias taken off
+LESS_GEOMETRY_BIAS = ", less the track geometry error's bias (first SIMEX step)"
+
 
 class CalibrationResult(EstimatePoint):
     """One NSGA-II run's estimate (:class:`~railsusp.estimate.estimate_point.EstimatePoint`,
@@ -56,7 +59,7 @@ class CalibrationResult(EstimatePoint):
                 "measured one (expected forces)"
             )
         if self.geometry_bias_removed:
-            text += ", less the track geometry error's bias (first SIMEX step)"
+            text += LESS_GEOMETRY_BIAS
         if self.corrections:
             n = len(self.corrections)
             if self.correction_slopes:
@@ -89,8 +92,7 @@ class CalibrationResult(EstimatePoint):
         on = f" on its mean over {drawn} draws of the true track geometry" if drawn else ""
         model = ref.compared_model or "an unnamed force model"  # the model it compared
         # its point less the geometry bias its draws estimate, as NSGA-II's above
-        less = ", less the track geometry error's bias (first SIMEX step)"
-        less = less if ref.geometry_bias_removed else ""
+        less = LESS_GEOMETRY_BIAS if ref.geometry_bias_removed else ""
         if self.refinement_is_polish:
             what = (
                 "the simulator's output-error refinement"

@@ -21,12 +21,8 @@ that assumes finite values, so a NaN propagates as in torch.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from contextlib import contextmanager
-
 import numba as nb
 import numpy as np
-import torch
 
 from railsusp.vehicle.kernel_cache import FASTMATH  # (the kernels' flags and cache folder)
 
@@ -87,19 +83,3 @@ def gru_gates(gates, t, gh, h, seq):
                 new = np.float32(n + z * (h[g, r, j] - n))
                 h[g, r, j] = new
                 seq[g, t, r, j] = new
-
-
-@contextmanager
-def torch_threads(n: int) -> Iterator[None]:
-    """torch's intra-op thread count (and MKL's) at ``n`` inside, the count before restored
-    after: the prediction's workers each run torch's products on one thread, so that no
-    product waits for a thread that another process holds (issue 19's estimate under load,
-    bench/README.md, "Predictions under outside load"); the posterior's small flows too."""
-    before = torch.get_num_threads()
-    if before != n:
-        torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        if torch.get_num_threads() != before:
-            torch.set_num_threads(before)

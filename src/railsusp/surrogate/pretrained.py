@@ -101,8 +101,7 @@ def set_hash(ns: NetworkSet) -> str:
 def wagon_hash(wagon: Any) -> str:
     """The content hash of a wagon's data as the pipeline's stage hashes take it
     (:func:`railsusp.pipeline_inputs.model_identity`), with its profile files' contents."""
-    data, files = wagon.model_dump(mode="json"), wagon.profile_digests()
-    return content_hash({**data, "profile_files": files} if files else data)
+    return content_hash(wagon.with_profile_digests(wagon.model_dump(mode="json")))
 
 
 def check_network_set(

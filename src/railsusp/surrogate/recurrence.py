@@ -13,6 +13,9 @@ times slower than its sigmoid. These steps take the weights of a torch module
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+
 import torch
 from torch import nn
 
@@ -113,3 +116,19 @@ def lstm_step(
     g = gates[:, 2 * hs : 3 * hs].mul_(2.0).sub_(1.0)  # tanh from the doubled rows
     c = i * g if state is None else torch.addcmul(f * state[1], i, g)
     return o * tanh_from_doubled_(c * 2.0), c
+
+
+@contextmanager
+def torch_threads(n: int) -> Iterator[None]:
+    """torch's intra-op thread count (and MKL's) at ``n`` inside, the count before restored
+    after: the prediction's workers each run torch's products on one thread, so that no
+    product waits for a thread that another process holds (issue 19's estimate under load,
+    bench/README.md, "Predictions under outside load"); the posterior's small flows too."""
+    before = torch.get_num_threads()
+    if before != n:
+        torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        if torch.get_num_threads() != before:
+            torch.set_num_threads(before)

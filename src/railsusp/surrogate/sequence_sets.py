@@ -35,8 +35,8 @@ from itertools import pairwise
 import torch
 from torch import nn
 
-from railsusp.surrogate.gru_kernel import gru_gates, torch_threads
-from railsusp.surrogate.recurrence import cell_params, gru_step, linear
+from railsusp.surrogate.gru_kernel import gru_gates
+from railsusp.surrogate.recurrence import cell_params, gru_step, linear, torch_threads
 
 #: time steps of all segments run through the layers together, so that a block's activations
 #: stay in the processor's cache between the layers (16 until stop 35; 8 measured 4-7 % faster

@@ -101,6 +101,13 @@ class WagonData(WagonSection):
                 out[name] = file_hash_cached(name) if Path(name).is_file() else "missing"
         return out
 
+    def with_profile_digests(self, data: dict) -> dict:
+        """``data`` (a content hash's input that holds this wagon's dump) with the contents
+        of its profile files beside their paths (:meth:`profile_digests`), as the wagon's
+        and its campaigns' hashes take them; ``data`` itself with the built-in profiles."""
+        files = self.profile_digests()
+        return {**data, "profile_files": files} if files else data
+
     def with_values(self, changes: Mapping[str, Any]) -> WagonData:
         """The same wagon with some fields changed, given as ``{"section.field": value}``
         (e.g. ``{"contact.creep_factor": 0.6}``), validated as a wagon file is."""
