@@ -183,7 +183,9 @@ def test_std_statistic_and_statistic_combinations():
     assert record_statistic(x, "std", False)[0] == 3.0
     assert parse_statistics("mean+p99+std") == ("mean", "p99", "std")
     assert parse_statistics(" rms ") == ("rms",)
-    for bad in ("mean+median", "mean+mean", "", "+"):
+    # an empty part (a trailing or doubled '+') is refused like a misspelt one ('mean+' was
+    # read as 'mean')
+    for bad in ("mean+median", "mean+mean", "", "+", "mean+", "+mean", "mean++p99"):
         with pytest.raises(ValueError, match="mean, rms, p99, std"):
             parse_statistics(bad)
     with pytest.raises(ValueError, match="'max'"):

@@ -350,8 +350,8 @@ def test_unused_geometry_draws_and_a_whole_record_preview_are_said(fields, tmp_p
     ) in said
     assert any(w.startswith("warning: --expected-draws 2: no recording states") for w in said)
     assert (
-        "warning: --preview-s 20: recording(s) 'short' (1 s) are no longer, so the 1 preview "
-        "generation(s) compare the whole record there"
+        "warning: --preview-s 20: no recording is longer ('short' 1 s), so there is no "
+        "preview: the 2 generations compare the whole records in one search"
     ) in said
 
 

@@ -98,6 +98,24 @@ def test_the_preview_is_two_estimates_chained_and_finds_the_truth():
     assert np.all(np.abs(with_preview.chosen_x - TRUTH) / (hi - lo) < 0.05)
 
 
+def test_a_preview_as_long_as_every_record_is_no_restart():
+    """A preview of 4 s or more on a 4 s record compared the whole record twice: its
+    generations, then the rest restarted from their Pareto set (the population's other
+    members dropped), a search other than the plain one. Now it is the plain search of all
+    generations, said in a warning, with no preview in its route."""
+    rec = long_recording()
+    cfg = NSGAConfig(pop_size=8, n_gen=6, statistic="aligned", seed=2)
+    plain = estimate(WaveForces(), [rec], PARAMS, cfg)
+    with pytest.warns(UserWarning, match="no recording is longer .* there is no preview"):
+        asked = estimate(
+            WaveForces(), [rec], PARAMS, replace(cfg, preview_generations=3, preview_s=4.0)
+        )
+    np.testing.assert_array_equal(asked.pareto_x, plain.pareto_x)
+    np.testing.assert_array_equal(asked.history, plain.history)
+    assert list(asked.log["record"]) == ["whole"] * 6
+    assert "generations on each record's first" not in asked.route
+
+
 @pytest.mark.parametrize(
     ("changes", "message"),
     [

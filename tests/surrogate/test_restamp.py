@@ -190,17 +190,33 @@ def test_the_rescore_bench_refuses_a_restamp_before_its_campaign(
     assert not run.exists()
 
 
+def _trained_straight_set(tmp_path):
+    """The shipped set with its straight network as one trained on today's force laws (its
+    carried-over stamps taken off), curve and uphill carried over: the shipped set's state
+    from stop 75 to stop 80, when revision 2026-12-03.1 carried the straight network over
+    too."""
+    ns = read_network_set(resolve_network_set("c80_k6"))
+    folder = tmp_path / "shipped"
+    shutil.copytree(ns.folder, folder)
+    path = folder / "straight" / "surrogate.json"
+    doc = json.loads(path.read_text())
+    doc["meta"].pop("restamped", None)
+    path.write_text(json.dumps(doc))
+    return read_network_set(folder)
+
+
 def test_a_set_of_trained_and_carried_over_networks_says_which_are_which(tmp_path):
-    """The shipped set since stop 75: its straight network trained on today's force laws,
-    curve and uphill carried over (meta.restamped). write_network_set wrote a manifest
-    without any note, so the report called the whole set trained on today's laws; it now
-    names the carried-over conditions and their stamps' note, and the report says which
-    networks were trained on the laws and which were carried over."""
+    """A set with a network trained on today's force laws and others carried over
+    (meta.restamped), as the shipped set was from stop 75 to stop 80. write_network_set
+    wrote a manifest without any note, so the report called the whole set trained on
+    today's laws; it now names the carried-over conditions and their stamps' note, and the
+    report says which networks were trained on the laws and which were carried over."""
     from railsusp.report_doc import Doc
     from railsusp.report_method import _network_set_text
 
-    ns = read_network_set(resolve_network_set("c80_k6"))
+    ns = _trained_straight_set(tmp_path)
     assert not load(ns.bundle("straight")).meta.get("restamped")  # trained on today's
+    assert load(ns.bundle("curve")).meta.get("restamped")
     made = write_network_set(
         ns.folder,
         tmp_path / "set",
@@ -229,3 +245,47 @@ def test_a_set_of_trained_and_carried_over_networks_says_which_are_which(tmp_pat
     )
     plain = json.loads((only_trained.folder / MANIFEST).read_text())
     assert "carried_over" not in plain and "model_revision_note" not in plain
+
+
+def test_a_restamp_carries_every_network_of_the_set_over(tmp_path):
+    """Stop 80 carried the shipped set over to revision 2026-12-03.1 while its straight
+    network had been trained on the laws of the revision before: the manifest kept
+    ``carried_over = [curve, uphill]``, so the report called the straight network trained
+    on the new laws. After a restamp every network is carried over, and the report says
+    so of the whole set."""
+    from railsusp.report_doc import Doc
+    from railsusp.report_method import _network_set_text
+
+    ns = _trained_straight_set(tmp_path)
+    made = write_network_set(
+        ns.folder,
+        tmp_path / "mixed",
+        name="mixed",
+        conditions=["straight", "curve"],
+        accuracy=pd.concat([_scored("straight"), _scored("curve")]),
+        reproduce=["python train.py"],
+    )
+    assert json.loads((made.folder / MANIFEST).read_text())["carried_over"] == ["curve"]
+    older = "2026-12-02.1"  # the set as of the revision before today's
+    for cond in ("straight", "curve"):
+        path = made.folder / cond / "surrogate.json"
+        doc = json.loads(path.read_text())
+        doc["meta"]["model_revision"] = older
+        path.write_text(json.dumps(doc))
+    manifest = json.loads((made.folder / MANIFEST).read_text())
+    manifest["model_revision"] = older
+    (made.folder / MANIFEST).write_text(json.dumps(manifest))
+    restamp_network_set(
+        made.folder,
+        wagon=load_wagon(),
+        fields=FIELDS,
+        accuracy=pd.concat([_scored("straight"), _scored("curve")]),
+        note="scored again on today's laws",
+    )
+    manifest = json.loads((made.folder / MANIFEST).read_text())
+    assert manifest["carried_over"] == ["straight", "curve"]
+    doc = Doc(tmp_path)
+    _network_set_text(doc, manifest, [])
+    text = " ".join(" ".join(doc.md).split())
+    assert "to which it was carried over without training: scored again" in text
+    assert "trained on them" not in text

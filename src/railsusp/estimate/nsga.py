@@ -162,11 +162,24 @@ def _previewed(
     the preview's Pareto set (same seed, operators and population). One result: the log
     and the choice's history run over all ``cfg.n_gen`` generations (the log's ``record``
     column says which records each compared: their objectives are not comparable across
-    the switch), the front, choice and Cramér-Rao bounds are the whole records'."""
+    the switch), the front, choice and Cramér-Rao bounds are the whole records'. Where no
+    recording is longer than the preview, there is none: one search of ``cfg.n_gen``
+    generations (its ``config`` without the preview), said in a warning."""
     n_preview = cfg.preview_generations
     plain = replace(cfg, preview_generations=0)
     heads = [r.head(cfg.preview_s) for r in recordings]
     whole = [r for r, h in zip(recordings, heads, strict=True) if h is r]
+    if len(whole) == len(recordings):  # nothing to preview: one search, not restarted from
+        warnings.warn(  # the preview's Pareto set on the same records
+            f"preview_s {cfg.preview_s:g}: no recording is longer ("
+            + ", ".join(f"{r.condition.name!r} {r.condition.duration_s:g} s" for r in whole)
+            + f"), so there is no preview: the {cfg.n_gen} generations compare the whole "
+            "records in one search",
+            stacklevel=3,
+        )
+        result = _search(model, recordings, parameters, plain, initial_si)
+        result.log = result.log.assign(record="whole")
+        return result
     if whole:  # said, not left to be found: the preview then saves nothing on them
         warnings.warn(
             f"preview_s {cfg.preview_s:g}: recording(s) "

@@ -99,9 +99,9 @@ def parse_statistics(text: str) -> tuple[str, ...]:
 
     ``aligned`` is not a record statistic but the time-aligned mismatch of the series (see
     :func:`aligned_error`)."""
-    stats = tuple(t.strip() for t in str(text).split("+") if t.strip())
-    bad = [t for t in stats if t not in STATISTICS]
-    if bad or not stats or len(set(stats)) != len(stats):
+    stats = tuple(t.strip() for t in str(text).split("+"))
+    bad = [t for t in stats if t not in STATISTICS]  # an empty part too: 'mean+', 'mean++p99'
+    if bad or len(set(stats)) != len(stats):
         raise ValueError(
             f"statistic {text!r}: give one of {', '.join(STATISTICS)} or a '+'-joined "
             "combination of different ones (e.g. mean+p99+std)"

@@ -9,7 +9,9 @@ scoring of the unchanged networks on a fresh campaign of the new simulator
 (``bench/rescore_networks.py``): its rows join the set's accuracy table, labelled with the
 revision they were scored on, and the manifest says why the set was carried over.
 
-What changes: the manifest's revision, wagon hash and reference predictions (the networks
+What changes: the manifest's revision, its ``carried_over`` (now every condition: a network
+trained on the former revision's laws is carried over too), wagon hash and reference
+predictions (the networks
 read the nominal wagon's response, which the new simulator gives), each bundle's stored
 wagon (the wagon fields the revision added or switched, named by the caller; every other
 field must be the one the network was trained on), its ``meta.model_revision`` (the
@@ -141,6 +143,9 @@ def restamp_network_set(
             "model_revision": MODEL_REVISION,
             "model_revision_note": note,
             "model_revision_history": history,
+            # every network of the set is now carried over, one trained on the laws of the
+            # set's former revision too (the report would call it trained on today's)
+            "carried_over": list(ns.conditions),
             "wagon_hash": wagon_hash(wagon),
             "references": make_references(tmp, ns.conditions, ns.parameters),
         }

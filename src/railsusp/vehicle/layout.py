@@ -81,6 +81,14 @@ _K_NAMES = (
     # 1.0: the rail damping's push capped at the Hertz force (wagon [track]
     # rail_damping_capped); 0.0: the damper in parallel (before revision 2026-11-30.2)
     "rail_damping_cap",
+    # 1.0: the track-following frames' rotation in the bodies' equations, their yaw and roll
+    # accelerations in transitions and their rates in the wheelsets' gyroscopic moments
+    # (wagon [track] frame_rotation); 1.0: the design twist between an axle's frame and its
+    # bogie centre's in the primary's vertical deflection (wagon [primary] design_twist); 0.0:
+    # left out (before revision 2026-12-03.1), or a condition without a curve, where both
+    # are zero (skipped: 3-10 % of an evaluation on tangent); the side frame's CG above rail
+    # top, m
+    "frame_rotation", "design_twist", "h_cg_f",
     # static preloads, N
     "F0_cp", "F0_nest", "F0_prim", "Q0", "Z0_L", "Z0_R", "N_ref",
     # condition

@@ -60,7 +60,13 @@ from railsusp.vehicle.suspension import (
     gap_spring,
     series_stiffness,
 )
-from railsusp.vehicle.track_lookup import track_frame, track_point, track_rate, track_value
+from railsusp.vehicle.track_lookup import (
+    frame_turn,
+    track_frame,
+    track_point,
+    track_rate,
+    track_value,
+)
 from railsusp.vehicle.wedge_batch import wedge_forces
 
 _K = L.K
@@ -84,6 +90,9 @@ I_SFN, I_SFA, I_KRG, I_XCL = (
     _K["x_coupler_line"],
 )
 I_WATCH = _K["flange_watch"]
+I_IXC, I_IZC, I_IXB, I_IZB = _K["Ix_c"], _K["Iz_c"], _K["Ix_b"], _K["Iz_b"]
+I_IZF, I_IXW, I_IZW, I_HB, I_HF = _K["Iz_f"], _K["Ix_w"], _K["Iz_w"], _K["h_cg_b"], _K["h_cg_f"]
+I_FROT, I_TWIST = _K["frame_rotation"], _K["design_twist"]
 I_INV_MC, I_INV_IXC, I_INV_IYC, I_INV_IZC = (
     _K["inv_m_c"], _K["inv_Ix_c"], _K["inv_Iy_c"], _K["inv_Iz_c"]
 )  # fmt: skip
@@ -104,6 +113,19 @@ def add_frame_forces(acc, i_lat, i_vert, m, kappa, c, s, V, gn):
     angle φ (each evaluated once per track position, for all bodies there)."""
     acc[i_lat] += -m * (V * V * kappa * c + gn * s)
     acc[i_vert] += -m * (gn * c - V * V * kappa * s) + m * gn
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
+def add_frame_turn(acc, i_lat, i_roll, i_yaw, m_h, i_x, i_z, roll, yaw_cos):
+    """Add the turning frame's pseudo-forces on a body (revision 2026-12-03.1; docs/model.md,
+    "Transitions"): its coordinates are taken against a frame whose roll accelerates by
+    ``roll`` (rad/s², about the rail-level centreline) and whose yaw, about the body's own
+    vertical axis, by ``yaw_cos`` (ψ'' cos φ), so its relative motion carries -I_x roll and
+    -I_z yaw_cos, and a centre of gravity H above the rail the lateral m H roll (``m_h``)
+    that the frame's roll takes from under it."""
+    acc[i_lat] += m_h * roll
+    acc[i_roll] -= i_x * roll
+    acc[i_yaw] -= i_z * yaw_cos
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
@@ -152,11 +174,17 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
     inv_ds = 1.0 / ds  # the track grid's step, once per evaluation
     v_per_ds = V * inv_ds
     wk = out[L.OUT_CONTACT : L.OUT_CONTACT + L.N_CONTACT_WORK]  # contact work (contact_batch)
+    # 1.0 where the design track curves: the frames' rotation in the equations (wagon
+    # [track] frame_rotation) and the design twist in the primary ([primary] design_twist)
+    turn = K[I_FROT]
+    twist = K[I_TWIST]
     flange_rate = -1.0e9  # fastest approach to its flange of a wheel near it (step control)
 
     # ---- catalogue parameters ----
     m_w = P[0]
     Iy_w = P[2]
+    r0 = K[I_R0]
+    h_spin = Iy_w * V / r0  # spinning wheelset's angular momentum (spin V / r0 about +y)
     sb_half = 0.5 * P[10]  # X11 side-bearer span
     gib = P[11]  # X12
     k_px = series_stiffness(P[12], P[19])  # X13 + X20
@@ -215,6 +243,13 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
     m_c = K[I_MC]
     cos_c, sin_c = cant_cos_sin(cant_c, 0.0, 1.0, 0.0)
     add_frame_forces(acc, L.CB_Y, L.CB_Z, m_c, kap_c, cos_c, sin_c, V, gn)
+    roll_c = 0.0
+    if turn != 0.0:  # (the design track curves: on tangent every term is zero)
+        yaw_c, roll_c = frame_turn(trk, i_c, f_c, in_c, n_trk, V, v_per_ds)
+        add_frame_turn(
+            acc, L.CB_Y, L.CB_ROLL, L.CB_YAW, m_c * K[I_HCG], K[I_IXC], K[I_IZC], roll_c,
+            yaw_c * cos_c,
+        )  # fmt: skip
     # grade: pitch moment of the net coupler force (at coupler height) and of the bogies'
     # reaction (at centre-plate height); lateral coupler components in curves (chord angle)
     hk = K[I_HCG] - K[I_HK]
@@ -244,11 +279,20 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         g_sf = 0.0
         cos_b, sin_b = cant_cos_sin(cant_b, cant_c, cos_c, sin_c)
         add_frame_forces(acc, ib, ib + 1, m_b, kap_b, cos_b, sin_b, V, gn)
+        roll_b = 0.0
+        yaw_b = 0.0
+        if turn != 0.0:
+            yaw_b, roll_b = frame_turn(trk, i_b, f_b, in_b, n_trk, V, v_per_ds)
+            yaw_b *= cos_b
+            add_frame_turn(
+                acc, ib, ib + 2, ib + 3, m_b * K[I_HB], K[I_IXB], K[I_IZB], roll_b, yaw_b
+            )  # fmt: skip
+        cant_rate_b = track_rate(trk, L.TR_CANT, i_b, in_b, v_per_ds)
 
         # ===== car body <-> bolster k: centre plate, centre bowl, side bearers =====
         body_on_bolster(
             x, q, v, acc, dxdt, K, k, ib, d, sb_half, V, off_c, head_c, off_b, cant_c, cant_b,
-            cant_rate_c, track_rate(trk, L.TR_CANT, i_b, in_b, v_per_ds), kap_c, kap_b,
+            cant_rate_c, cant_rate_b, kap_c, kap_b,
         )  # fmt: skip
 
         # ===== bolster <-> side frames (spring nests) =====
@@ -256,6 +300,12 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             side = 1.0 if sidx == 0 else -1.0
             jf = SF0 + 5 * (2 * k + sidx)
             add_frame_forces(acc, jf + 1, jf + 2, K[I_MF], kap_b, cos_b, sin_b, V, gn)
+            if turn != 0.0:
+                # the frame's roll lifts a side frame side b2 off the centreline; it has no
+                # roll of its own to take (it rolls with its wheelsets)
+                acc[jf + 1] += K[I_MF] * K[I_HF] * roll_b
+                acc[jf + 2] -= K[I_MF] * side * b2 * roll_b
+                acc[jf + 4] -= K[I_IZF] * yaw_b
             # vertical nest springs + the nest's two friction wedges, ahead of and behind the
             # bolster end at +-l_w: column friction (vertical and lateral, one friction
             # circle each; their lateral forces' difference makes the warp moment) and slope
@@ -320,6 +370,23 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             iw = WS0 + 4 * w
             cos_w, sin_w = cant_cos_sin(cant_w, cant_b, cos_b, sin_b)
             add_frame_forces(acc, iw, iw + 1, m_w, kap_w, cos_w, sin_w, V, gn)
+            if turn != 0.0:
+                yaw_w, roll_w = frame_turn(trk, i_w, f_w, in_w, n_trk, V, v_per_ds)
+                add_frame_turn(
+                    acc, iw, iw + 2, iw + 3, m_w * r0, K[I_IXW], K[I_IZW], roll_w,
+                    yaw_w * cos_w,
+                )  # fmt: skip
+                # the spinning wheelset turns with its frame too: the gyroscopic moments of
+                # the frame's yaw rate V kappa (about the wheelset's vertical) and roll rate
+                acc[iw + 2] += h_spin * V * kap_w * cos_w
+                acc[iw + 3] -= h_spin * track_rate(trk, L.TR_CANT, i_w, in_w, v_per_ds)
+            # the design twist: the wheelset's roll is against the cant at its axle, the side
+            # frame's heights against the bogie centre's
+            tw_w = 0.0
+            tw_rate_w = 0.0
+            if twist != 0.0:
+                tw_w = cant_w - cant_b
+                tw_rate_w = track_rate(trk, L.TR_CANT, i_w, in_w, v_per_ds) - cant_rate_b
             dev_w = off_w - off_b - e * head_b
             yaw_w_b = q[iw + 3] + head_w - head_b  # wheelset yaw in the bogie frame
             for sidx in range(2):
@@ -340,8 +407,10 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
                 acc[jf + 4] -= e * f_y
                 g_sf += arm_a * f_y
                 # vertical [X15]
-                dz_p = (q[iw + 1] + side * b1 * q[iw + 2]) - (q[jf + 2] - e * q[jf + 3])
-                dvz = (v[iw + 1] + side * b1 * v[iw + 2]) - (v[jf + 2] - e * v[jf + 3])
+                dz_p = (q[iw + 1] + side * b1 * (q[iw + 2] + tw_w)) - (q[jf + 2] - e * q[jf + 3])
+                dvz = (v[iw + 1] + side * b1 * (v[iw + 2] + tw_rate_w)) - (
+                    v[jf + 2] - e * v[jf + 3]
+                )
                 f_z = k_pz * dz_p + K[I_CPZ] * dvz  # deviation of the upward force on frame
                 acc[jf + 2] += f_z
                 acc[jf + 3] += -e * (f_z + K[I_F0P])
@@ -369,8 +438,6 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
 
     # ---- wheel-rail contact forces (the eight wheels together) ----
     contact_forces_8(x, ctab, y0, dy, H0L, H0R, K, wk)
-    r0 = K[I_R0]
-    h_spin = Iy_w * V / r0  # spinning wheelset's angular momentum (spin V / r0 about +y)
     for w in range(4):
         iw = WS0 + 4 * w
         for sidx in range(2):
@@ -421,7 +488,8 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         acc[iw + 1] *= K[I_INV_MW]
         acc[iw + 2] *= K[I_INV_IXW]
         acc[iw + 3] *= K[I_INV_IZW]
-    out[L.OUT_ACC_Y] = acc[L.CB_Y] + V * V * kap_c * cos_c + gn * sin_c
+    # the accelerometer reads the specific force: the frame's lateral terms taken back off
+    out[L.OUT_ACC_Y] = acc[L.CB_Y] + V * V * kap_c * cos_c + gn * sin_c - K[I_HCG] * roll_c
     out[L.OUT_ACC_Z] = acc[L.CB_Z]
     out[L.OUT_FLANGE_RATE] = flange_rate
     return L.OK

@@ -177,6 +177,11 @@ def constants(
         "k_rz": wagon.track.rail_vertical_stiffness, "k_ry": wagon.track.rail_lateral_stiffness,
         "c_rz": wagon.track.rail_vertical_damping, "c_ry": wagon.track.rail_lateral_damping,
         "rail_damping_cap": 1.0 if wagon.track.rail_damping_capped else 0.0,
+        # (the design track of a condition without a curve neither turns nor twists: its
+        # terms are zero and skipped)
+        "frame_rotation": 1.0 if wagon.track.frame_rotation and condition.curvature else 0.0,
+        "design_twist": 1.0 if wagon.primary.design_twist and condition.curvature else 0.0,
+        "h_cg_f": sf.cg_height,
         "V": condition.speed, "g_n": gn, "mu": condition.wheel_rail_friction,
         "F_coupler": condition.coupler_force, "creep_factor": wagon.contact.creep_factor,
         "pen_max": settings.penetration_max, "lift_max": settings.lift_max,

@@ -56,3 +56,23 @@ def track_frame(trk, i, f):
         track_value(trk, L.TR_HEAD, i, f),
         track_value(trk, L.TR_OFFSET, i, f),
     )
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
+def frame_turn(trk, i, f, inside, n, V, v_per_ds):
+    """The track-following frame's yaw and roll accelerations at grid cell (i, f), rad/s²
+    (revision 2026-12-03.1; docs/model.md, "Transitions"): yaw V² dκ/ds, the curvature's
+    slope in the cell (a clothoid's 1 / (R L)), and roll V² d²φ/ds² of the cant angle φ, its
+    second difference at the nearest sample. The cant is linear between samples, so its
+    rate V dφ/ds steps at a sample where the slope changes (a cant ramp's ends); the step's
+    impulse is spread over the half cells either side of that sample, so that a body
+    passing it gains the frame's roll rate change in full. Zero outside the grid and at its
+    end samples."""
+    if not inside:
+        return 0.0, 0.0
+    yaw = V * v_per_ds * (trk[L.TR_KAPPA, i + 1] - trk[L.TR_KAPPA, i])
+    j = i + 1 if f >= 0.5 else i
+    if j < 1 or j > n - 2:
+        return yaw, 0.0
+    cant = trk[L.TR_CANT, j - 1] - 2.0 * trk[L.TR_CANT, j] + trk[L.TR_CANT, j + 1]
+    return yaw, v_per_ds * v_per_ds * cant

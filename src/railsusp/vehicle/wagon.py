@@ -154,11 +154,23 @@ class WagonData(WagonSection):
         )
 
 
-#: the wagon fields that give the force laws of revision 2026-11-30.2 and before: the centre
-#: bowl's pitch moment against the track, with no reaction on the bogie, the side frames
-#: free to pitch against the bolster (on level track too), and every wheel of a bogie loaded
-#: alike on a grade (docs/model.md, "Centre bowl and side bearers")
+#: the wagon fields that give the force laws of revision 2026-12-02.1 and before: the
+#: track-following frames' rotation left out of the bodies' equations (their yaw and roll
+#: accelerations in transitions, the frame's rates in the wheelsets' gyroscopic moments), and
+#: the primary's vertical deflection blind to the design twist between an axle and its bogie
+#: centre (docs/model.md, "Transitions")
+FORCE_LAWS_BEFORE_2026_12_03_1 = {
+    "track.frame_rotation": False,
+    "primary.design_twist": False,
+}
+
+#: the wagon fields that give the force laws of revision 2026-11-30.2 and before: those of
+#: :data:`FORCE_LAWS_BEFORE_2026_12_03_1`, and the centre bowl's pitch moment against the
+#: track, with no reaction on the bogie, the side frames free to pitch against the bolster
+#: (on level track too), and every wheel of a bogie loaded alike on a grade (docs/model.md,
+#: "Centre bowl and side bearers")
 FORCE_LAWS_BEFORE_2026_12_02_1 = {
+    **FORCE_LAWS_BEFORE_2026_12_03_1,
     "centre_plate.pitch_reaction_on_side_frames": False,
     "bogie.grade_pitch_moment": False,
 }

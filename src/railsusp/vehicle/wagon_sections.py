@@ -159,9 +159,17 @@ class Wheelset(WagonSection):
 
 
 class Primary(WagonSection):
+    """``design_twist`` (default true): in a transition each wheelset moves in the frame of
+    the design cant at its own axle, its side frames in that at the bogie centre, so the
+    primary's vertical deflection at an axle box b1 off the centreline takes in the two
+    frames' difference, b1 (cant_w - cant_b), and its rate: the spiral's twist loads the
+    wheels as a cross-level twist of the same size does. False leaves it out (the model
+    before revision 2026-12-03.1, where the design twist of a spiral hardly loaded them)."""
+
     longitudinal_damping: float = Field(ge=0.0)
     lateral_damping: float = Field(ge=0.0)
     vertical_damping: float = Field(ge=0.0)
+    design_twist: bool = True
 
 
 class Secondary(WagonSection):
@@ -266,7 +274,15 @@ class TrackData(WagonSection):
     """The rail support under one wheel. ``rail_damping_capped`` (default true): the support's
     damping, in series with the Hertz contact, pushes at most as hard as the contact's
     spring (no step in the normal force when a wheel or flange touches); false keeps the
-    damper in parallel with it, the model before revision 2026-11-30.2."""
+    damper in parallel with it, the model before revision 2026-11-30.2.
+
+    ``frame_rotation`` (default true): the track-following frames turn with the design
+    track, so every body's equations carry the frame's angular accelerations, yaw V^2 dk/ds
+    in a spiral and roll V^2 d^2(cant)/ds^2 at a cant ramp's ends (with the lateral H of it
+    at a centre of gravity H above the rail), and the spinning wheelsets' gyroscopic moments
+    take the frame's yaw and roll rates (V k, V d(cant)/ds) with their own. False leaves
+    them out, the model before revision 2026-12-03.1 (a body's motion relative to its frame
+    as if the frame did not turn)."""
 
     rail_vertical_stiffness: float = _stiffness(1.0e6)
     rail_lateral_stiffness: float = _stiffness(1.0e6)
@@ -275,6 +291,7 @@ class TrackData(WagonSection):
     gauge: float = Field(gt=1.0, lt=2.0)
     rail_inclination: float = Field(ge=0.0, lt=0.1)
     rail_damping_capped: bool = True
+    frame_rotation: bool = True
 
 
 class ContactData(WagonSection):
