@@ -133,11 +133,15 @@ def estimate_table(run: str | Path, tolerances: Tolerances | None = None) -> pd.
                 )
             varied = assumed.get(p, {})  # the force model's training varied it (a range)
             if varied.get("assumed") == "varied" and not held:
+                where = (
+                    "the estimate's simulations and the validation"
+                    if estimate_simulated(est)
+                    else "the validation's simulations"
+                )
                 row["verdict"] = (
                     f"{NOT_ESTIMATED}: held at {sig3(s.nominal_display)} {s.display_unit} in "
-                    f"the estimate's simulations and the validation (varied over "
-                    f"{sig3(varied['low'])}-{sig3(varied['high'])} {s.display_unit} in the "
-                    "surrogate's training)"
+                    f"{where} (varied over {sig3(varied['low'])}-{sig3(varied['high'])} "
+                    f"{s.display_unit} in the surrogate's training)"
                 )
             if varied.get("assumed") == "varied":  # a network set's, whatever the sensitivity
                 row["note"] = "not an input of the force model (varied in its training)"
@@ -199,6 +203,20 @@ _MEANING = {
     "p99": "error of the 99th percentile",
     "std": "error of the standard deviation",
 }
+
+
+def estimate_simulated(est: dict) -> bool:
+    """Whether an ``estimate.json``'s route ran the simulator: NSGA-II on it, a refinement
+    comparing it (older files name none: theirs did), simulator corrections or a simulator
+    polish. The network set's route without them simulates nothing until the validation."""
+    ref = est.get("refinement") or {}
+    refined = bool(ref) and (ref.get("compared_model") or "the simulator") == "the simulator"
+    return bool(
+        est.get("model") == "simulator"
+        or refined
+        or est.get("simulator_corrections")
+        or est.get("polished_display")
+    )
 
 
 def force_agreement(run: str | Path) -> pd.DataFrame:

@@ -1,6 +1,7 @@
 """The split by track and parameter set, its file, and surrogates scored on held-out tracks."""
 
 import json
+import shutil
 
 import numpy as np
 import pandas as pd
@@ -243,11 +244,20 @@ def test_estimate_lists_the_parameters_it_did_not_estimate(many_tracks, tmp_path
         },
     )
     t = summary.estimate_table(run)
+    # NSGA-II on the network alone simulated nothing: the validation's simulations held it
+    # (the table said "the estimate's simulations" on every route)
     assert t.loc["X19", "verdict"] == (
-        "not estimated: held at 30000 kN/m in the estimate's simulations and the validation "
+        "not estimated: held at 30000 kN/m in the validation's simulations "
         "(varied over 20000-40000 kN/m in the surrogate's training)"
     )
     assert t.loc["X20", "verdict"].startswith("not estimated: held at 1000 MN/m")
+    doc = json.loads((run / "estimate" / "estimate.json").read_text())
+    doc["refinement"] = {"compared_model": "the simulator", "standard_error_pct_range": {}}
+    write_json(run / "estimate" / "estimate.json", doc)
+    assert summary.estimate_table(run).loc["X19", "verdict"] == (
+        "not estimated: held at 30000 kN/m in the estimate's simulations and the validation "
+        "(varied over 20000-40000 kN/m in the surrogate's training)"
+    )
 
 
 def test_the_sequence_network_is_compared_on_the_same_steps_as_the_others(many_tracks):
@@ -330,3 +340,22 @@ def test_the_train_commands_line_names_each_conditions_tracks_and_failed_test_ru
     )
     Test.sample_ids = np.arange(8, 12)
     assert _held_out_line(None, "st", sur, Test()) == "st 4 on 4 distinct track(s)"
+
+
+def test_an_interrupted_compare_leaves_no_table_of_the_networks_it_replaced(many_tracks, tmp_path):
+    """compare.csv, the pipeline's mark of a finished stage, was written last but never
+    taken away first: a compare interrupted while it trained the networks afresh left the
+    older table beside networks it no longer described, until it was run again."""
+    run = tmp_path / "run"
+    shutil.copytree(many_tracks, run)
+    tcfg = TrainConfig(epochs=1, batches_per_epoch=2, batch_size=32, val_windows=200)
+    compare(run, models=("bp",), conditions=["curve"], train=tcfg)
+    table = run / "surrogates" / "compare.csv"
+    assert table.exists() and table.with_suffix(".json").exists()
+
+    def interrupt(message: str) -> None:
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        compare(run, models=("bp",), conditions=["curve"], train=tcfg, progress=interrupt)
+    assert not table.exists() and not table.with_suffix(".json").exists()

@@ -84,6 +84,11 @@ def compare(
     rows = []
     out_dir = camp.path / "surrogates"
     figures = []  # drawn once every condition is done: none beside an older compare.csv
+    # the older table describes networks about to be trained afresh: taken away first, so
+    # that an interrupted compare leaves no finished stage's mark beside networks it no
+    # longer describes (written again last)
+    for name in ("compare.csv", "compare.json"):
+        (out_dir / name).unlink(missing_ok=True)
     for cond in conds:
         data = load_series(camp, cond, spec)
         tr_i, te_i = (
