@@ -119,7 +119,7 @@ def test_the_switches_of_an_earlier_revision_reproduce_its_forces(
     ``FORCE_LAWS_BEFORE_2026_12_03_1``: the frames not turning in the bodies' equations, the
     primary blind to the design twist (on tangent they change nothing: the straight
     condition's forces are today's to 2e-13, so there the check that today's differ is the
-    curve's, 2.3-2.9 % of the largest)."""
+    curve's, 1.6-3.3 % of the largest)."""
     from railsusp.vehicle import wagon as wagons
 
     fr = _bench()

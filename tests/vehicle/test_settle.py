@@ -134,14 +134,15 @@ def test_on_perfect_track_a_settled_run_stays_where_it_starts():
     10 N: the track's lateral position, interpolated linearly on its 0.125 m grid, ripples by
     κ ds²/8 = 7 µm); the wheelsets' lateral forces balance the wagon's uncompensated
     centrifugal force, m (V²/R cos φ - g sin φ), to 1 %; and each wheel's forces are those
-    about which the lead-in run still swings 10 s after its start (within 10 kN: its
-    friction states, carried dynamically out of the spiral, differ from the quasi-static
-    ones; measured 6.2 kN since the centre bowl's rocking stiffness of 2026-11-24, which
-    makes the body roll with the bolsters, so that the wedges' stuck state shares the roll
-    moment between the wheels: their vertical friction band, about 0.085 of the nest load
-    on either side, is +-13 kN per wheel; 8.4 kN since revision 2026-12-03.1, whose
-    frames turn in the spiral: the car body's yaw inertia loads the bogies there and the
-    wedges keep part of it)."""
+    about which the lead-in run still swings 10 s after its start (within the wedges'
+    vertical friction band, about 0.085 of the nest load on either side, +-13 kN per wheel:
+    its friction states, carried dynamically out of the spiral, differ from the
+    quasi-static ones; measured 6.2 kN since the centre bowl's rocking stiffness of
+    2026-11-24, which makes the body roll with the bolsters, so that the wedges' stuck
+    state shares the roll moment between the wheels; 9.9 kN since revision 2026-12-03.1,
+    whose frames turn in the spiral and whose design twist reaches the primary: the car
+    body's yaw inertia and the twist load the bogies there and the wedges keep part of
+    it)."""
     cond = get_condition("curve", irregularity_class=None, duration_s=4.0, n_steps=200)
     settled = simulate(None, cond, settings=SETTLED)
     lead = simulate(None, cond, settings=LEAD_IN)
@@ -149,7 +150,7 @@ def test_on_perfect_track_a_settled_run_stays_where_it_starts():
     for name in ("Y", "Q"):
         a = getattr(settled, name)[0]
         assert np.ptp(a, axis=1).max() < 10.0  # N
-        np.testing.assert_allclose(a.mean(axis=1), getattr(lead, name)[0].mean(axis=1), atol=10e3)
+        np.testing.assert_allclose(a.mean(axis=1), getattr(lead, name)[0].mean(axis=1), atol=13e3)
     phi = math.asin(cond.cant_mm * 1e-3 / CANT_BASE_M)
     w = load_wagon()
     m = w.car_body.mass + 2 * w.bolster.mass + 4 * w.side_frame.mass + 4 * spec("X1").nominal

@@ -19,7 +19,11 @@ import pytest
 from railsusp.params import ParameterSet
 from railsusp.vehicle import layout as L
 from railsusp.vehicle.integrate import _run_one
+from railsusp.vehicle.model import rhs as model_rhs
 from railsusp.vehicle.operating_point import LinearisationPoint, point_of
+from railsusp.vehicle.setup import SolverSettings, constants
+from railsusp.vehicle.track_grid import track_arrays
+from railsusp.vehicle.track_lookup import frame_turn, track_point, track_rate
 from railsusp.vehicle.wagon import FORCE_LAWS_BEFORE_2026_12_03_1, WagonData, load_wagon
 from railsusp.working_condition import CANT_BASE_M, make_condition
 
@@ -30,17 +34,27 @@ _IDENTITY = np.array([[1.0, 0.0, 0.0, 1.0, 0.0, 0.0]])
 _OLD = FORCE_LAWS_BEFORE_2026_12_03_1
 
 
-def _point(wagon: WagonData) -> LinearisationPoint:
-    """The model's inputs on a perfect left-hand curve entered from tangent over a long
-    spiral (clothoid with a linear cant ramp from START to START + SPIRAL)."""
-    cond = make_condition(
+def _condition():
+    return make_condition(
         {
             "name": "spiral", "speed_kmh": 40.0, "irregularity_class": None, "lead_in_m": 0.0,
             "duration_s": 40.0, "curve_radius_m": RADIUS, "cant_mm": CANT * 1e3,
             "curve_start_m": START, "entry_spiral_m": SPIRAL,
         }
     )  # fmt: skip
-    return point_of(ParameterSet.nominal().to_array(), wagon, cond)
+
+
+def _point(wagon: WagonData, settings: SolverSettings | None = None) -> LinearisationPoint:
+    """The model's inputs on a perfect left-hand curve entered from tangent over a long
+    spiral (clothoid with a linear cant ramp from START to START + SPIRAL); ``settings``:
+    other solver settings (a finer track grid) than the simulator's defaults."""
+    point = point_of(ParameterSet.nominal().to_array(), wagon, _condition())
+    if settings is None:
+        return point
+    cond = _condition()
+    tracks, s0, ds = track_arrays(cond, [0], wagon, settings)
+    K = constants(wagon, cond, point.P, point.contact, settings)
+    return dataclasses.replace(point, K=K, track=np.ascontiguousarray(tracks[0]), s0=s0, ds=ds)
 
 
 def _states(point: LinearisationPoint, times: list[float]) -> list[np.ndarray]:
@@ -68,7 +82,7 @@ def _cant_slope() -> float:
     return -math.asin(CANT / CANT_BASE_M) / SPIRAL
 
 
-@pytest.mark.parametrize("laws", ["today", "before 2026-12-03.1"])
+@pytest.mark.parametrize("laws", ["today", "before 2026-12-03.1", "on a 5 mm grid"])
 def test_the_car_body_keeps_its_roll_rate_where_the_cant_ramp_starts(laws):
     """Where the car body passes the ramp's start, its frame begins to roll at V dphi/ds
     (here -4.08 mrad/s) within a few milliseconds. The car body, on soft springs, cannot
@@ -78,16 +92,17 @@ def test_the_car_body_keeps_its_roll_rate_where_the_cant_ramp_starts(laws):
     within 0.02 s across the passage: 3.92 mrad/s of 4.08 and -7.5 mm/s of -8.4 (the
     leading bogie, 0.8 s into the ramp, moves the body meanwhile). Without the frame's
     roll acceleration the body's relative roll rate stays (0.37 mrad/s): its absolute roll
-    rate jumped with no moment on it."""
-    wagon = load_wagon() if laws == "today" else load_wagon().with_values(_OLD)
-    point = _point(wagon)
+    rate jumped with no moment on it. On a grid of 5 mm the roll impulse passes in 0.45 ms,
+    under the 1 ms step: spread over the grid's half cells alone RK4 took it 1.54 times."""
+    wagon = load_wagon() if laws != "before 2026-12-03.1" else load_wagon().with_values(_OLD)
+    point = _point(wagon, SolverSettings(track_step=0.005) if laws == "on a 5 mm grid" else None)
     k = point.K
     t0 = (START + k[L.K["l_c"]] + k[L.K["a"]]) / point.speed  # the car body's centre passes
     before, after = _states(point, [t0 - 0.01, t0 + 0.01])
     frame_rate = point.speed * _cant_slope()
     roll_jump = after[NQ + L.CB_ROLL] - before[NQ + L.CB_ROLL]
     lateral_jump = after[NQ + L.CB_Y] - before[NQ + L.CB_Y]
-    turning = laws == "today"
+    turning = laws != "before 2026-12-03.1"
     assert (roll_jump == pytest.approx(-frame_rate, rel=0.1)) == turning
     assert (lateral_jump == pytest.approx(k[L.K["h_cg_c"]] * frame_rate, rel=0.15)) == turning
 
@@ -132,7 +147,7 @@ def test_the_side_frames_pitch_with_the_twist_between_their_axles():
     wagon = load_wagon()
     times = [10.0, 12.0]
     twisted = _states(_point(wagon), times)
-    flat = _states(_point(wagon.with_values({"primary.design_twist": False})), times)
+    flat = _states(_point(wagon.with_values({"track.design_twist": False})), times)
     jl, jr = L.SF0, L.SF0 + 5  # the leading bogie's left and right side frames
     point = _point(wagon)
     a, b1 = point.K[L.K["a"]], point.K[L.K["b1"]]
@@ -140,6 +155,23 @@ def test_the_side_frames_pitch_with_the_twist_between_their_axles():
     for x, y in zip(twisted, flat, strict=True):
         part = (x[jl + 3] - x[jr + 3]) - (y[jl + 3] - y[jr + 3])
         assert part == pytest.approx(expected, rel=0.05)
+
+
+def test_the_car_body_yaws_to_meet_its_centre_plates_in_their_bogies_canted_frames():
+    """The design twist's lateral part: each centre plate, h_cp above the rail, lies in its
+    bolster's frame, rolled against the car body's by cant_b - cant_c = +-l_c dphi/ds along
+    the ramp, so the two plates stand -+h_cp l_c dphi/ds across from where the car body's
+    frame puts them, and the car body, free to yaw, turns against its frame by
+    -h_cp dphi/ds to meet them (0.257 mrad here; 0.254-0.259 measured 65-90 m into the
+    ramp, the term against without). Without it the car body did not turn: the plates were
+    taken across as if both bogies stood on its cant."""
+    wagon = load_wagon()
+    times = [14.0, 16.0, 18.0]
+    twisted = _states(_point(wagon), times)
+    flat = _states(_point(wagon.with_values({"track.design_twist": False})), times)
+    expected = -_point(wagon).K[L.K["h_cp"]] * _cant_slope()
+    for x, y in zip(twisted, flat, strict=True):
+        assert x[L.CB_YAW] - y[L.CB_YAW] == pytest.approx(expected, rel=0.03)
 
 
 def test_a_wheelsets_gyroscopic_roll_moment_is_of_its_absolute_yaw_rate():
@@ -171,3 +203,123 @@ def test_a_wheelsets_gyroscopic_roll_moment_is_of_its_absolute_yaw_rate():
     assert turned * i_x == pytest.approx(h_spin * frame_yaw_rate, rel=1e-6)
     in_space = turning.rhs(still, s_front)[NQ + iw + 2] - old.rhs(rest, s_front)[NQ + iw + 2]
     assert in_space * i_x == pytest.approx(0.0, abs=1e-6 * h_spin * frame_yaw_rate)
+
+
+def _rhs(point, K, x, s_front):
+    """(d x / d t, output channels) of the model at state x."""
+    dxdt = np.zeros(L.N_STATE)
+    out = np.zeros(L.N_OUT_WORK)
+    ca = point.contact
+    code = model_rhs(
+        x, dxdt, point.P, K, point.track, point.s0, point.ds, ca.table, ca.y0, ca.dy, ca.H0L,
+        ca.H0R, s_front, out,
+    )  # fmt: skip
+    assert code == 0
+    return dxdt, out
+
+
+def test_every_bodys_frame_terms_are_the_rigid_kinematics_of_its_centre_of_gravity():
+    """At the same state, the frame's terms change each body's relative acceleration by
+    minus the frame's own at the body's centre of gravity. The frame turns at
+    omega = (phi', psi' sin phi, psi' cos phi) in the canted axes (psi' = V kappa, phi' the
+    cant rate), about the rail-level centreline: a body's moments change by
+    -I domega/dt - omega x I omega (Euler's equations; the car body's whole, the other
+    bodies' -I domega/dt, their omega x I omega under a newton metre), its centre of gravity
+    H above the rail by the lateral +H phi'' and a side frame b2 off the centreline by the
+    vertical -(+-b2) phi''; each wheelset's gyroscopic moments are those of the frame's
+    rates (roll +h psi' cos phi, yaw -h phi'). The forces of the elements and contacts do
+    not change, so neither does the car body's specific force (the lateral acceleration
+    output). Each body is put at the ramp's start in turn (its phi'' nonzero), the others in
+    the spiral or before it."""
+    point = _point(load_wagon())
+    k = point.K
+    old = k.copy()
+    old[L.K["frame_rotation"]] = 0.0
+    lc, a, b2, V = k[L.K["l_c"]], k[L.K["a"]], k[L.K["b2"]], point.speed
+    h = {"c": k[L.K["h_cg_c"]], "b": k[L.K["h_cg_b"]], "f": k[L.K["h_cg_f"]]}
+    h_spin = point.P[2] * V / k[L.K["r0"]]
+    inertia = point.dof_inertia()
+    n, inv_ds = point.track.shape[1], 1.0 / point.ds
+    half = max(0.5, k[L.K["turn_half_window"]] * inv_ds)
+
+    def frame(s):
+        """The frame's angular velocity and acceleration in the canted axes at s."""
+        i, f, inside = track_point(s, point.s0, inv_ds, n)
+        yaw_dd, roll_dd = frame_turn(point.track, i, f, inside, n, V, V * inv_ds, half)
+        kappa = point.track[L.TR_KAPPA, i] * (1 - f) + point.track[L.TR_KAPPA, i + 1] * f
+        phi = point.track[L.TR_CANT, i] * (1 - f) + point.track[L.TR_CANT, i + 1] * f
+        phi_d = track_rate(point.track, L.TR_CANT, i, inside, V * inv_ds)
+        psi_d = V * kappa
+        omega = np.array([phi_d, psi_d * math.sin(phi), psi_d * math.cos(phi)])
+        omega_d = np.array(
+            [
+                roll_dd,
+                yaw_dd * math.sin(phi) + psi_d * phi_d * math.cos(phi),
+                yaw_dd * math.cos(phi) - psi_d * phi_d * math.sin(phi),
+            ]
+        )
+        return omega, omega_d
+
+    car_i = np.array([k[L.K["Ix_c"]], k[L.K["Iy_c"]], k[L.K["Iz_c"]]])
+    x = np.zeros(L.N_STATE)
+    for behind in (0.0, a, 2 * a, lc + a, 2 * lc, 2 * lc + a, 2 * lc + 2 * a):
+        s_front = START + behind + 0.3 * point.ds
+        new, out_new = _rhs(point, k, x, s_front)
+        was, out_was = _rhs(point, old, x, s_front)
+        want = np.zeros(L.N_STATE)
+        s_c = s_front - lc - a
+        w, wd = frame(s_c)
+        moment = -car_i * wd - np.cross(w, car_i * w)
+        want[NQ + L.CB_Y] = h["c"] * wd[0]
+        want[NQ + L.CB_ROLL : NQ + L.CB_YAW + 1] = moment / car_i
+        for kb in range(2):
+            s_b = s_c + (lc if kb == 0 else -lc)
+            w, wd = frame(s_b)
+            ib = NQ + L.BOL0 + 4 * kb
+            want[ib], want[ib + 2], want[ib + 3] = h["b"] * wd[0], -wd[0], -wd[2]
+            for sidx, side in enumerate((1.0, -1.0)):
+                jf = NQ + L.SF0 + 5 * (2 * kb + sidx)
+                want[jf + 1], want[jf + 2] = h["f"] * wd[0], -side * b2 * wd[0]
+                want[jf + 3], want[jf + 4] = -wd[1], -wd[2]
+            for wi in range(2):
+                w, wd = frame(s_b + (a if wi == 0 else -a))
+                iw = NQ + L.WS0 + 4 * (2 * kb + wi)
+                want[iw] = k[L.K["r0"]] * wd[0]
+                want[iw + 2] = -wd[0] + h_spin * w[2] / inertia[iw - NQ + 2]
+                want[iw + 3] = -wd[2] - h_spin * w[0] / inertia[iw - NQ + 3]
+        scale = np.abs(want).max()
+        np.testing.assert_allclose(new - was, want, rtol=0, atol=1e-9 * scale)
+        assert out_new[L.OUT_ACC_Y] == pytest.approx(out_was[L.OUT_ACC_Y], abs=1e-9 * scale)
+    assert frame(START + 0.3 * point.ds)[1][0] != 0.0  # (each body there in turn)
+
+
+@pytest.mark.parametrize(
+    "layout",
+    [
+        {"entry_spiral_m": 60.0, "arc_length_m": 40.0, "exit_spiral_m": 30.0},
+        {"entry_spiral_m": 0.0, "arc_length_m": 25.0, "exit_spiral_m": 0.0},
+        {"entry_spiral_m": 45.0},
+    ],
+)
+def test_the_frame_turns_only_within_the_transitions_the_constants_name(layout):
+    """The right-hand side evaluates the frame's angular accelerations only within the
+    transitions the constants name (``layout.TURN_SPANS``, widened), since they are zero
+    elsewhere: checked at every grid sample and between, on a curve with both spirals, one
+    entered and left abruptly (each step an impulse of one cell) and one without end. A span
+    too narrow would drop a ramp end's roll impulse."""
+    wagon = load_wagon()
+    cond = _condition().with_changes(curve_start_m=40.0, **layout)
+    point = point_of(ParameterSet.nominal().to_array(), wagon, cond)
+    k, n, inv_ds = point.K, point.track.shape[1], 1.0 / point.ds
+    spans = [k[L.K[name]] for name in L.TURN_SPANS]
+    half = max(0.5, k[L.K["turn_half_window"]] * inv_ds)
+    turning = 0
+    for s in point.s0 + point.ds * np.arange(0.0, n - 1.0, 0.25):
+        i, f, inside = track_point(s, point.s0, inv_ds, n)
+        yaw, roll = frame_turn(
+            point.track, i, f, inside, n, point.speed, point.speed * inv_ds, half
+        )
+        if yaw != 0.0 or roll != 0.0:
+            turning += 1
+            assert spans[0] <= s <= spans[1] or spans[2] <= s <= spans[3], s
+    assert turning > 0

@@ -25,7 +25,8 @@ cached by Numba in a folder keyed by their sources (:mod:`railsusp.vehicle.kerne
 #: (wagon fields that restore them: railsusp.vehicle.wagon.FORCE_LAWS_BEFORE_2026_12_02_1);
 #: 2026-12-03.1: the track-following frames turn in the bodies' equations (the yaw and roll
 #: accelerations of a transition, the frame's yaw and roll rates in the wheelsets' gyroscopic
-#: moments) and the primary's vertical deflection takes the design twist between an axle and
-#: its bogie centre (docs/model.md, "Transitions"; tangent forces unchanged, to 2e-13; wagon
-#: fields that restore them: railsusp.vehicle.wagon.FORCE_LAWS_BEFORE_2026_12_03_1)
+#: moments) and the connections between bodies at different positions take the design twist
+#: (the primary's deflections, the centre plate's lateral one; docs/model.md, "Transitions";
+#: tangent forces unchanged, to 2e-13; wagon fields that restore them:
+#: railsusp.vehicle.wagon.FORCE_LAWS_BEFORE_2026_12_03_1)
 MODEL_REVISION = "2026-12-03.1"

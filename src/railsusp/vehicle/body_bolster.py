@@ -36,6 +36,7 @@ I_KCPB, I_KCPP, I_F0CP = _K["k_cpb"], _K["k_cpp"], _K["F0_cp"]
 I_KSB, I_PSB, I_MUSB = _K["k_sb"], _K["P_sb"], _K["mu_sb"]
 I_SBTRAVEL, I_KSBSTOP, I_CSB = _K["sb_travel"], _K["k_sb_stop"], _K["c_sb"]
 I_MGRADEF, I_BOWLPF = _K["M_pitch_grade_frame"], _K["bowl_pitch_on_frames"]
+I_TWIST = _K["design_twist"]
 
 SF0 = L.SF0
 AUXY, AUXR = L.AUX_YAWFR, L.AUX_ROLLFR
@@ -58,8 +59,12 @@ def body_on_bolster(
     hcp = K[I_HCG] - K[I_HCP]  # the car body's centre-plate point below its CG
     dev = off_b - off_c - d * head_c  # lateral offset of the track at s_b from the chord
     roll_c_b = q[L.CB_ROLL] + cant_c - cant_b  # car roll seen in the bolster frame
-    # centre plate, lateral (bowl)
+    # centre plate, lateral (bowl); the car body's frame is rolled by cant_c - cant_b against
+    # the bolster's, which moves its centre plate, h_cp above the rail, across by
+    # -h_cp (cant_c - cant_b) (the design twist's lateral part: wagon [track] design_twist)
     y_cp_car = q[L.CB_Y] + d * q[L.CB_YAW] - dev + hcp * q[L.CB_ROLL]
+    if K[I_TWIST] != 0.0:
+        y_cp_car -= K[I_HCP] * (cant_c - cant_b)
     h_bcp = K[I_HCP] - K[I_HB]
     y_cp_bol = q[ib] - h_bcp * q[ib + 2]
     f_cpy = K[I_KCPY] * (y_cp_car - y_cp_bol)  # on bolster (+), on car (-)

@@ -83,12 +83,18 @@ _K_NAMES = (
     "rail_damping_cap",
     # 1.0: the track-following frames' rotation in the bodies' equations, their yaw and roll
     # accelerations in transitions and their rates in the wheelsets' gyroscopic moments
-    # (wagon [track] frame_rotation); 1.0: the design twist between an axle's frame and its
-    # bogie centre's in the primary's vertical deflection (wagon [primary] design_twist); 0.0:
+    # (wagon [track] frame_rotation); 1.0: the design twist between connected bodies' frames
+    # in the primary's deflections and the centre plate's lateral one (wagon [track]
+    # design_twist); 0.0:
     # left out (before revision 2026-12-03.1), or a condition without a curve, where both
     # are zero (skipped: 3-10 % of an evaluation on tangent); the side frame's CG above rail
-    # top, m
-    "frame_rotation", "design_twist", "h_cg_f",
+    # top, m; the half-width over which the frame's roll acceleration at a cant ramp's end
+    # is spread, at least the integration step's run V max_step (m: less than the grid's
+    # half cell, which is used then, on the default grid below 225 km/h)
+    "frame_rotation", "design_twist", "h_cg_f", "turn_half_window",
+    # the track positions (m) of the entry and the exit transition, widened (TURN_SPANS:
+    # outside them the frame turns at a constant rate, its accelerations are not evaluated)
+    "turn_entry_from", "turn_entry_to", "turn_exit_from", "turn_exit_to",
     # static preloads, N
     "F0_cp", "F0_nest", "F0_prim", "Q0", "Z0_L", "Z0_R", "N_ref",
     # condition
@@ -115,6 +121,7 @@ _K_NAMES = (
     *(f"inv_{name}" for name in INERTIAS),
 )  # fmt: skip
 K = {name: i for i, name in enumerate(_K_NAMES)}
+TURN_SPANS = ("turn_entry_from", "turn_entry_to", "turn_exit_from", "turn_exit_to")
 N_K = len(_K_NAMES)
 
 # ---- contact table columns, per wheel and contact point ----

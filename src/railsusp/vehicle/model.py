@@ -90,9 +90,11 @@ I_SFN, I_SFA, I_KRG, I_XCL = (
     _K["x_coupler_line"],
 )
 I_WATCH = _K["flange_watch"]
-I_IXC, I_IZC, I_IXB, I_IZB = _K["Ix_c"], _K["Iz_c"], _K["Ix_b"], _K["Iz_b"]
+I_IXC, I_IYC, I_IZC, I_IXB, I_IZB = _K["Ix_c"], _K["Iy_c"], _K["Iz_c"], _K["Ix_b"], _K["Iz_b"]
+I_IYF = _K["Iy_f"]
 I_IZF, I_IXW, I_IZW, I_HB, I_HF = _K["Iz_f"], _K["Ix_w"], _K["Iz_w"], _K["h_cg_b"], _K["h_cg_f"]
-I_FROT, I_TWIST = _K["frame_rotation"], _K["design_twist"]
+I_FROT, I_TWIST, I_TURNW = _K["frame_rotation"], _K["design_twist"], _K["turn_half_window"]
+I_TE0, I_TE1, I_TX0, I_TX1 = (_K[name] for name in L.TURN_SPANS)
 I_INV_MC, I_INV_IXC, I_INV_IYC, I_INV_IZC = (
     _K["inv_m_c"], _K["inv_Ix_c"], _K["inv_Iy_c"], _K["inv_Iz_c"]
 )  # fmt: skip
@@ -116,16 +118,35 @@ def add_frame_forces(acc, i_lat, i_vert, m, kappa, c, s, V, gn):
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
-def add_frame_turn(acc, i_lat, i_roll, i_yaw, m_h, i_x, i_z, roll, yaw_cos):
+def in_transition(s, K):
+    """Whether track position s lies in a transition (widened: ``layout.TURN_SPANS``), the
+    only places where the frame's angular accelerations are not zero."""
+    return (K[I_TE0] <= s <= K[I_TE1]) or (K[I_TX0] <= s <= K[I_TX1])
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
+def frame_pitch_yaw(yaw_dd, kappa, cant_rate, c, s, V):
+    """The track-following frame's angular acceleration about a body's pitch (y) and yaw (z)
+    axes, rad/s² (revision 2026-12-03.1; docs/model.md, "Transitions"): the frame turns at
+    ω = ψ' Z + φ' x (ψ' = V κ about the vertical, φ' the cant rate about x), whose
+    components in the canted axes are (φ', ψ' sin φ, ψ' cos φ), so
+    dω_y/dt = ψ'' sin φ + ψ' φ' cos φ and dω_z/dt = ψ'' cos φ - ψ' φ' sin φ (``yaw_dd``:
+    ψ''; ``c``, ``s``: cos φ and sin φ)."""
+    cross = V * kappa * cant_rate
+    return yaw_dd * s + cross * c, yaw_dd * c - cross * s
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
+def add_frame_turn(acc, i_lat, i_roll, i_yaw, m_h, i_x, i_z, roll, yaw):
     """Add the turning frame's pseudo-forces on a body (revision 2026-12-03.1; docs/model.md,
     "Transitions"): its coordinates are taken against a frame whose roll accelerates by
     ``roll`` (rad/s², about the rail-level centreline) and whose yaw, about the body's own
-    vertical axis, by ``yaw_cos`` (ψ'' cos φ), so its relative motion carries -I_x roll and
-    -I_z yaw_cos, and a centre of gravity H above the rail the lateral m H roll (``m_h``)
-    that the frame's roll takes from under it."""
+    vertical axis, by ``yaw`` (:func:`frame_pitch_yaw`), so its relative motion carries
+    -I_x roll and -I_z yaw, and a centre of gravity H above the rail the lateral m H roll
+    (``m_h``) that the frame's roll takes from under it."""
     acc[i_lat] += m_h * roll
     acc[i_roll] -= i_x * roll
-    acc[i_yaw] -= i_z * yaw_cos
+    acc[i_yaw] -= i_z * yaw
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
@@ -175,9 +196,11 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
     v_per_ds = V * inv_ds
     wk = out[L.OUT_CONTACT : L.OUT_CONTACT + L.N_CONTACT_WORK]  # contact work (contact_batch)
     # 1.0 where the design track curves: the frames' rotation in the equations (wagon
-    # [track] frame_rotation) and the design twist in the primary ([primary] design_twist)
+    # [track] frame_rotation) and the design twist between bodies ([track] design_twist)
     turn = K[I_FROT]
     twist = K[I_TWIST]
+    # the window of the frame's roll acceleration, grid cells each side (track_lookup.frame_turn)
+    turn_half = max(0.5, K[I_TURNW] * inv_ds)
     flange_rate = -1.0e9  # fastest approach to its flange of a wheel near it (step control)
 
     # ---- catalogue parameters ----
@@ -245,11 +268,22 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
     add_frame_forces(acc, L.CB_Y, L.CB_Z, m_c, kap_c, cos_c, sin_c, V, gn)
     roll_c = 0.0
     if turn != 0.0:  # (the design track curves: on tangent every term is zero)
-        yaw_c, roll_c = frame_turn(trk, i_c, f_c, in_c, n_trk, V, v_per_ds)
-        add_frame_turn(
-            acc, L.CB_Y, L.CB_ROLL, L.CB_YAW, m_c * K[I_HCG], K[I_IXC], K[I_IZC], roll_c,
-            yaw_c * cos_c,
-        )  # fmt: skip
+        ix, iy, iz = K[I_IXC], K[I_IYC], K[I_IZC]
+        w_y = V * kap_c * sin_c  # the frame's rates about the car body's axes
+        w_z = V * kap_c * cos_c
+        # Euler's terms of the frame's rates, -ω x I ω: (I_z - I_y) ψ'² sin φ cos φ in roll
+        # on the arc too; in a transition (cant rate w_x), the car body's pitch
+        # (I_z - I_x) φ' ψ' cos φ (1.3 kN m at the study's spiral end) and yaw
+        acc[L.CB_ROLL] -= w_y * w_z * (iz - iy)
+        if in_transition(s_c, K):
+            yaw_dd, roll_c = frame_turn(trk, i_c, f_c, in_c, n_trk, V, v_per_ds, turn_half)
+            pitch_c, yaw_c = frame_pitch_yaw(yaw_dd, kap_c, cant_rate_c, cos_c, sin_c, V)
+            add_frame_turn(
+                acc, L.CB_Y, L.CB_ROLL, L.CB_YAW, m_c * K[I_HCG], ix, iz, roll_c, yaw_c
+            )  # fmt: skip
+            w_x = cant_rate_c
+            acc[L.CB_PITCH] += w_x * w_z * (iz - ix) - iy * pitch_c
+            acc[L.CB_YAW] -= w_x * w_y * (iy - ix)
     # grade: pitch moment of the net coupler force (at coupler height) and of the bogies'
     # reaction (at centre-plate height); lateral coupler components in curves (chord angle)
     hk = K[I_HCG] - K[I_HK]
@@ -279,15 +313,17 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
         g_sf = 0.0
         cos_b, sin_b = cant_cos_sin(cant_b, cant_c, cos_c, sin_c)
         add_frame_forces(acc, ib, ib + 1, m_b, kap_b, cos_b, sin_b, V, gn)
+        cant_rate_b = track_rate(trk, L.TR_CANT, i_b, in_b, v_per_ds)
         roll_b = 0.0
+        pitch_b = 0.0
         yaw_b = 0.0
-        if turn != 0.0:
-            yaw_b, roll_b = frame_turn(trk, i_b, f_b, in_b, n_trk, V, v_per_ds)
-            yaw_b *= cos_b
+        turning_b = turn != 0.0 and in_transition(s_b, K)
+        if turning_b:
+            yaw_dd, roll_b = frame_turn(trk, i_b, f_b, in_b, n_trk, V, v_per_ds, turn_half)
+            pitch_b, yaw_b = frame_pitch_yaw(yaw_dd, kap_b, cant_rate_b, cos_b, sin_b, V)
             add_frame_turn(
                 acc, ib, ib + 2, ib + 3, m_b * K[I_HB], K[I_IXB], K[I_IZB], roll_b, yaw_b
             )  # fmt: skip
-        cant_rate_b = track_rate(trk, L.TR_CANT, i_b, in_b, v_per_ds)
 
         # ===== car body <-> bolster k: centre plate, centre bowl, side bearers =====
         body_on_bolster(
@@ -300,11 +336,12 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             side = 1.0 if sidx == 0 else -1.0
             jf = SF0 + 5 * (2 * k + sidx)
             add_frame_forces(acc, jf + 1, jf + 2, K[I_MF], kap_b, cos_b, sin_b, V, gn)
-            if turn != 0.0:
+            if turning_b:
                 # the frame's roll lifts a side frame side b2 off the centreline; it has no
                 # roll of its own to take (it rolls with its wheelsets)
                 acc[jf + 1] += K[I_MF] * K[I_HF] * roll_b
                 acc[jf + 2] -= K[I_MF] * side * b2 * roll_b
+                acc[jf + 3] -= K[I_IYF] * pitch_b
                 acc[jf + 4] -= K[I_IZF] * yaw_b
             # vertical nest springs + the nest's two friction wedges, ahead of and behind the
             # bolster end at +-l_w: column friction (vertical and lateral, one friction
@@ -370,23 +407,29 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             iw = WS0 + 4 * w
             cos_w, sin_w = cant_cos_sin(cant_w, cant_b, cos_b, sin_b)
             add_frame_forces(acc, iw, iw + 1, m_w, kap_w, cos_w, sin_w, V, gn)
+            cant_rate_w = 0.0
+            if turn != 0.0 or twist != 0.0:
+                cant_rate_w = track_rate(trk, L.TR_CANT, i_w, in_w, v_per_ds)
             if turn != 0.0:
-                yaw_w, roll_w = frame_turn(trk, i_w, f_w, in_w, n_trk, V, v_per_ds)
-                add_frame_turn(
-                    acc, iw, iw + 2, iw + 3, m_w * r0, K[I_IXW], K[I_IZW], roll_w,
-                    yaw_w * cos_w,
-                )  # fmt: skip
+                if in_transition(s_w, K):
+                    yaw_dd, roll_w = frame_turn(
+                        trk, i_w, f_w, in_w, n_trk, V, v_per_ds, turn_half
+                    )  # fmt: skip
+                    _, yaw_w = frame_pitch_yaw(yaw_dd, kap_w, cant_rate_w, cos_w, sin_w, V)
+                    add_frame_turn(
+                        acc, iw, iw + 2, iw + 3, m_w * r0, K[I_IXW], K[I_IZW], roll_w, yaw_w
+                    )  # fmt: skip
                 # the spinning wheelset turns with its frame too: the gyroscopic moments of
                 # the frame's yaw rate V kappa (about the wheelset's vertical) and roll rate
                 acc[iw + 2] += h_spin * V * kap_w * cos_w
-                acc[iw + 3] -= h_spin * track_rate(trk, L.TR_CANT, i_w, in_w, v_per_ds)
-            # the design twist: the wheelset's roll is against the cant at its axle, the side
-            # frame's heights against the bogie centre's
+                acc[iw + 3] -= h_spin * cant_rate_w
+            # the design twist: the wheelset's axle boxes are in the frame of the cant at its
+            # axle, the side frame's in the bogie centre's (vertical b1, lateral r0 of it)
             tw_w = 0.0
             tw_rate_w = 0.0
             if twist != 0.0:
                 tw_w = cant_w - cant_b
-                tw_rate_w = track_rate(trk, L.TR_CANT, i_w, in_w, v_per_ds) - cant_rate_b
+                tw_rate_w = cant_rate_w - cant_rate_b
             dev_w = off_w - off_b - e * head_b
             yaw_w_b = q[iw + 3] + head_w - head_b  # wheelset yaw in the bogie frame
             for sidx in range(2):
@@ -399,8 +442,8 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
                 acc[iw + 3] += -side * b1 * f_x
                 acc[jf] -= f_x
                 # lateral [X14 in series with X20]
-                dy_p = q[jf + 1] + e * (q[jf + 4]) - arm_a * th_sf - dev_w - q[iw]
-                dvy = v[jf + 1] + e * v[jf + 4] - arm_a * om_sf - v[iw]
+                dy_p = q[jf + 1] + e * (q[jf + 4]) - arm_a * th_sf - dev_w - (q[iw] - r0 * tw_w)
+                dvy = v[jf + 1] + e * v[jf + 4] - arm_a * om_sf - (v[iw] - r0 * tw_rate_w)
                 f_y = k_py * dy_p + K[I_CPY] * dvy  # on wheelset
                 acc[iw] += f_y
                 acc[jf + 1] -= f_y

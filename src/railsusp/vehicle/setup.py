@@ -26,6 +26,7 @@ from railsusp.vehicle import layout as L
 from railsusp.vehicle.kernel_contact_table import ContactArrays as ContactArrays
 from railsusp.vehicle.kernel_contact_table import contact_arrays as contact_arrays
 from railsusp.vehicle.kernel_contact_table import static_wheel_load as static_wheel_load
+from railsusp.vehicle.track import TrackLayout
 from railsusp.vehicle.wagon import WagonData
 
 #: how a run starts (:class:`SolverSettings` ``start``)
@@ -180,8 +181,11 @@ def constants(
         # (the design track of a condition without a curve neither turns nor twists: its
         # terms are zero and skipped)
         "frame_rotation": 1.0 if wagon.track.frame_rotation and condition.curvature else 0.0,
-        "design_twist": 1.0 if wagon.primary.design_twist and condition.curvature else 0.0,
+        "design_twist": 1.0 if wagon.track.design_twist and condition.curvature else 0.0,
         "h_cg_f": sf.cg_height,
+        # an RK4 step longer than the roll impulse's passage integrates it wrongly (x1.54 of
+        # the frame's roll-rate step on a 5 mm grid at 40 km/h and 1 ms): at least a step
+        "turn_half_window": condition.speed * settings.max_step,
         "V": condition.speed, "g_n": gn, "mu": condition.wheel_rail_friction,
         "F_coupler": condition.coupler_force, "creep_factor": wagon.contact.creep_factor,
         "pen_max": settings.penetration_max, "lift_max": settings.lift_max,
@@ -205,6 +209,12 @@ def constants(
     f_prim = (f_nest + sf.mass * gn) / 2.0
     for name in L.INERTIAS:
         vals["inv_" + name] = 1.0 / vals[name]
+    # where the frame may turn: the transitions, widened by two grid cells, the roll
+    # acceleration's window and a metre (outside them it is exactly zero, and skipped)
+    pad = 2.0 * settings.track_step + condition.speed * settings.max_step + 1.0
+    spans = TrackLayout.from_condition(condition).transitions(pad)
+    for name, value in zip(L.TURN_SPANS, spans, strict=True):
+        vals[name] = value
     vals.update(_wedge_constants(wagon, f_nest))
     vals.update(_bowl_constants(wagon))
     q0 = f_prim + m_w * gn / 2.0

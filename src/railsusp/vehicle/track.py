@@ -24,6 +24,7 @@ maintained track (:func:`limit_gauge`).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -281,6 +282,21 @@ class TrackLayout:
             exit_spiral=condition.exit_spiral_m,
             grade=condition.grade,
         )
+
+    def transitions(self, pad: float) -> tuple[float, float, float, float]:
+        """(from, to) of the entry and of the exit transition, each widened by ``pad`` (m)
+        on both sides: outside them curvature and cant are constant, so the track-following
+        frame neither accelerates in yaw nor in roll there (an abrupt start or end of the
+        arc, a spiral of 0 m, is a transition of no length). No curve, or an arc without
+        end: (inf, -inf) for the part that never comes."""
+        if self.curvature == 0.0:
+            return math.inf, -math.inf, math.inf, -math.inf
+        a = self.curve_start
+        b = a + self.entry_spiral
+        c = b + self.arc_length
+        if math.isinf(c):
+            return a - pad, b + pad, math.inf, -math.inf
+        return a - pad, b + pad, c - pad, c + self.exit_spiral + pad
 
     def _ramp(self, s: np.ndarray) -> np.ndarray:
         """Fraction 0..1 of full curvature/cant at distance s."""

@@ -59,20 +59,28 @@ def track_frame(trk, i, f):
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, **NO_RUNTIME, inline="always")
-def frame_turn(trk, i, f, inside, n, V, v_per_ds):
+def frame_turn(trk, i, f, inside, n, V, v_per_ds, half):
     """The track-following frame's yaw and roll accelerations at grid cell (i, f), rad/s²
     (revision 2026-12-03.1; docs/model.md, "Transitions"): yaw V² dκ/ds, the curvature's
     slope in the cell (a clothoid's 1 / (R L)), and roll V² d²φ/ds² of the cant angle φ, its
     second difference at the nearest sample. The cant is linear between samples, so its
     rate V dφ/ds steps at a sample where the slope changes (a cant ramp's ends); the step's
-    impulse is spread over the half cells either side of that sample, so that a body
-    passing it gains the frame's roll rate change in full. Zero outside the grid and at its
-    end samples."""
+    impulse is spread over ``half`` cells (at least 0.5) either side of that sample: the
+    roll acceleration is V² times the slope's change across the window [u - half,
+    u + half] over its width (the derivative of the slope's moving average), so that a body
+    passing it gains the frame's roll rate change in full, and an RK4 step no longer than
+    the window's passage integrates it (half = 0.5: the cant's second difference at the
+    nearest sample). Zero outside the grid and where the window leaves it."""
     if not inside:
         return 0.0, 0.0
     yaw = V * v_per_ds * (trk[L.TR_KAPPA, i + 1] - trk[L.TR_KAPPA, i])
-    j = i + 1 if f >= 0.5 else i
-    if j < 1 or j > n - 2:
+    u = i + f
+    lo = u - half
+    hi = u + half
+    if lo < 0.0 or hi >= n - 1:
         return yaw, 0.0
-    cant = trk[L.TR_CANT, j - 1] - 2.0 * trk[L.TR_CANT, j] + trk[L.TR_CANT, j + 1]
-    return yaw, v_per_ds * v_per_ds * cant
+    il = int(lo)
+    ih = int(hi)
+    c = L.TR_CANT
+    d = (trk[c, ih + 1] - trk[c, ih]) - (trk[c, il + 1] - trk[c, il])
+    return yaw, v_per_ds * v_per_ds * d / (2.0 * half)

@@ -157,11 +157,11 @@ class WagonData(WagonSection):
 #: the wagon fields that give the force laws of revision 2026-12-02.1 and before: the
 #: track-following frames' rotation left out of the bodies' equations (their yaw and roll
 #: accelerations in transitions, the frame's rates in the wheelsets' gyroscopic moments), and
-#: the primary's vertical deflection blind to the design twist between an axle and its bogie
-#: centre (docs/model.md, "Transitions")
+#: the primary's deflections and the centre plate's lateral one blind to the design twist
+#: between bodies at different positions (docs/model.md, "Transitions")
 FORCE_LAWS_BEFORE_2026_12_03_1 = {
     "track.frame_rotation": False,
-    "primary.design_twist": False,
+    "track.design_twist": False,
 }
 
 #: the wagon fields that give the force laws of revision 2026-11-30.2 and before: those of

@@ -159,17 +159,9 @@ class Wheelset(WagonSection):
 
 
 class Primary(WagonSection):
-    """``design_twist`` (default true): in a transition each wheelset moves in the frame of
-    the design cant at its own axle, its side frames in that at the bogie centre, so the
-    primary's vertical deflection at an axle box b1 off the centreline takes in the two
-    frames' difference, b1 (cant_w - cant_b), and its rate: the spiral's twist loads the
-    wheels as a cross-level twist of the same size does. False leaves it out (the model
-    before revision 2026-12-03.1, where the design twist of a spiral hardly loaded them)."""
-
     longitudinal_damping: float = Field(ge=0.0)
     lateral_damping: float = Field(ge=0.0)
     vertical_damping: float = Field(ge=0.0)
-    design_twist: bool = True
 
 
 class Secondary(WagonSection):
@@ -282,7 +274,16 @@ class TrackData(WagonSection):
     at a centre of gravity H above the rail), and the spinning wheelsets' gyroscopic moments
     take the frame's yaw and roll rates (V k, V d(cant)/ds) with their own. False leaves
     them out, the model before revision 2026-12-03.1 (a body's motion relative to its frame
-    as if the frame did not turn)."""
+    as if the frame did not turn).
+
+    ``design_twist`` (default true): in a transition each body moves in the frame of the
+    design cant at its own position, so a connection between bodies at different positions
+    sees the two frames' roll difference: the primary's vertical deflection at an axle box
+    b1 off the centreline takes in b1 (cant_w - cant_b), its lateral one r0 (cant_w -
+    cant_b) at the axle's height, the centre plate's lateral one -h_cp (cant_c - cant_b),
+    with their rates: the spiral's twist loads the wheels as a cross-level twist of the same
+    size does. False leaves them out (the model before revision 2026-12-03.1; the centre
+    bowl's vertical and roll parts always had the difference)."""
 
     rail_vertical_stiffness: float = _stiffness(1.0e6)
     rail_lateral_stiffness: float = _stiffness(1.0e6)
@@ -292,6 +293,7 @@ class TrackData(WagonSection):
     rail_inclination: float = Field(ge=0.0, lt=0.1)
     rail_damping_capped: bool = True
     frame_rotation: bool = True
+    design_twist: bool = True
 
 
 class ContactData(WagonSection):
