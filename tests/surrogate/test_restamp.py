@@ -205,6 +205,19 @@ def _trained_straight_set(tmp_path):
     return read_network_set(folder)
 
 
+def _mixed_set(ns, folder):
+    """A set of ``ns``'s straight network (trained on today's laws) and its curve one
+    (carried over) in ``folder``, as bench/ship_networks.py writes one."""
+    return write_network_set(
+        ns.folder,
+        folder,
+        name="mixed",
+        conditions=["straight", "curve"],
+        accuracy=pd.concat([_scored("straight"), _scored("curve")]),
+        reproduce=["python train.py"],
+    )
+
+
 def test_a_set_of_trained_and_carried_over_networks_says_which_are_which(tmp_path):
     """A set with a network trained on today's force laws and others carried over
     (meta.restamped), as the shipped set was from stop 75 to stop 80. write_network_set
@@ -217,14 +230,7 @@ def test_a_set_of_trained_and_carried_over_networks_says_which_are_which(tmp_pat
     ns = _trained_straight_set(tmp_path)
     assert not load(ns.bundle("straight")).meta.get("restamped")  # trained on today's
     assert load(ns.bundle("curve")).meta.get("restamped")
-    made = write_network_set(
-        ns.folder,
-        tmp_path / "set",
-        name="mixed",
-        conditions=["straight", "curve"],
-        accuracy=pd.concat([_scored("straight"), _scored("curve")]),
-        reproduce=["python train.py"],
-    )
+    made = _mixed_set(ns, tmp_path / "set")
     manifest = json.loads((made.folder / MANIFEST).read_text())
     assert manifest["carried_over"] == ["curve"]
     stamp = load(ns.bundle("curve")).meta["restamped"][-1]["note"]
@@ -256,15 +262,7 @@ def test_a_restamp_carries_every_network_of_the_set_over(tmp_path):
     from railsusp.report_doc import Doc
     from railsusp.report_method import _network_set_text
 
-    ns = _trained_straight_set(tmp_path)
-    made = write_network_set(
-        ns.folder,
-        tmp_path / "mixed",
-        name="mixed",
-        conditions=["straight", "curve"],
-        accuracy=pd.concat([_scored("straight"), _scored("curve")]),
-        reproduce=["python train.py"],
-    )
+    made = _mixed_set(_trained_straight_set(tmp_path), tmp_path / "mixed")
     assert json.loads((made.folder / MANIFEST).read_text())["carried_over"] == ["curve"]
     older = "2026-12-02.1"  # the set as of the revision before today's
     for cond in ("straight", "curve"):
