@@ -96,6 +96,14 @@ def main() -> None:
     if args.restamp is not None and not args.restamp.strip():
         ap.error("--restamp NOTE: accepted a note that is not empty (why the set serves today)")
     ns = read_network_set(args.set)
+    if args.restamp is not None:  # a set that cannot be carried over: before the campaign
+        from railsusp.errors import RailsuspInputError
+        from railsusp.surrogate.restamp import check_restampable
+
+        try:
+            check_restampable(ns, wagon=load_wagon(), fields=_switched_since(ns))
+        except RailsuspInputError as exc:
+            ap.error(f"--restamp: {exc}")
     bench = _tracks_bench()
     # the set's track family: each key from the first bundle that states it (a network
     # trained on a campaign of one condition, the straight one of stop 75, states no curve)
@@ -149,6 +157,11 @@ def main() -> None:
         restamp(args, ns, pd.DataFrame(rows))
 
 
+def _switched_since(ns) -> tuple[str, ...]:
+    """The wagon fields the set's networks may differ in from today's wagon (SWITCHED_SINCE)."""
+    return tuple(SWITCHED_SINCE.get(ns.model_revision, FORCE_LAWS_BEFORE_2026_11_30_2))
+
+
 def restamp(args: argparse.Namespace, ns, rows: pd.DataFrame) -> None:
     """Carry the set over with its networks' rows on this campaign (docstring)."""
     from railsusp.surrogate.restamp import restamp_network_set
@@ -163,7 +176,7 @@ def restamp(args: argparse.Namespace, ns, rows: pd.DataFrame) -> None:
     out = restamp_network_set(
         args.set,
         wagon=load_wagon(),
-        fields=tuple(SWITCHED_SINCE.get(ns.model_revision, FORCE_LAWS_BEFORE_2026_11_30_2)),
+        fields=_switched_since(ns),
         accuracy=nets,
         note=args.restamp,
     )

@@ -207,16 +207,12 @@ _MEANING = {
 
 def estimate_simulated(est: dict) -> bool:
     """Whether an ``estimate.json``'s route ran the simulator: NSGA-II on it, a refinement
-    comparing it (older files name none: theirs did), simulator corrections or a simulator
-    polish. The network set's route without them simulates nothing until the validation."""
+    comparing it (older files name none: theirs did; a polish is the refinement's point) or
+    simulator corrections. The network set's route without them simulates nothing until
+    the validation."""
     ref = est.get("refinement") or {}
     refined = bool(ref) and (ref.get("compared_model") or "the simulator") == "the simulator"
-    return bool(
-        est.get("model") == "simulator"
-        or refined
-        or est.get("simulator_corrections")
-        or est.get("polished_display")
-    )
+    return bool(est.get("model") == "simulator" or refined or est.get("simulator_corrections"))
 
 
 def force_agreement(run: str | Path) -> pd.DataFrame:

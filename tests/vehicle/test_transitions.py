@@ -323,3 +323,31 @@ def test_the_frame_turns_only_within_the_transitions_the_constants_name(layout):
             turning += 1
             assert spans[0] <= s <= spans[1] or spans[2] <= s <= spans[3], s
     assert turning > 0
+
+
+@pytest.mark.parametrize("phase", [0.0, 0.2, 0.5, 0.7, 0.9])
+def test_rk4_takes_a_curvature_steps_yaw_impulse_once_on_a_fine_grid(phase):
+    """A curve entered without spiral steps the curvature within one grid cell: the frame's
+    yaw rate jumps by V kappa, an impulse that on a 5 mm grid passes in 0.45 ms, under the
+    1 ms step. RK4's stages (at the step's start, middle and end) must take it once,
+    wherever they fall: spread over the roll's window (at least a step's run) they do to
+    1e-9; left within its cell they took 0, 0.74 or 1.48 times of it."""
+    wagon = load_wagon()
+    cond = _condition().with_changes(cant_mm=0.0, entry_spiral_m=0.0)
+    settings = SolverSettings(track_step=0.005)
+    tracks, s0, ds = track_arrays(cond, [0], wagon, settings)
+    trk = np.ascontiguousarray(tracks[0])
+    point = point_of(ParameterSet.nominal().to_array(), wagon, cond)
+    k = constants(wagon, cond, point.P, point.contact, settings)
+    n, V = trk.shape[1], cond.speed
+    half = max(0.5, k[L.K["turn_half_window"]] / ds)
+
+    def yaw_acc(s):
+        i, f, inside = track_point(s, s0, 1.0 / ds, n)
+        return frame_turn(trk, i, f, inside, n, V, V / ds, half)[0]
+
+    rate, s = 0.0, START - 0.2 + phase * V * DT
+    for _ in range(40):
+        rate += DT / 6.0 * (yaw_acc(s) + 4.0 * yaw_acc(s + 0.5 * V * DT) + yaw_acc(s + V * DT))
+        s += V * DT
+    assert rate == pytest.approx(V / RADIUS, rel=1e-9)

@@ -53,6 +53,40 @@ def changed_wagon_fields(stored: dict[str, Any], wagon: Any) -> list[str]:
     return sorted(k for k in old.keys() | new.keys() if old.get(k, ...) != new.get(k, ...))
 
 
+def check_restampable(
+    ns: NetworkSet, *, wagon: Any, fields: Sequence[str]
+) -> dict[str, dict[str, Any]]:
+    """Refuse, in one line, a network set that :func:`restamp_network_set` cannot carry
+    over to today's revision with ``wagon``: one of today's revision already or of a newer
+    one, or a bundle trained on a wagon that differs from ``wagon`` beyond ``fields``. Reads
+    the manifest and the bundles' ``surrogate.json`` only, so that a caller checks it before
+    the scoring campaign it would otherwise run first (bench/rescore_networks.py: hours, then
+    the refusal). Returns each condition's ``surrogate.json`` document."""
+    from railsusp.vehicle import MODEL_REVISION
+    from railsusp.vehicle.revision import Standing, made_with, newer_remedy, standing
+
+    if standing(ns.model_revision) is Standing.NEWER:  # not carried back to older force laws
+        raise RailsuspInputError(
+            f"network set {ns.name!r} ({ns.folder / MANIFEST}) was trained with "
+            f"{made_with(ns.model_revision)}: {newer_remedy(ns.model_revision)}"
+        )
+    if ns.model_revision == MODEL_REVISION:
+        raise RailsuspInputError(
+            f"network set {ns.name!r} is of revision {MODEL_REVISION} already: nothing to stamp"
+        )
+    docs = {}
+    for cond in ns.conditions:
+        doc = read_json(ns.bundle(cond) / "surrogate.json")
+        other = [f for f in changed_wagon_fields(doc["wagon"], wagon) if f not in fields]
+        if other:
+            raise RailsuspInputError(
+                f"{ns.bundle(cond)}: trained on a wagon that differs in {', '.join(other)} "
+                f"beyond the revision's fields ({', '.join(fields) or 'none'}); train it again"
+            )
+        docs[cond] = doc
+    return docs
+
+
 def restamp_network_set(
     folder: str | Path,
     *,
@@ -72,19 +106,10 @@ def restamp_network_set(
     (``model_revision_note``, the earlier notes in ``model_revision_history``) and in each
     bundle's ``meta.restamped``."""
     from railsusp.vehicle import MODEL_REVISION
-    from railsusp.vehicle.revision import Standing, made_with, newer_remedy, standing
 
     folder = Path(folder)
     ns = read_network_set(folder)
-    if standing(ns.model_revision) is Standing.NEWER:  # not carried back to older force laws
-        raise RailsuspInputError(
-            f"network set {ns.name!r} ({folder / MANIFEST}) was trained with "
-            f"{made_with(ns.model_revision)}: {newer_remedy(ns.model_revision)}"
-        )
-    if ns.model_revision == MODEL_REVISION:
-        raise RailsuspInputError(
-            f"network set {ns.name!r} is of revision {MODEL_REVISION} already: nothing to stamp"
-        )
+    docs = check_restampable(ns, wagon=wagon, fields=fields)
     if not note.strip():
         raise RailsuspInputError("note: say why the set serves the new revision")
     scored = {
@@ -97,16 +122,6 @@ def restamp_network_set(
             f"accuracy: no Y and Q rows of condition(s) {', '.join(missing)} scored on "
             f"revision {MODEL_REVISION}; score every condition of the set first"
         )
-    docs = {}
-    for cond in ns.conditions:
-        doc = read_json(ns.bundle(cond) / "surrogate.json")
-        other = [f for f in changed_wagon_fields(doc["wagon"], wagon) if f not in fields]
-        if other:
-            raise RailsuspInputError(
-                f"{ns.bundle(cond)}: trained on a wagon that differs in {', '.join(other)} "
-                f"beyond the revision's fields ({', '.join(fields) or 'none'}); train it again"
-            )
-        docs[cond] = doc
     manifest = read_json(folder / MANIFEST)
     stamp = {
         "from": ns.model_revision,
@@ -130,7 +145,14 @@ def restamp_network_set(
             meta = doc.setdefault("meta", {})
             # the bundle now serves today's force laws (estimate.forces.check_force_laws and
             # write_network_set read this); the revision it was trained on stays in the stamp
-            trained = meta.get("model_revision")
+            # (a bundle carried over before was trained on its first stamp's, not on the
+            # revision it served since; stamps before they recorded it: that one's "from")
+            earlier = meta.get("restamped") or []
+            trained = (
+                (earlier[0].get("trained") or earlier[0].get("from"))
+                if earlier
+                else meta.get("model_revision")
+            )
             meta["restamped"] = [*meta.get("restamped", []), {**stamp, "trained": trained}]
             meta["model_revision"] = MODEL_REVISION
             write_json(tmp / cond / "surrogate.json", doc)
@@ -153,4 +175,4 @@ def restamp_network_set(
     return read_network_set(folder)
 
 
-__all__ = ["changed_wagon_fields", "restamp_network_set"]
+__all__ = ["changed_wagon_fields", "check_restampable", "restamp_network_set"]

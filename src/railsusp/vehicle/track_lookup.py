@@ -70,7 +70,8 @@ def frame_turn(trk, i, f, inside, n, V, v_per_ds, half):
     u + half] over its width (the derivative of the slope's moving average), so that a body
     passing it gains the frame's roll rate change in full, and an RK4 step no longer than
     the window's passage integrates it (half = 0.5: the cant's second difference at the
-    nearest sample). Zero outside the grid and where the window leaves it."""
+    nearest sample). The yaw is spread over the same window where it is wider than a cell
+    (a curvature step's impulse). Zero outside the grid and where the window leaves it."""
     if not inside:
         return 0.0, 0.0
     yaw = V * v_per_ds * (trk[L.TR_KAPPA, i + 1] - trk[L.TR_KAPPA, i])
@@ -81,6 +82,15 @@ def frame_turn(trk, i, f, inside, n, V, v_per_ds, half):
         return yaw, 0.0
     il = int(lo)
     ih = int(hi)
+    if half > 0.5:
+        # a step of the curvature (a curve entered or left without spiral) is an impulse
+        # of the yaw rate within one cell: spread over the same window as the roll's (the
+        # slope of the curvature's moving average), so that an RK4 step longer than the
+        # cell's passage takes it once (0 to 1.48 times on a 5 mm grid at 40 km/h)
+        k = L.TR_KAPPA
+        k_lo = trk[k, il] + (lo - il) * (trk[k, il + 1] - trk[k, il])
+        k_hi = trk[k, ih] + (hi - ih) * (trk[k, ih + 1] - trk[k, ih])
+        yaw = V * v_per_ds * (k_hi - k_lo) / (2.0 * half)
     c = L.TR_CANT
     d = (trk[c, ih + 1] - trk[c, ih]) - (trk[c, il + 1] - trk[c, il])
     return yaw, v_per_ds * v_per_ds * d / (2.0 * half)
