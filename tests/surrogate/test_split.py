@@ -252,6 +252,14 @@ def test_estimate_lists_the_parameters_it_did_not_estimate(many_tracks, tmp_path
     )
     assert t.loc["X20", "verdict"].startswith("not estimated: held at 1000 MN/m")
     doc = json.loads((run / "estimate" / "estimate.json").read_text())
+    # a polish by a refinement that compared the surrogate simulated nothing either
+    doc["refinement"] = {
+        "compared_model": "the window surrogates in s",
+        "standard_error_pct_range": {},
+    }
+    doc["polished_display"] = {"X13": 16.0}
+    write_json(run / "estimate" / "estimate.json", doc)
+    assert "in the validation's simulations" in summary.estimate_table(run).loc["X19", "verdict"]
     doc["refinement"] = {"compared_model": "the simulator", "standard_error_pct_range": {}}
     write_json(run / "estimate" / "estimate.json", doc)
     assert summary.estimate_table(run).loc["X19", "verdict"] == (
