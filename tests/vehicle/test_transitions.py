@@ -22,6 +22,7 @@ from railsusp.vehicle.integrate import _run_one
 from railsusp.vehicle.model import rhs as model_rhs
 from railsusp.vehicle.operating_point import LinearisationPoint, point_of
 from railsusp.vehicle.setup import SolverSettings, constants
+from railsusp.vehicle.suspension import series_stiffness
 from railsusp.vehicle.track_grid import track_arrays
 from railsusp.vehicle.track_lookup import frame_turn, track_point, track_rate
 from railsusp.vehicle.wagon import FORCE_LAWS_BEFORE_2026_12_03_1, WagonData, load_wagon
@@ -351,3 +352,40 @@ def test_rk4_takes_a_curvature_steps_yaw_impulse_once_on_a_fine_grid(phase):
         rate += DT / 6.0 * (yaw_acc(s) + 4.0 * yaw_acc(s + 0.5 * V * DT) + yaw_acc(s + V * DT))
         s += V * DT
     assert rate == pytest.approx(V / RADIUS, rel=1e-9)
+
+
+def test_the_primarys_lateral_twist_moves_the_axle_box_and_its_rate_with_it():
+    """The design twist's lateral part in the primary, at the rhs: a leading wheelset just
+    past the ramp's start, its bogie centre still before it, stands on cant
+    phi_w = (s_w - START) dphi/ds rolled against the bogie's 0, which moves its axle box,
+    r0 above the rail, across by -r0 phi_w in the bogie's frame, at the rate -r0 V dphi/ds
+    (the two frames' roll rates differ here by the whole ramp's). With the wagon at rest in
+    its frames, switching the twist on changes the lateral force on the wheelset by
+    2 r0 (k_py phi_w + c_py V dphi/ds) (both sides), the side frames' by as much the other
+    way: the displacement's and the damper's parts, each with its sign (the damper's,
+    a quarter of the spring's here, went untested: its sign flipped, every other test passed)."""
+    point = _point(load_wagon())
+    k = point.K
+    flat = k.copy()
+    flat[L.K["design_twist"]] = 0.0
+    a, r0, V = k[L.K["a"]], k[L.K["r0"]], point.speed
+    s_front = START + 0.4 * a  # the bogie centre, a behind, before the ramp
+    x = np.zeros(L.N_STATE)
+    new, _ = _rhs(point, k, x, s_front)
+    was, _ = _rhs(point, flat, x, s_front)
+    inertia = point.dof_inertia()
+    iw, jf = L.WS0, L.SF0
+    k_py = series_stiffness(point.P[13], point.P[19])
+    phi_w = float(
+        np.interp(
+            s_front, point.s0 + point.ds * np.arange(point.track.shape[1]), point.track[L.TR_CANT]
+        )
+    )
+    i = int((s_front - point.s0) / point.ds)
+    rate = V / point.ds * (point.track[L.TR_CANT, i + 1] - point.track[L.TR_CANT, i])
+    assert rate == pytest.approx(V * _cant_slope(), rel=1e-3)
+    want = 2.0 * r0 * (k_py * phi_w + k[L.K["c_py"]] * rate)
+    assert (new - was)[NQ + iw] * inertia[iw] == pytest.approx(want, rel=1e-9)
+    for side_frame in (jf, jf + 5):
+        got = (new - was)[NQ + side_frame + 1] * inertia[side_frame + 1]
+        assert got == pytest.approx(-want / 2.0, rel=1e-9)
