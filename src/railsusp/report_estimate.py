@@ -8,7 +8,7 @@ from pathlib import Path
 import pandas as pd
 
 from railsusp.estimate.intervals import IDENTIFIED_WIDTH_PCT
-from railsusp.estimate.refine import CHOICE
+from railsusp.estimate.refine import CHOICE, compared_model_of
 from railsusp.report_doc import Doc, fraction_errors_to_pct, header
 from railsusp.store import read_json
 
@@ -186,8 +186,7 @@ def estimate_section(doc: Doc, est: Path) -> None:
     drawn = (ref or {}).get("expected_draws")
     on_drawn = f" (the mean over {drawn} draws of the true track geometry)" if drawn else ""
     corrected = bool(info.get("simulator_corrections"))
-    # the model the refinement compared (older estimate.json files: the simulator's)
-    compared = (ref or {}).get("compared_model") or "the simulator"
+    compared = compared_model_of(ref)
     made = (
         "The estimate starts from NSGA-II's on the surrogate against the recordings' "
         "time-aligned forces on their measured track ("

@@ -210,8 +210,10 @@ def estimate_simulated(est: dict) -> bool:
     comparing it (older files name none: theirs did; a polish is the refinement's point) or
     simulator corrections. The network set's route without them simulates nothing until
     the validation."""
-    ref = est.get("refinement") or {}
-    refined = bool(ref) and (ref.get("compared_model") or "the simulator") == "the simulator"
+    from railsusp.estimate.refine import SIMULATOR_TEXT, compared_model_of
+
+    ref = est.get("refinement")
+    refined = bool(ref) and compared_model_of(ref) == SIMULATOR_TEXT
     return bool(est.get("model") == "simulator" or refined or est.get("simulator_corrections"))
 
 

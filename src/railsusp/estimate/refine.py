@@ -325,6 +325,13 @@ def least_squares_from(
 SIMULATOR_TEXT = "the simulator"
 
 
+def compared_model_of(refinement: dict | None) -> str:
+    """The force model a refinement recorded in an ``estimate.json`` compared (its
+    ``compared_model``, :func:`model_text`): older files name none, and theirs compared
+    the simulator."""
+    return (refinement or {}).get("compared_model") or SIMULATOR_TEXT
+
+
 def model_text(model: ForceModel) -> str:
     """The force model a refinement compares, in words for the route: "the simulator", the
     window surrogates of a folder, else the model's class. A model averaged over drawn
