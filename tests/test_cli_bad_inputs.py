@@ -338,6 +338,13 @@ def test_a_folder_named_like_a_table_is_called_a_folder(tmp_path):
     refused(["sections", str(folder)], "a folder, not a recording file")
 
 
+def test_the_current_folder_as_a_recording_is_called_a_folder(tmp_path, monkeypatch):
+    """Before: ``check-recording .`` (an engineer in the field folder) was a ValueError's
+    traceback, exit 1: the folder "." has no name to find its table by."""
+    monkeypatch.chdir(tmp_path)
+    refused(["check-recording", "."], "a folder, not a recording table")
+
+
 @pytest.mark.parametrize(
     ("args", "needle"),
     [

@@ -340,6 +340,15 @@ def test_a_damaged_measured_folder_is_refused_before_any_stage(tmp_path, blind_f
     assert "field.measured: " in line and needle in line, line
 
 
+def test_a_missing_wagon_beside_a_measured_folder_is_named_as_the_wagons(tmp_path, blind_field):
+    """The folder's recordings are read as the run's wagon before the wagon's own check: a
+    wagon file that does not exist was said as "field.measured: wagon file ... does not
+    exist", naming the folder, which was fine."""
+    line = run_refused(tmp_path, 'wagon = "nowhere.toml"\n' + toml(f'measured = "{blind_field}"'))
+    assert "wagon: wagon file nowhere.toml does not exist" in line, line
+    assert "field.measured" not in line, line
+
+
 def test_a_condition_file_named_in_the_list_is_pointed_to_a_table(tmp_path):
     """The message offered "or a TOML file", which the configuration's list then refused."""
     cfg = tmp_path / "c.toml"
@@ -482,8 +491,36 @@ def test_measured_recordings_outside_a_network_sets_training_are_refused(tmp_pat
     assert "speed_kmh = 40.0, outside what its network was trained on" in line
 
 
+@pytest.mark.parametrize("steps", [50, 100])
+def test_records_no_longer_than_a_network_sets_window_are_refused(tmp_path, steps):
+    """A network set's sequence networks read 100 steps before their first prediction: a
+    condition of no more steps (1 s at 50 Hz) was accepted, the campaign, sensitivity,
+    surrogate and field stages ran, and the estimate stage failed on predictions of NaN
+    alone with pymoo's "Invalid progress was set by the TerminationCriterion"."""
+    text = (
+        f'name = "t"\nconditions = [{{base = "straight", duration_s = {steps / 50}, '
+        f"n_steps = {steps}}}]\n"
+        '[surrogate]\nmodel = "cnn-gru-seq"\npretrained = "c80_k6"\n'
+        "[field]\ntruth = {X13 = 16.1}\nwith_track = true\n"
+    )
+    line = run_refused(tmp_path, text)
+    assert (
+        "surrogate.pretrained = 'c80_k6': its networks read 100 steps before their first "
+        f"prediction; the conditions straight (n_steps = {steps}) have no more steps than "
+        "that: accepted n_steps > 100"
+    ) in line
+    ok = tmp_path / "ok.toml"  # one step more predicts: accepted
+    ok.write_text(
+        text.replace(f"n_steps = {steps}", "n_steps = 101").replace(
+            f"duration_s = {steps / 50}", "duration_s = 2.02"
+        )
+    )
+    assert load_config(ok).conditions[0]["n_steps"] == 101
+
+
 PRETRAINED = 'model = "cnn-gru-seq"\npretrained = "c80_k6"'
-TWO_SECONDS = 'conditions = [{base = "straight", duration_s = 2.0, n_steps = 100}]'
+# a network set predicts past its networks' 100-step washout: more steps than that
+THREE_SECONDS = 'conditions = [{base = "straight", duration_s = 3.0, n_steps = 150}]'
 
 
 @pytest.mark.parametrize(
@@ -509,7 +546,7 @@ TWO_SECONDS = 'conditions = [{base = "straight", duration_s = 2.0, n_steps = 100
 def test_estimate_settings_that_failed_or_were_ignored_at_the_estimate_stage(
     tmp_path, field, estimate, surrogate, said
 ):
-    text = toml(field, estimate, surrogate).replace(f"conditions = {SHORT}", TWO_SECONDS)
+    text = toml(field, estimate, surrogate).replace(f"conditions = {SHORT}", THREE_SECONDS)
     assert said in run_refused(tmp_path, text)
 
 
@@ -713,7 +750,7 @@ def test_geometry_draws_where_no_step_draws_them_are_refused(tmp_path, field, es
     the refinement (``railsusp estimate`` warned of it; a run's configuration said
     nothing). Where a step draws them, and at their defaults, they are accepted."""
     text = toml(f"truth = {{ X13 = 16.1 }}\n{field}", estimate, PRETRAINED)
-    assert said in run_refused(tmp_path, text.replace(f"conditions = {SHORT}", TWO_SECONDS))
+    assert said in run_refused(tmp_path, text.replace(f"conditions = {SHORT}", THREE_SECONDS))
     for field, estimate in (
         ("with_track = true\ntrack_noise_mm = 0.5", 'statistic = "aligned"\ngeometry_draws = 4'),
         ("with_track = true\ntrack_noise_mm = 0.5", "refine = true\nremove_geometry_bias = false"),
@@ -725,7 +762,7 @@ def test_geometry_draws_where_no_step_draws_them_are_refused(tmp_path, field, es
         ok = tmp_path / "ok.toml"
         ok.write_text(
             toml(f"truth = {{ X13 = 16.1 }}\n{field}", estimate, PRETRAINED).replace(
-                f"conditions = {SHORT}", TWO_SECONDS
+                f"conditions = {SHORT}", THREE_SECONDS
             )
         )
         load_config(ok)

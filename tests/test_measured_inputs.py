@@ -113,6 +113,27 @@ def test_a_table_time_column_in_other_units_is_converted(tmp_path, unit, factor)
     assert raw["Y_w1R_kN"].rate_hz == pytest.approx(200.0)
 
 
+def test_a_long_runs_distance_column_named_as_its_time_is_refused_not_read_as_seconds(tmp_path):
+    """A map's ``time = "distance_m"`` read the metres as seconds: a 2 km run sampled every
+    centimetre at 60 km/h read as 2000 s at 100 Hz, its position integrated to 33 km, and
+    was cut into sections of that length without a word."""
+    s = np.arange(0.0, 2000.0, 0.01)
+    rng = np.random.default_rng(0)
+    df = pd.DataFrame(
+        {
+            "distance_m": s,
+            "speed_kmh": np.full(s.size, 60.0),
+            "Y_w1R_kN": 5.0 + rng.standard_normal(s.size),
+            "Q_w1R_kN": 120.0 + rng.standard_normal(s.size),
+        }
+    )
+    df.to_csv(tmp_path / "r.csv", index=False)
+    wheels = {"w1R": {"Y": "Y_w1R_kN", "Q": "Q_w1R_kN"}}
+    cmap = channel_map_from({"time": "distance_m", "speed": "speed_kmh", "wheels": wheels})
+    with pytest.raises(RecordingError, match="'distance_m', the time column, is a distance"):
+        read_run(tmp_path / "r.csv", cmap)
+
+
 def test_a_table_time_column_in_an_unknown_unit_is_refused(tmp_path):
     pd.DataFrame({"time [fortnight]": [0.0, 1.0], "Y_kN": [1.0, 2.0]}).to_csv(
         tmp_path / "r.csv", index=False

@@ -184,3 +184,26 @@ def test_a_negative_cant_channel_is_refused_when_the_run_is_read(tmp_path):
         "magnitude (the outer rail's height above the inner's): a signed cant? give its "
         "magnitude"
     ]
+
+
+def test_a_speed_channel_starting_after_the_forces_says_what_is_accepted(tmp_path):
+    """A 10 Hz speed from a CAN bus whose first message came 0.5 s after the logger started
+    was refused naming the spans alone ("not the 0.000-19.995 s of the forces"): neither
+    what is accepted nor what to do."""
+    rng = np.random.default_rng(0)
+    t = np.arange(0, 20, 1 / 200)
+    mdf = MDF(version="4.10")
+    mdf.append(
+        [
+            Signal(5 + rng.standard_normal(t.size), t, name="Y_R", unit="kN"),
+            Signal(120 + rng.standard_normal(t.size), t, name="Q_R", unit="kN"),
+        ]
+    )
+    path = _with_speed_saved(mdf, tmp_path / "late.mf4", np.arange(0.5, 20.1, 0.1))
+    with pytest.raises(RecordingError) as err:
+        read_run(path, channel_map_from(MAP))
+    assert err.value.problems[0] == (
+        "channel 'v': covers 0.500-20.000 s, not the 0.000-19.995 s of the forces; accepted "
+        "a channel covering their span to within 0.125 s at either end (its sampling interval "
+        "and jitter): cut the file to the span every used channel covers"
+    )

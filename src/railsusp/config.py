@@ -141,6 +141,7 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
         check_estimate_options,
         check_held_prior,
         check_network_set,
+        check_network_window,
         check_recordings_served,
         check_surrogate_training,
     )
@@ -199,6 +200,8 @@ def check_config(cfg: Any, where: str = "configuration") -> None:
     if cfg.surrogate.pretrained is not None:
         check_network_set(cfg, conds, bad)
     check_recordings_served(cfg, conds, recordings, bad)
+    if cfg.surrogate.pretrained is not None:  # after the set's own checks, which name more
+        check_network_window(cfg, conds, recordings, bad)
     if cfg.scheduler is not None:
         from railsusp.campaign.dask_cluster import check_scheduler_address
 

@@ -149,6 +149,30 @@ def check_network_set(cfg: Any, conds: list, bad: Any, what: str = "") -> None:
         raise bad(f"{what}{exc}") from None
 
 
+def check_network_window(cfg: Any, conds: list, recordings: list, bad: Any) -> None:
+    """``[surrogate] pretrained``: every record its networks predict (a ``[field] measured``
+    folder's ``recordings``, else the synthetic recordings of the conditions ``conds``)
+    longer than its network's window (the sequence CNN-GRU's washout), as
+    :func:`check_surrogate_training` asks of the surrogates a run trains. A shorter one was
+    accepted and predicted nothing but NaN: the estimate stage failed after four stages
+    with pymoo's "Invalid progress was set by the TerminationCriterion"."""
+    from railsusp.surrogate.pretrained import load_bundle, read_network_set, resolve_network_set
+
+    ns = read_network_set(resolve_network_set(cfg.surrogate.pretrained))
+    served = [r.condition for r in recordings] if recordings else conds
+    windows = {c: load_bundle(ns.bundle(c)).spec.window for c in {s.name for s in served}}
+    short = [c for c in served if c.n_steps <= windows[c.name]]
+    if short:
+        what = "field.measured's recordings" if recordings else "the conditions"
+        window = max(windows[c.name] for c in short)
+        raise bad(
+            f"surrogate.pretrained = {cfg.surrogate.pretrained!r}: its networks read {window} "
+            f"steps before their first prediction; {what} "
+            f"{', '.join(f'{c.name} (n_steps = {c.n_steps})' for c in short)} have no more "
+            f"steps than that: accepted n_steps > {window} (longer records)"
+        )
+
+
 def check_held_prior(cfg: Any, bad: Any) -> None:
     """``[estimate] held_prior``: known main-suspension symbols, [low, high] inside Table 2
     with low < high (:class:`~railsusp.estimate.config.HeldPrior`), and a refinement whose

@@ -53,9 +53,14 @@ def measured_recordings(cfg: Any, bad: Any) -> list:
         from railsusp.measured import read_field
         from railsusp.vehicle.wagon import load_wagon
 
+        try:  # a wagon that does not load is the wagon's error, not the folder's (it was
+            # said as "field.measured: wagon file ... does not exist")
+            wagon = load_wagon(cfg.wagon)
+        except RailsuspInputError as exc:
+            raise bad(f"wagon: {exc}") from None
         try:  # every recording read and checked now, not in the field stage after the
             # campaign, the sensitivity and the surrogates; against the run's wagon
-            recordings = read_field(folder, wagon=load_wagon(cfg.wagon))
+            recordings = read_field(folder, wagon=wagon)
         except RailsuspInputError as exc:
             raise bad(f"field.measured: {exc}") from None
     return recordings

@@ -236,11 +236,16 @@ def _read_table(path: Path, time_column: str | None) -> dict[str, RawChannel]:
             path, [f"no time column ({tcol or 'time_s, time [s]'}){hint}; columns {cols}"]
         )
     tname, tunit = split_header(tcol)
-    # a unit other than s and ms was read as seconds (a "time [msec]" column of 200 Hz); a
-    # field table's distance_m is its axis too (put on time by the reader, over the speed)
-    quantity = "position" if tname == "distance" else "time"
-    try:
-        factor = 1.0 if tunit is None else si_factor(quantity, tunit, tcol)
+    if tname == "distance":  # its metres were read as seconds: 2 km at 60 km/h as 33 km
+        raise RecordingError(
+            path,
+            [
+                f"column {tcol!r}, the time column, is a distance, not time; accepted a time "
+                "column (time_s, 't [s]'; the map's time = ...), the distance as position = ..."
+            ],
+        )
+    try:  # a unit other than s and ms was read as seconds (a "time [msec]" column of 200 Hz)
+        factor = 1.0 if tunit is None else si_factor("time", tunit, tcol)
     except RailsuspInputError as exc:
         raise RecordingError(path, [str(exc)]) from None
     t, why, _ = column_numbers(df[tcol])

@@ -260,6 +260,8 @@ def _table_of(path: Path) -> Path:
     other held)."""
     if path.is_file() and path.suffix.lower() in (".csv", ".parquet"):  # up.CSV as up.csv
         return path
+    if not path.name:  # "." or "/": no stem to name a table by (a ValueError's traceback)
+        raise RecordingError(path, ["a folder, not a recording table"])
     stem = path.with_suffix("") if path.suffix.lower() in (".json", ".csv", ".parquet") else path
     found = [
         p for p in (stem.with_name(stem.name + s) for s in (".csv", ".parquet")) if p.is_file()

@@ -208,9 +208,11 @@ def check_spans(si: dict[str, RawChannel], base: str, quantity: dict[str, str]) 
         ch = si[c]
         tol = (1.0 + jitter_of(q)) / ch.rate_hz  # its last sample's time may jitter
         if ch.time[0] > t[0] + tol or ch.time[-1] < t[-1] - tol:
-            problems.append(
+            problems.append(  # (what is accepted, and the remedy: it said neither)
                 f"channel {c!r}: covers {ch.time[0]:.3f}-{ch.time[-1]:.3f} s, not the "
-                f"{t[0]:.3f}-{t[-1]:.3f} s of the forces"
+                f"{t[0]:.3f}-{t[-1]:.3f} s of the forces; accepted a channel covering their "
+                f"span to within {tol:.3g} s at either end (its sampling interval and "
+                "jitter): cut the file to the span every used channel covers"
             )
         elif q == "force":
             problems += beyond_base(ch, si[base])
