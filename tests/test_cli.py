@@ -56,6 +56,23 @@ def test_bad_input_is_one_line_with_status_2(args, needle):
     assert len(proc.stderr.strip().splitlines()) == 1, proc.stderr
 
 
+def test_python_dash_m_railsusp_runs_the_command():
+    """``python -m railsusp`` is the ``railsusp`` command (it failed: no __main__ module)."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "railsusp", "params", "--set", "X99=1"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert proc.returncode == 2, proc.stderr
+    assert "unknown parameter 'X99'" in proc.stderr
+    ok = subprocess.run(
+        [sys.executable, "-m", "railsusp", "--help"], capture_output=True, text=True, timeout=60
+    )
+    assert ok.returncode == 0, ok.stderr
+    assert "demo" in ok.stdout
+
+
 def test_demo_is_registered_with_the_embedded_default():
     result = runner.invoke(app, ["demo", "--help"])
     assert result.exit_code == 0 and "examples/quick.toml" in result.output
