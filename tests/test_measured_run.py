@@ -13,7 +13,7 @@ from asammdf import MDF, Signal
 from railsusp.condition_files import load_conditions
 from railsusp.errors import RailsuspInputError
 from railsusp.measured import RecordingError, read_field
-from railsusp.measured.channels import channel_map_from, read_channel_map
+from railsusp.measured.channels import channel_map_from, is_documented, read_channel_map
 from railsusp.measured.run import MeasuredRun, read_run
 from railsusp.measured.sections import (
     NO_TRACK_NOTE,
@@ -807,3 +807,65 @@ def test_a_speed_from_an_odometer_counting_metres_is_steady_at_30_kmh(tmp_path):
     secs = cut_sections(run)
     assert [s.kind for s in secs if s.kept] == ["tangent"], sections_table(secs)
     assert secs[0].end - secs[0].start > 0.95 * t.size
+
+
+def test_a_long_runs_unused_mdf_channels_are_listed_without_their_samples(tmp_path):
+    """Only the channels the map uses keep their samples (an instrumented wheelset's logger
+    records many more, which held a long run's memory); the others are listed (name, unit,
+    notes) without them, and the run read is the one read with every channel kept."""
+    from dataclasses import fields
+
+    import railsusp.measured.run as run_module
+    from railsusp.measured.raw import read_raw
+
+    path = write_mdf(tmp_path / "run.mf4")
+    cmap = channel_map_from({**MAP, "ignore": []})
+    raw = read_raw(path, keep=set(cmap.used()).__contains__)
+    assert raw["acc_bogie_y_g"].listed and raw["acc_bogie_y_g"].values.size == 0
+    assert raw["acc_bogie_y_g"].time.tolist() == pytest.approx([0.0, 19.995])
+    assert not raw["Y_R"].listed and raw["Y_R"].values.size == 4000
+    # the speed and position channels of one data group share its time base's array
+    assert raw["v"].time is raw["s"].time
+
+    def every_channel(path, time_column=None, keep=None):
+        return read_raw(path, time_column)
+
+    lean = read_run(path, cmap)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(run_module, "read_raw", every_channel)
+        whole = read_run(path, cmap)
+    assert "channel(s) not used: acc_bogie_y_g" in lean.notes
+    for f in fields(lean):
+        a, b = getattr(lean, f.name), getattr(whole, f.name)
+        if isinstance(a, dict):
+            assert a.keys() == b.keys()
+            for k in a:
+                np.testing.assert_array_equal(a[k], b[k])
+        elif isinstance(a, np.ndarray):
+            np.testing.assert_array_equal(a, b)
+        else:
+            assert a == b, f.name
+
+
+def test_an_mdf_run_by_its_documented_names_keeps_only_those_channels(tmp_path):
+    """Without a channel map the documented names are the channels kept; others listed."""
+    t = np.arange(0, 20, 1 / 200.0)
+    ts = np.arange(0, 20.1, 0.1)
+    mdf = MDF(version="4.10")
+    mdf.append(
+        [
+            Signal(5.0 + np.sin(t), t, name="Y_w1R_kN", unit="kN"),
+            Signal(120.0 + np.sin(t), t, name="Q_w1R_kN", unit="kN"),
+            Signal(np.zeros(t.size), t, name="bridge_7_raw", unit="mV/V"),
+        ]
+    )
+    mdf.append([Signal(np.full(ts.size, 54.0), ts, name="speed_kmh", unit="km/h")])
+    mdf.save(tmp_path / "doc.mf4", overwrite=True)
+    mdf.close()
+    from railsusp.measured.raw import read_raw
+
+    raw = read_raw(tmp_path / "doc.mf4", keep=is_documented)
+    assert raw["bridge_7_raw"].listed and not raw["Q_w1R_kN"].listed
+    run = read_run(tmp_path / "doc.mf4")
+    np.testing.assert_allclose(run.Q["w1R"], 120e3 + 1e3 * np.sin(run.time), atol=1e-6)
+    assert any("not used: bridge_7_raw" in n for n in run.notes)

@@ -210,6 +210,12 @@ _DOCUMENTED = {
 }
 
 
+def is_documented(header: str) -> bool:
+    """Whether a column or channel name is one of the documented names that
+    :func:`default_map` recognises."""
+    return _documented(header) is not None
+
+
 def _documented(header: str) -> tuple[str, str] | None:
     """What a documented column name is: ("Y" or "Q", wheel), ("signal", quantity) or
     ("time", ""); None for a name it does not recognise."""

@@ -8,6 +8,7 @@ from __future__ import annotations
 import gc
 import sys
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -44,6 +45,9 @@ class RawChannel:
     #: tables: why the column is no channel (named twice, cells not numbers), as a problem
     #: to follow ``column 'X'`` and in short; refused where the map uses it, noted where not
     unreadable: tuple[str, str] | None = None
+    #: MDF: read without its samples (``read_raw``'s ``keep``): ``time`` is its first and last
+    #: timestamp, ``values`` empty
+    listed: bool = False
 
     @property
     def rate_hz(self) -> float:
@@ -53,8 +57,16 @@ class RawChannel:
         return float(1.0 / np.median(d)) if d.size and np.median(d) > 0 else float("nan")
 
 
-def read_raw(path: str | Path, time_column: str | None = None) -> dict[str, RawChannel]:
-    """Every channel of a recording, by name; errors name the file and what is wrong."""
+def read_raw(
+    path: str | Path, time_column: str | None = None, keep: Callable[[str], bool] | None = None
+) -> dict[str, RawChannel]:
+    """Every channel of a recording, by name; errors name the file and what is wrong.
+
+    ``keep(name)``: of an MDF file, the channels whose samples are kept; the others are
+    listed with their name, unit, master and groups but no samples (:attr:`RawChannel.listed`),
+    so that a long run's memory holds only the channels a channel map uses. An instrumented
+    wheelset's logger records many more (bridges, temperatures, GPS): an hour of 40 channels
+    at 1 kHz is 2.3 GB of samples and timestamps in float64. Tables are read whole."""
     path = Path(path)
     if path.is_dir():
         raise RailsuspInputError(f"recording {path}: a folder, not a recording file")
@@ -62,7 +74,7 @@ def read_raw(path: str | Path, time_column: str | None = None) -> dict[str, RawC
         raise RailsuspInputError(f"recording {path}: no such file")
     suffix = path.suffix.lower()
     if suffix in MDF_SUFFIXES:
-        return _read_mdf(path)
+        return _read_mdf(path, keep)
     if suffix in TABLE_SUFFIXES:
         return _read_table(path, time_column)
     raise RailsuspInputError(
@@ -71,10 +83,14 @@ def read_raw(path: str | Path, time_column: str | None = None) -> dict[str, RawC
     )
 
 
-def _read_mdf(path: Path) -> dict[str, RawChannel]:
-    """Channels of an MDF file, each on its own group's time base (as the file states it)."""
+def _read_mdf(path: Path, keep: Callable[[str], bool] | None) -> dict[str, RawChannel]:
+    """Channels of an MDF file, each on its own group's time base (as the file states it);
+    only those ``keep`` names with their samples (:func:`read_raw`). asammdf reads one
+    channel at a time, so the memory held is the kept channels' and one more; the kept
+    channels of one data group share its time base's array."""
     mdf = _open_mdf(path)
     out: dict[str, RawChannel] = {}
+    times: dict[int, np.ndarray] = {}  # a data group's time base, s
     last = None  # the last channel read whole, to say where a damaged file breaks
     try:
         for sig in mdf.iter_channels(skip_master=True):
@@ -82,19 +98,21 @@ def _read_mdf(path: Path) -> dict[str, RawChannel]:
             if sig.samples.dtype.kind not in "fiub" or sig.samples.ndim != 1:
                 continue  # text, byte-array and composed channels carry no measured value
             master, scale = _master(mdf, sig)
-            values = np.asarray(sig.samples, dtype=float)
-            if sig.invalidation_bits is not None:  # samples the logger marked invalid
-                invalid = np.asarray(sig.invalidation_bits, dtype=bool)
-                if invalid.any():
-                    values = np.where(invalid, np.nan, values)  # then checked as gaps are
-            part = RawChannel(
-                sig.name,
-                sig.unit or None,
-                np.asarray(sig.timestamps, dtype=float) * scale,
-                values,
-                first_row=0,
-                master=master,
-            )
+            if keep is not None and not keep(sig.name):  # its span only, for the groups
+                stamps = np.asarray(sig.timestamps, dtype=float)
+                span = stamps[[0, -1]] * scale if stamps.size else stamps
+                part = RawChannel(
+                    sig.name, sig.unit or None, span, np.empty(0), 0, master=master, listed=True
+                )
+            else:
+                part = RawChannel(
+                    sig.name,
+                    sig.unit or None,
+                    _group_time(times, sig, scale),
+                    _values(sig),
+                    first_row=0,
+                    master=master,
+                )
             if sig.name in out:
                 out[sig.name] = _continued(out[sig.name], part)
                 continue
@@ -116,6 +134,25 @@ def _read_mdf(path: Path) -> dict[str, RawChannel]:
     if not out:
         raise RailsuspInputError(f"recording {path}: no numeric channel in the file")
     return out
+
+
+def _group_time(times: dict[int, np.ndarray], sig: Any, scale: float) -> np.ndarray:
+    """The time base (s) of the channel's data group, converted once per group."""
+    group = sig.group_index
+    if group not in times or times[group].size != len(sig.timestamps):
+        times[group] = np.asarray(sig.timestamps, dtype=float) * scale
+    return times[group]
+
+
+def _values(sig: Any) -> np.ndarray:
+    """A channel's samples as floats, those the logger marked invalid NaN (then checked as
+    gaps are)."""
+    values = np.asarray(sig.samples, dtype=float)
+    if sig.invalidation_bits is not None:
+        invalid = np.asarray(sig.invalidation_bits, dtype=bool)
+        if invalid.any():
+            values = np.where(invalid, np.nan, values)
+    return values
 
 
 def _continued(before: RawChannel, part: RawChannel) -> RawChannel:
@@ -141,6 +178,7 @@ def _continued(before: RawChannel, part: RawChannel) -> RawChannel:
                 np.concatenate([c.values for c in order]),
                 first_row=0,
                 master=before.master,
+                listed=before.listed,
             )
     before.groups += 1
     return before

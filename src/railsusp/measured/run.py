@@ -32,6 +32,7 @@ from railsusp.measured.channels import (
     check_recording_name,
     default_map,
     documented_twice,
+    is_documented,
 )
 from railsusp.measured.checks import (
     MAX_GAP_SAMPLES,
@@ -154,7 +155,11 @@ def read_run(
     if channel_map is not None:  # before the file is read: a long run takes a while
         check_recording_name(channel_map, path)
     try:
-        raw = read_raw(path, channel_map.time if channel_map else None)
+        raw = read_raw(
+            path,
+            channel_map.time if channel_map else None,
+            keep=set(channel_map.used()).__contains__ if channel_map else is_documented,
+        )
     except RecordingError:  # the table file's problems, listed
         raise
     except RailsuspInputError as exc:
