@@ -14,7 +14,8 @@ force_reference_wedge_pair.npz: ``[secondary] wedge_half_spacing = 0``;
 force_reference_2026-11-30.1.npz: the wagon fields of
 ``railsusp.vehicle.wagon.FORCE_LAWS_BEFORE_2026_11_30_2``; force_reference_2026-11-30.2.npz:
 those of ``FORCE_LAWS_BEFORE_2026_12_02_1``; force_reference_2026-12-02.1.npz: those of
-``FORCE_LAWS_BEFORE_2026_12_03_1``).
+``FORCE_LAWS_BEFORE_2026_12_03_1``; force_reference_2026-12-03.1.npz: those of
+``FORCE_LAWS_BEFORE_2026_12_03_2``).
 """
 
 from __future__ import annotations

@@ -9,8 +9,9 @@ each run on its own track, a design seed no training campaign used, so that ever
 held out (all of them are scored, not a test split). The rows say how the networks do, and
 ``nominal wagon`` how much the nominal wagon's response alone explains.
 
-``--wagon-fields before-2026-12-03.1`` makes the campaign with the wagon fields that restore
-the force laws of revision 2026-12-02.1 (``FORCE_LAWS_BEFORE_2026_12_03_1``),
+``--wagon-fields before-2026-12-03.2`` makes the campaign with the wagon fields that restore
+the force laws of revision 2026-12-03.1 (``FORCE_LAWS_BEFORE_2026_12_03_2``),
+``before-2026-12-03.1`` those of revision 2026-12-02.1 (``FORCE_LAWS_BEFORE_2026_12_03_1``),
 ``before-2026-12-02.1`` those of revision 2026-11-30.2 (``FORCE_LAWS_BEFORE_2026_12_02_1``),
 ``before-2026-11-30.2`` those of revision 2026-11-30.1 (``FORCE_LAWS_BEFORE_2026_11_30_2``,
 which includes the later switches): the same tracks and parameter sets on an earlier model,
@@ -24,7 +25,8 @@ the A/B of a change.
 ``compare.csv``, NOTE (why they serve today's simulator: the figures of this table beside
 those of the model they were trained on) goes into the manifest, and the bundles take
 today's wagon, whose fields may differ from the one they were trained on in the switches
-of the revisions since the set's only (a set of 2026-12-02.1: ``FORCE_LAWS_BEFORE_2026_12_03_1``;
+of the revisions since the set's only (a set of 2026-12-03.1: ``FORCE_LAWS_BEFORE_2026_12_03_2``;
+of 2026-12-02.1: ``FORCE_LAWS_BEFORE_2026_12_03_1``;
 of 2026-11-30.2: ``FORCE_LAWS_BEFORE_2026_12_02_1``;
 an older one: ``FORCE_LAWS_BEFORE_2026_11_30_2``, which holds every later switch too).
 """
@@ -50,18 +52,21 @@ from railsusp.vehicle.wagon import (
     FORCE_LAWS_BEFORE_2026_11_30_2,
     FORCE_LAWS_BEFORE_2026_12_02_1,
     FORCE_LAWS_BEFORE_2026_12_03_1,
+    FORCE_LAWS_BEFORE_2026_12_03_2,
     load_wagon,
 )
 
 #: the wagon fields a set of each revision may differ in from today's wagon when carried
 #: over: those switched since (an older set's: every switch, FORCE_LAWS_BEFORE_2026_11_30_2)
 SWITCHED_SINCE = {
+    "2026-12-03.1": FORCE_LAWS_BEFORE_2026_12_03_2,
     "2026-12-02.1": FORCE_LAWS_BEFORE_2026_12_03_1,
     "2026-11-30.2": FORCE_LAWS_BEFORE_2026_12_02_1,
 }
 
 WAGON_FIELDS = {
     "today": {},
+    "before-2026-12-03.2": FORCE_LAWS_BEFORE_2026_12_03_2,
     "before-2026-12-03.1": FORCE_LAWS_BEFORE_2026_12_03_1,
     "before-2026-12-02.1": FORCE_LAWS_BEFORE_2026_12_02_1,
     "before-2026-11-30.2": FORCE_LAWS_BEFORE_2026_11_30_2,

@@ -28,5 +28,9 @@ cached by Numba in a folder keyed by their sources (:mod:`railsusp.vehicle.kerne
 #: moments) and the connections between bodies at different positions take the design twist
 #: (the primary's deflections, the centre plate's lateral one; docs/model.md, "Transitions";
 #: tangent forces unchanged, to 2e-13; wagon fields that restore them:
-#: railsusp.vehicle.wagon.FORCE_LAWS_BEFORE_2026_12_03_1)
-MODEL_REVISION = "2026-12-03.1"
+#: railsusp.vehicle.wagon.FORCE_LAWS_BEFORE_2026_12_03_1); 2026-12-03.2: the side frames'
+#: yaw moves the cross-bracing pins (X10 / 2 - b2 outboard of their centrelines) and the axle
+#: boxes (b1 - b2; zero for the K6) longitudinally, so that a rigid yaw of the bogie strains
+#: no bar (it stretched one and shortened the other, 1.7 kN each at 5 mrad; docs/model.md;
+#: wagon fields that restore it: railsusp.vehicle.wagon.FORCE_LAWS_BEFORE_2026_12_03_2)
+MODEL_REVISION = "2026-12-03.2"

@@ -105,6 +105,8 @@ def mode_dissipation(result: ModalResult, point: LinearisationPoint, mode: int) 
     sb_half = 0.5 * P[10]
     # the side frames roll with their wheelsets (model.side_frame_roll; arms 0 without)
     arm_n, arm_a = K[k["sf_arm_nest"]], K[k["sf_arm_axle"]]
+    # the axle boxes' lateral offset from the side frame's centreline (model.rhs's box_out)
+    box_out = (b1 - b2) * K[k["sf_yaw_levers"]]
     sf_rate = [0.5 * (v[L.WS0 + 8 * b + 2] + v[L.WS0 + 8 * b + 6]) for b in range(2)]
     sf_roll = [0.5 * (q[L.WS0 + 8 * b + 2] + q[L.WS0 + 8 * b + 6]) for b in range(2)]
     for b in range(2):
@@ -172,13 +174,14 @@ def mode_dissipation(result: ModalResult, point: LinearisationPoint, mode: int) 
         f = m[iw : iw + 4] * acc[iw : iw + 4]  # all generalised forces on the wheelset
         for sidx, side in enumerate((1.0, -1.0)):
             jf = L.SF0 + 5 * (2 * b + sidx)
-            dvx = v[jf] + side * b1 * v[iw + 3]
+            dvx = v[jf] - side * box_out * v[jf + 4] + side * b1 * v[iw + 3]
             dvy, fy = lateral[ws, sidx]
             dvz = (v[iw + 1] + side * b1 * v[iw + 2]) - (v[jf + 2] - e * v[jf + 3])
             add(ELEMENTS[9], c_px, dvx)
             add(ELEMENTS[10], c_py, dvy)
             add(ELEMENTS[11], c_pz, dvz)
-            fx = k_px * (q[jf] + side * b1 * q[iw + 3]) + c_px * dvx
+            dx = q[jf] - side * box_out * q[jf + 4] + side * b1 * q[iw + 3]
+            fx = k_px * dx + c_px * dvx
             dz = (q[iw + 1] + side * b1 * q[iw + 2]) - (q[jf + 2] - e * q[jf + 3])
             fz = k_pz * dz + c_pz * dvz
             f[0] -= fy

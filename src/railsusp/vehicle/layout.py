@@ -57,6 +57,10 @@ _K_NAMES = (
     # both 0 without): the heights of the bolster's and the axles' lateral forces above the
     # side frame's centre of gravity, m
     "sf_arm_nest", "sf_arm_axle",
+    # 1.0: the cross-bracing pins' and the axle boxes' lateral offsets from the side frame's
+    # centreline are levers of its yaw (wagon [side_frame] yaw_levers; 0.0: their motion
+    # taken at the centreline, before revision 2026-12-03.2)
+    "sf_yaw_levers",
     # the car body's gravity (P-delta) roll moment per radian of roll, W h (N m/rad; W its
     # static support load, h its CG's height above the centre plate; 0 without, wagon
     # [car_body] gravity_roll_moment); the coupler line's angle per unit curvature, m

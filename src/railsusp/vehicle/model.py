@@ -94,6 +94,7 @@ I_IXC, I_IYC, I_IZC, I_IXB, I_IZB = _K["Ix_c"], _K["Iy_c"], _K["Iz_c"], _K["Ix_b
 I_IYF = _K["Iy_f"]
 I_IZF, I_IXW, I_IZW, I_HB, I_HF = _K["Iz_f"], _K["Ix_w"], _K["Iz_w"], _K["h_cg_b"], _K["h_cg_f"]
 I_FROT, I_TWIST, I_TURNW = _K["frame_rotation"], _K["design_twist"], _K["turn_half_window"]
+I_SFYL = _K["sf_yaw_levers"]
 I_TE0, I_TE1, I_TX0, I_TX1 = (_K[name] for name in L.TURN_SPANS)
 I_INV_MC, I_INV_IXC, I_INV_IYC, I_INV_IZC = (
     _K["inv_m_c"], _K["inv_Ix_c"], _K["inv_Iy_c"], _K["inv_Iz_c"]
@@ -219,6 +220,11 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
     l_w = K[I_LW]  # front and rear wedges' longitudinal offset from the nest centre
     k_bar = P[18]  # X19
     h9 = 0.5 * P[8]
+    # a side frame's yaw moves a point off its centreline longitudinally: the cross-bracing
+    # pins lie X10 / 2 - b2 outboard of it, the axle boxes b1 - b2 (wagon [side_frame]
+    # yaw_levers; 0 before revision 2026-12-03.2)
+    pin_out = (0.5 * P[9] - b2) * K[I_SFYL]
+    box_out = (b1 - b2) * K[I_SFYL]
     bar_len = math.sqrt(P[8] * P[8] + P[9] * P[9])
     ux = P[8] / bar_len
     uy = P[9] / bar_len
@@ -387,15 +393,17 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
             e_r = -e_l
             dirx = -ux if bar == 0 else ux  # unit vector from the left to the right pin
             diry = -uy
-            dux = q[jr] - q[jl]
+            # the pins at (e_l, +pin_out) from the left frame's centre, (e_r, -pin_out) from
+            # the right one's: a point (e, y) of a frame yawed psi moves by (-y psi, e psi)
+            dux = (q[jr] + pin_out * q[jr + 4]) - (q[jl] - pin_out * q[jl + 4])
             duy = (q[jr + 1] + e_r * q[jr + 4]) - (q[jl + 1] + e_l * q[jl + 4])
             t_bar = k_bar * (dirx * dux + diry * duy)
             acc[jl] += t_bar * dirx
             acc[jl + 1] += t_bar * diry
-            acc[jl + 4] += e_l * t_bar * diry
+            acc[jl + 4] += t_bar * (e_l * diry - pin_out * dirx)
             acc[jr] -= t_bar * dirx
             acc[jr + 1] -= t_bar * diry
-            acc[jr + 4] -= e_r * t_bar * diry
+            acc[jr + 4] -= t_bar * (e_r * diry + pin_out * dirx)
 
         # ===== side frames <-> wheelsets (primary, per axle box) =====
         for wi in range(2):
@@ -436,11 +444,17 @@ def rhs(x, dxdt, P, K, trk, s0, ds, ctab, y0, dy, H0L, H0R, s_front, out):
                 side = 1.0 if sidx == 0 else -1.0
                 jf = SF0 + 5 * (2 * k + sidx)
                 # longitudinal [X13 in series with X20]
-                dx_p = q[jf] + side * b1 * yaw_w_b
-                dvx = v[jf] + side * b1 * (v[iw + 3] + V * (kap_w - kap_b))
+                # (the side frame's point at the axle box, side box_out off its centreline)
+                dx_p = q[jf] - side * box_out * q[jf + 4] + side * b1 * yaw_w_b
+                dvx = (
+                    v[jf]
+                    - side * box_out * v[jf + 4]
+                    + side * b1 * (v[iw + 3] + V * (kap_w - kap_b))
+                )
                 f_x = k_px * dx_p + K[I_CPX] * dvx  # on wheelset box, x
                 acc[iw + 3] += -side * b1 * f_x
                 acc[jf] -= f_x
+                acc[jf + 4] += side * box_out * f_x
                 # lateral [X14 in series with X20]
                 dy_p = q[jf + 1] + e * (q[jf + 4]) - arm_a * th_sf - dev_w - (q[iw] - r0 * tw_w)
                 dvy = v[jf + 1] + e * v[jf + 4] - arm_a * om_sf - (v[iw] - r0 * tw_rate_w)

@@ -157,6 +157,7 @@ def constants(
         "sf_arm_axle": (
             (wagon.wheelset.rolling_radius - sf.cg_height) if sf.roll_held_by_axle_boxes else 0.0
         ),
+        "sf_yaw_levers": 1.0 if sf.yaw_levers else 0.0,
         "x_coupler_line": (
             cb.coupler_half_spacing
             if cb.length_over_couplers is None

@@ -154,12 +154,21 @@ class WagonData(WagonSection):
         )
 
 
-#: the wagon fields that give the force laws of revision 2026-12-02.1 and before: the
-#: track-following frames' rotation left out of the bodies' equations (their yaw and roll
-#: accelerations in transitions, the frame's rates in the wheelsets' gyroscopic moments), and
-#: the primary's deflections and the centre plate's lateral one blind to the design twist
-#: between bodies at different positions (docs/model.md, "Transitions")
+#: the wagon fields that give the force laws of revision 2026-12-03.1: the side frames' yaw
+#: blind to the cross-bracing pins' and the axle boxes' lateral offsets from their
+#: centrelines (docs/model.md, "Spring nests and friction wedges")
+FORCE_LAWS_BEFORE_2026_12_03_2 = {
+    "side_frame.yaw_levers": False,
+}
+
+#: the wagon fields that give the force laws of revision 2026-12-02.1 and before: those of
+#: :data:`FORCE_LAWS_BEFORE_2026_12_03_2`, and the track-following frames' rotation left out
+#: of the bodies' equations (their yaw and roll accelerations in transitions, the frame's
+#: rates in the wheelsets' gyroscopic moments), and the primary's deflections and the centre
+#: plate's lateral one blind to the design twist between bodies at different positions
+#: (docs/model.md, "Transitions")
 FORCE_LAWS_BEFORE_2026_12_03_1 = {
+    **FORCE_LAWS_BEFORE_2026_12_03_2,
     "track.frame_rotation": False,
     "track.design_twist": False,
 }

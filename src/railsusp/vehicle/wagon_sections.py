@@ -124,13 +124,19 @@ class SideFrame(WagonSection):
     its wheelsets (the mean of their roll), so that the couple of the lateral forces that
     enter it at the bolster's height and leave it at the axles' reaches the wheelsets as a
     moment (their wheel loads); false leaves that couple out (the model before
-    2026-11-30.2, whose outer-inner load transfer in a curve was 8-12 % small)."""
+    2026-11-30.2, whose outer-inner load transfer in a curve was 8-12 % small).
+
+    ``yaw_levers`` (default true): the cross-bracing pins (X10 / 2 from the wagon's
+    centreline) and the axle boxes (b1) lie off the side frame's centreline (b2), so that
+    its yaw moves them longitudinally too; without it a rigid yaw of the bogie strained the
+    bars (1.7 kN each at 5 mrad). False: the model before revision 2026-12-03.2."""
 
     mass: float = _within(5000.0, 10.0, "kg")
     pitch_inertia: float = Field(**_POS)
     yaw_inertia: float = Field(**_POS)
     cg_height: float = _within(2.0, description="m above rail top")
     roll_held_by_axle_boxes: bool = True
+    yaw_levers: bool = True
 
     @model_validator(mode="after")
     def _inertias_of_its_mass(self) -> SideFrame:
